@@ -1,0 +1,3 @@
+from calidar.cli import main
+
+main()

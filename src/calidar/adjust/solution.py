@@ -1,0 +1,150 @@
+"""The result of an adjustment: estimates, σ, correlations, diagnostics, history."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from calidar.adjust.parameters import ParameterSet
+from calidar.outputs import write_text_atomic
+
+#: |correlation| above which two parameters are reported as not separated by the data.
+CORRELATION_WARNING = 0.95
+#: Relative eigenvalue of the scaled normal matrix below which a direction is unobservable.
+RANK_TOLERANCE = 1e-10
+
+
+def residual_stats(r: np.ndarray, weights: np.ndarray | None = None) -> dict:
+    """Summary statistics of residuals (observation units)."""
+    r = np.asarray(r, float)
+    out = {
+        "n": int(r.size),
+        "rms": float(np.sqrt(np.mean(r * r))) if r.size else float("nan"),
+        "mean": float(np.mean(r)) if r.size else float("nan"),
+        "median": float(np.median(r)) if r.size else float("nan"),
+        "max_abs": float(np.max(np.abs(r))) if r.size else float("nan"),
+    }
+    if weights is not None and r.size:
+        out["downweighted_fraction"] = float(np.mean(weights < 0.5))
+    return out
+
+
+@dataclass
+class Solution:
+    """Estimates with their covariance and diagnostics. Values/σ SI inside; JSON in display units."""
+
+    parameters: ParameterSet
+    covariance: np.ndarray  #: (n_free, n_free), SI
+    sigma0: float  #: a-posteriori standard deviation of unit weight
+    dof: float  #: effective redundancy (robustly down-weighted observations count partly)
+    condition_number: float
+    warnings: list[str] = field(default_factory=list)
+    residuals: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    residuals_before: dict = field(default_factory=dict)
+    residuals_after: dict = field(default_factory=dict)
+    history: list[dict] = field(default_factory=list)
+    converged: bool = True
+    extra: dict = field(default_factory=dict)  #: method-specific results for the JSON
+
+    @classmethod
+    def from_normal_matrix(cls, params, N, sigma0_sq, dof, *, residuals, weights, before, history,
+                           converged, jacobian=None) -> "Solution":
+        names = params.free_names
+        d = np.sqrt(np.clip(np.diag(N), 1e-300, None))
+        Ns = N / np.outer(d, d)
+        evals, evecs = np.linalg.eigh(Ns)
+        cond = float(evals[-1] / max(evals[0], 1e-300))
+        warnings = []
+        zero_cols = []
+        if jacobian is not None and jacobian.size:
+            zero_cols = [names[j] for j in range(len(names)) if not np.any(jacobian[:, j])]
+            for nm in zero_cols:
+                warnings.append(f"{nm} is not observable: no observation depends on it; its value is the start value")
+        bad = evals < RANK_TOLERANCE * evals[-1]
+        for k in np.flatnonzero(bad):
+            v = evecs[:, k]
+            involved = [names[j] for j in np.argsort(-np.abs(v)) if abs(v[j]) > 0.2 and names[j] not in zero_cols]
+            if involved:
+                warnings.append(
+                    "the data cannot separate " + " and ".join(involved)
+                    + ": only a combination of them is determined (a singular direction of the normal equations)"
+                )
+        cov_s = evecs[:, ~bad] @ np.diag(1.0 / evals[~bad]) @ evecs[:, ~bad].T
+        cov = sigma0_sq * cov_s / np.outer(d, d)
+        sig = np.sqrt(np.clip(np.diag(cov), 0, None))
+        if np.any(bad):
+            # directions with no information: σ is infinite along them
+            for k in np.flatnonzero(bad):
+                sig[np.abs(evecs[:, k]) > 0.2] = np.inf
+            np.fill_diagonal(cov, np.where(np.isinf(sig), np.inf, np.diag(cov)))
+        with np.errstate(invalid="ignore", divide="ignore"):
+            corr = cov / np.outer(sig, sig)
+        for i in range(len(names)):
+            for j in range(i + 1, len(names)):
+                if np.isfinite(corr[i, j]) and abs(corr[i, j]) > CORRELATION_WARNING:
+                    warnings.append(
+                        f"{names[i]} and {names[j]} are strongly correlated (ρ = {corr[i, j]:+.3f}): "
+                        "the data barely separate them and their σ are large"
+                    )
+        return cls(
+            parameters=params, covariance=cov, sigma0=float(np.sqrt(sigma0_sq)), dof=float(dof),
+            condition_number=cond, warnings=warnings, residuals=residuals,
+            residuals_before=before, residuals_after=residual_stats(residuals, weights),
+            history=history, converged=converged,
+        )
+
+    @property
+    def sigma(self) -> dict[str, float]:
+        """σ of each free parameter (SI)."""
+        return dict(zip(self.parameters.free_names, np.sqrt(np.clip(np.diag(self.covariance), 0, None))))
+
+    @property
+    def correlation(self) -> np.ndarray:
+        s = np.sqrt(np.clip(np.diag(self.covariance), 1e-300, None))
+        with np.errstate(invalid="ignore"):
+            return self.covariance / np.outer(s, s)
+
+    @property
+    def values(self) -> dict[str, float]:
+        return self.parameters.values()
+
+    def to_dict(self, truth: dict[str, float] | None = None) -> dict:
+        """The ``solution.json`` document: display units; ``truth`` (SI) adds truth and error."""
+        sig = self.sigma
+        params = {}
+        for p in self.parameters:
+            entry = {"value": p.to_display(p.value), "sigma": None, "unit": p.display_unit, "free": p.free}
+            if p.name in sig:
+                s = sig[p.name]
+                entry["sigma"] = p.to_display(s) if np.isfinite(s) else None
+            if truth and p.name in truth:
+                entry["truth"] = p.to_display(truth[p.name])
+                entry["error"] = p.to_display(p.value - truth[p.name])
+            params[p.name] = entry
+        corr = self.correlation
+        return {
+            "parameters": params,
+            "correlation": {
+                "names": self.parameters.free_names,
+                "matrix": [[None if not np.isfinite(v) else round(float(v), 6) for v in row] for row in corr],
+            },
+            "residuals": {"before": self.residuals_before, "after": self.residuals_after},
+            "sigma0": self.sigma0,
+            "dof": self.dof,
+            "condition_number": self.condition_number,
+            "converged": self.converged,
+            "warnings": self.warnings,
+            "history": [
+                {**{k: v for k, v in h.items() if k != "values"},
+                 "values": {p.name: p.to_display(h["values"][p.name]) for p in self.parameters.free}}
+                for h in self.history
+            ],
+            **self.extra,
+        }
+
+    def write_json(self, path: str | Path, truth: dict[str, float] | None = None, force: bool = True) -> Path:
+        """Write solution.json atomically."""
+        return write_text_atomic(path, json.dumps(self.to_dict(truth), indent=2, allow_nan=False) + "\n", force)

@@ -1,0 +1,162 @@
+"""Gauss–Newton / Levenberg–Marquardt with robust (IRLS) reweighting.
+
+Model: residual functions r(θ) over arrays, observations with a-priori σ, optional priors
+on parameters as pseudo-observations. The covariance of the free parameters is
+σ0² · (JᵀWJ + P)⁻¹ with σ0² the a-posteriori variance factor.
+
+Robust weights (Huber, Cauchy) act on standardised residuals u = r / (σ · s), where s is
+a robust scale (1.4826 · MAD of r/σ) re-estimated every iteration, so that clutter
+(vegetation, moving objects) loses weight while well-modelled observations keep it.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+
+from calidar.adjust.parameters import ParameterSet
+from calidar.adjust.solution import Solution, residual_stats
+from calidar.errors import CalibrationError
+
+ResidualFn = Callable[[dict[str, float]], np.ndarray]
+JacobianFn = Callable[[dict[str, float]], np.ndarray]
+
+ROBUST_K = {"huber": 1.345, "cauchy": 2.385}
+
+
+def robust_weights(u: np.ndarray, kind: str | None, k: float | None = None) -> np.ndarray:
+    """IRLS weights for standardised residuals u (Huber or Cauchy; None → ones)."""
+    if kind is None:
+        return np.ones_like(u)
+    k = ROBUST_K[kind] if k is None else k
+    a = np.abs(u)
+    if kind == "huber":
+        return np.where(a <= k, 1.0, k / np.maximum(a, 1e-300))
+    if kind == "cauchy":
+        return 1.0 / (1.0 + (a / k) ** 2)
+    raise ValueError(f"robust must be 'huber', 'cauchy' or None, got {kind!r}")
+
+
+def numerical_jacobian(fn: ResidualFn, params: ParameterSet, x: np.ndarray) -> np.ndarray:
+    """Central differences of fn w.r.t. the free parameters, (n_obs, n_free)."""
+    cols = []
+    for j, p in enumerate(params.free):
+        h = p.diff_step
+        xp, xm = x.copy(), x.copy()
+        xp[j] += h
+        xm[j] -= h
+        cols.append((fn(params.values_with(xp)) - fn(params.values_with(xm))) / (2.0 * h))
+    return np.stack(cols, axis=1) if cols else np.zeros((0, 0))
+
+
+def solve(
+    residual_fn: ResidualFn,
+    params: ParameterSet,
+    *,
+    sigma: float | np.ndarray = 1.0,
+    jacobian_fn: JacobianFn | None = None,
+    robust: str | None = "cauchy",
+    robust_k: float | None = None,
+    max_iter: int = 30,
+    tol: float = 1e-10,
+    robust_scale: bool = True,
+    progress: Callable[[int, float], None] | None = None,
+) -> Solution:
+    """Least-squares estimate of the free parameters of ``params``.
+
+    residual_fn(values) → residuals (n,) in observation units for all parameter values (SI);
+    sigma: a-priori σ of the observations (scalar or (n,)); jacobian_fn: analytic Jacobian
+    (n, n_free) or None for central differences; robust: "cauchy" (default, for clutter), "huber" or None;
+    robust_scale: re-estimate the residual scale by MAD for the robust weights (set False
+    when σ is trusted); progress(iteration, cost) is called after every iteration.
+    """
+    free = params.free
+    if not free:
+        raise CalibrationError("no free parameters to estimate")
+    x = params.x()
+    prior_idx = np.array([i for i, p in enumerate(free) if p.prior_sigma is not None], dtype=int)
+    prior_c = np.array([free[i].prior_center for i in prior_idx])
+    prior_w = np.array([1.0 / free[i].prior_sigma ** 2 for i in prior_idx])
+
+    def evaluate(xv):
+        r = np.asarray(residual_fn(params.values_with(xv)), dtype=float)
+        if r.ndim != 1:
+            raise CalibrationError(f"residual function returned shape {r.shape}, expected (n,)")
+        return r
+
+    def jac(xv):
+        return jacobian_fn(params.values_with(xv)) if jacobian_fn else numerical_jacobian(residual_fn, params, xv)
+
+    r = evaluate(x)
+    n = r.size
+    sig = np.broadcast_to(np.asarray(sigma, float), (n,))
+    if n < len(free) - prior_idx.size:
+        raise CalibrationError(f"{n} observations cannot determine {len(free)} parameters")
+    if not np.all(np.isfinite(r)):
+        raise CalibrationError(f"{int(np.sum(~np.isfinite(r)))} residuals are not finite at the start")
+
+    def weights(rv):
+        """Relative robust weights (0..1) times 1/σ²."""
+        z = rv / sig
+        s = 1.0
+        if robust and robust_scale:
+            mad = 1.4826 * np.median(np.abs(z - np.median(z)))
+            s = mad if mad > 0 else 1.0
+        return robust_weights(z / s, robust, robust_k) / sig**2
+
+    def cost(rv, w, xv):
+        c = 0.5 * np.sum(w * rv * rv)
+        if prior_idx.size:
+            c += 0.5 * np.sum(prior_w * (xv[prior_idx] - prior_c) ** 2)
+        return float(c)
+
+    before = residual_stats(r)
+    history = []
+    lam = 1e-3
+    w = weights(r)
+    c = cost(r, w, x)
+    history.append({"iteration": 0, "cost": c, "rms": before["rms"], "values": params.values_with(x)})
+    converged = False
+    for it in range(1, max_iter + 1):
+        J = jac(x)
+        N = J.T @ (w[:, None] * J)
+        g = J.T @ (w * r)
+        if prior_idx.size:
+            N[prior_idx, prior_idx] += prior_w
+            g[prior_idx] += prior_w * (x[prior_idx] - prior_c)
+        dN = np.diag(N).copy()
+        dN[dN <= 0] = 1.0
+        for _ in range(12):
+            dx = -np.linalg.lstsq(N + lam * np.diag(dN), g, rcond=None)[0]
+            r_new = evaluate(x + dx)
+            c_new = cost(r_new, w, x + dx)
+            if np.isfinite(c_new) and c_new <= c:
+                break
+            lam *= 10.0
+        else:
+            break  # no descent possible: at the minimum to machine precision
+        x, r = x + dx, r_new
+        lam = max(lam / 10.0, 1e-12)
+        w = weights(r)
+        c_prev, c = c, cost(r, w, x)
+        history.append({"iteration": it, "cost": c, "rms": residual_stats(r)["rms"], "lambda": lam, "values": params.values_with(x)})
+        if progress:
+            progress(it, c)
+        steps = np.array([p.diff_step for p in free])
+        if np.all(np.abs(dx) < tol + 1e-4 * steps) or abs(c_prev - c) <= tol * max(c, 1e-300):
+            converged = True
+            break
+
+    J = jac(x)
+    N = J.T @ (w[:, None] * J)
+    if prior_idx.size:
+        N[prior_idx, prior_idx] += prior_w
+    # effective redundancy: down-weighted observations count by their relative weight
+    dof = max(float(np.sum(w * sig**2)) + prior_idx.size - len(free), 1.0)
+    sigma0_sq = 2.0 * cost(r, w, x) / dof
+    return Solution.from_normal_matrix(
+        params.updated(x), N, sigma0_sq, dof,
+        residuals=r, weights=w * sig**2, before=before, history=history, converged=converged,
+        jacobian=J,
+    )

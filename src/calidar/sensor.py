@@ -1,0 +1,182 @@
+"""The sensor model: mounting (boresight, lever arm), scanner, range model, output CRS.
+
+Range model: measured = (1 + range_scale) · true + range_offset, so georeferencing uses
+true = (measured − range_offset) / (1 + range_scale).
+Boresight R_bs = Rz(yaw) · Ry(pitch) · Rx(roll) rotates scanner-frame vectors into the body
+frame; the lever arm a_b is the scanner origin in the body frame (m).
+
+``sensor.toml`` (user units in the key names)::
+
+    crs = "EPSG:32611"              # output CRS of georeferenced points (optional)
+    [mounting]
+    boresight_roll_deg = 0.0
+    boresight_pitch_deg = 0.0
+    boresight_yaw_deg = 0.0
+    lever_arm_m = [0.0, 0.0, 0.0]   # x forward, y right, z down, in the body frame
+    [range]
+    offset_m = 0.0
+    scale_ppm = 0.0
+    [scanner]
+    model = "linear"                # see calidar.scanners.SCANNERS
+    scan_angle_offset_deg = 0.0
+    scan_angle_scale = 0.0
+"""
+
+from __future__ import annotations
+
+import tomllib
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+
+from calidar import frames
+from calidar.errors import InputError
+from calidar.outputs import write_text_atomic
+from calidar.scanners import Scanner, scanner_from_toml
+from calidar.scanners.linear import LinearScanner
+
+MOUNTING_PARAMETERS = ("boresight_roll", "boresight_pitch", "boresight_yaw", "lever_arm_x", "lever_arm_y", "lever_arm_z")
+RANGE_PARAMETERS = ("range_offset", "range_scale")
+
+
+@dataclass(frozen=True)
+class Sensor:
+    """A complete sensor model; all values SI (rad, m, ratio)."""
+
+    boresight_roll: float = 0.0
+    boresight_pitch: float = 0.0
+    boresight_yaw: float = 0.0
+    lever_arm_x: float = 0.0
+    lever_arm_y: float = 0.0
+    lever_arm_z: float = 0.0
+    range_offset: float = 0.0
+    range_scale: float = 0.0
+    scanner: Scanner = field(default_factory=LinearScanner)
+    crs: str | None = None
+
+    @property
+    def r_bs(self) -> np.ndarray:
+        """Boresight rotation scanner → body (3, 3)."""
+        return frames.rpy_to_matrix(self.boresight_roll, self.boresight_pitch, self.boresight_yaw)
+
+    @property
+    def lever_arm(self) -> np.ndarray:
+        """Lever arm a_b (3,), m."""
+        return np.array([self.lever_arm_x, self.lever_arm_y, self.lever_arm_z])
+
+    def true_range(self, measured_m) -> np.ndarray:
+        """Corrected range from the measured one, m."""
+        return (np.asarray(measured_m, float) - self.range_offset) / (1.0 + self.range_scale)
+
+    def measured_range(self, true_m) -> np.ndarray:
+        """What the instrument reports for a true range, m."""
+        return (1.0 + self.range_scale) * np.asarray(true_m, float) + self.range_offset
+
+    def parameters(self) -> dict[str, float]:
+        """Every estimable parameter by name (SI), scanner parameters included."""
+        out = {k: getattr(self, k) for k in MOUNTING_PARAMETERS + RANGE_PARAMETERS}
+        out.update(self.scanner.parameters())
+        return out
+
+    def with_parameters(self, **values: float) -> "Sensor":
+        """A copy with named parameters replaced (mounting, range or scanner ones)."""
+        own = {k: float(v) for k, v in values.items() if k in MOUNTING_PARAMETERS + RANGE_PARAMETERS}
+        rest = {k: float(v) for k, v in values.items() if k not in own}
+        scanner = self.scanner.with_parameters(**rest) if rest else self.scanner
+        return replace(self, scanner=scanner, **own)
+
+    def to_toml(self) -> str:
+        """sensor.toml text (degrees, metres, ppm)."""
+        lines = ["# calidar sensor model: angles in degrees, lengths in metres (docs/conventions.md)"]
+        if self.crs:
+            lines.append(f'crs = "{self.crs}"')
+        lines += [
+            "",
+            "[mounting]",
+            f"boresight_roll_deg = {_toml_value(np.degrees(self.boresight_roll))}",
+            f"boresight_pitch_deg = {_toml_value(np.degrees(self.boresight_pitch))}",
+            f"boresight_yaw_deg = {_toml_value(np.degrees(self.boresight_yaw))}",
+            f"lever_arm_m = {_toml_value([self.lever_arm_x, self.lever_arm_y, self.lever_arm_z])}",
+            "",
+            "[range]",
+            f"offset_m = {_toml_value(self.range_offset)}",
+            f"scale_ppm = {_toml_value(self.range_scale * 1e6)}",
+            "",
+            "[scanner]",
+        ]
+        for k, v in self.scanner.to_toml().items():
+            lines.append(f"{k} = {_toml_value(v)}")
+        return "\n".join(lines) + "\n"
+
+    def write(self, path: str | Path, force: bool = False) -> Path:
+        """Write sensor.toml atomically."""
+        return write_text_atomic(path, self.to_toml(), force=force)
+
+    @classmethod
+    def read(cls, path: str | Path) -> "Sensor":
+        """Read sensor.toml; unknown tables/keys and wrong types are clear errors."""
+        path = Path(path)
+        try:
+            doc = tomllib.loads(path.read_text(encoding="utf-8"))
+        except FileNotFoundError:
+            raise InputError(path, None, "file not found") from None
+        except tomllib.TOMLDecodeError as e:
+            raise InputError(path, None, f"not valid TOML ({e})") from None
+        return cls.from_dict(doc, str(path))
+
+    @classmethod
+    def from_dict(cls, doc: dict, source: str = "sensor.toml") -> "Sensor":
+        _only(doc, {"crs", "mounting", "range", "scanner"}, source, "")
+        m = doc.get("mounting", {})
+        _only(m, {"boresight_roll_deg", "boresight_pitch_deg", "boresight_yaw_deg", "lever_arm_m"}, source, "mounting.")
+        r = doc.get("range", {})
+        _only(r, {"offset_m", "scale_ppm"}, source, "range.")
+        lever = m.get("lever_arm_m", [0.0, 0.0, 0.0])
+        if not (isinstance(lever, list) and len(lever) == 3 and all(isinstance(v, (int, float)) for v in lever)):
+            raise InputError(source, "mounting.lever_arm_m", f"expected 3 numbers [x, y, z] in metres, got {lever!r}")
+        crs = doc.get("crs")
+        if crs is not None:
+            import pyproj
+
+            try:
+                pyproj.CRS.from_user_input(crs)
+            except pyproj.exceptions.CRSError:
+                raise InputError(source, "crs", f"expected a CRS pyproj knows (e.g. 'EPSG:32611'), got {crs!r}") from None
+        return cls(
+            boresight_roll=np.radians(_num(m, "boresight_roll_deg", source, "mounting.")),
+            boresight_pitch=np.radians(_num(m, "boresight_pitch_deg", source, "mounting.")),
+            boresight_yaw=np.radians(_num(m, "boresight_yaw_deg", source, "mounting.")),
+            lever_arm_x=float(lever[0]),
+            lever_arm_y=float(lever[1]),
+            lever_arm_z=float(lever[2]),
+            range_offset=_num(r, "offset_m", source, "range."),
+            range_scale=_num(r, "scale_ppm", source, "range.") * 1e-6,
+            scanner=scanner_from_toml(doc.get("scanner", {"model": "linear"}), source),
+            crs=crs,
+        )
+
+
+def _only(table: dict, known: set[str], source: str, prefix: str) -> None:
+    if not isinstance(table, dict):
+        raise InputError(source, prefix.rstrip(".") or None, "expected a table")
+    unknown = set(table) - known
+    if unknown:
+        raise InputError(source, prefix + sorted(unknown)[0], f"unknown key; expected one of {sorted(known)}")
+
+
+def _num(table: dict, key: str, source: str, prefix: str) -> float:
+    v = table.get(key, 0.0)
+    if isinstance(v, bool) or not isinstance(v, (int, float)):
+        raise InputError(source, prefix + key, f"expected a number, got {v!r}")
+    return float(v)
+
+
+def _toml_value(v) -> str:
+    if isinstance(v, str):
+        return f'"{v}"'
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, (list, tuple)):
+        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
+    return repr(float(v))

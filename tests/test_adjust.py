@@ -1,0 +1,83 @@
+import json
+
+import numpy as np
+import pytest
+
+from calidar.adjust import Parameter, ParameterSet, solve
+from calidar.errors import CalibrationError
+
+
+def _line(seed, outliers=0):
+    rng = np.random.default_rng(seed)
+    x = np.linspace(0, 10, 400)
+    y = 2.0 + 0.5 * x + rng.normal(0, 0.1, x.size)
+    if outliers:
+        y[rng.choice(x.size, outliers, replace=False)] += rng.uniform(2, 5, outliers)
+    return x, y
+
+
+def _params():
+    return ParameterSet([Parameter("a", 0.0, "m"), Parameter("b", 0.0, "1")])
+
+
+def test_recovers_line_and_sigma_is_honest():
+    z = []
+    for seed in range(100):
+        x, y = _line(seed)
+        sol = solve(lambda v: v["a"] + v["b"] * x - y, _params(), sigma=0.1, robust=None)
+        z.append((sol.values["a"] - 2.0) / sol.sigma["a"])
+    z = np.array(z)
+    # standardized errors ~ N(0, 1): their spread must be close to one
+    assert 0.8 < z.std() < 1.2
+    assert abs(z.mean()) < 0.35
+
+
+def test_robust_weighting_resists_outliers():
+    x, y = _line(3, outliers=60)
+    plain = solve(lambda v: v["a"] + v["b"] * x - y, _params(), sigma=0.1, robust=None)
+    robust = solve(lambda v: v["a"] + v["b"] * x - y, _params(), sigma=0.1, robust="cauchy")
+    assert abs(plain.values["a"] - 2.0) > 0.2
+    assert abs(robust.values["a"] - 2.0) < 0.05
+    assert robust.residuals_after["downweighted_fraction"] > 0.1
+
+
+def test_fixed_parameter_and_prior():
+    x, y = _line(4)
+    ps = ParameterSet([Parameter("a", 2.5, "m", free=False), Parameter("b", 0.0, "1")])
+    sol = solve(lambda v: v["a"] + v["b"] * x - y, ps, sigma=0.1)
+    assert sol.values["a"] == 2.5 and "a" not in sol.sigma
+    # a tight prior holds a parameter at its prior value
+    ps = ParameterSet([Parameter("a", 1.0, "m", prior_sigma=1e-6), Parameter("b", 0.0, "1")])
+    sol = solve(lambda v: v["a"] + v["b"] * x - y, ps, sigma=0.1)
+    assert sol.values["a"] == pytest.approx(1.0, abs=1e-5)
+
+
+def test_unobservable_and_correlated_parameters_are_named():
+    x, y = _line(5)
+    ps = ParameterSet([Parameter("a", 0.0, "m"), Parameter("b", 0.0, "1"), Parameter("c", 0.0, "m"),
+                       Parameter("d", 0.0, "m")])
+    sol = solve(lambda v: v["a"] + v["c"] + v["b"] * x - y, ps, sigma=0.1)
+    text = " ".join(sol.warnings)
+    assert "d is not observable" in text
+    assert "cannot separate" in text and "a" in text and "c" in text
+    assert sol.values["a"] + sol.values["c"] == pytest.approx(2.0, abs=0.05)
+
+
+def test_solution_json_schema():
+    x, y = _line(6)
+    sol = solve(lambda v: v["a"] + v["b"] * x - y, _params(), sigma=0.1)
+    doc = json.loads(json.dumps(sol.to_dict({"a": 2.0, "b": 0.5})))
+    assert set(doc) >= {"parameters", "correlation", "residuals", "history"}
+    assert doc["parameters"]["a"]["unit"] == "m" and doc["parameters"]["a"]["sigma"] > 0
+    assert abs(doc["parameters"]["a"]["error"]) < 4 * doc["parameters"]["a"]["sigma"]
+    assert doc["residuals"]["after"]["rms"] < doc["residuals"]["before"]["rms"]
+
+
+def test_angles_display_in_degrees():
+    p = Parameter("boresight_roll", np.radians(0.5), "rad")
+    assert p.display_unit == "deg" and p.to_display(p.value) == pytest.approx(0.5)
+
+
+def test_no_free_parameters_is_an_error():
+    with pytest.raises(CalibrationError):
+        solve(lambda v: np.zeros(3), ParameterSet([Parameter("a", 0.0, "m", free=False)]))
