@@ -1,0 +1,1 @@
+"""Strip adjustment: overlaps, correspondences (tie planes, VGICP), calibration, quality."""

@@ -1,0 +1,53 @@
+"""Correspondences between two strips: the one interface every matching method produces.
+
+A correspondence set links observations to the points of strip a and strip b through
+sparse averaging matrices, so the same residual serves point pairs (one point each side)
+and tie planes (a patch centroid on each side):
+
+    c_a = A · P_a(θ),   c_b = B · P_b(θ)               (n_obs, 3)
+    point_to_plane:  r = Σ normal · (c_a − c_b)         (n_obs,)  m
+    point_to_point:  r = (c_a − c_b).ravel()            (3·n_obs,) m
+
+P_a(θ), P_b(θ) are the strips' points re-georeferenced with the current parameters, in a
+local Cartesian frame (metres). ``normal`` is a unit vector per observation (the plane's
+normal in strip b); it is held fixed during one solve.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+
+
+@dataclass(frozen=True)
+class Correspondences:
+    strip_a: int  #: point_source_id (flight line) of strip a
+    strip_b: int
+    A: sp.csr_matrix  #: (n_obs, n_points_a) averaging weights, rows sum to 1
+    B: sp.csr_matrix  #: (n_obs, n_points_b)
+    normal: np.ndarray | None  #: (n_obs, 3) unit normals for point_to_plane, None for point_to_point
+    sigma_m: np.ndarray | float = 0.05  #: a-priori σ of each residual, m
+    method: str = "planes"  #: "planes" | "vgicp"
+
+    def __post_init__(self):
+        if self.A.shape[0] != self.B.shape[0]:
+            raise ValueError(f"A has {self.A.shape[0]} rows, B has {self.B.shape[0]}")
+        if self.normal is not None and self.normal.shape != (self.A.shape[0], 3):
+            raise ValueError(f"normal must be ({self.A.shape[0]}, 3), got {self.normal.shape}")
+
+    @property
+    def n_obs(self) -> int:
+        return self.A.shape[0]
+
+    @property
+    def kind(self) -> str:
+        return "point_to_point" if self.normal is None else "point_to_plane"
+
+    def residuals(self, points_a: np.ndarray, points_b: np.ndarray) -> np.ndarray:
+        """Residuals (m) for the strips' current points (local metres)."""
+        d = self.A @ points_a - self.B @ points_b
+        if self.normal is None:
+            return d.ravel()
+        return np.einsum("ij,ij->i", d, self.normal)
