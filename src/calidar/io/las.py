@@ -132,7 +132,8 @@ def las_crs(header: laspy.LasHeader) -> pyproj.CRS | None:
     return crs if crs is not None else _geokey_crs(header)
 
 
-def _check_gps_time(header: laspy.LasHeader, path: Path) -> str:
+def gps_time_system(header: laspy.LasHeader, path: Path) -> str:
+    """"gps_week_seconds" or "gps_adjusted_standard" (global-encoding bit 0); error without GPS time."""
     if "gps_time" not in header.point_format.dimension_names:
         raise InputError(path, "point_format",
                          f"point format {header.point_format.id} has no GPS time; expected formats 1 or 3–10")
@@ -176,7 +177,7 @@ def read_las(path: str | Path, crs=None, fields=OPTIONAL_FIELDS) -> LasPoints:
     path = Path(path)
     with _open(path) as reader:
         header = reader.header
-        time_system = _check_gps_time(header, path)
+        time_system = gps_time_system(header, path)
         rec = reader.read_points(header.point_count)
         return _points(rec, header, path, _resolve_crs(header, crs), time_system, fields)
 
@@ -187,10 +188,32 @@ def iter_las_chunks(path: str | Path, chunk_points: int = 2_000_000, crs=None,
     path = Path(path)
     with _open(path) as reader:
         header = reader.header
-        time_system = _check_gps_time(header, path)
+        time_system = gps_time_system(header, path)
         file_crs = _resolve_crs(header, crs)
         for rec in reader.chunk_iterator(chunk_points):
             yield _points(rec, header, path, file_crs, time_system, fields)
+
+
+def rewrite_las_xyz(src: str | Path, dst: str | Path, new_xyz, *, crs=None, chunk_points: int = 2_000_000,
+                    force: bool = False) -> int:
+    """Copy a LAS/LAZ file chunk by chunk, replacing coordinates by ``new_xyz(points) -> (n, 3)``
+    (same CRS, scales, offsets and point format; every other attribute kept). Returns the point count.
+
+    ``points`` is the chunk's :class:`LasPoints`. The output is written atomically.
+    """
+    src = Path(src)
+    n = 0
+    with _open(src) as reader, atomic_path(dst, force) as tmp:
+        header = reader.header
+        time_system = gps_time_system(header, src)
+        file_crs = _resolve_crs(header, crs)
+        with laspy.open(tmp, mode="w", header=header, do_compress=Path(dst).suffix.lower() == ".laz") as writer:
+            for rec in reader.chunk_iterator(chunk_points):
+                xyz = np.asarray(new_xyz(_points(rec, header, src, file_crs, time_system, OPTIONAL_FIELDS)), float)
+                rec.x, rec.y, rec.z = xyz[:, 0], xyz[:, 1], xyz[:, 2]
+                writer.write_points(rec)
+                n += len(rec)
+    return n
 
 
 def las_header(path: str | Path) -> laspy.LasHeader:
@@ -198,6 +221,11 @@ def las_header(path: str | Path) -> laspy.LasHeader:
     path = Path(path)
     with _open(path) as reader:
         return reader.header
+
+
+def las_time_system(path: str | Path) -> str:
+    """The GPS time system of a LAS/LAZ file from its header (error for formats without GPS time)."""
+    return gps_time_system(las_header(path), Path(path))
 
 
 def write_las(path: str | Path, xyz, crs, *, gps_time, scan_angle_deg, point_source_id, return_number=None,
