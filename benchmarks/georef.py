@@ -1,0 +1,62 @@
+"""Forward georeferencing speed: N points (default 10 million) with trajectory interpolation.
+
+Times the full ``calidar.georef.forward`` call (range correction, scanner directions,
+position interpolation, quaternion SLERP, the lidar equation) on a 200 Hz trajectory, and a
+plain memory copy (np.copy) of the same input and output arrays for scale.
+
+    NUMBA_NUM_THREADS=1 OMP_NUM_THREADS=1 PYTHONPATH=src python benchmarks/georef.py [N]
+"""
+
+from __future__ import annotations
+
+import platform
+import sys
+import time
+
+import numpy as np
+
+from calidar import georef
+from calidar.sensor import Sensor
+from calidar.trajectory import Trajectory
+
+
+def best_of(fn, repeats: int = 3) -> float:
+    """Shortest wall time of ``repeats`` calls, s."""
+    times = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - t0)
+    return min(times)
+
+
+def main(n: int = 10_000_000) -> None:
+    duration = 600.0
+    m = int(duration * 200) + 1
+    tt = 300000.0 + np.linspace(0.0, duration, m)
+    rng = np.random.default_rng(0)
+    traj = Trajectory(
+        tt, np.radians(45.0) + np.linspace(0, 6e-3, m), np.radians(7.0) + np.linspace(0, 6e-3, m), np.full(m, 1500.0),
+        0.05 * np.sin(tt), 0.02 * np.cos(tt / 3), np.full(m, 0.7) + 0.01 * np.sin(tt / 7),
+    )
+    sensor = Sensor(boresight_roll=1e-3, boresight_pitch=-2e-3, boresight_yaw=5e-4, lever_arm_x=0.2, range_offset=0.01)
+    t = np.sort(rng.uniform(tt[0], tt[-1], n))
+    rng_m = rng.uniform(1000.0, 2000.0, n)
+    ang = rng.uniform(-0.6, 0.6, n)
+    traj.ecef, traj.q_eb  # build the per-trajectory caches once, as any real run does
+    georef.forward(traj, sensor, t[:1000], rng_m[:1000], ang[:1000])  # JIT compile / load the cache
+    out = np.empty((n, 3))
+
+    t_fwd = best_of(lambda: georef.forward(traj, sensor, t, rng_m, ang))
+    t_copy = best_of(lambda: (np.copy(t), np.copy(rng_m), np.copy(ang), np.copy(out)))
+    moved = t.nbytes + rng_m.nbytes + ang.nbytes + out.nbytes
+    print(f"machine: {platform.processor() or platform.machine()}, {platform.python_version()}, numpy {np.__version__}")
+    print(f"forward georeferencing of {n:,} points ({m:,} trajectory records, SLERP): {t_fwd:.3f} s "
+          f"= {n / t_fwd / 1e6:.1f} M points/s")
+    print(f"np.copy of the same arrays ({moved / 1e9:.2f} GB: t, range, angle, output): {t_copy:.3f} s "
+          f"= {2 * moved / t_copy / 1e9:.1f} GB/s read+write")
+    print(f"ratio georeferencing / memory copy: {t_fwd / t_copy:.1f}")
+
+
+if __name__ == "__main__":
+    main(int(float(sys.argv[1])) if len(sys.argv) > 1 else 10_000_000)
