@@ -12,6 +12,7 @@ import typer
 from calidar import georef
 from calidar.cli.common import console
 from calidar.errors import InputError
+from calidar.io.csv import write_csv_rows
 from calidar.io.las import (
     LasPoints, adjusted_standard_to_week_seconds, iter_las_chunks, las_time_system, rewrite_las_xyz,
 )
@@ -120,8 +121,8 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
                 v = obs.vector_s
                 across = np.degrees(np.arctan2(v[:, 1], v[:, 2]))
                 along = np.degrees(np.arctan2(v[:, 0], np.hypot(v[:, 1], v[:, 2])))
-                np.savetxt(f, np.c_[chunk.gps_time[inside], obs.range_m, v, across, along],
-                           fmt=["%.6f", "%.4f", "%.4f", "%.4f", "%.4f", "%.6f", "%.6f"], delimiter=",")
+                write_csv_rows(f, [chunk.gps_time[inside], obs.range_m, v[:, 0], v[:, 1], v[:, 2], across, along],
+                               [6, 4, 4, 4, 4, 6, 6])
                 n += t.size
             cover.check(points)
         console.print(f"{n} points → {out}")
