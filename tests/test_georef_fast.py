@@ -65,7 +65,11 @@ def test_inverse_equals_numpy(sort):
     t, r, th, ph = _observations(tr, 50_000, sort, seed=1)
     p = georef.forward(tr, SENSOR, t, r, np.c_[th, ph])
     obs = georef.inverse(tr, SENSOR, t, p)
-    assert np.max(np.abs(obs.vector_s - _numpy_inverse_vectors(tr, SENSOR, t, p))) < 1e-9
+    v_ref = _numpy_inverse_vectors(tr, SENSOR, t, p)
+    assert np.max(np.abs(obs.vector_s - v_ref)) < 1e-9
+    rho = np.linalg.norm(v_ref, axis=1)
+    assert np.max(np.abs(obs.range_m - SENSOR.measured_range(rho))) < 1e-9
+    assert np.max(np.abs(obs.angles - SENSOR.scanner.angles(v_ref / rho[:, None]))) < 1e-12
     assert np.max(np.abs(obs.range_m - r)) < 1e-8
     assert np.max(np.abs(obs.angles - np.c_[th, ph])) < 1e-11
 
@@ -87,7 +91,12 @@ def test_generic_scanner_path_equals_numpy():
     s = Sensor(boresight_yaw=0.01, lever_arm_x=1.0, range_offset=0.2, scanner=_ConeScanner())
     t, r, th, _ = _observations(tr, 10_000, True, seed=2)
     ref = _numpy_forward_vectors(tr, s, t, s.true_range(r)[:, None] * s.scanner.directions(th))
-    assert np.max(np.abs(georef.forward(tr, s, t, r, th) - ref)) < 1e-9
+    p = georef.forward(tr, s, t, r, th)
+    assert np.max(np.abs(p - ref)) < 1e-9
+    obs = georef.inverse(tr, s, t, p)  # generic path: the scanner's own angles()
+    v_ref = _numpy_inverse_vectors(tr, s, t, p)
+    assert np.max(np.abs(obs.vector_s - v_ref)) < 1e-9
+    assert np.allclose(obs.angles, s.scanner.angles(v_ref / np.linalg.norm(v_ref, axis=1)[:, None]), atol=1e-12)
 
 
 def test_times_outside_the_trajectory_are_a_clear_error():

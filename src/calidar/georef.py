@@ -193,13 +193,29 @@ def forward(traj: Trajectory, sensor: Sensor, time, range_m, angles) -> np.ndarr
     return forward_vectors(traj, sensor, time, rho[:, None] * sc.directions(angles))
 
 
+@njit(cache=True, nogil=True)
+def _linear_observations(v_s, range_offset, range_scale, angle_offset, angle_scale, range_m, angles):
+    """Measured ranges and linear-scanner angles [θ, φ] of scanner vectors (N, 3), as
+    :meth:`calidar.scanners.linear.LinearScanner.angles` and :meth:`Sensor.measured_range`."""
+    for k in range(v_s.shape[0]):
+        x, y, z = v_s[k, 0], v_s[k, 1], v_s[k, 2]
+        range_m[k] = (1.0 + range_scale) * np.sqrt(x * x + y * y + z * z) + range_offset
+        angles[k, 0] = (np.arctan2(y, z) - angle_offset) / (1.0 + angle_scale)
+        angles[k, 1] = np.arctan2(x, np.hypot(y, z))
+
+
 def inverse(traj: Trajectory, sensor: Sensor, time, points_ecef) -> ScanObservations:
     """Scanner-frame vectors, measured ranges and scanner angles of points (N, 3) ECEF."""
     time = np.asarray(time, float)
     v_s = _run(_inverse_kernel, traj, sensor, time, _c(points_ecef).reshape(-1, 3))
+    sc = sensor.scanner
+    if type(sc) is LinearScanner:
+        range_m, angles = np.empty(time.size), np.empty((time.size, 2))
+        _linear_observations(v_s, float(sensor.range_offset), float(sensor.range_scale), float(sc.scan_angle_offset),
+                             float(sc.scan_angle_scale), range_m, angles)
+        return ScanObservations(time, range_m, angles, v_s)
     rho = np.linalg.norm(v_s, axis=1)
-    u = v_s / rho[:, None]
-    return ScanObservations(time, sensor.measured_range(rho), sensor.scanner.angles(u), v_s)
+    return ScanObservations(time, sensor.measured_range(rho), sc.angles(v_s / rho[:, None]), v_s)
 
 
 def regeoreference(traj: Trajectory, old: Sensor, new: Sensor, time, points_ecef) -> np.ndarray:
