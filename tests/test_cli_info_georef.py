@@ -103,6 +103,9 @@ def test_las_without_crs_and_without_gps_time(tmp_path, cli):
     code, _, err = cli("inverse", tmp_path / "nocrs.las", "-t", sbet, "--out", tmp_path / "v.csv")
     assert code == 1 and "nocrs.las: crs: the file has no CRS" in err and "Traceback" not in err
     assert cli("inverse", tmp_path / "nocrs.las", "-t", sbet, "--crs", CRS, "--out", tmp_path / "v.csv")[0] == 0
+    toml = Sensor().write(tmp_path / "s.toml")
+    code, _, err = cli("regeoref", tmp_path / "nocrs.las", "-t", sbet, "--from", toml, "--to", toml, "--out", tmp_path / "o")
+    assert code == 1 and "nocrs.las: crs: the file has no CRS" in err and not (tmp_path / "o").exists()
     fmt2 = laspy.create(point_format=2, file_version="1.2")
     fmt2.x, fmt2.y, fmt2.z = src.x, src.y, src.z
     fmt2.write(tmp_path / "fmt2.las")

@@ -14,7 +14,8 @@ from calidar.cli.common import console
 from calidar.errors import InputError
 from calidar.io.csv import write_csv_rows
 from calidar.io.las import (
-    LasPoints, adjusted_standard_to_week_seconds, iter_las_chunks, las_time_system, rewrite_las_xyz,
+    LasPoints, adjusted_standard_to_week_seconds, iter_las_chunks, las_crs, las_header, las_time_system,
+    rewrite_las_xyz,
 )
 from calidar.io.trajectory import is_binary, read_trajectory
 from calidar.outputs import atomic_path, check_writable, prepare_out_dir
@@ -22,6 +23,7 @@ from calidar.sensor import Sensor
 from calidar.trajectory import Trajectory
 
 CHUNK_POINTS = 2_000_000
+NO_CRS = "the file has no CRS (no WKT or GeoTIFF VLR); pass --crs (e.g. --crs EPSG:32611)"
 VECTOR_COLUMNS = ("gps_time", "range_m", "x_s", "y_s", "z_s", "across_track_angle_deg", "along_track_angle_deg")
 
 TRAJ_CRS = typer.Option(None, "--trajectory-crs", help="CRS of a text trajectory's x/y (or lat/lon) columns, e.g. EPSG:32615.")
@@ -54,7 +56,7 @@ def point_times(points: LasPoints, traj: Trajectory) -> np.ndarray:
 def points_ecef(points: LasPoints) -> np.ndarray:
     """Points (N, 3) in ECEF from their CRS; clear errors for no CRS or an impossible transform."""
     if points.crs is None:
-        raise InputError(points.path, "crs", "the file has no CRS (no WKT or GeoTIFF VLR); pass --crs (e.g. --crs EPSG:32611)")
+        raise InputError(points.path, "crs", NO_CRS)
     e = georef.from_crs(points.xyz, points.crs)
     if not np.all(np.isfinite(e)):
         raise InputError(points.path, "crs", f"cannot transform from {points.crs.name} to ECEF "
@@ -63,26 +65,32 @@ def points_ecef(points: LasPoints) -> np.ndarray:
 
 
 class Coverage:
-    """Counts points outside the trajectory's time span (reported once, after all chunks)."""
+    """Counts points outside the trajectory's time span over many chunks (count and time range
+    before and after it), to report them all at once."""
 
     def __init__(self, traj: Trajectory):
-        self.traj, self.total, self.before, self.after = traj, 0, [], []
+        self.traj, self.total = traj, 0
+        self.outside = {"before": [0, np.inf, -np.inf], "after": [0, np.inf, -np.inf]}
 
     def inside(self, t: np.ndarray) -> np.ndarray:
+        """Mask of the times (GPS s) within the trajectory; counts the others."""
         self.total += t.size
         lo, hi = t < self.traj.time[0], t > self.traj.time[-1]
-        self.before.append(t[lo])
-        self.after.append(t[hi])
+        for side, mask in (("before", lo), ("after", hi)):
+            if mask.any():
+                o = self.outside[side]
+                o[:] = [o[0] + int(mask.sum()), min(o[1], float(t[mask].min())), max(o[2], float(t[mask].max()))]
         return ~(lo | hi)
 
     def check(self, source) -> None:
-        before, after = np.concatenate(self.before), np.concatenate(self.after)
-        if before.size + after.size == 0:
+        """Raise a clear error naming how many points fell outside and their time ranges."""
+        n = sum(o[0] for o in self.outside.values())
+        if n == 0:
             return
-        parts = [f"{a.size} {w} it ({a.min():.3f}–{a.max():.3f} s)" for a, w in ((before, "before"), (after, "after")) if a.size]
+        parts = [f"{o[0]} {side} it ({o[1]:.3f}–{o[2]:.3f} s)" for side, o in self.outside.items() if o[0]]
         raise InputError(
             source, "gps_time",
-            f"{before.size + after.size} of {self.total} points have GPS times outside the trajectory "
+            f"{n} of {self.total} points have GPS times outside the trajectory "
             f"{self.traj.source} ({self.traj.time[0]:.3f}–{self.traj.time[-1]:.3f} s): " + ", ".join(parts),
         )
 
@@ -113,10 +121,11 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
         with atomic_path(out, force) as tmp, open(tmp, "w", encoding="utf-8") as f:
             f.write(",".join(VECTOR_COLUMNS) + "\n")
             for chunk in iter_las_chunks(points, CHUNK_POINTS, crs=crs, fields=()):
-                inside = cover.inside(point_times(chunk, traj))
+                t = point_times(chunk, traj)
+                inside = cover.inside(t)
                 if not inside.any():
                     continue
-                t = point_times(chunk, traj)[inside]
+                t = t[inside]
                 obs = georef.inverse(traj, model, t, points_ecef(chunk.select(inside)))
                 v = obs.vector_s
                 across = np.degrees(np.arctan2(v[:, 1], v[:, 2]))
@@ -149,6 +158,8 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
             if s.resolve().parent == out.resolve():
                 raise InputError(s, None, "is inside --out; choose another output folder (inputs are never modified)")
             las_time_system(s)
+            if crs is None and las_crs(las_header(s)) is None:
+                raise InputError(s, "crs", NO_CRS)
         out_dir = prepare_out_dir(out, force)
         for s in strips:
             traj = matching_trajectory(traj0, las_time_system(s))
