@@ -11,7 +11,7 @@ import typer
 from calidar import frames
 from calidar.cli.common import console
 from calidar.cli.georef import TRAJ_ANGLES, TRAJ_HEADING, load_trajectory
-from calidar.io.las import iter_las_chunks, las_crs, las_header
+from calidar.io.las import gps_time_system, iter_las_chunks, las_crs, las_header
 from calidar.trajectory import SECONDS_PER_WEEK
 
 LAS_SUFFIXES = (".las", ".laz")
@@ -30,9 +30,8 @@ def las_info(path: Path, crs: str | None = None, chunk_points: int = 2_000_000) 
     header = las_header(path)
     lines: dict[int, list] = {}
     scan = [np.inf, -np.inf]
-    time_system = None
+    time_system = gps_time_system(header, path)
     for c in iter_las_chunks(path, chunk_points, crs=crs, fields=("scan_angle_deg", "point_source_id")):
-        time_system = c.time_system
         if len(c) == 0:
             continue
         scan = [min(scan[0], float(c.scan_angle_deg.min())), max(scan[1], float(c.scan_angle_deg.max()))]
