@@ -99,7 +99,7 @@ def _forward_kernel(tt, pos, q, t, vec, r_bs, lever, out):
     n_out, i, i_prev, theta, s, sign = 0, 0, -1, 0.0, 0.0, 1.0
     for k in range(t.size):
         tk = t[k]
-        n_out += tk < tt[0] or tk > tt[tt.size - 1]
+        n_out += not tt[0] <= tk <= tt[tt.size - 1]  # NaN counts as outside
         i, i_prev, theta, s, sign, px, py, pz, r00, r01, r02, r10, r11, r12, r20, r21, r22 = _pose(
             tt, pos, q, tk, i, i_prev, theta, s, sign)
         sx, sy, sz = vec[k, 0], vec[k, 1], vec[k, 2]
@@ -120,7 +120,7 @@ def _forward_linear_kernel(tt, pos, q, t, range_m, theta_enc, phi, range_offset,
     n_out, i, i_prev, theta, s, sign = 0, 0, -1, 0.0, 0.0, 1.0
     for k in range(t.size):
         tk = t[k]
-        n_out += tk < tt[0] or tk > tt[tt.size - 1]
+        n_out += not tt[0] <= tk <= tt[tt.size - 1]  # NaN counts as outside
         i, i_prev, theta, s, sign, px, py, pz, r00, r01, r02, r10, r11, r12, r20, r21, r22 = _pose(
             tt, pos, q, tk, i, i_prev, theta, s, sign)
         rho = (range_m[k] - range_offset) / (1.0 + range_scale)
@@ -146,7 +146,7 @@ def _inverse_kernel(tt, pos, q, t, p, r_bs, lever, out):
     n_out, i, i_prev, theta, s, sign = 0, 0, -1, 0.0, 0.0, 1.0
     for k in range(t.size):
         tk = t[k]
-        n_out += tk < tt[0] or tk > tt[tt.size - 1]
+        n_out += not tt[0] <= tk <= tt[tt.size - 1]  # NaN counts as outside
         i, i_prev, theta, s, sign, px, py, pz, r00, r01, r02, r10, r11, r12, r20, r21, r22 = _pose(
             tt, pos, q, tk, i, i_prev, theta, s, sign)
         dx, dy, dz = p[k, 0] - px, p[k, 1] - py, p[k, 2] - pz
