@@ -147,8 +147,11 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
         trajectory_crs: str = TRAJ_CRS, trajectory_angles: str = TRAJ_ANGLES, trajectory_heading: str = TRAJ_HEADING,
         force: bool = typer.Option(False, "--force", help="Write into a non-empty output folder, overwriting."),
     ) -> None:
-        """Re-georeference delivered strips with a new sensor model (inverse with --from, forward
-        with --to), streamed in chunks; every other point attribute is kept."""
+        """Re-georeference delivered strips with a new sensor model.
+
+        Inverse georeferencing with --from, forward with --to, streamed in chunks; every other
+        point attribute is kept, and the outputs keep the inputs' names, formats and CRS.
+        """
         old_s, new_s = Sensor.read(old), Sensor.read(new)
         traj0 = load_trajectory(trajectory, trajectory_crs, trajectory_angles, trajectory_heading)
         names = [s.name for s in strips]
