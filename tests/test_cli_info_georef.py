@@ -26,7 +26,7 @@ def _trajectory(n=1001):
     return Trajectory(t, lat, lon, np.full(n, 3000.0), np.radians(2 * np.sin(t)), np.full(n, 0.02), np.full(n, hd))
 
 
-def _survey(tmp_path, sensor, n=5000, time_system="gps_week_seconds", t_shift=0.0):
+def _survey(tmp_path, sensor, n=5000, time_system="gps_week_seconds", t_shift=0.0, name="pts.las"):
     """A trajectory (SBET) and a LAS of points georeferenced with ``sensor``; returns their truth."""
     tr = _trajectory()
     rng = np.random.default_rng(3)
@@ -35,7 +35,7 @@ def _survey(tmp_path, sensor, n=5000, time_system="gps_week_seconds", t_shift=0.
     rng_m = rng.uniform(2500, 3100, n)
     xyz = georef.to_crs(georef.forward(tr, sensor, t, rng_m, ang), CRS)
     stored_t = t + t_shift if time_system == "gps_week_seconds" else week_seconds_to_adjusted_standard(t, 2300)
-    las = write_las(tmp_path / "pts.las", xyz, CRS, gps_time=stored_t, scan_angle_deg=np.degrees(ang), point_source_id=4,
+    las = write_las(tmp_path / name, xyz, CRS, gps_time=stored_t, scan_angle_deg=np.degrees(ang), point_source_id=4,
                     intensity=np.arange(n) % 60000, time_system=time_system)
     sbet = write_sbet(tmp_path / "sbet.out", tr)
     return tr, las, sbet, dict(t=t, ang=ang, range=rng_m, xyz=xyz)
@@ -65,14 +65,17 @@ def test_inverse_recovers_simulated_observations(tmp_path, cli, time_system):
     assert cli("inverse", las, "--trajectory", sbet, "--out", tmp_path / "v.csv", "--force")[0] == 0
 
 
-def test_regeoref_matches_direct_georeferencing(tmp_path, cli):
+@pytest.mark.parametrize("name", ["pts.las", "pts.laz"])
+def test_regeoref_matches_direct_georeferencing(tmp_path, cli, name):
     old = Sensor()
     new = Sensor(boresight_roll=np.radians(0.1), boresight_yaw=np.radians(-0.05), lever_arm_z=-1.0)
-    tr, las, sbet, truth = _survey(tmp_path, old)
+    tr, las, sbet, truth = _survey(tmp_path, old, name=name)
     code, out, err = cli("regeoref", las, "-t", sbet, "--from", old.write(tmp_path / "old.toml"),
                          "--to", new.write(tmp_path / "new.toml"), "--out", tmp_path / "out")
     assert code == 0, err
-    moved = read_las(tmp_path / "out" / "pts.las")
+    moved = read_las(tmp_path / "out" / name)
+    with laspy.open(tmp_path / "out" / name) as r:
+        assert r.header.are_points_compressed == name.endswith(".laz") and r.header.point_count == 5000
     expected = georef.to_crs(georef.forward(tr, new, truth["t"], truth["range"], truth["ang"]), CRS)
     shift = np.linalg.norm(expected - truth["xyz"], axis=1)
     assert shift.min() > 1.0  # the change mattered (0.1° at ≈ 3 km ≈ 5 m)
