@@ -58,7 +58,7 @@ def _interval(tt, t, i):
 def _pose(tt, pos, q, tk, i, i_prev, theta, s, sign):
     """Position (linear) and attitude matrix (SLERP, as :func:`calidar.frames.slerp`) at time tk.
 
-    (i_prev, theta, s, sign) cache the SLERP angle of the last interval: recomputed only when
+    (i_prev, theta, s = 1/sin θ, sign) cache the SLERP angle of the last interval: recomputed only when
     the interval changes (cheap for time-sorted points). Returns the updated cache, then
     px, py, pz and the nine entries of R_eb row by row.
     """
@@ -68,19 +68,20 @@ def _pose(tt, pos, q, tk, i, i_prev, theta, s, sign):
         sign = -1.0 if dot < 0.0 else 1.0
         theta = np.arccos(min(abs(dot), 1.0))
         s = np.sin(theta)
+        s = 1.0 / s if s >= 1e-12 else 0.0  # cached as 1/sin θ (0: linear weights)
         i_prev = i
     f = (tk - tt[i]) / (tt[i + 1] - tt[i])
-    if s < 1e-12:
+    if s == 0.0:
         w0, w1 = 1.0 - f, f
     else:
-        w0, w1 = np.sin((1.0 - f) * theta) / s, np.sin(f * theta) / s
+        w0, w1 = np.sin((1.0 - f) * theta) * s, np.sin(f * theta) * s
     w1 *= sign
     qw = w0 * q[i, 0] + w1 * q[i + 1, 0]
     qx = w0 * q[i, 1] + w1 * q[i + 1, 1]
     qy = w0 * q[i, 2] + w1 * q[i + 1, 2]
     qz = w0 * q[i, 3] + w1 * q[i + 1, 3]
-    nrm = np.sqrt(qw * qw + qx * qx + qy * qy + qz * qz)
-    qw, qx, qy, qz = qw / nrm, qx / nrm, qy / nrm, qz / nrm
+    nrm = 1.0 / np.sqrt(qw * qw + qx * qx + qy * qy + qz * qz)
+    qw, qx, qy, qz = qw * nrm, qx * nrm, qy * nrm, qz * nrm
     return (
         i, i_prev, theta, s, sign,
         pos[i, 0] + f * (pos[i + 1, 0] - pos[i, 0]),
