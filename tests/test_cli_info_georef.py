@@ -15,14 +15,13 @@ T0 = 400000.0
 
 
 def _trajectory(n=1001):
+    """10 s at 100 Hz, 70 m/s on heading 30° at 3000 m over the Sierra Nevada, rolling ±2°."""
     t = T0 + np.arange(n) * 0.01
-    p0 = frames.geodetic_to_ecef(np.radians(37.7), np.radians(-119.0), 3000.0)
-    north_east = np.radians([37.7, -119.0])
+    lat0, lon0 = np.radians([37.7, -119.0])
     hd = np.radians(30.0)
     dist = 70.0 * (t - T0)
-    lat = north_east[0] + dist * np.cos(hd) / 6.37e6
-    lon = north_east[1] + dist * np.sin(hd) / (6.37e6 * np.cos(north_east[0]))
-    assert p0.shape == (3,)
+    lat = lat0 + dist * np.cos(hd) / 6.37e6
+    lon = lon0 + dist * np.sin(hd) / (6.37e6 * np.cos(lat0))
     return Trajectory(t, lat, lon, np.full(n, 3000.0), np.radians(2 * np.sin(t)), np.full(n, 0.02), np.full(n, hd))
 
 

@@ -8,7 +8,6 @@ from pathlib import Path
 import numpy as np
 import typer
 
-from calidar import frames
 from calidar.cli.common import console
 from calidar.cli.georef import TRAJ_ANGLES, TRAJ_HEADING, load_trajectory
 from calidar.io.las import gps_time_system, iter_las_chunks, las_crs, las_header
