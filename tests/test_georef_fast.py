@@ -113,6 +113,10 @@ def test_empty_and_mismatched_inputs():
     assert georef.forward(tr, SENSOR, np.empty(0), np.empty(0), np.empty(0)).shape == (0, 3)
     with pytest.raises(ValueError, match="expected 3 rows"):
         georef.forward(tr, SENSOR, tr.time[:3], np.ones(4), np.zeros(3))
+    with pytest.raises(ValueError, match="expected 3 rows"):
+        georef.forward(tr, SENSOR, tr.time[:3], np.empty(0), np.zeros(3))
+    with pytest.raises(ValueError, match="expected 3 rows"):
+        georef.inverse(tr, SENSOR, tr.time[:3], np.zeros((2, 3)))
 
 
 def test_nan_times_are_an_error_not_garbage():

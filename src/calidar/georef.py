@@ -114,10 +114,10 @@ def _forward_kernel(tt, pos, q, t, vec, r_bs, lever, out):
 
 
 @njit(cache=True, nogil=True)
-def _forward_linear_kernel(tt, pos, q, t, range_m, theta_enc, phi, range_offset, range_scale, angle_offset,
+def _forward_linear_kernel(tt, pos, q, t, range_m, theta_enc, phi, has_phi, range_offset, range_scale, angle_offset,
                            angle_scale, r_bs, lever, out):
     """:func:`_forward_kernel` fused with the range model and the linear scanner
-    (:class:`calidar.scanners.linear.LinearScanner`); ``phi`` empty means φ = 0."""
+    (:class:`calidar.scanners.linear.LinearScanner`); φ = 0 unless ``has_phi``."""
     n_out, i, i_prev, theta, s, sign = 0, 0, -1, 0.0, 0.0, 1.0
     for k in range(t.size):
         tk = t[k]
@@ -126,7 +126,7 @@ def _forward_linear_kernel(tt, pos, q, t, range_m, theta_enc, phi, range_offset,
             tt, pos, q, tk, i, i_prev, theta, s, sign)
         rho = (range_m[k] - range_offset) / (1.0 + range_scale)
         th = (1.0 + angle_scale) * theta_enc[k] + angle_offset
-        if phi.size:
+        if has_phi:
             cphi = np.cos(phi[k])
             sx, sy, sz = rho * np.sin(phi[k]), rho * (cphi * np.sin(th)), rho * (cphi * np.cos(th))
         else:
@@ -169,7 +169,7 @@ def _run(kernel, traj: Trajectory, sensor: Sensor, time, *args) -> np.ndarray:
     t = _c(time)
     out = np.empty((t.size, 3))
     for a in args:
-        if isinstance(a, np.ndarray) and a.shape[0] not in (t.size, 0):
+        if isinstance(a, np.ndarray) and a.shape[0] != t.size:
             raise ValueError(f"expected {t.size} rows to match the times, got an array of shape {a.shape}")
     if kernel(traj.time, _c(traj.ecef), _c(traj.q_eb), t, *args, _c(sensor.r_bs), _c(sensor.lever_arm), out):
         traj.check_covers(t)
@@ -186,8 +186,8 @@ def forward(traj: Trajectory, sensor: Sensor, time, range_m, angles) -> np.ndarr
     sc = sensor.scanner
     if type(sc) is LinearScanner:  # exactly: a subclass may change the beam model
         a = np.asarray(angles, dtype=float)
-        theta, phi = (a, np.empty(0)) if a.ndim == 1 else (a[:, 0], a[:, 1])
-        return _run(_forward_linear_kernel, traj, sensor, time, _c(range_m), _c(theta), _c(phi),
+        theta, phi = (a, a) if a.ndim == 1 else (a[:, 0], a[:, 1])
+        return _run(_forward_linear_kernel, traj, sensor, time, _c(range_m), _c(theta), _c(phi), a.ndim == 2,
                     float(sensor.range_offset), float(sensor.range_scale), float(sc.scan_angle_offset),
                     float(sc.scan_angle_scale))
     rho = sensor.true_range(range_m)
