@@ -10,6 +10,7 @@ plain memory copy (np.copy) of the same input and output arrays for scale; and
 
 from __future__ import annotations
 
+import os
 import platform
 import sys
 import time
@@ -19,6 +20,17 @@ import numpy as np
 from calidar import georef
 from calidar.sensor import Sensor
 from calidar.trajectory import Trajectory
+
+
+def machine() -> str:
+    """CPU model (Linux) or architecture, logical core count, Python and numpy versions."""
+    model = platform.machine()
+    try:
+        with open("/proc/cpuinfo", encoding="utf-8") as f:
+            model = next(ln.split(":", 1)[1].strip() for ln in f if ln.startswith("model name"))
+    except (OSError, StopIteration):
+        pass
+    return f"{model}, {os.cpu_count()} logical cores, Python {platform.python_version()}, numpy {np.__version__}"
 
 
 def best_of(fn, repeats: int = 3) -> float:
@@ -68,7 +80,7 @@ def main(n: int = 10_000_000) -> None:
     t_inv = best_of(inverse)
     t_copy = best_of(memory_copy)
     moved = t.nbytes + rng_m.nbytes + ang.nbytes + out.nbytes
-    print(f"machine: {platform.processor() or platform.machine()}, {platform.python_version()}, numpy {np.__version__}")
+    print(f"machine: {machine()}; one thread")
     print(f"forward georeferencing of {n:,} points ({m:,} trajectory records, SLERP): {t_fwd:.3f} s "
           f"= {n / t_fwd / 1e6:.1f} M points/s")
     print(f"inverse georeferencing (vectors, ranges, scan angles) of the same points: {t_inv:.3f} s "
