@@ -181,3 +181,22 @@ def test_inverse_real_leeward(real_data, cli, tmp_path):
     w = _vectors(tmp_path / "w.csv")
     assert np.corrcoef(w["across_track_angle_deg"], las.scan_angle_deg)[0, 1] > 0.999
     assert np.median(np.abs(w["across_track_angle_deg"] - las.scan_angle_deg)) < 0.5
+
+
+def test_inverse_with_a_projected_text_trajectory(tmp_path, cli):
+    """The same survey with its trajectory as UTM text with grid headings gives the same vectors."""
+    tr, las, sbet, truth = _survey(tmp_path, Sensor(), n=500)
+    xyz = georef.to_crs(tr.ecef, CRS)
+    grid = tr.heading - frames.grid_factors(CRS, tr.lon, tr.lat)[0]
+    text = tmp_path / "traj.csv"
+    np.savetxt(text, np.c_[tr.time, xyz, np.degrees(np.c_[tr.roll, tr.pitch, grid])], fmt="%.10f", delimiter=",",
+               header="GpsTime,X,Y,Z,Roll,Pitch,Azimuth", comments="")
+    code, _, err = cli("inverse", las, "-t", text, "--trajectory-crs", CRS, "--trajectory-heading", "grid",
+                       "--out", tmp_path / "text.csv")
+    assert code == 0, err
+    assert cli("inverse", las, "-t", sbet, "--out", tmp_path / "sbet.csv")[0] == 0
+    a, b = _vectors(tmp_path / "text.csv"), _vectors(tmp_path / "sbet.csv")
+    assert np.max(np.abs(a["range_m"] - b["range_m"])) < 2e-4
+    assert np.max(np.abs(a["across_track_angle_deg"] - b["across_track_angle_deg"])) < 2e-6
+    code, _, err = cli("inverse", las, "-t", text, "--out", tmp_path / "x.csv")
+    assert code == 1 and "traj.csv: crs: the file has projected x/y columns" in err
