@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 from calidar.adjust import Solution
 from calidar.io.total_station import TotalStationObservations
-from calidar.rangecal.fit import FitResult, acceptance, fit_range_model
+from calidar.rangecal.fit import FitResult, acceptance, fit_range_model, observation_sigma, target_distances
 from calidar.rangecal.method import MethodResult, two_step_method
 
 
@@ -38,8 +38,8 @@ class RangeCalibration:
         obs = self.observations
         intervals = {}
         for name, unit, f in (("range_offset", "m", 1.0), ("range_scale", "ppm", 1e6)):
-            lo, hi = self.fit.interval(name)
-            intervals[name] = {"low": lo * f, "high": hi * f, "unit": unit}
+            if (iv := self.fit.interval(name)) is not None:
+                intervals[name] = {"low": iv[0] * f, "high": iv[1] * f, "unit": unit}
         return {
             "intervals95": {**intervals, "t_factor": self.fit.t_factor, "dof": self.solution.dof},
             "two_step_method": self.method.to_dict(),
@@ -56,11 +56,14 @@ class RangeCalibration:
         }
 
 
-def calibrate(obs: TotalStationObservations, tolerance_m: float | None = None) -> RangeCalibration:
-    """Fit offset/scale with outlier tests, run the two-step method, check the tolerance (m)."""
-    fit = fit_range_model(obs)
+def calibrate(obs: TotalStationObservations, tolerance_m: float | None = None,
+              fix_scale: bool = False) -> RangeCalibration:
+    """Fit offset/scale (``fix_scale``: offset only) with outlier tests, run the two-step
+    method on the observations kept, check the tolerance (m)."""
+    fit = fit_range_model(obs, fix_scale)
     kept = obs.subset(fit.keep)
-    method = two_step_method(kept, fit.distance[fit.keep])
+    _, partials = target_distances(kept)
+    method = two_step_method(kept, target_distances(kept)[0], partials, observation_sigma(kept))
     result = RangeCalibration(obs, fit, method, acceptance(fit, tolerance_m) if tolerance_m is not None else None)
     fit.solution.extra = result.extra()
     return result

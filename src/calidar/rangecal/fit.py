@@ -32,6 +32,7 @@ from calidar.rangecal.geometry import distance_partials
 
 SNOOPING_CRITICAL = 3.29  #: |w| critical value of data snooping (normal, α = 0.001 two-sided)
 P_PARTS = ("slope", "va", "hz")
+SEPARABLE_CORRELATION = 0.999  #: |ρ(offset, scale)| above which the distances cannot separate them
 
 
 def p_parameter(setup_id: str, part: str) -> str:
@@ -59,9 +60,10 @@ def observation_sigma(obs: TotalStationObservations) -> np.ndarray:
     return np.sqrt(var)
 
 
-def parameter_set(obs: TotalStationObservations) -> ParameterSet:
-    """range_offset (m), range_scale (ppm) and each setup's P nuisance parameters with priors."""
-    params = [Parameter("range_offset", 0.0, "m"), Parameter("range_scale", 0.0, "ppm")]
+def parameter_set(obs: TotalStationObservations, fix_scale: bool = False) -> ParameterSet:
+    """range_offset (m), range_scale (ppm; fixed at 0 with ``fix_scale``) and each setup's P
+    nuisance parameters with priors."""
+    params = [Parameter("range_offset", 0.0, "m"), Parameter("range_scale", 0.0, "ppm", free=not fix_scale)]
     for s in obs.setups:
         params += [
             Parameter(p_parameter(s.id, "slope"), s.p_slope, "m", prior_sigma=float(s.distance_sigma(s.p_slope))),
@@ -71,7 +73,7 @@ def parameter_set(obs: TotalStationObservations) -> ParameterSet:
     return ParameterSet(params)
 
 
-def _model(obs: TotalStationObservations):
+def _model(obs: TotalStationObservations, fix_scale: bool = False):
     """Residual and Jacobian functions (model − scanner range, m) over the parameter values."""
     n_s = len(obs.setups)
     names = [[p_parameter(s.id, part) for part in P_PARTS] for s in obs.setups]
@@ -91,7 +93,7 @@ def _model(obs: TotalStationObservations):
         for i in range(n_s):
             rows = obs.setup == i
             J[rows, 2 + 3 * i: 5 + 3 * i] = (1.0 + v["range_scale"]) * part[rows, :3]
-        return J
+        return np.delete(J, 1, axis=1) if fix_scale else J
 
     return residual, jacobian
 
@@ -122,16 +124,19 @@ class FitResult:
     t_factor: float = float("nan")  #: Student t quantile for the 95 % intervals
     global_test: dict = field(default_factory=dict)
 
-    def interval(self, name: str) -> tuple[float, float]:
-        """95 % interval (SI) of parameter ``name``."""
+    def interval(self, name: str) -> tuple[float, float] | None:
+        """95 % interval (SI) of parameter ``name``; None when it is fixed."""
+        if name not in self.solution.sigma:
+            return None
         v, s = self.solution.values[name], self.solution.sigma[name]
         return v - self.t_factor * s, v + self.t_factor * s
 
 
-def fit_range_model(obs: TotalStationObservations, critical: float = SNOOPING_CRITICAL,
+def fit_range_model(obs: TotalStationObservations, fix_scale: bool = False, critical: float = SNOOPING_CRITICAL,
                     level: float = 0.95) -> FitResult:
-    """Fit offset and scale over ``obs`` with data snooping; raise CalibrationError when the
-    data cannot determine them (fewer than 3 usable targets or one distance only)."""
+    """Fit offset and scale (or the offset alone, ``fix_scale``) over ``obs`` with data
+    snooping; raise CalibrationError when the data cannot determine them (too few targets,
+    or distances too alike to separate scale from offset)."""
     sigma_all = observation_sigma(obs)
     keep = np.ones(len(obs), bool)
     rejected = []
@@ -139,8 +144,8 @@ def fit_range_model(obs: TotalStationObservations, critical: float = SNOOPING_CR
         sub = obs.subset(keep)
         if len(sub) < 3:
             raise CalibrationError(f"{obs.source}: {len(sub)} usable targets; at least 3 are needed to fit offset and scale")
-        residual, jacobian = _model(sub)
-        sol = solve(residual, parameter_set(sub), sigma=sigma_all[keep], jacobian_fn=jacobian, robust=None)
+        residual, jacobian = _model(sub, fix_scale)
+        sol = solve(residual, parameter_set(sub, fix_scale), sigma=sigma_all[keep], jacobian_fn=jacobian, robust=None)
         J = jacobian(sol.values)
         w = standardized_residuals(sol, J, sigma_all[keep])
         worst = int(np.argmax(np.abs(w)))
@@ -150,8 +155,10 @@ def fit_range_model(obs: TotalStationObservations, critical: float = SNOOPING_CR
         rejected.append({"line": int(obs.line[idx]), "point": str(obs.point[idx]), "group": str(obs.group[idx]),
                          "w": float(w[worst]), "residual_m": float(sol.residuals[worst])})
         keep[idx] = False
-    if not np.isfinite(sol.sigma["range_scale"]):
-        raise CalibrationError(f"{obs.source}: all targets are at the same distance: offset and scale cannot be separated")
+    if not fix_scale and not abs(sol.correlation[0, 1]) <= SEPARABLE_CORRELATION:
+        d = target_distances(obs.subset(keep))[0]
+        raise CalibrationError(f"{obs.source}: the targets span only {d.min():.2f}–{d.max():.2f} m: range_scale cannot be "
+                               "separated from range_offset; add groups or E points at other distances, or fix the scale")
     v = sol.values
     p_all = np.array([[v[p_parameter(s.id, part)] for part in P_PARTS] for s in obs.setups])
     d_all, _ = target_distances(obs, p_all)
@@ -173,8 +180,10 @@ def acceptance(fit: FitResult, tolerance_m: float) -> dict:
     """Acceptance of the raw ranging: passes when the 95 % interval of the range error
     e(d) = offset + scale·d lies inside ±tolerance_m (m) over the calibrated distances."""
     sol = fit.solution
-    i = [sol.parameters.free_names.index(n) for n in ("range_offset", "range_scale")]
-    cov = sol.covariance[np.ix_(i, i)]
+    names = sol.parameters.free_names
+    i = [names.index(n) for n in ("range_offset", "range_scale") if n in names]
+    cov = np.zeros((2, 2))
+    cov[: len(i), : len(i)] = sol.covariance[np.ix_(i, i)]
     d = fit.distance[fit.keep]
     ends = np.array([d.min(), d.max()])
     e = sol.values["range_offset"] + sol.values["range_scale"] * ends

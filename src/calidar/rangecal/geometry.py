@@ -7,8 +7,9 @@ X = S·(cos β sin Hz, cos β cos Hz, sin β).
 
 The distance between P and X follows from the 3-D law of cosines with α = Hz_X − Hz_P:
 S_PX² = S_OP² + S_OX² − 2·S_OP·S_OX·(cos β_P cos β_X cos α + sin β_P sin β_X).
-For A and B, level with P, this reduces to the plane law of cosines of the horizontal
-distances D = S cos β; for C and D, plumb above/below P, to the height difference.
+For A and B, level with P (S_OP sin β_P = S_OX sin β_X), it reduces to the plane law of
+cosines of the horizontal distances D = S cos β, since the general formula equals
+D_P² + D_X² − 2·D_P·D_X·cos α + (S_OP sin β_P − S_OX sin β_X)².
 """
 
 from __future__ import annotations
@@ -34,11 +35,6 @@ def distance_level(s_p, va_p, hz_p, s_x, va_x, hz_x) -> np.ndarray:
     """Special case for A/B (level with P): plane law of cosines of horizontal distances (m)."""
     d_p, d_x = np.asarray(s_p) * np.cos(va_p), np.asarray(s_x) * np.cos(va_x)
     return np.sqrt(np.clip(d_p**2 + d_x**2 - 2.0 * d_p * d_x * np.cos(np.asarray(hz_x) - hz_p), 0.0, None))
-
-
-def distance_plumb(s_p, va_p, s_x, va_x) -> np.ndarray:
-    """Special case for C/D (plumb above/below P): the height difference (m)."""
-    return np.abs(np.asarray(s_x) * np.sin(va_x) - np.asarray(s_p) * np.sin(va_p))
 
 
 def distance_partials(s_p, va_p, hz_p, s_x, va_x, hz_x) -> tuple[np.ndarray, np.ndarray]:

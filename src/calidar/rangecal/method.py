@@ -3,10 +3,13 @@
 Step 1: for each group i of feature points A–D, ΔS_i = mean over the group of
 (scanner range − S_PX), S_PX from the law of cosines; ΔS = mean of the ΔS_i.
 Step 2: for each E point, true distance = S_PE + ΔS and Δ_j = scanner range − true distance;
-Δ = mean of the Δ_j. The 95 % intervals here are the classical ones, from the scatter of
-the ΔS_i (Student t, n_groups − 1 dof) and of the Δ_j (Welch–Satterthwaite dof for Δ, which
-also carries the uncertainty of ΔS); they do not see errors common to all points of a
-setup (the P observation) — the least-squares fit in :mod:`calidar.rangecal.fit` does.
+Δ = mean of the Δ_j.
+
+ΔS and Δ are linear in the observation errors, so their σ follow by linear propagation
+of the stated precisions (scanner noise, each target's polar observation, and each setup's
+P observation, which is common to all its targets); the 95 % intervals are ±1.96 σ. With
+a range scale error k, ΔS estimates offset + k·(mean feature-point range) and Δ the scale
+effect k·(mean E range − that range) — the least-squares fit separates the two.
 """
 
 from __future__ import annotations
@@ -19,14 +22,15 @@ from scipy import stats
 from calidar.io.total_station import TotalStationObservations
 
 
-def mean_interval(values: np.ndarray, level: float = 0.95) -> tuple[float, float | None, float | None]:
-    """Mean, its σ (scatter/√n) and the t half-width at ``level`` (None with fewer than 2 values)."""
-    values = np.asarray(values, float)
-    m = float(values.mean())
-    if values.size < 2:
-        return m, None, None
-    s = float(values.std(ddof=1) / np.sqrt(values.size))
-    return m, s, float(stats.t.ppf(0.5 + level / 2, values.size - 1) * s)
+def propagated_sigma(obs: TotalStationObservations, weights: np.ndarray, partials: np.ndarray,
+                     sigma: np.ndarray) -> float:
+    """σ (m) of Σ w_i·(scanner_i − S_PX,i): ``sigma`` (n,) the σ of each target's own
+    observations (scanner + polar, m), ``partials`` (n, 6) of S_PX; P's errors are shared per setup."""
+    var = float(np.sum(weights**2 * sigma**2))
+    for i, s in enumerate(obs.setups):
+        g = -np.sum(weights[obs.setup == i, None] * partials[obs.setup == i, :3], axis=0)
+        var += g[0] ** 2 * float(s.distance_sigma(s.p_slope)) ** 2 + (g[1] ** 2 + g[2] ** 2) * s.angle_sigma**2
+    return float(np.sqrt(var))
 
 
 @dataclass
@@ -36,8 +40,8 @@ class MethodResult:
     groups: list[str]
     group_delta_s: np.ndarray  #: ΔS_i (m)
     delta_s: float  #: ΔS (m)
-    delta_s_sigma: float | None
-    delta_s_half_width: float | None  #: 95 % half-width (m)
+    delta_s_sigma: float
+    delta_s_half_width: float  #: 95 % half-width (m)
     e_points: list[str]
     e_lines: np.ndarray
     e_delta: np.ndarray  #: Δ_j (m)
@@ -48,7 +52,7 @@ class MethodResult:
     def to_dict(self) -> dict:
         """JSON-ready summary (m)."""
         def iv(v, h):
-            return None if v is None or h is None else [v - h, v + h]
+            return None if v is None else [v - h, v + h]
 
         return {
             "groups": {g: float(v) for g, v in zip(self.groups, self.group_delta_s)},
@@ -61,22 +65,27 @@ class MethodResult:
         }
 
 
-def two_step_method(obs: TotalStationObservations, distance: np.ndarray, level: float = 0.95) -> MethodResult:
-    """The prescribed method on ``obs`` with P→X distances ``distance`` (m, one per target)."""
+def two_step_method(obs: TotalStationObservations, distance: np.ndarray, partials: np.ndarray,
+                    sigma: np.ndarray, level: float = 0.95) -> MethodResult:
+    """The prescribed method on ``obs``: ``distance`` S_PX (m), its ``partials`` (n, 6) and
+    the σ (m) of each target's own observations, one per target."""
+    z = float(stats.norm.ppf(0.5 + level / 2))
     diff = obs.scanner - distance
     groups = obs.groups
-    g_ds = np.array([diff[(obs.kind == "feature") & (obs.group == g)].mean() for g in groups])
-    ds, ds_sig, ds_hw = mean_interval(g_ds, level)
+    members = [(obs.kind == "feature") & (obs.group == g) for g in groups]
+    g_ds = np.array([diff[m].mean() for m in members])
+    w_ds = np.zeros(len(obs))
+    for m in members:
+        w_ds[m] = 1.0 / (m.sum() * len(groups))
+    ds = float(w_ds @ diff)
+    ds_sig = propagated_sigma(obs, w_ds, partials, sigma)
     is_e = obs.kind == "E"
-    e_delta = obs.scanner[is_e] - (distance[is_e] + ds)
+    e_delta = diff[is_e] - ds
     delta = delta_sig = delta_hw = None
     if e_delta.size:
-        delta = float(e_delta.mean())
-        if e_delta.size >= 2 and ds_sig is not None:
-            var_e = e_delta.var(ddof=1) / e_delta.size
-            delta_sig = float(np.sqrt(var_e + ds_sig**2))
-            # Welch–Satterthwaite degrees of freedom of the sum of two estimated variances
-            nu = delta_sig**4 / (var_e**2 / (e_delta.size - 1) + ds_sig**4 / (len(groups) - 1))
-            delta_hw = float(stats.t.ppf(0.5 + level / 2, nu) * delta_sig)
-    return MethodResult(groups, g_ds, ds, ds_sig, ds_hw, list(obs.point[is_e]), obs.line[is_e], e_delta,
+        w_d = np.where(is_e, 1.0 / max(is_e.sum(), 1), 0.0) - w_ds
+        delta = float(w_d @ diff)
+        delta_sig = propagated_sigma(obs, w_d, partials, sigma)
+        delta_hw = z * delta_sig
+    return MethodResult(groups, g_ds, ds, ds_sig, z * ds_sig, list(obs.point[is_e]), obs.line[is_e], e_delta,
                         delta, delta_sig, delta_hw)
