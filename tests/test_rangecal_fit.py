@@ -117,3 +117,18 @@ def test_file_round_trip_in_every_angle_convention(tmp_path, unit, vertical):
     assert back.setups[1].p_slope == pytest.approx(obs.setups[1].p_slope, abs=6e-5)
     assert back.scanner_sigma == obs.scanner_sigma
     assert back.setups[0].angle_sigma == pytest.approx(obs.setups[0].angle_sigma)
+
+
+def test_optimistic_precision_stops_snooping_with_a_warning():
+    # the file claims ten times better precisions than the instruments have: the global test
+    # fails and snooping stops at 20 % of the targets instead of throwing the data away
+    from dataclasses import replace
+
+    obs, _ = simulate_total_station(9)
+    setups = [replace(s, angle_sigma=s.angle_sigma / 10, distance_sigma_m=s.distance_sigma_m / 10,
+                      distance_sigma_ppm=s.distance_sigma_ppm / 10) for s in obs.setups]
+    obs = replace(obs, scanner_sigma=0.2e-3, setups=setups)
+    res = calibrate(obs)
+    assert not res.fit.global_test["passed"]
+    assert len(res.fit.rejected) <= 0.2 * len(obs) + 1
+    assert any("too optimistic" in w for w in res.solution.warnings)

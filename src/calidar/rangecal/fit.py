@@ -32,6 +32,7 @@ from calidar.rangecal.geometry import distance_partials
 
 SNOOPING_CRITICAL = 3.29  #: |w| critical value of data snooping (normal, α = 0.001 two-sided)
 P_PARTS = ("slope", "va", "hz")
+MAX_REJECTED_FRACTION = 0.2  #: data snooping rejects at most this fraction of the targets
 SEPARABLE_CORRELATION = 0.999  #: |ρ(offset, scale)| above which the distances cannot separate them
 
 
@@ -150,6 +151,11 @@ def fit_range_model(obs: TotalStationObservations, fix_scale: bool = False, crit
         w = standardized_residuals(sol, J, sigma_all[keep])
         worst = int(np.argmax(np.abs(w)))
         if abs(w[worst]) <= critical or len(sub) - 1 < 4:
+            break
+        if len(rejected) >= MAX_REJECTED_FRACTION * len(obs):
+            sol.warnings.append(f"data snooping stopped after {len(rejected)} rejections with |w| = {abs(w[worst]):.1f} "
+                                "still above the critical value: the stated precisions look too optimistic "
+                                "(see the global test)")
             break
         idx = np.flatnonzero(keep)[worst]
         rejected.append({"line": int(obs.line[idx]), "point": str(obs.point[idx]), "group": str(obs.group[idx]),
