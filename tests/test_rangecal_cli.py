@@ -142,11 +142,24 @@ def test_bad_input_names_file_and_line(simulated, tmp_path, cli, case):
     assert bad.read_bytes() == before and not (tmp_path / "out").exists()
 
 
-def test_missing_directives_and_empty_file(tmp_path, cli):
+@pytest.mark.parametrize("text,phrase", [
+    ("setup,group,point,hz_deg,zd_deg,slope_m,scanner_m\n", "line 1: expected the directive '#! calidar-total-station 1'"),
+    ("#! calidar-total-station 1\nsetup,group,point,hz_deg,zd_deg,slope_m,scanner_m\n", "line 2: expected the directive '#! scanner_sigma_mm"),
+    ("#! calidar-total-station 1\n#! scanner_sigma_mm: 2\nsetup,group,point,hz_deg,zd_deg,slope_m,scanner_m\n", "line 3: expected at least one '#! setup"),
+    ("#! calidar-total-station 1\n#! scanner_sigma_mm: 2\n#! setup: T angle_arcsec=1 distance_mm=1 distance_ppm=1\n"
+     "setup,group,point,hz_deg,zd_deg,slope_m,scanner_m\n", "line 4: expected observation rows"),
+    ("#! calidar-total-station 1\n#! scanner_sigma_mm: 2\n#! setup: T angle_arcsec=1 distance_mm=1\n", "line 3: setup T: missing distance_ppm"),
+    ("#! calidar-total-station 1\n#! scanner_sigma_mm: 2\n#! setup: T angle_arcsec=1 distance_mm=1 distance_ppm=1\n"
+     "setup,group,point,hz_deg,zd_deg,slope_m,scanner_m\nT,,P,10,90,5,\nT,,E1,20,90,5,4\n", "line 6: no feature-point group"),
+])
+def test_missing_directives_and_rows(tmp_path, cli, text, phrase):
     p = tmp_path / "x.csv"
-    p.write_text("setup,group,point,hz_deg,zd_deg,slope_m,scanner_m\n")
+    p.write_text(text)
     code, _, err = cli("range-cal", p, "--out", tmp_path / "o")
-    assert code == 1 and "calidar-total-station 1" in err
+    assert code == 1 and phrase in err, err
+
+
+def test_missing_file(tmp_path, cli):
     code, _, err = cli("range-cal", tmp_path / "nope.csv", "--out", tmp_path / "o")
     assert code == 1 and "nope.csv" in err
 
@@ -174,3 +187,19 @@ def test_demo_step(tmp_path):
     off = doc["parameters"]["range_offset"]
     assert abs(off["value"] - truth["range_offset_m"]) < 3 * off["sigma"]
     assert len(doc["outliers"]["rejected"]) >= 1
+
+
+def test_simulate_options_and_no_overwrite(tmp_path, cli):
+    out = tmp_path / "s"
+    args = ("simulate", "total-station", "--seed", "4", "--out", out, "--angle-unit", "gon", "--vertical", "va",
+            "--setups", "1", "--groups", "2", "--e-points", "3")
+    assert cli(*args)[0] == 0
+    text = (out / "observations.csv").read_text()
+    assert "setup,group,point,hz_gon,va_gon,slope_m,scanner_m" in text and text.count(",E") == 3
+    code, _, err = cli(*args)
+    assert code == 1 and "--force" in err
+    assert cli(*args, "--force")[0] == 0
+    code, _, err = cli("simulate", "total-station", "--out", tmp_path / "t", "--angle-unit", "rad")
+    assert code == 1 and "--angle-unit" in err
+    code, _, err = cli("range-cal", out / "observations.csv", "--out", tmp_path / "c")
+    assert code == 0, err

@@ -190,6 +190,7 @@ def read_observations(path: str | Path) -> TotalStationObservations:
     directives: dict[str, tuple[str, int]] = {}
     setups: dict[str, dict] = {}
     header = None
+    header_line = 0
     rows = []
     for no, raw in enumerate(lines, start=1):
         text = raw.strip()
@@ -221,22 +222,26 @@ def read_observations(path: str | Path) -> TotalStationObservations:
             continue
         cells = next(csv.reader([raw]))
         if header is None:
-            header = _parse_header(cells, src, no)
+            header, header_line = _parse_header(cells, src, no), no
             continue
         rows.append((no, [c.strip() for c in cells]))
-    first = 1
+    end = header_line or len(lines) + 1  # directives are missing before this line
     if "format" not in directives:
-        raise InputError(src, f"line {first}", f"expected the directive '#! {FORMAT_LINE}' (not a calidar total-station file?)")
+        raise InputError(src, "line 1", f"expected the directive '#! {FORMAT_LINE}' (not a calidar total-station file?)")
     if "scanner_sigma_mm" not in directives:
-        raise InputError(src, "directives", "missing '#! scanner_sigma_mm: S' (1σ scanner range noise in mm)")
+        raise InputError(src, f"line {end}", "expected the directive '#! scanner_sigma_mm: S' (1σ scanner range noise, mm) "
+                         "before this line")
     ssig_text, ssig_line = directives["scanner_sigma_mm"]
     scanner_sigma = _float(ssig_text, src, ssig_line, "scanner_sigma_mm", "a positive number (mm)") * 1e-3
     if scanner_sigma <= 0:
         raise InputError(src, f"line {ssig_line}: scanner_sigma_mm", f"expected a positive number (mm), got {ssig_text}")
     if not setups:
-        raise InputError(src, "directives", "no '#! setup: ID angle_arcsec=a distance_mm=b distance_ppm=c' line")
+        raise InputError(src, f"line {end}", "expected at least one '#! setup: ID angle_arcsec=a distance_mm=b "
+                         "distance_ppm=c' directive before this line")
     if header is None:
         raise InputError(src, f"line {len(lines) + 1}", "expected a header row and observations; the file has none")
+    if not rows:
+        raise InputError(src, f"line {header_line}", "expected observation rows after the header; there are none")
     return _parse_rows(src, rows, header, setups, scanner_sigma)
 
 
@@ -250,8 +255,6 @@ def _parse_rows(src, rows, header, setups, scanner_sigma) -> TotalStationObserva
     p_obs: dict[str, dict] = {}
     targets = []
     group_rows: dict[str, list] = {}
-    if not rows:
-        raise InputError(src, "observations", "expected observation rows after the header; there are none")
     for no, cells in rows:
         if len(cells) != len(cols) - 2:
             raise InputError(src, f"line {no}", f"expected {len(cols) - 2} comma-separated values, got {len(cells)}")
@@ -316,7 +319,8 @@ def _parse_rows(src, rows, header, setups, scanner_sigma) -> TotalStationObserva
         if setup_ids.index(sid) not in used:
             raise InputError(src, f"line {s['line']}: setup {sid}", "has no targets; expected feature or E points observed from it")
     if not any(t[3] == "feature" for t in targets):
-        raise InputError(src, "observations", "no feature-point group (A, B, C, D); expected at least one")
+        raise InputError(src, f"line {rows[-1][0]}", "no feature-point group in the file; expected at least one group "
+                         "of A, B, C, D")
     built = [Setup(id=sid, angle_sigma=s["angle_sigma"], distance_sigma_m=s["distance_sigma_m"],
                    distance_sigma_ppm=s["distance_sigma_ppm"], **p_obs[sid]) for sid, s in setups.items()]
     cols_t = list(zip(*targets))
