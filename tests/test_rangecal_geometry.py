@@ -65,3 +65,22 @@ def test_partials_match_central_differences():
         dn[j] -= h
         num = (distance_law_of_cosines(*up) - distance_law_of_cosines(*dn)) / (2 * h)
         np.testing.assert_allclose(part[:, j], num, rtol=1e-5, atol=1e-6)
+
+
+def test_level_check_detects_a_tilted_scanner():
+    from dataclasses import replace
+
+    from calidar.rangecal.method import level_check
+
+    obs, _ = simulate_total_station(6)
+    ok = level_check(obs)
+    assert ok["level"] and ok["max_abs_height_m"] < 0.003
+    # raise the first group's A by 2 cm: a scanner rolled by ~0.4°
+    i = np.flatnonzero((obs.group == "G1") & (obs.point == "A"))[0]
+    x = polar_to_local(obs.slope[i], obs.va[i], obs.hz[i]) + [0, 0, 0.02]
+    slope, va = obs.slope.copy(), obs.va.copy()
+    slope[i] = np.linalg.norm(x)
+    va[i] = np.arcsin(x[2] / slope[i])
+    tilted = level_check(replace(obs, slope=slope, va=va, line=np.arange(len(obs)) + 10))
+    assert not tilted["level"] and tilted["worst_line"] == i + 10
+    assert tilted["max_abs_height_m"] == pytest.approx(0.02, abs=0.003)

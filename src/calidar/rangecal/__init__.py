@@ -17,7 +17,7 @@ from dataclasses import dataclass
 from calidar.adjust import Solution
 from calidar.io.total_station import TotalStationObservations
 from calidar.rangecal.fit import FitResult, acceptance, fit_range_model, observation_sigma, target_distances
-from calidar.rangecal.method import MethodResult, two_step_method
+from calidar.rangecal.method import MethodResult, level_check, two_step_method
 
 
 @dataclass
@@ -28,6 +28,7 @@ class RangeCalibration:
     fit: FitResult
     method: MethodResult  #: on the observations kept by the outlier tests
     acceptance: dict | None  #: see fit.acceptance; None without a tolerance
+    level: dict  #: see method.level_check
 
     @property
     def solution(self) -> Solution:
@@ -42,7 +43,7 @@ class RangeCalibration:
                 intervals[name] = {"low": iv[0] * f, "high": iv[1] * f, "unit": unit}
         return {
             "intervals95": {**intervals, "t_factor": self.fit.t_factor, "dof": self.solution.dof},
-            "two_step_method": self.method.to_dict(),
+            "two_step_method": {**self.method.to_dict(), "level_check": self.level},
             "outliers": {"test": "Baarda data snooping, |w| > 3.29 (alpha 0.001)", "rejected": self.fit.rejected},
             "global_test": self.fit.global_test,
             "observations": [
@@ -64,7 +65,8 @@ def calibrate(obs: TotalStationObservations, tolerance_m: float | None = None,
     kept = obs.subset(fit.keep)
     _, partials = target_distances(kept)
     method = two_step_method(kept, target_distances(kept)[0], partials, observation_sigma(kept))
-    result = RangeCalibration(obs, fit, method, acceptance(fit, tolerance_m) if tolerance_m is not None else None)
+    result = RangeCalibration(obs, fit, method, acceptance(fit, tolerance_m) if tolerance_m is not None else None,
+                              level_check(kept))
     fit.solution.extra = result.extra()
     return result
 

@@ -8,8 +8,8 @@ direction enter as nuisance parameters with the observed values as priors (σ fr
 instrument's stated precision), which keeps the model a plain Gauss–Markov model with
 uncorrelated observations. σ of each equation propagates the scanner noise and the
 target's polar observation by the analytic Jacobian of S_PX:
-σ_X² = σ_scanner² + (1 + k)²·(∂S_PX/∂S_X² σ_S² + (∂S_PX/∂β_X² + ∂S_PX/∂Hz_X²) σ_angle²),
-σ_S = a mm + b ppm · S_OX.
+σ_X² = σ_scanner² + ∂S_PX/∂S_X²·σ_S² + (∂S_PX/∂β_X² + ∂S_PX/∂Hz_X²)·σ_angle², with
+σ_S = a mm + b ppm · S_OX (the factor (1 + k)² ≈ 1 + 2k on the last two terms is dropped).
 
 Outliers: Baarda's data snooping (Baarda 1968, "A testing procedure for use in geodetic
 networks"): standardized residuals w_i = v_i / σ_v_i with σ_v_i² = σ_i² − J_i Q_xx J_iᵀ

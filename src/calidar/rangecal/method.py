@@ -89,3 +89,25 @@ def two_step_method(obs: TotalStationObservations, distance: np.ndarray, partial
         delta_hw = z * delta_sig
     return MethodResult(groups, g_ds, ds, ds_sig, z * ds_sig, list(obs.point[is_e]), obs.line[is_e], e_delta,
                         delta, delta_sig, delta_hw)
+
+
+LEVEL_CRITICAL = 3.29  #: |height offset / σ| above which A or B is not level with P (α = 0.001)
+
+
+def level_check(obs: TotalStationObservations) -> dict:
+    """Does the geometry meet the method's premise, A and B level with P (scanner set level)?
+    Height of A/B above P, h = S_OX sin β_X − S_OP sin β_P (m), its σ from the stated
+    precisions, and the largest |h|/σ; ``level`` is False above LEVEL_CRITICAL."""
+    ab = (obs.kind == "feature") & np.isin(obs.point, ["A", "B"])
+    if not ab.any():
+        return {"level": True, "max_abs_height_m": 0.0, "max_abs_z": 0.0, "worst_line": None}
+    p = np.array([[s.p_slope, s.p_va, s.angle_sigma, float(s.distance_sigma(s.p_slope))] for s in obs.setups])[obs.setup[ab]]
+    s_x, va_x = obs.slope[ab], obs.va[ab]
+    dh = s_x * np.sin(va_x) - p[:, 0] * np.sin(p[:, 1])
+    sig_sx = np.array([float(obs.setups[i].distance_sigma(s)) for i, s in zip(obs.setup[ab], s_x)])
+    var = ((np.sin(va_x) * sig_sx) ** 2 + (s_x * np.cos(va_x) * p[:, 2]) ** 2
+           + (np.sin(p[:, 1]) * p[:, 3]) ** 2 + (p[:, 0] * np.cos(p[:, 1]) * p[:, 2]) ** 2)
+    z = dh / np.sqrt(var)
+    worst = int(np.argmax(np.abs(z)))
+    return {"level": bool(abs(z[worst]) <= LEVEL_CRITICAL), "max_abs_height_m": float(np.max(np.abs(dh))),
+            "max_abs_z": float(abs(z[worst])), "worst_line": int(obs.line[ab][worst])}

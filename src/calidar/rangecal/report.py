@@ -99,6 +99,11 @@ def add_section(report: Report, result: RangeCalibration, truth: dict | None = N
     sec.table(["two-step method", "value [mm]", "σ [mm]", "95 % interval [mm]"], method_rows,
               caption="The prescribed method: ΔS from the scan-circle groups, Δ = range error at the E points after ΔS; "
               "σ propagated from the stated precisions, 95 % = ±1.96 σ")
+    lv = result.level
+    if not lv["level"]:
+        sec.warning(f"A/B are not level with P (height offset up to {lv['max_abs_height_m'] * MM:.1f} mm, "
+                    f"{lv['max_abs_z']:.1f} σ, line {lv['worst_line']}): the scanner was not set level, so the points "
+                    "are not the prescribed ones; the fit uses the general 3-D distances and stays valid.")
     if fit.rejected:
         sec.table(["line", "point", "group", "w", "residual [mm]"],
                   [[r["line"], r["point"], r["group"] or "—", r["w"], r["residual_m"] * MM] for r in fit.rejected],
