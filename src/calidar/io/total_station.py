@@ -211,7 +211,8 @@ def read_observations(path: str | Path) -> TotalStationObservations:
             if key == "setup":
                 s = _parse_setup(value, src, no)
                 if s["id"] in setups:
-                    raise InputError(src, f"line {no}: setup {s['id']}", f"declared twice (first on line {setups[s['id']]['line']})")
+                    raise InputError(src, f"line {no}: setup {s['id']}",
+                                     f"declared twice (first on line {setups[s['id']]['line']})")
                 setups[s["id"]] = s
             else:
                 if key in directives:
@@ -264,7 +265,8 @@ def _parse_rows(src, rows, header, setups, scanner_sigma) -> TotalStationObserva
             raise InputError(src, f"line {no}: setup", f"{sid!r} is not declared; expected one of {', '.join(setup_ids)}")
         hz = _float(get["hz"], src, no, f"hz_{unit}", f"a horizontal direction in {unit}")
         if not 0.0 <= hz < full:
-            raise InputError(src, f"line {no}: hz_{unit}", f"angle out of range: expected 0 ≤ hz < {full:g} {unit}, got {get['hz']}")
+            raise InputError(src, f"line {no}: hz_{unit}",
+                             f"angle out of range: expected 0 ≤ hz < {full:g} {unit}, got {get['hz']}")
         v = _float(get["v"], src, no, vname, f"a {'vertical angle' if vertical == 'va' else 'zenith distance'} in {unit}")
         if not vlim[0] <= v <= vlim[1]:
             raise InputError(src, f"line {no}: {vname}",
@@ -278,7 +280,8 @@ def _parse_rows(src, rows, header, setups, scanner_sigma) -> TotalStationObserva
             if grp or get["scanner_m"]:
                 raise InputError(src, f"line {no}", "a P observation has no group and no scanner range; expected both empty")
             if sid in p_obs:
-                raise InputError(src, f"line {no}: setup {sid}", f"second P observation (first on line {p_obs[sid]['line']}); expected one")
+                raise InputError(src, f"line {no}: setup {sid}",
+                                 f"second P observation (first on line {p_obs[sid]['line']}); expected one")
             p_obs[sid] = {"p_slope": slope, "p_va": va, "p_hz": hz * to_rad, "line": no}
             continue
         if pt in FEATURE_POINTS:
@@ -301,10 +304,12 @@ def _parse_rows(src, rows, header, setups, scanner_sigma) -> TotalStationObserva
         seen = {}
         for pt, sid, no in members:
             if pt in seen:
-                raise InputError(src, f"line {no}: group {grp}", f"second point {pt} (first on line {seen[pt]}); expected one each of A, B, C, D")
+                raise InputError(src, f"line {no}: group {grp}",
+                                 f"second point {pt} (first on line {seen[pt]}); expected one each of A, B, C, D")
             seen[pt] = no
             if sid != members[0][1]:
-                raise InputError(src, f"line {no}: group {grp}", f"setup {sid} differs from {members[0][1]} on line {members[0][2]}; "
+                raise InputError(src, f"line {no}: group {grp}",
+                                 f"setup {sid} differs from {members[0][1]} on line {members[0][2]}; "
                                  "expected one setup per group")
         missing = [p for p in FEATURE_POINTS if p not in seen]
         if missing:
@@ -315,9 +320,11 @@ def _parse_rows(src, rows, header, setups, scanner_sigma) -> TotalStationObserva
         if sid not in p_obs:
             rows_of = [t[8] for t in targets if setup_ids[t[0]] == sid]
             where = f"line {rows_of[0]}" if rows_of else f"line {s['line']}"
-            raise InputError(src, f"{where}: setup {sid}", "missing its P observation (the mirror centre); expected one row with point P")
+            raise InputError(src, f"{where}: setup {sid}",
+                             "missing its P observation (the mirror centre); expected one row with point P")
         if setup_ids.index(sid) not in used:
-            raise InputError(src, f"line {s['line']}: setup {sid}", "has no targets; expected feature or E points observed from it")
+            raise InputError(src, f"line {s['line']}: setup {sid}",
+                             "has no targets; expected feature or E points observed from it")
     if not any(t[3] == "feature" for t in targets):
         raise InputError(src, f"line {rows[-1][0]}", "no feature-point group in the file; expected at least one group "
                          "of A, B, C, D")
