@@ -41,7 +41,10 @@ def range_cal(
                                    "e.g. when all targets are at one distance."),
     force: bool = typer.Option(False, "--force", help="Write into a non-empty output folder."),
 ) -> None:
-    """Calibrate range offset and scale of a circular-scan lidar against total-station observations."""
+    """Calibrate range offset and scale of a circular-scan lidar against total-station observations.
+
+    Exit codes: 0 done (acceptance passed when --tolerance is given), 1 bad input, 3 acceptance failed.
+    """
     from calidar.io.total_station import read_observations
     from calidar.outputs import prepare_out_dir
     from calidar.rangecal import calibrate, truth_parameters
