@@ -203,3 +203,16 @@ def test_simulate_options_and_no_overwrite(tmp_path, cli):
     assert code == 1 and "--angle-unit" in err
     code, _, err = cli("range-cal", out / "observations.csv", "--out", tmp_path / "c")
     assert code == 0, err
+
+
+def test_calibration_error_is_one_line_and_leaves_no_output(tmp_path, cli):
+    out = tmp_path / "s"
+    assert cli("simulate", "total-station", "--out", out, "--setups", "1", "--groups", "1", "--e-points", "0")[0] == 0
+    code, _, err = cli("range-cal", out / "observations.csv", "--out", tmp_path / "c")
+    assert code == 1 and "range_scale cannot be separated" in err and "\n" not in err.strip()
+    assert not (tmp_path / "c").exists()
+    code, stdout, err = cli("range-cal", out / "observations.csv", "--out", tmp_path / "c", "--fix-scale")
+    assert code == 0, err
+    assert "range_scale" not in stdout.split("two-step")[0]
+    doc = json.loads((tmp_path / "c" / "solution.json").read_text())
+    assert doc["parameters"]["range_scale"]["free"] is False and "range_scale" not in doc["intervals95"]

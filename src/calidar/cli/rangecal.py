@@ -55,8 +55,8 @@ def range_cal(
         raise InputError(None, "--tolerance", f"expected a positive distance in m, got {tolerance}")
     obs = read_observations(observations)
     truth_doc = _read_truth(truth) if truth else None
+    result = calibrate(obs, tolerance, fix_scale)  # before creating the folder: a failed calibration leaves nothing
     folder = prepare_out_dir(out, force)
-    result = calibrate(obs, tolerance, fix_scale)
     sol = result.solution
     sol.write_json(folder / "solution.json", truth_parameters(truth_doc) if truth_doc else None)
     report = Report("calidar range calibration")
