@@ -156,7 +156,8 @@ def _parse_header(cells: list[str], src: str, line: int) -> tuple[dict[str, int]
             continue
         if m and m.group(2) in ANGLE_UNITS:
             if m.group(1) in angle or (m.group(1) in ("va", "zd") and ({"va", "zd"} & angle.keys())):
-                raise InputError(src, f"line {line}: header", f"more than one {m.group(1)} column; expected {expected}")
+                what = "hz" if m.group(1) == "hz" else "vertical (va_ or zd_)"
+                raise InputError(src, f"line {line}: header", f"more than one {what} column; expected {expected}")
             angle[m.group(1)] = (c, m.group(2))
         elif m:
             raise InputError(src, f"line {line}: header: {c}", f"unknown angle unit {m.group(2)!r}; expected deg or gon")
