@@ -17,7 +17,7 @@ from calidar import __version__
 from calidar.cli.common import err_console
 from calidar.errors import CalidarError
 
-COMMAND_MODULES: list[str] = ["info", "georef"]
+COMMAND_MODULES: list[str] = ["info", "georef", "rangecal"]
 
 app = typer.Typer(
     name="calidar",
@@ -48,7 +48,10 @@ for _name in COMMAND_MODULES:
 def run(argv: list[str] | None = None) -> int:
     """Run the CLI with ``argv``; return the exit code (used by ``main`` and the tests)."""
     try:
-        app(args=argv, prog_name="calidar", standalone_mode=False)
+        # with standalone_mode=False click returns the code of a typer.Exit raised in a command
+        code = app(args=argv, prog_name="calidar", standalone_mode=False)
+        if isinstance(code, int):
+            return code
     except CalidarError as e:
         err_console.print(f"[bold red]error:[/] {e}", highlight=False, soft_wrap=True)
         return 1

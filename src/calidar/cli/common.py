@@ -10,7 +10,7 @@ from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, Ti
 from calidar.errors import InputError
 
 console = Console()
-err_console = Console(stderr=True)
+err_console = Console(stderr=True, soft_wrap=True)  # one error = one line, never wrapped
 
 
 def parse_floats(text: str, n: int, option: str) -> tuple[float, ...]:

@@ -1,0 +1,1 @@
+"""Simulators that write inputs with a known truth."""
