@@ -1,0 +1,1 @@
+"""Simulators that produce calidar inputs with a known truth."""
