@@ -58,7 +58,7 @@ class PhotonSimConfig:
     n_ccr: int = 5  #: CCRs inside the footprints' reach
     n_unlit: int = 0  #: extra CCRs placed out of the footprints' reach (no returns)
     ccr_photons: float = 20.0  #: mean photons from a CCR at the footprint centre
-    ccr_dropout: float = 0.0  #: fraction of CCR photons removed (lost returns)
+    ccr_dropout: float = 0.0  #: fraction of shots whose CCR photons are all lost
     ccr_spacing: float = 60.0  #: m along track between CCRs
     lat0_deg: float = 32.4  #: tangent-plane origin (a desert CCR site)
     lon0_deg: float = -106.4
@@ -133,8 +133,7 @@ def simulate_pass(cfg: PhotonSimConfig) -> SimulatedPass:
         r2 = (tx[near] - cx[k]) ** 2 + (ty[near] - cy[k]) ** 2
         nk = rng.poisson(cfg.ccr_photons * np.exp(-2 * r2 / cfg.w**2))
         sk = np.repeat(near, nk)
-        keep = rng.random(sk.size) >= cfg.ccr_dropout
-        sk = sk[keep]
+        sk = sk[rng.random(n_shots)[sk] >= cfg.ccr_dropout]  # lost shots take all their CCR photons
         sc_list.append(sk)
         hc_list.append(_terrain(cfg, cx[k], cy[k]) + ch[k] + rng.normal(0, range_sigma, sk.size))
     sc, hc = np.concatenate(sc_list), np.concatenate(hc_list)
