@@ -4,9 +4,12 @@ After the method of Magruder et al. (2019, 2021; ICESat-2 CCR arrays at White Sa
 formulated for a grid search over footprint diameter and bias:
 
 1. denoise (coarse histogram, then DBSCAN) and model the ground (smoothing spline);
-2. CCR photons are the signal photons h_p ± Δh above the ground, Δh = min(c·t_d/2, 3·c·σ)
+2. CCR photons are the photons h_p ± Δh above the ground, Δh = min(c·t_d/2, 3·c·σ)
    (t_d detector dead time, σ RMS pulse width), within a search window around each CCR;
-   one segment per CCR: the along-track run of shots that saw it;
+   one segment per CCR: the along-track run of shots that saw it (gaps ≤ 7 d_l). They are
+   taken after the histogram stage only: DBSCAN drops the sparse ends of weak CCR runs
+   (CCR near the footprint edge, lost shots), and the height band, the search window and
+   the run split already reject the background;
 3. per segment: photon and shot counts, first/last shot, length l (span), midpoint, a
    least-squares line h = a·x + b (angle, intercept; photons > 3σ off it are dropped), and
    the shots missing inside the span (stepping the shot spacing d_l);
@@ -44,7 +47,7 @@ import numpy as np
 from calidar.adjust import Parameter, ParameterSet, solve
 from calidar.errors import CalibrationError, InputError
 from calidar.io.atl03 import PhotonBeam
-from calidar.photon.denoise import denoise
+from calidar.photon.denoise import denoise_stages
 from calidar.photon.ground import ground_profile
 from calidar.photon.track import TrackLine
 
@@ -155,7 +158,8 @@ class PassData:
     x: np.ndarray
     h: np.ndarray
     shot: np.ndarray
-    signal: np.ndarray
+    signal: np.ndarray  #: both denoising stages (surface photons)
+    coarse: np.ndarray  #: histogram stage only (CCR photons are taken from these)
     ground: object  #: callable x (m) → ground height (m)
     track: TrackLine
 
@@ -163,11 +167,11 @@ class PassData:
 def prepare_pass(beam: PhotonBeam, system: SystemParameters, name: str | None = None) -> PassData:
     """Denoise a beam and model its ground."""
     x, h = beam.x, beam.h
-    signal = denoise(x, h, system.shot_spacing)
+    coarse, signal = denoise_stages(x, h, system.shot_spacing)
     if signal.sum() < 10:
         raise CalibrationError(f"{name or beam.source}: {beam.beam}: denoising kept {signal.sum()} photons; no surface found")
     ground = ground_profile(x[signal], h[signal])
-    return PassData(name or str(beam.source), x, h, beam.shot_index(), signal, ground,
+    return PassData(name or str(beam.source), x, h, beam.shot_index(), signal, coarse, ground,
                     TrackLine.fit(x, beam.lat, beam.lon))
 
 
@@ -226,7 +230,7 @@ def extract_segments(p: PassData, survey: CCRSurvey, system: SystemParameters, s
     """One segment per CCR of the survey lit in pass ``p``; warnings for the others."""
     xk, yk = survey.in_track(p.track)
     reach = settings.diameter_max / 2.0 + settings.max_bias
-    gap = 5.0 * system.shot_spacing
+    gap = 7.0 * system.shot_spacing
     above = p.h - p.ground(p.x)
     xmin, xmax = p.x.min(), p.x.max()
     segments, warnings = [], []
@@ -238,7 +242,7 @@ def extract_segments(p: PassData, survey: CCRSurvey, system: SystemParameters, s
         if abs(yk[k]) > reach:
             warnings.append(f"{p.name}: CCR {cid} is {yk[k]:+.1f} m across the track, beyond any footprint; ignored")
             continue
-        band = p.signal & (np.abs(p.x - xk[k]) <= reach) & (np.abs(above - survey.height[k]) <= system.delta_h)
+        band = p.coarse & (np.abs(p.x - xk[k]) <= reach) & (np.abs(above - survey.height[k]) <= system.delta_h)
         idx = np.flatnonzero(band)
         idx = idx[np.argsort(p.x[idx], kind="stable")]
         if idx.size:

@@ -70,13 +70,21 @@ def fine_dbscan(x_m: np.ndarray, h_m: np.ndarray, radius_along: float = 2.5, rad
     return keep
 
 
-def denoise(x_m: np.ndarray, h_m: np.ndarray, shot_spacing: float = 0.7, min_samples: int = 4) -> np.ndarray:
-    """Signal mask of every photon: coarse histogram, then DBSCAN on the survivors.
+def denoise_stages(x_m: np.ndarray, h_m: np.ndarray, shot_spacing: float = 0.7,
+                   min_samples: int = 4) -> tuple[np.ndarray, np.ndarray]:
+    """(coarse, signal) masks: the histogram stage, then DBSCAN on its survivors.
 
-    The DBSCAN along-track radius is 3.5 shot spacings (m), the height radius 0.6 m."""
+    Two histograms offset by half a window are OR-ed, so no run of returns is cut by a bin
+    edge. The DBSCAN along-track radius is 3.5 shot spacings (m), the height radius 0.6 m."""
     x, h = np.asarray(x_m, float), np.asarray(h_m, float)
-    coarse = coarse_histogram(x, h)
+    coarse = coarse_histogram(x, h) | coarse_histogram(np.concatenate([[x.min() - 10.0], x]),
+                                                       np.concatenate([[h[0]], h]))[1:]
     signal = np.zeros(x.size, bool)
     idx = np.flatnonzero(coarse)
     signal[idx] = fine_dbscan(x[idx], h[idx], radius_along=3.5 * shot_spacing, min_samples=min_samples)
-    return signal
+    return coarse, signal
+
+
+def denoise(x_m: np.ndarray, h_m: np.ndarray, shot_spacing: float = 0.7, min_samples: int = 4) -> np.ndarray:
+    """Signal mask of every photon (both stages of :func:`denoise_stages`)."""
+    return denoise_stages(x_m, h_m, shot_spacing, min_samples)[1]
