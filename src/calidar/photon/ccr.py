@@ -57,11 +57,13 @@ PARAMETERS = ("along_track_bias", "cross_track_bias", "footprint_diameter")
 
 @dataclass(frozen=True)
 class SystemParameters:
-    """Instrument constants: dead time t_d (s), RMS pulse width σ (s), along-track shot spacing d_l (m)."""
+    """Instrument constants: dead time t_d (s), RMS pulse width σ (s), along-track shot spacing d_l (m),
+    detector channels (a CCR return arrives within the dead time, so each channel records ≤ 1 photon)."""
 
     dead_time: float = 3.2e-9
     pulse_width: float = 1.0e-9
     shot_spacing: float = 0.7
+    channels: int = 16  #: detector channels of the beam (ATLAS strong beam: 16)
 
     @property
     def delta_h(self) -> float:
@@ -188,6 +190,15 @@ class CCRSegment:
     shot_x: np.ndarray  #: along-track positions of the shots that saw the CCR (sorted)
     angle: float  #: slope angle of the least-squares line h(x) through the CCR photons
     intercept: float  #: line height above ground at the midpoint
+    shot_counts: np.ndarray  #: CCR photons recorded per shot of ``shot_x``
+    window_x: np.ndarray  #: along-track positions of every shot of the pass in the search window
+    window_counts: np.ndarray  #: CCR photons of this segment recorded by each of those shots (mostly 0)
+
+    @property
+    def central_count(self) -> float:
+        """Mean CCR photons per detecting shot in the central half of the segment."""
+        c = np.abs(self.shot_x - self.midpoint) <= max(self.length / 4.0, 1e-9)
+        return float(self.shot_counts[c].mean()) if c.any() else float(self.shot_counts.mean())
 
     @property
     def first(self) -> float:
@@ -221,7 +232,7 @@ class CCRSegment:
             "pole_height": self.pole_height, "n_photons": int(self.photon_index.size), "n_shots": self.n_shots,
             "missing_shots": self.missing_shots(spacing), "first": self.first, "last": self.last,
             "length": self.length, "midpoint": self.midpoint, "angle_rad": self.angle,
-            "intercept_above_ground": self.intercept,
+            "intercept_above_ground": self.intercept, "central_photons_per_shot": self.central_count,
         }
 
 
@@ -257,10 +268,14 @@ def extract_segments(p: PassData, survey: CCRSurvey, system: SystemParameters, s
                             f"({shots.size} shots in the {survey.height[k]:.2f} ± {system.delta_h:.2f} m band)")
             continue
         a, b = np.polyfit(p.x[idx] - p.x[idx].mean(), above[idx], 1)
-        _, one = np.unique(p.shot[idx], return_index=True)
-        shot_x = np.sort(p.x[idx][one])  # photons of one shot share its along-track position
+        _, one, counts = np.unique(p.shot[idx], return_index=True, return_counts=True)
+        order = np.argsort(p.x[idx][one])
+        shot_x = p.x[idx][one][order]  # photons of one shot share its along-track position
+        win = np.flatnonzero(np.abs(p.x - xk[k]) <= reach)
+        wshots, wone = np.unique(p.shot[win], return_index=True)
+        wcounts = np.bincount(np.searchsorted(wshots, p.shot[idx]), minlength=wshots.size)
         segments.append(CCRSegment(p.name, cid, float(xk[k]), float(yk[k]), float(survey.height[k]), idx,
-                                   shot_x, float(np.arctan(a)), float(b)))
+                                   shot_x, float(np.arctan(a)), float(b), counts[order], p.x[win][wone], wcounts))
     return segments, warnings
 
 
@@ -327,43 +342,55 @@ def grid_search(segments: list[CCRSegment], spacing: float, settings: SearchSett
     return GridResult(diam, biases, rms_c, rms_a, b_a, float(biases[j]), float(diam[i]), sides)
 
 
-def _chord_model(y: np.ndarray, cross_bias: float, diameter: float) -> np.ndarray:
-    return 2.0 * np.sqrt(np.clip((diameter / 2.0) ** 2 - (y - cross_bias) ** 2, 1e-6, None))
+def footprint_radius_1e2(diameter: float, peak_photons: float) -> float:
+    """1/e² radius w (m) of a Gaussian footprint whose 50 %-detection diameter for a CCR
+    returning ``peak_photons`` (mean, at the centre) is ``diameter``: Λ·exp(-2(D/2)²/w²) = ln 2."""
+    return 0.5 * diameter * np.sqrt(2.0 / np.log(max(peak_photons, 1.01) / np.log(2.0)))
 
 
-def _circle_fit(y: np.ndarray, chord: np.ndarray) -> tuple[float, float] | None:
-    """Closed-form (cross_bias, diameter) from (y − b)² + (C/2)² = R² (linear in b and R² − b²)."""
-    a = np.column_stack([2.0 * y, np.ones_like(y)])
-    if np.ptp(y) < 0.5:
-        return None
-    (b, c), *_ = np.linalg.lstsq(a, y**2 + (chord / 2.0) ** 2, rcond=None)
-    r2 = c + b * b
-    return (float(b), float(2.0 * np.sqrt(r2))) if r2 > 0 else None
+def profile_model(x_shot: np.ndarray, x_ccr: np.ndarray, y_ccr: np.ndarray, v: dict, loss: float,
+                  channels: int) -> np.ndarray:
+    """Expected recorded CCR photons per shot: (1 − q)·N·(1 − exp(−λ/N)), λ = Λ·exp(−2r²/w²),
+    r = distance from the true footprint centre (reported x + along bias, cross bias) to the CCR.
+
+    N detector channels each record at most one photon of a CCR return (it arrives within the
+    dead time); q is the shot-loss rate. Arrays are per shot (x_ccr, y_ccr repeated per shot)."""
+    w = footprint_radius_1e2(v["footprint_diameter"], v["ccr_peak_photons"])
+    r2 = (x_shot + v["along_track_bias"] - x_ccr) ** 2 + (v["cross_track_bias"] - y_ccr) ** 2
+    lam = v["ccr_peak_photons"] * np.exp(-2.0 * r2 / w**2)
+    return (1.0 - loss) * channels * -np.expm1(-lam / channels)
 
 
-def bootstrap(segments: list[CCRSegment], chord: np.ndarray, replicates: int, seed: int) -> np.ndarray:
-    """(n, 3) bootstrap estimates (along, cross, diameter; m), resampling CCR segments and,
-    within each, its shots (midpoint shifted by the resampled mean, chord scaled by the
-    resampled spread)."""
+def _profile_data(segments: list[CCRSegment], pick=None, rng=None):
+    """Stacked per-shot observations (x_shot, x_ccr, y_ccr, counts), optionally resampled."""
+    parts = []
+    for i in (range(len(segments)) if pick is None else pick):
+        s = segments[i]
+        j = np.arange(s.window_x.size) if rng is None else rng.integers(0, s.window_x.size, s.window_x.size)
+        parts.append((s.window_x[j], np.full(j.size, s.x_ccr), np.full(j.size, s.y_ccr), s.window_counts[j]))
+    return [np.concatenate(c) for c in zip(*parts)]
+
+
+def bootstrap(segments: list[CCRSegment], start: dict, loss: float, channels: int, replicates: int,
+              seed: int) -> np.ndarray:
+    """(n, 4) bootstrap re-estimates of PARAMETERS + ccr_peak_photons, resampling the CCR
+    segments and, within each, the shots of its window (scipy least_squares from ``start``)."""
+    from scipy.optimize import least_squares
+
     rng = np.random.default_rng(seed)
-    n = len(segments)
-    x = np.array([s.x_ccr for s in segments])
-    y = np.array([s.y_ccr for s in segments])
-    mid = np.array([s.midpoint for s in segments])
+    names = [*PARAMETERS, "ccr_peak_photons"]
+    x0 = np.array([start[k] for k in names])
     out = []
     for _ in range(replicates):
-        pick = rng.integers(0, n, n)
-        mids, chs = [], []
-        for i in pick:
-            sx = segments[i].shot_x
-            rs = sx[rng.integers(0, sx.size, sx.size)]
-            mids.append(mid[i] + rs.mean() - sx.mean())
-            sd = sx.std()
-            chs.append(chord[i] * (rs.std() / sd if sd > 0 else 1.0))
-        fit = _circle_fit(y[pick], np.array(chs))
-        if fit is not None:
-            out.append((float(np.mean(x[pick] - np.array(mids))), *fit))
-    return np.array(out).reshape(-1, 3)
+        pick = rng.integers(0, len(segments), len(segments))
+        if np.ptp([segments[i].y_ccr for i in pick]) < 0.5:
+            continue
+        xs, xc, yc, c = _profile_data(segments, pick, rng)
+        fit = least_squares(lambda q: profile_model(xs, xc, yc, dict(zip(names, q)), loss, channels) - c, x0,
+                            bounds=([-np.inf, -np.inf, 1.0, 1.1], np.inf), method="trf")
+        if fit.success:
+            out.append(fit.x)
+    return np.array(out).reshape(-1, len(names))
 
 
 @dataclass
@@ -401,22 +428,24 @@ def calibrate(passes: list[PassData], survey: CCRSurvey, system: SystemParameter
     loss = shot_loss_rate(segments, d_l)
     chord = chords(segments, d_l, loss)
     grid = grid_search(segments, d_l, settings)
-    x = np.array([s.x_ccr for s in segments])
-    mid = np.array([s.midpoint for s in segments])
     n = len(segments)
+    n_ch = system.channels
+    xs, xc, yc, obs = _profile_data(segments)
+    peak = max(float(np.max([s.central_count for s in segments])), 1.0)
+    peak0 = float(-n_ch * np.log1p(-min(peak, n_ch - 0.5) / n_ch))  # λ of the brightest centre
 
     def residuals(v: dict) -> np.ndarray:
-        return np.concatenate([x - mid - v["along_track_bias"],
-                               _chord_model(ys, v["cross_track_bias"], v["footprint_diameter"]) - chord])
+        return profile_model(xs, xc, yc, v, loss, n_ch) - obs
 
     params = ParameterSet([
         Parameter("along_track_bias", grid.along_bias, "m"),
         Parameter("cross_track_bias", grid.cross_bias, "m"),
         Parameter("footprint_diameter", grid.diameter, "m"),
+        Parameter("ccr_peak_photons", max(peak0, 2.0), "1", step=1e-3),
     ])
-    sigma = np.concatenate([np.full(n, d_l / 2.0), np.full(n, d_l)])
-    sol = solve(residuals, params, sigma=sigma, robust=None)
-    boot = bootstrap(segments, chord, settings.bootstrap, settings.seed) if settings.bootstrap else np.zeros((0, 3))
+    sol = solve(residuals, params, sigma=1.0, robust=None)
+    boot = (bootstrap(segments, sol.values, loss, n_ch, settings.bootstrap, settings.seed)
+            if settings.bootstrap else np.zeros((0, 4)))
     ls_sigma = dict(sol.sigma)
     if boot.shape[0] >= 20:
         sol = replace(sol, covariance=np.cov(boot.T))
@@ -429,7 +458,7 @@ def calibrate(passes: list[PassData], survey: CCRSurvey, system: SystemParameter
                         "determined; σ rests on the bootstrap")
     sol.warnings.extend(warnings)
     sol.extra.update({
-        "method": "CCR chord grid search + least-squares refinement",
+        "method": "CCR chord grid search, then least squares on the per-shot CCR photon counts",
         "sigma_source": sigma_source,
         "least_squares_sigma": {k: float(v) for k, v in ls_sigma.items()},
         "grid_search": grid.to_dict(),
