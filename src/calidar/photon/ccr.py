@@ -348,49 +348,66 @@ def footprint_radius_1e2(diameter: float, peak_photons: float) -> float:
     return 0.5 * diameter * np.sqrt(2.0 / np.log(max(peak_photons, 1.01) / np.log(2.0)))
 
 
-def profile_model(x_shot: np.ndarray, x_ccr: np.ndarray, y_ccr: np.ndarray, v: dict, loss: float,
-                  channels: int) -> np.ndarray:
-    """Expected recorded CCR photons per shot: (1 − q)·N·(1 − exp(−λ/N)), λ = Λ·exp(−2r²/w²),
-    r = distance from the true footprint centre (reported x + along bias, cross bias) to the CCR.
+#: Names of the refined parameters: PARAMETERS + the CCR peak photon rate Λ and the shot-loss rate q.
+PROFILE_PARAMETERS = (*PARAMETERS, "ccr_peak_photons", "shot_loss_rate")
+#: A-priori σ of a detection indicator (0/1) and of a photon count, for the least squares weights.
+SIGMA_DETECTION, SIGMA_COUNT = 0.4, 1.0
 
-    N detector channels each record at most one photon of a CCR return (it arrives within the
-    dead time); q is the shot-loss rate. Arrays are per shot (x_ccr, y_ccr repeated per shot)."""
+
+def profile_model(x_shot: np.ndarray, x_ccr: np.ndarray, y_ccr: np.ndarray, detected: np.ndarray, v: dict,
+                  channels: int) -> np.ndarray:
+    """Expected observations per shot: the detection indicator (1 − q)·(1 − e^(−λ)) of every shot,
+    then the recorded count of each detecting shot given detection, N·(1 − e^(−λ/N))/(1 − e^(−λ)).
+
+    λ = Λ·exp(−2r²/w²) with r the distance from the true footprint centre (reported x + along
+    bias, cross bias) to the CCR and w the 1/e² radius giving the 50 %-detection diameter D;
+    N detector channels each record ≤ 1 photon of a CCR return (it arrives within the dead
+    time); q = rate of shots whose CCR return is lost. The conditional counts do not depend on
+    q, which separates q from Λ. Arrays are per shot (x_ccr, y_ccr repeated per shot)."""
     w = footprint_radius_1e2(v["footprint_diameter"], v["ccr_peak_photons"])
     r2 = (x_shot + v["along_track_bias"] - x_ccr) ** 2 + (v["cross_track_bias"] - y_ccr) ** 2
     lam = v["ccr_peak_photons"] * np.exp(-2.0 * r2 / w**2)
-    return (1.0 - loss) * channels * -np.expm1(-lam / channels)
+    p_det = -np.expm1(-lam)
+    cond = channels * -np.expm1(-lam[detected] / channels) / np.clip(p_det[detected], 1e-12, None)
+    return np.concatenate([(1.0 - v["shot_loss_rate"]) * p_det, cond])
 
 
 def _profile_data(segments: list[CCRSegment], pick=None, rng=None):
-    """Stacked per-shot observations (x_shot, x_ccr, y_ccr, counts), optionally resampled."""
+    """Stacked per-shot data (x_shot, x_ccr, y_ccr, counts), optionally resampled, and the
+    observation vector [detected (0/1) per shot, counts of the detecting shots]."""
     parts = []
     for i in (range(len(segments)) if pick is None else pick):
         s = segments[i]
         j = np.arange(s.window_x.size) if rng is None else rng.integers(0, s.window_x.size, s.window_x.size)
         parts.append((s.window_x[j], np.full(j.size, s.x_ccr), np.full(j.size, s.y_ccr), s.window_counts[j]))
-    return [np.concatenate(c) for c in zip(*parts)]
+    xs, xc, yc, c = (np.concatenate(a) for a in zip(*parts))
+    det = c > 0
+    obs = np.concatenate([det.astype(float), c[det].astype(float)])
+    sigma = np.concatenate([np.full(c.size, SIGMA_DETECTION), np.full(int(det.sum()), SIGMA_COUNT)])
+    return xs, xc, yc, det, obs, sigma
 
 
-def bootstrap(segments: list[CCRSegment], start: dict, loss: float, channels: int, replicates: int,
-              seed: int) -> np.ndarray:
-    """(n, 4) bootstrap re-estimates of PARAMETERS + ccr_peak_photons, resampling the CCR
-    segments and, within each, the shots of its window (scipy least_squares from ``start``)."""
+def bootstrap(segments: list[CCRSegment], start: dict, channels: int, replicates: int, seed: int) -> np.ndarray:
+    """(n, 5) bootstrap re-estimates of PROFILE_PARAMETERS, resampling the CCR segments and,
+    within each, the shots of its window (scipy least_squares from ``start``)."""
     from scipy.optimize import least_squares
 
     rng = np.random.default_rng(seed)
-    names = [*PARAMETERS, "ccr_peak_photons"]
-    x0 = np.array([start[k] for k in names])
+    x0 = np.array([start[k] for k in PROFILE_PARAMETERS])
+    lo, hi = [-np.inf, -np.inf, 1.0, 1.1, -0.5], [np.inf, np.inf, np.inf, np.inf, 0.99]
+    x0 = np.clip(x0, np.array(lo) + 1e-6, np.array(hi) - 1e-6)
     out = []
     for _ in range(replicates):
         pick = rng.integers(0, len(segments), len(segments))
         if np.ptp([segments[i].y_ccr for i in pick]) < 0.5:
             continue
-        xs, xc, yc, c = _profile_data(segments, pick, rng)
-        fit = least_squares(lambda q: profile_model(xs, xc, yc, dict(zip(names, q)), loss, channels) - c, x0,
-                            bounds=([-np.inf, -np.inf, 1.0, 1.1], np.inf), method="trf")
+        xs, xc, yc, det, obs, sig = _profile_data(segments, pick, rng)
+        fit = least_squares(
+            lambda q: (profile_model(xs, xc, yc, det, dict(zip(PROFILE_PARAMETERS, q)), channels) - obs) / sig,
+            x0, bounds=(lo, hi), method="trf")
         if fit.success:
             out.append(fit.x)
-    return np.array(out).reshape(-1, len(names))
+    return np.array(out).reshape(-1, len(PROFILE_PARAMETERS))
 
 
 @dataclass
@@ -430,22 +447,23 @@ def calibrate(passes: list[PassData], survey: CCRSurvey, system: SystemParameter
     grid = grid_search(segments, d_l, settings)
     n = len(segments)
     n_ch = system.channels
-    xs, xc, yc, obs = _profile_data(segments)
+    xs, xc, yc, det, obs, sig = _profile_data(segments)
     peak = max(float(np.max([s.central_count for s in segments])), 1.0)
     peak0 = float(-n_ch * np.log1p(-min(peak, n_ch - 0.5) / n_ch))  # λ of the brightest centre
 
     def residuals(v: dict) -> np.ndarray:
-        return profile_model(xs, xc, yc, v, loss, n_ch) - obs
+        return profile_model(xs, xc, yc, det, v, n_ch) - obs
 
     params = ParameterSet([
         Parameter("along_track_bias", grid.along_bias, "m"),
         Parameter("cross_track_bias", grid.cross_bias, "m"),
         Parameter("footprint_diameter", grid.diameter, "m"),
         Parameter("ccr_peak_photons", max(peak0, 2.0), "1", step=1e-3),
+        Parameter("shot_loss_rate", loss, "1", step=1e-4),
     ])
-    sol = solve(residuals, params, sigma=1.0, robust=None)
-    boot = (bootstrap(segments, sol.values, loss, n_ch, settings.bootstrap, settings.seed)
-            if settings.bootstrap else np.zeros((0, 4)))
+    sol = solve(residuals, params, sigma=sig, robust=None)
+    boot = (bootstrap(segments, sol.values, n_ch, settings.bootstrap, settings.seed)
+            if settings.bootstrap else np.zeros((0, len(PROFILE_PARAMETERS))))
     ls_sigma = dict(sol.sigma)
     if boot.shape[0] >= 20:
         sol = replace(sol, covariance=np.cov(boot.T))
