@@ -12,7 +12,7 @@ from calidar.sim.photons import PhotonSimConfig, simulate_pass
 
 
 def main() -> None:
-    sim = simulate_pass(PhotonSimConfig(seed=1, length=190_000.0, n_ccr=12, ccr_spacing=45.0))
+    sim = simulate_pass(PhotonSimConfig(seed=1, length=210_000.0, n_ccr=12, ccr_spacing=45.0))
     survey = CCRSurvey(sim.ccr_id, sim.ccr_height, lat=sim.ccr_lat, lon=sim.ccr_lon)
     system = SystemParameters()
     t0 = time.perf_counter()

@@ -102,11 +102,22 @@ class CCRSurvey:
     y: np.ndarray | None = None
     source: str | None = None
 
-    def in_track(self, track: TrackLine) -> tuple[np.ndarray, np.ndarray]:
-        """(along-track x, cross-track y left positive) of every CCR in a pass's track frame (m)."""
-        if self.lat is not None:
-            return track.to_track(self.lat, self.lon)
-        return self.x, self.y
+    def in_track(self, x_m: np.ndarray, lat_rad: np.ndarray, lon_rad: np.ndarray,
+                 local_m: float = 1000.0) -> tuple[np.ndarray, np.ndarray]:
+        """(along-track x, cross-track y left positive) of every CCR (m) in the track of a pass
+        whose photons are at along-track x_m and lat/lon (rad); the track line is fitted to the
+        photons within ``local_m`` of each CCR (a long pass is not straight in a tangent plane)."""
+        if self.lat is None:
+            return self.x, self.y
+        xk, yk = TrackLine.fit(x_m, lat_rad, lon_rad).to_track(self.lat, self.lon)
+        step = max(1, x_m.size // 200_000)  # a subsample is plenty for a line fit
+        xs, la, lo = x_m[::step], lat_rad[::step], lon_rad[::step]
+        for k in range(xk.size):
+            near = np.abs(xs - xk[k]) <= local_m
+            if near.sum() >= 10:
+                xl, yl = TrackLine.fit(xs[near], la[near], lo[near]).to_track(self.lat[k:k + 1], self.lon[k:k + 1])
+                xk[k], yk[k] = xl[0], yl[0]
+        return xk, yk
 
 
 CCR_COLUMNS = ({"id", "lat", "lon", "height"}, {"id", "x", "y", "height"})
@@ -163,7 +174,8 @@ class PassData:
     signal: np.ndarray  #: both denoising stages (surface photons)
     coarse: np.ndarray  #: histogram stage only (CCR photons are taken from these)
     ground: object  #: callable x (m) → ground height (m)
-    track: TrackLine
+    lat: np.ndarray  #: rad, photon latitudes
+    lon: np.ndarray  #: rad
 
 
 def prepare_pass(beam: PhotonBeam, system: SystemParameters, name: str | None = None) -> PassData:
@@ -174,7 +186,7 @@ def prepare_pass(beam: PhotonBeam, system: SystemParameters, name: str | None = 
         raise CalibrationError(f"{name or beam.source}: {beam.beam}: denoising kept {signal.sum()} photons; no surface found")
     ground = ground_profile(x[signal], h[signal])
     return PassData(name or str(beam.source), x, h, beam.shot_index(), signal, coarse, ground,
-                    TrackLine.fit(x, beam.lat, beam.lon))
+                    beam.lat, beam.lon)
 
 
 @dataclass
@@ -239,7 +251,7 @@ class CCRSegment:
 def extract_segments(p: PassData, survey: CCRSurvey, system: SystemParameters, settings: SearchSettings
                      ) -> tuple[list[CCRSegment], list[str]]:
     """One segment per CCR of the survey lit in pass ``p``; warnings for the others."""
-    xk, yk = survey.in_track(p.track)
+    xk, yk = survey.in_track(p.x, p.lat, p.lon)
     reach = settings.diameter_max / 2.0 + settings.max_bias
     gap = 7.0 * system.shot_spacing
     above = p.h - p.ground(p.x)

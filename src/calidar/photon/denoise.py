@@ -1,5 +1,5 @@
 """Two-stage photon denoising: a coarse along-track height histogram (waveform) test,
-then DBSCAN in scaled (along-track, height) space.
+then DBSCAN's noise test in scaled (along-track, height) space.
 
 Coarse stage: photons are binned in along-track windows (``bin_along`` m) and height bins
 (``bin_height`` m above the window's lowest photon); the solar background per window is the
@@ -11,6 +11,7 @@ ellipse of ``radius_along`` × ``radius_height`` m; noise points are dropped.
 
 from __future__ import annotations
 
+import numba
 import numpy as np
 
 def coarse_histogram(x_m: np.ndarray, h_m: np.ndarray, bin_along: float = 20.0, bin_height: float = 0.5,
@@ -43,30 +44,52 @@ def coarse_histogram(x_m: np.ndarray, h_m: np.ndarray, bin_along: float = 20.0, 
     return sig[ix, iz] & inside
 
 
+@numba.njit(cache=True)
+def _dbscan_keep(x: np.ndarray, h: np.ndarray, min_samples: int) -> np.ndarray:  # pragma: no cover - numba
+    """DBSCAN noise test on points sorted by x, unit radius: keep = core or within 1 of a core."""
+    n = x.size
+    core = np.zeros(n, np.bool_)
+    lo = 0
+    for i in range(n):
+        while x[lo] < x[i] - 1.0:
+            lo += 1
+        cnt = 0
+        j = lo
+        while j < n and x[j] <= x[i] + 1.0:
+            if (x[j] - x[i]) ** 2 + (h[j] - h[i]) ** 2 <= 1.0:
+                cnt += 1
+            j += 1
+        core[i] = cnt >= min_samples
+    keep = core.copy()
+    lo = 0
+    for i in range(n):
+        while x[lo] < x[i] - 1.0:
+            lo += 1
+        if keep[i]:
+            continue
+        j = lo
+        while j < n and x[j] <= x[i] + 1.0:
+            if core[j] and (x[j] - x[i]) ** 2 + (h[j] - h[i]) ** 2 <= 1.0:
+                keep[i] = True
+                break
+            j += 1
+    return keep
+
+
 def fine_dbscan(x_m: np.ndarray, h_m: np.ndarray, radius_along: float = 2.5, radius_height: float = 0.6,
-                min_samples: int = 4, chunk: int = 200_000) -> np.ndarray:
-    """Boolean mask of photons DBSCAN keeps (core or border) in scaled (x/ra, h/rh) space.
+                min_samples: int = 4) -> np.ndarray:
+    """Boolean mask of photons DBSCAN keeps (core or border points) in scaled (x/ra, h/rh) space.
 
-    Long passes are clustered in along-track chunks of ``chunk`` photons (photons sorted by x)
-    overlapping by one radius, so memory stays bounded; results are identical to one run
-    except for clusters spanning a chunk seam, which are kept whole by the overlap."""
-    from sklearn.cluster import DBSCAN
-
+    Only DBSCAN's noise decision is needed, not the cluster labels, so it is computed directly
+    (numba, a sliding window over photons sorted along track): a core point has ≥ min_samples
+    points (itself included) within eps = 1; a border point lies within eps of a core point.
+    Identical to ``sklearn.cluster.DBSCAN(eps=1, min_samples).labels_ >= 0``, in O(N·k)."""
     x, h = np.asarray(x_m, float), np.asarray(h_m, float)
     keep = np.zeros(x.size, bool)
     if x.size == 0:
         return keep
     order = np.argsort(x, kind="stable")
-    pts = np.column_stack([x[order] / radius_along, h[order] / radius_height])
-    start = 0
-    while start < x.size:
-        stop = min(start + chunk, x.size)
-        # extend both ends by 2 scaled units so border decisions at the seams see their neighbours
-        lo = int(np.searchsorted(pts[:, 0], pts[start, 0] - 2.0))
-        hi = int(np.searchsorted(pts[:, 0], pts[stop - 1, 0] + 2.0, side="right"))
-        labels = DBSCAN(eps=1.0, min_samples=min_samples, algorithm="kd_tree").fit(pts[lo:hi]).labels_
-        keep[order[start:stop]] = labels[start - lo: stop - lo] >= 0
-        start = stop
+    keep[order] = _dbscan_keep(x[order] / radius_along, h[order] / radius_height, min_samples)
     return keep
 
 

@@ -3,8 +3,8 @@
 Objects above the ground (CCRs on poles, vegetation) can outnumber ground photons in a bin,
 so the ground is found from below: the bin's low percentile locates the surface, the median
 of the photons within [-0.5, +1.0] m of it is the bin's ground height, and a cubic smoothing
-spline (scipy ``make_smoothing_spline``, penalty chosen by generalised cross-validation)
-joins the bins.
+spline (scipy ``make_smoothing_spline``, fixed smoothing length: cross-validating the
+penalty costs minutes on a long pass) joins the bins.
 """
 
 from __future__ import annotations
@@ -28,8 +28,11 @@ def _per_bin(ix: np.ndarray, h: np.ndarray, q: float, nbin: int) -> tuple[np.nda
 
 
 def ground_profile(x_m: np.ndarray, h_m: np.ndarray, bin_m: float = 5.0, min_photons: int = 3,
-                   low_quantile: float = 0.1) -> Callable[[np.ndarray], np.ndarray]:
-    """Ground height (m) as a function of along-track distance (m), from signal photons."""
+                   low_quantile: float = 0.1, smoothing_m: float = 10.0) -> Callable[[np.ndarray], np.ndarray]:
+    """Ground height (m) as a function of along-track distance (m), from signal photons.
+
+    ``smoothing_m``: length scale of the spline (its penalty λ = smoothing_m⁴ / bin_m, so
+    features shorter than about that length are smoothed away)."""
     from scipy.interpolate import make_smoothing_spline
 
     x, h = np.asarray(x_m, float), np.asarray(h_m, float)
@@ -46,5 +49,5 @@ def ground_profile(x_m: np.ndarray, h_m: np.ndarray, bin_m: float = 5.0, min_pho
     hc = med[ok]
     if xc.size < 5:
         raise CalibrationError(f"only {xc.size} along-track bins with ground photons; need 5 to model the ground")
-    spline = make_smoothing_spline(xc, hc)
+    spline = make_smoothing_spline(xc, hc, lam=smoothing_m**4 / bin_m)
     return lambda xq: spline(np.asarray(xq, float))
