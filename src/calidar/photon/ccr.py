@@ -494,7 +494,8 @@ def calibrate(passes: list[PassData], survey: CCRSurvey, system: SystemParameter
         "grid_search": grid.to_dict(),
         "shot_loss_rate": loss,
         "delta_h": system.delta_h,
-        "system": {"dead_time_s": system.dead_time, "pulse_width_s": system.pulse_width, "shot_spacing_m": d_l},
+        "system": {"dead_time_s": system.dead_time, "pulse_width_s": system.pulse_width, "shot_spacing_m": d_l,
+                   "channels": system.channels},
         "segments": [dict(s.summary(d_l), chord=float(c)) for s, c in zip(segments, chord)],
         "passes": [p.name for p in passes],
     })

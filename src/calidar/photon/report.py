@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from calidar.photon.ccr import PARAMETERS, CCRResult
+from calidar.photon.ccr import PARAMETERS, CCRResult, footprint_radius_1e2
 
 
 def add_section(report, result: CCRResult, truth: dict | None = None, title: str = "Photon lidar: CCR geolocation calibration"):
@@ -22,6 +22,9 @@ def add_section(report, result: CCRResult, truth: dict | None = None, title: str
         f"σ: {sol.extra['sigma_source']}. Shot-loss rate inside the segments: {result.loss_rate:.1%}."
     )
     sec.solution(sol, {k: truth[k] for k in PARAMETERS} if truth else None)
+    sec.text("The grid search below is the published method (chords and midpoints); the values above refine it by "
+             "least squares on every shot's CCR photon count (Gaussian footprint energy, Poisson photons, one photon "
+             "per detector channel), with the CCR peak photon rate and the shot-loss rate as nuisance parameters.")
     g = result.grid
     sec.table(["grid search (method)", "along-track bias", "cross-track bias", "footprint diameter", "min RMS"],
               [["value (m)", g.along_bias, g.cross_bias, g.diameter, float(g.total.min())]])
@@ -68,6 +71,20 @@ def add_section(report, result: CCRResult, truth: dict | None = None, title: str
     axes[0][0].set_ylabel("cross-track y (m, left +)")
     sec.figure(fig, "Fitted footprints (orange) at the first and last shot that saw each CCR (▲); "
                     "grey: reported track, dashed: fitted footprint track")
+
+    # per-shot CCR photon counts against the fitted footprint model
+    fig, axes = plt.subplots(1, len(segs), figsize=(2.2 * len(segs) + 1, 2.6), squeeze=False, sharey=True)
+    n_ch = sol.extra["system"]["channels"]
+    for ax, s in zip(axes[0], segs):
+        xm = np.linspace(s.window_x.min(), s.window_x.max(), 300)
+        w = footprint_radius_1e2(diam, v["ccr_peak_photons"])
+        lam = v["ccr_peak_photons"] * np.exp(-2 * ((xm + b_a - s.x_ccr) ** 2 + (b_c - s.y_ccr) ** 2) / w**2)
+        ax.plot(s.window_x, s.window_counts, ".", ms=3, color="tab:red")
+        ax.plot(xm, (1 - v["shot_loss_rate"]) * n_ch * -np.expm1(-lam / n_ch), "-", color="tab:orange", lw=1)
+        ax.set_title(s.ccr_id, fontsize=8)
+        ax.set_xlabel("x (m)")
+    axes[0][0].set_ylabel("CCR photons per shot")
+    sec.figure(fig, "CCR photons recorded per shot (red) and the fitted expectation (orange)")
 
     fig, ax = plt.subplots(figsize=(6, 4))
     im = ax.pcolormesh(g.cross_biases, g.diameters, g.total, shading="auto", cmap="viridis",
