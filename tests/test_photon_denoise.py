@@ -24,3 +24,16 @@ def test_simulated_signal_kept_and_background_rejected():
     assert signal[cls == 1].mean() > 0.98  # ground
     assert signal[cls == 2].mean() > 0.95  # CCR returns
     assert signal[cls == 0].mean() < 0.15  # solar background (those left lie inside the surface band)
+
+
+def test_fine_stage_equals_sklearn_dbscan_noise_labels():
+    import numpy as np
+    from sklearn.cluster import DBSCAN
+
+    from calidar.photon.denoise import fine_dbscan
+
+    sim = simulate_pass(PhotonSimConfig(seed=12, n_ccr=3, length=500.0, ccr_spacing=60.0))
+    x, h = sim.beam.x, sim.beam.h
+    for ra, rh, k in [(2.45, 0.6, 4), (1.0, 0.3, 3)]:
+        ref = DBSCAN(eps=1.0, min_samples=k).fit(np.column_stack([x / ra, h / rh])).labels_ >= 0
+        np.testing.assert_array_equal(fine_dbscan(x, h, ra, rh, k), ref)

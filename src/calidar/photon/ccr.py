@@ -291,14 +291,16 @@ def extract_segments(p: PassData, survey: CCRSurvey, system: SystemParameters, s
     return segments, warnings
 
 
-def shot_loss_rate(segments: list[CCRSegment], spacing: float) -> float:
-    """Fraction of shots lost inside the central half of the segments (where detection is sure)."""
+def shot_loss_rate(segments: list[CCRSegment], spacing: float, with_count: bool = False):
+    """Fraction of shots lost inside the central half of the segments (where detection is sure);
+    with ``with_count`` also the number of shots it was counted over."""
     det = exp = 0
     for s in segments:
         lo, hi = s.midpoint - s.length / 4.0, s.midpoint + s.length / 4.0
         det += int(np.count_nonzero((s.shot_x >= lo) & (s.shot_x <= hi)))
         exp += int(np.floor((hi - s.first) / spacing + 1e-6) - np.ceil((lo - s.first) / spacing - 1e-6) + 1)
-    return float(np.clip(1.0 - det / exp, 0.0, 0.8)) if exp else 0.0
+    q = float(np.clip(1.0 - det / exp, 0.0, 0.8)) if exp else 0.0
+    return (q, exp) if with_count else q
 
 
 def chords(segments: list[CCRSegment], spacing: float, loss: float) -> np.ndarray:
@@ -454,7 +456,7 @@ def calibrate(passes: list[PassData], survey: CCRSurvey, system: SystemParameter
             "CCRs at different cross-track offsets (one chord gives |cross-track offset| only, not its side, "
             "and not the footprint diameter)")
     d_l = system.shot_spacing
-    loss = shot_loss_rate(segments, d_l)
+    loss, n_loss = shot_loss_rate(segments, d_l, with_count=True)
     chord = chords(segments, d_l, loss)
     grid = grid_search(segments, d_l, settings)
     n = len(segments)
@@ -471,7 +473,9 @@ def calibrate(passes: list[PassData], survey: CCRSurvey, system: SystemParameter
         Parameter("cross_track_bias", grid.cross_bias, "m"),
         Parameter("footprint_diameter", grid.diameter, "m"),
         Parameter("ccr_peak_photons", max(peak0, 2.0), "1", step=1e-3),
-        Parameter("shot_loss_rate", loss, "1", step=1e-4),
+        # the missing shots counted in the chord centres (stepping d_l) are a binomial prior on q
+        Parameter("shot_loss_rate", loss, "1", step=1e-4,
+                  prior_sigma=float(np.sqrt(max(loss * (1 - loss), 0.05) / max(n_loss, 1)))),
     ])
     sol = solve(residuals, params, sigma=sig, robust=None)
     boot = (bootstrap(segments, sol.values, n_ch, settings.bootstrap, settings.seed)
