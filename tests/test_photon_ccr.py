@@ -141,3 +141,14 @@ def test_ccr_csv_round_trip(tmp_path):
     assert s.ids == ["a", "b"]
     np.testing.assert_allclose(np.degrees(s.lat), [32.4, 32.5])
     np.testing.assert_allclose(s.height, [2.0, 3.5])
+
+
+def test_demo_step_adds_a_report_section(tmp_path):
+    from calidar.photon.demo import run_demo
+    from calidar.report import Report
+
+    report = Report()
+    run_demo(report, tmp_path, seed=2)
+    assert [s.title for s in report.sections] == ["Photon lidar: CCR geolocation calibration"]
+    doc = json.loads((tmp_path / "photon" / "ccr" / "solution.json").read_text())
+    assert abs(doc["parameters"]["along_track_bias"]["error"]) < 0.5
