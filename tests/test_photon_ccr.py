@@ -42,22 +42,18 @@ def test_many_lit_ccrs_recover_bias_and_diameter(seed):
     assert not wrong
 
 
-@pytest.mark.parametrize("seed", [0, 1, 2])
-def test_two_lit_ccrs_with_a_third_of_shots_lost_cross_track(seed):
+@pytest.mark.parametrize("seed", [
+    0, 1,
+    pytest.param(2, marks=pytest.mark.xfail(
+        reason="known shortfall: footprint diameter off by 1.32 m on this seed (9 of seeds 0-9 are within 1 m)",
+        strict=True)),
+])
+def test_two_lit_ccrs_with_a_third_of_shots_lost(seed):
     sim, result, err = _solve(PhotonSimConfig(seed=seed, n_ccr=2, ccr_dropout=1 / 3, n_unlit=1))
     assert len(result.segments) == 2
-    assert abs(err["cross_track_bias"]) < 1.0
     assert any("no CCR photons found for CCR CCR03" in w for w in result.warnings)
-
-
-@pytest.mark.xfail(reason="known shortfall: with 2 lit CCRs and 1/3 of shots lost, along-track bias and footprint "
-                          "diameter errors reach 1.2-2.0 m on 3 of 10 seeds (the data fit a sharper, smaller "
-                          "footprint better than the truth); see docs/architecture.md", strict=False)
-@pytest.mark.parametrize("seed", [0, 1, 2])
-def test_two_lit_ccrs_with_a_third_of_shots_lost_along_and_diameter(seed):
-    sim, result, err = _solve(PhotonSimConfig(seed=seed, n_ccr=2, ccr_dropout=1 / 3, n_unlit=1))
-    assert abs(err["along_track_bias"]) < 1.0
-    assert abs(err["footprint_diameter"]) < 1.0
+    for k in PARAMETERS:
+        assert abs(err[k]) < 1.0, (k, err[k])
 
 
 def test_several_passes_are_solved_jointly():

@@ -386,6 +386,18 @@ def profile_model(x_shot: np.ndarray, x_ccr: np.ndarray, y_ccr: np.ndarray, dete
     return np.concatenate([(1.0 - v["shot_loss_rate"]) * p_det, cond])
 
 
+def model_sigma(x_shot, x_ccr, y_ccr, detected, v: dict, channels: int) -> np.ndarray:
+    """σ of each observation of :func:`profile_model` under the model ``v``: √(P(1−P)) for the
+    detection indicators, √(N·π(1−π)) (π = 1 − e^(−λ/N), channels hit) for the counts."""
+    w = footprint_radius_1e2(v["footprint_diameter"], v["ccr_peak_photons"])
+    r2 = (x_shot + v["along_track_bias"] - x_ccr) ** 2 + (v["cross_track_bias"] - y_ccr) ** 2
+    lam = v["ccr_peak_photons"] * np.exp(-2.0 * r2 / w**2)
+    pdet = (1.0 - v["shot_loss_rate"]) * -np.expm1(-lam)
+    pi = -np.expm1(-lam[detected] / channels)
+    return np.concatenate([np.sqrt(np.clip(pdet * (1 - pdet), 0.02, None)),
+                           np.sqrt(np.clip(channels * pi * (1 - pi), 0.25, None))])
+
+
 def _profile_data(segments: list[CCRSegment], pick=None, rng=None):
     """Stacked per-shot data (x_shot, x_ccr, y_ccr, counts), optionally resampled, and the
     observation vector [detected (0/1) per shot, counts of the detecting shots]."""
@@ -403,7 +415,8 @@ def _profile_data(segments: list[CCRSegment], pick=None, rng=None):
 
 def bootstrap(segments: list[CCRSegment], start: dict, channels: int, replicates: int, seed: int) -> np.ndarray:
     """(n, 5) bootstrap re-estimates of PROFILE_PARAMETERS, resampling the CCR segments and,
-    within each, the shots of its window (scipy least_squares from ``start``)."""
+    within each, the shots of its window (scipy least_squares from ``start``, weights from
+    the model at ``start``)."""
     from scipy.optimize import least_squares
 
     rng = np.random.default_rng(seed)
@@ -415,7 +428,8 @@ def bootstrap(segments: list[CCRSegment], start: dict, channels: int, replicates
         pick = rng.integers(0, len(segments), len(segments))
         if np.ptp([segments[i].y_ccr for i in pick]) < 0.5:
             continue
-        xs, xc, yc, det, obs, sig = _profile_data(segments, pick, rng)
+        xs, xc, yc, det, obs, _ = _profile_data(segments, pick, rng)
+        sig = model_sigma(xs, xc, yc, det, start, channels)
         fit = least_squares(
             lambda q: (profile_model(xs, xc, yc, det, dict(zip(PROFILE_PARAMETERS, q)), channels) - obs) / sig,
             x0, bounds=(lo, hi), method="trf")
@@ -478,6 +492,10 @@ def calibrate(passes: list[PassData], survey: CCRSurvey, system: SystemParameter
                   prior_sigma=float(np.sqrt(max(loss * (1 - loss), 0.05) / max(n_loss, 1)))),
     ])
     sol = solve(residuals, params, sigma=sig, robust=None)
+    # re-weight by the model's own variances (binomial detection, binomial channel hits) and re-solve
+    sig = model_sigma(xs, xc, yc, det, sol.values, n_ch)
+    sol = solve(residuals, ParameterSet([replace(p, value=sol.values[p.name]) for p in params]), sigma=sig,
+                robust=None)
     boot = (bootstrap(segments, sol.values, n_ch, settings.bootstrap, settings.seed)
             if settings.bootstrap else np.zeros((0, len(PROFILE_PARAMETERS))))
     ls_sigma = dict(sol.sigma)
