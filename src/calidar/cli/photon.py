@@ -83,6 +83,7 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
         dead_time_ns: float = typer.Option(3.2, "--dead-time-ns", help="Detector dead time t_d (ns)."),
         pulse_width_ns: float = typer.Option(1.0, "--pulse-width-ns", help="RMS pulse width σ (ns)."),
         shot_spacing: float = typer.Option(0.7, "--shot-spacing-m", help="Along-track shot spacing d_l (m)."),
+        channels: int = typer.Option(16, "--channels", help="Detector channels of the beam (ATLAS: 16 strong, 4 weak)."),
         diameter_range: str = typer.Option("8,15", "--diameter-range", help="Footprint diameters searched MIN,MAX (m)."),
         diameter_step: float = typer.Option(0.1, "--diameter-step", help="Diameter step Δr (m)."),
         length_step: float = typer.Option(0.1, "--length-step", help="Segment-length step Δl (m)."),
@@ -101,7 +102,9 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
                 raise InputError(None, name, f"expected a positive number, got {v}")
         if not 0 < dmin < dmax:
             raise InputError(None, "--diameter-range", f"expected 0 < MIN < MAX, got {diameter_range}")
-        system = SystemParameters(dead_time_ns * 1e-9, pulse_width_ns * 1e-9, shot_spacing)
+        if channels < 1:
+            raise InputError(None, "--channels", f"expected a positive integer, got {channels}")
+        system = SystemParameters(dead_time_ns * 1e-9, pulse_width_ns * 1e-9, shot_spacing, channels)
         settings = SearchSettings(dmin, dmax, diameter_step, length_step, bootstrap=bootstrap)
         result = run_ccr(atl03, beam, ccr_file, out, system=system, settings=settings, truth_path=truth, force=force)
         v, s = result.solution.values, result.solution.sigma

@@ -41,6 +41,7 @@ from __future__ import annotations
 import csv
 from dataclasses import dataclass, field, replace
 from pathlib import Path
+from warnings import catch_warnings, simplefilter
 
 import numpy as np
 
@@ -430,9 +431,11 @@ def bootstrap(segments: list[CCRSegment], start: dict, channels: int, replicates
             continue
         xs, xc, yc, det, obs, _ = _profile_data(segments, pick, rng)
         sig = model_sigma(xs, xc, yc, det, start, channels)
-        fit = least_squares(
-            lambda q: (profile_model(xs, xc, yc, det, dict(zip(PROFILE_PARAMETERS, q)), channels) - obs) / sig,
-            x0, bounds=(lo, hi), method="trf")
+        with catch_warnings():  # trf's step control divides by zero on flat directions
+            simplefilter("ignore", RuntimeWarning)
+            fit = least_squares(
+                lambda q: (profile_model(xs, xc, yc, det, dict(zip(PROFILE_PARAMETERS, q)), channels) - obs) / sig,
+                x0, bounds=(lo, hi), method="trf")
         if fit.success:
             out.append(fit.x)
     return np.array(out).reshape(-1, len(PROFILE_PARAMETERS))

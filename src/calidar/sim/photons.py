@@ -19,7 +19,7 @@ That is what CCR chords measure.
 from __future__ import annotations
 
 import json
-from dataclasses import asdict, dataclass, replace
+from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
@@ -196,8 +196,3 @@ def write_pass(sim: SimulatedPass, out_dir: Path, stem: str = "ATL03_sim") -> di
     ccr = write_ccr_csv(out_dir / "ccr.csv", sim.ccr_id, sim.ccr_lat, sim.ccr_lon, sim.ccr_height)
     truth = write_text_atomic(out_dir / "truth.json", json.dumps(sim.truth, indent=2) + "\n")
     return {"atl03": h5, "ccr": ccr, "truth": truth}
-
-
-def with_overrides(cfg: PhotonSimConfig, **kw) -> PhotonSimConfig:
-    """A copy of ``cfg`` with the non-None keyword values replaced."""
-    return replace(cfg, **{k: v for k, v in kw.items() if v is not None})
