@@ -148,3 +148,16 @@ def test_demo_step_adds_a_report_section(tmp_path):
     assert [s.title for s in report.sections] == ["Photon lidar: CCR geolocation calibration"]
     doc = json.loads((tmp_path / "photon" / "ccr" / "solution.json").read_text())
     assert abs(doc["parameters"]["along_track_bias"]["error"]) < 0.5
+
+
+def test_survey_in_track_coordinates(tmp_path):
+    sim = simulate_pass(PhotonSimConfig(seed=7, n_ccr=8))
+    p = tmp_path / "ccr_xy.csv"
+    p.write_text("id,x,y,height\n" + "".join(
+        f"{i},{x:.3f},{y:.3f},{h}\n" for i, x, y, h in zip(sim.ccr_id, sim.ccr_x, sim.ccr_y, sim.ccr_height)))
+    survey = read_ccr_csv(p)
+    result = calibrate([prepare_pass(sim.beam, SYSTEM, "sim")], survey, SYSTEM, SearchSettings(bootstrap=0))
+    v = result.solution.values
+    assert abs(v["along_track_bias"] - sim.truth["along_track_bias"]) < 0.5
+    assert abs(v["cross_track_bias"] - sim.truth["cross_track_bias"]) < 0.5
+    assert "least squares" in result.solution.extra["sigma_source"]

@@ -505,12 +505,14 @@ def calibrate(passes: list[PassData], survey: CCRSurvey, system: SystemParameter
     if boot.shape[0] >= 20:
         sol = replace(sol, covariance=np.cov(boot.T))
         sigma_source = f"bootstrap ({boot.shape[0]} replicates over CCRs and shots)"
-    else:
+    elif settings.bootstrap:
         sigma_source = "least squares (too few CCRs for a bootstrap)"
         warnings.append("σ from least squares only: the bootstrap needs CCRs at ≥ 2 cross-track offsets")
+    else:
+        sigma_source = "least squares (bootstrap off)"
     if n <= 3:
-        warnings.append(f"only {n} CCR segments: cross-track bias and footprint diameter are (nearly) exactly "
-                        "determined; σ rests on the bootstrap")
+        warnings.append(f"only {n} CCR segments: few CCR profiles for four footprint parameters; "
+                        "treat the footprint diameter with care")
     sol.warnings.extend(warnings)
     sol.extra.update({
         "method": "CCR chord grid search, then least squares on the per-shot CCR photon counts",
