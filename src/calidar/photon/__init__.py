@@ -1,0 +1,1 @@
+"""Single-photon lidar (ICESat-2 style): denoising, ground profile, CCR geolocation calibration."""

@@ -1,0 +1,198 @@
+"""Simulated single-photon lidar pass over corner-cube retroreflectors (CCRs), ICESat-2 style.
+
+Model (all SI): shots every ``shot_spacing`` m along a straight ground track (10 kHz).
+The reported footprint centre of shot i is (x_i, 0) in track coordinates (x along, y
+cross-track, left positive); the true one is (x_i + along_bias + jitter, cross_bias + jitter).
+Footprint energy is Gaussian with 1/e² radius w. Ground photons: Poisson(``ground_photons``)
+per shot, each from a point drawn from the footprint energy, height = terrain there
+(slopes, undulation, roughness) + range noise c·σ_t/2. Solar background: Poisson(rate·window)
+per shot, uniform over the telemetry window. A CCR at distance r from the true centre
+returns Poisson(λ0·exp(-2r²/w²)) photons at its pole height. Detector: ``channels``
+channels with dead time t_d (a photon is lost if the previous photon of the same shot
+and channel came less than t_d before it).
+
+Truth ``footprint_diameter`` D is the diameter within which a CCR is detected (≥ 1 photon)
+with probability ≥ 50 %: λ0·exp(-2(D/2)²/w²) = ln 2, i.e. w = (D/2)·sqrt(2 / ln(λ0/ln 2)).
+That is what CCR chords measure.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import numpy as np
+
+from calidar.io.atl03 import SURFACE_TYPES, PhotonBeam, segment_photons, write_atl03
+from calidar.outputs import atomic_path, write_text_atomic
+from calidar.photon.track import TrackLine
+
+C_LIGHT = 299_792_458.0  #: m/s
+ATLAS_EPOCH_OFFSET = 2.5e7  #: s, delta_time of the first shot (about Oct 2018)
+
+
+@dataclass(frozen=True)
+class PhotonSimConfig:
+    """Settings of a simulated pass. Distances m, times s, angles rad, rates Hz."""
+
+    seed: int = 0
+    beam: str = "gt1l"
+    length: float = 1200.0  #: m of track simulated
+    shot_spacing: float = 0.7  #: m between footprints (7 km/s ground speed / 10 kHz)
+    prf: float = 10_000.0  #: Hz
+    footprint_diameter: float = 11.0  #: m, 50 % CCR-detection diameter (truth)
+    along_bias: float | None = None  #: m; None = drawn in ±3 m
+    cross_bias: float | None = None  #: m; None = drawn in ±3 m
+    jitter: float = 0.3  #: m, per-shot pointing jitter σ (each axis)
+    ground_photons: float = 3.0  #: mean signal photons per shot from the ground
+    background_rate: float = 3.0e6  #: Hz, solar background photon rate
+    window: float = 30.0  #: m, telemetry height window (from 10 m below ground)
+    dead_time: float = 3.2e-9  #: s
+    pulse_width: float = 1.0e-9  #: s, RMS
+    channels: int = 16
+    slope_along: float = 0.02  #: terrain slope along track (m/m)
+    slope_cross: float = 0.01  #: terrain slope across track (m/m)
+    undulation: float = 2.0  #: m, amplitude of a 300 m-wavelength terrain undulation
+    roughness: float = 0.05  #: m, RMS surface roughness
+    n_ccr: int = 5  #: CCRs inside the footprints' reach
+    n_unlit: int = 0  #: extra CCRs placed out of the footprints' reach (no returns)
+    ccr_photons: float = 20.0  #: mean photons from a CCR at the footprint centre
+    ccr_dropout: float = 0.0  #: fraction of shots whose CCR photons are all lost
+    ccr_spacing: float = 60.0  #: m along track between CCRs
+    lat0_deg: float = 32.4  #: tangent-plane origin (a desert CCR site)
+    lon0_deg: float = -106.4
+    azimuth_deg: float = -13.0  #: track direction (clockwise from north)
+
+    @property
+    def w(self) -> float:
+        """1/e² radius of the footprint energy (m) for the 50 %-detection diameter."""
+        return 0.5 * self.footprint_diameter * np.sqrt(2.0 / np.log(self.ccr_photons / np.log(2.0)))
+
+
+@dataclass
+class SimulatedPass:
+    """A simulated pass: the ATL03 beam, the CCR survey (track and geodetic) and the truth."""
+
+    beam: PhotonBeam
+    ccr_id: list[str]
+    ccr_x: np.ndarray  #: m along track
+    ccr_y: np.ndarray  #: m cross track (left positive)
+    ccr_lat: np.ndarray  #: rad
+    ccr_lon: np.ndarray  #: rad
+    ccr_height: np.ndarray  #: m above ground
+    truth: dict
+    photon_class: np.ndarray  #: 0 background, 1 ground, 2 CCR
+
+
+def _terrain(cfg: PhotonSimConfig, x, y):
+    """Terrain height (m) at track coordinates x, y (m)."""
+    return 1200.0 + cfg.slope_along * x + cfg.slope_cross * y + cfg.undulation * np.sin(2 * np.pi * x / 300.0)
+
+
+def _ccr_layout(cfg: PhotonSimConfig, rng, along_bias, cross_bias):
+    """CCRs spread across the true footprint track (distinct pole heights, cross-track offsets)."""
+    r = 0.5 * cfg.footprint_diameter
+    n = cfg.n_ccr + cfg.n_unlit
+    x = 0.5 * cfg.length - 0.5 * cfg.ccr_spacing * (n - 1) + cfg.ccr_spacing * np.arange(n)
+    x = x + rng.uniform(-0.3, 0.3, n) * cfg.shot_spacing
+    # lit CCRs: evenly spread offsets within ±0.7 R of the true track, shuffled
+    u = np.linspace(-0.7, 0.7, cfg.n_ccr) if cfg.n_ccr > 1 else np.array([0.3])
+    y = cross_bias + r * rng.permutation(u + rng.uniform(-0.05, 0.05, cfg.n_ccr))
+    y = np.concatenate([y, cross_bias + rng.choice([-1, 1], cfg.n_unlit) * (2.0 * r + rng.uniform(1, 4, cfg.n_unlit))])
+    heights = 1.5 + 0.5 * rng.permutation(n)
+    return x, y, heights
+
+
+def simulate_pass(cfg: PhotonSimConfig) -> SimulatedPass:
+    """Simulate one pass (see the module docstring for the model)."""
+    rng = np.random.default_rng(cfg.seed)
+    along_bias = rng.uniform(-3, 3) if cfg.along_bias is None else cfg.along_bias
+    cross_bias = rng.uniform(-3, 3) if cfg.cross_bias is None else cfg.cross_bias
+    n_shots = int(cfg.length / cfg.shot_spacing)
+    xs = cfg.shot_spacing * np.arange(n_shots)
+    tx = xs + along_bias + rng.normal(0, cfg.jitter, n_shots)  # true footprint centres
+    ty = cross_bias + rng.normal(0, cfg.jitter, n_shots)
+    sig_fp = 0.5 * cfg.w  # Gaussian σ of the energy (1/e² radius = 2σ)
+    range_sigma = 0.5 * C_LIGHT * cfg.pulse_width
+
+    # ground photons
+    ng = rng.poisson(cfg.ground_photons, n_shots)
+    sg = np.repeat(np.arange(n_shots), ng)
+    px, py = tx[sg] + rng.normal(0, sig_fp, sg.size), ty[sg] + rng.normal(0, sig_fp, sg.size)
+    hg = _terrain(cfg, px, py) + rng.normal(0, cfg.roughness, sg.size) + rng.normal(0, range_sigma, sg.size)
+    # solar background, uniform over the telemetry window around the reported ground
+    nb = rng.poisson(cfg.background_rate * 2 * cfg.window / C_LIGHT, n_shots)
+    sb = np.repeat(np.arange(n_shots), nb)
+    hb = _terrain(cfg, xs[sb], 0.0) - 10.0 + rng.uniform(0, cfg.window, sb.size)
+    # CCR photons
+    cx, cy, ch = _ccr_layout(cfg, rng, along_bias, cross_bias)
+    sc_list, hc_list = [], []
+    for k in range(cx.size):
+        near = np.flatnonzero(np.abs(tx - cx[k]) < 3 * cfg.w)
+        r2 = (tx[near] - cx[k]) ** 2 + (ty[near] - cy[k]) ** 2
+        nk = rng.poisson(cfg.ccr_photons * np.exp(-2 * r2 / cfg.w**2))
+        sk = np.repeat(near, nk)
+        sk = sk[rng.random(n_shots)[sk] >= cfg.ccr_dropout]  # lost shots take all their CCR photons
+        sc_list.append(sk)
+        hc_list.append(_terrain(cfg, cx[k], cy[k]) + ch[k] + rng.normal(0, range_sigma, sk.size))
+    sc, hc = np.concatenate(sc_list), np.concatenate(hc_list)
+
+    shot = np.concatenate([sg, sb, sc])
+    h = np.concatenate([hg, hb, hc])
+    cls = np.concatenate([np.ones(sg.size, np.int8), np.zeros(sb.size, np.int8), np.full(sc.size, 2, np.int8)])
+    # detector: random channel, dead time within (shot, channel); arrival order = descending height
+    chan = rng.integers(0, cfg.channels, shot.size)
+    order = np.lexsort((-h, chan, shot))
+    shot, h, cls, chan = shot[order], h[order], cls[order], chan[order]
+    t_arr = -2.0 * h / C_LIGHT
+    same = (shot[1:] == shot[:-1]) & (chan[1:] == chan[:-1])
+    dead = np.concatenate([[False], same & (t_arr[1:] - t_arr[:-1] < cfg.dead_time)])
+    shot, h, cls = shot[~dead], h[~dead], cls[~dead]
+    order = np.lexsort((-h, shot))  # photons of a shot in arrival order
+    shot, h, cls = shot[order], h[order], cls[order]
+
+    x = xs[shot]
+    track = TrackLine(np.radians(cfg.lat0_deg), np.radians(cfg.lon0_deg), 0.0, 0.0, 0.0,
+                      (float(np.sin(np.radians(cfg.azimuth_deg))), float(np.cos(np.radians(cfg.azimuth_deg)))))
+    lat, lon = track.to_geodetic(x, np.zeros_like(x))
+    seg_id, beg, cnt, dist_x, along = segment_photons(x, 20.0, first_id=100_000)
+    conf = np.full((x.size, len(SURFACE_TYPES)), -1, np.int8)
+    conf[:, 0] = np.where(cls > 0, 4, 0)
+    beam = PhotonBeam(
+        beam=cfg.beam, delta_time=ATLAS_EPOCH_OFFSET + shot / cfg.prf, lat=lat, lon=lon, h=h,
+        dist_along=along, dist_across=np.zeros_like(x), signal_conf=conf, quality=np.zeros(x.size, np.int8),
+        segment_id=seg_id, ph_index_beg=beg, segment_ph_cnt=cnt, segment_dist_x=dist_x,
+    )
+    clat, clon = track.to_geodetic(cx, cy)
+    truth = {
+        "along_track_bias": float(along_bias), "cross_track_bias": float(cross_bias),
+        "footprint_diameter": float(cfg.footprint_diameter),
+        "units": "m",
+        "conventions": "true footprint = reported + bias; along-track positive in the direction of travel, "
+                       "cross-track positive to the left of it; footprint_diameter = 50 % CCR-detection diameter",
+        "ccr_lit": [bool(i < cfg.n_ccr) for i in range(cx.size)],
+        "ccr_x": cx.tolist(), "ccr_y": cy.tolist(),
+        "config": asdict(cfg),
+    }
+    ids = [f"CCR{k + 1:02d}" for k in range(cx.size)]
+    return SimulatedPass(beam, ids, cx, cy, clat, clon, ch, truth, cls)
+
+
+def write_ccr_csv(path: str | Path, ids, lat_rad, lon_rad, height_m, force: bool = True) -> Path:
+    """CCR survey file: ``id,lat,lon,height`` (degrees, degrees, metres above ground)."""
+    lines = ["id,lat,lon,height"] + [
+        f"{i},{np.degrees(a):.9f},{np.degrees(o):.9f},{hh:.3f}" for i, a, o, hh in zip(ids, lat_rad, lon_rad, height_m)
+    ]
+    return write_text_atomic(path, "\n".join(lines) + "\n", force)
+
+
+def write_pass(sim: SimulatedPass, out_dir: Path, stem: str = "ATL03_sim") -> dict[str, Path]:
+    """Write ``<stem>.h5``, ``ccr.csv`` and ``truth.json`` into ``out_dir`` (already prepared)."""
+    out_dir = Path(out_dir)
+    h5 = out_dir / f"{stem}.h5"
+    with atomic_path(h5) as tmp:
+        write_atl03(tmp, [sim.beam])
+    ccr = write_ccr_csv(out_dir / "ccr.csv", sim.ccr_id, sim.ccr_lat, sim.ccr_lon, sim.ccr_height)
+    truth = write_text_atomic(out_dir / "truth.json", json.dumps(sim.truth, indent=2) + "\n")
+    return {"atl03": h5, "ccr": ccr, "truth": truth}
