@@ -75,27 +75,29 @@ def nominal_path(lines: list[FlightLine], spec: MotionSpec, t0: float):
             off = np.r_[2 * spec.turn_radius_m * np.array([d[1], -d[0]]), 0.0]
             legs.append((legs[-1][1] + off, a + off, False))
         legs.append((a, b, True))
-    times, pos, vel, windows = [], [], [], []
+    # uniform 200 Hz grid: every leg and turn lasts a whole number of samples
+    a0 = legs[0][0]
+    times, pos, vel, windows = [np.array([t0])], [a0[None]], [None], []
     t = t0
     for k, (a, b, scanning) in enumerate(legs):
-        if k:
-            p0, v0 = pos[-1][-1], vel[-1][-1]
-            u1 = (b - a) / np.linalg.norm(b - a)
-            gap = np.linalg.norm(a - p0)
-            turn_len = max(gap, np.pi * spec.turn_radius_m) * 1.3
-            T = turn_len / v
-            tt = np.arange(1, int(np.ceil(T / dt))) * dt
-            tt = np.r_[tt, T]
-            p, vv = _hermite(p0, v0, a, v * u1, tt)
-            times.append(t + tt[:-1]), pos.append(p[:-1]), vel.append(vv[:-1])
-            t += T
         length = np.linalg.norm(b - a)
         u = (b - a) / length
-        tt = np.arange(int(np.floor(length / v / dt)) + 1) * dt
-        times.append(t + tt), pos.append(a + np.outer(tt * v, u)), vel.append(np.tile(v * u, (tt.size, 1)))
+        if k:
+            p0, v0 = pos[-1][-1], vel[-1][-1]
+            turn_len = max(np.linalg.norm(a - p0), np.pi * spec.turn_radius_m) * 1.3
+            n = int(np.ceil(turn_len / v / dt))
+            p, vv = _hermite(p0, v0, a, v * u, np.arange(1, n + 1) * dt)
+            times.append(t + np.arange(1, n + 1) * dt), pos.append(p), vel.append(vv)
+            t += n * dt
+        m = max(int(round(length / v / dt)), 1)
+        v_leg = length / (m * dt)
+        kk = np.arange(1, m + 1)
+        times.append(t + kk * dt), pos.append(a + np.outer(kk / m * length, u)), vel.append(np.tile(v_leg * u, (m, 1)))
+        if k == 0:
+            vel[0] = vel[1][:1]
         if scanning:
-            windows.append((t + spec.run_in_m / v, t + (length - spec.run_in_m) / v))
-        t += tt[-1] + dt
+            windows.append((t + spec.run_in_m / v_leg, t + (length - spec.run_in_m) / v_leg))
+        t += m * dt
     return np.concatenate(times), np.concatenate(pos), np.concatenate(vel), windows
 
 
@@ -104,14 +106,15 @@ def fly(scene, lines: list[FlightLine], spec: MotionSpec, rng: np.random.Generat
     time, pos, vel, windows = nominal_path(lines, spec, t0)
     n, dt = time.size, 1.0 / SBET_RATE_HZ
     speed_h = np.hypot(vel[:, 0], vel[:, 1])
-    fwd = np.stack([vel[:, 0], vel[:, 1], np.zeros(n)], -1) / speed_h[:, None]
+    fwd = gaussian_filter1d(np.stack([vel[:, 0], vel[:, 1], np.zeros(n)], -1) / speed_h[:, None], SBET_RATE_HZ, axis=0)
+    fwd /= np.linalg.norm(fwd, axis=1)[:, None]  # smoothed over 1 s: no kinks where turns meet lines
     side = np.stack([fwd[:, 1], -fwd[:, 0], np.zeros(n)], -1)  # to the right
     wander = smooth_noise(rng, n, dt, spec.wander_tau_s, 1.0, 3) * [spec.along_sigma_m, spec.across_sigma_m,
                                                                    spec.vertical_sigma_m]
     pos = pos + wander[:, :1] * fwd + wander[:, 1:2] * side + wander[:, 2:3] * [0, 0, 1]
     vel = np.gradient(pos, dt, axis=0)
     azimuth = np.unwrap(np.arctan2(vel[:, 0], vel[:, 1]))
-    turn_rate = np.gradient(azimuth, dt)
+    turn_rate = gaussian_filter1d(np.gradient(azimuth, dt), SBET_RATE_HZ / 2)  # bank follows within ~0.5 s
     turb = smooth_noise(rng, n, dt, spec.turbulence_tau_s, 1.0, 3)
     crab = smooth_noise(rng, n, dt, 4 * spec.wander_tau_s, spec.heading_sigma_rad)[:, 0]
     roll = np.arctan(np.hypot(vel[:, 0], vel[:, 1]) * turn_rate / G) + spec.attitude_sigma_rad * turb[:, 0]

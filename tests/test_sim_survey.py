@@ -1,0 +1,176 @@
+"""Survey simulator: truth recovery, noise levels, and the strip symptoms of each mounting error."""
+
+import json
+
+import numpy as np
+import pytest
+from scipy.spatial import cKDTree
+
+from calidar import georef
+from calidar.io.las import read_las
+from calidar.io.sbet import read_sbet
+from calidar.sensor import Sensor
+from calidar.sim.scene import CLASS_BUILDING, CLASS_GROUND, CLASS_VEGETATION
+from calidar.sim.survey import SURFACE_VEGETATION, simulate_survey, survey_config
+
+NOISELESS = dict(range_noise_m=0.0, angle_noise_rad=0.0, gnss_noise_m=0.0, attitude_noise_rad=0.0)
+MOUNTING_ERRORS = {"boresight_roll": np.radians(0.07), "boresight_pitch": np.radians(-0.05),
+                   "boresight_yaw": np.radians(0.12), "lever_arm_x": 0.04, "lever_arm_y": -0.03, "lever_arm_z": 0.06,
+                   "range_offset": 0.05}
+
+
+def truth_sensor(folder) -> Sensor:
+    """The true sensor rebuilt from sensor.toml (nominal) and truth.json."""
+    nominal = Sensor.read(folder / "sensor.toml")
+    truth = json.loads((folder / "truth.json").read_text())["parameters"]
+    values = {k: np.radians(p["value"]) if p["unit"] == "deg" else p["value"] for k, p in truth.items()}
+    return nominal.with_parameters(**values)
+
+
+def truly_georeferenced(result, folder):
+    """Read the written strips and the SBET; inverse with the nominal sensor, forward with the truth (ENU)."""
+    traj = read_sbet(folder / "sbet.out")
+    nominal, truth = Sensor.read(folder / "sensor.toml"), truth_sensor(folder)
+    for strip in result.strips:
+        las = read_las(folder / "strips" / f"line_{strip.line.number:03d}.laz")
+        assert las.crs.to_epsg() == int(result.crs.split(":")[1]) and np.all(las.point_source_id == strip.line.number)
+        ecef = georef.regeoreference(traj, nominal, truth, las.gps_time, georef.from_crs(las.xyz, las.crs))
+        yield strip, las, result.scene.ecef_to_enu(ecef)
+
+
+def test_truth_json_and_outputs(tmp_path):
+    res = simulate_survey(survey_config("uav", seed=2, density=0.01, errors=MOUNTING_ERRORS))
+    res.write(tmp_path)
+    doc = json.loads((tmp_path / "truth.json").read_text())
+    p = doc["parameters"]
+    assert p["boresight_roll"] == {"value": pytest.approx(0.07), "unit": "deg", "nominal": 0.0}
+    assert p["lever_arm_z"]["value"] == pytest.approx(res.nominal.lever_arm_z + 0.06) and p["lever_arm_z"]["unit"] == "m"
+    assert p["range_offset"]["value"] == pytest.approx(0.05) and p["scan_angle_scale"]["unit"] == "ratio"
+    assert doc["noise"]["range_m"] == res.config.range_noise_m
+    assert sorted(f.name for f in (tmp_path / "strips").iterdir()) == [f"line_{k:03d}.laz" for k in range(1, 5)]
+    sbet = read_sbet(tmp_path / "sbet.out")
+    assert sbet.rate_hz == pytest.approx(200.0) and np.allclose(sbet.roll, res.trajectory.roll)
+    las = read_las(tmp_path / "strips" / "line_002.laz")
+    assert np.all(np.diff(las.gps_time) >= 0)
+    assert set(np.unique(las.classification)) == {CLASS_GROUND, CLASS_BUILDING, CLASS_VEGETATION}
+    two = las.number_of_returns == 2
+    assert two.any() and np.all(las.classification[two & (las.return_number == 1)] == CLASS_VEGETATION)
+    assert np.abs(las.scan_angle_deg).max() == pytest.approx(35.0, abs=0.01)
+
+
+def test_noiseless_truth_puts_points_back_on_the_surfaces(tmp_path):
+    res = simulate_survey(survey_config("uav", seed=3, density=0.02, errors=MOUNTING_ERRORS, **NOISELESS))
+    res.write(tmp_path)
+    n_roof = 0
+    for strip, las, enu in truly_georeferenced(res, tmp_path):
+        # delivered with the nominal sensor: metres-level displacements (boresight × 80 m, lever arm, offset)
+        assert np.median(np.linalg.norm(res.scene.ecef_to_enu(strip.ecef) - strip.true_enu, axis=1)) > 0.05
+        assert np.max(np.linalg.norm(enu - strip.true_enu, axis=1)) < 2e-3  # LAS stores mm
+        roof = (strip.surface >= 0) & res.scene.plane_is_roof[np.maximum(strip.surface, 0)]
+        assert np.max(np.abs(res.scene.plane_distance(enu[roof], strip.surface[roof]))) < 2e-3
+        n_roof += roof.sum()
+        ground = strip.surface == -1
+        dz = enu[ground, 2] - res.scene.terrain_height(enu[ground, 0], enu[ground, 1])
+        assert np.max(np.abs(dz)) < 5e-3
+    assert n_roof > 5000
+
+
+def test_noisy_points_lie_on_roofs_within_the_simulated_noise(tmp_path):
+    cfg = survey_config("uav", seed=4, density=0.02, errors=MOUNTING_ERRORS)
+    res = simulate_survey(cfg)
+    res.write(tmp_path)
+    d = []
+    for strip, las, enu in truly_georeferenced(res, tmp_path):
+        roof = (strip.surface >= 0) & res.scene.plane_is_roof[np.maximum(strip.surface, 0)]
+        d.append(res.scene.plane_distance(enu[roof], strip.surface[roof]))
+    d = np.concatenate(d)
+    r = cfg.height_agl_m
+    # range along the near-vertical beam, GNSS, attitude (two tilt axes) and beam-angle noise
+    predicted = np.sqrt(cfg.range_noise_m**2 + cfg.gnss_noise_m**2 + 2 * (r * cfg.attitude_noise_rad) ** 2
+                        + (r * cfg.angle_noise_rad) ** 2)
+    rms = np.sqrt(np.mean(d**2))
+    assert 0.5 * predicted < rms < 1.5 * predicted, (rms, predicted)
+    assert np.mean(np.abs(d) < 5 * predicted) > 0.999
+
+
+def misalignment(a, b, along, across, centre):
+    """Displacement of strip B relative to strip A (ENU points, m) from point-to-plane distances.
+
+    Model: d(c) = (dz + tilt·c)·up + (shift + shear·c)·along + lateral·across, with c the
+    across-track coordinate (m) from ``centre``; fitted by least squares with 3-MAD trimming.
+    """
+    dist, idx = cKDTree(a).query(b, k=10, distance_upper_bound=1.5)
+    ok = np.all(np.isfinite(dist), axis=1)
+    nb = a[idx[ok]]
+    q = nb.mean(axis=1)
+    x = nb - q[:, None]
+    w, v = np.linalg.eigh(np.einsum("mki,mkj->mij", x, x) / x.shape[1])
+    n, p = v[:, :, 0], b[ok]
+    planar = (w[:, 0] < 0.04**2) & (w[:, 1] > 0.2**2)
+    r = np.einsum("mi,mi->m", n, p - q)[planar]
+    n, c = n[planar], (p[planar] - centre) @ across
+    na, nc = n @ along, n @ across
+    design = np.column_stack([n[:, 2], n[:, 2] * c, na, na * c, nc])
+    keep = np.ones(r.size, bool)
+    for _ in range(3):
+        sol = np.linalg.lstsq(design[keep], r[keep], rcond=None)[0]
+        res = r - design @ sol
+        keep = np.abs(res) < 3 * 1.4826 * np.median(np.abs(res[keep]))
+    return dict(zip(("dz", "tilt", "shift", "shear", "lateral"), sol))
+
+
+SYMPTOM_RUNS = {"none": {}, "roll": {"boresight_roll": np.radians(0.1)}, "pitch": {"boresight_pitch": np.radians(0.1)},
+                "yaw": {"boresight_yaw": np.radians(0.2)}}
+
+
+@pytest.fixture(scope="module")
+def symptoms():
+    """Misalignment of the opposite-direction strips 1 (north) and 2 (south) for each error."""
+    out = {}
+    for name, errors in SYMPTOM_RUNS.items():
+        res = simulate_survey(survey_config("uav", seed=5, density=0.15, vegetation=0.0, errors=errors))
+        a, b = res.strips[0], res.strips[1]
+        assert np.dot(a.line.direction, b.line.direction) < -0.99
+        keep = [np.isin(s.classification, (CLASS_GROUND, CLASS_BUILDING)) for s in (a, b)]
+        pa, pb = (res.scene.ecef_to_enu(s.ecef[k]) for s, k in zip((a, b), keep))
+        along = np.r_[a.line.direction, 0.0]
+        across = np.array([along[1], -along[0], 0.0])  # right of strip 1
+        centre = np.r_[(a.line.start + b.line.start) / 2, 0.0]
+        m = misalignment(pa, pb, along, across, centre)
+        m["height"] = a.line.altitude_m - np.mean(b.true_enu[keep[1], 2])
+        m["separation"] = float(np.linalg.norm(b.line.start[0] - a.line.start[0]))
+        # shear of strip 1 itself: along-track displacement vs across-track distance from its line
+        d = res.scene.ecef_to_enu(a.ecef) - a.true_enu
+        c = (a.true_enu[:, :2] - a.line.start) @ across[:2]
+        m["own_shear"] = np.polyfit(c, d @ along, 1)[0]
+        out[name] = m
+    return out
+
+
+def test_no_error_no_misalignment(symptoms):
+    m = symptoms["none"]
+    assert abs(m["tilt"]) < 2e-4 and abs(m["shift"]) < 0.03 and abs(m["own_shear"]) < 1e-4
+
+
+def test_roll_error_tilts_opposite_strips_across_track(symptoms):
+    m, base = symptoms["roll"], symptoms["none"]
+    expected = 2 * np.tan(np.radians(0.1))  # each strip tilts by δr, in opposite senses
+    assert abs(m["tilt"] - base["tilt"]) == pytest.approx(expected, rel=0.15)
+    assert abs(m["shift"] - base["shift"]) < 0.05  # and does not shift them along track
+
+
+def test_pitch_error_shifts_opposite_strips_along_track(symptoms):
+    m, base = symptoms["pitch"], symptoms["none"]
+    expected = 2 * m["height"] * np.tan(np.radians(0.1))  # H·δp forward in each flight direction
+    assert abs(m["shift"] - base["shift"]) == pytest.approx(expected, rel=0.15)
+    assert abs(m["tilt"] - base["tilt"]) < 2e-4
+
+
+def test_yaw_error_shears_strips_at_the_swath_edges(symptoms):
+    m, base = symptoms["yaw"], symptoms["none"]
+    dy = np.radians(0.2)
+    # each strip is sheared: along-track displacement grows with distance from its line
+    assert abs(m["own_shear"]) == pytest.approx(dy, rel=0.1)
+    # in the overlap (edge of both swaths) the two shears differ by δy × line separation
+    assert abs(m["shift"] - base["shift"]) == pytest.approx(dy * m["separation"], rel=0.2)
+    assert abs(m["tilt"] - base["tilt"]) < 2e-4
