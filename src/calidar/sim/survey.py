@@ -184,11 +184,14 @@ class SurveyResult:
         """The truth.json document (degrees, metres, ratios)."""
         true, nominal = self.truth.parameters(), self.nominal.parameters()
         names = list(TRUTH_UNITS) + [k for k in self.config.errors if k not in TRUTH_UNITS]
+        # other scanner parameters: units from the model's ``units`` table (rad → deg), else SI
+        units = {**{k: {"1": "ratio"}.get(u, u) for k, u in getattr(self.truth.scanner, "units", {}).items()},
+                 **TRUTH_UNITS}
         params = {}
         for k in names:
             if k not in true:
                 continue
-            unit = TRUTH_UNITS.get(k, "rad" if "angle" in k else "SI")
+            unit = units.get(k, "SI")
             conv = np.degrees if unit in ("deg", "rad") else float
             params[k] = {"value": float(conv(true[k])), "unit": "deg" if unit in ("deg", "rad") else unit,
                          "nominal": float(conv(nominal[k]))}
