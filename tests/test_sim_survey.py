@@ -13,7 +13,7 @@ from calidar.io.las import read_las
 from calidar.io.sbet import read_sbet
 from calidar.sensor import Sensor
 from calidar.sim.scene import CLASS_BUILDING, CLASS_GROUND, CLASS_VEGETATION
-from calidar.sim.survey import SURFACE_VEGETATION, simulate_survey, survey_config
+from calidar.sim.survey import simulate_survey, survey_config
 
 NOISELESS = dict(range_noise_m=0.0, angle_noise_rad=0.0, gnss_noise_m=0.0, attitude_noise_rad=0.0)
 MOUNTING_ERRORS = {"boresight_roll": np.radians(0.07), "boresight_pitch": np.radians(-0.05),
@@ -207,13 +207,13 @@ class ConeScanner:
 
 def test_any_scanner_model_plugs_in():
     nominal = Sensor(scanner=ConeScanner())
-    cfg = survey_config("uav", seed=6, density=0.02, nominal=nominal, scan_rate_hz=20.0,
+    cfg = survey_config("uav", seed=6, density=0.01, nominal=nominal, scan_rate_hz=20.0,
                         errors={"boresight_yaw": np.radians(0.1), "cone": np.radians(0.02)}, **NOISELESS)
     res = simulate_survey(cfg)
     swath = 2 * cfg.height_agl_m * np.tan(np.radians(15.0))  # the plan uses the cone's across-track extent
     assert len(res.lines) == int((cfg.scene.width_m - swath) / (swath * (1 - cfg.side_overlap))) + 1 == 12
     s = res.strips[0]
-    assert np.allclose(s.angles, np.mod(2 * np.pi * 20.0 * np.sqrt(0.02) * s.gps_time, 2 * np.pi), atol=1e-6)
+    assert np.allclose(s.angles, np.mod(2 * np.pi * 20.0 * np.sqrt(0.01) * s.gps_time, 2 * np.pi), atol=1e-6)
     for s in res.strips:
         ecef = georef.regeoreference(res.trajectory, res.nominal, res.truth, s.gps_time, s.ecef)
         assert np.max(np.linalg.norm(res.scene.ecef_to_enu(ecef) - s.true_enu, axis=1)) < 1e-6
@@ -230,3 +230,21 @@ def test_per_strip_trajectory_errors_move_each_strip_by_its_bias():
         d_enu = res.scene.ecef_to_enu(strip.ecef) - strip.true_enu
         expected = frames.R_ENU_NED @ np.array(entry["position_bias_m"])  # NED bias seen in ENU
         assert np.allclose(np.median(d_enu, axis=0), expected, atol=2e-3)
+
+
+def test_linear_scan_patterns():
+    from calidar.errors import InputError
+    from calidar.sim.patterns import linear_pattern
+
+    half, rate = np.radians(30.0), 50.0
+    t = np.linspace(0.0, 1.0 / rate, 1001)
+    osc = linear_pattern(t, rate, half, "oscillating")  # one period = two scan lines
+    assert osc.max() == pytest.approx(half) and osc.min() == pytest.approx(-half) and osc[0] == pytest.approx(osc[-1])
+    assert np.mean(np.isclose(np.abs(np.diff(osc)), 4 * half / 1000)) > 0.99  # constant angular speed
+    poly = linear_pattern(t[:-1], rate, half, "polygon")  # sawtooth: one line per period, always the same way
+    assert np.all(np.diff(poly) > 0) and poly[0] == pytest.approx(-half)
+    with pytest.raises(InputError, match="scan_pattern"):
+        linear_pattern(t, rate, half, "spiral")
+    res = simulate_survey(survey_config("uav", seed=8, density=0.01, scan_pattern="polygon"))
+    s = res.strips[0].scan_angle_deg[res.strips[0].return_number == 1]
+    assert np.mean(np.diff(s) > 0) > 0.95  # polygon: scan angle rises shot after shot
