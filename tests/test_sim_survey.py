@@ -58,6 +58,9 @@ def test_truth_json_and_outputs(tmp_path):
     two = las.number_of_returns == 2
     assert two.any() and np.all(las.classification[two & (las.return_number == 1)] == CLASS_VEGETATION)
     assert np.abs(las.scan_angle_deg).max() == pytest.approx(35.0, abs=0.01)
+    mem = res.las_points()[1]  # the in-memory twin of the file
+    assert np.max(np.abs(mem.xyz - las.xyz)) <= 0.5e-3 + 1e-9 and np.array_equal(mem.gps_time, las.gps_time)
+    assert np.array_equal(mem.classification, las.classification) and mem.crs == las.crs
 
 
 def test_noiseless_truth_puts_points_back_on_the_surfaces(tmp_path):

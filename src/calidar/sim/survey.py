@@ -206,6 +206,18 @@ class SurveyResult:
                            "height_agl_m": c.height_agl_m, "crs": self.crs, "points": self.n_points},
         }
 
+    def las_points(self) -> list:
+        """The strips as :class:`calidar.io.las.LasPoints` (what ``read_las`` of the written files
+        gives, without the file's mm / 0.006° quantisation), for in-memory use."""
+        import pyproj
+
+        from calidar.io.las import LasPoints
+
+        crs = pyproj.CRS.from_user_input(self.crs)
+        return [LasPoints(s.xyz, s.gps_time, "gps_week_seconds", crs, Path(f"<simulated line_{s.line.number:03d}>"),
+                          s.scan_angle_deg, np.full(len(s), s.line.number, np.uint16), s.return_number,
+                          s.number_of_returns, s.classification, s.intensity) for s in self.strips]
+
     def write(self, out_dir: str | Path, force: bool = False,
               progress: Callable[[str, int, int], None] | None = None) -> Path:
         """Write strips/line_NNN.laz, sbet.out, sensor.toml (nominal) and truth.json into ``out_dir``."""
