@@ -1,7 +1,7 @@
 """Platform motion along a flight plan: the true trajectory at 200 Hz, and its measured copy.
 
 The nominal path is the flight lines (extended by a run-in) joined by cubic Hermite turns
-(a ferry leg back for same-direction plans). On top come smooth random perturbations:
+flown at constant speed (a ferry leg back for same-direction plans). On top come smooth random perturbations:
 along-track position (speed changes), lateral and vertical wander, crab, and roll/pitch/
 heading turbulence — Gaussian-filtered white noise with a correlation time. Attitude is
 built in the scene's ENU frame and converted exactly to the local NED at each position.
@@ -20,6 +20,8 @@ from calidar.trajectory import Trajectory
 
 G = 9.80665  #: m/s²
 SBET_RATE_HZ = 200.0
+#: bank limit in turns; U-turns tighter than the platform could fly keep this bank (no scanning there)
+MAX_BANK_RAD = np.radians(35.0)
 
 
 @dataclass(frozen=True)
@@ -50,15 +52,28 @@ def smooth_noise(rng: np.random.Generator, n: int, dt_s: float, tau_s: float, si
     return s * (sigma / s.std(axis=0))
 
 
-def _hermite(p0, v0, p1, v1, t) -> tuple[np.ndarray, np.ndarray]:
-    """Cubic Hermite positions and velocities at times t ∈ [0, T] (T = t[-1] span), m and m/s."""
-    T = t[-1]
-    s = (t / T)[:, None]
+def _hermite(p0, d0, p1, d1, s) -> tuple[np.ndarray, np.ndarray]:
+    """Cubic Hermite curve from p0 to p1 with end derivatives d0, d1 (m): points and dP/ds at s ∈ [0, 1]."""
+    s = np.asarray(s, float)[:, None]
     h00, h10, h01, h11 = 2 * s**3 - 3 * s**2 + 1, s**3 - 2 * s**2 + s, -2 * s**3 + 3 * s**2, s**3 - s**2
-    d00, d10, d01, d11 = 6 * s**2 - 6 * s, 3 * s**2 - 4 * s + 1, -6 * s**2 + 6 * s, 3 * s**2 - 2 * s
-    pos = h00 * p0 + h10 * T * v0 + h01 * p1 + h11 * T * v1
-    vel = (d00 * p0 + d10 * T * v0 + d01 * p1 + d11 * T * v1) / T
-    return pos, vel
+    g00, g10, g01, g11 = 6 * s**2 - 6 * s, 3 * s**2 - 4 * s + 1, -6 * s**2 + 6 * s, 3 * s**2 - 2 * s
+    return h00 * p0 + h10 * d0 + h01 * p1 + h11 * d1, g00 * p0 + g10 * d0 + g01 * p1 + g11 * d1
+
+
+def _turn(p0, u0, p1, u1, speed_mps: float, dt_s: float, radius_m: float) -> tuple[np.ndarray, np.ndarray]:
+    """A turn from p0 (heading u0) to p1 (heading u1) flown at constant speed, sampled every dt_s.
+
+    Hermite curve with tangents scaled to the turn's size, resampled by arc length; returns
+    positions and velocities (n, 3) at dt_s, 2·dt_s, …, the last one at p1.
+    """
+    scale = max(np.linalg.norm(p1 - p0), np.pi * radius_m) * 1.3
+    s = np.linspace(0.0, 1.0, 4001)
+    pos, _ = _hermite(p0, scale * u0, p1, scale * u1, s)
+    arc = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(pos, axis=0), axis=1))]
+    n = max(int(np.ceil(arc[-1] / (speed_mps * dt_s))), 1)
+    sk = np.interp(np.arange(1, n + 1) * arc[-1] / n, arc, s)
+    pos, der = _hermite(p0, scale * u0, p1, scale * u1, sk)
+    return pos, der / np.linalg.norm(der, axis=1)[:, None] * (arc[-1] / (n * dt_s))
 
 
 def nominal_path(lines: list[FlightLine], spec: MotionSpec, t0: float):
@@ -85,12 +100,10 @@ def nominal_path(lines: list[FlightLine], spec: MotionSpec, t0: float):
         length = np.linalg.norm(b - a)
         u = (b - a) / length
         if k:
-            p0, v0 = pos[-1][-1], vel[-1][-1]
-            turn_len = max(np.linalg.norm(a - p0), np.pi * spec.turn_radius_m) * 1.3
-            n = int(np.ceil(turn_len / v / dt))
-            p, vv = _hermite(p0, v0, a, v * u, np.arange(1, n + 1) * dt)
-            times.append(t + np.arange(1, n + 1) * dt), pos.append(p), vel.append(vv)
-            t += n * dt
+            p0, u0 = pos[-1][-1], vel[-1][-1] / np.linalg.norm(vel[-1][-1])
+            p, vv = _turn(p0, u0, a, u, v, dt, spec.turn_radius_m)
+            times.append(t + np.arange(1, len(p) + 1) * dt), pos.append(p), vel.append(vv)
+            t += len(p) * dt
         m = max(int(round(length / v / dt)), 1)
         v_leg = length / (m * dt)
         kk = np.arange(1, m + 1)
@@ -119,7 +132,8 @@ def fly(scene, lines: list[FlightLine], spec: MotionSpec, rng: np.random.Generat
     turn_rate = gaussian_filter1d(np.gradient(azimuth, dt), SBET_RATE_HZ / 2)  # bank follows within ~0.5 s
     turb = smooth_noise(rng, n, dt, spec.turbulence_tau_s, 1.0, 3)
     crab = smooth_noise(rng, n, dt, 4 * spec.wander_tau_s, spec.heading_sigma_rad)[:, 0]
-    roll = np.arctan(np.hypot(vel[:, 0], vel[:, 1]) * turn_rate / G) + spec.attitude_sigma_rad * turb[:, 0]
+    bank = np.clip(np.arctan(np.hypot(vel[:, 0], vel[:, 1]) * turn_rate / G), -MAX_BANK_RAD, MAX_BANK_RAD)
+    roll = bank + spec.attitude_sigma_rad * turb[:, 0]
     pitch = spec.pitch_rad + spec.attitude_sigma_rad * turb[:, 1]
     heading = azimuth + crab + 0.3 * spec.heading_sigma_rad * turb[:, 2]
     # attitude w.r.t. the origin's NED → ECEF → local NED at each position
