@@ -224,8 +224,7 @@ def test_any_scanner_model_plugs_in():
 
 
 def test_per_strip_trajectory_errors_move_each_strip_by_its_bias():
-    cfg = survey_config("uav", seed=7, density=0.01, strip_error_sigma=(0.2, 0.0, 0.0), **NOISELESS)
-    res = simulate_survey(cfg)
+    res = simulate_survey(survey_config("uav", seed=7, density=0.01, strip_error_sigma=(0.2, 0, 0, 0), **NOISELESS))
     doc = res.truth_dict()["strips"]
     biases = np.array([s["position_bias_m"] for s in doc])
     assert np.all(np.abs(biases) > 0) and np.std(biases) > 0.05  # strips differ
@@ -233,6 +232,20 @@ def test_per_strip_trajectory_errors_move_each_strip_by_its_bias():
         d_enu = res.scene.ecef_to_enu(strip.ecef) - strip.true_enu
         expected = frames.R_ENU_NED @ np.array(entry["position_bias_m"])  # NED bias seen in ENU
         assert np.allclose(np.median(d_enu, axis=0), expected, atol=2e-3)
+
+
+def test_per_strip_attitude_bias_and_drift_reach_the_sbet():
+    sigma = (0.0, 0.0, np.radians(0.05), np.radians(0.002))
+    res = simulate_survey(survey_config("uav", seed=7, density=0.01, strip_error_sigma=sigma, **NOISELESS))
+    tr, true = res.trajectory, res.trajectory_true
+    for strip, entry in zip(res.strips, res.truth_dict()["strips"]):
+        t_a, t_b = strip.gps_time[0], strip.gps_time[-1]
+        k = np.flatnonzero((tr.time > t_a) & (tr.time < t_b))[::500]
+        measured = np.degrees([tr.roll[k] - true.roll[k], tr.pitch[k] - true.pitch[k], tr.heading[k] - true.heading[k]])
+        # bias + drift × (t − window middle); the scan window runs from the first to the last shot
+        tc = tr.time[k] - 0.5 * (t_a + t_b)
+        expected = np.array(entry["attitude_bias_deg"])[:, None] + np.array(entry["attitude_drift_deg_per_s"])[:, None] * tc
+        assert np.allclose(measured, expected, atol=2e-4)
 
 
 def test_linear_scan_patterns():

@@ -148,21 +148,22 @@ def fly(scene, lines: list[FlightLine], spec: MotionSpec, rng: np.random.Generat
 
 
 def measured_trajectory(truth: Trajectory, rng: np.random.Generator, gnss_sigma_m: float, attitude_sigma_rad: float,
-                        strip_offsets: list[tuple[float, float, np.ndarray, np.ndarray, np.ndarray]] = ()) -> Trajectory:
+                        strip_errors: list[tuple[float, float, dict]] = ()) -> Trajectory:
     """What the GNSS/INS delivers: truth + smooth position (τ 10 s) and attitude (τ 2 s) errors.
 
-    ``strip_offsets``: per line (t_start, t_end, position bias (3,) m NED, drift (3,) m/s NED,
-    attitude bias (3,) rad roll/pitch/heading), applied with a 5 s cosine taper outside the window.
+    ``strip_errors``: per line (t_start, t_end, errors) with errors ``position_bias_m`` (3,) NED,
+    ``position_drift_mps`` (3,) NED, ``attitude_bias_rad`` (3,) and ``attitude_drift_radps`` (3,)
+    roll/pitch/heading; drifts grow from the window's middle; a 5 s cosine taper outside the window.
     """
     n, dt = len(truth), 1.0 / truth.rate_hz
     d_ned = smooth_noise(rng, n, dt, 10.0, gnss_sigma_m, 3)
     d_att = smooth_noise(rng, n, dt, 2.0, attitude_sigma_rad, 3)
-    for t_a, t_b, bias, drift, att in strip_offsets:
+    for t_a, t_b, e in strip_errors:
         gap = np.maximum(np.maximum(t_a - truth.time, truth.time - t_b), 0.0)
         w = np.where(gap < 5.0, 0.5 * (1 + np.cos(np.pi * gap / 5.0)), 0.0)[:, None]
-        tc = np.clip(truth.time, t_a, t_b) - 0.5 * (t_a + t_b)
-        d_ned = d_ned + w * (bias + tc[:, None] * drift)
-        d_att = d_att + w * att
+        tc = (np.clip(truth.time, t_a, t_b) - 0.5 * (t_a + t_b))[:, None]
+        d_ned = d_ned + w * (e["position_bias_m"] + tc * e["position_drift_mps"])
+        d_att = d_att + w * (e["attitude_bias_rad"] + tc * e["attitude_drift_radps"])
     ecef = truth.ecef + np.einsum("nij,nj->ni", frames.r_en(truth.lat, truth.lon), d_ned)
     lat, lon, h = frames.ecef_to_geodetic(ecef)
     return Trajectory(truth.time, lat, lon, h, truth.roll + d_att[:, 0], truth.pitch + d_att[:, 1],
