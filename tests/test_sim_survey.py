@@ -41,13 +41,16 @@ def truly_georeferenced(result, folder):
 
 
 def test_truth_json_and_outputs(tmp_path):
-    res = simulate_survey(survey_config("uav", seed=2, density=0.01, errors=MOUNTING_ERRORS))
+    res = simulate_survey(survey_config("uav", seed=2, density=0.01, errors={**MOUNTING_ERRORS, "range_scale": 2e-5,
+                                                                               "scan_angle_offset": np.radians(0.01)}))
     res.write(tmp_path)
     doc = json.loads((tmp_path / "truth.json").read_text())
     p = doc["parameters"]
     assert p["boresight_roll"] == {"value": pytest.approx(0.07), "unit": "deg", "nominal": 0.0}
     assert p["lever_arm_z"]["value"] == pytest.approx(res.nominal.lever_arm_z + 0.06) and p["lever_arm_z"]["unit"] == "m"
     assert p["range_offset"]["value"] == pytest.approx(0.05) and p["scan_angle_scale"]["unit"] == "ratio"
+    assert p["range_scale"] == {"value": pytest.approx(2e-5), "unit": "ratio", "nominal": 0.0}
+    assert p["scan_angle_offset"] == {"value": pytest.approx(0.01), "unit": "deg", "nominal": 0.0}
     assert doc["noise"]["range_m"] == res.config.range_noise_m
     assert sorted(f.name for f in (tmp_path / "strips").iterdir()) == [f"line_{k:03d}.laz" for k in range(1, 5)]
     sbet = read_sbet(tmp_path / "sbet.out")

@@ -193,7 +193,7 @@ class SurveyResult:
         names = list(TRUTH_UNITS) + [k for k in self.config.errors if k not in TRUTH_UNITS]
         # other scanner parameters: units from the model's ``units`` table (rad → deg), else SI
         units = {**{k: {"1": "ratio"}.get(u, u) for k, u in getattr(self.truth.scanner, "units", {}).items()},
-                 **TRUTH_UNITS}
+                 "range_scale": "ratio", "scan_angle_offset": "deg", **TRUTH_UNITS}
         params = {}
         for k in names:
             if k not in true:
