@@ -119,3 +119,40 @@ def trajectory_plot(result):
     fig.suptitle("True trajectory (200 Hz): turbulence, speed changes and turns")
     fig.tight_layout()
     return fig
+
+
+def overlap_differences(result, cell_m: float | None = None, min_points: int = 3):
+    """Height differences (m) between adjacent strips where they overlap, from ground points.
+
+    Per strip, the mean height of its ground returns in each grid cell; where the next strip
+    covers the same cell, the difference next − this is drawn. Mounting errors show here
+    before any calibration (e.g. a roll error tilts opposite strips against each other).
+    """
+    sc = result.scene
+    xmin, xmax, ymin, ymax = sc.extent
+    cell_m = cell_m or max((xmax - xmin) / 150, 1.0)
+    nx, ny = int((xmax - xmin) / cell_m), int((ymax - ymin) / cell_m)
+    grids = []
+    for s in result.strips:
+        p = sc.ecef_to_enu(s.ecef[s.classification == 2])
+        j = np.clip(((p[:, 0] - xmin) / cell_m).astype(int), 0, nx - 1)
+        i = np.clip(((p[:, 1] - ymin) / cell_m).astype(int), 0, ny - 1)
+        n = np.bincount(i * nx + j, minlength=nx * ny)
+        z = np.bincount(i * nx + j, p[:, 2], minlength=nx * ny) / np.maximum(n, 1)
+        grids.append(np.where(n >= min_points, z, np.nan).reshape(ny, nx))
+    diff = np.full((ny, nx), np.nan)
+    pairs = [(a, b) for a, b in zip(range(len(grids)), range(1, len(grids)))
+             if np.dot(result.lines[a].direction, result.lines[b].direction) < -0.5]
+    for a, b in pairs:
+        d = grids[b] - grids[a]
+        diff = np.where(np.isfinite(d), d, diff)
+    fig, ax = plt.subplots(figsize=(8.5, 6.5))
+    lim = np.nanpercentile(np.abs(diff), 98) if np.any(np.isfinite(diff)) else 0.1
+    im = ax.imshow(diff, origin="lower", extent=(xmin, xmax, ymin, ymax), cmap="RdBu_r", vmin=-lim, vmax=lim)
+    fig.colorbar(im, ax=ax, label="height difference, next − previous strip [m]", shrink=0.8)
+    ax.set_aspect("equal")
+    ax.set_xlabel("east [m]")
+    ax.set_ylabel("north [m]")
+    rms = np.sqrt(np.nanmean(diff**2)) if np.any(np.isfinite(diff)) else float("nan")
+    ax.set_title(f"Overlaps of opposite adjacent strips (ground, {cell_m:.3g} m cells): RMS {rms * 100:.3g} cm")
+    return fig
