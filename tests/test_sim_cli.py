@@ -21,6 +21,11 @@ def test_same_seed_same_bytes(cli, tmp_path):
     assert set(a) == {"sbet.out", "sensor.toml", "truth.json"} | {f"strips/line_{k:03d}.laz" for k in range(1, 5)}
     assert a == b
     assert a["strips/line_001.laz"] != c["strips/line_001.laz"] and a["sbet.out"] != c["sbet.out"]
+    # the header date is fixed, so the bytes do not change from one day to the next either
+    from calidar.io.las import las_header
+    from calidar.sim.survey import SIMULATION_DATE
+
+    assert las_header(tmp_path / "a" / "strips" / "line_001.laz").creation_date == SIMULATION_DATE
 
 
 def test_cli_options_reach_the_simulation(cli, tmp_path):

@@ -94,7 +94,19 @@ def add_simulation_section(report: Report, result, folder: Path, seconds: float)
               caption="Delivered strips")
 
 
-DEMO_STEPS: list[Callable[[Report, Path, int], None]] = [simulation_step]
+def _range_calibration_step(report: Report, out_dir: Path, seed: int) -> None:
+    from calidar.rangecal.report import run_demo as step
+
+    step(report, out_dir, seed)
+
+
+def _photon_step(report: Report, out_dir: Path, seed: int) -> None:
+    from calidar.photon.demo import run_demo as step
+
+    step(report, out_dir, seed)
+
+
+DEMO_STEPS: list[Callable[[Report, Path, int], None]] = [simulation_step, _range_calibration_step, _photon_step]
 
 
 def run_demo(out_dir: str | Path, seed: int = 0, force: bool = False,

@@ -17,6 +17,7 @@ for shows in the strips exactly as it would in real data.
 
 from __future__ import annotations
 
+import datetime
 import json
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
@@ -34,6 +35,9 @@ from calidar.sim.patterns import half_field_of_view, scan_angles
 from calidar.sim.raycast import SURFACE_TERRAIN, cast
 from calidar.sim.scene import CLASS_BUILDING, CLASS_GROUND, CLASS_VEGETATION, Scene, SceneSpec, build_scene
 from calidar.trajectory import Trajectory
+
+#: LAS header creation date of simulated strips, fixed so that a seed always gives the same bytes.
+SIMULATION_DATE = datetime.date(2026, 1, 1)
 
 SURFACE_VEGETATION = -3  #: ``Strip.surface`` of crown returns
 GPS_WEEK_START_S = 388800.0  #: simulated flights start on a Thursday, 12:00 GPS time
@@ -240,7 +244,7 @@ class SurveyResult:
             write_las(out / "strips" / f"line_{s.line.number:03d}.laz", s.xyz, self.crs, gps_time=s.gps_time,
                       scan_angle_deg=s.scan_angle_deg, point_source_id=s.line.number, return_number=s.return_number,
                       number_of_returns=s.number_of_returns, classification=s.classification, intensity=s.intensity,
-                      force=force)
+                      creation_date=SIMULATION_DATE, force=force)
             if progress:
                 progress("writing strips", k + 1, len(self.strips))
         write_sbet(out / "sbet.out", self.trajectory, force=force)
