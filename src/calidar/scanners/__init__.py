@@ -12,6 +12,8 @@ from typing import Protocol, runtime_checkable
 import numpy as np
 
 from calidar.scanners.linear import LinearScanner
+from calidar.scanners.palmer import PalmerScanner
+from calidar.scanners.wedge import WedgeScanner
 
 
 @runtime_checkable
@@ -39,7 +41,7 @@ class Scanner(Protocol):
         """The ``[scanner]`` table for sensor.toml (user units, key names say them)."""
 
 
-SCANNERS: dict[str, type] = {"linear": LinearScanner}
+SCANNERS: dict[str, type] = {"linear": LinearScanner, "palmer": PalmerScanner, "wedge": WedgeScanner}
 
 
 def scanner_from_toml(table: dict, source: str = "sensor.toml") -> Scanner:
