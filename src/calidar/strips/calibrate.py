@@ -318,3 +318,18 @@ def calibrate(strips: Sequence[Strip], nominal: Sensor, *, method: str = "planes
         {kk: v for kk, v in o.items() if kk != "values"} for o in outer]}
     return CalibrationResult(solution, sensor, nominal, list(strips), overlaps, method, pairs,
                              first_residuals, solution.residuals, outer, biases)
+
+
+def truth_to_si(doc: dict, params: ParameterSet) -> dict[str, float]:
+    """A truth.json document (display units: deg, m, ppm, as solution.json) → SI values by name.
+
+    Entries may be plain numbers or {"value": ...}; names the parameters do not know are ignored.
+    """
+    out = {}
+    for p in params:
+        v = doc.get(p.name)
+        if isinstance(v, dict):
+            v = v.get("value")
+        if isinstance(v, (int, float)) and not isinstance(v, bool):
+            out[p.name] = float(v) / p.to_display(1.0)
+    return out
