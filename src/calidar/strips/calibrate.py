@@ -323,8 +323,10 @@ def calibrate(strips: Sequence[Strip], nominal: Sensor, *, method: str = "planes
 def truth_to_si(doc: dict, params: ParameterSet) -> dict[str, float]:
     """A truth.json document (display units: deg, m, ppm, as solution.json) → SI values by name.
 
-    Entries may be plain numbers or {"value": ...}; names the parameters do not know are ignored.
+    Values are read from ``doc["parameters"]`` (or ``doc`` itself), each a number or
+    {"value": ...}; names the parameters do not know are ignored.
     """
+    doc = doc.get("parameters", doc) if isinstance(doc.get("parameters"), dict) else doc
     out = {}
     for p in params:
         v = doc.get(p.name)
