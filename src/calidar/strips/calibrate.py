@@ -35,6 +35,7 @@ ESTIMATE_GROUPS: dict[str, tuple[tuple[str, str], ...]] = {
     "range_scale": (("range_scale", "ppm"),),
     "scan_angle_scale": (("scan_angle_scale", "1"),),
     "scan_angle_offset": (("scan_angle_offset", "rad"),),
+    "palmer": (("eccentricity_ratio", "1"), ("eccentricity_phase", "rad"), ("delta_l", "rad"), ("delta_r", "rad")),
     "trajectory_bias": (),  # per strip: trajectory_bias_{east,north,up}_<id> (m), all strips but the first
 }
 BIAS_AXES = ("east", "north", "up")
