@@ -153,3 +153,43 @@ def add_section(report, sep: Separability, solution=None, truth: dict[str, float
         sec.text("The same question through the adjustment engine: boresight and all Palmer parameters from noisy "
                  "simulated control points of one revolution.")
         sec.solution(solution, truth)
+
+
+#: true − nominal of the simulated Palmer survey (SI); the nominal ε/r is 1e-5 so that C is defined
+SURVEY_ERRORS = {"boresight_roll": np.radians(0.05), "boresight_pitch": np.radians(-0.04),
+                 "boresight_yaw": np.radians(0.08), "eccentricity_ratio": 5e-4, "eccentricity_phase": np.radians(30.0),
+                 "delta_l": np.radians(0.05), "delta_r": np.radians(0.05)}
+
+
+def strip_selfcal(preset: str = "uav", *, density: float = 0.3, height_agl_m: float | None = None, seed: int = 0,
+                  errors: dict[str, float] | None = None, estimates=(("boresight",), ("boresight", "palmer")),
+                  progress=None):
+    """Self-calibration of a simulated Palmer survey from overlapping strips (tie planes).
+
+    Simulates a ``preset`` survey (cross lines) shot by a Palmer sensor with ``errors`` (SI, default
+    :data:`SURVEY_ERRORS`) and delivered with the nominal one, then runs the strip calibrator once per
+    entry of ``estimates``. Returns (truth parameters SI, {estimate tuple: CalibrationResult}).
+    """
+    from calidar.sensor import Sensor
+    from calidar.sim.survey import simulate_survey, survey_config
+    from calidar.strips.calibrate import calibrate
+    from calidar.strips.strip import LocalFrame, Strip
+
+    nominal = Sensor(lever_arm_x=0.05, lever_arm_z=0.12, scanner=PalmerScanner(eccentricity_ratio=1e-5))
+    extra = {} if height_agl_m is None else {"height_agl_m": height_agl_m}
+    cfg = survey_config(preset, seed=seed, directions="cross", density=density, nominal=nominal,
+                        errors=dict(errors or SURVEY_ERRORS), **extra)
+    res = simulate_survey(cfg)
+    frame = LocalFrame.at(np.concatenate([s.ecef[::50] for s in res.strips]))
+    strips = [Strip.from_ecef(s.line.number, s.ecef, s.gps_time, res.trajectory, res.nominal, frame)
+              for s in res.strips]
+    return res.truth.parameters(), {est: calibrate(strips, res.nominal, estimate=est, progress=progress)
+                                    for est in estimates}
+
+
+def add_selfcal_section(report, truth: dict[str, float], results: dict, title: str) -> None:
+    """Report section comparing boresight-only and boresight + Palmer strip calibrations."""
+    sec = report.section(title)
+    for est, r in results.items():
+        sec.text(f"Estimated: {' + '.join(est)}.")
+        sec.solution(r.solution, truth)
