@@ -26,7 +26,8 @@ class Scanner(Protocol):
         """Scanner observations (N,) or (N, k) in rad → unit beam vectors (N, 3) in frame s."""
 
     def angles(self, directions: np.ndarray) -> np.ndarray:
-        """Inverse of :meth:`directions`: unit vectors (N, 3) → observations (N, k), rad.
+        """Inverse of :meth:`directions`: unit vectors (N, 3) → observations (N, k), rad
+        (rotating scanners — Palmer, wedge — return their encoder angle β as (N,)).
 
         ``directions(angles(u)) == u`` must hold for every u this model can produce.
         """
