@@ -16,7 +16,10 @@ from pathlib import Path
 import numpy as np
 
 from calidar.outputs import prepare_out_dir
+from calidar.photon.demo import run_demo as photon_step
+from calidar.rangecal.report import run_demo as range_calibration_step
 from calidar.report import Report
+from calidar.scanner_analysis import run_demo as scanner_analysis_step
 
 DEMO_SURVEY = "survey"  #: sub-folder of the demo output holding the simulated survey
 DEMO_ERRORS = {  #: true − nominal mounting of the demo survey (SI)
@@ -94,19 +97,12 @@ def add_simulation_section(report: Report, result, folder: Path, seconds: float)
               caption="Delivered strips")
 
 
-def _range_calibration_step(report: Report, out_dir: Path, seed: int) -> None:
-    from calidar.rangecal.report import run_demo as step
-
-    step(report, out_dir, seed)
-
-
-def _photon_step(report: Report, out_dir: Path, seed: int) -> None:
-    from calidar.photon.demo import run_demo as step
-
-    step(report, out_dir, seed)
-
-
-DEMO_STEPS: list[Callable[[Report, Path, int], None]] = [simulation_step, _range_calibration_step, _photon_step]
+DEMO_STEPS: list[Callable[[Report, Path, int], None]] = [
+    simulation_step,
+    scanner_analysis_step,
+    range_calibration_step,
+    photon_step,
+]
 
 
 def run_demo(out_dir: str | Path, seed: int = 0, force: bool = False,
