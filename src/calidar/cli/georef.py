@@ -194,8 +194,8 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
             if s.resolve().parent == out.resolve():
                 raise InputError(s, None, "is inside --out; choose another output folder (inputs are never modified)")
             check_not_input(out / s.name, [*strips, trajectory, old, new])
-            check_crs(s, crs)
             traj = matching_trajectory(traj0, las_time_system(s))
+            check_crs(s, crs)
             plans.append((s, traj, check_coverage(s, traj)))
         out_dir = prepare_out_dir(out, force)
         for s, traj, week in plans:
