@@ -338,6 +338,10 @@ def test_bad_inputs_through_every_command(tmp_path, cli):
         _one_line_error(*cli("regeoref", points, "-t", traj, "--from", toml, "--to", toml, "--out", tmp_path / "o")[::2],
                         message)
         _one_line_error(*cli("info", points if traj == sbet else traj)[::2], message)
+    unknown = ("--crs", "EPSG:99999", "--out")
+    _one_line_error(*cli("inverse", las, "-t", sbet, *unknown, tmp_path / "v.csv")[::2], "crs: expected a CRS pyproj knows")
+    _one_line_error(*cli("regeoref", las, "-t", sbet, "--from", toml, "--to", toml, *unknown, tmp_path / "o")[::2],
+                    "crs: expected a CRS pyproj knows")
     assert not (tmp_path / "v.csv").exists() and not (tmp_path / "o").exists()
 
 

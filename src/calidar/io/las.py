@@ -295,6 +295,12 @@ def las_header(path: str | Path) -> laspy.LasHeader:
         return reader.header
 
 
+def las_file_crs(path: str | Path, crs=None) -> pyproj.CRS | None:
+    """The CRS points of a LAS/LAZ file will be read in: ``crs`` when given (clear error if pyproj
+    does not know it), else the file's, else None. Reads the header only."""
+    return _resolve_crs(las_header(path), crs, Path(path))
+
+
 def las_time_system(path: str | Path) -> str:
     """The GPS time system of a LAS/LAZ file from its header (error for formats without GPS time)."""
     return gps_time_system(las_header(path), Path(path))
