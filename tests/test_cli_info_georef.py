@@ -311,8 +311,8 @@ def test_inputs_never_modified_and_force(tmp_path, cli):
 
 
 def test_bad_inputs_through_every_command(tmp_path, cli):
-    """SBET size, NaN and non-increasing times, point formats 0 and 2: one line, exit 1, in inverse,
-    regeoref and info alike, and nothing written."""
+    """SBET size, NaN and non-increasing times, point formats 0 and 2, a truncated LAZ, an unknown
+    --crs: one line, exit 1, in inverse, regeoref and info alike, and nothing written."""
     _, las, sbet, _ = _survey(tmp_path, Sensor(), n=100)
     toml = Sensor().write(tmp_path / "s.toml")
     a = np.fromfile(sbet, "<f8").reshape(-1, 17)
@@ -326,12 +326,15 @@ def test_bad_inputs_through_every_command(tmp_path, cli):
         nogps = laspy.create(point_format=fmt, file_version="1.2")
         nogps.x, nogps.y, nogps.z = src.x, src.y, src.z
         nogps.write(tmp_path / f"fmt{fmt}.las")
+    src.write(tmp_path / "full.laz")
+    (tmp_path / "cut.laz").write_bytes((tmp_path / "full.laz").read_bytes()[:-1000])
     cases = [
         (las, tmp_path / "short.out", "short.out: size: expected a multiple of 136 bytes"),
         (las, tmp_path / "nan.out", "nan.out: time: expected finite times"),
         (las, tmp_path / "unsorted.out", "unsorted.out: time: expected strictly increasing times"),
         (tmp_path / "fmt0.las", sbet, "fmt0.las: point_format: point format 0 has no GPS time"),
         (tmp_path / "fmt2.las", sbet, "fmt2.las: point_format: point format 2 has no GPS time"),
+        (tmp_path / "cut.laz", sbet, "cut.laz: cannot read the points"),
     ]
     for points, traj, message in cases:
         _one_line_error(*cli("inverse", points, "-t", traj, "--out", tmp_path / "v.csv")[::2], message)

@@ -115,6 +115,12 @@ def test_unknown_crs_and_truncated_file(tmp_path):
     cut.write_bytes(path.read_bytes()[:-1000])
     with pytest.raises(InputError, match="cut.las"):
         read_las(cut)
+    laz = write_las(tmp_path / "a.laz", xyz, "EPSG:32611", gps_time=t, scan_angle_deg=ang, point_source_id=1)
+    (tmp_path / "cut.laz").write_bytes(laz.read_bytes()[:-len(laz.read_bytes()) // 2])
+    with pytest.raises(InputError, match="cut.laz: cannot read the points"):
+        read_las(tmp_path / "cut.laz")
+    with pytest.raises(InputError, match="cut.laz: cannot read the points"):
+        list(iter_las_times(tmp_path / "cut.laz"))
 
 
 def _geokeys(*keys):

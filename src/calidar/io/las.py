@@ -15,6 +15,7 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 
 import laspy
+import lazrs
 import numpy as np
 import pyproj
 
@@ -226,7 +227,7 @@ def _records(reader: laspy.LasReader, chunk_points: int, path: Path):
     """laspy point records of ``chunk_points`` at most; damaged files become clear errors."""
     try:
         yield from reader.chunk_iterator(chunk_points)
-    except (laspy.errors.LaspyException, ValueError) as e:
+    except (laspy.errors.LaspyException, lazrs.LazrsError, ValueError) as e:
         raise InputError(path, None, f"cannot read the points ({e}); truncated or damaged file?") from None
 
 
