@@ -359,3 +359,18 @@ def test_inverse_real_ecef_las_equals_utm(real_data, cli, tmp_path):
     assert np.array_equal(e["gps_time"], u["gps_time"])
     assert np.max(np.abs(e["range_m"] - u["range_m"])) < 0.02
     assert np.max(np.abs(e["across_track_angle_deg"] - u["across_track_angle_deg"])) < 2e-4
+
+
+def test_regeoref_real_ecef_las_equals_utm(real_data, cli, tmp_path):
+    """Both leeward files re-georeferenced with a changed mounting land on the same ECEF points
+    (within the two files' 1 cm storage), the ECEF output staying ECEF."""
+    d = real_data / "leeward_sierra"
+    old = Sensor().write(tmp_path / "old.toml")
+    new = Sensor(boresight_roll=np.radians(0.05), lever_arm_x=2.0).write(tmp_path / "new.toml")
+    code, _, err = cli("regeoref", d / "points.las", d / "points_ecef.las", "-t", d / "sbet.out", "--from", old,
+                       "--to", new, "--out", tmp_path / "o")
+    assert code == 0, err
+    u, e = read_las(tmp_path / "o" / "points.las"), read_las(tmp_path / "o" / "points_ecef.las")
+    assert e.crs.to_epsg() == 4978
+    assert np.linalg.norm(e.xyz - read_las(d / "points_ecef.las").xyz, axis=1).min() > 2.0  # the change mattered
+    assert np.max(np.abs(georef.from_crs(u.xyz, u.crs) - e.xyz)) < 0.03
