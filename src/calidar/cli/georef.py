@@ -14,8 +14,8 @@ from calidar.cli.common import console
 from calidar.errors import InputError
 from calidar.io.csv import write_csv_rows
 from calidar.io.las import (
-    LasPoints, adjusted_standard_in_week, adjusted_standard_to_week_seconds, iter_las_chunks, iter_las_times, las_file_crs,
-    las_time_system, rewrite_las_xyz, single_gps_week,
+    LasPoints, adjusted_standard_in_week, adjusted_standard_to_week_seconds, iter_las_chunks, iter_las_times,
+    las_file_crs, las_time_system, rewrite_las_xyz, single_gps_week,
 )
 from calidar.io.trajectory import is_binary, read_trajectory
 from calidar.outputs import atomic_path, check_not_input, check_writable, prepare_out_dir

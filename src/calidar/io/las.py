@@ -64,11 +64,12 @@ class LasPoints:
 def single_gps_week(t_min_adjusted_s: float, t_max_adjusted_s: float, source=None) -> int:
     """The GPS week holding adjusted standard GPS times from ``t_min`` to ``t_max`` (s); an error
     naming both weeks when they differ (week seconds would jump back to 0 at the boundary)."""
-    w0, w1 = (int(np.floor((t + ADJUSTED_STANDARD_OFFSET_S) / SECONDS_PER_WEEK)) for t in (t_min_adjusted_s, t_max_adjusted_s))
+    w0, w1 = (int(np.floor((t + ADJUSTED_STANDARD_OFFSET_S) / SECONDS_PER_WEEK))
+              for t in (t_min_adjusted_s, t_max_adjusted_s))
     if w0 != w1:
         raise InputError(source, "gps_time",
-                         f"adjusted standard GPS times {t_min_adjusted_s:.3f}–{t_max_adjusted_s:.3f} s span GPS weeks "
-                         f"{w0}–{w1}; expected one week (split the file at the week boundary)")
+                         f"adjusted standard GPS times {t_min_adjusted_s:.3f}–{t_max_adjusted_s:.3f} s span GPS "
+                         f"weeks {w0}–{w1}; expected one week (split the file at the week boundary)")
     return w0
 
 
