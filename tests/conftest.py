@@ -7,7 +7,22 @@ from pathlib import Path
 
 import pytest
 
-REAL_DATA = Path(os.environ.get("CALIDAR_REAL_DATA", Path(__file__).resolve().parents[1] / ".." / "shared" / "data" / "real")).resolve()
+
+
+def default_real_data(repo: Path) -> Path:
+    """``<repo>/../shared/data/real``; from a git worktree (``.git`` is a file "gitdir: ..."), also
+    the same folder beside the main checkout, the parent of git's common dir. The first that exists."""
+    candidates = [repo.parent / "shared" / "data" / "real"]
+    git = repo / ".git"
+    if git.is_file() and git.read_text().startswith("gitdir:"):
+        gitdir = (repo / git.read_text()[len("gitdir:"):].strip()).resolve()  # <common>/worktrees/<name>
+        common = gitdir / "commondir"
+        common_dir = (gitdir / common.read_text().strip()).resolve() if common.is_file() else gitdir.parents[1]
+        candidates.append(common_dir.parent.parent / "shared" / "data" / "real")
+    return next((c for c in candidates if c.is_dir()), candidates[0])
+
+
+REAL_DATA = Path(os.environ.get("CALIDAR_REAL_DATA") or default_real_data(Path(__file__).resolve().parents[1])).resolve()
 
 
 @pytest.fixture

@@ -200,3 +200,177 @@ def test_inverse_with_a_projected_text_trajectory(tmp_path, cli):
     assert np.max(np.abs(a["across_track_angle_deg"] - b["across_track_angle_deg"])) < 2e-6
     code, _, err = cli("inverse", las, "-t", text, "--out", tmp_path / "x.csv")
     assert code == 1 and "traj.csv: crs: the file has projected x/y columns" in err
+
+
+def _one_line_error(code, err, *needles):
+    """A user error: exit 1, one line on stderr containing every needle, no traceback."""
+    assert code == 1, err
+    assert err.strip().count("\n") == 0 and "Traceback" not in err, err
+    for n in needles:
+        assert n in err, (n, err)
+
+
+def _week_crossing(tmp_path, n=5000):
+    """Adjusted standard LAS times crossing GPS week 2300 → 2301 exactly at point 2000 (a chunk
+    boundary with 1000-point chunks), and a trajectory (SBET) whose week seconds run past 604800 s."""
+    tr, las, _, truth = _survey(tmp_path, Sensor(), n=n, name="src.las")
+    t_week = 604796.0 + np.arange(n) * 0.002  # point 2000 is 604800.000: the first of week 2301
+    t_adj = week_seconds_to_adjusted_standard(t_week, 2300)
+    crossing = write_las(tmp_path / "crossing.las", truth["xyz"], CRS, gps_time=t_adj, scan_angle_deg=np.zeros(n),
+                         point_source_id=1, time_system="gps_adjusted_standard")
+    late = Trajectory(tr.time + (604795.0 - T0), tr.lat, tr.lon, tr.height, tr.roll, tr.pitch, tr.heading)
+    return crossing, write_sbet(tmp_path / "late.out", late)
+
+
+def test_week_boundary_between_chunks_is_caught(tmp_path, cli, monkeypatch):
+    monkeypatch.setattr("calidar.cli.georef.CHUNK_POINTS", 1000)
+    las, sbet = _week_crossing(tmp_path)
+    code, _, err = cli("inverse", las, "-t", sbet, "--out", tmp_path / "v.csv")
+    _one_line_error(code, err, "crossing.las: gps_time:", "span GPS weeks 2300–2301")
+    assert not (tmp_path / "v.csv").exists()
+    toml = Sensor().write(tmp_path / "s.toml")
+    code, _, err = cli("regeoref", las, "-t", sbet, "--from", toml, "--to", toml, "--out", tmp_path / "o")
+    _one_line_error(code, err, "span GPS weeks 2300–2301")
+    assert not (tmp_path / "o").exists()
+
+
+def _stretched(las, path, factor):
+    """A copy of a LAS with its GPS times stretched about their middle by ``factor``."""
+    src = laspy.read(las)
+    mid = 0.5 * (src.gps_time.min() + src.gps_time.max())
+    src.gps_time = mid + factor * (np.asarray(src.gps_time) - mid)
+    src.write(path)
+    return path
+
+
+@pytest.mark.parametrize("command", ["inverse", "regeoref"])
+def test_outside_trajectory_counted_over_the_whole_file(tmp_path, cli, monkeypatch, command):
+    """Points before and after the trajectory in several chunks: one error with whole-file counts
+    and time ranges, and nothing written."""
+    monkeypatch.setattr("calidar.cli.georef.CHUNK_POINTS", 1000)
+    _, las, sbet, _ = _survey(tmp_path, Sensor())  # times T0+0.5 … T0+9.5, trajectory T0 … T0+10
+    wide = _stretched(las, tmp_path / "wide.las", 2.5)  # T0−6.25 … T0+16.25
+    t = read_las(wide).gps_time
+    before, after = t[t < T0], t[t > T0 + 10.0]
+    assert before.size > 1000 and after.size > 1000  # more than one chunk each
+    toml = Sensor().write(tmp_path / "s.toml")
+    out = tmp_path / ("v.csv" if command == "inverse" else "o")
+    args = ("--out", out) if command == "inverse" else ("--from", toml, "--to", toml, "--out", out)
+    code, _, err = cli(command, wide, "-t", sbet, *args)
+    _one_line_error(code, err, f"wide.las: gps_time: {before.size + after.size} of 5000 points",
+                    f"{before.size} before it ({before.min():.3f}–{before.max():.3f} s)",
+                    f"{after.size} after it ({after.min():.3f}–{after.max():.3f} s)")
+    assert not out.exists()
+
+
+def test_nan_gps_times_are_counted(tmp_path, cli):
+    _, las, sbet, _ = _survey(tmp_path, Sensor(), n=300)
+    src = laspy.read(las)
+    t = np.array(src.gps_time)
+    t[[5, 50]] = np.nan
+    src.gps_time = t
+    src.write(tmp_path / "nan.las")
+    code, _, err = cli("inverse", tmp_path / "nan.las", "-t", sbet, "--out", tmp_path / "v.csv")
+    _one_line_error(code, err, "nan.las: gps_time: 2 of 300 points", "2 NaN/inf")
+
+
+def _stamp(*paths):
+    return {p: (p.read_bytes(), p.stat().st_mtime_ns) for p in paths}
+
+
+def test_inputs_never_modified_and_force(tmp_path, cli):
+    """Outputs are refused without --force, replaced with it, never an input even with it; a failed
+    run leaves the previous output as it was; input bytes and mtimes never change."""
+    s = Sensor(boresight_roll=np.radians(0.1))
+    _, las, sbet, _ = _survey(tmp_path, Sensor(), n=300)
+    old, new = Sensor().write(tmp_path / "old.toml"), s.write(tmp_path / "new.toml")
+    inputs = _stamp(las, sbet, old, new)
+    csv, out = tmp_path / "v.csv", tmp_path / "out"
+    assert cli("inverse", las, "-t", sbet, "--sensor", old, "--out", csv)[0] == 0
+    assert cli("regeoref", las, "-t", sbet, "--from", old, "--to", new, "--out", out)[0] == 0
+    outputs = _stamp(csv, out / las.name)
+    _one_line_error(*cli("inverse", las, "-t", sbet, "--out", csv)[::2], "v.csv: exists; pass --force")
+    _one_line_error(*cli("regeoref", las, "-t", sbet, "--from", old, "--to", new, "--out", out)[::2], "not empty")
+    assert _stamp(csv, out / las.name) == outputs
+    for target in (las, sbet, old):  # --out naming an input: refused even with --force
+        code, _, err = cli("inverse", las, "-t", sbet, "--sensor", old, "--out", target, "--force")
+        _one_line_error(code, err, "is an input of this command")
+    _one_line_error(*cli("regeoref", las, "-t", sbet, "--from", old, "--to", new, "--out", tmp_path, "--force")[::2],
+                    "pts.las: is inside --out")
+    # a failing run with --force keeps the previous output
+    late = _stretched(las, tmp_path / "late.las", 3.0)
+    _one_line_error(*cli("inverse", late, "-t", sbet, "--out", csv, "--force")[::2], "outside the trajectory")
+    assert _stamp(csv) == {csv: outputs[csv]}
+    # --force replaces the outputs (atomically: no temporary file left)
+    assert cli("inverse", las, "-t", sbet, "--sensor", new, "--out", csv, "--force")[0] == 0
+    assert cli("regeoref", las, "-t", sbet, "--from", new, "--to", old, "--out", out, "--force")[0] == 0
+    assert csv.read_bytes() != outputs[csv][0] and (out / las.name).read_bytes() != outputs[out / las.name][0]
+    assert sorted(p.name for p in out.iterdir()) == [las.name]
+    assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]
+    assert _stamp(las, sbet, old, new) == inputs
+
+
+def test_bad_inputs_through_every_command(tmp_path, cli):
+    """SBET size, NaN and non-increasing times, point formats 0 and 2, a truncated LAZ, an unknown
+    --crs: one line, exit 1, in inverse, regeoref and info alike, and nothing written."""
+    _, las, sbet, _ = _survey(tmp_path, Sensor(), n=100)
+    toml = Sensor().write(tmp_path / "s.toml")
+    a = np.fromfile(sbet, "<f8").reshape(-1, 17)
+    (tmp_path / "short.out").write_bytes(a.tobytes()[:-8])
+    nan = a.copy()
+    nan[10, 0] = np.nan
+    nan.tofile(tmp_path / "nan.out")
+    a[np.r_[0:10, 11, 10, 12:len(a)]].tofile(tmp_path / "unsorted.out")
+    src = laspy.read(las)
+    for fmt in (0, 2):
+        nogps = laspy.create(point_format=fmt, file_version="1.2")
+        nogps.x, nogps.y, nogps.z = src.x, src.y, src.z
+        nogps.write(tmp_path / f"fmt{fmt}.las")
+    src.write(tmp_path / "full.laz")
+    (tmp_path / "cut.laz").write_bytes((tmp_path / "full.laz").read_bytes()[:-1000])
+    cases = [
+        (las, tmp_path / "short.out", "short.out: size: expected a multiple of 136 bytes"),
+        (las, tmp_path / "nan.out", "nan.out: time: expected finite times"),
+        (las, tmp_path / "unsorted.out", "unsorted.out: time: expected strictly increasing times"),
+        (tmp_path / "fmt0.las", sbet, "fmt0.las: point_format: point format 0 has no GPS time"),
+        (tmp_path / "fmt2.las", sbet, "fmt2.las: point_format: point format 2 has no GPS time"),
+        (tmp_path / "cut.laz", sbet, "cut.laz: cannot read the points"),
+    ]
+    for points, traj, message in cases:
+        _one_line_error(*cli("inverse", points, "-t", traj, "--out", tmp_path / "v.csv")[::2], message)
+        _one_line_error(*cli("regeoref", points, "-t", traj, "--from", toml, "--to", toml, "--out", tmp_path / "o")[::2],
+                        message)
+        _one_line_error(*cli("info", points if traj == sbet else traj)[::2], message)
+    unknown = ("--crs", "EPSG:99999", "--out")
+    _one_line_error(*cli("inverse", las, "-t", sbet, *unknown, tmp_path / "v.csv")[::2], "crs: expected a CRS pyproj knows")
+    _one_line_error(*cli("regeoref", las, "-t", sbet, "--from", toml, "--to", toml, *unknown, tmp_path / "o")[::2],
+                    "crs: expected a CRS pyproj knows")
+    assert not (tmp_path / "v.csv").exists() and not (tmp_path / "o").exists()
+
+
+def test_inverse_real_ecef_las_equals_utm(real_data, cli, tmp_path):
+    """points_ecef.las declares GeoTIFF model type geocentric on WGS 84: read as EPSG:4978, its
+    vectors equal those of the same points in UTM (within the LAS 1 cm storage)."""
+    d = real_data / "leeward_sierra"
+    assert read_las(d / "points_ecef.las").crs.to_epsg() == 4978
+    assert cli("inverse", d / "points_ecef.las", "-t", d / "sbet.out", "--out", tmp_path / "e.csv")[0] == 0
+    assert cli("inverse", d / "points.las", "-t", d / "sbet.out", "--out", tmp_path / "u.csv")[0] == 0
+    e, u = _vectors(tmp_path / "e.csv"), _vectors(tmp_path / "u.csv")
+    assert np.array_equal(e["gps_time"], u["gps_time"])
+    assert np.max(np.abs(e["range_m"] - u["range_m"])) < 0.02
+    assert np.max(np.abs(e["across_track_angle_deg"] - u["across_track_angle_deg"])) < 2e-4
+
+
+def test_regeoref_real_ecef_las_equals_utm(real_data, cli, tmp_path):
+    """Both leeward files re-georeferenced with a changed mounting land on the same ECEF points
+    (within the two files' 1 cm storage), the ECEF output staying ECEF."""
+    d = real_data / "leeward_sierra"
+    old = Sensor().write(tmp_path / "old.toml")
+    new = Sensor(boresight_roll=np.radians(0.05), lever_arm_x=2.0).write(tmp_path / "new.toml")
+    code, _, err = cli("regeoref", d / "points.las", d / "points_ecef.las", "-t", d / "sbet.out", "--from", old,
+                       "--to", new, "--out", tmp_path / "o")
+    assert code == 0, err
+    u, e = read_las(tmp_path / "o" / "points.las"), read_las(tmp_path / "o" / "points_ecef.las")
+    assert e.crs.to_epsg() == 4978
+    assert np.linalg.norm(e.xyz - read_las(d / "points_ecef.las").xyz, axis=1).min() > 2.0  # the change mattered
+    assert np.max(np.abs(georef.from_crs(u.xyz, u.crs) - e.xyz)) < 0.03

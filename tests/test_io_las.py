@@ -5,7 +5,10 @@ import pytest
 
 from calidar.errors import InputError, OutputExistsError
 from calidar.io import iter_las_chunks, read_las, write_las
-from calidar.io.las import adjusted_standard_to_week_seconds, week_seconds_to_adjusted_standard
+from calidar.io.las import (
+    adjusted_standard_in_week, adjusted_standard_to_week_seconds, iter_las_times, single_gps_week,
+    week_seconds_to_adjusted_standard,
+)
 
 
 def _points(n=1000, seed=0):
@@ -112,3 +115,55 @@ def test_unknown_crs_and_truncated_file(tmp_path):
     cut.write_bytes(path.read_bytes()[:-1000])
     with pytest.raises(InputError, match="cut.las"):
         read_las(cut)
+    laz = write_las(tmp_path / "a.laz", xyz, "EPSG:32611", gps_time=t, scan_angle_deg=ang, point_source_id=1)
+    (tmp_path / "cut.laz").write_bytes(laz.read_bytes()[:-len(laz.read_bytes()) // 2])
+    with pytest.raises(InputError, match="cut.laz: cannot read the points"):
+        read_las(tmp_path / "cut.laz")
+    with pytest.raises(InputError, match="cut.laz: cannot read the points"):
+        list(iter_las_times(tmp_path / "cut.laz"))
+
+
+def _geokeys(*keys):
+    """A GeoKeyDirectoryVlr with (id, value) short keys."""
+    from laspy.vlrs.known import GeoKeyDirectoryVlr, GeoKeyEntryStruct
+
+    vlr = GeoKeyDirectoryVlr()
+    vlr.geo_keys_header.key_directory_version = vlr.geo_keys_header.key_revision = 1
+    vlr.geo_keys = []
+    for key_id, value in keys:
+        k = GeoKeyEntryStruct()
+        k.id, k.tiff_tag_location, k.count, k.value_offset = key_id, 0, 1, value
+        vlr.geo_keys.append(k)
+    vlr.geo_keys_header.number_of_keys = len(keys)
+    return vlr
+
+
+@pytest.mark.parametrize("model_type, epsg", [(3, 4978), (2, 4326)])
+def test_geotiff_model_type_geocentric_is_ecef(tmp_path, model_type, epsg):
+    """GTModelTypeGeoKey = 3 (geocentric) with GeographicTypeGeoKey 4326 is WGS 84 ECEF, not lat/lon."""
+    las = laspy.create(point_format=1, file_version="1.2")
+    las.x, las.y, las.z = [-2450000.0, -2450001.0], [-4416000.0, -4416001.0], [3886100.0, 3886101.0]
+    las.gps_time = [1.0, 2.0]
+    las.header.vlrs.append(_geokeys((1024, model_type), (2048, 4326)))
+    las.write(tmp_path / "e.las")
+    assert read_las(tmp_path / "e.las").crs.to_epsg() == epsg
+
+
+@pytest.mark.parametrize("suffix", [".las", ".laz"])
+def test_iter_las_times_streams_only_times(tmp_path, suffix):
+    xyz, t, ang = _points(2500)
+    path = write_las(tmp_path / f"t{suffix}", xyz, "EPSG:32611", gps_time=t, scan_angle_deg=ang, point_source_id=1)
+    chunks = list(iter_las_times(path, chunk_points=1000))
+    assert [c.size for c in chunks] == [1000, 1000, 500]
+    assert np.array_equal(np.concatenate(chunks), t)
+
+
+def test_single_gps_week(tmp_path):
+    week = 2300
+    t = week_seconds_to_adjusted_standard(np.array([604799.0, 604800.0]), week)
+    assert single_gps_week(t[0], t[0]) == week and single_gps_week(t[1], t[1]) == week + 1
+    with pytest.raises(InputError, match="f.las: gps_time: .* span GPS weeks 2300–2301"):
+        single_gps_week(t[0], t[1], tmp_path / "f.las")
+    assert np.allclose(adjusted_standard_in_week(t, week), [604799.0, 604800.0], atol=1e-6)
+    back, w = adjusted_standard_to_week_seconds(np.r_[t[0], np.nan])
+    assert w == week and back[0] == pytest.approx(604799.0, abs=1e-6) and np.isnan(back[1])

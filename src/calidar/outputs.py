@@ -20,6 +20,15 @@ def check_writable(path: str | os.PathLike, force: bool = False) -> Path:
     return path
 
 
+def check_not_input(path: str | os.PathLike, inputs) -> None:
+    """Refuse an output path that is one of the ``inputs`` (paths or None), even with --force:
+    inputs are never modified."""
+    path = Path(path)
+    for i in inputs:
+        if i is not None and path.exists() and Path(i).exists() and path.samefile(i):
+            raise OutputExistsError(f"{path}: is an input of this command; choose another output (inputs are never modified)")
+
+
 def prepare_out_dir(path: str | os.PathLike, force: bool = False) -> Path:
     """Create an output folder; refuse an existing non-empty one unless ``force``."""
     path = Path(path)

@@ -14,11 +14,11 @@ from calidar.cli.common import console
 from calidar.errors import InputError
 from calidar.io.csv import write_csv_rows
 from calidar.io.las import (
-    LasPoints, adjusted_standard_to_week_seconds, iter_las_chunks, las_crs, las_header, las_time_system,
-    rewrite_las_xyz,
+    LasPoints, adjusted_standard_in_week, adjusted_standard_to_week_seconds, iter_las_chunks, iter_las_times,
+    las_file_crs, las_time_system, rewrite_las_xyz, single_gps_week,
 )
 from calidar.io.trajectory import is_binary, read_trajectory
-from calidar.outputs import atomic_path, check_writable, prepare_out_dir
+from calidar.outputs import atomic_path, check_not_input, check_writable, prepare_out_dir
 from calidar.sensor import Sensor
 from calidar.trajectory import Trajectory
 
@@ -46,11 +46,20 @@ def matching_trajectory(traj: Trajectory, system: str) -> Trajectory:
     return dataclasses.replace(traj, time=t, time_system="gps_week_seconds")
 
 
-def point_times(points: LasPoints, traj: Trajectory) -> np.ndarray:
-    """The points' GPS times in the trajectory's time system (adjusted standard → week seconds)."""
+def point_times(points: LasPoints, traj: Trajectory, gps_week: int | None = None) -> np.ndarray:
+    """The points' GPS times in the trajectory's time system: adjusted standard → week seconds of
+    ``gps_week`` (the whole file's, from :func:`check_coverage`; None: the week of these points)."""
     if points.time_system == traj.time_system:
         return points.gps_time
-    return points.gps_week_seconds()
+    if gps_week is None:
+        return points.gps_week_seconds()
+    return adjusted_standard_in_week(points.gps_time, gps_week)
+
+
+def check_crs(path: Path, crs: str | None) -> None:
+    """Error now (before any output) when ``crs`` is unknown, or a LAS/LAZ file has no CRS and none is given."""
+    if las_file_crs(path, crs) is None:
+        raise InputError(path, "crs", NO_CRS)
 
 
 def points_ecef(points: LasPoints) -> np.ndarray:
@@ -66,33 +75,60 @@ def points_ecef(points: LasPoints) -> np.ndarray:
 
 class Coverage:
     """Counts points outside the trajectory's time span over many chunks (count and time range
-    before and after it), to report them all at once."""
+    before and after it, and NaN/inf times), to report them all at once."""
 
     def __init__(self, traj: Trajectory):
-        self.traj, self.total = traj, 0
+        self.traj, self.total, self.not_finite = traj, 0, 0
         self.outside = {"before": [0, np.inf, -np.inf], "after": [0, np.inf, -np.inf]}
 
     def inside(self, t: np.ndarray) -> np.ndarray:
         """Mask of the times (GPS s) within the trajectory; counts the others."""
         self.total += t.size
+        finite = np.isfinite(t)
+        self.not_finite += int(t.size - np.count_nonzero(finite))
         lo, hi = t < self.traj.time[0], t > self.traj.time[-1]
         for side, mask in (("before", lo), ("after", hi)):
             if mask.any():
                 o = self.outside[side]
                 o[:] = [o[0] + int(mask.sum()), min(o[1], float(t[mask].min())), max(o[2], float(t[mask].max()))]
-        return ~(lo | hi)
+        return finite & ~(lo | hi)
 
     def check(self, source) -> None:
         """Raise a clear error naming how many points fell outside and their time ranges."""
-        n = sum(o[0] for o in self.outside.values())
+        n = sum(o[0] for o in self.outside.values()) + self.not_finite
         if n == 0:
             return
         parts = [f"{o[0]} {side} it ({o[1]:.3f}–{o[2]:.3f} s)" for side, o in self.outside.items() if o[0]]
+        parts += [f"{self.not_finite} NaN/inf"] if self.not_finite else []
         raise InputError(
             source, "gps_time",
             f"{n} of {self.total} points have GPS times outside the trajectory "
             f"{self.traj.source} ({self.traj.time[0]:.3f}–{self.traj.time[-1]:.3f} s): " + ", ".join(parts),
         )
+
+
+def check_coverage(path: Path, traj: Trajectory) -> int | None:
+    """First streamed pass over a LAS/LAZ file, reading only GPS times, before any output is written.
+
+    Raises one error for the whole file when points fall outside ``traj`` (how many, before/after
+    it, their time ranges; NaN times) or, when adjusted standard times must become the
+    trajectory's week seconds, when the file spans GPS weeks. Returns the GPS week of that
+    conversion (for :func:`point_times`), else None.
+    """
+    convert = las_time_system(path) == "gps_adjusted_standard" and traj.time_system == "gps_week_seconds"
+    cover, week, t_range = Coverage(traj), None, [np.inf, -np.inf]
+    for t in iter_las_times(path, CHUNK_POINTS):
+        if convert:
+            finite = t[np.isfinite(t)]
+            if finite.size:
+                t_range = [min(t_range[0], float(finite.min())), max(t_range[1], float(finite.max()))]
+                week = single_gps_week(t_range[0], t_range[0], path) if week is None else week
+            t = adjusted_standard_in_week(t, 0 if week is None else week)
+        cover.inside(t)
+    if week is not None:
+        single_gps_week(*t_range, path)  # the whole file, before its counts (which assume one week)
+    cover.check(path)
+    return week
 
 
 def register(app: typer.Typer, simulate: typer.Typer) -> None:
@@ -113,27 +149,23 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
         along_track_angle_deg = atan2(x_s, hypot(y_s, z_s)).
         """
         check_writable(out, force)
+        check_not_input(out, [points, trajectory, sensor])
         model = Sensor.read(sensor) if sensor else Sensor()
         traj = load_trajectory(trajectory, trajectory_crs, trajectory_angles, trajectory_heading)
         traj = matching_trajectory(traj, las_time_system(points))
-        cover = Coverage(traj)
+        check_crs(points, crs)
+        week = check_coverage(points, traj)
         n = 0
         with atomic_path(out, force) as tmp, open(tmp, "w", encoding="utf-8") as f:
             f.write(",".join(VECTOR_COLUMNS) + "\n")
             for chunk in iter_las_chunks(points, CHUNK_POINTS, crs=crs, fields=()):
-                t = point_times(chunk, traj)
-                inside = cover.inside(t)
-                if not inside.any():
-                    continue
-                t = t[inside]
-                obs = georef.inverse(traj, model, t, points_ecef(chunk.select(inside)))
+                obs = georef.inverse(traj, model, point_times(chunk, traj, week), points_ecef(chunk))
                 v = obs.vector_s
                 across = np.degrees(np.arctan2(v[:, 1], v[:, 2]))
                 along = np.degrees(np.arctan2(v[:, 0], np.hypot(v[:, 1], v[:, 2])))
-                write_csv_rows(f, [chunk.gps_time[inside], obs.range_m, v[:, 0], v[:, 1], v[:, 2], across, along],
+                write_csv_rows(f, [chunk.gps_time, obs.range_m, v[:, 0], v[:, 1], v[:, 2], across, along],
                                [6, 4, 4, 4, 4, 6, 6])
-                n += t.size
-            cover.check(points)
+                n += len(chunk)
         console.print(f"{n} points → {out}")
 
     @app.command()
@@ -157,21 +189,19 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
         names = [s.name for s in strips]
         if len(set(names)) != len(names):
             raise InputError(None, "STRIPS", f"expected distinct file names (outputs share the folder), got {names}")
+        plans = []  # every strip is checked (CRS, whole-file trajectory coverage) before anything is written
         for s in strips:
             if s.resolve().parent == out.resolve():
                 raise InputError(s, None, "is inside --out; choose another output folder (inputs are never modified)")
-            las_time_system(s)
-            if crs is None and las_crs(las_header(s)) is None:
-                raise InputError(s, "crs", NO_CRS)
-        out_dir = prepare_out_dir(out, force)
-        for s in strips:
+            check_not_input(out / s.name, [*strips, trajectory, old, new])
             traj = matching_trajectory(traj0, las_time_system(s))
+            check_crs(s, crs)
+            plans.append((s, traj, check_coverage(s, traj)))
+        out_dir = prepare_out_dir(out, force)
+        for s, traj, week in plans:
 
-            def moved(points: LasPoints, traj=traj) -> np.ndarray:
-                t = point_times(points, traj)
-                cover = Coverage(traj)
-                cover.inside(t)
-                cover.check(points.path)
+            def moved(points: LasPoints, traj=traj, week=week) -> np.ndarray:
+                t = point_times(points, traj, week)
                 p = georef.regeoreference(traj, old_s, new_s, t, points_ecef(points))
                 return georef.to_crs(p, points.crs)
 

@@ -1,4 +1,4 @@
-"""``calidar info FILE``: what a LAS/LAZ point file or a trajectory holds."""
+"""``calidar info FILE``: what a LAS/LAZ point file, a trajectory or an ATL03 photon file holds."""
 
 from __future__ import annotations
 
@@ -10,10 +10,14 @@ import typer
 
 from calidar.cli.common import console
 from calidar.cli.georef import TRAJ_ANGLES, TRAJ_HEADING, load_trajectory
+from calidar.errors import InputError
+from calidar.io.atl03 import atl03_beams, read_atl03
 from calidar.io.las import gps_time_system, iter_las_chunks, las_crs, las_header
 from calidar.trajectory import SECONDS_PER_WEEK
 
 LAS_SUFFIXES = (".las", ".laz")
+HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
+READS = "calidar info reads LAS/LAZ, SBET, text trajectories and ICESat-2 ATL03 (HDF5)"
 
 
 def is_las(path: Path) -> bool:
@@ -22,6 +26,29 @@ def is_las(path: Path) -> bool:
         return True
     with open(path, "rb") as f:
         return f.read(4) == b"LASF"
+
+
+def is_hdf5(path: Path) -> bool:
+    """HDF5 by its signature (superblock at offset 0)."""
+    with open(path, "rb") as f:
+        return f.read(8) == HDF5_SIGNATURE
+
+
+def atl03_info(path: Path) -> dict:
+    """Per beam: photons, laser shots, 20 m segments, delta_time span (s since 2018-01-01),
+    lat/lon (deg) and height (m, ellipsoidal) ranges."""
+    beams = atl03_beams(path)
+    if not beams:
+        raise InputError(path, None, f"an HDF5 file without ATL03 beam groups (gt1l … gt3r/heights); {READS}")
+    span = lambda a: [float(a.min()), float(a.max())] if a.size else None  # noqa: E731
+    rows = []
+    for b in beams:
+        pb = read_atl03(path, b)
+        rows.append({"beam": b, "photons": len(pb), "shots": int(np.unique(pb.delta_time).size),
+                     "segments": int(pb.segment_id.size), "delta_time": span(pb.delta_time),
+                     "lat_deg": span(np.degrees(pb.lat)), "lon_deg": span(np.degrees(pb.lon)), "h_m": span(pb.h)})
+    return {"file": str(path), "kind": "photons (ICESat-2 ATL03)", "photons": sum(r["photons"] for r in rows),
+            "beams": rows}
 
 
 def las_info(path: Path, crs: str | None = None, chunk_points: int = 2_000_000) -> dict:
@@ -59,7 +86,12 @@ def las_info(path: Path, crs: str | None = None, chunk_points: int = 2_000_000) 
 
 def trajectory_info(path: Path, crs=None, angles="deg", heading="true") -> dict:
     """Records, rate, time span, position extents (lat/lon deg, height m) and attitude ranges."""
-    tr = load_trajectory(path, crs, angles, heading)
+    try:
+        tr = load_trajectory(path, crs, angles, heading)
+    except InputError as e:
+        if e.field != "columns":
+            raise
+        raise InputError(path, "columns", f"{e.problem}; not a trajectory? {READS}") from None
     deg = lambda a: [float(np.degrees(a.min())), float(np.degrees(a.max()))]  # noqa: E731
     return {
         "file": str(path), "kind": "trajectory", "records": len(tr), "rate_hz": tr.rate_hz,
@@ -75,7 +107,7 @@ def trajectory_info(path: Path, crs=None, angles="deg", heading="true") -> dict:
 def _print(info: dict) -> None:
     console.print(f"[bold]{info['file']}[/]: {info['kind']}", highlight=False, soft_wrap=True)
     for k, v in info.items():
-        if k in ("file", "kind", "flight_lines") or v is None and k == "warning":
+        if k in ("file", "kind", "flight_lines", "beams") or v is None and k == "warning":
             continue
         if isinstance(v, list) and len(v) == 2 and all(isinstance(x, float) for x in v):
             v = f"{v[0]:.6f} … {v[1]:.6f}" if "time" in k or "deg" in k else f"{v[0]:.3f} … {v[1]:.3f}"
@@ -88,6 +120,13 @@ def _print(info: dict) -> None:
         t0, t1 = fl["gps_time"]
         console.print(f"  flight line {fl['point_source_id']:>5}: {fl['points']:>12,} points, "
                       f"GPS time {t0:.6f} … {t1:.6f} ({t1 - t0:.1f} s)", highlight=False, soft_wrap=True)
+    for b in info.get("beams", []):
+        text = f"  beam {b['beam']}: {b['photons']:>10,} photons, {b['shots']:,} shots, {b['segments']:,} segments"
+        if b["photons"]:
+            (t0, t1), (la0, la1), (lo0, lo1), (h0, h1) = b["delta_time"], b["lat_deg"], b["lon_deg"], b["h_m"]
+            text += (f", delta_time {t0:.6f} … {t1:.6f} ({t1 - t0:.1f} s), lat {la0:.6f} … {la1:.6f}, "
+                     f"lon {lo0:.6f} … {lo1:.6f}, h {h0:.3f} … {h1:.3f} m")
+        console.print(text, highlight=False, soft_wrap=True)
 
 
 def register(app: typer.Typer, simulate: typer.Typer) -> None:
@@ -98,10 +137,16 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
         crs: str = typer.Option(None, "--crs", help="CRS of the points or of a text trajectory's coordinates."),
         trajectory_angles: str = TRAJ_ANGLES, trajectory_heading: str = TRAJ_HEADING,
     ) -> None:
-        """Summarise a point file (flight lines, times, CRS, bounds, scan angles) or a trajectory."""
+        """Summarise a point file (flight lines, times, CRS, bounds, scan angles), a trajectory or an
+        ICESat-2 ATL03 photon file (beams, photons, time span)."""
         if not file.is_file():
             raise FileNotFoundError(2, "No such file", str(file))
-        d = las_info(file, crs) if is_las(file) else trajectory_info(file, crs, trajectory_angles, trajectory_heading)
+        if is_las(file):
+            d = las_info(file, crs)
+        elif is_hdf5(file):
+            d = atl03_info(file)
+        else:
+            d = trajectory_info(file, crs, trajectory_angles, trajectory_heading)
         if as_json:
             print(json.dumps(d, indent=2))
         else:

@@ -86,20 +86,30 @@ def _need(group, name: str, path, where: str):
     return group[name][()]
 
 
-def read_atl03(path: str | Path, beam: str = "gt1l") -> PhotonBeam:
-    """Read the photons of one beam of an ATL03 file (degrees in the file → radians)."""
+def _open_hdf5(path: Path):
+    """An open h5py.File; a clear error when the file is not HDF5."""
     import h5py
 
-    path = Path(path)
-    if beam not in BEAMS:
-        raise InputError(None, "--beam", f"expected one of {', '.join(BEAMS)}, got {beam!r}")
     try:
-        f = h5py.File(path, "r")
+        return h5py.File(path, "r")
     except FileNotFoundError:
         raise
     except OSError as e:
         raise InputError(path, None, f"not a readable HDF5 file ({e})") from None
-    with f:
+
+
+def atl03_beams(path: str | Path) -> list[str]:
+    """The beams (of :data:`BEAMS`) an ATL03 file holds photons of (a ``<beam>/heights`` group)."""
+    with _open_hdf5(Path(path)) as f:
+        return [b for b in BEAMS if b in f and "heights" in f[b]]
+
+
+def read_atl03(path: str | Path, beam: str = "gt1l") -> PhotonBeam:
+    """Read the photons of one beam of an ATL03 file (degrees in the file → radians)."""
+    path = Path(path)
+    if beam not in BEAMS:
+        raise InputError(None, "--beam", f"expected one of {', '.join(BEAMS)}, got {beam!r}")
+    with _open_hdf5(path) as f:
         if beam not in f:
             have = [b for b in BEAMS if b in f]
             raise InputError(path, beam, f"beam group missing; the file has {', '.join(have) or 'no beams'}")

@@ -15,6 +15,7 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 
 import laspy
+import lazrs
 import numpy as np
 import pyproj
 
@@ -48,7 +49,8 @@ class LasPoints:
         return self.gps_time.size
 
     def gps_week_seconds(self) -> np.ndarray:
-        """GPS times as week seconds whatever the file holds (see :func:`adjusted_standard_to_week_seconds`)."""
+        """GPS times as week seconds whatever the file holds (see :func:`adjusted_standard_to_week_seconds`;
+        the week comes from these points only: for chunks of a file use the file's week instead)."""
         if self.time_system == "gps_week_seconds":
             return self.gps_time
         return adjusted_standard_to_week_seconds(self.gps_time, self.path)[0]
@@ -59,21 +61,37 @@ class LasPoints:
         return replace(self, xyz=self.xyz[mask], gps_time=self.gps_time[mask], **kw)
 
 
+def single_gps_week(t_min_adjusted_s: float, t_max_adjusted_s: float, source=None) -> int:
+    """The GPS week holding adjusted standard GPS times from ``t_min`` to ``t_max`` (s); an error
+    naming both weeks when they differ (week seconds would jump back to 0 at the boundary)."""
+    w0, w1 = (int(np.floor((t + ADJUSTED_STANDARD_OFFSET_S) / SECONDS_PER_WEEK))
+              for t in (t_min_adjusted_s, t_max_adjusted_s))
+    if w0 != w1:
+        raise InputError(source, "gps_time",
+                         f"adjusted standard GPS times {t_min_adjusted_s:.3f}–{t_max_adjusted_s:.3f} s span GPS "
+                         f"weeks {w0}–{w1}; expected one week (split the file at the week boundary)")
+    return w0
+
+
+def adjusted_standard_in_week(t_adjusted_s, gps_week: int) -> np.ndarray:
+    """Adjusted standard GPS times (s) → seconds since the start of GPS week ``gps_week``."""
+    return np.asarray(t_adjusted_s, float) - (gps_week * SECONDS_PER_WEEK - ADJUSTED_STANDARD_OFFSET_S)  # integer shift
+
+
 def adjusted_standard_to_week_seconds(t_adjusted_s, source=None) -> tuple[np.ndarray, int]:
     """Adjusted standard GPS times (s) → (GPS week seconds, GPS week number).
 
     The week comes from the times themselves; times spanning a week boundary are an error
-    (week seconds would jump back to 0 there).
+    (:func:`single_gps_week`). For a file read in chunks, take the week of the whole file
+    (``calidar.cli.georef.check_coverage`` streams it) and convert each chunk with
+    :func:`adjusted_standard_in_week`.
     """
     t = np.asarray(t_adjusted_s, float)
-    if t.size == 0:
+    finite = t[np.isfinite(t)]
+    if finite.size == 0:
         return t, 0
-    weeks = np.floor((t + ADJUSTED_STANDARD_OFFSET_S) / SECONDS_PER_WEEK)
-    w0, w1 = weeks.min(), weeks.max()
-    if w0 != w1:
-        raise InputError(source, "gps_time",
-                         f"adjusted standard GPS times span GPS weeks {int(w0)}–{int(w1)}; expected one week")
-    return t - (w0 * SECONDS_PER_WEEK - ADJUSTED_STANDARD_OFFSET_S), int(w0)  # one rounding: the shift is an integer
+    week = single_gps_week(float(finite.min()), float(finite.max()), source)
+    return adjusted_standard_in_week(t, week), week
 
 
 def week_seconds_to_adjusted_standard(t_week_s, gps_week: int) -> np.ndarray:
@@ -123,13 +141,41 @@ def _geokey_crs(header: laspy.LasHeader) -> pyproj.CRS | None:
     return pyproj.CRS.from_epsg(epsg) if epsg else crs
 
 
+def _geocentric(crs: pyproj.CRS) -> pyproj.CRS:
+    """The geocentric (ECEF) CRS on the datum of a geographic CRS (WGS 84 → EPSG:4978)."""
+    d = crs.to_json_dict()
+    d.pop("id", None)
+    d["type"] = "GeodeticCRS"
+    d["coordinate_system"] = pyproj.CRS.from_epsg(4978).to_json_dict()["coordinate_system"]
+    geo = pyproj.CRS.from_json_dict(d)
+    epsg = geo.to_epsg(min_confidence=70)
+    return pyproj.CRS.from_epsg(epsg) if epsg else geo
+
+
+def _model_type(header: laspy.LasHeader) -> int | None:
+    """GTModelTypeGeoKey (1024) of the GeoTIFF keys: 1 projected, 2 geographic, 3 geocentric."""
+    for v in header.vlrs:
+        if isinstance(v, laspy.vlrs.known.GeoKeyDirectoryVlr):
+            for k in v.geo_keys:
+                if k.id == 1024 and k.tiff_tag_location == 0:
+                    return int(k.value_offset)
+    return None
+
+
 def las_crs(header: laspy.LasHeader) -> pyproj.CRS | None:
-    """The CRS of a LAS header (WKT VLR preferred, then GeoTIFF keys), or None."""
+    """The CRS of a LAS header (WKT VLR preferred, then GeoTIFF keys), or None.
+
+    GeoTIFF keys with model type geocentric (1024 = 3) mean ECEF on the datum of the
+    GeographicTypeGeoKey; laspy returns that geographic CRS, which would read ECEF metres as degrees.
+    """
     try:
         crs = header.parse_crs()
     except pyproj.exceptions.CRSError:
         crs = None
-    return crs if crs is not None else _geokey_crs(header)
+    crs = crs if crs is not None else _geokey_crs(header)
+    if crs is not None and crs.is_geographic and _model_type(header) == 3:
+        return _geocentric(crs)
+    return crs
 
 
 def gps_time_system(header: laspy.LasHeader, path: Path) -> str:
@@ -160,9 +206,10 @@ def _points(rec, header, path: Path, crs, time_system: str, fields) -> LasPoints
                      path=path, **kw)
 
 
-def _open(path: Path) -> laspy.LasReader:
+def _open(path: Path, selection=laspy.DecompressionSelection.all()) -> laspy.LasReader:
+    """A laspy reader; ``selection``: the LAZ (1.4 formats 6–10) layers to decompress."""
     try:
-        return laspy.open(path)
+        return laspy.open(path, decompression_selection=selection)
     except laspy.errors.LaspyException as e:
         raise InputError(path, None, f"not a readable LAS/LAZ file ({e})") from None
 
@@ -181,7 +228,7 @@ def _records(reader: laspy.LasReader, chunk_points: int, path: Path):
     """laspy point records of ``chunk_points`` at most; damaged files become clear errors."""
     try:
         yield from reader.chunk_iterator(chunk_points)
-    except (laspy.errors.LaspyException, ValueError) as e:
+    except (laspy.errors.LaspyException, lazrs.LazrsError, ValueError) as e:
         raise InputError(path, None, f"cannot read the points ({e}); truncated or damaged file?") from None
 
 
@@ -208,6 +255,17 @@ def iter_las_chunks(path: str | Path, chunk_points: int = 2_000_000, crs=None,
         file_crs = _resolve_crs(header, crs, path)
         for rec in _records(reader, chunk_points, path):
             yield _points(rec, header, path, file_crs, time_system, fields)
+
+
+def iter_las_times(path: str | Path, chunk_points: int = 2_000_000) -> Iterator[np.ndarray]:
+    """GPS times (s, in the file's time system) of a LAS/LAZ file, chunk by chunk: the cheap first
+    pass of streamed commands (LAZ 1.4 decompresses only the time layer)."""
+    path = Path(path)
+    selection = laspy.DecompressionSelection.base() | laspy.DecompressionSelection.GPS_TIME
+    with _open(path, selection) as reader:
+        gps_time_system(reader.header, path)
+        for rec in _records(reader, chunk_points, path):
+            yield np.asarray(rec.gps_time, float)
 
 
 def rewrite_las_xyz(src: str | Path, dst: str | Path, new_xyz, *, crs=None, chunk_points: int = 2_000_000,
@@ -237,6 +295,12 @@ def las_header(path: str | Path) -> laspy.LasHeader:
     path = Path(path)
     with _open(path) as reader:
         return reader.header
+
+
+def las_file_crs(path: str | Path, crs=None) -> pyproj.CRS | None:
+    """The CRS points of a LAS/LAZ file will be read in: ``crs`` when given (clear error if pyproj
+    does not know it), else the file's, else None. Reads the header only."""
+    return _resolve_crs(las_header(path), crs, Path(path))
 
 
 def las_time_system(path: str | Path) -> str:
