@@ -128,7 +128,8 @@ CCR_COLUMNS = ({"id", "lat", "lon", "height"}, {"id", "x", "y", "height"})
 
 def read_ccr_csv(path: str | Path) -> CCRSurvey:
     """Read a CCR survey CSV: ``id,lat,lon,height`` (deg, deg, m above ground) or
-    ``id,x,y,height`` (m along track, m cross-track left of the pass's reported track, m)."""
+    ``id,x,y,height`` (m along track, m cross-track left of the pass's reported track, m; these
+    belong to one pass's track, so :func:`calibrate` refuses them with several passes)."""
     path = Path(path)
     with open(path, newline="", encoding="utf-8") as fh:
         rows = list(csv.reader(fh))
