@@ -25,12 +25,16 @@ chord fixes |y − b_c| only). With two or more CCRs at different cross-track of
 sides are fixed jointly: the grid search over b_c tests both sides of each CCR and only
 one assignment fits all chords with one footprint diameter. One lit CCR is refused.
 
-Beyond the published method: the grid optimum is refined by least squares
-(:func:`calidar.adjust.solve`) on chords corrected for lost shots, C = n_shots·d_l/(1 − q)
-where q is the shot-loss rate measured in the central halves of the segments (n_shots·d_l
-integrates the detection probability along the chord, so it measures the 50 %-detection
-chord even with a soft footprint edge); σ by bootstrap over CCRs and over the shots of each
-segment; several passes are solved jointly (one bias for all of them).
+Beyond the published method: the grid optimum starts a least squares
+(:func:`calidar.adjust.solve`) on every shot's CCR photon count in each CCR's window (shots
+that recorded no photon at all, absent from ATL03, are put back as empty): the detection
+indicator and the count given detection under a Gaussian footprint blurred by the known
+pointing jitter (:func:`mean_ccr_photons`), with the CCR peak photons Λ and the shot-loss
+rate q as nuisance parameters; solved twice, the second time weighted by the model's own
+binomial variances. σ by bootstrap over CCRs and over the shots of each segment; the
+Cramér–Rao bound (:mod:`calidar.photon.likelihood`) at the estimate is reported beside it, to
+show how well the pass can fix the diameter at all. Several passes are solved jointly (one
+bias for all of them).
 
 Conventions: true footprint position = reported + bias; along-track positive in the
 direction of travel; cross-track positive to the left of it.
