@@ -212,7 +212,8 @@ class CCRSegment:
     intercept: float  #: line height above ground at the midpoint
     shot_counts: np.ndarray  #: CCR photons recorded per shot of ``shot_x``
     window_x: np.ndarray  #: along-track positions of every shot of the pass in the search window
-    window_counts: np.ndarray  #: CCR photons of this segment recorded by each of those shots (mostly 0)
+    window_counts: np.ndarray  #: photons in the CCR's count band recorded by each of those shots (mostly 0)
+    background: float = 0.0  #: mean background photons per shot in the count band
 
     @property
     def central_count(self) -> float:
@@ -254,6 +255,9 @@ class CCRSegment:
             "length": self.length, "midpoint": self.midpoint, "angle_rad": self.angle,
             "intercept_above_ground": self.intercept, "central_photons_per_shot": self.central_count,
         }
+
+
+BACKGROUND_BAND = 4.0  #: m of height above the CCR count band where the background rate is measured
 
 
 def with_silent_shots(x: np.ndarray, counts: np.ndarray, spacing: float) -> tuple[np.ndarray, np.ndarray]:
@@ -306,12 +310,19 @@ def extract_segments(p: PassData, survey: CCRSurvey, system: SystemParameters, s
         _, one, counts = np.unique(p.shot[idx], return_index=True, return_counts=True)
         order = np.argsort(p.x[idx][one])
         shot_x = p.x[idx][one][order]  # photons of one shot share its along-track position
+        # every photon of the window (not only the run, not only the denoised ones: the sparse tails
+        # of the footprint profile carry the diameter) within the count band around the CCR line,
+        # and the background rate from an empty band above it
         win = np.flatnonzero(np.abs(p.x - xk[k]) <= reach)
+        off = above[win] - (a * (p.x[win] - p.x[idx].mean()) + b)
+        half = min(3.0 * system.height_sigma, system.delta_h)
         wshots, wone = np.unique(p.shot[win], return_index=True)
-        wcounts = np.bincount(np.searchsorted(wshots, p.shot[idx]), minlength=wshots.size)
+        wcounts = np.bincount(np.searchsorted(wshots, p.shot[win][np.abs(off) <= half]), minlength=wshots.size)
         wx, wcounts = with_silent_shots(p.x[win][wone], wcounts, system.shot_spacing)
+        n_ref = np.count_nonzero((off > 3.0 * half) & (off <= 3.0 * half + BACKGROUND_BAND))
+        background = n_ref / (wx.size * BACKGROUND_BAND) * 2.0 * half
         segments.append(CCRSegment(p.name, cid, float(xk[k]), float(yk[k]), float(survey.height[k]), idx,
-                                   shot_x, float(np.arctan(a)), float(b), counts[order], wx, wcounts))
+                                   shot_x, float(np.arctan(a)), float(b), counts[order], wx, wcounts, background))
     return segments, warnings
 
 
@@ -401,28 +412,31 @@ def mean_ccr_photons(x_shot: np.ndarray, x_ccr: np.ndarray, y_ccr: np.ndarray, v
     return v["ccr_peak_photons"] * (w2 / b2) * np.exp(-2.0 * r2 / b2)
 
 
-def profile_model(x_shot: np.ndarray, x_ccr: np.ndarray, y_ccr: np.ndarray, detected: np.ndarray, v: dict,
-                  system: SystemParameters) -> np.ndarray:
-    """Expected observations per shot: the detection indicator (1 − q)·(1 − e^(−λ̄)) of every shot,
-    then the recorded count of each detecting shot given detection, N·(1 − e^(−λ̄/N))/(1 − e^(−λ̄)).
+def profile_model(x_shot: np.ndarray, x_ccr: np.ndarray, y_ccr: np.ndarray, beta: np.ndarray, detected: np.ndarray,
+                  v: dict, system: SystemParameters) -> np.ndarray:
+    """Expected observations per shot: the detection indicator 1 − P₀ of every shot, then the
+    photon count of each detecting shot given detection, E[k]/(1 − P₀), with
+    P₀ = e^(−β)·(q + (1 − q)·e^(−λ̄)) and E[k] = (1 − q)·N·(1 − e^(−λ̄/N)) + β.
 
     λ̄ from :func:`mean_ccr_photons` (Gaussian footprint, Poisson photons, pointing jitter);
     N detector channels each record ≤ 1 photon of a CCR return (it arrives within the dead
-    time); q = rate of shots whose CCR return is lost. The conditional counts do not depend on
-    q, which separates q from Λ. Arrays are per shot (x_ccr, y_ccr repeated per shot)."""
+    time); q = rate of shots whose CCR return is lost; β = mean background photons per shot
+    in the count band (Poisson). Arrays are per shot (x_ccr, y_ccr, β repeated per shot)."""
     n = system.channels
     lam = mean_ccr_photons(x_shot, x_ccr, y_ccr, v, system.pointing_jitter)
-    p_det = -np.expm1(-lam)
-    cond = n * -np.expm1(-lam[detected] / n) / np.clip(p_det[detected], 1e-12, None)
-    return np.concatenate([(1.0 - v["shot_loss_rate"]) * p_det, cond])
+    q = v["shot_loss_rate"]
+    p_det = 1.0 - np.exp(-beta) * (q + (1.0 - q) * np.exp(-lam))
+    mean = (1.0 - q) * n * -np.expm1(-lam[detected] / n) + beta[detected]
+    return np.concatenate([p_det, mean / np.clip(p_det[detected], 1e-12, None)])
 
 
-def model_sigma(x_shot, x_ccr, y_ccr, detected, v: dict, system: SystemParameters) -> np.ndarray:
+def model_sigma(x_shot, x_ccr, y_ccr, beta, detected, v: dict, system: SystemParameters) -> np.ndarray:
     """σ of each observation of :func:`profile_model` under the model ``v``: √(P(1−P)) for the
     detection indicators, √(N·π(1−π)) (π = 1 − e^(−λ̄/N), channels hit) for the counts."""
     n = system.channels
     lam = mean_ccr_photons(x_shot, x_ccr, y_ccr, v, system.pointing_jitter)
-    pdet = (1.0 - v["shot_loss_rate"]) * -np.expm1(-lam)
+    q = v["shot_loss_rate"]
+    pdet = 1.0 - np.exp(-beta) * (q + (1.0 - q) * np.exp(-lam))
     pi = -np.expm1(-lam[detected] / n)
     return np.concatenate([np.sqrt(np.clip(pdet * (1 - pdet), 0.02, None)),
                            np.sqrt(np.clip(n * pi * (1 - pi), 0.25, None))])
@@ -435,12 +449,13 @@ def _profile_data(segments: list[CCRSegment], pick=None, rng=None):
     for i in (range(len(segments)) if pick is None else pick):
         s = segments[i]
         j = np.arange(s.window_x.size) if rng is None else rng.integers(0, s.window_x.size, s.window_x.size)
-        parts.append((s.window_x[j], np.full(j.size, s.x_ccr), np.full(j.size, s.y_ccr), s.window_counts[j]))
-    xs, xc, yc, c = (np.concatenate(a) for a in zip(*parts))
+        parts.append((s.window_x[j], np.full(j.size, s.x_ccr), np.full(j.size, s.y_ccr), np.full(j.size, s.background),
+                      s.window_counts[j]))
+    xs, xc, yc, beta, c = (np.concatenate(a) for a in zip(*parts))
     det = c > 0
     obs = np.concatenate([det.astype(float), c[det].astype(float)])
     sigma = np.concatenate([np.full(c.size, SIGMA_DETECTION), np.full(int(det.sum()), SIGMA_COUNT)])
-    return xs, xc, yc, det, obs, sigma
+    return xs, xc, yc, beta, det, obs, sigma
 
 
 def bootstrap(segments: list[CCRSegment], start: dict, system: SystemParameters, replicates: int, seed: int) -> np.ndarray:
@@ -458,12 +473,12 @@ def bootstrap(segments: list[CCRSegment], start: dict, system: SystemParameters,
         pick = rng.integers(0, len(segments), len(segments))
         if np.ptp([segments[i].y_ccr for i in pick]) < 0.5:
             continue
-        xs, xc, yc, det, obs, _ = _profile_data(segments, pick, rng)
-        sig = model_sigma(xs, xc, yc, det, start, system)
+        xs, xc, yc, beta, det, obs, _ = _profile_data(segments, pick, rng)
+        sig = model_sigma(xs, xc, yc, beta, det, start, system)
         with catch_warnings():  # trf's step control divides by zero on flat directions
             simplefilter("ignore", RuntimeWarning)
             fit = least_squares(
-                lambda q: (profile_model(xs, xc, yc, det, dict(zip(PROFILE_PARAMETERS, q)), system) - obs) / sig,
+                lambda q: (profile_model(xs, xc, yc, beta, det, dict(zip(PROFILE_PARAMETERS, q)), system) - obs) / sig,
                 x0, bounds=(lo, hi), method="trf")
         if fit.success:
             out.append(fit.x)
@@ -510,12 +525,12 @@ def calibrate(passes: list[PassData], survey: CCRSurvey, system: SystemParameter
     grid = grid_search(segments, d_l, settings)
     n = len(segments)
     n_ch = system.channels
-    xs, xc, yc, det, obs, sig = _profile_data(segments)
+    xs, xc, yc, beta, det, obs, sig = _profile_data(segments)
     peak = max(float(np.max([s.central_count for s in segments])), 1.0)
     peak0 = float(-n_ch * np.log1p(-min(peak, n_ch - 0.5) / n_ch))  # λ of the brightest centre
 
     def residuals(v: dict) -> np.ndarray:
-        return profile_model(xs, xc, yc, det, v, system) - obs
+        return profile_model(xs, xc, yc, beta, det, v, system) - obs
 
     params = ParameterSet([
         Parameter("along_track_bias", grid.along_bias, "m"),
@@ -528,7 +543,7 @@ def calibrate(passes: list[PassData], survey: CCRSurvey, system: SystemParameter
     ])
     sol = solve(residuals, params, sigma=sig, robust=None)
     # re-weight by the model's own variances (binomial detection, binomial channel hits) and re-solve
-    sig = model_sigma(xs, xc, yc, det, sol.values, system)
+    sig = model_sigma(xs, xc, yc, beta, det, sol.values, system)
     sol = solve(residuals, ParameterSet([replace(p, value=sol.values[p.name]) for p in params]), sigma=sig,
                 robust=None)
     boot = (bootstrap(segments, sol.values, system, settings.bootstrap, settings.seed)
