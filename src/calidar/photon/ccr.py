@@ -530,7 +530,8 @@ def calibrate(passes: list[PassData], survey: CCRSurvey, system: SystemParameter
     peak0 = float(-n_ch * np.log1p(-min(peak, n_ch - 0.5) / n_ch))  # λ of the brightest centre
 
     def residuals(v: dict) -> np.ndarray:
-        return profile_model(xs, xc, yc, beta, det, v, system) - obs
+        with np.errstate(over="ignore", invalid="ignore"):  # trial steps far out: non-finite → rejected
+            return profile_model(xs, xc, yc, beta, det, v, system) - obs
 
     params = ParameterSet([
         Parameter("along_track_bias", grid.along_bias, "m"),
@@ -551,9 +552,17 @@ def calibrate(passes: list[PassData], survey: CCRSurvey, system: SystemParameter
     ls_sigma = dict(sol.sigma)
     q = min(max(sol.values["shot_loss_rate"], 0.0), 0.95)
     crb = cramer_rao_sigma(xs, xc, yc, dict(sol.values, shot_loss_rate=q), n_ch, system.pointing_jitter)
-    if boot.shape[0] >= 20:
-        sol = replace(sol, covariance=np.cov(boot.T))
-        sigma_source = f"bootstrap ({boot.shape[0]} replicates over CCRs and shots)"
+    # a few replicates of a 2-CCR pass run off (a wild Λ): drop those outside the searched
+    # diameter range or with a bias beyond the searched reach before the covariance
+    v = sol.values
+    kept = boot[(boot[:, 2] >= settings.diameter_min) & (boot[:, 2] <= settings.diameter_max)
+                & (np.abs(boot[:, 0] - v["along_track_bias"]) <= settings.max_bias)
+                & (np.abs(boot[:, 1] - v["cross_track_bias"]) <= settings.max_bias)]
+    if kept.shape[0] >= 20:
+        sol = replace(sol, covariance=np.cov(kept.T))
+        sigma_source = (f"bootstrap ({kept.shape[0]} replicates over CCRs and shots"
+                        + (f"; {boot.shape[0] - kept.shape[0]} run-off replicates dropped)" if kept.shape[0] < boot.shape[0]
+                           else ")"))
     elif settings.bootstrap:
         sigma_source = "least squares (too few CCRs for a bootstrap)"
         warnings.append("σ from least squares only: the bootstrap needs CCRs at ≥ 2 cross-track offsets")
