@@ -17,7 +17,9 @@ from calidar import __version__
 from calidar.cli.common import err_console
 from calidar.errors import CalidarError
 
-COMMAND_MODULES: list[str] = ["info", "georef", "rangecal", "photon"]
+COMMAND_MODULES: list[str] = [
+    "info", "georef", "rangecal", "photon", "simulate_survey", "demo", "quality", "boresight", "scanner",
+]
 
 app = typer.Typer(
     name="calidar",

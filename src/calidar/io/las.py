@@ -246,8 +246,11 @@ def las_time_system(path: str | Path) -> str:
 
 def write_las(path: str | Path, xyz, crs, *, gps_time, scan_angle_deg, point_source_id, return_number=None,
               number_of_returns=None, classification=None, intensity=None, time_system="gps_week_seconds",
-              force=False) -> Path:
+              creation_date=None, force=False) -> Path:
     """Write LAS 1.4 point format 6 (LAZ when the suffix is .laz) atomically.
+
+    ``creation_date`` (datetime.date) goes into the header; default today (pass a fixed date
+    for byte-reproducible files).
 
     ``xyz`` (N, 3) in ``crs`` (written as a WKT VLR), 1 mm scales (1e-9 deg for a geographic
     CRS); scan angles in degrees (stored in 0.006° steps); returns default to 1 of 1.
@@ -260,6 +263,8 @@ def write_las(path: str | Path, xyz, crs, *, gps_time, scan_angle_deg, point_sou
     header.scales = np.array([scale, scale, 1e-3])
     header.offsets = np.floor(xyz.min(axis=0)) if n else np.zeros(3)
     header.add_crs(crs)
+    if creation_date is not None:
+        header.creation_date = creation_date
     header.global_encoding.gps_time_type = (
         laspy.header.GpsTimeType.STANDARD if time_system == "gps_adjusted_standard" else laspy.header.GpsTimeType.WEEK_TIME
     )

@@ -12,6 +12,8 @@ from typing import Protocol, runtime_checkable
 import numpy as np
 
 from calidar.scanners.linear import LinearScanner
+from calidar.scanners.palmer import PalmerScanner
+from calidar.scanners.wedge import WedgeScanner
 
 
 @runtime_checkable
@@ -24,7 +26,8 @@ class Scanner(Protocol):
         """Scanner observations (N,) or (N, k) in rad → unit beam vectors (N, 3) in frame s."""
 
     def angles(self, directions: np.ndarray) -> np.ndarray:
-        """Inverse of :meth:`directions`: unit vectors (N, 3) → observations (N, k), rad.
+        """Inverse of :meth:`directions`: unit vectors (N, 3) → observations (N, k), rad
+        (rotating scanners — Palmer, wedge — return their encoder angle β as (N,)).
 
         ``directions(angles(u)) == u`` must hold for every u this model can produce.
         """
@@ -39,7 +42,7 @@ class Scanner(Protocol):
         """The ``[scanner]`` table for sensor.toml (user units, key names say them)."""
 
 
-SCANNERS: dict[str, type] = {"linear": LinearScanner}
+SCANNERS: dict[str, type] = {"linear": LinearScanner, "palmer": PalmerScanner, "wedge": WedgeScanner}
 
 
 def scanner_from_toml(table: dict, source: str = "sensor.toml") -> Scanner:

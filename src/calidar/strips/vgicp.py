@@ -1,0 +1,259 @@
+"""Corresponding points between two strips from VGICP registration (small_gicp).
+
+For one overlapping pair: register strip b to strip a with voxelized GICP (Koide et al.,
+"Voxelized GICP for fast and accurate 3D point cloud registration", ICRA 2021, through
+small_gicp, the author's maintained implementation), apply the transform to b, and take
+nearest-neighbour pairs closer than a threshold as corresponding ("same-name") points.
+The pairs index the *un-registered* strips, so the calibrator's residual
+``A·P_a(θ) − B·P_b(θ)`` measures what the mounting parameters must remove.
+
+Residual kinds (see :mod:`calidar.strips.correspond`):
+- ``point_to_plane`` (default): distance along the normal of strip a at the pair, normals
+  from small_gicp's covariance estimation; only locally planar points are kept, so clutter
+  such as vegetation yields few pairs. Better conditioned on surfaces.
+- ``point_to_point``: the 3-D difference of the pair, as the method describes; its noise
+  includes the point spacing.
+
+Registration runs coarse to fine over ``VgicpSettings.voxel_m`` so that a start far from
+the truth (metres of strip offset) still locks in. All lengths are metres, in the local
+Cartesian frame of the points.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+import small_gicp
+
+from calidar.errors import CalibrationError
+from calidar.strips.correspond import Correspondences
+
+KINDS = ("point_to_plane", "point_to_point")
+
+
+@dataclass(frozen=True)
+class VgicpSettings:
+    """Settings of VGICP matching (lengths in metres)."""
+
+    kind: str = "point_to_plane"  #: "point_to_plane" | "point_to_point"
+    voxel_m: tuple[float, ...] = (8.0, 2.0, 1.0)  #: VGICP voxel sizes, coarse to fine
+    downsampling_ratio: float = 0.5  #: registration downsampling = ratio × voxel size ...
+    max_registration_points: int = 40_000  #: ... coarsened so the overlap holds about this many
+    num_neighbors: int = 20  #: neighbours for small_gicp's covariance / normal estimation
+    max_iterations: int = 30  #: per registration stage
+    overlap_cell_m: float = 5.0  #: xy cell of the overlap test
+    min_overlap_points: int = 500  #: fewer points of either strip in the overlap → skip
+    pair_distance_m: float = 0.5  #: max nearest-neighbour distance of a pair after registration
+    max_pairs: int = 2000  #: at most this many pairs per strip pair, spread on an xy grid
+    min_pairs: int = 50  #: fewer usable pairs → the pair is skipped
+    max_surface_variation: float = 0.01  #: point_to_plane: λ_min / Σλ of the local covariance
+    sigma_m: float = 0.05  #: a-priori σ of one residual
+    num_threads: int = 1  #: small_gicp threads (1 is bit-reproducible; see docs)
+
+    def __post_init__(self):
+        if self.kind not in KINDS:
+            raise ValueError(f"kind must be one of {KINDS}, got {self.kind!r}")
+        if not self.voxel_m or any(v <= 0 for v in self.voxel_m):
+            raise ValueError(f"voxel_m must be positive sizes, got {self.voxel_m}")
+
+
+class PairSkipped(CalibrationError):
+    """A strip pair that cannot give correspondences (too little overlap, too few pairs)."""
+
+    def __init__(self, strip_a: int, strip_b: int, reason: str):
+        self.strip_a, self.strip_b, self.reason = strip_a, strip_b, reason
+        super().__init__(f"strips {strip_a}–{strip_b} skipped: {reason}")
+
+    def __reduce__(self):  # picklable across Dask workers
+        return (PairSkipped, (self.strip_a, self.strip_b, self.reason))
+
+
+@dataclass(frozen=True)
+class Registration:
+    """Rigid transform of strip b onto strip a, and how well it fits."""
+
+    T_ab: np.ndarray  #: (4, 4) maps b's points onto a (local frame, m)
+    converged: bool
+    iterations: int
+    num_inliers: int
+
+
+def _cell_keys(xy: np.ndarray, cell: float) -> np.ndarray:
+    """Integer key of the xy cell (size ``cell`` m) of each point."""
+    ij = np.floor(xy / cell).astype(np.int64)
+    return ij[:, 0] * 4_294_967_296 + ij[:, 1]
+
+
+def overlap_masks(points_a: np.ndarray, points_b: np.ndarray, cell_m: float) -> tuple[np.ndarray, np.ndarray, float]:
+    """Points of a and b in xy cells (size cell_m, m) occupied by both; also the overlap area (m²)."""
+    ka, kb = _cell_keys(points_a[:, :2], cell_m), _cell_keys(points_b[:, :2], cell_m)
+    common = np.intersect1d(ka, kb)
+    return np.isin(ka, common), np.isin(kb, common), common.size * cell_m**2
+
+
+def register(points_a: np.ndarray, points_b: np.ndarray, settings: VgicpSettings, area_m2: float):
+    """VGICP registration of b onto a, coarse to fine over ``settings.voxel_m``.
+
+    Points are (N, 3) metres, best centred near the origin (small_gicp discretises at 21 bits);
+    area_m2 is the overlap's area, which bounds the downsampled cloud sizes.
+    Returns the Registration and strip a's finest preprocessed small_gicp cloud (with
+    covariances) and its KdTree.
+    """
+    min_down = np.sqrt(area_m2 / settings.max_registration_points)
+    downs = [max(settings.downsampling_ratio * v, min_down) for v in settings.voxel_m]
+    # one pass over the full strips at the finest resolution; coarser stages start from it
+    fine_a = small_gicp.voxelgrid_sampling(points_a, min(downs), settings.num_threads).points()
+    fine_b = small_gicp.voxelgrid_sampling(points_b, min(downs), settings.num_threads).points()
+    T = np.eye(4)
+    result = target = tree = None
+    for voxel, down in zip(settings.voxel_m, downs):
+        target, tree = small_gicp.preprocess_points(fine_a, down, settings.num_neighbors, settings.num_threads)
+        source, _ = small_gicp.preprocess_points(fine_b, down, settings.num_neighbors, settings.num_threads)
+        voxelmap = small_gicp.GaussianVoxelMap(max(voxel, 2.0 * down))
+        voxelmap.insert(target)
+        result = small_gicp.align(voxelmap, source, T, max_correspondence_distance=2.0 * voxel,
+                                  num_threads=settings.num_threads, max_iterations=settings.max_iterations,
+                                  rotation_epsilon=1e-5, translation_epsilon=1e-4)
+        T = np.asarray(result.T_target_source)
+    return Registration(T, bool(result.converged), int(result.iterations), int(result.num_inliers)), target, tree
+
+
+def _spread(points: np.ndarray, n_max: int, area_m2: float) -> np.ndarray:
+    """Indices of at most ~n_max points spread evenly in xy (one per grid cell, deterministic)."""
+    if points.shape[0] <= n_max:
+        return np.arange(points.shape[0])
+    cell = np.sqrt(area_m2 / n_max)
+    _, first = np.unique(_cell_keys(points[:, :2], cell), return_index=True)
+    if first.size > n_max:  # ragged overlap outline: thin regularly
+        first = first[np.linspace(0, first.size - 1, n_max).astype(np.int64)]
+    return np.sort(first)
+
+
+def _normals(cloud, tree, at: np.ndarray, num_threads: int) -> tuple[np.ndarray, np.ndarray]:
+    """Unit normals at points ``at`` (m) and their surface variation λ_min/Σλ, from the
+    covariance small_gicp estimated at the nearest point of ``cloud`` (KdTree ``tree``)."""
+    idx, _ = tree.batch_knn_search(at, 1, num_threads=num_threads)
+    covs = np.stack([cloud.cov(int(i))[:3, :3] for i in idx[:, 0]])
+    eigval, eigvec = np.linalg.eigh(covs)  # ascending
+    variation = eigval[:, 0] / np.maximum(eigval.sum(axis=1), 1e-300)
+    return eigvec[:, :, 0], variation
+
+
+def match_pair_vgicp(strip_a_id: int, points_a: np.ndarray, strip_b_id: int, points_b: np.ndarray,
+                     settings: VgicpSettings = VgicpSettings()) -> Correspondences:
+    """Corresponding points of strips a and b by VGICP registration + nearest neighbours.
+
+    points_a, points_b: (N, 3) float64, the strips re-georeferenced with the current
+    parameters in a local Cartesian frame (m). Returns at most ``settings.max_pairs``
+    point pairs (one 1.0 per row of A and B) spread over the overlap.
+    Raises :class:`PairSkipped` when the overlap or the number of pairs is too small.
+    """
+    points_a = np.asarray(points_a, dtype=np.float64)
+    points_b = np.asarray(points_b, dtype=np.float64)
+    in_a, in_b, area = overlap_masks(points_a, points_b, settings.overlap_cell_m)
+    n_a, n_b = int(in_a.sum()), int(in_b.sum())
+    if min(n_a, n_b) < settings.min_overlap_points:
+        raise PairSkipped(strip_a_id, strip_b_id, f"too little overlap ({n_a} and {n_b} points in "
+                          f"{area:.0f} m², need {settings.min_overlap_points} each)")
+    idx_a, idx_b = np.flatnonzero(in_a), np.flatnonzero(in_b)
+    origin = points_a[idx_a].mean(axis=0)
+    ov_a, ov_b = points_a[idx_a] - origin, points_b[idx_b] - origin
+
+    reg, cloud_a, tree_a = register(ov_a, ov_b, settings, area)
+    R, t = reg.T_ab[:3, :3], reg.T_ab[:3, 3]
+    b_on_a = ov_b @ R.T + t
+
+    cand = _spread(ov_a, settings.max_pairs, area)
+    tree = small_gicp.KdTree(b_on_a, num_threads=settings.num_threads)
+    nn, d2 = tree.batch_knn_search(ov_a[cand], 1, num_threads=settings.num_threads)
+    nn, dist = nn[:, 0].astype(np.int64), np.sqrt(d2[:, 0])
+    keep = dist < settings.pair_distance_m
+    normal = None
+    if settings.kind == "point_to_plane":
+        n, variation = _normals(cloud_a, tree_a, ov_a[cand], settings.num_threads)
+        keep &= variation < settings.max_surface_variation
+        normal = n[keep]
+    n_pairs = int(keep.sum())
+    if n_pairs < settings.min_pairs:
+        raise PairSkipped(strip_a_id, strip_b_id, f"too few correspondences ({n_pairs} closer than "
+                          f"{settings.pair_distance_m} m{' on planar surfaces' if normal is not None else ''}, "
+                          f"need {settings.min_pairs})")
+    rows = np.arange(n_pairs)
+    ones = np.ones(n_pairs)
+    A = sp.csr_matrix((ones, (rows, idx_a[cand[keep]])), shape=(n_pairs, points_a.shape[0]))
+    B = sp.csr_matrix((ones, (rows, idx_b[nn[keep]])), shape=(n_pairs, points_b.shape[0]))
+    return Correspondences(strip_a_id, strip_b_id, A, B, normal, sigma_m=settings.sigma_m, method="vgicp")
+
+
+def _match_or_skip(strip_a_id, points_a, strip_b_id, points_b, settings):
+    """match_pair_vgicp, returning a PairSkipped instead of raising it (for map_pairs)."""
+    try:
+        return match_pair_vgicp(strip_a_id, points_a, strip_b_id, points_b, settings)
+    except PairSkipped as skipped:
+        return skipped
+
+
+def match_pairs_vgicp(pairs, settings: VgicpSettings = VgicpSettings(), *, scheduler: str | None = None,
+                      workers: int | None = None) -> tuple[list[Correspondences], list[str]]:
+    """Match every pair ``(id_a, points_a, id_b, points_b)`` in-process or on Dask.
+
+    Returns (correspondences of the usable pairs, one warning per skipped pair naming it).
+    Raises CalibrationError when no pair is usable.
+    """
+    from calidar.strips.distribute import map_pairs
+
+    tasks = [(a, pa, b, pb, settings) for a, pa, b, pb in pairs]
+    results = map_pairs(_match_or_skip, tasks, scheduler=scheduler, workers=workers)
+    usable = [r for r in results if isinstance(r, Correspondences)]
+    skipped = [str(r) for r in results if isinstance(r, PairSkipped)]
+    if not usable:
+        detail = "; ".join(skipped) if skipped else "no overlapping pairs were given"
+        raise CalibrationError(f"no usable strip pair for VGICP: {detail}")
+    return usable, skipped
+
+
+def mean_distance(corr: Correspondences, points_a: np.ndarray, points_b: np.ndarray) -> float:
+    """Mean distance (m) between the corresponding points or planes of one pair."""
+    r = corr.residuals(points_a, points_b)
+    if corr.normal is None:
+        return float(np.mean(np.linalg.norm(r.reshape(-1, 3), axis=1)))
+    return float(np.mean(np.abs(r)))
+
+
+def iterate_vgicp(georeference, pairs, solve_once, values: dict[str, float],
+                  settings: VgicpSettings = VgicpSettings(), *, tol_m: float = 1e-3, max_rounds: int = 8,
+                  scheduler: str | None = None, workers: int | None = None, progress=None):
+    """Match, solve, re-georeference, match again — until the mean distance between
+    corresponding points changes by less than ``tol_m`` (m) between rounds (ICP's outer loop).
+
+    georeference(values) → {strip id: (N, 3) points, local m} with the parameters ``values`` (SI);
+    pairs: [(id_a, id_b), ...] overlapping strips; solve_once(correspondences, values) → a
+    :class:`calidar.adjust.Solution` of one adjustment started at ``values``;
+    progress(round, mean_distance_m, n_pairs) is called every round.
+    Returns the last Solution, with ``extra["vgicp_rounds"]`` (per round: mean distance,
+    number of pairs and correspondences) and a warning per skipped pair.
+    """
+    rounds: list[dict] = []
+    solution = None
+    for k in range(max_rounds + 1):
+        points = georeference(values)
+        corr, skipped = match_pairs_vgicp([(a, points[a], b, points[b]) for a, b in pairs], settings,
+                                          scheduler=scheduler, workers=workers)
+        n_obs = np.array([c.n_obs for c in corr], dtype=float)
+        dist = float(np.average([mean_distance(c, points[c.strip_a], points[c.strip_b]) for c in corr], weights=n_obs))
+        rounds.append({"round": k, "mean_distance_m": dist, "pairs": len(corr), "correspondences": int(n_obs.sum())})
+        if progress:
+            progress(k, dist, len(corr))
+        if solution is not None and abs(rounds[-2]["mean_distance_m"] - dist) < tol_m:
+            break
+        if k == max_rounds:
+            solution.warnings.append(f"VGICP: the mean correspondence distance still changed by "
+                                     f"{abs(rounds[-2]['mean_distance_m'] - dist) * 1e3:.1f} mm after {max_rounds} rounds")
+            break
+        solution = solve_once(corr, values)
+        values = solution.values
+    solution.warnings.extend(skipped)
+    solution.extra["vgicp_rounds"] = rounds
+    return solution
