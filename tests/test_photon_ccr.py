@@ -42,18 +42,54 @@ def test_many_lit_ccrs_recover_bias_and_diameter(seed):
     assert not wrong
 
 
-@pytest.mark.parametrize("seed", [
-    0, 1,
-    pytest.param(2, marks=pytest.mark.xfail(
-        reason="known shortfall: footprint diameter off by 1.32 m on this seed (9 of seeds 0-9 are within 1 m)",
-        strict=True)),
-])
-def test_two_lit_ccrs_with_a_third_of_shots_lost(seed):
-    sim, result, err = _solve(PhotonSimConfig(seed=seed, n_ccr=2, ccr_dropout=1 / 3, n_unlit=1))
-    assert len(result.segments) == 2
-    assert any("no CCR photons found for CCR CCR03" in w for w in result.warnings)
-    for k in PARAMETERS:
-        assert abs(err[k]) < 1.0, (k, err[k])
+TWO_CCR = dict(n_ccr=2, ccr_dropout=1 / 3, n_unlit=1)
+
+
+@pytest.mark.slow
+def test_two_lit_ccrs_with_a_third_of_shots_lost():
+    """Seeds 0–19, all errors within 3 bootstrap σ. The goal "within 1 m" is NOT met on every
+    seed, because the data do not hold that information (test_two_lit_ccrs_information_limit:
+    the Cramér–Rao σ of D is ≈ 0.66 m and of the along-track bias ≈ 0.41 m, so even an
+    efficient unbiased estimator misses 1 m in D on ~13 % of passes; the exact maximum
+    likelihood on counts drawn from the model itself misses it on 12–19 %). Measured here:
+    RMS along/cross/D 0.41/0.27/0.85 m; D within 1 m on 14 of 20, along on 19 of 20."""
+    errors, z = [], []
+    for seed in range(20):
+        sim, result, err = _solve(PhotonSimConfig(seed=seed, **TWO_CCR))
+        assert len(result.segments) == 2
+        assert any("no CCR photons found for CCR CCR03" in w for w in result.warnings)
+        errors.append([err[k] for k in PARAMETERS])
+        z.append([abs(err[k]) / result.solution.sigma[k] for k in PARAMETERS])
+    errors, z = np.abs(np.array(errors)), np.array(z)
+    assert np.all(z < 3.0), z.max(axis=0)
+    rms = np.sqrt(np.mean(errors**2, axis=0))
+    assert rms[0] < 0.5 and rms[1] < 0.5 and rms[2] < 1.0, rms
+    assert np.all(errors[:, 1] < 1.0) and np.sum(errors[:, 0] < 1.0) >= 19
+    assert np.sum(errors[:, 2] < 1.0) >= 14 and errors[:, 2].max() < 1.5
+
+
+def test_two_lit_ccrs_information_limit():
+    """Cramér–Rao bound at the truth: 2 lit CCRs with a third of the shots lost fix D to
+    ≈ 0.66 m at best (1 m is 1.5σ), 12 lit CCRs to ≈ 0.17 m."""
+    from calidar.photon.likelihood import cramer_rao_sigma
+
+    def bound(cfg):
+        sim = simulate_pass(cfg)
+        t, n = sim.truth, int(cfg.length / cfg.shot_spacing)
+        xs = cfg.shot_spacing * np.arange(n)
+        near = [np.flatnonzero(np.abs(xs - x) < 17.5) for x in t["ccr_x"][:cfg.n_ccr]]
+        x_shot = np.concatenate([xs[i] for i in near])
+        xc = np.concatenate([np.full(i.size, x) for i, x in zip(near, t["ccr_x"])])
+        yc = np.concatenate([np.full(i.size, y) for i, y in zip(near, t["ccr_y"])])
+        v = {"along_track_bias": t["along_track_bias"], "cross_track_bias": t["cross_track_bias"],
+             "footprint_diameter": cfg.footprint_diameter, "ccr_peak_photons": cfg.ccr_photons,
+             "shot_loss_rate": cfg.ccr_dropout}
+        return cramer_rao_sigma(x_shot, xc, yc, v, cfg.channels, cfg.jitter)
+
+    two = bound(PhotonSimConfig(seed=2, **TWO_CCR))
+    assert 0.55 < two["footprint_diameter"] < 0.8 and 0.3 < two["along_track_bias"] < 0.5
+    many = bound(PhotonSimConfig(seed=2, n_ccr=12, ccr_spacing=45.0))
+    assert many["footprint_diameter"] < 0.25 and many["along_track_bias"] < 0.1
 
 
 def test_several_passes_are_solved_jointly():
@@ -72,6 +108,16 @@ def test_several_passes_are_solved_jointly():
     assert abs(v["along_track_bias"] - 1.7) < 0.5
     assert abs(v["cross_track_bias"] + 2.2) < 0.5
     assert abs(v["footprint_diameter"] - 11.0) < 1.0
+
+
+def test_xy_survey_with_several_passes_is_refused(tmp_path):
+    a = simulate_pass(PhotonSimConfig(seed=21, n_ccr=3, length=600.0))
+    p = tmp_path / "ccr_xy.csv"
+    p.write_text("id,x,y,height\n" + "".join(
+        f"{i},{x:.3f},{y:.3f},{h}\n" for i, x, y, h in zip(a.ccr_id, a.ccr_x, a.ccr_y, a.ccr_height)))
+    passes = [prepare_pass(a.beam, SYSTEM, "A"), prepare_pass(a.beam, SYSTEM, "B")]
+    with pytest.raises(InputError, match=r"ccr_xy.csv: columns: x,y are along/cross-track positions in ONE pass"):
+        calibrate(passes, read_ccr_csv(p), SYSTEM)
 
 
 def test_delta_h_is_the_smaller_of_dead_time_and_pulse_bounds():

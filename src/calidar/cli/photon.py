@@ -78,12 +78,13 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
     def ccr(
         atl03: list[Path] = typer.Argument(..., help="ATL03 file(s); several passes are solved jointly."),
         beam: str = BEAM,
-        ccr_file: Path = typer.Option(..., "--ccr", help="CCR survey CSV: id,lat,lon,height (deg, deg, m) or id,x,y,height (m)."),
+        ccr_file: Path = typer.Option(..., "--ccr", help="CCR survey CSV: id,lat,lon,height (deg, deg, m) or, for one pass only, id,x,y,height (m)."),
         out: Path = typer.Option(..., "--out", help="Output folder (solution.json, report.html)."),
         dead_time_ns: float = typer.Option(3.2, "--dead-time-ns", help="Detector dead time t_d (ns)."),
         pulse_width_ns: float = typer.Option(1.0, "--pulse-width-ns", help="RMS pulse width σ (ns)."),
         shot_spacing: float = typer.Option(0.7, "--shot-spacing-m", help="Along-track shot spacing d_l (m)."),
         channels: int = typer.Option(16, "--channels", help="Detector channels of the beam (ATLAS: 16 strong, 4 weak)."),
+        jitter: float = typer.Option(0.3, "--pointing-jitter-m", help="RMS shot-to-shot footprint jitter per axis (m)."),
         diameter_range: str = typer.Option("8,15", "--diameter-range", help="Footprint diameters searched MIN,MAX (m)."),
         diameter_step: float = typer.Option(0.1, "--diameter-step", help="Diameter step Δr (m)."),
         length_step: float = typer.Option(0.1, "--length-step", help="Segment-length step Δl (m)."),
@@ -102,9 +103,11 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
                 raise InputError(None, name, f"expected a positive number, got {v}")
         if not 0 < dmin < dmax:
             raise InputError(None, "--diameter-range", f"expected 0 < MIN < MAX, got {diameter_range}")
+        if not jitter >= 0:
+            raise InputError(None, "--pointing-jitter-m", f"expected a number ≥ 0, got {jitter}")
         if channels < 1:
             raise InputError(None, "--channels", f"expected a positive integer, got {channels}")
-        system = SystemParameters(dead_time_ns * 1e-9, pulse_width_ns * 1e-9, shot_spacing, channels)
+        system = SystemParameters(dead_time_ns * 1e-9, pulse_width_ns * 1e-9, shot_spacing, channels, jitter)
         settings = SearchSettings(dmin, dmax, diameter_step, length_step, bootstrap=bootstrap)
         result = run_ccr(atl03, beam, ccr_file, out, system=system, settings=settings, truth_path=truth, force=force)
         v, s = result.solution.values, result.solution.sigma

@@ -25,12 +25,16 @@ chord fixes |y − b_c| only). With two or more CCRs at different cross-track of
 sides are fixed jointly: the grid search over b_c tests both sides of each CCR and only
 one assignment fits all chords with one footprint diameter. One lit CCR is refused.
 
-Beyond the published method: the grid optimum is refined by least squares
-(:func:`calidar.adjust.solve`) on chords corrected for lost shots, C = n_shots·d_l/(1 − q)
-where q is the shot-loss rate measured in the central halves of the segments (n_shots·d_l
-integrates the detection probability along the chord, so it measures the 50 %-detection
-chord even with a soft footprint edge); σ by bootstrap over CCRs and over the shots of each
-segment; several passes are solved jointly (one bias for all of them).
+Beyond the published method: the grid optimum starts a least squares
+(:func:`calidar.adjust.solve`) on every shot's CCR photon count in each CCR's window (shots
+that recorded no photon at all, absent from ATL03, are put back as empty): the detection
+indicator and the count given detection under a Gaussian footprint blurred by the known
+pointing jitter (:func:`mean_ccr_photons`), with the CCR peak photons Λ and the shot-loss
+rate q as nuisance parameters; solved twice, the second time weighted by the model's own
+binomial variances. σ by bootstrap over CCRs and over the shots of each segment; the
+Cramér–Rao bound (:mod:`calidar.photon.likelihood`) at the estimate is reported beside it, to
+show how well the pass can fix the diameter at all. Several passes are solved jointly (one
+bias for all of them).
 
 Conventions: true footprint position = reported + bias; along-track positive in the
 direction of travel; cross-track positive to the left of it.
@@ -50,6 +54,7 @@ from calidar.errors import CalibrationError, InputError
 from calidar.io.atl03 import PhotonBeam
 from calidar.photon.denoise import denoise_stages
 from calidar.photon.ground import ground_profile
+from calidar.photon.likelihood import cramer_rao_sigma, footprint_radius_1e2
 from calidar.photon.track import TrackLine
 
 C_LIGHT = 299_792_458.0  #: m/s
@@ -65,6 +70,7 @@ class SystemParameters:
     pulse_width: float = 1.0e-9
     shot_spacing: float = 0.7
     channels: int = 16  #: detector channels of the beam (ATLAS strong beam: 16)
+    pointing_jitter: float = 0.3  #: m, RMS shot-to-shot footprint position noise on each axis
 
     @property
     def delta_h(self) -> float:
@@ -126,7 +132,8 @@ CCR_COLUMNS = ({"id", "lat", "lon", "height"}, {"id", "x", "y", "height"})
 
 def read_ccr_csv(path: str | Path) -> CCRSurvey:
     """Read a CCR survey CSV: ``id,lat,lon,height`` (deg, deg, m above ground) or
-    ``id,x,y,height`` (m along track, m cross-track left of the pass's reported track, m)."""
+    ``id,x,y,height`` (m along track, m cross-track left of the pass's reported track, m; these
+    belong to one pass's track, so :func:`calibrate` refuses them with several passes)."""
     path = Path(path)
     with open(path, newline="", encoding="utf-8") as fh:
         rows = list(csv.reader(fh))
@@ -205,7 +212,8 @@ class CCRSegment:
     intercept: float  #: line height above ground at the midpoint
     shot_counts: np.ndarray  #: CCR photons recorded per shot of ``shot_x``
     window_x: np.ndarray  #: along-track positions of every shot of the pass in the search window
-    window_counts: np.ndarray  #: CCR photons of this segment recorded by each of those shots (mostly 0)
+    window_counts: np.ndarray  #: photons in the CCR's count band recorded by each of those shots (mostly 0)
+    background: float = 0.0  #: mean background photons per shot in the count band
 
     @property
     def central_count(self) -> float:
@@ -249,6 +257,24 @@ class CCRSegment:
         }
 
 
+BACKGROUND_BAND = 4.0  #: m of height above the CCR count band where the background rate is measured
+
+
+def with_silent_shots(x: np.ndarray, counts: np.ndarray, spacing: float) -> tuple[np.ndarray, np.ndarray]:
+    """Insert the shots that recorded no photon at all (absent from ATL03) with count 0:
+    where consecutive shots at along-track x (m, increasing) are ≥ 1.5 spacings apart."""
+    step = np.diff(x)
+    gaps = np.rint(step / spacing).astype(int)
+    missing = np.clip(gaps - 1, 0, None)
+    if not missing.any():
+        return x, counts
+    i = np.repeat(np.arange(gaps.size), missing)
+    j = np.arange(i.size) - np.repeat(np.cumsum(missing) - missing, missing) + 1  # 1 … missing within each gap
+    xs = np.concatenate([x, x[i] + j * step[i] / gaps[i]])
+    order = np.argsort(xs, kind="stable")
+    return xs[order], np.concatenate([counts, np.zeros(i.size, counts.dtype)])[order]
+
+
 def extract_segments(p: PassData, survey: CCRSurvey, system: SystemParameters, settings: SearchSettings
                      ) -> tuple[list[CCRSegment], list[str]]:
     """One segment per CCR of the survey lit in pass ``p``; warnings for the others."""
@@ -284,11 +310,19 @@ def extract_segments(p: PassData, survey: CCRSurvey, system: SystemParameters, s
         _, one, counts = np.unique(p.shot[idx], return_index=True, return_counts=True)
         order = np.argsort(p.x[idx][one])
         shot_x = p.x[idx][one][order]  # photons of one shot share its along-track position
+        # every photon of the window (not only the run, not only the denoised ones: the sparse tails
+        # of the footprint profile carry the diameter) within the count band around the CCR line,
+        # and the background rate from an empty band above it
         win = np.flatnonzero(np.abs(p.x - xk[k]) <= reach)
+        off = above[win] - (a * (p.x[win] - p.x[idx].mean()) + b)
+        half = min(3.0 * system.height_sigma, system.delta_h)
         wshots, wone = np.unique(p.shot[win], return_index=True)
-        wcounts = np.bincount(np.searchsorted(wshots, p.shot[idx]), minlength=wshots.size)
+        wcounts = np.bincount(np.searchsorted(wshots, p.shot[win][np.abs(off) <= half]), minlength=wshots.size)
+        wx, wcounts = with_silent_shots(p.x[win][wone], wcounts, system.shot_spacing)
+        n_ref = np.count_nonzero((off > 3.0 * half) & (off <= 3.0 * half + BACKGROUND_BAND))
+        background = n_ref / (wx.size * BACKGROUND_BAND) * 2.0 * half
         segments.append(CCRSegment(p.name, cid, float(xk[k]), float(yk[k]), float(survey.height[k]), idx,
-                                   shot_x, float(np.arctan(a)), float(b), counts[order], p.x[win][wone], wcounts))
+                                   shot_x, float(np.arctan(a)), float(b), counts[order], wx, wcounts, background))
     return segments, warnings
 
 
@@ -357,46 +391,55 @@ def grid_search(segments: list[CCRSegment], spacing: float, settings: SearchSett
     return GridResult(diam, biases, rms_c, rms_a, b_a, float(biases[j]), float(diam[i]), sides)
 
 
-def footprint_radius_1e2(diameter: float, peak_photons: float) -> float:
-    """1/e² radius w (m) of a Gaussian footprint whose 50 %-detection diameter for a CCR
-    returning ``peak_photons`` (mean, at the centre) is ``diameter``: Λ·exp(-2(D/2)²/w²) = ln 2."""
-    return 0.5 * diameter * np.sqrt(2.0 / np.log(max(peak_photons, 1.01) / np.log(2.0)))
-
-
 #: Names of the refined parameters: PARAMETERS + the CCR peak photon rate Λ and the shot-loss rate q.
 PROFILE_PARAMETERS = (*PARAMETERS, "ccr_peak_photons", "shot_loss_rate")
 #: A-priori σ of a detection indicator (0/1) and of a photon count, for the least squares weights.
 SIGMA_DETECTION, SIGMA_COUNT = 0.4, 1.0
 
 
-def profile_model(x_shot: np.ndarray, x_ccr: np.ndarray, y_ccr: np.ndarray, detected: np.ndarray, v: dict,
-                  channels: int) -> np.ndarray:
-    """Expected observations per shot: the detection indicator (1 − q)·(1 − e^(−λ)) of every shot,
-    then the recorded count of each detecting shot given detection, N·(1 − e^(−λ/N))/(1 − e^(−λ)).
+def mean_ccr_photons(x_shot: np.ndarray, x_ccr: np.ndarray, y_ccr: np.ndarray, v: dict, jitter: float) -> np.ndarray:
+    """Mean CCR photons λ̄ per shot (reported along-track x_shot, CCR at x_ccr, y_ccr; m).
 
     λ = Λ·exp(−2r²/w²) with r the distance from the true footprint centre (reported x + along
-    bias, cross bias) to the CCR and w the 1/e² radius giving the 50 %-detection diameter D;
+    bias, cross bias) to the CCR and w the 1/e² radius giving the 50 %-detection diameter D.
+    The shot's pointing jitter (σ_j per axis, Gaussian) blurs it: averaged over the jitter,
+    each axis's Gaussian of variance w²/4 becomes one of variance w²/4 + σ_j², so
+    λ̄ = Λ·w²/(w² + 4σ_j²)·exp(−2r²/(w² + 4σ_j²)) — exact for the mean; the detection
+    probability 1 − e^(−λ̄) then errs by O((σ_j/w)⁴)."""
+    w2 = footprint_radius_1e2(v["footprint_diameter"], v["ccr_peak_photons"]) ** 2
+    b2 = w2 + 4.0 * jitter**2
+    r2 = (x_shot + v["along_track_bias"] - x_ccr) ** 2 + (v["cross_track_bias"] - y_ccr) ** 2
+    return v["ccr_peak_photons"] * (w2 / b2) * np.exp(-2.0 * r2 / b2)
+
+
+def profile_model(x_shot: np.ndarray, x_ccr: np.ndarray, y_ccr: np.ndarray, beta: np.ndarray, detected: np.ndarray,
+                  v: dict, system: SystemParameters) -> np.ndarray:
+    """Expected observations per shot: the detection indicator 1 − P₀ of every shot, then the
+    photon count of each detecting shot given detection, E[k]/(1 − P₀), with
+    P₀ = e^(−β)·(q + (1 − q)·e^(−λ̄)) and E[k] = (1 − q)·N·(1 − e^(−λ̄/N)) + β.
+
+    λ̄ from :func:`mean_ccr_photons` (Gaussian footprint, Poisson photons, pointing jitter);
     N detector channels each record ≤ 1 photon of a CCR return (it arrives within the dead
-    time); q = rate of shots whose CCR return is lost. The conditional counts do not depend on
-    q, which separates q from Λ. Arrays are per shot (x_ccr, y_ccr repeated per shot)."""
-    w = footprint_radius_1e2(v["footprint_diameter"], v["ccr_peak_photons"])
-    r2 = (x_shot + v["along_track_bias"] - x_ccr) ** 2 + (v["cross_track_bias"] - y_ccr) ** 2
-    lam = v["ccr_peak_photons"] * np.exp(-2.0 * r2 / w**2)
-    p_det = -np.expm1(-lam)
-    cond = channels * -np.expm1(-lam[detected] / channels) / np.clip(p_det[detected], 1e-12, None)
-    return np.concatenate([(1.0 - v["shot_loss_rate"]) * p_det, cond])
+    time); q = rate of shots whose CCR return is lost; β = mean background photons per shot
+    in the count band (Poisson). Arrays are per shot (x_ccr, y_ccr, β repeated per shot)."""
+    n = system.channels
+    lam = mean_ccr_photons(x_shot, x_ccr, y_ccr, v, system.pointing_jitter)
+    q = v["shot_loss_rate"]
+    p_det = 1.0 - np.exp(-beta) * (q + (1.0 - q) * np.exp(-lam))
+    mean = (1.0 - q) * n * -np.expm1(-lam[detected] / n) + beta[detected]
+    return np.concatenate([p_det, mean / np.clip(p_det[detected], 1e-12, None)])
 
 
-def model_sigma(x_shot, x_ccr, y_ccr, detected, v: dict, channels: int) -> np.ndarray:
+def model_sigma(x_shot, x_ccr, y_ccr, beta, detected, v: dict, system: SystemParameters) -> np.ndarray:
     """σ of each observation of :func:`profile_model` under the model ``v``: √(P(1−P)) for the
-    detection indicators, √(N·π(1−π)) (π = 1 − e^(−λ/N), channels hit) for the counts."""
-    w = footprint_radius_1e2(v["footprint_diameter"], v["ccr_peak_photons"])
-    r2 = (x_shot + v["along_track_bias"] - x_ccr) ** 2 + (v["cross_track_bias"] - y_ccr) ** 2
-    lam = v["ccr_peak_photons"] * np.exp(-2.0 * r2 / w**2)
-    pdet = (1.0 - v["shot_loss_rate"]) * -np.expm1(-lam)
-    pi = -np.expm1(-lam[detected] / channels)
+    detection indicators, √(N·π(1−π)) (π = 1 − e^(−λ̄/N), channels hit) for the counts."""
+    n = system.channels
+    lam = mean_ccr_photons(x_shot, x_ccr, y_ccr, v, system.pointing_jitter)
+    q = v["shot_loss_rate"]
+    pdet = 1.0 - np.exp(-beta) * (q + (1.0 - q) * np.exp(-lam))
+    pi = -np.expm1(-lam[detected] / n)
     return np.concatenate([np.sqrt(np.clip(pdet * (1 - pdet), 0.02, None)),
-                           np.sqrt(np.clip(channels * pi * (1 - pi), 0.25, None))])
+                           np.sqrt(np.clip(n * pi * (1 - pi), 0.25, None))])
 
 
 def _profile_data(segments: list[CCRSegment], pick=None, rng=None):
@@ -406,15 +449,16 @@ def _profile_data(segments: list[CCRSegment], pick=None, rng=None):
     for i in (range(len(segments)) if pick is None else pick):
         s = segments[i]
         j = np.arange(s.window_x.size) if rng is None else rng.integers(0, s.window_x.size, s.window_x.size)
-        parts.append((s.window_x[j], np.full(j.size, s.x_ccr), np.full(j.size, s.y_ccr), s.window_counts[j]))
-    xs, xc, yc, c = (np.concatenate(a) for a in zip(*parts))
+        parts.append((s.window_x[j], np.full(j.size, s.x_ccr), np.full(j.size, s.y_ccr), np.full(j.size, s.background),
+                      s.window_counts[j]))
+    xs, xc, yc, beta, c = (np.concatenate(a) for a in zip(*parts))
     det = c > 0
     obs = np.concatenate([det.astype(float), c[det].astype(float)])
     sigma = np.concatenate([np.full(c.size, SIGMA_DETECTION), np.full(int(det.sum()), SIGMA_COUNT)])
-    return xs, xc, yc, det, obs, sigma
+    return xs, xc, yc, beta, det, obs, sigma
 
 
-def bootstrap(segments: list[CCRSegment], start: dict, channels: int, replicates: int, seed: int) -> np.ndarray:
+def bootstrap(segments: list[CCRSegment], start: dict, system: SystemParameters, replicates: int, seed: int) -> np.ndarray:
     """(n, 5) bootstrap re-estimates of PROFILE_PARAMETERS, resampling the CCR segments and,
     within each, the shots of its window (scipy least_squares from ``start``, weights from
     the model at ``start``)."""
@@ -429,12 +473,12 @@ def bootstrap(segments: list[CCRSegment], start: dict, channels: int, replicates
         pick = rng.integers(0, len(segments), len(segments))
         if np.ptp([segments[i].y_ccr for i in pick]) < 0.5:
             continue
-        xs, xc, yc, det, obs, _ = _profile_data(segments, pick, rng)
-        sig = model_sigma(xs, xc, yc, det, start, channels)
+        xs, xc, yc, beta, det, obs, _ = _profile_data(segments, pick, rng)
+        sig = model_sigma(xs, xc, yc, beta, det, start, system)
         with catch_warnings():  # trf's step control divides by zero on flat directions
             simplefilter("ignore", RuntimeWarning)
             fit = least_squares(
-                lambda q: (profile_model(xs, xc, yc, det, dict(zip(PROFILE_PARAMETERS, q)), channels) - obs) / sig,
+                lambda q: (profile_model(xs, xc, yc, beta, det, dict(zip(PROFILE_PARAMETERS, q)), system) - obs) / sig,
                 x0, bounds=(lo, hi), method="trf")
         if fit.success:
             out.append(fit.x)
@@ -459,6 +503,9 @@ def calibrate(passes: list[PassData], survey: CCRSurvey, system: SystemParameter
     """Solve along/cross-track bias and footprint diameter from the CCR returns of one or more passes."""
     system = system or SystemParameters()
     settings = settings or SearchSettings()
+    if survey.lat is None and len(passes) > 1:
+        raise InputError(survey.source, "columns", f"x,y are along/cross-track positions in ONE pass's track, but "
+                         f"{len(passes)} passes were given; give the CCRs as id,lat,lon,height")
     segments, warnings = [], []
     for p in passes:
         s, w = extract_segments(p, survey, system, settings)
@@ -478,12 +525,13 @@ def calibrate(passes: list[PassData], survey: CCRSurvey, system: SystemParameter
     grid = grid_search(segments, d_l, settings)
     n = len(segments)
     n_ch = system.channels
-    xs, xc, yc, det, obs, sig = _profile_data(segments)
+    xs, xc, yc, beta, det, obs, sig = _profile_data(segments)
     peak = max(float(np.max([s.central_count for s in segments])), 1.0)
     peak0 = float(-n_ch * np.log1p(-min(peak, n_ch - 0.5) / n_ch))  # λ of the brightest centre
 
     def residuals(v: dict) -> np.ndarray:
-        return profile_model(xs, xc, yc, det, v, n_ch) - obs
+        with np.errstate(over="ignore", invalid="ignore"):  # trial steps far out: non-finite → rejected
+            return profile_model(xs, xc, yc, beta, det, v, system) - obs
 
     params = ParameterSet([
         Parameter("along_track_bias", grid.along_bias, "m"),
@@ -496,15 +544,25 @@ def calibrate(passes: list[PassData], survey: CCRSurvey, system: SystemParameter
     ])
     sol = solve(residuals, params, sigma=sig, robust=None)
     # re-weight by the model's own variances (binomial detection, binomial channel hits) and re-solve
-    sig = model_sigma(xs, xc, yc, det, sol.values, n_ch)
+    sig = model_sigma(xs, xc, yc, beta, det, sol.values, system)
     sol = solve(residuals, ParameterSet([replace(p, value=sol.values[p.name]) for p in params]), sigma=sig,
                 robust=None)
-    boot = (bootstrap(segments, sol.values, n_ch, settings.bootstrap, settings.seed)
+    boot = (bootstrap(segments, sol.values, system, settings.bootstrap, settings.seed)
             if settings.bootstrap else np.zeros((0, len(PROFILE_PARAMETERS))))
     ls_sigma = dict(sol.sigma)
-    if boot.shape[0] >= 20:
-        sol = replace(sol, covariance=np.cov(boot.T))
-        sigma_source = f"bootstrap ({boot.shape[0]} replicates over CCRs and shots)"
+    q = min(max(sol.values["shot_loss_rate"], 0.0), 0.95)
+    crb = cramer_rao_sigma(xs, xc, yc, dict(sol.values, shot_loss_rate=q), n_ch, system.pointing_jitter)
+    # a few replicates of a 2-CCR pass run off (a wild Λ): drop those outside the searched
+    # diameter range or with a bias beyond the searched reach before the covariance
+    v = sol.values
+    kept = boot[(boot[:, 2] >= settings.diameter_min) & (boot[:, 2] <= settings.diameter_max)
+                & (np.abs(boot[:, 0] - v["along_track_bias"]) <= settings.max_bias)
+                & (np.abs(boot[:, 1] - v["cross_track_bias"]) <= settings.max_bias)]
+    if kept.shape[0] >= 20:
+        sol = replace(sol, covariance=np.cov(kept.T))
+        sigma_source = (f"bootstrap ({kept.shape[0]} replicates over CCRs and shots"
+                        + (f"; {boot.shape[0] - kept.shape[0]} run-off replicates dropped)" if kept.shape[0] < boot.shape[0]
+                           else ")"))
     elif settings.bootstrap:
         sigma_source = "least squares (too few CCRs for a bootstrap)"
         warnings.append("σ from least squares only: the bootstrap needs CCRs at ≥ 2 cross-track offsets")
@@ -518,11 +576,12 @@ def calibrate(passes: list[PassData], survey: CCRSurvey, system: SystemParameter
         "method": "CCR chord grid search, then least squares on the per-shot CCR photon counts",
         "sigma_source": sigma_source,
         "least_squares_sigma": {k: float(v) for k, v in ls_sigma.items()},
+        "cramer_rao_sigma": crb,
         "grid_search": grid.to_dict(),
         "shot_loss_rate": loss,
         "delta_h": system.delta_h,
         "system": {"dead_time_s": system.dead_time, "pulse_width_s": system.pulse_width, "shot_spacing_m": d_l,
-                   "channels": system.channels},
+                   "channels": system.channels, "pointing_jitter_m": system.pointing_jitter},
         "segments": [dict(s.summary(d_l), chord=float(c)) for s, c in zip(segments, chord)],
         "passes": [p.name for p in passes],
     })

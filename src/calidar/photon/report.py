@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from calidar.photon.ccr import PARAMETERS, CCRResult, footprint_radius_1e2
+from calidar.photon.ccr import PARAMETERS, CCRResult, mean_ccr_photons
 
 
 def add_section(report, result: CCRResult, truth: dict | None = None, title: str = "Photon lidar: CCR geolocation calibration"):
@@ -23,8 +23,12 @@ def add_section(report, result: CCRResult, truth: dict | None = None, title: str
     )
     sec.solution(sol, {k: truth[k] for k in PARAMETERS} if truth else None)
     sec.text("The grid search below is the published method (chords and midpoints); the values above refine it by "
-             "least squares on every shot's CCR photon count (Gaussian footprint energy, Poisson photons, one photon "
-             "per detector channel), with the CCR peak photon rate and the shot-loss rate as nuisance parameters.")
+             "least squares on every shot's CCR photon count (Gaussian footprint energy blurred by the pointing jitter, "
+             "Poisson photons, one photon per detector channel, background), with the CCR peak photon rate and the "
+             "shot-loss rate as nuisance parameters.")
+    crb = sol.extra["cramer_rao_sigma"]
+    sec.text("Cramér–Rao bound at the estimate (the smallest σ any unbiased estimate from these shots can have): "
+             + ", ".join(f"{k} {crb[k]:.2f} m" for k in PARAMETERS) + ".")
     g = result.grid
     sec.table(["grid search (method)", "along-track bias", "cross-track bias", "footprint diameter", "min RMS"],
               [["value (m)", g.along_bias, g.cross_bias, g.diameter, float(g.total.min())]])
@@ -75,12 +79,13 @@ def add_section(report, result: CCRResult, truth: dict | None = None, title: str
     # per-shot CCR photon counts against the fitted footprint model
     fig, axes = plt.subplots(1, len(segs), figsize=(2.2 * len(segs) + 1, 2.6), squeeze=False, sharey=True)
     n_ch = sol.extra["system"]["channels"]
+    jitter = sol.extra["system"]["pointing_jitter_m"]
     for ax, s in zip(axes[0], segs):
         xm = np.linspace(s.window_x.min(), s.window_x.max(), 300)
-        w = footprint_radius_1e2(diam, v["ccr_peak_photons"])
-        lam = v["ccr_peak_photons"] * np.exp(-2 * ((xm + b_a - s.x_ccr) ** 2 + (b_c - s.y_ccr) ** 2) / w**2)
+        lam = mean_ccr_photons(xm, s.x_ccr, s.y_ccr, v, jitter)
         ax.plot(s.window_x, s.window_counts, ".", ms=3, color="tab:red")
-        ax.plot(xm, (1 - v["shot_loss_rate"]) * n_ch * -np.expm1(-lam / n_ch), "-", color="tab:orange", lw=1)
+        ax.plot(xm, (1 - v["shot_loss_rate"]) * n_ch * -np.expm1(-lam / n_ch) + s.background, "-", color="tab:orange",
+                lw=1)
         ax.set_title(s.ccr_id, fontsize=8)
         ax.set_xlabel("x (m)")
     axes[0][0].set_ylabel("CCR photons per shot")
