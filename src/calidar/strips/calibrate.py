@@ -51,6 +51,7 @@ class StripSettings:
     max_outer: int = 8  #: outer (re-matching) iterations
     threshold_m: float = 2e-4  #: stop when the mean correspondence distance changes by less
     robust: str | None = "cauchy"
+    cluster_s: float | None = 10.0  #: trajectory errors correlate over this time: σ from a cluster-robust covariance
     planes: PlaneSettings = field(default_factory=PlaneSettings)
     vgicp: object | None = None  #: settings handed to calidar.strips.vgicp.match_pair_vgicp
 
@@ -200,6 +201,15 @@ class _Problem:
             (_Centroids(c.A, self.pose[c.strip_a], nominal), _Centroids(c.B, self.pose[c.strip_b], nominal))
             for c in self.corrs]
 
+    def clusters(self, strips: dict[int, Strip], block_s: float) -> np.ndarray:
+        """A group id per residual: its pair and the time block (``block_s``) of its strip-a points."""
+        out = []
+        for k, c in enumerate(self.corrs):
+            t = c.A @ strips[c.strip_a].time[self.index[c.strip_a]]
+            g = (np.int64(k) << 32) + np.floor(t / block_s).astype(np.int64)
+            out.append(np.repeat(g, 3) if c.normal is None else g)
+        return np.concatenate(out)
+
     def split(self, r: np.ndarray) -> list[tuple[Correspondences, np.ndarray]]:
         """The residual vector cut into each pair's part."""
         sizes = [c.n_obs * (3 if c.normal is None else 1) for c in self.corrs]
@@ -297,7 +307,8 @@ def calibrate(strips: Sequence[Strip], nominal: Sensor, *, method: str = "planes
             raise CalibrationError("no usable strip pair: " + "; ".join(skipped))
         problem = _Problem(nominal, by_id, corrs, params.free_names)
         say(f"iteration {k + 1}: solving {problem.sigma.size} observations")
-        solution = solve(problem, params, sigma=problem.sigma, robust=s.robust)
+        clusters = problem.clusters(by_id, s.cluster_s) if s.cluster_s else None
+        solution = solve(problem, params, sigma=problem.sigma, robust=s.robust, clusters=clusters)
         if first_residuals is None:
             first_residuals = problem(params.values())
         params = solution.parameters
