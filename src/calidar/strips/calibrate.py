@@ -83,18 +83,24 @@ class CalibrationResult:
         return strip.georeference(self.sensor, index) + self.biases.get(strip.id, np.zeros(3))
 
 
+#: Single parameters ``--estimate`` also accepts (e.g. lever_arm_x,lever_arm_y without z).
+SINGLE_PARAMETERS = {name: ((name, unit),) for g in ESTIMATE_GROUPS.values() for name, unit in g}
+
+
 def parse_estimate(items: str | Sequence[str]) -> list[str]:
-    """'boresight,lever_arm' (or a list) → validated group names."""
+    """'boresight,lever_arm' (or a list) → validated group or single-parameter names."""
     names = [s.strip() for s in (items.split(",") if isinstance(items, str) else items) if s.strip()]
-    unknown = [n for n in names if n not in ESTIMATE_GROUPS]
+    known = {**ESTIMATE_GROUPS, **SINGLE_PARAMETERS}
+    unknown = [n for n in names if n not in known]
     if unknown or not names:
-        raise InputError(None, "--estimate", f"expected a comma-separated subset of {sorted(ESTIMATE_GROUPS)}, got {items!r}")
+        raise InputError(None, "--estimate", f"expected a comma-separated subset of {sorted(ESTIMATE_GROUPS)} "
+                         f"or single parameters such as lever_arm_x, got {items!r}")
     return names
 
 
 def build_parameters(nominal: Sensor, estimate: Sequence[str], strip_ids: Sequence[int]) -> ParameterSet:
     """The engine's parameters: every sensor parameter (estimated ones free) plus strip biases."""
-    free = {name for g in estimate for name, _ in ESTIMATE_GROUPS[g]}
+    free = {name for g in estimate for name, _ in {**ESTIMATE_GROUPS, **SINGLE_PARAMETERS}[g]}
     units = {name: unit for g in ESTIMATE_GROUPS.values() for name, unit in g}
     params = [Parameter(name, value, units.get(name, "1"), free=name in free)
               for name, value in nominal.parameters().items() if name in units]
