@@ -12,6 +12,7 @@ An outer loop as in ICP (Besl & McKay 1992) around the one adjustment engine:
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
 
@@ -284,11 +285,16 @@ def calibrate(strips: Sequence[Strip], nominal: Sensor, *, method: str = "planes
     first_residuals = None
     prev_mean = None
     solution = None
+    need: dict[int, list[np.ndarray]] = {}  # points of each strip inside any of its overlaps
+    for o in overlaps:
+        need.setdefault(o.a, []).append(o.index_a)
+        need.setdefault(o.b, []).append(o.index_b)
+    need = {i: np.unique(np.concatenate(v)) for i, v in need.items()}
     for k in range(s.max_outer):
+        clock = time.perf_counter()
         sensor, biases = _sensor_and_biases(nominal, params.values())
-        need = {i: np.unique(np.concatenate([o.index_a for o in overlaps if o.a == i] + [o.index_b for o in overlaps if o.b == i]))
-                for i in by_id if any(i in (o.a, o.b) for o in overlaps)}
         current = {i: (idx, by_id[i].georeference(sensor, idx) + biases.get(i, 0.0)) for i, idx in need.items()}
+        times = {"georeference_s": time.perf_counter() - clock}
 
         def subset(i, index):
             idx, pts = current[i]
@@ -296,7 +302,9 @@ def calibrate(strips: Sequence[Strip], nominal: Sensor, *, method: str = "planes
 
         tasks = [(match, o.a, subset(o.a, o.index_a), o.b, subset(o.b, o.index_b), match_settings) for o in overlaps]
         say(f"iteration {k + 1}: matching {len(tasks)} pairs ({method})")
+        clock = time.perf_counter()
         found = map_pairs(_match_or_error, tasks, scheduler, workers)
+        times["match_s"] = time.perf_counter() - clock
         corrs, pairs, skipped = [], [], []
         for o, c in zip(overlaps, found):
             if isinstance(c, CalidarError):
@@ -311,22 +319,25 @@ def calibrate(strips: Sequence[Strip], nominal: Sensor, *, method: str = "planes
             warnings.append("strip pairs skipped: " + "; ".join(skipped))
         if not corrs:
             raise CalibrationError("no usable strip pair: " + "; ".join(skipped))
+        say(f"iteration {k + 1}: solving {sum(c.n_obs for c in corrs)} observations")
+        clock = time.perf_counter()
         problem = _Problem(nominal, by_id, corrs, params.free_names)
-        say(f"iteration {k + 1}: solving {problem.sigma.size} observations")
         clusters = problem.clusters(by_id, s.cluster_s) if s.cluster_s else None
         solution = solve(problem, params, sigma=problem.sigma, robust=s.robust, clusters=clusters)
+        times["solve_s"] = time.perf_counter() - clock
         if first_residuals is None:
             first_residuals = problem(params.values())
         params = solution.parameters
         mean = float(np.mean(np.concatenate([_mean_distance(c, r) for c, r in problem.split(solution.residuals)])))
         outer.append({"iteration": k + 1, "mean_distance_m": mean, "n_obs": int(problem.sigma.size),
-                      "n_pairs": len(corrs), "values": params.values()})
+                      "n_pairs": len(corrs), **times, "values": params.values()})
         if prev_mean is not None and abs(prev_mean - mean) < s.threshold_m:
             break
         prev_mean = mean
     else:
+        change = abs(outer[-1]["mean_distance_m"] - outer[-2]["mean_distance_m"]) if len(outer) > 1 else float("nan")
         warnings.append(f"the outer loop stopped after {s.max_outer} iterations before the mean correspondence "
-                        f"distance settled (last change {abs(outer[-1]['mean_distance_m'] - outer[-2]['mean_distance_m']) if len(outer) > 1 else float('nan'):.2g} m)")
+                        f"distance settled (last change {change * 1e3:.2g} mm)")
     used_pairs = [(p["a"], p["b"]) for p in pairs]
     solution.warnings = warnings + geometry_warnings([by_id[i] for i in problem.index], used_pairs,
                                                      params.free_names) + solution.warnings
