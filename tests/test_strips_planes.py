@@ -131,3 +131,11 @@ def test_unknown_estimate_names_are_rejected():
     assert parse_estimate("boresight,lever_arm_x") == ["boresight", "lever_arm_x"]
     with pytest.raises(InputError, match="--estimate: expected a comma-separated subset"):
         parse_estimate("boresight,wobble")
+
+
+def test_same_result_in_process_and_on_a_local_dask_cluster(strips):
+    settings = StripSettings(max_outer=2)
+    local = calibrate(strips[:2], Sensor(), settings=settings).solution
+    dask = calibrate(strips[:2], Sensor(), settings=settings, workers=2).solution
+    for name in ("boresight_roll", "boresight_pitch", "boresight_yaw"):
+        assert dask.values[name] == pytest.approx(local.values[name], abs=1e-12)
