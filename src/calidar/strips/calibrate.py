@@ -140,6 +140,11 @@ def _matcher(method: str, settings: StripSettings) -> tuple[Callable, object]:
     raise InputError(None, "--method", f"expected one of {list(METHODS)}, got {method!r}")
 
 
+def _union(indices: list[np.ndarray]) -> np.ndarray:
+    """Sorted union of point-index arrays (O(N), unlike a hash-based unique)."""
+    return np.flatnonzero(np.bincount(np.concatenate(indices)))
+
+
 def _match_or_error(match: Callable, strip_a_id, points_a, strip_b_id, points_b, settings):
     """``match(...)``, or the user-facing error it raised for this pair (picklable, for map_pairs)."""
     try:
@@ -200,7 +205,7 @@ class _Problem:
         for c in corrs:
             used.setdefault(c.strip_a, []).append(c.A.indices)
             used.setdefault(c.strip_b, []).append(c.B.indices)
-        self.index = {i: np.unique(np.concatenate(v)) for i, v in used.items()}
+        self.index = {i: _union(v) for i, v in used.items()}
         self.pose: dict[int, Pose] = {i: poses[i].take(poses[i].rows_of(idx)) for i, idx in self.index.items()}
 
         def compact(m, sid):
@@ -297,7 +302,7 @@ def calibrate(strips: Sequence[Strip], nominal: Sensor, *, method: str = "planes
     for o in overlaps:
         need.setdefault(o.a, []).append(o.index_a)
         need.setdefault(o.b, []).append(o.index_b)
-    need = {i: np.unique(np.concatenate(v)) for i, v in need.items()}
+    need = {i: _union(v) for i, v in need.items()}
     poses = {i: by_id[i].pose(idx) for i, idx in need.items()}  # one trajectory interpolation
     for k in range(s.max_outer):
         clock = time.perf_counter()
