@@ -72,9 +72,11 @@ def solve(
     robust_scale: re-estimate the residual scale by MAD for the robust weights (set False
     when σ is trusted); progress(iteration, cost) is called after every iteration;
     clusters: optional group id per observation (n,) for observations whose errors are
-    correlated within groups (e.g. by a smooth trajectory error): the covariance is then the
-    cluster-robust sandwich N⁻¹ (Σ_g J_gᵀW_g r_g r_gᵀW_g J_g) N⁻¹ · G/(G−1) (Liang & Zeger
-    1986) where it exceeds the usual σ0²·N⁻¹ (σ raised, correlations kept).
+    correlated within groups (e.g. by a smooth trajectory error), or two ids per observation
+    (n, 2) when each observation joins two groups (dyadic: correlated when sharing either):
+    σ then come from the cluster-robust sandwich N⁻¹ (Σ_g J_gᵀW_g r_g r_gᵀW_g J_g) N⁻¹ ·
+    G/(G−1) (Liang & Zeger 1986; dyadic form of Cameron & Miller 2014) where it exceeds the
+    usual σ0²·N⁻¹ (σ raised, correlations kept).
     """
     free = params.free
     if not free:
@@ -171,15 +173,28 @@ def solve(
 
 
 def _cluster_robust(cov: np.ndarray, N: np.ndarray, scores: np.ndarray, clusters: np.ndarray) -> np.ndarray:
-    """``cov`` with each σ raised to the cluster-robust (sandwich) σ where that is larger; correlations kept."""
-    _, g = np.unique(clusters, return_inverse=True)
-    G = int(g.max()) + 1 if g.size else 0
+    """``cov`` with each σ raised to the cluster-robust (sandwich) σ where that is larger; correlations kept.
+
+    clusters (n,) one group per observation, or (n, 2) two groups (dyadic): the "meat" sums
+    s_i s_jᵀ over observation pairs sharing a group = Σ_groups S_g S_gᵀ − Σ_dyads S_d S_dᵀ.
+    """
+    c = np.asarray(clusters).reshape(scores.shape[0], -1)
+    nodes, g = np.unique(c, return_inverse=True)
+    g = g.reshape(c.shape)
+    G = nodes.size
     if G < 2 or not np.all(np.isfinite(cov)):
         return cov
     S = np.zeros((G, scores.shape[1]))
-    np.add.at(S, g, scores)
+    for col in range(c.shape[1]):
+        np.add.at(S, g[:, col], scores)
+    meat = S.T @ S
+    if c.shape[1] == 2:  # observations sharing both groups were counted twice
+        _, d = np.unique(np.sort(g, axis=1), axis=0, return_inverse=True)
+        D = np.zeros((int(d.max()) + 1, scores.shape[1]))
+        np.add.at(D, d.ravel(), scores)
+        meat -= D.T @ D
     Ninv = np.linalg.pinv(N)
-    sand = np.diag(Ninv @ (S.T @ S) @ Ninv) * G / (G - 1)
+    sand = np.diag(Ninv @ meat @ Ninv) * G / (G - 1)
     d = np.maximum(np.diag(cov), 1e-300)
     scale = np.sqrt(np.maximum(sand, d) / d)
     return cov * np.outer(scale, scale)

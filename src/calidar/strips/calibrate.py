@@ -222,12 +222,16 @@ class _Problem:
             for c in self.corrs]
 
     def clusters(self, strips: dict[int, Strip], block_s: float) -> np.ndarray:
-        """A group id per residual: its pair and the time block (``block_s``) of its strip-a points."""
+        """Two groups per residual (n, 2): the strip segments (strip, time block of ``block_s``)
+        of its a-side and of its b-side points; residuals sharing a segment share its trajectory error."""
         out = []
-        for k, c in enumerate(self.corrs):
-            t = c.A @ strips[c.strip_a].time[self.index[c.strip_a]]
-            g = (np.int64(k) << 32) + np.floor(t / block_s).astype(np.int64)
-            out.append(np.repeat(g, 3) if c.normal is None else g)
+        for c in self.corrs:
+            g = []
+            for sid, m in ((c.strip_a, c.A), (c.strip_b, c.B)):
+                t = m @ strips[sid].time[self.index[sid]]
+                g.append((np.int64(sid) << 32) + np.floor(t / block_s).astype(np.int64))
+            g = np.stack(g, axis=1)
+            out.append(np.repeat(g, 3, axis=0) if c.normal is None else g)
         return np.concatenate(out)
 
     def split(self, r: np.ndarray) -> list[tuple[Correspondences, np.ndarray]]:
