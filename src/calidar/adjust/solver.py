@@ -62,7 +62,7 @@ def solve(
     tol: float = 1e-10,
     robust_scale: bool = True,
     progress: Callable[[int, float], None] | None = None,
-    clusters: np.ndarray | None = None,
+    clusters: np.ndarray | list[np.ndarray] | None = None,
 ) -> Solution:
     """Least-squares estimate of the free parameters of ``params``.
 
@@ -76,7 +76,8 @@ def solve(
     (n, 2) when each observation joins two groups (dyadic: correlated when sharing either):
     σ then come from the cluster-robust sandwich N⁻¹ (Σ_g J_gᵀW_g r_g r_gᵀW_g J_g) N⁻¹ ·
     G/(G−1) (Liang & Zeger 1986; dyadic form of Cameron & Miller 2014) where it exceeds the
-    usual σ0²·N⁻¹ (σ raised, correlations kept).
+    usual σ0²·N⁻¹ (σ raised, correlations kept); a list of such groupings raises each σ to
+    the largest of their estimates (sandwich estimates from few groups run low).
     """
     free = params.free
     if not free:
@@ -167,8 +168,8 @@ def solve(
         residuals=r, weights=w * sig**2, before=before, history=history, converged=converged,
         jacobian=J,
     )
-    if clusters is not None:
-        sol.covariance = _cluster_robust(sol.covariance, N, J * (w * r)[:, None], np.asarray(clusters))
+    for grouping in ([] if clusters is None else clusters if isinstance(clusters, list) else [clusters]):
+        sol.covariance = _cluster_robust(sol.covariance, N, J * (w * r)[:, None], np.asarray(grouping))
     return sol
 
 

@@ -221,18 +221,20 @@ class _Problem:
             (_Centroids(c.A, self.pose[c.strip_a], nominal), _Centroids(c.B, self.pose[c.strip_b], nominal))
             for c in self.corrs]
 
-    def clusters(self, strips: dict[int, Strip], block_s: float) -> np.ndarray:
-        """Two groups per residual (n, 2): the strip segments (strip, time block of ``block_s``)
-        of its a-side and of its b-side points; residuals sharing a segment share its trajectory error."""
-        out = []
-        for c in self.corrs:
-            g = []
-            for sid, m in ((c.strip_a, c.A), (c.strip_b, c.B)):
-                t = m @ strips[sid].time[self.index[sid]]
-                g.append((np.int64(sid) << 32) + np.floor(t / block_s).astype(np.int64))
-            g = np.stack(g, axis=1)
-            out.append(np.repeat(g, 3, axis=0) if c.normal is None else g)
-        return np.concatenate(out)
+    def clusters(self, strips: dict[int, Strip], block_s: float) -> list[np.ndarray]:
+        """Groupings of the residuals by trajectory segment (strip, time block of ``block_s``):
+        (n, 2) the segments of the a-side and b-side points (residuals sharing a segment share
+        its trajectory error), and (n,) the pair with its a-side segment."""
+        dyadic, by_pair = [], []
+        for k, c in enumerate(self.corrs):
+            block = [np.floor(m @ strips[sid].time[self.index[sid]] / block_s).astype(np.int64)
+                     for sid, m in ((c.strip_a, c.A), (c.strip_b, c.B))]
+            g = np.stack([(np.int64(c.strip_a) << 32) + block[0], (np.int64(c.strip_b) << 32) + block[1]], axis=1)
+            p = (np.int64(k) << 32) + block[0]
+            rep = 3 if c.normal is None else 1
+            dyadic.append(np.repeat(g, rep, axis=0))
+            by_pair.append(np.repeat(p, rep))
+        return [np.concatenate(dyadic), np.concatenate(by_pair)]
 
     def split(self, r: np.ndarray) -> list[tuple[Correspondences, np.ndarray]]:
         """The residual vector cut into each pair's part."""
