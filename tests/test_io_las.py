@@ -101,3 +101,14 @@ def test_no_crs_and_not_las(tmp_path):
     (tmp_path / "x.las").write_text("hello")
     with pytest.raises(InputError, match="not a readable LAS/LAZ"):
         read_las(tmp_path / "x.las")
+
+
+def test_unknown_crs_and_truncated_file(tmp_path):
+    xyz, t, ang = _points(200)
+    path = write_las(tmp_path / "a.las", xyz, "EPSG:32611", gps_time=t, scan_angle_deg=ang, point_source_id=1)
+    with pytest.raises(InputError, match="a.las: crs: expected a CRS pyproj knows"):
+        read_las(path, crs="EPSG:999999")
+    cut = tmp_path / "cut.las"
+    cut.write_bytes(path.read_bytes()[:-1000])
+    with pytest.raises(InputError, match="cut.las"):
+        read_las(cut)

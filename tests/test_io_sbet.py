@@ -35,8 +35,8 @@ def test_real_sbet_velocities_match_differentiated_positions(real_data):
     v_e = np.gradient(tr.ecef, tr.time, axis=0)
     v_ned = np.einsum("nji,nj->ni", frames.r_en(tr.lat, tr.lon), v_e)
     err = np.abs(v_ned - tr.velocity_ned)[5:-5]
-    assert np.median(err[:, :2]) < 0.2  # m/s (speed ≈ 110 m/s; a wrong sign or axis gives > 3 m/s)
-    assert np.median(err[:, 2]) < 0.1
+    assert np.max(err[:, :2]) < 0.15  # m/s (speed ≈ 110 m/s; a wrong wander sign gives ≈ 3.9 m/s)
+    assert np.max(err[:, 2]) < 0.02
 
 
 def test_write_read_round_trip(tmp_path):

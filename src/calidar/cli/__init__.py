@@ -17,7 +17,7 @@ from calidar import __version__
 from calidar.cli.common import err_console
 from calidar.errors import CalidarError
 
-COMMAND_MODULES: list[str] = ["simulate_survey", "demo", "quality", "boresight"]
+COMMAND_MODULES: list[str] = ["info", "georef", "simulate_survey", "demo", "quality", "boresight"]
 
 app = typer.Typer(
     name="calidar",
@@ -50,10 +50,10 @@ def run(argv: list[str] | None = None) -> int:
     try:
         app(args=argv, prog_name="calidar", standalone_mode=False)
     except CalidarError as e:
-        err_console.print(f"[bold red]error:[/] {e}", highlight=False)
+        err_console.print(f"[bold red]error:[/] {e}", highlight=False, soft_wrap=True)
         return 1
     except (FileNotFoundError, IsADirectoryError, PermissionError) as e:
-        err_console.print(f"[bold red]error:[/] {e.filename}: {e.strerror}", highlight=False)
+        err_console.print(f"[bold red]error:[/] {e.filename}: {e.strerror}", highlight=False, soft_wrap=True)
         return 1
     except typer.Exit as e:
         return e.exit_code
@@ -69,7 +69,7 @@ def run(argv: list[str] | None = None) -> int:
         if os.environ.get("CALIDAR_DEBUG"):
             raise
         err_console.print(f"[bold red]internal error:[/] {type(e).__name__}: {e} (set CALIDAR_DEBUG=1 for the traceback)",
-                          highlight=False)
+                          highlight=False, soft_wrap=True)
         return 2
     return 0
 

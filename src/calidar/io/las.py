@@ -65,15 +65,15 @@ def adjusted_standard_to_week_seconds(t_adjusted_s, source=None) -> tuple[np.nda
     The week comes from the times themselves; times spanning a week boundary are an error
     (week seconds would jump back to 0 there).
     """
-    t = np.asarray(t_adjusted_s, float) + ADJUSTED_STANDARD_OFFSET_S
+    t = np.asarray(t_adjusted_s, float)
     if t.size == 0:
         return t, 0
-    weeks = np.floor(t / SECONDS_PER_WEEK)
+    weeks = np.floor((t + ADJUSTED_STANDARD_OFFSET_S) / SECONDS_PER_WEEK)
     w0, w1 = weeks.min(), weeks.max()
     if w0 != w1:
         raise InputError(source, "gps_time",
                          f"adjusted standard GPS times span GPS weeks {int(w0)}–{int(w1)}; expected one week")
-    return t - w0 * SECONDS_PER_WEEK, int(w0)
+    return t - (w0 * SECONDS_PER_WEEK - ADJUSTED_STANDARD_OFFSET_S), int(w0)  # one rounding: the shift is an integer
 
 
 def week_seconds_to_adjusted_standard(t_week_s, gps_week: int) -> np.ndarray:
@@ -132,7 +132,8 @@ def las_crs(header: laspy.LasHeader) -> pyproj.CRS | None:
     return crs if crs is not None else _geokey_crs(header)
 
 
-def _check_gps_time(header: laspy.LasHeader, path: Path) -> str:
+def gps_time_system(header: laspy.LasHeader, path: Path) -> str:
+    """"gps_week_seconds" or "gps_adjusted_standard" (global-encoding bit 0); error without GPS time."""
     if "gps_time" not in header.point_format.dimension_names:
         raise InputError(path, "point_format",
                          f"point format {header.point_format.id} has no GPS time; expected formats 1 or 3–10")
@@ -166,8 +167,22 @@ def _open(path: Path) -> laspy.LasReader:
         raise InputError(path, None, f"not a readable LAS/LAZ file ({e})") from None
 
 
-def _resolve_crs(header, crs) -> pyproj.CRS | None:
-    return pyproj.CRS.from_user_input(crs) if crs is not None else las_crs(header)
+def _resolve_crs(header, crs, path: Path) -> pyproj.CRS | None:
+    """``crs`` when given (clear error if pyproj does not know it), else the file's CRS or None."""
+    if crs is None:
+        return las_crs(header)
+    try:
+        return pyproj.CRS.from_user_input(crs)
+    except pyproj.exceptions.CRSError:
+        raise InputError(path, "crs", f"expected a CRS pyproj knows (e.g. EPSG:32611), got {crs!r}") from None
+
+
+def _records(reader: laspy.LasReader, chunk_points: int, path: Path):
+    """laspy point records of ``chunk_points`` at most; damaged files become clear errors."""
+    try:
+        yield from reader.chunk_iterator(chunk_points)
+    except (laspy.errors.LaspyException, ValueError) as e:
+        raise InputError(path, None, f"cannot read the points ({e}); truncated or damaged file?") from None
 
 
 def read_las(path: str | Path, crs=None, fields=OPTIONAL_FIELDS) -> LasPoints:
@@ -176,9 +191,11 @@ def read_las(path: str | Path, crs=None, fields=OPTIONAL_FIELDS) -> LasPoints:
     path = Path(path)
     with _open(path) as reader:
         header = reader.header
-        time_system = _check_gps_time(header, path)
-        rec = reader.read_points(header.point_count)
-        return _points(rec, header, path, _resolve_crs(header, crs), time_system, fields)
+        time_system = gps_time_system(header, path)
+        rec = next(_records(reader, max(header.point_count, 1), path), None)
+        if rec is None:
+            rec = laspy.ScaleAwarePointRecord.zeros(0, header=header)
+        return _points(rec, header, path, _resolve_crs(header, crs, path), time_system, fields)
 
 
 def iter_las_chunks(path: str | Path, chunk_points: int = 2_000_000, crs=None,
@@ -187,10 +204,32 @@ def iter_las_chunks(path: str | Path, chunk_points: int = 2_000_000, crs=None,
     path = Path(path)
     with _open(path) as reader:
         header = reader.header
-        time_system = _check_gps_time(header, path)
-        file_crs = _resolve_crs(header, crs)
-        for rec in reader.chunk_iterator(chunk_points):
+        time_system = gps_time_system(header, path)
+        file_crs = _resolve_crs(header, crs, path)
+        for rec in _records(reader, chunk_points, path):
             yield _points(rec, header, path, file_crs, time_system, fields)
+
+
+def rewrite_las_xyz(src: str | Path, dst: str | Path, new_xyz, *, crs=None, chunk_points: int = 2_000_000,
+                    force: bool = False) -> int:
+    """Copy a LAS/LAZ file chunk by chunk, replacing coordinates by ``new_xyz(points) -> (n, 3)``
+    (same CRS, scales, offsets and point format; every other attribute kept). Returns the point count.
+
+    ``points`` is the chunk's :class:`LasPoints`. The output is written atomically.
+    """
+    src = Path(src)
+    n = 0
+    with _open(src) as reader, atomic_path(dst, force) as tmp:
+        header = reader.header
+        time_system = gps_time_system(header, src)
+        file_crs = _resolve_crs(header, crs, src)
+        with laspy.open(tmp, mode="w", header=header, do_compress=Path(dst).suffix.lower() == ".laz") as writer:
+            for rec in _records(reader, chunk_points, src):
+                xyz = np.asarray(new_xyz(_points(rec, header, src, file_crs, time_system, OPTIONAL_FIELDS)), float)
+                rec.x, rec.y, rec.z = xyz[:, 0], xyz[:, 1], xyz[:, 2]
+                writer.write_points(rec)
+                n += len(rec)
+    return n
 
 
 def las_header(path: str | Path) -> laspy.LasHeader:
@@ -198,6 +237,11 @@ def las_header(path: str | Path) -> laspy.LasHeader:
     path = Path(path)
     with _open(path) as reader:
         return reader.header
+
+
+def las_time_system(path: str | Path) -> str:
+    """The GPS time system of a LAS/LAZ file from its header (error for formats without GPS time)."""
+    return gps_time_system(las_header(path), Path(path))
 
 
 def write_las(path: str | Path, xyz, crs, *, gps_time, scan_angle_deg, point_source_id, return_number=None,

@@ -13,10 +13,11 @@ SBET_SUFFIXES = (".out", ".sbet", ".smrmsg")
 
 
 def is_binary(path: Path, probe_bytes: int = 4096) -> bool:
-    """Whether the file starts with bytes that are not UTF-8 text."""
+    """Whether the file starts with bytes that are not UTF-8 text (control characters other than
+    tab, line feed, carriage return and form feed count as binary)."""
     with open(path, "rb") as f:
         head = f.read(probe_bytes)
-    if b"\0" in head:
+    if head.translate(None, b"\t\n\r\f").translate(None, bytes(range(32, 256))):
         return True
     try:
         head.decode("utf-8")

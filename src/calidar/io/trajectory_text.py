@@ -131,7 +131,7 @@ def read_trajectory_text(path, *, columns=None, crs=None, angles: str = "deg", h
             lat, lon, h = frames.ecef_to_geodetic(georef.from_crs(np.stack([np.degrees(lon), np.degrees(lat), h], 1), crs))
     else:
         if crs is None or not crs.is_projected:
-            raise InputError(path, "crs", "the file has projected x/y columns; give their projected CRS (e.g. crs='EPSG:32615')")
+            raise InputError(path, "crs", "the file has projected x/y columns; give their projected CRS (crs, --crs or --trajectory-crs; e.g. EPSG:32615)")
         lat, lon, h = frames.ecef_to_geodetic(georef.from_crs(np.stack([col["x"], col["y"], col["height"]], 1), crs))
     heading = to_rad(col["heading"])
     if heading_reference == "grid":
