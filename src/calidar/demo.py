@@ -50,12 +50,14 @@ def simulation_step(report: Report, out_dir: Path, seed: int) -> None:
     result.write(out_dir / DEMO_SURVEY, force=True, progress=progress)
     add_simulation_section(report, result, out_dir / DEMO_SURVEY, time.perf_counter() - t0)
     sec = report.sections[-1]
-    for k, fig in enumerate((plots.coverage_map(result), plots.density_map(result), plots.trajectory_plot(result))):
-        caption = ["Scene, strip coverage and flight lines (ENU at the scene origin).",
-                   "Point density of all strips together, all returns.",
-                   "True trajectory; GNSS/INS errors are added to it in sbet.out."][k]
-        sec.figure(fig, caption)
-        progress("report figures", k + 1, 3)
+    figures = [(plots.coverage_map, "Scene, strip coverage and flight lines (ENU at the scene origin)."),
+               (plots.density_map, "Point density of all strips together, all returns."),
+               (plots.overlap_differences, "Before calibration: the delivered strips disagree where they overlap "
+                                           "(the mounting errors tilt and shift them)."),
+               (plots.trajectory_plot, "True trajectory; GNSS/INS errors are added to it in sbet.out.")]
+    for k, (plot, caption) in enumerate(figures):
+        sec.figure(plot(result), caption)
+        progress("report figures", k + 1, len(figures))
 
 
 def add_simulation_section(report: Report, result, folder: Path, seconds: float) -> None:

@@ -33,6 +33,9 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
         range_offset: float = typer.Option(0.0, "--range-offset", help="True range offset in metres."),
         range_noise: float = typer.Option(None, "--range-noise", help="Range noise σ in metres (preset's value by default)."),
         vegetation: float = typer.Option(None, "--vegetation", help="Fraction of the area under tree crowns, 0–0.8."),
+        strip_errors: str = typer.Option("0,0,0,0", "--strip-errors",
+                                         help="σ of per-strip trajectory errors: POSITION_BIAS (m), POSITION_DRIFT (m/s), "
+                                              "ATTITUDE_BIAS (deg), ATTITUDE_DRIFT (deg/s)."),
         directions: str = typer.Option("opposite", "--directions", help="Line directions: same, opposite or cross."),
         density: float = typer.Option(1.0, "--density", help="Scales the pulse rate (points per m²)."),
         force: bool = typer.Option(False, "--force", help="Write into an existing non-empty folder."),
@@ -45,7 +48,9 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
         lx, ly, lz = parse_floats(lever_arm_error, 3, "--lever-arm-error")
         errors = {k: v for k, v in dict(boresight_roll=r, boresight_pitch=p, boresight_yaw=y, lever_arm_x=lx,
                                          lever_arm_y=ly, lever_arm_z=lz, range_offset=range_offset).items() if v}
-        overrides = dict(seed=seed, errors=errors, directions=directions, density=density)
+        pb, pd, ab, ad = parse_floats(strip_errors, 4, "--strip-errors")
+        overrides = dict(seed=seed, errors=errors, directions=directions, density=density,
+                         strip_error_sigma=(pb, pd, np.radians(ab), np.radians(ad)))
         if range_noise is not None:
             overrides["range_noise_m"] = range_noise
         if vegetation is not None:

@@ -1,7 +1,7 @@
 """Platform motion along a flight plan: the true trajectory at 200 Hz, and its measured copy.
 
 The nominal path is the flight lines (extended by a run-in) joined by cubic Hermite turns
-(a ferry leg back for same-direction plans). On top come smooth random perturbations:
+flown at constant speed (a ferry leg back for same-direction plans). On top come smooth random perturbations:
 along-track position (speed changes), lateral and vertical wander, crab, and roll/pitch/
 heading turbulence — Gaussian-filtered white noise with a correlation time. Attitude is
 built in the scene's ENU frame and converted exactly to the local NED at each position.
@@ -20,6 +20,8 @@ from calidar.trajectory import Trajectory
 
 G = 9.80665  #: m/s²
 SBET_RATE_HZ = 200.0
+#: bank limit in turns; U-turns tighter than the platform could fly keep this bank (no scanning there)
+MAX_BANK_RAD = np.radians(35.0)
 
 
 @dataclass(frozen=True)
@@ -40,23 +42,38 @@ class MotionSpec:
 
 
 def smooth_noise(rng: np.random.Generator, n: int, dt_s: float, tau_s: float, sigma: float, dims: int = 1) -> np.ndarray:
-    """Gaussian-filtered white noise (n, dims) with correlation time ``tau_s`` and std ``sigma``."""
+    """Gaussian-filtered white noise (n, dims): kernel std ``tau_s`` (s), output std ``sigma``."""
     w = rng.standard_normal((n, dims))
     if sigma == 0:
         return np.zeros((n, dims))
-    s = gaussian_filter1d(w, sigma=max(tau_s / dt_s, 1e-3), axis=0, mode="reflect")
+    # circular convolution with a Gaussian of std tau_s, in the frequency domain (stationary, O(n log n))
+    f = np.fft.rfftfreq(n, dt_s)
+    s = np.fft.irfft(np.fft.rfft(w, axis=0) * np.exp(-2.0 * (np.pi * f * tau_s) ** 2)[:, None], n, axis=0)
     return s * (sigma / s.std(axis=0))
 
 
-def _hermite(p0, v0, p1, v1, t) -> tuple[np.ndarray, np.ndarray]:
-    """Cubic Hermite positions and velocities at times t ∈ [0, T] (T = t[-1] span), m and m/s."""
-    T = t[-1]
-    s = (t / T)[:, None]
+def _hermite(p0, d0, p1, d1, s) -> tuple[np.ndarray, np.ndarray]:
+    """Cubic Hermite curve from p0 to p1 with end derivatives d0, d1 (m): points and dP/ds at s ∈ [0, 1]."""
+    s = np.asarray(s, float)[:, None]
     h00, h10, h01, h11 = 2 * s**3 - 3 * s**2 + 1, s**3 - 2 * s**2 + s, -2 * s**3 + 3 * s**2, s**3 - s**2
-    d00, d10, d01, d11 = 6 * s**2 - 6 * s, 3 * s**2 - 4 * s + 1, -6 * s**2 + 6 * s, 3 * s**2 - 2 * s
-    pos = h00 * p0 + h10 * T * v0 + h01 * p1 + h11 * T * v1
-    vel = (d00 * p0 + d10 * T * v0 + d01 * p1 + d11 * T * v1) / T
-    return pos, vel
+    g00, g10, g01, g11 = 6 * s**2 - 6 * s, 3 * s**2 - 4 * s + 1, -6 * s**2 + 6 * s, 3 * s**2 - 2 * s
+    return h00 * p0 + h10 * d0 + h01 * p1 + h11 * d1, g00 * p0 + g10 * d0 + g01 * p1 + g11 * d1
+
+
+def _turn(p0, u0, p1, u1, speed_mps: float, dt_s: float, radius_m: float) -> tuple[np.ndarray, np.ndarray]:
+    """A turn from p0 (heading u0) to p1 (heading u1) flown at constant speed, sampled every dt_s.
+
+    Hermite curve with tangents scaled to the turn's size, resampled by arc length; returns
+    positions and velocities (n, 3) at dt_s, 2·dt_s, …, the last one at p1.
+    """
+    scale = max(np.linalg.norm(p1 - p0), np.pi * radius_m) * 1.3
+    s = np.linspace(0.0, 1.0, 4001)
+    pos, _ = _hermite(p0, scale * u0, p1, scale * u1, s)
+    arc = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(pos, axis=0), axis=1))]
+    n = max(int(np.ceil(arc[-1] / (speed_mps * dt_s))), 1)
+    sk = np.interp(np.arange(1, n + 1) * arc[-1] / n, arc, s)
+    pos, der = _hermite(p0, scale * u0, p1, scale * u1, sk)
+    return pos, der / np.linalg.norm(der, axis=1)[:, None] * (arc[-1] / (n * dt_s))
 
 
 def nominal_path(lines: list[FlightLine], spec: MotionSpec, t0: float):
@@ -75,27 +92,27 @@ def nominal_path(lines: list[FlightLine], spec: MotionSpec, t0: float):
             off = np.r_[2 * spec.turn_radius_m * np.array([d[1], -d[0]]), 0.0]
             legs.append((legs[-1][1] + off, a + off, False))
         legs.append((a, b, True))
-    times, pos, vel, windows = [], [], [], []
+    # uniform 200 Hz grid: every leg and turn lasts a whole number of samples
+    a0 = legs[0][0]
+    times, pos, vel, windows = [np.array([t0])], [a0[None]], [None], []
     t = t0
     for k, (a, b, scanning) in enumerate(legs):
-        if k:
-            p0, v0 = pos[-1][-1], vel[-1][-1]
-            u1 = (b - a) / np.linalg.norm(b - a)
-            gap = np.linalg.norm(a - p0)
-            turn_len = max(gap, np.pi * spec.turn_radius_m) * 1.3
-            T = turn_len / v
-            tt = np.arange(1, int(np.ceil(T / dt))) * dt
-            tt = np.r_[tt, T]
-            p, vv = _hermite(p0, v0, a, v * u1, tt)
-            times.append(t + tt[:-1]), pos.append(p[:-1]), vel.append(vv[:-1])
-            t += T
         length = np.linalg.norm(b - a)
         u = (b - a) / length
-        tt = np.arange(int(np.floor(length / v / dt)) + 1) * dt
-        times.append(t + tt), pos.append(a + np.outer(tt * v, u)), vel.append(np.tile(v * u, (tt.size, 1)))
+        if k:
+            p0, u0 = pos[-1][-1], vel[-1][-1] / np.linalg.norm(vel[-1][-1])
+            p, vv = _turn(p0, u0, a, u, v, dt, spec.turn_radius_m)
+            times.append(t + np.arange(1, len(p) + 1) * dt), pos.append(p), vel.append(vv)
+            t += len(p) * dt
+        m = max(int(round(length / v / dt)), 1)
+        v_leg = length / (m * dt)
+        kk = np.arange(1, m + 1)
+        times.append(t + kk * dt), pos.append(a + np.outer(kk / m * length, u)), vel.append(np.tile(v_leg * u, (m, 1)))
+        if k == 0:
+            vel[0] = vel[1][:1]
         if scanning:
-            windows.append((t + spec.run_in_m / v, t + (length - spec.run_in_m) / v))
-        t += tt[-1] + dt
+            windows.append((t + spec.run_in_m / v_leg, t + (length - spec.run_in_m) / v_leg))
+        t += m * dt
     return np.concatenate(times), np.concatenate(pos), np.concatenate(vel), windows
 
 
@@ -104,17 +121,19 @@ def fly(scene, lines: list[FlightLine], spec: MotionSpec, rng: np.random.Generat
     time, pos, vel, windows = nominal_path(lines, spec, t0)
     n, dt = time.size, 1.0 / SBET_RATE_HZ
     speed_h = np.hypot(vel[:, 0], vel[:, 1])
-    fwd = np.stack([vel[:, 0], vel[:, 1], np.zeros(n)], -1) / speed_h[:, None]
+    fwd = gaussian_filter1d(np.stack([vel[:, 0], vel[:, 1], np.zeros(n)], -1) / speed_h[:, None], SBET_RATE_HZ, axis=0)
+    fwd /= np.linalg.norm(fwd, axis=1)[:, None]  # smoothed over 1 s: no kinks where turns meet lines
     side = np.stack([fwd[:, 1], -fwd[:, 0], np.zeros(n)], -1)  # to the right
     wander = smooth_noise(rng, n, dt, spec.wander_tau_s, 1.0, 3) * [spec.along_sigma_m, spec.across_sigma_m,
                                                                    spec.vertical_sigma_m]
     pos = pos + wander[:, :1] * fwd + wander[:, 1:2] * side + wander[:, 2:3] * [0, 0, 1]
     vel = np.gradient(pos, dt, axis=0)
     azimuth = np.unwrap(np.arctan2(vel[:, 0], vel[:, 1]))
-    turn_rate = np.gradient(azimuth, dt)
+    turn_rate = gaussian_filter1d(np.gradient(azimuth, dt), SBET_RATE_HZ / 2)  # bank follows within ~0.5 s
     turb = smooth_noise(rng, n, dt, spec.turbulence_tau_s, 1.0, 3)
     crab = smooth_noise(rng, n, dt, 4 * spec.wander_tau_s, spec.heading_sigma_rad)[:, 0]
-    roll = np.arctan(np.hypot(vel[:, 0], vel[:, 1]) * turn_rate / G) + spec.attitude_sigma_rad * turb[:, 0]
+    bank = np.clip(np.arctan(np.hypot(vel[:, 0], vel[:, 1]) * turn_rate / G), -MAX_BANK_RAD, MAX_BANK_RAD)
+    roll = bank + spec.attitude_sigma_rad * turb[:, 0]
     pitch = spec.pitch_rad + spec.attitude_sigma_rad * turb[:, 1]
     heading = azimuth + crab + 0.3 * spec.heading_sigma_rad * turb[:, 2]
     # attitude w.r.t. the origin's NED → ECEF → local NED at each position
@@ -129,21 +148,22 @@ def fly(scene, lines: list[FlightLine], spec: MotionSpec, rng: np.random.Generat
 
 
 def measured_trajectory(truth: Trajectory, rng: np.random.Generator, gnss_sigma_m: float, attitude_sigma_rad: float,
-                        strip_offsets: list[tuple[float, float, np.ndarray, np.ndarray, np.ndarray]] = ()) -> Trajectory:
+                        strip_errors: list[tuple[float, float, dict]] = ()) -> Trajectory:
     """What the GNSS/INS delivers: truth + smooth position (τ 10 s) and attitude (τ 2 s) errors.
 
-    ``strip_offsets``: per line (t_start, t_end, position bias (3,) m NED, drift (3,) m/s NED,
-    attitude bias (3,) rad roll/pitch/heading), applied with a 5 s cosine taper outside the window.
+    ``strip_errors``: per line (t_start, t_end, errors) with errors ``position_bias_m`` (3,) NED,
+    ``position_drift_mps`` (3,) NED, ``attitude_bias_rad`` (3,) and ``attitude_drift_radps`` (3,)
+    roll/pitch/heading; drifts grow from the window's middle; a 5 s cosine taper outside the window.
     """
     n, dt = len(truth), 1.0 / truth.rate_hz
     d_ned = smooth_noise(rng, n, dt, 10.0, gnss_sigma_m, 3)
     d_att = smooth_noise(rng, n, dt, 2.0, attitude_sigma_rad, 3)
-    for t_a, t_b, bias, drift, att in strip_offsets:
+    for t_a, t_b, e in strip_errors:
         gap = np.maximum(np.maximum(t_a - truth.time, truth.time - t_b), 0.0)
         w = np.where(gap < 5.0, 0.5 * (1 + np.cos(np.pi * gap / 5.0)), 0.0)[:, None]
-        tc = np.clip(truth.time, t_a, t_b) - 0.5 * (t_a + t_b)
-        d_ned = d_ned + w * (bias + tc[:, None] * drift)
-        d_att = d_att + w * att
+        tc = (np.clip(truth.time, t_a, t_b) - 0.5 * (t_a + t_b))[:, None]
+        d_ned = d_ned + w * (e["position_bias_m"] + tc * e["position_drift_mps"])
+        d_att = d_att + w * (e["attitude_bias_rad"] + tc * e["attitude_drift_radps"])
     ecef = truth.ecef + np.einsum("nij,nj->ni", frames.r_en(truth.lat, truth.lon), d_ned)
     lat, lon, h = frames.ecef_to_geodetic(ecef)
     return Trajectory(truth.time, lat, lon, h, truth.roll + d_att[:, 0], truth.pitch + d_att[:, 1],

@@ -39,6 +39,9 @@ SURFACE_VEGETATION = -3  #: ``Strip.surface`` of crown returns
 GPS_WEEK_START_S = 388800.0  #: simulated flights start on a Thursday, 12:00 GPS time
 CHUNK_SHOTS = 400_000
 
+#: per-strip trajectory errors (NED position, roll/pitch/heading attitude), drawn per line
+STRIP_ERRORS = ("position_bias_m", "position_drift_mps", "attitude_bias_rad", "attitude_drift_radps")
+
 #: truth.json units of the parameters it always lists (value converted from SI)
 TRUTH_UNITS = {"boresight_roll": "deg", "boresight_pitch": "deg", "boresight_yaw": "deg", "lever_arm_x": "m",
                "lever_arm_y": "m", "lever_arm_z": "m", "range_offset": "m", "scan_angle_scale": "ratio"}
@@ -66,7 +69,8 @@ class SurveyConfig:
     angle_noise_rad: float = np.radians(0.002)
     gnss_noise_m: float = 0.02
     attitude_noise_rad: float = np.radians(0.002)
-    strip_error_sigma: tuple[float, float, float] = (0.0, 0.0, 0.0)  #: per-strip position bias m, drift m/s, attitude bias rad
+    #: σ of the per-strip trajectory errors, in the order of STRIP_ERRORS (m, m/s, rad, rad/s)
+    strip_error_sigma: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 0.0)
     density: float = 1.0  #: scales the pulse rate (and the scan rate by its square root)
 
 
@@ -115,6 +119,9 @@ def check_config(cfg: SurveyConfig) -> None:
         v = getattr(cfg, name)
         if not np.isfinite(v) or v < 0:
             raise InputError(None, name, f"expected a noise level >= 0, got {v}")
+    if len(cfg.strip_error_sigma) != len(STRIP_ERRORS) or not all(np.isfinite(v) and v >= 0 for v in cfg.strip_error_sigma):
+        raise InputError(None, "strip_errors", f"expected {len(STRIP_ERRORS)} σ values >= 0 ({', '.join(STRIP_ERRORS)}), "
+                         f"got {cfg.strip_error_sigma}")
     if not 0 <= cfg.scene.vegetation_fraction <= 0.8:
         raise InputError(None, "vegetation", f"expected a fraction of the area in [0, 0.8], got {cfg.scene.vegetation_fraction}")
     known = cfg.nominal.parameters()
@@ -174,7 +181,7 @@ class SurveyResult:
     truth: Sensor  #: the sensor that shot them
     crs: str
     strips: list[Strip]
-    strip_errors: list[dict]  #: per line: position bias (m, NED), drift (m/s, NED), attitude bias (rad)
+    strip_errors: list[dict]  #: per line, keyed by STRIP_ERRORS (NED m, m/s; roll/pitch/heading rad, rad/s)
 
     @property
     def n_points(self) -> int:
@@ -184,11 +191,14 @@ class SurveyResult:
         """The truth.json document (degrees, metres, ratios)."""
         true, nominal = self.truth.parameters(), self.nominal.parameters()
         names = list(TRUTH_UNITS) + [k for k in self.config.errors if k not in TRUTH_UNITS]
+        # other scanner parameters: units from the model's ``units`` table (rad → deg), else SI
+        units = {**{k: {"1": "ratio"}.get(u, u) for k, u in getattr(self.truth.scanner, "units", {}).items()},
+                 "range_scale": "ratio", "scan_angle_offset": "deg", **TRUTH_UNITS}
         params = {}
         for k in names:
             if k not in true:
                 continue
-            unit = TRUTH_UNITS.get(k, "rad" if "angle" in k else "SI")
+            unit = units.get(k, "SI")
             conv = np.degrees if unit in ("deg", "rad") else float
             params[k] = {"value": float(conv(true[k])), "unit": "deg" if unit in ("deg", "rad") else unit,
                          "nominal": float(conv(nominal[k]))}
@@ -197,11 +207,26 @@ class SurveyResult:
             "parameters": params,
             "noise": {"range_m": c.range_noise_m, "angle_deg": float(np.degrees(c.angle_noise_rad)),
                       "gnss_position_m": c.gnss_noise_m, "attitude_deg": float(np.degrees(c.attitude_noise_rad))},
-            "strips": [{"point_source_id": ln.number, **{k: np.asarray(v).tolist() for k, v in e.items()}}
+            "strips": [{"point_source_id": ln.number, "position_bias_m": e["position_bias_m"].tolist(),
+                        "position_drift_mps": e["position_drift_mps"].tolist(),
+                        "attitude_bias_deg": np.degrees(e["attitude_bias_rad"]).tolist(),
+                        "attitude_drift_deg_per_s": np.degrees(e["attitude_drift_radps"]).tolist()}
                        for ln, e in zip(self.lines, self.strip_errors)],
             "simulation": {"preset": c.preset, "seed": c.seed, "density": c.density, "directions": c.directions,
                            "height_agl_m": c.height_agl_m, "crs": self.crs, "points": self.n_points},
         }
+
+    def las_points(self) -> list:
+        """The strips as :class:`calidar.io.las.LasPoints` (what ``read_las`` of the written files
+        gives, without the file's mm / 0.006° quantisation), for in-memory use."""
+        import pyproj
+
+        from calidar.io.las import LasPoints
+
+        crs = pyproj.CRS.from_user_input(self.crs)
+        return [LasPoints(s.xyz, s.gps_time, "gps_week_seconds", crs, Path(f"<simulated line_{s.line.number:03d}>"),
+                          s.scan_angle_deg, np.full(len(s), s.line.number, np.uint16), s.return_number,
+                          s.number_of_returns, s.classification, s.intensity) for s in self.strips]
 
     def write(self, out_dir: str | Path, force: bool = False,
               progress: Callable[[str, int, int], None] | None = None) -> Path:
@@ -276,12 +301,10 @@ def simulate_survey(cfg: SurveyConfig, progress: Callable[[str, int, int], None]
     lines = plan_lines(scene.extent, float(np.mean(scene.heights)), cfg.height_agl_m, half_fov, cfg.side_overlap,
                        cfg.directions, cfg.motion.speed_mps)
     traj_true, windows = fly(scene, lines, cfg.motion, rng_motion, GPS_WEEK_START_S)
-    sp, sd, sa = cfg.strip_error_sigma
-    strip_errors = [{"position_bias_m": rng_strip.normal(0, sp, 3), "drift_mps": rng_strip.normal(0, sd, 3),
-                     "attitude_bias_rad": rng_strip.normal(0, sa, 3)} for _ in lines]
-    offsets = [(a, b, e["position_bias_m"], e["drift_mps"], e["attitude_bias_rad"])
-               for (a, b), e in zip(windows, strip_errors) if any(np.any(v) for v in e.values())]
-    traj = measured_trajectory(traj_true, rng_nav, cfg.gnss_noise_m, cfg.attitude_noise_rad, offsets)
+    strip_errors = [{k: rng_strip.normal(0.0, sigma, 3) for k, sigma in zip(STRIP_ERRORS, cfg.strip_error_sigma)}
+                    for _ in lines]
+    traj = measured_trajectory(traj_true, rng_nav, cfg.gnss_noise_m, cfg.attitude_noise_rad,
+                               [(a, b, e) for (a, b), e in zip(windows, strip_errors)])
 
     strips = []
     for k, (line, window) in enumerate(zip(lines, windows)):
