@@ -89,12 +89,18 @@ def test_centroid_shortcut_equals_full_regeoreferencing(strips):
     pts = {s.id: s.points for s in strips}
     c = match_pair_planes(1, pts[1], 2, pts[2])
     poses = {s.id: s.pose() for s in strips[:2]}
-    fast = _Problem(Sensor(), poses, [c], ["boresight_roll"])
-    full = _Problem(Sensor(), poses, [c], ["scan_angle_scale"])
-    assert fast.centroids is not None and full.centroids is None
-    vals = build_parameters(Sensor(), parse_estimate("boresight,lever_arm,range_offset,range_scale"), [1, 2]).values()
+    nominal = Sensor(lever_arm_x=0.2, range_offset=0.01)
+    full = _Problem(nominal, poses, [c], ["scan_angle_scale"])
+    assert full.centroids is None
+    vals = build_parameters(nominal, parse_estimate("boresight,lever_arm,range_offset,range_scale"), [1, 2]).values()
     vals.update(boresight_roll=1e-3, boresight_yaw=-2e-3, lever_arm_x=0.3, range_offset=0.05, range_scale=1e-4)
+    fast = _Problem(nominal, poses, [c], ["boresight_roll", "lever_arm_x", "range_offset"])
+    assert fast.centroids is not None
     assert np.max(np.abs(fast(vals) - full(vals))) < 1e-9
+    # boresight alone: lever arm and range model fixed at the nominal values, folded into constants
+    only = _Problem(nominal, poses, [c], ["boresight_roll"])
+    vals_b = {**nominal.parameters(), "boresight_roll": 1e-3, "boresight_yaw": -2e-3}
+    assert np.max(np.abs(only(vals_b) - full(vals_b))) < 1e-9
 
 
 def test_per_strip_trajectory_bias_is_recovered(strips):

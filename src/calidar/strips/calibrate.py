@@ -176,23 +176,31 @@ class _Centroids:
     then act on them exactly. (Scanner-angle parameters change u: see ``_Problem``.)
     """
 
-    def __init__(self, A: sp.csr_matrix, pose: Pose, nominal: Sensor):
+    def __init__(self, A: sp.csr_matrix, pose: Pose, nominal: Sensor, range_free: bool, lever_free: bool):
         n = A.shape[0]
         u = nominal.scanner.directions(pose.angles)
         self.rowsum = np.asarray(A.sum(axis=1)).ravel()
         self.r = A @ pose.position
-        self.R = (A @ pose.r_lb.reshape(-1, 9)).reshape(n, 3, 3)
+        R = (A @ pose.r_lb.reshape(-1, 9)).reshape(n, 3, 3)
+        if lever_free:
+            self.R = R
+        else:  # a fixed lever arm adds a constant
+            self.R = None
+            self.r += R @ nominal.lever_arm
+        # with a fixed range model v_s is fixed: one average instead of two
+        rho = pose.range_m if range_free else nominal.true_range(pose.range_m)
         self.M_rho = np.empty((n, 3, 3, 3))
-        self.M_u = np.empty((n, 3, 3, 3))
+        self.M_u = np.empty((n, 3, 3, 3)) if range_free else None
         for k in range(3):
-            self.M_u[..., k] = (A @ (pose.r_lb * u[:, None, None, k]).reshape(-1, 9)).reshape(n, 3, 3)
-            self.M_rho[..., k] = (A @ (pose.r_lb * (pose.range_m * u[:, k])[:, None, None]).reshape(-1, 9)).reshape(n, 3, 3)
+            self.M_rho[..., k] = (A @ (pose.r_lb * (rho * u[:, k])[:, None, None]).reshape(-1, 9)).reshape(n, 3, 3)
+            if range_free:
+                self.M_u[..., k] = (A @ (pose.r_lb * u[:, None, None, k]).reshape(-1, 9)).reshape(n, 3, 3)
 
     def __call__(self, sensor: Sensor, bias) -> np.ndarray:
-        M = (self.M_rho - sensor.range_offset * self.M_u) / (1.0 + sensor.range_scale)
+        M = self.M_rho if self.M_u is None else (self.M_rho - sensor.range_offset * self.M_u) / (1.0 + sensor.range_scale)
         n = M.shape[0]
-        return (self.r + (M.reshape(n * 3, 9) @ sensor.r_bs.ravel()).reshape(n, 3) + self.R @ sensor.lever_arm
-                + self.rowsum[:, None] * bias)
+        out = self.r + (M.reshape(n * 3, 9) @ sensor.r_bs.ravel()).reshape(n, 3) + self.rowsum[:, None] * bias
+        return out if self.R is None else out + self.R @ sensor.lever_arm
 
 
 class _Problem:
@@ -217,9 +225,11 @@ class _Problem:
             np.repeat(np.broadcast_to(np.asarray(c.sigma_m, float), (c.n_obs,)), 3 if c.normal is None else 1)
             for c in self.corrs])
         scanner_free = set(free) & set(nominal.scanner.parameters())
+        range_free = bool(set(free) & {"range_offset", "range_scale"})
+        lever_free = any(f.startswith("lever_arm") for f in free)
         self.centroids = None if scanner_free else [
-            (_Centroids(c.A, self.pose[c.strip_a], nominal), _Centroids(c.B, self.pose[c.strip_b], nominal))
-            for c in self.corrs]
+            tuple(_Centroids(m, self.pose[sid], nominal, range_free, lever_free)
+                  for m, sid in ((c.A, c.strip_a), (c.B, c.strip_b))) for c in self.corrs]
 
     def clusters(self, strips: dict[int, Strip], block_s: float) -> list[np.ndarray]:
         """Groupings of the residuals by trajectory segment (strip, time block of ``block_s``):
