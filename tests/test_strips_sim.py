@@ -124,3 +124,18 @@ def test_same_direction_strips_warn_and_report_correlations():
     assert sol.sigma["boresight_pitch"] > 5 * sol.sigma["boresight_roll"]
     truth = res.truth.parameters()
     assert abs(sol.values["boresight_pitch"] - truth["boresight_pitch"]) < 3 * sol.sigma["boresight_pitch"]
+
+
+@pytest.mark.slow
+def test_demo_step_adds_the_strip_section(tmp_path):
+    from calidar.demo import simulation_step
+    from calidar.report import Report
+    from calidar.strips.report import run_demo
+
+    report = Report("demo")
+    simulation_step(report, tmp_path, 0)
+    run_demo(report, tmp_path, 0)
+    sec = report.sections[-1]
+    assert sec.title == "Boresight and lever arm from tie planes (calidar boresight)"
+    html = sec.html("s1")
+    assert "lever_arm_x" in html and "truth" in html and "RMSDz before" in html
