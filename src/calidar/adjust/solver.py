@@ -62,6 +62,7 @@ def solve(
     tol: float = 1e-10,
     robust_scale: bool = True,
     progress: Callable[[int, float], None] | None = None,
+    clusters: np.ndarray | list[np.ndarray] | None = None,
 ) -> Solution:
     """Least-squares estimate of the free parameters of ``params``.
 
@@ -69,7 +70,14 @@ def solve(
     sigma: a-priori σ of the observations (scalar or (n,)); jacobian_fn: analytic Jacobian
     (n, n_free) or None for central differences; robust: "cauchy" (default, for clutter), "huber" or None;
     robust_scale: re-estimate the residual scale by MAD for the robust weights (set False
-    when σ is trusted); progress(iteration, cost) is called after every iteration.
+    when σ is trusted); progress(iteration, cost) is called after every iteration;
+    clusters: optional group id per observation (n,) for observations whose errors are
+    correlated within groups (e.g. by a smooth trajectory error), or two ids per observation
+    (n, 2) when each observation joins two groups (dyadic: correlated when sharing either):
+    σ then come from the cluster-robust sandwich N⁻¹ (Σ_g J_gᵀW_g r_g r_gᵀW_g J_g) N⁻¹ ·
+    G/(G−1) (Liang & Zeger 1986; dyadic form of Cameron & Miller 2014) where it exceeds the
+    usual σ0²·N⁻¹ (σ raised, correlations kept); a list of such groupings raises each σ to
+    the largest of their estimates (sandwich estimates from few groups run low).
     """
     free = params.free
     if not free:
@@ -155,8 +163,39 @@ def solve(
     # effective redundancy: down-weighted observations count by their relative weight
     dof = max(float(np.sum(w * sig**2)) + prior_idx.size - len(free), 1.0)
     sigma0_sq = 2.0 * cost(r, w, x) / dof
-    return Solution.from_normal_matrix(
+    sol = Solution.from_normal_matrix(
         params.updated(x), N, sigma0_sq, dof,
         residuals=r, weights=w * sig**2, before=before, history=history, converged=converged,
         jacobian=J,
     )
+    for grouping in ([] if clusters is None else clusters if isinstance(clusters, list) else [clusters]):
+        sol.covariance = _cluster_robust(sol.covariance, N, J * (w * r)[:, None], np.asarray(grouping))
+    return sol
+
+
+def _cluster_robust(cov: np.ndarray, N: np.ndarray, scores: np.ndarray, clusters: np.ndarray) -> np.ndarray:
+    """``cov`` with each σ raised to the cluster-robust (sandwich) σ where that is larger; correlations kept.
+
+    clusters (n,) one group per observation, or (n, 2) two groups (dyadic): the "meat" sums
+    s_i s_jᵀ over observation pairs sharing a group = Σ_groups S_g S_gᵀ − Σ_dyads S_d S_dᵀ.
+    """
+    c = np.asarray(clusters).reshape(scores.shape[0], -1)
+    nodes, g = np.unique(c, return_inverse=True)
+    g = g.reshape(c.shape)
+    G = nodes.size
+    if G < 2 or not np.all(np.isfinite(cov)):
+        return cov
+    S = np.zeros((G, scores.shape[1]))
+    for col in range(c.shape[1]):
+        np.add.at(S, g[:, col], scores)
+    meat = S.T @ S
+    if c.shape[1] == 2:  # observations sharing both groups were counted twice
+        _, d = np.unique(np.sort(g, axis=1), axis=0, return_inverse=True)
+        D = np.zeros((int(d.max()) + 1, scores.shape[1]))
+        np.add.at(D, d.ravel(), scores)
+        meat -= D.T @ D
+    Ninv = np.linalg.pinv(N)
+    sand = np.diag(Ninv @ meat @ Ninv) * G / (G - 1)
+    d = np.maximum(np.diag(cov), 1e-300)
+    scale = np.sqrt(np.maximum(sand, d) / d)
+    return cov * np.outer(scale, scale)

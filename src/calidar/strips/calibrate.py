@@ -12,6 +12,7 @@ An outer loop as in ICP (Besl & McKay 1992) around the one adjustment engine:
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
 
@@ -52,6 +53,7 @@ class StripSettings:
     max_outer: int = 8  #: outer (re-matching) iterations
     threshold_m: float = 2e-4  #: stop when the mean correspondence distance changes by less
     robust: str | None = "cauchy"
+    cluster_s: float | None = 10.0  #: trajectory errors correlate over this time: σ from a cluster-robust covariance
     planes: PlaneSettings = field(default_factory=PlaneSettings)
     vgicp: object | None = None  #: settings handed to calidar.strips.vgicp.match_pair_vgicp
 
@@ -71,6 +73,7 @@ class CalibrationResult:
     residuals_after: np.ndarray  #: last correspondences at the calibrated sensor, m
     outer: list[dict]  #: per outer iteration: mean distance, observations, values (SI)
     biases: dict[int, np.ndarray]  #: per strip (east, north, up) m
+    poses: dict[int, Pose] = field(default_factory=dict, repr=False)  #: cached poses of the overlap points
 
     @property
     def warnings(self) -> list[str]:
@@ -80,21 +83,33 @@ class CalibrationResult:
         """A strip's points (local m) with the calibrated (or nominal) sensor and its bias."""
         if not calibrated:
             return strip.points if index is None else strip.points[index]
-        return strip.georeference(self.sensor, index) + self.biases.get(strip.id, np.zeros(3))
+        pose = None
+        if index is not None and strip.id in self.poses:
+            try:
+                pose = self.poses[strip.id].take(self.poses[strip.id].rows_of(np.asarray(index)))
+            except KeyError:
+                pose = None
+        return strip.georeference(self.sensor, index, pose) + self.biases.get(strip.id, np.zeros(3))
+
+
+#: Single parameters ``--estimate`` also accepts (e.g. lever_arm_x,lever_arm_y without z).
+SINGLE_PARAMETERS = {name: ((name, unit),) for g in ESTIMATE_GROUPS.values() for name, unit in g}
 
 
 def parse_estimate(items: str | Sequence[str]) -> list[str]:
-    """'boresight,lever_arm' (or a list) → validated group names."""
+    """'boresight,lever_arm' (or a list) → validated group or single-parameter names."""
     names = [s.strip() for s in (items.split(",") if isinstance(items, str) else items) if s.strip()]
-    unknown = [n for n in names if n not in ESTIMATE_GROUPS]
+    known = {**ESTIMATE_GROUPS, **SINGLE_PARAMETERS}
+    unknown = [n for n in names if n not in known]
     if unknown or not names:
-        raise InputError(None, "--estimate", f"expected a comma-separated subset of {sorted(ESTIMATE_GROUPS)}, got {items!r}")
+        raise InputError(None, "--estimate", f"expected a comma-separated subset of {sorted(ESTIMATE_GROUPS)} "
+                         f"or single parameters such as lever_arm_x, got {items!r}")
     return names
 
 
 def build_parameters(nominal: Sensor, estimate: Sequence[str], strip_ids: Sequence[int]) -> ParameterSet:
     """The engine's parameters: every sensor parameter (estimated ones free) plus strip biases."""
-    free = {name for g in estimate for name, _ in ESTIMATE_GROUPS[g]}
+    free = {name for g in estimate for name, _ in {**ESTIMATE_GROUPS, **SINGLE_PARAMETERS}[g]}
     units = {name: unit for g in ESTIMATE_GROUPS.values() for name, unit in g}
     params = [Parameter(name, value, units.get(name, "1"), free=name in free)
               for name, value in nominal.parameters().items() if name in units]
@@ -124,6 +139,11 @@ def _matcher(method: str, settings: StripSettings) -> tuple[Callable, object]:
 
         return match_pair_vgicp, settings.vgicp or VgicpSettings()
     raise InputError(None, "--method", f"expected one of {list(METHODS)}, got {method!r}")
+
+
+def _union(indices: list[np.ndarray]) -> np.ndarray:
+    """Sorted union of point-index arrays (O(N), unlike a hash-based unique)."""
+    return np.flatnonzero(np.bincount(np.concatenate(indices)))
 
 
 def _match_or_error(match: Callable, strip_a_id, points_a, strip_b_id, points_b, settings):
@@ -157,36 +177,45 @@ class _Centroids:
     then act on them exactly. (Scanner-angle parameters change u: see ``_Problem``.)
     """
 
-    def __init__(self, A: sp.csr_matrix, pose: Pose, nominal: Sensor):
+    def __init__(self, A: sp.csr_matrix, pose: Pose, nominal: Sensor, range_free: bool, lever_free: bool):
         n = A.shape[0]
         u = nominal.scanner.directions(pose.angles)
         self.rowsum = np.asarray(A.sum(axis=1)).ravel()
         self.r = A @ pose.position
-        self.R = (A @ pose.r_lb.reshape(-1, 9)).reshape(n, 3, 3)
+        R = (A @ pose.r_lb.reshape(-1, 9)).reshape(n, 3, 3)
+        if lever_free:
+            self.R = R
+        else:  # a fixed lever arm adds a constant
+            self.R = None
+            self.r += R @ nominal.lever_arm
+        # with a fixed range model v_s is fixed: one average instead of two
+        rho = pose.range_m if range_free else nominal.true_range(pose.range_m)
         self.M_rho = np.empty((n, 3, 3, 3))
-        self.M_u = np.empty((n, 3, 3, 3))
+        self.M_u = np.empty((n, 3, 3, 3)) if range_free else None
         for k in range(3):
-            self.M_u[..., k] = (A @ (pose.r_lb * u[:, None, None, k]).reshape(-1, 9)).reshape(n, 3, 3)
-            self.M_rho[..., k] = (A @ (pose.r_lb * (pose.range_m * u[:, k])[:, None, None]).reshape(-1, 9)).reshape(n, 3, 3)
+            self.M_rho[..., k] = (A @ (pose.r_lb * (rho * u[:, k])[:, None, None]).reshape(-1, 9)).reshape(n, 3, 3)
+            if range_free:
+                self.M_u[..., k] = (A @ (pose.r_lb * u[:, None, None, k]).reshape(-1, 9)).reshape(n, 3, 3)
 
     def __call__(self, sensor: Sensor, bias) -> np.ndarray:
-        M = (self.M_rho - sensor.range_offset * self.M_u) / (1.0 + sensor.range_scale)
+        M = self.M_rho if self.M_u is None else (self.M_rho - sensor.range_offset * self.M_u) / (1.0 + sensor.range_scale)
         n = M.shape[0]
-        return (self.r + (M.reshape(n * 3, 9) @ sensor.r_bs.ravel()).reshape(n, 3) + self.R @ sensor.lever_arm
-                + self.rowsum[:, None] * bias)
+        out = self.r + (M.reshape(n * 3, 9) @ sensor.r_bs.ravel()).reshape(n, 3) + self.rowsum[:, None] * bias
+        return out if self.R is None else out + self.R @ sensor.lever_arm
 
 
 class _Problem:
     """Residuals of all correspondences for given parameter values (SI), with cached poses."""
 
-    def __init__(self, nominal: Sensor, strips: dict[int, Strip], corrs: list[Correspondences], free: Sequence[str]):
+    def __init__(self, nominal: Sensor, poses: dict[int, Pose], corrs: list[Correspondences], free: Sequence[str]):
+        """poses: per strip, cached poses holding at least every point the correspondences reference."""
         self.nominal = nominal
         used: dict[int, list[np.ndarray]] = {}
         for c in corrs:
             used.setdefault(c.strip_a, []).append(c.A.indices)
             used.setdefault(c.strip_b, []).append(c.B.indices)
-        self.index = {i: np.unique(np.concatenate(v)) for i, v in used.items()}
-        self.pose: dict[int, Pose] = {i: strips[i].pose(idx) for i, idx in self.index.items()}
+        self.index = {i: _union(v) for i, v in used.items()}
+        self.pose: dict[int, Pose] = {i: poses[i].take(poses[i].rows_of(idx)) for i, idx in self.index.items()}
 
         def compact(m, sid):
             idx = self.index[sid]
@@ -197,9 +226,26 @@ class _Problem:
             np.repeat(np.broadcast_to(np.asarray(c.sigma_m, float), (c.n_obs,)), 3 if c.normal is None else 1)
             for c in self.corrs])
         scanner_free = set(free) & set(nominal.scanner.parameters())
+        range_free = bool(set(free) & {"range_offset", "range_scale"})
+        lever_free = any(f.startswith("lever_arm") for f in free)
         self.centroids = None if scanner_free else [
-            (_Centroids(c.A, self.pose[c.strip_a], nominal), _Centroids(c.B, self.pose[c.strip_b], nominal))
-            for c in self.corrs]
+            tuple(_Centroids(m, self.pose[sid], nominal, range_free, lever_free)
+                  for m, sid in ((c.A, c.strip_a), (c.B, c.strip_b))) for c in self.corrs]
+
+    def clusters(self, strips: dict[int, Strip], block_s: float) -> list[np.ndarray]:
+        """Groupings of the residuals by trajectory segment (strip, time block of ``block_s``):
+        (n, 2) the segments of the a-side and b-side points (residuals sharing a segment share
+        its trajectory error), and (n,) the pair with its a-side segment."""
+        dyadic, by_pair = [], []
+        for k, c in enumerate(self.corrs):
+            block = [np.floor(m @ strips[sid].time[self.index[sid]] / block_s).astype(np.int64)
+                     for sid, m in ((c.strip_a, c.A), (c.strip_b, c.B))]
+            g = np.stack([(np.int64(c.strip_a) << 32) + block[0], (np.int64(c.strip_b) << 32) + block[1]], axis=1)
+            p = (np.int64(k) << 32) + block[0]
+            rep = 3 if c.normal is None else 1
+            dyadic.append(np.repeat(g, rep, axis=0))
+            by_pair.append(np.repeat(p, rep))
+        return [np.concatenate(dyadic), np.concatenate(by_pair)]
 
     def split(self, r: np.ndarray) -> list[tuple[Correspondences, np.ndarray]]:
         """The residual vector cut into each pair's part."""
@@ -269,11 +315,17 @@ def calibrate(strips: Sequence[Strip], nominal: Sensor, *, method: str = "planes
     first_residuals = None
     prev_mean = None
     solution = None
+    need: dict[int, list[np.ndarray]] = {}  # points of each strip inside any of its overlaps
+    for o in overlaps:
+        need.setdefault(o.a, []).append(o.index_a)
+        need.setdefault(o.b, []).append(o.index_b)
+    need = {i: _union(v) for i, v in need.items()}
+    poses = {i: by_id[i].pose(idx) for i, idx in need.items()}  # one trajectory interpolation
     for k in range(s.max_outer):
+        clock = time.perf_counter()
         sensor, biases = _sensor_and_biases(nominal, params.values())
-        need = {i: np.unique(np.concatenate([o.index_a for o in overlaps if o.a == i] + [o.index_b for o in overlaps if o.b == i]))
-                for i in by_id if any(i in (o.a, o.b) for o in overlaps)}
-        current = {i: (idx, by_id[i].georeference(sensor, idx) + biases.get(i, 0.0)) for i, idx in need.items()}
+        current = {i: (idx, georeference_pose(sensor, poses[i]) + biases.get(i, 0.0)) for i, idx in need.items()}
+        times = {"georeference_s": time.perf_counter() - clock}
 
         def subset(i, index):
             idx, pts = current[i]
@@ -281,7 +333,9 @@ def calibrate(strips: Sequence[Strip], nominal: Sensor, *, method: str = "planes
 
         tasks = [(match, o.a, subset(o.a, o.index_a), o.b, subset(o.b, o.index_b), match_settings) for o in overlaps]
         say(f"iteration {k + 1}: matching {len(tasks)} pairs ({method})")
+        clock = time.perf_counter()
         found = map_pairs(_match_or_error, tasks, scheduler, workers)
+        times["match_s"] = time.perf_counter() - clock
         corrs, pairs, skipped = [], [], []
         for o, c in zip(overlaps, found):
             if isinstance(c, CalidarError):
@@ -296,21 +350,25 @@ def calibrate(strips: Sequence[Strip], nominal: Sensor, *, method: str = "planes
             warnings.append("strip pairs skipped: " + "; ".join(skipped))
         if not corrs:
             raise CalibrationError("no usable strip pair: " + "; ".join(skipped))
-        problem = _Problem(nominal, by_id, corrs, params.free_names)
-        say(f"iteration {k + 1}: solving {problem.sigma.size} observations")
-        solution = solve(problem, params, sigma=problem.sigma, robust=s.robust)
+        say(f"iteration {k + 1}: solving {sum(c.n_obs for c in corrs)} observations")
+        clock = time.perf_counter()
+        problem = _Problem(nominal, poses, corrs, params.free_names)
+        clusters = problem.clusters(by_id, s.cluster_s) if s.cluster_s else None
+        solution = solve(problem, params, sigma=problem.sigma, robust=s.robust, clusters=clusters)
+        times["solve_s"] = time.perf_counter() - clock
         if first_residuals is None:
             first_residuals = problem(params.values())
         params = solution.parameters
         mean = float(np.mean(np.concatenate([_mean_distance(c, r) for c, r in problem.split(solution.residuals)])))
         outer.append({"iteration": k + 1, "mean_distance_m": mean, "n_obs": int(problem.sigma.size),
-                      "n_pairs": len(corrs), "values": params.values()})
+                      "n_pairs": len(corrs), **times, "values": params.values()})
         if prev_mean is not None and abs(prev_mean - mean) < s.threshold_m:
             break
         prev_mean = mean
     else:
+        change = abs(outer[-1]["mean_distance_m"] - outer[-2]["mean_distance_m"]) if len(outer) > 1 else float("nan")
         warnings.append(f"the outer loop stopped after {s.max_outer} iterations before the mean correspondence "
-                        f"distance settled (last change {abs(outer[-1]['mean_distance_m'] - outer[-2]['mean_distance_m']) if len(outer) > 1 else float('nan'):.2g} m)")
+                        f"distance settled (last change {change * 1e3:.2g} mm)")
     used_pairs = [(p["a"], p["b"]) for p in pairs]
     solution.warnings = warnings + geometry_warnings([by_id[i] for i in problem.index], used_pairs,
                                                      params.free_names) + solution.warnings
@@ -318,7 +376,7 @@ def calibrate(strips: Sequence[Strip], nominal: Sensor, *, method: str = "planes
     solution.extra["strips"] = {"method": method, "pairs": pairs, "outer_iterations": [
         {kk: v for kk, v in o.items() if kk != "values"} for o in outer]}
     return CalibrationResult(solution, sensor, nominal, list(strips), overlaps, method, pairs,
-                             first_residuals, solution.residuals, outer, biases)
+                             first_residuals, solution.residuals, outer, biases, poses)
 
 
 def truth_to_si(doc: dict, params: ParameterSet) -> dict[str, float]:

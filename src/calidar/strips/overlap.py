@@ -31,6 +31,21 @@ def cell_keys(xy: np.ndarray, cell_m: float, origin: np.ndarray | None = None) -
     return (ij[:, 0] << 32) + (ij[:, 1] & 0xFFFFFFFF)
 
 
+def _members(keys: np.ndarray, cells: np.ndarray) -> np.ndarray:
+    """Indices of the keys found in the sorted unique ``cells``."""
+    pos = np.minimum(np.searchsorted(cells, keys), cells.size - 1)
+    return np.flatnonzero(cells[pos] == keys)
+
+
+def footprint_area_m2(xy: np.ndarray, cell_m: float = 5.0) -> float:
+    """Horizontal area (m²) of the ``cell_m`` cells holding at least one of the points (N, ≥2) m."""
+    if len(xy) == 0:
+        return 0.0
+    ij = np.floor(np.asarray(xy, float)[:, :2] / cell_m).astype(np.int64)
+    ij -= ij.min(axis=0)
+    return float(np.count_nonzero(np.bincount(ij[:, 0] * (int(ij[:, 1].max()) + 1) + ij[:, 1])) * cell_m**2)
+
+
 def find_overlaps(strips_xy: Mapping[int, np.ndarray], cell_m: float = 5.0, min_cells: int = 4,
                   min_points_per_cell: int = 3) -> tuple[list[Overlap], list[str]]:
     """Overlapping pairs among strips given as {id: (N, ≥2) coordinates in metres}.
@@ -43,8 +58,9 @@ def find_overlaps(strips_xy: Mapping[int, np.ndarray], cell_m: float = 5.0, min_
     keys = {i: cell_keys(strips_xy[i], cell_m) for i in ids}
     occupied = {}
     for i in ids:
-        u, n = np.unique(keys[i], return_counts=True)
-        occupied[i] = u[n >= min_points_per_cell]
+        ks = np.sort(keys[i])
+        start = np.r_[0, np.flatnonzero(ks[1:] != ks[:-1]) + 1] if ks.size else np.zeros(0, np.int64)
+        occupied[i] = ks[start][np.diff(np.r_[start, ks.size]) >= min_points_per_cell]
     pairs = []
     for k, a in enumerate(ids):
         for b in ids[k + 1:]:
@@ -52,7 +68,7 @@ def find_overlaps(strips_xy: Mapping[int, np.ndarray], cell_m: float = 5.0, min_
             if common.size < min_cells:
                 continue
             pairs.append(Overlap(a, b, int(common.size), float(common.size * cell_m**2),
-                                 np.flatnonzero(np.isin(keys[a], common)), np.flatnonzero(np.isin(keys[b], common))))
+                                 _members(keys[a], common), _members(keys[b], common)))
     paired = {p.a for p in pairs} | {p.b for p in pairs}
     notes = [f"strip {i} overlaps no other strip (fewer than {min_cells} common {cell_m:g} m cells); it is not used"
              for i in ids if i not in paired]

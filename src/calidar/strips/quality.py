@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from calidar.strips.overlap import cell_keys
+from calidar.strips.overlap import footprint_area_m2
 from calidar.strips.planes import PlaneSettings, fit_patches
 
 #: LAS classes never used for the vertical difference: vegetation (3–5), noise (7, 18), water (9).
@@ -73,9 +73,7 @@ def cell_indices(keys: np.ndarray) -> np.ndarray:
 def _cell_size(points_a, points_b, s: QualitySettings) -> float:
     if s.cell_m:
         return s.cell_m
-    dens = []
-    for p in (points_a, points_b):
-        dens.append(p.shape[0] / max(np.unique(cell_keys(p, 5.0)).size * 25.0, 1e-9))
+    dens = [p.shape[0] / max(footprint_area_m2(p), 1e-9) for p in (points_a, points_b)]
     return float(max(2.0, np.ceil(np.sqrt(1.5 * s.min_points / max(min(dens), 1e-9)))))
 
 
@@ -137,7 +135,7 @@ def write_rasters(q: PairQuality, out_dir: str | Path, crs=None, force: bool = F
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     import rasterio
-    from rasterio.transform import from_origin
+    from affine import Affine
 
     from calidar.outputs import atomic_path
 
@@ -149,7 +147,7 @@ def write_rasters(q: PairQuality, out_dir: str | Path, crs=None, force: bool = F
     with atomic_path(tif, force) as tmp:
         with rasterio.open(tmp, "w", driver="GTiff", height=q.grid.shape[0], width=q.grid.shape[1], count=1,
                            dtype="float32", crs=crs, nodata=np.nan,
-                           transform=from_origin(q.origin[0], q.origin[1], q.cell_m, q.cell_m)) as dst:
+                           transform=Affine(q.cell_m, 0.0, q.origin[0], 0.0, -q.cell_m, q.origin[1])) as dst:
             dst.write(q.grid.astype(np.float32), 1)
     paths.append(tif)
     fig = dz_figure(q)
