@@ -150,8 +150,9 @@ def test_too_few_correspondences_is_skipped():
 NAMES = ("roll", "pitch", "heading", "tx", "ty", "tz")
 
 
-def rigid_solve(a, b_moved, start_deg, kind):
-    """Recover the disturbance of b by the ICP-style outer loop over the adjustment engine."""
+def rigid_solve(a, b_moved, start_deg, kind, **options):
+    """Recover the disturbance of b by the ICP-style outer loop over the adjustment engine
+    (options: scheduler / workers of iterate_vgicp)."""
     def georeference(v):
         return {1: a, 2: undo(b_moved, [v["roll"], v["pitch"], v["heading"]], [v["tx"], v["ty"], v["tz"]])}
 
@@ -165,7 +166,8 @@ def rigid_solve(a, b_moved, start_deg, kind):
         return solve(residual, params, sigma=sigma)
 
     start = dict(zip(NAMES, [*np.radians(start_deg), 0.0, 0.0, 0.0]))
-    return iterate_vgicp(georeference, [(1, 2)], solve_once, start, VgicpSettings(kind=kind, max_pairs=1500))
+    return iterate_vgicp(georeference, [(1, 2)], solve_once, start, VgicpSettings(kind=kind, max_pairs=1500),
+                         **options)
 
 
 @pytest.mark.parametrize("kind", ["point_to_plane", "point_to_point"])

@@ -29,6 +29,7 @@ import small_gicp
 
 from calidar.errors import CalibrationError
 from calidar.strips.correspond import Correspondences
+from calidar.strips.distribute import cluster_client, map_pairs
 
 KINDS = ("point_to_plane", "point_to_point")
 
@@ -196,16 +197,15 @@ def _match_or_skip(strip_a_id, points_a, strip_b_id, points_b, settings):
 
 
 def match_pairs_vgicp(pairs, settings: VgicpSettings = VgicpSettings(), *, scheduler: str | None = None,
-                      workers: int | None = None) -> tuple[list[Correspondences], list[str]]:
-    """Match every pair ``(id_a, points_a, id_b, points_b)`` in-process or on Dask.
+                      workers: int | None = None, client=None) -> tuple[list[Correspondences], list[str]]:
+    """Match every pair ``(id_a, points_a, id_b, points_b)`` in-process or on Dask
+    (see :func:`calidar.strips.distribute.map_pairs` for scheduler, workers, client).
 
     Returns (correspondences of the usable pairs, one warning per skipped pair naming it).
     Raises CalibrationError when no pair is usable.
     """
-    from calidar.strips.distribute import map_pairs
-
     tasks = [(a, pa, b, pb, settings) for a, pa, b, pb in pairs]
-    results = map_pairs(_match_or_skip, tasks, scheduler=scheduler, workers=workers)
+    results = map_pairs(_match_or_skip, tasks, scheduler=scheduler, workers=workers, client=client)
     usable = [r for r in results if isinstance(r, Correspondences)]
     skipped = [str(r) for r in results if isinstance(r, PairSkipped)]
     if not usable:
@@ -235,12 +235,17 @@ def iterate_vgicp(georeference, pairs, solve_once, values: dict[str, float],
     Returns the last Solution, with ``extra["vgicp_rounds"]`` (per round: mean distance,
     number of pairs and correspondences) and a warning per skipped pair.
     """
+    with cluster_client(scheduler, workers) as client:
+        return _iterate(georeference, pairs, solve_once, values, settings, tol_m, max_rounds, client, progress)
+
+
+def _iterate(georeference, pairs, solve_once, values, settings, tol_m, max_rounds, client, progress):
+    """The loop of :func:`iterate_vgicp` with an open Dask client (or None)."""
     rounds: list[dict] = []
     solution = None
     for k in range(max_rounds + 1):
         points = georeference(values)
-        corr, skipped = match_pairs_vgicp([(a, points[a], b, points[b]) for a, b in pairs], settings,
-                                          scheduler=scheduler, workers=workers)
+        corr, skipped = match_pairs_vgicp([(a, points[a], b, points[b]) for a, b in pairs], settings, client=client)
         n_obs = np.array([c.n_obs for c in corr], dtype=float)
         dist = float(np.average([mean_distance(c, points[c.strip_a], points[c.strip_b]) for c in corr], weights=n_obs))
         rounds.append({"round": k, "mean_distance_m": dist, "pairs": len(corr), "correspondences": int(n_obs.sum())})
