@@ -1,0 +1,99 @@
+"""Applanix SBET ("smoothed best estimate of trajectory") binary files.
+
+Each record is 17 little-endian float64 (136 bytes): time (GPS week seconds), latitude,
+longitude (rad), ellipsoidal height (m), x/y/z velocity (m/s, wander frame), roll, pitch,
+platform heading, wander angle (rad), x/y/z acceleration (m/s², body), x/y/z angular rate
+(rad/s, body).
+
+Wander frame (checked on the real ``leeward_sierra`` SBET, whose positions differentiate to
+these velocities within 1 m/s): x points north and y west when the wander angle α is zero,
+z is up; the frame is turned counter-clockwise (seen from above) by α. Hence
+
+    true heading = platform heading − α
+    v_north = vx·cos α − vy·sin α,   v_east = −vx·sin α − vy·cos α,   v_down = −vz.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from calidar.errors import InputError
+from calidar.outputs import atomic_path
+from calidar.trajectory import Trajectory
+
+FIELDS = (
+    "time", "lat", "lon", "height", "x_vel", "y_vel", "z_vel", "roll", "pitch", "platform_heading",
+    "wander_angle", "x_acc", "y_acc", "z_acc", "x_ang_rate", "y_ang_rate", "z_ang_rate",
+)
+RECORD_BYTES = 8 * len(FIELDS)
+_EXTRA = ("wander_angle", "x_acc", "y_acc", "z_acc", "x_ang_rate", "y_ang_rate", "z_ang_rate")
+
+
+def _wander_to_ned(vx, vy, vz, wander_rad) -> np.ndarray:
+    """Wander-frame velocities (m/s) → NED (N, 3). The map is its own inverse (NED → wander)."""
+    c, s = np.cos(wander_rad), np.sin(wander_rad)
+    return np.stack([c * vx - s * vy, -s * vx - c * vy, -vz], axis=-1)
+
+
+def _wrap(a_rad) -> np.ndarray:
+    """Angles wrapped to (−π, π], rad."""
+    return np.angle(np.exp(1j * np.asarray(a_rad, float)))
+
+
+def read_sbet(path: str | Path) -> Trajectory:
+    """Read an SBET file into a :class:`Trajectory` (true heading, NED velocities, week seconds).
+
+    The wander angle, accelerations and angular rates are kept in ``traj.extra``.
+    """
+    path = Path(path)
+    size = path.stat().st_size
+    if size == 0:
+        raise InputError(path, "size", "expected SBET records (136 bytes each), the file is empty")
+    if size % RECORD_BYTES:
+        raise InputError(
+            path, "size",
+            f"expected a multiple of {RECORD_BYTES} bytes (17 float64 per record), got {size} bytes "
+            f"({size // RECORD_BYTES} records + {size % RECORD_BYTES} bytes): not an SBET, or truncated",
+        )
+    a = np.fromfile(path, dtype="<f8").reshape(-1, len(FIELDS))
+    col = {name: a[:, i] for i, name in enumerate(FIELDS)}
+    if not np.all(np.isfinite(a[:, 1:11])):
+        bad = int(np.flatnonzero(~np.all(np.isfinite(a[:, 1:11]), axis=1))[0])
+        raise InputError(path, "record", f"expected finite position/attitude values, record {bad} has NaN/inf")
+    if np.any(np.abs(col["lat"]) > np.pi / 2) or np.any(np.abs(col["lon"]) > 2 * np.pi):
+        raise InputError(path, "lat/lon", "expected radians (|lat| ≤ π/2): not an SBET file?")
+    wander = col["wander_angle"]
+    return Trajectory(
+        time=col["time"], lat=col["lat"], lon=col["lon"], height=col["height"],
+        roll=col["roll"], pitch=col["pitch"],
+        heading=_wrap(col["platform_heading"] - wander),
+        velocity_ned=_wander_to_ned(col["x_vel"], col["y_vel"], col["z_vel"], wander),
+        time_system="gps_week_seconds", source=str(path),
+        extra={k: col[k].copy() for k in _EXTRA},
+    )
+
+
+def write_sbet(path: str | Path, traj: Trajectory, force: bool = False) -> Path:
+    """Write ``traj`` as an SBET (atomically; refuses to overwrite unless ``force``).
+
+    Uses ``traj.extra`` for the wander angle, accelerations and angular rates when present
+    (zero otherwise) and zero velocities when the trajectory has none.
+    """
+    if traj.time_system != "gps_week_seconds":
+        raise InputError(traj.source, "time_system", f"SBET holds GPS week seconds, got {traj.time_system}")
+    n = len(traj)
+    extra = {k: np.asarray(traj.extra.get(k, np.zeros(n)), float) for k in _EXTRA}
+    wander = extra["wander_angle"]
+    v = np.zeros((n, 3)) if traj.velocity_ned is None else np.asarray(traj.velocity_ned, float)
+    v_w = _wander_to_ned(v[:, 0], v[:, 1], v[:, 2], wander)
+    cols = {
+        "time": traj.time, "lat": traj.lat, "lon": traj.lon, "height": traj.height,
+        "x_vel": v_w[:, 0], "y_vel": v_w[:, 1], "z_vel": v_w[:, 2],
+        "roll": traj.roll, "pitch": traj.pitch, "platform_heading": _wrap(traj.heading + wander), **extra,
+    }
+    a = np.stack([np.asarray(cols[k], float) for k in FIELDS], axis=1).astype("<f8")
+    with atomic_path(path, force) as tmp:
+        a.tofile(tmp)
+    return Path(path)

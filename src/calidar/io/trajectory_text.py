@@ -1,0 +1,143 @@
+"""ASCII/CSV trajectories with named columns (exports of POSPac, Inertial Explorer, PDAL...).
+
+Columns are found from the header line (case-, quote- and unit-suffix-insensitive, see
+:data:`SYNONYMS`; e.g. ``GpsTime,Y,X,Z,Roll,Pitch,Azimuth``) or given with ``columns=`` (one
+canonical name per file column, ``"-"`` to skip). Positions are either geographic
+(``lat``/``lon``, in the ``angles`` unit) or projected (``x``/``y`` in ``crs``, metres), with
+an ellipsoidal height. Heading is true, or grid heading when ``heading_reference="grid"``,
+then corrected by the meridian convergence γ of ``crs``: true = grid + γ
+(:func:`calidar.frames.grid_factors`).
+"""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import numpy as np
+import pyproj
+
+from calidar import frames, georef
+from calidar.errors import InputError
+from calidar.trajectory import TIME_SYSTEMS, Trajectory
+
+#: canonical column → accepted header names (lower case, without spaces, quotes, "_" or units)
+SYNONYMS = {
+    "time": ("time", "gpstime", "gpst", "t", "timestamp", "sow", "gpsseconds", "secondsofweek"),
+    "lat": ("lat", "latitude", "phi"),
+    "lon": ("lon", "long", "longitude", "lambda"),
+    "x": ("x", "easting", "east", "e"),
+    "y": ("y", "northing", "north", "n"),
+    "height": ("z", "h", "height", "alt", "altitude", "ellipsoidheight", "ellipsoidalheight", "elevation"),
+    "roll": ("roll", "r"),
+    "pitch": ("pitch", "p"),
+    "heading": ("heading", "azimuth", "yaw", "trueheading", "hdg"),
+}
+_LOOKUP = {alias: canon for canon, aliases in SYNONYMS.items() for alias in aliases}
+
+
+def _normalise(name: str) -> str:
+    name = re.sub(r"[\(\[].*?[\)\]]", "", name.strip().strip("\"'").lower())  # drop "(deg)" "[m]"
+    return re.sub(r"[\s_\-\.]", "", name)
+
+
+def _split(line: str, delimiter: str | None) -> list[str]:
+    return [f.strip() for f in (line.split(delimiter) if delimiter else line.split())]
+
+
+def _is_number(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
+
+
+def _numbers(path: Path, records: list[tuple[int, str]], n_columns: int, delimiter: str | None) -> np.ndarray:
+    """Parse numeric records (line number, text) fast; on failure name the first bad line."""
+    try:
+        data = np.loadtxt([ln for _, ln in records], delimiter=delimiter, ndmin=2)
+        if data.shape[1] == n_columns:
+            return data
+    except ValueError:
+        pass
+    for i, ln in records:
+        fields = _split(ln, delimiter)
+        try:
+            if len(fields) != n_columns:
+                raise ValueError(f"{n_columns} values, got {len(fields)}")
+            [float(f) for f in fields]
+        except ValueError as e:
+            raise InputError(path, f"line {i + 1}", f"expected numbers ({e})") from None
+    raise InputError(path, None, f"expected {n_columns} numeric columns")
+
+
+def read_trajectory_text(path, *, columns=None, crs=None, angles: str = "deg", heading_reference: str = "true",
+                         delimiter: str | None = None, time_system: str = "gps_week_seconds") -> Trajectory:
+    """Read an ASCII/CSV trajectory into a :class:`Trajectory`.
+
+    ``angles``: "deg" or "rad" for roll, pitch, heading and lat/lon. ``crs``: CRS of projected
+    x/y (required for them) or of lat/lon (default WGS 84); heights are taken as ellipsoidal.
+    ``delimiter``: None = comma if the first data line has one, else whitespace.
+    """
+    path = Path(path)
+    if angles not in ("deg", "rad"):
+        raise InputError(path, "angles", f"expected 'deg' or 'rad', got {angles!r}")
+    if heading_reference not in ("true", "grid"):
+        raise InputError(path, "heading_reference", f"expected 'true' or 'grid', got {heading_reference!r}")
+    if time_system not in TIME_SYSTEMS:
+        raise InputError(path, "time_system", f"expected one of {TIME_SYSTEMS}, got {time_system!r}")
+    try:
+        lines = path.read_text(encoding="utf-8").splitlines()
+    except UnicodeDecodeError:
+        raise InputError(path, None, "expected a text trajectory, the file is binary") from None
+    body = [(i, ln) for i, ln in enumerate(lines) if ln.strip() and not ln.lstrip().startswith("#")]
+    if not body:
+        raise InputError(path, None, "expected trajectory records, the file is empty")
+    first = body[0][1]
+    if delimiter is None:
+        delimiter = "," if "," in first else None
+    head = _split(first, delimiter)
+    has_header = not all(_is_number(f) for f in head)
+    if columns is None:
+        if not has_header:
+            raise InputError(path, "columns", "no header line; give columns=[...] (e.g. time,lat,lon,height,roll,pitch,heading)")
+        columns = [_LOOKUP.get(_normalise(h), "-") for h in head]
+    columns = list(columns)
+    records = body[1:] if has_header else body
+    index = {c: k for k, c in enumerate(columns) if c != "-"}
+    unknown = set(index) - set(SYNONYMS)
+    if unknown:
+        raise InputError(path, "columns", f"unknown column name(s) {sorted(unknown)}; expected some of {sorted(SYNONYMS)}")
+    geographic = "lat" in index and "lon" in index
+    need = ["time", "height", "roll", "pitch", "heading"] + (["lat", "lon"] if geographic else ["x", "y"])
+    missing = [c for c in need if c not in index]
+    if missing:
+        raise InputError(path, "columns",
+                         f"missing {missing}; found columns {columns} (header {head if has_header else 'absent'})")
+    data = _numbers(path, records, len(columns), delimiter)
+    col = {c: data[:, k] for c, k in index.items()}
+    to_rad = np.radians if angles == "deg" else np.asarray
+    if crs is not None:
+        try:
+            crs = pyproj.CRS.from_user_input(crs)
+        except pyproj.exceptions.CRSError:
+            raise InputError(path, "crs", f"expected a CRS pyproj knows (e.g. 'EPSG:32615'), got {crs!r}") from None
+    if geographic:
+        lat, lon, h = to_rad(col["lat"]), to_rad(col["lon"]), col["height"]
+        if crs is not None and crs.is_projected:
+            raise InputError(path, "crs", f"the file has lat/lon columns but crs {crs.name} is projected")
+        if crs is not None:
+            lat, lon, h = frames.ecef_to_geodetic(georef.from_crs(np.stack([np.degrees(lon), np.degrees(lat), h], 1), crs))
+    else:
+        if crs is None or not crs.is_projected:
+            raise InputError(path, "crs", "the file has projected x/y columns; give their projected CRS (e.g. crs='EPSG:32615')")
+        lat, lon, h = frames.ecef_to_geodetic(georef.from_crs(np.stack([col["x"], col["y"], col["height"]], 1), crs))
+    heading = to_rad(col["heading"])
+    if heading_reference == "grid":
+        if crs is None or not crs.is_projected:
+            raise InputError(path, "heading_reference", "grid heading needs a projected crs for the meridian convergence")
+        heading = heading + frames.grid_factors(crs, lon, lat)[0]
+    return Trajectory(time=col["time"], lat=lat, lon=lon, height=h, roll=to_rad(col["roll"]),
+                      pitch=to_rad(col["pitch"]), heading=np.angle(np.exp(1j * heading)),
+                      time_system=time_system, source=str(path))

@@ -1,0 +1,261 @@
+"""The strip calibrator: boresight, lever arm, range and scanner parameters from overlapping strips.
+
+An outer loop as in ICP (Besl & McKay 1992) around the one adjustment engine:
+
+1. re-georeference the overlapping points of every strip with the current parameters;
+2. match every overlapping pair (tie planes or VGICP) → :class:`Correspondences`,
+   as independent tasks through :func:`calidar.strips.distribute.map_pairs`;
+3. :func:`calidar.adjust.solve` the parameters from the correspondence residuals, only the
+   points the correspondences reference being re-georeferenced at each evaluation;
+4. repeat until the mean correspondence distance changes by less than ``threshold_m``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+import scipy.sparse as sp
+
+from calidar.adjust import Parameter, ParameterSet, Solution, solve
+from calidar.errors import CalibrationError, InputError
+from calidar.sensor import Sensor
+from calidar.strips.correspond import Correspondences
+from calidar.strips.distribute import map_pairs
+from calidar.strips.overlap import Overlap, find_overlaps
+from calidar.strips.planes import PlaneSettings, match_pair_planes
+from calidar.strips.strip import Pose, Strip, georeference_pose
+
+#: What ``--estimate`` accepts → sensor parameters (name, unit of the engine).
+ESTIMATE_GROUPS: dict[str, tuple[tuple[str, str], ...]] = {
+    "boresight": (("boresight_roll", "rad"), ("boresight_pitch", "rad"), ("boresight_yaw", "rad")),
+    "lever_arm": (("lever_arm_x", "m"), ("lever_arm_y", "m"), ("lever_arm_z", "m")),
+    "range_offset": (("range_offset", "m"),),
+    "range_scale": (("range_scale", "ppm"),),
+    "scan_angle_scale": (("scan_angle_scale", "1"),),
+    "scan_angle_offset": (("scan_angle_offset", "rad"),),
+    "trajectory_bias": (),  # per strip: trajectory_bias_{east,north,up}_<id> (m), all strips but the first
+}
+BIAS_AXES = ("east", "north", "up")
+METHODS = ("planes", "vgicp")
+
+
+@dataclass(frozen=True)
+class StripSettings:
+    """Settings of the strip calibrator (metres unless named)."""
+
+    overlap_cell_m: float = 5.0  #: grid of the overlap detection
+    min_overlap_cells: int = 4
+    min_correspondences: int = 10  #: pairs with fewer are skipped with a warning
+    max_outer: int = 8  #: outer (re-matching) iterations
+    threshold_m: float = 2e-4  #: stop when the mean correspondence distance changes by less
+    robust: str | None = "cauchy"
+    planes: PlaneSettings = field(default_factory=PlaneSettings)
+    vgicp: object | None = None  #: settings handed to calidar.strips.vgicp.match_pair_vgicp
+
+
+@dataclass
+class CalibrationResult:
+    """What a strip calibration produced."""
+
+    solution: Solution
+    sensor: Sensor  #: calibrated
+    nominal: Sensor
+    strips: list[Strip]
+    overlaps: list[Overlap]
+    method: str
+    pairs: list[dict]  #: per used pair: a, b, n_obs
+    residuals_before: np.ndarray  #: first correspondences at the nominal sensor, m
+    residuals_after: np.ndarray  #: last correspondences at the calibrated sensor, m
+    outer: list[dict]  #: per outer iteration: mean distance, observations, values (SI)
+    biases: dict[int, np.ndarray]  #: per strip (east, north, up) m
+
+    @property
+    def warnings(self) -> list[str]:
+        return self.solution.warnings
+
+    def georeference(self, strip: Strip, calibrated: bool = True, index=None) -> np.ndarray:
+        """A strip's points (local m) with the calibrated (or nominal) sensor and its bias."""
+        if not calibrated:
+            return strip.points if index is None else strip.points[index]
+        return strip.georeference(self.sensor, index) + self.biases.get(strip.id, np.zeros(3))
+
+
+def parse_estimate(items: str | Sequence[str]) -> list[str]:
+    """'boresight,lever_arm' (or a list) → validated group names."""
+    names = [s.strip() for s in (items.split(",") if isinstance(items, str) else items) if s.strip()]
+    unknown = [n for n in names if n not in ESTIMATE_GROUPS]
+    if unknown or not names:
+        raise InputError(None, "--estimate", f"expected a comma-separated subset of {sorted(ESTIMATE_GROUPS)}, got {items!r}")
+    return names
+
+
+def build_parameters(nominal: Sensor, estimate: Sequence[str], strip_ids: Sequence[int]) -> ParameterSet:
+    """The engine's parameters: every sensor parameter (estimated ones free) plus strip biases."""
+    free = {name for g in estimate for name, _ in ESTIMATE_GROUPS[g]}
+    units = {name: unit for g in ESTIMATE_GROUPS.values() for name, unit in g}
+    params = [Parameter(name, value, units.get(name, "1"), free=name in free)
+              for name, value in nominal.parameters().items() if name in units]
+    if "trajectory_bias" in estimate:
+        params += [Parameter(f"trajectory_bias_{ax}_{i}", 0.0, "m") for i in sorted(strip_ids)[1:] for ax in BIAS_AXES]
+    return ParameterSet(params)
+
+
+def _sensor_and_biases(nominal: Sensor, values: dict[str, float]) -> tuple[Sensor, dict[int, np.ndarray]]:
+    own = set(nominal.parameters())
+    sensor = nominal.with_parameters(**{k: v for k, v in values.items() if k in own})
+    biases: dict[int, np.ndarray] = {}
+    for k, v in values.items():
+        if k.startswith("trajectory_bias_"):
+            _, _, ax, sid = k.split("_")
+            biases.setdefault(int(sid), np.zeros(3))[BIAS_AXES.index(ax)] = v
+    return sensor, biases
+
+
+def _matcher(method: str, settings: StripSettings) -> tuple[Callable, object]:
+    if method == "planes":
+        return match_pair_planes, settings.planes
+    if method == "vgicp":
+        from calidar.strips.vgicp import match_pair_vgicp
+
+        return match_pair_vgicp, settings.vgicp
+    raise InputError(None, "--method", f"expected one of {list(METHODS)}, got {method!r}")
+
+
+def _to_strip_columns(c: Correspondences, ov: Overlap, n_a: int, n_b: int) -> Correspondences:
+    """Re-index a pair's correspondences from overlap subsets to whole-strip point indices."""
+    def widen(m, index, n):
+        m = m.tocsr()
+        return sp.csr_matrix((m.data, index[m.indices], m.indptr), shape=(m.shape[0], n))
+
+    return replace(c, A=widen(c.A, ov.index_a, n_a), B=widen(c.B, ov.index_b, n_b))
+
+
+class _Problem:
+    """Residuals of all correspondences for given parameter values, with cached poses."""
+
+    def __init__(self, nominal: Sensor, strips: dict[int, Strip], corrs: list[Correspondences]):
+        self.nominal = nominal
+        used: dict[int, list[np.ndarray]] = {}
+        for c in corrs:
+            used.setdefault(c.strip_a, []).append(c.A.indices)
+            used.setdefault(c.strip_b, []).append(c.B.indices)
+        self.index = {i: np.unique(np.concatenate(v)) for i, v in used.items()}
+        self.pose: dict[int, Pose] = {i: strips[i].pose(idx) for i, idx in self.index.items()}
+
+        def compact(m, sid):
+            idx = self.index[sid]
+            return sp.csr_matrix((m.data, np.searchsorted(idx, m.indices), m.indptr), shape=(m.shape[0], idx.size))
+
+        self.corrs = [replace(c, A=compact(c.A, c.strip_a), B=compact(c.B, c.strip_b)) for c in corrs]
+        self.sigma = np.concatenate([
+            np.repeat(np.broadcast_to(np.asarray(c.sigma_m, float), (c.n_obs,)), 3 if c.normal is None else 1)
+            for c in self.corrs])
+
+    def __call__(self, values: dict[str, float]) -> np.ndarray:
+        sensor, biases = _sensor_and_biases(self.nominal, values)
+        pts = {i: georeference_pose(sensor, p) + biases.get(i, 0.0) for i, p in self.pose.items()}
+        return np.concatenate([c.residuals(pts[c.strip_a], pts[c.strip_b]) for c in self.corrs])
+
+
+def geometry_warnings(strips: Sequence[Strip], pairs: Sequence[tuple[int, int]], free: Sequence[str]) -> list[str]:
+    """Plain-words warnings about parameters the flight geometry cannot determine."""
+    heading = {s.id: s.heading_enu() for s in strips}
+    kinds = set()
+    for a, b in pairs:
+        d = abs((heading[a] - heading[b] + np.pi) % (2 * np.pi) - np.pi)
+        kinds.add("same" if d < np.radians(30) else "opposite" if d > np.radians(150) else "cross")
+    out = []
+    if kinds == {"same"}:
+        hit = [p for p in ("boresight_pitch", "lever_arm_x", "lever_arm_y", "lever_arm_z") if p in free]
+        if hit:
+            out.append(
+                f"{', '.join(hit)} poorly determined: all overlapping strips are parallel and flown the same way, "
+                "so these errors shift every strip by the same amount and the overlaps cannot see it "
+                "(fly lines in the opposite direction and across)")
+    elif "cross" not in kinds and any(p.startswith("lever_arm") for p in free):
+        out.append("lever arm weakly determined: no cross lines, only parallel strips (fly a line across them)")
+    if "lever_arm_z" in free:
+        out.append("lever_arm_z is determined only through attitude changes (a vertical lever-arm error shifts "
+                   "every strip up or down alike); expect a large σ")
+    return out
+
+
+def calibrate(strips: Sequence[Strip], nominal: Sensor, *, method: str = "planes",
+              estimate: Sequence[str] = ("boresight",), settings: StripSettings | None = None,
+              scheduler: str | None = None, workers: int | None = None,
+              progress: Callable[[str], None] | None = None) -> CalibrationResult:
+    """Calibrate the sensor from overlapping strips (all in one :class:`LocalFrame`).
+
+    ``estimate``: groups of :data:`ESTIMATE_GROUPS`; ``scheduler``/``workers``: Dask for the
+    pair matching (see :func:`map_pairs`). Raises :class:`CalibrationError` when no pair of
+    strips overlaps with enough correspondences.
+    """
+    s = settings or StripSettings()
+    estimate = parse_estimate(estimate)
+    say = progress or (lambda msg: None)
+    match, match_settings = _matcher(method, s)
+    by_id = {st.id: st for st in strips}
+    if len(by_id) != len(strips):
+        raise InputError(None, "strips", "two strips share an id; flight-line ids must be unique")
+    overlaps, notes = find_overlaps({i: st.points for i, st in by_id.items()}, s.overlap_cell_m, s.min_overlap_cells)
+    if not overlaps:
+        raise CalibrationError(f"no two of the {len(by_id)} strips overlap (no common {s.overlap_cell_m:g} m cells); "
+                               "strip calibration needs overlapping flight lines")
+    params = build_parameters(nominal, estimate, list(by_id))
+    warnings = list(notes)
+    outer: list[dict] = []
+    first_residuals = None
+    prev_mean = None
+    solution = None
+    for k in range(s.max_outer):
+        sensor, biases = _sensor_and_biases(nominal, params.values())
+        need = {i: np.unique(np.concatenate([o.index_a for o in overlaps if o.a == i] + [o.index_b for o in overlaps if o.b == i]))
+                for i in by_id if any(i in (o.a, o.b) for o in overlaps)}
+        current = {i: (idx, by_id[i].georeference(sensor, idx) + biases.get(i, 0.0)) for i, idx in need.items()}
+
+        def subset(i, index):
+            idx, pts = current[i]
+            return pts[np.searchsorted(idx, index)]
+
+        tasks = [(o.a, subset(o.a, o.index_a), o.b, subset(o.b, o.index_b), match_settings) for o in overlaps]
+        say(f"iteration {k + 1}: matching {len(tasks)} pairs ({method})")
+        found = map_pairs(match, tasks, scheduler, workers)
+        corrs, pairs, skipped = [], [], []
+        for o, c in zip(overlaps, found):
+            if c.n_obs < s.min_correspondences:
+                skipped.append(f"{o.a}–{o.b} ({c.n_obs})")
+                continue
+            corrs.append(_to_strip_columns(c, o, len(by_id[o.a]), len(by_id[o.b])))
+            pairs.append({"a": o.a, "b": o.b, "n_obs": c.n_obs})
+        if k == 0 and skipped:
+            warnings.append(f"strip pairs skipped for too few correspondences (fewer than {s.min_correspondences}): "
+                            + ", ".join(skipped))
+        if not corrs:
+            raise CalibrationError(
+                f"no usable strip pair: every overlapping pair has fewer than {s.min_correspondences} "
+                f"{'tie planes' if method == 'planes' else 'correspondences'} ({', '.join(skipped)})")
+        problem = _Problem(nominal, by_id, corrs)
+        say(f"iteration {k + 1}: solving {problem.sigma.size} observations")
+        solution = solve(problem, params, sigma=problem.sigma, robust=s.robust)
+        if first_residuals is None:
+            first_residuals = problem(params.values())
+        params = solution.parameters
+        mean = float(np.mean(np.abs(solution.residuals)))
+        outer.append({"iteration": k + 1, "mean_distance_m": mean, "n_obs": int(problem.sigma.size),
+                      "n_pairs": len(corrs), "values": params.values()})
+        if prev_mean is not None and abs(prev_mean - mean) < s.threshold_m:
+            break
+        prev_mean = mean
+    else:
+        warnings.append(f"the outer loop stopped after {s.max_outer} iterations before the mean correspondence "
+                        f"distance settled (last change {abs(outer[-1]['mean_distance_m'] - outer[-2]['mean_distance_m']) if len(outer) > 1 else float('nan'):.2g} m)")
+    used_pairs = [(p["a"], p["b"]) for p in pairs]
+    solution.warnings = warnings + geometry_warnings([by_id[i] for i in problem.index], used_pairs,
+                                                     params.free_names) + solution.warnings
+    sensor, biases = _sensor_and_biases(nominal, params.values())
+    solution.extra["strips"] = {"method": method, "pairs": pairs, "outer_iterations": [
+        {kk: v for kk, v in o.items() if kk != "values"} for o in outer]}
+    return CalibrationResult(solution, sensor, nominal, list(strips), overlaps, method, pairs,
+                             first_residuals, solution.residuals, outer, biases)

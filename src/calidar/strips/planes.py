@@ -1,0 +1,125 @@
+"""Tie planes: planar patches found in both strips of an overlap, matched across them.
+
+Both strips are cut by one horizontal grid (cells of ``cell_m``). In every cell the points
+of a strip are fitted with a plane by principal component analysis (PCA) of their
+covariance: eigenvalues λ0 ≤ λ1 ≤ λ2, normal = eigenvector of λ0. A patch is accepted when
+it is planar (√λ0 ≤ ``max_rms_m``), large enough (≥ ``min_points`` points) and fills its
+cell (√λ1 ≥ ``min_spread`` · cell, a uniform square gives 0.29). A cell planar in both
+strips with agreeing normals is a tie plane ("connection plane", as in strip adjustment
+by Kager 2004, *Discrepancies between overlapping laser scanner strips*, and Ressl et al.
+2011): its centroid in strip a must lie on its plane in strip b,
+
+    r = n_b · (mean(P_a[patch]) − mean(P_b[patch]))    (m)
+
+which becomes one point-to-plane row of :class:`~calidar.strips.correspond.Correspondences`
+with centroid-averaging weights. Vegetation and edges fail the planarity test.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+
+from calidar.strips.correspond import Correspondences
+from calidar.strips.overlap import cell_keys
+
+
+@dataclass(frozen=True)
+class PlaneSettings:
+    """Tie-plane detection settings (metres, degrees where named)."""
+
+    cell_m: float | None = None  #: patch size; None → chosen so that a patch holds ≈ target_points
+    target_points: int = 40
+    min_points: int = 12
+    max_rms_m: float = 0.10  #: largest point scatter about the fitted plane
+    min_spread: float = 0.2  #: √λ1 / cell_m at least (the patch covers its cell)
+    max_normal_angle_deg: float = 5.0  #: normals of the two strips agree within this
+    max_offset_m: float = 1.0  #: gate on |r| (tie planes further apart are not the same surface)
+    max_points_per_patch: int = 64  #: centroid from at most this many points (evenly picked)
+    noise_floor_m: float = 0.002  #: added to each row's σ for model errors (roughness)
+
+
+@dataclass(frozen=True)
+class Patches:
+    """Planar patches of one strip, one per accepted cell."""
+
+    keys: np.ndarray  #: (P,) cell keys
+    centroid: np.ndarray  #: (P, 3) m
+    normal: np.ndarray  #: (P, 3) unit, pointing up
+    rms_m: np.ndarray  #: (P,) √λ0
+    start: np.ndarray  #: (P,) first position of the patch's points in ``order``
+    count: np.ndarray  #: (P,) points in the patch
+    order: np.ndarray  #: point indices sorted by cell
+
+
+def patch_cell_size(points: np.ndarray, target_points: int) -> float:
+    """A patch size (m) holding about ``target_points`` at the points' horizontal density."""
+    keys = cell_keys(points, 5.0)
+    area = np.unique(keys).size * 25.0
+    density = max(points.shape[0] / max(area, 1e-9), 1e-6)
+    return float(np.clip(np.sqrt(target_points / density), 0.5, 25.0))
+
+
+def fit_patches(points: np.ndarray, cell_m: float, settings: PlaneSettings) -> Patches:
+    """Fit a plane in every grid cell of ``points`` (N, 3) local m; keep the planar ones."""
+    keys = cell_keys(points, cell_m)
+    order = np.argsort(keys, kind="stable")
+    uk, start, count = np.unique(keys[order], return_index=True, return_counts=True)
+    cell = np.repeat(np.arange(uk.size), count)
+    p = points[order]
+    ref = p[start][cell]  # a point of the same cell: keeps the sums well conditioned
+    q = p - ref
+    sums = np.stack([np.bincount(cell, q[:, i], uk.size) for i in range(3)], axis=1)
+    mean = sums / count[:, None]
+    cov = np.empty((uk.size, 3, 3))
+    for i in range(3):
+        for j in range(i, 3):
+            cov[:, i, j] = cov[:, j, i] = np.bincount(cell, q[:, i] * q[:, j], uk.size) / count - mean[:, i] * mean[:, j]
+    ok = count >= max(settings.min_points, 3)
+    lam, vec = np.linalg.eigh(cov[ok])
+    lam = np.clip(lam, 0.0, None)
+    planar = (np.sqrt(lam[:, 0]) <= settings.max_rms_m) & (np.sqrt(lam[:, 1]) >= settings.min_spread * cell_m)
+    sel = np.flatnonzero(ok)[planar]
+    normal = vec[planar][:, :, 0]
+    normal *= np.where(normal[:, 2] < 0, -1.0, 1.0)[:, None]
+    return Patches(uk[sel], mean[sel] + p[start[sel]], normal, np.sqrt(lam[planar, 0]), start[sel], count[sel], order)
+
+
+def _averaging(patches: Patches, rows: np.ndarray, cap: int, n_points: int) -> tuple[sp.csr_matrix, np.ndarray]:
+    """Sparse centroid weights for the patches ``rows`` (at most ``cap`` evenly picked points each)."""
+    c = patches.count[rows]
+    m = np.minimum(c, cap)
+    indptr = np.r_[0, np.cumsum(m)]
+    k = np.arange(indptr[-1]) - np.repeat(indptr[:-1], m)
+    pos = np.repeat(patches.start[rows], m) + (k * np.repeat(c, m)) // np.repeat(m, m)
+    data = np.repeat(1.0 / m, m)
+    mat = sp.csr_matrix((data, patches.order[pos], indptr), shape=(rows.size, n_points))
+    return mat, m
+
+
+def match_pair_planes(strip_a_id: int, points_a: np.ndarray, strip_b_id: int, points_b: np.ndarray,
+                      settings: PlaneSettings | None = None) -> Correspondences:
+    """Tie planes between two strips' overlapping points (each (N, 3) local ENU m).
+
+    Returns point-to-plane correspondences: one row per tie plane, A/B averaging the patch
+    points of each strip, normal = the plane normal in strip b, σ from the plane scatter.
+    """
+    s = settings or PlaneSettings()
+    points_a = np.asarray(points_a, float)
+    points_b = np.asarray(points_b, float)
+    if points_a.shape[0] == 0 or points_b.shape[0] == 0:
+        empty = sp.csr_matrix((0, points_a.shape[0])), sp.csr_matrix((0, points_b.shape[0]))
+        return Correspondences(strip_a_id, strip_b_id, *empty, np.zeros((0, 3)), np.zeros(0), "planes")
+    cell = s.cell_m or max(patch_cell_size(points_a, s.target_points), patch_cell_size(points_b, s.target_points))
+    pa, pb = fit_patches(points_a, cell, s), fit_patches(points_b, cell, s)
+    _, ia, ib = np.intersect1d(pa.keys, pb.keys, assume_unique=True, return_indices=True)
+    cos_ab = np.abs(np.einsum("ij,ij->i", pa.normal[ia], pb.normal[ib]))
+    offset = np.einsum("ij,ij->i", pa.centroid[ia] - pb.centroid[ib], pb.normal[ib])
+    keep = (cos_ab >= np.cos(np.radians(s.max_normal_angle_deg))) & (np.abs(offset) <= s.max_offset_m)
+    ia, ib = ia[keep], ib[keep]
+    A, ma = _averaging(pa, ia, s.max_points_per_patch, points_a.shape[0])
+    B, mb = _averaging(pb, ib, s.max_points_per_patch, points_b.shape[0])
+    sigma = np.sqrt(pa.rms_m[ia] ** 2 / ma + pb.rms_m[ib] ** 2 / mb + s.noise_floor_m**2)
+    return Correspondences(strip_a_id, strip_b_id, A, B, pb.normal[ib].copy(), sigma, "planes")

@@ -1,0 +1,126 @@
+"""A flight strip: its points, GPS times and scanner observations, re-georeferenced on demand.
+
+Delivered points are inverse-georeferenced ONCE with the nominal sensor
+(:func:`calidar.georef.inverse`) into :class:`~calidar.georef.ScanObservations`; any
+other sensor model then re-georeferences them with the lidar equation
+(p = r(t) + R_eb(t) · (R_bs · ρ · u_s + a_b), as :func:`calidar.georef.forward`).
+Everything a calibration looks at is expressed in a :class:`LocalFrame`: east-north-up
+metres at the survey centre, so that heights are "up" and numbers stay small.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from calidar import frames, georef
+from calidar.errors import InputError
+from calidar.georef import ScanObservations
+from calidar.sensor import Sensor
+from calidar.trajectory import Trajectory
+
+
+@dataclass(frozen=True)
+class LocalFrame:
+    """East-north-up Cartesian frame (m) tangent to the ellipsoid at ``origin_ecef``."""
+
+    origin_ecef: np.ndarray  #: (3,) m
+    r_le: np.ndarray  #: (3, 3) rotation ECEF → local ENU
+
+    @classmethod
+    def at(cls, points_ecef: np.ndarray) -> "LocalFrame":
+        """The frame at the centre of the points' bounding box, at their median height (ECEF m, (N, 3))."""
+        p = np.asarray(points_ecef, float)
+        lat, lon, _ = frames.ecef_to_geodetic(0.5 * (p.min(axis=0) + p.max(axis=0)))
+        height = float(np.median(frames.ecef_to_geodetic(p[:: max(1, len(p) // 10000)])[2]))
+        origin = frames.geodetic_to_ecef(lat, lon, height)
+        r_en = frames.r_en(lat, lon)  # NED → ECEF
+        return cls(origin, frames.R_ENU_NED @ r_en.T)
+
+    def to_local(self, points_ecef) -> np.ndarray:
+        """ECEF (N, 3) m → local ENU (N, 3) m."""
+        return (np.asarray(points_ecef, float) - self.origin_ecef) @ self.r_le.T
+
+    def to_ecef(self, points_local) -> np.ndarray:
+        """Local ENU (N, 3) m → ECEF (N, 3) m."""
+        return np.asarray(points_local, float) @ self.r_le + self.origin_ecef
+
+
+@dataclass(frozen=True)
+class Pose:
+    """IMU positions (local ENU m) and rotations body → local ENU at a set of points' times."""
+
+    index: np.ndarray  #: (M,) indices of the points in their strip
+    position: np.ndarray  #: (M, 3) m
+    r_lb: np.ndarray  #: (M, 3, 3)
+    range_m: np.ndarray  #: (M,) measured range, m
+    angles: np.ndarray  #: (M, k) scanner observations, rad
+
+
+@dataclass(eq=False)
+class Strip:
+    """One flight line. ``points`` are the delivered coordinates in the local frame (m)."""
+
+    id: int  #: flight-line id (LAS point_source_id)
+    points: np.ndarray  #: (N, 3) local ENU m, as delivered (nominal sensor)
+    obs: ScanObservations  #: from one inverse georeferencing with the nominal sensor
+    trajectory: Trajectory
+    frame: LocalFrame
+    source: str = "<memory>"
+    extra: dict = field(default_factory=dict)  #: per-point attributes kept for output (classification, ...)
+
+    @classmethod
+    def from_ecef(cls, strip_id: int, points_ecef, time, trajectory: Trajectory, nominal: Sensor,
+                  frame: LocalFrame, source: str = "<memory>", **extra) -> "Strip":
+        """Build a strip from delivered ECEF points (N, 3) m and GPS times (N,) s.
+
+        The trajectory must cover every time (a clear error names the strip otherwise).
+        """
+        time = np.asarray(time, float)
+        points_ecef = np.asarray(points_ecef, float)
+        if time.size == 0:
+            raise InputError(source, "points", f"strip {strip_id} has no points")
+        try:
+            trajectory.check_covers(time, f"points of strip {strip_id} ({source})")
+        except InputError as e:
+            raise InputError(trajectory.source, "time", e.problem) from None
+        obs = georef.inverse(trajectory, nominal, time, points_ecef)
+        return cls(int(strip_id), frame.to_local(points_ecef), obs, trajectory, frame, source, dict(extra))
+
+    def __len__(self) -> int:
+        return self.points.shape[0]
+
+    @property
+    def time(self) -> np.ndarray:
+        return self.obs.time
+
+    def pose(self, index: np.ndarray | None = None) -> Pose:
+        """Trajectory poses at the times of the points ``index`` (all when None), cached by the caller."""
+        idx = np.arange(len(self)) if index is None else np.asarray(index, dtype=np.int64)
+        pos_e, q_eb = self.trajectory.interpolate(self.obs.time[idx])
+        r_lb = self.frame.r_le @ frames.quat_to_matrix(q_eb)
+        return Pose(idx, self.frame.to_local(pos_e), r_lb, self.obs.range_m[idx], self.obs.angles[idx])
+
+    def georeference(self, sensor: Sensor, index: np.ndarray | None = None, pose: Pose | None = None) -> np.ndarray:
+        """Points (M, 3) local ENU m re-georeferenced with ``sensor`` (the lidar equation).
+
+        ``pose`` (from :meth:`pose`) avoids re-interpolating the trajectory when the same
+        points are georeferenced many times (as inside a least-squares solve).
+        """
+        pose = self.pose(index) if pose is None else pose
+        return georeference_pose(sensor, pose)
+
+    def heading_enu(self) -> float:
+        """Mean direction of travel over the strip, rad clockwise from local north."""
+        t = np.linspace(self.obs.time.min(), self.obs.time.max(), 16)
+        pos = self.frame.to_local(self.trajectory.interpolate(t)[0])
+        d = pos[-1] - pos[0]
+        return float(np.arctan2(d[0], d[1]))
+
+
+def georeference_pose(sensor: Sensor, pose: Pose) -> np.ndarray:
+    """The lidar equation for cached poses: p = r + R_lb · (R_bs · ρ · u_s + a_b), local m (M, 3)."""
+    v_s = sensor.true_range(pose.range_m)[:, None] * sensor.scanner.directions(pose.angles)
+    v_b = v_s @ sensor.r_bs.T + sensor.lever_arm
+    return pose.position + np.einsum("nij,nj->ni", pose.r_lb, v_b)

@@ -1,0 +1,103 @@
+import laspy
+import numpy as np
+import pyproj
+import pytest
+
+from calidar.errors import InputError, OutputExistsError
+from calidar.io import iter_las_chunks, read_las, write_las
+from calidar.io.las import adjusted_standard_to_week_seconds, week_seconds_to_adjusted_standard
+
+
+def _points(n=1000, seed=0):
+    rng = np.random.default_rng(seed)
+    xyz = np.c_[rng.uniform(300000, 301000, n), rng.uniform(4.18e6, 4.181e6, n), rng.uniform(2000, 2500, n)]
+    return xyz, 400000.0 + np.sort(rng.uniform(0, 10, n)), rng.uniform(-30, 30, n)
+
+
+@pytest.mark.parametrize("suffix", [".las", ".laz"])
+def test_write_read_round_trip(tmp_path, suffix):
+    xyz, t, ang = _points()
+    path = write_las(tmp_path / f"a{suffix}", xyz, "EPSG:32611", gps_time=t, scan_angle_deg=ang, point_source_id=7,
+                     classification=np.full(t.size, 2), intensity=np.arange(t.size))
+    p = read_las(path)
+    assert len(p) == t.size
+    assert np.max(np.abs(p.xyz - xyz)) <= 0.0005 + 1e-9  # 1 mm scale
+    assert np.array_equal(p.gps_time, t)
+    assert np.max(np.abs(p.scan_angle_deg - ang)) <= 0.003 + 1e-12  # 0.006° steps
+    assert np.all(p.point_source_id == 7) and np.all(p.classification == 2)
+    assert np.array_equal(p.intensity, np.arange(t.size))
+    assert np.all(p.return_number == 1) and np.all(p.number_of_returns == 1)
+    assert p.crs.to_epsg() == 32611
+    assert p.time_system == "gps_week_seconds"
+    with laspy.open(path) as r:
+        assert r.header.version.minor == 4 and r.header.point_format.id == 6
+        assert r.header.are_points_compressed == (suffix == ".laz")
+    with pytest.raises(OutputExistsError):
+        write_las(path, xyz, "EPSG:32611", gps_time=t, scan_angle_deg=ang, point_source_id=7)
+
+
+def test_chunks_cover_the_file(tmp_path):
+    xyz, t, ang = _points(2500)
+    path = write_las(tmp_path / "c.laz", xyz, "EPSG:32611", gps_time=t, scan_angle_deg=ang, point_source_id=1)
+    chunks = list(iter_las_chunks(path, chunk_points=1000, fields=("scan_angle_deg",)))
+    assert [len(c) for c in chunks] == [1000, 1000, 500]
+    assert np.array_equal(np.concatenate([c.gps_time for c in chunks]), t)
+    assert chunks[0].point_source_id is None and chunks[0].crs.to_epsg() == 32611
+
+
+def test_adjusted_standard_time(tmp_path):
+    week = 2200
+    t_week = 345600.0 + np.linspace(0, 100, 50)
+    t_adj = week_seconds_to_adjusted_standard(t_week, week)
+    back, w = adjusted_standard_to_week_seconds(t_adj)
+    assert w == week and np.allclose(back, t_week, atol=1e-6)
+    xyz, _, ang = _points(50)
+    path = write_las(tmp_path / "s.las", xyz, "EPSG:32611", gps_time=t_adj, scan_angle_deg=ang, point_source_id=1,
+                     time_system="gps_adjusted_standard")
+    p = read_las(path)
+    assert p.time_system == "gps_adjusted_standard"
+    assert np.allclose(p.gps_week_seconds(), t_week, atol=1e-6)
+    with pytest.raises(InputError, match="span GPS weeks"):
+        adjusted_standard_to_week_seconds(week_seconds_to_adjusted_standard([604790.0, 604810.0], week))
+
+
+def test_real_las_12_geotiff_keys(real_data):
+    p = read_las(real_data / "leeward_sierra" / "points.las")
+    assert len(p) == 1325
+    # user-defined GeoTIFF keys: UTM zone 11N conversion (16011) on WGS 84 parameters
+    assert p.crs.to_epsg() == 32611
+    assert p.scan_angle_deg.min() == -30 and p.scan_angle_deg.max() == 29
+    assert np.all(p.point_source_id == 36)
+    assert p.gps_time.min() == pytest.approx(400825.106, abs=1e-3)
+    assert read_las(real_data / "leeward_sierra" / "points.las", crs="EPSG:32612").crs.to_epsg() == 32612
+
+
+def test_real_laz_lambert93(real_data):
+    p = read_las(real_data / "ign_two_strips" / "faceraster_numerical_imprecision.laz")
+    assert p.crs.to_epsg() == 2154
+    ids, counts = np.unique(p.point_source_id, return_counts=True)
+    assert dict(zip(ids.tolist(), counts.tolist())) == {305: 10020, 306: 8054}
+
+
+@pytest.mark.parametrize("fmt", [0, 2])
+def test_point_format_without_gps_time(tmp_path, fmt):
+    las = laspy.create(point_format=fmt, file_version="1.2")
+    las.x = np.arange(3.0)
+    las.y = np.arange(3.0)
+    las.z = np.arange(3.0)
+    path = tmp_path / "nogps.las"
+    las.write(path)
+    with pytest.raises(InputError, match=f"nogps.las: point_format: point format {fmt} has no GPS time"):
+        read_las(path)
+
+
+def test_no_crs_and_not_las(tmp_path):
+    las = laspy.create(point_format=1, file_version="1.2")
+    las.x = las.y = las.z = np.arange(3.0)
+    las.gps_time = np.arange(3.0)
+    las.write(tmp_path / "nocrs.las")
+    assert read_las(tmp_path / "nocrs.las").crs is None
+    assert read_las(tmp_path / "nocrs.las", crs="EPSG:2154").crs == pyproj.CRS("EPSG:2154")
+    (tmp_path / "x.las").write_text("hello")
+    with pytest.raises(InputError, match="not a readable LAS/LAZ"):
+        read_las(tmp_path / "x.las")
