@@ -27,9 +27,7 @@ import numpy as np
 import scipy.sparse as sp
 import small_gicp
 
-from calidar.errors import CalibrationError
 from calidar.strips.correspond import Correspondences
-from calidar.strips.distribute import cluster_client, map_pairs
 
 KINDS = ("point_to_plane", "point_to_point")
 
@@ -46,7 +44,7 @@ class VgicpSettings:
     max_iterations: int = 30  #: per registration stage
     overlap_cell_m: float = 5.0  #: xy cell of the overlap test
     min_overlap_points: int = 500  #: fewer points of either strip in the overlap → skip
-    pair_distance_m: float = 0.5  #: max nearest-neighbour distance of a pair after registration
+    pair_distance_m: float | None = None  #: max pair distance after registration; None: 1.5 × b's point spacing
     max_pairs: int = 2000  #: at most this many pairs per strip pair, spread on an xy grid
     min_pairs: int = 50  #: fewer usable pairs → the pair is skipped
     max_surface_variation: float = 0.01  #: point_to_plane: λ_min / Σλ of the local covariance
@@ -58,17 +56,6 @@ class VgicpSettings:
             raise ValueError(f"kind must be one of {KINDS}, got {self.kind!r}")
         if not self.voxel_m or any(v <= 0 for v in self.voxel_m):
             raise ValueError(f"voxel_m must be positive sizes, got {self.voxel_m}")
-
-
-class PairSkipped(CalibrationError):
-    """A strip pair that cannot give correspondences (too little overlap, too few pairs)."""
-
-    def __init__(self, strip_a: int, strip_b: int, reason: str):
-        self.strip_a, self.strip_b, self.reason = strip_a, strip_b, reason
-        super().__init__(f"strips {strip_a}–{strip_b} skipped: {reason}")
-
-    def __reduce__(self):  # picklable across Dask workers
-        return (PairSkipped, (self.strip_a, self.strip_b, self.reason))
 
 
 @dataclass(frozen=True)
@@ -142,22 +129,30 @@ def _normals(cloud, tree, at: np.ndarray, num_threads: int) -> tuple[np.ndarray,
     return eigvec[:, :, 0], variation
 
 
+def _none(strip_a_id: int, n_a: int, strip_b_id: int, n_b: int, settings: VgicpSettings) -> Correspondences:
+    """No correspondences: the calibrator skips the pair with a warning naming it."""
+    normal = np.zeros((0, 3)) if settings.kind == "point_to_plane" else None
+    return Correspondences(strip_a_id, strip_b_id, sp.csr_matrix((0, n_a)), sp.csr_matrix((0, n_b)), normal,
+                           sigma_m=settings.sigma_m, method="vgicp")
+
+
 def match_pair_vgicp(strip_a_id: int, points_a: np.ndarray, strip_b_id: int, points_b: np.ndarray,
-                     settings: VgicpSettings = VgicpSettings()) -> Correspondences:
+                     settings: VgicpSettings | None = None) -> Correspondences:
     """Corresponding points of strips a and b by VGICP registration + nearest neighbours.
 
     points_a, points_b: (N, 3) float64, the strips re-georeferenced with the current
-    parameters in a local Cartesian frame (m). Returns at most ``settings.max_pairs``
-    point pairs (one 1.0 per row of A and B) spread over the overlap.
-    Raises :class:`PairSkipped` when the overlap or the number of pairs is too small.
+    parameters in a local Cartesian frame (m); settings None → :class:`VgicpSettings`.
+    Returns at most ``settings.max_pairs`` point pairs (one 1.0 per row of A and B) spread
+    over the overlap; none when either strip has fewer than ``min_overlap_points`` in the
+    overlap or fewer than ``min_pairs`` pairs are found (the calibrator then skips the pair
+    with a warning naming it).
     """
+    settings = settings or VgicpSettings()
     points_a = np.asarray(points_a, dtype=np.float64)
     points_b = np.asarray(points_b, dtype=np.float64)
     in_a, in_b, area = overlap_masks(points_a, points_b, settings.overlap_cell_m)
-    n_a, n_b = int(in_a.sum()), int(in_b.sum())
-    if min(n_a, n_b) < settings.min_overlap_points:
-        raise PairSkipped(strip_a_id, strip_b_id, f"too little overlap ({n_a} and {n_b} points in "
-                          f"{area:.0f} m², need {settings.min_overlap_points} each)")
+    if min(in_a.sum(), in_b.sum()) < settings.min_overlap_points:
+        return _none(strip_a_id, len(points_a), strip_b_id, len(points_b), settings)
     idx_a, idx_b = np.flatnonzero(in_a), np.flatnonzero(in_b)
     origin = points_a[idx_a].mean(axis=0)
     ov_a, ov_b = points_a[idx_a] - origin, points_b[idx_b] - origin
@@ -170,7 +165,8 @@ def match_pair_vgicp(strip_a_id: int, points_a: np.ndarray, strip_b_id: int, poi
     tree = small_gicp.KdTree(b_on_a, num_threads=settings.num_threads)
     nn, d2 = tree.batch_knn_search(ov_a[cand], 1, num_threads=settings.num_threads)
     nn, dist = nn[:, 0].astype(np.int64), np.sqrt(d2[:, 0])
-    keep = dist < settings.pair_distance_m
+    spacing = np.sqrt(area / len(idx_b))  # mean point spacing of b in the overlap, m
+    keep = dist < (settings.pair_distance_m or 1.5 * spacing)
     normal = None
     if settings.kind == "point_to_plane":
         n, variation = _normals(cloud_a, tree_a, ov_a[cand], settings.num_threads)
@@ -178,87 +174,9 @@ def match_pair_vgicp(strip_a_id: int, points_a: np.ndarray, strip_b_id: int, poi
         normal = n[keep]
     n_pairs = int(keep.sum())
     if n_pairs < settings.min_pairs:
-        raise PairSkipped(strip_a_id, strip_b_id, f"too few correspondences ({n_pairs} closer than "
-                          f"{settings.pair_distance_m} m{' on planar surfaces' if normal is not None else ''}, "
-                          f"need {settings.min_pairs})")
+        return _none(strip_a_id, len(points_a), strip_b_id, len(points_b), settings)
     rows = np.arange(n_pairs)
     ones = np.ones(n_pairs)
     A = sp.csr_matrix((ones, (rows, idx_a[cand[keep]])), shape=(n_pairs, points_a.shape[0]))
     B = sp.csr_matrix((ones, (rows, idx_b[nn[keep]])), shape=(n_pairs, points_b.shape[0]))
     return Correspondences(strip_a_id, strip_b_id, A, B, normal, sigma_m=settings.sigma_m, method="vgicp")
-
-
-def _match_or_skip(strip_a_id, points_a, strip_b_id, points_b, settings):
-    """match_pair_vgicp, returning a PairSkipped instead of raising it (for map_pairs)."""
-    try:
-        return match_pair_vgicp(strip_a_id, points_a, strip_b_id, points_b, settings)
-    except PairSkipped as skipped:
-        return skipped
-
-
-def match_pairs_vgicp(pairs, settings: VgicpSettings = VgicpSettings(), *, scheduler: str | None = None,
-                      workers: int | None = None, client=None) -> tuple[list[Correspondences], list[str]]:
-    """Match every pair ``(id_a, points_a, id_b, points_b)`` in-process or on Dask
-    (see :func:`calidar.strips.distribute.map_pairs` for scheduler, workers, client).
-
-    Returns (correspondences of the usable pairs, one warning per skipped pair naming it).
-    Raises CalibrationError when no pair is usable.
-    """
-    tasks = [(a, pa, b, pb, settings) for a, pa, b, pb in pairs]
-    results = map_pairs(_match_or_skip, tasks, scheduler=scheduler, workers=workers, client=client)
-    usable = [r for r in results if isinstance(r, Correspondences)]
-    skipped = [str(r) for r in results if isinstance(r, PairSkipped)]
-    if not usable:
-        detail = "; ".join(skipped) if skipped else "no overlapping pairs were given"
-        raise CalibrationError(f"no usable strip pair for VGICP: {detail}")
-    return usable, skipped
-
-
-def mean_distance(corr: Correspondences, points_a: np.ndarray, points_b: np.ndarray) -> float:
-    """Mean distance (m) between the corresponding points or planes of one pair."""
-    r = corr.residuals(points_a, points_b)
-    if corr.normal is None:
-        return float(np.mean(np.linalg.norm(r.reshape(-1, 3), axis=1)))
-    return float(np.mean(np.abs(r)))
-
-
-def iterate_vgicp(georeference, pairs, solve_once, values: dict[str, float],
-                  settings: VgicpSettings = VgicpSettings(), *, tol_m: float = 1e-3, max_rounds: int = 8,
-                  scheduler: str | None = None, workers: int | None = None, progress=None):
-    """Match, solve, re-georeference, match again — until the mean distance between
-    corresponding points changes by less than ``tol_m`` (m) between rounds (ICP's outer loop).
-
-    georeference(values) → {strip id: (N, 3) points, local m} with the parameters ``values`` (SI);
-    pairs: [(id_a, id_b), ...] overlapping strips; solve_once(correspondences, values) → a
-    :class:`calidar.adjust.Solution` of one adjustment started at ``values``;
-    progress(round, mean_distance_m, n_pairs) is called every round.
-    Returns the last Solution, with ``extra["vgicp_rounds"]`` (per round: mean distance,
-    number of pairs and correspondences) and a warning per skipped pair.
-    """
-    with cluster_client(scheduler, workers) as client:
-        return _iterate(georeference, pairs, solve_once, values, settings, tol_m, max_rounds, client, progress)
-
-
-def _iterate(georeference, pairs, solve_once, values, settings, tol_m, max_rounds, client, progress):
-    """The loop of :func:`iterate_vgicp` with an open Dask client (or None)."""
-    rounds: list[dict] = []
-    solution = None
-    for k in range(max_rounds + 1):
-        points = georeference(values)
-        corr, skipped = match_pairs_vgicp([(a, points[a], b, points[b]) for a, b in pairs], settings, client=client)
-        n_obs = np.array([c.n_obs for c in corr], dtype=float)
-        dist = float(np.average([mean_distance(c, points[c.strip_a], points[c.strip_b]) for c in corr], weights=n_obs))
-        rounds.append({"round": k, "mean_distance_m": dist, "pairs": len(corr), "correspondences": int(n_obs.sum())})
-        if progress:
-            progress(k, dist, len(corr))
-        if solution is not None and abs(rounds[-2]["mean_distance_m"] - dist) < tol_m:
-            break
-        if k == max_rounds:
-            solution.warnings.append(f"VGICP: the mean correspondence distance still changed by "
-                                     f"{abs(rounds[-2]['mean_distance_m'] - dist) * 1e3:.1f} mm after {max_rounds} rounds")
-            break
-        solution = solve_once(corr, values)
-        values = solution.values
-    solution.warnings.extend(skipped)
-    solution.extra["vgicp_rounds"] = rounds
-    return solution
