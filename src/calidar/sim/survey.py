@@ -1,0 +1,307 @@
+"""Simulate a lidar survey with a known truth and deliver it as a real system would.
+
+The *true* sensor (nominal + the requested errors) shoots rays from the *true* trajectory
+(plus range and beam-angle noise) into the scene; the instrument records GPS time,
+measured range and encoder angle. The GNSS/INS delivers a *measured* trajectory (true +
+smooth position/attitude errors, optionally per-strip biases and drifts), written as the
+SBET. Delivered points are georeferenced from those records with the *nominal* sensor and
+the measured trajectory (:func:`calidar.georef.forward`), so every error the user asks
+for shows in the strips exactly as it would in real data.
+
+>>> from calidar.sim.survey import survey_config, simulate_survey
+>>> cfg = survey_config("uav", seed=1, density=0.05, errors={"boresight_roll": 1e-3})
+>>> res = simulate_survey(cfg)
+>>> res.strips[0].xyz          # delivered UTM coordinates of line 1 (m)
+>>> res.write("out", force=True)
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Callable
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+
+from calidar import frames, georef
+from calidar.errors import InputError
+from calidar.outputs import prepare_out_dir, write_text_atomic
+from calidar.sensor import Sensor
+from calidar.sim.flightplan import FlightLine, check_plan_inputs, plan_lines
+from calidar.sim.motion import MotionSpec, fly, measured_trajectory
+from calidar.sim.patterns import half_field_of_view, scan_angles
+from calidar.sim.raycast import SURFACE_TERRAIN, cast
+from calidar.sim.scene import CLASS_BUILDING, CLASS_GROUND, CLASS_VEGETATION, Scene, SceneSpec, build_scene
+from calidar.trajectory import Trajectory
+
+SURFACE_VEGETATION = -3  #: ``Strip.surface`` of crown returns
+GPS_WEEK_START_S = 388800.0  #: simulated flights start on a Thursday, 12:00 GPS time
+CHUNK_SHOTS = 400_000
+
+#: truth.json units of the parameters it always lists (value converted from SI)
+TRUTH_UNITS = {"boresight_roll": "deg", "boresight_pitch": "deg", "boresight_yaw": "deg", "lever_arm_x": "m",
+               "lever_arm_y": "m", "lever_arm_z": "m", "range_offset": "m", "scan_angle_scale": "ratio"}
+
+
+@dataclass(frozen=True)
+class SurveyConfig:
+    """Everything a simulation needs; SI units (m, s, rad, Hz)."""
+
+    preset: str = "uav"
+    seed: int = 0
+    origin_deg: tuple[float, float, float] = (47.0, 8.0, 450.0)  #: scene origin lat, lon (deg), h (m)
+    scene: SceneSpec = field(default_factory=SceneSpec)
+    motion: MotionSpec = field(default_factory=MotionSpec)
+    height_agl_m: float = 80.0
+    side_overlap: float = 0.5
+    directions: str = "opposite"
+    half_fov_rad: float = np.radians(35.0)  #: linear scanners; rotating ones have their own cone
+    pulse_rate_hz: float = 20_000.0
+    scan_rate_hz: float = 50.0  #: mirror/polygon/rotation frequency
+    scan_pattern: str = "oscillating"  #: linear scanners: oscillating | polygon
+    nominal: Sensor = field(default_factory=lambda: Sensor(lever_arm_x=0.05, lever_arm_z=0.12))
+    errors: dict = field(default_factory=dict)  #: true − nominal per parameter name (SI)
+    range_noise_m: float = 0.01
+    angle_noise_rad: float = np.radians(0.002)
+    gnss_noise_m: float = 0.02
+    attitude_noise_rad: float = np.radians(0.002)
+    strip_error_sigma: tuple[float, float, float] = (0.0, 0.0, 0.0)  #: per-strip position bias m, drift m/s, attitude bias rad
+    density: float = 1.0  #: scales the pulse rate (and the scan rate by its square root)
+
+
+PRESETS: dict[str, SurveyConfig] = {
+    "uav": SurveyConfig(),
+    "airborne": SurveyConfig(
+        preset="airborne",
+        scene=SceneSpec(width_m=2500.0, length_m=1600.0, cell_m=4.0, relief_m=40.0, rough_sigma_m=0.6,
+                        building_density_per_km2=120.0, building_size_m=(15.0, 50.0), building_height_m=(4.0, 20.0),
+                        crown_radius_m=(2.0, 6.0)),
+        motion=MotionSpec(speed_mps=60.0, run_in_m=300.0, turn_radius_m=400.0, pitch_rad=np.radians(2.0),
+                          attitude_sigma_rad=np.radians(0.8), heading_sigma_rad=np.radians(1.5), turbulence_tau_s=1.5,
+                          along_sigma_m=4.0, across_sigma_m=3.0, vertical_sigma_m=2.0, wander_tau_s=10.0),
+        height_agl_m=1000.0, side_overlap=0.3, half_fov_rad=np.radians(20.0), pulse_rate_hz=20_000.0,
+        scan_rate_hz=40.0, nominal=Sensor(lever_arm_x=0.25, lever_arm_y=-0.10, lever_arm_z=0.45),
+        range_noise_m=0.02, gnss_noise_m=0.03,
+    ),
+}
+
+
+def survey_config(preset: str = "uav", **overrides) -> SurveyConfig:
+    """A preset (``uav`` ≈ 80 m above ground over 300 m × 300 m; ``airborne`` ≈ 1000 m over
+    2.5 km × 1.6 km) with fields replaced by ``overrides`` (see :class:`SurveyConfig`).
+
+    ``vegetation=FRACTION`` is accepted as a shortcut for the scene's vegetation fraction.
+    """
+    if preset not in PRESETS:
+        raise InputError(None, "preset", f"expected one of {', '.join(PRESETS)}, got {preset!r}")
+    cfg = PRESETS[preset]
+    if "vegetation" in overrides:
+        cfg = replace(cfg, scene=replace(cfg.scene, vegetation_fraction=float(overrides.pop("vegetation"))))
+    unknown = set(overrides) - set(SurveyConfig.__dataclass_fields__)
+    if unknown:
+        raise InputError(None, sorted(unknown)[0], f"unknown survey setting; expected one of {sorted(SurveyConfig.__dataclass_fields__)}")
+    return replace(cfg, **overrides)
+
+
+def check_config(cfg: SurveyConfig) -> None:
+    """Raise a clear :class:`InputError` for impossible settings."""
+    check_plan_inputs(cfg.height_agl_m, cfg.motion.speed_mps, cfg.side_overlap, cfg.half_fov_rad, cfg.directions)
+    positive = {"density": cfg.density, "pulse_rate_hz": cfg.pulse_rate_hz, "scan_rate_hz": cfg.scan_rate_hz}
+    for name, v in positive.items():
+        if not np.isfinite(v) or v <= 0:
+            raise InputError(None, name, f"expected a number > 0, got {v}")
+    for name in ("range_noise_m", "angle_noise_rad", "gnss_noise_m", "attitude_noise_rad"):
+        v = getattr(cfg, name)
+        if not np.isfinite(v) or v < 0:
+            raise InputError(None, name, f"expected a noise level >= 0, got {v}")
+    if not 0 <= cfg.scene.vegetation_fraction <= 0.8:
+        raise InputError(None, "vegetation", f"expected a fraction of the area in [0, 0.8], got {cfg.scene.vegetation_fraction}")
+    known = cfg.nominal.parameters()
+    for name, v in cfg.errors.items():
+        if name not in known:
+            raise InputError(None, "errors", f"unknown sensor parameter {name!r}; expected one of {sorted(known)}")
+        if not np.isfinite(v):
+            raise InputError(None, name, f"expected a finite error, got {v}")
+    if cfg.pulse_rate_hz * cfg.density > 5e6:
+        raise InputError(None, "density", f"pulse rate {cfg.pulse_rate_hz * cfg.density:.3g} Hz is beyond any scanner (max 5 MHz)")
+    if len(cfg.origin_deg) != 3 or not -80 <= cfg.origin_deg[0] <= 84:
+        raise InputError(None, "origin_deg", f"expected (lat, lon, h) with UTM latitude in [-80, 84], got {cfg.origin_deg}")
+
+
+def utm_crs(lat_deg: float, lon_deg: float) -> str:
+    """EPSG code of the WGS 84 UTM zone holding (lat, lon) in degrees."""
+    zone = int(np.floor((lon_deg + 180.0) / 6.0)) % 60 + 1
+    return f"EPSG:{(32600 if lat_deg >= 0 else 32700) + zone}"
+
+
+@dataclass(eq=False)
+class Strip:
+    """One delivered flight line, points in time order (returns of one pulse together)."""
+
+    line: FlightLine
+    xyz: np.ndarray  #: delivered coordinates in the output CRS (N, 3), m
+    ecef: np.ndarray  #: the same points in ECEF (N, 3), m
+    gps_time: np.ndarray  #: GPS week seconds (N,)
+    range_m: np.ndarray  #: measured range (N,), m
+    angles: np.ndarray  #: encoder angles (N,) or (N, k), rad
+    scan_angle_deg: np.ndarray  #: across-track beam angle of the nominal scanner (N,), deg
+    return_number: np.ndarray
+    number_of_returns: np.ndarray
+    classification: np.ndarray  #: 2 ground, 6 building, 5 vegetation
+    intensity: np.ndarray
+    surface: np.ndarray  #: building plane id, -1 terrain, -3 vegetation (N,)
+    true_enu: np.ndarray  #: the exact hit in the scene's ENU frame, before noise (N, 3), m
+
+    def __len__(self) -> int:
+        return self.gps_time.size
+
+    @property
+    def point_source_id(self) -> int:
+        return self.line.number
+
+
+@dataclass(eq=False)
+class SurveyResult:
+    """A simulated survey: scene, plan, trajectories, sensors and delivered strips."""
+
+    config: SurveyConfig
+    scene: Scene
+    lines: list[FlightLine]
+    trajectory_true: Trajectory
+    trajectory: Trajectory  #: the measured trajectory (what sbet.out holds)
+    nominal: Sensor  #: the sensor the strips were delivered with (sensor.toml)
+    truth: Sensor  #: the sensor that shot them
+    crs: str
+    strips: list[Strip]
+    strip_errors: list[dict]  #: per line: position bias (m, NED), drift (m/s, NED), attitude bias (rad)
+
+    @property
+    def n_points(self) -> int:
+        return sum(len(s) for s in self.strips)
+
+    def truth_dict(self) -> dict:
+        """The truth.json document (degrees, metres, ratios)."""
+        true, nominal = self.truth.parameters(), self.nominal.parameters()
+        names = list(TRUTH_UNITS) + [k for k in self.config.errors if k not in TRUTH_UNITS]
+        params = {}
+        for k in names:
+            if k not in true:
+                continue
+            unit = TRUTH_UNITS.get(k, "rad" if "angle" in k else "SI")
+            conv = np.degrees if unit in ("deg", "rad") else float
+            params[k] = {"value": float(conv(true[k])), "unit": "deg" if unit in ("deg", "rad") else unit,
+                         "nominal": float(conv(nominal[k]))}
+        c = self.config
+        return {
+            "parameters": params,
+            "noise": {"range_m": c.range_noise_m, "angle_deg": float(np.degrees(c.angle_noise_rad)),
+                      "gnss_position_m": c.gnss_noise_m, "attitude_deg": float(np.degrees(c.attitude_noise_rad))},
+            "strips": [{"point_source_id": ln.number, **{k: np.asarray(v).tolist() for k, v in e.items()}}
+                       for ln, e in zip(self.lines, self.strip_errors)],
+            "simulation": {"preset": c.preset, "seed": c.seed, "density": c.density, "directions": c.directions,
+                           "height_agl_m": c.height_agl_m, "crs": self.crs, "points": self.n_points},
+        }
+
+    def write(self, out_dir: str | Path, force: bool = False,
+              progress: Callable[[str, int, int], None] | None = None) -> Path:
+        """Write strips/line_NNN.laz, sbet.out, sensor.toml (nominal) and truth.json into ``out_dir``."""
+        from calidar.io.las import write_las
+        from calidar.io.sbet import write_sbet
+
+        out = prepare_out_dir(out_dir, force)
+        (out / "strips").mkdir(exist_ok=True)
+        for k, s in enumerate(self.strips):
+            write_las(out / "strips" / f"line_{s.line.number:03d}.laz", s.xyz, self.crs, gps_time=s.gps_time,
+                      scan_angle_deg=s.scan_angle_deg, point_source_id=s.line.number, return_number=s.return_number,
+                      number_of_returns=s.number_of_returns, classification=s.classification, intensity=s.intensity,
+                      force=force)
+            if progress:
+                progress("writing strips", k + 1, len(self.strips))
+        write_sbet(out / "sbet.out", self.trajectory, force=force)
+        self.nominal.write(out / "sensor.toml", force=force)
+        write_text_atomic(out / "truth.json", json.dumps(self.truth_dict(), indent=2) + "\n", force=force)
+        return out
+
+
+def _line_shots(cfg: SurveyConfig, sensor: Sensor, window: tuple[float, float], half_fov: float):
+    """Shot times (GPS s) and encoder angles (rad) over a scan window."""
+    prf = cfg.pulse_rate_hz * cfg.density
+    t = window[0] + np.arange(int((window[1] - window[0]) * prf)) / prf
+    return t, scan_angles(sensor.scanner, t, cfg.scan_rate_hz * np.sqrt(cfg.density), half_fov, cfg.scan_pattern)
+
+
+def _shoot(cfg, scene, traj_true, truth: Sensor, t, enc, rng):
+    """Cast the true beams; per return: pulse index, range (m), surface id, exact ENU hit."""
+    noisy = enc + rng.normal(0.0, cfg.angle_noise_rad, np.shape(enc)) if cfg.angle_noise_rad else enc
+    pos, q = traj_true.interpolate(t)
+    r_eb = frames.quat_to_matrix(q)
+    origin_e = pos + r_eb @ truth.lever_arm
+    dir_e = np.einsum("nij,nj->ni", r_eb, truth.scanner.directions(noisy) @ truth.r_bs.T)
+    o, d = scene.ecef_to_enu(origin_e), dir_e @ scene.r_e_enu
+    hits = cast(scene, o, d, 1.0 - rng.random(t.size))
+    solid, veg = np.isfinite(hits.t_solid), np.isfinite(hits.t_vegetation)
+    pulse = np.r_[np.flatnonzero(veg), np.flatnonzero(solid)]
+    rng_m = np.r_[hits.t_vegetation[veg], hits.t_solid[solid]]
+    surface = np.r_[np.full(veg.sum(), SURFACE_VEGETATION), hits.surface[solid]]
+    first = np.r_[np.ones(veg.sum(), bool), ~veg[solid]]
+    order = np.lexsort((~first, pulse))
+    pulse, rng_m, surface, first = pulse[order], rng_m[order], surface[order], first[order]
+    n_ret = (veg.astype(np.uint8) + solid)[pulse]
+    return pulse, rng_m, surface, np.where(first, 1, 2).astype(np.uint8), n_ret, o[pulse] + rng_m[:, None] * d[pulse]
+
+
+def _intensity(surface, range_m, ref_range_m, rng) -> np.ndarray:
+    """Plausible 16-bit intensities: class reflectance × (R₀/R)² with speckle."""
+    refl = np.where(surface == SURFACE_VEGETATION, 0.25, np.where(surface == SURFACE_TERRAIN, 0.35, 0.5))
+    val = refl * (ref_range_m / range_m) ** 2 * rng.uniform(0.8, 1.2, range_m.size)
+    return np.clip(val * 40000, 1, 65535).astype(np.uint16)
+
+
+def simulate_survey(cfg: SurveyConfig, progress: Callable[[str, int, int], None] | None = None) -> SurveyResult:
+    """Run the simulation described by ``cfg`` in memory (see the module docstring).
+
+    ``progress(description, done, total)`` is called as lines are simulated.
+    """
+    check_config(cfg)
+    ss = np.random.SeedSequence(cfg.seed)
+    rng_scene, rng_motion, rng_nav, rng_strip, rng_shots = (np.random.default_rng(s) for s in ss.spawn(5))
+    lat0, lon0, h0 = cfg.origin_deg
+    crs = utm_crs(lat0, lon0)
+    scene = build_scene(cfg.scene, int(rng_scene.integers(2**63)), np.radians(lat0), np.radians(lon0), h0)
+    nominal = replace(cfg.nominal, crs=crs)
+    params = nominal.parameters()
+    truth = nominal.with_parameters(**{k: params[k] + v for k, v in cfg.errors.items()})
+    half_fov = half_field_of_view(nominal.scanner, cfg.scan_rate_hz, cfg.half_fov_rad, cfg.scan_pattern)
+    lines = plan_lines(scene.extent, float(np.mean(scene.heights)), cfg.height_agl_m, half_fov, cfg.side_overlap,
+                       cfg.directions, cfg.motion.speed_mps)
+    traj_true, windows = fly(scene, lines, cfg.motion, rng_motion, GPS_WEEK_START_S)
+    sp, sd, sa = cfg.strip_error_sigma
+    strip_errors = [{"position_bias_m": rng_strip.normal(0, sp, 3), "drift_mps": rng_strip.normal(0, sd, 3),
+                     "attitude_bias_rad": rng_strip.normal(0, sa, 3)} for _ in lines]
+    offsets = [(a, b, e["position_bias_m"], e["drift_mps"], e["attitude_bias_rad"])
+               for (a, b), e in zip(windows, strip_errors) if any(np.any(v) for v in e.values())]
+    traj = measured_trajectory(traj_true, rng_nav, cfg.gnss_noise_m, cfg.attitude_noise_rad, offsets)
+
+    strips = []
+    for k, (line, window) in enumerate(zip(lines, windows)):
+        t_all, enc_all = _line_shots(cfg, nominal, window, cfg.half_fov_rad)
+        parts = []
+        for c0 in range(0, t_all.size, CHUNK_SHOTS):
+            t, enc = t_all[c0:c0 + CHUNK_SHOTS], enc_all[c0:c0 + CHUNK_SHOTS]
+            pulse, rho, surface, ret, n_ret, hit = _shoot(cfg, scene, traj_true, truth, t, enc, rng_shots)
+            measured = truth.measured_range(rho + rng_shots.normal(0.0, cfg.range_noise_m, rho.size))
+            ecef = georef.forward(traj, nominal, t[pulse], measured, enc[pulse])
+            u = nominal.scanner.directions(enc[pulse])
+            cls = np.where(surface == SURFACE_VEGETATION, CLASS_VEGETATION,
+                           np.where(surface == SURFACE_TERRAIN, CLASS_GROUND, CLASS_BUILDING)).astype(np.uint8)
+            parts.append(dict(ecef=ecef, gps_time=t[pulse], range_m=measured, angles=enc[pulse],
+                              scan_angle_deg=np.degrees(np.arctan2(u[:, 1], u[:, 2])), return_number=ret,
+                              number_of_returns=n_ret, classification=cls,
+                              intensity=_intensity(surface, rho, cfg.height_agl_m, rng_shots), surface=surface,
+                              true_enu=hit))
+        cat = {key: np.concatenate([p[key] for p in parts]) for key in parts[0]}
+        strips.append(Strip(line, georef.to_crs(cat["ecef"], crs), **cat))
+        if progress:
+            progress("simulating lines", k + 1, len(lines))
+    return SurveyResult(cfg, scene, lines, traj_true, traj, nominal, truth, crs, strips, strip_errors)
