@@ -17,7 +17,7 @@ from calidar import __version__
 from calidar.cli.common import err_console
 from calidar.errors import CalidarError
 
-COMMAND_MODULES: list[str] = ["simulate_survey", "demo"]
+COMMAND_MODULES: list[str] = ["simulate_survey", "demo", "quality", "boresight"]
 
 app = typer.Typer(
     name="calidar",

@@ -19,7 +19,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from calidar.adjust import Parameter, ParameterSet, Solution, solve
-from calidar.errors import CalibrationError, InputError
+from calidar.errors import CalibrationError, CalidarError, InputError
 from calidar.sensor import Sensor
 from calidar.strips.correspond import Correspondences
 from calidar.strips.distribute import map_pairs
@@ -119,8 +119,23 @@ def _matcher(method: str, settings: StripSettings) -> tuple[Callable, object]:
     if method == "vgicp":
         from calidar.strips.vgicp import match_pair_vgicp
 
-        return match_pair_vgicp, settings.vgicp
+        from calidar.strips.vgicp import VgicpSettings
+
+        return match_pair_vgicp, settings.vgicp or VgicpSettings()
     raise InputError(None, "--method", f"expected one of {list(METHODS)}, got {method!r}")
+
+
+def _match_or_error(match: Callable, strip_a_id, points_a, strip_b_id, points_b, settings):
+    """``match(...)``, or the user-facing error it raised for this pair (picklable, for map_pairs)."""
+    try:
+        return match(strip_a_id, points_a, strip_b_id, points_b, settings)
+    except CalidarError as e:
+        return e
+
+
+def _mean_distance(c: Correspondences, r: np.ndarray) -> np.ndarray:
+    """Distances (m) of each correspondence from its residuals."""
+    return np.abs(r) if c.normal is not None else np.linalg.norm(r.reshape(-1, 3), axis=1)
 
 
 def _to_strip_columns(c: Correspondences, ov: Overlap, n_a: int, n_b: int) -> Correspondences:
@@ -132,10 +147,38 @@ def _to_strip_columns(c: Correspondences, ov: Overlap, n_a: int, n_b: int) -> Co
     return replace(c, A=widen(c.A, ov.index_a, n_a), B=widen(c.B, ov.index_b, n_b))
 
 
-class _Problem:
-    """Residuals of all correspondences for given parameter values, with cached poses."""
+class _Centroids:
+    """C = A · P(θ) for one side of a correspondence set, in O(n_obs) per evaluation.
 
-    def __init__(self, nominal: Sensor, strips: dict[int, Strip], corrs: list[Correspondences]):
+    With P = r + R_lb · (R_bs · v_s + a_b) and v_s = (ρ_m − offset) / (1 + scale) · u (the
+    lidar equation with the sensor's range model), the averages of r, R_lb, R_lb·ρ_m·u and
+    R_lb·u are taken once; boresight, lever arm, range offset/scale and trajectory biases
+    then act on them exactly. (Scanner-angle parameters change u: see ``_Problem``.)
+    """
+
+    def __init__(self, A: sp.csr_matrix, pose: Pose, nominal: Sensor):
+        n = A.shape[0]
+        u = nominal.scanner.directions(pose.angles)
+        self.rowsum = np.asarray(A.sum(axis=1)).ravel()
+        self.r = A @ pose.position
+        self.R = (A @ pose.r_lb.reshape(-1, 9)).reshape(n, 3, 3)
+        self.M_rho = np.empty((n, 3, 3, 3))
+        self.M_u = np.empty((n, 3, 3, 3))
+        for k in range(3):
+            self.M_u[..., k] = (A @ (pose.r_lb * u[:, None, None, k]).reshape(-1, 9)).reshape(n, 3, 3)
+            self.M_rho[..., k] = (A @ (pose.r_lb * (pose.range_m * u[:, k])[:, None, None]).reshape(-1, 9)).reshape(n, 3, 3)
+
+    def __call__(self, sensor: Sensor, bias) -> np.ndarray:
+        M = (self.M_rho - sensor.range_offset * self.M_u) / (1.0 + sensor.range_scale)
+        n = M.shape[0]
+        return (self.r + (M.reshape(n * 3, 9) @ sensor.r_bs.ravel()).reshape(n, 3) + self.R @ sensor.lever_arm
+                + self.rowsum[:, None] * bias)
+
+
+class _Problem:
+    """Residuals of all correspondences for given parameter values (SI), with cached poses."""
+
+    def __init__(self, nominal: Sensor, strips: dict[int, Strip], corrs: list[Correspondences], free: Sequence[str]):
         self.nominal = nominal
         used: dict[int, list[np.ndarray]] = {}
         for c in corrs:
@@ -152,11 +195,26 @@ class _Problem:
         self.sigma = np.concatenate([
             np.repeat(np.broadcast_to(np.asarray(c.sigma_m, float), (c.n_obs,)), 3 if c.normal is None else 1)
             for c in self.corrs])
+        scanner_free = set(free) & set(nominal.scanner.parameters())
+        self.centroids = None if scanner_free else [
+            (_Centroids(c.A, self.pose[c.strip_a], nominal), _Centroids(c.B, self.pose[c.strip_b], nominal))
+            for c in self.corrs]
+
+    def split(self, r: np.ndarray) -> list[tuple[Correspondences, np.ndarray]]:
+        """The residual vector cut into each pair's part."""
+        sizes = [c.n_obs * (3 if c.normal is None else 1) for c in self.corrs]
+        return list(zip(self.corrs, np.split(r, np.cumsum(sizes)[:-1])))
 
     def __call__(self, values: dict[str, float]) -> np.ndarray:
         sensor, biases = _sensor_and_biases(self.nominal, values)
-        pts = {i: georeference_pose(sensor, p) + biases.get(i, 0.0) for i, p in self.pose.items()}
-        return np.concatenate([c.residuals(pts[c.strip_a], pts[c.strip_b]) for c in self.corrs])
+        if self.centroids is None:  # scanner parameters free: re-georeference every referenced point
+            pts = {i: georeference_pose(sensor, p) + biases.get(i, 0.0) for i, p in self.pose.items()}
+            return np.concatenate([c.residuals(pts[c.strip_a], pts[c.strip_b]) for c in self.corrs])
+        out = []
+        for c, (ca, cb) in zip(self.corrs, self.centroids):
+            d = ca(sensor, biases.get(c.strip_a, 0.0)) - cb(sensor, biases.get(c.strip_b, 0.0))
+            out.append(d.ravel() if c.normal is None else np.einsum("ij,ij->i", d, c.normal))
+        return np.concatenate(out)
 
 
 def geometry_warnings(strips: Sequence[Strip], pairs: Sequence[tuple[int, int]], free: Sequence[str]) -> list[str]:
@@ -196,6 +254,7 @@ def calibrate(strips: Sequence[Strip], nominal: Sensor, *, method: str = "planes
     estimate = parse_estimate(estimate)
     say = progress or (lambda msg: None)
     match, match_settings = _matcher(method, s)
+    what = "tie planes" if method == "planes" else "correspondences"
     by_id = {st.id: st for st in strips}
     if len(by_id) != len(strips):
         raise InputError(None, "strips", "two strips share an id; flight-line ids must be unique")
@@ -219,30 +278,30 @@ def calibrate(strips: Sequence[Strip], nominal: Sensor, *, method: str = "planes
             idx, pts = current[i]
             return pts[np.searchsorted(idx, index)]
 
-        tasks = [(o.a, subset(o.a, o.index_a), o.b, subset(o.b, o.index_b), match_settings) for o in overlaps]
+        tasks = [(match, o.a, subset(o.a, o.index_a), o.b, subset(o.b, o.index_b), match_settings) for o in overlaps]
         say(f"iteration {k + 1}: matching {len(tasks)} pairs ({method})")
-        found = map_pairs(match, tasks, scheduler, workers)
+        found = map_pairs(_match_or_error, tasks, scheduler, workers)
         corrs, pairs, skipped = [], [], []
         for o, c in zip(overlaps, found):
+            if isinstance(c, CalidarError):
+                skipped.append(f"{o.a}–{o.b}: {c}")
+                continue
             if c.n_obs < s.min_correspondences:
-                skipped.append(f"{o.a}–{o.b} ({c.n_obs})")
+                skipped.append(f"{o.a}–{o.b}: only {c.n_obs} {what}, need {s.min_correspondences}")
                 continue
             corrs.append(_to_strip_columns(c, o, len(by_id[o.a]), len(by_id[o.b])))
             pairs.append({"a": o.a, "b": o.b, "n_obs": c.n_obs})
         if k == 0 and skipped:
-            warnings.append(f"strip pairs skipped for too few correspondences (fewer than {s.min_correspondences}): "
-                            + ", ".join(skipped))
+            warnings.append("strip pairs skipped: " + "; ".join(skipped))
         if not corrs:
-            raise CalibrationError(
-                f"no usable strip pair: every overlapping pair has fewer than {s.min_correspondences} "
-                f"{'tie planes' if method == 'planes' else 'correspondences'} ({', '.join(skipped)})")
-        problem = _Problem(nominal, by_id, corrs)
+            raise CalibrationError("no usable strip pair: " + "; ".join(skipped))
+        problem = _Problem(nominal, by_id, corrs, params.free_names)
         say(f"iteration {k + 1}: solving {problem.sigma.size} observations")
         solution = solve(problem, params, sigma=problem.sigma, robust=s.robust)
         if first_residuals is None:
             first_residuals = problem(params.values())
         params = solution.parameters
-        mean = float(np.mean(np.abs(solution.residuals)))
+        mean = float(np.mean(np.concatenate([_mean_distance(c, r) for c, r in problem.split(solution.residuals)])))
         outer.append({"iteration": k + 1, "mean_distance_m": mean, "n_obs": int(problem.sigma.size),
                       "n_pairs": len(corrs), "values": params.values()})
         if prev_mean is not None and abs(prev_mean - mean) < s.threshold_m:
@@ -259,3 +318,20 @@ def calibrate(strips: Sequence[Strip], nominal: Sensor, *, method: str = "planes
         {kk: v for kk, v in o.items() if kk != "values"} for o in outer]}
     return CalibrationResult(solution, sensor, nominal, list(strips), overlaps, method, pairs,
                              first_residuals, solution.residuals, outer, biases)
+
+
+def truth_to_si(doc: dict, params: ParameterSet) -> dict[str, float]:
+    """A truth.json document (display units: deg, m, ppm, as solution.json) → SI values by name.
+
+    Values are read from ``doc["parameters"]`` (or ``doc`` itself), each a number or
+    {"value": ...}; names the parameters do not know are ignored.
+    """
+    doc = doc.get("parameters", doc) if isinstance(doc.get("parameters"), dict) else doc
+    out = {}
+    for p in params:
+        v = doc.get(p.name)
+        if isinstance(v, dict):
+            v = v.get("value")
+        if isinstance(v, (int, float)) and not isinstance(v, bool):
+            out[p.name] = float(v) / p.to_display(1.0)
+    return out

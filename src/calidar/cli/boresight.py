@@ -1,0 +1,127 @@
+"""``calidar boresight``: boresight / lever-arm / range calibration from overlapping strips."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import typer
+
+from calidar.cli.common import console, err_console
+from calidar.errors import InputError
+
+
+def load_strips(paths, trajectory, sensor):
+    """Flight lines of the LAS/LAZ files as Strips in one local frame (times in the trajectory's system)."""
+    from calidar.georef import from_crs
+    from calidar.io.las import adjusted_standard_to_week_seconds
+    from calidar.strips.lines import read_flight_lines
+    from calidar.strips.strip import LocalFrame, Strip
+
+    lines, _ = read_flight_lines(paths, crs=None)
+    first = next(iter(lines.values()))
+    crs = first.crs if first.crs is not None else sensor.crs
+    if crs is None:
+        raise InputError(first.path, "crs", "the file has no CRS and sensor.toml gives none; expected one of them")
+    ecef = {i: from_crs(p.xyz, crs) for i, p in lines.items()}
+    frame = LocalFrame.at(np.concatenate([e[:: max(1, len(e) // 20000)] for e in ecef.values()]))
+    strips = []
+    for i, p in lines.items():
+        t = p.gps_time
+        if p.time_system != trajectory.time_system:
+            if p.time_system == "gps_adjusted_standard":
+                t = adjusted_standard_to_week_seconds(t, p.path)[0]
+            else:
+                raise InputError(p.path, "gps_time", "holds GPS week seconds but the trajectory holds adjusted "
+                                 "standard GPS time; expected the same time system")
+        strips.append(Strip.from_ecef(i, ecef[i], t, trajectory, sensor, frame, str(p.path), las=p))
+    return strips, crs
+
+
+def write_strips(result, crs, out_dir: Path, force: bool) -> list[Path]:
+    """Recalibrated strips as LAZ (one per flight line), attributes and GPS times as read."""
+    from calidar.georef import to_crs
+    from calidar.io.las import write_las
+
+    paths = []
+    for s in result.strips:
+        las = s.extra["las"]
+        xyz = to_crs(s.frame.to_ecef(result.georeference(s)), crs)
+        paths.append(write_las(out_dir / f"strip_{s.id}.laz", xyz, crs, gps_time=las.gps_time,
+                               scan_angle_deg=las.scan_angle_deg if las.scan_angle_deg is not None else np.zeros(len(s)),
+                               point_source_id=s.id, return_number=las.return_number,
+                               number_of_returns=las.number_of_returns, classification=las.classification,
+                               intensity=las.intensity, time_system=las.time_system, force=force))
+    return paths
+
+
+def register(app: typer.Typer, simulate: typer.Typer) -> None:
+    @app.command("boresight")
+    def boresight(
+        strips: list[Path] = typer.Argument(..., help="LAS/LAZ strips (flight lines from point_source_id or time gaps)."),
+        trajectory: Path = typer.Option(..., "--trajectory", help="Trajectory: SBET or text."),
+        sensor: Path = typer.Option(..., "--sensor", help="Nominal sensor.toml the strips were georeferenced with."),
+        method: str = typer.Option("planes", "--method", help="Correspondences: planes | vgicp."),
+        estimate: str = typer.Option("boresight", "--estimate",
+                                     help="Comma-separated: boresight, lever_arm, range_offset, range_scale, "
+                                          "scan_angle_scale, scan_angle_offset, trajectory_bias."),
+        truth: Path | None = typer.Option(None, "--truth", help="truth.json of a simulation (adds truth and errors)."),
+        scheduler: str | None = typer.Option(None, "--scheduler", help="Dask scheduler address for the pair matching."),
+        workers: int | None = typer.Option(None, "--workers", help="Start a local Dask cluster with N workers."),
+        out: Path = typer.Option(..., "--out", help="Output folder."),
+        force: bool = typer.Option(False, "--force", help="Write into a non-empty output folder."),
+        write_strips_: bool = typer.Option(False, "--write-strips", help="Also write the recalibrated strips (LAZ)."),
+    ) -> None:
+        """Calibrate the mounting (and more) from overlapping strips; writes solution.json, sensor.toml, report.html."""
+        from calidar.io.trajectory import read_trajectory
+        from calidar.outputs import prepare_out_dir
+        from calidar.report import Report
+        from calidar.sensor import Sensor
+        from calidar.strips.calibrate import build_parameters, calibrate, parse_estimate, truth_to_si
+        from calidar.strips.report import add_report_section
+
+        groups = parse_estimate(estimate)
+        truth_si = None
+        if truth is not None:
+            try:
+                truth_doc = json.loads(truth.read_text(encoding="utf-8"))
+            except FileNotFoundError:
+                raise InputError(truth, None, "file not found") from None
+            except json.JSONDecodeError as e:
+                raise InputError(truth, None, f"not valid JSON ({e})") from None
+        out_dir = prepare_out_dir(out, force)
+        nominal = Sensor.read(sensor)
+        traj = read_trajectory(trajectory)
+        strip_list, crs = load_strips(strips, traj, nominal)
+        if truth is not None:
+            truth_si = truth_to_si(truth_doc, build_parameters(nominal, groups, [s.id for s in strip_list]))
+        with err_console.status("calibrating…") as status:
+            result = calibrate(strip_list, nominal, method=method, estimate=groups, scheduler=scheduler,
+                               workers=workers, progress=lambda m: status.update(m))
+        result.solution.write_json(out_dir / "solution.json", truth_si)
+        result.sensor.write(out_dir / "sensor.toml", force=True)
+        report = Report("calidar boresight")
+        add_report_section(report, result, truth_si)
+        report.write(out_dir / "report.html")
+        if write_strips_:
+            write_strips(result, crs, out_dir, force)
+        _print(result, truth_si)
+        console.print(f"wrote {out_dir}/solution.json, sensor.toml, report.html"
+                      + (" and recalibrated strips" if write_strips_ else ""))
+
+
+def _print(result, truth_si) -> None:
+    from rich.table import Table
+
+    doc = result.solution.to_dict(truth_si)
+    table = Table(title=f"Strip calibration ({result.method}), {len(result.pairs)} pairs")
+    for h in ("parameter", "value", "σ", "unit", "truth", "error"):
+        table.add_column(h, justify="right")
+    g = lambda v: "—" if v is None else f"{v:.6g}"  # noqa: E731
+    for name, p in doc["parameters"].items():
+        if p["free"]:
+            table.add_row(name, g(p["value"]), g(p["sigma"]), p["unit"], g(p.get("truth")), g(p.get("error")))
+    console.print(table)
+    for w in result.warnings:
+        console.print(f"[yellow]warning:[/] {w}", highlight=False)

@@ -1,0 +1,97 @@
+"""``calidar quality``: vertical and planimetric agreement of overlapping flight lines."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import typer
+
+from calidar.cli.common import console
+from calidar.errors import InputError
+
+
+def line_coordinates(points) -> np.ndarray:
+    """Metric coordinates (N, 3) with z up: the file's projected CRS, or local ENU for geographic CRSs."""
+    if points.crs is not None and points.crs.is_geographic:
+        from calidar.georef import from_crs
+        from calidar.strips.strip import LocalFrame
+
+        ecef = from_crs(points.xyz, points.crs)
+        return LocalFrame.at(ecef).to_local(ecef)
+    return points.xyz
+
+
+def usable(points) -> np.ndarray:
+    """Mask of points fit for the swath difference: no vegetation/noise/water classes, last returns."""
+    from calidar.strips.quality import EXCLUDED_CLASSES
+
+    keep = np.ones(len(points), bool)
+    if points.classification is not None:
+        keep &= ~np.isin(points.classification, EXCLUDED_CLASSES)
+    if points.return_number is not None and points.number_of_returns is not None:
+        keep &= points.return_number >= points.number_of_returns
+    return keep
+
+
+def measure(paths, cell_m=None):
+    """Flight lines of the files and the PairQuality of every overlapping pair."""
+    from calidar.strips.lines import read_flight_lines
+    from calidar.strips.overlap import find_overlaps
+    from calidar.strips.quality import QualitySettings, swath_difference
+
+    lines, how = read_flight_lines(paths)
+    if len(lines) < 2:
+        raise InputError(paths[0], "point_source_id",
+                         f"found one flight line ({how}); expected at least two overlapping lines")
+    coords = {i: line_coordinates(p)[usable(p)] for i, p in lines.items()}
+    pairs, notes = find_overlaps(coords)
+    if not pairs:
+        raise InputError(None, "STRIPS", f"none of the {len(lines)} flight lines ({', '.join(map(str, lines))}) "
+                         "overlap another; nothing to compare")
+    settings = QualitySettings(cell_m=cell_m)
+    results = [swath_difference(o.a, coords[o.a][o.index_a], o.b, coords[o.b][o.index_b], settings) for o in pairs]
+    return lines, how, results, notes
+
+
+def register(app: typer.Typer, simulate: typer.Typer) -> None:
+    @app.command("quality")
+    def quality(
+        strips: list[Path] = typer.Argument(..., help="LAS/LAZ files (one or several flight lines each)."),
+        as_json: bool = typer.Option(False, "--json", help="Print the per-pair results as JSON."),
+        out: Path | None = typer.Option(None, "--out", help="Folder for quality.json and dz rasters (GeoTIFF, PNG)."),
+        cell: float | None = typer.Option(None, "--cell", help="Grid cell of the difference, m (default 2 m or coarser when sparse)."),
+        force: bool = typer.Option(False, "--force", help="Write into a non-empty --out folder."),
+    ) -> None:
+        """Swath-overlap differences between flight lines (dz = a − b): median, RMSDz, max, planimetric offsets."""
+        from calidar.outputs import prepare_out_dir, write_text_atomic
+        from calidar.strips.quality import write_rasters
+
+        if cell is not None and not cell > 0:
+            raise InputError(None, "--cell", f"expected a positive cell size in metres, got {cell}")
+        out_dir = prepare_out_dir(out, force) if out else None
+        lines, how, results, notes = measure(strips, cell)
+        doc = {"lines_from": how, "pairs": [q.to_dict() for q in results], "notes": notes}
+        if out_dir:
+            crs = next(iter(lines.values())).crs
+            for q in results:
+                write_rasters(q, out_dir, crs if crs is not None and not crs.is_geographic else None, force=True)
+            write_text_atomic(out_dir / "quality.json", json.dumps(doc, indent=2) + "\n")
+        if as_json:
+            print(json.dumps(doc, indent=2))
+            return
+        from rich.table import Table
+
+        table = Table(title=f"Swath-overlap differences (flight lines from {how}; dz = a − b)")
+        for h in ("a", "b", "cells", "median dz [m]", "RMSDz [m]", "max |dz| [m]", "dx [m]", "dy [m]"):
+            table.add_column(h, justify="right")
+        f = lambda v: "—" if v is None else f"{v:+.3f}"  # noqa: E731
+        for q in results:
+            table.add_row(str(q.a), str(q.b), str(q.n_cells), f(q.median_dz_m), f(q.rmsdz_m), f(q.max_abs_dz_m),
+                          f(q.dx_m), f(q.dy_m))
+        console.print(table)
+        for n in notes:
+            console.print(f"note: {n}")
+        if out_dir:
+            console.print(f"wrote {out_dir}/quality.json and dz rasters")

@@ -1,0 +1,58 @@
+"""Flight lines from LAS/LAZ files: by point_source_id, or by gaps in GPS time when ids are missing."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pyproj
+
+from calidar.errors import InputError
+from calidar.io.las import OPTIONAL_FIELDS, LasPoints, read_las
+
+GAP_S = 10.0  #: a pause in GPS time longer than this starts a new flight line (s)
+
+
+def line_ids(point_source_id: np.ndarray | None, gps_time: np.ndarray, gap_s: float = GAP_S) -> tuple[np.ndarray, str]:
+    """One flight-line id per point and how they were found ("point_source_id" or "gps_time_gaps").
+
+    Ids come from point_source_id when it holds at least two distinct values; otherwise
+    lines are numbered 1, 2, … in time order, split where GPS time jumps by more than gap_s.
+    """
+    if point_source_id is not None and np.unique(point_source_id).size >= 2:
+        return np.asarray(point_source_id, np.int64), "point_source_id"
+    order = np.argsort(gps_time, kind="stable")
+    starts = np.r_[0, np.flatnonzero(np.diff(gps_time[order]) > gap_s) + 1]
+    ids = np.empty(gps_time.size, np.int64)
+    ids[order] = np.repeat(np.arange(1, starts.size + 1), np.diff(np.r_[starts, gps_time.size]))
+    return ids, "gps_time_gaps"
+
+
+def read_flight_lines(paths: Sequence[str | Path], crs=None, gap_s: float = GAP_S) -> tuple[dict[int, LasPoints], str]:
+    """Read LAS/LAZ files and split their points into flight lines {id: points}.
+
+    All files must share one CRS and one GPS time system (clear errors otherwise).
+    """
+    if not paths:
+        raise InputError(None, "STRIPS", "expected at least one LAS/LAZ file")
+    clouds = [read_las(p, crs=crs) for p in paths]
+    first = clouds[0]
+    for c in clouds[1:]:
+        if (c.crs is None) != (first.crs is None) or (c.crs is not None and not c.crs.equals(first.crs, ignore_axis_order=True)):
+            raise InputError(c.path, "crs", f"expected the CRS of {first.path.name} ({_name(first.crs)}), got {_name(c.crs)}")
+        if c.time_system != first.time_system:
+            raise InputError(c.path, "gps_time", f"expected {first.time_system} like {first.path.name}, got {c.time_system}")
+    merged = first
+    if len(clouds) > 1:
+        fields = {f: None if any(getattr(c, f) is None for c in clouds) else np.concatenate([getattr(c, f) for c in clouds])
+                  for f in OPTIONAL_FIELDS}
+        merged = replace(first, xyz=np.concatenate([c.xyz for c in clouds]),
+                         gps_time=np.concatenate([c.gps_time for c in clouds]), **fields)
+    ids, how = line_ids(merged.point_source_id, merged.gps_time, gap_s)
+    return {int(i): merged.select(ids == i) for i in np.unique(ids)}, how
+
+
+def _name(crs: pyproj.CRS | None) -> str:
+    return "none" if crs is None else (f"EPSG:{crs.to_epsg()}" if crs.to_epsg() else crs.name)
