@@ -9,8 +9,9 @@ The pairs index the *un-registered* strips, so the calibrator's residual
 
 Residual kinds (see :mod:`calidar.strips.correspond`):
 - ``point_to_plane`` (default): distance along the normal of strip a at the pair, normals
-  from small_gicp's covariance estimation; only locally planar points are kept, so clutter
-  such as vegetation yields few pairs. Better conditioned on surfaces.
+  from small_gicp's covariance estimation; only pairs on locally planar surfaces of a whose
+  b point lies near a's plane once registered are kept, so clutter such as vegetation
+  yields few pairs. Better conditioned on surfaces.
 - ``point_to_point``: the 3-D difference of the pair, as the method describes; its noise
   includes the point spacing.
 
@@ -27,6 +28,7 @@ import numpy as np
 import scipy.sparse as sp
 import small_gicp
 
+from calidar.errors import CalibrationError
 from calidar.strips.correspond import Correspondences
 
 KINDS = ("point_to_plane", "point_to_point")
@@ -39,15 +41,16 @@ class VgicpSettings:
     kind: str = "point_to_plane"  #: "point_to_plane" | "point_to_point"
     voxel_m: tuple[float, ...] = (8.0, 2.0, 1.0)  #: VGICP voxel sizes, coarse to fine
     downsampling_ratio: float = 0.5  #: registration downsampling = ratio × voxel size ...
-    max_registration_points: int = 40_000  #: ... coarsened so the overlap holds about this many
-    num_neighbors: int = 20  #: neighbours for small_gicp's covariance / normal estimation
+    max_registration_points: int = 10_000  #: ... coarsened so the overlap holds about this many
+    num_neighbors: int = 12  #: neighbours for small_gicp's covariance / normal estimation
     max_iterations: int = 30  #: per registration stage
     overlap_cell_m: float = 5.0  #: xy cell of the overlap test
     min_overlap_points: int = 500  #: fewer points of either strip in the overlap → skip
     pair_distance_m: float | None = None  #: max pair distance after registration; None: 1.5 × b's point spacing
     max_pairs: int = 2000  #: at most this many pairs per strip pair, spread on an xy grid
     min_pairs: int = 50  #: fewer usable pairs → the pair is skipped
-    max_surface_variation: float = 0.01  #: point_to_plane: λ_min / Σλ of the local covariance
+    max_surface_variation: float = 0.003  #: point_to_plane: λ_min / Σλ of the local covariance
+    max_plane_distance_m: float = 0.3  #: point_to_plane: max distance of b's point from a's plane after registration
     sigma_m: float = 0.05  #: a-priori σ of one residual
     num_threads: int = 1  #: small_gicp threads (1 is bit-reproducible; see docs)
 
@@ -90,16 +93,22 @@ def register(points_a: np.ndarray, points_b: np.ndarray, settings: VgicpSettings
     covariances) and its KdTree.
     """
     min_down = np.sqrt(area_m2 / settings.max_registration_points)
-    downs = [max(settings.downsampling_ratio * v, min_down) for v in settings.voxel_m]
+    stages = []  # (voxel, downsampling) m, coarse to fine; sparse data merge the finest stages
+    for voxel in settings.voxel_m:
+        down = max(settings.downsampling_ratio * voxel, min_down)
+        stage = (max(voxel, 2.0 * down), down)
+        if stage not in stages:
+            stages.append(stage)
+    finest = min(d for _, d in stages)
     # one pass over the full strips at the finest resolution; coarser stages start from it
-    fine_a = small_gicp.voxelgrid_sampling(points_a, min(downs), settings.num_threads).points()
-    fine_b = small_gicp.voxelgrid_sampling(points_b, min(downs), settings.num_threads).points()
+    fine_a = small_gicp.voxelgrid_sampling(points_a, finest, settings.num_threads).points()
+    fine_b = small_gicp.voxelgrid_sampling(points_b, finest, settings.num_threads).points()
     T = np.eye(4)
     result = target = tree = None
-    for voxel, down in zip(settings.voxel_m, downs):
+    for voxel, down in stages:
         target, tree = small_gicp.preprocess_points(fine_a, down, settings.num_neighbors, settings.num_threads)
         source, _ = small_gicp.preprocess_points(fine_b, down, settings.num_neighbors, settings.num_threads)
-        voxelmap = small_gicp.GaussianVoxelMap(max(voxel, 2.0 * down))
+        voxelmap = small_gicp.GaussianVoxelMap(voxel)
         voxelmap.insert(target)
         result = small_gicp.align(voxelmap, source, T, max_correspondence_distance=2.0 * voxel,
                                   num_threads=settings.num_threads, max_iterations=settings.max_iterations,
@@ -119,21 +128,17 @@ def _spread(points: np.ndarray, n_max: int, area_m2: float) -> np.ndarray:
     return np.sort(first)
 
 
-def _normals(cloud, tree, at: np.ndarray, num_threads: int) -> tuple[np.ndarray, np.ndarray]:
-    """Unit normals at points ``at`` (m) and their surface variation λ_min/Σλ, from the
-    covariance small_gicp estimated at the nearest point of ``cloud`` (KdTree ``tree``)."""
-    idx, _ = tree.batch_knn_search(at, 1, num_threads=num_threads)
-    covs = np.stack([cloud.cov(int(i))[:3, :3] for i in idx[:, 0]])
-    eigval, eigvec = np.linalg.eigh(covs)  # ascending
+def _normals(points: np.ndarray, at: np.ndarray, k: int, num_threads: int) -> tuple[np.ndarray, np.ndarray]:
+    """Unit normals of the surface of ``points`` at ``at`` (both (·, 3) m) and its surface
+    variation λ_min/Σλ, from the covariance of the k nearest full-resolution points
+    (small_gicp KdTree); full resolution keeps the normal local to the pair."""
+    tree = small_gicp.KdTree(points, num_threads=num_threads)
+    idx, _ = tree.batch_knn_search(at, k, num_threads=num_threads)
+    nb = points[idx.astype(np.int64)]
+    nb = nb - nb.mean(axis=1, keepdims=True)
+    eigval, eigvec = np.linalg.eigh(np.einsum("mki,mkj->mij", nb, nb))  # ascending
     variation = eigval[:, 0] / np.maximum(eigval.sum(axis=1), 1e-300)
     return eigvec[:, :, 0], variation
-
-
-def _none(strip_a_id: int, n_a: int, strip_b_id: int, n_b: int, settings: VgicpSettings) -> Correspondences:
-    """No correspondences: the calibrator skips the pair with a warning naming it."""
-    normal = np.zeros((0, 3)) if settings.kind == "point_to_plane" else None
-    return Correspondences(strip_a_id, strip_b_id, sp.csr_matrix((0, n_a)), sp.csr_matrix((0, n_b)), normal,
-                           sigma_m=settings.sigma_m, method="vgicp")
 
 
 def match_pair_vgicp(strip_a_id: int, points_a: np.ndarray, strip_b_id: int, points_b: np.ndarray,
@@ -143,16 +148,18 @@ def match_pair_vgicp(strip_a_id: int, points_a: np.ndarray, strip_b_id: int, poi
     points_a, points_b: (N, 3) float64, the strips re-georeferenced with the current
     parameters in a local Cartesian frame (m); settings None → :class:`VgicpSettings`.
     Returns at most ``settings.max_pairs`` point pairs (one 1.0 per row of A and B) spread
-    over the overlap; none when either strip has fewer than ``min_overlap_points`` in the
-    overlap or fewer than ``min_pairs`` pairs are found (the calibrator then skips the pair
-    with a warning naming it).
+    over the overlap. Raises CalibrationError (the calibrator skips the pair with a warning
+    naming it) when either strip has fewer than ``min_overlap_points`` in the overlap or
+    fewer than ``min_pairs`` pairs are found.
     """
     settings = settings or VgicpSettings()
     points_a = np.asarray(points_a, dtype=np.float64)
     points_b = np.asarray(points_b, dtype=np.float64)
     in_a, in_b, area = overlap_masks(points_a, points_b, settings.overlap_cell_m)
-    if min(in_a.sum(), in_b.sum()) < settings.min_overlap_points:
-        return _none(strip_a_id, len(points_a), strip_b_id, len(points_b), settings)
+    n_a, n_b = int(in_a.sum()), int(in_b.sum())
+    if min(n_a, n_b) < settings.min_overlap_points:
+        raise CalibrationError(f"too little overlap for VGICP ({n_a} and {n_b} points in {area:.0f} m², "
+                               f"need {settings.min_overlap_points} of each strip)")
     idx_a, idx_b = np.flatnonzero(in_a), np.flatnonzero(in_b)
     origin = points_a[idx_a].mean(axis=0)
     ov_a, ov_b = points_a[idx_a] - origin, points_b[idx_b] - origin
@@ -166,15 +173,19 @@ def match_pair_vgicp(strip_a_id: int, points_a: np.ndarray, strip_b_id: int, poi
     nn, d2 = tree.batch_knn_search(ov_a[cand], 1, num_threads=settings.num_threads)
     nn, dist = nn[:, 0].astype(np.int64), np.sqrt(d2[:, 0])
     spacing = np.sqrt(area / len(idx_b))  # mean point spacing of b in the overlap, m
-    keep = dist < (settings.pair_distance_m or 1.5 * spacing)
+    threshold = settings.pair_distance_m or 1.5 * spacing
+    keep = dist < threshold
     normal = None
     if settings.kind == "point_to_plane":
-        n, variation = _normals(cloud_a, tree_a, ov_a[cand], settings.num_threads)
-        keep &= variation < settings.max_surface_variation
+        n, variation = _normals(ov_a, ov_a[cand], settings.num_neighbors, settings.num_threads)
+        off_plane = np.abs(np.einsum("ij,ij->i", ov_a[cand] - b_on_a[nn], n))
+        keep &= (variation < settings.max_surface_variation) & (off_plane < settings.max_plane_distance_m)
         normal = n[keep]
     n_pairs = int(keep.sum())
     if n_pairs < settings.min_pairs:
-        return _none(strip_a_id, len(points_a), strip_b_id, len(points_b), settings)
+        where = " on planar surfaces" if normal is not None else ""
+        raise CalibrationError(f"too few VGICP correspondences ({n_pairs} closer than {threshold:.2f} m{where} "
+                               f"after registration, need {settings.min_pairs})")
     rows = np.arange(n_pairs)
     ones = np.ones(n_pairs)
     A = sp.csr_matrix((ones, (rows, idx_a[cand[keep]])), shape=(n_pairs, points_a.shape[0]))
