@@ -62,6 +62,7 @@ def solve(
     tol: float = 1e-10,
     robust_scale: bool = True,
     progress: Callable[[int, float], None] | None = None,
+    clusters: np.ndarray | None = None,
 ) -> Solution:
     """Least-squares estimate of the free parameters of ``params``.
 
@@ -69,7 +70,11 @@ def solve(
     sigma: a-priori σ of the observations (scalar or (n,)); jacobian_fn: analytic Jacobian
     (n, n_free) or None for central differences; robust: "cauchy" (default, for clutter), "huber" or None;
     robust_scale: re-estimate the residual scale by MAD for the robust weights (set False
-    when σ is trusted); progress(iteration, cost) is called after every iteration.
+    when σ is trusted); progress(iteration, cost) is called after every iteration;
+    clusters: optional group id per observation (n,) for observations whose errors are
+    correlated within groups (e.g. by a smooth trajectory error): the covariance is then the
+    cluster-robust sandwich N⁻¹ (Σ_g J_gᵀW_g r_g r_gᵀW_g J_g) N⁻¹ · G/(G−1) (Liang & Zeger
+    1986) where it exceeds the usual σ0²·N⁻¹ (σ raised, correlations kept).
     """
     free = params.free
     if not free:
@@ -155,8 +160,26 @@ def solve(
     # effective redundancy: down-weighted observations count by their relative weight
     dof = max(float(np.sum(w * sig**2)) + prior_idx.size - len(free), 1.0)
     sigma0_sq = 2.0 * cost(r, w, x) / dof
-    return Solution.from_normal_matrix(
+    sol = Solution.from_normal_matrix(
         params.updated(x), N, sigma0_sq, dof,
         residuals=r, weights=w * sig**2, before=before, history=history, converged=converged,
         jacobian=J,
     )
+    if clusters is not None:
+        sol.covariance = _cluster_robust(sol.covariance, N, J * (w * r)[:, None], np.asarray(clusters))
+    return sol
+
+
+def _cluster_robust(cov: np.ndarray, N: np.ndarray, scores: np.ndarray, clusters: np.ndarray) -> np.ndarray:
+    """``cov`` with each σ raised to the cluster-robust (sandwich) σ where that is larger; correlations kept."""
+    _, g = np.unique(clusters, return_inverse=True)
+    G = int(g.max()) + 1 if g.size else 0
+    if G < 2 or not np.all(np.isfinite(cov)):
+        return cov
+    S = np.zeros((G, scores.shape[1]))
+    np.add.at(S, g, scores)
+    Ninv = np.linalg.pinv(N)
+    sand = np.diag(Ninv @ (S.T @ S) @ Ninv) * G / (G - 1)
+    d = np.maximum(np.diag(cov), 1e-300)
+    scale = np.sqrt(np.maximum(sand, d) / d)
+    return cov * np.outer(scale, scale)

@@ -12,6 +12,7 @@ An outer loop as in ICP (Besl & McKay 1992) around the one adjustment engine:
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
 
@@ -51,6 +52,7 @@ class StripSettings:
     max_outer: int = 8  #: outer (re-matching) iterations
     threshold_m: float = 2e-4  #: stop when the mean correspondence distance changes by less
     robust: str | None = "cauchy"
+    cluster_s: float | None = 10.0  #: trajectory errors correlate over this time: σ from a cluster-robust covariance
     planes: PlaneSettings = field(default_factory=PlaneSettings)
     vgicp: object | None = None  #: settings handed to calidar.strips.vgicp.match_pair_vgicp
 
@@ -82,18 +84,24 @@ class CalibrationResult:
         return strip.georeference(self.sensor, index) + self.biases.get(strip.id, np.zeros(3))
 
 
+#: Single parameters ``--estimate`` also accepts (e.g. lever_arm_x,lever_arm_y without z).
+SINGLE_PARAMETERS = {name: ((name, unit),) for g in ESTIMATE_GROUPS.values() for name, unit in g}
+
+
 def parse_estimate(items: str | Sequence[str]) -> list[str]:
-    """'boresight,lever_arm' (or a list) → validated group names."""
+    """'boresight,lever_arm' (or a list) → validated group or single-parameter names."""
     names = [s.strip() for s in (items.split(",") if isinstance(items, str) else items) if s.strip()]
-    unknown = [n for n in names if n not in ESTIMATE_GROUPS]
+    known = {**ESTIMATE_GROUPS, **SINGLE_PARAMETERS}
+    unknown = [n for n in names if n not in known]
     if unknown or not names:
-        raise InputError(None, "--estimate", f"expected a comma-separated subset of {sorted(ESTIMATE_GROUPS)}, got {items!r}")
+        raise InputError(None, "--estimate", f"expected a comma-separated subset of {sorted(ESTIMATE_GROUPS)} "
+                         f"or single parameters such as lever_arm_x, got {items!r}")
     return names
 
 
 def build_parameters(nominal: Sensor, estimate: Sequence[str], strip_ids: Sequence[int]) -> ParameterSet:
     """The engine's parameters: every sensor parameter (estimated ones free) plus strip biases."""
-    free = {name for g in estimate for name, _ in ESTIMATE_GROUPS[g]}
+    free = {name for g in estimate for name, _ in {**ESTIMATE_GROUPS, **SINGLE_PARAMETERS}[g]}
     units = {name: unit for g in ESTIMATE_GROUPS.values() for name, unit in g}
     params = [Parameter(name, value, units.get(name, "1"), free=name in free)
               for name, value in nominal.parameters().items() if name in units]
@@ -200,6 +208,15 @@ class _Problem:
             (_Centroids(c.A, self.pose[c.strip_a], nominal), _Centroids(c.B, self.pose[c.strip_b], nominal))
             for c in self.corrs]
 
+    def clusters(self, strips: dict[int, Strip], block_s: float) -> np.ndarray:
+        """A group id per residual: its pair and the time block (``block_s``) of its strip-a points."""
+        out = []
+        for k, c in enumerate(self.corrs):
+            t = c.A @ strips[c.strip_a].time[self.index[c.strip_a]]
+            g = (np.int64(k) << 32) + np.floor(t / block_s).astype(np.int64)
+            out.append(np.repeat(g, 3) if c.normal is None else g)
+        return np.concatenate(out)
+
     def split(self, r: np.ndarray) -> list[tuple[Correspondences, np.ndarray]]:
         """The residual vector cut into each pair's part."""
         sizes = [c.n_obs * (3 if c.normal is None else 1) for c in self.corrs]
@@ -268,11 +285,16 @@ def calibrate(strips: Sequence[Strip], nominal: Sensor, *, method: str = "planes
     first_residuals = None
     prev_mean = None
     solution = None
+    need: dict[int, list[np.ndarray]] = {}  # points of each strip inside any of its overlaps
+    for o in overlaps:
+        need.setdefault(o.a, []).append(o.index_a)
+        need.setdefault(o.b, []).append(o.index_b)
+    need = {i: np.unique(np.concatenate(v)) for i, v in need.items()}
     for k in range(s.max_outer):
+        clock = time.perf_counter()
         sensor, biases = _sensor_and_biases(nominal, params.values())
-        need = {i: np.unique(np.concatenate([o.index_a for o in overlaps if o.a == i] + [o.index_b for o in overlaps if o.b == i]))
-                for i in by_id if any(i in (o.a, o.b) for o in overlaps)}
         current = {i: (idx, by_id[i].georeference(sensor, idx) + biases.get(i, 0.0)) for i, idx in need.items()}
+        times = {"georeference_s": time.perf_counter() - clock}
 
         def subset(i, index):
             idx, pts = current[i]
@@ -280,7 +302,9 @@ def calibrate(strips: Sequence[Strip], nominal: Sensor, *, method: str = "planes
 
         tasks = [(match, o.a, subset(o.a, o.index_a), o.b, subset(o.b, o.index_b), match_settings) for o in overlaps]
         say(f"iteration {k + 1}: matching {len(tasks)} pairs ({method})")
+        clock = time.perf_counter()
         found = map_pairs(_match_or_error, tasks, scheduler, workers)
+        times["match_s"] = time.perf_counter() - clock
         corrs, pairs, skipped = [], [], []
         for o, c in zip(overlaps, found):
             if isinstance(c, CalidarError):
@@ -295,21 +319,25 @@ def calibrate(strips: Sequence[Strip], nominal: Sensor, *, method: str = "planes
             warnings.append("strip pairs skipped: " + "; ".join(skipped))
         if not corrs:
             raise CalibrationError("no usable strip pair: " + "; ".join(skipped))
+        say(f"iteration {k + 1}: solving {sum(c.n_obs for c in corrs)} observations")
+        clock = time.perf_counter()
         problem = _Problem(nominal, by_id, corrs, params.free_names)
-        say(f"iteration {k + 1}: solving {problem.sigma.size} observations")
-        solution = solve(problem, params, sigma=problem.sigma, robust=s.robust)
+        clusters = problem.clusters(by_id, s.cluster_s) if s.cluster_s else None
+        solution = solve(problem, params, sigma=problem.sigma, robust=s.robust, clusters=clusters)
+        times["solve_s"] = time.perf_counter() - clock
         if first_residuals is None:
             first_residuals = problem(params.values())
         params = solution.parameters
         mean = float(np.mean(np.concatenate([_mean_distance(c, r) for c, r in problem.split(solution.residuals)])))
         outer.append({"iteration": k + 1, "mean_distance_m": mean, "n_obs": int(problem.sigma.size),
-                      "n_pairs": len(corrs), "values": params.values()})
+                      "n_pairs": len(corrs), **times, "values": params.values()})
         if prev_mean is not None and abs(prev_mean - mean) < s.threshold_m:
             break
         prev_mean = mean
     else:
+        change = abs(outer[-1]["mean_distance_m"] - outer[-2]["mean_distance_m"]) if len(outer) > 1 else float("nan")
         warnings.append(f"the outer loop stopped after {s.max_outer} iterations before the mean correspondence "
-                        f"distance settled (last change {abs(outer[-1]['mean_distance_m'] - outer[-2]['mean_distance_m']) if len(outer) > 1 else float('nan'):.2g} m)")
+                        f"distance settled (last change {change * 1e3:.2g} mm)")
     used_pairs = [(p["a"], p["b"]) for p in pairs]
     solution.warnings = warnings + geometry_warnings([by_id[i] for i in problem.index], used_pairs,
                                                      params.free_names) + solution.warnings

@@ -137,7 +137,7 @@ def write_rasters(q: PairQuality, out_dir: str | Path, crs=None, force: bool = F
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     import rasterio
-    from rasterio.transform import from_origin
+    from affine import Affine
 
     from calidar.outputs import atomic_path
 
@@ -149,7 +149,7 @@ def write_rasters(q: PairQuality, out_dir: str | Path, crs=None, force: bool = F
     with atomic_path(tif, force) as tmp:
         with rasterio.open(tmp, "w", driver="GTiff", height=q.grid.shape[0], width=q.grid.shape[1], count=1,
                            dtype="float32", crs=crs, nodata=np.nan,
-                           transform=from_origin(q.origin[0], q.origin[1], q.cell_m, q.cell_m)) as dst:
+                           transform=Affine(q.cell_m, 0.0, q.origin[0], 0.0, -q.cell_m, q.origin[1])) as dst:
             dst.write(q.grid.astype(np.float32), 1)
     paths.append(tif)
     fig = dz_figure(q)

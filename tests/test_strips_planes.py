@@ -1,0 +1,133 @@
+"""Tie planes, overlaps and the strip calibrator on a small synthetic survey (tests/strips_scene.py)."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from calidar.errors import CalibrationError, InputError
+from calidar.sensor import Sensor
+from calidar.strips.calibrate import StripSettings, _Problem, build_parameters, calibrate, parse_estimate
+from calidar.strips.overlap import find_overlaps
+from calidar.strips.planes import PlaneSettings, fit_patches, match_pair_planes
+from calidar.strips.strip import Strip
+from strips_scene import frame, line, survey
+
+TRUTH = Sensor(boresight_roll=np.radians(0.03), boresight_pitch=np.radians(-0.04), boresight_yaw=np.radians(0.05))
+LINES = [((-250, -80, 0), 90, 500, 400), ((250, 80, 0), 270, 500, 400), ((0, -250, 0), 0, 500, 400)]
+
+
+@pytest.fixture(scope="module")
+def strips():
+    return survey(TRUTH, Sensor(), LINES, n=150_000, noise=0.03)
+
+
+def _plane_points(rng, n, normal_xy=(0.2, -0.1), offset=0.0, noise=0.01):
+    xy = rng.uniform(0, 40, (n, 2))
+    z = 5.0 + normal_xy[0] * xy[:, 0] + normal_xy[1] * xy[:, 1] + offset + rng.normal(0, noise, n)
+    return np.column_stack([xy, z])
+
+
+def test_patches_fit_a_known_plane():
+    rng = np.random.default_rng(0)
+    pts = _plane_points(rng, 20000, noise=0.01)
+    p = fit_patches(pts, 4.0, PlaneSettings())
+    n_true = np.array([-0.2, 0.1, 1.0]) / np.linalg.norm([-0.2, 0.1, 1.0])
+    assert p.keys.size == 100  # every 4 m cell of the 40 m square is planar
+    assert np.all(np.abs(p.normal @ n_true) > np.cos(np.radians(0.5)))
+    assert np.median(p.rms_m) == pytest.approx(0.01 * n_true[2], rel=0.15)
+
+
+def test_vegetation_cells_fail_planarity():
+    rng = np.random.default_rng(1)
+    pts = _plane_points(rng, 20000)
+    veg = pts[:, 0] < 20
+    pts[veg, 2] += rng.uniform(0, 10, veg.sum())
+    p = fit_patches(pts, 4.0, PlaneSettings())
+    assert p.keys.size == 50  # only the bare half
+
+
+def test_tie_plane_residual_is_the_offset_along_the_normal():
+    rng = np.random.default_rng(2)
+    a = _plane_points(rng, 30000, offset=0.07, noise=0.02)
+    b = _plane_points(rng, 30000, noise=0.02)
+    c = match_pair_planes(1, a, 2, b, PlaneSettings(cell_m=4.0))
+    assert c.n_obs == 100 and c.kind == "point_to_plane"
+    assert np.allclose(np.asarray(c.A.sum(axis=1)).ravel(), 1.0)
+    r = c.residuals(a, b)
+    nz = 1.0 / np.linalg.norm([0.2, -0.1, 1.0])
+    assert np.mean(r) == pytest.approx(0.07 * nz, abs=0.002)
+    # σ of a row reflects the scatter of both patches' centroids (20 mm noise, ≈ 64 points each)
+    assert np.std(r) == pytest.approx(np.median(c.sigma_m), rel=0.35)
+
+
+def test_overlaps_found_and_disjoint_strips_reported():
+    xy1 = np.random.default_rng(3).uniform(0, 100, (5000, 2))
+    pairs, notes = find_overlaps({1: xy1, 2: xy1 + [60, 0], 3: xy1 + [1000, 0]})
+    assert [(p.a, p.b) for p in pairs] == [(1, 2)]
+    assert pairs[0].area_m2 == pytest.approx(40 * 100, rel=0.15)
+    assert len(notes) == 1 and "strip 3 overlaps no other strip" in notes[0]
+
+
+def test_calibration_recovers_boresight(strips):
+    res = calibrate(strips, Sensor())
+    sol = res.solution
+    for name in ("boresight_roll", "boresight_pitch", "boresight_yaw"):
+        err = sol.values[name] - getattr(TRUTH, name)
+        assert abs(np.degrees(err)) < 0.002, name
+        assert abs(err) < 3 * sol.sigma[name], name
+    assert len(res.pairs) == 3 and all(p["n_obs"] > 300 for p in res.pairs)
+    # the outer loop settled and the strips now agree much better than delivered
+    assert abs(res.outer[-1]["mean_distance_m"] - res.outer[-2]["mean_distance_m"]) < StripSettings().threshold_m
+    assert np.sqrt(np.mean(res.residuals_after**2)) < 0.3 * np.sqrt(np.mean(res.residuals_before**2))
+
+
+def test_centroid_shortcut_equals_full_regeoreferencing(strips):
+    """The O(n_obs) centroid form must give the lidar equation's residuals exactly."""
+    pts = {s.id: s.points for s in strips}
+    c = match_pair_planes(1, pts[1], 2, pts[2])
+    by_id = {s.id: s for s in strips}
+    fast = _Problem(Sensor(), by_id, [c], ["boresight_roll"])
+    full = _Problem(Sensor(), by_id, [c], ["scan_angle_scale"])
+    assert fast.centroids is not None and full.centroids is None
+    vals = build_parameters(Sensor(), parse_estimate("boresight,lever_arm,range_offset,range_scale"), [1, 2]).values()
+    vals.update(boresight_roll=1e-3, boresight_yaw=-2e-3, lever_arm_x=0.3, range_offset=0.05, range_scale=1e-4)
+    assert np.max(np.abs(fast(vals) - full(vals))) < 1e-9
+
+
+def test_per_strip_trajectory_bias_is_recovered(strips):
+    shifted = [replace(s, points=s.points + ([0.0, 0.0, 0.15] if s.id == 2 else 0.0)) for s in strips]
+    # the delivered points moved: rebuild strip 2's observations from them
+    s2 = shifted[1]
+    shifted[1] = Strip.from_ecef(2, frame().to_ecef(s2.points), s2.time, s2.trajectory, Sensor(), frame())
+    res = calibrate(shifted, Sensor(), estimate="boresight,trajectory_bias")
+    up = res.solution.values["trajectory_bias_up_2"]
+    assert up == pytest.approx(-0.15, abs=0.01)
+    assert "trajectory_bias_up_1" not in res.solution.values  # strip 1 is the datum
+
+
+def test_too_few_planes_is_a_clear_error(strips):
+    with pytest.raises(CalibrationError, match=r"no usable strip pair: 1–2: only \d+ tie planes, need 100000"):
+        calibrate(strips, Sensor(), settings=StripSettings(min_correspondences=100_000))
+
+
+def test_non_overlapping_strips_are_a_clear_error():
+    far = [((-250, -80, 0), 90, 500, 400), ((-250, 3000, 0), 90, 500, 400)]
+    st = survey(TRUTH, Sensor(), far, n=20_000)
+    with pytest.raises(CalibrationError, match="no two of the 2 strips overlap"):
+        calibrate(st, Sensor())
+
+
+def test_trajectory_not_covering_the_strip_names_it():
+    traj = line((-250, -80, 0), 90, 500, 400, t0=1000.0)
+    pts = np.zeros((3, 3)) + frame().origin_ecef
+    with pytest.raises(InputError, match=r"<memory>: time: 2 of 3 points of strip 7 .* outside the trajectory"):
+        Strip.from_ecef(7, pts, np.array([1001.0, 5000.0, 6000.0]), traj, Sensor(), frame())
+
+
+def test_unknown_estimate_names_are_rejected():
+    assert parse_estimate("boresight,lever_arm_x") == ["boresight", "lever_arm_x"]
+    with pytest.raises(InputError, match="--estimate: expected a comma-separated subset"):
+        parse_estimate("boresight,wobble")
