@@ -44,7 +44,7 @@ class VgicpSettings:
     max_registration_points: int = 10_000  #: ... coarsened so the overlap holds about this many
     num_neighbors: int = 12  #: neighbours for small_gicp's covariance / normal estimation
     max_iterations: int = 30  #: per registration stage
-    overlap_cell_m: float = 5.0  #: xy cell of the overlap test
+    overlap_cell_m: float = 10.0  #: xy cell of the overlap test (coarse enough for sparse strips)
     min_overlap_points: int = 500  #: fewer points of either strip in the overlap → skip
     pair_distance_m: float | None = None  #: max pair distance after registration; None: 1.5 × b's point spacing
     max_pairs: int = 2000  #: at most this many pairs per strip pair, spread on an xy grid
