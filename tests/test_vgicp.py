@@ -213,11 +213,16 @@ def test_airborne_with_30_percent_vegetation():
 
 
 @pytest.mark.slow
-def test_uav_lever_arm_within_1_cm():
+def test_uav_lever_arm():
+    """Lever arm y within 1 cm. Lever arm x is, on the preset's single-height flight, almost
+    the same signal as boresight pitch (an along-track shift; ρ ≈ −1 for tie planes too):
+    its error must stay within 3σ and the solution must say the two are not separated."""
     res = _simulate("uav", "cross", 0.2, lever_arm_x=0.05, lever_arm_y=-0.05)
     truth = res.truth.parameters()
     sol = calibrate(_strips(res), res.nominal, method="vgicp", estimate="boresight,lever_arm_x,lever_arm_y",
                     settings=VGICP).solution
-    for name in ("lever_arm_x", "lever_arm_y"):
-        err = sol.values[name] - truth[name]
-        assert abs(err) < 0.01 and abs(err) < 3 * sol.sigma[name], (name, err, sol.sigma[name])
+    err_y = sol.values["lever_arm_y"] - truth["lever_arm_y"]
+    assert abs(err_y) < 0.01 and abs(err_y) < 3 * sol.sigma["lever_arm_y"], (err_y, sol.sigma["lever_arm_y"])
+    err_x = sol.values["lever_arm_x"] - truth["lever_arm_x"]
+    assert abs(err_x) < 3 * sol.sigma["lever_arm_x"], (err_x, sol.sigma["lever_arm_x"])
+    assert any(w.startswith("boresight_pitch and lever_arm_x are strongly correlated") for w in sol.warnings)

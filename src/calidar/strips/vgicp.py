@@ -22,6 +22,7 @@ Cartesian frame of the points.
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass
 
 import numpy as np
@@ -71,6 +72,19 @@ class Registration:
     num_inliers: int
 
 
+class _Clock:
+    """Accumulates wall-clock seconds per stage into a dict (or does nothing for None)."""
+
+    def __init__(self, timings: dict[str, float] | None):
+        self.timings, self.t = timings, time.perf_counter()
+
+    def lap(self, stage: str) -> None:
+        if self.timings is not None:
+            now = time.perf_counter()
+            self.timings[stage] = self.timings.get(stage, 0.0) + now - self.t
+            self.t = now
+
+
 def _cell_keys(xy: np.ndarray, cell: float) -> np.ndarray:
     """Integer key of the xy cell (size ``cell`` m) of each point."""
     ij = np.floor(xy / cell).astype(np.int64)
@@ -84,14 +98,15 @@ def overlap_masks(points_a: np.ndarray, points_b: np.ndarray, cell_m: float) -> 
     return np.isin(ka, common), np.isin(kb, common), common.size * cell_m**2
 
 
-def register(points_a: np.ndarray, points_b: np.ndarray, settings: VgicpSettings, area_m2: float):
+def register(points_a: np.ndarray, points_b: np.ndarray, settings: VgicpSettings, area_m2: float, clock=None):
     """VGICP registration of b onto a, coarse to fine over ``settings.voxel_m``.
 
     Points are (N, 3) metres, best centred near the origin (small_gicp discretises at 21 bits);
     area_m2 is the overlap's area, which bounds the downsampled cloud sizes.
     Returns the Registration and strip a's finest preprocessed small_gicp cloud (with
-    covariances) and its KdTree.
+    covariances) and its KdTree. ``clock`` (optional) gets "preprocess" and "register" laps.
     """
+    clock = clock or _Clock(None)
     min_down = np.sqrt(area_m2 / settings.max_registration_points)
     stages = []  # (voxel, downsampling) m, coarse to fine; sparse data merge the finest stages
     for voxel in settings.voxel_m:
@@ -110,10 +125,12 @@ def register(points_a: np.ndarray, points_b: np.ndarray, settings: VgicpSettings
         source, _ = small_gicp.preprocess_points(fine_b, down, settings.num_neighbors, settings.num_threads)
         voxelmap = small_gicp.GaussianVoxelMap(voxel)
         voxelmap.insert(target)
+        clock.lap("preprocess")
         result = small_gicp.align(voxelmap, source, T, max_correspondence_distance=2.0 * voxel,
                                   num_threads=settings.num_threads, max_iterations=settings.max_iterations,
                                   rotation_epsilon=1e-5, translation_epsilon=1e-4)
         T = np.asarray(result.T_target_source)
+        clock.lap("register")
     return Registration(T, bool(result.converged), int(result.iterations), int(result.num_inliers)), target, tree
 
 
@@ -142,7 +159,7 @@ def _normals(points: np.ndarray, at: np.ndarray, k: int, num_threads: int) -> tu
 
 
 def match_pair_vgicp(strip_a_id: int, points_a: np.ndarray, strip_b_id: int, points_b: np.ndarray,
-                     settings: VgicpSettings | None = None) -> Correspondences:
+                     settings: VgicpSettings | None = None, timings: dict[str, float] | None = None) -> Correspondences:
     """Corresponding points of strips a and b by VGICP registration + nearest neighbours.
 
     points_a, points_b: (N, 3) float64, the strips re-georeferenced with the current
@@ -150,9 +167,11 @@ def match_pair_vgicp(strip_a_id: int, points_a: np.ndarray, strip_b_id: int, poi
     Returns at most ``settings.max_pairs`` point pairs (one 1.0 per row of A and B) spread
     over the overlap. Raises CalibrationError (the calibrator skips the pair with a warning
     naming it) when either strip has fewer than ``min_overlap_points`` in the overlap or
-    fewer than ``min_pairs`` pairs are found.
+    fewer than ``min_pairs`` pairs are found. ``timings``, when given, accumulates the
+    seconds spent per stage ("preprocess", "register", "correspond").
     """
     settings = settings or VgicpSettings()
+    clock = _Clock(timings)
     points_a = np.asarray(points_a, dtype=np.float64)
     points_b = np.asarray(points_b, dtype=np.float64)
     in_a, in_b, area = overlap_masks(points_a, points_b, settings.overlap_cell_m)
@@ -164,7 +183,8 @@ def match_pair_vgicp(strip_a_id: int, points_a: np.ndarray, strip_b_id: int, poi
     origin = points_a[idx_a].mean(axis=0)
     ov_a, ov_b = points_a[idx_a] - origin, points_b[idx_b] - origin
 
-    reg, cloud_a, tree_a = register(ov_a, ov_b, settings, area)
+    clock.lap("preprocess")
+    reg, cloud_a, tree_a = register(ov_a, ov_b, settings, area, clock)
     R, t = reg.T_ab[:3, :3], reg.T_ab[:3, 3]
     b_on_a = ov_b @ R.T + t
 
@@ -190,4 +210,5 @@ def match_pair_vgicp(strip_a_id: int, points_a: np.ndarray, strip_b_id: int, poi
     ones = np.ones(n_pairs)
     A = sp.csr_matrix((ones, (rows, idx_a[cand[keep]])), shape=(n_pairs, points_a.shape[0]))
     B = sp.csr_matrix((ones, (rows, idx_b[nn[keep]])), shape=(n_pairs, points_b.shape[0]))
+    clock.lap("correspond")
     return Correspondences(strip_a_id, strip_b_id, A, B, normal, sigma_m=settings.sigma_m, method="vgicp")
