@@ -85,17 +85,63 @@ class _Clock:
             self.t = now
 
 
-def _cell_keys(xy: np.ndarray, cell: float) -> np.ndarray:
-    """Integer key of the xy cell (size ``cell`` m) of each point."""
-    ij = np.floor(xy / cell).astype(np.int64)
-    return ij[:, 0] * 4_294_967_296 + ij[:, 1]
+class _Grid:
+    """Square xy cells (m) over a bounding box, with O(n) membership tests by lookup table."""
+
+    MAX_TABLE = 50_000_000  #: beyond this many cells, membership falls back to sorting
+
+    def __init__(self, xy_min: np.ndarray, xy_max: np.ndarray, cell: float):
+        self.lo, self.cell = xy_min, cell
+        self.shape = np.floor((xy_max - xy_min) / cell).astype(np.int64) + 1
+
+    def ij(self, xy: np.ndarray) -> np.ndarray:
+        return np.floor((xy - self.lo) / self.cell).astype(np.int64)
+
+    @property
+    def size(self) -> int:
+        return int(self.shape[0] * self.shape[1])
+
+    def keys(self, ij: np.ndarray) -> np.ndarray:
+        return ij[:, 0] * self.shape[1] + ij[:, 1]
+
+    def isin(self, keys: np.ndarray, marked: np.ndarray) -> np.ndarray:
+        """Which ``keys`` are among the ``marked`` cell keys."""
+        if self.size > self.MAX_TABLE:
+            return np.isin(keys, marked)
+        table = np.zeros(self.size, bool)
+        table[marked] = True
+        return table[keys]
+
+    def first(self, keys: np.ndarray) -> np.ndarray:
+        """Index of the first of ``keys`` in each occupied cell, ascending."""
+        if self.size > self.MAX_TABLE:
+            return np.sort(np.unique(keys, return_index=True)[1])
+        first = np.full(self.size, keys.size)
+        np.minimum.at(first, keys, np.arange(keys.size))
+        return np.sort(first[first < keys.size])
+
+    def around(self, xy: np.ndarray) -> np.ndarray:
+        """Keys of the cells holding ``xy`` and of their 8 neighbours (inside the grid)."""
+        ij = self.ij(xy)
+        near = (ij[:, None, :] + np.array([(i, j) for i in (-1, 0, 1) for j in (-1, 0, 1)])).reshape(-1, 2)
+        near = near[np.all((near >= 0) & (near < self.shape), axis=1)]
+        return self.keys(near)
 
 
 def overlap_masks(points_a: np.ndarray, points_b: np.ndarray, cell_m: float) -> tuple[np.ndarray, np.ndarray, float]:
     """Points of a and b in xy cells (size cell_m, m) occupied by both; also the overlap area (m²)."""
-    ka, kb = _cell_keys(points_a[:, :2], cell_m), _cell_keys(points_b[:, :2], cell_m)
-    common = np.intersect1d(ka, kb)
-    return np.isin(ka, common), np.isin(kb, common), common.size * cell_m**2
+    xy_a, xy_b = points_a[:, :2], points_b[:, :2]
+    grid = _Grid(np.minimum(xy_a.min(axis=0), xy_b.min(axis=0)), np.maximum(xy_a.max(axis=0), xy_b.max(axis=0)), cell_m)
+    ka, kb = grid.keys(grid.ij(xy_a)), grid.keys(grid.ij(xy_b))
+    common = ka[grid.first(ka)]  # occupied cells of a ...
+    common = common[grid.isin(common, kb)]  # ... also occupied by b
+    return grid.isin(ka, common), grid.isin(kb, common), common.size * cell_m**2
+
+
+def _near(points: np.ndarray, at: np.ndarray, radius: float) -> np.ndarray:
+    """Indices of the points (m) that may lie within ``radius`` (m, in xy) of any of ``at``."""
+    grid = _Grid(points[:, :2].min(axis=0), points[:, :2].max(axis=0), radius)
+    return np.flatnonzero(grid.isin(grid.keys(grid.ij(points[:, :2])), grid.around(at[:, :2])))
 
 
 def register(points_a: np.ndarray, points_b: np.ndarray, settings: VgicpSettings, area_m2: float, clock=None):
@@ -138,11 +184,12 @@ def _spread(points: np.ndarray, n_max: int, area_m2: float) -> np.ndarray:
     """Indices of at most ~n_max points spread evenly in xy (one per grid cell, deterministic)."""
     if points.shape[0] <= n_max:
         return np.arange(points.shape[0])
-    cell = np.sqrt(area_m2 / n_max)
-    _, first = np.unique(_cell_keys(points[:, :2], cell), return_index=True)
+    xy = points[:, :2]
+    grid = _Grid(xy.min(axis=0), xy.max(axis=0), np.sqrt(area_m2 / n_max))
+    first = grid.first(grid.keys(grid.ij(xy)))
     if first.size > n_max:  # ragged overlap outline: thin regularly
         first = first[np.linspace(0, first.size - 1, n_max).astype(np.int64)]
-    return np.sort(first)
+    return first
 
 
 def _normals(points: np.ndarray, at: np.ndarray, k: int, num_threads: int) -> tuple[np.ndarray, np.ndarray]:
@@ -189,15 +236,19 @@ def match_pair_vgicp(strip_a_id: int, points_a: np.ndarray, strip_b_id: int, poi
     b_on_a = ov_b @ R.T + t
 
     cand = _spread(ov_a, settings.max_pairs, area)
-    tree = small_gicp.KdTree(b_on_a, num_threads=settings.num_threads)
+    threshold = settings.pair_distance_m or 1.5 * np.sqrt(area / len(idx_b))  # 1.5 × b's mean point spacing, m
+    # only points near the candidates enter the KdTrees: pairs within the threshold and the
+    # k nearest points of a (≈ 2 spacings) lie within this radius
+    radius = max(threshold, 3.0 * np.sqrt(area / len(idx_a)))
+    near_b = _near(b_on_a, ov_a[cand], radius)
+    tree = small_gicp.KdTree(b_on_a[near_b], num_threads=settings.num_threads)
     nn, d2 = tree.batch_knn_search(ov_a[cand], 1, num_threads=settings.num_threads)
-    nn, dist = nn[:, 0].astype(np.int64), np.sqrt(d2[:, 0])
-    spacing = np.sqrt(area / len(idx_b))  # mean point spacing of b in the overlap, m
-    threshold = settings.pair_distance_m or 1.5 * spacing
+    nn, dist = near_b[nn[:, 0].astype(np.int64)], np.sqrt(d2[:, 0])
     keep = dist < threshold
     normal = None
     if settings.kind == "point_to_plane":
-        n, variation = _normals(ov_a, ov_a[cand], settings.num_neighbors, settings.num_threads)
+        near_a = _near(ov_a, ov_a[cand], radius)
+        n, variation = _normals(ov_a[near_a], ov_a[cand], settings.num_neighbors, settings.num_threads)
         off_plane = np.abs(np.einsum("ij,ij->i", ov_a[cand] - b_on_a[nn], n))
         keep &= (variation < settings.max_surface_variation) & (off_plane < settings.max_plane_distance_m)
         normal = n[keep]
