@@ -38,7 +38,7 @@ def simulate(cache: Path, density: float) -> Path:
     sim = cache / f"airborne_8_strips_d{density:g}"
     if (sim / "truth.json").exists():
         return sim
-    scene = replace(PRESETS["airborne"].scene, width_m=3600.0)
+    scene = replace(PRESETS["airborne"].scene, width_m=3300.0)
     cfg = survey_config("airborne", seed=5, density=density, directions="cross", scene=scene, errors=ERRORS,
                         range_noise_m=0.03)
     t = time.perf_counter()
@@ -51,7 +51,7 @@ def simulate(cache: Path, density: float) -> Path:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--method", default="planes", choices=["planes", "vgicp"])
-    ap.add_argument("--density", type=float, default=1.75, help="simulator density (1.75 ≈ 1 M points per strip)")
+    ap.add_argument("--density", type=float, default=1.7, help="simulator density (1.7 ≈ 8 M points in 8 strips)")
     ap.add_argument("--cache", type=Path, default=Path(tempfile.gettempdir()) / "calidar_bench_strips")
     args = ap.parse_args()
     sim = simulate(args.cache, args.density)

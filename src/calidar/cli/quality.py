@@ -86,10 +86,12 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
         table = Table(title=f"Swath-overlap differences (flight lines from {how}; dz = a − b)")
         for h in ("a", "b", "cells", "median dz [m]", "RMSDz [m]", "max |dz| [m]", "dx [m]", "dy [m]"):
             table.add_column(h, justify="right")
-        f = lambda v: "—" if v is None else f"{v:+.3f}"  # noqa: E731
+        def f(v, sign="+"):
+            return "—" if v is None else f"{v:{sign}.3f}"
+
         for q in results:
-            table.add_row(str(q.a), str(q.b), str(q.n_cells), f(q.median_dz_m), f(q.rmsdz_m), f(q.max_abs_dz_m),
-                          f(q.dx_m), f(q.dy_m))
+            table.add_row(str(q.a), str(q.b), str(q.n_cells), f(q.median_dz_m), f(q.rmsdz_m, ""),
+                          f(q.max_abs_dz_m, ""), f(q.dx_m), f(q.dy_m))
         console.print(table)
         for n in notes:
             console.print(f"note: {n}")

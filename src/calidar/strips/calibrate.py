@@ -72,6 +72,7 @@ class CalibrationResult:
     residuals_after: np.ndarray  #: last correspondences at the calibrated sensor, m
     outer: list[dict]  #: per outer iteration: mean distance, observations, values (SI)
     biases: dict[int, np.ndarray]  #: per strip (east, north, up) m
+    poses: dict[int, Pose] = field(default_factory=dict, repr=False)  #: cached poses of the overlap points
 
     @property
     def warnings(self) -> list[str]:
@@ -81,7 +82,13 @@ class CalibrationResult:
         """A strip's points (local m) with the calibrated (or nominal) sensor and its bias."""
         if not calibrated:
             return strip.points if index is None else strip.points[index]
-        return strip.georeference(self.sensor, index) + self.biases.get(strip.id, np.zeros(3))
+        pose = None
+        if index is not None and strip.id in self.poses:
+            try:
+                pose = self.poses[strip.id].take(self.poses[strip.id].rows_of(np.asarray(index)))
+            except KeyError:
+                pose = None
+        return strip.georeference(self.sensor, index, pose) + self.biases.get(strip.id, np.zeros(3))
 
 
 #: Single parameters ``--estimate`` also accepts (e.g. lever_arm_x,lever_arm_y without z).
@@ -131,6 +138,11 @@ def _matcher(method: str, settings: StripSettings) -> tuple[Callable, object]:
 
         return match_pair_vgicp, settings.vgicp or VgicpSettings()
     raise InputError(None, "--method", f"expected one of {list(METHODS)}, got {method!r}")
+
+
+def _union(indices: list[np.ndarray]) -> np.ndarray:
+    """Sorted union of point-index arrays (O(N), unlike a hash-based unique)."""
+    return np.flatnonzero(np.bincount(np.concatenate(indices)))
 
 
 def _match_or_error(match: Callable, strip_a_id, points_a, strip_b_id, points_b, settings):
@@ -186,14 +198,15 @@ class _Centroids:
 class _Problem:
     """Residuals of all correspondences for given parameter values (SI), with cached poses."""
 
-    def __init__(self, nominal: Sensor, strips: dict[int, Strip], corrs: list[Correspondences], free: Sequence[str]):
+    def __init__(self, nominal: Sensor, poses: dict[int, Pose], corrs: list[Correspondences], free: Sequence[str]):
+        """poses: per strip, cached poses holding at least every point the correspondences reference."""
         self.nominal = nominal
         used: dict[int, list[np.ndarray]] = {}
         for c in corrs:
             used.setdefault(c.strip_a, []).append(c.A.indices)
             used.setdefault(c.strip_b, []).append(c.B.indices)
-        self.index = {i: np.unique(np.concatenate(v)) for i, v in used.items()}
-        self.pose: dict[int, Pose] = {i: strips[i].pose(idx) for i, idx in self.index.items()}
+        self.index = {i: _union(v) for i, v in used.items()}
+        self.pose: dict[int, Pose] = {i: poses[i].take(poses[i].rows_of(idx)) for i, idx in self.index.items()}
 
         def compact(m, sid):
             idx = self.index[sid]
@@ -289,11 +302,12 @@ def calibrate(strips: Sequence[Strip], nominal: Sensor, *, method: str = "planes
     for o in overlaps:
         need.setdefault(o.a, []).append(o.index_a)
         need.setdefault(o.b, []).append(o.index_b)
-    need = {i: np.unique(np.concatenate(v)) for i, v in need.items()}
+    need = {i: _union(v) for i, v in need.items()}
+    poses = {i: by_id[i].pose(idx) for i, idx in need.items()}  # one trajectory interpolation
     for k in range(s.max_outer):
         clock = time.perf_counter()
         sensor, biases = _sensor_and_biases(nominal, params.values())
-        current = {i: (idx, by_id[i].georeference(sensor, idx) + biases.get(i, 0.0)) for i, idx in need.items()}
+        current = {i: (idx, georeference_pose(sensor, poses[i]) + biases.get(i, 0.0)) for i, idx in need.items()}
         times = {"georeference_s": time.perf_counter() - clock}
 
         def subset(i, index):
@@ -321,7 +335,7 @@ def calibrate(strips: Sequence[Strip], nominal: Sensor, *, method: str = "planes
             raise CalibrationError("no usable strip pair: " + "; ".join(skipped))
         say(f"iteration {k + 1}: solving {sum(c.n_obs for c in corrs)} observations")
         clock = time.perf_counter()
-        problem = _Problem(nominal, by_id, corrs, params.free_names)
+        problem = _Problem(nominal, poses, corrs, params.free_names)
         clusters = problem.clusters(by_id, s.cluster_s) if s.cluster_s else None
         solution = solve(problem, params, sigma=problem.sigma, robust=s.robust, clusters=clusters)
         times["solve_s"] = time.perf_counter() - clock
@@ -345,7 +359,7 @@ def calibrate(strips: Sequence[Strip], nominal: Sensor, *, method: str = "planes
     solution.extra["strips"] = {"method": method, "pairs": pairs, "outer_iterations": [
         {kk: v for kk, v in o.items() if kk != "values"} for o in outer]}
     return CalibrationResult(solution, sensor, nominal, list(strips), overlaps, method, pairs,
-                             first_residuals, solution.residuals, outer, biases)
+                             first_residuals, solution.residuals, outer, biases, poses)
 
 
 def truth_to_si(doc: dict, params: ParameterSet) -> dict[str, float]:

@@ -31,6 +31,15 @@ def cell_keys(xy: np.ndarray, cell_m: float, origin: np.ndarray | None = None) -
     return (ij[:, 0] << 32) + (ij[:, 1] & 0xFFFFFFFF)
 
 
+def footprint_area_m2(xy: np.ndarray, cell_m: float = 5.0) -> float:
+    """Horizontal area (m²) of the ``cell_m`` cells holding at least one of the points (N, ≥2) m."""
+    if len(xy) == 0:
+        return 0.0
+    ij = np.floor(np.asarray(xy, float)[:, :2] / cell_m).astype(np.int64)
+    ij -= ij.min(axis=0)
+    return float(np.count_nonzero(np.bincount(ij[:, 0] * (int(ij[:, 1].max()) + 1) + ij[:, 1])) * cell_m**2)
+
+
 def find_overlaps(strips_xy: Mapping[int, np.ndarray], cell_m: float = 5.0, min_cells: int = 4,
                   min_points_per_cell: int = 3) -> tuple[list[Overlap], list[str]]:
     """Overlapping pairs among strips given as {id: (N, ≥2) coordinates in metres}.

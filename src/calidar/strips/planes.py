@@ -23,7 +23,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from calidar.strips.correspond import Correspondences
-from calidar.strips.overlap import cell_keys
+from calidar.strips.overlap import cell_keys, footprint_area_m2
 
 
 @dataclass(frozen=True)
@@ -56,9 +56,7 @@ class Patches:
 
 def patch_cell_size(points: np.ndarray, target_points: int) -> float:
     """A patch size (m) holding about ``target_points`` at the points' horizontal density."""
-    keys = cell_keys(points, 5.0)
-    area = np.unique(keys).size * 25.0
-    density = max(points.shape[0] / max(area, 1e-9), 1e-6)
+    density = max(points.shape[0] / max(footprint_area_m2(points), 1e-9), 1e-6)
     return float(np.clip(np.sqrt(target_points / density), 0.5, 25.0))
 
 
@@ -66,7 +64,9 @@ def fit_patches(points: np.ndarray, cell_m: float, settings: PlaneSettings) -> P
     """Fit a plane in every grid cell of ``points`` (N, 3) local m; keep the planar ones."""
     keys = cell_keys(points, cell_m)
     order = np.argsort(keys, kind="stable")
-    uk, start, count = np.unique(keys[order], return_index=True, return_counts=True)
+    ks = keys[order]
+    start = np.r_[0, np.flatnonzero(ks[1:] != ks[:-1]) + 1] if ks.size else np.zeros(0, np.int64)
+    uk, count = ks[start], np.diff(np.r_[start, ks.size])
     cell = np.repeat(np.arange(uk.size), count)
     p = points[order]
     ref = p[start][cell]  # a point of the same cell: keeps the sums well conditioned

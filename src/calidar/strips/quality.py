@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from calidar.strips.overlap import cell_keys
+from calidar.strips.overlap import footprint_area_m2
 from calidar.strips.planes import PlaneSettings, fit_patches
 
 #: LAS classes never used for the vertical difference: vegetation (3–5), noise (7, 18), water (9).
@@ -73,9 +73,7 @@ def cell_indices(keys: np.ndarray) -> np.ndarray:
 def _cell_size(points_a, points_b, s: QualitySettings) -> float:
     if s.cell_m:
         return s.cell_m
-    dens = []
-    for p in (points_a, points_b):
-        dens.append(p.shape[0] / max(np.unique(cell_keys(p, 5.0)).size * 25.0, 1e-9))
+    dens = [p.shape[0] / max(footprint_area_m2(p), 1e-9) for p in (points_a, points_b)]
     return float(max(2.0, np.ceil(np.sqrt(1.5 * s.min_points / max(min(dens), 1e-9)))))
 
 

@@ -57,6 +57,17 @@ class Pose:
     range_m: np.ndarray  #: (M,) measured range, m
     angles: np.ndarray  #: (M, k) scanner observations, rad
 
+    def take(self, rows: np.ndarray) -> "Pose":
+        """The poses at positions ``rows`` of this one."""
+        return Pose(self.index[rows], self.position[rows], self.r_lb[rows], self.range_m[rows], self.angles[rows])
+
+    def rows_of(self, index: np.ndarray) -> np.ndarray:
+        """Positions in this pose of the strip's points ``index`` (all must be present)."""
+        rows = np.searchsorted(self.index, index)
+        if np.any(rows >= self.index.size) or np.any(self.index[np.minimum(rows, self.index.size - 1)] != index):
+            raise KeyError("points not in this pose cache")
+        return rows
+
 
 @dataclass(eq=False)
 class Strip:
