@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 
@@ -79,3 +81,22 @@ def test_scheduler_address_and_bad_options(client, monkeypatch):
     monkeypatch.setattr("calidar.strips.distribute.CONNECT_TIMEOUT_S", 1.0)
     with pytest.raises(CalibrationError, match="cannot reach the Dask scheduler at tcp://127.0.0.1:9"):
         map_pairs(weighted_centroid, [], scheduler="tcp://127.0.0.1:9")
+
+
+def test_cli_boresight_vgicp_with_local_workers(cli, tmp_path):
+    res = _simulate("uav", "cross", 0.05)
+    sim = res.write(tmp_path / "sim")
+    out = tmp_path / "cal"
+    code, stdout, err = cli("boresight", *sorted((sim / "strips").glob("*.laz")), "--trajectory", sim / "sbet.out",
+                            "--sensor", sim / "sensor.toml", "--method", "vgicp", "--workers", "2",
+                            "--truth", sim / "truth.json", "--out", out)
+    assert code == 0, err
+    doc = json.loads((out / "solution.json").read_text())
+    assert doc["strips"]["method"] == "vgicp" and len(doc["strips"]["pairs"]) >= 4
+    for name in ("boresight_roll", "boresight_pitch", "boresight_yaw"):
+        p = doc["parameters"][name]
+        assert abs(p["error"]) < 3 * p["sigma"], (name, p)
+    code, _, err = cli("boresight", *sorted((sim / "strips").glob("*.laz")), "--trajectory", sim / "sbet.out",
+                       "--sensor", sim / "sensor.toml", "--method", "vgicp", "--scheduler", "tcp://127.0.0.1:1",
+                       "--workers", "2", "--out", tmp_path / "x")
+    assert code == 1 and "not both" in err and "Traceback" not in err
