@@ -104,7 +104,7 @@ def test_pairs_are_spread_over_the_overlap(strips):
 def test_registration_recovers_the_known_transform(strips):
     a, b = strips
     _, _, area = overlap_masks(a, b, 5.0)
-    reg, _, _ = register(a - CENTER, b - CENTER, VgicpSettings(), area)
+    reg = register(a - CENTER, b - CENTER, VgicpSettings(), area)
     R_true = rpy_to_matrix(*ROT_TRUE)
     angle = np.degrees(np.arccos(np.clip((np.trace(reg.T_ab[:3, :3] @ R_true) - 1) / 2, -1, 1)))
     t_true = -R_true.T @ SHIFT_TRUE  # T_ab = disturbance⁻¹ about CENTER

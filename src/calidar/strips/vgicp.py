@@ -43,7 +43,7 @@ class VgicpSettings:
     voxel_m: tuple[float, ...] = (8.0, 2.0, 1.0)  #: VGICP voxel sizes, coarse to fine
     downsampling_ratio: float = 0.5  #: registration downsampling = ratio × voxel size ...
     max_registration_points: int = 10_000  #: ... coarsened so the overlap holds about this many
-    num_neighbors: int = 12  #: neighbours for small_gicp's covariance / normal estimation
+    num_neighbors: int = 12  #: neighbours of the registration covariances and of the pair normals
     max_iterations: int = 30  #: per registration stage
     overlap_cell_m: float = 10.0  #: xy cell of the overlap test (coarse enough for sparse strips)
     min_overlap_points: int = 500  #: fewer points of either strip in the overlap → skip
@@ -144,13 +144,13 @@ def _near(points: np.ndarray, at: np.ndarray, radius: float) -> np.ndarray:
     return np.flatnonzero(grid.isin(grid.keys(grid.ij(points[:, :2])), grid.around(at[:, :2])))
 
 
-def register(points_a: np.ndarray, points_b: np.ndarray, settings: VgicpSettings, area_m2: float, clock=None):
+def register(points_a: np.ndarray, points_b: np.ndarray, settings: VgicpSettings, area_m2: float,
+             clock=None) -> Registration:
     """VGICP registration of b onto a, coarse to fine over ``settings.voxel_m``.
 
     Points are (N, 3) metres, best centred near the origin (small_gicp discretises at 21 bits);
     area_m2 is the overlap's area, which bounds the downsampled cloud sizes.
-    Returns the Registration and strip a's finest preprocessed small_gicp cloud (with
-    covariances) and its KdTree. ``clock`` (optional) gets "preprocess" and "register" laps.
+    ``clock`` (optional) gets "preprocess" and "register" laps.
     """
     clock = clock or _Clock(None)
     min_down = np.sqrt(area_m2 / settings.max_registration_points)
@@ -165,9 +165,9 @@ def register(points_a: np.ndarray, points_b: np.ndarray, settings: VgicpSettings
     fine_a = small_gicp.voxelgrid_sampling(points_a, finest, settings.num_threads).points()
     fine_b = small_gicp.voxelgrid_sampling(points_b, finest, settings.num_threads).points()
     T = np.eye(4)
-    result = target = tree = None
+    result = None
     for voxel, down in stages:
-        target, tree = small_gicp.preprocess_points(fine_a, down, settings.num_neighbors, settings.num_threads)
+        target, _ = small_gicp.preprocess_points(fine_a, down, settings.num_neighbors, settings.num_threads)
         source, _ = small_gicp.preprocess_points(fine_b, down, settings.num_neighbors, settings.num_threads)
         voxelmap = small_gicp.GaussianVoxelMap(voxel)
         voxelmap.insert(target)
@@ -177,7 +177,7 @@ def register(points_a: np.ndarray, points_b: np.ndarray, settings: VgicpSettings
                                   rotation_epsilon=1e-5, translation_epsilon=1e-4)
         T = np.asarray(result.T_target_source)
         clock.lap("register")
-    return Registration(T, bool(result.converged), int(result.iterations), int(result.num_inliers)), target, tree
+    return Registration(T, bool(result.converged), int(result.iterations), int(result.num_inliers))
 
 
 def _spread(points: np.ndarray, n_max: int, area_m2: float) -> np.ndarray:
@@ -231,7 +231,7 @@ def match_pair_vgicp(strip_a_id: int, points_a: np.ndarray, strip_b_id: int, poi
     ov_a, ov_b = points_a[idx_a] - origin, points_b[idx_b] - origin
 
     clock.lap("preprocess")
-    reg, cloud_a, tree_a = register(ov_a, ov_b, settings, area, clock)
+    reg = register(ov_a, ov_b, settings, area, clock)
     R, t = reg.T_ab[:3, :3], reg.T_ab[:3, 3]
     b_on_a = ov_b @ R.T + t
 
