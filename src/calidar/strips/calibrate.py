@@ -23,7 +23,7 @@ from calidar.adjust import Parameter, ParameterSet, Solution, solve
 from calidar.errors import CalibrationError, CalidarError, InputError
 from calidar.sensor import Sensor
 from calidar.strips.correspond import Correspondences
-from calidar.strips.distribute import map_pairs
+from calidar.strips.distribute import cluster_client, map_pairs
 from calidar.strips.overlap import Overlap, find_overlaps
 from calidar.strips.planes import PlaneSettings, match_pair_planes
 from calidar.strips.strip import Pose, Strip, georeference_pose
@@ -287,14 +287,21 @@ def geometry_warnings(strips: Sequence[Strip], pairs: Sequence[tuple[int, int]],
     return out
 
 
-def calibrate(strips: Sequence[Strip], nominal: Sensor, *, method: str = "planes",
-              estimate: Sequence[str] = ("boresight",), settings: StripSettings | None = None,
-              scheduler: str | None = None, workers: int | None = None,
-              progress: Callable[[str], None] | None = None) -> CalibrationResult:
+def calibrate(strips: Sequence[Strip], nominal: Sensor, *, scheduler: str | None = None,
+              workers: int | None = None, **options) -> CalibrationResult:
+    """:func:`_calibrate` with ONE Dask client (``scheduler`` address or a LocalCluster of
+    ``workers`` processes, None: in-process) for every outer iteration's pair matching."""
+    with cluster_client(scheduler, workers) as client:
+        return _calibrate(strips, nominal, client=client, **options)
+
+
+def _calibrate(strips: Sequence[Strip], nominal: Sensor, *, method: str = "planes",
+               estimate: Sequence[str] = ("boresight",), settings: StripSettings | None = None,
+               client=None, progress: Callable[[str], None] | None = None) -> CalibrationResult:
     """Calibrate the sensor from overlapping strips (all in one :class:`LocalFrame`).
 
-    ``estimate``: groups of :data:`ESTIMATE_GROUPS`; ``scheduler``/``workers``: Dask for the
-    pair matching (see :func:`map_pairs`). Raises :class:`CalibrationError` when no pair of
+    ``estimate``: groups of :data:`ESTIMATE_GROUPS`; ``client``: an open Dask client for the
+    pair matching or None (see :func:`map_pairs`). Raises :class:`CalibrationError` when no pair of
     strips overlaps with enough correspondences.
     """
     s = settings or StripSettings()
@@ -334,7 +341,7 @@ def calibrate(strips: Sequence[Strip], nominal: Sensor, *, method: str = "planes
         tasks = [(match, o.a, subset(o.a, o.index_a), o.b, subset(o.b, o.index_b), match_settings) for o in overlaps]
         say(f"iteration {k + 1}: matching {len(tasks)} pairs ({method})")
         clock = time.perf_counter()
-        found = map_pairs(_match_or_error, tasks, scheduler, workers)
+        found = map_pairs(_match_or_error, tasks, client=client)
         times["match_s"] = time.perf_counter() - clock
         corrs, pairs, skipped = [], [], []
         for o, c in zip(overlaps, found):

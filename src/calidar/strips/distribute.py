@@ -5,7 +5,9 @@ Only the small per-pair results travel back; the solver stays in this process.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+import logging
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager
 from typing import Any
 
 import numpy as np
@@ -13,35 +15,51 @@ import numpy as np
 from calidar.errors import CalibrationError
 
 SCATTER_BYTES = 1_000_000  #: arrays larger than this are sent to the workers once, ahead of the tasks
+CONNECT_TIMEOUT_S = 10.0  #: how long to wait for a scheduler given by address
 
 
-def map_pairs(func: Callable[..., Any], tasks: Sequence[tuple], scheduler: str | None = None,
-              workers: int | None = None) -> list[Any]:
-    """``[func(*task) for task in tasks]``, in-process (default) or on Dask.
-
-    scheduler: address of a dask.distributed scheduler ("tcp://host:8786");
-    workers: start a LocalCluster with that many worker processes (one thread each, no
-    dashboard), closed when the tasks are done. Results keep task order. ``func`` and the
-    tasks must be picklable (module-level functions, arrays, frozen dataclasses).
-    """
+@contextmanager
+def cluster_client(scheduler: str | None = None, workers: int | None = None) -> Iterator[Any]:
+    """A dask.distributed Client for ``scheduler`` (an address such as "tcp://host:8786") or
+    for a LocalCluster of ``workers`` processes (one thread each, no dashboard); None when
+    both are None (in-process). A LocalCluster is closed on exit."""
     if scheduler is not None and workers is not None:
         raise CalibrationError("give either a scheduler address or a number of local workers, not both")
     if scheduler is None and workers is None:
-        return [func(*t) for t in tasks]
+        yield None
+        return
     from dask.distributed import Client, LocalCluster
 
     if scheduler is not None:
         try:
-            client = Client(scheduler, timeout="10s")
+            client = Client(scheduler, timeout=CONNECT_TIMEOUT_S)
         except (OSError, TimeoutError) as exc:
             raise CalibrationError(f"cannot reach the Dask scheduler at {scheduler}: {exc}") from None
         with client:
-            return _run(client, func, tasks)
+            yield client
+        return
     if workers < 1:
         raise CalibrationError(f"--workers must be at least 1, got {workers}")
+    # no dashboard; the scheduler's small HTTP endpoint on a free port, so clusters never collide
     with LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None,
-                      silence_logs=40) as cluster, Client(cluster) as client:
+                      scheduler_kwargs={"dashboard": False, "dashboard_address": ":0"},
+                      silence_logs=logging.ERROR) as cluster, Client(cluster) as client:
+        yield client
+
+
+def map_pairs(func: Callable[..., Any], tasks: Sequence[tuple], scheduler: str | None = None,
+              workers: int | None = None, *, client: Any = None) -> list[Any]:
+    """``[func(*task) for task in tasks]``, in-process (default) or on Dask.
+
+    scheduler / workers: as :func:`cluster_client` (a cluster for this call only);
+    client: an open Client to reuse across calls (e.g. every round of an iterated
+    calibration). Results keep task order. ``func`` and the tasks must be picklable
+    (module-level functions, arrays, frozen dataclasses).
+    """
+    if client is not None:
         return _run(client, func, tasks)
+    with cluster_client(scheduler, workers) as own:
+        return [func(*t) for t in tasks] if own is None else _run(own, func, tasks)
 
 
 def _run(client, func, tasks) -> list[Any]:

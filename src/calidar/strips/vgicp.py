@@ -9,8 +9,9 @@ The pairs index the *un-registered* strips, so the calibrator's residual
 
 Residual kinds (see :mod:`calidar.strips.correspond`):
 - ``point_to_plane`` (default): distance along the normal of strip a at the pair, normals
-  from small_gicp's covariance estimation; only locally planar points are kept, so clutter
-  such as vegetation yields few pairs. Better conditioned on surfaces.
+  from small_gicp's covariance estimation; only pairs on locally planar surfaces of a whose
+  b point lies near a's plane once registered are kept, so clutter such as vegetation
+  yields few pairs. Better conditioned on surfaces.
 - ``point_to_point``: the 3-D difference of the pair, as the method describes; its noise
   includes the point spacing.
 
@@ -21,6 +22,7 @@ Cartesian frame of the points.
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass
 
 import numpy as np
@@ -40,15 +42,16 @@ class VgicpSettings:
     kind: str = "point_to_plane"  #: "point_to_plane" | "point_to_point"
     voxel_m: tuple[float, ...] = (8.0, 2.0, 1.0)  #: VGICP voxel sizes, coarse to fine
     downsampling_ratio: float = 0.5  #: registration downsampling = ratio × voxel size ...
-    max_registration_points: int = 40_000  #: ... coarsened so the overlap holds about this many
-    num_neighbors: int = 20  #: neighbours for small_gicp's covariance / normal estimation
+    max_registration_points: int = 10_000  #: ... coarsened so the overlap holds about this many
+    num_neighbors: int = 12  #: neighbours of the registration covariances and of the pair normals
     max_iterations: int = 30  #: per registration stage
-    overlap_cell_m: float = 5.0  #: xy cell of the overlap test
+    overlap_cell_m: float = 10.0  #: xy cell of the overlap test (coarse enough for sparse strips)
     min_overlap_points: int = 500  #: fewer points of either strip in the overlap → skip
-    pair_distance_m: float = 0.5  #: max nearest-neighbour distance of a pair after registration
+    pair_distance_m: float | None = None  #: max pair distance after registration; None: 1.5 × b's point spacing
     max_pairs: int = 2000  #: at most this many pairs per strip pair, spread on an xy grid
     min_pairs: int = 50  #: fewer usable pairs → the pair is skipped
-    max_surface_variation: float = 0.01  #: point_to_plane: λ_min / Σλ of the local covariance
+    max_surface_variation: float = 0.003  #: point_to_plane: λ_min / Σλ of the local covariance
+    max_plane_distance_m: float = 0.3  #: point_to_plane: max distance of b's point from a's plane after registration
     sigma_m: float = 0.05  #: a-priori σ of one residual
     num_threads: int = 1  #: small_gicp threads (1 is bit-reproducible; see docs)
 
@@ -57,17 +60,6 @@ class VgicpSettings:
             raise ValueError(f"kind must be one of {KINDS}, got {self.kind!r}")
         if not self.voxel_m or any(v <= 0 for v in self.voxel_m):
             raise ValueError(f"voxel_m must be positive sizes, got {self.voxel_m}")
-
-
-class PairSkipped(CalibrationError):
-    """A strip pair that cannot give correspondences (too little overlap, too few pairs)."""
-
-    def __init__(self, strip_a: int, strip_b: int, reason: str):
-        self.strip_a, self.strip_b, self.reason = strip_a, strip_b, reason
-        super().__init__(f"strips {strip_a}–{strip_b} skipped: {reason}")
-
-    def __reduce__(self):  # picklable across Dask workers
-        return (PairSkipped, (self.strip_a, self.strip_b, self.reason))
 
 
 @dataclass(frozen=True)
@@ -80,180 +72,194 @@ class Registration:
     num_inliers: int
 
 
-def _cell_keys(xy: np.ndarray, cell: float) -> np.ndarray:
-    """Integer key of the xy cell (size ``cell`` m) of each point."""
-    ij = np.floor(xy / cell).astype(np.int64)
-    return ij[:, 0] * 4_294_967_296 + ij[:, 1]
+class _Clock:
+    """Accumulates wall-clock seconds per stage into a dict (or does nothing for None)."""
+
+    def __init__(self, timings: dict[str, float] | None):
+        self.timings, self.t = timings, time.perf_counter()
+
+    def lap(self, stage: str) -> None:
+        if self.timings is not None:
+            now = time.perf_counter()
+            self.timings[stage] = self.timings.get(stage, 0.0) + now - self.t
+            self.t = now
+
+
+class _Grid:
+    """Square xy cells (m) over a bounding box, with O(n) membership tests by lookup table."""
+
+    MAX_TABLE = 50_000_000  #: beyond this many cells, membership falls back to sorting
+
+    def __init__(self, xy_min: np.ndarray, xy_max: np.ndarray, cell: float):
+        self.lo, self.cell = xy_min, cell
+        self.shape = np.floor((xy_max - xy_min) / cell).astype(np.int64) + 1
+
+    def ij(self, xy: np.ndarray) -> np.ndarray:
+        return np.floor((xy - self.lo) / self.cell).astype(np.int64)
+
+    @property
+    def size(self) -> int:
+        return int(self.shape[0] * self.shape[1])
+
+    def keys(self, ij: np.ndarray) -> np.ndarray:
+        return ij[:, 0] * self.shape[1] + ij[:, 1]
+
+    def isin(self, keys: np.ndarray, marked: np.ndarray) -> np.ndarray:
+        """Which ``keys`` are among the ``marked`` cell keys."""
+        if self.size > self.MAX_TABLE:
+            return np.isin(keys, marked)
+        table = np.zeros(self.size, bool)
+        table[marked] = True
+        return table[keys]
+
+    def first(self, keys: np.ndarray) -> np.ndarray:
+        """Index of the first of ``keys`` in each occupied cell, ascending."""
+        if self.size > self.MAX_TABLE:
+            return np.sort(np.unique(keys, return_index=True)[1])
+        first = np.full(self.size, keys.size)
+        np.minimum.at(first, keys, np.arange(keys.size))
+        return np.sort(first[first < keys.size])
+
+    def around(self, xy: np.ndarray) -> np.ndarray:
+        """Keys of the cells holding ``xy`` and of their 8 neighbours (inside the grid)."""
+        ij = self.ij(xy)
+        near = (ij[:, None, :] + np.array([(i, j) for i in (-1, 0, 1) for j in (-1, 0, 1)])).reshape(-1, 2)
+        near = near[np.all((near >= 0) & (near < self.shape), axis=1)]
+        return self.keys(near)
 
 
 def overlap_masks(points_a: np.ndarray, points_b: np.ndarray, cell_m: float) -> tuple[np.ndarray, np.ndarray, float]:
     """Points of a and b in xy cells (size cell_m, m) occupied by both; also the overlap area (m²)."""
-    ka, kb = _cell_keys(points_a[:, :2], cell_m), _cell_keys(points_b[:, :2], cell_m)
-    common = np.intersect1d(ka, kb)
-    return np.isin(ka, common), np.isin(kb, common), common.size * cell_m**2
+    xy_a, xy_b = points_a[:, :2], points_b[:, :2]
+    grid = _Grid(np.minimum(xy_a.min(axis=0), xy_b.min(axis=0)), np.maximum(xy_a.max(axis=0), xy_b.max(axis=0)), cell_m)
+    ka, kb = grid.keys(grid.ij(xy_a)), grid.keys(grid.ij(xy_b))
+    common = ka[grid.first(ka)]  # occupied cells of a ...
+    common = common[grid.isin(common, kb)]  # ... also occupied by b
+    return grid.isin(ka, common), grid.isin(kb, common), common.size * cell_m**2
 
 
-def register(points_a: np.ndarray, points_b: np.ndarray, settings: VgicpSettings, area_m2: float):
+def _near(points: np.ndarray, at: np.ndarray, radius: float) -> np.ndarray:
+    """Indices of the points (m) that may lie within ``radius`` (m, in xy) of any of ``at``."""
+    grid = _Grid(points[:, :2].min(axis=0), points[:, :2].max(axis=0), radius)
+    return np.flatnonzero(grid.isin(grid.keys(grid.ij(points[:, :2])), grid.around(at[:, :2])))
+
+
+def register(points_a: np.ndarray, points_b: np.ndarray, settings: VgicpSettings, area_m2: float,
+             clock=None) -> Registration:
     """VGICP registration of b onto a, coarse to fine over ``settings.voxel_m``.
 
     Points are (N, 3) metres, best centred near the origin (small_gicp discretises at 21 bits);
     area_m2 is the overlap's area, which bounds the downsampled cloud sizes.
-    Returns the Registration and strip a's finest preprocessed small_gicp cloud (with
-    covariances) and its KdTree.
+    ``clock`` (optional) gets "preprocess" and "register" laps.
     """
+    clock = clock or _Clock(None)
     min_down = np.sqrt(area_m2 / settings.max_registration_points)
-    downs = [max(settings.downsampling_ratio * v, min_down) for v in settings.voxel_m]
+    stages = []  # (voxel, downsampling) m, coarse to fine; sparse data merge the finest stages
+    for voxel in settings.voxel_m:
+        down = max(settings.downsampling_ratio * voxel, min_down)
+        stage = (max(voxel, 2.0 * down), down)
+        if stage not in stages:
+            stages.append(stage)
+    finest = min(d for _, d in stages)
     # one pass over the full strips at the finest resolution; coarser stages start from it
-    fine_a = small_gicp.voxelgrid_sampling(points_a, min(downs), settings.num_threads).points()
-    fine_b = small_gicp.voxelgrid_sampling(points_b, min(downs), settings.num_threads).points()
+    fine_a = small_gicp.voxelgrid_sampling(points_a, finest, settings.num_threads).points()
+    fine_b = small_gicp.voxelgrid_sampling(points_b, finest, settings.num_threads).points()
     T = np.eye(4)
-    result = target = tree = None
-    for voxel, down in zip(settings.voxel_m, downs):
-        target, tree = small_gicp.preprocess_points(fine_a, down, settings.num_neighbors, settings.num_threads)
+    result = None
+    for voxel, down in stages:
+        target, _ = small_gicp.preprocess_points(fine_a, down, settings.num_neighbors, settings.num_threads)
         source, _ = small_gicp.preprocess_points(fine_b, down, settings.num_neighbors, settings.num_threads)
-        voxelmap = small_gicp.GaussianVoxelMap(max(voxel, 2.0 * down))
+        voxelmap = small_gicp.GaussianVoxelMap(voxel)
         voxelmap.insert(target)
+        clock.lap("preprocess")
         result = small_gicp.align(voxelmap, source, T, max_correspondence_distance=2.0 * voxel,
                                   num_threads=settings.num_threads, max_iterations=settings.max_iterations,
                                   rotation_epsilon=1e-5, translation_epsilon=1e-4)
         T = np.asarray(result.T_target_source)
-    return Registration(T, bool(result.converged), int(result.iterations), int(result.num_inliers)), target, tree
+        clock.lap("register")
+    return Registration(T, bool(result.converged), int(result.iterations), int(result.num_inliers))
 
 
 def _spread(points: np.ndarray, n_max: int, area_m2: float) -> np.ndarray:
     """Indices of at most ~n_max points spread evenly in xy (one per grid cell, deterministic)."""
     if points.shape[0] <= n_max:
         return np.arange(points.shape[0])
-    cell = np.sqrt(area_m2 / n_max)
-    _, first = np.unique(_cell_keys(points[:, :2], cell), return_index=True)
+    xy = points[:, :2]
+    grid = _Grid(xy.min(axis=0), xy.max(axis=0), np.sqrt(area_m2 / n_max))
+    first = grid.first(grid.keys(grid.ij(xy)))
     if first.size > n_max:  # ragged overlap outline: thin regularly
         first = first[np.linspace(0, first.size - 1, n_max).astype(np.int64)]
-    return np.sort(first)
+    return first
 
 
-def _normals(cloud, tree, at: np.ndarray, num_threads: int) -> tuple[np.ndarray, np.ndarray]:
-    """Unit normals at points ``at`` (m) and their surface variation λ_min/Σλ, from the
-    covariance small_gicp estimated at the nearest point of ``cloud`` (KdTree ``tree``)."""
-    idx, _ = tree.batch_knn_search(at, 1, num_threads=num_threads)
-    covs = np.stack([cloud.cov(int(i))[:3, :3] for i in idx[:, 0]])
-    eigval, eigvec = np.linalg.eigh(covs)  # ascending
+def _normals(points: np.ndarray, at: np.ndarray, k: int, num_threads: int) -> tuple[np.ndarray, np.ndarray]:
+    """Unit normals of the surface of ``points`` at ``at`` (both (·, 3) m) and its surface
+    variation λ_min/Σλ, from the covariance of the k nearest full-resolution points
+    (small_gicp KdTree); full resolution keeps the normal local to the pair."""
+    tree = small_gicp.KdTree(points, num_threads=num_threads)
+    idx, _ = tree.batch_knn_search(at, k, num_threads=num_threads)
+    nb = points[idx.astype(np.int64)]
+    nb = nb - nb.mean(axis=1, keepdims=True)
+    eigval, eigvec = np.linalg.eigh(np.einsum("mki,mkj->mij", nb, nb))  # ascending
     variation = eigval[:, 0] / np.maximum(eigval.sum(axis=1), 1e-300)
     return eigvec[:, :, 0], variation
 
 
 def match_pair_vgicp(strip_a_id: int, points_a: np.ndarray, strip_b_id: int, points_b: np.ndarray,
-                     settings: VgicpSettings = VgicpSettings()) -> Correspondences:
+                     settings: VgicpSettings | None = None, timings: dict[str, float] | None = None) -> Correspondences:
     """Corresponding points of strips a and b by VGICP registration + nearest neighbours.
 
     points_a, points_b: (N, 3) float64, the strips re-georeferenced with the current
-    parameters in a local Cartesian frame (m). Returns at most ``settings.max_pairs``
-    point pairs (one 1.0 per row of A and B) spread over the overlap.
-    Raises :class:`PairSkipped` when the overlap or the number of pairs is too small.
+    parameters in a local Cartesian frame (m); settings None → :class:`VgicpSettings`.
+    Returns at most ``settings.max_pairs`` point pairs (one 1.0 per row of A and B) spread
+    over the overlap. Raises CalibrationError (the calibrator skips the pair with a warning
+    naming it) when either strip has fewer than ``min_overlap_points`` in the overlap or
+    fewer than ``min_pairs`` pairs are found. ``timings``, when given, accumulates the
+    seconds spent per stage ("preprocess", "register", "correspond").
     """
+    settings = settings or VgicpSettings()
+    clock = _Clock(timings)
     points_a = np.asarray(points_a, dtype=np.float64)
     points_b = np.asarray(points_b, dtype=np.float64)
     in_a, in_b, area = overlap_masks(points_a, points_b, settings.overlap_cell_m)
     n_a, n_b = int(in_a.sum()), int(in_b.sum())
     if min(n_a, n_b) < settings.min_overlap_points:
-        raise PairSkipped(strip_a_id, strip_b_id, f"too little overlap ({n_a} and {n_b} points in "
-                          f"{area:.0f} m², need {settings.min_overlap_points} each)")
+        raise CalibrationError(f"too little overlap for VGICP ({n_a} and {n_b} points in {area:.0f} m², "
+                               f"need {settings.min_overlap_points} of each strip)")
     idx_a, idx_b = np.flatnonzero(in_a), np.flatnonzero(in_b)
     origin = points_a[idx_a].mean(axis=0)
     ov_a, ov_b = points_a[idx_a] - origin, points_b[idx_b] - origin
 
-    reg, cloud_a, tree_a = register(ov_a, ov_b, settings, area)
+    clock.lap("preprocess")
+    reg = register(ov_a, ov_b, settings, area, clock)
     R, t = reg.T_ab[:3, :3], reg.T_ab[:3, 3]
     b_on_a = ov_b @ R.T + t
 
     cand = _spread(ov_a, settings.max_pairs, area)
-    tree = small_gicp.KdTree(b_on_a, num_threads=settings.num_threads)
+    threshold = settings.pair_distance_m or 1.5 * np.sqrt(area / len(idx_b))  # 1.5 × b's mean point spacing, m
+    # only points near the candidates enter the KdTrees: pairs within the threshold and the
+    # k nearest points of a (≈ 2 spacings) lie within this radius
+    radius = max(threshold, 3.0 * np.sqrt(area / len(idx_a)))
+    near_b = _near(b_on_a, ov_a[cand], radius)
+    tree = small_gicp.KdTree(b_on_a[near_b], num_threads=settings.num_threads)
     nn, d2 = tree.batch_knn_search(ov_a[cand], 1, num_threads=settings.num_threads)
-    nn, dist = nn[:, 0].astype(np.int64), np.sqrt(d2[:, 0])
-    keep = dist < settings.pair_distance_m
+    nn, dist = near_b[nn[:, 0].astype(np.int64)], np.sqrt(d2[:, 0])
+    keep = dist < threshold
     normal = None
     if settings.kind == "point_to_plane":
-        n, variation = _normals(cloud_a, tree_a, ov_a[cand], settings.num_threads)
-        keep &= variation < settings.max_surface_variation
+        near_a = _near(ov_a, ov_a[cand], radius)
+        n, variation = _normals(ov_a[near_a], ov_a[cand], settings.num_neighbors, settings.num_threads)
+        off_plane = np.abs(np.einsum("ij,ij->i", ov_a[cand] - b_on_a[nn], n))
+        keep &= (variation < settings.max_surface_variation) & (off_plane < settings.max_plane_distance_m)
         normal = n[keep]
     n_pairs = int(keep.sum())
     if n_pairs < settings.min_pairs:
-        raise PairSkipped(strip_a_id, strip_b_id, f"too few correspondences ({n_pairs} closer than "
-                          f"{settings.pair_distance_m} m{' on planar surfaces' if normal is not None else ''}, "
-                          f"need {settings.min_pairs})")
+        where = " on planar surfaces" if normal is not None else ""
+        raise CalibrationError(f"too few VGICP correspondences ({n_pairs} closer than {threshold:.2f} m{where} "
+                               f"after registration, need {settings.min_pairs})")
     rows = np.arange(n_pairs)
     ones = np.ones(n_pairs)
     A = sp.csr_matrix((ones, (rows, idx_a[cand[keep]])), shape=(n_pairs, points_a.shape[0]))
     B = sp.csr_matrix((ones, (rows, idx_b[nn[keep]])), shape=(n_pairs, points_b.shape[0]))
+    clock.lap("correspond")
     return Correspondences(strip_a_id, strip_b_id, A, B, normal, sigma_m=settings.sigma_m, method="vgicp")
-
-
-def _match_or_skip(strip_a_id, points_a, strip_b_id, points_b, settings):
-    """match_pair_vgicp, returning a PairSkipped instead of raising it (for map_pairs)."""
-    try:
-        return match_pair_vgicp(strip_a_id, points_a, strip_b_id, points_b, settings)
-    except PairSkipped as skipped:
-        return skipped
-
-
-def match_pairs_vgicp(pairs, settings: VgicpSettings = VgicpSettings(), *, scheduler: str | None = None,
-                      workers: int | None = None) -> tuple[list[Correspondences], list[str]]:
-    """Match every pair ``(id_a, points_a, id_b, points_b)`` in-process or on Dask.
-
-    Returns (correspondences of the usable pairs, one warning per skipped pair naming it).
-    Raises CalibrationError when no pair is usable.
-    """
-    from calidar.strips.distribute import map_pairs
-
-    tasks = [(a, pa, b, pb, settings) for a, pa, b, pb in pairs]
-    results = map_pairs(_match_or_skip, tasks, scheduler=scheduler, workers=workers)
-    usable = [r for r in results if isinstance(r, Correspondences)]
-    skipped = [str(r) for r in results if isinstance(r, PairSkipped)]
-    if not usable:
-        detail = "; ".join(skipped) if skipped else "no overlapping pairs were given"
-        raise CalibrationError(f"no usable strip pair for VGICP: {detail}")
-    return usable, skipped
-
-
-def mean_distance(corr: Correspondences, points_a: np.ndarray, points_b: np.ndarray) -> float:
-    """Mean distance (m) between the corresponding points or planes of one pair."""
-    r = corr.residuals(points_a, points_b)
-    if corr.normal is None:
-        return float(np.mean(np.linalg.norm(r.reshape(-1, 3), axis=1)))
-    return float(np.mean(np.abs(r)))
-
-
-def iterate_vgicp(georeference, pairs, solve_once, values: dict[str, float],
-                  settings: VgicpSettings = VgicpSettings(), *, tol_m: float = 1e-3, max_rounds: int = 8,
-                  scheduler: str | None = None, workers: int | None = None, progress=None):
-    """Match, solve, re-georeference, match again — until the mean distance between
-    corresponding points changes by less than ``tol_m`` (m) between rounds (ICP's outer loop).
-
-    georeference(values) → {strip id: (N, 3) points, local m} with the parameters ``values`` (SI);
-    pairs: [(id_a, id_b), ...] overlapping strips; solve_once(correspondences, values) → a
-    :class:`calidar.adjust.Solution` of one adjustment started at ``values``;
-    progress(round, mean_distance_m, n_pairs) is called every round.
-    Returns the last Solution, with ``extra["vgicp_rounds"]`` (per round: mean distance,
-    number of pairs and correspondences) and a warning per skipped pair.
-    """
-    rounds: list[dict] = []
-    solution = None
-    for k in range(max_rounds + 1):
-        points = georeference(values)
-        corr, skipped = match_pairs_vgicp([(a, points[a], b, points[b]) for a, b in pairs], settings,
-                                          scheduler=scheduler, workers=workers)
-        n_obs = np.array([c.n_obs for c in corr], dtype=float)
-        dist = float(np.average([mean_distance(c, points[c.strip_a], points[c.strip_b]) for c in corr], weights=n_obs))
-        rounds.append({"round": k, "mean_distance_m": dist, "pairs": len(corr), "correspondences": int(n_obs.sum())})
-        if progress:
-            progress(k, dist, len(corr))
-        if solution is not None and abs(rounds[-2]["mean_distance_m"] - dist) < tol_m:
-            break
-        if k == max_rounds:
-            solution.warnings.append(f"VGICP: the mean correspondence distance still changed by "
-                                     f"{abs(rounds[-2]['mean_distance_m'] - dist) * 1e3:.1f} mm after {max_rounds} rounds")
-            break
-        solution = solve_once(corr, values)
-        values = solution.values
-    solution.warnings.extend(skipped)
-    solution.extra["vgicp_rounds"] = rounds
-    return solution

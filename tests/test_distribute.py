@@ -1,0 +1,102 @@
+"""Pair matching on a Dask LocalCluster gives the same results as in-process (to 1e-9)."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from calidar.errors import CalibrationError
+from calidar.strips.distribute import cluster_client, map_pairs
+from calidar.strips.calibrate import StripSettings, calibrate
+from calidar.strips.vgicp import VgicpSettings, match_pair_vgicp
+
+from test_strips_sim import _simulate, _strips
+from test_vgicp import disturb, sample
+
+
+def weighted_centroid(points, weights):
+    """A small real computation: weighted centroid (m) of (N, 3) points."""
+    return (weights[:, None] * points).sum(axis=0) / weights.sum()
+
+
+@pytest.fixture(scope="module")
+def client():
+    with cluster_client(workers=2) as c:
+        yield c
+
+
+def strips_for(seed):
+    rng = np.random.default_rng(seed)
+    a = sample(30_000, rng)
+    b = disturb(sample(30_000, rng))
+    c = sample(30_000, rng, x_range=(-30, 100)) + [0.0, 0.0, 0.1]
+    return a, b, c
+
+
+def test_map_pairs_keeps_task_order_in_process_and_on_a_cluster(client):
+    rng = np.random.default_rng(0)
+    tasks = [(rng.normal(size=(200_000, 3)), rng.random(200_000)) for _ in range(3)]  # > SCATTER_BYTES
+    local = map_pairs(weighted_centroid, tasks)
+    remote = map_pairs(weighted_centroid, tasks, client=client)
+    assert [r.shape for r in remote] == [(3,)] * 3
+    np.testing.assert_allclose(np.array(remote), np.array(local), rtol=0, atol=1e-12)
+
+
+def test_vgicp_correspondences_identical_on_a_local_cluster(client):
+    a, b, c = strips_for(1)
+    tasks = [(1, a, 2, b, VgicpSettings(max_pairs=800)), (1, a, 3, c, VgicpSettings(max_pairs=800))]
+    local = map_pairs(match_pair_vgicp, tasks)
+    remote = map_pairs(match_pair_vgicp, tasks, client=client)
+    for x, y in zip(local, remote):
+        assert (x.strip_a, x.strip_b) == (y.strip_a, y.strip_b) and x.n_obs == y.n_obs > 100
+        assert (x.A != y.A).nnz == 0 and (x.B != y.B).nnz == 0
+        np.testing.assert_allclose(y.normal, x.normal, rtol=0, atol=1e-9)
+
+
+def test_calibration_identical_in_process_and_on_a_local_cluster():
+    res = _simulate("uav", "cross", 0.05)
+    strips = _strips(res)
+    settings = StripSettings(threshold_m=1e-3, max_outer=3)
+    local = calibrate(strips, res.nominal, method="vgicp", settings=settings)
+    remote = calibrate(strips, res.nominal, method="vgicp", settings=settings, workers=2)  # its own cluster
+    assert local.pairs == remote.pairs and len(local.pairs) >= 4
+    for name, value in local.solution.values.items():
+        assert abs(remote.solution.values[name] - value) < 1e-9, name
+    truth = res.truth.parameters()
+    assert abs(local.solution.values["boresight_roll"] - truth["boresight_roll"]) < np.radians(0.01)
+
+
+def test_scheduler_address_and_bad_options(client, monkeypatch):
+    a, b, _ = strips_for(2)
+    tasks = [(1, a, 2, b, VgicpSettings(max_pairs=300))]
+    via_address = map_pairs(match_pair_vgicp, tasks, scheduler=client.scheduler.address)
+    local = map_pairs(match_pair_vgicp, tasks)
+    assert via_address[0].n_obs == local[0].n_obs and (via_address[0].A != local[0].A).nnz == 0
+    with pytest.raises(CalibrationError, match="not both"):
+        map_pairs(weighted_centroid, [], scheduler="tcp://127.0.0.1:1", workers=2)
+    with pytest.raises(CalibrationError, match="at least 1"):
+        map_pairs(weighted_centroid, [], workers=0)
+    monkeypatch.setattr("calidar.strips.distribute.CONNECT_TIMEOUT_S", 1.0)
+    with pytest.raises(CalibrationError, match="cannot reach the Dask scheduler at tcp://127.0.0.1:9"):
+        map_pairs(weighted_centroid, [], scheduler="tcp://127.0.0.1:9")
+
+
+def test_cli_boresight_vgicp_with_local_workers(cli, tmp_path):
+    res = _simulate("uav", "cross", 0.05)
+    sim = res.write(tmp_path / "sim")
+    out = tmp_path / "cal"
+    code, stdout, err = cli("boresight", *sorted((sim / "strips").glob("*.laz")), "--trajectory", sim / "sbet.out",
+                            "--sensor", sim / "sensor.toml", "--method", "vgicp", "--workers", "2",
+                            "--truth", sim / "truth.json", "--out", out)
+    assert code == 0, err
+    doc = json.loads((out / "solution.json").read_text())
+    assert doc["strips"]["method"] == "vgicp" and len(doc["strips"]["pairs"]) >= 4
+    for name in ("boresight_roll", "boresight_pitch", "boresight_yaw"):
+        p = doc["parameters"][name]
+        assert abs(p["error"]) < 3 * p["sigma"], (name, p)
+    code, _, err = cli("boresight", *sorted((sim / "strips").glob("*.laz")), "--trajectory", sim / "sbet.out",
+                       "--sensor", sim / "sensor.toml", "--method", "vgicp", "--scheduler", "tcp://127.0.0.1:1",
+                       "--workers", "2", "--out", tmp_path / "x")
+    assert code == 1 and "not both" in err and "Traceback" not in err
