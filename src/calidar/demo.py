@@ -20,6 +20,7 @@ from calidar.photon.demo import run_demo as photon_step
 from calidar.rangecal.report import run_demo as range_calibration_step
 from calidar.report import Report
 from calidar.scanner_analysis import run_demo as scanner_analysis_step
+from calidar.strips.report import run_demo as boresight_step
 
 DEMO_SURVEY = "survey"  #: sub-folder of the demo output holding the simulated survey
 DEMO_ERRORS = {  #: true − nominal mounting of the demo survey (SI)
@@ -99,6 +100,7 @@ def add_simulation_section(report: Report, result, folder: Path, seconds: float)
 
 DEMO_STEPS: list[Callable[[Report, Path, int], None]] = [
     simulation_step,
+    boresight_step,
     scanner_analysis_step,
     range_calibration_step,
     photon_step,
