@@ -95,7 +95,7 @@ def test_demo_writes_report_and_survey(cli, tmp_path, monkeypatch):
     import calidar.demo as demo
     from calidar.sim.survey import survey_config
 
-    monkeypatch.setattr(demo, "demo_config", lambda seed: survey_config("uav", seed=seed, density=0.01))
+    monkeypatch.setattr(demo, "demo_config", lambda seed: survey_config("uav", seed=seed, density=0.1, directions="cross"))
     code, out, err = cli("demo", "--out", tmp_path)
     assert code == 0, err
     html = (tmp_path / "report.html").read_text()
