@@ -92,7 +92,7 @@ def test_centroid_shortcut_equals_full_regeoreferencing(strips):
     nominal = Sensor(lever_arm_x=0.2, range_offset=0.01)
     full = _Problem(nominal, poses, [c], ["scan_angle_scale"])
     assert full.centroids is None
-    vals = build_parameters(nominal, parse_estimate("boresight,lever_arm,range_offset,range_scale"), [1, 2]).values()
+    vals = build_parameters(nominal, parse_estimate("boresight,lever_arm,range_offset,range_scale"), {}).values()
     vals.update(boresight_roll=1e-3, boresight_yaw=-2e-3, lever_arm_x=0.3, range_offset=0.05, range_scale=1e-4)
     fast = _Problem(nominal, poses, [c], ["boresight_roll", "lever_arm_x", "range_offset"])
     assert fast.centroids is not None

@@ -8,16 +8,17 @@ import numpy as np
 import pytest
 
 from calidar.sim.survey import simulate_survey, survey_config
-from calidar.strips.calibrate import calibrate
+from calidar.strips.calibrate import StripSettings, calibrate
 from calidar.strips.strip import LocalFrame, Strip
+from calidar.strips.trajectory_errors import TrajectoryModel
 
 BORESIGHT_ERRORS = {"boresight_roll": np.radians(0.03), "boresight_pitch": np.radians(-0.04),
                     "boresight_yaw": np.radians(0.05)}
 ANGLES = ("boresight_roll", "boresight_pitch", "boresight_yaw")
 
 
-def _simulate(preset, directions, density, vegetation=0.0, **errors):
-    cfg = survey_config(preset, seed=3, density=density, vegetation=vegetation, directions=directions,
+def _simulate(preset, directions, density, vegetation=0.0, seed=3, **errors):
+    cfg = survey_config(preset, seed=seed, density=density, vegetation=vegetation, directions=directions,
                         errors={**BORESIGHT_ERRORS, **errors}, range_noise_m=0.03)
     return simulate_survey(cfg)
 
@@ -76,6 +77,25 @@ def test_airborne_cross_lines_boresight_via_cli(cli, airborne, tmp_path):
     assert code == 1 and "pass --force" in err
 
 
+def test_trajectory_errors_modelled_via_cli(cli, airborne, tmp_path):
+    res, sim = airborne
+    args = [*sorted((sim / "strips").glob("*.laz")), "--trajectory", sim / "sbet.out", "--sensor", sim / "sensor.toml",
+            "--truth", sim / "truth.json"]
+    code, _, err = cli("boresight", *args, "--trajectory-sigma", "0.03", "--out", tmp_path / "bad")
+    assert code == 1 and "--trajectory-sigma" in err and "POSITION_M,ATTITUDE_DEG" in err and "Traceback" not in err
+    out = tmp_path / "cal"
+    code, stdout, err = cli("boresight", *args, "--trajectory-sigma", "0.03,0.002", "--out", out)
+    assert code == 0, err
+    doc = json.loads((out / "solution.json").read_text())
+    n_blocks = sum(name.startswith("trajectory_tilt_up_") for name in doc["parameters"])
+    assert n_blocks > 50  # 2 s blocks on every strip
+    for name in ANGLES:
+        p = doc["parameters"][name]
+        assert abs(p["error"]) < 0.002 and abs(p["error"]) < 3 * p["sigma"], (name, p)
+    assert f"{6 * n_blocks} trajectory corrections estimated" in " ".join(stdout.split())
+    assert f"{6 * n_blocks} trajectory_* parameters are estimated too" in (out / "report.html").read_text()
+
+
 def test_trajectory_not_covering_strips_is_a_clear_error(cli, airborne, tmp_path):
     from calidar.io.sbet import read_sbet, write_sbet
 
@@ -97,6 +117,37 @@ def test_airborne_with_30_percent_vegetation():
     assert sol.residuals_after["downweighted_fraction"] > 0.0
 
 
+#: the simulator's trajectory errors as the adjustment models them: 3 cm and 0.002° per 2 s block,
+#: Gauss–Markov over 20 s (the simulated GNSS error is smoothed over 10 s, the attitude over 2 s)
+AIRBORNE_TRAJECTORY = TrajectoryModel(block_s=2.0, position_sigma_m=0.03, attitude_sigma_rad=np.radians(0.002),
+                                      correlation_s=20.0, attitude_correlation_s=20.0)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("seed", [3, 4, pytest.param(5, marks=pytest.mark.xfail(
+    reason="known miss (issue 4): yaw error 0.0025° = 3.2σ on this survey; roll and pitch pass", strict=True)), 6])
+def test_airborne_boresight_with_the_trajectory_errors_modelled(seed):
+    """With the trajectory's errors (3 cm, 0.002°) estimated as Gauss–Markov nuisance
+    parameters, the σ of the boresight include them: every angle within 0.002° and 3σ.
+    Yaw, the weakest angle at a 20° half field of view, misses on seed 5 (see the xfail)."""
+    res = _simulate("airborne", "cross", 0.3, seed=seed)
+    sol = calibrate(_strips(res), res.nominal, estimate="boresight,trajectory_bias",
+                    settings=StripSettings(trajectory=AIRBORNE_TRAJECTORY)).solution
+    truth = res.truth.parameters()
+    for name in ANGLES:
+        err = sol.values[name] - truth[name]
+        assert abs(err) < 3 * sol.sigma[name], (name, err / sol.sigma[name])
+        assert abs(np.degrees(err)) < 0.002, (name, np.degrees(err))
+    assert sum(n.startswith("trajectory_tilt_") for n in sol.parameters.free_names) > 100
+
+
+def uav_lever_arm_survey():
+    """The UAV survey with 5 cm lever-arm errors and 5 mm GNSS noise (see the test below)."""
+    cfg = survey_config("uav", seed=3, density=0.2, vegetation=0.0, directions="cross", range_noise_m=0.03,
+                        gnss_noise_m=0.005, errors={"lever_arm_x": 0.05, "lever_arm_y": -0.05})
+    return simulate_survey(cfg)
+
+
 @pytest.mark.slow
 def test_uav_lever_arm_within_1_cm():
     """Lever-arm errors of 5 cm with the boresight known (calibrated beforehand): x, y within 1 cm.
@@ -105,9 +156,7 @@ def test_uav_lever_arm_within_1_cm():
     lever arm is only found to the GNSS error's level: this survey has 5 mm (the preset's 2 cm
     gives lever-arm errors of 1–3 cm). At one flying height a pitch error shifts points
     along-track nearly as lever_arm_x does: with the boresight free too the solution says so."""
-    cfg = survey_config("uav", seed=3, density=0.2, vegetation=0.0, directions="cross", range_noise_m=0.03,
-                        gnss_noise_m=0.005, errors={"lever_arm_x": 0.05, "lever_arm_y": -0.05})
-    res = simulate_survey(cfg)
+    res = uav_lever_arm_survey()
     strips = _strips(res)
     truth = res.truth.parameters()
     sol = calibrate(strips, res.nominal, estimate="lever_arm_x,lever_arm_y").solution

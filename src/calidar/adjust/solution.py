@@ -53,6 +53,7 @@ class Solution:
     def from_normal_matrix(cls, params, N, sigma0_sq, dof, *, residuals, weights, before, history,
                            converged, jacobian=None) -> "Solution":
         names = params.free_names
+        prior = [p.prior_sigma is not None for p in params.free]  # constrained by their priors
         d = np.sqrt(np.clip(np.diag(N), 1e-300, None))
         Ns = N / np.outer(d, d)
         evals, evecs = np.linalg.eigh(Ns)
@@ -60,7 +61,7 @@ class Solution:
         warnings = []
         zero_cols = []
         if jacobian is not None and jacobian.size:
-            zero_cols = [names[j] for j in range(len(names)) if not np.any(jacobian[:, j])]
+            zero_cols = [names[j] for j in range(len(names)) if not np.any(jacobian[:, j]) and not prior[j]]
             for nm in zero_cols:
                 warnings.append(f"{nm} is not observable: no observation depends on it; its value is the start value")
         bad = evals < RANK_TOLERANCE * evals[-1]
@@ -82,13 +83,12 @@ class Solution:
             np.fill_diagonal(cov, np.where(np.isinf(sig), np.inf, np.diag(cov)))
         with np.errstate(invalid="ignore", divide="ignore"):
             corr = cov / np.outer(sig, sig)
-        for i in range(len(names)):
-            for j in range(i + 1, len(names)):
-                if np.isfinite(corr[i, j]) and abs(corr[i, j]) > CORRELATION_WARNING:
-                    warnings.append(
-                        f"{names[i]} and {names[j]} are strongly correlated (ρ = {corr[i, j]:+.3f}): "
-                        "the data barely separate them and their σ are large"
-                    )
+        for i, j in zip(*np.nonzero(np.triu(np.abs(np.nan_to_num(corr)) > CORRELATION_WARNING, 1))):
+            if not (prior[i] and prior[j]):  # two parameters held by priors: nuisance, no warning
+                warnings.append(
+                    f"{names[i]} and {names[j]} are strongly correlated (ρ = {corr[i, j]:+.3f}): "
+                    "the data barely separate them and their σ are large"
+                )
         return cls(
             parameters=params, covariance=cov, sigma0=float(np.sqrt(sigma0_sq)), dof=float(dof),
             condition_number=cond, warnings=warnings, residuals=residuals,

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -10,6 +11,8 @@ import typer
 
 from calidar.cli.common import console, err_console
 from calidar.errors import InputError
+
+TRAJECTORY_PREFIX = "trajectory_"
 
 
 def load_strips(paths, trajectory, sensor):
@@ -66,6 +69,12 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
         estimate: str = typer.Option("boresight", "--estimate",
                                      help="Comma-separated: boresight, lever_arm, range_offset, range_scale, "
                                           "scan_angle_scale, scan_angle_offset, trajectory_bias."),
+        trajectory_sigma: str | None = typer.Option(
+            None, "--trajectory-sigma", help="The trajectory's accuracy 'POSITION_M,ATTITUDE_DEG' (e.g. 0.03,0.002): "
+            "estimate its errors per time block with these priors, so the σ of the mounting include them."),
+        trajectory_block: float = typer.Option(2.0, "--trajectory-block", help="Time block of the trajectory corrections, s."),
+        trajectory_correlation: float = typer.Option(
+            20.0, "--trajectory-correlation", help="Correlation time of the trajectory errors (Gauss–Markov), s."),
         truth: Path | None = typer.Option(None, "--truth", help="truth.json of a simulation (adds truth and errors)."),
         scheduler: str | None = typer.Option(None, "--scheduler", help="Dask scheduler address for the pair matching."),
         workers: int | None = typer.Option(None, "--workers", help="Start a local Dask cluster with N workers."),
@@ -78,10 +87,15 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
         from calidar.outputs import prepare_out_dir
         from calidar.report import Report
         from calidar.sensor import Sensor
-        from calidar.strips.calibrate import build_parameters, calibrate, parse_estimate, truth_to_si
+        from calidar.strips.calibrate import StripSettings, build_parameters, calibrate, parse_estimate, truth_to_si
         from calidar.strips.report import add_report_section
 
         groups = parse_estimate(estimate)
+        settings = StripSettings()
+        if trajectory_sigma is not None:
+            settings = replace(settings, trajectory=trajectory_model(trajectory_sigma, trajectory_block,
+                                                                     trajectory_correlation))
+            groups = groups if "trajectory_bias" in groups else [*groups, "trajectory_bias"]
         truth_si = None
         if truth is not None:
             try:
@@ -95,10 +109,10 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
         traj = read_trajectory(trajectory)
         strip_list, crs = load_strips(strips, traj, nominal)
         if truth is not None:
-            truth_si = truth_to_si(truth_doc, build_parameters(nominal, groups, [s.id for s in strip_list]))
+            truth_si = truth_to_si(truth_doc, build_parameters(nominal, groups, {}))
         with err_console.status("calibrating…") as status:
-            result = calibrate(strip_list, nominal, method=method, estimate=groups, scheduler=scheduler,
-                               workers=workers, progress=lambda m: status.update(m))
+            result = calibrate(strip_list, nominal, method=method, estimate=groups, settings=settings,
+                               scheduler=scheduler, workers=workers, progress=lambda m: status.update(m))
         result.solution.write_json(out_dir / "solution.json", truth_si)
         result.sensor.write(out_dir / "sensor.toml", force=True)
         report = Report("calidar boresight")
@@ -111,6 +125,22 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
                       + (" and recalibrated strips" if write_strips_ else ""))
 
 
+def trajectory_model(sigma: str, block_s: float, correlation_s: float):
+    """--trajectory-sigma 'POSITION_M,ATTITUDE_DEG' and the block/correlation times → a TrajectoryModel."""
+    from calidar.strips.trajectory_errors import TrajectoryModel
+
+    try:
+        pos_m, att_deg = (float(v) for v in sigma.split(","))
+    except ValueError:
+        raise InputError(None, "--trajectory-sigma", f"expected 'POSITION_M,ATTITUDE_DEG' such as 0.03,0.002, "
+                         f"got {sigma!r}") from None
+    for name, v in (("--trajectory-sigma", pos_m), ("--trajectory-sigma", att_deg),
+                    ("--trajectory-block", block_s), ("--trajectory-correlation", correlation_s)):
+        if not (np.isfinite(v) and v > 0):
+            raise InputError(None, name, f"expected numbers > 0, got {v}")
+    return TrajectoryModel(block_s, pos_m, np.radians(att_deg), correlation_s, correlation_s)
+
+
 def _print(result, truth_si) -> None:
     from rich.table import Table
 
@@ -120,8 +150,12 @@ def _print(result, truth_si) -> None:
         table.add_column(h, justify="right")
     g = lambda v: "—" if v is None else f"{v:.6g}"  # noqa: E731
     for name, p in doc["parameters"].items():
-        if p["free"]:
+        if p["free"] and not name.startswith(TRAJECTORY_PREFIX):
             table.add_row(name, g(p["value"]), g(p["sigma"]), p["unit"], g(p.get("truth")), g(p.get("error")))
     console.print(table)
+    n_traj = sum(name.startswith(TRAJECTORY_PREFIX) for name in doc["parameters"])
+    if n_traj:
+        console.print(f"{n_traj} trajectory corrections estimated (in solution.json; largest shift "
+                      f"{result.max_trajectory_shift_m() * 1e3:.1f} mm)")
     for w in result.warnings:
         console.print(f"[yellow]warning:[/] {w}", highlight=False)

@@ -67,11 +67,17 @@ class Section:
         cap = f"<caption>{html.escape(caption)}</caption>" if caption else ""
         self.blocks.append(f"<table>{cap}<thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>")
 
-    def solution(self, solution, truth: dict[str, float] | None = None) -> None:
-        """Parameter table (value, σ, unit, truth and error when known) and diagnostics."""
+    def solution(self, solution, truth: dict[str, float] | None = None, hidden_prefix: str | None = None) -> None:
+        """Parameter table (value, σ, unit, truth and error when known) and diagnostics; parameters
+        whose names start with ``hidden_prefix`` (nuisance parameters) are counted, not listed."""
         doc = solution.to_dict(truth)
         rows = []
+        hidden = [n for n in doc["parameters"] if hidden_prefix and n.startswith(hidden_prefix)]
+        if hidden:
+            self.text(f"{len(hidden)} {hidden_prefix}* parameters are estimated too; solution.json lists them.")
         for name, p in doc["parameters"].items():
+            if name in hidden:
+                continue
             err = p.get("error")
             within = None
             if err is not None and p["sigma"]:

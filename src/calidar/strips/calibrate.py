@@ -20,6 +20,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from calidar.adjust import Parameter, ParameterSet, Solution, solve
+from calidar.adjust.solver import numerical_jacobian
 from calidar.errors import CalibrationError, CalidarError, InputError
 from calidar.sensor import Sensor
 from calidar.strips.correspond import Correspondences
@@ -27,6 +28,7 @@ from calidar.strips.distribute import cluster_client, map_pairs
 from calidar.strips.overlap import Overlap, find_overlaps
 from calidar.strips.planes import PlaneSettings, match_pair_planes
 from calidar.strips.strip import Pose, Strip, georeference_pose
+from calidar.strips.trajectory_errors import StripCorrection, TrajectoryModel, corrections, parse_name
 
 #: What ``--estimate`` accepts → sensor parameters (name, unit of the engine).
 ESTIMATE_GROUPS: dict[str, tuple[tuple[str, str], ...]] = {
@@ -37,9 +39,8 @@ ESTIMATE_GROUPS: dict[str, tuple[tuple[str, str], ...]] = {
     "scan_angle_scale": (("scan_angle_scale", "1"),),
     "scan_angle_offset": (("scan_angle_offset", "rad"),),
     "palmer": (("eccentricity_ratio", "1"), ("eccentricity_phase", "rad"), ("delta_l", "rad"), ("delta_r", "rad")),
-    "trajectory_bias": (),  # per strip: trajectory_bias_{east,north,up}_<id> (m), all strips but the first
+    "trajectory_bias": (),  # per strip (and time block): see calidar.strips.trajectory_errors
 }
-BIAS_AXES = ("east", "north", "up")
 METHODS = ("planes", "vgicp")
 
 
@@ -54,6 +55,7 @@ class StripSettings:
     threshold_m: float = 2e-4  #: stop when the mean correspondence distance changes by less
     robust: str | None = "cauchy"
     cluster_s: float | None = 10.0  #: trajectory errors correlate over this time: σ from a cluster-robust covariance
+    trajectory: TrajectoryModel = field(default_factory=TrajectoryModel)  #: when estimating trajectory_bias
     planes: PlaneSettings = field(default_factory=PlaneSettings)
     vgicp: object | None = None  #: settings handed to calidar.strips.vgicp.match_pair_vgicp
 
@@ -72,15 +74,19 @@ class CalibrationResult:
     residuals_before: np.ndarray  #: first correspondences at the nominal sensor, m
     residuals_after: np.ndarray  #: last correspondences at the calibrated sensor, m
     outer: list[dict]  #: per outer iteration: mean distance, observations, values (SI)
-    biases: dict[int, np.ndarray]  #: per strip (east, north, up) m
+    corrections: dict[int, StripCorrection]  #: estimated trajectory corrections per strip
     poses: dict[int, Pose] = field(default_factory=dict, repr=False)  #: cached poses of the overlap points
 
     @property
     def warnings(self) -> list[str]:
         return self.solution.warnings
 
+    def max_trajectory_shift_m(self) -> float:
+        """The largest estimated trajectory shift of any block (m; 0 without trajectory corrections)."""
+        return max((float(np.abs(c.shift).max()) for c in self.corrections.values()), default=0.0)
+
     def georeference(self, strip: Strip, calibrated: bool = True, index=None) -> np.ndarray:
-        """A strip's points (local m) with the calibrated (or nominal) sensor and its bias."""
+        """A strip's points (local m) with the calibrated (or nominal) sensor and its trajectory correction."""
         if not calibrated:
             return strip.points if index is None else strip.points[index]
         pose = None
@@ -89,7 +95,8 @@ class CalibrationResult:
                 pose = self.poses[strip.id].take(self.poses[strip.id].rows_of(np.asarray(index)))
             except KeyError:
                 pose = None
-        return strip.georeference(self.sensor, index, pose) + self.biases.get(strip.id, np.zeros(3))
+        pose = strip.pose(index) if pose is None else pose
+        return _georeference(self.sensor, self.corrections.get(strip.id), pose, strip.time[pose.index])
 
 
 #: Single parameters ``--estimate`` also accepts (e.g. lever_arm_x,lever_arm_y without z).
@@ -107,26 +114,28 @@ def parse_estimate(items: str | Sequence[str]) -> list[str]:
     return names
 
 
-def build_parameters(nominal: Sensor, estimate: Sequence[str], strip_ids: Sequence[int]) -> ParameterSet:
-    """The engine's parameters: every sensor parameter (estimated ones free) plus strip biases."""
+def build_parameters(nominal: Sensor, estimate: Sequence[str], spans: dict[int, tuple[float, float]],
+                     trajectory: TrajectoryModel = TrajectoryModel()) -> ParameterSet:
+    """The engine's parameters: every sensor parameter (estimated ones free) plus, with
+    ``trajectory_bias``, the trajectory corrections of strips with time spans {id: (t0, t1)} s."""
     free = {name for g in estimate for name, _ in {**ESTIMATE_GROUPS, **SINGLE_PARAMETERS}[g]}
     units = {name: unit for g in ESTIMATE_GROUPS.values() for name, unit in g}
     params = [Parameter(name, value, units.get(name, "1"), free=name in free)
               for name, value in nominal.parameters().items() if name in units]
     if "trajectory_bias" in estimate:
-        params += [Parameter(f"trajectory_bias_{ax}_{i}", 0.0, "m") for i in sorted(strip_ids)[1:] for ax in BIAS_AXES]
+        params += trajectory.parameters(spans)
     return ParameterSet(params)
 
 
-def _sensor_and_biases(nominal: Sensor, values: dict[str, float]) -> tuple[Sensor, dict[int, np.ndarray]]:
+def _sensor(nominal: Sensor, values: dict[str, float]) -> Sensor:
     own = set(nominal.parameters())
-    sensor = nominal.with_parameters(**{k: v for k, v in values.items() if k in own})
-    biases: dict[int, np.ndarray] = {}
-    for k, v in values.items():
-        if k.startswith("trajectory_bias_"):
-            _, _, ax, sid = k.split("_")
-            biases.setdefault(int(sid), np.zeros(3))[BIAS_AXES.index(ax)] = v
-    return sensor, biases
+    return nominal.with_parameters(**{k: v for k, v in values.items() if k in own})
+
+
+def _georeference(sensor: Sensor, correction: StripCorrection | None, pose: Pose, time: np.ndarray) -> np.ndarray:
+    """Points (local m) of cached poses with ``sensor`` and a strip's trajectory correction (or None)."""
+    pts = georeference_pose(sensor, pose)
+    return pts if correction is None else correction.apply(pts, pose.position, correction.blocks(time))
 
 
 def _matcher(method: str, settings: StripSettings) -> tuple[Callable, object]:
@@ -173,21 +182,20 @@ class _Centroids:
 
     With P = r + R_lb · (R_bs · v_s + a_b) and v_s = (ρ_m − offset) / (1 + scale) · u (the
     lidar equation with the sensor's range model), the averages of r, R_lb, R_lb·ρ_m·u and
-    R_lb·u are taken once; boresight, lever arm, range offset/scale and trajectory biases
-    then act on them exactly. (Scanner-angle parameters change u: see ``_Problem``.)
+    R_lb·u are taken once; boresight, lever arm and range offset/scale then act on them
+    exactly. (Scanner-angle parameters change u: see ``_Problem``.)
     """
 
     def __init__(self, A: sp.csr_matrix, pose: Pose, nominal: Sensor, range_free: bool, lever_free: bool):
         n = A.shape[0]
         u = nominal.scanner.directions(pose.angles)
         self.rowsum = np.asarray(A.sum(axis=1)).ravel()
-        self.r = A @ pose.position
+        self.r = A @ pose.position  #: weighted sums of the IMU positions
         R = (A @ pose.r_lb.reshape(-1, 9)).reshape(n, 3, 3)
         if lever_free:
-            self.R = R
+            self.R, self.const = R, self.r
         else:  # a fixed lever arm adds a constant
-            self.R = None
-            self.r += R @ nominal.lever_arm
+            self.R, self.const = None, self.r + R @ nominal.lever_arm
         # with a fixed range model v_s is fixed: one average instead of two
         rho = pose.range_m if range_free else nominal.true_range(pose.range_m)
         self.M_rho = np.empty((n, 3, 3, 3))
@@ -197,25 +205,31 @@ class _Centroids:
             if range_free:
                 self.M_u[..., k] = (A @ (pose.r_lb * u[:, None, None, k]).reshape(-1, 9)).reshape(n, 3, 3)
 
-    def __call__(self, sensor: Sensor, bias) -> np.ndarray:
+    def __call__(self, sensor: Sensor) -> np.ndarray:
         M = self.M_rho if self.M_u is None else (self.M_rho - sensor.range_offset * self.M_u) / (1.0 + sensor.range_scale)
         n = M.shape[0]
-        out = self.r + (M.reshape(n * 3, 9) @ sensor.r_bs.ravel()).reshape(n, 3) + self.rowsum[:, None] * bias
+        out = self.const + (M.reshape(n * 3, 9) @ sensor.r_bs.ravel()).reshape(n, 3)
         return out if self.R is None else out + self.R @ sensor.lever_arm
 
 
 class _Problem:
     """Residuals of all correspondences for given parameter values (SI), with cached poses."""
 
-    def __init__(self, nominal: Sensor, poses: dict[int, Pose], corrs: list[Correspondences], free: Sequence[str]):
-        """poses: per strip, cached poses holding at least every point the correspondences reference."""
+    def __init__(self, nominal: Sensor, poses: dict[int, Pose], corrs: list[Correspondences], free: Sequence[str],
+                 times: dict[int, np.ndarray] | None = None, trajectory: TrajectoryModel | None = None,
+                 spans: dict[int, tuple[float, float]] | None = None):
+        """poses: per strip, cached poses holding at least every point the correspondences reference;
+        times: per strip, the GPS times (s) of all its points; trajectory, spans: the model of
+        trajectory corrections (None: no corrections) and the strips' time spans."""
         self.nominal = nominal
+        self.trajectory, self.spans = trajectory, spans or {}
         used: dict[int, list[np.ndarray]] = {}
         for c in corrs:
             used.setdefault(c.strip_a, []).append(c.A.indices)
             used.setdefault(c.strip_b, []).append(c.B.indices)
         self.index = {i: _union(v) for i, v in used.items()}
         self.pose: dict[int, Pose] = {i: poses[i].take(poses[i].rows_of(idx)) for i, idx in self.index.items()}
+        self.time = {i: times[i][idx] for i, idx in self.index.items()} if trajectory else {}
 
         def compact(m, sid):
             idx = self.index[sid]
@@ -231,6 +245,9 @@ class _Problem:
         self.centroids = None if scanner_free else [
             tuple(_Centroids(m, self.pose[sid], nominal, range_free, lever_free)
                   for m, sid in ((c.A, c.strip_a), (c.B, c.strip_b))) for c in self.corrs]
+        self.row_time = [tuple((m @ self.time[sid]) / np.maximum(np.asarray(m.sum(axis=1)).ravel(), 1e-300)
+                               if self.time else None for m, sid in ((c.A, c.strip_a), (c.B, c.strip_b)))
+                         for c in self.corrs]
 
     def clusters(self, strips: dict[int, Strip], block_s: float) -> list[np.ndarray]:
         """Groupings of the residuals by trajectory segment (strip, time block of ``block_s``):
@@ -253,15 +270,69 @@ class _Problem:
         return list(zip(self.corrs, np.split(r, np.cumsum(sizes)[:-1])))
 
     def __call__(self, values: dict[str, float]) -> np.ndarray:
-        sensor, biases = _sensor_and_biases(self.nominal, values)
+        sensor = _sensor(self.nominal, values)
+        fix = corrections(values, self.trajectory, self.spans)
         if self.centroids is None:  # scanner parameters free: re-georeference every referenced point
-            pts = {i: georeference_pose(sensor, p) + biases.get(i, 0.0) for i, p in self.pose.items()}
+            pts = {i: _georeference(sensor, fix.get(i), p, self.time.get(i)) for i, p in self.pose.items()}
             return np.concatenate([c.residuals(pts[c.strip_a], pts[c.strip_b]) for c in self.corrs])
         out = []
-        for c, (ca, cb) in zip(self.corrs, self.centroids):
-            d = ca(sensor, biases.get(c.strip_a, 0.0)) - cb(sensor, biases.get(c.strip_b, 0.0))
+        for c, sides, times in zip(self.corrs, self.centroids, self.row_time):
+            p = []
+            for side, sid, t in zip(sides, (c.strip_a, c.strip_b), times):
+                q = side(sensor)
+                f = fix.get(sid)
+                p.append(q if f is None else f.apply(q, side.r, f.blocks(t), side.rowsum))
+            d = p[0] - p[1]
             out.append(d.ravel() if c.normal is None else np.einsum("ij,ij->i", d, c.normal))
         return np.concatenate(out)
+
+
+    def jacobian(self, values: dict[str, float], free: Sequence[Parameter]) -> np.ndarray:
+        """∂residuals/∂(free parameters), (n, n_free): central differences for the sensor's
+        parameters, exact columns for the trajectory corrections (linear in them)."""
+        traj = {p.name: parse_name(p.name) for p in free} if self.trajectory else {}
+        if self.centroids is None or not any(traj.values()):
+            return numerical_jacobian(self, ParameterSet(replace(p, value=values[p.name]) for p in free),
+                                      np.array([values[p.name] for p in free]))
+        sensor_free = [p for p in free if traj.get(p.name) is None]
+        J = np.zeros((sum(c.n_obs * (3 if c.normal is None else 1) for c in self.corrs), len(free)))
+        if sensor_free:
+            sub = ParameterSet(replace(p, value=values[p.name]) for p in sensor_free)
+            cols = [free.index(p) for p in sensor_free]
+            J[:, cols] = numerical_jacobian(lambda v: self({**values, **v}), sub, sub.x())
+        column = {traj[p.name]: j for j, p in enumerate(free) if traj.get(p.name)}
+        sensor = _sensor(self.nominal, values)
+        fix = corrections(values, self.trajectory, self.spans)
+        L = {(sid, kind): self.trajectory.mixing(f.shift.shape[0], kind) for sid, f in fix.items() for kind in ("bias", "tilt")}
+        row = 0
+        for c, sides, times in zip(self.corrs, self.centroids, self.row_time):
+            n = c.n_obs
+            for sign, side, sid, t in zip((1.0, -1.0), sides, (c.strip_a, c.strip_b), times):
+                f = fix.get(sid)
+                if f is None:
+                    continue
+                blocks = f.blocks(t)
+                v = side(sensor) - side.r  # weighted sums of the points about the IMU
+                for ax in range(3):
+                    e = np.zeros(3)
+                    e[ax] = 1.0
+                    d_bias = np.outer(side.rowsum, e)  # ∂(corrected sums)/∂shift_ax, (n, 3)
+                    d_tilt = np.cross(e, v)  # ∂/∂tilt_ax
+                    for kind, d in (("bias", d_bias), ("tilt", d_tilt)):
+                        for k in np.unique(blocks):  # block k's correction is Σ_j L[k, j] · w_j
+                            rows = np.flatnonzero(blocks == k)
+                            dr = sign * (d[rows] if c.normal is None else np.einsum("ij,ij->i", d[rows], c.normal[rows]))
+                            for jb in range(int(k) + 1):
+                                j = column.get((kind, ax, sid, jb))
+                                weight = L[sid, kind][k, jb]
+                                if j is None or weight == 0.0:
+                                    continue
+                                if c.normal is None:
+                                    J[row + 3 * rows[:, None] + np.arange(3), j] += weight * dr
+                                else:
+                                    J[row + rows, j] += weight * dr
+            row += n * (3 if c.normal is None else 1)
+        return J
 
 
 def geometry_warnings(strips: Sequence[Strip], pairs: Sequence[tuple[int, int]], free: Sequence[str]) -> list[str]:
@@ -316,7 +387,9 @@ def _calibrate(strips: Sequence[Strip], nominal: Sensor, *, method: str = "plane
     if not overlaps:
         raise CalibrationError(f"no two of the {len(by_id)} strips overlap (no common {s.overlap_cell_m:g} m cells); "
                                "strip calibration needs overlapping flight lines")
-    params = build_parameters(nominal, estimate, list(by_id))
+    spans = {i: (float(st.time.min()), float(st.time.max())) for i, st in by_id.items()}
+    params = build_parameters(nominal, estimate, spans, s.trajectory)
+    model = s.trajectory if "trajectory_bias" in estimate else None
     warnings = list(notes)
     outer: list[dict] = []
     first_residuals = None
@@ -330,8 +403,8 @@ def _calibrate(strips: Sequence[Strip], nominal: Sensor, *, method: str = "plane
     poses = {i: by_id[i].pose(idx) for i, idx in need.items()}  # one trajectory interpolation
     for k in range(s.max_outer):
         clock = time.perf_counter()
-        sensor, biases = _sensor_and_biases(nominal, params.values())
-        current = {i: (idx, georeference_pose(sensor, poses[i]) + biases.get(i, 0.0)) for i, idx in need.items()}
+        sensor, fix = _sensor(nominal, params.values()), corrections(params.values(), model, spans)
+        current = {i: (idx, _georeference(sensor, fix.get(i), poses[i], by_id[i].time[idx])) for i, idx in need.items()}
         times = {"georeference_s": time.perf_counter() - clock}
 
         def subset(i, index):
@@ -359,9 +432,11 @@ def _calibrate(strips: Sequence[Strip], nominal: Sensor, *, method: str = "plane
             raise CalibrationError("no usable strip pair: " + "; ".join(skipped))
         say(f"iteration {k + 1}: solving {sum(c.n_obs for c in corrs)} observations")
         clock = time.perf_counter()
-        problem = _Problem(nominal, poses, corrs, params.free_names)
+        problem = _Problem(nominal, poses, corrs, params.free_names, {i: st.time for i, st in by_id.items()},
+                           model, spans)
         clusters = problem.clusters(by_id, s.cluster_s) if s.cluster_s else None
-        solution = solve(problem, params, sigma=problem.sigma, robust=s.robust, clusters=clusters)
+        solution = solve(problem, params, sigma=problem.sigma, robust=s.robust, clusters=clusters,
+                         jacobian_fn=lambda v, free=params.free: problem.jacobian(v, free))
         times["solve_s"] = time.perf_counter() - clock
         if first_residuals is None:
             first_residuals = problem(params.values())
@@ -379,11 +454,11 @@ def _calibrate(strips: Sequence[Strip], nominal: Sensor, *, method: str = "plane
     used_pairs = [(p["a"], p["b"]) for p in pairs]
     solution.warnings = warnings + geometry_warnings([by_id[i] for i in problem.index], used_pairs,
                                                      params.free_names) + solution.warnings
-    sensor, biases = _sensor_and_biases(nominal, params.values())
+    sensor, fix = _sensor(nominal, params.values()), corrections(params.values(), model, spans)
     solution.extra["strips"] = {"method": method, "pairs": pairs, "outer_iterations": [
         {kk: v for kk, v in o.items() if kk != "values"} for o in outer]}
     return CalibrationResult(solution, sensor, nominal, list(strips), overlaps, method, pairs,
-                             first_residuals, solution.residuals, outer, biases, poses)
+                             first_residuals, solution.residuals, outer, fix, poses)
 
 
 def truth_to_si(doc: dict, params: ParameterSet) -> dict[str, float]:

@@ -1,0 +1,144 @@
+"""Trajectory errors as nuisance parameters of the strip adjustment.
+
+A GNSS/INS trajectory is wrong by a few centimetres and a few thousandths of a degree, and
+the error wanders slowly (GNSS over tens of seconds). In the overlaps this looks much like a
+mounting error, strip by strip. Modelled as piecewise-constant corrections per strip and
+per time block — a shift (east, north, up) and a small rotation about the local axes acting
+about the IMU position — with a-priori σ equal to the trajectory's stated accuracy, the
+adjustment then separates what it can and the σ of the mounting include what it cannot
+(as the rigorous strip adjustment of Glira, Pfeifer & Mandlburger 2016 corrects the
+trajectory with time-dependent functions).
+
+Blocks of one strip are correlated as a first-order Gauss–Markov process of correlation
+time ``correlation_s`` (a GNSS error wanders for tens of seconds): the parameters are the
+process's independent innovations w (each with the prior σ), the blocks' corrections are
+x = L·w with x₀ = w₀ and x_k = φ·x_{k−1} + √(1−φ²)·w_k, φ = exp(−block_s / correlation_s), so
+that every block keeps the stated σ and neighbours move together (independent blocks
+would let a strip's mean error shrink as 1/√blocks and make the σ of the mounting too small).
+
+Without a prior (``position_sigma_m`` None) the whole-strip shifts are free and the first
+strip is the datum: a strip-wise GNSS offset of unknown size.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import numpy as np
+
+from calidar.adjust import Parameter
+from calidar.errors import InputError
+
+AXES = ("east", "north", "up")
+_NAME = re.compile(r"trajectory_(bias|tilt)_(east|north|up)_(\d+)(?:_(\d+))?$")
+
+
+@dataclass(frozen=True)
+class TrajectoryModel:
+    """How trajectory errors enter the adjustment (see the module docstring)."""
+
+    block_s: float | None = None  #: length of the time blocks (s); None: one block per strip
+    position_sigma_m: float | None = None  #: prior σ of each block's shift; None: free, first strip fixed
+    attitude_sigma_rad: float | None = None  #: prior σ of each block's rotation; None: no rotations
+    correlation_s: float | None = None  #: Gauss–Markov correlation time of the shifts (s); None: independent
+    attitude_correlation_s: float | None = None  #: the same for the rotations
+
+    def __post_init__(self):
+        for name in ("block_s", "position_sigma_m", "attitude_sigma_rad", "correlation_s", "attitude_correlation_s"):
+            v = getattr(self, name)
+            if v is not None and not (math.isfinite(v) and v > 0):
+                raise InputError(None, name, f"expected a number > 0, got {v}")
+        if self.position_sigma_m is None and (self.block_s is not None or self.attitude_sigma_rad is not None):
+            raise InputError(None, "trajectory sigma", "time blocks and attitude corrections need the "
+                             "trajectory's a-priori position σ (e.g. --trajectory-sigma 0.03,0.002)")
+
+    def n_blocks(self, t_min: float, t_max: float) -> int:
+        return 1 if self.block_s is None else max(1, math.ceil((t_max - t_min) / self.block_s))
+
+    def mixing(self, n: int, kind: str = "bias") -> np.ndarray:
+        """L (n, n): block corrections x = L · innovations w (lower triangular) for shifts
+        (``kind`` "bias") or rotations ("tilt")."""
+        tau = self.correlation_s if kind == "bias" else self.attitude_correlation_s
+        phi = 0.0 if self.block_s is None or tau is None else math.exp(-self.block_s / tau)
+        k = np.arange(n)
+        L = np.where(k[:, None] >= k[None, :], phi ** np.maximum(k[:, None] - k[None, :], 0), 0.0)
+        L[:, 1:] *= math.sqrt(1.0 - phi**2)
+        return L
+
+    def parameters(self, spans: Mapping[int, tuple[float, float]]) -> list[Parameter]:
+        """Parameters for strips with time spans {id: (t_min, t_max)} s."""
+        out = []
+        ids = sorted(spans)
+        for i in ids if self.position_sigma_m is not None else ids[1:]:
+            n = self.n_blocks(*spans[i])
+            for k in range(n):
+                suffix = f"{i}" if self.block_s is None else f"{i}_{k}"
+                out += [Parameter(f"trajectory_bias_{ax}_{suffix}", 0.0, "m", self.position_sigma_m) for ax in AXES]
+                if self.attitude_sigma_rad is not None:
+                    out += [Parameter(f"trajectory_tilt_{ax}_{suffix}", 0.0, "rad", self.attitude_sigma_rad)
+                            for ax in AXES]
+        return out
+
+
+@dataclass(frozen=True)
+class StripCorrection:
+    """One strip's corrections: per block a shift (m) and a rotation vector (rad), local ENU."""
+
+    t0: float  #: start of block 0 (s)
+    block_s: float | None
+    shift: np.ndarray  #: (n_blocks, 3) m
+    tilt: np.ndarray  #: (n_blocks, 3) rad
+
+    def blocks(self, time: np.ndarray) -> np.ndarray:
+        """Block index of each time (s)."""
+        if self.block_s is None:
+            return np.zeros(np.shape(time), dtype=np.int64)
+        k = np.floor((np.asarray(time, float) - self.t0) / self.block_s).astype(np.int64)
+        return np.clip(k, 0, self.shift.shape[0] - 1)
+
+    def apply(self, points: np.ndarray, origin: np.ndarray, blocks: np.ndarray, weight=1.0) -> np.ndarray:
+        """Corrected ``points`` (M, 3) m: + shift + tilt × (points − origin), per point's block.
+
+        For averages of points (rows of a correspondence matrix) pass the row sums of the
+        weights as ``weight`` and the weighted sums as points and origin."""
+        out = points + np.asarray(weight, float).reshape(-1, 1) * self.shift[blocks]
+        if np.any(self.tilt):
+            out = out + np.cross(self.tilt[blocks], points - origin)
+        return out
+
+    @property
+    def mean_shift(self) -> np.ndarray:
+        return self.shift.mean(axis=0)
+
+
+def parse_name(name: str) -> tuple[str, int, int, int] | None:
+    """A trajectory parameter's name → (kind "bias" | "tilt", axis 0..2, strip id, block); None otherwise."""
+    m = _NAME.match(name)
+    return None if m is None else (m.group(1), AXES.index(m.group(2)), int(m.group(3)), int(m.group(4) or 0))
+
+
+def corrections(values: Mapping[str, float], model: TrajectoryModel | None,
+                spans: Mapping[int, tuple[float, float]]) -> dict[int, StripCorrection]:
+    """The strips' corrections from parameter values (SI, the innovations) named as
+    :meth:`TrajectoryModel.parameters`."""
+    if model is None:
+        return {}
+    w: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+    for name, v in values.items():
+        parsed = parse_name(name)
+        if parsed is None:
+            continue
+        kind, ax, sid, k = parsed
+        if sid not in w:
+            n = model.n_blocks(*spans[sid])
+            w[sid] = (np.zeros((n, 3)), np.zeros((n, 3)))
+        w[sid][0 if kind == "bias" else 1][k, ax] = v
+    out = {}
+    for sid, (shift, tilt) in w.items():
+        n = shift.shape[0]
+        out[sid] = StripCorrection(spans[sid][0], model.block_s, model.mixing(n, "bias") @ shift,
+                                   model.mixing(n, "tilt") @ tilt)
+    return out
