@@ -9,6 +9,7 @@ calidar.strips.calibrate) is tested on simulated surveys in test_vgicp_calibrati
 
 from __future__ import annotations
 
+import json
 from dataclasses import replace
 
 import numpy as np
@@ -148,6 +149,7 @@ def test_too_few_correspondences_is_refused():
 # ---- the calibration with VGICP correspondences against the survey simulator's truth ----
 
 from calidar.strips.calibrate import StripSettings, calibrate  # noqa: E402
+from calidar.sim.survey import simulate_survey, survey_config  # noqa: E402
 from calidar.strips.trajectory_errors import TrajectoryModel  # noqa: E402
 from test_strips_sim import ANGLES, _simulate, _strips, uav_lever_arm_survey  # noqa: E402  (issue 4's surveys)
 
@@ -227,3 +229,25 @@ def test_uav_lever_arm():
     for name in ("lever_arm_x", "lever_arm_y"):
         err = sol.values[name] - truth[name]
         assert abs(err) < 0.01 and abs(err) < 3 * sol.sigma[name], (name, err, sol.sigma[name])
+
+
+def test_both_methods_run_and_are_compared_in_the_report(cli, tmp_path):
+    cfg = survey_config("uav", seed=2, density=0.1, directions="cross", range_noise_m=0.03,
+                        errors={"boresight_roll": np.radians(0.05), "boresight_pitch": np.radians(-0.04),
+                                "boresight_yaw": np.radians(0.1)})
+    sim = simulate_survey(cfg).write(tmp_path / "sim")
+    args = [*sorted((sim / "strips").glob("*.laz")), "--trajectory", sim / "sbet.out", "--sensor", sim / "sensor.toml",
+            "--truth", sim / "truth.json"]
+    code, _, err = cli("boresight", *args, "--method", "planes,icp", "--out", tmp_path / "bad")
+    assert code == 1 and "--method" in err and "planes, vgicp" in err
+    out = tmp_path / "both"
+    code, _, err = cli("boresight", *args, "--method", "planes,vgicp", "--out", out)
+    assert code == 0, err
+    docs = {m: json.loads((out / f"solution_{m}.json").read_text()) for m in ("planes", "vgicp")}
+    assert (out / "sensor_planes.toml").exists() and (out / "sensor_vgicp.toml").exists()
+    assert not (out / "solution.json").exists()
+    for name in ANGLES:  # the same data and model: the two estimates agree within their σ
+        a, b = docs["planes"]["parameters"][name], docs["vgicp"]["parameters"][name]
+        assert abs(a["value"] - b["value"]) < 3 * np.hypot(a["sigma"], b["sigma"]), name
+    html = (out / "report.html").read_text()
+    assert "planes and vgicp compared" in html and "|difference| / combined σ" in html

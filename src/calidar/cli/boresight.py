@@ -65,7 +65,8 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
         strips: list[Path] = typer.Argument(..., help="LAS/LAZ strips (flight lines from point_source_id or time gaps)."),
         trajectory: Path = typer.Option(..., "--trajectory", help="Trajectory: SBET or text."),
         sensor: Path = typer.Option(..., "--sensor", help="Nominal sensor.toml the strips were georeferenced with."),
-        method: str = typer.Option("planes", "--method", help="Correspondences: planes | vgicp."),
+        method: str = typer.Option("planes", "--method", help="Correspondences: planes | vgicp, or planes,vgicp "
+                                   "to run both and compare them in the report."),
         estimate: str = typer.Option("boresight", "--estimate",
                                      help="Comma-separated: boresight, lever_arm, range_offset, range_scale, "
                                           "scan_angle_scale, scan_angle_offset, trajectory_bias."),
@@ -88,9 +89,10 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
         from calidar.report import Report
         from calidar.sensor import Sensor
         from calidar.strips.calibrate import StripSettings, build_parameters, calibrate, parse_estimate, truth_to_si
-        from calidar.strips.report import add_report_section
+        from calidar.strips.report import add_comparison_section, add_report_section
 
         groups = parse_estimate(estimate)
+        methods = parse_methods(method)
         settings = StripSettings()
         if trajectory_sigma is not None:
             settings = replace(settings, trajectory=trajectory_model(trajectory_sigma, trajectory_block,
@@ -110,19 +112,37 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
         strip_list, crs = load_strips(strips, traj, nominal)
         if truth is not None:
             truth_si = truth_to_si(truth_doc, build_parameters(nominal, groups, {}))
-        with err_console.status("calibrating…") as status:
-            result = calibrate(strip_list, nominal, method=method, estimate=groups, settings=settings,
-                               scheduler=scheduler, workers=workers, progress=lambda m: status.update(m))
-        result.solution.write_json(out_dir / "solution.json", truth_si)
-        result.sensor.write(out_dir / "sensor.toml", force=True)
+        results = {}
+        for m in methods:
+            with err_console.status(f"calibrating ({m})…") as status:
+                results[m] = calibrate(strip_list, nominal, method=m, estimate=groups, settings=settings,
+                                       scheduler=scheduler, workers=workers, progress=lambda msg: status.update(msg))
         report = Report("calidar boresight")
-        add_report_section(report, result, truth_si)
+        written = []
+        for m, result in results.items():
+            tag = "" if len(results) == 1 else f"_{m}"  # several methods: one set of outputs each
+            result.solution.write_json(out_dir / f"solution{tag}.json", truth_si)
+            result.sensor.write(out_dir / f"sensor{tag}.toml", force=True)
+            written += [f"solution{tag}.json", f"sensor{tag}.toml"]
+            add_report_section(report, result, truth_si)
+            if write_strips_:
+                write_strips(result, crs, out_dir / m if tag else out_dir, force)
+            _print(result, truth_si)
+        if len(results) > 1:
+            add_comparison_section(report, results, truth_si)
         report.write(out_dir / "report.html")
-        if write_strips_:
-            write_strips(result, crs, out_dir, force)
-        _print(result, truth_si)
-        console.print(f"wrote {out_dir}/solution.json, sensor.toml, report.html"
+        console.print(f"wrote {out_dir}/{', '.join(written)}, report.html"
                       + (" and recalibrated strips" if write_strips_ else ""))
+
+
+def parse_methods(text: str) -> list[str]:
+    """'planes', 'vgicp' or 'planes,vgicp' → the methods to run, in order."""
+    from calidar.strips.calibrate import METHODS
+
+    methods = [m.strip() for m in text.split(",") if m.strip()]
+    if not methods or any(m not in METHODS for m in methods) or len(set(methods)) != len(methods):
+        raise InputError(None, "--method", f"expected one or more of {', '.join(METHODS)} separated by commas, got {text!r}")
+    return methods
 
 
 def trajectory_model(sigma: str, block_s: float, correlation_s: float):
