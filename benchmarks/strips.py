@@ -1,6 +1,7 @@
 """Benchmark: end-to-end strip calibration on 8 simulated strips of about 1 million points each.
 
     NUMBA_NUM_THREADS=1 OMP_NUM_THREADS=1 PYTHONPATH=src python benchmarks/strips.py [--method planes]
+        [--trajectory-sigma 0.03,0.002]
 
 The survey (airborne preset: 6 parallel lines flown in alternate directions + 2 cross
 lines, boresight errors of a few hundredths of a degree) is simulated once and cached as
@@ -23,12 +24,12 @@ from pathlib import Path
 
 import numpy as np
 
-from calidar.cli.boresight import load_strips
+from calidar.cli.boresight import load_strips, trajectory_model
 from calidar.io.trajectory import read_trajectory
 from calidar.report import Report
 from calidar.sensor import Sensor
 from calidar.sim.survey import PRESETS, simulate_survey, survey_config
-from calidar.strips.calibrate import calibrate, truth_to_si
+from calidar.strips.calibrate import StripSettings, calibrate, truth_to_si
 from calidar.strips.report import add_report_section, pair_quality
 
 ERRORS = {"boresight_roll": np.radians(0.03), "boresight_pitch": np.radians(-0.04), "boresight_yaw": np.radians(0.05)}
@@ -53,6 +54,8 @@ def main() -> None:
     ap.add_argument("--method", default="planes", choices=["planes", "vgicp"])
     ap.add_argument("--density", type=float, default=1.7, help="simulator density (1.7 ≈ 8 M points in 8 strips)")
     ap.add_argument("--cache", type=Path, default=Path(tempfile.gettempdir()) / "calidar_bench_strips")
+    ap.add_argument("--trajectory-sigma", default=None,
+                    help="'POSITION_M,ATTITUDE_DEG': also estimate the trajectory errors (2 s blocks, 20 s correlation)")
     args = ap.parse_args()
     sim = simulate(args.cache, args.density)
     stages: dict[str, float] = {}
@@ -67,7 +70,11 @@ def main() -> None:
     strips, crs = load_strips(paths, traj, nominal)
     stage("read LAZ + build strips (inverse georeferencing)", t0)
     t0 = time.perf_counter()
-    result = calibrate(strips, nominal, method=args.method)
+    if args.trajectory_sigma:
+        settings = StripSettings(trajectory=trajectory_model(args.trajectory_sigma, 2.0, 20.0))
+        result = calibrate(strips, nominal, method=args.method, estimate="boresight,trajectory_bias", settings=settings)
+    else:
+        result = calibrate(strips, nominal, method=args.method)
     stage("calibrate", t0)
     for o in result.outer:
         for key in ("georeference_s", "match_s", "solve_s"):
@@ -89,7 +96,8 @@ def main() -> None:
     print(f"machine: {platform.machine()}, {os.cpu_count()} cores, python {platform.python_version()}; "
           f"NUMBA_NUM_THREADS={os.environ.get('NUMBA_NUM_THREADS')} OMP_NUM_THREADS={os.environ.get('OMP_NUM_THREADS')}")
     print(f"{len(strips)} strips, {n / 1e6:.2f} M points ({', '.join(f'{len(s) / 1e6:.2f}' for s in strips)} M), "
-          f"{len(result.overlaps)} overlapping pairs, method {args.method}")
+          f"{len(result.overlaps)} overlapping pairs, method {args.method}"
+          + (f", trajectory errors modelled ({args.trajectory_sigma})" if args.trajectory_sigma else ""))
     for k, v in stages.items():
         print(f"{k:55s} {v:7.2f} s")
     print(f"{'TOTAL end to end':55s} {total:7.2f} s")

@@ -81,3 +81,35 @@ def test_angles_display_in_degrees():
 def test_no_free_parameters_is_an_error():
     with pytest.raises(CalibrationError):
         solve(lambda v: np.zeros(3), ParameterSet([Parameter("a", 0.0, "m", free=False)]))
+
+
+def test_correlated_priors_and_a_sparse_jacobian_give_the_closed_form():
+    """Linear model y = H x + e with a joint Gaussian prior x ~ N(μ, D R D): the solution is the
+    textbook posterior mean (HᵀWH + Σp⁻¹)⁻¹ (HᵀWy + Σp⁻¹ μ), with a dense or a sparse Jacobian."""
+    import scipy.sparse as sp
+
+    rng = np.random.default_rng(1)
+    H = np.zeros((60, 4))
+    H[np.arange(60), rng.integers(0, 4, 60)] = rng.uniform(0.5, 2.0, 60)  # one parameter per row
+    H[:, 3] = 1.0
+    y = H @ [0.3, -0.2, 0.1, 1.0] + rng.normal(0, 0.05, 60)
+    R = np.array([[1.0, 0.8, 0.64], [0.8, 1.0, 0.8], [0.64, 0.8, 1.0]])
+    prior = np.array([0.1, 0.1, 0.1])
+    names = ["x0", "x1", "x2"]
+    ps = ParameterSet([Parameter(n, 0.0, "m", prior_sigma=0.1) for n in names] + [Parameter("c", 0.0, "m")])
+    Sp_inv = np.zeros((4, 4))
+    Sp_inv[:3, :3] = np.linalg.inv(np.outer(prior, prior) * R)
+    N = H.T @ H / 0.05**2 + Sp_inv
+    expect = np.linalg.solve(N, H.T @ y / 0.05**2)
+
+    def residuals(v):
+        return H @ [v["x0"], v["x1"], v["x2"], v["c"]] - y
+
+    for jac in (lambda v: H, lambda v: sp.csr_matrix(H)):
+        sol = solve(residuals, ps, sigma=0.05, robust=None, jacobian_fn=jac, prior_correlation=[(names, R)])
+        assert [sol.values[n] for n in [*names, "c"]] == pytest.approx(expect, abs=1e-9)
+        assert sol.covariance / sol.sigma0**2 == pytest.approx(np.linalg.inv(N), rel=1e-6)
+    independent = solve(residuals, ps, sigma=0.05, robust=None, jacobian_fn=lambda v: H)
+    assert abs(independent.values["x0"] - expect[0]) > 1e-4  # the correlation matters
+    with pytest.raises(ValueError, match="needs a prior_sigma"):
+        solve(residuals, ps, sigma=0.05, prior_correlation=[(["x0", "c"], np.eye(2))])

@@ -61,7 +61,8 @@ class Solution:
         warnings = []
         zero_cols = []
         if jacobian is not None and jacobian.size:
-            zero_cols = [names[j] for j in range(len(names)) if not np.any(jacobian[:, j]) and not prior[j]]
+            used = np.asarray(abs(jacobian).sum(axis=0)).ravel() > 0  # dense or sparse
+            zero_cols = [names[j] for j in range(len(names)) if not used[j] and not prior[j]]
             for nm in zero_cols:
                 warnings.append(f"{nm} is not observable: no observation depends on it; its value is the start value")
         bad = evals < RANK_TOLERANCE * evals[-1]

@@ -11,9 +11,10 @@ a robust scale (1.4826 · MAD of r/σ) re-estimated every iteration, so that clu
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 
 import numpy as np
+import scipy.sparse as sp
 
 from calidar.adjust.parameters import ParameterSet
 from calidar.adjust.solution import Solution, residual_stats
@@ -63,6 +64,7 @@ def solve(
     robust_scale: bool = True,
     progress: Callable[[int, float], None] | None = None,
     clusters: np.ndarray | list[np.ndarray] | None = None,
+    prior_correlation: Sequence[tuple[Sequence[str], np.ndarray]] = (),
 ) -> Solution:
     """Least-squares estimate of the free parameters of ``params``.
 
@@ -77,15 +79,17 @@ def solve(
     σ then come from the cluster-robust sandwich N⁻¹ (Σ_g J_gᵀW_g r_g r_gᵀW_g J_g) N⁻¹ ·
     G/(G−1) (Liang & Zeger 1986; dyadic form of Cameron & Miller 2014) where it exceeds the
     usual σ0²·N⁻¹ (σ raised, correlations kept); a list of such groupings raises each σ to
-    the largest of their estimates (sandwich estimates from few groups run low).
+    the largest of their estimates (sandwich estimates from few groups run low);
+    prior_correlation: groups (names, correlation matrix R) of free parameters whose priors
+    (each its own prior_sigma) are jointly Gaussian with covariance D·R·D instead of
+    independent. ``jacobian_fn`` may return a scipy.sparse matrix (many parameters, few per row).
     """
     free = params.free
     if not free:
         raise CalibrationError("no free parameters to estimate")
     x = params.x()
-    prior_idx = np.array([i for i, p in enumerate(free) if p.prior_sigma is not None], dtype=int)
-    prior_c = np.array([free[i].prior_center for i in prior_idx])
-    prior_w = np.array([1.0 / free[i].prior_sigma ** 2 for i in prior_idx])
+    priors = _prior_groups(free, prior_correlation)
+    n_prior = sum(idx.size for idx, _, _ in priors)
 
     def evaluate(xv):
         r = np.asarray(residual_fn(params.values_with(xv)), dtype=float)
@@ -99,7 +103,7 @@ def solve(
     r = evaluate(x)
     n = r.size
     sig = np.broadcast_to(np.asarray(sigma, float), (n,))
-    if n < len(free) - prior_idx.size:
+    if n < len(free) - n_prior:
         raise CalibrationError(f"{n} observations cannot determine {len(free)} parameters")
     if not np.all(np.isfinite(r)):
         raise CalibrationError(f"{int(np.sum(~np.isfinite(r)))} residuals are not finite at the start")
@@ -115,8 +119,9 @@ def solve(
 
     def cost(rv, w, xv):
         c = 0.5 * np.sum(w * rv * rv)
-        if prior_idx.size:
-            c += 0.5 * np.sum(prior_w * (xv[prior_idx] - prior_c) ** 2)
+        for idx, center, P in priors:
+            d = xv[idx] - center
+            c += 0.5 * d @ P @ d
         return float(c)
 
     before = residual_stats(r)
@@ -128,15 +133,15 @@ def solve(
     converged = False
     for it in range(1, max_iter + 1):
         J = jac(x)
-        N = J.T @ (w[:, None] * J)
+        N = _normal_matrix(J, w)
         g = J.T @ (w * r)
-        if prior_idx.size:
-            N[prior_idx, prior_idx] += prior_w
-            g[prior_idx] += prior_w * (x[prior_idx] - prior_c)
+        for idx, center, P in priors:
+            N[np.ix_(idx, idx)] += P
+            g[idx] += P @ (x[idx] - center)
         dN = np.diag(N).copy()
         dN[dN <= 0] = 1.0
         for _ in range(12):
-            dx = -np.linalg.lstsq(N + lam * np.diag(dN), g, rcond=None)[0]
+            dx = -_solve_damped(N + lam * np.diag(dN), g)
             r_new = evaluate(x + dx)
             c_new = cost(r_new, w, x + dx)
             if np.isfinite(c_new) and c_new <= c:
@@ -157,20 +162,55 @@ def solve(
             break
 
     J = jac(x)
-    N = J.T @ (w[:, None] * J)
-    if prior_idx.size:
-        N[prior_idx, prior_idx] += prior_w
+    N = _normal_matrix(J, w)
+    for idx, _, P in priors:
+        N[np.ix_(idx, idx)] += P
     # effective redundancy: down-weighted observations count by their relative weight
-    dof = max(float(np.sum(w * sig**2)) + prior_idx.size - len(free), 1.0)
+    dof = max(float(np.sum(w * sig**2)) + n_prior - len(free), 1.0)
     sigma0_sq = 2.0 * cost(r, w, x) / dof
     sol = Solution.from_normal_matrix(
         params.updated(x), N, sigma0_sq, dof,
         residuals=r, weights=w * sig**2, before=before, history=history, converged=converged,
         jacobian=J,
     )
+    scores = sp.diags(w * r) @ J  # per observation ∂cost/∂θ (dense or sparse like J)
     for grouping in ([] if clusters is None else clusters if isinstance(clusters, list) else [clusters]):
-        sol.covariance = _cluster_robust(sol.covariance, N, J * (w * r)[:, None], np.asarray(grouping))
+        sol.covariance = _cluster_robust(sol.covariance, N, scores, np.asarray(grouping))
     return sol
+
+
+def _solve_damped(A: np.ndarray, g: np.ndarray) -> np.ndarray:
+    """A⁻¹g for the damped normal matrix (LU; least squares when it is singular to machine precision)."""
+    try:
+        return np.linalg.solve(A, g)
+    except np.linalg.LinAlgError:
+        return np.linalg.lstsq(A, g, rcond=None)[0]
+
+
+def _prior_groups(free, prior_correlation) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    """Priors as (free-parameter positions, centres, precision matrix) groups: the correlated
+    groups given, and the other parameters with a prior_sigma as one diagonal group."""
+    pos = {p.name: i for i, p in enumerate(free)}
+    out, joint = [], set()
+    for names, R in prior_correlation:
+        idx = np.array([pos[nm] for nm in names], dtype=int)
+        if any(free[i].prior_sigma is None for i in idx):
+            raise ValueError("prior_correlation: every parameter of a group needs a prior_sigma")
+        d = np.array([free[i].prior_sigma for i in idx])
+        out.append((idx, np.array([free[i].prior_center for i in idx]), np.linalg.inv(np.asarray(R, float)) / np.outer(d, d)))
+        joint.update(idx.tolist())
+    idx = np.array([i for i, p in enumerate(free) if p.prior_sigma is not None and i not in joint], dtype=int)
+    if idx.size:
+        out.append((idx, np.array([free[i].prior_center for i in idx]),
+                    np.diag([1.0 / free[i].prior_sigma ** 2 for i in idx])))
+    return out
+
+
+def _normal_matrix(J, w: np.ndarray) -> np.ndarray:
+    """JᵀWJ (dense) for a dense or scipy.sparse J."""
+    if sp.issparse(J):
+        return np.asarray((J.T @ (sp.diags(w) @ J)).todense())
+    return J.T @ (w[:, None] * J)
 
 
 def _cluster_robust(cov: np.ndarray, N: np.ndarray, scores: np.ndarray, clusters: np.ndarray) -> np.ndarray:
@@ -185,14 +225,16 @@ def _cluster_robust(cov: np.ndarray, N: np.ndarray, scores: np.ndarray, clusters
     G = nodes.size
     if G < 2 or not np.all(np.isfinite(cov)):
         return cov
-    S = np.zeros((G, scores.shape[1]))
-    for col in range(c.shape[1]):
-        np.add.at(S, g[:, col], scores)
+
+    def group_sums(labels, n_groups):  # Σ of the scores per group, (n_groups, p) dense
+        member = sp.csr_matrix((np.ones(labels.size), (labels, np.arange(labels.size))), shape=(n_groups, labels.size))
+        return np.asarray((member @ scores).todense()) if sp.issparse(scores) else member @ scores
+
+    S = sum(group_sums(g[:, col], G) for col in range(c.shape[1]))
     meat = S.T @ S
     if c.shape[1] == 2:  # observations sharing both groups were counted twice
         _, d = np.unique(np.sort(g, axis=1), axis=0, return_inverse=True)
-        D = np.zeros((int(d.max()) + 1, scores.shape[1]))
-        np.add.at(D, d.ravel(), scores)
+        D = group_sums(d.ravel(), int(d.max()) + 1)
         meat -= D.T @ D
     Ninv = np.linalg.pinv(N)
     sand = np.diag(Ninv @ meat @ Ninv) * G / (G - 1)

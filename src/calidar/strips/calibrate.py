@@ -155,6 +155,11 @@ def _union(indices: list[np.ndarray]) -> np.ndarray:
     return np.flatnonzero(np.bincount(np.concatenate(indices)))
 
 
+def _compact(m: sp.csr_matrix, cols: np.ndarray) -> sp.csr_matrix:
+    """``m`` restricted to its columns ``cols`` (sorted, holding every column m references)."""
+    return sp.csr_matrix((m.data, np.searchsorted(cols, m.indices), m.indptr), shape=(m.shape[0], cols.size))
+
+
 def _match_or_error(match: Callable, strip_a_id, points_a, strip_b_id, points_b, settings):
     """``match(...)``, or the user-facing error it raised for this pair (picklable, for map_pairs)."""
     try:
@@ -188,6 +193,8 @@ class _Centroids:
 
     def __init__(self, A: sp.csr_matrix, pose: Pose, nominal: Sensor, range_free: bool, lever_free: bool):
         n = A.shape[0]
+        cols = _union([A.indices])  # only the points this side references
+        A, pose = _compact(A, cols), pose.take(cols)
         u = nominal.scanner.directions(pose.angles)
         self.rowsum = np.asarray(A.sum(axis=1)).ravel()
         self.r = A @ pose.position  #: weighted sums of the IMU positions
@@ -231,11 +238,8 @@ class _Problem:
         self.pose: dict[int, Pose] = {i: poses[i].take(poses[i].rows_of(idx)) for i, idx in self.index.items()}
         self.time = {i: times[i][idx] for i, idx in self.index.items()} if trajectory else {}
 
-        def compact(m, sid):
-            idx = self.index[sid]
-            return sp.csr_matrix((m.data, np.searchsorted(idx, m.indices), m.indptr), shape=(m.shape[0], idx.size))
-
-        self.corrs = [replace(c, A=compact(c.A, c.strip_a), B=compact(c.B, c.strip_b)) for c in corrs]
+        self.corrs = [replace(c, A=_compact(c.A, self.index[c.strip_a]), B=_compact(c.B, self.index[c.strip_b]))
+                      for c in corrs]
         self.sigma = np.concatenate([
             np.repeat(np.broadcast_to(np.asarray(c.sigma_m, float), (c.n_obs,)), 3 if c.normal is None else 1)
             for c in self.corrs])
@@ -287,52 +291,54 @@ class _Problem:
         return np.concatenate(out)
 
 
-    def jacobian(self, values: dict[str, float], free: Sequence[Parameter]) -> np.ndarray:
+    def jacobian(self, values: dict[str, float], free: Sequence[Parameter]):
         """∂residuals/∂(free parameters), (n, n_free): central differences for the sensor's
-        parameters, exact columns for the trajectory corrections (linear in them)."""
+        parameters, exact columns for the trajectory corrections (linear in them; one block
+        per strip and row, so the matrix is returned sparse when they are present)."""
         traj = {p.name: parse_name(p.name) for p in free} if self.trajectory else {}
         if self.centroids is None or not any(traj.values()):
             return numerical_jacobian(self, ParameterSet(replace(p, value=values[p.name]) for p in free),
                                       np.array([values[p.name] for p in free]))
-        sensor_free = [p for p in free if traj.get(p.name) is None]
-        J = np.zeros((sum(c.n_obs * (3 if c.normal is None else 1) for c in self.corrs), len(free)))
+        n_rows = sum(c.n_obs * (3 if c.normal is None else 1) for c in self.corrs)
+        rows, cols, vals = [], [], []
+        sensor_free = [j for j, p in enumerate(free) if traj[p.name] is None]
         if sensor_free:
-            sub = ParameterSet(replace(p, value=values[p.name]) for p in sensor_free)
-            cols = [free.index(p) for p in sensor_free]
-            J[:, cols] = numerical_jacobian(lambda v: self({**values, **v}), sub, sub.x())
-        column = {traj[p.name]: j for j, p in enumerate(free) if traj.get(p.name)}
+            sub = ParameterSet(replace(free[j], value=values[free[j].name]) for j in sensor_free)
+            D = numerical_jacobian(lambda v: self({**values, **v}), sub, sub.x())
+            rows.append(np.repeat(np.arange(n_rows), len(sensor_free)))
+            cols.append(np.tile(sensor_free, n_rows))
+            vals.append(D.ravel())
+        column = {traj[p.name]: j for j, p in enumerate(free) if traj[p.name]}
         sensor = _sensor(self.nominal, values)
         fix = corrections(values, self.trajectory, self.spans)
-        L = {(sid, kind): self.trajectory.mixing(f.shift.shape[0], kind) for sid, f in fix.items() for kind in ("bias", "tilt")}
-        row = 0
+        start = 0
         for c, sides, times in zip(self.corrs, self.centroids, self.row_time):
-            n = c.n_obs
+            per = 3 if c.normal is None else 1
             for sign, side, sid, t in zip((1.0, -1.0), sides, (c.strip_a, c.strip_b), times):
                 f = fix.get(sid)
                 if f is None:
                     continue
                 blocks = f.blocks(t)
                 v = side(sensor) - side.r  # weighted sums of the points about the IMU
-                for ax in range(3):
-                    e = np.zeros(3)
-                    e[ax] = 1.0
-                    d_bias = np.outer(side.rowsum, e)  # ∂(corrected sums)/∂shift_ax, (n, 3)
-                    d_tilt = np.cross(e, v)  # ∂/∂tilt_ax
-                    for kind, d in (("bias", d_bias), ("tilt", d_tilt)):
-                        for k in np.unique(blocks):  # block k's correction is Σ_j L[k, j] · w_j
-                            rows = np.flatnonzero(blocks == k)
-                            dr = sign * (d[rows] if c.normal is None else np.einsum("ij,ij->i", d[rows], c.normal[rows]))
-                            for jb in range(int(k) + 1):
-                                j = column.get((kind, ax, sid, jb))
-                                weight = L[sid, kind][k, jb]
-                                if j is None or weight == 0.0:
-                                    continue
-                                if c.normal is None:
-                                    J[row + 3 * rows[:, None] + np.arange(3), j] += weight * dr
-                                else:
-                                    J[row + rows, j] += weight * dr
-            row += n * (3 if c.normal is None else 1)
-        return J
+                for kind in ("bias", "tilt"):
+                    for ax in range(3):
+                        colmap = np.array([column.get((kind, ax, sid, k), -1) for k in range(f.shift.shape[0])])
+                        j = colmap[blocks]
+                        if np.all(j < 0):
+                            continue
+                        e = np.zeros(3)
+                        e[ax] = 1.0
+                        # ∂(corrected sums)/∂parameter, (n, 3): shift → row sums · e, rotation → e × v
+                        d = np.outer(side.rowsum, e) if kind == "bias" else np.cross(e, v)
+                        if c.normal is not None:
+                            d = np.einsum("ij,ij->i", d, c.normal)[:, None]
+                        keep = np.flatnonzero(j >= 0)
+                        rows.append((start + per * keep[:, None] + np.arange(per)).ravel())
+                        cols.append(np.repeat(j[keep], per))
+                        vals.append(sign * d[keep].ravel())
+            start += c.n_obs * per
+        return sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
+                             shape=(n_rows, len(free)))
 
 
 def geometry_warnings(strips: Sequence[Strip], pairs: Sequence[tuple[int, int]], free: Sequence[str]) -> list[str]:
@@ -436,7 +442,8 @@ def _calibrate(strips: Sequence[Strip], nominal: Sensor, *, method: str = "plane
                            model, spans)
         clusters = problem.clusters(by_id, s.cluster_s) if s.cluster_s else None
         solution = solve(problem, params, sigma=problem.sigma, robust=s.robust, clusters=clusters,
-                         jacobian_fn=lambda v, free=params.free: problem.jacobian(v, free))
+                         jacobian_fn=lambda v, free=params.free: problem.jacobian(v, free),
+                         prior_correlation=model.prior_correlation(spans) if model else ())
         times["solve_s"] = time.perf_counter() - clock
         if first_residuals is None:
             first_residuals = problem(params.values())

@@ -10,11 +10,11 @@ adjustment then separates what it can and the σ of the mounting include what it
 trajectory with time-dependent functions).
 
 Blocks of one strip are correlated as a first-order Gauss–Markov process of correlation
-time ``correlation_s`` (a GNSS error wanders for tens of seconds): the parameters are the
-process's independent innovations w (each with the prior σ), the blocks' corrections are
-x = L·w with x₀ = w₀ and x_k = φ·x_{k−1} + √(1−φ²)·w_k, φ = exp(−block_s / correlation_s), so
-that every block keeps the stated σ and neighbours move together (independent blocks
-would let a strip's mean error shrink as 1/√blocks and make the σ of the mounting too small).
+time ``correlation_s`` (a GNSS error wanders for tens of seconds): the prior of a strip's
+blocks along one axis has covariance σ²·φ^|k−l|, φ = exp(−block_s / correlation_s), handed
+to the engine as ``prior_correlation`` (independent blocks would let a strip's mean error
+shrink as 1/√blocks and make the σ of the mounting too small). Each row of the Jacobian
+then touches one block per strip: it is built sparse.
 
 Without a prior (``position_sigma_m`` None) the whole-strip shifts are free and the first
 strip is the datum: a strip-wise GNSS offset of unknown size.
@@ -58,15 +58,26 @@ class TrajectoryModel:
     def n_blocks(self, t_min: float, t_max: float) -> int:
         return 1 if self.block_s is None else max(1, math.ceil((t_max - t_min) / self.block_s))
 
-    def mixing(self, n: int, kind: str = "bias") -> np.ndarray:
-        """L (n, n): block corrections x = L · innovations w (lower triangular) for shifts
-        (``kind`` "bias") or rotations ("tilt")."""
+    def correlation(self, n: int, kind: str = "bias") -> np.ndarray:
+        """Prior correlation (n, n) of a strip's n blocks along one axis, for shifts (``kind``
+        "bias") or rotations ("tilt"): φ^|k−l|."""
         tau = self.correlation_s if kind == "bias" else self.attitude_correlation_s
         phi = 0.0 if self.block_s is None or tau is None else math.exp(-self.block_s / tau)
         k = np.arange(n)
-        L = np.where(k[:, None] >= k[None, :], phi ** np.maximum(k[:, None] - k[None, :], 0), 0.0)
-        L[:, 1:] *= math.sqrt(1.0 - phi**2)
-        return L
+        return phi ** np.abs(k[:, None] - k[None, :]).astype(float)
+
+    def prior_correlation(self, spans: Mapping[int, tuple[float, float]]) -> list[tuple[list[str], np.ndarray]]:
+        """The engine's ``prior_correlation`` groups: per strip, kind and axis, its blocks."""
+        if self.block_s is None or self.position_sigma_m is None:
+            return []
+        out = []
+        for i in sorted(spans):
+            n = self.n_blocks(*spans[i])
+            for kind in ("bias", "tilt") if self.attitude_sigma_rad is not None else ("bias",):
+                R = self.correlation(n, kind)
+                if n > 1 and np.any(R != np.eye(n)):
+                    out += [([f"trajectory_{kind}_{ax}_{i}_{k}" for k in range(n)], R) for ax in AXES]
+        return out
 
     def parameters(self, spans: Mapping[int, tuple[float, float]]) -> list[Parameter]:
         """Parameters for strips with time spans {id: (t_min, t_max)} s."""
@@ -122,23 +133,17 @@ def parse_name(name: str) -> tuple[str, int, int, int] | None:
 
 def corrections(values: Mapping[str, float], model: TrajectoryModel | None,
                 spans: Mapping[int, tuple[float, float]]) -> dict[int, StripCorrection]:
-    """The strips' corrections from parameter values (SI, the innovations) named as
-    :meth:`TrajectoryModel.parameters`."""
+    """The strips' corrections from parameter values (SI) named as :meth:`TrajectoryModel.parameters`."""
     if model is None:
         return {}
-    w: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+    out: dict[int, StripCorrection] = {}
     for name, v in values.items():
         parsed = parse_name(name)
         if parsed is None:
             continue
         kind, ax, sid, k = parsed
-        if sid not in w:
+        if sid not in out:
             n = model.n_blocks(*spans[sid])
-            w[sid] = (np.zeros((n, 3)), np.zeros((n, 3)))
-        w[sid][0 if kind == "bias" else 1][k, ax] = v
-    out = {}
-    for sid, (shift, tilt) in w.items():
-        n = shift.shape[0]
-        out[sid] = StripCorrection(spans[sid][0], model.block_s, model.mixing(n, "bias") @ shift,
-                                   model.mixing(n, "tilt") @ tilt)
+            out[sid] = StripCorrection(spans[sid][0], model.block_s, np.zeros((n, 3)), np.zeros((n, 3)))
+        (out[sid].shift if kind == "bias" else out[sid].tilt)[k, ax] = v
     return out
