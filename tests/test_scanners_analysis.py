@@ -131,9 +131,8 @@ def test_cli_bad_input(cli, tmp_path, args, message):
     assert not (tmp_path / "bad").exists()
 
 
-def test_run_demo_is_fast(tmp_path):
+def test_run_demo_writes_its_section(tmp_path):
     rep = Report("demo")
-    t0 = time.perf_counter()
     sa.run_demo(rep, tmp_path, seed=0)
     assert len(rep.sections) >= 1 and "258.8" in rep.html()
     assert (tmp_path / "scanner_analysis" / "summary.json").exists()

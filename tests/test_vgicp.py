@@ -151,16 +151,9 @@ def test_too_few_correspondences_is_refused():
 from calidar.strips.calibrate import StripSettings, calibrate  # noqa: E402
 from calidar.sim.survey import simulate_survey, survey_config  # noqa: E402
 from calidar.strips.trajectory_errors import TrajectoryModel  # noqa: E402
-from test_strips_sim import ANGLES, _simulate, _strips, uav_lever_arm_survey  # noqa: E402  (issue 4's surveys)
+from test_strips_sim import ANGLES, _check_angles, _simulate, _strips, uav_lever_arm_survey  # noqa: E402  (issue 4's surveys)
 
 VGICP = StripSettings(threshold_m=1e-3)  #: re-matching moves the mean distance by ~0.1 mm: stop at 1 mm
-
-
-def check_angles(sol, truth, tol_deg=0.002):
-    for name in ANGLES:
-        err = sol.values[name] - truth[name]
-        assert abs(np.degrees(err)) < tol_deg, (name, np.degrees(err))
-        assert abs(err) < 3 * sol.sigma[name], (name, err / sol.sigma[name])
 
 
 @pytest.fixture(scope="module")
@@ -172,7 +165,7 @@ def airborne():
 def test_airborne_cross_lines_boresight(airborne):
     res, strips = airborne
     result = calibrate(strips, res.nominal, method="vgicp", settings=VGICP)
-    check_angles(result.solution, res.truth.parameters())
+    _check_angles(result.solution, res.truth.parameters())
     assert result.method == "vgicp" and len(result.pairs) >= 10
     assert all(p["n_obs"] >= VgicpSettings().min_pairs for p in result.pairs)
     mean = [o["mean_distance_m"] for o in result.outer]
@@ -183,7 +176,7 @@ def test_start_half_a_degree_from_the_truth_converges(airborne):
     res, strips = airborne
     far = res.nominal.with_parameters(**{n: res.truth.parameters()[n] + np.radians(0.5) for n in ANGLES})
     result = calibrate(strips, far, method="vgicp", settings=VGICP)
-    check_angles(result.solution, res.truth.parameters())
+    _check_angles(result.solution, res.truth.parameters())
     assert result.outer[0]["mean_distance_m"] > result.outer[-1]["mean_distance_m"]
 
 
@@ -214,7 +207,7 @@ def test_pairs_without_enough_overlap_are_skipped_by_name(airborne):
 def test_airborne_with_30_percent_vegetation():
     res = _simulate("airborne", "cross", 0.3, vegetation=0.3)
     result = calibrate(_strips(res), res.nominal, method="vgicp", settings=VGICP)
-    check_angles(result.solution, res.truth.parameters())
+    _check_angles(result.solution, res.truth.parameters())
 
 
 @pytest.mark.slow

@@ -163,12 +163,13 @@ SURVEY_ERRORS = {"boresight_roll": np.radians(0.05), "boresight_pitch": np.radia
 
 def strip_selfcal(preset: str = "uav", *, density: float = 0.3, height_agl_m: float | None = None, seed: int = 0,
                   errors: dict[str, float] | None = None, estimates=(("boresight",), ("boresight", "palmer")),
-                  progress=None):
+                  progress=None, **survey):
     """Self-calibration of a simulated Palmer survey from overlapping strips (tie planes).
 
     Simulates a ``preset`` survey (cross lines) shot by a Palmer sensor with ``errors`` (SI, default
     :data:`SURVEY_ERRORS`) and delivered with the nominal one, then runs the strip calibrator once per
-    entry of ``estimates``. Returns (truth parameters SI, {estimate tuple: CalibrationResult}).
+    entry of ``estimates``. ``survey``: further :class:`calidar.sim.survey.SurveyConfig` fields
+    (e.g. gnss_noise_m=0). Returns (truth parameters SI, {estimate tuple: CalibrationResult}).
     """
     from calidar.sensor import Sensor
     from calidar.sim.survey import simulate_survey, survey_config
@@ -176,7 +177,7 @@ def strip_selfcal(preset: str = "uav", *, density: float = 0.3, height_agl_m: fl
     from calidar.strips.strip import LocalFrame, Strip
 
     nominal = Sensor(lever_arm_x=0.05, lever_arm_z=0.12, scanner=PalmerScanner(eccentricity_ratio=1e-5))
-    extra = {} if height_agl_m is None else {"height_agl_m": height_agl_m}
+    extra = dict(survey) if height_agl_m is None else {**survey, "height_agl_m": height_agl_m}
     cfg = survey_config(preset, seed=seed, directions="cross", density=density, nominal=nominal,
                         errors=dict(errors or SURVEY_ERRORS), **extra)
     res = simulate_survey(cfg)

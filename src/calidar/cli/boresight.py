@@ -2,14 +2,13 @@
 
 from __future__ import annotations
 
-import json
 from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 import typer
 
-from calidar.cli.common import console, err_console
+from calidar.cli.common import console, err_console, parse_floats, read_json
 from calidar.errors import InputError
 
 TRAJECTORY_PREFIX = "trajectory_"
@@ -99,13 +98,7 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
                                                                      trajectory_correlation))
             groups = groups if "trajectory_bias" in groups else [*groups, "trajectory_bias"]
         truth_si = None
-        if truth is not None:
-            try:
-                truth_doc = json.loads(truth.read_text(encoding="utf-8"))
-            except FileNotFoundError:
-                raise InputError(truth, None, "file not found") from None
-            except json.JSONDecodeError as e:
-                raise InputError(truth, None, f"not valid JSON ({e})") from None
+        truth_doc = read_json(truth) if truth is not None else None
         out_dir = prepare_out_dir(out, force)
         nominal = Sensor.read(sensor)
         traj = read_trajectory(trajectory)
@@ -149,11 +142,7 @@ def trajectory_model(sigma: str, block_s: float, correlation_s: float):
     """--trajectory-sigma 'POSITION_M,ATTITUDE_DEG' and the block/correlation times → a TrajectoryModel."""
     from calidar.strips.trajectory_errors import TrajectoryModel
 
-    try:
-        pos_m, att_deg = (float(v) for v in sigma.split(","))
-    except ValueError:
-        raise InputError(None, "--trajectory-sigma", f"expected 'POSITION_M,ATTITUDE_DEG' such as 0.03,0.002, "
-                         f"got {sigma!r}") from None
+    pos_m, att_deg = parse_floats(sigma, 2, "--trajectory-sigma (POSITION_M,ATTITUDE_DEG)")
     for name, v in (("--trajectory-sigma", pos_m), ("--trajectory-sigma", att_deg),
                     ("--trajectory-block", block_s), ("--trajectory-correlation", correlation_s)):
         if not (np.isfinite(v) and v > 0):

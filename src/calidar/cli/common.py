@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import json
 from contextlib import contextmanager
+from pathlib import Path
 
 from rich.console import Console
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
@@ -22,6 +24,19 @@ def parse_floats(text: str, n: int, option: str) -> tuple[float, ...]:
     if len(vals) != n:
         raise InputError(None, option, f"expected {n} comma-separated numbers, got {text!r}")
     return vals
+
+
+def read_json(path: Path) -> dict:
+    """A JSON object from ``path``, or a clear error naming the file (missing, not JSON, not an object)."""
+    try:
+        doc = json.loads(Path(path).read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise InputError(path, None, "file not found") from None
+    except json.JSONDecodeError as e:
+        raise InputError(path, f"line {e.lineno}", f"expected JSON: {e.msg}") from None
+    if not isinstance(doc, dict):
+        raise InputError(path, None, "expected a JSON object")
+    return doc
 
 
 @contextmanager

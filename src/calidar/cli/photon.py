@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import typer
 
-from calidar.cli.common import console, err_console, parse_floats
+from calidar.cli.common import console, err_console, parse_floats, read_json
 from calidar.errors import InputError
 from calidar.outputs import atomic_path, check_writable, prepare_out_dir
 
@@ -33,10 +33,10 @@ def run_ccr(files: list[Path], beam: str, ccr: Path, out: Path, *, system, setti
     survey = read_ccr_csv(_existing(ccr))
     truth = None
     if truth_path is not None:
+        doc = read_json(truth_path)
         try:
-            truth = json.loads(_existing(truth_path).read_text())
-            truth = {k: float(truth[k]) for k in PARAMETERS}
-        except (json.JSONDecodeError, KeyError, TypeError, ValueError):
+            truth = {k: float(doc[k]) for k in PARAMETERS}
+        except (KeyError, TypeError, ValueError):
             raise InputError(truth_path, None, f"expected JSON with numbers {', '.join(PARAMETERS)}") from None
     out = prepare_out_dir(out, force)
     passes = [prepare_pass(read_atl03(_existing(f), beam), system, name=str(f)) for f in files]

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import typer
 
-from calidar.cli.common import console
+from calidar.cli.common import console, read_json
 from calidar.errors import InputError
 
 ACCEPTANCE_FAILED = 3  #: exit code when --tolerance is given and the check fails
@@ -21,11 +21,9 @@ ACCEPTANCE_FAILED = 3  #: exit code when --tolerance is given and the check fail
 def _read_truth(path: Path) -> dict:
     from calidar.rangecal import truth_parameters
 
+    doc = read_json(path)
     try:
-        doc = json.loads(Path(path).read_text(encoding="utf-8"))
         truth_parameters(doc)
-    except json.JSONDecodeError as e:
-        raise InputError(path, f"line {e.lineno}", f"expected JSON: {e.msg}") from None
     except (KeyError, TypeError, ValueError, AttributeError):
         raise InputError(path, None, "expected a truth.json with numbers range_offset_m and range_scale_ppm") from None
     return doc

@@ -11,16 +11,20 @@ Observations are (N, 2) [θ, φ] in rad; (N,) means φ = 0.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
 
+from calidar.scanners.named import NamedParameters
+
 
 @dataclass(frozen=True)
-class LinearScanner:
+class LinearScanner(NamedParameters):
     scan_angle_offset: float = 0.0  #: rad, added to the scaled encoder angle
     scan_angle_scale: float = 0.0  #: ratio: true angle = (1 + scale) · encoder angle + offset
     model: str = "linear"
+    units: ClassVar[dict[str, str]] = {"scan_angle_offset": "rad", "scan_angle_scale": "1"}
 
     def directions(self, angles) -> np.ndarray:
         a = np.asarray(angles, dtype=float)
@@ -36,15 +40,6 @@ class LinearScanner:
         phi = np.arctan2(u[:, 0], np.hypot(u[:, 1], u[:, 2]))
         theta = (th - self.scan_angle_offset) / (1.0 + self.scan_angle_scale)
         return np.stack([theta, phi], axis=-1)
-
-    def parameters(self) -> dict[str, float]:
-        return {"scan_angle_offset": self.scan_angle_offset, "scan_angle_scale": self.scan_angle_scale}
-
-    def with_parameters(self, **values: float) -> "LinearScanner":
-        unknown = set(values) - set(self.parameters())
-        if unknown:
-            raise KeyError(f"linear scanner has no parameter(s) {sorted(unknown)}")
-        return replace(self, **values)
 
     def to_toml(self) -> dict:
         return {

@@ -38,12 +38,13 @@ which a boresight (pitch) calibration absorbs. calidar uses the laser-fixed read
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from typing import ClassVar
 
 import numpy as np
 
 from calidar.frames import rot_y
+from calidar.scanners.named import NamedParameters
 from calidar.scanners.rotating import (as_encoder_angles, check_toml_keys, encoder_angle, refine_angles,
                                        toml_number, true_angle)
 
@@ -77,7 +78,7 @@ def palmer_directions(beta_rad, axis_angle: float, mirror_tilt: float, eccentric
 
 
 @dataclass(frozen=True)
-class PalmerScanner:
+class PalmerScanner(NamedParameters):
     """Palmer (oval) scanner; observations are the encoder angle β (N,) in rad."""
 
     palmer_axis_angle: float = np.radians(45.0)  #: rad, A: motor axis to (reversed) laser
@@ -115,15 +116,6 @@ class PalmerScanner:
         b = encoder_angle(b_true, self.eccentricity_ratio, self.eccentricity_phase)
         b = refine_angles(self.directions, u, b)
         return np.angle(np.exp(1j * b))
-
-    def parameters(self) -> dict[str, float]:
-        return {k: float(getattr(self, k)) for k in self.units}
-
-    def with_parameters(self, **values: float) -> "PalmerScanner":
-        unknown = set(values) - set(self.units)
-        if unknown:
-            raise KeyError(f"palmer scanner has no parameter(s) {sorted(unknown)}")
-        return replace(self, **{k: float(v) for k, v in values.items()})
 
     def to_toml(self) -> dict:
         return {

@@ -17,12 +17,13 @@ and encoder eccentricity (``eccentricity_ratio`` ε/r, ``eccentricity_phase`` C,
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from typing import ClassVar
 
 import numpy as np
 
 from calidar.frames import rot_x, rot_y, rot_z
+from calidar.scanners.named import NamedParameters
 from calidar.scanners.rotating import (as_encoder_angles, check_toml_keys, encoder_angle, refine_angles,
                                        toml_number, true_angle)
 
@@ -47,7 +48,7 @@ def refract(d: np.ndarray, normal: np.ndarray, eta: float) -> np.ndarray:
 
 
 @dataclass(frozen=True)
-class WedgeScanner:
+class WedgeScanner(NamedParameters):
     """Rotating refracting wedge; observations are the encoder angle β (N,) in rad."""
 
     wedge_angle: float = np.radians(20.0)  #: rad, apex angle α
@@ -95,15 +96,6 @@ class WedgeScanner:
         b = encoder_angle(np.arctan2(u[:, 1], u[:, 0]), self.eccentricity_ratio, self.eccentricity_phase)
         b = refine_angles(self.directions, u, b)
         return np.angle(np.exp(1j * b))
-
-    def parameters(self) -> dict[str, float]:
-        return {k: float(getattr(self, k)) for k in self.units}
-
-    def with_parameters(self, **values: float) -> "WedgeScanner":
-        unknown = set(values) - set(self.units)
-        if unknown:
-            raise KeyError(f"wedge scanner has no parameter(s) {sorted(unknown)}")
-        return replace(self, **{k: float(v) for k, v in values.items()})
 
     def to_toml(self) -> dict:
         return {
