@@ -1,6 +1,7 @@
 """Benchmark: tie planes and VGICP side by side on 8 simulated strips of about 1 million points.
 
     NUMBA_NUM_THREADS=1 OMP_NUM_THREADS=1 PYTHONPATH=src python benchmarks/strips_vgicp.py [--workers 2]
+        [--trajectory-sigma 0.03,0.002]
 
 Uses the survey of ``benchmarks/strips.py`` (airborne preset, 6 parallel lines in
 alternate directions + 2 cross lines, cached under ``--cache``; simulation not timed).
@@ -21,6 +22,7 @@ import platform
 import sys
 import tempfile
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -28,7 +30,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from strips import ERRORS, simulate  # noqa: E402  (the shared 8-strip survey)
 
-from calidar.cli.boresight import load_strips  # noqa: E402
+from calidar.cli.boresight import load_strips, trajectory_model  # noqa: E402
 from calidar.io.trajectory import read_trajectory  # noqa: E402
 from calidar.sensor import Sensor  # noqa: E402
 from calidar.strips.calibrate import StripSettings, calibrate, truth_to_si  # noqa: E402
@@ -59,6 +61,8 @@ def main() -> None:
     ap.add_argument("--density", type=float, default=1.7, help="simulator density (1.7 ≈ 8.6 M points)")
     ap.add_argument("--workers", type=int, default=None, help="Dask LocalCluster workers for the pair matching")
     ap.add_argument("--cache", type=Path, default=Path(tempfile.gettempdir()) / "calidar_bench_strips")
+    ap.add_argument("--trajectory-sigma", default=None,
+                    help="'POSITION_M,ATTITUDE_DEG': also estimate the trajectory errors (2 s blocks, 20 s correlation)")
     args = ap.parse_args()
     sim = simulate(args.cache, args.density)
 
@@ -72,11 +76,15 @@ def main() -> None:
     print(f"machine: {platform.machine()}, {os.cpu_count()} cores, python {platform.python_version()}; "
           f"NUMBA_NUM_THREADS={os.environ.get('NUMBA_NUM_THREADS')} OMP_NUM_THREADS={os.environ.get('OMP_NUM_THREADS')}; "
           f"workers={args.workers}")
-    print(f"{len(strips)} strips, {n / 1e6:.2f} M points; read LAZ + build strips {build:.1f} s (shared)")
+    print(f"{len(strips)} strips, {n / 1e6:.2f} M points; read LAZ + build strips {build:.1f} s (shared)"
+          + (f"; trajectory errors modelled ({args.trajectory_sigma})" if args.trajectory_sigma else ""))
     rows: dict[str, dict[str, float | str]] = {}
+    estimate = "boresight,trajectory_bias" if args.trajectory_sigma else "boresight"
     for method, settings in SETTINGS.items():
+        if args.trajectory_sigma:
+            settings = replace(settings, trajectory=trajectory_model(args.trajectory_sigma, 2.0, 20.0))
         t0 = time.perf_counter()
-        result = calibrate(strips, nominal, method=method, settings=settings, workers=args.workers)
+        result = calibrate(strips, nominal, method=method, estimate=estimate, settings=settings, workers=args.workers)
         total = time.perf_counter() - t0
         row: dict[str, float | str] = {"outer iterations": len(result.outer), "pairs used": len(result.pairs),
                                        "observations (last)": result.outer[-1]["n_obs"]}
