@@ -55,7 +55,7 @@ def main() -> None:
     ap.add_argument("--density", type=float, default=1.7, help="simulator density (1.7 ≈ 8 M points in 8 strips)")
     ap.add_argument("--cache", type=Path, default=Path(tempfile.gettempdir()) / "calidar_bench_strips")
     ap.add_argument("--trajectory-sigma", default=None,
-                    help="'POSITION_M,ATTITUDE_DEG': also estimate the trajectory errors (2 s blocks, 20 s correlation)")
+                    help="'POSITION_M,ATTITUDE_DEG': also estimate the trajectory errors (1 s blocks, 20 s / 3 s correlation)")
     args = ap.parse_args()
     sim = simulate(args.cache, args.density)
     stages: dict[str, float] = {}
@@ -71,7 +71,7 @@ def main() -> None:
     stage("read LAZ + build strips (inverse georeferencing)", t0)
     t0 = time.perf_counter()
     if args.trajectory_sigma:
-        settings = StripSettings(trajectory=trajectory_model(args.trajectory_sigma, 2.0, 20.0))
+        settings = StripSettings(trajectory=trajectory_model(args.trajectory_sigma))
         result = calibrate(strips, nominal, method=args.method, estimate="boresight,trajectory_bias", settings=settings)
     else:
         result = calibrate(strips, nominal, method=args.method)

@@ -62,7 +62,7 @@ def main() -> None:
     ap.add_argument("--workers", type=int, default=None, help="Dask LocalCluster workers for the pair matching")
     ap.add_argument("--cache", type=Path, default=Path(tempfile.gettempdir()) / "calidar_bench_strips")
     ap.add_argument("--trajectory-sigma", default=None,
-                    help="'POSITION_M,ATTITUDE_DEG': also estimate the trajectory errors (2 s blocks, 20 s correlation)")
+                    help="'POSITION_M,ATTITUDE_DEG': also estimate the trajectory errors (1 s blocks, 20 s / 3 s correlation)")
     args = ap.parse_args()
     sim = simulate(args.cache, args.density)
 
@@ -82,7 +82,7 @@ def main() -> None:
     estimate = "boresight,trajectory_bias" if args.trajectory_sigma else "boresight"
     for method, settings in SETTINGS.items():
         if args.trajectory_sigma:
-            settings = replace(settings, trajectory=trajectory_model(args.trajectory_sigma, 2.0, 20.0))
+            settings = replace(settings, trajectory=trajectory_model(args.trajectory_sigma))
         t0 = time.perf_counter()
         result = calibrate(strips, nominal, method=method, estimate=estimate, settings=settings, workers=args.workers)
         total = time.perf_counter() - t0

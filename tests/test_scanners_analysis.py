@@ -1,7 +1,6 @@
 """Scanner structural-error analysis: the published Palmer figures, tolerances, CLI."""
 
 import json
-import time
 
 import numpy as np
 import pytest

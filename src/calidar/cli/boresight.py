@@ -72,9 +72,10 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
         trajectory_sigma: str | None = typer.Option(
             None, "--trajectory-sigma", help="The trajectory's accuracy 'POSITION_M,ATTITUDE_DEG' (e.g. 0.03,0.002): "
             "estimate its errors per time block with these priors, so the σ of the mounting include them."),
-        trajectory_block: float = typer.Option(2.0, "--trajectory-block", help="Time block of the trajectory corrections, s."),
-        trajectory_correlation: float = typer.Option(
-            20.0, "--trajectory-correlation", help="Correlation time of the trajectory errors (Gauss–Markov), s."),
+        trajectory_block: float = typer.Option(1.0, "--trajectory-block", help="Time block of the trajectory corrections, s."),
+        trajectory_correlation: str = typer.Option(
+            "20,3", "--trajectory-correlation",
+            help="Correlation times of the trajectory's position and attitude errors (Gauss–Markov), 'POS_S,ATT_S' s."),
         truth: Path | None = typer.Option(None, "--truth", help="truth.json of a simulation (adds truth and errors)."),
         scheduler: str | None = typer.Option(None, "--scheduler", help="Dask scheduler address for the pair matching."),
         workers: int | None = typer.Option(None, "--workers", help="Start a local Dask cluster with N workers."),
@@ -138,16 +139,18 @@ def parse_methods(text: str) -> list[str]:
     return methods
 
 
-def trajectory_model(sigma: str, block_s: float, correlation_s: float):
-    """--trajectory-sigma 'POSITION_M,ATTITUDE_DEG' and the block/correlation times → a TrajectoryModel."""
+def trajectory_model(sigma: str, block_s: float = 1.0, correlation: str = "20,3"):
+    """--trajectory-sigma 'POSITION_M,ATTITUDE_DEG', --trajectory-block S and
+    --trajectory-correlation 'POS_S,ATT_S' → a TrajectoryModel (defaults validated on the simulator)."""
     from calidar.strips.trajectory_errors import TrajectoryModel
 
     pos_m, att_deg = parse_floats(sigma, 2, "--trajectory-sigma (POSITION_M,ATTITUDE_DEG)")
-    for name, v in (("--trajectory-sigma", pos_m), ("--trajectory-sigma", att_deg),
-                    ("--trajectory-block", block_s), ("--trajectory-correlation", correlation_s)):
+    corr_pos, corr_att = parse_floats(correlation, 2, "--trajectory-correlation (POS_S,ATT_S)")
+    for name, v in (("--trajectory-sigma", pos_m), ("--trajectory-sigma", att_deg), ("--trajectory-block", block_s),
+                    ("--trajectory-correlation", corr_pos), ("--trajectory-correlation", corr_att)):
         if not (np.isfinite(v) and v > 0):
             raise InputError(None, name, f"expected numbers > 0, got {v}")
-    return TrajectoryModel(block_s, pos_m, np.radians(att_deg), correlation_s, correlation_s)
+    return TrajectoryModel(block_s, pos_m, np.radians(att_deg), corr_pos, corr_att)
 
 
 def _print(result, truth_si) -> None:
