@@ -24,6 +24,8 @@ ResidualFn = Callable[[dict[str, float]], np.ndarray]
 JacobianFn = Callable[[dict[str, float]], np.ndarray]
 
 ROBUST_K = {"huber": 1.345, "cauchy": 2.385}
+#: stop when every step is below this fraction of its parameter's σ (changes no one can see)
+STEP_IN_SIGMA = 1e-3
 
 
 def robust_weights(u: np.ndarray, kind: str | None, k: float | None = None) -> np.ndarray:
@@ -157,7 +159,8 @@ def solve(
         if progress:
             progress(it, c)
         steps = np.array([p.diff_step for p in free])
-        if np.all(np.abs(dx) < tol + 1e-4 * steps) or abs(c_prev - c) <= tol * max(c, 1e-300):
+        if (np.all(np.abs(dx) < tol + 1e-4 * steps) or abs(c_prev - c) <= tol * max(c, 1e-300)
+                or np.all(np.abs(dx) <= STEP_IN_SIGMA * _sigma_estimate(N, c, n, n_prior, len(free)))):
             converged = True
             break
 
@@ -177,6 +180,15 @@ def solve(
     for grouping in ([] if clusters is None else clusters if isinstance(clusters, list) else [clusters]):
         sol.covariance = _cluster_robust(sol.covariance, N, scores, np.asarray(grouping))
     return sol
+
+
+def _sigma_estimate(N: np.ndarray, cost: float, n_obs: int, n_prior: int, n_free: int) -> np.ndarray:
+    """Rough σ of the parameters from the undamped normal matrix of the step (for the stop rule)."""
+    try:
+        d = np.diag(np.linalg.inv(N))
+    except np.linalg.LinAlgError:
+        return np.zeros(n_free)
+    return np.sqrt(np.clip(d, 0, None) * 2.0 * cost / max(n_obs + n_prior - n_free, 1))
 
 
 def _solve_damped(A: np.ndarray, g: np.ndarray) -> np.ndarray:
