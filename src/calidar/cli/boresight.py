@@ -10,8 +10,7 @@ import typer
 
 from calidar.cli.common import console, err_console, parse_floats, read_json
 from calidar.errors import InputError
-
-TRAJECTORY_PREFIX = "trajectory_"
+from calidar.strips.trajectory_errors import PREFIX as TRAJECTORY_PREFIX
 
 
 def load_strips(paths, trajectory, sensor):

@@ -8,6 +8,7 @@ from calidar.report import Report
 from calidar.report.plots import residual_histogram
 from calidar.strips.calibrate import CalibrationResult
 from calidar.strips.quality import PairQuality, QualitySettings, dz_figure, swath_difference
+from calidar.strips.trajectory_errors import PREFIX as TRAJECTORY_PREFIX
 
 
 def pair_quality(result: CalibrationResult, settings: QualitySettings | None = None) -> list[tuple[PairQuality, PairQuality]]:
@@ -33,7 +34,7 @@ def add_report_section(report: Report, result: CalibrationResult, truth: dict[st
              f"{n_obs} observations ({'tie planes' if result.method == 'planes' else 'VGICP correspondences'}); "
              f"{len(result.outer)} outer iterations (re-matching), mean correspondence distance "
              + " → ".join(f"{o['mean_distance_m'] * 1e3:.1f}" for o in result.outer) + " mm.")
-    sec.solution(sol, truth, hidden_prefix="trajectory_")
+    sec.solution(sol, truth, hidden_prefix=TRAJECTORY_PREFIX)
     sec.figure(residual_histogram(np.asarray(result.residuals_before), np.asarray(result.residuals_after)),
                "Correspondence residuals at the nominal sensor (first matching) and after calibration (last matching).")
     quality = pair_quality(result) if quality is None else quality
@@ -61,7 +62,7 @@ def add_comparison_section(report: Report, results: dict[str, CalibrationResult]
     va, vb, sa, sb = ra.solution.values, rb.solution.values, ra.solution.sigma, rb.solution.sigma
     rows = []
     for p in ra.solution.parameters.free:
-        if p.name.startswith("trajectory_") or p.name not in sb:
+        if p.name.startswith(TRAJECTORY_PREFIX) or p.name not in sb:
             continue
         d = va[p.name] - vb[p.name]
         both = np.hypot(sa[p.name], sb[p.name])

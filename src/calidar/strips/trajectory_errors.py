@@ -33,6 +33,7 @@ from calidar.adjust import Parameter
 from calidar.errors import InputError
 
 AXES = ("east", "north", "up")
+PREFIX = "trajectory_"  #: every trajectory-correction parameter's name starts so (nuisance parameters)
 _NAME = re.compile(r"trajectory_(bias|tilt)_(east|north|up)_(\d+)(?:_(\d+))?$")
 
 
@@ -119,10 +120,6 @@ class StripCorrection:
         if np.any(self.tilt):
             out = out + np.cross(self.tilt[blocks], points - origin)
         return out
-
-    @property
-    def mean_shift(self) -> np.ndarray:
-        return self.shift.mean(axis=0)
 
 
 def parse_name(name: str) -> tuple[str, int, int, int] | None:
