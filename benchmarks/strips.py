@@ -78,7 +78,8 @@ def main() -> None:
     stage("calibrate", t0)
     for o in result.outer:
         for key in ("georeference_s", "match_s", "solve_s"):
-            stages[f"  iteration {o['iteration']}: {key[:-2]}"] = o[key]
+            stages[f"  iteration {o['iteration']}: {key[:-2]}"
+                   + (f" ({o['solver_iterations']} LM iterations)" if key == "solve_s" else "")] = o[key]
     t0 = time.perf_counter()
     truth = truth_to_si(json.loads((sim / "truth.json").read_text()), result.solution.parameters)
     report = Report("benchmark")

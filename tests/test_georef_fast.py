@@ -60,6 +60,17 @@ def test_forward_equals_numpy(sort):
 
 
 @pytest.mark.parametrize("sort", [True, False])
+def test_poses_equal_numpy(sort):
+    tr = _traj()
+    t = _observations(tr, 50_000, sort, seed=2)[0]
+    pos, r_eb = georef.poses(tr, t)
+    pos_ref, r_ref = _numpy_pose(tr, t)
+    assert np.max(np.abs(pos - pos_ref)) < 1e-9 and np.max(np.abs(r_eb - r_ref)) < 1e-12
+    with pytest.raises(InputError, match="outside the trajectory"):
+        georef.poses(tr, np.r_[t[:10], tr.time[-1] + 1.0])
+
+
+@pytest.mark.parametrize("sort", [True, False])
 def test_inverse_equals_numpy(sort):
     tr = _traj()
     t, r, th, ph = _observations(tr, 50_000, sort, seed=1)

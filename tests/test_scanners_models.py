@@ -184,3 +184,24 @@ def test_georeferencing_round_trip_with_rotating_scanner(scanner):
     obs = georef.inverse(tr, sensor, tt, p)
     assert np.max(np.abs(_wrap(obs.angles - beta))) < 1e-9
     assert np.max(np.abs(georef.forward(tr, sensor, tt, obs.range_m, obs.angles) - p)) < 1e-6
+
+
+def test_negative_eccentricity_is_reported_as_the_same_encoder_error_with_positive_ratio():
+    from calidar.adjust import Parameter, ParameterSet, Solution
+    from calidar.scanners.rotating import canonical_eccentricity
+
+    params = ParameterSet([Parameter("boresight_pitch", 1e-4, "rad"), Parameter("eccentricity_ratio", -4.8e-4, "1"),
+                           Parameter("eccentricity_phase", np.radians(-150.0), "rad")])
+    cov = np.array([[4.0, 1.0, 0.5], [1.0, 9.0, -2.0], [0.5, -2.0, 16.0]]) * 1e-10
+    sol = Solution(params, cov.copy(), sigma0=1.0, dof=10.0, condition_number=1.0)
+    canonical_eccentricity(sol)
+    v = sol.values
+    assert v["eccentricity_ratio"] == pytest.approx(4.8e-4)
+    assert np.degrees(v["eccentricity_phase"]) == pytest.approx(30.0)
+    assert v["boresight_pitch"] == 1e-4
+    assert np.allclose(np.diag(sol.covariance), np.diag(cov))
+    assert sol.covariance[0, 1] == -cov[0, 1] and sol.covariance[1, 2] == -cov[1, 2] and sol.covariance[0, 2] == cov[0, 2]
+    beta = np.linspace(0, 2 * np.pi, 50)
+    before = palmer_directions(beta, np.radians(45), np.radians(7.5), -4.8e-4, np.radians(-150.0))
+    after = palmer_directions(beta, np.radians(45), np.radians(7.5), v["eccentricity_ratio"], v["eccentricity_phase"])
+    assert np.max(np.abs(after - before)) < 1e-15  # the same encoder error

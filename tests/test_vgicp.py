@@ -77,16 +77,22 @@ def test_correspondences_bring_residuals_to_noise(strips, kind):
     c = match_pair_vgicp(1, a, 2, b, VgicpSettings(kind=kind, max_pairs=1500))
     assert isinstance(c, Correspondences) and c.method == "vgicp" and (c.strip_a, c.strip_b) == (1, 2)
     assert 300 <= c.n_obs <= 1500
-    for m in (c.A, c.B):  # one 1.0 per row: point pairs
-        assert np.all(np.diff(m.indptr) == 1) and np.all(m.data == 1.0)
+    assert np.all(np.diff(c.A.indptr) == 1) and np.all(c.A.data == 1.0)  # one point of a per row
     fixed = undo(b, ROT_TRUE, SHIFT_TRUE)
     before, after = c.residuals(a, b), c.residuals(a, fixed)
     if kind == "point_to_plane":
+        # b's side: the mean of its k nearest points around a's point, on b's local plane
+        k = VgicpSettings().num_neighbors
+        assert np.all(np.diff(c.B.indptr) == k) and np.allclose(c.B.data, 1.0 / k)
         assert c.normal is not None and np.allclose(np.linalg.norm(c.normal, axis=1), 1.0)
-        # two noisy points along the normal: σ = √2 · 2 cm
-        assert np.sqrt(np.mean(after**2)) < 1.5 * np.sqrt(2) * NOISE_M
+        # a noisy point against the mean of k noisy points along the normal: σ = √(1 + 1/k) · 2 cm
+        rms = np.sqrt(np.mean(after**2))
+        assert rms < 1.1 * np.sqrt(1 + 1 / k) * NOISE_M, rms
+        # each row's σ comes from the scatter of b's plane: it predicts the residuals' spread
+        assert np.std(after) == pytest.approx(np.median(c.sigma_m), rel=0.15)
         assert np.sqrt(np.mean(before**2)) > 10 * NOISE_M
     else:
+        assert np.all(np.diff(c.B.indptr) == 1) and np.all(c.B.data == 1.0)  # point pairs
         assert c.normal is None and after.size == 3 * c.n_obs
         d = np.linalg.norm(after.reshape(-1, 3), axis=1)
         # the pair distance is the sampling gap: median nearest-neighbour distance of a

@@ -160,6 +160,32 @@ def _inverse_kernel(tt, pos, q, t, p, r_bs, lever, out):
     return n_out
 
 
+@njit(cache=True, nogil=True)
+def _poses_kernel(tt, pos, q, t, pos_out, r_out):
+    """r(t) → pos_out (N, 3) and R_eb(t) → r_out (N, 3, 3). Returns how many times lie outside tt."""
+    n_out, i, i_prev, theta, s, sign = 0, 0, -1, 0.0, 0.0, 1.0
+    for k in range(t.size):
+        tk = t[k]
+        n_out += not tt[0] <= tk <= tt[tt.size - 1]  # NaN counts as outside
+        i, i_prev, theta, s, sign, px, py, pz, r00, r01, r02, r10, r11, r12, r20, r21, r22 = _pose(
+            tt, pos, q, tk, i, i_prev, theta, s, sign)
+        pos_out[k, 0], pos_out[k, 1], pos_out[k, 2] = px, py, pz
+        r_out[k, 0, 0], r_out[k, 0, 1], r_out[k, 0, 2] = r00, r01, r02
+        r_out[k, 1, 0], r_out[k, 1, 1], r_out[k, 1, 2] = r10, r11, r12
+        r_out[k, 2, 0], r_out[k, 2, 1], r_out[k, 2, 2] = r20, r21, r22
+    return n_out
+
+
+def poses(traj: Trajectory, time) -> tuple[np.ndarray, np.ndarray]:
+    """IMU positions (N, 3) ECEF m and rotations body → ECEF (N, 3, 3) at GPS times (N,) s
+    (as :meth:`Trajectory.interpolate` + :func:`calidar.frames.quat_to_matrix`, one fused loop)."""
+    t = _c(time)
+    pos, r_eb = np.empty((t.size, 3)), np.empty((t.size, 3, 3))
+    if _poses_kernel(traj.time, _c(traj.ecef), _c(traj.q_eb), t, pos, r_eb):
+        traj.check_covers(t)
+    return pos, r_eb
+
+
 def _c(a) -> np.ndarray:
     return np.ascontiguousarray(a, dtype=float)
 

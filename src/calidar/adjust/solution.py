@@ -48,6 +48,9 @@ class Solution:
     history: list[dict] = field(default_factory=list)
     converged: bool = True
     extra: dict = field(default_factory=dict)  #: method-specific results for the JSON
+    #: free parameters named so are nuisance (e.g. hundreds of trajectory corrections): solution.json
+    #: gives their values and σ but leaves them out of the correlation matrix and the history
+    nuisance_prefix: str | None = None
 
     @classmethod
     def from_normal_matrix(cls, params, N, sigma0_sq, dof, *, residuals, weights, before, history,
@@ -125,11 +128,14 @@ class Solution:
                 entry["truth"] = p.to_display(truth[p.name])
                 entry["error"] = p.to_display(p.value - truth[p.name])
             params[p.name] = entry
-        corr = self.correlation
+        shown = [i for i, n in enumerate(self.parameters.free_names)
+                 if not (self.nuisance_prefix and n.startswith(self.nuisance_prefix))]
+        corr = self.correlation[np.ix_(shown, shown)]
+        free = [self.parameters.free[i] for i in shown]
         return {
             "parameters": params,
             "correlation": {
-                "names": self.parameters.free_names,
+                "names": [p.name for p in free],
                 "matrix": [[None if not np.isfinite(v) else round(float(v), 6) for v in row] for row in corr],
             },
             "residuals": {"before": self.residuals_before, "after": self.residuals_after},
@@ -140,7 +146,7 @@ class Solution:
             "warnings": self.warnings,
             "history": [
                 {**{k: v for k, v in h.items() if k != "values"},
-                 "values": {p.name: p.to_display(h["values"][p.name]) for p in self.parameters.free}}
+                 "values": {p.name: p.to_display(h["values"][p.name]) for p in free}}
                 for h in self.history
             ],
             **self.extra,

@@ -133,6 +133,7 @@ def solve(
     c = cost(r, w, x)
     history.append({"iteration": 0, "cost": c, "rms": before["rms"], "values": params.values_with(x)})
     converged = False
+    n_inv_diag = None  # diag(N⁻¹) of the first step: the stop rule's σ scale (N hardly changes after)
     for it in range(1, max_iter + 1):
         J = jac(x)
         N = _normal_matrix(J, w)
@@ -140,6 +141,8 @@ def solve(
         for idx, center, P in priors:
             N[np.ix_(idx, idx)] += P
             g[idx] += P @ (x[idx] - center)
+        if n_inv_diag is None:
+            n_inv_diag = _inverse_diagonal(N)
         dN = np.diag(N).copy()
         dN[dN <= 0] = 1.0
         for _ in range(12):
@@ -160,7 +163,7 @@ def solve(
             progress(it, c)
         steps = np.array([p.diff_step for p in free])
         if (np.all(np.abs(dx) < tol + 1e-4 * steps) or abs(c_prev - c) <= tol * max(c, 1e-300)
-                or np.all(np.abs(dx) <= STEP_IN_SIGMA * _sigma_estimate(N, c, n, n_prior, len(free)))):
+                or np.all(np.abs(dx) <= STEP_IN_SIGMA * np.sqrt(n_inv_diag * 2.0 * c / max(n + n_prior - len(free), 1)))):
             converged = True
             break
 
@@ -176,19 +179,21 @@ def solve(
         residuals=r, weights=w * sig**2, before=before, history=history, converged=converged,
         jacobian=J,
     )
-    scores = sp.diags(w * r) @ J  # per observation ∂cost/∂θ (dense or sparse like J)
-    for grouping in ([] if clusters is None else clusters if isinstance(clusters, list) else [clusters]):
-        sol.covariance = _cluster_robust(sol.covariance, N, scores, np.asarray(grouping))
+    groupings = [] if clusters is None else clusters if isinstance(clusters, list) else [clusters]
+    if groupings:
+        scores = sp.diags(w * r) @ J  # per observation ∂cost/∂θ (dense or sparse like J)
+        Ninv = sol.covariance / sigma0_sq if sigma0_sq > 0 and np.all(np.isfinite(sol.covariance)) else np.linalg.pinv(N)
+        for grouping in groupings:
+            sol.covariance = _cluster_robust(sol.covariance, Ninv, scores, np.asarray(grouping))
     return sol
 
 
-def _sigma_estimate(N: np.ndarray, cost: float, n_obs: int, n_prior: int, n_free: int) -> np.ndarray:
-    """Rough σ of the parameters from the undamped normal matrix of the step (for the stop rule)."""
+def _inverse_diagonal(N: np.ndarray) -> np.ndarray:
+    """diag(N⁻¹), ≥ 0 (zeros when N is singular: the stop rule then never fires on it)."""
     try:
-        d = np.diag(np.linalg.inv(N))
+        return np.clip(np.diag(np.linalg.inv(N)), 0, None)
     except np.linalg.LinAlgError:
-        return np.zeros(n_free)
-    return np.sqrt(np.clip(d, 0, None) * 2.0 * cost / max(n_obs + n_prior - n_free, 1))
+        return np.zeros(N.shape[0])
 
 
 def _solve_damped(A: np.ndarray, g: np.ndarray) -> np.ndarray:
@@ -225,7 +230,7 @@ def _normal_matrix(J, w: np.ndarray) -> np.ndarray:
     return J.T @ (w[:, None] * J)
 
 
-def _cluster_robust(cov: np.ndarray, N: np.ndarray, scores: np.ndarray, clusters: np.ndarray) -> np.ndarray:
+def _cluster_robust(cov: np.ndarray, Ninv: np.ndarray, scores: np.ndarray, clusters: np.ndarray) -> np.ndarray:
     """``cov`` with each σ raised to the cluster-robust (sandwich) σ where that is larger; correlations kept.
 
     clusters (n,) one group per observation, or (n, 2) two groups (dyadic): the "meat" sums
@@ -248,8 +253,7 @@ def _cluster_robust(cov: np.ndarray, N: np.ndarray, scores: np.ndarray, clusters
         _, d = np.unique(np.sort(g, axis=1), axis=0, return_inverse=True)
         D = group_sums(d.ravel(), int(d.max()) + 1)
         meat -= D.T @ D
-    Ninv = np.linalg.pinv(N)
-    sand = np.diag(Ninv @ meat @ Ninv) * G / (G - 1)
+    sand = np.sum((Ninv @ meat) * Ninv.T, axis=1) * G / (G - 1)  # diag(N⁻¹ · meat · N⁻¹)
     d = np.maximum(np.diag(cov), 1e-300)
     scale = np.sqrt(np.maximum(sand, d) / d)
     return cov * np.outer(scale, scale)

@@ -69,8 +69,10 @@ class Section:
 
     def solution(self, solution, truth: dict[str, float] | None = None, hidden_prefix: str | None = None) -> None:
         """Parameter table (value, σ, unit, truth and error when known) and diagnostics; parameters
-        whose names start with ``hidden_prefix`` (nuisance parameters) are counted, not listed."""
+        whose names start with ``hidden_prefix`` (default: the solution's nuisance prefix) are
+        counted, not listed."""
         doc = solution.to_dict(truth)
+        hidden_prefix = hidden_prefix or solution.nuisance_prefix
         rows = []
         hidden = [n for n in doc["parameters"] if hidden_prefix and n.startswith(hidden_prefix)]
         if hidden:

@@ -31,6 +31,28 @@ def encoder_angle(true_rad, ratio: float, phase_rad: float, iterations: int = 6)
     return b
 
 
+def canonical_eccentricity(solution) -> None:
+    """Report an estimated encoder eccentricity as ε/r ≥ 0 with C in (−π, π], in place.
+
+    (−ε/r, C) and (ε/r, C + π) are the same encoder error (sin(β − C − π) = −sin(β − C)), and a
+    solve may land on either; a negative ε/r is flipped (the covariance row and column of ε/r
+    change sign). ``solution``: a :class:`calidar.adjust.Solution` with both parameters free;
+    anything else is left as it is.
+    """
+    names = solution.parameters.free_names
+    if "eccentricity_ratio" not in names or "eccentricity_phase" not in names:
+        return
+    i, j = names.index("eccentricity_ratio"), names.index("eccentricity_phase")
+    x = solution.parameters.x()
+    if x[i] < 0:
+        x[i], x[j] = -x[i], x[j] + np.pi
+        sign = np.ones(x.size)
+        sign[i] = -1.0
+        solution.covariance = solution.covariance * np.outer(sign, sign)
+    x[j] = np.pi - (np.pi - x[j]) % (2.0 * np.pi)
+    solution.parameters = solution.parameters.updated(x)
+
+
 def refine_angles(directions: Callable[[np.ndarray], np.ndarray], u: np.ndarray, beta0: np.ndarray,
                   iterations: int = 4, step_rad: float = 1e-6) -> np.ndarray:
     """Encoder angles (N,) minimising |directions(β) − u| by Gauss–Newton from β0, rad.

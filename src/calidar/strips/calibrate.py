@@ -22,12 +22,14 @@ import scipy.sparse as sp
 from calidar.adjust import Parameter, ParameterSet, Solution, solve
 from calidar.adjust.solver import numerical_jacobian
 from calidar.errors import CalibrationError, CalidarError, InputError
+from calidar.scanners.rotating import canonical_eccentricity
 from calidar.sensor import Sensor
 from calidar.strips.correspond import Correspondences
 from calidar.strips.distribute import cluster_client, map_pairs
 from calidar.strips.overlap import Overlap, find_overlaps
 from calidar.strips.planes import PlaneSettings, match_pair_planes
 from calidar.strips.strip import Pose, Strip, georeference_pose
+from calidar.strips.trajectory_errors import PREFIX as TRAJECTORY_PREFIX
 from calidar.strips.trajectory_errors import StripCorrection, TrajectoryModel, corrections, parse_name
 
 #: What ``--estimate`` accepts → sensor parameters (name, unit of the engine).
@@ -157,7 +159,9 @@ def _union(indices: list[np.ndarray]) -> np.ndarray:
 
 def _compact(m: sp.csr_matrix, cols: np.ndarray) -> sp.csr_matrix:
     """``m`` restricted to its columns ``cols`` (sorted, holding every column m references)."""
-    return sp.csr_matrix((m.data, np.searchsorted(cols, m.indices), m.indptr), shape=(m.shape[0], cols.size))
+    position = np.empty(int(cols[-1]) + 1 if cols.size else 0, dtype=np.int64)  # a lookup table: O(n)
+    position[cols] = np.arange(cols.size)
+    return sp.csr_matrix((m.data, position[m.indices], m.indptr), shape=(m.shape[0], cols.size))
 
 
 def _match_or_error(match: Callable, strip_a_id, points_a, strip_b_id, points_b, settings):
@@ -191,10 +195,12 @@ class _Centroids:
     exactly. (Scanner-angle parameters change u: see ``_Problem``.)
     """
 
-    def __init__(self, A: sp.csr_matrix, pose: Pose, nominal: Sensor, range_free: bool, lever_free: bool):
+    def __init__(self, A: sp.csr_matrix, poses: Pose, nominal: Sensor, range_free: bool, lever_free: bool):
+        """A: averaging weights over a strip's points (columns = strip point indices); poses:
+        cached poses holding every point A references."""
         n = A.shape[0]
         cols = _union([A.indices])  # only the points this side references
-        A, pose = _compact(A, cols), pose.take(cols)
+        A, pose = _compact(A, cols), poses.take(poses.rows_of(cols))
         u = nominal.scanner.directions(pose.angles)
         self.rowsum = np.asarray(A.sum(axis=1)).ravel()
         self.r = A @ pose.position  #: weighted sums of the IMU positions
@@ -235,20 +241,22 @@ class _Problem:
             used.setdefault(c.strip_a, []).append(c.A.indices)
             used.setdefault(c.strip_b, []).append(c.B.indices)
         self.index = {i: _union(v) for i, v in used.items()}
-        self.pose: dict[int, Pose] = {i: poses[i].take(poses[i].rows_of(idx)) for i, idx in self.index.items()}
         self.time = {i: times[i][idx] for i, idx in self.index.items()} if trajectory else {}
 
+        scanner_free = set(free) & set(nominal.scanner.parameters())
+        range_free = bool(set(free) & {"range_offset", "range_scale"})
+        lever_free = any(f.startswith("lever_arm") for f in free)
+        self.centroids = None if scanner_free else [
+            tuple(_Centroids(m, poses[sid], nominal, range_free, lever_free)
+                  for m, sid in ((c.A, c.strip_a), (c.B, c.strip_b))) for c in corrs]
+        #: poses of every referenced point, for re-georeferencing them all (scanner parameters free)
+        self.pose: dict[int, Pose] = {} if self.centroids is not None else {
+            i: poses[i].take(poses[i].rows_of(idx)) for i, idx in self.index.items()}
         self.corrs = [replace(c, A=_compact(c.A, self.index[c.strip_a]), B=_compact(c.B, self.index[c.strip_b]))
                       for c in corrs]
         self.sigma = np.concatenate([
             np.repeat(np.broadcast_to(np.asarray(c.sigma_m, float), (c.n_obs,)), 3 if c.normal is None else 1)
             for c in self.corrs])
-        scanner_free = set(free) & set(nominal.scanner.parameters())
-        range_free = bool(set(free) & {"range_offset", "range_scale"})
-        lever_free = any(f.startswith("lever_arm") for f in free)
-        self.centroids = None if scanner_free else [
-            tuple(_Centroids(m, self.pose[sid], nominal, range_free, lever_free)
-                  for m, sid in ((c.A, c.strip_a), (c.B, c.strip_b))) for c in self.corrs]
         self.row_time = [tuple((m @ self.time[sid]) / np.maximum(np.asarray(m.sum(axis=1)).ravel(), 1e-300)
                                if self.time else None for m, sid in ((c.A, c.strip_a), (c.B, c.strip_b)))
                          for c in self.corrs]
@@ -450,7 +458,8 @@ def _calibrate(strips: Sequence[Strip], nominal: Sensor, *, method: str = "plane
         params = solution.parameters
         mean = float(np.mean(np.concatenate([_mean_distance(c, r) for c, r in problem.split(solution.residuals)])))
         outer.append({"iteration": k + 1, "mean_distance_m": mean, "n_obs": int(problem.sigma.size),
-                      "n_pairs": len(corrs), **times, "values": params.values()})
+                      "n_pairs": len(corrs), "solver_iterations": len(solution.history) - 1, **times,
+                      "values": params.values()})
         if prev_mean is not None and abs(prev_mean - mean) < s.threshold_m:
             break
         prev_mean = mean
@@ -458,6 +467,10 @@ def _calibrate(strips: Sequence[Strip], nominal: Sensor, *, method: str = "plane
         change = abs(outer[-1]["mean_distance_m"] - outer[-2]["mean_distance_m"]) if len(outer) > 1 else float("nan")
         warnings.append(f"the outer loop stopped after {s.max_outer} iterations before the mean correspondence "
                         f"distance settled (last change {change * 1e3:.2g} mm)")
+    canonical_eccentricity(solution)
+    params = solution.parameters
+    if model is not None:
+        solution.nuisance_prefix = TRAJECTORY_PREFIX
     used_pairs = [(p["a"], p["b"]) for p in pairs]
     solution.warnings = warnings + geometry_warnings([by_id[i] for i in problem.index], used_pairs,
                                                      params.free_names) + solution.warnings

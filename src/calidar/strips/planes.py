@@ -21,6 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
+from numba import njit
 
 from calidar.strips.correspond import Correspondences
 from calidar.strips.overlap import cell_keys, footprint_area_m2
@@ -31,13 +32,14 @@ class PlaneSettings:
     """Tie-plane detection settings (metres, degrees where named)."""
 
     cell_m: float | None = None  #: patch size; None → chosen so that a patch holds ≈ target_points
-    target_points: int = 40
-    min_points: int = 12
+    target_points: int = 12  #: small patches: more of them planar on roofs and between trees
+    min_points: int = 6
     max_rms_m: float = 0.10  #: largest point scatter about the fitted plane
     min_spread: float = 0.2  #: √λ1 / cell_m at least (the patch covers its cell)
     max_normal_angle_deg: float = 5.0  #: normals of the two strips agree within this
     max_offset_m: float = 1.0  #: gate on |r| (tie planes further apart are not the same surface)
     max_points_per_patch: int = 64  #: centroid from at most this many points (evenly picked)
+    max_planes: int = 5000  #: at most this many tie planes per pair, evenly picked (dense strips)
     noise_floor_m: float = 0.002  #: added to each row's σ for model errors (roughness)
 
 
@@ -67,24 +69,50 @@ def fit_patches(points: np.ndarray, cell_m: float, settings: PlaneSettings) -> P
     ks = keys[order]
     start = np.r_[0, np.flatnonzero(ks[1:] != ks[:-1]) + 1] if ks.size else np.zeros(0, np.int64)
     uk, count = ks[start], np.diff(np.r_[start, ks.size])
-    cell = np.repeat(np.arange(uk.size), count)
-    p = points[order]
-    ref = p[start][cell]  # a point of the same cell: keeps the sums well conditioned
-    q = p - ref
-    sums = np.stack([np.bincount(cell, q[:, i], uk.size) for i in range(3)], axis=1)
-    mean = sums / count[:, None]
-    cov = np.empty((uk.size, 3, 3))
-    for i in range(3):
-        for j in range(i, 3):
-            cov[:, i, j] = cov[:, j, i] = np.bincount(cell, q[:, i] * q[:, j], uk.size) / count - mean[:, i] * mean[:, j]
-    ok = count >= max(settings.min_points, 3)
-    lam, vec = np.linalg.eigh(cov[ok])
+    ok = np.flatnonzero(count >= max(settings.min_points, 3))
+    mean, cov = _cell_moments(np.ascontiguousarray(points, dtype=np.float64), order, start[ok], count[ok])
+    lam, vec = np.linalg.eigh(cov)
     lam = np.clip(lam, 0.0, None)
     planar = (np.sqrt(lam[:, 0]) <= settings.max_rms_m) & (np.sqrt(lam[:, 1]) >= settings.min_spread * cell_m)
-    sel = np.flatnonzero(ok)[planar]
+    sel = ok[planar]
     normal = vec[planar][:, :, 0]
     normal *= np.where(normal[:, 2] < 0, -1.0, 1.0)[:, None]
-    return Patches(uk[sel], mean[sel] + p[start[sel]], normal, np.sqrt(lam[planar, 0]), start[sel], count[sel], order)
+    return Patches(uk[sel], mean[planar], normal, np.sqrt(lam[planar, 0]), start[sel], count[sel], order)
+
+
+@njit(cache=True, nogil=True)
+def _cell_moments(points, order, start, count):
+    """Mean (K, 3) and covariance (K, 3, 3) of the points ``order[start[c]:start[c] + count[c]]``
+    of each cell c; sums about the cell's first point keep them well conditioned."""
+    k_cells = start.size
+    mean = np.empty((k_cells, 3))
+    cov = np.empty((k_cells, 3, 3))
+    for c in range(k_cells):
+        first = order[start[c]]
+        r0, r1, r2 = points[first, 0], points[first, 1], points[first, 2]
+        s0 = s1 = s2 = s00 = s01 = s02 = s11 = s12 = s22 = 0.0
+        for k in range(start[c], start[c] + count[c]):
+            i = order[k]
+            d0, d1, d2 = points[i, 0] - r0, points[i, 1] - r1, points[i, 2] - r2
+            s0 += d0
+            s1 += d1
+            s2 += d2
+            s00 += d0 * d0
+            s01 += d0 * d1
+            s02 += d0 * d2
+            s11 += d1 * d1
+            s12 += d1 * d2
+            s22 += d2 * d2
+        n = count[c]
+        m0, m1, m2 = s0 / n, s1 / n, s2 / n
+        mean[c, 0], mean[c, 1], mean[c, 2] = m0 + r0, m1 + r1, m2 + r2
+        cov[c, 0, 0] = s00 / n - m0 * m0
+        cov[c, 1, 1] = s11 / n - m1 * m1
+        cov[c, 2, 2] = s22 / n - m2 * m2
+        cov[c, 0, 1] = cov[c, 1, 0] = s01 / n - m0 * m1
+        cov[c, 0, 2] = cov[c, 2, 0] = s02 / n - m0 * m2
+        cov[c, 1, 2] = cov[c, 2, 1] = s12 / n - m1 * m2
+    return mean, cov
 
 
 def _averaging(patches: Patches, rows: np.ndarray, cap: int, n_points: int) -> tuple[sp.csr_matrix, np.ndarray]:
@@ -117,7 +145,9 @@ def match_pair_planes(strip_a_id: int, points_a: np.ndarray, strip_b_id: int, po
     _, ia, ib = np.intersect1d(pa.keys, pb.keys, assume_unique=True, return_indices=True)
     cos_ab = np.abs(np.einsum("ij,ij->i", pa.normal[ia], pb.normal[ib]))
     offset = np.einsum("ij,ij->i", pa.centroid[ia] - pb.centroid[ib], pb.normal[ib])
-    keep = (cos_ab >= np.cos(np.radians(s.max_normal_angle_deg))) & (np.abs(offset) <= s.max_offset_m)
+    keep = np.flatnonzero((cos_ab >= np.cos(np.radians(s.max_normal_angle_deg))) & (np.abs(offset) <= s.max_offset_m))
+    if keep.size > s.max_planes:  # cells in key order: an even pick spreads over the overlap
+        keep = keep[np.linspace(0, keep.size - 1, s.max_planes).astype(np.int64)]
     ia, ib = ia[keep], ib[keep]
     A, ma = _averaging(pa, ia, s.max_points_per_patch, points_a.shape[0])
     B, mb = _averaging(pb, ib, s.max_points_per_patch, points_b.shape[0])

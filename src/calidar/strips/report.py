@@ -34,7 +34,7 @@ def add_report_section(report: Report, result: CalibrationResult, truth: dict[st
              f"{n_obs} observations ({'tie planes' if result.method == 'planes' else 'VGICP correspondences'}); "
              f"{len(result.outer)} outer iterations (re-matching), mean correspondence distance "
              + " → ".join(f"{o['mean_distance_m'] * 1e3:.1f}" for o in result.outer) + " mm.")
-    sec.solution(sol, truth, hidden_prefix=TRAJECTORY_PREFIX)
+    sec.solution(sol, truth)
     sec.figure(residual_histogram(np.asarray(result.residuals_before), np.asarray(result.residuals_after)),
                "Correspondence residuals at the nominal sensor (first matching) and after calibration (last matching).")
     quality = pair_quality(result) if quality is None else quality

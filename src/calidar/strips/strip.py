@@ -11,6 +11,7 @@ metres at the survey centre, so that heights are "up" and numbers stay small.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 
@@ -63,10 +64,21 @@ class Pose:
 
     def rows_of(self, index: np.ndarray) -> np.ndarray:
         """Positions in this pose of the strip's points ``index`` (all must be present)."""
-        rows = np.searchsorted(self.index, index)
-        if np.any(rows >= self.index.size) or np.any(self.index[np.minimum(rows, self.index.size - 1)] != index):
+        index = np.asarray(index, dtype=np.int64)
+        table = self._row_table
+        if index.size and (index.min() < 0 or index.max() >= table.size):
+            raise KeyError("points not in this pose cache")
+        rows = table[index]
+        if np.any(rows < 0):
             raise KeyError("points not in this pose cache")
         return rows
+
+    @cached_property
+    def _row_table(self) -> np.ndarray:
+        """Row of each strip point index in this pose, −1 where absent (a lookup table)."""
+        table = np.full(int(self.index.max()) + 1 if self.index.size else 0, -1, dtype=np.int64)
+        table[self.index] = np.arange(self.index.size)
+        return table
 
 
 @dataclass(eq=False)
@@ -109,8 +121,8 @@ class Strip:
     def pose(self, index: np.ndarray | None = None) -> Pose:
         """Trajectory poses at the times of the points ``index`` (all when None), cached by the caller."""
         idx = np.arange(len(self)) if index is None else np.asarray(index, dtype=np.int64)
-        pos_e, q_eb = self.trajectory.interpolate(self.obs.time[idx])
-        r_lb = self.frame.r_le @ frames.quat_to_matrix(q_eb)
+        pos_e, r_eb = georef.poses(self.trajectory, self.obs.time[idx])
+        r_lb = np.matmul(self.frame.r_le, r_eb)
         return Pose(idx, self.frame.to_local(pos_e), r_lb, self.obs.range_m[idx], self.obs.angles[idx])
 
     def georeference(self, sensor: Sensor, index: np.ndarray | None = None, pose: Pose | None = None) -> np.ndarray:

@@ -8,10 +8,12 @@ The pairs index the *un-registered* strips, so the calibrator's residual
 ``A·P_a(θ) − B·P_b(θ)`` measures what the mounting parameters must remove.
 
 Residual kinds (see :mod:`calidar.strips.correspond`):
-- ``point_to_plane`` (default): distance along the normal of strip a at the pair, normals
-  from small_gicp's covariance estimation; only pairs on locally planar surfaces of a whose
-  b point lies near a's plane once registered are kept, so clutter such as vegetation
-  yields few pairs. Better conditioned on surfaces.
+- ``point_to_plane`` (default): distance of a's point from b's local plane, the centroid
+  and normal of its k nearest points in b (the B row averages them, as a tie plane does;
+  a normal at a's point with b's single nearest point instead leaves a tangential offset
+  that, with the normal's noise in both residual and Jacobian, biases the angles on dense
+  strips). Only pairs on locally planar surfaces of b lying near a's point once registered
+  are kept, so clutter such as vegetation yields few pairs. Better conditioned on surfaces.
 - ``point_to_point``: the 3-D difference of the pair, as the method describes; its noise
   includes the point spacing.
 
@@ -43,16 +45,17 @@ class VgicpSettings:
     voxel_m: tuple[float, ...] = (8.0, 2.0, 1.0)  #: VGICP voxel sizes, coarse to fine
     downsampling_ratio: float = 0.5  #: registration downsampling = ratio × voxel size ...
     max_registration_points: int = 10_000  #: ... coarsened so the overlap holds about this many
-    num_neighbors: int = 12  #: neighbours of the registration covariances and of the pair normals
+    num_neighbors: int = 12  #: neighbours of the registration covariances and of b's local planes
     max_iterations: int = 30  #: per registration stage
     overlap_cell_m: float = 10.0  #: xy cell of the overlap test (coarse enough for sparse strips)
     min_overlap_points: int = 500  #: fewer points of either strip in the overlap → skip
     pair_distance_m: float | None = None  #: max pair distance after registration; None: 1.5 × b's point spacing
-    max_pairs: int = 2000  #: at most this many pairs per strip pair, spread on an xy grid
+    max_pairs: int = 2000  #: at most this many correspondences per strip pair, spread on an xy grid
     min_pairs: int = 50  #: fewer usable pairs → the pair is skipped
     max_surface_variation: float = 0.003  #: point_to_plane: λ_min / Σλ of the local covariance
-    max_plane_distance_m: float = 0.3  #: point_to_plane: max distance of b's point from a's plane after registration
-    sigma_m: float = 0.05  #: a-priori σ of one residual
+    max_plane_distance_m: float = 0.3  #: point_to_plane: max distance of a's point from b's plane after registration
+    sigma_m: float | None = None  #: a-priori σ of one residual; None: from b's plane scatter (point_to_plane) or 5 cm
+    noise_floor_m: float = 0.002  #: added to the scatter σ for model errors (roughness)
     num_threads: int = 1  #: small_gicp threads (1 is bit-reproducible; see docs)
 
     def __post_init__(self):
@@ -192,17 +195,21 @@ def _spread(points: np.ndarray, n_max: int, area_m2: float) -> np.ndarray:
     return first
 
 
-def _normals(points: np.ndarray, at: np.ndarray, k: int, num_threads: int) -> tuple[np.ndarray, np.ndarray]:
-    """Unit normals of the surface of ``points`` at ``at`` (both (·, 3) m) and its surface
-    variation λ_min/Σλ, from the covariance of the k nearest full-resolution points
-    (small_gicp KdTree); full resolution keeps the normal local to the pair."""
+def _local_planes(points: np.ndarray, at: np.ndarray, k: int, num_threads: int
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The surface of ``points`` around each of ``at`` (both (·, 3) m), from its k nearest
+    points (small_gicp KdTree): their indices (M, k), the distance to the nearest (m), the
+    centroid (M, 3), the unit normal (M, 3) and the surface variation λ_min/Σλ."""
     tree = small_gicp.KdTree(points, num_threads=num_threads)
-    idx, _ = tree.batch_knn_search(at, k, num_threads=num_threads)
-    nb = points[idx.astype(np.int64)]
-    nb = nb - nb.mean(axis=1, keepdims=True)
+    idx, d2 = tree.batch_knn_search(at, k, num_threads=num_threads)
+    idx = idx.astype(np.int64)
+    nb = points[idx]
+    centroid = nb.mean(axis=1)
+    nb = nb - centroid[:, None, :]
     eigval, eigvec = np.linalg.eigh(np.einsum("mki,mkj->mij", nb, nb))  # ascending
     variation = eigval[:, 0] / np.maximum(eigval.sum(axis=1), 1e-300)
-    return eigvec[:, :, 0], variation
+    scatter = np.sqrt(np.clip(eigval[:, 0], 0, None) / max(k - 3, 1))  # RMS off the plane (3 parameters fitted)
+    return idx, np.sqrt(d2.min(axis=1)), centroid, eigvec[:, :, 0], variation, scatter
 
 
 def match_pair_vgicp(strip_a_id: int, points_a: np.ndarray, strip_b_id: int, points_b: np.ndarray,
@@ -211,9 +218,10 @@ def match_pair_vgicp(strip_a_id: int, points_a: np.ndarray, strip_b_id: int, poi
 
     points_a, points_b: (N, 3) float64, the strips re-georeferenced with the current
     parameters in a local Cartesian frame (m); settings None → :class:`VgicpSettings`.
-    Returns at most ``settings.max_pairs`` point pairs (one 1.0 per row of A and B) spread
-    over the overlap. Raises CalibrationError (the calibrator skips the pair with a warning
-    naming it) when either strip has fewer than ``min_overlap_points`` in the overlap or
+    Returns at most ``settings.max_pairs`` correspondences spread over the overlap: one point
+    of a per row (A), and b's nearest point (point_to_point) or the mean of its
+    ``num_neighbors`` nearest points with their plane's normal (point_to_plane) (B). Raises
+    CalibrationError (the calibrator skips the pair with a warning naming it) when either strip has fewer than ``min_overlap_points`` in the overlap or
     fewer than ``min_pairs`` pairs are found. ``timings``, when given, accumulates the
     seconds spent per stage ("preprocess", "register", "correspond").
     """
@@ -237,29 +245,29 @@ def match_pair_vgicp(strip_a_id: int, points_a: np.ndarray, strip_b_id: int, poi
 
     cand = _spread(ov_a, settings.max_pairs, area)
     threshold = settings.pair_distance_m or 1.5 * np.sqrt(area / len(idx_b))  # 1.5 × b's mean point spacing, m
-    # only points near the candidates enter the KdTrees: pairs within the threshold and the
-    # k nearest points of a (≈ 2 spacings) lie within this radius
-    radius = max(threshold, 3.0 * np.sqrt(area / len(idx_a)))
-    near_b = _near(b_on_a, ov_a[cand], radius)
-    tree = small_gicp.KdTree(b_on_a[near_b], num_threads=settings.num_threads)
-    nn, d2 = tree.batch_knn_search(ov_a[cand], 1, num_threads=settings.num_threads)
-    nn, dist = near_b[nn[:, 0].astype(np.int64)], np.sqrt(d2[:, 0])
+    # only points near the candidates enter the KdTree: the nearest within the threshold and
+    # the k nearest of b (≈ 2 spacings) lie within this radius
+    near_b = _near(b_on_a, ov_a[cand], max(threshold, 3.0 * np.sqrt(area / len(idx_b))))
+    k = settings.num_neighbors if settings.kind == "point_to_plane" else 1
+    nn, dist, centroid, normal, variation, scatter = _local_planes(b_on_a[near_b], ov_a[cand], k, settings.num_threads)
     keep = dist < threshold
-    normal = None
+    sigma = 0.05 if settings.sigma_m is None else settings.sigma_m
     if settings.kind == "point_to_plane":
-        near_a = _near(ov_a, ov_a[cand], radius)
-        n, variation = _normals(ov_a[near_a], ov_a[cand], settings.num_neighbors, settings.num_threads)
-        off_plane = np.abs(np.einsum("ij,ij->i", ov_a[cand] - b_on_a[nn], n))
+        off_plane = np.abs(np.einsum("ij,ij->i", ov_a[cand] - centroid, normal))
         keep &= (variation < settings.max_surface_variation) & (off_plane < settings.max_plane_distance_m)
-        normal = n[keep]
+        normal = normal[keep]
+        if settings.sigma_m is None:  # a's point and b's mean of k, each scattered as b's plane
+            sigma = np.sqrt(scatter[keep] ** 2 * (1.0 + 1.0 / k) + settings.noise_floor_m**2)
+    else:
+        normal = None
     n_pairs = int(keep.sum())
     if n_pairs < settings.min_pairs:
         where = " on planar surfaces" if normal is not None else ""
         raise CalibrationError(f"too few VGICP correspondences ({n_pairs} closer than {threshold:.2f} m{where} "
                                f"after registration, need {settings.min_pairs})")
     rows = np.arange(n_pairs)
-    ones = np.ones(n_pairs)
-    A = sp.csr_matrix((ones, (rows, idx_a[cand[keep]])), shape=(n_pairs, points_a.shape[0]))
-    B = sp.csr_matrix((ones, (rows, idx_b[nn[keep]])), shape=(n_pairs, points_b.shape[0]))
+    A = sp.csr_matrix((np.ones(n_pairs), (rows, idx_a[cand[keep]])), shape=(n_pairs, points_a.shape[0]))
+    B = sp.csr_matrix((np.full(n_pairs * k, 1.0 / k), idx_b[near_b[nn[keep]]].ravel(), np.arange(n_pairs + 1) * k),
+                      shape=(n_pairs, points_b.shape[0]))
     clock.lap("correspond")
-    return Correspondences(strip_a_id, strip_b_id, A, B, normal, sigma_m=settings.sigma_m, method="vgicp")
+    return Correspondences(strip_a_id, strip_b_id, A, B, normal, sigma_m=sigma, method="vgicp")
