@@ -120,7 +120,8 @@ def solve(
         return robust_weights(z / s, robust, robust_k) / sig**2
 
     def cost(rv, w, xv):
-        c = 0.5 * np.sum(w * rv * rv)
+        with np.errstate(over="ignore"):  # a wild trial step costs inf and is rejected
+            c = 0.5 * np.sum(w * rv * rv)
         for idx, center, P in priors:
             d = xv[idx] - center
             c += 0.5 * d @ P @ d
