@@ -82,6 +82,10 @@ def test_calibration_recovers_boresight(strips):
     # the outer loop settled and the strips now agree much better than delivered
     assert abs(res.outer[-1]["mean_distance_m"] - res.outer[-2]["mean_distance_m"]) < StripSettings().threshold_m
     assert np.sqrt(np.mean(res.residuals_after**2)) < 0.3 * np.sqrt(np.mean(res.residuals_before**2))
+    # solution.json / the report say the same: "before" is the first matching at the nominal sensor
+    doc = sol.to_dict()["residuals"]
+    assert doc["before"]["rms"] == pytest.approx(np.sqrt(np.mean(res.residuals_before**2)))
+    assert doc["after"]["rms"] < 0.3 * doc["before"]["rms"]
 
 
 def test_centroid_shortcut_equals_full_regeoreferencing(strips):

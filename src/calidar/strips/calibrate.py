@@ -20,6 +20,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from calidar.adjust import Parameter, ParameterSet, Solution, solve
+from calidar.adjust.solution import residual_stats
 from calidar.adjust.solver import numerical_jacobian
 from calidar.errors import CalibrationError, CalidarError, InputError
 from calidar.scanners.rotating import canonical_eccentricity
@@ -469,6 +470,9 @@ def _calibrate(strips: Sequence[Strip], nominal: Sensor, *, method: str = "plane
                         f"distance settled (last change {change * 1e3:.2g} mm)")
     canonical_eccentricity(solution)
     params = solution.parameters
+    # "before" for the user: the first matching at the nominal sensor (the last solve started
+    # from the previous outer iteration's values)
+    solution.residuals_before = residual_stats(first_residuals)
     if model is not None:
         solution.nuisance_prefix = TRAJECTORY_PREFIX
     used_pairs = [(p["a"], p["b"]) for p in pairs]
