@@ -29,7 +29,7 @@ from calidar.strips.correspond import Correspondences
 from calidar.strips.distribute import cluster_client, map_pairs
 from calidar.strips.overlap import Overlap, find_overlaps
 from calidar.strips.planes import PlaneSettings, match_pair_planes
-from calidar.strips.strip import Pose, Strip, georeference_pose
+from calidar.strips.strip import Pose, Strip, georeference_pose, position_table
 from calidar.strips.trajectory_errors import PREFIX as TRAJECTORY_PREFIX
 from calidar.strips.trajectory_errors import StripCorrection, TrajectoryModel, corrections, parse_name
 
@@ -160,9 +160,7 @@ def _union(indices: list[np.ndarray]) -> np.ndarray:
 
 def _compact(m: sp.csr_matrix, cols: np.ndarray) -> sp.csr_matrix:
     """``m`` restricted to its columns ``cols`` (sorted, holding every column m references)."""
-    position = np.empty(int(cols[-1]) + 1 if cols.size else 0, dtype=np.int64)  # a lookup table: O(n)
-    position[cols] = np.arange(cols.size)
-    return sp.csr_matrix((m.data, position[m.indices], m.indptr), shape=(m.shape[0], cols.size))
+    return sp.csr_matrix((m.data, position_table(cols)[m.indices], m.indptr), shape=(m.shape[0], cols.size))
 
 
 def _match_or_error(match: Callable, strip_a_id, points_a, strip_b_id, points_b, settings):

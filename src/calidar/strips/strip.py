@@ -75,10 +75,15 @@ class Pose:
 
     @cached_property
     def _row_table(self) -> np.ndarray:
-        """Row of each strip point index in this pose, −1 where absent (a lookup table)."""
-        table = np.full(int(self.index.max()) + 1 if self.index.size else 0, -1, dtype=np.int64)
-        table[self.index] = np.arange(self.index.size)
-        return table
+        return position_table(self.index)
+
+
+def position_table(index: np.ndarray) -> np.ndarray:
+    """Lookup table of the distinct point indices ``index``: table[index[k]] = k, −1 elsewhere
+    (O(n), where np.searchsorted costs a binary search per query)."""
+    table = np.full(int(index.max()) + 1 if index.size else 0, -1, dtype=np.int64)
+    table[index] = np.arange(index.size)
+    return table
 
 
 @dataclass(eq=False)

@@ -196,10 +196,11 @@ def _spread(points: np.ndarray, n_max: int, area_m2: float) -> np.ndarray:
 
 
 def _local_planes(points: np.ndarray, at: np.ndarray, k: int, num_threads: int
-                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """The surface of ``points`` around each of ``at`` (both (·, 3) m), from its k nearest
     points (small_gicp KdTree): their indices (M, k), the distance to the nearest (m), the
-    centroid (M, 3), the unit normal (M, 3) and the surface variation λ_min/Σλ."""
+    centroid (M, 3), the unit normal (M, 3), the surface variation λ_min/Σλ and the RMS of
+    the points off their plane (m)."""
     tree = small_gicp.KdTree(points, num_threads=num_threads)
     idx, d2 = tree.batch_knn_search(at, k, num_threads=num_threads)
     idx = idx.astype(np.int64)
