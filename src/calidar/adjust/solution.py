@@ -54,7 +54,9 @@ class Solution:
 
     @classmethod
     def from_normal_matrix(cls, params, N, sigma0_sq, dof, *, residuals, weights, before, history,
-                           converged, jacobian=None) -> "Solution":
+                           converged, jacobian=None, variance_factor=None) -> "Solution":
+        """The solution of normal matrix N (priors included): covariance = variance_factor · N⁻¹
+        (default σ0²), with warnings for directions the data cannot determine."""
         names = params.free_names
         prior = [p.prior_sigma is not None for p in params.free]  # constrained by their priors
         d = np.sqrt(np.clip(np.diag(N), 1e-300, None))
@@ -78,7 +80,7 @@ class Solution:
                     + ": only a combination of them is determined (a singular direction of the normal equations)"
                 )
         cov_s = evecs[:, ~bad] @ np.diag(1.0 / evals[~bad]) @ evecs[:, ~bad].T
-        cov = sigma0_sq * cov_s / np.outer(d, d)
+        cov = (sigma0_sq if variance_factor is None else variance_factor) * cov_s / np.outer(d, d)
         sig = np.sqrt(np.clip(np.diag(cov), 0, None))
         if np.any(bad):
             # directions with no information: σ is infinite along them

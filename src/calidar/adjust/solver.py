@@ -85,6 +85,8 @@ def solve(
     prior_correlation: groups (names, correlation matrix R) of free parameters whose priors
     (each its own prior_sigma) are jointly Gaussian with covariance D·R·D instead of
     independent. ``jacobian_fn`` may return a scipy.sparse matrix (many parameters, few per row).
+    The covariance is σ0²·N⁻¹ without priors (σ relative) and max(σ0², 1)·N⁻¹ with them (σ
+    absolute: the priors are never tightened by an a-posteriori σ0 below 1).
     """
     free = params.free
     if not free:
@@ -175,15 +177,19 @@ def solve(
     # effective redundancy: down-weighted observations count by their relative weight
     dof = max(float(np.sum(w * sig**2)) + n_prior - len(free), 1.0)
     sigma0_sq = 2.0 * cost(r, w, x) / dof
+    # the covariance is N⁻¹ scaled by σ0²; with priors (absolute σ) only upwards: σ0 < 1 there
+    # says the priors were generous (a smooth trajectory error under a rough Gauss–Markov
+    # prior), not that the parameters are better known than the priors allow
+    factor = sigma0_sq if n_prior == 0 else max(sigma0_sq, 1.0)
     sol = Solution.from_normal_matrix(
-        params.updated(x), N, sigma0_sq, dof,
+        params.updated(x), N, sigma0_sq, dof, variance_factor=factor,
         residuals=r, weights=w * sig**2, before=before, history=history, converged=converged,
         jacobian=J,
     )
     groupings = [] if clusters is None else clusters if isinstance(clusters, list) else [clusters]
     if groupings:
         scores = sp.diags(w * r) @ J  # per observation ∂cost/∂θ (dense or sparse like J)
-        Ninv = sol.covariance / sigma0_sq if sigma0_sq > 0 and np.all(np.isfinite(sol.covariance)) else np.linalg.pinv(N)
+        Ninv = sol.covariance / factor if factor > 0 and np.all(np.isfinite(sol.covariance)) else np.linalg.pinv(N)
         for grouping in groupings:
             sol.covariance = _cluster_robust(sol.covariance, Ninv, scores, np.asarray(grouping))
     return sol

@@ -50,7 +50,7 @@ class Patches:
     keys: np.ndarray  #: (P,) cell keys
     centroid: np.ndarray  #: (P, 3) m
     normal: np.ndarray  #: (P, 3) unit, pointing up
-    rms_m: np.ndarray  #: (P,) √λ0
+    rms_m: np.ndarray  #: (P,) RMS of the points off the plane, √(λ0 · n / (n − 3)) (the planarity test takes √λ0)
     start: np.ndarray  #: (P,) first position of the patch's points in ``order``
     count: np.ndarray  #: (P,) points in the patch
     order: np.ndarray  #: point indices sorted by cell
@@ -69,7 +69,7 @@ def fit_patches(points: np.ndarray, cell_m: float, settings: PlaneSettings) -> P
     ks = keys[order]
     start = np.r_[0, np.flatnonzero(ks[1:] != ks[:-1]) + 1] if ks.size else np.zeros(0, np.int64)
     uk, count = ks[start], np.diff(np.r_[start, ks.size])
-    ok = np.flatnonzero(count >= max(settings.min_points, 3))
+    ok = np.flatnonzero(count >= max(settings.min_points, 4))  # a plane and its scatter
     mean, cov = _cell_moments(np.ascontiguousarray(points, dtype=np.float64), order, start[ok], count[ok])
     lam, vec = np.linalg.eigh(cov)
     lam = np.clip(lam, 0.0, None)
@@ -77,7 +77,8 @@ def fit_patches(points: np.ndarray, cell_m: float, settings: PlaneSettings) -> P
     sel = ok[planar]
     normal = vec[planar][:, :, 0]
     normal *= np.where(normal[:, 2] < 0, -1.0, 1.0)[:, None]
-    return Patches(uk[sel], mean[planar], normal, np.sqrt(lam[planar, 0]), start[sel], count[sel], order)
+    rms = np.sqrt(lam[planar, 0] * count[sel] / (count[sel] - 3))  # 3 plane parameters fitted
+    return Patches(uk[sel], mean[planar], normal, rms, start[sel], count[sel], order)
 
 
 @njit(cache=True, nogil=True)
