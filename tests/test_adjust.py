@@ -108,8 +108,27 @@ def test_correlated_priors_and_a_sparse_jacobian_give_the_closed_form():
     for jac in (lambda v: H, lambda v: sp.csr_matrix(H)):
         sol = solve(residuals, ps, sigma=0.05, robust=None, jacobian_fn=jac, prior_correlation=[(names, R)])
         assert [sol.values[n] for n in [*names, "c"]] == pytest.approx(expect, abs=1e-9)
-        assert sol.covariance / sol.sigma0**2 == pytest.approx(np.linalg.inv(N), rel=1e-6)
+        assert sol.covariance / max(sol.sigma0**2, 1.0) == pytest.approx(np.linalg.inv(N), rel=1e-6)
     independent = solve(residuals, ps, sigma=0.05, robust=None, jacobian_fn=lambda v: H)
     assert abs(independent.values["x0"] - expect[0]) > 1e-4  # the correlation matters
     with pytest.raises(ValueError, match="needs a prior_sigma"):
         solve(residuals, ps, sigma=0.05, prior_correlation=[(["x0", "c"], np.eye(2))])
+
+
+def test_priors_are_absolute_sigma0_below_one_does_not_shrink_them():
+    """Observations stated 4× noisier than they are give σ0 ≈ 0.25: without priors the
+    covariance is σ0²·N⁻¹ (σ relative, rescaled both ways); with priors it stays N⁻¹, as the
+    priors hold absolute σ that a generous statement of the data must not tighten."""
+    x, y = _line(6)  # noise 0.1
+
+    def residuals(v):
+        return v["a"] + v["b"] * x - y
+
+    free = solve(residuals, _params(), sigma=0.4, robust=None)
+    assert free.sigma0 == pytest.approx(0.25, rel=0.15)
+    N = np.array([[x.size, x.sum()], [x.sum(), x @ x]]) / 0.4**2
+    assert free.covariance == pytest.approx(free.sigma0**2 * np.linalg.inv(N), rel=1e-6)
+    held = solve(residuals, ParameterSet([Parameter("a", 2.0, "m", prior_sigma=0.05), Parameter("b", 0.0, "1")]),
+                 sigma=0.4, robust=None)
+    assert held.sigma0 < 0.5
+    assert held.covariance == pytest.approx(np.linalg.inv(N + np.diag([1 / 0.05**2, 0.0])), rel=1e-6)

@@ -40,6 +40,17 @@ def test_patches_fit_a_known_plane():
     assert np.median(p.rms_m) == pytest.approx(0.01 * n_true[2], rel=0.15)
 
 
+def test_patch_scatter_is_unbiased_on_small_patches():
+    """≈ 12 points a patch (the default): the scatter off the fitted plane counts n − 3 degrees
+    of freedom, so the rows' σ match the noise (with n it runs √(9/12) = 13 % low)."""
+    rng = np.random.default_rng(2)
+    pts = _plane_points(rng, 20000, noise=0.02)
+    p = fit_patches(pts, 1.0, PlaneSettings())  # 12.5 points per 1 m cell
+    n_true = np.array([-0.2, 0.1, 1.0]) / np.linalg.norm([-0.2, 0.1, 1.0])
+    assert p.keys.size > 1000 and np.median(p.count) <= 13
+    assert np.sqrt(np.mean(p.rms_m**2)) == pytest.approx(0.02 * n_true[2], rel=0.05)
+
+
 def test_vegetation_cells_fail_planarity():
     rng = np.random.default_rng(1)
     pts = _plane_points(rng, 20000)
