@@ -17,7 +17,7 @@ Residual kinds (see :mod:`calidar.strips.correspond`):
   trajectory corrections turn into a heading error (measured: 0.0018° on a noiseless
   survey). A normal at a's point with b's single nearest point instead leaves a tangential
   offset that, with the normal's noise in residual and Jacobian, biases the angles on dense
-  strips. Only pairs on locally planar surfaces of b lying near a's point once registered
+  strips. Only pairs on locally planar surfaces of b lying near a's mean once registered
   are kept, so clutter such as vegetation yields few pairs. Better conditioned on surfaces.
 - ``point_to_point``: the 3-D difference of the pair, as the method describes; its noise
   includes the point spacing.
@@ -58,7 +58,7 @@ class VgicpSettings:
     max_pairs: int = 2000  #: at most this many correspondences per strip pair, spread on an xy grid
     min_pairs: int = 50  #: fewer usable pairs → the pair is skipped
     max_surface_variation: float = 0.003  #: point_to_plane: λ_min / Σλ of the local covariance
-    max_plane_distance_m: float = 0.3  #: point_to_plane: max distance of a's point from b's plane after registration
+    max_plane_distance_m: float = 0.3  #: point_to_plane: max distance of a's mean from b's plane after registration
     sigma_m: float | None = None  #: a-priori σ of one residual; None: from b's plane scatter (point_to_plane) or 5 cm
     noise_floor_m: float = 0.002  #: added to the scatter σ for model errors (roughness)
     num_threads: int = 1  #: small_gicp threads (1 is bit-reproducible; see docs)
