@@ -321,7 +321,7 @@ def match_pair_vgicp(strip_a_id: int, points_a: np.ndarray, strip_b_id: int, poi
         where = " on planar surfaces" if settings.kind == "point_to_plane" else ""
         raise CalibrationError(f"too few VGICP correspondences ({n_pairs} closer than {threshold:.2f} m{where} "
                                f"after registration, need {settings.min_pairs})")
-    if normal is None:
+    if settings.kind == "point_to_point":
         A = sp.csr_matrix((np.ones(n_pairs), (np.arange(n_pairs), idx_a[cand[keep]])), shape=(n_pairs, points_a.shape[0]))
     else:  # columns: the ball's points of a among all of a's points
         A = A[keep]
