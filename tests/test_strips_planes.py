@@ -7,12 +7,15 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+from calidar.adjust import ParameterSet
+from calidar.adjust.solver import numerical_jacobian
 from calidar.errors import CalibrationError, InputError
 from calidar.sensor import Sensor
 from calidar.strips.calibrate import StripSettings, _Problem, build_parameters, calibrate, parse_estimate
 from calidar.strips.overlap import find_overlaps
 from calidar.strips.planes import PlaneSettings, fit_patches, match_pair_planes
 from calidar.strips.strip import Strip
+from calidar.strips.trajectory_errors import TrajectoryModel
 from strips_scene import frame, line, survey
 
 TRUTH = Sensor(boresight_roll=np.radians(0.03), boresight_pitch=np.radians(-0.04), boresight_yaw=np.radians(0.05))
@@ -116,6 +119,26 @@ def test_centroid_shortcut_equals_full_regeoreferencing(strips):
     only = _Problem(nominal, poses, [c], ["boresight_roll"])
     vals_b = {**nominal.parameters(), "boresight_roll": 1e-3, "boresight_yaw": -2e-3}
     assert np.max(np.abs(only(vals_b) - full(vals_b))) < 1e-9
+
+
+def test_trajectory_columns_of_the_jacobian_are_exact(strips):
+    """The analytic (sparse) columns of the knots equal central differences of the residuals."""
+    pts = {s.id: s.points for s in strips}
+    c = match_pair_planes(1, pts[1], 2, pts[2])
+    poses = {s.id: s.pose() for s in strips[:2]}
+    spans = {s.id: (float(s.time.min()), float(s.time.max())) for s in strips[:2]}
+    model = TrajectoryModel(block_s=2.0, position_sigma_m=0.03, attitude_sigma_rad=1e-5, correlation_s=20.0,
+                            attitude_correlation_s=3.0)
+    params = build_parameters(Sensor(), ["boresight", "trajectory_bias"], spans, model)
+    rng = np.random.default_rng(3)
+    params = ParameterSet(replace(p, value=rng.normal(0.0, p.prior_sigma)) if p.prior_sigma else p for p in params)
+    problem = _Problem(Sensor(), poses, [c], params.free_names, {s.id: s.time for s in strips[:2]}, model, spans)
+    analytic = problem.jacobian(params.values(), params.free).toarray()
+    numeric = numerical_jacobian(problem, params, params.x())
+    assert analytic.shape == numeric.shape and np.count_nonzero(analytic[:, 3:]) > 0
+    assert np.max(np.abs(analytic - numeric)) < 1e-6 * np.max(np.abs(numeric))
+    # each row touches at most two knots per strip, kind and axis
+    assert np.max(np.count_nonzero(analytic[:, 3:], axis=1)) <= 2 * 2 * 6
 
 
 def test_per_strip_trajectory_bias_is_recovered(strips):

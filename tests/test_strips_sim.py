@@ -87,8 +87,8 @@ def test_trajectory_errors_modelled_via_cli(cli, airborne, tmp_path):
     code, stdout, err = cli("boresight", *args, "--trajectory-sigma", "0.03,0.002", "--out", out)
     assert code == 0, err
     doc = json.loads((out / "solution.json").read_text())
-    n_blocks = sum(name.startswith("trajectory_tilt_up_") for name in doc["parameters"])
-    assert n_blocks > 50  # 2 s blocks on every strip
+    n_knots = sum(name.startswith("trajectory_tilt_up_") for name in doc["parameters"])
+    assert n_knots > 50  # knots every second (the default) on every strip
     for name in ANGLES:
         p = doc["parameters"][name]
         assert abs(p["error"]) < 0.002 and abs(p["error"]) < 3 * p["sigma"], (name, p)
@@ -96,8 +96,8 @@ def test_trajectory_errors_modelled_via_cli(cli, airborne, tmp_path):
     assert doc["parameters"]["trajectory_tilt_up_1_0"]["sigma"] > 0
     assert doc["correlation"]["names"] == list(ANGLES) and len(doc["correlation"]["matrix"]) == 3
     assert set(doc["history"][-1]["values"]) == set(ANGLES)
-    assert f"{6 * n_blocks} trajectory corrections estimated" in " ".join(stdout.split())
-    assert f"{6 * n_blocks} trajectory_* parameters are estimated too" in (out / "report.html").read_text()
+    assert f"{6 * n_knots} trajectory corrections estimated" in " ".join(stdout.split())
+    assert f"{6 * n_knots} trajectory_* parameters are estimated too" in (out / "report.html").read_text()
 
 
 def test_trajectory_not_covering_strips_is_a_clear_error(cli, airborne, tmp_path):

@@ -70,8 +70,10 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
                                           "scan_angle_scale, scan_angle_offset, trajectory_bias."),
         trajectory_sigma: str | None = typer.Option(
             None, "--trajectory-sigma", help="The trajectory's accuracy 'POSITION_M,ATTITUDE_DEG' (e.g. 0.03,0.002): "
-            "estimate its errors per time block with these priors, so the σ of the mounting include them."),
-        trajectory_block: float = typer.Option(1.0, "--trajectory-block", help="Time block of the trajectory corrections, s."),
+            "estimate its errors (linear in time between knots) with these priors, so the σ of the mounting "
+            "include them."),
+        trajectory_block: float = typer.Option(
+            1.0, "--trajectory-block", help="Spacing of the trajectory corrections' knots, s."),
         trajectory_correlation: str = typer.Option(
             "20,3", "--trajectory-correlation",
             help="Correlation times of the trajectory's position and attitude errors (Gauss–Markov), 'POS_S,ATT_S' s."),

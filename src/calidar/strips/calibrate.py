@@ -42,7 +42,7 @@ ESTIMATE_GROUPS: dict[str, tuple[tuple[str, str], ...]] = {
     "scan_angle_scale": (("scan_angle_scale", "1"),),
     "scan_angle_offset": (("scan_angle_offset", "rad"),),
     "palmer": (("eccentricity_ratio", "1"), ("eccentricity_phase", "rad"), ("delta_l", "rad"), ("delta_r", "rad")),
-    "trajectory_bias": (),  # per strip (and time block): see calidar.strips.trajectory_errors
+    "trajectory_bias": (),  # per strip (and knot): see calidar.strips.trajectory_errors
 }
 METHODS = ("planes", "vgicp")
 
@@ -85,7 +85,7 @@ class CalibrationResult:
         return self.solution.warnings
 
     def max_trajectory_shift_m(self) -> float:
-        """The largest estimated trajectory shift of any block (m; 0 without trajectory corrections)."""
+        """The largest estimated trajectory shift at any knot (m; 0 without trajectory corrections)."""
         return max((float(np.abs(c.shift).max()) for c in self.corrections.values()), default=0.0)
 
     def georeference(self, strip: Strip, calibrated: bool = True, index=None) -> np.ndarray:
@@ -138,7 +138,7 @@ def _sensor(nominal: Sensor, values: dict[str, float]) -> Sensor:
 def _georeference(sensor: Sensor, correction: StripCorrection | None, pose: Pose, time: np.ndarray) -> np.ndarray:
     """Points (local m) of cached poses with ``sensor`` and a strip's trajectory correction (or None)."""
     pts = georeference_pose(sensor, pose)
-    return pts if correction is None else correction.apply(pts, pose.position, correction.blocks(time))
+    return pts if correction is None else correction.apply(pts, pose.position, time)
 
 
 def _matcher(method: str, settings: StripSettings) -> tuple[Callable, object]:
@@ -292,7 +292,7 @@ class _Problem:
             for side, sid, t in zip(sides, (c.strip_a, c.strip_b), times):
                 q = side(sensor)
                 f = fix.get(sid)
-                p.append(q if f is None else f.apply(q, side.r, f.blocks(t), side.rowsum))
+                p.append(q if f is None else f.apply(q, side.r, t, side.rowsum))
             d = p[0] - p[1]
             out.append(d.ravel() if c.normal is None else np.einsum("ij,ij->i", d, c.normal))
         return np.concatenate(out)
@@ -300,7 +300,7 @@ class _Problem:
 
     def jacobian(self, values: dict[str, float], free: Sequence[Parameter]):
         """∂residuals/∂(free parameters), (n, n_free): central differences for the sensor's
-        parameters, exact columns for the trajectory corrections (linear in them; one block
+        parameters, exact columns for the trajectory corrections (linear in them; two knots
         per strip and row, so the matrix is returned sparse when they are present)."""
         traj = {p.name: parse_name(p.name) for p in free} if self.trajectory else {}
         if self.centroids is None or not any(traj.values()):
@@ -325,24 +325,25 @@ class _Problem:
                 f = fix.get(sid)
                 if f is None:
                     continue
-                blocks = f.blocks(t)
+                k0, k1, frac = f.knots(t)
                 v = side(sensor) - side.r  # weighted sums of the points about the IMU
                 for kind in ("bias", "tilt"):
                     for ax in range(3):
                         colmap = np.array([column.get((kind, ax, sid, k), -1) for k in range(f.shift.shape[0])])
-                        j = colmap[blocks]
-                        if np.all(j < 0):
+                        if np.all(colmap < 0):
                             continue
                         e = np.zeros(3)
                         e[ax] = 1.0
-                        # ∂(corrected sums)/∂parameter, (n, 3): shift → row sums · e, rotation → e × v
+                        # ∂(corrected sums)/∂knot value, (n, 3): shift → row sums · e, rotation → e × v,
+                        # times the knot's interpolation weight
                         d = np.outer(side.rowsum, e) if kind == "bias" else np.cross(e, v)
                         if c.normal is not None:
                             d = np.einsum("ij,ij->i", d, c.normal)[:, None]
-                        keep = np.flatnonzero(j >= 0)
-                        rows.append((start + per * keep[:, None] + np.arange(per)).ravel())
-                        cols.append(np.repeat(j[keep], per))
-                        vals.append(sign * d[keep].ravel())
+                        for j, weight in ((colmap[k0], 1.0 - frac), (colmap[k1], frac)):
+                            keep = np.flatnonzero((j >= 0) & (weight != 0))
+                            rows.append((start + per * keep[:, None] + np.arange(per)).ravel())
+                            cols.append(np.repeat(j[keep], per))
+                            vals.append(sign * (d[keep] * weight[keep, None]).ravel())
             start += c.n_obs * per
         return sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
                              shape=(n_rows, len(free)))

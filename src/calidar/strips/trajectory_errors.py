@@ -41,9 +41,9 @@ _NAME = re.compile(r"trajectory_(bias|tilt)_(east|north|up)_(\d+)(?:_(\d+))?$")
 class TrajectoryModel:
     """How trajectory errors enter the adjustment (see the module docstring)."""
 
-    block_s: float | None = None  #: length of the time blocks (s); None: one block per strip
-    position_sigma_m: float | None = None  #: prior σ of each block's shift; None: free, first strip fixed
-    attitude_sigma_rad: float | None = None  #: prior σ of each block's rotation; None: no rotations
+    block_s: float | None = None  #: spacing of the knots (s); None: one constant correction per strip
+    position_sigma_m: float | None = None  #: prior σ of each knot's shift; None: free, first strip fixed
+    attitude_sigma_rad: float | None = None  #: prior σ of each knot's rotation; None: no rotations
     correlation_s: float | None = None  #: Gauss–Markov correlation time of the shifts (s); None: independent
     attitude_correlation_s: float | None = None  #: the same for the rotations
 
@@ -53,14 +53,15 @@ class TrajectoryModel:
             if v is not None and not (math.isfinite(v) and v > 0):
                 raise InputError(None, name, f"expected a number > 0, got {v}")
         if self.position_sigma_m is None and (self.block_s is not None or self.attitude_sigma_rad is not None):
-            raise InputError(None, "trajectory sigma", "time blocks and attitude corrections need the "
+            raise InputError(None, "trajectory sigma", "knots and attitude corrections need the "
                              "trajectory's a-priori position σ (e.g. --trajectory-sigma 0.03,0.002)")
 
-    def n_blocks(self, t_min: float, t_max: float) -> int:
-        return 1 if self.block_s is None else max(1, math.ceil((t_max - t_min) / self.block_s))
+    def n_knots(self, t_min: float, t_max: float) -> int:
+        """Knots of a strip spanning [t_min, t_max] s: t_min, t_min + block_s, … up to ≥ t_max."""
+        return 1 if self.block_s is None else max(1, math.ceil((t_max - t_min) / self.block_s)) + 1
 
     def correlation(self, n: int, kind: str = "bias") -> np.ndarray:
-        """Prior correlation (n, n) of a strip's n blocks along one axis, for shifts (``kind``
+        """Prior correlation (n, n) of a strip's n knots along one axis, for shifts (``kind``
         "bias") or rotations ("tilt"): φ^|k−l|."""
         tau = self.correlation_s if kind == "bias" else self.attitude_correlation_s
         phi = 0.0 if self.block_s is None or tau is None else math.exp(-self.block_s / tau)
@@ -68,15 +69,15 @@ class TrajectoryModel:
         return phi ** np.abs(k[:, None] - k[None, :]).astype(float)
 
     def prior_correlation(self, spans: Mapping[int, tuple[float, float]]) -> list[tuple[list[str], np.ndarray]]:
-        """The engine's ``prior_correlation`` groups: per strip, kind and axis, its blocks."""
+        """The engine's ``prior_correlation`` groups: per strip, kind and axis, its knots."""
         if self.block_s is None or self.position_sigma_m is None:
             return []
         out = []
         for i in sorted(spans):
-            n = self.n_blocks(*spans[i])
+            n = self.n_knots(*spans[i])
             for kind in ("bias", "tilt") if self.attitude_sigma_rad is not None else ("bias",):
                 R = self.correlation(n, kind)
-                if n > 1 and np.any(R != np.eye(n)):
+                if np.any(R != np.eye(n)):
                     out += [([f"trajectory_{kind}_{ax}_{i}_{k}" for k in range(n)], R) for ax in AXES]
         return out
 
@@ -85,8 +86,7 @@ class TrajectoryModel:
         out = []
         ids = sorted(spans)
         for i in ids if self.position_sigma_m is not None else ids[1:]:
-            n = self.n_blocks(*spans[i])
-            for k in range(n):
+            for k in range(self.n_knots(*spans[i])):
                 suffix = f"{i}" if self.block_s is None else f"{i}_{k}"
                 out += [Parameter(f"trajectory_bias_{ax}_{suffix}", 0.0, "m", self.position_sigma_m) for ax in AXES]
                 if self.attitude_sigma_rad is not None:
@@ -97,33 +97,46 @@ class TrajectoryModel:
 
 @dataclass(frozen=True)
 class StripCorrection:
-    """One strip's corrections: per block a shift (m) and a rotation vector (rad), local ENU."""
+    """One strip's corrections: per knot a shift (m) and a rotation vector (rad), local ENU,
+    linear in time between knots (constant before the first and after the last)."""
 
-    t0: float  #: start of block 0 (s)
-    block_s: float | None
-    shift: np.ndarray  #: (n_blocks, 3) m
-    tilt: np.ndarray  #: (n_blocks, 3) rad
+    t0: float  #: time of knot 0 (s)
+    block_s: float | None  #: knot spacing (s); None: one knot, a constant correction
+    shift: np.ndarray  #: (n_knots, 3) m
+    tilt: np.ndarray  #: (n_knots, 3) rad
 
-    def blocks(self, time: np.ndarray) -> np.ndarray:
-        """Block index of each time (s)."""
-        if self.block_s is None:
-            return np.zeros(np.shape(time), dtype=np.int64)
-        k = np.floor((np.asarray(time, float) - self.t0) / self.block_s).astype(np.int64)
-        return np.clip(k, 0, self.shift.shape[0] - 1)
+    def knots(self, time: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """For each time (s): the knots k, k + 1 around it and the weight f of k + 1 (the
+        correction is (1 − f)·value[k] + f·value[k + 1])."""
+        n = self.shift.shape[0]
+        time = np.asarray(time, float)
+        if self.block_s is None or n == 1:
+            k = np.zeros(time.shape, dtype=np.int64)
+            return k, k, np.zeros(time.shape)
+        u = np.clip((time - self.t0) / self.block_s, 0.0, n - 1.0)
+        k = np.minimum(np.floor(u).astype(np.int64), n - 2)
+        return k, k + 1, u - k
 
-    def apply(self, points: np.ndarray, origin: np.ndarray, blocks: np.ndarray, weight=1.0) -> np.ndarray:
-        """Corrected ``points`` (M, 3) m: + shift + tilt × (points − origin), per point's block.
+    def at(self, time: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Shift (M, 3) m and rotation vector (M, 3) rad at each time (s)."""
+        k0, k1, f = self.knots(time)
+        f = f[:, None]
+        return (1 - f) * self.shift[k0] + f * self.shift[k1], (1 - f) * self.tilt[k0] + f * self.tilt[k1]
+
+    def apply(self, points: np.ndarray, origin: np.ndarray, time: np.ndarray, weight=1.0) -> np.ndarray:
+        """Corrected ``points`` (M, 3) m: + shift + tilt × (points − origin), at each point's time (s).
 
         For averages of points (rows of a correspondence matrix) pass the row sums of the
-        weights as ``weight`` and the weighted sums as points and origin."""
-        out = points + np.asarray(weight, float).reshape(-1, 1) * self.shift[blocks]
+        weights as ``weight``, the weighted sums as points and origin and the rows' mean times."""
+        shift, tilt = self.at(time)
+        out = points + np.asarray(weight, float).reshape(-1, 1) * shift
         if np.any(self.tilt):
-            out = out + np.cross(self.tilt[blocks], points - origin)
+            out = out + np.cross(tilt, points - origin)
         return out
 
 
 def parse_name(name: str) -> tuple[str, int, int, int] | None:
-    """A trajectory parameter's name → (kind "bias" | "tilt", axis 0..2, strip id, block); None otherwise."""
+    """A trajectory parameter's name → (kind "bias" | "tilt", axis 0..2, strip id, knot); None otherwise."""
     m = _NAME.match(name)
     return None if m is None else (m.group(1), AXES.index(m.group(2)), int(m.group(3)), int(m.group(4) or 0))
 
@@ -140,7 +153,7 @@ def corrections(values: Mapping[str, float], model: TrajectoryModel | None,
             continue
         kind, ax, sid, k = parsed
         if sid not in out:
-            n = model.n_blocks(*spans[sid])
+            n = model.n_knots(*spans[sid])
             out[sid] = StripCorrection(spans[sid][0], model.block_s, np.zeros((n, 3)), np.zeros((n, 3)))
         (out[sid].shift if kind == "bias" else out[sid].tilt)[k, ax] = v
     return out
