@@ -36,10 +36,11 @@ def test_corrections_are_linear_in_time_between_knots():
     c = corrections(values, m, spans)[7]
     assert np.allclose(c.shift[:, 2], [0.02, 0.0, 0.0, 0.0]) and np.allclose(c.tilt[:, 2], [0.0, 1e-5, 0.0, 0.0])
     t = np.array([99.0, 100.0, 105.0, 110.0, 117.5, 130.0, 135.0])
-    shift, tilt = c.at(t)
+    east = np.array([[1.0, 0.0, 0.0]])  # 1 m east of the origin: a rotation about up moves it north
+    moved = c.apply(np.repeat(east, t.size, axis=0), np.zeros((1, 3)), t) - east
     # constant before the first knot and after the last, linear in between
-    assert np.allclose(shift[:, 2], [0.02, 0.02, 0.01, 0.0, 0.0, 0.0, 0.0])
-    assert np.allclose(tilt[:, 2], [0.0, 0.0, 5e-6, 1e-5, 2.5e-6, 0.0, 0.0])
+    assert np.allclose(moved[:, 2], [0.02, 0.02, 0.01, 0.0, 0.0, 0.0, 0.0])
+    assert np.allclose(moved[:, 1], [0.0, 0.0, 5e-6, 1e-5, 2.5e-6, 0.0, 0.0])
     p = c.apply(np.array([[10.0, 0.0, -1000.0]]), np.zeros((1, 3)), np.array([110.0]))
     # at knot 1: no shift, a rotation about up by 1e-5 rad: (10, 0) moves along +north by 10 m × 1e-5
     assert p[0, 2] == pytest.approx(-1000.0) and p[0, 1] == pytest.approx(1e-4)
@@ -47,7 +48,9 @@ def test_corrections_are_linear_in_time_between_knots():
     assert p0[0, 2] == pytest.approx(-1000.0 + 0.01) and p0[0, 1] == pytest.approx(5e-5)
     one = TrajectoryModel(position_sigma_m=0.03)  # no blocks: one constant correction per strip
     c1 = corrections({"trajectory_bias_up_7": 0.02}, one, spans)[7]
-    assert np.allclose(c1.at(t)[0][:, 2], 0.02)
+    assert np.allclose(c1.apply(np.zeros((t.size, 3)), np.zeros((1, 3)), t)[:, 2], 0.02)
+    # weighted sums of points (correspondence rows): the shift counts once per unit of weight
+    assert c.apply(np.zeros((1, 3)), np.zeros((1, 3)), np.array([105.0]), np.array([3.0]))[0, 2] == pytest.approx(0.03)
 
 
 def test_blocks_without_a_prior_are_refused():

@@ -28,6 +28,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 
 from calidar.adjust import Parameter
 from calidar.errors import InputError
@@ -117,22 +118,42 @@ class StripCorrection:
         k = np.minimum(np.floor(u).astype(np.int64), n - 2)
         return k, k + 1, u - k
 
-    def at(self, time: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Shift (M, 3) m and rotation vector (M, 3) rad at each time (s)."""
-        k0, k1, f = self.knots(time)
-        f = f[:, None]
-        return (1 - f) * self.shift[k0] + f * self.shift[k1], (1 - f) * self.tilt[k0] + f * self.tilt[k1]
-
     def apply(self, points: np.ndarray, origin: np.ndarray, time: np.ndarray, weight=1.0) -> np.ndarray:
         """Corrected ``points`` (M, 3) m: + shift + tilt × (points − origin), at each point's time (s).
 
         For averages of points (rows of a correspondence matrix) pass the row sums of the
         weights as ``weight``, the weighted sums as points and origin and the rows' mean times."""
-        shift, tilt = self.at(time)
-        out = points + np.asarray(weight, float).reshape(-1, 1) * shift
-        if np.any(self.tilt):
-            out = out + np.cross(tilt, points - origin)
-        return out
+        points = np.asarray(points, float)
+        m = points.shape[0]
+        return _apply_kernel(points, np.broadcast_to(np.asarray(origin, float), (m, 3)),
+                             np.broadcast_to(np.asarray(time, float), (m,)),
+                             np.broadcast_to(np.asarray(weight, float), (m,)), self.t0,
+                             self.block_s or 0.0, self.shift, self.tilt)
+
+
+@njit(cache=True)
+def _apply_kernel(points, origin, time, weight, t0, block_s, shift, tilt):  # pragma: no cover - numba
+    """StripCorrection.apply in one pass (block_s 0: one knot)."""
+    n = shift.shape[0]
+    out = np.empty_like(points)
+    for i in range(points.shape[0]):
+        k0, k1, f = 0, 0, 0.0
+        if n > 1 and block_s > 0.0:
+            u = min(max((time[i] - t0) / block_s, 0.0), n - 1.0)
+            k0 = min(int(np.floor(u)), n - 2)
+            k1 = k0 + 1
+            f = u - k0
+        s = np.empty(3)
+        w = np.empty(3)
+        d = np.empty(3)
+        for a in range(3):
+            s[a] = (1.0 - f) * shift[k0, a] + f * shift[k1, a]
+            w[a] = (1.0 - f) * tilt[k0, a] + f * tilt[k1, a]
+            d[a] = points[i, a] - origin[i, a]
+        out[i, 0] = points[i, 0] + weight[i] * s[0] + w[1] * d[2] - w[2] * d[1]
+        out[i, 1] = points[i, 1] + weight[i] * s[1] + w[2] * d[0] - w[0] * d[2]
+        out[i, 2] = points[i, 2] + weight[i] * s[2] + w[0] * d[1] - w[1] * d[0]
+    return out
 
 
 def parse_name(name: str) -> tuple[str, int, int, int] | None:
