@@ -129,31 +129,22 @@ class StripCorrection:
         weights as ``weight``, the weighted sums as points and origin and the rows' mean times."""
         points = np.asarray(points, float)
         m = points.shape[0]
+        k0, k1, f = self.knots(np.broadcast_to(np.asarray(time, float), (m,)))
         return _apply_kernel(points, np.broadcast_to(np.asarray(origin, float), (m, 3)),
-                             np.broadcast_to(np.asarray(time, float), (m,)),
-                             np.broadcast_to(np.asarray(weight, float), (m,)), self.t0,
-                             self.block_s or 0.0, self.shift, self.tilt)
+                             np.broadcast_to(np.asarray(weight, float), (m,)), k0, k1, f, self.shift, self.tilt)
 
 
 @njit(cache=True)
-def _apply_kernel(points, origin, time, weight, t0, block_s, shift, tilt):  # pragma: no cover - numba
-    """StripCorrection.apply in one pass (block_s 0: one knot)."""
-    n = shift.shape[0]
+def _apply_kernel(points, origin, weight, k0, k1, f, shift, tilt):  # pragma: no cover - numba
+    """StripCorrection.apply in one pass, the knots k0, k1 and weight f of each point given."""
     out = np.empty_like(points)
+    s, w, d = np.empty(3), np.empty(3), np.empty(3)
     for i in range(points.shape[0]):
-        k0, k1, f = 0, 0, 0.0
-        if n > 1 and block_s > 0.0:
-            u = min(max((time[i] - t0) / block_s, 0.0), n - 1.0)
-            k0 = min(int(np.floor(u)), n - 2)
-            k1 = k0 + 1
-            f = u - k0
-        s = np.empty(3)
-        w = np.empty(3)
-        d = np.empty(3)
-        for a in range(3):
-            s[a] = (1.0 - f) * shift[k0, a] + f * shift[k1, a]
-            w[a] = (1.0 - f) * tilt[k0, a] + f * tilt[k1, a]
-            d[a] = points[i, a] - origin[i, a]
+        a, b, g = k0[i], k1[i], f[i]
+        for ax in range(3):
+            s[ax] = (1.0 - g) * shift[a, ax] + g * shift[b, ax]
+            w[ax] = (1.0 - g) * tilt[a, ax] + g * tilt[b, ax]
+            d[ax] = points[i, ax] - origin[i, ax]
         out[i, 0] = points[i, 0] + weight[i] * s[0] + w[1] * d[2] - w[2] * d[1]
         out[i, 1] = points[i, 1] + weight[i] * s[1] + w[2] * d[0] - w[0] * d[2]
         out[i, 2] = points[i, 2] + weight[i] * s[2] + w[0] * d[1] - w[1] * d[0]
