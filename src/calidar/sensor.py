@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import tomllib
 from dataclasses import dataclass, field, replace
+from functools import cached_property
 from pathlib import Path
 
 import numpy as np
@@ -55,10 +56,13 @@ class Sensor:
     scanner: Scanner = field(default_factory=LinearScanner)
     crs: str | None = None
 
-    @property
+    @cached_property
     def r_bs(self) -> np.ndarray:
-        """Boresight rotation scanner → body (3, 3)."""
-        return frames.rpy_to_matrix(self.boresight_roll, self.boresight_pitch, self.boresight_yaw)
+        """Boresight rotation scanner → body (3, 3), read-only (computed once per sensor: the
+        strip adjustment asks for it per correspondence block and evaluation)."""
+        r = frames.rpy_to_matrix(self.boresight_roll, self.boresight_pitch, self.boresight_yaw)
+        r.setflags(write=False)
+        return r
 
     @property
     def lever_arm(self) -> np.ndarray:

@@ -316,6 +316,7 @@ class _Problem:
             cols.append(np.tile(sensor_free, n_rows))
             vals.append(D.ravel())
         column = {traj[p.name]: j for j, p in enumerate(free) if traj[p.name]}
+        colmaps: dict[tuple, np.ndarray] = {}
         sensor = _sensor(self.nominal, values)
         fix = corrections(values, self.trajectory, self.spans)
         start = 0
@@ -329,7 +330,10 @@ class _Problem:
                 v = side(sensor) - side.r  # weighted sums of the points about the IMU
                 for kind in ("bias", "tilt"):
                     for ax in range(3):
-                        colmap = np.array([column.get((kind, ax, sid, k), -1) for k in range(f.shift.shape[0])])
+                        key = (kind, ax, sid)
+                        if key not in colmaps:  # column of each knot of the strip, −1 where not free
+                            colmaps[key] = np.array([column.get((*key, k), -1) for k in range(f.shift.shape[0])])
+                        colmap = colmaps[key]
                         if np.all(colmap < 0):
                             continue
                         e = np.zeros(3)

@@ -30,6 +30,7 @@ import math
 import re
 from collections.abc import Mapping
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 from numba import njit
@@ -151,6 +152,7 @@ def _apply_kernel(points, origin, weight, k0, k1, f, shift, tilt):  # pragma: no
     return out
 
 
+@lru_cache(maxsize=1 << 16)  # every residual evaluation parses every name
 def parse_name(name: str) -> tuple[str, int, int, int] | None:
     """A trajectory parameter's name → (kind "bias" | "tilt", axis 0..2, strip id, knot); None otherwise."""
     m = _NAME.match(name)
