@@ -122,9 +122,10 @@ def test_airborne_with_30_percent_vegetation():
 
 
 #: the simulator's trajectory errors as the adjustment models them: 3 cm and 0.002° at knots 1 s apart,
-#: Gauss–Markov over 20 s (position) and 3 s (attitude), as the simulator smooths them over 10 s and 2 s
+#: Gauss–Markov over 20 s (position) and 3.5 s (attitude), as the simulator smooths them over 10 s and 2 s
+#: (the CLI's defaults; see docs/architecture.md for the attitude's 3.5 s)
 AIRBORNE_TRAJECTORY = TrajectoryModel(block_s=1.0, position_sigma_m=0.03, attitude_sigma_rad=np.radians(0.002),
-                                      correlation_s=20.0, attitude_correlation_s=3.0)
+                                      correlation_s=20.0, attitude_correlation_s=3.5)
 
 
 @pytest.mark.slow

@@ -75,7 +75,7 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
         trajectory_block: float = typer.Option(
             1.0, "--trajectory-block", help="Spacing of the trajectory corrections' knots, s."),
         trajectory_correlation: str = typer.Option(
-            "20,3", "--trajectory-correlation",
+            "20,3.5", "--trajectory-correlation",
             help="Correlation times of the trajectory's position and attitude errors (Gauss–Markov), 'POS_S,ATT_S' s."),
         truth: Path | None = typer.Option(None, "--truth", help="truth.json of a simulation (adds truth and errors)."),
         scheduler: str | None = typer.Option(None, "--scheduler", help="Dask scheduler address for the pair matching."),
@@ -140,7 +140,7 @@ def parse_methods(text: str) -> list[str]:
     return methods
 
 
-def trajectory_model(sigma: str, block_s: float = 1.0, correlation: str = "20,3"):
+def trajectory_model(sigma: str, block_s: float = 1.0, correlation: str = "20,3.5"):
     """--trajectory-sigma 'POSITION_M,ATTITUDE_DEG', --trajectory-block S and
     --trajectory-correlation 'POS_S,ATT_S' → a TrajectoryModel (defaults validated on the simulator)."""
     from calidar.strips.trajectory_errors import TrajectoryModel
