@@ -12,6 +12,7 @@ from calidar.adjust.solver import numerical_jacobian
 from calidar.errors import CalibrationError, InputError
 from calidar.sensor import Sensor
 from calidar.strips.calibrate import StripSettings, _Problem, build_parameters, calibrate, parse_estimate
+from calidar.strips.correspond import moderated_variance
 from calidar.strips.overlap import find_overlaps
 from calidar.strips.planes import PlaneSettings, fit_patches, match_pair_planes
 from calidar.strips.strip import Strip
@@ -119,6 +120,25 @@ def test_centroid_shortcut_equals_full_regeoreferencing(strips):
     only = _Problem(nominal, poses, [c], ["boresight_roll"])
     vals_b = {**nominal.parameters(), "boresight_roll": 1e-3, "boresight_yaw": -2e-3}
     assert np.max(np.abs(only(vals_b) - full(vals_b))) < 1e-9
+
+
+def test_moderated_scatter_makes_the_weighted_mean_honest():
+    """Rows weighted by their own 12-point scatter (ν = 9) claim too small a σ for a weighted
+    mean (the quiet-by-chance rows dominate: variance ratio ≈ ν/(ν − 4) = 1.8 in theory);
+    the moderated scatter's claim holds."""
+    rng = np.random.default_rng(11)
+    n_rows, n_trials, nu = 400, 400, 9
+    z_raw, z_mod = [], []
+    for _ in range(n_trials):
+        scale = rng.uniform(0.8, 1.25, n_rows)  # a little real heterogeneity
+        s2 = scale**2 * rng.chisquare(nu, n_rows) / nu  # each row's own scatter estimate
+        r = scale * rng.standard_normal(n_rows)  # independent of s2 (Gaussian noise)
+        for var, out in ((s2, z_raw), (moderated_variance(s2, nu), z_mod)):
+            w = 1.0 / var
+            out.append((w @ r / w.sum()) * np.sqrt(w.sum()))  # estimate / its claimed σ
+    assert np.std(z_raw) > 1.15  # the per-row weights' claim is optimistic
+    assert 0.9 < np.std(z_mod) < 1.1
+    assert moderated_variance(np.zeros(0), nu).size == 0
 
 
 def test_trajectory_columns_of_the_jacobian_are_exact(strips):

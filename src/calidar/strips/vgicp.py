@@ -37,7 +37,7 @@ import scipy.sparse as sp
 import small_gicp
 
 from calidar.errors import CalibrationError
-from calidar.strips.correspond import Correspondences
+from calidar.strips.correspond import Correspondences, moderated_variance
 
 KINDS = ("point_to_plane", "point_to_point")
 
@@ -315,7 +315,8 @@ def match_pair_vgicp(strip_a_id: int, points_a: np.ndarray, strip_b_id: int, poi
         normal = planes.normal[keep]
         if settings.sigma_m is None:  # a's mean, and b's plane where a's mean lies; points scattered as b's
             spread = 1.0 / count + planes.leverage(mean_a)
-            sigma = np.sqrt(planes.scatter[keep] ** 2 * spread[keep] + settings.noise_floor_m**2)
+            var = moderated_variance(planes.scatter[keep] ** 2, k - 3)  # over the pair's planes
+            sigma = np.sqrt(var * spread[keep] + settings.noise_floor_m**2)
     n_pairs = int(keep.sum())
     if n_pairs < settings.min_pairs:
         where = " on planar surfaces" if settings.kind == "point_to_plane" else ""
