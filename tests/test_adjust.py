@@ -2,8 +2,10 @@ import json
 
 import numpy as np
 import pytest
+import scipy.sparse as sp
 
 from calidar.adjust import Parameter, ParameterSet, solve
+from calidar.adjust.solver import _normal_matrix
 from calidar.errors import CalibrationError
 
 
@@ -132,3 +134,14 @@ def test_priors_are_absolute_sigma0_below_one_does_not_shrink_them():
                  sigma=0.4, robust=None)
     assert held.sigma0 < 0.5
     assert held.covariance == pytest.approx(np.linalg.inv(N + np.diag([1 / 0.05**2, 0.0])), rel=1e-6)
+
+
+def test_normal_matrix_of_a_sparse_jacobian_equals_the_dense_product():
+    """JᵀWJ from CSR rows (repeated column indices within a row included) equals the dense product."""
+    rng = np.random.default_rng(4)
+    indptr = np.array([0, 3, 3, 7, 9])
+    indices = np.array([0, 4, 0, 1, 2, 1, 3, 4, 2])  # row 0 repeats column 0, row 2 column 1
+    J = sp.csr_matrix((rng.normal(size=indices.size), indices, indptr), shape=(4, 5))
+    w = rng.uniform(0.5, 2.0, 4)
+    D = J.toarray()
+    assert np.allclose(_normal_matrix(J, w), D.T @ (w[:, None] * D), rtol=1e-12, atol=1e-12)

@@ -141,10 +141,14 @@ def test_moderated_scatter_makes_the_weighted_mean_honest():
     assert moderated_variance(np.zeros(0), nu).size == 0
 
 
-def test_trajectory_columns_of_the_jacobian_are_exact(strips):
-    """The analytic (sparse) columns of the knots equal central differences of the residuals."""
+@pytest.mark.parametrize("point_to_point", [False, True])
+def test_trajectory_columns_of_the_jacobian_are_exact(strips, point_to_point):
+    """The analytic (sparse) columns of the knots equal central differences of the residuals,
+    along the normals and in 3D, on the first call (pattern built) and a later one (values only)."""
     pts = {s.id: s.points for s in strips}
     c = match_pair_planes(1, pts[1], 2, pts[2])
+    if point_to_point:
+        c = replace(c, normal=None)
     poses = {s.id: s.pose() for s in strips[:2]}
     spans = {s.id: (float(s.time.min()), float(s.time.max())) for s in strips[:2]}
     model = TrajectoryModel(block_s=2.0, position_sigma_m=0.03, attitude_sigma_rad=1e-5, correlation_s=20.0,
@@ -153,8 +157,10 @@ def test_trajectory_columns_of_the_jacobian_are_exact(strips):
     rng = np.random.default_rng(3)
     params = ParameterSet(replace(p, value=rng.normal(0.0, p.prior_sigma)) if p.prior_sigma else p for p in params)
     problem = _Problem(Sensor(), poses, [c], params.free_names, {s.id: s.time for s in strips[:2]}, model, spans)
-    analytic = problem.jacobian(params.values(), params.free).toarray()
-    numeric = numerical_jacobian(problem, params, params.x())
+    problem.jacobian(params.values(), params.free)
+    moved = ParameterSet(replace(p, value=p.value + rng.normal(0.0, p.prior_sigma or 1e-4)) for p in params)
+    analytic = problem.jacobian(moved.values(), moved.free).toarray()
+    numeric = numerical_jacobian(problem, moved, moved.x())
     assert analytic.shape == numeric.shape and np.count_nonzero(analytic[:, 3:]) > 0
     assert np.max(np.abs(analytic - numeric)) < 1e-6 * np.max(np.abs(numeric))
     # each row touches at most two knots per strip, kind and axis

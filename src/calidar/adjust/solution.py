@@ -7,6 +7,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+import scipy.linalg as sl
 
 from calidar.adjust.parameters import ParameterSet
 from calidar.outputs import write_text_atomic
@@ -30,6 +31,25 @@ def residual_stats(r: np.ndarray, weights: np.ndarray | None = None) -> dict:
     if weights is not None and r.size:
         out["downweighted_fraction"] = float(np.mean(weights < 0.5))
     return out
+
+
+def _inverse(Ns: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    """(Ns⁻¹, eigenvalues ascending, None) for a well-conditioned Ns (Cholesky); for a rank-deficient
+    one (relative eigenvalues below RANK_TOLERANCE) the inverse on the determined subspace and
+    the eigenvectors, whose null directions the warnings name."""
+    evals = np.linalg.eigvalsh(Ns)
+    if evals[0] >= RANK_TOLERANCE * evals[-1]:
+        try:
+            c, _ = sl.cho_factor(Ns, lower=True)
+            inv, info = sl.lapack.dpotri(c, lower=True)
+            if info == 0:
+                inv = np.tril(inv)
+                return inv + np.tril(inv, -1).T, evals, None
+        except np.linalg.LinAlgError:
+            pass
+    evals, evecs = np.linalg.eigh(Ns)
+    keep = evals >= RANK_TOLERANCE * evals[-1]
+    return (evecs[:, keep] / evals[keep]) @ evecs[:, keep].T, evals, evecs
 
 
 @dataclass
@@ -61,7 +81,7 @@ class Solution:
         prior = [p.prior_sigma is not None for p in params.free]  # constrained by their priors
         d = np.sqrt(np.clip(np.diag(N), 1e-300, None))
         Ns = N / np.outer(d, d)
-        evals, evecs = np.linalg.eigh(Ns)
+        cov_s, evals, evecs = _inverse(Ns)
         cond = float(evals[-1] / max(evals[0], 1e-300))
         warnings = []
         zero_cols = []
@@ -70,7 +90,7 @@ class Solution:
             zero_cols = [names[j] for j in range(len(names)) if not used[j] and not prior[j]]
             for nm in zero_cols:
                 warnings.append(f"{nm} is not observable: no observation depends on it; its value is the start value")
-        bad = evals < RANK_TOLERANCE * evals[-1]
+        bad = np.zeros(evals.size, bool) if evecs is None else evals < RANK_TOLERANCE * evals[-1]
         for k in np.flatnonzero(bad):
             v = evecs[:, k]
             involved = [names[j] for j in np.argsort(-np.abs(v)) if abs(v[j]) > 0.2 and names[j] not in zero_cols]
@@ -79,7 +99,6 @@ class Solution:
                     "the data cannot separate " + " and ".join(involved)
                     + ": only a combination of them is determined (a singular direction of the normal equations)"
                 )
-        cov_s = evecs[:, ~bad] @ np.diag(1.0 / evals[~bad]) @ evecs[:, ~bad].T
         cov = (sigma0_sq if variance_factor is None else variance_factor) * cov_s / np.outer(d, d)
         sig = np.sqrt(np.clip(np.diag(cov), 0, None))
         if np.any(bad):

@@ -14,7 +14,9 @@ from __future__ import annotations
 from collections.abc import Callable, Sequence
 
 import numpy as np
+import scipy.linalg as sl
 import scipy.sparse as sp
+from numba import njit
 
 from calidar.adjust.parameters import ParameterSet
 from calidar.adjust.solution import Solution, residual_stats
@@ -196,18 +198,20 @@ def solve(
 
 
 def _inverse_diagonal(N: np.ndarray) -> np.ndarray:
-    """diag(N⁻¹), ≥ 0 (zeros when N is singular: the stop rule then never fires on it)."""
+    """diag(N⁻¹), ≥ 0, by Cholesky (zeros when N is not positive definite: the stop rule then never fires on it)."""
     try:
-        return np.clip(np.diag(np.linalg.inv(N)), 0, None)
-    except np.linalg.LinAlgError:
+        c, lower = sl.cho_factor(N, lower=True)
+    except (np.linalg.LinAlgError, ValueError):
         return np.zeros(N.shape[0])
+    inv, info = sl.lapack.dpotri(c, lower=True)
+    return np.clip(np.diag(inv), 0, None) if info == 0 else np.zeros(N.shape[0])
 
 
 def _solve_damped(A: np.ndarray, g: np.ndarray) -> np.ndarray:
-    """A⁻¹g for the damped normal matrix (LU; least squares when it is singular to machine precision)."""
+    """A⁻¹g for the damped normal matrix (Cholesky; least squares when it is not positive definite)."""
     try:
-        return np.linalg.solve(A, g)
-    except np.linalg.LinAlgError:
+        return sl.cho_solve(sl.cho_factor(A, lower=True), g)
+    except (np.linalg.LinAlgError, ValueError):
         return np.linalg.lstsq(A, g, rcond=None)[0]
 
 
@@ -233,8 +237,33 @@ def _prior_groups(free, prior_correlation) -> list[tuple[np.ndarray, np.ndarray,
 def _normal_matrix(J, w: np.ndarray) -> np.ndarray:
     """JᵀWJ (dense) for a dense or scipy.sparse J."""
     if sp.issparse(J):
-        return np.asarray((J.T @ (sp.diags(w) @ J)).todense())
+        J = J.tocsr()
+        return _weighted_gram(J.indptr, J.indices, J.data, np.asarray(w, float), J.shape[1])
     return J.T @ (w[:, None] * J)
+
+
+@njit(cache=True)
+def _weighted_gram(indptr, indices, data, w, n_cols):  # pragma: no cover - numba
+    """Σ_rows w_i · j_i j_iᵀ of a CSR matrix into a dense (n_cols, n_cols) array: O(Σ nnz_row²)
+    over each row's pairs of entries once (upper triangle, then mirrored), without the sparse
+    product's intermediate matrices. Repeated column indices within a row count as their sum."""
+    N = np.zeros((n_cols, n_cols))
+    for i in range(indptr.size - 1):
+        for a in range(indptr[i], indptr[i + 1]):
+            ja, va = indices[a], w[i] * data[a]
+            N[ja, ja] += va * data[a]
+            for b in range(a + 1, indptr[i + 1]):
+                jb, v = indices[b], va * data[b]
+                if ja < jb:
+                    N[ja, jb] += v
+                elif jb < ja:
+                    N[jb, ja] += v
+                else:  # the same column twice: (a, b) and (b, a)
+                    N[ja, ja] += 2.0 * v
+    for j in range(n_cols):
+        for k in range(j + 1, n_cols):
+            N[k, j] = N[j, k]
+    return N
 
 
 def _cluster_robust(cov: np.ndarray, Ninv: np.ndarray, scores: np.ndarray, clusters: np.ndarray) -> np.ndarray:

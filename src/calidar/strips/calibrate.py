@@ -256,6 +256,8 @@ class _Problem:
         self.sigma = np.concatenate([
             np.repeat(np.broadcast_to(np.asarray(c.sigma_m, float), (c.n_obs,)), 3 if c.normal is None else 1)
             for c in self.corrs])
+        self._pattern = None  # the trajectory Jacobian's sparsity, built on its first call
+        self._knots: dict[tuple[int, int], tuple] = {}  # (set, side) → the rows' knots and weights
         self.row_time = [tuple((m @ self.time[sid]) / np.maximum(np.asarray(m.sum(axis=1)).ravel(), 1e-300)
                                if self.time else None for m, sid in ((c.A, c.strip_a), (c.B, c.strip_b)))
                          for c in self.corrs]
@@ -287,70 +289,97 @@ class _Problem:
             pts = {i: _georeference(sensor, fix.get(i), p, self.time.get(i)) for i, p in self.pose.items()}
             return np.concatenate([c.residuals(pts[c.strip_a], pts[c.strip_b]) for c in self.corrs])
         out = []
-        for c, sides, times in zip(self.corrs, self.centroids, self.row_time):
+        for k, (c, sides, times) in enumerate(zip(self.corrs, self.centroids, self.row_time)):
             p = []
-            for side, sid, t in zip(sides, (c.strip_a, c.strip_b), times):
+            for s, (side, sid, t) in enumerate(zip(sides, (c.strip_a, c.strip_b), times)):
                 q = side(sensor)
                 f = fix.get(sid)
-                p.append(q if f is None else f.apply(q, side.r, t, side.rowsum))
+                p.append(q if f is None else f.apply(q, side.r, t, side.rowsum, self._row_knots(k, s, f, t)))
             d = p[0] - p[1]
             out.append(d.ravel() if c.normal is None else np.einsum("ij,ij->i", d, c.normal))
         return np.concatenate(out)
 
 
+    def _row_knots(self, k: int, side: int, f: StripCorrection, time: np.ndarray):
+        """``f.knots(time)`` for side 0 (a) or 1 (b) of correspondence set k, computed once (fixed times)."""
+        if (k, side) not in self._knots:
+            self._knots[k, side] = f.knots(time)
+        return self._knots[k, side]
+
     def jacobian(self, values: dict[str, float], free: Sequence[Parameter]):
         """∂residuals/∂(free parameters), (n, n_free): central differences for the sensor's
         parameters, exact columns for the trajectory corrections (linear in them; two knots
-        per strip and row, so the matrix is returned sparse when they are present)."""
+        per strip and row, so the matrix is returned sparse when they are present). The
+        sparsity pattern is built on the first call; later calls only fill in the values."""
         traj = {p.name: parse_name(p.name) for p in free} if self.trajectory else {}
         if self.centroids is None or not any(traj.values()):
             return numerical_jacobian(self, ParameterSet(replace(p, value=values[p.name]) for p in free),
                                       np.array([values[p.name] for p in free]))
-        n_rows = sum(c.n_obs * (3 if c.normal is None else 1) for c in self.corrs)
-        rows, cols, vals = [], [], []
         sensor_free = [j for j, p in enumerate(free) if traj[p.name] is None]
+        if self._pattern is None:
+            self._pattern = self._jacobian_pattern(free, traj, sensor_free)
+        mask, indices, indptr, knot_weights = self._pattern
+        ns = len(sensor_free)
+        V = np.zeros(mask.shape)  # rows × (sensor columns, a-side and b-side 2 knots × 6)
         if sensor_free:
             sub = ParameterSet(replace(free[j], value=values[free[j].name]) for j in sensor_free)
-            D = numerical_jacobian(lambda v: self({**values, **v}), sub, sub.x())
-            rows.append(np.repeat(np.arange(n_rows), len(sensor_free)))
-            cols.append(np.tile(sensor_free, n_rows))
-            vals.append(D.ravel())
-        column = {traj[p.name]: j for j, p in enumerate(free) if traj[p.name]}
-        colmaps: dict[tuple, np.ndarray] = {}
+            V[:, :ns] = numerical_jacobian(lambda v: self({**values, **v}), sub, sub.x())
         sensor = _sensor(self.nominal, values)
-        fix = corrections(values, self.trajectory, self.spans)
         start = 0
-        for c, sides, times in zip(self.corrs, self.centroids, self.row_time):
+        for c, sides, weights in zip(self.corrs, self.centroids, knot_weights):
             per = 3 if c.normal is None else 1
-            for sign, side, sid, t in zip((1.0, -1.0), sides, (c.strip_a, c.strip_b), times):
+            block = V[start:start + c.n_obs * per]
+            for s, (sign, side, w) in enumerate(zip((1.0, -1.0), sides, weights)):
+                if w is not None:
+                    D = _correction_derivatives(side, sensor, c.normal)
+                    block[:, ns + 12 * s:ns + 12 * (s + 1)] = (sign * D[:, :, None, :] * w[:, None, :, None]).reshape(-1, 12)
+            start += c.n_obs * per
+        return sp.csr_matrix((V[mask], indices, indptr), shape=(mask.shape[0], len(free)))
+
+    def _jacobian_pattern(self, free: Sequence[Parameter], traj: dict, sensor_free: list[int]):
+        """The Jacobian's sparsity: a mask over rows × (sensor columns, per side two knots ×
+        (shift, tilt) × 3 axes), its CSR column indices and row pointers, and per
+        correspondence set and side the knots' interpolation weights (n_obs, 2) (None: no
+        correction for that strip)."""
+        column = {traj[p.name]: j for j, p in enumerate(free) if traj[p.name]}
+        fix = corrections({p.name: 0.0 for p in free}, self.trajectory, self.spans)
+        ns = len(sensor_free)
+        C = np.full((self.sigma.size, ns + 24), -1, dtype=np.int64)
+        C[:, :ns] = sensor_free
+        knot_weights, start = [], 0
+        for i, (c, times) in enumerate(zip(self.corrs, self.row_time)):
+            per = 3 if c.normal is None else 1
+            weights = []
+            for s, (sid, t) in enumerate(zip((c.strip_a, c.strip_b), times)):
                 f = fix.get(sid)
                 if f is None:
+                    weights.append(None)
                     continue
-                k0, k1, frac = f.knots(t)
-                v = side(sensor) - side.r  # weighted sums of the points about the IMU
-                for kind in ("bias", "tilt"):
-                    for ax in range(3):
-                        key = (kind, ax, sid)
-                        if key not in colmaps:  # column of each knot of the strip, −1 where not free
-                            colmaps[key] = np.array([column.get((*key, k), -1) for k in range(f.shift.shape[0])])
-                        colmap = colmaps[key]
-                        if np.all(colmap < 0):
-                            continue
-                        e = np.zeros(3)
-                        e[ax] = 1.0
-                        # ∂(corrected sums)/∂knot value, (n, 3): shift → row sums · e, rotation → e × v,
-                        # times the knot's interpolation weight
-                        d = np.outer(side.rowsum, e) if kind == "bias" else np.cross(e, v)
-                        if c.normal is not None:
-                            d = np.einsum("ij,ij->i", d, c.normal)[:, None]
-                        for j, weight in ((colmap[k0], 1.0 - frac), (colmap[k1], frac)):
-                            keep = np.flatnonzero((j >= 0) & (weight != 0))
-                            rows.append((start + per * keep[:, None] + np.arange(per)).ravel())
-                            cols.append(np.repeat(j[keep], per))
-                            vals.append(sign * (d[keep] * weight[keep, None]).ravel())
+                k0, k1, frac = self._row_knots(i, s, f, t)
+                colmap = np.array([[column.get((kind, ax, sid, k), -1) for kind in ("bias", "tilt") for ax in range(3)]
+                                   for k in range(f.shift.shape[0])])  # (n_knots, 6), −1 where not free
+                w = np.stack([1.0 - frac, frac], axis=1)
+                cols = np.where(w[:, :, None] != 0, np.stack([colmap[k0], colmap[k1]], axis=1), -1)
+                C[start:start + c.n_obs * per, ns + 12 * s:ns + 12 * (s + 1)] = np.repeat(cols.reshape(-1, 12), per, axis=0)
+                weights.append(w)
+            knot_weights.append(weights)
             start += c.n_obs * per
-        return sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
-                             shape=(n_rows, len(free)))
+        mask = C >= 0
+        indptr = np.concatenate([[0], np.cumsum(np.count_nonzero(mask, axis=1))])
+        return mask, C[mask], indptr, knot_weights
+
+
+def _correction_derivatives(side: _Centroids, sensor: Sensor, normal: np.ndarray | None) -> np.ndarray:
+    """∂(a side's corrected weighted sums)/∂(shift x, y, z, tilt x, y, z) of one knot carrying
+    all the weight, (n, per, 6): shift → row sums · e, rotation → e × (sums − IMU sums); along
+    the normals (per = 1) or in 3D (per = 3)."""
+    v = side(sensor) - side.r
+    if normal is not None:  # (e × v) · n = e · (v × n)
+        return np.concatenate([side.rowsum[:, None] * normal, np.cross(v, normal)], axis=1)[:, None, :]
+    D = np.zeros((v.shape[0], 3, 6))
+    D[:, [0, 1, 2], [0, 1, 2]] = side.rowsum[:, None]
+    D[:, :, 3:] = np.stack([np.cross(e, v) for e in np.eye(3)], axis=2)
+    return D
 
 
 def geometry_warnings(strips: Sequence[Strip], pairs: Sequence[tuple[int, int]], free: Sequence[str]) -> list[str]:

@@ -123,14 +123,16 @@ class StripCorrection:
         k = np.minimum(np.floor(u).astype(np.int64), n - 2)
         return k, k + 1, u - k
 
-    def apply(self, points: np.ndarray, origin: np.ndarray, time: np.ndarray, weight=1.0) -> np.ndarray:
+    def apply(self, points: np.ndarray, origin: np.ndarray, time: np.ndarray, weight=1.0,
+              knots: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None) -> np.ndarray:
         """Corrected ``points`` (M, 3) m: + shift + tilt × (points − origin), at each point's time (s).
 
         For averages of points (rows of a correspondence matrix) pass the row sums of the
-        weights as ``weight``, the weighted sums as points and origin and the rows' mean times."""
+        weights as ``weight``, the weighted sums as points and origin and the rows' mean times;
+        ``knots``: ``self.knots(time)`` when already known (the same times corrected again)."""
         points = np.asarray(points, float)
         m = points.shape[0]
-        k0, k1, f = self.knots(np.broadcast_to(np.asarray(time, float), (m,)))
+        k0, k1, f = self.knots(np.broadcast_to(np.asarray(time, float), (m,))) if knots is None else knots
         return _apply_kernel(points, np.broadcast_to(np.asarray(origin, float), (m, 3)),
                              np.broadcast_to(np.asarray(weight, float), (m,)), k0, k1, f, self.shift, self.tilt)
 
