@@ -33,20 +33,29 @@ def residual_stats(r: np.ndarray, weights: np.ndarray | None = None) -> dict:
     return out
 
 
+def cholesky_inverse(N: np.ndarray) -> np.ndarray | None:
+    """N⁻¹ of a symmetric positive definite N by Cholesky (LAPACK potrf, potri); None when N
+    is not positive definite (or not finite)."""
+    try:
+        c, _ = sl.cho_factor(N, lower=True)
+    except (np.linalg.LinAlgError, ValueError):
+        return None
+    inv, info = sl.lapack.dpotri(c, lower=True)
+    if info != 0:
+        return None
+    inv = np.tril(inv)
+    return inv + np.tril(inv, -1).T
+
+
 def _inverse(Ns: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
-    """(Ns⁻¹, eigenvalues ascending, None) for a well-conditioned Ns (Cholesky); for a rank-deficient
-    one (relative eigenvalues below RANK_TOLERANCE) the inverse on the determined subspace and
+    """(Ns⁻¹, eigenvalues ascending, None) for a well-conditioned Ns; for a rank-deficient one
+    (relative eigenvalues below RANK_TOLERANCE) the inverse on the determined subspace and
     the eigenvectors, whose null directions the warnings name."""
     evals = np.linalg.eigvalsh(Ns)
     if evals[0] >= RANK_TOLERANCE * evals[-1]:
-        try:
-            c, _ = sl.cho_factor(Ns, lower=True)
-            inv, info = sl.lapack.dpotri(c, lower=True)
-            if info == 0:
-                inv = np.tril(inv)
-                return inv + np.tril(inv, -1).T, evals, None
-        except np.linalg.LinAlgError:
-            pass
+        inv = cholesky_inverse(Ns)
+        if inv is not None:
+            return inv, evals, None
     evals, evecs = np.linalg.eigh(Ns)
     keep = evals >= RANK_TOLERANCE * evals[-1]
     return (evecs[:, keep] / evals[keep]) @ evecs[:, keep].T, evals, evecs

@@ -19,7 +19,7 @@ import scipy.sparse as sp
 from numba import njit
 
 from calidar.adjust.parameters import ParameterSet
-from calidar.adjust.solution import Solution, residual_stats
+from calidar.adjust.solution import Solution, cholesky_inverse, residual_stats
 from calidar.errors import CalibrationError
 
 ResidualFn = Callable[[dict[str, float]], np.ndarray]
@@ -198,13 +198,9 @@ def solve(
 
 
 def _inverse_diagonal(N: np.ndarray) -> np.ndarray:
-    """diag(N⁻¹), ≥ 0, by Cholesky (zeros when N is not positive definite: the stop rule then never fires on it)."""
-    try:
-        c, lower = sl.cho_factor(N, lower=True)
-    except (np.linalg.LinAlgError, ValueError):
-        return np.zeros(N.shape[0])
-    inv, info = sl.lapack.dpotri(c, lower=True)
-    return np.clip(np.diag(inv), 0, None) if info == 0 else np.zeros(N.shape[0])
+    """diag(N⁻¹), ≥ 0 (zeros when N is not positive definite: the stop rule then never fires on it)."""
+    inv = cholesky_inverse(N)
+    return np.zeros(N.shape[0]) if inv is None else np.clip(np.diag(inv), 0, None)
 
 
 def _solve_damped(A: np.ndarray, g: np.ndarray) -> np.ndarray:

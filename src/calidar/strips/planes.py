@@ -25,6 +25,7 @@ from numba import njit
 
 from calidar.strips.correspond import Correspondences, moderated_variance
 from calidar.strips.overlap import cell_keys, footprint_area_m2
+from calidar.strips.pca import eigh3
 
 
 @dataclass(frozen=True)
@@ -71,7 +72,7 @@ def fit_patches(points: np.ndarray, cell_m: float, settings: PlaneSettings) -> P
     uk, count = ks[start], np.diff(np.r_[start, ks.size])
     ok = np.flatnonzero(count >= max(settings.min_points, 4))  # a plane and its scatter
     mean, cov = _cell_moments(np.ascontiguousarray(points, dtype=np.float64), order, start[ok], count[ok])
-    lam, vec = np.linalg.eigh(cov)
+    lam, vec = eigh3(cov)
     lam = np.clip(lam, 0.0, None)
     planar = (np.sqrt(lam[:, 0]) <= settings.max_rms_m) & (np.sqrt(lam[:, 1]) >= settings.min_spread * cell_m)
     sel = ok[planar]

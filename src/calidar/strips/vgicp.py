@@ -38,6 +38,7 @@ import small_gicp
 
 from calidar.errors import CalibrationError
 from calidar.strips.correspond import Correspondences, moderated_variance
+from calidar.strips.pca import eigh3
 
 KINDS = ("point_to_plane", "point_to_point")
 
@@ -240,7 +241,7 @@ def _local_planes(points: np.ndarray, at: np.ndarray, k: int, num_threads: int) 
     nb = points[idx]
     centroid = nb.mean(axis=1)
     nb = nb - centroid[:, None, :]
-    eigval, eigvec = np.linalg.eigh(np.einsum("mki,mkj->mij", nb, nb))  # ascending
+    eigval, eigvec = eigh3(np.einsum("mki,mkj->mij", nb, nb))  # ascending
     return _LocalPlanes(idx, np.sqrt(d2), centroid, eigval, eigvec)
 
 
