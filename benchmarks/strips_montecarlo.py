@@ -15,17 +15,20 @@ and the misses of the tests' bounds (0.002° and 3σ).
 from __future__ import annotations
 
 import argparse
+import sys
 import time
 from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
 
 import numpy as np
 
-from calidar.cli.boresight import trajectory_model
-from calidar.sim.survey import simulate_survey, survey_config
-from calidar.strips.calibrate import StripSettings, calibrate
-from calidar.strips.strip import LocalFrame, Strip
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from strips import ERRORS  # noqa: E402  (the benchmarks' boresight errors)
 
-ERRORS = {"boresight_roll": np.radians(0.03), "boresight_pitch": np.radians(-0.04), "boresight_yaw": np.radians(0.05)}
+from calidar.cli.boresight import trajectory_model  # noqa: E402
+from calidar.sim.survey import simulate_survey, survey_config  # noqa: E402
+from calidar.strips.calibrate import StripSettings, calibrate  # noqa: E402
+
 ANGLES = tuple(ERRORS)
 THRESHOLD_M = {"planes": 2e-4, "vgicp": 1e-3}  #: the tests' outer-loop thresholds
 
@@ -35,9 +38,7 @@ def survey(seed: int, methods: list[str], vegetation: float) -> list[tuple[str, 
     cfg = survey_config("airborne", seed=seed, density=0.3, vegetation=vegetation, directions="cross",
                         errors=ERRORS, range_noise_m=0.03)
     res = simulate_survey(cfg)
-    frame = LocalFrame.at(np.concatenate([s.ecef[::50] for s in res.strips]))
-    strips = [Strip.from_ecef(s.point_source_id, s.ecef, s.gps_time, res.trajectory, res.nominal, frame)
-              for s in res.strips]
+    strips = res.calibration_strips()
     truth = res.truth.parameters()
     out = []
     for method in methods:

@@ -12,7 +12,7 @@ from calidar.strips.distribute import cluster_client, map_pairs
 from calidar.strips.calibrate import StripSettings, calibrate
 from calidar.strips.vgicp import VgicpSettings, match_pair_vgicp
 
-from test_strips_sim import _simulate, _strips
+from test_strips_sim import _simulate
 from test_vgicp import disturb, sample
 
 
@@ -57,7 +57,7 @@ def test_vgicp_correspondences_identical_on_a_local_cluster(client):
 
 def test_calibration_identical_in_process_and_on_a_local_cluster():
     res = _simulate("uav", "cross", 0.05)
-    strips = _strips(res)
+    strips = res.calibration_strips()
     settings = StripSettings(threshold_m=1e-3, max_outer=3)
     local = calibrate(strips, res.nominal, method="vgicp", settings=settings)
     remote = calibrate(strips, res.nominal, method="vgicp", settings=settings, workers=2)  # its own cluster

@@ -9,7 +9,6 @@ import pytest
 
 from calidar.sim.survey import simulate_survey, survey_config
 from calidar.strips.calibrate import StripSettings, calibrate
-from calidar.strips.strip import LocalFrame, Strip
 from calidar.strips.trajectory_errors import TrajectoryModel
 
 BORESIGHT_ERRORS = {"boresight_roll": np.radians(0.03), "boresight_pitch": np.radians(-0.04),
@@ -21,12 +20,6 @@ def _simulate(preset, directions, density, vegetation=0.0, seed=3, **errors):
     cfg = survey_config(preset, seed=seed, density=density, vegetation=vegetation, directions=directions,
                         errors={**BORESIGHT_ERRORS, **errors}, range_noise_m=0.03)
     return simulate_survey(cfg)
-
-
-def _strips(res):
-    frame = LocalFrame.at(np.concatenate([s.ecef[::50] for s in res.strips]))
-    return [Strip.from_ecef(s.point_source_id, s.ecef, s.gps_time, res.trajectory, res.nominal, frame)
-            for s in res.strips]
 
 
 def _check_angles(sol, truth, tol_deg=0.002):
@@ -116,7 +109,7 @@ def test_trajectory_not_covering_strips_is_a_clear_error(cli, airborne, tmp_path
 @pytest.mark.slow
 def test_airborne_with_30_percent_vegetation():
     res = _simulate("airborne", "cross", 0.3, vegetation=0.3)
-    sol = calibrate(_strips(res), res.nominal).solution
+    sol = calibrate(res.calibration_strips(), res.nominal).solution
     _check_angles(sol, res.truth.parameters())
     assert sol.residuals_after["downweighted_fraction"] > 0.0
 
@@ -139,7 +132,7 @@ def test_airborne_boresight_with_the_trajectory_errors_modelled(seed, method):
     0.00169° = 2.4σ)."""
     res = _simulate("airborne", "cross", 0.3, seed=seed)
     settings = StripSettings(threshold_m=1e-3 if method == "vgicp" else 2e-4, trajectory=AIRBORNE_TRAJECTORY)
-    sol = calibrate(_strips(res), res.nominal, method=method, estimate="boresight,trajectory_bias",
+    sol = calibrate(res.calibration_strips(), res.nominal, method=method, estimate="boresight,trajectory_bias",
                     settings=settings).solution
     _check_angles(sol, res.truth.parameters())
     assert sum(n.startswith("trajectory_tilt_") for n in sol.parameters.free_names) > 200
@@ -157,7 +150,7 @@ def test_airborne_with_30_percent_vegetation_and_the_trajectory_errors_modelled(
     ~1 400 tie planes were left and yaw missed by 10 % on seed 4."""
     res = _simulate("airborne", "cross", 0.3, vegetation=0.3, seed=seed)
     settings = StripSettings(threshold_m=1e-3 if method == "vgicp" else 2e-4, trajectory=AIRBORNE_TRAJECTORY)
-    result = calibrate(_strips(res), res.nominal, method=method, estimate="boresight,trajectory_bias",
+    result = calibrate(res.calibration_strips(), res.nominal, method=method, estimate="boresight,trajectory_bias",
                        settings=settings)
     _check_angles(result.solution, res.truth.parameters())
     assert result.solution.residuals_after["downweighted_fraction"] > 0.0
@@ -179,7 +172,7 @@ def test_uav_lever_arm_within_1_cm():
     gives lever-arm errors of 1–3 cm). At one flying height a pitch error shifts points
     along-track nearly as lever_arm_x does: with the boresight free too the solution says so."""
     res = uav_lever_arm_survey()
-    strips = _strips(res)
+    strips = res.calibration_strips()
     truth = res.truth.parameters()
     sol = calibrate(strips, res.nominal, estimate="lever_arm_x,lever_arm_y").solution
     for name in ("lever_arm_x", "lever_arm_y"):
@@ -210,7 +203,7 @@ def test_uav_preset_lever_arm_within_1_cm_with_the_trajectory_errors_modelled(se
                         errors={"lever_arm_x": 0.05, "lever_arm_y": -0.05})
     res = simulate_survey(cfg)
     settings = StripSettings(threshold_m=1e-3 if method == "vgicp" else 2e-4, trajectory=UAV_TRAJECTORY)
-    sol = calibrate(_strips(res), res.nominal, method=method, estimate="lever_arm_x,lever_arm_y,trajectory_bias",
+    sol = calibrate(res.calibration_strips(), res.nominal, method=method, estimate="lever_arm_x,lever_arm_y,trajectory_bias",
                     settings=settings).solution
     truth = res.truth.parameters()
     for name in ("lever_arm_x", "lever_arm_y"):
@@ -221,7 +214,7 @@ def test_uav_preset_lever_arm_within_1_cm_with_the_trajectory_errors_modelled(se
 @pytest.mark.slow
 def test_same_direction_strips_warn_and_report_correlations():
     res = _simulate("airborne", "same", 0.3)
-    sol = calibrate(_strips(res), res.nominal).solution
+    sol = calibrate(res.calibration_strips(), res.nominal).solution
     assert any("boresight_pitch poorly determined: all overlapping strips are parallel and flown the same way" in w
                for w in sol.warnings)
     doc = sol.to_dict()

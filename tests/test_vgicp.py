@@ -186,7 +186,7 @@ def test_too_few_correspondences_is_refused():
 from calidar.strips.calibrate import StripSettings, calibrate  # noqa: E402
 from calidar.sim.survey import simulate_survey, survey_config  # noqa: E402
 from calidar.strips.trajectory_errors import TrajectoryModel  # noqa: E402
-from test_strips_sim import ANGLES, _check_angles, _simulate, _strips, uav_lever_arm_survey  # noqa: E402  (issue 4's surveys)
+from test_strips_sim import ANGLES, _check_angles, _simulate, uav_lever_arm_survey  # noqa: E402  (issue 4's surveys)
 
 VGICP = StripSettings(threshold_m=1e-3)  #: re-matching moves the mean distance by ~0.1 mm: stop at 1 mm
 
@@ -194,7 +194,7 @@ VGICP = StripSettings(threshold_m=1e-3)  #: re-matching moves the mean distance 
 @pytest.fixture(scope="module")
 def airborne():
     res = _simulate("airborne", "cross", 0.3)
-    return res, _strips(res)
+    return res, res.calibration_strips()
 
 
 def test_airborne_cross_lines_boresight(airborne):
@@ -241,7 +241,7 @@ def test_pairs_without_enough_overlap_are_skipped_by_name(airborne):
 @pytest.mark.slow
 def test_airborne_with_30_percent_vegetation():
     res = _simulate("airborne", "cross", 0.3, vegetation=0.3)
-    result = calibrate(_strips(res), res.nominal, method="vgicp", settings=VGICP)
+    result = calibrate(res.calibration_strips(), res.nominal, method="vgicp", settings=VGICP)
     _check_angles(result.solution, res.truth.parameters())
 
 
@@ -252,7 +252,7 @@ def test_uav_lever_arm():
     res = uav_lever_arm_survey()
     truth = res.truth.parameters()
     model = TrajectoryModel(block_s=2.0, position_sigma_m=0.005, correlation_s=20.0)
-    sol = calibrate(_strips(res), res.nominal, method="vgicp", estimate="lever_arm_x,lever_arm_y,trajectory_bias",
+    sol = calibrate(res.calibration_strips(), res.nominal, method="vgicp", estimate="lever_arm_x,lever_arm_y,trajectory_bias",
                     settings=replace(VGICP, trajectory=model)).solution
     for name in ("lever_arm_x", "lever_arm_y"):
         err = sol.values[name] - truth[name]

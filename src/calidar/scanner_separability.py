@@ -174,16 +174,13 @@ def strip_selfcal(preset: str = "uav", *, density: float = 0.3, height_agl_m: fl
     from calidar.sensor import Sensor
     from calidar.sim.survey import simulate_survey, survey_config
     from calidar.strips.calibrate import calibrate
-    from calidar.strips.strip import LocalFrame, Strip
 
     nominal = Sensor(lever_arm_x=0.05, lever_arm_z=0.12, scanner=PalmerScanner(eccentricity_ratio=1e-5))
     extra = dict(survey) if height_agl_m is None else {**survey, "height_agl_m": height_agl_m}
     cfg = survey_config(preset, seed=seed, directions="cross", density=density, nominal=nominal,
                         errors=dict(errors or SURVEY_ERRORS), **extra)
     res = simulate_survey(cfg)
-    frame = LocalFrame.at(np.concatenate([s.ecef[::50] for s in res.strips]))
-    strips = [Strip.from_ecef(s.line.number, s.ecef, s.gps_time, res.trajectory, res.nominal, frame)
-              for s in res.strips]
+    strips = res.calibration_strips()
     return res.truth.parameters(), {est: calibrate(strips, res.nominal, estimate=est, progress=progress)
                                     for est in estimates}
 

@@ -220,6 +220,17 @@ class SurveyResult:
                            "height_agl_m": c.height_agl_m, "crs": self.crs, "points": self.n_points},
         }
 
+    def calibration_strips(self) -> list:
+        """The delivered lines as :class:`calidar.strips.strip.Strip` (what the strip calibrator
+        takes; ids = point_source_id) in one local frame at the survey's centre, their scan
+        observations from the measured trajectory and the nominal sensor."""
+        from calidar.strips.strip import LocalFrame
+        from calidar.strips.strip import Strip as CalibrationStrip
+
+        frame = LocalFrame.at(np.concatenate([s.ecef[::50] for s in self.strips]))
+        return [CalibrationStrip.from_ecef(s.point_source_id, s.ecef, s.gps_time, self.trajectory, self.nominal, frame)
+                for s in self.strips]
+
     def las_points(self) -> list:
         """The strips as :class:`calidar.io.las.LasPoints` (what ``read_las`` of the written files
         gives, without the file's mm / 0.006° quantisation), for in-memory use."""
