@@ -299,7 +299,6 @@ class _Problem:
             out.append(d.ravel() if c.normal is None else np.einsum("ij,ij->i", d, c.normal))
         return np.concatenate(out)
 
-
     def _row_knots(self, k: int, side: int, f: StripCorrection, time: np.ndarray):
         """``f.knots(time)`` for side 0 (a) or 1 (b) of correspondence set k, computed once (fixed times)."""
         if (k, side) not in self._knots:

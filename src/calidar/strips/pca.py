@@ -1,13 +1,14 @@
 """Eigen-decomposition of many symmetric 3×3 matrices: the PCA of local point neighbourhoods
 (tie-plane patches, VGICP's local planes, the swath-difference cells).
 
-``np.linalg.eigh`` on a stack of 3×3 matrices pays LAPACK's per-matrix overhead (≈ 10 µs);
-here each matrix takes a closed form: the eigenvalues from the trigonometric solution of
-the characteristic cubic (Smith 1961, *Eigenvalues of a symmetric 3×3 matrix*, CACM 4(4)),
-the eigenvector of the eigenvalue farther from the middle one as the largest cross product
-of two rows of A − λI, and the other two from the exact 2×2 problem in the plane
-orthogonal to it (one Jacobi rotation), so nearly equal eigenvalues still get an
-orthonormal basis. Eigenvalues come from Rayleigh quotients of the final vectors.
+``np.linalg.eigh`` on a stack of 3×3 matrices pays LAPACK's per-matrix overhead (≈ 1 µs,
+over tens of thousands of cells per strip pair); here each matrix takes a closed form
+(≈ 0.2 µs): the eigenvalues from the trigonometric solution of the characteristic cubic
+(Smith 1961, *Eigenvalues of a symmetric 3×3 matrix*, CACM 4(4)), the eigenvector of the
+eigenvalue farther from the middle one as the largest cross product of two rows of A − λI,
+and the other two from the exact 2×2 problem in the plane orthogonal to it (one Jacobi
+rotation), so nearly equal eigenvalues still get an orthonormal basis. Eigenvalues come
+from Rayleigh quotients of the final vectors.
 """
 
 from __future__ import annotations
