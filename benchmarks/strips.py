@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-from calidar.cli.boresight import load_strips, trajectory_model
+from calidar.pipelines.boresight import load_strips, trajectory_model
 from calidar.io.trajectory import read_trajectory
 from calidar.report import Report
 from calidar.sensor import Sensor

@@ -25,7 +25,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from strips import ERRORS  # noqa: E402  (the benchmarks' boresight errors)
 
-from calidar.cli.boresight import trajectory_model  # noqa: E402
+from calidar.pipelines.boresight import trajectory_model  # noqa: E402
 from calidar.sim.survey import simulate_survey, survey_config  # noqa: E402
 from calidar.strips.calibrate import StripSettings, calibrate  # noqa: E402
 

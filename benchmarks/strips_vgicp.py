@@ -30,7 +30,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from strips import ERRORS, simulate  # noqa: E402  (the shared 8-strip survey)
 
-from calidar.cli.boresight import load_strips, trajectory_model  # noqa: E402
+from calidar.pipelines.boresight import load_strips, trajectory_model  # noqa: E402
 from calidar.io.trajectory import read_trajectory  # noqa: E402
 from calidar.sensor import Sensor  # noqa: E402
 from calidar.strips.calibrate import StripSettings, calibrate, truth_to_si  # noqa: E402

@@ -352,21 +352,3 @@ def write_outputs(a: ScannerAnalysis, out_dir: Path) -> dict:
     add_section(rep, a)
     rep.write(out_dir / "report.html")
     return summary
-
-
-def run_demo(report, out_dir: Path, seed: int) -> None:
-    """Add the Palmer structural-error analysis (published example, 500 m) and its separability
-    from the boresight (control-point adjustment with noise drawn from ``seed``) to ``report``;
-    writes the curves into ``out_dir/scanner_analysis``. Takes a few seconds.
-    """
-    from calidar import scanner_separability as ss
-
-    a = analyze("palmer", 500.0)
-    sub = Path(out_dir) / "scanner_analysis"
-    sub.mkdir(parents=True, exist_ok=True)
-    write_outputs(a, sub)
-    add_section(report, a, "Palmer scanner: structural errors at 500 m")
-    truth = {"boresight_roll": np.radians(0.05), "boresight_pitch": np.radians(-0.03), "boresight_yaw": np.radians(0.1),
-             "eccentricity_ratio": 2e-4, "eccentricity_phase": np.radians(30.0), "delta_l": np.radians(0.02),
-             "delta_r": np.radians(0.02)}
-    ss.add_section(report, ss.palmer_separability(), ss.control_adjustment(truth, n=2000, seed=seed), truth)

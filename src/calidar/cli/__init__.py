@@ -1,21 +1,32 @@
 """The ``calidar`` command (typer + rich).
 
-Each command lives in its own module under ``calidar.cli`` with a
-``register(app, simulate)`` function; ``COMMAND_MODULES`` lists them. Errors a user can fix
-(:class:`calidar.errors.CalidarError`, missing files) print one line and exit 1.
+Each command lives in its own module under ``calidar.cli`` as a module-level function over a
+pipeline (``calidar.pipelines``), added to the app by the module's ``register(app, simulate)``;
+``COMMAND_MODULES`` lists them. How a run ends:
+
+- errors a user can fix (:class:`calidar.errors.CalidarError`, missing files): one line, exit 1;
+- usage errors (unknown command or option, a value of the wrong type, a missing argument):
+  the usage line and the error, exit 2 — for click itself and for the click that newer typer
+  releases bundle (both are recognised by their class names);
+- Ctrl-C (SIGINT) and SIGTERM: one line "interrupted", exit 130 (143 for SIGTERM), after every
+  temporary file and folder of the run has been removed (outputs are transactions, see
+  :mod:`calidar.outputs`);
+- anything else is a bug: "internal error" and exit 2 (``CALIDAR_DEBUG=1`` shows the traceback).
 """
 
 from __future__ import annotations
 
 import importlib
 import os
+import signal
 import sys
 
 import typer
 
 from calidar import __version__
-from calidar.cli.common import err_console
+from calidar.cli.common import print_error
 from calidar.errors import CalidarError
+from calidar.outputs import shown_path
 
 COMMAND_MODULES: list[str] = [
     "info", "georef", "rangecal", "photon", "simulate_survey", "demo", "quality", "boresight", "scanner",
@@ -47,37 +58,55 @@ for _name in COMMAND_MODULES:
     importlib.import_module(f"calidar.cli.{_name}").register(app, simulate)
 
 
+class Interrupted(KeyboardInterrupt):
+    """SIGTERM (or SIGINT) turned into an exception, so that every ``finally`` cleans up."""
+
+    def __init__(self, signum: int):
+        super().__init__(signum)
+        self.signum = signum
+
+
+def _raise_interrupted(signum, frame):
+    raise Interrupted(signum)
+
+
+def _is(e: BaseException, *names: str) -> bool:
+    """Whether ``e`` is an instance of a class of one of these names (click's, or the click typer bundles)."""
+    return any(c.__name__ in names for c in type(e).__mro__)
+
+
 def run(argv: list[str] | None = None) -> int:
     """Run the CLI with ``argv``; return the exit code (used by ``main`` and the tests)."""
     try:
         # with standalone_mode=False click returns the code of a typer.Exit raised in a command
         code = app(args=argv, prog_name="calidar", standalone_mode=False)
-        if isinstance(code, int):
-            return code
+        return code if isinstance(code, int) else 0
     except CalidarError as e:
-        err_console.print(f"[bold red]error:[/] {e}", highlight=False, soft_wrap=True)
+        print_error(shown_path(str(e)))
         return 1
-    except (FileNotFoundError, IsADirectoryError, PermissionError) as e:
-        err_console.print(f"[bold red]error:[/] {e.filename}: {e.strerror}", highlight=False, soft_wrap=True)
+    except (FileNotFoundError, IsADirectoryError, NotADirectoryError, PermissionError) as e:
+        name = e.filename if e.filename is not None else ""
+        print_error(f"{shown_path(str(name))}: {e.strerror}")
         return 1
-    except typer.Exit as e:
-        return e.exit_code
-    except (typer.Abort, KeyboardInterrupt):
-        err_console.print("aborted")
-        return 130
-    except Exception as e:  # click usage errors and the like
-        import click
-
-        if isinstance(e, click.ClickException):
+    except KeyboardInterrupt as e:
+        signum = getattr(e, "signum", signal.SIGINT)
+        print_error("interrupted" + (" (SIGTERM)" if signum == signal.SIGTERM else ""), prefix="")
+        return 128 + int(signum)
+    except Exception as e:  # noqa: BLE001 - click's exceptions, then bugs
+        if _is(e, "Exit"):
+            return int(getattr(e, "exit_code", 0) or 0)
+        if _is(e, "Abort"):
+            print_error("interrupted", prefix="")
+            return 130
+        if _is(e, "ClickException") and hasattr(e, "show"):
             e.show()
-            return e.exit_code
+            return int(getattr(e, "exit_code", 2))
         if os.environ.get("CALIDAR_DEBUG"):
             raise
-        err_console.print(f"[bold red]internal error:[/] {type(e).__name__}: {e} (set CALIDAR_DEBUG=1 for the traceback)",
-                          highlight=False, soft_wrap=True)
+        print_error(f"internal error: {type(e).__name__}: {e} (set CALIDAR_DEBUG=1 for the traceback)", prefix="")
         return 2
-    return 0
 
 
 def main() -> None:
+    signal.signal(signal.SIGTERM, _raise_interrupted)
     sys.exit(run(sys.argv[1:]))

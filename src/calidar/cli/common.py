@@ -2,41 +2,28 @@
 
 from __future__ import annotations
 
-import json
 from contextlib import contextmanager
-from pathlib import Path
 
 from rich.console import Console
+from rich.markup import escape
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 
-from calidar.errors import InputError
+from calidar.validate import parse_floats, read_json  # noqa: F401 - the CLI's parsers
 
 console = Console()
 err_console = Console(stderr=True, soft_wrap=True)  # one error = one line, never wrapped
 
 
-def parse_floats(text: str, n: int, option: str) -> tuple[float, ...]:
-    """Parse 'a,b,c' into n floats, or raise a clear error naming the option."""
-    try:
-        vals = tuple(float(v) for v in text.split(","))
-    except ValueError:
-        vals = ()
-    if len(vals) != n:
-        raise InputError(None, option, f"expected {n} comma-separated numbers, got {text!r}")
-    return vals
+def print_error(message: str, prefix: str = "error: ") -> None:
+    """One line on stderr: ``prefix`` in bold red, then ``message`` as written (brackets in file
+    names and messages are not rich markup)."""
+    err_console.print(f"[bold red]{escape(prefix)}[/]{escape(message)}" if prefix else escape(message),
+                      highlight=False, soft_wrap=True)
 
 
-def read_json(path: Path) -> dict:
-    """A JSON object from ``path``, or a clear error naming the file (missing, not JSON, not an object)."""
-    try:
-        doc = json.loads(Path(path).read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise InputError(path, None, "file not found") from None
-    except json.JSONDecodeError as e:
-        raise InputError(path, f"line {e.lineno}", f"expected JSON: {e.msg}") from None
-    if not isinstance(doc, dict):
-        raise InputError(path, None, "expected a JSON object")
-    return doc
+def print_warning(message: str) -> None:
+    """One warning line on stderr (the message's brackets are kept)."""
+    err_console.print(f"[yellow]warning:[/] {escape(message)}", highlight=False, soft_wrap=True)
 
 
 @contextmanager
@@ -47,3 +34,31 @@ def progress_bar(transient: bool = True):
         TimeElapsedColumn(), TimeRemainingColumn(), console=err_console, transient=transient,
     ) as p:
         yield p
+
+
+_STATUS_STYLE = {"pass": "bold green", "warn": "bold yellow", "fail": "bold red"}
+
+
+def print_verdict(verdict, title: str | None = None) -> None:
+    """A verdict (:class:`calidar.verdict.Verdict`) on stdout: the status and summary, then each
+    finding with its numbers and, when not a pass, what to do."""
+    head = f"{escape(title)}: " if title else ""
+    console.print(f"[{_STATUS_STYLE[verdict.status]}]{verdict.status.upper()}[/] {head}{escape(verdict.summary)}",
+                  highlight=False)
+    for f in verdict.findings:
+        console.print(f"  [{_STATUS_STYLE[f.status]}]{f.status:4s}[/] {escape(f.check)}: {escape(f.detail)}",
+                      highlight=False)
+        if f.action:
+            console.print(f"       → {escape(f.action)}", highlight=False)
+
+
+def progress_callback(progress):
+    """A ``progress(description, done, total)`` function driving a rich progress bar."""
+    tasks: dict[str, int] = {}
+
+    def update(description: str, done: int, total: int) -> None:
+        if description not in tasks:
+            tasks[description] = progress.add_task(description, total=total)
+        progress.update(tasks[description], completed=done)
+
+    return update

@@ -8,47 +8,13 @@ from pathlib import Path
 import numpy as np
 import typer
 
-from calidar.cli.common import console, err_console, parse_floats, read_json
+from calidar.cli.common import console, parse_floats, print_warning
 from calidar.errors import InputError
+from calidar.pipelines.ccr import _existing, run_ccr
 from calidar.outputs import atomic_path, check_writable, prepare_out_dir
 
 BEAM = typer.Option("gt1l", "--beam", help="ATL03 beam (gt1l, gt1r, gt2l, gt2r, gt3l, gt3r).")
 FORCE = typer.Option(False, "--force", help="Overwrite existing outputs.")
-
-
-def _existing(path: Path) -> Path:
-    if not path.is_file():
-        raise FileNotFoundError(2, "No such file", str(path))
-    return path
-
-
-def run_ccr(files: list[Path], beam: str, ccr: Path, out: Path, *, system, settings, truth_path: Path | None,
-            force: bool, report=None):
-    """Read, calibrate, write solution.json (+ report.html unless a report is passed in). Returns the result."""
-    from calidar.io.atl03 import read_atl03
-    from calidar.photon.ccr import PARAMETERS, calibrate, prepare_pass, read_ccr_csv
-    from calidar.photon.report import add_section
-    from calidar.report import Report
-
-    survey = read_ccr_csv(_existing(ccr))
-    truth = None
-    if truth_path is not None:
-        doc = read_json(truth_path)
-        try:
-            truth = {k: float(doc[k]) for k in PARAMETERS}
-        except (KeyError, TypeError, ValueError):
-            raise InputError(truth_path, None, f"expected JSON with numbers {', '.join(PARAMETERS)}") from None
-    out = prepare_out_dir(out, force)
-    passes = [prepare_pass(read_atl03(_existing(f), beam), system, name=str(f)) for f in files]
-    result = calibrate(passes, survey, system, settings)
-    result.solution.write_json(out / "solution.json", truth)
-    own = report is None
-    if own:
-        report = Report("calidar: photon lidar CCR calibration")
-    add_section(report, result, truth)
-    if own:
-        report.write(out / "report.html")
-    return result
 
 
 def register(app: typer.Typer, simulate: typer.Typer) -> None:
@@ -114,7 +80,7 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
         for k in PARAMETERS:
             console.print(f"  {k:20s} {v[k]:8.3f} ± {s[k]:.3f} m", highlight=False)
         for w in result.warnings:
-            err_console.print(f"[yellow]warning:[/] {w}", highlight=False)
+            print_warning(w)
         console.print(f"wrote {out / 'solution.json'} and {out / 'report.html'}", highlight=False)
 
     @simulate.command("photons")

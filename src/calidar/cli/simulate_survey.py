@@ -7,19 +7,7 @@ from pathlib import Path
 import numpy as np
 import typer
 
-from calidar.cli.common import console, parse_floats, progress_bar
-
-
-def progress_callback(progress):
-    """A ``progress(description, done, total)`` function driving a rich progress bar."""
-    tasks: dict[str, int] = {}
-
-    def update(description: str, done: int, total: int) -> None:
-        if description not in tasks:
-            tasks[description] = progress.add_task(description, total=total)
-        progress.update(tasks[description], completed=done)
-
-    return update
+from calidar.cli.common import console, parse_floats, progress_bar, progress_callback
 
 
 def register(app: typer.Typer, simulate: typer.Typer) -> None:

@@ -2,16 +2,14 @@
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import numpy as np
 
 from calidar.report import Report
 from calidar.report.plots import plt
-from calidar.rangecal import RangeCalibration, calibrate, truth_parameters
+from calidar.rangecal import RangeCalibration, truth_parameters
 from calidar.rangecal.fit import target_distances
-from calidar.outputs import prepare_out_dir, write_text_atomic
 
 MM = 1e3  #: m → mm for display
 
@@ -119,18 +117,3 @@ def add_section(report: Report, result: RangeCalibration, truth: dict | None = N
     sec.figure(residual_figure(result), "Residuals (model − scanner range) per observation and against distance; "
                "bars ±2σ of each observation equation.")
     sec.figure(group_figure(result), "Per group: scanner range − S_PX of each feature point, ΔS_i and ΔS.")
-
-
-def run_demo(report: Report, out_dir: Path, seed: int) -> None:
-    """Demo step: simulate observations (one gross error), calibrate, write
-    ``out_dir/range_cal/{observations.csv,truth.json,solution.json}`` and add the report section."""
-    from calidar.io.total_station import read_observations, write_observations
-    from calidar.sim.total_station import TotalStationSimConfig, simulate_total_station
-
-    folder = prepare_out_dir(Path(out_dir) / "range_cal", force=True)
-    obs, truth = simulate_total_station(seed, TotalStationSimConfig(outliers=1))
-    path = write_observations(folder / "observations.csv", obs, "gon", "zd", force=True)
-    write_text_atomic(folder / "truth.json", json.dumps(truth, indent=2) + "\n")
-    result = calibrate(read_observations(path), tolerance_m=0.02)
-    result.solution.write_json(folder / "solution.json", truth_parameters(truth))
-    add_section(report, result, truth, title="Range calibration against a total station (simulated)")

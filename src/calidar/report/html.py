@@ -29,6 +29,11 @@ table{border-collapse:collapse;margin:1em 0;font-size:.92em} th,td{border:1px so
 th{background:#eef2f8} td.l,th.l{text-align:left} .warn{background:#fff4e0;border-left:4px solid #e90;padding:.5em 1em;margin:.5em 0}
 .ok{color:#070} .bad{color:#b00} figure{margin:1em 0} figcaption{font-size:.9em;color:#555} img{max-width:100%}
 nav ul{columns:2} .meta{color:#666;font-size:.9em}
+.verdict{border:2px solid #888;border-radius:6px;padding:.6em 1em;margin:1em 0}
+.verdict h3{margin:.1em 0 .4em 0} .verdict ul{margin:.2em 0;padding-left:1.2em} .verdict li{margin:.25em 0}
+.v-pass{border-color:#2a7;background:#effaf3} .v-warn{border-color:#e90;background:#fff8ec} .v-fail{border-color:#c33;background:#fdeeee}
+.tag{display:inline-block;min-width:3.2em;text-align:center;font-weight:600;border-radius:3px;padding:0 .3em;margin-right:.4em;color:#fff}
+.t-pass{background:#2a7} .t-warn{background:#d80} .t-fail{background:#c33} .action{color:#333;font-style:italic}
 """
 
 
@@ -117,12 +122,43 @@ class Section:
         return f'<section id="{anchor}"><h2>{html.escape(self.title)}</h2>\n' + "\n".join(self.blocks) + "</section>"
 
 
+def verdict_html(verdict, title: str | None = None) -> str:
+    """A verdict box: the status and summary, then every finding with its numbers and what to do."""
+    items = "".join(
+        f'<li><span class="tag t-{f.status}">{f.status.upper()}</span><b>{html.escape(f.check)}</b>: '
+        f"{html.escape(f.detail)}" + (f'<br><span class="action">→ {html.escape(f.action)}</span>' if f.action else "")
+        + "</li>" for f in verdict.findings)
+    head = f"{html.escape(title)}: " if title else ""
+    return (f'<div class="verdict v-{verdict.status}"><h3><span class="tag t-{verdict.status}">'
+            f"{verdict.status.upper()}</span>{head}{html.escape(verdict.summary)}</h3><ul>{items}</ul></div>")
+
+
+def record_html(record) -> str:
+    """How a result was made: version, command line, inputs with size and sha256, options, times."""
+    d = record.to_dict()
+    rows = "".join(f"<tr><td class=\"l\">{html.escape(i['path'])}</td><td>{i['size_bytes']:,}</td>"
+                   f"<td class=\"l\"><code>{i['sha256']}</code></td></tr>" for i in d["inputs"])
+    opts = ", ".join(f"{k} = {v}" for k, v in d["options"].items())
+    return (f"<p>calidar {html.escape(d['calidar_version'])} (Python {html.escape(d['python'])}), started "
+            f"{html.escape(d['started_utc'])}, finished {html.escape(str(d['finished_utc']))}.</p>"
+            f"<p>Command: <code>{html.escape(' '.join(d['argv']))}</code></p>"
+            + (f"<p>Options: {html.escape(opts)}</p>" if opts else "")
+            + (f"<table><thead><tr><th class=\"l\">input</th><th>bytes</th><th class=\"l\">sha256</th></tr></thead>"
+               f"<tbody>{rows}</tbody></table>" if rows else ""))
+
+
 @dataclass
 class Report:
-    """A report made of sections."""
+    """A report made of sections, with the verdicts at the top and the run record at the end."""
 
     title: str = "calidar report"
     sections: list[Section] = field(default_factory=list)
+    verdicts: list[tuple[str | None, object]] = field(default_factory=list)  #: (title, calidar.verdict.Verdict)
+    record: object | None = None  #: calidar.provenance.RunRecord
+
+    def add_verdict(self, verdict, title: str | None = None) -> None:
+        """Show ``verdict`` at the top of the page (several: one box each, in order)."""
+        self.verdicts.append((title, verdict))
 
     def section(self, title: str) -> Section:
         """Start a new section and return it."""
@@ -134,10 +170,14 @@ class Report:
         stamp = datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
         nav = "".join(f'<li><a href="#s{i}">{html.escape(s.title)}</a></li>' for i, s in enumerate(self.sections))
         body = "\n".join(s.html(f"s{i}") for i, s in enumerate(self.sections))
+        verdicts = "".join(verdict_html(v, t) for t, v in self.verdicts)
+        record = (f'<section id="run"><h2>How this was made</h2>{record_html(self.record)}</section>'
+                  if self.record is not None else "")
         return (
             f'<!DOCTYPE html>\n<html lang="en"><head><meta charset="utf-8"><title>{html.escape(self.title)}</title>'
             f"<style>{_CSS}</style></head><body><h1>{html.escape(self.title)}</h1>"
-            f'<p class="meta">calidar {__version__} · {stamp}</p><nav><ul>{nav}</ul></nav>\n{body}\n</body></html>\n'
+            f'<p class="meta">calidar {__version__} · {stamp}</p>{verdicts}<nav><ul>{nav}</ul></nav>\n{body}\n'
+            f"{record}</body></html>\n"
         )
 
     def write(self, path: str | Path, force: bool = True) -> Path:

@@ -174,12 +174,12 @@ def test_bad_truth_file(simulated, tmp_path, cli):
 def test_demo_step(tmp_path):
     import time
 
-    from calidar.rangecal.report import run_demo
+    from calidar.demo.rangecal import range_calibration_step
     from calidar.report import Report
 
     report = Report("demo")
     t0 = time.perf_counter()
-    run_demo(report, tmp_path, seed=5)
+    range_calibration_step(report, tmp_path, seed=5)
     assert time.perf_counter() - t0 < 10.0
     assert [s.title for s in report.sections] == ["Range calibration against a total station (simulated)"]
     doc = json.loads((tmp_path / "range_cal" / "solution.json").read_text())

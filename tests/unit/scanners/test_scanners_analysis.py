@@ -131,7 +131,9 @@ def test_cli_bad_input(cli, tmp_path, args, message):
 
 
 def test_run_demo_writes_its_section(tmp_path):
+    from calidar.demo.scanner import scanner_analysis_step
+
     rep = Report("demo")
-    sa.run_demo(rep, tmp_path, seed=0)
+    scanner_analysis_step(rep, tmp_path, seed=0)
     assert len(rep.sections) >= 1 and "258.8" in rep.html()
     assert (tmp_path / "scanner_analysis" / "summary.json").exists()

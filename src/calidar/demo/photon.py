@@ -7,10 +7,10 @@ from pathlib import Path
 from calidar.photon.ccr import SearchSettings, SystemParameters
 
 
-def run_demo(report, out_dir: Path, seed: int) -> None:
+def photon_step(report, out_dir: Path, seed: int, progress=None) -> None:
     """Simulate a pass over 8 CCRs into ``out_dir/photon``, calibrate, add the report section."""
-    from calidar.cli.photon import run_ccr
     from calidar.outputs import prepare_out_dir
+    from calidar.pipelines.ccr import run_ccr
     from calidar.sim.photons import PhotonSimConfig, simulate_pass, write_pass
 
     sim_dir = prepare_out_dir(Path(out_dir) / "photon" / "sim", force=True)

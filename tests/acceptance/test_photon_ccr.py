@@ -186,11 +186,11 @@ def test_ccr_csv_round_trip(tmp_path):
 
 
 def test_demo_step_adds_a_report_section(tmp_path):
-    from calidar.photon.demo import run_demo
+    from calidar.demo.photon import photon_step
     from calidar.report import Report
 
     report = Report()
-    run_demo(report, tmp_path, seed=2)
+    photon_step(report, tmp_path, seed=2)
     assert [s.title for s in report.sections] == ["Photon lidar: CCR geolocation calibration"]
     doc = json.loads((tmp_path / "photon" / "ccr" / "solution.json").read_text())
     assert abs(doc["parameters"]["along_track_bias"]["error"]) < 0.5

@@ -229,13 +229,13 @@ def test_same_direction_strips_warn_and_report_correlations():
 
 @pytest.mark.slow
 def test_demo_step_adds_the_strip_section(tmp_path):
-    from calidar.demo import simulation_step
+    from calidar.demo.boresight import boresight_step
+    from calidar.demo.survey import simulation_step
     from calidar.report import Report
-    from calidar.strips.report import run_demo
 
     report = Report("demo")
     simulation_step(report, tmp_path, 0)
-    run_demo(report, tmp_path, 0)
+    boresight_step(report, tmp_path, 0)
     sec = report.sections[-1]
     assert sec.title == "Boresight and lever arm from tie planes (calidar boresight)"
     html = sec.html("s1")

@@ -59,11 +59,11 @@ def test_refuses_non_empty_folder_without_force(cli, tmp_path):
     (["--density", "0"], "density: expected a number > 0"),
     (["--density", "-2"], "density: expected a number > 0"),
     (["--directions", "sideways"], "directions: expected one of same, opposite, cross"),
-    (["--boresight-error", "0.1,0.2"], "--boresight-error: expected 3 comma-separated numbers"),
-    (["--lever-arm-error", "a,b,c"], "--lever-arm-error: expected 3 comma-separated numbers"),
+    (["--boresight-error", "0.1,0.2"], "--boresight-error: expected 3 comma-separated finite numbers"),
+    (["--lever-arm-error", "a,b,c"], "--lever-arm-error: expected 3 comma-separated finite numbers"),
     (["--range-noise", "-0.01"], "range_noise_m: expected a noise level >= 0"),
     (["--vegetation", "1.5"], "vegetation: expected a fraction of the area in [0, 0.8]"),
-    (["--strip-errors", "0.1,0,0"], "--strip-errors: expected 4 comma-separated numbers"),
+    (["--strip-errors", "0.1,0,0"], "--strip-errors: expected 4 comma-separated finite numbers"),
     (["--strip-errors", "0.1,0,-1,0"], "strip_errors: expected 4 σ values >= 0"),
 ])
 def test_bad_inputs_are_clear_errors(cli, tmp_path, args, message):
@@ -93,9 +93,10 @@ def test_impossible_flight_plans_are_clear_errors():
 
 def test_demo_writes_report_and_survey(cli, tmp_path, monkeypatch):
     import calidar.demo as demo
+    import calidar.demo.survey as demo_survey
     from calidar.sim.survey import survey_config
 
-    monkeypatch.setattr(demo, "demo_config", lambda seed: survey_config("uav", seed=seed, density=0.1, directions="cross"))
+    monkeypatch.setattr(demo_survey, "demo_config", lambda seed: survey_config("uav", seed=seed, density=0.1, directions="cross"))
     code, out, err = cli("demo", "--out", tmp_path)
     assert code == 0, err
     html = (tmp_path / "report.html").read_text()

@@ -9,7 +9,7 @@ from calidar import frames, georef
 from calidar.sensor import Sensor
 from calidar.trajectory import Trajectory
 
-DOC = Path(__file__).resolve().parents[1] / "docs" / "conventions.md"
+DOC = Path(__file__).resolve().parents[3] / "docs" / "conventions.md"
 
 
 def _documented() -> dict[str, np.ndarray]:

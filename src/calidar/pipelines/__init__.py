@@ -1,0 +1,25 @@
+"""One pipeline per method: load the inputs, run the method, write the outputs.
+
+The CLI (``calidar.cli``), the demo (``calidar.demo``) and the benchmarks call these and nothing
+below them for a whole run, so that a command, its demo step and its benchmark do the same
+thing. A pipeline takes plain values (paths, settings dataclasses), writes into the folder it
+is given (the CLI hands it the temporary folder of an output transaction, see
+:func:`calidar.outputs.output_folder`), reports progress through an optional
+``progress(description, done, total)`` callable and returns its result; it never prints.
+
+Layers, top to bottom (an import may only point down): ``cli`` → ``demo`` → ``pipelines`` →
+methods (``strips``, ``photon``, ``rangecal``, ``scanners``, ``sim``) → core (``georef``,
+``sensor``, ``trajectory``, ``frames``, ``adjust``, ``report``) → ``io`` → ``errors``,
+``validate``, ``outputs``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+#: progress(description, done, total): what a long step reports as it goes
+Progress = Callable[[str, int, int], None]
+
+
+def no_progress(description: str, done: int, total: int) -> None:
+    """The default ``progress``: report nothing."""

@@ -1,0 +1,118 @@
+"""Checks at the edges: every number read from a file or an option is finite and within its
+physical range, or a clear :class:`~calidar.errors.InputError` names the file (or option), the
+field and the expected range.
+
+>>> number(5.0, "--cell", 0.01, 1000.0, "m")
+5.0
+>>> number(float("nan"), "--cell", 0.01, 1000.0, "m")
+Traceback (most recent call last):
+...
+calidar.errors.InputError: --cell: expected a finite number in [0.01, 1000] m, got nan
+>>> values(np.array([1.0, 2.0, np.inf]), "sbet.out", "height", -1000.0, 20000.0, "m")
+Traceback (most recent call last):
+...
+calidar.errors.InputError: sbet.out: height: expected finite values in [-1000, 20000] m, got inf (1 of 3 values, first at record 2)
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from pathlib import Path
+
+import numpy as np
+
+from calidar.errors import InputError
+
+
+def _range_text(lo: float | None, hi: float | None, unit: str, open_lo: bool = False) -> str:
+    u = f" {unit}" if unit else ""
+    if lo is not None and hi is not None:
+        return f"in {'(' if open_lo else '['}{lo:g}, {hi:g}]{u}"
+    if lo is not None:
+        return f"{'>' if open_lo else '≥'} {lo:g}{u}"
+    if hi is not None:
+        return f"≤ {hi:g}{u}"
+    return ""
+
+
+def number(value, where: str | os.PathLike | None, lo: float | None = None, hi: float | None = None,
+           unit: str = "", field: str | None = None, open_lo: bool = False) -> float:
+    """``value`` as a float when finite and within [lo, hi] (``open_lo``: lo excluded), else an
+    error naming ``where`` (an option such as "--cell", or a file with ``field``)."""
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        v = math.nan
+    bad = not math.isfinite(v) or (lo is not None and (v <= lo if open_lo else v < lo)) or (hi is not None and v > hi)
+    if bad:
+        expected = f"a finite number {_range_text(lo, hi, unit, open_lo)}".rstrip()
+        raise InputError(where, field, f"expected {expected}, got {value}")
+    return v
+
+
+def positive(value, where, unit: str = "", field: str | None = None, hi: float | None = None) -> float:
+    """A finite number > 0 (and ≤ ``hi``)."""
+    return number(value, where, 0.0, hi, unit, field, open_lo=True)
+
+
+def values(array, source: str | os.PathLike | None, field: str, lo: float | None = None, hi: float | None = None,
+           unit: str = "", what: str = "record") -> np.ndarray:
+    """``array`` unchanged when every value is finite and within [lo, hi]; else an error naming
+    the file, the field, the expected range, the first bad value, how many and where."""
+    a = np.asarray(array, dtype=float)
+    bad = ~np.isfinite(a)
+    if lo is not None:
+        bad |= a < lo
+    if hi is not None:
+        bad |= a > hi
+    if bad.any():
+        flat = bad.ravel()
+        first = int(np.argmax(flat))
+        expected = f"finite values {_range_text(lo, hi, unit)}".rstrip()
+        raise InputError(source, field, f"expected {expected}, got {a.ravel()[first]:g} "
+                         f"({int(flat.sum())} of {flat.size} values, first at {what} {first})")
+    return a
+
+
+def existing_file(path: str | os.PathLike, what: str = "file") -> Path:
+    """``path`` when it is a file, else a clear error naming it."""
+    path = Path(path)
+    if not path.exists():
+        raise InputError(path, None, f"{what} not found")
+    if path.is_dir():
+        raise InputError(path, None, f"is a folder; expected a {what}")
+    return path
+
+
+def read_text(path: str | os.PathLike, what: str = "text file") -> str:
+    """A file's text as UTF-8, or a clear error (missing, a folder, not UTF-8 — with the byte offset)."""
+    path = existing_file(path, what)
+    try:
+        return path.read_text(encoding="utf-8-sig")
+    except UnicodeDecodeError as e:
+        raise InputError(path, "encoding", f"expected UTF-8 text, got byte 0x{e.object[e.start]:02x} "
+                         f"at offset {e.start}") from None
+
+
+def parse_floats(text: str, n: int, option: str) -> tuple[float, ...]:
+    """Parse 'a,b,c' into n floats, or raise a clear error naming the option."""
+    try:
+        vals = tuple(float(v) for v in text.split(","))
+    except ValueError:
+        vals = ()
+    if len(vals) != n or not all(math.isfinite(v) for v in vals):
+        raise InputError(None, option, f"expected {n} comma-separated finite numbers, got {text!r}")
+    return vals
+
+
+def read_json(path: Path) -> dict:
+    """A JSON object from ``path``, or a clear error naming the file (missing, not JSON, not an object)."""
+    try:
+        doc = json.loads(read_text(path, "JSON file"))
+    except json.JSONDecodeError as e:
+        raise InputError(path, f"line {e.lineno}", f"expected JSON: {e.msg}") from None
+    if not isinstance(doc, dict):
+        raise InputError(path, None, "expected a JSON object")
+    return doc

@@ -1,0 +1,149 @@
+"""The house rules of docs/architecture.md, checked on the source: layers run one way, no
+import circles, small functions and modules."""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+SRC = ROOT / "src" / "calidar"
+MAX_FUNCTION_LINES = 80
+MAX_MODULE_LINES = 400
+
+#: Known breaches still being mended (each entry names its issue); the lists only shrink.
+FUNCTION_ALLOWANCE: set[str] = {  # issue 20
+    "calidar.adjust.solver:solve", "calidar.cli.photon:register", "calidar.io.total_station:_parse_rows",
+    "calidar.photon.ccr:calibrate", "calidar.photon.report:add_section", "calidar.strips.calibrate:_calibrate",
+}
+MODULE_ALLOWANCE: set[str] = {"calidar.photon.ccr", "calidar.strips.calibrate"}  # issue 20
+CLI_IMPORT_ALLOWANCE: set[str] = set()
+
+
+def _modules() -> dict[str, Path]:
+    out = {}
+    for path in sorted(SRC.rglob("*.py")):
+        parts = list(path.relative_to(SRC.parent).with_suffix("").parts)
+        if parts[-1] == "__init__":
+            parts = parts[:-1]
+        out[".".join(parts)] = path
+    return out
+
+
+def _imports(name: str, path: Path) -> set[str]:
+    """Every calidar module ``name`` imports, at module level or inside functions."""
+    tree = ast.parse(path.read_text(encoding="utf-8"))
+    package = name if path.name == "__init__.py" else name.rsplit(".", 1)[0]
+    found = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            found |= {a.name for a in node.names}
+        elif isinstance(node, ast.ImportFrom):
+            base = node.module or ""
+            if node.level:
+                base = ".".join(package.split(".")[: len(package.split(".")) - node.level + 1] + ([base] if base else []))
+            found.add(base)
+            found |= {f"{base}.{a.name}" for a in node.names}
+    return {m for m in found if m == "calidar" or m.startswith("calidar.")}
+
+
+def _graph() -> dict[str, set[str]]:
+    mods = _modules()
+    graph = {}
+    for name, path in mods.items():
+        deps = set()
+        for m in _imports(name, path):
+            while m not in mods and "." in m:  # `from calidar.x import name` names a module or an attribute
+                m = m.rsplit(".", 1)[0]
+            if m in mods and m != name:
+                deps.add(m)
+        graph[name] = deps
+    return graph
+
+
+def test_the_library_never_imports_the_cli():
+    graph = _graph()
+    up = {m for m, deps in graph.items() if not m.startswith("calidar.cli") and m != "calidar.__main__"
+          and any(d.startswith("calidar.cli") for d in deps)}
+    assert up <= CLI_IMPORT_ALLOWANCE, f"library modules importing calidar.cli: {sorted(up - CLI_IMPORT_ALLOWANCE)}"
+    bench = [p.name for p in (ROOT / "benchmarks").glob("*.py") if "calidar.cli" in p.read_text(encoding="utf-8")
+             and "calidar.cli" not in CLI_IMPORT_ALLOWANCE]
+    assert not bench, f"benchmarks importing calidar.cli (call the pipelines instead): {bench}"
+
+
+def _cycles(graph: dict[str, set[str]]) -> list[list[str]]:
+    """Strongly connected components with more than one module (Tarjan)."""
+    index, low, stack, on, out, counter = {}, {}, [], set(), [], [0]
+
+    def visit(v):
+        index[v] = low[v] = counter[0]
+        counter[0] += 1
+        stack.append(v)
+        on.add(v)
+        for w in graph.get(v, ()):
+            # a package's __init__ re-exporting its modules is not a circle of design
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            comp = []
+            while True:
+                w = stack.pop()
+                on.discard(w)
+                comp.append(w)
+                if w == v:
+                    break
+            if len(comp) > 1:
+                out.append(sorted(comp))
+
+    for v in graph:
+        if v not in index:
+            visit(v)
+    return out
+
+
+def test_no_import_circles():
+    graph = _graph()
+    # a package's face (__init__) may re-export what its modules define: drop edges into a package's own face
+    for m, deps in graph.items():
+        graph[m] = {d for d in deps if not m.startswith(d + ".")}
+    assert _cycles(graph) == []
+
+
+def _long_functions() -> list[tuple[str, int]]:
+    out = []
+    for name, path in _modules().items():
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                n = node.end_lineno - node.lineno + 1
+                if n > MAX_FUNCTION_LINES:
+                    out.append((f"{name}:{node.name}", n))
+    return out
+
+
+def test_functions_are_short():
+    long = [(f, n) for f, n in _long_functions() if f not in FUNCTION_ALLOWANCE]
+    assert not long, f"functions over {MAX_FUNCTION_LINES} lines: {long}"
+
+
+def test_modules_are_small():
+    big = [(m, n) for m, p in _modules().items()
+           if (n := len(p.read_text(encoding="utf-8").splitlines())) > MAX_MODULE_LINES and m not in MODULE_ALLOWANCE]
+    assert not big, f"modules over {MAX_MODULE_LINES} lines: {big}"
+
+
+@pytest.mark.parametrize("allowance", ["FUNCTION_ALLOWANCE", "MODULE_ALLOWANCE", "CLI_IMPORT_ALLOWANCE"])
+def test_allowances_name_only_what_still_breaks(allowance):
+    """An allowance entry that no longer breaks the rule must be removed (the lists only shrink)."""
+    allowed = globals()[allowance]
+    if allowance == "FUNCTION_ALLOWANCE":
+        breaking = {f for f, _ in _long_functions()}
+    elif allowance == "MODULE_ALLOWANCE":
+        breaking = {m for m, p in _modules().items() if len(p.read_text(encoding="utf-8").splitlines()) > MAX_MODULE_LINES}
+    else:
+        breaking = {m for m, deps in _graph().items() if any(d.startswith("calidar.cli") for d in deps)}
+    assert allowed <= breaking, f"{allowance} names modules that now keep the rule: {sorted(allowed - breaking)}"
