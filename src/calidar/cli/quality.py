@@ -5,54 +5,11 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-import numpy as np
 import typer
 
 from calidar.cli.common import console
 from calidar.errors import InputError
-
-
-def line_coordinates(points) -> np.ndarray:
-    """Metric coordinates (N, 3) with z up: the file's projected CRS, or local ENU for geographic CRSs."""
-    if points.crs is not None and points.crs.is_geographic:
-        from calidar.georef import from_crs
-        from calidar.strips.strip import LocalFrame
-
-        ecef = from_crs(points.xyz, points.crs)
-        return LocalFrame.at(ecef).to_local(ecef)
-    return points.xyz
-
-
-def usable(points) -> np.ndarray:
-    """Mask of points fit for the swath difference: no vegetation/noise/water classes, last returns."""
-    from calidar.strips.quality import EXCLUDED_CLASSES
-
-    keep = np.ones(len(points), bool)
-    if points.classification is not None:
-        keep &= ~np.isin(points.classification, EXCLUDED_CLASSES)
-    if points.return_number is not None and points.number_of_returns is not None:
-        keep &= points.return_number >= points.number_of_returns
-    return keep
-
-
-def measure(paths, cell_m=None):
-    """Flight lines of the files and the PairQuality of every overlapping pair."""
-    from calidar.strips.lines import read_flight_lines
-    from calidar.strips.overlap import find_overlaps
-    from calidar.strips.quality import QualitySettings, swath_difference
-
-    lines, how = read_flight_lines(paths)
-    if len(lines) < 2:
-        raise InputError(paths[0], "point_source_id",
-                         f"found one flight line ({how}); expected at least two overlapping lines")
-    coords = {i: line_coordinates(p)[usable(p)] for i, p in lines.items()}
-    pairs, notes = find_overlaps(coords)
-    if not pairs:
-        raise InputError(None, "STRIPS", f"none of the {len(lines)} flight lines ({', '.join(map(str, lines))}) "
-                         "overlap another; nothing to compare")
-    settings = QualitySettings(cell_m=cell_m)
-    results = [swath_difference(o.a, coords[o.a][o.index_a], o.b, coords[o.b][o.index_b], settings) for o in pairs]
-    return lines, how, results, notes
+from calidar.pipelines.quality import measure
 
 
 def register(app: typer.Typer, simulate: typer.Typer) -> None:
