@@ -131,6 +131,19 @@ def check_coverage(path: Path, traj: Trajectory) -> int | None:
     return week
 
 
+def forward_trajectory(new: Trajectory | None, traj: Trajectory, path: Path, source) -> Trajectory | None:
+    """``calidar regeoref --to-trajectory``'s trajectory for the LAS ``path`` (None: none given),
+    in the time system of ``traj`` and covering the file (clear errors otherwise)."""
+    if new is None:
+        return None
+    new = matching_trajectory(new, las_time_system(path))
+    if new.time_system != traj.time_system:
+        raise InputError(source, "time", f"holds {new.time_system}, --trajectory holds {traj.time_system}; "
+                         "expected the same time system")
+    check_coverage(path, new)
+    return new
+
+
 def register(app: typer.Typer, simulate: typer.Typer) -> None:
     @app.command()
     def inverse(
@@ -178,14 +191,18 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
         crs: str = typer.Option(None, "--crs", help="CRS of the strips, overriding (or supplying) the files'."),
         trajectory_crs: str = TRAJ_CRS, trajectory_angles: str = TRAJ_ANGLES, trajectory_heading: str = TRAJ_HEADING,
         force: bool = typer.Option(False, "--force", help="Write into a non-empty output folder, overwriting."),
+        to_trajectory: Path = typer.Option(None, "--to-trajectory", help="Forward with this trajectory instead "
+                                           "(e.g. the sbet_corrected.out of calidar boresight)."),
     ) -> None:
-        """Re-georeference delivered strips with a new sensor model.
+        """Re-georeference delivered strips with a new sensor model (and trajectory).
 
-        Inverse georeferencing with --from, forward with --to, streamed in chunks; every other
-        point attribute is kept, and the outputs keep the inputs' names, formats and CRS.
+        Inverse georeferencing with --trajectory and --from, forward with --to-trajectory (default
+        --trajectory) and --to, streamed in chunks; every other point attribute is kept, and the
+        outputs keep the inputs' names, formats and CRS.
         """
         old_s, new_s = Sensor.read(old), Sensor.read(new)
         traj0 = load_trajectory(trajectory, trajectory_crs, trajectory_angles, trajectory_heading)
+        new0 = to_trajectory and load_trajectory(to_trajectory, trajectory_crs, trajectory_angles, trajectory_heading)
         names = [s.name for s in strips]
         if len(set(names)) != len(names):
             raise InputError(None, "STRIPS", f"expected distinct file names (outputs share the folder), got {names}")
@@ -193,16 +210,16 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
         for s in strips:
             if s.resolve().parent == out.resolve():
                 raise InputError(s, None, "is inside --out; choose another output folder (inputs are never modified)")
-            check_not_input(out / s.name, [*strips, trajectory, old, new])
+            check_not_input(out / s.name, [*strips, trajectory, old, new, to_trajectory])
             traj = matching_trajectory(traj0, las_time_system(s))
             check_crs(s, crs)
-            plans.append((s, traj, check_coverage(s, traj)))
+            plans.append((s, traj, forward_trajectory(new0, traj, s, to_trajectory), check_coverage(s, traj)))
         out_dir = prepare_out_dir(out, force)
-        for s, traj, week in plans:
+        for s, traj, new_traj, week in plans:
 
-            def moved(points: LasPoints, traj=traj, week=week) -> np.ndarray:
+            def moved(points: LasPoints, traj=traj, new_traj=new_traj, week=week) -> np.ndarray:
                 t = point_times(points, traj, week)
-                p = georef.regeoreference(traj, old_s, new_s, t, points_ecef(points))
+                p = georef.regeoreference(traj, old_s, new_s, t, points_ecef(points), new_traj)
                 return georef.to_crs(p, points.crs)
 
             n = rewrite_las_xyz(s, out_dir / s.name, moved, crs=crs, chunk_points=CHUNK_POINTS, force=force)
