@@ -223,7 +223,7 @@ def _week_crossing(tmp_path, n=5000):
 
 
 def test_week_boundary_between_chunks_is_caught(tmp_path, cli, monkeypatch):
-    monkeypatch.setattr("calidar.cli.georef.CHUNK_POINTS", 1000)
+    monkeypatch.setattr("calidar.pipelines.inputs.CHUNK_POINTS", 1000)
     las, sbet = _week_crossing(tmp_path)
     code, _, err = cli("inverse", las, "-t", sbet, "--out", tmp_path / "v.csv")
     _one_line_error(code, err, "crossing.las: gps_time:", "span GPS weeks 2300–2301")
@@ -247,7 +247,7 @@ def _stretched(las, path, factor):
 def test_outside_trajectory_counted_over_the_whole_file(tmp_path, cli, monkeypatch, command):
     """Points before and after the trajectory in several chunks: one error with whole-file counts
     and time ranges, and nothing written."""
-    monkeypatch.setattr("calidar.cli.georef.CHUNK_POINTS", 1000)
+    monkeypatch.setattr("calidar.pipelines.inputs.CHUNK_POINTS", 1000)
     _, las, sbet, _ = _survey(tmp_path, Sensor())  # times T0+0.5 … T0+9.5, trajectory T0 … T0+10
     wide = _stretched(las, tmp_path / "wide.las", 2.5)  # T0−6.25 … T0+16.25
     t = read_las(wide).gps_time
@@ -296,7 +296,7 @@ def test_inputs_never_modified_and_force(tmp_path, cli):
         code, _, err = cli("inverse", las, "-t", sbet, "--sensor", old, "--out", target, "--force")
         _one_line_error(code, err, "is an input of this command")
     _one_line_error(*cli("regeoref", las, "-t", sbet, "--from", old, "--to", new, "--out", tmp_path, "--force")[::2],
-                    "pts.las: is inside --out")
+                    "holds the input", "pts.las")
     # a failing run with --force keeps the previous output
     late = _stretched(las, tmp_path / "late.las", 3.0)
     _one_line_error(*cli("inverse", late, "-t", sbet, "--out", csv, "--force")[::2], "outside the trajectory")
@@ -330,7 +330,7 @@ def test_bad_inputs_through_every_command(tmp_path, cli):
     (tmp_path / "cut.laz").write_bytes((tmp_path / "full.laz").read_bytes()[:-1000])
     cases = [
         (las, tmp_path / "short.out", "short.out: size: expected a multiple of 136 bytes"),
-        (las, tmp_path / "nan.out", "nan.out: time: expected finite times"),
+        (las, tmp_path / "nan.out", "nan.out: time: expected finite values in [0, 1209600] s of week, got nan"),
         (las, tmp_path / "unsorted.out", "unsorted.out: time: expected strictly increasing times"),
         (tmp_path / "fmt0.las", sbet, "fmt0.las: point_format: point format 0 has no GPS time"),
         (tmp_path / "fmt2.las", sbet, "fmt2.las: point_format: point format 2 has no GPS time"),
