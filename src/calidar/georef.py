@@ -266,7 +266,9 @@ def _cached_transformer(src: pyproj.CRS, dst: pyproj.CRS) -> pyproj.Transformer:
 
 def _missing_grids(src: pyproj.CRS, dst: pyproj.CRS) -> list[str]:
     """Names (and download addresses) of the PROJ grids the best transformation needs and lacks."""
-    group = pyproj.transformer.TransformerGroup(src, dst, always_xy=True)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)
+        group = pyproj.transformer.TransformerGroup(src, dst, always_xy=True)
     names = []
     for op in group.unavailable_operations:
         for g in op.grids:

@@ -5,21 +5,8 @@ true = (measured − range_offset) / (1 + range_scale).
 Boresight R_bs = Rz(yaw) · Ry(pitch) · Rx(roll) rotates scanner-frame vectors into the body
 frame; the lever arm a_b is the scanner origin in the body frame (m).
 
-``sensor.toml`` (user units in the key names)::
-
-    crs = "EPSG:32611"              # output CRS of georeferenced points (optional)
-    [mounting]
-    boresight_roll_deg = 0.0
-    boresight_pitch_deg = 0.0
-    boresight_yaw_deg = 0.0
-    lever_arm_m = [0.0, 0.0, 0.0]   # x forward, y right, z down, in the body frame
-    [range]
-    offset_m = 0.0
-    scale_ppm = 0.0
-    [scanner]
-    model = "linear"                # see calidar.scanners.SCANNERS
-    scan_angle_offset_deg = 0.0
-    scan_angle_scale = 0.0
+``sensor.toml``: every key, its unit, allowed range and default are in docs/sensor.md
+(with the conversions from vendor conventions, :mod:`calidar.sensor_import`).
 """
 
 from __future__ import annotations

@@ -59,6 +59,15 @@ def from_vendor(r_vendor, t_vendor_m, body: str = "x,y,z", scanner: str = "x,y,z
     return Sensor(roll, pitch, yaw, *(float(v) for v in lever), **kw)
 
 
+# --- Applanix POS / POSPac (POS MV V4/V5 user guides: reference frame x forward, y starboard, z down) ---
+def lever_arm_from_pospac(reference_to_sensor_m, reference_to_imu_m=(0.0, 0.0, 0.0)) -> np.ndarray:
+    """calidar's lever arm (m) from POS lever arms "reference to sensor" and "reference to IMU"
+    (x forward, y starboard, z down: calidar's body axes), for an SBET output at the IMU whose axes
+    are the reference frame's (zero IMU mounting angles): a_b = ref→sensor − ref→IMU. For an SBET
+    output at the reference point give ``reference_to_imu_m`` = 0."""
+    return np.asarray(reference_to_sensor_m, float) - np.asarray(reference_to_imu_m, float)
+
+
 # --- Optech CSD (PDAL io/OptechCommon.hpp, pdal/util/Georeference.cpp) ---------------------------
 #: Optech's frames: body and scanner x right, y forward, z up; local level east, north, up.
 OPTECH_AXES = "y,x,-z"

@@ -63,9 +63,10 @@ def positive(value, where, unit: str = "", field: str | None = None, hi: float |
 
 
 def values(array, source: str | os.PathLike | None, field: str, lo: float | None = None, hi: float | None = None,
-           unit: str = "", what: str = "record") -> np.ndarray:
+           unit: str = "", what: str = "record", labels=None) -> np.ndarray:
     """``array`` unchanged when every value is finite and within [lo, hi]; else an error naming
-    the file, the field, the expected range, the first bad value, how many and where."""
+    the file, the field, the expected range, the first bad value, how many and where (its index,
+    or ``labels[index]``, e.g. line numbers)."""
     a = np.asarray(array, dtype=float)
     bad = ~np.isfinite(a)
     if lo is not None:
@@ -76,8 +77,9 @@ def values(array, source: str | os.PathLike | None, field: str, lo: float | None
         flat = bad.ravel()
         first = int(np.argmax(flat))
         expected = f"finite values {_range_text(lo, hi, unit)}".rstrip()
+        where = first if labels is None else labels[first]
         raise InputError(source, field, f"expected {expected}, got {a.ravel()[first]:g} "
-                         f"({int(flat.sum())} of {flat.size} values, first at {what} {first})")
+                         f"({int(flat.sum())} of {flat.size} values, first at {what} {where})")
     return a
 
 

@@ -128,8 +128,9 @@ def read_trajectory_text(path, *, columns=None, crs=None, angles: str = "deg", h
                          f"missing {missing}; found columns {columns} (header {head if has_header else 'absent'})")
     data = _numbers(path, records, len(columns), delimiter)
     col = {c: data[:, k] for c, k in index.items()}
+    lines = [i + 1 for i, _ in records]
     for c, a in col.items():
-        values(a, path, c, *_limits(c, angles), what="data line")
+        values(a, path, c, *_limits(c, angles), what="line", labels=lines)
     to_rad = np.radians if angles == "deg" else np.asarray
     if crs is not None:
         try:
