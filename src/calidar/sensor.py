@@ -141,7 +141,7 @@ class Sensor:
             range_offset=table_number(r, "offset_m", source, -RANGE_OFFSET_MAX_M, RANGE_OFFSET_MAX_M, "m", "range.", 0.0),
             range_scale=table_number(r, "scale_ppm", source, -RANGE_SCALE_MAX_PPM, RANGE_SCALE_MAX_PPM, "ppm", "range.",
                                      0.0) * 1e-6,
-            scanner=scanner, crs=_crs(doc.get("crs"), source),
+            scanner=scanner, crs=validated_crs(doc.get("crs"), source),
         )
 
 
@@ -156,7 +156,8 @@ def _lever_arm(lever, source: str) -> tuple[float, float, float]:
                  for k, v in zip("xyz", lever))
 
 
-def _crs(crs, source: str) -> str | None:
+def validated_crs(crs, source: str) -> str | None:
+    """``crs`` when pyproj knows it (None stays None), else a clear error naming ``source``."""
     if crs is None:
         return None
     import pyproj

@@ -29,14 +29,14 @@ def import_(
     lever arm (body frame: x forward, y right, z down); docs/sensor.md shows each convention."""
     from dataclasses import replace
 
-    from calidar.sensor import _crs
+    from calidar.sensor import validated_crs
     from calidar.sensor_import import import_sensor
 
     check_writable(out, force)
     guard_inputs([out], [file])
     sensor = import_sensor(source, file, scanner_axes)
     if crs is not None:
-        sensor = replace(sensor, crs=_crs(crs, "--crs"))
+        sensor = replace(sensor, crs=validated_crs(crs, "--crs"))
     sensor.write(out, force=force)
     angles = np.degrees([sensor.boresight_roll, sensor.boresight_pitch, sensor.boresight_yaw])
     console.print(f"{out}: boresight roll {angles[0]:.6f}°, pitch {angles[1]:.6f}°, yaw {angles[2]:.6f}°; lever arm "
