@@ -48,8 +48,6 @@ def range_cal(
                  f"(95 %: {iv[0] * f:+.3f} … {iv[1] * f:+.3f} {unit})")
     m = result.method
     _say(f"two-step method: ΔS = {m.delta_s * 1e3:+.3f} mm" + (f", Δ = {m.delta * 1e3:+.3f} mm" if m.delta is not None else ""))
-    for r in result.fit.rejected:
-        _say(f"outlier rejected: line {r['line']} point {r['point']} (w = {r['w']:+.1f})")
     if result.acceptance is not None:
         a = result.acceptance
         _say(f"acceptance: {'PASS' if a['passed'] else 'FAIL'} (95 % bound {a['max_bound95_m'] * 1e3:.2f} mm, "

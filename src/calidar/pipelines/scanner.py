@@ -49,7 +49,7 @@ def run_scanner_analysis(settings, out_dir: Path, *, argv: list[str] | None = No
     write_summary(doc, Path(out_dir) / "summary.json")
     own = report is None
     if own:
-        report = Report(f"calidar scanner analysis ({a.model})")
+        report = Report(f"calidar scanner analysis: {a.model} at {a.range_m:g} m")
         report.record = record
     report.add_verdict(verdict, title)
     add_section(report, a, sep, title)
@@ -86,5 +86,9 @@ def palmer_strip_selfcal(preset: str = "uav", *, density: float = 0.3, height_ag
                         errors=dict(errors or SURVEY_ERRORS), **extra)
     res = simulate_survey(cfg)
     strips = res.calibration_strips()
-    return res.truth.parameters(), {est: calibrate(strips, res.nominal, estimate=est, progress=progress)
-                                    for est in estimates}
+    results = {}
+    for k, est in enumerate(estimates):
+        progress("strip calibrations", k, len(estimates))
+        results[est] = calibrate(strips, res.nominal, estimate=est)
+    progress("strip calibrations", len(estimates), len(estimates))
+    return res.truth.parameters(), results

@@ -10,16 +10,9 @@ from calidar.rangecal import RangeCalibration
 from calidar.rangecal.figures import group_figure, residual_figure
 from calidar.rangecal.verdict import stated_precisions
 from calidar.report import Report
+from calidar.report.numbers import signed as _f
 
 MM, PPM = 1e3, 1e6  #: m → mm, ratio → ppm for display
-
-
-def _f(v: float | None, digits: int) -> str:
-    """A signed number with ``digits`` decimals ('—' for None; no '−0.00')."""
-    if v is None:
-        return "—"
-    text = f"{v:+.{digits}f}"
-    return text[1:] if float(text) == 0 else text.replace("-", "−")
 
 
 def _parameter_rows(result: RangeCalibration, truth: dict | None) -> list[list]:
@@ -72,12 +65,13 @@ def add_section(report: Report, result: RangeCalibration, truth: dict[str, float
     sec.text(f"Global test: σ0 = {g['sigma0']:.3f} (0.95 range {g['sigma0_range95'][0]:.2f}–{g['sigma0_range95'][1]:.2f}), "
              f"χ² = {g['chi2']:.1f} on {g['dof']:.0f} degrees of freedom, p = {g['p_value']:.3f}; "
              f"RMS of the residuals {sol.residuals_after['rms'] * MM:.2f} mm over {sol.residuals_after['n']} targets.")
-    sec.table(["two-step method", "value [mm]", "σ [mm]", "95 % interval [mm]"], _method_rows(result),
-              caption="The prescribed method: ΔS from the scan-circle groups, Δ = range error left at the E points after "
-                      "ΔS; σ propagated from the stated precisions, 95 % = ±1.96 σ")
+    sec.text("The prescribed two-step method on the same targets: ΔS_i = mean of (scanner range − S_PX) over group i's "
+             "feature points, ΔS their mean; Δ = the range error left at the E points after ΔS (zero without a scale "
+             "error). σ propagated from the stated precisions, 95 % = ±1.96 σ.")
+    sec.table(["two-step method", "value [mm]", "σ [mm]", "95 % interval [mm]"], _method_rows(result))
     if fit.rejected:
-        sec.table(["line", "point", "group", "w", "residual [mm]"],
-                  [[r["line"], r["point"], r["group"] or "—", f"{r['w']:+.1f}", _f(r["residual_m"] * MM, 1)]
+        sec.table(["line", "point", "group", "w (standardized)", "residual [mm]"],
+                  [[r["line"], r["point"], r["group"] or "—", _f(r["w"], 1), _f(r["residual_m"] * MM, 1)]
                    for r in fit.rejected], caption="Rejected by data snooping (|w| > 3.29)")
     sec.figure(residual_figure(result), "Residuals (model − scanner range) per observation and against distance; "
                "bars ±2σ of each observation equation; crosses: rejected targets.")

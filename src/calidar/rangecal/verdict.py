@@ -7,6 +7,7 @@ from __future__ import annotations
 import numpy as np
 
 from calidar.rangecal import RangeCalibration
+from calidar.report.numbers import signed
 from calidar.verdict import Finding, Verdict
 
 MM, PPM = 1e3, 1e6
@@ -18,20 +19,21 @@ TRUTH_SIGMAS = 3.0  #: |error| / σ against a simulation's truth that passes
 def stated_precisions(result: RangeCalibration) -> str:
     """The precisions the file states: scanner noise and each distinct total-station precision."""
     obs = result.observations
-    ts = dict.fromkeys(f"{s.angle_sigma * 180 / np.pi * 3600:g}″, {s.distance_sigma_m * MM:g} mm + "
+    ts = dict.fromkeys(f"angles {s.angle_sigma * 180 / np.pi * 3600:g}″, distances {s.distance_sigma_m * MM:g} mm + "
                        f"{s.distance_sigma_ppm:g} ppm" for s in obs.setups)
-    return f"scanner {obs.scanner_sigma * MM:g} mm; total station {'; '.join(ts)}"
+    return f"scanner ranges {obs.scanner_sigma * MM:g} mm; total station {'; '.join(ts)}"
 
 
 def _correction(result: RangeCalibration) -> Finding:
     sol, fit = result.solution, result.fit
     off, s_off = sol.values["range_offset"] * MM, sol.sigma["range_offset"] * MM
     lo, hi = fit.interval("range_offset")
-    text = f"range offset {off:+.2f} ± {s_off:.2f} mm (95 %: {lo * MM:+.2f} … {hi * MM:+.2f} mm)"
+    text = f"range offset {signed(off, 2)} ± {s_off:.2f} mm (95 %: {signed(lo * MM, 2)} … {signed(hi * MM, 2)} mm)"
     if fit.interval("range_scale") is not None:
         k, s_k = sol.values["range_scale"] * PPM, sol.sigma["range_scale"] * PPM
         klo, khi = fit.interval("range_scale")
-        text += f", range scale {k:+.1f} ± {s_k:.1f} ppm (95 %: {klo * PPM:+.1f} … {khi * PPM:+.1f} ppm)"
+        text += (f", range scale {signed(k, 1)} ± {s_k:.1f} ppm (95 %: {signed(klo * PPM, 1)} … "
+                 f"{signed(khi * PPM, 1)} ppm)")
         how = "true distance = (scanner range − offset) / (1 + scale)"
     else:
         text += ", range scale held at 0 (--fix-scale: a scale error is inside the offset at these distances)"
@@ -65,7 +67,7 @@ def _outliers(result: RangeCalibration) -> Finding:
         return Finding("pass", "outliers", f"none: every standardized residual |w| ≤ 3.29 over the {n} targets "
                        "(data snooping, α = 0.001)")
     named = "; ".join(f"line {r['line']} point {r['point']}" + (f" (group {r['group']})" if r["group"] else "")
-                      + f": residual {r['residual_m'] * MM:+.1f} mm, w = {r['w']:+.1f}" for r in fit.rejected)
+                      + f": residual {signed(r['residual_m'] * MM, 1)} mm, w = {signed(r['w'], 1)}" for r in fit.rejected)
     stopped = any("data snooping stopped" in w for w in result.solution.warnings)
     if stopped:
         return Finding("fail", "outliers", f"data snooping stopped after {len(fit.rejected)} rejections (the 20 % limit) "
@@ -82,8 +84,9 @@ def _acceptance(result: RangeCalibration) -> list[Finding]:
     if a is None:
         return []
     lo, hi = a["distance_range_m"]
-    detail = (f"95 % bound of the raw range error over {lo:.1f}–{hi:.1f} m: {a['max_bound95_m'] * MM:.2f} mm "
-              f"{'≤' if a['passed'] else '>'} the tolerance {a['tolerance_m'] * MM:.2f} mm")
+    detail = (f"the uncorrected range error |offset + scale·d| with its 95 % uncertainty reaches "
+              f"{a['max_bound95_m'] * MM:.2f} mm over the calibrated distances {lo:.1f}–{hi:.1f} m: "
+              f"{'within' if a['passed'] else 'beyond'} the tolerance of {a['tolerance_m'] * MM:.2f} mm")
     if a["passed"]:
         return [Finding("pass", "acceptance", detail)]
     return [Finding("fail", "acceptance", detail, "the scanner's raw ranges are out of tolerance: apply the range "
@@ -101,7 +104,7 @@ def _premises(result: RangeCalibration) -> list[Finding]:
         rho = float(sol.correlation[0, 1])
         d = result.fit.distance[result.fit.keep]
         if abs(rho) > CORRELATED:
-            out.append(Finding("warn", "scale vs offset", f"ρ = {rho:+.3f}: the targets' distances ({d.min():.1f}–"
+            out.append(Finding("warn", "scale vs offset", f"ρ = {signed(rho, 3)}: the targets' distances ({d.min():.1f}–"
                                f"{d.max():.1f} m) barely separate the scale from the offset",
                                "add E points or groups at shorter and longer distances, or fix the scale (--fix-scale)"))
     return out
@@ -112,7 +115,7 @@ def _truth(result: RangeCalibration, truth: dict[str, float] | None) -> list[Fin
         return []
     sol = result.solution
     z = {k: (sol.values[k] - truth[k]) / sol.sigma[k] for k in sol.sigma if k in truth}
-    text = ", ".join(f"{k} {(sol.values[k] - truth[k]) * (MM if k == 'range_offset' else PPM):+.2f} "
+    text = ", ".join(f"{k} {signed((sol.values[k] - truth[k]) * (MM if k == 'range_offset' else PPM), 2)} "
                      f"{'mm' if k == 'range_offset' else 'ppm'} ({abs(v):.1f} σ)" for k, v in z.items())
     ok = all(abs(v) <= TRUTH_SIGMAS for v in z.values())
     return [Finding("pass" if ok else "warn", "against the simulation's truth", f"errors {text}",

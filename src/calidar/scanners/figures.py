@@ -5,9 +5,11 @@ from __future__ import annotations
 
 import numpy as np
 
+from calidar.report.numbers import fixed
 from calidar.report.plots import plt
 from calidar.scanners.analysis import ErrorEffect, ScannerAnalysis
 from calidar.scanners.separability import Separability
+from calidar.scanners.sources import MODEL_NAMES
 
 
 def _angle_axis_label(model: str) -> str:
@@ -24,7 +26,7 @@ def pattern_figure(a: ScannerAnalysis):
     ax.set_aspect("equal", adjustable="datalim")
     ax.set_xlabel("y (right) [m]")
     ax.set_ylabel("x (forward) [m]")
-    ax.set_title(f"{a.model} pattern at {a.range_m:g} m: {ext[0]:.1f} m (x) × {ext[1]:.1f} m (y)")
+    ax.set_title(f"{MODEL_NAMES[a.model]} pattern at {a.range_m:g} m: {ext[0]:.1f} m (x) × {ext[1]:.1f} m (y)")
     ax.legend(loc="upper right")
     ax.grid(alpha=0.3)
     return fig
@@ -57,7 +59,7 @@ def correlation_axes(ax, names, corr, title: str) -> None:
     for i in range(len(names)):
         for j in range(len(names)):
             v = corr[i, j]
-            ax.text(j, i, f"{v:.2f}".replace("-", "−"), ha="center", va="center", fontsize=7,
+            ax.text(j, i, fixed(v, 3 if 0.99 < abs(v) < 0.9995 else 2), ha="center", va="center", fontsize=7,
                     color="white" if abs(v) > 0.6 else "black")
     ax.set_title(title, fontsize=9)
     return im
@@ -77,7 +79,7 @@ def separability_figure(sep: Separability, name: str, value_si: float, label: st
     a1.set_xlabel(_angle_axis_label(model))
     a1.set_ylabel("displacement [cm]")
     m = sep.mimic[name]
-    mimic = ", ".join(f"{k} {v:+.3f}" for k, v in zip(("roll", "pitch", "yaw"), m) if abs(v) > 5e-4) or "none"
+    mimic = ", ".join(f"{k} {fixed(v, 3)}" for k, v in zip(("roll", "pitch", "yaw"), m) if abs(v) > 5e-4) or "none"
     a1.set_title(f"{label} = {unit_value} at {sep.range_m:g} m: best boresight per unit error: {mimic}; "
                  f"{100 * sep.unexplained[name]:.1f} % left", fontsize=9)
     a1.legend(fontsize=7, ncol=2)

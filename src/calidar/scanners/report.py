@@ -5,10 +5,11 @@ from __future__ import annotations
 
 import numpy as np
 
+from calidar.report.numbers import signed
 from calidar.scanners.analysis import ScannerAnalysis
 from calidar.scanners.figures import displacement_figure, pattern_figure, separability_figure
 from calidar.scanners.separability import Separability
-from calidar.scanners.sources import DEFAULT_ERRORS, error_sources
+from calidar.scanners.sources import DEFAULT_ERRORS, MODEL_NAMES, error_sources
 from calidar.scanners.verdict import user_value
 
 
@@ -30,8 +31,9 @@ def _maxima_rows(a: ScannerAnalysis, s: dict) -> list[list]:
     grating = a.settings.grating_radius_mm
     rows = []
     for k, v in list(s["errors"].items()) + list(s.get("comparisons", {}).items()):
-        src = sources[k.split("_literal")[0]] if k not in sources else sources[k]
-        rows.append([k, user_value(src, v["value"], grating), _mm(v["max_abs_dx_m"]), _mm(v["max_abs_dy_m"]),
+        src = sources.get(k) or sources[k.split("_literal")[0]]
+        label = src.label if k in sources else f"{src.short} read literally (eq. 13; a comparison)"
+        rows.append([label, user_value(src, v["value"], grating), _mm(v["max_abs_dx_m"]), _mm(v["max_abs_dy_m"]),
                      _mm(v["max_abs_dz_m"]), _mm(v["max_3d_m"]), _arcsec(v["max_pointing_arcsec"]),
                      f"{v['max_pointing_arcsec'] / spec:.2f}"])
     if s["combined"]:
@@ -45,10 +47,10 @@ def _maxima_rows(a: ScannerAnalysis, s: dict) -> list[list]:
 def add_section(report, a: ScannerAnalysis, sep: Separability | None = None, title: str | None = None) -> None:
     """A report section: pattern, maxima, displacement curves, tolerances, separability."""
     s = a.summary()
-    sec = report.section(title or f"Scanner structural-error analysis ({a.model})")
+    sec = report.section(title or f"Structural errors of a {MODEL_NAMES[a.model]} scanner at {a.range_m:g} m")
     ext = s["pattern"]
     geometry = ", ".join(f"{k} = {v:g}" for k, v in s["scanner"].items() if k != "model" and v)
-    sec.text(f"{a.model.capitalize()} scanner ({geometry or 'nominal geometry'}) at a range of {a.range_m:g} m: the "
+    sec.text(f"{MODEL_NAMES[a.model].capitalize()} scanner ({geometry or 'nominal geometry'}) at a range of {a.range_m:g} m: the "
              f"pattern spans {ext['extent_x_m']:.1f} m along x (forward) × {ext['extent_y_m']:.1f} m along y (right). "
              "Points are range × beam direction in the scanner frame (x forward, y right, z down); each error's "
              "displacement is the change of every point of the pattern it causes.")
@@ -61,7 +63,7 @@ def add_section(report, a: ScannerAnalysis, sep: Separability | None = None, tit
         sec.figure(displacement_figure(a, e, e.title(name, a.range_m)), f"Displacements for {name}.")
     sources = {src.name: src for src in error_sources(a.model)}
     grating = a.settings.grating_radius_mm
-    tol_rows = [[k, user_value(sources[k], v["max_alone"], grating), user_value(sources[k], v["max_equal_share"], grating)]
+    tol_rows = [[sources[k].label, user_value(sources[k], v["max_alone"], grating), user_value(sources[k], v["max_equal_share"], grating)]
                 for k, v in s["tolerances"].items()]
     sec.table(["error", "largest alone", f"largest with an equal share (spec/√{len(tol_rows)})"], tol_rows,
               caption=f"Tolerances keeping the worst pointing error ≤ {s['spec_arcsec']:g}″; eccentricity at its worst "
@@ -78,7 +80,7 @@ def add_separability(sec, a: ScannerAnalysis, sep: Separability) -> None:
     rows = []
     for src in sources:
         for name in dict.fromkeys([c for c, _ in src.parts()]):
-            rows.append([name, f"{100 * sep.unexplained[name]:.1f}", *(f"{v:+.3f}" for v in sep.mimic[name])])
+            rows.append([name, f"{100 * sep.unexplained[name]:.1f}", *(signed(v, 3) for v in sep.mimic[name])])
     sec.text("Separability from the boresight: the Jacobian of the pattern's points with respect to the boresight "
              "angles and each structural component (eccentricity split into ε/r·cos C and ε/r·sin C). 'Own part' is "
              "the fraction of a component's effect on the points that no boresight rotation reproduces; the best "

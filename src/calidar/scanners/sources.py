@@ -21,6 +21,7 @@ from calidar.scanners import LinearScanner, PalmerScanner, Scanner, WedgeScanner
 
 ARCSEC = np.pi / (180.0 * 3600.0)  #: one arcsecond in rad
 MODELS = ("palmer", "wedge", "linear")
+MODEL_NAMES = {"palmer": "Palmer", "wedge": "rotating-wedge", "linear": "linear"}  #: in sentences
 
 
 @dataclass(frozen=True)
@@ -35,6 +36,11 @@ class ErrorSource:
     apply: Callable[[float], dict[str, float]]  #: magnitude (SI) → scanner parameters
     components: tuple[tuple[str, Callable[[float], dict[str, float]]], ...] = ()  #: linearised parts (SI)
     low: float | None = None  #: smallest magnitude accepted (None: −limit)
+    symbol: str = ""  #: short name in sentences (δ_L); default: the label
+
+    @property
+    def short(self) -> str:
+        return self.symbol or self.label
 
     def to_user(self, value_si: float) -> float:
         return float({"deg": np.degrees(value_si), "ppm": value_si * 1e6}.get(self.unit, value_si))
@@ -53,21 +59,22 @@ def _eccentricity(phase_rad: float) -> ErrorSource:
         return lambda e: {"eccentricity_ratio": e, "eccentricity_phase": c}
 
     return ErrorSource("eccentricity", "encoder eccentricity ε/r", "ratio", "--eccentricity", 0.1, at(phase_rad),
-                       (("eccentricity_cos", at(0.0)), ("eccentricity_sin", at(np.pi / 2))), low=0.0)
+                       (("eccentricity_cos", at(0.0)), ("eccentricity_sin", at(np.pi / 2))), low=0.0, symbol="ε/r")
 
 
 def error_sources(model: str, eccentricity_phase_rad: float = 0.0, axis_tilt_azimuth_rad: float = 0.0) -> list[ErrorSource]:
     """The structural errors of a model (``palmer``, ``wedge`` or ``linear``)."""
     if model == "palmer":
         return [_eccentricity(eccentricity_phase_rad),
-                ErrorSource("delta_l", "laser–axis angle error δ_L", "deg", "--delta-l", 10.0, lambda d: {"delta_l": d}),
+                ErrorSource("delta_l", "laser–axis angle error δ_L", "deg", "--delta-l", 10.0, lambda d: {"delta_l": d},
+                            symbol="δ_L"),
                 ErrorSource("delta_r", "mirror-normal–axis angle error δ_R", "deg", "--delta-r", 10.0,
-                            lambda d: {"delta_r": d})]
+                            lambda d: {"delta_r": d}, symbol="δ_R")]
     if model == "wedge":
         ca, sa = np.cos(axis_tilt_azimuth_rad), np.sin(axis_tilt_azimuth_rad)
         return [_eccentricity(eccentricity_phase_rad),
                 ErrorSource("wedge_angle_error", "wedge angle error Δα", "deg", "--wedge-angle-error", 10.0,
-                            lambda d: {"wedge_angle_error": d}),
+                            lambda d: {"wedge_angle_error": d}, symbol="Δα"),
                 ErrorSource("axis_tilt", "rotation-axis tilt", "deg", "--axis-tilt", 10.0,
                             lambda t: {"wedge_axis_tilt_x": t * ca, "wedge_axis_tilt_y": t * sa},
                             (("axis_tilt_x", lambda t: {"wedge_axis_tilt_x": t}),

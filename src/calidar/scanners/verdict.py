@@ -7,7 +7,8 @@ import numpy as np
 
 from calidar.scanners.analysis import ScannerAnalysis
 from calidar.scanners.separability import Separability
-from calidar.scanners.sources import ARCSEC, ErrorSource, error_sources
+from calidar.scanners.sources import ARCSEC, MODEL_NAMES, ErrorSource, error_sources
+from calidar.report.numbers import fixed
 from calidar.verdict import Finding, Verdict
 
 NOT_SEPARABLE = 0.15  #: an error whose own part (not a boresight rotation) is below this fraction is not separable
@@ -38,20 +39,20 @@ def _pointing_findings(a: ScannerAnalysis) -> list[Finding]:
     for name, e in a.effects.items():
         m = e.maxima()
         src = e.source
-        what = f"{src.label} = {user_value(src, m['value'], grating)}"
+        what = f"{src.short} = {user_value(src, m['value'], grating)}"
         moved = f"worst pointing {m['max_pointing_arcsec']:.3g}″ ({length(m['max_3d_m'])} at {a.range_m:g} m)"
         if m["max_pointing_arcsec"] <= spec:
-            out.append(Finding("pass", name, f"{what}: {moved}, {m['max_pointing_arcsec'] / spec:.0%} of the {spec:g}″ spec"))
+            out.append(Finding("pass", src.label, f"{what}: {moved}, {m['max_pointing_arcsec'] / spec:.0%} of the {spec:g}″ spec"))
             continue
         tol = a.tolerances[name]
-        out.append(Finding("fail", name, f"{what}: {moved}, {m['max_pointing_arcsec'] / spec:.1f}× the {spec:g}″ spec",
-                           f"keep {src.label} within {user_value(src, tol['max_alone'], grating)} alone, or "
+        out.append(Finding("fail", src.label, f"{what}: {moved}, {m['max_pointing_arcsec'] / spec:.1f}× the {spec:g}″ spec",
+                           f"keep {src.short} within {user_value(src, tol['max_alone'], grating)} alone, or "
                            f"{user_value(src, tol['max_equal_share'], grating)} as an equal share of the budget — "
                            "or calibrate it"))
     if a.combined is not None:
         m = a.combined.maxima()
         ok = m["max_pointing_arcsec"] <= spec
-        worst = max(a.effects, key=lambda k: a.effects[k].maxima()["max_pointing_arcsec"])
+        worst = a.effects[max(a.effects, key=lambda k: a.effects[k].pointing_rad.max())].source.short
         out.append(Finding("pass" if ok else "fail", "all errors together",
                            f"worst pointing {m['max_pointing_arcsec']:.3g}″ ({length(m['max_3d_m'])} at {a.range_m:g} m) "
                            f"against the {spec:g}″ spec",
@@ -59,9 +60,10 @@ def _pointing_findings(a: ScannerAnalysis) -> list[Finding]:
     return out
 
 
-def _mimic_text(sep: Separability, name: str) -> str:
-    parts = [f"{r} {v:+.3g} × the error" for r, v in zip(ROTATION_NAMES, sep.mimic[name]) if abs(v) > 1e-3]
-    return "a boresight " + (", ".join(parts) if parts else "rotation")
+def _mimic_text(sep: Separability, src: ErrorSource) -> str:
+    """"a boresight pitch of −2.00 × δ_L" (the rotation that best imitates the error)."""
+    parts = [f"{r} of {fixed(v, 2)} × {src.short}" for r, v in zip(ROTATION_NAMES, sep.mimic[src.name]) if abs(v) > 5e-3]
+    return "a boresight " + (" plus ".join(parts) if parts else "rotation")
 
 
 def _separability_findings(a: ScannerAnalysis, sep: Separability) -> list[Finding]:
@@ -70,22 +72,22 @@ def _separability_findings(a: ScannerAnalysis, sep: Separability) -> list[Findin
     for src in sources:
         own = min(sep.unexplained[n] for n in [src.name] + [c for c, _ in src.parts()])
         if own >= NOT_SEPARABLE:
-            separable.append(f"{src.label} ({own:.0%} its own)")
+            separable.append(f"{src.short} ({own:.0%} of its effect is its own)")
             continue
         if own < 1e-6:
-            out.append(Finding("warn", f"{src.name} vs the boresight",
-                               f"{src.label} is {_mimic_text(sep, src.name)} exactly: no data can tell them apart",
-                               f"do not estimate {src.name} with the boresight; the boresight calibration takes it whole"))
+            out.append(Finding("warn", f"{src.short} vs the boresight",
+                               f"{src.label} is {_mimic_text(sep, src)} exactly: no data can tell them apart",
+                               f"do not estimate {src.short} with the boresight; the boresight calibration takes it whole"))
             continue
         left = ""
         if src.name in a.effects:
             e = a.effects[src.name]
             d = np.linalg.norm(sep.left_after_boresight(src.name, e.value_si), axis=1).max()
             left = f"; what the boresight cannot take of the analysed {user_value(src, src.to_user(e.value_si))}: ≤ {length(d)}"
-        out.append(Finding("warn", f"{src.name} vs the boresight",
-                           f"{src.label} acts as {_mimic_text(sep, src.name)}; only {own:.1%} of its effect on the points "
+        out.append(Finding("warn", f"{src.short} vs the boresight",
+                           f"{src.label} acts as {_mimic_text(sep, src)}; only {own:.1%} of its effect on the points "
                            f"is its own{left}",
-                           f"a strip or control-point calibration barely separates {src.name} from the boresight: hold it at "
+                           f"a strip or control-point calibration barely separates {src.short} from the boresight: hold it at "
                            "its lab value and let the boresight absorb it, or estimate it only from many precise points "
                            "(an exact trajectory)"))
     if separable:
@@ -99,7 +101,7 @@ def analysis_verdict(a: ScannerAnalysis, sep: Separability | None) -> Verdict:
     """Pointing against the spec per error and together; separability from the boresight."""
     spec = a.spec_rad / ARCSEC
     n_ok = sum(e.pointing_rad.max() <= a.spec_rad for e in a.effects.values())
-    summary = (f"{a.model} scanner at {a.range_m:g} m against a {spec:g}″ pointing spec ({length(a.spec_rad * a.range_m)} "
+    summary = (f"{MODEL_NAMES[a.model]} scanner at {a.range_m:g} m against a {spec:g}″ pointing spec ({length(a.spec_rad * a.range_m)} "
                f"at that range): {n_ok} of {len(a.effects)} analysed errors within it"
                + (" (no error given: the published example magnitudes)" if a.defaults_used else ""))
     findings = _pointing_findings(a) + (_separability_findings(a, sep) if sep is not None else [])
