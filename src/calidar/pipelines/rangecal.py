@@ -47,27 +47,35 @@ def check_tolerance(tolerance_m: float | None) -> float | None:
     return None if tolerance_m is None else number(tolerance_m, "--tolerance", 0.0, MAX_TOLERANCE_M, "m", open_lo=True)
 
 
-def run_range_cal(observations: Path, out_dir: Path, *, truth: Path | None = None, tolerance_m: float | None = None,
-                  fix_scale: bool = False, argv: list[str] | None = None, report=None, title: str | None = None,
-                  progress: Progress = no_progress) -> RangeCalRun:
-    """Read ``observations``, calibrate, and write solution.json (with the verdict and the run
-    record, key "run") and report.html into the existing folder ``out_dir`` — or, when ``report``
-    is given, add the verdict and the section to it instead of writing report.html."""
+def calibrate_file(observations: Path, *, truth: Path | None = None, tolerance_m: float | None = None,
+                   fix_scale: bool = False) -> tuple[object, object, dict | None]:
+    """Read and calibrate ``observations`` (and ``truth``, a simulator's truth.json): returns the
+    :class:`calidar.rangecal.RangeCalibration`, its verdict and the SI truth (None without)."""
     from calidar.io.total_station import read_observations
-    from calidar.provenance import RunRecord
     from calidar.rangecal import calibrate
-    from calidar.rangecal.report import add_section
     from calidar.rangecal.verdict import range_verdict
-    from calidar.report import Report
 
     tolerance_m = check_tolerance(tolerance_m)
-    record = RunRecord.capture(argv, inputs=[observations, truth],
-                               options={"tolerance_m": tolerance_m, "fix_scale": fix_scale})
-    progress("range calibration", 0, 2)
     obs = read_observations(observations)
     truth_si = read_truth(truth) if truth is not None else None
     result = calibrate(obs, tolerance_m, fix_scale)
-    verdict = range_verdict(result, truth_si)
+    return result, range_verdict(result, truth_si), truth_si
+
+
+def run_range_cal(observations: Path, out_dir: Path, *, truth: Path | None = None, tolerance_m: float | None = None,
+                  fix_scale: bool = False, argv: list[str] | None = None, report=None, title: str | None = None,
+                  progress: Progress = no_progress) -> RangeCalRun:
+    """:func:`calibrate_file`, then write solution.json (with the verdict and the run record, key
+    "run") and report.html into the existing folder ``out_dir`` — or, when ``report`` is given, add
+    the verdict and the section to it instead of writing report.html."""
+    from calidar.provenance import RunRecord
+    from calidar.rangecal.report import add_section
+    from calidar.report import Report
+
+    record = RunRecord.capture(argv, inputs=[observations, truth],
+                               options={"tolerance_m": check_tolerance(tolerance_m), "fix_scale": fix_scale})
+    progress("range calibration", 0, 2)
+    result, verdict, truth_si = calibrate_file(observations, truth=truth, tolerance_m=tolerance_m, fix_scale=fix_scale)
     progress("range calibration", 1, 2)
     record.finish()
     result.solution.extra.update(verdict=verdict.to_dict(), run=record.to_dict())
