@@ -69,8 +69,8 @@ def run_range_cal(observations: Path, out_dir: Path, *, truth: Path | None = Non
     "run") and report.html into the existing folder ``out_dir`` — or, when ``report`` is given, add
     the verdict and the section to it instead of writing report.html."""
     from calidar.provenance import RunRecord
+    from calidar.pipelines.reports import report_for
     from calidar.rangecal.report import add_section
-    from calidar.report import Report
 
     record = RunRecord.capture(argv, inputs=[observations, truth],
                                options={"tolerance_m": check_tolerance(tolerance_m), "fix_scale": fix_scale})
@@ -80,14 +80,9 @@ def run_range_cal(observations: Path, out_dir: Path, *, truth: Path | None = Non
     record.finish()
     result.solution.extra.update(verdict=verdict.to_dict(), run=record.to_dict())
     result.solution.write_json(Path(out_dir) / "solution.json", truth_si)
-    own = report is None
-    if own:
-        report = Report("calidar range calibration")
-        report.record = record
-    report.add_verdict(verdict, title)
-    add_section(report, result, truth_si, title)
-    if own:
-        report.write(Path(out_dir) / "report.html")
+    with report_for(report, "calidar range calibration", record, Path(out_dir) / "report.html", verdict,
+                    "Range calibration") as rep:
+        add_section(rep, result, truth_si, title)
     progress("range calibration", 2, 2)
     return RangeCalRun(result, verdict, record, truth_si)
 

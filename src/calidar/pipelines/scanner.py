@@ -27,8 +27,8 @@ def run_scanner_analysis(settings, out_dir: Path, *, argv: list[str] | None = No
     existing folder ``out_dir``: pattern and displacement CSV/PNG, summary.json (with the verdict
     and the run record) and report.html — or, when ``report`` is given, add the verdict and the
     section to it instead of writing report.html."""
+    from calidar.pipelines.reports import report_for
     from calidar.provenance import RunRecord
-    from calidar.report import Report
     from calidar.scanners.analysis import analyze, pattern_angles
     from calidar.scanners.files import separability_summary, write_curves, write_summary
     from calidar.scanners.report import add_section
@@ -47,14 +47,9 @@ def run_scanner_analysis(settings, out_dir: Path, *, argv: list[str] | None = No
     record.finish()
     doc = {**a.summary(), "separability": separability_summary(sep), "verdict": verdict.to_dict(), "run": record.to_dict()}
     write_summary(doc, Path(out_dir) / "summary.json")
-    own = report is None
-    if own:
-        report = Report(f"calidar scanner analysis: {a.model} at {a.range_m:g} m")
-        report.record = record
-    report.add_verdict(verdict, title)
-    add_section(report, a, sep, title)
-    if own:
-        report.write(Path(out_dir) / "report.html")
+    with report_for(report, f"calidar scanner analysis: {a.model} at {a.range_m:g} m", record,
+                    Path(out_dir) / "report.html", verdict, "Scanner structural errors") as rep:
+        add_section(rep, a, sep, title)
     progress("writing outputs", 1, 1)
     return ScannerRun(a, sep, verdict, doc)
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from calidar.report.numbers import signed
+from calidar.report.numbers import fixed, signed
 from calidar.scanners.analysis import ScannerAnalysis
 from calidar.scanners.figures import displacement_figure, pattern_figure, separability_figure
 from calidar.scanners.separability import Separability
@@ -94,13 +94,39 @@ def add_separability(sec, a: ScannerAnalysis, sep: Separability) -> None:
                "best boresight rotation leaves of them (dashed); right, the correlations of a joint estimate.")
 
 
+def _control_rows(solution, truth: dict[str, float]) -> list[list]:
+    """Free parameters in the units people use: angles in degrees with σ and error in arcseconds,
+    the eccentricity ratio in parts per million."""
+    rows = []
+    for name, sigma in solution.sigma.items():
+        p = solution.parameters[name]
+        v, t = solution.values[name], truth.get(name)
+        if p.unit == "rad":  # σ and error in arcseconds while they are small, else degrees
+            f, unit, d = np.degrees(1.0), "°", 4
+            sf, sunit = (f * 3600, "″") if np.degrees(sigma) < 0.05 else (f, "°")
+        else:
+            f, unit, sf, sunit, d = 1e6, " ppm", 1e6, " ppm", 1
+        err = None if t is None else v - t
+        if name == "eccentricity_phase" and err is not None:
+            err = (err + np.pi) % (2 * np.pi) - np.pi
+        rows.append([name, f"{fixed(v * f, d)}{unit}", f"{sigma * sf:.2f}{sunit}",
+                     "—" if t is None else f"{fixed(t * f, d)}{unit}", "—" if err is None else f"{signed(err * sf, 2)}{sunit}",
+                     "—" if err is None else f"{abs(err) / sigma:.1f}"])
+    return rows
+
+
 def add_control_section(report, solution, truth: dict[str, float]) -> None:
     """The Palmer control-point adjustment (boresight + structural parameters from noisy points)."""
     sec = report.section("Palmer self-calibration from control points (adjustment engine)")
     sec.text("Boresight and every Palmer parameter estimated together from noisy simulated control points of one "
-             "revolution: the separable parameters come back; δ_L and the boresight pitch share their information "
-             "(see the correlation warning).")
-    sec.solution(solution, truth)
+             "revolution: the separable parameters come back; δ_L and the boresight pitch share their information.")
+    sec.table(["parameter", "estimate", "σ", "truth", "error", "|error| / σ"], _control_rows(solution, truth))
+    ra, rb = solution.residuals_after, solution.residuals_before
+    sec.text(f"RMS of the coordinate residuals {ra['rms'] * 1e3:.1f} mm after, {rb['rms'] * 1e3:.1f} mm before, over "
+             f"{ra['n']} coordinates; σ0 = {solution.sigma0:.3f}; {len(solution.history) - 1} iterations"
+             f"{'' if solution.converged else ', NOT converged'}.")
+    for w in solution.warnings:
+        sec.warning(w)
 
 
 def add_selfcal_section(report, truth: dict[str, float], results: dict, title: str) -> None:
