@@ -295,11 +295,11 @@ def test_file_beyond_the_size_limit_is_refused_before_reading(tmp_path, cli):
 def test_too_many_setups(simulated, tmp_path, cli):
     lines = _lines(simulated / "observations.csv")
     i = _index(lines, "#! setup:")
-    extra = [f"#! setup: X{k} angle_arcsec=1 distance_mm=1 distance_ppm=1" for k in range(100)]
+    extra = [f"#! setup: X{k} angle_arcsec=1 distance_mm=1 distance_ppm=1" for k in range(50)]
     bad = tmp_path / "setups.csv"
     bad.write_text("\n".join(lines[:i] + extra + lines[i:]) + "\n")
     code, _, err = cli("range-cal", bad, "--out", tmp_path / "o")
-    _one_line_error(code, err, bad, "more than 100 setups")
+    _one_line_error(code, err, bad, "more than 50 setups")
 
 
 @pytest.mark.parametrize("text,field", [
@@ -373,12 +373,12 @@ def test_solution_and_report_record_the_run_and_the_verdict(simulated, tmp_path,
 SIM_BAD = {
     "negative seed": (["--seed", "-1"], "--seed"),
     "no setup": (["--setups", "0"], "--setups"),
-    "too many setups": (["--setups", "101"], "--setups"),
+    "too many setups": (["--setups", "51"], "--setups"),
     "no group": (["--groups", "0"], "--groups"),
     "negative E points": (["--e-points", "-1"], "--e-points"),
     "negative outliers": (["--outliers", "-1"], "--outliers"),
     "more outliers than targets": (["--setups", "1", "--groups", "1", "--e-points", "0", "--outliers", "5"], "--outliers"),
-    "more targets than range-cal reads": (["--setups", "100", "--groups", "30"], "targets"),
+    "more targets than range-cal reads": (["--setups", "50", "--groups", "10"], "targets"),
     "angle unit rad": (["--angle-unit", "rad"], "--angle-unit"),
     "vertical convention xx": (["--vertical", "xx"], "--vertical"),
 }

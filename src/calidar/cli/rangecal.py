@@ -61,7 +61,7 @@ def range_cal(
 def simulate_total_station(
     out: Path = typer.Option(..., "--out", help="Output folder: observations.csv, truth.json."),
     seed: int = typer.Option(0, "--seed", help="Random seed (≥ 0)."),
-    setups: int = typer.Option(2, "--setups", help="Total-station setups (1–100)."),
+    setups: int = typer.Option(2, "--setups", help="Total-station setups (1–50)."),
     groups: int = typer.Option(3, "--groups", help="Scan-circle groups (A–D) per setup (≥ 1)."),
     e_points: int = typer.Option(5, "--e-points", help="E points per setup (≥ 0)."),
     outliers: int = typer.Option(0, "--outliers", help="Scanner ranges with a gross error (≤ the targets)."),
@@ -70,7 +70,7 @@ def simulate_total_station(
     force: bool = typer.Option(False, "--force", help="Write into a non-empty output folder."),
 ) -> None:
     """Simulate total-station observations of a circular-scan lidar with a known range offset and scale
-    (at most 10 000 targets: what range-cal reads)."""
+    (at most 2 000 targets: what range-cal reads)."""
     from calidar.outputs import output_folder
     from calidar.pipelines.rangecal import run_simulate_total_station, simulation_config
 

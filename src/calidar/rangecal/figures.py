@@ -9,13 +9,15 @@ from calidar.rangecal import RangeCalibration
 from calidar.report.plots import plt
 
 MM = 1e3  #: m → mm for display
+MAX_LABELS = 12  #: groups above which points are not labelled one by one
 
 
 def residual_figure(result: RangeCalibration):
     """Residuals (mm) per observation and against the P→X distance, with ±2σ of each equation."""
     obs, fit = result.observations, result.fit
     fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(11, 3.8))
-    labels = np.where(obs.kind == "E", "E points", obs.group)
+    many = len(obs.groups) > MAX_LABELS  # one colour per group while a legend can show them
+    labels = np.where(obs.kind == "E", "E points", "feature points" if many else obs.group)
     idx = np.arange(len(obs))
     for lab in dict.fromkeys(labels):
         m = (labels == lab) & fit.keep
@@ -39,7 +41,7 @@ def residual_figure(result: RangeCalibration):
         ax.grid(alpha=0.3)
     ax1.set_xlabel("observation (file order)")
     ax2.set_xlabel("distance P→X [m]")
-    ax1.legend(fontsize=7, ncol=2)
+    ax1.legend(fontsize=7, ncol=2, loc="upper right")
     fig.tight_layout()
     return fig
 
@@ -52,16 +54,18 @@ def group_figure(result: RangeCalibration):
     for i, g in enumerate(m.groups):
         sel = m.feature_group == g
         ax.plot(np.full(sel.sum(), i), diff[sel], ".", color="0.5")
-        for y, p in zip(diff[sel], m.feature_point[sel]):
-            ax.annotate(p, (i, y), xytext=(4, 0), textcoords="offset points", fontsize=7, color="0.4")
+        if len(m.groups) <= MAX_LABELS:
+            for y, p in zip(diff[sel], m.feature_point[sel]):
+                ax.annotate(p, (i, y), xytext=(4, 0), textcoords="offset points", fontsize=7, color="0.4")
     ax.plot(range(len(m.groups)), m.group_delta_s * MM, "o", color="C0", label="ΔS_i (group mean)")
     ax.axhline(m.delta_s * MM, color="C1", label=f"ΔS = {m.delta_s * MM:.2f} mm")
     ax.axhspan((m.delta_s - m.delta_s_half_width) * MM, (m.delta_s + m.delta_s_half_width) * MM, color="C1",
                alpha=0.2, label="95 % interval of ΔS")
-    ax.set_xticks(range(len(m.groups)), m.groups)
+    step = max(1, len(m.groups) // MAX_LABELS)
+    ax.set_xticks(range(0, len(m.groups), step), m.groups[::step])
     ax.set_ylabel("scanner range − S_PX [mm]")
     ax.set_xlabel("group")
     ax.grid(alpha=0.3)
-    ax.legend(fontsize=8)
+    ax.legend(fontsize=8, loc="upper right")
     fig.tight_layout()
     return fig

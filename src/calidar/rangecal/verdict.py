@@ -13,6 +13,7 @@ from calidar.verdict import Finding, Verdict
 MM, PPM = 1e3, 1e6
 SIGMA0_FAIL = 3.0  #: σ0 above which the model or the stated precisions are badly wrong
 CORRELATED = 0.95  #: |ρ(offset, scale)| above which the distances barely separate them
+NAMED_OUTLIERS = 5  #: outliers named in the verdict (all are in the report's table)
 TRUTH_SIGMAS = 3.0  #: |error| / σ against a simulation's truth that passes
 
 
@@ -67,7 +68,10 @@ def _outliers(result: RangeCalibration) -> Finding:
         return Finding("pass", "outliers", f"none: every standardized residual |w| ≤ 3.29 over the {n} targets "
                        "(data snooping, α = 0.001)")
     named = "; ".join(f"line {r['line']} point {r['point']}" + (f" (group {r['group']})" if r["group"] else "")
-                      + f": residual {signed(r['residual_m'] * MM, 1)} mm, w = {signed(r['w'], 1)}" for r in fit.rejected)
+                      + f": residual {signed(r['residual_m'] * MM, 1)} mm, w = {signed(r['w'], 1)}"
+                      for r in fit.rejected[:NAMED_OUTLIERS])
+    if len(fit.rejected) > NAMED_OUTLIERS:
+        named += f"; and {len(fit.rejected) - NAMED_OUTLIERS} more (the report's table, solution.json → outliers)"
     stopped = any("data snooping stopped" in w for w in result.solution.warnings)
     if stopped:
         return Finding("fail", "outliers", f"data snooping stopped after {len(fit.rejected)} rejections (the 20 % limit) "

@@ -70,8 +70,9 @@ class TotalStationObservations:
         return list(dict.fromkeys(self.group[self.kind == "feature"]))
 
 
-#: Limits that keep a calibration's memory bounded: the fit's Jacobian holds targets × (2 + 3·setups)
-#: numbers (10 000 targets from 100 setups: 24 MB). Field calibrations have tens of targets.
-MAX_TARGETS = 10_000
-MAX_SETUPS = 100
+#: Limits that keep a calibration's memory and time bounded: the fit's Jacobian holds
+#: targets × (2 + 3·setups) numbers and each outlier rejected re-solves it (2 000 targets from
+#: 50 setups: 2.4 MB, seconds). A field calibration has tens of targets from a few setups.
+MAX_TARGETS = 2_000
+MAX_SETUPS = 50
 MAX_FILE_BYTES = 64 * 2**20  #: a file within the limits above takes well under 1 MB; comments aside
