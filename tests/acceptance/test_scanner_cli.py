@@ -105,3 +105,26 @@ def test_out_that_is_a_file_is_refused(cli, tmp_path):
     code, _, err = cli(*PALMER, "--out", f, "--force")
     assert code == 1 and str(f) in err and "\n" not in err.strip()
     assert f.read_text() == "keep me"
+
+
+@pytest.mark.parametrize("signum,code", [(15, 143), (2, 130)])
+def test_interrupted_analysis_leaves_nothing(tmp_path, signum, code):
+    """SIGTERM / SIGINT while the outputs are being written: exit 143 / 130, no folder, no temporary."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    out = tmp_path / "run"
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)}
+    p = subprocess.Popen([sys.executable, "-m", "calidar", *PALMER, "--points", "100000", "--out", str(out)],
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env, text=True)
+    t0 = time.monotonic()
+    while not any(tmp_path.glob(".run.calidar-*/*.csv")) and time.monotonic() - t0 < 60 and p.poll() is None:
+        time.sleep(0.05)  # until the run is writing its files into its temporary folder
+    p.send_signal(signal.Signals(signum))
+    _, err = p.communicate(timeout=60)
+    assert p.returncode == code, err
+    assert "interrupted" in err and "Traceback" not in err
+    assert list(tmp_path.iterdir()) == []
