@@ -390,3 +390,18 @@ def test_simulate_bad_options(tmp_path, cli, case):
     code, _, err = cli("simulate", "total-station", "--out", tmp_path / "s", *args)
     msg = _one_line_error(code, err, option)
     assert msg.startswith("error: --") and not (tmp_path / "s").exists()
+
+
+def test_excel_export_with_bom_and_crlf_reads(simulated, tmp_path, cli):
+    f = tmp_path / "excel.csv"
+    f.write_bytes(b"\xef\xbb\xbf" + (simulated / "observations.csv").read_bytes().replace(b"\n", b"\r\n"))
+    code, _, err = cli("range-cal", f, "--out", tmp_path / "o")
+    assert code == 0, err
+
+
+def test_semicolon_separated_file_is_named(simulated, tmp_path, cli):
+    lines = [ln.replace(",", ";") if not ln.startswith("#") else ln for ln in _lines(simulated / "observations.csv")]
+    f = tmp_path / "semicolons.csv"
+    f.write_text("\n".join(lines) + "\n")
+    code, _, err = cli("range-cal", f, "--out", tmp_path / "o")
+    _one_line_error(code, err, f, "header", "separated by ';'")

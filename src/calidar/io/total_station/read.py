@@ -54,6 +54,10 @@ def _parse_header(cells: list[str], src: str, line: int) -> tuple[dict[str, int]
     """Column positions, the angle unit and the vertical convention ("va" | "zd") from the header."""
     cells = [c.strip() for c in cells]
     expected = "setup, group, point, hz_<deg|gon>, va_<deg|gon> or zd_<deg|gon>, slope_m, scanner_m"
+    for sep in (";", "\t"):
+        if len(cells) == 1 and sep in cells[0]:
+            raise InputError(src, f"line {line}: header", f"the columns are separated by {sep!r}; expected commas "
+                             "(with a decimal point)")
     angle = {}
     for c in cells:
         m = re.fullmatch(r"(hz|va|zd)_(\w+)", c)
