@@ -31,7 +31,7 @@ def analyze(
     fov: float = typer.Option(60.0, "--fov", help="Linear scanner field of view (deg, 0–360)."),
     grating_radius_mm: float = typer.Option(75.0, "--grating-radius-mm", help="Encoder grating radius (mm, 0–1000)."),
     spec_arcsec: float = typer.Option(10.0, "--spec-arcsec", help="Pointing spec for the verdict and tolerances (arcsec)."),
-    points: int = typer.Option(720, "--points", help="Points around the pattern (8–100 000)."),
+    points: int = typer.Option(720, "--points", help="Points around the pattern (8–100000)."),
     as_json: bool = typer.Option(False, "--json", help="Print the summary as JSON on stdout."),
     force: bool = typer.Option(False, "--force", help="Write into a non-empty output folder."),
 ) -> None:
