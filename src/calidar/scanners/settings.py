@@ -69,14 +69,14 @@ class AnalysisSettings:
 
     def _check_errors(self) -> None:
         sources = {s.name: s for s in error_sources(self.model)}
-        by_option = {s.option: s for m in MODELS for s in error_sources(m)}
         for name, value in self.errors.items():
             src = sources.get(name)
             if src is None:
-                other = next((s for s in by_option.values() if s.name == name), None)
-                where = other.option if other else "errors"
-                models = [m for m in MODELS if any(s.name == name for s in error_sources(m))]
-                raise InputError(None, where, f"applies to --model {' or '.join(models) or '?'}, not {self.model}")
+                owners = [(m, s) for m in MODELS for s in error_sources(m) if s.name == name]
+                if not owners:
+                    raise InputError(None, "errors", f"unknown error {name!r}; expected one of {', '.join(sources)}")
+                raise InputError(None, owners[0][1].option,
+                                 f"applies to --model {' or '.join(m for m, _ in owners)}, not {self.model}")
             low = -src.limit if src.low is None else src.low
             number(value, src.option, low, src.limit, src.unit if src.unit != "ratio" else "(ratio)")
 
