@@ -87,7 +87,7 @@ def load_strips(paths, trajectory, sensor):
     crs = first.crs if first.crs is not None else sensor.crs
     if crs is None:
         raise InputError(first.path, "crs", "the file has no CRS and sensor.toml gives none; expected one of them")
-    ecef = {i: from_crs(p.xyz, crs) for i, p in lines.items()}
+    ecef = {i: from_crs(p.xyz, crs, p.geoid_undulation_m, source=p.path) for i, p in lines.items()}
     frame = LocalFrame.at(np.concatenate([e[:: max(1, len(e) // 20000)] for e in ecef.values()]))
     strips = []
     for i, p in lines.items():

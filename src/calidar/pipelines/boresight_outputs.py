@@ -39,7 +39,8 @@ def regeoreferenced_lines(inputs, sensor, trajectory):
     for s in inputs.strips:
         ecef = georef.forward(trajectory, sensor, s.obs.time, s.obs.range_m, s.obs.angles)
         las = s.extra["las"]
-        yield s.id, replace(las, xyz=georef.to_crs(ecef, las.crs if las.crs is not None else inputs.crs))
+        crs = las.crs if las.crs is not None else inputs.crs
+        yield s.id, replace(las, xyz=georef.to_crs(ecef, crs, las.geoid_undulation_m, source=las.path))
 
 
 def measure_lines(lines) -> list:
