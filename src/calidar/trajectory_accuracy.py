@@ -49,7 +49,8 @@ class TrajectoryAccuracy:
             bad = ~(np.isfinite(a) & (a > 0))
             if bad.any():
                 i, j = np.argwhere(bad)[0]
-                raise InputError(self.source, fields[j], f"expected σ > 0, record {i} has {a[i, j]!r} "
+                unit = "m" if name == "position_m" else "rad"
+                raise InputError(self.source, fields[j], f"expected σ > 0, record {i} has {float(a[i, j]):g} {unit} "
                                  f"({int(bad[:, j].sum())} such records)")
             object.__setattr__(self, name, a)
         if not np.all(np.isfinite(t)):

@@ -17,10 +17,11 @@ DEMO_ERRORS = {"boresight_roll": np.radians(0.05), "boresight_pitch": np.radians
 
 
 def demo_config(seed: int = 0):
-    """The demo survey: UAV preset, cross lines, a boresight error, light density (≈ 1 M points)."""
+    """The demo survey: UAV preset, lines in alternate directions with 60 % side overlap (as a
+    calibration flight is planned) and two cross lines, a boresight error, light density (≈ 1.5 M points)."""
     from calidar.sim.survey import survey_config
 
-    return survey_config("uav", seed=seed, directions="cross", density=0.3, errors=dict(DEMO_ERRORS))
+    return survey_config("uav", seed=seed, directions="cross", side_overlap=0.6, density=0.3, errors=dict(DEMO_ERRORS))
 
 
 def simulation_step(report: Report, out_dir: Path, seed: int, progress: Progress = no_progress) -> None:

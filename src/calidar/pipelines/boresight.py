@@ -138,6 +138,7 @@ def resolve_accuracy(trajectory_path: Path, trajectory, options: BoresightOption
     or None). In order: --trajectory-accuracy, --trajectory-sigma, σ columns of a text
     trajectory, an smrmsg*.out beside an sbet*.out, else the survey-grade default (with a note)."""
     from calidar.io.smrmsg import find_beside, read_smrmsg
+    from calidar.io.trajectory_text import SIGMA_COLUMNS
     from calidar.trajectory_accuracy import SURVEY_GRADE, TrajectoryAccuracy
 
     if options.trajectory_accuracy is not None and options.trajectory_sigma is not None:
@@ -150,9 +151,9 @@ def resolve_accuracy(trajectory_path: Path, trajectory, options: BoresightOption
             if not (np.isfinite(v) and v > 0):
                 raise InputError(None, "--trajectory-sigma", f"expected numbers > 0, got {v}")
         return TrajectoryAccuracy.uniform(pos_m, np.radians(att_deg), "--trajectory-sigma"), None, None
-    sigma = trajectory.extra.get("accuracy")
-    if isinstance(sigma, TrajectoryAccuracy):
-        return sigma, None, None
+    if all(c in trajectory.extra for c in SIGMA_COLUMNS):
+        pos, att = (np.stack([trajectory.extra[c] for c in cols], axis=1) for cols in (SIGMA_COLUMNS[:3], SIGMA_COLUMNS[3:]))
+        return TrajectoryAccuracy(trajectory.time, pos, att, None, f"{trajectory_path} (σ columns)"), None, None
     beside = find_beside(trajectory_path)
     if beside is not None:
         return read_smrmsg(beside), beside, None

@@ -4,7 +4,7 @@ Findings (each pass / warn / fail, with the numbers and, when not a pass, an act
 
 - every estimated parameter: value ± σ (degrees and arc-seconds, millimetres), determined when
   its σ moves a point on the ground by at most :data:`GROUND_LIMIT_M` at the survey's median
-  range, not determined otherwise (warn; infinite σ: fail);
+  range (lengths: σ ≤ :data:`LENGTH_LIMIT_M`), not determined otherwise (warn; infinite σ: fail);
 - the global test of σ0 (the a-posteriori standard deviation of unit weight against 1, with
   the χ² test's 95 % range), the residuals against the noise floor the correspondences'
   own scatter predicts, correlations between estimated parameters above
@@ -23,8 +23,11 @@ from scipy.stats import chi2
 from calidar.strips.trajectory_errors import PREFIX as TRAJECTORY_PREFIX
 from calidar.verdict import Finding, Verdict, angle_text, length_text, two_digits
 
-#: a parameter is "determined" when its σ moves points on the ground by at most this (m)
+#: an angle (or scale) is "determined" when its σ moves points on the ground by at most this (m)
 GROUND_LIMIT_M = 0.02
+#: a length (lever arm, range offset) is "determined" when its σ is at most this (m): better
+#: than a tape measure on the mounting
+LENGTH_LIMIT_M = 0.01
 #: |ρ| between two estimated parameters above which the strips barely tell them apart
 CORRELATION_LIMIT = 0.9
 #: σ0 within this range passes (σ are scaled by σ0 anyway); above SIGMA0_FAIL the model does not fit
@@ -78,7 +81,7 @@ def parameter_findings(result, range_m: float) -> list[Finding]:
             continue
         g = _ground_effect(p, s, range_m)
         where = f"{two_digits(g * 100)} cm on the ground at the {range_m:,.0f} m median range" if p.unit != "m" else ""
-        if math.isfinite(g) and g > GROUND_LIMIT_M:
+        if math.isfinite(g) and g > (LENGTH_LIMIT_M if p.unit == "m" else GROUND_LIMIT_M):
             out.append(Finding("warn", p.name, f"{text}: not determined by these strips (σ {two_digits(s * 100)} cm)"
                                if p.unit == "m" else f"{text}: weakly determined ({where})",
                                ACTIONS.get(p.name, GENERIC_ACTION)))
