@@ -9,7 +9,8 @@ Findings (each pass / warn / fail, with the numbers and, when not a pass, an act
   the χ² test's 95 % range), the residuals against the noise floor the correspondences'
   own scatter predicts, correlations between estimated parameters above
   :data:`CORRELATION_LIMIT`, convergence;
-- the overlaps before and after (swath differences), and what the σ rest on (the trajectory's
+- the overlaps before and after (swath differences: no pair worse, no strip left offset by more
+  than :data:`OFFSET_LIMIT_M`), and what the σ rest on (the trajectory's
   accuracy: a file, or a default assumed; the trajectory model off).
 """
 
@@ -34,6 +35,8 @@ CORRELATION_LIMIT = 0.9
 SIGMA0_PASS, SIGMA0_FAIL = (0.7, 1.3), 2.0
 #: RMSDz of a pair may grow by this much (m) before the verdict calls it worse
 WORSE_M = 0.002
+#: a pair whose median dz stays beyond this after calibration is still offset (m)
+OFFSET_LIMIT_M = 0.02
 
 ANGLES = {"boresight_roll", "boresight_pitch", "boresight_yaw", "scan_angle_offset"}
 #: what separates a parameter the strips cannot determine
@@ -105,8 +108,9 @@ def sigma0_finding(sol) -> Finding:
     status = "fail" if sol.sigma0 > SIGMA0_FAIL else "warn"
     return Finding(status, "global test", detail + ": the residuals are larger than the correspondences' own scatter "
                    "predicts (the σ were scaled up by σ0)",
-                   "look for what the model does not hold: a wrong nominal sensor or time system, scanner errors "
-                   "beyond the estimated parameters, vegetation or moving objects in the overlaps")
+                   "look for what the model does not hold: trajectory errors (leave the trajectory model on), a "
+                   "wrong nominal sensor or time system, scanner errors beyond the estimated parameters, "
+                   "vegetation or moving objects in the overlaps")
 
 
 def noise_finding(result, sigma_rows: np.ndarray | None) -> Finding:
@@ -174,6 +178,10 @@ def overlap_finding(stages) -> Finding:
         return Finding("warn", "overlaps", detail + "; worse after: " + ", ".join(worse),
                        "look at those pairs' dz maps: a local problem (a trajectory outage, a moving object) "
                        "or an error the estimated parameters do not cover")
+    if max(med_a) > OFFSET_LIMIT_M:
+        return Finding("warn", "overlaps", detail + f": strips still offset by more than {OFFSET_LIMIT_M * 1e3:.0f} mm",
+                       "an error the calibration did not estimate shifts whole strips: trajectory errors (leave the "
+                       "trajectory model on) or a parameter held fixed")
     return Finding("pass", "overlaps", detail)
 
 
