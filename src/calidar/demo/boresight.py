@@ -19,10 +19,10 @@ CASES = (
      "overlaps determine. The trajectory's errors are estimated too, with the accuracy POSPac states for it "
      "(smrmsg.out beside sbet.out) as priors, so the σ include them."),
     ("Second case, for contrast: boresight and lever arm from the same strips (a warning)", "boresight,lever_arm",
-     "The same strips asked for the lever arm as well. At one flying height a pitch error and an along-track "
-     "lever-arm error move points alike, and a vertical lever-arm error moves every strip up or down alike: the "
-     "verdict says these are not determined and what would determine them (hold them at their measured values, "
-     "or fly lines at a second height). Its outputs are in boresight_lever_arm/."),
+     "The same strips asked for the lever arm as well. The lines are flown at one height, where a vertical "
+     "lever-arm error moves every strip up or down alike: only the platform's roll and pitch changes reveal it, "
+     "and the verdict says lever_arm_z is not determined and what would determine it (hold it at its measured "
+     "value, or fly lines at a second height). Its outputs are in boresight_lever_arm/."),
 )
 
 

@@ -17,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
+from calidar.outputs import shown_path
 from calidar.pipelines import Progress, no_progress
 
 
@@ -150,4 +151,4 @@ def solution_document(result, truth, verdict, record, accuracy, stages=()) -> st
                               for st in stages]
     doc["trajectory_accuracy"] = None if accuracy is None else accuracy.to_dict()
     doc["run"] = record.to_dict()
-    return json.dumps(doc, indent=2, allow_nan=False) + "\n"
+    return shown_path(json.dumps(doc, indent=2, allow_nan=False) + "\n")  # destinations, not temporary folders

@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from calidar import __version__
-from calidar.outputs import write_text_atomic
+from calidar.outputs import shown_path, write_text_atomic
 
 _CSS = """
 body{font-family:system-ui,-apple-system,Segoe UI,Roboto,sans-serif;max-width:1100px;margin:2em auto;padding:0 1em;color:#222}
@@ -210,7 +210,8 @@ class Report:
         verdicts = "".join(verdict_html(v, t) for t, v in self.verdicts)
         record = (f'<section id="run"><h2>How this was made</h2>{record_html(self.record)}</section>'
                   if self.record is not None else "")
-        return (
+        # a run writes into a temporary folder (calidar.outputs.output_folder): name the destination
+        return shown_path(
             f'<!DOCTYPE html>\n<html lang="en"><head><meta charset="utf-8"><title>{html.escape(self.title)}</title>'
             f"<style>{_CSS}</style></head><body><h1>{html.escape(self.title)}</h1>"
             f'<p class="meta">calidar {__version__} · {stamp}</p>{verdicts}<nav><ul>{nav}</ul></nav>\n{body}\n'

@@ -83,7 +83,8 @@ def parameter_findings(result, range_m: float) -> list[Finding]:
                                ACTIONS.get(p.name, GENERIC_ACTION)))
             continue
         g = _ground_effect(p, s, range_m)
-        where = f"{two_digits(g * 100)} cm on the ground at the {range_m:,.0f} m median range" if p.unit != "m" else ""
+        size = f"{two_digits(g * 100)} cm" if g >= 0.01 else f"{two_digits(g * 1000)} mm"
+        where = f"{size} on the ground at the {range_m:,.0f} m median range" if p.unit != "m" else ""
         if math.isfinite(g) and g > (LENGTH_LIMIT_M if p.unit == "m" else GROUND_LIMIT_M):
             out.append(Finding("warn", p.name, f"{text}: not determined by these strips (σ {two_digits(s * 100)} cm)"
                                if p.unit == "m" else f"{text}: weakly determined ({where})",
