@@ -63,6 +63,10 @@ class Section:
     def text(self, paragraph: str) -> None:
         self.blocks.append(f"<p>{html.escape(paragraph)}</p>")
 
+    def heading(self, text: str) -> None:
+        """A sub-heading inside the section."""
+        self.blocks.append(f"<h3>{html.escape(text)}</h3>")
+
     def code(self, text: str, caption: str | None = None) -> None:
         """A command or other literal text, in a copyable block (``caption`` before it)."""
         cap = f"<p>{html.escape(caption)}</p>" if caption else ""

@@ -105,15 +105,17 @@ def add_report_section(report: Report, result: CalibrationResult, truth: dict[st
                                   unit="mm"),
                "Correspondence residuals at the nominal sensor (first matching) and after calibration (last matching).")
     if result.corrections:
+        sec.heading("Trajectory corrections")
         correction_table(sec, result)
     if quality:
         _quality_part(sec, quality, map_pair)
-    sec.text("References")
+    sec.heading("References")
     sec.references(REFERENCES)
     return sec
 
 
 def _quality_part(sec, quality: list[QualityStage], map_pair: tuple[int, int] | None) -> None:
+    sec.heading("Overlap quality, and how to reproduce it")
     quality_table(sec, quality)
     for st in quality:
         sec.code(st.command, f"{st.label}: reproduced by")
