@@ -74,14 +74,14 @@ def _print(result, truth_si) -> None:
     n_traj = sum(name.startswith(TRAJECTORY_PREFIX) for name in doc["parameters"])
     if truth_si:
         table = Table(title=f"Against the truth ({result.method})")
-        for h in ("parameter", "value", "σ", "unit", "truth", "error", "|error|/σ"):
-            table.add_column(h, justify="right")
-        g = lambda v: "—" if v is None else f"{v:.6g}"  # noqa: E731
+        for h in ("parameter", "value ± σ", "truth", "error", "|error|/σ"):
+            table.add_column(h, justify="left" if h == "parameter" else "right", no_wrap=True)
         for name, p in doc["parameters"].items():
             if p["free"] and not name.startswith(TRAJECTORY_PREFIX) and "error" in p:
+                u = "°" if p["unit"] == "deg" else f" {p['unit']}"
                 z = abs(p["error"]) / p["sigma"] if p["sigma"] else None
-                table.add_row(name, g(p["value"]), g(p["sigma"]), p["unit"], g(p["truth"]), g(p["error"]),
-                              "—" if z is None else f"{z:.2f}")
+                table.add_row(name, f"{p['value']:.5f} ± {p['sigma']:.5f}{u}" if p["sigma"] else f"{p['value']:.5f}{u}",
+                              f"{p['truth']:.5f}{u}", f"{p['error']:+.5f}{u}", "—" if z is None else f"{z:.2f}")
         console.print(table)
     if n_traj:
         console.print(f"{n_traj} trajectory corrections estimated (in solution.json and sbet_corrected.out; largest "

@@ -116,6 +116,14 @@ def add_report_section(report: Report, result: CalibrationResult, truth: dict[st
 
 def _quality_part(sec, quality: list[QualityStage], map_pair: tuple[int, int] | None) -> None:
     sec.heading("Overlap quality, and how to reproduce it")
+    rows = []
+    for st in quality:
+        med = [abs(q.median_dz_m) for q in st.pairs if q.median_dz_m is not None]
+        rms = [q.rmsdz_m for q in st.pairs if q.rmsdz_m is not None]
+        rows.append([st.label, len(st.pairs), 1e3 * float(np.median(rms)) if rms else None,
+                     1e3 * max(med) if med else None])
+    sec.table(["strips", "pairs", "median RMSDz [mm]", "largest |median dz| [mm]"], rows,
+              "Summary of the three states of the strips (per pair below).", formats=[None, "d", ".1f", ".1f"])
     quality_table(sec, quality)
     for st in quality:
         sec.code(st.command, f"{st.label}: reproduced by")
