@@ -173,8 +173,8 @@ def test_cli_simulate_ccr_denoise(cli, tmp_path):
     assert code == 1 and "gt2l: beam group missing" in err
     code, _, err = cli("denoise", sim_dir / "ATL03_sim.h5", "--out", tmp_path / "p.csv")
     assert code == 0, err
-    rows = np.loadtxt(tmp_path / "p.csv", delimiter=",", skiprows=1)
-    assert rows.shape[1] == 4 and set(np.unique(rows[:, 3])) == {0.0, 1.0}
+    rows = np.genfromtxt(tmp_path / "p.csv", delimiter=",", names=True, dtype=None, encoding="utf-8")
+    assert len(rows.dtype.names) == 10 and set(np.unique(rows["signal"])) == {0, 1}
 
 
 def test_ccr_csv_round_trip(tmp_path):

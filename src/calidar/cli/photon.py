@@ -19,28 +19,6 @@ FORCE = typer.Option(False, "--force", help="Overwrite existing outputs.")
 
 def register(app: typer.Typer, simulate: typer.Typer) -> None:
     @app.command()
-    def denoise(
-        atl03: Path = typer.Argument(..., help="ATL03 HDF5 file."),
-        beam: str = BEAM,
-        out: Path = typer.Option(..., "--out", help="CSV to write: delta_time, dist_ph_along, h_ph, signal."),
-        shot_spacing: float = typer.Option(0.7, "--shot-spacing-m", help="Along-track shot spacing d_l (m)."),
-        force: bool = FORCE,
-    ) -> None:
-        """Classify every photon as signal (1) or noise (0): histogram then DBSCAN."""
-        from calidar.io.atl03 import read_atl03
-        from calidar.photon.denoise import denoise as run
-
-        b = read_atl03(_existing(atl03), beam)
-        check_writable(out, force)
-        x = b.x
-        sig = run(x, b.h, shot_spacing)
-        with atomic_path(out) as tmp:
-            np.savetxt(tmp, np.column_stack([b.delta_time, x, b.h, sig.astype(int)]),
-                       fmt=["%.9f", "%.4f", "%.4f", "%d"], delimiter=",", header="delta_time,dist_ph_along,h_ph,signal",
-                       comments="")
-        console.print(f"{out}: {len(b):,} photons, {int(sig.sum()):,} signal ({sig.mean():.1%})", highlight=False)
-
-    @app.command()
     def ccr(
         atl03: list[Path] = typer.Argument(..., help="ATL03 file(s); several passes are solved jointly."),
         beam: str = BEAM,
