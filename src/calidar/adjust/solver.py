@@ -69,6 +69,7 @@ def solve(
     progress: Callable[[int, float], None] | None = None,
     clusters: np.ndarray | list[np.ndarray] | None = None,
     prior_correlation: Sequence[tuple[Sequence[str], np.ndarray]] = (),
+    normal_fn: Callable[[dict[str, float]], np.ndarray] | None = None,
 ) -> Solution:
     """Least-squares estimate of the free parameters of ``params``.
 
@@ -87,6 +88,9 @@ def solve(
     prior_correlation: groups (names, correlation matrix R) of free parameters whose priors
     (each its own prior_sigma) are jointly Gaussian with covariance D·R·D instead of
     independent. ``jacobian_fn`` may return a scipy.sparse matrix (many parameters, few per row).
+    normal_fn(values): the normal matrix (n_free × n_free) to use instead of JᵀWJ — for a cost
+    that is a negative log-likelihood (residuals whose squares sum to it), its expected
+    information (Fisher scoring); the gradient stays Jᵀ·W·r.
     The covariance is σ0²·N⁻¹ without priors (σ relative) and max(σ0², 1)·N⁻¹ with them (σ
     absolute: the priors are never tightened by an a-posteriori σ0 below 1).
     """
@@ -141,7 +145,7 @@ def solve(
     n_inv_diag = None  # diag(N⁻¹) of the first step: the stop rule's σ scale (N hardly changes after)
     for it in range(1, max_iter + 1):
         J = jac(x)
-        N = _normal_matrix(J, w)
+        N = _normal_matrix(J, w) if normal_fn is None else np.array(normal_fn(params.values_with(x)), float)
         g = J.T @ (w * r)
         for idx, center, P in priors:
             N[np.ix_(idx, idx)] += P
@@ -173,7 +177,7 @@ def solve(
             break
 
     J = jac(x)
-    N = _normal_matrix(J, w)
+    N = _normal_matrix(J, w) if normal_fn is None else np.array(normal_fn(params.values_with(x)), float)
     for idx, _, P in priors:
         N[np.ix_(idx, idx)] += P
     # effective redundancy: down-weighted observations count by their relative weight

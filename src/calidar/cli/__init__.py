@@ -29,7 +29,7 @@ from calidar.errors import CalidarError
 from calidar.outputs import shown_path
 
 COMMAND_MODULES: list[str] = [
-    "info", "georef", "rangecal", "photon", "denoise", "simulate_survey", "demo", "quality", "boresight", "scanner",
+    "info", "georef", "rangecal", "photon", "denoise", "ccr", "simulate_survey", "demo", "quality", "boresight", "scanner",
 ]
 
 app = typer.Typer(
