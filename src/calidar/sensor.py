@@ -5,21 +5,8 @@ true = (measured − range_offset) / (1 + range_scale).
 Boresight R_bs = Rz(yaw) · Ry(pitch) · Rx(roll) rotates scanner-frame vectors into the body
 frame; the lever arm a_b is the scanner origin in the body frame (m).
 
-``sensor.toml`` (user units in the key names)::
-
-    crs = "EPSG:32611"              # output CRS of georeferenced points (optional)
-    [mounting]
-    boresight_roll_deg = 0.0
-    boresight_pitch_deg = 0.0
-    boresight_yaw_deg = 0.0
-    lever_arm_m = [0.0, 0.0, 0.0]   # x forward, y right, z down, in the body frame
-    [range]
-    offset_m = 0.0
-    scale_ppm = 0.0
-    [scanner]
-    model = "linear"                # see calidar.scanners.SCANNERS
-    scan_angle_offset_deg = 0.0
-    scan_angle_scale = 0.0
+``sensor.toml``: every key, its unit, allowed range and default are in docs/sensor.md
+(with the conversions from vendor conventions, :mod:`calidar.sensor_import`).
 """
 
 from __future__ import annotations
@@ -36,9 +23,16 @@ from calidar.errors import InputError
 from calidar.outputs import write_text_atomic
 from calidar.scanners import Scanner, scanner_from_toml
 from calidar.scanners.linear import LinearScanner
+from calidar.validate import read_text, table_number
 
 MOUNTING_PARAMETERS = ("boresight_roll", "boresight_pitch", "boresight_yaw", "lever_arm_x", "lever_arm_y", "lever_arm_z")
 RANGE_PARAMETERS = ("range_offset", "range_scale")
+MOUNTING_KEYS = ("boresight_roll_deg", "boresight_pitch_deg", "boresight_yaw_deg", "lever_arm_m")
+#: the physical ranges sensor.toml values are checked against (docs/sensor.md)
+BORESIGHT_MAX_DEG = 180.0
+LEVER_ARM_MAX_M = 50.0
+RANGE_OFFSET_MAX_M = 100.0
+RANGE_SCALE_MAX_PPM = 1e5
 
 
 @dataclass(frozen=True)
@@ -92,7 +86,7 @@ class Sensor:
 
     def to_toml(self) -> str:
         """sensor.toml text (degrees, metres, ppm)."""
-        lines = ["# calidar sensor model: angles in degrees, lengths in metres (docs/conventions.md)"]
+        lines = ["# calidar sensor model: angles in degrees, lengths in metres (docs/sensor.md)"]
         if self.crs:
             lines.append(f'crs = "{self.crs}"')
         lines += [
@@ -119,46 +113,60 @@ class Sensor:
 
     @classmethod
     def read(cls, path: str | Path) -> "Sensor":
-        """Read sensor.toml; unknown tables/keys and wrong types are clear errors."""
-        path = Path(path)
+        """Read sensor.toml (docs/sensor.md): unknown tables/keys, wrong types, missing keys without a
+        documented default and values outside their range are clear errors naming the key."""
+        text = read_text(path, "sensor.toml")
         try:
-            doc = tomllib.loads(path.read_text(encoding="utf-8"))
-        except FileNotFoundError:
-            raise InputError(path, None, "file not found") from None
+            doc = tomllib.loads(text)
         except tomllib.TOMLDecodeError as e:
             raise InputError(path, None, f"not valid TOML ({e})") from None
         return cls.from_dict(doc, str(path))
 
     @classmethod
     def from_dict(cls, doc: dict, source: str = "sensor.toml") -> "Sensor":
+        """A Sensor from a parsed sensor.toml (see :meth:`read` and docs/sensor.md for keys, units, ranges)."""
         _only(doc, {"crs", "mounting", "range", "scanner"}, source, "")
-        m = doc.get("mounting", {})
-        _only(m, {"boresight_roll_deg", "boresight_pitch_deg", "boresight_yaw_deg", "lever_arm_m"}, source, "mounting.")
+        scanner = scanner_from_toml(doc.get("scanner", {"model": "linear"}), source)
+        if "mounting" not in doc:
+            raise InputError(source, "mounting", "missing table; expected [mounting] with boresight_roll_deg, "
+                             "boresight_pitch_deg, boresight_yaw_deg and lever_arm_m (docs/sensor.md)")
+        m = doc["mounting"]
+        _only(m, set(MOUNTING_KEYS), source, "mounting.")
         r = doc.get("range", {})
         _only(r, {"offset_m", "scale_ppm"}, source, "range.")
-        lever = m.get("lever_arm_m", [0.0, 0.0, 0.0])
-        if not (isinstance(lever, list) and len(lever) == 3 and all(isinstance(v, (int, float)) for v in lever)):
-            raise InputError(source, "mounting.lever_arm_m", f"expected 3 numbers [x, y, z] in metres, got {lever!r}")
-        crs = doc.get("crs")
-        if crs is not None:
-            import pyproj
-
-            try:
-                pyproj.CRS.from_user_input(crs)
-            except pyproj.exceptions.CRSError:
-                raise InputError(source, "crs", f"expected a CRS pyproj knows (e.g. 'EPSG:32611'), got {crs!r}") from None
+        angles = [np.radians(table_number(m, k, source, -BORESIGHT_MAX_DEG, BORESIGHT_MAX_DEG, "deg", "mounting."))
+                  for k in MOUNTING_KEYS[:3]]
         return cls(
-            boresight_roll=np.radians(_num(m, "boresight_roll_deg", source, "mounting.")),
-            boresight_pitch=np.radians(_num(m, "boresight_pitch_deg", source, "mounting.")),
-            boresight_yaw=np.radians(_num(m, "boresight_yaw_deg", source, "mounting.")),
-            lever_arm_x=float(lever[0]),
-            lever_arm_y=float(lever[1]),
-            lever_arm_z=float(lever[2]),
-            range_offset=_num(r, "offset_m", source, "range."),
-            range_scale=_num(r, "scale_ppm", source, "range.") * 1e-6,
-            scanner=scanner_from_toml(doc.get("scanner", {"model": "linear"}), source),
-            crs=crs,
+            *angles, *_lever_arm(m.get("lever_arm_m"), source),
+            range_offset=table_number(r, "offset_m", source, -RANGE_OFFSET_MAX_M, RANGE_OFFSET_MAX_M, "m", "range.", 0.0),
+            range_scale=table_number(r, "scale_ppm", source, -RANGE_SCALE_MAX_PPM, RANGE_SCALE_MAX_PPM, "ppm", "range.",
+                                     0.0) * 1e-6,
+            scanner=scanner, crs=validated_crs(doc.get("crs"), source),
         )
+
+
+def _lever_arm(lever, source: str) -> tuple[float, float, float]:
+    """mounting.lever_arm_m: three finite numbers within ±LEVER_ARM_MAX_M (m)."""
+    field = "mounting.lever_arm_m"
+    if lever is None:
+        raise InputError(source, field, "missing; expected [x, y, z] in metres (body frame: forward, right, down)")
+    if not (isinstance(lever, list) and len(lever) == 3):
+        raise InputError(source, field, f"expected 3 numbers [x, y, z] in metres, got {lever!r}")
+    return tuple(table_number({k: v}, k, source, -LEVER_ARM_MAX_M, LEVER_ARM_MAX_M, "m", field + ".")
+                 for k, v in zip("xyz", lever))
+
+
+def validated_crs(crs, source: str) -> str | None:
+    """``crs`` when pyproj knows it (None stays None), else a clear error naming ``source``."""
+    if crs is None:
+        return None
+    import pyproj
+
+    try:
+        pyproj.CRS.from_user_input(crs)
+    except (pyproj.exceptions.CRSError, TypeError):
+        raise InputError(source, "crs", f"expected a CRS pyproj knows (e.g. 'EPSG:32611'), got {crs!r}") from None
+    return crs
 
 
 def _only(table: dict, known: set[str], source: str, prefix: str) -> None:
@@ -167,13 +175,6 @@ def _only(table: dict, known: set[str], source: str, prefix: str) -> None:
     unknown = set(table) - known
     if unknown:
         raise InputError(source, prefix + sorted(unknown)[0], f"unknown key; expected one of {sorted(known)}")
-
-
-def _num(table: dict, key: str, source: str, prefix: str) -> float:
-    v = table.get(key, 0.0)
-    if isinstance(v, bool) or not isinstance(v, (int, float)):
-        raise InputError(source, prefix + key, f"expected a number, got {v!r}")
-    return float(v)
 
 
 def _toml_value(v) -> str:

@@ -15,9 +15,15 @@ import numpy as np
 
 from calidar import frames
 from calidar.errors import InputError
+from calidar.validate import values
 
 TIME_SYSTEMS = ("gps_week_seconds", "gps_adjusted_standard")
 SECONDS_PER_WEEK = 604800.0
+HEIGHT_RANGE_M = (-1000.0, 100_000.0)  #: ellipsoidal heights a platform can have (m)
+#: physical range of every per-record field, SI (rad, m): checked on every trajectory
+LIMITS = {"lat": (-np.pi / 2, np.pi / 2, "rad"), "lon": (-2 * np.pi, 2 * np.pi, "rad"),
+          "height": (*HEIGHT_RANGE_M, "m"), "roll": (-np.pi, np.pi, "rad"), "pitch": (-np.pi / 2, np.pi / 2, "rad"),
+          "heading": (-2 * np.pi, 2 * np.pi, "rad")}
 
 
 def _sign_continuous(q: np.ndarray) -> np.ndarray:
@@ -51,7 +57,7 @@ class Trajectory:
             a = np.asarray(getattr(self, name), dtype=float)
             if a.shape != t.shape:
                 raise InputError(self.source, name, f"expected {t.size} values, got {a.shape}")
-            object.__setattr__(self, name, a)
+            object.__setattr__(self, name, values(a, self.source, name, *LIMITS[name]))
         object.__setattr__(self, "time", t)
         if not np.all(np.isfinite(t)):
             raise InputError(self.source, "time", f"expected finite times, found {int(np.sum(~np.isfinite(t)))} NaN/inf")

@@ -26,14 +26,19 @@ import numpy as np
 from calidar.errors import InputError
 
 
+def _g(v: float) -> str:
+    """A bound as people write it: 1209600, 0.01, 3.14159, 1e+09."""
+    return f"{v:.6g}" if abs(v) < 1e6 or v != int(v) or abs(v) >= 1e8 else f"{v:.0f}"
+
+
 def _range_text(lo: float | None, hi: float | None, unit: str, open_lo: bool = False) -> str:
     u = f" {unit}" if unit else ""
     if lo is not None and hi is not None:
-        return f"in {'(' if open_lo else '['}{lo:g}, {hi:g}]{u}"
+        return f"in {'(' if open_lo else '['}{_g(lo)}, {_g(hi)}]{u}"
     if lo is not None:
-        return f"{'>' if open_lo else '≥'} {lo:g}{u}"
+        return f"{'>' if open_lo else '≥'} {_g(lo)}{u}"
     if hi is not None:
-        return f"≤ {hi:g}{u}"
+        return f"≤ {_g(hi)}{u}"
     return ""
 
 
@@ -58,9 +63,10 @@ def positive(value, where, unit: str = "", field: str | None = None, hi: float |
 
 
 def values(array, source: str | os.PathLike | None, field: str, lo: float | None = None, hi: float | None = None,
-           unit: str = "", what: str = "record") -> np.ndarray:
+           unit: str = "", what: str = "record", labels=None) -> np.ndarray:
     """``array`` unchanged when every value is finite and within [lo, hi]; else an error naming
-    the file, the field, the expected range, the first bad value, how many and where."""
+    the file, the field, the expected range, the first bad value, how many and where (its index,
+    or ``labels[index]``, e.g. line numbers)."""
     a = np.asarray(array, dtype=float)
     bad = ~np.isfinite(a)
     if lo is not None:
@@ -71,8 +77,9 @@ def values(array, source: str | os.PathLike | None, field: str, lo: float | None
         flat = bad.ravel()
         first = int(np.argmax(flat))
         expected = f"finite values {_range_text(lo, hi, unit)}".rstrip()
+        where = first if labels is None else labels[first]
         raise InputError(source, field, f"expected {expected}, got {a.ravel()[first]:g} "
-                         f"({int(flat.sum())} of {flat.size} values, first at {what} {first})")
+                         f"({int(flat.sum())} of {flat.size} values, first at {what} {where})")
     return a
 
 
@@ -116,3 +123,22 @@ def read_json(path: Path) -> dict:
     if not isinstance(doc, dict):
         raise InputError(path, None, "expected a JSON object")
     return doc
+
+
+_MISSING = object()
+
+
+def table_number(table: dict, key: str, source, lo: float | None = None, hi: float | None = None, unit: str = "",
+                 prefix: str = "", default=_MISSING) -> float:
+    """``table[key]`` (a TOML/JSON table) as a float: a number (not a bool or a string), finite,
+    within [lo, hi]; a missing key is an error unless a ``default`` is given (docs must name it)."""
+    if key not in table:
+        if default is _MISSING:
+            expected = f"a number {_range_text(lo, hi, unit)}".rstrip()
+            raise InputError(source, prefix + key, f"missing; expected {expected}")
+        return float(default)
+    v = table[key]
+    if isinstance(v, bool) or not isinstance(v, (int, float)):
+        raise InputError(source, prefix + key, f"expected a number {_range_text(lo, hi, unit)}, got {v!r}".replace("  ", " "))
+    return number(v, source, lo, hi, unit, field=prefix + key)
+

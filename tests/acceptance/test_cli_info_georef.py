@@ -176,6 +176,14 @@ def test_inverse_real_leeward(real_data, cli, tmp_path):
     r, p, y = np.degrees(_leeward_boresight_in_calidar_frames(-1.54, -1.54, 0.0))
     assert (r, p, y) == pytest.approx((0.054, 1.764, 1.765), abs=2e-3)
     assert np.allclose(_leeward_boresight_in_calidar_frames(-np.pi / 2, -np.pi / 2, 0.0), 0.0, atol=1e-12)
+    # what the data say (docs/sensor.md): the scanner vectors lie in one plane (a linear scanner)
+    # yawed 13.96° and pitched 0.07° in the body frame — not the config's 1.76°
+    u = np.c_[v["x_s"], v["y_s"], v["z_s"]] / v["range_m"][:, None]
+    normal = np.linalg.svd(u, full_matrices=False)[2][2]
+    normal *= np.sign(normal[0])
+    assert np.degrees(np.sqrt(np.mean((u @ normal) ** 2))) < 0.01
+    assert np.degrees(np.arctan2(normal[1], normal[0])) == pytest.approx(13.96, abs=0.05)
+    assert np.degrees(-np.arcsin(normal[2])) == pytest.approx(0.07, abs=0.05)
     sensor = Sensor(*np.radians([r, p, y])).write(tmp_path / "leeward.toml")
     cli("inverse", d / "points.las", "-t", d / "sbet.out", "--sensor", sensor, "--out", tmp_path / "w.csv")
     w = _vectors(tmp_path / "w.csv")
@@ -223,7 +231,7 @@ def _week_crossing(tmp_path, n=5000):
 
 
 def test_week_boundary_between_chunks_is_caught(tmp_path, cli, monkeypatch):
-    monkeypatch.setattr("calidar.cli.georef.CHUNK_POINTS", 1000)
+    monkeypatch.setattr("calidar.pipelines.inputs.CHUNK_POINTS", 1000)
     las, sbet = _week_crossing(tmp_path)
     code, _, err = cli("inverse", las, "-t", sbet, "--out", tmp_path / "v.csv")
     _one_line_error(code, err, "crossing.las: gps_time:", "span GPS weeks 2300–2301")
@@ -247,7 +255,7 @@ def _stretched(las, path, factor):
 def test_outside_trajectory_counted_over_the_whole_file(tmp_path, cli, monkeypatch, command):
     """Points before and after the trajectory in several chunks: one error with whole-file counts
     and time ranges, and nothing written."""
-    monkeypatch.setattr("calidar.cli.georef.CHUNK_POINTS", 1000)
+    monkeypatch.setattr("calidar.pipelines.inputs.CHUNK_POINTS", 1000)
     _, las, sbet, _ = _survey(tmp_path, Sensor())  # times T0+0.5 … T0+9.5, trajectory T0 … T0+10
     wide = _stretched(las, tmp_path / "wide.las", 2.5)  # T0−6.25 … T0+16.25
     t = read_las(wide).gps_time
@@ -296,7 +304,7 @@ def test_inputs_never_modified_and_force(tmp_path, cli):
         code, _, err = cli("inverse", las, "-t", sbet, "--sensor", old, "--out", target, "--force")
         _one_line_error(code, err, "is an input of this command")
     _one_line_error(*cli("regeoref", las, "-t", sbet, "--from", old, "--to", new, "--out", tmp_path, "--force")[::2],
-                    "pts.las: is inside --out")
+                    "holds the input", "pts.las")
     # a failing run with --force keeps the previous output
     late = _stretched(las, tmp_path / "late.las", 3.0)
     _one_line_error(*cli("inverse", late, "-t", sbet, "--out", csv, "--force")[::2], "outside the trajectory")
@@ -330,7 +338,7 @@ def test_bad_inputs_through_every_command(tmp_path, cli):
     (tmp_path / "cut.laz").write_bytes((tmp_path / "full.laz").read_bytes()[:-1000])
     cases = [
         (las, tmp_path / "short.out", "short.out: size: expected a multiple of 136 bytes"),
-        (las, tmp_path / "nan.out", "nan.out: time: expected finite times"),
+        (las, tmp_path / "nan.out", "nan.out: time: expected finite values in [0, 1209600] s of week, got nan"),
         (las, tmp_path / "unsorted.out", "unsorted.out: time: expected strictly increasing times"),
         (tmp_path / "fmt0.las", sbet, "fmt0.las: point_format: point format 0 has no GPS time"),
         (tmp_path / "fmt2.las", sbet, "fmt2.las: point_format: point format 2 has no GPS time"),
@@ -374,3 +382,79 @@ def test_regeoref_real_ecef_las_equals_utm(real_data, cli, tmp_path):
     assert e.crs.to_epsg() == 4978
     assert np.linalg.norm(e.xyz - read_las(d / "points_ecef.las").xyz, axis=1).min() > 2.0  # the change mattered
     assert np.max(np.abs(georef.from_crs(u.xyz, u.crs) - e.xyz)) < 0.03
+
+
+def test_time_system_override(tmp_path, cli):
+    """A LAS whose global-encoding bit says week seconds while its times are adjusted standard (as
+    the real IGN file): outside the trajectory without --time-system, right with it."""
+    tr, _, sbet, truth = _survey(tmp_path, Sensor(), n=300)
+    lying = write_las(tmp_path / "lying.las", truth["xyz"], CRS, gps_time=week_seconds_to_adjusted_standard(truth["t"], 2300),
+                      scan_angle_deg=np.degrees(truth["ang"]), point_source_id=1, time_system="gps_week_seconds")
+    _one_line_error(*cli("inverse", lying, "-t", sbet, "--out", tmp_path / "v.csv")[::2], "outside the trajectory")
+    code, _, err = cli("inverse", lying, "-t", sbet, "--time-system", "adjusted", "--out", tmp_path / "v.csv")
+    assert code == 0, err
+    assert np.max(np.abs(_vectors(tmp_path / "v.csv")["range_m"] - truth["range"])) < 2e-3
+    toml = Sensor().write(tmp_path / "s.toml")
+    code, _, err = cli("regeoref", lying, "-t", sbet, "--from", toml, "--to", toml, "--time-system", "adjusted",
+                       "--out", tmp_path / "o")
+    assert code == 0, err
+    assert np.max(np.abs(read_las(tmp_path / "o" / "lying.las").xyz - read_las(lying).xyz)) < 2e-3
+    d = json.loads(cli("info", lying, "--time-system", "adjusted", "--json")[1])
+    assert d["time_system"] == "gps_adjusted_standard" and d["warning"] is None
+    _one_line_error(*cli("inverse", lying, "-t", sbet, "--time-system", "gps", "--out", tmp_path / "w.csv")[::2],
+                    "--time-system: expected one of week, adjusted, got 'gps'")
+
+
+def test_real_ign_time_system(real_data, cli):
+    ign = real_data / "ign_two_strips" / "faceraster_numerical_imprecision.laz"
+    d = json.loads(cli("info", ign, "--time-system", "adjusted", "--json")[1])
+    assert d["time_system"] == "gps_adjusted_standard" and d["warning"] is None
+    assert [f["points"] for f in d["flight_lines"]] == [10020, 8054]
+
+
+def test_geoid_heights(tmp_path, cli):
+    """A LAS in UTM + EGM2008 heights: one clear error naming the missing PROJ grid (never heights
+    taken as ellipsoidal); with --geoid-undulation N the same vectors as the ellipsoidal file."""
+    _, las, sbet, truth = _survey(tmp_path, Sensor(), n=300)
+    n_m = -30.0
+    geoid = write_las(tmp_path / "geoid.las", truth["xyz"] - [0.0, 0.0, n_m], "EPSG:32611+3855",
+                      gps_time=truth["t"], scan_angle_deg=np.degrees(truth["ang"]), point_source_id=1)
+    _one_line_error(*cli("inverse", geoid, "-t", sbet, "--out", tmp_path / "v.csv")[::2],
+                    "geoid.las: crs: WGS 84 / UTM zone 11N + EGM2008 height has heights above a geoid",
+                    "us_nga_egm08_25.tif", "--geoid-undulation")
+    assert not (tmp_path / "v.csv").exists()
+    assert cli("inverse", geoid, "-t", sbet, "--geoid-undulation", n_m, "--out", tmp_path / "v.csv")[0] == 0
+    assert cli("inverse", las, "-t", sbet, "--out", tmp_path / "e.csv")[0] == 0
+    a, b = _vectors(tmp_path / "v.csv"), _vectors(tmp_path / "e.csv")
+    assert np.max(np.abs(a["range_m"] - b["range_m"])) < 2e-3
+    toml = Sensor().write(tmp_path / "s.toml")
+    new = Sensor(boresight_roll=np.radians(0.05)).write(tmp_path / "n.toml")
+    code, _, err = cli("regeoref", geoid, "-t", sbet, "--from", toml, "--to", new, "--geoid-undulation", n_m,
+                       "--out", tmp_path / "o")
+    assert code == 0, err
+    code, _, err = cli("regeoref", las, "-t", sbet, "--from", toml, "--to", new, "--out", tmp_path / "oe")
+    assert code == 0, err
+    moved_geoid, moved = read_las(tmp_path / "o" / "geoid.las").xyz, read_las(tmp_path / "oe" / "pts.las").xyz
+    assert np.max(np.abs(moved_geoid - (moved - [0.0, 0.0, n_m]))) < 3e-3  # heights stay above the geoid
+    _one_line_error(*cli("inverse", las, "-t", sbet, "--geoid-undulation", 5, "--out", tmp_path / "w.csv")[::2],
+                    "--geoid-undulation: given (5.0 m) but WGS 84 / UTM zone 11N has ellipsoidal heights")
+
+
+def test_info_on_damaged_las(tmp_path, cli):
+    """NaN times are counted, not printed as 'inf … -inf'; absurd coordinates are one clear line."""
+    _, las, _, _ = _survey(tmp_path, Sensor(), n=100)
+    src = laspy.read(las)
+    t = np.array(src.gps_time)
+    t[:] = np.nan
+    src.gps_time = t
+    src.write(tmp_path / "nan.las")
+    code, out, err = cli("info", tmp_path / "nan.las")
+    assert code == 0, err
+    assert "inf …" not in out and "… -inf" not in out
+    assert "100 points have NaN/inf GPS times" in out and "no finite GPS time" in out
+    d = json.loads(cli("info", tmp_path / "nan.las", "--json")[1])
+    assert d["gps_time_not_finite"] == 100 and d["flight_lines"][0]["gps_time"] is None
+    b = bytearray((tmp_path / "nan.las").read_bytes())
+    b[131:139] = np.float64(1e295).tobytes()
+    (tmp_path / "huge.las").write_bytes(bytes(b))
+    _one_line_error(*cli("info", tmp_path / "huge.las", "--json")[::2], "huge.las: x: expected finite coordinates")

@@ -90,74 +90,117 @@ def solve(
     independent. ``jacobian_fn`` may return a scipy.sparse matrix (many parameters, few per row).
     normal_fn(values): the normal matrix (n_free × n_free) to use instead of JᵀWJ — for a cost
     that is a negative log-likelihood (residuals whose squares sum to it), its expected
-    information (Fisher scoring); the gradient stays Jᵀ·W·r.
+    information (Fisher scoring); the gradient stays JᵀWr.
     The covariance is σ0²·N⁻¹ without priors (σ relative) and max(σ0², 1)·N⁻¹ with them (σ
     absolute: the priors are never tightened by an a-posteriori σ0 below 1).
     """
     free = params.free
     if not free:
         raise CalibrationError("no free parameters to estimate")
-    x = params.x()
-    priors = _prior_groups(free, prior_correlation)
-    n_prior = sum(idx.size for idx, _, _ in priors)
+    fit = _Fit(residual_fn, params, sigma, jacobian_fn, robust, robust_k, robust_scale, prior_correlation, normal_fn)
+    x, r, w, history, converged = _levenberg_marquardt(fit, max_iter, tol, progress)
+    sol, J, N = _solution(fit, x, r, w, history, converged)
+    groupings = [] if clusters is None else clusters if isinstance(clusters, list) else [clusters]
+    if groupings:
+        factor = fit.variance_factor(r, w, x)
+        scores = sp.diags(w * r) @ J  # per observation ∂cost/∂θ (dense or sparse like J)
+        Ninv = sol.covariance / factor if factor > 0 and np.all(np.isfinite(sol.covariance)) else np.linalg.pinv(N)
+        for grouping in groupings:
+            sol.covariance = _cluster_robust(sol.covariance, Ninv, scores, np.asarray(grouping))
+    return sol
 
-    def evaluate(xv):
-        r = np.asarray(residual_fn(params.values_with(xv)), dtype=float)
+
+class _Fit:
+    """The weighted least-squares problem the iterations work on: residuals, Jacobian, robust
+    weights, cost (priors included) at free-parameter vectors x (SI)."""
+
+    def __init__(self, residual_fn, params, sigma, jacobian_fn, robust, robust_k, robust_scale, prior_correlation,
+                 normal_fn=None):
+        self.residual_fn, self.params, self.jacobian_fn, self.normal_fn = residual_fn, params, jacobian_fn, normal_fn
+        self.robust, self.robust_k, self.robust_scale = robust, robust_k, robust_scale
+        self.free = params.free
+        self.priors = _prior_groups(self.free, prior_correlation)
+        self.n_prior = sum(idx.size for idx, _, _ in self.priors)
+        self.x0 = params.x()
+        self.r0 = self.residuals(self.x0)
+        self.n = self.r0.size
+        self.sig = np.broadcast_to(np.asarray(sigma, float), (self.n,))
+        if self.n < len(self.free) - self.n_prior:
+            raise CalibrationError(f"{self.n} observations cannot determine {len(self.free)} parameters")
+        if not np.all(np.isfinite(self.r0)):
+            raise CalibrationError(f"{int(np.sum(~np.isfinite(self.r0)))} residuals are not finite at the start")
+
+    def residuals(self, x: np.ndarray) -> np.ndarray:
+        r = np.asarray(self.residual_fn(self.params.values_with(x)), dtype=float)
         if r.ndim != 1:
             raise CalibrationError(f"residual function returned shape {r.shape}, expected (n,)")
         return r
 
-    def jac(xv):
-        return jacobian_fn(params.values_with(xv)) if jacobian_fn else numerical_jacobian(residual_fn, params, xv)
+    def jacobian(self, x: np.ndarray):
+        if self.jacobian_fn:
+            return self.jacobian_fn(self.params.values_with(x))
+        return numerical_jacobian(self.residual_fn, self.params, x)
 
-    r = evaluate(x)
-    n = r.size
-    sig = np.broadcast_to(np.asarray(sigma, float), (n,))
-    if n < len(free) - n_prior:
-        raise CalibrationError(f"{n} observations cannot determine {len(free)} parameters")
-    if not np.all(np.isfinite(r)):
-        raise CalibrationError(f"{int(np.sum(~np.isfinite(r)))} residuals are not finite at the start")
-
-    def weights(rv):
+    def weights(self, r: np.ndarray) -> np.ndarray:
         """Relative robust weights (0..1) times 1/σ²."""
-        z = rv / sig
+        z = r / self.sig
         s = 1.0
-        if robust and robust_scale:
+        if self.robust and self.robust_scale:
             mad = 1.4826 * np.median(np.abs(z - np.median(z)))
             s = mad if mad > 0 else 1.0
-        return robust_weights(z / s, robust, robust_k) / sig**2
+        return robust_weights(z / s, self.robust, self.robust_k) / self.sig**2
 
-    def cost(rv, w, xv):
+    def cost(self, r: np.ndarray, w: np.ndarray, x: np.ndarray) -> float:
         with np.errstate(over="ignore"):  # a wild trial step costs inf and is rejected
-            c = 0.5 * np.sum(w * rv * rv)
-        for idx, center, P in priors:
-            d = xv[idx] - center
+            c = 0.5 * np.sum(w * r * r)
+        for idx, center, P in self.priors:
+            d = x[idx] - center
             c += 0.5 * d @ P @ d
         return float(c)
 
-    before = residual_stats(r)
-    history = []
-    lam = 1e-3
-    w = weights(r)
-    c = cost(r, w, x)
-    history.append({"iteration": 0, "cost": c, "rms": before["rms"], "values": params.values_with(x)})
-    converged = False
-    n_inv_diag = None  # diag(N⁻¹) of the first step: the stop rule's σ scale (N hardly changes after)
-    for it in range(1, max_iter + 1):
-        J = jac(x)
-        N = _normal_matrix(J, w) if normal_fn is None else np.array(normal_fn(params.values_with(x)), float)
-        g = J.T @ (w * r)
-        for idx, center, P in priors:
+    def normal_equations(self, J, w: np.ndarray, r: np.ndarray | None = None, x: np.ndarray | None = None):
+        """N = JᵀWJ + P (priors' precision) and, with r and x, the gradient g = JᵀWr + P(x − centre)."""
+        N = (_normal_matrix(J, w) if self.normal_fn is None or x is None
+             else np.array(self.normal_fn(self.params.values_with(x)), float))
+        g = None if r is None else J.T @ (w * r)
+        for idx, center, P in self.priors:
             N[np.ix_(idx, idx)] += P
-            g[idx] += P @ (x[idx] - center)
+            if g is not None:
+                g[idx] += P @ (x[idx] - center)
+        return N, g
+
+    def dof(self, w: np.ndarray) -> float:
+        """Effective redundancy: down-weighted observations count by their relative weight."""
+        return max(float(np.sum(w * self.sig**2)) + self.n_prior - len(self.free), 1.0)
+
+    def variance_factor(self, r: np.ndarray, w: np.ndarray, x: np.ndarray) -> float:
+        """σ0² without priors (σ relative); max(σ0², 1) with them (σ absolute: σ0 < 1 there says
+        the priors were generous, not that the parameters are better known than they allow)."""
+        s0 = 2.0 * self.cost(r, w, x) / self.dof(w)
+        return s0 if self.n_prior == 0 else max(s0, 1.0)
+
+
+def _levenberg_marquardt(fit: _Fit, max_iter: int, tol: float, progress):
+    """Damped Gauss–Newton steps with IRLS weights until the steps are invisible against the
+    parameters' σ (or the cost stops falling); returns x, r, w, the history and whether it converged."""
+    x, r = fit.x0, fit.r0
+    before_rms = residual_stats(r)["rms"]
+    lam, w = 1e-3, fit.weights(r)
+    c = fit.cost(r, w, x)
+    history = [{"iteration": 0, "cost": c, "rms": before_rms, "values": fit.params.values_with(x)}]
+    n_inv_diag = None  # diag(N⁻¹) of the first step: the stop rule's σ scale (N hardly changes after)
+    steps = np.array([p.diff_step for p in fit.free])
+    redundancy = max(fit.n + fit.n_prior - len(fit.free), 1)
+    for it in range(1, max_iter + 1):
+        N, g = fit.normal_equations(fit.jacobian(x), w, r, x)
         if n_inv_diag is None:
             n_inv_diag = _inverse_diagonal(N)
         dN = np.diag(N).copy()
         dN[dN <= 0] = 1.0
         for _ in range(12):
             dx = -_solve_damped(N + lam * np.diag(dN), g)
-            r_new = evaluate(x + dx)
-            c_new = cost(r_new, w, x + dx)
+            r_new = fit.residuals(x + dx)
+            c_new = fit.cost(r_new, w, x + dx)
             if np.isfinite(c_new) and c_new <= c:
                 break
             lam *= 10.0
@@ -165,40 +208,30 @@ def solve(
             break  # no descent possible: at the minimum to machine precision
         x, r = x + dx, r_new
         lam = max(lam / 10.0, 1e-12)
-        w = weights(r)
-        c_prev, c = c, cost(r, w, x)
-        history.append({"iteration": it, "cost": c, "rms": residual_stats(r)["rms"], "lambda": lam, "values": params.values_with(x)})
+        w = fit.weights(r)
+        c_prev, c = c, fit.cost(r, w, x)
+        history.append({"iteration": it, "cost": c, "rms": residual_stats(r)["rms"], "lambda": lam,
+                        "values": fit.params.values_with(x)})
         if progress:
             progress(it, c)
-        steps = np.array([p.diff_step for p in free])
         if (np.all(np.abs(dx) < tol + 1e-4 * steps) or abs(c_prev - c) <= tol * max(c, 1e-300)
-                or np.all(np.abs(dx) <= STEP_IN_SIGMA * np.sqrt(n_inv_diag * 2.0 * c / max(n + n_prior - len(free), 1)))):
-            converged = True
-            break
+                or np.all(np.abs(dx) <= STEP_IN_SIGMA * np.sqrt(n_inv_diag * 2.0 * c / redundancy))):
+            return x, r, w, history, True
+    return x, r, w, history, False
 
-    J = jac(x)
-    N = _normal_matrix(J, w) if normal_fn is None else np.array(normal_fn(params.values_with(x)), float)
-    for idx, _, P in priors:
-        N[np.ix_(idx, idx)] += P
-    # effective redundancy: down-weighted observations count by their relative weight
-    dof = max(float(np.sum(w * sig**2)) + n_prior - len(free), 1.0)
-    sigma0_sq = 2.0 * cost(r, w, x) / dof
-    # the covariance is N⁻¹ scaled by σ0²; with priors (absolute σ) only upwards: σ0 < 1 there
-    # says the priors were generous (a smooth trajectory error under a rough Gauss–Markov
-    # prior), not that the parameters are better known than the priors allow
-    factor = sigma0_sq if n_prior == 0 else max(sigma0_sq, 1.0)
+
+def _solution(fit: _Fit, x: np.ndarray, r: np.ndarray, w: np.ndarray, history: list[dict], converged: bool):
+    """The :class:`Solution` at x (covariance = variance factor · N⁻¹, see
+    :meth:`_Fit.variance_factor`), with the Jacobian and normal matrix there."""
+    J = fit.jacobian(x)
+    N, _ = fit.normal_equations(J, w, x=x)
+    dof = fit.dof(w)
     sol = Solution.from_normal_matrix(
-        params.updated(x), N, sigma0_sq, dof, variance_factor=factor,
-        residuals=r, weights=w * sig**2, before=before, history=history, converged=converged,
+        fit.params.updated(x), N, 2.0 * fit.cost(r, w, x) / dof, dof, variance_factor=fit.variance_factor(r, w, x),
+        residuals=r, weights=w * fit.sig**2, before=residual_stats(fit.r0), history=history, converged=converged,
         jacobian=J,
     )
-    groupings = [] if clusters is None else clusters if isinstance(clusters, list) else [clusters]
-    if groupings:
-        scores = sp.diags(w * r) @ J  # per observation ∂cost/∂θ (dense or sparse like J)
-        Ninv = sol.covariance / factor if factor > 0 and np.all(np.isfinite(sol.covariance)) else np.linalg.pinv(N)
-        for grouping in groupings:
-            sol.covariance = _cluster_robust(sol.covariance, Ninv, scores, np.asarray(grouping))
-    return sol
+    return sol, J, N
 
 
 def _inverse_diagonal(N: np.ndarray) -> np.ndarray:

@@ -29,7 +29,8 @@ from calidar.errors import CalidarError
 from calidar.outputs import shown_path
 
 COMMAND_MODULES: list[str] = [
-    "info", "georef", "rangecal", "photon", "denoise", "ccr", "simulate_survey", "demo", "quality", "boresight", "scanner",
+    "info", "georef", "rangecal", "photon", "denoise", "ccr", "simulate_survey", "demo", "quality", "boresight",
+    "scanner", "sensor",
 ]
 
 app = typer.Typer(
@@ -66,7 +67,11 @@ class Interrupted(KeyboardInterrupt):
         self.signum = signum
 
 
+_SIGNALS: list[int] = []  #: the signals that interrupted this run (typer turns the exception into exit 130)
+
+
 def _raise_interrupted(signum, frame):
+    _SIGNALS.append(signum)
     raise Interrupted(signum)
 
 
@@ -80,6 +85,8 @@ def run(argv: list[str] | None = None) -> int:
     try:
         # with standalone_mode=False click returns the code of a typer.Exit raised in a command
         code = app(args=argv, prog_name="calidar", standalone_mode=False)
+        if _SIGNALS:  # typer caught the interruption and returns 130 silently
+            raise Interrupted(_SIGNALS[-1])
         return code if isinstance(code, int) else 0
     except CalidarError as e:
         print_error(shown_path(str(e)))
@@ -109,4 +116,5 @@ def run(argv: list[str] | None = None) -> int:
 
 def main() -> None:
     signal.signal(signal.SIGTERM, _raise_interrupted)
+    signal.signal(signal.SIGINT, _raise_interrupted)
     sys.exit(run(sys.argv[1:]))

@@ -20,13 +20,51 @@ import numpy as np
 import pyproj
 
 from calidar.errors import InputError
+from calidar.io.las_crs import las_crs
 from calidar.outputs import atomic_path
-from calidar.trajectory import SECONDS_PER_WEEK
+from calidar.trajectory import SECONDS_PER_WEEK, TIME_SYSTEMS
+from calidar.validate import number
 
 ADJUSTED_STANDARD_OFFSET_S = 1e9  #: adjusted standard GPS time = GPS time − 1e9 s
 OPTIONAL_FIELDS = ("scan_angle_deg", "point_source_id", "return_number", "number_of_returns", "classification",
                    "intensity")
 SCAN_ANGLE_STEP_DEG = 0.006  #: LAS 1.4 scaled scan angle unit
+MAX_COORDINATE = 1e9  #: |x|, |y|, |z| beyond this (CRS units) is a damaged header or file, not a place
+TIME_SYSTEM_NAMES = {"week": "gps_week_seconds", "adjusted": "gps_adjusted_standard"}  #: --time-system values
+GEOID_UNDULATION_MAX_M = 150.0  #: |N| of every geoid model is below 110 m
+
+
+@dataclass(frozen=True)
+class PointOptions:
+    """How to read points whatever their header says (the shared ``--crs``, ``--time-system`` and
+    ``--geoid-undulation`` options): ``crs`` overrides or supplies the file's CRS; ``time_system``
+    ("week" | "adjusted", or the long names of :data:`calidar.trajectory.TIME_SYSTEMS`) overrides
+    the global-encoding bit when it lies; ``geoid_undulation_m`` N (m) makes a compound CRS with
+    a geoid usable without the geoid grid: ellipsoidal height = height + N (docs/conventions.md)."""
+
+    crs: str | pyproj.CRS | None = None
+    time_system: str | None = None
+    geoid_undulation_m: float | None = None
+
+    def __post_init__(self):
+        if self.time_system is not None:
+            ts = TIME_SYSTEM_NAMES.get(self.time_system, self.time_system)
+            if ts not in TIME_SYSTEMS:
+                raise InputError(None, "--time-system", f"expected one of {', '.join(TIME_SYSTEM_NAMES)}, "
+                                 f"got {self.time_system!r}")
+            object.__setattr__(self, "time_system", ts)
+        if self.geoid_undulation_m is not None:
+            object.__setattr__(self, "geoid_undulation_m", number(
+                self.geoid_undulation_m, "--geoid-undulation", -GEOID_UNDULATION_MAX_M, GEOID_UNDULATION_MAX_M, "m"))
+
+
+def _options(crs, options: PointOptions | None) -> PointOptions:
+    """``options``, or PointOptions(crs) for the callers that only give a CRS."""
+    if options is None:
+        return PointOptions(crs=crs)
+    if crs is not None:
+        raise ValueError("give the CRS in PointOptions or as crs=, not both")
+    return options
 
 
 @dataclass(frozen=True, eq=False)
@@ -44,6 +82,7 @@ class LasPoints:
     number_of_returns: np.ndarray | None = None
     classification: np.ndarray | None = None
     intensity: np.ndarray | None = None
+    geoid_undulation_m: float | None = None  #: N of PointOptions (heights in a geoid CRS + N = ellipsoidal)
 
     def __len__(self) -> int:
         return self.gps_time.size
@@ -99,96 +138,21 @@ def week_seconds_to_adjusted_standard(t_week_s, gps_week: int) -> np.ndarray:
     return np.asarray(t_week_s, float) + gps_week * SECONDS_PER_WEEK - ADJUSTED_STANDARD_OFFSET_S
 
 
-def _geokey_crs(header: laspy.LasHeader) -> pyproj.CRS | None:
-    """CRS of GeoTIFF keys laspy does not resolve: a user-defined projected CRS given by an EPSG
-    projection (conversion) code, e.g. UTM zone 11N = 16011, on an EPSG or WGS 84-parameter datum."""
-    keys = doubles = None
-    for v in header.vlrs:
-        if isinstance(v, laspy.vlrs.known.GeoKeyDirectoryVlr):
-            keys = {k.id: k for k in v.geo_keys}
-        elif isinstance(v, laspy.vlrs.known.GeoDoubleParamsVlr):
-            doubles = [float(d.value) if hasattr(d, "value") else float(d) for d in v.doubles]
-    if not keys or 3074 not in keys or keys[3074].tiff_tag_location != 0:
-        return None
-
-    def value(key_id):
-        k = keys.get(key_id)
-        if k is None:
-            return None
-        if k.tiff_tag_location == 0:
-            return k.value_offset
-        if k.tiff_tag_location == 34736 and doubles is not None and k.value_offset < len(doubles):
-            return doubles[k.value_offset]
-        return None
-
-    geographic = value(2048)
-    if geographic is not None and 1024 <= geographic <= 32766:
-        geodetic = pyproj.CRS.from_epsg(int(geographic))
-    else:
-        a, rf = value(2057), value(2059)
-        if a is None or rf is None:
-            return None
-        if abs(a - 6378137.0) < 1e-3 and abs(rf - 298.257223563) < 1e-6:
-            geodetic = pyproj.CRS.from_epsg(4326)
-        else:
-            geodetic = pyproj.CRS.from_proj4(f"+proj=longlat +a={a} +rf={rf} +no_defs")
-    try:
-        conversion = pyproj.crs.CoordinateOperation.from_epsg(int(keys[3074].value_offset))
-        crs = pyproj.crs.ProjectedCRS(conversion=conversion, geodetic_crs=geodetic)
-    except pyproj.exceptions.CRSError:
-        return None
-    epsg = crs.to_epsg(min_confidence=70)
-    return pyproj.CRS.from_epsg(epsg) if epsg else crs
-
-
-def _geocentric(crs: pyproj.CRS) -> pyproj.CRS:
-    """The geocentric (ECEF) CRS on the datum of a geographic CRS (WGS 84 → EPSG:4978)."""
-    d = crs.to_json_dict()
-    d.pop("id", None)
-    d["type"] = "GeodeticCRS"
-    d["coordinate_system"] = pyproj.CRS.from_epsg(4978).to_json_dict()["coordinate_system"]
-    geo = pyproj.CRS.from_json_dict(d)
-    epsg = geo.to_epsg(min_confidence=70)
-    return pyproj.CRS.from_epsg(epsg) if epsg else geo
-
-
-def _model_type(header: laspy.LasHeader) -> int | None:
-    """GTModelTypeGeoKey (1024) of the GeoTIFF keys: 1 projected, 2 geographic, 3 geocentric."""
-    for v in header.vlrs:
-        if isinstance(v, laspy.vlrs.known.GeoKeyDirectoryVlr):
-            for k in v.geo_keys:
-                if k.id == 1024 and k.tiff_tag_location == 0:
-                    return int(k.value_offset)
-    return None
-
-
-def las_crs(header: laspy.LasHeader) -> pyproj.CRS | None:
-    """The CRS of a LAS header (WKT VLR preferred, then GeoTIFF keys), or None.
-
-    GeoTIFF keys with model type geocentric (1024 = 3) mean ECEF on the datum of the
-    GeographicTypeGeoKey; laspy returns that geographic CRS, which would read ECEF metres as degrees.
-    """
-    try:
-        crs = header.parse_crs()
-    except pyproj.exceptions.CRSError:
-        crs = None
-    crs = crs if crs is not None else _geokey_crs(header)
-    if crs is not None and crs.is_geographic and _model_type(header) == 3:
-        return _geocentric(crs)
-    return crs
-
-
-def gps_time_system(header: laspy.LasHeader, path: Path) -> str:
-    """"gps_week_seconds" or "gps_adjusted_standard" (global-encoding bit 0); error without GPS time."""
+def gps_time_system(header: laspy.LasHeader, path: Path, override: str | None = None) -> str:
+    """"gps_week_seconds" or "gps_adjusted_standard": ``override`` (PointOptions.time_system) when
+    given, else the global-encoding bit 0; an error for point formats without GPS time."""
     if "gps_time" not in header.point_format.dimension_names:
         raise InputError(path, "point_format",
                          f"point format {header.point_format.id} has no GPS time; expected formats 1 or 3–10")
+    if override is not None:
+        return override
     standard = header.global_encoding.gps_time_type == laspy.header.GpsTimeType.STANDARD
     return "gps_adjusted_standard" if standard else "gps_week_seconds"
 
 
-def _points(rec, header, path: Path, crs, time_system: str, fields) -> LasPoints:
-    """LasPoints from a laspy record (whole file or chunk)."""
+def _points(rec, header, path: Path, crs, time_system: str, fields, undulation=None, first: int = 0) -> LasPoints:
+    """LasPoints from a laspy record (whole file or chunk whose first point is number ``first``);
+    coordinates must be finite and within ±MAX_COORDINATE."""
     unknown = set(fields) - set(OPTIONAL_FIELDS)
     if unknown:
         raise ValueError(f"unknown LAS fields {sorted(unknown)}; expected some of {OPTIONAL_FIELDS}")
@@ -202,16 +166,32 @@ def _points(rec, header, path: Path, crs, time_system: str, fields) -> LasPoints
         else:
             kw[f] = np.asarray(getattr(rec, f))
     xyz = np.stack([np.asarray(rec.x, float), np.asarray(rec.y, float), np.asarray(rec.z, float)], axis=1)
+    for k, axis in enumerate("xyz"):
+        bad = ~(np.abs(xyz[:, k]) <= MAX_COORDINATE)
+        if bad.any():
+            i = int(np.argmax(bad))
+            raise InputError(path, axis, f"expected finite coordinates within ±{MAX_COORDINATE:g}, got "
+                             f"{xyz[i, k]:g} at point {first + i} ({int(bad.sum())} such points in this block): "
+                             "check the header's scales and offsets")
     return LasPoints(xyz=xyz, gps_time=np.asarray(rec.gps_time, float), time_system=time_system, crs=crs,
-                     path=path, **kw)
+                     path=path, geoid_undulation_m=undulation, **kw)
 
 
 def _open(path: Path, selection=laspy.DecompressionSelection.all()) -> laspy.LasReader:
     """A laspy reader; ``selection``: the LAZ (1.4 formats 6–10) layers to decompress."""
     try:
-        return laspy.open(path, decompression_selection=selection)
+        reader = laspy.open(path, decompression_selection=selection)
     except laspy.errors.LaspyException as e:
         raise InputError(path, None, f"not a readable LAS/LAZ file ({e})") from None
+    h = reader.header
+    if not h.are_points_compressed:  # the records a LAS file holds follow from its size
+        end = h.start_of_first_evlr if getattr(h, "number_of_evlrs", 0) else Path(path).stat().st_size
+        held = (end - h.offset_to_point_data) // h.point_format.size
+        if held != h.point_count:
+            reader.close()
+            raise InputError(path, "point_count", f"the header says {h.point_count} points, the file holds {held} "
+                             "point records: truncated or a damaged header")
+    return reader
 
 
 def _resolve_crs(header, crs, path: Path) -> pyproj.CRS | None:
@@ -225,65 +205,78 @@ def _resolve_crs(header, crs, path: Path) -> pyproj.CRS | None:
 
 
 def _records(reader: laspy.LasReader, chunk_points: int, path: Path):
-    """laspy point records of ``chunk_points`` at most; damaged files become clear errors."""
+    """(first point number, laspy point record of ``chunk_points`` at most); damaged files and
+    fewer records than the header says become clear errors."""
+    n = 0
     try:
-        yield from reader.chunk_iterator(chunk_points)
+        for rec in reader.chunk_iterator(chunk_points):
+            yield n, rec
+            n += len(rec)
     except (laspy.errors.LaspyException, lazrs.LazrsError, ValueError) as e:
         raise InputError(path, None, f"cannot read the points ({e}); truncated or damaged file?") from None
+    if n != reader.header.point_count:
+        raise InputError(path, "point_count", f"the header says {reader.header.point_count} points, the file holds "
+                         f"{n}: truncated or a damaged header")
 
 
-def read_las(path: str | Path, crs=None, fields=OPTIONAL_FIELDS) -> LasPoints:
-    """Read a LAS/LAZ file (all points). ``crs`` overrides the file's CRS; ``fields`` picks
-    which of :data:`OPTIONAL_FIELDS` to load besides xyz and gps_time."""
-    path = Path(path)
+def read_las(path: str | Path, crs=None, fields=OPTIONAL_FIELDS, *, options: PointOptions | None = None) -> LasPoints:
+    """Read a LAS/LAZ file (all points). ``crs`` overrides the file's CRS (or give ``options``:
+    CRS, time system, geoid undulation); ``fields`` picks which of :data:`OPTIONAL_FIELDS` to load
+    besides xyz and gps_time."""
+    path, opts = Path(path), _options(crs, options)
     with _open(path) as reader:
         header = reader.header
-        time_system = gps_time_system(header, path)
-        rec = next(_records(reader, max(header.point_count, 1), path), None)
-        if rec is None:
-            rec = laspy.ScaleAwarePointRecord.zeros(0, header=header)
-        return _points(rec, header, path, _resolve_crs(header, crs, path), time_system, fields)
+        time_system = gps_time_system(header, path, opts.time_system)
+        file_crs = _resolve_crs(header, opts.crs, path)
+        chunks = [_points(rec, header, path, file_crs, time_system, fields, opts.geoid_undulation_m, first)
+                  for first, rec in _records(reader, max(header.point_count, 1), path)]
+    if not chunks:
+        rec = laspy.ScaleAwarePointRecord.zeros(0, header=header)
+        return _points(rec, header, path, file_crs, time_system, fields, opts.geoid_undulation_m)
+    return chunks[0]
 
 
-def iter_las_chunks(path: str | Path, chunk_points: int = 2_000_000, crs=None,
-                    fields=OPTIONAL_FIELDS) -> Iterator[LasPoints]:
+def iter_las_chunks(path: str | Path, chunk_points: int = 2_000_000, crs=None, fields=OPTIONAL_FIELDS, *,
+                    options: PointOptions | None = None) -> Iterator[LasPoints]:
     """Read a LAS/LAZ file in chunks of at most ``chunk_points`` points (files larger than memory)."""
-    path = Path(path)
+    path, opts = Path(path), _options(crs, options)
     with _open(path) as reader:
         header = reader.header
-        time_system = gps_time_system(header, path)
-        file_crs = _resolve_crs(header, crs, path)
-        for rec in _records(reader, chunk_points, path):
-            yield _points(rec, header, path, file_crs, time_system, fields)
+        time_system = gps_time_system(header, path, opts.time_system)
+        file_crs = _resolve_crs(header, opts.crs, path)
+        for first, rec in _records(reader, chunk_points, path):
+            yield _points(rec, header, path, file_crs, time_system, fields, opts.geoid_undulation_m, first)
 
 
 def iter_las_times(path: str | Path, chunk_points: int = 2_000_000) -> Iterator[np.ndarray]:
-    """GPS times (s, in the file's time system) of a LAS/LAZ file, chunk by chunk: the cheap first
-    pass of streamed commands (LAZ 1.4 decompresses only the time layer)."""
+    """GPS times (s, as stored) of a LAS/LAZ file, chunk by chunk: the cheap first pass of streamed
+    commands (LAZ 1.4 decompresses only the time layer)."""
     path = Path(path)
     selection = laspy.DecompressionSelection.base() | laspy.DecompressionSelection.GPS_TIME
     with _open(path, selection) as reader:
         gps_time_system(reader.header, path)
-        for rec in _records(reader, chunk_points, path):
+        for _, rec in _records(reader, chunk_points, path):
             yield np.asarray(rec.gps_time, float)
 
 
 def rewrite_las_xyz(src: str | Path, dst: str | Path, new_xyz, *, crs=None, chunk_points: int = 2_000_000,
-                    force: bool = False) -> int:
+                    force: bool = False, options: PointOptions | None = None) -> int:
     """Copy a LAS/LAZ file chunk by chunk, replacing coordinates by ``new_xyz(points) -> (n, 3)``
     (same CRS, scales, offsets and point format; every other attribute kept). Returns the point count.
 
     ``points`` is the chunk's :class:`LasPoints`. The output is written atomically.
     """
-    src = Path(src)
+    src, opts = Path(src), _options(crs, options)
     n = 0
     with _open(src) as reader, atomic_path(dst, force) as tmp:
         header = reader.header
-        time_system = gps_time_system(header, src)
-        file_crs = _resolve_crs(header, crs, src)
+        time_system = gps_time_system(header, src, opts.time_system)
+        file_crs = _resolve_crs(header, opts.crs, src)
         with laspy.open(tmp, mode="w", header=header, do_compress=Path(dst).suffix.lower() == ".laz") as writer:
-            for rec in _records(reader, chunk_points, src):
-                xyz = np.asarray(new_xyz(_points(rec, header, src, file_crs, time_system, OPTIONAL_FIELDS)), float)
+            for first, rec in _records(reader, chunk_points, src):
+                points = _points(rec, header, src, file_crs, time_system, OPTIONAL_FIELDS, opts.geoid_undulation_m,
+                                 first)
+                xyz = np.asarray(new_xyz(points), float)
                 rec.x, rec.y, rec.z = xyz[:, 0], xyz[:, 1], xyz[:, 2]
                 writer.write_points(rec)
                 n += len(rec)
@@ -303,9 +296,10 @@ def las_file_crs(path: str | Path, crs=None) -> pyproj.CRS | None:
     return _resolve_crs(las_header(path), crs, Path(path))
 
 
-def las_time_system(path: str | Path) -> str:
-    """The GPS time system of a LAS/LAZ file from its header (error for formats without GPS time)."""
-    return gps_time_system(las_header(path), Path(path))
+def las_time_system(path: str | Path, override: str | None = None) -> str:
+    """The GPS time system of a LAS/LAZ file: ``override`` (PointOptions.time_system) or its header's
+    (error for formats without GPS time)."""
+    return gps_time_system(las_header(path), Path(path), override)
 
 
 def write_las(path: str | Path, xyz, crs, *, gps_time, scan_angle_deg, point_source_id, return_number=None,

@@ -21,7 +21,8 @@ import numpy as np
 
 from calidar.errors import InputError
 from calidar.outputs import atomic_path
-from calidar.trajectory import Trajectory
+from calidar.trajectory import HEIGHT_RANGE_M, SECONDS_PER_WEEK, Trajectory
+from calidar.validate import values
 
 FIELDS = (
     "time", "lat", "lon", "height", "x_vel", "y_vel", "z_vel", "roll", "pitch", "platform_heading",
@@ -29,6 +30,15 @@ FIELDS = (
 )
 RECORD_BYTES = 8 * len(FIELDS)
 _EXTRA = ("wander_angle", "x_acc", "y_acc", "z_acc", "x_ang_rate", "y_ang_rate", "z_ang_rate")
+_ANGLE = (-2 * np.pi, 2 * np.pi, "rad")
+#: what every record must hold (a file of another kind, or damaged, fails here with the field's name)
+RAW_LIMITS = {
+    "time": (0.0, 2 * SECONDS_PER_WEEK, "s of week"), "lat": (-np.pi / 2, np.pi / 2, "rad"), "lon": _ANGLE,
+    "height": (*HEIGHT_RANGE_M, "m"), **{k: (-1000.0, 1000.0, "m/s") for k in ("x_vel", "y_vel", "z_vel")},
+    "roll": (-np.pi, np.pi, "rad"), "pitch": (-np.pi / 2, np.pi / 2, "rad"), "platform_heading": _ANGLE,
+    "wander_angle": _ANGLE, **{k: (-1000.0, 1000.0, "m/s²") for k in ("x_acc", "y_acc", "z_acc")},
+    **{k: (-100.0, 100.0, "rad/s") for k in ("x_ang_rate", "y_ang_rate", "z_ang_rate")},
+}
 
 
 def _wander_to_ned(vx, vy, vz, wander_rad) -> np.ndarray:
@@ -59,11 +69,8 @@ def read_sbet(path: str | Path) -> Trajectory:
         )
     a = np.fromfile(path, dtype="<f8").reshape(-1, len(FIELDS))
     col = {name: a[:, i] for i, name in enumerate(FIELDS)}
-    if not np.all(np.isfinite(a[:, 1:11])):
-        bad = int(np.flatnonzero(~np.all(np.isfinite(a[:, 1:11]), axis=1))[0])
-        raise InputError(path, "record", f"expected finite position/attitude values, record {bad} has NaN/inf")
-    if np.any(np.abs(col["lat"]) > np.pi / 2) or np.any(np.abs(col["lon"]) > 2 * np.pi):
-        raise InputError(path, "lat/lon", "expected radians (|lat| ≤ π/2): not an SBET file?")
+    for name, (lo, hi, unit) in RAW_LIMITS.items():
+        values(col[name], path, name, lo, hi, unit)
     wander = col["wander_angle"]
     return Trajectory(
         time=col["time"], lat=col["lat"], lon=col["lon"], height=col["height"],

@@ -1,10 +1,12 @@
-"""Read any supported trajectory: Applanix SBET (binary) or ASCII/CSV with named columns."""
+"""Read any supported trajectory: Applanix SBET (binary), ASCII/CSV with named columns, or the
+per-pulse positions and attitudes of an Optech CSD file."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
 from calidar.errors import InputError
+from calidar.io.optech_csd import csd_trajectory, is_csd, read_csd
 from calidar.io.sbet import read_sbet
 from calidar.io.trajectory_text import read_trajectory_text
 from calidar.trajectory import Trajectory
@@ -13,28 +15,26 @@ SBET_SUFFIXES = (".out", ".sbet", ".smrmsg")
 
 
 def is_binary(path: Path, probe_bytes: int = 4096) -> bool:
-    """Whether the file starts with bytes that are not UTF-8 text (control characters other than
-    tab, line feed, carriage return and form feed count as binary)."""
+    """Whether the file starts with control characters other than tab, line feed, carriage return
+    and form feed (binary). Text in another encoding than UTF-8 is text: its reader says so."""
     with open(path, "rb") as f:
         head = f.read(probe_bytes)
-    if head.translate(None, b"\t\n\r\f").translate(None, bytes(range(32, 256))):
-        return True
-    try:
-        head.decode("utf-8")
-    except UnicodeDecodeError as e:
-        return e.start < len(head) - 4  # a multi-byte character cut at the probe's end is still text
-    return False
+    return bool(head.translate(None, b"\t\n\r\f").translate(None, bytes(range(32, 256))))
 
 
 def read_trajectory(path: str | Path, **text_options) -> Trajectory:
-    """SBET when the file is binary, else an ASCII/CSV trajectory read with ``text_options``
-    (see :func:`calidar.io.trajectory_text.read_trajectory_text`)."""
+    """An Optech CSD's pulses (by its signature), an SBET when the file is binary, else an ASCII/CSV
+    trajectory read with ``text_options`` (see :func:`calidar.io.trajectory_text.read_trajectory_text`;
+    options given as None are not given, and giving one for a binary file is an error)."""
     path = Path(path)
     if not path.is_file():
-        raise InputError(path, None, "trajectory file not found")
-    if is_binary(path) or (path.suffix.lower() in SBET_SUFFIXES and path.stat().st_size == 0):
-        given = {k: v for k, v in text_options.items() if v is not None}
-        if given:
-            raise InputError(path, sorted(given)[0], "is an option of text trajectories; this file is a binary SBET")
-        return read_sbet(path)
-    return read_trajectory_text(path, **text_options)
+        raise InputError(path, None, "trajectory file not found" if not path.is_dir() else "is a folder; expected "
+                         "a trajectory file")
+    given = {k: v for k, v in text_options.items() if v is not None}
+    binary = is_binary(path) or (path.suffix.lower() in SBET_SUFFIXES and path.stat().st_size == 0)
+    if binary and given:
+        kind = "an Optech CSD" if is_csd(path) else "a binary SBET"
+        raise InputError(path, sorted(given)[0], f"is an option of text trajectories; this file is {kind}")
+    if binary:
+        return csd_trajectory(read_csd(path)) if is_csd(path) else read_sbet(path)
+    return read_trajectory_text(path, **given)

@@ -19,7 +19,8 @@ import pyproj
 
 from calidar import frames, georef
 from calidar.errors import InputError
-from calidar.trajectory import TIME_SYSTEMS, Trajectory
+from calidar.trajectory import HEIGHT_RANGE_M, TIME_SYSTEMS, Trajectory
+from calidar.validate import read_text, values
 
 #: canonical column → accepted header names (lower case, without spaces, quotes, "_" or units)
 SYNONYMS = {
@@ -34,6 +35,19 @@ SYNONYMS = {
     "heading": ("heading", "azimuth", "yaw", "trueheading", "hdg"),
 }
 _LOOKUP = {alias: canon for canon, aliases in SYNONYMS.items() for alias in aliases}
+
+
+def _limits(column: str, angles: str) -> tuple[float | None, float | None, str]:
+    """The physical range of a column in the file's units (angles in ``angles``: deg or rad)."""
+    deg = {"lat": 90.0, "lon": 360.0, "roll": 180.0, "pitch": 90.0, "heading": 360.0}
+    if column in deg:
+        k = 1.0 if angles == "deg" else np.pi / 180.0
+        return -deg[column] * k, deg[column] * k, angles
+    if column == "height":
+        return (*HEIGHT_RANGE_M, "m")
+    if column in ("x", "y"):
+        return -1e8, 1e8, "m"
+    return None, None, "s"
 
 
 def _normalise(name: str) -> str:
@@ -87,10 +101,7 @@ def read_trajectory_text(path, *, columns=None, crs=None, angles: str = "deg", h
         raise InputError(path, "heading_reference", f"expected 'true' or 'grid', got {heading_reference!r}")
     if time_system not in TIME_SYSTEMS:
         raise InputError(path, "time_system", f"expected one of {TIME_SYSTEMS}, got {time_system!r}")
-    try:
-        lines = path.read_text(encoding="utf-8").splitlines()
-    except UnicodeDecodeError:
-        raise InputError(path, None, "expected a text trajectory, the file is binary") from None
+    lines = read_text(path, "text trajectory").splitlines()
     body = [(i, ln) for i, ln in enumerate(lines) if ln.strip() and not ln.lstrip().startswith("#")]
     if not body:
         raise InputError(path, None, "expected trajectory records, the file is empty")
@@ -117,6 +128,9 @@ def read_trajectory_text(path, *, columns=None, crs=None, angles: str = "deg", h
                          f"missing {missing}; found columns {columns} (header {head if has_header else 'absent'})")
     data = _numbers(path, records, len(columns), delimiter)
     col = {c: data[:, k] for c, k in index.items()}
+    lines = [i + 1 for i, _ in records]
+    for c, a in col.items():
+        values(a, path, c, *_limits(c, angles), what="line", labels=lines)
     to_rad = np.radians if angles == "deg" else np.asarray
     if crs is not None:
         try:

@@ -10,7 +10,7 @@ import numpy as np
 import pyproj
 
 from calidar.errors import InputError
-from calidar.io.las import OPTIONAL_FIELDS, LasPoints, read_las
+from calidar.io.las import OPTIONAL_FIELDS, LasPoints, PointOptions, read_las
 
 GAP_S = 10.0  #: a pause in GPS time longer than this starts a new flight line (s)
 
@@ -30,14 +30,16 @@ def line_ids(point_source_id: np.ndarray | None, gps_time: np.ndarray, gap_s: fl
     return ids, "gps_time_gaps"
 
 
-def read_flight_lines(paths: Sequence[str | Path], crs=None, gap_s: float = GAP_S) -> tuple[dict[int, LasPoints], str]:
-    """Read LAS/LAZ files and split their points into flight lines {id: points}.
+def read_flight_lines(paths: Sequence[str | Path], crs=None, gap_s: float = GAP_S,
+                      options: PointOptions | None = None) -> tuple[dict[int, LasPoints], str]:
+    """Read LAS/LAZ files (``crs``, or ``options``: the shared point options) and split their points
+    into flight lines {id: points}.
 
     All files must share one CRS and one GPS time system (clear errors otherwise).
     """
     if not paths:
         raise InputError(None, "STRIPS", "expected at least one LAS/LAZ file")
-    clouds = [read_las(p, crs=crs) for p in paths]
+    clouds = [read_las(p, crs=crs, options=options) for p in paths]
     first = clouds[0]
     for c in clouds[1:]:
         if (c.crs is None) != (first.crs is None) or (c.crs is not None and not c.crs.equals(first.crs, ignore_axis_order=True)):

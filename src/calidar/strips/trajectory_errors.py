@@ -87,8 +87,10 @@ class TrajectoryModel:
                     out += [([f"trajectory_{kind}_{ax}_{i}_{k}" for k in range(n)], R) for ax in AXES]
         return out
 
-    def parameters(self, spans: Mapping[int, tuple[float, float]]) -> list[Parameter]:
-        """Parameters for strips with time spans {id: (t_min, t_max)} s."""
+    def parameters(self, spans: Mapping[int, tuple[float, float]],
+                   headings: Mapping[int, float] | None = None) -> list[Parameter]:
+        """Parameters for strips with time spans {id: (t_min, t_max)} s (``headings``: each
+        strip's direction of flight, rad from north, for per-axis attitude priors)."""
         out = []
         ids = sorted(spans)
         for i in ids if self.position_sigma_m is not None else ids[1:]:

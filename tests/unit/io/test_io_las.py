@@ -167,3 +167,68 @@ def test_single_gps_week(tmp_path):
     assert np.allclose(adjusted_standard_in_week(t, week), [604799.0, 604800.0], atol=1e-6)
     back, w = adjusted_standard_to_week_seconds(np.r_[t[0], np.nan])
     assert w == week and back[0] == pytest.approx(604799.0, abs=1e-6) and np.isnan(back[1])
+
+
+def _with_point_count(src, dst, count):
+    """A copy of an uncompressed LAS 1.4 file whose header claims ``count`` points."""
+    b = bytearray(src.read_bytes())
+    b[247:255] = np.uint64(count).tobytes()  # LAS 1.4 number of point records (uint64 at byte 247)
+    dst.write_bytes(bytes(b))
+    return dst
+
+
+@pytest.mark.parametrize("claimed", [990, 1010])
+def test_header_point_count_must_match_the_records(tmp_path, claimed):
+    xyz, t, ang = _points()
+    las = write_las(tmp_path / "a.las", xyz, "EPSG:32611", gps_time=t, scan_angle_deg=ang, point_source_id=1)
+    bad = _with_point_count(las, tmp_path / "bad.las", claimed)
+    with pytest.raises(InputError) as e:
+        read_las(bad)
+    assert str(e.value) == (f"{bad}: point_count: the header says {claimed} points, the file holds 1000 point "
+                            "records: truncated or a damaged header")
+
+
+def test_laz_with_fewer_records_than_its_header(tmp_path):
+    xyz, t, ang = _points()
+    src = laspy.read(write_las(tmp_path / "a.las", xyz, "EPSG:32611", gps_time=t, scan_angle_deg=ang, point_source_id=1))
+    src.header.point_count = 1000
+    head = laspy.LasHeader(point_format=6, version="1.4")
+    head.scales, head.offsets = src.header.scales, src.header.offsets
+    with laspy.open(tmp_path / "b.laz", mode="w", header=head, do_compress=True) as w:
+        w.write_points(src.points[:600])
+    b = bytearray((tmp_path / "b.laz").read_bytes())
+    b[247:255] = np.uint64(1000).tobytes()
+    (tmp_path / "b.laz").write_bytes(bytes(b))
+    with pytest.raises(InputError, match="b.laz: .*(the header says 1000 points, the file holds 600|cannot read the "
+                       "points .*; truncated or damaged file)"):  # laspy stops short, or lazrs sees the chunk table
+        list(iter_las_chunks(tmp_path / "b.laz", 250))
+
+
+def test_absurd_coordinates_are_an_error(tmp_path):
+    xyz, t, ang = _points()
+    b = bytearray(write_las(tmp_path / "a.las", xyz, "EPSG:32611", gps_time=t, scan_angle_deg=ang,
+                            point_source_id=1).read_bytes())
+    b[131:139] = np.float64(1e295).tobytes()  # the x scale factor: x = 1e295 × integer ≈ 1e300
+    (tmp_path / "huge.las").write_bytes(bytes(b))
+    with pytest.raises(InputError, match=r"huge.las: x: expected finite coordinates within ±1e\+09, got .*e\+30"):
+        read_las(tmp_path / "huge.las")
+
+
+def test_point_options_override_the_time_system(tmp_path):
+    """--time-system: the global-encoding bit says week seconds, the times are adjusted standard."""
+    from calidar.io.las import PointOptions, las_time_system
+
+    xyz, t, ang = _points()
+    path = write_las(tmp_path / "a.las", xyz, "EPSG:32611", gps_time=t + 3.07e8, scan_angle_deg=ang, point_source_id=1)
+    assert read_las(path).time_system == "gps_week_seconds"
+    opts = PointOptions(time_system="adjusted")
+    p = read_las(path, options=opts)
+    assert p.time_system == "gps_adjusted_standard" and las_time_system(path, opts.time_system) == p.time_system
+    assert [c.time_system for c in iter_las_chunks(path, 400, options=opts)] == ["gps_adjusted_standard"] * 3
+    assert PointOptions(time_system="gps_week_seconds").time_system == "gps_week_seconds"
+    with pytest.raises(InputError, match="--time-system: expected one of week, adjusted, got 'gps'"):
+        PointOptions(time_system="gps")
+    with pytest.raises(InputError, match=r"--geoid-undulation: expected a finite number in \[-150, 150\] m, got nan"):
+        PointOptions(geoid_undulation_m=float("nan"))
+    with pytest.raises(ValueError, match="not both"):
+        read_las(path, crs="EPSG:32611", options=opts)

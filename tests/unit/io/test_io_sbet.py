@@ -65,13 +65,25 @@ def test_wander_absent_is_zero(tmp_path):
     assert np.all(back.velocity_ned == 0)
 
 
+def _field(a, name, value):
+    """The SBET records ``a`` with field ``name`` of record 2 set to ``value``, as bytes."""
+    a = a.copy()
+    a[2, FIELDS.index(name)] = value
+    return a.tobytes()
+
+
 @pytest.mark.parametrize(
     "make, message",
     [
         (lambda a: a.tobytes()[:-8], "multiple of 136 bytes"),
         (lambda a: b"", "empty"),
-        (lambda a: np.where(np.arange(a.size).reshape(a.shape) == 17 * 3, np.nan, a).tobytes(), "finite times"),
+        (lambda a: np.where(np.arange(a.size).reshape(a.shape) == 17 * 3, np.nan, a).tobytes(),
+         "time: expected finite values in [0, 1209600] s of week, got nan (1 of 4 values, first at record 3)"),
         (lambda a: a[[0, 2, 1, 3]].tobytes(), "strictly increasing"),
+        (lambda a: _field(a, "height", 1e9), "height: expected finite values in [-1000, 100000] m, got 1e+09"),
+        (lambda a: _field(a, "roll", 50.0), "roll: expected finite values in [-3.14159, 3.14159] rad, got 50"),
+        (lambda a: _field(a, "lat", 2.0), "lat: expected finite values in [-1.5708, 1.5708] rad, got 2"),
+        (lambda a: _field(a, "x_vel", np.inf), "x_vel: expected finite values in [-1000, 1000] m/s, got inf"),
     ],
 )
 def test_bad_sbet_is_a_clear_error(tmp_path, make, message):

@@ -85,3 +85,37 @@ def test_bad_text_trajectories(tmp_path, text, options, message):
 def test_sbet_rejects_text_options(real_data):
     with pytest.raises(InputError, match="binary SBET"):
         read_trajectory(real_data / "leeward_sierra" / "sbet.out", crs="EPSG:32611")
+
+
+def test_houston_through_the_shared_trajectory_options(real_data):
+    """The options boresight, quality, inverse and regeoref share (pipelines.inputs.TrajectoryOptions,
+    --trajectory-crs …): the real projected Houston export loads; grid heading differs by γ."""
+    from calidar.pipelines.inputs import TrajectoryOptions, load_trajectory
+
+    true = load_trajectory(real_data / HOUSTON, TrajectoryOptions(crs="EPSG:32615"))
+    grid = load_trajectory(real_data / HOUSTON, TrajectoryOptions(crs="EPSG:32615", heading="grid"))
+    assert len(true) == len(grid) == 14600
+    gamma = frames.grid_factors("EPSG:32615", true.lon, true.lat)[0]
+    assert np.allclose(np.angle(np.exp(1j * (grid.heading - true.heading - gamma))), 0.0, atol=1e-12)
+    assert np.degrees(gamma).mean() == pytest.approx(-1.15, abs=0.01)
+    with pytest.raises(InputError, match="give their projected CRS"):
+        load_trajectory(real_data / HOUSTON)
+
+
+def test_not_utf8_and_out_of_range_columns(tmp_path):
+    t, lat, lon, h, roll, pitch, hd = _truth(5)
+    rows = np.c_[t, np.degrees(lat), np.degrees(lon), h, np.degrees(roll), np.degrees(pitch), np.degrees(hd)]
+    text = "time,lat,lon,height,roll,pitch,heading\n" + "\n".join(",".join(f"{v:.9f}" for v in r) for r in rows)
+    (tmp_path / "latin.csv").write_bytes(("# trajectoire étalonnée\n" + text).encode("latin-1"))
+    with pytest.raises(InputError, match="latin.csv: encoding: expected UTF-8 text, got byte 0xe9"):
+        read_trajectory(tmp_path / "latin.csv")
+    for column, value, message in (("roll", 500.0, "roll: expected finite values in [-180, 180] deg, got 500"),
+                                   ("height", 1e9, "height: expected finite values in [-1000, 100000] m, got 1e+09"),
+                                   ("lat", 95.0, "lat: expected finite values in [-90, 90] deg, got 95")):
+        bad = rows.copy()
+        bad[2, ["time", "lat", "lon", "height", "roll", "pitch", "heading"].index(column)] = value
+        path = tmp_path / f"{column}.csv"
+        path.write_text("time,lat,lon,height,roll,pitch,heading\n" + "\n".join(",".join(map(str, r)) for r in bad))
+        with pytest.raises(InputError) as e:
+            read_trajectory(path)
+        assert str(e.value).startswith(f"{path}: {message} (1 of 5 values, first at line 4)")

@@ -11,7 +11,8 @@ from calidar.adjust import ParameterSet
 from calidar.adjust.solver import numerical_jacobian
 from calidar.errors import CalibrationError, InputError
 from calidar.sensor import Sensor
-from calidar.strips.calibrate import StripSettings, _Problem, build_parameters, calibrate, parse_estimate
+from calidar.strips.calibrate import StripSettings, build_parameters, calibrate, parse_estimate
+from calidar.strips.problem import StripProblem
 from calidar.strips.correspond import moderated_variance
 from calidar.strips.overlap import find_overlaps
 from calidar.strips.planes import PlaneSettings, fit_patches, match_pair_planes
@@ -109,15 +110,15 @@ def test_centroid_shortcut_equals_full_regeoreferencing(strips):
     c = match_pair_planes(1, pts[1], 2, pts[2])
     poses = {s.id: s.pose() for s in strips[:2]}
     nominal = Sensor(lever_arm_x=0.2, range_offset=0.01)
-    full = _Problem(nominal, poses, [c], ["scan_angle_scale"])
+    full = StripProblem(nominal, poses, [c], ["scan_angle_scale"])
     assert full.centroids is None
     vals = build_parameters(nominal, parse_estimate("boresight,lever_arm,range_offset,range_scale"), {}).values()
     vals.update(boresight_roll=1e-3, boresight_yaw=-2e-3, lever_arm_x=0.3, range_offset=0.05, range_scale=1e-4)
-    fast = _Problem(nominal, poses, [c], ["boresight_roll", "lever_arm_x", "range_offset"])
+    fast = StripProblem(nominal, poses, [c], ["boresight_roll", "lever_arm_x", "range_offset"])
     assert fast.centroids is not None
     assert np.max(np.abs(fast(vals) - full(vals))) < 1e-9
     # boresight alone: lever arm and range model fixed at the nominal values, folded into constants
-    only = _Problem(nominal, poses, [c], ["boresight_roll"])
+    only = StripProblem(nominal, poses, [c], ["boresight_roll"])
     vals_b = {**nominal.parameters(), "boresight_roll": 1e-3, "boresight_yaw": -2e-3}
     assert np.max(np.abs(only(vals_b) - full(vals_b))) < 1e-9
 
@@ -156,7 +157,7 @@ def test_trajectory_columns_of_the_jacobian_are_exact(strips, point_to_point):
     params = build_parameters(Sensor(), ["boresight", "trajectory_bias"], spans, model)
     rng = np.random.default_rng(3)
     params = ParameterSet(replace(p, value=rng.normal(0.0, p.prior_sigma)) if p.prior_sigma else p for p in params)
-    problem = _Problem(Sensor(), poses, [c], params.free_names, {s.id: s.time for s in strips[:2]}, model, spans)
+    problem = StripProblem(Sensor(), poses, [c], params.free_names, {s.id: s.time for s in strips[:2]}, model, spans)
     problem.jacobian(params.values(), params.free)
     moved = ParameterSet(replace(p, value=p.value + rng.normal(0.0, p.prior_sigma or 1e-4)) for p in params)
     analytic = problem.jacobian(moved.values(), moved.free).toarray()

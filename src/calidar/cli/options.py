@@ -1,0 +1,50 @@
+"""The input options every georeferencing command shares, defined once: ``--crs``,
+``--time-system``, ``--geoid-undulation`` for points, ``--trajectory-crs`` and the text-trajectory
+column options for trajectories. A command declares them as defaults::
+
+    def cmd(..., crs: str | None = CRS, time_system: str | None = TIME_SYSTEM,
+            geoid_undulation: float | None = GEOID_UNDULATION, trajectory_crs: str | None = TRAJECTORY_CRS,
+            trajectory_angles: str | None = TRAJECTORY_ANGLES, trajectory_heading: str | None = TRAJECTORY_HEADING,
+            trajectory_columns: str | None = TRAJECTORY_COLUMNS):
+        points = point_options(crs, time_system, geoid_undulation)
+        traj = trajectory_options(trajectory_crs, trajectory_angles, trajectory_heading, trajectory_columns)
+
+and hands them to the pipelines (:class:`calidar.pipelines.inputs.PointOptions`,
+:class:`~calidar.pipelines.inputs.TrajectoryOptions`).
+"""
+
+from __future__ import annotations
+
+import typer
+
+from calidar.pipelines.inputs import PointOptions, TrajectoryOptions
+
+CRS = typer.Option(None, "--crs", help="CRS of the points, overriding (or supplying) the file's, e.g. EPSG:32611.")
+TIME_SYSTEM = typer.Option(
+    None, "--time-system", help="GPS time of the points: week (seconds of the GPS week) or adjusted (GPS time − 1e9 s), "
+    "overriding the LAS global-encoding bit when it is wrong.")
+GEOID_UNDULATION = typer.Option(
+    None, "--geoid-undulation", help="Geoid undulation N (m) for a CRS with heights above a geoid when PROJ lacks the "
+    "geoid grid: ellipsoidal height = height + N (one value: a small area).")
+TRAJECTORY_CRS = typer.Option(None, "--trajectory-crs",
+                              help="CRS of a text trajectory's x/y (or lat/lon) columns, e.g. EPSG:32615.")
+TRAJECTORY_ANGLES = typer.Option(None, "--trajectory-angles", help="Angle unit of a text trajectory: deg (default) or rad.")
+TRAJECTORY_HEADING = typer.Option(
+    None, "--trajectory-heading", help="Heading of a text trajectory: true (default), or grid (then corrected by the "
+    "meridian convergence of --trajectory-crs).")
+TRAJECTORY_COLUMNS = typer.Option(
+    None, "--trajectory-columns", help="Columns of a text trajectory, comma-separated, '-' to skip one: time, lat, lon "
+    "or x, y, height, roll, pitch, heading (default: from its header line).")
+
+
+def point_options(crs: str | None = None, time_system: str | None = None,
+                  geoid_undulation: float | None = None) -> PointOptions:
+    """PointOptions from the shared point options."""
+    return PointOptions(crs=crs, time_system=time_system, geoid_undulation_m=geoid_undulation)
+
+
+def trajectory_options(crs: str | None = None, angles: str | None = None, heading: str | None = None,
+                       columns: str | None = None) -> TrajectoryOptions:
+    """TrajectoryOptions from the shared trajectory options."""
+    cols = None if columns is None else tuple(c.strip() for c in columns.split(","))
+    return TrajectoryOptions(crs=crs, angles=angles, heading=heading, columns=cols)

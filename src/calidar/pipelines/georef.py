@@ -1,0 +1,126 @@
+"""The georeferencing pipelines: ``calidar inverse`` (points → scanner observations, CSV),
+``calidar regeoref`` (strips re-georeferenced with a new sensor model) and ``calidar georef``
+(an Optech CSD's raw pulses → points with calidar's own lidar equation). LAS/LAZ inputs are
+streamed in chunks; every whole-file check runs before anything is written."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from calidar import georef
+from calidar.errors import InputError
+from calidar.io.csv import write_csv_rows
+from calidar.io.las import PointOptions, iter_las_chunks, las_header, rewrite_las_xyz, write_las
+from calidar.io.optech_csd import csd_trajectory, read_csd, returns
+from calidar.outputs import atomic_path, guard_inputs
+from calidar.pipelines import Progress, no_progress
+from calidar.pipelines import inputs
+from calidar.pipelines.inputs import TrajectoryOptions, load_trajectory, point_times, points_ecef, trajectory_for
+from calidar.sensor import Sensor
+from calidar.sensor_import import from_optech_header
+from calidar.validate import values
+
+VECTOR_COLUMNS = ("gps_time", "range_m", "x_s", "y_s", "z_s", "across_track_angle_deg", "along_track_angle_deg")
+
+
+def inverse_points(points: Path, trajectory: Path, out: Path, *, sensor: Path | None = None,
+                   point_options: PointOptions = PointOptions(),
+                   trajectory_options: TrajectoryOptions = TrajectoryOptions(), force: bool = False,
+                   progress: Progress = no_progress) -> int:
+    """Inverse georeferencing of a LAS/LAZ file into a CSV of :data:`VECTOR_COLUMNS` (``out``, atomic):
+    gps_time (s, as in the LAS), range_m (measured), x_s, y_s, z_s (m, scanner frame),
+    across_track_angle_deg = atan2(y_s, z_s), along_track_angle_deg = atan2(x_s, hypot(y_s, z_s)).
+    Returns the number of points."""
+    guard_inputs([out], [points, trajectory, sensor])
+    model = Sensor.read(sensor) if sensor else Sensor()
+    traj, week = trajectory_for(points, load_trajectory(trajectory, trajectory_options), point_options,
+                                inputs.CHUNK_POINTS)
+    total, n = las_header(points).point_count, 0
+    with atomic_path(out, force) as tmp, open(tmp, "w", encoding="utf-8") as f:
+        f.write(",".join(VECTOR_COLUMNS) + "\n")
+        for chunk in iter_las_chunks(points, inputs.CHUNK_POINTS, fields=(), options=point_options):
+            obs = georef.inverse(traj, model, point_times(chunk, traj, week), points_ecef(chunk))
+            v = obs.vector_s
+            across = np.degrees(np.arctan2(v[:, 1], v[:, 2]))
+            along = np.degrees(np.arctan2(v[:, 0], np.hypot(v[:, 1], v[:, 2])))
+            write_csv_rows(f, [chunk.gps_time, obs.range_m, v[:, 0], v[:, 1], v[:, 2], across, along],
+                           [6, 4, 4, 4, 4, 6, 6])
+            n += len(chunk)
+            progress("inverse georeferencing", n, total)
+    return n
+
+
+def regeoreference_strips(strips: list[Path], trajectory: Path, old: Path, new: Path, out_dir: Path, *,
+                          point_options: PointOptions = PointOptions(),
+                          trajectory_options: TrajectoryOptions = TrajectoryOptions(),
+                          progress: Progress = no_progress) -> dict[Path, int]:
+    """Re-georeference delivered strips: inverse with the ``old`` sensor.toml, forward with ``new``,
+    written into ``out_dir`` under the strips' names (formats, CRS and every other attribute kept).
+    Every strip is checked (CRS, whole-file trajectory coverage) before any is written.
+    Returns {output path: points}."""
+    old_s, new_s = Sensor.read(old), Sensor.read(new)
+    traj0 = load_trajectory(trajectory, trajectory_options)
+    names = [s.name for s in strips]
+    if len(set(names)) != len(names):
+        raise InputError(None, "STRIPS", f"expected distinct file names (outputs share the folder), got {names}")
+    guard_inputs([out_dir / s.name for s in strips], [*strips, trajectory, old, new])
+    plans = [(s, *trajectory_for(s, traj0, point_options, inputs.CHUNK_POINTS)) for s in strips]
+    written = {}
+    for k, (s, traj, week) in enumerate(plans):
+
+        def moved(points, traj=traj, week=week) -> np.ndarray:
+            p = georef.regeoreference(traj, old_s, new_s, point_times(points, traj, week), points_ecef(points))
+            return georef.to_crs(p, points.crs, points.geoid_undulation_m, source=points.path)
+
+        written[out_dir / s.name] = rewrite_las_xyz(s, out_dir / s.name, moved, chunk_points=inputs.CHUNK_POINTS,
+                                                    force=True, options=point_options)
+        progress("re-georeferencing strips", k + 1, len(plans))
+    return written
+
+
+@dataclass(frozen=True)
+class CsdResult:
+    """What ``calidar georef`` made of a CSD file."""
+
+    points: Path  #: the LAS/LAZ written
+    sensor: Path  #: the sensor.toml written beside it
+    n_points: int
+    crs: str
+    first_xyz: tuple[float, float, float]  #: the first point, in ``crs``
+    first_gps_time: float
+
+
+def sensor_path(out: Path) -> Path:
+    """Where ``calidar georef`` writes the sensor model beside its output: <stem>.sensor.toml."""
+    return out.with_name(out.stem + ".sensor.toml")
+
+
+def georeference_csd(csd: Path, out: Path, *, crs: str | None = None, geoid_undulation_m: float | None = None,
+                     force: bool = False, progress: Progress = no_progress) -> CsdResult:
+    """Georeference an Optech CSD file's returns with calidar's lidar equation: the trajectory of its
+    pulses (:func:`calidar.io.optech_csd.csd_trajectory`), the header's boresight as a calidar
+    Sensor (:func:`calidar.sensor_import.from_optech_header`), the linear scanner at the pulses'
+    scan angles. Writes ``out`` (LAS/LAZ, GPS week seconds as in the file) in ``crs`` (default:
+    the WGS 84 UTM zone of the first pulse, ellipsoidal heights) and the sensor.toml beside it."""
+    from calidar.sim.survey import utm_crs
+
+    sensor_out = sensor_path(out)
+    guard_inputs([out, sensor_out], [csd])
+    pulses = read_csd(csd)
+    pulse, slot, number, count = returns(pulses)
+    if pulse.size == 0:
+        raise InputError(csd, "return_count", f"expected pulses with returns; none of the {len(pulses)} has one")
+    crs = crs or utm_crs(np.degrees(pulses.lat[0]), np.degrees(pulses.lon[0]))
+    sensor = from_optech_header(pulses.header, crs=str(crs))
+    range_m = values(pulses.range_m[pulse, slot], csd, "range", 0.01, 1e4, "m", what="return")
+    t = pulses.time[pulse]
+    ecef = georef.forward(csd_trajectory(pulses), sensor, t, range_m, pulses.scan_angle[pulse])
+    progress("georeferencing", pulse.size, pulse.size)
+    xyz = georef.to_crs(ecef, crs, geoid_undulation_m, source="--crs")
+    write_las(out, xyz, crs, gps_time=t, scan_angle_deg=np.degrees(pulses.scan_angle[pulse]), point_source_id=1,
+              return_number=number, number_of_returns=count, intensity=pulses.intensity[pulse, slot], force=force)
+    sensor.write(sensor_out, force=force)
+    return CsdResult(out, sensor_out, int(pulse.size), str(crs), tuple(float(v) for v in xyz[0]), float(t[0]))
