@@ -153,6 +153,6 @@ def ccr_window(p, k: int, x_ccr: float, y_ccr: float, survey, system, reach: flo
     clear = h_ccr - p.ground(wx) >= GROUND_CLEARANCE * half  # where the ground rises into the band, photons of
     wx, counts = wx[clear], counts[clear]  # the ground and of the CCR cannot be told apart: those shots are left out
     n_ref = np.count_nonzero((off > 3.0 * half) & (off <= 3.0 * half + BACKGROUND_BAND))
-    background = n_ref / (wx.size * BACKGROUND_BAND) * 2.0 * half
+    background = (n_ref + 0.5) / (wx.size * BACKGROUND_BAND) * 2.0 * half  # + ½: never exactly 0
     return CCRWindow(p.name, p.group, cid, float(x_ccr), float(y_ccr), pole, wx, counts, float(background), p.channels,
                      float(np.arctan(a)), float(b), win[inband]), None
