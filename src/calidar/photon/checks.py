@@ -117,6 +117,9 @@ def _solve_checks(result) -> list[Finding]:
                            f"{s.diameter_max:g} m): the likelihood's maximum lies beyond it",
                            "check the CCR survey (positions, pole heights); widen --diameter-range only if "
                            "a footprint that size is physically possible"))
+    if any(n.startswith("ccr_peak_photons") for n in fit.at_limit):
+        out.append(Finding("warn", "CCR peak photons", "not bounded by the counts: held at its limit",
+                           "the footprint's edge is seen but not its centre: add CCRs nearer the predicted track"))
     if not sol.converged:
         out.append(Finding("warn", "solver", "the maximum-likelihood iterations did not converge",
                            "report this pass; treat the values with care"))

@@ -14,9 +14,10 @@ is rebuilt from it (:meth:`calidar.adjust.Solution.from_normal_matrix`, variance
 
 Bounds: the engine has none, so the model's domain (D > 0, Λ > ln 2, q < 1) is enforced by
 the likelihood (−inf outside: the engine rejects the step), and the physical bounds (D within
-the searched range, |bias| ≤ max_bias, Λ ≤ MAX_PEAK, q ≥ −0.2) are checked after the solve: a
-diameter beyond its range is re-solved held at the bound (the constrained maximum, flagged);
-anything else beyond its bound is a :class:`calidar.errors.CalibrationError`.
+the searched range, Λ ≤ MAX_PEAK, |bias| ≤ max_bias) are checked after the solve: a diameter or
+a peak beyond its bound is re-solved held at the bound (the constrained maximum, flagged; q is
+held at 0 the same way when the likelihood falls as it grows); a bias beyond its bound is a
+:class:`calidar.errors.CalibrationError`.
 """
 
 from __future__ import annotations
@@ -77,12 +78,21 @@ class Problem:
     shots: Shots
     layout: Layout
     jitter: float
+    _last: dict = field(default_factory=dict, repr=False, compare=False)
+    _information: dict = field(default_factory=dict, repr=False, compare=False)
 
     def with_counts(self, counts: list[np.ndarray]) -> "Problem":
-        return Problem(self.shots.with_counts(np.concatenate(counts)), self.layout, self.jitter)
+        return Problem(self.shots.with_counts(np.concatenate(counts)), self.layout, self.jitter,
+                       _information=self._information)
 
     def nll_terms(self, values: dict[str, float]) -> tuple[np.ndarray, np.ndarray]:
-        return log_likelihood(self.layout.theta(values), self.shots, self.jitter)
+        """(log P, score) per shot at ``values``; the last evaluation is kept (the engine asks for the
+        residuals and then the Jacobian at the same point)."""
+        theta = self.layout.theta(values)
+        key = theta.tobytes()
+        if self._last.get("key") != key:
+            self._last.update(key=key, terms=log_likelihood(theta, self.shots, self.jitter))
+        return self._last["terms"]
 
     def nll(self, values: dict[str, float]) -> float:
         return float(-self.nll_terms(values)[0].sum())
@@ -115,6 +125,21 @@ class Problem:
         """Expected (Fisher) information of the counts w.r.t. ``names`` at ``values``."""
         return fisher_information(self.layout.theta(values), self.shots, self.jitter, self.layout.columns(names),
                                   len(names))
+
+    def scoring_information(self, values: dict[str, float], names: list[str]) -> np.ndarray:
+        """The Fisher information for the solver's steps: recomputed only when some parameter moved by
+        more than its σ since the last computation for these parameters. It changes slowly and does
+        not depend on the counts, so problems that differ only in their counts (the bootstrap's)
+        share it; the gradient, and so the maximum, stay exact."""
+        x = np.array([values[n] for n in names])
+        held = self._information.setdefault(tuple(names), [])
+        for x0, info, sigma in held:
+            if np.all(np.abs(x - x0) <= sigma):
+                return info
+        info = self.information(values, names)
+        held.insert(0, (x, info, np.sqrt(np.clip(np.diag(np.linalg.pinv(info)), 1e-30, None))))
+        del held[32:]
+        return info
 
     def hessian(self, values: dict[str, float], names: list[str]) -> np.ndarray:
         """Observed information: the Hessian of −log L w.r.t. ``names`` (central differences of the score)."""
@@ -165,7 +190,7 @@ def maximise(problem: Problem, start: dict[str, float], bounds, fixed: dict[str,
             sol = _solve(problem, parameter_set(problem.layout, {**sol.values, **freed}, {**fixed, **at_zero}),
                          max_iter)
     values = sol.values
-    held = bounds.diameters_beyond(values, fixed)
+    held = bounds.beyond(values, fixed)
     if held:
         sol = _solve(problem, parameter_set(problem.layout, values, {**fixed, **at_zero, **held}), max_iter)
         values = sol.values
@@ -176,22 +201,10 @@ def maximise(problem: Problem, start: dict[str, float], bounds, fixed: dict[str,
 
 def _solve(problem: Problem, params: ParameterSet, max_iter: int) -> Solution:
     """The engine on the likelihood: exact gradient, Fisher information as its normal matrix
-    (Fisher scoring; the information is recomputed only when a step moved some parameter by more
-    than a quarter of its σ, as it changes slowly — the gradient, and so the maximum, stay exact)."""
+    (Fisher scoring, :meth:`Problem.scoring_information`)."""
     free = params.free_names
-    held: dict = {}
-
-    def information(v: dict[str, float]) -> np.ndarray:
-        x = np.array([v[n] for n in free])
-        if "x" in held and np.all(np.abs(x - held["x"]) <= 0.25 * held["sigma"]):
-            return held["info"]
-        info = problem.information(v, free)
-        sigma = np.sqrt(np.clip(np.diag(np.linalg.pinv(info)), 1e-30, None))
-        held.update(x=x, info=info, sigma=sigma)
-        return info
-
     return solve(problem.residuals, params, jacobian_fn=lambda v: problem.jacobian(v, free), robust=None,
-                 max_iter=max_iter, normal_fn=information)
+                 max_iter=max_iter, normal_fn=lambda v: problem.scoring_information(v, free))
 
 
 def observed_information_solution(problem: Problem, sol: Solution) -> Solution:
@@ -213,12 +226,17 @@ class Bounds:
     diameter_max: float
     max_bias: float
 
-    def diameters_beyond(self, values: dict[str, float], fixed: dict[str, float]) -> dict[str, float]:
-        """The free diameters outside [min, max], mapped to the bound they crossed."""
+    def beyond(self, values: dict[str, float], fixed: dict[str, float]) -> dict[str, float]:
+        """The free diameters outside [min, max] and CCR peak photons above MAX_PEAK, mapped to the
+        bound they crossed."""
         out = {}
         for n, v in values.items():
-            if _base(n) == "footprint_diameter" and n not in fixed and not self.diameter_min <= v <= self.diameter_max:
+            if n in fixed:
+                continue
+            if _base(n) == "footprint_diameter" and not self.diameter_min <= v <= self.diameter_max:
                 out[n] = self.diameter_min if v < self.diameter_min else self.diameter_max
+            elif _base(n) == "ccr_peak_photons" and v > MAX_PEAK:
+                out[n] = MAX_PEAK
         return out
 
     def check(self, values: dict[str, float]) -> None:

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
 
@@ -30,7 +31,7 @@ class SearchSettings:
     bootstrap: int = 100  #: parametric bootstrap replicates (0 = none)
     seed: int = 0
     shared_bias: bool = False  #: one along/cross bias for every beam (else one per beam)
-    surface_points: int = 15  #: likelihood surface grid (per axis) for the report; 0 = none
+    surface_points: int = 9  #: likelihood surface grid (per axis) for the report; 0 = none
 
     @property
     def reach(self) -> float:
@@ -79,22 +80,34 @@ def chords(segments, spacing: float, loss: float) -> np.ndarray:
     return np.array([s.n_shots for s in segments]) * spacing / (1.0 - loss)
 
 
+@numba.njit(cache=True)
+def _squared_cross_errors(y, n_shots, n_cand, spacing, diam, biases, length_step):  # pragma: no cover - numba
+    """Σ over CCRs of the squared |surveyed − theoretical| cross-track distance (m²), best side and chord
+    candidate each, for every (diameter, bias): (n_diameters, n_biases). The distance √(r² − (L/2)²)
+    falls with the candidate L = l + Δl·k, so the best candidate is one of the two around
+    L* = 2√(r² − a²), a = |y − b|; a chord longer than the footprint (L/2 > r) is off by its excess."""
+    out = np.zeros((diam.size, biases.size))
+    for c in range(y.size):
+        l0 = n_shots[c] * spacing
+        for i in range(diam.size):
+            r = diam[i] / 2.0
+            for j in range(biases.size):
+                a = abs(y[c] - biases[j])
+                k_star = (2.0 * np.sqrt(max(r * r - a * a, 0.0)) - l0) / length_step
+                best = np.inf
+                for k in (np.floor(k_star), np.ceil(k_star)):
+                    half = 0.5 * (l0 + length_step * min(max(k, 0.0), n_cand[c] - 1.0))
+                    e = np.hypot(a - np.sqrt(max(r * r - half * half, 0.0)), max(half - r, 0.0))
+                    best = min(best, e)
+                out[i, j] += best * best
+    return out
+
+
 def _cross_errors(y: float, n_shots: int, missing: int, spacing: float, diam: np.ndarray, biases: np.ndarray,
                   length_step: float) -> np.ndarray:
-    """|surveyed − theoretical| cross-track distance (m) of one CCR, best side and chord candidate,
-    for every (diameter, bias): (n_diameters, n_biases). The distance √(r² − (L/2)²) falls with
-    the candidate L, so the best candidate is one of the two around L* = 2√(r² − a²), a = |y − b|;
-    a chord longer than the footprint (L/2 > r) is off by its excess."""
-    n_cand = int(np.ceil(missing * spacing / length_step)) + 1
-    l0 = n_shots * spacing
-    r = diam[:, None] / 2.0
-    a = np.abs(y - biases)[None, :]
-    k_star = (2.0 * np.sqrt(np.clip(r**2 - a**2, 0.0, None)) - l0) / length_step
-    err = np.full(np.broadcast_shapes(r.shape, a.shape), np.inf)
-    for k in (np.floor(k_star), np.ceil(k_star)):
-        half = 0.5 * (l0 + length_step * np.clip(k, 0, n_cand - 1))
-        err = np.minimum(err, np.hypot(a - np.sqrt(np.clip(r**2 - half**2, 0.0, None)), np.clip(half - r, 0.0, None)))
-    return err
+    """|surveyed − theoretical| cross-track distance (m) of one CCR for every (diameter, bias)."""
+    n_cand = np.array([int(np.ceil(missing * spacing / length_step)) + 1])
+    return np.sqrt(_squared_cross_errors(np.array([y]), np.array([n_shots]), n_cand, spacing, diam, biases, length_step))
 
 
 def grid_search(segments, spacing: float, settings: SearchSettings) -> GridResult:
@@ -109,9 +122,9 @@ def grid_search(segments, spacing: float, settings: SearchSettings) -> GridResul
                        settings.bias_step)
     if biases.size == 0:
         biases = np.array([float(np.clip(y.mean(), -settings.max_bias, settings.max_bias))])
-    sq = np.zeros((diam.size, biases.size))
-    for s, yi in zip(segments, y):
-        sq += _cross_errors(yi, s.n_shots, s.missing_shots, spacing, diam, biases, settings.length_step) ** 2
+    n_cand = np.array([int(np.ceil(s.missing_shots * spacing / settings.length_step)) + 1 for s in segments])
+    sq = _squared_cross_errors(y, np.array([s.n_shots for s in segments]), n_cand, spacing, diam, biases,
+                               settings.length_step)
     rms_c = np.sqrt(sq / len(segments))
     i, j = np.unravel_index(np.argmin(rms_c + rms_a), rms_c.shape)
     sides = [int(np.sign(yi - biases[j]) or 1) for yi in y]
@@ -119,7 +132,7 @@ def grid_search(segments, spacing: float, settings: SearchSettings) -> GridResul
                       shot_loss_rate(segments, spacing), _other_minima(rms_c, diam, biases, j))
 
 
-COMPETING_RMS = (2.0, 0.3)  #: an alternative minimum competes when its RMS ≤ 2 × the best + 0.3 m
+COMPETING_RMS = (1.25, 0.05)  #: an alternative minimum competes when its RMS ≤ 1.25 × the best + 0.05 m
 
 
 def _other_minima(rms_c: np.ndarray, diam: np.ndarray, biases: np.ndarray, best: int, n: int = 2,

@@ -72,7 +72,7 @@ def test_bounds():
         BOUNDS.check({"cross_track_bias": 12.0})
     with pytest.raises(CalibrationError, match=r"ccr_peak_photons = 900.*≤ 500 photons"):
         BOUNDS.check({"ccr_peak_photons": 900.0})
-    assert BOUNDS.diameters_beyond({"footprint_diameter[gt1l]": 16.0, "footprint_diameter[gt2l]": 9.0}, {}) == {
+    assert BOUNDS.beyond({"footprint_diameter[gt1l]": 16.0, "footprint_diameter[gt2l]": 9.0}, {}) == {
         "footprint_diameter[gt1l]": 15.0}
 
 
