@@ -128,13 +128,13 @@ class Problem:
 
     def scoring_information(self, values: dict[str, float], names: list[str]) -> np.ndarray:
         """The Fisher information for the solver's steps: recomputed only when some parameter moved by
-        more than its σ since the last computation for these parameters. It changes slowly and does
+        more than a quarter of its σ since a computation for these parameters. It changes slowly and does
         not depend on the counts, so problems that differ only in their counts (the bootstrap's)
         share it; the gradient, and so the maximum, stay exact."""
         x = np.array([values[n] for n in names])
         held = self._information.setdefault(tuple(names), [])
         for x0, info, sigma in held:
-            if np.all(np.abs(x - x0) <= sigma):
+            if np.all(np.abs(x - x0) <= 0.25 * sigma):
                 return info
         info = self.information(values, names)
         held.insert(0, (x, info, np.sqrt(np.clip(np.diag(np.linalg.pinv(info)), 1e-30, None))))
