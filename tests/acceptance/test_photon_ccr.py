@@ -62,7 +62,7 @@ def test_two_lit_ccrs_with_a_third_of_shots_lost(seed):
     seeds). Each seed's error lies within 3 observed-information σ and inside its 99 % profile interval."""
     sim, result, err = solve(PhotonSimConfig(seed=seed, n_ccr=2, ccr_dropout=1 / 3, n_unlit=1))
     assert len(result.estimate.segments) == 2
-    assert any("no CCR photons found for CCR CCR03" in w for w in result.warnings)
+    assert any("CCR03" in w for w in result.warnings)  # the third CCR, out of reach, is named
     for k in GEOLOCATION:
         assert abs(err[k]) < 3.0 * result.solution.sigma[k], (k, err[k])
     assert result.verdict.status == "warn"  # few CCRs: said in the verdict
@@ -119,7 +119,8 @@ def test_two_passes_solved_jointly():
     result = calibrate([prepare_pass(a.beam, survey, SYSTEM, "A"), prepare_pass(b.beam, survey, SYSTEM, "B")], survey,
                        SYSTEM, FAST)
     assert len(result.estimate.segments) == 12 and {w.pass_name for w in result.windows} == {"A", "B"}
-    assert sum("outside the pass" in w for w in result.warnings) == 12  # each pass's CCRs are off the other
+    off = [w for w in result.warnings if "outside the pass" in w]  # each pass's CCRs are off the other
+    assert len(off) == 2 and all("and 0 more" not in w and "CCRs" in w for w in off)
     v, s = result.solution.values, result.solution.sigma
     for k, t in zip(GEOLOCATION, (1.7, -2.2, 11.0)):
         assert abs(v[k] - t) < 3 * s[k]
@@ -161,7 +162,7 @@ def test_survey_in_track_coordinates(tmp_path):
 def test_ccrs_outside_the_pass_and_no_ccr_photons():
     sim = simulate_pass(PhotonSimConfig(seed=5, n_ccr=3, length=600.0, ccr_spacing=60.0))
     far = CCRSurvey(["far"], np.array([2.0]), lat=np.radians([33.0]), lon=np.radians([-106.4]))
-    with pytest.raises(CalibrationError, match="no CCR photons found in any pass: .*no photons near any CCR"):
+    with pytest.raises(CalibrationError, match="no CCR photons found in any pass: sim: no photons near any CCR"):
         calibrate([prepare_pass(sim.beam, far, SYSTEM, "sim")], far, SYSTEM)
     wrong = CCRSurvey(sim.ccr_id, sim.ccr_height + 20.0, lat=sim.ccr_lat, lon=sim.ccr_lon)
     with pytest.raises(CalibrationError, match="no CCR photons found for CCR CCR01"):

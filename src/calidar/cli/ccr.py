@@ -82,7 +82,7 @@ def ccr(
     sol = result.solution
     for n in sol.parameters.free_names:
         if n.split("[")[0] in ("along_track_bias", "cross_track_bias", "footprint_diameter"):
-            console.print(f"  {n:28s} {sol.values[n]:8.3f} ± {sol.sigma[n]:.3f} m", highlight=False)
+            console.print(f"  {n:34s} {sol.values[n]:8.3f} ± {sol.sigma[n]:.3f} m", highlight=False, markup=False)
     for w in result.warnings:
         print_warning(w)
     print_verdict(result.verdict, "CCR calibration")

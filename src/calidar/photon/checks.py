@@ -154,8 +154,10 @@ def verdict_of(result) -> Verdict:
     fits = result.fits if result.fits is not None else ccr_fits(result)
     result.fits = fits
     n_ccr = len(result.estimate.segments)
+    tracks, beams = len({w.pass_name for w in result.windows}), len(result.layout.groups)
     summary = (f"along/cross-track geolocation bias and footprint diameter from {n_ccr} lit CCR segment(s) in "
-               f"{len({w.pass_name for w in result.windows})} pass(es) of {len(result.layout.groups)} beam(s)")
+               f"{tracks} beam track(s) of {beams} beam(s)"
+               + (", one bias shared by all beams" if result.layout.shared_bias and beams > 1 else ""))
     findings = _solve_checks(result) + _geometry(result) + _precision(result) + [_sigma_agreement(result),
                                                                                    _model_fit(fits)]
     return Verdict(summary, findings)

@@ -27,23 +27,35 @@ class Estimate:
 
 
 def windows_of(passes: list[PassData], survey, system: SystemParameters, settings: SearchSettings):
-    """Every CCR window of every pass, and warnings for the CCRs a pass did not light."""
+    """Every CCR window of every pass, and warnings for the CCRs a pass did not light (those far
+    off the pass or across its track are named in one line per pass)."""
     windows, warnings = [], []
     for p in passes:
         if p.ground is None:
             warnings.append(f"{p.name}: no photons near any CCR; pass not used")
             continue
+        outside, across = [], []
         for k, cid in enumerate(survey.ids):
             x, y = p.ccr_x[k], p.ccr_y[k]
             if not np.isfinite(x) or not p.x[0] - settings.reach <= x <= p.x[-1] + settings.reach:
-                warnings.append(f"{p.name}: CCR {cid} lies outside the pass ({p.ccr_distance[k]:.0f} m from its "
-                                "nearest photon); ignored")
+                outside.append(f"{cid} ({p.ccr_distance[k]:.0f} m)")
             elif abs(y) > settings.reach:
-                warnings.append(f"{p.name}: CCR {cid} is {y:+.1f} m across the track, beyond any footprint; ignored")
+                across.append(f"{cid} ({y:+.1f} m)")
             else:
                 w, why = ccr_window(p, k, x, y, survey, system, settings.reach)
                 windows.append(w) if w is not None else warnings.append(why)
+        if outside:
+            warnings.append(f"{p.name}: {_few(outside)} outside the pass (distance to its nearest photon); ignored")
+        if across:
+            warnings.append(f"{p.name}: {_few(across)} across the track beyond any footprint "
+                            f"(more than ±{settings.reach:g} m); ignored")
     return windows, warnings
+
+
+def _few(items: list[str], most: int = 6) -> str:
+    """'CCR a, b and c' or 'CCRs a, b, … and 4 more'."""
+    head = ", ".join(items[:most])
+    return f"CCR{'s' if len(items) > 1 else ''} {head}" + (f" and {len(items) - most} more" if len(items) > most else "")
 
 
 def shots_of(windows: list[CCRWindow], counts: list[np.ndarray] | None = None) -> Shots:

@@ -36,12 +36,11 @@ def add_section(report, result, truth: dict | None = None, title: str = TITLE):
 
 def _intro(sec, result) -> None:
     lay = result.layout
-    labels = {k: sorted({p.label for p in result.passes if p.group_key == k}) for k in lay.groups}
-    beams = ", ".join(ls[0] if ls == [k] or (len(ls) == 1 and ls[0].startswith(k)) else f"{k} ({', '.join(ls)})"
-                      for k, ls in labels.items())
+    beams = ", ".join(sorted({p.label for p in result.passes if p.group_key in lay.groups}))
     sec.text(
-        f"{len(result.estimate.segments)} lit CCR segments from {len({w.pass_name for w in result.windows})} pass(es); "
-        f"beams: {beams}; {'one along/cross bias shared by all beams' if lay.shared_bias else 'one bias per beam'}. "
+        f"{len(result.estimate.segments)} lit CCR segments in {len({w.pass_name for w in result.windows})} beam "
+        f"track(s); beams: {beams}; {'one along/cross bias shared by all beams' if lay.shared_bias else 'one bias per beam'}"
+        f"{' (named by laser spot)' if any(k.startswith('spot') for k in lay.groups) else ''}. "
         "Bias = true − reported footprint position (along-track positive in the direction of travel, cross-track "
         "positive to the left). The estimate is the maximum of the exact likelihood of every shot's CCR photon count "
         "(binomial over the detector channels, lost shots, pointing jitter, background), started from the published "
