@@ -78,9 +78,12 @@ def one(cfg: PhotonSimConfig, settings: SearchSettings, model: bool = False):
         return np.array([v[k] - truth[k] for k in GEOLOCATION]), np.array([s[k] for k in GEOLOCATION]), crb, None, None
     v, s, u = result.solution.values, result.solution.sigma, result.uncertainty
     err = np.array([v[k] - truth[k] for k in GEOLOCATION])
-    cover = np.array([u.profile[k].covers(truth[k]) for k in GEOLOCATION])
+    # a parameter held at its bound (the verdict fails it) has no σ and no interval: counted as not covered
+    cover = np.array([k in u.profile and u.profile[k].covers(truth[k]) for k in GEOLOCATION])
     boot = np.array([u.bootstrap.get(k, np.nan) for k in GEOLOCATION]) if u.bootstrap else None
-    return err, np.array([s[k] for k in GEOLOCATION]), crb, cover, boot
+    if result.verdict.status == "fail":
+        print(f"  seed {cfg.seed}: verdict FAIL ({'; '.join(f.detail for f in result.verdict.findings if f.status == 'fail')})")
+    return err, np.array([s.get(k, np.nan) for k in GEOLOCATION]), crb, cover, boot
 
 
 def passes_pair(seed: int, settings: SearchSettings):
@@ -103,8 +106,8 @@ def summarise(name: str, errs, sig, crb, cover, boot, failed: int, seconds: floa
     print(f"{name}: {len(errs)} seeds ({failed} without an estimate), {seconds:.0f} s")
     print("  parameter            RMS err   RMS CR σ  ratio   mean(err/σ)²  Wald95 cover  profile95 cover  bootσ/obsσ")
     for i, k in enumerate(GEOLOCATION):
-        z2 = float(np.mean((errs[:, i] / sig[:, i]) ** 2))
-        wald = float(np.mean(np.abs(errs[:, i]) <= 1.96 * sig[:, i]))
+        z2 = float(np.nanmean((errs[:, i] / sig[:, i]) ** 2))
+        wald = float(np.mean(np.abs(errs[:, i]) <= 1.96 * np.nan_to_num(sig[:, i])))
         prof = f"{np.mean(np.array(cover)[:, i]):.3f}" if cover else "—"
         bo = f"{np.nanmean(np.array(boot)[:, i] / sig[:, i]):.3f}" if boot else "—"
         print(f"  {k:20s} {rms[i]:8.3f} {rcr[i]:9.3f} {rms[i] / rcr[i]:6.3f} {z2:12.3f} {wald:12.3f} {prof:>15s} {bo:>11s}")
