@@ -14,8 +14,9 @@ import time
 
 import numpy as np
 
-from calidar import scanner_separability as ss
+from calidar.pipelines.scanner import palmer_strip_selfcal
 from calidar.report import Report
+from calidar.scanners.report import add_selfcal_section
 
 
 def main() -> None:
@@ -27,7 +28,7 @@ def main() -> None:
     ap.add_argument("--report", default=None)
     a = ap.parse_args()
     t0 = time.perf_counter()
-    truth, results = ss.strip_selfcal(a.preset, density=a.density, height_agl_m=a.height, seed=a.seed)
+    truth, results = palmer_strip_selfcal(a.preset, density=a.density, height_agl_m=a.height, seed=a.seed)
     print(f"simulation + calibrations: {time.perf_counter() - t0:.0f} s")
     for est, r in results.items():
         sol = r.solution
@@ -42,7 +43,7 @@ def main() -> None:
             print("  warning:", w)
     if a.report:
         rep = Report("Palmer strip self-calibration")
-        ss.add_selfcal_section(rep, truth, results, f"Palmer self-calibration ({a.preset}, density {a.density})")
+        add_selfcal_section(rep, truth, results, f"Palmer self-calibration ({a.preset}, density {a.density})")
         rep.write(a.report)
 
 

@@ -31,30 +31,48 @@ def _g(v: float) -> str:
     return f"{v:.6g}" if abs(v) < 1e6 or v != int(v) or abs(v) >= 1e8 else f"{v:.0f}"
 
 
-def _range_text(lo: float | None, hi: float | None, unit: str, open_lo: bool = False) -> str:
+def _range_text(lo: float | None, hi: float | None, unit: str, open_lo: bool = False, open_hi: bool = False) -> str:
     u = f" {unit}" if unit else ""
     if lo is not None and hi is not None:
-        return f"in {'(' if open_lo else '['}{_g(lo)}, {_g(hi)}]{u}"
+        return f"in {'(' if open_lo else '['}{_g(lo)}, {_g(hi)}{')' if open_hi else ']'}{u}"
     if lo is not None:
         return f"{'>' if open_lo else '≥'} {_g(lo)}{u}"
     if hi is not None:
-        return f"≤ {_g(hi)}{u}"
+        return f"{'<' if open_hi else '≤'} {_g(hi)}{u}"
     return ""
 
 
 def number(value, where: str | os.PathLike | None, lo: float | None = None, hi: float | None = None,
-           unit: str = "", field: str | None = None, open_lo: bool = False) -> float:
-    """``value`` as a float when finite and within [lo, hi] (``open_lo``: lo excluded), else an
-    error naming ``where`` (an option such as "--cell", or a file with ``field``)."""
+           unit: str = "", field: str | None = None, open_lo: bool = False, open_hi: bool = False) -> float:
+    """``value`` as a float when finite and within [lo, hi] (``open_lo`` / ``open_hi``: that end
+    excluded), else an error naming ``where`` (an option such as "--cell", or a file with ``field``)."""
     try:
         v = float(value)
     except (TypeError, ValueError):
         v = math.nan
-    bad = not math.isfinite(v) or (lo is not None and (v <= lo if open_lo else v < lo)) or (hi is not None and v > hi)
+    bad = (not math.isfinite(v) or (lo is not None and (v <= lo if open_lo else v < lo))
+           or (hi is not None and (v >= hi if open_hi else v > hi)))
     if bad:
-        expected = f"a finite number {_range_text(lo, hi, unit, open_lo)}".rstrip()
+        expected = f"a finite number {_range_text(lo, hi, unit, open_lo, open_hi)}".rstrip()
         raise InputError(where, field, f"expected {expected}, got {value}")
     return v
+
+
+def integer(value, where: str | os.PathLike | None, lo: int | None = None, hi: int | None = None,
+            unit: str = "", field: str | None = None, why: str = "") -> int:
+    """``value`` as an int within [lo, hi], else an error naming ``where``; ``why`` says what the
+    bounds protect (e.g. the memory a larger value would take).
+
+    >>> integer(2_000_000, "--points", 8, 100_000, why="memory grows with it")
+    Traceback (most recent call last):
+    ...
+    calidar.errors.InputError: --points: expected an integer in [8, 100000] (memory grows with it), got 2000000
+    """
+    ok = isinstance(value, (int, np.integer)) and not isinstance(value, bool)
+    if ok and (lo is None or value >= lo) and (hi is None or value <= hi):
+        return int(value)
+    expected = " ".join(p for p in ("an integer", _range_text(lo, hi, unit), f"({why})" if why else "") if p)
+    raise InputError(where, field, f"expected {expected}, got {value}")
 
 
 def positive(value, where, unit: str = "", field: str | None = None, hi: float | None = None) -> float:

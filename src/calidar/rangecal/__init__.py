@@ -18,6 +18,7 @@ from calidar.adjust import Solution
 from calidar.io.total_station import TotalStationObservations
 from calidar.rangecal.fit import FitResult, acceptance, fit_range_model, observation_sigma, target_distances
 from calidar.rangecal.method import MethodResult, level_check, two_step_method
+from calidar.rangecal.units import check_units
 
 
 @dataclass
@@ -60,7 +61,9 @@ class RangeCalibration:
 def calibrate(obs: TotalStationObservations, tolerance_m: float | None = None,
               fix_scale: bool = False) -> RangeCalibration:
     """Fit offset/scale (``fix_scale``: offset only) with outlier tests, run the two-step
-    method on the observations kept, check the tolerance (m)."""
+    method on the observations kept, check the tolerance (m). Ranges in the wrong unit are an
+    :class:`~calidar.errors.InputError` (:func:`calidar.rangecal.units.check_units`)."""
+    check_units(obs, target_distances(obs)[0])
     fit = fit_range_model(obs, fix_scale)
     kept = obs.subset(fit.keep)
     _, partials = target_distances(kept)

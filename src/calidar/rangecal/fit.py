@@ -165,21 +165,29 @@ def fit_range_model(obs: TotalStationObservations, fix_scale: bool = False, crit
         d = target_distances(obs.subset(keep))[0]
         raise CalibrationError(f"{obs.source}: the targets span only {d.min():.2f}–{d.max():.2f} m: range_scale cannot be "
                                "separated from range_offset; add groups or E points at other distances, or fix the scale")
+    sol.nuisance_prefix = "P_"  # P's polar observations: in solution.json, not in the report's table
     v = sol.values
     p_all = np.array([[v[p_parameter(s.id, part)] for part in P_PARTS] for s in obs.setups])
     d_all, _ = target_distances(obs, p_all)
     w_all = np.full(len(obs), np.nan)
     w_all[keep] = w
     dof = sol.dof
-    chi2 = sol.sigma0**2 * dof
     return FitResult(
         solution=sol, keep=keep, sigma=sigma_all, w=w_all,
         residuals=(1.0 + v["range_scale"]) * d_all + v["range_offset"] - obs.scanner,
         distance=d_all, rejected=rejected, t_factor=float(stats.t.ppf(0.5 + level / 2, dof)),
-        global_test={"sigma0": sol.sigma0, "dof": dof, "chi2": chi2,
-                     "p_value": float(2 * min(stats.chi2.cdf(chi2, dof), stats.chi2.sf(chi2, dof))),
-                     "passed": bool(stats.chi2.ppf(0.025, dof) <= chi2 <= stats.chi2.ppf(0.975, dof))},
+        global_test=global_test(sol.sigma0, dof),
     )
+
+
+def global_test(sigma0: float, dof: float, level: float = 0.95) -> dict:
+    """χ² test of σ0² · dof on ``dof`` degrees of freedom (two-sided at ``level``): σ0, χ², p and
+    the σ0 range that passes."""
+    chi2 = sigma0**2 * dof
+    lo, hi = stats.chi2.ppf((1 - level) / 2, dof), stats.chi2.ppf((1 + level) / 2, dof)
+    return {"sigma0": float(sigma0), "dof": float(dof), "chi2": float(chi2),
+            "p_value": float(2 * min(stats.chi2.cdf(chi2, dof), stats.chi2.sf(chi2, dof))),
+            "sigma0_range95": [float(np.sqrt(lo / dof)), float(np.sqrt(hi / dof))], "passed": bool(lo <= chi2 <= hi)}
 
 
 def acceptance(fit: FitResult, tolerance_m: float) -> dict:

@@ -48,6 +48,9 @@ class MethodResult:
     delta: float | None  #: Δ (m); None without E points
     delta_sigma: float | None
     delta_half_width: float | None
+    feature_group: np.ndarray  #: (k,) group of each feature point used
+    feature_point: np.ndarray  #: (k,) its name (A–D)
+    feature_diff: np.ndarray  #: (k,) scanner range − S_PX (m)
 
     def to_dict(self) -> dict:
         """JSON-ready summary (m)."""
@@ -87,8 +90,9 @@ def two_step_method(obs: TotalStationObservations, distance: np.ndarray, partial
         delta = float(w_d @ diff)
         delta_sig = propagated_sigma(obs, w_d, partials, sigma)
         delta_hw = z * delta_sig
+    feat = obs.kind == "feature"
     return MethodResult(groups, g_ds, ds, ds_sig, z * ds_sig, list(obs.point[is_e]), obs.line[is_e], e_delta,
-                        delta, delta_sig, delta_hw)
+                        delta, delta_sig, delta_hw, obs.group[feat], obs.point[feat], diff[feat])
 
 
 LEVEL_CRITICAL = 3.29  #: |height offset / σ| above which A or B is not level with P (α = 0.001)

@@ -1,12 +1,12 @@
-"""Scanner structural-error analysis: the published Palmer figures, tolerances, CLI."""
-
-import json
+"""Scanner structural-error analysis: the published Palmer figures, tolerances, the demo step."""
 
 import numpy as np
 import pytest
 
-from calidar import scanner_analysis as sa
 from calidar.report import Report
+from calidar.scanners.analysis import TOLERANCE_SAMPLES, analyze, pattern_angles, pointing_error
+from calidar.scanners.settings import AnalysisSettings
+from calidar.scanners.sources import ARCSEC, build_scanner
 
 R = 500.0
 PUBLISHED = {  # Palmer (A = 45°, B = 7.5°) at 500 m; metres
@@ -17,10 +17,14 @@ PUBLISHED = {  # Palmer (A = 45°, B = 7.5°) at 500 m; metres
 }
 
 
+def run(model="palmer", range_m=R, errors=None, **kw):
+    """The analysis of ``errors`` (user units) at ``range_m``."""
+    return analyze(AnalysisSettings(model, range_m, errors or {}, **kw))
+
+
 @pytest.fixture(scope="module")
 def palmer():
-    return sa.analyze("palmer", R, {"eccentricity": 15e-6 / 75e-3, "delta_l": np.radians(0.02),
-                                    "delta_r": np.radians(0.02)}).summary()
+    return run(errors={"eccentricity": 15e-6 / 75e-3, "delta_l": 0.02, "delta_r": 0.02}).summary()
 
 
 def test_published_pattern_extent(palmer):
@@ -52,7 +56,7 @@ def test_delta_l_literal_reading_gives_half(palmer):
 def test_eccentricity_curve_shape_matches_first_order_theory():
     """dX = −R sin2B · sin β · (ε/r) sin(β − C) to first order: check the curve, not only the maximum."""
     e, c = 2e-4, np.radians(30)
-    a = sa.analyze("palmer", R, {"eccentricity": e}, eccentricity_phase_rad=c, n=360)
+    a = run(errors={"eccentricity": e}, phase_deg=np.degrees(c), points=360)
     d_beta = e * np.sin(a.angles - c)
     u = a.scanner.directions(a.angles)
     du = (a.scanner.directions(a.angles + 1e-6) - a.scanner.directions(a.angles - 1e-6)) / 2e-6
@@ -61,7 +65,7 @@ def test_eccentricity_curve_shape_matches_first_order_theory():
 
 
 def test_tolerances_hit_the_spec():
-    a = sa.analyze("palmer", R, {"delta_r": np.radians(0.001)}, spec_arcsec=10.0)
+    a = run(errors={"delta_r": 0.001}, spec_arcsec=10.0)
     tol = a.tolerances
     # δ_L, δ_R deflect the beam by 2δ: tolerance = spec / 2 = 5″
     assert tol["delta_r"]["max_alone"] == pytest.approx(5.0 / 3600, rel=1e-4)
@@ -70,15 +74,17 @@ def test_tolerances_hit_the_spec():
     # eccentricity at its tolerance (worst phase) points exactly at the spec, and the published
     # 15 µm / 75 mm example exceeds 10″ slightly (26 mm > 24.2 mm at 500 m)
     e_tol = tol["eccentricity"]["max_alone"]
-    worst = max(sa.analyze("palmer", R, {"eccentricity": e_tol}, eccentricity_phase_rad=c).summary()
-                ["errors"]["eccentricity"]["max_pointing_arcsec"] for c in np.linspace(0, np.pi, 13))
+    angles = pattern_angles(a.scanner, TOLERANCE_SAMPLES)
+    u0 = a.scanner.directions(angles)
+    worst = max(pointing_error(a.scanner.with_parameters(eccentricity_ratio=e_tol, eccentricity_phase=c)
+                               .directions(angles), u0).max() for c in np.linspace(0, np.pi, 13)) / ARCSEC
     assert worst == pytest.approx(10.0, rel=1e-3)
     assert 10e-6 < tol["eccentricity"]["max_alone_um_at_grating_radius"] * 1e-6 < 15e-6
 
 
 def test_wedge_and_linear_analyses():
-    w = sa.analyze("wedge", R, {"wedge_angle_error": np.radians(0.02)}).summary()
-    cone = sa.build_scanner("wedge").cone_angle
+    w = run("wedge", errors={"wedge_angle_error": 0.02}).summary()
+    cone = build_scanner("wedge").cone_angle
     assert w["pattern"]["extent_x_m"] == pytest.approx(2 * R * np.sin(cone), rel=1e-3)
     assert w["pattern"]["extent_y_m"] == pytest.approx(2 * R * np.sin(cone), rel=1e-3)
     # radial growth of the circle: R · dδ/dα · Δα with dδ/dα = n cos α / cos θt − 1
@@ -86,48 +92,9 @@ def test_wedge_and_linear_analyses():
     ddelta = n * np.cos(alpha) / np.sqrt(1 - (n * np.sin(alpha)) ** 2) - 1
     expected = R * np.cos(cone) * ddelta * np.radians(0.02)
     assert w["errors"]["wedge_angle_error"]["max_abs_dx_m"] == pytest.approx(expected, rel=1e-3)
-    lin = sa.analyze("linear", R, {"scan_angle_offset": np.radians(0.01)}, fov_deg=60).summary()
+    lin = run("linear", errors={"scan_angle_offset": 0.01}, fov_deg=60).summary()
     assert lin["errors"]["scan_angle_offset"]["max_abs_dy_m"] == pytest.approx(R * np.radians(0.01), rel=1e-6)
     assert lin["pattern"]["extent_y_m"] == pytest.approx(R, rel=1e-9)  # 2 R sin 30°
-
-
-def test_cli_json_and_outputs(cli, tmp_path):
-    out = tmp_path / "a"
-    code, stdout, err = cli("scanner", "analyze", "--model", "palmer", "--range", "500", "--eccentricity", "2e-4",
-                            "--phase", "0", "--delta-l", "0.02", "--delta-r", "0.02", "--spec-arcsec", "10",
-                            "--json", "--out", out)
-    assert code == 0, err
-    doc = json.loads(stdout)
-    assert doc["pattern"]["extent_x_m"] == pytest.approx(258.8, rel=1e-3)
-    assert set(doc["errors"]) == {"eccentricity", "delta_l", "delta_r"}
-    assert doc["errors"]["eccentricity"]["max_abs_dx_m"] == pytest.approx(0.027, rel=0.1)
-    for name in ("pattern.csv", "pattern.png", "displacement_delta_r.csv", "displacement_delta_r.png",
-                 "displacement_combined.csv", "summary.json", "report.html"):
-        assert (out / name).stat().st_size > 0, name
-    rows = np.loadtxt(out / "displacement_eccentricity.csv", delimiter=",", skiprows=1)
-    assert np.abs(rows[:, 1]).max() == pytest.approx(doc["errors"]["eccentricity"]["max_abs_dx_m"], rel=1e-6)
-    assert "Palmer" in (out / "report.html").read_text() or "palmer" in (out / "report.html").read_text()
-    code, _, err = cli("scanner", "analyze", "--model", "palmer", "--range", "500", "--out", out)
-    assert code == 1 and "--force" in err
-    code, stdout, _ = cli("scanner", "analyze", "--model", "wedge", "--range", "300", "--axis-tilt", "0.05", "--json",
-                          "--out", tmp_path / "w")
-    assert code == 0 and set(json.loads(stdout)["errors"]) == {"axis_tilt"}
-
-
-@pytest.mark.parametrize("args, message", [
-    (["--model", "palmer", "--range", "-500"], "--range"),
-    (["--model", "palmer", "--range", "500", "--mirror-tilt", "0"], "mirror_tilt_deg"),
-    (["--model", "palmer", "--range", "500", "--mirror-tilt", "-3"], "mirror_tilt_deg"),
-    (["--model", "wedge", "--range", "500", "--refractive-index", "0.9"], "refractive_index"),
-    (["--model", "wedge", "--range", "500", "--delta-l", "0.02"], "--delta-l"),
-    (["--model", "conical", "--range", "500"], "--model"),
-    (["--model", "palmer", "--range", "500", "--spec-arcsec", "0"], "--spec-arcsec"),
-])
-def test_cli_bad_input(cli, tmp_path, args, message):
-    code, _, err = cli("scanner", "analyze", *args, "--out", tmp_path / "bad")
-    assert code == 1
-    assert message in err and "Traceback" not in err
-    assert not (tmp_path / "bad").exists()
 
 
 def test_run_demo_writes_its_section(tmp_path):
