@@ -98,9 +98,10 @@ def _precision(result) -> list[Finding]:
         detail = (f"{f.format(v)} m, 95 % interval {f.format(iv.low)} … {f.format(iv.high)} m" if iv
                   else f"{f.format(v)} ± {half:.2f} m")
         if iv and (iv.open_low or iv.open_high):
-            out.append(Finding("fail", n, detail + ", cut at the search limit: the data do not bound it",
-                               "add lit CCRs (or passes), or widen --diameter-range/--max-bias if the value is "
-                               "physically plausible"))
+            out.append(Finding("warn", n, detail + ": the interval reaches the search limit, the data do not bound it "
+                               "there (σ and the other intervals assume the value within the searched range)",
+                               "add lit CCRs (or passes); widen --diameter-range/--max-bias only if values beyond "
+                               "are physically possible"))
         elif half <= tol:
             out.append(Finding("pass", n, detail + f" (within ±{tol:g} m)"))
         else:
