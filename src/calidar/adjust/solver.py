@@ -70,6 +70,7 @@ def solve(
     progress: Callable[[int, float], None] | None = None,
     clusters: np.ndarray | list[np.ndarray] | None = None,
     prior_correlation: Sequence[tuple[Sequence[str], np.ndarray]] = (),
+    normal_fn: Callable[[dict[str, float]], np.ndarray] | None = None,
 ) -> Solution:
     """Least-squares estimate of the free parameters of ``params``.
 
@@ -88,6 +89,9 @@ def solve(
     prior_correlation: groups (names, correlation matrix R) of free parameters whose priors
     (each its own prior_sigma) are jointly Gaussian with covariance D·R·D instead of
     independent. ``jacobian_fn`` may return a scipy.sparse matrix (many parameters, few per row).
+    normal_fn(values): the normal matrix (n_free × n_free) to use instead of JᵀWJ — for a cost
+    that is a negative log-likelihood (residuals whose squares sum to it), its expected
+    information (Fisher scoring); the gradient stays JᵀWr.
     The covariance is σ0²·N⁻¹ without priors (σ relative) and max(σ0², 1)·N⁻¹ with them (σ
     absolute: the priors are never tightened by an a-posteriori σ0 below 1).
     """
@@ -95,7 +99,7 @@ def solve(
     if not free:
         raise CalibrationError("no free parameters to estimate")
     with _one_blas_thread():
-        fit = _Fit(residual_fn, params, sigma, jacobian_fn, robust, robust_k, robust_scale, prior_correlation)
+        fit = _Fit(residual_fn, params, sigma, jacobian_fn, robust, robust_k, robust_scale, prior_correlation, normal_fn)
         x, r, w, history, converged = _levenberg_marquardt(fit, max_iter, tol, progress)
         sol, J, N = _solution(fit, x, r, w, history, converged)
     groupings = [] if clusters is None else clusters if isinstance(clusters, list) else [clusters]
@@ -123,8 +127,9 @@ class _Fit:
     """The weighted least-squares problem the iterations work on: residuals, Jacobian, robust
     weights, cost (priors included) at free-parameter vectors x (SI)."""
 
-    def __init__(self, residual_fn, params, sigma, jacobian_fn, robust, robust_k, robust_scale, prior_correlation):
-        self.residual_fn, self.params, self.jacobian_fn = residual_fn, params, jacobian_fn
+    def __init__(self, residual_fn, params, sigma, jacobian_fn, robust, robust_k, robust_scale, prior_correlation,
+                 normal_fn=None):
+        self.residual_fn, self.params, self.jacobian_fn, self.normal_fn = residual_fn, params, jacobian_fn, normal_fn
         self.robust, self.robust_k, self.robust_scale = robust, robust_k, robust_scale
         self.free = params.free
         self.priors = _prior_groups(self.free, prior_correlation)
@@ -168,7 +173,8 @@ class _Fit:
 
     def normal_equations(self, J, w: np.ndarray, r: np.ndarray | None = None, x: np.ndarray | None = None):
         """N = JᵀWJ + P (priors' precision) and, with r and x, the gradient g = JᵀWr + P(x − centre)."""
-        N = _normal_matrix(J, w)
+        N = (_normal_matrix(J, w) if self.normal_fn is None or x is None
+             else np.array(self.normal_fn(self.params.values_with(x)), float))
         g = None if r is None else J.T @ (w * r)
         for idx, center, P in self.priors:
             N[np.ix_(idx, idx)] += P
@@ -231,7 +237,7 @@ def _solution(fit: _Fit, x: np.ndarray, r: np.ndarray, w: np.ndarray, history: l
     """The :class:`Solution` at x (covariance = variance factor · N⁻¹, see
     :meth:`_Fit.variance_factor`), with the Jacobian and normal matrix there."""
     J = fit.jacobian(x)
-    N, _ = fit.normal_equations(J, w)
+    N, _ = fit.normal_equations(J, w, x=x)
     dof = fit.dof(w)
     sol = Solution.from_normal_matrix(
         fit.params.updated(x), N, 2.0 * fit.cost(r, w, x) / dof, dof, variance_factor=fit.variance_factor(r, w, x),

@@ -29,7 +29,8 @@ from calidar.errors import CalidarError
 from calidar.outputs import shown_path
 
 COMMAND_MODULES: list[str] = [
-    "info", "georef", "rangecal", "photon", "simulate_survey", "demo", "quality", "boresight", "scanner", "sensor",
+    "info", "georef", "rangecal", "photon", "denoise", "ccr", "simulate_survey", "demo", "quality", "boresight",
+    "scanner", "sensor",
 ]
 
 app = typer.Typer(

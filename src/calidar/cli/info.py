@@ -14,7 +14,7 @@ from calidar.cli.common import console
 from calidar.cli.options import TIME_SYSTEM, TRAJECTORY_ANGLES, TRAJECTORY_COLUMNS, TRAJECTORY_HEADING, point_options
 from calidar.cli.options import trajectory_options
 from calidar.errors import InputError
-from calidar.io.atl03 import atl03_beams, read_atl03
+from calidar.io.atl03 import atl03_summary
 from calidar.io.las import gps_time_system, iter_las_chunks, las_crs, las_header
 from calidar.io.optech_csd import is_csd, read_csd
 from calidar.io.smrmsg import is_smrmsg_name, smrmsg_info
@@ -42,20 +42,8 @@ def is_hdf5(path: Path) -> bool:
 
 
 def atl03_info(path: Path) -> dict:
-    """Per beam: photons, laser shots, 20 m segments, delta_time span (s since 2018-01-01),
-    lat/lon (deg) and height (m, ellipsoidal) ranges."""
-    beams = atl03_beams(path)
-    if not beams:
-        raise InputError(path, None, f"an HDF5 file without ATL03 beam groups (gt1l … gt3r/heights); {READS}")
-    span = lambda a: [float(a.min()), float(a.max())] if a.size else None  # noqa: E731
-    rows = []
-    for b in beams:
-        pb = read_atl03(path, b)
-        rows.append({"beam": b, "photons": len(pb), "shots": int(np.unique(pb.delta_time).size),
-                     "segments": int(pb.segment_id.size), "delta_time": span(pb.delta_time),
-                     "lat_deg": span(np.degrees(pb.lat)), "lon_deg": span(np.degrees(pb.lon)), "h_m": span(pb.h)})
-    return {"file": str(path), "kind": "photons (ICESat-2 ATL03)", "photons": sum(r["photons"] for r in rows),
-            "beams": rows}
+    """Per beam: photons, shots, segments, strength, along-track source, time/lat/lon/height spans."""
+    return atl03_summary(path)
 
 
 def _span(lo: float, hi: float) -> list[float] | None:

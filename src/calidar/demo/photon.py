@@ -4,16 +4,20 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from calidar.photon.ccr import SearchSettings, SystemParameters
+from calidar.pipelines import Progress, no_progress
 
 
-def photon_step(report, out_dir: Path, seed: int, progress=None) -> None:
-    """Simulate a pass over 8 CCRs into ``out_dir/photon``, calibrate, add the report section."""
+def photon_step(report, out_dir: Path, seed: int, progress: Progress = no_progress) -> None:
+    """Simulate a pass over 8 CCRs into ``out_dir/photon/sim``, calibrate it into ``photon/ccr``,
+    add the report section and its verdict."""
     from calidar.outputs import prepare_out_dir
-    from calidar.pipelines.ccr import run_ccr
-    from calidar.sim.photons import PhotonSimConfig, simulate_pass, write_pass
+    from calidar.photon.passes import SystemParameters
+    from calidar.photon.search import SearchSettings
+    from calidar.pipelines.ccr import run_ccr, simulate_photons
+    from calidar.sim.photons import PhotonSimConfig
 
     sim_dir = prepare_out_dir(Path(out_dir) / "photon" / "sim", force=True)
-    paths = write_pass(simulate_pass(PhotonSimConfig(seed=seed, n_ccr=8, n_unlit=1)), sim_dir)
-    run_ccr([paths["atl03"]], "gt1l", paths["ccr"], Path(out_dir) / "photon" / "ccr", system=SystemParameters(),
-            settings=SearchSettings(), truth_path=paths["truth"], force=True, report=report)
+    paths = simulate_photons(PhotonSimConfig(seed=seed, n_ccr=8, n_unlit=1), sim_dir)
+    run_ccr([paths["atl03"]], "all", paths["ccr"], prepare_out_dir(Path(out_dir) / "photon" / "ccr", force=True),
+            system=SystemParameters(), settings=SearchSettings(bootstrap=50), truth_path=paths["truth"],
+            report=report, progress=progress)

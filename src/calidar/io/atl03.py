@@ -1,16 +1,27 @@
-"""ICESat-2 ATL03 photon files (HDF5): read one beam, write the same layout (for the simulator).
+"""ICESat-2 ATL03 photon files (HDF5): read beams as users have them, write the same layout.
 
 Layout read (ATL03 v006, the subset calidar needs)::
 
     /<beam>/heights/     delta_time [s since 2018-01-01], lat_ph, lon_ph [deg], h_ph [m],
                          dist_ph_along, dist_ph_across [m], signal_conf_ph (N×5 int8:
                          land, ocean, sea ice, land ice, inland water), quality_ph
-    /<beam>/geolocation/ segment_id, ph_index_beg (1-based), segment_ph_cnt,
-                         segment_dist_x [m] (optional)
+    /<beam>/geolocation/ segment_id, ph_index_beg (1-based), segment_ph_cnt, segment_dist_x [m]
+                         (or segment_length), delta_time [s] (the segments' reference photons)
+    /<beam> attributes   atlas_beam_type ("strong"/"weak"), atlas_spot_number (1–6)
+    /orbit_info/sc_orient  0 backward, 1 forward, 2 transition (when the attributes are absent)
 
 Along-track distance of a photon = segment_dist_x of its 20 m segment + dist_ph_along
-(ATL03 ATBD, Neumann et al. 2019); without segment_dist_x it is the cumulative
-segment_length, or dist_ph_along alone when there is a single segment.
+(ATL03 ATBD, Neumann et al. 2019). Subsetters and clipping tools often keep the segment
+arrays of the whole granule (or rewrite them partly) while keeping only some photons, so
+``ph_index_beg``/``segment_ph_cnt`` no longer tile the photons. Then each photon is placed on
+its segment by its own fields (:func:`along_track`): its time, interpolated between the
+segments' reference-photon times, predicts its along-track distance to a few metres, and
+the segment whose start + dist_ph_along is nearest to it (segments are 20 m long) is its
+segment. ``PhotonBeam.along_track_source`` says which way was taken, and ``calidar info``
+shows it; without segment times or starts a clipped file is refused, naming the field.
+
+Strong/weak: the beam group's ``atlas_beam_type``, else ``orbit_info/sc_orient`` (backward:
+the left beams gt1l, gt2l, gt3l are strong; forward: the right beams).
 """
 
 from __future__ import annotations
@@ -21,13 +32,21 @@ from pathlib import Path
 import numpy as np
 
 from calidar.errors import InputError
+from calidar.validate import values as checked
 
 #: The six ATLAS beams (ground tracks).
 BEAMS = ("gt1l", "gt1r", "gt2l", "gt2r", "gt3l", "gt3r")
 #: Columns of signal_conf_ph (surface types).
 SURFACE_TYPES = ("land", "ocean", "sea_ice", "land_ice", "inland_water")
+#: Detector channels of a strong and of a weak ATLAS beam.
+CHANNELS = {"strong": 16, "weak": 4}
 _HEIGHTS = ("delta_time", "lat_ph", "lon_ph", "h_ph", "dist_ph_along", "dist_ph_across", "signal_conf_ph")
 _SEGMENTS = ("segment_id", "ph_index_beg", "segment_ph_cnt")
+#: Ranges every photon's values must lie in (SI; lat/lon in degrees as in the file).
+_RANGES = {"delta_time": (0.0, 1e10, "s"), "lat_ph": (-90.0, 90.0, "deg"), "lon_ph": (-180.0, 360.0, "deg"),
+           "h_ph": (-2000.0, 15000.0, "m"), "dist_ph_along": (-1000.0, 1000.0, "m"),
+           "dist_ph_across": (-20000.0, 20000.0, "m"), "signal_conf_ph": (-2.0, 4.0, "")}
+SEGMENTS_SOURCE = "segments"  #: along_track_source when the segment bookkeeping covers every photon
 
 
 @dataclass
@@ -39,7 +58,7 @@ class PhotonBeam:
     lat: np.ndarray  #: (N,) rad
     lon: np.ndarray  #: (N,) rad
     h: np.ndarray  #: (N,) m, height above the WGS84 ellipsoid
-    dist_along: np.ndarray  #: (N,) m, dist_ph_along (within the segment)
+    dist_along: np.ndarray  #: (N,) m, dist_ph_along (within the segment, 0–20 m)
     dist_across: np.ndarray  #: (N,) m, dist_ph_across
     signal_conf: np.ndarray  #: (N, 5) int8 ATL03 confidence per surface type (-2..4)
     quality: np.ndarray  #: (N,) int8 quality_ph
@@ -48,6 +67,11 @@ class PhotonBeam:
     segment_ph_cnt: np.ndarray  #: (S,) photons per segment
     segment_dist_x: np.ndarray | None = None  #: (S,) m, along-track distance of each segment start
     source: str | None = None
+    segment_time: np.ndarray | None = None  #: (S,) s, delta_time of each segment's reference photon
+    strength: str | None = None  #: "strong", "weak" or None (unknown)
+    spot: int | None = None  #: ATLAS laser spot 1–6 (the physical beam), None when unknown
+    along_track: np.ndarray | None = None  #: (N,) m, set by :func:`along_track` (computed on first use)
+    along_track_source: str | None = None  #: how ``along_track`` was found (SEGMENTS_SOURCE or a note)
 
     def __len__(self) -> int:
         return int(self.h.size)
@@ -55,29 +79,96 @@ class PhotonBeam:
     @property
     def x(self) -> np.ndarray:
         """Along-track distance of every photon (m): segment_dist_x + dist_ph_along."""
-        start = self._segment_start()
-        seg = np.full(self.h.size, -1, dtype=np.int64)
-        cnt = self.segment_ph_cnt.astype(np.int64)
-        ok = (cnt > 0) & (self.ph_index_beg > 0)
-        idx = np.repeat(np.flatnonzero(ok), cnt[ok])
-        first = np.repeat(self.ph_index_beg[ok].astype(np.int64) - 1, cnt[ok])
-        pos = first + np.arange(idx.size) - np.repeat(np.cumsum(cnt[ok]) - cnt[ok], cnt[ok])
-        good = (pos >= 0) & (pos < self.h.size)
-        seg[pos[good]] = idx[good]
-        if np.any(seg < 0):
-            raise InputError(self.source, f"{self.beam}/geolocation/ph_index_beg",
-                             "segment bookkeeping does not cover every photon")
-        return start[seg] + self.dist_along.astype(np.float64)
+        if self.along_track is None:
+            self.along_track, self.along_track_source = along_track(self)
+        return self.along_track
 
-    def _segment_start(self) -> np.ndarray:
-        if self.segment_dist_x is not None:
-            return np.asarray(self.segment_dist_x, np.float64)
-        return np.zeros(self.segment_id.size)
+    @property
+    def channels(self) -> int | None:
+        """Detector channels of the beam (16 strong, 4 weak), None when the strength is unknown."""
+        return CHANNELS.get(self.strength)
+
+    @property
+    def label(self) -> str:
+        """The ground track with its laser spot and strength when known: 'gt1l (spot 6, weak)'."""
+        extra = ", ".join(x for x in (f"spot {self.spot}" if self.spot else "", self.strength or "") if x)
+        return f"{self.beam} ({extra})" if extra else self.beam
 
     def shot_index(self) -> np.ndarray:
         """Integer id of the laser shot of each photon (photons of one pulse share delta_time)."""
-        _, inv = np.unique(self.delta_time, return_inverse=True)
+        t = self.delta_time
+        if t.size and np.all(t[1:] >= t[:-1]):  # ATL03 order: O(N), no sort
+            return np.concatenate([[0], np.cumsum(t[1:] != t[:-1])])
+        _, inv = np.unique(t, return_inverse=True)
         return inv
+
+
+def _tiling_segments(beam: PhotonBeam) -> np.ndarray | None:
+    """Segment index of every photon when ph_index_beg/segment_ph_cnt tile photons 1…N exactly
+    (in order, no gap, no overlap); None when the bookkeeping is partial."""
+    n = beam.h.size
+    cnt = beam.segment_ph_cnt.astype(np.int64)
+    beg = beam.ph_index_beg.astype(np.int64)
+    used = np.flatnonzero((cnt > 0) & (beg > 0))
+    if n == 0 or used.size == 0:
+        return None
+    b, c = beg[used], cnt[used]
+    if b[0] != 1 or np.any(b[1:] != b[:-1] + c[:-1]) or b[-1] + c[-1] - 1 != n:
+        return None
+    return np.repeat(used, c)
+
+
+def _segment_starts(beam: PhotonBeam) -> np.ndarray | None:
+    return None if beam.segment_dist_x is None else np.asarray(beam.segment_dist_x, np.float64)
+
+
+def along_track(beam: PhotonBeam) -> tuple[np.ndarray, str]:
+    """(along-track distance of every photon (m), how it was found); see the module docstring."""
+    n = beam.h.size
+    if n == 0:
+        return np.zeros(0), SEGMENTS_SOURCE
+    starts = _segment_starts(beam)
+    seg = _tiling_segments(beam)
+    if seg is not None:
+        x = (starts[seg] if starts is not None else 0.0) + beam.dist_along
+        if starts is not None or beam.segment_id.size == 1:
+            return x, SEGMENTS_SOURCE
+    if starts is not None and beam.segment_time is not None and beam.segment_time.size >= 2:
+        x = _by_time(beam, starts)
+        if x is not None:
+            return x, ("photon times (the segment bookkeeping ph_index_beg/segment_ph_cnt does not match the "
+                       "photons, as in clipped or subset files: each photon placed on its 20 m segment by its time)")
+    missing = "segment_dist_x" if starts is None else "delta_time"
+    raise InputError(beam.source, f"{beam.beam}/geolocation/{missing}",
+                     "needed to place the photons on their 20 m segments: ph_index_beg/segment_ph_cnt do not match "
+                     "the photons (a clipped or subset file); expected the geolocation arrays of the granule")
+
+
+def _by_time(beam: PhotonBeam, starts: np.ndarray) -> np.ndarray | None:
+    """Along-track distance from each photon's time and dist_ph_along: the time predicts the
+    distance (segments' reference times → their centres, linear between and beyond them); the
+    photon's segment is the one whose start + dist_ph_along lies nearest. None when more than
+    1 % of the photons land over 5 m from the prediction (the arrays do not belong together)."""
+    order = np.argsort(beam.segment_time, kind="stable")
+    ts, xs = beam.segment_time[order], starts[order]
+    length = np.median(np.diff(xs)) if xs.size > 1 else 20.0
+    centre = xs + 0.5 * length
+    ok = np.concatenate([[True], np.diff(ts) > 0])
+    ts, centre, xs = ts[ok], centre[ok], xs[ok]
+    if ts.size < 2:
+        return None
+    speed = (centre[-1] - centre[0]) / (ts[-1] - ts[0])
+    t = beam.delta_time
+    pred = np.interp(t, ts, centre)
+    pred = np.where(t < ts[0], centre[0] + speed * (t - ts[0]), pred)
+    pred = np.where(t > ts[-1], centre[-1] + speed * (t - ts[-1]), pred)
+    start_sorted = np.sort(xs)
+    k = np.clip(np.searchsorted(start_sorted, pred - beam.dist_along), 1, start_sorted.size - 1)
+    cand = np.stack([start_sorted[k - 1], start_sorted[k]]) + beam.dist_along
+    x = np.where(np.abs(cand[0] - pred) <= np.abs(cand[1] - pred), cand[0], cand[1])
+    if np.mean(np.abs(x - pred) > 5.0) > 0.01:
+        return None
+    return x
 
 
 def _need(group, name: str, path, where: str):
@@ -104,11 +195,49 @@ def atl03_beams(path: str | Path) -> list[str]:
         return [b for b in BEAMS if b in f and "heights" in f[b]]
 
 
+def select_beams(path: str | Path, text: str) -> list[str]:
+    """The beams chosen by ``--beam``: "all" (every beam the file has), one name, or names
+    separated by commas; a clear error for an unknown name or one the file lacks."""
+    names = [b.strip().lower() for b in str(text).split(",") if b.strip()]
+    have = atl03_beams(path)
+    if names == ["all"]:
+        if not have:
+            raise InputError(path, None, "no ATL03 beam groups (gt1l … gt3r with a heights group)")
+        return have
+    for b in names or [""]:
+        if b not in BEAMS:
+            raise InputError(None, "--beam", f"expected all, one of {', '.join(BEAMS)} or several separated by "
+                             f"commas, got {text!r}")
+        if b not in have:
+            raise InputError(path, b, f"beam group missing; the file has {', '.join(have) or 'no beams'}")
+    return list(dict.fromkeys(names))
+
+
+def _text(v) -> str:
+    return (v.decode() if isinstance(v, bytes) else str(np.asarray(v).ravel()[0] if np.ndim(v) else v)).strip().lower()
+
+
+def beam_strength(f, beam: str) -> tuple[str | None, int | None]:
+    """(strong/weak/None, spot 1–6/None) of a beam of an open ATL03 file: the group's
+    atlas_beam_type/atlas_spot_number, else orbit_info/sc_orient."""
+    attrs = f[beam].attrs
+    strength = _text(attrs["atlas_beam_type"]) if "atlas_beam_type" in attrs else None
+    spot = int(_text(attrs["atlas_spot_number"])) if "atlas_spot_number" in attrs else None
+    if strength not in CHANNELS:
+        strength = None
+        if "orbit_info/sc_orient" in f:
+            orient = int(np.asarray(f["orbit_info/sc_orient"][()]).ravel()[0])
+            if orient in (0, 1):  # 0 backward: left beams strong; 1 forward: right beams strong
+                strength = "strong" if (beam.endswith("l") == (orient == 0)) else "weak"
+    return strength, spot
+
+
 def read_atl03(path: str | Path, beam: str = "gt1l") -> PhotonBeam:
-    """Read the photons of one beam of an ATL03 file (degrees in the file → radians)."""
+    """Read the photons of one beam of an ATL03 file (degrees in the file → radians); every
+    value checked (finite, in range); the along-track distance resolved (:func:`along_track`)."""
     path = Path(path)
     if beam not in BEAMS:
-        raise InputError(None, "--beam", f"expected one of {', '.join(BEAMS)}, got {beam!r}")
+        raise InputError(None, "--beam", f"expected one of {', '.join(BEAMS)} or all, got {beam!r}")
     with _open_hdf5(path) as f:
         if beam not in f:
             have = [b for b in BEAMS if b in f]
@@ -127,14 +256,18 @@ def read_atl03(path: str | Path, beam: str = "gt1l") -> PhotonBeam:
             dist_x = np.concatenate([[0.0], np.cumsum(seg_len[:-1])])
         else:
             dist_x = None
+        seg_time = gg["delta_time"][()] if "delta_time" in gg else None
+        strength, spot = beam_strength(f, beam)
     n = d["h_ph"].size
     for k in _HEIGHTS:
         if d[k].shape[0] != n:
             raise InputError(path, f"{beam}/heights/{k}", f"expected {n} rows like h_ph, got {d[k].shape[0]}")
+        lo, hi, unit = _RANGES[k]
+        checked(d[k], path, f"{beam}/heights/{k}", lo, hi, unit, what="photon")
     conf = d["signal_conf_ph"]
     if conf.ndim != 2 or conf.shape[1] != len(SURFACE_TYPES):
         raise InputError(path, f"{beam}/heights/signal_conf_ph", f"expected shape (N, 5), got {conf.shape}")
-    return PhotonBeam(
+    pb = PhotonBeam(
         beam=beam, delta_time=d["delta_time"].astype(np.float64),
         lat=np.radians(d["lat_ph"].astype(np.float64)), lon=np.radians(d["lon_ph"].astype(np.float64)),
         h=d["h_ph"].astype(np.float64), dist_along=d["dist_ph_along"].astype(np.float64),
@@ -142,7 +275,35 @@ def read_atl03(path: str | Path, beam: str = "gt1l") -> PhotonBeam:
         quality=np.asarray(quality, np.int8), segment_id=s["segment_id"].astype(np.int64),
         ph_index_beg=s["ph_index_beg"].astype(np.int64), segment_ph_cnt=s["segment_ph_cnt"].astype(np.int64),
         segment_dist_x=None if dist_x is None else np.asarray(dist_x, np.float64), source=str(path),
+        segment_time=None if seg_time is None else np.asarray(seg_time, np.float64), strength=strength, spot=spot,
     )
+    pb.along_track, pb.along_track_source = along_track(pb)
+    return pb
+
+
+def atl03_summary(path: str | Path) -> dict:
+    """What ``calidar info`` shows of an ATL03 file. Per beam: photons, laser shots, 20 m
+    segments, strength and laser spot, how the along-track distance was found, delta_time span
+    (s since 2018-01-01), lat/lon (deg) and height (m, ellipsoidal) ranges; a top-level
+    ``warning`` when a beam's segment bookkeeping is partial."""
+    path = Path(path)
+    beams = atl03_beams(path)
+    if not beams:
+        raise InputError(path, None, "an HDF5 file without ATL03 beam groups (gt1l … gt3r/heights); calidar info "
+                         "reads LAS/LAZ, SBET, text trajectories and ICESat-2 ATL03 (HDF5)")
+    span = lambda a: [float(a.min()), float(a.max())] if a.size else None  # noqa: E731
+    rows = []
+    for b in beams:
+        pb = read_atl03(path, b)
+        rows.append({"beam": b, "photons": len(pb), "shots": int(pb.shot_index().max() + 1) if len(pb) else 0,
+                     "segments": int(pb.segment_id.size), "strength": pb.strength, "spot": pb.spot,
+                     "along_track_from": pb.along_track_source, "delta_time": span(pb.delta_time),
+                     "lat_deg": span(np.degrees(pb.lat)), "lon_deg": span(np.degrees(pb.lon)), "h_m": span(pb.h)})
+    partial = [r["beam"] for r in rows if r["photons"] and r["along_track_from"] != SEGMENTS_SOURCE]
+    warning = (f"{', '.join(partial)}: along-track distance from the "
+               f"{next(r for r in rows if r['beam'] == partial[0])['along_track_from']}") if partial else None
+    return {"file": str(path), "kind": "photons (ICESat-2 ATL03)", "photons": sum(r["photons"] for r in rows),
+            "beams": rows, "warning": warning}
 
 
 def segment_photons(x_m: np.ndarray, segment_length_m: float = 20.0, first_id: int = 1):
@@ -172,7 +333,12 @@ def write_atl03(path: str | Path, beams: list[PhotonBeam]) -> Path:
         f.attrs["short_name"] = "ATL03"
         f.attrs["source"] = "calidar simulate photons (synthetic)"
         for b in beams:
-            hg = f.create_group(f"{b.beam}/heights")
+            grp = f.create_group(b.beam)
+            if b.strength:
+                grp.attrs["atlas_beam_type"] = b.strength
+            if b.spot:
+                grp.attrs["atlas_spot_number"] = str(b.spot)
+            hg = grp.create_group("heights")
             hg.create_dataset("delta_time", data=b.delta_time).attrs["units"] = "seconds since 2018-01-01"
             hg.create_dataset("lat_ph", data=np.degrees(b.lat)).attrs["units"] = "degrees_north"
             hg.create_dataset("lon_ph", data=np.degrees(b.lon)).attrs["units"] = "degrees_east"
@@ -181,10 +347,12 @@ def write_atl03(path: str | Path, beams: list[PhotonBeam]) -> Path:
             hg.create_dataset("dist_ph_across", data=b.dist_across.astype(np.float32)).attrs["units"] = "meters"
             hg.create_dataset("signal_conf_ph", data=b.signal_conf.astype(np.int8))
             hg.create_dataset("quality_ph", data=b.quality.astype(np.int8))
-            gg = f.create_group(f"{b.beam}/geolocation")
+            gg = grp.create_group("geolocation")
             gg.create_dataset("segment_id", data=b.segment_id.astype(np.int32))
             gg.create_dataset("ph_index_beg", data=b.ph_index_beg.astype(np.int64))
             gg.create_dataset("segment_ph_cnt", data=b.segment_ph_cnt.astype(np.int32))
             if b.segment_dist_x is not None:
                 gg.create_dataset("segment_dist_x", data=b.segment_dist_x).attrs["units"] = "meters"
+            if b.segment_time is not None:
+                gg.create_dataset("delta_time", data=b.segment_time).attrs["units"] = "seconds since 2018-01-01"
     return path

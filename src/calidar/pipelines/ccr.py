@@ -1,45 +1,78 @@
-"""The CCR calibration pipeline (``calidar ccr`` and its demo step): read the passes and the
-CCR survey, calibrate, write ``solution.json`` and the report."""
+"""The CCR calibration pipeline (``calidar ccr``, its demo step and the benchmarks): read the
+passes and the CCR survey, calibrate, write ``solution.json`` and ``report.html``; and the
+photon simulation (``calidar simulate photons``)."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
 from calidar.errors import InputError
-from calidar.outputs import prepare_out_dir
-from calidar.validate import read_json
+from calidar.pipelines import Progress, no_progress
 
 
-def _existing(path: Path) -> Path:
-    if not path.is_file():
-        raise FileNotFoundError(2, "No such file", str(path))
-    return path
+def read_truth(path: Path) -> dict[str, float]:
+    """The geolocation truth of a simulation's truth.json (m)."""
+    from calidar.photon.parameters import GEOLOCATION
+    from calidar.validate import read_json
+
+    doc = read_json(path)
+    try:
+        return {k: float(doc[k]) for k in GEOLOCATION}
+    except (KeyError, TypeError, ValueError):
+        raise InputError(path, None, f"expected JSON with numbers {', '.join(GEOLOCATION)}") from None
 
 
-def run_ccr(files: list[Path], beam: str, ccr: Path, out: Path, *, system, settings, truth_path: Path | None,
-            force: bool, report=None):
-    """Read, calibrate, write solution.json (+ report.html unless a report is passed in). Returns the result."""
-    from calidar.io.atl03 import read_atl03
-    from calidar.photon.ccr import PARAMETERS, calibrate, prepare_pass, read_ccr_csv
+def load_passes(files: list[Path], beams: str, survey, system, progress: Progress = no_progress):
+    """Every chosen beam of every ATL03 file as a pass prepared near the CCRs (beams without photons skipped)."""
+    from calidar.io.atl03 import read_atl03, select_beams
+    from calidar.photon.passes import prepare_pass
+    from calidar.validate import existing_file
+
+    names = [Path(f).name for f in files]
+    passes = []
+    for i, f in enumerate(files):
+        existing_file(f, "ATL03 file")
+        label = names[i] if names.count(names[i]) == 1 else str(f)
+        for b in select_beams(f, beams):
+            beam = read_atl03(f, b)
+            if len(beam):
+                passes.append(prepare_pass(beam, survey, system, name=f"{label}:{b}"))
+        progress("reading passes", i + 1, len(files))
+    if not passes:
+        raise InputError(files[0], beams, "no photons in the chosen beam(s)")
+    return passes
+
+
+def run_ccr(files: list[Path], beams: str, ccr: Path, out_dir: Path, *, system, settings, truth_path: Path | None = None,
+            record=None, report=None, progress: Progress = no_progress):
+    """Read, calibrate, write ``out_dir``/solution.json and (unless a report is passed in, as the demo
+    does) report.html; ``record``: the run's :class:`calidar.provenance.RunRecord`. Returns the result."""
+    from calidar.photon.ccr import calibrate, describe
     from calidar.photon.report import add_section
+    from calidar.photon.survey import read_ccr_csv
     from calidar.report import Report
 
-    survey = read_ccr_csv(_existing(ccr))
-    truth = None
-    if truth_path is not None:
-        doc = read_json(truth_path)
-        try:
-            truth = {k: float(doc[k]) for k in PARAMETERS}
-        except (KeyError, TypeError, ValueError):
-            raise InputError(truth_path, None, f"expected JSON with numbers {', '.join(PARAMETERS)}") from None
-    out = prepare_out_dir(out, force)
-    passes = [prepare_pass(read_atl03(_existing(f), beam), system, name=str(f)) for f in files]
-    result = calibrate(passes, survey, system, settings)
-    result.solution.write_json(out / "solution.json", truth)
+    survey = read_ccr_csv(ccr)
+    truth = read_truth(truth_path) if truth_path is not None else None
+    passes = load_passes(files, beams, survey, system, progress)
+    result = calibrate(passes, survey, system, settings, progress)
+    result.solution.extra.update(describe(result))
+    if record is not None:
+        result.solution.extra["run"] = record.finish().to_dict()
+    result.solution.write_json(Path(out_dir) / "solution.json", truth)
     own = report is None
     if own:
         report = Report("calidar: photon lidar CCR calibration")
+        report.record = record
     add_section(report, result, truth)
     if own:
-        report.write(out / "report.html")
+        report.write(Path(out_dir) / "report.html")
     return result
+
+
+def simulate_photons(cfg, out_dir: Path) -> dict[str, Path]:
+    """Simulate a pass (:class:`calidar.sim.photons.PhotonSimConfig`) into ``out_dir``: ATL03_sim.h5,
+    ccr.csv, truth.json."""
+    from calidar.sim.photons import simulate_pass, write_pass
+
+    return write_pass(simulate_pass(cfg), Path(out_dir))

@@ -1,6 +1,8 @@
 """Simulated single-photon lidar pass over corner-cube retroreflectors (CCRs), ICESat-2 style.
 
-Model (all SI): shots every ``shot_spacing`` m along a straight ground track (10 kHz).
+Model (all SI): shots every ``shot_spacing`` m along a geodesic ground track (10 kHz) from
+(lat0, lon0) at ``azimuth_deg`` (WGS84, pyproj's Geod; x is the distance along it, so passes of
+thousands of km keep ATL03's along-track distance exact).
 The reported footprint centre of shot i is (x_i, 0) in track coordinates (x along, y
 cross-track, left positive); the true one is (x_i + along_bias + jitter, cross_bias + jitter).
 Footprint energy is Gaussian with 1/e² radius w. Ground photons: Poisson(``ground_photons``)
@@ -12,8 +14,9 @@ channels with dead time t_d (a photon is lost if the previous photon of the same
 and channel came less than t_d before it).
 
 Truth ``footprint_diameter`` D is the diameter within which a CCR is detected (≥ 1 photon)
-with probability ≥ 50 %: λ0·exp(-2(D/2)²/w²) = ln 2, i.e. w = (D/2)·sqrt(2 / ln(λ0/ln 2)).
-That is what CCR chords measure.
+with probability ≥ 50 %: λ0·exp(-2(D/2)²/w²) = ln 2
+(:func:`calidar.photon.parameters.footprint_radius_1e2`). That is what CCR chords measure.
+A weak beam (``strength="weak"``) has 4 detector channels instead of 16.
 """
 
 from __future__ import annotations
@@ -24,11 +27,9 @@ from pathlib import Path
 
 import numpy as np
 
-from calidar.io.atl03 import SURFACE_TYPES, PhotonBeam, segment_photons, write_atl03
+from calidar.io.atl03 import CHANNELS, SURFACE_TYPES, PhotonBeam, segment_photons, write_atl03
 from calidar.outputs import atomic_path, write_text_atomic
-from calidar.photon.track import TrackLine
-
-C_LIGHT = 299_792_458.0  #: m/s
+from calidar.photon.parameters import C_LIGHT, GEOLOCATION, footprint_radius_1e2
 ATLAS_EPOCH_OFFSET = 2.5e7  #: s, delta_time of the first shot (about Oct 2018)
 
 
@@ -50,7 +51,8 @@ class PhotonSimConfig:
     window: float = 30.0  #: m, telemetry height window (from 10 m below ground)
     dead_time: float = 3.2e-9  #: s
     pulse_width: float = 1.0e-9  #: s, RMS
-    channels: int = 16
+    strength: str = "strong"  #: "strong" (16 detector channels) or "weak" (4)
+    spot: int | None = None  #: ATLAS laser spot written to the file (None: not written)
     slope_along: float = 0.02  #: terrain slope along track (m/m)
     slope_cross: float = 0.01  #: terrain slope across track (m/m)
     undulation: float = 2.0  #: m, amplitude of a 300 m-wavelength terrain undulation
@@ -60,14 +62,18 @@ class PhotonSimConfig:
     ccr_photons: float = 20.0  #: mean photons from a CCR at the footprint centre
     ccr_dropout: float = 0.0  #: fraction of shots whose CCR photons are all lost
     ccr_spacing: float = 60.0  #: m along track between CCRs
-    lat0_deg: float = 32.4  #: tangent-plane origin (a desert CCR site)
+    lat0_deg: float = 32.4  #: start of the track (a desert CCR site)
     lon0_deg: float = -106.4
-    azimuth_deg: float = -13.0  #: track direction (clockwise from north)
+    azimuth_deg: float = -13.0  #: track direction at the start (clockwise from north)
 
     @property
     def w(self) -> float:
         """1/e² radius of the footprint energy (m) for the 50 %-detection diameter."""
-        return 0.5 * self.footprint_diameter * np.sqrt(2.0 / np.log(self.ccr_photons / np.log(2.0)))
+        return float(footprint_radius_1e2(self.footprint_diameter, self.ccr_photons))
+
+    @property
+    def channels(self) -> int:
+        return CHANNELS[self.strength]
 
 
 @dataclass
@@ -86,8 +92,30 @@ class SimulatedPass:
 
 
 def _terrain(cfg: PhotonSimConfig, x, y):
-    """Terrain height (m) at track coordinates x, y (m)."""
-    return 1200.0 + cfg.slope_along * x + cfg.slope_cross * y + cfg.undulation * np.sin(2 * np.pi * x / 300.0)
+    """Terrain height (m) at track coordinates x, y (m): the along-track slope at the start bends
+    over 5 km (±100 m at the default slope, so long passes stay on Earth), a cross slope and a
+    300 m-wavelength undulation."""
+    return (1200.0 + cfg.slope_along * 5000.0 * np.sin(np.asarray(x) / 5000.0) + cfg.slope_cross * y
+            + cfg.undulation * np.sin(2 * np.pi * x / 300.0))
+
+
+def _geodesic(cfg: PhotonSimConfig, x: np.ndarray, y: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Geodetic lat, lon (rad) of track coordinates x (m along the geodesic from the start) and y
+    (m to its left). With y (CCRs): exact (pyproj Geod), the point on the track then the
+    perpendicular offset. Without (shots on the track): exact at knots every 100 m, linear
+    between them (≤ 0.2 mm off), so millions of shots cost little."""
+    from pyproj import Geod
+
+    geod = Geod(ellps="WGS84")
+    x = np.asarray(x, float)
+    start = lambda n: (np.full(n, cfg.lon0_deg), np.full(n, cfg.lat0_deg), np.full(n, cfg.azimuth_deg))  # noqa: E731
+    if y is not None:
+        lon, lat, back = geod.fwd(*start(x.size), x)
+        lon, lat, _ = geod.fwd(lon, lat, np.asarray(back) + 90.0, np.asarray(y, float))  # back + 180 − 90: left
+        return np.radians(lat), np.radians(lon)
+    knots = np.arange(np.floor(x.min() / 100.0) - 1, np.ceil(x.max() / 100.0) + 2) * 100.0
+    lon, lat, _ = geod.fwd(*start(knots.size), knots)
+    return np.radians(np.interp(x, knots, lat)), np.interp(x, knots, np.unwrap(np.radians(lon)))
 
 
 def _ccr_layout(cfg: PhotonSimConfig, rng, along_bias, cross_bias):
@@ -129,11 +157,13 @@ def simulate_pass(cfg: PhotonSimConfig) -> SimulatedPass:
     cx, cy, ch = _ccr_layout(cfg, rng, along_bias, cross_bias)
     sc_list, hc_list = [], []
     for k in range(cx.size):
-        near = np.flatnonzero(np.abs(tx - cx[k]) < 3 * cfg.w)
+        lo, hi = np.searchsorted(xs, [cx[k] - along_bias - 3 * cfg.w - 5 * cfg.jitter,
+                                      cx[k] - along_bias + 3 * cfg.w + 5 * cfg.jitter])
+        near = np.arange(lo, hi)
         r2 = (tx[near] - cx[k]) ** 2 + (ty[near] - cy[k]) ** 2
         nk = rng.poisson(cfg.ccr_photons * np.exp(-2 * r2 / cfg.w**2))
+        nk[rng.random(near.size) < cfg.ccr_dropout] = 0  # lost shots take all their CCR photons
         sk = np.repeat(near, nk)
-        sk = sk[rng.random(n_shots)[sk] >= cfg.ccr_dropout]  # lost shots take all their CCR photons
         sc_list.append(sk)
         hc_list.append(_terrain(cfg, cx[k], cy[k]) + ch[k] + rng.normal(0, range_sigma, sk.size))
     sc, hc = np.concatenate(sc_list), np.concatenate(hc_list)
@@ -152,22 +182,10 @@ def simulate_pass(cfg: PhotonSimConfig) -> SimulatedPass:
     order = np.lexsort((-h, shot))  # photons of a shot in arrival order
     shot, h, cls = shot[order], h[order], cls[order]
 
-    x = xs[shot]
-    track = TrackLine(np.radians(cfg.lat0_deg), np.radians(cfg.lon0_deg), 0.0, 0.0, 0.0,
-                      (float(np.sin(np.radians(cfg.azimuth_deg))), float(np.cos(np.radians(cfg.azimuth_deg)))))
-    lat, lon = track.to_geodetic(x, np.zeros_like(x))
-    seg_id, beg, cnt, dist_x, along = segment_photons(x, 20.0, first_id=100_000)
-    conf = np.full((x.size, len(SURFACE_TYPES)), -1, np.int8)
-    conf[:, 0] = np.where(cls > 0, 4, 0)
-    beam = PhotonBeam(
-        beam=cfg.beam, delta_time=ATLAS_EPOCH_OFFSET + shot / cfg.prf, lat=lat, lon=lon, h=h,
-        dist_along=along, dist_across=np.zeros_like(x), signal_conf=conf, quality=np.zeros(x.size, np.int8),
-        segment_id=seg_id, ph_index_beg=beg, segment_ph_cnt=cnt, segment_dist_x=dist_x,
-    )
-    clat, clon = track.to_geodetic(cx, cy)
+    beam = _atl03_beam(cfg, xs, shot, h, cls)
+    clat, clon = _geodesic(cfg, cx, cy)
     truth = {
-        "along_track_bias": float(along_bias), "cross_track_bias": float(cross_bias),
-        "footprint_diameter": float(cfg.footprint_diameter),
+        **dict(zip(GEOLOCATION, map(float, (along_bias, cross_bias, cfg.footprint_diameter)))),
         "units": "m",
         "conventions": "true footprint = reported + bias; along-track positive in the direction of travel, "
                        "cross-track positive to the left of it; footprint_diameter = 50 % CCR-detection diameter",
@@ -177,6 +195,23 @@ def simulate_pass(cfg: PhotonSimConfig) -> SimulatedPass:
     }
     ids = [f"CCR{k + 1:02d}" for k in range(cx.size)]
     return SimulatedPass(beam, ids, cx, cy, clat, clon, ch, truth, cls)
+
+
+def _atl03_beam(cfg: PhotonSimConfig, xs: np.ndarray, shot: np.ndarray, h: np.ndarray, cls: np.ndarray) -> PhotonBeam:
+    """The photons as an ATL03 beam: positions at their shot's reported footprint, 20 m segments
+    with their reference (centre) times, ATL03-style confidence (4 for ground/CCR, 0 background)."""
+    x = xs[shot]
+    slat, slon = _geodesic(cfg, xs)
+    seg_id, beg, cnt, dist_x, along = segment_photons(x, 20.0, first_id=100_000)
+    conf = np.full((x.size, len(SURFACE_TYPES)), -1, np.int8)
+    conf[:, 0] = np.where(cls > 0, 4, 0)
+    return PhotonBeam(
+        beam=cfg.beam, delta_time=ATLAS_EPOCH_OFFSET + shot / cfg.prf, lat=slat[shot], lon=slon[shot], h=h,
+        dist_along=along, dist_across=np.zeros_like(x), signal_conf=conf, quality=np.zeros(x.size, np.int8),
+        segment_id=seg_id, ph_index_beg=beg, segment_ph_cnt=cnt, segment_dist_x=dist_x,
+        segment_time=ATLAS_EPOCH_OFFSET + (dist_x + 10.0) / cfg.shot_spacing / cfg.prf, strength=cfg.strength,
+        spot=cfg.spot, along_track=x, along_track_source="segments",
+    )
 
 
 def write_ccr_csv(path: str | Path, ids, lat_rad, lon_rad, height_m, force: bool = True) -> Path:

@@ -1,0 +1,44 @@
+"""``calidar denoise``: classify every photon of an ATL03 file as signal or noise (a CSV)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import typer
+
+from calidar.cli.common import console, print_warning
+
+BEAM_HELP = "ATL03 beam(s): gt1l … gt3r, several separated by commas, or all."
+SHOT_SPACING_RANGE = (0.05, 10.0)  #: m, along-track shot spacing accepted (ATLAS: 0.7 m)
+
+
+def denoise(
+    atl03: Path = typer.Argument(..., help="ATL03 HDF5 file."),
+    beam: str = typer.Option("all", "--beam", help=BEAM_HELP),
+    out: Path = typer.Option(..., "--out", help="CSV to write: beam, strength, delta_time, along_track_m, "
+                             "dist_ph_along, lat, lon, h_ph, atl03_conf, signal."),
+    shot_spacing: float = typer.Option(0.7, "--shot-spacing-m", help="Along-track shot spacing d_l (m)."),
+    force: bool = typer.Option(False, "--force", help="Overwrite an existing CSV (never an input)."),
+) -> None:
+    """Classify every photon as signal (1) or noise (0): height histograms, then DBSCAN."""
+    from calidar.outputs import atomic_path, guard_inputs
+    from calidar.pipelines.denoise import run_denoise
+    from calidar.validate import existing_file, number
+
+    number(shot_spacing, "--shot-spacing-m", *SHOT_SPACING_RANGE, "m")
+    guard_inputs([out], [atl03])
+    existing_file(atl03, "ATL03 file")
+    with atomic_path(out, force) as tmp:
+        result = run_denoise(atl03, beam, tmp, shot_spacing)
+    for b in result.beams:
+        console.print(f"  {b.beam} ({b.strength or 'strength unknown'}): {b.photons:,} photons, {b.signal:,} signal "
+                      f"({b.signal / b.photons:.1%})", highlight=False)
+        if b.along_track_from != "segments":
+            print_warning(f"{b.beam}: along-track distance from the {b.along_track_from}")
+    if result.skipped:
+        print_warning(f"no photons in {', '.join(result.skipped)}; skipped")
+    console.print(f"{out}: {result.photons:,} photons, {result.signal:,} signal", highlight=False)
+
+
+def register(app: typer.Typer, simulate: typer.Typer) -> None:
+    app.command("denoise")(denoise)

@@ -1,0 +1,252 @@
+"""The maximum of the exact count likelihood, solved by the one engine (:func:`calidar.adjust.solve`).
+
+The engine minimises ½·Σ r² over residual functions. With one residual per shot,
+r_s = √(2·(−log P_s(k_s) + ½)), that sum IS the negative log-likelihood (plus a constant), so
+the engine's minimum is the maximum-likelihood estimate, exactly, with its own damping, stop
+rule and history; the exact Jacobian ∂r_s = −∂log P_s / r_s comes from the likelihood's score.
+(The ½ keeps every r_s ≥ 1 where the shot is unsurprising, so the engine's Gauss–Newton matrix
+JᵀJ ≈ Σ score·scoreᵀ: the outer-product (BHHH) approximation of the information.)
+
+What the engine cannot give here is the covariance: its σ0²·(JᵀJ)⁻¹ is a least-squares
+formula. σ comes from the observed information instead — the Hessian of the negative
+log-likelihood at the estimate, by central differences of the exact score — and the Solution
+is rebuilt from it (:meth:`calidar.adjust.Solution.from_normal_matrix`, variance factor 1).
+
+Bounds: the engine has none, so the model's domain (D > 0, Λ > ln 2, q < 1) is enforced by
+the likelihood (−inf outside: the engine rejects the step), and the physical bounds (D within
+the searched range, Λ ≤ MAX_PEAK, |bias| ≤ max_bias) are checked after the solve: a diameter or
+a peak beyond its bound is re-solved held at the bound (the constrained maximum, flagged; q is
+held at 0 the same way when the likelihood falls as it grows); a bias beyond its bound is a
+:class:`calidar.errors.CalibrationError`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from calidar.adjust import Parameter, ParameterSet, Solution, solve
+from calidar.errors import CalibrationError
+from calidar.photon.likelihood import Shots, fisher_information, log_likelihood
+from calidar.photon.parameters import BIASES, NAMES, UNITS, parameter_name
+
+STAGE_ONE, MARGIN = 3, 0.0
+OFFSET = 0.5  #: added to every shot's −log P inside its residual (a constant: the minimum is unchanged)
+MAX_PEAK = 500.0  #: photons; a CCR peak beyond this is not a CCR return
+LOSS_START = 0.1  #: a shot-loss rate starting below this is first held at 0 (its bound), then freed if the data ask
+STEPS = {"along_track_bias": 1e-4, "cross_track_bias": 1e-4, "footprint_diameter": 1e-4, "ccr_peak_photons": 1e-4,
+         "shot_loss_rate": 1e-5}  #: relative to max(|value|, 1): central-difference steps of the Hessian
+
+
+@dataclass(frozen=True)
+class Layout:
+    """How the parameters of G beams map to named parameters: one row (b_a, b_c, D, Λ, q) per beam
+    (:data:`NAMES`); with ``shared_bias`` one b_a and one b_c for all of them."""
+
+    groups: tuple[str, ...]
+    shared_bias: bool = False
+
+    def name(self, g: int, base: str) -> str:
+        single = len(self.groups) == 1 or (self.shared_bias and base in BIASES)
+        return parameter_name(base, None if single else self.groups[g])
+
+    @property
+    def names(self) -> list[str]:
+        return list(dict.fromkeys(self.name(g, b) for g in range(len(self.groups)) for b in NAMES))
+
+    def columns(self, names: list[str]) -> np.ndarray:
+        """(G, 5) position of each beam's parameter among ``names`` (−1: absent)."""
+        pos = {n: i for i, n in enumerate(names)}
+        return np.array([[pos.get(self.name(g, b), -1) for b in NAMES] for g in range(len(self.groups))])
+
+    def theta(self, values: dict[str, float]) -> np.ndarray:
+        return np.array([[values[self.name(g, b)] for b in NAMES] for g in range(len(self.groups))], float)
+
+    def values(self, theta: np.ndarray) -> dict[str, float]:
+        out = {}
+        for g in range(len(self.groups)):
+            for j, b in enumerate(NAMES):
+                out.setdefault(self.name(g, b), float(theta[g, j]))
+        return out
+
+
+@dataclass
+class Problem:
+    """The likelihood of the counts of ``shots`` as a function of named parameters."""
+
+    shots: Shots
+    layout: Layout
+    jitter: float
+    _last: dict = field(default_factory=dict, repr=False, compare=False)
+    _information: dict = field(default_factory=dict, repr=False, compare=False)
+
+    def with_counts(self, counts: list[np.ndarray]) -> "Problem":
+        return Problem(self.shots.with_counts(np.concatenate(counts)), self.layout, self.jitter,
+                       _information=self._information)
+
+    def nll_terms(self, values: dict[str, float]) -> tuple[np.ndarray, np.ndarray]:
+        """(log P, score) per shot at ``values``; the last evaluation is kept (the engine asks for the
+        residuals and then the Jacobian at the same point)."""
+        theta = self.layout.theta(values)
+        key = theta.tobytes()
+        if self._last.get("key") != key:
+            self._last.update(key=key, terms=log_likelihood(theta, self.shots, self.jitter))
+        return self._last["terms"]
+
+    def nll(self, values: dict[str, float]) -> float:
+        return float(-self.nll_terms(values)[0].sum())
+
+    def gradient(self, values: dict[str, float], names: list[str]) -> np.ndarray:
+        """∂(−log L)/∂ the parameters ``names``."""
+        _, score = self.nll_terms(values)
+        return -self._scatter(score, names).sum(axis=0)
+
+    def _scatter(self, score: np.ndarray, names: list[str]) -> np.ndarray:
+        """Per-shot derivatives w.r.t. ``names`` from the per-shot group-row derivatives (n, 5)."""
+        cols = self.layout.columns(names)[self.shots.group]  # (n, 5)
+        out = np.zeros((score.shape[0], len(names)))
+        for j in range(score.shape[1]):
+            use = cols[:, j] >= 0
+            np.add.at(out, (np.flatnonzero(use), cols[use, j]), score[use, j])
+        return out
+
+    def residuals(self, values: dict[str, float]) -> np.ndarray:
+        logp, _ = self.nll_terms(values)
+        with np.errstate(invalid="ignore"):
+            return np.sqrt(2.0 * (OFFSET - logp))
+
+    def jacobian(self, values: dict[str, float], free: list[str]) -> np.ndarray:
+        logp, score = self.nll_terms(values)
+        r = np.sqrt(2.0 * (OFFSET - logp))
+        return -self._scatter(score, free) / r[:, None]
+
+    def information(self, values: dict[str, float], names: list[str]) -> np.ndarray:
+        """Expected (Fisher) information of the counts w.r.t. ``names`` at ``values``."""
+        return fisher_information(self.layout.theta(values), self.shots, self.jitter, self.layout.columns(names),
+                                  len(names))
+
+    def scoring_information(self, values: dict[str, float], names: list[str]) -> np.ndarray:
+        """The Fisher information for the solver's steps: recomputed only when some parameter moved by
+        more than a quarter of its σ since a computation for these parameters. It changes slowly and does
+        not depend on the counts, so problems that differ only in their counts (the bootstrap's)
+        share it; the gradient, and so the maximum, stay exact."""
+        x = np.array([values[n] for n in names])
+        held = self._information.setdefault(tuple(names), [])
+        for x0, info, sigma in held:
+            if np.all(np.abs(x - x0) <= 0.25 * sigma):
+                return info
+        info = self.information(values, names)
+        held.insert(0, (x, info, np.sqrt(np.clip(np.diag(np.linalg.pinv(info)), 1e-30, None))))
+        del held[32:]
+        return info
+
+    def hessian(self, values: dict[str, float], names: list[str]) -> np.ndarray:
+        """Observed information: the Hessian of −log L w.r.t. ``names`` (central differences of the score)."""
+        h = np.zeros((len(names), len(names)))
+        for j, nm in enumerate(names):
+            step = STEPS[_base(nm)] * max(abs(values[nm]), 1.0)
+            hi, lo = dict(values), dict(values)
+            hi[nm] += step
+            lo[nm] -= step
+            h[:, j] = (self.gradient(hi, names) - self.gradient(lo, names)) / (2.0 * step)
+        return 0.5 * (h + h.T)
+
+
+def _base(name: str) -> str:
+    return name.split("[", 1)[0]
+
+
+@dataclass
+class Fit:
+    """A maximum-likelihood solve: the Solution (σ from the observed information), −log L, flags."""
+
+    solution: Solution
+    nll: float
+    at_limit: list[str] = field(default_factory=list)  #: parameters held at a bound
+
+
+def parameter_set(layout: Layout, start: dict[str, float], fixed: dict[str, float] | None = None) -> ParameterSet:
+    """Named parameters at ``start``; those in ``fixed`` held at the given value."""
+    fixed = fixed or {}
+    return ParameterSet(Parameter(n, float(fixed.get(n, start[n])), UNITS[_base(n)], free=n not in fixed,
+                                  step=STEPS[_base(n)]) for n in layout.names)
+
+
+def maximise(problem: Problem, start: dict[str, float], bounds, fixed: dict[str, float] | None = None,
+             max_iter: int = 60, covariance: bool = True) -> Fit:
+    """The maximum likelihood from ``start`` (parameters in ``fixed`` held), within ``bounds``
+    (:class:`Bounds`); the covariance from the observed information (``covariance=False``: the
+    engine's, when only the estimate is wanted)."""
+    fixed = dict(fixed or {})
+    at_zero = {n: 0.0 for n in start if _base(n) == "shot_loss_rate" and n not in fixed and start[n] < LOSS_START}
+    sol = _solve(problem, parameter_set(problem.layout, start, {**fixed, **at_zero}), max_iter)
+    if at_zero:  # q = 0 is the constrained maximum where −log L grows with q (Kuhn–Tucker); free the others
+        grow = problem.gradient(sol.values, list(at_zero))
+        at_zero = {n: 0.0 for n, g in zip(at_zero, grow) if g >= 0}
+        if len(at_zero) < len(grow):
+            freed = {n: max(start[n], 0.02) for n in sol.values if _base(n) == "shot_loss_rate" and n not in at_zero
+                     and n not in fixed}
+            sol = _solve(problem, parameter_set(problem.layout, {**sol.values, **freed}, {**fixed, **at_zero}),
+                         max_iter)
+    values = sol.values
+    held = bounds.beyond(values, fixed)
+    if held:
+        sol = _solve(problem, parameter_set(problem.layout, values, {**fixed, **at_zero, **held}), max_iter)
+        values = sol.values
+    bounds.check(values)
+    return Fit(observed_information_solution(problem, sol) if covariance else sol, problem.nll(values),
+               sorted(held) + sorted(at_zero))
+
+
+def _solve(problem: Problem, params: ParameterSet, max_iter: int) -> Solution:
+    """The engine on the likelihood: exact gradient, Fisher information as its normal matrix
+    (Fisher scoring, :meth:`Problem.scoring_information`)."""
+    free = params.free_names
+    return solve(problem.residuals, params, jacobian_fn=lambda v: problem.jacobian(v, free), robust=None,
+                 max_iter=max_iter, normal_fn=lambda v: problem.scoring_information(v, free))
+
+
+def observed_information_solution(problem: Problem, sol: Solution) -> Solution:
+    """``sol`` with its covariance (and warnings) from the observed information at its estimate."""
+    free = sol.parameters.free_names
+    h = problem.hessian(sol.values, free)
+    new = Solution.from_normal_matrix(sol.parameters, h, 1.0, max(len(problem.shots) - len(free), 1),
+                                      residuals=sol.residuals, weights=np.ones(sol.residuals.size),
+                                      before=sol.residuals_before, history=sol.history, converged=sol.converged,
+                                      variance_factor=1.0)
+    return replace(new, residuals_after=sol.residuals_after)
+
+
+@dataclass(frozen=True)
+class Bounds:
+    """Physical bounds on the estimate (m unless stated)."""
+
+    diameter_min: float
+    diameter_max: float
+    max_bias: float
+
+    def beyond(self, values: dict[str, float], fixed: dict[str, float]) -> dict[str, float]:
+        """The free diameters outside [min, max] and CCR peak photons above MAX_PEAK, mapped to the
+        bound they crossed."""
+        out = {}
+        for n, v in values.items():
+            if n in fixed:
+                continue
+            if _base(n) == "footprint_diameter" and not self.diameter_min <= v <= self.diameter_max:
+                out[n] = self.diameter_min if v < self.diameter_min else self.diameter_max
+            elif _base(n) == "ccr_peak_photons" and v > MAX_PEAK:
+                out[n] = MAX_PEAK
+        return out
+
+    def check(self, values: dict[str, float]) -> None:
+        """A CalibrationError naming the first parameter beyond its physical bound."""
+        for n, v in values.items():
+            base = _base(n)
+            bad = ((base in BIASES and abs(v) > self.max_bias) or (base == "ccr_peak_photons" and v > MAX_PEAK)
+                   or (base == "shot_loss_rate" and not 0.0 <= v < 1.0) or not np.isfinite(v))
+            if bad:
+                what = {"ccr_peak_photons": f"≤ {MAX_PEAK:g} photons", "shot_loss_rate": "in [0, 1)"}.get(
+                    base, f"within ±{self.max_bias:g} m (--max-bias)")
+                raise CalibrationError(f"the likelihood maximum has {n} = {v:.4g}, expected {what}: the CCR returns do "
+                                       "not fit one footprint (check the CCR survey, its heights and the pass)")
