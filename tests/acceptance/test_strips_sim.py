@@ -122,6 +122,9 @@ def test_trajectory_model_off_and_bad_options(cli, airborne, tmp_path):
     assert code == 1 and "--trajectory-sigma" in err and "POSITION_M,ATTITUDE_DEG" in err and "Traceback" not in err
     code, _, err = cli("boresight", *_args(sim), "--trajectory-model", "maybe", "--out", tmp_path / "bad")
     assert code == 1 and "--trajectory-model: expected on or off" in err
+    code, _, err = cli("boresight", *_args(sim), "--trajectory-model", "off", "--trajectory-sigma", "0.03,0.002",
+                       "--out", tmp_path / "bad")
+    assert code == 1 and "--trajectory-model: is off, so --trajectory-accuracy and --trajectory-sigma" in " ".join(err.split())
     assert not (tmp_path / "bad").exists()
     out = tmp_path / "off"
     code, stdout, err = cli("boresight", *_args(sim), "--trajectory-model", "off", "--out", out)

@@ -175,17 +175,24 @@ def load_inputs(strip_paths, trajectory_path, sensor_path, options: BoresightOpt
     trajectory_path, sensor_path = Path(trajectory_path), Path(sensor_path)
     nominal = Sensor.read(sensor_path)
     traj = read_trajectory(trajectory_path)
+    accuracy, accuracy_path, notes = None, None, []
+    if options.trajectory_model:  # every option checked before the strips are read
+        accuracy, accuracy_path, note = resolve_accuracy(trajectory_path, traj, options)
+        trajectory_model(None, options.trajectory_block_s, options.trajectory_correlation, accuracy)
+        notes += [note] if note else []
+    else:
+        if options.trajectory_accuracy is not None or options.trajectory_sigma is not None:
+            raise InputError(None, "--trajectory-model", "is off, so --trajectory-accuracy and --trajectory-sigma have "
+                             "nothing to do; expected the trajectory model on (the default) or neither option")
+        notes.append("trajectory model off (--trajectory-model off): the trajectory is taken as exact, so the "
+                     "σ miss its errors (ordinary GNSS/INS noise made them 2× too small on simulated surveys)")
     progress("reading strips", 0, 1)
     strips, crs = load_strips(list(strip_paths), traj, nominal)
     progress("reading strips", 1, 1)
-    inputs = BoresightInputs([Path(p) for p in strip_paths], trajectory_path, sensor_path, nominal, traj, strips, crs)
-    if options.trajectory_model:
-        inputs.accuracy, inputs.accuracy_path, note = resolve_accuracy(trajectory_path, traj, options)
-        inputs.accuracy.check_covers(inputs.spans)
-        inputs.notes += [note] if note else []
-    else:
-        inputs.notes.append("trajectory model off (--trajectory-model off): the trajectory is taken as exact, so the "
-                            "σ miss its errors (ordinary GNSS/INS noise made them 2× too small on simulated surveys)")
+    inputs = BoresightInputs([Path(p) for p in strip_paths], trajectory_path, sensor_path, nominal, traj, strips, crs,
+                             accuracy, accuracy_path, notes)
+    if accuracy is not None:
+        accuracy.check_covers(inputs.spans)
     if options.truth is not None:
         inputs.truth = truth_to_si(read_json(options.truth), build_parameters(nominal, parse_estimate(options.estimate), {}))
     return inputs
