@@ -103,7 +103,9 @@ class Section:
         if hidden:
             self.text(f"{len(hidden)} {hidden_prefix}* parameters are estimated too; solution.json lists them.")
         rows = [[name, *parameter_cells(p)] for name, p in doc["parameters"].items() if name not in hidden]
-        self.table(["parameter", "estimate", "σ", "", "truth", "error", "|error| / σ"], rows)
+        header = ["parameter", "estimate", "σ", "status", "truth", "error", "|error| / σ"]
+        keep = len(header) if truth else 4  # no truth: no truth, error or |error|/σ columns
+        self.table(header[:keep], [r[:keep] for r in rows])
         rb, ra = doc["residuals"]["before"], doc["residuals"]["after"]
         u = f" [{residual_unit}]" if residual_unit else ""
         self.table(
@@ -159,7 +161,7 @@ def parameter_cells(p: dict) -> list:
 
     err = p.get("error")
     ratio = f"{abs(err) / sigma:.2f}" if err is not None and sigma else None
-    return [show(p["value"]), show(sigma, False) if sigma is not None else None, "free" if p["free"] else "fixed",
+    return [show(p["value"]), show(sigma, False) if sigma is not None else None, "estimated" if p["free"] else "held",
             show(p.get("truth")), show(err), ratio]
 
 
