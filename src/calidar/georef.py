@@ -189,6 +189,26 @@ def poses(traj: Trajectory, time) -> tuple[np.ndarray, np.ndarray]:
     return pos, r_eb
 
 
+def beams(position, rotation, sensor: Sensor, angles) -> tuple[np.ndarray, np.ndarray]:
+    """Where each beam starts and where it points: origin r + R·a_b and unit direction
+    R·R_bs·u_s(angles), (N, 3) each, for IMU positions (N, 3) and rotations body → frame (N, 3, 3)
+    in any frame (ECEF, local ENU). The lidar equation is p = origin + ρ · direction
+    (:func:`lidar_points`); the simulator casts these rays."""
+    rotation = np.asarray(rotation, float)
+    origin = np.asarray(position, float) + rotation @ sensor.lever_arm
+    direction = np.einsum("nij,nj->ni", rotation, sensor.scanner.directions(angles) @ sensor.r_bs.T)
+    return origin, direction
+
+
+def lidar_points(position, rotation, sensor: Sensor, range_m, angles) -> np.ndarray:
+    """The lidar equation for given poses, in numpy: p = r + R·(R_bs·ρ·u_s + a_b) with
+    ρ = sensor.true_range(range_m) (docs/conventions.md; the numba kernels above fuse the same
+    equation with the trajectory's interpolation). position (N, 3) and rotation body → frame
+    (N, 3, 3) in any frame; returns (N, 3) in that frame."""
+    origin, direction = beams(position, rotation, sensor, angles)
+    return origin + sensor.true_range(range_m)[:, None] * direction
+
+
 def _c(a) -> np.ndarray:
     return np.ascontiguousarray(a, dtype=float)
 
@@ -248,10 +268,12 @@ def inverse(traj: Trajectory, sensor: Sensor, time, points_ecef) -> ScanObservat
     return ScanObservations(time, sensor.measured_range(rho), sc.angles(v_s / rho[:, None]), v_s)
 
 
-def regeoreference(traj: Trajectory, old: Sensor, new: Sensor, time, points_ecef) -> np.ndarray:
-    """Re-georeference delivered points: inverse with ``old``, forward with ``new`` (ECEF)."""
+def regeoreference(traj: Trajectory, old: Sensor, new: Sensor, time, points_ecef,
+                   new_traj: Trajectory | None = None) -> np.ndarray:
+    """Re-georeference delivered points: inverse with ``traj`` and ``old``, forward with
+    ``new_traj`` (default: the same trajectory, e.g. a corrected one) and ``new`` (ECEF)."""
     obs = inverse(traj, old, time, points_ecef)
-    return forward(traj, new, obs.time, obs.range_m, obs.angles)
+    return forward(traj if new_traj is None else new_traj, new, obs.time, obs.range_m, obs.angles)
 
 
 ECEF_CRS = "EPSG:4978"

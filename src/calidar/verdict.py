@@ -13,10 +13,18 @@ range calibration); the report puts the verdict at the top of the page and the C
 'warn'
 >>> v.to_dict()["findings"][1]["action"]
 'hold it at the measured value or add a flight line at a second height'
+
+Numbers in the units people use: angles in degrees with σ also in arc-seconds, lengths in mm.
+
+>>> angle_text(math.radians(0.0302), math.radians(0.00053))
+'+0.03020° ± 0.00053° (1.9″)'
+>>> length_text(-2e-13, 0.0041), length_text(0.0312, 0.12)
+('0.0 mm ± 4.1 mm', '+31.2 mm ± 120 mm')
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import asdict, dataclass, field
 
 STATUSES = ("pass", "warn", "fail")
@@ -53,3 +61,38 @@ class Verdict:
 
     def to_dict(self) -> dict:
         return {"status": self.status, "summary": self.summary, "findings": [asdict(f) for f in self.findings]}
+
+
+def signed(value: float, digits: int) -> str:
+    """``value`` with a sign and ``digits`` decimals, never "-0" (rounded zero is shown as 0)."""
+    text = f"{value:+.{digits}f}"
+    return text[1:] if float(text) == 0 else text
+
+
+def angle_text(value_rad: float, sigma_rad: float | None = None) -> str:
+    """An angle in degrees with its σ in degrees and arc-seconds: "+0.03021° ± 0.00053° (1.9″)"."""
+    v = math.degrees(value_rad)
+    if sigma_rad is None or not math.isfinite(sigma_rad):
+        return f"{signed(v, 5)}°" + ("" if sigma_rad is None else " ± ∞")
+    s = math.degrees(sigma_rad)
+    digits = min(max(2, 1 - math.floor(math.log10(s)) if s > 0 else 5), 7)  # σ to two significant digits
+    return f"{signed(v, digits)}° ± {s:.{digits}f}° ({two_digits(s * 3600)}″)"
+
+
+def length_text(value_m: float, sigma_m: float | None = None) -> str:
+    """A length in millimetres (metres beyond 10 m): "+31.2 mm ± 4.1 mm"."""
+    if abs(value_m) >= 10:
+        return f"{signed(value_m, 3)} m" + ("" if sigma_m is None else f" ± {two_digits(sigma_m)} m")
+    if sigma_m is None:
+        return f"{signed(value_m * 1e3, 1)} mm"
+    if not math.isfinite(sigma_m):
+        return f"{signed(value_m * 1e3, 1)} mm ± ∞"
+    return f"{signed(value_m * 1e3, 1)} mm ± {two_digits(sigma_m * 1e3)} mm"
+
+
+def two_digits(x: float) -> str:
+    """``x`` ≥ 0 to two significant digits, without an exponent: 0.0053, 1.9, 12, 120."""
+    if x == 0 or not math.isfinite(x):
+        return f"{x:g}"
+    digits = max(0, 1 - math.floor(math.log10(abs(x))))
+    return f"{round(x, digits):.{digits}f}"

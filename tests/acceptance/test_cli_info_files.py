@@ -58,9 +58,7 @@ def test_info_every_real_file(real_data, cli):
     files = sorted(p for p in real_data.rglob("*") if p.is_file())
     assert len(files) >= 8
     expected_errors = {"README.md": "not a trajectory?", "config.toml": "not a trajectory?",
-                       "sbet_047_IGS08-UTM15N-Ellipsoid-trim.txt": "give their projected CRS",
-                       # TEMPORARY (io branch): until trust's smrmsg reader lands, info reads it as a bad SBET
-                       "smrmsg.smrmsg": "not an SBET"}
+                       "sbet_047_IGS08-UTM15N-Ellipsoid-trim.txt": "give their projected CRS"}
     summaries = {}
     for p in files:
         code, out, err = cli("info", p, "--json")
@@ -81,6 +79,7 @@ def test_info_every_real_file(real_data, cli):
     assert summaries["faceraster_numerical_imprecision.laz"]["points"] == 18074
     assert summaries["points_ecef.las"]["crs_epsg"] == 4978 and summaries["points.las"]["crs_epsg"] == 32611
     assert summaries["sbet.out"]["records"] == 200
+    assert summaries["smrmsg.smrmsg"]["records"] == 21902  # README: 21,902 records, 1 Hz over 21,901 s
     csd = summaries["sample.csd"]  # numbers of the real-data README
     assert csd["kind"] == "raw pulses (Optech CSD)" and csd["pulses"] == 1000 and csd["returns"] == 1000
     assert csd["gps_week"] == 1660 and csd["format_version"] == pytest.approx(5.201)

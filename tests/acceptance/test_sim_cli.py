@@ -18,7 +18,7 @@ def test_same_seed_same_bytes(cli, tmp_path):
         code, out, err = cli(*args, "--seed", seed, "--out", tmp_path / name)
         assert code == 0, err
     a, b, c = (_files(tmp_path / n) for n in "abc")
-    assert set(a) == {"sbet.out", "sensor.toml", "truth.json"} | {f"strips/line_{k:03d}.laz" for k in range(1, 5)}
+    assert set(a) == {"sbet.out", "smrmsg.out", "sensor.toml", "truth.json"} | {f"strips/line_{k:03d}.laz" for k in range(1, 5)}
     assert a == b
     assert a["strips/line_001.laz"] != c["strips/line_001.laz"] and a["sbet.out"] != c["sbet.out"]
     # the header date is fixed, so the bytes do not change from one day to the next either

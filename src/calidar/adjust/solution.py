@@ -47,18 +47,26 @@ def cholesky_inverse(N: np.ndarray) -> np.ndarray | None:
     return inv + np.tril(inv, -1).T
 
 
-def _inverse(Ns: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
-    """(Ns⁻¹, eigenvalues ascending, None) for a well-conditioned Ns; for a rank-deficient one
-    (relative eigenvalues below RANK_TOLERANCE) the inverse on the determined subspace and
-    the eigenvectors, whose null directions the warnings name."""
-    evals = np.linalg.eigvalsh(Ns)
-    if evals[0] >= RANK_TOLERANCE * evals[-1]:
-        inv = cholesky_inverse(Ns)
-        if inv is not None:
-            return inv, evals, None
+def _inverse(Ns: np.ndarray) -> tuple[np.ndarray, float, np.ndarray | None, np.ndarray | None]:
+    """(Ns⁻¹, condition number, None, None) for a well-conditioned Ns (Cholesky; the condition
+    number is LAPACK's 1-norm estimate from the factor, O(n²), where eigenvalues cost O(n³) ×
+    4 — 0.14 s for 1 300 parameters); for a rank-deficient one (reciprocal condition below
+    RANK_TOLERANCE, or not positive definite) the inverse on the determined subspace, the
+    eigenvalue ratio, the eigenvalues and eigenvectors, whose null directions the warnings name."""
+    try:
+        c, _ = sl.cho_factor(Ns, lower=True)
+        rcond, info = sl.lapack.dpocon(c, float(np.max(np.sum(np.abs(Ns), axis=0))), uplo="L")
+    except (np.linalg.LinAlgError, ValueError):
+        rcond, info = 0.0, 1
+    if info == 0 and rcond >= RANK_TOLERANCE:
+        inv, info = sl.lapack.dpotri(c, lower=True)
+        if info == 0:
+            inv = np.tril(inv)
+            return inv + np.tril(inv, -1).T, 1.0 / rcond, None, None
     evals, evecs = np.linalg.eigh(Ns)
     keep = evals >= RANK_TOLERANCE * evals[-1]
-    return (evecs[:, keep] / evals[keep]) @ evecs[:, keep].T, evals, evecs
+    cond = float(evals[-1] / max(evals[0], 1e-300))
+    return (evecs[:, keep] / evals[keep]) @ evecs[:, keep].T, cond, evals, evecs
 
 
 @dataclass
@@ -90,8 +98,7 @@ class Solution:
         prior = [p.prior_sigma is not None for p in params.free]  # constrained by their priors
         d = np.sqrt(np.clip(np.diag(N), 1e-300, None))
         Ns = N / np.outer(d, d)
-        cov_s, evals, evecs = _inverse(Ns)
-        cond = float(evals[-1] / max(evals[0], 1e-300))
+        cov_s, cond, evals, evecs = _inverse(Ns)
         warnings = []
         zero_cols = []
         if jacobian is not None and jacobian.size:
@@ -99,7 +106,7 @@ class Solution:
             zero_cols = [names[j] for j in range(len(names)) if not used[j] and not prior[j]]
             for nm in zero_cols:
                 warnings.append(f"{nm} is not observable: no observation depends on it; its value is the start value")
-        bad = np.zeros(evals.size, bool) if evecs is None else evals < RANK_TOLERANCE * evals[-1]
+        bad = np.zeros(0, bool) if evecs is None else evals < RANK_TOLERANCE * evals[-1]
         for k in np.flatnonzero(bad):
             v = evecs[:, k]
             involved = [names[j] for j in np.argsort(-np.abs(v)) if abs(v[j]) > 0.2 and names[j] not in zero_cols]

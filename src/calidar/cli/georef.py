@@ -53,18 +53,21 @@ def regeoref(
     trajectory_crs: str | None = TRAJECTORY_CRS, trajectory_angles: str | None = TRAJECTORY_ANGLES,
     trajectory_heading: str | None = TRAJECTORY_HEADING, trajectory_columns: str | None = TRAJECTORY_COLUMNS,
     force: bool = typer.Option(False, "--force", help="Write into a non-empty output folder, overwriting."),
+    to_trajectory: Path | None = typer.Option(None, "--to-trajectory", help="Forward with this trajectory instead "
+                                              "(e.g. the sbet_corrected.out of calidar boresight)."),
 ) -> None:
-    """Re-georeference delivered strips with a new sensor model.
+    """Re-georeference delivered strips with a new sensor model (and trajectory).
 
-    Inverse georeferencing with --from, forward with --to, streamed in chunks; every other
-    point attribute is kept, and the outputs keep the inputs' names, formats and CRS.
+    Inverse georeferencing with --trajectory and --from, forward with --to-trajectory (default
+    --trajectory) and --to, streamed in chunks; every other point attribute is kept, and the
+    outputs keep the inputs' names, formats and CRS.
     """
     check_out_dir(out, force)
-    with output_folder(out, force, inputs=[*strips, trajectory, old, new]) as tmp:
+    with output_folder(out, force, inputs=[*strips, trajectory, old, new, to_trajectory]) as tmp:
         written = pipeline.regeoreference_strips(
             strips, trajectory, old, new, tmp, point_options=point_options(crs, time_system, geoid_undulation),
             trajectory_options=trajectory_options(trajectory_crs, trajectory_angles, trajectory_heading,
-                                                  trajectory_columns))
+                                                  trajectory_columns), to_trajectory=to_trajectory)
     for path, n in written.items():
         console.print(f"{out / path.name}: {n} points", highlight=False, soft_wrap=True)
 

@@ -17,6 +17,7 @@ from calidar.errors import InputError
 from calidar.io.atl03 import atl03_summary
 from calidar.io.las import gps_time_system, iter_las_chunks, las_crs, las_header
 from calidar.io.optech_csd import is_csd, read_csd
+from calidar.io.smrmsg import is_smrmsg_name, smrmsg_info
 from calidar.pipelines.inputs import PointOptions, TrajectoryOptions, load_trajectory
 from calidar.sensor_import import from_optech_header
 from calidar.trajectory import SECONDS_PER_WEEK
@@ -142,7 +143,8 @@ def _print(info: dict) -> None:
         if isinstance(v, list) and len(v) == 2 and all(isinstance(x, float) for x in v):
             v = f"{v[0]:.6f} … {v[1]:.6f}" if "time" in k or "deg" in k else f"{v[0]:.3f} … {v[1]:.3f}"
         elif isinstance(v, dict):
-            v = "  ".join(f"{kk} {', '.join(f'{x:.3f}' for x in vv)}" for kk, vv in v.items())
+            v = "  ".join(f"{kk} {', '.join(f'{x:.3f}' for x in vv)}" if isinstance(vv, list) else f"{kk} {vv:.4g}"
+                          for kk, vv in v.items())
         elif isinstance(v, float):
             v = f"{v:.6g}"
         elif isinstance(v, list) and all(isinstance(x, float) for x in v):
@@ -165,7 +167,8 @@ def _print(info: dict) -> None:
 
 
 def info(
-    file: Path = typer.Argument(..., help="LAS/LAZ points, SBET, text trajectory, Optech CSD or ATL03 (HDF5)."),
+    file: Path = typer.Argument(..., help="LAS/LAZ points, SBET, POSPac smrmsg, text trajectory, Optech CSD or "
+                                "ATL03 (HDF5)."),
     as_json: bool = typer.Option(False, "--json", help="Print JSON instead of text."),
     crs: str = typer.Option(None, "--crs", help="CRS of the points or of a text trajectory's coordinates."),
     time_system: str | None = TIME_SYSTEM,
@@ -183,6 +186,8 @@ def info(
         d = atl03_info(file)
     elif is_csd(file):
         d = csd_info(file)
+    elif is_smrmsg_name(file):
+        d = smrmsg_info(file)
     else:
         d = trajectory_info(file, trajectory_options(crs, trajectory_angles, trajectory_heading, trajectory_columns))
     if as_json:

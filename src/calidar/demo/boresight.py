@@ -1,27 +1,45 @@
-"""Demo step: boresight and lever arm from the demo survey's strips."""
+"""Demo step: the boresight from the demo survey's strips, by ``calidar boresight``'s pipeline.
+
+Two cases on the same strips, each with its verdict: the calibration as it should be run
+(boresight only, the lever arm held at its measured value, the trajectory's accuracy from the
+smrmsg beside the SBET) — a pass; and the same strips asked for the lever arm too, which one
+flying height cannot separate from the boresight — a warning that says why and what to do.
+"""
 
 from __future__ import annotations
 
+from pathlib import Path
 
-def boresight_step(report, out_dir, seed: int = 0, progress=None) -> None:
-    """Demo step: boresight and horizontal lever arm from the demo survey's strips (tie planes).
+from calidar.pipelines import Progress, no_progress
 
-    Reads ``out_dir/survey`` (written by the simulation step) and adds a section with the truth.
-    """
-    import json
-    from pathlib import Path
+#: the demo's two cases: (title, --estimate, what the reader should take from it)
+CASES = (
+    ("Boresight from tie planes, lever arm held at its measured value (calidar boresight)", "boresight",
+     "The lever arm was measured when the scanner was mounted, so it is held there; the boresight is what the "
+     "overlaps determine. The trajectory's errors are estimated too, with the accuracy POSPac states for it "
+     "(smrmsg.out beside sbet.out) as priors, so the σ include them."),
+    ("Second case, for contrast: boresight and lever arm from the same strips (a warning)", "boresight,lever_arm",
+     "The same strips asked for the lever arm as well. The lines are flown at one height, where a vertical "
+     "lever-arm error moves every strip up or down alike: only the platform's roll and pitch changes reveal it, "
+     "and the verdict says lever_arm_z is not determined and what would determine it (hold it at its measured "
+     "value, or fly lines at a second height). Its outputs are in boresight_lever_arm/."),
+)
 
-    from calidar.pipelines.boresight import load_strips
-    from calidar.io.trajectory import read_trajectory
-    from calidar.sensor import Sensor
-    from calidar.strips.calibrate import calibrate, truth_to_si
-    from calidar.strips.report import add_report_section
 
-    survey = Path(out_dir) / "survey"
-    nominal = Sensor.read(survey / "sensor.toml")
-    strips, _ = load_strips(sorted((survey / "strips").glob("*.laz")), read_trajectory(survey / "sbet.out"), nominal)
-    result = calibrate(strips, nominal, estimate="boresight,lever_arm_x,lever_arm_y")
-    truth = truth_to_si(json.loads((survey / "truth.json").read_text()), result.solution.parameters)
-    sec = add_report_section(report, result, truth, title="Boresight and lever arm from tie planes (calidar boresight)")
-    sec.text("lever_arm_z is kept at its nominal value: level flight lines shift up or down alike with it, so "
-             "overlapping strips cannot measure it.")
+def boresight_step(report, out_dir, seed: int = 0, progress: Progress = no_progress) -> None:
+    """Run both cases on out_dir/survey (written by the simulation step) with the truth, adding
+    their verdicts and sections to ``report``; outputs in out_dir/boresight and out_dir/boresight_lever_arm."""
+    from calidar.demo.survey import DEMO_SURVEY
+    from calidar.pipelines.boresight import BoresightOptions, run_boresight
+
+    survey = Path(out_dir) / DEMO_SURVEY
+    strips = sorted((survey / "strips").glob("*.laz"))
+    for k, (title, estimate, text) in enumerate(CASES):
+        out = Path(out_dir) / ("boresight" if k == 0 else "boresight_lever_arm")
+        out.mkdir(parents=True, exist_ok=True)
+        options = BoresightOptions(estimate=estimate, truth=survey / "truth.json")
+        run = run_boresight(strips, survey / "sbet.out", survey / "sensor.toml", out, options, progress, report=report,
+                            verdict_title=title.split(" (")[0], section_title=title)
+        report.sections[-1].blocks.insert(0, f"<p>{text}</p>")
+        progress("boresight cases", k + 1, len(CASES))
+        del run

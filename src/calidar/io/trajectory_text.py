@@ -33,7 +33,17 @@ SYNONYMS = {
     "roll": ("roll", "r"),
     "pitch": ("pitch", "p"),
     "heading": ("heading", "azimuth", "yaw", "trueheading", "hdg"),
+    # the trajectory's stated accuracy (σ per epoch; position m, attitude in the angle unit): all six or none
+    "sigma_north": ("sdnorth", "sigmanorth", "northsd", "northrms", "stdnorth"),
+    "sigma_east": ("sdeast", "sigmaeast", "eastsd", "eastrms", "stdeast"),
+    "sigma_down": ("sdheight", "sdup", "sddown", "sigmaheight", "sigmaup", "sigmadown", "heightsd", "downrms",
+                   "heightrms", "stdheight", "stdup"),
+    "sigma_roll": ("sdroll", "sigmaroll", "rollsd", "rollrms", "stdroll"),
+    "sigma_pitch": ("sdpitch", "sigmapitch", "pitchsd", "pitchrms", "stdpitch"),
+    "sigma_heading": ("sdheading", "sdazimuth", "sdyaw", "sigmaheading", "sigmaazimuth", "headingsd", "headingrms",
+                      "stdheading", "stdazimuth"),
 }
+SIGMA_COLUMNS = ("sigma_north", "sigma_east", "sigma_down", "sigma_roll", "sigma_pitch", "sigma_heading")
 _LOOKUP = {alias: canon for canon, aliases in SYNONYMS.items() for alias in aliases}
 
 
@@ -45,6 +55,8 @@ def _limits(column: str, angles: str) -> tuple[float | None, float | None, str]:
         return -deg[column] * k, deg[column] * k, angles
     if column == "height":
         return (*HEIGHT_RANGE_M, "m")
+    if column in SIGMA_COLUMNS:  # σ ≥ 0: position up to 1 km, attitude up to 10°
+        return (0.0, 1000.0, "m") if column in SIGMA_COLUMNS[:3] else (0.0, 10.0 if angles == "deg" else np.radians(10.0), angles)
     if column in ("x", "y"):
         return -1e8, 1e8, "m"
     return None, None, "s"
@@ -147,6 +159,11 @@ def read_trajectory_text(path, *, columns=None, crs=None, angles: str = "deg", h
         if crs is None or not crs.is_projected:
             raise InputError(path, "crs", "the file has projected x/y columns; give their projected CRS (crs, --crs or --trajectory-crs; e.g. EPSG:32615)")
         lat, lon, h = frames.ecef_to_geodetic(georef.from_crs(np.stack([col["x"], col["y"], col["height"]], 1), crs))
+    sigma = [c for c in SIGMA_COLUMNS if c in col]
+    if sigma and len(sigma) < len(SIGMA_COLUMNS):
+        raise InputError(path, "columns", f"has the σ columns {sigma} but not {[c for c in SIGMA_COLUMNS if c not in col]}; "
+                         "expected all six (north, east, down, roll, pitch, heading) or none")
+    extra = {c: col[c] if c in SIGMA_COLUMNS[:3] else to_rad(col[c]) for c in sigma}  # SI: m, rad
     heading = to_rad(col["heading"])
     if heading_reference == "grid":
         if crs is None or not crs.is_projected:
@@ -154,4 +171,4 @@ def read_trajectory_text(path, *, columns=None, crs=None, angles: str = "deg", h
         heading = heading + frames.grid_factors(crs, lon, lat)[0]
     return Trajectory(time=col["time"], lat=lat, lon=lon, height=h, roll=to_rad(col["roll"]),
                       pitch=to_rad(col["pitch"]), heading=np.angle(np.exp(1j * heading)),
-                      time_system=time_system, source=str(path))
+                      time_system=time_system, source=str(path), extra=extra)

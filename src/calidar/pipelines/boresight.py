@@ -1,14 +1,78 @@
-"""The strip-calibration pipeline (``calidar boresight``, its demo step and benchmarks):
-load the strips and the trajectory, calibrate, write the outputs."""
+"""The strip-calibration pipeline (``calidar boresight``, its demo step and the benchmarks).
+
+:func:`run_boresight` does the whole run: :func:`load_inputs` (strips, trajectory, nominal
+sensor, the trajectory's accuracy — found beside an SBET, read from σ columns or a file, else
+a documented default), :func:`calibrate_inputs` (one calibration per method, the trajectory
+model on unless switched off), the overlap quality before and after
+(:func:`calidar.pipelines.boresight_outputs.quality_stages`, the code ``calidar quality``
+runs), the verdict, and the outputs: ``solution.json`` (with the run's provenance),
+``sensor.toml``, ``sbet_corrected.out`` when trajectory corrections were estimated,
+``report.html``, optionally the recalibrated strips.
+"""
 
 from __future__ import annotations
 
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 
 from calidar.errors import InputError
+from calidar.pipelines import Progress, no_progress
 from calidar.validate import parse_floats
+
+#: knot spacing (s) and Gauss–Markov correlation times of position and attitude (s) of the
+#: trajectory model, validated on the simulator (docs/architecture.md)
+TRAJECTORY_BLOCK_S = 1.0
+TRAJECTORY_CORRELATION = "20,3.5"
+
+
+@dataclass(frozen=True)
+class BoresightOptions:
+    """What ``calidar boresight`` takes besides its input files (see its --help)."""
+
+    methods: tuple[str, ...] = ("planes",)
+    estimate: str = "boresight"
+    trajectory_model: bool = True  #: estimate the trajectory's errors (priors: its accuracy)
+    trajectory_accuracy: Path | None = None  #: smrmsg file (default: found beside an sbet*.out)
+    trajectory_sigma: str | None = None  #: 'POSITION_M,ATTITUDE_DEG': one σ for all epochs and axes
+    trajectory_block_s: float = TRAJECTORY_BLOCK_S
+    trajectory_correlation: str = TRAJECTORY_CORRELATION
+    truth: Path | None = None  #: truth.json of a simulation
+    scheduler: str | None = None
+    workers: int | None = None
+    write_strips: bool = False
+    settings: object | None = None  #: calidar.strips.calibrate.StripSettings (benchmarks, tests)
+
+    def to_dict(self) -> dict:
+        return {k: (v if not isinstance(v, Path) else str(v)) for k, v in self.__dict__.items() if k != "settings"}
+
+
+@dataclass
+class BoresightInputs:
+    """Everything a calibration reads, loaded and checked."""
+
+    strip_paths: list[Path]
+    trajectory_path: Path
+    sensor_path: Path
+    nominal: object  #: calidar.sensor.Sensor
+    trajectory: object  #: calidar.trajectory.Trajectory
+    strips: list  #: calidar.strips.strip.Strip, one per flight line
+    crs: object
+    accuracy: object | None = None  #: calidar.trajectory_accuracy.TrajectoryAccuracy (None: model off)
+    accuracy_path: Path | None = None
+    notes: list[str] = field(default_factory=list)  #: what the user should know (e.g. a default assumed)
+    truth: dict | None = None  #: truth.json parameters, SI (simulations)
+
+    @property
+    def spans(self) -> dict[int, tuple[float, float]]:
+        return {s.id: (float(s.time.min()), float(s.time.max())) for s in self.strips}
+
+    @property
+    def paths(self) -> list[Path]:
+        """Every input file."""
+        return [*self.strip_paths, self.trajectory_path, self.sensor_path,
+                *([self.accuracy_path] if self.accuracy_path else [])]
 
 
 def load_strips(paths, trajectory, sensor):
@@ -23,7 +87,7 @@ def load_strips(paths, trajectory, sensor):
     crs = first.crs if first.crs is not None else sensor.crs
     if crs is None:
         raise InputError(first.path, "crs", "the file has no CRS and sensor.toml gives none; expected one of them")
-    ecef = {i: from_crs(p.xyz, crs) for i, p in lines.items()}
+    ecef = {i: from_crs(p.xyz, crs, p.geoid_undulation_m, source=p.path) for i, p in lines.items()}
     frame = LocalFrame.at(np.concatenate([e[:: max(1, len(e) // 20000)] for e in ecef.values()]))
     strips = []
     for i, p in lines.items():
@@ -38,26 +102,9 @@ def load_strips(paths, trajectory, sensor):
     return strips, crs
 
 
-def write_strips(result, crs, out_dir: Path, force: bool) -> list[Path]:
-    """Recalibrated strips as LAZ (one per flight line), attributes and GPS times as read."""
-    from calidar.georef import to_crs
-    from calidar.io.las import write_las
-
-    paths = []
-    for s in result.strips:
-        las = s.extra["las"]
-        xyz = to_crs(s.frame.to_ecef(result.georeference(s)), crs)
-        paths.append(write_las(out_dir / f"strip_{s.id}.laz", xyz, crs, gps_time=las.gps_time,
-                               scan_angle_deg=las.scan_angle_deg if las.scan_angle_deg is not None else np.zeros(len(s)),
-                               point_source_id=s.id, return_number=las.return_number,
-                               number_of_returns=las.number_of_returns, classification=las.classification,
-                               intensity=las.intensity, time_system=las.time_system, force=force))
-    return paths
-
-
 def parse_methods(text: str) -> list[str]:
     """'planes', 'vgicp' or 'planes,vgicp' → the methods to run, in order."""
-    from calidar.strips.calibrate import METHODS
+    from calidar.strips.parameters import METHODS
 
     methods = [m.strip() for m in text.split(",") if m.strip()]
     if not methods or any(m not in METHODS for m in methods) or len(set(methods)) != len(methods):
@@ -65,15 +112,165 @@ def parse_methods(text: str) -> list[str]:
     return methods
 
 
-def trajectory_model(sigma: str, block_s: float = 1.0, correlation: str = "20,3.5"):
-    """--trajectory-sigma 'POSITION_M,ATTITUDE_DEG', --trajectory-block S and
-    --trajectory-correlation 'POS_S,ATT_S' → a TrajectoryModel (defaults validated on the simulator)."""
+def trajectory_model(sigma: str | None = None, block_s: float = TRAJECTORY_BLOCK_S,
+                     correlation: str = TRAJECTORY_CORRELATION, accuracy=None):
+    """The trajectory model: knots every ``block_s`` s, Gauss–Markov correlation 'POS_S,ATT_S'
+    (--trajectory-correlation), priors from ``accuracy`` (a TrajectoryAccuracy) or one σ for all
+    ('POSITION_M,ATTITUDE_DEG', --trajectory-sigma)."""
     from calidar.strips.trajectory_errors import TrajectoryModel
 
-    pos_m, att_deg = parse_floats(sigma, 2, "--trajectory-sigma (POSITION_M,ATTITUDE_DEG)")
     corr_pos, corr_att = parse_floats(correlation, 2, "--trajectory-correlation (POS_S,ATT_S)")
-    for name, v in (("--trajectory-sigma", pos_m), ("--trajectory-sigma", att_deg), ("--trajectory-block", block_s),
-                    ("--trajectory-correlation", corr_pos), ("--trajectory-correlation", corr_att)):
+    checks = [("--trajectory-block", block_s), ("--trajectory-correlation", corr_pos),
+              ("--trajectory-correlation", corr_att)]
+    pos_m = att_rad = None
+    if accuracy is None:
+        pos_m, att_deg = parse_floats(sigma, 2, "--trajectory-sigma (POSITION_M,ATTITUDE_DEG)")
+        checks += [("--trajectory-sigma", pos_m), ("--trajectory-sigma", att_deg)]
+        att_rad = float(np.radians(att_deg))
+    for name, v in checks:
         if not (np.isfinite(v) and v > 0):
             raise InputError(None, name, f"expected numbers > 0, got {v}")
-    return TrajectoryModel(block_s, pos_m, np.radians(att_deg), corr_pos, corr_att)
+    return TrajectoryModel(block_s, pos_m, att_rad, corr_pos, corr_att, accuracy)
+
+
+def resolve_accuracy(trajectory_path: Path, trajectory, options: BoresightOptions):
+    """The trajectory's accuracy and where it came from: (TrajectoryAccuracy, file or None, note
+    or None). In order: --trajectory-accuracy, --trajectory-sigma, σ columns of a text
+    trajectory, an smrmsg*.out beside an sbet*.out, else the survey-grade default (with a note)."""
+    from calidar.io.smrmsg import find_beside, read_smrmsg
+    from calidar.io.trajectory_text import SIGMA_COLUMNS
+    from calidar.trajectory_accuracy import SURVEY_GRADE, TrajectoryAccuracy
+
+    if options.trajectory_accuracy is not None and options.trajectory_sigma is not None:
+        raise InputError(None, "--trajectory-sigma", "give either --trajectory-accuracy FILE or --trajectory-sigma, not both")
+    if options.trajectory_accuracy is not None:
+        return read_smrmsg(options.trajectory_accuracy), Path(options.trajectory_accuracy), None
+    if options.trajectory_sigma is not None:
+        pos_m, att_deg = parse_floats(options.trajectory_sigma, 2, "--trajectory-sigma (POSITION_M,ATTITUDE_DEG)")
+        for v in (pos_m, att_deg):
+            if not (np.isfinite(v) and v > 0):
+                raise InputError(None, "--trajectory-sigma", f"expected numbers > 0, got {v}")
+        return TrajectoryAccuracy.uniform(pos_m, np.radians(att_deg), "--trajectory-sigma"), None, None
+    if all(c in trajectory.extra for c in SIGMA_COLUMNS):
+        pos, att = (np.stack([trajectory.extra[c] for c in cols], axis=1) for cols in (SIGMA_COLUMNS[:3], SIGMA_COLUMNS[3:]))
+        return TrajectoryAccuracy(trajectory.time, pos, att, None, f"{trajectory_path} (σ columns)"), None, None
+    beside = find_beside(trajectory_path)
+    if beside is not None:
+        return read_smrmsg(beside), beside, None
+    return SURVEY_GRADE, None, (
+        f"no trajectory accuracy found (no smrmsg*.out beside {trajectory_path.name}, no σ columns, no "
+        "--trajectory-accuracy): assumed a survey-grade GNSS/INS — " + SURVEY_GRADE.describe().split(" (")[0]
+        + "; the σ of the results hold only if the trajectory is that good")
+
+
+def load_inputs(strip_paths, trajectory_path, sensor_path, options: BoresightOptions = BoresightOptions(),
+                progress: Progress = no_progress) -> BoresightInputs:
+    """Read and check every input (the trajectory's accuracy must cover every strip)."""
+    from calidar.io.trajectory import read_trajectory
+    from calidar.sensor import Sensor
+    from calidar.strips.parameters import build_parameters, parse_estimate, truth_to_si
+    from calidar.validate import read_json
+
+    parse_estimate(options.estimate)
+    trajectory_path, sensor_path = Path(trajectory_path), Path(sensor_path)
+    nominal = Sensor.read(sensor_path)
+    traj = read_trajectory(trajectory_path)
+    accuracy, accuracy_path, notes = None, None, []
+    if options.trajectory_model:  # every option checked before the strips are read
+        accuracy, accuracy_path, note = resolve_accuracy(trajectory_path, traj, options)
+        trajectory_model(None, options.trajectory_block_s, options.trajectory_correlation, accuracy)
+        notes += [note] if note else []
+    else:
+        if options.trajectory_accuracy is not None or options.trajectory_sigma is not None:
+            raise InputError(None, "--trajectory-model", "is off, so --trajectory-accuracy and --trajectory-sigma have "
+                             "nothing to do; expected the trajectory model on (the default) or neither option")
+        notes.append("trajectory model off (--trajectory-model off): the trajectory is taken as exact, so the "
+                     "σ miss its errors (ordinary GNSS/INS noise made them 2× too small on simulated surveys)")
+    progress("reading strips", 0, 1)
+    strips, crs = load_strips(list(strip_paths), traj, nominal)
+    progress("reading strips", 1, 1)
+    inputs = BoresightInputs([Path(p) for p in strip_paths], trajectory_path, sensor_path, nominal, traj, strips, crs,
+                             accuracy, accuracy_path, notes)
+    if accuracy is not None:
+        accuracy.check_covers(inputs.spans)
+    if options.truth is not None:
+        inputs.truth = truth_to_si(read_json(options.truth), build_parameters(nominal, parse_estimate(options.estimate), {}))
+    return inputs
+
+
+def calibrate_inputs(inputs: BoresightInputs, options: BoresightOptions = BoresightOptions(),
+                     progress: Progress = no_progress) -> dict:
+    """One :class:`calidar.strips.calibrate.CalibrationResult` per method, by method name."""
+    from calidar.strips.calibrate import StripSettings, calibrate
+    from calidar.strips.parameters import parse_estimate
+
+    groups = parse_estimate(options.estimate)
+    settings = options.settings or StripSettings()
+    if options.trajectory_model:
+        model = trajectory_model(None, options.trajectory_block_s, options.trajectory_correlation, inputs.accuracy)
+        settings = replace(settings, trajectory=model)
+        groups = groups if "trajectory_bias" in groups else [*groups, "trajectory_bias"]
+    results = {}
+    for m in options.methods:
+        results[m] = calibrate(inputs.strips, inputs.nominal, method=m, estimate=groups, settings=settings,
+                               scheduler=options.scheduler, workers=options.workers,
+                               progress=lambda text, done, total, m=m: progress(f"calibrating ({m})", done, total))
+        results[m].solution.warnings[:0] = inputs.notes
+    return results
+
+
+@dataclass
+class BoresightRun:
+    """What :func:`run_boresight` produced."""
+
+    inputs: BoresightInputs
+    results: dict  #: method → CalibrationResult
+    quality: dict  #: method → list of calidar.strips.report.QualityStage
+    verdicts: dict  #: method → calidar.verdict.Verdict
+    record: object  #: calidar.provenance.RunRecord
+    written: list[Path]
+
+
+def run_boresight(strip_paths, trajectory_path, sensor_path, out_dir: Path, options: BoresightOptions = BoresightOptions(),
+                  progress: Progress = no_progress, argv: list[str] | None = None, report=None,
+                  shown_out: Path | None = None, verdict_title: str | None = None,
+                  section_title: str | None = None) -> BoresightRun:
+    """The whole ``calidar boresight`` run into the folder ``out_dir`` (the CLI hands it its
+    output transaction's temporary folder; ``shown_out``: the folder's final name, for the
+    commands the report shows). ``report``: add the sections and verdicts to this report instead
+    of writing out_dir/report.html (``verdict_title``, ``section_title``: what to call them there).
+    Returns what was computed and written."""
+    from calidar.pipelines.boresight_outputs import corrected_trajectory, map_pair, quality_stages, write_outputs
+    from calidar.provenance import RunRecord
+    from calidar.report import Report
+    from calidar.strips.report import add_comparison_section, add_report_section
+    from calidar.strips.verdict import strip_verdict
+
+    inputs = load_inputs(strip_paths, trajectory_path, sensor_path, options, progress)
+    record = RunRecord.capture(argv, inputs=[*inputs.paths, options.truth], options=options.to_dict())
+    results = calibrate_inputs(inputs, options, progress)
+    out_dir = Path(out_dir)
+    own = report is None
+    report = Report("calidar boresight") if own else report
+    quality, verdicts, corrected, written = {}, {}, {}, []
+    for m, result in results.items():
+        tag = "" if len(results) == 1 else f"_{m}"  # several methods: one set of outputs each
+        corrected[m] = corrected_trajectory(inputs, result)
+        quality[m] = quality_stages(inputs, result, corrected[m], shown_out or out_dir, tag, progress)
+        verdicts[m] = strip_verdict(result, quality[m], inputs.notes)
+        label = m if len(results) > 1 else None
+        report.add_verdict(verdicts[m], " ".join(x for x in (verdict_title, label) if x) or None)
+        add_report_section(report, result, inputs.truth, quality[m], accuracy=inputs.accuracy,
+                           map_pair=map_pair(inputs, quality[m]),
+                           title=section_title and (f"{section_title} ({m})" if label else section_title))
+    if len(results) > 1:
+        add_comparison_section(report, results, inputs.truth)
+    record.finish()
+    for m, result in results.items():
+        tag = "" if len(results) == 1 else f"_{m}"
+        strips_dir = (out_dir / m if tag else out_dir) if options.write_strips else None
+        written += write_outputs(inputs, result, corrected[m], verdicts[m], record, quality[m], out_dir, tag, strips_dir)
+    if own:
+        report.record = record
+        written.append(report.write(out_dir / "report.html"))
+    return BoresightRun(inputs, results, quality, verdicts, record, written)

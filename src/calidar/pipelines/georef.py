@@ -56,23 +56,26 @@ def inverse_points(points: Path, trajectory: Path, out: Path, *, sensor: Path | 
 def regeoreference_strips(strips: list[Path], trajectory: Path, old: Path, new: Path, out_dir: Path, *,
                           point_options: PointOptions = PointOptions(),
                           trajectory_options: TrajectoryOptions = TrajectoryOptions(),
-                          progress: Progress = no_progress) -> dict[Path, int]:
-    """Re-georeference delivered strips: inverse with the ``old`` sensor.toml, forward with ``new``,
-    written into ``out_dir`` under the strips' names (formats, CRS and every other attribute kept).
-    Every strip is checked (CRS, whole-file trajectory coverage) before any is written.
-    Returns {output path: points}."""
+                          progress: Progress = no_progress, to_trajectory: Path | None = None) -> dict[Path, int]:
+    """Re-georeference delivered strips: inverse with ``trajectory`` and the ``old`` sensor.toml,
+    forward with ``to_trajectory`` (default: ``trajectory``; e.g. calidar boresight's
+    sbet_corrected.out) and ``new``, written into ``out_dir`` under the strips' names (formats, CRS
+    and every other attribute kept). Every strip is checked (CRS, whole-file trajectory coverage)
+    before any is written. Returns {output path: points}."""
     old_s, new_s = Sensor.read(old), Sensor.read(new)
     traj0 = load_trajectory(trajectory, trajectory_options)
+    new0 = None if to_trajectory is None else load_trajectory(to_trajectory, trajectory_options)
     names = [s.name for s in strips]
     if len(set(names)) != len(names):
         raise InputError(None, "STRIPS", f"expected distinct file names (outputs share the folder), got {names}")
-    guard_inputs([out_dir / s.name for s in strips], [*strips, trajectory, old, new])
-    plans = [(s, *trajectory_for(s, traj0, point_options, inputs.CHUNK_POINTS)) for s in strips]
+    guard_inputs([out_dir / s.name for s in strips], [*strips, trajectory, old, new, to_trajectory])
+    plans = [(s, *trajectory_for(s, traj0, point_options, inputs.CHUNK_POINTS),
+              None if new0 is None else trajectory_for(s, new0, point_options, inputs.CHUNK_POINTS)[0]) for s in strips]
     written = {}
-    for k, (s, traj, week) in enumerate(plans):
+    for k, (s, traj, week, new_traj) in enumerate(plans):
 
-        def moved(points, traj=traj, week=week) -> np.ndarray:
-            p = georef.regeoreference(traj, old_s, new_s, point_times(points, traj, week), points_ecef(points))
+        def moved(points, traj=traj, week=week, new_traj=new_traj) -> np.ndarray:
+            p = georef.regeoreference(traj, old_s, new_s, point_times(points, traj, week), points_ecef(points), new_traj)
             return georef.to_crs(p, points.crs, points.geoid_undulation_m, source=points.path)
 
         written[out_dir / s.name] = rewrite_las_xyz(s, out_dir / s.name, moved, chunk_points=inputs.CHUNK_POINTS,

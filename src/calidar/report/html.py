@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from calidar import __version__
-from calidar.outputs import write_text_atomic
+from calidar.outputs import shown_path, write_text_atomic
 
 _CSS = """
 body{font-family:system-ui,-apple-system,Segoe UI,Roboto,sans-serif;max-width:1100px;margin:2em auto;padding:0 1em;color:#222}
@@ -29,6 +29,8 @@ table{border-collapse:collapse;margin:1em 0;font-size:.92em} th,td{border:1px so
 th{background:#eef2f8} td.l,th.l{text-align:left} .warn{background:#fff4e0;border-left:4px solid #e90;padding:.5em 1em;margin:.5em 0}
 .ok{color:#070} .bad{color:#b00} figure{margin:1em 0} figcaption{font-size:.9em;color:#555} img{max-width:100%}
 nav ul{columns:2} .meta{color:#666;font-size:.9em}
+pre{background:#f4f6fa;border:1px solid #dde;padding:.5em .8em;overflow-x:auto;white-space:pre-wrap;word-break:break-all}
+caption{caption-side:top;text-align:left;color:#555;font-size:.9em;padding:.2em 0} .refs{font-size:.9em}
 .verdict{border:2px solid #888;border-radius:6px;padding:.6em 1em;margin:1em 0}
 .verdict h3{margin:.1em 0 .4em 0} .verdict ul{margin:.2em 0;padding-left:1.2em} .verdict li{margin:.25em 0}
 .v-pass{border-color:#2a7;background:#effaf3} .v-warn{border-color:#e90;background:#fff8ec} .v-fail{border-color:#c33;background:#fdeeee}
@@ -37,15 +39,17 @@ nav ul{columns:2} .meta{color:#666;font-size:.9em}
 """
 
 
-def _fmt(v, digits: int = 6) -> str:
+def _fmt(v, digits: int = 6, spec: str | None = None) -> str:
+    """A table cell: numbers with ``spec`` (or ``digits`` significant digits), never "-0"."""
     if v is None:
         return "—"
-    if isinstance(v, (int, np.integer)):
+    if isinstance(v, (int, np.integer)) and not spec:
         return str(int(v))
-    if isinstance(v, (float, np.floating)):
+    if isinstance(v, (float, np.floating, int, np.integer)):
         if not np.isfinite(v):
             return "∞" if v > 0 else ("−∞" if v < 0 else "—")
-        return f"{v:.{digits}g}"
+        text = f"{v:{spec}}" if spec else f"{v:.{digits}g}"
+        return text[1:] if text.startswith("-") and float(text) == 0 else text
     return html.escape(str(v))
 
 
@@ -59,47 +63,59 @@ class Section:
     def text(self, paragraph: str) -> None:
         self.blocks.append(f"<p>{html.escape(paragraph)}</p>")
 
+    def heading(self, text: str) -> None:
+        """A sub-heading inside the section."""
+        self.blocks.append(f"<h3>{html.escape(text)}</h3>")
+
+    def code(self, text: str, caption: str | None = None) -> None:
+        """A command or other literal text, in a copyable block (``caption`` before it)."""
+        cap = f"<p>{html.escape(caption)}</p>" if caption else ""
+        self.blocks.append(f"{cap}<pre><code>{html.escape(text)}</code></pre>")
+
+    def references(self, items: list[str]) -> None:
+        """A numbered list of cited works."""
+        self.blocks.append("<ol class=\"refs\">" + "".join(f"<li>{html.escape(r)}</li>" for r in items) + "</ol>")
+
     def warning(self, message: str) -> None:
         self.blocks.append(f'<div class="warn">⚠ {html.escape(message)}</div>')
 
-    def table(self, header: list[str], rows: list[list], caption: str | None = None) -> None:
-        """A table; the first column is left-aligned (labels)."""
+    def table(self, header: list[str], rows: list[list], caption: str | None = None, formats: list | None = None) -> None:
+        """A table; the first column is left-aligned (labels). ``formats``: per column a format
+        spec for numbers (e.g. ".1f"; a fixed-point zero is never shown as -0) or None (general)."""
         head = "".join(f'<th class="{"l" if i == 0 else ""}">{html.escape(str(h))}</th>' for i, h in enumerate(header))
+        fmts = list(formats or []) + [None] * len(header)
         body = "".join(
-            "<tr>" + "".join(f'<td class="{"l" if i == 0 else ""}">{_fmt(c)}</td>' for i, c in enumerate(r)) + "</tr>"
-            for r in rows
+            "<tr>" + "".join(f'<td class="{"l" if i == 0 else ""}">{_fmt(c, spec=fmts[i])}</td>' for i, c in enumerate(r))
+            + "</tr>" for r in rows
         )
         cap = f"<caption>{html.escape(caption)}</caption>" if caption else ""
         self.blocks.append(f"<table>{cap}<thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>")
 
-    def solution(self, solution, truth: dict[str, float] | None = None, hidden_prefix: str | None = None) -> None:
-        """Parameter table (value, σ, unit, truth and error when known) and diagnostics; parameters
-        whose names start with ``hidden_prefix`` (default: the solution's nuisance prefix) are
-        counted, not listed."""
+    def solution(self, solution, truth: dict[str, float] | None = None, hidden_prefix: str | None = None,
+                 residual_unit: str = "m", residual_factor: float = 1.0) -> None:
+        """Parameter table (estimate, σ, truth and error when known, each with its unit, digits
+        from σ) and diagnostics; parameters whose names start with ``hidden_prefix`` (default: the
+        solution's nuisance prefix) are counted, not listed. Residuals are shown × ``residual_factor``
+        in ``residual_unit`` (e.g. 1e3 and "mm" for residuals in metres)."""
         doc = solution.to_dict(truth)
         hidden_prefix = hidden_prefix or solution.nuisance_prefix
-        rows = []
         hidden = [n for n in doc["parameters"] if hidden_prefix and n.startswith(hidden_prefix)]
         if hidden:
             self.text(f"{len(hidden)} {hidden_prefix}* parameters are estimated too; solution.json lists them.")
-        for name, p in doc["parameters"].items():
-            if name in hidden:
-                continue
-            err = p.get("error")
-            within = None
-            if err is not None and p["sigma"]:
-                within = f"{abs(err) / p['sigma']:.2f} σ"
-            rows.append([name, p["value"], p["sigma"], p["unit"], "free" if p["free"] else "fixed",
-                         p.get("truth"), err, within])
-        self.table(["parameter", "value", "σ", "unit", "", "truth", "error", "|error|/σ"], rows)
+        rows = [[name, *parameter_cells(p)] for name, p in doc["parameters"].items() if name not in hidden]
+        header = ["parameter", "estimate", "σ", "status", "truth", "error", "|error| / σ"]
+        keep = len(header) if truth else 4  # no truth: no truth, error or |error|/σ columns
+        self.table(header[:keep], [r[:keep] for r in rows])
         rb, ra = doc["residuals"]["before"], doc["residuals"]["after"]
+        u = f" [{residual_unit}]" if residual_unit else ""
         self.table(
-            ["residuals", "n", "RMS", "median", "max |r|"],
-            [["before", rb.get("n"), rb.get("rms"), rb.get("median"), rb.get("max_abs")],
-             ["after", ra.get("n"), ra.get("rms"), ra.get("median"), ra.get("max_abs")]],
+            ["residuals", "n", f"RMS{u}", f"median{u}", f"max |r|{u}"],
+            [[label, r.get("n")] + [None if r.get(k) is None else residual_factor * r[k] for k in ("rms", "median", "max_abs")]
+             for label, r in (("before", rb), ("after", ra))],
+            formats=[None, "d", ".4g", ".2g", ".4g"],
         )
         self.text(
-            f"σ0 = {doc['sigma0']:.4g}, redundancy {doc['dof']:.0f}, condition number {doc['condition_number']:.3g}, "
+            f"σ0 = {doc['sigma0']:.3f}, redundancy {doc['dof']:.0f}, condition number {doc['condition_number']:.3g}, "
             f"{len(doc['history']) - 1} iterations, {'converged' if doc['converged'] else 'NOT converged'}."
         )
         for w in doc["warnings"]:
@@ -120,6 +136,33 @@ class Section:
 
     def html(self, anchor: str) -> str:
         return f'<section id="{anchor}"><h2>{html.escape(self.title)}</h2>\n' + "\n".join(self.blocks) + "</section>"
+
+
+UNIT_SYMBOLS = {"deg": "°", "1": ""}
+
+
+def parameter_cells(p: dict) -> list:
+    """Cells of one solution.json parameter entry: estimate, σ, free/fixed, truth, error,
+    |error|/σ — numbers with their unit and as many decimals as σ's two significant digits
+    (zero never shown as -0 or as floating-point dust)."""
+    unit = UNIT_SYMBOLS.get(p["unit"], f" {p['unit']}")
+    sigma = p["sigma"]
+    d = 6 if not sigma or not np.isfinite(sigma) else min(max(0, 2 - int(np.floor(np.log10(sigma)))), 12)
+
+    def show(v, sign=True):
+        if v is None:
+            return None
+        if not sigma or not np.isfinite(sigma):  # fixed (or undetermined): the value as it is
+            return ("0" if v == 0 else f"{v:.6g}") + unit
+        text = f"{v:{'+' if sign else ''}.{d}f}"
+        if float(text) == 0:
+            text = f"{0:.{d}f}"
+        return text + unit
+
+    err = p.get("error")
+    ratio = f"{abs(err) / sigma:.2f}" if err is not None and sigma else None
+    return [show(p["value"]), show(sigma, False) if sigma is not None else None, "estimated" if p["free"] else "held",
+            show(p.get("truth")), show(err), ratio]
 
 
 def verdict_html(verdict, title: str | None = None) -> str:
@@ -173,7 +216,8 @@ class Report:
         verdicts = "".join(verdict_html(v, t) for t, v in self.verdicts)
         record = (f'<section id="run"><h2>How this was made</h2>{record_html(self.record)}</section>'
                   if self.record is not None else "")
-        return (
+        # a run writes into a temporary folder (calidar.outputs.output_folder): name the destination
+        return shown_path(
             f'<!DOCTYPE html>\n<html lang="en"><head><meta charset="utf-8"><title>{html.escape(self.title)}</title>'
             f"<style>{_CSS}</style></head><body><h1>{html.escape(self.title)}</h1>"
             f'<p class="meta">calidar {__version__} · {stamp}</p>{verdicts}<nav><ul>{nav}</ul></nav>\n{body}\n'

@@ -147,17 +147,20 @@ def fly(scene, lines: list[FlightLine], spec: MotionSpec, rng: np.random.Generat
     return Trajectory(time, lat, lon, h, roll, pitch, heading, v_ned, source="<simulated truth>"), windows
 
 
-def measured_trajectory(truth: Trajectory, rng: np.random.Generator, gnss_sigma_m: float, attitude_sigma_rad: float,
+def measured_trajectory(truth: Trajectory, rng: np.random.Generator, gnss_sigma_m, attitude_sigma_rad,
                         strip_errors: list[tuple[float, float, dict]] = ()) -> Trajectory:
     """What the GNSS/INS delivers: truth + smooth position (τ 10 s) and attitude (τ 2 s) errors.
 
+    ``gnss_sigma_m``, ``attitude_sigma_rad``: their σ — one number, or per record and axis
+    (N, 3) north/east/down m and roll/pitch/heading rad (the errors then follow the σ in time,
+    as a trajectory's stated accuracy says they do).
     ``strip_errors``: per line (t_start, t_end, errors) with errors ``position_bias_m`` (3,) NED,
     ``position_drift_mps`` (3,) NED, ``attitude_bias_rad`` (3,) and ``attitude_drift_radps`` (3,)
     roll/pitch/heading; drifts grow from the window's middle; a 5 s cosine taper outside the window.
     """
     n, dt = len(truth), 1.0 / truth.rate_hz
-    d_ned = smooth_noise(rng, n, dt, 10.0, gnss_sigma_m, 3)
-    d_att = smooth_noise(rng, n, dt, 2.0, attitude_sigma_rad, 3)
+    d_ned = smooth_noise(rng, n, dt, 10.0, 1.0, 3) * gnss_sigma_m
+    d_att = smooth_noise(rng, n, dt, 2.0, 1.0, 3) * attitude_sigma_rad
     for t_a, t_b, e in strip_errors:
         gap = np.maximum(np.maximum(t_a - truth.time, truth.time - t_b), 0.0)
         w = np.where(gap < 5.0, 0.5 * (1 + np.cos(np.pi * gap / 5.0)), 0.0)[:, None]

@@ -25,16 +25,17 @@ from pathlib import Path
 
 import numpy as np
 
-from calidar import frames, georef
+from calidar import georef
 from calidar.errors import InputError
 from calidar.outputs import prepare_out_dir, write_text_atomic
 from calidar.sensor import Sensor
 from calidar.sim.flightplan import FlightLine, check_plan_inputs, plan_lines
-from calidar.sim.motion import MotionSpec, fly, measured_trajectory
+from calidar.sim.motion import MotionSpec, fly, measured_trajectory, smooth_noise
 from calidar.sim.patterns import half_field_of_view, scan_angles
 from calidar.sim.raycast import SURFACE_TERRAIN, cast
 from calidar.sim.scene import CLASS_BUILDING, CLASS_GROUND, CLASS_VEGETATION, Scene, SceneSpec, build_scene
 from calidar.trajectory import Trajectory
+from calidar.trajectory_accuracy import TrajectoryAccuracy
 
 #: LAS header creation date of simulated strips, fixed so that a seed always gives the same bytes.
 SIMULATION_DATE = datetime.date(2026, 1, 1)
@@ -42,6 +43,8 @@ SIMULATION_DATE = datetime.date(2026, 1, 1)
 SURFACE_VEGETATION = -3  #: ``Strip.surface`` of crown returns
 GPS_WEEK_START_S = 388800.0  #: simulated flights start on a Thursday, 12:00 GPS time
 CHUNK_SHOTS = 400_000
+SIGMA_VARIATION_S = 60.0  #: time scale of the trajectory σ's variation, s
+ACCURACY_RATE_HZ = 1.0  #: epochs of the written smrmsg.out, as POSPac writes them
 
 #: per-strip trajectory errors (NED position, roll/pitch/heading attitude), drawn per line
 STRIP_ERRORS = ("position_bias_m", "position_drift_mps", "attitude_bias_rad", "attitude_drift_radps")
@@ -73,6 +76,12 @@ class SurveyConfig:
     angle_noise_rad: float = np.radians(0.002)
     gnss_noise_m: float = 0.02
     attitude_noise_rad: float = np.radians(0.002)
+    #: per-axis factors on the trajectory errors' σ: north, east, down (× gnss_noise_m), roll, pitch,
+    #: heading (× attitude_noise_rad)
+    trajectory_sigma_scale: tuple[float, float, float, float, float, float] = (1.0, 1.0, 1.0, 1.0, 1.0, 1.0)
+    #: slow change of those σ over the flight (satellites come and go): σ(t) = σ · exp(v · g(t)),
+    #: g smooth unit noise over ``SIGMA_VARIATION_S``; 0: constant
+    trajectory_sigma_variation: float = 0.0
     #: σ of the per-strip trajectory errors, in the order of STRIP_ERRORS (m, m/s, rad, rad/s)
     strip_error_sigma: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 0.0)
     density: float = 1.0  #: scales the pulse rate (and the scan rate by its square root)
@@ -126,6 +135,11 @@ def check_config(cfg: SurveyConfig) -> None:
     if len(cfg.strip_error_sigma) != len(STRIP_ERRORS) or not all(np.isfinite(v) and v >= 0 for v in cfg.strip_error_sigma):
         raise InputError(None, "strip_errors", f"expected {len(STRIP_ERRORS)} σ values >= 0 ({', '.join(STRIP_ERRORS)}), "
                          f"got {cfg.strip_error_sigma}")
+    if len(cfg.trajectory_sigma_scale) != 6 or not all(np.isfinite(v) and v > 0 for v in cfg.trajectory_sigma_scale):
+        raise InputError(None, "trajectory_sigma_scale", "expected 6 factors > 0 (north, east, down, roll, pitch, "
+                         f"heading), got {cfg.trajectory_sigma_scale}")
+    if not (np.isfinite(cfg.trajectory_sigma_variation) and 0 <= cfg.trajectory_sigma_variation <= 2):
+        raise InputError(None, "trajectory_sigma_variation", f"expected a number in [0, 2], got {cfg.trajectory_sigma_variation}")
     if not 0 <= cfg.scene.vegetation_fraction <= 0.8:
         raise InputError(None, "vegetation", f"expected a fraction of the area in [0, 0.8], got {cfg.scene.vegetation_fraction}")
     known = cfg.nominal.parameters()
@@ -186,6 +200,7 @@ class SurveyResult:
     crs: str
     strips: list[Strip]
     strip_errors: list[dict]  #: per line, keyed by STRIP_ERRORS (NED m, m/s; roll/pitch/heading rad, rad/s)
+    accuracy: TrajectoryAccuracy | None = None  #: the σ of the measured trajectory's errors (smrmsg.out)
 
     @property
     def n_points(self) -> int:
@@ -210,7 +225,9 @@ class SurveyResult:
         return {
             "parameters": params,
             "noise": {"range_m": c.range_noise_m, "angle_deg": float(np.degrees(c.angle_noise_rad)),
-                      "gnss_position_m": c.gnss_noise_m, "attitude_deg": float(np.degrees(c.attitude_noise_rad))},
+                      "gnss_position_m": c.gnss_noise_m, "attitude_deg": float(np.degrees(c.attitude_noise_rad)),
+                      "trajectory_sigma_scale": list(c.trajectory_sigma_scale),
+                      "trajectory_sigma_variation": c.trajectory_sigma_variation},
             "strips": [{"point_source_id": ln.number, "position_bias_m": e["position_bias_m"].tolist(),
                         "position_drift_mps": e["position_drift_mps"].tolist(),
                         "attitude_bias_deg": np.degrees(e["attitude_bias_rad"]).tolist(),
@@ -245,9 +262,11 @@ class SurveyResult:
 
     def write(self, out_dir: str | Path, force: bool = False,
               progress: Callable[[str, int, int], None] | None = None) -> Path:
-        """Write strips/line_NNN.laz, sbet.out, sensor.toml (nominal) and truth.json into ``out_dir``."""
+        """Write strips/line_NNN.laz, sbet.out, smrmsg.out (its accuracy), sensor.toml (nominal) and
+        truth.json into ``out_dir``."""
         from calidar.io.las import write_las
         from calidar.io.sbet import write_sbet
+        from calidar.io.smrmsg import write_smrmsg
 
         out = prepare_out_dir(out_dir, force)
         (out / "strips").mkdir(exist_ok=True)
@@ -259,6 +278,8 @@ class SurveyResult:
             if progress:
                 progress("writing strips", k + 1, len(self.strips))
         write_sbet(out / "sbet.out", self.trajectory, force=force)
+        if self.accuracy is not None:
+            write_smrmsg(out / "smrmsg.out", self.accuracy, force=force)
         self.nominal.write(out / "sensor.toml", force=force)
         write_text_atomic(out / "truth.json", json.dumps(self.truth_dict(), indent=2) + "\n", force=force)
         return out
@@ -274,10 +295,7 @@ def _line_shots(cfg: SurveyConfig, sensor: Sensor, window: tuple[float, float], 
 def _shoot(cfg, scene, traj_true, truth: Sensor, t, enc, rng):
     """Cast the true beams; per return: pulse index, range (m), surface id, exact ENU hit."""
     noisy = enc + rng.normal(0.0, cfg.angle_noise_rad, np.shape(enc)) if cfg.angle_noise_rad else enc
-    pos, q = traj_true.interpolate(t)
-    r_eb = frames.quat_to_matrix(q)
-    origin_e = pos + r_eb @ truth.lever_arm
-    dir_e = np.einsum("nij,nj->ni", r_eb, truth.scanner.directions(noisy) @ truth.r_bs.T)
+    origin_e, dir_e = georef.beams(*georef.poses(traj_true, t), truth, noisy)
     o, d = scene.ecef_to_enu(origin_e), dir_e @ scene.r_e_enu
     hits = cast(scene, o, d, 1.0 - rng.random(t.size))
     solid, veg = np.isfinite(hits.t_solid), np.isfinite(hits.t_vegetation)
@@ -305,7 +323,7 @@ def simulate_survey(cfg: SurveyConfig, progress: Callable[[str, int, int], None]
     """
     check_config(cfg)
     ss = np.random.SeedSequence(cfg.seed)
-    rng_scene, rng_motion, rng_nav, rng_strip, rng_shots = (np.random.default_rng(s) for s in ss.spawn(5))
+    rng_scene, rng_motion, rng_nav, rng_strip, rng_shots, rng_sigma = (np.random.default_rng(s) for s in ss.spawn(6))
     lat0, lon0, h0 = cfg.origin_deg
     crs = utm_crs(lat0, lon0)
     scene = build_scene(cfg.scene, int(rng_scene.integers(2**63)), np.radians(lat0), np.radians(lon0), h0)
@@ -318,8 +336,8 @@ def simulate_survey(cfg: SurveyConfig, progress: Callable[[str, int, int], None]
     traj_true, windows = fly(scene, lines, cfg.motion, rng_motion, GPS_WEEK_START_S)
     strip_errors = [{k: rng_strip.normal(0.0, sigma, 3) for k, sigma in zip(STRIP_ERRORS, cfg.strip_error_sigma)}
                     for _ in lines]
-    traj = measured_trajectory(traj_true, rng_nav, cfg.gnss_noise_m, cfg.attitude_noise_rad,
-                               [(a, b, e) for (a, b), e in zip(windows, strip_errors)])
+    sig_pos, sig_att = trajectory_sigma(cfg, traj_true.time, rng_sigma)
+    traj = measured_trajectory(traj_true, rng_nav, sig_pos, sig_att, [(a, b, e) for (a, b), e in zip(windows, strip_errors)])
 
     strips = []
     for k, (line, window) in enumerate(zip(lines, windows)):
@@ -342,4 +360,28 @@ def simulate_survey(cfg: SurveyConfig, progress: Callable[[str, int, int], None]
         strips.append(Strip(line, georef.to_crs(cat["ecef"], crs), **cat))
         if progress:
             progress("simulating lines", k + 1, len(lines))
-    return SurveyResult(cfg, scene, lines, traj_true, traj, nominal, truth, crs, strips, strip_errors)
+    return SurveyResult(cfg, scene, lines, traj_true, traj, nominal, truth, crs, strips, strip_errors,
+                        accuracy_epochs(traj_true.time, sig_pos, sig_att))
+
+
+def trajectory_sigma(cfg: SurveyConfig, time: np.ndarray, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """σ of the trajectory's errors per record (N, 3): north/east/down m and roll/pitch/heading rad
+    (constant unless ``trajectory_sigma_variation``; the per-axis ``trajectory_sigma_scale``)."""
+    scale = np.asarray(cfg.trajectory_sigma_scale, float)
+    base = np.r_[cfg.gnss_noise_m * scale[:3], cfg.attitude_noise_rad * scale[3:]]
+    sig = np.tile(base, (time.size, 1))
+    if cfg.trajectory_sigma_variation > 0:
+        dt = float(np.median(np.diff(time)))
+        g = smooth_noise(rng, time.size, dt, SIGMA_VARIATION_S, 1.0, 6)
+        g = (g - g.mean(axis=0)) / g.std(axis=0)  # the filter keeps the white noise's mean: remove it
+        sig *= np.exp(cfg.trajectory_sigma_variation * g)
+    return sig[:, :3], sig[:, 3:]
+
+
+def accuracy_epochs(time: np.ndarray, sig_pos: np.ndarray, sig_att: np.ndarray) -> TrajectoryAccuracy:
+    """The trajectory's σ at whole seconds over its span, as POSPac's smrmsg holds them (σ of a
+    noiseless trajectory floored at 0.1 mm and 0.02″)."""
+    epochs = np.arange(np.ceil(time[0]), np.floor(time[-1]) + 0.5, 1.0 / ACCURACY_RATE_HZ)
+    at = lambda s, floor: np.maximum(np.stack([np.interp(epochs, time, s[:, k]) for k in range(3)], 1), floor)  # noqa: E731
+    pos, att = at(sig_pos, 1e-4), at(sig_att, 1e-7)
+    return TrajectoryAccuracy(epochs, pos, att, pos / 10.0, "<simulated smrmsg>")

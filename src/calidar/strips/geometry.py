@@ -9,15 +9,20 @@ import numpy as np
 from calidar.strips.strip import Strip
 
 
-def pair_kinds(strips: Sequence[Strip], pairs: Sequence[tuple[int, int]]) -> set[str]:
-    """How the overlapping pairs were flown: "same" (headings within 30°), "opposite" (within
+def pair_kind(strips: Sequence[Strip], pairs: Sequence[tuple[int, int]]) -> dict[tuple[int, int], str]:
+    """How each overlapping pair was flown: "same" (headings within 30°), "opposite" (within
     30° of reversed) or "cross" (anything else)."""
     heading = {s.id: s.heading_enu() for s in strips}
-    kinds = set()
+    out = {}
     for a, b in pairs:
         d = abs((heading[a] - heading[b] + np.pi) % (2 * np.pi) - np.pi)
-        kinds.add("same" if d < np.radians(30) else "opposite" if d > np.radians(150) else "cross")
-    return kinds
+        out[a, b] = "same" if d < np.radians(30) else "opposite" if d > np.radians(150) else "cross"
+    return out
+
+
+def pair_kinds(strips: Sequence[Strip], pairs: Sequence[tuple[int, int]]) -> set[str]:
+    """The kinds of :func:`pair_kind` the pairs hold."""
+    return set(pair_kind(strips, pairs).values())
 
 
 def geometry_warnings(strips: Sequence[Strip], pairs: Sequence[tuple[int, int]], free: Sequence[str]) -> list[str]:

@@ -1,57 +1,139 @@
-"""The strip-calibration section of the HTML report (shared by ``calidar boresight`` and the demo)."""
+"""The strip-calibration section of the HTML report (``calidar boresight`` and the demo).
+
+It renders results and computes nothing: the calibration result, the overlap quality the
+pipeline measured (:class:`QualityStage`, one per state of the strips, each with the commands
+that reproduce it) and the trajectory accuracy used.
+"""
 
 from __future__ import annotations
+
+from dataclasses import dataclass
 
 import numpy as np
 
 from calidar.report import Report
-from calidar.report.plots import residual_histogram
+from calidar.report.plots import correlation_figure, dz_map, residual_histogram
 from calidar.strips.calibrate import CalibrationResult
-from calidar.strips.quality import PairQuality, QualitySettings, dz_figure, swath_difference
+from calidar.strips.quality import PairQuality
 from calidar.strips.trajectory_errors import PREFIX as TRAJECTORY_PREFIX
 
+REFERENCES = [
+    "Besl, P. J., McKay, N. D. (1992). A method for registration of 3-D shapes. IEEE Transactions on Pattern "
+    "Analysis and Machine Intelligence 14(2), 239–256. (The outer loop: re-match, re-solve.)",
+    "Glira, P., Pfeifer, N., Mandlburger, G. (2016). Rigorous strip adjustment of UAV-based laserscanning data "
+    "including time-dependent correction of trajectory errors. Photogrammetric Engineering & Remote Sensing "
+    "82(12), 945–954. (Trajectory corrections as functions of time.)",
+    "Koide, K., Yokozuka, M., Oishi, S., Banno, A. (2021). Voxelized GICP for fast and accurate 3D point cloud "
+    "registration. IEEE International Conference on Robotics and Automation (ICRA), 11054–11059. (VGICP.)",
+    "Smyth, G. K. (2004). Linear models and empirical Bayes methods for assessing differential expression in "
+    "microarray experiments. Statistical Applications in Genetics and Molecular Biology 3(1), article 3. "
+    "(Moderated variances of the tie planes.)",
+    "Liang, K.-Y., Zeger, S. L. (1986). Longitudinal data analysis using generalized linear models. Biometrika "
+    "73(1), 13–22; Cameron, A. C., Miller, D. L. (2014). Robust inference for dyadic data. Working paper, "
+    "University of California, Davis. (Cluster-robust σ.)",
+    "Heidemann, H. K. (2018). Lidar base specification (version 1.3). U.S. Geological Survey Techniques and "
+    "Methods, book 11, chapter B4. (Swath-overlap difference, RMSDz.)",
+]
 
-def pair_quality(result: CalibrationResult, settings: QualitySettings | None = None) -> list[tuple[PairQuality, PairQuality]]:
-    """Swath differences of every overlapping pair before (delivered) and after calibration."""
-    by_id = {s.id: s for s in result.strips}
-    out = []
-    for o in result.overlaps:
-        a, b = by_id[o.a], by_id[o.b]
-        before = swath_difference(o.a, a.points[o.index_a], o.b, b.points[o.index_b], settings)
-        after = swath_difference(o.a, result.georeference(a, index=o.index_a), o.b,
-                                 result.georeference(b, index=o.index_b), settings)
-        out.append((before, after))
-    return out
+
+@dataclass
+class QualityStage:
+    """The overlap quality of the strips in one state, and what reproduces it."""
+
+    label: str  #: "as delivered", "new mounting", "new mounting + trajectory corrections"
+    command: str  #: the command(s) that reproduce it from the written files
+    pairs: list[PairQuality]
+
+
+def _mm(v):
+    return None if v is None else 1e3 * v
+
+
+def quality_table(sec, stages: list[QualityStage]) -> None:
+    """Per pair: cells, median dz and RMSDz (mm) in every stage."""
+    by_pair = [{(q.a, q.b): q for q in st.pairs} for st in stages]
+    keys = [(q.a, q.b) for q in stages[0].pairs]
+    rows = []
+    for key in keys:
+        qs = [b.get(key) for b in by_pair]
+        rows.append([f"{key[0]}–{key[1]}", qs[0].n_cells] + [_mm(q.median_dz_m) if q else None for q in qs]
+                    + [_mm(q.rmsdz_m) if q else None for q in qs])
+    short = ["before", "mounting", "mounting + trajectory"][:len(stages)]
+    header = ["pair", "cells"] + [f"median dz {s} [mm]" for s in short] + [f"RMSDz {s} [mm]" for s in short]
+    sec.table(header, rows, "Swath-overlap differences dz = a − b on smooth, gently sloped 2 m cells of the whole "
+              "strips (USGS Lidar Base Specification), in mm.", formats=[None, "d"] + [".1f"] * (2 * len(stages)))
+
+
+def correction_table(sec, result: CalibrationResult) -> None:
+    """Per strip: the largest estimated trajectory shift (horizontal, vertical, mm) and rotation (″)."""
+    rows = []
+    for sid, c in sorted(result.corrections.items()):
+        rows.append([sid, c.shift.shape[0], 1e3 * float(np.max(np.hypot(c.shift[:, 0], c.shift[:, 1]))),
+                     1e3 * float(np.max(np.abs(c.shift[:, 2]))), 3600 * float(np.degrees(np.max(np.abs(c.tilt[:, :2])))),
+                     3600 * float(np.degrees(np.max(np.abs(c.tilt[:, 2]))))])
+    sec.table(["strip", "knots", "max horizontal shift [mm]", "max vertical shift [mm]", "max roll/pitch tilt [″]",
+               "max heading tilt [″]"], rows, "Estimated trajectory corrections (sbet_corrected.out holds them).",
+              formats=[None, "d", ".1f", ".1f", ".2f", ".2f"])
 
 
 def add_report_section(report: Report, result: CalibrationResult, truth: dict[str, float] | None = None,
-                       quality: list[tuple[PairQuality, PairQuality]] | None = None, title: str | None = None):
-    """Add a section: parameters (with truth, SI dict, when given), residual histograms, per-pair quality."""
+                       quality: list[QualityStage] | None = None, title: str | None = None, accuracy=None,
+                       map_pair: tuple[int, int] | None = None):
+    """Add a section: what was done, parameters (with truth, SI dict, when given), correlations,
+    residual histograms, the overlap quality stages with their commands and the dz maps of
+    ``map_pair`` (a, b) before and after, references."""
     sol = result.solution
     sec = report.section(title or f"Strip calibration ({result.method})")
     n_obs = result.outer[-1]["n_obs"] if result.outer else 0
     sec.text(f"{len(result.strips)} strips, {len(result.overlaps)} overlapping pairs, {len(result.pairs)} used; "
-             f"{n_obs} observations ({'tie planes' if result.method == 'planes' else 'VGICP correspondences'}); "
-             f"{len(result.outer)} outer iterations (re-matching), mean correspondence distance "
+             f"{n_obs:,} observations ({'tie planes' if result.method == 'planes' else 'VGICP correspondences'}); "
+             f"{len(result.outer)} outer iterations (re-matching [1]), mean correspondence distance "
              + " → ".join(f"{o['mean_distance_m'] * 1e3:.1f}" for o in result.outer) + " mm.")
-    sec.solution(sol, truth)
-    sec.figure(residual_histogram(np.asarray(result.residuals_before), np.asarray(result.residuals_after)),
+    if result.trajectory_model is not None and result.corrections:
+        m = result.trajectory_model
+        sec.text(f"Trajectory errors estimated as corrections per strip [2]: a shift and a rotation at knots every "
+                 f"{m.block_s:g} s, linear in between, Gauss–Markov correlated over {m.correlation_s:g} s (position) "
+                 f"and {m.attitude_correlation_s:g} s (attitude), with the trajectory's own accuracy as priors: "
+                 + (accuracy.describe() if accuracy is not None else "see solution.json") + ".")
+    sec.solution(sol, truth, residual_unit="mm", residual_factor=1e3)
+    shown = [n for n in sol.parameters.free_names if not n.startswith(TRAJECTORY_PREFIX)]
+    if len(shown) > 1:
+        idx = [sol.parameters.free_names.index(n) for n in shown]
+        sec.figure(correlation_figure(sol.correlation[np.ix_(idx, idx)], shown),
+                   "Correlations of the estimated parameters (|ρ| near 1: the strips barely tell the two apart).")
+    sec.figure(residual_histogram(1e3 * np.asarray(result.residuals_before), 1e3 * np.asarray(result.residuals_after),
+                                  unit="mm"),
                "Correspondence residuals at the nominal sensor (first matching) and after calibration (last matching).")
-    quality = pair_quality(result) if quality is None else quality
-    f = lambda v: None if v is None else round(v, 4)  # noqa: E731
-    rows = [[f"{b.a}–{b.b}", b.n_cells, f(b.median_dz_m), f(a.median_dz_m), f(b.rmsdz_m), f(a.rmsdz_m),
-             f(b.dx_m), f(a.dx_m), f(b.dy_m), f(a.dy_m)] for b, a in quality]
-    sec.table(["pair", "cells", "median dz before", "after", "RMSDz before", "after", "dx before", "after",
-               "dy before", "after"], rows,
-              "Swath-overlap differences dz = a − b on smooth gentle surfaces, and planimetric offsets from "
-              "sloped planes (m; — where the slopes cannot determine them).")
+    if result.corrections:
+        sec.heading("Trajectory corrections")
+        correction_table(sec, result)
     if quality:
-        worst = max(range(len(quality)), key=lambda i: quality[i][0].rmsdz_m or 0.0)
-        b, a = quality[worst]
-        lim = float(np.nanpercentile(np.abs(b.grid), 98)) if np.isfinite(b.grid).any() else None
-        sec.figure(dz_figure(b, lim), f"Pair {b.a}–{b.b} before calibration (the pair with the largest RMSDz).")
-        sec.figure(dz_figure(a, lim), f"Pair {a.a}–{a.b} after calibration, same colour scale.")
+        _quality_part(sec, quality, map_pair)
+    sec.heading("References")
+    sec.references(REFERENCES)
     return sec
+
+
+def _quality_part(sec, quality: list[QualityStage], map_pair: tuple[int, int] | None) -> None:
+    sec.heading("Overlap quality, and how to reproduce it")
+    rows = []
+    for st in quality:
+        med = [abs(q.median_dz_m) for q in st.pairs if q.median_dz_m is not None]
+        rms = [q.rmsdz_m for q in st.pairs if q.rmsdz_m is not None]
+        rows.append([st.label, len(st.pairs), 1e3 * float(np.median(rms)) if rms else None,
+                     1e3 * max(med) if med else None])
+    sec.table(["strips", "pairs", "median RMSDz [mm]", "largest |median dz| [mm]"], rows,
+              "Summary of the three states of the strips (per pair below).", formats=[None, "d", ".1f", ".1f"])
+    quality_table(sec, quality)
+    for st in quality:
+        sec.code(st.command, f"{st.label}: reproduced by")
+    for st in (quality[0], quality[-1]):
+        q = next((q for q in st.pairs if (q.a, q.b) == map_pair), None)
+        if q is not None and q.grid.size:
+            title = (f"strips {q.a} − {q.b}, {st.label}: median dz {1e3 * (q.median_dz_m or 0):+.1f} mm, "
+                     f"RMSDz {1e3 * (q.rmsdz_m or 0):.1f} mm")
+            sec.figure(dz_map(q.grid, q.origin, q.cell_m, title, f"dz = z({q.a}) − z({q.b}) [mm]"),
+                       f"Pair {q.a}–{q.b} ({st.label}; side by side with the most smooth cells), on its own colour scale.")
 
 
 def add_comparison_section(report: Report, results: dict[str, CalibrationResult], truth: dict[str, float] | None = None):
@@ -67,8 +149,8 @@ def add_comparison_section(report: Report, results: dict[str, CalibrationResult]
         d = va[p.name] - vb[p.name]
         both = np.hypot(sa[p.name], sb[p.name])
         row = [p.name, p.display_unit, f"{p.to_display(va[p.name]):.6g} ± {p.to_display(sa[p.name]):.2g}",
-               f"{p.to_display(vb[p.name]):.6g} ± {p.to_display(sb[p.name]):.2g}", f"{p.to_display(d):.3g}",
-               f"{abs(d) / both:.2f}" if both > 0 else None]
+               f"{p.to_display(vb[p.name]):.6g} ± {p.to_display(sb[p.name]):.2g}", p.to_display(d),
+               abs(d) / both if both > 0 else None]
         if truth and p.name in truth:
             row += [p.to_display(truth[p.name]), p.to_display(va[p.name] - truth[p.name]),
                     p.to_display(vb[p.name] - truth[p.name])]
@@ -78,14 +160,14 @@ def add_comparison_section(report: Report, results: dict[str, CalibrationResult]
         header += ["truth", f"{ma} error", f"{mb} error"]
     sec.table(header, rows, "The two solutions use the same strips and model; a difference well beyond 3 combined σ "
               "means one method's correspondences are biased (for example tie planes on vegetation or VGICP pairs "
-              "on edges).")
+              "on edges). Values in the unit of each row.", formats=[None, None, None, None, ".3g", ".2f", ".6g", ".3g", ".3g"])
 
     def seconds(r, key):
         return sum(o.get(key, 0.0) for o in r.outer)
 
-    sec.table(["method", "observations", "outer iterations", "georeference (s)", "match (s)", "solve (s)",
-               "RMS residual after (m)"],
-              [[m, r.outer[-1]["n_obs"], len(r.outer), round(seconds(r, "georeference_s"), 2),
-                round(seconds(r, "match_s"), 2), round(seconds(r, "solve_s"), 2),
-                r.solution.residuals_after.get("rms")] for m, r in results.items()])
+    sec.table(["method", "observations", "outer iterations", "georeference [s]", "match [s]", "solve [s]",
+               "RMS residual after [mm]"],
+              [[m, r.outer[-1]["n_obs"], len(r.outer), seconds(r, "georeference_s"), seconds(r, "match_s"),
+                seconds(r, "solve_s"), 1e3 * r.solution.residuals_after.get("rms")] for m, r in results.items()],
+              formats=[None, "d", "d", ".2f", ".2f", ".2f", ".2f"])
     return sec

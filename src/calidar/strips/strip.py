@@ -148,7 +148,5 @@ class Strip:
 
 
 def georeference_pose(sensor: Sensor, pose: Pose) -> np.ndarray:
-    """The lidar equation for cached poses: p = r + R_lb · (R_bs · ρ · u_s + a_b), local m (M, 3)."""
-    v_s = sensor.true_range(pose.range_m)[:, None] * sensor.scanner.directions(pose.angles)
-    v_b = v_s @ sensor.r_bs.T + sensor.lever_arm
-    return pose.position + np.einsum("nij,nj->ni", pose.r_lb, v_b)
+    """The lidar equation (:func:`calidar.georef.lidar_points`) for cached poses, local m (M, 3)."""
+    return georef.lidar_points(pose.position, pose.r_lb, sensor, pose.range_m, pose.angles)

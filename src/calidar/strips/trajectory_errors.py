@@ -36,7 +36,10 @@ import numpy as np
 from numba import njit
 
 from calidar.adjust import Parameter
+from calidar import frames
 from calidar.errors import InputError
+from calidar.trajectory import Trajectory
+from calidar.trajectory_accuracy import TrajectoryAccuracy, tilt_sigma
 
 AXES = ("east", "north", "up")
 PREFIX = "trajectory_"  #: every trajectory-correction parameter's name starts so (nuisance parameters)
@@ -52,15 +55,39 @@ class TrajectoryModel:
     attitude_sigma_rad: float | None = None  #: prior σ of each knot's rotation; None: no rotations
     correlation_s: float | None = None  #: Gauss–Markov correlation time of the shifts (s); None: independent
     attitude_correlation_s: float | None = None  #: the same for the rotations
+    #: the trajectory's σ per epoch: the priors of every knot, per axis (the two σ above are then unused)
+    accuracy: TrajectoryAccuracy | None = None
 
     def __post_init__(self):
         for name in ("block_s", "position_sigma_m", "attitude_sigma_rad", "correlation_s", "attitude_correlation_s"):
             v = getattr(self, name)
             if v is not None and not (math.isfinite(v) and v > 0):
                 raise InputError(None, name, f"expected a number > 0, got {v}")
-        if self.position_sigma_m is None and (self.block_s is not None or self.attitude_sigma_rad is not None):
+        if not self.has_priors and (self.block_s is not None or self.attitude_sigma_rad is not None):
             raise InputError(None, "trajectory sigma", "knots and attitude corrections need the "
                              "trajectory's a-priori position σ (e.g. --trajectory-sigma 0.03,0.002)")
+
+    @property
+    def has_priors(self) -> bool:
+        """Whether the corrections have priors (else: free whole-strip shifts, the first strip the datum)."""
+        return self.position_sigma_m is not None or self.accuracy is not None
+
+    @property
+    def has_attitude(self) -> bool:
+        """Whether the corrections include rotations."""
+        return self.attitude_sigma_rad is not None or self.accuracy is not None
+
+    def knot_sigma(self, span: tuple[float, float], heading_rad: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+        """Prior σ of a strip's knots, (n, 3) shift east/north/up (m) and (n, 3) rotation about
+        east/north/up (rad): from :attr:`accuracy` at the knots' times (the rotation about up gets
+        heading's σ, the horizontal ones roll's and pitch's as the line's heading mixes them), else
+        the model's two constants."""
+        n = self.n_knots(*span)
+        if self.accuracy is None:
+            att = np.nan if self.attitude_sigma_rad is None else self.attitude_sigma_rad
+            return np.full((n, 3), self.position_sigma_m), np.full((n, 3), att)
+        pos, att = self.accuracy.at(span[0] + np.arange(n) * (self.block_s or 0.0))
+        return pos[:, [1, 0, 2]], tilt_sigma(att, heading_rad)
 
     def n_knots(self, t_min: float, t_max: float) -> int:
         """Knots of a strip spanning [t_min, t_max] s: t_min, t_min + block_s, … up to ≥ t_max."""
@@ -76,12 +103,12 @@ class TrajectoryModel:
 
     def prior_correlation(self, spans: Mapping[int, tuple[float, float]]) -> list[tuple[list[str], np.ndarray]]:
         """The engine's ``prior_correlation`` groups: per strip, kind and axis, its knots."""
-        if self.block_s is None or self.position_sigma_m is None:
+        if self.block_s is None or not self.has_priors:
             return []
         out = []
         for i in sorted(spans):
             n = self.n_knots(*spans[i])
-            for kind in ("bias", "tilt") if self.attitude_sigma_rad is not None else ("bias",):
+            for kind in ("bias", "tilt") if self.has_attitude else ("bias",):
                 R = self.correlation(n, kind)
                 if np.any(R != np.eye(n)):
                     out += [([f"trajectory_{kind}_{ax}_{i}_{k}" for k in range(n)], R) for ax in AXES]
@@ -93,13 +120,17 @@ class TrajectoryModel:
         strip's direction of flight, rad from north, for per-axis attitude priors)."""
         out = []
         ids = sorted(spans)
-        for i in ids if self.position_sigma_m is not None else ids[1:]:
-            for k in range(self.n_knots(*spans[i])):
+        if not self.has_priors:  # free whole-strip shifts, the first strip the datum
+            return [Parameter(f"trajectory_bias_{ax}_{i}", 0.0, "m") for i in ids[1:] for ax in AXES]
+        for i in ids:
+            shift, tilt = self.knot_sigma(spans[i], (headings or {}).get(i, 0.0))
+            for k in range(shift.shape[0]):
                 suffix = f"{i}" if self.block_s is None else f"{i}_{k}"
-                out += [Parameter(f"trajectory_bias_{ax}_{suffix}", 0.0, "m", self.position_sigma_m) for ax in AXES]
-                if self.attitude_sigma_rad is not None:
-                    out += [Parameter(f"trajectory_tilt_{ax}_{suffix}", 0.0, "rad", self.attitude_sigma_rad)
-                            for ax in AXES]
+                out += [Parameter(f"trajectory_bias_{ax}_{suffix}", 0.0, "m", float(shift[k, a]))
+                        for a, ax in enumerate(AXES)]
+                if self.has_attitude:
+                    out += [Parameter(f"trajectory_tilt_{ax}_{suffix}", 0.0, "rad", float(tilt[k, a]))
+                            for a, ax in enumerate(AXES)]
         return out
 
 
@@ -179,3 +210,49 @@ def corrections(values: Mapping[str, float], model: TrajectoryModel | None,
             out[sid] = StripCorrection(spans[sid][0], model.block_s, np.zeros((n, 3)), np.zeros((n, 3)))
         (out[sid].shift if kind == "bias" else out[sid].tilt)[k, ax] = v
     return out
+
+
+def corrected_trajectory(traj: Trajectory, fixes: Mapping[int, StripCorrection],
+                         spans: Mapping[int, tuple[float, float]], frame) -> Trajectory:
+    """``traj`` with each strip's estimated corrections applied to its records: position + shift,
+    attitude turned by the rotation vector (both local ENU of ``frame``, a
+    :class:`calidar.strips.strip.LocalFrame`), at each record's time. The records of a strip are
+    those bracketing its time span {id: (t0, t1)} s (so that interpolating the trajectory at any of
+    its points uses corrected records only); other records are unchanged. Georeferencing with the
+    result moves a point as the adjustment's correction does (to second order in the rotation)."""
+    t = traj.time
+    ecef = traj.ecef.copy()
+    r_eb = frames.r_en(traj.lat, traj.lon) @ frames.rpy_to_matrix(traj.roll, traj.pitch, traj.heading)
+    touched = np.zeros(t.size, bool)
+    for sid, fix in fixes.items():
+        lo = max(int(np.searchsorted(t, spans[sid][0], side="right")) - 1, 0)
+        hi = min(int(np.searchsorted(t, spans[sid][1], side="left")), t.size - 1)
+        idx = np.arange(lo, hi + 1)
+        k0, k1, f = fix.knots(t[idx])
+        shift = (1.0 - f)[:, None] * fix.shift[k0] + f[:, None] * fix.shift[k1]
+        tilt = (1.0 - f)[:, None] * fix.tilt[k0] + f[:, None] * fix.tilt[k1]
+        ecef[idx] += shift @ frame.r_le
+        turn = frame.r_le.T @ rotation_matrices(tilt) @ frame.r_le  # local → ECEF
+        r_eb[idx] = turn @ r_eb[idx]
+        touched[idx] = True
+    lat, lon, h = frames.ecef_to_geodetic(ecef)
+    lat, lon, h = np.where(touched, lat, traj.lat), np.where(touched, lon, traj.lon), np.where(touched, h, traj.height)
+    roll, pitch, heading = frames.matrix_to_rpy(np.swapaxes(frames.r_en(lat, lon), -1, -2) @ r_eb)
+    roll, pitch = np.where(touched, roll, traj.roll), np.where(touched, pitch, traj.pitch)
+    heading = np.where(touched, heading, traj.heading)
+    return Trajectory(t, lat, lon, h, roll, pitch, heading, traj.velocity_ned, traj.time_system,
+                      f"{traj.source} (corrected)", dict(traj.extra))
+
+
+def rotation_matrices(w: np.ndarray) -> np.ndarray:
+    """Rotation matrices (n, 3, 3) of rotation vectors w (n, 3) rad (Rodrigues: the rotation by
+    |w| about w/|w|; to first order v → v + w × v, as :meth:`StripCorrection.apply`)."""
+    w = np.asarray(w, float)
+    theta = np.linalg.norm(w, axis=1)
+    K = np.zeros((w.shape[0], 3, 3))
+    K[:, 0, 1], K[:, 0, 2], K[:, 1, 2] = -w[:, 2], w[:, 1], -w[:, 0]
+    K -= np.swapaxes(K, 1, 2)
+    small = theta < 1e-8
+    a = np.where(small, 1.0 - theta**2 / 6.0, np.sin(theta) / np.where(small, 1.0, theta))
+    b = np.where(small, 0.5 - theta**2 / 24.0, (1.0 - np.cos(theta)) / np.where(small, 1.0, theta) ** 2)
+    return np.eye(3) + a[:, None, None] * K + b[:, None, None] * (K @ K)

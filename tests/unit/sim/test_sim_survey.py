@@ -267,3 +267,27 @@ def test_linear_scan_patterns():
     res = simulate_survey(survey_config("uav", seed=8, density=0.01, scan_pattern="polygon"))
     s = res.strips[0].scan_angle_deg[res.strips[0].return_number == 1]
     assert np.mean(np.diff(s) > 0) > 0.95  # polygon: scan angle rises shot after shot
+
+
+def test_trajectory_errors_follow_the_smrmsg_written_beside_the_sbet(tmp_path):
+    """σ per axis (down 1.5×, heading 10× the others) changing over the flight: the measured
+    trajectory's errors divided by the σ the smrmsg.out states at their time are unit normal
+    on every axis, and the file reads back as written."""
+    from calidar.io.smrmsg import read_smrmsg
+
+    res = simulate_survey(survey_config("uav", seed=4, density=0.005, trajectory_sigma_scale=(1, 1, 1.5, 1, 1, 10),
+                                        trajectory_sigma_variation=0.5))
+    res.write(tmp_path)
+    acc = read_smrmsg(tmp_path / "smrmsg.out")
+    t = res.trajectory.time
+    assert np.allclose(acc.position_m, res.accuracy.position_m)
+    assert len(acc) == np.floor(t[-1]) - np.ceil(t[0]) + 1 and np.all(np.diff(acc.time) == 1.0)  # 1 Hz, whole seconds
+    tt, tm = res.trajectory_true, res.trajectory
+    d_ned = np.einsum("nji,nj->ni", frames.r_en(tt.lat, tt.lon), tm.ecef - tt.ecef)
+    d_att = np.stack([tm.roll - tt.roll, tm.pitch - tt.pitch, np.angle(np.exp(1j * (tm.heading - tt.heading)))], 1)
+    pos, att = acc.at(tt.time)
+    z = np.concatenate([d_ned / pos, d_att / att], axis=1)
+    assert np.allclose(z.std(axis=0), 1.0, atol=0.15), z.std(axis=0)
+    med = acc.medians()
+    assert 7 < med["heading_rms_deg"] / med["roll_rms_deg"] < 14 and med["down_rms_m"] > med["north_rms_m"]
+    assert acc.attitude_rad[:, 2].max() / acc.attitude_rad[:, 2].min() > 1.5  # it changes over the flight

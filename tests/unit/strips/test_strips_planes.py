@@ -11,7 +11,7 @@ from calidar.adjust import ParameterSet
 from calidar.adjust.solver import numerical_jacobian
 from calidar.errors import CalibrationError, InputError
 from calidar.sensor import Sensor
-from calidar.strips.calibrate import StripSettings, build_parameters, calibrate, parse_estimate
+from calidar.strips.calibrate import THRESHOLD_M, StripSettings, build_parameters, calibrate, parse_estimate
 from calidar.strips.problem import StripProblem
 from calidar.strips.correspond import moderated_variance
 from calidar.strips.overlap import find_overlaps
@@ -96,7 +96,7 @@ def test_calibration_recovers_boresight(strips):
         assert abs(err) < 3 * sol.sigma[name], name
     assert len(res.pairs) == 3 and all(p["n_obs"] > 300 for p in res.pairs)
     # the outer loop settled and the strips now agree much better than delivered
-    assert abs(res.outer[-1]["mean_distance_m"] - res.outer[-2]["mean_distance_m"]) < StripSettings().threshold_m
+    assert abs(res.outer[-1]["mean_distance_m"] - res.outer[-2]["mean_distance_m"]) < THRESHOLD_M["planes"]
     assert np.sqrt(np.mean(res.residuals_after**2)) < 0.3 * np.sqrt(np.mean(res.residuals_before**2))
     # solution.json / the report say the same: "before" is the first matching at the nominal sensor
     doc = sol.to_dict()["residuals"]

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from calidar.errors import InputError
+from calidar.strips.strip import georeference_pose
 from calidar.strips.trajectory_errors import TrajectoryModel, corrections, parse_name
 
 
@@ -58,3 +59,56 @@ def test_blocks_without_a_prior_are_refused():
         TrajectoryModel(block_s=2.0)
     with pytest.raises(InputError, match="block_s: expected a number > 0"):
         TrajectoryModel(block_s=-1.0, position_sigma_m=0.03)
+
+
+def test_priors_follow_the_trajectory_accuracy_per_axis_and_in_time():
+    """Knots get the σ the accuracy states at their time: shifts east/north/up from east/north/down,
+    the rotation about up heading's σ (10× roll's here), the horizontal rotations roll's or pitch's
+    as the line's heading mixes them."""
+    from calidar.trajectory_accuracy import TrajectoryAccuracy
+
+    t = np.array([100.0, 110.0])
+    pos = np.array([[0.02, 0.03, 0.05], [0.04, 0.06, 0.10]])  # north, east, down: doubling over 10 s
+    att = np.radians([[0.002, 0.004, 0.02], [0.002, 0.004, 0.02]])  # roll, pitch, heading
+    m = TrajectoryModel(block_s=5.0, correlation_s=20.0, attitude_correlation_s=3.5,
+                        accuracy=TrajectoryAccuracy(t, pos, att, source="smrmsg.out"))
+    assert m.has_priors and m.has_attitude
+    spans = {1: (100.0, 110.0), 2: (100.0, 104.0)}
+    params = {p.name: p.prior_sigma for p in m.parameters(spans, headings={1: 0.0, 2: np.pi / 2})}
+    assert params["trajectory_bias_east_1_0"] == pytest.approx(0.03) and params["trajectory_bias_up_1_0"] == pytest.approx(0.05)
+    assert params["trajectory_bias_north_1_1"] == pytest.approx(0.03)  # halfway: linear in time
+    assert params["trajectory_bias_up_1_2"] == pytest.approx(0.10)
+    assert np.degrees(params["trajectory_tilt_up_1_0"]) == pytest.approx(0.02)  # heading's σ
+    # line 1 flies north: roll turns about north, pitch about east; line 2 flies east: the other way round
+    assert np.degrees(params["trajectory_tilt_north_1_0"]) == pytest.approx(0.002)
+    assert np.degrees(params["trajectory_tilt_east_1_0"]) == pytest.approx(0.004)
+    assert np.degrees(params["trajectory_tilt_east_2_0"]) == pytest.approx(0.002)
+    assert np.degrees(params["trajectory_tilt_north_2_0"]) == pytest.approx(0.004)
+    groups = m.prior_correlation(spans)
+    assert len(groups) == 2 * 2 * 3  # per strip, kind and axis: the knots correlated
+
+
+def test_corrected_trajectory_moves_points_as_the_corrections_do():
+    """Georeferencing with the written corrected trajectory gives the adjustment's corrected points:
+    exactly but for the trajectory's linear interpolation across a knot (here 100 Hz records,
+    corrections of 5 cm and 0.005° changing slope every 2 s: < 0.5 mm there, < 0.01 mm elsewhere)."""
+    from calidar import georef
+    from calidar.sensor import Sensor
+    from calidar.strips.trajectory_errors import StripCorrection, corrected_trajectory
+    from strips_scene import frame, survey
+
+    strip = survey(Sensor(), Sensor(), [((-250, -80, 0), 90, 500, 400)], n=5_000)[0]
+    t0, t1 = float(strip.time.min()), float(strip.time.max())
+    rng = np.random.default_rng(1)
+    n = int(np.ceil((t1 - t0) / 2.0)) + 1
+    fix = StripCorrection(t0, 2.0, rng.normal(0, 0.05, (n, 3)), rng.normal(0, np.radians(0.005), (n, 3)))
+    sensor = Sensor(boresight_roll=1e-3, lever_arm_x=0.3)
+    pose = strip.pose()
+    expected = fix.apply(georeference_pose(sensor, pose), pose.position, strip.time)
+    traj = corrected_trajectory(strip.trajectory, {strip.id: fix}, {strip.id: (t0, t1)}, frame())
+    got = frame().to_local(georef.forward(traj, sensor, strip.time, strip.obs.range_m, strip.obs.angles))
+    err = np.max(np.abs(got - expected), axis=1)
+    assert np.max(err) < 5e-4 and np.median(err) < 1e-5
+    # records away from the strip are untouched
+    far = (traj.time < t0 - 0.015) | (traj.time > t1 + 0.015)  # beyond the bracketing records
+    assert far.any() and np.array_equal(traj.lat[far], strip.trajectory.lat[far])

@@ -1,0 +1,218 @@
+"""The verdict of a strip calibration: what was estimated, how well, and what to do.
+
+Findings (each pass / warn / fail, with the numbers and, when not a pass, an action):
+
+- every estimated parameter: value ± σ (degrees and arc-seconds, millimetres), determined when
+  its σ moves a point on the ground by at most :data:`GROUND_LIMIT_M` at the survey's median
+  range (lengths: σ ≤ :data:`LENGTH_LIMIT_M`), not determined otherwise (warn; infinite σ: fail);
+- the global test of σ0 (the a-posteriori standard deviation of unit weight against 1, with
+  the χ² test's 95 % range), the residuals against the noise floor the correspondences'
+  own scatter predicts, correlations between estimated parameters above
+  :data:`CORRELATION_LIMIT`, convergence;
+- the overlaps before and after (swath differences: no pair worse, no strip left offset by more
+  than :data:`OFFSET_LIMIT_M`), and what the σ rest on (the trajectory's
+  accuracy: a file, or a default assumed; the trajectory model off).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy.stats import chi2
+
+from calidar.strips.trajectory_errors import PREFIX as TRAJECTORY_PREFIX
+from calidar.verdict import Finding, Verdict, angle_text, length_text, two_digits
+
+#: an angle (or scale) is "determined" when its σ moves points on the ground by at most this (m)
+GROUND_LIMIT_M = 0.02
+#: a length (lever arm, range offset) is "determined" when its σ is at most this (m): better
+#: than a tape measure on the mounting
+LENGTH_LIMIT_M = 0.01
+#: |ρ| between two estimated parameters above which the strips barely tell them apart
+CORRELATION_LIMIT = 0.9
+#: σ0 within this range passes (σ are scaled by σ0 anyway); above SIGMA0_FAIL the model does not fit
+SIGMA0_PASS, SIGMA0_FAIL = (0.7, 1.3), 2.0
+#: RMSDz of a pair may grow by this much (m) before the verdict calls it worse
+WORSE_M = 0.002
+#: a pair whose median dz stays beyond this after calibration is still offset (m)
+OFFSET_LIMIT_M = 0.02
+
+ANGLES = {"boresight_roll", "boresight_pitch", "boresight_yaw", "scan_angle_offset"}
+#: what separates a parameter the strips cannot determine
+ACTIONS = {
+    "lever_arm_z": "hold it at the measured value or add a flight line at a second height",
+    "lever_arm_x": "hold it at the measured value, or fly lines at two heights (a pitch error and an along-track "
+                   "lever-arm error then move points differently)",
+    "lever_arm_y": "hold it at the measured value, or fly lines at two heights and across",
+    "boresight_pitch": "fly lines in opposite directions (and at two heights when the lever arm is estimated too)",
+    "boresight_roll": "fly overlapping lines in opposite directions",
+    "boresight_yaw": "fly cross lines, or lines with more side overlap",
+}
+GENERIC_ACTION = "hold it at its known value, or add flight lines that separate it (opposite directions, cross lines, a second height)"
+
+
+def _value_text(p, value: float, sigma: float) -> str:
+    if p.name in ANGLES:
+        return angle_text(value, sigma)
+    if p.unit == "m":
+        return length_text(value, sigma)
+    return f"{p.to_display(value):+.4g} ± {p.to_display(sigma):.2g} {p.display_unit}"
+
+
+def _ground_effect(p, sigma: float, range_m: float) -> float:
+    """How far (m) a σ of this parameter moves a point at the median range."""
+    if p.unit == "rad":
+        return sigma * range_m
+    if p.name == "range_scale" or p.name == "scan_angle_scale":
+        return sigma * range_m * (0.35 if p.name == "scan_angle_scale" else 1.0)
+    return sigma if p.unit == "m" else math.nan
+
+
+def parameter_findings(result, range_m: float) -> list[Finding]:
+    sol = result.solution
+    sig = sol.sigma
+    out = []
+    for p in sol.parameters.free:
+        if p.name.startswith(TRAJECTORY_PREFIX):
+            continue
+        s = sig[p.name]
+        text = _value_text(p, p.value, s)
+        if not math.isfinite(s):
+            out.append(Finding("fail", p.name, f"{text}: not determined at all by these strips (a singular direction)",
+                               ACTIONS.get(p.name, GENERIC_ACTION)))
+            continue
+        g = _ground_effect(p, s, range_m)
+        size = f"{two_digits(g * 100)} cm" if g >= 0.01 else f"{two_digits(g * 1000)} mm"
+        where = f"{size} on the ground at the {range_m:,.0f} m median range" if p.unit != "m" else ""
+        if math.isfinite(g) and g > (LENGTH_LIMIT_M if p.unit == "m" else GROUND_LIMIT_M):
+            out.append(Finding("warn", p.name, f"{text}: not determined by these strips (σ {two_digits(s * 100)} cm)"
+                               if p.unit == "m" else f"{text}: weakly determined ({where})",
+                               ACTIONS.get(p.name, GENERIC_ACTION)))
+        else:
+            out.append(Finding("pass", p.name, text + (f" ({where})" if where else "")))
+    return out
+
+
+def sigma0_finding(sol) -> Finding:
+    priors = any(p.prior_sigma is not None for p in sol.parameters.free)
+    lo, hi = (math.sqrt(chi2.ppf(q, sol.dof) / sol.dof) for q in (0.025, 0.975))
+    detail = f"σ0 = {sol.sigma0:.2f} (1 expected; the χ² test's 95 % range for {sol.dof:,.0f} degrees of freedom is {lo:.2f}–{hi:.2f})"
+    if SIGMA0_PASS[0] <= sol.sigma0 <= SIGMA0_PASS[1]:
+        note = "" if lo <= sol.sigma0 <= hi else "; the σ include this factor" if sol.sigma0 > 1 else \
+            "; the σ are not shrunk for it (the trajectory priors are absolute)" if priors else "; the σ include this factor"
+        return Finding("pass", "global test", detail + note)
+    if sol.sigma0 < SIGMA0_PASS[0]:
+        return Finding("pass", "global test", detail + ": the residuals are smaller than the correspondences' scatter "
+                       "predicts; " + ("the σ are not shrunk for it (the trajectory priors are absolute)" if priors
+                                       else "the σ include this factor"))
+    status = "fail" if sol.sigma0 > SIGMA0_FAIL else "warn"
+    return Finding(status, "global test", detail + ": the residuals are larger than the correspondences' own scatter "
+                   "predicts (the σ were scaled up by σ0)",
+                   "look for what the model does not hold: trajectory errors (leave the trajectory model on), a "
+                   "wrong nominal sensor or time system, scanner errors beyond the estimated parameters, "
+                   "vegetation or moving objects in the overlaps")
+
+
+def noise_finding(result, sigma_rows: np.ndarray | None) -> Finding:
+    """Residuals after against the noise floor the correspondences' scatter predicts."""
+    r = np.asarray(result.residuals_after, float)
+    down = result.solution.residuals_after.get("downweighted_fraction", 0.0)
+    if sigma_rows is None or sigma_rows.size != r.size or r.size == 0:
+        return Finding("pass", "residuals", f"RMS {r.std() * 1e3:.1f} mm after calibration")
+    scale = 1.4826 * float(np.median(np.abs(r / sigma_rows)))
+    detail = (f"robust spread {scale:.2f}× the noise floor the correspondences' scatter predicts (median σ "
+              f"{np.median(sigma_rows) * 1e3:.1f} mm; RMS {np.sqrt(np.mean(r * r)) * 1e3:.1f} mm), "
+              f"{down:.1%} down-weighted as clutter")
+    if scale <= 1.5:
+        return Finding("pass", "residuals", detail)
+    return Finding("warn", "residuals", detail, "the strips disagree beyond their noise where the model says they "
+                   "should agree: check the dz maps for strips or places that stand out")
+
+
+def correlation_findings(sol) -> list[Finding]:
+    names = [n for n in sol.parameters.free_names if not n.startswith(TRAJECTORY_PREFIX)]
+    idx = [sol.parameters.free_names.index(n) for n in names]
+    corr = sol.correlation[np.ix_(idx, idx)]
+    out = []
+    for i in range(len(names)):
+        for j in range(i + 1, len(names)):
+            rho = corr[i, j]
+            if np.isfinite(rho) and abs(rho) > CORRELATION_LIMIT:
+                weaker = names[j] if names[j] in ACTIONS and names[j].startswith("lever") else names[i]
+                out.append(Finding("warn", f"{names[i]} and {names[j]}",
+                                   f"ρ = {rho:+.3f}: the strips barely tell them apart, and their σ are large",
+                                   f"{weaker}: {ACTIONS.get(weaker, GENERIC_ACTION)}"))
+    return out
+
+
+def convergence_finding(result) -> Finding:
+    outer = result.outer
+    moved = " → ".join(f"{o['mean_distance_m'] * 1e3:.1f}" for o in outer)
+    settled = len(outer) > 1 and not any("outer loop stopped" in w for w in result.warnings)
+    if result.solution.converged and settled:
+        return Finding("pass", "convergence", f"{len(outer)} outer iterations, mean correspondence distance {moved} mm")
+    return Finding("warn", "convergence", f"not settled after {len(outer)} outer iterations ({moved} mm)",
+                   "check the nominal sensor (a start far from the truth), or run again from the calibrated sensor.toml")
+
+
+def overlap_finding(stages) -> Finding:
+    """Swath differences as delivered against the last stage (new mounting and trajectory corrections)."""
+    first, last = stages[0], stages[-1]
+    before = {(q.a, q.b): q for q in first.pairs}
+    worse, rms_b, rms_a, med_a = [], [], [], []
+    for q in last.pairs:
+        b = before.get((q.a, q.b))
+        if b is None or b.rmsdz_m is None or q.rmsdz_m is None:
+            continue
+        rms_b.append(b.rmsdz_m)
+        rms_a.append(q.rmsdz_m)
+        med_a.append(abs(q.median_dz_m))
+        if q.rmsdz_m > b.rmsdz_m + WORSE_M:
+            worse.append(f"{q.a}–{q.b} {b.rmsdz_m * 1e3:.1f} → {q.rmsdz_m * 1e3:.1f} mm")
+    if not rms_b:
+        return Finding("warn", "overlaps", "no pair had smooth overlapping surfaces to compare",
+                       "check the overlaps (classification, side overlap)")
+    detail = (f"median RMSDz over {len(rms_b)} pairs {np.median(rms_b) * 1e3:.1f} → {np.median(rms_a) * 1e3:.1f} mm "
+              f"({last.label}); largest |median dz| after {max(med_a) * 1e3:.1f} mm")
+    if worse:
+        return Finding("warn", "overlaps", detail + "; worse after: " + ", ".join(worse),
+                       "look at those pairs' dz maps: a local problem (a trajectory outage, a moving object) "
+                       "or an error the estimated parameters do not cover")
+    if max(med_a) > OFFSET_LIMIT_M:
+        return Finding("warn", "overlaps", detail + f": strips still offset by more than {OFFSET_LIMIT_M * 1e3:.0f} mm",
+                       "an error the calibration did not estimate shifts whole strips: trajectory errors (leave the "
+                       "trajectory model on) or a parameter held fixed")
+    return Finding("pass", "overlaps", detail)
+
+
+def notes_findings(notes: list[str], warnings: list[str]) -> list[Finding]:
+    out = []
+    for n in notes:
+        if n.startswith("no trajectory accuracy found"):
+            out.append(Finding("warn", "trajectory accuracy", n, "give the trajectory's accuracy file (POSPac smrmsg) "
+                               "with --trajectory-accuracy, or put it beside the SBET as smrmsg*.out"))
+        elif n.startswith("trajectory model off"):
+            out.append(Finding("warn", "trajectory model", n, "leave the trajectory model on (the default)"))
+    for w in warnings:
+        if w.startswith("strip pairs skipped"):
+            out.append(Finding("warn", "pairs", w, "check those pairs' overlap (too small, vegetation, water)"))
+    return out
+
+
+def strip_verdict(result, stages, notes: list[str] = (), accuracy_text: str | None = None) -> Verdict:
+    """The verdict of a :class:`calidar.strips.calibrate.CalibrationResult` with its overlap
+    quality stages (calidar.strips.report.QualityStage) and the run's notes."""
+    sol = result.solution
+    shown = [p.name for p in sol.parameters.free if not p.name.startswith(TRAJECTORY_PREFIX)]
+    n_traj = len(sol.parameters.free) - len(shown)
+    ranges = np.concatenate([s.obs.range_m[:: max(1, len(s) // 2000)] for s in result.strips])
+    what = "tie planes" if result.method == "planes" else "VGICP correspondences"
+    summary = (f"{', '.join(shown)} from {len(result.pairs)} overlapping pairs of {len(result.strips)} strips "
+               f"({what}, {result.outer[-1]['n_obs']:,} observations)"
+               + (f", with {n_traj:,} trajectory corrections" if n_traj else ", trajectory taken as exact"))
+    findings = parameter_findings(result, float(np.median(ranges)))
+    findings += [sigma0_finding(sol), noise_finding(result, result.row_sigma)]
+    findings += correlation_findings(sol) + [convergence_finding(result), overlap_finding(stages)]
+    findings += notes_findings(list(notes), sol.warnings)
+    return Verdict(summary, findings)
