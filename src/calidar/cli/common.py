@@ -39,13 +39,13 @@ def progress_bar(transient: bool = True):
 _STATUS_STYLE = {"pass": "bold green", "warn": "bold yellow", "fail": "bold red"}
 
 
-def print_verdict(verdict, title: str | None = None) -> None:
+def print_verdict(verdict, title: str | None = None, brief: bool = False) -> None:
     """A verdict (:class:`calidar.verdict.Verdict`) on stdout: the status and summary, then each
-    finding with its numbers and, when not a pass, what to do."""
+    finding with its numbers and, when not a pass, what to do (``brief``: the findings that are not a pass)."""
     head = f"{escape(title)}: " if title else ""
     console.print(f"[{_STATUS_STYLE[verdict.status]}]{verdict.status.upper()}[/] {head}{escape(verdict.summary)}",
                   highlight=False)
-    for f in verdict.findings:
+    for f in (f for f in verdict.findings if not (brief and f.status == "pass")):
         console.print(f"  [{_STATUS_STYLE[f.status]}]{f.status:4s}[/] {escape(f.check)}: {escape(f.detail)}",
                       highlight=False)
         if f.action:

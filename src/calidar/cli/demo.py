@@ -7,7 +7,7 @@ from pathlib import Path
 
 import typer
 
-from calidar.cli.common import console, progress_bar, progress_callback
+from calidar.cli.common import console, print_verdict, progress_bar, progress_callback
 
 
 def demo(
@@ -21,7 +21,9 @@ def demo(
 
     t0 = time.perf_counter()
     with output_folder(out, force) as tmp, progress_bar() as bar:
-        run_demo(tmp, seed=seed, progress=progress_callback(bar))
+        report = run_demo(tmp, seed=seed, progress=progress_callback(bar))
+    for title, verdict in report.verdicts:
+        print_verdict(verdict, title, brief=True)
     console.print(f"report: {out / 'report.html'} ({time.perf_counter() - t0:.0f} s)")
 
 

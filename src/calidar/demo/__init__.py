@@ -29,13 +29,15 @@ DEMO_STEPS: list[Callable[[Report, Path, int, Progress], None]] = [
 ]
 
 
-def run_demo(out_dir: str | Path, seed: int = 0, progress: Progress = no_progress) -> Path:
+def run_demo(out_dir: str | Path, seed: int = 0, progress: Progress = no_progress) -> Report:
     """Run every step of ``DEMO_STEPS`` into the folder ``out_dir`` (created; the CLI hands it the
-    temporary folder of an output transaction) and write out_dir/report.html; returns its path."""
+    temporary folder of an output transaction) and write out_dir/report.html; returns the report
+    (its ``verdicts``: one per step, in order)."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     report = Report("calidar demo")
     for k, step in enumerate(DEMO_STEPS):
         step(report, out, seed, progress)
         progress("demo steps", k + 1, len(DEMO_STEPS))
-    return report.write(out / "report.html")
+    report.write(out / "report.html")
+    return report

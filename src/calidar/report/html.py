@@ -112,7 +112,7 @@ class Section:
             ["residuals", "n", f"RMS{u}", f"median{u}", f"max |r|{u}"],
             [[label, r.get("n")] + [None if r.get(k) is None else residual_factor * r[k] for k in ("rms", "median", "max_abs")]
              for label, r in (("before", rb), ("after", ra))],
-            formats=[None, "d", ".4g", ".2g", ".4g"],
+            formats=[None, "d", ".3g", ".2g", ".3g"],
         )
         self.text(
             f"σ0 = {doc['sigma0']:.3f}, redundancy {doc['dof']:.0f}, condition number {doc['condition_number']:.3g}, "
