@@ -96,6 +96,16 @@ def _pose(tt, pos, q, tk, i, i_prev, theta, s, sign):
     )
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _lidar_equation(px, py, pz, r00, r01, r02, r10, r11, r12, r20, r21, r22, r_bs, lever, sx, sy, sz):
+    """p = r + R_eb·(R_bs·v_s + a) for one point: the pose (position, R_eb row by row) and the scanner-frame
+    vector v_s (m) → the ECEF point (m). The one form the numba kernels share."""
+    bx = r_bs[0, 0] * sx + r_bs[0, 1] * sy + r_bs[0, 2] * sz + lever[0]
+    by = r_bs[1, 0] * sx + r_bs[1, 1] * sy + r_bs[1, 2] * sz + lever[1]
+    bz = r_bs[2, 0] * sx + r_bs[2, 1] * sy + r_bs[2, 2] * sz + lever[2]
+    return px + r00 * bx + r01 * by + r02 * bz, py + r10 * bx + r11 * by + r12 * bz, pz + r20 * bx + r21 * by + r22 * bz
+
+
 @njit(cache=True, nogil=True)
 def _forward_kernel(tt, pos, q, t, vec, r_bs, lever, out):
     """p = r(t) + R_eb(t)·(R_bs·v_s + a) for scanner-frame vectors vec (N, 3) → out (N, 3).
@@ -107,12 +117,8 @@ def _forward_kernel(tt, pos, q, t, vec, r_bs, lever, out):
         i, i_prev, theta, s, sign, px, py, pz, r00, r01, r02, r10, r11, r12, r20, r21, r22 = _pose(
             tt, pos, q, tk, i, i_prev, theta, s, sign)
         sx, sy, sz = vec[k, 0], vec[k, 1], vec[k, 2]
-        bx = r_bs[0, 0] * sx + r_bs[0, 1] * sy + r_bs[0, 2] * sz + lever[0]
-        by = r_bs[1, 0] * sx + r_bs[1, 1] * sy + r_bs[1, 2] * sz + lever[1]
-        bz = r_bs[2, 0] * sx + r_bs[2, 1] * sy + r_bs[2, 2] * sz + lever[2]
-        out[k, 0] = px + r00 * bx + r01 * by + r02 * bz
-        out[k, 1] = py + r10 * bx + r11 * by + r12 * bz
-        out[k, 2] = pz + r20 * bx + r21 * by + r22 * bz
+        out[k, 0], out[k, 1], out[k, 2] = _lidar_equation(px, py, pz, r00, r01, r02, r10, r11, r12, r20, r21, r22,
+                                                          r_bs, lever, sx, sy, sz)
     return n_out
 
 
@@ -134,12 +140,8 @@ def _forward_linear_kernel(tt, pos, q, t, range_m, theta_enc, phi, has_phi, rang
             sx, sy, sz = rho * np.sin(phi[k]), rho * (cphi * np.sin(th)), rho * (cphi * np.cos(th))
         else:
             sx, sy, sz = 0.0, rho * np.sin(th), rho * np.cos(th)
-        bx = r_bs[0, 0] * sx + r_bs[0, 1] * sy + r_bs[0, 2] * sz + lever[0]
-        by = r_bs[1, 0] * sx + r_bs[1, 1] * sy + r_bs[1, 2] * sz + lever[1]
-        bz = r_bs[2, 0] * sx + r_bs[2, 1] * sy + r_bs[2, 2] * sz + lever[2]
-        out[k, 0] = px + r00 * bx + r01 * by + r02 * bz
-        out[k, 1] = py + r10 * bx + r11 * by + r12 * bz
-        out[k, 2] = pz + r20 * bx + r21 * by + r22 * bz
+        out[k, 0], out[k, 1], out[k, 2] = _lidar_equation(px, py, pz, r00, r01, r02, r10, r11, r12, r20, r21, r22,
+                                                          r_bs, lever, sx, sy, sz)
     return n_out
 
 
