@@ -1,8 +1,8 @@
 """The deliverables of a strip calibration, made so that they reproduce the report.
 
 The overlap quality is measured on the WHOLE strips re-georeferenced in the files' CRS with
-exactly the code ``calidar quality`` runs (:func:`calidar.pipelines.quality.pairs_quality`,
-:func:`usable`, :func:`line_coordinates`), three times: as delivered, with the new mounting
+exactly the code ``calidar quality`` runs (:func:`calidar.pipelines.quality.lines_quality`: the
+same point selection and swath accumulator), three times: as delivered, with the new mounting
 alone (``calidar regeoref --to sensor.toml``), and with the new mounting and the corrected
 trajectory (``--to-trajectory sbet_corrected.out``). Each stage names the commands that
 reproduce it from the written files.
@@ -46,10 +46,9 @@ def regeoreferenced_lines(inputs, sensor, trajectory):
 
 def measure_lines(lines) -> list:
     """The :class:`calidar.strips.quality.PairQuality` of every overlapping pair of (id, LasPoints)."""
-    from calidar.pipelines.quality import line_coordinates, pairs_quality, usable
+    from calidar.pipelines.quality import lines_quality
 
-    coords = {i: line_coordinates(p)[usable(p)] for i, p in lines}
-    return pairs_quality(coords)[0]
+    return lines_quality(lines)[0]
 
 
 def _files(paths) -> str:
