@@ -64,12 +64,15 @@ def _files(paths) -> str:
 
 def stage_commands(inputs, shown_out: Path, tag: str, with_trajectory: bool) -> tuple[str, str, str]:
     """The commands that reproduce the three quality stages from the written files."""
+    from calidar.pipelines.inputs import option_args
+
     q = lambda p: shlex.quote(str(p))  # noqa: E731
     strips = _files(inputs.strip_paths)
+    given = option_args(inputs.options.points)
     regeo = (f"calidar regeoref {strips} --trajectory {q(inputs.trajectory_path)} --from {q(inputs.sensor_path)} "
-             f"--to {q(shown_out / f'sensor{tag}.toml')}")
+             f"--to {q(shown_out / f'sensor{tag}.toml')}{option_args(inputs.options.points, inputs.options.trajectory_input)}")
     traj = f" --to-trajectory {q(shown_out / f'sbet_corrected{tag}.out')}" if with_trajectory else ""
-    return (f"calidar quality {strips}",
+    return (f"calidar quality {strips}{given}",
             f"{regeo} --out MOUNTING && calidar quality MOUNTING/*",
             f"{regeo}{traj} --out CORRECTED && calidar quality CORRECTED/*")
 
