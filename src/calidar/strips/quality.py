@@ -78,12 +78,13 @@ class PairQuality:
 
 class SwathAccumulator:
     """Flight lines' points, chunk by chunk, reduced to what the swath differences need: per line,
-    cell moments (on ``cell_m``, or on 1 m when the cell is chosen per pair) and point counts on
-    the overlap grid, and which selections (PointSelection) their points came through."""
+    cell moments on ``cell_m`` (or on 1 m when the cell is chosen per pair), coarsened into the
+    overlap grid (5 m, or the multiple of ``cell_m`` just above) to find the overlapping pairs,
+    and which selections (PointSelection) the points came through."""
 
     def __init__(self, cell_m: float | None = None):
         self.cell_m = cell_m
-        self.base_m = float(cell_m) if cell_m and not float(cell_m).is_integer() else BASE_CELL_M
+        self.base_m = float(cell_m) if cell_m else BASE_CELL_M
         ratio = OVERLAP_CELL_M / self.base_m
         self.overlap_m = OVERLAP_CELL_M if ratio.is_integer() else self.base_m * np.ceil(ratio)
         self.moments: dict[int, CellMoments] = {}
