@@ -121,3 +121,26 @@ def test_cli_streams_in_small_chunks_with_the_same_results(tmp_path, monkeypatch
         assert a["n_cells"] == b["n_cells"] > 100
         assert a["median_dz_m"] == pytest.approx(b["median_dz_m"], abs=1e-9)
         assert a["rmsdz_m"] == pytest.approx(b["rmsdz_m"], abs=1e-9)
+
+
+def test_geographic_lines_are_compared_in_one_local_frame(cli, tmp_path):
+    """Lines in lon/lat are compared in one local metric frame: dz as in the projected CRS."""
+    import pyproj
+
+    paths = _two_lines(tmp_path, [2], [2])
+    to_geo = pyproj.Transformer.from_crs("EPSG:32632", "EPSG:4326", always_xy=True)
+    geo = []
+    for k, p in enumerate(paths):
+        from calidar.io.las import read_las
+
+        las = read_las(p)
+        lon, lat = to_geo.transform(las.xyz[:, 0], las.xyz[:, 1])
+        geo.append(write_las(tmp_path / f"geo{k}.laz", np.c_[lon, lat, las.xyz[:, 2]], "EPSG:4326",
+                             gps_time=las.gps_time, scan_angle_deg=las.scan_angle_deg, point_source_id=k + 1,
+                             classification=las.classification))
+    (projected,) = json.loads(cli("quality", *paths, "--json")[1])["pairs"]
+    code, out, err = cli("quality", *geo, "--json")
+    assert code == 0, err
+    (geographic,) = json.loads(out)["pairs"]
+    assert geographic["median_dz_m"] == pytest.approx(projected["median_dz_m"], abs=0.002)
+    assert geographic["median_dz_m"] == pytest.approx(0.04, abs=0.003)
