@@ -257,7 +257,7 @@ def iter_las_times(path: str | Path, chunk_points: int = 2_000_000) -> Iterator[
 
 #: LAZ 1.4 layers holding the fields :func:`iter_las_fields` reads (others are in the base layer)
 _LAYERS = {"gps_time": laspy.DecompressionSelection.GPS_TIME, "classification": laspy.DecompressionSelection.CLASSIFICATION,
-           "point_source_id": laspy.DecompressionSelection.POINT_SOURCE_ID}
+           "point_source_id": laspy.DecompressionSelection.POINT_SOURCE_ID, "z": laspy.DecompressionSelection.Z}
 
 
 def iter_las_fields(path: str | Path, names, chunk_points: int = 2_000_000) -> Iterator[dict[str, np.ndarray]]:
@@ -270,7 +270,8 @@ def iter_las_fields(path: str | Path, names, chunk_points: int = 2_000_000) -> I
     with _open(path, selection) as reader:
         gps_time_system(reader.header, path)
         for _, rec in _records(reader, chunk_points, path):
-            yield {name: np.asarray(getattr(rec, name), float if name == "gps_time" else None) for name in names}
+            yield {name: np.asarray(getattr(rec, name), float if name in ("gps_time", "x", "y", "z") else None)
+                   for name in names}
 
 
 def rewrite_las_xyz(src: str | Path, dst: str | Path, new_xyz, *, crs=None, chunk_points: int = 2_000_000,

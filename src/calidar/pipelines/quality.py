@@ -2,10 +2,13 @@
 flight lines of LAS/LAZ files, the points fit for a swath difference, and the swath-overlap
 difference of every overlapping pair.
 
-``calidar quality`` streams: a first pass reads point_source_id, classification and GPS time
-(:func:`calidar.strips.lines.index_flight_lines`: the flight lines and the classes each file
-holds, hence its point selection), a second pass feeds the selected points of each chunk to a
-:class:`calidar.strips.quality.SwathAccumulator`; memory holds cells, not points. The boresight
+``calidar quality`` streams in two passes. The first reads point_source_id, classification,
+GPS time and coordinates (:func:`calidar.strips.lines.index_flight_lines`: the flight lines
+and the classes each file holds, hence its point selection) and counts the points of each
+candidate selection on the 5 m overlap grid (:class:`CellCounts`): which lines overlap and the
+cell of each pair (:func:`calidar.strips.quality.overlap_plan`). The second feeds the selected
+points of each chunk to a :class:`calidar.strips.quality.SwathAccumulator` that keeps moments
+on those cells only; memory holds cells, not points. The boresight
 pipeline feeds its (re-georeferenced) lines to the same accumulator (:func:`lines_quality`).
 """
 
@@ -18,8 +21,9 @@ import numpy as np
 
 from calidar.errors import InputError
 from calidar.io.las import PointOptions
+from calidar.strips.selection import choose_selection
 
-CHUNK_POINTS = 1_000_000
+CHUNK_POINTS = 500_000  #: points read at once (peak memory: ≈ 100 B per point of a chunk)
 #: point fields a chunk needs: flight line and the selection's
 FIELDS = ("point_source_id", "classification", "return_number", "number_of_returns")
 
@@ -29,53 +33,106 @@ class Metric:
     """Coordinates for the swath difference: metric with z up: the CRS's own when projected, else
     local ENU at ``frame`` (one frame for all lines)."""
 
+    crs: object = None
     frame: object | None = None  #: calidar.strips.strip.LocalFrame for a geographic CRS
+    geoid_undulation_m: float | None = None
+    source: object = None
 
     @classmethod
     def at(cls, crs, xyz_min, xyz_max, geoid_undulation_m=None, source=None) -> "Metric":
         """For points in ``crs`` within the bounds (x/lon, y/lat, z)."""
         if crs is None or not crs.is_geographic:
-            return cls()
+            return cls(crs)
         from calidar.georef import from_crs
         from calidar.strips.strip import LocalFrame
 
         centre = 0.5 * (np.asarray(xyz_min, float) + np.asarray(xyz_max, float))
-        return cls(LocalFrame.at(from_crs(centre[None, :], crs, geoid_undulation_m, source=source)))
+        frame = LocalFrame.at(from_crs(centre[None, :], crs, geoid_undulation_m, source=source))
+        return cls(crs, frame, geoid_undulation_m, source)
 
-    def of(self, points) -> np.ndarray:
-        """Metric coordinates (N, 3) of LasPoints."""
+    def of(self, xyz: np.ndarray) -> np.ndarray:
+        """Metric coordinates (N, 3) of points (N, 3) in the CRS."""
         if self.frame is None:
-            return points.xyz
+            return xyz
         from calidar.georef import from_crs
 
-        return self.frame.to_local(from_crs(points.xyz, points.crs, points.geoid_undulation_m, source=points.path))
+        return self.frame.to_local(from_crs(xyz, self.crs, self.geoid_undulation_m, source=self.source))
+
+
+class CellCounts:
+    """The first pass of ``calidar quality``, chunk by chunk: for each file, its points of every
+    candidate selection counted on the overlap grid, by (point_source_id, GPS second), so that
+    they go to flight lines (and the file's selection is chosen) once the pass is over."""
+
+    def __init__(self, candidates: dict, metric: Metric, grid_m: float):
+        self.candidates, self.metric, self.grid_m = candidates, metric, grid_m  #: candidates: path → selections
+        self.counts: dict[tuple, tuple[np.ndarray, np.ndarray]] = {}  #: (path, selection, token) → keys, counts
+        self.time: dict[int, float] = {}  #: token → a GPS time of its points (s)
+
+    def __call__(self, path, c: dict) -> None:
+        from types import SimpleNamespace
+
+        from calidar.strips.overlap import cell_keys
+
+        t = c["gps_time"]
+        sec = np.where(np.isfinite(t), np.floor(np.nan_to_num(t)), 2**32 - 1).astype(np.int64).clip(0, 2**32 - 1)
+        token = (np.asarray(c["point_source_id"], np.int64) << 32) | sec
+        keys = cell_keys(self.metric.of(np.c_[c["x"], c["y"], c["z"]]), self.grid_m)
+        fields = SimpleNamespace(xyz=keys, **{f: c[f] for f in ("classification", "return_number", "number_of_returns")})
+        for selection in self.candidates[path]:
+            keep = selection.mask(fields)
+            for tok in np.unique(token[keep]):
+                sel = keep & (token == tok)
+                self.time.setdefault(int(tok), float(t[np.argmax(sel)]))
+                uk, n = np.unique(keys[sel], return_counts=True)
+                k = (path, selection, int(tok))
+                self.counts[k] = _merge_counts(self.counts[k], (uk, n)) if k in self.counts else (uk, n)
+
+    def by_line(self, index, selections: dict) -> dict[int, tuple[np.ndarray, np.ndarray]]:
+        """(keys, counts) per flight line of the points each file's chosen selection keeps."""
+        out = {}
+        for (path, selection, tok), kn in self.counts.items():
+            if selections[path] == selection:
+                line = int(index.of(np.array([tok >> 32]), np.array([self.time[tok]]))[0])
+                out[line] = _merge_counts(out[line], kn) if line in out else kn
+        return out
+
+
+def _merge_counts(a, b):
+    keys, inv = np.unique(np.r_[a[0], b[0]], return_inverse=True)
+    return keys, np.bincount(inv, np.r_[a[1], b[1]], keys.size).astype(np.int64)
 
 
 def measure(paths, cell_m=None, classes=None, options: PointOptions = PointOptions(), chunk_points: int = CHUNK_POINTS):
     """Streamed ``calidar quality``: (line index, file CRS, PairQualitys, notes, selection per file)."""
     from calidar.io.las import iter_las_chunks, las_file_crs, las_header
     from calidar.strips.lines import index_flight_lines
-    from calidar.strips.quality import SwathAccumulator
-    from calidar.strips.selection import choose_selection
+    from calidar.strips.quality import QualitySettings, SwathAccumulator, overlap_cell, overlap_plan
+    from calidar.strips.selection import PointSelection
 
     paths = [Path(p) for p in paths]
-    index = index_flight_lines(paths, options, chunk_points=chunk_points)
+    crs, header = las_file_crs(paths[0], options.crs), las_header(paths[0])
+    metric = Metric.at(crs, header.mins, header.maxs, options.geoid_undulation_m, paths[0])
+    first = [PointSelection("classes", classes)] if classes else [PointSelection("ground", (2,)),
+                                                                  PointSelection("last returns")]
+    counts = CellCounts({p: first for p in paths}, metric, overlap_cell(cell_m))
+    index = index_flight_lines(paths, options, chunk_points=chunk_points, on_chunk=counts,
+                               fields=("x", "y", "z", "return_number", "number_of_returns"))
     if len(index.ids) < 2:
         raise InputError(paths[0], "point_source_id",
                          f"found one flight line ({index.how}); expected at least two overlapping lines")
     selections = {p: choose_selection(p, index.classes[p], classes) for p in paths}
-    crs, header = las_file_crs(paths[0], options.crs), las_header(paths[0])
-    metric = Metric.at(crs, header.mins, header.maxs, options.geoid_undulation_m, paths[0])
-    acc = SwathAccumulator(cell_m)
+    settings = QualitySettings(cell_m=cell_m)
+    acc = SwathAccumulator(cell_m, overlap_plan(counts.by_line(index, selections), counts.grid_m, settings))
     for p in paths:
         for chunk in iter_las_chunks(p, chunk_points, fields=FIELDS, options=options):
             chunk = chunk.select(selections[p].mask(chunk))
-            ids, xyz = index.of(chunk.point_source_id, chunk.gps_time), metric.of(chunk)
+            ids, xyz = index.of(chunk.point_source_id, chunk.gps_time), metric.of(chunk.xyz)
             for i in np.unique(ids):
                 acc.add(int(i), xyz[ids == i], selections[p])
     for i in index.ids:  # lines without a selected point: named in the notes
         acc.add(i, np.zeros((0, 3)))
-    results, notes = _differences(acc, cell_m)
+    results, notes = _differences(acc, settings)
     return index, crs, results, notes, selections
 
 
@@ -83,27 +140,22 @@ def lines_quality(lines, cell_m=None, classes=None):
     """The PairQuality of every overlapping pair of flight lines given as (id, LasPoints) in memory
     (the selection chosen per line from the classes it holds), and the notes: what the boresight
     pipeline measures, with the code ``calidar quality`` runs."""
-    from calidar.strips.quality import SwathAccumulator
-    from calidar.strips.selection import choose_selection
+    from calidar.strips.quality import QualitySettings, SwathAccumulator
 
     acc, metric = SwathAccumulator(cell_m), None
     for i, p in lines:
         if metric is None:
             metric = Metric.at(p.crs, p.xyz.min(axis=0), p.xyz.max(axis=0), p.geoid_undulation_m, p.path)
-        present = None if p.classification is None else np.unique(p.classification)
-        selection = choose_selection(p.path, present, classes)
-        keep = selection.mask(p)
-        acc.add(int(i), metric.of(p)[keep], selection)
-    return _differences(acc, cell_m)
+        selection = choose_selection(p.path, None if p.classification is None else np.unique(p.classification), classes)
+        acc.add(int(i), metric.of(p.xyz)[selection.mask(p)], selection)
+    return _differences(acc, QualitySettings(cell_m=cell_m))
 
 
-def _differences(acc, cell_m):
+def _differences(acc, settings):
     """The accumulator's pairs and notes; an error when no line overlaps another."""
-    from calidar.strips.quality import QualitySettings
-
-    results, notes = acc.differences(QualitySettings(cell_m=cell_m))
+    results, notes = acc.differences(settings)
     if not results:
-        ids = sorted(acc.moments)
+        ids = sorted(acc.selections)
         raise InputError(None, "STRIPS", f"none of the {len(ids)} flight lines ({', '.join(map(str, ids))}) "
                          "overlap another; nothing to compare")
     return results, notes

@@ -73,10 +73,11 @@ class LineIndex:
 
 
 def index_flight_lines(paths: Sequence[str | Path], options: PointOptions = PointOptions(), gap_s: float = GAP_S,
-                       chunk_points: int = 2_000_000) -> LineIndex:
+                       chunk_points: int = 2_000_000, fields: tuple[str, ...] = (), on_chunk=None) -> LineIndex:
     """Flight lines and classes of LAS/LAZ files from a pass over their point_source_id,
     classification and GPS time only (every file: one CRS, one time system, clear errors otherwise).
-    Time gaps are found from each second's first and last time, so memory holds seconds, not points."""
+    Time gaps are found from each second's first and last time, so memory holds seconds, not points.
+    ``on_chunk(path, chunk)``, when given, sees every chunk ({name: array}, with ``fields`` too)."""
     if not paths:
         raise InputError(None, "STRIPS", "expected at least one LAS/LAZ file")
     paths = [Path(p) for p in paths]
@@ -84,7 +85,9 @@ def index_flight_lines(paths: Sequence[str | Path], options: PointOptions = Poin
     ids, seconds, classes = set(), [], {}
     for path in paths:
         present = np.zeros(256, bool)
-        for c in iter_las_fields(path, ("point_source_id", "classification", "gps_time"), chunk_points):
+        for c in iter_las_fields(path, ("point_source_id", "classification", "gps_time", *fields), chunk_points):
+            if on_chunk is not None:
+                on_chunk(path, c)
             ids.update(np.unique(c["point_source_id"]).tolist())
             present[np.unique(c["classification"])] = True
             seconds.append(_second_spans(c["gps_time"]))

@@ -76,52 +76,87 @@ class PairQuality:
         return {k: getattr(self, k) for k in keys}
 
 
-class SwathAccumulator:
-    """Flight lines' points, chunk by chunk, reduced to what the swath differences need: per line,
-    cell moments on ``cell_m`` (or on 1 m when the cell is chosen per pair), coarsened into the
-    overlap grid (5 m, or the multiple of ``cell_m`` just above) to find the overlapping pairs,
-    and which selections (PointSelection) the points came through."""
+@dataclass(frozen=True)
+class OverlapPlan:
+    """Which flight lines overlap and the cell (m) each pair's difference uses, with notes about
+    lines that overlap no other: decided from point counts on the overlap grid."""
 
-    def __init__(self, cell_m: float | None = None):
-        self.cell_m = cell_m
+    cells: dict[tuple[int, int], float]
+    notes: list[str]
+
+    def sizes(self, line: int) -> set[float]:
+        """The cells (m) of the pairs the line is in."""
+        return {c for ab, c in self.cells.items() if line in ab}
+
+
+def overlap_plan(counts: Mapping[int, tuple[np.ndarray, np.ndarray]], overlap_m: float,
+                 settings: QualitySettings) -> OverlapPlan:
+    """The plan from each line's (keys, counts) of its selected points on cells of ``overlap_m``:
+    pairs sharing cells occupied by both, each with ``settings.cell_m`` or a cell of 2 m, larger
+    (whole metres) where the sparser line has under ≈ 1.5 · min_points per cell over the overlap."""
+    occupied = {i: k[n >= OVERLAP_MIN_POINTS] for i, (k, n) in counts.items()}
+    common, notes = common_cells(occupied, overlap_m)
+    cells = {}
+    for ab, shared in common.items():
+        dens = [counts[i][1][np.isin(counts[i][0], shared)].sum() / (shared.size * overlap_m**2) for i in ab]
+        cells[ab] = float(settings.cell_m) if settings.cell_m else _cell_size(dens, settings)
+    return OverlapPlan(cells, notes)
+
+
+def overlap_cell(cell_m: float | None) -> float:
+    """The overlap grid (m): 5 m, or the multiple of ``cell_m`` just above when 5 m is not one."""
+    base = float(cell_m) if cell_m else BASE_CELL_M
+    ratio = OVERLAP_CELL_M / base
+    return OVERLAP_CELL_M if ratio.is_integer() else base * np.ceil(ratio)
+
+
+class SwathAccumulator:
+    """Flight lines' points, chunk by chunk, reduced to what the swath differences need: cell
+    moments per line. With a ``plan`` (from counts of a first pass), on the cells of its pairs
+    only; without one, on ``cell_m`` (or on 1 m, which coarsens into any whole-metre cell),
+    coarsened into the overlap grid to make the plan. Also which selections (PointSelection) the
+    points came through."""
+
+    def __init__(self, cell_m: float | None = None, plan: OverlapPlan | None = None):
+        self.cell_m, self.plan = cell_m, plan
         self.base_m = float(cell_m) if cell_m else BASE_CELL_M
-        ratio = OVERLAP_CELL_M / self.base_m
-        self.overlap_m = OVERLAP_CELL_M if ratio.is_integer() else self.base_m * np.ceil(ratio)
-        self.moments: dict[int, CellMoments] = {}
+        self.moments: dict[tuple[int, float], CellMoments] = {}  #: (line, cell m) → moments
         self.selections: dict[int, list[dict]] = {}
 
     def add(self, line: int, xyz: np.ndarray, selection=None) -> None:
         """Points (N, 3) metric, z up, of flight line ``line`` (after ``selection``, if any)."""
-        m = CellMoments.of_points(xyz, self.base_m)
-        self.moments[line] = self.moments[line].merged(m) if line in self.moments else m
         chosen = self.selections.setdefault(line, [])
         if selection is not None and selection.to_dict() not in chosen:
             chosen.append(selection.to_dict())
+        for cell in (self.plan.sizes(line) if self.plan else {self.base_m}):
+            m = CellMoments.of_points(xyz, cell)
+            key = (line, cell)
+            self.moments[key] = self.moments[key].merged(m) if key in self.moments else m
+
+    def _at(self, line: int, cell: float) -> CellMoments:
+        """The line's moments on ``cell``."""
+        if (line, cell) in self.moments or self.plan is not None:
+            return self.moments.get((line, cell), CellMoments.empty(cell))
+        f = int(round(cell / self.base_m))
+        if not np.isclose(f * self.base_m, cell):
+            raise ValueError(f"a {cell} m cell is not a whole number of the {self.base_m} m accumulation cells")
+        return self.moments.get((line, self.base_m), CellMoments.empty(self.base_m)).coarsened(f)
 
     def differences(self, settings: QualitySettings | None = None) -> tuple[list[PairQuality], list[str]]:
         """The PairQuality of every overlapping pair of lines (ids ascending) and notes about lines
         that overlap no other."""
         s = settings or QualitySettings(cell_m=self.cell_m)
-        factor = int(round(self.overlap_m / self.base_m))
-        counts = {i: m.coarsened(factor) for i, m in self.moments.items()}
-        occupied = {i: c.keys[c.count >= OVERLAP_MIN_POINTS] for i, c in counts.items()}
-        common, notes = common_cells(occupied, self.overlap_m)
+        plan = self.plan
+        if plan is None:
+            grid = overlap_cell(self.cell_m)
+            counts = {i: self._at(i, grid) for i in self.selections}
+            plan = overlap_plan({i: (c.keys, c.count) for i, c in counts.items()}, grid, s)
         results = []
-        for (a, b), cells in common.items():
-            cell = s.cell_m or _cell_size([_density(counts[i], cells) for i in (a, b)], s)
-            f = int(round(cell / self.base_m))
-            if not np.isclose(f * self.base_m, cell):
-                raise ValueError(f"a {cell} m cell is not a whole number of the {self.base_m} m accumulation cells")
-            q = pair_quality(a, self.moments[a].coarsened(f), b, self.moments[b].coarsened(f), s)
+        for (a, b), cell in plan.cells.items():
+            q = pair_quality(a, self._at(a, cell), b, self._at(b, cell), s)
             q.points_a, q.points_b = self.selections.get(a, []), self.selections.get(b, [])
             results.append(q)
-        return results, notes
-
-
-def _density(counts: CellMoments, cells: np.ndarray) -> float:
-    """Points per m² of a line over the overlap ``cells`` (keys of its overlap grid)."""
-    n = counts.count[np.isin(counts.keys, cells, assume_unique=True)].sum()
-    return float(n) / max(cells.size * counts.cell_m**2, 1e-9)
+        return results, plan.notes
 
 
 def _cell_size(densities, s: QualitySettings) -> float:
