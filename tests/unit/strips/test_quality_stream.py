@@ -144,3 +144,38 @@ def test_geographic_lines_are_compared_in_one_local_frame(cli, tmp_path):
     (geographic,) = json.loads(out)["pairs"]
     assert geographic["median_dz_m"] == pytest.approx(projected["median_dz_m"], abs=0.002)
     assert geographic["median_dz_m"] == pytest.approx(0.04, abs=0.003)
+
+
+def test_streamed_line_index_splits_at_time_gaps_as_line_ids(tmp_path):
+    from calidar.strips.lines import index_flight_lines, line_ids
+
+    rng = np.random.default_rng(6)
+    t = np.sort(np.r_[rng.uniform(0, 30, 3000), rng.uniform(40.5, 70, 3000), rng.uniform(80.2, 81, 500)])
+    xyz = UTM + np.column_stack([rng.uniform(0, 50, (t.size, 2)), np.zeros(t.size)])
+    path = write_las(tmp_path / "gaps.laz", xyz, "EPSG:32632", gps_time=t, scan_angle_deg=np.zeros(t.size),
+                     point_source_id=0, classification=np.full(t.size, 2))
+    index = index_flight_lines([path], chunk_points=700)
+    expected, how = line_ids(np.zeros(t.size, int), t)
+    assert index.how == how == "gps_time_gaps" and index.ids == (1, 2, 3)
+    assert np.array_equal(index.of(None, t), expected) and index.classes[path].tolist() == [2]
+
+
+def test_cli_lines_from_time_gaps_stream_in_small_chunks(cli, tmp_path, monkeypatch):
+    import calidar.pipelines.quality as pq
+    from calidar.io.las import read_las
+
+    paths = []
+    for k, p in enumerate(_two_lines(tmp_path, [2], [2])):  # the same lines without point_source_id
+        las = read_las(p)
+        paths.append(write_las(tmp_path / f"anon{k}.laz", las.xyz, las.crs, gps_time=las.gps_time,
+                               scan_angle_deg=las.scan_angle_deg, point_source_id=0, classification=las.classification))
+    code, out, err = cli("quality", *paths, "--json")
+    assert code == 0, err
+    monkeypatch.setattr(pq.measure, "__defaults__", (None, None, pq.PointOptions(), 3_000))
+    small = json.loads(cli("quality", *paths, "--json")[1])
+    whole = json.loads(out)
+    assert whole["lines_from"] == small["lines_from"] == "gps_time_gaps"
+    (a,), (b,) = whole["pairs"], small["pairs"]
+    assert (a["a"], a["b"], a["n_cells"]) == (b["a"], b["b"], b["n_cells"]) == (1, 2, a["n_cells"]) and a["n_cells"] > 100
+    assert a["median_dz_m"] == pytest.approx(0.04, abs=0.003)
+    assert b["median_dz_m"] == pytest.approx(a["median_dz_m"], abs=1e-9)
