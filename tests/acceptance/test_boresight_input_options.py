@@ -52,6 +52,7 @@ def test_boresight_with_a_houston_text_trajectory_and_a_lying_time_bit(cli, tmp_
     assert all("--time-system adjusted" in st["reproduce"] for st in doc["overlap_quality"])
     assert "--trajectory-crs EPSG:32615" in doc["overlap_quality"][1]["reproduce"]
     assert doc["overlap_quality"][0]["pairs"][0]["points_a"][0]["rule"] == "ground"
+    assert "Points used: ground: class 2." in (tmp_path / "out" / "report.html").read_text()
 
 
 def test_real_houston_export_reads_with_the_trajectory_options(cli, real_data):
