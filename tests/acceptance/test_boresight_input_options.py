@@ -30,7 +30,6 @@ def _lying_strips(paths, out_dir):
     return lying
 
 
-@pytest.mark.slow
 def test_boresight_with_a_houston_text_trajectory_and_a_lying_time_bit(cli, tmp_path):
     res = simulate_survey(survey_config("uav", seed=3, density=0.2, origin_deg=HOUSTON_DEG, errors=ERRORS,
                                         range_noise_m=0.03))
