@@ -8,8 +8,8 @@ and the classes each file holds, hence its point selection) and counts the point
 candidate selection on the 5 m overlap grid (:class:`CellCounts`): which lines overlap and the
 cell of each pair (:func:`calidar.strips.quality.overlap_plan`). The second feeds the selected
 points of each chunk to a :class:`calidar.strips.quality.SwathAccumulator` that keeps moments
-on those cells only; memory holds cells, not points. The boresight
-pipeline feeds its (re-georeferenced) lines to the same accumulator (:func:`lines_quality`).
+on those cells only; memory holds cells, not points. The boresight pipeline feeds its
+(re-georeferenced) lines to the same accumulator (:func:`lines_quality`).
 """
 
 from __future__ import annotations
@@ -21,11 +21,11 @@ import numpy as np
 
 from calidar.errors import InputError
 from calidar.io.las import PointOptions
+from calidar.strips.selection import FIELDS as SELECTION_FIELDS
 from calidar.strips.selection import choose_selection
 
-CHUNK_POINTS = 500_000  #: points read at once (peak memory: ≈ 100 B per point of a chunk)
-#: point fields a chunk needs: flight line and the selection's
-FIELDS = ("point_source_id", "classification", "return_number", "number_of_returns")
+CHUNK_POINTS = 500_000  #: points read at once (the chunk, not the file, sets the peak memory with the cells)
+FIELDS = ("point_source_id", *SELECTION_FIELDS)  #: point fields a chunk needs: flight line and the selection's
 
 
 @dataclass(frozen=True)
@@ -78,7 +78,7 @@ class CellCounts:
         sec = np.where(np.isfinite(t), np.floor(np.nan_to_num(t)), 2**32 - 1).astype(np.int64).clip(0, 2**32 - 1)
         token = (np.asarray(c["point_source_id"], np.int64) << 32) | sec
         keys = cell_keys(self.metric.of(np.c_[c["x"], c["y"], c["z"]]), self.grid_m)
-        fields = SimpleNamespace(xyz=keys, **{f: c[f] for f in ("classification", "return_number", "number_of_returns")})
+        fields = SimpleNamespace(xyz=keys, **{f: c[f] for f in SELECTION_FIELDS})
         for selection in self.candidates[path]:
             keep = selection.mask(fields)
             for tok in np.unique(token[keep]):
@@ -117,7 +117,7 @@ def measure(paths, cell_m=None, classes=None, options: PointOptions = PointOptio
                                                                   PointSelection("last returns")]
     counts = CellCounts({p: first for p in paths}, metric, overlap_cell(cell_m))
     index = index_flight_lines(paths, options, chunk_points=chunk_points, on_chunk=counts,
-                               fields=("x", "y", "z", "return_number", "number_of_returns"))
+                               fields=("x", "y", "z", *SELECTION_FIELDS[1:]))
     if len(index.ids) < 2:
         raise InputError(paths[0], "point_source_id",
                          f"found one flight line ({index.how}); expected at least two overlapping lines")
