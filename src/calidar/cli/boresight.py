@@ -7,6 +7,10 @@ from pathlib import Path
 import typer
 
 from calidar.cli.common import console, print_verdict, print_warning, progress_bar, progress_callback
+from calidar.cli.options import (
+    CRS, GEOID_UNDULATION, TIME_SYSTEM, TRAJECTORY_ANGLES, TRAJECTORY_COLUMNS, TRAJECTORY_CRS, TRAJECTORY_HEADING,
+    point_options, trajectory_options,
+)
 from calidar.errors import InputError
 from calidar.pipelines.boresight import TRAJECTORY_BLOCK_S, TRAJECTORY_CORRELATION
 from calidar.strips.trajectory_errors import PREFIX as TRAJECTORY_PREFIX
@@ -43,6 +47,9 @@ def boresight(
     out: Path = typer.Option(..., "--out", help="Output folder."),
     force: bool = typer.Option(False, "--force", help="Write into a non-empty output folder."),
     write_strips: bool = typer.Option(False, "--write-strips", help="Also write the recalibrated strips (LAZ)."),
+    crs: str | None = CRS, time_system: str | None = TIME_SYSTEM, geoid_undulation: float | None = GEOID_UNDULATION,
+    trajectory_crs: str | None = TRAJECTORY_CRS, trajectory_angles: str | None = TRAJECTORY_ANGLES,
+    trajectory_heading: str | None = TRAJECTORY_HEADING, trajectory_columns: str | None = TRAJECTORY_COLUMNS,
 ) -> None:
     """Calibrate the mounting (and more) from overlapping strips; writes solution.json, sensor.toml,
     sbet_corrected.out (the trajectory with its estimated corrections) and report.html."""
@@ -55,7 +62,9 @@ def boresight(
     parse_estimate(estimate)
     options = BoresightOptions(tuple(parse_methods(method)), estimate, trajectory_model == "on", trajectory_accuracy,
                                trajectory_sigma, trajectory_block, trajectory_correlation, truth, scheduler, workers,
-                               write_strips)
+                               write_strips, points=point_options(crs, time_system, geoid_undulation),
+                               trajectory_input=trajectory_options(trajectory_crs, trajectory_angles, trajectory_heading,
+                                                                   trajectory_columns))
     check_out_dir(out, force)
     with output_folder(out, force, inputs=[*strips, trajectory, sensor, trajectory_accuracy, truth]) as tmp, \
             progress_bar() as bar:

@@ -11,7 +11,9 @@ import typer
 from rich.markup import escape
 
 from calidar.cli.common import console
-from calidar.cli.options import TIME_SYSTEM, TRAJECTORY_ANGLES, TRAJECTORY_COLUMNS, TRAJECTORY_HEADING, point_options
+from calidar.cli.options import (
+    TIME_SYSTEM, TRAJECTORY_ANGLES, TRAJECTORY_COLUMNS, TRAJECTORY_CRS, TRAJECTORY_HEADING, point_options,
+)
 from calidar.cli.options import trajectory_options
 from calidar.errors import InputError
 from calidar.io.atl03 import atl03_summary
@@ -171,7 +173,7 @@ def info(
                                 "ATL03 (HDF5)."),
     as_json: bool = typer.Option(False, "--json", help="Print JSON instead of text."),
     crs: str = typer.Option(None, "--crs", help="CRS of the points or of a text trajectory's coordinates."),
-    time_system: str | None = TIME_SYSTEM,
+    time_system: str | None = TIME_SYSTEM, trajectory_crs: str | None = TRAJECTORY_CRS,
     trajectory_angles: str | None = TRAJECTORY_ANGLES, trajectory_heading: str | None = TRAJECTORY_HEADING,
     trajectory_columns: str | None = TRAJECTORY_COLUMNS,
 ) -> None:
@@ -189,7 +191,9 @@ def info(
     elif is_smrmsg_name(file):
         d = smrmsg_info(file)
     else:
-        d = trajectory_info(file, trajectory_options(crs, trajectory_angles, trajectory_heading, trajectory_columns))
+        if crs is not None and trajectory_crs is not None:
+            raise InputError(None, "--trajectory-crs", "give the trajectory's CRS once: --crs or --trajectory-crs")
+        d = trajectory_info(file, trajectory_options(trajectory_crs or crs, trajectory_angles, trajectory_heading, trajectory_columns))
     if as_json:
         print(json.dumps(d, indent=2, allow_nan=False))
     else:

@@ -8,6 +8,7 @@ from pathlib import Path
 import typer
 
 from calidar.cli.common import console
+from calidar.cli.options import CRS, GEOID_UNDULATION, TIME_SYSTEM, point_options
 from calidar.errors import InputError
 from calidar.pipelines.quality import measure
 
@@ -19,38 +20,55 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
         as_json: bool = typer.Option(False, "--json", help="Print the per-pair results as JSON."),
         out: Path | None = typer.Option(None, "--out", help="Folder for quality.json and dz rasters (GeoTIFF, PNG)."),
         cell: float | None = typer.Option(None, "--cell", help="Grid cell of the difference, m (default 2 m or coarser when sparse)."),
+        classes: str | None = typer.Option(
+            None, "--classes", help="LAS classes to compare, e.g. 2 or 2,6 (default: ground, class 2, when a file has "
+            "it, else last and single returns on smooth cells)."),
+        crs: str | None = CRS, time_system: str | None = TIME_SYSTEM, geoid_undulation: float | None = GEOID_UNDULATION,
         force: bool = typer.Option(False, "--force", help="Write into a non-empty --out folder."),
     ) -> None:
         """Swath-overlap differences between flight lines (dz = a − b): median, RMSDz, max, planimetric offsets."""
         from calidar.outputs import prepare_out_dir, write_text_atomic
         from calidar.strips.quality import write_rasters
+        from calidar.strips.selection import parse_classes
 
         if cell is not None and not cell > 0:
             raise InputError(None, "--cell", f"expected a positive cell size in metres, got {cell}")
+        wanted = parse_classes(classes)
+        options = point_options(crs, time_system, geoid_undulation)
         out_dir = prepare_out_dir(out, force) if out else None
-        lines, how, results, notes = measure(strips, cell)
-        doc = {"lines_from": how, "pairs": [q.to_dict() for q in results], "notes": notes}
+        index, file_crs, results, notes, selections = measure(strips, cell, wanted, options)
+        doc = {"lines_from": index.how, "points_used": {str(p): s.to_dict() for p, s in selections.items()},
+               "pairs": [q.to_dict() for q in results], "notes": notes}
         if out_dir:
-            crs = next(iter(lines.values())).crs
             for q in results:
-                write_rasters(q, out_dir, crs if crs is not None and not crs.is_geographic else None, force=True)
+                write_rasters(q, out_dir, file_crs if file_crs is not None and not file_crs.is_geographic else None,
+                              force=True)
             write_text_atomic(out_dir / "quality.json", json.dumps(doc, indent=2) + "\n")
         if as_json:
             print(json.dumps(doc, indent=2))
             return
-        from rich.table import Table
-
-        table = Table(title=f"Swath-overlap differences (flight lines from {how}; dz = a − b)")
-        for h in ("a", "b", "cells", "median dz [m]", "RMSDz [m]", "max |dz| [m]", "dx [m]", "dy [m]"):
-            table.add_column(h, justify="right")
-        def f(v, sign="+"):
-            return "—" if v is None else f"{v:{sign}.3f}"
-
-        for q in results:
-            table.add_row(str(q.a), str(q.b), str(q.n_cells), f(q.median_dz_m), f(q.rmsdz_m, ""),
-                          f(q.max_abs_dz_m, ""), f(q.dx_m), f(q.dy_m))
-        console.print(table)
-        for n in notes:
-            console.print(f"note: {n}")
+        _print_table(index.how, results, selections, notes)
         if out_dir:
             console.print(f"wrote {out_dir}/quality.json and dz rasters")
+
+
+def _print_table(how, results, selections, notes) -> None:
+    """The per-pair results as a table, which points were used and the notes."""
+    from rich.table import Table
+
+    table = Table(title=f"Swath-overlap differences (flight lines from {how}; dz = a − b)")
+    for h in ("a", "b", "cells", "points a", "points b", "median dz [m]", "RMSDz [m]", "max |dz| [m]", "dx [m]",
+              "dy [m]"):
+        table.add_column(h, justify="right")
+
+    def f(v, sign="+"):
+        return "—" if v is None else f"{v:{sign}.3f}"
+
+    for q in results:
+        table.add_row(str(q.a), str(q.b), str(q.n_cells), str(q.n_points_a), str(q.n_points_b), f(q.median_dz_m),
+                      f(q.rmsdz_m, ""), f(q.max_abs_dz_m, ""), f(q.dx_m), f(q.dy_m))
+    console.print(table)
+    for p, sel in selections.items():
+        console.print(f"points used from {p.name}: {sel.describe()}")
+    for n in notes:
+        console.print(f"note: {n}")

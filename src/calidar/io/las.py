@@ -251,12 +251,27 @@ def iter_las_chunks(path: str | Path, chunk_points: int = 2_000_000, crs=None, f
 def iter_las_times(path: str | Path, chunk_points: int = 2_000_000) -> Iterator[np.ndarray]:
     """GPS times (s, as stored) of a LAS/LAZ file, chunk by chunk: the cheap first pass of streamed
     commands (LAZ 1.4 decompresses only the time layer)."""
+    for chunk in iter_las_fields(path, ("gps_time",), chunk_points):
+        yield chunk["gps_time"]
+
+
+#: LAZ 1.4 layers holding the fields :func:`iter_las_fields` reads (others are in the base layer)
+_LAYERS = {"gps_time": laspy.DecompressionSelection.GPS_TIME, "classification": laspy.DecompressionSelection.CLASSIFICATION,
+           "point_source_id": laspy.DecompressionSelection.POINT_SOURCE_ID, "z": laspy.DecompressionSelection.Z}
+
+
+def iter_las_fields(path: str | Path, names, chunk_points: int = 2_000_000) -> Iterator[dict[str, np.ndarray]]:
+    """Some raw point fields (laspy names: gps_time, classification, point_source_id, return_number,
+    ...) of a LAS/LAZ file chunk by chunk, decompressing only their layers (LAZ 1.4)."""
     path = Path(path)
-    selection = laspy.DecompressionSelection.base() | laspy.DecompressionSelection.GPS_TIME
+    selection = laspy.DecompressionSelection.base()
+    for name in names:
+        selection |= _LAYERS.get(name, laspy.DecompressionSelection.base())
     with _open(path, selection) as reader:
         gps_time_system(reader.header, path)
         for _, rec in _records(reader, chunk_points, path):
-            yield np.asarray(rec.gps_time, float)
+            yield {name: np.asarray(getattr(rec, name), float if name in ("gps_time", "x", "y", "z") else None)
+                   for name in names}
 
 
 def rewrite_las_xyz(src: str | Path, dst: str | Path, new_xyz, *, crs=None, chunk_points: int = 2_000_000,

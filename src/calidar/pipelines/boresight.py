@@ -19,6 +19,7 @@ import numpy as np
 
 from calidar.errors import InputError
 from calidar.pipelines import Progress, no_progress
+from calidar.pipelines.inputs import PointOptions, TrajectoryOptions
 from calidar.validate import parse_floats
 
 #: knot spacing (s) and Gauss–Markov correlation times of position and attitude (s) of the
@@ -43,9 +44,15 @@ class BoresightOptions:
     workers: int | None = None
     write_strips: bool = False
     settings: object | None = None  #: calidar.strips.calibrate.StripSettings (benchmarks, tests)
+    points: PointOptions = PointOptions()  #: --crs, --time-system, --geoid-undulation of the strips
+    trajectory_input: TrajectoryOptions = TrajectoryOptions()  #: --trajectory-crs and the text-trajectory options
 
     def to_dict(self) -> dict:
-        return {k: (v if not isinstance(v, Path) else str(v)) for k, v in self.__dict__.items() if k != "settings"}
+        def plain(v):
+            return str(v) if isinstance(v, Path) else ({k: plain(x) for k, x in v.__dict__.items()}
+                                                       if isinstance(v, (PointOptions, TrajectoryOptions)) else v)
+
+        return {k: plain(v) for k, v in self.__dict__.items() if k != "settings"}
 
 
 @dataclass
@@ -63,6 +70,7 @@ class BoresightInputs:
     accuracy_path: Path | None = None
     notes: list[str] = field(default_factory=list)  #: what the user should know (e.g. a default assumed)
     truth: dict | None = None  #: truth.json parameters, SI (simulations)
+    options: BoresightOptions = BoresightOptions()  #: as given (the input options name the reproducing commands)
 
     @property
     def spans(self) -> dict[int, tuple[float, float]]:
@@ -75,14 +83,15 @@ class BoresightInputs:
                 *([self.accuracy_path] if self.accuracy_path else [])]
 
 
-def load_strips(paths, trajectory, sensor):
-    """Flight lines of the LAS/LAZ files as Strips in one local frame (times in the trajectory's system)."""
+def load_strips(paths, trajectory, sensor, options: PointOptions = PointOptions()):
+    """Flight lines of the LAS/LAZ files (read with the shared point ``options``) as Strips in one
+    local frame (times in the trajectory's system)."""
     from calidar.georef import from_crs
     from calidar.io.las import adjusted_standard_to_week_seconds
     from calidar.strips.lines import read_flight_lines
     from calidar.strips.strip import LocalFrame, Strip
 
-    lines, _ = read_flight_lines(paths, crs=None)
+    lines, _ = read_flight_lines(paths, options=options)
     first = next(iter(lines.values()))
     crs = first.crs if first.crs is not None else sensor.crs
     if crs is None:
@@ -166,7 +175,7 @@ def resolve_accuracy(trajectory_path: Path, trajectory, options: BoresightOption
 def load_inputs(strip_paths, trajectory_path, sensor_path, options: BoresightOptions = BoresightOptions(),
                 progress: Progress = no_progress) -> BoresightInputs:
     """Read and check every input (the trajectory's accuracy must cover every strip)."""
-    from calidar.io.trajectory import read_trajectory
+    from calidar.pipelines.inputs import load_trajectory
     from calidar.sensor import Sensor
     from calidar.strips.parameters import build_parameters, parse_estimate, truth_to_si
     from calidar.validate import read_json
@@ -174,7 +183,7 @@ def load_inputs(strip_paths, trajectory_path, sensor_path, options: BoresightOpt
     parse_estimate(options.estimate)
     trajectory_path, sensor_path = Path(trajectory_path), Path(sensor_path)
     nominal = Sensor.read(sensor_path)
-    traj = read_trajectory(trajectory_path)
+    traj = load_trajectory(trajectory_path, options.trajectory_input)
     accuracy, accuracy_path, notes = None, None, []
     if options.trajectory_model:  # every option checked before the strips are read
         accuracy, accuracy_path, note = resolve_accuracy(trajectory_path, traj, options)
@@ -187,10 +196,10 @@ def load_inputs(strip_paths, trajectory_path, sensor_path, options: BoresightOpt
         notes.append("trajectory model off (--trajectory-model off): the trajectory is taken as exact, so the "
                      "σ miss its errors (ordinary GNSS/INS noise made them 2× too small on simulated surveys)")
     progress("reading strips", 0, 1)
-    strips, crs = load_strips(list(strip_paths), traj, nominal)
+    strips, crs = load_strips(list(strip_paths), traj, nominal, options.points)
     progress("reading strips", 1, 1)
     inputs = BoresightInputs([Path(p) for p in strip_paths], trajectory_path, sensor_path, nominal, traj, strips, crs,
-                             accuracy, accuracy_path, notes)
+                             accuracy, accuracy_path, notes, options=options)
     if accuracy is not None:
         accuracy.check_covers(inputs.spans)
     if options.truth is not None:

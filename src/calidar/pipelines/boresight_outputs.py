@@ -1,8 +1,8 @@
 """The deliverables of a strip calibration, made so that they reproduce the report.
 
 The overlap quality is measured on the WHOLE strips re-georeferenced in the files' CRS with
-exactly the code ``calidar quality`` runs (:func:`calidar.pipelines.quality.pairs_quality`,
-:func:`usable`, :func:`line_coordinates`), three times: as delivered, with the new mounting
+exactly the code ``calidar quality`` runs (:func:`calidar.pipelines.quality.lines_quality`: the
+same point selection and swath accumulator), three times: as delivered, with the new mounting
 alone (``calidar regeoref --to sensor.toml``), and with the new mounting and the corrected
 trajectory (``--to-trajectory sbet_corrected.out``). Each stage names the commands that
 reproduce it from the written files.
@@ -46,10 +46,9 @@ def regeoreferenced_lines(inputs, sensor, trajectory):
 
 def measure_lines(lines) -> list:
     """The :class:`calidar.strips.quality.PairQuality` of every overlapping pair of (id, LasPoints)."""
-    from calidar.pipelines.quality import line_coordinates, pairs_quality, usable
+    from calidar.pipelines.quality import lines_quality
 
-    coords = {i: line_coordinates(p)[usable(p)] for i, p in lines}
-    return pairs_quality(coords)[0]
+    return lines_quality(lines)[0]
 
 
 def _files(paths) -> str:
@@ -65,12 +64,15 @@ def _files(paths) -> str:
 
 def stage_commands(inputs, shown_out: Path, tag: str, with_trajectory: bool) -> tuple[str, str, str]:
     """The commands that reproduce the three quality stages from the written files."""
+    from calidar.pipelines.inputs import option_args
+
     q = lambda p: shlex.quote(str(p))  # noqa: E731
     strips = _files(inputs.strip_paths)
+    given = option_args(inputs.options.points)
     regeo = (f"calidar regeoref {strips} --trajectory {q(inputs.trajectory_path)} --from {q(inputs.sensor_path)} "
-             f"--to {q(shown_out / f'sensor{tag}.toml')}")
+             f"--to {q(shown_out / f'sensor{tag}.toml')}{option_args(inputs.options.points, inputs.options.trajectory_input)}")
     traj = f" --to-trajectory {q(shown_out / f'sbet_corrected{tag}.out')}" if with_trajectory else ""
-    return (f"calidar quality {strips}",
+    return (f"calidar quality {strips}{given}",
             f"{regeo} --out MOUNTING && calidar quality MOUNTING/*",
             f"{regeo}{traj} --out CORRECTED && calidar quality CORRECTED/*")
 

@@ -25,7 +25,7 @@ from calidar.io.las import (
 from calidar.io.trajectory import read_trajectory
 from calidar.trajectory import Trajectory
 
-__all__ = ["PointOptions", "TrajectoryOptions", "load_trajectory", "points_ecef", "check_crs", "check_coverage",
+__all__ = ["PointOptions", "TrajectoryOptions", "load_trajectory", "option_args", "points_ecef", "check_crs", "check_coverage",
            "matching_trajectory", "point_times"]
 
 CHUNK_POINTS = 2_000_000
@@ -45,6 +45,23 @@ class TrajectoryOptions:
     heading: str | None = None
     columns: tuple[str, ...] | None = None
     time_system: str | None = None
+
+
+def option_args(points: PointOptions = PointOptions(), trajectory: TrajectoryOptions | None = None) -> str:
+    """The command-line options that give ``points`` (and ``trajectory``) options, " --crs …" or ""."""
+    import shlex
+
+    from calidar.io.las import TIME_SYSTEM_NAMES
+
+    short = {v: k for k, v in TIME_SYSTEM_NAMES.items()}
+    crs = points.crs if points.crs is None or isinstance(points.crs, str) else points.crs.to_string()
+    pairs = [("--crs", crs), ("--time-system", short.get(points.time_system, points.time_system)),
+             ("--geoid-undulation", points.geoid_undulation_m)]
+    if trajectory is not None:
+        pairs += [("--trajectory-crs", trajectory.crs), ("--trajectory-angles", trajectory.angles),
+                  ("--trajectory-heading", trajectory.heading),
+                  ("--trajectory-columns", None if trajectory.columns is None else ",".join(trajectory.columns))]
+    return "".join(f" {k} {shlex.quote(str(v))}" for k, v in pairs if v is not None)
 
 
 def load_trajectory(path: str | Path, options: TrajectoryOptions = TrajectoryOptions()) -> Trajectory:

@@ -1,61 +1,161 @@
 """The strip-quality pipeline (``calidar quality`` and the boresight report's before/after):
 flight lines of LAS/LAZ files, the points fit for a swath difference, and the swath-overlap
-difference of every overlapping pair."""
+difference of every overlapping pair.
+
+``calidar quality`` streams in two passes. The first reads point_source_id, classification,
+GPS time and coordinates (:func:`calidar.strips.lines.index_flight_lines`: the flight lines
+and the classes each file holds, hence its point selection) and counts the points of each
+candidate selection on the 5 m overlap grid (:class:`CellCounts`): which lines overlap and the
+cell of each pair (:func:`calidar.strips.quality.overlap_plan`). The second feeds the selected
+points of each chunk to a :class:`calidar.strips.quality.SwathAccumulator` that keeps moments
+on those cells only; memory holds cells, not points. The boresight pipeline feeds its
+(re-georeferenced) lines to the same accumulator (:func:`lines_quality`).
+"""
 
 from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
 from calidar.errors import InputError
+from calidar.io.las import PointOptions
+from calidar.strips.selection import FIELDS as SELECTION_FIELDS
+from calidar.strips.selection import choose_selection
+
+CHUNK_POINTS = 500_000  #: points read at once (the chunk, not the file, sets the peak memory with the cells)
+FIELDS = ("point_source_id", *SELECTION_FIELDS)  #: point fields a chunk needs: flight line and the selection's
 
 
-def line_coordinates(points) -> np.ndarray:
-    """Metric coordinates (N, 3) with z up: the file's projected CRS, or local ENU for geographic CRSs."""
-    if points.crs is not None and points.crs.is_geographic:
+@dataclass(frozen=True)
+class Metric:
+    """Coordinates for the swath difference: metric with z up: the CRS's own when projected, else
+    local ENU at ``frame`` (one frame for all lines)."""
+
+    crs: object = None
+    frame: object | None = None  #: calidar.strips.strip.LocalFrame for a geographic CRS
+    geoid_undulation_m: float | None = None
+    source: object = None
+
+    @classmethod
+    def at(cls, crs, xyz_min, xyz_max, geoid_undulation_m=None, source=None) -> "Metric":
+        """For points in ``crs`` within the bounds (x/lon, y/lat, z)."""
+        if crs is None or not crs.is_geographic:
+            return cls(crs)
         from calidar.georef import from_crs
         from calidar.strips.strip import LocalFrame
 
-        ecef = from_crs(points.xyz, points.crs)
-        return LocalFrame.at(ecef).to_local(ecef)
-    return points.xyz
+        centre = 0.5 * (np.asarray(xyz_min, float) + np.asarray(xyz_max, float))
+        frame = LocalFrame.at(from_crs(centre[None, :], crs, geoid_undulation_m, source=source))
+        return cls(crs, frame, geoid_undulation_m, source)
+
+    def of(self, xyz: np.ndarray) -> np.ndarray:
+        """Metric coordinates (N, 3) of points (N, 3) in the CRS."""
+        if self.frame is None:
+            return xyz
+        from calidar.georef import from_crs
+
+        return self.frame.to_local(from_crs(xyz, self.crs, self.geoid_undulation_m, source=self.source))
 
 
-def usable(points) -> np.ndarray:
-    """Mask of points fit for the swath difference: no vegetation/noise/water classes, last returns."""
-    from calidar.strips.quality import EXCLUDED_CLASSES
+class CellCounts:
+    """The first pass of ``calidar quality``, chunk by chunk: for each file, its points of every
+    candidate selection counted on the overlap grid, by (point_source_id, GPS second), so that
+    they go to flight lines (and the file's selection is chosen) once the pass is over."""
 
-    keep = np.ones(len(points), bool)
-    if points.classification is not None:
-        keep &= ~np.isin(points.classification, EXCLUDED_CLASSES)
-    if points.return_number is not None and points.number_of_returns is not None:
-        keep &= points.return_number >= points.number_of_returns
-    return keep
+    def __init__(self, candidates: dict, metric: Metric, grid_m: float):
+        self.candidates, self.metric, self.grid_m = candidates, metric, grid_m  #: candidates: path → selections
+        self.counts: dict[tuple, tuple[np.ndarray, np.ndarray]] = {}  #: (path, selection, token) → keys, counts
+        self.time: dict[int, float] = {}  #: token → a GPS time of its points (s)
+
+    def __call__(self, path, c: dict) -> None:
+        from types import SimpleNamespace
+
+        from calidar.strips.overlap import cell_keys
+
+        t = c["gps_time"]
+        sec = np.where(np.isfinite(t), np.floor(np.nan_to_num(t)), 2**32 - 1).astype(np.int64).clip(0, 2**32 - 1)
+        token = (np.asarray(c["point_source_id"], np.int64) << 32) | sec
+        keys = cell_keys(self.metric.of(np.c_[c["x"], c["y"], c["z"]]), self.grid_m)
+        fields = SimpleNamespace(xyz=keys, **{f: c[f] for f in SELECTION_FIELDS})
+        for selection in self.candidates[path]:
+            keep = selection.mask(fields)
+            for tok in np.unique(token[keep]):
+                sel = keep & (token == tok)
+                self.time.setdefault(int(tok), float(t[np.argmax(sel)]))
+                uk, n = np.unique(keys[sel], return_counts=True)
+                k = (path, selection, int(tok))
+                self.counts[k] = _merge_counts(self.counts[k], (uk, n)) if k in self.counts else (uk, n)
+
+    def by_line(self, index, selections: dict) -> dict[int, tuple[np.ndarray, np.ndarray]]:
+        """(keys, counts) per flight line of the points each file's chosen selection keeps."""
+        out = {}
+        for (path, selection, tok), kn in self.counts.items():
+            if selections[path] == selection:
+                line = int(index.of(np.array([tok >> 32]), np.array([self.time[tok]]))[0])
+                out[line] = _merge_counts(out[line], kn) if line in out else kn
+        return out
 
 
-def measure(paths, cell_m=None):
-    """Flight lines of the files and the PairQuality of every overlapping pair."""
-    from calidar.strips.lines import read_flight_lines
+def _merge_counts(a, b):
+    keys, inv = np.unique(np.r_[a[0], b[0]], return_inverse=True)
+    return keys, np.bincount(inv, np.r_[a[1], b[1]], keys.size).astype(np.int64)
 
-    lines, how = read_flight_lines(paths)
-    if len(lines) < 2:
+
+def measure(paths, cell_m=None, classes=None, options: PointOptions = PointOptions(), chunk_points: int = CHUNK_POINTS):
+    """Streamed ``calidar quality``: (line index, file CRS, PairQualitys, notes, selection per file)."""
+    from calidar.io.las import iter_las_chunks, las_file_crs, las_header
+    from calidar.strips.lines import index_flight_lines
+    from calidar.strips.quality import QualitySettings, SwathAccumulator, overlap_cell, overlap_plan
+    from calidar.strips.selection import PointSelection
+
+    paths = [Path(p) for p in paths]
+    crs, header = las_file_crs(paths[0], options.crs), las_header(paths[0])
+    metric = Metric.at(crs, header.mins, header.maxs, options.geoid_undulation_m, paths[0])
+    first = [PointSelection("classes", classes)] if classes else [PointSelection("ground", (2,)),
+                                                                  PointSelection("last returns")]
+    counts = CellCounts({p: first for p in paths}, metric, overlap_cell(cell_m))
+    index = index_flight_lines(paths, options, chunk_points=chunk_points, on_chunk=counts,
+                               fields=("x", "y", "z", *SELECTION_FIELDS[1:]))
+    if len(index.ids) < 2:
         raise InputError(paths[0], "point_source_id",
-                         f"found one flight line ({how}); expected at least two overlapping lines")
-    coords = {i: line_coordinates(p)[usable(p)] for i, p in lines.items()}
-    results, notes = pairs_quality(coords, cell_m)
-    return lines, how, results, notes
-
-
-def pairs_quality(coords: dict[int, np.ndarray], cell_m: float | None = None):
-    """The PairQuality of every overlapping pair of flight lines given as metric coordinates with z
-    up (N, 3) m of their usable points (see :func:`usable`), and the overlap notes. The one
-    implementation behind ``calidar quality`` and the boresight report's before/after tables."""
-    from calidar.strips.overlap import find_overlaps
-    from calidar.strips.quality import QualitySettings, swath_difference
-
-    pairs, notes = find_overlaps(coords)
-    if not pairs:
-        raise InputError(None, "STRIPS", f"none of the {len(coords)} flight lines ({', '.join(map(str, coords))}) "
-                         "overlap another; nothing to compare")
+                         f"found one flight line ({index.how}); expected at least two overlapping lines")
+    selections = {p: choose_selection(p, index.classes[p], classes) for p in paths}
     settings = QualitySettings(cell_m=cell_m)
-    results = [swath_difference(o.a, coords[o.a][o.index_a], o.b, coords[o.b][o.index_b], settings) for o in pairs]
+    acc = SwathAccumulator(cell_m, overlap_plan(counts.by_line(index, selections), counts.grid_m, settings))
+    for p in paths:
+        for chunk in iter_las_chunks(p, chunk_points, fields=FIELDS, options=options):
+            chunk = chunk.select(selections[p].mask(chunk))
+            ids, xyz = index.of(chunk.point_source_id, chunk.gps_time), metric.of(chunk.xyz)
+            for i in np.unique(ids):
+                acc.add(int(i), xyz[ids == i], selections[p])
+    for i in index.ids:  # lines without a selected point: named in the notes
+        acc.add(i, np.zeros((0, 3)))
+    results, notes = _differences(acc, settings)
+    return index, crs, results, notes, selections
+
+
+def lines_quality(lines, cell_m=None, classes=None):
+    """The PairQuality of every overlapping pair of flight lines given as (id, LasPoints) in memory
+    (the selection chosen per line from the classes it holds), and the notes: what the boresight
+    pipeline measures, with the code ``calidar quality`` runs."""
+    from calidar.strips.quality import QualitySettings, SwathAccumulator
+
+    acc, metric = SwathAccumulator(cell_m), None
+    for i, p in lines:
+        if metric is None:
+            metric = Metric.at(p.crs, p.xyz.min(axis=0), p.xyz.max(axis=0), p.geoid_undulation_m, p.path)
+        selection = choose_selection(p.path, None if p.classification is None else np.unique(p.classification), classes)
+        acc.add(int(i), metric.of(p.xyz)[selection.mask(p)], selection)
+    return _differences(acc, QualitySettings(cell_m=cell_m))
+
+
+def _differences(acc, settings):
+    """The accumulator's pairs and notes; an error when no line overlaps another."""
+    results, notes = acc.differences(settings)
+    if not results:
+        ids = sorted(acc.selections)
+        raise InputError(None, "STRIPS", f"none of the {len(ids)} flight lines ({', '.join(map(str, ids))}) "
+                         "overlap another; nothing to compare")
     return results, notes

@@ -3,14 +3,17 @@
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 import pyproj
 
 from calidar.errors import InputError
-from calidar.io.las import OPTIONAL_FIELDS, LasPoints, PointOptions, read_las
+from calidar.io.las import (
+    OPTIONAL_FIELDS, LasPoints, PointOptions, iter_las_fields, las_header, las_time_system, read_las,
+)
+from calidar.io.las_crs import las_crs
 
 GAP_S = 10.0  #: a pause in GPS time longer than this starts a new flight line (s)
 
@@ -39,13 +42,9 @@ def read_flight_lines(paths: Sequence[str | Path], crs=None, gap_s: float = GAP_
     """
     if not paths:
         raise InputError(None, "STRIPS", "expected at least one LAS/LAZ file")
+    _check_alike([Path(p) for p in paths], options or PointOptions(crs=crs))
     clouds = [read_las(p, crs=crs, options=options) for p in paths]
     first = clouds[0]
-    for c in clouds[1:]:
-        if (c.crs is None) != (first.crs is None) or (c.crs is not None and not c.crs.equals(first.crs, ignore_axis_order=True)):
-            raise InputError(c.path, "crs", f"expected the CRS of {first.path.name} ({_name(first.crs)}), got {_name(c.crs)}")
-        if c.time_system != first.time_system:
-            raise InputError(c.path, "gps_time", f"expected {first.time_system} like {first.path.name}, got {c.time_system}")
     merged = first
     if len(clouds) > 1:
         fields = {f: None if any(getattr(c, f) is None for c in clouds) else np.concatenate([getattr(c, f) for c in clouds])
@@ -54,6 +53,70 @@ def read_flight_lines(paths: Sequence[str | Path], crs=None, gap_s: float = GAP_
                          gps_time=np.concatenate([c.gps_time for c in clouds]), **fields)
     ids, how = line_ids(merged.point_source_id, merged.gps_time, gap_s)
     return {int(i): merged.select(ids == i) for i in np.unique(ids)}, how
+
+
+@dataclass(frozen=True)
+class LineIndex:
+    """The flight lines of LAS/LAZ files found by a streamed first pass (:func:`index_flight_lines`),
+    to sort the points of later chunks into them as :func:`line_ids` would sort all at once."""
+
+    how: str  #: "point_source_id" | "gps_time_gaps"
+    ids: tuple[int, ...]
+    starts: np.ndarray | None  #: gps_time_gaps: first GPS time (s) of each line
+    classes: dict[Path, np.ndarray]  #: LAS classes present in each file
+
+    def of(self, point_source_id: np.ndarray | None, gps_time: np.ndarray) -> np.ndarray:
+        """The flight-line id of each point of a chunk."""
+        if self.starts is None:
+            return np.asarray(point_source_id, np.int64)
+        return np.searchsorted(self.starts, gps_time, side="right").astype(np.int64)
+
+
+def index_flight_lines(paths: Sequence[str | Path], options: PointOptions = PointOptions(), gap_s: float = GAP_S,
+                       chunk_points: int = 2_000_000, fields: tuple[str, ...] = (), on_chunk=None) -> LineIndex:
+    """Flight lines and classes of LAS/LAZ files from a pass over their point_source_id,
+    classification and GPS time only (every file: one CRS, one time system, clear errors otherwise).
+    Time gaps are found from each second's first and last time, so memory holds seconds, not points.
+    ``on_chunk(path, chunk)``, when given, sees every chunk ({name: array}, with ``fields`` too)."""
+    if not paths:
+        raise InputError(None, "STRIPS", "expected at least one LAS/LAZ file")
+    paths = [Path(p) for p in paths]
+    _check_alike(paths, options)
+    ids, seconds, classes = set(), [], {}
+    for path in paths:
+        present = np.zeros(256, bool)
+        for c in iter_las_fields(path, ("point_source_id", "classification", "gps_time", *fields), chunk_points):
+            if on_chunk is not None:
+                on_chunk(path, c)
+            ids.update(np.unique(c["point_source_id"]).tolist())
+            present[np.unique(c["classification"])] = True
+            seconds.append(_second_spans(c["gps_time"]))
+        classes[path] = np.flatnonzero(present)
+    if len(ids) >= 2:
+        return LineIndex("point_source_id", tuple(sorted(ids)), None, classes)
+    lo, hi = _second_spans(np.concatenate([s[0] for s in seconds] + [s[1] for s in seconds]))
+    starts = np.r_[lo[:1], lo[1:][lo[1:] - hi[:-1] > gap_s]] if lo.size else np.zeros(1)
+    return LineIndex("gps_time_gaps", tuple(range(1, starts.size + 1)), starts, classes)
+
+
+def _second_spans(t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """First and last finite time (s) within each whole second holding any, seconds ascending."""
+    t = np.sort(t[np.isfinite(t)])
+    sec = np.floor(t)
+    start = np.r_[0, np.flatnonzero(sec[1:] != sec[:-1]) + 1] if t.size else np.zeros(0, np.int64)
+    return t[start], t[np.r_[start[1:], t.size] - 1] if t.size else t
+
+
+def _check_alike(paths: list[Path], options: PointOptions) -> None:
+    """Every file in the CRS and GPS time system of the first (from their headers)."""
+    crs = [las_crs(las_header(p)) if options.crs is None else None for p in paths]
+    systems = [las_time_system(p, options.time_system) for p in paths]
+    for k in range(1, len(paths)):
+        a, b = crs[0], crs[k]
+        if (a is None) != (b is None) or (a is not None and not a.equals(b, ignore_axis_order=True)):
+            raise InputError(paths[k], "crs", f"expected the CRS of {paths[0].name} ({_name(a)}), got {_name(b)}")
+        if systems[k] != systems[0]:
+            raise InputError(paths[k], "gps_time", f"expected {systems[0]} like {paths[0].name}, got {systems[k]}")
 
 
 def _name(crs: pyproj.CRS | None) -> str:

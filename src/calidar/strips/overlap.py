@@ -54,22 +54,31 @@ def find_overlaps(strips_xy: Mapping[int, np.ndarray], cell_m: float = 5.0, min_
     of its points; pairs sharing fewer than ``min_cells`` cells are left out. Returns the
     pairs (ids ascending) and plain-words notes about strips that overlap no other strip.
     """
-    ids = sorted(strips_xy)
-    keys = {i: cell_keys(strips_xy[i], cell_m) for i in ids}
+    keys = {i: cell_keys(strips_xy[i], cell_m) for i in sorted(strips_xy)}
     occupied = {}
-    for i in ids:
-        ks = np.sort(keys[i])
+    for i, k in keys.items():
+        ks = np.sort(k)
         start = np.r_[0, np.flatnonzero(ks[1:] != ks[:-1]) + 1] if ks.size else np.zeros(0, np.int64)
         occupied[i] = ks[start][np.diff(np.r_[start, ks.size]) >= min_points_per_cell]
-    pairs = []
+    common, notes = common_cells(occupied, cell_m, min_cells)
+    pairs = [Overlap(a, b, int(c.size), float(c.size * cell_m**2), _members(keys[a], c), _members(keys[b], c))
+             for (a, b), c in common.items()]
+    return pairs, notes
+
+
+def common_cells(occupied: Mapping[int, np.ndarray], cell_m: float, min_cells: int = 4
+                 ) -> tuple[dict[tuple[int, int], np.ndarray], list[str]]:
+    """The cells (sorted keys) each pair of strips shares, from every strip's occupied cells
+    {id: sorted unique keys of ``cell_m`` cells}; pairs (ids ascending) sharing fewer than
+    ``min_cells`` are left out. Also the notes about strips that overlap no other strip."""
+    ids = sorted(occupied)
+    pairs = {}
     for k, a in enumerate(ids):
         for b in ids[k + 1:]:
             common = np.intersect1d(occupied[a], occupied[b], assume_unique=True)
-            if common.size < min_cells:
-                continue
-            pairs.append(Overlap(a, b, int(common.size), float(common.size * cell_m**2),
-                                 _members(keys[a], common), _members(keys[b], common)))
-    paired = {p.a for p in pairs} | {p.b for p in pairs}
+            if common.size >= min_cells:
+                pairs[a, b] = common
+    paired = {i for ab in pairs for i in ab}
     notes = [f"strip {i} overlaps no other strip (fewer than {min_cells} common {cell_m:g} m cells); it is not used"
              for i in ids if i not in paired]
     return pairs, notes

@@ -72,14 +72,21 @@ def fit_patches(points: np.ndarray, cell_m: float, settings: PlaneSettings) -> P
     uk, count = ks[start], np.diff(np.r_[start, ks.size])
     ok = np.flatnonzero(count >= max(settings.min_points, 4))  # a plane and its scatter
     mean, cov = _cell_moments(np.ascontiguousarray(points, dtype=np.float64), order, start[ok], count[ok])
+    planar, normal, lam0 = planar_cells(cov, cell_m, settings)
+    sel = ok[planar]
+    rms = np.sqrt(lam0 * count[sel] / (count[sel] - 3))  # 3 plane parameters fitted
+    return Patches(uk[sel], mean[planar], normal, rms, start[sel], count[sel], order)
+
+
+def planar_cells(cov: np.ndarray, cell_m: float, settings: PlaneSettings) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The planarity test of cells from their point covariances (K, 3, 3) m²: mask of the planar
+    cells (√λ0 ≤ max_rms_m, √λ1 ≥ min_spread · cell_m), their unit normals pointing up and λ0 (m²)."""
     lam, vec = eigh3(cov)
     lam = np.clip(lam, 0.0, None)
     planar = (np.sqrt(lam[:, 0]) <= settings.max_rms_m) & (np.sqrt(lam[:, 1]) >= settings.min_spread * cell_m)
-    sel = ok[planar]
     normal = vec[planar][:, :, 0]
     normal *= np.where(normal[:, 2] < 0, -1.0, 1.0)[:, None]
-    rms = np.sqrt(lam[planar, 0] * count[sel] / (count[sel] - 3))  # 3 plane parameters fitted
-    return Patches(uk[sel], mean[planar], normal, rms, start[sel], count[sel], order)
+    return planar, normal, lam[planar, 0]
 
 
 @njit(cache=True, nogil=True)

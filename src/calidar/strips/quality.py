@@ -4,25 +4,35 @@ Vertical: the swath-overlap difference of the USGS Lidar Base Specification (int
 relative accuracy): on a grid of ``cell_m`` cells, wherever both strips are smooth (a plane
 fits their points within ``max_rms_m``) and gently sloped (< ``max_slope_deg``), the
 difference dz = z_a − z_b of the two fitted planes at the cell centre; summarised as
-median, RMSDz and max |dz|. Vegetation and edges fail the smoothness test.
+median, RMSDz and max |dz|. Vegetation and edges fail the smoothness test; which points
+enter at all is the caller's choice (:mod:`calidar.strips.selection`).
 
 Planimetric: on planar cells of all slopes, dz = n · t for the normals n and one
 translation t = (dx, dy, dz) of strip a relative to b (least squares with 3·MAD
 rejection); dx, dy are reported only when sloped cells face in enough directions.
+
+Streamed: :class:`SwathAccumulator` takes each flight line's points chunk by chunk and keeps
+only per-cell moments (:mod:`calidar.strips.cell_moments`), on 1 m cells that coarsen exactly
+into the whole-metre cell chosen per pair (or on the ``cell_m`` asked for), and occupancy on
+the overlap grid; memory grows with the cells, not the points. The planes are the
+least-squares (PCA) planes of the cells' points, as if all points were held at once.
 """
 
 from __future__ import annotations
 
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from calidar.strips.overlap import footprint_area_m2
-from calidar.strips.planes import PlaneSettings, fit_patches
+from calidar.strips.cell_moments import CellMoments, key_indices
+from calidar.strips.overlap import common_cells
+from calidar.strips.planes import PlaneSettings, planar_cells
 
-#: LAS classes never used for the vertical difference: vegetation (3–5), noise (7, 18), water (9).
-EXCLUDED_CLASSES = (3, 4, 5, 7, 9, 18)
+BASE_CELL_M = 1.0  #: accumulation grid when the cell is chosen per pair (whole metres coarsen from it)
+OVERLAP_CELL_M = 5.0  #: which lines overlap: cells of this size occupied by both (as the strip calibration)
+OVERLAP_MIN_POINTS = 3  #: points of a line that make an overlap cell occupied
 
 
 @dataclass(frozen=True)
@@ -53,48 +63,149 @@ class PairQuality:
     sigma_dxy_m: float | None = None
     n_sloped: int = 0
     cell_m: float = 2.0
+    n_points_a: int = 0  #: points of a in the n_cells compared cells
+    n_points_b: int = 0
+    points_a: list[dict] = field(default_factory=list)  #: which points of a were used (PointSelection.to_dict)
+    points_b: list[dict] = field(default_factory=list)
     grid: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)), repr=False)  #: (ny, nx) dz, NaN outside, row 0 north
     origin: tuple[float, float] = (0.0, 0.0)  #: (west x, north y) of the grid, m
 
     def to_dict(self) -> dict:
-        keys = ("a", "b", "median_dz_m", "rmsdz_m", "max_abs_dz_m", "mean_dz_m", "n_cells", "dx_m", "dy_m",
-                "sigma_dxy_m", "n_sloped", "cell_m")
+        keys = ("a", "b", "median_dz_m", "rmsdz_m", "max_abs_dz_m", "mean_dz_m", "n_cells", "n_points_a", "n_points_b",
+                "dx_m", "dy_m", "sigma_dxy_m", "n_sloped", "cell_m", "points_a", "points_b")
         return {k: getattr(self, k) for k in keys}
 
 
-def cell_indices(keys: np.ndarray) -> np.ndarray:
-    """Integer grid indices (K, 2) of :func:`calidar.strips.overlap.cell_keys` keys."""
-    i = keys >> 32
-    j = keys & 0xFFFFFFFF
-    j = np.where(j >= 2**31, j - 2**32, j)
-    return np.stack([i, j], axis=1)
+@dataclass(frozen=True)
+class OverlapPlan:
+    """Which flight lines overlap and the cell (m) each pair's difference uses, with notes about
+    lines that overlap no other: decided from point counts on the overlap grid."""
+
+    cells: dict[tuple[int, int], float]
+    notes: list[str]
+
+    def sizes(self, line: int) -> set[float]:
+        """The cells (m) of the pairs the line is in."""
+        return {c for ab, c in self.cells.items() if line in ab}
 
 
-def _cell_size(points_a, points_b, s: QualitySettings) -> float:
-    if s.cell_m:
-        return s.cell_m
-    dens = [p.shape[0] / max(footprint_area_m2(p), 1e-9) for p in (points_a, points_b)]
-    return float(max(2.0, np.ceil(np.sqrt(1.5 * s.min_points / max(min(dens), 1e-9)))))
+def overlap_plan(counts: Mapping[int, tuple[np.ndarray, np.ndarray]], overlap_m: float,
+                 settings: QualitySettings) -> OverlapPlan:
+    """The plan from each line's (keys, counts) of its selected points on cells of ``overlap_m``:
+    pairs sharing cells occupied by both, each with ``settings.cell_m`` or a cell of 2 m, larger
+    (whole metres) where the sparser line has under ≈ 1.5 · min_points per cell over the overlap."""
+    occupied = {i: k[n >= OVERLAP_MIN_POINTS] for i, (k, n) in counts.items()}
+    common, notes = common_cells(occupied, overlap_m)
+    cells = {}
+    for ab, shared in common.items():
+        dens = [counts[i][1][np.isin(counts[i][0], shared)].sum() / (shared.size * overlap_m**2) for i in ab]
+        cells[ab] = float(settings.cell_m) if settings.cell_m else _cell_size(dens, settings)
+    return OverlapPlan(cells, notes)
+
+
+def overlap_cell(cell_m: float | None) -> float:
+    """The overlap grid (m): 5 m, or the multiple of ``cell_m`` just above when 5 m is not one."""
+    base = float(cell_m) if cell_m else BASE_CELL_M
+    ratio = OVERLAP_CELL_M / base
+    return OVERLAP_CELL_M if ratio.is_integer() else base * np.ceil(ratio)
+
+
+class SwathAccumulator:
+    """Flight lines' points, chunk by chunk, reduced to what the swath differences need: cell
+    moments per line. With a ``plan`` (from counts of a first pass), on the cells of its pairs
+    only; without one, on ``cell_m`` (or on 1 m, which coarsens into any whole-metre cell),
+    coarsened into the overlap grid to make the plan. Also which selections (PointSelection) the
+    points came through."""
+
+    def __init__(self, cell_m: float | None = None, plan: OverlapPlan | None = None):
+        self.cell_m, self.plan = cell_m, plan
+        self.base_m = float(cell_m) if cell_m else BASE_CELL_M
+        self.moments: dict[tuple[int, float], CellMoments] = {}  #: (line, cell m) → moments
+        self.selections: dict[int, list[dict]] = {}
+
+    def add(self, line: int, xyz: np.ndarray, selection=None) -> None:
+        """Points (N, 3) metric, z up, of flight line ``line`` (after ``selection``, if any)."""
+        chosen = self.selections.setdefault(line, [])
+        if selection is not None and selection.to_dict() not in chosen:
+            chosen.append(selection.to_dict())
+        for cell in (self.plan.sizes(line) if self.plan else {self.base_m}):
+            m = CellMoments.of_points(xyz, cell)
+            key = (line, cell)
+            self.moments[key] = self.moments[key].merged(m) if key in self.moments else m
+
+    def _at(self, line: int, cell: float) -> CellMoments:
+        """The line's moments on ``cell``."""
+        if (line, cell) in self.moments or self.plan is not None:
+            return self.moments.get((line, cell), CellMoments.empty(cell))
+        f = int(round(cell / self.base_m))
+        if not np.isclose(f * self.base_m, cell):
+            raise ValueError(f"a {cell} m cell is not a whole number of the {self.base_m} m accumulation cells")
+        return self.moments.get((line, self.base_m), CellMoments.empty(self.base_m)).coarsened(f)
+
+    def differences(self, settings: QualitySettings | None = None) -> tuple[list[PairQuality], list[str]]:
+        """The PairQuality of every overlapping pair of lines (ids ascending) and notes about lines
+        that overlap no other."""
+        s = settings or QualitySettings(cell_m=self.cell_m)
+        plan = self.plan
+        if plan is None:
+            grid = overlap_cell(self.cell_m)
+            counts = {i: self._at(i, grid) for i in self.selections}
+            plan = overlap_plan({i: (c.keys, c.count) for i, c in counts.items()}, grid, s)
+        results = []
+        for (a, b), cell in plan.cells.items():
+            q = pair_quality(a, self._at(a, cell), b, self._at(b, cell), s)
+            q.points_a, q.points_b = self.selections.get(a, []), self.selections.get(b, [])
+            results.append(q)
+        return results, plan.notes
+
+
+def _cell_size(densities, s: QualitySettings) -> float:
+    """2 m, or the whole metres holding ≈ 1.5 · min_points at the sparser density."""
+    return float(max(2.0, np.ceil(np.sqrt(1.5 * s.min_points / max(min(densities), 1e-9)))))
 
 
 def swath_difference(a: int, points_a: np.ndarray, b: int, points_b: np.ndarray,
                      settings: QualitySettings | None = None) -> PairQuality:
-    """Vertical and planimetric agreement of two strips' points (each (N, 3), metres, z up)."""
+    """Vertical and planimetric agreement of two strips' points (each (N, 3), metres, z up) held in memory."""
     s = settings or QualitySettings()
-    cell = _cell_size(points_a, points_b, s)
+    (q,) = swath_differences({a: [points_a], b: [points_b]}, s)[0] or [_no_overlap(a, b, s)]
+    return q
+
+
+def swath_differences(lines: Mapping[int, Iterable[np.ndarray]], settings: QualitySettings | None = None
+                      ) -> tuple[list[PairQuality], list[str]]:
+    """Swath differences of every overlapping pair of flight lines, each given as an iterable of
+    point chunks (N, 3) metric, z up (already selected: :mod:`calidar.strips.selection`)."""
+    s = settings or QualitySettings()
+    acc = SwathAccumulator(s.cell_m)
+    for i, chunks in lines.items():
+        for xyz in chunks:
+            acc.add(i, xyz)
+    return acc.differences(s)
+
+
+def _no_overlap(a: int, b: int, s: QualitySettings) -> PairQuality:
+    return PairQuality(a, b, 0, None, None, None, None, cell_m=s.cell_m or 2.0)
+
+
+def pair_quality(a: int, moments_a: CellMoments, b: int, moments_b: CellMoments, s: QualitySettings) -> PairQuality:
+    """Swath difference of two lines from their cell moments on one grid (the pair's cell)."""
+    cell = moments_a.cell_m
     ps = PlaneSettings(min_points=s.min_points, max_rms_m=s.max_rms_m, min_spread=0.15)
-    pa, pb = fit_patches(np.asarray(points_a, float), cell, ps), fit_patches(np.asarray(points_b, float), cell, ps)
-    keys, ia, ib = np.intersect1d(pa.keys, pb.keys, assume_unique=True, return_indices=True)
-    ij = cell_indices(keys)
+    pa, pb = _planes(moments_a, ps), _planes(moments_b, ps)
+    keys, ia, ib = np.intersect1d(pa[0].keys, pb[0].keys, assume_unique=True, return_indices=True)
+    ij = key_indices(keys)
     centre = (ij + 0.5) * cell
-    na, nb = pa.normal[ia], pb.normal[ib]
+    (ma, na), (mb, nb) = (pa[0].select(ia), pa[1][ia]), (pb[0].select(ib), pb[1][ib])
+    ca, cb = ma.centroid(), mb.centroid()
 
     def z_at(c, n):  # height of the plane through c with normal n at the cell centre
         return c[:, 2] - (n[:, 0] * (centre[:, 0] - c[:, 0]) + n[:, 1] * (centre[:, 1] - c[:, 1])) / n[:, 2]
 
     flat = (na[:, 2] >= np.cos(np.radians(s.max_slope_deg))) & (nb[:, 2] >= np.cos(np.radians(s.max_slope_deg)))
-    dz = z_at(pa.centroid[ia], na) - z_at(pb.centroid[ib], nb)
-    q = PairQuality(a, b, int(flat.sum()), None, None, None, None, cell_m=cell)
+    dz = z_at(ca, na) - z_at(cb, nb)
+    q = PairQuality(a, b, int(flat.sum()), None, None, None, None, cell_m=cell,
+                    n_points_a=int(ma.count[flat].sum()), n_points_b=int(mb.count[flat].sum()))
     if flat.any():
         d = dz[flat]
         q.median_dz_m, q.rmsdz_m = float(np.median(d)), float(np.sqrt(np.mean(d * d)))
@@ -103,8 +214,15 @@ def swath_difference(a: int, points_a: np.ndarray, b: int, points_b: np.ndarray,
         q.grid = np.full((hi[1] - lo[1] + 1, hi[0] - lo[0] + 1), np.nan)
         q.grid[hi[1] - ij[flat, 1], ij[flat, 0] - lo[0]] = d
         q.origin = (float(lo[0] * cell), float((hi[1] + 1) * cell))
-    _planimetric(q, pa.centroid[ia] - pb.centroid[ib], nb, s)
+    _planimetric(q, ca - cb, nb, s)
     return q
+
+
+def _planes(m: CellMoments, ps: PlaneSettings) -> tuple[CellMoments, np.ndarray]:
+    """The planar cells' moments and their normals (K, 3)."""
+    m = m.select(np.flatnonzero(m.count >= max(ps.min_points, 4)))
+    planar, normal, _ = planar_cells(m.covariance(), m.cell_m, ps)
+    return m.select(planar), normal
 
 
 def _planimetric(q: PairQuality, diff: np.ndarray, normal: np.ndarray, s: QualitySettings) -> None:

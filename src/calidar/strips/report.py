@@ -56,12 +56,15 @@ def quality_table(sec, stages: list[QualityStage]) -> None:
     rows = []
     for key in keys:
         qs = [b.get(key) for b in by_pair]
-        rows.append([f"{key[0]}–{key[1]}", qs[0].n_cells] + [_mm(q.median_dz_m) if q else None for q in qs]
-                    + [_mm(q.rmsdz_m) if q else None for q in qs])
+        rows.append([f"{key[0]}–{key[1]}", qs[0].n_cells, qs[0].n_points_a, qs[0].n_points_b]
+                    + [_mm(q.median_dz_m) if q else None for q in qs] + [_mm(q.rmsdz_m) if q else None for q in qs])
     short = ["before", "mounting", "mounting + trajectory"][:len(stages)]
-    header = ["pair", "cells"] + [f"median dz {s} [mm]" for s in short] + [f"RMSDz {s} [mm]" for s in short]
-    sec.table(header, rows, "Swath-overlap differences dz = a − b on smooth, gently sloped 2 m cells of the whole "
-              "strips (USGS Lidar Base Specification), in mm.", formats=[None, "d"] + [".1f"] * (2 * len(stages)))
+    header = (["pair", "cells", "points a", "points b"] + [f"median dz {s} [mm]" for s in short]
+              + [f"RMSDz {s} [mm]" for s in short])
+    used = sorted({d["description"] for q in stages[0].pairs for d in q.points_a + q.points_b})
+    sec.table(header, rows, "Swath-overlap differences dz = a − b on smooth, gently sloped cells of the whole "
+              "strips (USGS Lidar Base Specification), in mm; cells and points compared (as delivered). Points used: "
+              + ("; ".join(used) or "all") + ".", formats=[None, "d", "d", "d"] + [".1f"] * (2 * len(stages)))
 
 
 def correction_table(sec, result: CalibrationResult) -> None:

@@ -1,0 +1,122 @@
+"""Per-cell point moments on a horizontal grid, accumulated chunk by chunk.
+
+For every cell of ``cell_m`` metres (keys of :func:`calidar.strips.overlap.cell_keys`, i.e.
+``floor(x / cell_m)``, ``floor(y / cell_m)``) the count n, the mean and the centred scatter
+S = Σ (p − mean)(p − mean)ᵀ of the points in it. Chunks combine exactly (Chan et al. 1979):
+
+    n = Σ nᵢ,  mean = Σ nᵢ meanᵢ / n,  S = Σ Sᵢ + Σ nᵢ (meanᵢ − mean)(meanᵢ − mean)ᵀ
+
+so moments accumulated over chunks equal those of all points at once (to rounding), and the
+least-squares plane of a cell (normal = eigenvector of the smallest eigenvalue of S / n) is the
+same. Memory grows with the cells, not the points. Means are kept as x, y offsets from the
+cell centre (and z as is) so that large projected coordinates lose no precision; a grid of
+1 m coarsens exactly into any whole number of metres (:meth:`CellMoments.coarsened`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from calidar.strips.overlap import cell_keys
+
+#: the 6 distinct products of a symmetric 3 × 3 scatter, in this order
+PRODUCTS = ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))
+
+
+def key_indices(keys: np.ndarray) -> np.ndarray:
+    """Integer grid indices (K, 2) (i east, j north) of :func:`calidar.strips.overlap.cell_keys` keys."""
+    i = keys >> 32
+    j = keys & 0xFFFFFFFF
+    j = np.where(j >= 2**31, j - 2**32, j)
+    return np.stack([i, j], axis=1)
+
+
+def index_keys(ij: np.ndarray) -> np.ndarray:
+    """Keys of integer grid indices (K, 2): the inverse of :func:`key_indices`."""
+    ij = np.asarray(ij, np.int64)
+    return (ij[:, 0] << 32) + (ij[:, 1] & 0xFFFFFFFF)
+
+
+@dataclass(frozen=True)
+class CellMoments:
+    """Moments of the points of each occupied cell, keys sorted ascending."""
+
+    cell_m: float
+    keys: np.ndarray  #: (K,) int64
+    count: np.ndarray  #: (K,) int64
+    mean: np.ndarray  #: (K, 3) m: x, y from the cell centre, z
+    scatter: np.ndarray  #: (K, 6) m², centred sums of products in the order of PRODUCTS
+
+    @classmethod
+    def empty(cls, cell_m: float) -> "CellMoments":
+        return cls(float(cell_m), np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros((0, 3)), np.zeros((0, 6)))
+
+    @classmethod
+    def of_points(cls, points: np.ndarray, cell_m: float) -> "CellMoments":
+        """Moments of points (N, 3) m, z up."""
+        p = np.asarray(points, float)
+        keys = cell_keys(p, cell_m)
+        uk, inv = np.unique(keys, return_inverse=True)
+        d = p - np.column_stack([cell_centres(uk, cell_m)[inv], np.zeros(len(p))])
+        n = np.bincount(inv, minlength=uk.size)
+        mean = np.stack([np.bincount(inv, d[:, k], uk.size) for k in range(3)], axis=1) / n[:, None]
+        r = d - mean[inv]
+        scatter = np.stack([np.bincount(inv, r[:, a] * r[:, b], uk.size) for a, b in PRODUCTS], axis=1)
+        return cls(float(cell_m), uk, n, mean, scatter)
+
+    def __len__(self) -> int:
+        return self.keys.size
+
+    def merged(self, other: "CellMoments") -> "CellMoments":
+        """The moments of the points of both (same grid)."""
+        if other.cell_m != self.cell_m:
+            raise ValueError(f"cannot merge moments on {other.cell_m} m cells into {self.cell_m} m cells")
+        return _combine(self.cell_m, np.r_[self.keys, other.keys], np.r_[self.count, other.count],
+                        np.r_[self.mean, other.mean], np.r_[self.scatter, other.scatter])
+
+    def coarsened(self, factor: int) -> "CellMoments":
+        """The same points' moments on cells ``factor`` times larger (aligned with this grid)."""
+        if factor == 1:
+            return self
+        ij = key_indices(self.keys)
+        coarse = np.floor_divide(ij, factor)
+        cell = self.cell_m * factor
+        shift = (ij + 0.5) * self.cell_m - (coarse + 0.5) * cell  # fine centre − coarse centre, m
+        mean = self.mean.copy()
+        mean[:, :2] += shift
+        return _combine(cell, index_keys(coarse), self.count, mean, self.scatter)
+
+    def centroid(self) -> np.ndarray:
+        """Means (K, 3) in the points' coordinates, m."""
+        return self.mean + np.column_stack([cell_centres(self.keys, self.cell_m), np.zeros(len(self))])
+
+    def covariance(self) -> np.ndarray:
+        """Covariances (K, 3, 3) m² of the points of each cell (divided by n)."""
+        cov = np.empty((len(self), 3, 3))
+        for k, (a, b) in enumerate(PRODUCTS):
+            cov[:, a, b] = cov[:, b, a] = self.scatter[:, k] / self.count
+        return cov
+
+    def select(self, index) -> "CellMoments":
+        return CellMoments(self.cell_m, self.keys[index], self.count[index], self.mean[index], self.scatter[index])
+
+
+def cell_centres(keys: np.ndarray, cell_m: float) -> np.ndarray:
+    """Horizontal centres (K, 2) m of the cells with these keys."""
+    return (key_indices(keys) + 0.5) * cell_m
+
+
+def _combine(cell_m: float, keys, count, mean, scatter) -> CellMoments:
+    """Moments of groups with equal keys combined (Chan's parallel formula)."""
+    uk, inv = np.unique(keys, return_inverse=True)
+    if uk.size == keys.size:  # nothing to combine
+        order = np.argsort(keys)
+        return CellMoments(cell_m, keys[order], count[order], mean[order], scatter[order])
+    n = np.bincount(inv, count, uk.size)
+    m = np.stack([np.bincount(inv, count * mean[:, k], uk.size) for k in range(3)], axis=1) / n[:, None]
+    d = mean - m[inv]
+    s = np.stack([np.bincount(inv, scatter[:, k] + count * d[:, a] * d[:, b], uk.size)
+                  for k, (a, b) in enumerate(PRODUCTS)], axis=1)
+    return CellMoments(cell_m, uk, n.astype(np.int64), m, s)

@@ -1,0 +1,85 @@
+"""Which points the swath-overlap difference uses.
+
+The USGS interswath measure is defined on non-vegetated surfaces with single returns. So, per
+source (a file, or a flight line held in memory):
+
+- ``classes``: the LAS classes asked for (``--classes 2,6``); each must be present;
+- ``ground``: class 2 when the source has ground points;
+- ``last returns``: otherwise, last-of-many and single returns (return_number ==
+  number_of_returns), without vegetation, noise or water classes; the smoothness test of the
+  cells then keeps the non-vegetated surfaces.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from calidar.errors import InputError
+
+GROUND = 2  #: LAS class of ground points
+#: LAS classes never used by the last-returns rule: vegetation (3–5), noise (7, 18), water (9).
+EXCLUDED_CLASSES = (3, 4, 5, 7, 9, 18)
+#: the attributes of a point chunk a selection reads
+FIELDS = ("classification", "return_number", "number_of_returns")
+
+
+@dataclass(frozen=True)
+class PointSelection:
+    """A rule ("classes", "ground" or "last returns") and the classes it keeps (None: any but EXCLUDED_CLASSES)."""
+
+    rule: str
+    classes: tuple[int, ...] | None = None
+
+    def mask(self, points) -> np.ndarray:
+        """Mask of the points (anything with the attributes of FIELDS, None when absent) kept."""
+        n = len(points.classification if points.classification is not None else points.xyz)
+        keep = np.ones(n, bool)
+        if self.classes is not None:
+            return np.isin(points.classification, self.classes)
+        if points.classification is not None:
+            keep &= ~np.isin(points.classification, EXCLUDED_CLASSES)
+        if points.return_number is not None and points.number_of_returns is not None:
+            keep &= points.return_number == points.number_of_returns
+        return keep
+
+    def describe(self) -> str:
+        if self.classes is None:
+            return "last and single returns (return_number = number_of_returns), no vegetation/noise/water classes"
+        return f"{self.rule}: class{'es' if len(self.classes) > 1 else ''} {', '.join(map(str, self.classes))}"
+
+    def to_dict(self) -> dict:
+        return {"rule": self.rule, "classes": None if self.classes is None else list(self.classes),
+                "description": self.describe()}
+
+
+def parse_classes(text: str | None) -> tuple[int, ...] | None:
+    """'2,6' → (2, 6): LAS classes, integers 0–255 (None: choose per source)."""
+    if text is None:
+        return None
+    parts = [p.strip() for p in str(text).split(",")]
+    try:
+        classes = tuple(int(p) for p in parts)
+    except ValueError:
+        classes = ()
+    if not classes or any(not 0 <= c <= 255 for c in classes):
+        raise InputError(None, "--classes", f"expected LAS classes (integers 0–255) separated by commas, got {text!r}")
+    return tuple(sorted(set(classes)))
+
+
+def choose_selection(source, present: np.ndarray | None, classes: tuple[int, ...] | None = None) -> PointSelection:
+    """The selection for one source from the classes ``present`` in it (None: no classification):
+    the ``classes`` asked for (each must be present, else an error naming ``source``), else ground
+    when present, else last returns."""
+    found = set() if present is None else {int(c) for c in present}
+    if classes is not None:
+        missing = [c for c in classes if c not in found]
+        if missing:
+            raise InputError(source, "classification", f"has no points of class {', '.join(map(str, missing))} "
+                             f"(classes present: {', '.join(map(str, sorted(found))) or 'none'}); expected every "
+                             "class given to --classes")
+        return PointSelection("classes", classes)
+    if GROUND in found:
+        return PointSelection("ground", (GROUND,))
+    return PointSelection("last returns")
