@@ -231,7 +231,19 @@ def forward_vectors(traj: Trajectory, sensor: Sensor, time, vector_s) -> np.ndar
 
 
 def forward(traj: Trajectory, sensor: Sensor, time, range_m, angles) -> np.ndarray:
-    """Points (N, 3) ECEF from GPS times, measured ranges (m) and scanner angles (rad)."""
+    """Points (N, 3) ECEF from GPS times, measured ranges (m) and scanner angles (rad) — the
+    lidar equation of docs/conventions.md (``calidar.georeference``).
+
+    >>> import numpy as np, calidar
+    >>> t = np.array([0.0, 1.0])  # level flight due north at 500 m
+    >>> traj = calidar.Trajectory(time=t, lat=np.radians([47.0, 47.0001]), lon=np.radians([8.0, 8.0]),
+    ...                           height=[500.0, 500.0], roll=[0.0, 0.0], pitch=[0.0, 0.0], heading=[0.0, 0.0])
+    >>> sensor = calidar.Sensor()  # no mounting errors, linear scanner
+    >>> p = calidar.georeference(traj, sensor, [0.5], [100.0], [0.0])  # nadir shot of 100 m at t = 0.5 s
+    >>> lat, lon, h = calidar.frames.ecef_to_geodetic(p)
+    >>> round(float(h[0]), 4), round(float(np.degrees(lat[0])), 6)  # 100 m below the IMU
+    (400.0, 47.00005)
+    """
     sc = sensor.scanner
     if type(sc) is LinearScanner:  # exactly: a subclass may change the beam model
         a = np.asarray(angles, dtype=float)
@@ -255,7 +267,19 @@ def _linear_observations(v_s, range_offset, range_scale, angle_offset, angle_sca
 
 
 def inverse(traj: Trajectory, sensor: Sensor, time, points_ecef) -> ScanObservations:
-    """Scanner-frame vectors, measured ranges and scanner angles of points (N, 3) ECEF."""
+    """Scanner-frame vectors, measured ranges and scanner angles of points (N, 3) ECEF
+    (``calidar.inverse_georeference``: the inverse of :func:`forward`).
+
+    >>> import numpy as np, calidar
+    >>> t = np.array([0.0, 1.0])
+    >>> traj = calidar.Trajectory(time=t, lat=np.radians([47.0, 47.0001]), lon=np.radians([8.0, 8.0]),
+    ...                           height=[500.0, 500.0], roll=[0.0, 0.0], pitch=[0.0, 0.0], heading=[0.0, 0.0])
+    >>> sensor = calidar.Sensor(boresight_roll=np.radians(0.01), lever_arm_z=0.2)
+    >>> p = calidar.georeference(traj, sensor, [0.5, 0.7], [100.0, 120.0], [0.0, np.radians(10.0)])
+    >>> obs = calidar.inverse_georeference(traj, sensor, [0.5, 0.7], p)
+    >>> np.round(obs.range_m, 9).tolist(), (np.round(np.degrees(obs.angles[:, 0]), 9) + 0.0).tolist()
+    ([100.0, 120.0], [0.0, 10.0])
+    """
     time = np.asarray(time, float)
     v_s = _run(_inverse_kernel, traj, sensor, time, _c(points_ecef).reshape(-1, 3))
     sc = sensor.scanner

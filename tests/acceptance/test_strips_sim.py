@@ -28,6 +28,19 @@ def _simulate(preset, directions, density, vegetation=0.0, seed=3, **errors):
     return simulate_survey(cfg)
 
 
+#: pytest-xdist groups (``--dist loadgroup``, pyproject.toml): the tests that share one cached survey
+#: run on one worker, one after the other, so that the survey is simulated once, not once per worker
+AIRBORNE_3 = pytest.mark.xdist_group("airborne_seed3")
+AIRBORNE_3_TREES = pytest.mark.xdist_group("airborne_seed3_trees")
+UAV_LEVER_ARM = pytest.mark.xdist_group("uav_lever_arm")
+UAV_SPARSE = pytest.mark.xdist_group("uav_density_0.05")
+
+
+def _seeds(group):
+    """Seeds 3–6, seed 3 (the survey other tests use too) in ``group``."""
+    return [pytest.param(3, marks=group), 4, 5, 6]
+
+
 def _check_angles(sol, truth, tol_deg=0.002):
     for name in ANGLES:
         err = sol.values[name] - truth[name]
@@ -59,6 +72,7 @@ def _run_shown(cli, command: str, folder) -> dict:
     return {(p["a"], p["b"]): p for p in json.loads(out)["pairs"]}
 
 
+@AIRBORNE_3
 def test_airborne_default_run_reproduces_its_report(cli, airborne, tmp_path):
     """``calidar boresight`` with its defaults on a simulated survey folder: the trajectory model on
     with the smrmsg beside the SBET as priors, every angle within 0.002° and 3σ, a verdict, the run's
@@ -115,6 +129,7 @@ def test_airborne_default_run_reproduces_its_report(cli, airborne, tmp_path):
     assert code == 1 and "pass --force" in err
 
 
+@AIRBORNE_3
 def test_trajectory_model_off_and_bad_options(cli, airborne, tmp_path):
     """The old behaviour on request, with a warning in the verdict; unusable options say which and why."""
     res, sim = airborne
@@ -140,6 +155,7 @@ def test_trajectory_model_off_and_bad_options(cli, airborne, tmp_path):
     assert "trajectory model off" in " ".join(err.split())
 
 
+@AIRBORNE_3
 def test_inputs_not_covering_the_strips_and_outputs_over_inputs_are_clear_errors(cli, airborne, tmp_path):
     import shutil
 
@@ -188,7 +204,7 @@ def _both_methods(res, estimate, model):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("seed", [3, 4, 5, 6])
+@pytest.mark.parametrize("seed", _seeds(AIRBORNE_3))
 def test_airborne_boresight_with_the_trajectory_errors_modelled(seed):
     """The trajectory's errors (3 cm, 0.002°) estimated as Gauss–Markov nuisance parameters:
     every angle within 0.002° and 3σ on four surveys, by both methods (without them pitch and
@@ -202,7 +218,7 @@ def test_airborne_boresight_with_the_trajectory_errors_modelled(seed):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("seed", [3, 4, 5, 6])
+@pytest.mark.parametrize("seed", _seeds(AIRBORNE_3_TREES))
 def test_airborne_with_30_percent_vegetation_and_the_trajectory_errors_modelled(seed):
     """Tree crowns over 30 % of the area: the same accuracy as without them (every angle within
     0.002° and 3σ on four surveys; largest: tie planes seed 5, pitch 0.00127° = 1.8σ; VGICP seed 5,
@@ -230,6 +246,7 @@ def uav_lever_arm_survey():
 
 
 @pytest.mark.slow
+@UAV_LEVER_ARM
 def test_uav_lever_arm_within_1_cm():
     """Lever-arm errors of 5 cm with the boresight known (calibrated beforehand): x, y within 1 cm.
 
