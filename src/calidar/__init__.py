@@ -15,10 +15,6 @@ The public API, one name per job (each documented with an example)::
 Names are imported on first use, so ``import calidar`` stays cheap.
 """
 
-from __future__ import annotations
-
-import importlib
-
 __version__ = "0.1.0"
 
 #: public name → (module, attribute in it)
@@ -48,8 +44,10 @@ def __getattr__(name: str):
     """Import a public name on first use (PEP 562)."""
     if name not in _API:
         raise AttributeError(f"module 'calidar' has no attribute {name!r}")
+    from importlib import import_module
+
     module, attr = _API[name]
-    value = getattr(importlib.import_module(module), attr)
+    value = getattr(import_module(module), attr)
     globals()[name] = value
     return value
 

@@ -100,11 +100,17 @@ def _numbers(path: Path, records: list[tuple[int, str]], n_columns: int, delimit
 
 def read_trajectory_text(path, *, columns=None, crs=None, angles: str = "deg", heading_reference: str = "true",
                          delimiter: str | None = None, time_system: str = "gps_week_seconds") -> Trajectory:
-    """Read an ASCII/CSV trajectory into a :class:`Trajectory`.
+    r"""Read an ASCII/CSV trajectory into a :class:`Trajectory`.
 
     ``angles``: "deg" or "rad" for roll, pitch, heading and lat/lon. ``crs``: CRS of projected
     x/y (required for them) or of lat/lon (default WGS 84); heights are taken as ellipsoidal.
     ``delimiter``: None = comma if the first data line has one, else whitespace.
+
+    >>> import tempfile, numpy as np, calidar; path = Path(tempfile.mkdtemp()) / "export.txt"
+    >>> _ = path.write_text("GpsTime Latitude Longitude H Roll Pitch Azimuth\n100.0 47.0 8.0 500.0 0.1 -0.2 90.0\n"
+    ...                     "100.5 47.0 8.0001 500.1 0.1 -0.2 90.0\n")
+    >>> traj = calidar.read_trajectory_text(path); len(traj), np.degrees(traj.heading).round(6).tolist()
+    (2, [90.0, 90.0])
     """
     path = Path(path)
     if angles not in ("deg", "rad"):
