@@ -190,7 +190,7 @@ def test_inputs_not_covering_the_strips_and_outputs_over_inputs_are_clear_errors
 
 #: the simulator's trajectory errors as the adjustment models them: 3 cm and 0.002° at knots 1 s apart,
 #: Gauss–Markov over 20 s (position) and 3.5 s (attitude), as the simulator smooths them over 10 s and 2 s
-#: (the CLI's defaults; see docs/architecture.md for the attitude's 3.5 s)
+#: (the CLI's defaults; see docs/validation.md for the attitude's 3.5 s)
 AIRBORNE_TRAJECTORY = TrajectoryModel(block_s=1.0, position_sigma_m=0.03, attitude_sigma_rad=np.radians(0.002),
                                       correlation_s=20.0, attitude_correlation_s=3.5)
 METHODS = {"planes": 2e-4, "vgicp": 1e-3}  #: outer-loop thresholds (m): VGICP's re-matching moves ~0.1 mm

@@ -22,7 +22,7 @@ from calidar.pipelines import Progress, no_progress
 from calidar.validate import parse_floats
 
 #: knot spacing (s) and Gauss–Markov correlation times of position and attitude (s) of the
-#: trajectory model, validated on the simulator (docs/architecture.md)
+#: trajectory model, validated on the simulator (docs/validation.md)
 TRAJECTORY_BLOCK_S = 1.0
 TRAJECTORY_CORRELATION = "20,3.5"
 
