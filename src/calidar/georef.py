@@ -96,6 +96,18 @@ def _pose(tt, pos, q, tk, i, i_prev, theta, s, sign):
     )
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _lidar_equation(sx, sy, sz, r_bs, lever, px, py, pz, r00, r01, r02, r10, r11, r12, r20, r21, r22, out, k):
+    """out[k] = r + R_eb·(R_bs·v_s + a): the scanner-frame vector (sx, sy, sz) m at the pose
+    (px, py, pz; R_eb row by row) of :func:`_pose`, into ECEF."""
+    bx = r_bs[0, 0] * sx + r_bs[0, 1] * sy + r_bs[0, 2] * sz + lever[0]
+    by = r_bs[1, 0] * sx + r_bs[1, 1] * sy + r_bs[1, 2] * sz + lever[1]
+    bz = r_bs[2, 0] * sx + r_bs[2, 1] * sy + r_bs[2, 2] * sz + lever[2]
+    out[k, 0] = px + r00 * bx + r01 * by + r02 * bz
+    out[k, 1] = py + r10 * bx + r11 * by + r12 * bz
+    out[k, 2] = pz + r20 * bx + r21 * by + r22 * bz
+
+
 @njit(cache=True, nogil=True)
 def _forward_kernel(tt, pos, q, t, vec, r_bs, lever, out):
     """p = r(t) + R_eb(t)·(R_bs·v_s + a) for scanner-frame vectors vec (N, 3) → out (N, 3).
@@ -107,12 +119,7 @@ def _forward_kernel(tt, pos, q, t, vec, r_bs, lever, out):
         i, i_prev, theta, s, sign, px, py, pz, r00, r01, r02, r10, r11, r12, r20, r21, r22 = _pose(
             tt, pos, q, tk, i, i_prev, theta, s, sign)
         sx, sy, sz = vec[k, 0], vec[k, 1], vec[k, 2]
-        bx = r_bs[0, 0] * sx + r_bs[0, 1] * sy + r_bs[0, 2] * sz + lever[0]
-        by = r_bs[1, 0] * sx + r_bs[1, 1] * sy + r_bs[1, 2] * sz + lever[1]
-        bz = r_bs[2, 0] * sx + r_bs[2, 1] * sy + r_bs[2, 2] * sz + lever[2]
-        out[k, 0] = px + r00 * bx + r01 * by + r02 * bz
-        out[k, 1] = py + r10 * bx + r11 * by + r12 * bz
-        out[k, 2] = pz + r20 * bx + r21 * by + r22 * bz
+        _lidar_equation(sx, sy, sz, r_bs, lever, px, py, pz, r00, r01, r02, r10, r11, r12, r20, r21, r22, out, k)
     return n_out
 
 
@@ -134,12 +141,7 @@ def _forward_linear_kernel(tt, pos, q, t, range_m, theta_enc, phi, has_phi, rang
             sx, sy, sz = rho * np.sin(phi[k]), rho * (cphi * np.sin(th)), rho * (cphi * np.cos(th))
         else:
             sx, sy, sz = 0.0, rho * np.sin(th), rho * np.cos(th)
-        bx = r_bs[0, 0] * sx + r_bs[0, 1] * sy + r_bs[0, 2] * sz + lever[0]
-        by = r_bs[1, 0] * sx + r_bs[1, 1] * sy + r_bs[1, 2] * sz + lever[1]
-        bz = r_bs[2, 0] * sx + r_bs[2, 1] * sy + r_bs[2, 2] * sz + lever[2]
-        out[k, 0] = px + r00 * bx + r01 * by + r02 * bz
-        out[k, 1] = py + r10 * bx + r11 * by + r12 * bz
-        out[k, 2] = pz + r20 * bx + r21 * by + r22 * bz
+        _lidar_equation(sx, sy, sz, r_bs, lever, px, py, pz, r00, r01, r02, r10, r11, r12, r20, r21, r22, out, k)
     return n_out
 
 
