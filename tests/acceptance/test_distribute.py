@@ -12,7 +12,7 @@ from calidar.strips.distribute import cluster_client, map_pairs
 from calidar.strips.calibrate import StripSettings, calibrate
 from calidar.strips.vgicp import VgicpSettings, match_pair_vgicp
 
-from test_strips_sim import UAV_SPARSE, _simulate
+from test_strips_sim import _simulate
 from test_vgicp import disturb, sample
 
 
@@ -55,7 +55,6 @@ def test_vgicp_correspondences_identical_on_a_local_cluster(client):
         np.testing.assert_allclose(y.normal, x.normal, rtol=0, atol=1e-9)
 
 
-@UAV_SPARSE
 def test_calibration_identical_in_process_and_on_a_local_cluster():
     res = _simulate("uav", "cross", 0.05)
     strips = res.calibration_strips()
@@ -84,7 +83,6 @@ def test_scheduler_address_and_bad_options(client, monkeypatch):
         map_pairs(weighted_centroid, [], scheduler="tcp://127.0.0.1:9")
 
 
-@UAV_SPARSE
 def test_cli_boresight_vgicp_with_local_workers(cli, tmp_path):
     res = _simulate("uav", "cross", 0.05)
     sim = res.write(tmp_path / "sim")

@@ -19,26 +19,18 @@ BORESIGHT_ERRORS = {"boresight_roll": np.radians(0.03), "boresight_pitch": np.ra
 ANGLES = ("boresight_roll", "boresight_pitch", "boresight_yaw")
 
 
-@functools.lru_cache(maxsize=3)
 def _simulate(preset, directions, density, vegetation=0.0, seed=3, **errors):
     """One simulated survey per setting, shared by the tests that use it (this module, test_vgicp,
-    test_distribute): the methods run on the same survey, not on a copy simulated again."""
+    test_distribute): the methods run on the same survey, not on a copy simulated again. The
+    settings are normalised first: ``_simulate("airborne", "cross", 0.3)`` and ``seed=3`` are one survey."""
+    return _simulated(preset, directions, float(density), float(vegetation), int(seed), tuple(sorted(errors.items())))
+
+
+@functools.lru_cache(maxsize=3)
+def _simulated(preset, directions, density, vegetation, seed, errors):
     cfg = survey_config(preset, seed=seed, density=density, vegetation=vegetation, directions=directions,
-                        errors={**BORESIGHT_ERRORS, **errors}, range_noise_m=0.03)
+                        errors={**BORESIGHT_ERRORS, **dict(errors)}, range_noise_m=0.03)
     return simulate_survey(cfg)
-
-
-#: pytest-xdist groups (``--dist loadgroup``, pyproject.toml): the tests that share one cached survey
-#: run on one worker, one after the other, so that the survey is simulated once, not once per worker
-AIRBORNE_3 = pytest.mark.xdist_group("airborne_seed3")
-AIRBORNE_3_TREES = pytest.mark.xdist_group("airborne_seed3_trees")
-UAV_LEVER_ARM = pytest.mark.xdist_group("uav_lever_arm")
-UAV_SPARSE = pytest.mark.xdist_group("uav_density_0.05")
-
-
-def _seeds(group):
-    """Seeds 3–6, seed 3 (the survey other tests use too) in ``group``."""
-    return [pytest.param(3, marks=group), 4, 5, 6]
 
 
 def _check_angles(sol, truth, tol_deg=0.002):
@@ -72,7 +64,6 @@ def _run_shown(cli, command: str, folder) -> dict:
     return {(p["a"], p["b"]): p for p in json.loads(out)["pairs"]}
 
 
-@AIRBORNE_3
 def test_airborne_default_run_reproduces_its_report(cli, airborne, tmp_path):
     """``calidar boresight`` with its defaults on a simulated survey folder: the trajectory model on
     with the smrmsg beside the SBET as priors, every angle within 0.002° and 3σ, a verdict, the run's
@@ -129,7 +120,6 @@ def test_airborne_default_run_reproduces_its_report(cli, airborne, tmp_path):
     assert code == 1 and "pass --force" in err
 
 
-@AIRBORNE_3
 def test_trajectory_model_off_and_bad_options(cli, airborne, tmp_path):
     """The old behaviour on request, with a warning in the verdict; unusable options say which and why."""
     res, sim = airborne
@@ -155,7 +145,6 @@ def test_trajectory_model_off_and_bad_options(cli, airborne, tmp_path):
     assert "trajectory model off" in " ".join(err.split())
 
 
-@AIRBORNE_3
 def test_inputs_not_covering_the_strips_and_outputs_over_inputs_are_clear_errors(cli, airborne, tmp_path):
     import shutil
 
@@ -204,7 +193,7 @@ def _both_methods(res, estimate, model):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("seed", _seeds(AIRBORNE_3))
+@pytest.mark.parametrize("seed", [3, 4, 5, 6])
 def test_airborne_boresight_with_the_trajectory_errors_modelled(seed):
     """The trajectory's errors (3 cm, 0.002°) estimated as Gauss–Markov nuisance parameters:
     every angle within 0.002° and 3σ on four surveys, by both methods (without them pitch and
@@ -218,7 +207,7 @@ def test_airborne_boresight_with_the_trajectory_errors_modelled(seed):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("seed", _seeds(AIRBORNE_3_TREES))
+@pytest.mark.parametrize("seed", [3, 4, 5, 6])
 def test_airborne_with_30_percent_vegetation_and_the_trajectory_errors_modelled(seed):
     """Tree crowns over 30 % of the area: the same accuracy as without them (every angle within
     0.002° and 3σ on four surveys; largest: tie planes seed 5, pitch 0.00127° = 1.8σ; VGICP seed 5,
@@ -246,7 +235,6 @@ def uav_lever_arm_survey():
 
 
 @pytest.mark.slow
-@UAV_LEVER_ARM
 def test_uav_lever_arm_within_1_cm():
     """Lever-arm errors of 5 cm with the boresight known (calibrated beforehand): x, y within 1 cm.
 

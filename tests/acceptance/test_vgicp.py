@@ -186,8 +186,7 @@ def test_too_few_correspondences_is_refused():
 from calidar.strips.calibrate import StripSettings, calibrate  # noqa: E402
 from calidar.sim.survey import simulate_survey, survey_config  # noqa: E402
 from calidar.strips.trajectory_errors import TrajectoryModel  # noqa: E402
-from test_strips_sim import (  # noqa: E402  (issue 4's surveys, and the xdist groups that share them)
-    AIRBORNE_3, AIRBORNE_3_TREES, ANGLES, UAV_LEVER_ARM, _check_angles, _simulate, uav_lever_arm_survey)
+from test_strips_sim import ANGLES, _check_angles, _simulate, uav_lever_arm_survey  # noqa: E402  (issue 4's surveys)
 
 VGICP = StripSettings(threshold_m=1e-3)  #: re-matching moves the mean distance by ~0.1 mm: stop at 1 mm
 
@@ -198,7 +197,6 @@ def airborne():
     return res, res.calibration_strips()
 
 
-@AIRBORNE_3
 def test_airborne_cross_lines_boresight(airborne):
     res, strips = airborne
     result = calibrate(strips, res.nominal, method="vgicp", settings=VGICP)
@@ -209,7 +207,6 @@ def test_airborne_cross_lines_boresight(airborne):
     assert mean[-1] < 0.1 and abs(mean[-1] - mean[-2]) < VGICP.threshold_m  # converged
 
 
-@AIRBORNE_3
 def test_start_half_a_degree_from_the_truth_converges(airborne):
     res, strips = airborne
     far = res.nominal.with_parameters(**{n: res.truth.parameters()[n] + np.radians(0.5) for n in ANGLES})
@@ -218,7 +215,6 @@ def test_start_half_a_degree_from_the_truth_converges(airborne):
     assert result.outer[0]["mean_distance_m"] > result.outer[-1]["mean_distance_m"]
 
 
-@AIRBORNE_3
 def test_pairs_without_enough_overlap_are_skipped_by_name(airborne):
     res, strips = airborne
     from calidar.strips.overlap import find_overlaps
@@ -243,7 +239,6 @@ def test_pairs_without_enough_overlap_are_skipped_by_name(airborne):
 
 
 @pytest.mark.slow
-@AIRBORNE_3_TREES
 def test_airborne_with_30_percent_vegetation():
     res = _simulate("airborne", "cross", 0.3, vegetation=0.3)
     result = calibrate(res.calibration_strips(), res.nominal, method="vgicp", settings=VGICP)
@@ -251,7 +246,6 @@ def test_airborne_with_30_percent_vegetation():
 
 
 @pytest.mark.slow
-@UAV_LEVER_ARM
 def test_uav_lever_arm():
     """The planes issue's UAV survey (5 cm lever-arm errors, 5 mm GNSS noise), boresight known:
     x and y within 1 cm, each error under 3σ with the GNSS error modelled (5 mm per 2 s block)."""
