@@ -43,3 +43,39 @@ def test_every_module_and_test_path_named_exists(doc):
         if not any(c.is_file() for c in candidates):
             missing.append(path)
     assert not missing, f"docs/{doc} names files that do not exist: {missing}"
+
+
+#: a backticked dotted name such as `georef.forward` or `calidar.strips.pca.eigh3` (call parentheses allowed)
+DOTTED = re.compile(r"`((?:calidar\.)?[a-z_]+(?:\.[A-Za-z_][A-Za-z_0-9]*)+)(?:\([^`]*\))?`")
+FILE_SUFFIXES = {"py", "toml", "json", "out", "csv", "las", "laz", "h5", "html", "txt", "md"}
+
+
+def _resolves(name: str) -> bool:
+    """Whether ``name`` (relative to the calidar package) names an existing module or attribute."""
+    import importlib
+
+    parts = name.split(".")
+    parts = parts if parts[0] == "calidar" else ["calidar", *parts]
+    for k in range(len(parts), 0, -1):
+        try:
+            obj = importlib.import_module(".".join(parts[:k]))
+        except ImportError:
+            continue
+        for attr in parts[k:]:
+            if not hasattr(obj, attr):
+                return False
+            obj = getattr(obj, attr)
+        return True
+    return False
+
+
+@pytest.mark.parametrize("doc", ["architecture.md", "validation.md", "conventions.md", "sensor.md"])
+def test_every_code_name_named_exists(doc):
+    """`module.function` names whose first part is a calidar module or package exist in the code."""
+    text = (DOCS / doc).read_text(encoding="utf-8")
+    src = ROOT / "src" / "calidar"
+    names = {n for n in DOTTED.findall(text) if n.rsplit(".", 1)[-1] not in FILE_SUFFIXES}
+    ours = {n for n in names if n.startswith("calidar.") or (src / n.split(".")[0]).is_dir()
+            or (src / f"{n.split('.')[0]}.py").is_file()}
+    missing = sorted(n for n in ours if not _resolves(n))
+    assert not missing, f"docs/{doc} names code that does not exist: {missing}"
