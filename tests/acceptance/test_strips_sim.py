@@ -26,7 +26,7 @@ def _simulate(preset, directions, density, vegetation=0.0, seed=3, **errors):
     return _simulated(preset, directions, float(density), float(vegetation), int(seed), tuple(sorted(errors.items())))
 
 
-@functools.lru_cache(maxsize=3)
+@functools.lru_cache(maxsize=6)  # ≈ 160 MB per airborne survey; 3 were evicted before their last use
 def _simulated(preset, directions, density, vegetation, seed, errors):
     cfg = survey_config(preset, seed=seed, density=density, vegetation=vegetation, directions=directions,
                         errors={**BORESIGHT_ERRORS, **dict(errors)}, range_noise_m=0.03)
