@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import os
 import platform
-import sys
 import time
 
 import numpy as np
@@ -91,4 +90,8 @@ def main(n: int = 10_000_000) -> None:
 
 
 if __name__ == "__main__":
-    main(int(float(sys.argv[1])) if len(sys.argv) > 1 else 10_000_000)
+    import argparse
+
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("n", nargs="?", type=float, default=10_000_000, help="points (default 1e7)")
+    main(int(parser.parse_args().n))

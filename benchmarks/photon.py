@@ -54,4 +54,7 @@ def survey_of(sim) -> CCRSurvey:
 
 
 if __name__ == "__main__":
+    import argparse
+
+    argparse.ArgumentParser(description=__doc__.split("\n")[0]).parse_args()  # no options; --help
     main()

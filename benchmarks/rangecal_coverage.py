@@ -4,7 +4,6 @@ to a file and read back): accuracy, σ honesty, interval coverage, verdicts, spe
     NUMBA_NUM_THREADS=1 OMP_NUM_THREADS=1 PYTHONPATH=src python benchmarks/rangecal_coverage.py [runs]
 """
 
-import sys
 import tempfile
 import time
 from collections import Counter
@@ -42,4 +41,8 @@ def main(runs: int = 200) -> None:
 
 
 if __name__ == "__main__":
-    main(int(sys.argv[1]) if len(sys.argv) > 1 else 200)
+    import argparse
+
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("runs", nargs="?", type=int, default=200, help="simulated data sets (default 200)")
+    main(parser.parse_args().runs)

@@ -52,4 +52,7 @@ def main(n: int = 2_000_000) -> None:
 
 
 if __name__ == "__main__":
+    import argparse
+
+    argparse.ArgumentParser(description=__doc__.split("\n")[0]).parse_args()  # no options; --help
     main()

@@ -2,6 +2,55 @@
 
 Units are SI and radians inside the library; degrees appear only at the user's edge
 (CLI, files, report). Times are GPS seconds. See docs/conventions.md.
+
+The public API, one name per job (each documented with an example)::
+
+    import calidar
+    traj = calidar.read_trajectory("sbet.out")        # SBET, ASCII/CSV or Optech CSD
+    sensor = calidar.Sensor.read("sensor.toml")
+    points = calidar.read_las("strip.laz")
+    xyz = calidar.georeference(traj, sensor, time, range_m, angles)
+    run = calidar.calibrate_strips(strips, "sbet.out", "sensor.toml", "out/")
+
+Names are imported on first use, so ``import calidar`` stays cheap.
 """
 
 __version__ = "0.1.0"
+
+#: public name → (module, attribute in it)
+_API = {
+    "Trajectory": ("calidar.trajectory", "Trajectory"),
+    "read_trajectory": ("calidar.io.trajectory", "read_trajectory"),
+    "read_sbet": ("calidar.io.sbet", "read_sbet"),
+    "write_sbet": ("calidar.io.sbet", "write_sbet"),
+    "read_trajectory_text": ("calidar.io.trajectory_text", "read_trajectory_text"),
+    "write_trajectory_text": ("calidar.io.trajectory_text", "write_trajectory_text"),
+    "read_las": ("calidar.io.las", "read_las"),
+    "write_las": ("calidar.io.las", "write_las"),
+    "Sensor": ("calidar.sensor", "Sensor"),
+    "georeference": ("calidar.georef", "forward"),
+    "inverse_georeference": ("calidar.georef", "inverse"),
+    "calibrate_strips": ("calidar.pipelines.boresight", "run_boresight"),
+    "calibrate_range": ("calidar.pipelines.rangecal", "run_range_cal"),
+    "calibrate_ccr": ("calidar.pipelines.ccr", "run_ccr"),
+    "survey_config": ("calidar.sim.survey", "survey_config"),
+    "simulate_survey": ("calidar.sim.survey", "simulate_survey"),
+}
+
+__all__ = ["__version__", *_API]
+
+
+def __getattr__(name: str):
+    """Import a public name on first use (PEP 562)."""
+    if name not in _API:
+        raise AttributeError(f"module 'calidar' has no attribute {name!r}")
+    from importlib import import_module
+
+    module, attr = _API[name]
+    value = getattr(import_module(module), attr)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_API))

@@ -97,13 +97,15 @@ def _pose(tt, pos, q, tk, i, i_prev, theta, s, sign):
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _lidar_equation(px, py, pz, r00, r01, r02, r10, r11, r12, r20, r21, r22, r_bs, lever, sx, sy, sz):
-    """p = r + R_eb·(R_bs·v_s + a) for one point: the pose (position, R_eb row by row) and the scanner-frame
-    vector v_s (m) → the ECEF point (m). The one form the numba kernels share."""
+def _lidar_equation(sx, sy, sz, r_bs, lever, px, py, pz, r00, r01, r02, r10, r11, r12, r20, r21, r22, out, k):
+    """out[k] = r + R_eb·(R_bs·v_s + a): the scanner-frame vector (sx, sy, sz) m at the pose
+    (px, py, pz; R_eb row by row) of :func:`_pose`, into ECEF."""
     bx = r_bs[0, 0] * sx + r_bs[0, 1] * sy + r_bs[0, 2] * sz + lever[0]
     by = r_bs[1, 0] * sx + r_bs[1, 1] * sy + r_bs[1, 2] * sz + lever[1]
     bz = r_bs[2, 0] * sx + r_bs[2, 1] * sy + r_bs[2, 2] * sz + lever[2]
-    return px + r00 * bx + r01 * by + r02 * bz, py + r10 * bx + r11 * by + r12 * bz, pz + r20 * bx + r21 * by + r22 * bz
+    out[k, 0] = px + r00 * bx + r01 * by + r02 * bz
+    out[k, 1] = py + r10 * bx + r11 * by + r12 * bz
+    out[k, 2] = pz + r20 * bx + r21 * by + r22 * bz
 
 
 @njit(cache=True, nogil=True)
@@ -117,8 +119,7 @@ def _forward_kernel(tt, pos, q, t, vec, r_bs, lever, out):
         i, i_prev, theta, s, sign, px, py, pz, r00, r01, r02, r10, r11, r12, r20, r21, r22 = _pose(
             tt, pos, q, tk, i, i_prev, theta, s, sign)
         sx, sy, sz = vec[k, 0], vec[k, 1], vec[k, 2]
-        out[k, 0], out[k, 1], out[k, 2] = _lidar_equation(px, py, pz, r00, r01, r02, r10, r11, r12, r20, r21, r22,
-                                                          r_bs, lever, sx, sy, sz)
+        _lidar_equation(sx, sy, sz, r_bs, lever, px, py, pz, r00, r01, r02, r10, r11, r12, r20, r21, r22, out, k)
     return n_out
 
 
@@ -140,8 +141,7 @@ def _forward_linear_kernel(tt, pos, q, t, range_m, theta_enc, phi, has_phi, rang
             sx, sy, sz = rho * np.sin(phi[k]), rho * (cphi * np.sin(th)), rho * (cphi * np.cos(th))
         else:
             sx, sy, sz = 0.0, rho * np.sin(th), rho * np.cos(th)
-        out[k, 0], out[k, 1], out[k, 2] = _lidar_equation(px, py, pz, r00, r01, r02, r10, r11, r12, r20, r21, r22,
-                                                          r_bs, lever, sx, sy, sz)
+        _lidar_equation(sx, sy, sz, r_bs, lever, px, py, pz, r00, r01, r02, r10, r11, r12, r20, r21, r22, out, k)
     return n_out
 
 
@@ -233,7 +233,19 @@ def forward_vectors(traj: Trajectory, sensor: Sensor, time, vector_s) -> np.ndar
 
 
 def forward(traj: Trajectory, sensor: Sensor, time, range_m, angles) -> np.ndarray:
-    """Points (N, 3) ECEF from GPS times, measured ranges (m) and scanner angles (rad)."""
+    """Points (N, 3) ECEF from GPS times, measured ranges (m) and scanner angles (rad) — the
+    lidar equation of docs/conventions.md (``calidar.georeference``).
+
+    >>> import numpy as np, calidar
+    >>> t = np.array([0.0, 1.0])  # level flight due north at 500 m
+    >>> traj = calidar.Trajectory(time=t, lat=np.radians([47.0, 47.0001]), lon=np.radians([8.0, 8.0]),
+    ...                           height=[500.0, 500.0], roll=[0.0, 0.0], pitch=[0.0, 0.0], heading=[0.0, 0.0])
+    >>> sensor = calidar.Sensor()  # no mounting errors, linear scanner
+    >>> p = calidar.georeference(traj, sensor, [0.5], [100.0], [0.0])  # nadir shot of 100 m at t = 0.5 s
+    >>> lat, lon, h = calidar.frames.ecef_to_geodetic(p)
+    >>> round(float(h[0]), 4), round(float(np.degrees(lat[0])), 6)  # 100 m below the IMU
+    (400.0, 47.00005)
+    """
     sc = sensor.scanner
     if type(sc) is LinearScanner:  # exactly: a subclass may change the beam model
         a = np.asarray(angles, dtype=float)
@@ -257,7 +269,19 @@ def _linear_observations(v_s, range_offset, range_scale, angle_offset, angle_sca
 
 
 def inverse(traj: Trajectory, sensor: Sensor, time, points_ecef) -> ScanObservations:
-    """Scanner-frame vectors, measured ranges and scanner angles of points (N, 3) ECEF."""
+    """Scanner-frame vectors, measured ranges and scanner angles of points (N, 3) ECEF
+    (``calidar.inverse_georeference``: the inverse of :func:`forward`).
+
+    >>> import numpy as np, calidar
+    >>> t = np.array([0.0, 1.0])
+    >>> traj = calidar.Trajectory(time=t, lat=np.radians([47.0, 47.0001]), lon=np.radians([8.0, 8.0]),
+    ...                           height=[500.0, 500.0], roll=[0.0, 0.0], pitch=[0.0, 0.0], heading=[0.0, 0.0])
+    >>> sensor = calidar.Sensor(boresight_roll=np.radians(0.01), lever_arm_z=0.2)
+    >>> p = calidar.georeference(traj, sensor, [0.5, 0.7], [100.0, 120.0], [0.0, np.radians(10.0)])
+    >>> obs = calidar.inverse_georeference(traj, sensor, [0.5, 0.7], p)
+    >>> np.round(obs.range_m, 9).tolist(), (np.round(np.degrees(obs.angles[:, 0]), 9) + 0.0).tolist()
+    ([100.0, 120.0], [0.0, 10.0])
+    """
     time = np.asarray(time, float)
     v_s = _run(_inverse_kernel, traj, sensor, time, _c(points_ecef).reshape(-1, 3))
     sc = sensor.scanner

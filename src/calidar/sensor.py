@@ -37,7 +37,21 @@ RANGE_SCALE_MAX_PPM = 1e5
 
 @dataclass(frozen=True)
 class Sensor:
-    """A complete sensor model; all values SI (rad, m, ratio)."""
+    """A complete sensor model; all values SI (rad, m, ratio). ``sensor.toml`` holds it in
+    degrees, metres and ppm (:meth:`read`, :meth:`write`; keys in docs/sensor.md).
+
+    >>> import tempfile, numpy as np, calidar
+    >>> sensor = calidar.Sensor(boresight_roll=np.radians(0.05), lever_arm_z=0.12, range_offset=0.03)
+    >>> path = sensor.write(Path(tempfile.mkdtemp()) / "sensor.toml")
+    >>> print(path.read_text().split("[range]")[0].split("[mounting]")[1].strip())
+    boresight_roll_deg = 0.05
+    boresight_pitch_deg = 0.0
+    boresight_yaw_deg = 0.0
+    lever_arm_m = [0.0, 0.0, 0.12]
+    >>> back = calidar.Sensor.read(path)
+    >>> round(float(np.degrees(back.boresight_roll)), 12), back.range_offset, type(back.scanner).__name__
+    (0.05, 0.03, 'LinearScanner')
+    """
 
     boresight_roll: float = 0.0
     boresight_pitch: float = 0.0

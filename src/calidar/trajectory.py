@@ -35,7 +35,15 @@ def _sign_continuous(q: np.ndarray) -> np.ndarray:
 
 @dataclass(frozen=True, eq=False)
 class Trajectory:
-    """A trajectory; arrays of equal length N, times strictly increasing."""
+    """A trajectory; arrays of equal length N, times strictly increasing (SI: s, rad, m).
+
+    >>> import numpy as np, calidar
+    >>> t = np.array([0.0, 1.0, 2.0])
+    >>> traj = calidar.Trajectory(time=t, lat=np.radians(47.0 + 1e-4 * t), lon=np.full(3, np.radians(8.0)),
+    ...                           height=np.full(3, 500.0), roll=np.zeros(3), pitch=np.zeros(3), heading=np.zeros(3))
+    >>> len(traj), traj.time_system
+    (3, 'gps_week_seconds')
+    """
 
     time: np.ndarray  #: GPS seconds, (N,)
     lat: np.ndarray  #: geodetic latitude, rad

@@ -15,7 +15,7 @@ def test_strip_selfcal_of_a_palmer_survey_with_an_exact_trajectory():
     (its sin 2B remainder shows once nothing else blurs it). Measured: δ_R −0.1 %, ε/r −5.9 %
     (reported as ε/r ≥ 0: the solve lands on the equivalent −ε/r, C + π), δ_L −0.2 %,
     boresight ≤ 0.0004°, |error| ≤ 2.1σ (ε/r). With the preset's trajectory noise
-    (2 cm, 0.002°) the same survey does not separate them (issue 7 note, docs/architecture.md)."""
+    (2 cm, 0.002°) the same survey does not separate them (docs/validation.md)."""
     truth, res = palmer_strip_selfcal("uav", density=0.1, seed=0, estimates=(("boresight", "palmer"),),
                                        gnss_noise_m=0.0, attitude_noise_rad=0.0)
     sol = res[("boresight", "palmer")].solution

@@ -91,12 +91,23 @@ def test_impossible_flight_plans_are_clear_errors():
         survey_config("uav", altitude=3)
 
 
+def small_demo_config(seed):
+    """The demo's survey made small (150 m × 150 m at a tenth of the pulse rate): this test checks
+    the command and the report's make-up; the demo's own survey and its accuracy are checked by
+    tests/acceptance/test_strips_sim.py::test_demo_shows_a_pass_and_a_warning."""
+    from dataclasses import replace
+
+    from calidar.sim.survey import survey_config
+
+    cfg = survey_config("uav", seed=seed, density=0.1, directions="cross")
+    return replace(cfg, scene=replace(cfg.scene, width_m=150.0, length_m=150.0))
+
+
 def test_demo_writes_report_and_survey(cli, tmp_path, monkeypatch):
     import calidar.demo as demo
     import calidar.demo.survey as demo_survey
-    from calidar.sim.survey import survey_config
 
-    monkeypatch.setattr(demo_survey, "demo_config", lambda seed: survey_config("uav", seed=seed, density=0.1, directions="cross"))
+    monkeypatch.setattr(demo_survey, "demo_config", small_demo_config)
     code, out, err = cli("demo", "--out", tmp_path)
     assert code == 0, err
     html = (tmp_path / "report.html").read_text()

@@ -19,12 +19,17 @@ BORESIGHT_ERRORS = {"boresight_roll": np.radians(0.03), "boresight_pitch": np.ra
 ANGLES = ("boresight_roll", "boresight_pitch", "boresight_yaw")
 
 
-@functools.lru_cache(maxsize=3)
 def _simulate(preset, directions, density, vegetation=0.0, seed=3, **errors):
     """One simulated survey per setting, shared by the tests that use it (this module, test_vgicp,
-    test_distribute): the methods run on the same survey, not on a copy simulated again."""
+    test_distribute): the methods run on the same survey, not on a copy simulated again. The
+    settings are normalised first: ``_simulate("airborne", "cross", 0.3)`` and ``seed=3`` are one survey."""
+    return _simulated(preset, directions, float(density), float(vegetation), int(seed), tuple(sorted(errors.items())))
+
+
+@functools.lru_cache(maxsize=6)  # ≈ 160 MB per airborne survey; 3 were evicted before their last use
+def _simulated(preset, directions, density, vegetation, seed, errors):
     cfg = survey_config(preset, seed=seed, density=density, vegetation=vegetation, directions=directions,
-                        errors={**BORESIGHT_ERRORS, **errors}, range_noise_m=0.03)
+                        errors={**BORESIGHT_ERRORS, **dict(errors)}, range_noise_m=0.03)
     return simulate_survey(cfg)
 
 
@@ -174,7 +179,7 @@ def test_inputs_not_covering_the_strips_and_outputs_over_inputs_are_clear_errors
 
 #: the simulator's trajectory errors as the adjustment models them: 3 cm and 0.002° at knots 1 s apart,
 #: Gauss–Markov over 20 s (position) and 3.5 s (attitude), as the simulator smooths them over 10 s and 2 s
-#: (the CLI's defaults; see docs/architecture.md for the attitude's 3.5 s)
+#: (the CLI's defaults; see docs/validation.md for the attitude's 3.5 s)
 AIRBORNE_TRAJECTORY = TrajectoryModel(block_s=1.0, position_sigma_m=0.03, attitude_sigma_rad=np.radians(0.002),
                                       correlation_s=20.0, attitude_correlation_s=3.5)
 METHODS = {"planes": 2e-4, "vgicp": 1e-3}  #: outer-loop thresholds (m): VGICP's re-matching moves ~0.1 mm

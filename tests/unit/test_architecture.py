@@ -1,5 +1,5 @@
-"""The house rules of docs/architecture.md, checked on the source: layers run one way, no
-import circles, small functions and modules."""
+"""The house rules of docs/architecture.md, checked on the source: layers run one way (the library
+never imports the CLI), no import circles, small functions and modules."""
 
 from __future__ import annotations
 
@@ -68,6 +68,41 @@ def test_the_library_never_imports_the_cli():
     bench = [p.name for p in (ROOT / "benchmarks").glob("*.py") if "calidar.cli" in p.read_text(encoding="utf-8")
              and "calidar.cli" not in CLI_IMPORT_ALLOWANCE]
     assert not bench, f"benchmarks importing calidar.cli (call the pipelines instead): {bench}"
+
+
+#: the layers, top to bottom (docs/architecture.md): a module may import its own layer and those below.
+#: A module belongs to the layer of its longest matching prefix (the scanner models are core, their
+#: structural-error analysis a method).
+LAYERS: list[tuple[str, tuple[str, ...]]] = [
+    ("cli", ("calidar.cli", "calidar.__main__")),
+    ("demo", ("calidar.demo",)),
+    ("pipelines", ("calidar.pipelines",)),
+    ("methods", ("calidar.strips", "calidar.rangecal", "calidar.photon", "calidar.sim", "calidar.scanners.analysis",
+                 "calidar.scanners.separability", "calidar.scanners.settings", "calidar.scanners.sources",
+                 "calidar.scanners.verdict", "calidar.scanners.figures", "calidar.scanners.files",
+                 "calidar.scanners.report")),
+    ("io", ("calidar.io", "calidar.sensor_import")),
+    ("core", ("calidar.georef", "calidar.sensor", "calidar.scanners", "calidar.trajectory", "calidar.frames",
+              "calidar.trajectory_accuracy", "calidar.adjust", "calidar.report", "calidar.verdict", "calidar.provenance")),
+    ("base", ("calidar.errors", "calidar.validate", "calidar.outputs")),
+]
+
+
+def _layer(module: str) -> int | None:
+    """Index in LAYERS of ``module``'s layer (longest matching prefix), None when it has none."""
+    found = [(len(p), k) for k, (_, prefixes) in enumerate(LAYERS) for p in prefixes
+             if module == p or module.startswith(p + ".")]
+    return max(found)[1] if found else None
+
+
+def test_layers_run_one_way():
+    graph = _graph()
+    graph.pop("calidar")  # the package's face: the public API, imported lazily by name
+    unplaced = sorted(m for m in graph if _layer(m) is None)
+    assert not unplaced, f"modules in no layer (add them to LAYERS and docs/architecture.md): {unplaced}"
+    up = sorted(f"{m} ({LAYERS[_layer(m)][0]}) imports {d} ({LAYERS[_layer(d)][0]})"
+                for m, deps in graph.items() for d in deps if d != "calidar" and _layer(d) < _layer(m))
+    assert not up, "imports pointing up a layer:\n" + "\n".join(up)
 
 
 def _cycles(graph: dict[str, set[str]]) -> list[list[str]]:

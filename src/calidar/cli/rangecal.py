@@ -21,7 +21,7 @@ def _say(text: str) -> None:
 
 
 def range_cal(
-    observations: Path = typer.Argument(..., help="Observation file (CSV, format in docs/architecture.md)."),
+    observations: Path = typer.Argument(..., help="Observation file (CSV, format in docs/conventions.md)."),
     out: Path = typer.Option(..., "--out", help="Output folder: solution.json, report.html."),
     truth: Path | None = typer.Option(None, "--truth", help="truth.json of a simulation: adds truth and error."),
     tolerance: float | None = typer.Option(None, "--tolerance", help="Acceptance tolerance of the raw range error "

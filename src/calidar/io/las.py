@@ -222,7 +222,16 @@ def _records(reader: laspy.LasReader, chunk_points: int, path: Path):
 def read_las(path: str | Path, crs=None, fields=OPTIONAL_FIELDS, *, options: PointOptions | None = None) -> LasPoints:
     """Read a LAS/LAZ file (all points). ``crs`` overrides the file's CRS (or give ``options``:
     CRS, time system, geoid undulation); ``fields`` picks which of :data:`OPTIONAL_FIELDS` to load
-    besides xyz and gps_time."""
+    besides xyz and gps_time.
+
+    >>> import tempfile, numpy as np, calidar
+    >>> xyz = np.array([[500000.0, 5200000.0, 400.0], [500001.0, 5200002.0, 401.5]])  # UTM 32N, m
+    >>> path = calidar.write_las(Path(tempfile.mkdtemp()) / "strip.laz", xyz, "EPSG:32632", gps_time=[10.0, 10.5],
+    ...                          scan_angle_deg=[-3.0, 4.5], point_source_id=7)
+    >>> points = calidar.read_las(path)
+    >>> len(points), points.crs.to_epsg(), points.xyz[1].tolist(), points.point_source_id.tolist()
+    (2, 32632, [500001.0, 5200002.0, 401.5], [7, 7])
+    """
     path, opts = Path(path), _options(crs, options)
     with _open(path) as reader:
         header = reader.header
@@ -327,6 +336,14 @@ def write_las(path: str | Path, xyz, crs, *, gps_time, scan_angle_deg, point_sou
 
     ``xyz`` (N, 3) in ``crs`` (written as a WKT VLR), 1 mm scales (1e-9 deg for a geographic
     CRS); scan angles in degrees (stored in 0.006° steps); returns default to 1 of 1.
+
+    >>> import tempfile, numpy as np, calidar
+    >>> xyz = np.array([[500000.0, 5200000.0, 400.0], [500001.0, 5200002.0, 401.5]])  # UTM 32N, m
+    >>> path = calidar.write_las(Path(tempfile.mkdtemp()) / "strip.las", xyz, "EPSG:32632", gps_time=[10.0, 10.5],
+    ...                          scan_angle_deg=[-3.0, 4.5], point_source_id=7)
+    >>> points = calidar.read_las(path)
+    >>> points.time_system, points.scan_angle_deg.tolist(), points.return_number.tolist()
+    ('gps_week_seconds', [-3.0, 4.5], [1, 1])
     """
     xyz = np.asarray(xyz, float)
     n = xyz.shape[0]

@@ -56,6 +56,16 @@ def read_sbet(path: str | Path) -> Trajectory:
     """Read an SBET file into a :class:`Trajectory` (true heading, NED velocities, week seconds).
 
     The wander angle, accelerations and angular rates are kept in ``traj.extra``.
+
+    >>> import tempfile, numpy as np, calidar
+    >>> t = np.arange(0.0, 1.0, 0.01)  # 100 Hz, one second
+    >>> traj = calidar.Trajectory(time=t, lat=np.radians(47.0 + 1e-5 * t), lon=np.full(t.size, np.radians(8.0)),
+    ...                           height=np.full(t.size, 500.0), roll=np.zeros(t.size), pitch=np.zeros(t.size),
+    ...                           heading=np.full(t.size, 0.1))
+    >>> path = calidar.write_sbet(Path(tempfile.mkdtemp()) / "sbet.out", traj)
+    >>> back = calidar.read_sbet(path)
+    >>> len(back), path.stat().st_size, bool(np.allclose(back.heading, 0.1))
+    (100, 13600, True)
     """
     path = Path(path)
     size = path.stat().st_size
@@ -86,7 +96,18 @@ def write_sbet(path: str | Path, traj: Trajectory, force: bool = False) -> Path:
     """Write ``traj`` as an SBET (atomically; refuses to overwrite unless ``force``).
 
     Uses ``traj.extra`` for the wander angle, accelerations and angular rates when present
-    (zero otherwise) and zero velocities when the trajectory has none.
+    (zero otherwise) and zero velocities when the trajectory has none. Reading back: :func:`read_sbet`.
+
+    >>> import tempfile, numpy as np, calidar
+    >>> t = np.arange(3.0)
+    >>> traj = calidar.Trajectory(time=t, lat=np.radians(47.0 + 1e-5 * t), lon=np.full(3, np.radians(8.0)),
+    ...                           height=np.full(3, 500.0), roll=np.zeros(3), pitch=np.zeros(3), heading=np.zeros(3))
+    >>> path = calidar.write_sbet(Path(tempfile.mkdtemp()) / "sbet.out", traj)
+    >>> path.stat().st_size  # 3 records of 17 float64
+    408
+    >>> calidar.write_sbet(path, traj)
+    Traceback (most recent call last):
+    calidar.errors.OutputExistsError: ...sbet.out: exists; pass --force to overwrite it
     """
     if traj.time_system != "gps_week_seconds":
         raise InputError(traj.source, "time_system", f"SBET holds GPS week seconds, got {traj.time_system}")

@@ -25,7 +25,19 @@ def is_binary(path: Path, probe_bytes: int = 4096) -> bool:
 def read_trajectory(path: str | Path, **text_options) -> Trajectory:
     """An Optech CSD's pulses (by its signature), an SBET when the file is binary, else an ASCII/CSV
     trajectory read with ``text_options`` (see :func:`calidar.io.trajectory_text.read_trajectory_text`;
-    options given as None are not given, and giving one for a binary file is an error)."""
+    options given as None are not given, and giving one for a binary file is an error).
+
+    >>> import tempfile, numpy as np, calidar
+    >>> t = np.arange(0.0, 1.0, 0.01)  # 100 Hz, one second
+    >>> traj = calidar.Trajectory(time=t, lat=np.radians(47.0 + 1e-5 * t), lon=np.full(t.size, np.radians(8.0)),
+    ...                           height=np.full(t.size, 500.0), roll=np.zeros(t.size), pitch=np.zeros(t.size),
+    ...                           heading=np.full(t.size, 0.1))
+    >>> folder = Path(tempfile.mkdtemp())
+    >>> sbet = calidar.read_trajectory(calidar.write_sbet(folder / "sbet.out", traj))
+    >>> text = calidar.read_trajectory(calidar.write_trajectory_text(folder / "traj.csv", traj))
+    >>> bool(np.allclose(sbet.lat, text.lat, rtol=0, atol=1e-12)), text.source.endswith("traj.csv")
+    (True, True)
+    """
     path = Path(path)
     if not path.is_file():
         raise InputError(path, None, "trajectory file not found" if not path.is_dir() else "is a folder; expected "

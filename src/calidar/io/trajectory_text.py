@@ -100,11 +100,17 @@ def _numbers(path: Path, records: list[tuple[int, str]], n_columns: int, delimit
 
 def read_trajectory_text(path, *, columns=None, crs=None, angles: str = "deg", heading_reference: str = "true",
                          delimiter: str | None = None, time_system: str = "gps_week_seconds") -> Trajectory:
-    """Read an ASCII/CSV trajectory into a :class:`Trajectory`.
+    r"""Read an ASCII/CSV trajectory into a :class:`Trajectory`.
 
     ``angles``: "deg" or "rad" for roll, pitch, heading and lat/lon. ``crs``: CRS of projected
     x/y (required for them) or of lat/lon (default WGS 84); heights are taken as ellipsoidal.
     ``delimiter``: None = comma if the first data line has one, else whitespace.
+
+    >>> import tempfile, numpy as np, calidar; path = Path(tempfile.mkdtemp()) / "export.txt"
+    >>> _ = path.write_text("GpsTime Latitude Longitude H Roll Pitch Azimuth\n100.0 47.0 8.0 500.0 0.1 -0.2 90.0\n"
+    ...                     "100.5 47.0 8.0001 500.1 0.1 -0.2 90.0\n")
+    >>> traj = calidar.read_trajectory_text(path); len(traj), np.degrees(traj.heading).round(6).tolist()
+    (2, [90.0, 90.0])
     """
     path = Path(path)
     if angles not in ("deg", "rad"):
@@ -172,3 +178,35 @@ def read_trajectory_text(path, *, columns=None, crs=None, angles: str = "deg", h
     return Trajectory(time=col["time"], lat=lat, lon=lon, height=h, roll=to_rad(col["roll"]),
                       pitch=to_rad(col["pitch"]), heading=np.angle(np.exp(1j * heading)),
                       time_system=time_system, source=str(path), extra=extra)
+
+
+def write_trajectory_text(path, traj: Trajectory, force: bool = False) -> Path:
+    """Write ``traj`` as a CSV trajectory that :func:`read_trajectory_text` reads back: header
+    ``time,lat,lon,height,roll,pitch,heading`` (s, deg, deg, m, deg), plus the six σ columns
+    (m, deg) when ``traj.extra`` holds them; atomically, refusing to overwrite unless ``force``.
+    Angles keep 1e-11 deg (≈ 1 µm), heights and times 1e-6.
+
+    >>> import tempfile, numpy as np, calidar
+    >>> t = np.arange(3.0)
+    >>> traj = calidar.Trajectory(time=t, lat=np.radians(47.0 + 1e-5 * t), lon=np.full(3, np.radians(8.0)),
+    ...                           height=np.full(3, 500.0), roll=np.zeros(3), pitch=np.zeros(3), heading=np.zeros(3))
+    >>> path = calidar.write_trajectory_text(Path(tempfile.mkdtemp()) / "traj.csv", traj)
+    >>> path.read_text().splitlines()[0]
+    'time,lat,lon,height,roll,pitch,heading'
+    >>> back = calidar.read_trajectory(path)   # by content: text
+    >>> bool(np.allclose(back.lat, traj.lat, rtol=0, atol=1e-12)), back.time_system
+    (True, 'gps_week_seconds')
+    """
+    from calidar.io.csv import write_csv_rows
+    from calidar.outputs import atomic_path
+
+    sigma = [c for c in SIGMA_COLUMNS if c in traj.extra]
+    sigma = sigma if len(sigma) == len(SIGMA_COLUMNS) else []
+    deg = np.degrees
+    columns = [traj.time, deg(traj.lat), deg(traj.lon), traj.height, deg(traj.roll), deg(traj.pitch), deg(traj.heading)]
+    columns += [traj.extra[c] if c in SIGMA_COLUMNS[:3] else deg(traj.extra[c]) for c in sigma]
+    decimals = [6, 11, 11, 6, 11, 11, 11] + [6] * len(sigma)
+    with atomic_path(path, force) as tmp, open(tmp, "w", encoding="utf-8", newline="") as f:
+        f.write(",".join(["time", "lat", "lon", "height", "roll", "pitch", "heading", *sigma]) + "\n")
+        write_csv_rows(f, columns, decimals)
+    return Path(path)

@@ -7,10 +7,11 @@ is given (the CLI hands it the temporary folder of an output transaction, see
 :func:`calidar.outputs.output_folder`), reports progress through an optional
 ``progress(description, done, total)`` callable and returns its result; it never prints.
 
-Layers, top to bottom (an import may only point down): ``cli`` → ``demo`` → ``pipelines`` →
-methods (``strips``, ``photon``, ``rangecal``, ``scanners``, ``sim``) → core (``georef``,
-``sensor``, ``trajectory``, ``frames``, ``adjust``, ``report``) → ``io`` → ``errors``,
-``validate``, ``outputs``.
+Layers, top to bottom (an import may only point down; ``tests/unit/test_architecture.py``):
+``cli`` → ``demo`` → ``pipelines`` → methods (``strips``, ``photon``, ``rangecal``, the
+``scanners`` analysis, ``sim``) → ``io`` (files in, core objects out) → core (``georef``,
+``sensor`` and the scanner models, ``trajectory``, ``frames``, ``adjust``, ``report``) →
+``errors``, ``validate``, ``outputs``.
 """
 
 from __future__ import annotations

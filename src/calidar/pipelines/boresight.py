@@ -23,7 +23,7 @@ from calidar.pipelines.inputs import PointOptions, TrajectoryOptions
 from calidar.validate import parse_floats
 
 #: knot spacing (s) and Gauss–Markov correlation times of position and attitude (s) of the
-#: trajectory model, validated on the simulator (docs/architecture.md)
+#: trajectory model, validated on the simulator (docs/validation.md)
 TRAJECTORY_BLOCK_S = 1.0
 TRAJECTORY_CORRELATION = "20,3.5"
 
@@ -248,7 +248,21 @@ def run_boresight(strip_paths, trajectory_path, sensor_path, out_dir: Path, opti
     output transaction's temporary folder; ``shown_out``: the folder's final name, for the
     commands the report shows). ``report``: add the sections and verdicts to this report instead
     of writing out_dir/report.html (``verdict_title``, ``section_title``: what to call them there).
-    Returns what was computed and written."""
+    Returns what was computed and written (``calidar.calibrate_strips``).
+
+    >>> import tempfile, numpy as np, calidar
+    >>> cfg = calidar.survey_config("uav", seed=0, density=0.1, directions="cross", errors={"boresight_roll": np.radians(0.05)})
+    >>> sim = calidar.simulate_survey(replace(cfg, scene=replace(cfg.scene, width_m=150.0, length_m=150.0))).write(
+    ...     Path(tempfile.mkdtemp()) / "sim")  # three strips, an SBET and its smrmsg, the nominal sensor.toml
+    >>> run = calidar.calibrate_strips(sorted((sim / "strips").glob("*.laz")), sim / "sbet.out", sim / "sensor.toml",
+    ...                                sim.parent / "cal", BoresightOptions(truth=sim / "truth.json"))
+    >>> sol = run.results["planes"].solution
+    >>> err = np.degrees(sol.values["boresight_roll"]) - 0.05
+    >>> bool(abs(err) < 3 * np.degrees(sol.sigma["boresight_roll"]) < 0.01), run.verdicts["planes"].status
+    (True, 'pass')
+    >>> sorted(p.name for p in run.written)
+    ['report.html', 'sbet_corrected.out', 'sensor.toml', 'solution.json']
+    """
     from calidar.pipelines.boresight_outputs import corrected_trajectory, map_pair, quality_stages, write_outputs
     from calidar.provenance import RunRecord
     from calidar.report import Report

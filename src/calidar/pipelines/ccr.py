@@ -43,15 +43,36 @@ def load_passes(files: list[Path], beams: str, survey, system, progress: Progres
     return passes
 
 
-def run_ccr(files: list[Path], beams: str, ccr: Path, out_dir: Path, *, system, settings, truth_path: Path | None = None,
-            record=None, report=None, progress: Progress = no_progress):
+def run_ccr(files: list[Path], beams: str, ccr: Path, out_dir: Path, *, system=None, settings=None,
+            truth_path: Path | None = None, record=None, report=None, progress: Progress = no_progress):
     """Read, calibrate, write ``out_dir``/solution.json and (unless a report is passed in, as the demo
-    does) report.html; ``record``: the run's :class:`calidar.provenance.RunRecord`. Returns the result."""
+    does) report.html (``calidar.calibrate_ccr``). ``system``: :class:`calidar.photon.passes.SystemParameters`,
+    ``settings``: :class:`calidar.photon.search.SearchSettings` (defaults: ``calidar ccr``'s);
+    ``record``: the run's :class:`calidar.provenance.RunRecord`. Returns the
+    :class:`calidar.photon.ccr.CCRResult`.
+
+    >>> import tempfile, calidar
+    >>> from calidar.photon.search import SearchSettings
+    >>> from calidar.sim.photons import PhotonSimConfig
+    >>> folder = Path(tempfile.mkdtemp())
+    >>> sim = simulate_photons(PhotonSimConfig(seed=1, n_ccr=8, along_bias=1.5, cross_bias=-2.0), folder)
+    >>> quick = SearchSettings(bootstrap=0, surface_points=0)  # no bootstrap σ, no likelihood map in the report
+    >>> result = calidar.calibrate_ccr([sim["atl03"]], "all", sim["ccr"], folder, settings=quick)
+    >>> v, s = result.solution.values, result.solution.sigma
+    >>> [bool(abs(v[k] - truth) < 3 * s[k]) for k, truth in (("along_track_bias", 1.5), ("cross_track_bias", -2.0))]
+    [True, True]
+    >>> sorted(p.name for p in folder.iterdir() if p.suffix in (".json", ".html"))
+    ['report.html', 'solution.json', 'truth.json']
+    """
     from calidar.photon.ccr import calibrate, describe
+    from calidar.photon.passes import SystemParameters
     from calidar.photon.report import add_section
+    from calidar.photon.search import SearchSettings
     from calidar.photon.survey import read_ccr_csv
     from calidar.report import Report
 
+    system = SystemParameters() if system is None else system
+    settings = SearchSettings() if settings is None else settings
     survey = read_ccr_csv(ccr)
     truth = read_truth(truth_path) if truth_path is not None else None
     passes = load_passes(files, beams, survey, system, progress)

@@ -67,7 +67,18 @@ def run_range_cal(observations: Path, out_dir: Path, *, truth: Path | None = Non
                   progress: Progress = no_progress) -> RangeCalRun:
     """:func:`calibrate_file`, then write solution.json (with the verdict and the run record, key
     "run") and report.html into the existing folder ``out_dir`` — or, when ``report`` is given, add
-    the verdict and the section to it instead of writing report.html."""
+    the verdict and the section to it instead of writing report.html (``calidar.calibrate_range``).
+
+    >>> import tempfile, calidar
+    >>> folder = Path(tempfile.mkdtemp())
+    >>> obs, truth, csv = run_simulate_total_station(folder, 0, simulation_config())  # offset 16 mm, scale −92 ppm
+    >>> run = calidar.calibrate_range(csv, folder, truth=folder / "truth.json", tolerance_m=0.05)
+    >>> sol = run.result.solution
+    >>> [bool(abs(sol.values[k] - run.truth[k]) < 3 * sol.sigma[k]) for k in ("range_offset", "range_scale")]
+    [True, True]
+    >>> run.verdict.status, sorted(p.name for p in folder.iterdir())  # pass: the raw error stays within 5 cm
+    ('pass', ['observations.csv', 'report.html', 'solution.json', 'truth.json'])
+    """
     from calidar.provenance import RunRecord
     from calidar.pipelines.reports import report_for
     from calidar.rangecal.report import add_section

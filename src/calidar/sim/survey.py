@@ -6,13 +6,7 @@ measured range and encoder angle. The GNSS/INS delivers a *measured* trajectory 
 smooth position/attitude errors, optionally per-strip biases and drifts), written as the
 SBET. Delivered points are georeferenced from those records with the *nominal* sensor and
 the measured trajectory (:func:`calidar.georef.forward`), so every error the user asks
-for shows in the strips exactly as it would in real data.
-
->>> from calidar.sim.survey import survey_config, simulate_survey
->>> cfg = survey_config("uav", seed=1, density=0.05, errors={"boresight_roll": 1e-3})
->>> res = simulate_survey(cfg)
->>> res.strips[0].xyz          # delivered UTM coordinates of line 1 (m)
->>> res.write("out", force=True)
+for shows in the strips exactly as it would in real data. Example: :func:`simulate_survey`.
 """
 
 from __future__ import annotations
@@ -109,6 +103,11 @@ def survey_config(preset: str = "uav", **overrides) -> SurveyConfig:
     2.5 km × 1.6 km) with fields replaced by ``overrides`` (see :class:`SurveyConfig`).
 
     ``vegetation=FRACTION`` is accepted as a shortcut for the scene's vegetation fraction.
+
+    >>> import calidar
+    >>> cfg = calidar.survey_config("airborne", seed=2, vegetation=0.3)
+    >>> cfg.height_agl_m, cfg.scene.vegetation_fraction, cfg.seed
+    (1000.0, 0.3, 2)
     """
     if preset not in PRESETS:
         raise InputError(None, "preset", f"expected one of {', '.join(PRESETS)}, got {preset!r}")
@@ -320,6 +319,13 @@ def simulate_survey(cfg: SurveyConfig, progress: Callable[[str, int, int], None]
     """Run the simulation described by ``cfg`` in memory (see the module docstring).
 
     ``progress(description, done, total)`` is called as lines are simulated.
+
+    >>> import tempfile, numpy as np, calidar
+    >>> cfg = calidar.survey_config("uav", seed=1, density=0.1, directions="cross", errors={"boresight_roll": 1e-3})
+    >>> res = calidar.simulate_survey(replace(cfg, scene=replace(cfg.scene, width_m=150.0, length_m=150.0)))
+    >>> folder = res.write(Path(tempfile.mkdtemp()) / "sim")  # what a real system delivers, and the truth
+    >>> sorted(p.name for p in folder.iterdir()), res.truth.boresight_roll
+    (['sbet.out', 'sensor.toml', 'smrmsg.out', 'strips', 'truth.json'], 0.001)
     """
     check_config(cfg)
     ss = np.random.SeedSequence(cfg.seed)

@@ -66,7 +66,7 @@ def moderated_variance(variance_m2: np.ndarray, dof: np.ndarray | float, prior_d
     A 12-point plane's own s² (ν = 9) scatters by ±47 %; weighting each row by 1/s² favours
     the rows that look quiet by chance, and the data's part of the angles' error came out
     1.16× its σ (yaw, 22 airborne surveys) — with ν0 = 20, 0.86×, and that part itself 17 %
-    smaller (see docs/architecture.md)."""
+    smaller (see docs/validation.md)."""
     s2 = np.asarray(variance_m2, float)
     if s2.size == 0:
         return s2
