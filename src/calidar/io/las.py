@@ -236,11 +236,26 @@ def read_las(path: str | Path, crs=None, fields=OPTIONAL_FIELDS, *, options: Poi
     return chunks[0]
 
 
+_LAYERS = {"scan_angle_deg": "SCAN_ANGLE", "point_source_id": "POINT_SOURCE_ID", "classification": "CLASSIFICATION",
+           "intensity": "INTENSITY"}  #: LAZ 1.4 layers of the optional fields (returns are in the base layer)
+
+
+def _selection(fields) -> laspy.DecompressionSelection:
+    """The LAZ 1.4 (formats 6–10) layers holding xyz, GPS time and ``fields``: the others are skipped."""
+    S = laspy.DecompressionSelection
+    sel = S.base() | S.Z | S.GPS_TIME
+    for f in fields:
+        if f in _LAYERS:
+            sel |= getattr(S, _LAYERS[f])
+    return sel
+
+
 def iter_las_chunks(path: str | Path, chunk_points: int = 2_000_000, crs=None, fields=OPTIONAL_FIELDS, *,
                     options: PointOptions | None = None) -> Iterator[LasPoints]:
-    """Read a LAS/LAZ file in chunks of at most ``chunk_points`` points (files larger than memory)."""
+    """Read a LAS/LAZ file in chunks of at most ``chunk_points`` points (files larger than memory);
+    of a LAZ 1.4 file only the layers of xyz, GPS time and ``fields`` are decompressed."""
     path, opts = Path(path), _options(crs, options)
-    with _open(path) as reader:
+    with _open(path, _selection(fields)) as reader:
         header = reader.header
         time_system = gps_time_system(header, path, opts.time_system)
         file_crs = _resolve_crs(header, opts.crs, path)
@@ -302,6 +317,40 @@ def las_time_system(path: str | Path, override: str | None = None) -> str:
     return gps_time_system(las_header(path), Path(path), override)
 
 
+def _las_header(crs: pyproj.CRS, offsets, time_system: str, creation_date=None) -> laspy.LasHeader:
+    """A LAS 1.4 point format 6 header: 1 mm scales (1e-9 deg for a geographic CRS), ``crs`` as WKT."""
+    header = laspy.LasHeader(point_format=6, version="1.4")
+    scale = 1e-9 if crs.is_geographic else 1e-3
+    header.scales = np.array([scale, scale, 1e-3])
+    header.offsets = np.asarray(offsets, float)
+    header.add_crs(crs)
+    if creation_date is not None:
+        header.creation_date = creation_date
+    header.global_encoding.gps_time_type = (
+        laspy.header.GpsTimeType.STANDARD if time_system == "gps_adjusted_standard" else laspy.header.GpsTimeType.WEEK_TIME
+    )
+    return header
+
+
+def _las_data(header: laspy.LasHeader, xyz, *, gps_time, scan_angle_deg, point_source_id, return_number=None,
+              number_of_returns=None, classification=None, intensity=None) -> laspy.LasData:
+    """Points (as :func:`write_las` takes them) in a laspy LasData of ``header``."""
+    xyz = np.asarray(xyz, float)
+    n = xyz.shape[0]
+    las = laspy.LasData(header)
+    las.x, las.y, las.z = xyz[:, 0], xyz[:, 1], xyz[:, 2]
+    las.gps_time = np.asarray(gps_time, float)
+    las.scan_angle = np.round(np.asarray(scan_angle_deg, float) / SCAN_ANGLE_STEP_DEG).astype(np.int16)
+    las.point_source_id = np.asarray(point_source_id, np.uint16) * np.ones(n, np.uint16)
+    las.return_number = np.ones(n, np.uint8) if return_number is None else np.asarray(return_number, np.uint8)
+    las.number_of_returns = np.ones(n, np.uint8) if number_of_returns is None else np.asarray(number_of_returns, np.uint8)
+    if classification is not None:
+        las.classification = np.asarray(classification, np.uint8)
+    if intensity is not None:
+        las.intensity = np.asarray(intensity, np.uint16)
+    return las
+
+
 def write_las(path: str | Path, xyz, crs, *, gps_time, scan_angle_deg, point_source_id, return_number=None,
               number_of_returns=None, classification=None, intensity=None, time_system="gps_week_seconds",
               creation_date=None, force=False) -> Path:
@@ -314,29 +363,35 @@ def write_las(path: str | Path, xyz, crs, *, gps_time, scan_angle_deg, point_sou
     CRS); scan angles in degrees (stored in 0.006° steps); returns default to 1 of 1.
     """
     xyz = np.asarray(xyz, float)
-    n = xyz.shape[0]
     crs = pyproj.CRS.from_user_input(crs)
-    header = laspy.LasHeader(point_format=6, version="1.4")
-    scale = 1e-9 if crs.is_geographic else 1e-3
-    header.scales = np.array([scale, scale, 1e-3])
-    header.offsets = np.floor(xyz.min(axis=0)) if n else np.zeros(3)
-    header.add_crs(crs)
-    if creation_date is not None:
-        header.creation_date = creation_date
-    header.global_encoding.gps_time_type = (
-        laspy.header.GpsTimeType.STANDARD if time_system == "gps_adjusted_standard" else laspy.header.GpsTimeType.WEEK_TIME
-    )
-    las = laspy.LasData(header)
-    las.x, las.y, las.z = xyz[:, 0], xyz[:, 1], xyz[:, 2]
-    las.gps_time = np.asarray(gps_time, float)
-    las.scan_angle = np.round(np.asarray(scan_angle_deg, float) / SCAN_ANGLE_STEP_DEG).astype(np.int16)
-    las.point_source_id = np.asarray(point_source_id, np.uint16) * np.ones(n, np.uint16)
-    las.return_number = np.ones(n, np.uint8) if return_number is None else np.asarray(return_number, np.uint8)
-    las.number_of_returns = np.ones(n, np.uint8) if number_of_returns is None else np.asarray(number_of_returns, np.uint8)
-    if classification is not None:
-        las.classification = np.asarray(classification, np.uint8)
-    if intensity is not None:
-        las.intensity = np.asarray(intensity, np.uint16)
+    header = _las_header(crs, np.floor(xyz.min(axis=0)) if xyz.shape[0] else np.zeros(3), time_system, creation_date)
+    las = _las_data(header, xyz, gps_time=gps_time, scan_angle_deg=scan_angle_deg, point_source_id=point_source_id,
+                    return_number=return_number, number_of_returns=number_of_returns,
+                    classification=classification, intensity=intensity)
     with atomic_path(path, force) as tmp:
         las.write(tmp)
     return Path(path)
+
+
+class LasChunkWriter:
+    """Write a LAS 1.4 point format 6 file (LAZ by suffix) chunk by chunk, atomically: the file
+    appears under ``path`` only when the ``with`` block ends without an error. ``offsets``
+    (CRS units) must lie near every point (e.g. the inputs' header minimum); ``write`` takes
+    the arguments of :func:`write_las` but the CRS and time system."""
+
+    def __init__(self, path: str | Path, crs, offsets, time_system: str = "gps_week_seconds", force: bool = False):
+        self.path, self.force = Path(path), force
+        self.header = _las_header(pyproj.CRS.from_user_input(crs), offsets, time_system)
+
+    def __enter__(self) -> "LasChunkWriter":
+        self._atomic = atomic_path(self.path, self.force)
+        tmp = self._atomic.__enter__()
+        self._writer = laspy.open(tmp, mode="w", header=self.header, do_compress=self.path.suffix.lower() == ".laz")
+        return self
+
+    def write(self, xyz, **fields) -> None:
+        self._writer.write_points(_las_data(self.header, xyz, **fields).points)
+
+    def __exit__(self, *exc) -> bool:
+        self._writer.close()
+        return bool(self._atomic.__exit__(*exc))

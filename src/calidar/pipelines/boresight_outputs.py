@@ -1,6 +1,7 @@
 """The deliverables of a strip calibration, made so that they reproduce the report.
 
-The overlap quality is measured on the WHOLE strips re-georeferenced in the files' CRS with
+The overlap quality is measured on the WHOLE strips (streamed again from the files,
+:func:`line_chunks`) re-georeferenced in the files' CRS with
 exactly the code ``calidar quality`` runs (:func:`calidar.pipelines.quality.pairs_quality`,
 :func:`usable`, :func:`line_coordinates`), three times: as delivered, with the new mounting
 alone (``calidar regeoref --to sensor.toml``), and with the new mounting and the corrected
@@ -31,24 +32,33 @@ def corrected_trajectory(inputs, result):
     return apply(inputs.trajectory, result.corrections, inputs.spans, frame)
 
 
-def regeoreferenced_lines(inputs, sensor, trajectory):
-    """Per flight line (id, LasPoints): the delivered points re-georeferenced with ``sensor`` and
-    ``trajectory`` (inverse with the nominal sensor and the input trajectory, as
-    :func:`calidar.georef.regeoreference`), in the files' CRS, every other attribute as read."""
+def line_chunks(inputs, sensor=None, trajectory=None, fields=None):
+    """Per chunk of the input files and flight line, (line id, LasPoints): the delivered points
+    streamed (``sensor`` None) or re-georeferenced with ``sensor`` and ``trajectory`` (inverse with
+    the nominal sensor and the input trajectory, as :func:`calidar.georef.regeoreference`), in the
+    files' CRS, every other attribute as read. Whole lines, chunk by chunk (bounded memory)."""
     from calidar import georef
+    from calidar.io.las import OPTIONAL_FIELDS
+    from calidar.pipelines.inputs import points_ecef
+    from calidar.pipelines.strip_ingest import split_rows
 
-    for s in inputs.strips:
-        ecef = georef.forward(trajectory, sensor, s.obs.time, s.obs.range_m, s.obs.angles)
-        las = s.extra["las"]
-        crs = las.crs if las.crs is not None else inputs.crs
-        yield s.id, replace(las, xyz=georef.to_crs(ecef, crs, las.geoid_undulation_m, source=las.path))
+    for _, chunk, ids, t in inputs.source.chunks(OPTIONAL_FIELDS if fields is None else fields):
+        if sensor is not None:
+            moved = georef.regeoreference(inputs.trajectory, inputs.nominal, sensor, t, points_ecef(chunk), trajectory)
+            chunk = replace(chunk, xyz=georef.to_crs(moved, chunk.crs, chunk.geoid_undulation_m, source=chunk.path))
+        for i, rows in split_rows(ids):
+            yield i, chunk.select(rows)
 
 
-def measure_lines(lines) -> list:
-    """The :class:`calidar.strips.quality.PairQuality` of every overlapping pair of (id, LasPoints)."""
+def measure_lines(chunks) -> list:
+    """The :class:`calidar.strips.quality.PairQuality` of every overlapping pair of flight lines
+    given as (id, LasPoints) chunks. Holds the usable coordinates of every line (24 B a point)."""
     from calidar.pipelines.quality import line_coordinates, pairs_quality, usable
 
-    coords = {i: line_coordinates(p)[usable(p)] for i, p in lines}
+    parts: dict[int, list] = {}
+    for i, p in chunks:
+        parts.setdefault(i, []).append(p.select(usable(p)))
+    coords = {i: line_coordinates(replace(v[0], xyz=np.concatenate([p.xyz for p in v]))) for i, v in parts.items()}
     return pairs_quality(coords)[0]
 
 
@@ -83,14 +93,14 @@ def quality_stages(inputs, result, corrected, shown_out: Path, tag: str = "", pr
     before, mounting, both = stage_commands(inputs, Path(shown_out), tag, corrected is not None)
     total = 3 if corrected is not None else 2
     progress("overlap quality", 0, total)
-    stages = [QualityStage("as delivered", before, measure_lines((s.id, s.extra["las"]) for s in inputs.strips))]
+    stages = [QualityStage("as delivered", before, measure_lines(line_chunks(inputs)))]
     progress("overlap quality", 1, total)
     stages.append(QualityStage("new mounting", mounting,
-                               measure_lines(regeoreferenced_lines(inputs, result.sensor, inputs.trajectory))))
+                               measure_lines(line_chunks(inputs, result.sensor, inputs.trajectory))))
     progress("overlap quality", 2, total)
     if corrected is not None:
         stages.append(QualityStage("new mounting + trajectory corrections", both,
-                                   measure_lines(regeoreferenced_lines(inputs, result.sensor, corrected))))
+                                   measure_lines(line_chunks(inputs, result.sensor, corrected))))
         progress("overlap quality", 3, total)
     return stages
 
@@ -114,18 +124,27 @@ def write_outputs(inputs, result, corrected, verdict, record, stages, out_dir: P
 
 
 def write_strips(inputs, sensor, trajectory, out_dir: Path) -> list[Path]:
-    """Recalibrated strips as LAZ (``strip_<id>.laz``, one per flight line), attributes and GPS times as read."""
-    from calidar.io.las import write_las
+    """Recalibrated strips as LAZ (``strip_<id>.laz``, one per flight line), attributes and GPS
+    times as read; streamed chunk by chunk into one writer per line."""
+    from contextlib import ExitStack
+
+    from calidar.io.las import LasChunkWriter, las_header
 
     out_dir.mkdir(parents=True, exist_ok=True)
-    paths = []
-    for sid, las in regeoreferenced_lines(inputs, sensor, trajectory):
-        paths.append(write_las(out_dir / f"strip_{sid}.laz", las.xyz, las.crs if las.crs is not None else inputs.crs,
-                               gps_time=las.gps_time, point_source_id=sid, return_number=las.return_number,
+    src = inputs.source
+    offsets = np.floor(np.min([las_header(f.path).mins for f in src.files], axis=0))
+    writers = {}
+    with ExitStack() as stack:
+        for sid, las in line_chunks(inputs, sensor, trajectory):
+            if sid not in writers:
+                crs = las.crs if las.crs is not None else inputs.crs
+                writers[sid] = stack.enter_context(LasChunkWriter(out_dir / f"strip_{sid}.laz", crs, offsets,
+                                                                  las.time_system, force=True))
+            writers[sid].write(las.xyz, gps_time=las.gps_time, point_source_id=sid, return_number=las.return_number,
                                scan_angle_deg=las.scan_angle_deg if las.scan_angle_deg is not None else np.zeros(len(las)),
                                number_of_returns=las.number_of_returns, classification=las.classification,
-                               intensity=las.intensity, time_system=las.time_system, force=True))
-    return paths
+                               intensity=las.intensity)
+    return [out_dir / f"strip_{sid}.laz" for sid in sorted(writers)]
 
 
 def map_pair(inputs, stages) -> tuple[int, int] | None:
@@ -133,7 +152,8 @@ def map_pair(inputs, stages) -> tuple[int, int] | None:
     opposite), the pair with the most smooth overlapping cells (any pair when none is)."""
     from calidar.strips.geometry import pair_kind
 
-    pairs = stages[0].pairs if stages else []
+    ids = {s.id for s in inputs.strips}  # the lines calibrated (those overlapping another)
+    pairs = [q for q in (stages[0].pairs if stages else []) if q.a in ids and q.b in ids]
     if not pairs:
         return None
     kind = pair_kind(inputs.strips, [(q.a, q.b) for q in pairs])

@@ -40,12 +40,8 @@ def read_flight_lines(paths: Sequence[str | Path], crs=None, gap_s: float = GAP_
     if not paths:
         raise InputError(None, "STRIPS", "expected at least one LAS/LAZ file")
     clouds = [read_las(p, crs=crs, options=options) for p in paths]
+    check_consistent([(c.path, c.crs, c.time_system) for c in clouds])
     first = clouds[0]
-    for c in clouds[1:]:
-        if (c.crs is None) != (first.crs is None) or (c.crs is not None and not c.crs.equals(first.crs, ignore_axis_order=True)):
-            raise InputError(c.path, "crs", f"expected the CRS of {first.path.name} ({_name(first.crs)}), got {_name(c.crs)}")
-        if c.time_system != first.time_system:
-            raise InputError(c.path, "gps_time", f"expected {first.time_system} like {first.path.name}, got {c.time_system}")
     merged = first
     if len(clouds) > 1:
         fields = {f: None if any(getattr(c, f) is None for c in clouds) else np.concatenate([getattr(c, f) for c in clouds])
@@ -54,6 +50,16 @@ def read_flight_lines(paths: Sequence[str | Path], crs=None, gap_s: float = GAP_
                          gps_time=np.concatenate([c.gps_time for c in clouds]), **fields)
     ids, how = line_ids(merged.point_source_id, merged.gps_time, gap_s)
     return {int(i): merged.select(ids == i) for i in np.unique(ids)}, how
+
+
+def check_consistent(files: Sequence[tuple[Path, pyproj.CRS | None, str]]) -> None:
+    """Error unless every (path, CRS, GPS time system) has the CRS and time system of the first."""
+    path0, crs0, system0 = files[0]
+    for path, crs, system in files[1:]:
+        if (crs is None) != (crs0 is None) or (crs is not None and not crs.equals(crs0, ignore_axis_order=True)):
+            raise InputError(path, "crs", f"expected the CRS of {Path(path0).name} ({_name(crs0)}), got {_name(crs)}")
+        if system != system0:
+            raise InputError(path, "gps_time", f"expected {system0} like {Path(path0).name}, got {system}")
 
 
 def _name(crs: pyproj.CRS | None) -> str:
