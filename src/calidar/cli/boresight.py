@@ -9,6 +9,7 @@ import typer
 from calidar.cli.common import console, print_verdict, print_warning, progress_bar, progress_callback
 from calidar.errors import InputError
 from calidar.pipelines.boresight import TRAJECTORY_BLOCK_S, TRAJECTORY_CORRELATION
+from calidar.pipelines.strip_ingest import BUDGET_POINTS, MIN_BUDGET_POINTS, IngestOptions
 from calidar.strips.trajectory_errors import PREFIX as TRAJECTORY_PREFIX
 
 
@@ -43,6 +44,10 @@ def boresight(
     out: Path = typer.Option(..., "--out", help="Output folder."),
     force: bool = typer.Option(False, "--force", help="Write into a non-empty output folder."),
     write_strips: bool = typer.Option(False, "--write-strips", help="Also write the recalibrated strips (LAZ)."),
+    strip_points: int = typer.Option(
+        BUDGET_POINTS, "--strip-points", help="Points of each strip's overlaps the calibration keeps (whole blocks "
+        "spread evenly over them; the strips are streamed, memory and time grow with this, not with the files); "
+        "0: every overlapping point."),
 ) -> None:
     """Calibrate the mounting (and more) from overlapping strips; writes solution.json, sensor.toml,
     sbet_corrected.out (the trajectory with its estimated corrections) and report.html."""
@@ -53,9 +58,12 @@ def boresight(
     if trajectory_model not in ("on", "off"):
         raise InputError(None, "--trajectory-model", f"expected on or off, got {trajectory_model!r}")
     parse_estimate(estimate)
+    if strip_points != 0 and strip_points < MIN_BUDGET_POINTS:
+        raise InputError(None, "--strip-points", f"expected 0 (every overlapping point) or at least "
+                         f"{MIN_BUDGET_POINTS}, got {strip_points}")
     options = BoresightOptions(tuple(parse_methods(method)), estimate, trajectory_model == "on", trajectory_accuracy,
                                trajectory_sigma, trajectory_block, trajectory_correlation, truth, scheduler, workers,
-                               write_strips)
+                               write_strips, ingest=IngestOptions(budget_points=strip_points or None))
     check_out_dir(out, force)
     with output_folder(out, force, inputs=[*strips, trajectory, sensor, trajectory_accuracy, truth]) as tmp, \
             progress_bar() as bar:

@@ -40,6 +40,7 @@ from calidar.strips.thin import thin_cells
 #: points kept per strip by default: enough for the tie planes and VGICP on the test surveys
 #: (results within σ of every overlapping point), small enough for bounded memory
 BUDGET_POINTS = 300_000
+MIN_BUDGET_POINTS = 10_000  #: fewer leave too few tie planes per pair to be worth a run
 _BIN_BITS = 40  #: group key = point_source_id << 40 | GPS time bin
 #: kept blocks span this many tie-plane patches (of ≈ PlaneSettings.target_points points) across
 BLOCK_PATCHES = 6

@@ -201,10 +201,11 @@ class SurveyResult:
     strips: list[Strip]
     strip_errors: list[dict]  #: per line, keyed by STRIP_ERRORS (NED m, m/s; roll/pitch/heading rad, rad/s)
     accuracy: TrajectoryAccuracy | None = None  #: the σ of the measured trajectory's errors (smrmsg.out)
+    streamed_points: int = 0  #: points of the strips handed to ``on_strip`` as simulated (not in ``strips``)
 
     @property
     def n_points(self) -> int:
-        return sum(len(s) for s in self.strips)
+        return sum(len(s) for s in self.strips) + self.streamed_points
 
     def truth_dict(self) -> dict:
         """The truth.json document (degrees, metres, ratios)."""
@@ -264,17 +265,13 @@ class SurveyResult:
               progress: Callable[[str, int, int], None] | None = None) -> Path:
         """Write strips/line_NNN.laz, sbet.out, smrmsg.out (its accuracy), sensor.toml (nominal) and
         truth.json into ``out_dir``."""
-        from calidar.io.las import write_las
         from calidar.io.sbet import write_sbet
         from calidar.io.smrmsg import write_smrmsg
 
         out = prepare_out_dir(out_dir, force)
         (out / "strips").mkdir(exist_ok=True)
         for k, s in enumerate(self.strips):
-            write_las(out / "strips" / f"line_{s.line.number:03d}.laz", s.xyz, self.crs, gps_time=s.gps_time,
-                      scan_angle_deg=s.scan_angle_deg, point_source_id=s.line.number, return_number=s.return_number,
-                      number_of_returns=s.number_of_returns, classification=s.classification, intensity=s.intensity,
-                      creation_date=SIMULATION_DATE, force=force)
+            write_strip(out, s, self.crs, force)
             if progress:
                 progress("writing strips", k + 1, len(self.strips))
         write_sbet(out / "sbet.out", self.trajectory, force=force)
@@ -283,6 +280,16 @@ class SurveyResult:
         self.nominal.write(out / "sensor.toml", force=force)
         write_text_atomic(out / "truth.json", json.dumps(self.truth_dict(), indent=2) + "\n", force=force)
         return out
+
+
+def write_strip(out: Path, s: Strip, crs: str, force: bool = False) -> Path:
+    """One simulated strip as ``out/strips/line_NNN.laz``."""
+    from calidar.io.las import write_las
+
+    return write_las(out / "strips" / f"line_{s.line.number:03d}.laz", s.xyz, crs, gps_time=s.gps_time,
+                     scan_angle_deg=s.scan_angle_deg, point_source_id=s.line.number, return_number=s.return_number,
+                     number_of_returns=s.number_of_returns, classification=s.classification, intensity=s.intensity,
+                     creation_date=SIMULATION_DATE, force=force)
 
 
 def _line_shots(cfg: SurveyConfig, sensor: Sensor, window: tuple[float, float], half_fov: float):
@@ -316,10 +323,13 @@ def _intensity(surface, range_m, ref_range_m, rng) -> np.ndarray:
     return np.clip(val * 40000, 1, 65535).astype(np.uint16)
 
 
-def simulate_survey(cfg: SurveyConfig, progress: Callable[[str, int, int], None] | None = None) -> SurveyResult:
+def simulate_survey(cfg: SurveyConfig, progress: Callable[[str, int, int], None] | None = None,
+                    on_strip: Callable[[Strip], None] | None = None) -> SurveyResult:
     """Run the simulation described by ``cfg`` in memory (see the module docstring).
 
-    ``progress(description, done, total)`` is called as lines are simulated.
+    ``progress(description, done, total)`` is called as lines are simulated; ``on_strip(strip)``,
+    when given, takes each strip as it is simulated instead of the result keeping it (large
+    surveys: one strip in memory at a time).
     """
     check_config(cfg)
     ss = np.random.SeedSequence(cfg.seed)
@@ -339,7 +349,7 @@ def simulate_survey(cfg: SurveyConfig, progress: Callable[[str, int, int], None]
     sig_pos, sig_att = trajectory_sigma(cfg, traj_true.time, rng_sigma)
     traj = measured_trajectory(traj_true, rng_nav, sig_pos, sig_att, [(a, b, e) for (a, b), e in zip(windows, strip_errors)])
 
-    strips = []
+    strips, streamed = [], 0
     for k, (line, window) in enumerate(zip(lines, windows)):
         t_all, enc_all = _line_shots(cfg, nominal, window, cfg.half_fov_rad)
         parts = []
@@ -357,11 +367,13 @@ def simulate_survey(cfg: SurveyConfig, progress: Callable[[str, int, int], None]
                               intensity=_intensity(surface, rho, cfg.height_agl_m, rng_shots), surface=surface,
                               true_enu=hit))
         cat = {key: np.concatenate([p[key] for p in parts]) for key in parts[0]}
-        strips.append(Strip(line, georef.to_crs(cat["ecef"], crs), **cat))
+        strip = Strip(line, georef.to_crs(cat["ecef"], crs), **cat)
+        streamed += 0 if on_strip is None else len(strip)
+        strips.append(strip) if on_strip is None else on_strip(strip)
         if progress:
             progress("simulating lines", k + 1, len(lines))
     return SurveyResult(cfg, scene, lines, traj_true, traj, nominal, truth, crs, strips, strip_errors,
-                        accuracy_epochs(traj_true.time, sig_pos, sig_att))
+                        accuracy_epochs(traj_true.time, sig_pos, sig_att), streamed)
 
 
 def trajectory_sigma(cfg: SurveyConfig, time: np.ndarray, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:

@@ -105,3 +105,15 @@ def test_lines_from_time_gaps_when_point_source_ids_do_not_tell(survey, tmp_path
     assert src.counts == {int(i): int(n) for i, n in zip(*np.unique(ids, return_counts=True))}
     reference, _, _, _ = ingest_strips(paths, traj, sensor, IngestOptions())
     assert sorted(len(s) for s in strips) == sorted(len(s) for s in reference)  # the same lines, numbered in time
+
+
+def test_strip_points_option_is_checked_and_used(survey, cli, tmp_path):
+    paths, _, _ = _inputs(survey)
+    args = ["boresight", *paths, "--trajectory", survey / "sbet.out", "--sensor", survey / "sensor.toml"]
+    code, _, err = cli(*args, "--strip-points", "500", "--out", tmp_path / "bad")
+    assert code == 1 and "--strip-points" in err and "at least 10000" in err and "Traceback" not in err
+    assert not (tmp_path / "bad").exists()
+    code, _, err = cli(*args, "--strip-points", "10000", "--trajectory-model", "off", "--out", tmp_path / "o")
+    assert code == 0, err
+    doc = __import__("json").loads((tmp_path / "o" / "solution.json").read_text())
+    assert doc["run"]["options"]["ingest"]["budget_points"] == 10000
