@@ -32,34 +32,46 @@ def corrected_trajectory(inputs, result):
     return apply(inputs.trajectory, result.corrections, inputs.spans, frame)
 
 
-def line_chunks(inputs, sensor=None, trajectory=None, fields=None):
-    """Per chunk of the input files and flight line, (line id, LasPoints): the delivered points
-    streamed (``sensor`` None) or re-georeferenced with ``sensor`` and ``trajectory`` (inverse with
-    the nominal sensor and the input trajectory, as :func:`calidar.georef.regeoreference`), in the
-    files' CRS, every other attribute as read. Whole lines, chunk by chunk (bounded memory)."""
+def line_chunks(inputs, models=(None,), fields=None):
+    """Per chunk of the input files and flight line, (line id, [LasPoints per model]): for each of
+    ``models`` the delivered points (None) or those re-georeferenced with a (sensor, trajectory)
+    (inverse once with the nominal sensor and the input trajectory, forward with each, as
+    :func:`calidar.georef.regeoreference`), in the files' CRS, every other attribute as read.
+    Whole lines, chunk by chunk, in one read of the files (bounded memory)."""
     from calidar import georef
     from calidar.io.las import OPTIONAL_FIELDS
     from calidar.pipelines.inputs import points_ecef
     from calidar.pipelines.strip_ingest import split_rows
 
     for _, chunk, ids, t in inputs.source.chunks(OPTIONAL_FIELDS if fields is None else fields):
-        if sensor is not None:
-            moved = georef.regeoreference(inputs.trajectory, inputs.nominal, sensor, t, points_ecef(chunk), trajectory)
-            chunk = replace(chunk, xyz=georef.to_crs(moved, chunk.crs, chunk.geoid_undulation_m, source=chunk.path))
+        obs = None if all(m is None for m in models) else georef.inverse(inputs.trajectory, inputs.nominal, t,
+                                                                          points_ecef(chunk))
+        versions = [chunk if m is None else replace(chunk, xyz=georef.to_crs(
+            georef.forward(m[1], m[0], obs.time, obs.range_m, obs.angles), chunk.crs, chunk.geoid_undulation_m,
+            source=chunk.path)) for m in models]
         for i, rows in split_rows(ids):
-            yield i, chunk.select(rows)
+            yield i, [v.select(rows) for v in versions]
 
 
-def measure_lines(chunks) -> list:
-    """The :class:`calidar.strips.quality.PairQuality` of every overlapping pair of flight lines
-    given as (id, LasPoints) chunks. Holds the usable coordinates of every line (24 B a point)."""
+def measure_lines(chunks, n_models: int = 1) -> list[list]:
+    """Per model, the :class:`calidar.strips.quality.PairQuality` of every overlapping pair of
+    flight lines given as :func:`line_chunks`. Holds the usable coordinates of every line and
+    model (24 B a point each) until its pairs are measured."""
     from calidar.pipelines.quality import line_coordinates, pairs_quality, usable
 
-    parts: dict[int, list] = {}
-    for i, p in chunks:
-        parts.setdefault(i, []).append(p.select(usable(p)))
-    coords = {i: line_coordinates(replace(v[0], xyz=np.concatenate([p.xyz for p in v]))) for i, v in parts.items()}
-    return pairs_quality(coords)[0]
+    parts: list[dict[int, list]] = [{} for _ in range(n_models)]
+    first = {}
+    for i, versions in chunks:
+        keep = usable(versions[0])  # the attributes are the same in every version
+        first.setdefault(i, versions[0])
+        for k, v in enumerate(versions):
+            parts[k].setdefault(i, []).append(v.xyz[keep])
+    out = []
+    for k in range(n_models):
+        coords = {i: line_coordinates(replace(first[i], xyz=np.concatenate(v))) for i, v in parts[k].items()}
+        parts[k] = None  # free as we go
+        out.append(pairs_quality(coords)[0])
+    return out
 
 
 def _files(paths) -> str:
@@ -91,18 +103,15 @@ def quality_stages(inputs, result, corrected, shown_out: Path, tag: str = "", pr
     from calidar.strips.report import QualityStage
 
     before, mounting, both = stage_commands(inputs, Path(shown_out), tag, corrected is not None)
-    total = 3 if corrected is not None else 2
-    progress("overlap quality", 0, total)
-    stages = [QualityStage("as delivered", before, measure_lines(line_chunks(inputs)))]
-    progress("overlap quality", 1, total)
-    stages.append(QualityStage("new mounting", mounting,
-                               measure_lines(line_chunks(inputs, result.sensor, inputs.trajectory))))
-    progress("overlap quality", 2, total)
+    labels = [("as delivered", before), ("new mounting", mounting)]
+    models = [None, (result.sensor, inputs.trajectory)]
     if corrected is not None:
-        stages.append(QualityStage("new mounting + trajectory corrections", both,
-                                   measure_lines(line_chunks(inputs, result.sensor, corrected))))
-        progress("overlap quality", 3, total)
-    return stages
+        labels.append(("new mounting + trajectory corrections", both))
+        models.append((result.sensor, corrected))
+    progress("overlap quality", 0, 1)
+    measured = measure_lines(line_chunks(inputs, models), len(models))  # one read of the files for every stage
+    progress("overlap quality", 1, 1)
+    return [QualityStage(label, command, pairs) for (label, command), pairs in zip(labels, measured)]
 
 
 def write_outputs(inputs, result, corrected, verdict, record, stages, out_dir: Path, tag: str,
@@ -135,7 +144,7 @@ def write_strips(inputs, sensor, trajectory, out_dir: Path) -> list[Path]:
     offsets = np.floor(np.min([las_header(f.path).mins for f in src.files], axis=0))
     writers = {}
     with ExitStack() as stack:
-        for sid, las in line_chunks(inputs, sensor, trajectory):
+        for sid, (las,) in line_chunks(inputs, [(sensor, trajectory)]):
             if sid not in writers:
                 crs = las.crs if las.crs is not None else inputs.crs
                 writers[sid] = stack.enter_context(LasChunkWriter(out_dir / f"strip_{sid}.laz", crs, offsets,
