@@ -268,7 +268,7 @@ def ingest_strips(paths, trajectory, sensor, options: IngestOptions = IngestOpti
             sel = rows[cells[pos] == keys[rows]]
             ecef.setdefault(i, []).append(points_ecef(chunk.select(sel)))
             times.setdefault(i, []).append(t[sel])
-            where.setdefault(i, dict.fromkeys([]))[str(f.path)] = None
+            where.setdefault(i, {})[str(f.path)] = None
         progress("reading strips", len(files) + files.index(f) + 1, 2 * len(files))
     strips = [Strip.from_ecef(i, np.concatenate(ecef[i]), np.concatenate(times[i]), trajectory, sensor, frame,
                               ", ".join(where[i]), span=span[i]) for i in sorted(ecef)]
