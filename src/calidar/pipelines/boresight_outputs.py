@@ -32,18 +32,22 @@ def corrected_trajectory(inputs, result):
     return apply(inputs.trajectory, result.corrections, inputs.spans, frame)
 
 
-def line_chunks(inputs, models=(None,), fields=None):
+def line_chunks(inputs, models=(None,), fields=None, where=None):
     """Per chunk of the input files and flight line, (line id, [LasPoints per model]): for each of
     ``models`` the delivered points (None) or those re-georeferenced with a (sensor, trajectory)
     (inverse once with the nominal sensor and the input trajectory, forward with each, as
-    :func:`calidar.georef.regeoreference`), in the files' CRS, every other attribute as read.
-    Whole lines, chunk by chunk, in one read of the files (bounded memory)."""
+    :func:`calidar.georef.regeoreference`), in the files' CRS, ``fields`` (default: all) as read;
+    ``where(chunk)``: a mask of the points wanted. Whole lines, chunk by chunk, in one read of
+    the files (bounded memory)."""
     from calidar import georef
     from calidar.io.las import OPTIONAL_FIELDS
     from calidar.pipelines.inputs import points_ecef
     from calidar.pipelines.strip_ingest import split_rows
 
     for _, chunk, ids, t in inputs.source.chunks(OPTIONAL_FIELDS if fields is None else fields):
+        if where is not None:
+            keep = where(chunk)
+            chunk, ids, t = chunk.select(keep), ids[keep], t[keep]
         obs = None if all(m is None for m in models) else georef.inverse(inputs.trajectory, inputs.nominal, t,
                                                                           points_ecef(chunk))
         versions = [chunk if m is None else replace(chunk, xyz=georef.to_crs(
@@ -53,21 +57,20 @@ def line_chunks(inputs, models=(None,), fields=None):
             yield i, [v.select(rows) for v in versions]
 
 
-def measure_lines(chunks, n_models: int = 1) -> list[list]:
-    """Per model, the :class:`calidar.strips.quality.PairQuality` of every overlapping pair of
-    flight lines given as :func:`line_chunks`. Holds the usable coordinates of every line and
-    model (24 B a point each) until its pairs are measured."""
+def measure_lines(inputs, models) -> list[list]:
+    """Per model of :func:`line_chunks`, the :class:`calidar.strips.quality.PairQuality` of every
+    overlapping pair of flight lines (their points fit for it, :func:`calidar.pipelines.quality.usable`).
+    Holds those points' coordinates for every line and model (24 B a point each) until measured."""
     from calidar.pipelines.quality import line_coordinates, pairs_quality, usable
 
-    parts: list[dict[int, list]] = [{} for _ in range(n_models)]
+    parts: list[dict[int, list]] = [{} for _ in models]
     first = {}
-    for i, versions in chunks:
-        keep = usable(versions[0])  # the attributes are the same in every version
+    for i, versions in line_chunks(inputs, models, ("classification", "return_number", "number_of_returns"), usable):
         first.setdefault(i, versions[0])
         for k, v in enumerate(versions):
-            parts[k].setdefault(i, []).append(v.xyz[keep])
+            parts[k].setdefault(i, []).append(v.xyz)
     out = []
-    for k in range(n_models):
+    for k in range(len(models)):
         coords = {i: line_coordinates(replace(first[i], xyz=np.concatenate(v))) for i, v in parts[k].items()}
         parts[k] = None  # free as we go
         out.append(pairs_quality(coords)[0])
@@ -109,7 +112,7 @@ def quality_stages(inputs, result, corrected, shown_out: Path, tag: str = "", pr
         labels.append(("new mounting + trajectory corrections", both))
         models.append((result.sensor, corrected))
     progress("overlap quality", 0, 1)
-    measured = measure_lines(line_chunks(inputs, models), len(models))  # one read of the files for every stage
+    measured = measure_lines(inputs, models)  # one read of the files for every stage
     progress("overlap quality", 1, 1)
     return [QualityStage(label, command, pairs) for (label, command), pairs in zip(labels, measured)]
 
