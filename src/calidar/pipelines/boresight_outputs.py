@@ -57,18 +57,21 @@ def line_chunks(inputs, models=(None,), fields=None, where=None):
             yield i, [v.select(rows) for v in versions]
 
 
-def measure_lines(inputs, models) -> list[list]:
+def measure_lines(inputs, models, progress: Progress = no_progress) -> list[list]:
     """Per model of :func:`line_chunks`, the :class:`calidar.strips.quality.PairQuality` of every
     overlapping pair of flight lines (their points fit for it, :func:`calidar.pipelines.quality.usable`).
     Holds those points' coordinates for every line and model (24 B a point each) until measured."""
     from calidar.pipelines.quality import line_coordinates, pairs_quality, usable
 
     parts: list[dict[int, list]] = [{} for _ in models]
-    first = {}
+    first, done, total = {}, 0, sum(inputs.source.counts.values())
     for i, versions in line_chunks(inputs, models, ("classification", "return_number", "number_of_returns"), usable):
         first.setdefault(i, versions[0])
+        done += len(versions[0])
+        progress("overlap quality: reading strips", done, total)
         for k, v in enumerate(versions):
             parts[k].setdefault(i, []).append(v.xyz)
+    progress("overlap quality: reading strips", total, total)  # (the points not fit for it were not counted)
     out = []
     for k in range(len(models)):
         coords = {i: line_coordinates(replace(first[i], xyz=np.concatenate(v))) for i, v in parts[k].items()}
@@ -112,7 +115,7 @@ def quality_stages(inputs, result, corrected, shown_out: Path, tag: str = "", pr
         labels.append(("new mounting + trajectory corrections", both))
         models.append((result.sensor, corrected))
     progress("overlap quality", 0, 1)
-    measured = measure_lines(inputs, models)  # one read of the files for every stage
+    measured = measure_lines(inputs, models, progress)  # one read of the files for every stage
     progress("overlap quality", 1, 1)
     return [QualityStage(label, command, pairs) for (label, command), pairs in zip(labels, measured)]
 

@@ -198,15 +198,16 @@ class _Footprints:
 def _pass1(files: list[StripFile], frame: LocalFrame, trajectory, options: IngestOptions,
            progress: Progress) -> tuple[_Footprints, dict]:
     """Footprints and time checks of every file, chunk by chunk; the GPS week of each file."""
-    acc, weeks = _Footprints(), {}
-    keys_of = StripSource(files, frame, trajectory, np.zeros(0, np.int64), np.zeros(0, np.int64), "", options).cell_keys
-    for k, f in enumerate(files):
+    acc, weeks, done, total = _Footprints(), {}, 0, 2 * sum(las_header(f.path).point_count for f in files)
+    for f in files:
         times = FileTimes(f.path, trajectory, f.time_system)
         for chunk in iter_las_chunks(f.path, options.chunk_points, fields=("point_source_id",), options=f.points):
             t = times.feed(chunk.gps_time)
             ok = np.isfinite(t)
-            keys = keys_of(chunk)
+            keys = cell_keys(planar_xy(chunk, frame), options.cell_m)
             acc.add(_group_keys(chunk.point_source_id, t, options.gap_s)[ok], keys[ok], t[ok])
+            done += len(chunk)
+            progress("reading strips", done, total)  # points, both passes
         if times.week is not None:
             single_gps_week(*times.t_range, f.path)  # the whole file in one GPS week
         try:
@@ -214,7 +215,6 @@ def _pass1(files: list[StripFile], frame: LocalFrame, trajectory, options: Inges
         except InputError as e:  # the trajectory does not cover the strips: its time span is what falls short
             raise InputError(trajectory.source, "time", f"the points of {f.path.name}: {e.problem}") from None
         weeks[f.path] = times.week
-        progress("reading strips", k + 1, 2 * len(files))
     return acc, weeks
 
 
@@ -257,7 +257,7 @@ def ingest_strips(paths, trajectory, sensor, options: IngestOptions = IngestOpti
                                f"{options.cell_m:g} m cells); strip calibration needs overlapping flight lines")
     source = StripSource(files, frame, trajectory, groups, line, how, options, weeks,
                          {i: int(n.sum()) for i, (_, n) in footprint.items()})
-    ecef, times, where = {}, {}, {}
+    ecef, times, where, done = {}, {}, {}, sum(source.counts.values())
     for f, chunk, ids, t in source.chunks():
         keys = source.cell_keys(chunk)
         for i, rows in split_rows(ids):
@@ -269,7 +269,8 @@ def ingest_strips(paths, trajectory, sensor, options: IngestOptions = IngestOpti
             ecef.setdefault(i, []).append(points_ecef(chunk.select(sel)))
             times.setdefault(i, []).append(t[sel])
             where.setdefault(i, {})[str(f.path)] = None
-        progress("reading strips", len(files) + files.index(f) + 1, 2 * len(files))
+        done += len(chunk)
+        progress("reading strips", done, 2 * sum(source.counts.values()))
     strips = [Strip.from_ecef(i, np.concatenate(ecef[i]), np.concatenate(times[i]), trajectory, sensor, frame,
                               ", ".join(where[i]), span=span[i]) for i in sorted(ecef)]
     notes = unpaired_notes(footprint, pairs, options.cell_m, options.min_cells)
