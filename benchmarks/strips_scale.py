@@ -124,8 +124,9 @@ def main() -> None:
         if 4.0 in sizes and sizes[-1] != 4.0:
             ref = run(sims[4.0], method, "off")
             big = results[method, sizes[-1]]
+            z = ", ".join(f"{(ref['values'][k] - ref['truth'][k]) / ref['sigma'][k]:+.1f}" for k in ERRORS)
             print(f"{method}: 4 M in memory (every overlapping point, {ref['kept'] / 1e6:.2f} M, {ref['wall_s']:.0f} s, "
-                  f"{ref['rss_gib']:.2f} GiB) vs {big['points'] / 1e6:.0f} M streamed:", flush=True)
+                  f"{ref['rss_gib']:.2f} GiB; error / σ {z}) vs {big['points'] / 1e6:.0f} M streamed:", flush=True)
             for k in ERRORS:
                 d = big["values"][k] - ref["values"][k]
                 s = max(big["sigma"][k], ref["sigma"][k])
