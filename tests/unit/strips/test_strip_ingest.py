@@ -117,3 +117,21 @@ def test_strip_points_option_is_checked_and_used(survey, cli, tmp_path):
     assert code == 0, err
     doc = __import__("json").loads((tmp_path / "o" / "solution.json").read_text())
     assert doc["run"]["options"]["ingest"]["budget_points"] == 10000
+
+
+def test_adjusted_standard_times_become_the_trajectorys_week_seconds(survey, tmp_path):
+    from calidar.io.las import week_seconds_to_adjusted_standard
+
+    paths, traj, sensor = _inputs(survey)
+    adjusted = []
+    for p in paths:
+        las = read_las(p)
+        adjusted.append(write_las(tmp_path / p.name, las.xyz, las.crs, point_source_id=las.point_source_id,
+                                  gps_time=week_seconds_to_adjusted_standard(las.gps_time, 2345),
+                                  scan_angle_deg=las.scan_angle_deg, time_system="gps_adjusted_standard"))
+    options = IngestOptions(budget_points=20_000, chunk_points=4_000)
+    got, _, src, _ = ingest_strips(adjusted, traj, sensor, options)
+    want, _, _, _ = ingest_strips(paths, traj, sensor, options)
+    assert set(src.weeks.values()) == {2345} and [s.id for s in got] == [s.id for s in want]
+    for a, b in zip(got, want):
+        assert np.allclose(a.time, b.time, atol=1e-6, rtol=0) and np.array_equal(a.points, b.points)
