@@ -351,3 +351,32 @@ def from_crs(points, crs, geoid_undulation_m: float | None = None, source=None) 
         crs = _horizontal(crs, source, geoid_undulation_m)
     x, y, z = _transformer(crs, ECEF_CRS, source).transform(p[:, 0], p[:, 1], p[:, 2])
     return np.stack([x, y, z], axis=-1)
+
+
+def to_crs_moved(points_ecef, base_ecef, base_xyz, crs, geoid_undulation_m: float | None = None, source=None,
+                 tile_m: float = 50.0) -> np.ndarray:
+    """:func:`to_crs` of points moved by metres from ``base_ecef`` (N, 3), whose coordinates in
+    ``crs`` are ``base_xyz`` (N, 3): base_xyz + J · (p − base), J the transform's Jacobian at one
+    base point of each ``tile_m`` tile (finite differences through :func:`to_crs`). Much faster
+    than transforming every point; the error is below 0.1 mm for moves up to ~10 m (J changes by
+    ~tile/R ≈ 1e-5 across a tile, a second-order term by |Δ|²/R)."""
+    base_xyz = np.asarray(base_xyz, float)
+    base_ecef = np.asarray(base_ecef, float)
+    if base_xyz.shape[0] == 0:
+        return base_xyz.copy()
+    tile = tile_m / 1e5 if pyproj.CRS.from_user_input(crs).is_geographic else tile_m  # ≈ 1e5 m a degree
+    ij = np.floor(base_xyz[:, :2] / tile).astype(np.int64)
+    ij -= ij.min(axis=0)
+    key = ij[:, 0] * (int(ij[:, 1].max()) + 1) + ij[:, 1]
+    first = np.full(int(key.max()) + 1, -1, np.int64)
+    first[key[::-1]] = np.arange(key.size)[::-1]  # the first point of each tile (no sort)
+    tiles = np.flatnonzero(first >= 0)
+    index = np.empty(first.size, np.int64)
+    index[tiles] = np.arange(tiles.size)
+    anchor = base_ecef[first[tiles]]
+    at = to_crs(anchor, crs, geoid_undulation_m, source)
+    jac = np.stack([to_crs(anchor + step, crs, geoid_undulation_m, source) - at for step in np.eye(3)], axis=2)
+    d, rows, out = np.asarray(points_ecef, float) - base_ecef, index[key], base_xyz.copy()
+    for k in range(3):  # column by column: gathers of (n, 3), not (n, 3, 3)
+        out += jac[:, :, k][rows] * d[:, k:k + 1]
+    return out

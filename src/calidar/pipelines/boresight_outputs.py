@@ -36,7 +36,8 @@ def line_chunks(inputs, models=(None,), fields=None, where=None):
     """Per chunk of the input files and flight line, (line id, [LasPoints per model]): for each of
     ``models`` the delivered points (None) or those re-georeferenced with a (sensor, trajectory)
     (inverse once with the nominal sensor and the input trajectory, forward with each, as
-    :func:`calidar.georef.regeoreference`), in the files' CRS, ``fields`` (default: all) as read;
+    :func:`calidar.georef.regeoreference`), in the files' CRS (:func:`calidar.georef.to_crs_moved`,
+    within 0.1 mm of the full transform), ``fields`` (default: all) as read;
     ``where(chunk)``: a mask of the points wanted. Whole lines, chunk by chunk, in one read of
     the files (bounded memory)."""
     from calidar import georef
@@ -48,11 +49,11 @@ def line_chunks(inputs, models=(None,), fields=None, where=None):
         if where is not None:
             keep = where(chunk)
             chunk, ids, t = chunk.select(keep), ids[keep], t[keep]
-        obs = None if all(m is None for m in models) else georef.inverse(inputs.trajectory, inputs.nominal, t,
-                                                                          points_ecef(chunk))
-        versions = [chunk if m is None else replace(chunk, xyz=georef.to_crs(
-            georef.forward(m[1], m[0], obs.time, obs.range_m, obs.angles), chunk.crs, chunk.geoid_undulation_m,
-            source=chunk.path)) for m in models]
+        ecef = None if all(m is None for m in models) else points_ecef(chunk)
+        obs = None if ecef is None else georef.inverse(inputs.trajectory, inputs.nominal, t, ecef)
+        versions = [chunk if m is None else replace(chunk, xyz=georef.to_crs_moved(
+            georef.forward(m[1], m[0], obs.time, obs.range_m, obs.angles), ecef, chunk.xyz, chunk.crs,
+            chunk.geoid_undulation_m, source=chunk.path)) for m in models]
         for i, rows in split_rows(ids):
             yield i, [v.select(rows) for v in versions]
 
