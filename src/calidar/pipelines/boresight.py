@@ -166,6 +166,7 @@ def load_inputs(strip_paths, trajectory_path, sensor_path, options: BoresightOpt
                 progress: Progress = no_progress) -> BoresightInputs:
     """Read and check every input (the trajectory's accuracy must cover every strip)."""
     from calidar.io.trajectory import read_trajectory
+    from calidar.pipelines.strip_ingest import ingest_strips
     from calidar.sensor import Sensor
     from calidar.strips.parameters import build_parameters, parse_estimate, truth_to_si
     from calidar.validate import read_json
@@ -185,8 +186,6 @@ def load_inputs(strip_paths, trajectory_path, sensor_path, options: BoresightOpt
                              "nothing to do; expected the trajectory model on (the default) or neither option")
         notes.append("trajectory model off (--trajectory-model off): the trajectory is taken as exact, so the "
                      "σ miss its errors (ordinary GNSS/INS noise made them 2× too small on simulated surveys)")
-    from calidar.pipelines.strip_ingest import ingest_strips
-
     progress("reading strips", 0, 1)
     strips, crs, source, unpaired = ingest_strips(list(strip_paths), traj, nominal, options.ingest_options(), progress)
     inputs = BoresightInputs([Path(p) for p in strip_paths], trajectory_path, sensor_path, nominal, traj, strips, crs,

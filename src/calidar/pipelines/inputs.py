@@ -144,12 +144,18 @@ class FileTimes:
         self.cover.inside(t)
         return t
 
-    def finish(self) -> int | None:
-        """Raise the file's errors (several GPS weeks, points outside the trajectory); the GPS week
-        of the conversion (None: none)."""
+    def finish(self, name_trajectory: bool = False) -> int | None:
+        """Raise the file's errors (several GPS weeks, points outside the trajectory: named as an
+        error of the trajectory's time field when ``name_trajectory``); the GPS week of the
+        conversion (None: none)."""
         if self.week is not None:
             single_gps_week(*self.t_range, self.path)  # the whole file, before its counts (which assume one week)
-        self.cover.check(self.path)
+        try:
+            self.cover.check(self.path)
+        except InputError as e:
+            if not name_trajectory:
+                raise
+            raise InputError(self.cover.traj.source, "time", f"the points of {self.path.name}: {e.problem}") from None
         return self.week
 
 

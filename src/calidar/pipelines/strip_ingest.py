@@ -29,7 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from calidar.errors import CalibrationError, InputError
-from calidar.io.las import PointOptions, iter_las_chunks, las_file_crs, las_header, las_time_system, single_gps_week
+from calidar.io.las import PointOptions, iter_las_chunks, las_file_crs, las_header, las_time_system
 from calidar.pipelines import Progress, no_progress
 from calidar.pipelines.inputs import CHUNK_POINTS, FileTimes, points_ecef
 from calidar.strips.lines import GAP_S
@@ -208,13 +208,7 @@ def _pass1(files: list[StripFile], frame: LocalFrame, trajectory, options: Inges
             acc.add(_group_keys(chunk.point_source_id, t, options.gap_s)[ok], keys[ok], t[ok])
             done += len(chunk)
             progress("reading strips", done, total)  # points, both passes
-        if times.week is not None:
-            single_gps_week(*times.t_range, f.path)  # the whole file in one GPS week
-        try:
-            times.cover.check(f.path)
-        except InputError as e:  # the trajectory does not cover the strips: its time span is what falls short
-            raise InputError(trajectory.source, "time", f"the points of {f.path.name}: {e.problem}") from None
-        weeks[f.path] = times.week
+        weeks[f.path] = times.finish(name_trajectory=True)  # the trajectory's span is what falls short
     return acc, weeks
 
 
