@@ -144,11 +144,11 @@ def write_strips(inputs, sensor, trajectory, out_dir: Path) -> list[Path]:
     times as read; streamed chunk by chunk into one writer per line."""
     from contextlib import ExitStack
 
-    from calidar.io.las import LasChunkWriter, las_header
+    from calidar.io.las import LasChunkWriter
+    from calidar.pipelines.strip_ingest import bounds
 
     out_dir.mkdir(parents=True, exist_ok=True)
-    src = inputs.source
-    offsets = np.floor(np.min([las_header(f.path).mins for f in src.files], axis=0))
+    offsets = np.floor(bounds(inputs.source.files)[0])
     writers = {}
     with ExitStack() as stack:
         for sid, (las,) in line_chunks(inputs, [(sensor, trajectory)]):

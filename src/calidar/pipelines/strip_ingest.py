@@ -152,12 +152,17 @@ def _files(paths, trajectory, sensor, options: IngestOptions) -> list[StripFile]
     return files
 
 
+def bounds(files: list[StripFile]) -> tuple[np.ndarray, np.ndarray]:
+    """Smallest and largest x, y, z (CRS units) of the files' headers (of those holding points)."""
+    headers = [h for h in (las_header(f.path) for f in files) if h.point_count] or [las_header(files[0].path)]
+    return np.min([h.mins for h in headers], axis=0), np.max([h.maxs for h in headers], axis=0)
+
+
 def _frame(files: list[StripFile]) -> LocalFrame:
-    """The local frame at the centre of the files' header bounds."""
+    """The local frame at the centre of the files' header bounds (of those holding points)."""
     from calidar import georef
 
-    lo = np.min([las_header(f.path).mins for f in files], axis=0)
-    hi = np.max([las_header(f.path).maxs for f in files], axis=0)
+    lo, hi = bounds(files)
     corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
     f = files[0]
     crs = las_file_crs(f.path, f.points.crs)
