@@ -369,7 +369,7 @@ def simulate_survey(cfg: SurveyConfig, progress: Callable[[str, int, int], None]
         cat = {key: np.concatenate([p[key] for p in parts]) for key in parts[0]}
         strip = Strip(line, georef.to_crs(cat["ecef"], crs), **cat)
         streamed += 0 if on_strip is None else len(strip)
-        strips.append(strip) if on_strip is None else on_strip(strip)
+        (on_strip or strips.append)(strip)
         if progress:
             progress("simulating lines", k + 1, len(lines))
     return SurveyResult(cfg, scene, lines, traj_true, traj, nominal, truth, crs, strips, strip_errors,
