@@ -26,7 +26,7 @@ _API = {
     "read_trajectory_text": ("calidar.io.trajectory_text", "read_trajectory_text"),
     "write_trajectory_text": ("calidar.io.trajectory_text", "write_trajectory_text"),
     "read_las": ("calidar.io.las", "read_las"),
-    "write_las": ("calidar.io.las", "write_las"),
+    "write_las": ("calidar.io.las_write", "write_las"),
     "Sensor": ("calidar.sensor", "Sensor"),
     "georeference": ("calidar.georef", "forward"),
     "inverse_georeference": ("calidar.georef", "inverse"),

@@ -16,15 +16,12 @@ evaluation of the same equations to 1e-9 m.
 
 from __future__ import annotations
 
-import warnings
 from dataclasses import dataclass
-from functools import lru_cache
 
 import numpy as np
-import pyproj
 from numba import njit
 
-from calidar.errors import InputError
+from calidar.crs import ECEF_CRS, from_crs, to_crs, to_crs_moved  # noqa: F401 (georef's face)
 from calidar.scanners.linear import LinearScanner
 from calidar.sensor import Sensor
 from calidar.trajectory import Trajectory
@@ -300,80 +297,3 @@ def regeoreference(traj: Trajectory, old: Sensor, new: Sensor, time, points_ecef
     ``new_traj`` (default: the same trajectory, e.g. a corrected one) and ``new`` (ECEF)."""
     obs = inverse(traj, old, time, points_ecef)
     return forward(traj if new_traj is None else new_traj, new, obs.time, obs.range_m, obs.angles)
-
-
-ECEF_CRS = "EPSG:4978"
-
-
-@lru_cache(maxsize=64)
-def _cached_transformer(src: pyproj.CRS, dst: pyproj.CRS) -> pyproj.Transformer:
-    with warnings.catch_warnings():  # "best transformation is not available": checked by _transformer
-        warnings.simplefilter("ignore", UserWarning)
-        return pyproj.Transformer.from_crs(src, dst, always_xy=True)
-
-
-def _missing_grids(src: pyproj.CRS, dst: pyproj.CRS) -> list[str]:
-    """Names (and download addresses) of the PROJ grids the best transformation needs and lacks."""
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", UserWarning)
-        group = pyproj.transformer.TransformerGroup(src, dst, always_xy=True)
-    names = []
-    for op in group.unavailable_operations:
-        for g in op.grids:
-            if not g.available and g.short_name and g.short_name not in [n.split(" ")[0] for n in names]:
-                names.append(f"{g.short_name} ({g.url})" if g.url else g.short_name)
-    return names
-
-
-def _transformer(src, dst, source=None) -> pyproj.Transformer:
-    """A transformation between two CRSs, cached; a clear error (naming the missing grid) instead of
-    PROJ's "ballpark" vertical fallback, which would take heights above a geoid as ellipsoidal."""
-    try:
-        src, dst = pyproj.CRS.from_user_input(src), pyproj.CRS.from_user_input(dst)
-    except (pyproj.exceptions.CRSError, TypeError) as e:
-        raise InputError(source, "crs", f"expected a CRS pyproj knows (e.g. EPSG:32611): {e}") from None
-    t = _cached_transformer(src, dst)
-    if "ballpark vertical" in t.description.lower():
-        geoid = src if src.is_compound or src.is_vertical else dst
-        grids = _missing_grids(src, dst)
-        raise InputError(source, "crs", f"{geoid.name} has heights above a geoid and PROJ lacks its grid "
-                         f"({', '.join(grids[:2]) or 'no grid known'}); install it (projsync --file NAME, or "
-                         "PROJ_NETWORK=ON), give --geoid-undulation N (m, constant: a small area) or an ellipsoidal "
-                         "--crs (docs/conventions.md, Heights)")
-    return t
-
-
-def _horizontal(crs, source, undulation_m) -> pyproj.CRS:
-    """The horizontal part of a compound CRS with a geoid (heights then taken as ellipsoidal after
-    adding ``undulation_m``); an error for a CRS without geoid heights."""
-    crs = pyproj.CRS.from_user_input(crs)
-    if not crs.is_compound:
-        raise InputError(source, "--geoid-undulation", f"given ({undulation_m} m) but {crs.name} has ellipsoidal "
-                         "heights; expected a compound CRS with a geoid (e.g. EPSG:32632+3855)")
-    return crs.sub_crs_list[0]
-
-
-def to_crs(points_ecef, crs, geoid_undulation_m: float | None = None, source=None) -> np.ndarray:
-    """ECEF (N, 3) → coordinates (N, 3) in ``crs`` (x/east/lon first, heights as the CRS has them).
-
-    ``geoid_undulation_m`` N: heights above the geoid of a compound ``crs`` as ellipsoidal − N
-    (a constant for a small area, instead of the geoid grid)."""
-    p = np.asarray(points_ecef, float)
-    if geoid_undulation_m is None:
-        x, y, z = _transformer(ECEF_CRS, crs, source).transform(p[:, 0], p[:, 1], p[:, 2])
-        return np.stack([x, y, z], axis=-1)
-    out = to_crs(p, _horizontal(crs, source, geoid_undulation_m), None, source)
-    out[:, 2] -= geoid_undulation_m
-    return out
-
-
-def from_crs(points, crs, geoid_undulation_m: float | None = None, source=None) -> np.ndarray:
-    """Coordinates (N, 3) in ``crs`` → ECEF (N, 3); ``geoid_undulation_m`` as in :func:`to_crs`;
-    ``source`` (a file) names where the points came from in errors."""
-    p = np.asarray(points, float)
-    if geoid_undulation_m is not None:
-        p = p.copy()
-        p[:, 2] += geoid_undulation_m
-        crs = _horizontal(crs, source, geoid_undulation_m)
-    x, y, z = _transformer(crs, ECEF_CRS, source).transform(p[:, 0], p[:, 1], p[:, 2])
-    return np.stack([x, y, z], axis=-1)

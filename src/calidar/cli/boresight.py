@@ -13,6 +13,7 @@ from calidar.cli.options import (
 )
 from calidar.errors import InputError
 from calidar.pipelines.boresight import TRAJECTORY_BLOCK_S, TRAJECTORY_CORRELATION
+from calidar.pipelines.strip_ingest import BUDGET_POINTS, MIN_BUDGET_POINTS, IngestOptions
 from calidar.strips.trajectory_errors import PREFIX as TRAJECTORY_PREFIX
 
 
@@ -50,6 +51,10 @@ def boresight(
     crs: str | None = CRS, time_system: str | None = TIME_SYSTEM, geoid_undulation: float | None = GEOID_UNDULATION,
     trajectory_crs: str | None = TRAJECTORY_CRS, trajectory_angles: str | None = TRAJECTORY_ANGLES,
     trajectory_heading: str | None = TRAJECTORY_HEADING, trajectory_columns: str | None = TRAJECTORY_COLUMNS,
+    strip_points: int = typer.Option(
+        BUDGET_POINTS, "--strip-points", help="Points of each strip's overlaps the calibration keeps (whole blocks "
+        "spread evenly over them; the strips are streamed, memory and time grow with this, not with the files); "
+        "0: every overlapping point."),
 ) -> None:
     """Calibrate the mounting (and more) from overlapping strips; writes solution.json, sensor.toml,
     sbet_corrected.out (the trajectory with its estimated corrections) and report.html."""
@@ -60,11 +65,15 @@ def boresight(
     if trajectory_model not in ("on", "off"):
         raise InputError(None, "--trajectory-model", f"expected on or off, got {trajectory_model!r}")
     parse_estimate(estimate)
+    if strip_points != 0 and strip_points < MIN_BUDGET_POINTS:
+        raise InputError(None, "--strip-points", f"expected 0 (every overlapping point) or at least "
+                         f"{MIN_BUDGET_POINTS}, got {strip_points}")
     options = BoresightOptions(tuple(parse_methods(method)), estimate, trajectory_model == "on", trajectory_accuracy,
                                trajectory_sigma, trajectory_block, trajectory_correlation, truth, scheduler, workers,
                                write_strips, points=point_options(crs, time_system, geoid_undulation),
                                trajectory_input=trajectory_options(trajectory_crs, trajectory_angles, trajectory_heading,
-                                                                   trajectory_columns))
+                                                                   trajectory_columns),
+                               ingest=IngestOptions(budget_points=strip_points or None))
     check_out_dir(out, force)
     with output_folder(out, force, inputs=[*strips, trajectory, sensor, trajectory_accuracy, truth]) as tmp, \
             progress_bar() as bar:

@@ -10,7 +10,7 @@ without one gives ``crs=None`` unless the caller supplies ``crs=``.
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -21,6 +21,7 @@ import pyproj
 
 from calidar.errors import InputError
 from calidar.io.las_crs import las_crs
+from calidar.io.las_write import SCAN_ANGLE_STEP_DEG, LasChunkWriter, write_las  # noqa: F401 (the io face)
 from calidar.outputs import atomic_path
 from calidar.trajectory import SECONDS_PER_WEEK, TIME_SYSTEMS
 from calidar.validate import number
@@ -28,7 +29,6 @@ from calidar.validate import number
 ADJUSTED_STANDARD_OFFSET_S = 1e9  #: adjusted standard GPS time = GPS time − 1e9 s
 OPTIONAL_FIELDS = ("scan_angle_deg", "point_source_id", "return_number", "number_of_returns", "classification",
                    "intensity")
-SCAN_ANGLE_STEP_DEG = 0.006  #: LAS 1.4 scaled scan angle unit
 MAX_COORDINATE = 1e9  #: |x|, |y|, |z| beyond this (CRS units) is a damaged header or file, not a place
 TIME_SYSTEM_NAMES = {"week": "gps_week_seconds", "adjusted": "gps_adjusted_standard"}  #: --time-system values
 GEOID_UNDULATION_MAX_M = 150.0  #: |N| of every geoid model is below 110 m
@@ -98,6 +98,18 @@ class LasPoints:
         """The points where ``mask`` (boolean or index array) selects."""
         kw = {f: None if getattr(self, f) is None else getattr(self, f)[mask] for f in OPTIONAL_FIELDS}
         return replace(self, xyz=self.xyz[mask], gps_time=self.gps_time[mask], **kw)
+
+
+def concat_points(parts: Sequence[LasPoints]) -> LasPoints:
+    """Several LasPoints (files or chunks) as one, with the first's CRS, path and time system;
+    an optional field is kept only when every part has it."""
+    first = parts[0]
+    if len(parts) == 1:
+        return first
+    kw = {f: None if any(getattr(c, f) is None for c in parts) else np.concatenate([getattr(c, f) for c in parts])
+          for f in OPTIONAL_FIELDS}
+    return replace(first, xyz=np.concatenate([c.xyz for c in parts]),
+                   gps_time=np.concatenate([c.gps_time for c in parts]), **kw)
 
 
 def single_gps_week(t_min_adjusted_s: float, t_max_adjusted_s: float, source=None) -> int:
@@ -245,11 +257,31 @@ def read_las(path: str | Path, crs=None, fields=OPTIONAL_FIELDS, *, options: Poi
     return chunks[0]
 
 
+_S = laspy.DecompressionSelection
+#: the LAZ 1.4 (formats 6–10) layer of each field (LasPoints' or laspy's names; x, y and the returns are in the base layer)
+_LAYERS = {"gps_time": _S.GPS_TIME, "z": _S.Z, "scan_angle_deg": _S.SCAN_ANGLE, "scan_angle": _S.SCAN_ANGLE,
+           "point_source_id": _S.POINT_SOURCE_ID, "classification": _S.CLASSIFICATION, "intensity": _S.INTENSITY}
+
+
+def _layers(names) -> laspy.DecompressionSelection:
+    """The base layer and those holding ``names``: the others are skipped when decompressing."""
+    sel = _S.base()
+    for name in names:
+        sel |= _LAYERS.get(name, _S.base())
+    return sel
+
+
+def _selection(fields) -> laspy.DecompressionSelection:
+    """The LAZ 1.4 (formats 6–10) layers holding xyz, GPS time and ``fields``: the others are skipped."""
+    return _layers(("z", "gps_time", *fields))
+
+
 def iter_las_chunks(path: str | Path, chunk_points: int = 2_000_000, crs=None, fields=OPTIONAL_FIELDS, *,
                     options: PointOptions | None = None) -> Iterator[LasPoints]:
-    """Read a LAS/LAZ file in chunks of at most ``chunk_points`` points (files larger than memory)."""
+    """Read a LAS/LAZ file in chunks of at most ``chunk_points`` points (files larger than memory);
+    of a LAZ 1.4 file only the layers of xyz, GPS time and ``fields`` are decompressed."""
     path, opts = Path(path), _options(crs, options)
-    with _open(path) as reader:
+    with _open(path, _selection(fields)) as reader:
         header = reader.header
         time_system = gps_time_system(header, path, opts.time_system)
         file_crs = _resolve_crs(header, opts.crs, path)
@@ -264,19 +296,11 @@ def iter_las_times(path: str | Path, chunk_points: int = 2_000_000) -> Iterator[
         yield chunk["gps_time"]
 
 
-#: LAZ 1.4 layers holding the fields :func:`iter_las_fields` reads (others are in the base layer)
-_LAYERS = {"gps_time": laspy.DecompressionSelection.GPS_TIME, "classification": laspy.DecompressionSelection.CLASSIFICATION,
-           "point_source_id": laspy.DecompressionSelection.POINT_SOURCE_ID, "z": laspy.DecompressionSelection.Z}
-
-
 def iter_las_fields(path: str | Path, names, chunk_points: int = 2_000_000) -> Iterator[dict[str, np.ndarray]]:
     """Some raw point fields (laspy names: gps_time, classification, point_source_id, return_number,
     ...) of a LAS/LAZ file chunk by chunk, decompressing only their layers (LAZ 1.4)."""
     path = Path(path)
-    selection = laspy.DecompressionSelection.base()
-    for name in names:
-        selection |= _LAYERS.get(name, laspy.DecompressionSelection.base())
-    with _open(path, selection) as reader:
+    with _open(path, _layers(names)) as reader:
         gps_time_system(reader.header, path)
         for _, rec in _records(reader, chunk_points, path):
             yield {name: np.asarray(getattr(rec, name), float if name in ("gps_time", "x", "y", "z") else None)
@@ -324,51 +348,3 @@ def las_time_system(path: str | Path, override: str | None = None) -> str:
     """The GPS time system of a LAS/LAZ file: ``override`` (PointOptions.time_system) or its header's
     (error for formats without GPS time)."""
     return gps_time_system(las_header(path), Path(path), override)
-
-
-def write_las(path: str | Path, xyz, crs, *, gps_time, scan_angle_deg, point_source_id, return_number=None,
-              number_of_returns=None, classification=None, intensity=None, time_system="gps_week_seconds",
-              creation_date=None, force=False) -> Path:
-    """Write LAS 1.4 point format 6 (LAZ when the suffix is .laz) atomically.
-
-    ``creation_date`` (datetime.date) goes into the header; default today (pass a fixed date
-    for byte-reproducible files).
-
-    ``xyz`` (N, 3) in ``crs`` (written as a WKT VLR), 1 mm scales (1e-9 deg for a geographic
-    CRS); scan angles in degrees (stored in 0.006° steps); returns default to 1 of 1.
-
-    >>> import tempfile, numpy as np, calidar
-    >>> xyz = np.array([[500000.0, 5200000.0, 400.0], [500001.0, 5200002.0, 401.5]])  # UTM 32N, m
-    >>> path = calidar.write_las(Path(tempfile.mkdtemp()) / "strip.las", xyz, "EPSG:32632", gps_time=[10.0, 10.5],
-    ...                          scan_angle_deg=[-3.0, 4.5], point_source_id=7)
-    >>> points = calidar.read_las(path)
-    >>> points.time_system, points.scan_angle_deg.tolist(), points.return_number.tolist()
-    ('gps_week_seconds', [-3.0, 4.5], [1, 1])
-    """
-    xyz = np.asarray(xyz, float)
-    n = xyz.shape[0]
-    crs = pyproj.CRS.from_user_input(crs)
-    header = laspy.LasHeader(point_format=6, version="1.4")
-    scale = 1e-9 if crs.is_geographic else 1e-3
-    header.scales = np.array([scale, scale, 1e-3])
-    header.offsets = np.floor(xyz.min(axis=0)) if n else np.zeros(3)
-    header.add_crs(crs)
-    if creation_date is not None:
-        header.creation_date = creation_date
-    header.global_encoding.gps_time_type = (
-        laspy.header.GpsTimeType.STANDARD if time_system == "gps_adjusted_standard" else laspy.header.GpsTimeType.WEEK_TIME
-    )
-    las = laspy.LasData(header)
-    las.x, las.y, las.z = xyz[:, 0], xyz[:, 1], xyz[:, 2]
-    las.gps_time = np.asarray(gps_time, float)
-    las.scan_angle = np.round(np.asarray(scan_angle_deg, float) / SCAN_ANGLE_STEP_DEG).astype(np.int16)
-    las.point_source_id = np.asarray(point_source_id, np.uint16) * np.ones(n, np.uint16)
-    las.return_number = np.ones(n, np.uint8) if return_number is None else np.asarray(return_number, np.uint8)
-    las.number_of_returns = np.ones(n, np.uint8) if number_of_returns is None else np.asarray(number_of_returns, np.uint8)
-    if classification is not None:
-        las.classification = np.asarray(classification, np.uint8)
-    if intensity is not None:
-        las.intensity = np.asarray(intensity, np.uint16)
-    with atomic_path(path, force) as tmp:
-        las.write(tmp)
-    return Path(path)

@@ -46,13 +46,28 @@ class BoresightOptions:
     settings: object | None = None  #: calidar.strips.calibrate.StripSettings (benchmarks, tests)
     points: PointOptions = PointOptions()  #: --crs, --time-system, --geoid-undulation of the strips
     trajectory_input: TrajectoryOptions = TrajectoryOptions()  #: --trajectory-crs and the text-trajectory options
+    #: how the strips are read (calidar.pipelines.strip_ingest.IngestOptions; None: its defaults,
+    #: the overlap grid of ``settings``, the point options above)
+    ingest: object | None = None
 
     def to_dict(self) -> dict:
         def plain(v):
             return str(v) if isinstance(v, Path) else ({k: plain(x) for k, x in v.__dict__.items()}
                                                        if isinstance(v, (PointOptions, TrajectoryOptions)) else v)
 
-        return {k: plain(v) for k, v in self.__dict__.items() if k != "settings"}
+        d = {k: plain(v) for k, v in self.__dict__.items() if k not in ("settings", "ingest")}
+        ingest = self.ingest_options()
+        d["ingest"] = {"budget_points": ingest.budget_points, "chunk_points": ingest.chunk_points}
+        return d
+
+    def ingest_options(self):
+        """The strip ingest options, on the calibration's overlap grid, with the strips' point options."""
+        from calidar.pipelines.strip_ingest import IngestOptions
+        from calidar.strips.calibrate import StripSettings
+
+        s = self.settings or StripSettings()
+        return replace(self.ingest or IngestOptions(), cell_m=s.overlap_cell_m, min_cells=s.min_overlap_cells,
+                       points=self.points)
 
 
 @dataclass
@@ -64,8 +79,9 @@ class BoresightInputs:
     sensor_path: Path
     nominal: object  #: calidar.sensor.Sensor
     trajectory: object  #: calidar.trajectory.Trajectory
-    strips: list  #: calidar.strips.strip.Strip, one per flight line
+    strips: list  #: calidar.strips.strip.Strip, one per overlapping flight line (its kept overlap points)
     crs: object
+    source: object | None = None  #: calidar.pipelines.strip_ingest.StripSource: the whole lines, streamed
     accuracy: object | None = None  #: calidar.trajectory_accuracy.TrajectoryAccuracy (None: model off)
     accuracy_path: Path | None = None
     notes: list[str] = field(default_factory=list)  #: what the user should know (e.g. a default assumed)
@@ -74,7 +90,7 @@ class BoresightInputs:
 
     @property
     def spans(self) -> dict[int, tuple[float, float]]:
-        return {s.id: (float(s.time.min()), float(s.time.max())) for s in self.strips}
+        return {s.id: s.time_span for s in self.strips}
 
     @property
     def paths(self) -> list[Path]:
@@ -83,31 +99,13 @@ class BoresightInputs:
                 *([self.accuracy_path] if self.accuracy_path else [])]
 
 
-def load_strips(paths, trajectory, sensor, options: PointOptions = PointOptions()):
-    """Flight lines of the LAS/LAZ files (read with the shared point ``options``) as Strips in one
-    local frame (times in the trajectory's system)."""
-    from calidar.georef import from_crs
-    from calidar.io.las import adjusted_standard_to_week_seconds
-    from calidar.strips.lines import read_flight_lines
-    from calidar.strips.strip import LocalFrame, Strip
+def load_strips(paths, trajectory, sensor, options=None, progress: Progress = no_progress):
+    """Flight lines of the LAS/LAZ files as Strips in one local frame (times in the trajectory's
+    system), streamed and thinned to their overlaps (``options``: an
+    :class:`calidar.pipelines.strip_ingest.IngestOptions`): (strips, CRS)."""
+    from calidar.pipelines.strip_ingest import IngestOptions, ingest_strips
 
-    lines, _ = read_flight_lines(paths, options=options)
-    first = next(iter(lines.values()))
-    crs = first.crs if first.crs is not None else sensor.crs
-    if crs is None:
-        raise InputError(first.path, "crs", "the file has no CRS and sensor.toml gives none; expected one of them")
-    ecef = {i: from_crs(p.xyz, crs, p.geoid_undulation_m, source=p.path) for i, p in lines.items()}
-    frame = LocalFrame.at(np.concatenate([e[:: max(1, len(e) // 20000)] for e in ecef.values()]))
-    strips = []
-    for i, p in lines.items():
-        t = p.gps_time
-        if p.time_system != trajectory.time_system:
-            if p.time_system == "gps_adjusted_standard":
-                t = adjusted_standard_to_week_seconds(t, p.path)[0]
-            else:
-                raise InputError(p.path, "gps_time", "holds GPS week seconds but the trajectory holds adjusted "
-                                 "standard GPS time; expected the same time system")
-        strips.append(Strip.from_ecef(i, ecef[i], t, trajectory, sensor, frame, str(p.path), las=p))
+    strips, crs, _, _ = ingest_strips(list(paths), trajectory, sensor, options or IngestOptions(), progress)
     return strips, crs
 
 
@@ -176,6 +174,7 @@ def load_inputs(strip_paths, trajectory_path, sensor_path, options: BoresightOpt
                 progress: Progress = no_progress) -> BoresightInputs:
     """Read and check every input (the trajectory's accuracy must cover every strip)."""
     from calidar.pipelines.inputs import load_trajectory
+    from calidar.pipelines.strip_ingest import ingest_strips
     from calidar.sensor import Sensor
     from calidar.strips.parameters import build_parameters, parse_estimate, truth_to_si
     from calidar.validate import read_json
@@ -196,10 +195,9 @@ def load_inputs(strip_paths, trajectory_path, sensor_path, options: BoresightOpt
         notes.append("trajectory model off (--trajectory-model off): the trajectory is taken as exact, so the "
                      "σ miss its errors (ordinary GNSS/INS noise made them 2× too small on simulated surveys)")
     progress("reading strips", 0, 1)
-    strips, crs = load_strips(list(strip_paths), traj, nominal, options.points)
-    progress("reading strips", 1, 1)
+    strips, crs, source, unpaired = ingest_strips(list(strip_paths), traj, nominal, options.ingest_options(), progress)
     inputs = BoresightInputs([Path(p) for p in strip_paths], trajectory_path, sensor_path, nominal, traj, strips, crs,
-                             accuracy, accuracy_path, notes, options=options)
+                             source, accuracy, accuracy_path, notes + unpaired, options=options)
     if accuracy is not None:
         accuracy.check_covers(inputs.spans)
     if options.truth is not None:

@@ -1,8 +1,9 @@
 """The deliverables of a strip calibration, made so that they reproduce the report.
 
-The overlap quality is measured on the WHOLE strips re-georeferenced in the files' CRS with
-exactly the code ``calidar quality`` runs (:func:`calidar.pipelines.quality.lines_quality`: the
-same point selection and swath accumulator), three times: as delivered, with the new mounting
+The overlap quality is measured on the WHOLE strips (streamed again from the files,
+:func:`line_chunks`) re-georeferenced in the files' CRS with exactly the code ``calidar quality``
+runs (:func:`calidar.pipelines.quality.lines_quality`: the same point selection and swath
+accumulator), three times: as delivered, with the new mounting
 alone (``calidar regeoref --to sensor.toml``), and with the new mounting and the corrected
 trajectory (``--to-trajectory sbet_corrected.out``). Each stage names the commands that
 reproduce it from the written files.
@@ -31,24 +32,56 @@ def corrected_trajectory(inputs, result):
     return apply(inputs.trajectory, result.corrections, inputs.spans, frame)
 
 
-def regeoreferenced_lines(inputs, sensor, trajectory):
-    """Per flight line (id, LasPoints): the delivered points re-georeferenced with ``sensor`` and
-    ``trajectory`` (inverse with the nominal sensor and the input trajectory, as
-    :func:`calidar.georef.regeoreference`), in the files' CRS, every other attribute as read."""
+def line_chunks(inputs, models=(None,), fields=None, where=None):
+    """Per chunk of the input files and flight line, (line id, [LasPoints per model]): for each of
+    ``models`` the delivered points (None) or those re-georeferenced with a (sensor, trajectory)
+    (inverse once with the nominal sensor and the input trajectory, forward with each, as
+    :func:`calidar.georef.regeoreference`), in the files' CRS (:func:`calidar.georef.to_crs_moved`,
+    within 0.1 mm of the full transform), ``fields`` (default: all) as read;
+    ``where(chunk)``: a mask of the points wanted. Whole lines, chunk by chunk, in one read of
+    the files (bounded memory)."""
     from calidar import georef
+    from calidar.io.las import OPTIONAL_FIELDS
+    from calidar.pipelines.inputs import points_ecef
+    from calidar.pipelines.strip_ingest import split_rows
 
-    for s in inputs.strips:
-        ecef = georef.forward(trajectory, sensor, s.obs.time, s.obs.range_m, s.obs.angles)
-        las = s.extra["las"]
-        crs = las.crs if las.crs is not None else inputs.crs
-        yield s.id, replace(las, xyz=georef.to_crs(ecef, crs, las.geoid_undulation_m, source=las.path))
+    for _, chunk, ids, t in inputs.source.chunks(OPTIONAL_FIELDS if fields is None else fields):
+        if where is not None:
+            keep = where(chunk)
+            chunk, ids, t = chunk.select(keep), ids[keep], t[keep]
+        ecef = None if all(m is None for m in models) else points_ecef(chunk)
+        obs = None if ecef is None else georef.inverse(inputs.trajectory, inputs.nominal, t, ecef)
+        versions = [chunk if m is None else replace(chunk, xyz=georef.to_crs_moved(
+            georef.forward(m[1], m[0], obs.time, obs.range_m, obs.angles), ecef, chunk.xyz, chunk.crs,
+            chunk.geoid_undulation_m, source=chunk.path)) for m in models]
+        for i, rows in split_rows(ids):
+            yield i, [v.select(rows) for v in versions]
 
 
-def measure_lines(lines) -> list:
-    """The :class:`calidar.strips.quality.PairQuality` of every overlapping pair of (id, LasPoints)."""
+def measure_lines(inputs, models, progress: Progress = no_progress) -> list[list]:
+    """Per model of :func:`line_chunks`, the :class:`calidar.strips.quality.PairQuality` of every
+    overlapping pair of flight lines, by :func:`calidar.pipelines.quality.lines_quality` (each line's
+    point selection from the classes it holds). Holds the points either selection could keep
+    (ground or last returns: coordinates and the selection's fields, ≈ 27 B a point) for every line
+    and model until measured."""
+    from calidar.io.las import concat_points
     from calidar.pipelines.quality import lines_quality
+    from calidar.strips.selection import FIELDS, candidate_mask
 
-    return lines_quality(lines)[0]
+    parts: list[dict[int, list]] = [{} for _ in models]
+    done, total = 0, sum(inputs.source.counts.values())
+    for i, versions in line_chunks(inputs, models, FIELDS, candidate_mask):
+        done += len(versions[0])
+        progress("overlap quality: reading strips", done, total)
+        for k, v in enumerate(versions):
+            parts[k].setdefault(i, []).append(v)
+    progress("overlap quality: reading strips", total, total)  # (the points not fit for it were not counted)
+    out = []
+    for k in range(len(models)):
+        lines = [(i, concat_points(v)) for i, v in parts[k].items()]
+        parts[k] = None  # free as we go
+        out.append(lines_quality(lines)[0])
+    return out
 
 
 def _files(paths) -> str:
@@ -83,18 +116,15 @@ def quality_stages(inputs, result, corrected, shown_out: Path, tag: str = "", pr
     from calidar.strips.report import QualityStage
 
     before, mounting, both = stage_commands(inputs, Path(shown_out), tag, corrected is not None)
-    total = 3 if corrected is not None else 2
-    progress("overlap quality", 0, total)
-    stages = [QualityStage("as delivered", before, measure_lines((s.id, s.extra["las"]) for s in inputs.strips))]
-    progress("overlap quality", 1, total)
-    stages.append(QualityStage("new mounting", mounting,
-                               measure_lines(regeoreferenced_lines(inputs, result.sensor, inputs.trajectory))))
-    progress("overlap quality", 2, total)
+    labels = [("as delivered", before), ("new mounting", mounting)]
+    models = [None, (result.sensor, inputs.trajectory)]
     if corrected is not None:
-        stages.append(QualityStage("new mounting + trajectory corrections", both,
-                                   measure_lines(regeoreferenced_lines(inputs, result.sensor, corrected))))
-        progress("overlap quality", 3, total)
-    return stages
+        labels.append(("new mounting + trajectory corrections", both))
+        models.append((result.sensor, corrected))
+    progress("overlap quality", 0, 1)
+    measured = measure_lines(inputs, models, progress)  # one read of the files for every stage
+    progress("overlap quality", 1, 1)
+    return [QualityStage(label, command, pairs) for (label, command), pairs in zip(labels, measured)]
 
 
 def write_outputs(inputs, result, corrected, verdict, record, stages, out_dir: Path, tag: str,
@@ -116,18 +146,27 @@ def write_outputs(inputs, result, corrected, verdict, record, stages, out_dir: P
 
 
 def write_strips(inputs, sensor, trajectory, out_dir: Path) -> list[Path]:
-    """Recalibrated strips as LAZ (``strip_<id>.laz``, one per flight line), attributes and GPS times as read."""
-    from calidar.io.las import write_las
+    """Recalibrated strips as LAZ (``strip_<id>.laz``, one per flight line), attributes and GPS
+    times as read; streamed chunk by chunk into one writer per line."""
+    from contextlib import ExitStack
+
+    from calidar.io.las import LasChunkWriter
+    from calidar.pipelines.strip_ingest import bounds
 
     out_dir.mkdir(parents=True, exist_ok=True)
-    paths = []
-    for sid, las in regeoreferenced_lines(inputs, sensor, trajectory):
-        paths.append(write_las(out_dir / f"strip_{sid}.laz", las.xyz, las.crs if las.crs is not None else inputs.crs,
-                               gps_time=las.gps_time, point_source_id=sid, return_number=las.return_number,
+    offsets = np.floor(bounds(inputs.source.files)[0])
+    writers = {}
+    with ExitStack() as stack:
+        for sid, (las,) in line_chunks(inputs, [(sensor, trajectory)]):
+            if sid not in writers:
+                crs = las.crs if las.crs is not None else inputs.crs
+                writers[sid] = stack.enter_context(LasChunkWriter(out_dir / f"strip_{sid}.laz", crs, offsets,
+                                                                  las.time_system, force=True))
+            writers[sid].write(las.xyz, gps_time=las.gps_time, point_source_id=sid, return_number=las.return_number,
                                scan_angle_deg=las.scan_angle_deg if las.scan_angle_deg is not None else np.zeros(len(las)),
                                number_of_returns=las.number_of_returns, classification=las.classification,
-                               intensity=las.intensity, time_system=las.time_system, force=True))
-    return paths
+                               intensity=las.intensity)
+    return [out_dir / f"strip_{sid}.laz" for sid in sorted(writers)]
 
 
 def map_pair(inputs, stages) -> tuple[int, int] | None:
@@ -135,7 +174,8 @@ def map_pair(inputs, stages) -> tuple[int, int] | None:
     opposite), the pair with the most smooth overlapping cells (any pair when none is)."""
     from calidar.strips.geometry import pair_kind
 
-    pairs = stages[0].pairs if stages else []
+    ids = {s.id for s in inputs.strips}  # the lines calibrated (those overlapping another)
+    pairs = [q for q in (stages[0].pairs if stages else []) if q.a in ids and q.b in ids]
     if not pairs:
         return None
     kind = pair_kind(inputs.strips, [(q.a, q.b) for q in pairs])

@@ -141,6 +141,41 @@ class Coverage:
         )
 
 
+class FileTimes:
+    """A LAS/LAZ file's GPS times brought chunk by chunk into the trajectory's time system
+    (adjusted standard → week seconds of the file's one GPS week, taken from its first finite
+    time), counting the points outside the trajectory (:class:`Coverage`)."""
+
+    def __init__(self, path: Path, traj: Trajectory, system: str):
+        self.path, self.cover, self.week, self.t_range = path, Coverage(traj), None, [np.inf, -np.inf]
+        self.convert = system == "gps_adjusted_standard" and traj.time_system == "gps_week_seconds"
+
+    def feed(self, t: np.ndarray) -> np.ndarray:
+        """The chunk's times (s, as stored) in the trajectory's system; counts those outside it."""
+        if self.convert:
+            finite = t[np.isfinite(t)]
+            if finite.size:
+                self.t_range = [min(self.t_range[0], float(finite.min())), max(self.t_range[1], float(finite.max()))]
+                self.week = single_gps_week(self.t_range[0], self.t_range[0], self.path) if self.week is None else self.week
+            t = adjusted_standard_in_week(t, 0 if self.week is None else self.week)
+        self.cover.inside(t)
+        return t
+
+    def finish(self, name_trajectory: bool = False) -> int | None:
+        """Raise the file's errors (several GPS weeks, points outside the trajectory: named as an
+        error of the trajectory's time field when ``name_trajectory``); the GPS week of the
+        conversion (None: none)."""
+        if self.week is not None:
+            single_gps_week(*self.t_range, self.path)  # the whole file, before its counts (which assume one week)
+        try:
+            self.cover.check(self.path)
+        except InputError as e:
+            if not name_trajectory:
+                raise
+            raise InputError(self.cover.traj.source, "time", f"the points of {self.path.name}: {e.problem}") from None
+        return self.week
+
+
 def check_coverage(path: Path, traj: Trajectory, options: PointOptions = PointOptions(),
                    chunk_points: int = CHUNK_POINTS) -> int | None:
     """First streamed pass over a LAS/LAZ file, reading only GPS times, before any output is written.
@@ -150,21 +185,10 @@ def check_coverage(path: Path, traj: Trajectory, options: PointOptions = PointOp
     trajectory's week seconds, when the file spans GPS weeks. Returns the GPS week of that
     conversion (for :func:`point_times`), else None.
     """
-    system = las_time_system(path, options.time_system)
-    convert = system == "gps_adjusted_standard" and traj.time_system == "gps_week_seconds"
-    cover, week, t_range = Coverage(traj), None, [np.inf, -np.inf]
+    times = FileTimes(path, traj, las_time_system(path, options.time_system))
     for t in iter_las_times(path, chunk_points):
-        if convert:
-            finite = t[np.isfinite(t)]
-            if finite.size:
-                t_range = [min(t_range[0], float(finite.min())), max(t_range[1], float(finite.max()))]
-                week = single_gps_week(t_range[0], t_range[0], path) if week is None else week
-            t = adjusted_standard_in_week(t, 0 if week is None else week)
-        cover.inside(t)
-    if week is not None:
-        single_gps_week(*t_range, path)  # the whole file, before its counts (which assume one week)
-    cover.check(path)
-    return week
+        times.feed(t)
+    return times.finish()
 
 
 def trajectory_for(path: Path, traj: Trajectory, options: PointOptions = PointOptions(),

@@ -17,9 +17,11 @@ from scipy.ndimage import gaussian_filter1d
 from calidar import frames
 from calidar.sim.flightplan import FlightLine
 from calidar.trajectory import Trajectory
+from calidar.trajectory_accuracy import TrajectoryAccuracy
 
 G = 9.80665  #: m/s²
 SBET_RATE_HZ = 200.0
+ACCURACY_RATE_HZ = 1.0  #: epochs of the written smrmsg.out, as POSPac writes them
 #: bank limit in turns; U-turns tighter than the platform could fly keep this bank (no scanning there)
 MAX_BANK_RAD = np.radians(35.0)
 
@@ -171,3 +173,12 @@ def measured_trajectory(truth: Trajectory, rng: np.random.Generator, gnss_sigma_
     lat, lon, h = frames.ecef_to_geodetic(ecef)
     return Trajectory(truth.time, lat, lon, h, truth.roll + d_att[:, 0], truth.pitch + d_att[:, 1],
                       truth.heading + d_att[:, 2], truth.velocity_ned, truth.time_system, "<simulated SBET>")
+
+
+def accuracy_epochs(time: np.ndarray, sig_pos: np.ndarray, sig_att: np.ndarray) -> TrajectoryAccuracy:
+    """The trajectory's σ at whole seconds over its span, as POSPac's smrmsg holds them (σ of a
+    noiseless trajectory floored at 0.1 mm and 0.02″)."""
+    epochs = np.arange(np.ceil(time[0]), np.floor(time[-1]) + 0.5, 1.0 / ACCURACY_RATE_HZ)
+    at = lambda s, floor: np.maximum(np.stack([np.interp(epochs, time, s[:, k]) for k in range(3)], 1), floor)  # noqa: E731
+    pos, att = at(sig_pos, 1e-4), at(sig_att, 1e-7)
+    return TrajectoryAccuracy(epochs, pos, att, pos / 10.0, "<simulated smrmsg>")

@@ -24,7 +24,7 @@ from calidar.errors import InputError
 from calidar.outputs import prepare_out_dir, write_text_atomic
 from calidar.sensor import Sensor
 from calidar.sim.flightplan import FlightLine, check_plan_inputs, plan_lines
-from calidar.sim.motion import MotionSpec, fly, measured_trajectory, smooth_noise
+from calidar.sim.motion import MotionSpec, accuracy_epochs, fly, measured_trajectory, smooth_noise
 from calidar.sim.patterns import half_field_of_view, scan_angles
 from calidar.sim.raycast import SURFACE_TERRAIN, cast
 from calidar.sim.scene import CLASS_BUILDING, CLASS_GROUND, CLASS_VEGETATION, Scene, SceneSpec, build_scene
@@ -38,7 +38,6 @@ SURFACE_VEGETATION = -3  #: ``Strip.surface`` of crown returns
 GPS_WEEK_START_S = 388800.0  #: simulated flights start on a Thursday, 12:00 GPS time
 CHUNK_SHOTS = 400_000
 SIGMA_VARIATION_S = 60.0  #: time scale of the trajectory σ's variation, s
-ACCURACY_RATE_HZ = 1.0  #: epochs of the written smrmsg.out, as POSPac writes them
 
 #: per-strip trajectory errors (NED position, roll/pitch/heading attitude), drawn per line
 STRIP_ERRORS = ("position_bias_m", "position_drift_mps", "attitude_bias_rad", "attitude_drift_radps")
@@ -200,10 +199,11 @@ class SurveyResult:
     strips: list[Strip]
     strip_errors: list[dict]  #: per line, keyed by STRIP_ERRORS (NED m, m/s; roll/pitch/heading rad, rad/s)
     accuracy: TrajectoryAccuracy | None = None  #: the σ of the measured trajectory's errors (smrmsg.out)
+    streamed_points: int = 0  #: points of the strips handed to ``on_strip`` as simulated (not in ``strips``)
 
     @property
     def n_points(self) -> int:
-        return sum(len(s) for s in self.strips)
+        return sum(len(s) for s in self.strips) + self.streamed_points
 
     def truth_dict(self) -> dict:
         """The truth.json document (degrees, metres, ratios)."""
@@ -263,17 +263,13 @@ class SurveyResult:
               progress: Callable[[str, int, int], None] | None = None) -> Path:
         """Write strips/line_NNN.laz, sbet.out, smrmsg.out (its accuracy), sensor.toml (nominal) and
         truth.json into ``out_dir``."""
-        from calidar.io.las import write_las
         from calidar.io.sbet import write_sbet
         from calidar.io.smrmsg import write_smrmsg
 
         out = prepare_out_dir(out_dir, force)
         (out / "strips").mkdir(exist_ok=True)
         for k, s in enumerate(self.strips):
-            write_las(out / "strips" / f"line_{s.line.number:03d}.laz", s.xyz, self.crs, gps_time=s.gps_time,
-                      scan_angle_deg=s.scan_angle_deg, point_source_id=s.line.number, return_number=s.return_number,
-                      number_of_returns=s.number_of_returns, classification=s.classification, intensity=s.intensity,
-                      creation_date=SIMULATION_DATE, force=force)
+            write_strip(out, s, self.crs, force)
             if progress:
                 progress("writing strips", k + 1, len(self.strips))
         write_sbet(out / "sbet.out", self.trajectory, force=force)
@@ -282,6 +278,16 @@ class SurveyResult:
         self.nominal.write(out / "sensor.toml", force=force)
         write_text_atomic(out / "truth.json", json.dumps(self.truth_dict(), indent=2) + "\n", force=force)
         return out
+
+
+def write_strip(out: Path, s: Strip, crs: str, force: bool = False) -> Path:
+    """One simulated strip as ``out/strips/line_NNN.laz``."""
+    from calidar.io.las import write_las
+
+    return write_las(out / "strips" / f"line_{s.line.number:03d}.laz", s.xyz, crs, gps_time=s.gps_time,
+                     scan_angle_deg=s.scan_angle_deg, point_source_id=s.line.number, return_number=s.return_number,
+                     number_of_returns=s.number_of_returns, classification=s.classification, intensity=s.intensity,
+                     creation_date=SIMULATION_DATE, force=force)
 
 
 def _line_shots(cfg: SurveyConfig, sensor: Sensor, window: tuple[float, float], half_fov: float):
@@ -315,10 +321,13 @@ def _intensity(surface, range_m, ref_range_m, rng) -> np.ndarray:
     return np.clip(val * 40000, 1, 65535).astype(np.uint16)
 
 
-def simulate_survey(cfg: SurveyConfig, progress: Callable[[str, int, int], None] | None = None) -> SurveyResult:
+def simulate_survey(cfg: SurveyConfig, progress: Callable[[str, int, int], None] | None = None,
+                    on_strip: Callable[[Strip], None] | None = None) -> SurveyResult:
     """Run the simulation described by ``cfg`` in memory (see the module docstring).
 
-    ``progress(description, done, total)`` is called as lines are simulated.
+    ``progress(description, done, total)`` is called as lines are simulated; ``on_strip(strip)``,
+    when given, takes each strip as it is simulated instead of the result keeping it (large
+    surveys: one strip in memory at a time).
 
     >>> import tempfile, numpy as np, calidar
     >>> cfg = calidar.survey_config("uav", seed=1, density=0.1, directions="cross", errors={"boresight_roll": 1e-3})
@@ -345,7 +354,7 @@ def simulate_survey(cfg: SurveyConfig, progress: Callable[[str, int, int], None]
     sig_pos, sig_att = trajectory_sigma(cfg, traj_true.time, rng_sigma)
     traj = measured_trajectory(traj_true, rng_nav, sig_pos, sig_att, [(a, b, e) for (a, b), e in zip(windows, strip_errors)])
 
-    strips = []
+    strips, streamed = [], 0
     for k, (line, window) in enumerate(zip(lines, windows)):
         t_all, enc_all = _line_shots(cfg, nominal, window, cfg.half_fov_rad)
         parts = []
@@ -363,11 +372,13 @@ def simulate_survey(cfg: SurveyConfig, progress: Callable[[str, int, int], None]
                               intensity=_intensity(surface, rho, cfg.height_agl_m, rng_shots), surface=surface,
                               true_enu=hit))
         cat = {key: np.concatenate([p[key] for p in parts]) for key in parts[0]}
-        strips.append(Strip(line, georef.to_crs(cat["ecef"], crs), **cat))
+        strip = Strip(line, georef.to_crs(cat["ecef"], crs), **cat)
+        streamed += 0 if on_strip is None else len(strip)
+        (on_strip or strips.append)(strip)
         if progress:
             progress("simulating lines", k + 1, len(lines))
     return SurveyResult(cfg, scene, lines, traj_true, traj, nominal, truth, crs, strips, strip_errors,
-                        accuracy_epochs(traj_true.time, sig_pos, sig_att))
+                        accuracy_epochs(traj_true.time, sig_pos, sig_att), streamed)
 
 
 def trajectory_sigma(cfg: SurveyConfig, time: np.ndarray, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
@@ -382,12 +393,3 @@ def trajectory_sigma(cfg: SurveyConfig, time: np.ndarray, rng: np.random.Generat
         g = (g - g.mean(axis=0)) / g.std(axis=0)  # the filter keeps the white noise's mean: remove it
         sig *= np.exp(cfg.trajectory_sigma_variation * g)
     return sig[:, :3], sig[:, 3:]
-
-
-def accuracy_epochs(time: np.ndarray, sig_pos: np.ndarray, sig_att: np.ndarray) -> TrajectoryAccuracy:
-    """The trajectory's σ at whole seconds over its span, as POSPac's smrmsg holds them (σ of a
-    noiseless trajectory floored at 0.1 mm and 0.02″)."""
-    epochs = np.arange(np.ceil(time[0]), np.floor(time[-1]) + 0.5, 1.0 / ACCURACY_RATE_HZ)
-    at = lambda s, floor: np.maximum(np.stack([np.interp(epochs, time, s[:, k]) for k in range(3)], 1), floor)  # noqa: E731
-    pos, att = at(sig_pos, 1e-4), at(sig_att, 1e-7)
-    return TrajectoryAccuracy(epochs, pos, att, pos / 10.0, "<simulated smrmsg>")

@@ -172,7 +172,7 @@ class _Run:
             need.setdefault(o.a, []).append(o.index_a)
             need.setdefault(o.b, []).append(o.index_b)
         need = {i: union(v) for i, v in need.items()}
-        spans = {i: (float(st.time.min()), float(st.time.max())) for i, st in by_id.items()}
+        spans = {i: st.time_span for i, st in by_id.items()}
         model = s.trajectory if "trajectory_bias" in estimate else None
         poses = {i: by_id[i].pose(idx) for i, idx in need.items()}  # one trajectory interpolation
         return cls(by_id, nominal, method, s, overlaps, spans, model, need, poses, list(notes))

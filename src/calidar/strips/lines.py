@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -11,7 +11,7 @@ import pyproj
 
 from calidar.errors import InputError
 from calidar.io.las import (
-    OPTIONAL_FIELDS, LasPoints, PointOptions, iter_las_fields, las_header, las_time_system, read_las,
+    LasPoints, PointOptions, concat_points, iter_las_fields, las_header, las_time_system, read_las,
 )
 from calidar.io.las_crs import las_crs
 
@@ -44,13 +44,7 @@ def read_flight_lines(paths: Sequence[str | Path], crs=None, gap_s: float = GAP_
         raise InputError(None, "STRIPS", "expected at least one LAS/LAZ file")
     _check_alike([Path(p) for p in paths], options or PointOptions(crs=crs))
     clouds = [read_las(p, crs=crs, options=options) for p in paths]
-    first = clouds[0]
-    merged = first
-    if len(clouds) > 1:
-        fields = {f: None if any(getattr(c, f) is None for c in clouds) else np.concatenate([getattr(c, f) for c in clouds])
-                  for f in OPTIONAL_FIELDS}
-        merged = replace(first, xyz=np.concatenate([c.xyz for c in clouds]),
-                         gps_time=np.concatenate([c.gps_time for c in clouds]), **fields)
+    merged = concat_points(clouds)
     ids, how = line_ids(merged.point_source_id, merged.gps_time, gap_s)
     return {int(i): merged.select(ids == i) for i in np.unique(ids)}, how
 
@@ -109,14 +103,18 @@ def _second_spans(t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 def _check_alike(paths: list[Path], options: PointOptions) -> None:
     """Every file in the CRS and GPS time system of the first (from their headers)."""
-    crs = [las_crs(las_header(p)) if options.crs is None else None for p in paths]
-    systems = [las_time_system(p, options.time_system) for p in paths]
-    for k in range(1, len(paths)):
-        a, b = crs[0], crs[k]
-        if (a is None) != (b is None) or (a is not None and not a.equals(b, ignore_axis_order=True)):
-            raise InputError(paths[k], "crs", f"expected the CRS of {paths[0].name} ({_name(a)}), got {_name(b)}")
-        if systems[k] != systems[0]:
-            raise InputError(paths[k], "gps_time", f"expected {systems[0]} like {paths[0].name}, got {systems[k]}")
+    check_consistent([(p, las_crs(las_header(p)) if options.crs is None else None, las_time_system(p, options.time_system))
+                      for p in paths])
+
+
+def check_consistent(files: Sequence[tuple[Path, pyproj.CRS | None, str]]) -> None:
+    """Error unless every (path, CRS, GPS time system) has the CRS and time system of the first."""
+    path0, crs0, system0 = files[0]
+    for path, crs, system in files[1:]:
+        if (crs is None) != (crs0 is None) or (crs is not None and not crs.equals(crs0, ignore_axis_order=True)):
+            raise InputError(path, "crs", f"expected the CRS of {Path(path0).name} ({_name(crs0)}), got {_name(crs)}")
+        if system != system0:
+            raise InputError(path, "gps_time", f"expected {system0} like {Path(path0).name}, got {system}")
 
 
 def _name(crs: pyproj.CRS | None) -> str:

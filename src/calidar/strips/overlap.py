@@ -46,6 +46,43 @@ def footprint_area_m2(xy: np.ndarray, cell_m: float = 5.0) -> float:
     return float(np.count_nonzero(np.bincount(ij[:, 0] * (int(ij[:, 1].max()) + 1) + ij[:, 1])) * cell_m**2)
 
 
+def cell_counts(keys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The distinct cell keys (sorted) and how many of ``keys`` fall in each."""
+    ks = np.sort(np.asarray(keys, np.int64))
+    start = np.r_[0, np.flatnonzero(ks[1:] != ks[:-1]) + 1] if ks.size else np.zeros(0, np.int64)
+    return ks[start], np.diff(np.r_[start, ks.size]).astype(np.int64)
+
+
+def merge_counts(*parts: tuple[np.ndarray, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+    """Sum several (cells, counts) of :func:`cell_counts` into one (chunk by chunk footprints)."""
+    cells = np.concatenate([p[0] for p in parts])
+    counts = np.concatenate([p[1] for p in parts])
+    order = np.argsort(cells, kind="stable")
+    cells, counts = cells[order], counts[order]
+    start = np.r_[0, np.flatnonzero(cells[1:] != cells[:-1]) + 1] if cells.size else np.zeros(0, np.int64)
+    return cells[start], np.add.reduceat(counts, start) if cells.size else counts
+
+
+def common_cells(occupied: Mapping[int, np.ndarray], min_cells: int) -> list[tuple[int, int, np.ndarray]]:
+    """(a, b, sorted common cells) of every pair of strips (ids ascending) sharing at least
+    ``min_cells`` of their occupied cells {id: sorted unique keys}."""
+    ids = sorted(occupied)
+    out = []
+    for k, a in enumerate(ids):
+        for b in ids[k + 1:]:
+            common = np.intersect1d(occupied[a], occupied[b], assume_unique=True)
+            if common.size >= min_cells:
+                out.append((a, b, common))
+    return out
+
+
+def unpaired_notes(ids, pairs, cell_m: float, min_cells: int) -> list[str]:
+    """Plain-words notes about the strips ``ids`` in none of the ``pairs`` (a, b, ...)."""
+    paired = {p[0] for p in pairs} | {p[1] for p in pairs}
+    return [f"strip {i} overlaps no other strip (fewer than {min_cells} common {cell_m:g} m cells); it is not used"
+            for i in sorted(ids) if i not in paired]
+
+
 def find_overlaps(strips_xy: Mapping[int, np.ndarray], cell_m: float = 5.0, min_cells: int = 4,
                   min_points_per_cell: int = 3) -> tuple[list[Overlap], list[str]]:
     """Overlapping pairs among strips given as {id: (N, ≥2) coordinates in metres}.
@@ -53,32 +90,15 @@ def find_overlaps(strips_xy: Mapping[int, np.ndarray], cell_m: float = 5.0, min_
     A cell counts as occupied by a strip when it holds at least ``min_points_per_cell``
     of its points; pairs sharing fewer than ``min_cells`` cells are left out. Returns the
     pairs (ids ascending) and plain-words notes about strips that overlap no other strip.
+    (Streamed files: :func:`calidar.pipelines.strip_ingest.ingest_strips` accumulates the
+    same footprints chunk by chunk with :func:`cell_counts` and :func:`merge_counts`.)
     """
-    keys = {i: cell_keys(strips_xy[i], cell_m) for i in sorted(strips_xy)}
+    keys = {i: cell_keys(xy, cell_m) for i, xy in strips_xy.items()}
     occupied = {}
     for i, k in keys.items():
-        ks = np.sort(k)
-        start = np.r_[0, np.flatnonzero(ks[1:] != ks[:-1]) + 1] if ks.size else np.zeros(0, np.int64)
-        occupied[i] = ks[start][np.diff(np.r_[start, ks.size]) >= min_points_per_cell]
-    common, notes = common_cells(occupied, cell_m, min_cells)
-    pairs = [Overlap(a, b, int(c.size), float(c.size * cell_m**2), _members(keys[a], c), _members(keys[b], c))
-             for (a, b), c in common.items()]
-    return pairs, notes
-
-
-def common_cells(occupied: Mapping[int, np.ndarray], cell_m: float, min_cells: int = 4
-                 ) -> tuple[dict[tuple[int, int], np.ndarray], list[str]]:
-    """The cells (sorted keys) each pair of strips shares, from every strip's occupied cells
-    {id: sorted unique keys of ``cell_m`` cells}; pairs (ids ascending) sharing fewer than
-    ``min_cells`` are left out. Also the notes about strips that overlap no other strip."""
-    ids = sorted(occupied)
-    pairs = {}
-    for k, a in enumerate(ids):
-        for b in ids[k + 1:]:
-            common = np.intersect1d(occupied[a], occupied[b], assume_unique=True)
-            if common.size >= min_cells:
-                pairs[a, b] = common
-    paired = {i for ab in pairs for i in ab}
-    notes = [f"strip {i} overlaps no other strip (fewer than {min_cells} common {cell_m:g} m cells); it is not used"
-             for i in ids if i not in paired]
-    return pairs, notes
+        cells, counts = cell_counts(k)
+        occupied[i] = cells[counts >= min_points_per_cell]
+    pairs = [Overlap(a, b, int(common.size), float(common.size * cell_m**2),
+                     _members(keys[a], common), _members(keys[b], common))
+             for a, b, common in common_cells(occupied, min_cells)]
+    return pairs, unpaired_notes(keys, [(p.a, p.b) for p in pairs], cell_m, min_cells)

@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from calidar.strips.cell_moments import CellMoments, key_indices
-from calidar.strips.overlap import common_cells
+from calidar.strips.overlap import common_cells, unpaired_notes
 from calidar.strips.planes import PlaneSettings, planar_cells
 
 BASE_CELL_M = 1.0  #: accumulation grid when the cell is chosen per pair (whole metres coarsen from it)
@@ -95,7 +95,8 @@ def overlap_plan(counts: Mapping[int, tuple[np.ndarray, np.ndarray]], overlap_m:
     pairs sharing cells occupied by both, each with ``settings.cell_m`` or a cell of 2 m, larger
     (whole metres) where the sparser line has under ≈ 1.5 · min_points per cell over the overlap."""
     occupied = {i: k[n >= OVERLAP_MIN_POINTS] for i, (k, n) in counts.items()}
-    common, notes = common_cells(occupied, overlap_m)
+    common = {(a, b): shared for a, b, shared in common_cells(occupied, 4)}
+    notes = unpaired_notes(occupied, list(common), overlap_m, 4)
     cells = {}
     for ab, shared in common.items():
         dens = [counts[i][1][np.isin(counts[i][0], shared)].sum() / (shared.size * overlap_m**2) for i in ab]

@@ -54,6 +54,13 @@ class PointSelection:
                 "description": self.describe()}
 
 
+def candidate_mask(points) -> np.ndarray:
+    """Mask of the points that the default rules could keep (ground, or last returns): what a caller
+    must hold before it knows the classes a source has (:func:`choose_selection`)."""
+    ground = PointSelection("ground", (GROUND,)).mask(points)
+    return ground | PointSelection("last returns").mask(points)
+
+
 def parse_classes(text: str | None) -> tuple[int, ...] | None:
     """'2,6' → (2, 6): LAS classes, integers 0–255 (None: choose per source)."""
     if text is None:

@@ -97,11 +97,19 @@ class Strip:
     frame: LocalFrame
     source: str = "<memory>"
     extra: dict = field(default_factory=dict)  #: per-point attributes kept for output (classification, ...)
+    span: tuple[float, float] | None = None  #: GPS time span (s) of the whole line when ``points`` are a subset
+
+    @property
+    def time_span(self) -> tuple[float, float]:
+        """First and last GPS time (s) of the flight line (of all its points, also when thinned)."""
+        return self.span if self.span is not None else (float(self.obs.time.min()), float(self.obs.time.max()))
 
     @classmethod
     def from_ecef(cls, strip_id: int, points_ecef, time, trajectory: Trajectory, nominal: Sensor,
-                  frame: LocalFrame, source: str = "<memory>", **extra) -> "Strip":
-        """Build a strip from delivered ECEF points (N, 3) m and GPS times (N,) s.
+                  frame: LocalFrame, source: str = "<memory>", span: tuple[float, float] | None = None,
+                  **extra) -> "Strip":
+        """Build a strip from delivered ECEF points (N, 3) m and GPS times (N,) s (``span``: the
+        whole line's time span when these are some of its points).
 
         The trajectory must cover every time (a clear error names the strip otherwise).
         """
@@ -114,7 +122,7 @@ class Strip:
         except InputError as e:
             raise InputError(trajectory.source, "time", e.problem) from None
         obs = georef.inverse(trajectory, nominal, time, points_ecef)
-        return cls(int(strip_id), frame.to_local(points_ecef), obs, trajectory, frame, source, dict(extra))
+        return cls(int(strip_id), frame.to_local(points_ecef), obs, trajectory, frame, source, dict(extra), span)
 
     def __len__(self) -> int:
         return self.points.shape[0]
@@ -141,7 +149,7 @@ class Strip:
 
     def heading_enu(self) -> float:
         """Mean direction of travel over the strip, rad clockwise from local north."""
-        t = np.linspace(self.obs.time.min(), self.obs.time.max(), 16)
+        t = np.linspace(*self.time_span, 16)
         pos = self.frame.to_local(self.trajectory.interpolate(t)[0])
         d = pos[-1] - pos[0]
         return float(np.arctan2(d[0], d[1]))

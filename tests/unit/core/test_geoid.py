@@ -8,6 +8,7 @@ import numpy as np
 import pyproj
 import pytest
 
+from calidar import crs as crs_module
 from calidar import georef
 from calidar.errors import InputError
 
@@ -58,12 +59,12 @@ def installed_grid(tmp_path):
         d.write(np.full((1, 21, 21), N_M, np.float32))
     before = pyproj.datadir.get_data_dir()
     pyproj.datadir.append_data_dir(str(tmp_path))
-    georef._cached_transformer.cache_clear()
+    crs_module._cached_transformer.cache_clear()
     try:
         yield path
     finally:
         pyproj.datadir.set_data_dir(before)
-        georef._cached_transformer.cache_clear()
+        crs_module._cached_transformer.cache_clear()
 
 
 def test_with_the_grid_a_proper_transformation(points, installed_grid):

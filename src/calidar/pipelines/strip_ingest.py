@@ -1,0 +1,277 @@
+"""Streaming ingest of LAS/LAZ strips for the strip calibration: bounded memory, linear time.
+
+Two streamed passes over the files (chunks of :attr:`IngestOptions.chunk_points`, never a
+whole file in memory):
+
+1. coarse: footprints on the overlap grid (cells of ``cell_m`` in the CRS's own metres when it
+   is projected, else in the survey's :class:`~calidar.strips.strip.LocalFrame`, set from the
+   files' header bounds)
+   accumulated per group of points (point_source_id, GPS time bin of ``gap_s``), the time
+   checks (trajectory coverage, one GPS week). The groups become flight lines exactly as
+   :func:`calidar.strips.lines.line_ids` splits them (by point_source_id, else by gaps
+   > ``gap_s`` in GPS time: a bin of ``gap_s`` never holds two lines), their footprints the
+   pairwise overlap cells (:func:`calidar.strips.overlap.common_cells`), thinned to
+   ``budget_points`` per strip by keeping whole cells spread evenly (:mod:`calidar.strips.thin`);
+2. keep: the points of each line inside its kept cells, transformed to ECEF, from which the
+   :class:`~calidar.strips.strip.Strip` s are built (one inverse georeferencing).
+
+:class:`StripSource` streams the whole lines again for the outputs (overlap quality,
+recalibrated strips): per chunk the points with their line ids, GPS times in the
+trajectory's system.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+
+from calidar.errors import CalibrationError, InputError
+from calidar.io.las import PointOptions, iter_las_chunks, las_file_crs, las_header, las_time_system
+from calidar.pipelines import Progress, no_progress
+from calidar.pipelines.inputs import CHUNK_POINTS, FileTimes, points_ecef
+from calidar.strips.lines import GAP_S
+from calidar.strips.overlap import cell_counts, cell_keys, common_cells, merge_counts, unpaired_notes
+from calidar.strips.strip import LocalFrame, Strip
+from calidar.strips.thin import thin_cells
+
+#: points kept per strip by default: enough for the tie planes and VGICP on the test surveys
+#: (results within σ of every overlapping point), small enough for bounded memory
+BUDGET_POINTS = 300_000
+MIN_BUDGET_POINTS = 10_000  #: fewer leave too few tie planes per pair to be worth a run
+_BIN_BITS = 40  #: group key = point_source_id << 40 | GPS time bin
+#: kept blocks span this many tie-plane patches (of ≈ PlaneSettings.target_points points) across
+BLOCK_PATCHES = 6
+MAX_BLOCK_CELLS = 20
+
+
+@dataclass(frozen=True)
+class IngestOptions:
+    """How strips are read: ``budget_points`` kept per strip (None: every overlapping point),
+    ``chunk_points`` per read, ``points`` (the shared --crs/--time-system/--geoid-undulation),
+    ``gap_s`` (a pause in GPS time that starts a flight line when point_source_id does not
+    tell them apart), the overlap grid (``cell_m``, ``min_cells``, ``min_points_per_cell``
+    as :func:`calidar.strips.overlap.find_overlaps`) and the side of the square blocks kept
+    whole (``block_cells`` overlap cells; None: :data:`BLOCK_PATCHES` tie-plane patches at the
+    survey's density, at most :data:`MAX_BLOCK_CELLS`)."""
+
+    budget_points: int | None = BUDGET_POINTS
+    block_cells: int | None = None
+    chunk_points: int = CHUNK_POINTS
+    points: PointOptions = field(default_factory=PointOptions)
+    gap_s: float = GAP_S
+    cell_m: float = 5.0
+    min_cells: int = 4
+    min_points_per_cell: int = 3
+
+
+@dataclass(frozen=True)
+class StripFile:
+    """One input file as it is read: its point options (CRS resolved) and time system."""
+
+    path: Path
+    points: PointOptions
+    time_system: str
+
+
+@dataclass
+class StripSource:
+    """The files behind the strips, to stream again: frame, lines and the trajectory they use."""
+
+    files: list[StripFile]
+    frame: LocalFrame
+    trajectory: object  #: calidar.trajectory.Trajectory
+    groups: np.ndarray  #: sorted group keys (point_source_id, time bin)
+    group_line: np.ndarray  #: flight-line id of each group
+    how: str  #: "point_source_id" | "gps_time_gaps"
+    options: IngestOptions
+    weeks: dict = field(default_factory=dict)  #: path → GPS week of the time conversion (None: none)
+    counts: dict = field(default_factory=dict)  #: line id → points in the files
+
+    def chunks(self, fields: Sequence[str] = ()) -> Iterator[tuple]:
+        """(file, LasPoints chunk, line id per point, GPS time in the trajectory's system (s)) of
+        every chunk of every file."""
+        for f in self.files:
+            fields_ = tuple(dict.fromkeys(("point_source_id", *fields)))
+            times = FileTimes(f.path, self.trajectory, f.time_system)
+            for chunk in iter_las_chunks(f.path, self.options.chunk_points, fields=fields_, options=f.points):
+                t = times.feed(chunk.gps_time)
+                g = _group_keys(chunk.point_source_id, t, self.options.gap_s)
+                pos = np.minimum(np.searchsorted(self.groups, g), self.groups.size - 1)
+                if not np.array_equal(self.groups[pos], g):
+                    raise InputError(f.path, None, "the file changed while it was read")
+                yield f, chunk, self.group_line[pos], t
+
+    def cell_keys(self, chunk) -> np.ndarray:
+        """The overlap-grid cell of each point of a chunk (:func:`planar_xy`)."""
+        return cell_keys(planar_xy(chunk, self.frame), self.options.cell_m)
+
+
+def planar_xy(chunk, frame: LocalFrame) -> np.ndarray:
+    """Horizontal coordinates (n, 2) m for the overlap grid: the CRS's own when projected (scaled
+    to metres), else east/north in ``frame`` (a geographic CRS)."""
+    axis = chunk.crs.axis_info[0] if chunk.crs is not None and chunk.crs.is_projected else None
+    if axis is not None and axis.unit_conversion_factor:
+        return chunk.xyz[:, :2] * axis.unit_conversion_factor
+    return frame.to_local(points_ecef(chunk))[:, :2]
+
+
+def _group_keys(psid, t: np.ndarray, gap_s: float) -> np.ndarray:
+    """Group key per point: point_source_id and the GPS time bin of ``gap_s``."""
+    bins = np.floor(t / gap_s).astype(np.int64) & ((1 << _BIN_BITS) - 1)
+    return bins if psid is None else (np.asarray(psid, np.int64) << _BIN_BITS) | bins
+
+
+def split_rows(keys: np.ndarray) -> Iterator[tuple[int, np.ndarray]]:
+    """(key, positions) of each distinct key of ``keys`` (e.g. the line ids of a chunk)."""
+    order = np.argsort(keys, kind="stable")
+    ks = keys[order]
+    start = np.r_[0, np.flatnonzero(ks[1:] != ks[:-1]) + 1]
+    for k, s, e in zip(ks[start], start, np.r_[start[1:], ks.size]):
+        yield int(k), order[s:e]
+
+
+def _files(paths, trajectory, sensor, options: IngestOptions) -> list[StripFile]:
+    """Each file's CRS (its own, --crs or sensor.toml's) and time system; all must agree, and
+    match the trajectory's (adjusted standard points become its week seconds, not back)."""
+    from calidar.strips.lines import check_consistent
+
+    files = []
+    for p in map(Path, paths):
+        crs = las_file_crs(p, options.points.crs)
+        if crs is None and sensor.crs is None:
+            raise InputError(p, "crs", "the file has no CRS and sensor.toml gives none; expected one of them")
+        opts = options.points if crs is not None else replace(options.points, crs=sensor.crs)
+        files.append(StripFile(p, opts, las_time_system(p, opts.time_system)))
+        if files[-1].time_system == "gps_week_seconds" and trajectory.time_system == "gps_adjusted_standard":
+            raise InputError(p, "gps_time", "holds GPS week seconds but the trajectory holds adjusted standard GPS "
+                             "time; expected the same time system")
+    check_consistent([(f.path, las_file_crs(f.path, f.points.crs), f.time_system) for f in files])
+    return files
+
+
+def bounds(files: list[StripFile]) -> tuple[np.ndarray, np.ndarray]:
+    """Smallest and largest x, y, z (CRS units) of the files' headers (of those holding points)."""
+    headers = [h for h in (las_header(f.path) for f in files) if h.point_count] or [las_header(files[0].path)]
+    return np.min([h.mins for h in headers], axis=0), np.max([h.maxs for h in headers], axis=0)
+
+
+def _frame(files: list[StripFile]) -> LocalFrame:
+    """The local frame at the centre of the files' header bounds (of those holding points)."""
+    from calidar import georef
+
+    lo, hi = bounds(files)
+    corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+    f = files[0]
+    crs = las_file_crs(f.path, f.points.crs)
+    return LocalFrame.at(georef.from_crs(corners, crs, f.points.geoid_undulation_m, source=f.path))
+
+
+@dataclass
+class _Footprints:
+    """Pass 1's accumulators per group: cell counts, time range (trajectory's system)."""
+
+    cells: dict = field(default_factory=dict)
+    t_min: dict = field(default_factory=dict)
+    t_max: dict = field(default_factory=dict)
+
+    def add(self, groups: np.ndarray, keys: np.ndarray, t: np.ndarray) -> None:
+        for g, rows in split_rows(groups):
+            self.cells.setdefault(g, []).append(cell_counts(keys[rows]))
+            self.t_min[g] = min(self.t_min.get(g, np.inf), float(t[rows].min()))
+            self.t_max[g] = max(self.t_max.get(g, -np.inf), float(t[rows].max()))
+
+    def lines(self, gap_s: float) -> tuple[np.ndarray, np.ndarray, str]:
+        """(sorted groups, line id of each, how): lines by point_source_id when it holds two
+        distinct values, else numbered 1, 2, … in time order split at gaps > ``gap_s``."""
+        groups = np.array(sorted(self.cells), np.int64)
+        psid = groups >> _BIN_BITS
+        if np.unique(psid).size >= 2:
+            return groups, psid, "point_source_id"
+        t0 = np.array([self.t_min[g] for g in groups])
+        t1 = np.array([self.t_max[g] for g in groups])
+        order = np.argsort(t0, kind="stable")
+        reach = np.maximum.accumulate(t1[order])
+        new = np.r_[True, t0[order][1:] - reach[:-1] > gap_s]
+        line = np.empty(groups.size, np.int64)
+        line[order] = np.cumsum(new)
+        return groups, line, "gps_time_gaps"
+
+
+def _pass1(files: list[StripFile], frame: LocalFrame, trajectory, options: IngestOptions,
+           progress: Progress) -> tuple[_Footprints, dict]:
+    """Footprints and time checks of every file, chunk by chunk; the GPS week of each file."""
+    acc, weeks, done, total = _Footprints(), {}, 0, 2 * sum(las_header(f.path).point_count for f in files)
+    for f in files:
+        times = FileTimes(f.path, trajectory, f.time_system)
+        for chunk in iter_las_chunks(f.path, options.chunk_points, fields=("point_source_id",), options=f.points):
+            t = times.feed(chunk.gps_time)
+            ok = np.isfinite(t)
+            keys = cell_keys(planar_xy(chunk, frame), options.cell_m)
+            acc.add(_group_keys(chunk.point_source_id, t, options.gap_s)[ok], keys[ok], t[ok])
+            done += len(chunk)
+            progress("reading strips", done, total)  # points, both passes
+        weeks[f.path] = times.finish(name_trajectory=True)  # the trajectory's span is what falls short
+    return acc, weeks
+
+
+def _plan(acc: _Footprints, options: IngestOptions) -> tuple[np.ndarray, np.ndarray, str, dict, dict, list, dict]:
+    """Lines, their footprints, the overlapping pairs and the cells each line keeps."""
+    groups, line, how = acc.lines(options.gap_s)
+    footprint, span = {}, {}
+    for i in np.unique(line):
+        gs = groups[line == i]
+        footprint[int(i)] = merge_counts(*(c for g in gs for c in acc.cells[int(g)]))
+        span[int(i)] = (min(acc.t_min[int(g)] for g in gs), max(acc.t_max[int(g)] for g in gs))
+    occupied = {i: c[n >= options.min_points_per_cell] for i, (c, n) in footprint.items()}
+    pairs = common_cells(occupied, options.min_cells)
+    kept = thin_cells(pairs, footprint, options.budget_points, options.block_cells or block_cells(footprint, options))
+    return groups, line, how, footprint, span, pairs, kept
+
+
+def block_cells(footprint: dict, options: IngestOptions) -> int:
+    """Side (overlap cells) of the blocks kept whole: :data:`BLOCK_PATCHES` tie-plane patches of
+    ≈ PlaneSettings.target_points points at the median density of the lines."""
+    from calidar.strips.planes import PlaneSettings
+
+    density = np.median([n.sum() / max(n.size * options.cell_m**2, 1e-9) for _, n in footprint.values()])
+    patch_m = np.sqrt(PlaneSettings().target_points / max(density, 1e-9))
+    return int(np.clip(np.ceil(BLOCK_PATCHES * patch_m / options.cell_m), 1, MAX_BLOCK_CELLS))
+
+
+def ingest_strips(paths, trajectory, sensor, options: IngestOptions = IngestOptions(),
+                  progress: Progress = no_progress) -> tuple[list[Strip], object, StripSource, list[str]]:
+    """The strips of the LAS/LAZ files (only their kept overlap points), the CRS, the
+    :class:`StripSource` to stream the whole lines again, and notes for the user."""
+    if not paths:
+        raise InputError(None, "STRIPS", "expected at least one LAS/LAZ file")
+    files = _files(paths, trajectory, sensor, options)
+    frame = _frame(files)
+    acc, weeks = _pass1(files, frame, trajectory, options, progress)
+    groups, line, how, footprint, span, pairs, kept = _plan(acc, options)
+    if not pairs:
+        raise CalibrationError(f"no two of the {len(footprint)} flight lines overlap (no {options.min_cells} common "
+                               f"{options.cell_m:g} m cells); strip calibration needs overlapping flight lines")
+    source = StripSource(files, frame, trajectory, groups, line, how, options, weeks,
+                         {i: int(n.sum()) for i, (_, n) in footprint.items()})
+    ecef, times, where, done = {}, {}, {}, sum(source.counts.values())
+    for f, chunk, ids, t in source.chunks():
+        keys = source.cell_keys(chunk)
+        for i, rows in split_rows(ids):
+            cells = kept.get(i)
+            if cells is None or cells.size == 0:
+                continue
+            pos = np.minimum(np.searchsorted(cells, keys[rows]), cells.size - 1)
+            sel = rows[cells[pos] == keys[rows]]
+            ecef.setdefault(i, []).append(points_ecef(chunk.select(sel)))
+            times.setdefault(i, []).append(t[sel])
+            where.setdefault(i, {})[str(f.path)] = None
+        done += len(chunk)
+        progress("reading strips", done, 2 * sum(source.counts.values()))
+    strips = [Strip.from_ecef(i, np.concatenate(ecef[i]), np.concatenate(times[i]), trajectory, sensor, frame,
+                              ", ".join(where[i]), span=span[i]) for i in sorted(ecef)]
+    notes = unpaired_notes(footprint, pairs, options.cell_m, options.min_cells)
+    crs = las_file_crs(files[0].path, files[0].points.crs)
+    return strips, crs, source, notes

@@ -1,0 +1,137 @@
+"""Streaming strip ingest: chunk-size independence, footprints equal to the whole-file ones,
+thinning by whole blocks within the budget, flight lines from GPS-time gaps."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from calidar.io.las import read_las, write_las
+from calidar.io.trajectory import read_trajectory
+from calidar.pipelines.strip_ingest import IngestOptions, _pass1, _plan, ingest_strips, planar_xy
+from calidar.sensor import Sensor
+from calidar.sim.survey import simulate_survey, survey_config
+from calidar.strips.lines import line_ids, read_flight_lines
+from calidar.strips.overlap import cell_counts, cell_keys, common_cells, find_overlaps
+from calidar.strips.thin import spread_rank, thin_cells
+
+
+@pytest.fixture(scope="module")
+def survey(tmp_path_factory) -> Path:
+    res = simulate_survey(survey_config("uav", seed=11, density=0.02, directions="cross"))
+    return res.write(tmp_path_factory.mktemp("ingest") / "sim")
+
+
+def _inputs(sim: Path):
+    return sorted((sim / "strips").glob("*.laz")), read_trajectory(sim / "sbet.out"), Sensor.read(sim / "sensor.toml")
+
+
+def test_kept_points_do_not_depend_on_the_chunk_size(survey):
+    paths, traj, sensor = _inputs(survey)
+    big, _, src, _ = ingest_strips(paths, traj, sensor, IngestOptions(budget_points=20_000))
+    small, _, _, _ = ingest_strips(paths, traj, sensor, IngestOptions(budget_points=20_000, chunk_points=7_777))
+    assert [s.id for s in big] == [s.id for s in small] and len(big) >= 3
+    for a, b in zip(big, small):
+        assert np.array_equal(a.points, b.points) and np.array_equal(a.time, b.time)
+        assert a.time_span == b.time_span
+        assert len(a) < src.counts[a.id]  # thinned: a subset of the line
+        assert a.time_span[0] <= a.time.min() and a.time.max() <= a.time_span[1]
+
+
+def test_footprints_and_overlaps_equal_the_whole_file_ones(survey):
+    paths, traj, sensor = _inputs(survey)
+    options = IngestOptions(chunk_points=5_000)
+    _, _, src, _ = ingest_strips(paths, traj, sensor, options)
+    acc, _ = _pass1(src.files, src.frame, traj, options, lambda *a: None)
+    _, _, how, footprint, _, pairs, _ = _plan(acc, options)
+    lines, how_whole = read_flight_lines(paths)
+    assert how == how_whole == "point_source_id" and sorted(footprint) == sorted(lines)
+    xy = {i: planar_xy(p, src.frame) for i, p in lines.items()}
+    for i, p in xy.items():
+        cells, counts = cell_counts(cell_keys(p, options.cell_m))
+        assert np.array_equal(footprint[i][0], cells) and np.array_equal(footprint[i][1], counts)
+    whole, _ = find_overlaps(xy, options.cell_m, options.min_cells, options.min_points_per_cell)
+    assert [(o.a, o.b, o.n_cells) for o in whole] == [(a, b, c.size) for a, b, c in pairs] and len(whole) >= 2
+
+
+def test_thinning_keeps_whole_cells_of_whole_blocks_within_the_budget(survey):
+    paths, traj, sensor = _inputs(survey)
+    budget = 8_000
+    options = IngestOptions(budget_points=budget, block_cells=2)
+    strips, _, src, _ = ingest_strips(paths, traj, sensor, options)
+    acc, _ = _pass1(src.files, src.frame, traj, options, lambda *a: None)
+    _, _, _, footprint, _, pairs, kept = _plan(acc, options)
+    lines, _ = read_flight_lines(paths)
+    for s in strips:
+        assert 0.5 * budget < len(s) <= budget  # the budget is used, never exceeded
+        keys = cell_keys(planar_xy(lines[s.id], src.frame), options.cell_m)
+        inside = np.isin(keys, kept[s.id])
+        assert inside.sum() == len(s)  # every point of a kept cell, nothing else
+        assert np.array_equal(np.sort(lines[s.id].gps_time[inside]), np.sort(s.time))
+    for a, b, common in pairs:  # a pair keeps its common cells by whole blocks
+        rank = spread_rank(common, 2)
+        both = np.isin(common, kept[a]) & np.isin(common, kept[b])
+        assert both.any() and not (rank[both][:, None] == rank[~both][None, :]).any()
+    unlimited = thin_cells(pairs, footprint, None)
+    assert all(np.array_equal(unlimited[i], np.unique(np.concatenate([c for a, b, c in pairs if i in (a, b)])))
+               for i in unlimited)
+
+
+def test_spread_rank_lowest_cells_form_a_regular_lattice():
+    ij = np.array([(i, j) for i in range(-8, 8) for j in range(-8, 8)])
+    cells = cell_keys(ij + 0.5, 1.0)
+    rank = spread_rank(cells)
+    assert np.unique(rank).size == cells.size and rank.min() >= 0 and rank.max() < 1
+    low = ij[rank < 0.25]  # a quarter of the cells: every second column and row
+    assert low.shape[0] == 64 and np.unique(low[:, 0] % 2).size == 1 and np.unique(low[:, 1] % 2).size == 1
+    blocks = spread_rank(cells, 4)
+    assert np.unique(blocks).size == 16 and np.unique(blocks[(ij[:, 0] // 4 == -1) & (ij[:, 1] // 4 == 1)]).size == 1
+
+
+def test_lines_from_time_gaps_when_point_source_ids_do_not_tell(survey, tmp_path):
+    paths, traj, sensor = _inputs(survey)
+    merged = []
+    for p in paths:  # the same points, one point_source_id for all
+        las = read_las(p)
+        merged.append(write_las(tmp_path / p.name, las.xyz, las.crs, gps_time=las.gps_time,
+                                scan_angle_deg=las.scan_angle_deg, point_source_id=1))
+    strips, _, src, _ = ingest_strips(merged, traj, sensor, IngestOptions(chunk_points=3_000))
+    assert src.how == "gps_time_gaps"
+    t = np.concatenate([read_las(p).gps_time for p in merged])
+    ids, how = line_ids(np.ones(t.size, np.int64), t)
+    assert how == "gps_time_gaps"
+    assert src.counts == {int(i): int(n) for i, n in zip(*np.unique(ids, return_counts=True))}
+    reference, _, _, _ = ingest_strips(paths, traj, sensor, IngestOptions())
+    assert sorted(len(s) for s in strips) == sorted(len(s) for s in reference)  # the same lines, numbered in time
+
+
+def test_strip_points_option_is_checked_and_used(survey, cli, tmp_path):
+    paths, _, _ = _inputs(survey)
+    args = ["boresight", *paths, "--trajectory", survey / "sbet.out", "--sensor", survey / "sensor.toml"]
+    code, _, err = cli(*args, "--strip-points", "500", "--out", tmp_path / "bad")
+    assert code == 1 and "--strip-points" in err and "at least 10000" in err and "Traceback" not in err
+    assert not (tmp_path / "bad").exists()
+    code, _, err = cli(*args, "--strip-points", "10000", "--trajectory-model", "off", "--out", tmp_path / "o")
+    assert code == 0, err
+    doc = __import__("json").loads((tmp_path / "o" / "solution.json").read_text())
+    assert doc["run"]["options"]["ingest"]["budget_points"] == 10000
+
+
+def test_adjusted_standard_times_become_the_trajectorys_week_seconds(survey, tmp_path):
+    from calidar.io.las import week_seconds_to_adjusted_standard
+
+    paths, traj, sensor = _inputs(survey)
+    adjusted = []
+    for p in paths:
+        las = read_las(p)
+        adjusted.append(write_las(tmp_path / p.name, las.xyz, las.crs, point_source_id=las.point_source_id,
+                                  gps_time=week_seconds_to_adjusted_standard(las.gps_time, 2345),
+                                  scan_angle_deg=las.scan_angle_deg, time_system="gps_adjusted_standard"))
+    options = IngestOptions(budget_points=20_000, chunk_points=4_000)
+    got, _, src, _ = ingest_strips(adjusted, traj, sensor, options)
+    want, _, _, _ = ingest_strips(paths, traj, sensor, options)
+    assert set(src.weeks.values()) == {2345} and [s.id for s in got] == [s.id for s in want]
+    for a, b in zip(got, want):
+        assert np.allclose(a.time, b.time, atol=1e-6, rtol=0) and np.array_equal(a.points, b.points)
