@@ -48,11 +48,13 @@ def boresight(
     sbet_corrected.out (the trajectory with its estimated corrections) and report.html."""
     from calidar.outputs import check_out_dir, output_folder
     from calidar.pipelines.boresight import BoresightOptions, parse_methods, run_boresight
+    from calidar.strips.distribute import check_cluster
     from calidar.strips.parameters import parse_estimate
 
     if trajectory_model not in ("on", "off"):
         raise InputError(None, "--trajectory-model", f"expected on or off, got {trajectory_model!r}")
     parse_estimate(estimate)
+    check_cluster(scheduler, workers)
     options = BoresightOptions(tuple(parse_methods(method)), estimate, trajectory_model == "on", trajectory_accuracy,
                                trajectory_sigma, trajectory_block, trajectory_correlation, truth, scheduler, workers,
                                write_strips)

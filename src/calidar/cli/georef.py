@@ -11,9 +11,9 @@ import typer
 from calidar.cli.common import console
 from calidar.cli.options import (
     CRS, GEOID_UNDULATION, TIME_SYSTEM, TRAJECTORY_ANGLES, TRAJECTORY_COLUMNS, TRAJECTORY_CRS, TRAJECTORY_HEADING,
-    point_options, trajectory_options,
+    crs_option, point_options, trajectory_options,
 )
-from calidar.outputs import check_out_dir, check_writable, output_folder
+from calidar.outputs import check_out_dir, check_writable, guard_inputs, output_folder
 from calidar.pipelines import georef as pipeline
 
 TRAJECTORY = typer.Option(..., "--trajectory", "-t", help="SBET, text trajectory or Optech CSD.")
@@ -83,9 +83,11 @@ def georef(
 ) -> None:
     """Georeference raw Optech CSD pulses with calidar's lidar equation; writes the points and the
     header's boresight as a calidar sensor.toml (docs/sensor.md, "Optech CSD")."""
+    crs = crs_option(crs)
+    geoid = point_options(geoid_undulation=geoid_undulation).geoid_undulation_m
+    guard_inputs([out, pipeline.sensor_path(out)], [raw])
     for path in (out, pipeline.sensor_path(out)):
         check_writable(path, force)
-    geoid = point_options(geoid_undulation=geoid_undulation).geoid_undulation_m
     r = pipeline.georeference_csd(raw, out, crs=crs, geoid_undulation_m=geoid, force=force)
     x, y, z = r.first_xyz
     console.print(f"{r.n_points} points → {r.points} ({r.crs}); sensor model → {r.sensor}\n"

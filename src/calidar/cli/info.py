@@ -21,6 +21,7 @@ from calidar.io.smrmsg import is_smrmsg_name, smrmsg_info
 from calidar.pipelines.inputs import PointOptions, TrajectoryOptions, load_trajectory
 from calidar.sensor_import import from_optech_header
 from calidar.trajectory import SECONDS_PER_WEEK
+from calidar.validate import existing_file
 
 LAS_SUFFIXES = (".las", ".laz")
 HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
@@ -178,8 +179,7 @@ def info(
     """Summarise a point file (flight lines, times, CRS, bounds, scan angles), a trajectory, an
     Optech CSD file (header, boresight, pulses) or an ICESat-2 ATL03 photon file (beams, photons,
     time span)."""
-    if not file.is_file():
-        raise FileNotFoundError(2, "No such file", str(file))
+    existing_file(file)
     if is_las(file):
         d = las_info(file, point_options(crs, time_system))
     elif is_hdf5(file):

@@ -6,10 +6,13 @@ import json
 from pathlib import Path
 
 import typer
+from rich.markup import escape
 
 from calidar.cli.common import console
-from calidar.errors import InputError
 from calidar.pipelines.quality import measure
+from calidar.validate import number
+
+CELL_RANGE_M = (0.01, 1000.0)  #: m, grid cells accepted by --cell (finer than lidar spacing, coarser than overlaps)
 
 
 def register(app: typer.Typer, simulate: typer.Typer) -> None:
@@ -22,21 +25,25 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
         force: bool = typer.Option(False, "--force", help="Write into a non-empty --out folder."),
     ) -> None:
         """Swath-overlap differences between flight lines (dz = a − b): median, RMSDz, max, planimetric offsets."""
-        from calidar.outputs import prepare_out_dir, write_text_atomic
+        from calidar.outputs import check_out_dir, guard_inputs, output_folder
         from calidar.strips.quality import write_rasters
 
-        if cell is not None and not cell > 0:
-            raise InputError(None, "--cell", f"expected a positive cell size in metres, got {cell}")
-        out_dir = prepare_out_dir(out, force) if out else None
+        if cell is not None:
+            number(cell, "--cell", *CELL_RANGE_M, "m")
+        if out:
+            check_out_dir(out, force)
+            guard_inputs([], strips, [out])
         lines, how, results, notes = measure(strips, cell)
         doc = {"lines_from": how, "pairs": [q.to_dict() for q in results], "notes": notes}
-        if out_dir:
+        text = json.dumps(doc, indent=2, allow_nan=False) + "\n"
+        if out:
             crs = next(iter(lines.values())).crs
-            for q in results:
-                write_rasters(q, out_dir, crs if crs is not None and not crs.is_geographic else None, force=True)
-            write_text_atomic(out_dir / "quality.json", json.dumps(doc, indent=2) + "\n")
+            with output_folder(out, force, inputs=strips) as tmp:
+                for q in results:
+                    write_rasters(q, tmp, crs if crs is not None and not crs.is_geographic else None, force=True)
+                (tmp / "quality.json").write_text(text, encoding="utf-8")
         if as_json:
-            print(json.dumps(doc, indent=2))
+            print(text, end="")
             return
         from rich.table import Table
 
@@ -51,6 +58,6 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
                           f(q.max_abs_dz_m, ""), f(q.dx_m), f(q.dy_m))
         console.print(table)
         for n in notes:
-            console.print(f"note: {n}")
-        if out_dir:
-            console.print(f"wrote {out_dir}/quality.json and dz rasters")
+            console.print(f"note: {escape(n)}", highlight=False, soft_wrap=True)
+        if out:
+            console.print(f"wrote {escape(str(out))}/quality.json and dz rasters", highlight=False, soft_wrap=True)

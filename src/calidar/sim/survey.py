@@ -48,6 +48,10 @@ ACCURACY_RATE_HZ = 1.0  #: epochs of the written smrmsg.out, as POSPac writes th
 
 #: per-strip trajectory errors (NED position, roll/pitch/heading attitude), drawn per line
 STRIP_ERRORS = ("position_bias_m", "position_drift_mps", "attitude_bias_rad", "attitude_drift_radps")
+STRIP_ERROR_MAX = (10.0, 1.0, np.radians(5.0), np.radians(1.0))  #: largest σ of each of STRIP_ERRORS
+#: largest |true − nominal| of a sensor parameter simulated, by name prefix (rad, m, ratio)
+ERROR_LIMITS = {"boresight": np.radians(10.0), "scan_angle_offset": np.radians(10.0), "lever_arm": 10.0,
+                "range_offset": 10.0, "range_scale": 0.01, "scan_angle_scale": 0.01}
 
 #: truth.json units of the parameters it always lists (value converted from SI)
 TRUTH_UNITS = {"boresight_roll": "deg", "boresight_pitch": "deg", "boresight_yaw": "deg", "lever_arm_x": "m",
@@ -146,8 +150,16 @@ def check_config(cfg: SurveyConfig) -> None:
     for name, v in cfg.errors.items():
         if name not in known:
             raise InputError(None, "errors", f"unknown sensor parameter {name!r}; expected one of {sorted(known)}")
-        if not np.isfinite(v):
-            raise InputError(None, name, f"expected a finite error, got {v}")
+        limit = next((lim for prefix, lim in ERROR_LIMITS.items() if name.startswith(prefix)), 1.0)
+        if not (np.isfinite(v) and abs(v) <= limit):
+            raise InputError(None, name, f"expected a finite error within ±{limit:.4g} (rad, m or a ratio), got {v}")
+    for name, v, hi in zip(STRIP_ERRORS, cfg.strip_error_sigma, STRIP_ERROR_MAX):
+        if v > hi:
+            raise InputError(None, "strip_errors", f"{name}: expected a σ ≤ {hi:.4g}, got {v}")
+    if not 0 <= cfg.seed < 2**32:
+        raise InputError(None, "seed", f"expected an integer in [0, 2**32), got {cfg.seed}")
+    if cfg.range_noise_m > 1.0:
+        raise InputError(None, "range_noise_m", f"expected a noise level ≤ 1 m, got {cfg.range_noise_m}")
     if cfg.pulse_rate_hz * cfg.density > 5e6:
         raise InputError(None, "density", f"pulse rate {cfg.pulse_rate_hz * cfg.density:.3g} Hz is beyond any scanner (max 5 MHz)")
     if len(cfg.origin_deg) != 3 or not -80 <= cfg.origin_deg[0] <= 84:
