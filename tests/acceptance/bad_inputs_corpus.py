@@ -85,6 +85,8 @@ def _trajectories(survey: Path, bad: Path) -> None:
 
     acc = _records(survey / "smrmsg.out", SMRMSG_FIELDS)
     (bad / "acc_truncated.out").write_bytes((survey / "smrmsg.out").read_bytes()[:-3])
+    (bad / "acc").mkdir()  # named as POSPac names it, away from the SBETs of bad/
+    (bad / "acc" / "smrmsg_truncated.out").write_bytes((survey / "smrmsg.out").read_bytes()[:-3])
     for name, col, value in (("acc_negative.out", 1, -0.02), ("acc_nan.out", 8, np.nan), ("acc_huge.out", 3, 1e7)):
         a = acc.copy()
         a[len(a) // 2, col] = value

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -60,8 +61,7 @@ def bad_input(corpus, cli, tmp_path):
     every substring, the inputs unchanged and nothing left behind in the output's folder."""
 
     def _check(args, code: int, *substrings: str):
-        work = tmp_path / "work"
-        work.mkdir()
+        work = Path(tempfile.mkdtemp(dir=tmp_path))
         argv = corpus.args(args, work / "out")
         rc, out, err = cli(*argv)
         assert "Traceback" not in out + err and "internal error" not in out + err, err

@@ -61,7 +61,7 @@ def test_simulate_total_station(bad_input, extra, messages):
 
 
 SURVEY = [
-    case(["--seed", "-1"], "--seed", id="seed-negative"),
+    case(["--seed", "-1"], "seed: expected an integer in [0, 2**32)", id="seed-negative"),
     case(["--density", "nan"], "density", id="density-nan"),
     case(["--density", "1e9"], "density", id="density-huge"),
     case(["--range-offset", "nan"], "range", id="range-offset-nan"),

@@ -66,7 +66,7 @@ def boresight(
         print_verdict(run.verdicts[m], None if len(run.results) == 1 else m)
         _print(result, run.inputs.truth)
     names = sorted({p.name for p in run.written if p.parent == Path(tmp)})
-    console.print(f"wrote {out}/: {', '.join(names)}" + (" and the recalibrated strips" if write_strips else ""))
+    console.print(f"wrote {out}/: {', '.join(names)}" + (" and the recalibrated strips" if write_strips else ""), markup=False)
 
 
 def _print(result, truth_si) -> None:
@@ -87,7 +87,7 @@ def _print(result, truth_si) -> None:
         console.print(table)
     if n_traj:
         console.print(f"{n_traj} trajectory corrections estimated (in solution.json and sbet_corrected.out; largest "
-                      f"shift {result.max_trajectory_shift_m() * 1e3:.1f} mm)")
+                      f"shift {result.max_trajectory_shift_m() * 1e3:.1f} mm)", markup=False)
     for w in result.warnings:
         print_warning(w)
 

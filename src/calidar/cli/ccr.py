@@ -86,7 +86,7 @@ def ccr(
     for w in result.warnings:
         print_warning(w)
     print_verdict(result.verdict, "CCR calibration")
-    console.print(f"wrote {out / 'solution.json'} and {out / 'report.html'}", highlight=False)
+    console.print(f"wrote {out / 'solution.json'} and {out / 'report.html'}", highlight=False, markup=False)
 
 
 def register(app: typer.Typer, simulate: typer.Typer) -> None:

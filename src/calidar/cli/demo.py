@@ -22,7 +22,7 @@ def demo(
     t0 = time.perf_counter()
     with output_folder(out, force) as tmp, progress_bar() as bar:
         run_demo(tmp, seed=seed, progress=progress_callback(bar))
-    console.print(f"report: {out / 'report.html'} ({time.perf_counter() - t0:.0f} s)")
+    console.print(f"report: {out / 'report.html'} ({time.perf_counter() - t0:.0f} s)", markup=False)
 
 
 def register(app: typer.Typer, simulate: typer.Typer) -> None:

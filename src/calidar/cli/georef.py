@@ -40,7 +40,7 @@ def inverse(
         points, trajectory, out, sensor=sensor, point_options=point_options(crs, time_system, geoid_undulation),
         trajectory_options=trajectory_options(trajectory_crs, trajectory_angles, trajectory_heading, trajectory_columns),
         force=force)
-    console.print(f"{n} points → {out}", highlight=False, soft_wrap=True)
+    console.print(f"{n} points → {out}", highlight=False, soft_wrap=True, markup=False)
 
 
 def regeoref(
@@ -69,7 +69,7 @@ def regeoref(
             trajectory_options=trajectory_options(trajectory_crs, trajectory_angles, trajectory_heading,
                                                   trajectory_columns), to_trajectory=to_trajectory)
     for path, n in written.items():
-        console.print(f"{out / path.name}: {n} points", highlight=False, soft_wrap=True)
+        console.print(f"{out / path.name}: {n} points", highlight=False, soft_wrap=True, markup=False)
 
 
 def georef(
@@ -92,7 +92,7 @@ def georef(
     x, y, z = r.first_xyz
     console.print(f"{r.n_points} points → {r.points} ({r.crs}); sensor model → {r.sensor}\n"
                   f"first point: GPS time {r.first_gps_time:.6f} s, {x:.3f}, {y:.3f}, {z:.3f}",
-                  highlight=False, soft_wrap=True)
+                  highlight=False, soft_wrap=True, markup=False)
 
 
 def register(app: typer.Typer, simulate: typer.Typer) -> None:

@@ -157,7 +157,7 @@ def _print(info: dict) -> None:
             t0, t1 = fl["gps_time"]
             times = f"GPS time {t0:.6f} … {t1:.6f} ({t1 - t0:.1f} s)"
         console.print(f"  flight line {fl['point_source_id']:>5}: {fl['points']:>12,} points, {times}",
-                      highlight=False, soft_wrap=True)
+                      highlight=False, soft_wrap=True, markup=False)
     for b in info.get("beams", []):
         text = f"  beam {b['beam']}: {b['photons']:>10,} photons, {b['shots']:,} shots, {b['segments']:,} segments"
         if b["photons"]:

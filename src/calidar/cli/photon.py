@@ -48,7 +48,7 @@ def simulate_photons(
         paths = run(cfg, tmp)
         t = json.loads(paths["truth"].read_text())
     console.print(f"wrote {out}/ATL03_sim.h5, ccr.csv, truth.json; truth: along {t['along_track_bias']:+.3f} m, "
-                  f"cross {t['cross_track_bias']:+.3f} m, diameter {t['footprint_diameter']:.2f} m", highlight=False)
+                  f"cross {t['cross_track_bias']:+.3f} m, diameter {t['footprint_diameter']:.2f} m", highlight=False, markup=False)
 
 
 def register(app: typer.Typer, simulate: typer.Typer) -> None:

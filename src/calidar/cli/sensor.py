@@ -45,7 +45,7 @@ def import_(
     sensor.write(out, force=force)
     angles = np.degrees([sensor.boresight_roll, sensor.boresight_pitch, sensor.boresight_yaw])
     console.print(f"{out}: boresight roll {angles[0]:.6f}°, pitch {angles[1]:.6f}°, yaw {angles[2]:.6f}°; lever arm "
-                  f"{', '.join(f'{v:.4f}' for v in sensor.lever_arm)} m", highlight=False, soft_wrap=True)
+                  f"{', '.join(f'{v:.4f}' for v in sensor.lever_arm)} m", highlight=False, soft_wrap=True, markup=False)
 
 
 def register(app: typer.Typer, simulate: typer.Typer) -> None:

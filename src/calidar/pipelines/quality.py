@@ -38,24 +38,27 @@ def measure(paths, cell_m=None):
 
     lines, how = read_flight_lines(paths)
     if len(lines) < 2:
-        raise InputError(paths[0], "point_source_id",
-                         f"found one flight line ({how}); expected at least two overlapping lines")
+        names = ", ".join(sorted({str(p) for p in paths}))
+        raise InputError(names, "point_source_id", f"found one flight line ({how}); expected at least two "
+                         "overlapping lines")
     coords = {i: line_coordinates(p)[usable(p)] for i, p in lines.items()}
-    results, notes = pairs_quality(coords, cell_m)
+    results, notes = pairs_quality(coords, cell_m, {i: p.path.name for i, p in lines.items()})
     return lines, how, results, notes
 
 
-def pairs_quality(coords: dict[int, np.ndarray], cell_m: float | None = None):
+def pairs_quality(coords: dict[int, np.ndarray], cell_m: float | None = None, names: dict[int, str] | None = None):
     """The PairQuality of every overlapping pair of flight lines given as metric coordinates with z
-    up (N, 3) m of their usable points (see :func:`usable`), and the overlap notes. The one
-    implementation behind ``calidar quality`` and the boresight report's before/after tables."""
-    from calidar.strips.overlap import find_overlaps
+    up (N, 3) m of their usable points (see :func:`usable`), and the overlap notes (lines named by
+    ``names`` {id: file name} when given). The one implementation behind ``calidar quality`` and
+    the boresight report's before/after tables."""
+    from calidar.strips.overlap import find_overlaps, strip_name
     from calidar.strips.quality import QualitySettings, swath_difference
 
-    pairs, notes = find_overlaps(coords)
+    pairs, notes = find_overlaps(coords, names=names)
     if not pairs:
-        raise InputError(None, "STRIPS", f"none of the {len(coords)} flight lines ({', '.join(map(str, coords))}) "
-                         "overlap another; nothing to compare")
+        listed = ", ".join(strip_name(i, names) for i in coords)
+        raise InputError(None, "STRIPS", f"none of the {len(coords)} flight lines ({listed}) overlap another; "
+                         "nothing to compare")
     settings = QualitySettings(cell_m=cell_m)
     results = [swath_difference(o.a, coords[o.a][o.index_a], o.b, coords[o.b][o.index_b], settings) for o in pairs]
     return results, notes

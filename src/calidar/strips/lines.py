@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import hashlib
 from collections.abc import Sequence
 from dataclasses import replace
 from pathlib import Path
@@ -40,6 +41,7 @@ def read_flight_lines(paths: Sequence[str | Path], crs=None, gap_s: float = GAP_
     if not paths:
         raise InputError(None, "STRIPS", "expected at least one LAS/LAZ file")
     clouds = [read_las(p, crs=crs, options=options) for p in paths]
+    _check_files(clouds)
     first = clouds[0]
     for c in clouds[1:]:
         if (c.crs is None) != (first.crs is None) or (c.crs is not None and not c.crs.equals(first.crs, ignore_axis_order=True)):
@@ -53,7 +55,24 @@ def read_flight_lines(paths: Sequence[str | Path], crs=None, gap_s: float = GAP_
         merged = replace(first, xyz=np.concatenate([c.xyz for c in clouds]),
                          gps_time=np.concatenate([c.gps_time for c in clouds]), **fields)
     ids, how = line_ids(merged.point_source_id, merged.gps_time, gap_s)
-    return {int(i): merged.select(ids == i) for i in np.unique(ids)}, how
+    source = np.repeat(np.arange(len(clouds)), [len(c) for c in clouds])  # the file of each point
+    return {int(i): replace(merged.select(ids == i), path=clouds[source[np.argmax(ids == i)]].path)
+            for i in np.unique(ids)}, how
+
+
+def _check_files(clouds: Sequence[LasPoints]) -> None:
+    """Refuse a file given twice, a file without points and a file holding the same points as
+    another (a copy): each would silently merge into, or vanish from, the flight lines."""
+    seen: dict[str, Path] = {}
+    for c in clouds:
+        if len(c) == 0:
+            raise InputError(c.path, "points", "no points; expected a strip (flight line) with points")
+        digest = hashlib.sha256(c.gps_time.tobytes() + c.xyz.tobytes()).hexdigest()
+        other = seen.setdefault(digest, c.path)
+        if other is not c.path:
+            same = other == c.path or other.resolve() == c.path.resolve()
+            raise InputError(c.path, None, "given twice; expected each strip once" if same else
+                             f"holds the same points as {other.name}: a duplicate; expected each strip once")
 
 
 def _name(crs: pyproj.CRS | None) -> str:

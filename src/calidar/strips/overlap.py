@@ -46,13 +46,20 @@ def footprint_area_m2(xy: np.ndarray, cell_m: float = 5.0) -> float:
     return float(np.count_nonzero(np.bincount(ij[:, 0] * (int(ij[:, 1].max()) + 1) + ij[:, 1])) * cell_m**2)
 
 
+def strip_name(i: int, names: Mapping[int, str] | None = None) -> str:
+    """"3 (line_003.laz)": a flight line's id and the file holding it, when known."""
+    return f"{i} ({names[i]})" if names and i in names else str(i)
+
+
 def find_overlaps(strips_xy: Mapping[int, np.ndarray], cell_m: float = 5.0, min_cells: int = 4,
-                  min_points_per_cell: int = 3) -> tuple[list[Overlap], list[str]]:
+                  min_points_per_cell: int = 3, names: Mapping[int, str] | None = None
+                  ) -> tuple[list[Overlap], list[str]]:
     """Overlapping pairs among strips given as {id: (N, ≥2) coordinates in metres}.
 
     A cell counts as occupied by a strip when it holds at least ``min_points_per_cell``
     of its points; pairs sharing fewer than ``min_cells`` cells are left out. Returns the
-    pairs (ids ascending) and plain-words notes about strips that overlap no other strip.
+    pairs (ids ascending) and plain-words notes about strips that overlap no other strip
+    (named by ``names`` {id: file name} when given).
     """
     ids = sorted(strips_xy)
     keys = {i: cell_keys(strips_xy[i], cell_m) for i in ids}
@@ -70,6 +77,6 @@ def find_overlaps(strips_xy: Mapping[int, np.ndarray], cell_m: float = 5.0, min_
             pairs.append(Overlap(a, b, int(common.size), float(common.size * cell_m**2),
                                  _members(keys[a], common), _members(keys[b], common)))
     paired = {p.a for p in pairs} | {p.b for p in pairs}
-    notes = [f"strip {i} overlaps no other strip (fewer than {min_cells} common {cell_m:g} m cells); it is not used"
-             for i in ids if i not in paired]
+    notes = [f"strip {strip_name(i, names)} overlaps no other strip (fewer than {min_cells} common {cell_m:g} m "
+             "cells); it is not used" for i in ids if i not in paired]
     return pairs, notes
