@@ -19,6 +19,7 @@ def case(args, *messages: str, id: str):
 QUALITY = [
     case([S1, S2, "--cell", "0.001"], "--cell", id="cell-0.001"),
     case([S1, S2, "--cell", "1e9"], "--cell", id="cell-1e9"),
+    case([S1, S2, "--cell", "500"], "--cell", "no 500 m cell", id="cell-larger-than-the-overlaps"),
     case([S1, S2, "--cell", "0"], "--cell", id="cell-0"),
     case([S1, S2, "--cell", "-2"], "--cell", id="cell-negative"),
     case([S1, S2, "--cell", "nan"], "--cell", id="cell-nan"),

@@ -61,4 +61,11 @@ def pairs_quality(coords: dict[int, np.ndarray], cell_m: float | None = None, na
                          "nothing to compare")
     settings = QualitySettings(cell_m=cell_m)
     results = [swath_difference(o.a, coords[o.a][o.index_a], o.b, coords[o.b][o.index_b], settings) for o in pairs]
+    empty = [f"{q.a}–{q.b}" for q in results if q.n_cells == 0]
+    if empty and cell_m is not None:
+        if len(empty) == len(results):
+            raise InputError(None, "--cell", f"no {cell_m:g} m cell of any overlap is smooth and holds enough points "
+                             "of both lines; expected a smaller cell (or leave --cell out to have one chosen)")
+        notes.append(f"pairs {', '.join(empty)}: no {cell_m:g} m cell is smooth and holds enough points of both "
+                     "lines (a smaller --cell may help)")
     return results, notes
