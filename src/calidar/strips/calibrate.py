@@ -164,12 +164,12 @@ class _Run:
         if len(by_id) != len(strips):
             raise InputError(None, "strips", "two strips share an id; flight-line ids must be unique")
         s = settings
-        names = {i: Path(st.source).name for i, st in by_id.items()}
+        names = {i: Path(st.source).name for i, st in by_id.items() if st.source != "<memory>"}
         overlaps, notes = find_overlaps({i: st.points for i, st in by_id.items()}, s.overlap_cell_m, s.min_overlap_cells,
                                         names=names)
         if not overlaps:
-            listed = ", ".join(strip_name(i, names) for i in by_id)
-            raise CalibrationError(f"no two of the {len(by_id)} strips ({listed}) overlap (no common "
+            listed = f" ({', '.join(strip_name(i, names) for i in by_id)})" if names else ""
+            raise CalibrationError(f"no two of the {len(by_id)} strips{listed} overlap (no common "
                                    f"{s.overlap_cell_m:g} m cells); strip calibration needs overlapping flight lines")
         need: dict[int, list[np.ndarray]] = {}
         for o in overlaps:
