@@ -173,6 +173,14 @@ def test_bracketed_file_names_are_printed_as_written(cli, corpus, tmp_path, comm
     assert ("a[b]c.laz" if command != "inverse" else "x[y]z.csv") in out
 
 
+def test_geoid_undulation_is_the_escape(cli, corpus, tmp_path):
+    """Heights above EGM2008 without its grid: an error naming the grid (above), or --geoid-undulation."""
+    code, out, err = cli(*corpus.args(["inverse", "{B}/geoid.laz", "-t", SBET, "--out", "{O}/v.csv",
+                                       "--geoid-undulation", "47"], tmp_path))
+    assert code == 0, err
+    assert (tmp_path / "v.csv").stat().st_size > 0
+
+
 def test_regeoref_never_writes_over_its_inputs(bad_input):
     bad_input(["regeoref", S1, S2, "-t", SBET, "--from", TOML, "--to", TOML, "--out", "{S}/strips", "--force"], 1,
               "strips", "input")
@@ -190,6 +198,8 @@ GEOREF = [
     case(["{B}/garbage.csd", "--out", "{O}.laz", "--geoid-undulation", "inf"], "--geoid-undulation",
                  id="undulation-inf"),
     case(["{B}/garbage.csd", "--out", "{O}.laz", "--crs", "EPSG:0"], "--crs", id="crs-bogus"),
+    case(["{B}/garbage.csd", "--out", "{O}.laz", "--geoid-undulation", "1e9"], "--geoid-undulation",
+         id="undulation-huge"),
 ]
 
 

@@ -46,12 +46,16 @@ def test_quality(bad_input, args, messages):
     bad_input(["quality", *args], 1, *messages)
 
 
+def _not_json(name):
+    raise AssertionError(f"quality.json holds {name}, which is not JSON")
+
+
 def test_quality_names_a_strip_far_from_the_others(cli, corpus, tmp_path):
     """A strip overlapping none of the others is named (not silently left out)."""
     code, out, err = cli(*corpus.args(["quality", *STRIPS, "{B}/far.laz", "--out", "{O}"], tmp_path / "q"))
     assert code == 0, err
     assert "far.laz" in out + err
-    doc = json.loads((tmp_path / "q" / "quality.json").read_text())  # strict JSON: no NaN / Infinity
+    doc = json.loads((tmp_path / "q" / "quality.json").read_text(), parse_constant=_not_json)  # no NaN, Infinity
     assert any("far.laz" in n for n in doc["notes"])
 
 
@@ -149,3 +153,16 @@ def test_boresight_never_writes_over_its_inputs(bad_input):
                "--force"], 1, "input")
     bad_input(["boresight", *STRIPS, "--trajectory", SBET, "--sensor", TOML, "--write-strips", "--out", "{S}/strips",
                "--force"], 1, "input")
+
+
+def test_errors_name_the_output_not_its_temporary(cli, corpus, tmp_path, monkeypatch):
+    """A write failing inside the run's transaction (here: a full disk) names --out, never the
+    hidden temporary folder, and leaves nothing behind."""
+    def full_disk(q, folder, *args, **kw):
+        raise OSError(28, "No space left on device", str(folder / f"dz_{q.a}_{q.b}.tif"))
+
+    monkeypatch.setattr("calidar.strips.quality.write_rasters", full_disk)
+    out = tmp_path / "q"
+    code, _, err = cli(*corpus.args(["quality", *STRIPS, "--out", "{O}"], out))
+    assert code == 1 and err.strip() == f"error: {out}/dz_1_2.tif: No space left on device"
+    assert list(tmp_path.iterdir()) == []

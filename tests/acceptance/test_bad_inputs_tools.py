@@ -47,6 +47,7 @@ TOTAL_STATION = [
     case(["--groups", "0"], "--groups", id="groups-0"),
     case(["--groups", "100000"], "--groups", id="groups-huge"),
     case(["--e-points", "-1"], "--e-points", id="e-points-negative"),
+    case(["--e-points", "100000"], "--e-points", id="e-points-huge"),
     case(["--outliers", "-1"], "--outliers", id="outliers-negative"),
     case(["--outliers", "1000"], "--outliers", id="outliers-more-than-targets"),
     case(["--angle-unit", "rad"], "--angle-unit", id="angle-unit"),
@@ -91,6 +92,11 @@ SCANNER = [
     case(["--range", "inf"], "--range", id="range-inf"),
     case(["--points", "1000000000"], "--points", id="points-1e9"),
     case(["--points", "0"], "--points", id="points-0"),
+    case(["--points", "7"], "--points", id="points-7"),
+    case(["--range", "1e9"], "--range", id="range-1e9"),
+    case(["--eccentricity", "-0.1"], "--eccentricity", id="eccentricity-negative"),
+    case(["--model", "palmer", "--delta-r", "nan"], "--delta-r", id="palmer-delta-r-nan"),
+    case(["--model", "wedge", "--wedge-angle-error", "100"], "--wedge-angle-error", id="wedge-angle-error-100"),
     case(["--eccentricity", "1"], "--eccentricity", id="eccentricity-1"),
     case(["--eccentricity", "nan"], "--eccentricity", id="eccentricity-nan"),
     case(["--scan-angle-offset", "100"], "--scan-angle-offset", id="scan-angle-offset-100"),
@@ -118,6 +124,10 @@ def test_scanner_analyze(bad_input, extra, messages):
     if "--range" not in extra:
         args += ["--range", "100"]
     bad_input(args, 1, *messages)
+
+
+def test_demo_seed_beyond_32_bits(bad_input):
+    bad_input(["demo", "--seed", "99999999999", "--out", "{O}"], 1, "seed")
 
 
 def test_demo_refuses_a_file_as_its_folder(bad_input):

@@ -4,7 +4,8 @@ Each command lives in its own module under ``calidar.cli`` as a module-level fun
 pipeline (``calidar.pipelines``), added to the app by the module's ``register(app, simulate)``;
 ``COMMAND_MODULES`` lists them. How a run ends:
 
-- errors a user can fix (:class:`calidar.errors.CalidarError`, missing files): one line, exit 1;
+- errors a user can fix (:class:`calidar.errors.CalidarError`, missing files, permissions, a full
+  disk — any ``OSError``): one line naming the file (the ``--out`` destination, never a temporary), exit 1;
 - usage errors (unknown command or option, a value of the wrong type, a missing argument):
   the usage line and the error, exit 2 — for click itself and for the click that newer typer
   releases bundle (both are recognised by their class names);
@@ -91,9 +92,9 @@ def run(argv: list[str] | None = None) -> int:
     except CalidarError as e:
         print_error(shown_path(str(e)))
         return 1
-    except (FileNotFoundError, IsADirectoryError, NotADirectoryError, PermissionError) as e:
-        name = e.filename if e.filename is not None else ""
-        print_error(f"{shown_path(str(name))}: {e.strerror}")
+    except OSError as e:  # missing files, permissions, a full disk: the system's word, naming the file
+        name = f"{shown_path(str(e.filename))}: " if e.filename is not None else ""
+        print_error(f"{name}{e.strerror or e}")
         return 1
     except KeyboardInterrupt as e:
         signum = getattr(e, "signum", signal.SIGINT)
