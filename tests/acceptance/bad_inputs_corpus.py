@@ -37,6 +37,7 @@ def build(root: Path, cli) -> None:
     _photons(root / "photons", bad)
     _observations(root / "total-station" / "observations.csv", bad)
     _texts(bad)
+    _links(root, bad)
 
 
 def _sensors(good: Path, bad: Path) -> None:
@@ -204,3 +205,12 @@ def _texts(bad: Path) -> None:
     (bad / "scan2imu_nan.txt").write_text("1 0 0 0 0 1 0 0 0 0 1 nan 0 0 0 1\n")
     (bad / "scan2imu_skew.txt").write_text("2 0 0 0 0 1 0 0 0 0 1 0 0 0 0 1\n")
     (bad / "garbage.csd").write_bytes(bytes(range(256)) * 4)
+
+
+def _links(root: Path, bad: Path) -> None:
+    """A hard link to the ATL03 file and a symbolic link to the strips' folder: outputs that would
+    overwrite an input under another name."""
+    import os
+
+    os.link(root / "photons" / "ATL03_sim.h5", bad / "atl03_hardlink.csv")
+    (bad / "strips_link").symlink_to(root / "survey" / "strips", target_is_directory=True)

@@ -31,11 +31,11 @@ class Corpus:
         assert now == set(self.hashes), f"corpus files added/removed: {now ^ set(self.hashes)}"
         named = []
         for a in argv:
-            p = Path(a)
-            if p.is_relative_to(self.root) and p.exists():
+            p = Path(a).resolve()  # a link named on the command line: the file or folder it points to
+            if p.is_relative_to(self.root.resolve()) and p.exists():
                 named += [p] if p.is_file() else [q for q in p.rglob("*") if q.is_file()]
         for p in named:
-            rel = p.relative_to(self.root).as_posix()
+            rel = p.relative_to(self.root.resolve()).as_posix()
             assert snapshot_one(p) == self.hashes[rel], f"input modified: {rel}"
 
 

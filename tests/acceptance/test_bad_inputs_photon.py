@@ -30,6 +30,7 @@ DENOISE = [
     case([H5, "--out", "{O}.csv", "--beam", "gt9x"], "--beam", "gt9x", id="beam-bogus"),
     case([H5, "--out", "{O}.csv", "--beam", "gt2l"], "gt2l", id="beam-absent"),
     case([H5, "--out", "{P}", "--force"], "{P}", id="out-is-a-folder"),
+    case([H5, "--out", "{B}/atl03_hardlink.csv", "--force"], "atl03_hardlink.csv", "input", id="out-is-a-hard-link"),
 ]
 
 

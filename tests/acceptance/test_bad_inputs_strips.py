@@ -38,6 +38,7 @@ QUALITY = [
     case([S1, "{B}/far.laz"], "line_001.laz", "far.laz", id="far-strip-alone"),
     case([S1, S2, "--out", S1, "--force"], "line_001.laz", id="out-is-input"),
     case([S1, S2, "--out", "{S}/strips", "--force"], "strips", "input", id="out-holds-inputs"),
+    case([S1, S2, "--out", "{B}/strips_link", "--force"], "strips_link", "input", id="out-links-to-the-inputs"),
 ]
 
 
@@ -153,6 +154,8 @@ def test_boresight_never_writes_over_its_inputs(bad_input):
                "--force"], 1, "input")
     bad_input(["boresight", *STRIPS, "--trajectory", SBET, "--sensor", TOML, "--write-strips", "--out", "{S}/strips",
                "--force"], 1, "input")
+    bad_input(["boresight", *STRIPS, "--trajectory", SBET, "--sensor", TOML, "--write-strips", "--out",
+               "{B}/strips_link", "--force"], 1, "input")
 
 
 def test_errors_name_the_output_not_its_temporary(cli, corpus, tmp_path, monkeypatch):
