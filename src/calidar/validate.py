@@ -143,6 +143,8 @@ def read_json(path: Path) -> dict:
     return doc
 
 
+SEED_MAX = 2**32 - 1  #: the largest random seed (numpy's seeds are 32-bit here)
+
 _MISSING = object()
 
 

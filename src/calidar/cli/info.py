@@ -184,7 +184,7 @@ def info(
         d = las_info(file, point_options(crs, time_system))
     elif is_hdf5(file):
         d = atl03_info(file)
-    elif is_csd(file):
+    elif is_csd(file) or file.suffix.lower() == ".csd":
         d = csd_info(file)
     elif is_smrmsg_name(file):
         d = smrmsg_info(file)

@@ -50,8 +50,8 @@ ACCURACY_RATE_HZ = 1.0  #: epochs of the written smrmsg.out, as POSPac writes th
 STRIP_ERRORS = ("position_bias_m", "position_drift_mps", "attitude_bias_rad", "attitude_drift_radps")
 STRIP_ERROR_MAX = (10.0, 1.0, np.radians(5.0), np.radians(1.0))  #: largest σ of each of STRIP_ERRORS
 #: largest |true − nominal| of a sensor parameter simulated, by name prefix (rad, m, ratio)
-ERROR_LIMITS = {"boresight": np.radians(10.0), "scan_angle_offset": np.radians(10.0), "lever_arm": 10.0,
-                "range_offset": 10.0, "range_scale": 0.01, "scan_angle_scale": 0.01}
+ERROR_LIMITS = {"boresight": (np.radians(10.0), "rad"), "scan_angle_offset": (np.radians(10.0), "rad"),
+                "lever_arm": (10.0, "m"), "range_offset": (10.0, "m"), "range_scale": (0.01, ""), "scan_angle_scale": (0.01, "")}
 
 #: truth.json units of the parameters it always lists (value converted from SI)
 TRUTH_UNITS = {"boresight_roll": "deg", "boresight_pitch": "deg", "boresight_yaw": "deg", "lever_arm_x": "m",
@@ -150,9 +150,9 @@ def check_config(cfg: SurveyConfig) -> None:
     for name, v in cfg.errors.items():
         if name not in known:
             raise InputError(None, "errors", f"unknown sensor parameter {name!r}; expected one of {sorted(known)}")
-        limit = next((lim for prefix, lim in ERROR_LIMITS.items() if name.startswith(prefix)), 1.0)
+        limit, unit = next((lim for prefix, lim in ERROR_LIMITS.items() if name.startswith(prefix)), (1.0, ""))
         if not (np.isfinite(v) and abs(v) <= limit):
-            raise InputError(None, name, f"expected a finite error within ±{limit:.4g} (rad, m or a ratio), got {v}")
+            raise InputError(None, name, f"expected a finite error within ±{limit:.4g} {unit}, got {v:.6g} {unit}".rstrip())
     for name, v, hi in zip(STRIP_ERRORS, cfg.strip_error_sigma, STRIP_ERROR_MAX):
         if v > hi:
             raise InputError(None, "strip_errors", f"{name}: expected a σ ≤ {hi:.4g}, got {v}")
