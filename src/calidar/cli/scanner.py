@@ -52,7 +52,7 @@ def analyze(
     with output_folder(out, force) as tmp, progress_bar() as bar:
         run = run_scanner_analysis(settings, tmp, progress=progress_callback(bar))
     if as_json:
-        sys.stdout.write(json.dumps(run.summary) + "\n")
+        sys.stdout.write(json.dumps(run.summary, allow_nan=False) + "\n")
         return
     _print_summary(run.summary, out)
     print_verdict(run.verdict)
