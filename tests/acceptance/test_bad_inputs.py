@@ -15,6 +15,7 @@ def case(args, *messages: str, id: str):
     return pytest.param(args, messages, id=id)
 
 
+COMMANDS = {"info", "georef", "inverse", "regeoref", "sensor import"}  #: the commands this module's corpus covers
 S1, S2 = "{S}/strips/line_001.laz", "{S}/strips/line_002.laz"
 SBET, TOML = "{S}/sbet.out", "{S}/sensor.toml"
 
@@ -244,6 +245,18 @@ def _commands(group, prefix=()):
         if hasattr(sub, "commands"):
             for n, s in sub.commands.items():
                 yield (*prefix, name, n), s
+
+
+def test_every_command_is_in_the_corpus():
+    """A new command comes with its bad-input cases: every command (leaf of ``calidar --help``) is
+    covered by one of the corpus modules."""
+    import test_bad_inputs_photon
+    import test_bad_inputs_strips
+    import test_bad_inputs_tools
+
+    leaves = {" ".join(n) for n, c in _commands(app) if not hasattr(c, "commands")}
+    covered = COMMANDS | test_bad_inputs_strips.COMMANDS | test_bad_inputs_photon.COMMANDS | test_bad_inputs_tools.COMMANDS
+    assert leaves - covered == set(), "commands without bad-input cases"
 
 
 @pytest.mark.parametrize("command", sorted(" ".join(n) for n, _ in _commands(app)))

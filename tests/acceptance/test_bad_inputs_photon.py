@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import pytest
 
+COMMANDS = {"denoise", "ccr", "simulate photons"}  #: the commands this module's corpus covers
 H5, CCR = "{P}/ATL03_sim.h5", "{P}/ccr.csv"
 
 

@@ -6,6 +6,7 @@ import json
 
 import pytest
 
+COMMANDS = {"quality", "boresight"}  #: the commands this module's corpus covers
 STRIPS = [f"{{S}}/strips/line_00{k}.laz" for k in range(1, 5)]
 S1, S2 = STRIPS[:2]
 SBET, TOML, SMRMSG = "{S}/sbet.out", "{S}/sensor.toml", "{S}/smrmsg.out"

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import pytest
 
+COMMANDS = {"range-cal", "simulate total-station", "simulate survey", "scanner analyze", "demo"}  #: covered here
 OBS = "{T}/observations.csv"
 
 
