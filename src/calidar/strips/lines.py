@@ -67,7 +67,9 @@ def _check_files(clouds: Sequence[LasPoints]) -> None:
     for c in clouds:
         if len(c) == 0:
             raise InputError(c.path, "points", "no points; expected a strip (flight line) with points")
-        digest = hashlib.sha256(c.gps_time.tobytes() + c.xyz.tobytes()).hexdigest()
+        h = hashlib.sha256(np.ascontiguousarray(c.gps_time))  # no copy of the (large) arrays
+        h.update(np.ascontiguousarray(c.xyz))
+        digest = h.hexdigest()
         other = seen.setdefault(digest, c.path)
         if other is not c.path:
             same = other == c.path or other.resolve() == c.path.resolve()
