@@ -129,6 +129,9 @@ def _strips(strips: Path, bad: Path) -> None:
     raw = bytearray((bad / "count.las").read_bytes())
     raw[247:255] = np.uint64(3000).tobytes()  # LAS 1.4 point count: 3000 in the header, 2000 records
     (bad / "count.las").write_bytes(bytes(raw))
+    raw[247:255] = np.uint64(1000).tobytes()  # and 1000: the reader would silently stop half-way
+    raw[107:111] = np.uint32(1000).tobytes()
+    (bad / "count_low.las").write_bytes(bytes(raw))
     (bad / "truncated.laz").write_bytes(first.read_bytes()[: first.stat().st_size // 2])
     (bad / "garbage.laz").write_text("not a point cloud\n" * 50)
     (bad / "strip[bold]x.laz").write_text("not a point cloud either\n")
@@ -151,9 +154,11 @@ def _photons(ph: Path, bad: Path) -> None:
                 shape, dtype = (0, *d.shape[1:]), d.dtype
                 del g[name]
                 g.create_dataset(name, shape=shape, dtype=dtype)
-    shutil.copy(src, bad / "atl03_badlat.h5")
-    with h5py.File(bad / "atl03_badlat.h5", "r+") as f:
-        f["gt1l/heights/lat_ph"][5] = 200.0
+    for name, field, value in (("atl03_badlat.h5", "lat_ph", 200.0), ("atl03_nan_h.h5", "h_ph", np.nan),
+                               ("atl03_nan_time.h5", "delta_time", np.nan)):
+        shutil.copy(src, bad / name)
+        with h5py.File(bad / name, "r+") as f:
+            f[f"gt1l/heights/{field}"][5] = value
     with h5py.File(bad / "not_atl03.h5", "w") as f:
         f["x"] = np.arange(3)
     (bad / "atl03_truncated.h5").write_bytes(src.read_bytes()[:2000])

@@ -54,6 +54,7 @@ INFO = [
     case(["{B}/acc/smrmsg_truncated.out"], "smrmsg_truncated.out", "80 bytes", id="smrmsg-truncated"),
     case(["{B}"], "is a folder", id="folder"),
     case(["{B}/count.las"], "count.las", "3000", "2000", id="las-count-mismatch"),
+    case(["{B}/count_low.las"], "count_low.las", "1000", "2000", id="las-count-too-low"),
     case(["{B}/huge.las"], "huge.las", "x", id="las-coordinates-1e300"),
     case(["{B}/garbage.laz"], "garbage.laz", id="las-garbage"),
     case(["{B}/truncated.laz"], "truncated.laz", id="laz-truncated"),

@@ -16,6 +16,8 @@ def case(args, *messages: str, id: str):
 ATL03 = [
     case(["{B}/atl03_zero.h5"], "atl03_zero.h5", id="zero-photons"),
     case(["{B}/atl03_badlat.h5"], "atl03_badlat.h5", "lat_ph", id="latitude-200"),
+    case(["{B}/atl03_nan_h.h5"], "atl03_nan_h.h5", "h_ph", id="nan-height"),
+    case(["{B}/atl03_nan_time.h5"], "atl03_nan_time.h5", "delta_time", id="nan-time"),
     case(["{B}/not_atl03.h5"], "not_atl03.h5", id="not-atl03"),
     case(["{B}/atl03_truncated.h5"], "atl03_truncated.h5", id="truncated"),
     case(["{B}/atl03_text.h5"], "atl03_text.h5", id="text"),

@@ -35,6 +35,7 @@ QUALITY = [
     case([S1, "{B}/truncated.laz"], "truncated.laz", id="truncated"),
     case([S1, "{B}/strip[bold]x.laz"], "strip[bold]x.laz", id="bracketed-garbage"),
     case([S1, "{B}/count.las"], "count.las", id="count-mismatch"),
+    case([S1, "{B}/count_low.las"], "count_low.las", "point_count", id="count-too-low"),
     case([S1, "{B}/missing.laz"], "missing.laz", id="missing"),
     case([S1, "{B}/far.laz"], "line_001.laz", "far.laz", id="far-strip-alone"),
     case([S1, S2, "--out", S1, "--force"], "line_001.laz", id="out-is-input"),
