@@ -11,7 +11,8 @@ pipeline (``calidar.pipelines``), added to the app by the module's ``register(ap
   releases bundle (both are recognised by their class names);
 - Ctrl-C (SIGINT) and SIGTERM: one line "interrupted", exit 130 (143 for SIGTERM), after every
   temporary file and folder of the run has been removed (outputs are transactions, see
-  :mod:`calidar.outputs`);
+  :mod:`calidar.outputs`) — also when the interruption surfaces as another error (a native
+  library's, raised from inside its callback);
 - anything else is a bug: "internal error" and exit 2 (``CALIDAR_DEBUG=1`` shows the traceback).
 """
 
@@ -83,36 +84,46 @@ def _is(e: BaseException, *names: str) -> bool:
 
 def run(argv: list[str] | None = None) -> int:
     """Run the CLI with ``argv``; return the exit code (used by ``main`` and the tests)."""
+    _SIGNALS.clear()
     try:
         # with standalone_mode=False click returns the code of a typer.Exit raised in a command
         code = app(args=argv, prog_name="calidar", standalone_mode=False)
         if _SIGNALS:  # typer caught the interruption and returns 130 silently
             raise Interrupted(_SIGNALS[-1])
         return code if isinstance(code, int) else 0
-    except CalidarError as e:
+    except KeyboardInterrupt as e:
+        return _interrupted(getattr(e, "signum", signal.SIGINT))
+    except Exception as e:  # noqa: BLE001 - dispatched by kind in _report
+        if _SIGNALS:  # an error the interruption caused (e.g. raised inside a native LAZ writer's callback)
+            return _interrupted(_SIGNALS[-1])
+        return _report(e)
+
+
+def _interrupted(signum: int) -> int:
+    print_error("interrupted" + (" (SIGTERM)" if signum == signal.SIGTERM else ""), prefix="")
+    return 128 + int(signum)
+
+
+def _report(e: Exception) -> int:
+    """One line for an error a user can fix (exit 1), click's usage message (exit 2), else a bug."""
+    if isinstance(e, CalidarError):
         print_error(shown_path(str(e)))
         return 1
-    except OSError as e:  # missing files, permissions, a full disk: the system's word, naming the file
+    if isinstance(e, OSError):  # missing files, permissions, a full disk: the system's word, naming the file
         name = f"{shown_path(str(e.filename))}: " if e.filename is not None else ""
         print_error(f"{name}{e.strerror or e}")
         return 1
-    except KeyboardInterrupt as e:
-        signum = getattr(e, "signum", signal.SIGINT)
-        print_error("interrupted" + (" (SIGTERM)" if signum == signal.SIGTERM else ""), prefix="")
-        return 128 + int(signum)
-    except Exception as e:  # noqa: BLE001 - click's exceptions, then bugs
-        if _is(e, "Exit"):
-            return int(getattr(e, "exit_code", 0) or 0)
-        if _is(e, "Abort"):
-            print_error("interrupted", prefix="")
-            return 130
-        if _is(e, "ClickException") and hasattr(e, "show"):
-            e.show()
-            return int(getattr(e, "exit_code", 2))
-        if os.environ.get("CALIDAR_DEBUG"):
-            raise
-        print_error(f"internal error: {type(e).__name__}: {e} (set CALIDAR_DEBUG=1 for the traceback)", prefix="")
-        return 2
+    if _is(e, "Exit"):
+        return int(getattr(e, "exit_code", 0) or 0)
+    if _is(e, "Abort"):
+        return _interrupted(signal.SIGINT)
+    if _is(e, "ClickException") and hasattr(e, "show"):
+        e.show()
+        return int(getattr(e, "exit_code", 2))
+    if os.environ.get("CALIDAR_DEBUG"):
+        raise e
+    print_error(f"internal error: {type(e).__name__}: {e} (set CALIDAR_DEBUG=1 for the traceback)", prefix="")
+    return 2
 
 
 def main() -> None:

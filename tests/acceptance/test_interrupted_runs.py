@@ -1,7 +1,8 @@
-"""An interrupted ``calidar boresight`` (SIGTERM, SIGINT; a real subprocess) leaves no temporary
-file or folder and no partial result; a run failing on a bad input found mid-way leaves nothing
-either, or, under --force, the previous result as it was (issue 16). Inputs: the bad-input
-corpus's simulated survey (conftest.py)."""
+"""An interrupted ``calidar boresight``, ``simulate survey`` or ``quality`` (SIGTERM, SIGINT; a real
+subprocess) leaves no temporary file or folder and no partial result; a run failing on a bad input
+found mid-way leaves nothing either, or, under --force, the previous result as it was (issue 16;
+inverse and regeoref: test_georef_interrupted.py). Inputs: the bad-input corpus's simulated survey
+(conftest.py)."""
 
 from __future__ import annotations
 
@@ -28,17 +29,28 @@ def _tree(folder):
             for p in sorted(folder.rglob("*")) if p.is_file()}
 
 
-def _interrupt(corpus, tmp_path, signum, writing: bool):
+def _command(corpus, out, command):
+    s = corpus.root / "survey"
+    return {"boresight": _args(corpus, out),
+            "simulate survey": ["simulate", "survey", "--density", "0.05", "--out", str(out)],
+            "quality": ["quality", *map(str, sorted((s / "strips").glob("*.laz"))), "--out", str(out)]}[command]
+
+
+#: what shows a run is writing its results into its temporary folder
+WRITING = {"boresight": "*.json", "simulate survey": "strips/*.laz", "quality": "*.tif"}
+
+
+def _interrupt(corpus, tmp_path, signum, writing: bool, command: str = "boresight"):
     """Start a run, signal it once its temporary folder exists (``writing``: once the first result
     is written into it) and return (exit code, stderr); None when the run finished first."""
     out = tmp_path / "out"
     env = {**os.environ, "NUMBA_NUM_THREADS": "1", "OMP_NUM_THREADS": "1"}
-    proc = subprocess.Popen([sys.executable, "-m", "calidar", *_args(corpus, out)], stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True, env=env)
+    proc = subprocess.Popen([sys.executable, "-m", "calidar", *_command(corpus, out, command)],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
     deadline = time.monotonic() + 120
     while True:
         tmp = [p for p in tmp_path.iterdir() if p.name.startswith(".out.")]  # the run's temporary folder
-        if tmp and (not writing or any(tmp[0].glob("*.json"))):
+        if tmp and (not writing or any(tmp[0].glob(WRITING[command]))):
             break
         if proc.poll() is not None:
             break
@@ -55,11 +67,13 @@ def _interrupt(corpus, tmp_path, signum, writing: bool):
     return proc.returncode, err
 
 
-@pytest.mark.parametrize("writing", [False, True], ids=["calibrating", "writing"])
+@pytest.mark.parametrize("command, writing", [("boresight", False), ("boresight", True), ("simulate survey", True),
+                                              ("quality", True)],
+                         ids=["boresight-calibrating", "boresight-writing", "simulate-survey-writing", "quality-writing"])
 @pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGINT], ids=["SIGTERM", "SIGINT"])
-def test_interrupted_boresight_leaves_nothing(corpus, tmp_path, signum, writing):
+def test_interrupted_run_leaves_nothing(corpus, tmp_path, signum, command, writing):
     for _ in range(5):  # a run may end between the first result written and the signal: run again
-        ended = _interrupt(corpus, tmp_path, signum, writing)
+        ended = _interrupt(corpus, tmp_path, signum, writing, command)
         if ended is not None:
             break
     assert ended is not None, "every run ended before it could be interrupted"
