@@ -40,7 +40,7 @@ def _command(corpus, out, command):
 WRITING = {"boresight": "*.json", "simulate survey": "strips/*.laz", "quality": "*.tif"}
 
 
-def _interrupt(corpus, tmp_path, signum, writing: bool, command: str = "boresight"):
+def _interrupt(corpus, tmp_path, signum, writing: bool, command: str = "boresight", repeat: int = 1):
     """Start a run, signal it once its temporary folder exists (``writing``: once the first result
     is written into it) and return (exit code, stderr); None when the run finished first."""
     out = tmp_path / "out"
@@ -62,18 +62,21 @@ def _interrupt(corpus, tmp_path, signum, writing: bool, command: str = "boresigh
         assert proc.returncode == 0, proc.communicate()
         shutil.rmtree(out)
         return None
-    proc.send_signal(signum)
+    for _ in range(repeat):  # a second signal (Ctrl-C pressed twice) must not cut the clean-up short
+        proc.send_signal(signum)
+        time.sleep(0.002)
     _, err = proc.communicate(timeout=120)
     return proc.returncode, err
 
 
-@pytest.mark.parametrize("command, writing", [("boresight", False), ("boresight", True), ("simulate survey", True),
-                                              ("quality", True)],
-                         ids=["boresight-calibrating", "boresight-writing", "simulate-survey-writing", "quality-writing"])
+@pytest.mark.parametrize("command, writing, repeat", [
+    ("boresight", False, 1), ("boresight", True, 1), ("boresight", True, 3), ("simulate survey", True, 1),
+    ("quality", True, 1)], ids=["boresight-calibrating", "boresight-writing", "boresight-writing-thrice",
+                                "simulate-survey-writing", "quality-writing"])
 @pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGINT], ids=["SIGTERM", "SIGINT"])
-def test_interrupted_run_leaves_nothing(corpus, tmp_path, signum, command, writing):
+def test_interrupted_run_leaves_nothing(corpus, tmp_path, signum, command, writing, repeat):
     for _ in range(5):  # a run may end between the first result written and the signal: run again
-        ended = _interrupt(corpus, tmp_path, signum, writing, command)
+        ended = _interrupt(corpus, tmp_path, signum, writing, command, repeat)
         if ended is not None:
             break
     assert ended is not None, "every run ended before it could be interrupted"

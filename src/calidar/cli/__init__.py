@@ -73,8 +73,11 @@ _SIGNALS: list[int] = []  #: the signals that interrupted this run (typer turns 
 
 
 def _raise_interrupted(signum, frame):
+    """The first signal interrupts the run; later ones (Ctrl-C pressed twice) are only recorded, so
+    that they cannot cut short the removal of the run's temporaries."""
     _SIGNALS.append(signum)
-    raise Interrupted(signum)
+    if len(_SIGNALS) == 1:
+        raise Interrupted(signum)
 
 
 def _is(e: BaseException, *names: str) -> bool:
@@ -129,4 +132,7 @@ def _report(e: Exception) -> int:
 def main() -> None:
     signal.signal(signal.SIGTERM, _raise_interrupted)
     signal.signal(signal.SIGINT, _raise_interrupted)
-    sys.exit(run(sys.argv[1:]))
+    code = run(sys.argv[1:])
+    for signum in (signal.SIGTERM, signal.SIGINT):  # a late signal must not kill the exit (Python's finalisation
+        signal.signal(signum, signal.SIG_IGN)       # would restore the default action for our handler)
+    sys.exit(code)
