@@ -66,9 +66,10 @@ def test_simulate_total_station(bad_input, extra, messages):
 
 
 SURVEY = [
-    case(["--seed", "-1"], "seed: expected an integer in [0, 2**32)", id="seed-negative"),
+    case(["--seed", "-1"], "seed: expected an integer in [0, 4294967295]", id="seed-negative"),
     case(["--density", "nan"], "density", id="density-nan"),
     case(["--density", "1e9"], "density", id="density-huge"),
+    case(["--density", "200"], "density", "pulses to simulate", id="density-beyond-memory"),
     case(["--range-offset", "nan"], "range", id="range-offset-nan"),
     case(["--range-offset", "1e9"], "range", id="range-offset-huge"),
     case(["--range-noise", "nan"], "range_noise", id="range-noise-nan"),
