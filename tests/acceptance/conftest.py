@@ -14,10 +14,16 @@ from bad_inputs_corpus import build, snapshot
 class Corpus:
     """The corpus folder: ``survey/`` (strips, sbet.out, smrmsg.out, sensor.toml, truth.json),
     ``photons/`` (ATL03_sim.h5, ccr.csv, truth.json), ``total-station/`` (observations.csv,
-    truth.json), ``bad/`` (corrupt copies), and each file's sha256 when built."""
+    truth.json), ``bad/`` (corrupt copies), and each file's sha256, size and time when built."""
 
     root: Path
     hashes: dict[str, str]
+    stats: dict[str, tuple[int, int]]  #: (size, mtime ns) of every file: any write shows
+
+    @staticmethod
+    def stat(root: Path) -> dict[str, tuple[int, int]]:
+        return {p.relative_to(root).as_posix(): (p.stat().st_size, p.stat().st_mtime_ns)
+                for p in root.rglob("*") if p.is_file()}
 
     def args(self, args, out: Path) -> list[str]:
         """``args`` with {S} survey, {P} photons, {T} total-station, {B} bad, {O} ``out`` filled in."""
@@ -25,10 +31,11 @@ class Corpus:
         return [a.format(S=r / "survey", P=r / "photons", T=r / "total-station", B=r / "bad", O=out) for a in args]
 
     def check_unchanged(self, argv: list[str]) -> None:
-        """No file of the corpus added, removed or resized; every file named in ``argv`` (or inside
-        a folder named there) byte-identical."""
-        now = {p.relative_to(self.root).as_posix() for p in self.root.rglob("*") if p.is_file()}
-        assert now == set(self.hashes), f"corpus files added/removed: {now ^ set(self.hashes)}"
+        """No file of the corpus added, removed, resized or written to; every file named in ``argv``
+        (or inside a folder named there) byte-identical."""
+        now = self.stat(self.root)
+        assert set(now) == set(self.stats), f"corpus files added/removed: {set(now) ^ set(self.stats)}"
+        assert now == self.stats, f"corpus files written: {[k for k in now if now[k] != self.stats[k]]}"
         named = []
         for a in argv:
             p = Path(a).resolve()  # a link named on the command line: the file or folder it points to
@@ -51,7 +58,7 @@ def corpus(tmp_path_factory) -> Corpus:
 
     root = tmp_path_factory.mktemp("corpus")
     build(root, lambda *a: (run([str(x) for x in a]), "", ""))
-    return Corpus(root, snapshot(root))
+    return Corpus(root, snapshot(root), Corpus.stat(root))
 
 
 @pytest.fixture
@@ -68,7 +75,8 @@ def bad_input(corpus, cli, tmp_path):
         assert rc == code, f"exit {rc}, expected {code}; stderr: {err}; stdout: {out[-500:]}"
         if code == 1:
             errors = [line for line in err.splitlines() if line.startswith("error: ")]
-            assert len(errors) == 1, err
+            others = [line for line in err.splitlines() if line.strip() and not line.startswith(("error: ", "warning: "))]
+            assert len(errors) == 1 and not others, err  # one error line (warnings before it allowed)
             message = errors[0]
         else:
             message = err + out  # a usage error: the usage line (the help for a bare group)
