@@ -80,6 +80,9 @@ def _trajectories(survey: Path, bad: Path) -> None:
     back[n // 2, 0] = back[0, 0] - 10.0
     back.tofile(bad / "sbet_backwards.out")
     sbet[: n // 20].tofile(bad / "sbet_short.out")  # 5 % of the flight: does not cover the strips
+    t = laspy.read(survey / "strips" / "line_002.laz").gps_time
+    mid = (float(t.min()) + float(t.max())) / 2
+    sbet[np.abs(sbet[:, 0] - mid) > 5.0].tofile(bad / "sbet_gap.out")  # 10 s without records amid line 2
     (bad / "sbet_truncated.out").write_bytes((survey / "sbet.out").read_bytes()[:-7])
     (bad / "sbet_empty.out").write_bytes(b"")
     (bad / "sbet_text.out").write_text("this is not an SBET\n" * 17)

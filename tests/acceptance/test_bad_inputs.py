@@ -158,6 +158,13 @@ def test_regeoref(bad_input, extra, messages):
     bad_input(["regeoref", S1, S2, "-t", SBET, *extra, "--out", "{O}"], 1, *messages)
 
 
+@pytest.mark.parametrize("command", ["inverse", "regeoref"])
+def test_trajectory_gap_is_not_bridged(bad_input, command):
+    """Points amid 10 s without trajectory records are not interpolated across the gap."""
+    args = ["--out", "{O}.csv"] if command == "inverse" else ["--from", TOML, "--to", TOML, "--out", "{O}"]
+    bad_input([command, S2, "-t", "{B}/sbet_gap.out", *args], 1, "line_002.laz", "gap(s) without records")
+
+
 def test_info_counts_nan_times(cli, corpus):
     """NaN GPS times are counted and left out of the time ranges (never "GPS time inf … -inf")."""
     code, out, err = cli(*corpus.args(["info", "{B}/nan_time.las"], corpus.root))

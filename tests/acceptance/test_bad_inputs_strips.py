@@ -67,6 +67,7 @@ TRAJECTORY = [
     case(["--trajectory", "{B}/sbet_roll50rad.out"], "sbet_roll50rad.out", "roll", id="sbet-roll-50rad"),
     case(["--trajectory", "{B}/sbet_truncated.out"], "sbet_truncated.out", "136", id="sbet-truncated"),
     case(["--trajectory", "{B}/sbet_short.out"], "sbet_short.out", id="sbet-not-covering"),
+    case(["--trajectory", "{B}/sbet_gap.out"], "sbet_gap.out", "gap(s) without records", id="sbet-gap"),
     case(["--trajectory", "{B}/sbet_nan_time.out"], "sbet_nan_time.out", "time", id="sbet-nan-time"),
     case(["--trajectory", "{B}/traj_latin1.txt"], "traj_latin1.txt", "UTF-8", id="trajectory-not-utf8"),
     case(["--trajectory-accuracy", "{B}/acc_truncated.out"], "acc_truncated.out", "80", id="smrmsg-truncated"),
