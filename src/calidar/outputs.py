@@ -35,6 +35,19 @@ def shown_path(text: str) -> str:
     return text
 
 
+def show_destinations(e: BaseException) -> None:
+    """Rewrite an error leaving a transaction so that it names destinations, not temporaries
+    (called while they are still registered: the caller prints it after they are gone)."""
+    if isinstance(e, OSError):
+        for attr in ("filename", "filename2"):
+            if isinstance(getattr(e, attr, None), str):
+                setattr(e, attr, shown_path(getattr(e, attr)))
+    elif e.args and isinstance(e.args[0], str):
+        e.args = (shown_path(e.args[0]), *e.args[1:])
+        if isinstance(getattr(e, "source", None), str):
+            e.source = shown_path(e.source)
+
+
 def _same(a: Path, b: Path) -> bool:
     try:
         return a.resolve() == b.resolve() or (a.exists() and b.exists() and a.samefile(b))
@@ -117,6 +130,9 @@ def output_folder(path: str | os.PathLike, force: bool = False, inputs: Iterable
     try:
         yield tmp
         _commit(tmp, path)
+    except BaseException as e:
+        show_destinations(e)
+        raise
     finally:
         _TEMPORARIES.pop(str(tmp), None)
         shutil.rmtree(tmp, ignore_errors=True)
@@ -156,6 +172,9 @@ def atomic_path(path: str | os.PathLike, force: bool = True) -> Iterator[Path]:
         yield tmp
         os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes 0600; give the usual permissions
         os.replace(tmp, path)
+    except BaseException as e:
+        show_destinations(e)
+        raise
     finally:
         _TEMPORARIES.pop(str(tmp), None)
         if tmp.exists():

@@ -170,8 +170,9 @@ def _lever_arm(lever, source: str) -> tuple[float, float, float]:
                  for k, v in zip("xyz", lever))
 
 
-def validated_crs(crs, source: str) -> str | None:
-    """``crs`` when pyproj knows it (None stays None), else a clear error naming ``source``."""
+def validated_crs(crs, source: str | None, field: str = "crs") -> str | None:
+    """``crs`` when pyproj knows it (None stays None), else a clear error naming ``source`` and
+    ``field`` (an option: ``validated_crs(text, None, "--crs")``)."""
     if crs is None:
         return None
     import pyproj
@@ -179,7 +180,7 @@ def validated_crs(crs, source: str) -> str | None:
     try:
         pyproj.CRS.from_user_input(crs)
     except (pyproj.exceptions.CRSError, TypeError):
-        raise InputError(source, "crs", f"expected a CRS pyproj knows (e.g. 'EPSG:32611'), got {crs!r}") from None
+        raise InputError(source, field, f"expected a CRS pyproj knows (e.g. 'EPSG:32611'), got {crs!r}") from None
     return crs
 
 

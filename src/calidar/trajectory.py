@@ -20,6 +20,9 @@ from calidar.validate import values
 TIME_SYSTEMS = ("gps_week_seconds", "gps_adjusted_standard")
 SECONDS_PER_WEEK = 604800.0
 HEIGHT_RANGE_M = (-1000.0, 100_000.0)  #: ellipsoidal heights a platform can have (m)
+#: a pause between records longer than this many median intervals, and than GAP_MIN_S, is a gap: no
+#: point is interpolated across it (a data outage, or two trajectories joined)
+GAP_INTERVALS, GAP_MIN_S = 10.0, 1.0
 #: physical range of every per-record field, SI (rad, m): checked on every trajectory
 LIMITS = {"lat": (-np.pi / 2, np.pi / 2, "rad"), "lon": (-2 * np.pi, 2 * np.pi, "rad"),
           "height": (*HEIGHT_RANGE_M, "m"), "roll": (-np.pi, np.pi, "rad"), "pitch": (-np.pi / 2, np.pi / 2, "rad"),
@@ -106,13 +109,30 @@ class Trajectory:
             return None
         return np.einsum("nij,nj->ni", frames.r_en(self.lat, self.lon), np.asarray(self.velocity_ned, float))
 
+    @cached_property
+    def gaps(self) -> np.ndarray:
+        """Indices i of the record intervals (time[i], time[i+1]) that are gaps (see GAP_INTERVALS)."""
+        dt = np.diff(self.time)
+        return np.flatnonzero(dt > max(GAP_MIN_S, GAP_INTERVALS * float(np.median(dt))))
+
     def covers(self, t) -> np.ndarray:
-        """Boolean mask: which times lie within the trajectory's time span."""
+        """Boolean mask: which times lie within the trajectory's time span and outside its gaps."""
         t = np.asarray(t, float)
-        return (t >= self.time[0]) & (t <= self.time[-1])
+        inside = (t >= self.time[0]) & (t <= self.time[-1])
+        if self.gaps.size:
+            i = np.clip(np.searchsorted(self.time, t, side="right") - 1, 0, self.time.size - 2)
+            inside &= ~np.isin(i, self.gaps) | (t == self.time[i])
+        return inside
+
+    def gap_text(self) -> str:
+        """The gaps in words, for messages: "2 gap(s) without records (a–b s, c–d s)"."""
+        g = self.gaps
+        spans = ", ".join(f"{self.time[i]:.3f}–{self.time[i + 1]:.3f} s" for i in g[:3]) + (" …" if g.size > 3 else "")
+        return f"{g.size} gap(s) without records ({spans})"
 
     def check_covers(self, t, what: str = "points") -> None:
-        """Raise a clear error when times fall outside the trajectory (how many, which ranges)."""
+        """Raise a clear error when times fall outside the trajectory or in its gaps (how many,
+        which ranges)."""
         t = np.asarray(t, float)
         inside = self.covers(t)
         if not np.all(inside):
@@ -120,7 +140,9 @@ class Trajectory:
             raise InputError(
                 self.source, "time",
                 f"{out.size} of {t.size} {what} have GPS times outside the trajectory "
-                f"({self.time[0]:.3f}–{self.time[-1]:.3f} s): theirs span {out.min():.3f}–{out.max():.3f} s",
+                f"({self.time[0]:.3f}–{self.time[-1]:.3f} s){' or in its ' + self.gap_text() if self.gaps.size else ''}"
+                f": theirs span "
+                f"{out.min():.3f}–{out.max():.3f} s",
             )
 
     def _locate(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

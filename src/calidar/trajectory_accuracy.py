@@ -26,6 +26,8 @@ from calidar.errors import InputError
 #: names of the position (m) and attitude (rad) σ columns, in order
 POSITION_FIELDS = ("north_rms", "east_rms", "down_rms")
 ATTITUDE_FIELDS = ("roll_rms", "pitch_rms", "heading_rms")
+MAX_POSITION_SIGMA_M = 100.0  #: a larger position σ is no GNSS/INS solution a calibration can use (or a unit error)
+MAX_ATTITUDE_SIGMA_RAD = float(np.radians(10.0))  #: likewise for attitude
 
 
 @dataclass(frozen=True, eq=False)
@@ -46,12 +48,12 @@ class TrajectoryAccuracy:
             a = np.asarray(getattr(self, name), float).reshape(-1, 3)
             if a.shape[0] != t.size:
                 raise InputError(self.source, name, f"expected {t.size} rows of 3 σ, got {a.shape[0]}")
-            bad = ~(np.isfinite(a) & (a > 0))
+            unit, hi = ("m", MAX_POSITION_SIGMA_M) if name == "position_m" else ("rad", MAX_ATTITUDE_SIGMA_RAD)
+            bad = ~(np.isfinite(a) & (a > 0) & (a <= hi))
             if bad.any():
                 i, j = np.argwhere(bad)[0]
-                unit = "m" if name == "position_m" else "rad"
-                raise InputError(self.source, fields[j], f"expected σ > 0, record {i} has {float(a[i, j]):g} {unit} "
-                                 f"({int(bad[:, j].sum())} such records)")
+                raise InputError(self.source, fields[j], f"expected σ in (0, {hi:.4g}] {unit}, record {i} has "
+                                 f"{float(a[i, j]):g} {unit} ({int(bad[:, j].sum())} such records)")
             object.__setattr__(self, name, a)
         if not np.all(np.isfinite(t)):
             raise InputError(self.source, "time", f"expected finite times, {int(np.sum(~np.isfinite(t)))} are NaN/inf")

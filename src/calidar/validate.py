@@ -27,7 +27,9 @@ from calidar.errors import InputError
 
 
 def _g(v: float) -> str:
-    """A bound as people write it: 1209600, 0.01, 3.14159, 1e+09."""
+    """A bound as people write it: 1209600, 0.01, 3.14159, 1e+09 (an int exactly: 4294967295)."""
+    if isinstance(v, (int, np.integer)) and not isinstance(v, bool):
+        return str(v)
     return f"{v:.6g}" if abs(v) < 1e6 or v != int(v) or abs(v) >= 1e8 else f"{v:.0f}"
 
 
@@ -142,6 +144,8 @@ def read_json(path: Path) -> dict:
         raise InputError(path, None, "expected a JSON object")
     return doc
 
+
+SEED_MAX = 2**32 - 1  #: the largest random seed (numpy's seeds are 32-bit here)
 
 _MISSING = object()
 

@@ -7,7 +7,7 @@ import json
 import numpy as np
 import pytest
 
-from calidar.errors import CalibrationError
+from calidar.errors import CalibrationError, InputError
 from calidar.strips.distribute import cluster_client, map_pairs
 from calidar.strips.calibrate import StripSettings, calibrate
 from calidar.strips.vgicp import VgicpSettings, match_pair_vgicp
@@ -76,7 +76,7 @@ def test_scheduler_address_and_bad_options(client, monkeypatch):
     assert via_address[0].n_obs == local[0].n_obs and (via_address[0].A != local[0].A).nnz == 0
     with pytest.raises(CalibrationError, match="not both"):
         map_pairs(weighted_centroid, [], scheduler="tcp://127.0.0.1:1", workers=2)
-    with pytest.raises(CalibrationError, match="at least 1"):
+    with pytest.raises(InputError, match=r"--workers: expected an integer in \[1, 256\]"):
         map_pairs(weighted_centroid, [], workers=0)
     monkeypatch.setattr("calidar.strips.distribute.CONNECT_TIMEOUT_S", 1.0)
     with pytest.raises(CalibrationError, match="cannot reach the Dask scheduler at tcp://127.0.0.1:9"):

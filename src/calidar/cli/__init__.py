@@ -4,13 +4,15 @@ Each command lives in its own module under ``calidar.cli`` as a module-level fun
 pipeline (``calidar.pipelines``), added to the app by the module's ``register(app, simulate)``;
 ``COMMAND_MODULES`` lists them. How a run ends:
 
-- errors a user can fix (:class:`calidar.errors.CalidarError`, missing files): one line, exit 1;
+- errors a user can fix (:class:`calidar.errors.CalidarError`, missing files, permissions, a full
+  disk — any ``OSError``): one line naming the file (the ``--out`` destination, never a temporary), exit 1;
 - usage errors (unknown command or option, a value of the wrong type, a missing argument):
   the usage line and the error, exit 2 — for click itself and for the click that newer typer
   releases bundle (both are recognised by their class names);
 - Ctrl-C (SIGINT) and SIGTERM: one line "interrupted", exit 130 (143 for SIGTERM), after every
   temporary file and folder of the run has been removed (outputs are transactions, see
-  :mod:`calidar.outputs`);
+  :mod:`calidar.outputs`) — also when the interruption surfaces as another error (a native
+  library's, raised from inside its callback);
 - anything else is a bug: "internal error" and exit 2 (``CALIDAR_DEBUG=1`` shows the traceback).
 """
 
@@ -71,8 +73,11 @@ _SIGNALS: list[int] = []  #: the signals that interrupted this run (typer turns 
 
 
 def _raise_interrupted(signum, frame):
+    """The first signal interrupts the run; later ones (Ctrl-C pressed twice) are only recorded, so
+    that they cannot cut short the removal of the run's temporaries."""
     _SIGNALS.append(signum)
-    raise Interrupted(signum)
+    if len(_SIGNALS) == 1:
+        raise Interrupted(signum)
 
 
 def _is(e: BaseException, *names: str) -> bool:
@@ -82,39 +87,52 @@ def _is(e: BaseException, *names: str) -> bool:
 
 def run(argv: list[str] | None = None) -> int:
     """Run the CLI with ``argv``; return the exit code (used by ``main`` and the tests)."""
+    _SIGNALS.clear()
     try:
         # with standalone_mode=False click returns the code of a typer.Exit raised in a command
         code = app(args=argv, prog_name="calidar", standalone_mode=False)
         if _SIGNALS:  # typer caught the interruption and returns 130 silently
             raise Interrupted(_SIGNALS[-1])
         return code if isinstance(code, int) else 0
-    except CalidarError as e:
+    except KeyboardInterrupt as e:
+        return _interrupted(getattr(e, "signum", signal.SIGINT))
+    except Exception as e:  # noqa: BLE001 - dispatched by kind in _report
+        if _SIGNALS:  # an error the interruption caused (e.g. raised inside a native LAZ writer's callback)
+            return _interrupted(_SIGNALS[-1])
+        return _report(e)
+
+
+def _interrupted(signum: int) -> int:
+    print_error("interrupted" + (" (SIGTERM)" if signum == signal.SIGTERM else ""), prefix="")
+    return 128 + int(signum)
+
+
+def _report(e: Exception) -> int:
+    """One line for an error a user can fix (exit 1), click's usage message (exit 2), else a bug."""
+    if isinstance(e, CalidarError):
         print_error(shown_path(str(e)))
         return 1
-    except (FileNotFoundError, IsADirectoryError, NotADirectoryError, PermissionError) as e:
-        name = e.filename if e.filename is not None else ""
-        print_error(f"{shown_path(str(name))}: {e.strerror}")
+    if isinstance(e, OSError):  # missing files, permissions, a full disk: the system's word, naming the file
+        name = f"{shown_path(str(e.filename))}: " if e.filename is not None else ""
+        print_error(f"{name}{e.strerror or e}")
         return 1
-    except KeyboardInterrupt as e:
-        signum = getattr(e, "signum", signal.SIGINT)
-        print_error("interrupted" + (" (SIGTERM)" if signum == signal.SIGTERM else ""), prefix="")
-        return 128 + int(signum)
-    except Exception as e:  # noqa: BLE001 - click's exceptions, then bugs
-        if _is(e, "Exit"):
-            return int(getattr(e, "exit_code", 0) or 0)
-        if _is(e, "Abort"):
-            print_error("interrupted", prefix="")
-            return 130
-        if _is(e, "ClickException") and hasattr(e, "show"):
-            e.show()
-            return int(getattr(e, "exit_code", 2))
-        if os.environ.get("CALIDAR_DEBUG"):
-            raise
-        print_error(f"internal error: {type(e).__name__}: {e} (set CALIDAR_DEBUG=1 for the traceback)", prefix="")
-        return 2
+    if _is(e, "Exit"):
+        return int(getattr(e, "exit_code", 0) or 0)
+    if _is(e, "Abort"):
+        return _interrupted(signal.SIGINT)
+    if _is(e, "ClickException") and hasattr(e, "show"):
+        e.show()
+        return int(getattr(e, "exit_code", 2))
+    if os.environ.get("CALIDAR_DEBUG"):
+        raise e
+    print_error(f"internal error: {type(e).__name__}: {e} (set CALIDAR_DEBUG=1 for the traceback)", prefix="")
+    return 2
 
 
 def main() -> None:
     signal.signal(signal.SIGTERM, _raise_interrupted)
     signal.signal(signal.SIGINT, _raise_interrupted)
-    sys.exit(run(sys.argv[1:]))
+    code = run(sys.argv[1:])
+    for signum in (signal.SIGTERM, signal.SIGINT):  # a late signal must not kill the exit (Python's finalisation
+        signal.signal(signum, signal.SIG_IGN)       # would restore the default action for our handler)
+    sys.exit(code)

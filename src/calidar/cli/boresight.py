@@ -60,6 +60,7 @@ def boresight(
     sbet_corrected.out (the trajectory with its estimated corrections) and report.html."""
     from calidar.outputs import check_out_dir, output_folder
     from calidar.pipelines.boresight import BoresightOptions, parse_methods, run_boresight
+    from calidar.strips.distribute import check_cluster
     from calidar.strips.parameters import parse_estimate
 
     if trajectory_model not in ("on", "off"):
@@ -68,6 +69,7 @@ def boresight(
     if strip_points != 0 and strip_points < MIN_BUDGET_POINTS:
         raise InputError(None, "--strip-points", f"expected 0 (every overlapping point) or at least "
                          f"{MIN_BUDGET_POINTS}, got {strip_points}")
+    check_cluster(scheduler, workers)
     options = BoresightOptions(tuple(parse_methods(method)), estimate, trajectory_model == "on", trajectory_accuracy,
                                trajectory_sigma, trajectory_block, trajectory_correlation, truth, scheduler, workers,
                                write_strips, points=point_options(crs, time_system, geoid_undulation),
@@ -82,7 +84,7 @@ def boresight(
         print_verdict(run.verdicts[m], None if len(run.results) == 1 else m)
         _print(result, run.inputs.truth)
     names = sorted({p.name for p in run.written if p.parent == Path(tmp)})
-    console.print(f"wrote {out}/: {', '.join(names)}" + (" and the recalibrated strips" if write_strips else ""))
+    console.print(f"wrote {out}/: {', '.join(names)}" + (" and the recalibrated strips" if write_strips else ""), markup=False)
 
 
 def _print(result, truth_si) -> None:
@@ -103,7 +105,7 @@ def _print(result, truth_si) -> None:
         console.print(table)
     if n_traj:
         console.print(f"{n_traj} trajectory corrections estimated (in solution.json and sbet_corrected.out; largest "
-                      f"shift {result.max_trajectory_shift_m() * 1e3:.1f} mm)")
+                      f"shift {result.max_trajectory_shift_m() * 1e3:.1f} mm)", markup=False)
     for w in result.warnings:
         print_warning(w)
 

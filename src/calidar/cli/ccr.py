@@ -14,7 +14,7 @@ from calidar.cli.denoise import BEAM_HELP, SHOT_SPACING_RANGE
 def _settings(diameter_range, diameter_step, length_step, max_bias, bootstrap, seed, shared_bias):
     from calidar.errors import InputError
     from calidar.photon.search import SearchSettings
-    from calidar.validate import number, parse_floats
+    from calidar.validate import SEED_MAX, integer, number, parse_floats
 
     dmin, dmax = parse_floats(diameter_range, 2, "--diameter-range")
     number(dmin, "--diameter-range", 0.5, 500.0, "m", field="MIN")
@@ -24,18 +24,18 @@ def _settings(diameter_range, diameter_step, length_step, max_bias, bootstrap, s
     return SearchSettings(dmin, dmax, number(diameter_step, "--diameter-step", 0.01, 2.0, "m"),
                           number(length_step, "--length-step", 0.01, 2.0, "m"),
                           max_bias=number(max_bias, "--max-bias", 0.5, 200.0, "m"),
-                          bootstrap=int(number(bootstrap, "--bootstrap", 0, 10_000)),
-                          seed=int(number(seed, "--seed", 0, 2**32 - 1)), shared_bias=shared_bias)
+                          bootstrap=integer(bootstrap, "--bootstrap", 0, 10_000),
+                          seed=integer(seed, "--seed", 0, SEED_MAX), shared_bias=shared_bias)
 
 
 def _system(dead_time_ns, pulse_width_ns, shot_spacing, channels, jitter):
     from calidar.photon.passes import SystemParameters
-    from calidar.validate import number
+    from calidar.validate import integer, number
 
     return SystemParameters(number(dead_time_ns, "--dead-time-ns", 0.1, 100.0, "ns") * 1e-9,
                             number(pulse_width_ns, "--pulse-width-ns", 0.01, 50.0, "ns") * 1e-9,
                             number(shot_spacing, "--shot-spacing-m", *SHOT_SPACING_RANGE, "m"),
-                            None if channels is None else int(number(channels, "--channels", 1, 64)),
+                            None if channels is None else integer(channels, "--channels", 1, 64),
                             number(jitter, "--pointing-jitter-m", 0.0, 5.0, "m"))
 
 
@@ -86,7 +86,7 @@ def ccr(
     for w in result.warnings:
         print_warning(w)
     print_verdict(result.verdict, "CCR calibration")
-    console.print(f"wrote {out / 'solution.json'} and {out / 'report.html'}", highlight=False)
+    console.print(f"wrote {out / 'solution.json'} and {out / 'report.html'}", highlight=False, markup=False)
 
 
 def register(app: typer.Typer, simulate: typer.Typer) -> None:

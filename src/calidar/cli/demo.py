@@ -24,7 +24,7 @@ def demo(
         report = run_demo(tmp, seed=seed, progress=progress_callback(bar))
     for title, verdict in report.verdicts:
         print_verdict(verdict, title, brief=True)
-    console.print(f"report: {out / 'report.html'} ({time.perf_counter() - t0:.0f} s)")
+    console.print(f"report: {out / 'report.html'} ({time.perf_counter() - t0:.0f} s)", markup=False)
 
 
 def register(app: typer.Typer, simulate: typer.Typer) -> None:

@@ -32,12 +32,12 @@ def denoise(
         result = run_denoise(atl03, beam, tmp, shot_spacing)
     for b in result.beams:
         console.print(f"  {b.beam} ({b.strength or 'strength unknown'}): {b.photons:,} photons, {b.signal:,} signal "
-                      f"({b.signal / b.photons:.1%})", highlight=False)
+                      f"({b.signal / b.photons:.1%})", highlight=False, markup=False)
         if b.along_track_from != "segments":
             print_warning(f"{b.beam}: along-track distance from the {b.along_track_from}")
     if result.skipped:
         print_warning(f"no photons in {', '.join(result.skipped)}; skipped")
-    console.print(f"{out}: {result.photons:,} photons, {result.signal:,} signal", highlight=False)
+    console.print(f"{out}: {result.photons:,} photons, {result.signal:,} signal", highlight=False, markup=False)
 
 
 def register(app: typer.Typer, simulate: typer.Typer) -> None:

@@ -11,9 +11,9 @@ import typer
 from calidar.cli.common import console
 from calidar.cli.options import (
     CRS, GEOID_UNDULATION, TIME_SYSTEM, TRAJECTORY_ANGLES, TRAJECTORY_COLUMNS, TRAJECTORY_CRS, TRAJECTORY_HEADING,
-    point_options, trajectory_options,
+    crs_option, point_options, trajectory_options,
 )
-from calidar.outputs import check_out_dir, check_writable, output_folder
+from calidar.outputs import check_out_dir, check_writable, guard_inputs, output_folder
 from calidar.pipelines import georef as pipeline
 
 TRAJECTORY = typer.Option(..., "--trajectory", "-t", help="SBET, text trajectory or Optech CSD.")
@@ -40,7 +40,7 @@ def inverse(
         points, trajectory, out, sensor=sensor, point_options=point_options(crs, time_system, geoid_undulation),
         trajectory_options=trajectory_options(trajectory_crs, trajectory_angles, trajectory_heading, trajectory_columns),
         force=force)
-    console.print(f"{n} points → {out}", highlight=False, soft_wrap=True)
+    console.print(f"{n} points → {out}", highlight=False, soft_wrap=True, markup=False)
 
 
 def regeoref(
@@ -69,7 +69,7 @@ def regeoref(
             trajectory_options=trajectory_options(trajectory_crs, trajectory_angles, trajectory_heading,
                                                   trajectory_columns), to_trajectory=to_trajectory)
     for path, n in written.items():
-        console.print(f"{out / path.name}: {n} points", highlight=False, soft_wrap=True)
+        console.print(f"{out / path.name}: {n} points", highlight=False, soft_wrap=True, markup=False)
 
 
 def georef(
@@ -83,14 +83,16 @@ def georef(
 ) -> None:
     """Georeference raw Optech CSD pulses with calidar's lidar equation; writes the points and the
     header's boresight as a calidar sensor.toml (docs/sensor.md, "Optech CSD")."""
+    crs = crs_option(crs)
+    geoid = point_options(geoid_undulation=geoid_undulation).geoid_undulation_m
+    guard_inputs([out, pipeline.sensor_path(out)], [raw])
     for path in (out, pipeline.sensor_path(out)):
         check_writable(path, force)
-    geoid = point_options(geoid_undulation=geoid_undulation).geoid_undulation_m
     r = pipeline.georeference_csd(raw, out, crs=crs, geoid_undulation_m=geoid, force=force)
     x, y, z = r.first_xyz
     console.print(f"{r.n_points} points → {r.points} ({r.crs}); sensor model → {r.sensor}\n"
                   f"first point: GPS time {r.first_gps_time:.6f} s, {x:.3f}, {y:.3f}, {z:.3f}",
-                  highlight=False, soft_wrap=True)
+                  highlight=False, soft_wrap=True, markup=False)
 
 
 def register(app: typer.Typer, simulate: typer.Typer) -> None:

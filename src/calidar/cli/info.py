@@ -23,6 +23,7 @@ from calidar.io.smrmsg import is_smrmsg_name, smrmsg_info
 from calidar.pipelines.inputs import PointOptions, TrajectoryOptions, load_trajectory
 from calidar.sensor_import import from_optech_header
 from calidar.trajectory import SECONDS_PER_WEEK
+from calidar.validate import existing_file
 
 LAS_SUFFIXES = (".las", ".laz")
 HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
@@ -158,7 +159,7 @@ def _print(info: dict) -> None:
             t0, t1 = fl["gps_time"]
             times = f"GPS time {t0:.6f} … {t1:.6f} ({t1 - t0:.1f} s)"
         console.print(f"  flight line {fl['point_source_id']:>5}: {fl['points']:>12,} points, {times}",
-                      highlight=False, soft_wrap=True)
+                      highlight=False, soft_wrap=True, markup=False)
     for b in info.get("beams", []):
         text = f"  beam {b['beam']}: {b['photons']:>10,} photons, {b['shots']:,} shots, {b['segments']:,} segments"
         if b["photons"]:
@@ -180,13 +181,12 @@ def info(
     """Summarise a point file (flight lines, times, CRS, bounds, scan angles), a trajectory, an
     Optech CSD file (header, boresight, pulses) or an ICESat-2 ATL03 photon file (beams, photons,
     time span)."""
-    if not file.is_file():
-        raise FileNotFoundError(2, "No such file", str(file))
+    existing_file(file)
     if is_las(file):
         d = las_info(file, point_options(crs, time_system))
     elif is_hdf5(file):
         d = atl03_info(file)
-    elif is_csd(file):
+    elif is_csd(file) or file.suffix.lower() == ".csd":
         d = csd_info(file)
     elif is_smrmsg_name(file):
         d = smrmsg_info(file)

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import typer
 
+from calidar.errors import InputError
 from calidar.pipelines.inputs import PointOptions, TrajectoryOptions
 
 CRS = typer.Option(None, "--crs", help="CRS of the points, overriding (or supplying) the file's, e.g. EPSG:32611.")
@@ -37,14 +38,29 @@ TRAJECTORY_COLUMNS = typer.Option(
     "or x, y, height, roll, pitch, heading (default: from its header line).")
 
 
+def crs_option(crs: str | None, option: str = "--crs") -> str | None:
+    """A CRS option when pyproj knows it (None stays None), else an error naming the option."""
+    from calidar.sensor import validated_crs
+
+    return validated_crs(crs, None, option)
+
+
+def _choice(value: str | None, option: str, choices: tuple[str, ...]) -> str | None:
+    if value is not None and value not in choices:
+        raise InputError(None, option, f"expected {' or '.join(choices)}, got {value!r}")
+    return value
+
+
 def point_options(crs: str | None = None, time_system: str | None = None,
                   geoid_undulation: float | None = None) -> PointOptions:
-    """PointOptions from the shared point options."""
-    return PointOptions(crs=crs, time_system=time_system, geoid_undulation_m=geoid_undulation)
+    """PointOptions from the shared point options, each checked (before any file is read)."""
+    return PointOptions(crs=crs_option(crs), time_system=time_system, geoid_undulation_m=geoid_undulation)
 
 
 def trajectory_options(crs: str | None = None, angles: str | None = None, heading: str | None = None,
                        columns: str | None = None) -> TrajectoryOptions:
-    """TrajectoryOptions from the shared trajectory options."""
+    """TrajectoryOptions from the shared trajectory options, each checked (before any file is read)."""
     cols = None if columns is None else tuple(c.strip() for c in columns.split(","))
-    return TrajectoryOptions(crs=crs, angles=angles, heading=heading, columns=cols)
+    return TrajectoryOptions(crs=crs_option(crs, "--trajectory-crs"), angles=_choice(angles, "--trajectory-angles",
+                             ("deg", "rad")), heading=_choice(heading, "--trajectory-heading", ("true", "grid")),
+                             columns=cols)

@@ -29,15 +29,15 @@ def simulate_photons(
     from calidar.outputs import output_folder
     from calidar.pipelines.ccr import simulate_photons as run
     from calidar.sim.photons import PhotonSimConfig
-    from calidar.validate import number
+    from calidar.validate import SEED_MAX, integer, number
 
     if strength not in ("strong", "weak"):
         raise InputError(None, "--strength", f"expected strong or weak, got {strength!r}")
-    n = int(number(n_ccr, "--n-ccr", 1, 200))
-    unlit = int(number(n_unlit, "--n-unlit", 0, 200))
+    n = integer(n_ccr, "--n-ccr", 1, 200)
+    unlit = integer(n_unlit, "--n-unlit", 0, 200)
     length = number(length, "--length", 100.0, 5_000_000.0, "m")
     cfg = PhotonSimConfig(
-        seed=int(number(seed, "--seed", 0, 2**32 - 1)), n_ccr=n, n_unlit=unlit,
+        seed=integer(seed, "--seed", 0, SEED_MAX), n_ccr=n, n_unlit=unlit,
         ccr_dropout=number(dropout, "--ccr-dropout", 0.0, 0.95),
         along_bias=None if along_bias is None else number(along_bias, "--along-bias", -50.0, 50.0, "m"),
         cross_bias=None if cross_bias is None else number(cross_bias, "--cross-bias", -50.0, 50.0, "m"),
@@ -48,7 +48,7 @@ def simulate_photons(
         paths = run(cfg, tmp)
         t = json.loads(paths["truth"].read_text())
     console.print(f"wrote {out}/ATL03_sim.h5, ccr.csv, truth.json; truth: along {t['along_track_bias']:+.3f} m, "
-                  f"cross {t['cross_track_bias']:+.3f} m, diameter {t['footprint_diameter']:.2f} m", highlight=False)
+                  f"cross {t['cross_track_bias']:+.3f} m, diameter {t['footprint_diameter']:.2f} m", highlight=False, markup=False)
 
 
 def register(app: typer.Typer, simulate: typer.Typer) -> None:

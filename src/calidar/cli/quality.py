@@ -6,11 +6,14 @@ import json
 from pathlib import Path
 
 import typer
+from rich.markup import escape
 
 from calidar.cli.common import console
 from calidar.cli.options import CRS, GEOID_UNDULATION, TIME_SYSTEM, point_options
-from calidar.errors import InputError
 from calidar.pipelines.quality import measure
+from calidar.validate import number
+
+CELL_RANGE_M = (0.01, 1000.0)  #: m, grid cells accepted by --cell (finer than lidar spacing, coarser than overlaps)
 
 
 def register(app: typer.Typer, simulate: typer.Typer) -> None:
@@ -27,29 +30,33 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
         force: bool = typer.Option(False, "--force", help="Write into a non-empty --out folder."),
     ) -> None:
         """Swath-overlap differences between flight lines (dz = a − b): median, RMSDz, max, planimetric offsets."""
-        from calidar.outputs import prepare_out_dir, write_text_atomic
+        from calidar.outputs import check_out_dir, guard_inputs, output_folder
         from calidar.strips.quality import write_rasters
         from calidar.strips.selection import parse_classes
 
-        if cell is not None and not cell > 0:
-            raise InputError(None, "--cell", f"expected a positive cell size in metres, got {cell}")
+        if cell is not None:
+            number(cell, "--cell", *CELL_RANGE_M, "m")
         wanted = parse_classes(classes)
         options = point_options(crs, time_system, geoid_undulation)
-        out_dir = prepare_out_dir(out, force) if out else None
+        if out:
+            check_out_dir(out, force)
+            guard_inputs([], strips, [out])
         index, file_crs, results, notes, selections = measure(strips, cell, wanted, options)
         doc = {"lines_from": index.how, "points_used": {str(p): s.to_dict() for p, s in selections.items()},
                "pairs": [q.to_dict() for q in results], "notes": notes}
-        if out_dir:
-            for q in results:
-                write_rasters(q, out_dir, file_crs if file_crs is not None and not file_crs.is_geographic else None,
-                              force=True)
-            write_text_atomic(out_dir / "quality.json", json.dumps(doc, indent=2) + "\n")
+        text = json.dumps(doc, indent=2, allow_nan=False) + "\n"
+        if out:
+            with output_folder(out, force, inputs=strips) as tmp:
+                for q in results:
+                    write_rasters(q, tmp, file_crs if file_crs is not None and not file_crs.is_geographic else None,
+                                  force=True)
+                (tmp / "quality.json").write_text(text, encoding="utf-8")
         if as_json:
-            print(json.dumps(doc, indent=2))
+            print(text, end="")
             return
         _print_table(index.how, results, selections, notes)
-        if out_dir:
-            console.print(f"wrote {out_dir}/quality.json and dz rasters")
+        if out:
+            console.print(f"wrote {escape(str(out))}/quality.json and dz rasters", highlight=False, soft_wrap=True)
 
 
 def _print_table(how, results, selections, notes) -> None:
@@ -69,6 +76,6 @@ def _print_table(how, results, selections, notes) -> None:
                       f(q.rmsdz_m, ""), f(q.max_abs_dz_m, ""), f(q.dx_m), f(q.dy_m))
     console.print(table)
     for p, sel in selections.items():
-        console.print(f"points used from {p.name}: {sel.describe()}")
+        console.print(f"points used from {escape(p.name)}: {escape(sel.describe())}", highlight=False)
     for n in notes:
-        console.print(f"note: {n}")
+        console.print(f"note: {escape(n)}", highlight=False, soft_wrap=True)

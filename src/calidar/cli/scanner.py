@@ -52,7 +52,7 @@ def analyze(
     with output_folder(out, force) as tmp, progress_bar() as bar:
         run = run_scanner_analysis(settings, tmp, progress=progress_callback(bar))
     if as_json:
-        sys.stdout.write(json.dumps(run.summary) + "\n")
+        sys.stdout.write(json.dumps(run.summary, allow_nan=False) + "\n")
         return
     _print_summary(run.summary, out)
     print_verdict(run.verdict)
@@ -63,7 +63,7 @@ def _print_summary(s: dict, out: Path) -> None:
 
     p = s["pattern"]
     console.print(f"{s['model']} pattern at {s['range_m']:g} m: {p['extent_x_m']:.2f} m (x) × {p['extent_y_m']:.2f} m (y)",
-                  highlight=False)
+                  highlight=False, markup=False)
     t = Table("error", "value", "max |dX| [mm]", "max |dY| [mm]", "max |dZ| [mm]", "worst pointing [″]")
     rows = list(s["errors"].items()) + list(s.get("comparisons", {}).items())
     if s["combined"]:
@@ -78,9 +78,9 @@ def _print_summary(s: dict, out: Path) -> None:
         t.add_row(name, v["unit"], f"{v['max_alone']:.4g}", f"{v['max_equal_share']:.4g}")
     console.print(t)
     for note in s["notes"]:
-        console.print(f"note: {note}", highlight=False, soft_wrap=True)
+        console.print(f"note: {note}", highlight=False, soft_wrap=True, markup=False)
     console.print(f"wrote {out}/report.html, summary.json, pattern and displacement CSV/PNG", highlight=False,
-                  soft_wrap=True)
+                  soft_wrap=True, markup=False)
 
 
 def register(app: typer.Typer, simulate: typer.Typer) -> None:

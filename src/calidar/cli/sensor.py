@@ -32,15 +32,20 @@ def import_(
     from calidar.sensor import validated_crs
     from calidar.sensor_import import import_sensor
 
-    check_writable(out, force)
+    from calidar.sensor_import import axes
+
+    if scanner_axes is not None:
+        axes(scanner_axes)  # the options first, before the file is read
+    crs = validated_crs(crs, None, "--crs")
     guard_inputs([out], [file])
+    check_writable(out, force)
     sensor = import_sensor(source, file, scanner_axes)
     if crs is not None:
-        sensor = replace(sensor, crs=validated_crs(crs, "--crs"))
+        sensor = replace(sensor, crs=crs)
     sensor.write(out, force=force)
     angles = np.degrees([sensor.boresight_roll, sensor.boresight_pitch, sensor.boresight_yaw])
     console.print(f"{out}: boresight roll {angles[0]:.6f}°, pitch {angles[1]:.6f}°, yaw {angles[2]:.6f}°; lever arm "
-                  f"{', '.join(f'{v:.4f}' for v in sensor.lever_arm)} m", highlight=False, soft_wrap=True)
+                  f"{', '.join(f'{v:.4f}' for v in sensor.lever_arm)} m", highlight=False, soft_wrap=True, markup=False)
 
 
 def register(app: typer.Typer, simulate: typer.Typer) -> None:

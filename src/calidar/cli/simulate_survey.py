@@ -6,6 +6,7 @@ from pathlib import Path
 
 import numpy as np
 import typer
+from rich.markup import escape
 
 from calidar.cli.common import console, parse_floats, progress_bar, progress_callback
 
@@ -29,7 +30,7 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
         force: bool = typer.Option(False, "--force", help="Write into an existing non-empty folder."),
     ) -> None:
         """Simulate a survey: the true sensor shoots, the strips are delivered with the nominal one."""
-        from calidar.outputs import prepare_out_dir
+        from calidar.outputs import check_out_dir, output_folder
         from calidar.sim.survey import check_config, simulate_survey, survey_config
 
         r, p, y = np.radians(parse_floats(boresight_error, 3, "--boresight-error"))
@@ -45,9 +46,10 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
             overrides["vegetation"] = vegetation
         cfg = survey_config(preset, **overrides)
         check_config(cfg)
-        prepare_out_dir(out, force)  # refuse early, before minutes of work
-        with progress_bar() as bar:
+        check_out_dir(out, force)  # refuse early, before minutes of work
+        with progress_bar() as bar, output_folder(out, force) as tmp:
             update = progress_callback(bar)
             result = simulate_survey(cfg, progress=update)
-            result.write(out, force=True, progress=update)
-        console.print(f"{result.n_points:,} points in {len(result.strips)} strips ({result.crs}) → {out}")
+            result.write(tmp, force=True, progress=update)
+        console.print(f"{result.n_points:,} points in {len(result.strips)} strips ({result.crs}) → {escape(str(out))}",
+                      highlight=False, soft_wrap=True)

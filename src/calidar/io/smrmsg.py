@@ -17,12 +17,15 @@ import numpy as np
 
 from calidar.errors import InputError
 from calidar.outputs import atomic_path
-from calidar.trajectory_accuracy import TrajectoryAccuracy
+from calidar.trajectory_accuracy import MAX_ATTITUDE_SIGMA_RAD, MAX_POSITION_SIGMA_M, TrajectoryAccuracy
+from calidar.validate import values
 
 FIELDS = ("time", "north_rms", "east_rms", "down_rms", "north_vel_rms", "east_vel_rms", "down_vel_rms",
           "roll_rms", "pitch_rms", "heading_rms")
 RECORD_BYTES = 8 * len(FIELDS)
 ARCMIN_RAD = math.pi / (180.0 * 60.0)
+#: (unit, largest σ) of the position, velocity and attitude columns, as stored (beyond: not a usable trajectory)
+RAW_LIMITS = (("m", MAX_POSITION_SIGMA_M), ("m/s", 100.0), ("arc-min", math.degrees(MAX_ATTITUDE_SIGMA_RAD) * 60.0))
 
 
 def read_smrmsg(path: str | Path) -> TrajectoryAccuracy:
@@ -38,6 +41,9 @@ def read_smrmsg(path: str | Path) -> TrajectoryAccuracy:
                          f"{size} bytes ({size // RECORD_BYTES} records + {size % RECORD_BYTES} bytes): "
                          "not an smrmsg file, or truncated")
     a = np.fromfile(path, dtype="<f8").reshape(-1, len(FIELDS))
+    for j, name in enumerate(FIELDS[1:], 1):  # σ in the file's own units, before any conversion
+        unit, hi = RAW_LIMITS[(j - 1) // 3]
+        values(a[:, j], path, name, 0.0, hi, unit)
     return TrajectoryAccuracy(a[:, 0], a[:, 1:4], a[:, 7:10] * ARCMIN_RAD, a[:, 4:7], str(path))
 
 

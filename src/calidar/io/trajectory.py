@@ -12,6 +12,8 @@ from calidar.io.trajectory_text import read_trajectory_text
 from calidar.trajectory import Trajectory
 
 SBET_SUFFIXES = (".out", ".sbet", ".smrmsg")
+TEXT_OPTIONS = {"crs": "--trajectory-crs", "angles": "--trajectory-angles", "heading_reference": "--trajectory-heading",
+                "columns": "--trajectory-columns"}  #: the CLI options of the text-trajectory reader's arguments
 
 
 def is_binary(path: Path, probe_bytes: int = 4096) -> bool:
@@ -46,7 +48,8 @@ def read_trajectory(path: str | Path, **text_options) -> Trajectory:
     binary = is_binary(path) or (path.suffix.lower() in SBET_SUFFIXES and path.stat().st_size == 0)
     if binary and given:
         kind = "an Optech CSD" if is_csd(path) else "a binary SBET"
-        raise InputError(path, sorted(given)[0], f"is an option of text trajectories; this file is {kind}")
+        raise InputError(path, TEXT_OPTIONS.get(sorted(given)[0], sorted(given)[0]),
+                         f"is an option of text trajectories; this file is {kind}")
     if binary:
         return csd_trajectory(read_csd(path)) if is_csd(path) else read_sbet(path)
     return read_trajectory_text(path, **given)

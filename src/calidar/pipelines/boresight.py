@@ -20,12 +20,14 @@ import numpy as np
 from calidar.errors import InputError
 from calidar.pipelines import Progress, no_progress
 from calidar.pipelines.inputs import PointOptions, TrajectoryOptions
-from calidar.validate import parse_floats
+from calidar.validate import parse_floats, positive
 
 #: knot spacing (s) and Gauss–Markov correlation times of position and attitude (s) of the
 #: trajectory model, validated on the simulator (docs/validation.md)
 TRAJECTORY_BLOCK_S = 1.0
 TRAJECTORY_CORRELATION = "20,3.5"
+MAX_TRAJECTORY_BLOCK_S = 600.0  #: s, --trajectory-block (longer: no trajectory correction at all)
+MAX_CORRELATION_S = 86400.0  #: s, --trajectory-correlation (a day: constant errors)
 
 
 @dataclass(frozen=True)
@@ -127,17 +129,24 @@ def trajectory_model(sigma: str | None = None, block_s: float = TRAJECTORY_BLOCK
     from calidar.strips.trajectory_errors import TrajectoryModel
 
     corr_pos, corr_att = parse_floats(correlation, 2, "--trajectory-correlation (POS_S,ATT_S)")
-    checks = [("--trajectory-block", block_s), ("--trajectory-correlation", corr_pos),
-              ("--trajectory-correlation", corr_att)]
+    block_s = positive(block_s, "--trajectory-block", "s", hi=MAX_TRAJECTORY_BLOCK_S)
+    for v in (corr_pos, corr_att):
+        positive(v, "--trajectory-correlation", "s", hi=MAX_CORRELATION_S)
     pos_m = att_rad = None
     if accuracy is None:
-        pos_m, att_deg = parse_floats(sigma, 2, "--trajectory-sigma (POSITION_M,ATTITUDE_DEG)")
-        checks += [("--trajectory-sigma", pos_m), ("--trajectory-sigma", att_deg)]
-        att_rad = float(np.radians(att_deg))
-    for name, v in checks:
-        if not (np.isfinite(v) and v > 0):
-            raise InputError(None, name, f"expected numbers > 0, got {v}")
+        pos_m, att_rad = parse_sigma(sigma)
     return TrajectoryModel(block_s, pos_m, att_rad, corr_pos, corr_att, accuracy)
+
+
+def parse_sigma(text: str) -> tuple[float, float]:
+    """--trajectory-sigma 'POSITION_M,ATTITUDE_DEG' → (position σ m, attitude σ rad), each > 0 and
+    within the bounds of :class:`~calidar.trajectory_accuracy.TrajectoryAccuracy`."""
+    from calidar.trajectory_accuracy import MAX_ATTITUDE_SIGMA_RAD, MAX_POSITION_SIGMA_M
+
+    pos_m, att_deg = parse_floats(text, 2, "--trajectory-sigma (POSITION_M,ATTITUDE_DEG)")
+    positive(pos_m, "--trajectory-sigma", "m", hi=MAX_POSITION_SIGMA_M)
+    positive(att_deg, "--trajectory-sigma", "deg", hi=float(np.degrees(MAX_ATTITUDE_SIGMA_RAD)))
+    return pos_m, float(np.radians(att_deg))
 
 
 def resolve_accuracy(trajectory_path: Path, trajectory, options: BoresightOptions):
@@ -153,11 +162,8 @@ def resolve_accuracy(trajectory_path: Path, trajectory, options: BoresightOption
     if options.trajectory_accuracy is not None:
         return read_smrmsg(options.trajectory_accuracy), Path(options.trajectory_accuracy), None
     if options.trajectory_sigma is not None:
-        pos_m, att_deg = parse_floats(options.trajectory_sigma, 2, "--trajectory-sigma (POSITION_M,ATTITUDE_DEG)")
-        for v in (pos_m, att_deg):
-            if not (np.isfinite(v) and v > 0):
-                raise InputError(None, "--trajectory-sigma", f"expected numbers > 0, got {v}")
-        return TrajectoryAccuracy.uniform(pos_m, np.radians(att_deg), "--trajectory-sigma"), None, None
+        pos_m, att_rad = parse_sigma(options.trajectory_sigma)
+        return TrajectoryAccuracy.uniform(pos_m, att_rad, "--trajectory-sigma"), None, None
     if all(c in trajectory.extra for c in SIGMA_COLUMNS):
         pos, att = (np.stack([trajectory.extra[c] for c in cols], axis=1) for cols in (SIGMA_COLUMNS[:3], SIGMA_COLUMNS[3:]))
         return TrajectoryAccuracy(trajectory.time, pos, att, None, f"{trajectory_path} (σ columns)"), None, None
@@ -202,6 +208,9 @@ def load_inputs(strip_paths, trajectory_path, sensor_path, options: BoresightOpt
         accuracy.check_covers(inputs.spans)
     if options.truth is not None:
         inputs.truth = truth_to_si(read_json(options.truth), build_parameters(nominal, parse_estimate(options.estimate), {}))
+        if not inputs.truth:
+            raise InputError(options.truth, "parameters", "none of the estimated parameters found; expected the "
+                             "truth.json of `calidar simulate survey`")
     return inputs
 
 

@@ -123,7 +123,9 @@ def georeference_csd(csd: Path, out: Path, *, crs: str | None = None, geoid_undu
     ecef = georef.forward(csd_trajectory(pulses), sensor, t, range_m, pulses.scan_angle[pulse])
     progress("georeferencing", pulse.size, pulse.size)
     xyz = georef.to_crs(ecef, crs, geoid_undulation_m, source="--crs")
-    write_las(out, xyz, crs, gps_time=t, scan_angle_deg=np.degrees(pulses.scan_angle[pulse]), point_source_id=1,
-              return_number=number, number_of_returns=count, intensity=pulses.intensity[pulse, slot], force=force)
-    sensor.write(sensor_out, force=force)
+    with atomic_path(out, force) as tmp_points, atomic_path(sensor_out, force) as tmp_sensor:  # both or neither
+        write_las(tmp_points, xyz, crs, gps_time=t, scan_angle_deg=np.degrees(pulses.scan_angle[pulse]),
+                  point_source_id=1, return_number=number, number_of_returns=count,
+                  intensity=pulses.intensity[pulse, slot], force=True)
+        sensor.write(tmp_sensor, force=True)
     return CsdResult(out, sensor_out, int(pulse.size), str(crs), tuple(float(v) for v in xyz[0]), float(t[0]))

@@ -109,10 +109,10 @@ def point_times(points: LasPoints, traj: Trajectory, gps_week: int | None = None
 
 class Coverage:
     """Counts points outside the trajectory's time span over many chunks (count and time range
-    before and after it, and NaN/inf times), to report them all at once."""
+    before and after it, in its gaps, and NaN/inf times), to report them all at once."""
 
     def __init__(self, traj: Trajectory):
-        self.traj, self.total, self.not_finite = traj, 0, 0
+        self.traj, self.total, self.not_finite, self.in_gaps = traj, 0, 0, 0
         self.outside = {"before": [0, np.inf, -np.inf], "after": [0, np.inf, -np.inf]}
 
     def inside(self, t: np.ndarray) -> np.ndarray:
@@ -125,15 +125,18 @@ class Coverage:
             if mask.any():
                 o = self.outside[side]
                 o[:] = [o[0] + int(mask.sum()), min(o[1], float(t[mask].min())), max(o[2], float(t[mask].max()))]
-        return finite & ~(lo | hi)
+        covered = self.traj.covers(t)
+        self.in_gaps += int(np.count_nonzero(finite & ~(lo | hi) & ~covered))
+        return covered
 
     def check(self, source) -> None:
         """Raise a clear error naming how many points fell outside and their time ranges."""
-        n = sum(o[0] for o in self.outside.values()) + self.not_finite
+        n = sum(o[0] for o in self.outside.values()) + self.not_finite + self.in_gaps
         if n == 0:
             return
         parts = [f"{o[0]} {side} it ({o[1]:.3f}–{o[2]:.3f} s)" for side, o in self.outside.items() if o[0]]
         parts += [f"{self.not_finite} NaN/inf"] if self.not_finite else []
+        parts += [f"{self.in_gaps} in its {self.traj.gap_text()}"] if self.in_gaps else []
         raise InputError(
             source, "gps_time",
             f"{n} of {self.total} points have GPS times outside the trajectory "
@@ -170,7 +173,7 @@ class FileTimes:
         try:
             self.cover.check(self.path)
         except InputError as e:
-            if not name_trajectory:
+            if not name_trajectory or self.cover.not_finite:  # NaN/inf times are the file's own fault
                 raise
             raise InputError(self.cover.traj.source, "time", f"the points of {self.path.name}: {e.problem}") from None
         return self.week

@@ -88,6 +88,11 @@ class CellCounts:
                 k = (path, selection, int(tok))
                 self.counts[k] = _merge_counts(self.counts[k], (uk, n)) if k in self.counts else (uk, n)
 
+    def names(self, index) -> dict[int, str]:
+        """The name of a file holding each flight line (for messages)."""
+        return {int(index.of(np.array([tok >> 32]), np.array([self.time[tok]]))[0]): path.name
+                for path, _, tok in self.counts}
+
     def by_line(self, index, selections: dict) -> dict[int, tuple[np.ndarray, np.ndarray]]:
         """(keys, counts) per flight line of the points each file's chosen selection keeps."""
         out = {}
@@ -119,11 +124,12 @@ def measure(paths, cell_m=None, classes=None, options: PointOptions = PointOptio
     index = index_flight_lines(paths, options, chunk_points=chunk_points, on_chunk=counts,
                                fields=("x", "y", "z", *SELECTION_FIELDS[1:]))
     if len(index.ids) < 2:
-        raise InputError(paths[0], "point_source_id",
+        raise InputError(", ".join(sorted({str(p) for p in paths})), "point_source_id",
                          f"found one flight line ({index.how}); expected at least two overlapping lines")
     selections = {p: choose_selection(p, index.classes[p], classes) for p in paths}
     settings = QualitySettings(cell_m=cell_m)
-    acc = SwathAccumulator(cell_m, overlap_plan(counts.by_line(index, selections), counts.grid_m, settings))
+    names = counts.names(index)  #: line → a file holding it (for messages)
+    acc = SwathAccumulator(cell_m, overlap_plan(counts.by_line(index, selections), counts.grid_m, settings, names))
     for p in paths:
         for chunk in iter_las_chunks(p, chunk_points, fields=FIELDS, options=options):
             chunk = chunk.select(selections[p].mask(chunk))
@@ -132,7 +138,7 @@ def measure(paths, cell_m=None, classes=None, options: PointOptions = PointOptio
                 acc.add(int(i), xyz[ids == i], selections[p])
     for i in index.ids:  # lines without a selected point: named in the notes
         acc.add(i, np.zeros((0, 3)))
-    results, notes = _differences(acc, settings)
+    results, notes = _differences(acc, settings, names)
     return index, crs, results, notes, selections
 
 
@@ -142,20 +148,34 @@ def lines_quality(lines, cell_m=None, classes=None):
     pipeline measures, with the code ``calidar quality`` runs."""
     from calidar.strips.quality import QualitySettings, SwathAccumulator
 
-    acc, metric = SwathAccumulator(cell_m), None
+    acc, metric, names = SwathAccumulator(cell_m), None, {}
     for i, p in lines:
+        names[int(i)] = p.path.name
         if metric is None:
             metric = Metric.at(p.crs, p.xyz.min(axis=0), p.xyz.max(axis=0), p.geoid_undulation_m, p.path)
         selection = choose_selection(p.path, None if p.classification is None else np.unique(p.classification), classes)
         acc.add(int(i), metric.of(p.xyz)[selection.mask(p)], selection)
-    return _differences(acc, QualitySettings(cell_m=cell_m))
+    return _differences(acc, QualitySettings(cell_m=cell_m), names)
 
 
-def _differences(acc, settings):
-    """The accumulator's pairs and notes; an error when no line overlaps another."""
+def _differences(acc, settings, names: dict[int, str]):
+    """The accumulator's pairs and notes; an error when no line overlaps another (lines named by
+    ``names`` {id: file name})."""
+    from calidar.strips.overlap import strip_name
+
     results, notes = acc.differences(settings)
     if not results:
-        ids = sorted(acc.selections)
-        raise InputError(None, "STRIPS", f"none of the {len(ids)} flight lines ({', '.join(map(str, ids))}) "
-                         "overlap another; nothing to compare")
+        listed = ", ".join(strip_name(i, names) for i in sorted(acc.selections))
+        if settings.cell_m is not None:
+            raise InputError(None, "--cell", f"no {settings.cell_m:g} m cell is shared by two of the "
+                             f"{len(acc.selections)} flight lines ({listed}); expected a smaller cell")
+        raise InputError(None, "STRIPS", f"none of the {len(acc.selections)} flight lines ({listed}) overlap another; "
+                         "nothing to compare")
+    empty = [f"{q.a}–{q.b}" for q in results if q.n_cells == 0]
+    if empty and settings.cell_m is not None:
+        if len(empty) == len(results):
+            raise InputError(None, "--cell", f"no {settings.cell_m:g} m cell of any overlap is smooth and holds enough "
+                             "points of both lines; expected a smaller cell (or leave --cell out to have one chosen)")
+        notes.append(f"pairs {', '.join(empty)}: no {settings.cell_m:g} m cell is smooth and holds enough points of "
+                     "both lines (a smaller --cell may help)")
     return results, notes

@@ -11,7 +11,7 @@ from pathlib import Path
 
 from calidar.errors import InputError
 from calidar.pipelines import Progress, no_progress
-from calidar.validate import integer, number, read_json
+from calidar.validate import SEED_MAX, integer, number, read_json
 
 MAX_TOLERANCE_M = 10.0  #: largest --tolerance (m)
 ANGLE_UNITS = ("deg", "gon")
@@ -123,7 +123,7 @@ def run_simulate_total_station(out_dir: Path, seed: int, config, *, angle_unit: 
     from calidar.outputs import write_text_atomic
     from calidar.sim.total_station import simulate_total_station
 
-    integer(seed, "--seed", 0)
+    integer(seed, "--seed", 0, SEED_MAX)
     if angle_unit not in ANGLE_UNITS:
         raise InputError(None, "--angle-unit", f"expected deg or gon, got {angle_unit!r}")
     if vertical not in VERTICALS:

@@ -33,7 +33,7 @@ from calidar.io.las import PointOptions, iter_las_chunks, las_file_crs, las_head
 from calidar.pipelines import Progress, no_progress
 from calidar.pipelines.inputs import CHUNK_POINTS, FileTimes, points_ecef
 from calidar.strips.lines import GAP_S
-from calidar.strips.overlap import cell_counts, cell_keys, common_cells, merge_counts, unpaired_notes
+from calidar.strips.overlap import cell_counts, cell_keys, common_cells, merge_counts, strip_name, unpaired_notes
 from calidar.strips.strip import LocalFrame, Strip
 from calidar.strips.thin import thin_cells
 
@@ -136,8 +136,9 @@ def split_rows(keys: np.ndarray) -> Iterator[tuple[int, np.ndarray]]:
 def _files(paths, trajectory, sensor, options: IngestOptions) -> list[StripFile]:
     """Each file's CRS (its own, --crs or sensor.toml's) and time system; all must agree, and
     match the trajectory's (adjusted standard points become its week seconds, not back)."""
-    from calidar.strips.lines import check_consistent
+    from calidar.strips.lines import check_consistent, check_distinct
 
+    check_distinct(paths)
     files = []
     for p in map(Path, paths):
         crs = las_file_crs(p, options.points.crs)
@@ -176,9 +177,11 @@ class _Footprints:
     cells: dict = field(default_factory=dict)
     t_min: dict = field(default_factory=dict)
     t_max: dict = field(default_factory=dict)
+    files: dict = field(default_factory=dict)  #: group → the name of the (first) file holding it
 
-    def add(self, groups: np.ndarray, keys: np.ndarray, t: np.ndarray) -> None:
+    def add(self, groups: np.ndarray, keys: np.ndarray, t: np.ndarray, name: str = "") -> None:
         for g, rows in split_rows(groups):
+            self.files.setdefault(g, name)
             self.cells.setdefault(g, []).append(cell_counts(keys[rows]))
             self.t_min[g] = min(self.t_min.get(g, np.inf), float(t[rows].min()))
             self.t_max[g] = max(self.t_max.get(g, -np.inf), float(t[rows].max()))
@@ -210,7 +213,7 @@ def _pass1(files: list[StripFile], frame: LocalFrame, trajectory, options: Inges
             t = times.feed(chunk.gps_time)
             ok = np.isfinite(t)
             keys = cell_keys(planar_xy(chunk, frame), options.cell_m)
-            acc.add(_group_keys(chunk.point_source_id, t, options.gap_s)[ok], keys[ok], t[ok])
+            acc.add(_group_keys(chunk.point_source_id, t, options.gap_s)[ok], keys[ok], t[ok], f.path.name)
             done += len(chunk)
             progress("reading strips", done, total)  # points, both passes
         weeks[f.path] = times.finish(name_trajectory=True)  # the trajectory's span is what falls short
@@ -251,9 +254,11 @@ def ingest_strips(paths, trajectory, sensor, options: IngestOptions = IngestOpti
     frame = _frame(files)
     acc, weeks = _pass1(files, frame, trajectory, options, progress)
     groups, line, how, footprint, span, pairs, kept = _plan(acc, options)
+    names = {int(i): acc.files[int(groups[line == i][0])] for i in footprint}
     if not pairs:
-        raise CalibrationError(f"no two of the {len(footprint)} flight lines overlap (no {options.min_cells} common "
-                               f"{options.cell_m:g} m cells); strip calibration needs overlapping flight lines")
+        listed = ", ".join(strip_name(i, names) for i in sorted(footprint))
+        raise CalibrationError(f"no two of the {len(footprint)} flight lines ({listed}) overlap (no {options.min_cells} "
+                               f"common {options.cell_m:g} m cells); strip calibration needs overlapping flight lines")
     source = StripSource(files, frame, trajectory, groups, line, how, options, weeks,
                          {i: int(n.sum()) for i, (_, n) in footprint.items()})
     ecef, times, where, done = {}, {}, {}, sum(source.counts.values())
@@ -272,6 +277,6 @@ def ingest_strips(paths, trajectory, sensor, options: IngestOptions = IngestOpti
         progress("reading strips", done, 2 * sum(source.counts.values()))
     strips = [Strip.from_ecef(i, np.concatenate(ecef[i]), np.concatenate(times[i]), trajectory, sensor, frame,
                               ", ".join(where[i]), span=span[i]) for i in sorted(ecef)]
-    notes = unpaired_notes(footprint, pairs, options.cell_m, options.min_cells)
+    notes = unpaired_notes(footprint, pairs, options.cell_m, options.min_cells, names)
     crs = las_file_crs(files[0].path, files[0].points.crs)
     return strips, crs, source, notes

@@ -21,6 +21,7 @@ from calidar.trajectory_accuracy import TrajectoryAccuracy
 
 G = 9.80665  #: m/s²
 SBET_RATE_HZ = 200.0
+SIGMA_VARIATION_S = 60.0  #: time scale of the simulated trajectory σ's variation, s
 ACCURACY_RATE_HZ = 1.0  #: epochs of the written smrmsg.out, as POSPac writes them
 #: bank limit in turns; U-turns tighter than the platform could fly keep this bank (no scanning there)
 MAX_BANK_RAD = np.radians(35.0)
@@ -182,3 +183,17 @@ def accuracy_epochs(time: np.ndarray, sig_pos: np.ndarray, sig_att: np.ndarray) 
     at = lambda s, floor: np.maximum(np.stack([np.interp(epochs, time, s[:, k]) for k in range(3)], 1), floor)  # noqa: E731
     pos, att = at(sig_pos, 1e-4), at(sig_att, 1e-7)
     return TrajectoryAccuracy(epochs, pos, att, pos / 10.0, "<simulated smrmsg>")
+
+
+def trajectory_sigma(cfg, time: np.ndarray, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """σ of the trajectory (``cfg``: a :class:`calidar.sim.survey.SurveyConfig`)'s errors per record (N, 3): north/east/down m and roll/pitch/heading rad
+    (constant unless ``trajectory_sigma_variation``; the per-axis ``trajectory_sigma_scale``)."""
+    scale = np.asarray(cfg.trajectory_sigma_scale, float)
+    base = np.r_[cfg.gnss_noise_m * scale[:3], cfg.attitude_noise_rad * scale[3:]]
+    sig = np.tile(base, (time.size, 1))
+    if cfg.trajectory_sigma_variation > 0:
+        dt = float(np.median(np.diff(time)))
+        g = smooth_noise(rng, time.size, dt, SIGMA_VARIATION_S, 1.0, 6)
+        g = (g - g.mean(axis=0)) / g.std(axis=0)  # the filter keeps the white noise's mean: remove it
+        sig *= np.exp(cfg.trajectory_sigma_variation * g)
+    return sig[:, :3], sig[:, 3:]

@@ -24,12 +24,13 @@ from calidar.errors import InputError
 from calidar.outputs import prepare_out_dir, write_text_atomic
 from calidar.sensor import Sensor
 from calidar.sim.flightplan import FlightLine, check_plan_inputs, plan_lines
-from calidar.sim.motion import MotionSpec, accuracy_epochs, fly, measured_trajectory, smooth_noise
+from calidar.sim.motion import MotionSpec, accuracy_epochs, fly, measured_trajectory, trajectory_sigma
 from calidar.sim.patterns import half_field_of_view, scan_angles
 from calidar.sim.raycast import SURFACE_TERRAIN, cast
 from calidar.sim.scene import CLASS_BUILDING, CLASS_GROUND, CLASS_VEGETATION, Scene, SceneSpec, build_scene
 from calidar.trajectory import Trajectory
 from calidar.trajectory_accuracy import TrajectoryAccuracy
+from calidar.validate import SEED_MAX, integer, number
 
 #: LAS header creation date of simulated strips, fixed so that a seed always gives the same bytes.
 SIMULATION_DATE = datetime.date(2026, 1, 1)
@@ -37,10 +38,14 @@ SIMULATION_DATE = datetime.date(2026, 1, 1)
 SURFACE_VEGETATION = -3  #: ``Strip.surface`` of crown returns
 GPS_WEEK_START_S = 388800.0  #: simulated flights start on a Thursday, 12:00 GPS time
 CHUNK_SHOTS = 400_000
-SIGMA_VARIATION_S = 60.0  #: time scale of the trajectory σ's variation, s
 
 #: per-strip trajectory errors (NED position, roll/pitch/heading attitude), drawn per line
 STRIP_ERRORS = ("position_bias_m", "position_drift_mps", "attitude_bias_rad", "attitude_drift_radps")
+MAX_PULSES = 3e7  #: pulses a simulation may cast (≈ 100 bytes each, several times over while casting)
+STRIP_ERROR_MAX = (10.0, 1.0, np.radians(5.0), np.radians(1.0))  #: largest σ of each of STRIP_ERRORS
+ERROR_LIMITS = {  #: largest |true − nominal| of a sensor parameter simulated, by name prefix (rad, m, ratio)
+    "boresight": (np.radians(10.0), "rad"), "scan_angle_offset": (np.radians(10.0), "rad"), "lever_arm": (10.0, "m"),
+    "range_offset": (10.0, "m"), "range_scale": (0.01, ""), "scan_angle_scale": (0.01, "")}
 
 #: truth.json units of the parameters it always lists (value converted from SI)
 TRUTH_UNITS = {"boresight_roll": "deg", "boresight_pitch": "deg", "boresight_yaw": "deg", "lever_arm_x": "m",
@@ -73,7 +78,7 @@ class SurveyConfig:
     #: heading (× attitude_noise_rad)
     trajectory_sigma_scale: tuple[float, float, float, float, float, float] = (1.0, 1.0, 1.0, 1.0, 1.0, 1.0)
     #: slow change of those σ over the flight (satellites come and go): σ(t) = σ · exp(v · g(t)),
-    #: g smooth unit noise over ``SIGMA_VARIATION_S``; 0: constant
+    #: g smooth unit noise over ``calidar.sim.motion.SIGMA_VARIATION_S``; 0: constant
     trajectory_sigma_variation: float = 0.0
     #: σ of the per-strip trajectory errors, in the order of STRIP_ERRORS (m, m/s, rad, rad/s)
     strip_error_sigma: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 0.0)
@@ -144,8 +149,13 @@ def check_config(cfg: SurveyConfig) -> None:
     for name, v in cfg.errors.items():
         if name not in known:
             raise InputError(None, "errors", f"unknown sensor parameter {name!r}; expected one of {sorted(known)}")
-        if not np.isfinite(v):
-            raise InputError(None, name, f"expected a finite error, got {v}")
+        limit, unit = next((lim for prefix, lim in ERROR_LIMITS.items() if name.startswith(prefix)), (1.0, ""))
+        if not (np.isfinite(v) and abs(v) <= limit):
+            raise InputError(None, name, f"expected a finite error within ±{limit:.4g} {unit}, got {v:.6g} {unit}".rstrip())
+    for name, v, hi in zip(STRIP_ERRORS, cfg.strip_error_sigma, STRIP_ERROR_MAX):
+        number(v, "strip_errors", 0.0, hi, field=name)
+    integer(cfg.seed, "seed", 0, SEED_MAX)
+    number(cfg.range_noise_m, "range_noise_m", 0.0, 1.0, "m")
     if cfg.pulse_rate_hz * cfg.density > 5e6:
         raise InputError(None, "density", f"pulse rate {cfg.pulse_rate_hz * cfg.density:.3g} Hz is beyond any scanner (max 5 MHz)")
     if len(cfg.origin_deg) != 3 or not -80 <= cfg.origin_deg[0] <= 84:
@@ -349,6 +359,8 @@ def simulate_survey(cfg: SurveyConfig, progress: Callable[[str, int, int], None]
     lines = plan_lines(scene.extent, float(np.mean(scene.heights)), cfg.height_agl_m, half_fov, cfg.side_overlap,
                        cfg.directions, cfg.motion.speed_mps)
     traj_true, windows = fly(scene, lines, cfg.motion, rng_motion, GPS_WEEK_START_S)
+    if (pulses := cfg.pulse_rate_hz * cfg.density * sum(b - a for a, b in windows)) > MAX_PULSES:  # memory grows with them
+        raise InputError(None, "density", f"{pulses:.3g} pulses to simulate; expected ≤ {MAX_PULSES:.3g} (a smaller --density)")
     strip_errors = [{k: rng_strip.normal(0.0, sigma, 3) for k, sigma in zip(STRIP_ERRORS, cfg.strip_error_sigma)}
                     for _ in lines]
     sig_pos, sig_att = trajectory_sigma(cfg, traj_true.time, rng_sigma)
@@ -379,17 +391,3 @@ def simulate_survey(cfg: SurveyConfig, progress: Callable[[str, int, int], None]
             progress("simulating lines", k + 1, len(lines))
     return SurveyResult(cfg, scene, lines, traj_true, traj, nominal, truth, crs, strips, strip_errors,
                         accuracy_epochs(traj_true.time, sig_pos, sig_att), streamed)
-
-
-def trajectory_sigma(cfg: SurveyConfig, time: np.ndarray, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
-    """σ of the trajectory's errors per record (N, 3): north/east/down m and roll/pitch/heading rad
-    (constant unless ``trajectory_sigma_variation``; the per-axis ``trajectory_sigma_scale``)."""
-    scale = np.asarray(cfg.trajectory_sigma_scale, float)
-    base = np.r_[cfg.gnss_noise_m * scale[:3], cfg.attitude_noise_rad * scale[3:]]
-    sig = np.tile(base, (time.size, 1))
-    if cfg.trajectory_sigma_variation > 0:
-        dt = float(np.median(np.diff(time)))
-        g = smooth_noise(rng, time.size, dt, SIGMA_VARIATION_S, 1.0, 6)
-        g = (g - g.mean(axis=0)) / g.std(axis=0)  # the filter keeps the white noise's mean: remove it
-        sig *= np.exp(cfg.trajectory_sigma_variation * g)
-    return sig[:, :3], sig[:, 3:]

@@ -20,6 +20,7 @@ from __future__ import annotations
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
+from pathlib import Path
 
 import numpy as np
 import scipy.sparse as sp
@@ -32,7 +33,7 @@ from calidar.sensor import Sensor
 from calidar.strips.correspond import Correspondences
 from calidar.strips.distribute import cluster_client, map_pairs
 from calidar.strips.geometry import geometry_warnings
-from calidar.strips.overlap import Overlap, find_overlaps
+from calidar.strips.overlap import Overlap, find_overlaps, strip_name
 from calidar.strips.parameters import (  # noqa: F401 - the calibrator's vocabulary, re-exported
     ESTIMATE_GROUPS, METHODS, SINGLE_PARAMETERS, build_parameters, parse_estimate, sensor_of, truth_to_si,
 )
@@ -163,10 +164,13 @@ class _Run:
         if len(by_id) != len(strips):
             raise InputError(None, "strips", "two strips share an id; flight-line ids must be unique")
         s = settings
-        overlaps, notes = find_overlaps({i: st.points for i, st in by_id.items()}, s.overlap_cell_m, s.min_overlap_cells)
+        names = {i: Path(st.source).name for i, st in by_id.items() if st.source != "<memory>"}
+        overlaps, notes = find_overlaps({i: st.points for i, st in by_id.items()}, s.overlap_cell_m, s.min_overlap_cells,
+                                        names=names)
         if not overlaps:
-            raise CalibrationError(f"no two of the {len(by_id)} strips overlap (no common {s.overlap_cell_m:g} m cells); "
-                                   "strip calibration needs overlapping flight lines")
+            listed = f" ({', '.join(strip_name(i, names) for i in by_id)})" if names else ""
+            raise CalibrationError(f"no two of the {len(by_id)} strips{listed} overlap (no common "
+                                   f"{s.overlap_cell_m:g} m cells); strip calibration needs overlapping flight lines")
         need: dict[int, list[np.ndarray]] = {}
         for o in overlaps:
             need.setdefault(o.a, []).append(o.index_a)

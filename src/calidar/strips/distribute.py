@@ -16,6 +16,19 @@ from calidar.errors import CalibrationError
 
 SCATTER_BYTES = 1_000_000  #: arrays larger than this are sent to the workers once, ahead of the tasks
 CONNECT_TIMEOUT_S = 10.0  #: how long to wait for a scheduler given by address
+MAX_LOCAL_WORKERS = 256  #: local worker processes accepted (each takes a process and its memory)
+
+
+def check_cluster(scheduler: str | None = None, workers: int | None = None) -> None:
+    """Refuse, before any work, a scheduler given with local workers and a number of local workers
+    outside [1, MAX_LOCAL_WORKERS]."""
+    from calidar.validate import integer
+
+    if scheduler is not None and workers is not None:
+        raise CalibrationError("give either --scheduler (a Dask scheduler address) or --workers (local processes), "
+                               "not both")
+    if workers is not None:
+        integer(workers, "--workers", 1, MAX_LOCAL_WORKERS, why="local worker processes")
 
 
 @contextmanager
@@ -23,8 +36,7 @@ def cluster_client(scheduler: str | None = None, workers: int | None = None) -> 
     """A dask.distributed Client for ``scheduler`` (an address such as "tcp://host:8786") or
     for a LocalCluster of ``workers`` processes (one thread each, no dashboard); None when
     both are None (in-process). A LocalCluster is closed on exit."""
-    if scheduler is not None and workers is not None:
-        raise CalibrationError("give either a scheduler address or a number of local workers, not both")
+    check_cluster(scheduler, workers)
     if scheduler is None and workers is None:
         yield None
         return
@@ -38,8 +50,6 @@ def cluster_client(scheduler: str | None = None, workers: int | None = None) -> 
         with client:
             yield client
         return
-    if workers < 1:
-        raise CalibrationError(f"--workers must be at least 1, got {workers}")
     # no dashboard; the scheduler's small HTTP endpoint on a free port, so clusters never collide
     with LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None,
                       scheduler_kwargs={"dashboard": False, "dashboard_address": ":0"},

@@ -2,8 +2,9 @@
 
 from __future__ import annotations
 
+import hashlib
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -43,10 +44,33 @@ def read_flight_lines(paths: Sequence[str | Path], crs=None, gap_s: float = GAP_
     if not paths:
         raise InputError(None, "STRIPS", "expected at least one LAS/LAZ file")
     _check_alike([Path(p) for p in paths], options or PointOptions(crs=crs))
+    check_distinct(paths)
     clouds = [read_las(p, crs=crs, options=options) for p in paths]
     merged = concat_points(clouds)
     ids, how = line_ids(merged.point_source_id, merged.gps_time, gap_s)
-    return {int(i): merged.select(ids == i) for i in np.unique(ids)}, how
+    source = np.repeat(np.arange(len(clouds)), [len(c) for c in clouds])  # the file of each point
+    return {int(i): replace(merged.select(ids == i), path=clouds[source[np.argmax(ids == i)]].path)
+            for i in np.unique(ids)}, how
+
+
+def check_distinct(paths: Sequence[str | Path]) -> None:
+    """Refuse a file given twice, a file without points and a file holding the same points as
+    another (a copy: the same point count and bounds and the same first MiB of point records):
+    each would silently merge into, or vanish from, the flight lines. Reads headers and 1 MiB."""
+    seen: dict[tuple, Path] = {}
+    for path in map(Path, paths):
+        h = las_header(path)
+        if h.point_count == 0:
+            raise InputError(path, "points", "no points; expected a strip (flight line) with points")
+        with open(path, "rb") as f:
+            f.seek(h.offset_to_point_data)
+            head = hashlib.sha256(f.read(1 << 20)).hexdigest()
+        key = (int(h.point_count), tuple(np.round(h.mins, 6)), tuple(np.round(h.maxs, 6)), head)
+        other = seen.setdefault(key, path)
+        if other is not path:
+            same = other.resolve() == path.resolve() or other.samefile(path)
+            raise InputError(path, None, "given twice; expected each strip once" if same else
+                             f"holds the same points as {other.name}: a duplicate; expected each strip once")
 
 
 @dataclass(frozen=True)
@@ -76,6 +100,7 @@ def index_flight_lines(paths: Sequence[str | Path], options: PointOptions = Poin
         raise InputError(None, "STRIPS", "expected at least one LAS/LAZ file")
     paths = [Path(p) for p in paths]
     _check_alike(paths, options)
+    check_distinct(paths)
     ids, seconds, classes = set(), [], {}
     for path in paths:
         present = np.zeros(256, bool)

@@ -76,21 +76,29 @@ def common_cells(occupied: Mapping[int, np.ndarray], min_cells: int) -> list[tup
     return out
 
 
-def unpaired_notes(ids, pairs, cell_m: float, min_cells: int) -> list[str]:
-    """Plain-words notes about the strips ``ids`` in none of the ``pairs`` (a, b, ...)."""
+def unpaired_notes(ids, pairs, cell_m: float, min_cells: int, names: Mapping[int, str] | None = None) -> list[str]:
+    """Plain-words notes about the strips ``ids`` in none of the ``pairs`` (a, b, ...), named by
+    ``names`` {id: file name} when given."""
     paired = {p[0] for p in pairs} | {p[1] for p in pairs}
-    return [f"strip {i} overlaps no other strip (fewer than {min_cells} common {cell_m:g} m cells); it is not used"
+    return [f"strip {strip_name(i, names)} overlaps no other strip (fewer than {min_cells} common {cell_m:g} m cells); "
+            "it is not used"
             for i in sorted(ids) if i not in paired]
 
 
+def strip_name(i: int, names: Mapping[int, str] | None = None) -> str:
+    """"3 (line_003.laz)": a flight line's id and the file holding it, when known."""
+    return f"{i} ({names[i]})" if names and i in names else str(i)
+
+
 def find_overlaps(strips_xy: Mapping[int, np.ndarray], cell_m: float = 5.0, min_cells: int = 4,
-                  min_points_per_cell: int = 3) -> tuple[list[Overlap], list[str]]:
+                  min_points_per_cell: int = 3, names: Mapping[int, str] | None = None
+                  ) -> tuple[list[Overlap], list[str]]:
     """Overlapping pairs among strips given as {id: (N, ≥2) coordinates in metres}.
 
     A cell counts as occupied by a strip when it holds at least ``min_points_per_cell``
     of its points; pairs sharing fewer than ``min_cells`` cells are left out. Returns the
-    pairs (ids ascending) and plain-words notes about strips that overlap no other strip.
-    (Streamed files: :func:`calidar.pipelines.strip_ingest.ingest_strips` accumulates the
+    pairs (ids ascending) and plain-words notes about strips that overlap no other strip
+    (named by ``names`` {id: file name} when given). (Streamed files: :func:`calidar.pipelines.strip_ingest.ingest_strips` accumulates the
     same footprints chunk by chunk with :func:`cell_counts` and :func:`merge_counts`.)
     """
     keys = {i: cell_keys(xy, cell_m) for i, xy in strips_xy.items()}
@@ -101,4 +109,4 @@ def find_overlaps(strips_xy: Mapping[int, np.ndarray], cell_m: float = 5.0, min_
     pairs = [Overlap(a, b, int(common.size), float(common.size * cell_m**2),
                      _members(keys[a], common), _members(keys[b], common))
              for a, b, common in common_cells(occupied, min_cells)]
-    return pairs, unpaired_notes(keys, [(p.a, p.b) for p in pairs], cell_m, min_cells)
+    return pairs, unpaired_notes(keys, [(p.a, p.b) for p in pairs], cell_m, min_cells, names)

@@ -90,13 +90,13 @@ class OverlapPlan:
 
 
 def overlap_plan(counts: Mapping[int, tuple[np.ndarray, np.ndarray]], overlap_m: float,
-                 settings: QualitySettings) -> OverlapPlan:
+                 settings: QualitySettings, names: Mapping[int, str] | None = None) -> OverlapPlan:
     """The plan from each line's (keys, counts) of its selected points on cells of ``overlap_m``:
     pairs sharing cells occupied by both, each with ``settings.cell_m`` or a cell of 2 m, larger
     (whole metres) where the sparser line has under ≈ 1.5 · min_points per cell over the overlap."""
     occupied = {i: k[n >= OVERLAP_MIN_POINTS] for i, (k, n) in counts.items()}
     common = {(a, b): shared for a, b, shared in common_cells(occupied, 4)}
-    notes = unpaired_notes(occupied, list(common), overlap_m, 4)
+    notes = unpaired_notes(occupied, list(common), overlap_m, 4, names)
     cells = {}
     for ab, shared in common.items():
         dens = [counts[i][1][np.isin(counts[i][0], shared)].sum() / (shared.size * overlap_m**2) for i in ab]

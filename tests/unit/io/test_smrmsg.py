@@ -75,8 +75,8 @@ GOOD = [[1000.0, 0.03, 0.03, 0.05, 0.01, 0.01, 0.01, 0.12, 0.12, 1.0],
 
 @pytest.mark.parametrize("change, field, problem", [
     (lambda r: r, "size", "expected a multiple of 80 bytes"),  # 3 stray bytes appended below
-    (lambda r: r[:1] + [r[1][:3] + [float("nan")] + r[1][4:]], "down_rms", "expected σ > 0, record 1 has nan"),
-    (lambda r: [r[0][:8] + [-0.1] + r[0][9:]] + r[1:], "pitch_rms", "expected σ > 0, record 0 has"),
+    (lambda r: r[:1] + [r[1][:3] + [float("nan")] + r[1][4:]], "down_rms", "expected finite values in [0, 100] m, got nan (1 of 2 values, first at record 1)"),
+    (lambda r: [r[0][:8] + [-0.1] + r[0][9:]] + r[1:], "pitch_rms", "expected finite values in [0, 600] arc-min, got -0.1"),
     (lambda r: [r[1], r[0]], "time", "expected strictly increasing times"),
 ])
 def test_bad_smrmsg_names_file_and_field(tmp_path, change, field, problem):

@@ -98,8 +98,8 @@ def test_cli_ground_by_default_and_explicit_classes(cli, tmp_path):
     assert all(v["rule"] == "ground" and v["classes"] == [2] for v in doc["points_used"].values())
     assert pair["points_a"][0]["classes"] == [2] and 0 < pair["n_points_a"] <= 15_000 and pair["n_points_b"] <= 20_000
     code, out, err = cli("quality", *paths, "--json", "--cell", "2", "--classes", "2,5")
-    pair = json.loads(out)["pairs"][0]
-    assert code == 0 and pair["n_points_a"] < 15_000  # tree cells are not smooth: fewer cells kept
+    # every cell holds "trees" (class 5): none is smooth, so no cell is kept — a clear error, not 0 cells
+    assert code == 1 and "--cell" in err and "smooth" in err and "Traceback" not in err
     code, out, err = cli("quality", *paths, "--classes", "6")
     assert code == 1 and "l0.laz" in err and "no points of class 6" in err and "Traceback" not in err
     code, out, err = cli("quality", *paths, "--classes", "300")

@@ -80,6 +80,6 @@ def test_quality_errors_are_one_line(cli, tmp_path):
     code, out, err = cli("quality", one)
     assert code == 1 and "found one flight line" in err and "Traceback" not in err
     code, out, err = cli("quality", one, far)
-    assert code == 1 and "none of the 2 flight lines (1, 2) overlap another" in err
+    assert code == 1 and "none of the 2 flight lines (1 (one.laz), 2 (far.laz)) overlap another" in err
     code, out, err = cli("quality", tmp_path / "missing.laz", one)
     assert code == 1 and "missing.laz" in err
