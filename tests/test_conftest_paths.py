@@ -1,6 +1,18 @@
 """Where the tests look for the real data by default (CALIDAR_REAL_DATA unset)."""
 
-from conftest import default_real_data
+import importlib.util
+from pathlib import Path
+
+
+def _root_conftest():
+    """tests/conftest.py by its path (``import conftest`` may find tests/acceptance/conftest.py)."""
+    spec = importlib.util.spec_from_file_location("calidar_tests_root_conftest", Path(__file__).with_name("conftest.py"))
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+default_real_data = _root_conftest().default_real_data
 
 
 def _layout(tmp_path):
