@@ -36,13 +36,18 @@ from calidar.sim.survey import PRESETS, simulate_survey, survey_config
 ERRORS = {"boresight_roll": np.radians(0.03), "boresight_pitch": np.radians(-0.04), "boresight_yaw": np.radians(0.05)}
 
 
+def survey(density: float):
+    """The 8-strip airborne survey at ``density`` (also benchmarks/strips_scale.py's)."""
+    scene = replace(PRESETS["airborne"].scene, width_m=3300.0)
+    return survey_config("airborne", seed=5, density=density, directions="cross", scene=scene, errors=ERRORS,
+                         range_noise_m=0.03)
+
+
 def simulate(cache: Path, density: float) -> Path:
     sim = cache / f"airborne_8_strips_d{density:g}_smrmsg"
     if (sim / "truth.json").exists():
         return sim
-    scene = replace(PRESETS["airborne"].scene, width_m=3300.0)
-    cfg = survey_config("airborne", seed=5, density=density, directions="cross", scene=scene, errors=ERRORS,
-                        range_noise_m=0.03)
+    cfg = survey(density)
     t = time.perf_counter()
     res = simulate_survey(cfg)
     res.write(sim, force=True)

@@ -27,28 +27,25 @@ import subprocess
 import sys
 import tempfile
 import time
-from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from strips import ERRORS  # noqa: E402  (the shared 8-strip survey's mounting errors)
+from strips import ERRORS, survey  # noqa: E402  (the shared 8-strip survey and its mounting errors)
 
 POINTS_PER_DENSITY = 8.75e6 / 1.7  #: points of the 8-strip survey per unit of simulator density
 
 
 def simulate(cache: Path, million: float) -> Path:
     """The survey of ≈ ``million`` M points, simulated once (one strip in memory at a time)."""
-    from calidar.sim.survey import PRESETS, simulate_survey, survey_config, utm_crs, write_strip
+    from calidar.sim.survey import simulate_survey, utm_crs, write_strip
 
     density = round(million * 1e6 / POINTS_PER_DENSITY, 4)
     sim = cache / f"airborne_8_strips_d{density:g}"
     if (sim / "truth.json").exists():
         return sim
-    scene = replace(PRESETS["airborne"].scene, width_m=3300.0)
-    cfg = survey_config("airborne", seed=5, density=density, directions="cross", scene=scene, errors=ERRORS,
-                        range_noise_m=0.03)
+    cfg = survey(density)
     (sim / "strips").mkdir(parents=True, exist_ok=True)
     crs = utm_crs(*cfg.origin_deg[:2])
     t = time.perf_counter()
