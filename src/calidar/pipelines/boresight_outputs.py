@@ -2,7 +2,7 @@
 
 The overlap quality is measured on the WHOLE strips (streamed again from the files,
 :func:`line_chunks`) re-georeferenced in the files' CRS with exactly the code ``calidar quality``
-runs (:func:`calidar.pipelines.quality.lines_quality`: the same point selection and swath
+runs (:func:`calidar.pipelines.quality.lines_quality_streamed`: the same point selection and swath
 accumulator), three times: as delivered, with the new mounting
 alone (``calidar regeoref --to sensor.toml``), and with the new mounting and the corrected
 trajectory (``--to-trajectory sbet_corrected.out``). Each stage names the commands that
@@ -60,27 +60,29 @@ def line_chunks(inputs, models=(None,), fields=None, where=None):
 
 def measure_lines(inputs, models, progress: Progress = no_progress) -> list[list]:
     """Per model of :func:`line_chunks`, the :class:`calidar.strips.quality.PairQuality` of every
-    overlapping pair of flight lines, by :func:`calidar.pipelines.quality.lines_quality` (each line's
-    point selection from the classes it holds). Holds the points either selection could keep
-    (ground or last returns: coordinates and the selection's fields, ≈ 27 B a point) for every line
-    and model until measured."""
-    from calidar.io.las import concat_points
-    from calidar.pipelines.quality import lines_quality
+    overlapping pair of flight lines, by :func:`calidar.pipelines.quality.lines_quality_streamed`
+    (two streamed reads of the files, each line's point selection from the classes it holds):
+    memory holds cells, not points."""
+    from calidar.io.las import las_file_crs
+    from calidar.pipelines.quality import Metric, lines_quality_streamed
+    from calidar.pipelines.strip_ingest import bounds
     from calidar.strips.selection import FIELDS, candidate_mask
 
-    parts: list[dict[int, list]] = [{} for _ in models]
-    done, total = 0, sum(inputs.source.counts.values())
-    for i, versions in line_chunks(inputs, models, FIELDS, candidate_mask):
-        done += len(versions[0])
-        progress("overlap quality: reading strips", done, total)
-        for k, v in enumerate(versions):
-            parts[k].setdefault(i, []).append(v)
+    files, total = inputs.source.files, 2 * sum(inputs.source.counts.values())
+    lo, hi = bounds(files)
+    metric = Metric.at(las_file_crs(files[0].path, files[0].points.crs), lo, hi, files[0].points.geoid_undulation_m,
+                       files[0].path)
+    done = [0]
+
+    def chunks():
+        for i, versions in line_chunks(inputs, models, FIELDS, candidate_mask):
+            done[0] += len(versions[0])
+            progress("overlap quality: reading strips", done[0], total)
+            yield i, versions
+
+    names = {i: Path(s.source.split(", ")[0]).name for s in inputs.strips for i in [s.id]}
+    out = lines_quality_streamed(chunks, metric, names)
     progress("overlap quality: reading strips", total, total)  # (the points not fit for it were not counted)
-    out = []
-    for k in range(len(models)):
-        lines = [(i, concat_points(v)) for i, v in parts[k].items()]
-        parts[k] = None  # free as we go
-        out.append(lines_quality(lines)[0])
     return out
 
 
