@@ -22,6 +22,7 @@ import numpy as np
 
 from calidar.errors import InputError
 from calidar.io.las import PointOptions
+from calidar.strips.overlap import merge_counts
 from calidar.strips.selection import FIELDS as SELECTION_FIELDS
 from calidar.strips.selection import choose_selection
 
@@ -87,7 +88,7 @@ class CellCounts:
                 self.time.setdefault(int(tok), float(t[np.argmax(sel)]))
                 uk, n = np.unique(keys[sel], return_counts=True)
                 k = (path, selection, int(tok))
-                self.counts[k] = _merge_counts(self.counts[k], (uk, n)) if k in self.counts else (uk, n)
+                self.counts[k] = merge_counts(self.counts[k], (uk, n)) if k in self.counts else (uk, n)
 
     def names(self, index) -> dict[int, str]:
         """The name of a file holding each flight line (for messages)."""
@@ -100,13 +101,8 @@ class CellCounts:
         for (path, selection, tok), kn in self.counts.items():
             if selections[path] == selection:
                 line = int(index.of(np.array([tok >> 32]), np.array([self.time[tok]]))[0])
-                out[line] = _merge_counts(out[line], kn) if line in out else kn
+                out[line] = merge_counts(out[line], kn) if line in out else kn
         return out
-
-
-def _merge_counts(a, b):
-    keys, inv = np.unique(np.r_[a[0], b[0]], return_inverse=True)
-    return keys, np.bincount(inv, np.r_[a[1], b[1]], keys.size).astype(np.int64)
 
 
 def measure(paths, cell_m=None, classes=None, options: PointOptions = PointOptions(), chunk_points: int = CHUNK_POINTS):
@@ -165,7 +161,7 @@ def lines_quality_streamed(chunks, metric: Metric, names: dict[int, str] | None 
             keys = cell_keys(metric.of(v.xyz), grid)
             for rule in rules:
                 kn = np.unique(keys[rule.mask(v)], return_counts=True)
-                counts[k][i, rule] = _merge_counts(counts[k][i, rule], kn) if (i, rule) in counts[k] else kn
+                counts[k][i, rule] = merge_counts(counts[k][i, rule], kn) if (i, rule) in counts[k] else kn
     lines = sorted({i for c in counts for i, _ in c})
     chosen = {i: choose_selection(names.get(i), np.array(sorted(present[i])) if i in present else None) for i in lines}
     accs = [SwathAccumulator(cell_m, overlap_plan({i: c[i, chosen[i]] for i in lines if (i, chosen[i]) in c}, grid,
