@@ -1,7 +1,7 @@
 """Benchmark: strip calibration at scale — streamed ingest + calibration, time and peak memory vs points.
 
     nice -n 10 env NUMBA_NUM_THREADS=1 OMP_NUM_THREADS=1 PYTHONPATH=src python benchmarks/strips_scale.py \
-        [--sizes 2,4,8,16,64] [--methods planes,vgicp] [--budget 300000]
+        [--sizes 2,4,8,16,64] [--methods planes,vgicp] [--budget 300000] [--quality]
 
 The survey of ``benchmarks/strips.py`` (airborne preset, 6 parallel lines flown in alternate
 directions + 2 cross lines, 3 cm / 0.002° trajectory errors and their smrmsg.out) simulated at
@@ -9,12 +9,14 @@ the densities that give ≈ 2, 4, 8, 16 and 64 million points (the lines and the
 the same, the points per m² grow; at 1 M, 0.1 point/m² in the overlaps, no 25 m patch is
 planar enough for a tie plane, in memory as streamed), each strip written as soon as it is simulated (one strip in
 memory at a time) and cached under ``--cache`` (not timed). Each run is a child process doing
-what ``calidar boresight`` does before its outputs: read the strips (two streamed passes,
-thinned to ``--budget`` points per strip, :mod:`calidar.pipelines.strip_ingest`) and calibrate
-(default options: trajectory model on). Its wall time and peak RSS (``os.wait4`` of the
-child) are printed per size and method, with the exponent of time ∝ points^k fitted over the
-sizes, and the boresight of the largest survey compared with the 4 M survey calibrated from
-every overlapping point in memory (``--budget`` off), in units of their σ.
+what ``calidar boresight`` does, end to end (default options: trajectory model on; each file a
+task on the in-process threads): read the strips (two streamed passes, thinned to ``--budget``
+points per strip, :mod:`calidar.pipelines.strip_ingest`), calibrate, the three overlap-quality
+stages of the whole strips, report and outputs; with ``--quality`` also ``calidar quality`` of
+the strips. Wall time and peak RSS (``os.wait4`` of the child) are printed per size and method,
+with the exponent of time ∝ points^k fitted over the sizes, and the boresight of the largest
+survey compared with the 4 M survey calibrated from every overlapping point in memory
+(``--budget`` off), in units of their σ.
 """
 
 from __future__ import annotations
@@ -56,38 +58,55 @@ def simulate(cache: Path, million: float) -> Path:
     return sim
 
 
-def child(sim: Path, method: str, budget: str) -> None:
-    """One run: ingest + calibrate; prints a JSON line with the stage times and the results."""
-    from calidar.pipelines.boresight import BoresightOptions, calibrate_inputs, load_inputs
+def child(sim: Path, what: str, budget: str) -> None:
+    """One run, printing a JSON line: ``what`` = a method ("planes", "vgicp"): the whole
+    ``calidar boresight`` run (ingest, calibration, the three overlap-quality stages, report and
+    outputs into a temporary folder); "quality": ``calidar quality`` of the strips."""
+    import tempfile
+
+    from calidar.pipelines.boresight import BoresightOptions, run_boresight
+    from calidar.pipelines.quality import measure
     from calidar.pipelines.strip_ingest import IngestOptions
 
-    ingest = IngestOptions(budget_points=None if budget == "off" else int(budget))
-    options = BoresightOptions(methods=(method,), truth=sim / "truth.json", ingest=ingest)
+    strips = sorted((sim / "strips").glob("*.laz"))
     t0 = time.perf_counter()
-    inputs = load_inputs(sorted((sim / "strips").glob("*.laz")), sim / "sbet.out", sim / "sensor.toml", options)
-    t1 = time.perf_counter()
-    result = calibrate_inputs(inputs, options)[method]
-    t2 = time.perf_counter()
-    sol = result.solution
+    if what == "quality":
+        _, _, pairs, _, _ = measure(strips)
+        print(json.dumps({"points": None, "pairs": len(pairs)}))
+        return
+    stamps = {}
+    ingest = IngestOptions(budget_points=None if budget == "off" else int(budget))
+    options = BoresightOptions(methods=(what,), truth=sim / "truth.json", ingest=ingest)
+    with tempfile.TemporaryDirectory() as out:
+        run = run_boresight(strips, sim / "sbet.out", sim / "sensor.toml", Path(out), options,
+                            lambda d, done, total: stamps.__setitem__(d.split(":")[0].split(" (")[0],
+                                                                      time.perf_counter() - t0))
+    sol, inputs = run.results[what].solution, run.inputs
     print(json.dumps({"points": sum(inputs.source.counts.values()), "kept": sum(len(s) for s in inputs.strips),
-                      "ingest_s": t1 - t0, "calibrate_s": t2 - t1, "n_obs": result.outer[-1]["n_obs"],
+                      "ingest_s": stamps["reading strips"], "calibrate_s": stamps["calibrating"] - stamps["reading strips"],
+                      "quality_s": stamps["overlap quality"] - stamps["calibrating"],
                       "values": {k: sol.values[k] for k in ERRORS}, "sigma": {k: sol.sigma[k] for k in ERRORS},
                       "truth": {k: inputs.truth[k] for k in ERRORS}}))
 
 
-def run(sim: Path, method: str, budget: str) -> dict:
+def run(sim: Path, what: str, budget: str = "300000") -> dict:
     """A child run: its JSON, wall time (s) and peak RSS (GiB)."""
     env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[1] / "src")}
     t = time.perf_counter()
-    proc = subprocess.Popen([sys.executable, __file__, "--child", str(sim), method, budget], env=env,
+    proc = subprocess.Popen([sys.executable, __file__, "--child", str(sim), what, budget], env=env,
                             stdout=subprocess.PIPE, text=True)
     out = proc.stdout.read()
     _, status, usage = os.wait4(proc.pid, 0)
     proc.returncode = os.waitstatus_to_exitcode(status)
     if proc.returncode:
-        raise SystemExit(f"run failed: {sim} {method} {budget}")
+        raise SystemExit(f"run failed: {sim} {what} {budget}")
     doc = json.loads(out.strip().splitlines()[-1])
     return {**doc, "wall_s": time.perf_counter() - t, "rss_gib": usage.ru_maxrss * 1024 / 2**30}
+
+
+def exponent(points: list[float], seconds: list[float]) -> float:
+    """k of seconds ∝ points^k (least squares in logs)."""
+    return float(np.polyfit(np.log(points), np.log(seconds), 1)[0])
 
 
 def main() -> None:
@@ -96,6 +115,7 @@ def main() -> None:
     ap.add_argument("--methods", default="planes,vgicp")
     ap.add_argument("--budget", default="300000", help="points kept per strip ('off': every overlapping point)")
     ap.add_argument("--cache", type=Path, default=Path(tempfile.gettempdir()) / "calidar_bench_strips_scale")
+    ap.add_argument("--quality", action="store_true", help="also time `calidar quality` of the strips")
     ap.add_argument("--child", nargs=3, help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.child:
@@ -106,7 +126,8 @@ def main() -> None:
     print(f"machine: {platform.machine()}, {os.cpu_count()} cores, python {platform.python_version()}; "
           f"NUMBA_NUM_THREADS={os.environ.get('NUMBA_NUM_THREADS')} OMP_NUM_THREADS={os.environ.get('OMP_NUM_THREADS')}; "
           f"load average {os.getloadavg()[0]:.2f}; budget {args.budget} points per strip", flush=True)
-    print(f"{'method':7s} {'points':>8s} {'kept':>7s} {'wall s':>7s} {'ingest s':>8s} {'calib s':>7s} {'peak GiB':>8s}  "
+    print(f"{'method':7s} {'points':>8s} {'kept':>7s} {'wall s':>7s} {'ingest s':>8s} {'calib s':>7s} {'quality s':>9s} "
+          f"{'peak GiB':>8s}  "
           "boresight error / σ (roll, pitch, yaw)", flush=True)
     results = {}
     for method in methods:
@@ -114,22 +135,33 @@ def main() -> None:
             r = results[method, m] = run(sims[m], method, args.budget)
             z = ", ".join(f"{(r['values'][k] - r['truth'][k]) / r['sigma'][k]:+.1f}" for k in ERRORS)
             print(f"{method:7s} {r['points'] / 1e6:7.2f}M {r['kept'] / 1e6:6.2f}M {r['wall_s']:7.1f} {r['ingest_s']:8.1f} "
-                  f"{r['calibrate_s']:7.1f} {r['rss_gib']:8.2f}  {z}   (load {os.getloadavg()[0]:.2f})", flush=True)
+                  f"{r['calibrate_s']:7.1f} {r['quality_s']:9.1f} {r['rss_gib']:8.2f}  {z}   "
+                  f"(load {os.getloadavg()[0]:.2f})", flush=True)
         if len(sizes) > 1:
-            pts = np.log([results[method, m]["points"] for m in sizes])
-            k = np.polyfit(pts, np.log([results[method, m]["wall_s"] for m in sizes]), 1)[0]
+            k = exponent([results[method, m]["points"] for m in sizes], [results[method, m]["wall_s"] for m in sizes])
             print(f"{method}: wall time ∝ points^{k:.2f} over {sizes[0]:g}–{sizes[-1]:g} M", flush=True)
         if 4.0 in sizes and sizes[-1] != 4.0:
-            ref = run(sims[4.0], method, "off")
-            big = results[method, sizes[-1]]
-            z = ", ".join(f"{(ref['values'][k] - ref['truth'][k]) / ref['sigma'][k]:+.1f}" for k in ERRORS)
-            print(f"{method}: 4 M in memory (every overlapping point, {ref['kept'] / 1e6:.2f} M, {ref['wall_s']:.0f} s, "
-                  f"{ref['rss_gib']:.2f} GiB; error / σ {z}) vs {big['points'] / 1e6:.0f} M streamed:", flush=True)
-            for k in ERRORS:
-                d = big["values"][k] - ref["values"][k]
-                s = max(big["sigma"][k], ref["sigma"][k])
-                print(f"  {k:16s} {np.degrees(big['values'][k]):+.5f}° vs {np.degrees(ref['values'][k]):+.5f}°: "
-                      f"Δ {np.degrees(d):+.5f}° = {d / s:+.2f} σ (σ {np.degrees(s):.5f}°)", flush=True)
+            compare(method, run(sims[4.0], method, "off"), results[method, sizes[-1]])
+    if args.quality:
+        for m in sizes:
+            r = results["quality", m] = run(sims[m], "quality")
+            print(f"quality {m:7.2f}M {'':7s} {r['wall_s']:7.1f} {'':8s} {'':7s} {'':9s} {r['rss_gib']:8.2f}  "
+                  f"{r['pairs']} pairs   (load {os.getloadavg()[0]:.2f})", flush=True)
+        if len(sizes) > 1:
+            k = exponent([results[methods[0], m]["points"] for m in sizes], [results["quality", m]["wall_s"] for m in sizes])
+            print(f"quality: wall time ∝ points^{k:.2f}", flush=True)
+
+
+def compare(method: str, ref: dict, big: dict) -> None:
+    """The largest survey's boresight against the 4 M survey calibrated in memory, in σ."""
+    z = ", ".join(f"{(ref['values'][k] - ref['truth'][k]) / ref['sigma'][k]:+.1f}" for k in ERRORS)
+    print(f"{method}: 4 M in memory (every overlapping point, {ref['kept'] / 1e6:.2f} M, {ref['wall_s']:.0f} s, "
+          f"{ref['rss_gib']:.2f} GiB; error / σ {z}) vs {big['points'] / 1e6:.0f} M streamed:", flush=True)
+    for k in ERRORS:
+        d = big["values"][k] - ref["values"][k]
+        s = max(big["sigma"][k], ref["sigma"][k])
+        print(f"  {k:16s} {np.degrees(big['values'][k]):+.5f}° vs {np.degrees(ref['values'][k]):+.5f}°: "
+              f"Δ {np.degrees(d):+.5f}° = {d / s:+.2f} σ (σ {np.degrees(s):.5f}°)", flush=True)
 
 
 if __name__ == "__main__":

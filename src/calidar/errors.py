@@ -23,6 +23,9 @@ class InputError(CalidarError):
         parts = [p for p in (self.source, field) if p]
         super().__init__(": ".join(parts + [problem]) if parts else problem)
 
+    def __reduce__(self):  # rebuilt from its parts (errors raised in Dask tasks travel pickled)
+        return type(self), (self.source, self.field, self.problem)
+
 
 class OutputExistsError(CalidarError):
     """An output exists and --force was not given."""

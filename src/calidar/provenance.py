@@ -42,6 +42,7 @@ class RunRecord:
     options: dict = field(default_factory=dict)
     started_utc: str = field(default_factory=_now)
     finished_utc: str | None = None
+    tasks: dict = field(default_factory=dict)  #: tasks run on Dask, by kind: how many, bytes sent back
 
     @classmethod
     def capture(cls, argv: list[str] | None = None, inputs=(), options: dict | None = None) -> "RunRecord":
@@ -63,7 +64,7 @@ class RunRecord:
     def to_dict(self) -> dict:
         return {"calidar_version": __version__, "python": platform.python_version(), "argv": self.argv,
                 "inputs": self.inputs, "options": self.options, "started_utc": self.started_utc,
-                "finished_utc": self.finished_utc}
+                "finished_utc": self.finished_utc, **({"dask_tasks": self.tasks} if self.tasks else {})}
 
 
 def _plain(v):

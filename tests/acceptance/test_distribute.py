@@ -93,6 +93,7 @@ def test_cli_boresight_vgicp_with_local_workers(cli, tmp_path):
                             "--trajectory-sigma", "0.02,0.002", "--trajectory-block", "2",
                             "--trajectory-correlation", "20,20", "--truth", sim / "truth.json", "--out", out)
     assert code == 0, err
+    assert "Dask tasks — read footprints:" in stdout and "overlap quality:" in stdout
     doc = json.loads((out / "solution.json").read_text())
     assert doc["strips"]["method"] == "vgicp" and len(doc["strips"]["pairs"]) >= 4
     for name in ("boresight_roll", "boresight_pitch", "boresight_yaw"):
@@ -102,3 +103,28 @@ def test_cli_boresight_vgicp_with_local_workers(cli, tmp_path):
                        "--sensor", sim / "sensor.toml", "--method", "vgicp", "--scheduler", "tcp://127.0.0.1:1",
                        "--workers", "2", "--out", tmp_path / "x")
     assert code == 1 and "not both" in err and "Traceback" not in err
+
+
+def test_boresight_on_a_local_cluster_equals_in_process_and_reports_what_tasks_sent_back(tmp_path):
+    """Every file read (footprints, kept points), pair match and overlap-quality read is a task on
+    the cluster; the solution and quality stages equal the in-process run's to 1e-9."""
+    from calidar.pipelines.boresight import BoresightOptions, run_boresight
+
+    sim = _simulate("uav", "cross", 0.05).write(tmp_path / "sim")
+    strips = sorted((sim / "strips").glob("*.laz"))
+    runs = {w: run_boresight(strips, sim / "sbet.out", sim / "sensor.toml", tmp_path / f"cal{w}",
+                             BoresightOptions(workers=w, trajectory_sigma="0.02,0.002", trajectory_block_s=2.0))
+            for w in (None, 2)}
+    here, there = (r.results["planes"].solution for r in runs.values())
+    assert here.values.keys() == there.values.keys()
+    assert max(abs(here.values[k] - there.values[k]) for k in here.values) < 1e-9
+    for st_here, st_there in zip(runs[None].quality["planes"], runs[2].quality["planes"]):
+        assert [(q.a, q.b, q.n_cells) for q in st_here.pairs] == [(q.a, q.b, q.n_cells) for q in st_there.pairs]
+        assert max(abs(a.median_dz_m - b.median_dz_m) for a, b in zip(st_here.pairs, st_there.pairs) if a.n_cells) < 1e-9
+    sent = json.loads((tmp_path / "cal2" / "solution.json").read_text())["run"]["dask_tasks"]
+    files = len(strips)
+    assert {k: v["tasks"] for k, v in sent.items()} == {
+        "read footprints": files, "read kept points": files, "match pair": sent["match pair"]["tasks"],
+        "overlap quality": files * (1 + (sent["overlap quality"]["tasks"] > files))}
+    assert sent["match pair"]["tasks"] >= 3 and all(v["max_bytes_per_task"] < 20e6 for v in sent.values())
+    assert "dask_tasks" not in json.loads((tmp_path / "calNone" / "solution.json").read_text())["run"]

@@ -83,6 +83,10 @@ def boresight(
     for m, result in run.results.items():
         print_verdict(run.verdicts[m], None if len(run.results) == 1 else m)
         _print(result, run.inputs.truth)
+    if run.record.tasks:  # on Dask: what came back over the network
+        console.print("Dask tasks — " + "; ".join(
+            f"{k}: {d['tasks']} sent back {d['bytes_sent_back'] / 1e6:.3g} MB (largest {d['max_bytes_per_task'] / 1e6:.3g} MB)"
+            for k, d in run.record.tasks.items()), markup=False)
     names = sorted({p.name for p in run.written if p.parent == Path(tmp)})
     console.print(f"wrote {out}/: {', '.join(names)}" + (" and the recalibrated strips" if write_strips else ""), markup=False)
 

@@ -177,8 +177,9 @@ def resolve_accuracy(trajectory_path: Path, trajectory, options: BoresightOption
 
 
 def load_inputs(strip_paths, trajectory_path, sensor_path, options: BoresightOptions = BoresightOptions(),
-                progress: Progress = no_progress) -> BoresightInputs:
-    """Read and check every input (the trajectory's accuracy must cover every strip)."""
+                progress: Progress = no_progress, work=None) -> BoresightInputs:
+    """Read and check every input (the trajectory's accuracy must cover every strip); ``work``: where
+    the files are read (a :class:`calidar.strips.distribute.Workers`; None: one at a time here)."""
     from calidar.pipelines.inputs import load_trajectory
     from calidar.pipelines.strip_ingest import ingest_strips
     from calidar.sensor import Sensor
@@ -201,7 +202,8 @@ def load_inputs(strip_paths, trajectory_path, sensor_path, options: BoresightOpt
         notes.append("trajectory model off (--trajectory-model off): the trajectory is taken as exact, so the "
                      "σ miss its errors (ordinary GNSS/INS noise made them 2× too small on simulated surveys)")
     progress("reading strips", 0, 1)
-    strips, crs, source, unpaired = ingest_strips(list(strip_paths), traj, nominal, options.ingest_options(), progress)
+    strips, crs, source, unpaired = ingest_strips(list(strip_paths), traj, nominal, options.ingest_options(), progress,
+                                                  work)
     inputs = BoresightInputs([Path(p) for p in strip_paths], trajectory_path, sensor_path, nominal, traj, strips, crs,
                              source, accuracy, accuracy_path, notes + unpaired, options=options)
     if accuracy is not None:
@@ -215,9 +217,12 @@ def load_inputs(strip_paths, trajectory_path, sensor_path, options: BoresightOpt
 
 
 def calibrate_inputs(inputs: BoresightInputs, options: BoresightOptions = BoresightOptions(),
-                     progress: Progress = no_progress) -> dict:
-    """One :class:`calidar.strips.calibrate.CalibrationResult` per method, by method name."""
-    from calidar.strips.calibrate import StripSettings, calibrate
+                     progress: Progress = no_progress, work=None) -> dict:
+    """One :class:`calidar.strips.calibrate.CalibrationResult` per method, by method name; the
+    pairs matched by ``work`` (a :class:`calidar.strips.distribute.Workers`; None: a cluster of
+    ``options.scheduler``/``workers`` for this call, or this process)."""
+    from calidar.strips.calibrate import StripSettings, calibrate_with_client
+    from calidar.strips.distribute import workers_for
     from calidar.strips.parameters import parse_estimate
 
     groups = parse_estimate(options.estimate)
@@ -226,11 +231,14 @@ def calibrate_inputs(inputs: BoresightInputs, options: BoresightOptions = Boresi
         model = trajectory_model(None, options.trajectory_block_s, options.trajectory_correlation, inputs.accuracy)
         settings = replace(settings, trajectory=model)
         groups = groups if "trajectory_bias" in groups else [*groups, "trajectory_bias"]
+    if work is None:
+        with workers_for(options.scheduler, options.workers) as work:
+            return calibrate_inputs(inputs, options, progress, work)
     results = {}
     for m in options.methods:
-        results[m] = calibrate(inputs.strips, inputs.nominal, method=m, estimate=groups, settings=settings,
-                               scheduler=options.scheduler, workers=options.workers,
-                               progress=lambda text, done, total, m=m: progress(f"calibrating ({m})", done, total))
+        results[m] = calibrate_with_client(
+            inputs.strips, inputs.nominal, method=m, estimate=groups, settings=settings, client=work.client, log=work.log,
+            progress=lambda text, done, total, m=m: progress(f"calibrating ({m})", done, total))
         results[m].solution.warnings[:0] = inputs.notes
     return results
 
@@ -270,23 +278,29 @@ def run_boresight(strip_paths, trajectory_path, sensor_path, out_dir: Path, opti
     >>> sorted(p.name for p in run.written)
     ['report.html', 'sbet_corrected.out', 'sensor.toml', 'solution.json']
     """
+    from calidar.pipelines import release_memory
     from calidar.pipelines.boresight_outputs import corrected_trajectory, map_pair, quality_stages, write_outputs
     from calidar.provenance import RunRecord
     from calidar.report import Report
+    from calidar.strips.distribute import workers_for
     from calidar.strips.report import add_comparison_section, add_report_section
     from calidar.strips.verdict import strip_verdict
 
-    inputs = load_inputs(strip_paths, trajectory_path, sensor_path, options, progress)
-    record = RunRecord.capture(argv, inputs=[*inputs.paths, options.truth], options=options.to_dict())
-    results = calibrate_inputs(inputs, options, progress)
+    with workers_for(options.scheduler, options.workers) as work:  # one cluster (or thread pool) for every stage
+        inputs = load_inputs(strip_paths, trajectory_path, sensor_path, options, progress, work)
+        record = RunRecord.capture(argv, inputs=[*inputs.paths, options.truth], options=options.to_dict())
+        release_memory()
+        results = calibrate_inputs(inputs, options, progress, work)
+        release_memory()  # the solver's arrays (0.5 GiB at 8.75 M points) back to the system before the quality
+        corrected = {m: corrected_trajectory(inputs, r) for m, r in results.items()}
+        quality = {m: quality_stages(inputs, r, corrected[m], shown_out or out_dir, "" if len(results) == 1 else f"_{m}",
+                                     progress, work) for m, r in results.items()}
+    record.tasks = work.log.to_dict()
     out_dir = Path(out_dir)
     own = report is None
     report = Report("calidar boresight") if own else report
-    quality, verdicts, corrected, written = {}, {}, {}, []
+    verdicts, written = {}, []
     for m, result in results.items():
-        tag = "" if len(results) == 1 else f"_{m}"  # several methods: one set of outputs each
-        corrected[m] = corrected_trajectory(inputs, result)
-        quality[m] = quality_stages(inputs, result, corrected[m], shown_out or out_dir, tag, progress)
         verdicts[m] = strip_verdict(result, quality[m], inputs.notes)
         label = m if len(results) > 1 else None
         report.add_verdict(verdicts[m], " ".join(x for x in (verdict_title, label) if x) or None)

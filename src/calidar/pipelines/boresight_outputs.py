@@ -1,9 +1,9 @@
 """The deliverables of a strip calibration, made so that they reproduce the report.
 
 The overlap quality is measured on the WHOLE strips (streamed again from the files,
-:func:`line_chunks`) re-georeferenced in the files' CRS with exactly the code ``calidar quality``
-runs (:func:`calidar.pipelines.quality.lines_quality_streamed`: the same point selection and swath
-accumulator), three times: as delivered, with the new mounting
+:func:`calidar.pipelines.strip_ingest.line_chunks`) re-georeferenced in the files' CRS with the
+plan, point selection and swath accumulator ``calidar quality`` uses
+(:mod:`calidar.pipelines.line_quality`), three times: as delivered, with the new mounting
 alone (``calidar regeoref --to sensor.toml``), and with the new mounting and the corrected
 trajectory (``--to-trajectory sbet_corrected.out``). Each stage names the commands that
 reproduce it from the written files.
@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import json
 import shlex
-from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -32,58 +31,52 @@ def corrected_trajectory(inputs, result):
     return apply(inputs.trajectory, result.corrections, inputs.spans, frame)
 
 
-def line_chunks(inputs, models=(None,), fields=None, where=None):
-    """Per chunk of the input files and flight line, (line id, [LasPoints per model]): for each of
-    ``models`` the delivered points (None) or those re-georeferenced with a (sensor, trajectory)
-    (inverse once with the nominal sensor and the input trajectory, forward with each, as
-    :func:`calidar.georef.regeoreference`), in the files' CRS (:func:`calidar.georef.to_crs_moved`,
-    within 0.1 mm of the full transform), ``fields`` (default: all) as read;
-    ``where(chunk)``: a mask of the points wanted. Whole lines, chunk by chunk, in one read of
-    the files (bounded memory)."""
-    from calidar import georef
-    from calidar.io.las import OPTIONAL_FIELDS
-    from calidar.pipelines.inputs import points_ecef
-    from calidar.pipelines.strip_ingest import split_rows
+def measure_lines(inputs, models, progress: Progress = no_progress, work=None) -> list[list]:
+    """Per model of :func:`calidar.pipelines.strip_ingest.line_chunks`, the
+    :class:`calidar.strips.quality.PairQuality` of every overlapping pair of flight lines, by
+    :func:`calidar.pipelines.line_quality.lines_quality` on the plan of the ingest's counts: one
+    read of the files (two when a stage's own plan differs), each file a task run by ``work``
+    (a :class:`calidar.strips.distribute.Workers`; None: one at a time here); memory holds cells,
+    not points."""
+    import tempfile
 
-    for _, chunk, ids, t in inputs.source.chunks(OPTIONAL_FIELDS if fields is None else fields):
-        if where is not None:
-            keep = where(chunk)
-            chunk, ids, t = chunk.select(keep), ids[keep], t[keep]
-        ecef = None if all(m is None for m in models) else points_ecef(chunk)
-        obs = None if ecef is None else georef.inverse(inputs.trajectory, inputs.nominal, t, ecef)
-        versions = [chunk if m is None else replace(chunk, xyz=georef.to_crs_moved(
-            georef.forward(m[1], m[0], obs.time, obs.range_m, obs.angles), ecef, chunk.xyz, chunk.crs,
-            chunk.geoid_undulation_m, source=chunk.path)) for m in models]
-        for i, rows in split_rows(ids):
-            yield i, [v.select(rows) for v in versions]
+    from calidar.io.las import las_file_crs, las_header
+    from calidar.pipelines import release_memory
+    from calidar.pipelines.line_quality import StagePass, lines_quality
+    from calidar.pipelines.quality import Metric
+    from calidar.strips.distribute import Workers
+
+    source = inputs.source
+    f = source.files[0]
+    crs = las_file_crs(f.path, f.points.crs)
+    metric = Metric(crs, source.frame if crs is not None and crs.is_geographic else None, f.points.geoid_undulation_m,
+                    f.path)  # the ingest's grid: its counts make the plan
+    sizes = [las_header(f.path).point_count for f in source.files]
+
+    def read(plans, chosen, count):
+        out, done = StagePass.start(plans, None, count, spill), 0
+        shared = (source, inputs.nominal, models, metric, plans, chosen, count)
+        tasks = [(k,) for k in range(len(source.files))]
+        for k, part in enumerate((work or Workers()).run(_file_stages, tasks, shared, kind="overlap quality")):
+            out.merge(part)
+            del part
+            release_memory()  # each file's working arrays
+            done += sizes[k]
+            progress("overlap quality: reading strips", done, sum(sizes))
+        return out
+
+    with tempfile.TemporaryDirectory(prefix="calidar-moments-") as spill:  # cell moments beyond HOLD_BYTES
+        return lines_quality(read, source.quality, len(models), source.names)
 
 
-def measure_lines(inputs, models, progress: Progress = no_progress) -> list[list]:
-    """Per model of :func:`line_chunks`, the :class:`calidar.strips.quality.PairQuality` of every
-    overlapping pair of flight lines, by :func:`calidar.pipelines.quality.lines_quality_streamed`
-    (two streamed reads of the files, each line's point selection from the classes it holds):
-    memory holds cells, not points."""
-    from calidar.io.las import las_file_crs
-    from calidar.pipelines.quality import Metric, lines_quality_streamed
-    from calidar.pipelines.strip_ingest import bounds
+def _file_stages(source, nominal, models, metric, plans, chosen, count, k: int):
+    """:func:`calidar.pipelines.line_quality.stage_pass` of the ``k``-th file's lines (a task)."""
+    from calidar.pipelines.line_quality import stage_pass
+    from calidar.pipelines.strip_ingest import line_chunks
     from calidar.strips.selection import FIELDS, candidate_mask
 
-    files, total = inputs.source.files, 2 * sum(inputs.source.counts.values())
-    lo, hi = bounds(files)
-    metric = Metric.at(las_file_crs(files[0].path, files[0].points.crs), lo, hi, files[0].points.geoid_undulation_m,
-                       files[0].path)
-    done = [0]
-
-    def chunks():
-        for i, versions in line_chunks(inputs, models, FIELDS, candidate_mask):
-            done[0] += len(versions[0])
-            progress("overlap quality: reading strips", done[0], total)
-            yield i, versions
-
-    names = {i: Path(s.source.split(", ")[0]).name for s in inputs.strips for i in [s.id]}
-    out = lines_quality_streamed(chunks, metric, names)
-    progress("overlap quality: reading strips", total, total)  # (the points not fit for it were not counted)
-    return out
+    chunks = line_chunks(source, nominal, models, FIELDS, candidate_mask, files=[source.files[k]])
+    return stage_pass(chunks, metric, plans, chosen, count=count)
 
 
 def _files(paths) -> str:
@@ -112,7 +105,8 @@ def stage_commands(inputs, shown_out: Path, tag: str, with_trajectory: bool) -> 
             f"{regeo}{traj} --out CORRECTED && calidar quality CORRECTED/*")
 
 
-def quality_stages(inputs, result, corrected, shown_out: Path, tag: str = "", progress: Progress = no_progress) -> list:
+def quality_stages(inputs, result, corrected, shown_out: Path, tag: str = "", progress: Progress = no_progress,
+                   work=None) -> list:
     """Overlap quality as delivered, with the new mounting, and (when trajectory corrections were
     estimated) with the new mounting and the corrected trajectory: calidar.strips.report.QualityStage s."""
     from calidar.strips.report import QualityStage
@@ -124,7 +118,7 @@ def quality_stages(inputs, result, corrected, shown_out: Path, tag: str = "", pr
         labels.append(("new mounting + trajectory corrections", both))
         models.append((result.sensor, corrected))
     progress("overlap quality", 0, 1)
-    measured = measure_lines(inputs, models, progress)  # one read of the files for every stage
+    measured = measure_lines(inputs, models, progress, work)  # one read of the files for every stage
     progress("overlap quality", 1, 1)
     return [QualityStage(label, command, pairs) for (label, command), pairs in zip(labels, measured)]
 
@@ -153,13 +147,13 @@ def write_strips(inputs, sensor, trajectory, out_dir: Path) -> list[Path]:
     from contextlib import ExitStack
 
     from calidar.io.las import LasChunkWriter
-    from calidar.pipelines.strip_ingest import bounds
+    from calidar.pipelines.strip_ingest import bounds, line_chunks
 
     out_dir.mkdir(parents=True, exist_ok=True)
     offsets = np.floor(bounds(inputs.source.files)[0])
     writers = {}
     with ExitStack() as stack:
-        for sid, (las,) in line_chunks(inputs, [(sensor, trajectory)]):
+        for sid, (las,) in line_chunks(inputs.source, inputs.nominal, [(sensor, trajectory)]):
             if sid not in writers:
                 crs = las.crs if las.crs is not None else inputs.crs
                 writers[sid] = stack.enter_context(LasChunkWriter(out_dir / f"strip_{sid}.laz", crs, offsets,

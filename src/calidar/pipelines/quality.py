@@ -9,12 +9,12 @@ candidate selection on the 5 m overlap grid (:class:`CellCounts`): which lines o
 cell of each pair (:func:`calidar.strips.quality.overlap_plan`). The second feeds the selected
 points of each chunk to a :class:`calidar.strips.quality.SwathAccumulator` that keeps moments
 on those cells only; memory holds cells, not points. The boresight pipeline feeds its
-(re-georeferenced) lines, read twice the same way, to the same accumulator
-(:func:`lines_quality_streamed`).
+(re-georeferenced) lines to the same plan and accumulator (:mod:`calidar.pipelines.line_quality`).
 """
 
 from __future__ import annotations
 
+import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -126,56 +126,22 @@ def measure(paths, cell_m=None, classes=None, options: PointOptions = PointOptio
     selections = {p: choose_selection(p, index.classes[p], classes) for p in paths}
     settings = QualitySettings(cell_m=cell_m)
     names = counts.names(index)  #: line → a file holding it (for messages)
-    acc = SwathAccumulator(cell_m, overlap_plan(counts.by_line(index, selections), counts.grid_m, settings, names))
-    for p in paths:
-        for chunk in iter_las_chunks(p, chunk_points, fields=FIELDS, options=options):
-            chunk = chunk.select(selections[p].mask(chunk))
-            ids, xyz = index.of(chunk.point_source_id, chunk.gps_time), metric.of(chunk.xyz)
-            for i in np.unique(ids):
-                acc.add(int(i), xyz[ids == i], selections[p])
-    for i in index.ids:  # lines without a selected point: named in the notes
-        acc.add(i, np.zeros((0, 3)))
-    results, notes = _differences(acc, settings, names)
+    plan = overlap_plan(counts.by_line(index, selections), counts.grid_m, settings, names)
+    with tempfile.TemporaryDirectory(prefix="calidar-moments-") as spill:  # cell moments beyond HOLD_BYTES
+        acc = SwathAccumulator(cell_m, plan, Path(spill))
+        for p in paths:
+            for chunk in iter_las_chunks(p, chunk_points, fields=FIELDS, options=options):
+                chunk = chunk.select(selections[p].mask(chunk))
+                ids, xyz = index.of(chunk.point_source_id, chunk.gps_time), metric.of(chunk.xyz)
+                for i in np.unique(ids):
+                    acc.add(int(i), xyz[ids == i], selections[p])
+        for i in index.ids:  # lines without a selected point: named in the notes
+            acc.add(i, np.zeros((0, 3)))
+        results, notes = checked_differences(acc, settings, names)
     return index, crs, results, notes, selections
 
 
-def lines_quality_streamed(chunks, metric: Metric, names: dict[int, str] | None = None, cell_m=None) -> list[list]:
-    """Per stage, the PairQuality of every overlapping pair of flight lines streamed as
-    ``chunks()`` — a fresh iterator at each call of (line id, [LasPoints per stage]) — read twice,
-    as ``calidar quality`` reads its files: counts of the points each default rule keeps on the
-    overlap grid (the plan, with the selection per line from the classes it holds), then cell
-    moments on the plan's cells only. Memory holds cells, not points."""
-    from calidar.strips.overlap import cell_keys
-    from calidar.strips.quality import QualitySettings, SwathAccumulator, overlap_cell, overlap_plan
-    from calidar.strips.selection import GROUND, PointSelection
-
-    settings, grid, names = QualitySettings(cell_m=cell_m), overlap_cell(cell_m), names or {}
-    rules = (PointSelection("ground", (GROUND,)), PointSelection("last returns"))
-    counts: list[dict] = []  #: per stage: (line, rule) → (cell keys, counts)
-    present: dict[int, set] = {}  #: line → LAS classes seen
-    for i, versions in chunks():
-        counts = counts or [{} for _ in versions]
-        if versions[0].classification is not None:
-            present.setdefault(i, set()).update(np.unique(versions[0].classification).tolist())
-        for k, v in enumerate(versions):
-            keys = cell_keys(metric.of(v.xyz), grid)
-            for rule in rules:
-                kn = np.unique(keys[rule.mask(v)], return_counts=True)
-                counts[k][i, rule] = merge_counts(counts[k][i, rule], kn) if (i, rule) in counts[k] else kn
-    lines = sorted({i for c in counts for i, _ in c})
-    chosen = {i: choose_selection(names.get(i), np.array(sorted(present[i])) if i in present else None) for i in lines}
-    accs = [SwathAccumulator(cell_m, overlap_plan({i: c[i, chosen[i]] for i in lines if (i, chosen[i]) in c}, grid,
-                                                  settings, names)) for c in counts]
-    for i, versions in chunks():
-        for acc, v in zip(accs, versions):
-            acc.add(i, metric.of(v.xyz)[chosen[i].mask(v)], chosen[i])
-    for acc in accs:
-        for i in lines:  # lines without a selected point: named in the notes
-            acc.add(i, np.zeros((0, 3)))
-    return [_differences(acc, settings, names)[0] for acc in accs]
-
-
-def _differences(acc, settings, names: dict[int, str]):
+def checked_differences(acc, settings, names: dict[int, str]):
     """The accumulator's pairs and notes; an error when no line overlaps another (lines named by
     ``names`` {id: file name})."""
     from calidar.strips.overlap import strip_name

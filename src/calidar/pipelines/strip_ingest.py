@@ -22,9 +22,10 @@ trajectory's system.
 
 from __future__ import annotations
 
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 
@@ -32,8 +33,11 @@ from calidar.errors import CalibrationError, InputError
 from calidar.io.las import PointOptions, iter_las_chunks, las_file_crs, las_header, las_time_system
 from calidar.pipelines import Progress, no_progress
 from calidar.pipelines.inputs import FileTimes, points_ecef
+from calidar.pipelines.line_quality import LineCounts
 from calidar.strips.lines import GAP_S
 from calidar.strips.overlap import cell_counts, cell_keys, common_cells, merge_counts, strip_name, unpaired_notes
+from calidar.strips.quality import overlap_cell
+from calidar.strips.selection import FIELDS as SELECTION_FIELDS
 from calidar.strips.strip import LocalFrame, Strip
 from calidar.strips.thin import thin_cells
 
@@ -48,7 +52,7 @@ MAX_BLOCK_CELLS = 20
 
 #: points read at once: with the overlap-quality stages' copies (a chunk re-georeferenced per stage)
 #: this, not the files, sets the streaming memory (8.75 M points: 2 M → 2.1 GiB peak, 0.5 M → 1.3 GiB)
-CHUNK_POINTS = 500_000
+CHUNK_POINTS = 250_000
 
 
 @dataclass(frozen=True)
@@ -93,11 +97,13 @@ class StripSource:
     options: IngestOptions
     weeks: dict = field(default_factory=dict)  #: path → GPS week of the time conversion (None: none)
     counts: dict = field(default_factory=dict)  #: line id → points in the files
+    quality: LineCounts | None = None  #: the lines' overlap-quality counts as delivered (the first pass's)
+    names: dict = field(default_factory=dict)  #: line id → the name of a file holding it
 
-    def chunks(self, fields: Sequence[str] = ()) -> Iterator[tuple]:
+    def chunks(self, fields: Sequence[str] = (), files: Sequence[StripFile] | None = None) -> Iterator[tuple]:
         """(file, LasPoints chunk, line id per point, GPS time in the trajectory's system (s)) of
-        every chunk of every file."""
-        for f in self.files:
+        every chunk of every file (or of ``files``)."""
+        for f in self.files if files is None else files:
             fields_ = tuple(dict.fromkeys(("point_source_id", *fields)))
             times = FileTimes(f.path, self.trajectory, f.time_system)
             for chunk in iter_las_chunks(f.path, self.options.chunk_points, fields=fields_, options=f.points):
@@ -111,6 +117,31 @@ class StripSource:
     def cell_keys(self, chunk) -> np.ndarray:
         """The overlap-grid cell of each point of a chunk (:func:`planar_xy`)."""
         return cell_keys(planar_xy(chunk, self.frame), self.options.cell_m)
+
+
+def line_chunks(source: StripSource, nominal, models=(None,), fields=None, where=None,
+                files: Sequence[StripFile] | None = None) -> Iterator[tuple[int, list]]:
+    """Per chunk of the files (or of ``files``) and flight line, (line id, [LasPoints per model]):
+    for each of ``models`` the delivered points (None) or those re-georeferenced with a (sensor,
+    trajectory) (inverse once with the ``nominal`` sensor and the source's trajectory, forward
+    with each, as :func:`calidar.georef.regeoreference`), in the files' CRS
+    (:func:`calidar.georef.to_crs_moved`, within 0.1 mm of the full transform), ``fields``
+    (default: all) as read; ``where(chunk)``: a mask of the points wanted. Whole lines, chunk by
+    chunk (bounded memory)."""
+    from calidar import georef
+    from calidar.io.las import OPTIONAL_FIELDS
+
+    for _, chunk, ids, t in source.chunks(OPTIONAL_FIELDS if fields is None else fields, files):
+        if where is not None:
+            keep = where(chunk)
+            chunk, ids, t = chunk.select(keep), ids[keep], t[keep]
+        ecef = None if all(m is None for m in models) else points_ecef(chunk)
+        obs = None if ecef is None else georef.inverse(source.trajectory, nominal, t, ecef)
+        versions = [chunk if m is None else replace(chunk, xyz=georef.to_crs_moved(
+            georef.forward(m[1], m[0], obs.time, obs.range_m, obs.angles), ecef, chunk.xyz, chunk.crs,
+            chunk.geoid_undulation_m, source=chunk.path)) for m in models]
+        for i, rows in split_rows(ids):
+            yield i, [v.select(rows) for v in versions]
 
 
 def planar_xy(chunk, frame: LocalFrame) -> np.ndarray:
@@ -176,19 +207,35 @@ def _frame(files: list[StripFile]) -> LocalFrame:
 
 @dataclass
 class _Footprints:
-    """Pass 1's accumulators per group: cell counts, time range (trajectory's system)."""
+    """Pass 1's accumulators per group: cell counts, time range (trajectory's system), the
+    overlap-quality counts (:class:`calidar.pipelines.line_quality.LineCounts`)."""
 
     cells: dict = field(default_factory=dict)
     t_min: dict = field(default_factory=dict)
     t_max: dict = field(default_factory=dict)
     files: dict = field(default_factory=dict)  #: group → the name of the (first) file holding it
+    quality: LineCounts = field(default_factory=lambda: LineCounts(overlap_cell(None)))
 
-    def add(self, groups: np.ndarray, keys: np.ndarray, t: np.ndarray, name: str = "") -> None:
+    def add(self, groups: np.ndarray, keys: np.ndarray, t: np.ndarray, name: str, chunk, quality_keys) -> None:
+        """A chunk's points (LasPoints with the selection fields) of ``groups`` in overlap cells
+        ``keys`` and quality-grid cells ``quality_keys``, at times ``t``."""
         for g, rows in split_rows(groups):
             self.files.setdefault(g, name)
             self.cells.setdefault(g, []).append(cell_counts(keys[rows]))
             self.t_min[g] = min(self.t_min.get(g, np.inf), float(t[rows].min()))
             self.t_max[g] = max(self.t_max.get(g, -np.inf), float(t[rows].max()))
+            fields = {f: None if getattr(chunk, f) is None else getattr(chunk, f)[rows] for f in SELECTION_FIELDS}
+            self.quality.add(g, SimpleNamespace(xyz=quality_keys[rows], **fields), quality_keys[rows])
+
+    def merge(self, other: "_Footprints") -> "_Footprints":
+        """Both files' groups (a group may span files)."""
+        for g, cells in other.cells.items():
+            self.files.setdefault(g, other.files[g])
+            self.cells.setdefault(g, []).extend(cells)
+            self.t_min[g] = min(self.t_min.get(g, np.inf), other.t_min[g])
+            self.t_max[g] = max(self.t_max.get(g, -np.inf), other.t_max[g])
+        self.quality.merge(other.quality)
+        return self
 
     def lines(self, gap_s: float) -> tuple[np.ndarray, np.ndarray, str]:
         """(sorted groups, line id of each, how): lines by point_source_id when it holds two
@@ -207,20 +254,35 @@ class _Footprints:
         return groups, line, "gps_time_gaps"
 
 
-def _pass1(files: list[StripFile], frame: LocalFrame, trajectory, options: IngestOptions,
-           progress: Progress) -> tuple[_Footprints, dict]:
-    """Footprints and time checks of every file, chunk by chunk; the GPS week of each file."""
+def _footprints(frame: LocalFrame, trajectory, options: IngestOptions, f: StripFile) -> tuple[_Footprints, int | None]:
+    """Footprints and time checks of one file, chunk by chunk, and its GPS week (a task)."""
+    acc, times, grid = _Footprints(), FileTimes(f.path, trajectory, f.time_system), overlap_cell(None)
+    for chunk in iter_las_chunks(f.path, options.chunk_points, fields=("point_source_id", *SELECTION_FIELDS),
+                                 options=f.points):
+        t = times.feed(chunk.gps_time)
+        ok = np.isfinite(t)
+        chunk = chunk if ok.all() else chunk.select(ok)
+        xy = planar_xy(chunk, frame)
+        keys = cell_keys(xy, options.cell_m)
+        acc.add(_group_keys(chunk.point_source_id, t[ok], options.gap_s), keys, t[ok], f.path.name, chunk,
+                keys if grid == options.cell_m else cell_keys(xy, grid))
+    return acc, times.finish(name_trajectory=True)  # the trajectory's span is what falls short
+
+
+def _pass1(files: list[StripFile], frame: LocalFrame, trajectory, options: IngestOptions, progress: Progress,
+           run: Callable | None = None) -> tuple[_Footprints, dict]:
+    """Footprints and time checks of every file (one task each, run by ``run``: a
+    :meth:`calidar.strips.distribute.Workers.run`; None: one at a time here); the GPS week of each file."""
+    from calidar.strips.distribute import Workers
+
+    run = run or Workers().run
     acc, weeks, done, total = _Footprints(), {}, 0, 2 * sum(las_header(f.path).point_count for f in files)
-    for f in files:
-        times = FileTimes(f.path, trajectory, f.time_system)
-        for chunk in iter_las_chunks(f.path, options.chunk_points, fields=("point_source_id",), options=f.points):
-            t = times.feed(chunk.gps_time)
-            ok = np.isfinite(t)
-            keys = cell_keys(planar_xy(chunk, frame), options.cell_m)
-            acc.add(_group_keys(chunk.point_source_id, t, options.gap_s)[ok], keys[ok], t[ok], f.path.name)
-            done += len(chunk)
-            progress("reading strips", done, total)  # points, both passes
-        weeks[f.path] = times.finish(name_trajectory=True)  # the trajectory's span is what falls short
+    parts = run(_footprints, [(f,) for f in files], shared=(frame, trajectory, options), kind="read footprints")
+    for f, (part, week) in zip(files, parts):
+        acc.merge(part)
+        weeks[f.path] = week
+        done += las_header(f.path).point_count
+        progress("reading strips", done, total)  # points, both passes
     return acc, weeks
 
 
@@ -248,25 +310,10 @@ def block_cells(footprint: dict, options: IngestOptions) -> int:
     return int(np.clip(np.ceil(BLOCK_PATCHES * patch_m / options.cell_m), 1, MAX_BLOCK_CELLS))
 
 
-def ingest_strips(paths, trajectory, sensor, options: IngestOptions = IngestOptions(),
-                  progress: Progress = no_progress) -> tuple[list[Strip], object, StripSource, list[str]]:
-    """The strips of the LAS/LAZ files (only their kept overlap points), the CRS, the
-    :class:`StripSource` to stream the whole lines again, and notes for the user."""
-    if not paths:
-        raise InputError(None, "STRIPS", "expected at least one LAS/LAZ file")
-    files = _files(paths, trajectory, sensor, options)
-    frame = _frame(files)
-    acc, weeks = _pass1(files, frame, trajectory, options, progress)
-    groups, line, how, footprint, span, pairs, kept = _plan(acc, options)
-    names = {int(i): acc.files[int(groups[line == i][0])] for i in footprint}
-    if not pairs:
-        listed = ", ".join(strip_name(i, names) for i in sorted(footprint))
-        raise CalibrationError(f"no two of the {len(footprint)} flight lines ({listed}) overlap (no {options.min_cells} "
-                               f"common {options.cell_m:g} m cells); strip calibration needs overlapping flight lines")
-    source = StripSource(files, frame, trajectory, groups, line, how, options, weeks,
-                         {i: int(n.sum()) for i, (_, n) in footprint.items()})
-    ecef, times, where, done = {}, {}, {}, sum(source.counts.values())
-    for f, chunk, ids, t in source.chunks():
+def _kept_points(source: StripSource, kept: dict, f: StripFile) -> dict[int, tuple[np.ndarray, np.ndarray]]:
+    """The points of one file inside its lines' kept cells: line → (ECEF (n, 3) m, times s) (a task)."""
+    ecef, times = {}, {}
+    for _, chunk, ids, t in source.chunks(files=[f]):
         keys = source.cell_keys(chunk)
         for i, rows in split_rows(ids):
             cells = kept.get(i)
@@ -276,9 +323,43 @@ def ingest_strips(paths, trajectory, sensor, options: IngestOptions = IngestOpti
             sel = rows[cells[pos] == keys[rows]]
             ecef.setdefault(i, []).append(points_ecef(chunk.select(sel)))
             times.setdefault(i, []).append(t[sel])
+    return {i: (np.concatenate(ecef[i]), np.concatenate(times[i])) for i in ecef}
+
+
+def ingest_strips(paths, trajectory, sensor, options: IngestOptions = IngestOptions(), progress: Progress = no_progress,
+                  work=None) -> tuple[list[Strip], object, StripSource, list[str]]:
+    """The strips of the LAS/LAZ files (only their kept overlap points), the CRS, the
+    :class:`StripSource` to stream the whole lines again, and notes for the user. Each file is
+    read as one task per pass, run by ``work`` (a :class:`calidar.strips.distribute.Workers`;
+    None: one at a time here)."""
+    from calidar.strips.distribute import Workers
+
+    if not paths:
+        raise InputError(None, "STRIPS", "expected at least one LAS/LAZ file")
+    run = (work or Workers()).run
+    files = _files(paths, trajectory, sensor, options)
+    frame = _frame(files)
+    acc, weeks = _pass1(files, frame, trajectory, options, progress, run)
+    groups, line, how, footprint, span, pairs, kept = _plan(acc, options)
+    names = {int(i): acc.files[int(groups[line == i][0])] for i in footprint}
+    if not pairs:
+        listed = ", ".join(strip_name(i, names) for i in sorted(footprint))
+        raise CalibrationError(f"no two of the {len(footprint)} flight lines ({listed}) overlap (no {options.min_cells} "
+                               f"common {options.cell_m:g} m cells); strip calibration needs overlapping flight lines")
+    line_of = dict(zip(groups.tolist(), line.tolist()))
+    source = StripSource(files, frame, trajectory, groups, line, how, options, weeks,
+                         {i: int(n.sum()) for i, (_, n) in footprint.items()},
+                         LineCounts(acc.quality.grid_m).merge(acc.quality, line_of.__getitem__), names)
+    ecef, times, where = {}, {}, {}
+    total = 2 * sum(las_header(f.path).point_count for f in files)
+    done = total // 2
+    for f, part in zip(files, run(_kept_points, [(f,) for f in files], shared=(source, kept), kind="read kept points")):
+        for i, (e, t) in part.items():
+            ecef.setdefault(i, []).append(e)
+            times.setdefault(i, []).append(t)
             where.setdefault(i, {})[str(f.path)] = None
-        done += len(chunk)
-        progress("reading strips", done, 2 * sum(source.counts.values()))
+        done += las_header(f.path).point_count
+        progress("reading strips", done, total)
     strips = [Strip.from_ecef(i, np.concatenate(ecef[i]), np.concatenate(times[i]), trajectory, sensor, frame,
                               ", ".join(where[i]), span=span[i]) for i in sorted(ecef)]
     notes = unpaired_notes(footprint, pairs, options.cell_m, options.min_cells, names)

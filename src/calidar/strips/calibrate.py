@@ -81,7 +81,6 @@ class CalibrationResult:
     residuals_after: np.ndarray  #: last correspondences at the calibrated sensor, m
     outer: list[dict]  #: per outer iteration: mean distance, observations, values (SI)
     corrections: dict[int, StripCorrection]  #: estimated trajectory corrections per strip
-    poses: dict[int, Pose] = field(default_factory=dict, repr=False)  #: cached poses of the overlap points
     trajectory_model: TrajectoryModel | None = None  #: the corrections' model (None: not estimated)
     row_sigma: np.ndarray | None = field(default=None, repr=False)  #: a-priori σ of residuals_after, m
 
@@ -98,13 +97,7 @@ class CalibrationResult:
         ``trajectory``, its trajectory correction."""
         if not calibrated:
             return strip.points if index is None else strip.points[index]
-        pose = None
-        if index is not None and strip.id in self.poses:
-            try:
-                pose = self.poses[strip.id].take(self.poses[strip.id].rows_of(np.asarray(index)))
-            except KeyError:
-                pose = None
-        pose = strip.pose(index) if pose is None else pose
+        pose = strip.pose(index)  # (the calibration's pose caches, 112 B a point, are not kept)
         fix = self.corrections.get(strip.id) if trajectory else None
         return georeference(self.sensor, fix, pose, strip.time[pose.index])
 
@@ -184,7 +177,7 @@ class _Run:
     def headings(self) -> dict[int, float]:
         return {i: st.heading_enu() for i, st in self.by_id.items()}
 
-    def match(self, values: dict[str, float], k: int, client, say) -> tuple[list[Correspondences], list[dict], dict]:
+    def match(self, values: dict[str, float], k: int, client, say, log=None) -> tuple[list[Correspondences], list[dict], dict]:
         """Re-georeference the overlap points with ``values`` and match every pair: the usable
         correspondence sets (whole-strip columns), their pairs, and the stage times (s)."""
         clock = time.perf_counter()
@@ -201,7 +194,7 @@ class _Run:
         tasks = [(match, o.a, subset(o.a, o.index_a), o.b, subset(o.b, o.index_b), match_settings) for o in self.overlaps]
         say(f"iteration {k + 1}: matching {len(tasks)} pairs ({self.method})", k, self.settings.max_outer)
         clock = time.perf_counter()
-        found = map_pairs(_match_or_error, tasks, client=client)
+        found = map_pairs(_match_or_error, tasks, client=client, log=log)
         times["match_s"] = time.perf_counter() - clock
         corrs, pairs, skipped = self._usable(found)
         if k == 0 and skipped:
@@ -245,11 +238,13 @@ def calibrate(strips: Sequence[Strip], nominal: Sensor, *, scheduler: str | None
 
 def calibrate_with_client(strips: Sequence[Strip], nominal: Sensor, *, method: str = "planes",
                           estimate: Sequence[str] = ("boresight",), settings: StripSettings | None = None,
-                          client=None, progress: Callable[[str, int, int], None] | None = None) -> CalibrationResult:
+                          client=None, progress: Callable[[str, int, int], None] | None = None,
+                          log=None) -> CalibrationResult:
     """Calibrate the sensor from overlapping strips (all in one :class:`LocalFrame`).
 
     ``estimate``: groups of :data:`ESTIMATE_GROUPS`; ``client``: an open Dask client for the
-    pair matching or None (see :func:`map_pairs`); ``progress(description, done, total)`` is
+    pair matching or None (see :func:`map_pairs`; ``log``: a TaskLog of what its tasks sent back);
+    ``progress(description, done, total)`` is
     told each outer iteration's stages. Raises :class:`CalibrationError` when no pair of
     strips overlaps with enough correspondences.
     """
@@ -264,7 +259,7 @@ def calibrate_with_client(strips: Sequence[Strip], nominal: Sensor, *, method: s
     outer: list[dict] = []
     first_residuals = solution = problem = pairs = None
     for k in range(s.max_outer):
-        corrs, pairs, times = run.match(params.values(), k, client, say)
+        corrs, pairs, times = run.match(params.values(), k, client, say, log)
         say(f"iteration {k + 1}: solving {sum(c.n_obs for c in corrs)} observations", k, s.max_outer)
         clock = time.perf_counter()
         solution, problem = run.solve(corrs, params)
@@ -304,4 +299,4 @@ def _result(run: _Run, solution: Solution, problem: StripProblem, pairs: list[di
     solution.extra["strips"] = {"method": run.method, "pairs": pairs, "outer_iterations": [
         {kk: v for kk, v in o.items() if kk != "values"} for o in outer]}
     return CalibrationResult(solution, sensor, run.nominal, list(strips), run.overlaps, run.method, pairs,
-                             first_residuals, solution.residuals, outer, fix, run.poses, run.model, problem.sigma)
+                             first_residuals, solution.residuals, outer, fix, run.model, problem.sigma)

@@ -66,15 +66,39 @@ class CellMoments:
         scatter = np.stack([np.bincount(inv, r[:, a] * r[:, b], uk.size) for a, b in PRODUCTS], axis=1)
         return cls(float(cell_m), uk, n, mean, scatter)
 
+    @classmethod
+    def combined(cls, parts: "list[CellMoments]", cell_m: float | None = None) -> "CellMoments":
+        """The moments of the points of all ``parts`` (same grid; none: empty on ``cell_m``)."""
+        if not parts:
+            return cls.empty(cell_m)
+        if len(parts) == 1:
+            return parts[0]
+        if len({p.cell_m for p in parts}) > 1:
+            raise ValueError(f"cannot merge moments on cells of {sorted({p.cell_m for p in parts})} m")
+        return _combine(parts[0].cell_m, *(np.concatenate([getattr(p, f) for p in parts])
+                                           for f in ("keys", "count", "mean", "scatter")))
+
+    @property
+    def nbytes(self) -> int:
+        return self.keys.nbytes + self.count.nbytes + self.mean.nbytes + self.scatter.nbytes
+
+    def save(self, path) -> None:
+        """To an .npy file of ``path`` (one record array, read back by :meth:`load`)."""
+        np.save(path, np.column_stack([self.keys.view(np.float64), self.count.view(np.float64), self.mean,
+                                       self.scatter]), allow_pickle=False)
+
+    @classmethod
+    def load(cls, path, cell_m: float) -> "CellMoments":
+        a = np.load(path, allow_pickle=False)
+        return cls(float(cell_m), np.ascontiguousarray(a[:, 0]).view(np.int64),
+                   np.ascontiguousarray(a[:, 1]).view(np.int64), a[:, 2:5].copy(), a[:, 5:11].copy())
+
     def __len__(self) -> int:
         return self.keys.size
 
     def merged(self, other: "CellMoments") -> "CellMoments":
         """The moments of the points of both (same grid)."""
-        if other.cell_m != self.cell_m:
-            raise ValueError(f"cannot merge moments on {other.cell_m} m cells into {self.cell_m} m cells")
-        return _combine(self.cell_m, np.r_[self.keys, other.keys], np.r_[self.count, other.count],
-                        np.r_[self.mean, other.mean], np.r_[self.scatter, other.scatter])
+        return CellMoments.combined([self, other])
 
     def coarsened(self, factor: int) -> "CellMoments":
         """The same points' moments on cells ``factor`` times larger (aligned with this grid)."""

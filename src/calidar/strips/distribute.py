@@ -6,8 +6,10 @@ Only the small per-pair results travel back; the solver stays in this process.
 from __future__ import annotations
 
 import logging
+import os
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -17,6 +19,8 @@ from calidar.errors import CalibrationError
 SCATTER_BYTES = 1_000_000  #: arrays larger than this are sent to the workers once, ahead of the tasks
 CONNECT_TIMEOUT_S = 10.0  #: how long to wait for a scheduler given by address
 MAX_LOCAL_WORKERS = 256  #: local worker processes accepted (each takes a process and its memory)
+#: files read at once in this process (each holds one chunk's working arrays, ≈ 0.2 GB at 0.5 M points)
+IN_PROCESS_THREADS = min(2, os.cpu_count() or 1)
 
 
 def check_cluster(scheduler: str | None = None, workers: int | None = None) -> None:
@@ -58,23 +62,52 @@ def cluster_client(scheduler: str | None = None, workers: int | None = None) -> 
 
 
 def map_pairs(func: Callable[..., Any], tasks: Sequence[tuple], scheduler: str | None = None,
-              workers: int | None = None, *, client: Any = None) -> list[Any]:
+              workers: int | None = None, *, client: Any = None, log: "TaskLog | None" = None,
+              kind: str = "match pair") -> list[Any]:
     """``[func(*task) for task in tasks]``, in-process (default) or on Dask.
 
     scheduler / workers: as :func:`cluster_client` (a cluster for this call only);
     client: an open Client to reuse across calls (e.g. every round of an iterated
     calibration). Results keep task order. ``func`` and the tasks must be picklable
-    (module-level functions, arrays, frozen dataclasses).
+    (module-level functions, arrays, frozen dataclasses). ``log``: records what each task sent
+    back (on Dask) under ``kind``.
     """
     if client is not None:
-        return _run(client, func, tasks)
+        return list(run_tasks(func, tasks, client=client, log=log, kind=kind))
     with cluster_client(scheduler, workers) as own:
-        return [func(*t) for t in tasks] if own is None else _run(own, func, tasks)
+        return list(run_tasks(func, tasks, client=own, log=log, kind=kind))
 
 
-def _run(client, func, tasks) -> list[Any]:
-    """Scatter each large array once (a strip serves several pairs), submit one task per
-    pair and gather the results in order."""
+def run_tasks(func: Callable[..., Any], tasks: Sequence[tuple], *, shared: tuple = (), client: Any = None,
+              threads: int = 1, log: "TaskLog | None" = None, kind: str = "task") -> Iterator[Any]:
+    """``func(*shared, *task)`` for each task, yielded in task order as they finish: in this
+    process (``threads`` at once, each result taken before more start, so that at most
+    ``threads`` + 1 results are held) or on a Dask ``client`` (``shared`` sent to the workers
+    once; each array over :data:`SCATTER_BYTES` once however many tasks use it). Folding the
+    results in task order keeps the outcome identical however the tasks ran."""
+    if client is not None:
+        yield from _on_dask(client, func, tasks, shared, log, kind)
+        return
+    if threads <= 1 or len(tasks) <= 1:
+        for t in tasks:
+            yield func(*shared, *t)
+        return
+    from collections import deque
+    from concurrent.futures import ThreadPoolExecutor
+
+    todo = iter(tasks)
+    with ThreadPoolExecutor(threads) as pool:
+        pending = deque(pool.submit(func, *shared, *t) for _, t in zip(range(threads), todo))
+        while pending:
+            result = pending.popleft().result()
+            nxt = next(todo, None)
+            if nxt is not None:
+                pending.append(pool.submit(func, *shared, *nxt))
+            yield result
+
+
+def _on_dask(client, func, tasks, shared, log, kind) -> Iterator[Any]:
+    """Scatter the shared arguments and each large array once, submit every task, gather in order."""
     scattered: dict[int, Any] = {}
 
     def ship(arg):
@@ -84,5 +117,65 @@ def _run(client, func, tasks) -> list[Any]:
             return scattered[id(arg)]
         return arg
 
-    futures = [client.submit(func, *map(ship, t), pure=False) for t in tasks]
-    return client.gather(futures)
+    common = [client.scatter(a, broadcast=True) for a in shared]
+    futures = [client.submit(func, *common, *map(ship, t), pure=False) for t in tasks]
+    for f in futures:
+        result = f.result()
+        f.release()
+        if log is not None:
+            log.add(kind, result)
+        yield result
+
+
+class TaskLog:
+    """What the tasks run on Dask sent back, by kind of task: bytes each (as pickled)."""
+
+    def __init__(self):
+        self.sent: dict[str, list[int]] = {}
+
+    def add(self, kind: str, result: Any) -> None:
+        self.sent.setdefault(kind, []).append(pickled_bytes(result))
+
+    def to_dict(self) -> dict:
+        """{kind: tasks, bytes sent back in all and by the largest}."""
+        return {k: {"tasks": len(v), "bytes_sent_back": int(sum(v)), "max_bytes_per_task": int(max(v))}
+                for k, v in self.sent.items()}
+
+
+def pickled_bytes(obj: Any) -> int:
+    """The size of ``obj`` pickled (protocol 5), counted without holding the bytes."""
+    import pickle
+
+    class _Count:
+        n = 0
+
+        def write(self, b) -> int:
+            n = memoryview(b).nbytes
+            self.n += n
+            return n
+
+    out = _Count()
+    pickle.Pickler(out, protocol=5).dump(obj)
+    return out.n
+
+
+@dataclass
+class Workers:
+    """Where independent tasks run: ``threads`` at once in this process, or on the Dask
+    ``client``; ``log`` keeps what the Dask tasks sent back."""
+
+    client: Any = None
+    threads: int = 1
+    log: TaskLog = field(default_factory=TaskLog)
+
+    def run(self, func: Callable[..., Any], tasks: Sequence[tuple], shared: tuple = (), kind: str = "task") -> Iterator[Any]:
+        """:func:`run_tasks` here."""
+        return run_tasks(func, tasks, shared=shared, client=self.client, threads=self.threads, log=self.log, kind=kind)
+
+
+@contextmanager
+def workers_for(scheduler: str | None = None, workers: int | None = None,
+                threads: int = IN_PROCESS_THREADS) -> Iterator[Workers]:
+    """:class:`Workers` on the cluster of :func:`cluster_client`, or ``threads`` in this process."""
+    with cluster_client(scheduler, workers) as client:
+        yield Workers(client, 1 if client is not None else threads)

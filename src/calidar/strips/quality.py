@@ -33,6 +33,10 @@ from calidar.strips.planes import PlaneSettings, planar_cells
 BASE_CELL_M = 1.0  #: accumulation grid when the cell is chosen per pair (whole metres coarsen from it)
 OVERLAP_CELL_M = 5.0  #: which lines overlap: cells of this size occupied by both (as the strip calibration)
 OVERLAP_MIN_POINTS = 3  #: points of a line that make an overlap cell occupied
+MERGE_PARTS = 16  #: chunk moments a line holds before they are combined into one
+#: cell moments an accumulator with a spill folder holds in memory before they go to disk (per stage)
+#: (88 B a cell: a 10⁹-point survey's 2 m cells of three stages would be ≈ 4 GB)
+HOLD_BYTES = 64 * 2**20
 
 
 @dataclass(frozen=True)
@@ -118,30 +122,77 @@ class SwathAccumulator:
     coarsened into the overlap grid to make the plan. Also which selections (PointSelection) the
     points came through."""
 
-    def __init__(self, cell_m: float | None = None, plan: OverlapPlan | None = None):
-        self.cell_m, self.plan = cell_m, plan
+    def __init__(self, cell_m: float | None = None, plan: OverlapPlan | None = None, spill_dir: Path | None = None):
+        self.cell_m, self.plan, self.spill_dir = cell_m, plan, spill_dir
         self.base_m = float(cell_m) if cell_m else BASE_CELL_M
-        self.moments: dict[tuple[int, float], CellMoments] = {}  #: (line, cell m) → moments
+        self.parts: dict[tuple[int, float], list[CellMoments]] = {}  #: (line, cell m) → moments not yet combined
+        self.spilled: dict[tuple[int, float], list[Path]] = {}  #: (line, cell m) → moments written to spill_dir
         self.selections: dict[int, list[dict]] = {}
 
     def add(self, line: int, xyz: np.ndarray, selection=None) -> None:
         """Points (N, 3) metric, z up, of flight line ``line`` (after ``selection``, if any)."""
-        chosen = self.selections.setdefault(line, [])
-        if selection is not None and selection.to_dict() not in chosen:
-            chosen.append(selection.to_dict())
+        self._chose(line, [] if selection is None else [selection.to_dict()])
         for cell in (self.plan.sizes(line) if self.plan else {self.base_m}):
-            m = CellMoments.of_points(xyz, cell)
-            key = (line, cell)
-            self.moments[key] = self.moments[key].merged(m) if key in self.moments else m
+            self._put((line, cell), [CellMoments.of_points(xyz, cell)])
+
+    def merge(self, other: "SwathAccumulator") -> "SwathAccumulator":
+        """This accumulator with the lines' points of ``other`` (same plan) added: e.g. the
+        accumulators of several files."""
+        for line, chosen in other.selections.items():
+            self._chose(line, chosen)
+        for key in {*other.parts, *other.spilled}:
+            self._put(key, other.parts.get(key, []) + [CellMoments.load(f, key[1]) for f in other.spilled.get(key, [])])
+        return self
+
+    def _chose(self, line: int, selections: list[dict]) -> None:
+        chosen = self.selections.setdefault(line, [])
+        chosen += [s for s in selections if s not in chosen]
+
+    def _put(self, key: tuple[int, float], parts: list[CellMoments]) -> None:
+        """Moments added to a line's; combined once :data:`MERGE_PARTS` wait (each combine sorts
+        the whole line's cells, so combining every chunk would cost chunks × cells); with a
+        ``spill_dir``, written there whenever more than :data:`HOLD_BYTES` are held."""
+        held = self.parts.setdefault(key, [])
+        held += parts
+        if len(held) >= MERGE_PARTS:
+            self.parts[key] = [CellMoments.combined(held)]
+        if self.spill_dir is not None and sum(m.nbytes for ms in self.parts.values() for m in ms) > HOLD_BYTES:
+            for k, ms in self.parts.items():
+                if ms:
+                    self._write(k, ms)
+
+    def _write(self, key: tuple[int, float], parts: list[CellMoments]) -> None:
+        """A line's moments held in memory, combined, to a file of spill_dir."""
+        files = self.spilled.setdefault(key, [])
+        files.append(Path(self.spill_dir) / f"moments_{key[0]}_{key[1]:g}_{len(files)}.npy")
+        CellMoments.combined(parts).save(files[-1])
+        self.parts[key] = []
 
     def _at(self, line: int, cell: float) -> CellMoments:
         """The line's moments on ``cell``."""
-        if (line, cell) in self.moments or self.plan is not None:
-            return self.moments.get((line, cell), CellMoments.empty(cell))
+        if (line, cell) in self.parts or (line, cell) in self.spilled or self.plan is not None:
+            return self._combined(line, cell)
         f = int(round(cell / self.base_m))
         if not np.isclose(f * self.base_m, cell):
             raise ValueError(f"a {cell} m cell is not a whole number of the {self.base_m} m accumulation cells")
-        return self.moments.get((line, self.base_m), CellMoments.empty(self.base_m)).coarsened(f)
+        return self._combined(line, self.base_m).coarsened(f)
+
+    def _combined(self, line: int, cell: float) -> CellMoments:
+        """The line's parts on ``cell`` combined, and kept so (a line is in several pairs): in
+        memory, or as one file of spill_dir when it has spilled."""
+        key = (line, cell)
+        parts, files = self.parts.get(key, []), self.spilled.get(key, [])
+        if files:
+            whole = CellMoments.combined([CellMoments.load(f, cell) for f in files] + parts)
+            if len(files) + len(parts) > 1:
+                for f in files:
+                    f.unlink()
+                self.spilled[key] = []
+                self._write(key, [whole])
+            return whole
+        if len(parts) > 1:
+            self.parts[key] = parts = [CellMoments.combined(parts)]
+        return parts[0] if parts else CellMoments.empty(cell)
 
     def differences(self, settings: QualitySettings | None = None) -> tuple[list[PairQuality], list[str]]:
         """The PairQuality of every overlapping pair of lines (ids ascending) and notes about lines
@@ -193,7 +244,8 @@ def pair_quality(a: int, moments_a: CellMoments, b: int, moments_b: CellMoments,
     """Swath difference of two lines from their cell moments on one grid (the pair's cell)."""
     cell = moments_a.cell_m
     ps = PlaneSettings(min_points=s.min_points, max_rms_m=s.max_rms_m, min_spread=0.15)
-    pa, pb = _planes(moments_a, ps), _planes(moments_b, ps)
+    _, ia, ib = np.intersect1d(moments_a.keys, moments_b.keys, assume_unique=True, return_indices=True)
+    pa, pb = _planes(moments_a.select(ia), ps), _planes(moments_b.select(ib), ps)  # planes of the shared cells only
     keys, ia, ib = np.intersect1d(pa[0].keys, pb[0].keys, assume_unique=True, return_indices=True)
     ij = key_indices(keys)
     centre = (ij + 0.5) * cell

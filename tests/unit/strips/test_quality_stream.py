@@ -179,3 +179,30 @@ def test_cli_lines_from_time_gaps_stream_in_small_chunks(cli, tmp_path, monkeypa
     assert (a["a"], a["b"], a["n_cells"]) == (b["a"], b["b"], b["n_cells"]) == (1, 2, a["n_cells"]) and a["n_cells"] > 100
     assert a["median_dz_m"] == pytest.approx(0.04, abs=0.003)
     assert b["median_dz_m"] == pytest.approx(a["median_dz_m"], abs=1e-9)
+
+
+def test_moments_spilled_to_disk_give_the_same_differences(tmp_path, monkeypatch):
+    """Past HOLD_BYTES an accumulator with a spill folder writes its lines' moments to disk
+    (the memory of a 10⁹-point survey's cells stays bounded); the differences do not change."""
+    import calidar.strips.quality as quality
+    from calidar.strips.quality import SwathAccumulator
+
+    rng = np.random.default_rng(8)
+    lines = {1: UTM + np.c_[rng.uniform(0, 60, (40_000, 2)), rng.normal(0, 0.01, 40_000)],
+             2: UTM + np.c_[rng.uniform(30, 90, (40_000, 2)), rng.normal(0.02, 0.01, 40_000)]}
+    held = SwathAccumulator()
+    for i, p in lines.items():
+        for chunk in np.array_split(p, 20):
+            held.add(i, chunk)
+    monkeypatch.setattr(quality, "HOLD_BYTES", 50_000)
+    spilled = SwathAccumulator(spill_dir=tmp_path)
+    for i, p in lines.items():
+        for chunk in np.array_split(p, 20):
+            spilled.add(i, chunk)
+    assert sum(len(f) for f in spilled.spilled.values()) > 2 and len(list(tmp_path.glob("*.npy"))) > 2
+    (a,), _ = held.differences()
+    (b,), _ = spilled.differences()
+    assert (a.n_cells, a.cell_m) == (b.n_cells, b.cell_m) and a.n_cells > 100
+    assert b.median_dz_m == pytest.approx(a.median_dz_m, abs=1e-12) and b.median_dz_m == pytest.approx(-0.02, abs=0.003)
+    assert b.rmsdz_m == pytest.approx(a.rmsdz_m, abs=1e-12)
+    assert len(list(tmp_path.glob("*.npy"))) == len(spilled.spilled)  # combined once read: one file a line

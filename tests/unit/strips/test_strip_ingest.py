@@ -135,3 +135,22 @@ def test_adjusted_standard_times_become_the_trajectorys_week_seconds(survey, tmp
     assert set(src.weeks.values()) == {2345} and [s.id for s in got] == [s.id for s in want]
     for a, b in zip(got, want):
         assert np.allclose(a.time, b.time, atol=1e-6, rtol=0) and np.array_equal(a.points, b.points)
+
+
+def test_files_read_on_two_threads_give_the_same_strips_and_quality_counts(survey):
+    from calidar.strips.distribute import Workers
+
+    paths, traj, sensor = _inputs(survey)
+    options = IngestOptions(budget_points=20_000, chunk_points=9_000)
+    one, _, src1, _ = ingest_strips(paths, traj, sensor, options)
+    two, _, src2, _ = ingest_strips(paths, traj, sensor, options, work=Workers(threads=2))
+    assert [s.id for s in one] == [s.id for s in two]
+    for a, b in zip(one, two):
+        assert np.array_equal(a.points, b.points) and np.array_equal(a.time, b.time) and a.source == b.source
+    assert src1.quality.counts.keys() == src2.quality.counts.keys() and src1.names == src2.names
+    for k, (keys, n) in src1.quality.counts.items():
+        assert np.array_equal(keys, src2.quality.counts[k][0]) and np.array_equal(n, src2.quality.counts[k][1])
+    lines, _ = read_flight_lines(paths)  # the quality counts are those of the whole line's selected points
+    for i, sel in src1.quality.chosen({}).items():
+        keys, n = src1.quality.counts[i, sel]
+        assert n.sum() == sel.mask(lines[i]).sum() > 0 and np.all(np.diff(keys) > 0)

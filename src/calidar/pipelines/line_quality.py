@@ -1,0 +1,149 @@
+"""The overlap quality of flight lines streamed from their files, as delivered and
+re-georeferenced (the boresight report's stages), in one more read of the files.
+
+``calidar quality`` first counts the selected points of each line on the 5 m overlap grid
+(which lines overlap, each pair's cell: :func:`calidar.strips.quality.overlap_plan`), then
+accumulates cell moments on the plan's cells. Here the counts come from the strip ingest's
+first pass, which reads every point anyway (:class:`LineCounts`), so one read gives every
+stage (:func:`stage_pass`): per chunk and line, the selected points of each stage go to that
+stage's :class:`~calidar.strips.quality.SwathAccumulator` on the delivered plan, and each
+stage's own counts are kept (as delivered in full; re-georeferenced as the points whose 5 m
+cell changed). A stage whose own plan differs from the one it was measured on (a pair at the
+edge of overlapping, a density at a cell-size step, a grid the ingest did not share) is read
+once more on its own plan (:func:`lines_quality`), so every stage is what ``calidar
+quality`` gives on its files. The caller reads each file as one task; only cell moments and
+counts come back.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterable, Mapping
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from calidar.strips.overlap import cell_counts, cell_keys, merge_counts
+from calidar.strips.quality import OverlapPlan, QualitySettings, SwathAccumulator, overlap_cell, overlap_plan
+from calidar.strips.selection import GROUND, PointSelection, choose_selection
+
+#: the default rules, counted for every line before its classes decide between them
+RULES = (PointSelection("ground", (GROUND,)), PointSelection("last returns"))
+
+
+@dataclass
+class LineCounts:
+    """Per flight line (or group of points), how many points each default rule keeps in each
+    cell of the overlap grid, and the LAS classes present: what a plan is made of."""
+
+    grid_m: float
+    counts: dict = field(default_factory=dict)  #: (line, rule) → (sorted cell keys, counts)
+    present: dict = field(default_factory=dict)  #: line → set of LAS classes
+
+    def add(self, line: int, points, keys: np.ndarray) -> None:
+        """``points`` of one line (anything with the selection fields) in grid cells ``keys``."""
+        if points.classification is not None:
+            self.present.setdefault(line, set()).update(np.unique(points.classification).tolist())
+        for rule in RULES:
+            if rule.classes is None or points.classification is not None:  # (no classes: last returns only)
+                self._put((line, rule), cell_counts(keys[rule.mask(points)]))
+
+    def merge(self, other: "LineCounts", line_of: Callable[[int], int] = int) -> "LineCounts":
+        """``other``'s counts added to these, its ids mapped by ``line_of`` (e.g. groups → lines)."""
+        for (i, rule), kn in other.counts.items():
+            self._put((line_of(i), rule), kn)
+        for i, classes in other.present.items():
+            self.present.setdefault(line_of(i), set()).update(classes)
+        return self
+
+    def _put(self, key, kn) -> None:
+        self.counts[key] = merge_counts(self.counts[key], kn) if key in self.counts else kn
+
+    def chosen(self, names: Mapping[int, str]) -> dict[int, PointSelection]:
+        """The selection of each line from the classes it holds (ground, else last returns)."""
+        lines = sorted({i for i, _ in self.counts})
+        return {i: choose_selection(names.get(i), np.array(sorted(self.present[i])) if i in self.present else None)
+                for i in lines}
+
+    def of(self, chosen: Mapping[int, PointSelection]) -> dict[int, tuple[np.ndarray, np.ndarray]]:
+        """(keys, counts) per line of the points its chosen selection keeps."""
+        return {i: self.counts[i, s] for i, s in chosen.items() if (i, s) in self.counts}
+
+
+@dataclass
+class StagePass:
+    """What one read of the lines gives, per stage: its accumulator (None: not measured in this
+    read) and its counts per line (stage 0's chosen points; later stages' changes from them)."""
+
+    accs: list
+    counts: list
+
+    @classmethod
+    def start(cls, plans: list[OverlapPlan | None], cell_m: float | None = None, count: bool = True,
+              spill_dir=None) -> "StagePass":
+        """Nothing read yet: an accumulator per planned stage (spilling to ``spill_dir``, if given)."""
+        return cls([None if p is None else SwathAccumulator(cell_m, p, spill_dir) for p in plans],
+                   [{} for _ in plans] if count else [])
+
+    def merge(self, other: "StagePass") -> "StagePass":
+        """Both reads' points together (e.g. two files)."""
+        for acc, more in zip(self.accs, other.accs):
+            if acc is not None:
+                acc.merge(more)
+        for mine, theirs in zip(self.counts, other.counts):
+            for i, kn in theirs.items():
+                mine[i] = merge_counts(mine[i], kn) if i in mine else kn
+        return self
+
+
+def stage_pass(chunks: Iterable[tuple[int, list]], metric, plans: list[OverlapPlan | None],
+               chosen: Mapping[int, PointSelection], cell_m: float | None = None, count: bool = True) -> StagePass:
+    """One read of ``chunks`` (line id, [LasPoints per stage]): stage k's cell moments on
+    ``plans[k]`` (None: not measured) of each line's ``chosen`` points in ``metric``
+    coordinates; with ``count``, stage 0's counts on the overlap grid and, for later stages, the
+    changes from stage 0 (the points whose cell moved: +1 where they are, −1 where they were)."""
+    grid = overlap_cell(cell_m)
+    out = StagePass.start(plans, cell_m, count)
+    for i, versions in chunks:
+        sel = chosen.get(i)
+        if sel is None:  # a line without any selected point in the counts
+            continue
+        mask = sel.mask(versions[0])
+        xyz = [metric.of(v.xyz[mask]) for v in versions]
+        for acc, x in zip(out.accs, xyz):
+            if acc is not None:
+                acc.add(i, x, sel)
+        if count:
+            keys = [cell_keys(x, grid) for x in xyz]
+            parts = [[cell_counts(keys[0])]]
+            for k in keys[1:]:
+                moved = k != keys[0]
+                gone = cell_counts(keys[0][moved])
+                parts.append([cell_counts(k[moved]), (gone[0], -gone[1])])
+            for counts, kns in zip(out.counts, parts):
+                counts[i] = merge_counts(*([counts[i]] if i in counts else []), *kns)
+    return out
+
+
+def lines_quality(read: Callable[[list, dict, bool], StagePass], first: LineCounts, n_stages: int,
+                  names: Mapping[int, str] | None = None, cell_m: float | None = None) -> list[list]:
+    """Per stage, the PairQuality of every overlapping pair of lines: ``read(plans, chosen,
+    count)`` streams every line through :func:`stage_pass`; ``first`` holds stage 0's counts
+    (which decide the plan every stage is measured on first). Stages whose own plan differs are
+    read again on it."""
+    from calidar.pipelines.quality import checked_differences
+
+    settings, names = QualitySettings(cell_m=cell_m), names or {}
+    chosen = first.chosen(names)
+    used = [overlap_plan(first.of(chosen), first.grid_m, settings, names)] * n_stages
+    got = read(used, chosen, True)
+    base = got.counts[0]
+    own = [base] + [{i: merge_counts(*([base[i]] if i in base else []), *([d[i]] if i in d else []))
+                     for i in {*base, *d}} for d in got.counts[1:]]
+    plans = [overlap_plan(c, overlap_cell(cell_m), settings, names) for c in own]
+    redo = [p if p != u else None for p, u in zip(plans, used)]
+    again = read(redo, chosen, False) if any(p is not None for p in redo) else None
+    accs = [again.accs[k] if redo[k] is not None else acc for k, acc in enumerate(got.accs)]
+    for acc in accs:
+        for i in chosen:  # lines without a selected point: named in the notes
+            acc.add(i, np.zeros((0, 3)))
+    return [checked_differences(acc, settings, names)[0] for acc in accs]

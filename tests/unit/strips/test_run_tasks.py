@@ -1,0 +1,51 @@
+"""Independent tasks in this process: in order on threads, errors as raised, what Dask tasks
+send back counted, calidar's errors surviving a trip through pickle."""
+
+from __future__ import annotations
+
+import pickle
+import threading
+
+import numpy as np
+import pytest
+
+from calidar.errors import InputError
+from calidar.strips.distribute import TaskLog, Workers, pickled_bytes, run_tasks
+
+
+def _slow_square(scale, k):
+    threading.Event().wait(0.01 * (5 - k % 5))  # later tasks finish first
+    return scale * k * k, threading.get_ident()
+
+
+def test_threads_keep_task_order_and_use_several_threads():
+    got = list(run_tasks(_slow_square, [(k,) for k in range(10)], shared=(2,), threads=3))
+    assert [v for v, _ in got] == [2 * k * k for k in range(10)]
+    assert len({t for _, t in got}) > 1
+    assert [v for v, _ in Workers().run(_slow_square, [(k,) for k in range(4)], (1,))] == [0, 1, 4, 9]
+
+
+def _fails(k):
+    if k == 2:
+        raise InputError("f.laz", "gps_time", "a bad time")
+    return k
+
+
+def test_a_task_error_reaches_the_caller_as_raised():
+    with pytest.raises(InputError, match="f.laz: gps_time: a bad time"):
+        list(run_tasks(_fails, [(k,) for k in range(5)], threads=2))
+
+
+def test_input_errors_survive_pickling():
+    e = pickle.loads(pickle.dumps(InputError("a.laz", "x", "metres")))
+    assert (e.source, e.field, e.problem, str(e)) == ("a.laz", "x", "metres", "a.laz: x: metres")
+
+
+def test_task_log_counts_the_pickled_bytes():
+    a = {"m": np.zeros((1000, 3)), "k": [1, 2]}
+    log = TaskLog()
+    log.add("read", a)
+    log.add("read", np.zeros(10))
+    d = log.to_dict()["read"]
+    assert d["tasks"] == 2 and d["bytes_sent_back"] == pickled_bytes(a) + pickled_bytes(np.zeros(10))
+    assert pickled_bytes(a) == len(pickle.dumps(a, protocol=5)) and 24_000 < pickled_bytes(a) < 25_000
