@@ -216,17 +216,25 @@ def _resolve_crs(header, crs, path: Path) -> pyproj.CRS | None:
         raise InputError(path, "crs", f"expected a CRS pyproj knows (e.g. EPSG:32611), got {crs!r}") from None
 
 
-def _records(reader: laspy.LasReader, chunk_points: int, path: Path):
-    """(first point number, laspy point record of ``chunk_points`` at most); damaged files and
-    fewer records than the header says become clear errors."""
-    n = 0
+def _records(reader: laspy.LasReader, chunk_points: int, path: Path, start: int = 0, stop: int | None = None):
+    """(first point number, laspy point record of ``chunk_points`` at most) of the points
+    [start, stop) (default: all); damaged files and fewer records than the header says become
+    clear errors."""
+    n = start
     try:
-        for rec in reader.chunk_iterator(chunk_points):
-            yield n, rec
-            n += len(rec)
+        if start:
+            reader.seek(start)
+        if stop is None:
+            for rec in reader.chunk_iterator(chunk_points):
+                yield n, rec
+                n += len(rec)
+        else:
+            while n < stop and len(rec := reader.read_points(min(chunk_points, stop - n))):
+                yield n, rec
+                n += len(rec)
     except (laspy.errors.LaspyException, lazrs.LazrsError, ValueError) as e:
         raise InputError(path, None, f"cannot read the points ({e}); truncated or damaged file?") from None
-    if n != reader.header.point_count:
+    if n != (reader.header.point_count if stop is None else min(stop, reader.header.point_count)):
         raise InputError(path, "point_count", f"the header says {reader.header.point_count} points, the file holds "
                          f"{n}: truncated or a damaged header")
 
@@ -277,15 +285,16 @@ def _selection(fields) -> laspy.DecompressionSelection:
 
 
 def iter_las_chunks(path: str | Path, chunk_points: int = 2_000_000, crs=None, fields=OPTIONAL_FIELDS, *,
-                    options: PointOptions | None = None) -> Iterator[LasPoints]:
-    """Read a LAS/LAZ file in chunks of at most ``chunk_points`` points (files larger than memory);
-    of a LAZ 1.4 file only the layers of xyz, GPS time and ``fields`` are decompressed."""
+                    options: PointOptions | None = None, start: int = 0, stop: int | None = None) -> Iterator[LasPoints]:
+    """Read a LAS/LAZ file in chunks of at most ``chunk_points`` points (files larger than memory),
+    the points [start, stop) only when given (a LAZ file seeks by its chunk table); of a LAZ 1.4
+    file only the layers of xyz, GPS time and ``fields`` are decompressed."""
     path, opts = Path(path), _options(crs, options)
     with _open(path, _selection(fields)) as reader:
         header = reader.header
         time_system = gps_time_system(header, path, opts.time_system)
         file_crs = _resolve_crs(header, opts.crs, path)
-        for first, rec in _records(reader, chunk_points, path):
+        for first, rec in _records(reader, chunk_points, path, start, stop):
             yield _points(rec, header, path, file_crs, time_system, fields, opts.geoid_undulation_m, first)
 
 

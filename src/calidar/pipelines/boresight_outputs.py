@@ -20,6 +20,10 @@ import numpy as np
 from calidar.outputs import shown_path
 from calidar.pipelines import Progress, no_progress
 
+#: points of a file read by one overlap-quality task: what a task sends back (its cells' moments)
+#: stays small however large the files (≈ 40 MB at 20 points/m²)
+TASK_POINTS = 4_000_000
+
 
 def corrected_trajectory(inputs, result):
     """The trajectory with the estimated corrections applied (None when none were estimated)."""
@@ -51,31 +55,33 @@ def measure_lines(inputs, models, progress: Progress = no_progress, work=None) -
     crs = las_file_crs(f.path, f.points.crs)
     metric = Metric(crs, source.frame if crs is not None and crs.is_geographic else None, f.points.geoid_undulation_m,
                     f.path)  # the ingest's grid: its counts make the plan
-    sizes = [las_header(f.path).point_count for f in source.files]
+    tasks = [(k, a, min(a + TASK_POINTS, n)) for k, f in enumerate(source.files)
+             for n in [las_header(f.path).point_count] for a in range(0, max(n, 1), TASK_POINTS)]
+    total = sum(b - a for _, a, b in tasks)
 
     def read(plans, chosen, count):
         out, done = StagePass.start(plans, None, count, spill), 0
         shared = (source, inputs.nominal, models, metric, plans, chosen, count)
-        tasks = [(k,) for k in range(len(source.files))]
-        for k, part in enumerate((work or Workers()).run(_file_stages, tasks, shared, kind="overlap quality")):
+        for (_, a, b), part in zip(tasks, (work or Workers()).run(_file_stages, tasks, shared, kind="overlap quality")):
             out.merge(part)
             del part
-            release_memory()  # each file's working arrays
-            done += sizes[k]
-            progress("overlap quality: reading strips", done, sum(sizes))
+            release_memory()  # each task's working arrays
+            done += b - a
+            progress("overlap quality: reading strips", done, total)
         return out
 
     with tempfile.TemporaryDirectory(prefix="calidar-moments-") as spill:  # cell moments beyond HOLD_BYTES
         return lines_quality(read, source.quality, len(models), source.names)
 
 
-def _file_stages(source, nominal, models, metric, plans, chosen, count, k: int):
-    """:func:`calidar.pipelines.line_quality.stage_pass` of the ``k``-th file's lines (a task)."""
+def _file_stages(source, nominal, models, metric, plans, chosen, count, k: int, start: int, stop: int):
+    """:func:`calidar.pipelines.line_quality.stage_pass` of the points [start, stop) of the
+    ``k``-th file (a task)."""
     from calidar.pipelines.line_quality import stage_pass
     from calidar.pipelines.strip_ingest import line_chunks
     from calidar.strips.selection import FIELDS, candidate_mask
 
-    chunks = line_chunks(source, nominal, models, FIELDS, candidate_mask, files=[source.files[k]])
+    chunks = line_chunks(source, nominal, models, FIELDS, candidate_mask, files=[source.files[k]], span=(start, stop))
     return stage_pass(chunks, metric, plans, chosen, count=count)
 
 

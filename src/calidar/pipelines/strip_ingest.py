@@ -100,13 +100,15 @@ class StripSource:
     quality: LineCounts | None = None  #: the lines' overlap-quality counts as delivered (the first pass's)
     names: dict = field(default_factory=dict)  #: line id → the name of a file holding it
 
-    def chunks(self, fields: Sequence[str] = (), files: Sequence[StripFile] | None = None) -> Iterator[tuple]:
+    def chunks(self, fields: Sequence[str] = (), files: Sequence[StripFile] | None = None,
+               span: tuple[int, int | None] = (0, None)) -> Iterator[tuple]:
         """(file, LasPoints chunk, line id per point, GPS time in the trajectory's system (s)) of
-        every chunk of every file (or of ``files``)."""
+        every chunk of every file (or of ``files``; of their points [``span``) only)."""
         for f in self.files if files is None else files:
             fields_ = tuple(dict.fromkeys(("point_source_id", *fields)))
             times = FileTimes(f.path, self.trajectory, f.time_system)
-            for chunk in iter_las_chunks(f.path, self.options.chunk_points, fields=fields_, options=f.points):
+            for chunk in iter_las_chunks(f.path, self.options.chunk_points, fields=fields_, options=f.points,
+                                         start=span[0], stop=span[1]):
                 t = times.feed(chunk.gps_time)
                 g = _group_keys(chunk.point_source_id, t, self.options.gap_s)
                 pos = np.minimum(np.searchsorted(self.groups, g), self.groups.size - 1)
@@ -120,8 +122,9 @@ class StripSource:
 
 
 def line_chunks(source: StripSource, nominal, models=(None,), fields=None, where=None,
-                files: Sequence[StripFile] | None = None) -> Iterator[tuple[int, list]]:
-    """Per chunk of the files (or of ``files``) and flight line, (line id, [LasPoints per model]):
+                files: Sequence[StripFile] | None = None, span=(0, None)) -> Iterator[tuple[int, list]]:
+    """Per chunk of the files (or of ``files``, their points [``span``)) and flight line, (line
+    id, [LasPoints per model]):
     for each of ``models`` the delivered points (None) or those re-georeferenced with a (sensor,
     trajectory) (inverse once with the ``nominal`` sensor and the source's trajectory, forward
     with each, as :func:`calidar.georef.regeoreference`), in the files' CRS
@@ -131,7 +134,7 @@ def line_chunks(source: StripSource, nominal, models=(None,), fields=None, where
     from calidar import georef
     from calidar.io.las import OPTIONAL_FIELDS
 
-    for _, chunk, ids, t in source.chunks(OPTIONAL_FIELDS if fields is None else fields, files):
+    for _, chunk, ids, t in source.chunks(OPTIONAL_FIELDS if fields is None else fields, files, span):
         if where is not None:
             keep = where(chunk)
             chunk, ids, t = chunk.select(keep), ids[keep], t[keep]

@@ -48,6 +48,19 @@ def test_chunks_cover_the_file(tmp_path):
     assert chunks[0].point_source_id is None and chunks[0].crs.to_epsg() == 32611
 
 
+@pytest.mark.parametrize("suffix", [".las", ".laz"])
+def test_a_range_of_points_reads_as_the_same_slice_of_the_file(tmp_path, suffix):
+    """start/stop read [start, stop) only (a LAZ seeks by its chunk table, across its 50 000-point chunks)."""
+    xyz, t, ang = _points(120_000)
+    path = write_las(tmp_path / f"r{suffix}", xyz, "EPSG:32611", gps_time=t, scan_angle_deg=ang, point_source_id=1)
+    for start, stop in [(0, 7_000), (49_990, 100_010), (110_000, None), (119_999, 200_000)]:
+        chunks = list(iter_las_chunks(path, chunk_points=20_000, start=start, stop=stop))
+        want = slice(start, stop)
+        assert np.array_equal(np.concatenate([c.gps_time for c in chunks]), t[want])
+        assert np.max(np.abs(np.concatenate([c.xyz for c in chunks]) - xyz[want])) <= 0.0005 + 1e-9
+        assert max(len(c) for c in chunks) <= 20_000
+
+
 def test_adjusted_standard_time(tmp_path):
     week = 2200
     t_week = 345600.0 + np.linspace(0, 100, 50)

@@ -154,3 +154,24 @@ def test_files_read_on_two_threads_give_the_same_strips_and_quality_counts(surve
     for i, sel in src1.quality.chosen({}).items():
         keys, n = src1.quality.counts[i, sel]
         assert n.sum() == sel.mask(lines[i]).sum() > 0 and np.all(np.diff(keys) > 0)
+
+
+def test_overlap_quality_read_in_point_ranges_equals_whole_files(survey, monkeypatch):
+    """The quality stages' tasks read files in ranges of TASK_POINTS (seeking in the LAZ): the
+    same pairs and differences as one task a file."""
+    import calidar.pipelines.boresight_outputs as outputs
+    from calidar.pipelines.boresight import BoresightOptions, load_inputs
+
+    inputs = load_inputs(*_inputs_paths(survey), BoresightOptions())
+    models = [None, (inputs.nominal, inputs.trajectory)]
+    whole = outputs.measure_lines(inputs, models)
+    monkeypatch.setattr(outputs, "TASK_POINTS", 3_001)
+    ranged = outputs.measure_lines(inputs, models)
+    for a, b in zip(whole, ranged):
+        assert [(q.a, q.b, q.n_cells, q.n_points_a) for q in a] == [(q.a, q.b, q.n_cells, q.n_points_a) for q in b]
+        assert all(q.median_dz_m == pytest.approx(r.median_dz_m, abs=1e-9) for q, r in zip(a, b) if q.n_cells)
+    assert sum(q.n_cells for q in whole[0]) > 50
+
+
+def _inputs_paths(sim: Path):
+    return sorted((sim / "strips").glob("*.laz")), sim / "sbet.out", sim / "sensor.toml"
