@@ -10,6 +10,7 @@ from functools import lru_cache
 
 import numpy as np
 import pyproj
+from numba import njit
 
 from calidar.errors import InputError
 
@@ -113,7 +114,15 @@ def to_crs_moved(points_ecef, base_ecef, base_xyz, crs, geoid_undulation_m: floa
     anchor = base_ecef[first[tiles]]
     at = to_crs(anchor, crs, geoid_undulation_m, source)
     jac = np.stack([to_crs(anchor + step, crs, geoid_undulation_m, source) - at for step in np.eye(3)], axis=2)
-    d, rows, out = np.asarray(points_ecef, float) - base_ecef, index[key], base_xyz.copy()
-    for k in range(3):  # column by column: gathers of (n, 3), not (n, 3, 3)
-        out += jac[:, :, k][rows] * d[:, k:k + 1]
+    return _moved(base_xyz, jac, index[key], np.asarray(points_ecef, float) - base_ecef)
+
+
+@njit(cache=True, nogil=True)
+def _moved(base: np.ndarray, jac: np.ndarray, rows: np.ndarray, d: np.ndarray) -> np.ndarray:
+    """base + jac[rows] · d, point by point (no (n, 3, 3) gather)."""
+    out = base.copy()
+    for i in range(base.shape[0]):
+        j = rows[i]
+        for a in range(3):
+            out[i, a] += jac[j, a, 0] * d[i, 0] + jac[j, a, 1] * d[i, 1] + jac[j, a, 2] * d[i, 2]
     return out

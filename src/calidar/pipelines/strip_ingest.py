@@ -335,7 +335,7 @@ def ingest_strips(paths, trajectory, sensor, options: IngestOptions = IngestOpti
     :class:`StripSource` to stream the whole lines again, and notes for the user. Each file is
     read as one task per pass, run by ``work`` (a :class:`calidar.strips.distribute.Workers`;
     None: one at a time here)."""
-    from calidar.strips.distribute import Workers
+    from calidar.strips.distribute import Workers, run_tasks
 
     if not paths:
         raise InputError(None, "STRIPS", "expected at least one LAS/LAZ file")
@@ -363,8 +363,9 @@ def ingest_strips(paths, trajectory, sensor, options: IngestOptions = IngestOpti
             where.setdefault(i, {})[str(f.path)] = None
         done += las_header(f.path).point_count
         progress("reading strips", done, total)
-    strips = [Strip.from_ecef(i, np.concatenate(ecef[i]), np.concatenate(times[i]), trajectory, sensor, frame,
-                              ", ".join(where[i]), span=span[i]) for i in sorted(ecef)]
+    build = [(i, np.concatenate(ecef.pop(i)), np.concatenate(times.pop(i)), trajectory, sensor, frame,
+              ", ".join(where[i]), span[i]) for i in sorted(ecef)]
+    strips = list(run_tasks(Strip.from_ecef, build, threads=work.threads if work and not work.client else 1))
     notes = unpaired_notes(footprint, pairs, options.cell_m, options.min_cells, names)
     crs = las_file_crs(files[0].path, files[0].points.crs)
     return strips, crs, source, notes
