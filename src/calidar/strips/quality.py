@@ -20,6 +20,7 @@ least-squares (PCA) planes of the cells' points, as if all points were held at o
 
 from __future__ import annotations
 
+import tempfile
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -123,7 +124,9 @@ class SwathAccumulator:
     points came through."""
 
     def __init__(self, cell_m: float | None = None, plan: OverlapPlan | None = None, spill_dir: Path | None = None):
-        self.cell_m, self.plan, self.spill_dir = cell_m, plan, spill_dir
+        self.cell_m, self.plan = cell_m, plan
+        self.spill_dir = None if spill_dir is None else Path(tempfile.mkdtemp(prefix="lines-", dir=spill_dir))  # its own
+        self._written = 0  #: files written to spill_dir (their names)
         self.base_m = float(cell_m) if cell_m else BASE_CELL_M
         self.parts: dict[tuple[int, float], list[CellMoments]] = {}  #: (line, cell m) → moments not yet combined
         self.spilled: dict[tuple[int, float], list[Path]] = {}  #: (line, cell m) → moments written to spill_dir
@@ -163,9 +166,10 @@ class SwathAccumulator:
 
     def _write(self, key: tuple[int, float], parts: list[CellMoments]) -> None:
         """A line's moments held in memory, combined, to a file of spill_dir."""
-        files = self.spilled.setdefault(key, [])
-        files.append(Path(self.spill_dir) / f"moments_{key[0]}_{key[1]:g}_{len(files)}.npy")
-        CellMoments.combined(parts).save(files[-1])
+        self._written += 1
+        path = self.spill_dir / f"moments_{key[0]}_{key[1]:g}_{self._written}.npy"
+        CellMoments.combined(parts).save(path)
+        self.spilled.setdefault(key, []).append(path)
         self.parts[key] = []
 
     def _at(self, line: int, cell: float) -> CellMoments:

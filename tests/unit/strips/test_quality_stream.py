@@ -195,14 +195,19 @@ def test_moments_spilled_to_disk_give_the_same_differences(tmp_path, monkeypatch
         for chunk in np.array_split(p, 20):
             held.add(i, chunk)
     monkeypatch.setattr(quality, "HOLD_BYTES", 50_000)
-    spilled = SwathAccumulator(spill_dir=tmp_path)
+    spilled, other = SwathAccumulator(spill_dir=tmp_path), SwathAccumulator(spill_dir=tmp_path)  # one folder
     for i, p in lines.items():
         for chunk in np.array_split(p, 20):
             spilled.add(i, chunk)
-    assert sum(len(f) for f in spilled.spilled.values()) > 2 and len(list(tmp_path.glob("*.npy"))) > 2
+            other.add(i, chunk + [0.0, 0.0, 1.0])  # another stage: 1 m higher
+    assert sum(len(f) for f in spilled.spilled.values()) > 2 and len(list(tmp_path.rglob("*.npy"))) > 4
     (a,), _ = held.differences()
     (b,), _ = spilled.differences()
     assert (a.n_cells, a.cell_m) == (b.n_cells, b.cell_m) and a.n_cells > 100
     assert b.median_dz_m == pytest.approx(a.median_dz_m, abs=1e-12) and b.median_dz_m == pytest.approx(-0.02, abs=0.003)
     assert b.rmsdz_m == pytest.approx(a.rmsdz_m, abs=1e-12)
-    assert len(list(tmp_path.glob("*.npy"))) == len(spilled.spilled)  # combined once read: one file a line
+    assert len(list(spilled.spill_dir.glob("*.npy"))) == len(spilled.spilled)  # combined once read: one file a line
+    (c,), _ = other.differences()  # its own files, not the first accumulator's
+    assert c.median_dz_m == pytest.approx(a.median_dz_m, abs=1e-9)
+    assert other._combined(1, 1.0).centroid()[:, 2].mean() == pytest.approx(
+        spilled._combined(1, 1.0).centroid()[:, 2].mean() + 1.0, abs=1e-9)
