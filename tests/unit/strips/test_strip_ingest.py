@@ -175,3 +175,47 @@ def test_overlap_quality_read_in_point_ranges_equals_whole_files(survey, monkeyp
 
 def _inputs_paths(sim: Path):
     return sorted((sim / "strips").glob("*.laz")), sim / "sbet.out", sim / "sensor.toml"
+
+
+@pytest.fixture(scope="module")
+def denser(tmp_path_factory) -> Path:
+    res = simulate_survey(survey_config("uav", seed=11, density=0.1, directions="cross"))
+    return res.write(tmp_path_factory.mktemp("ingest") / "sim")
+
+
+def test_geographic_strips_get_the_projected_quality_in_one_read(denser, tmp_path, monkeypatch):
+    """Strips in lon/lat (EPSG:4979): the ingest's grid (its local frame) is the quality's, so the
+    stages are measured in one read, with the dz of the same strips in UTM."""
+    import shutil
+
+    import pyproj
+
+    import calidar.pipelines.boresight_outputs as outputs
+    from calidar.pipelines.boresight import BoresightOptions, load_inputs
+
+    paths, traj, _ = _inputs_paths(denser)
+    (tmp_path / "strips").mkdir()
+    for f in ("sbet.out", "sensor.toml", "smrmsg.out"):
+        shutil.copy(denser / f, tmp_path / f)
+    for p in paths:
+        las = read_las(p)
+        lon, lat = pyproj.Transformer.from_crs(las.crs, "EPSG:4326", always_xy=True).transform(las.xyz[:, 0], las.xyz[:, 1])
+        write_las(tmp_path / "strips" / p.name, np.c_[lon, lat, las.xyz[:, 2]], "EPSG:4979", gps_time=las.gps_time,
+                  scan_angle_deg=las.scan_angle_deg, point_source_id=las.point_source_id,
+                  classification=las.classification, return_number=las.return_number,
+                  number_of_returns=las.number_of_returns)
+    tasks = []
+    task = outputs._file_stages
+    monkeypatch.setattr(outputs, "_file_stages", lambda *a: tasks.append(a[-3:]) or task(*a))
+    got = {}
+    for name, sim in (("utm", denser), ("geo", tmp_path)):
+        inputs = load_inputs(*_inputs_paths(sim), BoresightOptions())
+        tasks.clear()
+        got[name] = outputs.measure_lines(inputs, [None, (inputs.nominal, inputs.trajectory)])
+        assert len(tasks) == len(paths)  # one read: every stage's own plan is the ingest's
+    for utm, geo in zip(got["utm"], got["geo"]):
+        assert [(q.a, q.b) for q in utm] == [(q.a, q.b) for q in geo] and len(utm) >= 2
+        for q, r in zip(utm, geo):
+            assert abs(q.n_cells - r.n_cells) <= 0.05 * q.n_cells + 2
+            assert q.n_cells < 100 or r.median_dz_m == pytest.approx(q.median_dz_m, abs=0.002)
+        assert sum(q.n_cells >= 100 for q in utm) >= 2
