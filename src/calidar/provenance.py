@@ -76,3 +76,9 @@ def _plain(v):
     if isinstance(v, dict):
         return {str(k): _plain(x) for k, x in v.items()}
     return v if v is None or isinstance(v, (bool, int, float, str)) else str(v)
+
+
+def describe_tasks(tasks: dict) -> str:
+    """One line for :attr:`RunRecord.tasks`: per kind, how many and what they sent back."""
+    return "; ".join(f"{k}: {d['tasks']} tasks sent back {d['bytes_sent_back'] / 1e6:.3g} MB "
+                     f"(largest {d['max_bytes_per_task'] / 1e6:.3g} MB)" for k, d in tasks.items())

@@ -128,3 +128,5 @@ def test_boresight_on_a_local_cluster_equals_in_process_and_reports_what_tasks_s
         "overlap quality": files * (1 + (sent["overlap quality"]["tasks"] > files))}
     assert sent["match pair"]["tasks"] >= 3 and all(v["max_bytes_per_task"] < 20e6 for v in sent.values())
     assert "dask_tasks" not in json.loads((tmp_path / "calNone" / "solution.json").read_text())["run"]
+    report = (tmp_path / "cal2" / "report.html").read_text()
+    assert "Dask tasks: read footprints: " in report and "Dask tasks" not in (tmp_path / "calNone" / "report.html").read_text()

@@ -60,6 +60,7 @@ def boresight(
     sbet_corrected.out (the trajectory with its estimated corrections) and report.html."""
     from calidar.outputs import check_out_dir, output_folder
     from calidar.pipelines.boresight import BoresightOptions, parse_methods, run_boresight
+    from calidar.provenance import describe_tasks
     from calidar.strips.distribute import check_cluster
     from calidar.strips.parameters import parse_estimate
 
@@ -84,9 +85,7 @@ def boresight(
         print_verdict(run.verdicts[m], None if len(run.results) == 1 else m)
         _print(result, run.inputs.truth)
     if run.record.tasks:  # on Dask: what came back over the network
-        console.print("Dask tasks — " + "; ".join(
-            f"{k}: {d['tasks']} sent back {d['bytes_sent_back'] / 1e6:.3g} MB (largest {d['max_bytes_per_task'] / 1e6:.3g} MB)"
-            for k, d in run.record.tasks.items()), markup=False)
+        console.print("Dask tasks — " + describe_tasks(run.record.tasks), markup=False)
     names = sorted({p.name for p in run.written if p.parent == Path(tmp)})
     console.print(f"wrote {out}/: {', '.join(names)}" + (" and the recalibrated strips" if write_strips else ""), markup=False)
 

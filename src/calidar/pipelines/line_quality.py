@@ -125,12 +125,13 @@ def stage_pass(chunks: Iterable[tuple[int, list]], metric, plans: list[OverlapPl
 
 
 def lines_quality(read: Callable[[list, dict, bool], StagePass], first: LineCounts, n_stages: int,
-                  names: Mapping[int, str] | None = None, cell_m: float | None = None) -> list[list]:
+                  names: Mapping[int, str] | None = None, cell_m: float | None = None, threads: int = 1) -> list[list]:
     """Per stage, the PairQuality of every overlapping pair of lines: ``read(plans, chosen,
     count)`` streams every line through :func:`stage_pass`; ``first`` holds stage 0's counts
     (which decide the plan every stage is measured on first). Stages whose own plan differs are
-    read again on it."""
+    read again on it. The stages' differences are computed ``threads`` at a time."""
     from calidar.pipelines.quality import checked_differences
+    from calidar.strips.distribute import run_tasks
 
     settings, names = QualitySettings(cell_m=cell_m), names or {}
     chosen = first.chosen(names)
@@ -146,4 +147,4 @@ def lines_quality(read: Callable[[list, dict, bool], StagePass], first: LineCoun
     for acc in accs:
         for i in chosen:  # lines without a selected point: named in the notes
             acc.add(i, np.zeros((0, 3)))
-    return [checked_differences(acc, settings, names)[0] for acc in accs]
+    return [r[0] for r in run_tasks(checked_differences, [(a, settings, names) for a in accs], threads=threads)]

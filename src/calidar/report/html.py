@@ -177,7 +177,10 @@ def verdict_html(verdict, title: str | None = None) -> str:
 
 
 def record_html(record) -> str:
-    """How a result was made: version, command line, inputs with size and sha256, options, times."""
+    """How a result was made: version, command line, inputs with size and sha256, options, times,
+    what the Dask tasks sent back."""
+    from calidar.provenance import describe_tasks
+
     d = record.to_dict()
     rows = "".join(f"<tr><td class=\"l\">{html.escape(i['path'])}</td><td>{i['size_bytes']:,}</td>"
                    f"<td class=\"l\"><code>{i['sha256']}</code></td></tr>" for i in d["inputs"])
@@ -186,6 +189,7 @@ def record_html(record) -> str:
             f"{html.escape(d['started_utc'])}, finished {html.escape(str(d['finished_utc']))}.</p>"
             f"<p>Command: <code>{html.escape(' '.join(d['argv']))}</code></p>"
             + (f"<p>Options: {html.escape(opts)}</p>" if opts else "")
+            + (f"<p>Dask tasks: {html.escape(describe_tasks(d['dask_tasks']))}</p>" if d.get("dask_tasks") else "")
             + (f"<table><thead><tr><th class=\"l\">input</th><th>bytes</th><th class=\"l\">sha256</th></tr></thead>"
                f"<tbody>{rows}</tbody></table>" if rows else ""))
 
