@@ -93,10 +93,9 @@ def run_tasks(func: Callable[..., Any], tasks: Sequence[tuple], *, shared: tuple
             yield func(*shared, *t)
         return
     from collections import deque
-    from concurrent.futures import ThreadPoolExecutor
 
-    todo = iter(tasks)
-    with ThreadPoolExecutor(threads) as pool:
+    todo, pool = iter(tasks), _DaemonPool(threads)
+    try:
         pending = deque(pool.submit(func, *shared, *t) for _, t in zip(range(threads), todo))
         while pending:
             result = pending.popleft().result()
@@ -104,6 +103,43 @@ def run_tasks(func: Callable[..., Any], tasks: Sequence[tuple], *, shared: tuple
             if nxt is not None:
                 pending.append(pool.submit(func, *shared, *nxt))
             yield result
+    finally:
+        pool.close()
+
+
+class _DaemonPool:
+    """Threads that run submitted calls; daemons, so that an interrupted run exits at once instead
+    of waiting for the files being read (the tasks only read and compute: nothing to finish)."""
+
+    def __init__(self, threads: int):
+        import queue
+        import threading
+
+        self.todo: queue.Queue = queue.Queue()
+        self.threads = [threading.Thread(target=self._work, daemon=True) for _ in range(threads)]
+        for t in self.threads:
+            t.start()
+
+    def _work(self) -> None:
+        while (job := self.todo.get()) is not None:
+            future, func, args = job
+            if future.set_running_or_notify_cancel():
+                try:
+                    future.set_result(func(*args))
+                except BaseException as e:  # handed to the caller, which re-raises it
+                    future.set_exception(e)
+
+    def submit(self, func, *args):
+        from concurrent.futures import Future
+
+        future = Future()
+        self.todo.put((future, func, args))
+        return future
+
+    def close(self) -> None:
+        """Let the threads end after their current call (not waited for)."""
+        for _ in self.threads:
+            self.todo.put(None)
 
 
 def _on_dask(client, func, tasks, shared, log, kind) -> Iterator[Any]:

@@ -49,3 +49,19 @@ def test_task_log_counts_the_pickled_bytes():
     d = log.to_dict()["read"]
     assert d["tasks"] == 2 and d["bytes_sent_back"] == pickled_bytes(a) + pickled_bytes(np.zeros(10))
     assert pickled_bytes(a) == len(pickle.dumps(a, protocol=5)) and 24_000 < pickled_bytes(a) < 25_000
+
+
+def _sleep(s):
+    threading.Event().wait(s)
+    return s
+
+
+def test_an_abandoned_run_does_not_wait_for_the_tasks_in_flight():
+    """An interrupted run (the consumer gone) ends at once; the threads finish on their own."""
+    import time
+
+    clock = time.perf_counter()
+    run = run_tasks(_sleep, [(0.0,), (3.0,), (3.0,)], threads=2)
+    assert next(run) == 0.0
+    run.close()
+    assert time.perf_counter() - clock < 1.0
