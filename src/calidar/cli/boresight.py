@@ -43,8 +43,11 @@ def boresight(
         TRAJECTORY_CORRELATION, "--trajectory-correlation",
         help="Correlation times of the trajectory's position and attitude errors (Gauss–Markov), 'POS_S,ATT_S' s."),
     truth: Path | None = typer.Option(None, "--truth", help="truth.json of a simulation (adds truth and errors)."),
-    scheduler: str | None = typer.Option(None, "--scheduler", help="Dask scheduler address for the pair matching."),
-    workers: int | None = typer.Option(None, "--workers", help="Start a local Dask cluster with N workers."),
+    scheduler: str | None = typer.Option(
+        None, "--scheduler", help="Dask scheduler address: the files are read, the pairs matched and the overlap "
+        "quality measured as tasks on its workers (which must see the files at the same paths)."),
+    workers: int | None = typer.Option(None, "--workers", help="The same tasks on a local Dask cluster of N "
+                                       "processes (default: two threads in this process)."),
     out: Path = typer.Option(..., "--out", help="Output folder."),
     force: bool = typer.Option(False, "--force", help="Write into a non-empty output folder."),
     write_strips: bool = typer.Option(False, "--write-strips", help="Also write the recalibrated strips (LAZ)."),
