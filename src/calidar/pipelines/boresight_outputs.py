@@ -72,7 +72,7 @@ def measure_lines(inputs, models, progress: Progress = no_progress, work=None) -
 
     with tempfile.TemporaryDirectory(prefix="calidar-moments-") as spill:  # cell moments beyond HOLD_BYTES
         return lines_quality(read, source.quality, len(models), source.names,
-                             threads=work.threads if work is not None and work.client is None else 1)
+                             threads=work.local_threads if work else 1)
 
 
 def _file_stages(source, nominal, models, metric, plans, chosen, count, k: int, start: int, stop: int):

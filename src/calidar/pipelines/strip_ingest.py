@@ -365,7 +365,7 @@ def ingest_strips(paths, trajectory, sensor, options: IngestOptions = IngestOpti
         progress("reading strips", done, total)
     build = [(i, np.concatenate(ecef.pop(i)), np.concatenate(times.pop(i)), trajectory, sensor, frame,
               ", ".join(where[i]), span[i]) for i in sorted(ecef)]
-    strips = list(run_tasks(Strip.from_ecef, build, threads=work.threads if work and not work.client else 1))
+    strips = list(run_tasks(Strip.from_ecef, build, threads=work.local_threads if work else 1))
     notes = unpaired_notes(footprint, pairs, options.cell_m, options.min_cells, names)
     crs = las_file_crs(files[0].path, files[0].points.crs)
     return strips, crs, source, notes

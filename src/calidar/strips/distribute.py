@@ -204,6 +204,11 @@ class Workers:
     threads: int = 1
     log: TaskLog = field(default_factory=TaskLog)
 
+    @property
+    def local_threads(self) -> int:
+        """Threads for work that stays in this process (its arrays are here): ours, or 1 beside a cluster."""
+        return self.threads if self.client is None else 1
+
     def run(self, func: Callable[..., Any], tasks: Sequence[tuple], shared: tuple = (), kind: str = "task") -> Iterator[Any]:
         """:func:`run_tasks` here."""
         return run_tasks(func, tasks, shared=shared, client=self.client, threads=self.threads, log=self.log, kind=kind)
