@@ -1,11 +1,13 @@
 """Points between ECEF and a CRS with PROJ (pyproj): cached transformers, geoid heights
 (a clear error naming a missing grid instead of PROJ's "ballpark" fallback, or a constant
-undulation N), and the fast form for points moved by metres (:func:`to_crs_moved`).
+undulation N), and the fast forms linearized per tile (:func:`tile_linear`: points moved by metres,
+points in ECEF to ~1 mm).
 :mod:`calidar.georef` re-exports these."""
 
 from __future__ import annotations
 
 import warnings
+from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
@@ -91,19 +93,40 @@ def from_crs(points, crs, geoid_undulation_m: float | None = None, source=None) 
     return np.stack([x, y, z], axis=-1)
 
 
-def to_crs_moved(points_ecef, base_ecef, base_xyz, crs, geoid_undulation_m: float | None = None, source=None,
-                 tile_m: float = 50.0) -> np.ndarray:
-    """:func:`to_crs` of points moved by metres from ``base_ecef`` (N, 3), whose coordinates in
-    ``crs`` are ``base_xyz`` (N, 3): base_xyz + J · (p − base), J the transform's Jacobian at one
-    base point of each ``tile_m`` tile (finite differences through :func:`to_crs`). Much faster
-    than transforming every point; the error is below 0.1 mm for moves up to ~10 m (J changes by
-    ~tile/R ≈ 1e-5 across a tile, a second-order term by |Δ|²/R)."""
-    base_xyz = np.asarray(base_xyz, float)
-    base_ecef = np.asarray(base_ecef, float)
-    if base_xyz.shape[0] == 0:
-        return base_xyz.copy()
+@dataclass(frozen=True)
+class TileLinear:
+    """The transform between ECEF and a CRS linearized per tile of the points' CRS coordinates:
+    one anchor per tile (its first point) transformed by PROJ, with the Jacobian ∂crs/∂ECEF
+    there by finite differences (four PROJ calls per tile instead of one per point)."""
+
+    xyz: np.ndarray  #: (N, 3) the points' CRS coordinates
+    rows: np.ndarray  #: (N,) the tile of each point
+    anchor: np.ndarray  #: (T,) the point anchoring each tile
+    anchor_ecef: np.ndarray  #: (T, 3) m
+    jac: np.ndarray  #: (T, 3, 3) ∂crs/∂ECEF at each anchor
+
+    def moved(self, d_ecef: np.ndarray) -> np.ndarray:
+        """CRS coordinates of the points moved by ``d_ecef`` (N, 3) m: xyz + J · d; below 0.1 mm
+        from the full transform for moves up to ~10 m (J changes by ~tile/R ≈ 1e-5 across a
+        tile, a second-order term by |d|²/R)."""
+        return _moved(self.xyz, self.jac, self.rows, np.asarray(d_ecef, float))
+
+    def near_ecef(self) -> np.ndarray:
+        """The points in ECEF from the anchors' Jacobians: off the full transform by up to ~1 mm
+        (≈ d²/R for d ≤ the tile's diagonal, and Δh·d/R across heights), which cancels where only
+        the moves of points count (re-georeferencing: inverse and forward through the same points)."""
+        inv = np.linalg.inv(self.jac)
+        return _moved(self.anchor_ecef[self.rows], inv, self.rows, self.xyz - self.xyz[self.anchor][self.rows])
+
+
+def tile_linear(xyz, crs, geoid_undulation_m: float | None = None, source=None, tile_m: float = 50.0) -> TileLinear:
+    """:class:`TileLinear` of points (N, 3) in ``crs`` on tiles of ``tile_m`` m (of ≈ tile_m/1e5
+    degrees in a geographic CRS); ``geoid_undulation_m``, ``source`` as in :func:`from_crs`."""
+    xyz = np.asarray(xyz, float)
+    if xyz.shape[0] == 0:
+        return TileLinear(xyz, np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros((0, 3)), np.zeros((0, 3, 3)))
     tile = tile_m / 1e5 if pyproj.CRS.from_user_input(crs).is_geographic else tile_m  # ≈ 1e5 m a degree
-    ij = np.floor(base_xyz[:, :2] / tile).astype(np.int64)
+    ij = np.floor(xyz[:, :2] / tile).astype(np.int64)
     ij -= ij.min(axis=0)
     key = ij[:, 0] * (int(ij[:, 1].max()) + 1) + ij[:, 1]
     first = np.full(int(key.max()) + 1, -1, np.int64)
@@ -111,10 +134,19 @@ def to_crs_moved(points_ecef, base_ecef, base_xyz, crs, geoid_undulation_m: floa
     tiles = np.flatnonzero(first >= 0)
     index = np.empty(first.size, np.int64)
     index[tiles] = np.arange(tiles.size)
-    anchor = base_ecef[first[tiles]]
-    at = to_crs(anchor, crs, geoid_undulation_m, source)
-    jac = np.stack([to_crs(anchor + step, crs, geoid_undulation_m, source) - at for step in np.eye(3)], axis=2)
-    return _moved(base_xyz, jac, index[key], np.asarray(points_ecef, float) - base_ecef)
+    anchor = first[tiles]
+    anchor_ecef = from_crs(xyz[anchor], crs, geoid_undulation_m, source)
+    at = to_crs(anchor_ecef, crs, geoid_undulation_m, source)
+    jac = np.stack([to_crs(anchor_ecef + step, crs, geoid_undulation_m, source) - at for step in np.eye(3)], axis=2)
+    return TileLinear(xyz, index[key], anchor, anchor_ecef, jac)
+
+
+def to_crs_moved(points_ecef, base_ecef, base_xyz, crs, geoid_undulation_m: float | None = None, source=None,
+                 tile_m: float = 50.0) -> np.ndarray:
+    """:func:`to_crs` of points moved by metres from ``base_ecef`` (N, 3), whose coordinates in
+    ``crs`` are ``base_xyz`` (N, 3): :meth:`TileLinear.moved` by ``points_ecef − base_ecef``."""
+    lin = tile_linear(base_xyz, crs, geoid_undulation_m, source, tile_m)
+    return lin.moved(np.asarray(points_ecef, float) - np.asarray(base_ecef, float))
 
 
 @njit(cache=True, nogil=True)

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import contextlib
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass, replace
 
 import numpy as np
 import scipy.linalg as sl
@@ -95,21 +96,72 @@ def solve(
     The covariance is σ0²·N⁻¹ without priors (σ relative) and max(σ0², 1)·N⁻¹ with them (σ
     absolute: the priors are never tightened by an a-posteriori σ0 below 1).
     """
-    free = params.free
-    if not free:
+    return estimate(residual_fn, params, sigma=sigma, jacobian_fn=jacobian_fn, robust=robust, robust_k=robust_k,
+                    max_iter=max_iter, tol=tol, robust_scale=robust_scale, progress=progress,
+                    prior_correlation=prior_correlation, normal_fn=normal_fn).solution(clusters)
+
+
+def estimate(residual_fn: ResidualFn, params: ParameterSet, *, sigma: float | np.ndarray = 1.0,
+             jacobian_fn: JacobianFn | None = None, robust: str | None = "cauchy", robust_k: float | None = None,
+             max_iter: int = 30, tol: float = 1e-10, robust_scale: bool = True,
+             progress: Callable[[int, float], None] | None = None,
+             prior_correlation: Sequence[tuple[Sequence[str], np.ndarray]] = (),
+             normal_fn: Callable[[dict[str, float]], np.ndarray] | None = None,
+             step_in_sigma: float = STEP_IN_SIGMA, step_scale: np.ndarray | None = None) -> "Estimate":
+    """The iterations of :func:`solve` without its covariance: an :class:`Estimate` whose
+    ``solution()`` adds it. ``step_in_sigma``: stop when every step is below this fraction of its
+    σ (an outer loop that re-matches its observations can stop early and ``refine`` its last);
+    ``step_scale``: diag(N⁻¹) for that σ (an earlier Estimate's, whose normal matrix is nearly
+    this one's; None: from the first step's N)."""
+    if not params.free:
         raise CalibrationError("no free parameters to estimate")
     with _one_blas_thread():
         fit = _Fit(residual_fn, params, sigma, jacobian_fn, robust, robust_k, robust_scale, prior_correlation, normal_fn)
-        x, r, w, history, converged = _levenberg_marquardt(fit, max_iter, tol, progress)
-        sol, J, N = _solution(fit, x, r, w, history, converged)
-    groupings = [] if clusters is None else clusters if isinstance(clusters, list) else [clusters]
-    if groupings:
-        factor = fit.variance_factor(r, w, x)
-        scores = sp.diags(w * r) @ J  # per observation ∂cost/∂θ (dense or sparse like J)
-        Ninv = sol.covariance / factor if factor > 0 and np.all(np.isfinite(sol.covariance)) else np.linalg.pinv(N)
-        for grouping in groupings:
-            sol.covariance = _cluster_robust(sol.covariance, Ninv, scores, np.asarray(grouping))
-    return sol
+        history = [{"iteration": 0, "cost": fit.cost(fit.r0, fit.weights(fit.r0), fit.x0),
+                    "rms": residual_stats(fit.r0)["rms"], "values": params.values()}]
+        start = Estimate(fit, fit.x0, fit.r0, fit.weights(fit.r0), history, False, step_scale, max_iter, tol, progress)
+        return start.refine(step_in_sigma)
+
+
+@dataclass
+class Estimate:
+    """Where the iterations stopped: free values ``x`` (SI), residuals, robust weights (× 1/σ²),
+    the history, whether the stop rule fired, and the σ scale of that rule (diag N⁻¹)."""
+
+    fit: "_Fit"
+    x: np.ndarray
+    r: np.ndarray
+    w: np.ndarray
+    history: list[dict]
+    converged: bool
+    step_scale: np.ndarray | None
+    max_iter: int = 30
+    tol: float = 1e-10
+    progress: Callable[[int, float], None] | None = None
+
+    @property
+    def parameters(self) -> ParameterSet:
+        return self.fit.params.updated(self.x)
+
+    def refine(self, step_in_sigma: float = STEP_IN_SIGMA) -> "Estimate":
+        """Iterate on from here until every step is below ``step_in_sigma`` of its σ."""
+        with _one_blas_thread():
+            return _levenberg_marquardt(self, step_in_sigma)
+
+    def solution(self, clusters: np.ndarray | list[np.ndarray] | None = None) -> Solution:
+        """The :class:`Solution` here: covariance = variance factor · N⁻¹, raised by the
+        cluster-robust sandwich of each grouping in ``clusters`` (see :func:`solve`)."""
+        fit, x, r, w = self.fit, self.x, self.r, self.w
+        with _one_blas_thread():
+            sol, J, N = _solution(fit, x, r, w, self.history, self.converged)
+        groupings = [] if clusters is None else clusters if isinstance(clusters, list) else [clusters]
+        if groupings:
+            factor = fit.variance_factor(r, w, x)
+            scores = sp.diags(w * r) @ J  # per observation ∂cost/∂θ (dense or sparse like J)
+            Ninv = sol.covariance / factor if factor > 0 and np.all(np.isfinite(sol.covariance)) else np.linalg.pinv(N)
+            for grouping in groupings:
+                sol.covariance = _cluster_robust(sol.covariance, Ninv, scores, np.asarray(grouping))
+        return sol
 
 
 def _one_blas_thread():
@@ -193,18 +245,16 @@ class _Fit:
         return s0 if self.n_prior == 0 else max(s0, 1.0)
 
 
-def _levenberg_marquardt(fit: _Fit, max_iter: int, tol: float, progress):
-    """Damped Gauss–Newton steps with IRLS weights until the steps are invisible against the
-    parameters' σ (or the cost stops falling); returns x, r, w, the history and whether it converged."""
-    x, r = fit.x0, fit.r0
-    before_rms = residual_stats(r)["rms"]
-    lam, w = 1e-3, fit.weights(r)
+def _levenberg_marquardt(at: Estimate, step_in_sigma: float) -> Estimate:
+    """Damped Gauss–Newton steps with IRLS weights from ``at`` until the steps are invisible against
+    the parameters' σ (or the cost stops falling, or ``at.max_iter`` steps in all)."""
+    fit, x, r, w = at.fit, at.x, at.r, at.w
+    lam, history, n_inv_diag = 1e-3, list(at.history), at.step_scale  # n_inv_diag: N hardly changes
     c = fit.cost(r, w, x)
-    history = [{"iteration": 0, "cost": c, "rms": before_rms, "values": fit.params.values_with(x)}]
-    n_inv_diag = None  # diag(N⁻¹) of the first step: the stop rule's σ scale (N hardly changes after)
     steps = np.array([p.diff_step for p in fit.free])
     redundancy = max(fit.n + fit.n_prior - len(fit.free), 1)
-    for it in range(1, max_iter + 1):
+    done = lambda conv: replace(at, x=x, r=r, w=w, history=history, converged=conv, step_scale=n_inv_diag)  # noqa: E731
+    for it in range(len(history), at.max_iter + 1):
         N, g = fit.normal_equations(fit.jacobian(x), w, r, x)
         if n_inv_diag is None:
             n_inv_diag = _inverse_diagonal(N)
@@ -218,19 +268,19 @@ def _levenberg_marquardt(fit: _Fit, max_iter: int, tol: float, progress):
                 break
             lam *= 10.0
         else:
-            break  # no descent possible: at the minimum to machine precision
+            return done(False)  # no descent possible: at the minimum to machine precision
         x, r = x + dx, r_new
         lam = max(lam / 10.0, 1e-12)
         w = fit.weights(r)
         c_prev, c = c, fit.cost(r, w, x)
         history.append({"iteration": it, "cost": c, "rms": residual_stats(r)["rms"], "lambda": lam,
                         "values": fit.params.values_with(x)})
-        if progress:
-            progress(it, c)
-        if (np.all(np.abs(dx) < tol + 1e-4 * steps) or abs(c_prev - c) <= tol * max(c, 1e-300)
-                or np.all(np.abs(dx) <= STEP_IN_SIGMA * np.sqrt(n_inv_diag * 2.0 * c / redundancy))):
-            return x, r, w, history, True
-    return x, r, w, history, False
+        if at.progress:
+            at.progress(it, c)
+        if (np.all(np.abs(dx) < at.tol + 1e-4 * steps) or abs(c_prev - c) <= at.tol * max(c, 1e-300)
+                or np.all(np.abs(dx) <= step_in_sigma * np.sqrt(n_inv_diag * 2.0 * c / redundancy))):
+            return done(True)
+    return done(False)
 
 
 def _solution(fit: _Fit, x: np.ndarray, r: np.ndarray, w: np.ndarray, history: list[dict], converged: bool):
@@ -330,12 +380,11 @@ def _cluster_robust(cov: np.ndarray, Ninv: np.ndarray, scores: np.ndarray, clust
         return np.asarray((member @ scores).todense()) if sp.issparse(scores) else member @ scores
 
     S = sum(group_sums(g[:, col], G) for col in range(c.shape[1]))
-    meat = S.T @ S
+    sand = np.sum((Ninv @ S.T) ** 2, axis=1)  # diag(N⁻¹ SᵀS N⁻¹), O(p² G) for G groups
     if c.shape[1] == 2:  # observations sharing both groups were counted twice
         _, d = np.unique(np.sort(g, axis=1), axis=0, return_inverse=True)
-        D = group_sums(d.ravel(), int(d.max()) + 1)
-        meat -= D.T @ D
-    sand = np.sum((Ninv @ meat) * Ninv.T, axis=1) * G / (G - 1)  # diag(N⁻¹ · meat · N⁻¹)
+        sand -= np.sum((Ninv @ group_sums(d.ravel(), int(d.max()) + 1).T) ** 2, axis=1)
+    sand *= G / (G - 1)
     d = np.maximum(np.diag(cov), 1e-300)
     scale = np.sqrt(np.maximum(sand, d) / d)
     return cov * np.outer(scale, scale)

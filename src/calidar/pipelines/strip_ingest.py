@@ -32,7 +32,7 @@ import numpy as np
 from calidar.errors import CalibrationError, InputError
 from calidar.io.las import PointOptions, iter_las_chunks, las_file_crs, las_header, las_time_system
 from calidar.pipelines import Progress, no_progress
-from calidar.pipelines.inputs import FileTimes, points_ecef
+from calidar.pipelines.inputs import FileTimes, points_ecef, points_tile_linear
 from calidar.pipelines.line_quality import LineCounts
 from calidar.strips.lines import GAP_S
 from calidar.strips.overlap import cell_counts, cell_keys, common_cells, merge_counts, strip_name, unpaired_notes
@@ -127,8 +127,8 @@ def line_chunks(source: StripSource, nominal, models=(None,), fields=None, where
     id, [LasPoints per model]):
     for each of ``models`` the delivered points (None) or those re-georeferenced with a (sensor,
     trajectory) (inverse once with the ``nominal`` sensor and the source's trajectory, forward
-    with each, as :func:`calidar.georef.regeoreference`), in the files' CRS
-    (:func:`calidar.georef.to_crs_moved`, within 0.1 mm of the full transform), ``fields``
+    with each, as :func:`calidar.georef.regeoreference`), in the files' CRS (the moves through
+    :class:`calidar.crs.TileLinear`, within 0.1 mm of the full transform), ``fields``
     (default: all) as read; ``where(chunk)``: a mask of the points wanted. Whole lines, chunk by
     chunk (bounded memory)."""
     from calidar import georef
@@ -138,11 +138,11 @@ def line_chunks(source: StripSource, nominal, models=(None,), fields=None, where
         if where is not None:
             keep = where(chunk)
             chunk, ids, t = chunk.select(keep), ids[keep], t[keep]
-        ecef = None if all(m is None for m in models) else points_ecef(chunk)
+        lin = None if all(m is None for m in models) else points_tile_linear(chunk)  # one for every model
+        ecef = None if lin is None else lin.near_ecef()  # ~1 mm: only the moves below count
         obs = None if ecef is None else georef.inverse(source.trajectory, nominal, t, ecef)
-        versions = [chunk if m is None else replace(chunk, xyz=georef.to_crs_moved(
-            georef.forward(m[1], m[0], obs.time, obs.range_m, obs.angles), ecef, chunk.xyz, chunk.crs,
-            chunk.geoid_undulation_m, source=chunk.path)) for m in models]
+        versions = [chunk if m is None else replace(chunk, xyz=lin.moved(
+            georef.forward(m[1], m[0], obs.time, obs.range_m, obs.angles) - ecef)) for m in models]
         for i, rows in split_rows(ids):
             yield i, [v.select(rows) for v in versions]
 

@@ -25,7 +25,8 @@ from pathlib import Path
 import numpy as np
 import scipy.sparse as sp
 
-from calidar.adjust import ParameterSet, Solution, solve
+from calidar.adjust import ParameterSet, Solution
+from calidar.adjust.solver import Estimate, estimate
 from calidar.adjust.solution import residual_stats
 from calidar.errors import CalibrationError, CalidarError, InputError
 from calidar.scanners.rotating import canonical_eccentricity
@@ -41,6 +42,9 @@ from calidar.strips.parameters import (  # noqa: F401 - the calibrator's vocabul
 #: the outer loop's default stop (m) per method: VGICP's re-matching alone moves the mean
 #: distance by ~0.1 mm, so the tie planes' 0.2 mm would rarely stop it
 THRESHOLD_M = {"planes": 2e-4, "vgicp": 1e-3}
+#: an outer iteration's adjustment stops when every step is below this fraction of its σ: the next
+#: matching moves the points anyway; the last one is then refined to calidar.adjust.solver.STEP_IN_SIGMA
+OUTER_STEP_IN_SIGMA = 0.1
 from calidar.strips.planes import PlaneSettings, match_pair_planes
 from calidar.strips.problem import StripProblem, georeference, union
 from calidar.strips.strip import Pose, Strip
@@ -216,16 +220,22 @@ class _Run:
                 pairs.append({"a": o.a, "b": o.b, "n_obs": c.n_obs})
         return corrs, pairs, skipped
 
-    def solve(self, corrs: list[Correspondences], params: ParameterSet) -> tuple[Solution, StripProblem]:
-        """One adjustment of ``params`` from the correspondences ``corrs``."""
+    def solve(self, corrs: list[Correspondences], params: ParameterSet, step_in_sigma: float,
+              step_scale: np.ndarray | None) -> tuple[Estimate, StripProblem]:
+        """One adjustment of ``params`` from the correspondences ``corrs``, iterated until every
+        step is below ``step_in_sigma`` of its σ (``step_scale``: diag N⁻¹ of an earlier one)."""
         problem = StripProblem(self.nominal, self.poses, corrs, params.free_names,
                                {i: st.time for i, st in self.by_id.items()}, self.model, self.spans)
+        est = estimate(problem, params, sigma=problem.sigma, robust=self.settings.robust,
+                       jacobian_fn=lambda v, free=params.free: problem.jacobian(v, free),
+                       prior_correlation=self.model.prior_correlation(self.spans) if self.model else (),
+                       step_in_sigma=step_in_sigma, step_scale=step_scale)
+        return est, problem
+
+    def solution(self, est: Estimate, problem: StripProblem) -> Solution:
+        """The final adjustment's :class:`Solution`, σ raised by the cluster-robust sandwich."""
         s = self.settings
-        clusters = problem.clusters(self.by_id, s.cluster_s) if s.cluster_s else None
-        solution = solve(problem, params, sigma=problem.sigma, robust=s.robust, clusters=clusters,
-                         jacobian_fn=lambda v, free=params.free: problem.jacobian(v, free),
-                         prior_correlation=self.model.prior_correlation(self.spans) if self.model else ())
-        return solution, problem
+        return est.solution(problem.clusters(self.by_id, s.cluster_s) if s.cluster_s else None)
 
 
 def calibrate(strips: Sequence[Strip], nominal: Sensor, *, scheduler: str | None = None,
@@ -257,28 +267,39 @@ def calibrate_with_client(strips: Sequence[Strip], nominal: Sensor, *, method: s
     params = build_parameters(nominal, estimate, run.spans, s.trajectory,
                               run.headings() if run.model is not None else None)
     outer: list[dict] = []
-    first_residuals = solution = problem = pairs = None
+    first_residuals = est = problem = pairs = None
     for k in range(s.max_outer):
         corrs, pairs, times = run.match(params.values(), k, client, say, log)
         say(f"iteration {k + 1}: solving {sum(c.n_obs for c in corrs)} observations", k, s.max_outer)
         clock = time.perf_counter()
-        solution, problem = run.solve(corrs, params)
+        est, problem = run.solve(corrs, params, OUTER_STEP_IN_SIGMA, None if est is None else est.step_scale)
         times["solve_s"] = time.perf_counter() - clock
         if first_residuals is None:
             first_residuals = problem(params.values())
-        params = solution.parameters
-        mean = float(np.mean(np.concatenate([_mean_distance(c, r) for c, r in problem.split(solution.residuals)])))
-        outer.append({"iteration": k + 1, "mean_distance_m": mean, "n_obs": int(problem.sigma.size),
-                      "n_pairs": len(corrs), "solver_iterations": len(solution.history) - 1, **times,
+        params = est.parameters
+        outer.append({"iteration": k + 1, "mean_distance_m": _mean(problem, est.r), "n_obs": int(problem.sigma.size),
+                      "n_pairs": len(corrs), "solver_iterations": len(est.history) - 1, **times,
                       "values": params.values()})
-        if len(outer) > 1 and abs(outer[-2]["mean_distance_m"] - mean) < s.threshold_m:
+        if len(outer) > 1 and abs(outer[-2]["mean_distance_m"] - outer[-1]["mean_distance_m"]) < s.threshold_m:
             say("outer iterations settled", s.max_outer, s.max_outer)
             break
     else:
         change = abs(outer[-1]["mean_distance_m"] - outer[-2]["mean_distance_m"]) if len(outer) > 1 else float("nan")
         run.warnings.append(f"the outer loop stopped after {s.max_outer} iterations before the mean correspondence "
                             f"distance settled (last change {change * 1e3:.2g} mm)")
+    say("refining the last adjustment and its σ", s.max_outer, s.max_outer)
+    clock = time.perf_counter()
+    est = est.refine()  # the last matching's adjustment to the full precision, then its covariance
+    solution = run.solution(est, problem)
+    outer[-1].update(mean_distance_m=_mean(problem, est.r), solver_iterations=len(est.history) - 1,
+                     solve_s=outer[-1]["solve_s"] + time.perf_counter() - clock, values=est.parameters.values())
+    say("calibrated", s.max_outer, s.max_outer)
     return _result(run, solution, problem, pairs, outer, first_residuals, strips)
+
+
+def _mean(problem: StripProblem, residuals: np.ndarray) -> float:
+    """The mean correspondence distance (m) of the residuals."""
+    return float(np.mean(np.concatenate([_mean_distance(c, r) for c, r in problem.split(residuals)])))
 
 
 def _result(run: _Run, solution: Solution, problem: StripProblem, pairs: list[dict], outer: list[dict],

@@ -19,7 +19,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy.stats import chi2
+from scipy.special import chdtri  # χ² quantiles without scipy.stats' 0.5 s import
 
 from calidar.strips.trajectory_errors import PREFIX as TRAJECTORY_PREFIX
 from calidar.verdict import Finding, Verdict, angle_text, length_text, two_digits
@@ -96,7 +96,7 @@ def parameter_findings(result, range_m: float) -> list[Finding]:
 
 def sigma0_finding(sol) -> Finding:
     priors = any(p.prior_sigma is not None for p in sol.parameters.free)
-    lo, hi = (math.sqrt(chi2.ppf(q, sol.dof) / sol.dof) for q in (0.025, 0.975))
+    lo, hi = (math.sqrt(chdtri(sol.dof, 1.0 - q) / sol.dof) for q in (0.025, 0.975))  # χ² quantiles
     detail = f"σ0 = {sol.sigma0:.2f} (1 expected; the χ² test's 95 % range for {sol.dof:,.0f} degrees of freedom is {lo:.2f}–{hi:.2f})"
     if SIGMA0_PASS[0] <= sol.sigma0 <= SIGMA0_PASS[1]:
         note = "" if lo <= sol.sigma0 <= hi else "; the σ include this factor" if sol.sigma0 > 1 else \

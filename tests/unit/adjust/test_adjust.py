@@ -145,3 +145,51 @@ def test_normal_matrix_of_a_sparse_jacobian_equals_the_dense_product():
     w = rng.uniform(0.5, 2.0, 4)
     D = J.toarray()
     assert np.allclose(_normal_matrix(J, w), D.T @ (w[:, None] * D), rtol=1e-12, atol=1e-12)
+
+
+def test_a_loose_estimate_refined_equals_the_full_solve():
+    """What the strip calibration's outer loop does: stop each adjustment at 0.1 σ, refine the last."""
+    from calidar.adjust.solver import estimate
+
+    x, y = _line(7, outliers=30)
+    fn = lambda v: v["a"] + v["b"] * x - y  # noqa: E731
+    groups = np.repeat(np.arange(20), 20)  # 20 clusters of 20 observations
+    full = solve(fn, _params(), sigma=0.1, clusters=groups)
+    loose = estimate(fn, _params(), sigma=0.1, step_in_sigma=0.1)
+    refined = loose.refine()
+    assert len(refined.history) > len(loose.history)  # it did stop early, then went on
+    sol = refined.solution(groups)
+    for name in ("a", "b"):
+        assert abs(loose.parameters[name].value - full.values[name]) < 0.1 * full.sigma[name]
+        assert abs(sol.values[name] - full.values[name]) < 1e-3 * full.sigma[name]
+        assert sol.sigma[name] == pytest.approx(full.sigma[name], rel=1e-3)
+
+
+@pytest.mark.parametrize("dyadic", [False, True])
+def test_cluster_robust_sigma_is_the_sandwich(dyadic):
+    """diag(N⁻¹ · Σ_g S_g S_gᵀ · N⁻¹) · G/(G−1), computed the long way (the meat formed explicitly)."""
+    from calidar.adjust.solver import _cluster_robust
+
+    rng = np.random.default_rng(2)
+    n, p = 300, 4
+    J = rng.normal(size=(n, p))
+    scores = J * rng.normal(size=(n, 1))
+    groups = rng.integers(0, 12, n)
+    if dyadic:  # two different groups per observation (a pair of strips' time clusters)
+        groups = np.c_[groups, (groups + rng.integers(1, 12, n)) % 12]
+    N = J.T @ J
+    Ninv = np.linalg.inv(N)
+    cov = 1e-6 * Ninv  # small: the sandwich raises every σ
+    labels = groups if dyadic else groups[:, None]
+    G = np.unique(labels).size
+    meat = np.zeros((p, p))
+    for i in range(n):
+        for j in range(n):
+            shared = set(labels[i]) & set(labels[j])
+            if shared:
+                meat += np.outer(scores[i], scores[j])
+    want = np.diag(Ninv @ meat @ Ninv) * G / (G - 1)
+    got = _cluster_robust(cov, Ninv, scores, groups)
+    assert np.allclose(np.diag(got), want, rtol=1e-9)
+    corr = lambda c: c / np.sqrt(np.outer(np.diag(c), np.diag(c)))  # noqa: E731
+    assert np.allclose(corr(got), corr(cov))  # correlations kept
