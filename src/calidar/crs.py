@@ -14,6 +14,7 @@ import numpy as np
 import pyproj
 from numba import njit
 
+from calidar.cells import group_cells
 from calidar.errors import InputError
 
 ECEF_CRS = "EPSG:4978"
@@ -126,19 +127,11 @@ def tile_linear(xyz, crs, geoid_undulation_m: float | None = None, source=None, 
     if xyz.shape[0] == 0:
         return TileLinear(xyz, np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros((0, 3)), np.zeros((0, 3, 3)))
     tile = tile_m / 1e5 if pyproj.CRS.from_user_input(crs).is_geographic else tile_m  # ≈ 1e5 m a degree
-    ij = np.floor(xyz[:, :2] / tile).astype(np.int64)
-    ij -= ij.min(axis=0)
-    key = ij[:, 0] * (int(ij[:, 1].max()) + 1) + ij[:, 1]
-    first = np.full(int(key.max()) + 1, -1, np.int64)
-    first[key[::-1]] = np.arange(key.size)[::-1]  # the first point of each tile (no sort)
-    tiles = np.flatnonzero(first >= 0)
-    index = np.empty(first.size, np.int64)
-    index[tiles] = np.arange(tiles.size)
-    anchor = first[tiles]
+    rows, anchor = group_cells(np.floor(xyz[:, :2] / tile).astype(np.int64))  # anchor: each tile's first point
     anchor_ecef = from_crs(xyz[anchor], crs, geoid_undulation_m, source)
     at = to_crs(anchor_ecef, crs, geoid_undulation_m, source)
     jac = np.stack([to_crs(anchor_ecef + step, crs, geoid_undulation_m, source) - at for step in np.eye(3)], axis=2)
-    return TileLinear(xyz, index[key], anchor, anchor_ecef, jac)
+    return TileLinear(xyz, rows, anchor, anchor_ecef, jac)
 
 
 def to_crs_moved(points_ecef, base_ecef, base_xyz, crs, geoid_undulation_m: float | None = None, source=None,

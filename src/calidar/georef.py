@@ -204,8 +204,19 @@ def lidar_points(position, rotation, sensor: Sensor, range_m, angles) -> np.ndar
     ρ = sensor.true_range(range_m) (docs/conventions.md; the numba kernels above fuse the same
     equation with the trajectory's interpolation). position (N, 3) and rotation body → frame
     (N, 3, 3) in any frame; returns (N, 3) in that frame."""
-    origin, direction = beams(position, rotation, sensor, angles)
-    return origin + sensor.true_range(range_m)[:, None] * direction
+    vec = sensor.true_range(range_m)[:, None] * sensor.scanner.directions(angles)
+    out = np.empty(vec.shape)
+    _posed_kernel(_c(position), _c(rotation), _c(vec), _c(sensor.r_bs), _c(sensor.lever_arm), out)
+    return out
+
+
+@njit(cache=True, nogil=True)
+def _posed_kernel(position, rotation, vec, r_bs, lever, out):  # pragma: no cover - numba
+    """:func:`_lidar_equation` at given poses: position (N, 3), rotation (N, 3, 3), scanner-frame vectors (N, 3)."""
+    for k in range(vec.shape[0]):
+        r = rotation[k]
+        _lidar_equation(vec[k, 0], vec[k, 1], vec[k, 2], r_bs, lever, position[k, 0], position[k, 1], position[k, 2],
+                        r[0, 0], r[0, 1], r[0, 2], r[1, 0], r[1, 1], r[1, 2], r[2, 0], r[2, 1], r[2, 2], out, k)
 
 
 def _c(a) -> np.ndarray:

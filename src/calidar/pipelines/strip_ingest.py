@@ -53,6 +53,12 @@ MAX_BLOCK_CELLS = 20
 #: points read at once: with the overlap-quality stages' copies (a chunk re-georeferenced per stage)
 #: this, not the files, sets the streaming memory (8.75 M points: 2 M → 2.1 GiB peak, 0.5 M → 1.3 GiB)
 CHUNK_POINTS = 250_000
+#: pass 1 holds in memory what pass 2 needs (xyz, times, point_source_id: 34 B a point) of the
+#: files that fit in this, in file order, when it runs in this process: pass 2 then reads them from
+#: memory instead of decompressing them again (8.75 M points: all held, −1.1 s). A fixed
+#: allowance, so memory still does not grow with the flight; 0 turns it off.
+HOLD_BYTES = 320 * 2**20
+HELD_BYTES_PER_POINT = 34
 
 
 @dataclass(frozen=True)
@@ -73,6 +79,7 @@ class IngestOptions:
     cell_m: float = 5.0
     min_cells: int = 4
     min_points_per_cell: int = 3
+    hold_bytes: int = HOLD_BYTES  #: see :data:`HOLD_BYTES`
 
 
 @dataclass(frozen=True)
@@ -101,20 +108,25 @@ class StripSource:
     names: dict = field(default_factory=dict)  #: line id → the name of a file holding it
 
     def chunks(self, fields: Sequence[str] = (), files: Sequence[StripFile] | None = None,
-               span: tuple[int, int | None] = (0, None)) -> Iterator[tuple]:
+               span: tuple[int, int | None] = (0, None), held: list | None = None) -> Iterator[tuple]:
         """(file, LasPoints chunk, line id per point, GPS time in the trajectory's system (s)) of
-        every chunk of every file (or of ``files``; of their points [``span``) only)."""
+        every chunk of every file (or of ``files``; of their points [``span``) only); ``held``:
+        the chunks (LasPoints, times) of the one file of ``files`` that pass 1 held, read instead."""
         for f in self.files if files is None else files:
-            fields_ = tuple(dict.fromkeys(("point_source_id", *fields)))
-            times = FileTimes(f.path, self.trajectory, f.time_system)
-            for chunk in iter_las_chunks(f.path, self.options.chunk_points, fields=fields_, options=f.points,
-                                         start=span[0], stop=span[1]):
-                t = times.feed(chunk.gps_time)
+            for chunk, t in held if held is not None else self._read(f, fields, span):
                 g = _group_keys(chunk.point_source_id, t, self.options.gap_s)
                 pos = np.minimum(np.searchsorted(self.groups, g), self.groups.size - 1)
                 if not np.array_equal(self.groups[pos], g):
                     raise InputError(f.path, None, "the file changed while it was read")
                 yield f, chunk, self.group_line[pos], t
+
+    def _read(self, f: StripFile, fields: Sequence[str], span: tuple[int, int | None]) -> Iterator[tuple]:
+        """(LasPoints chunk, its GPS times in the trajectory's system) of the file ``f``."""
+        times = FileTimes(f.path, self.trajectory, f.time_system)
+        for chunk in iter_las_chunks(f.path, self.options.chunk_points,
+                                     fields=tuple(dict.fromkeys(("point_source_id", *fields))), options=f.points,
+                                     start=span[0], stop=span[1]):
+            yield chunk, times.feed(chunk.gps_time)
 
     def cell_keys(self, chunk) -> np.ndarray:
         """The overlap-grid cell of each point of a chunk (:func:`planar_xy`)."""
@@ -143,6 +155,9 @@ def line_chunks(source: StripSource, nominal, models=(None,), fields=None, where
         obs = None if ecef is None else georef.inverse(source.trajectory, nominal, t, ecef)
         versions = [chunk if m is None else replace(chunk, xyz=lin.moved(
             georef.forward(m[1], m[0], obs.time, obs.range_m, obs.angles) - ecef)) for m in models]
+        if ids.size and ids[0] == ids[-1] and np.all(ids == ids[0]):  # one line: no copies
+            yield int(ids[0]), versions
+            continue
         for i, rows in split_rows(ids):
             yield i, [v.select(rows) for v in versions]
 
@@ -257,9 +272,12 @@ class _Footprints:
         return groups, line, "gps_time_gaps"
 
 
-def _footprints(frame: LocalFrame, trajectory, options: IngestOptions, f: StripFile) -> tuple[_Footprints, int | None]:
-    """Footprints and time checks of one file, chunk by chunk, and its GPS week (a task)."""
+def _footprints(frame: LocalFrame, trajectory, options: IngestOptions, f: StripFile,
+                hold: bool = False) -> tuple[_Footprints, int | None, list | None]:
+    """Footprints and time checks of one file, chunk by chunk, its GPS week and (``hold``) what
+    pass 2 needs of its chunks: (LasPoints with xyz and point_source_id, times) (a task)."""
     acc, times, grid = _Footprints(), FileTimes(f.path, trajectory, f.time_system), overlap_cell(None)
+    held = [] if hold else None
     for chunk in iter_las_chunks(f.path, options.chunk_points, fields=("point_source_id", *SELECTION_FIELDS),
                                  options=f.points):
         t = times.feed(chunk.gps_time)
@@ -269,24 +287,44 @@ def _footprints(frame: LocalFrame, trajectory, options: IngestOptions, f: StripF
         keys = cell_keys(xy, options.cell_m)
         acc.add(_group_keys(chunk.point_source_id, t[ok], options.gap_s), keys, t[ok], f.path.name, chunk,
                 keys if grid == options.cell_m else cell_keys(xy, grid))
-    return acc, times.finish(name_trajectory=True)  # the trajectory's span is what falls short
+        if held is not None:
+            psid, tt = np.array(chunk.point_source_id, np.uint16), t[ok]  # copies: views would hold the records
+            held.append((replace(chunk, gps_time=tt, point_source_id=psid, **{n: None for n in SELECTION_FIELDS}), tt))
+    return acc, times.finish(name_trajectory=True), held  # the trajectory's span is what falls short
 
 
 def _pass1(files: list[StripFile], frame: LocalFrame, trajectory, options: IngestOptions, progress: Progress,
-           run: Callable | None = None) -> tuple[_Footprints, dict]:
+           run: Callable | None = None, in_process: bool = True) -> tuple[_Footprints, dict, dict]:
     """Footprints and time checks of every file (one task each, run by ``run``: a
-    :meth:`calidar.strips.distribute.Workers.run`; None: one at a time here); the GPS week of each file."""
+    :meth:`calidar.strips.distribute.Workers.run`; None: one at a time here); the GPS week of each
+    file; the chunks held for pass 2 (``in_process``: the tasks run here, see :data:`HOLD_BYTES`)
+    by path."""
     from calidar.strips.distribute import Workers
 
     run = run or Workers().run
-    acc, weeks, done, total = _Footprints(), {}, 0, 2 * sum(las_header(f.path).point_count for f in files)
-    parts = run(_footprints, [(f,) for f in files], shared=(frame, trajectory, options), kind="read footprints")
-    for f, (part, week) in zip(files, parts):
+    acc, weeks, held, done = _Footprints(), {}, {}, 0
+    counts = [las_header(f.path).point_count for f in files]
+    hold = _held_files(counts, options.hold_bytes if in_process else 0)
+    parts = run(_footprints, [(f, h) for f, h in zip(files, hold)], shared=(frame, trajectory, options),
+                kind="read footprints")
+    for f, n, (part, week, points) in zip(files, counts, parts):
         acc.merge(part)
         weeks[f.path] = week
-        done += las_header(f.path).point_count
-        progress("reading strips", done, total)  # points, both passes
-    return acc, weeks
+        if points is not None:
+            held[f.path] = points
+        done += n
+        progress("reading strips", done, 2 * sum(counts))  # points, both passes
+    return acc, weeks, held
+
+
+def _held_files(counts: list[int], room: int) -> list[bool]:
+    """Which files pass 1 holds for pass 2: in file order, those whose points still fit in ``room`` bytes."""
+    hold = []
+    for n in counts:
+        need = HELD_BYTES_PER_POINT * n
+        hold.append(need <= room)
+        room -= need if need <= room else 0
+    return hold
 
 
 def _plan(acc: _Footprints, options: IngestOptions) -> tuple[np.ndarray, np.ndarray, str, dict, dict, list, dict]:
@@ -313,10 +351,11 @@ def block_cells(footprint: dict, options: IngestOptions) -> int:
     return int(np.clip(np.ceil(BLOCK_PATCHES * patch_m / options.cell_m), 1, MAX_BLOCK_CELLS))
 
 
-def _kept_points(source: StripSource, kept: dict, f: StripFile) -> dict[int, tuple[np.ndarray, np.ndarray]]:
-    """The points of one file inside its lines' kept cells: line → (ECEF (n, 3) m, times s) (a task)."""
+def _kept_points(source: StripSource, kept: dict, f: StripFile, held: list | None = None) -> dict[int, tuple]:
+    """The points of one file inside its lines' kept cells: line → (ECEF (n, 3) m, times s), from
+    the chunks pass 1 ``held`` or read again (a task)."""
     ecef, times = {}, {}
-    for _, chunk, ids, t in source.chunks(files=[f]):
+    for _, chunk, ids, t in source.chunks(files=[f], held=held):
         keys = source.cell_keys(chunk)
         for i, rows in split_rows(ids):
             cells = kept.get(i)
@@ -342,7 +381,7 @@ def ingest_strips(paths, trajectory, sensor, options: IngestOptions = IngestOpti
     run = (work or Workers()).run
     files = _files(paths, trajectory, sensor, options)
     frame = _frame(files)
-    acc, weeks = _pass1(files, frame, trajectory, options, progress, run)
+    acc, weeks, held = _pass1(files, frame, trajectory, options, progress, run, work is None or work.client is None)
     groups, line, how, footprint, span, pairs, kept = _plan(acc, options)
     names = {int(i): acc.files[int(groups[line == i][0])] for i in footprint}
     if not pairs:
@@ -356,13 +395,15 @@ def ingest_strips(paths, trajectory, sensor, options: IngestOptions = IngestOpti
     ecef, times, where = {}, {}, {}
     total = 2 * sum(las_header(f.path).point_count for f in files)
     done = total // 2
-    for f, part in zip(files, run(_kept_points, [(f,) for f in files], shared=(source, kept), kind="read kept points")):
+    tasks = [(f, held.pop(f.path, None)) for f in files]
+    for f, part in zip(files, run(_kept_points, tasks, shared=(source, kept), kind="read kept points")):
         for i, (e, t) in part.items():
             ecef.setdefault(i, []).append(e)
             times.setdefault(i, []).append(t)
             where.setdefault(i, {})[str(f.path)] = None
         done += las_header(f.path).point_count
         progress("reading strips", done, total)
+    del tasks  # the held chunks
     build = [(i, np.concatenate(ecef.pop(i)), np.concatenate(times.pop(i)), trajectory, sensor, frame,
               ", ".join(where[i]), span[i]) for i in sorted(ecef)]
     strips = list(run_tasks(Strip.from_ecef, build, threads=work.local_threads if work else 1))

@@ -190,9 +190,8 @@ class _Run:
                    for i, idx in self.need.items()}
         times = {"georeference_s": time.perf_counter() - clock}
 
-        def subset(i, index):
-            idx, pts = current[i]
-            return pts[np.searchsorted(idx, index)]
+        def subset(i, index):  # the points ``index`` of strip i (the pose cache's rows, by table)
+            return current[i][1][self.poses[i].rows_of(index)]
 
         match, match_settings = _matcher(self.method, self.settings)
         tasks = [(match, o.a, subset(o.a, o.index_a), o.b, subset(o.b, o.index_b), match_settings) for o in self.overlaps]

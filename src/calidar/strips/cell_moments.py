@@ -18,8 +18,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 
-from calidar.strips.overlap import cell_keys
+from calidar.cells import group_cells
 
 #: the 6 distinct products of a symmetric 3 × 3 scatter, in this order
 PRODUCTS = ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))
@@ -55,16 +56,16 @@ class CellMoments:
 
     @classmethod
     def of_points(cls, points: np.ndarray, cell_m: float) -> "CellMoments":
-        """Moments of points (N, 3) m, z up."""
-        p = np.asarray(points, float)
-        keys = cell_keys(p, cell_m)
-        uk, inv = np.unique(keys, return_inverse=True)
-        d = p - np.column_stack([cell_centres(uk, cell_m)[inv], np.zeros(len(p))])
-        n = np.bincount(inv, minlength=uk.size)
-        mean = np.stack([np.bincount(inv, d[:, k], uk.size) for k in range(3)], axis=1) / n[:, None]
-        r = d - mean[inv]
-        scatter = np.stack([np.bincount(inv, r[:, a] * r[:, b], uk.size) for a, b in PRODUCTS], axis=1)
-        return cls(float(cell_m), uk, n, mean, scatter)
+        """Moments of points (N, 3) m, z up (:func:`calidar.cells.group_cells`, then two passes to sum)."""
+        p = np.ascontiguousarray(points, float)
+        ij = np.floor(p[:, :2] / cell_m).astype(np.int64)
+        inv, first = group_cells(ij)
+        keys = index_keys(ij[first])
+        order = np.argsort(keys)
+        inv = np.argsort(order)[inv]  # groups in key order
+        keys = keys[order]
+        count, mean, scatter = _moments(p, inv, cell_centres(keys, cell_m))
+        return cls(float(cell_m), keys, count, mean, scatter)
 
     @classmethod
     def combined(cls, parts: "list[CellMoments]", cell_m: float | None = None) -> "CellMoments":
@@ -144,3 +145,30 @@ def _combine(cell_m: float, keys, count, mean, scatter) -> CellMoments:
     s = np.stack([np.bincount(inv, scatter[:, k] + count * d[:, a] * d[:, b], uk.size)
                   for k, (a, b) in enumerate(PRODUCTS)], axis=1)
     return CellMoments(cell_m, uk, n.astype(np.int64), m, s)
+
+
+@njit(cache=True, nogil=True)
+def _moments(p: np.ndarray, inv: np.ndarray, centres: np.ndarray):  # pragma: no cover - numba
+    """Count, mean (x, y from the cell centre, z) and centred scatter (PRODUCTS) of the points of
+    each group: two passes (the mean, then the products about it)."""
+    K = centres.shape[0]
+    count, mean, scatter = np.zeros(K, np.int64), np.zeros((K, 3)), np.zeros((K, 6))
+    for k in range(p.shape[0]):
+        g = inv[k]
+        count[g] += 1
+        mean[g, 0] += p[k, 0] - centres[g, 0]
+        mean[g, 1] += p[k, 1] - centres[g, 1]
+        mean[g, 2] += p[k, 2]
+    for g in range(K):
+        for a in range(3):
+            mean[g, a] /= count[g]
+    for k in range(p.shape[0]):
+        g = inv[k]
+        dx, dy, dz = p[k, 0] - centres[g, 0] - mean[g, 0], p[k, 1] - centres[g, 1] - mean[g, 1], p[k, 2] - mean[g, 2]
+        scatter[g, 0] += dx * dx
+        scatter[g, 1] += dx * dy
+        scatter[g, 2] += dx * dz
+        scatter[g, 3] += dy * dy
+        scatter[g, 4] += dy * dz
+        scatter[g, 5] += dz * dz
+    return count, mean, scatter

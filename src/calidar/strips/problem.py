@@ -17,6 +17,7 @@ from dataclasses import replace
 
 import numpy as np
 import scipy.sparse as sp
+from numba import njit
 
 from calidar import frames
 from calidar.adjust import Parameter, ParameterSet
@@ -64,25 +65,19 @@ class Centroids:
     def __init__(self, A: sp.csr_matrix, poses: Pose, nominal: Sensor, range_free: bool, lever_free: bool):
         """A: averaging weights over a strip's points (columns = strip point indices); poses:
         cached poses holding every point A references."""
-        n = A.shape[0]
         cols = union([A.indices])  # only the points this side references
-        A, pose = compact(A, cols), poses.take(poses.rows_of(cols))
-        u = nominal.scanner.directions(pose.angles)
+        rows = poses.rows_of(cols)
+        u = nominal.scanner.directions(poses.angles[rows])
+        rho = poses.range_m[rows] if range_free else nominal.true_range(poses.range_m[rows])
         self.rowsum = np.asarray(A.sum(axis=1)).ravel()
-        self.r = A @ pose.position  #: weighted sums of the IMU positions
-        R = (A @ pose.r_lb.reshape(-1, 9)).reshape(n, 3, 3)
+        #: weighted sums of the IMU positions, of R_lb, of R_lb·ρ·u and (range model free) of R_lb·u
+        self.r, R, self.M_rho, M_u = _weighted_sums(A.indptr, position_table(cols)[A.indices], A.data, rows,
+                                                    poses.position, poses.r_lb, rho, u, range_free)
+        self.M_u = M_u if range_free else None
         if lever_free:
             self.R, self.const = R, self.r
         else:  # a fixed lever arm adds a constant
             self.R, self.const = None, self.r + R @ nominal.lever_arm
-        # with a fixed range model v_s is fixed: one average instead of two
-        rho = pose.range_m if range_free else nominal.true_range(pose.range_m)
-        self.M_rho = np.empty((n, 3, 3, 3))
-        self.M_u = np.empty((n, 3, 3, 3)) if range_free else None
-        for k in range(3):
-            self.M_rho[..., k] = (A @ (pose.r_lb * (rho * u[:, k])[:, None, None]).reshape(-1, 9)).reshape(n, 3, 3)
-            if range_free:
-                self.M_u[..., k] = (A @ (pose.r_lb * u[:, None, None, k]).reshape(-1, 9)).reshape(n, 3, 3)
 
     def _m(self, sensor: Sensor) -> np.ndarray:
         """A·R_lb·v_s as (n·3, 9) acting on vec(R_bs)."""
@@ -112,6 +107,30 @@ class Centroids:
             else:
                 raise ValueError(f"no analytic derivative for {name}")
         return out
+
+
+@njit(cache=True, nogil=True)
+def _weighted_sums(indptr, local, data, rows, position, r_lb, rho, u, with_u):  # pragma: no cover - numba
+    """Per row i of a CSR averaging matrix (indptr, local column, weight): Σ w·r, Σ w·R_lb,
+    Σ w·R_lb·ρ·u_k and (with_u) Σ w·R_lb·u_k as (n, 3), (n, 3, 3), (n, 3, 3, 3), (n, 3, 3, 3);
+    the column's point is ``rows[local]`` of position/r_lb and ``local`` of rho/u."""
+    n = indptr.size - 1
+    r, R = np.zeros((n, 3)), np.zeros((n, 3, 3))
+    M_rho, M_u = np.zeros((n, 3, 3, 3)), np.zeros((n if with_u else 0, 3, 3, 3))
+    for i in range(n):
+        for k in range(indptr[i], indptr[i + 1]):
+            j, w = local[k], data[k]
+            p = rows[j]
+            for a in range(3):
+                r[i, a] += w * position[p, a]
+                for b in range(3):
+                    wr = w * r_lb[p, a, b]
+                    R[i, a, b] += wr
+                    for c in range(3):
+                        M_rho[i, a, b, c] += wr * rho[j] * u[j, c]
+                        if with_u:
+                            M_u[i, a, b, c] += wr * u[j, c]
+    return r, R, M_rho, M_u
 
 
 def georeference(sensor: Sensor, correction: StripCorrection | None, pose: Pose, time: np.ndarray) -> np.ndarray:

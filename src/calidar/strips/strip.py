@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 from functools import cached_property
 
 import numpy as np
+from numba import njit
 
 from calidar import frames, georef
 from calidar.errors import InputError
@@ -135,7 +136,7 @@ class Strip:
         """Trajectory poses at the times of the points ``index`` (all when None), cached by the caller."""
         idx = np.arange(len(self)) if index is None else np.asarray(index, dtype=np.int64)
         pos_e, r_eb = georef.poses(self.trajectory, self.obs.time[idx])
-        r_lb = np.matmul(self.frame.r_le, r_eb)
+        r_lb = _rotated(self.frame.r_le, r_eb)
         return Pose(idx, self.frame.to_local(pos_e), r_lb, self.obs.range_m[idx], self.obs.angles[idx])
 
     def georeference(self, sensor: Sensor, index: np.ndarray | None = None, pose: Pose | None = None) -> np.ndarray:
@@ -158,3 +159,14 @@ class Strip:
 def georeference_pose(sensor: Sensor, pose: Pose) -> np.ndarray:
     """The lidar equation (:func:`calidar.georef.lidar_points`) for cached poses, local m (M, 3)."""
     return georef.lidar_points(pose.position, pose.r_lb, sensor, pose.range_m, pose.angles)
+
+
+@njit(cache=True, nogil=True)
+def _rotated(r: np.ndarray, m: np.ndarray) -> np.ndarray:  # pragma: no cover - numba
+    """r @ m[k] for every 3 × 3 matrix of m (N, 3, 3) (numpy's broadcast matmul costs 200 ns each)."""
+    out = np.empty_like(m)
+    for k in range(m.shape[0]):
+        for a in range(3):
+            for b in range(3):
+                out[k, a, b] = r[a, 0] * m[k, 0, b] + r[a, 1] * m[k, 1, b] + r[a, 2] * m[k, 2, b]
+    return out

@@ -10,7 +10,9 @@ import pytest
 
 from calidar.io.las import read_las, write_las
 from calidar.io.trajectory import read_trajectory
-from calidar.pipelines.strip_ingest import IngestOptions, _pass1, _plan, ingest_strips, planar_xy
+from calidar.pipelines.strip_ingest import (
+    HELD_BYTES_PER_POINT, IngestOptions, _held_files, _pass1, _plan, ingest_strips, planar_xy,
+)
 from calidar.sensor import Sensor
 from calidar.sim.survey import simulate_survey, survey_config
 from calidar.strips.lines import line_ids, read_flight_lines
@@ -40,11 +42,33 @@ def test_kept_points_do_not_depend_on_the_chunk_size(survey):
         assert a.time_span[0] <= a.time.min() and a.time.max() <= a.time_span[1]
 
 
+@pytest.mark.parametrize("held_files", [0, 1])
+def test_points_held_by_pass_1_give_the_strips_read_twice(survey, held_files, monkeypatch):
+    """Pass 2 from what pass 1 held in memory (all files, or the first only) equals pass 2 reading
+    the files again, and the held files are not read a second time."""
+    import calidar.pipelines.strip_ingest as ingest
+
+    paths, traj, sensor = _inputs(survey)
+    read_twice, _, _, _ = ingest_strips(paths, traj, sensor, IngestOptions(budget_points=20_000, hold_bytes=0))
+    reads = []
+    real = ingest.iter_las_chunks
+    monkeypatch.setattr(ingest, "iter_las_chunks", lambda path, *a, **k: reads.append(path) or real(path, *a, **k))
+    first = HELD_BYTES_PER_POINT * ingest.las_header(paths[0]).point_count
+    options = IngestOptions(budget_points=20_000, chunk_points=7_777, hold_bytes=first if held_files else 10**12)
+    held, _, _, _ = ingest_strips(paths, traj, sensor, options)
+    assert [s.id for s in held] == [s.id for s in read_twice]
+    for a, b in zip(held, read_twice):
+        assert np.array_equal(a.points, b.points) and np.array_equal(a.time, b.time)
+    twice = sorted(p for p in set(reads) if reads.count(p) == 2)
+    assert twice == (sorted(paths[1:]) if held_files else [])
+    assert _held_files([10, 30, 20], 30 * HELD_BYTES_PER_POINT) == [True, False, True]  # in file order while they fit
+
+
 def test_footprints_and_overlaps_equal_the_whole_file_ones(survey):
     paths, traj, sensor = _inputs(survey)
     options = IngestOptions(chunk_points=5_000)
     _, _, src, _ = ingest_strips(paths, traj, sensor, options)
-    acc, _ = _pass1(src.files, src.frame, traj, options, lambda *a: None)
+    acc, _, _ = _pass1(src.files, src.frame, traj, options, lambda *a: None)
     _, _, how, footprint, _, pairs, _ = _plan(acc, options)
     lines, how_whole = read_flight_lines(paths)
     assert how == how_whole == "point_source_id" and sorted(footprint) == sorted(lines)
@@ -61,7 +85,7 @@ def test_thinning_keeps_whole_cells_of_whole_blocks_within_the_budget(survey):
     budget = 8_000
     options = IngestOptions(budget_points=budget, block_cells=2)
     strips, _, src, _ = ingest_strips(paths, traj, sensor, options)
-    acc, _ = _pass1(src.files, src.frame, traj, options, lambda *a: None)
+    acc, _, _ = _pass1(src.files, src.frame, traj, options, lambda *a: None)
     _, _, _, footprint, _, pairs, kept = _plan(acc, options)
     lines, _ = read_flight_lines(paths)
     for s in strips:
