@@ -66,7 +66,7 @@ def child(sim: Path, what: str, budget: str) -> None:
 
     from calidar.pipelines.boresight import BoresightOptions, run_boresight
     from calidar.pipelines.quality import measure
-    from calidar.pipelines.strip_ingest import IngestOptions
+    from calidar.pipelines.strip_source import IngestOptions
 
     strips = sorted((sim / "strips").glob("*.laz"))
     t0 = time.perf_counter()

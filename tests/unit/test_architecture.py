@@ -82,8 +82,8 @@ LAYERS: list[tuple[str, tuple[str, ...]]] = [
                  "calidar.scanners.verdict", "calidar.scanners.figures", "calidar.scanners.files",
                  "calidar.scanners.report")),
     ("io", ("calidar.io", "calidar.sensor_import")),
-    ("core", ("calidar.georef", "calidar.crs", "calidar.sensor", "calidar.scanners", "calidar.trajectory", "calidar.frames",
-              "calidar.trajectory_accuracy", "calidar.adjust", "calidar.report", "calidar.verdict", "calidar.provenance")),
+    ("core", ("calidar.georef", "calidar.crs", "calidar.cells", "calidar.sensor", "calidar.scanners", "calidar.trajectory",
+              "calidar.frames", "calidar.trajectory_accuracy", "calidar.adjust", "calidar.report", "calidar.verdict", "calidar.provenance")),
     ("base", ("calidar.errors", "calidar.validate", "calidar.outputs")),
 ]
 

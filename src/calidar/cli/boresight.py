@@ -13,7 +13,7 @@ from calidar.cli.options import (
 )
 from calidar.errors import InputError
 from calidar.pipelines.boresight import TRAJECTORY_BLOCK_S, TRAJECTORY_CORRELATION
-from calidar.pipelines.strip_ingest import BUDGET_POINTS, MIN_BUDGET_POINTS, IngestOptions
+from calidar.pipelines.strip_source import BUDGET_POINTS, MIN_BUDGET_POINTS, IngestOptions
 from calidar.strips.trajectory_errors import PREFIX as TRAJECTORY_PREFIX
 
 

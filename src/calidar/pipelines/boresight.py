@@ -48,7 +48,7 @@ class BoresightOptions:
     settings: object | None = None  #: calidar.strips.calibrate.StripSettings (benchmarks, tests)
     points: PointOptions = PointOptions()  #: --crs, --time-system, --geoid-undulation of the strips
     trajectory_input: TrajectoryOptions = TrajectoryOptions()  #: --trajectory-crs and the text-trajectory options
-    #: how the strips are read (calidar.pipelines.strip_ingest.IngestOptions; None: its defaults,
+    #: how the strips are read (calidar.pipelines.strip_source.IngestOptions; None: its defaults,
     #: the overlap grid of ``settings``, the point options above)
     ingest: object | None = None
 
@@ -64,7 +64,7 @@ class BoresightOptions:
 
     def ingest_options(self):
         """The strip ingest options, on the calibration's overlap grid, with the strips' point options."""
-        from calidar.pipelines.strip_ingest import IngestOptions
+        from calidar.pipelines.strip_source import IngestOptions
         from calidar.strips.calibrate import StripSettings
 
         s = self.settings or StripSettings()
@@ -83,7 +83,7 @@ class BoresightInputs:
     trajectory: object  #: calidar.trajectory.Trajectory
     strips: list  #: calidar.strips.strip.Strip, one per overlapping flight line (its kept overlap points)
     crs: object
-    source: object | None = None  #: calidar.pipelines.strip_ingest.StripSource: the whole lines, streamed
+    source: object | None = None  #: calidar.pipelines.strip_source.StripSource: the whole lines, streamed
     accuracy: object | None = None  #: calidar.trajectory_accuracy.TrajectoryAccuracy (None: model off)
     accuracy_path: Path | None = None
     notes: list[str] = field(default_factory=list)  #: what the user should know (e.g. a default assumed)
@@ -104,8 +104,9 @@ class BoresightInputs:
 def load_strips(paths, trajectory, sensor, options=None, progress: Progress = no_progress):
     """Flight lines of the LAS/LAZ files as Strips in one local frame (times in the trajectory's
     system), streamed and thinned to their overlaps (``options``: an
-    :class:`calidar.pipelines.strip_ingest.IngestOptions`): (strips, CRS)."""
-    from calidar.pipelines.strip_ingest import IngestOptions, ingest_strips
+    :class:`calidar.pipelines.strip_source.IngestOptions`): (strips, CRS)."""
+    from calidar.pipelines.strip_ingest import ingest_strips
+    from calidar.pipelines.strip_source import IngestOptions
 
     strips, crs, _, _ = ingest_strips(list(paths), trajectory, sensor, options or IngestOptions(), progress)
     return strips, crs

@@ -1,7 +1,7 @@
 """The deliverables of a strip calibration, made so that they reproduce the report.
 
 The overlap quality is measured on the WHOLE strips (streamed again from the files,
-:func:`calidar.pipelines.strip_ingest.line_chunks`) re-georeferenced in the files' CRS with the
+:func:`calidar.pipelines.strip_source.line_chunks`) re-georeferenced in the files' CRS with the
 plan, point selection and swath accumulator ``calidar quality`` uses
 (:mod:`calidar.pipelines.line_quality`), three times: as delivered, with the new mounting
 alone (``calidar regeoref --to sensor.toml``), and with the new mounting and the corrected
@@ -36,7 +36,7 @@ def corrected_trajectory(inputs, result):
 
 
 def measure_lines(inputs, models, progress: Progress = no_progress, work=None) -> list[list]:
-    """Per model of :func:`calidar.pipelines.strip_ingest.line_chunks`, the
+    """Per model of :func:`calidar.pipelines.strip_source.line_chunks`, the
     :class:`calidar.strips.quality.PairQuality` of every overlapping pair of flight lines, by
     :func:`calidar.pipelines.line_quality.lines_quality` on the plan of the ingest's counts: one
     read of the files (two when a stage's own plan differs), each file a task run by ``work``
@@ -79,7 +79,7 @@ def _file_stages(source, nominal, models, metric, plans, chosen, count, k: int, 
     """:func:`calidar.pipelines.line_quality.stage_pass` of the points [start, stop) of the
     ``k``-th file (a task)."""
     from calidar.pipelines.line_quality import stage_pass
-    from calidar.pipelines.strip_ingest import line_chunks
+    from calidar.pipelines.strip_source import line_chunks
     from calidar.strips.selection import FIELDS, candidate_mask
 
     chunks = line_chunks(source, nominal, models, FIELDS, candidate_mask, files=[source.files[k]], span=(start, stop))
@@ -154,7 +154,8 @@ def write_strips(inputs, sensor, trajectory, out_dir: Path) -> list[Path]:
     from contextlib import ExitStack
 
     from calidar.io.las import LasChunkWriter
-    from calidar.pipelines.strip_ingest import bounds, line_chunks
+    from calidar.pipelines.strip_ingest import bounds
+    from calidar.pipelines.strip_source import line_chunks
 
     out_dir.mkdir(parents=True, exist_ok=True)
     offsets = np.floor(bounds(inputs.source.files)[0])

@@ -15,14 +15,13 @@ whole file in memory):
 2. keep: the points of each line inside its kept cells, transformed to ECEF, from which the
    :class:`~calidar.strips.strip.Strip` s are built (one inverse georeferencing).
 
-:class:`StripSource` streams the whole lines again for the outputs (overlap quality,
-recalibrated strips): per chunk the points with their line ids, GPS times in the
-trajectory's system.
+:class:`~calidar.pipelines.strip_source.StripSource` streams the whole lines again for the
+outputs.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from types import SimpleNamespace
@@ -30,160 +29,19 @@ from types import SimpleNamespace
 import numpy as np
 
 from calidar.errors import CalibrationError, InputError
-from calidar.io.las import PointOptions, iter_las_chunks, las_file_crs, las_header, las_time_system
+from calidar.io.las import iter_las_chunks, las_file_crs, las_header, las_time_system
 from calidar.pipelines import Progress, no_progress
-from calidar.pipelines.inputs import FileTimes, points_ecef, points_tile_linear
+from calidar.pipelines.inputs import FileTimes, points_ecef
 from calidar.pipelines.line_quality import LineCounts
-from calidar.strips.lines import GAP_S
+from calidar.pipelines.strip_source import (
+    BIN_BITS, BLOCK_PATCHES, HELD_BYTES_PER_POINT, MAX_BLOCK_CELLS, IngestOptions, StripFile, StripSource, group_keys,
+    planar_xy, split_rows,
+)
 from calidar.strips.overlap import cell_counts, cell_keys, common_cells, merge_counts, strip_name, unpaired_notes
 from calidar.strips.quality import overlap_cell
 from calidar.strips.selection import FIELDS as SELECTION_FIELDS
 from calidar.strips.strip import LocalFrame, Strip
 from calidar.strips.thin import thin_cells
-
-#: points kept per strip by default: enough for the tie planes and VGICP on the test surveys
-#: (results within σ of every overlapping point), small enough for bounded memory
-BUDGET_POINTS = 300_000
-MIN_BUDGET_POINTS = 10_000  #: fewer leave too few tie planes per pair to be worth a run
-_BIN_BITS = 40  #: group key = point_source_id << 40 | GPS time bin
-#: kept blocks span this many tie-plane patches (of ≈ PlaneSettings.target_points points) across
-BLOCK_PATCHES = 6
-MAX_BLOCK_CELLS = 20
-
-#: points read at once: with the overlap-quality stages' copies (a chunk re-georeferenced per stage)
-#: this, not the files, sets the streaming memory (8.75 M points: 2 M → 2.1 GiB peak, 0.5 M → 1.3 GiB)
-CHUNK_POINTS = 250_000
-#: pass 1 holds in memory what pass 2 needs (xyz, times, point_source_id: 34 B a point) of the
-#: files that fit in this, in file order, when it runs in this process: pass 2 then reads them from
-#: memory instead of decompressing them again (8.75 M points: all held, −1.1 s). A fixed
-#: allowance, so memory still does not grow with the flight; 0 turns it off.
-HOLD_BYTES = 320 * 2**20
-HELD_BYTES_PER_POINT = 34
-
-
-@dataclass(frozen=True)
-class IngestOptions:
-    """How strips are read: ``budget_points`` kept per strip (None: every overlapping point),
-    ``chunk_points`` per read, ``points`` (the shared --crs/--time-system/--geoid-undulation),
-    ``gap_s`` (a pause in GPS time that starts a flight line when point_source_id does not
-    tell them apart), the overlap grid (``cell_m``, ``min_cells``, ``min_points_per_cell``
-    as :func:`calidar.strips.overlap.find_overlaps`) and the side of the square blocks kept
-    whole (``block_cells`` overlap cells; None: :data:`BLOCK_PATCHES` tie-plane patches at the
-    survey's density, at most :data:`MAX_BLOCK_CELLS`)."""
-
-    budget_points: int | None = BUDGET_POINTS
-    block_cells: int | None = None
-    chunk_points: int = CHUNK_POINTS
-    points: PointOptions = field(default_factory=PointOptions)
-    gap_s: float = GAP_S
-    cell_m: float = 5.0
-    min_cells: int = 4
-    min_points_per_cell: int = 3
-    hold_bytes: int = HOLD_BYTES  #: see :data:`HOLD_BYTES`
-
-
-@dataclass(frozen=True)
-class StripFile:
-    """One input file as it is read: its point options (CRS resolved) and time system."""
-
-    path: Path
-    points: PointOptions
-    time_system: str
-
-
-@dataclass
-class StripSource:
-    """The files behind the strips, to stream again: frame, lines and the trajectory they use."""
-
-    files: list[StripFile]
-    frame: LocalFrame
-    trajectory: object  #: calidar.trajectory.Trajectory
-    groups: np.ndarray  #: sorted group keys (point_source_id, time bin)
-    group_line: np.ndarray  #: flight-line id of each group
-    how: str  #: "point_source_id" | "gps_time_gaps"
-    options: IngestOptions
-    weeks: dict = field(default_factory=dict)  #: path → GPS week of the time conversion (None: none)
-    counts: dict = field(default_factory=dict)  #: line id → points in the files
-    quality: LineCounts | None = None  #: the lines' overlap-quality counts as delivered (the first pass's)
-    names: dict = field(default_factory=dict)  #: line id → the name of a file holding it
-
-    def chunks(self, fields: Sequence[str] = (), files: Sequence[StripFile] | None = None,
-               span: tuple[int, int | None] = (0, None), held: list | None = None) -> Iterator[tuple]:
-        """(file, LasPoints chunk, line id per point, GPS time in the trajectory's system (s)) of
-        every chunk of every file (or of ``files``; of their points [``span``) only); ``held``:
-        the chunks (LasPoints, times) of the one file of ``files`` that pass 1 held, read instead."""
-        for f in self.files if files is None else files:
-            for chunk, t in held if held is not None else self._read(f, fields, span):
-                g = _group_keys(chunk.point_source_id, t, self.options.gap_s)
-                pos = np.minimum(np.searchsorted(self.groups, g), self.groups.size - 1)
-                if not np.array_equal(self.groups[pos], g):
-                    raise InputError(f.path, None, "the file changed while it was read")
-                yield f, chunk, self.group_line[pos], t
-
-    def _read(self, f: StripFile, fields: Sequence[str], span: tuple[int, int | None]) -> Iterator[tuple]:
-        """(LasPoints chunk, its GPS times in the trajectory's system) of the file ``f``."""
-        times = FileTimes(f.path, self.trajectory, f.time_system)
-        for chunk in iter_las_chunks(f.path, self.options.chunk_points,
-                                     fields=tuple(dict.fromkeys(("point_source_id", *fields))), options=f.points,
-                                     start=span[0], stop=span[1]):
-            yield chunk, times.feed(chunk.gps_time)
-
-    def cell_keys(self, chunk) -> np.ndarray:
-        """The overlap-grid cell of each point of a chunk (:func:`planar_xy`)."""
-        return cell_keys(planar_xy(chunk, self.frame), self.options.cell_m)
-
-
-def line_chunks(source: StripSource, nominal, models=(None,), fields=None, where=None,
-                files: Sequence[StripFile] | None = None, span=(0, None)) -> Iterator[tuple[int, list]]:
-    """Per chunk of the files (or of ``files``, their points [``span``)) and flight line, (line
-    id, [LasPoints per model]):
-    for each of ``models`` the delivered points (None) or those re-georeferenced with a (sensor,
-    trajectory) (inverse once with the ``nominal`` sensor and the source's trajectory, forward
-    with each, as :func:`calidar.georef.regeoreference`), in the files' CRS (the moves through
-    :class:`calidar.crs.TileLinear`, within 0.1 mm of the full transform), ``fields``
-    (default: all) as read; ``where(chunk)``: a mask of the points wanted. Whole lines, chunk by
-    chunk (bounded memory)."""
-    from calidar import georef
-    from calidar.io.las import OPTIONAL_FIELDS
-
-    for _, chunk, ids, t in source.chunks(OPTIONAL_FIELDS if fields is None else fields, files, span):
-        if where is not None:
-            keep = where(chunk)
-            chunk, ids, t = chunk.select(keep), ids[keep], t[keep]
-        lin = None if all(m is None for m in models) else points_tile_linear(chunk)  # one for every model
-        ecef = None if lin is None else lin.near_ecef()  # ~1 mm: only the moves below count
-        obs = None if ecef is None else georef.inverse(source.trajectory, nominal, t, ecef)
-        versions = [chunk if m is None else replace(chunk, xyz=lin.moved(
-            georef.forward(m[1], m[0], obs.time, obs.range_m, obs.angles) - ecef)) for m in models]
-        if ids.size and ids[0] == ids[-1] and np.all(ids == ids[0]):  # one line: no copies
-            yield int(ids[0]), versions
-            continue
-        for i, rows in split_rows(ids):
-            yield i, [v.select(rows) for v in versions]
-
-
-def planar_xy(chunk, frame: LocalFrame) -> np.ndarray:
-    """Horizontal coordinates (n, 2) m for the overlap grid: the CRS's own when projected (scaled
-    to metres), else east/north in ``frame`` (a geographic CRS)."""
-    axis = chunk.crs.axis_info[0] if chunk.crs is not None and chunk.crs.is_projected else None
-    if axis is not None and axis.unit_conversion_factor:
-        return chunk.xyz[:, :2] * axis.unit_conversion_factor
-    return frame.to_local(points_ecef(chunk))[:, :2]
-
-
-def _group_keys(psid, t: np.ndarray, gap_s: float) -> np.ndarray:
-    """Group key per point: point_source_id and the GPS time bin of ``gap_s``."""
-    bins = np.floor(t / gap_s).astype(np.int64) & ((1 << _BIN_BITS) - 1)
-    return bins if psid is None else (np.asarray(psid, np.int64) << _BIN_BITS) | bins
-
-
-def split_rows(keys: np.ndarray) -> Iterator[tuple[int, np.ndarray]]:
-    """(key, positions) of each distinct key of ``keys`` (e.g. the line ids of a chunk)."""
-    order = np.argsort(keys, kind="stable")
-    ks = keys[order]
-    start = np.r_[0, np.flatnonzero(ks[1:] != ks[:-1]) + 1]
-    for k, s, e in zip(ks[start], start, np.r_[start[1:], ks.size]):
-        yield int(k), order[s:e]
 
 
 def _files(paths, trajectory, sensor, options: IngestOptions) -> list[StripFile]:
@@ -259,7 +117,7 @@ class _Footprints:
         """(sorted groups, line id of each, how): lines by point_source_id when it holds two
         distinct values, else numbered 1, 2, … in time order split at gaps > ``gap_s``."""
         groups = np.array(sorted(self.cells), np.int64)
-        psid = groups >> _BIN_BITS
+        psid = groups >> BIN_BITS
         if np.unique(psid).size >= 2:
             return groups, psid, "point_source_id"
         t0 = np.array([self.t_min[g] for g in groups])
@@ -285,7 +143,7 @@ def _footprints(frame: LocalFrame, trajectory, options: IngestOptions, f: StripF
         chunk = chunk if ok.all() else chunk.select(ok)
         xy = planar_xy(chunk, frame)
         keys = cell_keys(xy, options.cell_m)
-        acc.add(_group_keys(chunk.point_source_id, t[ok], options.gap_s), keys, t[ok], f.path.name, chunk,
+        acc.add(group_keys(chunk.point_source_id, t[ok], options.gap_s), keys, t[ok], f.path.name, chunk,
                 keys if grid == options.cell_m else cell_keys(xy, grid))
         if held is not None:
             psid, tt = np.array(chunk.point_source_id, np.uint16), t[ok]  # copies: views would hold the records
@@ -297,7 +155,8 @@ def _pass1(files: list[StripFile], frame: LocalFrame, trajectory, options: Inges
            run: Callable | None = None, in_process: bool = True) -> tuple[_Footprints, dict, dict]:
     """Footprints and time checks of every file (one task each, run by ``run``: a
     :meth:`calidar.strips.distribute.Workers.run`; None: one at a time here); the GPS week of each
-    file; the chunks held for pass 2 (``in_process``: the tasks run here, see :data:`HOLD_BYTES`)
+    file; the chunks held for pass 2 (``in_process``: the tasks run here; see
+    :data:`calidar.pipelines.strip_source.HOLD_POINTS_BYTES`)
     by path."""
     from calidar.strips.distribute import Workers
 

@@ -10,9 +10,8 @@ import pytest
 
 from calidar.io.las import read_las, write_las
 from calidar.io.trajectory import read_trajectory
-from calidar.pipelines.strip_ingest import (
-    HELD_BYTES_PER_POINT, IngestOptions, _held_files, _pass1, _plan, ingest_strips, planar_xy,
-)
+from calidar.pipelines.strip_ingest import _held_files, _pass1, _plan, ingest_strips
+from calidar.pipelines.strip_source import HELD_BYTES_PER_POINT, IngestOptions, planar_xy
 from calidar.sensor import Sensor
 from calidar.sim.survey import simulate_survey, survey_config
 from calidar.strips.lines import line_ids, read_flight_lines
@@ -47,12 +46,14 @@ def test_points_held_by_pass_1_give_the_strips_read_twice(survey, held_files, mo
     """Pass 2 from what pass 1 held in memory (all files, or the first only) equals pass 2 reading
     the files again, and the held files are not read a second time."""
     import calidar.pipelines.strip_ingest as ingest
+    import calidar.pipelines.strip_source as source
 
     paths, traj, sensor = _inputs(survey)
     read_twice, _, _, _ = ingest_strips(paths, traj, sensor, IngestOptions(budget_points=20_000, hold_bytes=0))
     reads = []
     real = ingest.iter_las_chunks
-    monkeypatch.setattr(ingest, "iter_las_chunks", lambda path, *a, **k: reads.append(path) or real(path, *a, **k))
+    for module in (ingest, source):  # pass 1 reads in the one, pass 2 in the other
+        monkeypatch.setattr(module, "iter_las_chunks", lambda path, *a, **k: reads.append(path) or real(path, *a, **k))
     first = HELD_BYTES_PER_POINT * ingest.las_header(paths[0]).point_count
     options = IngestOptions(budget_points=20_000, chunk_points=7_777, hold_bytes=first if held_files else 10**12)
     held, _, _, _ = ingest_strips(paths, traj, sensor, options)
