@@ -104,7 +104,8 @@ def overlap_plan(counts: Mapping[int, tuple[np.ndarray, np.ndarray]], overlap_m:
     notes = unpaired_notes(occupied, list(common), overlap_m, 4, names)
     cells = {}
     for ab, shared in common.items():
-        dens = [counts[i][1][np.isin(counts[i][0], shared)].sum() / (shared.size * overlap_m**2) for i in ab]
+        dens = [counts[i][1][np.searchsorted(counts[i][0], shared)].sum() / (shared.size * overlap_m**2)
+                for i in ab]  # shared ⊂ each line's sorted keys
         cells[ab] = float(settings.cell_m) if settings.cell_m else _cell_size(dens, settings)
     return OverlapPlan(cells, notes)
 
