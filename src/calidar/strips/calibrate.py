@@ -5,10 +5,12 @@ An outer loop as in ICP (Besl & McKay 1992) around the one adjustment engine:
 1. re-georeference the overlapping points of every strip with the current parameters;
 2. match every overlapping pair (tie planes or VGICP) → :class:`Correspondences`,
    as independent tasks through :func:`calidar.strips.distribute.map_pairs`;
-3. :func:`calidar.adjust.solve` the parameters from the correspondence residuals
+3. :func:`calidar.adjust.solver.estimate` the parameters from the correspondence residuals
    (:class:`calidar.strips.problem.StripProblem`), only the points the correspondences
-   reference being re-georeferenced at each evaluation;
-4. repeat until the mean correspondence distance changes by less than ``threshold_m``.
+   reference being re-georeferenced at each evaluation, until every step is below
+   :data:`OUTER_STEP_IN_SIGMA` of its σ;
+4. repeat until the mean correspondence distance changes by less than ``threshold_m``; then
+   refine the last adjustment to the solver's full precision and compute its σ, once.
 
 The parameters are in :mod:`calidar.strips.parameters`, the residuals and Jacobian in
 :mod:`calidar.strips.problem`, the trajectory corrections in
