@@ -291,8 +291,18 @@ def inverse(traj: Trajectory, sensor: Sensor, time, points_ecef) -> ScanObservat
     ([100.0, 120.0], [0.0, 10.0])
     """
     time = np.asarray(time, float)
-    v_s = _run(_inverse_kernel, traj, sensor, time, _c(points_ecef).reshape(-1, 3))
-    sc = sensor.scanner
+    return observations(sensor, time, scanner_vectors(traj, sensor, time, points_ecef))
+
+
+def scanner_vectors(traj: Trajectory, sensor: Sensor, time, points_ecef) -> np.ndarray:
+    """The scanner-frame vectors (N, 3) m of points (N, 3) ECEF: :func:`inverse` without its
+    ranges and angles."""
+    return _run(_inverse_kernel, traj, sensor, np.asarray(time, float), _c(points_ecef).reshape(-1, 3))
+
+
+def observations(sensor: Sensor, time, v_s: np.ndarray) -> ScanObservations:
+    """What ``sensor`` measured for scanner-frame vectors v_s (N, 3) m: ranges and angles."""
+    time, sc = np.asarray(time, float), sensor.scanner
     if type(sc) is LinearScanner:
         range_m, angles = np.empty(time.size), np.empty((time.size, 2))
         _linear_observations(v_s, float(sensor.range_offset), float(sensor.range_scale), float(sc.scan_angle_offset),
@@ -306,5 +316,16 @@ def regeoreference(traj: Trajectory, old: Sensor, new: Sensor, time, points_ecef
                    new_traj: Trajectory | None = None) -> np.ndarray:
     """Re-georeference delivered points: inverse with ``traj`` and ``old``, forward with
     ``new_traj`` (default: the same trajectory, e.g. a corrected one) and ``new`` (ECEF)."""
-    obs = inverse(traj, old, time, points_ecef)
-    return forward(traj if new_traj is None else new_traj, new, obs.time, obs.range_m, obs.angles)
+    v_s = scanner_vectors(traj, old, time, points_ecef)
+    return reforward(old, new, traj if new_traj is None else new_traj, time, v_s)
+
+
+def reforward(old: Sensor, new: Sensor, traj: Trajectory, time, v_s: np.ndarray) -> np.ndarray:
+    """Points (N, 3) ECEF by :func:`forward` with ``traj`` and ``new`` of what ``old`` measured as
+    the scanner-frame vectors v_s (N, 3) m (:func:`scanner_vectors`): the same vectors when the
+    range model and the scanner are the same (a new mounting only), else through the ranges and
+    angles ``old`` measured."""
+    if (new.range_offset, new.range_scale, new.scanner) == (old.range_offset, old.range_scale, old.scanner):
+        return forward_vectors(traj, new, time, v_s)
+    obs = observations(old, time, v_s)
+    return forward(traj, new, obs.time, obs.range_m, obs.angles)

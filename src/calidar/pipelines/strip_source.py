@@ -132,9 +132,9 @@ def line_chunks(source: StripSource, nominal, models=(None,), fields=None, where
             chunk, ids, t = chunk.select(keep), ids[keep], t[keep]
         lin = None if all(m is None for m in models) else points_tile_linear(chunk)  # one for every model
         ecef = None if lin is None else lin.near_ecef()  # ~1 mm: only the moves below count
-        obs = None if ecef is None else georef.inverse(source.trajectory, nominal, t, ecef)
+        v_s = None if ecef is None else georef.scanner_vectors(source.trajectory, nominal, t, ecef)
         versions = [chunk if m is None else replace(chunk, xyz=lin.moved(
-            georef.forward(m[1], m[0], obs.time, obs.range_m, obs.angles) - ecef)) for m in models]
+            georef.reforward(nominal, m[0], m[1], t, v_s) - ecef)) for m in models]
         if ids.size and ids[0] == ids[-1] and np.all(ids == ids[0]):  # one line: no copies
             yield int(ids[0]), versions
             continue

@@ -2,6 +2,7 @@ import numpy as np
 import pytest
 
 from calidar import frames, georef
+from calidar.scanners.linear import LinearScanner
 from calidar.sensor import Sensor
 from calidar.trajectory import Trajectory
 
@@ -63,3 +64,19 @@ def test_regeoreference_changes_only_by_mounting():
     p_new = georef.regeoreference(tr, old, new, t, p_old)
     # roll 0.1° at 1000 m moves the nadir point ≈ 1.745 m across track
     assert np.linalg.norm(p_new - p_old) == pytest.approx(1000 * np.radians(0.1), rel=1e-4)
+
+
+@pytest.mark.parametrize("new", [Sensor(boresight_roll=0.01, lever_arm_x=0.3),  # a new mounting: the same vectors
+                                 Sensor(boresight_roll=0.01, range_offset=0.05,
+                                        scanner=LinearScanner(scan_angle_offset=1e-3))])
+def test_reforward_from_scanner_vectors_equals_forward_of_the_observations(new):
+    tr = _traj()
+    old = Sensor(boresight_pitch=-0.02, range_scale=2e-5)
+    rng = np.random.default_rng(1)
+    t, ang, rng_m = rng.uniform(1000, 1010, 50_000), rng.uniform(-0.6, 0.6, 50_000), rng.uniform(500, 1500, 50_000)
+    p = georef.forward(tr, old, t, rng_m, ang)
+    obs = georef.inverse(tr, old, t, p)
+    want = georef.forward(tr, new, obs.time, obs.range_m, obs.angles)
+    got = georef.reforward(old, new, tr, t, georef.scanner_vectors(tr, old, t, p))
+    assert np.max(np.abs(got - want)) < 1e-8
+    assert np.max(np.abs(got - p)) > 1.0  # the new sensor moves the points
