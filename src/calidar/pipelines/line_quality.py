@@ -129,7 +129,8 @@ def lines_quality(read: Callable[[list, dict, bool], StagePass], first: LineCoun
     """Per stage, the PairQuality of every overlapping pair of lines: ``read(plans, chosen,
     count)`` streams every line through :func:`stage_pass`; ``first`` holds stage 0's counts
     (which decide the plan every stage is measured on first). Stages whose own plan differs are
-    read again on it. The stages' differences are computed ``threads`` at a time."""
+    read again on it. The stages' differences are computed ``threads`` at a time (with
+    threads > 1, all at once when no moments went to disk: they are small then)."""
     from calidar.pipelines.quality import checked_differences
     from calidar.strips.distribute import run_tasks
 
@@ -147,4 +148,6 @@ def lines_quality(read: Callable[[list, dict, bool], StagePass], first: LineCoun
     for acc in accs:
         for i in chosen:  # lines without a selected point: named in the notes
             acc.add(i, np.zeros((0, 3)))
-    return [r[0] for r in run_tasks(checked_differences, [(a, settings, names) for a in accs], threads=threads)]
+    spilled = any(a.spill_dir is not None and any(a.spilled.values()) for a in accs)
+    return [r[0] for r in run_tasks(checked_differences, [(a, settings, names) for a in accs],
+                                    threads=max(threads, len(accs)) if threads > 1 and not spilled else threads)]
