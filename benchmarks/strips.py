@@ -8,8 +8,9 @@ lines, boresight errors of a few hundredths of a degree, the preset's 3 cm / 0.0
 trajectory errors and the smrmsg.out that states them) is simulated once and cached as LAZ +
 SBET + smrmsg under ``--cache`` (not timed). Then the boresight pipeline runs as the command
 does (:func:`calidar.pipelines.boresight.run_boresight`, default options: the trajectory
-model on with the smrmsg's σ as priors), timed per stage: read the LAZ strips (two streamed
-passes: footprints, then the overlap points thinned to the budget per strip) and build them
+model on with the smrmsg's σ as priors), timed per stage: read the LAZ strips (two passes:
+footprints, then the overlap points thinned to the budget per strip, from what the first pass held
+in memory within ``HOLD_POINTS_BYTES``, else streamed again) and build them
 (one inverse georeferencing of the kept points), calibrate (per outer iteration:
 re-georeference the overlaps, match, solve), overlap quality of the whole strips (streamed
 again) as delivered / new mounting / + trajectory corrections, report and outputs. Reading
@@ -86,7 +87,7 @@ def main() -> None:
                             options, progress)
     total = time.perf_counter() - start
     result = run.results[args.method]
-    stages = {"read LAZ (2 streamed passes), thin, build strips": last["reading strips"],
+    stages = {"read LAZ (2 passes), thin, build strips": last["reading strips"],
               "calibrate": last[f"calibrating ({args.method})"] - last["reading strips"]}
     for o in result.outer:
         for key in ("georeference_s", "match_s", "solve_s"):
