@@ -1,11 +1,11 @@
 """Monte-Carlo of ``calidar boresight`` with its DEFAULT options: are the σ honest?
 
     NUMBA_NUM_THREADS=1 OMP_NUM_THREADS=1 PYTHONPATH=src python benchmarks/strips_montecarlo.py \\
-        --seeds 100-139 [--methods planes,vgicp] [--vegetation 0.3] [--no-source] \\
+        --seeds 100-139 [--methods planes,vgicp] [--vegetation 0.3] [--no-source] [--density 0.3] \\
         [--sigma-scale 1,1,1.5,1,1,5 --sigma-variation 0.4] [--jobs 1] [--json out.jsonl]
 
 Each seed is one survey written to a folder as the simulator delivers it (airborne preset,
-6 lines in alternate directions + 2 cross lines, density 0.3, boresight errors
+6 lines in alternate directions + 2 cross lines, density 0.3 (``--density``), boresight errors
 0.03/−0.04/0.05°, 3 cm range noise, the preset's 3 cm / 0.002° smooth trajectory errors and
 the smrmsg.out beside sbet.out that states them), then calibrated by the boresight pipeline
 with default options (:func:`calidar.pipelines.boresight.load_inputs` and
@@ -54,9 +54,10 @@ def _hidden_accuracy(folder: Path) -> Path:
     return bare
 
 
-def survey(seed: int, methods: list[str], vegetation: float, scale: tuple, variation: float, no_source: bool) -> list[dict]:
+def survey(seed: int, methods: list[str], vegetation: float, scale: tuple, variation: float, no_source: bool,
+           density: float = 0.3) -> list[dict]:
     """One simulated survey calibrated with default options (and, with ``no_source``, without its smrmsg)."""
-    cfg = survey_config("airborne", seed=seed, density=0.3, vegetation=vegetation, directions="cross", errors=ERRORS,
+    cfg = survey_config("airborne", seed=seed, density=density, vegetation=vegetation, directions="cross", errors=ERRORS,
                         range_noise_m=0.03, trajectory_sigma_scale=scale, trajectory_sigma_variation=variation)
     rows = []
     with tempfile.TemporaryDirectory(prefix="calidar_mc_") as tmp:
@@ -110,6 +111,7 @@ def main() -> None:
     ap.add_argument("--seeds", default="100-139", help="e.g. 100-139 or 3,5,9-12")
     ap.add_argument("--methods", default="planes,vgicp")
     ap.add_argument("--vegetation", type=float, default=0.0, help="tree cover fraction, e.g. 0.3")
+    ap.add_argument("--density", type=float, default=0.3, help="simulator density (points grow with it)")
     ap.add_argument("--sigma-scale", default="1,1,1,1,1,1", help="trajectory σ factors N,E,D,roll,pitch,heading")
     ap.add_argument("--sigma-variation", type=float, default=0.0, help="slow change of the trajectory σ in time")
     ap.add_argument("--no-source", action="store_true", help="also run each survey without its smrmsg (the default accuracy)")
@@ -122,9 +124,10 @@ def main() -> None:
     with ProcessPoolExecutor(args.jobs) as pool:
         n = len(seeds)
         for found in pool.map(survey, seeds, [methods] * n, [args.vegetation] * n, [scale] * n,
-                              [args.sigma_variation] * n, [args.no_source] * n):
+                              [args.sigma_variation] * n, [args.no_source] * n, [args.density] * n):
             for r in found:
-                r.update(vegetation=args.vegetation, sigma_scale=scale, sigma_variation=args.sigma_variation)
+                r.update(vegetation=args.vegetation, sigma_scale=scale, sigma_variation=args.sigma_variation,
+                         density=args.density)
                 rows.append(r)
                 z = np.array(r["error_deg"]) / np.array(r["sigma_deg"])
                 print(f"{r['source']:7s} {r['method']:6s} seed {r['seed']:4d}  error "
@@ -135,7 +138,7 @@ def main() -> None:
                     with open(args.json, "a", encoding="utf-8") as f:
                         f.write(json.dumps(r) + "\n")
     print(f"{len(seeds)} surveys in {time.perf_counter() - start:.0f} s, {args.jobs} job(s), vegetation "
-          f"{args.vegetation}, σ scale {scale}, σ variation {args.sigma_variation}")
+          f"{args.vegetation}, σ scale {scale}, σ variation {args.sigma_variation}, density {args.density}")
     print(summary(rows))
 
 
