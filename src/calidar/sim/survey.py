@@ -41,7 +41,9 @@ CHUNK_SHOTS = 400_000
 
 #: per-strip trajectory errors (NED position, roll/pitch/heading attitude), drawn per line
 STRIP_ERRORS = ("position_bias_m", "position_drift_mps", "attitude_bias_rad", "attitude_drift_radps")
-MAX_PULSES = 3e7  #: pulses a simulation may cast (≈ 100 bytes each, several times over while casting)
+#: pulses a simulation may hold (≈ 100 bytes each, several times over while casting): all of them, or one
+#: strip's when the strips are handed over as simulated (``on_strip``)
+MAX_PULSES = 3e7
 STRIP_ERROR_MAX = (10.0, 1.0, np.radians(5.0), np.radians(1.0))  #: largest σ of each of STRIP_ERRORS
 ERROR_LIMITS = {  #: largest |true − nominal| of a sensor parameter simulated, by name prefix (rad, m, ratio)
     "boresight": (np.radians(10.0), "rad"), "scan_angle_offset": (np.radians(10.0), "rad"), "lever_arm": (10.0, "m"),
@@ -359,8 +361,11 @@ def simulate_survey(cfg: SurveyConfig, progress: Callable[[str, int, int], None]
     lines = plan_lines(scene.extent, float(np.mean(scene.heights)), cfg.height_agl_m, half_fov, cfg.side_overlap,
                        cfg.directions, cfg.motion.speed_mps)
     traj_true, windows = fly(scene, lines, cfg.motion, rng_motion, GPS_WEEK_START_S)
-    if (pulses := cfg.pulse_rate_hz * cfg.density * sum(b - a for a, b in windows)) > MAX_PULSES:  # memory grows with them
-        raise InputError(None, "density", f"{pulses:.3g} pulses to simulate; expected ≤ {MAX_PULSES:.3g} (a smaller --density)")
+    per_line = [cfg.pulse_rate_hz * cfg.density * (b - a) for a, b in windows]  # memory grows with what is held:
+    if (pulses := max(per_line) if on_strip is not None else sum(per_line)) > MAX_PULSES:  # one strip, or all
+        where = " in one strip" if on_strip is not None else ""
+        raise InputError(None, "density", f"{pulses:.3g} pulses to simulate{where}; expected ≤ {MAX_PULSES:.3g} "
+                         "(a smaller --density)")
     strip_errors = [{k: rng_strip.normal(0.0, sigma, 3) for k, sigma in zip(STRIP_ERRORS, cfg.strip_error_sigma)}
                     for _ in lines]
     sig_pos, sig_att = trajectory_sigma(cfg, traj_true.time, rng_sigma)
