@@ -134,14 +134,6 @@ def tile_linear(xyz, crs, geoid_undulation_m: float | None = None, source=None, 
     return TileLinear(xyz, rows, anchor, anchor_ecef, jac)
 
 
-def to_crs_moved(points_ecef, base_ecef, base_xyz, crs, geoid_undulation_m: float | None = None, source=None,
-                 tile_m: float = 50.0) -> np.ndarray:
-    """:func:`to_crs` of points moved by metres from ``base_ecef`` (N, 3), whose coordinates in
-    ``crs`` are ``base_xyz`` (N, 3): :meth:`TileLinear.moved` by ``points_ecef − base_ecef``."""
-    lin = tile_linear(base_xyz, crs, geoid_undulation_m, source, tile_m)
-    return lin.moved(np.asarray(points_ecef, float) - np.asarray(base_ecef, float))
-
-
 @njit(cache=True, nogil=True)
 def _moved(base: np.ndarray, jac: np.ndarray, rows: np.ndarray, d: np.ndarray) -> np.ndarray:
     """base + jac[rows] · d, point by point (no (n, 3, 3) gather)."""

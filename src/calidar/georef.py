@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from calidar.crs import ECEF_CRS, TileLinear, from_crs, tile_linear, to_crs, to_crs_moved  # noqa: F401 (georef's face)
+from calidar.crs import ECEF_CRS, TileLinear, from_crs, tile_linear, to_crs  # noqa: F401 (georef's face)
 from calidar.scanners.linear import LinearScanner
 from calidar.sensor import Sensor
 from calidar.trajectory import Trajectory

@@ -1,4 +1,4 @@
-"""to_crs_moved: the CRS coordinates of points moved by metres, from a Jacobian per tile."""
+"""TileLinear: the CRS coordinates of points moved by metres from a Jacobian per tile, and ECEF near them."""
 
 from __future__ import annotations
 
@@ -15,7 +15,7 @@ def test_moved_points_match_the_full_transform(crs, span):
     xyz = base + rng.uniform(-span, span, (20000, 3)) * [1, 1, 0]
     ecef = georef.from_crs(xyz, crs)
     moved = ecef + rng.normal(0.0, 2.0, ecef.shape)  # a few metres, as a new mounting moves points
-    got = georef.to_crs_moved(moved, ecef, xyz, crs)
+    got = georef.tile_linear(xyz, crs).moved(moved - ecef)
     want = georef.to_crs(moved, crs)
     back = georef.from_crs(got, crs)  # compare in metres whatever the CRS units
     assert np.max(np.linalg.norm(back - georef.from_crs(want, crs), axis=1)) < 1e-4
