@@ -241,11 +241,6 @@ def calibrate_inputs(inputs: BoresightInputs, options: BoresightOptions = Boresi
             inputs.strips, inputs.nominal, method=m, estimate=groups, settings=settings, client=work.client, log=work.log,
             progress=lambda text, done, total, m=m: progress(f"calibrating ({m})", done, total))
         results[m].solution.warnings[:0] = inputs.notes
-        if m == "vgicp" and inputs.source is not None and inputs.source.density:
-            from calidar.strips.vgicp import dense_strips_note
-
-            note = dense_strips_note(float(np.median(list(inputs.source.density.values()))))
-            results[m].solution.warnings += [note] if note else []
     return results
 
 

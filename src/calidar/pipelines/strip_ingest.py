@@ -250,8 +250,7 @@ def ingest_strips(paths, trajectory, sensor, options: IngestOptions = IngestOpti
     line_of = dict(zip(groups.tolist(), line.tolist()))
     source = StripSource(files, frame, trajectory, groups, line, how, options, weeks,
                          {i: int(n.sum()) for i, (_, n) in footprint.items()},
-                         LineCounts(acc.quality.grid_m).merge(acc.quality, line_of.__getitem__), names,
-                         {i: float(n.sum() / max(c.size * options.cell_m**2, 1e-9)) for i, (c, n) in footprint.items()})
+                         LineCounts(acc.quality.grid_m).merge(acc.quality, line_of.__getitem__), names)
     ecef, times, where = {}, {}, {}
     total = 2 * sum(las_header(f.path).point_count for f in files)
     done = total // 2

@@ -86,7 +86,6 @@ class StripSource:
     counts: dict = field(default_factory=dict)  #: line id → points in the files
     quality: LineCounts | None = None  #: the lines' overlap-quality counts as delivered (the first pass's)
     names: dict = field(default_factory=dict)  #: line id → the name of a file holding it
-    density: dict = field(default_factory=dict)  #: line id → its points per m² of its footprint (overlap grid)
 
     def chunks(self, fields: Sequence[str] = (), files: Sequence[StripFile] | None = None,
                span: tuple[int, int | None] = (0, None), held: list | None = None) -> Iterator[tuple]:

@@ -22,7 +22,6 @@ import numpy as np
 from scipy.special import chdtri  # χ² quantiles without scipy.stats' 0.5 s import
 
 from calidar.strips.trajectory_errors import PREFIX as TRAJECTORY_PREFIX
-from calidar.strips.vgicp import DENSE_NOTE
 from calidar.verdict import Finding, Verdict, angle_text, length_text, two_digits
 
 #: an angle (or scale) is "determined" when its σ moves points on the ground by at most this (m)
@@ -198,9 +197,6 @@ def notes_findings(notes: list[str], warnings: list[str]) -> list[Finding]:
     for w in warnings:
         if w.startswith("strip pairs skipped"):
             out.append(Finding("warn", "pairs", w, "check those pairs' overlap (too small, vegetation, water)"))
-        elif w.startswith(DENSE_NOTE):
-            out.append(Finding("warn", "VGICP pitch", w, "calibrate with the tie planes (--method planes, the "
-                               "default), or read boresight_pitch's σ as ≈ 1.5× too small"))
     return out
 
 

@@ -19,6 +19,17 @@ Residual kinds (see :mod:`calidar.strips.correspond`):
   offset that, with the normal's noise in residual and Jacobian, biases the angles on dense
   strips. Only pairs on locally planar surfaces of b lying near a's mean once registered
   are kept, so clutter such as vegetation yields few pairs. Better conditioned on surfaces.
+
+  Both centroids must lie at the same place in the plane. Where either strip's points stop
+  inside the ball (the edge of the cells the ingest kept, cut where the points were delivered
+  and moved apart by each strip's mounting correction; the overlap's outline; a gap) the two
+  part along the plane, and b's normal error times that lever enters the residual and, through
+  the same normal, the Jacobian: an errors-in-variables bias of one sign along the flight
+  directions. On simulated 2.2 point/m² surveys thinned to 300 000 points a strip it left pitch
+  under-corrected by 0.9 σ (docs/validation.md). So b's k nearest are taken again about their
+  own centroid (a neighbourhood reaching over b's edge moves back inside), a's ball is centred on
+  b's centroid, and a row is dropped when either centroid still lies more than
+  ``max_centroid_offset`` radii off its centre (a full disc of 12 points: 0.14 per axis).
 - ``point_to_point``: the 3-D difference of the pair, as the method describes; its noise
   includes the point spacing.
 
@@ -41,21 +52,6 @@ from calidar.strips.correspond import Correspondences, moderated_variance
 from calidar.strips.pca import eigh3
 
 KINDS = ("point_to_plane", "point_to_point")
-#: points per m² of a strip above which VGICP's pitch was found biased: simulated airborne surveys
-#: (docs/validation.md), 20 each, pitch error +0.91 ± 0.07 σ against the tie planes at 2.2 points/m²,
-#: +0.18 ± 0.07 σ at 0.14; one survey at ≈ 0.4/0.8/1.4/5.8 points/m² (bounding boxes): −0.3/−0.0/+1.0/+1.2 σ
-DENSE_POINTS_M2 = 1.0
-DENSE_NOTE = "VGICP on dense strips"
-
-
-def dense_strips_note(points_m2: float) -> str | None:
-    """A warning for the VGICP result of strips of ``points_m2`` points per m² (median over the
-    lines) above :data:`DENSE_POINTS_M2`, else None."""
-    if not points_m2 > DENSE_POINTS_M2:
-        return None
-    return (f"{DENSE_NOTE} ({points_m2:.1f} points/m²): on simulated strips denser than ≈ {DENSE_POINTS_M2:g} "
-            "point/m² VGICP left boresight_pitch under-corrected by ≈ 0.9 σ (2.2 points/m², 20 surveys; "
-            "docs/validation.md), its σ too small by ≈ 1.5×; the cause is not yet found")
 
 
 @dataclass(frozen=True)
@@ -75,6 +71,9 @@ class VgicpSettings:
     min_pairs: int = 50  #: fewer usable pairs → the pair is skipped
     max_surface_variation: float = 0.003  #: point_to_plane: λ_min / Σλ of the local covariance
     max_plane_distance_m: float = 0.3  #: point_to_plane: max distance of a's mean from b's plane after registration
+    #: point_to_plane: max in-plane distance of either strip's centroid from the neighbourhood's centre, in units
+    #: of its radius (a full disc of 12 points: 0.14 per axis; one cut by an edge of the points: ≥ 0.4)
+    max_centroid_offset: float = 0.35
     sigma_m: float | None = None  #: a-priori σ of one residual; None: from b's plane scatter (point_to_plane) or 5 cm
     noise_floor_m: float = 0.002  #: added to the scatter σ for model errors (roughness)
     num_threads: int = 1  #: small_gicp threads (1 is bit-reproducible; see docs)
@@ -260,6 +259,17 @@ def _local_planes(points: np.ndarray, at: np.ndarray, k: int, num_threads: int) 
     return _LocalPlanes(idx, np.sqrt(d2), centroid, eigval, eigvec)
 
 
+def _balanced(planes: _LocalPlanes, centre: np.ndarray, mean_a: np.ndarray, max_offset: float) -> np.ndarray:
+    """Whether b's centroid lies within ``max_offset`` × the radius of the ``centre`` (M, 3) m about
+    which its neighbours were found, and a's mean as near b's centroid, in b's plane: neither
+    strip's points stop inside the ball."""
+    def in_plane(d):
+        return np.linalg.norm(d - np.einsum("ij,ij->i", d, planes.normal)[:, None] * planes.normal, axis=1)
+
+    limit = max_offset * planes.distance[:, -1]
+    return (in_plane(planes.centroid - centre) <= limit) & (in_plane(mean_a - planes.centroid) <= limit)
+
+
 def _ball_means(points: np.ndarray, at: np.ndarray, radius: np.ndarray, k_max: int, num_threads: int
                 ) -> tuple[sp.csr_matrix, np.ndarray]:
     """Averaging weights (M, len(points)) over the points (m) within ``radius`` (M,) m of each
@@ -282,8 +292,8 @@ def match_pair_vgicp(strip_a_id: int, points_a: np.ndarray, strip_b_id: int, poi
     parameters in a local Cartesian frame (m); settings None → :class:`VgicpSettings`.
     Returns at most ``settings.max_pairs`` correspondences spread over the overlap: one point
     of a and b's nearest point (point_to_point), or the ``num_neighbors`` nearest points of b
-    around a point of a with their plane's normal and the points of a in the same ball
-    (point_to_plane); A and B average them. Raises
+    around a point of a (found again about their centroid) with their plane's normal and the
+    points of a in a ball as large about b's centroid (point_to_plane); A and B average them. Raises
     CalibrationError (the calibrator skips the pair with a warning naming it) when either strip has fewer than ``min_overlap_points`` in the overlap or
     fewer than ``min_pairs`` pairs are found. ``timings``, when given, accumulates the
     seconds spent per stage ("preprocess", "register", "correspond").
@@ -309,8 +319,8 @@ def match_pair_vgicp(strip_a_id: int, points_a: np.ndarray, strip_b_id: int, poi
     cand = _spread(ov_a, settings.max_pairs, area)
     threshold = settings.pair_distance_m or 1.5 * np.sqrt(area / len(idx_b))  # 1.5 × b's mean point spacing, m
     # only points near the candidates enter the KdTree: the nearest within the threshold and
-    # the k nearest of b (≈ 2 spacings) lie within this radius
-    near_b = _near(b_on_a, ov_a[cand], max(threshold, 3.0 * np.sqrt(area / len(idx_b))))
+    # the k nearest of b (≈ 2 spacings, about a centroid ≲ 1 spacing off the candidate) lie within it
+    near_b = _near(b_on_a, ov_a[cand], max(threshold, 4.0 * np.sqrt(area / len(idx_b))))
     k = settings.num_neighbors if settings.kind == "point_to_plane" else 1
     if near_b.size < k:  # (small_gicp aborts on an empty tree)
         raise CalibrationError(f"too few VGICP correspondences: registration left {near_b.size} points of b "
@@ -320,14 +330,17 @@ def match_pair_vgicp(strip_a_id: int, points_a: np.ndarray, strip_b_id: int, poi
     sigma = 0.05 if settings.sigma_m is None else settings.sigma_m
     normal = None
     if settings.kind == "point_to_plane" and keep.any():
-        # a's points in the ball of b's k neighbours (room for a denser a), all of them near the candidates
+        centre = planes.centroid  # b's k nearest again, about their centroid (see the module docstring)
+        planes = _local_planes(b_on_a[near_b], centre, k, settings.num_threads)
+        # a's points in a ball as large about b's centroid (room for a denser a)
         radius = planes.distance[:, -1]
-        near_a = _near(ov_a, ov_a[cand], float(radius[keep].max()))
+        near_a = _near(ov_a, planes.centroid, float(radius[keep].max()))
         k_a = int(np.ceil(2 * k * max(1.0, n_a / n_b)))
-        A, count = _ball_means(ov_a[near_a], ov_a[cand], radius, k_a, settings.num_threads)
+        A, count = _ball_means(ov_a[near_a], planes.centroid, radius, k_a, settings.num_threads)
         mean_a = A @ ov_a[near_a]
         off_plane = np.abs(np.einsum("ij,ij->i", mean_a - planes.centroid, planes.normal))
         keep &= (planes.variation < settings.max_surface_variation) & (off_plane < settings.max_plane_distance_m)
+        keep &= _balanced(planes, centre, mean_a, settings.max_centroid_offset)
         normal = planes.normal[keep]
         if settings.sigma_m is None:  # a's mean, and b's plane where a's mean lies; points scattered as b's
             spread = 1.0 / count + planes.leverage(mean_a)

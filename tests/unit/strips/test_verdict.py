@@ -91,17 +91,3 @@ def test_a_default_accuracy_makes_the_verdict_a_warning():
     assert v.status == "warn" and v.summary.endswith("trajectory taken as exact")
     f = next(f for f in v.findings if f.check == "trajectory accuracy")
     assert "--trajectory-accuracy" in f.action and "smrmsg" in f.action
-
-
-@pytest.mark.parametrize("points_m2, warned", [(0.14, False), (0.9, False), (2.2, True)])
-def test_vgicp_on_dense_strips_is_a_warning(points_m2, warned):
-    """VGICP's pitch was found biased on simulated strips denser than ≈ 1 point/m²
-    (docs/validation.md): its result there carries a warning that says what to do."""
-    from calidar.strips.verdict import notes_findings
-    from calidar.strips.vgicp import dense_strips_note
-
-    note = dense_strips_note(points_m2)
-    assert (note is not None) == warned
-    findings = notes_findings([], [note] if note else [])
-    assert [(f.status, f.check) for f in findings] == ([("warn", "VGICP pitch")] if warned else [])
-    assert not warned or ("2.2 points/m²" in note and "--method planes" in findings[0].action)
