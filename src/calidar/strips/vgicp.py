@@ -246,10 +246,10 @@ class _LocalPlanes:
         return 1.0 / self.index.shape[1] + np.sum(d**2 / np.maximum(self.eigval[:, 1:], 1e-300), axis=1)
 
 
-def _local_planes(points: np.ndarray, at: np.ndarray, k: int, num_threads: int) -> _LocalPlanes:
+def _local_planes(points: np.ndarray, at: np.ndarray, k: int, num_threads: int, tree=None) -> _LocalPlanes:
     """The surface of ``points`` around each of ``at`` (both (·, 3) m) from its k nearest points
-    (small_gicp KdTree)."""
-    tree = small_gicp.KdTree(points, num_threads=num_threads)
+    (``tree``: their small_gicp KdTree, built here when None)."""
+    tree = small_gicp.KdTree(points, num_threads=num_threads) if tree is None else tree
     idx, d2 = tree.batch_knn_search(at, k, num_threads=num_threads)
     idx = idx.astype(np.int64)
     nb = points[idx]
@@ -325,13 +325,15 @@ def match_pair_vgicp(strip_a_id: int, points_a: np.ndarray, strip_b_id: int, poi
     if near_b.size < k:  # (small_gicp aborts on an empty tree)
         raise CalibrationError(f"too few VGICP correspondences: registration left {near_b.size} points of b "
                                f"near a's points (need {settings.min_pairs} pairs)")
-    planes = _local_planes(b_on_a[near_b], ov_a[cand], k, settings.num_threads)
+    b_near = b_on_a[near_b]
+    tree_b = small_gicp.KdTree(b_near, num_threads=settings.num_threads)
+    planes = _local_planes(b_near, ov_a[cand], k, settings.num_threads, tree_b)
     keep = planes.distance[:, 0] < threshold
     sigma = 0.05 if settings.sigma_m is None else settings.sigma_m
     normal = None
     if settings.kind == "point_to_plane" and keep.any():
         centre = planes.centroid  # b's k nearest again, about their centroid (see the module docstring)
-        planes = _local_planes(b_on_a[near_b], centre, k, settings.num_threads)
+        planes = _local_planes(b_near, centre, k, settings.num_threads, tree_b)
         # a's points in a ball as large about b's centroid (room for a denser a)
         radius = planes.distance[:, -1]
         near_a = _near(ov_a, planes.centroid, float(radius[keep].max()))
