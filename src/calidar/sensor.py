@@ -33,6 +33,49 @@ BORESIGHT_MAX_DEG = 180.0
 LEVER_ARM_MAX_M = 50.0
 RANGE_OFFSET_MAX_M = 100.0
 RANGE_SCALE_MAX_PPM = 1e5
+CALIBRATION_KEYS = ("date", "calidar_version", "solution", "method", "sigma")
+
+
+@dataclass(frozen=True)
+class CalibrationRecord:
+    """Where a calibrated ``sensor.toml`` came from: its ``[calibration]`` table (docs/sensor.md).
+
+    ``sigma`` holds each estimated value's standard deviation keyed as the value is written
+    (``boresight_roll_deg``, ``lever_arm_x_m``, ``range_offset_m``, ``range_scale_ppm``, a scanner
+    key): information for the reader, never used to georeference.
+    """
+
+    date: str  #: UTC, ISO 8601
+    calidar_version: str
+    solution: str  #: the solution file it came from, as named in the output folder
+    method: str = ""
+    sigma: dict[str, float] = field(default_factory=dict)
+
+    def to_toml(self) -> list[str]:
+        lines = ["", "[calibration]", f"date = {_toml_value(self.date)}",
+                 f"calidar_version = {_toml_value(self.calidar_version)}",
+                 f"solution = {_toml_value(self.solution)}"]
+        if self.method:
+            lines.append(f"method = {_toml_value(self.method)}")
+        if self.sigma:
+            lines += ["", "[calibration.sigma]  # 1σ of each estimated value, in the unit its key names"]
+            lines += [f"{k} = {_toml_value(v)}" for k, v in self.sigma.items()]
+        return lines
+
+    @classmethod
+    def from_dict(cls, table, source: str) -> "CalibrationRecord":
+        _only(table, set(CALIBRATION_KEYS), source, "calibration.")
+        text = {}
+        for key in CALIBRATION_KEYS[:4]:
+            value = table.get(key, "")
+            if not isinstance(value, str):
+                raise InputError(source, f"calibration.{key}", f"expected a string, got {value!r}")
+            text[key] = value
+        sigma = table.get("sigma", {})
+        if not isinstance(sigma, dict):
+            raise InputError(source, "calibration.sigma", "expected a table of σ values")
+        values = {k: table_number(sigma, k, source, 0.0, None, "", "calibration.sigma.") for k in sigma}
+        return cls(**text, sigma=values)
 
 
 @dataclass(frozen=True)
@@ -63,6 +106,8 @@ class Sensor:
     range_scale: float = 0.0
     scanner: Scanner = field(default_factory=LinearScanner)
     crs: str | None = None
+    #: where a calibrated sensor came from (``[calibration]``); None for a nominal sensor
+    calibration: CalibrationRecord | None = field(default=None, compare=False)
 
     @cached_property
     def r_bs(self) -> np.ndarray:
@@ -119,6 +164,8 @@ class Sensor:
         ]
         for k, v in self.scanner.to_toml().items():
             lines.append(f"{k} = {_toml_value(v)}")
+        if self.calibration is not None:
+            lines += self.calibration.to_toml()
         return "\n".join(lines) + "\n"
 
     def write(self, path: str | Path, force: bool = False) -> Path:
@@ -139,7 +186,7 @@ class Sensor:
     @classmethod
     def from_dict(cls, doc: dict, source: str = "sensor.toml") -> "Sensor":
         """A Sensor from a parsed sensor.toml (see :meth:`read` and docs/sensor.md for keys, units, ranges)."""
-        _only(doc, {"crs", "mounting", "range", "scanner"}, source, "")
+        _only(doc, {"crs", "mounting", "range", "scanner", "calibration"}, source, "")
         scanner = scanner_from_toml(doc.get("scanner", {"model": "linear"}), source)
         if "mounting" not in doc:
             raise InputError(source, "mounting", "missing table; expected [mounting] with boresight_roll_deg, "
@@ -156,6 +203,7 @@ class Sensor:
             range_scale=table_number(r, "scale_ppm", source, -RANGE_SCALE_MAX_PPM, RANGE_SCALE_MAX_PPM, "ppm", "range.",
                                      0.0) * 1e-6,
             scanner=scanner, crs=validated_crs(doc.get("crs"), source),
+            calibration=CalibrationRecord.from_dict(doc["calibration"], source) if "calibration" in doc else None,
         )
 
 

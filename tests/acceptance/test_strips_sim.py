@@ -100,6 +100,11 @@ def test_airborne_default_run_reproduces_its_report(cli, airborne, tmp_path):
     cal = Sensor.read(out / "sensor.toml")
     assert cal.boresight_roll == pytest.approx(np.radians(doc["parameters"]["boresight_roll"]["value"]))
     assert cal.lever_arm_x == res.nominal.lever_arm_x  # not estimated: unchanged
+    # where it came from: σ of every estimated value as solution.json gives it, the solution, version
+    assert cal.calibration.solution == "solution.json" and cal.calibration.method == "planes"
+    assert cal.calibration.calidar_version == doc["run"]["calidar_version"]
+    assert cal.calibration.sigma == {f"{n}_deg": pytest.approx(doc["parameters"][n]["sigma"], rel=1e-12)
+                                     for n in ANGLES}
     html = (out / "report.html").read_text()
     assert "Strip calibration (planes)" in html and "RMSDz before" in html and 'class="verdict v-pass"' in html
     assert f"{6 * n_knots} trajectory_* parameters are estimated too" in html and "How this was made" in html

@@ -130,6 +130,30 @@ def quality_stages(inputs, result, corrected, shown_out: Path, tag: str = "", pr
     return [QualityStage(label, command, pairs) for (label, command), pairs in zip(labels, measured)]
 
 
+def calibrated_sensor(result, solution_name: str, method: str = ""):
+    """The calibrated sensor with its ``[calibration]`` record: today's date (UTC), calidar's
+    version, the solution file it came from and the σ of every estimated sensor value, keyed as
+    sensor.toml writes values (``boresight_roll_deg``, ``lever_arm_x_m``, ...; docs/sensor.md)."""
+    from dataclasses import replace
+    from datetime import datetime, timezone
+
+    from calidar import __version__
+    from calidar.sensor import CalibrationRecord
+
+    solution = result.solution
+    sigma = solution.sigma
+    prefix = solution.nuisance_prefix
+    values = {}
+    for p in solution.parameters.free:
+        if (prefix and p.name.startswith(prefix)) or p.name not in sigma or not np.isfinite(sigma[p.name]):
+            continue
+        key = p.name if p.display_unit == "1" else f"{p.name}_{p.display_unit}"
+        values[key] = p.to_display(sigma[p.name])
+    date = datetime.now(timezone.utc).replace(microsecond=0).isoformat()
+    record = CalibrationRecord(date, __version__, solution_name, method or result.method, values)
+    return replace(result.sensor, calibration=record)
+
+
 def write_outputs(inputs, result, corrected, verdict, record, stages, out_dir: Path, tag: str,
                   strips_dir: Path | None) -> list[Path]:
     """solution{tag}.json, sensor{tag}.toml, sbet_corrected{tag}.out (with corrections) and, with
@@ -140,7 +164,8 @@ def write_outputs(inputs, result, corrected, verdict, record, stages, out_dir: P
     out_dir = Path(out_dir)
     written = [write_text_atomic(out_dir / f"solution{tag}.json",
                                  solution_document(result, inputs.truth, verdict, record, inputs.accuracy, stages)),
-               result.sensor.write(out_dir / f"sensor{tag}.toml", force=True)]
+               calibrated_sensor(result, f"solution{tag}.json").write(
+                   out_dir / f"sensor{tag}.toml", force=True)]
     if corrected is not None and corrected.time_system == "gps_week_seconds":  # SBETs hold week seconds
         written.append(write_sbet(out_dir / f"sbet_corrected{tag}.out", corrected, force=True))
     if strips_dir is not None:

@@ -65,3 +65,30 @@ def test_not_utf8_and_missing(tmp_path):
         read(path)
     with pytest.raises(InputError, match="missing.toml: sensor.toml not found"):
         Sensor.read(tmp_path / "missing.toml")
+
+
+def test_calibration_record_round_trip_and_checks(tmp_path):
+    """A calibrated sensor.toml carries [calibration]: date, version, solution, σ per value; it
+    still loads everywhere, georeferences exactly as without it, and its fields are checked."""
+    from dataclasses import replace
+
+    from calidar.sensor import CalibrationRecord
+
+    record = CalibrationRecord("2026-11-26T21:00:00+00:00", "0.1.0", "solution_planes.json", "planes",
+                               {"boresight_roll_deg": 0.0004, "lever_arm_z_m": 0.012})
+    sensor = Sensor(boresight_roll=np.radians(0.05), lever_arm_z=0.12)
+    path = replace(sensor, calibration=record).write(tmp_path / "sensor.toml")
+    back = Sensor.read(path)
+    assert back.calibration == record
+    assert back == sensor  # the record is information, never part of the model
+    assert "[calibration.sigma]" in path.read_text()
+    bad = path.read_text().replace("lever_arm_z_m = 0.012", "lever_arm_z_m = -0.012")
+    path.write_text(bad)
+    with pytest.raises(InputError, match="calibration.sigma.lever_arm_z_m"):
+        Sensor.read(path)
+    path.write_text(MOUNTING + "[calibration]\ndate = 2026\n")
+    with pytest.raises(InputError, match="calibration.date: expected a string"):
+        Sensor.read(path)
+    path.write_text(MOUNTING + "[calibration]\nwho = 'me'\n")
+    with pytest.raises(InputError, match="calibration.who: unknown key"):
+        Sensor.read(path)
