@@ -1,0 +1,61 @@
+"""``calidar tpu``: per-point horizontal and vertical uncertainty as LAS extra bytes."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import typer
+from rich.markup import escape
+
+from calidar.cli.common import console, progress_bar, progress_callback
+from calidar.cli.options import CRS, GEOID_UNDULATION, TIME_SYSTEM, point_options
+
+
+def register(app: typer.Typer, simulate: typer.Typer) -> None:
+    @app.command("tpu")
+    def tpu(
+        points: list[Path] = typer.Argument(..., help="LAS/LAZ files georeferenced with --trajectory and --sensor."),
+        trajectory: Path = typer.Option(..., "--trajectory", "-t", help="The trajectory the points were made with "
+                                        "(SBET, text or CSD)."),
+        sensor: Path = typer.Option(..., "--sensor", help="The sensor.toml the points were made with."),
+        out: Path = typer.Option(..., "--out", help="Folder for the files with total_thu/total_tvu, tpu.json and "
+                                 "report.html."),
+        calibration: Path | None = typer.Option(None, "--calibration", help="A calidar solution.json: propagate "
+                                                "the calibration's covariance (boresight, lever arm, range) too."),
+        trajectory_accuracy: Path | None = typer.Option(None, "--trajectory-accuracy", help="The trajectory's σ per "
+                                                        "epoch (POSPac smrmsg); default: smrmsg*.out beside the SBET."),
+        trajectory_sigma: str | None = typer.Option(None, "--trajectory-sigma", help="One σ for every epoch: "
+                                                    "POSITION_M,ATTITUDE_DEG, e.g. 0.05,0.005."),
+        range_sigma: float = typer.Option(0.01, "--range-sigma", help="Range noise, 1σ, m."),
+        angle_sigma: float = typer.Option(0.002, "--angle-sigma", help="Encoder (scan-angle) noise, 1σ, degrees."),
+        beam_divergence: float = typer.Option(0.25, "--beam-divergence", help="Beam divergence, full angle, mrad "
+                                              "(0: no footprint term)."),
+        crs: str | None = CRS, time_system: str | None = TIME_SYSTEM, geoid_undulation: float | None = GEOID_UNDULATION,
+        force: bool = typer.Option(False, "--force", help="Write into a non-empty --out folder."),
+    ) -> None:
+        """Per-point uncertainty (TPU): horizontal and vertical 1σ of every point from the trajectory's
+        accuracy, range and scan-angle noise, the footprint on the local surface and the calibration's
+        covariance, written as LAS extra bytes total_thu/total_tvu (m)."""
+        from calidar.outputs import check_out_dir, guard_inputs, output_folder
+        from calidar.pipelines.tpu import TpuOptions, run_tpu
+        from calidar.tpu.propagate import TpuSettings
+        from calidar.validate import number
+
+        number(range_sigma, "--range-sigma", 0.0, 10.0, "m")
+        number(angle_sigma, "--angle-sigma", 0.0, 5.0, "deg")
+        number(beam_divergence, "--beam-divergence", 0.0, 50.0, "mrad")
+        settings = TpuSettings(range_sigma, float(np.radians(angle_sigma)), beam_divergence * 1e-3)
+        options = TpuOptions(settings, trajectory_accuracy, trajectory_sigma, calibration,
+                             point_options(crs, time_system, geoid_undulation))
+        check_out_dir(out, force)
+        guard_inputs([out / p.name for p in points], [*points, trajectory, sensor, calibration, trajectory_accuracy],
+                     [out])
+        with progress_bar() as bar, output_folder(out, force, inputs=points) as tmp:
+            results = run_tpu(points, trajectory, sensor, tmp, options, progress_callback(bar))
+        for r in results:
+            console.print(f"{escape(r.path.name)}: {r.n_points:,} points, THU median {r.thu['median'] * 100:.2f} cm "
+                          f"(95 % {r.thu['p95'] * 100:.2f}), TVU median {r.tvu['median'] * 100:.2f} cm "
+                          f"(95 % {r.tvu['p95'] * 100:.2f})", highlight=False, soft_wrap=True)
+        console.print(f"wrote {escape(str(out))}/: {len(results)} files with total_thu/total_tvu, tpu.json, report.html",
+                      highlight=False, soft_wrap=True)

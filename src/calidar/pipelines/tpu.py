@@ -1,0 +1,144 @@
+"""Per-point uncertainty (``calidar tpu``): each point's horizontal and vertical 1σ from the
+trajectory's accuracy, the sensor's noise, its footprint and the calibration's covariance
+(:mod:`calidar.tpu.propagate`), written as LAS extra bytes ``total_thu`` / ``total_tvu`` (metres,
+as cBLUE names them) beside a summary and a report. Streamed: memory does not grow with the files."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from calidar.errors import InputError
+from calidar.pipelines import Progress, no_progress
+from calidar.pipelines.inputs import CHUNK_POINTS, PointOptions, TrajectoryOptions
+from calidar.tpu.propagate import TpuSettings
+
+EXTRA_BYTES = {"total_thu": "horizontal TPU, 1 sigma [m]",
+               "total_tvu": "vertical TPU, 1 sigma [m]"}
+SCAN_BINS_DEG = (0.0, 10.0, 20.0, 30.0, 45.0, 90.0)
+SAMPLE_POINTS = 100_000  #: points per file kept for the report's figures
+
+
+@dataclass(frozen=True)
+class TpuOptions:
+    """What ``calidar tpu`` takes besides its files (see its --help)."""
+
+    settings: TpuSettings = TpuSettings()
+    trajectory_accuracy: Path | None = None  #: smrmsg file (default: found beside an sbet*.out)
+    trajectory_sigma: str | None = None  #: 'POSITION_M,ATTITUDE_DEG'
+    calibration: Path | None = None  #: a calidar solution.json whose covariance is propagated
+    points: PointOptions = PointOptions()
+    trajectory_input: TrajectoryOptions = TrajectoryOptions()
+
+
+@dataclass
+class FileTpu:
+    """One file's result: counts, percentiles (m) and a sample for the figures."""
+
+    path: Path
+    written: Path
+    n_points: int
+    thu: dict
+    tvu: dict
+    tvu_by_scan_angle: list[dict]
+    sample: dict = field(repr=False, default_factory=dict)
+
+    def to_dict(self) -> dict:
+        return {"file": str(self.path), "written": self.written.name, "points": self.n_points, "thu_m": self.thu,
+                "tvu_m": self.tvu, "tvu_by_scan_angle": self.tvu_by_scan_angle}
+
+
+def _percentiles(v: np.ndarray) -> dict:
+    q = np.percentile(v, [50, 95]) if v.size else [np.nan, np.nan]
+    return {"median": float(q[0]), "p95": float(q[1]), "max": float(v.max()) if v.size else float("nan")}
+
+
+class _Collector:
+    """THU/TVU of a file's chunks: a histogram-free summary from a reservoir of points."""
+
+    def __init__(self, seed: int):
+        self.rng, self.parts, self.n = np.random.default_rng(seed), [], 0
+
+    def add(self, xy, thu, tvu, scan):
+        keep = self.rng.random(thu.size) < SAMPLE_POINTS / max(SAMPLE_POINTS, thu.size)
+        self.parts.append((xy[keep], thu[keep], tvu[keep], scan[keep]))
+        self.n += thu.size
+
+    def sample(self) -> dict:
+        cat = [np.concatenate([p[k] for p in self.parts]) for k in range(4)] if self.parts else [np.zeros((0, 2))] + [
+            np.zeros(0)] * 3
+        keep = self.rng.permutation(cat[1].size)[:SAMPLE_POINTS]
+        return dict(zip(("xy", "thu", "tvu", "scan"), (c[keep] for c in cat)))
+
+
+def tpu_file(path: Path, out: Path, traj, sensor, accuracy, options: TpuOptions, calibration) -> FileTpu:
+    """One file: stream, propagate, write it with the extra bytes (see the module docstring)."""
+    from calidar.io.las_extra import rewrite_las_with_extra
+    from calidar.pipelines.inputs import point_times, points_ecef, trajectory_for
+    from calidar.tpu.propagate import point_covariance, thu_tvu
+
+    traj, week = trajectory_for(path, traj, options.points, CHUNK_POINTS)
+    collect = _Collector(len(str(path)))
+
+    def values(points):
+        t = point_times(points, traj, week)
+        cov = point_covariance(traj, sensor, accuracy, t, points_ecef(points), options.settings, calibration)
+        thu, tvu = thu_tvu(cov)
+        scan = np.abs(points.scan_angle_deg) if points.scan_angle_deg is not None else np.full(thu.size, np.nan)
+        collect.add(points.xyz[:, :2], thu, tvu, scan)
+        return {"total_thu": thu, "total_tvu": tvu}
+
+    n = rewrite_las_with_extra(path, out, EXTRA_BYTES, values, chunk_points=CHUNK_POINTS, force=True,
+                               options=options.points)
+    s = collect.sample()
+    bins = [{"scan_angle_deg": [lo, hi], "points_in_sample": int(m.sum()), **_percentiles(s["tvu"][m])}
+            for lo, hi in zip(SCAN_BINS_DEG[:-1], SCAN_BINS_DEG[1:]) if (m := (s["scan"] >= lo) & (s["scan"] < hi)).any()]
+    return FileTpu(path, out, n, _percentiles(s["thu"]), _percentiles(s["tvu"]), bins, s)
+
+
+def load_calibration(path: Path | None, sensor):
+    """The calibration covariance of a solution.json (None: none given)."""
+    if path is None:
+        return None
+    from calidar.io.calibration import read_calibration_covariance
+    from calidar.tpu.propagate import CalibrationCovariance
+
+    return CalibrationCovariance(*read_calibration_covariance(path, set(sensor.parameters())))
+
+
+def run_tpu(points: list[Path], trajectory: Path, sensor_path: Path, out_dir: Path,
+            options: TpuOptions = TpuOptions(), progress: Progress = no_progress) -> list[FileTpu]:
+    """Every file of ``points`` with per-point THU/TVU into ``out_dir`` (same names), ``tpu.json``
+    and ``report.html``. Returns the per-file summaries."""
+    import json
+
+    from calidar.outputs import write_text_atomic
+    from calidar.pipelines.boresight import BoresightOptions, resolve_accuracy
+    from calidar.pipelines.inputs import load_trajectory
+    from calidar.sensor import Sensor
+
+    names = [Path(p).name for p in points]
+    if len(set(names)) != len(names):
+        raise InputError(None, "POINTS", f"expected distinct file names (outputs share the folder), got {names}")
+    sensor = Sensor.read(sensor_path)
+    traj = load_trajectory(trajectory, options.trajectory_input)
+    accuracy, _, note = resolve_accuracy(Path(trajectory), traj, BoresightOptions(
+        trajectory_accuracy=options.trajectory_accuracy, trajectory_sigma=options.trajectory_sigma))
+    calibration = load_calibration(options.calibration, sensor)
+    results = []
+    for k, p in enumerate(points):
+        results.append(tpu_file(Path(p), Path(out_dir) / Path(p).name, traj, sensor, accuracy, options, calibration))
+        progress("per-point uncertainty", k + 1, len(points))
+    doc = {"accuracy": accuracy.to_dict(), "accuracy_note": note,
+           "settings": {k: float(v) for k, v in options.settings.__dict__.items()},
+           "calibration": None if calibration is None else {
+               "file": str(options.calibration), "parameters": list(calibration.names),
+               "sigma_si": np.sqrt(np.diag(calibration.covariance)).tolist()},
+           "files": [r.to_dict() for r in results]}
+    write_text_atomic(Path(out_dir) / "tpu.json", json.dumps(doc, indent=2) + "\n", force=True)
+    from calidar.tpu.report import write_report
+
+    write_report(Path(out_dir) / "report.html", results, doc)
+    return results
