@@ -1,0 +1,195 @@
+"""Planimetric offset of one strip against another, estimated jointly with the height difference's tilt.
+
+On the overlap cells where both strips fit a plane, the difference of the two planes' heights at
+the cell centre is, to first order in a horizontal shift d = (dx, dy) of strip a relative to b, a
+vertical offset dz0 and a tilt (tx, ty) of a relative to b:
+
+    dz_k = dz0 + tx·(x_k − x̄) + ty·(y_k − ȳ) − dx·∂z/∂x_k − dy·∂z/∂y_k + e_k
+
+(a surface seen shifted by d has z_a(p) = z_b(p − d) ≈ z_b(p) − d·∇z). The five are solved by least
+squares with 3·MAD rejection. A tilt alone cannot leak into dx, dy: the terms are estimated together,
+and dx, dy are reported only where the slopes, once what the position already explains is taken
+out (the Schur complement of the tilt and offset in the normal matrix), vary enough in both
+directions — otherwise "not determined" with the reason (flat ground, slopes facing one way, slopes
+that only follow the position).
+
+Uncertainty: the cells' residuals are neither independent nor of equal variance (roughness,
+vegetation edges, interpolation and the trajectory's slow errors make neighbouring cells err alike),
+so the formal σ of independent cells is too small. The covariance is the cluster-robust ("sandwich")
+estimator over square blocks of ``block_m`` (Liang & Zeger 1986, Biometrika 73:13–22; small-sample
+factor CR1, G/(G−1)·(N−1)/(N−p), Cameron & Miller 2015, J. Human Resources 50:317–372): it takes the
+residuals' real scatter and any correlation within a block as they are. It is never taken smaller
+than the formal one; with fewer than ``min_blocks`` blocks it cannot be trusted (Cameron & Miller
+§VI) and dx, dy are "not determined". docs/validation.md measures how honest it is.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+SCALE_M = 100.0  #: positions enter the design in units of 100 m (tilts in m per 100 m internally)
+
+
+@dataclass(frozen=True)
+class PlanimetricSettings:
+    """What makes the planimetric offsets determined (metres, degrees where named)."""
+
+    max_slope_deg: float = 45.0  #: steeper planes (walls, their edges) are left out
+    min_cells: int = 30
+    min_slope_spread: float = 0.05  #: residual slope (tan) standard deviation in the weakest direction
+    min_sloped_cells: int = 10  #: information at least that of this many cells ...
+    min_slope_deg: float = 15.0  #: ... sloped this much in each direction
+    block_m: float = 20.0  #: blocks of the cluster-robust covariance
+    min_blocks: int = 10
+    max_neighbour_dslope: float = 0.1  #: a cell is inside a facet: its 4 neighbours' slopes (tan) within this
+
+
+@dataclass
+class Planimetric:
+    """The joint fit of one pair (a relative to b): offsets in m, tilts in m/m."""
+
+    status: str  #: "determined" or "not determined"
+    reason: str = ""
+    dx_m: float | None = None
+    dy_m: float | None = None
+    sigma_dx_m: float | None = None
+    sigma_dy_m: float | None = None
+    corr_dxy: float | None = None
+    dz0_m: float | None = None  #: vertical offset at the cells' centroid
+    tilt_x: float | None = None  #: ∂dz/∂x (m/m)
+    tilt_y: float | None = None
+    sigma_tilt: float | None = None  #: the larger σ of the two tilts (m/m)
+    n_cells: int = 0  #: cells fitted (after rejection)
+    n_blocks: int = 0
+    slope_spread: float | None = None  #: residual slope σ (tan) in the weakest direction
+
+    def to_dict(self) -> dict:
+        return dict(self.__dict__)
+
+
+def gradients(normal: np.ndarray) -> np.ndarray:
+    """Surface gradients (K, 2) ∂z/∂x, ∂z/∂y of planes with unit normals (K, 3), z up."""
+    return -normal[:, :2] / normal[:, 2:3]
+
+
+def block_ids(centre: np.ndarray, block_m: float) -> tuple[np.ndarray, int]:
+    """Block index (K,) of each cell on squares of ``block_m`` and the number of blocks."""
+    inv = np.unique(np.floor(centre / block_m).astype(np.int64), axis=0, return_inverse=True)[1].ravel()
+    return inv, int(inv.max()) + 1 if inv.size else 0
+
+
+def within(values: np.ndarray, blocks: np.ndarray, n_blocks: int) -> np.ndarray:
+    """``values`` (K, m) less their block's mean: what a vertical offset per block cannot explain."""
+    v = values.reshape(len(values), -1)
+    count = np.bincount(blocks, minlength=n_blocks)
+    mean = np.stack([np.bincount(blocks, v[:, k], n_blocks) for k in range(v.shape[1])], axis=1)
+    return (v - mean[blocks] / np.maximum(count, 1)[blocks, None]).reshape(values.shape)
+
+
+def conditioning(grad: np.ndarray, blocks: np.ndarray, n_blocks: int) -> tuple[float, np.ndarray]:
+    """Smallest eigenvalue of the slopes' covariance within the blocks (the information on dx, dy
+    per cell once a vertical offset per block is free, in (m/m)²) and the full 2 × 2 matrix."""
+    r = within(grad, blocks, n_blocks)
+    s = r.T @ r / max(len(r), 1)
+    return float(np.linalg.eigvalsh(s)[0]), s
+
+
+def inside_facets(ij: np.ndarray, grad: np.ndarray, tolerance: float) -> np.ndarray:
+    """Cells (K,) whose 4 neighbours (grid indices ij (K, 2)) are all there with gradients within
+    ``tolerance``: inside a planar facet. A cell a fold crosses (a ridge, a hip, a slope's foot) fits
+    a plane whose slope weights the cell's middle more than the height at its centre does (the
+    least-squares slope is a parabola-weighted mean of the surface's slope, the shift's effect on
+    the centre height an even mean): such cells bias dx, dy towards zero and are left out."""
+    key = (ij[:, 0].astype(np.int64) << 32) + (ij[:, 1].astype(np.int64) & 0xFFFFFFFF)
+    order = np.argsort(key)
+    sk = key[order]
+    ok = np.ones(len(key), bool)
+    for di, dj in ((1, 0), (-1, 0), (0, 1), (0, -1)):
+        nk = ((ij[:, 0] + di).astype(np.int64) << 32) + ((ij[:, 1] + dj).astype(np.int64) & 0xFFFFFFFF)
+        at = np.clip(np.searchsorted(sk, nk), 0, len(sk) - 1)
+        found = sk[at] == nk
+        other = grad[order[at]]
+        ok &= found & (np.hypot(*(other - grad).T) <= tolerance)
+    return ok
+
+
+def planimetric_offsets(centre: np.ndarray, dz: np.ndarray, grad: np.ndarray, cell_m: float,
+                        settings: PlanimetricSettings | None = None) -> Planimetric:
+    """Joint fit of dz (K,) at the centres (K, 2) m of cells of ``cell_m`` with the planes' gradients (K, 2)."""
+    s = settings or PlanimetricSettings()
+    keep = np.hypot(grad[:, 0], grad[:, 1]) <= np.tan(np.radians(s.max_slope_deg))
+    keep &= inside_facets(np.floor(centre / cell_m).astype(np.int64), grad, s.max_neighbour_dslope)
+    keep &= np.isfinite(dz) & np.all(np.isfinite(grad), axis=1)
+    c, d, g = centre[keep], dz[keep], grad[keep]
+    if d.size < s.min_cells:
+        return Planimetric("not determined", f"{d.size} planar cells inside facets shared (at least {s.min_cells} "
+                           "needed)")
+    blocks, n_blocks = block_ids(c, s.block_m)
+    spread2, info = conditioning(g, blocks, n_blocks)
+    out = Planimetric("not determined", slope_spread=float(np.sqrt(max(spread2, 0.0))))
+    needed = s.min_sloped_cells * np.tan(np.radians(s.min_slope_deg)) ** 2
+    if spread2 < s.min_slope_spread**2 or spread2 * d.size < needed:
+        w, v = np.linalg.eigh(info)
+        weak = np.degrees(np.arctan2(v[1, 0], v[0, 0])) % 180.0
+        out.reason = (f"the slopes do not constrain both directions: within {s.block_m:g} m blocks their spread "
+                      f"across the {weak:.0f}° direction (x east, counter-clockwise) is {out.slope_spread:.3f} (tan) "
+                      f"over {d.size} cells (needed ≥ {s.min_slope_spread:g} and the weight of "
+                      f"{s.min_sloped_cells} cells of {s.min_slope_deg:g}°)")
+        return out
+    return _fit(c, d, g, blocks, n_blocks, s, out)
+
+
+def _fit(c: np.ndarray, d: np.ndarray, g: np.ndarray, blocks: np.ndarray, n_blocks: int, s: PlanimetricSettings,
+         out: Planimetric) -> Planimetric:
+    """dx, dy and the tilt with a free vertical offset per block (within-block least squares,
+    3·MAD rejection), their cluster-robust covariance over the blocks; then the offset and tilt
+    over the whole overlap with dx, dy held. ``out`` filled in."""
+    a = np.column_stack([(c - c.mean(axis=0)) / SCALE_M, -g])
+    keep = np.ones(d.size, bool)
+    for _ in range(5):
+        aw, dw = within(a[keep], blocks[keep], n_blocks), within(d[keep], blocks[keep], n_blocks)
+        t, *_ = np.linalg.lstsq(aw, dw, rcond=None)
+        r = dw - aw @ t
+        mad = 1.4826 * np.median(np.abs(r))
+        bad = np.abs(r) > 3.0 * max(mad, 1e-6)
+        if not bad.any():
+            break
+        keep[np.flatnonzero(keep)[bad]] = False
+    else:  # the last rejection's fit
+        aw, dw = within(a[keep], blocks[keep], n_blocks), within(d[keep], blocks[keep], n_blocks)
+        t, *_ = np.linalg.lstsq(aw, dw, rcond=None)
+        r = dw - aw @ t
+    cov, used = _cluster_cov(aw, r, blocks[keep])
+    out.n_cells, out.n_blocks = int(keep.sum()), used
+    if used < s.min_blocks:
+        out.reason = f"{used} blocks of {s.block_m:g} m hold the cells (at least {s.min_blocks} to tell the σ)"
+        return out
+    sd = np.sqrt(np.diag(cov))
+    out.status, out.reason = "determined", ""
+    out.dx_m, out.dy_m = float(t[2]), float(t[3])
+    out.sigma_dx_m, out.sigma_dy_m = float(sd[2]), float(sd[3])
+    out.corr_dxy = float(cov[2, 3] / (sd[2] * sd[3]))
+    x = np.column_stack([np.ones(keep.sum()), a[keep, :2]])
+    level, *_ = np.linalg.lstsq(x, d[keep] - a[keep, 2:] @ t[2:], rcond=None)
+    lcov, _ = _cluster_cov(x, d[keep] - a[keep, 2:] @ t[2:] - x @ level, blocks[keep])
+    out.dz0_m, out.tilt_x, out.tilt_y = float(level[0]), float(level[1] / SCALE_M), float(level[2] / SCALE_M)
+    out.sigma_tilt = float(np.sqrt(max(lcov[1, 1], lcov[2, 2])) / SCALE_M)
+    return out
+
+
+def _cluster_cov(a: np.ndarray, r: np.ndarray, blocks: np.ndarray) -> tuple[np.ndarray, int]:
+    """Cluster-robust covariance (CR1) of least squares with design ``a`` and residuals ``r`` over
+    ``blocks``, never below the formal one; and how many blocks hold cells."""
+    n, p = a.shape
+    used, blocks = np.unique(blocks, return_inverse=True)
+    g = used.size
+    bread = np.linalg.pinv(a.T @ a)
+    score = np.zeros((g, p))
+    np.add.at(score, blocks, a * r[:, None])
+    formal = bread * (r @ r) / max(n - p - g, 1)
+    if g < 2:
+        return formal, g
+    cov = g / (g - 1) * (n - 1) / max(n - p, 1) * bread @ (score.T @ score) @ bread
+    return (cov if np.trace(cov) >= np.trace(formal) else formal), g
