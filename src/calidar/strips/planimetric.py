@@ -38,7 +38,7 @@ class PlanimetricSettings:
 
     max_slope_deg: float = 45.0  #: steeper planes (walls, their edges) are left out
     min_cells: int = 30
-    min_slope_spread: float = 0.05  #: residual slope (tan) standard deviation in the weakest direction
+    min_slope_spread: float = 0.03  #: slope (tan) σ within the blocks in the weakest direction (gradient noise ≪ this)
     min_sloped_cells: int = 10  #: information at least that of this many cells ...
     min_slope_deg: float = 15.0  #: ... sloped this much in each direction
     block_m: float = 20.0  #: blocks of the cluster-robust covariance

@@ -205,6 +205,11 @@ class SwathAccumulator:
             self.parts[key] = parts = [CellMoments.combined(parts)]
         return parts[0] if parts else CellMoments.empty(cell)
 
+    def line_moments(self, line: int) -> CellMoments:
+        """The line's moments on the smallest cell of its pairs (for checks within one line)."""
+        sizes = self.plan.sizes(line) if self.plan else {self.base_m}
+        return self._at(line, min(sizes)) if sizes else CellMoments.empty(self.base_m)
+
     def differences(self, settings: QualitySettings | None = None) -> tuple[list[PairQuality], list[str]]:
         """The PairQuality of every overlapping pair of lines (ids ascending) and notes about lines
         that overlap no other."""
