@@ -69,22 +69,23 @@ def _print_table(how, results, selections, notes) -> None:
     from rich.table import Table
 
     table = Table(title=f"Swath-overlap differences (flight lines from {how}; dz = a − b)")
-    for h in ("a", "b", "cells", "points a", "points b", "median dz [m]", "RMSDz [m]", "max |dz| [m]", "dx ± σ [m]",
-              "dy ± σ [m]"):
+    for h in ("a", "b", "cells", "points a", "points b", "median dz [m]", "RMSDz [m]", "max |dz| [m]", "dx±σ [m]",
+              "dy±σ [m]"):
         table.add_column(h, justify="right")
 
     def f(v, sign="+"):
         return "—" if v is None else f"{v:{sign}.3f}"
 
     def pm(v, s):
-        return "not determined" if v is None else f"{v:+.3f} ± {s:.3f}"
+        return "—" if v is None else f"{v:+.3f}±{s:.3f}"
 
     for q in results:
         table.add_row(str(q.a), str(q.b), str(q.n_cells), str(q.n_points_a), str(q.n_points_b), f(q.median_dz_m),
                       f(q.rmsdz_m, ""), f(q.max_abs_dz_m, ""), pm(q.dx_m, q.sigma_dx_m), pm(q.dy_m, q.sigma_dy_m))
     console.print(table)
     console.print("dx, dy: strip a's horizontal offset from b, fitted with the height difference's offset and tilt; "
-                  "σ from the cells' scatter and its correlation (20 m blocks)", highlight=False, soft_wrap=True)
+                  "σ from the cells' scatter and its correlation (20 m blocks); — where not determined",
+                  highlight=False, soft_wrap=True)
     for q in results:
         if q.planimetric is not None and q.planimetric.status != "determined":
             console.print(f"{q.a}–{q.b}: dx, dy not determined: {escape(q.planimetric.reason)}", highlight=False,

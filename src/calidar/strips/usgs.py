@@ -17,9 +17,13 @@ How calidar measures them, from the cell moments the swath differences already h
 - intraswath: per line, on its own cells that fit a plane within ``max_rms_m`` and slope < 10°
   (vegetation and edges do not: the point selection keeps ground or last returns), the points'
   scatter about the cell's plane σ_k (n/(n−3) for the plane's three parameters). The
-  specification's figure is the maximum difference of heights on a smooth surface; with the cells
-  holding moments, not points, it is estimated as the expected range of n normal deviates,
-  d₂(n)·σ (Tippett 1925, Biometrika 17:364–387), per cell; the line's figure is the median cell's.
+  specification's figure is a maximum difference of heights within small sample areas of a
+  smooth surface, about 2 × the nominal pulse spacing on a side, which hold ≈ 4 pulses of one
+  swath. With the cells holding moments, not points, it is estimated from the range of 4 normal
+  deviates (Tippett 1925, Biometrika 17:364–387; the constants d₂(4) = 2.059 and d₃(4) = 0.880 of
+  ASTM E2587): the RMS of such ranges is √(d₂² + d₃²)·σ = 2.24·σ, with σ the RMS over the line's
+  cells; the survey's figure is the worst line's. (Our cells are larger than those sample areas:
+  their own ranges would grow with the density, d₂(n) for n points.)
 """
 
 from __future__ import annotations
@@ -28,6 +32,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+SAMPLE_POINTS = 4  #: pulses of one swath in a sample area of 2 × the nominal pulse spacing on a side
+RANGE_SD_4 = 0.8798  #: d₃(4): the standard deviation of the range of 4 standard normal deviates (ASTM E2587)
 SPECIFICATION = "USGS Lidar Base Specification (2024 rev. A), table 2: relative vertical accuracy of swath data"
 #: quality level → (intraswath max diff, interswath RMSDz, interswath max |dz|), metres
 THRESHOLDS_M: dict[str, tuple[float, float, float]] = {
@@ -87,7 +93,7 @@ class LinePrecision:
     line: int
     n_cells: int
     sigma_m: float | None  #: RMS of the points about their cell's plane, pooled over the smooth cells
-    max_diff_m: float | None  #: median over the cells of d₂(n)·σ: the specification's max diff, estimated
+    max_diff_m: float | None  #: RMS max diff of 4-point sample areas, √(d₂² + d₃²)·σ: the specification's, estimated
     cell_m: float = 0.0
 
     def to_dict(self) -> dict:
@@ -108,7 +114,8 @@ def line_precision(line: int, moments, max_rms_m: float = 0.08, max_slope_deg: f
     if not smooth.any():
         return LinePrecision(line, 0, None, None, m.cell_m)
     sigma = float(np.sqrt(np.sum(var[smooth] * n[smooth]) / np.sum(n[smooth])))
-    max_diff = float(np.median(expected_range(n[smooth]) * np.sqrt(var[smooth])))
+    factor = np.hypot(expected_range(np.array([SAMPLE_POINTS]))[0], RANGE_SD_4)
+    max_diff = float(factor * np.sqrt(np.mean(var[smooth])))
     return LinePrecision(line, int(smooth.sum()), sigma, max_diff, m.cell_m)
 
 
