@@ -74,6 +74,15 @@ def gradients(normal: np.ndarray) -> np.ndarray:
     return -normal[:, :2] / normal[:, 2:3]
 
 
+def gradient_noise(cov: np.ndarray, count: np.ndarray, normal: np.ndarray) -> np.ndarray:
+    """Covariance (K, 2, 2) of the fitted planes' gradients from their cells' point covariances
+    (K, 3, 3), counts and normals: σ²_z · (n · C_xy)⁻¹ for the least-squares slope, the vertical
+    scatter σ²_z = λ_min / n_z² · n / (n − 3)."""
+    lam = np.einsum("ki,kij,kj->k", normal, cov, normal)
+    var_z = lam / normal[:, 2] ** 2 * count / np.maximum(count - 3, 1)
+    return var_z[:, None, None] * np.linalg.inv(cov[:, :2, :2]) / count[:, None, None]
+
+
 def block_ids(centre: np.ndarray, block_m: float) -> tuple[np.ndarray, int]:
     """Block index (K,) of each cell on squares of ``block_m`` and the number of blocks."""
     inv = np.unique(np.floor(centre / block_m).astype(np.int64), axis=0, return_inverse=True)[1].ravel()
@@ -88,11 +97,19 @@ def within(values: np.ndarray, blocks: np.ndarray, n_blocks: int) -> np.ndarray:
     return (v - mean[blocks] / np.maximum(count, 1)[blocks, None]).reshape(values.shape)
 
 
-def conditioning(grad: np.ndarray, blocks: np.ndarray, n_blocks: int) -> tuple[float, np.ndarray]:
-    """Smallest eigenvalue of the slopes' covariance within the blocks (the information on dx, dy
-    per cell once a vertical offset per block is free, in (m/m)²) and the full 2 × 2 matrix."""
+def noise_moments(noise: np.ndarray, blocks: np.ndarray, n_blocks: int) -> np.ndarray:
+    """Each cell's gradient-noise covariance (K, 2, 2) as it enters the within-block products: a
+    block's mean takes 1/m of it out (m cells in the block)."""
+    m = np.bincount(blocks, minlength=n_blocks)[blocks]
+    return noise * (1.0 - 1.0 / np.maximum(m, 1))[:, None, None]
+
+
+def conditioning(grad: np.ndarray, noise: np.ndarray, blocks: np.ndarray, n_blocks: int) -> tuple[float, np.ndarray]:
+    """Smallest eigenvalue of the true slopes' covariance within the blocks (the information on dx,
+    dy per cell once a vertical offset per block is free, in (m/m)², the gradients' own noise taken
+    out) and the full 2 × 2 matrix."""
     r = within(grad, blocks, n_blocks)
-    s = r.T @ r / max(len(r), 1)
+    s = (r.T @ r - noise_moments(noise, blocks, n_blocks).sum(axis=0)) / max(len(r), 1)
     return float(np.linalg.eigvalsh(s)[0]), s
 
 
@@ -116,18 +133,22 @@ def inside_facets(ij: np.ndarray, grad: np.ndarray, tolerance: float) -> np.ndar
 
 
 def planimetric_offsets(centre: np.ndarray, dz: np.ndarray, grad: np.ndarray, cell_m: float,
-                        settings: PlanimetricSettings | None = None) -> Planimetric:
-    """Joint fit of dz (K,) at the centres (K, 2) m of cells of ``cell_m`` with the planes' gradients (K, 2)."""
+                        settings: PlanimetricSettings | None = None, noise: np.ndarray | None = None) -> Planimetric:
+    """Joint fit of dz (K,) at the centres (K, 2) m of cells of ``cell_m`` with the planes' gradients
+    (K, 2), whose noise covariances (K, 2, 2) (:func:`gradient_noise`; none: exact gradients) are
+    taken out of the normal equations: a noisy regressor would shrink dx, dy towards zero
+    (errors in variables; the moment correction of Fuller 1987, Measurement Error Models, §2.2)."""
     s = settings or PlanimetricSettings()
+    noise = np.zeros((len(dz), 2, 2)) if noise is None else noise
     keep = np.hypot(grad[:, 0], grad[:, 1]) <= np.tan(np.radians(s.max_slope_deg))
     keep &= inside_facets(np.floor(centre / cell_m).astype(np.int64), grad, s.max_neighbour_dslope)
     keep &= np.isfinite(dz) & np.all(np.isfinite(grad), axis=1)
-    c, d, g = centre[keep], dz[keep], grad[keep]
+    c, d, g, e = centre[keep], dz[keep], grad[keep], noise[keep]
     if d.size < s.min_cells:
         return Planimetric("not determined", f"{d.size} planar cells inside facets shared (at least {s.min_cells} "
                            "needed)")
     blocks, n_blocks = block_ids(c, s.block_m)
-    spread2, info = conditioning(g, blocks, n_blocks)
+    spread2, info = conditioning(g, e, blocks, n_blocks)
     out = Planimetric("not determined", slope_spread=float(np.sqrt(max(spread2, 0.0))))
     needed = s.min_sloped_cells * np.tan(np.radians(s.min_slope_deg)) ** 2
     if spread2 < s.min_slope_spread**2 or spread2 * d.size < needed:
@@ -138,30 +159,26 @@ def planimetric_offsets(centre: np.ndarray, dz: np.ndarray, grad: np.ndarray, ce
                       f"over {d.size} cells (needed ≥ {s.min_slope_spread:g} and the weight of "
                       f"{s.min_sloped_cells} cells of {s.min_slope_deg:g}°)")
         return out
-    return _fit(c, d, g, blocks, n_blocks, s, out)
+    return _fit(c, d, g, e, blocks, n_blocks, s, out)
 
 
-def _fit(c: np.ndarray, d: np.ndarray, g: np.ndarray, blocks: np.ndarray, n_blocks: int, s: PlanimetricSettings,
-         out: Planimetric) -> Planimetric:
-    """dx, dy and the tilt with a free vertical offset per block (within-block least squares,
-    3·MAD rejection), their cluster-robust covariance over the blocks; then the offset and tilt
-    over the whole overlap with dx, dy held. ``out`` filled in."""
+def _fit(c: np.ndarray, d: np.ndarray, g: np.ndarray, e: np.ndarray, blocks: np.ndarray, n_blocks: int,
+         s: PlanimetricSettings, out: Planimetric) -> Planimetric:
+    """dx, dy and the tilt with a free vertical offset per block (within-block least squares with
+    the gradients' noise ``e`` taken out, 3·MAD rejection), their cluster-robust covariance over the
+    blocks; then the offset and tilt over the whole overlap with dx, dy held. ``out`` filled in."""
     a = np.column_stack([(c - c.mean(axis=0)) / SCALE_M, -g])
     keep = np.ones(d.size, bool)
-    for _ in range(5):
-        aw, dw = within(a[keep], blocks[keep], n_blocks), within(d[keep], blocks[keep], n_blocks)
-        t, *_ = np.linalg.lstsq(aw, dw, rcond=None)
-        r = dw - aw @ t
+    for _ in range(6):
+        aw, r, m, t = _within_fit(a, d, e, keep, blocks, n_blocks)
         mad = 1.4826 * np.median(np.abs(r))
         bad = np.abs(r) > 3.0 * max(mad, 1e-6)
         if not bad.any():
             break
         keep[np.flatnonzero(keep)[bad]] = False
     else:  # the last rejection's fit
-        aw, dw = within(a[keep], blocks[keep], n_blocks), within(d[keep], blocks[keep], n_blocks)
-        t, *_ = np.linalg.lstsq(aw, dw, rcond=None)
-        r = dw - aw @ t
-    cov, used = _cluster_cov(aw, r, blocks[keep])
+        aw, r, m, t = _within_fit(a, d, e, keep, blocks, n_blocks)
+    cov, used = _cluster_cov(aw, r, blocks[keep], m, t)
     out.n_cells, out.n_blocks = int(keep.sum()), used
     if used < s.min_blocks:
         out.reason = f"{used} blocks of {s.block_m:g} m hold the cells (at least {s.min_blocks} to tell the σ)"
@@ -179,15 +196,30 @@ def _fit(c: np.ndarray, d: np.ndarray, g: np.ndarray, blocks: np.ndarray, n_bloc
     return out
 
 
-def _cluster_cov(a: np.ndarray, r: np.ndarray, blocks: np.ndarray) -> tuple[np.ndarray, int]:
+def _within_fit(a, d, e, keep, blocks, n_blocks):
+    """The within-block design, residuals, noise moments and solution on the rows ``keep``."""
+    aw, dw = within(a[keep], blocks[keep], n_blocks), within(d[keep], blocks[keep], n_blocks)
+    m = np.zeros((int(keep.sum()), 4, 4))
+    m[:, 2:, 2:] = noise_moments(e[keep], blocks[keep], n_blocks)
+    t = np.linalg.solve(aw.T @ aw - m.sum(axis=0), aw.T @ dw)
+    return aw, dw - aw @ t, m, t
+
+
+def _cluster_cov(a: np.ndarray, r: np.ndarray, blocks: np.ndarray, m: np.ndarray | None = None,
+                 t: np.ndarray | None = None) -> tuple[np.ndarray, int]:
     """Cluster-robust covariance (CR1) of least squares with design ``a`` and residuals ``r`` over
-    ``blocks``, never below the formal one; and how many blocks hold cells."""
+    ``blocks`` — with the per-row noise moments ``m`` (K, p, p) taken out of the normal equations at
+    the solution ``t``, the rows' estimating functions a·r + m·t — never below the formal one; and
+    how many blocks hold cells."""
     n, p = a.shape
     used, blocks = np.unique(blocks, return_inverse=True)
     g = used.size
-    bread = np.linalg.pinv(a.T @ a)
+    psi = a * r[:, None]
+    if m is not None:
+        psi = psi + m @ t
+    bread = np.linalg.pinv(a.T @ a - (0.0 if m is None else m.sum(axis=0)))
     score = np.zeros((g, p))
-    np.add.at(score, blocks, a * r[:, None])
+    np.add.at(score, blocks, psi)
     formal = bread * (r @ r) / max(n - p - g, 1)
     if g < 2:
         return formal, g

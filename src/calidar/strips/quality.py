@@ -31,7 +31,8 @@ import numpy as np
 from calidar.strips.cell_moments import CellMoments, key_indices
 from calidar.strips.overlap import common_cells, unpaired_notes
 from calidar.strips.planes import PlaneSettings, planar_cells
-from calidar.strips.planimetric import Planimetric, PlanimetricSettings, gradients, planimetric_offsets
+from calidar.strips.planimetric import (Planimetric, PlanimetricSettings, gradient_noise, gradients,
+                                        planimetric_offsets)
 
 BASE_CELL_M = 1.0  #: accumulation grid when the cell is chosen per pair (whole metres coarsen from it)
 OVERLAP_CELL_M = 5.0  #: which lines overlap: cells of this size occupied by both (as the strip calibration)
@@ -283,7 +284,8 @@ def pair_quality(a: int, moments_a: CellMoments, b: int, moments_b: CellMoments,
         q.grid = np.full((hi[1] - lo[1] + 1, hi[0] - lo[0] + 1), np.nan)
         q.grid[hi[1] - ij[flat, 1], ij[flat, 0] - lo[0]] = d
         q.origin = (float(lo[0] * cell), float((hi[1] + 1) * cell))
-    _planimetric(q, centre, dz, 0.5 * (gradients(na) + gradients(nb)), s)
+    noise = 0.25 * (gradient_noise(ma.covariance(), ma.count, na) + gradient_noise(mb.covariance(), mb.count, nb))
+    _planimetric(q, centre, dz, 0.5 * (gradients(na) + gradients(nb)), noise, s)
     return q
 
 
@@ -294,10 +296,11 @@ def _planes(m: CellMoments, ps: PlaneSettings) -> tuple[CellMoments, np.ndarray]
     return m.select(planar), normal
 
 
-def _planimetric(q: PairQuality, centre: np.ndarray, dz: np.ndarray, grad: np.ndarray, s: QualitySettings) -> None:
+def _planimetric(q: PairQuality, centre: np.ndarray, dz: np.ndarray, grad: np.ndarray, noise: np.ndarray,
+                 s: QualitySettings) -> None:
     """dx, dy of a relative to b jointly with the difference's offset and tilt, where determined."""
     q.n_sloped = int(np.sum(np.hypot(grad[:, 0], grad[:, 1]) > np.tan(np.radians(s.min_slope_deg))))
-    q.planimetric = p = planimetric_offsets(centre, dz, grad, q.cell_m, s.planimetric)
+    q.planimetric = p = planimetric_offsets(centre, dz, grad, q.cell_m, s.planimetric, noise)
     if p.status == "determined":
         q.dx_m, q.dy_m, q.sigma_dx_m, q.sigma_dy_m = p.dx_m, p.dy_m, p.sigma_dx_m, p.sigma_dy_m
 
