@@ -41,8 +41,11 @@ class PlanimetricSettings:
     min_slope_spread: float = 0.03  #: slope (tan) σ within the blocks in the weakest direction (gradient noise ≪ this)
     min_sloped_cells: int = 10  #: information at least that of this many cells ...
     min_slope_deg: float = 15.0  #: ... sloped this much in each direction
-    block_m: float = 20.0  #: blocks of the cluster-robust covariance
+    block_m: float = 20.0  #: blocks of the free vertical offsets and of the robust covariance
     min_blocks: int = 10
+    hac_m: float = 100.0  #: blocks this close (Bartlett weights per axis) err together in the covariance
+    jackknife_groups: int = 5  #: groups of blocks along the overlap left out in turn (0: none)
+    block_plane: bool = False  #: a vertical offset and tilt free per block (else an offset only; docs/validation.md)
     max_neighbour_dslope: float = 0.1  #: a cell is inside a facet: its 4 neighbours' slopes (tan) within this
 
 
@@ -89,27 +92,37 @@ def block_ids(centre: np.ndarray, block_m: float) -> tuple[np.ndarray, int]:
     return inv, int(inv.max()) + 1 if inv.size else 0
 
 
-def within(values: np.ndarray, blocks: np.ndarray, n_blocks: int) -> np.ndarray:
-    """``values`` (K, m) less their block's mean: what a vertical offset per block cannot explain."""
+def within(values: np.ndarray, blocks: np.ndarray, n_blocks: int, centre: np.ndarray | None = None) -> np.ndarray:
+    """``values`` (K, m) less what a vertical offset per block (with ``centre`` (K, 2) m: an offset
+    and a tilt per block, a plane) explains: their least-squares residuals block by block."""
     v = values.reshape(len(values), -1)
-    count = np.bincount(blocks, minlength=n_blocks)
-    mean = np.stack([np.bincount(blocks, v[:, k], n_blocks) for k in range(v.shape[1])], axis=1)
-    return (v - mean[blocks] / np.maximum(count, 1)[blocks, None]).reshape(values.shape)
+    if centre is None:
+        count = np.bincount(blocks, minlength=n_blocks)
+        mean = np.stack([np.bincount(blocks, v[:, k], n_blocks) for k in range(v.shape[1])], axis=1)
+        return (v - mean[blocks] / np.maximum(count, 1)[blocks, None]).reshape(values.shape)
+    x = np.column_stack([np.ones(len(v)), centre - centre.mean(axis=0)])
+    xx = np.zeros((n_blocks, 3, 3))
+    np.add.at(xx, blocks, x[:, :, None] * x[:, None, :])
+    xv = np.zeros((n_blocks, 3, v.shape[1]))
+    np.add.at(xv, blocks, x[:, :, None] * v[:, None, :])
+    coef = np.linalg.pinv(xx) @ xv  # blocks whose cells lie on a line: their offset and the one slope
+    return (v - np.einsum("ki,kim->km", x, coef[blocks])).reshape(values.shape)
 
 
-def noise_moments(noise: np.ndarray, blocks: np.ndarray, n_blocks: int) -> np.ndarray:
+def noise_moments(noise: np.ndarray, blocks: np.ndarray, n_blocks: int, free: int = 1) -> np.ndarray:
     """Each cell's gradient-noise covariance (K, 2, 2) as it enters the within-block products: a
-    block's mean takes 1/m of it out (m cells in the block)."""
+    block's ``free`` parameters (1: offset; 3: plane) take about free/m of it out (m cells in the block)."""
     m = np.bincount(blocks, minlength=n_blocks)[blocks]
-    return noise * (1.0 - 1.0 / np.maximum(m, 1))[:, None, None]
+    return noise * np.clip(1.0 - free / np.maximum(m, 1), 0.0, 1.0)[:, None, None]
 
 
-def conditioning(grad: np.ndarray, noise: np.ndarray, blocks: np.ndarray, n_blocks: int) -> tuple[float, np.ndarray]:
+def conditioning(grad: np.ndarray, noise: np.ndarray, blocks: np.ndarray, n_blocks: int,
+                 centre: np.ndarray | None = None) -> tuple[float, np.ndarray]:
     """Smallest eigenvalue of the true slopes' covariance within the blocks (the information on dx,
     dy per cell once a vertical offset per block is free, in (m/m)², the gradients' own noise taken
     out) and the full 2 × 2 matrix."""
-    r = within(grad, blocks, n_blocks)
-    s = (r.T @ r - noise_moments(noise, blocks, n_blocks).sum(axis=0)) / max(len(r), 1)
+    r = within(grad, blocks, n_blocks, centre)
+    s = (r.T @ r - noise_moments(noise, blocks, n_blocks, 1 if centre is None else 3).sum(axis=0)) / max(len(r), 1)
     return float(np.linalg.eigvalsh(s)[0]), s
 
 
@@ -148,7 +161,7 @@ def planimetric_offsets(centre: np.ndarray, dz: np.ndarray, grad: np.ndarray, ce
         return Planimetric("not determined", f"{d.size} planar cells inside facets shared (at least {s.min_cells} "
                            "needed)")
     blocks, n_blocks = block_ids(c, s.block_m)
-    spread2, info = conditioning(g, e, blocks, n_blocks)
+    spread2, info = conditioning(g, e, blocks, n_blocks, c if s.block_plane else None)
     out = Planimetric("not determined", slope_spread=float(np.sqrt(max(spread2, 0.0))))
     needed = s.min_sloped_cells * np.tan(np.radians(s.min_slope_deg)) ** 2
     if spread2 < s.min_slope_spread**2 or spread2 * d.size < needed:
@@ -170,47 +183,90 @@ def _fit(c: np.ndarray, d: np.ndarray, g: np.ndarray, e: np.ndarray, blocks: np.
     a = np.column_stack([(c - c.mean(axis=0)) / SCALE_M, -g])
     keep = np.ones(d.size, bool)
     for _ in range(6):
-        aw, r, m, t = _within_fit(a, d, e, keep, blocks, n_blocks)
+        aw, r, m, t = _within_fit(a, d, e, keep, blocks, n_blocks, c if s.block_plane else None)
         mad = 1.4826 * np.median(np.abs(r))
         bad = np.abs(r) > 3.0 * max(mad, 1e-6)
         if not bad.any():
             break
         keep[np.flatnonzero(keep)[bad]] = False
     else:  # the last rejection's fit
-        aw, r, m, t = _within_fit(a, d, e, keep, blocks, n_blocks)
-    cov, used = _cluster_cov(aw, r, blocks[keep], m, t)
+        aw, r, m, t = _within_fit(a, d, e, keep, blocks, n_blocks, c if s.block_plane else None)
+    cov, used = _cluster_cov(aw, r, blocks[keep], c[keep], s.hac_m, m, t)
+    jk = _jackknife(aw, aw @ t + r, m, blocks[keep], c[keep], s.jackknife_groups)
+    if jk is not None:  # each σ the larger of the two, the correlation the blocks' (positive definite)
+        scale = np.sqrt(np.maximum(np.diag(jk), np.diag(cov)) / np.diag(cov))
+        cov = cov * np.outer(scale, scale)
+    cov, t = cov[-2:, -2:], t[-2:]  # dx, dy
     out.n_cells, out.n_blocks = int(keep.sum()), used
     if used < s.min_blocks:
         out.reason = f"{used} blocks of {s.block_m:g} m hold the cells (at least {s.min_blocks} to tell the σ)"
         return out
     sd = np.sqrt(np.diag(cov))
     out.status, out.reason = "determined", ""
-    out.dx_m, out.dy_m = float(t[2]), float(t[3])
-    out.sigma_dx_m, out.sigma_dy_m = float(sd[2]), float(sd[3])
-    out.corr_dxy = float(cov[2, 3] / (sd[2] * sd[3]))
+    out.dx_m, out.dy_m = float(t[0]), float(t[1])
+    out.sigma_dx_m, out.sigma_dy_m = float(sd[0]), float(sd[1])
+    out.corr_dxy = float(cov[0, 1] / (sd[0] * sd[1]))
     x = np.column_stack([np.ones(keep.sum()), a[keep, :2]])
-    level, *_ = np.linalg.lstsq(x, d[keep] - a[keep, 2:] @ t[2:], rcond=None)
-    lcov, _ = _cluster_cov(x, d[keep] - a[keep, 2:] @ t[2:] - x @ level, blocks[keep])
+    level, *_ = np.linalg.lstsq(x, d[keep] - a[keep, 2:] @ t, rcond=None)
+    lcov, _ = _cluster_cov(x, d[keep] - a[keep, 2:] @ t - x @ level, blocks[keep], c[keep], s.hac_m)
     out.dz0_m, out.tilt_x, out.tilt_y = float(level[0]), float(level[1] / SCALE_M), float(level[2] / SCALE_M)
     out.sigma_tilt = float(np.sqrt(max(lcov[1, 1], lcov[2, 2])) / SCALE_M)
     return out
 
 
-def _within_fit(a, d, e, keep, blocks, n_blocks):
-    """The within-block design, residuals, noise moments and solution on the rows ``keep``."""
-    aw, dw = within(a[keep], blocks[keep], n_blocks), within(d[keep], blocks[keep], n_blocks)
-    m = np.zeros((int(keep.sum()), 4, 4))
-    m[:, 2:, 2:] = noise_moments(e[keep], blocks[keep], n_blocks)
+def _within_fit(a, d, e, keep, blocks, n_blocks, centre=None):
+    """The within-block design, residuals, noise moments and solution on the rows ``keep``: with
+    ``centre`` (K, 2) a plane free per block (the design's global tilt columns then drop out), else
+    an offset per block."""
+    at = centre[keep] if centre is not None else None
+    cols = a[keep, 2:] if centre is not None else a[keep]
+    aw, dw = within(cols, blocks[keep], n_blocks, at), within(d[keep], blocks[keep], n_blocks, at)
+    p = aw.shape[1]
+    m = np.zeros((int(keep.sum()), p, p))
+    m[:, -2:, -2:] = noise_moments(e[keep], blocks[keep], n_blocks, 1 if centre is None else 3)
     t = np.linalg.solve(aw.T @ aw - m.sum(axis=0), aw.T @ dw)
     return aw, dw - aw @ t, m, t
 
 
-def _cluster_cov(a: np.ndarray, r: np.ndarray, blocks: np.ndarray, m: np.ndarray | None = None,
-                 t: np.ndarray | None = None) -> tuple[np.ndarray, int]:
-    """Cluster-robust covariance (CR1) of least squares with design ``a`` and residuals ``r`` over
-    ``blocks`` — with the per-row noise moments ``m`` (K, p, p) taken out of the normal equations at
-    the solution ``t``, the rows' estimating functions a·r + m·t — never below the formal one; and
-    how many blocks hold cells."""
+def _jackknife(a: np.ndarray, y: np.ndarray, m: np.ndarray, blocks: np.ndarray, centre: np.ndarray,
+               k: int) -> np.ndarray | None:
+    """Delete-a-group jackknife covariance of the (noise-corrected) least squares a·t = y over ``k``
+    groups of whole blocks cut along the overlap's long axis (Künsch 1989, Ann. Statist. 17:1217–1241,
+    for dependent data): a displacement that varies along the strips by more than the cells'
+    scatter says makes the groups disagree, and widens the σ where the blocks' covariance, with
+    few independent stretches of overlap, cannot."""
+    if k < 2:
+        return None
+    u = centre - centre.mean(axis=0)
+    axis = np.linalg.eigh(u.T @ u)[1][:, -1]
+    _, inv = np.unique(blocks, return_inverse=True)
+    along = np.bincount(inv, u @ axis) / np.bincount(inv)  # each block's place along the overlap
+    cut = np.quantile(along, np.linspace(0, 1, k + 1)[1:-1])
+    group = np.searchsorted(cut, along)[inv]
+    n_mat, rhs = a.T @ a - m.sum(axis=0), a.T @ y
+    ts = []
+    for i in range(k):
+        out = group == i
+        if not out.any():
+            continue
+        ai = a[out]
+        ts.append(np.linalg.lstsq(n_mat - ai.T @ ai + m[out].sum(axis=0), rhs - ai.T @ y[out], rcond=None)[0])
+    if len(ts) < 2:
+        return None
+    ts = np.array(ts)
+    d = ts - ts.mean(axis=0)
+    return (len(ts) - 1) / len(ts) * d.T @ d
+
+
+def _cluster_cov(a: np.ndarray, r: np.ndarray, blocks: np.ndarray, centre: np.ndarray, hac_m: float,
+                 m: np.ndarray | None = None, t: np.ndarray | None = None) -> tuple[np.ndarray, int]:
+    """Robust covariance of least squares with design ``a`` and residuals ``r``: the rows'
+    estimating functions (a·r, plus m·t with the per-row noise moments ``m`` (K, p, p) taken out of
+    the normal equations at the solution ``t``) summed per block, and the blocks' sums correlated
+    with product-Bartlett weights (1 − |Δx|/L)(1 − |Δy|/L) of their centres' distance, L = ``hac_m``
+    (Conley 1999, J. Econometrics 92:1–45; L = 0: the cluster-robust CR1 of Liang & Zeger 1986),
+    small-sample factor G/(G−1)·(N−1)/(N−p); never below the formal one. Also how many blocks
+    hold cells."""
     n, p = a.shape
     used, blocks = np.unique(blocks, return_inverse=True)
     g = used.size
@@ -223,5 +279,11 @@ def _cluster_cov(a: np.ndarray, r: np.ndarray, blocks: np.ndarray, m: np.ndarray
     formal = bread * (r @ r) / max(n - p - g, 1)
     if g < 2:
         return formal, g
-    cov = g / (g - 1) * (n - 1) / max(n - p, 1) * bread @ (score.T @ score) @ bread
+    at = np.stack([np.bincount(blocks, centre[:, k]) for k in range(2)], axis=1) / np.bincount(blocks)[:, None]
+    meat = np.zeros((p, p))
+    for lo in range(0, g, 1000):  # g × 1000 weights at a time
+        d = np.abs(at[lo:lo + 1000, None, :] - at[None, :, :])
+        w = np.prod(np.clip(1.0 - d / hac_m, 0.0, 1.0), axis=2) if hac_m > 0 else (d.sum(axis=2) == 0).astype(float)
+        meat += score[lo:lo + 1000].T @ w @ score
+    cov = g / (g - 1) * (n - 1) / max(n - p, 1) * bread @ meat @ bread
     return (cov if np.trace(cov) >= np.trace(formal) else formal), g
