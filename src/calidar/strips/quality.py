@@ -285,7 +285,9 @@ def pair_quality(a: int, moments_a: CellMoments, b: int, moments_b: CellMoments,
         q.grid[hi[1] - ij[flat, 1], ij[flat, 0] - lo[0]] = d
         q.origin = (float(lo[0] * cell), float((hi[1] + 1) * cell))
     noise = 0.25 * (gradient_noise(ma.covariance(), ma.count, na) + gradient_noise(mb.covariance(), mb.count, nb))
-    _planimetric(q, centre, dz, 0.5 * (gradients(na) + gradients(nb)), noise, s)
+    ga, gb = gradients(na), gradients(nb)  # a cell one line sees across a fold (a sliver of another face): out
+    alike = np.hypot(*(ga - gb).T) <= s.planimetric.max_neighbour_dslope / 2
+    _planimetric(q, centre, np.where(alike, dz, np.nan), 0.5 * (ga + gb), noise, s)
     return q
 
 
