@@ -29,11 +29,13 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
         crs: str | None = CRS, time_system: str | None = TIME_SYSTEM, geoid_undulation: float | None = GEOID_UNDULATION,
         force: bool = typer.Option(False, "--force", help="Write into a non-empty --out folder."),
     ) -> None:
-        """Swath-overlap differences between flight lines (dz = a − b): median, RMSDz, max, planimetric offsets."""
+        """Swath-overlap differences between flight lines (dz = a − b): median, RMSDz, max, planimetric offsets
+        (dx, dy ± σ, or not determined and why), and the USGS Lidar Base Specification swath checks with the
+        quality level (QL0–QL3) each meets."""
         from calidar.outputs import check_out_dir, guard_inputs, output_folder
         from calidar.strips.quality import write_rasters
         from calidar.strips.selection import parse_classes
-        from calidar.strips.usgs import SPECIFICATION, summary, usgs_checks
+        from calidar.strips.usgs import SPECIFICATION, common_level, summary, usgs_checks
 
         if cell is not None:
             number(cell, "--cell", *CELL_RANGE_M, "m")
@@ -46,7 +48,7 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
         checks = usgs_checks(results, precisions)
         doc = {"lines_from": index.how, "points_used": {str(p): s.to_dict() for p, s in selections.items()},
                "pairs": [q.to_dict() for q in results], "notes": notes,
-               "usgs": {"specification": SPECIFICATION, "status": summary(checks),
+               "usgs": {"specification": SPECIFICATION, "status": summary(checks), "meets": common_level(checks),
                         "checks": [c.to_dict() for c in checks], "lines": [p.to_dict() for p in precisions]}}
         text = json.dumps(doc, indent=2, allow_nan=False) + "\n"
         if out:

@@ -2,25 +2,30 @@
 
 On the overlap cells where both strips fit a plane, the difference of the two planes' heights at
 the cell centre is, to first order in a horizontal shift d = (dx, dy) of strip a relative to b, a
-vertical offset dz0 and a tilt (tx, ty) of a relative to b:
+vertical offset and a tilt (tx, ty) of a relative to b:
 
-    dz_k = dz0 + tx·(x_k − x̄) + ty·(y_k − ȳ) − dx·∂z/∂x_k − dy·∂z/∂y_k + e_k
+    dz_k = c_block(k) + tx·(x_k − x̄) + ty·(y_k − ȳ) − dx·∂z/∂x_k − dy·∂z/∂y_k + e_k
 
-(a surface seen shifted by d has z_a(p) = z_b(p − d) ≈ z_b(p) − d·∇z). The five are solved by least
-squares with 3·MAD rejection. A tilt alone cannot leak into dx, dy: the terms are estimated together,
-and dx, dy are reported only where the slopes, once what the position already explains is taken
-out (the Schur complement of the tilt and offset in the normal matrix), vary enough in both
-directions — otherwise "not determined" with the reason (flat ground, slopes facing one way, slopes
-that only follow the position).
+(a surface seen shifted by d has z_a(p) = z_b(p − d) ≈ z_b(p) − d·∇z, exact on a plane). The
+vertical offset c is free per block of ``block_m`` (20 m): a trajectory's vertical error wanders
+along a strip, and over a hill whose slope follows the position such a wander reads as a shift
+(main's 2–3 dy −0.263 ± 0.004 m on the issue's survey); only slopes that vary within a block
+separate d from it. The tilt stays global. Solved by least squares within the blocks (Frisch–Waugh)
+with 3·MAD rejection, the gradients' own noise taken out of the normal equations (errors in
+variables, Fuller 1987, Measurement Error Models §2.2), on cells inside planar facets (a fold in a
+cell biases its slope against its height: :func:`inside_facets`). dx, dy are reported only where
+the true slopes' spread within the blocks is large enough in both directions — otherwise "not
+determined" with the reason (flat ground, slopes facing one way, slopes that only follow the
+position) — and where enough blocks hold cells.
 
-Uncertainty: the cells' residuals are neither independent nor of equal variance (roughness,
-vegetation edges, interpolation and the trajectory's slow errors make neighbouring cells err alike),
-so the formal σ of independent cells is too small. The covariance is the cluster-robust ("sandwich")
-estimator over square blocks of ``block_m`` (Liang & Zeger 1986, Biometrika 73:13–22; small-sample
-factor CR1, G/(G−1)·(N−1)/(N−p), Cameron & Miller 2015, J. Human Resources 50:317–372): it takes the
-residuals' real scatter and any correlation within a block as they are. It is never taken smaller
-than the formal one; with fewer than ``min_blocks`` blocks it cannot be trusted (Cameron & Miller
-§VI) and dx, dy are "not determined". docs/validation.md measures how honest it is.
+Uncertainty: the cells' residuals are neither independent nor of equal variance (roughness, folds,
+the trajectory's slow errors make neighbouring cells err alike), so the formal σ of independent
+cells is too small. Three estimates, each σ the largest: the formal one; the estimating functions
+summed per block and correlated between blocks with product-Bartlett weights out to ``hac_m``
+(Conley 1999, J. Econometrics 92:1–45; with L = 0 the cluster-robust CR1 of Liang & Zeger 1986,
+Cameron & Miller 2015); and a delete-a-group jackknife over ``jackknife_groups`` stretches of the
+overlap (Künsch 1989), which widens σ when the displacement itself varies along the strips.
+docs/validation.md measures how honest the result is.
 """
 
 from __future__ import annotations

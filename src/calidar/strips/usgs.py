@@ -131,11 +131,17 @@ def usgs_checks(pairs, lines: list[LinePrecision]) -> list[UsgsCheck]:
             judged(CHECKS[1], rmsdz, int(n.sum())), judged(CHECKS[2], worst, int(n.sum()))]
 
 
+def common_level(checks: list[UsgsCheck]) -> str | None:
+    """The best quality level every measured check meets (None: none, or nothing measured)."""
+    got = [c for c in checks if c.value_m is not None]
+    common = [ql for ql in THRESHOLDS_M if got and all(ql in c.levels_met for c in got)]
+    return common[0] if common else None
+
+
 def summary(checks: list[UsgsCheck]) -> str:
     """One line: the quality level all measured checks meet."""
-    got = [c for c in checks if c.value_m is not None]
-    if not got:
+    if all(c.value_m is None for c in checks):
         return "USGS swath checks: not measured"
-    common = [ql for ql in THRESHOLDS_M if all(ql in c.levels_met for c in got)]
-    return f"USGS swath checks: all measured checks meet {common[0]}" if common else \
+    level = common_level(checks)
+    return f"USGS swath checks: all measured checks meet {level}" if level else \
         "USGS swath checks: not all meet any quality level (QL3 is the loosest)"

@@ -108,5 +108,6 @@ def test_cli_reports_offsets_with_sigma_and_the_usgs_checks(cli, tmp_path):
     usgs = doc["usgs"]
     assert [c["name"] for c in usgs["checks"]] == ["intraswath max diff", "interswath RMSDz", "interswath max |dz|"]
     assert usgs["checks"][1]["value_m"] == pytest.approx(pair["rmsdz_m"]) and usgs["status"].startswith("USGS")
+    assert usgs["meets"] in ("QL0", "QL1", "QL2", "QL3") and len(usgs["lines"]) == 2
     code, out, err = cli("quality", *paths, "--cell", "2")
     assert code == 0 and "±" in out and "interswath" in out and "USGS swath checks: all measured checks meet QL" in out

@@ -7,7 +7,7 @@ import pytest
 
 from calidar.strips.cell_moments import CellMoments
 from calidar.strips.quality import PairQuality
-from calidar.strips.usgs import expected_range, levels_met, line_precision, summary, usgs_checks
+from calidar.strips.usgs import common_level, expected_range, levels_met, line_precision, summary, usgs_checks
 
 #: the specification's table 2 as read for this test (m): QL → intraswath, interswath RMSDz, max |dz|
 TABLE = {"QL0": (0.03, 0.04, 0.08), "QL1": (0.06, 0.08, 0.16), "QL2": (0.06, 0.08, 0.16), "QL3": (0.12, 0.16, 0.32)}
@@ -71,6 +71,7 @@ def test_checks_pool_the_pairs_and_name_the_level():
     assert intra.value_m == lines[0].max_diff_m and intra.levels_met == _met(intra.value_m, 0)
     common = [ql for ql in TABLE if ql in _met(intra.value_m, 0) and ql in _met(0.12, 2)][0]
     assert summary([intra, rmsdz, worst]) == f"USGS swath checks: all measured checks meet {common}"
+    assert common_level([intra, rmsdz, worst]) == common
     bad = usgs_checks([_pair(1, 2, 10, 0.2, 0.5)], [])
     assert bad[0].status == "not measured" and bad[1].status == bad[2].status == "meets no quality level"
-    assert "not all meet any" in summary(bad)
+    assert "not all meet any" in summary(bad) and common_level(bad) is None
