@@ -210,7 +210,7 @@ def _fit(c: np.ndarray, d: np.ndarray, g: np.ndarray, e: np.ndarray, blocks: np.
     out.status, out.reason = "determined", ""
     out.dx_m, out.dy_m = float(t[0]), float(t[1])
     out.sigma_dx_m, out.sigma_dy_m = float(sd[0]), float(sd[1])
-    out.corr_dxy = float(cov[0, 1] / (sd[0] * sd[1]))
+    out.corr_dxy = float(cov[0, 1] / (sd[0] * sd[1])) if sd[0] * sd[1] > 0 else None
     x = np.column_stack([np.ones(keep.sum()), a[keep, :2]])
     level, *_ = np.linalg.lstsq(x, d[keep] - a[keep, 2:] @ t, rcond=None)
     lcov, _ = _cluster_cov(x, d[keep] - a[keep, 2:] @ t - x @ level, blocks[keep], c[keep], s.hac_m)
