@@ -285,10 +285,13 @@ def _cluster_cov(a: np.ndarray, r: np.ndarray, blocks: np.ndarray, centre: np.nd
     if g < 2:
         return formal, g
     at = np.stack([np.bincount(blocks, centre[:, k]) for k in range(2)], axis=1) / np.bincount(blocks)[:, None]
-    meat = np.zeros((p, p))
-    for lo in range(0, g, 1000):  # g × 1000 weights at a time
-        d = np.abs(at[lo:lo + 1000, None, :] - at[None, :, :])
-        w = np.prod(np.clip(1.0 - d / hac_m, 0.0, 1.0), axis=2) if hac_m > 0 else (d.sum(axis=2) == 0).astype(float)
-        meat += score[lo:lo + 1000].T @ w @ score
+    meat = score.T @ score
+    if hac_m > 0:  # the block pairs closer than hac_m on both axes (a k-d tree: memory grows with g, not g²)
+        from scipy.spatial import cKDTree
+
+        i, j = cKDTree(at).query_pairs(hac_m, p=np.inf, output_type="ndarray").T
+        w = np.prod(np.clip(1.0 - np.abs(at[i] - at[j]) / hac_m, 0.0, 1.0), axis=1)
+        cross = (score[i] * w[:, None]).T @ score[j]
+        meat += cross + cross.T
     cov = g / (g - 1) * (n - 1) / max(n - p, 1) * bread @ meat @ bread
     return (cov if np.trace(cov) >= np.trace(formal) else formal), g
