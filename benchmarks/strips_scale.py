@@ -72,7 +72,7 @@ def child(sim: Path, what: str, budget: str) -> None:
     strips = sorted((sim / "strips").glob("*.laz"))
     t0 = time.perf_counter()
     if what == "quality":
-        _, _, pairs, _, _ = measure(strips)
+        _, _, pairs, _, _, _ = measure(strips)
         print(json.dumps({"points": None, "pairs": len(pairs)}))
         return
     stamps = {}

@@ -29,10 +29,13 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
         crs: str | None = CRS, time_system: str | None = TIME_SYSTEM, geoid_undulation: float | None = GEOID_UNDULATION,
         force: bool = typer.Option(False, "--force", help="Write into a non-empty --out folder."),
     ) -> None:
-        """Swath-overlap differences between flight lines (dz = a − b): median, RMSDz, max, planimetric offsets."""
+        """Swath-overlap differences between flight lines (dz = a − b): median, RMSDz, max, planimetric offsets
+        (dx, dy ± σ, or not determined and why), and the USGS Lidar Base Specification swath checks with the
+        quality level (QL0–QL3) each meets."""
         from calidar.outputs import check_out_dir, guard_inputs, output_folder
         from calidar.strips.quality import write_rasters
         from calidar.strips.selection import parse_classes
+        from calidar.strips.usgs import SPECIFICATION, common_level, summary, usgs_checks
 
         if cell is not None:
             number(cell, "--cell", *CELL_RANGE_M, "m")
@@ -41,9 +44,12 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
         if out:
             check_out_dir(out, force)
             guard_inputs([], strips, [out])
-        index, file_crs, results, notes, selections = measure(strips, cell, wanted, options)
+        index, file_crs, results, notes, selections, precisions = measure(strips, cell, wanted, options)
+        checks = usgs_checks(results, precisions)
         doc = {"lines_from": index.how, "points_used": {str(p): s.to_dict() for p, s in selections.items()},
-               "pairs": [q.to_dict() for q in results], "notes": notes}
+               "pairs": [q.to_dict() for q in results], "notes": notes,
+               "usgs": {"specification": SPECIFICATION, "status": summary(checks), "meets": common_level(checks),
+                        "checks": [c.to_dict() for c in checks], "lines": [p.to_dict() for p in precisions]}}
         text = json.dumps(doc, indent=2, allow_nan=False) + "\n"
         if out:
             with output_folder(out, force, inputs=strips) as tmp:
@@ -55,6 +61,7 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
             print(text, end="")
             return
         _print_table(index.how, results, selections, notes)
+        _print_usgs(checks, precisions)
         if out:
             console.print(f"wrote {escape(str(out))}/quality.json and dz rasters", highlight=False, soft_wrap=True)
 
@@ -64,18 +71,48 @@ def _print_table(how, results, selections, notes) -> None:
     from rich.table import Table
 
     table = Table(title=f"Swath-overlap differences (flight lines from {how}; dz = a − b)")
-    for h in ("a", "b", "cells", "points a", "points b", "median dz [m]", "RMSDz [m]", "max |dz| [m]", "dx [m]",
-              "dy [m]"):
+    for h in ("a", "b", "cells", "points a", "points b", "median dz [m]", "RMSDz [m]", "max |dz| [m]", "dx±σ [m]",
+              "dy±σ [m]"):
         table.add_column(h, justify="right")
 
     def f(v, sign="+"):
         return "—" if v is None else f"{v:{sign}.3f}"
 
+    def pm(v, s):
+        return "—" if v is None else f"{v:+.3f}±{s:.3f}"
+
     for q in results:
         table.add_row(str(q.a), str(q.b), str(q.n_cells), str(q.n_points_a), str(q.n_points_b), f(q.median_dz_m),
-                      f(q.rmsdz_m, ""), f(q.max_abs_dz_m, ""), f(q.dx_m), f(q.dy_m))
+                      f(q.rmsdz_m, ""), f(q.max_abs_dz_m, ""), pm(q.dx_m, q.sigma_dx_m), pm(q.dy_m, q.sigma_dy_m))
     console.print(table)
+    console.print("dx, dy: strip a's horizontal offset from b, fitted with the height difference's offset and tilt; "
+                  "σ from the cells' scatter and its correlation (20 m blocks); — where not determined",
+                  highlight=False, soft_wrap=True)
+    for q in results:
+        if q.planimetric is not None and q.planimetric.status != "determined":
+            console.print(f"{q.a}–{q.b}: dx, dy not determined: {escape(q.planimetric.reason)}", highlight=False,
+                          soft_wrap=True)
     for p, sel in selections.items():
         console.print(f"points used from {escape(p.name)}: {escape(sel.describe())}", highlight=False)
     for n in notes:
         console.print(f"note: {escape(n)}", highlight=False, soft_wrap=True)
+
+
+def _print_usgs(checks, precisions) -> None:
+    """The USGS Lidar Base Specification swath checks and the quality level each meets."""
+    from rich.table import Table
+
+    from calidar.strips.usgs import SPECIFICATION, THRESHOLDS_M, summary
+
+    table = Table(title=SPECIFICATION)
+    for h in ("check", "value [m]", "cells", *THRESHOLDS_M, "meets"):
+        table.add_column(h, justify="right")
+    for k, c in enumerate(checks):
+        table.add_row(c.name, "—" if c.value_m is None else f"{c.value_m:.3f}", str(c.n_cells),
+                      *(f"{'≤' if k < 2 else '±'} {t[k]:.2f}" for t in THRESHOLDS_M.values()), c.status)
+    console.print(table)
+    for p in precisions:
+        if p.sigma_m is not None:
+            console.print(f"line {p.line}: smooth-surface σ {p.sigma_m:.3f} m, max diff ≈ {p.max_diff_m:.3f} m over "
+                          f"{p.n_cells} cells of {p.cell_m:g} m", highlight=False)
+    console.print(summary(checks), highlight=False)

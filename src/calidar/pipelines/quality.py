@@ -106,7 +106,8 @@ class CellCounts:
 
 
 def measure(paths, cell_m=None, classes=None, options: PointOptions = PointOptions(), chunk_points: int = CHUNK_POINTS):
-    """Streamed ``calidar quality``: (line index, file CRS, PairQualitys, notes, selection per file)."""
+    """Streamed ``calidar quality``: (line index, file CRS, PairQualitys, notes, selection per file,
+    each line's smooth-surface precision (:class:`calidar.strips.usgs.LinePrecision`))."""
     from calidar.io.las import iter_las_chunks, las_file_crs, las_header
     from calidar.strips.lines import index_flight_lines
     from calidar.strips.quality import QualitySettings, SwathAccumulator, overlap_cell, overlap_plan
@@ -138,7 +139,16 @@ def measure(paths, cell_m=None, classes=None, options: PointOptions = PointOptio
         for i in index.ids:  # lines without a selected point: named in the notes
             acc.add(i, np.zeros((0, 3)))
         results, notes = checked_differences(acc, settings, names)
-    return index, crs, results, notes, selections
+        precisions = line_precisions(acc, settings)
+    return index, crs, results, notes, selections, precisions
+
+
+def line_precisions(acc, settings) -> list:
+    """Each line's intraswath precision from the accumulator's moments (:mod:`calidar.strips.usgs`)."""
+    from calidar.strips.usgs import line_precision
+
+    return [line_precision(i, acc.line_moments(i), settings.max_rms_m, settings.max_slope_deg, settings.min_points)
+            for i in sorted(acc.selections)]
 
 
 def checked_differences(acc, settings, names: dict[int, str]):

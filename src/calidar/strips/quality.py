@@ -7,9 +7,10 @@ difference dz = z_a − z_b of the two fitted planes at the cell centre; summari
 median, RMSDz and max |dz|. Vegetation and edges fail the smoothness test; which points
 enter at all is the caller's choice (:mod:`calidar.strips.selection`).
 
-Planimetric: on planar cells of all slopes, dz = n · t for the normals n and one
-translation t = (dx, dy, dz) of strip a relative to b (least squares with 3·MAD
-rejection); dx, dy are reported only when sloped cells face in enough directions.
+Planimetric: on planar cells of all slopes up to 45°, dz jointly with the difference's offset
+and tilt and a horizontal shift (dx, dy) of strip a relative to b, with a cluster-robust σ;
+dx, dy only where the slopes constrain both directions, else "not determined"
+(:mod:`calidar.strips.planimetric`).
 
 Streamed: :class:`SwathAccumulator` takes each flight line's points chunk by chunk and keeps
 only per-cell moments (:mod:`calidar.strips.cell_moments`), on 1 m cells that coarsen exactly
@@ -30,6 +31,8 @@ import numpy as np
 from calidar.strips.cell_moments import CellMoments, key_indices
 from calidar.strips.overlap import common_cells, unpaired_notes
 from calidar.strips.planes import PlaneSettings, planar_cells
+from calidar.strips.planimetric import (Planimetric, PlanimetricSettings, gradient_noise, gradients,
+                                        planimetric_offsets)
 
 BASE_CELL_M = 1.0  #: accumulation grid when the cell is chosen per pair (whole metres coarsen from it)
 OVERLAP_CELL_M = 5.0  #: which lines overlap: cells of this size occupied by both (as the strip calibration)
@@ -48,8 +51,8 @@ class QualitySettings:
     min_points: int = 6
     max_rms_m: float = 0.08  #: smooth surface: point scatter about the cell's plane
     max_slope_deg: float = 10.0  #: vertical statistics on gentler cells only
-    min_sloped_cells: int = 10  #: for planimetric offsets
     min_slope_deg: float = 15.0  #: a cell counts as sloped (planimetric) above this
+    planimetric: PlanimetricSettings = PlanimetricSettings()
 
 
 @dataclass
@@ -63,10 +66,12 @@ class PairQuality:
     rmsdz_m: float | None
     max_abs_dz_m: float | None
     mean_dz_m: float | None
-    dx_m: float | None = None  #: planimetric offset of a relative to b (east), sloped planes
+    dx_m: float | None = None  #: planimetric offset of a relative to b (east), when determined
     dy_m: float | None = None
-    sigma_dxy_m: float | None = None
-    n_sloped: int = 0
+    sigma_dx_m: float | None = None  #: cluster-robust σ (calidar.strips.planimetric)
+    sigma_dy_m: float | None = None
+    n_sloped: int = 0  #: planar cells sloped more than min_slope_deg
+    planimetric: Planimetric | None = None  #: the joint fit (offset, tilt, dx, dy) or why not determined
     cell_m: float = 2.0
     n_points_a: int = 0  #: points of a in the n_cells compared cells
     n_points_b: int = 0
@@ -77,8 +82,10 @@ class PairQuality:
 
     def to_dict(self) -> dict:
         keys = ("a", "b", "median_dz_m", "rmsdz_m", "max_abs_dz_m", "mean_dz_m", "n_cells", "n_points_a", "n_points_b",
-                "dx_m", "dy_m", "sigma_dxy_m", "n_sloped", "cell_m", "points_a", "points_b")
-        return {k: getattr(self, k) for k in keys}
+                "dx_m", "dy_m", "sigma_dx_m", "sigma_dy_m", "n_sloped", "cell_m", "points_a", "points_b")
+        out = {k: getattr(self, k) for k in keys}
+        out["planimetric"] = None if self.planimetric is None else self.planimetric.to_dict()
+        return out
 
 
 @dataclass(frozen=True)
@@ -199,6 +206,11 @@ class SwathAccumulator:
             self.parts[key] = parts = [CellMoments.combined(parts)]
         return parts[0] if parts else CellMoments.empty(cell)
 
+    def line_moments(self, line: int) -> CellMoments:
+        """The line's moments on the smallest cell of its pairs (for checks within one line)."""
+        sizes = self.plan.sizes(line) if self.plan else {self.base_m}
+        return self._at(line, min(sizes)) if sizes else CellMoments.empty(self.base_m)
+
     def differences(self, settings: QualitySettings | None = None) -> tuple[list[PairQuality], list[str]]:
         """The PairQuality of every overlapping pair of lines (ids ascending) and notes about lines
         that overlap no other."""
@@ -272,7 +284,10 @@ def pair_quality(a: int, moments_a: CellMoments, b: int, moments_b: CellMoments,
         q.grid = np.full((hi[1] - lo[1] + 1, hi[0] - lo[0] + 1), np.nan)
         q.grid[hi[1] - ij[flat, 1], ij[flat, 0] - lo[0]] = d
         q.origin = (float(lo[0] * cell), float((hi[1] + 1) * cell))
-    _planimetric(q, ca - cb, nb, s)
+    noise = 0.25 * (gradient_noise(ma.covariance(), ma.count, na) + gradient_noise(mb.covariance(), mb.count, nb))
+    ga, gb = gradients(na), gradients(nb)  # a cell one line sees across a fold (a sliver of another face): out
+    alike = np.hypot(*(ga - gb).T) <= s.planimetric.max_neighbour_dslope / 2
+    _planimetric(q, centre, np.where(alike, dz, np.nan), 0.5 * (ga + gb), noise, s)
     return q
 
 
@@ -283,25 +298,13 @@ def _planes(m: CellMoments, ps: PlaneSettings) -> tuple[CellMoments, np.ndarray]
     return m.select(planar), normal
 
 
-def _planimetric(q: PairQuality, diff: np.ndarray, normal: np.ndarray, s: QualitySettings) -> None:
-    """Translation (dx, dy, dz) of a relative to b from n · t = n · (c_a − c_b), robustly."""
-    sloped = normal[:, 2] <= np.cos(np.radians(s.min_slope_deg))
-    q.n_sloped = int(sloped.sum())
-    if q.n_sloped < s.min_sloped_cells:
-        return
-    h = normal[sloped, :2]
-    if np.linalg.eigvalsh(h.T @ h / q.n_sloped)[0] < 0.01:  # all slopes face one way: dx, dy not separable
-        return
-    y = np.einsum("ij,ij->i", diff, normal)
-    keep = np.ones(y.size, bool)
-    for _ in range(3):
-        t, *_ = np.linalg.lstsq(normal[keep], y[keep], rcond=None)
-        r = y - normal @ t
-        mad = 1.4826 * np.median(np.abs(r[keep] - np.median(r[keep])))
-        keep = np.abs(r) <= 3.0 * max(mad, 1e-6)
-    cov = np.linalg.inv(normal[keep].T @ normal[keep]) * np.mean(r[keep] ** 2)
-    q.dx_m, q.dy_m = float(t[0]), float(t[1])
-    q.sigma_dxy_m = float(np.sqrt(max(cov[0, 0], cov[1, 1])))
+def _planimetric(q: PairQuality, centre: np.ndarray, dz: np.ndarray, grad: np.ndarray, noise: np.ndarray,
+                 s: QualitySettings) -> None:
+    """dx, dy of a relative to b jointly with the difference's offset and tilt, where determined."""
+    q.n_sloped = int(np.sum(np.hypot(grad[:, 0], grad[:, 1]) > np.tan(np.radians(s.min_slope_deg))))
+    q.planimetric = p = planimetric_offsets(centre, dz, grad, q.cell_m, s.planimetric, noise)
+    if p.status == "determined":
+        q.dx_m, q.dy_m, q.sigma_dx_m, q.sigma_dy_m = p.dx_m, p.dy_m, p.sigma_dx_m, p.sigma_dy_m
 
 
 def write_rasters(q: PairQuality, out_dir: str | Path, crs=None, force: bool = False) -> list[Path]:

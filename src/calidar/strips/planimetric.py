@@ -1,0 +1,297 @@
+"""Planimetric offset of one strip against another, estimated jointly with the height difference's tilt.
+
+On the overlap cells where both strips fit a plane, the difference of the two planes' heights at
+the cell centre is, to first order in a horizontal shift d = (dx, dy) of strip a relative to b, a
+vertical offset and a tilt (tx, ty) of a relative to b:
+
+    dz_k = c_block(k) + tx·(x_k − x̄) + ty·(y_k − ȳ) − dx·∂z/∂x_k − dy·∂z/∂y_k + e_k
+
+(a surface seen shifted by d has z_a(p) = z_b(p − d) ≈ z_b(p) − d·∇z, exact on a plane). The
+vertical offset c is free per block of ``block_m`` (20 m): a trajectory's vertical error wanders
+along a strip, and over a hill whose slope follows the position such a wander reads as a shift
+(main's 2–3 dy −0.263 ± 0.004 m on the issue's survey); only slopes that vary within a block
+separate d from it. The tilt stays global. Solved by least squares within the blocks (Frisch–Waugh)
+with 3·MAD rejection, the gradients' own noise taken out of the normal equations (errors in
+variables, Fuller 1987, Measurement Error Models §2.2), on cells inside planar facets (a fold in a
+cell biases its slope against its height: :func:`inside_facets`). dx, dy are reported only where
+the true slopes' spread within the blocks is large enough in both directions — otherwise "not
+determined" with the reason (flat ground, slopes facing one way, slopes that only follow the
+position) — and where enough blocks hold cells.
+
+Uncertainty: the cells' residuals are neither independent nor of equal variance (roughness, folds,
+the trajectory's slow errors make neighbouring cells err alike), so the formal σ of independent
+cells is too small. Three estimates, each σ the largest: the formal one; the estimating functions
+summed per block and correlated between blocks with product-Bartlett weights out to ``hac_m``
+(Conley 1999, J. Econometrics 92:1–45; with L = 0 the cluster-robust CR1 of Liang & Zeger 1986,
+Cameron & Miller 2015); and a delete-a-group jackknife over ``jackknife_groups`` stretches of the
+overlap (Künsch 1989), which widens σ when the displacement itself varies along the strips.
+docs/validation.md measures how honest the result is.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+SCALE_M = 100.0  #: positions enter the design in units of 100 m (tilts in m per 100 m internally)
+
+
+@dataclass(frozen=True)
+class PlanimetricSettings:
+    """What makes the planimetric offsets determined (metres, degrees where named)."""
+
+    max_slope_deg: float = 45.0  #: steeper planes (walls, their edges) are left out
+    min_cells: int = 30
+    min_slope_spread: float = 0.03  #: slope (tan) σ within the blocks in the weakest direction (gradient noise ≪ this)
+    min_sloped_cells: int = 10  #: information at least that of this many cells ...
+    min_slope_deg: float = 15.0  #: ... sloped this much in each direction
+    block_m: float = 20.0  #: blocks of the free vertical offsets and of the robust covariance
+    min_blocks: int = 10
+    hac_m: float = 100.0  #: blocks this close (Bartlett weights per axis) err together in the covariance
+    jackknife_groups: int = 5  #: groups of blocks along the overlap left out in turn (0: none)
+    block_plane: bool = False  #: a vertical offset and tilt free per block (else an offset only; docs/validation.md)
+    max_neighbour_dslope: float = 0.1  #: a cell is inside a facet: its 4 neighbours' slopes (tan) within this
+
+
+@dataclass
+class Planimetric:
+    """The joint fit of one pair (a relative to b): offsets in m, tilts in m/m."""
+
+    status: str  #: "determined" or "not determined"
+    reason: str = ""
+    dx_m: float | None = None
+    dy_m: float | None = None
+    sigma_dx_m: float | None = None
+    sigma_dy_m: float | None = None
+    corr_dxy: float | None = None
+    dz0_m: float | None = None  #: vertical offset at the cells' centroid
+    tilt_x: float | None = None  #: ∂dz/∂x (m/m)
+    tilt_y: float | None = None
+    sigma_tilt: float | None = None  #: the larger σ of the two tilts (m/m)
+    n_cells: int = 0  #: cells fitted (after rejection)
+    n_blocks: int = 0
+    slope_spread: float | None = None  #: residual slope σ (tan) in the weakest direction
+
+    def to_dict(self) -> dict:
+        return dict(self.__dict__)
+
+
+def gradients(normal: np.ndarray) -> np.ndarray:
+    """Surface gradients (K, 2) ∂z/∂x, ∂z/∂y of planes with unit normals (K, 3), z up."""
+    return -normal[:, :2] / normal[:, 2:3]
+
+
+def gradient_noise(cov: np.ndarray, count: np.ndarray, normal: np.ndarray) -> np.ndarray:
+    """Covariance (K, 2, 2) of the fitted planes' gradients from their cells' point covariances
+    (K, 3, 3), counts and normals: σ²_z · (n · C_xy)⁻¹ for the least-squares slope, the vertical
+    scatter σ²_z = λ_min / n_z² · n / (n − 3)."""
+    lam = np.einsum("ki,kij,kj->k", normal, cov, normal)
+    var_z = lam / normal[:, 2] ** 2 * count / np.maximum(count - 3, 1)
+    return var_z[:, None, None] * np.linalg.inv(cov[:, :2, :2]) / count[:, None, None]
+
+
+def block_ids(centre: np.ndarray, block_m: float) -> tuple[np.ndarray, int]:
+    """Block index (K,) of each cell on squares of ``block_m`` and the number of blocks."""
+    inv = np.unique(np.floor(centre / block_m).astype(np.int64), axis=0, return_inverse=True)[1].ravel()
+    return inv, int(inv.max()) + 1 if inv.size else 0
+
+
+def within(values: np.ndarray, blocks: np.ndarray, n_blocks: int, centre: np.ndarray | None = None) -> np.ndarray:
+    """``values`` (K, m) less what a vertical offset per block (with ``centre`` (K, 2) m: an offset
+    and a tilt per block, a plane) explains: their least-squares residuals block by block."""
+    v = values.reshape(len(values), -1)
+    if centre is None:
+        count = np.bincount(blocks, minlength=n_blocks)
+        mean = np.stack([np.bincount(blocks, v[:, k], n_blocks) for k in range(v.shape[1])], axis=1)
+        return (v - mean[blocks] / np.maximum(count, 1)[blocks, None]).reshape(values.shape)
+    x = np.column_stack([np.ones(len(v)), centre - centre.mean(axis=0)])
+    xx = np.zeros((n_blocks, 3, 3))
+    np.add.at(xx, blocks, x[:, :, None] * x[:, None, :])
+    xv = np.zeros((n_blocks, 3, v.shape[1]))
+    np.add.at(xv, blocks, x[:, :, None] * v[:, None, :])
+    coef = np.linalg.pinv(xx) @ xv  # blocks whose cells lie on a line: their offset and the one slope
+    return (v - np.einsum("ki,kim->km", x, coef[blocks])).reshape(values.shape)
+
+
+def noise_moments(noise: np.ndarray, blocks: np.ndarray, n_blocks: int, free: int = 1) -> np.ndarray:
+    """Each cell's gradient-noise covariance (K, 2, 2) as it enters the within-block products: a
+    block's ``free`` parameters (1: offset; 3: plane) take about free/m of it out (m cells in the block)."""
+    m = np.bincount(blocks, minlength=n_blocks)[blocks]
+    return noise * np.clip(1.0 - free / np.maximum(m, 1), 0.0, 1.0)[:, None, None]
+
+
+def conditioning(grad: np.ndarray, noise: np.ndarray, blocks: np.ndarray, n_blocks: int,
+                 centre: np.ndarray | None = None) -> tuple[float, np.ndarray]:
+    """Smallest eigenvalue of the true slopes' covariance within the blocks (the information on dx,
+    dy per cell once a vertical offset per block is free, in (m/m)², the gradients' own noise taken
+    out) and the full 2 × 2 matrix."""
+    r = within(grad, blocks, n_blocks, centre)
+    s = (r.T @ r - noise_moments(noise, blocks, n_blocks, 1 if centre is None else 3).sum(axis=0)) / max(len(r), 1)
+    return float(np.linalg.eigvalsh(s)[0]), s
+
+
+def inside_facets(ij: np.ndarray, grad: np.ndarray, tolerance: float) -> np.ndarray:
+    """Cells (K,) whose 4 neighbours (grid indices ij (K, 2)) are all there with gradients within
+    ``tolerance``: inside a planar facet. A cell a fold crosses (a ridge, a hip, a slope's foot) fits
+    a plane whose slope weights the cell's middle more than the height at its centre does (the
+    least-squares slope is a parabola-weighted mean of the surface's slope, the shift's effect on
+    the centre height an even mean): such cells bias dx, dy towards zero and are left out."""
+    key = (ij[:, 0].astype(np.int64) << 32) + (ij[:, 1].astype(np.int64) & 0xFFFFFFFF)
+    order = np.argsort(key)
+    sk = key[order]
+    ok = np.ones(len(key), bool)
+    for di, dj in ((1, 0), (-1, 0), (0, 1), (0, -1)):
+        nk = ((ij[:, 0] + di).astype(np.int64) << 32) + ((ij[:, 1] + dj).astype(np.int64) & 0xFFFFFFFF)
+        at = np.clip(np.searchsorted(sk, nk), 0, len(sk) - 1)
+        found = sk[at] == nk
+        other = grad[order[at]]
+        ok &= found & (np.hypot(*(other - grad).T) <= tolerance)
+    return ok
+
+
+def planimetric_offsets(centre: np.ndarray, dz: np.ndarray, grad: np.ndarray, cell_m: float,
+                        settings: PlanimetricSettings | None = None, noise: np.ndarray | None = None) -> Planimetric:
+    """Joint fit of dz (K,) at the centres (K, 2) m of cells of ``cell_m`` with the planes' gradients
+    (K, 2), whose noise covariances (K, 2, 2) (:func:`gradient_noise`; none: exact gradients) are
+    taken out of the normal equations: a noisy regressor would shrink dx, dy towards zero
+    (errors in variables; the moment correction of Fuller 1987, Measurement Error Models, §2.2)."""
+    s = settings or PlanimetricSettings()
+    noise = np.zeros((len(dz), 2, 2)) if noise is None else noise
+    keep = np.hypot(grad[:, 0], grad[:, 1]) <= np.tan(np.radians(s.max_slope_deg))
+    keep &= inside_facets(np.floor(centre / cell_m).astype(np.int64), grad, s.max_neighbour_dslope)
+    keep &= np.isfinite(dz) & np.all(np.isfinite(grad), axis=1)
+    c, d, g, e = centre[keep], dz[keep], grad[keep], noise[keep]
+    if d.size < s.min_cells:
+        return Planimetric("not determined", f"{d.size} planar cells inside facets shared (at least {s.min_cells} "
+                           "needed)")
+    blocks, n_blocks = block_ids(c, s.block_m)
+    spread2, info = conditioning(g, e, blocks, n_blocks, c if s.block_plane else None)
+    out = Planimetric("not determined", slope_spread=float(np.sqrt(max(spread2, 0.0))))
+    needed = s.min_sloped_cells * np.tan(np.radians(s.min_slope_deg)) ** 2
+    if spread2 < s.min_slope_spread**2 or spread2 * d.size < needed:
+        w, v = np.linalg.eigh(info)
+        weak = np.degrees(np.arctan2(v[1, 0], v[0, 0])) % 180.0
+        out.reason = (f"the slopes do not constrain both directions: within {s.block_m:g} m blocks their spread "
+                      f"across the {weak:.0f}° direction (x east, counter-clockwise) is {out.slope_spread:.3f} (tan) "
+                      f"over {d.size} cells (needed ≥ {s.min_slope_spread:g} and the weight of "
+                      f"{s.min_sloped_cells} cells of {s.min_slope_deg:g}°)")
+        return out
+    return _fit(c, d, g, e, blocks, n_blocks, s, out)
+
+
+def _fit(c: np.ndarray, d: np.ndarray, g: np.ndarray, e: np.ndarray, blocks: np.ndarray, n_blocks: int,
+         s: PlanimetricSettings, out: Planimetric) -> Planimetric:
+    """dx, dy and the tilt with a free vertical offset per block (within-block least squares with
+    the gradients' noise ``e`` taken out, 3·MAD rejection), their cluster-robust covariance over the
+    blocks; then the offset and tilt over the whole overlap with dx, dy held. ``out`` filled in."""
+    a = np.column_stack([(c - c.mean(axis=0)) / SCALE_M, -g])
+    keep = np.ones(d.size, bool)
+    for _ in range(6):
+        aw, r, m, t = _within_fit(a, d, e, keep, blocks, n_blocks, c if s.block_plane else None)
+        mad = 1.4826 * np.median(np.abs(r))
+        bad = np.abs(r) > 3.0 * max(mad, 1e-6)
+        if not bad.any():
+            break
+        keep[np.flatnonzero(keep)[bad]] = False
+    else:  # the last rejection's fit
+        aw, r, m, t = _within_fit(a, d, e, keep, blocks, n_blocks, c if s.block_plane else None)
+    cov, used = _cluster_cov(aw, r, blocks[keep], c[keep], s.hac_m, m, t)
+    jk = _jackknife(aw, aw @ t + r, m, blocks[keep], c[keep], s.jackknife_groups)
+    if jk is not None:  # each σ the larger of the two, the correlation the blocks' (positive definite)
+        scale = np.sqrt(np.maximum(np.diag(jk), np.diag(cov)) / np.diag(cov))
+        cov = cov * np.outer(scale, scale)
+    cov, t = cov[-2:, -2:], t[-2:]  # dx, dy
+    out.n_cells, out.n_blocks = int(keep.sum()), used
+    if used < s.min_blocks:
+        out.reason = f"{used} blocks of {s.block_m:g} m hold the cells (at least {s.min_blocks} to tell the σ)"
+        return out
+    sd = np.sqrt(np.diag(cov))
+    out.status, out.reason = "determined", ""
+    out.dx_m, out.dy_m = float(t[0]), float(t[1])
+    out.sigma_dx_m, out.sigma_dy_m = float(sd[0]), float(sd[1])
+    out.corr_dxy = float(cov[0, 1] / (sd[0] * sd[1])) if sd[0] * sd[1] > 0 else None
+    x = np.column_stack([np.ones(keep.sum()), a[keep, :2]])
+    level, *_ = np.linalg.lstsq(x, d[keep] - a[keep, 2:] @ t, rcond=None)
+    lcov, _ = _cluster_cov(x, d[keep] - a[keep, 2:] @ t - x @ level, blocks[keep], c[keep], s.hac_m)
+    out.dz0_m, out.tilt_x, out.tilt_y = float(level[0]), float(level[1] / SCALE_M), float(level[2] / SCALE_M)
+    out.sigma_tilt = float(np.sqrt(max(lcov[1, 1], lcov[2, 2])) / SCALE_M)
+    return out
+
+
+def _within_fit(a, d, e, keep, blocks, n_blocks, centre=None):
+    """The within-block design, residuals, noise moments and solution on the rows ``keep``: with
+    ``centre`` (K, 2) a plane free per block (the design's global tilt columns then drop out), else
+    an offset per block."""
+    at = centre[keep] if centre is not None else None
+    cols = a[keep, 2:] if centre is not None else a[keep]
+    aw, dw = within(cols, blocks[keep], n_blocks, at), within(d[keep], blocks[keep], n_blocks, at)
+    p = aw.shape[1]
+    m = np.zeros((int(keep.sum()), p, p))
+    m[:, -2:, -2:] = noise_moments(e[keep], blocks[keep], n_blocks, 1 if centre is None else 3)
+    t = np.linalg.solve(aw.T @ aw - m.sum(axis=0), aw.T @ dw)
+    return aw, dw - aw @ t, m, t
+
+
+def _jackknife(a: np.ndarray, y: np.ndarray, m: np.ndarray, blocks: np.ndarray, centre: np.ndarray,
+               k: int) -> np.ndarray | None:
+    """Delete-a-group jackknife covariance of the (noise-corrected) least squares a·t = y over ``k``
+    groups of whole blocks cut along the overlap's long axis (Künsch 1989, Ann. Statist. 17:1217–1241,
+    for dependent data): a displacement that varies along the strips by more than the cells'
+    scatter says makes the groups disagree, and widens the σ where the blocks' covariance, with
+    few independent stretches of overlap, cannot."""
+    if k < 2:
+        return None
+    u = centre - centre.mean(axis=0)
+    axis = np.linalg.eigh(u.T @ u)[1][:, -1]
+    _, inv = np.unique(blocks, return_inverse=True)
+    along = np.bincount(inv, u @ axis) / np.bincount(inv)  # each block's place along the overlap
+    cut = np.quantile(along, np.linspace(0, 1, k + 1)[1:-1])
+    group = np.searchsorted(cut, along)[inv]
+    n_mat, rhs = a.T @ a - m.sum(axis=0), a.T @ y
+    ts = []
+    for i in range(k):
+        out = group == i
+        if not out.any():
+            continue
+        ai = a[out]
+        ts.append(np.linalg.lstsq(n_mat - ai.T @ ai + m[out].sum(axis=0), rhs - ai.T @ y[out], rcond=None)[0])
+    if len(ts) < 2:
+        return None
+    ts = np.array(ts)
+    d = ts - ts.mean(axis=0)
+    return (len(ts) - 1) / len(ts) * d.T @ d
+
+
+def _cluster_cov(a: np.ndarray, r: np.ndarray, blocks: np.ndarray, centre: np.ndarray, hac_m: float,
+                 m: np.ndarray | None = None, t: np.ndarray | None = None) -> tuple[np.ndarray, int]:
+    """Robust covariance of least squares with design ``a`` and residuals ``r``: the rows'
+    estimating functions (a·r, plus m·t with the per-row noise moments ``m`` (K, p, p) taken out of
+    the normal equations at the solution ``t``) summed per block, and the blocks' sums correlated
+    with product-Bartlett weights (1 − |Δx|/L)(1 − |Δy|/L) of their centres' distance, L = ``hac_m``
+    (Conley 1999, J. Econometrics 92:1–45; L = 0: the cluster-robust CR1 of Liang & Zeger 1986),
+    small-sample factor G/(G−1)·(N−1)/(N−p); never below the formal one. Also how many blocks
+    hold cells."""
+    n, p = a.shape
+    used, blocks = np.unique(blocks, return_inverse=True)
+    g = used.size
+    psi = a * r[:, None]
+    if m is not None:
+        psi = psi + m @ t
+    bread = np.linalg.pinv(a.T @ a - (0.0 if m is None else m.sum(axis=0)))
+    score = np.zeros((g, p))
+    np.add.at(score, blocks, psi)
+    formal = bread * (r @ r) / max(n - p - g, 1)
+    if g < 2:
+        return formal, g
+    at = np.stack([np.bincount(blocks, centre[:, k]) for k in range(2)], axis=1) / np.bincount(blocks)[:, None]
+    meat = score.T @ score
+    if hac_m > 0:  # the block pairs closer than hac_m on both axes (a k-d tree: memory grows with g, not g²)
+        from scipy.spatial import cKDTree
+
+        i, j = cKDTree(at).query_pairs(hac_m, p=np.inf, output_type="ndarray").T
+        w = np.prod(np.clip(1.0 - np.abs(at[i] - at[j]) / hac_m, 0.0, 1.0), axis=1)
+        cross = (score[i] * w[:, None]).T @ score[j]
+        meat += cross + cross.T
+    cov = g / (g - 1) * (n - 1) / max(n - p, 1) * bread @ meat @ bread
+    return (cov if np.trace(cov) >= np.trace(formal) else formal), g
