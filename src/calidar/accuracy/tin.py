@@ -102,6 +102,18 @@ def _dedup(xy: np.ndarray, z: np.ndarray, ids: np.ndarray, aux: np.ndarray):
 NONE = (np.nan, np.nan, np.nan, ())
 
 
+def _barycentric(c: np.ndarray) -> np.ndarray:
+    """Barycentric coordinates (T, 3) of the origin in triangles (T, 3, 2) (NaN for degenerate ones);
+    in closed form: scipy's find_simplex and transform are slow on gridded (cocircular) points."""
+    v0, v1 = c[:, 1] - c[:, 0], c[:, 2] - c[:, 0]
+    v2 = -c[:, 0]
+    den = v0[:, 0] * v1[:, 1] - v1[:, 0] * v0[:, 1]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        w1 = (v2[:, 0] * v1[:, 1] - v1[:, 0] * v2[:, 1]) / den
+        w2 = (v0[:, 0] * v2[:, 1] - v2[:, 0] * v0[:, 1]) / den
+        return np.c_[1.0 - w1 - w2, w1, w2]
+
+
 def _one(p_xy, xy, z, ids, aux, max_edge_m):
     """(z, aux, longest edge, corner strips), reason of the TIN of (xy, z) at ``p_xy``."""
     if xy.shape[0] < 3:
@@ -110,8 +122,10 @@ def _one(p_xy, xy, z, ids, aux, max_edge_m):
         tri = Delaunay(xy)
     except (QhullError, ValueError):
         return NONE, "ground points near it are collinear"
-    s = int(tri.find_simplex(p_xy[None, :])[0])
-    if s < 0:
+    w_all = _barycentric(xy[tri.simplices] - p_xy)
+    worst = np.nan_to_num(w_all.min(axis=1), nan=-np.inf)
+    s = int(np.argmax(worst))
+    if worst[s] < -1e-9:
         return NONE, "outside the TIN of the ground points near it (at the data's edge?)"
     corners = tri.simplices[s]
     c = xy[corners]
@@ -119,9 +133,7 @@ def _one(p_xy, xy, z, ids, aux, max_edge_m):
     if edge > max_edge_m:
         return (np.nan, np.nan, edge, ()), (f"its TIN triangle has a {edge:.1f} m edge (> {max_edge_m:g} m): a gap in "
                                             "the ground points")
-    t = tri.transform[s]
-    b = t[:2] @ (p_xy - t[2])
-    w = np.array([b[0], b[1], 1.0 - b[0] - b[1]])
+    w = w_all[s]
     return (float(w @ z[corners]), float(w @ aux[corners]), edge, tuple(sorted({int(i) for i in ids[corners]}))), ""
 
 

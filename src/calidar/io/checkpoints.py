@@ -17,7 +17,8 @@ The file (docs/conventions.md, "Checkpoint file")::
 - x, y, z are in the CRS of the points unless the caller gives another (``--checkpoints-crs``).
 
 Every error names the file, the line and the field: missing columns, values that are not
-finite numbers, an unknown land cover, a negative σ, two checkpoints with one id or at one place.
+finite numbers, an unknown land cover, a negative σ, two checkpoints with one id; and, once in a
+metric frame (:func:`check_places`), two at one place.
 """
 
 from __future__ import annotations
@@ -127,21 +128,26 @@ def _rows(path: Path):
         yield number, next(csv.reader(io.StringIO(s), delimiter=delimiter))
 
 
-def _check_unique(ids, xy, lines, path: Path) -> None:
+def _check_ids(ids, lines, path: Path) -> None:
     seen: dict[str, int] = {}
     for i, name in enumerate(ids):
         if name in seen:
             raise InputError(path, "id", f"line {lines[i]}: id {name!r} is used again (first on line "
                              f"{lines[seen[name]]}); expected one line per checkpoint")
         seen[name] = i
-    if len(xy) > 1:
+
+
+def check_places(cp: "Checkpoints", xy_m: np.ndarray) -> None:
+    """An error naming two checkpoints within SAME_PLACE_M of each other (``xy_m``: their metric x, y)."""
+    if len(xy_m) > 1:
         from scipy.spatial import cKDTree
 
-        pairs = cKDTree(xy).query_pairs(SAME_PLACE_M, output_type="ndarray")
+        pairs = cKDTree(xy_m).query_pairs(SAME_PLACE_M, output_type="ndarray")
         if len(pairs):
-            a, b = sorted(pairs[0])
-            raise InputError(path, "x/y", f"line {lines[b]}: checkpoint {ids[b]!r} is at the place of {ids[a]!r} "
-                             f"(line {lines[a]}, within {SAME_PLACE_M * 1e3:g} mm); expected each place once")
+            a, b = sorted(pairs[np.argmin(pairs.max(axis=1))])  # the first repeat in file order
+            raise InputError(cp.path, "x/y", f"line {cp.lines[b]}: checkpoint {cp.ids[b]!r} is at the place of "
+                             f"{cp.ids[a]!r} (line {cp.lines[a]}, within {SAME_PLACE_M * 1e3:g} mm); expected each "
+                             "place once")
 
 
 def read_checkpoints(path: str | Path) -> Checkpoints:
@@ -173,7 +179,7 @@ def read_checkpoints(path: str | Path) -> Checkpoints:
     if not ids:
         raise InputError(path, None, f"a header (line {head_line}) but no checkpoints; expected one line per checkpoint")
     xyz_a = np.asarray(xyz, float)
-    _check_unique(ids, xyz_a[:, :2], lines, path)
+    _check_ids(ids, lines, path)
     return Checkpoints(path, np.asarray(ids, dtype=str), xyz_a, np.asarray(veg, bool),
                        np.asarray(sigma, float) if "sigma" in cols else None, np.asarray(lines, np.int64))
 

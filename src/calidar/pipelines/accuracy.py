@@ -112,7 +112,7 @@ def measure_accuracy(paths, checkpoints: Path, settings: AccuracySettings = Accu
     """Read, stream, triangulate and assess: an :class:`calidar.accuracy.assess.Assessment`."""
     from calidar.accuracy.assess import assess
     from calidar.accuracy.tin import GroundCollector, heights_per_strip, tin_heights
-    from calidar.io.checkpoints import read_checkpoints
+    from calidar.io.checkpoints import check_places, read_checkpoints
     from calidar.io.las import iter_las_chunks
     from calidar.pipelines.quality import Metric
 
@@ -124,6 +124,7 @@ def measure_accuracy(paths, checkpoints: Path, settings: AccuracySettings = Accu
     check_inside(cp, xyz, lo, hi, crs)
     metric = Metric.at(crs, lo, hi, options.geoid_undulation_m, paths[0])
     local = metric.of(xyz)
+    check_places(cp, local[:, :2])
     collector = GroundCollector(local[:, :2], settings.radius_m)
     for k, p in enumerate(paths):
         for chunk in iter_las_chunks(p, CHUNK_POINTS, fields=FIELDS, options=options):
