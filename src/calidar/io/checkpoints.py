@@ -145,8 +145,8 @@ def check_places(cp: "Checkpoints", xy_m: np.ndarray) -> None:
         pairs = cKDTree(xy_m).query_pairs(SAME_PLACE_M, output_type="ndarray")
         if len(pairs):
             a, b = sorted(pairs[np.argmin(pairs.max(axis=1))])  # the first repeat in file order
-            raise InputError(cp.path, "x/y", f"line {cp.lines[b]}: checkpoint {cp.ids[b]!r} is at the place of "
-                             f"{cp.ids[a]!r} (line {cp.lines[a]}, within {SAME_PLACE_M * 1e3:g} mm); expected each "
+            raise InputError(cp.path, "x/y", f"line {cp.lines[b]}: checkpoint {str(cp.ids[b])!r} is at the place of "
+                             f"{str(cp.ids[a])!r} (line {cp.lines[a]}, within {SAME_PLACE_M * 1e3:g} mm); expected each "
                              "place once")
 
 

@@ -101,7 +101,7 @@ def check_inside(cp, xyz: np.ndarray, lo, hi, crs) -> None:
     if out.size:
         i = out[0]
         more = f" (and {out.size - 1} more)" if out.size > 1 else ""
-        raise InputError(cp.path, "x/y", f"line {cp.lines[i]}: checkpoint {cp.ids[i]!r} at ({xyz[i, 0]:.3f}, "
+        raise InputError(cp.path, "x/y", f"line {cp.lines[i]}: checkpoint {str(cp.ids[i])!r} at ({xyz[i, 0]:.3f}, "
                          f"{xyz[i, 1]:.3f}){more} lies outside the points (x {lo[0]:.3f} … {hi[0]:.3f}, y {lo[1]:.3f} … "
                          f"{hi[1]:.3f}{', ' + crs.name if crs is not None else ''}); expected checkpoints on the data "
                          "(in another CRS? give --checkpoints-crs)")
