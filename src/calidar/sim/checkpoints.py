@@ -6,7 +6,8 @@ true terrain (:meth:`calidar.sim.scene.Scene.terrain_height`), inside the flown 
 "surveyed" with a normal error of the stated σ. ``truth.json`` gets, per checkpoint, its true
 height, the survey error and the delivered data's own vertical error there (the mean of the
 ground points' height minus the true terrain, within ``TRUTH_RADIUS_M``), and over the open
-ground the RMS of that error: what ``calidar accuracy`` should find.
+ground the RMS error of a TIN of those points (:func:`data_truth`): what ``calidar accuracy``
+should find, RMSE_V(data)² ≈ that² + σ².
 """
 
 from __future__ import annotations
@@ -44,11 +45,11 @@ class SimulatedCheckpoints:
     vegetated: np.ndarray  #: (N,) bool
     sigma_m: float
     data_dz_m: np.ndarray  #: (N,) the delivered ground points' mean vertical error near each (NaN: none)
-    open_rmse_m: float  #: RMS vertical error of the delivered ground points on open ground
+    open_rmse_m: float  #: RMS vertical error of a TIN of the delivered ground points on open ground (data_truth)
 
     def truth_dict(self) -> dict:
         return {"sigma_m": self.sigma_m, "vegetated_share": float(self.vegetated.mean()) if len(self.ids) else 0.0,
-                "open_ground_rmse_m": self.open_rmse_m,
+                "open_ground_tin_rmse_m": self.open_rmse_m,
                 "points": [{"id": i, "x": float(p[0]), "y": float(p[1]), "z_true": float(p[2]),
                             "survey_error_m": float(s[2] - p[2]), "vegetated": bool(v),
                             "data_dz_m": None if not np.isfinite(d) else float(d)}
@@ -110,19 +111,26 @@ def _pick(x, y, count: int, taken: list) -> list[int]:
     return chosen
 
 
-def place_checkpoints(scene, n: int, rng, vegetated_share: float = VEGETATED_SHARE) -> tuple[np.ndarray, np.ndarray]:
-    """ENU (x, y) (N, 2) of ``n`` checkpoints and which are vegetated; an error when the scene has no room."""
+def _candidates(scene, count: int, rng) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``count`` random places inside the flown area; masks of those fit for an open and a vegetated checkpoint."""
     x0, x1, y0, y1 = scene.extent
     mx, my = MARGIN * (x1 - x0), MARGIN * (y1 - y0)
-    cand = rng.uniform([x0 + mx, y0 + my], [x1 - mx, y1 - my], (max(20 * n, 4000), 2))
+    cand = rng.uniform([x0 + mx, y0 + my], [x1 - mx, y1 - my], (count, 2))
     x, y = cand[:, 0], cand[:, 1]
     ok = _smooth(scene, x, y) & _clear_of_buildings(scene, x, y)
     ratio, beyond = _crown_distance(scene, x, y)
+    return cand, ok & (beyond >= CROWN_CLEARANCE_M), ok & (ratio <= UNDER_CROWN)
+
+
+def place_checkpoints(scene, n: int, rng, vegetated_share: float = VEGETATED_SHARE) -> tuple[np.ndarray, np.ndarray]:
+    """ENU (x, y) (N, 2) of ``n`` checkpoints and which are vegetated; an error when the scene has no room."""
+    cand, open_ok, veg_ok = _candidates(scene, max(20 * n, 4000), rng)
+    x, y = cand[:, 0], cand[:, 1]
     n_veg = int(round(n * vegetated_share)) if scene.tree_radius.size else 0
     taken: list = []
-    veg = np.flatnonzero(ok & (ratio <= UNDER_CROWN))
+    veg = np.flatnonzero(veg_ok)
     veg = veg[_pick(x[veg], y[veg], n_veg, taken)]
-    open_ = np.flatnonzero(ok & (beyond >= CROWN_CLEARANCE_M))
+    open_ = np.flatnonzero(open_ok)
     open_ = open_[_pick(x[open_], y[open_], n - veg.size, taken)]
     if open_.size + veg.size < n:
         raise InputError(None, "--checkpoints", f"room for {open_.size + veg.size} checkpoints {MIN_SEPARATION_M:g} m "
@@ -137,26 +145,41 @@ def vertical_errors(scene, ecef: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return enu[:, :2], enu[:, 2] - scene.terrain_height(enu[:, 0], enu[:, 1])
 
 
-def data_truth(scene, strips, cp_xy: np.ndarray, open_mask=None) -> tuple[np.ndarray, float]:
-    """Per checkpoint the mean vertical error of the strips' ground points within TRUTH_RADIUS_M
-    (NaN: none), and the RMS vertical error of the single-return ground points (open ground).
-    ``strips``: objects with ``ecef``, ``classification`` and ``number_of_returns``."""
+def ground_errors(scene, strips) -> tuple[np.ndarray, np.ndarray]:
+    """ENU x, y (K, 2) and vertical errors (K,) of the ground points (class 2) of ``strips`` (objects
+    with ``ecef`` and ``classification``), finite ones only."""
+    xy, e = [], []
+    for s in strips:
+        pxy, pe = vertical_errors(scene, s.ecef[s.classification == CLASS_GROUND])
+        xy.append(pxy[np.isfinite(pe)])
+        e.append(pe[np.isfinite(pe)])
+    return np.concatenate(xy), np.concatenate(e)
+
+
+def data_truth(scene, strips, cp_xy: np.ndarray, rng=None, places: int = 2000) -> tuple[np.ndarray, np.ndarray, float]:
+    """What the delivered ``strips`` should show at checkpoints:
+
+    - per checkpoint (``cp_xy``, ENU) the mean vertical error of the ground points within
+      TRUTH_RADIUS_M (NaN: none) and their standard deviation about it: a TIN there gives the
+      mean up to a noise of about that deviation / √2 (overlapping strips that disagree, noise);
+    - over ``places`` random places fit for an open checkpoint, the RMS error a TIN surface has
+      there: sqrt(S² + v/2), S² the mean square of the local mean errors and v the mean local
+      variance of the points about it (a linear interpolation in a triangle at a uniformly random
+      place weights its corners' independent errors by Σw² = 1/2 on average).
+    """
     from scipy.spatial import cKDTree
 
-    xy, e, single = [], [], []
-    for s in strips:
-        g = s.classification == CLASS_GROUND
-        pxy, pe = vertical_errors(scene, s.ecef[g])
-        xy.append(pxy)
-        e.append(pe)
-        single.append(s.number_of_returns[g] == 1)
-    xy, e, single = np.concatenate(xy), np.concatenate(e), np.concatenate(single)
-    fine = np.isfinite(e)
-    tree = cKDTree(xy[fine])
-    ef = e[fine]
-    near = tree.query_ball_point(cp_xy, TRUTH_RADIUS_M)
-    dz = np.array([ef[k].mean() if len(k) else np.nan for k in near])
-    return dz, float(np.sqrt(np.mean(e[fine & single] ** 2)))
+    xy, e = ground_errors(scene, strips)
+    tree = cKDTree(xy)
+    around = tree.query_ball_point(cp_xy, TRUTH_RADIUS_M)
+    dz = np.array([e[k].mean() if len(k) else np.nan for k in around])
+    sd = np.array([e[k].std(ddof=1) if len(k) > 1 else np.nan for k in around])
+    rng = np.random.default_rng(0) if rng is None else rng
+    cand, open_ok, _ = _candidates(scene, places, rng)
+    near = [k for k in tree.query_ball_point(cand[open_ok], TRUTH_RADIUS_M) if len(k) >= 3]
+    mean_sq = np.mean([e[k].mean() ** 2 for k in near])
+    var = np.mean([e[k].var(ddof=1) for k in near])
+    return dz, sd, float(np.sqrt(mean_sq + var / 2.0))
 
 
 def check_checkpoint_options(n: int, sigma_m: float) -> None:
@@ -183,6 +206,6 @@ def simulate_checkpoints(result, n: int, sigma_m: float = 0.02, seed: int = 0,
     true = to_crs(scene.enu_to_ecef(enu), result.crs)
     surveyed = true.copy()
     surveyed[:, 2] += rng.normal(0.0, sigma_m, len(xy)) if sigma_m > 0 else 0.0
-    dz, open_rmse = data_truth(scene, result.strips, xy)
+    dz, _, open_rmse = data_truth(scene, result.strips, xy, rng)
     ids = [f"{'VVA' if v else 'NVA'}{k + 1:03d}" for k, v in enumerate(veg)]
     return SimulatedCheckpoints(ids, surveyed, true, veg, float(sigma_m), dz, open_rmse)
