@@ -124,7 +124,7 @@ def _candidates(scene, count: int, rng) -> tuple[np.ndarray, np.ndarray, np.ndar
 
 def place_checkpoints(scene, n: int, rng, vegetated_share: float = VEGETATED_SHARE) -> tuple[np.ndarray, np.ndarray]:
     """ENU (x, y) (N, 2) of ``n`` checkpoints and which are vegetated; an error when the scene has no room."""
-    cand, open_ok, veg_ok = _candidates(scene, max(20 * n, 4000), rng)
+    cand, open_ok, veg_ok = _candidates(scene, max(50 * n, 10_000), rng)
     x, y = cand[:, 0], cand[:, 1]
     n_veg = int(round(n * vegetated_share)) if scene.tree_radius.size else 0
     taken: list = []
