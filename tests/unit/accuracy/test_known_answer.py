@@ -122,3 +122,31 @@ def test_run_accuracy_writes_its_three_files(tmp_path):
     run = run_accuracy(strips, _checkpoints(tmp_path / "cp.csv"), out, argv=["calidar", "accuracy"])
     assert sorted(p.name for p in out.iterdir()) == ["accuracy.json", "checkpoints.csv", "report.html"]
     assert run.verdict.status == "pass"
+
+
+def test_points_in_a_geographic_crs(tmp_path):
+    """Points and checkpoints in lon/lat/ellipsoidal height (EPSG:4979): the TIN in a local metric
+    frame, the same residuals as in UTM (the plane is the same surface)."""
+    import pyproj
+
+    to_geo = pyproj.Transformer.from_crs(CRS, "EPSG:4979", always_xy=True)
+    paths = []
+    for k, p in enumerate(_strips(tmp_path / "utm")):
+        from calidar.io.las import read_las
+
+        pts = read_las(p)
+        lon, lat, h = to_geo.transform(*pts.xyz.T)
+        paths.append(write_las(tmp_path / f"geo_{k}.laz", np.c_[lon, lat, h], "EPSG:4979", gps_time=pts.gps_time,
+                               scan_angle_deg=pts.scan_angle_deg, point_source_id=k + 1,
+                               classification=pts.classification))
+    utm = _checkpoints(tmp_path / "cp_utm.csv")
+    rows = utm.read_text().splitlines()
+    out = [rows[0]]
+    for r in rows[1:]:
+        f = r.split(",")
+        lon, lat, h = to_geo.transform(float(f[1]), float(f[2]), float(f[3]))
+        out.append(",".join([f[0], f"{lon:.10f}", f"{lat:.10f}", f"{h:.4f}", *f[4:]]))
+    (tmp_path / "cp_geo.csv").write_text("\n".join(out) + "\n")
+    a = measure_accuracy(paths, tmp_path / "cp_geo.csv")
+    np.testing.assert_allclose(a.dz, np.r_[NVA_OFFSETS, VVA_OFFSETS], atol=1e-3)  # 1e-9° storage ≈ 0.1 mm
+    assert a.accuracy.class_cm == 10.0
