@@ -7,7 +7,7 @@ from pathlib import Path
 import typer
 from rich.markup import escape
 
-from calidar.cli.common import console, print_verdict
+from calidar.cli.common import console, print_verdict, progress_bar, progress_callback
 from calidar.cli.options import CRS, GEOID_UNDULATION, TIME_SYSTEM, crs_option, point_options
 
 CLASS_NOT_MET = 3  #: exit code when --class is given and not met
@@ -46,8 +46,8 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
         settings = AccuracySettings(crs_option(checkpoints_crs, "--checkpoints-crs"), survey_sigma, radius, max_edge,
                                     target_class, parse_classes(classes)).checked()
         options = point_options(crs, time_system, geoid_undulation)
-        with output_folder(out, force, inputs=[*points, checkpoints]) as tmp:
-            run = run_accuracy(points, checkpoints, tmp, settings, options)
+        with progress_bar() as bar, output_folder(out, force, inputs=[*points, checkpoints]) as tmp:
+            run = run_accuracy(points, checkpoints, tmp, settings, options, progress=progress_callback(bar))
         print_verdict(run.verdict)
         console.print(f"wrote {escape(str(out))}/accuracy.json, checkpoints.csv and report.html", highlight=False,
                       soft_wrap=True)
