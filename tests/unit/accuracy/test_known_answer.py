@@ -150,3 +150,14 @@ def test_points_in_a_geographic_crs(tmp_path):
     a = measure_accuracy(paths, tmp_path / "cp_geo.csv")
     np.testing.assert_allclose(a.dz, np.r_[NVA_OFFSETS, VVA_OFFSETS], atol=1e-3)  # 1e-9° storage ≈ 0.1 mm
     assert a.accuracy.class_cm == 10.0
+
+
+def test_nothing_tested_is_a_failure_with_the_reason(tmp_path):
+    strips = _strips(tmp_path)
+    x, y = X0 + 50.0, Y0 + 199.55
+    (tmp_path / "cp.csv").write_text(f"id,x,y,z,class\nGAP,{x},{y},{plane(x, y)},NVA\n")
+    (tmp_path / "out").mkdir()
+    run = run_accuracy(strips, tmp_path / "cp.csv", tmp_path / "out")
+    assert run.verdict.status == "fail" and run.assessment.accuracy.rmse_m is None
+    assert [f.check for f in run.verdict.findings] == ["NVA accuracy class", "checkpoint count", "checkpoints not tested"]
+    assert (tmp_path / "out" / "report.html").is_file()
