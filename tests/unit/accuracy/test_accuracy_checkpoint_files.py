@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from test_known_answer import X0, Y0, _checkpoints, _strips, plane
+from test_accuracy_known_answer import X0, Y0, _checkpoints, _strips, plane
 
 from calidar.errors import InputError
 from calidar.io.checkpoints import read_checkpoints, write_checkpoints
