@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import pytest
 
-COMMANDS = {"range-cal", "simulate total-station", "simulate survey", "scanner analyze", "demo"}  #: covered here
+COMMANDS = {"range-cal", "simulate total-station", "simulate survey", "scanner analyze", "demo", "accuracy"}  #: covered here
 OBS = "{T}/observations.csv"
 
 
@@ -153,3 +153,24 @@ def test_demo_seed_beyond_32_bits(bad_input):
 
 def test_demo_refuses_a_file_as_its_folder(bad_input):
     bad_input(["demo", "--out", "{S}/sensor.toml", "--force"], 1, "sensor.toml", "not a folder")
+
+
+STRIP = "{S}/strips/line_001.laz"
+ACCURACY = [
+    case(["--checkpoints", "{T}/observations.csv"], "observations.csv", "id", "column", id="not-a-checkpoint-file"),
+    case(["--checkpoints", "{B}/ccr_nan.csv"], "ccr_nan.csv", "x", "column", id="lat-lon-columns"),
+    case(["--checkpoints", "{B}/ccr_latin1.csv"], "ccr_latin1.csv", "UTF-8", id="not-utf8"),
+    case(["--checkpoints", "{B}/missing.csv"], "missing.csv", id="missing"),
+    case(["--checkpoints", "{S}/truth.json"], "truth.json", id="json-not-csv"),
+    case(["--checkpoints", "{T}/observations.csv", "--radius", "0"], "--radius", id="radius-0"),
+    case(["--checkpoints", "{T}/observations.csv", "--max-edge", "nan"], "--max-edge", id="max-edge-nan"),
+    case(["--checkpoints", "{T}/observations.csv", "--survey-sigma", "-0.01"], "--survey-sigma", id="survey-sigma-negative"),
+    case(["--checkpoints", "{T}/observations.csv", "--class", "0"], "--class", id="class-0"),
+    case(["--checkpoints", "{T}/observations.csv", "--checkpoints-crs", "EPSG:0"], "--checkpoints-crs", id="crs-unknown"),
+    case(["--checkpoints", "{T}/observations.csv", "--classes", "ground"], "--classes", id="classes-not-numbers"),
+]
+
+
+@pytest.mark.parametrize("args, messages", ACCURACY)
+def test_accuracy(bad_input, args, messages):
+    bad_input(["accuracy", STRIP, *args, "--out", "{O}"], 1, *messages)

@@ -77,7 +77,7 @@ LAYERS: list[tuple[str, tuple[str, ...]]] = [
     ("cli", ("calidar.cli", "calidar.__main__")),
     ("demo", ("calidar.demo",)),
     ("pipelines", ("calidar.pipelines",)),
-    ("methods", ("calidar.strips", "calidar.rangecal", "calidar.photon", "calidar.sim", "calidar.tpu", "calidar.scanners.analysis",
+    ("methods", ("calidar.strips", "calidar.accuracy", "calidar.rangecal", "calidar.photon", "calidar.sim", "calidar.tpu", "calidar.scanners.analysis",
                  "calidar.scanners.separability", "calidar.scanners.settings", "calidar.scanners.sources",
                  "calidar.scanners.verdict", "calidar.scanners.figures", "calidar.scanners.files",
                  "calidar.scanners.report")),

@@ -32,7 +32,7 @@ from calidar.outputs import shown_path
 
 COMMAND_MODULES: list[str] = [
     "info", "georef", "rangecal", "photon", "denoise", "ccr", "simulate_survey", "demo", "quality", "boresight",
-    "scanner", "sensor", "tpu",
+    "scanner", "sensor", "tpu", "accuracy",
 ]
 
 app = typer.Typer(

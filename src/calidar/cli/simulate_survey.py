@@ -27,10 +27,14 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
                                               "ATTITUDE_BIAS (deg), ATTITUDE_DRIFT (deg/s)."),
         directions: str = typer.Option("opposite", "--directions", help="Line directions: same, opposite or cross."),
         density: float = typer.Option(1.0, "--density", help="Scales the pulse rate (points per m²)."),
+        checkpoints: int = typer.Option(0, "--checkpoints", help="Surveyed checkpoints to write (checkpoints.csv; "
+                                        "a quarter under trees when there are trees), their truth in truth.json."),
+        checkpoint_sigma: float = typer.Option(0.02, "--checkpoint-sigma", help="Survey σ of the checkpoints' heights, m."),
         force: bool = typer.Option(False, "--force", help="Write into an existing non-empty folder."),
     ) -> None:
         """Simulate a survey: the true sensor shoots, the strips are delivered with the nominal one."""
         from calidar.outputs import check_out_dir, output_folder
+        from calidar.sim.checkpoints import check_checkpoint_options, simulate_checkpoints
         from calidar.sim.survey import check_config, simulate_survey, survey_config
 
         r, p, y = np.radians(parse_floats(boresight_error, 3, "--boresight-error"))
@@ -46,10 +50,13 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
             overrides["vegetation"] = vegetation
         cfg = survey_config(preset, **overrides)
         check_config(cfg)
+        check_checkpoint_options(checkpoints, checkpoint_sigma)
         check_out_dir(out, force)  # refuse early, before minutes of work
         with progress_bar() as bar, output_folder(out, force) as tmp:
             update = progress_callback(bar)
             result = simulate_survey(cfg, progress=update)
             result.write(tmp, force=True, progress=update)
+            if checkpoints:
+                simulate_checkpoints(result, checkpoints, checkpoint_sigma, seed).write(tmp)
         console.print(f"{result.n_points:,} points in {len(result.strips)} strips ({result.crs}) → {escape(str(out))}",
                       highlight=False, soft_wrap=True)

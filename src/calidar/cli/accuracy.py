@@ -1,0 +1,56 @@
+"""``calidar accuracy``: absolute vertical accuracy against surveyed checkpoints (ASPRS Edition 2)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import typer
+from rich.markup import escape
+
+from calidar.cli.common import console, print_verdict, progress_bar, progress_callback
+from calidar.cli.options import CRS, GEOID_UNDULATION, TIME_SYSTEM, crs_option, point_options
+
+CLASS_NOT_MET = 3  #: exit code when --class is given and not met
+
+
+def register(app: typer.Typer, simulate: typer.Typer) -> None:
+    @app.command("accuracy")
+    def accuracy(
+        points: list[Path] = typer.Argument(..., help="LAS/LAZ files (the delivered points)."),
+        checkpoints: Path = typer.Option(..., "--checkpoints", help="Checkpoint CSV: id, x, y, z, class "
+                                         "(non-vegetated | vegetated; NVA/VVA, open/vegetated accepted), optional sigma (m)."),
+        out: Path = typer.Option(..., "--out", help="Output folder: accuracy.json, checkpoints.csv, report.html."),
+        checkpoints_crs: str | None = typer.Option(None, "--checkpoints-crs", help="CRS of the checkpoints when not "
+                                                   "the points' (e.g. EPSG:6340); they are transformed to the points'."),
+        survey_sigma: float | None = typer.Option(None, "--survey-sigma", help="The checkpoints' survey RMSE (m), "
+                                                  "when the file has no sigma column (Edition 2 includes it)."),
+        target_class: float | None = typer.Option(None, "--class", help="Vertical accuracy class the contract asks "
+                                                  "for, X in cm (e.g. 10): exit code 3 when not met."),
+        radius: float = typer.Option(5.0, "--radius", help="Ground points within this distance (m) of a checkpoint "
+                                     "form its TIN."),
+        max_edge: float | None = typer.Option(None, "--max-edge", help="Longest edge (m) of the TIN triangle holding "
+                                              "a checkpoint (default: --radius); longer: a gap, not tested."),
+        classes: str | None = typer.Option(None, "--classes", help="LAS classes taken as ground, e.g. 2 or 2,8 "
+                                           "(default: 2 where a file has it, else last and single returns)."),
+        crs: str | None = CRS, time_system: str | None = TIME_SYSTEM, geoid_undulation: float | None = GEOID_UNDULATION,
+        force: bool = typer.Option(False, "--force", help="Write into a non-empty --out folder."),
+    ) -> None:
+        """Vertical accuracy of the points at surveyed checkpoints: NVA RMSEz and class, VVA, per ASPRS Edition 2.
+
+        Exit codes: 0 done (the --class met when given), 1 bad input, 3 the --class not met.
+        """
+        from calidar.outputs import output_folder
+        from calidar.pipelines.accuracy import AccuracySettings, run_accuracy
+        from calidar.strips.selection import parse_classes
+
+        settings = AccuracySettings(crs_option(checkpoints_crs, "--checkpoints-crs"), survey_sigma, radius, max_edge,
+                                    target_class, parse_classes(classes)).checked()
+        options = point_options(crs, time_system, geoid_undulation)
+        with progress_bar() as bar, output_folder(out, force, inputs=[*points, checkpoints]) as tmp:
+            run = run_accuracy(points, checkpoints, tmp, settings, options, progress=progress_callback(bar))
+        print_verdict(run.verdict)
+        console.print(f"wrote {escape(str(out))}/accuracy.json, checkpoints.csv and report.html", highlight=False,
+                      soft_wrap=True)
+        met = run.assessment.accuracy.meets(target_class) if target_class is not None else True
+        if not met:
+            raise typer.Exit(CLASS_NOT_MET)

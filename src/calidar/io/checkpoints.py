@@ -1,0 +1,198 @@
+"""Surveyed checkpoints (CSV): id, x, y, z, land cover and an optional σ, checked on reading.
+
+The file (docs/conventions.md, "Checkpoint file")::
+
+    # lines starting with # are comments
+    id,x,y,z,class,sigma
+    CP01,500123.412,5200456.118,452.331,non-vegetated,0.02
+    CP02,500311.090,5200512.774,449.020,vegetated,0.03
+
+- Columns are found by name (case and ``_``/``-``/spaces ignored), in any order: ``id`` (name,
+  point, label), ``x`` (easting, east), ``y`` (northing, north), ``z`` (elevation, height, h),
+  the land cover ``class`` (cover, landcover, type) and optionally ``sigma`` (sigma_z, sd, std;
+  metres, the survey's 1σ vertical uncertainty of that point). Commas, semicolons or tabs.
+- Land cover, as ASPRS Edition 2 (2023) tests it: **non-vegetated** (NVA; also ``nva``,
+  ``open``, ``bare``, ``non vegetated``) or **vegetated** (VVA; also ``vva``, ``veg``,
+  ``vegetation``, ``forest``, ``trees``).
+- x, y, z are in the CRS of the points unless the caller gives another (``--checkpoints-crs``).
+
+Every error names the file, the line and the field: missing columns, values that are not
+finite numbers, an unknown land cover, a negative σ, two checkpoints with one id; and, once in a
+metric frame (:func:`check_places`), two at one place.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from calidar.errors import InputError
+
+MAX_COORDINATE = 1e9  #: |x|, |y|, |z| beyond this is not a place in any CRS calidar reads
+MAX_SIGMA_M = 10.0  #: a survey σ beyond this is a unit mistake (mm given as m)
+SAME_PLACE_M = 1e-3  #: two checkpoints closer than this (x, y) are one point surveyed twice
+MAX_CHECKPOINTS = 100_000
+
+#: column → accepted header names (normalised: lower case, without spaces, "_" and "-")
+COLUMNS = {
+    "id": ("id", "name", "point", "pointid", "pointname", "label", "pt"),
+    "x": ("x", "easting", "east", "e"),
+    "y": ("y", "northing", "north", "n"),
+    "z": ("z", "elevation", "elev", "height", "h"),
+    "class": ("class", "cover", "landcover", "landclass", "type", "category"),
+    "sigma": ("sigma", "sigmaz", "sigmam", "sigmazm", "sd", "sdz", "std", "stdz", "stddev", "accuracy"),
+}
+REQUIRED = ("id", "x", "y", "z", "class")
+NON_VEGETATED = ("nonvegetated", "nva", "open", "bare", "bareearth", "nonveg")
+VEGETATED = ("vegetated", "vva", "veg", "vegetation", "forest", "trees", "undertrees")
+
+
+def _norm(text: str) -> str:
+    return "".join(ch for ch in text.strip().lower() if ch not in " _-")
+
+
+@dataclass(frozen=True, eq=False)
+class Checkpoints:
+    """Checkpoints of one file; arrays in file order."""
+
+    path: Path
+    ids: np.ndarray  #: (N,) str
+    xyz: np.ndarray  #: (N, 3) float, in the CRS they were surveyed in
+    vegetated: np.ndarray  #: (N,) bool: VVA (True) or NVA (False)
+    sigma_m: np.ndarray | None  #: (N,) survey 1σ (m), None when the file has no σ column
+    lines: np.ndarray  #: (N,) line number of each in the file (1-based)
+
+    def __len__(self) -> int:
+        return self.ids.size
+
+    def cover(self) -> np.ndarray:
+        """'non-vegetated' / 'vegetated' per checkpoint."""
+        return np.where(self.vegetated, "vegetated", "non-vegetated")
+
+
+def _columns(header: list[str], path: Path, line: int) -> dict[str, int]:
+    names = [_norm(h) for h in header]
+    found = {}
+    for key, aliases in COLUMNS.items():
+        hits = [i for i, n in enumerate(names) if n in aliases]
+        if len(hits) > 1:
+            raise InputError(path, key, f"line {line}: columns {', '.join(repr(header[i]) for i in hits)} all name "
+                             f"the {key} column; expected one")
+        if hits:
+            found[key] = hits[0]
+    missing = [k for k in REQUIRED if k not in found]
+    if missing:
+        raise InputError(path, missing[0], f"line {line}: no {' / '.join(missing)} column in the header "
+                         f"{','.join(header)!r}; expected a header naming id, x, y, z and class (land cover: "
+                         "non-vegetated or vegetated), optionally sigma")
+    return found
+
+
+def _number(text: str, path: Path, line: int, field: str, limit: float) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        v = None
+    if v is None or not np.isfinite(v) or abs(v) > limit:
+        raise InputError(path, field, f"line {line}: expected a finite number (|value| ≤ {limit:g}), "
+                         f"got {text.strip()!r}")
+    return v
+
+
+def _cover(text: str, path: Path, line: int) -> bool:
+    v = _norm(text)
+    if v in NON_VEGETATED:
+        return False
+    if v in VEGETATED:
+        return True
+    raise InputError(path, "class", f"line {line}: expected a land cover, non-vegetated (NVA, open, bare) or "
+                     f"vegetated (VVA, forest, trees), got {text.strip()!r}")
+
+
+def _rows(path: Path):
+    """(line number, cells) of the non-comment, non-blank lines."""
+    from calidar.validate import read_text
+
+    text = read_text(path, "checkpoint file")
+    lines = [(k + 1, s) for k, s in enumerate(text.splitlines()) if s.strip() and not s.lstrip().startswith("#")]
+    if not lines:
+        raise InputError(path, None, "no checkpoints: expected a header line (id,x,y,z,class[,sigma]) and one line "
+                         "per checkpoint")
+    head = lines[0][1]
+    delimiter = "," if "," in head else (";" if ";" in head else ("\t" if "\t" in head else ","))
+    for number, s in lines:
+        yield number, next(csv.reader(io.StringIO(s), delimiter=delimiter))
+
+
+def _check_ids(ids, lines, path: Path) -> None:
+    seen: dict[str, int] = {}
+    for i, name in enumerate(ids):
+        if name in seen:
+            raise InputError(path, "id", f"line {lines[i]}: id {name!r} is used again (first on line "
+                             f"{lines[seen[name]]}); expected one line per checkpoint")
+        seen[name] = i
+
+
+def check_places(cp: "Checkpoints", xy_m: np.ndarray) -> None:
+    """An error naming two checkpoints within SAME_PLACE_M of each other (``xy_m``: their metric x, y)."""
+    if len(xy_m) > 1:
+        from scipy.spatial import cKDTree
+
+        pairs = cKDTree(xy_m).query_pairs(SAME_PLACE_M, output_type="ndarray")
+        if len(pairs):
+            a, b = sorted(pairs[np.argmin(pairs.max(axis=1))])  # the first repeat in file order
+            raise InputError(cp.path, "x/y", f"line {cp.lines[b]}: checkpoint {str(cp.ids[b])!r} is at the place of "
+                             f"{str(cp.ids[a])!r} (line {cp.lines[a]}, within {SAME_PLACE_M * 1e3:g} mm); expected each "
+                             "place once")
+
+
+def read_checkpoints(path: str | Path) -> Checkpoints:
+    """Read and check a checkpoint CSV (see the module docstring)."""
+    path = Path(path)
+    rows = _rows(path)
+    head_line, header = next(rows)
+    cols = _columns(header, path, head_line)
+    ids, xyz, veg, sigma, lines = [], [], [], [], []
+    for number, cells in rows:
+        if len(cells) < len(header):
+            missing = [k for k, i in cols.items() if i >= len(cells)]
+            raise InputError(path, missing[0] if missing else None, f"line {number}: {len(cells)} values, expected "
+                             f"{len(header)} (as the header {','.join(header)!r})")
+        name = cells[cols["id"]].strip()
+        if not name:
+            raise InputError(path, "id", f"line {number}: expected a checkpoint id, got an empty value")
+        ids.append(name)
+        xyz.append([_number(cells[cols[k]], path, number, k, MAX_COORDINATE) for k in ("x", "y", "z")])
+        veg.append(_cover(cells[cols["class"]], path, number))
+        if "sigma" in cols:
+            s = _number(cells[cols["sigma"]], path, number, "sigma", MAX_SIGMA_M)
+            if s < 0:
+                raise InputError(path, "sigma", f"line {number}: expected a σ ≥ 0 m, got {s:g}")
+            sigma.append(s)
+        lines.append(number)
+        if len(ids) > MAX_CHECKPOINTS:
+            raise InputError(path, None, f"more than {MAX_CHECKPOINTS} checkpoints; expected a checkpoint survey")
+    if not ids:
+        raise InputError(path, None, f"a header (line {head_line}) but no checkpoints; expected one line per checkpoint")
+    xyz_a = np.asarray(xyz, float)
+    _check_ids(ids, lines, path)
+    return Checkpoints(path, np.asarray(ids, dtype=str), xyz_a, np.asarray(veg, bool),
+                       np.asarray(sigma, float) if "sigma" in cols else None, np.asarray(lines, np.int64))
+
+
+def write_checkpoints(path: str | Path, ids, xyz, vegetated, sigma_m=None, comment: str | None = None,
+                      force: bool = False) -> Path:
+    """Write a checkpoint CSV that :func:`read_checkpoints` reads (mm resolution), atomically."""
+    from calidar.outputs import write_text_atomic
+
+    xyz = np.asarray(xyz, float)
+    out = [f"# {c}" for c in (comment or "").splitlines()]
+    out.append("id,x,y,z,class" + (",sigma" if sigma_m is not None else ""))
+    for k, name in enumerate(ids):
+        row = f"{name},{xyz[k, 0]:.3f},{xyz[k, 1]:.3f},{xyz[k, 2]:.3f},{'vegetated' if vegetated[k] else 'non-vegetated'}"
+        out.append(row + (f",{float(np.asarray(sigma_m)[k]):.4f}" if sigma_m is not None else ""))
+    return write_text_atomic(path, "\n".join(out) + "\n", force)
