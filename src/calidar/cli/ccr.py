@@ -7,7 +7,7 @@ from pathlib import Path
 
 import typer
 
-from calidar.cli.common import console, print_verdict, print_warning, progress_bar, progress_callback
+from calidar.cli.common import console, exit_with_verdict, print_verdict, print_warning, progress_bar, progress_callback
 from calidar.cli.denoise import BEAM_HELP, SHOT_SPACING_RANGE
 
 
@@ -87,6 +87,7 @@ def ccr(
         print_warning(w)
     print_verdict(result.verdict, "CCR calibration")
     console.print(f"wrote {out / 'solution.json'} and {out / 'report.html'}", highlight=False, markup=False)
+    exit_with_verdict(result.verdict)
 
 
 def register(app: typer.Typer, simulate: typer.Typer) -> None:

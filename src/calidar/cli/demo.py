@@ -7,7 +7,7 @@ from pathlib import Path
 
 import typer
 
-from calidar.cli.common import console, print_verdict, progress_bar, progress_callback
+from calidar.cli.common import console, exit_with_verdict, print_verdict, progress_bar, progress_callback
 
 
 def demo(
@@ -25,6 +25,7 @@ def demo(
     for title, verdict in report.verdicts:
         print_verdict(verdict, title, brief=True)
     console.print(f"report: {out / 'report.html'} ({time.perf_counter() - t0:.0f} s)", markup=False)
+    exit_with_verdict(*(v for _, v in report.verdicts))
 
 
 def register(app: typer.Typer, simulate: typer.Typer) -> None:

@@ -1,8 +1,9 @@
 """``calidar range-cal`` and ``calidar simulate total-station``.
 
-Exit codes of ``range-cal``: 0 done (and, with ``--tolerance``, the acceptance passed);
-1 bad input; 3 the acceptance check failed (the 95 % bound of the raw range error over the
-calibrated distances exceeds the tolerance).
+Exit codes of ``range-cal`` (the contract of every command, :mod:`calidar.cli.common`): 0 the
+verdict is PASS or WARN (with ``--tolerance``, the acceptance passed); 1 bad input; 2 usage error;
+3 the verdict is FAIL — e.g. the acceptance check failed (the 95 % bound of the raw range error
+over the calibrated distances exceeds the tolerance); 130/143 interrupted.
 """
 
 from __future__ import annotations
@@ -11,9 +12,9 @@ from pathlib import Path
 
 import typer
 
-from calidar.cli.common import console, print_verdict
+from calidar.cli.common import EXIT_FAIL, console, exit_with_verdict, print_verdict
 
-ACCEPTANCE_FAILED = 3  #: exit code when --tolerance is given and the check fails
+ACCEPTANCE_FAILED = EXIT_FAIL  #: exit code when --tolerance is given and the check fails
 
 
 def _say(text: str) -> None:
@@ -32,7 +33,8 @@ def range_cal(
 ) -> None:
     """Calibrate range offset and scale of a circular-scan lidar against total-station observations.
 
-    Exit codes: 0 done (acceptance passed when --tolerance is given), 1 bad input, 3 acceptance failed.
+    Exit codes: 0 pass or warn (acceptance passed when --tolerance is given), 1 bad input, 2 usage error,
+    3 FAIL verdict (e.g. acceptance failed), 130/143 interrupted.
     """
     from calidar.outputs import output_folder
     from calidar.pipelines.rangecal import check_tolerance, run_range_cal
@@ -56,6 +58,7 @@ def range_cal(
     _say(f"wrote {out / 'solution.json'} and {out / 'report.html'}")
     if result.acceptance is not None and not result.acceptance["passed"]:
         raise typer.Exit(ACCEPTANCE_FAILED)
+    exit_with_verdict(run.verdict)
 
 
 def simulate_total_station(

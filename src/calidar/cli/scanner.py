@@ -8,7 +8,7 @@ from pathlib import Path
 
 import typer
 
-from calidar.cli.common import console, print_verdict, progress_bar, progress_callback
+from calidar.cli.common import console, exit_with_verdict, print_verdict, progress_bar, progress_callback
 
 
 def analyze(
@@ -53,9 +53,11 @@ def analyze(
         run = run_scanner_analysis(settings, tmp, progress=progress_callback(bar))
     if as_json:
         sys.stdout.write(json.dumps(run.summary, allow_nan=False) + "\n")
+        exit_with_verdict(run.verdict)
         return
     _print_summary(run.summary, out)
     print_verdict(run.verdict)
+    exit_with_verdict(run.verdict)
 
 
 def _print_summary(s: dict, out: Path) -> None:
