@@ -18,6 +18,8 @@ from calidar.errors import CalibrationError
 
 SCATTER_BYTES = 1_000_000  #: arrays larger than this are sent to the workers once, ahead of the tasks
 CONNECT_TIMEOUT_S = 10.0  #: how long to wait for a scheduler given by address
+PROBE_TIMEOUT_S = 5.0  #: how long the first TCP connection and the scheduler's greeting may take each
+MAX_GREETING_BYTES = 1 << 20  #: a Dask scheduler's first message (its handshake) is a few hundred bytes
 MAX_LOCAL_WORKERS = 256  #: local worker processes accepted (each takes a process and its memory)
 #: files read at once in this process (each holds one chunk's working arrays, ≈ 0.2 GB at 0.5 M points)
 IN_PROCESS_THREADS = min(2, os.cpu_count() or 1)
@@ -33,6 +35,64 @@ def check_cluster(scheduler: str | None = None, workers: int | None = None) -> N
                                "not both")
     if workers is not None:
         integer(workers, "--workers", 1, MAX_LOCAL_WORKERS, why="local worker processes")
+    if scheduler is not None:
+        scheduler_address(scheduler)
+
+
+def scheduler_address(text: str) -> tuple[str, str, int | None]:
+    """(protocol, host, port) of a ``--scheduler`` address ("tcp://host:8786", "host:8786"), or a
+    clear error for a malformed one."""
+    from calidar.errors import InputError
+
+    expected = f"expected a Dask scheduler address such as tcp://host:8786, got {text!r}"
+    protocol, _, rest = text.rpartition("://") if "://" in text else ("tcp", "", text)
+    if protocol not in ("tcp", "tls", "inproc", "ucx", "ws", "wss") or not rest:
+        raise InputError(None, "--scheduler", expected)
+    if protocol not in ("tcp", "tls"):
+        return protocol, rest, None
+    host, _, port = rest.rpartition(":")
+    host = host.strip("[]")
+    if not host or not port.isdigit() or not 0 < int(port) < 65536 or any(c.isspace() or c in "/?#@" for c in host):
+        raise InputError(None, "--scheduler", expected)
+    return protocol, host, int(port)
+
+
+def probe_scheduler(text: str, timeout: float = PROBE_TIMEOUT_S) -> None:
+    """Check, within 2 × ``timeout``, that a tcp:// address answers as a Dask scheduler does: on a
+    new connection it sends its handshake first, a short message framed by its length (8 bytes,
+    little-endian). An HTTP server says nothing; a proxy answering "HTTP/1.1 400" gives an absurd
+    length (which Dask itself would try to allocate: 3 EiB). Either is a clear error."""
+    import socket
+    import struct
+
+    protocol, host, port = scheduler_address(text)
+    if protocol != "tcp":
+        return  # TLS and the other transports: left to Dask's own connect timeout
+    where = f"the Dask scheduler at {text}"
+    try:
+        with socket.create_connection((host, port), timeout=timeout) as sock:
+            sock.settimeout(timeout)
+            head = _recv(sock, 8)
+            (n,) = struct.unpack("<Q", head)
+            if not 0 < n <= MAX_GREETING_BYTES:
+                raise CalibrationError(f"{where}: not a Dask scheduler (it answered {head!r}…); check the address "
+                                       "and port (the scheduler's default is 8786)")
+            _recv(sock, n)
+    except socket.timeout:
+        raise CalibrationError(f"{where}: no answer within {timeout:g} s as a Dask scheduler would give; is it one "
+                               "(the scheduler's default port is 8786)?") from None
+    except OSError as exc:
+        raise CalibrationError(f"cannot reach {where}: {exc.strerror or exc}") from None
+
+
+def _recv(sock, n: int) -> bytes:
+    data = b""
+    while len(data) < n:
+        chunk = sock.recv(n - len(data))
+        if not chunk:
+            raise CalibrationError(f"{sock.getpeername()}: closed the connection: not a Dask scheduler")
+        data += chunk
+    return data
 
 
 @contextmanager
@@ -47,6 +107,7 @@ def cluster_client(scheduler: str | None = None, workers: int | None = None) -> 
     from dask.distributed import Client, LocalCluster
 
     if scheduler is not None:
+        probe_scheduler(scheduler)
         try:
             client = Client(scheduler, timeout=CONNECT_TIMEOUT_S)
         except (OSError, TimeoutError) as exc:
