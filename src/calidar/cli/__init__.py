@@ -129,8 +129,8 @@ def _report(e: Exception) -> int:
         return int(getattr(e, "exit_code", 0) or 0)
     if _is(e, "Abort"):
         return _interrupted(signal.SIGINT)
-    if _is(e, "BadParameter") and isinstance(getattr(e, "__cause__", None), OSError) or _unreadable(e):
-        print_error(_unreadable(e))  # click's "File ... is not readable": an input error, as a missing file is
+    if _unreadable(e):  # click's "Path '…' is not readable.": an input error, as a missing file is
+        print_error(_unreadable(e))
         return EXIT_INPUT
     if _is(e, "ClickException") and hasattr(e, "show"):
         e.show()
@@ -144,7 +144,7 @@ def _report(e: Exception) -> int:
 def _unreadable(e: Exception) -> str:
     """click's message for an input file it cannot read (empty when ``e`` is not that)."""
     text = getattr(e, "message", "") or ""
-    return text if _is(e, "BadParameter") and ("is not readable" in text or "does not exist" in text) else ""
+    return text if _is(e, "BadParameter") and "is not readable" in text else ""
 
 
 def main() -> None:

@@ -32,6 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from calidar.errors import InputError
+from calidar.validate import existing_file
 from calidar.validate import values as checked
 
 #: The six ATLAS beams (ground tracks).
@@ -181,6 +182,7 @@ def _open_hdf5(path: Path):
     """An open h5py.File; a clear error when the file is not HDF5."""
     import h5py
 
+    existing_file(path, "ATL03 file")
     try:
         return h5py.File(path, "r")
     except FileNotFoundError:
