@@ -116,10 +116,49 @@ def cluster_client(scheduler: str | None = None, workers: int | None = None) -> 
             yield client
         return
     # no dashboard; the scheduler's small HTTP endpoint on a free port, so clusters never collide
-    with LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None,
-                      scheduler_kwargs={"dashboard": False, "dashboard_address": ":0"},
-                      silence_logs=logging.ERROR) as cluster, Client(cluster) as client:
-        yield client
+    # the cluster's own log (its processes' too) only with CALIDAR_DEBUG: the tasks' errors come back as
+    # exceptions, and an interrupted run tears the cluster down mid-way (connections closed under it)
+    quiet = logging.ERROR if os.environ.get("CALIDAR_DEBUG") else logging.CRITICAL
+    with _workers_in_own_session(), LocalCluster(
+            n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None,
+            scheduler_kwargs={"dashboard": False, "dashboard_address": ":0"}, silence_logs=quiet) as cluster, \
+            Client(cluster) as client:
+        try:
+            yield client
+        except KeyboardInterrupt:
+            for name in ("distributed", "asyncio", "tornado"):  # "Task exception was never retrieved" and the like
+                logging.getLogger(name).setLevel(quiet)
+            raise
+
+
+@contextmanager
+def _workers_in_own_session() -> Iterator[None]:
+    """Worker processes started in a session of their own while the block runs (multiprocessing's
+    spawn, which a LocalCluster's nannies use, made to call ``setsid``): a Ctrl-C, which the terminal
+    sends to every process of its foreground group, reaches this process alone — which ends the run
+    and closes the cluster — instead of printing each worker's KeyboardInterrupt traceback. (Blocking
+    or ignoring SIGINT around the start does not reach them: they are spawned later, from Dask's
+    own threads, and asyncio installs its own SIGINT handler in each.)"""
+    import subprocess
+    from multiprocessing import util
+
+    spawned: list = []  # kept so that no Popen object warns when collected; multiprocessing reaps them
+
+    def spawn(path, args, passfds):
+        proc = subprocess.Popen(args, executable=path, pass_fds=tuple(sorted(map(int, passfds))), close_fds=True,
+                                start_new_session=True)
+        spawned.append(proc)
+        return proc.pid
+
+    original = getattr(util, "spawnv_passfds", None)
+    if original is None or os.name != "posix":
+        yield
+        return
+    util.spawnv_passfds = spawn
+    try:
+        yield
+    finally:
+        util.spawnv_passfds = original
 
 
 def map_pairs(func: Callable[..., Any], tasks: Sequence[tuple], scheduler: str | None = None,
