@@ -20,7 +20,7 @@ import time
 from collections.abc import Iterator
 from pathlib import Path
 
-from calidar.errors import OutputExistsError
+from calidar.errors import OutputExistsError, OutputWriteError
 
 _HELD: dict[str, list] = {}  #: lock file → [fd, how many holders in this process]
 COMMAND_CHARS = 160  #: characters of the other run's command line shown in the refusal
@@ -51,7 +51,10 @@ def _describe(owner: dict) -> str:
 def _acquire(path: Path, shown: str) -> int:
     """Open and flock ``path`` (retrying when the file was replaced under us); write our details."""
     for _ in range(50):
-        fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o644)
+        try:
+            fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o644)
+        except OSError as e:  # a read-only or unwritable destination: named as given, not the lock file
+            raise OutputWriteError(f"{shown}: cannot write: {e.strerror or e}") from None
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:

@@ -26,6 +26,7 @@ EXIT_OK = 0  #: done; the verdict, if any, is PASS or WARN
 EXIT_INPUT = 1  #: bad input or unwritable results
 EXIT_USAGE = 2  #: usage error
 EXIT_FAIL = 3  #: done with a FAIL verdict
+FORCE_HELP = "Replace a non-empty output folder whole: its previous files go (an input inside it is refused)."
 EXIT_CODES_HELP = ("Exit codes: 0 pass or warn, 3 fail verdict, 1 input error (or results not writable), "
                    "2 usage error, 130 interrupted (Ctrl-C), 143 terminated (SIGTERM).")
 

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import typer
 
-from calidar.cli.common import EXIT_FAIL, console, exit_with_verdict, print_verdict
+from calidar.cli.common import FORCE_HELP, EXIT_FAIL, console, exit_with_verdict, print_verdict
 
 ACCEPTANCE_FAILED = EXIT_FAIL  #: exit code when --tolerance is given and the check fails
 
@@ -29,7 +29,7 @@ def range_cal(
                                            "(m, ≤ 10); exit code 3 when the 95 % bound exceeds it."),
     fix_scale: bool = typer.Option(False, "--fix-scale", help="Estimate the offset only (range_scale fixed at 0), "
                                    "e.g. when all targets are at one distance."),
-    force: bool = typer.Option(False, "--force", help="Write into a non-empty output folder."),
+    force: bool = typer.Option(False, "--force", help=FORCE_HELP),
 ) -> None:
     """Calibrate range offset and scale of a circular-scan lidar against total-station observations.
 
@@ -70,7 +70,7 @@ def simulate_total_station(
     outliers: int = typer.Option(0, "--outliers", help="Scanner ranges with a gross error (≤ the targets)."),
     angle_unit: str = typer.Option("deg", "--angle-unit", help="deg or gon."),
     vertical: str = typer.Option("zd", "--vertical", help="zd (zenith distance) or va (vertical angle)."),
-    force: bool = typer.Option(False, "--force", help="Write into a non-empty output folder."),
+    force: bool = typer.Option(False, "--force", help=FORCE_HELP),
 ) -> None:
     """Simulate total-station observations of a circular-scan lidar with a known range offset and scale
     (at most 2 000 targets: what range-cal reads)."""

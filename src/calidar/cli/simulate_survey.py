@@ -8,7 +8,7 @@ import numpy as np
 import typer
 from rich.markup import escape
 
-from calidar.cli.common import console, parse_floats, progress_bar, progress_callback
+from calidar.cli.common import FORCE_HELP, console, parse_floats, progress_bar, progress_callback
 
 
 def register(app: typer.Typer, simulate: typer.Typer) -> None:
@@ -27,7 +27,7 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
                                               "ATTITUDE_BIAS (deg), ATTITUDE_DRIFT (deg/s)."),
         directions: str = typer.Option("opposite", "--directions", help="Line directions: same, opposite or cross."),
         density: float = typer.Option(1.0, "--density", help="Scales the pulse rate (points per m²)."),
-        force: bool = typer.Option(False, "--force", help="Write into an existing non-empty folder."),
+        force: bool = typer.Option(False, "--force", help=FORCE_HELP),
     ) -> None:
         """Simulate a survey: the true sensor shoots, the strips are delivered with the nominal one."""
         from calidar.outputs import check_out_dir, output_folder
