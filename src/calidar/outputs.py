@@ -99,6 +99,12 @@ def check_not_input(path: str | os.PathLike, inputs) -> None:
     guard_inputs([path], inputs)
 
 
+def claim_output(path: str | os.PathLike) -> None:
+    """Lock ``path`` for this run now, before work that precedes its :func:`output_folder`
+    (:func:`calidar.run_lock.claim`; the CLI releases it when the run ends)."""
+    run_lock.claim(path)
+
+
 def check_out_dir(path: str | os.PathLike, force: bool = False) -> Path:
     """Refuse (before any work) an output folder that is a file, or exists non-empty without ``force``.
     Creates nothing."""

@@ -108,6 +108,32 @@ def hold(destination: str | os.PathLike, shown: str | None = None) -> Iterator[P
             os.close(entry[0])
 
 
+_CLAIMS: list[str] = []  #: lock files claimed for the rest of the run (released by :func:`release_claims`)
+
+
+def claim(destination: str | os.PathLike, shown: str | None = None) -> None:
+    """Take the lock of ``destination`` now and keep it until :func:`release_claims` (the CLI calls it
+    when the run ends): for a command whose work precedes its output folder (``calidar quality``)."""
+    cm = hold(destination, shown)
+    cm.__enter__()
+    _CLAIMS.append(str(lock_path(destination)))
+
+
+def release_claims() -> None:
+    """Release what :func:`claim` took (the lock files go when no one in this process holds them)."""
+    while _CLAIMS:
+        key = _CLAIMS.pop()
+        entry = _HELD.get(key)
+        if entry is None:
+            continue
+        entry[1] -= 1
+        if entry[1] == 0:
+            del _HELD[key]
+            with contextlib.suppress(FileNotFoundError):
+                Path(key).unlink()
+            os.close(entry[0])
+
+
 def held_paths() -> list[Path]:
     """The lock files this process holds (removed at once by a second Ctrl-C)."""
     return [Path(k) for k in _HELD]

@@ -102,7 +102,7 @@ def test_no_python_warning_before_an_error(corpus, cli, tmp_path):
                         *TRAJ, *SENSOR, "--out", "{O}"], tmp_path / "out")
     code, _, err = cli(*argv)
     assert code == 1 and "nan_time.las" in err and "gps_time" in err, err
-    assert [ln for ln in err.splitlines() if ln.strip()] == [err.strip()] and err.startswith("error: "), err
+    assert [ln for ln in err.splitlines() if ln.strip()] == [err.strip()] and err.strip().startswith("error: "), err
     assert "Warning" not in err and "warning" not in err
 
 

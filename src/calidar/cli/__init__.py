@@ -29,7 +29,7 @@ import warnings
 
 import typer
 
-from calidar import __version__, interrupts
+from calidar import __version__, interrupts, run_lock
 from calidar.cli.common import EXIT_CODES_HELP, EXIT_FAIL, EXIT_INPUT, EXIT_OK, EXIT_USAGE, print_error, print_warning
 from calidar.errors import CalidarError
 from calidar.outputs import shown_path
@@ -90,7 +90,10 @@ def run(argv: list[str] | None = None) -> int:
     interrupts.reset()
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("default")
-        code = _run(argv)
+        try:
+            code = _run(argv)
+        finally:
+            run_lock.release_claims()
     if code in (EXIT_OK, EXIT_FAIL):
         for text in dict.fromkeys(f"{w.category.__name__}: {w.message}" for w in caught):
             print_warning(text)

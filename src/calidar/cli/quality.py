@@ -30,7 +30,7 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
         force: bool = typer.Option(False, "--force", help="Write into a non-empty --out folder."),
     ) -> None:
         """Swath-overlap differences between flight lines (dz = a − b): median, RMSDz, max, planimetric offsets."""
-        from calidar.outputs import check_out_dir, guard_inputs, output_folder
+        from calidar.outputs import check_out_dir, claim_output, guard_inputs, output_folder
         from calidar.strips.quality import write_rasters
         from calidar.strips.selection import parse_classes
 
@@ -41,6 +41,7 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
         if out:
             check_out_dir(out, force)
             guard_inputs([], strips, [out])
+            claim_output(out)  # --out is this run's from its start (released when the run ends)
         index, file_crs, results, notes, selections = measure(strips, cell, wanted, options)
         doc = {"lines_from": index.how, "points_used": {str(p): s.to_dict() for p, s in selections.items()},
                "pairs": [q.to_dict() for q in results], "notes": notes}

@@ -208,8 +208,8 @@ def run_tasks(func: Callable[..., Any], tasks: Sequence[tuple], *, shared: tuple
 
 
 class _DaemonPool:
-    """Threads that run submitted calls; daemons, so that an interrupted run exits at once instead
-    of waiting for the files being read (the tasks only read and compute: nothing to finish)."""
+    """Threads that run submitted calls (daemons: never what keeps the process alive); closing it
+    cancels the calls not started and waits for the running ones (one chunk each)."""
 
     def __init__(self, threads: int):
         import queue
@@ -237,9 +237,23 @@ class _DaemonPool:
         return future
 
     def close(self) -> None:
-        """Let the threads end after their current call (not waited for)."""
+        """Cancel the calls not started and wait for the threads to end their current one. Waited
+        for: a thread still inside a native decoder (lazrs) when the interpreter exits is unwound
+        by force and aborts the process ("FATAL: exception not rethrown", exit 134) after the run's
+        own error was printed. A second Ctrl-C ends the process at once (calidar.cli.signals)."""
+        import queue
+
+        while True:
+            try:
+                job = self.todo.get_nowait()
+            except queue.Empty:
+                break
+            if job is not None:
+                job[0].cancel()
         for _ in self.threads:
             self.todo.put(None)
+        for t in self.threads:
+            t.join()
 
 
 def _on_dask(client, func, tasks, shared, log, kind) -> Iterator[Any]:
