@@ -238,25 +238,27 @@ def _raise_write_error(e: BaseException, shown: str, tmp: Path) -> None:
         return
     cause = _write_cause(e, tmp)
     if cause is not None:
-        raise OutputWriteError(f"{shown}: cannot write the results: {cause}") from None
+        what, file = cause
+        raise OutputWriteError(f"{shown}: cannot write {shown_path(file) if file else 'the results'}: {what}") from None
 
 
-def _write_cause(e: BaseException, tmp: Path) -> str | None:
+def _write_cause(e: BaseException, tmp: Path) -> tuple[str, str | None] | None:
+    """(the cause, the file when known) of a failed write, or None when ``e`` is not one."""
     seen = set()
     while e is not None and id(e) not in seen:
         seen.add(id(e))
         if isinstance(e, OSError) and e.errno in _WRITE_ERRNOS:
-            return os.strerror(e.errno)
+            return os.strerror(e.errno), e.filename if isinstance(e.filename, str) else None
         text = str(e)
         for words in _WRITE_WORDS:
             if words in text:
-                return "No space left on device" if "28" in words else words
+                return ("No space left on device" if "28" in words else words), None
         e = e.__cause__ or e.__context__
     try:
         st = os.statvfs(tmp if tmp.exists() else tmp.parent)
     except OSError:
         return None
-    return "No space left on device" if st.f_bavail * st.f_frsize < FULL_BYTES else None
+    return ("No space left on device", None) if st.f_bavail * st.f_frsize < FULL_BYTES else None
 
 
 FULL_BYTES = 64 * 1024  #: free space below which a failed write is blamed on a full disk

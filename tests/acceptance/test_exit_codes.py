@@ -29,7 +29,7 @@ COMMANDS = {
     "simulate survey": None,  # test_sim_cli.py
     "denoise": ["denoise", "{P}/ATL03_sim.h5", "--out", "{O}.csv"],
     "ccr": ["ccr", "{P}/ATL03_sim.h5", "--ccr", "{P}/ccr.csv", "--bootstrap", "5", "--out", "{O}"],
-    "demo": None,  # a whole survey: tests/unit/demo
+    "demo": None,  # a whole survey and every calibration (minutes): run by hand, see the final report
     "quality": ["quality", S1, S2, "--out", "{O}"],
     "boresight": None,  # test_output_runs.py, test_signals_random.py
     "scanner analyze": ["scanner", "analyze", "--model", "wedge", "--range", "300", "--axis-tilt", "0.0005",

@@ -160,4 +160,24 @@ def main() -> None:
         sys.exit(_interrupted(interrupts.pending()))
     code = run(sys.argv[1:])
     signals.finish()
+    _exit(code)
+
+
+def _exit(code: int) -> None:
+    """Exit with ``code``. When threads still run (a reader inside a native decoder, after an error or
+    an interruption) the interpreter's finalisation would unwind them by force, which aborts the
+    process ("FATAL: exception not rethrown", exit 134): then the streams are flushed and the process
+    ends without it (the run's temporaries are already gone: every transaction cleaned up)."""
+    import threading
+
+    if any(t.is_alive() for t in threading.enumerate() if t is not threading.main_thread()):
+        import logging
+
+        logging.shutdown()
+        for stream in (sys.stdout, sys.stderr):
+            try:
+                stream.flush()
+            except (OSError, ValueError):
+                pass
+        os._exit(code)
     sys.exit(code)

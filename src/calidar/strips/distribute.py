@@ -23,6 +23,7 @@ MAX_GREETING_BYTES = 1 << 20  #: a Dask scheduler's first message (its handshake
 MAX_LOCAL_WORKERS = 256  #: local worker processes accepted (each takes a process and its memory)
 #: files read at once in this process (each holds one chunk's working arrays, ≈ 0.2 GB at 0.5 M points)
 IN_PROCESS_THREADS = min(2, os.cpu_count() or 1)
+JOIN_S = 0.5  #: how long a closing reader pool waits for its threads' current calls
 
 
 def check_cluster(scheduler: str | None = None, workers: int | None = None) -> None:
@@ -236,12 +237,14 @@ class _DaemonPool:
         self.todo.put((future, func, args))
         return future
 
-    def close(self) -> None:
-        """Cancel the calls not started and wait for the threads to end their current one. Waited
-        for: a thread still inside a native decoder (lazrs) when the interpreter exits is unwound
-        by force and aborts the process ("FATAL: exception not rethrown", exit 134) after the run's
-        own error was printed. A second Ctrl-C ends the process at once (calidar.cli.signals)."""
+    def close(self, wait_s: float = JOIN_S) -> None:
+        """Cancel the calls not started and wait up to ``wait_s`` for the threads to end their current
+        one: a thread still inside a native decoder (lazrs) when the interpreter exits is unwound by
+        force and aborts the process ("FATAL: exception not rethrown", exit 134) after the run's own
+        error. An interrupted run does not wait longer: the CLI ends a process whose threads still
+        run without the interpreter's finalisation (``calidar.cli.main``)."""
         import queue
+        import time
 
         while True:
             try:
@@ -252,8 +255,9 @@ class _DaemonPool:
                 job[0].cancel()
         for _ in self.threads:
             self.todo.put(None)
+        deadline = time.monotonic() + wait_s
         for t in self.threads:
-            t.join()
+            t.join(max(0.0, deadline - time.monotonic()))
 
 
 def _on_dask(client, func, tasks, shared, log, kind) -> Iterator[Any]:
