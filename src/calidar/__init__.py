@@ -15,6 +15,30 @@ The public API, one name per job (each documented with an example)::
 Names are imported on first use, so ``import calidar`` stays cheap.
 """
 
+
+
+def _record_signals_when_the_cli_starts() -> None:
+    """The ``calidar`` command (or ``python -m calidar``) starting: record SIGINT / SIGTERM from this
+    first line of calidar on (:mod:`calidar.interrupts`), so that a Ctrl-C while the CLI's modules
+    load ends the run cleanly, not in a KeyboardInterrupt traceback (``calidar.cli.signals`` takes
+    over). A library import changes no signal handler."""
+    import os
+    import signal
+    import sys
+    import threading
+
+    argv0 = os.path.basename(sys.argv[0]) if sys.argv else ""
+    orig = list(getattr(sys, "orig_argv", []))
+    starting = argv0 == "calidar" or any(a == "-m" and b == "calidar" for a, b in zip(orig, orig[1:]))
+    if starting and threading.current_thread() is threading.main_thread():
+        from calidar import interrupts
+
+        for s in (signal.SIGINT, signal.SIGTERM):
+            signal.signal(s, lambda signum, frame: interrupts.record(signum))
+
+
+_record_signals_when_the_cli_starts()
+
 __version__ = "0.1.0"
 
 #: public name → (module, attribute in it)

@@ -33,3 +33,7 @@ class OutputExistsError(CalidarError):
 
 class CalibrationError(CalidarError):
     """A calibration cannot proceed (no usable data, divergence, ...)."""
+
+
+class OutputWriteError(CalidarError):
+    """The results cannot be written (a full disk, a read-only or unwritable destination)."""

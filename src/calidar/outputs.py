@@ -17,15 +17,19 @@ Error messages that name a temporary path are shown with the destination's path 
 from __future__ import annotations
 
 import contextlib
+import errno
 import os
 import shutil
+import sys
 import tempfile
 from collections.abc import Iterable, Iterator
 from pathlib import Path
 
-from calidar.errors import OutputExistsError
+from calidar import interrupts, run_lock
+from calidar.errors import CalidarError, OutputExistsError, OutputWriteError
 
 _TEMPORARIES: dict[str, str] = {}  #: temporary path → the destination it stands for (for messages)
+_DEPTH = [0]  #: transactions open in this process (the outermost one's commit is the run's)
 
 
 def shown_path(text: str) -> str:
@@ -95,6 +99,12 @@ def check_not_input(path: str | os.PathLike, inputs) -> None:
     guard_inputs([path], inputs)
 
 
+def claim_output(path: str | os.PathLike) -> None:
+    """Lock ``path`` for this run now, before work that precedes its :func:`output_folder`
+    (:func:`calidar.run_lock.claim`; the CLI releases it when the run ends)."""
+    run_lock.claim(path)
+
+
 def check_out_dir(path: str | os.PathLike, force: bool = False) -> Path:
     """Refuse (before any work) an output folder that is a file, or exists non-empty without ``force``.
     Creates nothing."""
@@ -117,38 +127,158 @@ def prepare_out_dir(path: str | os.PathLike, force: bool = False) -> Path:
 @contextlib.contextmanager
 def output_folder(path: str | os.PathLike, force: bool = False, inputs: Iterable = ()) -> Iterator[Path]:
     """A run's output folder as a transaction: yields a fresh hidden folder beside ``path``; on
-    success its entries replace those of ``path`` (created when absent, renamed whole); on any
-    exception (interruptions included) it is removed and ``path`` is left as it was.
+    success it replaces ``path`` whole (created when absent; under ``--force`` the previous folder
+    goes whole, so no file of an earlier run stays); on any exception (interruptions included) it
+    is removed and ``path`` is left as it was, byte for byte. The output is locked for the run
+    (:mod:`calidar.run_lock`): a second run into it is refused.
 
     >>> with output_folder(tmp / "out") as d: (d / "a.json").write_text("{}")   # doctest: +SKIP
     """
+    shown = str(path)
     path = check_out_dir(path, force)
     guard_inputs([], inputs, [path])
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{path.name}.calidar-", dir=path.parent))
-    _TEMPORARIES[str(tmp)] = str(path)
-    try:
-        yield tmp
-        _commit(tmp, path)
-    except BaseException as e:
-        show_destinations(e)
-        raise
-    finally:
-        _TEMPORARIES.pop(str(tmp), None)
-        shutil.rmtree(tmp, ignore_errors=True)
+    if path.is_symlink():  # a link to a folder: the folder it points to is the output
+        path = Path(os.path.realpath(path))
+    with run_lock.hold(path, shown):
+        check_out_dir(path, force)  # again under the lock: another run may have written it meanwhile
+        try:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            tmp = Path(tempfile.mkdtemp(prefix=f".{path.name}.calidar-", dir=path.parent))
+        except OSError as e:
+            raise OutputWriteError(f"{shown}: cannot create the output folder: {e.strerror or e}") from None
+        _TEMPORARIES[str(tmp)] = shown
+        _DEPTH[0] += 1
+        try:
+            yield tmp
+            _commit(tmp, path, shown)
+        except BaseException as e:
+            show_destinations(e)
+            _raise_write_error(e, shown, tmp)
+            raise
+        finally:
+            _DEPTH[0] -= 1
+            shutil.rmtree(tmp, ignore_errors=True)
+            _TEMPORARIES.pop(str(tmp), None)
 
 
-def _commit(tmp: Path, path: Path) -> None:
-    """Move a finished run's folder into place (whole when ``path`` is absent, else entry by entry)."""
+def _commit(tmp: Path, path: Path, shown: str) -> None:
+    """Put a finished run's folder in place of ``path``, whole: renamed when ``path`` is absent,
+    else exchanged with the previous folder in one step (Linux ``renameat2(RENAME_EXCHANGE)``, or
+    two renames undone on failure). The previous folder ends at ``tmp`` (removed by the caller).
+    No commit after a signal (:func:`calidar.interrupts.check`)."""
     os.chmod(tmp, 0o777 & ~_umask())
-    if not path.exists():
+    top = _DEPTH[0] == 1
+    interrupts.check()
+    if not os.path.lexists(path):
         os.rename(tmp, path)
+    elif path.is_symlink() or not path.is_dir():
+        raise OutputExistsError(f"{shown}: changed during the run (now {'a link' if path.is_symlink() else 'a file'}, "
+                                "not the folder it was); left as it is, nothing written")
+    else:
+        try:
+            _exchange(tmp, path)
+        except OSError as e:
+            raise OutputWriteError(f"{shown}: cannot replace the folder ({e.strerror or e}{_why(e)}); the previous "
+                                   "result is left as it was") from None
+    if top:
+        interrupts.mark_committed()
+
+
+def _why(e: OSError) -> str:
+    return {errno.EBUSY: ": a mount point or in use", errno.EXDEV: ": another file system"}.get(e.errno, "")
+
+
+def _exchange(a: Path, b: Path) -> None:
+    """Swap two folders' names: atomically where the kernel can, else two renames (undone on failure)."""
+    if _renameat2(a, b):
         return
-    for entry in tmp.iterdir():
-        dest = path / entry.name
-        if dest.is_dir() and not dest.is_symlink():
-            shutil.rmtree(dest)
-        os.replace(entry, dest)
+    aside = Path(tempfile.mkdtemp(prefix=f".{b.name}.calidar-old-", dir=b.parent))
+    os.rmdir(aside)
+    os.rename(b, aside)
+    try:
+        os.rename(a, b)
+    except BaseException:
+        os.rename(aside, b)
+        raise
+    os.rename(aside, a)
+
+
+def _renameat2(a: Path, b: Path) -> bool:
+    """``renameat2(a, b, RENAME_EXCHANGE)``; False where unsupported (not Linux, old kernel, a file
+    system without it), an OSError for a real failure."""
+    import ctypes
+    import ctypes.util
+
+    if not sys.platform.startswith("linux"):
+        return False
+    try:
+        libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6", use_errno=True)
+        fn = libc.renameat2
+    except (OSError, AttributeError):
+        return False
+    at_fdcwd, rename_exchange = -100, 2
+    if fn(at_fdcwd, os.fsencode(a), at_fdcwd, os.fsencode(b), rename_exchange) == 0:
+        return True
+    err = ctypes.get_errno()
+    if err in (errno.ENOSYS, errno.EINVAL, errno.ENOTSUP):
+        return False
+    raise OSError(err, os.strerror(err), str(b))
+
+
+_WRITE_ERRNOS = {errno.ENOSPC, errno.EFBIG, errno.EDQUOT, errno.EROFS, errno.EIO}
+_WRITE_WORDS = ("No space left on device", "os error 28", "errno = 28", "File too large", "Disk quota exceeded",
+                "Read-only file system")
+
+
+def _raise_write_error(e: BaseException, shown: str, tmp: Path) -> None:
+    """Turn an error of writing the results (a full disk, a file too large, a read-only file system),
+    however a library reports it (an OSError, LazrsError, h5py's errors), into one line naming the
+    destination and the cause; other errors pass unchanged."""
+    if isinstance(e, (CalidarError, KeyboardInterrupt)) or not isinstance(e, Exception):
+        return
+    cause = _write_cause(e, tmp)
+    if cause is not None:
+        what, file = cause
+        raise OutputWriteError(f"{shown}: cannot write {shown_path(file) if file else 'the results'}: {what}") from None
+
+
+def _write_cause(e: BaseException, tmp: Path) -> tuple[str, str | None] | None:
+    """(the cause, the file when known) of a failed write, or None when ``e`` is not one."""
+    seen = set()
+    while e is not None and id(e) not in seen:
+        seen.add(id(e))
+        if isinstance(e, OSError) and e.errno in _WRITE_ERRNOS:
+            return os.strerror(e.errno), e.filename if isinstance(e.filename, str) else None
+        text = str(e)
+        for words in _WRITE_WORDS:
+            if words in text:
+                return ("No space left on device" if "28" in words else words), None
+        e = e.__cause__ or e.__context__
+    try:
+        st = os.statvfs(tmp if tmp.exists() else tmp.parent)
+    except OSError:
+        return None
+    return ("No space left on device", None) if st.f_bavail * st.f_frsize < FULL_BYTES else None
+
+
+FULL_BYTES = 64 * 1024  #: free space below which a failed write is blamed on a full disk
+
+
+def remove_temporaries() -> None:
+    """Remove every live temporary of this process and its output locks at once (a second Ctrl-C:
+    the run ends now, without unwinding)."""
+    for tmp in list(_TEMPORARIES):
+        for _ in range(3):  # a thread may still be writing into it
+            if os.path.isdir(tmp) and not os.path.islink(tmp):
+                shutil.rmtree(tmp, ignore_errors=True)
+            else:
+                with contextlib.suppress(OSError):
+                    os.unlink(tmp)
+            if not os.path.lexists(tmp):
+                break
+    for lock in run_lock.held_paths():
+        with contextlib.suppress(OSError):
+            lock.unlink()
 
 
 def _umask() -> int:
@@ -164,21 +294,32 @@ def atomic_path(path: str | os.PathLike, force: bool = True) -> Iterator[Path]:
     >>> with atomic_path(tmp / "a.json") as p: p.write_text("{}")   # doctest: +SKIP
     """
     path = check_writable(path, force)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=path.suffix, dir=path.parent)
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=path.suffix, dir=path.parent)
+    except OSError as e:
+        raise OutputWriteError(f"{shown_path(str(path))}: cannot write: {e.strerror or e}") from None
     os.close(fd)
     tmp = Path(tmp)
-    _TEMPORARIES[str(tmp)] = str(path)
+    _TEMPORARIES[str(tmp)] = shown_path(str(path))
+    _DEPTH[0] += 1
     try:
         yield tmp
         os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes 0600; give the usual permissions
+        top = _DEPTH[0] == 1
+        interrupts.check()
         os.replace(tmp, path)
+        if top:
+            interrupts.mark_committed()
     except BaseException as e:
         show_destinations(e)
+        if _DEPTH[0] == 1:  # inside a folder's transaction, the folder's names the destination
+            _raise_write_error(e, shown_path(str(path)), tmp)
         raise
     finally:
-        _TEMPORARIES.pop(str(tmp), None)
-        if tmp.exists():
+        _DEPTH[0] -= 1
+        with contextlib.suppress(FileNotFoundError):
             tmp.unlink()
+        _TEMPORARIES.pop(str(tmp), None)
 
 
 def write_text_atomic(path: str | os.PathLike, text: str, force: bool = True) -> Path:

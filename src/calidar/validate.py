@@ -19,6 +19,7 @@ from __future__ import annotations
 import json
 import math
 import os
+import stat
 from pathlib import Path
 
 import numpy as np
@@ -103,21 +104,53 @@ def values(array, source: str | os.PathLike | None, field: str, lo: float | None
     return a
 
 
+MAX_TEXT_BYTES = 64 << 20  #: text inputs (sensor.toml, CSV, JSON): read at most this much (a device never ends)
+
+
+def _kind(mode: int) -> str:
+    for test, name in ((stat.S_ISFIFO, "a pipe"), (stat.S_ISCHR, "a character device"), (stat.S_ISBLK, "a block device"),
+                       (stat.S_ISSOCK, "a socket")):
+        if test(mode):
+            return name
+    return "not a regular file"
+
+
 def existing_file(path: str | os.PathLike, what: str = "file") -> Path:
-    """``path`` when it is a file, else a clear error naming it."""
+    """``path`` when it is a regular file (links followed), else a clear error naming it: not found,
+    a folder, unreadable, or a pipe or device (read on purpose by no reader: a device never ends and
+    a pipe can be read once, while calidar reads inputs more than once)."""
     path = Path(path)
-    if not path.exists():
-        raise InputError(path, None, f"{what} not found")
-    if path.is_dir():
+    try:
+        st = path.stat()
+    except (FileNotFoundError, NotADirectoryError):
+        raise InputError(path, None, f"{what} not found") from None
+    except OSError as e:
+        raise InputError(path, None, f"cannot be read: {e.strerror or e}") from None
+    if stat.S_ISDIR(st.st_mode):
         raise InputError(path, None, f"is a folder; expected a {what}")
+    if not stat.S_ISREG(st.st_mode):
+        article = "an" if what[:1].lower() in "aeio" else "a"
+        raise InputError(path, None, f"is {_kind(st.st_mode)}, not a regular file; expected {article} {what} (save "
+                         "the stream to a file first)")
+    if not os.access(path, os.R_OK):
+        raise InputError(path, None, "cannot be read: permission denied")
     return path
 
 
-def read_text(path: str | os.PathLike, what: str = "text file") -> str:
-    """A file's text as UTF-8, or a clear error (missing, a folder, not UTF-8 — with the byte offset)."""
+def read_text(path: str | os.PathLike, what: str = "text file", limit: int = MAX_TEXT_BYTES) -> str:
+    """A file's text as UTF-8, or a clear error (missing, a folder, a pipe or device, larger than
+    ``limit`` bytes, not UTF-8 — with the byte offset). At most ``limit`` + 1 bytes are read."""
     path = existing_file(path, what)
+    size = path.stat().st_size
+    if size <= limit:
+        with open(path, "rb") as f:
+            data = f.read(limit + 1)
+        size = len(data)
+    if size > limit:
+        raise InputError(path, "size", f"expected a {what} of at most {limit / 2**20:g} MiB, got "
+                         f"{size / 2**20:.0f} MiB{'+' if size == limit + 1 else ''}")
     try:
-        return path.read_text(encoding="utf-8-sig")
+        return data.decode("utf-8-sig")
     except UnicodeDecodeError as e:
         raise InputError(path, "encoding", f"expected UTF-8 text, got byte 0x{e.object[e.start]:02x} "
                          f"at offset {e.start}") from None

@@ -175,5 +175,6 @@ def test_errors_name_the_output_not_its_temporary(cli, corpus, tmp_path, monkeyp
     monkeypatch.setattr("calidar.strips.quality.write_rasters", full_disk)
     out = tmp_path / "q"
     code, _, err = cli(*corpus.args(["quality", *STRIPS, "--out", "{O}"], out))
-    assert code == 1 and err.strip() == f"error: {out}/dz_1_2.tif: No space left on device"
+    # --out, the file and the cause (issue 27: one line naming --out and the cause)
+    assert code == 1 and err.strip() == f"error: {out}: cannot write {out}/dz_1_2.tif: No space left on device"
     assert list(tmp_path.iterdir()) == []

@@ -13,7 +13,7 @@ def test_cli_json_outputs_verdict_and_record(cli, tmp_path):
     out = tmp_path / "a"
     code, stdout, err = cli(*PALMER, "--eccentricity", "2e-4", "--phase", "0", "--delta-l", "0.02", "--delta-r", "0.02",
                             "--spec-arcsec", "10", "--json", "--out", out)
-    assert code == 0, err
+    assert code == 3, err  # a FAIL verdict (below): exit 3, the exit-code contract of every command (issue 26)
     doc = json.loads(stdout)
     assert doc["pattern"]["extent_x_m"] == pytest.approx(258.8, rel=1e-3)
     assert set(doc["errors"]) == {"eccentricity", "delta_l", "delta_r"}

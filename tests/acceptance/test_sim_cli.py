@@ -51,7 +51,8 @@ def test_refuses_non_empty_folder_without_force(cli, tmp_path):
     assert code == 1 and "not empty" in err and "--force" in err
     assert [p.name for p in tmp_path.iterdir()] == ["keep.txt"]
     code, out, err = cli("simulate", "survey", "--out", tmp_path, "--density", "0.01", "--force")
-    assert code == 0 and (tmp_path / "truth.json").exists() and (tmp_path / "keep.txt").read_text() == "mine"
+    # --force replaces the folder whole (issue 27): exactly the new run's files, none of before
+    assert code == 0 and (tmp_path / "truth.json").exists() and not (tmp_path / "keep.txt").exists()
 
 
 @pytest.mark.parametrize("args, message", [

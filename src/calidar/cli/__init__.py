@@ -4,15 +4,18 @@ Each command lives in its own module under ``calidar.cli`` as a module-level fun
 pipeline (``calidar.pipelines``), added to the app by the module's ``register(app, simulate)``;
 ``COMMAND_MODULES`` lists them. How a run ends:
 
-- errors a user can fix (:class:`calidar.errors.CalidarError`, missing files, permissions, a full
+- the exit codes are one contract for every command (:mod:`calidar.cli.common`, README "Exit codes"):
+  0 pass or warn, 3 a FAIL verdict (:func:`calidar.cli.common.exit_with_verdict`), 1 input error,
+  2 usage error, 130/143 interrupted;
+- errors a user can fix (:class:`calidar.errors.CalidarError`, missing or unreadable files, a full
   disk — any ``OSError``): one line naming the file (the ``--out`` destination, never a temporary), exit 1;
 - usage errors (unknown command or option, a value of the wrong type, a missing argument):
   the usage line and the error, exit 2 — for click itself and for the click that newer typer
   releases bundle (both are recognised by their class names);
-- Ctrl-C (SIGINT) and SIGTERM: one line "interrupted", exit 130 (143 for SIGTERM), after every
-  temporary file and folder of the run has been removed (outputs are transactions, see
-  :mod:`calidar.outputs`) — also when the interruption surfaces as another error (a native
-  library's, raised from inside its callback);
+- Ctrl-C (SIGINT) and SIGTERM (:mod:`calidar.cli.signals`): one line "interrupted", exit 130
+  (143 for SIGTERM), after every temporary file and folder of the run has been removed (outputs
+  are transactions, see :mod:`calidar.outputs`) — also when the interruption surfaces as another
+  error (a native library's, raised from inside its callback) or was dropped by Python;
 - anything else is a bug: "internal error" and exit 2 (``CALIDAR_DEBUG=1`` shows the traceback).
 """
 
@@ -22,11 +25,12 @@ import importlib
 import os
 import signal
 import sys
+import warnings
 
 import typer
 
-from calidar import __version__
-from calidar.cli.common import print_error
+from calidar import __version__, interrupts, run_lock
+from calidar.cli.common import EXIT_CODES_HELP, EXIT_FAIL, EXIT_INPUT, EXIT_OK, EXIT_USAGE, print_error, print_warning
 from calidar.errors import CalidarError
 from calidar.outputs import shown_path
 
@@ -41,6 +45,7 @@ app = typer.Typer(
     no_args_is_help=True,
     add_completion=False,
     pretty_exceptions_enable=False,
+    epilog=EXIT_CODES_HELP,
 )
 simulate = typer.Typer(help="Simulate inputs with a known truth.", no_args_is_help=True)
 app.add_typer(simulate, name="simulate")
@@ -61,23 +66,16 @@ for _name in COMMAND_MODULES:
     importlib.import_module(f"calidar.cli.{_name}").register(app, simulate)
 
 
-class Interrupted(KeyboardInterrupt):
-    """SIGTERM (or SIGINT) turned into an exception, so that every ``finally`` cleans up."""
-
-    def __init__(self, signum: int):
-        super().__init__(signum)
-        self.signum = signum
-
-
-_SIGNALS: list[int] = []  #: the signals that interrupted this run (typer turns the exception into exit 130)
+def _exit_codes_in_help(t: typer.Typer) -> None:
+    """Every command's --help ends with the exit codes (unless it states its own)."""
+    for c in t.registered_commands:
+        c.epilog = c.epilog or EXIT_CODES_HELP
+    for g in t.registered_groups:
+        g.epilog = g.epilog or EXIT_CODES_HELP
+        _exit_codes_in_help(g.typer_instance)
 
 
-def _raise_interrupted(signum, frame):
-    """The first signal interrupts the run; later ones (Ctrl-C pressed twice) are only recorded, so
-    that they cannot cut short the removal of the run's temporaries."""
-    _SIGNALS.append(signum)
-    if len(_SIGNALS) == 1:
-        raise Interrupted(signum)
+_exit_codes_in_help(app)
 
 
 def _is(e: BaseException, *names: str) -> bool:
@@ -86,19 +84,33 @@ def _is(e: BaseException, *names: str) -> bool:
 
 
 def run(argv: list[str] | None = None) -> int:
-    """Run the CLI with ``argv``; return the exit code (used by ``main`` and the tests)."""
-    _SIGNALS.clear()
+    """Run the CLI with ``argv``; return the exit code (used by ``main`` and the tests). Python
+    warnings raised during the run are shown as one line each after a run that succeeds, dropped
+    after a failure (its error is the one line that matters)."""
+    interrupts.reset()
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("default")
+        try:
+            code = _run(argv)
+        finally:
+            run_lock.release_claims()
+    if code in (EXIT_OK, EXIT_FAIL):
+        for text in dict.fromkeys(f"{w.category.__name__}: {w.message}" for w in caught):
+            print_warning(text)
+    return code
+
+
+def _run(argv: list[str] | None) -> int:
     try:
         # with standalone_mode=False click returns the code of a typer.Exit raised in a command
         code = app(args=argv, prog_name="calidar", standalone_mode=False)
-        if _SIGNALS:  # typer caught the interruption and returns 130 silently
-            raise Interrupted(_SIGNALS[-1])
+        interrupts.check()  # a signal swallowed on the way (typer returns 130 silently, or a callback dropped it)
         return code if isinstance(code, int) else 0
     except KeyboardInterrupt as e:
         return _interrupted(getattr(e, "signum", signal.SIGINT))
     except Exception as e:  # noqa: BLE001 - dispatched by kind in _report
-        if _SIGNALS:  # an error the interruption caused (e.g. raised inside a native LAZ writer's callback)
-            return _interrupted(_SIGNALS[-1])
+        if interrupts.pending() is not None:  # an error the interruption caused (e.g. inside a native callback)
+            return _interrupted(interrupts.pending())
         return _report(e)
 
 
@@ -111,28 +123,61 @@ def _report(e: Exception) -> int:
     """One line for an error a user can fix (exit 1), click's usage message (exit 2), else a bug."""
     if isinstance(e, CalidarError):
         print_error(shown_path(str(e)))
-        return 1
+        return EXIT_INPUT
     if isinstance(e, OSError):  # missing files, permissions, a full disk: the system's word, naming the file
         name = f"{shown_path(str(e.filename))}: " if e.filename is not None else ""
         print_error(f"{name}{e.strerror or e}")
-        return 1
+        return EXIT_INPUT
     if _is(e, "Exit"):
         return int(getattr(e, "exit_code", 0) or 0)
     if _is(e, "Abort"):
         return _interrupted(signal.SIGINT)
+    if _unreadable(e):  # click's "Path '…' is not readable.": an input error, as a missing file is
+        print_error(_unreadable(e))
+        return EXIT_INPUT
     if _is(e, "ClickException") and hasattr(e, "show"):
         e.show()
-        return int(getattr(e, "exit_code", 2))
+        return int(getattr(e, "exit_code", EXIT_USAGE))
     if os.environ.get("CALIDAR_DEBUG"):
         raise e
     print_error(f"internal error: {type(e).__name__}: {e} (set CALIDAR_DEBUG=1 for the traceback)", prefix="")
-    return 2
+    return EXIT_USAGE
+
+
+def _unreadable(e: Exception) -> str:
+    """click's message for an input file it cannot read (empty when ``e`` is not that)."""
+    text = getattr(e, "message", "") or ""
+    return text if _is(e, "BadParameter") and "is not readable" in text else ""
 
 
 def main() -> None:
-    signal.signal(signal.SIGTERM, _raise_interrupted)
-    signal.signal(signal.SIGINT, _raise_interrupted)
+    """The ``calidar`` command: signals handled by :mod:`calidar.cli.signals` from here on (they were
+    only recorded while the CLI was being imported, see ``calidar.__main__``)."""
+    from calidar.cli import signals
+
+    signals.install()
+    if interrupts.pending() is not None:  # Ctrl-C while Python was importing: end now, nothing begun
+        sys.exit(_interrupted(interrupts.pending()))
     code = run(sys.argv[1:])
-    for signum in (signal.SIGTERM, signal.SIGINT):  # a late signal must not kill the exit (Python's finalisation
-        signal.signal(signum, signal.SIG_IGN)       # would restore the default action for our handler)
+    signals.finish()
+    _exit(code)
+
+
+def _exit(code: int) -> None:
+    """Exit with ``code``. When threads still run (a reader inside a native decoder, after an error or
+    an interruption) the interpreter's finalisation would unwind them by force, which aborts the
+    process ("FATAL: exception not rethrown", exit 134): then the streams are flushed and the process
+    ends without it (the run's temporaries are already gone: every transaction cleaned up)."""
+    import threading
+
+    if any(t.is_alive() for t in threading.enumerate() if t is not threading.main_thread()):
+        import logging
+
+        logging.shutdown()
+        for stream in (sys.stdout, sys.stderr):
+            try:
+                stream.flush()
+            except (OSError, ValueError):
+                pass
+        os._exit(code)
     sys.exit(code)

@@ -7,7 +7,9 @@ from pathlib import Path
 
 import typer
 
-from calidar.cli.common import console, print_verdict, print_warning, progress_bar, progress_callback
+from calidar.cli.common import (
+    FORCE_HELP, console, exit_with_verdict, print_verdict, print_warning, progress_bar, progress_callback,
+)
 from calidar.cli.denoise import BEAM_HELP, SHOT_SPACING_RANGE
 
 
@@ -61,7 +63,7 @@ def ccr(
     bootstrap: int = typer.Option(100, "--bootstrap", help="Parametric bootstrap replicates for σ (0 = none)."),
     seed: int = typer.Option(0, "--seed", help="Seed of the bootstrap."),
     truth: Path | None = typer.Option(None, "--truth", help="truth.json of a simulation (adds errors to the outputs)."),
-    force: bool = typer.Option(False, "--force", help="Write into a non-empty output folder (never over an input)."),
+    force: bool = typer.Option(False, "--force", help=FORCE_HELP),
 ) -> None:
     """Solve along/cross-track geolocation bias and footprint diameter from CCR returns (maximum likelihood)."""
     from calidar.outputs import check_out_dir, output_folder
@@ -87,6 +89,7 @@ def ccr(
         print_warning(w)
     print_verdict(result.verdict, "CCR calibration")
     console.print(f"wrote {out / 'solution.json'} and {out / 'report.html'}", highlight=False, markup=False)
+    exit_with_verdict(result.verdict)
 
 
 def register(app: typer.Typer, simulate: typer.Typer) -> None:

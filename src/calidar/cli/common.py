@@ -1,4 +1,15 @@
-"""Shared CLI helpers: consoles, progress bars, option parsing."""
+"""Shared CLI helpers: consoles, progress bars, option parsing, and the exit codes of every command.
+
+Exit codes (one contract for every command; README.md "Exit codes"):
+
+====  ==================================================================
+0     done: the verdict (where there is one) is PASS or WARN
+3     done, and the verdict is FAIL (the results are written: read them)
+1     bad input, or the results cannot be written (one line names the file)
+2     usage error (unknown option, a value of the wrong type), or a bug
+130   interrupted by SIGINT (Ctrl-C); 143 by SIGTERM; nothing left behind
+====  ==================================================================
+"""
 
 from __future__ import annotations
 
@@ -8,7 +19,36 @@ from rich.console import Console
 from rich.markup import escape
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 
+from calidar import interrupts
 from calidar.validate import parse_floats, read_json  # noqa: F401 - the CLI's parsers
+
+EXIT_OK = 0  #: done; the verdict, if any, is PASS or WARN
+EXIT_INPUT = 1  #: bad input or unwritable results
+EXIT_USAGE = 2  #: usage error
+EXIT_FAIL = 3  #: done with a FAIL verdict
+FORCE_HELP = "Replace a non-empty output folder whole: its previous files go (an input inside it is refused)."
+EXIT_CODES_HELP = ("Exit codes: 0 pass or warn, 3 fail verdict, 1 input error (or results not writable), "
+                   "2 usage error, 130 interrupted (Ctrl-C), 143 terminated (SIGTERM).")
+
+
+def verdict_exit_code(*verdicts) -> int:
+    """The exit code of a run that ended with these verdicts (:class:`calidar.verdict.Verdict`,
+    or their status strings; None ignored): :data:`EXIT_FAIL` when one is FAIL, else :data:`EXIT_OK`.
+
+    >>> verdict_exit_code("pass", "warn"), verdict_exit_code("warn", "fail"), verdict_exit_code(None)
+    (0, 3, 0)
+    """
+    status = [getattr(v, "status", v) for v in verdicts if v is not None]
+    return EXIT_FAIL if "fail" in status else EXIT_OK
+
+
+def exit_with_verdict(*verdicts) -> None:
+    """End a command with :func:`verdict_exit_code` (after its output is printed): exit 3 on FAIL."""
+    import typer
+
+    code = verdict_exit_code(*verdicts)
+    if code != EXIT_OK:
+        raise typer.Exit(code)
 
 console = Console()
 err_console = Console(stderr=True, soft_wrap=True)  # one error = one line, never wrapped
@@ -57,6 +97,7 @@ def progress_callback(progress):
     tasks: dict[str, int] = {}
 
     def update(description: str, done: int, total: int) -> None:
+        interrupts.check()  # a signal a native callback swallowed ends the run here, before its commit
         if description not in tasks:
             tasks[description] = progress.add_task(description, total=total)
         progress.update(tasks[description], completed=done)

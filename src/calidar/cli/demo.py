@@ -7,13 +7,13 @@ from pathlib import Path
 
 import typer
 
-from calidar.cli.common import console, print_verdict, progress_bar, progress_callback
+from calidar.cli.common import FORCE_HELP, console, exit_with_verdict, print_verdict, progress_bar, progress_callback
 
 
 def demo(
     out: Path = typer.Option(..., "--out", help="Output folder for report.html and the simulated survey."),
     seed: int = typer.Option(0, "--seed", min=0, help="Random seed of the simulated survey (≥ 0)."),
-    force: bool = typer.Option(False, "--force", help="Write into an existing non-empty folder."),
+    force: bool = typer.Option(False, "--force", help=FORCE_HELP),
 ) -> None:
     """Simulate a small survey, run every calibration calidar has, and write DIR/report.html."""
     from calidar.demo import run_demo
@@ -25,6 +25,7 @@ def demo(
     for title, verdict in report.verdicts:
         print_verdict(verdict, title, brief=True)
     console.print(f"report: {out / 'report.html'} ({time.perf_counter() - t0:.0f} s)", markup=False)
+    exit_with_verdict(*(v for _, v in report.verdicts))
 
 
 def register(app: typer.Typer, simulate: typer.Typer) -> None:

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import typer
 
-from calidar.cli.common import console
+from calidar.cli.common import FORCE_HELP, console
 from calidar.cli.options import (
     CRS, GEOID_UNDULATION, TIME_SYSTEM, TRAJECTORY_ANGLES, TRAJECTORY_COLUMNS, TRAJECTORY_CRS, TRAJECTORY_HEADING,
     crs_option, point_options, trajectory_options,
@@ -52,7 +52,7 @@ def regeoref(
     crs: str | None = CRS, time_system: str | None = TIME_SYSTEM, geoid_undulation: float | None = GEOID_UNDULATION,
     trajectory_crs: str | None = TRAJECTORY_CRS, trajectory_angles: str | None = TRAJECTORY_ANGLES,
     trajectory_heading: str | None = TRAJECTORY_HEADING, trajectory_columns: str | None = TRAJECTORY_COLUMNS,
-    force: bool = typer.Option(False, "--force", help="Write into a non-empty output folder, overwriting."),
+    force: bool = typer.Option(False, "--force", help=FORCE_HELP),
     to_trajectory: Path | None = typer.Option(None, "--to-trajectory", help="Forward with this trajectory instead "
                                               "(e.g. the sbet_corrected.out of calidar boresight)."),
 ) -> None:

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import typer
 
-from calidar.cli.common import console
+from calidar.cli.common import FORCE_HELP, console
 
 
 def simulate_photons(
@@ -22,7 +22,7 @@ def simulate_photons(
     length: float = typer.Option(1200.0, "--length", help="Track length simulated (m)."),
     strength: str = typer.Option("strong", "--strength", help="Beam strength: strong (16 channels) or weak (4)."),
     ccr_photons: float = typer.Option(20.0, "--ccr-photons", help="Mean photons of a CCR at the footprint centre."),
-    force: bool = typer.Option(False, "--force", help="Write into a non-empty output folder."),
+    force: bool = typer.Option(False, "--force", help=FORCE_HELP),
 ) -> None:
     """Simulate an ATL03-layout pass over surveyed CCRs with a known geolocation bias."""
     from calidar.errors import InputError

@@ -32,7 +32,7 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
         """Swath-overlap differences between flight lines (dz = a − b): median, RMSDz, max, planimetric offsets
         (dx, dy ± σ, or not determined and why), and the USGS Lidar Base Specification swath checks with the
         quality level (QL0–QL3) each meets."""
-        from calidar.outputs import check_out_dir, guard_inputs, output_folder
+        from calidar.outputs import check_out_dir, claim_output, guard_inputs, output_folder
         from calidar.strips.quality import write_rasters
         from calidar.strips.selection import parse_classes
         from calidar.strips.usgs import SPECIFICATION, common_level, summary, usgs_checks
@@ -44,6 +44,7 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
         if out:
             check_out_dir(out, force)
             guard_inputs([], strips, [out])
+            claim_output(out)  # --out is this run's from its start (released when the run ends)
         index, file_crs, results, notes, selections, precisions = measure(strips, cell, wanted, options)
         checks = usgs_checks(results, precisions)
         doc = {"lines_from": index.how, "points_used": {str(p): s.to_dict() for p, s in selections.items()},

@@ -1,8 +1,9 @@
 """``calidar range-cal`` and ``calidar simulate total-station``.
 
-Exit codes of ``range-cal``: 0 done (and, with ``--tolerance``, the acceptance passed);
-1 bad input; 3 the acceptance check failed (the 95 % bound of the raw range error over the
-calibrated distances exceeds the tolerance).
+Exit codes of ``range-cal`` (the contract of every command, :mod:`calidar.cli.common`): 0 the
+verdict is PASS or WARN (with ``--tolerance``, the acceptance passed); 1 bad input; 2 usage error;
+3 the verdict is FAIL — e.g. the acceptance check failed (the 95 % bound of the raw range error
+over the calibrated distances exceeds the tolerance); 130/143 interrupted.
 """
 
 from __future__ import annotations
@@ -11,9 +12,9 @@ from pathlib import Path
 
 import typer
 
-from calidar.cli.common import console, print_verdict
+from calidar.cli.common import FORCE_HELP, EXIT_FAIL, console, exit_with_verdict, print_verdict
 
-ACCEPTANCE_FAILED = 3  #: exit code when --tolerance is given and the check fails
+ACCEPTANCE_FAILED = EXIT_FAIL  #: exit code when --tolerance is given and the check fails
 
 
 def _say(text: str) -> None:
@@ -28,11 +29,12 @@ def range_cal(
                                            "(m, ≤ 10); exit code 3 when the 95 % bound exceeds it."),
     fix_scale: bool = typer.Option(False, "--fix-scale", help="Estimate the offset only (range_scale fixed at 0), "
                                    "e.g. when all targets are at one distance."),
-    force: bool = typer.Option(False, "--force", help="Write into a non-empty output folder."),
+    force: bool = typer.Option(False, "--force", help=FORCE_HELP),
 ) -> None:
     """Calibrate range offset and scale of a circular-scan lidar against total-station observations.
 
-    Exit codes: 0 done (acceptance passed when --tolerance is given), 1 bad input, 3 acceptance failed.
+    Exit codes: 0 pass or warn (acceptance passed when --tolerance is given), 1 bad input, 2 usage error,
+    3 FAIL verdict (e.g. acceptance failed), 130/143 interrupted.
     """
     from calidar.outputs import output_folder
     from calidar.pipelines.rangecal import check_tolerance, run_range_cal
@@ -56,6 +58,7 @@ def range_cal(
     _say(f"wrote {out / 'solution.json'} and {out / 'report.html'}")
     if result.acceptance is not None and not result.acceptance["passed"]:
         raise typer.Exit(ACCEPTANCE_FAILED)
+    exit_with_verdict(run.verdict)
 
 
 def simulate_total_station(
@@ -67,7 +70,7 @@ def simulate_total_station(
     outliers: int = typer.Option(0, "--outliers", help="Scanner ranges with a gross error (≤ the targets)."),
     angle_unit: str = typer.Option("deg", "--angle-unit", help="deg or gon."),
     vertical: str = typer.Option("zd", "--vertical", help="zd (zenith distance) or va (vertical angle)."),
-    force: bool = typer.Option(False, "--force", help="Write into a non-empty output folder."),
+    force: bool = typer.Option(False, "--force", help=FORCE_HELP),
 ) -> None:
     """Simulate total-station observations of a circular-scan lidar with a known range offset and scale
     (at most 2 000 targets: what range-cal reads)."""

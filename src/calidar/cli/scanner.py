@@ -8,7 +8,7 @@ from pathlib import Path
 
 import typer
 
-from calidar.cli.common import console, print_verdict, progress_bar, progress_callback
+from calidar.cli.common import FORCE_HELP, console, exit_with_verdict, print_verdict, progress_bar, progress_callback
 
 
 def analyze(
@@ -33,7 +33,7 @@ def analyze(
     spec_arcsec: float = typer.Option(10.0, "--spec-arcsec", help="Pointing spec for the verdict and tolerances (arcsec)."),
     points: int = typer.Option(720, "--points", help="Points around the pattern (8–100000)."),
     as_json: bool = typer.Option(False, "--json", help="Print the summary as JSON on stdout."),
-    force: bool = typer.Option(False, "--force", help="Write into a non-empty output folder."),
+    force: bool = typer.Option(False, "--force", help=FORCE_HELP),
 ) -> None:
     """Scan pattern at a range, per-error point displacements, error budget, tolerances, separability
     from the boresight, and a verdict against the pointing spec."""
@@ -53,9 +53,11 @@ def analyze(
         run = run_scanner_analysis(settings, tmp, progress=progress_callback(bar))
     if as_json:
         sys.stdout.write(json.dumps(run.summary, allow_nan=False) + "\n")
+        exit_with_verdict(run.verdict)
         return
     _print_summary(run.summary, out)
     print_verdict(run.verdict)
+    exit_with_verdict(run.verdict)
 
 
 def _print_summary(s: dict, out: Path) -> None:

@@ -8,7 +8,7 @@ import numpy as np
 import typer
 from rich.markup import escape
 
-from calidar.cli.common import console, parse_floats, progress_bar, progress_callback
+from calidar.cli.common import FORCE_HELP, console, parse_floats, progress_bar, progress_callback
 
 
 def register(app: typer.Typer, simulate: typer.Typer) -> None:
@@ -30,7 +30,7 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
         checkpoints: int = typer.Option(0, "--checkpoints", help="Surveyed checkpoints to write (checkpoints.csv; "
                                         "a quarter under trees when there are trees), their truth in truth.json."),
         checkpoint_sigma: float = typer.Option(0.02, "--checkpoint-sigma", help="Survey σ of the checkpoints' heights, m."),
-        force: bool = typer.Option(False, "--force", help="Write into an existing non-empty folder."),
+        force: bool = typer.Option(False, "--force", help=FORCE_HELP),
     ) -> None:
         """Simulate a survey: the true sensor shoots, the strips are delivered with the nominal one."""
         from calidar.outputs import check_out_dir, output_folder

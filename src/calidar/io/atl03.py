@@ -32,6 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from calidar.errors import InputError
+from calidar.validate import existing_file
 from calidar.validate import values as checked
 
 #: The six ATLAS beams (ground tracks).
@@ -181,6 +182,7 @@ def _open_hdf5(path: Path):
     """An open h5py.File; a clear error when the file is not HDF5."""
     import h5py
 
+    existing_file(path, "ATL03 file")
     try:
         return h5py.File(path, "r")
     except FileNotFoundError:
@@ -325,34 +327,48 @@ def segment_photons(x_m: np.ndarray, segment_length_m: float = 20.0, first_id: i
 
 
 def write_atl03(path: str | Path, beams: list[PhotonBeam]) -> Path:
-    """Write beams in the ATL03 layout read by :func:`read_atl03` (radians → degrees)."""
+    """Write beams in the ATL03 layout read by :func:`read_atl03` (radians → degrees).
+
+    The file is built in memory and then written out as plain bytes: HDF5 failing a write itself
+    (a full disk) leaves its library in a state that prints pages of errors and can crash the
+    process at exit; a plain write fails with one OSError (ENOSPC)."""
+    import io
+
     import h5py
 
     path = Path(path)
-    with h5py.File(path, "w") as f:
-        f.attrs["short_name"] = "ATL03"
-        f.attrs["source"] = "calidar simulate photons (synthetic)"
-        for b in beams:
-            grp = f.create_group(b.beam)
-            if b.strength:
-                grp.attrs["atlas_beam_type"] = b.strength
-            if b.spot:
-                grp.attrs["atlas_spot_number"] = str(b.spot)
-            hg = grp.create_group("heights")
-            hg.create_dataset("delta_time", data=b.delta_time).attrs["units"] = "seconds since 2018-01-01"
-            hg.create_dataset("lat_ph", data=np.degrees(b.lat)).attrs["units"] = "degrees_north"
-            hg.create_dataset("lon_ph", data=np.degrees(b.lon)).attrs["units"] = "degrees_east"
-            hg.create_dataset("h_ph", data=b.h.astype(np.float32)).attrs["units"] = "meters"
-            hg.create_dataset("dist_ph_along", data=b.dist_along.astype(np.float32)).attrs["units"] = "meters"
-            hg.create_dataset("dist_ph_across", data=b.dist_across.astype(np.float32)).attrs["units"] = "meters"
-            hg.create_dataset("signal_conf_ph", data=b.signal_conf.astype(np.int8))
-            hg.create_dataset("quality_ph", data=b.quality.astype(np.int8))
-            gg = grp.create_group("geolocation")
-            gg.create_dataset("segment_id", data=b.segment_id.astype(np.int32))
-            gg.create_dataset("ph_index_beg", data=b.ph_index_beg.astype(np.int64))
-            gg.create_dataset("segment_ph_cnt", data=b.segment_ph_cnt.astype(np.int32))
-            if b.segment_dist_x is not None:
-                gg.create_dataset("segment_dist_x", data=b.segment_dist_x).attrs["units"] = "meters"
-            if b.segment_time is not None:
-                gg.create_dataset("delta_time", data=b.segment_time).attrs["units"] = "seconds since 2018-01-01"
+    buffer = io.BytesIO()
+    with h5py.File(buffer, "w") as f:
+        _write_beams(f, beams)
+    with open(path, "wb") as out:
+        out.write(buffer.getbuffer())
     return path
+
+
+def _write_beams(f, beams: list[PhotonBeam]) -> None:
+    """The ATL03 groups and datasets of ``beams`` into the open file ``f``."""
+    f.attrs["short_name"] = "ATL03"
+    f.attrs["source"] = "calidar simulate photons (synthetic)"
+    for b in beams:
+        grp = f.create_group(b.beam)
+        if b.strength:
+            grp.attrs["atlas_beam_type"] = b.strength
+        if b.spot:
+            grp.attrs["atlas_spot_number"] = str(b.spot)
+        hg = grp.create_group("heights")
+        hg.create_dataset("delta_time", data=b.delta_time).attrs["units"] = "seconds since 2018-01-01"
+        hg.create_dataset("lat_ph", data=np.degrees(b.lat)).attrs["units"] = "degrees_north"
+        hg.create_dataset("lon_ph", data=np.degrees(b.lon)).attrs["units"] = "degrees_east"
+        hg.create_dataset("h_ph", data=b.h.astype(np.float32)).attrs["units"] = "meters"
+        hg.create_dataset("dist_ph_along", data=b.dist_along.astype(np.float32)).attrs["units"] = "meters"
+        hg.create_dataset("dist_ph_across", data=b.dist_across.astype(np.float32)).attrs["units"] = "meters"
+        hg.create_dataset("signal_conf_ph", data=b.signal_conf.astype(np.int8))
+        hg.create_dataset("quality_ph", data=b.quality.astype(np.int8))
+        gg = grp.create_group("geolocation")
+        gg.create_dataset("segment_id", data=b.segment_id.astype(np.int32))
+        gg.create_dataset("ph_index_beg", data=b.ph_index_beg.astype(np.int64))
+        gg.create_dataset("segment_ph_cnt", data=b.segment_ph_cnt.astype(np.int32))
+        if b.segment_dist_x is not None:
+            gg.create_dataset("segment_dist_x", data=b.segment_dist_x).attrs["units"] = "meters"
+        if b.segment_time is not None:
+            gg.create_dataset("delta_time", data=b.segment_time).attrs["units"] = "seconds since 2018-01-01"

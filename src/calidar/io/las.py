@@ -24,7 +24,7 @@ from calidar.io.las_crs import las_crs
 from calidar.io.las_write import SCAN_ANGLE_STEP_DEG, LasChunkWriter, write_las  # noqa: F401 (the io face)
 from calidar.outputs import atomic_path
 from calidar.trajectory import SECONDS_PER_WEEK, TIME_SYSTEMS
-from calidar.validate import number
+from calidar.validate import existing_file, number
 
 ADJUSTED_STANDARD_OFFSET_S = 1e9  #: adjusted standard GPS time = GPS time − 1e9 s
 OPTIONAL_FIELDS = ("scan_angle_deg", "point_source_id", "return_number", "number_of_returns", "classification",
@@ -191,6 +191,7 @@ def _points(rec, header, path: Path, crs, time_system: str, fields, undulation=N
 
 def _open(path: Path, selection=laspy.DecompressionSelection.all()) -> laspy.LasReader:
     """A laspy reader; ``selection``: the LAZ (1.4 formats 6–10) layers to decompress."""
+    existing_file(path, "LAS/LAZ file")  # not a pipe or device: laspy would wait or read without end
     try:
         reader = laspy.open(path, decompression_selection=selection)
     except laspy.errors.LaspyException as e:

@@ -18,7 +18,7 @@ import numpy as np
 from calidar.errors import InputError
 from calidar.outputs import atomic_path
 from calidar.trajectory_accuracy import MAX_ATTITUDE_SIGMA_RAD, MAX_POSITION_SIGMA_M, TrajectoryAccuracy
-from calidar.validate import values
+from calidar.validate import existing_file, values
 
 FIELDS = ("time", "north_rms", "east_rms", "down_rms", "north_vel_rms", "east_vel_rms", "down_vel_rms",
           "roll_rms", "pitch_rms", "heading_rms")
@@ -30,9 +30,7 @@ RAW_LIMITS = (("m", MAX_POSITION_SIGMA_M), ("m/s", 100.0), ("arc-min", math.degr
 
 def read_smrmsg(path: str | Path) -> TrajectoryAccuracy:
     """Read an smrmsg file into a :class:`TrajectoryAccuracy` (SI: m, m/s, rad)."""
-    path = Path(path)
-    if not path.is_file():
-        raise InputError(path, None, "trajectory accuracy file not found")
+    path = existing_file(path, "trajectory accuracy file")
     size = path.stat().st_size
     if size == 0:
         raise InputError(path, "size", f"expected smrmsg records ({RECORD_BYTES} bytes each), the file is empty")

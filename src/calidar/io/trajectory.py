@@ -10,6 +10,7 @@ from calidar.io.optech_csd import csd_trajectory, is_csd, read_csd
 from calidar.io.sbet import read_sbet
 from calidar.io.trajectory_text import read_trajectory_text
 from calidar.trajectory import Trajectory
+from calidar.validate import existing_file
 
 SBET_SUFFIXES = (".out", ".sbet", ".smrmsg")
 TEXT_OPTIONS = {"crs": "--trajectory-crs", "angles": "--trajectory-angles", "heading_reference": "--trajectory-heading",
@@ -40,10 +41,7 @@ def read_trajectory(path: str | Path, **text_options) -> Trajectory:
     >>> bool(np.allclose(sbet.lat, text.lat, rtol=0, atol=1e-12)), text.source.endswith("traj.csv")
     (True, True)
     """
-    path = Path(path)
-    if not path.is_file():
-        raise InputError(path, None, "trajectory file not found" if not path.is_dir() else "is a folder; expected "
-                         "a trajectory file")
+    path = existing_file(path, "trajectory file")
     given = {k: v for k, v in text_options.items() if v is not None}
     binary = is_binary(path) or (path.suffix.lower() in SBET_SUFFIXES and path.stat().st_size == 0)
     if binary and given:

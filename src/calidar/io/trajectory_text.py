@@ -22,6 +22,8 @@ from calidar.errors import InputError
 from calidar.trajectory import HEIGHT_RANGE_M, TIME_SYSTEMS, Trajectory
 from calidar.validate import read_text, values
 
+MAX_TEXT_TRAJECTORY_BYTES = 1 << 30  #: a text trajectory larger than 1 GiB: convert it to an SBET
+
 #: canonical column → accepted header names (lower case, without spaces, quotes, "_" or units)
 SYNONYMS = {
     "time": ("time", "gpstime", "gpst", "t", "timestamp", "sow", "gpsseconds", "secondsofweek"),
@@ -119,7 +121,7 @@ def read_trajectory_text(path, *, columns=None, crs=None, angles: str = "deg", h
         raise InputError(path, "heading_reference", f"expected 'true' or 'grid', got {heading_reference!r}")
     if time_system not in TIME_SYSTEMS:
         raise InputError(path, "time_system", f"expected one of {TIME_SYSTEMS}, got {time_system!r}")
-    lines = read_text(path, "text trajectory").splitlines()
+    lines = read_text(path, "text trajectory", limit=MAX_TEXT_TRAJECTORY_BYTES).splitlines()
     body = [(i, ln) for i, ln in enumerate(lines) if ln.strip() and not ln.lstrip().startswith("#")]
     if not body:
         raise InputError(path, None, "expected trajectory records, the file is empty")

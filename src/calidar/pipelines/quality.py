@@ -160,15 +160,17 @@ def checked_differences(acc, settings, names: dict[int, str]):
     if not results:
         listed = ", ".join(strip_name(i, names) for i in sorted(acc.selections))
         if settings.cell_m is not None:
-            raise InputError(None, "--cell", f"no {settings.cell_m:g} m cell is shared by two of the "
-                             f"{len(acc.selections)} flight lines ({listed}); expected a smaller cell")
+            raise InputError(None, "--cell", f"no {settings.cell_m:g} m cell holds points of two of the "
+                             f"{len(acc.selections)} flight lines ({listed}); expected a larger cell (or leave "
+                             "--cell out to have one chosen), unless the lines do not overlap")
         raise InputError(None, "STRIPS", f"none of the {len(acc.selections)} flight lines ({listed}) overlap another; "
                          "nothing to compare")
     empty = [f"{q.a}–{q.b}" for q in results if q.n_cells == 0]
     if empty and settings.cell_m is not None:
         if len(empty) == len(results):
             raise InputError(None, "--cell", f"no {settings.cell_m:g} m cell of any overlap is smooth and holds enough "
-                             "points of both lines; expected a smaller cell (or leave --cell out to have one chosen)")
+                             "points of both lines; expected a larger cell, to hold more points (or leave --cell out "
+                             "to have one chosen)")
         notes.append(f"pairs {', '.join(empty)}: no {settings.cell_m:g} m cell is smooth and holds enough points of "
-                     "both lines (a smaller --cell may help)")
+                     "both lines (a larger --cell holds more points; a smaller one is smoother on rough ground)")
     return results, notes

@@ -18,9 +18,12 @@ from calidar.errors import CalibrationError
 
 SCATTER_BYTES = 1_000_000  #: arrays larger than this are sent to the workers once, ahead of the tasks
 CONNECT_TIMEOUT_S = 10.0  #: how long to wait for a scheduler given by address
+PROBE_TIMEOUT_S = 5.0  #: how long the first TCP connection and the scheduler's greeting may take each
+MAX_GREETING_BYTES = 1 << 20  #: a Dask scheduler's first message (its handshake) is a few hundred bytes
 MAX_LOCAL_WORKERS = 256  #: local worker processes accepted (each takes a process and its memory)
 #: files read at once in this process (each holds one chunk's working arrays, ≈ 0.2 GB at 0.5 M points)
 IN_PROCESS_THREADS = min(2, os.cpu_count() or 1)
+JOIN_S = 0.5  #: how long a closing reader pool waits for its threads' current calls
 
 
 def check_cluster(scheduler: str | None = None, workers: int | None = None) -> None:
@@ -33,6 +36,64 @@ def check_cluster(scheduler: str | None = None, workers: int | None = None) -> N
                                "not both")
     if workers is not None:
         integer(workers, "--workers", 1, MAX_LOCAL_WORKERS, why="local worker processes")
+    if scheduler is not None:
+        scheduler_address(scheduler)
+
+
+def scheduler_address(text: str) -> tuple[str, str, int | None]:
+    """(protocol, host, port) of a ``--scheduler`` address ("tcp://host:8786", "host:8786"), or a
+    clear error for a malformed one."""
+    from calidar.errors import InputError
+
+    expected = f"expected a Dask scheduler address such as tcp://host:8786, got {text!r}"
+    protocol, _, rest = text.rpartition("://") if "://" in text else ("tcp", "", text)
+    if protocol not in ("tcp", "tls", "inproc", "ucx", "ws", "wss") or not rest:
+        raise InputError(None, "--scheduler", expected)
+    if protocol not in ("tcp", "tls"):
+        return protocol, rest, None
+    host, _, port = rest.rpartition(":")
+    host = host.strip("[]")
+    if not host or not port.isdigit() or not 0 < int(port) < 65536 or any(c.isspace() or c in "/?#@" for c in host):
+        raise InputError(None, "--scheduler", expected)
+    return protocol, host, int(port)
+
+
+def probe_scheduler(text: str, timeout: float = PROBE_TIMEOUT_S) -> None:
+    """Check, within 2 × ``timeout``, that a tcp:// address answers as a Dask scheduler does: on a
+    new connection it sends its handshake first, a short message framed by its length (8 bytes,
+    little-endian). An HTTP server says nothing; a proxy answering "HTTP/1.1 400" gives an absurd
+    length (which Dask itself would try to allocate: 3 EiB). Either is a clear error."""
+    import socket
+    import struct
+
+    protocol, host, port = scheduler_address(text)
+    if protocol != "tcp":
+        return  # TLS and the other transports: left to Dask's own connect timeout
+    where = f"the Dask scheduler at {text}"
+    try:
+        with socket.create_connection((host, port), timeout=timeout) as sock:
+            sock.settimeout(timeout)
+            head = _recv(sock, 8)
+            (n,) = struct.unpack("<Q", head)
+            if not 0 < n <= MAX_GREETING_BYTES:
+                raise CalibrationError(f"{where}: not a Dask scheduler (it answered {head!r}…); check the address "
+                                       "and port (the scheduler's default is 8786)")
+            _recv(sock, n)
+    except socket.timeout:
+        raise CalibrationError(f"{where}: no answer within {timeout:g} s as a Dask scheduler would give; is it one "
+                               "(the scheduler's default port is 8786)?") from None
+    except OSError as exc:
+        raise CalibrationError(f"cannot reach {where}: {exc.strerror or exc}") from None
+
+
+def _recv(sock, n: int) -> bytes:
+    data = b""
+    while len(data) < n:
+        chunk = sock.recv(n - len(data))
+        if not chunk:
+            raise CalibrationError(f"{sock.getpeername()}: closed the connection: not a Dask scheduler")
+        data += chunk
+    return data
 
 
 @contextmanager
@@ -47,6 +108,7 @@ def cluster_client(scheduler: str | None = None, workers: int | None = None) -> 
     from dask.distributed import Client, LocalCluster
 
     if scheduler is not None:
+        probe_scheduler(scheduler)
         try:
             client = Client(scheduler, timeout=CONNECT_TIMEOUT_S)
         except (OSError, TimeoutError) as exc:
@@ -55,10 +117,49 @@ def cluster_client(scheduler: str | None = None, workers: int | None = None) -> 
             yield client
         return
     # no dashboard; the scheduler's small HTTP endpoint on a free port, so clusters never collide
-    with LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None,
-                      scheduler_kwargs={"dashboard": False, "dashboard_address": ":0"},
-                      silence_logs=logging.ERROR) as cluster, Client(cluster) as client:
-        yield client
+    # the cluster's own log (its processes' too) only with CALIDAR_DEBUG: the tasks' errors come back as
+    # exceptions, and an interrupted run tears the cluster down mid-way (connections closed under it)
+    quiet = logging.ERROR if os.environ.get("CALIDAR_DEBUG") else logging.CRITICAL
+    with _workers_in_own_session(), LocalCluster(
+            n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None,
+            scheduler_kwargs={"dashboard": False, "dashboard_address": ":0"}, silence_logs=quiet) as cluster, \
+            Client(cluster) as client:
+        try:
+            yield client
+        except KeyboardInterrupt:
+            for name in ("distributed", "asyncio", "tornado"):  # "Task exception was never retrieved" and the like
+                logging.getLogger(name).setLevel(quiet)
+            raise
+
+
+@contextmanager
+def _workers_in_own_session() -> Iterator[None]:
+    """Worker processes started in a session of their own while the block runs (multiprocessing's
+    spawn, which a LocalCluster's nannies use, made to call ``setsid``): a Ctrl-C, which the terminal
+    sends to every process of its foreground group, reaches this process alone — which ends the run
+    and closes the cluster — instead of printing each worker's KeyboardInterrupt traceback. (Blocking
+    or ignoring SIGINT around the start does not reach them: they are spawned later, from Dask's
+    own threads, and asyncio installs its own SIGINT handler in each.)"""
+    import subprocess
+    from multiprocessing import util
+
+    spawned: list = []  # kept so that no Popen object warns when collected; multiprocessing reaps them
+
+    def spawn(path, args, passfds):
+        proc = subprocess.Popen(args, executable=path, pass_fds=tuple(sorted(map(int, passfds))), close_fds=True,
+                                start_new_session=True)
+        spawned.append(proc)
+        return proc.pid
+
+    original = getattr(util, "spawnv_passfds", None)
+    if original is None or os.name != "posix":
+        yield
+        return
+    util.spawnv_passfds = spawn
+    try:
+        yield
+    finally:
+        util.spawnv_passfds = original
 
 
 def map_pairs(func: Callable[..., Any], tasks: Sequence[tuple], scheduler: str | None = None,
@@ -108,8 +209,8 @@ def run_tasks(func: Callable[..., Any], tasks: Sequence[tuple], *, shared: tuple
 
 
 class _DaemonPool:
-    """Threads that run submitted calls; daemons, so that an interrupted run exits at once instead
-    of waiting for the files being read (the tasks only read and compute: nothing to finish)."""
+    """Threads that run submitted calls (daemons: never what keeps the process alive); closing it
+    cancels the calls not started and waits for the running ones (one chunk each)."""
 
     def __init__(self, threads: int):
         import queue
@@ -136,10 +237,27 @@ class _DaemonPool:
         self.todo.put((future, func, args))
         return future
 
-    def close(self) -> None:
-        """Let the threads end after their current call (not waited for)."""
+    def close(self, wait_s: float = JOIN_S) -> None:
+        """Cancel the calls not started and wait up to ``wait_s`` for the threads to end their current
+        one: a thread still inside a native decoder (lazrs) when the interpreter exits is unwound by
+        force and aborts the process ("FATAL: exception not rethrown", exit 134) after the run's own
+        error. An interrupted run does not wait longer: the CLI ends a process whose threads still
+        run without the interpreter's finalisation (``calidar.cli.main``)."""
+        import queue
+        import time
+
+        while True:
+            try:
+                job = self.todo.get_nowait()
+            except queue.Empty:
+                break
+            if job is not None:
+                job[0].cancel()
         for _ in self.threads:
             self.todo.put(None)
+        deadline = time.monotonic() + wait_s
+        for t in self.threads:
+            t.join(max(0.0, deadline - time.monotonic()))
 
 
 def _on_dask(client, func, tasks, shared, log, kind) -> Iterator[Any]:
