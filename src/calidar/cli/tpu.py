@@ -8,7 +8,7 @@ import numpy as np
 import typer
 from rich.markup import escape
 
-from calidar.cli.common import console, progress_bar, progress_callback
+from calidar.cli.common import FORCE_HELP, console, progress_bar, progress_callback
 from calidar.cli.options import CRS, GEOID_UNDULATION, TIME_SYSTEM, point_options
 
 
@@ -32,12 +32,12 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
         beam_divergence: float = typer.Option(0.25, "--beam-divergence", help="Beam divergence, full angle, mrad "
                                               "(0: no footprint term)."),
         crs: str | None = CRS, time_system: str | None = TIME_SYSTEM, geoid_undulation: float | None = GEOID_UNDULATION,
-        force: bool = typer.Option(False, "--force", help="Write into a non-empty --out folder."),
+        force: bool = typer.Option(False, "--force", help=FORCE_HELP),
     ) -> None:
         """Per-point uncertainty (TPU): horizontal and vertical 1σ of every point from the trajectory's
         accuracy, range and scan-angle noise, the footprint on the local surface and the calibration's
         covariance, written as LAS extra bytes total_thu/total_tvu (m)."""
-        from calidar.outputs import check_out_dir, guard_inputs, output_folder
+        from calidar.outputs import check_out_dir, claim_output, guard_inputs, output_folder
         from calidar.pipelines.tpu import TpuOptions, run_tpu
         from calidar.tpu.propagate import TpuSettings
         from calidar.validate import number
@@ -51,6 +51,7 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
         check_out_dir(out, force)
         guard_inputs([out / p.name for p in points], [*points, trajectory, sensor, calibration, trajectory_accuracy],
                      [out])
+        claim_output(out)  # --out is this run's from its start (released when the run ends)
         with progress_bar() as bar, output_folder(out, force, inputs=points) as tmp:
             results = run_tpu(points, trajectory, sensor, tmp, options, progress_callback(bar))
         for r in results:
