@@ -138,7 +138,9 @@ def measure(paths, cell_m=None, classes=None, options: PointOptions = PointOptio
         for i in index.ids:  # lines without a selected point: named in the notes
             acc.add(i, np.zeros((0, 3)))
         results, notes = checked_differences(acc, settings, names)
-    return index, crs, results, notes, selections
+    from calidar.pipelines.plausibility import heights_notes
+
+    return index, crs, results, [*index.notes, *notes, *heights_notes(crs, options.geoid_undulation_m, relative=True)], selections
 
 
 def checked_differences(acc, settings, names: dict[int, str]):
