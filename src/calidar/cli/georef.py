@@ -42,7 +42,7 @@ def inverse(
         trajectory_options=trajectory_options(trajectory_crs, trajectory_angles, trajectory_heading, trajectory_columns),
         force=force, notes=notes)
     for note in notes:
-        console.print(note, highlight=False, soft_wrap=True, markup=False)
+        console.print(f"note: {note}", highlight=False, soft_wrap=True, markup=False)
     console.print(f"{n} points → {out}", highlight=False, soft_wrap=True, markup=False)
 
 
@@ -73,7 +73,7 @@ def regeoref(
             trajectory_options=trajectory_options(trajectory_crs, trajectory_angles, trajectory_heading,
                                                   trajectory_columns), to_trajectory=to_trajectory, notes=notes)
     for note in notes:
-        console.print(note, highlight=False, soft_wrap=True, markup=False)
+        console.print(f"note: {note}", highlight=False, soft_wrap=True, markup=False)
     for path, n in written.items():
         console.print(f"{out / path.name}: {n} points", highlight=False, soft_wrap=True, markup=False)
 

@@ -28,6 +28,7 @@ MIN_SCALE = 1e-12
 #: header counts fewer points than the chunk holds
 LAZ_SLACK_BYTES = 96
 LAZ_RECORD_ID = 22204
+LAYERED_FORMAT = 6  #: LAS point formats from 6 on are compressed in layers (LAZ 1.4)
 
 
 def check_scales(header: laspy.LasHeader, path: Path) -> None:
@@ -61,14 +62,15 @@ def check_laz_count(header: laspy.LasHeader, path: Path) -> None:
         header.calidar_laz_chunk_size = None if laz.uses_variable_size_chunks() else laz.chunk_size()
     st = os.stat(path)
     problem = _laz_count_problem(str(Path(path).resolve()), st.st_size, st.st_mtime_ns, int(header.offset_to_point_data),
-                                 int(header.point_count))
+                                 int(header.point_count), header.point_format.id >= LAYERED_FORMAT)
     if problem:
         raise InputError(path, "point_count", problem)
 
 
 @lru_cache(maxsize=256)
-def _laz_count_problem(path: str, size: int, mtime_ns: int, offset: int, count: int) -> str | None:
-    """What is wrong with the point count of a LAZ file (None: nothing); size and mtime key the cache."""
+def _laz_count_problem(path: str, size: int, mtime_ns: int, offset: int, count: int, layered: bool) -> str | None:
+    """What is wrong with the point count of a LAZ file (None: nothing); size and mtime key the
+    cache. ``layered``: point formats 6–10, whose chunks state their own point counts."""
     with laspy.open(path) as reader:
         vlr = _laz_vlr(reader.header)
     if vlr is None:
@@ -84,6 +86,8 @@ def _laz_count_problem(path: str, size: int, mtime_ns: int, offset: int, count: 
     if not table:
         return None
     counts = np.array([c[0] for c in table], np.int64)
+    if layered:
+        return _layered_count_problem(path, data_start, table, laz.item_size(), count)
     if laz.uses_variable_size_chunks():
         held = int(counts.sum())
         if held != count:
@@ -100,6 +104,26 @@ def _laz_count_problem(path: str, size: int, mtime_ns: int, offset: int, count: 
     last_bytes = int(table[-1][1])
     chunk_end = data_start + sum(int(c[1]) for c in table)
     return _last_chunk_problem(path, offset, vlr.record_data, laz, last_first, count - last_first, chunk_end, last_bytes)
+
+
+def _layered_count_problem(path: str, data_start: int, table, item_size: int, count: int) -> str | None:
+    """The header's count against the counts the chunks of a layered LAZ (formats 6–10) state: each
+    chunk starts with its first point raw (``item_size`` bytes), then its point count (uint32;
+    LASzip's layered chunk layout)."""
+    held, start = 0, data_start
+    with open(path, "rb") as f:
+        for n_bytes in (int(c[1]) for c in table):
+            f.seek(start + item_size)
+            raw = f.read(4)
+            if len(raw) < 4:
+                return f"the LAZ chunk at byte {start} is cut short: a truncated file"
+            held += int.from_bytes(raw, "little")
+            start += n_bytes
+    if held != count:
+        what = "fewer" if count < held else "more"
+        return (f"the header says {count} points, the LAZ chunks hold {held}: a header counting {what} points than the "
+                "file holds; expected the true count (rewrite the file, e.g. with las2las or pdal translate)")
+    return None
 
 
 def _last_chunk_problem(path, offset, record_data, laz, first, n, chunk_end, chunk_bytes) -> str | None:

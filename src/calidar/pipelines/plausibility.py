@@ -62,6 +62,7 @@ class GeometryCheck:
     source: object  #: the points' file (for messages)
     rows: list = field(default_factory=list)  #: (down, across, scan angle deg) samples with scan angles
     seen: int = 0  #: points of the chunks added so far (the next chunk's first point)
+    label: str | None = None  #: what the points are, for messages (default: "points i–j" of the file)
 
     def add(self, traj, t: np.ndarray, ecef: np.ndarray, scan_angle_deg: np.ndarray | None) -> None:
         """Check a sample of the file's next chunk; raise when its geometry is impossible."""
@@ -74,7 +75,7 @@ class GeometryCheck:
         if k.size == 0:
             return
         down, across, along = local_geometry(traj, t[k], ecef[k])
-        where = f"points {first}–{first + t.size - 1}"
+        where = self.label or f"points {first}–{first + t.size - 1}"
         height = float(np.median(down))
         if height <= 0:
             raise InputError(self.source, "z", f"{where}: the points lie a median {-height:.0f} m above the trajectory "
@@ -151,5 +152,4 @@ def heights_notes(crs, geoid_undulation_m: float | None, check: "GeometryCheck |
     offset = None if check is None else check.vertical_warning(reference)
     if warning and est is not None and offset is None:
         return [f"heights: {reference}; the file's scan angles agree to {est[0]:+.1f} ± {est[1]:.1f} m"]
-    return [f"heights: {reference}"] + ([f"warning: {warning}"] if warning else []) + ([f"warning: {offset}"] if offset
-                                                                                        else [])
+    return [f"heights: {warning or reference}"] + ([offset] if offset else [])

@@ -282,7 +282,7 @@ def ingest_strips(paths, trajectory, sensor, options: IngestOptions = IngestOpti
     build = [(i, np.concatenate(ecef.pop(i)), np.concatenate(times.pop(i)), trajectory, sensor, frame,
               ", ".join(where[i]), span[i]) for i in sorted(ecef)]
     for i, e, t, *_ in build:  # wrong CRS or zone, wrong trajectory: one clear error before the adjustment
-        GeometryCheck(f"flight line {strip_name(i, names)}").add(trajectory, t, e, None)
+        GeometryCheck(f"flight line {strip_name(i, names)}", label="its overlap points").add(trajectory, t, e, None)
     strips = list(run_tasks(Strip.from_ecef, build, threads=work.local_threads if work else 1))
     crs = las_file_crs(files[0].path, files[0].points.crs)
     notes = line_notes + unpaired_notes(footprint, pairs, options.cell_m, options.min_cells, names)

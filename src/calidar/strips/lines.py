@@ -78,10 +78,6 @@ def check_distinct(paths: Sequence[str | Path]) -> None:
                              f"holds the same points as {other.name}: a duplicate; expected each strip once")
 
 
-#: ids given to the second, third, … flight line sharing a point_source_id (:func:`shared_id_splits`)
-SPLIT_ID_BASE = 1 << 16
-
-
 def shared_id_splits(spans: dict[tuple[int, str], tuple[float, float]], gap_s: float = GAP_S
                      ) -> tuple[dict[int, tuple[np.ndarray, np.ndarray]], list[str]]:
     """Flight lines that are distinct files with one point_source_id, kept apart (issue 27).
@@ -89,11 +85,11 @@ def shared_id_splits(spans: dict[tuple[int, str], tuple[float, float]], gap_s: f
     ``spans``: (point_source_id, file name) → (first, last GPS time s) of its points. Files of one
     id whose time spans lie more than ``gap_s`` apart (they do not interleave: separate passes,
     not one line cut into tiles) are separate flight lines: {id: (start times of its parts, the
-    line id of each part: the id itself, then SPLIT_ID_BASE·k + id)} and a note per split id."""
+    line id of each part: the id itself, then ids above every id held)} and a note per split id."""
     by_id: dict[int, list] = {}
     for (i, name), (t0, t1) in spans.items():
         by_id.setdefault(int(i), []).append((float(t0), float(t1), name))
-    splits, notes = {}, []
+    splits, notes, free = {}, [], max(by_id, default=0) + 1
     for i, files in sorted(by_id.items()):
         if len(files) < 2:
             continue
@@ -106,7 +102,8 @@ def shared_id_splits(spans: dict[tuple[int, str], tuple[float, float]], gap_s: f
             reach = max(reach, f[1])
         if len(parts) < 2:
             continue
-        ids = np.array([i] + [SPLIT_ID_BASE * k + i for k in range(1, len(parts))], np.int64)
+        ids = np.array([i, *range(free, free + len(parts) - 1)], np.int64)
+        free += len(parts) - 1
         splits[i] = (np.array([p[0][0] for p in parts]), ids)
         listed = "; ".join(f"{', '.join(f[2] for f in p)} ({p[0][0]:.1f}–{max(f[1] for f in p):.1f} s) as line {j}"
                            for p, j in zip(parts, ids))
