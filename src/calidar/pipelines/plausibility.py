@@ -96,7 +96,7 @@ class GeometryCheck:
             raise InputError(self.source, "scan_angle", f"{where}: the across-track angles from the trajectory "
                              f"({np.min(computed):.1f}…{np.max(computed):.1f}°) differ from the file's scan angles "
                              f"({theta.min():.1f}…{theta.max():.1f}°) by a median {miss:.1f}°; expected them to agree: "
-                             f"{CAUSES}")
+                             f"{CAUSES}, or heights in another vertical datum (--crs, --geoid-undulation)")
         self.rows.append(np.stack([down, across, theta], axis=1))
 
     def vertical_offset(self) -> tuple[float, float, float] | None:
