@@ -13,7 +13,8 @@ failures (wrong CRS or UTM zone, wrong trajectory, wrong time system) raise one
 Vertical offset: with the file's scan angle θ (LAS: from nadir, aircraft roll included; positive
 right) the points' across-track offsets satisfy across = (down + δ) tan(θ + r), r a constant roll
 or boresight bias; linearized, across − down tanθ = δ tanθ + r down sec²θ, solved by least
-squares over the sample (points with 5° ≤ |θ| ≤ 60°). δ ≠ 0 means the heights are δ m too high
+squares over the sample (points with 5° ≤ |θ| ≤ 60°), each row divided by down·sec²θ (an
+error in θ moves across by that much: equal weights would understate σ by 1.4×). δ ≠ 0 means the heights are δ m too high
 for the angles: e.g. heights above a geoid taken as ellipsoidal (δ = −N). With LAS 1.2's whole-
 degree scan angles each point's δ scatters by ~0.25 % of the height; hundreds of points bring
 the estimate's σ below a metre.
@@ -108,9 +109,12 @@ class GeometryCheck:
         use = (np.abs(theta) >= 5.0) & (np.abs(theta) <= 60.0)
         if np.count_nonzero(use) < 30 or np.unique(np.sign(theta[use])).size < 2:
             return None
+        if np.median(np.sign(across[use]) * np.sign(theta[use])) < 0:
+            theta = -theta  # a file whose scan angles are positive to the left
         down, across, tan = down[use], across[use], np.tan(np.radians(theta[use]))
-        a = np.stack([tan, down * (1 + tan**2)], axis=1)
-        b = across - down * tan
+        w = 1.0 / (down * (1 + tan**2))  # an angle error ε moves across by down·sec²θ·ε: rows in angle units
+        a = np.stack([tan, down * (1 + tan**2)], axis=1) * w[:, None]
+        b = (across - down * tan) * w
         keep = np.ones(b.size, bool)
         for _ in range(3):  # trimmed least squares: points beyond 3 robust σ left out
             x, *_ = np.linalg.lstsq(a[keep], b[keep], rcond=None)
