@@ -13,7 +13,8 @@ failures (wrong CRS or UTM zone, wrong trajectory, wrong time system) raise one
 Vertical offset: with the file's scan angle θ (LAS: from nadir, aircraft roll included; positive
 right) the points' across-track offsets satisfy across = (down + δ) tan(θ + r), r a constant roll
 or boresight bias; linearized, across − down tanθ = δ tanθ + r down sec²θ, solved by least
-squares over the sample (points with 5° ≤ |θ| ≤ 60°), each row divided by down·sec²θ (an
+squares over the sample (points with 5° ≤ |θ| ≤ 60°, the outermost degree left out: a
+whole-degree bin at the edge of the field of view holds half a bin), each row divided by down·sec²θ (an
 error in θ moves across by that much: equal weights would understate σ by 1.4×). δ ≠ 0 means the heights are δ m too high
 for the angles: e.g. heights above a geoid taken as ellipsoidal (δ = −N). With LAS 1.2's whole-
 degree scan angles each point's δ scatters by ~0.25 % of the height; hundreds of points bring
@@ -106,7 +107,8 @@ class GeometryCheck:
         if not self.rows:
             return None
         down, across, theta = np.concatenate(self.rows).T
-        use = (np.abs(theta) >= 5.0) & (np.abs(theta) <= 60.0)
+        edge = np.abs(theta).max() - 1.0  # the outermost degree: whole-degree angles there are biased inwards
+        use = (np.abs(theta) >= 5.0) & (np.abs(theta) <= min(60.0, edge))
         if np.count_nonzero(use) < 30 or np.unique(np.sign(theta[use])).size < 2:
             return None
         if np.median(np.sign(across[use]) * np.sign(theta[use])) < 0:

@@ -34,7 +34,7 @@ def _flight(seed: int, lift_m: float, roll_deg: float = 0.3, n: int = 1000, sign
 
 def test_the_vertical_offset_is_recovered_with_honest_sigma():
     """100 flights with heights raised by 0 to 40 m: δ = the lift within its σ (RMS of error/σ
-    0.7–1.4; whole-degree angles scatter each point's δ by ~0.25 % of the height)."""
+    0.8–1.3, 1.15 measured; whole-degree angles scatter each point's δ by ~0.25 % of the height)."""
     z = []
     for seed in range(100):
         lift = 0.4 * seed
@@ -45,7 +45,7 @@ def test_the_vertical_offset_is_recovered_with_honest_sigma():
         assert abs(height - HEIGHT_M) < 50
         z.append((delta - lift) / sigma)
     z = np.array(z)
-    assert 0.7 < np.sqrt(np.mean(z**2)) < 1.4, z
+    assert 0.8 < np.sqrt(np.mean(z**2)) < 1.3, z  # 1.15 measured
     assert np.max(np.abs(z)) < 4.0
 
 
