@@ -96,6 +96,9 @@ def files(corpus, tmp_path_factory):
     far.x = np.array(far.x) + 5000.0
     far.point_source_id[:] = np.asarray(las.point_source_id)[0]
     far.write(d / "far_as_1.laz")
+    late = laspy.read(line1)  # GPS times 18 s late (UTC taken for GPS time, or the leap seconds twice)
+    late.gps_time = np.array(late.gps_time) + 18.0
+    late.write(d / "late18s.laz")
     sbet = np.fromfile(s / "sbet.out", "<f8").reshape(-1, SBET_FIELDS)
     jump = sbet.copy()
     jump[len(jump) // 2, 1] += 1e-3  # one record 6 km north (1e-3 rad of latitude)
@@ -173,6 +176,16 @@ def test_wrong_utm_zone_is_an_error(files, tmp_path):
     one_error(*run("boresight", s / "strips" / "line_001.laz", s / "strips" / "line_002.laz", "--crs", "EPSG:32633",
                    "--trajectory", s / "sbet.out", "--sensor", s / "sensor.toml", "--out", tmp_path / "c")[::2],
               "flight line", "wrong CRS or UTM zone")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_points_18_s_late_are_a_time_error(files, tmp_path):
+    """Times 18 s off: the points lie behind the UAV; the error names the offset it implies."""
+    s, d = files
+    msg = one_error(*run("inverse", d / "late18s.laz", "-t", s / "sbet.out", "--out", tmp_path / "v.csv")[::2],
+                    "late18s.laz: gps_time", "behind the sensor", "UTC against GPS")
+    offset = float(msg.split("a time offset of about ")[1].split(" s")[0])
+    assert abs(offset + 18.0) < 2.0, msg
     assert list(tmp_path.iterdir()) == []
 
 

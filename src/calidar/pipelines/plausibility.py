@@ -32,6 +32,7 @@ from calidar.errors import InputError
 
 SAMPLE_POINTS = 1000  #: points of each chunk checked
 MAX_OFF_NADIR_DEG = 75.0  #: a median look angle beyond this is no airborne scan
+MAX_ALONG_TRACK = 0.6  #: median along-track offset over height beyond this (31°): no scanner looks so far ahead
 MAX_SCAN_ANGLE_MISMATCH_DEG = 10.0  #: median | |computed| − |file's| | across-track angle beyond this: wrong geometry
 MIN_VERTICAL_WARNING_M = 5.0  #: |δ| below this is not reported
 CAUSES = ("wrong CRS or UTM zone (--crs), wrong trajectory or its CRS (--trajectory-crs), or wrong time system "
@@ -54,6 +55,13 @@ def local_geometry(traj, t: np.ndarray, ecef: np.ndarray) -> tuple[np.ndarray, n
     along = ch * ned[:, 0] + sh * ned[:, 1]
     across = -sh * ned[:, 0] + ch * ned[:, 1]
     return ned[:, 2], across, along
+
+
+def traj_speed(traj, t: np.ndarray) -> float:
+    """The trajectory's median ground speed (m/s) over the times ``t``."""
+    i = np.clip(np.searchsorted(traj.time, t), 1, traj.time.size - 1)
+    step = np.linalg.norm(traj.ecef[i] - traj.ecef[i - 1], axis=1) / (traj.time[i] - traj.time[i - 1])
+    return float(np.median(step))
 
 
 @dataclass
@@ -84,9 +92,20 @@ class GeometryCheck:
                              f"at their times; expected them below the sensor: {CAUSES}")
         look = np.degrees(np.arctan2(np.hypot(across, along), down))
         if float(np.median(look)) > MAX_OFF_NADIR_DEG:
+            ahead, side = float(np.median(along)), float(np.median(np.abs(across)))
+            causes = (f"a time offset ({ahead / max(traj_speed(traj, t[k]), 1e-3):+.1f} s at the aircraft's speed: wrong time "
+                      "system, UTC against GPS time?), or " + CAUSES) if abs(ahead) > 3 * side else CAUSES
             raise InputError(self.source, "xyz", f"{where}: the points lie a median {np.median(np.hypot(across, along)):.0f} m "
-                             f"sideways from the trajectory at their times, {height:.0f} m below it (look angle "
-                             f"{np.median(look):.1f}° from nadir, expected below {MAX_OFF_NADIR_DEG:g}°): {CAUSES}")
+                             f"sideways from the trajectory at their times ({ahead:+.0f} m along its heading, {side:.0f} m "
+                             f"across), {height:.0f} m below it (look angle {np.median(look):.1f}° from nadir, expected "
+                             f"below {MAX_OFF_NADIR_DEG:g}°): {causes}")
+        ahead = float(np.median(along))
+        if abs(ahead) > MAX_ALONG_TRACK * height:
+            raise InputError(self.source, "gps_time", f"{where}: the points lie a median {abs(ahead):.0f} m "
+                             f"{'ahead of' if ahead > 0 else 'behind'} the sensor at their times, {height:.0f} m below "
+                             f"it (expected within {MAX_ALONG_TRACK:g}× the height): a time offset of about "
+                             f"{ahead / max(traj_speed(traj, t[k]), 1e-3):+.1f} s (wrong time system, UTC against GPS "
+                             f"time?), or {CAUSES}")
         if scan_angle_deg is None:
             return
         theta = np.asarray(scan_angle_deg, float)[k]
