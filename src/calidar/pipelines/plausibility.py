@@ -74,9 +74,11 @@ class GeometryCheck:
     seen: int = 0  #: points of the chunks added so far (the next chunk's first point)
     label: str | None = None  #: what the points are, for messages (default: "points i–j" of the file)
 
-    def add(self, traj, t: np.ndarray, ecef: np.ndarray, scan_angle_deg: np.ndarray | None) -> None:
-        """Check a sample of the file's next chunk; raise when its geometry is impossible."""
-        first, self.seen = self.seen, self.seen + t.size
+    def add(self, traj, t: np.ndarray, ecef: np.ndarray, scan_angle_deg: np.ndarray | None,
+            size: int | None = None) -> None:
+        """Check a sample of the file's next chunk (``size`` points when the arrays are already a
+        sample of it); raise when its geometry is impossible."""
+        first, self.seen = self.seen, self.seen + (t.size if size is None else size)
         if t.size == 0:
             return
         k = sample_rows(t.size)
@@ -85,7 +87,7 @@ class GeometryCheck:
         if k.size == 0:
             return
         down, across, along = local_geometry(traj, t[k], ecef[k])
-        where = self.label or f"points {first}–{first + t.size - 1}"
+        where = self.label or f"points {first}–{self.seen - 1}"
         height = float(np.median(down))
         if height <= 0:
             raise InputError(self.source, "z", f"{where}: the points lie a median {-height:.0f} m above the trajectory "
@@ -159,12 +161,12 @@ class GeometryCheck:
                 f"angles imply): a vertical-datum mismatch? Heights were taken as {reference}")
 
 
-def heights_notes(crs, geoid_undulation_m: float | None, check: "GeometryCheck | None" = None,
-                  relative: bool = False) -> list[str]:
+def heights_notes(crs, geoid_undulation_m: float | None, check=None, relative: bool = False) -> list[str]:
     """What a command tells about heights (issue 26): the vertical reference it used, the warning
-    for a CRS without a vertical part unless the scan angles confirm the heights, and the
-    vertical-offset warning of ``check``. ``relative``: the command compares strips with each
-    other only (a datum offset common to all does not change its results): the statement alone."""
+    for a CRS without a vertical part unless the scan angles of every file (``check``: a
+    :class:`GeometryCheck` or a list of them) confirm the heights, and the vertical-offset warning
+    of each file whose heights they contradict. ``relative``: the command compares strips with
+    each other only (a datum offset common to all does not change its results): the statement alone."""
     from calidar.crs import vertical_reference
 
     if crs is None:
@@ -173,8 +175,11 @@ def heights_notes(crs, geoid_undulation_m: float | None, check: "GeometryCheck |
     if relative:
         return [f"heights: {reference}" + ("; an offset of the datum common to every strip does not change the "
                                            "differences" if warning else "")]
-    est = None if check is None else check.vertical_offset()
-    offset = None if check is None else check.vertical_warning(reference)
-    if warning and est is not None and offset is None:
-        return [f"heights: {reference}; the file's scan angles agree to {est[0]:+.1f} ± {est[1]:.1f} m"]
-    return [f"heights: {warning or reference}"] + ([offset] if offset else [])
+    checks = [] if check is None else check if isinstance(check, list) else [check]
+    estimates = [c.vertical_offset() for c in checks]
+    offsets = [w for w in (c.vertical_warning(reference) for c in checks) if w]
+    if warning and checks and all(e is not None for e in estimates) and not offsets:
+        worst = max(estimates, key=lambda e: abs(e[0]))
+        what = "file's scan angles agree" if len(checks) == 1 else f"scan angles of all {len(checks)} files agree"
+        return [f"heights: {reference}; the {what} to {worst[0]:+.1f} ± {worst[1]:.1f} m"]
+    return [f"heights: {warning or reference}", *offsets]

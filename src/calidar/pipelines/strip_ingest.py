@@ -33,7 +33,7 @@ from calidar.io.las import iter_las_chunks, las_file_crs, las_header, las_time_s
 from calidar.pipelines import Progress, no_progress
 from calidar.pipelines.inputs import FileTimes, points_ecef
 from calidar.pipelines.line_quality import LineCounts
-from calidar.pipelines.plausibility import GeometryCheck, heights_notes
+from calidar.pipelines.plausibility import GeometryCheck, heights_notes, sample_rows
 from calidar.pipelines.strip_source import (
     BIN_BITS, BLOCK_PATCHES, HELD_BYTES_PER_POINT, MAX_BLOCK_CELLS, IngestOptions, StripFile, StripSource, group_keys,
     planar_xy, split_rows,
@@ -93,6 +93,7 @@ class _Footprints:
     t_max: dict = field(default_factory=dict)
     files: dict = field(default_factory=dict)  #: group → the name of the (first) file holding it
     spans: dict = field(default_factory=dict)  #: (point_source_id, file name) → (first, last time)
+    checks: dict = field(default_factory=dict)  #: file → its GeometryCheck (calidar.pipelines.plausibility)
     quality: LineCounts = field(default_factory=lambda: LineCounts(overlap_cell(None)))
 
     def add(self, groups: np.ndarray, keys: np.ndarray, t: np.ndarray, name: str, chunk, quality_keys) -> None:
@@ -110,6 +111,7 @@ class _Footprints:
 
     def merge(self, other: "_Footprints") -> "_Footprints":
         """Both files' groups (a group may span files)."""
+        self.checks.update(other.checks)
         for k, (t0, t1) in other.spans.items():
             s0, s1 = self.spans.get(k, (np.inf, -np.inf))
             self.spans[k] = (min(s0, t0), max(s1, t1))
@@ -148,12 +150,19 @@ def _footprints(frame: LocalFrame, trajectory, options: IngestOptions, f: StripF
     """Footprints and time checks of one file, chunk by chunk, its GPS week and (``hold``) what
     pass 2 needs of its chunks: (LasPoints with xyz and point_source_id, times) (a task)."""
     acc, times, grid = _Footprints(), FileTimes(f.path, trajectory, f.time_system), overlap_cell(None)
-    held = [] if hold else None
-    for chunk in iter_las_chunks(f.path, options.chunk_points, fields=("point_source_id", *SELECTION_FIELDS),
-                                 options=f.points):
+    held, check = [] if hold else None, GeometryCheck(f.path.name)
+    acc.checks[f.path] = check
+    for chunk in iter_las_chunks(f.path, options.chunk_points, fields=("point_source_id", "scan_angle_deg",
+                                                                       *SELECTION_FIELDS), options=f.points):
         t = times.feed(chunk.gps_time)
         ok = np.isfinite(t)
         chunk = chunk if ok.all() else chunk.select(ok)
+        k = sample_rows(len(chunk))
+        if np.all(trajectory.covers(t[ok][k])):  # points outside the trajectory: told by times.finish()
+            check.add(trajectory, t[ok][k], points_ecef(chunk.select(k)), chunk.scan_angle_deg[k], len(chunk))
+        else:
+            check.seen += len(chunk)
+        chunk = replace(chunk, scan_angle_deg=None)
         xy = planar_xy(chunk, frame)
         keys = cell_keys(xy, options.cell_m)
         acc.add(group_keys(chunk.point_source_id, t[ok], options.gap_s), keys, t[ok], f.path.name, chunk,
@@ -286,4 +295,5 @@ def ingest_strips(paths, trajectory, sensor, options: IngestOptions = IngestOpti
     strips = list(run_tasks(Strip.from_ecef, build, threads=work.local_threads if work else 1))
     crs = las_file_crs(files[0].path, files[0].points.crs)
     notes = line_notes + unpaired_notes(footprint, pairs, options.cell_m, options.min_cells, names)
-    return strips, crs, source, notes + heights_notes(crs, files[0].points.geoid_undulation_m)
+    checks = [acc.checks[f.path] for f in files if f.path in acc.checks]
+    return strips, crs, source, notes + heights_notes(crs, files[0].points.geoid_undulation_m, checks)
