@@ -186,7 +186,18 @@ def test_points_18_s_late_are_a_time_error(files, tmp_path):
                     "late18s.laz: gps_time", "behind the sensor", "UTC against GPS")
     offset = float(msg.split("a time offset of about ")[1].split(" s")[0])
     assert abs(offset + 18.0) < 2.0, msg
+    one_error(*run("boresight", s / "strips" / "line_002.laz", d / "late18s.laz", "--trajectory", s / "sbet.out",
+                   "--sensor", s / "sensor.toml", "--out", tmp_path / "c")[::2], "late18s.laz: gps_time", "time offset")
     assert list(tmp_path.iterdir()) == []
+
+
+def test_boresight_names_a_strip_whose_heights_are_off(files, tmp_path):
+    s, d = files
+    code, out, err = run("boresight", d / "up30.laz", *[s / "strips" / f"line_00{k}.laz" for k in (2, 3)],
+                         "--trajectory", s / "sbet.out", "--sensor", s / "sensor.toml", "--out", tmp_path / "c")
+    assert code in (0, 3), err
+    assert "up30.laz: the heights are +" in out + err and "vertical-datum mismatch" in out + err
+    assert "line_002.laz: the heights are" not in out + err
 
 
 def test_heights_off_the_scan_angles(files, tmp_path):
