@@ -143,3 +143,28 @@ def _moved(base: np.ndarray, jac: np.ndarray, rows: np.ndarray, d: np.ndarray) -
         for a in range(3):
             out[i, a] += jac[j, a, 0] * d[i, 0] + jac[j, a, 1] * d[i, 1] + jac[j, a, 2] * d[i, 2]
     return out
+
+
+def vertical_reference(crs, geoid_undulation_m: float | None = None) -> tuple[str, str | None]:
+    """(what the heights of points in ``crs`` are taken as, a warning or None) (issue 26): a CRS
+    without a vertical part has its heights taken as ellipsoidal, which is wrong for the many
+    deliveries whose heights are above a geoid (French LiDAR HD in EPSG:2154: NGF-IGN69)."""
+    crs = pyproj.CRS.from_user_input(crs)
+    name = f"EPSG:{crs.to_epsg()}" if crs.to_epsg() else crs.name
+    if crs.is_geocentric:
+        return "ellipsoidal (geocentric coordinates)", None
+    if crs.is_compound:
+        vertical = crs.sub_crs_list[-1].name
+        if geoid_undulation_m is not None:
+            return (f"heights above {vertical} made ellipsoidal with a constant geoid undulation N = "
+                    f"{geoid_undulation_m:g} m (--geoid-undulation)"), None
+        return f"heights above {vertical}, made ellipsoidal with its geoid grid (PROJ)", None
+    if len(crs.axis_info) >= 3:
+        return f"ellipsoidal ({name} is 3-D: its heights are above the ellipsoid)", None
+    horizontal = f"EPSG:{crs.to_epsg()}+{5720 if crs.to_epsg() == 2154 else 3855}" if crs.to_epsg() else "CRS+3855"
+    return (f"ellipsoidal (assumed: {name} has no vertical part)",
+            f"{name} has no vertical part: the heights are taken as ellipsoidal (above the ellipsoid). If they are "
+            f"above a geoid (orthometric, e.g. French LiDAR HD: NGF-IGN69), give a compound --crs (e.g. --crs "
+            f"{horizontal}) with --geoid-undulation N (m, the geoid's height above the ellipsoid there; "
+            "a constant for a small area), or install the geoid grid for PROJ (projsync) and give the compound --crs "
+            "alone; this machine cannot download grids")

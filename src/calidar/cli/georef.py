@@ -36,10 +36,13 @@ def inverse(
     along_track_angle_deg = atan2(x_s, hypot(y_s, z_s)).
     """
     check_writable(out, force)
+    notes: list[str] = []
     n = pipeline.inverse_points(
         points, trajectory, out, sensor=sensor, point_options=point_options(crs, time_system, geoid_undulation),
         trajectory_options=trajectory_options(trajectory_crs, trajectory_angles, trajectory_heading, trajectory_columns),
-        force=force)
+        force=force, notes=notes)
+    for note in notes:
+        console.print(f"note: {note}", highlight=False, soft_wrap=True, markup=False)
     console.print(f"{n} points → {out}", highlight=False, soft_wrap=True, markup=False)
 
 
@@ -63,11 +66,14 @@ def regeoref(
     outputs keep the inputs' names, formats and CRS.
     """
     check_out_dir(out, force)
+    notes: list[str] = []
     with output_folder(out, force, inputs=[*strips, trajectory, old, new, to_trajectory]) as tmp:
         written = pipeline.regeoreference_strips(
             strips, trajectory, old, new, tmp, point_options=point_options(crs, time_system, geoid_undulation),
             trajectory_options=trajectory_options(trajectory_crs, trajectory_angles, trajectory_heading,
-                                                  trajectory_columns), to_trajectory=to_trajectory)
+                                                  trajectory_columns), to_trajectory=to_trajectory, notes=notes)
+    for note in notes:
+        console.print(f"note: {note}", highlight=False, soft_wrap=True, markup=False)
     for path, n in written.items():
         console.print(f"{out / path.name}: {n} points", highlight=False, soft_wrap=True, markup=False)
 

@@ -17,6 +17,7 @@ from calidar.cli.options import (
 from calidar.cli.options import trajectory_options
 from calidar.errors import InputError
 from calidar.io.atl03 import atl03_summary
+from calidar.crs import vertical_reference
 from calidar.io.las import gps_time_system, iter_las_chunks, las_crs, las_header
 from calidar.io.optech_csd import is_csd, read_csd
 from calidar.io.smrmsg import is_smrmsg_name, smrmsg_info
@@ -88,6 +89,8 @@ def las_info(path: Path, options: PointOptions = PointOptions(), chunk_points: i
         "points": int(header.point_count),
         "crs": None if crs is None and file_crs is None else (str(crs) if crs else file_crs.name),
         "crs_epsg": None if file_crs is None or crs else file_crs.to_epsg(),
+        "heights": None if crs is None and file_crs is None else vertical_reference(crs or file_crs,
+                                                                                   options.geoid_undulation_m)[0],
         "time_system": time_system,
         "bounds": {"min": lo.tolist(), "max": hi.tolist()} if np.isfinite(lo[0]) else None,
         "scan_angle_deg": _span(*scan), "gps_time_not_finite": not_finite,

@@ -260,12 +260,21 @@ def read_atl03(path: str | Path, beam: str = "gt1l") -> PhotonBeam:
             dist_x = None
         seg_time = gg["delta_time"][()] if "delta_time" in gg else None
         strength, spot = beam_strength(f, beam)
-    n = d["h_ph"].size
+    for k in _HEIGHTS:  # one value per photon (signal_conf_ph: five): a 2-D field is named, not its neighbours
+        if d[k].ndim != (2 if k == "signal_conf_ph" else 1):
+            want = "shape (N, 5)" if k == "signal_conf_ph" else "one value per photon (1-D)"
+            raise InputError(path, f"{beam}/heights/{k}", f"expected {want}, got shape {d[k].shape}")
+    n = d["h_ph"].shape[0]
     for k in _HEIGHTS:
         if d[k].shape[0] != n:
             raise InputError(path, f"{beam}/heights/{k}", f"expected {n} rows like h_ph, got {d[k].shape[0]}")
         lo, hi, unit = _RANGES[k]
         checked(d[k], path, f"{beam}/heights/{k}", lo, hi, unit, what="photon")
+    back = np.flatnonzero(np.diff(d["delta_time"]) < 0)
+    if back.size:
+        i = int(back[0])
+        raise InputError(path, f"{beam}/heights/delta_time", f"expected photons in time order; {back.size} steps back, "
+                         f"the first at photon {i + 1} ({d['delta_time'][i]:.6f} → {d['delta_time'][i + 1]:.6f} s)")
     conf = d["signal_conf_ph"]
     if conf.ndim != 2 or conf.shape[1] != len(SURFACE_TYPES):
         raise InputError(path, f"{beam}/heights/signal_conf_ph", f"expected shape (N, 5), got {conf.shape}")

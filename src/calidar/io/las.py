@@ -20,6 +20,7 @@ import numpy as np
 import pyproj
 
 from calidar.errors import InputError
+from calidar.io.las_checks import bounds_tolerance, check_bounds, check_laz_count, check_scales
 from calidar.io.las_crs import las_crs
 from calidar.io.las_write import SCAN_ANGLE_STEP_DEG, LasChunkWriter, write_las  # noqa: F401 (the io face)
 from calidar.outputs import atomic_path
@@ -164,7 +165,7 @@ def gps_time_system(header: laspy.LasHeader, path: Path, override: str | None = 
 
 def _points(rec, header, path: Path, crs, time_system: str, fields, undulation=None, first: int = 0) -> LasPoints:
     """LasPoints from a laspy record (whole file or chunk whose first point is number ``first``);
-    coordinates must be finite and within ±MAX_COORDINATE."""
+    coordinates must be finite, within ±MAX_COORDINATE and near the header's bounds."""
     unknown = set(fields) - set(OPTIONAL_FIELDS)
     if unknown:
         raise ValueError(f"unknown LAS fields {sorted(unknown)}; expected some of {OPTIONAL_FIELDS}")
@@ -185,6 +186,7 @@ def _points(rec, header, path: Path, crs, time_system: str, fields, undulation=N
             raise InputError(path, axis, f"expected finite coordinates within ±{MAX_COORDINATE:g}, got "
                              f"{xyz[i, k]:g} at point {first + i} ({int(bad.sum())} such points in this block): "
                              "check the header's scales and offsets")
+    check_bounds(xyz, bounds_tolerance(header), header, path, first)
     return LasPoints(xyz=xyz, gps_time=np.asarray(rec.gps_time, float), time_system=time_system, crs=crs,
                      path=path, geoid_undulation_m=undulation, **kw)
 
@@ -197,6 +199,12 @@ def _open(path: Path, selection=laspy.DecompressionSelection.all()) -> laspy.Las
     except laspy.errors.LaspyException as e:
         raise InputError(path, None, f"not a readable LAS/LAZ file ({e})") from None
     h = reader.header
+    try:
+        check_scales(h, path)
+        check_laz_count(h, path)
+    except InputError:
+        reader.close()
+        raise
     if not h.are_points_compressed:  # the records a LAS file holds follow from its size
         end = h.start_of_first_evlr if getattr(h, "number_of_evlrs", 0) else Path(path).stat().st_size
         held = (end - h.offset_to_point_data) // h.point_format.size
@@ -234,7 +242,10 @@ def _records(reader: laspy.LasReader, chunk_points: int, path: Path, start: int 
                 yield n, rec
                 n += len(rec)
     except (laspy.errors.LaspyException, lazrs.LazrsError, ValueError) as e:
-        raise InputError(path, None, f"cannot read the points ({e}); truncated or damaged file?") from None
+        size = getattr(reader.header, "calidar_laz_chunk_size", None)
+        where = f" from point {n} on" + (f" (LAZ chunk {n // size})" if size else "")
+        raise InputError(path, None, f"cannot read the points{where} ({e}): a truncated file or a corrupted "
+                         "chunk") from None
     if n != (reader.header.point_count if stop is None else min(stop, reader.header.point_count)):
         raise InputError(path, "point_count", f"the header says {reader.header.point_count} points, the file holds "
                          f"{n}: truncated or a damaged header")

@@ -49,5 +49,35 @@ def read_trajectory(path: str | Path, **text_options) -> Trajectory:
         raise InputError(path, TEXT_OPTIONS.get(sorted(given)[0], sorted(given)[0]),
                          f"is an option of text trajectories; this file is {kind}")
     if binary:
-        return csd_trajectory(read_csd(path)) if is_csd(path) else read_sbet(path)
-    return read_trajectory_text(path, **given)
+        traj = csd_trajectory(read_csd(path)) if is_csd(path) else read_sbet(path)
+    else:
+        traj = read_trajectory_text(path, **given)
+    check_motion(traj)
+    return traj
+
+
+MAX_SPEED_M_S = 2000.0  #: far faster than any survey aircraft (jets cruise below 260 m/s)
+MAX_TILT_RATE_DEG_S = 500.0  #: roll or pitch changing faster: a glitch, not a manoeuvre (turns: 10–30 °/s)
+
+
+def check_motion(traj: Trajectory) -> None:
+    """Error when consecutive records imply an impossible speed or roll/pitch rate (a position or
+    attitude glitch, or positions in the wrong unit), naming the record and the field."""
+    import numpy as np
+
+    dt = np.diff(traj.time)
+    speed = np.linalg.norm(np.diff(traj.ecef, axis=0), axis=1) / dt
+    fast = np.flatnonzero(speed > MAX_SPEED_M_S)
+    if fast.size:
+        i = int(fast[0])
+        raise InputError(traj.source, "position", f"records {i}–{i + 1} ({traj.time[i]:.3f}–{traj.time[i + 1]:.3f} s) "
+                         f"move {speed[i] * dt[i]:.1f} m in {dt[i]:.3g} s ({speed[i]:.3g} m/s; {fast.size} such steps); "
+                         f"expected below {MAX_SPEED_M_S:g} m/s: a position glitch or a wrong unit")
+    for name in ("roll", "pitch"):
+        rate = np.degrees(np.abs(np.diff(getattr(traj, name)))) / dt
+        bad = np.flatnonzero(rate > MAX_TILT_RATE_DEG_S)
+        if bad.size:
+            i = int(bad[0])
+            raise InputError(traj.source, name, f"records {i}–{i + 1} ({traj.time[i]:.3f}–{traj.time[i + 1]:.3f} s) "
+                             f"change by {rate[i] * dt[i]:.2f}° ({rate[i]:.3g} °/s; {bad.size} such steps); expected "
+                             f"below {MAX_TILT_RATE_DEG_S:g} °/s: an attitude glitch or a wrong unit")

@@ -19,6 +19,7 @@ from calidar.outputs import atomic_path, guard_inputs
 from calidar.pipelines import Progress, no_progress
 from calidar.pipelines import inputs
 from calidar.pipelines.inputs import TrajectoryOptions, load_trajectory, point_times, points_ecef, trajectory_for
+from calidar.pipelines.plausibility import GeometryCheck, heights_notes
 from calidar.sensor import Sensor
 from calidar.sensor_import import from_optech_header
 from calidar.validate import values
@@ -29,20 +30,23 @@ VECTOR_COLUMNS = ("gps_time", "range_m", "x_s", "y_s", "z_s", "across_track_angl
 def inverse_points(points: Path, trajectory: Path, out: Path, *, sensor: Path | None = None,
                    point_options: PointOptions = PointOptions(),
                    trajectory_options: TrajectoryOptions = TrajectoryOptions(), force: bool = False,
-                   progress: Progress = no_progress) -> int:
+                   progress: Progress = no_progress, notes: list[str] | None = None) -> int:
     """Inverse georeferencing of a LAS/LAZ file into a CSV of :data:`VECTOR_COLUMNS` (``out``, atomic):
     gps_time (s, as in the LAS), range_m (measured), x_s, y_s, z_s (m, scanner frame),
     across_track_angle_deg = atan2(y_s, z_s), along_track_angle_deg = atan2(x_s, hypot(y_s, z_s)).
-    Returns the number of points."""
+    Returns the number of points; ``notes`` (when given) receives the vertical reference used and
+    the plausibility warnings (:mod:`calidar.pipelines.plausibility`, whose errors stop the run)."""
     guard_inputs([out], [points, trajectory, sensor])
     model = Sensor.read(sensor) if sensor else Sensor()
     traj, week = trajectory_for(points, load_trajectory(trajectory, trajectory_options), point_options,
                                 inputs.CHUNK_POINTS)
-    total, n = las_header(points).point_count, 0
+    total, n, check, crs = las_header(points).point_count, 0, GeometryCheck(points), None
     with atomic_path(out, force) as tmp, open(tmp, "w", encoding="utf-8") as f:
         f.write(",".join(VECTOR_COLUMNS) + "\n")
-        for chunk in iter_las_chunks(points, inputs.CHUNK_POINTS, fields=(), options=point_options):
-            obs = georef.inverse(traj, model, point_times(chunk, traj, week), points_ecef(chunk))
+        for chunk in iter_las_chunks(points, inputs.CHUNK_POINTS, fields=("scan_angle_deg",), options=point_options):
+            t, ecef, crs = point_times(chunk, traj, week), points_ecef(chunk), chunk.crs
+            check.add(traj, t, ecef, chunk.scan_angle_deg)
+            obs = georef.inverse(traj, model, t, ecef)
             v = obs.vector_s
             across = np.degrees(np.arctan2(v[:, 1], v[:, 2]))
             along = np.degrees(np.arctan2(v[:, 0], np.hypot(v[:, 1], v[:, 2])))
@@ -50,18 +54,22 @@ def inverse_points(points: Path, trajectory: Path, out: Path, *, sensor: Path | 
                            [6, 4, 4, 4, 4, 6, 6])
             n += len(chunk)
             progress("inverse georeferencing", n, total)
+    if notes is not None:
+        notes += heights_notes(crs, point_options.geoid_undulation_m, check)
     return n
 
 
 def regeoreference_strips(strips: list[Path], trajectory: Path, old: Path, new: Path, out_dir: Path, *,
                           point_options: PointOptions = PointOptions(),
                           trajectory_options: TrajectoryOptions = TrajectoryOptions(),
-                          progress: Progress = no_progress, to_trajectory: Path | None = None) -> dict[Path, int]:
+                          progress: Progress = no_progress, to_trajectory: Path | None = None,
+                          notes: list[str] | None = None) -> dict[Path, int]:
     """Re-georeference delivered strips: inverse with ``trajectory`` and the ``old`` sensor.toml,
     forward with ``to_trajectory`` (default: ``trajectory``; e.g. calidar boresight's
     sbet_corrected.out) and ``new``, written into ``out_dir`` under the strips' names (formats, CRS
     and every other attribute kept). Every strip is checked (CRS, whole-file trajectory coverage)
-    before any is written. Returns {output path: points}."""
+    before any is written, and its geometry while it is streamed (:mod:`calidar.pipelines.plausibility`).
+    Returns {output path: points}; ``notes`` (when given) receives the vertical reference and warnings."""
     old_s, new_s = Sensor.read(old), Sensor.read(new)
     traj0 = load_trajectory(trajectory, trajectory_options)
     new0 = None if to_trajectory is None else load_trajectory(to_trajectory, trajectory_options)
@@ -71,16 +79,23 @@ def regeoreference_strips(strips: list[Path], trajectory: Path, old: Path, new: 
     guard_inputs([out_dir / s.name for s in strips], [*strips, trajectory, old, new, to_trajectory])
     plans = [(s, *trajectory_for(s, traj0, point_options, inputs.CHUNK_POINTS),
               None if new0 is None else trajectory_for(s, new0, point_options, inputs.CHUNK_POINTS)[0]) for s in strips]
-    written = {}
+    written, checks, crs = {}, [], None
     for k, (s, traj, week, new_traj) in enumerate(plans):
+        checks.append(GeometryCheck(s))
 
-        def moved(points, traj=traj, week=week, new_traj=new_traj) -> np.ndarray:
-            p = georef.regeoreference(traj, old_s, new_s, point_times(points, traj, week), points_ecef(points), new_traj)
+        def moved(points, traj=traj, week=week, new_traj=new_traj, check=checks[-1]) -> np.ndarray:
+            t, ecef = point_times(points, traj, week), points_ecef(points)
+            check.add(traj, t, ecef, points.scan_angle_deg)
+            p = georef.regeoreference(traj, old_s, new_s, t, ecef, new_traj)
             return georef.to_crs(p, points.crs, points.geoid_undulation_m, source=points.path)
 
         written[out_dir / s.name] = rewrite_las_xyz(s, out_dir / s.name, moved, chunk_points=inputs.CHUNK_POINTS,
                                                     force=True, options=point_options)
         progress("re-georeferencing strips", k + 1, len(plans))
+    if notes is not None and strips:
+        crs = inputs.las_file_crs(strips[0], point_options.crs)
+        for check in checks:
+            notes += [n for n in heights_notes(crs, point_options.geoid_undulation_m, check) if n not in notes]
     return written
 
 

@@ -140,6 +140,9 @@ def measure(paths, cell_m=None, classes=None, options: PointOptions = PointOptio
             acc.add(i, np.zeros((0, 3)))
         results, notes = checked_differences(acc, settings, names)
         precisions = line_precisions(acc, settings)
+    from calidar.pipelines.plausibility import heights_notes
+
+    notes = [*index.notes, *notes, *heights_notes(crs, options.geoid_undulation_m, relative=True)]
     return index, crs, results, notes, selections, precisions
 
 

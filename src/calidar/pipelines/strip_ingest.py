@@ -33,12 +33,14 @@ from calidar.io.las import iter_las_chunks, las_file_crs, las_header, las_time_s
 from calidar.pipelines import Progress, no_progress
 from calidar.pipelines.inputs import FileTimes, points_ecef
 from calidar.pipelines.line_quality import LineCounts
+from calidar.pipelines.plausibility import GeometryCheck, heights_notes, sample_rows
 from calidar.pipelines.strip_source import (
     BIN_BITS, BLOCK_PATCHES, HELD_BYTES_PER_POINT, MAX_BLOCK_CELLS, IngestOptions, StripFile, StripSource, group_keys,
     planar_xy, split_rows,
 )
 from calidar.strips.overlap import cell_counts, cell_keys, common_cells, merge_counts, strip_name, unpaired_notes
 from calidar.strips.quality import overlap_cell
+from calidar.strips.lines import add_spans, shared_id_splits, split_ids
 from calidar.strips.selection import FIELDS as SELECTION_FIELDS
 from calidar.strips.strip import LocalFrame, Strip
 from calidar.strips.thin import thin_cells
@@ -90,11 +92,15 @@ class _Footprints:
     t_min: dict = field(default_factory=dict)
     t_max: dict = field(default_factory=dict)
     files: dict = field(default_factory=dict)  #: group → the name of the (first) file holding it
+    spans: dict = field(default_factory=dict)  #: (point_source_id, file name) → (first, last time)
+    checks: dict = field(default_factory=dict)  #: file → its GeometryCheck (calidar.pipelines.plausibility)
     quality: LineCounts = field(default_factory=lambda: LineCounts(overlap_cell(None)))
 
     def add(self, groups: np.ndarray, keys: np.ndarray, t: np.ndarray, name: str, chunk, quality_keys) -> None:
         """A chunk's points (LasPoints with the selection fields) of ``groups`` in overlap cells
         ``keys`` and quality-grid cells ``quality_keys``, at times ``t``."""
+        if chunk.point_source_id is not None:
+            add_spans(self.spans, chunk.point_source_id, t, name)
         for g, rows in split_rows(groups):
             self.files.setdefault(g, name)
             self.cells.setdefault(g, []).append(cell_counts(keys[rows]))
@@ -105,6 +111,10 @@ class _Footprints:
 
     def merge(self, other: "_Footprints") -> "_Footprints":
         """Both files' groups (a group may span files)."""
+        self.checks.update(other.checks)
+        for k, (t0, t1) in other.spans.items():
+            s0, s1 = self.spans.get(k, (np.inf, -np.inf))
+            self.spans[k] = (min(s0, t0), max(s1, t1))
         for g, cells in other.cells.items():
             self.files.setdefault(g, other.files[g])
             self.cells.setdefault(g, []).extend(cells)
@@ -113,13 +123,18 @@ class _Footprints:
         self.quality.merge(other.quality)
         return self
 
-    def lines(self, gap_s: float) -> tuple[np.ndarray, np.ndarray, str]:
+    def lines(self, gap_s: float, notes: list | None = None) -> tuple[np.ndarray, np.ndarray, str]:
         """(sorted groups, line id of each, how): lines by point_source_id when it holds two
-        distinct values, else numbered 1, 2, … in time order split at gaps > ``gap_s``."""
+        distinct values (files sharing one id at times that do not interleave kept apart:
+        :func:`calidar.strips.lines.shared_id_splits`, told in ``notes``), else numbered 1, 2, … in
+        time order split at gaps > ``gap_s``."""
         groups = np.array(sorted(self.cells), np.int64)
         psid = groups >> BIN_BITS
         if np.unique(psid).size >= 2:
-            return groups, psid, "point_source_id"
+            splits, told = shared_id_splits(self.spans, gap_s)
+            if notes is not None:
+                notes += told
+            return groups, split_ids(psid, np.array([self.t_min[int(g)] for g in groups]), splits), "point_source_id"
         t0 = np.array([self.t_min[g] for g in groups])
         t1 = np.array([self.t_max[g] for g in groups])
         order = np.argsort(t0, kind="stable")
@@ -135,12 +150,19 @@ def _footprints(frame: LocalFrame, trajectory, options: IngestOptions, f: StripF
     """Footprints and time checks of one file, chunk by chunk, its GPS week and (``hold``) what
     pass 2 needs of its chunks: (LasPoints with xyz and point_source_id, times) (a task)."""
     acc, times, grid = _Footprints(), FileTimes(f.path, trajectory, f.time_system), overlap_cell(None)
-    held = [] if hold else None
-    for chunk in iter_las_chunks(f.path, options.chunk_points, fields=("point_source_id", *SELECTION_FIELDS),
-                                 options=f.points):
+    held, check = [] if hold else None, GeometryCheck(f.path.name)
+    acc.checks[f.path] = check
+    for chunk in iter_las_chunks(f.path, options.chunk_points, fields=("point_source_id", "scan_angle_deg",
+                                                                       *SELECTION_FIELDS), options=f.points):
         t = times.feed(chunk.gps_time)
         ok = np.isfinite(t)
         chunk = chunk if ok.all() else chunk.select(ok)
+        k = sample_rows(len(chunk))
+        if np.all(trajectory.covers(t[ok][k])):  # points outside the trajectory: told by times.finish()
+            check.add(trajectory, t[ok][k], points_ecef(chunk.select(k)), chunk.scan_angle_deg[k], len(chunk))
+        else:
+            check.seen += len(chunk)
+        chunk = replace(chunk, scan_angle_deg=None)
         xy = planar_xy(chunk, frame)
         keys = cell_keys(xy, options.cell_m)
         acc.add(group_keys(chunk.point_source_id, t[ok], options.gap_s), keys, t[ok], f.path.name, chunk,
@@ -186,9 +208,11 @@ def _held_files(counts: list[int], room: int) -> list[bool]:
     return hold
 
 
-def _plan(acc: _Footprints, options: IngestOptions) -> tuple[np.ndarray, np.ndarray, str, dict, dict, list, dict]:
-    """Lines, their footprints, the overlapping pairs and the cells each line keeps."""
-    groups, line, how = acc.lines(options.gap_s)
+def _plan(acc: _Footprints, options: IngestOptions, notes: list | None = None) -> tuple[np.ndarray, np.ndarray, str, dict, dict,
+                                                                        list, dict]:
+    """Lines, their footprints, the overlapping pairs and the cells each line keeps (what the
+    user should know about the lines added to ``notes``)."""
+    groups, line, how = acc.lines(options.gap_s, notes)
     footprint, span = {}, {}
     for i in np.unique(line):
         gs = groups[line == i]
@@ -241,7 +265,8 @@ def ingest_strips(paths, trajectory, sensor, options: IngestOptions = IngestOpti
     files = _files(paths, trajectory, sensor, options)
     frame = _frame(files)
     acc, weeks, held = _pass1(files, frame, trajectory, options, progress, run, work is None or work.client is None)
-    groups, line, how, footprint, span, pairs, kept = _plan(acc, options)
+    line_notes: list[str] = []
+    groups, line, how, footprint, span, pairs, kept = _plan(acc, options, line_notes)
     names = {int(i): acc.files[int(groups[line == i][0])] for i in footprint}
     if not pairs:
         listed = ", ".join(strip_name(i, names) for i in sorted(footprint))
@@ -265,7 +290,10 @@ def ingest_strips(paths, trajectory, sensor, options: IngestOptions = IngestOpti
     del tasks  # the held chunks
     build = [(i, np.concatenate(ecef.pop(i)), np.concatenate(times.pop(i)), trajectory, sensor, frame,
               ", ".join(where[i]), span[i]) for i in sorted(ecef)]
+    for i, e, t, *_ in build:  # wrong CRS or zone, wrong trajectory: one clear error before the adjustment
+        GeometryCheck(f"flight line {strip_name(i, names)}", label="its overlap points").add(trajectory, t, e, None)
     strips = list(run_tasks(Strip.from_ecef, build, threads=work.local_threads if work else 1))
-    notes = unpaired_notes(footprint, pairs, options.cell_m, options.min_cells, names)
     crs = las_file_crs(files[0].path, files[0].points.crs)
-    return strips, crs, source, notes
+    notes = line_notes + unpaired_notes(footprint, pairs, options.cell_m, options.min_cells, names)
+    checks = [acc.checks[f.path] for f in files if f.path in acc.checks]
+    return strips, crs, source, notes + heights_notes(crs, files[0].points.geoid_undulation_m, checks)

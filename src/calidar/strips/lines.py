@@ -49,6 +49,11 @@ def read_flight_lines(paths: Sequence[str | Path], crs=None, gap_s: float = GAP_
     merged = concat_points(clouds)
     ids, how = line_ids(merged.point_source_id, merged.gps_time, gap_s)
     source = np.repeat(np.arange(len(clouds)), [len(c) for c in clouds])  # the file of each point
+    if how == "point_source_id":
+        spans: dict = {}
+        for c in clouds:
+            add_spans(spans, c.point_source_id, c.gps_time, c.path.name)
+        ids = split_ids(ids, merged.gps_time, shared_id_splits(spans, gap_s)[0])
     return {int(i): replace(merged.select(ids == i), path=clouds[source[np.argmax(ids == i)]].path)
             for i in np.unique(ids)}, how
 
@@ -73,6 +78,53 @@ def check_distinct(paths: Sequence[str | Path]) -> None:
                              f"holds the same points as {other.name}: a duplicate; expected each strip once")
 
 
+def shared_id_splits(spans: dict[tuple[int, str], tuple[float, float]], gap_s: float = GAP_S
+                     ) -> tuple[dict[int, tuple[np.ndarray, np.ndarray]], list[str]]:
+    """Flight lines that are distinct files with one point_source_id, kept apart (issue 27).
+
+    ``spans``: (point_source_id, file name) → (first, last GPS time s) of its points. Files of one
+    id whose time spans lie more than ``gap_s`` apart (they do not interleave: separate passes,
+    not one line cut into tiles) are separate flight lines: {id: (start times of its parts, the
+    line id of each part: the id itself, then ids above every id held)} and a note per split id."""
+    by_id: dict[int, list] = {}
+    for (i, name), (t0, t1) in spans.items():
+        by_id.setdefault(int(i), []).append((float(t0), float(t1), name))
+    splits, notes, free = {}, [], max(by_id, default=0) + 1
+    for i, files in sorted(by_id.items()):
+        if len(files) < 2:
+            continue
+        files.sort()
+        parts, reach = [[files[0]]], files[0][1]
+        for f in files[1:]:
+            if f[0] - reach > gap_s:
+                parts.append([])
+            parts[-1].append(f)
+            reach = max(reach, f[1])
+        if len(parts) < 2:
+            continue
+        ids = np.array([i, *range(free, free + len(parts) - 1)], np.int64)
+        free += len(parts) - 1
+        splits[i] = (np.array([p[0][0] for p in parts]), ids)
+        listed = "; ".join(f"{', '.join(f[2] for f in p)} ({p[0][0]:.1f}–{max(f[1] for f in p):.1f} s) as line {j}"
+                           for p, j in zip(parts, ids))
+        notes.append(f"point_source_id {i} is held by {sum(map(len, parts))} files whose GPS times do not interleave: "
+                     f"kept apart as {len(parts)} flight lines: {listed}")
+    return splits, notes
+
+
+def split_ids(ids: np.ndarray, t: np.ndarray, splits: dict) -> np.ndarray:
+    """Line ids (point_source_id) of points at times ``t`` with the shared ids of ``splits``
+    (:func:`shared_id_splits`) replaced by their parts' ids."""
+    if not splits:
+        return ids
+    ids = np.array(ids, np.int64)
+    for i, (starts, part_ids) in splits.items():
+        rows = np.flatnonzero(ids == i)
+        if rows.size:
+            ids[rows] = part_ids[np.clip(np.searchsorted(starts, t[rows], side="right") - 1, 0, starts.size - 1)]
+    return ids
+
+
 @dataclass(frozen=True)
 class LineIndex:
     """The flight lines of LAS/LAZ files found by a streamed first pass (:func:`index_flight_lines`),
@@ -82,11 +134,13 @@ class LineIndex:
     ids: tuple[int, ...]
     starts: np.ndarray | None  #: gps_time_gaps: first GPS time (s) of each line
     classes: dict[Path, np.ndarray]  #: LAS classes present in each file
+    splits: dict = None  #: point_source_ids shared by files apart in time (:func:`shared_id_splits`)
+    notes: tuple[str, ...] = ()  #: what the user should know about how the lines were found
 
     def of(self, point_source_id: np.ndarray | None, gps_time: np.ndarray) -> np.ndarray:
         """The flight-line id of each point of a chunk."""
         if self.starts is None:
-            return np.asarray(point_source_id, np.int64)
+            return split_ids(np.asarray(point_source_id, np.int64), np.asarray(gps_time, float), self.splits or {})
         return np.searchsorted(self.starts, gps_time, side="right").astype(np.int64)
 
 
@@ -101,7 +155,7 @@ def index_flight_lines(paths: Sequence[str | Path], options: PointOptions = Poin
     paths = [Path(p) for p in paths]
     _check_alike(paths, options)
     check_distinct(paths)
-    ids, seconds, classes = set(), [], {}
+    ids, seconds, classes, spans = set(), [], {}, {}
     for path in paths:
         present = np.zeros(256, bool)
         for c in iter_las_fields(path, ("point_source_id", "classification", "gps_time", *fields), chunk_points):
@@ -110,12 +164,25 @@ def index_flight_lines(paths: Sequence[str | Path], options: PointOptions = Poin
             ids.update(np.unique(c["point_source_id"]).tolist())
             present[np.unique(c["classification"])] = True
             seconds.append(_second_spans(c["gps_time"]))
+            add_spans(spans, c["point_source_id"], c["gps_time"], path.name)
         classes[path] = np.flatnonzero(present)
     if len(ids) >= 2:
-        return LineIndex("point_source_id", tuple(sorted(ids)), None, classes)
+        splits, notes = shared_id_splits(spans, gap_s)
+        ids |= {int(j) for _, part_ids in splits.values() for j in part_ids}
+        return LineIndex("point_source_id", tuple(sorted(ids)), None, classes, splits, tuple(notes))
     lo, hi = _second_spans(np.concatenate([s[0] for s in seconds] + [s[1] for s in seconds]))
     starts = np.r_[lo[:1], lo[1:][lo[1:] - hi[:-1] > gap_s]] if lo.size else np.zeros(1)
     return LineIndex("gps_time_gaps", tuple(range(1, starts.size + 1)), starts, classes)
+
+
+def add_spans(spans: dict, point_source_id, t: np.ndarray, name: str) -> None:
+    """Widen ``spans`` {(point_source_id, file name): (first, last GPS time)} by a chunk's points."""
+    psid = np.asarray(point_source_id, np.int64)
+    ok = np.isfinite(t)
+    for i in np.unique(psid[ok]):
+        ti = t[ok & (psid == i)]
+        t0, t1 = spans.get((int(i), name), (np.inf, -np.inf))
+        spans[(int(i), name)] = (min(t0, float(ti.min())), max(t1, float(ti.max())))
 
 
 def _second_spans(t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

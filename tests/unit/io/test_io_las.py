@@ -212,8 +212,8 @@ def test_laz_with_fewer_records_than_its_header(tmp_path):
     b = bytearray((tmp_path / "b.laz").read_bytes())
     b[247:255] = np.uint64(1000).tobytes()
     (tmp_path / "b.laz").write_bytes(bytes(b))
-    with pytest.raises(InputError, match="b.laz: .*(the header says 1000 points, the file holds 600|cannot read the "
-                       "points .*; truncated or damaged file)"):  # laspy stops short, or lazrs sees the chunk table
+    with pytest.raises(InputError, match="b.laz: point_count: the header says 1000 points, the LAZ chunks hold 600: "
+                       "a header counting more points"):  # checked when opened (LAZ 1.4: the chunks' own counts)
         list(iter_las_chunks(tmp_path / "b.laz", 250))
 
 
@@ -223,7 +223,7 @@ def test_absurd_coordinates_are_an_error(tmp_path):
                             point_source_id=1).read_bytes())
     b[131:139] = np.float64(1e295).tobytes()  # the x scale factor: x = 1e295 × integer ≈ 1e300
     (tmp_path / "huge.las").write_bytes(bytes(b))
-    with pytest.raises(InputError, match=r"huge.las: x: expected finite coordinates within ±1e\+09, got .*e\+30"):
+    with pytest.raises(InputError, match=r"huge.las: x scale factor: expected a positive scale ≤ 1 .*got 1e\+295"):
         read_las(tmp_path / "huge.las")
 
 
