@@ -1,0 +1,84 @@
+"""``calidar trajectory``: the sensor's flight path reconstructed from delivered points
+(:mod:`calidar.pipelines.trajectory`)."""
+
+from __future__ import annotations
+
+import json
+import shlex
+import sys
+from dataclasses import replace
+from pathlib import Path
+
+import typer
+from rich.markup import escape
+
+from calidar.cli.common import console, print_warning, progress_bar, progress_callback
+from calidar.cli.options import CRS, GEOID_UNDULATION, TIME_SYSTEM, point_options
+from calidar.validate import number
+
+
+def register(app: typer.Typer, simulate: typer.Typer) -> None:
+    @app.command("trajectory")
+    def trajectory(
+        points: list[Path] = typer.Argument(..., help="LAS/LAZ files with GPS times (one or several flight lines each)."),
+        out: Path = typer.Option(..., "--out", "-o", help="Trajectory file to write (text with σ columns, or SBET)."),
+        fmt: str | None = typer.Option(None, "--format", help="text (CSV with σ columns) or sbet (default: sbet for "
+                                       "a .out/.sbet name, else text)."),
+        report: Path | None = typer.Option(None, "--report", help="Report file (default: report.html beside --out)."),
+        rate: float = typer.Option(50.0, "--rate", help="Epochs written a second, Hz."),
+        points_per_second: float = typer.Option(1000.0, "--points-per-second",
+                                                help="Points (and multi-return pulses) each line keeps a second for the fit."),
+        knot_spacing: float = typer.Option(0.25, "--knot-spacing", help="Spacing of the trajectory spline's knots, s "
+                                           "(shorter: follows faster attitude changes, needs denser points)."),
+        crs: str | None = CRS, time_system: str | None = TIME_SYSTEM, geoid_undulation: float | None = GEOID_UNDULATION,
+        as_json: bool = typer.Option(False, "--json", help="Print the per-line summary as JSON."),
+        force: bool = typer.Option(False, "--force", help="Overwrite the outputs."),
+    ) -> None:
+        """Reconstruct each flight line's sensor trajectory from the points alone (multi-return rays,
+        scan angles, scan-line geometry), with a σ per epoch; write it and a report."""
+        from calidar.outputs import check_writable, guard_inputs
+        from calidar.pipelines import trajectory as pipeline
+        from calidar.trajrec.summary import line_summary
+
+        number(rate, "--rate", 0.1, 1000.0, "Hz")
+        number(points_per_second, "--points-per-second", 10.0, 1e6, "1/s")
+        number(knot_spacing, "--knot-spacing", 0.02, 10.0, "s")
+        fmt = pipeline.output_format(out, fmt)
+        options = point_options(crs, time_system, geoid_undulation)
+        rep = report if report is not None else out.parent / "report.html"
+        guard_inputs([out, rep], points)
+        check_writable(out, force), check_writable(rep, force)
+        base = pipeline.TrajectorySettings()
+        settings = replace(base, rate_hz=rate, points_per_s=points_per_second,
+                           fit=replace(base.fit, knot_s=knot_spacing))
+        with progress_bar() as bar:
+            run = pipeline.reconstruct_trajectory(points, options, settings, progress_callback(bar))
+        command = "calidar " + " ".join(shlex.quote(a) for a in sys.argv[1:])
+        pipeline.write_outputs(run, out, fmt, rep, [command], force)
+        summaries = [line_summary(ln) for ln in run.lines]
+        if as_json:
+            print(json.dumps({"lines": summaries, "notes": run.notes, "counts": run.counts}, indent=2))
+            return
+        _print(run, summaries)
+        for n in run.notes[2:]:
+            print_warning(n)
+        console.print(f"wrote {escape(str(out))} ({fmt}) and {escape(str(rep))}", highlight=False, soft_wrap=True)
+
+
+def _print(run, summaries) -> None:
+    from rich.table import Table
+
+    import numpy as np
+
+    d = np.degrees
+    table = Table(title=f"Reconstructed lines (from {run.lines_from}; read {run.timings['read_s']:.2f} s, "
+                  f"fit {run.timings['fit_s']:.2f} s)")
+    for h in ("line", "duration [s]", "height [m]", "speed [m/s]", "heading [°]", "σ E/N/U [m]",
+              "σ roll/pitch/heading [°]"):
+        table.add_column(h, justify="right")
+    for s in summaries:
+        g = s["sigma_median"]
+        table.add_row(s["line"], f"{s['duration_s']:.1f}", f"{s['height_m']:.1f}", f"{s['speed_mps']:.1f}",
+                      f"{d(s['heading_rad']):.2f}", f"{g['east_m']:.3f}/{g['north_m']:.3f}/{g['up_m']:.3f}",
+                      f"{d(g['roll_rad']):.4f}/{d(g['pitch_rad']):.4f}/{d(g['heading_rad']):.4f}")
+    console.print(table)

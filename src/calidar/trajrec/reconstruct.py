@@ -1,0 +1,115 @@
+"""One flight line's trajectory from its kept points: local frame, starting values, segment fits,
+epochs at a regular rate with their σ (see the package docstring)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from calidar.crs import from_crs
+from calidar.errors import InputError
+from calidar.trajrec.fit import FitSettings, Observations, channel_sigma, solve_segment
+from calidar.trajrec.frame import LocalFrame
+from calidar.trajrec.geometry import ray_basis
+from calidar.trajrec.lines import LinePoints
+from calidar.trajrec.scanlines import course, ground_track, ray_start, scan_angle_start
+from calidar.trajrec.spline import Spline
+
+MIN_SCAN_VALUES = 5  #: distinct scan angles a line needs for the scan-angle geometry ...
+MIN_SCAN_SPAN_DEG = 4.0  #: ... spread over at least this many degrees
+MIN_RAYS = 50  #: multi-return pulses a line needs when its scan angles are unusable
+MIN_DURATION_S = 1.0  #: shorter lines are not reconstructed
+START_KNOT_S = 1.0
+
+
+@dataclass
+class LineTrajectory:
+    """A reconstructed line: epochs in its local frame, attitude about the frame's NED axes."""
+
+    label: str
+    frame: LocalFrame
+    time: np.ndarray  #: (n,) s, as the points' times
+    enu: np.ndarray  #: (n, 3) m
+    attitude: np.ndarray  #: (n, 3) roll, pitch, heading (rad)
+    sigma: np.ndarray  #: (n, 6) σ east, north, up (m), roll, pitch, heading (rad)
+    info: dict = field(default_factory=dict)
+
+
+def _scan_usable(scan_deg: np.ndarray) -> bool:
+    s = scan_deg[np.isfinite(scan_deg)]
+    return s.size > 0 and np.unique(s).size >= MIN_SCAN_VALUES and float(np.ptp(s)) >= MIN_SCAN_SPAN_DEG
+
+
+def _start(line: LinePoints, p, scan_rad, rays, use_scan) -> tuple[Spline, np.ndarray, int, str]:
+    """A smooth starting path (spline over E, N, U, heading), the scan-angle sign, and its source."""
+    sp, coef = ground_track(line.t, p)
+    sign, source, rows = 1, "", np.empty((0, 4))
+    if use_scan:
+        srows, sign, score = scan_angle_start(line.t, p, scan_rad, sp, coef)
+        if srows.shape[0] >= 2 and np.isfinite(score):
+            tr = sp.evaluate(coef, srows[:, 0])
+            psi = course(sp, coef, srows[:, 0])
+            rows = np.stack([srows[:, 0], tr[:, 0] + srows[:, 1] * np.cos(psi), tr[:, 1] - srows[:, 1] * np.sin(psi),
+                             srows[:, 2]], axis=1)
+            source = "scan angles"
+    if rows.shape[0] < 2 and rays[0].size >= MIN_RAYS:
+        rows, source = ray_start(rays[0], rays[1], rays[2]), "multi-return rays"
+    if rows.shape[0] < 2:
+        raise InputError(None, f"line {line.label}", "cannot place the sensor: the method needs a usable scan-angle "
+                         f"field (≥ {MIN_SCAN_VALUES} distinct values over ≥ {MIN_SCAN_SPAN_DEG:g}°) or ≥ {MIN_RAYS} "
+                         "multi-return pulses (returns sharing a GPS time)")
+    st = Spline.covering(line.t[0], line.t[-1], START_KNOT_S)
+    head = np.interp(rows[:, 0], line.t, course(sp, coef, line.t))
+    return st, st.fit(rows[:, 0], np.c_[rows[:, 1:], head], smooth=1e-3), sign, source
+
+
+def _segments(t0: float, t1: float, s: FitSettings) -> list[tuple[float, float, float, float]]:
+    """(fit start, fit end, own start, own end) covering [t0, t1]; own ranges partition it."""
+    n = max(int(np.ceil((t1 - t0) / s.segment_s)), 1)
+    edges = np.linspace(t0, t1, n + 1)
+    return [(max(a - s.overlap_s, t0), min(b + s.overlap_s, t1), a, b) for a, b in zip(edges[:-1], edges[1:])]
+
+
+def reconstruct_line(line: LinePoints, crs, undulation, settings: FitSettings, rate_hz: float,
+                     source=None) -> LineTrajectory:
+    """The trajectory of one line (see the module docstring); ``source`` names the file in errors."""
+    if line.duration_s < MIN_DURATION_S:
+        raise InputError(source, f"line {line.label}", f"{line.duration_s:.2f} s of points; the method needs "
+                         f"≥ {MIN_DURATION_S:g} s of one flight line (several scan lines)")
+    ecef = from_crs(line.xyz, crs, undulation, source=source)
+    frame = LocalFrame.at(ecef[:: max(1, ecef.shape[0] // 5000)])
+    p = frame.to_local(ecef)
+    first = frame.to_local(from_crs(line.ray_first, crs, undulation, source=source)) if line.ray_t.size else np.empty((0, 3))
+    last = frame.to_local(from_crs(line.ray_last, crs, undulation, source=source)) if line.ray_t.size else np.empty((0, 3))
+    d = first - last
+    sep = np.linalg.norm(d, axis=1)
+    d = d / np.maximum(sep, 1e-9)[:, None]
+    use_scan = _scan_usable(line.scan)
+    scan = np.radians(line.scan) if use_scan else np.full(line.t.size, np.nan)
+    st, sc, sign, start_from = _start(line, p, scan, (line.ray_t, last, d), use_scan)
+    scan = sign * scan
+    u1, u2 = ray_basis(d) if sep.size else (np.empty((0, 3)), np.empty((0, 3)))
+    out_t = np.arange(line.t[0], line.t[-1] + 1e-9, 1.0 / rate_hz)
+    enu, att, sig = np.empty((out_t.size, 3)), np.empty((out_t.size, 3)), np.empty((out_t.size, 6))
+    fits = []
+    for a, b, oa, ob in _segments(line.t[0], line.t[-1], settings):
+        pm = (line.t >= a) & (line.t <= b)
+        rm = (line.ray_t >= a) & (line.ray_t <= b)
+        obs = Observations(p[pm], line.t[pm], scan[pm], use_scan, True, last[rm], u1[rm], u2[rm], line.ray_t[rm],
+                           1.0 / np.maximum(sep[rm], 0.1))
+        spline = Spline.covering(a, b, settings.knot_s)
+        ts = np.linspace(a, b, 4 * spline.n_coef)
+        start = st.evaluate(sc, ts)
+        coef0 = spline.fit(ts, np.c_[start[:, :3], np.zeros((ts.size, 2)), start[:, 3]])
+        fit = solve_segment(obs, spline, coef0, settings)
+        fits.append(fit)
+        own = (out_t >= oa) & ((out_t < ob) | (ob == line.t[-1]))
+        val = spline.evaluate(fit.coef, out_t[own])
+        enu[own], att[own], sig[own] = val[:, :3], val[:, 3:], channel_sigma(fit, out_t[own])
+    info = {"points": int(line.t.size), "rays": int(line.ray_t.size), "scan_angles": use_scan, "scan_sign": sign,
+            "start_from": start_from, "segments": len(fits), "iterations": max(f.iterations for f in fits),
+            "sigma0": float(np.median([f.sigma0 for f in fits])),
+            "scales": {k: float(np.median([f.scales[k] for f in fits if k in f.scales]))
+                       for k in {k for f in fits for k in f.scales}}}
+    return LineTrajectory(line.label, frame, out_t, enu, att, sig, info)
