@@ -22,7 +22,7 @@ from calidar.trajectory import Trajectory
 from calidar.trajrec.fit import FitSettings, one_blas_thread
 from calidar.trajrec.lines import split_lines
 from calidar.trajrec.pulses import Kept, keep_chunk
-from calidar.trajrec.reconstruct import LineTrajectory, reconstruct_line
+from calidar.trajrec.reconstruct import LineTrajectory, height_unit_m, reconstruct_line
 from calidar.trajrec.result import to_trajectory
 
 CHUNK_POINTS = 1_000_000
@@ -125,6 +125,8 @@ def reconstruct_trajectory(paths, options: PointOptions = PointOptions(),
     shift = _week_shift(np.concatenate([ln.time for ln in done]), system)
     traj = to_trajectory(done, shift, "gps_week_seconds", source=str(paths[0]))
     notes = _notes(kept, done, system) + notes
+    if height_unit_m(crs) != 1.0:
+        notes.append(f"the CRS {crs.name} is 2-D in {crs.axis_info[0].unit_name}s: the heights were taken in that unit too")
     counts = {"points_read": kept.n_read, "bad_times": kept.n_bad_time, "multi_return_points": kept.n_multi,
               "pulses_repeating_return_numbers": kept.return_numbers_repeated, "lines": len(done)}
     return TrajectoryRun(traj, done, paths, how, notes, counts, {"read_s": t1 - t0, "fit_s": t2 - t1})

@@ -10,45 +10,58 @@ import math
 import numpy as np
 from numba import njit
 
-_H_POS, _H_ANG = 1e-3, 1e-6  #: central-difference steps, m and rad
+_H_ANG = 1e-6  #: forward-difference step of the attitude partials, rad
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _scan_pair(px, py, pz, st):
-    """(across-track angle, along-track angle) of point p from state st (E, N, U, roll, pitch, heading)."""
-    de, dn, du = px - st[0], py - st[1], pz - st[2]
+def _body(de, dn, du, roll, pitch, heading):
+    """b = R_nbᵀ · v_ned of an east-north-up vector (the rotation of geometry.body_vectors)."""
     v0, v1, v2 = dn, de, -du
-    c, s = math.cos(st[5]), math.sin(st[5])
+    c, s = math.cos(heading), math.sin(heading)
     v0, v1 = c * v0 + s * v1, -s * v0 + c * v1
-    c, s = math.cos(st[4]), math.sin(st[4])
+    c, s = math.cos(pitch), math.sin(pitch)
     v0, v2 = c * v0 - s * v2, s * v0 + c * v2
-    c, s = math.cos(st[3]), math.sin(st[3])
+    c, s = math.cos(roll), math.sin(roll)
     v1, v2 = c * v1 + s * v2, -s * v1 + c * v2
-    return math.atan2(v1, v2), math.atan2(v0, math.hypot(v1, v2))
+    return v0, v1, v2
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _angles(b0, b1, b2):
+    """(across-track angle, along-track angle) of a body vector."""
+    return math.atan2(b1, b2), math.atan2(b0, math.hypot(b1, b2))
 
 
 @njit(cache=True, nogil=True)
 def scan_partials(points, state, scan):  # pragma: no cover - numba
-    """Residuals (n, 2) (across − scan angle, along) and partials (n, 2, 6) by central differences."""
+    """Residuals (n, 2) (across − scan angle, along) and partials (n, 2, 6): exact for the
+    position (b is linear in p − S), forward differences of 1e-6 rad for the attitude."""
     n = points.shape[0]
     r = np.empty((n, 2))
     g = np.empty((n, 2, 6))
-    st = np.empty(6)
+    att = np.empty(3)
     for k in range(n):
-        for c in range(6):
-            st[c] = state[k, c]
-        a0, b0 = _scan_pair(points[k, 0], points[k, 1], points[k, 2], st)
+        de, dn, du = points[k, 0] - state[k, 0], points[k, 1] - state[k, 1], points[k, 2] - state[k, 2]
+        ro, pi, he = state[k, 3], state[k, 4], state[k, 5]
+        b0, b1, b2 = _body(de, dn, du, ro, pi, he)
+        a0, c0 = _angles(b0, b1, b2)
         r[k, 0] = a0 - scan[k]
-        r[k, 1] = b0
-        for c in range(6):
-            h = _H_POS if c < 3 else _H_ANG
-            st[c] = state[k, c] + h
-            a1, b1 = _scan_pair(points[k, 0], points[k, 1], points[k, 2], st)
-            st[c] = state[k, c] - h
-            a2, b2 = _scan_pair(points[k, 0], points[k, 1], points[k, 2], st)
-            st[c] = state[k, c]
-            g[k, 0, c] = (a1 - a2) / (2 * h)
-            g[k, 1, c] = (b1 - b2) / (2 * h)
+        r[k, 1] = c0
+        q = b1 * b1 + b2 * b2
+        h = math.sqrt(q)
+        big = q + b0 * b0
+        # ∂across/∂b = (0, b2, −b1)/q; ∂along/∂b = (h, −b0·b1/h, −b0·b2/h)/(b0² + h²); ∂b/∂S_j = −A e_j
+        for j in range(3):
+            e0, e1, e2 = _body(1.0 if j == 0 else 0.0, 1.0 if j == 1 else 0.0, 1.0 if j == 2 else 0.0, ro, pi, he)
+            g[k, 0, j] = -(b2 * e1 - b1 * e2) / q
+            g[k, 1, j] = -(h * e0 - b0 * (b1 * e1 + b2 * e2) / h) / big
+        for j in range(3):
+            att[0], att[1], att[2] = ro, pi, he
+            att[j] += _H_ANG
+            b0j, b1j, b2j = _body(de, dn, du, att[0], att[1], att[2])
+            a1, c1 = _angles(b0j, b1j, b2j)
+            g[k, 0, 3 + j] = (a1 - a0) / _H_ANG
+            g[k, 1, 3 + j] = (c1 - c0) / _H_ANG
     return r, g
 
 

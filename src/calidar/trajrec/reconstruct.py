@@ -19,7 +19,7 @@ from calidar.trajrec.spline import Spline
 MIN_SCAN_VALUES = 5  #: distinct scan angles a line needs for the scan-angle geometry ...
 MIN_SCAN_SPAN_DEG = 4.0  #: ... spread over at least this many degrees
 MIN_RAYS = 50  #: multi-return pulses a line needs when its scan angles are unusable
-MIN_DURATION_S = 1.0  #: shorter lines are not reconstructed
+MIN_DURATION_S = 0.5  #: shorter lines are not reconstructed
 START_KNOT_S = 1.0
 
 
@@ -71,17 +71,33 @@ def _segments(t0: float, t1: float, s: FitSettings) -> list[tuple[float, float, 
     return [(max(a - s.overlap_s, t0), min(b + s.overlap_s, t1), a, b) for a, b in zip(edges[:-1], edges[1:])]
 
 
+def height_unit_m(crs) -> float:
+    """Metres per unit of the points' heights: a 2-D projected CRS in feet has its heights in feet
+    too (LAS files carry one unit), which PROJ would pass through as metres."""
+    axes = crs.axis_info
+    if crs.is_projected and len(axes) == 2 and axes[0].unit_conversion_factor:
+        return float(axes[0].unit_conversion_factor)
+    return 1.0
+
+
+def _ecef(xyz, crs, undulation, source):
+    z_unit = height_unit_m(crs)
+    if z_unit != 1.0:
+        xyz = np.c_[xyz[:, :2], xyz[:, 2] * z_unit]
+    return from_crs(xyz, crs, undulation, source=source)
+
+
 def reconstruct_line(line: LinePoints, crs, undulation, settings: FitSettings, rate_hz: float,
                      source=None) -> LineTrajectory:
     """The trajectory of one line (see the module docstring); ``source`` names the file in errors."""
     if line.duration_s < MIN_DURATION_S:
         raise InputError(source, f"line {line.label}", f"{line.duration_s:.2f} s of points; the method needs "
                          f"≥ {MIN_DURATION_S:g} s of one flight line (several scan lines)")
-    ecef = from_crs(line.xyz, crs, undulation, source=source)
+    ecef = _ecef(line.xyz, crs, undulation, source)
     frame = LocalFrame.at(ecef[:: max(1, ecef.shape[0] // 5000)])
     p = frame.to_local(ecef)
-    first = frame.to_local(from_crs(line.ray_first, crs, undulation, source=source)) if line.ray_t.size else np.empty((0, 3))
-    last = frame.to_local(from_crs(line.ray_last, crs, undulation, source=source)) if line.ray_t.size else np.empty((0, 3))
+    first = frame.to_local(_ecef(line.ray_first, crs, undulation, source)) if line.ray_t.size else np.empty((0, 3))
+    last = frame.to_local(_ecef(line.ray_last, crs, undulation, source)) if line.ray_t.size else np.empty((0, 3))
     d = first - last
     sep = np.linalg.norm(d, axis=1)
     d = d / np.maximum(sep, 1e-9)[:, None]
