@@ -30,6 +30,10 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
                                                 help="Points (and multi-return pulses) each line keeps a second for the fit."),
         knot_spacing: float = typer.Option(0.25, "--knot-spacing", help="Spacing of the trajectory spline's knots, s "
                                            "(shorter: follows faster attitude changes, needs denser points)."),
+        no_scan_angles: bool = typer.Option(False, "--no-scan-angles", help="Ignore the scan-angle field (when it "
+                                            "is known to be wrong); roll is then not determined."),
+        scanner: str = typer.Option("planar", "--scanner", help="planar: each scan line's beams lie in one plane "
+                                    "(oscillating mirror, polygon); other: rely on the multi-return rays alone."),
         crs: str | None = CRS, time_system: str | None = TIME_SYSTEM, geoid_undulation: float | None = GEOID_UNDULATION,
         as_json: bool = typer.Option(False, "--json", help="Print the per-line summary as JSON."),
         force: bool = typer.Option(False, "--force", help="Overwrite the outputs."),
@@ -44,13 +48,16 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
         number(points_per_second, "--points-per-second", 10.0, 1e6, "1/s")
         number(knot_spacing, "--knot-spacing", 0.02, 10.0, "s")
         fmt = pipeline.output_format(out, fmt)
+        if scanner not in ("planar", "other"):
+            raise typer.BadParameter(f"expected planar or other, got {scanner!r}", param_hint="--scanner")
         options = point_options(crs, time_system, geoid_undulation)
         rep = report if report is not None else out.parent / "report.html"
         guard_inputs([out, rep], points)
         check_writable(out, force), check_writable(rep, force)
         base = pipeline.TrajectorySettings()
         settings = replace(base, rate_hz=rate, points_per_s=points_per_second,
-                           fit=replace(base.fit, knot_s=knot_spacing))
+                           fit=replace(base.fit, knot_s=knot_spacing, use_scan_angles=not no_scan_angles,
+                                       planar_scanner=scanner == "planar"))
         with progress_bar() as bar:
             run = pipeline.reconstruct_trajectory(points, options, settings, progress_callback(bar))
         command = "calidar " + " ".join(shlex.quote(a) for a in sys.argv[1:])

@@ -22,6 +22,10 @@ from calidar.trajrec.spline import Spline
 CHANNELS = ("east", "north", "up", "roll", "pitch", "heading")
 COARSE_STEP = 4  #: the first iterations use every 4th observation ...
 FINE_ITERATIONS = 2  #: ... the last ones all of them
+#: smallest scale of an angle residual, rad (0.2 mm at 1 km): simulated scan lines can be planar to 1e-9 rad,
+#: whose weight would make the normal matrix too ill-conditioned to solve in float64 (the weak
+#: across-track / roll direction came out 4× its σ off)
+SCALE_FLOOR = 2e-7
 CAUCHY_C = 2.385  #: Cauchy constant (95 % efficiency at the normal distribution)
 
 
@@ -45,6 +49,8 @@ class FitSettings:
     roll_prior: tuple[float, float] = (0.0, np.radians(30.0))  #: roll (mean, σ), rad
     pitch_prior: tuple[float, float] = (0.0, np.radians(10.0))  #: pitch (mean, σ), rad
     iterations: int = 12
+    use_scan_angles: bool = True  #: fit the scan-angle field (when usable)
+    planar_scanner: bool = True  #: the beams of a scan line lie in one plane (linear/oscillating scanners)
     segment_s: float = 20.0  #: lines are solved in segments of this length (s) ...
     overlap_s: float = 2.0  #: ... overlapping by this much
 
@@ -83,9 +89,9 @@ def _normal_blocks(spline: Spline, t, r, g, w_obs, n_mat, rhs):
     accumulate(n_mat, rhs, i, w, np.ascontiguousarray(g), r, w_obs, spline.n_coef)
 
 
-def _robust(z: np.ndarray) -> tuple[np.ndarray, float]:
-    """Cauchy weights of standardised residuals z and their MAD scale."""
-    scale = max(1.4826 * float(np.median(np.abs(z))), 1e-12) if z.size else 1.0
+def _robust(z: np.ndarray, floor: float = SCALE_FLOOR) -> tuple[np.ndarray, float]:
+    """Cauchy weights of standardised residuals z and their MAD scale (at least ``floor``)."""
+    scale = max(1.4826 * float(np.median(np.abs(z))), floor) if z.size else 1.0
     return 1.0 / (1.0 + (z / (CAUCHY_C * scale)) ** 2) / scale**2, scale
 
 
@@ -138,7 +144,7 @@ def _iterate(obs: Observations, spline: Spline, coef: np.ndarray, settings: FitS
     n_mat, rhs = np.zeros((p, p)), np.zeros(p)
     chi2, n_tot, scales, n_obs = 0.0, 0, {}, {}
     for name, t, r, g, rel in _types(obs, spline, coef):
-        w, scale = _robust(r / rel)
+        w, scale = _robust(r / rel, SCALE_FLOOR / float(np.median(rel)))
         scales[name.rstrip("01")] = scale
         n_obs[name] = int(t.size)
         wr = w / rel**2

@@ -87,6 +87,33 @@ def _ecef(xyz, crs, undulation, source):
     return from_crs(xyz, crs, undulation, source=source)
 
 
+def _select(obs: Observations, a: float, b: float) -> Observations:
+    """The observations of times [a, b]."""
+    pm = (obs.t >= a) & (obs.t <= b)
+    rm = (obs.ray_t >= a) & (obs.ray_t <= b)
+    return Observations(obs.points[pm], obs.t[pm], obs.scan[pm], obs.use_across, obs.use_along, obs.ray_last[rm],
+                        obs.ray_u1[rm], obs.ray_u2[rm], obs.ray_t[rm], obs.ray_sigma[rm])
+
+
+def _fit_segments(obs: Observations, st: Spline, sc: np.ndarray, settings: FitSettings, out_t: np.ndarray):
+    """Each segment fitted from the starting path (st, sc); values and σ at ``out_t`` from the
+    segment owning each epoch."""
+    enu, att, sig = np.empty((out_t.size, 3)), np.empty((out_t.size, 3)), np.empty((out_t.size, 6))
+    fits = []
+    t_last = obs.t[-1]
+    for a, b, oa, ob in _segments(obs.t[0], t_last, settings):
+        spline = Spline.covering(a, b, settings.knot_s)
+        ts = np.linspace(a, b, 4 * spline.n_coef)
+        start = st.evaluate(sc, ts)
+        coef0 = spline.fit(ts, np.c_[start[:, :3], np.zeros((ts.size, 2)), start[:, 3]])
+        fit = solve_segment(_select(obs, a, b), spline, coef0, settings)
+        fits.append(fit)
+        own = (out_t >= oa) & ((out_t < ob) | (ob == t_last))
+        val = spline.evaluate(fit.coef, out_t[own])
+        enu[own], att[own], sig[own] = val[:, :3], val[:, 3:], channel_sigma(fit, out_t[own])
+    return enu, att, sig, fits
+
+
 def reconstruct_line(line: LinePoints, crs, undulation, settings: FitSettings, rate_hz: float,
                      source=None) -> LineTrajectory:
     """The trajectory of one line (see the module docstring); ``source`` names the file in errors."""
@@ -101,28 +128,17 @@ def reconstruct_line(line: LinePoints, crs, undulation, settings: FitSettings, r
     d = first - last
     sep = np.linalg.norm(d, axis=1)
     d = d / np.maximum(sep, 1e-9)[:, None]
-    use_scan = _scan_usable(line.scan)
+    use_scan = settings.use_scan_angles and _scan_usable(line.scan)
+    if not (use_scan or settings.planar_scanner or line.ray_t.size >= MIN_RAYS):
+        raise InputError(source, f"line {line.label}", f"{line.ray_t.size} multi-return pulses and no scan-angle or "
+                         f"scan-plane geometry; the method needs ≥ {MIN_RAYS} pulses with several returns")
     scan = np.radians(line.scan) if use_scan else np.full(line.t.size, np.nan)
     st, sc, sign, start_from = _start(line, p, scan, (line.ray_t, last, d), use_scan)
-    scan = sign * scan
     u1, u2 = ray_basis(d) if sep.size else (np.empty((0, 3)), np.empty((0, 3)))
+    obs = Observations(p, line.t, sign * scan, use_scan, settings.planar_scanner, last, u1, u2, line.ray_t,
+                       1.0 / np.maximum(sep, 0.1))
     out_t = np.arange(line.t[0], line.t[-1] + 1e-9, 1.0 / rate_hz)
-    enu, att, sig = np.empty((out_t.size, 3)), np.empty((out_t.size, 3)), np.empty((out_t.size, 6))
-    fits = []
-    for a, b, oa, ob in _segments(line.t[0], line.t[-1], settings):
-        pm = (line.t >= a) & (line.t <= b)
-        rm = (line.ray_t >= a) & (line.ray_t <= b)
-        obs = Observations(p[pm], line.t[pm], scan[pm], use_scan, True, last[rm], u1[rm], u2[rm], line.ray_t[rm],
-                           1.0 / np.maximum(sep[rm], 0.1))
-        spline = Spline.covering(a, b, settings.knot_s)
-        ts = np.linspace(a, b, 4 * spline.n_coef)
-        start = st.evaluate(sc, ts)
-        coef0 = spline.fit(ts, np.c_[start[:, :3], np.zeros((ts.size, 2)), start[:, 3]])
-        fit = solve_segment(obs, spline, coef0, settings)
-        fits.append(fit)
-        own = (out_t >= oa) & ((out_t < ob) | (ob == line.t[-1]))
-        val = spline.evaluate(fit.coef, out_t[own])
-        enu[own], att[own], sig[own] = val[:, :3], val[:, 3:], channel_sigma(fit, out_t[own])
+    enu, att, sig, fits = _fit_segments(obs, st, sc, settings, out_t)
     info = {"points": int(line.t.size), "rays": int(line.ray_t.size), "scan_angles": use_scan, "scan_sign": sign,
             "start_from": start_from, "segments": len(fits), "iterations": max(f.iterations for f in fits),
             "sigma0": float(np.median([f.sigma0 for f in fits])),
