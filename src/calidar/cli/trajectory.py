@@ -64,7 +64,8 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
         pipeline.write_outputs(run, out, fmt, rep, [command], force)
         summaries = [line_summary(ln) for ln in run.lines]
         if as_json:
-            print(json.dumps({"lines": summaries, "notes": run.notes, "counts": run.counts}, indent=2))
+            print(json.dumps({"lines_from": run.lines_from, "lines": summaries, "notes": run.notes, "counts": run.counts},
+                             indent=2, ensure_ascii=False))
             return
         _print(run, summaries)
         for n in run.notes[2:]:

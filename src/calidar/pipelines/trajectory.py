@@ -22,7 +22,7 @@ from calidar.trajectory import Trajectory
 from calidar.trajrec.fit import FitSettings, one_blas_thread
 from calidar.trajrec.lines import split_lines
 from calidar.trajrec.pulses import Kept, keep_chunk
-from calidar.trajrec.reconstruct import LineTrajectory, height_unit_m, reconstruct_line
+from calidar.trajrec.reconstruct import MIN_DURATION_S, LineTrajectory, height_unit_m, reconstruct_line
 from calidar.trajrec.result import to_trajectory
 
 CHUNK_POINTS = 1_000_000
@@ -56,7 +56,12 @@ class TrajectoryRun:
 def _read(paths, options: PointOptions, settings: TrajectorySettings, progress) -> tuple[Kept, object, str]:
     """One streamed pass over every file: the points and rays kept, the CRS, the time system."""
     kept, crs, system = Kept(), None, None
-    total = sum(las_header(p).point_count for p in paths)
+    headers = [las_header(p) for p in paths]
+    for path, h in zip(paths, headers):
+        if "gps_time" not in h.point_format.dimension_names:
+            raise InputError(path, "gps_time", f"point format {h.point_format.id} has no GPS time; trajectory "
+                             "reconstruction needs each point's GPS time (LAS point formats 1, 3–10)")
+    total = sum(h.point_count for h in headers)
     for path in paths:
         for chunk in iter_las_chunks(path, CHUNK_POINTS, fields=FIELDS, options=options):
             if chunk.crs is None:
@@ -92,6 +97,9 @@ def _week_shift(trajectory_t: np.ndarray, system: str) -> float:
 
 def _fit_lines(lines, crs, options, settings, progress, source) -> tuple[list[LineTrajectory], list[str]]:
     done, notes, errors = [], [], []
+    if not lines:
+        raise InputError(source, "gps_time", "no flight line has two points with distinct GPS times; the method "
+                         f"needs ≥ {MIN_DURATION_S:g} s of one line's points")
     with one_blas_thread():
         for k, line in enumerate(lines):
             try:
@@ -151,7 +159,10 @@ def _notes(kept: Kept, done: list[LineTrajectory], system: str) -> list[str]:
                                           ("roll", med[3], DETERMINED["roll_rad"]),
                                           ("pitch", med[4], DETERMINED["pitch_rad"]),
                                           ("heading", med[5], DETERMINED["heading_rad"])) if s > lim]
-        if not ln.info["scan_angles"]:
+        if not ln.info["scan_angles"] and not ln.info.get("planar", True):
+            notes.append(f"line {ln.label}: without scan angles and scan-plane geometry the rays give the position "
+                         "only: roll and pitch are their priors' (0) and heading the scan lines' trace on the ground")
+        elif not ln.info["scan_angles"]:
             notes.append(f"line {ln.label}: the scan-angle field is missing or too coarse: roll is not determined "
                          "(held near 0 by its prior) and the position rests on the multi-return rays alone")
         if weak:

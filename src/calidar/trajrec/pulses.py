@@ -77,7 +77,7 @@ def pulse_rays(t, xyz, scan, source, return_number=None):
 
 def keep_chunk(kept: Kept, chunk, rate_per_s: float) -> None:
     """Add one chunk (:class:`calidar.io.las.LasPoints`): about ``rate_per_s`` points and as many
-    pulses' rays a second (a regular thinning; all of them when fewer). Points with a time ≤ 0 or not
+    pulses' rays a second (a random thinning; all of them when fewer). Points with a time ≤ 0 or not
     finite (damaged GPS times) are counted and dropped."""
     n = len(chunk)
     kept.n_read += n
@@ -97,16 +97,19 @@ def keep_chunk(kept: Kept, chunk, rate_per_s: float) -> None:
     kept.return_numbers_repeated += repeated
     lo, hi = np.percentile(t[:: max(1, t.size // 10000)], [1, 99])
     span = max((hi - lo) * rate_per_s, 1.0)
-    keep = slice(None, None, max(int(first.size / span), 1))
+    # a random thinning (seeded: the same file gives the same result), never a regular stride: a
+    # scanner firing a whole number of pulses per scan period would have every kept point at one of
+    # a few scan angles, their quantisation errors the same in every sweep (a bias, not noise)
+    rng = np.random.default_rng(kept.n_read)
+    keep = rng.random(first.size) < span / max(first.size, 1)
     first, last = first[keep], last[keep]
     kept.ray_t.append(t[first])
     kept.ray_first.append(xyz[first])
     kept.ray_last.append(xyz[last])
     kept.ray_scan.append(np.full(first.size, np.nan) if scan is None else scan[first])
     kept.ray_source.append(source[first])
-    stride = max(int(idx.size / span), 1)
-    sel = slice(int(kept.n_read) % stride, None, stride)
+    sel = np.flatnonzero(rng.random(idx.size) < span / idx.size)
     kept.t.append(t[sel])
     kept.xyz.append(xyz[sel])
-    kept.scan.append(np.full(t[sel].size, np.nan) if scan is None else scan[sel])
+    kept.scan.append(np.full(sel.size, np.nan) if scan is None else scan[sel])
     kept.source.append(source[sel])

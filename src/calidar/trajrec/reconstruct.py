@@ -140,6 +140,7 @@ def reconstruct_line(line: LinePoints, crs, undulation, settings: FitSettings, r
     out_t = np.arange(line.t[0], line.t[-1] + 1e-9, 1.0 / rate_hz)
     enu, att, sig, fits = _fit_segments(obs, st, sc, settings, out_t)
     info = {"points": int(line.t.size), "rays": int(line.ray_t.size), "scan_angles": use_scan, "scan_sign": sign,
+            "planar": settings.planar_scanner,
             "start_from": start_from, "segments": len(fits), "iterations": max(f.iterations for f in fits),
             "sigma0": float(np.median([f.sigma0 for f in fits])),
             "scales": {k: float(np.median([f.scales[k] for f in fits if k in f.scales]))

@@ -1,6 +1,7 @@
 """Starting values of a line's trajectory from the geometry of its scan lines (no iteration).
 
-The ground track (the points' centre in short time bins, smoothed) gives the course. Within one
+The ground track (the points' centre in short time bins, smoothed) and the scan lines' trace on
+the ground (normal to the heading) give the path and the heading. Within one
 bin the scan-angle field θ (the beam's angle about the along-track axis) and a point's offset a
 across the track and height u tie the sensor's across-track offset s and height U together:
 a = s + (U − u)·tan θ, i.e. a + u·tan θ = s + U·tan θ, a straight-line fit per bin (roll ignored
@@ -12,6 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from calidar.errors import InputError
 from calidar.trajrec.spline import Spline
 
 BIN_S = 0.5  #: time bins of the starting values, s
@@ -24,21 +26,47 @@ def _bins(t: np.ndarray, width: float) -> tuple[np.ndarray, np.ndarray]:
 
 
 def ground_track(t: np.ndarray, p: np.ndarray) -> tuple[Spline, np.ndarray]:
-    """A smooth spline (east, north, up) through the points' per-bin medians (t sorted)."""
+    """A smooth spline over (east, north, up, heading) of the points, bin by bin (t sorted): the
+    bin's median point, and the heading normal to the scan lines' trace on the ground (the principal
+    axis of the bin's points, across the track whatever the crab; its sense from the line's motion).
+    The trace is normal to the scan plane, hence to the body's x axis: the heading, not the course."""
     edges, b = _bins(t, BIN_S)
-    tc, c = [], []
+    tc, c, across = [], [], []
     for s, e in zip(b[:-1], b[1:]):
-        if e - s >= 3:
+        if e - s >= 10:
+            xy = p[s:e, :2] - np.median(p[s:e, :2], axis=0)
+            w, v = np.linalg.eigh(xy.T @ xy)
             tc.append(float(np.median(t[s:e])))
             c.append(np.median(p[s:e], axis=0))
+            across.append(v[:, 1] if w[1] > 4 * w[0] else np.array([np.nan, np.nan]))
+    if len(tc) < 2:
+        raise InputError(None, "gps_time", "fewer than two time bins of 0.5 s with ≥ 10 points; the method needs "
+                         "several scan lines of one flight line")
+    tc, c, across = np.asarray(tc), np.asarray(c), np.asarray(across)
+    motion = c[-1, :2] - c[0, :2]
+    forward = np.stack([across[:, 1], -across[:, 0]], axis=1)  # normal to the trace, either sense ...
+    forward *= np.sign(forward @ motion)[:, None]  # ... turned to the sense the line flies
+    ok = np.all(np.isfinite(forward), axis=1)
+    if ok.sum() < 2:  # no clear scan lines: the course over ground
+        forward = np.gradient(c[:, :2], tc, axis=0)
+        ok = np.ones(tc.size, bool)
+    head = np.unwrap(np.arctan2(forward[ok, 0], forward[ok, 1]))
+    head = np.interp(tc, tc[ok], _median3(head))
     sp = Spline.covering(t[0], t[-1], TRACK_KNOT_S)
-    return sp, sp.fit(np.asarray(tc), np.asarray(c))
+    return sp, sp.fit(tc, np.c_[c, head])
+
+
+def _median3(a: np.ndarray) -> np.ndarray:
+    """Running median of 5 (a bin's heading can be spoilt by a building's edge)."""
+    if a.size < 5:
+        return a
+    pad = np.r_[a[:2], a, a[-2:]]
+    return np.median(np.lib.stride_tricks.sliding_window_view(pad, 5), axis=1)
 
 
 def course(sp: Spline, coef: np.ndarray, t) -> np.ndarray:
-    """Heading (rad, clockwise from north) of the track's velocity at ``t``, unwrapped."""
-    v = sp.derivative(coef, t)
-    return np.unwrap(np.arctan2(v[:, 0], v[:, 1]))
+    """The start heading (rad, clockwise from north) at ``t``."""
+    return sp.evaluate(coef, t)[:, 3]
 
 
 def _line_fit(x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, float]:
@@ -61,7 +89,7 @@ def scan_angle_start(t, p, scan_rad, sp, coef) -> tuple[np.ndarray, int, float]:
     that fits (+1: positive right of the flight direction, as LAS says; −1: the file's are flipped)
     and the median misfit (m)."""
     track = sp.evaluate(coef, t)
-    psi = course(sp, coef, t)
+    psi = track[:, 3]
     right = np.stack([np.cos(psi), -np.sin(psi)], axis=1)
     a = np.einsum("ij,ij->i", p[:, :2] - track[:, :2], right)
     edges, b = _bins(t, BIN_S)
