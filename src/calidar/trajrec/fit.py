@@ -21,7 +21,7 @@ from calidar.trajrec.spline import Spline
 
 CHANNELS = ("east", "north", "up", "roll", "pitch", "heading")
 COARSE_STEP = 4  #: the first iterations use every 4th observation ...
-FINE_ITERATIONS = 2  #: ... the last ones all of them
+FINE_ITERATIONS = 1  #: ... the last one all of them
 #: smallest scale of an angle residual, rad (0.2 mm at 1 km): simulated scan lines can be planar to 1e-9 rad,
 #: whose weight would make the normal matrix too ill-conditioned to solve in float64 (the weak
 #: across-track / roll direction came out 4× its σ off)
@@ -48,6 +48,8 @@ class FitSettings:
     angular_accel_sigma: float = 0.1  #: prior σ of roll/pitch/heading angular acceleration, rad/s²
     roll_prior: tuple[float, float] = (0.0, np.radians(30.0))  #: roll (mean, σ), rad
     pitch_prior: tuple[float, float] = (0.0, np.radians(10.0))  #: pitch (mean, σ), rad
+    #: σ of the starting heading (the scan lines' trace) when neither scan angles nor scan planes are fitted, rad
+    heading_start_sigma: float = np.radians(2.0)
     iterations: int = 12
     use_scan_angles: bool = True  #: fit the scan-angle field (when usable)
     planar_scanner: bool = True  #: the beams of a scan line lie in one plane (linear/oscillating scanners)
@@ -95,8 +97,9 @@ def _robust(z: np.ndarray, floor: float = SCALE_FLOOR) -> tuple[np.ndarray, floa
     return 1.0 / (1.0 + (z / (CAUCHY_C * scale)) ** 2) / scale**2, scale
 
 
-def _prior_blocks(spline: Spline, coef: np.ndarray, s: FitSettings, n_mat, rhs) -> None:
-    """Smoothness (second differences) on every channel and roll/pitch plausibility priors."""
+def _prior_blocks(spline: Spline, coef: np.ndarray, s: FitSettings, n_mat, rhs, heading0=None) -> None:
+    """Smoothness (second differences) on every channel, roll/pitch plausibility priors, and the
+    starting heading ``heading0`` (coefficients) as a prior when nothing else determines it."""
     k = spline.n_coef
     d2 = np.diff(np.eye(k), 2, axis=0)
     for c in range(6):
@@ -104,7 +107,10 @@ def _prior_blocks(spline: Spline, coef: np.ndarray, s: FitSettings, n_mat, rhs) 
         sl = slice(c * k, (c + 1) * k)
         n_mat[sl, sl] += d2.T @ d2 / sig**2
         rhs[sl] -= d2.T @ (d2 @ coef[:, c]) / sig**2
-    for c, (mean, sig) in ((3, s.roll_prior), (4, s.pitch_prior)):
+    priors = [(3, s.roll_prior[0], s.roll_prior[1]), (4, s.pitch_prior[0], s.pitch_prior[1])]
+    if heading0 is not None:
+        priors.append((5, heading0, s.heading_start_sigma))
+    for c, mean, sig in priors:
         sl = slice(c * k, (c + 1) * k)
         n_mat[sl, sl] += np.eye(k) / sig**2
         rhs[sl] -= (coef[:, c] - mean) / sig**2
@@ -138,7 +144,7 @@ def _thin(obs: Observations, step: int) -> Observations:
                         obs.ray_sigma[::step])
 
 
-def _iterate(obs: Observations, spline: Spline, coef: np.ndarray, settings: FitSettings):
+def _iterate(obs: Observations, spline: Spline, coef: np.ndarray, settings: FitSettings, heading0=None):
     """One Gauss–Newton step: (step (K, 6), normal matrix, χ², observations, scales, counts)."""
     p = 6 * spline.n_coef
     n_mat, rhs = np.zeros((p, p)), np.zeros(p)
@@ -152,7 +158,7 @@ def _iterate(obs: Observations, spline: Spline, coef: np.ndarray, settings: FitS
         chi2 += float(np.sum(wr * r**2))
         n_tot += t.size
     n_mat = symmetrize(n_mat)
-    _prior_blocks(spline, coef, settings, n_mat, rhs)
+    _prior_blocks(spline, coef, settings, n_mat, rhs, heading0)
     with one_blas_thread():
         dx = np.linalg.solve(n_mat, rhs).reshape(6, spline.n_coef).T
     return dx, n_mat, chi2, n_tot, scales, n_obs
@@ -160,18 +166,19 @@ def _iterate(obs: Observations, spline: Spline, coef: np.ndarray, settings: FitS
 
 def solve_segment(obs: Observations, spline: Spline, coef0: np.ndarray, settings: FitSettings) -> SegmentFit:
     """Gauss–Newton with IRLS from ``coef0`` (K, 6); see the module docstring. The iterations use a
-    quarter of the observations until the steps are below 1 cm and 1e-5 rad; then two iterations
-    (and the covariance) use all of them."""
+    quarter of the observations until the steps are below 1 cm and 1e-5 rad; then one iteration
+    (and the covariance) uses all of them."""
     coef = np.array(coef0, float)
+    heading0 = None if (obs.use_across or obs.use_along) else coef[:, 5].copy()
     thin = _thin(obs, COARSE_STEP)
     it = 0
     for it in range(1, settings.iterations + 1):
-        dx = _iterate(thin, spline, coef, settings)[0]
+        dx = _iterate(thin, spline, coef, settings, heading0)[0]
         coef += dx
         if np.all(np.abs(dx[:, :3]) < 1e-2) and np.all(np.abs(dx[:, 3:]) < 1e-5):
             break
     for _ in range(FINE_ITERATIONS):  # the covariance from the last one's normal matrix
-        dx, n_mat, chi2, n_tot, scales, n_obs = _iterate(obs, spline, coef, settings)
+        dx, n_mat, chi2, n_tot, scales, n_obs = _iterate(obs, spline, coef, settings, heading0)
         coef += dx
     sigma0 = float(np.sqrt(chi2 / max(n_tot - 6 * spline.n_coef, 1)))
     with one_blas_thread():

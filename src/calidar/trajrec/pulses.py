@@ -50,7 +50,7 @@ def pulse_rays(t, xyz, scan, source, return_number=None):
     """Rays of the multi-point pulses among points: (index of first, index of last, repeated-return
     pulses); first = highest point, last = lowest. Only points whose time another point shares are
     sorted (a tenth of an airborne file), so this costs little."""
-    order = np.argsort(t, kind="stable")
+    order = np.arange(t.size) if np.all(t[1:] >= t[:-1]) else np.argsort(t, kind="stable")  # files are mostly in time order
     ts = t[order]
     same = ts[1:] == ts[:-1]
     cand = order[np.r_[same, False] | np.r_[False, same]]
