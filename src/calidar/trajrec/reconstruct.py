@@ -21,6 +21,7 @@ MIN_SCAN_SPAN_DEG = 4.0  #: ... spread over at least this many degrees
 MIN_RAYS = 50  #: multi-return pulses a line needs when its scan angles are unusable
 MIN_DURATION_S = 0.5  #: shorter lines are not reconstructed
 START_KNOT_S = 1.0
+EDGE_S = 0.1  #: the trajectory is written this far (s) beyond the first and last kept point of a line
 
 
 @dataclass
@@ -108,7 +109,8 @@ def _fit_segments(obs: Observations, st: Spline, sc: np.ndarray, settings: FitSe
         coef0 = spline.fit(ts, np.c_[start[:, :3], np.zeros((ts.size, 2)), start[:, 3]])
         fit = solve_segment(_select(obs, a, b), spline, coef0, settings)
         fits.append(fit)
-        own = (out_t >= oa) & ((out_t < ob) | (ob == t_last))
+        tc = np.clip(out_t, obs.t[0], t_last)
+        own = (tc >= oa) & ((tc < ob) | (ob == t_last))
         val = spline.evaluate(fit.coef, out_t[own])
         enu[own], att[own], sig[own] = val[:, :3], val[:, 3:], channel_sigma(fit, out_t[own])
     return enu, att, sig, fits
@@ -137,7 +139,9 @@ def reconstruct_line(line: LinePoints, crs, undulation, settings: FitSettings, r
     u1, u2 = ray_basis(d) if sep.size else (np.empty((0, 3)), np.empty((0, 3)))
     obs = Observations(p, line.t, sign * scan, use_scan, settings.planar_scanner, last, u1, u2, line.ray_t,
                        1.0 / np.maximum(sep, 0.1))
-    out_t = np.arange(line.t[0], line.t[-1] + 1e-9, 1.0 / rate_hz)
+    # epochs reach EDGE_S past the kept points: the thinned-out points at a line's ends stay covered
+    n_out = int(np.ceil((line.t[-1] - line.t[0] + 2 * EDGE_S) * rate_hz)) + 1
+    out_t = line.t[0] - EDGE_S + np.arange(n_out) / rate_hz
     enu, att, sig, fits = _fit_segments(obs, st, sc, settings, out_t)
     info = {"points": int(line.t.size), "rays": int(line.ray_t.size), "scan_angles": use_scan, "scan_sign": sign,
             "planar": settings.planar_scanner,
