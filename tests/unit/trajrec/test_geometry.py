@@ -3,6 +3,8 @@ segment fit recovering a known sensor path from synthetic rays and scan lines wi
 
 from __future__ import annotations
 
+import sys
+
 import numpy as np
 import pytest
 
@@ -48,10 +50,21 @@ def test_body_vectors_follow_the_conventions_worked_example():
     assert np.degrees(np.arctan2(b[0, 1], b[0, 2])) == pytest.approx(10.0, abs=1e-9)
 
 
+TURN_RATE = 0.0  #: rad/s of the synthetic path's heading (a turning line when > 0)
+
+
 def _truth(t):
-    """A sensor at 1000 m flying north at 60 m/s with smoothly varying attitude."""
-    return np.c_[5 * np.sin(t / 3), 60 * t, 1000 + 2 * np.sin(t / 2), np.radians(1.0) * np.sin(t),
-                 np.radians(2.0) + np.radians(0.5) * np.sin(t / 1.5), np.radians(3.0) + np.radians(0.3) * np.cos(t)]
+    """A sensor at 1000 m flying north at 60 m/s with smoothly varying attitude (turning at TURN_RATE,
+    banked as a coordinated turn would be)."""
+    head = np.radians(3.0) + np.radians(0.3) * np.cos(t) + TURN_RATE * t
+    if TURN_RATE:
+        r = 60.0 / TURN_RATE
+        east, north = r * (1 - np.cos(TURN_RATE * t)), r * np.sin(TURN_RATE * t)
+    else:
+        east, north = 5 * np.sin(t / 3), 60 * t
+    bank = np.arctan(60.0 * TURN_RATE / 9.81)
+    return np.c_[east, north, 1000 + 2 * np.sin(t / 2), bank + np.radians(1.0) * np.sin(t),
+                 np.radians(2.0) + np.radians(0.5) * np.sin(t / 1.5), head]
 
 
 def _scan_points(t, truth, noise_rad):
@@ -88,9 +101,12 @@ def test_rays_alone_recover_the_sensor_position_within_sigma():
     assert 0.3 < np.sqrt(np.mean((err / sig) ** 2)) < 2.0  # σ honest within a factor 2
 
 
-def test_scan_lines_recover_position_and_attitude_within_sigma():
+@pytest.mark.parametrize("turn_deg_per_s", [0.0, 10.0])
+def test_scan_lines_recover_position_and_attitude_within_sigma(monkeypatch, turn_deg_per_s):
+    monkeypatch.setattr(sys.modules[__name__], "TURN_RATE", np.radians(turn_deg_per_s))  # 80° over the line
     t = np.sort(RNG.uniform(0, 8, 20000))
     truth = _truth(t)
+    assert np.degrees(np.ptp(truth[:, 5])) == pytest.approx(turn_deg_per_s * 8, abs=1.0)
     pts, theta, _ = _scan_points(t, truth, np.radians(0.003))
     obs = Observations(pts, t, theta, True, True, np.empty((0, 3)), np.empty((0, 3)), np.empty((0, 3)), np.empty(0),
                        np.empty(0))
