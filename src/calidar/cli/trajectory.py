@@ -9,6 +9,7 @@ import sys
 from dataclasses import replace
 from pathlib import Path
 
+import numpy as np
 import typer
 from rich.markup import escape
 
@@ -34,6 +35,9 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
                                             "is known to be wrong); roll is then not determined."),
         scanner: str = typer.Option("planar", "--scanner", help="planar: each scan line's beams lie in one plane "
                                     "(oscillating mirror, polygon); other: rely on the multi-return rays alone."),
+        scan_plane_yaw: float = typer.Option(0.0, "--scan-plane-yaw", help="Yaw of the scan plane in the body, deg, "
+                                             "when the scan-angle field holds body-frame angles (leeward's scanner: "
+                                             "13.96); the heading written is then the body's."),
         crs: str | None = CRS, time_system: str | None = TIME_SYSTEM, geoid_undulation: float | None = GEOID_UNDULATION,
         as_json: bool = typer.Option(False, "--json", help="Print the per-line summary as JSON."),
         force: bool = typer.Option(False, "--force", help="Overwrite the outputs."),
@@ -47,6 +51,7 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
         number(rate, "--rate", 0.1, 1000.0, "Hz")
         number(points_per_second, "--points-per-second", 10.0, 1e6, "1/s")
         number(knot_spacing, "--knot-spacing", 0.02, 10.0, "s")
+        number(scan_plane_yaw, "--scan-plane-yaw", -90.0, 90.0, "deg")
         fmt = pipeline.output_format(out, fmt)
         if scanner not in ("planar", "other"):
             raise typer.BadParameter(f"expected planar or other, got {scanner!r}", param_hint="--scanner")
@@ -57,7 +62,7 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
         base = pipeline.TrajectorySettings()
         settings = replace(base, rate_hz=rate, points_per_s=points_per_second,
                            fit=replace(base.fit, knot_s=knot_spacing, use_scan_angles=not no_scan_angles,
-                                       planar_scanner=scanner == "planar"))
+                                       planar_scanner=scanner == "planar", scan_plane_yaw=np.radians(scan_plane_yaw)))
         with progress_bar() as bar:
             run = pipeline.reconstruct_trajectory(points, options, settings, progress_callback(bar))
         command = "calidar " + " ".join(shlex.quote(a) for a in sys.argv[1:])

@@ -53,6 +53,7 @@ class FitSettings:
     iterations: int = 12
     use_scan_angles: bool = True  #: fit the scan-angle field (when usable)
     planar_scanner: bool = True  #: the beams of a scan line lie in one plane (linear/oscillating scanners)
+    scan_plane_yaw: float = 0.0  #: that plane's yaw in the body, rad (the scan-angle field: body across-track angles)
     segment_s: float = 20.0  #: lines are solved in segments of this length (s) ...
     overlap_s: float = 2.0  #: ... overlapping by this much
 
@@ -116,12 +117,12 @@ def _prior_blocks(spline: Spline, coef: np.ndarray, s: FitSettings, n_mat, rhs, 
         rhs[sl] -= (coef[:, c] - mean) / sig**2
 
 
-def _types(obs: Observations, spline: Spline, coef: np.ndarray):
+def _types(obs: Observations, spline: Spline, coef: np.ndarray, kappa: float = 0.0):
     """Per residual type: (name, times, residuals (n,), partials (n, 6), relative σ (n,))."""
     out = []
     if obs.t.size and (obs.use_across or obs.use_along):
         state = spline.evaluate(coef, obs.t)
-        r, g = scan_partials(obs.points, state, np.nan_to_num(obs.scan))
+        r, g = scan_partials(obs.points, state, np.nan_to_num(obs.scan), kappa)
         if obs.use_across:
             ok = np.isfinite(obs.scan)
             out.append(("across", obs.t[ok], r[ok, 0], g[ok, 0], np.ones(int(ok.sum()))))
@@ -149,7 +150,7 @@ def _iterate(obs: Observations, spline: Spline, coef: np.ndarray, settings: FitS
     p = 6 * spline.n_coef
     n_mat, rhs = np.zeros((p, p)), np.zeros(p)
     chi2, n_tot, scales, n_obs = 0.0, 0, {}, {}
-    for name, t, r, g, rel in _types(obs, spline, coef):
+    for name, t, r, g, rel in _types(obs, spline, coef, settings.scan_plane_yaw):
         w, scale = _robust(r / rel, SCALE_FLOOR / float(np.median(rel)))
         scales[name.rstrip("01")] = scale
         n_obs[name] = int(t.size)

@@ -27,17 +27,21 @@ def _body(de, dn, du, roll, pitch, heading):
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _angles(b0, b1, b2):
-    """(across-track angle, along-track angle) of a body vector."""
-    return math.atan2(b1, b2), math.atan2(b0, math.hypot(b1, b2))
+def _angles(b0, b1, b2, ck, sk):
+    """(across-track angle of the body vector, along-track angle of the scanner vector Rz(κ)ᵀ·b),
+    ck, sk = cos κ, sin κ of the scan plane's yaw κ in the body."""
+    s0, s1 = ck * b0 + sk * b1, -sk * b0 + ck * b1
+    return math.atan2(b1, b2), math.atan2(s0, math.hypot(s1, b2))
 
 
 @njit(cache=True, nogil=True)
-def scan_partials(points, state, scan):  # pragma: no cover - numba
+def scan_partials(points, state, scan, kappa=0.0):  # pragma: no cover - numba
     """Residuals (n, 2) (across − scan angle, along) and partials (n, 2, 6): exact for the
     position (b is linear in p − S), central differences of 1e-5 rad for the attitude (their error,
-    ~1e-11, stays far below the along-track angle's scatter, whose weight would amplify any more)."""
+    ~1e-11, stays far below the along-track angle's scatter, whose weight would amplify any more).
+    ``kappa``: the scan plane's yaw in the body (rad; see geometry.scan_residuals)."""
     n = points.shape[0]
+    ck, sk = math.cos(kappa), math.sin(kappa)
     r = np.empty((n, 2))
     g = np.empty((n, 2, 6))
     att = np.empty(3)
@@ -45,25 +49,28 @@ def scan_partials(points, state, scan):  # pragma: no cover - numba
         de, dn, du = points[k, 0] - state[k, 0], points[k, 1] - state[k, 1], points[k, 2] - state[k, 2]
         ro, pi, he = state[k, 3], state[k, 4], state[k, 5]
         b0, b1, b2 = _body(de, dn, du, ro, pi, he)
-        a0, c0 = _angles(b0, b1, b2)
+        a0, c0 = _angles(b0, b1, b2, ck, sk)
         r[k, 0] = a0 - scan[k]
         r[k, 1] = c0
+        s0, s1 = ck * b0 + sk * b1, -sk * b0 + ck * b1
         q = b1 * b1 + b2 * b2
-        h = math.sqrt(q)
-        big = q + b0 * b0
-        # ∂across/∂b = (0, b2, −b1)/q; ∂along/∂b = (h, −b0·b1/h, −b0·b2/h)/(b0² + h²); ∂b/∂S_j = −A e_j
+        qs = s1 * s1 + b2 * b2
+        h = math.sqrt(qs)
+        big = qs + s0 * s0
+        # ∂across/∂b = (0, b2, −b1)/q; ∂along/∂s = (h, −s0·s1/h, −s0·s2/h)/(s0² + h²); ∂b/∂S_j = −A e_j
         for j in range(3):
             e0, e1, e2 = _body(1.0 if j == 0 else 0.0, 1.0 if j == 1 else 0.0, 1.0 if j == 2 else 0.0, ro, pi, he)
+            f0, f1 = ck * e0 + sk * e1, -sk * e0 + ck * e1
             g[k, 0, j] = -(b2 * e1 - b1 * e2) / q
-            g[k, 1, j] = -(h * e0 - b0 * (b1 * e1 + b2 * e2) / h) / big
+            g[k, 1, j] = -(h * f0 - s0 * (s1 * f1 + b2 * e2) / h) / big
         for j in range(3):
             att[0], att[1], att[2] = ro, pi, he
             att[j] += _H_ANG
             b0j, b1j, b2j = _body(de, dn, du, att[0], att[1], att[2])
-            a1, c1 = _angles(b0j, b1j, b2j)
+            a1, c1 = _angles(b0j, b1j, b2j, ck, sk)
             att[j] -= 2 * _H_ANG
             b0j, b1j, b2j = _body(de, dn, du, att[0], att[1], att[2])
-            a2, c2 = _angles(b0j, b1j, b2j)
+            a2, c2 = _angles(b0j, b1j, b2j, ck, sk)
             g[k, 0, 3 + j] = (a1 - a2) / (2 * _H_ANG)
             g[k, 1, 3 + j] = (c1 - c2) / (2 * _H_ANG)
     return r, g

@@ -106,7 +106,8 @@ def _fit_segments(obs: Observations, st: Spline, sc: np.ndarray, settings: FitSe
         spline = Spline.covering(a, b, settings.knot_s)
         ts = np.linspace(a, b, 4 * spline.n_coef)
         start = st.evaluate(sc, ts)
-        coef0 = spline.fit(ts, np.c_[start[:, :3], np.zeros((ts.size, 2)), start[:, 3]])
+        # the scan lines' trace is normal to the scan plane: the body's heading is κ less
+        coef0 = spline.fit(ts, np.c_[start[:, :3], np.zeros((ts.size, 2)), start[:, 3] - settings.scan_plane_yaw])
         fit = solve_segment(_select(obs, a, b), spline, coef0, settings)
         fits.append(fit)
         tc = np.clip(out_t, obs.t[0], t_last)

@@ -21,13 +21,14 @@ def _states(n):
                  RNG.uniform(-np.pi, np.pi, n)]
 
 
-def test_kernels_match_the_numpy_equations():
+@pytest.mark.parametrize("kappa", [0.0, np.radians(13.96)])
+def test_kernels_match_the_numpy_equations(kappa):
     n = 200
     state = _states(n)
     pts = np.c_[RNG.normal(0, 300, (n, 2)), RNG.normal(0, 20, n)]
     scan = RNG.normal(0, 0.3, n)
-    r, g = scan_partials(pts, state, scan)
-    r_ref, g_ref = channel_partials(lambda s: scan_residuals(pts, s[:, :3], s[:, 3:], scan), state,
+    r, g = scan_partials(pts, state, scan, kappa)
+    r_ref, g_ref = channel_partials(lambda s: scan_residuals(pts, s[:, :3], s[:, 3:], scan, kappa), state,
                                     np.array([1e-3, 1e-3, 1e-3, 1e-7, 1e-7, 1e-7]))
     np.testing.assert_allclose(r, r_ref, atol=1e-12)
     np.testing.assert_allclose(g, g_ref, rtol=1e-5, atol=1e-8)
