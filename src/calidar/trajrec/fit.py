@@ -12,7 +12,7 @@ pitch within what an aircraft flies. The covariance of the coefficients is σ0²
 from __future__ import annotations
 
 import contextlib
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -20,7 +20,7 @@ from calidar.trajrec.kernels import accumulate, ray_partials, scan_partials, sym
 from calidar.trajrec.spline import Spline
 
 CHANNELS = ("east", "north", "up", "roll", "pitch", "heading")
-COARSE_STEP = 4  #: the first iterations use every 4th observation ...
+COARSE_STEP = 8  #: the first iterations use every 4th observation ...
 FINE_ITERATIONS = 1  #: ... the last one all of them
 #: smallest scale of an angle residual, rad (0.2 mm at 1 km): simulated scan lines can be planar to 1e-9 rad,
 #: whose weight would make the normal matrix too ill-conditioned to solve in float64 (the weak
@@ -72,6 +72,13 @@ class Observations:
     ray_u2: np.ndarray
     ray_t: np.ndarray  #: (M,)
     ray_sigma: np.ndarray  #: (M,) relative σ of the ray's direction (1 / separation of its returns)
+    cache: dict = field(default_factory=dict, repr=False)  #: spline bases of t and ray_t (one spline per segment)
+
+    def basis(self, spline: Spline, which: str) -> tuple[np.ndarray, np.ndarray]:
+        """``spline.basis`` of the point ("t") or ray ("ray_t") times, computed once."""
+        if which not in self.cache:
+            self.cache[which] = spline.basis(getattr(self, which))
+        return self.cache[which]
 
 
 @dataclass
@@ -85,10 +92,11 @@ class SegmentFit:
     iterations: int
 
 
-def _normal_blocks(spline: Spline, t, r, g, w_obs, n_mat, rhs):
-    """Add Σ Jᵀ W J and −Jᵀ W r of residuals r (n,), partials g (n, 6) at times t into the
-    normal matrix (6K, 6K) and right-hand side (each row touches 4 coefficients of each channel)."""
-    i, w = spline.basis(t)
+def _normal_blocks(spline: Spline, basis, r, g, w_obs, n_mat, rhs):
+    """Add Σ Jᵀ W J and −Jᵀ W r of residuals r (n,), partials g (n, 6) with spline ``basis`` (first
+    coefficient, weights) into the normal matrix (6K, 6K) and right-hand side (each row touches 4
+    coefficients of each channel)."""
+    i, w = basis
     accumulate(n_mat, rhs, i, w, np.ascontiguousarray(g), r, w_obs, spline.n_coef)
 
 
@@ -117,23 +125,50 @@ def _prior_blocks(spline: Spline, coef: np.ndarray, s: FitSettings, n_mat, rhs, 
         rhs[sl] -= (coef[:, c] - mean) / sig**2
 
 
+def _state(coef: np.ndarray, basis) -> np.ndarray:
+    """Channel values (n, 6) from coefficients (K, 6) and a basis (first coefficient, weights)."""
+    i, w = basis
+    return np.einsum("nj,njc->nc", w, coef[i[:, None] + np.arange(4)])
+
+
 def _types(obs: Observations, spline: Spline, coef: np.ndarray, kappa: float = 0.0):
-    """Per residual type: (name, times, residuals (n,), partials (n, 6), relative σ (n,))."""
+    """Per residual type: (name, basis, residuals (n,), partials (n, 6), relative σ (n,))."""
     out = []
     if obs.t.size and (obs.use_across or obs.use_along):
-        state = spline.evaluate(coef, obs.t)
-        r, g = scan_partials(obs.points, state, np.nan_to_num(obs.scan), kappa)
+        basis = obs.basis(spline, "t")
+        r, g = scan_partials(obs.points, _state(coef, basis), np.nan_to_num(obs.scan), kappa)
         if obs.use_across:
             ok = np.isfinite(obs.scan)
-            out.append(("across", obs.t[ok], r[ok, 0], g[ok, 0], np.ones(int(ok.sum()))))
+            out.append(("across", (basis[0][ok], basis[1][ok]), r[ok, 0], g[ok, 0], np.ones(int(ok.sum()))))
         if obs.use_along:
-            out.append(("along", obs.t, r[:, 1], g[:, 1], np.ones(obs.t.size)))
+            out.append(("along", basis, r[:, 1], g[:, 1], np.ones(obs.t.size)))
     if obs.ray_t.size:
-        state = spline.evaluate(coef, obs.ray_t)
+        basis = obs.basis(spline, "ray_t")
+        state = _state(coef, basis)
         r, g = ray_partials(np.ascontiguousarray(state[:, :3]), obs.ray_last, obs.ray_u1, obs.ray_u2)
         for k in range(2):
-            out.append((f"ray{k}", obs.ray_t, r[:, k], g[:, k], obs.ray_sigma))
+            out.append((f"ray{k}", basis, r[:, k], g[:, k], obs.ray_sigma))
     return out
+
+
+def _banded_solve(n_mat: np.ndarray, rhs: np.ndarray, k: int, interleaved_out: bool = False) -> np.ndarray:
+    """N⁻¹·rhs by a banded Cholesky: with the unknowns interleaved (coefficient j, channel c → 6j + c) N
+    is banded (half-bandwidth 23: a row touches 4 consecutive coefficients of each channel). ``rhs``
+    (6K,) in channel-major order gives the answer in that order; ``interleaved_out`` with rhs = I
+    gives N⁻¹ in interleaved order (its channel blocks are [c::6, c::6])."""
+    from scipy.linalg import solveh_banded
+
+    cm = (np.arange(6 * k) % 6) * k + np.arange(6 * k) // 6  # interleaved position → channel-major index
+    ni = n_mat[np.ix_(cm, cm)]
+    u = 23
+    ab = np.zeros((u + 1, 6 * k))
+    for d in range(u + 1):
+        ab[u - d, d:] = np.diagonal(ni, d)
+    if interleaved_out:
+        return solveh_banded(ab, rhs, check_finite=False)
+    x = np.empty_like(rhs)
+    x[cm] = solveh_banded(ab, rhs[cm], check_finite=False)
+    return x
 
 
 def _thin(obs: Observations, step: int) -> Observations:
@@ -150,18 +185,18 @@ def _iterate(obs: Observations, spline: Spline, coef: np.ndarray, settings: FitS
     p = 6 * spline.n_coef
     n_mat, rhs = np.zeros((p, p)), np.zeros(p)
     chi2, n_tot, scales, n_obs = 0.0, 0, {}, {}
-    for name, t, r, g, rel in _types(obs, spline, coef, settings.scan_plane_yaw):
+    for name, basis, r, g, rel in _types(obs, spline, coef, settings.scan_plane_yaw):
         w, scale = _robust(r / rel, SCALE_FLOOR / float(np.median(rel)))
         scales[name.rstrip("01")] = scale
-        n_obs[name] = int(t.size)
+        n_obs[name] = int(r.size)
         wr = w / rel**2
-        _normal_blocks(spline, t, r, g, wr, n_mat, rhs)
+        _normal_blocks(spline, basis, r, g, wr, n_mat, rhs)
         chi2 += float(np.sum(wr * r**2))
-        n_tot += t.size
+        n_tot += r.size
     n_mat = symmetrize(n_mat)
     _prior_blocks(spline, coef, settings, n_mat, rhs, heading0)
     with one_blas_thread():
-        dx = np.linalg.solve(n_mat, rhs).reshape(6, spline.n_coef).T
+        dx = _banded_solve(n_mat, rhs, spline.n_coef).reshape(6, spline.n_coef).T
     return dx, n_mat, chi2, n_tot, scales, n_obs
 
 
@@ -182,10 +217,10 @@ def solve_segment(obs: Observations, spline: Spline, coef0: np.ndarray, settings
         dx, n_mat, chi2, n_tot, scales, n_obs = _iterate(obs, spline, coef, settings, heading0)
         coef += dx
     sigma0 = float(np.sqrt(chi2 / max(n_tot - 6 * spline.n_coef, 1)))
-    with one_blas_thread():
-        inv = np.linalg.inv(n_mat) * max(sigma0, 1.0) ** 2
     k = spline.n_coef
-    cov = np.stack([inv[c * k:(c + 1) * k, c * k:(c + 1) * k] for c in range(6)])
+    with one_blas_thread():
+        inv = _banded_solve(n_mat, np.eye(6 * k), k, interleaved_out=True) * max(sigma0, 1.0) ** 2
+    cov = np.stack([inv[c::6, c::6] for c in range(6)])  # rows/columns interleaved: coefficient k, channel c
     return SegmentFit(spline, coef, cov, sigma0, scales, n_obs, it)
 
 

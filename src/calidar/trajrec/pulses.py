@@ -86,13 +86,13 @@ def keep_chunk(kept: Kept, chunk, rate_per_s: float) -> None:
     kept.n_bad_time += int(n - good.sum())
     if not good.any():
         return
-    idx = np.flatnonzero(good)
+    idx = slice(None) if good.all() else np.flatnonzero(good)  # no copies of a clean chunk
     t, xyz = t[idx], chunk.xyz[idx]
     scan = None if chunk.scan_angle_deg is None else np.asarray(chunk.scan_angle_deg, float)[idx]
-    source = np.zeros(idx.size) if chunk.point_source_id is None else np.asarray(chunk.point_source_id, float)[idx]
+    source = np.zeros(t.size) if chunk.point_source_id is None else np.asarray(chunk.point_source_id)[idx]
     rn = None if chunk.return_number is None else chunk.return_number[idx]
     if chunk.number_of_returns is not None:
-        kept.n_multi += int(np.sum(chunk.number_of_returns[idx] > 1))
+        kept.n_multi += int(np.count_nonzero(chunk.number_of_returns[idx] > 1))
     first, last, repeated = pulse_rays(t, xyz, scan, source, rn)
     kept.return_numbers_repeated += repeated
     lo, hi = np.percentile(t[:: max(1, t.size // 10000)], [1, 99])
@@ -107,9 +107,9 @@ def keep_chunk(kept: Kept, chunk, rate_per_s: float) -> None:
     kept.ray_first.append(xyz[first])
     kept.ray_last.append(xyz[last])
     kept.ray_scan.append(np.full(first.size, np.nan) if scan is None else scan[first])
-    kept.ray_source.append(source[first])
-    sel = np.flatnonzero(rng.random(idx.size) < span / idx.size)
+    kept.ray_source.append(source[first].astype(float))
+    sel = np.flatnonzero(rng.random(t.size) < span / t.size)
     kept.t.append(t[sel])
     kept.xyz.append(xyz[sel])
     kept.scan.append(np.full(sel.size, np.nan) if scan is None else scan[sel])
-    kept.source.append(source[sel])
+    kept.source.append(source[sel].astype(float))
