@@ -5,8 +5,9 @@ the simulator's trajectory (sbet.out).
 Per seed a survey is simulated with a random boresight error (σ 0.1° per axis), delivered as strips
 georeferenced with the nominal sensor; the trajectory is reconstructed from the strips alone (the
 scanner's origin and scan-plane attitude, so the sensor given with it has a zero lever arm); both
-calibrations run with the default options (tie planes, boresight, trajectory model on; the
-reconstructed trajectory's σ columns are its accuracy). Reported per run: the overlaps' mean |median dz|
+calibrations run with the default options (tie planes, boresight, trajectory model on); the true
+trajectory's accuracy is its smrmsg.out, the reconstructed one's the survey's navigation grade given
+as ``--trajectory-sigma`` (its σ columns are the reconstruction's σ, not the navigation error). Reported per run: the overlaps' mean |median dz|
 and mean RMSDz after calibration (final quality stage), and the boresight error against the truth.
 
     PYTHONPATH=src nice -n 10 python benchmarks/trajectory_boresight.py [--preset uav] [--seeds 0-19]
@@ -61,10 +62,17 @@ def one(seed: int, preset: str, density: float, folder: Path) -> dict:
     (sim / "rec" / "sensor.toml").unlink(missing_ok=True)
     nominal.with_parameters(lever_arm_x=0.0, lever_arm_y=0.0, lever_arm_z=0.0).write(sim / "rec" / "sensor.toml")
     out = {}
-    for name, traj, sensor in (("true", sim / "sbet.out", sim / "sensor.toml"),
-                               ("reconstructed", sim / "rec" / "traj.csv", sim / "rec" / "sensor.toml")):
+    # the reconstruction's σ columns say how well the points fix the path they were georeferenced with, not
+    # that path's navigation error, which points cannot know: the reconstructed run is given the survey's
+    # navigation grade (the simulator's GNSS σ and attitude σ), as a user would give their system's
+    cfg = survey_config(preset)
+    grade = f"{cfg.gnss_noise_m:g},{np.degrees(cfg.attitude_noise_rad):g}"
+    for name, traj, sensor, opts in (
+            ("true", sim / "sbet.out", sim / "sensor.toml", BoresightOptions()),
+            ("reconstructed", sim / "rec" / "traj.csv", sim / "rec" / "sensor.toml",
+             BoresightOptions(trajectory_sigma=grade))):
         dest = Path(tempfile.mkdtemp(dir=folder)) / name
-        run = run_boresight(strips, traj, sensor, dest)
+        run = run_boresight(strips, traj, sensor, dest, opts)
         out[name] = {**_quality(run), "boresight_error_deg": _boresight_error_deg(run, truth),
                      "verdict": run.verdicts["planes"].status}
     return {"seed": seed, "preset": preset, "density": density, **out,

@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from calidar.io.sbet import read_sbet
-from calidar.pipelines.trajectory import reconstruct_trajectory
+from calidar.pipelines.trajectory import STANDING_NOTES, reconstruct_trajectory
 from calidar.trajrec.result import compare, error_summary
 from calidar.trajrec.summary import line_summary
 
@@ -42,7 +42,7 @@ def main() -> None:
                   f"{d(g['pitch_rad']):.3f}/{d(g['heading_rad']):.3f}°; scan-angle misfit "
                   f"{d(s['misfit_rad'].get('across', np.nan)):.3f}°, scan-plane misfit "
                   f"{d(s['misfit_rad'].get('along', np.nan)):.4f}°, rays {s['rays']}")
-        for n in run.notes[2:]:
+        for n in run.notes[len(STANDING_NOTES):]:
             print("note:", n)
         sbet = root / name / "sbet.out"
         if sbet.exists():

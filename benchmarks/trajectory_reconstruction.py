@@ -29,7 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from calidar.io.sbet import read_sbet
-from calidar.pipelines.trajectory import TrajectorySettings, reconstruct_trajectory
+from calidar.pipelines.trajectory import STANDING_NOTES, TrajectorySettings, reconstruct_trajectory
 from calidar.sensor import Sensor
 from calidar.sim.survey import simulate_survey, survey_config
 from calidar.trajrec.result import compare, error_summary
@@ -80,7 +80,7 @@ def run_case(name: str, seed: int, folder: Path, repeats: int) -> dict:
         per_line.append({"line": ln.label, "heading_median_deg": float(np.degrees(np.median(np.abs(one["d_att"][:, 2])))),
                          "position_median_m": float(np.median(np.linalg.norm(one["d_ned"], axis=1)))})
     return {"case": name, "seed": seed, "points": n, "lines": len(run.lines), "errors": error_summary(c),
-            "per_line": per_line, "notes": run.notes[2:], "read_cpu_s": read_cpu, "read_wall_s": read_wall,
+            "per_line": per_line, "notes": run.notes[len(STANDING_NOTES):], "read_cpu_s": read_cpu, "read_wall_s": read_wall,
             "reconstruct_cpu_s": cpu, "reconstruct_wall_s": wall, "ratio_cpu": cpu / read_cpu}
 
 

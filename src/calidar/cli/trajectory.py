@@ -73,7 +73,7 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
                              indent=2, ensure_ascii=False))
             return
         _print(run, summaries)
-        for n in run.notes[2:]:
+        for n in run.notes[len(pipeline.STANDING_NOTES):]:
             print_warning(n)
         console.print(f"wrote {escape(str(out))} ({fmt}) and {escape(str(rep))}", highlight=False, soft_wrap=True)
 

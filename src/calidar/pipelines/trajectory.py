@@ -32,6 +32,17 @@ DETERMINED = {"position_m": 1.0, "roll_rad": np.radians(0.1), "pitch_rad": np.ra
               "heading_rad": np.radians(0.1)}  #: a channel whose median σ exceeds this is "not determined"
 
 
+#: what every reconstruction is, whatever the data (the report shows them; the CLI prints only the others)
+STANDING_NOTES = (
+    "positions are the scanner's origin and the attitude that of its scan plane (x along the flight, y to the "
+    "right): no lever arm or boresight can be known from points alone (use a sensor.toml with both zero)",
+    "roll is about the scan-angle field's zero: where a file's scan angles already include the aircraft's roll, "
+    "the roll found is what is left (≈ 0)",
+    "the σ columns say how well the points fix the path they were georeferenced with, not that path's navigation "
+    "error, which points cannot know: for calidar boresight give the system's grade (--trajectory-sigma)",
+)
+
+
 @dataclass(frozen=True)
 class TrajectorySettings:
     """``rate_hz``: epochs written a second; ``points_per_s``: points (and as many multi-return
@@ -142,10 +153,7 @@ def reconstruct_trajectory(paths, options: PointOptions = PointOptions(),
 
 def _notes(kept: Kept, done: list[LineTrajectory], system: str) -> list[str]:
     """What the run could and could not determine, in words."""
-    notes = ["positions are the scanner's origin and the attitude that of its scan plane (x along the "
-             "flight, y to the right): no lever arm or boresight can be known from points alone",
-             "roll is about the scan-angle field's zero: where a file's scan angles already include the "
-             "aircraft's roll, the roll found is what is left (≈ 0)"]
+    notes = list(STANDING_NOTES)
     if system != "gps_week_seconds":
         notes.append("the points' adjusted standard GPS times were converted to GPS week seconds")
     if kept.n_bad_time:
