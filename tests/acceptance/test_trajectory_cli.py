@@ -117,5 +117,7 @@ def test_bad_inputs_say_what_the_method_needs(cli, tmp_path):
     code, out, err = cli("trajectory", tmp_path / "onepulse.laz", "--out", tmp_path / "e.csv")
     assert code == 1 and "no flight line" in err
     code, out, err = cli("trajectory", tmp_path / "flat.laz", "--out", tmp_path / "f.csv", "--scanner", "nope")
-    assert code == 2
+    assert code == 2 and "Usage" in err
+    code, out, err = cli("trajectory", tmp_path / "flat.laz", "--out", tmp_path / "f.csv", "--format", "las")
+    assert code == 2 and "--format" in err
     assert not any((tmp_path / n).exists() for n in ("a.csv", "b.csv", "c.csv", "d.csv", "e.csv", "f.csv"))

@@ -52,6 +52,8 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
         number(points_per_second, "--points-per-second", 10.0, 1e6, "1/s")
         number(knot_spacing, "--knot-spacing", 0.02, 10.0, "s")
         number(scan_plane_yaw, "--scan-plane-yaw", -90.0, 90.0, "deg")
+        if fmt is not None and fmt not in pipeline.FORMATS:
+            raise typer.BadParameter(f"expected text or sbet, got {fmt!r}", param_hint="--format")
         fmt = pipeline.output_format(out, fmt)
         if scanner not in ("planar", "other"):
             raise typer.BadParameter(f"expected planar or other, got {scanner!r}", param_hint="--scanner")
