@@ -36,8 +36,10 @@ def _errors(folder, path):
 
 def test_simulated_survey_within_tolerance_and_readable(cli, survey, tmp_path):
     strips = sorted((survey / "strips").glob("*.laz"))
-    code, out, err = cli("trajectory", *strips, "--out", tmp_path / "traj.csv")
+    code, out, err = cli("trajectory", *strips, "--out", tmp_path / "traj.csv", "--sensor-out", tmp_path / "s.toml")
     assert code == 0, err
+    sensor = Sensor.read(tmp_path / "s.toml")
+    assert sensor.crs == CRS and sensor.lever_arm_x == sensor.boresight_yaw == 0.0
     assert (tmp_path / "report.html").stat().st_size > 10_000 and "Line 1" in (tmp_path / "report.html").read_text()
     e = _errors(survey, tmp_path / "traj.csv")
     # the goal of issue #30: median position ≤ 0.10 m, heading ≤ 0.05°; here (80 m above ground) far better

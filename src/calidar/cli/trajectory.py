@@ -26,6 +26,8 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
         fmt: str | None = typer.Option(None, "--format", help="text (CSV with σ columns) or sbet (default: sbet for "
                                        "a .out/.sbet name, else text)."),
         report: Path | None = typer.Option(None, "--report", help="Report file (default: report.html beside --out)."),
+        sensor_out: Path | None = typer.Option(None, "--sensor-out", help="Also write the sensor.toml the trajectory "
+                                               "goes with (zero lever arm and boresight), e.g. for calidar boresight."),
         rate: float = typer.Option(50.0, "--rate", help="Epochs written a second, Hz."),
         points_per_second: float = typer.Option(1000.0, "--points-per-second",
                                                 help="Points (and multi-return pulses) each line keeps a second for the fit."),
@@ -59,8 +61,10 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
             raise typer.BadParameter(f"expected planar or other, got {scanner!r}", param_hint="--scanner")
         options = point_options(crs, time_system, geoid_undulation)
         rep = report if report is not None else out.parent / "report.html"
-        guard_inputs([out, rep], points)
-        check_writable(out, force), check_writable(rep, force)
+        guard_inputs([out, rep, sensor_out], points)
+        for path in (out, rep, sensor_out):
+            if path is not None:
+                check_writable(path, force)
         base = pipeline.TrajectorySettings()
         settings = replace(base, rate_hz=rate, points_per_s=points_per_second,
                            fit=replace(base.fit, knot_s=knot_spacing, use_scan_angles=not no_scan_angles,
@@ -68,7 +72,7 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
         with progress_bar() as bar:
             run = pipeline.reconstruct_trajectory(points, options, settings, progress_callback(bar))
         command = "calidar " + " ".join(shlex.quote(a) for a in sys.argv[1:])
-        pipeline.write_outputs(run, out, fmt, rep, [command], force)
+        pipeline.write_outputs(run, out, fmt, rep, [command], force, sensor_out)
         summaries = [line_summary(ln) for ln in run.lines]
         if as_json:
             print(json.dumps({"lines_from": run.lines_from, "lines": summaries, "notes": run.notes, "counts": run.counts},
@@ -77,7 +81,8 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
         _print(run, summaries)
         for n in run.notes[len(pipeline.STANDING_NOTES):]:
             print_warning(n)
-        console.print(f"wrote {escape(str(out))} ({fmt}) and {escape(str(rep))}", highlight=False, soft_wrap=True)
+        also = f", {escape(str(sensor_out))}" if sensor_out is not None else ""
+        console.print(f"wrote {escape(str(out))} ({fmt}){also} and {escape(str(rep))}", highlight=False, soft_wrap=True)
 
 
 def _print(run, summaries) -> None:

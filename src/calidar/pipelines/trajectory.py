@@ -56,6 +56,7 @@ class TrajectorySettings:
 @dataclass
 class TrajectoryRun:
     trajectory: Trajectory
+    crs: object  #: the points' CRS (pyproj)
     lines: list[LineTrajectory]
     files: list[Path]
     lines_from: str
@@ -148,7 +149,7 @@ def reconstruct_trajectory(paths, options: PointOptions = PointOptions(),
         notes.append(f"the CRS {crs.name} is 2-D in {crs.axis_info[0].unit_name}s: the heights were taken in that unit too")
     counts = {"points_read": kept.n_read, "bad_times": kept.n_bad_time, "multi_return_points": kept.n_multi,
               "pulses_repeating_return_numbers": kept.return_numbers_repeated, "lines": len(done)}
-    return TrajectoryRun(traj, done, paths, how, notes, counts, {"read_s": t1 - t0, "fit_s": t2 - t1})
+    return TrajectoryRun(traj, crs, done, paths, how, notes, counts, {"read_s": t1 - t0, "fit_s": t2 - t1})
 
 
 def _notes(kept: Kept, done: list[LineTrajectory], system: str) -> list[str]:
@@ -192,9 +193,19 @@ def output_format(out: Path, fmt: str | None) -> str:
     return fmt
 
 
+def sensor_for(run: TrajectoryRun):
+    """The sensor a reconstructed trajectory goes with: a linear scanner at the trajectory's point with
+    zero mounting (the trajectory is the scanner's origin and scan-plane attitude), the points' CRS."""
+    from calidar.sensor import Sensor
+
+    epsg = run.crs.to_epsg()
+    return Sensor(crs=f"EPSG:{epsg}" if epsg else run.crs.to_wkt())
+
+
 def write_outputs(run: TrajectoryRun, out: Path, fmt: str, report: Path | None, commands: list[str],
-                  force: bool = False) -> tuple[Path, Path]:
-    """The trajectory (text with σ columns, or SBET) and the report (default: report.html beside it)."""
+                  force: bool = False, sensor_out: Path | None = None) -> tuple[Path, Path]:
+    """The trajectory (text with σ columns, or SBET), the report (default: report.html beside it) and,
+    when ``sensor_out`` is given, the sensor.toml that goes with the trajectory (:func:`sensor_for`)."""
     from calidar.io.sbet import write_sbet
     from calidar.io.trajectory_text import write_trajectory_text
     from calidar.trajrec.report import trajectory_report
@@ -202,6 +213,8 @@ def write_outputs(run: TrajectoryRun, out: Path, fmt: str, report: Path | None, 
     out = Path(out)
     report = Path(report) if report is not None else out.parent / "report.html"
     trajectory_report(run, commands).write(report, force)
+    if sensor_out is not None:
+        sensor_for(run).write(sensor_out, force=force)
     if fmt == "sbet":
         write_sbet(out, run.trajectory, force=force)
     else:
