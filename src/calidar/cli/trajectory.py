@@ -29,7 +29,7 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
         sensor_out: Path | None = typer.Option(None, "--sensor-out", help="Also write the sensor.toml the trajectory "
                                                "goes with (zero lever arm and boresight), e.g. for calidar boresight."),
         rate: float = typer.Option(50.0, "--rate", help="Epochs written a second, Hz."),
-        points_per_second: float = typer.Option(1000.0, "--points-per-second",
+        points_per_second: float = typer.Option(600.0, "--points-per-second",
                                                 help="Points (and multi-return pulses) each line keeps a second for the fit."),
         knot_spacing: float = typer.Option(0.25, "--knot-spacing", help="Spacing of the trajectory spline's knots, s "
                                            "(shorter: follows faster attitude changes, needs denser points)."),

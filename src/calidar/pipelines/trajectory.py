@@ -49,7 +49,7 @@ class TrajectorySettings:
     pulses) each line keeps a second for the fit; ``fit``: :class:`calidar.trajrec.fit.FitSettings`."""
 
     rate_hz: float = 50.0
-    points_per_s: float = 1000.0
+    points_per_s: float = 600.0
     fit: FitSettings = field(default_factory=FitSettings)
 
 
