@@ -46,7 +46,8 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
     ) -> None:
         """Reconstruct each flight line's sensor trajectory from the points alone (multi-return rays,
         scan angles, scan-line geometry), with a σ per epoch; write it and a report."""
-        from calidar.outputs import check_writable, guard_inputs
+        from calidar.errors import OutputExistsError
+        from calidar.outputs import guard_inputs
         from calidar.pipelines import trajectory as pipeline
         from calidar.trajrec.summary import line_summary
 
@@ -62,9 +63,11 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
         options = point_options(crs, time_system, geoid_undulation)
         rep = report if report is not None else out.parent / "report.html"
         guard_inputs([out, rep, sensor_out], points)
-        for path in (out, rep, sensor_out):
-            if path is not None:
-                check_writable(path, force)
+        for path in (out, rep, sensor_out):  # checked now, folders made only when writing (a failed run leaves none)
+            if path is not None and path.is_dir():
+                raise OutputExistsError(f"{path}: is a folder; expected a file name")
+            if path is not None and path.exists() and not force:
+                raise OutputExistsError(f"{path}: exists; pass --force to overwrite it")
         base = pipeline.TrajectorySettings()
         settings = replace(base, rate_hz=rate, points_per_s=points_per_second,
                            fit=replace(base.fit, knot_s=knot_spacing, use_scan_angles=not no_scan_angles,
