@@ -96,12 +96,11 @@ def _print(run, summaries) -> None:
     d = np.degrees
     table = Table(title=f"Reconstructed lines (from {run.lines_from}; read {run.timings['read_s']:.2f} s, "
                   f"fit {run.timings['fit_s']:.2f} s)")
-    for h in ("line", "duration [s]", "height [m]", "speed [m/s]", "heading [°]", "σ E/N/U [m]",
-              "σ roll/pitch/heading [°]"):
+    for h in ("line", "s", "height m", "speed m/s", "heading °", "σ pos m", "σ roll°", "σ pitch°", "σ head°"):
         table.add_column(h, justify="right")
     for s in summaries:
         g = s["sigma_median"]
         table.add_row(s["line"], f"{s['duration_s']:.1f}", f"{s['height_m']:.1f}", f"{s['speed_mps']:.1f}",
-                      f"{d(s['heading_rad']):.2f}", f"{g['east_m']:.3f}/{g['north_m']:.3f}/{g['up_m']:.3f}",
-                      f"{d(g['roll_rad']):.4f}/{d(g['pitch_rad']):.4f}/{d(g['heading_rad']):.4f}")
+                      f"{d(s['heading_rad']):.2f}", f"{max(g['east_m'], g['north_m'], g['up_m']):.2g}",
+                      f"{d(g['roll_rad']):.2g}", f"{d(g['pitch_rad']):.2g}", f"{d(g['heading_rad']):.2g}")
     console.print(table)

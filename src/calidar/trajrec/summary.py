@@ -45,6 +45,6 @@ def summary_rows(summaries: list[dict]) -> tuple[list[str], list[list], list]:
                      d(s["heading_rad"]), d(s["heading_rms_about_trend_rad"]),
                      f"{d(s['roll_mean_rad']):+.3f} ± {d(s['roll_std_rad']):.3f}",
                      f"{d(s['pitch_mean_rad']):+.3f} ± {d(s['pitch_std_rad']):.3f}",
-                     f"{sg['east_m']:.3f} / {sg['north_m']:.3f} / {sg['up_m']:.3f}",
-                     f"{d(sg['roll_rad']):.4f} / {d(sg['pitch_rad']):.4f} / {d(sg['heading_rad']):.4f}"])
+                     f"{sg['east_m']:.2g} / {sg['north_m']:.2g} / {sg['up_m']:.2g}",
+                     f"{d(sg['roll_rad']):.2g} / {d(sg['pitch_rad']):.2g} / {d(sg['heading_rad']):.2g}"])
     return header, rows, [None, ".1f", "d", "d", ".1f", ".1f", ".2f", ".3f", None, None, None, None]
