@@ -16,6 +16,7 @@ import numpy as np
 
 MIN_SEPARATION_M = 1.0  #: returns of one pulse closer than this give no usable direction
 MAX_RAY_ANGLE_RAD = np.radians(75.0)  #: a pulse's ray further from the vertical is not one pulse
+MIN_KEEP = 5000  #: points (and rays) a chunk keeps at least, whatever the rate: small files whole
 
 
 @dataclass
@@ -96,7 +97,7 @@ def keep_chunk(kept: Kept, chunk, rate_per_s: float) -> None:
     first, last, repeated = pulse_rays(t, xyz, scan, source, rn)
     kept.return_numbers_repeated += repeated
     lo, hi = np.percentile(t[:: max(1, t.size // 10000)], [1, 99])
-    span = max((hi - lo) * rate_per_s, 1.0)
+    span = max((hi - lo) * rate_per_s, MIN_KEEP)  # small files are kept whole
     # a random thinning (seeded: the same file gives the same result), never a regular stride: a
     # scanner firing a whole number of pulses per scan period would have every kept point at one of
     # a few scan angles, their quantisation errors the same in every sweep (a bias, not noise)
