@@ -263,9 +263,11 @@ def test_every_command_is_in_the_corpus():
     import test_bad_inputs_photon
     import test_bad_inputs_strips
     import test_bad_inputs_tools
+    import test_bad_inputs_trajectory
 
     leaves = {" ".join(n) for n, c in _commands(app) if not hasattr(c, "commands")}
-    covered = COMMANDS | test_bad_inputs_strips.COMMANDS | test_bad_inputs_photon.COMMANDS | test_bad_inputs_tools.COMMANDS
+    covered = (COMMANDS | test_bad_inputs_strips.COMMANDS | test_bad_inputs_photon.COMMANDS | test_bad_inputs_tools.COMMANDS
+               | test_bad_inputs_trajectory.COMMANDS)
     assert leaves - covered == set(), "commands without bad-input cases"
 
 

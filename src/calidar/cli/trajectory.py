@@ -1,0 +1,106 @@
+"""``calidar trajectory``: the sensor's flight path reconstructed from delivered points
+(:mod:`calidar.pipelines.trajectory`)."""
+
+from __future__ import annotations
+
+import json
+import shlex
+import sys
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import typer
+from rich.markup import escape
+
+from calidar.cli.common import console, print_warning, progress_bar, progress_callback
+from calidar.cli.options import CRS, GEOID_UNDULATION, TIME_SYSTEM, point_options
+from calidar.validate import number
+
+
+def register(app: typer.Typer, simulate: typer.Typer) -> None:
+    @app.command("trajectory")
+    def trajectory(
+        points: list[Path] = typer.Argument(..., help="LAS/LAZ files with GPS times (one or several flight lines each)."),
+        out: Path = typer.Option(..., "--out", "-o", help="Trajectory file to write (text with σ columns, or SBET)."),
+        fmt: str | None = typer.Option(None, "--format", help="text (CSV with σ columns) or sbet (default: sbet for "
+                                       "a .out/.sbet name, else text)."),
+        report: Path | None = typer.Option(None, "--report", help="Report file (default: report.html beside --out)."),
+        sensor_out: Path | None = typer.Option(None, "--sensor-out", help="Also write the sensor.toml the trajectory "
+                                               "goes with (zero lever arm and boresight), e.g. for calidar boresight."),
+        rate: float = typer.Option(50.0, "--rate", help="Epochs written a second, Hz."),
+        points_per_second: float = typer.Option(600.0, "--points-per-second",
+                                                help="Points (and multi-return pulses) each line keeps a second for the fit."),
+        knot_spacing: float = typer.Option(0.25, "--knot-spacing", help="Spacing of the trajectory spline's knots, s "
+                                           "(shorter: follows faster attitude changes, needs denser points)."),
+        no_scan_angles: bool = typer.Option(False, "--no-scan-angles", help="Ignore the scan-angle field (when it "
+                                            "is known to be wrong); roll is then not determined."),
+        scanner: str = typer.Option("planar", "--scanner", help="planar: each scan line's beams lie in one plane "
+                                    "(oscillating mirror, polygon); other: rely on the multi-return rays alone."),
+        scan_plane_yaw: float = typer.Option(0.0, "--scan-plane-yaw", help="Yaw of the scan plane in the body, deg, "
+                                             "when the scan-angle field holds body-frame angles (leeward's scanner: "
+                                             "13.96); the heading written is then the body's."),
+        crs: str | None = CRS, time_system: str | None = TIME_SYSTEM, geoid_undulation: float | None = GEOID_UNDULATION,
+        as_json: bool = typer.Option(False, "--json", help="Print the per-line summary as JSON."),
+        force: bool = typer.Option(False, "--force", help="Overwrite the outputs."),
+    ) -> None:
+        """Reconstruct each flight line's sensor trajectory from the points alone (multi-return rays,
+        scan angles, scan-line geometry), with a σ per epoch; write it and a report."""
+        from calidar.errors import OutputExistsError
+        from calidar.outputs import guard_inputs
+        from calidar.pipelines import trajectory as pipeline
+        from calidar.trajrec.summary import line_summary
+
+        number(rate, "--rate", 0.1, 1000.0, "Hz")
+        number(points_per_second, "--points-per-second", 10.0, 1e6, "1/s")
+        number(knot_spacing, "--knot-spacing", 0.02, 10.0, "s")
+        number(scan_plane_yaw, "--scan-plane-yaw", -90.0, 90.0, "deg")
+        if fmt is not None and fmt not in pipeline.FORMATS:
+            raise typer.BadParameter(f"expected text or sbet, got {fmt!r}", param_hint="--format")
+        fmt = pipeline.output_format(out, fmt)
+        if scanner not in ("planar", "other"):
+            raise typer.BadParameter(f"expected planar or other, got {scanner!r}", param_hint="--scanner")
+        options = point_options(crs, time_system, geoid_undulation)
+        rep = report if report is not None else out.parent / "report.html"
+        guard_inputs([out, rep, sensor_out], points)
+        for path in (out, rep, sensor_out):  # checked now, folders made only when writing (a failed run leaves none)
+            if path is not None and path.is_dir():
+                raise OutputExistsError(f"{path}: is a folder; expected a file name")
+            if path is not None and path.exists() and not force:
+                raise OutputExistsError(f"{path}: exists; pass --force to overwrite it")
+        base = pipeline.TrajectorySettings()
+        settings = replace(base, rate_hz=rate, points_per_s=points_per_second,
+                           fit=replace(base.fit, knot_s=knot_spacing, use_scan_angles=not no_scan_angles,
+                                       planar_scanner=scanner == "planar", scan_plane_yaw=np.radians(scan_plane_yaw)))
+        with progress_bar() as bar:
+            run = pipeline.reconstruct_trajectory(points, options, settings, progress_callback(bar))
+        command = "calidar " + " ".join(shlex.quote(a) for a in sys.argv[1:])
+        pipeline.write_outputs(run, out, fmt, rep, [command], force, sensor_out)
+        summaries = [line_summary(ln) for ln in run.lines]
+        if as_json:
+            print(json.dumps({"lines_from": run.lines_from, "lines": summaries, "notes": run.notes, "counts": run.counts},
+                             indent=2, ensure_ascii=False))
+            return
+        _print(run, summaries)
+        for n in run.notes[len(pipeline.STANDING_NOTES):]:
+            print_warning(n)
+        also = f", {escape(str(sensor_out))}" if sensor_out is not None else ""
+        console.print(f"wrote {escape(str(out))} ({fmt}){also} and {escape(str(rep))}", highlight=False, soft_wrap=True)
+
+
+def _print(run, summaries) -> None:
+    from rich.table import Table
+
+    import numpy as np
+
+    d = np.degrees
+    table = Table(title=f"Reconstructed lines (from {run.lines_from}; read {run.timings['read_s']:.2f} s, "
+                  f"fit {run.timings['fit_s']:.2f} s)")
+    for h in ("line", "s", "height m", "speed m/s", "heading °", "σ pos m", "σ roll°", "σ pitch°", "σ head°"):
+        table.add_column(h, justify="right")
+    for s in summaries:
+        g = s["sigma_median"]
+        table.add_row(s["line"], f"{s['duration_s']:.1f}", f"{s['height_m']:.1f}", f"{s['speed_mps']:.1f}",
+                      f"{d(s['heading_rad']):.2f}", f"{max(g['east_m'], g['north_m'], g['up_m']):.2g}",
+                      f"{d(g['roll_rad']):.2g}", f"{d(g['pitch_rad']):.2g}", f"{d(g['heading_rad']):.2g}")
+    console.print(table)

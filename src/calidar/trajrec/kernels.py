@@ -1,0 +1,127 @@
+"""numba kernels of the fit's hot loops: residuals with their partials per observation, and the
+normal equations accumulated row by row (each row touches 4 spline coefficients per channel).
+The equations are those of :mod:`calidar.trajrec.geometry` (its numpy forms are the reference;
+tests/unit/trajrec/test_geometry.py holds these to them)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+_H_ANG = 1e-5  #: central-difference step of the attitude partials, rad
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _body(de, dn, du, roll, pitch, heading):
+    """b = R_nbᵀ · v_ned of an east-north-up vector (the rotation of geometry.body_vectors)."""
+    v0, v1, v2 = dn, de, -du
+    c, s = math.cos(heading), math.sin(heading)
+    v0, v1 = c * v0 + s * v1, -s * v0 + c * v1
+    c, s = math.cos(pitch), math.sin(pitch)
+    v0, v2 = c * v0 - s * v2, s * v0 + c * v2
+    c, s = math.cos(roll), math.sin(roll)
+    v1, v2 = c * v1 + s * v2, -s * v1 + c * v2
+    return v0, v1, v2
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _angles(b0, b1, b2, ck, sk):
+    """(across-track angle of the body vector, along-track angle of the scanner vector Rz(κ)ᵀ·b),
+    ck, sk = cos κ, sin κ of the scan plane's yaw κ in the body."""
+    s0, s1 = ck * b0 + sk * b1, -sk * b0 + ck * b1
+    return math.atan2(b1, b2), math.atan2(s0, math.hypot(s1, b2))
+
+
+@njit(cache=True, nogil=True)
+def scan_partials(points, state, scan, kappa=0.0):  # pragma: no cover - numba
+    """Residuals (n, 2) (across − scan angle, along) and partials (n, 2, 6): exact for the
+    position (b is linear in p − S), central differences of 1e-5 rad for the attitude (their error,
+    ~1e-11, stays far below the along-track angle's scatter, whose weight would amplify any more).
+    ``kappa``: the scan plane's yaw in the body (rad; see geometry.scan_residuals)."""
+    n = points.shape[0]
+    ck, sk = math.cos(kappa), math.sin(kappa)
+    r = np.empty((n, 2))
+    g = np.empty((n, 2, 6))
+    att = np.empty(3)
+    for k in range(n):
+        de, dn, du = points[k, 0] - state[k, 0], points[k, 1] - state[k, 1], points[k, 2] - state[k, 2]
+        ro, pi, he = state[k, 3], state[k, 4], state[k, 5]
+        b0, b1, b2 = _body(de, dn, du, ro, pi, he)
+        a0, c0 = _angles(b0, b1, b2, ck, sk)
+        r[k, 0] = a0 - scan[k]
+        r[k, 1] = c0
+        s0, s1 = ck * b0 + sk * b1, -sk * b0 + ck * b1
+        q = b1 * b1 + b2 * b2
+        qs = s1 * s1 + b2 * b2
+        h = math.sqrt(qs)
+        big = qs + s0 * s0
+        # ∂across/∂b = (0, b2, −b1)/q; ∂along/∂s = (h, −s0·s1/h, −s0·s2/h)/(s0² + h²); ∂b/∂S_j = −A e_j
+        for j in range(3):
+            e0, e1, e2 = _body(1.0 if j == 0 else 0.0, 1.0 if j == 1 else 0.0, 1.0 if j == 2 else 0.0, ro, pi, he)
+            f0, f1 = ck * e0 + sk * e1, -sk * e0 + ck * e1
+            g[k, 0, j] = -(b2 * e1 - b1 * e2) / q
+            g[k, 1, j] = -(h * f0 - s0 * (s1 * f1 + b2 * e2) / h) / big
+        for j in range(3):
+            att[0], att[1], att[2] = ro, pi, he
+            att[j] += _H_ANG
+            b0j, b1j, b2j = _body(de, dn, du, att[0], att[1], att[2])
+            a1, c1 = _angles(b0j, b1j, b2j, ck, sk)
+            att[j] -= 2 * _H_ANG
+            b0j, b1j, b2j = _body(de, dn, du, att[0], att[1], att[2])
+            a2, c2 = _angles(b0j, b1j, b2j, ck, sk)
+            g[k, 0, 3 + j] = (a1 - a2) / (2 * _H_ANG)
+            g[k, 1, 3 + j] = (c1 - c2) / (2 * _H_ANG)
+    return r, g
+
+
+@njit(cache=True, nogil=True)
+def ray_partials(sensor, last, u1, u2):  # pragma: no cover - numba
+    """Residuals (n, 2) of the sensor against each ray and their exact partials (n, 2, 6)."""
+    n = sensor.shape[0]
+    r = np.empty((n, 2))
+    g = np.zeros((n, 2, 6))
+    for k in range(n):
+        w0, w1, w2 = sensor[k, 0] - last[k, 0], sensor[k, 1] - last[k, 1], sensor[k, 2] - last[k, 2]
+        rho = math.sqrt(w0 * w0 + w1 * w1 + w2 * w2)
+        e1 = (w0 * u1[k, 0] + w1 * u1[k, 1] + w2 * u1[k, 2]) / rho
+        e2 = (w0 * u2[k, 0] + w1 * u2[k, 1] + w2 * u2[k, 2]) / rho
+        r[k, 0], r[k, 1] = e1, e2
+        for c in range(3):
+            wc = (w0, w1, w2)[c] / rho
+            g[k, 0, c] = u1[k, c] / rho - e1 * wc / rho
+            g[k, 1, c] = u2[k, c] / rho - e2 * wc / rho
+    return r, g
+
+
+@njit(cache=True, nogil=True)
+def accumulate(n_mat, rhs, first, w, g, r, weight, k_coef):  # pragma: no cover - numba
+    """Upper triangle of n_mat += Σ weight·a aᵀ, and rhs −= Σ weight·a·r, with a = g ⊗ (spline
+    weights), row by row over a's nonzero entries (see :func:`symmetrize`)."""
+    a = np.empty(24)
+    cols = np.empty(24, np.int64)
+    for k in range(r.shape[0]):
+        wk = weight[k]
+        if wk == 0.0:
+            continue
+        m = 0
+        for c in range(6):
+            if g[k, c] == 0.0:
+                continue
+            for j in range(4):
+                a[m] = g[k, c] * w[k, j]
+                cols[m] = c * k_coef + first[k] + j
+                m += 1
+        for p in range(m):
+            ap = wk * a[p]
+            rhs[cols[p]] -= ap * r[k]
+            cp = cols[p]
+            for q in range(m):
+                if cols[q] >= cp:
+                    n_mat[cp, cols[q]] += ap * a[q]
+
+
+def symmetrize(n_mat: np.ndarray) -> np.ndarray:
+    """The full normal matrix from the upper triangle :func:`accumulate` fills."""
+    return np.triu(n_mat) + np.triu(n_mat, 1).T
