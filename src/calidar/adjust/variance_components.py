@@ -77,11 +77,12 @@ def estimate_components(JtWJ: np.ndarray, JtWr: np.ndarray, rWr: float, n_obs: f
     or ``max_iter`` times; each factor ≥ ``floor``.
 
     ``marginal``: estimate the priors' factors from their marginal variances instead,
-    σ²ₖ ← Σᵢ (vᵢ² + Qᵢᵢ)/Σᵢᵢ / nₖ (Σ = Pₖ⁻¹ the stated covariance; the fixed point of
-    E[vᵢ²] = σ²ₖΣᵢᵢ − Qᵢᵢ, the EM update of Dempster, Laird & Rubin 1977 with the identity in place of
-    Σ⁻¹): the same estimate when the stated correlations are right, the level of the stated σ
-    themselves when they are not (a smoother error than the stated correlation says is seen by
-    vᵀPv mostly through its small increments, and its level then comes out low)."""
+    σ²ₖ ← Σᵢ (vᵢ²/Σᵢᵢ) / (nₖ − Σᵢ Qᵢᵢ/(σ²ₖΣᵢᵢ)) with Σ = Pₖ⁻¹ the stated covariance: the fixed
+    point of E[vᵢ²] = σ²ₖΣᵢᵢ − Qᵢᵢ (that of the EM update of Dempster, Laird & Rubin 1977 with
+    the identity in place of Σ⁻¹), iterated as Förstner's (the priors the data cannot check drop
+    out of numerator and denominator alike). The same estimate when the stated correlations are
+    right; the level of the stated σ themselves when they are not (an error smoother than the
+    stated correlation is seen by vᵀPv mostly through its small increments: its level comes out low)."""
     u = JtWJ.shape[0]
     groups = sorted({b.group for b in blocks})
     var = {g: 1.0 for g in [OBSERVATIONS, *groups]} | dict(start or {})
@@ -102,18 +103,21 @@ def estimate_components(JtWJ: np.ndarray, JtWr: np.ndarray, rWr: float, n_obs: f
         quad = {g: 0.0 for g in groups}
         trace = {g: 0.0 for g in groups}
         spread = {g: 0.0 for g in groups}
+        trace_marginal = {g: 0.0 for g in groups}
         for blk, sii in zip(blocks, stated):
             v = x[blk.index] - blk.center
             quad[blk.group] += float(v @ blk.precision @ v)
             trace[blk.group] += float(np.sum(blk.precision * Q[np.ix_(blk.index, blk.index)]))
             if marginal:
-                spread[blk.group] += float(np.sum((v**2 + Q[blk.index, blk.index]) / sii))
+                spread[blk.group] += float(np.sum(v**2 / sii))
+                trace_marginal[blk.group] += float(np.sum(Q[blk.index, blk.index] / sii))
         quad[OBSERVATIONS] = float(rWr + 2.0 * dx @ JtWr + dx @ JtWJ @ dx)
         red = {g: size[g] - trace[g] / var[g] for g in groups}
         red[OBSERVATIONS] = n_obs - (u - sum(trace[g] / var[g] for g in groups))
         new = {g: (var[g] if g in frozen or red[g] <= 1e-9 else max(quad[g] / red[g], floor)) for g in var}
-        if marginal:
-            new |= {g: max(spread[g] / size[g], floor) for g in groups if g not in frozen and red[g] > 1e-9}
+        if marginal:  # σ²ₖ ← Σ vᵢ²/Σᵢᵢ / (nₖ − Σ Qᵢᵢ/(σ²ₖΣᵢᵢ)): the redundancy's diagonal analogue
+            new |= {g: max(spread[g] / max(size[g] - trace_marginal[g] / var[g], 1e-9), floor)
+                    for g in groups if g not in frozen and red[g] > 1e-9}
         change = max(abs(np.log(new[g] / var[g])) for g in var)
         var = new
         if change < tol:

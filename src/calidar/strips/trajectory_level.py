@@ -97,8 +97,8 @@ def estimate_level(est, base: TrajectoryAccuracy) -> TrajectoryLevel:
     blocks = split_blocks(est.fit.priors, [group_of(p.name) for p in est.fit.free])
     present = [g for g in GROUPS if any(b.group == g for b in blocks)]
     fixed = ["other"]
-    while True:
-        comps = estimate_components(*terms, blocks, fixed=fixed, floor=FLOOR_FACTOR**2, marginal=True)
+    while True:  # tol: 1 % in variance, ½ % in σ — well inside the factors' own ±1/√(2rₖ)
+        comps = estimate_components(*terms, blocks, fixed=fixed, floor=FLOOR_FACTOR**2, marginal=True, tol=0.01)
         weak = [g for g in present if g not in fixed and comps.redundancy[g] < MIN_REDUNDANCY]
         if not weak:
             break

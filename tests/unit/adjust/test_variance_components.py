@@ -63,3 +63,15 @@ def test_split_blocks_by_group():
     assert [(b.group, b.index.tolist()) for b in blocks] == [("x", [0, 2]), ("other", [1])]
     with pytest.raises(ValueError):
         split_blocks([(np.array([0, 1]), np.zeros(2), np.ones((2, 2)) + np.eye(2))], ["x", "y"])
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_marginal_form_recovers_the_components(seed):
+    """The marginal form (the priors' own variances, as trajectory_level uses it) estimates the same
+    components; its spread for the correlated group follows its effective number of independent
+    priors, n(1 − φ)/(1 + φ) = 37.5 of 150 for φ = 0.6 (4 σ of that spread allowed)."""
+    comps = estimate_components(*_problem(seed), marginal=True)
+    assert comps.converged
+    for g, truth, n_eff in ((OBSERVATIONS, 0.25, None), ("a", 4.0, 150 * 0.4 / 1.6), ("b", 0.09, None)):
+        tol = 4.0 * np.sqrt(2.0 / (n_eff or comps.redundancy[g]))
+        assert abs(comps.variance[g] / truth - 1.0) < tol, (g, comps.variance[g], truth)
