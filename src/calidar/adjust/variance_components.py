@@ -54,6 +54,8 @@ class Components:
     iterations: int
     converged: bool
     fixed: tuple[str, ...] = field(default=())  #: groups held at 1 (not estimated)
+    #: per group rₖ at the start (the stated σ, or ``start``): how many priors the data check at that level
+    redundancy_start: dict[str, float] = field(default_factory=dict)
 
     def sigma_factor(self, group: str) -> float:
         """√σ²ₖ: the factor on the group's stated σ."""
@@ -88,7 +90,7 @@ def estimate_components(JtWJ: np.ndarray, JtWr: np.ndarray, rWr: float, n_obs: f
     var = {g: 1.0 for g in [OBSERVATIONS, *groups]} | dict(start or {})
     frozen = set(fixed) | (set() if estimate_observations else {OBSERVATIONS})
     size = {OBSERVATIONS: float(n_obs)} | {g: sum(b.index.size for b in blocks if b.group == g) for g in groups}
-    converged, it, x, red = False, 0, x0, {}
+    converged, it, x, red, red_start = False, 0, x0, {}, {}
     stated = [np.diag(np.linalg.inv(b.precision)) if marginal else None for b in blocks]  # Σᵢᵢ
     for it in range(1, max_iter + 1):
         N, b = JtWJ / var[OBSERVATIONS], -JtWr / var[OBSERVATIONS]
@@ -114,6 +116,7 @@ def estimate_components(JtWJ: np.ndarray, JtWr: np.ndarray, rWr: float, n_obs: f
         quad[OBSERVATIONS] = float(rWr + 2.0 * dx @ JtWr + dx @ JtWJ @ dx)
         red = {g: size[g] - trace[g] / var[g] for g in groups}
         red[OBSERVATIONS] = n_obs - (u - sum(trace[g] / var[g] for g in groups))
+        red_start = red_start or dict(red)
         new = {g: (var[g] if g in frozen or red[g] <= 1e-9 else max(quad[g] / red[g], floor)) for g in var}
         if marginal:  # σ²ₖ ← Σ vᵢ²/Σᵢᵢ / (nₖ − Σ Qᵢᵢ/(σ²ₖΣᵢᵢ)): the redundancy's diagonal analogue
             new |= {g: max(spread[g] / max(size[g] - trace_marginal[g] / var[g], 1e-9), floor)
@@ -124,7 +127,7 @@ def estimate_components(JtWJ: np.ndarray, JtWr: np.ndarray, rWr: float, n_obs: f
             converged = True
             break
     return Components(var, red, {g: int(round(s)) if g != OBSERVATIONS else s for g, s in size.items()},
-                      x, it, converged, tuple(sorted(frozen - {OBSERVATIONS})))
+                      x, it, converged, tuple(sorted(frozen - {OBSERVATIONS})), red_start)
 
 
 def split_blocks(priors: Sequence[tuple[np.ndarray, np.ndarray, np.ndarray]], group_of: Sequence[str | None]) -> list[PriorBlock]:

@@ -10,10 +10,11 @@ group of priors — four here, each the stated σ's shape kept within it:
 - ``attitude_horizontal``: the rotations about east and north (roll and pitch, mixed by the
   line's heading); ``heading``: the rotations about up.
 
-A group is estimated only when the data check enough of its priors: its redundancy rₖ (how many
-of its nₖ priors the overlaps determine better than the priors do) must reach
-:data:`MIN_REDUNDANCY`, so that the factor is known to ±1/√(2rₖ) ≈ 22 % or better; otherwise the
-stated σ stay ("the data cannot tell"). Each factor is held ≥ :data:`FLOOR_FACTOR` (a trajectory
+A group is estimated only when the data check enough of its priors at the stated σ: its
+redundancy rₖ there (how many of its nₖ priors the overlaps determine better than the priors do)
+must reach :data:`MIN_REDUNDANCY`; otherwise the stated σ stay ("the data cannot tell"). The
+estimate's own relative σ is ≈ 1/√(2rₖ) at the estimate (rₖ falls with the factor: a trajectory
+better than stated is checked by fewer of its now narrow priors). Each factor is held ≥ :data:`FLOOR_FACTOR` (a trajectory
 that good is as good as exact for the calibration).
 """
 
@@ -28,8 +29,8 @@ from calidar.strips.trajectory_errors import parse_name
 from calidar.trajectory_accuracy import TrajectoryAccuracy
 
 GROUPS = ("position_horizontal", "position_vertical", "attitude_horizontal", "heading")
-#: a group's factor is estimated only when the overlaps check at least this many of its priors
-#: (its redundancy): the factor is then known to ±1/√(2·10) ≈ 22 %
+#: a group's factor is estimated only when the overlaps check at least this many of its priors at
+#: the stated σ (its redundancy there; the factor is then known to ±1/√(2·10) ≈ 22 % at that level)
 MIN_REDUNDANCY = 10.0
 #: the smallest factor on a stated σ (1 % of the survey-grade default: 0.5 mm, 0.00003°)
 FLOOR_FACTOR = 0.01
@@ -72,7 +73,7 @@ class TrajectoryLevel:
 
     def undetermined(self) -> list[str]:
         """The groups the data cannot tell, with their redundancy: 'heading (r = 3.1 < 10)'."""
-        return [f"{g.replace('_', ' ')} (redundancy {self.components.redundancy[g]:.1f} < {MIN_REDUNDANCY:g})"
+        return [f"{g.replace('_', ' ')} (redundancy {self.components.redundancy_start[g]:.1f} < {MIN_REDUNDANCY:g})"
                 for g, ok in self.estimated.items() if not ok]
 
     def to_dict(self) -> dict:
@@ -85,7 +86,8 @@ class TrajectoryLevel:
                 "observations_sigma0": float(np.sqrt(c.variance[OBSERVATIONS])),
                 "groups": {g: {"estimated": ok, "sigma_factor": self.factor(g),
                                "sigma_factor_relative_sigma": c.relative_sigma(g) if ok else None,
-                               "redundancy": float(c.redundancy[g]), "priors": int(c.size[g])}
+                               "redundancy": float(c.redundancy[g]),
+                               "redundancy_at_stated_sigma": float(c.redundancy_start[g]), "priors": int(c.size[g])}
                            for g, ok in self.estimated.items()}}
 
 
@@ -99,7 +101,9 @@ def estimate_level(est, base: TrajectoryAccuracy) -> TrajectoryLevel:
     fixed = ["other"]
     while True:  # tol: 1 % in variance, ½ % in σ — well inside the factors' own ±1/√(2rₖ)
         comps = estimate_components(*terms, blocks, fixed=fixed, floor=FLOOR_FACTOR**2, marginal=True, tol=0.01)
-        weak = [g for g in present if g not in fixed and comps.redundancy[g] < MIN_REDUNDANCY]
+        # judged at the stated σ: a group the data check there is estimated, however small it comes
+        # out (its redundancy then falls with it: the priors, now narrow, are checked less)
+        weak = [g for g in present if g not in fixed and comps.redundancy_start[g] < MIN_REDUNDANCY]
         if not weak:
             break
         fixed += weak

@@ -195,7 +195,7 @@ def accuracy_finding(level: dict) -> Finding:
     every group of priors was estimated, a warning naming those the data cannot tell (the
     survey-grade default kept there) and the criterion."""
     groups = level["groups"]
-    weak = [f"{g.replace('_', ' ')} (redundancy {v['redundancy']:.1f} < {level['min_redundancy']:g})"
+    weak = [f"{g.replace('_', ' ')} (redundancy {v['redundancy_at_stated_sigma']:.1f} < {level['min_redundancy']:g})"
             for g, v in groups.items() if not v["estimated"]]
     factors = ", ".join(f"{g.replace('_', ' ')} ×{v['sigma_factor']:.2g}" + (
         f" ± {100 * v['sigma_factor_relative_sigma']:.0f} %" if v["estimated"] else "") for g, v in groups.items())

@@ -96,7 +96,7 @@ def test_a_default_accuracy_makes_the_verdict_a_warning():
 def _level(heading_estimated: bool) -> dict:
     """A TrajectoryLevel's dict (calidar.strips.trajectory_level) as solution.extra holds it."""
     group = lambda ok, f, r: {"estimated": ok, "sigma_factor": f, "sigma_factor_relative_sigma": 0.1 if ok else None,  # noqa: E731
-                              "redundancy": r, "priors": 100}
+                              "redundancy": r, "redundancy_at_stated_sigma": r, "priors": 100}
     return {"source": "data", "min_redundancy": 10.0,
             "headline": "position 2.9/3.1 cm (horizontal/vertical), attitude 0.0019/0.0081° (roll·pitch/heading)",
             "groups": {"position_horizontal": group(True, 0.58, 40.0), "position_vertical": group(True, 0.39, 90.0),
