@@ -25,6 +25,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from calidar.adjust.variance_components import OBSERVATIONS, Components, estimate_components, normal_terms, split_blocks
+from calidar.errors import CalibrationError
 from calidar.strips.trajectory_errors import parse_name
 from calidar.trajectory_accuracy import TrajectoryAccuracy
 
@@ -100,7 +101,11 @@ def estimate_level(est, base: TrajectoryAccuracy) -> TrajectoryLevel:
     present = [g for g in GROUPS if any(b.group == g for b in blocks)]
     fixed = ["other"]
     while True:  # tol: 1 % in variance, ½ % in σ — well inside the factors' own ±1/√(2rₖ)
-        comps = estimate_components(*terms, blocks, fixed=fixed, floor=FLOOR_FACTOR**2, marginal=True, tol=0.01)
+        try:
+            comps = estimate_components(*terms, blocks, fixed=fixed, floor=FLOOR_FACTOR**2, marginal=True, tol=0.01)
+        except CalibrationError:  # a normal matrix singular at some factors: nothing estimated
+            fixed = ["other", *present]
+            comps = estimate_components(*terms, blocks, fixed=fixed, max_iter=1)
         # judged at the stated σ: a group the data check there is estimated, however small it comes
         # out (its redundancy then falls with it: the priors, now narrow, are checked less)
         weak = [g for g in present if g not in fixed and comps.redundancy_start[g] < MIN_REDUNDANCY]
