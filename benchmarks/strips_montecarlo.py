@@ -2,7 +2,7 @@
 
     NUMBA_NUM_THREADS=1 OMP_NUM_THREADS=1 PYTHONPATH=src python benchmarks/strips_montecarlo.py \\
         --seeds 100-139 [--methods planes,vgicp] [--vegetation 0.3] [--no-source] [--density 0.3] \\
-        [--sigma-scale 1,1,1.5,1,1,5 --sigma-variation 0.4] [--jobs 1] [--json out.jsonl]
+        [--sigma-scale 1,1,1.5,1,1,5 --sigma-variation 0.4] [--only-hidden] [--jobs 1] [--json out.jsonl]
 
 Each seed is one survey written to a folder as the simulator delivers it (airborne preset,
 6 lines in alternate directions + 2 cross lines, density 0.3 (``--density``), boresight errors
@@ -15,8 +15,9 @@ outputs: the trajectory model on, its priors from the smrmsg found beside the SB
 ``--sigma-scale N,E,D,ROLL,PITCH,HEADING`` and ``--sigma-variation V``: trajectory errors whose
 σ differ per axis and change over the flight (σ(t) = σ · exp(V · g(t)), g smooth over 60 s),
 the smrmsg stating them epoch by epoch. ``--no-source``: also calibrate each survey with the
-smrmsg hidden, i.e. with the documented survey-grade default (5/5/8 cm, 0.003° roll/pitch,
-0.008° heading) in place of the truth.
+smrmsg hidden: no accuracy file, so the trajectory's accuracy level is estimated from the
+overlaps (:mod:`calidar.strips.trajectory_level`, starting from the survey-grade default 5/5/8 cm,
+0.003° roll/pitch, 0.008° heading); ``--only-hidden``: only that calibration.
 
 One line per survey, source and method (errors, σ, z = error/σ), then per source and method:
 RMS of z per angle (1 for honest σ; its sampling spread is ±1/√(2n)), the mean z, the largest
@@ -55,14 +56,15 @@ def _hidden_accuracy(folder: Path) -> Path:
 
 
 def survey(seed: int, methods: list[str], vegetation: float, scale: tuple, variation: float, no_source: bool,
-           density: float = 0.3) -> list[dict]:
-    """One simulated survey calibrated with default options (and, with ``no_source``, without its smrmsg)."""
+           density: float = 0.3, only_hidden: bool = False) -> list[dict]:
+    """One simulated survey calibrated with default options (and, with ``no_source``, without its
+    smrmsg; ``only_hidden``: only without it)."""
     cfg = survey_config("airborne", seed=seed, density=density, vegetation=vegetation, directions="cross", errors=ERRORS,
                         range_noise_m=0.03, trajectory_sigma_scale=scale, trajectory_sigma_variation=variation)
     rows = []
     with tempfile.TemporaryDirectory(prefix="calidar_mc_") as tmp:
         folder = simulate_survey(cfg).write(Path(tmp) / f"seed{seed}")
-        for source in ("smrmsg", "default") if no_source else ("smrmsg",):
+        for source in ("default",) if only_hidden else ("smrmsg", "default") if no_source else ("smrmsg",):
             f = folder if source == "smrmsg" else _hidden_accuracy(folder)
             options = BoresightOptions(methods=tuple(methods), truth=f / "truth.json")
             t = time.perf_counter()
@@ -74,7 +76,8 @@ def survey(seed: int, methods: list[str], vegetation: float, scale: tuple, varia
                 rows.append({"seed": seed, "source": source, "method": method,
                              "error_deg": [float(np.degrees(sol.values[n] - inputs.truth[n])) for n in ANGLES],
                              "sigma_deg": [float(np.degrees(sol.sigma[n])) for n in ANGLES],
-                             "sigma0": sol.sigma0, "seconds": seconds})
+                             "sigma0": sol.sigma0, "seconds": seconds,
+                             "level": sol.extra.get("trajectory_accuracy_estimate")})
         shutil.rmtree(folder, ignore_errors=True)
     return rows
 
@@ -115,6 +118,7 @@ def main() -> None:
     ap.add_argument("--sigma-scale", default="1,1,1,1,1,1", help="trajectory σ factors N,E,D,roll,pitch,heading")
     ap.add_argument("--sigma-variation", type=float, default=0.0, help="slow change of the trajectory σ in time")
     ap.add_argument("--no-source", action="store_true", help="also run each survey without its smrmsg (the default accuracy)")
+    ap.add_argument("--only-hidden", action="store_true", help="calibrate each survey only with its smrmsg hidden")
     ap.add_argument("--jobs", type=int, default=1, help="surveys simulated and calibrated in parallel")
     ap.add_argument("--json", type=Path, default=None, help="append every row to this JSON-lines file")
     args = ap.parse_args()
@@ -124,7 +128,8 @@ def main() -> None:
     with ProcessPoolExecutor(args.jobs) as pool:
         n = len(seeds)
         for found in pool.map(survey, seeds, [methods] * n, [args.vegetation] * n, [scale] * n,
-                              [args.sigma_variation] * n, [args.no_source] * n, [args.density] * n):
+                              [args.sigma_variation] * n, [args.no_source] * n, [args.density] * n,
+                              [args.only_hidden] * n):
             for r in found:
                 r.update(vegetation=args.vegetation, sigma_scale=scale, sigma_variation=args.sigma_variation,
                          density=args.density)
@@ -133,7 +138,8 @@ def main() -> None:
                 print(f"{r['source']:7s} {r['method']:6s} seed {r['seed']:4d}  error "
                       + " ".join(f"{v:+.5f}" for v in r["error_deg"]) + "°  σ "
                       + " ".join(f"{v:.5f}" for v in r["sigma_deg"]) + "°  z " + " ".join(f"{v:+.2f}" for v in z)
-                      + f"  σ0 {r['sigma0']:.2f}  {r['seconds']:.1f} s", flush=True)
+                      + f"  σ0 {r['sigma0']:.2f}  {r['seconds']:.1f} s"
+                      + (f"  level {r['level']['headline']}" if r.get("level") else ""), flush=True)
                 if args.json:
                     with open(args.json, "a", encoding="utf-8") as f:
                         f.write(json.dumps(r) + "\n")

@@ -3,8 +3,10 @@
 Post-processing software states it beside every trajectory (POSPac's ``smrmsg`` file beside
 the SBET, read by :mod:`calidar.io.smrmsg`; σ columns of text exports). The strip calibrator
 takes these σ as the priors of its trajectory corrections (time-varying, per axis: heading is
-often known ten times worse than roll and pitch). Without any such source a documented default
-for a survey-grade GNSS/INS is assumed (:data:`SURVEY_GRADE`), and the run says so.
+often known ten times worse than roll and pitch). Without any such source the calibrator starts
+from a documented default for a survey-grade GNSS/INS (:data:`SURVEY_GRADE`) and estimates the
+level from the overlaps (:mod:`calidar.strips.trajectory_level`), keeping the default only where
+the data cannot tell, and the run says which.
 
 σ are standard deviations in SI: position north/east/down (m), attitude roll/pitch/heading (rad).
 
@@ -120,7 +122,8 @@ class TrajectoryAccuracy:
         return d
 
 
-#: The default when a trajectory comes without any statement of its accuracy: a survey-grade
+#: The start when a trajectory comes without any statement of its accuracy (its level is then
+#: estimated from the overlaps; this stays where they cannot tell it): a survey-grade
 #: airborne GNSS/INS after post-processing — 5 cm horizontal and 8 cm vertical position,
 #: 0.003° roll and pitch, 0.008° heading. That is the order of the post-processed figures
 #: survey-grade GNSS/INS makers state, and of the real POSPac smrmsg in the test data

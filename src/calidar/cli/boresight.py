@@ -32,8 +32,9 @@ def boresight(
         "ordinary GNSS/INS noise)."),
     trajectory_accuracy: Path | None = typer.Option(
         None, "--trajectory-accuracy", help="The trajectory's accuracy per epoch: a POSPac smrmsg file. Default: "
-        "smrmsg*.out beside an sbet*.out, σ columns of a text trajectory, else a survey-grade GNSS/INS "
-        "(5 cm, 0.003° roll/pitch, 0.008° heading; with a warning)."),
+        "smrmsg*.out beside an sbet*.out, σ columns of a text trajectory, else its level is estimated from the "
+        "overlaps, starting from a survey-grade GNSS/INS (5 cm, 0.003° roll/pitch, 0.008° heading) kept where "
+        "the data cannot tell."),
     trajectory_sigma: str | None = typer.Option(
         None, "--trajectory-sigma", help="Instead of an accuracy file: one σ 'POSITION_M,ATTITUDE_DEG' "
         "(e.g. 0.03,0.002) for every epoch and axis."),

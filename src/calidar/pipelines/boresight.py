@@ -87,6 +87,9 @@ class BoresightInputs:
     accuracy: object | None = None  #: calidar.trajectory_accuracy.TrajectoryAccuracy (None: model off)
     accuracy_path: Path | None = None
     notes: list[str] = field(default_factory=list)  #: what the user should know (e.g. a default assumed)
+    #: no accuracy stated: the trajectory priors' level is estimated from the overlaps
+    #: (calidar.strips.trajectory_level), ``accuracy`` (the survey-grade default) its start
+    estimate_accuracy: bool = False
     truth: dict | None = None  #: truth.json parameters, SI (simulations)
     options: BoresightOptions = BoresightOptions()  #: as given (the input options name the reproducing commands)
 
@@ -153,7 +156,8 @@ def parse_sigma(text: str) -> tuple[float, float]:
 def resolve_accuracy(trajectory_path: Path, trajectory, options: BoresightOptions):
     """The trajectory's accuracy and where it came from: (TrajectoryAccuracy, file or None, note
     or None). In order: --trajectory-accuracy, --trajectory-sigma, σ columns of a text
-    trajectory, an smrmsg*.out beside an sbet*.out, else the survey-grade default (with a note)."""
+    trajectory, an smrmsg*.out beside an sbet*.out, else the survey-grade default (with a note),
+    whose level the calibration then estimates from the overlaps (:func:`estimates_accuracy`)."""
     from calidar.io.smrmsg import find_beside, read_smrmsg
     from calidar.io.trajectory_text import SIGMA_COLUMNS
     from calidar.trajectory_accuracy import SURVEY_GRADE, TrajectoryAccuracy
@@ -173,8 +177,16 @@ def resolve_accuracy(trajectory_path: Path, trajectory, options: BoresightOption
         return read_smrmsg(beside), beside, None
     return SURVEY_GRADE, None, (
         f"no trajectory accuracy found (no smrmsg*.out beside {trajectory_path.name}, no σ columns, no "
-        "--trajectory-accuracy): assumed a survey-grade GNSS/INS — " + SURVEY_GRADE.describe().split(" (")[0]
-        + "; the σ of the results hold only if the trajectory is that good")
+        "--trajectory-accuracy): its level is estimated from the overlaps, starting from a survey-grade "
+        "GNSS/INS — " + SURVEY_GRADE.describe().split(" (")[0] + " — which stays where the data cannot tell")
+
+
+def estimates_accuracy(accuracy) -> bool:
+    """Whether the calibration estimates the trajectory's accuracy level from the overlaps: when
+    no source stated it (``accuracy`` is the survey-grade default :func:`resolve_accuracy` fell back on)."""
+    from calidar.trajectory_accuracy import SURVEY_GRADE
+
+    return accuracy is SURVEY_GRADE
 
 
 def load_inputs(strip_paths, trajectory_path, sensor_path, options: BoresightOptions = BoresightOptions(),
@@ -209,6 +221,7 @@ def load_inputs(strip_paths, trajectory_path, sensor_path, options: BoresightOpt
                              source, accuracy, accuracy_path, notes + unpaired, options=options)
     if accuracy is not None:
         accuracy.check_covers(inputs.spans)
+        inputs.estimate_accuracy = estimates_accuracy(accuracy)
     if options.truth is not None:
         inputs.truth = truth_to_si(read_json(options.truth), build_parameters(nominal, parse_estimate(options.estimate), {}))
         if not inputs.truth:
@@ -230,6 +243,7 @@ def calibrate_inputs(inputs: BoresightInputs, options: BoresightOptions = Boresi
     settings = options.settings or StripSettings()
     if options.trajectory_model:
         model = trajectory_model(None, options.trajectory_block_s, options.trajectory_correlation, inputs.accuracy)
+        model = replace(model, estimate_level=inputs.estimate_accuracy)
         settings = replace(settings, trajectory=model)
         groups = groups if "trajectory_bias" in groups else [*groups, "trajectory_bias"]
     if work is None:
@@ -280,7 +294,8 @@ def run_boresight(strip_paths, trajectory_path, sensor_path, out_dir: Path, opti
     ['report.html', 'sbet_corrected.out', 'sensor.toml', 'solution.json']
     """
     from calidar.pipelines import release_memory
-    from calidar.pipelines.boresight_outputs import corrected_trajectory, map_pair, quality_stages, write_outputs
+    from calidar.pipelines.boresight_outputs import (accuracy_used, corrected_trajectory, map_pair, quality_stages,
+                                                     write_outputs)
     from calidar.provenance import RunRecord
     from calidar.report import Report
     from calidar.strips.distribute import workers_for
@@ -305,7 +320,7 @@ def run_boresight(strip_paths, trajectory_path, sensor_path, out_dir: Path, opti
         verdicts[m] = strip_verdict(result, quality[m], inputs.notes)
         label = m if len(results) > 1 else None
         report.add_verdict(verdicts[m], " ".join(x for x in (verdict_title, label) if x) or None)
-        add_report_section(report, result, inputs.truth, quality[m], accuracy=inputs.accuracy,
+        add_report_section(report, result, inputs.truth, quality[m], accuracy=accuracy_used(inputs, result),
                            map_pair=map_pair(inputs, quality[m]),
                            title=section_title and (f"{section_title} ({m})" if label else section_title))
     if len(results) > 1:

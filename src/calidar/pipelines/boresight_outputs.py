@@ -163,9 +163,9 @@ def write_outputs(inputs, result, corrected, verdict, record, stages, out_dir: P
 
     out_dir = Path(out_dir)
     written = [write_text_atomic(out_dir / f"solution{tag}.json",
-                                 solution_document(result, inputs.truth, verdict, record, inputs.accuracy, stages)),
-               calibrated_sensor(result, f"solution{tag}.json").write(
-                   out_dir / f"sensor{tag}.toml", force=True)]
+                                 solution_document(result, inputs.truth, verdict, record, accuracy_used(inputs, result),
+                                                   stages)),
+               calibrated_sensor(result, f"solution{tag}.json").write(out_dir / f"sensor{tag}.toml", force=True)]
     if corrected is not None and corrected.time_system == "gps_week_seconds":  # SBETs hold week seconds
         written.append(write_sbet(out_dir / f"sbet_corrected{tag}.out", corrected, force=True))
     if strips_dir is not None:
@@ -211,6 +211,13 @@ def map_pair(inputs, stages) -> tuple[int, int] | None:
     side = [q for q in pairs if kind[q.a, q.b] != "cross"] or pairs
     best = max(side, key=lambda q: q.n_cells)
     return best.a, best.b
+
+
+def accuracy_used(inputs, result):
+    """The trajectory accuracy a calibration's priors came from: the inputs' (file, option, σ
+    columns), or the level estimated from the overlaps; None with the trajectory model off."""
+    model = result.trajectory_model
+    return inputs.accuracy if model is None or model.accuracy is None else model.accuracy
 
 
 def solution_document(result, truth, verdict, record, accuracy, stages=()) -> str:

@@ -158,6 +158,7 @@ class _Run:
     need: dict[int, np.ndarray]  #: per strip the points inside any of its overlaps
     poses: dict[int, Pose]
     warnings: list[str]
+    level: object | None = None  #: calidar.strips.trajectory_level.TrajectoryLevel, when estimated
 
     @classmethod
     def start(cls, strips: Sequence[Strip], nominal: Sensor, method: str, estimate: Sequence[str],
@@ -291,6 +292,8 @@ def calibrate_with_client(strips: Sequence[Strip], nominal: Sensor, *, method: s
         change = abs(outer[-1]["mean_distance_m"] - outer[-2]["mean_distance_m"]) if len(outer) > 1 else float("nan")
         run.warnings.append(f"the outer loop stopped after {s.max_outer} iterations before the mean correspondence "
                             f"distance settled (last change {change * 1e3:.2g} mm)")
+    if run.model is not None and run.model.estimate_level:
+        est, problem = _trajectory_level(run, est, corrs, say)
     say("refining the last adjustment and its σ", s.max_outer, s.max_outer)
     clock = time.perf_counter()
     est = est.refine(FINAL_STEP_IN_SIGMA)  # the last matching's adjustment, then its covariance
@@ -299,6 +302,20 @@ def calibrate_with_client(strips: Sequence[Strip], nominal: Sensor, *, method: s
                      solve_s=outer[-1]["solve_s"] + time.perf_counter() - clock, values=est.parameters.values())
     say("calibrated", s.max_outer, s.max_outer)
     return _result(run, solution, problem, pairs, outer, first_residuals, strips)
+
+
+def _trajectory_level(run: _Run, est: Estimate, corrs: list[Correspondences], say) -> tuple[Estimate, StripProblem]:
+    """No accuracy file: the trajectory priors' level estimated from the overlaps
+    (:mod:`calidar.strips.trajectory_level`), the model's accuracy replaced by it and the last
+    matching adjusted again with those priors."""
+    from calidar.strips.trajectory_level import estimate_level
+
+    say("estimating the trajectory's accuracy from the overlaps", run.settings.max_outer, run.settings.max_outer)
+    run.level = estimate_level(est, run.model.accuracy)
+    run.model = replace(run.model, accuracy=run.level.accuracy, estimate_level=False)
+    sigma = {p.name: p.prior_sigma for p in run.model.parameters(run.spans, run.headings())}
+    params = ParameterSet(replace(p, prior_sigma=sigma[p.name]) if p.name in sigma else p for p in est.parameters)
+    return run.solve(corrs, params, OUTER_STEP_IN_SIGMA, None)
 
 
 def _mean(problem: StripProblem, residuals: np.ndarray) -> float:
@@ -317,6 +334,8 @@ def _result(run: _Run, solution: Solution, problem: StripProblem, pairs: list[di
     solution.residuals_before = residual_stats(first_residuals)
     if run.model is not None:
         solution.nuisance_prefix = TRAJECTORY_PREFIX
+    if run.level is not None:
+        solution.extra["trajectory_accuracy_estimate"] = run.level.to_dict()
     used_pairs = [(p["a"], p["b"]) for p in pairs]
     solution.warnings = run.warnings + geometry_warnings([run.by_id[i] for i in problem.index], used_pairs,
                                                          params.free_names) + solution.warnings

@@ -57,6 +57,9 @@ class TrajectoryModel:
     attitude_correlation_s: float | None = None  #: the same for the rotations
     #: the trajectory's σ per epoch: the priors of every knot, per axis (the two σ above are then unused)
     accuracy: TrajectoryAccuracy | None = None
+    #: the priors' level to be estimated from the overlaps (no accuracy file: :attr:`accuracy` is a
+    #: default to start from; :mod:`calidar.strips.trajectory_level`)
+    estimate_level: bool = False
 
     def __post_init__(self):
         for name in ("block_s", "position_sigma_m", "attitude_sigma_rad", "correlation_s", "attitude_correlation_s"):

@@ -11,7 +11,7 @@ Findings (each pass / warn / fail, with the numbers and, when not a pass, an act
   :data:`CORRELATION_LIMIT`, convergence;
 - the overlaps before and after (swath differences: no pair worse, no strip left offset by more
   than :data:`OFFSET_LIMIT_M`), and what the σ rest on (the trajectory's
-  accuracy: a file, or a default assumed; the trajectory model off).
+  accuracy: a file, estimated from the overlaps, or a default assumed; the trajectory model off).
 """
 
 from __future__ import annotations
@@ -186,12 +186,36 @@ def overlap_finding(stages) -> Finding:
     return Finding("pass", "overlaps", detail)
 
 
-def notes_findings(notes: list[str], warnings: list[str]) -> list[Finding]:
-    out = []
+ACCURACY_ACTION = ("give the trajectory's accuracy file (POSPac smrmsg) with --trajectory-accuracy, or put it "
+                   "beside the SBET as smrmsg*.out")
+
+
+def accuracy_finding(level: dict) -> Finding:
+    """The trajectory accuracy estimated from the overlaps (a TrajectoryLevel's dict): a pass where
+    every group of priors was estimated, a warning naming those the data cannot tell (the
+    survey-grade default kept there) and the criterion."""
+    groups = level["groups"]
+    weak = [f"{g.replace('_', ' ')} (redundancy {v['redundancy_at_stated_sigma']:.1f} < {level['min_redundancy']:g})"
+            for g, v in groups.items() if not v["estimated"]]
+    factors = ", ".join(f"{g.replace('_', ' ')} ×{v['sigma_factor']:.2g}" + (
+        f" ± {100 * v['sigma_factor_relative_sigma']:.0f} %" if v["estimated"] else "") for g, v in groups.items())
+    if level["source"] == "data":
+        detail = (f"no accuracy file found; trajectory accuracy estimated from the overlaps: {level['headline']}; "
+                  f"source: data (the survey-grade default's σ {factors})")
+    else:
+        detail = (f"no accuracy file found, and the overlaps cannot tell the trajectory's accuracy: survey-grade "
+                  f"default assumed, {level['headline']}; the σ of the results hold only if the trajectory is that good")
+    if weak:
+        detail += "; the data cannot tell " + ", ".join(weak) + ": the survey-grade default kept there"
+    return Finding("warn" if weak else "pass", "trajectory accuracy", detail, ACCURACY_ACTION if weak else "")
+
+
+def notes_findings(notes: list[str], warnings: list[str], level: dict | None = None) -> list[Finding]:
+    out = [] if level is None else [accuracy_finding(level)]
     for n in notes:
         if n.startswith("no trajectory accuracy found"):
-            out.append(Finding("warn", "trajectory accuracy", n, "give the trajectory's accuracy file (POSPac smrmsg) "
-                               "with --trajectory-accuracy, or put it beside the SBET as smrmsg*.out"))
+            if level is None:
+                out.append(Finding("warn", "trajectory accuracy", n, ACCURACY_ACTION))
         elif n.startswith("trajectory model off"):
             out.append(Finding("warn", "trajectory model", n, "leave the trajectory model on (the default)"))
     for w in warnings:
@@ -214,5 +238,5 @@ def strip_verdict(result, stages, notes: list[str] = (), accuracy_text: str | No
     findings = parameter_findings(result, float(np.median(ranges)))
     findings += [sigma0_finding(sol), noise_finding(result, result.row_sigma)]
     findings += correlation_findings(sol) + [convergence_finding(result), overlap_finding(stages)]
-    findings += notes_findings(list(notes), sol.warnings)
+    findings += notes_findings(list(notes), sol.warnings, sol.extra.get("trajectory_accuracy_estimate"))
     return Verdict(summary, findings)

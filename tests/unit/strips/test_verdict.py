@@ -91,3 +91,39 @@ def test_a_default_accuracy_makes_the_verdict_a_warning():
     assert v.status == "warn" and v.summary.endswith("trajectory taken as exact")
     f = next(f for f in v.findings if f.check == "trajectory accuracy")
     assert "--trajectory-accuracy" in f.action and "smrmsg" in f.action
+
+
+def _level(heading_estimated: bool) -> dict:
+    """A TrajectoryLevel's dict (calidar.strips.trajectory_level) as solution.extra holds it."""
+    group = lambda ok, f, r: {"estimated": ok, "sigma_factor": f, "sigma_factor_relative_sigma": 0.1 if ok else None,  # noqa: E731
+                              "redundancy": r, "redundancy_at_stated_sigma": r, "priors": 100}
+    return {"source": "data", "min_redundancy": 10.0,
+            "headline": "position 2.9/3.1 cm (horizontal/vertical), attitude 0.0019/0.0081° (roll·pitch/heading)",
+            "groups": {"position_horizontal": group(True, 0.58, 40.0), "position_vertical": group(True, 0.39, 90.0),
+                       "attitude_horizontal": group(True, 0.63, 120.0),
+                       "heading": group(heading_estimated, 1.0 if not heading_estimated else 1.01,
+                                        3.0 if not heading_estimated else 30.0)}}
+
+
+@pytest.mark.parametrize("heading_estimated", [True, False])
+def test_an_accuracy_estimated_from_the_overlaps_is_stated(heading_estimated):
+    """No accuracy file, its level estimated: the accuracy line gives the level and its source
+    (data), a pass; a group the data cannot tell is named with its redundancy and the criterion
+    (a warning: the survey-grade default kept there). The "none found" note is not repeated."""
+    sol = _solution({"boresight_roll": 1e-6})
+    sol.extra["trajectory_accuracy_estimate"] = _level(heading_estimated)
+    result = SimpleNamespace(solution=sol, strips=[_Strip()], pairs=[{}], method="planes", residuals_after=np.zeros(3),
+                             row_sigma=np.ones(3), warnings=[],
+                             outer=[{"n_obs": 10, "mean_distance_m": 0.01}, {"n_obs": 10, "mean_distance_m": 0.01}])
+    stages = [QualityStage("as delivered", "", [_pq(1, 2, 0.05, 0.08)]), QualityStage("after", "", [_pq(1, 2, 0.0, 0.01)])]
+    v = strip_verdict(result, stages, ["no trajectory accuracy found (…): its level is estimated from the overlaps"])
+    found = [f for f in v.findings if f.check == "trajectory accuracy"]
+    assert len(found) == 1
+    f = found[0]
+    assert "trajectory accuracy estimated from the overlaps: position 2.9/3.1 cm" in f.detail
+    assert "source: data" in f.detail
+    if heading_estimated:
+        assert f.status == "pass" and v.status == "pass" and not f.action
+    else:
+        assert f.status == "warn" and "heading (redundancy 3.0 < 10)" in f.detail and "default kept" in f.detail
+        assert "--trajectory-accuracy" in f.action

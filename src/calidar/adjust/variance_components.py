@@ -1,0 +1,156 @@
+"""Variance components: how wide the a-priori σ of groups of pseudo-observations (priors on
+parameters) really are, estimated from the adjustment itself.
+
+The model is a linear(ised) Gauss–Markov model with observations r (weights W, their own
+variance factor σ²_obs) and K groups of priors on parameters, group k of precision Pₖ/σ²ₖ
+(Pₖ the stated precision, σ²ₖ its unknown variance factor). The iterated estimator of Förstner
+(1979) and Koch (1999, "Parameter Estimation and Hypothesis Testing in Linear Models", §3.6.3–4;
+at convergence the best invariant quadratic unbiased estimate, the REML one under normality):
+
+    σ²ₖ ← vₖᵀPₖvₖ / rₖ,   rₖ = nₖ − tr(Pₖ Q)/σ²ₖ,   Q = N⁻¹ = (JᵀWJ/σ²_obs + Σₖ Pₖ/σ²ₖ)⁻¹
+
+where vₖ = x̂ₖ − centreₖ are the priors' residuals and rₖ their redundancy (how many of the nₖ
+priors the data check; Σ r = observations + priors − parameters). A group whose priors the data
+cannot check (rₖ ≈ 0: the parameters are known only through their priors) has no estimate:
+:func:`estimate_components` reports its redundancy so the caller can keep its stated σ.
+
+Components whose truth is zero are approached geometrically (a known weakness of the iterated
+estimator): each is held at ``floor`` at least, which the caller chooses as "as good as exact".
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from calidar.adjust.solution import cholesky_inverse
+from calidar.adjust.solver import _normal_matrix
+from calidar.errors import CalibrationError
+
+OBSERVATIONS = "observations"  #: the name of the observations' own component
+
+
+@dataclass(frozen=True)
+class PriorBlock:
+    """Priors on the parameters ``index`` (positions in x) with ``center`` and the stated
+    precision ``precision`` (the inverse of their covariance at variance factor 1), in ``group``."""
+
+    index: np.ndarray
+    center: np.ndarray
+    precision: np.ndarray
+    group: str
+
+
+@dataclass
+class Components:
+    """The estimated variance factors (1: the stated σ hold) and what they rest on."""
+
+    variance: dict[str, float]  #: per group (and :data:`OBSERVATIONS`) the factor σ²
+    redundancy: dict[str, float]  #: per group rₖ at the estimate
+    size: dict[str, int]  #: per group nₖ (observations: their effective number Σ w σ²)
+    x: np.ndarray  #: the parameters at the estimated components
+    iterations: int
+    converged: bool
+    fixed: tuple[str, ...] = field(default=())  #: groups held at 1 (not estimated)
+    #: per group rₖ at the start (the stated σ, or ``start``): how many priors the data check at that level
+    redundancy_start: dict[str, float] = field(default_factory=dict)
+
+    def sigma_factor(self, group: str) -> float:
+        """√σ²ₖ: the factor on the group's stated σ."""
+        return float(np.sqrt(self.variance[group]))
+
+    def relative_sigma(self, group: str) -> float:
+        """The σ of the estimated σ factor relative to it, 1/√(2 rₖ) (χ² with rₖ degrees of freedom)."""
+        r = self.redundancy[group]
+        return float("inf") if r <= 0 else float(1.0 / np.sqrt(2.0 * r))
+
+
+def estimate_components(JtWJ: np.ndarray, JtWr: np.ndarray, rWr: float, n_obs: float, x0: np.ndarray,
+                        blocks: Sequence[PriorBlock], *, fixed: Sequence[str] = (), estimate_observations: bool = True,
+                        start: Mapping[str, float] | None = None, max_iter: int = 60, tol: float = 1e-3,
+                        floor: float = 1e-6, marginal: bool = False) -> Components:
+    """The variance components of the observations and of each group of ``blocks`` (see the
+    module docstring) for the linearised problem r(x) = r₀ + J(x − x0): ``JtWJ`` = JᵀWJ,
+    ``JtWr`` = JᵀWr₀, ``rWr`` = r₀ᵀWr₀, ``n_obs`` the observations' effective number (Σ of the
+    relative weights). ``fixed``: groups held at 1 (or at ``start``); ``estimate_observations``
+    False holds σ²_obs at 1 too. Iterates until no factor changes by more than ``tol`` (relative)
+    or ``max_iter`` times; each factor ≥ ``floor``.
+
+    ``marginal``: estimate the priors' factors from their marginal variances instead,
+    σ²ₖ ← Σᵢ (vᵢ²/Σᵢᵢ) / (nₖ − Σᵢ Qᵢᵢ/(σ²ₖΣᵢᵢ)) with Σ = Pₖ⁻¹ the stated covariance: the fixed
+    point of E[vᵢ²] = σ²ₖΣᵢᵢ − Qᵢᵢ (that of the EM update of Dempster, Laird & Rubin 1977 with
+    the identity in place of Σ⁻¹), iterated as Förstner's (the priors the data cannot check drop
+    out of numerator and denominator alike). The same estimate when the stated correlations are
+    right; the level of the stated σ themselves when they are not (an error smoother than the
+    stated correlation is seen by vᵀPv mostly through its small increments: its level comes out low)."""
+    u = JtWJ.shape[0]
+    groups = sorted({b.group for b in blocks})
+    var = {g: 1.0 for g in [OBSERVATIONS, *groups]} | dict(start or {})
+    frozen = set(fixed) | (set() if estimate_observations else {OBSERVATIONS})
+    size = {OBSERVATIONS: float(n_obs)} | {g: sum(b.index.size for b in blocks if b.group == g) for g in groups}
+    converged, it, x, red, red_start = False, 0, x0, {}, {}
+    stated = [np.diag(np.linalg.inv(b.precision)) if marginal else None for b in blocks]  # Σᵢᵢ
+    for it in range(1, max_iter + 1):
+        N, b = JtWJ / var[OBSERVATIONS], -JtWr / var[OBSERVATIONS]
+        for blk in blocks:
+            N[np.ix_(blk.index, blk.index)] += blk.precision / var[blk.group]
+            b[blk.index] -= blk.precision @ (x0[blk.index] - blk.center) / var[blk.group]
+        Q = cholesky_inverse(N)
+        if Q is None:
+            raise CalibrationError("variance components: the normal matrix is not positive definite")
+        dx = Q @ b
+        x = x0 + dx
+        quad = {g: 0.0 for g in groups}
+        trace = {g: 0.0 for g in groups}
+        spread = {g: 0.0 for g in groups}
+        trace_marginal = {g: 0.0 for g in groups}
+        for blk, sii in zip(blocks, stated):
+            v = x[blk.index] - blk.center
+            quad[blk.group] += float(v @ blk.precision @ v)
+            trace[blk.group] += float(np.sum(blk.precision * Q[np.ix_(blk.index, blk.index)]))
+            if marginal:
+                spread[blk.group] += float(np.sum(v**2 / sii))
+                trace_marginal[blk.group] += float(np.sum(Q[blk.index, blk.index] / sii))
+        quad[OBSERVATIONS] = float(rWr + 2.0 * dx @ JtWr + dx @ JtWJ @ dx)
+        red = {g: size[g] - trace[g] / var[g] for g in groups}
+        red[OBSERVATIONS] = n_obs - (u - sum(trace[g] / var[g] for g in groups))
+        red_start = red_start or dict(red)
+        new = {g: (var[g] if g in frozen or red[g] <= 1e-9 else max(quad[g] / red[g], floor)) for g in var}
+        if marginal:  # σ²ₖ ← Σ vᵢ²/Σᵢᵢ / (nₖ − Σ Qᵢᵢ/(σ²ₖΣᵢᵢ)): the redundancy's diagonal analogue
+            new |= {g: max(spread[g] / max(size[g] - trace_marginal[g] / var[g], 1e-9), floor)
+                    for g in groups if g not in frozen and red[g] > 1e-9}
+        change = max(abs(np.log(new[g] / var[g])) for g in var)
+        var = new
+        if change < tol:
+            converged = True
+            break
+    return Components(var, red, {g: int(round(s)) if g != OBSERVATIONS else s for g, s in size.items()},
+                      x, it, converged, tuple(sorted(frozen - {OBSERVATIONS})), red_start)
+
+
+def split_blocks(priors: Sequence[tuple[np.ndarray, np.ndarray, np.ndarray]], group_of: Sequence[str | None]) -> list[PriorBlock]:
+    """The engine's prior groups (free-parameter positions, centres, precision) cut by the group
+    each parameter belongs to (``group_of[position]``; None: not in any component, its priors
+    kept as stated under the group "other"). A prior group whose precision couples two groups
+    is an error (its parameters' components could not be told apart)."""
+    out = []
+    for idx, center, P in priors:
+        labels = np.array([group_of[i] or "other" for i in idx], dtype=object)
+        for g in dict.fromkeys(labels.tolist()):
+            sel = labels == g
+            if np.any(P[np.ix_(sel, ~sel)] != 0):
+                raise ValueError(f"variance components: a prior group couples {g!r} with another group")
+            out.append(PriorBlock(idx[sel], center[sel], P[np.ix_(sel, sel)], g))
+    return out
+
+
+
+def normal_terms(est) -> tuple[np.ndarray, np.ndarray, float, float, np.ndarray]:
+    """(JᵀWJ, JᵀWr, rᵀWr, Σ relative weights, x) of a :class:`calidar.adjust.solver.Estimate` at
+    its values, robust weights as they stand: the first arguments of :func:`estimate_components`."""
+    fit, w, r = est.fit, est.w, est.r
+    J = fit.jacobian(est.x)
+    return _normal_matrix(J, w), np.asarray(J.T @ (w * r)).ravel(), float(np.sum(w * r * r)), \
+        float(np.sum(w * fit.sig**2)), np.asarray(est.x, float)

@@ -1,0 +1,127 @@
+"""The trajectory's accuracy level estimated from the overlaps, when no accuracy file states it.
+
+The trajectory corrections' priors (:mod:`calidar.strips.trajectory_errors`) start from a
+stated accuracy; without one, from :data:`calidar.trajectory_accuracy.SURVEY_GRADE`. How wide
+those priors really are is a variance-component problem (:mod:`calidar.adjust.variance_components`):
+the corrections the overlaps ask for, against the priors' stated covariance, give a factor per
+group of priors — four here, each the stated σ's shape kept within it:
+
+- ``position_horizontal``: the knots' east and north shifts; ``position_vertical``: the up shifts;
+- ``attitude_horizontal``: the rotations about east and north (roll and pitch, mixed by the
+  line's heading); ``heading``: the rotations about up.
+
+A group is estimated only when the data check enough of its priors at the stated σ: its
+redundancy rₖ there (how many of its nₖ priors the overlaps determine better than the priors do)
+must reach :data:`MIN_REDUNDANCY`; otherwise the stated σ stay ("the data cannot tell"). The
+estimate's own relative σ is ≈ 1/√(2rₖ) at the estimate (rₖ falls with the factor: a trajectory
+better than stated is checked by fewer of its now narrow priors). Each factor is held ≥ :data:`FLOOR_FACTOR` (a trajectory
+that good is as good as exact for the calibration).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from calidar.adjust.variance_components import OBSERVATIONS, Components, estimate_components, normal_terms, split_blocks
+from calidar.errors import CalibrationError
+from calidar.strips.trajectory_errors import parse_name
+from calidar.trajectory_accuracy import TrajectoryAccuracy
+
+GROUPS = ("position_horizontal", "position_vertical", "attitude_horizontal", "heading")
+#: a group's factor is estimated only when the overlaps check at least this many of its priors at
+#: the stated σ (its redundancy there; the factor is then known to ±1/√(2·10) ≈ 22 % at that level)
+MIN_REDUNDANCY = 10.0
+#: the smallest factor on a stated σ (1 % of the survey-grade default: 0.5 mm, 0.00003°)
+FLOOR_FACTOR = 0.01
+SOURCE = "estimated from the overlaps (variance components of the trajectory priors)"
+
+
+def group_of(name: str) -> str | None:
+    """The group (:data:`GROUPS`) of a trajectory parameter's name; None for other parameters."""
+    parsed = parse_name(name)
+    if parsed is None:
+        return None
+    kind, axis = parsed[0], parsed[1]
+    if kind == "bias":
+        return GROUPS[0] if axis < 2 else GROUPS[1]
+    return GROUPS[2] if axis < 2 else GROUPS[3]
+
+
+@dataclass
+class TrajectoryLevel:
+    """The estimated level: per group the factor applied to the stated σ and whether it was
+    estimated, what it rests on, and the accuracy it makes."""
+
+    base: TrajectoryAccuracy  #: the σ started from (the survey-grade default)
+    components: Components
+    estimated: dict[str, bool]  #: per group (present in the adjustment): estimated, or the data cannot tell
+    accuracy: TrajectoryAccuracy  #: ``base`` × the factors
+
+    def factor(self, group: str) -> float:
+        return self.components.sigma_factor(group) if self.estimated.get(group) else 1.0
+
+    @property
+    def any_estimated(self) -> bool:
+        return any(self.estimated.values())
+
+    def headline(self) -> str:
+        """'position 2.9/4.4 cm (horizontal/vertical), attitude 0.0020/0.0079° (roll·pitch/heading)'."""
+        m = self.accuracy.medians()
+        return (f"position {m['north_rms_m'] * 100:.2g}/{m['down_rms_m'] * 100:.2g} cm (horizontal/vertical), attitude "
+                f"{m['roll_rms_deg']:.2g}/{m['heading_rms_deg']:.2g}° (roll·pitch/heading)")
+
+    def undetermined(self) -> list[str]:
+        """The groups the data cannot tell, with their redundancy: 'heading (r = 3.1 < 10)'."""
+        return [f"{g.replace('_', ' ')} (redundancy {self.components.redundancy_start[g]:.1f} < {MIN_REDUNDANCY:g})"
+                for g, ok in self.estimated.items() if not ok]
+
+    def to_dict(self) -> dict:
+        c = self.components
+        m = self.accuracy.medians()
+        return {"source": "data" if self.any_estimated else "default", "method": SOURCE, "headline": self.headline(),
+                "position_m": {"horizontal": m["north_rms_m"], "vertical": m["down_rms_m"]},
+                "attitude_deg": {"roll_pitch": m["roll_rms_deg"], "heading": m["heading_rms_deg"]},
+                "min_redundancy": MIN_REDUNDANCY, "iterations": c.iterations, "converged": c.converged,
+                "observations_sigma0": float(np.sqrt(c.variance[OBSERVATIONS])),
+                "groups": {g: {"estimated": ok, "sigma_factor": self.factor(g),
+                               "sigma_factor_relative_sigma": c.relative_sigma(g) if ok else None,
+                               "redundancy": float(c.redundancy[g]),
+                               "redundancy_at_stated_sigma": float(c.redundancy_start[g]), "priors": int(c.size[g])}
+                           for g, ok in self.estimated.items()}}
+
+
+def estimate_level(est, base: TrajectoryAccuracy) -> TrajectoryLevel:
+    """The trajectory's level from an adjustment ``est`` (a :class:`calidar.adjust.solver.Estimate`
+    whose trajectory priors came from ``base``): groups with redundancy below
+    :data:`MIN_REDUNDANCY` are held at their stated σ and the others estimated again without them."""
+    terms = normal_terms(est)
+    blocks = split_blocks(est.fit.priors, [group_of(p.name) for p in est.fit.free])
+    present = [g for g in GROUPS if any(b.group == g for b in blocks)]
+    fixed = ["other"]
+    while True:  # tol: 1 % in variance, ½ % in σ — well inside the factors' own ±1/√(2rₖ)
+        try:
+            comps = estimate_components(*terms, blocks, fixed=fixed, floor=FLOOR_FACTOR**2, marginal=True, tol=0.01)
+        except CalibrationError:  # a normal matrix singular at some factors: nothing estimated
+            fixed = ["other", *present]
+            comps = estimate_components(*terms, blocks, fixed=fixed, max_iter=1)
+        # judged at the stated σ: a group the data check there is estimated, however small it comes
+        # out (its redundancy then falls with it: the priors, now narrow, are checked less)
+        weak = [g for g in present if g not in fixed and comps.redundancy_start[g] < MIN_REDUNDANCY]
+        if not weak:
+            break
+        fixed += weak
+    estimated = {g: g not in fixed for g in present}
+    level = TrajectoryLevel(base, comps, estimated, base)
+    level.accuracy = scaled(base, *(level.factor(g) for g in GROUPS), source=SOURCE if level.any_estimated else base.source)
+    return level
+
+
+def scaled(base: TrajectoryAccuracy, horizontal: float, vertical: float, tilt: float, heading: float,
+           source: str) -> TrajectoryAccuracy:
+    """``base`` with its position σ north/east × ``horizontal``, down × ``vertical``, its attitude σ
+    roll/pitch × ``tilt`` and heading × ``heading``."""
+    pos = base.position_m * np.array([horizontal, horizontal, vertical])
+    att = base.attitude_rad * np.array([tilt, tilt, heading])
+    return replace(base, position_m=pos, attitude_rad=att, source=source)
