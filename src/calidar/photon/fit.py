@@ -148,6 +148,9 @@ class Problem:
             step = STEPS[_base(nm)] * max(abs(values[nm]), 1.0)
             hi, lo = dict(values), dict(values)
             hi[nm] += step
+            if _base(nm) == "shot_loss_rate" and values[nm] < step:  # at its bound 0: forward differences
+                h[:, j] = (self.gradient(hi, names) - self.gradient(lo, names)) / step
+                continue
             lo[nm] -= step
             h[:, j] = (self.gradient(hi, names) - self.gradient(lo, names)) / (2.0 * step)
         return 0.5 * (h + h.T)
@@ -195,8 +198,9 @@ def maximise(problem: Problem, start: dict[str, float], bounds, fixed: dict[str,
         sol = _solve(problem, parameter_set(problem.layout, values, {**fixed, **at_zero, **held}), max_iter)
         values = sol.values
     bounds.check(values)
-    return Fit(observed_information_solution(problem, sol) if covariance else sol, problem.nll(values),
-               sorted(held) + sorted(at_zero))
+    held_names = sorted(held) + sorted(at_zero)
+    return Fit(observed_information_solution(problem, sol, held_names) if covariance else sol, problem.nll(values),
+               held_names)
 
 
 def _solve(problem: Problem, params: ParameterSet, max_iter: int) -> Solution:
@@ -207,14 +211,35 @@ def _solve(problem: Problem, params: ParameterSet, max_iter: int) -> Solution:
                  max_iter=max_iter, normal_fn=lambda v: problem.scoring_information(v, free))
 
 
-def observed_information_solution(problem: Problem, sol: Solution) -> Solution:
-    """``sol`` with its covariance (and warnings) from the observed information at its estimate."""
+def observed_information_solution(problem: Problem, sol: Solution, held: list[str] = ()) -> Solution:
+    """``sol`` with its covariance (and warnings) from the observed information at its estimate.
+
+    Parameters ``held`` at a bound are profiled out, not taken as known: the information on the free
+    ones is the Schur complement H_ff − H_fh·H_hh⁻¹·H_hf of the Hessian over both (the curvature of the
+    profile likelihood, every held parameter re-maximised, to second order). Their σ then carry the
+    held parameters' uncertainty: held at 0, a shot-loss rate still trades lost shots for a smaller
+    footprint. Where −log L is not convex in the held parameters there (H_hh not positive definite)
+    nothing is profiled; the verdict's profile-likelihood intervals still re-maximise them."""
     free = sol.parameters.free_names
-    h = problem.hessian(sol.values, free)
-    new = Solution.from_normal_matrix(sol.parameters, h, 1.0, max(len(problem.shots) - len(free), 1),
+    h = problem.hessian(sol.values, free + list(held))
+    nf = len(free)
+    info, profiled = h[:nf, :nf], []
+    if held:
+        hh = h[nf:, nf:]
+        if np.all(np.isfinite(hh)) and np.all(np.linalg.eigvalsh(hh) > 0):
+            info = info - h[:nf, nf:] @ np.linalg.solve(hh, h[nf:, :nf])
+            profiled = list(held)
+    new = Solution.from_normal_matrix(sol.parameters, info, 1.0, max(len(problem.shots) - len(free), 1),
                                       residuals=sol.residuals, weights=np.ones(sol.residuals.size),
                                       before=sol.residuals_before, history=sol.history, converged=sol.converged,
                                       variance_factor=1.0)
+    if profiled:
+        new.warnings.append(f"{', '.join(profiled)} held at a bound: the other parameters' σ are those with "
+                            f"{'it' if len(profiled) == 1 else 'them'} profiled out (Schur complement of the observed "
+                            "information), not with it taken as known")
+    elif held:
+        new.warnings.append(f"{', '.join(held)} held at a bound where −log L is not convex in it: σ of the others "
+                            "assume it known; use the profile-likelihood intervals")
     return replace(new, residuals_after=sol.residuals_after)
 
 
