@@ -47,7 +47,7 @@ class DensitySettings:
     #: (half-length along track, half-height about the slope line) of each scale's parallelogram
     scales: tuple[tuple[float, float], ...] = ((10.0, 0.75), (15.0, 1.125), (25.0, 0.75))
     max_slope: float = 1.0  #: steepest surface followed (m/m, 45°)
-    false_alarm: float = 0.002  #: chance that a background photon passes (before the surface band's share)
+    false_alarm: float = 0.0005  #: chance that a background photon passes (before the surface band's share)
     min_count: int = 2  #: photons needed on each side in any case
     min_rate: float = 0.15  #: and at least this many per m of the side's length (a surface, not a few photons)
     relative: float = 0.2  #: a photon's count must reach this fraction of the largest count within ±relative_height
@@ -138,10 +138,14 @@ def _local_max(x: np.ndarray, h: np.ndarray, v: np.ndarray, a: float, dh: float)
 
 @numba.njit(cache=True)
 def _clipped_mean(counts: np.ndarray) -> float:  # pragma: no cover - numba
-    """Mean of the counts after dropping, three times over, those above mean + 3·√mean + 1 (signal bins)."""
+    """Mean of the counts after dropping, four times over, those above mean + 3·√mean + 1 (signal
+    bins) and their neighbours (a surface's edges spill into them)."""
     m = np.median(counts)
     for _ in range(4):
-        keep = counts <= m + 3.0 * np.sqrt(m) + 1.0
+        high = counts > m + 3.0 * np.sqrt(m) + 1.0
+        keep = ~high
+        keep[1:] &= ~high[:-1]
+        keep[:-1] &= ~high[1:]
         if not keep.any():
             break
         m = counts[keep].mean()
@@ -153,8 +157,8 @@ def _block_density(x: np.ndarray, h: np.ndarray, block: np.ndarray, nblock: int,
                    spacing: float, min_span: float) -> np.ndarray:  # pragma: no cover - numba
     """Background density (photons per m along per m height) of each block; photons sorted by block.
 
-    The block's along-track length is its occupied shot cells × the shot spacing (so gaps in a
-    clipped file do not dilute it); its heights span its lowest to highest photon, at least
+    The block's along-track length is the span of its photons, or the shot cells they occupy × the
+    shot spacing when under half of that span is occupied (a clipped file's gap); its heights span its lowest to highest photon, at least
     ``min_span``: a photon cloud less tall than ATLAS's telemetry band (≥ 30 m; 33–63 m on the real
     sea-ice granule here) had an empty band around it, i.e. hardly any background, which the empty
     bins added say (without them a block of signal alone would take its signal for background)."""
@@ -171,8 +175,11 @@ def _block_density(x: np.ndarray, h: np.ndarray, block: np.ndarray, nblock: int,
         counts = np.zeros(nb)
         for v in hb:
             counts[min(int((v - lo) / bin_h), nb - 1)] += 1.0
-        cells = np.unique(np.floor(x[start:stop] / spacing))
-        rho[block[start]] = _clipped_mean(counts) / (bin_h * cells.size * spacing)
+        occupied = np.unique(np.floor(x[start:stop] / spacing)).size * spacing
+        spanned = x[start:stop].max() - x[start:stop].min() + spacing
+        # the span, unless the data pause inside it (then the shots seen): empty shots are not gaps
+        length = spanned if occupied > 0.5 * spanned else occupied
+        rho[block[start]] = _clipped_mean(counts) / (bin_h * length)
         start = stop
     return rho
 
