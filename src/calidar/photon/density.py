@@ -87,7 +87,7 @@ def _oriented_max(x: np.ndarray, h: np.ndarray, a: float, b: float, s0: float, d
                 if abs(dx) < 1e-6:
                     if abs(dh) <= b:
                         level += 1
-                else:
+                elif abs(dh) <= b - s0 * abs(dx):  # else in no parallelogram (s0 = −max_slope)
                     s1 = (dh - b) / dx
                     s2 = (dh + b) / dx
                     if s1 > s2:
@@ -199,9 +199,9 @@ def background_density(x_m: np.ndarray, h_m: np.ndarray, block: float = 60.0, bi
 def thresholds(mu: np.ndarray, tests: int, false_alarm: float, min_count: int, sides: int = 2) -> np.ndarray:
     """The least k with tests · P(Poisson(mu) ≥ k)^sides ≤ false_alarm (and ≥ min_count), per mean mu
     of one side: both sides reach k by chance with the square of one side's chance."""
-    mu = np.asarray(mu, float)
-    k = np.asarray(poisson.isf((false_alarm / tests) ** (1.0 / sides), np.maximum(mu, 1e-12)), float) + 1.0
-    return np.maximum(k, min_count).astype(np.int64)
+    levels, inverse = np.unique(np.asarray(mu, float), return_inverse=True)  # one μ per block: isf once each
+    k = np.asarray(poisson.isf((false_alarm / tests) ** (1.0 / sides), np.maximum(levels, 1e-12)), float) + 1.0
+    return np.maximum(k, min_count).astype(np.int64)[inverse.reshape(np.shape(mu))]
 
 
 def oriented_counts(x_m: np.ndarray, h_m: np.ndarray, half_along: float, half_height: float,
