@@ -81,6 +81,24 @@ def test_a_diameter_beyond_the_bounds_is_held_there_and_fails_the_verdict():
     assert any(f.status == "fail" and "search limit" in f.detail for f in result.verdict.findings)
 
 
+def test_a_loss_rate_held_at_zero_is_profiled_out_of_the_sigma_and_said():
+    """Issue 26: with q held at its bound the others' σ were computed with q known (a diameter 9.16 ±
+    0.30 m against 11.0 m, 6.2σ). Now q is profiled out (the Schur complement, widened by the step to
+    the unbounded maximum), and the verdict and solution say so."""
+    sim, result, err = solve(PhotonSimConfig(seed=2, n_ccr=4))
+    assert result.estimate.fit.at_limit == ["shot_loss_rate"]
+    sol = result.solution
+    free = sol.parameters.free_names
+    h = result.problem.hessian(sol.values, free)
+    i = free.index("footprint_diameter")
+    assert sol.sigma["footprint_diameter"] > 1.05 * np.sqrt(np.linalg.inv(h)[i, i])  # wider than with q known
+    assert any("profiled out" in w for w in sol.warnings)
+    loss = [f for f in result.verdict.findings if f.check == "shot-loss rate"]
+    assert loss and "profiled out" in loss[0].detail
+    for k in GEOLOCATION:
+        assert abs(err[k]) < 3 * sol.sigma[k]
+
+
 def test_an_impossible_bias_is_refused():
     """CCR coordinates 30 m off the pass's track frame: no footprint fits them within ±10 m → a clear error."""
     from calidar.photon.fit import Bounds

@@ -18,6 +18,24 @@ CORRELATION_WARNING = 0.95
 RANK_TOLERANCE = 1e-10
 
 
+def json_ready(obj):
+    """``obj`` with what JSON cannot hold made plain: numpy scalars and arrays as Python numbers and
+    lists, tuples as lists, non-finite floats (±inf, NaN: "not determined", "no bound") as null.
+    solution.json is written through it, so no value a method adds to ``Solution.extra`` can make
+    the write fail."""
+    if isinstance(obj, dict):
+        return {str(k) if isinstance(k, np.generic) else k: json_ready(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [json_ready(v) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return json_ready(obj.tolist())
+    if isinstance(obj, np.generic):
+        obj = obj.item()
+    if isinstance(obj, float) and not np.isfinite(obj):
+        return None
+    return obj
+
+
 def residual_stats(r: np.ndarray, weights: np.ndarray | None = None) -> dict:
     """Summary statistics of residuals (observation units)."""
     r = np.asarray(r, float)
@@ -191,4 +209,5 @@ class Solution:
 
     def write_json(self, path: str | Path, truth: dict[str, float] | None = None, force: bool = True) -> Path:
         """Write solution.json atomically."""
-        return write_text_atomic(path, json.dumps(self.to_dict(truth), indent=2, allow_nan=False) + "\n", force)
+        return write_text_atomic(path, json.dumps(json_ready(self.to_dict(truth)), indent=2,
+                                                 allow_nan=False) + "\n", force)

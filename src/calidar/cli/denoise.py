@@ -20,7 +20,8 @@ def denoise(
     shot_spacing: float = typer.Option(0.7, "--shot-spacing-m", help="Along-track shot spacing d_l (m)."),
     force: bool = typer.Option(False, "--force", help="Overwrite an existing CSV (never an input)."),
 ) -> None:
-    """Classify every photon as signal (1) or noise (0): height histograms, then DBSCAN."""
+    """Classify every photon as signal (1) or noise (0): slope-following neighbour counts against the
+    measured solar background (ATL03 ATBD slant histograms, ATL08 DRAGANN); weak beams and daylight too."""
     from calidar.outputs import atomic_path, guard_inputs
     from calidar.pipelines.denoise import run_denoise
     from calidar.validate import existing_file, number
@@ -31,8 +32,10 @@ def denoise(
     with atomic_path(out, force) as tmp:
         result = run_denoise(atl03, beam, tmp, shot_spacing)
     for b in result.beams:
+        agree = ("" if b.atl03_agreement is None else f"; {b.atl03_agreement:.1%} of the {b.atl03_confident:,} "
+                 "ATL03 rates medium/high confidence")
         console.print(f"  {b.beam} ({b.strength or 'strength unknown'}): {b.photons:,} photons, {b.signal:,} signal "
-                      f"({b.signal / b.photons:.1%})", highlight=False, markup=False)
+                      f"({b.signal / b.photons:.1%}){agree}", highlight=False, markup=False)
         if b.along_track_from != "segments":
             print_warning(f"{b.beam}: along-track distance from the {b.along_track_from}")
     if result.skipped:

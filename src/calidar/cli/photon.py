@@ -22,6 +22,16 @@ def simulate_photons(
     length: float = typer.Option(1200.0, "--length", help="Track length simulated (m)."),
     strength: str = typer.Option("strong", "--strength", help="Beam strength: strong (16 channels) or weak (4)."),
     ccr_photons: float = typer.Option(20.0, "--ccr-photons", help="Mean photons of a CCR at the footprint centre."),
+    ground_photons: float = typer.Option(3.0, "--ground-photons", help="Mean signal photons a shot from the ground "
+                                         "(a weak beam carries about a quarter of a strong beam's: 0.75)."),
+    background: float = typer.Option(3.0, "--background-mhz", help="Solar background rate (MHz; daylight 1–10, night ≈ 0.01)."),
+    window: float = typer.Option(30.0, "--window-m", help="Telemetry height window (m, from 10 m below the ground)."),
+    slope: float = typer.Option(0.02, "--slope", help="Along-track terrain slope (m/m)."),
+    relief: float = typer.Option(2.0, "--relief", help="Amplitude of the terrain's hills (m)."),
+    relief_wavelength: float = typer.Option(300.0, "--relief-wavelength", help="Wavelength of the hills (m)."),
+    roughness: float = typer.Option(0.05, "--roughness", help="RMS surface roughness (m)."),
+    canopy_cover: float = typer.Option(0.0, "--canopy-cover", help="Fraction of the track under trees (40 m stands)."),
+    canopy_height: float = typer.Option(15.0, "--canopy-height", help="Height of the tallest trees (m)."),
     force: bool = typer.Option(False, "--force", help=FORCE_HELP),
 ) -> None:
     """Simulate an ATL03-layout pass over surveyed CCRs with a known geolocation bias."""
@@ -43,11 +53,19 @@ def simulate_photons(
         cross_bias=None if cross_bias is None else number(cross_bias, "--cross-bias", -50.0, 50.0, "m"),
         footprint_diameter=number(diameter, "--footprint-diameter", 1.0, 100.0, "m"), length=length,
         strength=strength, ccr_photons=number(ccr_photons, "--ccr-photons", 1.0, 500.0),
-        ccr_spacing=min(60.0, 0.9 * length / max(n + unlit, 1)))
+        ccr_spacing=min(60.0, 0.9 * length / max(n + unlit, 1)),
+        ground_photons=number(ground_photons, "--ground-photons", 0.0, 100.0),
+        background_rate=number(background, "--background-mhz", 0.0, 50.0, "MHz") * 1e6,
+        window=number(window, "--window-m", 5.0, 2000.0, "m"), slope_along=number(slope, "--slope", -2.0, 2.0),
+        undulation=number(relief, "--relief", 0.0, 500.0, "m"),
+        undulation_wavelength=number(relief_wavelength, "--relief-wavelength", 10.0, 100_000.0, "m"),
+        roughness=number(roughness, "--roughness", 0.0, 10.0, "m"),
+        canopy_cover=number(canopy_cover, "--canopy-cover", 0.0, 1.0),
+        canopy_height=number(canopy_height, "--canopy-height", 0.0, 100.0, "m"))
     with output_folder(out, force) as tmp:
         paths = run(cfg, tmp)
         t = json.loads(paths["truth"].read_text())
-    console.print(f"wrote {out}/ATL03_sim.h5, ccr.csv, truth.json; truth: along {t['along_track_bias']:+.3f} m, "
+    console.print(f"wrote {out}/ATL03_sim.h5 (each photon's truth in <beam>/heights/sim_class_ph), ccr.csv, truth.json; truth: along {t['along_track_bias']:+.3f} m, "
                   f"cross {t['cross_track_bias']:+.3f} m, diameter {t['footprint_diameter']:.2f} m", highlight=False, markup=False)
 
 

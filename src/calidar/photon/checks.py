@@ -121,6 +121,13 @@ def _solve_checks(result) -> list[Finding]:
     if any(n.startswith("ccr_peak_photons") for n in fit.at_limit):
         out.append(Finding("warn", "CCR peak photons", "not bounded by the counts: held at its limit",
                            "the footprint's edge is seen but not its centre: add CCRs nearer the predicted track"))
+    loss = [n for n in fit.at_limit if n.startswith("shot_loss_rate")]
+    if loss:
+        how = ("profiled out: their σ are the Schur complement of the observed information, widened by how far the "
+               "bound moved them" if any("profiled out" in w for w in sol.warnings) else
+               "taken as known (the likelihood is not convex there); the profile intervals re-maximise it")
+        out.append(Finding("pass", "shot-loss rate", f"{', '.join(loss)} held at 0 (the counts show no lost shots); "
+                           f"for the other parameters' σ it is {how}"))
     if not sol.converged:
         out.append(Finding("warn", "solver", "the maximum-likelihood iterations did not converge",
                            "report this pass; treat the values with care"))

@@ -1,5 +1,10 @@
-"""Two-stage photon denoising: a coarse along-track height histogram (waveform) test,
-then DBSCAN's noise test in scaled (along-track, height) space.
+"""Photon denoising. :func:`denoise` (``calidar denoise``) is the slope-following neighbour count
+against the measured solar background of :mod:`calidar.photon.density`; :func:`denoise_stages`,
+the two-stage method below, stays what the CCR calibration uses on its sites (flat, strong returns;
+its Monte-Carlo figures in docs/validation.md were measured with it).
+
+Two-stage method: a coarse along-track height histogram (waveform) test, then DBSCAN's noise test
+in scaled (along-track, height) space.
 
 Coarse stage: photons are binned in along-track windows (``bin_along`` m) and height bins
 (``bin_height`` m above the window's lowest photon); the solar background per window is the
@@ -108,6 +113,10 @@ def denoise_stages(x_m: np.ndarray, h_m: np.ndarray, shot_spacing: float = 0.7,
     return coarse, signal
 
 
-def denoise(x_m: np.ndarray, h_m: np.ndarray, shot_spacing: float = 0.7, min_samples: int = 4) -> np.ndarray:
-    """Signal mask of every photon (both stages of :func:`denoise_stages`)."""
-    return denoise_stages(x_m, h_m, shot_spacing, min_samples)[1]
+def denoise(x_m: np.ndarray, h_m: np.ndarray, shot_spacing: float = 0.7, settings=None) -> np.ndarray:
+    """Signal mask of every photon: :func:`calidar.photon.density.signal_photons` (slope-following
+    neighbour counts tested against the local background; robust on weak beams in daylight over
+    sloping ground, where the fixed histograms of :func:`denoise_stages` break the ground line)."""
+    from calidar.photon.density import DensitySettings, signal_photons
+
+    return signal_photons(x_m, h_m, shot_spacing, settings or DensitySettings())

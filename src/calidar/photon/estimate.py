@@ -119,5 +119,6 @@ def estimate(windows: list[CCRWindow], problem: Problem, settings: SearchSetting
         raise CalibrationError(errors[0])
     best = min(fits, key=lambda f: f.nll)
     if covariance:
-        best = replace(best, solution=observed_information_solution(problem.with_counts(counts), best.solution))
+        best = replace(best, solution=observed_information_solution(problem.with_counts(counts), best.solution,
+                                                                     best.at_limit))
     return Estimate(best, grids, segments)

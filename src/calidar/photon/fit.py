@@ -148,6 +148,9 @@ class Problem:
             step = STEPS[_base(nm)] * max(abs(values[nm]), 1.0)
             hi, lo = dict(values), dict(values)
             hi[nm] += step
+            if _base(nm) == "shot_loss_rate" and values[nm] < step:  # at its bound 0: forward differences
+                h[:, j] = (self.gradient(hi, names) - self.gradient(lo, names)) / step
+                continue
             lo[nm] -= step
             h[:, j] = (self.gradient(hi, names) - self.gradient(lo, names)) / (2.0 * step)
         return 0.5 * (h + h.T)
@@ -195,8 +198,9 @@ def maximise(problem: Problem, start: dict[str, float], bounds, fixed: dict[str,
         sol = _solve(problem, parameter_set(problem.layout, values, {**fixed, **at_zero, **held}), max_iter)
         values = sol.values
     bounds.check(values)
-    return Fit(observed_information_solution(problem, sol) if covariance else sol, problem.nll(values),
-               sorted(held) + sorted(at_zero))
+    held_names = sorted(held) + sorted(at_zero)
+    return Fit(observed_information_solution(problem, sol, held_names) if covariance else sol, problem.nll(values),
+               held_names)
 
 
 def _solve(problem: Problem, params: ParameterSet, max_iter: int) -> Solution:
@@ -207,14 +211,44 @@ def _solve(problem: Problem, params: ParameterSet, max_iter: int) -> Solution:
                  max_iter=max_iter, normal_fn=lambda v: problem.scoring_information(v, free))
 
 
-def observed_information_solution(problem: Problem, sol: Solution) -> Solution:
-    """``sol`` with its covariance (and warnings) from the observed information at its estimate."""
+def observed_information_solution(problem: Problem, sol: Solution, held: list[str] = ()) -> Solution:
+    """``sol`` with its covariance (and warnings) from the observed information at its estimate.
+
+    Parameters ``held`` at a bound are profiled out, not taken as known: the information on the free
+    ones is the Schur complement H_ff − H_fh·H_hh⁻¹·H_hf of the Hessian over both (the curvature of the
+    profile likelihood, every held parameter re-maximised, to second order), and the covariance is
+    widened by s·sᵀ, s the free parameters' part of the Newton step from the held maximum to the
+    unbounded one (−H⁻¹·g): what holding moved them by, a bias the bound may have brought in. Their σ
+    then carry the held parameters' uncertainty: held at 0, a shot-loss rate still trades lost shots
+    for a smaller footprint. (On model-drawn 2-CCR passes with q = 0.15 where q was held at 0 —
+    13 of 40 — the diameter's mean (error/σ)² was 4.0 with q taken as known, 2.7 profiled, 1.8 widened
+    too: the maxima held at a bound are a selected, non-quadratic set; the bootstrap σ and the profile
+    intervals are the ones to use there, as the verdict says.) Where −log L is not convex (the full
+    Hessian not positive definite) nothing is profiled; the profile-likelihood intervals still
+    re-maximise them."""
     free = sol.parameters.free_names
-    h = problem.hessian(sol.values, free)
-    new = Solution.from_normal_matrix(sol.parameters, h, 1.0, max(len(problem.shots) - len(free), 1),
+    h = problem.hessian(sol.values, free + list(held))
+    nf = len(free)
+    info, profiled, shift = h[:nf, :nf], [], np.zeros(nf)
+    if held:
+        hh = h[nf:, nf:]
+        if np.all(np.isfinite(h)) and np.all(np.linalg.eigvalsh(hh) > 0) and np.all(np.linalg.eigvalsh(h) > 0):
+            info = info - h[:nf, nf:] @ np.linalg.solve(hh, h[nf:, :nf])
+            profiled = list(held)
+            # the Newton step to the maximum without the bound: how far holding moved the free parameters
+            shift = -np.linalg.solve(h, problem.gradient(sol.values, free + list(held)))[:nf]
+    new = Solution.from_normal_matrix(sol.parameters, info, 1.0, max(len(problem.shots) - len(free), 1),
                                       residuals=sol.residuals, weights=np.ones(sol.residuals.size),
                                       before=sol.residuals_before, history=sol.history, converged=sol.converged,
                                       variance_factor=1.0)
+    if profiled:
+        new = replace(new, covariance=new.covariance + np.outer(shift, shift))
+        new.warnings.append(f"{', '.join(profiled)} held at a bound: the other parameters' σ are those with "
+                            f"{'it' if len(profiled) == 1 else 'them'} profiled out (Schur complement of the observed "
+                            "information) and widened by how far the bound moved them, not with it taken as known")
+    elif held:
+        new.warnings.append(f"{', '.join(held)} held at a bound where −log L is not convex in it: σ of the others "
+                            "assume it known; use the profile-likelihood intervals")
     return replace(new, residuals_after=sol.residuals_after)
 
 

@@ -51,7 +51,7 @@ def _intro(sec, result) -> None:
     if held:
         sec.text("Held at a bound: " + ", ".join(f"{n} = {result.solution.values[n]:g}" for n in held)
                  + " (a shot-loss rate held at 0: the counts show no lost shots; a diameter at its search limit: "
-                   "see the verdict).")
+                   "see the verdict). The σ of the others profile over what is held (not taken as known).")
     for w in result.warnings:
         sec.warning(w)
 

@@ -141,7 +141,7 @@ def profile_interval(result, name: str, level: float = CHI2_95[1]) -> Interval:
             v = v0 + (v - v0) * target / max(root, 0.25)
         ends.append((v, not closed and v == limit))
     (lo, open_lo), (hi, open_hi) = ends
-    return Interval(min(lo, v0), max(hi, v0), open_lo, open_hi)
+    return Interval(float(min(lo, v0)), float(max(hi, v0)), bool(open_lo), bool(open_hi))
 
 
 def surface(result, group: int, points: int) -> Surface:

@@ -30,6 +30,13 @@ class BeamDenoised:
     photons: int
     signal: int
     along_track_from: str
+    atl03_confident: int = 0  #: photons ATL03 rates medium or high confidence (signal_conf_ph ≥ 3 on any surface)
+    atl03_confident_kept: int = 0  #: of those, flagged signal here
+
+    @property
+    def atl03_agreement(self) -> float | None:
+        """Fraction of ATL03's medium/high-confidence photons flagged signal (None: the file rates none)."""
+        return self.atl03_confident_kept / self.atl03_confident if self.atl03_confident else None
 
 
 @dataclass
@@ -65,7 +72,9 @@ def run_denoise(atl03: Path, beams: str, out_csv: Path, shot_spacing_m: float = 
                 continue
             sig = denoise(b.x, b.h, shot_spacing_m)
             _write_rows(fh, b, sig)
-            result.beams.append(BeamDenoised(name, b.strength, len(b), int(sig.sum()), b.along_track_source))
+            conf = b.signal_conf.max(axis=1) >= 3 if b.signal_conf.size else np.zeros(len(b), bool)
+            result.beams.append(BeamDenoised(name, b.strength, len(b), int(sig.sum()), b.along_track_source,
+                                             int(conf.sum()), int((conf & sig).sum())))
         progress("beams", len(names), len(names))
     if not result.beams:
         from calidar.errors import InputError

@@ -8,7 +8,10 @@ cross-track, left positive); the true one is (x_i + along_bias + jitter, cross_b
 Footprint energy is Gaussian with 1/e² radius w. Ground photons: Poisson(``ground_photons``)
 per shot, each from a point drawn from the footprint energy, height = terrain there
 (slopes, undulation, roughness) + range noise c·σ_t/2. Solar background: Poisson(rate·window)
-per shot, uniform over the telemetry window. A CCR at distance r from the true centre
+per shot, uniform over the telemetry window (``window`` m from 10 m below the ground). Vegetation:
+along-track stands of 40 m, each wooded with probability ``canopy_cover``; under trees a fraction
+``canopy_interception`` of the signal photons comes from the crowns (class 3) at ground + H·√U (U uniform,
+H the stand's height, 0.6–1 × ``canopy_height``), the rest from the ground. A CCR at distance r from the true centre
 returns Poisson(λ0·exp(-2r²/w²)) photons at its pole height. Detector: ``channels``
 channels with dead time t_d (a photon is lost if the previous photon of the same shot
 and channel came less than t_d before it).
@@ -16,7 +19,10 @@ and channel came less than t_d before it).
 Truth ``footprint_diameter`` D is the diameter within which a CCR is detected (≥ 1 photon)
 with probability ≥ 50 %: λ0·exp(-2(D/2)²/w²) = ln 2
 (:func:`calidar.photon.parameters.footprint_radius_1e2`). That is what CCR chords measure.
-A weak beam (``strength="weak"``) has 4 detector channels instead of 16.
+A weak beam (``strength="weak"``) has 4 detector channels instead of 16; its signal strength is
+``ground_photons`` (ICESat-2's weak beams carry a quarter of a strong beam's energy: give a quarter).
+Each photon's truth is in ``SimulatedPass.photon_class`` and, in the written file, the extra dataset
+``<beam>/heights/sim_class_ph`` (0 background, 1 ground, 2 CCR, 3 canopy).
 """
 
 from __future__ import annotations
@@ -55,7 +61,11 @@ class PhotonSimConfig:
     spot: int | None = None  #: ATLAS laser spot written to the file (None: not written)
     slope_along: float = 0.02  #: terrain slope along track (m/m)
     slope_cross: float = 0.01  #: terrain slope across track (m/m)
-    undulation: float = 2.0  #: m, amplitude of a 300 m-wavelength terrain undulation
+    undulation: float = 2.0  #: m, amplitude of a terrain undulation (hills)
+    undulation_wavelength: float = 300.0  #: m
+    canopy_cover: float = 0.0  #: fraction of the track's 40 m stands that are wooded
+    canopy_height: float = 15.0  #: m, the tallest stands' height
+    canopy_interception: float = 0.5  #: fraction of the signal photons from the crowns under trees
     roughness: float = 0.05  #: m, RMS surface roughness
     n_ccr: int = 5  #: CCRs inside the footprints' reach
     n_unlit: int = 0  #: extra CCRs placed out of the footprints' reach (no returns)
@@ -88,15 +98,39 @@ class SimulatedPass:
     ccr_lon: np.ndarray  #: rad
     ccr_height: np.ndarray  #: m above ground
     truth: dict
-    photon_class: np.ndarray  #: 0 background, 1 ground, 2 CCR
+    photon_class: np.ndarray  #: 0 background, 1 ground, 2 CCR, 3 canopy
+
+    @property
+    def signal(self) -> np.ndarray:
+        """True where the photon is signal (ground, CCR or canopy), False for the solar background."""
+        return self.photon_class > 0
 
 
 def _terrain(cfg: PhotonSimConfig, x, y):
     """Terrain height (m) at track coordinates x, y (m): the along-track slope at the start bends
-    over 5 km (±100 m at the default slope, so long passes stay on Earth), a cross slope and a
-    300 m-wavelength undulation."""
+    over 5 km (±100 m at the default slope, so long passes stay on Earth), a cross slope and an
+    undulation (``undulation`` m, ``undulation_wavelength`` m)."""
     return (1200.0 + cfg.slope_along * 5000.0 * np.sin(np.asarray(x) / 5000.0) + cfg.slope_cross * y
-            + cfg.undulation * np.sin(2 * np.pi * x / 300.0))
+            + cfg.undulation * np.sin(2 * np.pi * x / cfg.undulation_wavelength))
+
+
+CANOPY_STAND = 40.0  #: m, along-track length of a stand of trees (wooded or open)
+
+
+def _canopy(cfg: PhotonSimConfig, x: np.ndarray, h: np.ndarray, cls: np.ndarray) -> None:
+    """Turn ground photons under trees into crown returns in place (class 3, height raised).
+
+    Drawn from a generator of its own, so a pass without trees is the same as before they existed."""
+    if cfg.canopy_cover <= 0.0:
+        return
+    rng = np.random.default_rng([cfg.seed, 3])
+    n_stand = int(np.ceil((np.max(x, initial=0.0) + 50.0) / CANOPY_STAND)) + 1
+    wooded = rng.random(n_stand) < cfg.canopy_cover
+    height = cfg.canopy_height * rng.uniform(0.6, 1.0, n_stand)
+    stand = np.clip(((x + 25.0) // CANOPY_STAND).astype(np.int64), 0, n_stand - 1)
+    crown = (cls == 1) & wooded[stand] & (rng.random(x.size) < cfg.canopy_interception)
+    h[crown] += height[stand[crown]] * np.sqrt(rng.random(int(crown.sum())))
+    cls[crown] = 3
 
 
 def _geodesic(cfg: PhotonSimConfig, x: np.ndarray, y: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
@@ -149,6 +183,8 @@ def simulate_pass(cfg: PhotonSimConfig) -> SimulatedPass:
     sg = np.repeat(np.arange(n_shots), ng)
     px, py = tx[sg] + rng.normal(0, sig_fp, sg.size), ty[sg] + rng.normal(0, sig_fp, sg.size)
     hg = _terrain(cfg, px, py) + rng.normal(0, cfg.roughness, sg.size) + rng.normal(0, range_sigma, sg.size)
+    cls_g = np.ones(sg.size, np.int8)
+    _canopy(cfg, px, hg, cls_g)
     # solar background, uniform over the telemetry window around the reported ground
     nb = rng.poisson(cfg.background_rate * 2 * cfg.window / C_LIGHT, n_shots)
     sb = np.repeat(np.arange(n_shots), nb)
@@ -170,7 +206,7 @@ def simulate_pass(cfg: PhotonSimConfig) -> SimulatedPass:
 
     shot = np.concatenate([sg, sb, sc])
     h = np.concatenate([hg, hb, hc])
-    cls = np.concatenate([np.ones(sg.size, np.int8), np.zeros(sb.size, np.int8), np.full(sc.size, 2, np.int8)])
+    cls = np.concatenate([cls_g, np.zeros(sb.size, np.int8), np.full(sc.size, 2, np.int8)])
     # detector: random channel, dead time within (shot, channel); arrival order = descending height
     chan = rng.integers(0, cfg.channels, shot.size)
     order = np.lexsort((-h, chan, shot))
@@ -228,6 +264,11 @@ def write_pass(sim: SimulatedPass, out_dir: Path, stem: str = "ATL03_sim") -> di
     h5 = out_dir / f"{stem}.h5"
     with atomic_path(h5) as tmp:
         write_atl03(tmp, [sim.beam])
+        import h5py
+
+        with h5py.File(tmp, "a") as f:  # the truth of each photon, beside ATL03's own fields
+            f[sim.beam.beam]["heights"].create_dataset("sim_class_ph", data=sim.photon_class.astype(np.int8)).attrs[
+                "description"] = "simulation truth: 0 solar background, 1 ground, 2 CCR, 3 canopy"
     ccr = write_ccr_csv(out_dir / "ccr.csv", sim.ccr_id, sim.ccr_lat, sim.ccr_lon, sim.ccr_height)
     truth = write_text_atomic(out_dir / "truth.json", json.dumps(sim.truth, indent=2) + "\n")
     return {"atl03": h5, "ccr": ccr, "truth": truth}
