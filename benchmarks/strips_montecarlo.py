@@ -2,6 +2,7 @@
 
     NUMBA_NUM_THREADS=1 OMP_NUM_THREADS=1 PYTHONPATH=src python benchmarks/strips_montecarlo.py \\
         --seeds 100-139 [--methods planes,vgicp] [--vegetation 0.3] [--no-source] [--density 0.3] \\
+        [--preset uav] [--directions opposite] [--scene urban] \\
         [--sigma-scale 1,1,1.5,1,1,5 --sigma-variation 0.4] [--jobs 1] [--json out.jsonl]
 
 Each seed is one survey written to a folder as the simulator delivers it (airborne preset,
@@ -31,6 +32,7 @@ import shutil
 import sys
 import tempfile
 import time
+from dataclasses import replace
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
@@ -55,12 +57,18 @@ def _hidden_accuracy(folder: Path) -> Path:
     return bare
 
 
+#: ``--scene urban``: the preset's scene built up densely with taller buildings (walls in most overlaps)
+URBAN = {"building_density_per_km2": 1200.0, "building_size_m": (10.0, 30.0), "building_height_m": (6.0, 25.0)}
+
+
 def survey(seed: int, methods: list[str], vegetation: float, scale: tuple, variation: float, no_source: bool,
-           density: float = 0.3, preset: str = "airborne", directions: str = "cross") -> list[dict]:
+           density: float = 0.3, preset: str = "airborne", directions: str = "cross", scene: str = "preset") -> list[dict]:
     """One simulated survey calibrated with default options (and, with ``no_source``, without its smrmsg)."""
     noise = {"range_noise_m": 0.03} if preset == "airborne" else {}  # uav: the preset's 1 cm
     cfg = survey_config(preset, seed=seed, density=density, vegetation=vegetation, directions=directions, errors=ERRORS,
                         trajectory_sigma_scale=scale, trajectory_sigma_variation=variation, **noise)
+    if scene == "urban":
+        cfg = replace(cfg, scene=replace(cfg.scene, **URBAN))
     rows = []
     with tempfile.TemporaryDirectory(prefix="calidar_mc_") as tmp:
         folder = simulate_survey(cfg).write(Path(tmp) / f"seed{seed}")
@@ -123,6 +131,7 @@ def main() -> None:
     ap.add_argument("--methods", default="planes,vgicp")
     ap.add_argument("--vegetation", type=float, default=0.0, help="tree cover fraction, e.g. 0.3")
     ap.add_argument("--preset", default="airborne", choices=("airborne", "uav"), help="the simulator's preset")
+    ap.add_argument("--scene", default="preset", choices=("preset", "urban"), help="urban: dense, taller buildings")
     ap.add_argument("--directions", default="cross", choices=("cross", "opposite"), help="the flight lines' directions")
     ap.add_argument("--density", type=float, default=None, help="simulator density (points grow with it; default "
                     "0.3 airborne, 1 uav)")
@@ -140,10 +149,10 @@ def main() -> None:
         n = len(seeds)
         for found in pool.map(survey, seeds, [methods] * n, [args.vegetation] * n, [scale] * n,
                               [args.sigma_variation] * n, [args.no_source] * n, [density] * n, [args.preset] * n,
-                              [args.directions] * n):
+                              [args.directions] * n, [args.scene] * n):
             for r in found:
                 r.update(vegetation=args.vegetation, sigma_scale=scale, sigma_variation=args.sigma_variation,
-                         density=density, preset=args.preset, directions=args.directions)
+                         density=density, preset=args.preset, directions=args.directions, scene=args.scene)
                 rows.append(r)
                 z = np.array(r["error_deg"]) / np.array(r["sigma_deg"])
                 print(f"{r['source']:7s} {r['method']:6s} seed {r['seed']:4d}  error "
@@ -155,7 +164,7 @@ def main() -> None:
                         f.write(json.dumps(r) + "\n")
     print(f"{len(seeds)} surveys in {time.perf_counter() - start:.0f} s, {args.jobs} job(s), vegetation "
           f"{args.vegetation}, σ scale {scale}, σ variation {args.sigma_variation}, density {density}, preset "
-          f"{args.preset}, directions {args.directions}")
+          f"{args.preset}, directions {args.directions}, scene {args.scene}")
     print(summary(rows))
 
 

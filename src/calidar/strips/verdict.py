@@ -150,9 +150,12 @@ def sigma0_finding(sol) -> Finding:
     priors = any(p.prior_sigma is not None for p in sol.parameters.free)
     lo, hi = sigma0_range(sol)
     s0 = global_test_sigma0(sol)
+    digits = 2  # enough that σ0 and its range's nearer bound read apart
+    while digits < 5 and f"{s0:.{digits}f}" in (f"{lo:.{digits}f}", f"{hi:.{digits}f}"):
+        digits += 1
     robust = "" if s0 == sol.sigma0 else f"; {sol.sigma0:.2f} from the robustly weighted residuals, ÷ {sol.sigma0 / s0:.3f} for normal ones"
-    detail = (f"σ0 = {s0:.2f} (1 expected; the χ² test's 95 % range for {sol.dof:,.0f} degrees of freedom is "
-              f"{lo:.2f}–{hi:.2f}{robust})")
+    detail = (f"σ0 = {s0:.{digits}f} (1 expected; the χ² test's 95 % range for {sol.dof:,.0f} degrees of freedom is "
+              f"{lo:.{digits}f}–{hi:.{digits}f}{robust})")
     if lo <= s0 <= hi:
         return Finding("pass", "global test", detail + ": the residuals are as large as the correspondences' scatter "
                        "predicts")
@@ -196,8 +199,8 @@ def agreement_finding(results: dict) -> Finding:
             continue
         d = va[p.name] - vb[p.name]
         z = abs(d) / both
-        text = (f"{p.name} {ma} − {mb} = {p.to_display(d):+.3g} {p.display_unit} ± "
-                f"{p.to_display(both):.2g} (|z| = {z:.1f})")
+        unit = "°" if p.display_unit == "deg" else f" {p.display_unit}"
+        text = f"{p.name} {ma} − {mb} = {p.to_display(d):+.3g}{unit} ± {p.to_display(both):.2g}{unit} (|z| = {z:.1f})"
         rows.append((z, text))
         if z > AGREEMENT_LIMIT:
             worst.append(text)

@@ -36,7 +36,7 @@ Residual kinds (see :mod:`calidar.strips.correspond`):
   along one of them: its "normal" is any direction about that line, a's ball mean (another scan line,
   the ground at the wall's foot) lies off it by centimetres, and the row's σ (from the line's tiny
   scatter) is millimetres. At the truth such rows (√(λ_mid/λ_max) < 0.3: 29 % of the rows on the
-  seed-7 UAV survey, 80 % of them on walls) had an RMS of 66 mm against 6 mm for the others; they
+  seed-7 UAV survey, 71 % of them on walls) had an RMS of 67 mm against 6 mm for the others; they
   pulled yaw 8.9 σ off (docs/validation.md).
 - ``point_to_point``: the 3-D difference of the pair, as the method describes; its noise
   includes the point spacing.

@@ -55,7 +55,7 @@ def test_strong_correlation_is_named_with_the_parameter_to_hold():
 
 
 @pytest.mark.parametrize("sigma0, status, words", [
-    (1.0, "pass", "as large as"), (0.985, "pass", "as large as"), (0.75, "note", "below its range"),
+    (1.0, "pass", "as large as"), (0.99, "pass", "as large as"), (0.75, "note", "below its range"),
     (0.5, "note", "below its range"), (1.03, "warn", "above its range"), (1.6, "warn", "above its range"),
     (2.5, "fail", "above its range")])
 def test_global_test_of_sigma0_says_what_its_numbers_say(sigma0, status, words):
@@ -66,6 +66,11 @@ def test_global_test_of_sigma0_says_what_its_numbers_say(sigma0, status, words):
     assert words in f.detail and bool(f.action) == (status in ("warn", "fail"))
     if status == "note":
         assert "the σ are conservative by up to this factor" in f.detail
+
+
+def test_sigma0_next_to_its_range_is_shown_with_the_digits_that_tell_them_apart():
+    f = sigma0_finding(_solution({"boresight_roll": 1e-5}, sigma0=0.978))  # range 0.9804–1.0196
+    assert f.status == "note" and "σ0 = 0.978 " in f.detail and "is 0.980–1.020" in f.detail
 
 
 def _result(sol):
@@ -111,7 +116,7 @@ def test_two_methods_disagreeing_beyond_three_combined_sigma_fail_with_the_numbe
     f = agreement_finding({"planes": planes, "vgicp": vgicp})
     # yaw: 0.0568° against √(0.0026² + 0.0058²) = 0.0064°: 8.9 combined σ; roll 0.5 σ stays out of it
     assert f.status == "fail" and f.check == "planes and vgicp agree" and f.action
-    assert "boresight_yaw planes − vgicp = +0.0568 deg ± 0.0064 (|z| = 8.9)" in f.detail
+    assert "boresight_yaw planes − vgicp = +0.0568° ± 0.0064° (|z| = 8.9)" in f.detail
     assert "boresight_roll" not in f.detail and "limit 3" in f.detail
     close = _method({"boresight_yaw": 0.1000, "boresight_roll": 0.0490}, {"boresight_yaw": 0.0058, "boresight_roll": 0.0008})
     ok = agreement_finding({"planes": planes, "vgicp": close})
