@@ -166,8 +166,7 @@ def sigma0_finding(sol) -> Finding:
                           else " (they include it)"))
     status = "fail" if s0 > SIGMA0_FAIL else "warn"
     return Finding(status, "global test", detail + ": above its range — the residuals are larger than the "
-                   "correspondences' own scatter predicts (the σ were scaled up by σ0, which holds only if the excess is "
-                   "noise)",
+                   "correspondences' own scatter predicts, and the parameters' σ hold only if the excess is noise",
                    "look for what the model does not hold: trajectory errors (leave the trajectory model on), a "
                    "wrong nominal sensor or time system, scanner errors beyond the estimated parameters, "
                    "vegetation or moving objects in the overlaps")
