@@ -2,7 +2,8 @@
 
     NUMBA_NUM_THREADS=1 OMP_NUM_THREADS=1 PYTHONPATH=src python benchmarks/strips_montecarlo.py \\
         --seeds 100-139 [--methods planes,vgicp] [--vegetation 0.3] [--no-source] [--density 0.3] \\
-        [--sigma-scale 1,1,1.5,1,1,5 --sigma-variation 0.4] [--only-hidden] [--jobs 1] [--json out.jsonl]
+        [--preset uav] [--directions opposite] [--scene urban] [--only-hidden] \\
+        [--sigma-scale 1,1,1.5,1,1,5 --sigma-variation 0.4] [--jobs 1] [--json out.jsonl]
 
 Each seed is one survey written to a folder as the simulator delivers it (airborne preset,
 6 lines in alternate directions + 2 cross lines, density 0.3 (``--density``), boresight errors
@@ -32,10 +33,12 @@ import shutil
 import sys
 import tempfile
 import time
+from dataclasses import replace
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import numpy as np
+from scipy.special import chdtri
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from strips import ERRORS  # noqa: E402  (the benchmarks' boresight errors)
@@ -55,12 +58,20 @@ def _hidden_accuracy(folder: Path) -> Path:
     return bare
 
 
+#: ``--scene urban``: the preset's scene built up densely with taller buildings (walls in most overlaps)
+URBAN = {"building_density_per_km2": 1200.0, "building_size_m": (10.0, 30.0), "building_height_m": (6.0, 25.0)}
+
+
 def survey(seed: int, methods: list[str], vegetation: float, scale: tuple, variation: float, no_source: bool,
-           density: float = 0.3, only_hidden: bool = False) -> list[dict]:
+           density: float = 0.3, only_hidden: bool = False, preset: str = "airborne", directions: str = "cross",
+           scene: str = "preset") -> list[dict]:
     """One simulated survey calibrated with default options (and, with ``no_source``, without its
     smrmsg; ``only_hidden``: only without it)."""
-    cfg = survey_config("airborne", seed=seed, density=density, vegetation=vegetation, directions="cross", errors=ERRORS,
-                        range_noise_m=0.03, trajectory_sigma_scale=scale, trajectory_sigma_variation=variation)
+    noise = {"range_noise_m": 0.03} if preset == "airborne" else {}  # uav: the preset's 1 cm
+    cfg = survey_config(preset, seed=seed, density=density, vegetation=vegetation, directions=directions, errors=ERRORS,
+                        trajectory_sigma_scale=scale, trajectory_sigma_variation=variation, **noise)
+    if scene == "urban":
+        cfg = replace(cfg, scene=replace(cfg.scene, **URBAN))
     rows = []
     with tempfile.TemporaryDirectory(prefix="calidar_mc_") as tmp:
         folder = simulate_survey(cfg).write(Path(tmp) / f"seed{seed}")
@@ -76,10 +87,15 @@ def survey(seed: int, methods: list[str], vegetation: float, scale: tuple, varia
                 rows.append({"seed": seed, "source": source, "method": method,
                              "error_deg": [float(np.degrees(sol.values[n] - inputs.truth[n])) for n in ANGLES],
                              "sigma_deg": [float(np.degrees(sol.sigma[n])) for n in ANGLES],
-                             "sigma0": sol.sigma0, "seconds": seconds,
+                             "sigma0": sol.sigma0, "sigma0_range": sigma0_range(sol.dof), "seconds": seconds,
                              "level": sol.extra.get("trajectory_accuracy_estimate")})
         shutil.rmtree(folder, ignore_errors=True)
     return rows
+
+
+def sigma0_range(dof: float) -> list[float]:
+    """The χ² test's 95 % range of σ0 for ``dof`` degrees of freedom (as the verdict states it)."""
+    return [float(np.sqrt(chdtri(dof, 1.0 - q) / dof)) for q in (0.025, 0.975)]
 
 
 def seeds_of(text: str) -> list[int]:
@@ -99,13 +115,17 @@ def summary(rows: list[dict]) -> str:
         err, sig = np.array([r["error_deg"] for r in sel]), np.array([r["sigma_deg"] for r in sel])
         z = err / sig
         n = len(z)
+        below = sum(r["sigma0"] < r["sigma0_range"][0] for r in sel if "sigma0_range" in r)
+        inside = sum(r["sigma0_range"][0] <= r["sigma0"] <= r["sigma0_range"][1] for r in sel if "sigma0_range" in r)
         out.append(f"{key[0]:7s} {key[1]:6s} {n:3d} surveys  RMS z (roll/pitch/yaw) "
                    + "/".join(f"{v:.2f}" for v in np.sqrt(np.mean(z**2, 0))) + f" (±{1 / np.sqrt(2 * n):.2f})"
                    + "  mean z " + "/".join(f"{v:+.2f}" for v in z.mean(0))
                    + "  max |z| " + "/".join(f"{v:.1f}" for v in np.abs(z).max(0))
                    + f"  |z|>2 {np.mean(np.abs(z) > 2):.1%}  |z|>3.5 {int(np.sum(np.abs(z) > 3.5))}"
                    + "  mean σ " + "/".join(f"{v:.5f}" for v in sig.mean(0)) + "°"
-                   + f"  σ0 {np.mean([r['sigma0'] for r in sel]):.2f}")
+                   + f"  σ0 {np.mean([r['sigma0'] for r in sel]):.2f}"
+                   + (f" (below / inside / above its 95 % range: {below} / {inside} / {n - below - inside})"
+                      if "sigma0_range" in sel[0] else ""))
     return "\n".join(out)
 
 
@@ -114,7 +134,11 @@ def main() -> None:
     ap.add_argument("--seeds", default="100-139", help="e.g. 100-139 or 3,5,9-12")
     ap.add_argument("--methods", default="planes,vgicp")
     ap.add_argument("--vegetation", type=float, default=0.0, help="tree cover fraction, e.g. 0.3")
-    ap.add_argument("--density", type=float, default=0.3, help="simulator density (points grow with it)")
+    ap.add_argument("--preset", default="airborne", choices=("airborne", "uav"), help="the simulator's preset")
+    ap.add_argument("--scene", default="preset", choices=("preset", "urban"), help="urban: dense, taller buildings")
+    ap.add_argument("--directions", default="cross", choices=("cross", "opposite"), help="the flight lines' directions")
+    ap.add_argument("--density", type=float, default=None, help="simulator density (points grow with it; default "
+                    "0.3 airborne, 1 uav)")
     ap.add_argument("--sigma-scale", default="1,1,1,1,1,1", help="trajectory σ factors N,E,D,roll,pitch,heading")
     ap.add_argument("--sigma-variation", type=float, default=0.0, help="slow change of the trajectory σ in time")
     ap.add_argument("--no-source", action="store_true", help="also run each survey without its smrmsg (the default accuracy)")
@@ -124,15 +148,16 @@ def main() -> None:
     args = ap.parse_args()
     methods, seeds = args.methods.split(","), seeds_of(args.seeds)
     scale = tuple(float(v) for v in args.sigma_scale.split(","))
+    density = args.density if args.density is not None else (0.3 if args.preset == "airborne" else 1.0)
     rows, start = [], time.perf_counter()
     with ProcessPoolExecutor(args.jobs) as pool:
         n = len(seeds)
         for found in pool.map(survey, seeds, [methods] * n, [args.vegetation] * n, [scale] * n,
-                              [args.sigma_variation] * n, [args.no_source] * n, [args.density] * n,
-                              [args.only_hidden] * n):
+                              [args.sigma_variation] * n, [args.no_source] * n, [density] * n,
+                              [args.only_hidden] * n, [args.preset] * n, [args.directions] * n, [args.scene] * n):
             for r in found:
                 r.update(vegetation=args.vegetation, sigma_scale=scale, sigma_variation=args.sigma_variation,
-                         density=args.density)
+                         density=density, preset=args.preset, directions=args.directions, scene=args.scene)
                 rows.append(r)
                 z = np.array(r["error_deg"]) / np.array(r["sigma_deg"])
                 print(f"{r['source']:7s} {r['method']:6s} seed {r['seed']:4d}  error "
@@ -144,7 +169,8 @@ def main() -> None:
                     with open(args.json, "a", encoding="utf-8") as f:
                         f.write(json.dumps(r) + "\n")
     print(f"{len(seeds)} surveys in {time.perf_counter() - start:.0f} s, {args.jobs} job(s), vegetation "
-          f"{args.vegetation}, σ scale {scale}, σ variation {args.sigma_variation}, density {args.density}")
+          f"{args.vegetation}, σ scale {scale}, σ variation {args.sigma_variation}, density {density}, preset "
+          f"{args.preset}, directions {args.directions}, scene {args.scene}")
     print(summary(rows))
 
 

@@ -1,8 +1,10 @@
 """The verdict a reader sees first: is this result good, and why.
 
 A :class:`Verdict` is a list of :class:`Finding` s, each a plain pass / warn / fail with the
-numbers behind it and, when it is not a pass, what to do. The overall status is the worst
-finding's. Each method builds its own findings (what a strip calibration checks differs from a
+numbers behind it and, when it is not a pass, what to do; or a note: something the reader must
+know to read the numbers right (σ conservative by a factor, what "determined" means), which is
+neither a check passed nor a problem. The overall status is the worst finding's (pass when there
+are only notes). Each method builds its own findings (what a strip calibration checks differs from a
 range calibration); the report puts the verdict at the top of the page and the CLI prints it.
 
 >>> v = Verdict("boresight roll, pitch, yaw from 18 strip pairs", [
@@ -11,6 +13,8 @@ range calibration); the report puts the verdict at the top of the page and the C
 ...             "hold it at the measured value or add a flight line at a second height")])
 >>> v.status
 'warn'
+>>> Verdict("a note alone", [Finding("note", "global test", "σ0 = 0.72, below its range")]).status
+'pass'
 >>> v.to_dict()["findings"][1]["action"]
 'hold it at the measured value or add a flight line at a second height'
 
@@ -28,20 +32,21 @@ import math
 from dataclasses import asdict, dataclass, field
 
 STATUSES = ("pass", "warn", "fail")
+NOTE = "note"  #: a finding that informs and does not rate: it never changes the verdict's status
 
 
 @dataclass(frozen=True)
 class Finding:
     """One check: its status, what was checked, the numbers, and what to do when it is not a pass."""
 
-    status: str  #: "pass" | "warn" | "fail"
+    status: str  #: "pass" | "warn" | "fail" | "note"
     check: str  #: what was checked, a few words ("global test of σ0", "lever_arm_z")
     detail: str  #: the numbers behind it, in the units people use
     action: str = ""  #: what to do about it (empty for a pass)
 
     def __post_init__(self):
-        if self.status not in STATUSES:
-            raise ValueError(f"status must be one of {STATUSES}, got {self.status!r}")
+        if self.status not in (*STATUSES, NOTE):
+            raise ValueError(f"status must be one of {(*STATUSES, NOTE)}, got {self.status!r}")
 
 
 @dataclass
@@ -53,7 +58,7 @@ class Verdict:
 
     @property
     def status(self) -> str:
-        return max((f.status for f in self.findings), key=STATUSES.index, default="pass")
+        return max((f.status for f in self.findings if f.status != NOTE), key=STATUSES.index, default="pass")
 
     def headline(self) -> str:
         """One line: PASS / WARN / FAIL and the summary."""

@@ -16,6 +16,8 @@ from calidar.pipelines.boresight import TRAJECTORY_BLOCK_S, TRAJECTORY_CORRELATI
 from calidar.pipelines.strip_source import BUDGET_POINTS, MIN_BUDGET_POINTS, IngestOptions
 from calidar.strips.trajectory_errors import PREFIX as TRAJECTORY_PREFIX
 
+FAIL_VERDICT = 3  #: exit code when a verdict is FAIL (0: pass or warn, 1: bad input, 2: usage)
+
 
 def boresight(
     strips: list[Path] = typer.Argument(..., help="LAS/LAZ strips (flight lines from point_source_id or time gaps)."),
@@ -61,7 +63,9 @@ def boresight(
         "0: every overlapping point."),
 ) -> None:
     """Calibrate the mounting (and more) from overlapping strips; writes solution.json, sensor.toml,
-    sbet_corrected.out (the trajectory with its estimated corrections) and report.html."""
+    sbet_corrected.out (the trajectory with its estimated corrections) and report.html.
+
+    Exit codes: 0 pass or warn, 3 a FAIL verdict (outputs written, not to be used), 1 bad input, 2 usage."""
     from calidar.outputs import check_out_dir, output_folder
     from calidar.pipelines.boresight import BoresightOptions, parse_methods, run_boresight
     from calidar.provenance import describe_tasks
@@ -92,6 +96,8 @@ def boresight(
         console.print("Dask tasks — " + describe_tasks(run.record.tasks), markup=False)
     names = sorted({p.name for p in run.written if p.parent == Path(tmp)})
     console.print(f"wrote {out}/: {', '.join(names)}" + (" and the recalibrated strips" if write_strips else ""), markup=False)
+    if any(v.status == "fail" for v in run.verdicts.values()):
+        raise typer.Exit(FAIL_VERDICT)  # the outputs are written (to look at); the result is not to be used
 
 
 def _print(result, truth_si) -> None:

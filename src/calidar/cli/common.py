@@ -76,7 +76,7 @@ def progress_bar(transient: bool = True):
         yield p
 
 
-_STATUS_STYLE = {"pass": "bold green", "warn": "bold yellow", "fail": "bold red"}
+_STATUS_STYLE = {"pass": "bold green", "warn": "bold yellow", "fail": "bold red", "note": "bold blue"}
 
 
 def print_verdict(verdict, title: str | None = None, brief: bool = False) -> None:

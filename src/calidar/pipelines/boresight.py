@@ -300,7 +300,7 @@ def run_boresight(strip_paths, trajectory_path, sensor_path, out_dir: Path, opti
     from calidar.report import Report
     from calidar.strips.distribute import workers_for
     from calidar.strips.report import add_comparison_section, add_report_section
-    from calidar.strips.verdict import strip_verdict
+    from calidar.strips.verdict import agreement_finding, strip_verdict
 
     with workers_for(options.scheduler, options.workers) as work:  # one cluster (or thread pool) for every stage
         inputs = load_inputs(strip_paths, trajectory_path, sensor_path, options, progress, work)
@@ -316,8 +316,9 @@ def run_boresight(strip_paths, trajectory_path, sensor_path, out_dir: Path, opti
     own = report is None
     report = Report("calidar boresight") if own else report
     verdicts, written = {}, []
+    agree = [agreement_finding(results)] if len(results) > 1 else []  # in both methods' verdicts
     for m, result in results.items():
-        verdicts[m] = strip_verdict(result, quality[m], inputs.notes)
+        verdicts[m] = strip_verdict(result, quality[m], inputs.notes, others=agree)
         label = m if len(results) > 1 else None
         report.add_verdict(verdicts[m], " ".join(x for x in (verdict_title, label) if x) or None)
         add_report_section(report, result, inputs.truth, quality[m], accuracy=accuracy_used(inputs, result),

@@ -35,7 +35,7 @@ caption{caption-side:top;text-align:left;color:#555;font-size:.9em;padding:.2em 
 .verdict h3{margin:.1em 0 .4em 0} .verdict ul{margin:.2em 0;padding-left:1.2em} .verdict li{margin:.25em 0}
 .v-pass{border-color:#2a7;background:#effaf3} .v-warn{border-color:#e90;background:#fff8ec} .v-fail{border-color:#c33;background:#fdeeee}
 .tag{display:inline-block;min-width:3.2em;text-align:center;font-weight:600;border-radius:3px;padding:0 .3em;margin-right:.4em;color:#fff}
-.t-pass{background:#2a7} .t-warn{background:#d80} .t-fail{background:#c33} .action{color:#333;font-style:italic}
+.t-pass{background:#2a7} .t-warn{background:#d80} .t-fail{background:#c33} .t-note{background:#47a} .action{color:#333;font-style:italic}
 """
 
 

@@ -340,7 +340,7 @@ def _result(run: _Run, solution: Solution, problem: StripProblem, pairs: list[di
     solution.warnings = run.warnings + geometry_warnings([run.by_id[i] for i in problem.index], used_pairs,
                                                          params.free_names) + solution.warnings
     sensor, fix = sensor_of(run.nominal, params.values()), corrections(params.values(), run.model, run.spans)
-    solution.extra["strips"] = {"method": run.method, "pairs": pairs, "outer_iterations": [
+    solution.extra["strips"] = {"method": run.method, "robust": run.settings.robust, "pairs": pairs, "outer_iterations": [
         {kk: v for kk, v in o.items() if kk != "values"} for o in outer]}
     return CalibrationResult(solution, sensor, run.nominal, list(strips), run.overlaps, run.method, pairs,
                              first_residuals, solution.residuals, outer, fix, run.model, problem.sigma)

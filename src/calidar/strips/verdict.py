@@ -1,13 +1,17 @@
 """The verdict of a strip calibration: what was estimated, how well, and what to do.
 
-Findings (each pass / warn / fail, with the numbers and, when not a pass, an action):
+Findings (each pass / warn / fail, with the numbers and, when not a pass, an action; notes inform):
 
 - every estimated parameter: value ± σ (degrees and arc-seconds, millimetres), determined when
   its σ moves a point on the ground by at most :data:`GROUND_LIMIT_M` at the survey's median
-  range (lengths: σ ≤ :data:`LENGTH_LIMIT_M`), not determined otherwise (warn; infinite σ: fail);
+  range (lengths: σ ≤ :data:`LENGTH_LIMIT_M`), not determined otherwise (warn; infinite σ: fail),
+  and not determined either when the global test rejects the model (its warn or fail) — with a
+  note that "determined" is not "correct";
 - the global test of σ0 (the a-posteriori standard deviation of unit weight against 1, with
-  the χ² test's 95 % range), the residuals against the noise floor the correspondences'
-  own scatter predicts, correlations between estimated parameters above
+  the χ² test's 95 % range: inside passes, below is a note — the σ are conservative by that
+  factor —, above warns, beyond :data:`SIGMA0_FAIL` fails); when two methods ran, their
+  agreement (:func:`agreement_finding`); the residuals against the noise floor the
+  correspondences' own scatter predicts, correlations between estimated parameters above
   :data:`CORRELATION_LIMIT`, convergence;
 - the overlaps before and after (swath differences: no pair worse, no strip left offset by more
   than :data:`OFFSET_LIMIT_M`), and what the σ rest on (the trajectory's
@@ -22,7 +26,7 @@ import numpy as np
 from scipy.special import chdtri  # χ² quantiles without scipy.stats' 0.5 s import
 
 from calidar.strips.trajectory_errors import PREFIX as TRAJECTORY_PREFIX
-from calidar.verdict import Finding, Verdict, angle_text, length_text, two_digits
+from calidar.verdict import NOTE, Finding, Verdict, angle_text, length_text, two_digits
 
 #: an angle (or scale) is "determined" when its σ moves points on the ground by at most this (m)
 GROUND_LIMIT_M = 0.02
@@ -31,8 +35,8 @@ GROUND_LIMIT_M = 0.02
 LENGTH_LIMIT_M = 0.01
 #: |ρ| between two estimated parameters above which the strips barely tell them apart
 CORRELATION_LIMIT = 0.9
-#: σ0 within this range passes (σ are scaled by σ0 anyway); above SIGMA0_FAIL the model does not fit
-SIGMA0_PASS, SIGMA0_FAIL = (0.7, 1.3), 2.0
+#: σ0 above its χ² range warns; above SIGMA0_FAIL the model does not fit (fail)
+SIGMA0_FAIL = 2.0
 #: RMSDz of a pair may grow by this much (m) before the verdict calls it worse
 WORSE_M = 0.002
 #: a pair whose median dz stays beyond this after calibration is still offset (m)
@@ -69,9 +73,42 @@ def _ground_effect(p, sigma: float, range_m: float) -> float:
     return sigma if p.unit == "m" else math.nan
 
 
-def parameter_findings(result, range_m: float) -> list[Finding]:
+def robust_consistency(kind: str | None) -> float:
+    """E[w(u)·u²] / E[w(u)] for u ~ N(0, 1) with the engine's IRLS weights w of ``kind`` (1 without).
+
+    The engine's σ0² is Σ w r²/σ² over Σ w (+ priors − parameters): with robust weights it is
+    this factor times the variance of honest normal residuals (Cauchy: 0.794, σ0 0.89 for σ
+    exactly right), as the MAD needs 1.4826 to estimate σ. The global test divides it out
+    (Gauss–Hermite quadrature, 80 nodes)."""
+    from calidar.adjust.solver import robust_weights
+
+    if kind is None:
+        return 1.0
+    u, h = np.polynomial.hermite_e.hermegauss(80)
+    w = robust_weights(u, kind)
+    return float(np.sum(h * w * u * u) / np.sum(h * w))
+
+
+def global_test_sigma0(sol) -> float:
+    """The σ0 the global test takes: the engine's, consistent for normal residuals (see
+    :func:`robust_consistency`; the strips' robust kind is in ``solution.extra["strips"]``)."""
+    kind = sol.extra.get("strips", {}).get("robust") if isinstance(sol.extra, dict) else None
+    return sol.sigma0 / math.sqrt(robust_consistency(kind))
+
+
+def sigma0_range(sol) -> tuple[float, float]:
+    """The χ² test's 95 % range of σ0 for the solution's degrees of freedom: σ0² · dof ~ χ²(dof)."""
+    lo, hi = (math.sqrt(chdtri(sol.dof, 1.0 - q) / sol.dof) for q in (0.025, 0.975))  # χ² quantiles
+    return lo, hi
+
+
+def parameter_findings(result, range_m: float, global_test: Finding | None = None) -> list[Finding]:
+    """One finding per estimated parameter: "determined" (its σ moves a point by at most the limit),
+    "not determined" (more, or infinite σ), or — when ``global_test`` rejects the model (warn or fail)
+    — not determined either way, with that test's status: the σ rest on a model the data reject."""
     sol = result.solution
     sig = sol.sigma
+    rejected = global_test is not None and global_test.status in ("warn", "fail")
     out = []
     for p in sol.parameters.free:
         if p.name.startswith(TRAJECTORY_PREFIX):
@@ -85,33 +122,98 @@ def parameter_findings(result, range_m: float) -> list[Finding]:
         g = _ground_effect(p, s, range_m)
         size = f"{two_digits(g * 100)} cm" if g >= 0.01 else f"{two_digits(g * 1000)} mm"
         where = f"{size} on the ground at the {range_m:,.0f} m median range" if p.unit != "m" else ""
-        if math.isfinite(g) and g > (LENGTH_LIMIT_M if p.unit == "m" else GROUND_LIMIT_M):
-            out.append(Finding("warn", p.name, f"{text}: not determined by these strips (σ {two_digits(s * 100)} cm)"
-                               if p.unit == "m" else f"{text}: weakly determined ({where})",
+        if rejected:
+            out.append(Finding(global_test.status, p.name, f"{text}: not determined — the global test rejects the "
+                               f"model this σ rests on ({global_test.detail.split(' (')[0]}); it would hold only if "
+                               "the model did", global_test.action))
+        elif math.isfinite(g) and g > (LENGTH_LIMIT_M if p.unit == "m" else GROUND_LIMIT_M):
+            limit = f"{LENGTH_LIMIT_M * 100:.0f} cm" if p.unit == "m" else f"{GROUND_LIMIT_M * 100:.0f} cm"
+            out.append(Finding("warn", p.name, f"{text}: not determined by these strips (σ {two_digits(s * 100)} cm), "
+                               f"more than {limit}" if p.unit == "m" else
+                               f"{text}: not determined (its σ moves a point {where}; limit {limit})",
                                ACTIONS.get(p.name, GENERIC_ACTION)))
         else:
-            out.append(Finding("pass", p.name, text + (f" ({where})" if where else "")))
+            out.append(Finding("pass", p.name, f"{text}: determined to this σ" + (f" ({where})" if where else "")))
     return out
 
 
+#: what "determined" means, on every strip verdict (the report and the CLI show it)
+DETERMINED_NOTE = ("\"determined\" says how closely these strips fix a parameter if the model holds (its σ), not that "
+                   "the value is correct: that rests on the global test, the residuals, the overlaps and, when both "
+                   "methods ran, their agreement")
+
+
 def sigma0_finding(sol) -> Finding:
+    """The global test: σ0 against its χ² 95 % range. Inside: pass. Below: a note (the residuals are
+    smaller than the rows' σ say, so the parameters' σ are conservative by up to that factor). Above:
+    warn (fail beyond :data:`SIGMA0_FAIL`): the model leaves residuals its σ do not explain."""
     priors = any(p.prior_sigma is not None for p in sol.parameters.free)
-    lo, hi = (math.sqrt(chdtri(sol.dof, 1.0 - q) / sol.dof) for q in (0.025, 0.975))  # χ² quantiles
-    detail = f"σ0 = {sol.sigma0:.2f} (1 expected; the χ² test's 95 % range for {sol.dof:,.0f} degrees of freedom is {lo:.2f}–{hi:.2f})"
-    if SIGMA0_PASS[0] <= sol.sigma0 <= SIGMA0_PASS[1]:
-        note = "" if lo <= sol.sigma0 <= hi else "; the σ include this factor" if sol.sigma0 > 1 else \
-            "; the σ are not shrunk for it (the trajectory priors are absolute)" if priors else "; the σ include this factor"
-        return Finding("pass", "global test", detail + note)
-    if sol.sigma0 < SIGMA0_PASS[0]:
-        return Finding("pass", "global test", detail + ": the residuals are smaller than the correspondences' scatter "
-                       "predicts; " + ("the σ are not shrunk for it (the trajectory priors are absolute)" if priors
-                                       else "the σ include this factor"))
-    status = "fail" if sol.sigma0 > SIGMA0_FAIL else "warn"
-    return Finding(status, "global test", detail + ": the residuals are larger than the correspondences' own scatter "
-                   "predicts (the σ were scaled up by σ0)",
+    lo, hi = sigma0_range(sol)
+    s0 = global_test_sigma0(sol)
+    digits = 2  # enough that σ0 and its range's nearer bound read apart
+    while digits < 5 and f"{s0:.{digits}f}" in (f"{lo:.{digits}f}", f"{hi:.{digits}f}"):
+        digits += 1
+    robust = "" if s0 == sol.sigma0 else f"; {sol.sigma0:.2f} from the robustly weighted residuals, ÷ {sol.sigma0 / s0:.3f} for normal ones"
+    detail = (f"σ0 = {s0:.{digits}f} (1 expected; the χ² test's 95 % range for {sol.dof:,.0f} degrees of freedom is "
+              f"{lo:.{digits}f}–{hi:.{digits}f}{robust})")
+    if lo <= s0 <= hi:
+        return Finding("pass", "global test", detail + ": the residuals are as large as the correspondences' scatter "
+                       "predicts")
+    if s0 < lo:
+        return Finding(NOTE, "global test", detail + ": below its range — the residuals are smaller than the "
+                       "correspondences' scatter predicts, so the σ are conservative by up to this factor"
+                       + (" (not shrunk for it: the trajectory priors are absolute)" if priors
+                          else " (they include it)"))
+    status = "fail" if s0 > SIGMA0_FAIL else "warn"
+    return Finding(status, "global test", detail + ": above its range — the residuals are larger than the "
+                   "correspondences' own scatter predicts, and the parameters' σ hold only if the excess is noise",
                    "look for what the model does not hold: trajectory errors (leave the trajectory model on), a "
                    "wrong nominal sensor or time system, scanner errors beyond the estimated parameters, "
                    "vegetation or moving objects in the overlaps")
+
+
+#: two methods' estimates differing by more than this many combined σ (see :func:`agreement_finding`) fail
+AGREEMENT_LIMIT = 3.0
+
+
+def agreement_finding(results: dict) -> Finding:
+    """Do two methods' calibrations of the same strips agree? Per shared parameter the difference d
+    and z = d / √(σ_a² + σ_b²); FAIL when any |z| > :data:`AGREEMENT_LIMIT`.
+
+    The two estimates come from the same strips, trajectory and trajectory model, so their errors
+    are positively correlated (ρ > 0: the shared trajectory errors move both alike); the σ of
+    the difference is then √(σ_a² + σ_b² − 2ρσ_aσ_b) ≤ √(σ_a² + σ_b²). The combination without ρ
+    (unknown: it would need the two methods' joint covariance) is therefore an upper bound on the
+    difference's σ: z is, if anything, too small, and a FAIL at 3 (< 0.3 % by chance per parameter
+    for ρ = 0, less for ρ > 0) is not a false alarm from an optimistic σ; measured on simulated
+    UAV surveys: docs/validation.md. Each σ is the method's own, already scaled by its σ0."""
+    (ma, ra), (mb, rb) = list(results.items())[:2]
+    va, vb, sa, sb = ra.solution.values, rb.solution.values, ra.solution.sigma, rb.solution.sigma
+    rows, worst = [], []
+    for p in ra.solution.parameters.free:
+        if p.name.startswith(TRAJECTORY_PREFIX) or p.name not in sb:
+            continue
+        both = math.hypot(sa[p.name], sb[p.name])
+        if not math.isfinite(both) or both <= 0:
+            continue
+        d = va[p.name] - vb[p.name]
+        z = abs(d) / both
+        unit = "°" if p.display_unit == "deg" else f" {p.display_unit}"
+        text = f"{p.name} {ma} − {mb} = {p.to_display(d):+.3g}{unit} ± {p.to_display(both):.2g}{unit} (|z| = {z:.1f})"
+        rows.append((z, text))
+        if z > AGREEMENT_LIMIT:
+            worst.append(text)
+    check = f"{ma} and {mb} agree"
+    combination = (f"z = difference / √(σ_{ma}² + σ_{mb}²), an upper bound on its σ as both use the same strips; "
+                   f"limit {AGREEMENT_LIMIT:g}")
+    if worst:
+        return Finding("fail", check, "they disagree: " + "; ".join(worst) + f" ({combination})",
+                       "one method is misled by these strips (see each one's global test and residuals): use neither "
+                       "result until the cause is found; the tie planes' and VGICP's pairs can be compared in the report")
+    if not rows:
+        return Finding(NOTE, check, "no parameter estimated by both methods with a finite σ")
+    z, text = max(rows)
+    return Finding("pass", check, f"largest difference {text} ({combination})")
 
 
 def noise_finding(result, sigma_rows: np.ndarray | None) -> Finding:
@@ -224,9 +326,11 @@ def notes_findings(notes: list[str], warnings: list[str], level: dict | None = N
     return out
 
 
-def strip_verdict(result, stages, notes: list[str] = (), accuracy_text: str | None = None) -> Verdict:
+def strip_verdict(result, stages, notes: list[str] = (), accuracy_text: str | None = None,
+                  others: list[Finding] = ()) -> Verdict:
     """The verdict of a :class:`calidar.strips.calibrate.CalibrationResult` with its overlap
-    quality stages (calidar.strips.report.QualityStage) and the run's notes."""
+    quality stages (calidar.strips.report.QualityStage), the run's notes and ``others`` (findings
+    about the whole run, e.g. :func:`agreement_finding`)."""
     sol = result.solution
     shown = [p.name for p in sol.parameters.free if not p.name.startswith(TRAJECTORY_PREFIX)]
     n_traj = len(sol.parameters.free) - len(shown)
@@ -235,8 +339,10 @@ def strip_verdict(result, stages, notes: list[str] = (), accuracy_text: str | No
     summary = (f"{', '.join(shown)} from {len(result.pairs)} overlapping pairs of {len(result.strips)} strips "
                f"({what}, {result.outer[-1]['n_obs']:,} observations)"
                + (f", with {n_traj:,} trajectory corrections" if n_traj else ", trajectory taken as exact"))
-    findings = parameter_findings(result, float(np.median(ranges)))
-    findings += [sigma0_finding(sol), noise_finding(result, result.row_sigma)]
+    global_test = sigma0_finding(sol)
+    findings = parameter_findings(result, float(np.median(ranges)), global_test)
+    findings += [Finding(NOTE, "determined", DETERMINED_NOTE), global_test, *others,
+                 noise_finding(result, result.row_sigma)]
     findings += correlation_findings(sol) + [convergence_finding(result), overlap_finding(stages)]
     findings += notes_findings(list(notes), sol.warnings, sol.extra.get("trajectory_accuracy_estimate"))
     return Verdict(summary, findings)

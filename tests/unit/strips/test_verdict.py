@@ -13,8 +13,8 @@ import calidar.verdict
 from calidar.adjust import Parameter, ParameterSet, Solution
 from calidar.strips.quality import PairQuality
 from calidar.strips.report import QualityStage
-from calidar.strips.verdict import (correlation_findings, overlap_finding, parameter_findings, sigma0_finding,
-                                    strip_verdict)
+from calidar.strips.verdict import (agreement_finding, correlation_findings, overlap_finding, parameter_findings,
+                                    sigma0_finding, strip_verdict)
 
 
 def _solution(sigmas: dict[str, float], rho: float = 0.0, sigma0: float = 1.0, dof: float = 5000.0) -> Solution:
@@ -54,11 +54,73 @@ def test_strong_correlation_is_named_with_the_parameter_to_hold():
     assert correlation_findings(_solution({"boresight_pitch": 1e-4, "lever_arm_x": 0.01}, rho=0.5)) == []
 
 
-@pytest.mark.parametrize("sigma0, status", [(1.0, "pass"), (0.75, "pass"), (0.5, "pass"), (1.6, "warn"), (2.5, "fail")])
-def test_global_test_of_sigma0(sigma0, status):
+@pytest.mark.parametrize("sigma0, status, words", [
+    (1.0, "pass", "as large as"), (0.99, "pass", "as large as"), (0.75, "note", "below its range"),
+    (0.5, "note", "below its range"), (1.03, "warn", "above its range"), (1.6, "warn", "above its range"),
+    (2.5, "fail", "above its range")])
+def test_global_test_of_sigma0_says_what_its_numbers_say(sigma0, status, words):
+    """Inside the χ² range (0.98–1.02 for 5 000 degrees of freedom) passes; below is a note (the σ are
+    conservative by that factor), never a pass; above warns, beyond 2 fails."""
     f = sigma0_finding(_solution({"boresight_roll": 1e-5}, sigma0=sigma0))
     assert f.status == status and f"σ0 = {sigma0:.2f}" in f.detail and "range for 5,000 degrees of freedom is 0.98–1.02" in f.detail
-    assert bool(f.action) == (status != "pass")
+    assert words in f.detail and bool(f.action) == (status in ("warn", "fail"))
+    if status == "note":
+        assert "the σ are conservative by up to this factor" in f.detail
+
+
+def test_sigma0_next_to_its_range_is_shown_with_the_digits_that_tell_them_apart():
+    f = sigma0_finding(_solution({"boresight_roll": 1e-5}, sigma0=0.978))  # range 0.9804–1.0196
+    assert f.status == "note" and "σ0 = 0.978 " in f.detail and "is 0.980–1.020" in f.detail
+
+
+def _result(sol):
+    return SimpleNamespace(solution=sol, strips=[_Strip()], pairs=[{}], method="planes", residuals_after=np.zeros(3),
+                           row_sigma=np.ones(3), warnings=[],
+                           outer=[{"n_obs": 10, "mean_distance_m": 0.01}, {"n_obs": 10, "mean_distance_m": 0.01}])
+
+
+@pytest.mark.parametrize("sigma0, status", [(1.0, "pass"), (0.6, "pass"), (1.5, "warn"), (2.3, "fail")])
+def test_parameters_are_determined_only_when_the_global_test_holds(sigma0, status):
+    """A well-determined angle reads "determined to this σ" — unless the global test rejects the model,
+    then "not determined" with the test's status; the verdict always says "determined" is not "correct"."""
+    stages = [QualityStage("as delivered", "", [_pq(1, 2, 0.05, 0.08)]), QualityStage("after", "", [_pq(1, 2, 0.0, 0.01)])]
+    v = strip_verdict(_result(_solution({"boresight_roll": 1e-6}, sigma0=sigma0)), stages, [])
+    roll = next(f for f in v.findings if f.check == "boresight_roll")
+    assert roll.status == status and v.status == status
+    if status == "pass":
+        assert "determined to this σ" in roll.detail and "not determined" not in roll.detail
+    else:
+        assert f"not determined — the global test rejects the model this σ rests on (σ0 = {sigma0:.2f})" in roll.detail
+        assert roll.action
+    note = next(f for f in v.findings if f.check == "determined")
+    assert note.status == "note" and "not that the value is correct" in note.detail
+
+
+def test_notes_do_not_change_the_status():
+    assert calidar.verdict.Verdict("x", [calidar.verdict.Finding("note", "a", "b")]).status == "pass"
+    assert calidar.verdict.Verdict("x", [calidar.verdict.Finding("note", "a", "b"),
+                                         calidar.verdict.Finding("warn", "c", "d")]).status == "warn"
+    with pytest.raises(ValueError):
+        calidar.verdict.Finding("maybe", "a", "b")
+
+
+def _method(values_deg: dict, sigma_deg: dict):
+    params = ParameterSet([Parameter(n, np.radians(v), "rad") for n, v in values_deg.items()])
+    return SimpleNamespace(solution=SimpleNamespace(parameters=params, values=params.values(),
+                                                    sigma={n: np.radians(s) for n, s in sigma_deg.items()}))
+
+
+def test_two_methods_disagreeing_beyond_three_combined_sigma_fail_with_the_numbers():
+    planes = _method({"boresight_yaw": 0.1057, "boresight_roll": 0.0493}, {"boresight_yaw": 0.0026, "boresight_roll": 0.0004})
+    vgicp = _method({"boresight_yaw": 0.0489, "boresight_roll": 0.0488}, {"boresight_yaw": 0.0058, "boresight_roll": 0.0008})
+    f = agreement_finding({"planes": planes, "vgicp": vgicp})
+    # yaw: 0.0568° against √(0.0026² + 0.0058²) = 0.0064°: 8.9 combined σ; roll 0.5 σ stays out of it
+    assert f.status == "fail" and f.check == "planes and vgicp agree" and f.action
+    assert "boresight_yaw planes − vgicp = +0.0568° ± 0.0064° (|z| = 8.9)" in f.detail
+    assert "boresight_roll" not in f.detail and "limit 3" in f.detail
+    close = _method({"boresight_yaw": 0.1000, "boresight_roll": 0.0490}, {"boresight_yaw": 0.0058, "boresight_roll": 0.0008})
+    ok = agreement_finding({"planes": planes, "vgicp": close})
+    assert ok.status == "pass" and "|z| = 0.9" in ok.detail
 
 
 def _pq(a, b, median, rms, cells=100):
@@ -127,3 +189,19 @@ def test_an_accuracy_estimated_from_the_overlaps_is_stated(heading_estimated):
     else:
         assert f.status == "warn" and "heading (redundancy 3.0 < 10)" in f.detail and "default kept" in f.detail
         assert "--trajectory-accuracy" in f.action
+
+
+def test_the_global_test_takes_sigma0_consistent_for_normal_residuals():
+    """The engine's σ0 from Cauchy-weighted residuals is 0.89 when the σ are exactly right; the global
+    test divides the factor out and finds 1 (20 000 normal residuals about a fitted mean)."""
+    from calidar.adjust import solve
+    from calidar.strips.verdict import global_test_sigma0, robust_consistency
+
+    assert robust_consistency(None) == 1.0 and robust_consistency("cauchy") == pytest.approx(0.794, abs=0.002)
+    y = np.random.default_rng(3).normal(0.0, 0.01, 20_000)
+    sol = solve(lambda v: y - v["mean"], ParameterSet([Parameter("mean", 0.0, "m")]), sigma=0.01, robust="cauchy")
+    assert sol.sigma0 == pytest.approx(0.89, abs=0.015)
+    sol.extra["strips"] = {"robust": "cauchy"}
+    assert global_test_sigma0(sol) == pytest.approx(1.0, abs=0.015)
+    f = sigma0_finding(sol)
+    assert f.status == "pass" and "from the robustly weighted residuals, ÷ 0.89" in f.detail
