@@ -175,7 +175,7 @@ def test_wrong_utm_zone_is_an_error(files, tmp_path):
         one_error(*run(*args)[::2], "sideways from the trajectory", "wrong CRS or UTM zone")
     one_error(*run("boresight", s / "strips" / "line_001.laz", s / "strips" / "line_002.laz", "--crs", "EPSG:32633",
                    "--trajectory", s / "sbet.out", "--sensor", s / "sensor.toml", "--out", tmp_path / "c")[::2],
-              "flight line", "wrong CRS or UTM zone")
+              "line_001.laz: xyz", "wrong CRS or UTM zone")
     assert list(tmp_path.iterdir()) == []
 
 
@@ -241,14 +241,15 @@ def test_files_sharing_a_point_source_id_are_kept_apart(files, tmp_path):
 
 
 def test_far_strip_sharing_an_id_is_named(files, tmp_path):
-    """A strip 5 km away with line 1's id: kept apart from line 1 and named as overlapping nothing."""
+    """A strip 5 km away with line 1's id: quality keeps it apart from line 1 and names it as
+    overlapping nothing; boresight, whose trajectory never flew there, stops on its geometry."""
     s, d = files
-    for command, extra in (("quality", []), ("boresight", ["--trajectory", s / "sbet.out", "--sensor", s / "sensor.toml"])):
-        code, out, err = run(command, *[s / "strips" / f"line_00{k}.laz" for k in range(1, 4)], d / "far_as_1.laz",
-                             *extra, "--out", tmp_path / command)
-        assert code == 0, err
-        assert "far_as_1.laz) overlaps no other strip" in out + err
-        assert "kept apart" in out + err
+    strips = [s / "strips" / f"line_00{k}.laz" for k in range(1, 4)]
+    code, out, err = run("quality", *strips, d / "far_as_1.laz", "--out", tmp_path / "q")
+    assert code == 0, err
+    assert "far_as_1.laz) overlaps no other strip" in out and "kept apart" in out
+    one_error(*run("boresight", *strips, d / "far_as_1.laz", "--trajectory", s / "sbet.out", "--sensor",
+                   s / "sensor.toml", "--out", tmp_path / "c")[::2], "far_as_1.laz: xyz", "5002 m across")
 
 
 def test_lidar_hd_heights_stated(real_data, tmp_path):

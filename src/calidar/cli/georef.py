@@ -96,9 +96,11 @@ def georef(
         check_writable(path, force)
     r = pipeline.georeference_csd(raw, out, crs=crs, geoid_undulation_m=geoid, force=force)
     x, y, z = r.first_xyz
+    from calidar.crs import vertical_reference
+
     console.print(f"{r.n_points} points → {r.points} ({r.crs}); sensor model → {r.sensor}\n"
-                  f"first point: GPS time {r.first_gps_time:.6f} s, {x:.3f}, {y:.3f}, {z:.3f}",
-                  highlight=False, soft_wrap=True, markup=False)
+                  f"first point: GPS time {r.first_gps_time:.6f} s, {x:.3f}, {y:.3f}, {z:.3f}\n"
+                  f"heights: {vertical_reference(r.crs, geoid)[0]}", highlight=False, soft_wrap=True, markup=False)
 
 
 def register(app: typer.Typer, simulate: typer.Typer) -> None:
