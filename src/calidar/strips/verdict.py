@@ -125,7 +125,7 @@ def parameter_findings(result, range_m: float, global_test: Finding | None = Non
         if rejected:
             out.append(Finding(global_test.status, p.name, f"{text}: not determined — the global test rejects the "
                                f"model this σ rests on ({global_test.detail.split(' (')[0]}); it would hold only if "
-                               "the model did", global_test.action))
+                               "the model did", "see the global test"))
         elif math.isfinite(g) and g > (LENGTH_LIMIT_M if p.unit == "m" else GROUND_LIMIT_M):
             limit = f"{LENGTH_LIMIT_M * 100:.0f} cm" if p.unit == "m" else f"{GROUND_LIMIT_M * 100:.0f} cm"
             out.append(Finding("warn", p.name, f"{text}: not determined by these strips (σ {two_digits(s * 100)} cm), "
@@ -285,7 +285,8 @@ def overlap_finding(stages) -> Finding:
         return Finding("warn", "overlaps", detail + f": strips still offset by more than {OFFSET_LIMIT_M * 1e3:.0f} mm",
                        "an error the calibration did not estimate shifts whole strips: trajectory errors (leave the "
                        "trajectory model on) or a parameter held fixed")
-    return Finding("pass", "overlaps", detail)
+    return Finding("pass", "overlaps", detail + " (with trajectory corrections the overlaps close whatever the "
+                   "mounting: this says the strips fit, not that the mounting is right)")
 
 
 ACCURACY_ACTION = ("give the trajectory's accuracy file (POSPac smrmsg) with --trajectory-accuracy, or put it "
