@@ -6,7 +6,7 @@ from pathlib import Path
 
 import typer
 
-from calidar.cli.common import console, print_verdict, print_warning, progress_bar, progress_callback
+from calidar.cli.common import console, exit_with_verdict, print_verdict, print_warning, progress_bar, progress_callback
 from calidar.cli.options import (
     CRS, GEOID_UNDULATION, TIME_SYSTEM, TRAJECTORY_ANGLES, TRAJECTORY_COLUMNS, TRAJECTORY_CRS, TRAJECTORY_HEADING,
     point_options, trajectory_options,
@@ -16,7 +16,6 @@ from calidar.pipelines.boresight import TRAJECTORY_BLOCK_S, TRAJECTORY_CORRELATI
 from calidar.pipelines.strip_source import BUDGET_POINTS, MIN_BUDGET_POINTS, IngestOptions
 from calidar.strips.trajectory_errors import PREFIX as TRAJECTORY_PREFIX
 
-FAIL_VERDICT = 3  #: exit code when a verdict is FAIL (0: pass or warn, 1: bad input, 2: usage)
 
 
 def boresight(
@@ -96,8 +95,7 @@ def boresight(
         console.print("Dask tasks — " + describe_tasks(run.record.tasks), markup=False)
     names = sorted({p.name for p in run.written if p.parent == Path(tmp)})
     console.print(f"wrote {out}/: {', '.join(names)}" + (" and the recalibrated strips" if write_strips else ""), markup=False)
-    if any(v.status == "fail" for v in run.verdicts.values()):
-        raise typer.Exit(FAIL_VERDICT)  # the outputs are written (to look at); the result is not to be used
+    exit_with_verdict(*run.verdicts.values())  # FAIL: exit 3; the outputs are written (to look at), not to be used
 
 
 def _print(result, truth_si) -> None:
