@@ -123,8 +123,7 @@ def _solve_checks(result) -> list[Finding]:
                            "the footprint's edge is seen but not its centre: add CCRs nearer the predicted track"))
     loss = [n for n in fit.at_limit if n.startswith("shot_loss_rate")]
     if loss:
-        how = ("profiled out: their σ are the Schur complement of the observed information, widened by how far the "
-               "bound moved them" if any("profiled out" in w for w in sol.warnings) else
+        how = ("profiled out: their σ are from the Schur complement of the observed information" if any("profiled out" in w for w in sol.warnings) else
                "taken as known (the likelihood is not convex there); the profile intervals re-maximise it")
         out.append(Finding("pass", "shot-loss rate", f"{', '.join(loss)} held at 0 (the counts show no lost shots); "
                            f"for the other parameters' σ it is {how}"))
