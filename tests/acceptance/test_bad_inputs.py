@@ -263,11 +263,12 @@ def test_every_command_is_in_the_corpus():
     import test_bad_inputs_photon
     import test_bad_inputs_strips
     import test_bad_inputs_tools
+    import test_bad_inputs_tpu
     import test_bad_inputs_trajectory
 
     leaves = {" ".join(n) for n, c in _commands(app) if not hasattr(c, "commands")}
     covered = (COMMANDS | test_bad_inputs_strips.COMMANDS | test_bad_inputs_photon.COMMANDS | test_bad_inputs_tools.COMMANDS
-               | test_bad_inputs_trajectory.COMMANDS)
+               | test_bad_inputs_trajectory.COMMANDS | test_bad_inputs_tpu.COMMANDS)
     assert leaves - covered == set(), "commands without bad-input cases"
 
 

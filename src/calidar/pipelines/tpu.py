@@ -79,6 +79,10 @@ def tpu_file(path: Path, out: Path, traj, sensor, accuracy, options: TpuOptions,
     from calidar.pipelines.inputs import point_times, points_ecef, trajectory_for
     from calidar.tpu.propagate import point_covariance, thu_tvu
 
+    from calidar.io.las import las_header
+
+    if las_header(path).point_count == 0:
+        raise InputError(path, "points", "no points; expected points to give an uncertainty to")
     traj, week = trajectory_for(path, traj, options.points, CHUNK_POINTS)
     collect = _Collector(len(str(path)))
 
