@@ -54,6 +54,12 @@ def test_simulated_survey_within_tolerance_and_readable(cli, survey, tmp_path):
     assert _errors(survey, tmp_path / "sbet.out")["position_3d_m"]["median"] < 0.01
     code, out, err = cli("info", tmp_path / "sbet.out")
     assert code == 0 and "trajectory" in out
+    # --compare: the errors against a known trajectory (at its own point: the IMU, 0.13 m from the scanner here)
+    code, out, err = cli("trajectory", *strips, "--out", tmp_path / "c" / "t.csv", "--compare", survey / "sbet.out",
+                         "--json")
+    assert code == 0, err
+    assert 0.05 < json.loads(out)["comparison"]["position_3d_m"]["median"] < 0.2
+    assert "Against a known trajectory" in (tmp_path / "c" / "report.html").read_text()
 
 
 def _damaged(src, dst, rng):
