@@ -54,6 +54,12 @@ def test_simulated_survey_within_tolerance_and_readable(cli, survey, tmp_path):
     assert _errors(survey, tmp_path / "sbet.out")["position_3d_m"]["median"] < 0.01
     code, out, err = cli("info", tmp_path / "sbet.out")
     assert code == 0 and "trajectory" in out
+    # --compare: the errors against a known trajectory (at its own point: the IMU, 0.13 m from the scanner here)
+    code, out, err = cli("trajectory", *strips, "--out", tmp_path / "c" / "t.csv", "--compare", survey / "sbet.out",
+                         "--json")
+    assert code == 0, err
+    assert 0.05 < json.loads(out)["comparison"]["position_3d_m"]["median"] < 0.2
+    assert "Against a known trajectory" in (tmp_path / "c" / "report.html").read_text()
 
 
 def _damaged(src, dst, rng):
@@ -145,17 +151,17 @@ def test_strips_delivered_without_their_trajectory_are_adjusted_as_with_it(cli, 
     for name, traj, sensor, extra in (("true", sim / "sbet.out", sim / "sensor.toml", []),
                                       ("rec", tmp_path / "rec" / "traj.csv", tmp_path / "rec" / "sensor.toml",
                                        ["--trajectory-sigma", "0.02,0.002"])):
-        code, out, e = cli("boresight", *strips, "--trajectory", traj, "--sensor", sensor, "--out", tmp_path / name,
+        code, out, e = cli("boresight", *strips, "--trajectory", traj, "--sensor", sensor, "--out", tmp_path / f"cal_{name}",
                            "--truth", sim / "truth.json", *extra)
         assert code in (0, 3), e
-        runs[name] = json.loads((tmp_path / name / "solution.json").read_text())
+        runs[name] = json.loads((tmp_path / f"cal_{name}" / "solution.json").read_text())
     par = {k: {n: runs[k]["parameters"][n]["value"] for n in err} for k in runs}  # deg
     assert all(abs(par["rec"][n] - par["true"][n]) < 0.001 for n in err), par
     q = {}
     for k in runs:
         code, out, e = cli("regeoref", *strips, "--trajectory", sim / "sbet.out" if k == "true" else tmp_path / "rec" / "traj.csv",
                            "--from", sim / "sensor.toml" if k == "true" else tmp_path / "rec" / "sensor.toml",
-                           "--to", tmp_path / k / "sensor.toml", "--out", tmp_path / f"{k}_strips")
+                           "--to", tmp_path / f"cal_{k}" / "sensor.toml", "--out", tmp_path / f"{k}_strips")
         assert code == 0, e
         code, out, e = cli("quality", *sorted((tmp_path / f"{k}_strips").glob("*.laz")), "--json")
         assert code == 0, e

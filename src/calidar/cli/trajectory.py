@@ -26,6 +26,8 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
         fmt: str | None = typer.Option(None, "--format", help="text (CSV with σ columns) or sbet (default: sbet for "
                                        "a .out/.sbet name, else text)."),
         report: Path | None = typer.Option(None, "--report", help="Report file (default: report.html beside --out)."),
+        compare: Path | None = typer.Option(None, "--compare", help="A known trajectory of the same flight (SBET or "
+                                            "text): the errors against it in the report and the output."),
         sensor_out: Path | None = typer.Option(None, "--sensor-out", help="Also write the sensor.toml the trajectory "
                                                "goes with (zero lever arm and boresight), e.g. for calidar boresight."),
         rate: float = typer.Option(50.0, "--rate", help="Epochs written a second, Hz."),
@@ -62,7 +64,7 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
             raise typer.BadParameter(f"expected planar or other, got {scanner!r}", param_hint="--scanner")
         options = point_options(crs, time_system, geoid_undulation)
         rep = report if report is not None else out.parent / "report.html"
-        guard_inputs([out, rep, sensor_out], points)
+        guard_inputs([out, rep, sensor_out], [*points, compare])
         for path in (out, rep, sensor_out):  # checked now, folders made only when writing (a failed run leaves none)
             if path is not None and path.is_dir():
                 raise OutputExistsError(f"{path}: is a folder; expected a file name")
@@ -75,15 +77,21 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
         with progress_bar() as bar:
             run = pipeline.reconstruct_trajectory(points, options, settings, progress_callback(bar))
         command = "calidar " + " ".join(shlex.quote(a) for a in sys.argv[1:])
-        pipeline.write_outputs(run, out, fmt, rep, [command], force, sensor_out)
+        comparison = pipeline.compare_with(run, compare) if compare is not None else None
+        pipeline.write_outputs(run, out, fmt, rep, [command], force, sensor_out, comparison)
         summaries = [line_summary(ln) for ln in run.lines]
         if as_json:
-            print(json.dumps({"lines_from": run.lines_from, "lines": summaries, "notes": run.notes, "counts": run.counts},
-                             indent=2, ensure_ascii=False))
+            print(json.dumps({"lines_from": run.lines_from, "lines": summaries, "notes": run.notes, "counts": run.counts,
+                              "comparison": comparison}, indent=2, ensure_ascii=False))
             return
         _print(run, summaries)
         for n in run.notes[len(pipeline.STANDING_NOTES):]:
             print_warning(n)
+        if comparison:
+            console.print(f"against {escape(str(compare))}: 3-D position median {comparison['position_3d_m']['median']:.3f} m, "
+                          f"height {comparison['height_m']['median']:.3f} m, heading {comparison['heading_deg']['median']:.4f}°, "
+                          f"roll {comparison['roll_deg']['median']:.4f}°, pitch {comparison['pitch_deg']['median']:.4f}°",
+                          highlight=False, soft_wrap=True)
         also = f", {escape(str(sensor_out))}" if sensor_out is not None else ""
         console.print(f"wrote {escape(str(out))} ({fmt}){also} and {escape(str(rep))}", highlight=False, soft_wrap=True)
 

@@ -202,8 +202,22 @@ def sensor_for(run: TrajectoryRun):
     return Sensor(crs=f"EPSG:{epsg}" if epsg else run.crs.to_wkt())
 
 
+def compare_with(run: TrajectoryRun, known: Path) -> dict:
+    """Errors of the reconstruction against a known trajectory file (SBET, text or CSD) at its own point
+    (:func:`calidar.trajrec.result.error_summary`); an error when their times do not overlap."""
+    from calidar.io.trajectory import read_trajectory
+    from calidar.trajrec.result import compare, error_summary
+
+    truth = read_trajectory(known)
+    c = compare(run.trajectory, truth)
+    if c["time"].size == 0:
+        raise InputError(known, "time", f"{truth.time[0]:.3f}–{truth.time[-1]:.3f} s; expected to overlap the "
+                         f"reconstruction's {run.trajectory.time[0]:.3f}–{run.trajectory.time[-1]:.3f} s (GPS week seconds)")
+    return error_summary(c)
+
+
 def write_outputs(run: TrajectoryRun, out: Path, fmt: str, report: Path | None, commands: list[str],
-                  force: bool = False, sensor_out: Path | None = None) -> tuple[Path, Path]:
+                  force: bool = False, sensor_out: Path | None = None, comparison: dict | None = None) -> tuple[Path, Path]:
     """The trajectory (text with σ columns, or SBET), the report (default: report.html beside it) and,
     when ``sensor_out`` is given, the sensor.toml that goes with the trajectory (:func:`sensor_for`)."""
     from calidar.io.sbet import write_sbet
@@ -212,7 +226,7 @@ def write_outputs(run: TrajectoryRun, out: Path, fmt: str, report: Path | None, 
 
     out = Path(out)
     report = Path(report) if report is not None else out.parent / "report.html"
-    trajectory_report(run, commands).write(report, force)
+    trajectory_report(run, commands, comparison).write(report, force)
     if sensor_out is not None:
         sensor_for(run).write(sensor_out, force=force)
     if fmt == "sbet":
