@@ -77,9 +77,12 @@ def _acquire(path: Path, shown: str) -> int:
         if same:
             started = _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%d %H:%M:%S UTC")
             doc = {"pid": os.getpid(), "command": " ".join(["calidar", *sys.argv[1:]]), "started": started}
-            os.ftruncate(fd, 0)
-            os.lseek(fd, 0, os.SEEK_SET)
-            os.write(fd, json.dumps(doc).encode("utf-8"))
+            try:  # best effort: the flock is the lock; the details only name us to another run
+                os.ftruncate(fd, 0)
+                os.lseek(fd, 0, os.SEEK_SET)
+                os.write(fd, json.dumps(doc).encode("utf-8"))
+            except OSError:
+                pass
             return fd
         os.close(fd)  # the previous owner removed the file after we opened it: take the new one
     raise OutputExistsError(f"{shown}: its lock file {path.name} keeps changing; is another run starting?")

@@ -66,10 +66,17 @@ def _unraisable(hook_args) -> None:
 
 
 def install() -> None:
-    """Install the run's handlers (main thread)."""
+    """Install the run's handlers (main thread). Also: the libraries' log records (GDAL's and
+    libtiff's through rasterio, Dask's) are not printed — without a handler Python would print
+    every warning of theirs, e.g. one "_tiffSeekProc: No space left on device." line per failed
+    write before the run's own one-line error (``CALIDAR_DEBUG=1`` shows them)."""
+    import logging
+
     for s in SIGNALS:
         signal.signal(s, _handler)
     sys.unraisablehook = _unraisable
+    if not os.environ.get("CALIDAR_DEBUG"):
+        logging.getLogger().addHandler(logging.NullHandler())
 
 
 def finish() -> None:

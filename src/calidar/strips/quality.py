@@ -323,11 +323,12 @@ def write_rasters(q: PairQuality, out_dir: str | Path, crs=None, force: bool = F
     if q.grid.size == 0:
         return paths
     tif = out_dir / f"dz_{q.a}_{q.b}.tif"
-    with atomic_path(tif, force) as tmp:
-        with rasterio.open(tmp, "w", driver="GTiff", height=q.grid.shape[0], width=q.grid.shape[1], count=1,
-                           dtype="float32", crs=crs, nodata=np.nan,
-                           transform=Affine(q.cell_m, 0.0, q.origin[0], 0.0, -q.cell_m, q.origin[1])) as dst:
+    with atomic_path(tif, force) as tmp, rasterio.MemoryFile() as mem:  # built in memory, written as bytes:
+        with mem.open(driver="GTiff", height=q.grid.shape[0], width=q.grid.shape[1], count=1,  # a full disk is
+                      dtype="float32", crs=crs, nodata=np.nan,  # one OSError, not libtiff's lines on stderr
+                      transform=Affine(q.cell_m, 0.0, q.origin[0], 0.0, -q.cell_m, q.origin[1])) as dst:
             dst.write(q.grid.astype(np.float32), 1)
+        tmp.write_bytes(mem.read())
     paths.append(tif)
     fig = dz_figure(q)
     png = out_dir / f"dz_{q.a}_{q.b}.png"
