@@ -7,7 +7,7 @@ from pathlib import Path
 import typer
 from rich.markup import escape
 
-from calidar.cli.common import console, print_verdict, progress_bar, progress_callback
+from calidar.cli.common import FORCE_HELP, console, print_verdict, progress_bar, progress_callback
 from calidar.cli.options import CRS, GEOID_UNDULATION, TIME_SYSTEM, crs_option, point_options
 
 CLASS_NOT_MET = 3  #: exit code when --class is given and not met
@@ -33,7 +33,7 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
         classes: str | None = typer.Option(None, "--classes", help="LAS classes taken as ground, e.g. 2 or 2,8 "
                                            "(default: 2 where a file has it, else last and single returns)."),
         crs: str | None = CRS, time_system: str | None = TIME_SYSTEM, geoid_undulation: float | None = GEOID_UNDULATION,
-        force: bool = typer.Option(False, "--force", help="Write into a non-empty --out folder."),
+        force: bool = typer.Option(False, "--force", help=FORCE_HELP),
     ) -> None:
         """Vertical accuracy of the points at surveyed checkpoints: NVA RMSEz and class, VVA, per ASPRS Edition 2.
 

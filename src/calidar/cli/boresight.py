@@ -6,7 +6,7 @@ from pathlib import Path
 
 import typer
 
-from calidar.cli.common import console, exit_with_verdict, print_verdict, print_warning, progress_bar, progress_callback
+from calidar.cli.common import FORCE_HELP, console, exit_with_verdict, print_verdict, print_warning, progress_bar, progress_callback
 from calidar.cli.options import (
     CRS, GEOID_UNDULATION, TIME_SYSTEM, TRAJECTORY_ANGLES, TRAJECTORY_COLUMNS, TRAJECTORY_CRS, TRAJECTORY_HEADING,
     point_options, trajectory_options,
@@ -51,7 +51,7 @@ def boresight(
     workers: int | None = typer.Option(None, "--workers", help="The same tasks on a local Dask cluster of N "
                                        "processes (default: two threads in this process)."),
     out: Path = typer.Option(..., "--out", help="Output folder."),
-    force: bool = typer.Option(False, "--force", help="Write into a non-empty output folder."),
+    force: bool = typer.Option(False, "--force", help=FORCE_HELP),
     write_strips: bool = typer.Option(False, "--write-strips", help="Also write the recalibrated strips (LAZ)."),
     crs: str | None = CRS, time_system: str | None = TIME_SYSTEM, geoid_undulation: float | None = GEOID_UNDULATION,
     trajectory_crs: str | None = TRAJECTORY_CRS, trajectory_angles: str | None = TRAJECTORY_ANGLES,

@@ -8,7 +8,7 @@ from pathlib import Path
 import typer
 from rich.markup import escape
 
-from calidar.cli.common import console
+from calidar.cli.common import FORCE_HELP, console
 from calidar.cli.options import CRS, GEOID_UNDULATION, TIME_SYSTEM, point_options
 from calidar.pipelines.quality import measure
 from calidar.validate import number
@@ -27,7 +27,7 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
             None, "--classes", help="LAS classes to compare, e.g. 2 or 2,6 (default: ground, class 2, when a file has "
             "it, else last and single returns on smooth cells)."),
         crs: str | None = CRS, time_system: str | None = TIME_SYSTEM, geoid_undulation: float | None = GEOID_UNDULATION,
-        force: bool = typer.Option(False, "--force", help="Write into a non-empty --out folder."),
+        force: bool = typer.Option(False, "--force", help=FORCE_HELP),
     ) -> None:
         """Swath-overlap differences between flight lines (dz = a − b): median, RMSDz, max, planimetric offsets
         (dx, dy ± σ, or not determined and why), and the USGS Lidar Base Specification swath checks with the
