@@ -7,10 +7,10 @@ from pathlib import Path
 import typer
 from rich.markup import escape
 
-from calidar.cli.common import FORCE_HELP, console, print_verdict, progress_bar, progress_callback
+from calidar.cli.common import EXIT_FAIL, FORCE_HELP, console, exit_with_verdict, print_verdict, progress_bar, progress_callback
 from calidar.cli.options import CRS, GEOID_UNDULATION, TIME_SYSTEM, crs_option, point_options
 
-CLASS_NOT_MET = 3  #: exit code when --class is given and not met
+CLASS_NOT_MET = EXIT_FAIL  #: exit code when --class is given and not met
 
 
 def register(app: typer.Typer, simulate: typer.Typer) -> None:
@@ -37,7 +37,8 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
     ) -> None:
         """Vertical accuracy of the points at surveyed checkpoints: NVA RMSEz and class, VVA, per ASPRS Edition 2.
 
-        Exit codes: 0 done (the --class met when given), 1 bad input, 3 the --class not met.
+        Exit codes: 0 pass or warn (the --class met when given), 1 bad input, 2 usage error, 3 FAIL verdict or
+        the --class not met, 130/143 interrupted.
         """
         from calidar.outputs import output_folder
         from calidar.pipelines.accuracy import AccuracySettings, run_accuracy
@@ -54,3 +55,4 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
         met = run.assessment.accuracy.meets(target_class) if target_class is not None else True
         if not met:
             raise typer.Exit(CLASS_NOT_MET)
+        exit_with_verdict(run.verdict)  # the contract of every command: a FAIL verdict exits 3
