@@ -74,3 +74,36 @@ def test_a_range_offset_is_recovered_from_ten_control_points():
     assert sol.sigma["range_offset"] < 0.01
     assert abs(err) < 2 * sol.sigma["range_offset"], (err, sol.sigma["range_offset"])
     assert problem(sol.values) == pytest.approx(0.0, abs=0.01)
+
+
+def test_points_and_cells_near_control_reach_every_point_that_can_form_a_plane():
+    from calidar.strips.control import RADIUS_M, cells_near, near_control
+    from calidar.strips.overlap import cell_keys
+
+    rng = np.random.default_rng(3)
+    pts = np.c_[rng.uniform(-50, 50, (20000, 2)), np.zeros(20000)]
+    control = ControlPoints(np.array(["A", "B"]), np.array([[1.0, 2.0, 0.0], [-30.0, 40.0, 0.0]]), np.full(2, 0.01))
+    idx = near_control(pts, control, reach_m=3.0)
+    d = np.min(np.hypot(pts[:, None, 0] - control.local[None, :, 0], pts[:, None, 1] - control.local[None, :, 1]), axis=1)
+    np.testing.assert_array_equal(idx, np.flatnonzero(d <= 3.0))
+    cells = cells_near(control.local[:, :2], 5.0, reach_m=RADIUS_M + 1.0)
+    inside = np.flatnonzero(d <= RADIUS_M + 1.0)
+    assert np.all(np.isin(cell_keys(pts[inside], 5.0), cells))  # every point within reach lies in a kept cell
+    assert cells.size <= 2 * 3 * 3  # a 6 m square touches at most 3 × 3 cells of 5 m
+
+
+def test_control_rows_report_the_vertical_residual_before_and_after():
+    from calidar.strips.control import control_rows, control_summary
+
+    rng = np.random.default_rng(4)
+    pose, control, nominal = _strip(0.05, rng), _control(rng), Sensor()
+    problem, c, _ = _problem(pose, control, nominal, ["range_offset"])
+    before = control_rows(problem, problem({"range_offset": 0.0}))
+    after = control_rows(problem, problem({"range_offset": 0.05}))
+    assert [r["point"] for r in before] == list(range(10)) and all(r["strip"] == 7 for r in before)
+    dz = np.array([r["dz_m"] for r in before])
+    # 5 cm too long ranges put the surface 5 cm·cos θ (θ ≤ 35°) too low at each control point
+    assert np.all(dz < -0.05 * np.cos(np.radians(35.0)) + 0.01) and np.all(dz > -0.06)
+    s = control_summary(control, before, after)
+    assert s["n_used"] == 10 and s["not_covered"] == [] and s["rms_dz_after_m"] < 0.01 < s["rms_dz_before_m"]
+    assert s["points"][0]["id"] == "GCP0" and s["points"][0]["dz_before_m"] == pytest.approx(dz[0])
