@@ -28,9 +28,10 @@ import scipy.sparse as sp
 from scipy.spatial import cKDTree
 
 from calidar.strips.correspond import Correspondences
+from calidar.strips.problem import CONTROL_STRIP
 from calidar.strips.strip import Pose
 
-CONTROL_ID = -1  #: the id of the control pseudo-strip
+CONTROL_ID = CONTROL_STRIP  #: the id of the control pseudo-strip (-1; StripProblem leaves it out of height_bias)
 RADIUS_M = 2.0  #: a strip's points within this (x, y) of a control point form its plane
 MIN_POINTS = 8
 #: points kept this much farther than RADIUS_M from a control point: the calibration moves them

@@ -10,7 +10,7 @@ import numpy as np
 from calidar.verdict import NOTE, Finding, two_digits
 
 #: the parameters a height error common to all strips hides from the overlaps (ground control observes them)
-VERTICAL = ("range_offset", "lever_arm_z")
+VERTICAL = ("range_offset", "lever_arm_z", "height_bias")
 CONTROL_ACTION = "give ground control points: calidar boresight --control FILE (id, x, y, z, sigma)"
 
 

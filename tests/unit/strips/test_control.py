@@ -107,3 +107,26 @@ def test_control_rows_report_the_vertical_residual_before_and_after():
     s = control_summary(control, before, after)
     assert s["n_used"] == 10 and s["not_covered"] == [] and s["rms_dz_after_m"] < 0.01 < s["rms_dz_before_m"]
     assert s["points"][0]["id"] == "GCP0" and s["points"][0]["dz_before_m"] == pytest.approx(dz[0])
+
+
+def test_a_common_height_bias_is_observed_by_control_only_and_its_jacobian_is_exact():
+    rng = np.random.default_rng(6)
+    pose, control, nominal = _strip(0.0, rng), _control(rng), Sensor()
+    free = ["height_bias", "range_offset", "boresight_roll"]
+    problem, c, _ = _problem(pose, control, nominal, free)
+    values = {"height_bias": 0.04, "range_offset": 0.0, "boresight_roll": 0.0}
+    # every strip 4 cm up: each control row's residual grows by 4 cm × the normal's up part
+    np.testing.assert_allclose(problem(values) - problem({**values, "height_bias": 0.0}), 0.04 * c.normal[:, 2], atol=1e-12)
+    params = ParameterSet([Parameter(n, values[n], "rad" if n.startswith("bore") else "m") for n in free])
+    J = problem.jacobian(values, params.free)
+    Jn = numerical_jacobian(problem, params, np.array([values[n] for n in free]))
+    np.testing.assert_allclose(J, Jn, atol=1e-6)
+    # two strips' tie rows: a shift of both cancels (only control sees it)
+    from calidar.strips.correspond import Correspondences
+    import scipy.sparse as sp
+
+    tie = Correspondences(7, 8, sp.csr_matrix(np.eye(3, len(pose.index))), sp.csr_matrix(np.eye(3, len(pose.index))),
+                          np.tile([0.0, 0.0, 1.0], (3, 1)), np.full(3, 0.01), "planes")
+    two = StripProblem(nominal, {7: pose, 8: pose}, [tie], ["height_bias"])
+    assert np.allclose(two({"height_bias": 0.04}), two({"height_bias": 0.0}))
+    assert np.allclose(two.jacobian({"height_bias": 0.0}, [Parameter("height_bias", 0.0, "m")]), 0.0)
