@@ -3,7 +3,9 @@
 and the vertical lever arm not determined and points to --control; with 10 control points on
 open ground (``simulate_checkpoints``, survey σ 1 cm) the range offset is found within 2σ, the
 vertical lever arm and the vertical trajectory bias become determined, and the control
-residuals are in solution.json and the report."""
+residuals are in solution.json and the report. A 4 cm vertical trajectory bias (trajectory and
+delivered points 4 cm low, which to the strips is the control standing 4 cm higher) is found as
+``height_bias`` within 2σ beside the range offset."""
 
 from __future__ import annotations
 
@@ -87,3 +89,18 @@ def test_with_control_and_no_vertical_lever_arm_the_vertical_trajectory_bias_is_
     run = _run(sim, tmp_path / "out", "boresight,range_offset", True)
     bias = _finding(run.verdicts["planes"], "vertical trajectory bias")
     assert bias.status == "pass" and "determined by 10 ground control points" in bias.detail
+
+
+def test_a_vertical_trajectory_bias_and_the_range_offset_are_found_within_two_sigma(sim, tmp_path):
+    from calidar.io.checkpoints import read_checkpoints, write_checkpoints
+
+    cp = read_checkpoints(sim / "checkpoints.csv")
+    raised = write_checkpoints(tmp_path / "control.csv", cp.ids, cp.xyz + [0.0, 0.0, 0.04], cp.vegetated, cp.sigma_m)
+    run = run_boresight(sorted((sim / "strips").glob("*.laz")), sim / "sbet.out", sim / "sensor.toml", tmp_path / "out",
+                        BoresightOptions(estimate="boresight,range_offset,height_bias", truth=sim / "truth.json",
+                                         control=raised))
+    sol = run.results["planes"].solution
+    for name, truth in (("range_offset", RANGE_OFFSET), ("height_bias", 0.04)):  # the strips raised by 4 cm
+        err = sol.values[name] - truth
+        assert sol.sigma[name] < 0.015 and abs(err) < 2 * sol.sigma[name], (name, err, sol.sigma[name])
+    assert _finding(run.verdicts["planes"], "height_bias").status == "pass"

@@ -33,7 +33,8 @@ def boresight(
                                "to run both and compare them in the report."),
     estimate: str = typer.Option("boresight", "--estimate",
                                  help="Comma-separated: boresight, lever_arm, range_offset, range_scale, "
-                                      "scan_angle_scale, scan_angle_offset, or single parameters (lever_arm_x)."),
+                                      "scan_angle_scale, scan_angle_offset, height_bias (all strips' height: needs "
+                                      "--control), or single parameters (lever_arm_x)."),
     trajectory_model: str = typer.Option(
         "on", "--trajectory-model", help="on: estimate the trajectory's errors (priors: its accuracy, see "
         "--trajectory-accuracy), so the σ include them; off: take the trajectory as exact (σ too small with "

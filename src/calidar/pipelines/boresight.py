@@ -203,7 +203,9 @@ def load_inputs(strip_paths, trajectory_path, sensor_path, options: BoresightOpt
     from calidar.strips.parameters import build_parameters, parse_estimate, truth_to_si
     from calidar.validate import read_json
 
-    parse_estimate(options.estimate)
+    from calidar.strips.control import check_estimate
+
+    check_estimate(parse_estimate(options.estimate), options.control)
     trajectory_path, sensor_path = Path(trajectory_path), Path(sensor_path)
     nominal = Sensor.read(sensor_path)
     traj = load_trajectory(trajectory_path, options.trajectory_input)

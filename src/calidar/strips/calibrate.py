@@ -35,7 +35,8 @@ from calidar.errors import CalibrationError, CalidarError, InputError
 from calidar.scanners.rotating import canonical_eccentricity
 from calidar.sensor import Sensor
 from calidar.strips.control import (
-    CONTROL_ID, ControlPoints, control_correspondences, control_pose, control_rows, control_summary, near_control,
+    CONTROL_ID, ControlPoints, check_estimate, control_correspondences, control_pose, control_rows, control_summary,
+    near_control,
 )
 from calidar.strips.correspond import Correspondences
 from calidar.strips.distribute import cluster_client, map_pairs
@@ -294,6 +295,7 @@ def calibrate_with_client(strips: Sequence[Strip], nominal: Sensor, *, method: s
     if s.threshold_m is None:
         s = replace(s, threshold_m=THRESHOLD_M.get(method, 2e-4))
     say = progress or (lambda text, done, total: None)
+    check_estimate(estimate, control)
     run = _Run.start(strips, nominal, method, estimate, s, control)
     params = build_parameters(nominal, estimate, run.spans, s.trajectory,
                               run.headings() if run.model is not None else None)

@@ -86,6 +86,16 @@ def control_correspondences(strip_id: int, index: np.ndarray, points: np.ndarray
     return Correspondences(strip_id, CONTROL_ID, A, B, np.array(normals), np.array(sigmas), "control")
 
 
+def check_estimate(estimate, control) -> None:
+    """An error when ``height_bias`` is to be estimated without control (``control`` None): the
+    overlaps cannot see a height shift common to every strip, so nothing would bound it."""
+    if "height_bias" in estimate and control is None:
+        from calidar.errors import InputError
+
+        raise InputError(None, "--estimate", "height_bias (a height shift common to every strip) needs ground control: "
+                         "the overlaps cannot see it; expected --control FILE with it, or height_bias left out")
+
+
 def near_control(points: np.ndarray, control: ControlPoints, reach_m: float = RADIUS_M + MARGIN_M) -> np.ndarray:
     """Sorted indices of the ``points`` (local (N, 3) m) within ``reach_m`` (x, y) of a control point."""
     if len(points) == 0:
@@ -151,9 +161,9 @@ def control_summary(control: ControlPoints, before: list[dict], after: list[dict
 
 
 def vertical_shift(result) -> tuple[float, float, float] | None:
-    """The estimated trajectory height correction averaged over every strip's knots: its value, σ
-    (m, from the covariance: aᵀ C a with a = 1/K on the K "up" shift parameters) and its σ from the
-    trajectory priors alone (aᵀ P a, P the priors' Gauss–Markov covariance); None without
+    """The estimated trajectory height correction averaged over every strip's knots (plus the
+    common ``height_bias`` when estimated): its value, σ (m, from the covariance: aᵀ C a with
+    a = 1/K on the K "up" shift parameters) and its σ from the trajectory priors alone (aᵀ P a, P the priors' Gauss–Markov covariance); None without
     trajectory corrections. The overlaps see only differences between strips: this average (a
     vertical trajectory bias) is fixed by the priors alone unless ground control observes it."""
     from calidar.strips.trajectory_errors import parse_name
@@ -175,4 +185,7 @@ def vertical_shift(result) -> tuple[float, float, float] | None:
             w = np.array([prior.pop(n) for n in names])
             var_prior += float(w @ R @ w)
     var_prior += sum(w * w for w in prior.values())  # knots without correlation
+    if "height_bias" in free:  # the common shift, estimated too: no prior bounds it
+        a[free.index("height_bias")] = 1.0
+        var_prior = np.inf
     return float(a @ values), float(np.sqrt(max(a @ solution.covariance @ a, 0.0))), float(np.sqrt(var_prior))

@@ -43,7 +43,8 @@ def _bias_finding(v: float, s: float, prior: float, control: dict | None, estima
     """The vertical trajectory bias: determined with control when its σ is within ``limit_m`` and
     at most half its σ from the trajectory's priors alone."""
     text = (f"{v * 100:+.1f} ± {two_digits(s * 100)} cm (the strips' mean height correction; "
-            f"{two_digits(prior * 100)} cm from the trajectory's priors alone)")
+            + (f"{two_digits(prior * 100)} cm from the trajectory's priors alone)" if np.isfinite(prior) else
+               "height_bias estimated: no prior)"))
     if control is None:
         return Finding("warn" if estimated else NOTE, "vertical trajectory bias", text + ": not determined — a height "
                        "error shared by every strip does not show in the overlaps; only the trajectory's prior bounds it",

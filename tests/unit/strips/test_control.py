@@ -130,3 +130,13 @@ def test_a_common_height_bias_is_observed_by_control_only_and_its_jacobian_is_ex
     two = StripProblem(nominal, {7: pose, 8: pose}, [tie], ["height_bias"])
     assert np.allclose(two({"height_bias": 0.04}), two({"height_bias": 0.0}))
     assert np.allclose(two.jacobian({"height_bias": 0.0}, [Parameter("height_bias", 0.0, "m")]), 0.0)
+
+
+def test_height_bias_without_control_is_refused():
+    from calidar.errors import InputError
+    from calidar.strips.calibrate import calibrate
+    from calidar.strips.control import check_estimate
+
+    with pytest.raises(InputError, match="height_bias .* needs ground control"):
+        calibrate([], Sensor(), estimate="boresight,height_bias")
+    check_estimate(["boresight", "height_bias"], object())  # with control: fine
