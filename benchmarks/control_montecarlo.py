@@ -1,12 +1,15 @@
 """Monte-Carlo of ``calidar boresight --control``: are the σ of the range offset honest with ground control?
 
     NUMBA_NUM_THREADS=1 OMP_NUM_THREADS=1 PYTHONPATH=src python benchmarks/control_montecarlo.py \\
-        --seeds 100-139 [--estimate boresight,range_offset] [--control 10] [--json out.jsonl]
+        --seeds 100-139 [--estimate boresight,range_offset,height_bias] [--height-bias 0.04] [--control 10] \\
+        [--json out.jsonl]
 
 Each seed is one UAV survey (200 m × 200 m, density 0.2, lines across each other, no trees, a
 5 cm range offset, the preset's 2 cm / 0.002° trajectory errors and the smrmsg.out that states
 them) written as the simulator delivers it, with ``--control`` surveyed points on open ground
-(σ 1 cm, ``calidar.sim.checkpoints``), then calibrated by the boresight pipeline with its default
+(σ 1 cm, ``calidar.sim.checkpoints``) raised by ``--height-bias`` (a vertical trajectory bias:
+trajectory and points that much low are, to the strips, control that much high; its truth is
+``height_bias`` = that), then calibrated by the boresight pipeline with its default
 options and ``--control checkpoints.csv`` (:func:`calidar.pipelines.boresight.load_inputs` and
 :func:`calibrate_inputs`). One line per survey (error, σ, z = error/σ per estimated length), then
 the RMS of z per parameter (1 for honest σ; its sampling spread ±1/√(2n)), the mean z, the largest
@@ -27,9 +30,10 @@ from pathlib import Path
 import numpy as np
 
 RANGE_OFFSET = 0.05
+NAMES = ("range_offset", "height_bias", "lever_arm_z")
 
 
-def one(seed: int, estimate: str, n_control: int) -> dict:
+def one(seed: int, estimate: str, n_control: int, height_bias: float) -> dict:
     from calidar.pipelines.boresight import BoresightOptions, calibrate_inputs, load_inputs
     from calidar.sim.checkpoints import simulate_checkpoints
     from calidar.sim.survey import simulate_survey, survey_config
@@ -40,16 +44,19 @@ def one(seed: int, estimate: str, n_control: int) -> dict:
     folder = Path(tempfile.mkdtemp(prefix=f"control_mc_{seed}_"))
     try:
         sim = res.write(folder / "sim")
-        simulate_checkpoints(res, n_control, 0.01, seed=seed, vegetated_share=0.0).write(sim)
+        cp = simulate_checkpoints(res, n_control, 0.01, seed=seed, vegetated_share=0.0)
+        cp.xyz[:, 2] += height_bias
+        cp.write(sim)
         options = BoresightOptions(estimate=estimate, truth=sim / "truth.json", control=sim / "checkpoints.csv")
         inputs = load_inputs(sorted((sim / "strips").glob("*.laz")), sim / "sbet.out", sim / "sensor.toml", options)
         sol = calibrate_inputs(inputs, options)["planes"].solution
     finally:
         shutil.rmtree(folder, ignore_errors=True)
     out = {"seed": seed, "seconds": time.perf_counter() - clock}
-    for name in ("range_offset", "lever_arm_z"):
+    truth = {**inputs.truth, "height_bias": height_bias}
+    for name in NAMES:
         if name in sol.parameters.free_names:
-            err = sol.values[name] - inputs.truth[name]
+            err = sol.values[name] - truth[name]
             out[name] = {"error_m": err, "sigma_m": sol.sigma[name], "z": err / sol.sigma[name]}
     return out
 
@@ -57,20 +64,21 @@ def one(seed: int, estimate: str, n_control: int) -> dict:
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--seeds", default="100-109")
-    ap.add_argument("--estimate", default="boresight,range_offset")
+    ap.add_argument("--estimate", default="boresight,range_offset,height_bias")
+    ap.add_argument("--height-bias", type=float, default=0.04)
     ap.add_argument("--control", type=int, default=10)
     ap.add_argument("--json", type=Path)
     a = ap.parse_args(argv)
     lo, hi = (int(x) for x in a.seeds.split("-"))
     rows = []
     for seed in range(lo, hi + 1):
-        r = one(seed, a.estimate, a.control)
+        r = one(seed, a.estimate, a.control, a.height_bias)
         rows.append(r)
         print(json.dumps(r), flush=True)
         if a.json:
             with a.json.open("a") as f:
                 f.write(json.dumps(r) + "\n")
-    for name in ("range_offset", "lever_arm_z"):
+    for name in NAMES:
         z = np.array([r[name]["z"] for r in rows if name in r])
         if z.size:
             print(f"{name}: {z.size} surveys, RMS z {np.sqrt(np.mean(z**2)):.2f} (±{1 / np.sqrt(2 * z.size):.2f}), "

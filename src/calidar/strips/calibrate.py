@@ -36,7 +36,7 @@ from calidar.scanners.rotating import canonical_eccentricity
 from calidar.sensor import Sensor
 from calidar.strips.control import (
     CONTROL_ID, ControlPoints, check_estimate, control_correspondences, control_pose, control_rows, control_summary,
-    near_control,
+    near_control, with_height_bias,
 )
 from calidar.strips.correspond import Correspondences
 from calidar.strips.distribute import cluster_client, map_pairs
@@ -372,6 +372,7 @@ def _result(run: _Run, solution: Solution, problem: StripProblem, pairs: list[di
     solution.warnings = run.warnings + geometry_warnings([run.by_id[i] for i in problem.index if i != CONTROL_ID], used_pairs,
                                                          params.free_names) + solution.warnings
     sensor, fix = sensor_of(run.nominal, params.values()), corrections(params.values(), run.model, run.spans)
+    fix = with_height_bias(fix, params.values().get("height_bias", 0.0), run.spans)
     solution.extra["strips"] = {"method": run.method, "robust": run.settings.robust, "pairs": pairs, "outer_iterations": [
         {kk: v for kk, v in o.items() if kk != "values"} for o in outer]}
     return CalibrationResult(solution, sensor, run.nominal, list(strips), run.overlaps, run.method, pairs,

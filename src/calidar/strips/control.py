@@ -96,6 +96,24 @@ def check_estimate(estimate, control) -> None:
                          "the overlaps cannot see it; expected --control FILE with it, or height_bias left out")
 
 
+def with_height_bias(fix: dict, h: float, spans: dict) -> dict:
+    """The strips' trajectory corrections (:class:`~calidar.strips.trajectory_errors.StripCorrection`
+    by id) with the common ``height_bias`` ``h`` (m, up) added to every knot's shift (a constant
+    correction for a strip that had none), so that sbet_corrected.out and the overlap quality
+    carry it."""
+    from dataclasses import replace
+
+    from calidar.strips.trajectory_errors import StripCorrection
+
+    if not h:
+        return fix
+    up = np.array([0.0, 0.0, h])
+    out = {i: replace(c, shift=c.shift + up) for i, c in fix.items()}
+    for i, (t0, _) in spans.items():
+        out.setdefault(i, StripCorrection(t0, None, up[None].copy(), np.zeros((1, 3))))
+    return out
+
+
 def near_control(points: np.ndarray, control: ControlPoints, reach_m: float = RADIUS_M + MARGIN_M) -> np.ndarray:
     """Sorted indices of the ``points`` (local (N, 3) m) within ``reach_m`` (x, y) of a control point."""
     if len(points) == 0:

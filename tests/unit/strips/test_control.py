@@ -140,3 +140,15 @@ def test_height_bias_without_control_is_refused():
     with pytest.raises(InputError, match="height_bias .* needs ground control"):
         calibrate([], Sensor(), estimate="boresight,height_bias")
     check_estimate(["boresight", "height_bias"], object())  # with control: fine
+
+
+def test_the_height_bias_goes_into_every_strips_trajectory_correction():
+    from calidar.strips.control import with_height_bias
+    from calidar.strips.trajectory_errors import StripCorrection
+
+    fix = {1: StripCorrection(0.0, 1.0, np.array([[0.0, 0.0, 0.01], [0.0, 0.0, 0.02]]), np.zeros((2, 3)))}
+    out = with_height_bias(fix, 0.04, {1: (0.0, 1.0), 2: (5.0, 9.0)})
+    np.testing.assert_allclose(out[1].shift[:, 2], [0.05, 0.06])
+    pts = np.zeros((3, 3))
+    np.testing.assert_allclose(out[2].apply(pts, pts, np.array([5.0, 7.0, 9.0]))[:, 2], 0.04)
+    assert with_height_bias(fix, 0.0, {1: (0.0, 1.0)}) is fix
