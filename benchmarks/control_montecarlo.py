@@ -29,6 +29,8 @@ from pathlib import Path
 
 import numpy as np
 
+from calidar.errors import InputError
+
 RANGE_OFFSET = 0.05
 NAMES = ("range_offset", "height_bias", "lever_arm_z")
 
@@ -71,8 +73,14 @@ def main(argv=None) -> None:
     a = ap.parse_args(argv)
     lo, hi = (int(x) for x in a.seeds.split("-"))
     rows = []
+    skipped = []
     for seed in range(lo, hi + 1):
-        r = one(seed, a.estimate, a.control, a.height_bias)
+        try:
+            r = one(seed, a.estimate, a.control, a.height_bias)
+        except InputError as e:  # e.g. a scene without room for the control points: told, not counted
+            skipped.append(seed)
+            print(f"seed {seed} skipped: {e}", file=sys.stderr)
+            continue
         rows.append(r)
         print(json.dumps(r), flush=True)
         if a.json:
@@ -85,7 +93,7 @@ def main(argv=None) -> None:
                   f"mean z {z.mean():+.2f}, max |z| {np.abs(z).max():.2f}, "
                   f"RMS error {1e3 * np.sqrt(np.mean([r[name]['error_m'] ** 2 for r in rows if name in r])):.1f} mm, "
                   f"median σ {1e3 * np.median([r[name]['sigma_m'] for r in rows if name in r]):.1f} mm")
-    print(f"{len(rows)} surveys ran", file=sys.stderr)
+    print(f"{len(rows)} surveys ran" + (f"; seeds skipped: {skipped}" if skipped else ""), file=sys.stderr)
 
 
 if __name__ == "__main__":

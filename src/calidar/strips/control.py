@@ -17,6 +17,10 @@ observed (tests/unit/strips/test_control.py).
 each control point (:func:`cells_near`), the calibrator keeps each strip's points near them
 (:func:`near_control`) and adds :func:`control_correspondences` to every matching; the rows'
 residuals before and after go to solution.json (:func:`control_rows`, :func:`control_summary`).
+With control, ``--estimate ...,height_bias`` adds a height shift common to every strip (a vertical
+trajectory bias; :data:`calidar.strips.problem.HEIGHT_BIAS`), which only the control rows observe
+(:func:`check_estimate` refuses it without them); it is folded into every strip's trajectory
+correction (:func:`with_height_bias`).
 """
 
 from __future__ import annotations
