@@ -36,7 +36,7 @@ from calidar.scanners.rotating import canonical_eccentricity
 from calidar.sensor import Sensor
 from calidar.strips.control import (
     CONTROL_ID, ControlPoints, check_estimate, control_correspondences, control_pose, control_rows, control_summary,
-    near_control, with_height_bias,
+    near_control, share_survey_error, with_height_bias,
 )
 from calidar.strips.correspond import Correspondences
 from calidar.strips.distribute import cluster_client, map_pairs
@@ -229,7 +229,7 @@ class _Run:
         """The control rows of every strip near control, from its re-georeferenced points."""
         found = (control_correspondences(i, idx, current[i][1][self.poses[i].rows_of(idx)], len(self.by_id[i]),
                                          self.control) for i, idx in self.near.items())
-        return [c for c in found if c is not None]
+        return share_survey_error([c for c in found if c is not None], self.control)
 
     def _times(self) -> dict[int, np.ndarray]:
         """Per strip its points' times; the control pseudo-strip's, one per control point, 0 (no trajectory)."""

@@ -90,6 +90,22 @@ def control_correspondences(strip_id: int, index: np.ndarray, points: np.ndarray
     return Correspondences(strip_id, CONTROL_ID, A, B, np.array(normals), np.array(sigmas), "control")
 
 
+def share_survey_error(corrs: list[Correspondences], control: ControlPoints) -> list[Correspondences]:
+    """The control rows of every strip with each point's survey error shared among the k strips
+    that observe it: its variance counted k times in each of its k rows (σ² = k·σ_c² + the plane's
+    part), so that together they carry it once (the rows' common error is one survey error, not k)."""
+    from dataclasses import replace
+
+    cols = [c.B.tocsr().indices for c in corrs]
+    k = np.bincount(np.concatenate(cols), minlength=len(control.ids)) if cols else np.zeros(0)
+    out = []
+    for c, col in zip(corrs, cols):
+        sc2 = control.sigma_m[col] ** 2
+        plane2 = np.maximum(np.asarray(c.sigma_m, float) ** 2 - sc2, 0.0)
+        out.append(replace(c, sigma_m=np.sqrt(k[col] * sc2 + plane2)))
+    return out
+
+
 def check_estimate(estimate, control) -> None:
     """An error when ``height_bias`` is to be estimated without control (``control`` None): the
     overlaps cannot see a height shift common to every strip, so nothing would bound it."""
