@@ -88,7 +88,7 @@ def test_control_residuals_are_written(runs):
 def test_with_control_and_no_vertical_lever_arm_the_vertical_trajectory_bias_is_determined(sim, tmp_path):
     run = _run(sim, tmp_path / "out", "boresight,range_offset", True)
     bias = _finding(run.verdicts["planes"], "vertical trajectory bias")
-    assert bias.status == "pass" and "determined by 10 ground control points" in bias.detail
+    assert bias.status == "pass" and "determined by 10 ground control points" in bias.detail, bias.detail
 
 
 def test_a_vertical_trajectory_bias_and_the_range_offset_are_found_within_two_sigma(sim, tmp_path):

@@ -41,7 +41,8 @@ def vertical_findings(result, findings: list[Finding], limit_m: float) -> list[F
 
 def _bias_finding(v: float, s: float, prior: float, control: dict | None, estimated: bool, limit_m: float) -> Finding:
     """The vertical trajectory bias: determined with control when its σ is within ``limit_m`` and
-    at most half its σ from the trajectory's priors alone."""
+    the control tells at least as much of it as the priors (σ ≤ σ_prior/√2: 1/σ² = 1/σ_prior² +
+    1/σ_control², σ_control ≤ σ_prior)."""
     text = (f"{v * 100:+.1f} ± {two_digits(s * 100)} cm (the strips' mean height correction; "
             + (f"{two_digits(prior * 100)} cm from the trajectory's priors alone)" if np.isfinite(prior) else
                "height_bias estimated: no prior)"))
@@ -49,11 +50,11 @@ def _bias_finding(v: float, s: float, prior: float, control: dict | None, estima
         return Finding("warn" if estimated else NOTE, "vertical trajectory bias", text + ": not determined — a height "
                        "error shared by every strip does not show in the overlaps; only the trajectory's prior bounds it",
                        CONTROL_ACTION)
-    if s <= limit_m and s <= 0.5 * prior:
+    if s <= limit_m and s <= prior / np.sqrt(2.0):
         return Finding("pass", "vertical trajectory bias", text + f": determined by {control['n_used']} ground control "
                        "points")
     return Finding("warn", "vertical trajectory bias", text + ": not determined beyond its prior even with the control "
-                   f"(σ above {limit_m * 100:.0f} cm or not halved by it)", "add control points spread over every strip")
+                   f"(σ above {limit_m * 100:.0f} cm, or the control tells less of it than the priors)", "add control points spread over every strip")
 
 
 def control_finding(control: dict) -> Finding:
