@@ -16,6 +16,12 @@ from calidar.pipelines.boresight import TRAJECTORY_BLOCK_S, TRAJECTORY_CORRELATI
 from calidar.pipelines.strip_source import BUDGET_POINTS, MIN_BUDGET_POINTS, IngestOptions
 from calidar.strips.trajectory_errors import PREFIX as TRAJECTORY_PREFIX
 
+CONTROL = typer.Option(
+    None, "--control", help="Ground control points (CSV: id, x, y, z, sigma; land cover optional, vegetated ones left "
+    "out) observed in the adjustment with their σ: range offset, vertical lever arm and a vertical trajectory bias, "
+    "which the overlaps cannot see, become determinable.")
+CONTROL_CRS = typer.Option(None, "--control-crs", help="CRS of the control points when it is not the strips' "
+                           "(e.g. EPSG:32632).")
 
 
 def boresight(
@@ -26,7 +32,8 @@ def boresight(
                                "to run both and compare them in the report."),
     estimate: str = typer.Option("boresight", "--estimate",
                                  help="Comma-separated: boresight, lever_arm, range_offset, range_scale, "
-                                      "scan_angle_scale, scan_angle_offset, or single parameters (lever_arm_x)."),
+                                      "scan_angle_scale, scan_angle_offset, height_bias (all strips' height: needs "
+                                      "--control), or single parameters (lever_arm_x)."),
     trajectory_model: str = typer.Option(
         "on", "--trajectory-model", help="on: estimate the trajectory's errors (priors: its accuracy, see "
         "--trajectory-accuracy), so the σ include them; off: take the trajectory as exact (σ too small with "
@@ -56,6 +63,7 @@ def boresight(
     crs: str | None = CRS, time_system: str | None = TIME_SYSTEM, geoid_undulation: float | None = GEOID_UNDULATION,
     trajectory_crs: str | None = TRAJECTORY_CRS, trajectory_angles: str | None = TRAJECTORY_ANGLES,
     trajectory_heading: str | None = TRAJECTORY_HEADING, trajectory_columns: str | None = TRAJECTORY_COLUMNS,
+    control: Path | None = CONTROL, control_crs: str | None = CONTROL_CRS,
     strip_points: int = typer.Option(
         BUDGET_POINTS, "--strip-points", help="Points of each strip's overlaps the calibration keeps (whole blocks "
         "spread evenly over them; the strips are streamed, memory and time grow with this, not with the files); "
@@ -74,18 +82,17 @@ def boresight(
     if trajectory_model not in ("on", "off"):
         raise InputError(None, "--trajectory-model", f"expected on or off, got {trajectory_model!r}")
     parse_estimate(estimate)
-    if strip_points != 0 and strip_points < MIN_BUDGET_POINTS:
-        raise InputError(None, "--strip-points", f"expected 0 (every overlapping point) or at least "
-                         f"{MIN_BUDGET_POINTS}, got {strip_points}")
+    _check_strip_points(strip_points)
     check_cluster(scheduler, workers)
     options = BoresightOptions(tuple(parse_methods(method)), estimate, trajectory_model == "on", trajectory_accuracy,
                                trajectory_sigma, trajectory_block, trajectory_correlation, truth, scheduler, workers,
                                write_strips, points=point_options(crs, time_system, geoid_undulation),
                                trajectory_input=trajectory_options(trajectory_crs, trajectory_angles, trajectory_heading,
                                                                    trajectory_columns),
-                               ingest=IngestOptions(budget_points=strip_points or None))
+                               ingest=IngestOptions(budget_points=strip_points or None), control=control,
+                               control_crs=control_crs)
     check_out_dir(out, force)
-    with output_folder(out, force, inputs=[*strips, trajectory, sensor, trajectory_accuracy, truth]) as tmp, \
+    with output_folder(out, force, inputs=[*strips, trajectory, sensor, trajectory_accuracy, truth, control]) as tmp, \
             progress_bar() as bar:
         run = run_boresight(strips, trajectory, sensor, tmp, options, progress_callback(bar), shown_out=out)
     for m, result in run.results.items():
@@ -96,6 +103,12 @@ def boresight(
     names = sorted({p.name for p in run.written if p.parent == Path(tmp)})
     console.print(f"wrote {out}/: {', '.join(names)}" + (" and the recalibrated strips" if write_strips else ""), markup=False)
     exit_with_verdict(*run.verdicts.values())  # FAIL: exit 3; the outputs are written (to look at), not to be used
+
+
+def _check_strip_points(n: int) -> None:
+    if n != 0 and n < MIN_BUDGET_POINTS:
+        raise InputError(None, "--strip-points", f"expected 0 (every overlapping point) or at least {MIN_BUDGET_POINTS}, "
+                         f"got {n}")
 
 
 def _print(result, truth_si) -> None:

@@ -74,7 +74,7 @@ class Checkpoints:
         return np.where(self.vegetated, "vegetated", "non-vegetated")
 
 
-def _columns(header: list[str], path: Path, line: int) -> dict[str, int]:
+def _columns(header: list[str], path: Path, line: int, required=REQUIRED) -> dict[str, int]:
     names = [_norm(h) for h in header]
     found = {}
     for key, aliases in COLUMNS.items():
@@ -84,7 +84,7 @@ def _columns(header: list[str], path: Path, line: int) -> dict[str, int]:
                              f"the {key} column; expected one")
         if hits:
             found[key] = hits[0]
-    missing = [k for k in REQUIRED if k not in found]
+    missing = [k for k in required if k not in found]
     if missing:
         raise InputError(path, missing[0], f"line {line}: no {' / '.join(missing)} column in the header "
                          f"{','.join(header)!r}; expected a header naming id, x, y, z and class (land cover: "
@@ -150,12 +150,14 @@ def check_places(cp: "Checkpoints", xy_m: np.ndarray) -> None:
                              "place once")
 
 
-def read_checkpoints(path: str | Path) -> Checkpoints:
-    """Read and check a checkpoint CSV (see the module docstring)."""
+def read_checkpoints(path: str | Path, cover: bool = True) -> Checkpoints:
+    """Read and check a checkpoint CSV (see the module docstring); ``cover`` False: the land-cover
+    column is optional (ground control, ``calidar boresight --control``; without it every point
+    counts as non-vegetated)."""
     path = Path(path)
     rows = _rows(path)
     head_line, header = next(rows)
-    cols = _columns(header, path, head_line)
+    cols = _columns(header, path, head_line, REQUIRED if cover else tuple(k for k in REQUIRED if k != "class"))
     ids, xyz, veg, sigma, lines = [], [], [], [], []
     for number, cells in rows:
         if len(cells) < len(header):
@@ -167,7 +169,7 @@ def read_checkpoints(path: str | Path) -> Checkpoints:
             raise InputError(path, "id", f"line {number}: expected a checkpoint id, got an empty value")
         ids.append(name)
         xyz.append([_number(cells[cols[k]], path, number, k, MAX_COORDINATE) for k in ("x", "y", "z")])
-        veg.append(_cover(cells[cols["class"]], path, number))
+        veg.append(_cover(cells[cols["class"]], path, number) if "class" in cols else False)
         if "sigma" in cols:
             s = _number(cells[cols["sigma"]], path, number, "sigma", MAX_SIGMA_M)
             if s < 0:

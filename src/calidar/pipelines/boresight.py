@@ -51,6 +51,8 @@ class BoresightOptions:
     #: how the strips are read (calidar.pipelines.strip_source.IngestOptions; None: its defaults,
     #: the overlap grid of ``settings``, the point options above)
     ingest: object | None = None
+    control: Path | None = None  #: ground control CSV (--control; calidar.pipelines.control)
+    control_crs: str | None = None  #: its CRS when it is not the strips' (--control-crs)
 
     def to_dict(self) -> dict:
         def plain(v):
@@ -91,6 +93,7 @@ class BoresightInputs:
     #: (calidar.strips.trajectory_level), ``accuracy`` (the survey-grade default) its start
     estimate_accuracy: bool = False
     truth: dict | None = None  #: truth.json parameters, SI (simulations)
+    control: object | None = None  #: calidar.strips.control.ControlPoints in the strips' frame (--control)
     options: BoresightOptions = BoresightOptions()  #: as given (the input options name the reproducing commands)
 
     @property
@@ -101,7 +104,8 @@ class BoresightInputs:
     def paths(self) -> list[Path]:
         """Every input file."""
         return [*self.strip_paths, self.trajectory_path, self.sensor_path,
-                *([self.accuracy_path] if self.accuracy_path else [])]
+                *([self.accuracy_path] if self.accuracy_path else []),
+                *([Path(self.options.control)] if self.options.control else [])]
 
 
 def load_strips(paths, trajectory, sensor, options=None, progress: Progress = no_progress):
@@ -199,7 +203,9 @@ def load_inputs(strip_paths, trajectory_path, sensor_path, options: BoresightOpt
     from calidar.strips.parameters import build_parameters, parse_estimate, truth_to_si
     from calidar.validate import read_json
 
-    parse_estimate(options.estimate)
+    from calidar.strips.control import check_estimate
+
+    check_estimate(parse_estimate(options.estimate), options.control)
     trajectory_path, sensor_path = Path(trajectory_path), Path(sensor_path)
     nominal = Sensor.read(sensor_path)
     traj = load_trajectory(trajectory_path, options.trajectory_input)
@@ -214,11 +220,24 @@ def load_inputs(strip_paths, trajectory_path, sensor_path, options: BoresightOpt
                              "nothing to do; expected the trajectory model on (the default) or neither option")
         notes.append("trajectory model off (--trajectory-model off): the trajectory is taken as exact, so the "
                      "σ miss its errors (ordinary GNSS/INS noise made them 2× too small on simulated surveys)")
+    ingest, control = options.ingest_options(), None
+    if options.control is not None:
+        from calidar.pipelines.control import read_control
+
+        if not strip_paths:
+            raise InputError(None, "STRIPS", "expected at least one LAS/LAZ file")
+        control = read_control(options.control, options.control_crs, strip_paths[0], options.points, nominal)
+        ingest, notes = replace(ingest, control_ecef=control.ecef), notes + list(control.notes)
+    elif options.control_crs is not None:
+        raise InputError(None, "--control-crs", "given without --control; expected --control FILE with it")
     progress("reading strips", 0, 1)
-    strips, crs, source, unpaired = ingest_strips(list(strip_paths), traj, nominal, options.ingest_options(), progress,
-                                                  work)
+    strips, crs, source, unpaired = ingest_strips(list(strip_paths), traj, nominal, ingest, progress, work)
     inputs = BoresightInputs([Path(p) for p in strip_paths], trajectory_path, sensor_path, nominal, traj, strips, crs,
                              source, accuracy, accuracy_path, notes + unpaired, options=options)
+    if control is not None:
+        from calidar.pipelines.control import control_points
+
+        inputs.control = control_points(control, strips[0].frame)
     if accuracy is not None:
         accuracy.check_covers(inputs.spans)
         inputs.estimate_accuracy = estimates_accuracy(accuracy)
@@ -253,7 +272,7 @@ def calibrate_inputs(inputs: BoresightInputs, options: BoresightOptions = Boresi
     for m in options.methods:
         results[m] = calibrate_with_client(
             inputs.strips, inputs.nominal, method=m, estimate=groups, settings=settings, client=work.client, log=work.log,
-            progress=lambda text, done, total, m=m: progress(f"calibrating ({m})", done, total))
+            progress=lambda text, done, total, m=m: progress(f"calibrating ({m})", done, total), control=inputs.control)
         results[m].solution.warnings[:0] = inputs.notes
     return results
 

@@ -224,6 +224,26 @@ def _plan(acc: _Footprints, options: IngestOptions, notes: list | None = None) -
     return groups, line, how, footprint, span, pairs, kept
 
 
+def _with_control(kept: dict, footprint: dict, f: StripFile, frame: LocalFrame, options: IngestOptions) -> dict:
+    """``kept`` with, for each line kept, its occupied cells around the control points (in the
+    overlap grid's plane: the CRS's own metres when projected, else ``frame``'s east/north)."""
+    from calidar.crs import to_crs
+    from calidar.strips.control import cells_near
+
+    crs = las_file_crs(f.path, f.points.crs)
+    axis = crs.axis_info[0] if crs is not None and crs.is_projected else None
+    if axis is not None and axis.unit_conversion_factor:
+        xy = to_crs(options.control_ecef, crs, None, f.path)[:, :2] * axis.unit_conversion_factor
+    else:
+        xy = frame.to_local(options.control_ecef)[:, :2]
+    near = cells_near(xy, options.cell_m)
+    out = dict(kept)
+    for i, cells in kept.items():
+        mine = np.intersect1d(footprint[i][0], near)
+        out[i] = np.union1d(cells, mine) if mine.size else cells
+    return out
+
+
 def block_cells(footprint: dict, options: IngestOptions) -> int:
     """Side (overlap cells) of the blocks kept whole: :data:`BLOCK_PATCHES` tie-plane patches of
     ≈ PlaneSettings.target_points points at the median density of the lines."""
@@ -267,6 +287,8 @@ def ingest_strips(paths, trajectory, sensor, options: IngestOptions = IngestOpti
     acc, weeks, held = _pass1(files, frame, trajectory, options, progress, run, work is None or work.client is None)
     line_notes: list[str] = []
     groups, line, how, footprint, span, pairs, kept = _plan(acc, options, line_notes)
+    if options.control_ecef is not None:
+        kept = _with_control(kept, footprint, files[0], frame, options)
     names = {int(i): acc.files[int(groups[line == i][0])] for i in footprint}
     if not pairs:
         listed = ", ".join(strip_name(i, names) for i in sorted(footprint))

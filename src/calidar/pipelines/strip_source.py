@@ -60,6 +60,9 @@ class IngestOptions:
     min_cells: int = 4
     min_points_per_cell: int = 3
     hold_bytes: int = HOLD_POINTS_BYTES  #: see :data:`HOLD_POINTS_BYTES`
+    #: ground control points (ECEF (N, 3) m, ``calidar boresight --control``): each line also keeps
+    #: its cells around them (:func:`calidar.strips.control.cells_near`)
+    control_ecef: np.ndarray | None = field(default=None, compare=False, repr=False)
 
 
 @dataclass(frozen=True)

@@ -23,6 +23,7 @@ import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import scipy.sparse as sp
@@ -33,6 +34,10 @@ from calidar.adjust.solution import residual_stats
 from calidar.errors import CalibrationError, CalidarError, InputError
 from calidar.scanners.rotating import canonical_eccentricity
 from calidar.sensor import Sensor
+from calidar.strips.control import (
+    CONTROL_ID, ControlPoints, check_estimate, control_correspondences, control_pose, control_rows, control_summary,
+    near_control, share_survey_error, with_height_bias,
+)
 from calidar.strips.correspond import Correspondences
 from calidar.strips.distribute import cluster_client, map_pairs
 from calidar.strips.geometry import geometry_warnings
@@ -159,10 +164,12 @@ class _Run:
     poses: dict[int, Pose]
     warnings: list[str]
     level: object | None = None  #: calidar.strips.trajectory_level.TrajectoryLevel, when estimated
+    control: ControlPoints | None = None  #: ground control in the adjustment (calidar.strips.control)
+    near: dict[int, np.ndarray] = field(default_factory=dict)  #: per strip its points near control
 
     @classmethod
     def start(cls, strips: Sequence[Strip], nominal: Sensor, method: str, estimate: Sequence[str],
-              settings: StripSettings) -> "_Run":
+              settings: StripSettings, control: ControlPoints | None = None) -> "_Run":
         by_id = {st.id: st for st in strips}
         if len(by_id) != len(strips):
             raise InputError(None, "strips", "two strips share an id; flight-line ids must be unique")
@@ -178,11 +185,17 @@ class _Run:
         for o in overlaps:
             need.setdefault(o.a, []).append(o.index_a)
             need.setdefault(o.b, []).append(o.index_b)
+        near = {} if control is None else {i: near_control(st.points, control) for i, st in by_id.items()}
+        near = {i: v for i, v in near.items() if v.size}
+        for i, v in near.items():
+            need.setdefault(i, []).append(v)
         need = {i: union(v) for i, v in need.items()}
         spans = {i: st.time_span for i, st in by_id.items()}
         model = s.trajectory if "trajectory_bias" in estimate else None
         poses = {i: by_id[i].pose(idx) for i, idx in need.items()}  # one trajectory interpolation
-        return cls(by_id, nominal, method, s, overlaps, spans, model, need, poses, list(notes))
+        if control is not None:
+            poses[CONTROL_ID] = control_pose(control, next(iter(poses.values())))
+        return cls(by_id, nominal, method, s, overlaps, spans, model, need, poses, list(notes), control=control, near=near)
 
     def headings(self) -> dict[int, float]:
         return {i: st.heading_enu() for i, st in self.by_id.items()}
@@ -210,7 +223,18 @@ class _Run:
             self.warnings.append("strip pairs skipped: " + "; ".join(skipped))
         if not corrs:
             raise CalibrationError("no usable strip pair: " + "; ".join(skipped))
-        return corrs, pairs, times
+        return corrs + self._control_rows(current), pairs, times
+
+    def _control_rows(self, current: dict) -> list[Correspondences]:
+        """The control rows of every strip near control, from its re-georeferenced points."""
+        found = (control_correspondences(i, idx, current[i][1][self.poses[i].rows_of(idx)], len(self.by_id[i]),
+                                         self.control) for i, idx in self.near.items())
+        return share_survey_error([c for c in found if c is not None], self.control)
+
+    def _times(self) -> dict[int, np.ndarray]:
+        """Per strip its points' times; the control pseudo-strip's, one per control point, 0 (no trajectory)."""
+        times = {i: st.time for i, st in self.by_id.items()}
+        return times if self.control is None else {**times, CONTROL_ID: np.zeros(len(self.control.ids))}
 
     def _usable(self, found) -> tuple[list[Correspondences], list[dict], list[str]]:
         what = "tie planes" if self.method == "planes" else "correspondences"
@@ -229,8 +253,7 @@ class _Run:
               step_scale: np.ndarray | None) -> tuple[Estimate, StripProblem]:
         """One adjustment of ``params`` from the correspondences ``corrs``, iterated until every
         step is below ``step_in_sigma`` of its σ (``step_scale``: diag N⁻¹ of an earlier one)."""
-        problem = StripProblem(self.nominal, self.poses, corrs, params.free_names,
-                               {i: st.time for i, st in self.by_id.items()}, self.model, self.spans)
+        problem = StripProblem(self.nominal, self.poses, corrs, params.free_names, self._times(), self.model, self.spans)
         est = estimate(problem, params, sigma=problem.sigma, robust=self.settings.robust,
                        jacobian_fn=lambda v, free=params.free: problem.jacobian(v, free),
                        prior_correlation=self.model.prior_correlation(self.spans) if self.model else (),
@@ -240,7 +263,10 @@ class _Run:
     def solution(self, est: Estimate, problem: StripProblem) -> Solution:
         """The final adjustment's :class:`Solution`, σ raised by the cluster-robust sandwich."""
         s = self.settings
-        return est.solution(problem.clusters(self.by_id, s.cluster_s) if s.cluster_s else None)
+        strips = self.by_id
+        if self.control is not None:  # each control point its own cluster: their survey errors are independent
+            strips = {**strips, CONTROL_ID: SimpleNamespace(time=np.arange(len(self.control.ids)) * (s.cluster_s or 1.0))}
+        return est.solution(problem.clusters(strips, s.cluster_s) if s.cluster_s else None)
 
 
 def calibrate(strips: Sequence[Strip], nominal: Sensor, *, scheduler: str | None = None,
@@ -254,13 +280,14 @@ def calibrate(strips: Sequence[Strip], nominal: Sensor, *, scheduler: str | None
 def calibrate_with_client(strips: Sequence[Strip], nominal: Sensor, *, method: str = "planes",
                           estimate: Sequence[str] = ("boresight",), settings: StripSettings | None = None,
                           client=None, progress: Callable[[str, int, int], None] | None = None,
-                          log=None) -> CalibrationResult:
+                          log=None, control: ControlPoints | None = None) -> CalibrationResult:
     """Calibrate the sensor from overlapping strips (all in one :class:`LocalFrame`).
 
     ``estimate``: groups of :data:`ESTIMATE_GROUPS`; ``client``: an open Dask client for the
     pair matching or None (see :func:`map_pairs`; ``log``: a TaskLog of what its tasks sent back);
     ``progress(description, done, total)`` is
-    told each outer iteration's stages. Raises :class:`CalibrationError` when no pair of
+    told each outer iteration's stages; ``control``: ground control points in the strips' local
+    frame, observed beside the overlaps (:mod:`calidar.strips.control`). Raises :class:`CalibrationError` when no pair of
     strips overlaps with enough correspondences.
     """
     s = settings or StripSettings()
@@ -268,11 +295,12 @@ def calibrate_with_client(strips: Sequence[Strip], nominal: Sensor, *, method: s
     if s.threshold_m is None:
         s = replace(s, threshold_m=THRESHOLD_M.get(method, 2e-4))
     say = progress or (lambda text, done, total: None)
-    run = _Run.start(strips, nominal, method, estimate, s)
+    check_estimate(estimate, control)
+    run = _Run.start(strips, nominal, method, estimate, s, control)
     params = build_parameters(nominal, estimate, run.spans, s.trajectory,
                               run.headings() if run.model is not None else None)
     outer: list[dict] = []
-    first_residuals = est = problem = pairs = None
+    first_residuals = first_control = est = problem = pairs = None
     for k in range(s.max_outer):
         corrs, pairs, times = run.match(params.values(), k, client, say, log)
         say(f"iteration {k + 1}: solving {sum(c.n_obs for c in corrs)} observations", k, s.max_outer)
@@ -281,6 +309,7 @@ def calibrate_with_client(strips: Sequence[Strip], nominal: Sensor, *, method: s
         times["solve_s"] = time.perf_counter() - clock
         if first_residuals is None:
             first_residuals = problem(params.values())
+            first_control = control_rows(problem, first_residuals)
         params = est.parameters
         outer.append({"iteration": k + 1, "mean_distance_m": _mean(problem, est.r), "n_obs": int(problem.sigma.size),
                       "n_pairs": len(corrs), "solver_iterations": len(est.history) - 1, **times,
@@ -301,6 +330,9 @@ def calibrate_with_client(strips: Sequence[Strip], nominal: Sensor, *, method: s
     outer[-1].update(mean_distance_m=_mean(problem, est.r), solver_iterations=len(est.history) - 1,
                      solve_s=outer[-1]["solve_s"] + time.perf_counter() - clock, values=est.parameters.values())
     say("calibrated", s.max_outer, s.max_outer)
+    if run.control is not None:
+        solution.extra["control"] = control_summary(run.control, first_control,
+                                                    control_rows(problem, problem(solution.parameters.values())))
     return _result(run, solution, problem, pairs, outer, first_residuals, strips)
 
 
@@ -337,9 +369,10 @@ def _result(run: _Run, solution: Solution, problem: StripProblem, pairs: list[di
     if run.level is not None:
         solution.extra["trajectory_accuracy_estimate"] = run.level.to_dict()
     used_pairs = [(p["a"], p["b"]) for p in pairs]
-    solution.warnings = run.warnings + geometry_warnings([run.by_id[i] for i in problem.index], used_pairs,
+    solution.warnings = run.warnings + geometry_warnings([run.by_id[i] for i in problem.index if i != CONTROL_ID], used_pairs,
                                                          params.free_names) + solution.warnings
     sensor, fix = sensor_of(run.nominal, params.values()), corrections(params.values(), run.model, run.spans)
+    fix = with_height_bias(fix, params.values().get("height_bias", 0.0), run.spans)
     solution.extra["strips"] = {"method": run.method, "robust": run.settings.robust, "pairs": pairs, "outer_iterations": [
         {kk: v for kk, v in o.items() if kk != "values"} for o in outer]}
     return CalibrationResult(solution, sensor, run.nominal, list(strips), run.overlaps, run.method, pairs,

@@ -13,9 +13,14 @@ and its analytic Jacobian take control rows unchanged, beside the tie planes. Ra
 vertical lever arm and vertical trajectory biases, which the overlaps cannot see, are then
 observed (tests/unit/strips/test_control.py).
 
-Not yet wired into ``calidar boresight`` (see the issue): the ingest must keep the points near
-control points, the outer loop must add :func:`control_correspondences` to each matching, and
-the clusters/geometry warnings must skip the pseudo-strip.
+``calidar boresight --control FILE`` wires them in: the ingest keeps the overlap cells around
+each control point (:func:`cells_near`), the calibrator keeps each strip's points near them
+(:func:`near_control`) and adds :func:`control_correspondences` to every matching; the rows'
+residuals before and after go to solution.json (:func:`control_rows`, :func:`control_summary`).
+With control, ``--estimate ...,height_bias`` adds a height shift common to every strip (a vertical
+trajectory bias; :data:`calidar.strips.problem.HEIGHT_BIAS`), which only the control rows observe
+(:func:`check_estimate` refuses it without them); it is folded into every strip's trajectory
+correction (:func:`with_height_bias`).
 """
 
 from __future__ import annotations
@@ -27,11 +32,15 @@ import scipy.sparse as sp
 from scipy.spatial import cKDTree
 
 from calidar.strips.correspond import Correspondences
+from calidar.strips.problem import CONTROL_STRIP
 from calidar.strips.strip import Pose
 
-CONTROL_ID = -1  #: the id of the control pseudo-strip
+CONTROL_ID = CONTROL_STRIP  #: the id of the control pseudo-strip (-1; StripProblem leaves it out of height_bias)
 RADIUS_M = 2.0  #: a strip's points within this (x, y) of a control point form its plane
 MIN_POINTS = 8
+#: points kept this much farther than RADIUS_M from a control point: the calibration moves them
+#: (by cm), and the rows are formed anew from the re-georeferenced points each matching
+MARGIN_M = 1.0
 
 
 @dataclass(frozen=True)
@@ -79,3 +88,142 @@ def control_correspondences(strip_id: int, index: np.ndarray, points: np.ndarray
     A = sp.csr_matrix((weights, (rows, cols)), shape=(n, n_strip_points))
     B = sp.csr_matrix((np.ones(n), (np.arange(n), targets)), shape=(n, len(control.ids)))
     return Correspondences(strip_id, CONTROL_ID, A, B, np.array(normals), np.array(sigmas), "control")
+
+
+def share_survey_error(corrs: list[Correspondences], control: ControlPoints) -> list[Correspondences]:
+    """The control rows of every strip with each point's survey error shared among the k strips
+    that observe it: its variance counted k times in each of its k rows (σ² = k·σ_c² + the plane's
+    part), so that together they carry it once (the rows' common error is one survey error, not k)."""
+    from dataclasses import replace
+
+    cols = [c.B.tocsr().indices for c in corrs]
+    k = np.bincount(np.concatenate(cols), minlength=len(control.ids)) if cols else np.zeros(0)
+    out = []
+    for c, col in zip(corrs, cols):
+        sc2 = control.sigma_m[col] ** 2
+        plane2 = np.maximum(np.asarray(c.sigma_m, float) ** 2 - sc2, 0.0)
+        out.append(replace(c, sigma_m=np.sqrt(k[col] * sc2 + plane2)))
+    return out
+
+
+def check_estimate(estimate, control) -> None:
+    """An error when ``height_bias`` is to be estimated without control (``control`` None): the
+    overlaps cannot see a height shift common to every strip, so nothing would bound it."""
+    if "height_bias" in estimate and control is None:
+        from calidar.errors import InputError
+
+        raise InputError(None, "--estimate", "height_bias (a height shift common to every strip) needs ground control: "
+                         "the overlaps cannot see it; expected --control FILE with it, or height_bias left out")
+
+
+def with_height_bias(fix: dict, h: float, spans: dict) -> dict:
+    """The strips' trajectory corrections (:class:`~calidar.strips.trajectory_errors.StripCorrection`
+    by id) with the common ``height_bias`` ``h`` (m, up) added to every knot's shift (a constant
+    correction for a strip that had none), so that sbet_corrected.out and the overlap quality
+    carry it."""
+    from dataclasses import replace
+
+    from calidar.strips.trajectory_errors import StripCorrection
+
+    if not h:
+        return fix
+    up = np.array([0.0, 0.0, h])
+    out = {i: replace(c, shift=c.shift + up) for i, c in fix.items()}
+    for i, (t0, _) in spans.items():
+        out.setdefault(i, StripCorrection(t0, None, up[None].copy(), np.zeros((1, 3))))
+    return out
+
+
+def near_control(points: np.ndarray, control: ControlPoints, reach_m: float = RADIUS_M + MARGIN_M) -> np.ndarray:
+    """Sorted indices of the ``points`` (local (N, 3) m) within ``reach_m`` (x, y) of a control point."""
+    if len(points) == 0:
+        return np.zeros(0, np.int64)
+    tree = cKDTree(np.asarray(points)[:, :2])
+    hits = tree.query_ball_point(control.local[:, :2], reach_m)
+    found = [np.asarray(h, np.int64) for h in hits if len(h)]
+    return np.unique(np.concatenate(found)) if found else np.zeros(0, np.int64)
+
+
+def cells_near(xy: np.ndarray, cell_m: float, reach_m: float = RADIUS_M + MARGIN_M) -> np.ndarray:
+    """Sorted keys (as :func:`calidar.strips.overlap.cell_keys`) of the grid cells of ``cell_m``
+    that come within ``reach_m`` of a control point at ``xy`` (N, 2) m (every cell the square of
+    half-side ``reach_m`` around it touches)."""
+    from calidar.strips.overlap import cell_keys
+
+    xy = np.asarray(xy, float).reshape(-1, 2)
+    steps = np.arange(-reach_m, reach_m + cell_m, cell_m)
+    steps = np.unique(np.clip(steps, -reach_m, reach_m))
+    dx, dy = (a.ravel() for a in np.meshgrid(steps, steps))
+    around = (xy[:, None, :] + np.stack([dx, dy], axis=1)[None]).reshape(-1, 2)
+    return np.unique(cell_keys(around, cell_m))
+
+
+def control_rows(problem, residuals: np.ndarray) -> list[dict]:
+    """Per control row of a :class:`~calidar.strips.problem.StripProblem` with its ``residuals``:
+    the control point's index, the strip, the residual along the plane's normal (m, > 0: the
+    strip's surface above the control point), its vertical part dz (m) and σ (m)."""
+    out = []
+    if CONTROL_ID not in problem.index:
+        return out
+    which = problem.index[CONTROL_ID]
+    for c, r in problem.split(residuals):
+        if c.strip_b != CONTROL_ID:
+            continue
+        k = which[c.B.tocsr().indices]  # one control point per row, in row order
+        nz = np.abs(c.normal[:, 2])
+        sigma = np.broadcast_to(np.asarray(c.sigma_m, float), r.shape)
+        for j in range(r.size):
+            out.append({"point": int(k[j]), "strip": int(c.strip_a), "residual_m": float(r[j]),
+                        "dz_m": float(r[j] / max(nz[j], 1e-6)), "sigma_m": float(sigma[j])})
+    return out
+
+
+def control_summary(control: ControlPoints, before: list[dict], after: list[dict]) -> dict:
+    """What solution.json holds of the control: per control point and strip covering it, dz
+    before (nominal sensor) and after (calibrated), with the row's σ; the points no strip covered;
+    the weighted mean and RMS of dz after (m)."""
+    first = {(b["point"], b["strip"]): b["dz_m"] for b in before}
+    rows = [{"id": str(control.ids[a["point"]]), "strip": a["strip"], "dz_before_m": first.get((a["point"], a["strip"])),
+             "dz_after_m": a["dz_m"], "sigma_m": a["sigma_m"], "survey_sigma_m": float(control.sigma_m[a["point"]])}
+            for a in after]
+    used = {a["point"] for a in after}
+    dz = np.array([a["dz_m"] for a in after])
+    s = np.array([a["sigma_m"] for a in after])
+    w = 1.0 / np.maximum(s, 1e-9) ** 2
+    return {"n_points": len(control.ids), "n_used": len(used), "n_rows": len(rows),
+            "not_covered": [str(control.ids[k]) for k in range(len(control.ids)) if k not in used],
+            "mean_dz_after_m": float(np.sum(w * dz) / np.sum(w)) if dz.size else None,
+            "rms_dz_after_m": float(np.sqrt(np.mean(dz**2))) if dz.size else None,
+            "rms_dz_before_m": (float(np.sqrt(np.mean([b["dz_m"] ** 2 for b in before]))) if before else None),
+            "points": rows}
+
+
+def vertical_shift(result) -> tuple[float, float, float] | None:
+    """The estimated trajectory height correction averaged over every strip's knots (plus the
+    common ``height_bias`` when estimated): its value, σ (m, from the covariance: aᵀ C a with
+    a = 1/K on the K "up" shift parameters) and its σ from the trajectory priors alone (aᵀ P a, P the priors' Gauss–Markov covariance); None without
+    trajectory corrections. The overlaps see only differences between strips: this average (a
+    vertical trajectory bias) is fixed by the priors alone unless ground control observes it."""
+    from calidar.strips.trajectory_errors import parse_name
+
+    solution = result.solution
+    free = solution.parameters.free_names
+    up = [j for j, n in enumerate(free) if (p := parse_name(n)) is not None and p[0] == "bias" and p[1] == 2]
+    if not up:
+        return None
+    a = np.zeros(len(free))
+    a[up] = 1.0 / len(up)
+    values = np.array([solution.values[n] for n in free])
+    prior = {p.name: (p.prior_sigma or 0.0) / len(up) for p in solution.parameters.free if p.name in {free[j] for j in up}}
+    var_prior = 0.0
+    model = getattr(result, "trajectory_model", None)
+    groups = [] if model is None else model.prior_correlation({st.id: st.time_span for st in result.strips})
+    for names, R in groups:
+        if names[0] in prior and all(n in prior for n in names):
+            w = np.array([prior.pop(n) for n in names])
+            var_prior += float(w @ R @ w)
+    var_prior += sum(w * w for w in prior.values())  # knots without correlation
+    if "height_bias" in free:  # the common shift, estimated too: no prior bounds it
+        a[free.index("height_bias")] = 1.0
+        var_prior = np.inf
+    return float(a @ values), float(np.sqrt(max(a @ solution.covariance @ a, 0.0))), float(np.sqrt(var_prior))

@@ -21,6 +21,8 @@ ESTIMATE_GROUPS: dict[str, tuple[tuple[str, str], ...]] = {
     "scan_angle_offset": (("scan_angle_offset", "rad"),),
     "palmer": (("eccentricity_ratio", "1"), ("eccentricity_phase", "rad"), ("delta_l", "rad"), ("delta_r", "rad")),
     "trajectory_bias": (),  # per strip (and knot): see calidar.strips.trajectory_errors
+    #: a height shift common to every strip (a vertical trajectory bias): only ground control sees it
+    "height_bias": (("height_bias", "m"),),
 }
 #: Single parameters ``--estimate`` also accepts (e.g. lever_arm_x,lever_arm_y without z).
 SINGLE_PARAMETERS = {name: ((name, unit),) for g in ESTIMATE_GROUPS.values() for name, unit in g}
@@ -48,6 +50,8 @@ def build_parameters(nominal: Sensor, estimate: Sequence[str], spans: Mapping[in
     units = {name: unit for g in ESTIMATE_GROUPS.values() for name, unit in g}
     params = [Parameter(name, value, units.get(name, "1"), free=name in free)
               for name, value in nominal.parameters().items() if name in units]
+    if "height_bias" in free:  # not a sensor parameter: a shift of every strip (calidar.strips.problem)
+        params.append(Parameter("height_bias", 0.0, "m"))
     if "trajectory_bias" in estimate:
         params += trajectory.parameters(spans, headings)
     return ParameterSet(params)

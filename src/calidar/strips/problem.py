@@ -32,6 +32,10 @@ BORESIGHT = ("boresight_roll", "boresight_pitch", "boresight_yaw")
 LEVER_ARM = ("lever_arm_x", "lever_arm_y", "lever_arm_z")
 #: sensor parameters whose Jacobian columns are analytic (the centroid form holds them exactly)
 ANALYTIC = (*BORESIGHT, *LEVER_ARM, "range_offset", "range_scale")
+#: a height shift common to every strip (m, up; a vertical trajectory bias): the overlaps cannot see
+#: it, ground control can (the control pseudo-strip, id -1, is not shifted; calidar.strips.control)
+HEIGHT_BIAS = "height_bias"
+CONTROL_STRIP = -1
 
 
 def union(indices: list[np.ndarray]) -> np.ndarray:
@@ -202,6 +206,7 @@ class StripProblem:
         fix = corrections(values, self.trajectory, self.spans)
         if self.centroids is None:  # scanner parameters free: re-georeference every referenced point
             pts = {i: georeference(sensor, fix.get(i), p, self.time.get(i)) for i, p in self.pose.items()}
+            pts = {i: _shifted(q, values.get(HEIGHT_BIAS, 0.0), i) for i, q in pts.items()}
             return np.concatenate([c.residuals(pts[c.strip_a], pts[c.strip_b]) for c in self.corrs])
         out = []
         for k, (c, sides, times) in enumerate(zip(self.corrs, self.centroids, self.row_time)):
@@ -209,7 +214,8 @@ class StripProblem:
             for s, (side, sid, t) in enumerate(zip(sides, (c.strip_a, c.strip_b), times)):
                 q = side(sensor)
                 f = fix.get(sid)
-                p.append(q if f is None else f.apply(q, side.r, t, side.rowsum, self._row_knots(k, s, f, t)))
+                q = q if f is None else f.apply(q, side.r, t, side.rowsum, self._row_knots(k, s, f, t))
+                p.append(_shifted(q, values.get(HEIGHT_BIAS, 0.0), sid, side.rowsum))
             d = p[0] - p[1]
             out.append(d.ravel() if c.normal is None else np.einsum("ij,ij->i", d, c.normal))
         return np.concatenate(out)
@@ -255,6 +261,8 @@ class StripProblem:
     def _sensor_columns(self, values: Mapping[str, float], names: Sequence[str]) -> np.ndarray:
         """Analytic ∂residuals/∂(sensor parameters ``names``), dense (n, len(names)): per side
         ∂C/∂θ, turned by the side's trajectory tilt (the shift does not depend on θ)."""
+        if HEIGHT_BIAS in names:
+            return _with_height_column(self, values, names)
         sensor = sensor_of(self.nominal, values)
         fix = corrections(values, self.trajectory, self.spans)
         out = []
@@ -315,3 +323,30 @@ def correction_derivatives(side: Centroids, sensor: Sensor, normal: np.ndarray |
     D[:, [0, 1, 2], [0, 1, 2]] = side.rowsum[:, None]
     D[:, :, 3:] = np.stack([np.cross(e, v) for e in np.eye(3)], axis=2)
     return D
+
+
+def _shifted(q: np.ndarray, h: float, strip_id: int, rowsum: np.ndarray | None = None) -> np.ndarray:
+    """Points (or weighted sums, with ``rowsum``) of a strip raised by the common height bias ``h``
+    (m); the control pseudo-strip stays."""
+    if h == 0.0 or strip_id == CONTROL_STRIP:
+        return q
+    up = np.array([0.0, 0.0, h])
+    return q + (up if rowsum is None else rowsum[:, None] * up)
+
+
+def _with_height_column(problem: StripProblem, values: Mapping[str, float], names: Sequence[str]) -> np.ndarray:
+    """:meth:`StripProblem._sensor_columns` with the :data:`HEIGHT_BIAS` column: each strip side's
+    row sums along the normal's up part (e_up for 3D rows), signed a − b; the control side 0."""
+    own = [n for n in names if n != HEIGHT_BIAS]
+    J = np.zeros((problem.sigma.size, len(names)))
+    if own:
+        J[:, [names.index(n) for n in own]] = problem._sensor_columns(values, own)
+    col, start = [], 0
+    for c, sides in zip(problem.corrs, problem.centroids):
+        d = np.zeros((c.n_obs, 3))
+        for sign, side, sid in zip((1.0, -1.0), sides, (c.strip_a, c.strip_b)):
+            if sid != CONTROL_STRIP:
+                d[:, 2] += sign * side.rowsum
+        col.append(d.ravel() if c.normal is None else np.einsum("ij,ij->i", d, c.normal))
+    J[:, names.index(HEIGHT_BIAS)] = np.concatenate(col)
+    return J

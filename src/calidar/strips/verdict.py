@@ -25,6 +25,7 @@ import math
 import numpy as np
 from scipy.special import chdtri  # χ² quantiles without scipy.stats' 0.5 s import
 
+from calidar.strips.control_verdict import vertical_findings
 from calidar.strips.trajectory_errors import PREFIX as TRAJECTORY_PREFIX
 from calidar.verdict import NOTE, Finding, Verdict, angle_text, length_text, two_digits
 
@@ -341,7 +342,8 @@ def strip_verdict(result, stages, notes: list[str] = (), accuracy_text: str | No
                f"({what}, {result.outer[-1]['n_obs']:,} observations)"
                + (f", with {n_traj:,} trajectory corrections" if n_traj else ", trajectory taken as exact"))
     global_test = sigma0_finding(sol)
-    findings = parameter_findings(result, float(np.median(ranges)), global_test)
+    findings = vertical_findings(result, parameter_findings(result, float(np.median(ranges)), global_test),
+                                 LENGTH_LIMIT_M)
     findings += [Finding(NOTE, "determined", DETERMINED_NOTE), global_test, *others,
                  noise_finding(result, result.row_sigma)]
     findings += correlation_findings(sol) + [convergence_finding(result), overlap_finding(stages)]

@@ -1,0 +1,73 @@
+"""The verdict's word on what ground control fixes (issue 28): range offset, vertical lever arm
+and the vertical trajectory bias (the strips' mean height correction), which a height error
+shared by every strip hides from the overlaps; and the control points' own fit
+(``calidar boresight --control``, :mod:`calidar.strips.control`)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from calidar.verdict import NOTE, Finding, two_digits
+
+#: the parameters a height error common to all strips hides from the overlaps (ground control observes them)
+VERTICAL = ("range_offset", "lever_arm_z", "height_bias")
+CONTROL_ACTION = "give ground control points: calidar boresight --control FILE (id, x, y, z, sigma)"
+
+
+def vertical_findings(result, findings: list[Finding], limit_m: float) -> list[Finding]:
+    """The findings of range offset and vertical lever arm told whether ground control fixed them,
+    and the vertical trajectory bias (the strips' mean height correction): determined with control
+    when its σ ≤ ``limit_m`` (the verdict's limit for lengths), else (or without control) not
+    determined, naming --control."""
+    from calidar.strips.control import vertical_shift
+
+    sol = result.solution
+    control = sol.extra.get("control")
+    out = []
+    for f in findings:
+        if f.check in VERTICAL and control is None:
+            f = Finding(f.status, f.check, f.detail + (" — by the overlaps' geometry only, relative to the trajectory's "
+                        "heights; not tied to the ground" if f.status == "pass" else ""),
+                        "; or ".join(x for x in (f.action, CONTROL_ACTION) if x))
+        elif f.check in VERTICAL and f.status == "pass":
+            f = Finding(f.status, f.check, f.detail + f" with {control['n_used']} ground control points")
+        out.append(f)
+    shift = vertical_shift(result)
+    estimated = any(n in sol.parameters.free_names for n in VERTICAL)
+    if shift is not None:
+        out.append(_bias_finding(*shift, control, estimated, limit_m))
+    return out + ([] if control is None else [control_finding(control)])
+
+
+def _bias_finding(v: float, s: float, prior: float, control: dict | None, estimated: bool, limit_m: float) -> Finding:
+    """The vertical trajectory bias: determined with control when its σ is within ``limit_m`` and
+    the control tells at least as much of it as the priors (σ ≤ σ_prior/√2: 1/σ² = 1/σ_prior² +
+    1/σ_control², σ_control ≤ σ_prior)."""
+    text = (f"{v * 100:+.1f} ± {two_digits(s * 100)} cm (the strips' mean height correction; "
+            + (f"{two_digits(prior * 100)} cm from the trajectory's priors alone)" if np.isfinite(prior) else
+               "height_bias estimated: no prior)"))
+    if control is None:
+        return Finding("warn" if estimated else NOTE, "vertical trajectory bias", text + ": not determined — a height "
+                       "error shared by every strip does not show in the overlaps; only the trajectory's prior bounds it",
+                       CONTROL_ACTION)
+    if s <= limit_m and s <= prior / np.sqrt(2.0):
+        return Finding("pass", "vertical trajectory bias", text + f": determined by {control['n_used']} ground control "
+                       "points")
+    return Finding("warn", "vertical trajectory bias", text + ": not determined beyond its prior even with the control "
+                   f"(σ above {limit_m * 100:.0f} cm, or the control tells less of it than the priors)", "add control points spread over every strip")
+
+
+def control_finding(control: dict) -> Finding:
+    """The control points' fit after the calibration: dz RMS before → after against their σ."""
+    rows = control["points"]
+    chi = [r["dz_after_m"] / r["sigma_m"] for r in rows if r["sigma_m"] > 0]
+    rms_z = float(np.sqrt(np.mean(np.square(chi)))) if chi else float("nan")
+    detail = (f"{control['n_used']} of {control['n_points']} control points in the adjustment ({control['n_rows']} "
+              f"rows): dz RMS {control['rms_dz_before_m'] * 100:.1f} → {control['rms_dz_after_m'] * 100:.1f} cm, "
+              f"RMS of dz/σ {rms_z:.2f}")
+    missing = control["not_covered"]
+    if missing:
+        detail += f"; not covered by any strip: {', '.join(missing[:5])}" + (" …" if len(missing) > 5 else "")
+    ok = not missing and rms_z < 3.0
+    return Finding("pass" if ok else "warn", "ground control", detail,
+                   "" if ok else "check the control points far off (solution.json: control) and their coordinates' CRS")
