@@ -324,7 +324,8 @@ def test_demo_shows_a_pass_and_a_warning(tmp_path):
     assert doc["trajectory_accuracy"]["source"].endswith("smrmsg.out")
     assert warn.status == "warn" and warn_title == CASES[1][0].split(" (")[0]
     z = next(f for f in warn.findings if f.check == "lever_arm_z")
-    assert z.status == "warn" and z.action == "hold it at the measured value or add a flight line at a second height"
+    assert z.status == "warn" and z.action.startswith("hold it at the measured value or add a flight line at a second "
+                                                      "height") and "calidar boresight --control FILE" in z.action
     html = report.sections[-1].html("s1")
     assert "lever_arm_z" in html and "truth" in html and "RMSDz before" in html
     assert [s.title for s in report.sections[-2:]] == [title for title, _, _ in CASES]
