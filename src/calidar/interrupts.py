@@ -14,11 +14,15 @@ longer interrupt it: the result is complete and stays, and the run exits with it
 
 from __future__ import annotations
 
+import contextlib
 import signal
 import threading
+from collections.abc import Callable, Iterator
 
 _RECORDED: list[int] = []  #: signals received by this run, in order
 _STATE = {"committed": False}
+_DEFERRED = {"depth": 0}  #: how deep the main thread is in :func:`deferred` blocks
+_DELIVER: list[Callable[[], None]] = []  #: acts on signals held back by :func:`deferred` (set by the CLI)
 
 
 class Interrupted(KeyboardInterrupt):
@@ -41,12 +45,18 @@ class Interrupted(KeyboardInterrupt):
 def reset() -> None:
     """Forget the signals and the commit of an earlier run (in-process runs of the tests)."""
     _RECORDED.clear()
+    _DEFERRED.update(depth=0, seen=0)
     _STATE["committed"] = False
 
 
 def record(signum: int) -> int:
     """Keep ``signum``; return how many signals this run has received."""
     _RECORDED.append(int(signum))
+    return len(_RECORDED)
+
+
+def received() -> int:
+    """How many signals this run has received."""
     return len(_RECORDED)
 
 
@@ -71,6 +81,37 @@ def committed() -> bool:
 def mark_committed() -> None:
     """The run's result is in place: from now on a signal is recorded, not raised."""
     _STATE["committed"] = True
+
+
+def is_deferred() -> bool:
+    """Whether the main thread is inside a :func:`deferred` block (the handler only records)."""
+    return _DEFERRED["depth"] > 0
+
+
+def set_delivery(deliver: Callable[[], None]) -> None:
+    """Install what acts on the signals held back by :func:`deferred` once the block ends (the CLI's
+    handler logic: raise on the first, end the run on the second)."""
+    _DELIVER[:] = [deliver]
+
+
+@contextlib.contextmanager
+def deferred() -> Iterator[None]:
+    """Hold signals back for a short step that must not be cut in two (a lock file created and
+    registered, or removed and forgotten): the handler records them, and they are acted upon when
+    the outermost block ends. Main thread only; elsewhere the block does nothing."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    if _DEFERRED["depth"] == 0:
+        _DEFERRED["seen"] = len(_RECORDED)  # signals before the block were acted upon already
+    _DEFERRED["depth"] += 1
+    try:
+        yield
+    finally:
+        _DEFERRED["depth"] -= 1
+        held_back = len(_RECORDED) > _DEFERRED.get("seen", 0)
+        if _DEFERRED["depth"] == 0 and held_back and not _STATE["committed"] and _DELIVER:
+            _DELIVER[0]()
 
 
 def signal_name(signum: int) -> str:

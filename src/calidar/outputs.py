@@ -22,7 +22,7 @@ import os
 import shutil
 import sys
 import tempfile
-from collections.abc import Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
 
 from calidar import interrupts, run_lock
@@ -141,12 +141,14 @@ def output_folder(path: str | os.PathLike, force: bool = False, inputs: Iterable
         path = Path(os.path.realpath(path))
     with run_lock.hold(path, shown):
         check_out_dir(path, force)  # again under the lock: another run may have written it meanwhile
-        try:
-            path.parent.mkdir(parents=True, exist_ok=True)
-            tmp = Path(tempfile.mkdtemp(prefix=f".{path.name}.calidar-", dir=path.parent))
-        except OSError as e:
-            raise OutputWriteError(f"{shown}: cannot create the output folder: {e.strerror or e}") from None
-        _TEMPORARIES[str(tmp)] = shown
+        def create() -> Path:
+            try:
+                path.parent.mkdir(parents=True, exist_ok=True)
+                return Path(tempfile.mkdtemp(prefix=f".{path.name}.calidar-", dir=path.parent))
+            except OSError as e:
+                raise OutputWriteError(f"{shown}: cannot create the output folder: {e.strerror or e}") from None
+
+        tmp = _temporary(create, shown)
         _DEPTH[0] += 1
         try:
             yield tmp
@@ -157,8 +159,9 @@ def output_folder(path: str | os.PathLike, force: bool = False, inputs: Iterable
             raise
         finally:
             _DEPTH[0] -= 1
-            shutil.rmtree(tmp, ignore_errors=True)
-            _TEMPORARIES.pop(str(tmp), None)
+            with interrupts.deferred():  # the clean-up is not cut short
+                shutil.rmtree(tmp, ignore_errors=True)
+                _TEMPORARIES.pop(str(tmp), None)
 
 
 def _commit(tmp: Path, path: Path, shown: str) -> None:
@@ -264,18 +267,39 @@ def _write_cause(e: BaseException, tmp: Path) -> tuple[str, str | None] | None:
 FULL_BYTES = 64 * 1024  #: free space below which a failed write is blamed on a full disk
 
 
+def _temporary(create: Callable[[], Path], shown: str) -> Path:
+    """Create a temporary file or folder and register it in one step a signal cannot split: a
+    signal held back meanwhile is raised after the registration, and the temporary goes with it."""
+    made: list[Path] = []
+    try:
+        with interrupts.deferred():
+            made.append(create())
+            _TEMPORARIES[str(made[0])] = shown
+    except interrupts.Interrupted:
+        for tmp in made:
+            _remove(str(tmp))
+            _TEMPORARIES.pop(str(tmp), None)
+        raise
+    return made[0]
+
+
+def _remove(tmp: str) -> None:
+    """Remove a temporary file or folder (retried: a thread may still be writing into it)."""
+    for _ in range(3):
+        if os.path.isdir(tmp) and not os.path.islink(tmp):
+            shutil.rmtree(tmp, ignore_errors=True)
+        else:
+            with contextlib.suppress(OSError):
+                os.unlink(tmp)
+        if not os.path.lexists(tmp):
+            break
+
+
 def remove_temporaries() -> None:
     """Remove every live temporary of this process and its output locks at once (a second Ctrl-C:
     the run ends now, without unwinding)."""
     for tmp in list(_TEMPORARIES):
-        for _ in range(3):  # a thread may still be writing into it
-            if os.path.isdir(tmp) and not os.path.islink(tmp):
-                shutil.rmtree(tmp, ignore_errors=True)
-            else:
-                with contextlib.suppress(OSError):
-                    os.unlink(tmp)
-            if not os.path.lexists(tmp):
-                break
+        _remove(tmp)
     for lock in run_lock.held_paths():
         with contextlib.suppress(OSError):
             lock.unlink()
@@ -294,13 +318,15 @@ def atomic_path(path: str | os.PathLike, force: bool = True) -> Iterator[Path]:
     >>> with atomic_path(tmp / "a.json") as p: p.write_text("{}")   # doctest: +SKIP
     """
     path = check_writable(path, force)
-    try:
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=path.suffix, dir=path.parent)
-    except OSError as e:
-        raise OutputWriteError(f"{shown_path(str(path))}: cannot write: {e.strerror or e}") from None
-    os.close(fd)
-    tmp = Path(tmp)
-    _TEMPORARIES[str(tmp)] = shown_path(str(path))
+    def create() -> Path:
+        try:
+            fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=path.suffix, dir=path.parent)
+        except OSError as e:
+            raise OutputWriteError(f"{shown_path(str(path))}: cannot write: {e.strerror or e}") from None
+        os.close(fd)
+        return Path(tmp)
+
+    tmp = _temporary(create, shown_path(str(path)))
     _DEPTH[0] += 1
     try:
         yield tmp
@@ -317,7 +343,7 @@ def atomic_path(path: str | os.PathLike, force: bool = True) -> Iterator[Path]:
         raise
     finally:
         _DEPTH[0] -= 1
-        with contextlib.suppress(FileNotFoundError):
+        with interrupts.deferred(), contextlib.suppress(FileNotFoundError):
             tmp.unlink()
         _TEMPORARIES.pop(str(tmp), None)
 

@@ -20,6 +20,7 @@ import time
 from collections.abc import Iterator
 from pathlib import Path
 
+from calidar import interrupts
 from calidar.errors import OutputExistsError, OutputWriteError
 
 _HELD: dict[str, list] = {}  #: lock file → [fd, how many holders in this process]
@@ -93,21 +94,41 @@ def hold(destination: str | os.PathLike, shown: str | None = None) -> Iterator[P
     """Hold the lock of ``destination`` for the block (re-entrant in this process); refuse with a
     one-line :class:`OutputExistsError` when another live run holds it."""
     path = lock_path(destination)
+    taken = []
+    try:
+        with interrupts.deferred():  # a signal held back here is raised once the lock is registered
+            _take(path, shown or str(destination))
+            taken.append(path)
+        yield path
+    finally:
+        if taken:
+            _give_back(str(path))
+
+
+def _take(path: Path, shown: str) -> None:
+    """Take (or take again) the lock file ``path``. Callers hold signals back around it and their
+    own record of it (:func:`calidar.interrupts.deferred`), so that a signal cannot fall between the
+    file's creation and its registration: a second Ctrl-C always finds it (:func:`held_paths`)."""
     key = str(path)
     if key in _HELD:
         _HELD[key][1] += 1
-    else:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        _HELD[key] = [_acquire(path, shown or str(destination)), 1]
-    try:
-        yield path
-    finally:
-        entry = _HELD[key]
+        return
+    path.parent.mkdir(parents=True, exist_ok=True)
+    _HELD[key] = [_acquire(path, shown), 1]
+
+
+def _give_back(key: str) -> None:
+    """Release one hold of the lock file ``key``; the last one removes the file, then forgets it (a
+    signal in between would leave a file no one removes)."""
+    with interrupts.deferred():
+        entry = _HELD.get(key)
+        if entry is None:
+            return
         entry[1] -= 1
         if entry[1] == 0:
-            del _HELD[key]
             with contextlib.suppress(FileNotFoundError):
-                path.unlink()
+                Path(key).unlink()
+            del _HELD[key]
             os.close(entry[0])
 
 
@@ -117,24 +138,16 @@ _CLAIMS: list[str] = []  #: lock files claimed for the rest of the run (released
 def claim(destination: str | os.PathLike, shown: str | None = None) -> None:
     """Take the lock of ``destination`` now and keep it until :func:`release_claims` (the CLI calls it
     when the run ends): for a command whose work precedes its output folder (``calidar quality``)."""
-    cm = hold(destination, shown)
-    cm.__enter__()
-    _CLAIMS.append(str(lock_path(destination)))
+    path = lock_path(destination)
+    with interrupts.deferred():
+        _take(path, shown or str(destination))
+        _CLAIMS.append(str(path))
 
 
 def release_claims() -> None:
     """Release what :func:`claim` took (the lock files go when no one in this process holds them)."""
     while _CLAIMS:
-        key = _CLAIMS.pop()
-        entry = _HELD.get(key)
-        if entry is None:
-            continue
-        entry[1] -= 1
-        if entry[1] == 0:
-            del _HELD[key]
-            with contextlib.suppress(FileNotFoundError):
-                Path(key).unlink()
-            os.close(entry[0])
+        _give_back(_CLAIMS.pop())
 
 
 def held_paths() -> list[Path]:

@@ -10,6 +10,7 @@ import os
 import signal
 import subprocess
 import sys
+import tempfile
 
 import pytest
 
@@ -79,3 +80,71 @@ def test_lock_is_reentrant_and_refuses_another_process(tmp_path):
         (out / "x").write_text("x")
         with output_folder(out):
             pass
+
+
+def test_signals_during_a_lock_step_are_held_back_then_acted_upon(tmp_path, monkeypatch):
+    """A signal that falls while a lock file is created or removed is acted upon once the step ends:
+    the first raises Interrupted (the lock file is already registered, so the unwinding removes it);
+    a second one during the clean-up ends the run only after the file is gone."""
+    from calidar.cli import signals
+
+    ended = []
+    monkeypatch.setattr(signals, "end_now", lambda signum: ended.append(signum))
+    old = signal.signal(signal.SIGINT, signals._handler)
+    interrupts.set_delivery(signals._act)
+    real_acquire = run_lock._acquire
+
+    def acquire_then_signal(path, shown):
+        fd = real_acquire(path, shown)
+        os.kill(os.getpid(), signal.SIGINT)  # between the file's creation and its registration
+        for _ in range(10_000):
+            pass
+        return fd
+
+    monkeypatch.setattr(run_lock, "_acquire", acquire_then_signal)
+    out = tmp_path / "out"
+    try:
+        with pytest.raises(interrupts.Interrupted):
+            with run_lock.hold(out):
+                raise AssertionError("the block must not run after the signal")  # pragma: no cover
+        assert list(tmp_path.iterdir()) == [] and run_lock.held_paths() == []
+
+        monkeypatch.setattr(run_lock, "_acquire", real_acquire)
+        real_unlink = type(out).unlink
+
+        def unlink_then_signal(self, *a, **k):
+            os.kill(os.getpid(), signal.SIGINT)  # the second Ctrl-C, while the lock file is removed
+            for _ in range(10_000):
+                pass
+            return real_unlink(self, *a, **k)
+
+        with run_lock.hold(out) as lock:
+            monkeypatch.setattr(type(out), "unlink", unlink_then_signal)
+        monkeypatch.setattr(type(out), "unlink", real_unlink)
+        assert ended == [signal.SIGINT] and not lock.exists() and run_lock.held_paths() == []
+    finally:
+        signal.signal(signal.SIGINT, old)
+
+
+def test_signal_while_the_temporary_folder_is_created_leaves_nothing(tmp_path, monkeypatch):
+    from calidar.cli import signals
+
+    old = signal.signal(signal.SIGINT, signals._handler)
+    interrupts.set_delivery(signals._act)
+    real = tempfile.mkdtemp
+
+    def mkdtemp_then_signal(*a, **k):
+        made = real(*a, **k)
+        os.kill(os.getpid(), signal.SIGINT)  # the folder exists, not yet registered
+        for _ in range(10_000):
+            pass
+        return made
+
+    monkeypatch.setattr(tempfile, "mkdtemp", mkdtemp_then_signal)
+    try:
+        with pytest.raises(interrupts.Interrupted):
+            with output_folder(tmp_path / "out"):
+                raise AssertionError("the block must not run after the signal")  # pragma: no cover
+    finally:
+        signal.signal(signal.SIGINT, old)
+    assert list(tmp_path.iterdir()) == []

@@ -25,12 +25,20 @@ SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
 
 def _handler(signum, frame) -> None:
-    n = interrupts.record(signum)
-    if interrupts.committed():
-        return  # the result is in place: the run ends normally
-    if n == 1:
+    interrupts.record(signum)
+    if interrupts.committed() or interrupts.is_deferred():
+        return  # the result is in place (the run ends normally), or acted upon when the step ends
+    _act()
+
+
+def _act() -> None:
+    """The first signal raises :class:`Interrupted`; a second one ends the run now."""
+    signum = interrupts.pending()
+    if signum is None:
+        return
+    if interrupts.received() == 1:
         raise interrupts.Interrupted(signum)
-    end_now(interrupts.pending() or signum)
+    end_now(signum)
 
 
 def end_now(signum: int) -> None:
@@ -72,6 +80,7 @@ def install() -> None:
     write before the run's own one-line error (``CALIDAR_DEBUG=1`` shows them)."""
     import logging
 
+    interrupts.set_delivery(_act)
     for s in SIGNALS:
         signal.signal(s, _handler)
     sys.unraisablehook = _unraisable
