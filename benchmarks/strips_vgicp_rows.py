@@ -21,9 +21,10 @@ from pathlib import Path
 
 import numpy as np
 
-from calidar.pipelines.boresight import BoresightOptions, load_inputs
+from calidar.pipelines.boresight import load_inputs
 from calidar.sim.survey import simulate_survey, survey_config
-from calidar.strips.calibrate import StripSettings, _Run
+from calidar.strips.calibrate import _Run
+from calidar.strips.config import StripSettings, Vgicp
 from calidar.strips.parameters import sensor_of
 from calidar.strips.pca import eigh3
 from calidar.strips.problem import georeference
@@ -58,10 +59,10 @@ def main() -> None:
     folder = args.out or Path(tempfile.mkdtemp(prefix="calidar_vgicp_rows_")) / "sim"
     if not (folder / "truth.json").exists():
         simulate_survey(cfg).write(folder, force=True)
-    options = BoresightOptions(methods=("vgicp",), truth=folder / "truth.json")
-    inputs = load_inputs(sorted((folder / "strips").glob("*.laz")), folder / "sbet.out", folder / "sensor.toml", options)
+    inputs = load_inputs(sorted((folder / "strips").glob("*.laz")), folder / "sbet.out", folder / "sensor.toml",
+                         truth=folder / "truth.json")
     truth = sensor_of(inputs.nominal, inputs.truth)
-    run = _Run.start(inputs.strips, truth, "vgicp", ["boresight"], StripSettings())
+    run = _Run.start(inputs.strips, truth, Vgicp(), StripSettings())
     at_truth = {i: georeference(truth, None, run.poses[i], run.by_id[i].time[idx]) for i, idx in run.need.items()}
     rows = []  # (spread, wall, residual m, σ m)
     for o in run.overlaps:

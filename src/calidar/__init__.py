@@ -10,7 +10,8 @@ The public API, one name per job (each documented with an example)::
     sensor = calidar.Sensor.read("sensor.toml")
     points = calidar.read_las("strip.laz")
     xyz = calidar.georeference(traj, sensor, time, range_m, angles)
-    run = calidar.calibrate_strips(strips, "sbet.out", "sensor.toml", "out/")
+    run = calidar.calibrate_strips(strips, "sbet.out", "sensor.toml", calidar.StripConfig())
+    run.write("out/")
 
 Names are imported on first use, so ``import calidar`` stays cheap.
 """
@@ -54,7 +55,8 @@ _API = {
     "Sensor": ("calidar.sensor", "Sensor"),
     "georeference": ("calidar.georef", "forward"),
     "inverse_georeference": ("calidar.georef", "inverse"),
-    "calibrate_strips": ("calidar.pipelines.boresight", "run_boresight"),
+    "calibrate_strips": ("calidar.pipelines.boresight", "calibrate_strips"),
+    "StripConfig": ("calidar.pipelines.strip_config", "StripConfig"),
     "calibrate_range": ("calidar.pipelines.rangecal", "run_range_cal"),
     "calibrate_ccr": ("calidar.pipelines.ccr", "run_ccr"),
     "survey_config": ("calidar.sim.survey", "survey_config"),
