@@ -1,10 +1,11 @@
 """The README's Python examples run as written (issue 29): each ```python block, in order, in a folder
 holding the files they name (a small simulated survey: line_001.laz, line_002.laz, sbet.out with its
-smrmsg.out, sensor.toml)."""
+smrmsg.out, sensor.toml); so does the package docstring's (``help(calidar)``)."""
 
 from __future__ import annotations
 
 import re
+import textwrap
 import shutil
 from dataclasses import replace
 from pathlib import Path
@@ -44,3 +45,6 @@ def test_the_readmes_python_examples_run(tmp_path, monkeypatch):
     assert run.sensor.calibration is not None and "boresight_roll_deg" in run.sensor.calibration.sigma
     assert {"solution.json", "config.toml", "report.html", "sensor.toml"} <= {p.name for p in (tmp_path / "cal").iterdir()}
     assert calidar.Sensor.read(tmp_path / "calibrated.toml").calibration.sigma == run.sensor.calibration.sigma
+    package = calidar.__doc__.split("::\n", 1)[1].split("\n\n")[0]  # the package docstring's example
+    exec(compile(textwrap.dedent(package), "calidar/__init__.py", "exec"), {})  # noqa: S102
+    assert (tmp_path / "out" / "solution.json").exists()

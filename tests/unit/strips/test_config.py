@@ -180,3 +180,14 @@ def test_options_given_replace_the_files_settings(tmp_path):
     assert strip_config(path, {"trajectory_model": "off"}).calibration.trajectory is None
     with pytest.raises(InputError, match="--trajectory-model: is off, so --trajectory-sigma"):
         strip_config(path, {"trajectory_model": "off", "trajectory_sigma": "0.03,0.002"})
+
+
+@pytest.mark.parametrize("module", ["calidar.strips.config", "calidar.pipelines.strip_config"])
+def test_the_configurations_examples_run(module, tmp_path, monkeypatch):
+    import doctest
+    import importlib
+    import tempfile
+
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
+    result = doctest.testmod(importlib.import_module(module), optionflags=doctest.ELLIPSIS)
+    assert result.attempted > 0 and result.failed == 0, result
