@@ -30,9 +30,11 @@ import numpy as np
 from scipy.special import chdtri
 
 from calidar.adjust.solver import robust_weights
-from calidar.pipelines.boresight import BoresightOptions, load_inputs
+from calidar.pipelines.boresight import load_inputs
 from calidar.sim.survey import simulate_survey, survey_config
-from calidar.strips.calibrate import StripSettings, _Run
+from calidar.strips.calibrate import _Run
+from calidar.strips.config import StripSettings
+from calidar.strips.matchers import TiePlanes, Vgicp
 from calidar.strips.parameters import sensor_of
 from calidar.strips.pca import eigh3
 from calidar.strips.planes import match_pair_planes
@@ -70,10 +72,10 @@ def main() -> None:
     folder = args.out or Path(tempfile.mkdtemp(prefix="calidar_vgicp_rows_")) / "sim"
     if not (folder / "truth.json").exists():
         simulate_survey(cfg).write(folder, force=True)
-    options = BoresightOptions(methods=(args.method,), truth=folder / "truth.json")
-    inputs = load_inputs(sorted((folder / "strips").glob("*.laz")), folder / "sbet.out", folder / "sensor.toml", options)
+    inputs = load_inputs(sorted((folder / "strips").glob("*.laz")), folder / "sbet.out", folder / "sensor.toml",
+                         truth=folder / "truth.json")
     truth = sensor_of(inputs.nominal, inputs.truth)
-    run = _Run.start(inputs.strips, truth, args.method, ["boresight"], StripSettings())
+    run = _Run.start(inputs.strips, truth, TiePlanes() if args.method == "planes" else Vgicp(), StripSettings())
     at_truth = {i: georeference(truth, None, run.poses[i], run.by_id[i].time[idx]) for i, idx in run.need.items()}
     print(f"{args.preset} seed {args.seed} {args.directions}{' exact trajectory' if exact else ''}, {args.method}: "
           f"{len(run.overlaps)} pairs")

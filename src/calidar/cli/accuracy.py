@@ -42,7 +42,7 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
         """
         from calidar.outputs import output_folder
         from calidar.pipelines.accuracy import AccuracySettings, run_accuracy
-        from calidar.strips.selection import parse_classes
+        from calidar.cli.options import parse_classes
 
         settings = AccuracySettings(crs_option(checkpoints_crs, "--checkpoints-crs"), survey_sigma, radius, max_edge,
                                     target_class, parse_classes(classes)).checked()
