@@ -22,6 +22,11 @@ CONTROL = typer.Option(
     "which the overlaps cannot see, become determinable.")
 CONTROL_CRS = typer.Option(None, "--control-crs", help="CRS of the control points when it is not the strips' "
                            "(e.g. EPSG:32632).")
+CHECKPOINTS = typer.Option(None, "--checkpoints", help="Checkpoints (CSV as calidar accuracy reads it), not in the "
+                           "adjustment: the calibrated strips' NVA against them is a finding of the verdict.")
+CHECKPOINTS_CRS = typer.Option(None, "--checkpoints-crs", help="CRS of the checkpoints when it is not the strips'.")
+TARGET_CLASS = typer.Option(None, "--class", help="With --checkpoints: the ASPRS vertical accuracy class (X cm) the "
+                            "calibrated strips must meet at them; not met: a FAIL verdict (exit 3).")
 
 
 def boresight(
@@ -64,6 +69,8 @@ def boresight(
     trajectory_crs: str | None = TRAJECTORY_CRS, trajectory_angles: str | None = TRAJECTORY_ANGLES,
     trajectory_heading: str | None = TRAJECTORY_HEADING, trajectory_columns: str | None = TRAJECTORY_COLUMNS,
     control: Path | None = CONTROL, control_crs: str | None = CONTROL_CRS,
+    checkpoints: Path | None = CHECKPOINTS, checkpoints_crs: str | None = CHECKPOINTS_CRS,
+    target_class: float | None = TARGET_CLASS,
     strip_points: int = typer.Option(
         BUDGET_POINTS, "--strip-points", help="Points of each strip's overlaps the calibration keeps (whole blocks "
         "spread evenly over them; the strips are streamed, memory and time grow with this, not with the files); "
@@ -75,7 +82,6 @@ def boresight(
     Exit codes: 0 pass or warn, 3 a FAIL verdict (outputs written, not to be used), 1 bad input, 2 usage."""
     from calidar.outputs import check_out_dir, output_folder
     from calidar.pipelines.boresight import BoresightOptions, parse_methods, run_boresight
-    from calidar.provenance import describe_tasks
     from calidar.strips.distribute import check_cluster
     from calidar.strips.parameters import parse_estimate
 
@@ -90,19 +96,40 @@ def boresight(
                                trajectory_input=trajectory_options(trajectory_crs, trajectory_angles, trajectory_heading,
                                                                    trajectory_columns),
                                ingest=IngestOptions(budget_points=strip_points or None), control=control,
-                               control_crs=control_crs)
+                               control_crs=control_crs, checkpoints=checkpoints, checkpoints_crs=checkpoints_crs,
+                               checkpoint_class_cm=checked_class(target_class, checkpoints))
     check_out_dir(out, force)
-    with output_folder(out, force, inputs=[*strips, trajectory, sensor, trajectory_accuracy, truth, control]) as tmp, \
+    with output_folder(out, force, inputs=[*strips, trajectory, sensor, trajectory_accuracy, truth, control,
+                                                   checkpoints]) as tmp, \
             progress_bar() as bar:
         run = run_boresight(strips, trajectory, sensor, tmp, options, progress_callback(bar), shown_out=out)
+    _print_run(run, out, Path(tmp), write_strips)
+    exit_with_verdict(*run.verdicts.values())  # FAIL: exit 3; the outputs are written (to look at), not to be used
+
+
+def _print_run(run, out: Path, tmp: Path, write_strips: bool) -> None:
+    """Each method's verdict and parameters, the Dask tasks, the files written."""
+    from calidar.provenance import describe_tasks
+
     for m, result in run.results.items():
         print_verdict(run.verdicts[m], None if len(run.results) == 1 else m)
         _print(result, run.inputs.truth)
     if run.record.tasks:  # on Dask: what came back over the network
         console.print("Dask tasks — " + describe_tasks(run.record.tasks), markup=False)
-    names = sorted({p.name for p in run.written if p.parent == Path(tmp)})
+    names = sorted({p.name for p in run.written if p.parent == tmp})
     console.print(f"wrote {out}/: {', '.join(names)}" + (" and the recalibrated strips" if write_strips else ""), markup=False)
-    exit_with_verdict(*run.verdicts.values())  # FAIL: exit 3; the outputs are written (to look at), not to be used
+
+
+def checked_class(target_cm: float | None, checkpoints: Path | None) -> float | None:
+    """--class: a class in cm, with --checkpoints."""
+    from calidar.validate import number
+
+    if target_cm is None:
+        return None
+    if checkpoints is None:
+        raise InputError(None, "--class", "given without --checkpoints; expected --checkpoints FILE with it")
+    number(target_cm, "--class", 0.1, 10000.0, "cm")
+    return target_cm
 
 
 def _check_strip_points(n: int) -> None:

@@ -53,6 +53,9 @@ class BoresightOptions:
     ingest: object | None = None
     control: Path | None = None  #: ground control CSV (--control; calidar.pipelines.control)
     control_crs: str | None = None  #: its CRS when it is not the strips' (--control-crs)
+    checkpoints: Path | None = None  #: checkpoint CSV tested after the calibration (--checkpoints; strips/checkpoint_verdict.py)
+    checkpoints_crs: str | None = None  #: its CRS when it is not the strips' (--checkpoints-crs)
+    checkpoint_class_cm: float | None = None  #: the ASPRS class the checkpoints must show (--class)
 
     def to_dict(self) -> dict:
         def plain(v):
@@ -94,6 +97,7 @@ class BoresightInputs:
     estimate_accuracy: bool = False
     truth: dict | None = None  #: truth.json parameters, SI (simulations)
     control: object | None = None  #: calidar.strips.control.ControlPoints in the strips' frame (--control)
+    checkpoints: object | None = None  #: the same of --checkpoints (tested after, not in the adjustment)
     options: BoresightOptions = BoresightOptions()  #: as given (the input options name the reproducing commands)
 
     @property
@@ -105,7 +109,8 @@ class BoresightInputs:
         """Every input file."""
         return [*self.strip_paths, self.trajectory_path, self.sensor_path,
                 *([self.accuracy_path] if self.accuracy_path else []),
-                *([Path(self.options.control)] if self.options.control else [])]
+                *([Path(self.options.control)] if self.options.control else []),
+                *([Path(self.options.checkpoints)] if self.options.checkpoints else [])]
 
 
 def load_strips(paths, trajectory, sensor, options=None, progress: Progress = no_progress):
@@ -203,6 +208,7 @@ def load_inputs(strip_paths, trajectory_path, sensor_path, options: BoresightOpt
     from calidar.strips.parameters import build_parameters, parse_estimate, truth_to_si
     from calidar.validate import read_json
 
+    from calidar.pipelines.control import checked_checkpoints, with_checkpoints
     from calidar.strips.control import check_estimate
 
     check_estimate(parse_estimate(options.estimate), options.control)
@@ -230,6 +236,7 @@ def load_inputs(strip_paths, trajectory_path, sensor_path, options: BoresightOpt
         ingest, notes = replace(ingest, control_ecef=control.ecef), notes + list(control.notes)
     elif options.control_crs is not None:
         raise InputError(None, "--control-crs", "given without --control; expected --control FILE with it")
+    ingest, checkpoints = with_checkpoints(options, strip_paths, nominal, ingest)
     progress("reading strips", 0, 1)
     strips, crs, source, unpaired = ingest_strips(list(strip_paths), traj, nominal, ingest, progress, work)
     inputs = BoresightInputs([Path(p) for p in strip_paths], trajectory_path, sensor_path, nominal, traj, strips, crs,
@@ -238,6 +245,7 @@ def load_inputs(strip_paths, trajectory_path, sensor_path, options: BoresightOpt
         from calidar.pipelines.control import control_points
 
         inputs.control = control_points(control, strips[0].frame)
+    inputs.checkpoints, inputs.notes = checked_checkpoints(checkpoints, strips[0].frame, inputs.notes)
     if accuracy is not None:
         accuracy.check_covers(inputs.spans)
         inputs.estimate_accuracy = estimates_accuracy(accuracy)
@@ -319,6 +327,7 @@ def run_boresight(strip_paths, trajectory_path, sensor_path, out_dir: Path, opti
     from calidar.report import Report
     from calidar.strips.distribute import workers_for
     from calidar.strips.report import add_comparison_section, add_report_section
+    from calidar.strips.checkpoint_verdict import checkpoint_findings
     from calidar.strips.verdict import agreement_finding, strip_verdict
 
     with workers_for(options.scheduler, options.workers) as work:  # one cluster (or thread pool) for every stage
@@ -337,7 +346,7 @@ def run_boresight(strip_paths, trajectory_path, sensor_path, out_dir: Path, opti
     verdicts, written = {}, []
     agree = [agreement_finding(results)] if len(results) > 1 else []  # in both methods' verdicts
     for m, result in results.items():
-        verdicts[m] = strip_verdict(result, quality[m], inputs.notes, others=agree)
+        verdicts[m] = strip_verdict(result, quality[m], inputs.notes, others=agree + checkpoint_findings(inputs, result))
         label = m if len(results) > 1 else None
         report.add_verdict(verdicts[m], " ".join(x for x in (verdict_title, label) if x) or None)
         add_report_section(report, result, inputs.truth, quality[m], accuracy=accuracy_used(inputs, result),
