@@ -20,6 +20,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from numba import njit
 
 from calidar.errors import InputError
 from calidar.io.las import PointOptions
@@ -77,21 +78,18 @@ class CellCounts:
     def __call__(self, path, c: dict) -> None:
         from types import SimpleNamespace
 
-        from calidar.strips.overlap import cell_keys
-
         t = c["gps_time"]
-        sec = np.where(np.isfinite(t), np.floor(np.nan_to_num(t)), 2**32 - 1).astype(np.int64).clip(0, 2**32 - 1)
-        token = (np.asarray(c["point_source_id"], np.int64) << 32) | sec
+        psid = np.asarray(c["point_source_id"], np.int64)
         xyz = self.metric.of(c["xyz"] if "xyz" in c else np.c_[c["x"], c["y"], c["z"]])
-        keys = cell_keys(xyz, self.grid_m)
-        fields = SimpleNamespace(xyz=keys, **{f: c[f] for f in SELECTION_FIELDS})
+        sec, ij = _seconds_cells(t, xyz, float(self.grid_m))  # as cell_keys on the overlap grid
+        fields = SimpleNamespace(xyz=ij, **{f: c[f] for f in SELECTION_FIELDS})
         masks = [selection.mask(fields) for selection in self.candidates[path]]
         for selection, keep in zip(self.candidates[path], masks):
-            tok, tk = token[keep], t[keep]
-            for k in _first_rows(tok):
-                self.time.setdefault(int(tok[k]), float(tk[k]))
+            (tok, keys, n), first = _kept_counts(psid, sec, ij, keep)
+            for k in first:
+                self.time.setdefault(int((psid[k] << 32) | sec[k]), float(t[k]))
             parts = self.parts.setdefault((path, selection), [])
-            parts.append(_token_counts(tok, keys[keep]))
+            parts.append((tok, keys, n))
             if len(parts) >= MERGE_PARTS:
                 parts[:] = [_token_counts(*(np.concatenate(a) for a in zip(*parts)))]
         if self.held is not None:
@@ -150,6 +148,65 @@ def _token_counts(tokens: np.ndarray, keys: np.ndarray, n: np.ndarray | None = N
     n = np.ones(tokens.size, np.int64) if n is None else n[order]
     start = np.flatnonzero(np.r_[True, (tokens[1:] != tokens[:-1]) | (keys[1:] != keys[:-1])])
     return tokens[start], keys[start], np.add.reduceat(n, start)
+
+
+def _kept_counts(psid, sec, ij, keep) -> tuple[tuple, np.ndarray]:
+    """(tokens, keys, counts) of the kept points' distinct (point_source_id << 32 | second, overlap
+    cell), and the row of the first kept point of each token: one numba pass over a dense
+    (id, second, i, j) box when it is small against the points (a chunk's), else sorts."""
+    from calidar.strips.cell_moments import index_keys
+
+    if not keep.any():
+        return (np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0, np.int64)), np.zeros(0, np.int64)
+    lo, span, counts, first, dense = _box_counts(psid, sec, ij, keep)
+    if not dense:
+        rows = np.flatnonzero(keep)
+        tok = (psid[rows] << 32) | sec[rows]
+        keys = (ij[rows, 0] << 32) + (ij[rows, 1] & 0xFFFFFFFF)
+        return _token_counts(tok, keys), rows[_first_rows(tok)]
+    at = np.flatnonzero(counts)
+    p, s, i, j = (c + low for c, low in zip(np.unravel_index(at, tuple(span)), lo))
+    return ((p << 32) | s, index_keys(np.stack([i, j], axis=1)), counts[at]), first[first < keep.size]
+
+
+@njit(cache=True, nogil=True)
+def _seconds_cells(t, xyz, grid):  # pragma: no cover - numba
+    """Per point the whole GPS second (2³² − 1 when not finite; clipped to 0…2³² − 1) and the
+    overlap-grid cell (i, j) = floor(x / grid), floor(y / grid)."""
+    n = t.size
+    sec, ij = np.empty(n, np.int64), np.empty((n, 2), np.int64)
+    for k in range(n):
+        s = np.floor(t[k]) if np.isfinite(t[k]) else 4294967295.0
+        sec[k] = min(max(np.int64(s), 0), 4294967295) if s < 9.2e18 else 4294967295
+        ij[k, 0] = np.int64(np.floor(xyz[k, 0] / grid))
+        ij[k, 1] = np.int64(np.floor(xyz[k, 1] / grid))
+    return sec, ij
+
+
+@njit(cache=True, nogil=True)
+def _box_counts(psid, sec, ij, keep):  # pragma: no cover - numba
+    """Counts over the dense (id, second, i, j) box of the kept points, flattened, and the first
+    kept row of each (id, second); ``dense`` False (nothing counted) when the box is too large."""
+    lo, hi = np.full(4, 9223372036854775807), np.full(4, -9223372036854775807)
+    n_kept = 0
+    for k in range(keep.size):
+        if keep[k]:
+            n_kept += 1
+            for d, v in enumerate((psid[k], sec[k], ij[k, 0], ij[k, 1])):
+                lo[d], hi[d] = min(lo[d], v), max(hi[d], v)
+    span = hi - lo + 1
+    size = 1.0
+    for d in range(4):
+        size *= span[d]
+    if size > 4 * n_kept + 65536:
+        return lo, span, np.zeros(0, np.int64), np.zeros(0, np.int64), False
+    counts, first = np.zeros(np.int64(size), np.int64), np.full(span[0] * span[1], keep.size)
+    for k in range(keep.size):
+        if keep[k]:
+            t = (psid[k] - lo[0]) * span[1] + sec[k] - lo[1]
+            counts[((t * span[2]) + ij[k, 0] - lo[2]) * span[3] + ij[k, 1] - lo[3]] += 1
+            first[t] = min(first[t], k)
+    return lo, span, counts, first, True
 
 
 def _first_rows(tokens: np.ndarray) -> np.ndarray:
