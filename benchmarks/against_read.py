@@ -88,6 +88,7 @@ def main() -> None:
     ap.add_argument("--size", type=float, default=8.75, help="survey size, million points")
     ap.add_argument("--what", default="quality,planes", help="commands: quality, planes, vgicp")
     ap.add_argument("--runs", type=int, default=3)
+    ap.add_argument("--warmup", type=int, default=1, help="unmeasured rounds first (page cache, numba caches)")
     ap.add_argument("--cache", type=Path, default=Path(tempfile.gettempdir()) / "calidar_bench_strips_scale")
     ap.add_argument("--baseline", type=Path, help="another calidar source tree (e.g. main's src/): its runs "
                     "interleaved too, labelled @base")
@@ -102,9 +103,10 @@ def main() -> None:
     print(f"machine: {platform.machine()}, {os.cpu_count()} cores, python {platform.python_version()}; "
           f"NUMBA_NUM_THREADS={os.environ.get('NUMBA_NUM_THREADS')} OMP_NUM_THREADS={os.environ.get('OMP_NUM_THREADS')}; "
           f"{sim.name}", flush=True)
-    run(sim, "read")  # warm-up: the files in the page cache, numba's caches compiled
-    for w in what:
-        run(sim, *_which(w, args.baseline))
+    for _ in range(args.warmup):  # the files in the page cache, numba's caches compiled
+        run(sim, "read")
+        for w in what:
+            run(sim, *_which(w, args.baseline))
     rows: dict[str, list[dict]] = {w: [] for w in ["read", *what]}
     for k in range(args.runs):
         floor = run(sim, "read")
