@@ -19,7 +19,7 @@ import numpy as np
 from calidar.crs import from_crs
 from calidar.io.las import read_las
 from calidar.pipelines.accuracy import measure_accuracy
-from calidar.pipelines.boresight import run_boresight
+from calidar.pipelines.boresight import calibrate_strips
 from calidar.pipelines.georef import regeoreference_strips
 from calidar.sim.checkpoints import data_truth, simulate_checkpoints
 from calidar.sim.survey import simulate_survey, survey_config
@@ -44,7 +44,7 @@ def one(seed: int, tmp: Path) -> list[tuple]:
     cp_xy = res.scene.ecef_to_enu(from_crs(cps.xyz_true, res.crs))[:, :2]
     strips = sorted((sim / "strips").glob("*.laz"))
     (tmp / f"cal{seed}").mkdir()
-    run_boresight(strips, sim / "sbet.out", sim / "sensor.toml", tmp / f"cal{seed}")
+    calibrate_strips(strips, sim / "sbet.out", sim / "sensor.toml").write(tmp / f"cal{seed}")
     (tmp / f"re{seed}").mkdir()
     regeoreference_strips(strips, sim / "sbet.out", sim / "sensor.toml", tmp / f"cal{seed}" / "sensor.toml",
                           tmp / f"re{seed}")

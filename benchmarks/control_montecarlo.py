@@ -40,7 +40,9 @@ SUMMARY = (*NAMES, "vertical")
 
 
 def one(seed: int, estimate: str, n_control: int, height_bias: float) -> dict:
-    from calidar.pipelines.boresight import BoresightOptions, calibrate_inputs, load_inputs
+    from calidar.pipelines.boresight import calibrate_inputs, load_inputs
+    from calidar.pipelines.strip_config import StripConfig
+    from calidar.strips.config import CalibrationConfig, Estimate
     from calidar.sim.checkpoints import simulate_checkpoints
     from calidar.sim.survey import simulate_survey, survey_config
     from calidar.strips.control import vertical_shift
@@ -54,9 +56,10 @@ def one(seed: int, estimate: str, n_control: int, height_bias: float) -> dict:
         cp = simulate_checkpoints(res, n_control, 0.01, seed=seed, vegetated_share=0.0)
         cp.xyz[:, 2] += height_bias
         cp.write(sim)
-        options = BoresightOptions(estimate=estimate, truth=sim / "truth.json", control=sim / "checkpoints.csv")
-        inputs = load_inputs(sorted((sim / "strips").glob("*.laz")), sim / "sbet.out", sim / "sensor.toml", options)
-        result = calibrate_inputs(inputs, options)["planes"]
+        config = StripConfig(CalibrationConfig(Estimate.of(*estimate.split(","))))
+        inputs = load_inputs(sorted((sim / "strips").glob("*.laz")), sim / "sbet.out", sim / "sensor.toml", config,
+                             truth=sim / "truth.json", control=sim / "checkpoints.csv")
+        result = calibrate_inputs(inputs)["planes"]
         sol = result.solution
     finally:
         shutil.rmtree(folder, ignore_errors=True)

@@ -7,7 +7,7 @@ The survey (airborne preset: 6 parallel lines flown in alternate directions + 2 
 lines, boresight errors of a few hundredths of a degree, the preset's 3 cm / 0.002°
 trajectory errors and the smrmsg.out that states them) is simulated once and cached as LAZ +
 SBET + smrmsg under ``--cache`` (not timed). Then the boresight pipeline runs as the command
-does (:func:`calidar.pipelines.boresight.run_boresight`, default options: the trajectory
+does (:func:`calidar.pipelines.boresight.calibrate_strips`, default options: the trajectory
 model on with the smrmsg's σ as priors), timed per stage: read the LAZ strips (two passes:
 footprints, then the overlap points thinned to the budget per strip, from what the first pass kept
 on disk within ``HOLD_POINTS_BYTES``, else streamed again) and build them
@@ -31,7 +31,9 @@ from pathlib import Path
 
 import numpy as np
 
-from calidar.pipelines.boresight import BoresightOptions, run_boresight
+from calidar.pipelines.boresight import calibrate_strips
+from calidar.pipelines.strip_config import StripConfig
+from calidar.strips.config import CalibrationConfig, matchers_named
 from calidar.sim.survey import PRESETS, simulate_survey, survey_config
 
 ERRORS = {"boresight_roll": np.radians(0.03), "boresight_pitch": np.radians(-0.04), "boresight_yaw": np.radians(0.05)}
@@ -80,11 +82,12 @@ def main() -> None:
         first.setdefault(description, now)
         last[description] = now
 
-    options = BoresightOptions(methods=(args.method,), trajectory_model=args.trajectory_model == "on",
-                               truth=sim / "truth.json")
+    cal = CalibrationConfig(matchers=matchers_named(args.method))
+    config = StripConfig(cal if args.trajectory_model == "on" else replace(cal, trajectory=None))
     with tempfile.TemporaryDirectory() as out:
-        run = run_boresight(sorted((sim / "strips").glob("*.laz")), sim / "sbet.out", sim / "sensor.toml", Path(out),
-                            options, progress)
+        run = calibrate_strips(sorted((sim / "strips").glob("*.laz")), sim / "sbet.out", sim / "sensor.toml", config,
+                               truth=sim / "truth.json", progress=progress)
+        run.write(Path(out))
     total = time.perf_counter() - start
     result = run.results[args.method]
     stages = {"read LAZ (2 passes), thin, build strips": last["reading strips"],

@@ -29,13 +29,14 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from strips_montecarlo import ANGLES, ERRORS, seeds_of  # noqa: E402
 
-from calidar.pipelines.boresight import BoresightOptions, calibrate_inputs, load_inputs  # noqa: E402
+from calidar.pipelines.boresight import calibrate_inputs, load_inputs  # noqa: E402
+from calidar.pipelines.strip_config import StripConfig  # noqa: E402
 from calidar.pipelines.strip_source import IngestOptions  # noqa: E402
 from calidar.sim.survey import simulate_survey, survey_config  # noqa: E402
-from calidar.strips.calibrate import StripSettings  # noqa: E402
+from calidar.strips.config import CalibrationConfig, StripSettings, TrajectorySettings, matchers_named  # noqa: E402
 from calidar.strips.parameters import sensor_of  # noqa: E402
 
-TRAJECTORY_SIGMA = "0.03,0.002"  #: the airborne preset's trajectory accuracy (m, deg), the priors
+TRAJECTORY_SIGMA = (0.03, float(np.radians(0.002)))  #: the airborne preset's trajectory accuracy (m, rad), the priors
 
 
 def folder(cache: Path, seed: int, density: float, trajectory_errors: bool) -> Path:
@@ -51,12 +52,13 @@ def folder(cache: Path, seed: int, density: float, trajectory_errors: bool) -> P
 
 def from_truth(f: Path, methods: list[str], every_point: bool) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     """Per method: the angles' move from the truth (deg) and their σ (deg)."""
-    options = BoresightOptions(methods=tuple(methods), truth=f / "truth.json", trajectory_sigma=TRAJECTORY_SIGMA,
-                               ingest=IngestOptions(budget_points=None) if every_point else None,
-                               settings=StripSettings(max_outer=1))
-    inputs = load_inputs(sorted((f / "strips").glob("*.laz")), f / "sbet.out", f / "sensor.toml", options)
+    config = StripConfig(CalibrationConfig(matchers=matchers_named(*methods), trajectory=TrajectorySettings(
+        sigma=TRAJECTORY_SIGMA), solver=StripSettings(max_outer=1)), IngestOptions(budget_points=None if every_point
+                                                                                        else IngestOptions().budget_points))
+    inputs = load_inputs(sorted((f / "strips").glob("*.laz")), f / "sbet.out", f / "sensor.toml", config,
+                         truth=f / "truth.json")
     truth = sensor_of(inputs.nominal, inputs.truth)
-    results = calibrate_inputs(replace(inputs, nominal=truth), options)
+    results = calibrate_inputs(replace(inputs, nominal=truth))
     return {m: (np.degrees([r.solution.values[a] - inputs.truth[a] for a in ANGLES]),
                 np.degrees([r.solution.sigma[a] for a in ANGLES])) for m, r in results.items()}
 

@@ -43,7 +43,9 @@ from scipy.special import chdtri
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from strips import ERRORS  # noqa: E402  (the benchmarks' boresight errors)
 
-from calidar.pipelines.boresight import BoresightOptions, calibrate_inputs, load_inputs  # noqa: E402
+from calidar.pipelines.boresight import calibrate_inputs, load_inputs  # noqa: E402
+from calidar.pipelines.strip_config import StripConfig  # noqa: E402
+from calidar.strips.config import CalibrationConfig, matchers_named  # noqa: E402
 from calidar.sim.survey import simulate_survey, survey_config  # noqa: E402
 
 ANGLES = tuple(ERRORS)
@@ -77,10 +79,11 @@ def survey(seed: int, methods: list[str], vegetation: float, scale: tuple, varia
         folder = simulate_survey(cfg).write(Path(tmp) / f"seed{seed}")
         for source in ("default",) if only_hidden else ("smrmsg", "default") if no_source else ("smrmsg",):
             f = folder if source == "smrmsg" else _hidden_accuracy(folder)
-            options = BoresightOptions(methods=tuple(methods), truth=f / "truth.json")
+            config = StripConfig(CalibrationConfig(matchers=matchers_named(*methods)))
             t = time.perf_counter()
-            inputs = load_inputs(sorted((f / "strips").glob("*.laz")), f / "sbet.out", f / "sensor.toml", options)
-            results = calibrate_inputs(inputs, options)
+            inputs = load_inputs(sorted((f / "strips").glob("*.laz")), f / "sbet.out", f / "sensor.toml", config,
+                                 truth=f / "truth.json")
+            results = calibrate_inputs(inputs)
             seconds = time.perf_counter() - t  # reading and every method's calibration
             for method, result in results.items():
                 sol = result.solution

@@ -65,7 +65,9 @@ def child(sim: Path, what: str, budget: str) -> None:
     outputs into a temporary folder); "quality": ``calidar quality`` of the strips."""
     import tempfile
 
-    from calidar.pipelines.boresight import BoresightOptions, run_boresight
+    from calidar.pipelines.boresight import calibrate_strips
+    from calidar.pipelines.strip_config import StripConfig
+    from calidar.strips.config import CalibrationConfig, matchers_named
     from calidar.pipelines.quality import measure
     from calidar.pipelines.strip_source import IngestOptions
 
@@ -77,11 +79,12 @@ def child(sim: Path, what: str, budget: str) -> None:
         return
     stamps = {}
     ingest = IngestOptions(budget_points=None if budget == "off" else int(budget))
-    options = BoresightOptions(methods=(what,), truth=sim / "truth.json", ingest=ingest)
+    config = StripConfig(CalibrationConfig(matchers=matchers_named(what)), ingest)
     with tempfile.TemporaryDirectory() as out:
-        run = run_boresight(strips, sim / "sbet.out", sim / "sensor.toml", Path(out), options,
-                            lambda d, done, total: stamps.__setitem__(d.split(":")[0].split(" (")[0],
-                                                                      time.perf_counter() - t0))
+        run = calibrate_strips(strips, sim / "sbet.out", sim / "sensor.toml", config, truth=sim / "truth.json",
+                               progress=lambda d, done, total: stamps.__setitem__(d.split(":")[0].split(" (")[0],
+                                                                                  time.perf_counter() - t0))
+        run.write(Path(out))
     sol, inputs = run.results[what].solution, run.inputs
     print(json.dumps({"points": sum(inputs.source.counts.values()), "kept": sum(len(s) for s in inputs.strips),
                       "ingest_s": stamps["reading strips"], "calibrate_s": stamps["calibrating"] - stamps["reading strips"],

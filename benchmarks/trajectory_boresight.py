@@ -23,7 +23,9 @@ from pathlib import Path
 
 import numpy as np
 
-from calidar.pipelines.boresight import BoresightOptions, run_boresight
+from calidar.pipelines.boresight import calibrate_strips
+from calidar.pipelines.strip_config import StripConfig
+from calidar.strips.config import CalibrationConfig, TrajectorySettings
 from calidar.pipelines.trajectory import reconstruct_trajectory, write_outputs
 from calidar.sensor import Sensor
 from calidar.sim.survey import simulate_survey, survey_config
@@ -66,13 +68,14 @@ def one(seed: int, preset: str, density: float, folder: Path) -> dict:
     # that path's navigation error, which points cannot know: the reconstructed run is given the survey's
     # navigation grade (the simulator's GNSS σ and attitude σ), as a user would give their system's
     cfg = survey_config(preset)
-    grade = f"{cfg.gnss_noise_m:g},{np.degrees(cfg.attitude_noise_rad):g}"
+    grade = StripConfig(CalibrationConfig(trajectory=TrajectorySettings(sigma=(cfg.gnss_noise_m, cfg.attitude_noise_rad))))
     for name, traj, sensor, opts in (
-            ("true", sim / "sbet.out", sim / "sensor.toml", BoresightOptions()),
+            ("true", sim / "sbet.out", sim / "sensor.toml", StripConfig()),
             ("reconstructed", sim / "rec" / "traj.csv", sim / "rec" / "sensor.toml",
-             BoresightOptions(trajectory_sigma=grade))):
+             grade)):
         dest = Path(tempfile.mkdtemp(dir=folder)) / name
-        run = run_boresight(strips, traj, sensor, dest, opts)
+        run = calibrate_strips(strips, traj, sensor, opts)
+        run.write(dest)
         out[name] = {**_quality(run), "boresight_error_deg": _boresight_error_deg(run, truth),
                      "verdict": run.verdicts["planes"].status}
     return {"seed": seed, "preset": preset, "density": density, **out,

@@ -8,9 +8,9 @@ The public API, one name per job (each documented with an example)::
     import calidar
     traj = calidar.read_trajectory("sbet.out")        # SBET, ASCII/CSV or Optech CSD
     sensor = calidar.Sensor.read("sensor.toml")
-    points = calidar.read_las("strip.laz")
-    xyz = calidar.georeference(traj, sensor, time, range_m, angles)
-    run = calidar.calibrate_strips(strips, "sbet.out", "sensor.toml", "out/")
+    points = calidar.read_las("line_001.laz")
+    run = calidar.calibrate_strips(["line_001.laz", "line_002.laz"], "sbet.out", "sensor.toml", calidar.StripConfig())
+    run.write("out/")                                  # solution.json, sensor.toml, config.toml, report.html
 
 Names are imported on first use, so ``import calidar`` stays cheap.
 """
@@ -54,7 +54,8 @@ _API = {
     "Sensor": ("calidar.sensor", "Sensor"),
     "georeference": ("calidar.georef", "forward"),
     "inverse_georeference": ("calidar.georef", "inverse"),
-    "calibrate_strips": ("calidar.pipelines.boresight", "run_boresight"),
+    "calibrate_strips": ("calidar.pipelines.boresight", "calibrate_strips"),
+    "StripConfig": ("calidar.pipelines.strip_config", "StripConfig"),
     "calibrate_range": ("calidar.pipelines.rangecal", "run_range_cal"),
     "calibrate_ccr": ("calidar.pipelines.ccr", "run_ccr"),
     "survey_config": ("calidar.sim.survey", "survey_config"),

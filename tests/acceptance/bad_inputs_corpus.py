@@ -205,6 +205,23 @@ def _texts(bad: Path) -> None:
     (bad / "truth_latin1.json").write_bytes('{"note": "vérité"}'.encode("latin-1"))
     (bad / "truth_notjson.json").write_text("{not json")
     (bad / "truth_list.json").write_text("[1, 2]\n")
+    configs = {  # calidar boresight --config files, each wrong in one key
+        "config_unknown.toml": 'estimate = ["boresight"]\n\n[solver]\nmax_outer = 8\nwobble = 1\n',
+        "config_unknown_section.toml": '[trajectory]\nblock_s = 1.0\n',
+        "config_type.toml": '[trajectory_model]\nblock_s = "one"\n',
+        "config_estimate.toml": 'estimate = ["boresight", "everything"]\n',
+        "config_estimate_text.toml": 'estimate = "boresight"\n',
+        "config_method.toml": 'method = ["icp"]\n',
+        "config_sigma.toml": '[trajectory_model]\nsigma = [0.03]\n',
+        "config_block.toml": '[trajectory_model]\nblock_s = -1.0\n',
+        "config_off.toml": '[trajectory_model]\non = false\nsigma = [0.03, 0.002]\n',
+        "config_vgicp.toml": 'method = ["vgicp"]\n\n[vgicp]\nvoxel_m = [8.0, -2.0]\n',
+        "config_crs.toml": '[inputs]\ncrs = "EPSG:999999"\n',
+        "config_strip_points.toml": '[ingest]\nstrip_points = 1.5\n',
+        "config_not_toml.toml": 'estimate = [boresight\n',
+    }
+    for name, text in configs.items():
+        (bad / name).write_text(text)
     (bad / "leeward_latin1.toml").write_bytes("# étalonnage\nutm_zone = 11\n".encode("latin-1"))
     (bad / "leeward_nan.toml").write_text("utm_zone = 11\nlever_arm = [0, 0, 0]\n\n[boresight]\nroll = nan\n"
                                           "pitch = 0\nyaw = 0\n")

@@ -106,6 +106,42 @@ OPTIONS = [
     case(["--trajectory-model", "off", "--trajectory-sigma", "0.03,0.002"], "--trajectory-model", id="model-off-sigma"),
     case(["--method", "icp"], "--method", id="method"),
     case(["--estimate", "everything"], "--estimate", id="estimate"),
+    case(["--estimate", "boresight,trajectory_bias", "--trajectory-model", "off"], "--estimate", "trajectory_bias",
+         id="estimate-trajectory-bias-model-off"),
+    case(["--strip-points", "5"], "--strip-points", id="strip-points-5"),
+    case(["--control-crs", "EPSG:32632"], "--control-crs", "without --control", id="control-crs-alone"),
+    case(["--control-crs", "EPSG:999999", "--control", "{S}/sbet.out"], "--control-crs", id="control-crs-unknown"),
+    case(["--crs", "EPSG:999999"], "--crs", id="crs-unknown"),
+    case(["--time-system", "fortnight"], "--time-system", id="time-system"),
+    case(["--geoid-undulation", "nan"], "--geoid-undulation", id="geoid-undulation-nan"),
+    case(["--trajectory-crs", "EPSG:999999"], "--trajectory-crs", id="trajectory-crs-unknown"),
+    case(["--trajectory-angles", "grad"], "--trajectory-angles", id="trajectory-angles"),
+    case(["--trajectory-heading", "magnetic"], "--trajectory-heading", id="trajectory-heading"),
+    case(["--trajectory-columns", "time,lat"], "sbet.out", "--trajectory-columns", id="trajectory-columns-of-an-sbet"),
+    case(["--scheduler", "::::"], "--scheduler", id="scheduler-address"),
+    case(["--control", "{B}/missing.csv"], "missing.csv", id="control-missing"),
+    case(["--config", "{B}/missing.toml"], "missing.toml", id="config-missing"),
+    case(["--config", "{B}/config_unknown.toml"], "config_unknown.toml", "solver.wobble", "unknown key",
+         id="config-unknown-key"),
+    case(["--config", "{B}/config_unknown_section.toml"], "config_unknown_section.toml", "trajectory", "unknown key",
+         id="config-unknown-section"),
+    case(["--config", "{B}/config_type.toml"], "config_type.toml", "trajectory_model.block_s", "expected float",
+         id="config-wrong-type"),
+    case(["--config", "{B}/config_estimate.toml"], "config_estimate.toml", "estimate", "everything",
+         id="config-estimate"),
+    case(["--config", "{B}/config_estimate_text.toml"], "config_estimate_text.toml", "estimate", "list",
+         id="config-estimate-not-a-list"),
+    case(["--config", "{B}/config_method.toml"], "config_method.toml", "method", "icp", id="config-method"),
+    case(["--config", "{B}/config_sigma.toml"], "config_sigma.toml", "trajectory_model.sigma", id="config-sigma"),
+    case(["--config", "{B}/config_block.toml"], "config_block.toml", "trajectory_model", "--trajectory-block",
+         id="config-block-negative"),
+    case(["--config", "{B}/config_off.toml"], "config_off.toml", "trajectory_model.sigma", id="config-model-off-sigma"),
+    case(["--config", "{B}/config_vgicp.toml"], "config_vgicp.toml", "vgicp", "voxel_m", id="config-vgicp-voxel"),
+    case(["--config", "{B}/config_crs.toml"], "config_crs.toml", "inputs.crs", id="config-crs"),
+    case(["--config", "{B}/config_strip_points.toml"], "config_strip_points.toml", "ingest.strip_points",
+         id="config-strip-points"),
+    case(["--config", "{B}/config_not_toml.toml"], "config_not_toml.toml", "TOML", id="config-not-toml"),
+    case(["--config", "{B}/truth_latin1.json"], "truth_latin1.json", "UTF-8", id="config-not-utf8"),
     case(["--workers", "0"], "--workers", id="workers-0"),
     case(["--workers", "-3"], "--workers", id="workers-negative"),
     case(["--workers", "100000"], "--workers", id="workers-huge"),
@@ -129,6 +165,23 @@ STRIP_CASES = [
     case([S1], "line_001.laz", id="one-strip"),
     case(["{B}/geoid.laz"], "geoid.laz", "us_nga_egm08_25.tif", id="geoid-without-grid"),
 ]
+
+
+#: options a user cannot give wrongly (flags) or covered by the tests below
+NOT_IN_CORPUS = {"--force", "--write-strips", "--help"}
+
+
+def test_every_boresight_option_is_in_the_corpus():
+    """Each of ``calidar boresight``'s options has a bad-input case here."""
+    import typer.main
+
+    from calidar.cli import app
+
+    command = typer.main.get_command(app).commands["boresight"]
+    options = {o for p in command.params for o in p.opts if o.startswith("--")}
+    given = {a for c in TRAJECTORY + OPTIONS for a in c.values[0] if isinstance(a, str) and a.startswith("--")}
+    given |= {"--out", "--trajectory", "--sensor"}  # test_boresight_never_writes_over_its_inputs, TRAJECTORY, USAGE
+    assert options - given - NOT_IN_CORPUS == set()
 
 
 def _boresight(extra, strips=STRIPS):

@@ -15,7 +15,9 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from calidar.pipelines.boresight import BoresightOptions, run_boresight
+from calidar.pipelines.boresight import calibrate_strips
+from calidar.pipelines.strip_config import StripConfig
+from calidar.strips.config import CalibrationConfig, Estimate
 from calidar.sim.checkpoints import simulate_checkpoints
 from calidar.sim.survey import simulate_survey, survey_config
 
@@ -33,9 +35,11 @@ def sim(tmp_path_factory):
 
 
 def _run(sim, out, estimate, control):
-    return run_boresight(sorted((sim / "strips").glob("*.laz")), sim / "sbet.out", sim / "sensor.toml", out,
-                         BoresightOptions(estimate=estimate, truth=sim / "truth.json",
-                                          control=sim / "checkpoints.csv" if control else None))
+    run = calibrate_strips(sorted((sim / "strips").glob("*.laz")), sim / "sbet.out", sim / "sensor.toml",
+                           StripConfig(CalibrationConfig(Estimate.of(*estimate.split(",")))), truth=sim / "truth.json",
+                           control=sim / "checkpoints.csv" if control else None)
+    run.write(out)
+    return run
 
 
 def _finding(verdict, check):
@@ -96,9 +100,9 @@ def test_a_vertical_trajectory_bias_and_the_range_offset_are_found_within_two_si
 
     cp = read_checkpoints(sim / "checkpoints.csv")
     raised = write_checkpoints(tmp_path / "control.csv", cp.ids, cp.xyz + [0.0, 0.0, 0.04], cp.vegetated, cp.sigma_m)
-    run = run_boresight(sorted((sim / "strips").glob("*.laz")), sim / "sbet.out", sim / "sensor.toml", tmp_path / "out",
-                        BoresightOptions(estimate="boresight,range_offset,height_bias", truth=sim / "truth.json",
-                                         control=raised))
+    config = StripConfig(CalibrationConfig(Estimate.of("boresight", "range_offset", "height_bias")))
+    run = calibrate_strips(sorted((sim / "strips").glob("*.laz")), sim / "sbet.out", sim / "sensor.toml", config,
+                           truth=sim / "truth.json", control=raised)
     sol = run.results["planes"].solution
     for name, truth in (("range_offset", RANGE_OFFSET), ("height_bias", 0.04)):  # the strips raised by 4 cm
         err = sol.values[name] - truth

@@ -9,7 +9,8 @@ import pytest
 
 from calidar.errors import CalibrationError, InputError
 from calidar.strips.distribute import cluster_client, map_pairs
-from calidar.strips.calibrate import StripSettings, calibrate
+from calidar.strips.calibrate import calibrate
+from calidar.strips.config import CalibrationConfig, StripSettings, Vgicp
 from calidar.strips.vgicp import VgicpSettings, match_pair_vgicp
 
 from test_strips_sim import _simulate
@@ -58,9 +59,9 @@ def test_vgicp_correspondences_identical_on_a_local_cluster(client):
 def test_calibration_identical_in_process_and_on_a_local_cluster():
     res = _simulate("uav", "cross", 0.05)
     strips = res.calibration_strips()
-    settings = StripSettings(threshold_m=1e-3, max_outer=3)
-    local = calibrate(strips, res.nominal, method="vgicp", settings=settings)
-    remote = calibrate(strips, res.nominal, method="vgicp", settings=settings, workers=2)  # its own cluster
+    config = CalibrationConfig(matchers=(Vgicp(),), solver=StripSettings(threshold_m=1e-3, max_outer=3))
+    local = calibrate(strips, res.nominal, config)
+    remote = calibrate(strips, res.nominal, config, workers=2)  # its own cluster
     assert local.pairs == remote.pairs and len(local.pairs) >= 4
     for name, value in local.solution.values.items():
         assert abs(remote.solution.values[name] - value) < 1e-9, name
@@ -108,13 +109,16 @@ def test_cli_boresight_vgicp_with_local_workers(cli, tmp_path):
 def test_boresight_on_a_local_cluster_equals_in_process_and_reports_what_tasks_sent_back(tmp_path):
     """Every file read (footprints, kept points), pair match and overlap-quality read is a task on
     the cluster; the solution and quality stages equal the in-process run's to 1e-9."""
-    from calidar.pipelines.boresight import BoresightOptions, run_boresight
+    from calidar.pipelines.boresight import calibrate_strips
+    from calidar.pipelines.strip_config import StripConfig
+    from calidar.strips.config import TrajectorySettings
 
     sim = _simulate("uav", "cross", 0.05).write(tmp_path / "sim")
     strips = sorted((sim / "strips").glob("*.laz"))
-    runs = {w: run_boresight(strips, sim / "sbet.out", sim / "sensor.toml", tmp_path / f"cal{w}",
-                             BoresightOptions(workers=w, trajectory_sigma="0.02,0.002", trajectory_block_s=2.0))
-            for w in (None, 2)}
+    config = StripConfig(CalibrationConfig(trajectory=TrajectorySettings(2.0, sigma=(0.02, np.radians(0.002)))))
+    runs = {w: calibrate_strips(strips, sim / "sbet.out", sim / "sensor.toml", config, workers=w) for w in (None, 2)}
+    for w, run in runs.items():
+        run.write(tmp_path / f"cal{w}")
     here, there = (r.results["planes"].solution for r in runs.values())
     assert here.values.keys() == there.values.keys()
     assert max(abs(here.values[k] - there.values[k]) for k in here.values) < 1e-9

@@ -45,7 +45,7 @@ def test_projected_text_trajectory_calibrates_like_the_sbet(tmp_path):
     solutions = {}
     for name, traj in (("sbet", sbet), ("text", text)):
         strips, _ = load_strips(paths, traj, nominal)
-        solutions[name] = calibrate(strips, nominal, method="planes", estimate=["boresight"]).solution
+        solutions[name] = calibrate(strips, nominal).solution  # planes, the boresight
     truth = res.truth.parameters()
     for k in ERRORS:
         a, b = solutions["sbet"], solutions["text"]

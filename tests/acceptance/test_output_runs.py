@@ -18,7 +18,7 @@ import pytest
 from calidar import outputs, run_lock
 
 ENV = {**os.environ, "NUMBA_NUM_THREADS": "1", "OMP_NUM_THREADS": "1"}
-BORESIGHT_FILES = {"report.html", "sbet_corrected.out", "sensor.toml", "solution.json"}
+BORESIGHT_FILES = {"config.toml", "report.html", "sbet_corrected.out", "sensor.toml", "solution.json"}
 
 
 def _boresight(corpus, out, strips=None, *extra):

@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 
 from calidar.sim.survey import simulate_survey, survey_config
-from calidar.strips.calibrate import StripSettings, calibrate
+from calidar.strips.calibrate import calibrate
+from calidar.strips.config import CalibrationConfig, Estimate, TiePlanes, Vgicp
 from calidar.strips.trajectory_errors import TrajectoryModel
 
 BORESIGHT_ERRORS = {"boresight_roll": np.radians(0.03), "boresight_pitch": np.radians(-0.04),
@@ -187,14 +188,19 @@ def test_inputs_not_covering_the_strips_and_outputs_over_inputs_are_clear_errors
 #: (the CLI's defaults; see docs/validation.md for the attitude's 3.5 s)
 AIRBORNE_TRAJECTORY = TrajectoryModel(block_s=1.0, position_sigma_m=0.03, attitude_sigma_rad=np.radians(0.002),
                                       correlation_s=20.0, attitude_correlation_s=3.5)
-METHODS = {"planes": 2e-4, "vgicp": 1e-3}  #: outer-loop thresholds (m): VGICP's re-matching moves ~0.1 mm
+METHODS = {"planes": TiePlanes(threshold_m=2e-4), "vgicp": Vgicp(threshold_m=1e-3)}  #: VGICP's re-matching moves ~0.1 mm
 
 
 def _both_methods(res, estimate, model):
     """The calibration of one simulated survey by each method (the survey simulated once)."""
     strips = res.calibration_strips()
-    return {m: calibrate(strips, res.nominal, method=m, estimate=estimate,
-                         settings=StripSettings(threshold_m=t, trajectory=model)) for m, t in METHODS.items()}
+    return {m: calibrate(strips, res.nominal, _config(estimate), matcher=matcher, trajectory=model)
+            for m, matcher in METHODS.items()}
+
+
+def _config(estimate: str, **kw) -> CalibrationConfig:
+    """The calibration of the groups ``estimate`` names ('boresight,lever_arm'; trajectory_bias: the model's)."""
+    return CalibrationConfig(Estimate.of(*[n for n in estimate.split(",") if n != "trajectory_bias"]), **kw)
 
 
 @pytest.mark.slow
@@ -250,11 +256,11 @@ def test_uav_lever_arm_within_1_cm():
     res = uav_lever_arm_survey()
     strips = res.calibration_strips()
     truth = res.truth.parameters()
-    sol = calibrate(strips, res.nominal, estimate="lever_arm_x,lever_arm_y").solution
+    sol = calibrate(strips, res.nominal, _config("lever_arm_x,lever_arm_y")).solution
     for name in ("lever_arm_x", "lever_arm_y"):
         err = sol.values[name] - truth[name]
         assert abs(err) < 0.01 and abs(err) < 3 * sol.sigma[name], (name, err, sol.sigma[name])
-    both = calibrate(strips, res.nominal, estimate="boresight,lever_arm").solution
+    both = calibrate(strips, res.nominal, _config("boresight,lever_arm")).solution
     assert any(w.startswith("lever_arm_z is determined only through attitude changes") for w in both.warnings)
     assert any("boresight_pitch and lever_arm_x are strongly correlated" in w for w in both.warnings)
     for name in ("lever_arm_x", "lever_arm_y"):

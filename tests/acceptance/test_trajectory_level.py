@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from calidar.sim.survey import simulate_survey, survey_config
-from calidar.strips.calibrate import StripSettings, calibrate
+from calidar.strips.calibrate import calibrate
 from calidar.strips.trajectory_errors import TrajectoryModel
 from calidar.trajectory_accuracy import SURVEY_GRADE
 
@@ -28,9 +28,7 @@ def _survey(gnss_m: float, attitude_deg: float, seed: int = 3):
 
 def _calibrate(gnss_m: float, attitude_deg: float, model=MODEL, seed: int = 3):
     res = _survey(gnss_m, attitude_deg, seed)
-    estimate = "boresight,trajectory_bias" if model is not None else "boresight"
-    out = calibrate(res.calibration_strips(), res.nominal, estimate=estimate,
-                    settings=StripSettings(trajectory=model or TrajectoryModel()))
+    out = calibrate(res.calibration_strips(), res.nominal, trajectory=model)
     return res, out
 
 

@@ -204,12 +204,13 @@ def test_too_few_correspondences_is_refused():
 
 # ---- the calibration with VGICP correspondences against the survey simulator's truth ----
 
-from calidar.strips.calibrate import StripSettings, calibrate  # noqa: E402
+from calidar.strips.calibrate import calibrate  # noqa: E402
+from calidar.strips.config import CalibrationConfig, Estimate, StripSettings, Vgicp  # noqa: E402
 from calidar.sim.survey import simulate_survey, survey_config  # noqa: E402
 from calidar.strips.trajectory_errors import TrajectoryModel  # noqa: E402
 from test_strips_sim import ANGLES, _check_angles, _simulate, uav_lever_arm_survey  # noqa: E402  (issue 4's surveys)
 
-VGICP = StripSettings(threshold_m=1e-3)  #: re-matching moves the mean distance by ~0.1 mm: stop at 1 mm
+VGICP = CalibrationConfig(matchers=(Vgicp(threshold_m=1e-3),))  #: re-matching moves the mean distance by ~0.1 mm: stop at 1 mm
 
 
 @pytest.fixture(scope="module")
@@ -220,18 +221,18 @@ def airborne():
 
 def test_airborne_cross_lines_boresight(airborne):
     res, strips = airborne
-    result = calibrate(strips, res.nominal, method="vgicp", settings=VGICP)
+    result = calibrate(strips, res.nominal, VGICP)
     _check_angles(result.solution, res.truth.parameters())
     assert result.method == "vgicp" and len(result.pairs) >= 10
     assert all(p["n_obs"] >= VgicpSettings().min_pairs for p in result.pairs)
     mean = [o["mean_distance_m"] for o in result.outer]
-    assert mean[-1] < 0.1 and abs(mean[-1] - mean[-2]) < VGICP.threshold_m  # converged
+    assert mean[-1] < 0.1 and abs(mean[-1] - mean[-2]) < VGICP.matchers[0].threshold_m  # converged
 
 
 def test_start_half_a_degree_from_the_truth_converges(airborne):
     res, strips = airborne
     far = res.nominal.with_parameters(**{n: res.truth.parameters()[n] + np.radians(0.5) for n in ANGLES})
-    result = calibrate(strips, far, method="vgicp", settings=VGICP)
+    result = calibrate(strips, far, VGICP)
     _check_angles(result.solution, res.truth.parameters())
     assert result.outer[0]["mean_distance_m"] > result.outer[-1]["mean_distance_m"]
 
@@ -247,22 +248,22 @@ def test_pairs_without_enough_overlap_are_skipped_by_name(airborne):
                                                         cell)[:2]) for o in overlaps])
     gap = np.argmax(sizes[1:] / sizes[:-1])  # a limit in the widest gap: the pairs below it fall short
     limit = int(np.sqrt(sizes[gap] * sizes[gap + 1]))
-    settings = StripSettings(threshold_m=1e-3, max_outer=2, vgicp=VgicpSettings(min_overlap_points=limit))
-    result = calibrate(strips, res.nominal, method="vgicp", settings=settings)
+    config = CalibrationConfig(matchers=(Vgicp(VgicpSettings(min_overlap_points=limit)),), solver=StripSettings(max_outer=2))
+    result = calibrate(strips, res.nominal, config)
     warning = next(w for w in result.warnings if w.startswith("strip pairs skipped"))
     used = {(p["a"], p["b"]) for p in result.pairs}
     named = {(o.a, o.b) for o in overlaps if f"{o.a}–{o.b}: too little overlap for VGICP" in warning}
     assert used and named and used.isdisjoint(named)
     assert used | named == {(o.a, o.b) for o in overlaps}, warning  # every pair is used or skipped by name
-    none = StripSettings(vgicp=VgicpSettings(min_overlap_points=10**9))
+    none = CalibrationConfig(matchers=(Vgicp(VgicpSettings(min_overlap_points=10**9)),))
     with pytest.raises(CalibrationError, match="no usable strip pair: .*too little overlap for VGICP"):
-        calibrate(strips, res.nominal, method="vgicp", settings=none)
+        calibrate(strips, res.nominal, none)
 
 
 @pytest.mark.slow
 def test_airborne_with_30_percent_vegetation():
     res = _simulate("airborne", "cross", 0.3, vegetation=0.3)
-    result = calibrate(res.calibration_strips(), res.nominal, method="vgicp", settings=VGICP)
+    result = calibrate(res.calibration_strips(), res.nominal, VGICP)
     _check_angles(result.solution, res.truth.parameters())
 
 
@@ -273,8 +274,8 @@ def test_uav_lever_arm():
     res = uav_lever_arm_survey()
     truth = res.truth.parameters()
     model = TrajectoryModel(block_s=2.0, position_sigma_m=0.005, correlation_s=20.0)
-    sol = calibrate(res.calibration_strips(), res.nominal, method="vgicp", estimate="lever_arm_x,lever_arm_y,trajectory_bias",
-                    settings=replace(VGICP, trajectory=model)).solution
+    sol = calibrate(res.calibration_strips(), res.nominal, replace(VGICP, estimate=Estimate.of("lever_arm_x", "lever_arm_y")),
+                    trajectory=model).solution
     for name in ("lever_arm_x", "lever_arm_y"):
         err = sol.values[name] - truth[name]
         assert abs(err) < 0.01 and abs(err) < 3 * sol.sigma[name], (name, err, sol.sigma[name])

@@ -9,22 +9,27 @@ import typer
 from calidar.cli.common import FORCE_HELP, console, exit_with_verdict, print_verdict, print_warning, progress_bar, progress_callback
 from calidar.cli.options import (
     CRS, GEOID_UNDULATION, TIME_SYSTEM, TRAJECTORY_ANGLES, TRAJECTORY_COLUMNS, TRAJECTORY_CRS, TRAJECTORY_HEADING,
-    point_options, trajectory_options,
 )
-from calidar.errors import InputError
-from calidar.pipelines.boresight import TRAJECTORY_BLOCK_S, TRAJECTORY_CORRELATION
-from calidar.pipelines.strip_source import BUDGET_POINTS, MIN_BUDGET_POINTS, IngestOptions
+from calidar.pipelines.strip_source import BUDGET_POINTS
 from calidar.strips.trajectory_errors import PREFIX as TRAJECTORY_PREFIX
 
+#: the trajectory model's defaults as the options show them (those of calidar.strips.config.TrajectorySettings)
+TRAJECTORY_BLOCK_S, TRAJECTORY_CORRELATION = 1.0, "20,3.5"
 CONTROL = typer.Option(
     None, "--control", help="Ground control points (CSV: id, x, y, z, sigma; land cover optional, vegetated ones left "
     "out) observed in the adjustment with their σ: range offset, vertical lever arm and a vertical trajectory bias, "
     "which the overlaps cannot see, become determinable.")
 CONTROL_CRS = typer.Option(None, "--control-crs", help="CRS of the control points when it is not the strips' "
                            "(e.g. EPSG:32632).")
+CHECKPOINTS = typer.Option(None, "--checkpoints", help="Checkpoints (CSV as calidar accuracy reads it), not in the "
+                           "adjustment: the calibrated strips' NVA against them is a finding of the verdict.")
+CHECKPOINTS_CRS = typer.Option(None, "--checkpoints-crs", help="CRS of the checkpoints when it is not the strips'.")
+TARGET_CLASS = typer.Option(None, "--class", help="With --checkpoints: the ASPRS vertical accuracy class (X cm) the "
+                            "calibrated strips must meet at them; not met: a FAIL verdict (exit 3).")
 
 
 def boresight(
+    ctx: typer.Context,
     strips: list[Path] = typer.Argument(..., help="LAS/LAZ strips (flight lines from point_source_id or time gaps)."),
     trajectory: Path = typer.Option(..., "--trajectory", help="Trajectory: SBET or text."),
     sensor: Path = typer.Option(..., "--sensor", help="Nominal sensor.toml the strips were georeferenced with."),
@@ -64,51 +69,45 @@ def boresight(
     trajectory_crs: str | None = TRAJECTORY_CRS, trajectory_angles: str | None = TRAJECTORY_ANGLES,
     trajectory_heading: str | None = TRAJECTORY_HEADING, trajectory_columns: str | None = TRAJECTORY_COLUMNS,
     control: Path | None = CONTROL, control_crs: str | None = CONTROL_CRS,
+    checkpoints: Path | None = CHECKPOINTS, checkpoints_crs: str | None = CHECKPOINTS_CRS,
+    target_class: float | None = TARGET_CLASS,
     strip_points: int = typer.Option(
         BUDGET_POINTS, "--strip-points", help="Points of each strip's overlaps the calibration keeps (whole blocks "
         "spread evenly over them; the strips are streamed, memory and time grow with this, not with the files); "
         "0: every overlapping point."),
+    config: Path | None = typer.Option(
+        None, "--config", help="A configuration file (TOML, as the config.toml every run writes beside its results): "
+        "its settings replace the defaults, options given on the command line replace its settings."),
 ) -> None:
     """Calibrate the mounting (and more) from overlapping strips; writes solution.json, sensor.toml,
     sbet_corrected.out (the trajectory with its estimated corrections) and report.html.
 
     Exit codes: 0 pass or warn, 3 a FAIL verdict (outputs written, not to be used), 1 bad input, 2 usage."""
+    from calidar.cli.boresight_config import strip_config
     from calidar.outputs import check_out_dir, output_folder
-    from calidar.pipelines.boresight import BoresightOptions, parse_methods, run_boresight
+    from calidar.pipelines.boresight import calibrate_strips
+    from calidar.pipelines.boresight_outputs import write_run
     from calidar.provenance import describe_tasks
     from calidar.strips.distribute import check_cluster
-    from calidar.strips.parameters import parse_estimate
 
-    if trajectory_model not in ("on", "off"):
-        raise InputError(None, "--trajectory-model", f"expected on or off, got {trajectory_model!r}")
-    parse_estimate(estimate)
-    _check_strip_points(strip_points)
+    given = {k: v for k, v in ctx.params.items() if ctx.get_parameter_source(k).name != "DEFAULT"}
+    cfg = strip_config(config, given)
     check_cluster(scheduler, workers)
-    options = BoresightOptions(tuple(parse_methods(method)), estimate, trajectory_model == "on", trajectory_accuracy,
-                               trajectory_sigma, trajectory_block, trajectory_correlation, truth, scheduler, workers,
-                               write_strips, points=point_options(crs, time_system, geoid_undulation),
-                               trajectory_input=trajectory_options(trajectory_crs, trajectory_angles, trajectory_heading,
-                                                                   trajectory_columns),
-                               ingest=IngestOptions(budget_points=strip_points or None), control=control,
-                               control_crs=control_crs)
     check_out_dir(out, force)
-    with output_folder(out, force, inputs=[*strips, trajectory, sensor, trajectory_accuracy, truth, control]) as tmp, \
-            progress_bar() as bar:
-        run = run_boresight(strips, trajectory, sensor, tmp, options, progress_callback(bar), shown_out=out)
+    with output_folder(out, force, inputs=[*strips, trajectory, sensor, trajectory_accuracy, truth, control, checkpoints,
+                                           config]) as tmp, progress_bar() as bar:
+        run = calibrate_strips(strips, trajectory, sensor, cfg, accuracy=trajectory_accuracy, control=control,
+                               checkpoints=checkpoints, truth=truth, scheduler=scheduler, workers=workers,
+                               progress=progress_callback(bar))
+        written = write_run(run, tmp, write_strips=write_strips)
     for m, result in run.results.items():
         print_verdict(run.verdicts[m], None if len(run.results) == 1 else m)
         _print(result, run.inputs.truth)
     if run.record.tasks:  # on Dask: what came back over the network
         console.print("Dask tasks — " + describe_tasks(run.record.tasks), markup=False)
-    names = sorted({p.name for p in run.written if p.parent == Path(tmp)})
+    names = sorted({p.name for p in written if p.parent == Path(tmp)})
     console.print(f"wrote {out}/: {', '.join(names)}" + (" and the recalibrated strips" if write_strips else ""), markup=False)
     exit_with_verdict(*run.verdicts.values())  # FAIL: exit 3; the outputs are written (to look at), not to be used
-
-
-def _check_strip_points(n: int) -> None:
-    if n != 0 and n < MIN_BUDGET_POINTS:
-        raise InputError(None, "--strip-points", f"expected 0 (every overlapping point) or at least {MIN_BUDGET_POINTS}, "
-                         f"got {n}")
 
 
 def _print(result, truth_si) -> None:

@@ -15,6 +15,8 @@ and hands them to the pipelines (:class:`calidar.pipelines.inputs.PointOptions`,
 
 from __future__ import annotations
 
+import math
+
 import typer
 
 from calidar.errors import InputError
@@ -64,3 +66,29 @@ def trajectory_options(crs: str | None = None, angles: str | None = None, headin
     return TrajectoryOptions(crs=crs_option(crs, "--trajectory-crs"), angles=_choice(angles, "--trajectory-angles",
                              ("deg", "rad")), heading=_choice(heading, "--trajectory-heading", ("true", "grid")),
                              columns=cols)
+
+
+def parse_sigma(text: str, option: str = "--trajectory-sigma") -> tuple[float, float]:
+    """'POSITION_M,ATTITUDE_DEG' → (position σ m, attitude σ rad), each > 0 and within the bounds of
+    :class:`~calidar.trajectory_accuracy.TrajectoryAccuracy`."""
+    from calidar.trajectory_accuracy import MAX_ATTITUDE_SIGMA_RAD, MAX_POSITION_SIGMA_M
+    from calidar.validate import parse_floats, positive
+
+    pos_m, att_deg = parse_floats(text, 2, f"{option} (POSITION_M,ATTITUDE_DEG)")
+    positive(pos_m, option, "m", hi=MAX_POSITION_SIGMA_M)
+    positive(att_deg, option, "deg", hi=math.degrees(MAX_ATTITUDE_SIGMA_RAD))
+    return pos_m, math.radians(att_deg)
+
+
+def parse_classes(text: str | None) -> tuple[int, ...] | None:
+    """'2,6' → (2, 6): LAS classes, integers 0–255 (None: choose per source)."""
+    if text is None:
+        return None
+    parts = [p.strip() for p in str(text).split(",")]
+    try:
+        classes = tuple(int(p) for p in parts)
+    except ValueError:
+        classes = ()
+    if not classes or any(not 0 <= c <= 255 for c in classes):
+        raise InputError(None, "--classes", f"expected LAS classes (integers 0–255) separated by commas, got {text!r}")
+    return tuple(sorted(set(classes)))

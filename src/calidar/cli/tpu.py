@@ -38,6 +38,7 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
         accuracy, range and scan-angle noise, the footprint on the local surface and the calibration's
         covariance, written as LAS extra bytes total_thu/total_tvu (m)."""
         from calidar.outputs import check_out_dir, claim_output, guard_inputs, output_folder
+        from calidar.cli.options import parse_sigma
         from calidar.pipelines.tpu import TpuOptions, run_tpu
         from calidar.tpu.propagate import TpuSettings
         from calidar.validate import number
@@ -46,7 +47,8 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
         number(angle_sigma, "--angle-sigma", 0.0, 5.0, "deg")
         number(beam_divergence, "--beam-divergence", 0.0, 50.0, "mrad")
         settings = TpuSettings(range_sigma, float(np.radians(angle_sigma)), beam_divergence * 1e-3)
-        options = TpuOptions(settings, trajectory_accuracy, trajectory_sigma, calibration,
+        sigma = None if trajectory_sigma is None else parse_sigma(trajectory_sigma)
+        options = TpuOptions(settings, trajectory_accuracy, sigma, calibration,
                              point_options(crs, time_system, geoid_undulation))
         check_out_dir(out, force)
         guard_inputs([out / p.name for p in points], [*points, trajectory, sensor, calibration, trajectory_accuracy],

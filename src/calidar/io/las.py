@@ -351,19 +351,31 @@ def rewrite_las_xyz(src: str | Path, dst: str | Path, new_xyz, *, crs=None, chun
 
     ``points`` is the chunk's :class:`LasPoints`. The output is written atomically.
     """
-    src, opts = Path(src), _options(crs, options)
+    def moved(rec, points):
+        xyz = np.asarray(new_xyz(points), float)
+        rec.x, rec.y, rec.z = xyz[:, 0], xyz[:, 1], xyz[:, 2]
+        return rec
+
+    return rewrite_las(src, dst, lambda header: header, moved, chunk_points=chunk_points, force=force,
+                       options=_options(crs, options))
+
+
+def rewrite_las(src: str | Path, dst: str | Path, out_header, rewrite, *, chunk_points: int, force: bool = False,
+                options: PointOptions | None = None) -> int:
+    """Copy a LAS/LAZ file chunk by chunk through ``rewrite(record, points) -> record`` (``points``:
+    the chunk's :class:`LasPoints`, read with ``options``), into a file with the header
+    ``out_header(source header)``; streamed and atomic. Returns the point count."""
+    src, opts = Path(src), _options(None, options)
     n = 0
     with _open(src) as reader, atomic_path(dst, force) as tmp:
         header = reader.header
         time_system = gps_time_system(header, src, opts.time_system)
         file_crs = _resolve_crs(header, opts.crs, src)
-        with laspy.open(tmp, mode="w", header=header, do_compress=Path(dst).suffix.lower() == ".laz") as writer:
+        with laspy.open(tmp, mode="w", header=out_header(header), do_compress=Path(dst).suffix.lower() == ".laz") as w:
             for first, rec in _records(reader, chunk_points, src):
                 points = _points(rec, header, src, file_crs, time_system, OPTIONAL_FIELDS, opts.geoid_undulation_m,
                                  first)
-                xyz = np.asarray(new_xyz(points), float)
-                rec.x, rec.y, rec.z = xyz[:, 0], xyz[:, 1], xyz[:, 2]
-                writer.write_points(rec)
+                w.write_points(rewrite(rec, points))
                 n += len(rec)
     return n
 

@@ -103,31 +103,38 @@ def stage_commands(inputs, shown_out: Path, tag: str, with_trajectory: bool) -> 
 
     q = lambda p: shlex.quote(str(p))  # noqa: E731
     strips = _files(inputs.strip_paths)
-    given = option_args(inputs.options.points)
+    given = option_args(inputs.config.points)
     regeo = (f"calidar regeoref {strips} --trajectory {q(inputs.trajectory_path)} --from {q(inputs.sensor_path)} "
-             f"--to {q(shown_out / f'sensor{tag}.toml')}{option_args(inputs.options.points, inputs.options.trajectory_input)}")
+             f"--to {q(shown_out / f'sensor{tag}.toml')}{option_args(inputs.config.points, inputs.config.trajectory_input)}")
     traj = f" --to-trajectory {q(shown_out / f'sbet_corrected{tag}.out')}" if with_trajectory else ""
     return (f"calidar quality {strips}{given}",
             f"{regeo} --out MOUNTING && calidar quality MOUNTING/*",
             f"{regeo}{traj} --out CORRECTED && calidar quality CORRECTED/*")
 
 
-def quality_stages(inputs, result, corrected, shown_out: Path, tag: str = "", progress: Progress = no_progress,
-                   work=None) -> list:
+def quality_stages(inputs, result, corrected, progress: Progress = no_progress, work=None) -> list:
     """Overlap quality as delivered, with the new mounting, and (when trajectory corrections were
-    estimated) with the new mounting and the corrected trajectory: calidar.strips.report.QualityStage s."""
+    estimated) with the new mounting and the corrected trajectory: calidar.strips.report.QualityStage s
+    (their commands named when written: :func:`with_commands`)."""
     from calidar.strips.report import QualityStage
 
-    before, mounting, both = stage_commands(inputs, Path(shown_out), tag, corrected is not None)
-    labels = [("as delivered", before), ("new mounting", mounting)]
+    labels = ["as delivered", "new mounting"]
     models = [None, (result.sensor, inputs.trajectory)]
     if corrected is not None:
-        labels.append(("new mounting + trajectory corrections", both))
+        labels.append("new mounting + trajectory corrections")
         models.append((result.sensor, corrected))
     progress("overlap quality", 0, 1)
     measured = measure_lines(inputs, models, progress, work)  # one read of the files for every stage
     progress("overlap quality", 1, 1)
-    return [QualityStage(label, command, pairs) for (label, command), pairs in zip(labels, measured)]
+    return [QualityStage(label, "", pairs) for label, pairs in zip(labels, measured)]
+
+
+def with_commands(inputs, stages: list, folder: Path, tag: str) -> list:
+    """The quality stages with the commands that reproduce them from the files written in ``folder``."""
+    from dataclasses import replace
+
+    commands = stage_commands(inputs, Path(shown_path(str(folder))), tag, len(stages) > 2)
+    return [replace(st, command=c) for st, c in zip(stages, commands)]
 
 
 def calibrated_sensor(result, solution_name: str, method: str = ""):
@@ -152,6 +159,40 @@ def calibrated_sensor(result, solution_name: str, method: str = ""):
     date = datetime.now(timezone.utc).replace(microsecond=0).isoformat()
     record = CalibrationRecord(date, __version__, solution_name, method or result.method, values)
     return replace(result.sensor, calibration=record)
+
+
+def write_run(run, out_dir: Path, report=None, verdict_title: str | None = None, section_title: str | None = None,
+              write_strips: bool = False) -> list[Path]:
+    """Write a :class:`calidar.pipelines.boresight.StripCalibration` into ``out_dir``: per matcher
+    :func:`write_outputs` (a ``_<name>`` suffix with several), config.toml and report.html — or,
+    given a ``report``, its verdicts and sections added there (``verdict_title``, ``section_title``:
+    what to call them); ``write_strips``: the recalibrated strips too (in out_dir/<name>/ with several)."""
+    from calidar.report import Report
+    from calidar.strips.report import add_comparison_section, add_report_section
+
+    inputs, results, several = run.inputs, run.results, len(run.results) > 1
+    out_dir, own = Path(out_dir), report is None
+    report = Report("calidar boresight") if own else report
+    stages = {m: with_commands(inputs, run.quality[m], out_dir, f"_{m}" if several else "") for m in results}
+    for m, result in results.items():
+        label = m if several else None
+        report.add_verdict(run.verdicts[m], " ".join(x for x in (verdict_title, label) if x) or None)
+        add_report_section(report, result, inputs.truth, stages[m], accuracy=accuracy_used(inputs, result),
+                           map_pair=map_pair(inputs, stages[m]),
+                           title=section_title and (f"{section_title} ({m})" if label else section_title))
+    if several:
+        add_comparison_section(report, results, inputs.truth)
+    written = []
+    for m, result in results.items():
+        tag = f"_{m}" if several else ""
+        strips_dir = (out_dir / m if tag else out_dir) if write_strips else None
+        written += write_outputs(inputs, result, run.corrected[m], run.verdicts[m], run.record, stages[m], out_dir, tag,
+                                 strips_dir)
+    written.append(inputs.config.write(out_dir / "config.toml"))
+    if own:
+        report.record = run.record
+        written.append(report.write(out_dir / "report.html"))
+    return written
 
 
 def write_outputs(inputs, result, corrected, verdict, record, stages, out_dir: Path, tag: str,

@@ -74,6 +74,7 @@ def palmer_strip_selfcal(preset: str = "uav", *, density: float = 0.3, height_ag
     from calidar.sensor import Sensor
     from calidar.sim.survey import simulate_survey, survey_config
     from calidar.strips.calibrate import calibrate
+    from calidar.strips.config import CalibrationConfig, Estimate
 
     nominal = Sensor(lever_arm_x=0.05, lever_arm_z=0.12, scanner=PalmerScanner(eccentricity_ratio=1e-5))
     extra = dict(survey) if height_agl_m is None else {**survey, "height_agl_m": height_agl_m}
@@ -84,6 +85,6 @@ def palmer_strip_selfcal(preset: str = "uav", *, density: float = 0.3, height_ag
     results = {}
     for k, est in enumerate(estimates):
         progress("strip calibrations", k, len(estimates))
-        results[est] = calibrate(strips, res.nominal, estimate=est)
+        results[est] = calibrate(strips, res.nominal, CalibrationConfig(Estimate.of(*est)))
     progress("strip calibrations", len(estimates), len(estimates))
     return res.truth.parameters(), results

@@ -27,7 +27,7 @@ class TpuOptions:
 
     settings: TpuSettings = TpuSettings()
     trajectory_accuracy: Path | None = None  #: smrmsg file (default: found beside an sbet*.out)
-    trajectory_sigma: str | None = None  #: 'POSITION_M,ATTITUDE_DEG'
+    trajectory_sigma: tuple[float, float] | None = None  #: (position m, attitude rad) for every epoch
     calibration: Path | None = None  #: a calidar solution.json whose covariance is propagated
     points: PointOptions = PointOptions()
     trajectory_input: TrajectoryOptions = TrajectoryOptions()
@@ -119,7 +119,7 @@ def run_tpu(points: list[Path], trajectory: Path, sensor_path: Path, out_dir: Pa
     import json
 
     from calidar.outputs import write_text_atomic
-    from calidar.pipelines.boresight import BoresightOptions, resolve_accuracy
+    from calidar.pipelines.boresight import resolve_accuracy
     from calidar.pipelines.inputs import load_trajectory
     from calidar.sensor import Sensor
 
@@ -128,8 +128,7 @@ def run_tpu(points: list[Path], trajectory: Path, sensor_path: Path, out_dir: Pa
         raise InputError(None, "POINTS", f"expected distinct file names (outputs share the folder), got {names}")
     sensor = Sensor.read(sensor_path)
     traj = load_trajectory(trajectory, options.trajectory_input)
-    accuracy, _, note = resolve_accuracy(Path(trajectory), traj, BoresightOptions(
-        trajectory_accuracy=options.trajectory_accuracy, trajectory_sigma=options.trajectory_sigma))
+    accuracy, _, note = resolve_accuracy(Path(trajectory), traj, options.trajectory_accuracy, options.trajectory_sigma)
     calibration = load_calibration(options.calibration, sensor)
     results = []
     for k, p in enumerate(points):

@@ -42,42 +42,20 @@ from calidar.strips.correspond import Correspondences
 from calidar.strips.distribute import cluster_client, map_pairs
 from calidar.strips.geometry import geometry_warnings
 from calidar.strips.overlap import Overlap, find_overlaps, strip_name
-from calidar.strips.parameters import (  # noqa: F401 - the calibrator's vocabulary, re-exported
-    ESTIMATE_GROUPS, METHODS, SINGLE_PARAMETERS, build_parameters, parse_estimate, sensor_of, truth_to_si,
-)
+from calidar.strips.config import CalibrationConfig, StripSettings
+from calidar.strips.matchers import Matcher
+from calidar.strips.parameters import build_parameters, sensor_of
 
-#: the outer loop's default stop (m) per method: VGICP's re-matching alone moves the mean
-#: distance by ~0.1 mm, so the tie planes' 0.2 mm would rarely stop it
-THRESHOLD_M = {"planes": 2e-4, "vgicp": 1e-3}
 #: an outer iteration's adjustment stops when every step is below this fraction of its σ: the next
 #: matching moves the points anyway; the last one is then refined until every step (of ~1 500
 #: parameters with the trajectory model) is below FINAL_STEP_IN_SIGMA of its σ — the boresight
 #: then moves by < 1e-3 σ more (8.75 M-point survey: 4 LM iterations fewer than at 1e-3 σ)
 OUTER_STEP_IN_SIGMA = 0.1
 FINAL_STEP_IN_SIGMA = 0.01
-from calidar.strips.planes import PlaneSettings, match_pair_planes
 from calidar.strips.problem import StripProblem, georeference, union
 from calidar.strips.strip import Pose, Strip
 from calidar.strips.trajectory_errors import PREFIX as TRAJECTORY_PREFIX
 from calidar.strips.trajectory_errors import StripCorrection, TrajectoryModel, corrections
-
-
-@dataclass(frozen=True)
-class StripSettings:
-    """Settings of the strip calibrator (metres unless named)."""
-
-    overlap_cell_m: float = 5.0  #: grid of the overlap detection
-    min_overlap_cells: int = 4
-    min_correspondences: int = 10  #: pairs with fewer are skipped with a warning
-    max_outer: int = 8  #: outer (re-matching) iterations
-    #: stop when the mean correspondence distance changes by less (None: the method's default,
-    #: :data:`THRESHOLD_M`)
-    threshold_m: float | None = None
-    robust: str | None = "cauchy"
-    cluster_s: float | None = 10.0  #: trajectory errors correlate over this time: σ from a cluster-robust covariance
-    trajectory: TrajectoryModel = field(default_factory=TrajectoryModel)  #: when estimating trajectory_bias
-    planes: PlaneSettings = field(default_factory=PlaneSettings)
-    vgicp: object | None = None  #: settings handed to calidar.strips.vgicp.match_pair_vgicp
 
 
 @dataclass
@@ -89,7 +67,7 @@ class CalibrationResult:
     nominal: Sensor
     strips: list[Strip]
     overlaps: list[Overlap]
-    method: str
+    matcher: Matcher  #: how the correspondences were found
     pairs: list[dict]  #: per used pair: a, b, n_obs
     residuals_before: np.ndarray  #: first correspondences at the nominal sensor, m
     residuals_after: np.ndarray  #: last correspondences at the calibrated sensor, m
@@ -97,6 +75,11 @@ class CalibrationResult:
     corrections: dict[int, StripCorrection]  #: estimated trajectory corrections per strip
     trajectory_model: TrajectoryModel | None = None  #: the corrections' model (None: not estimated)
     row_sigma: np.ndarray | None = field(default=None, repr=False)  #: a-priori σ of residuals_after, m
+
+    @property
+    def method(self) -> str:
+        """The matcher's name ("planes", "vgicp")."""
+        return self.matcher.name
 
     @property
     def warnings(self) -> list[str]:
@@ -116,20 +99,10 @@ class CalibrationResult:
         return georeference(self.sensor, fix, pose, strip.time[pose.index])
 
 
-def _matcher(method: str, settings: StripSettings) -> tuple[Callable, object]:
-    if method == "planes":
-        return match_pair_planes, settings.planes
-    if method == "vgicp":
-        from calidar.strips.vgicp import VgicpSettings, match_pair_vgicp
-
-        return match_pair_vgicp, settings.vgicp or VgicpSettings()
-    raise InputError(None, "--method", f"expected one of {list(METHODS)}, got {method!r}")
-
-
-def _match_or_error(match: Callable, strip_a_id, points_a, strip_b_id, points_b, settings):
-    """``match(...)``, or the user-facing error it raised for this pair (picklable, for map_pairs)."""
+def _match_or_error(matcher: Matcher, strip_a_id, points_a, strip_b_id, points_b):
+    """``matcher.match(...)``, or the user-facing error it raised for this pair (picklable, for map_pairs)."""
     try:
-        return match(strip_a_id, points_a, strip_b_id, points_b, settings)
+        return matcher.match(strip_a_id, points_a, strip_b_id, points_b)
     except CalidarError as e:
         return e
 
@@ -155,7 +128,7 @@ class _Run:
 
     by_id: dict[int, Strip]
     nominal: Sensor
-    method: str
+    matcher: Matcher
     settings: StripSettings
     overlaps: list[Overlap]
     spans: dict[int, tuple[float, float]]
@@ -168,8 +141,8 @@ class _Run:
     near: dict[int, np.ndarray] = field(default_factory=dict)  #: per strip its points near control
 
     @classmethod
-    def start(cls, strips: Sequence[Strip], nominal: Sensor, method: str, estimate: Sequence[str],
-              settings: StripSettings, control: ControlPoints | None = None) -> "_Run":
+    def start(cls, strips: Sequence[Strip], nominal: Sensor, matcher: Matcher, settings: StripSettings,
+              model: TrajectoryModel | None = None, control: ControlPoints | None = None) -> "_Run":
         by_id = {st.id: st for st in strips}
         if len(by_id) != len(strips):
             raise InputError(None, "strips", "two strips share an id; flight-line ids must be unique")
@@ -191,11 +164,10 @@ class _Run:
             need.setdefault(i, []).append(v)
         need = {i: union(v) for i, v in need.items()}
         spans = {i: st.time_span for i, st in by_id.items()}
-        model = s.trajectory if "trajectory_bias" in estimate else None
         poses = {i: by_id[i].pose(idx) for i, idx in need.items()}  # one trajectory interpolation
         if control is not None:
             poses[CONTROL_ID] = control_pose(control, next(iter(poses.values())))
-        return cls(by_id, nominal, method, s, overlaps, spans, model, need, poses, list(notes), control=control, near=near)
+        return cls(by_id, nominal, matcher, s, overlaps, spans, model, need, poses, list(notes), control=control, near=near)
 
     def headings(self) -> dict[int, float]:
         return {i: st.heading_enu() for i, st in self.by_id.items()}
@@ -212,9 +184,8 @@ class _Run:
         def subset(i, index):  # the points ``index`` of strip i (the pose cache's rows, by table)
             return current[i][1][self.poses[i].rows_of(index)]
 
-        match, match_settings = _matcher(self.method, self.settings)
-        tasks = [(match, o.a, subset(o.a, o.index_a), o.b, subset(o.b, o.index_b), match_settings) for o in self.overlaps]
-        say(f"iteration {k + 1}: matching {len(tasks)} pairs ({self.method})", k, self.settings.max_outer)
+        tasks = [(self.matcher, o.a, subset(o.a, o.index_a), o.b, subset(o.b, o.index_b)) for o in self.overlaps]
+        say(f"iteration {k + 1}: matching {len(tasks)} pairs ({self.matcher.name})", k, self.settings.max_outer)
         clock = time.perf_counter()
         found = map_pairs(_match_or_error, tasks, client=client, log=log)
         times["match_s"] = time.perf_counter() - clock
@@ -237,7 +208,7 @@ class _Run:
         return times if self.control is None else {**times, CONTROL_ID: np.zeros(len(self.control.ids))}
 
     def _usable(self, found) -> tuple[list[Correspondences], list[dict], list[str]]:
-        what = "tie planes" if self.method == "planes" else "correspondences"
+        what = self.matcher.label
         corrs, pairs, skipped = [], [], []
         for o, c in zip(self.overlaps, found):
             if isinstance(c, CalidarError):
@@ -269,36 +240,38 @@ class _Run:
         return est.solution(problem.clusters(strips, s.cluster_s) if s.cluster_s else None)
 
 
-def calibrate(strips: Sequence[Strip], nominal: Sensor, *, scheduler: str | None = None,
-              workers: int | None = None, **options) -> CalibrationResult:
+def calibrate(strips: Sequence[Strip], nominal: Sensor, config: CalibrationConfig = CalibrationConfig(), *,
+              scheduler: str | None = None, workers: int | None = None, **options) -> CalibrationResult:
     """:func:`calibrate_with_client` with ONE Dask client (``scheduler`` address or a LocalCluster
     of ``workers`` processes, None: in-process) for every outer iteration's pair matching."""
     with cluster_client(scheduler, workers) as client:
-        return calibrate_with_client(strips, nominal, client=client, **options)
+        return calibrate_with_client(strips, nominal, config, client=client, **options)
 
 
-def calibrate_with_client(strips: Sequence[Strip], nominal: Sensor, *, method: str = "planes",
-                          estimate: Sequence[str] = ("boresight",), settings: StripSettings | None = None,
-                          client=None, progress: Callable[[str, int, int], None] | None = None,
-                          log=None, control: ControlPoints | None = None) -> CalibrationResult:
+def calibrate_with_client(strips: Sequence[Strip], nominal: Sensor, config: CalibrationConfig = CalibrationConfig(),
+                          *, matcher: Matcher | None = None, trajectory: TrajectoryModel | None = None, client=None,
+                          progress: Callable[[str, int, int], None] | None = None, log=None,
+                          control: ControlPoints | None = None) -> CalibrationResult:
     """Calibrate the sensor from overlapping strips (all in one :class:`LocalFrame`).
 
-    ``estimate``: groups of :data:`ESTIMATE_GROUPS`; ``client``: an open Dask client for the
-    pair matching or None (see :func:`map_pairs`; ``log``: a TaskLog of what its tasks sent back);
-    ``progress(description, done, total)`` is
-    told each outer iteration's stages; ``control``: ground control points in the strips' local
-    frame, observed beside the overlaps (:mod:`calidar.strips.control`). Raises :class:`CalibrationError` when no pair of
-    strips overlaps with enough correspondences.
+    ``config``: what to estimate and how the adjustment runs (:class:`CalibrationConfig`);
+    ``matcher``: how the pairs are matched (None: the first of ``config.matchers``);
+    ``trajectory``: the trajectory model whose corrections are estimated too (None: the
+    trajectory is taken as exact; :meth:`calidar.strips.config.TrajectorySettings.model` makes
+    one from ``config.trajectory`` and the trajectory's accuracy); ``client``: an open Dask client
+    for the pair matching or None (see :func:`map_pairs`; ``log``: a TaskLog of what its tasks
+    sent back); ``progress(description, done, total)`` is told each outer iteration's stages;
+    ``control``: ground control points in the strips' local frame, observed beside the overlaps
+    (:mod:`calidar.strips.control`). Raises :class:`CalibrationError` when no pair of strips
+    overlaps with enough correspondences.
     """
-    s = settings or StripSettings()
-    estimate = parse_estimate(estimate)
-    if s.threshold_m is None:
-        s = replace(s, threshold_m=THRESHOLD_M.get(method, 2e-4))
+    s, matcher = config.solver, matcher or config.matchers[0]
+    threshold_m = matcher.threshold_m if s.threshold_m is None else s.threshold_m
     say = progress or (lambda text, done, total: None)
-    check_estimate(estimate, control)
-    run = _Run.start(strips, nominal, method, estimate, s, control)
-    params = build_parameters(nominal, estimate, run.spans, s.trajectory,
-                              run.headings() if run.model is not None else None)
+    check_estimate(config.estimate, control)
+    run = _Run.start(strips, nominal, matcher, s, trajectory, control)
+    params = build_parameters(nominal, config.estimate, run.spans, trajectory,
+                              run.headings() if trajectory is not None else None)
     outer: list[dict] = []
     first_residuals = first_control = est = problem = pairs = None
     for k in range(s.max_outer):
@@ -314,7 +287,7 @@ def calibrate_with_client(strips: Sequence[Strip], nominal: Sensor, *, method: s
         outer.append({"iteration": k + 1, "mean_distance_m": _mean(problem, est.r), "n_obs": int(problem.sigma.size),
                       "n_pairs": len(corrs), "solver_iterations": len(est.history) - 1, **times,
                       "values": params.values()})
-        if len(outer) > 1 and abs(outer[-2]["mean_distance_m"] - outer[-1]["mean_distance_m"]) < s.threshold_m:
+        if len(outer) > 1 and abs(outer[-2]["mean_distance_m"] - outer[-1]["mean_distance_m"]) < threshold_m:
             say("outer iterations settled", s.max_outer, s.max_outer)
             break
     else:
@@ -373,7 +346,7 @@ def _result(run: _Run, solution: Solution, problem: StripProblem, pairs: list[di
                                                          params.free_names) + solution.warnings
     sensor, fix = sensor_of(run.nominal, params.values()), corrections(params.values(), run.model, run.spans)
     fix = with_height_bias(fix, params.values().get("height_bias", 0.0), run.spans)
-    solution.extra["strips"] = {"method": run.method, "robust": run.settings.robust, "pairs": pairs, "outer_iterations": [
+    solution.extra["strips"] = {"method": run.matcher.name, "robust": run.settings.robust, "pairs": pairs, "outer_iterations": [
         {kk: v for kk, v in o.items() if kk != "values"} for o in outer]}
-    return CalibrationResult(solution, sensor, run.nominal, list(strips), run.overlaps, run.method, pairs,
+    return CalibrationResult(solution, sensor, run.nominal, list(strips), run.overlaps, run.matcher, pairs,
                              first_residuals, solution.residuals, outer, fix, run.model, problem.sigma)

@@ -1,13 +1,12 @@
-"""The strip calibrator's parameter set: what ``--estimate`` accepts, the engine's parameters
+"""The strip calibrator's parameter set: the groups an estimate is made of, the engine's parameters
 (every sensor parameter, the estimated ones free, plus the trajectory corrections), and a
 simulation's truth in the same terms."""
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 
 from calidar.adjust import Parameter, ParameterSet
-from calidar.errors import InputError
 from calidar.sensor import Sensor
 from calidar.strips.trajectory_errors import TrajectoryModel
 
@@ -20,39 +19,27 @@ ESTIMATE_GROUPS: dict[str, tuple[tuple[str, str], ...]] = {
     "scan_angle_scale": (("scan_angle_scale", "1"),),
     "scan_angle_offset": (("scan_angle_offset", "rad"),),
     "palmer": (("eccentricity_ratio", "1"), ("eccentricity_phase", "rad"), ("delta_l", "rad"), ("delta_r", "rad")),
-    "trajectory_bias": (),  # per strip (and knot): see calidar.strips.trajectory_errors
     #: a height shift common to every strip (a vertical trajectory bias): only ground control sees it
     "height_bias": (("height_bias", "m"),),
 }
 #: Single parameters ``--estimate`` also accepts (e.g. lever_arm_x,lever_arm_y without z).
 SINGLE_PARAMETERS = {name: ((name, unit),) for g in ESTIMATE_GROUPS.values() for name, unit in g}
-METHODS = ("planes", "vgicp")
 
 
-def parse_estimate(items: str | Sequence[str]) -> list[str]:
-    """'boresight,lever_arm' (or a list) → validated group or single-parameter names."""
-    names = [s.strip() for s in (items.split(",") if isinstance(items, str) else items) if s.strip()]
-    known = {**ESTIMATE_GROUPS, **SINGLE_PARAMETERS}
-    unknown = [n for n in names if n not in known]
-    if unknown or not names:
-        raise InputError(None, "--estimate", f"expected a comma-separated subset of {sorted(ESTIMATE_GROUPS)} "
-                         f"or single parameters such as lever_arm_x, got {items!r}")
-    return names
-
-
-def build_parameters(nominal: Sensor, estimate: Sequence[str], spans: Mapping[int, tuple[float, float]],
-                     trajectory: TrajectoryModel = TrajectoryModel(),
+def build_parameters(nominal: Sensor, estimate, spans: Mapping[int, tuple[float, float]],
+                     trajectory: TrajectoryModel | None = None,
                      headings: Mapping[int, float] | None = None) -> ParameterSet:
-    """The engine's parameters: every sensor parameter (estimated ones free) plus, with
-    ``trajectory_bias``, the trajectory corrections of strips with time spans {id: (t0, t1)} s
-    (``headings`` {id: rad from north}: which attitude σ the horizontal tilts get)."""
-    free = {name for g in estimate for name, _ in {**ESTIMATE_GROUPS, **SINGLE_PARAMETERS}[g]}
+    """The engine's parameters: every sensor parameter (those of ``estimate``, a
+    :class:`calidar.strips.config.Estimate`, free) plus, with a ``trajectory`` model, the trajectory
+    corrections of strips with time spans {id: (t0, t1)} s (``headings`` {id: rad from north}:
+    which attitude σ the horizontal tilts get)."""
+    free = set(estimate.parameters)
     units = {name: unit for g in ESTIMATE_GROUPS.values() for name, unit in g}
     params = [Parameter(name, value, units.get(name, "1"), free=name in free)
               for name, value in nominal.parameters().items() if name in units]
     if "height_bias" in free:  # not a sensor parameter: a shift of every strip (calidar.strips.problem)
         params.append(Parameter("height_bias", 0.0, "m"))
-    if "trajectory_bias" in estimate:
+    if trajectory is not None:
         params += trajectory.parameters(spans, headings)
     return ParameterSet(params)
 

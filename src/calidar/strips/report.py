@@ -89,7 +89,7 @@ def add_report_section(report: Report, result: CalibrationResult, truth: dict[st
     sec = report.section(title or f"Strip calibration ({result.method})")
     n_obs = result.outer[-1]["n_obs"] if result.outer else 0
     sec.text(f"{len(result.strips)} strips, {len(result.overlaps)} overlapping pairs, {len(result.pairs)} used; "
-             f"{n_obs:,} observations ({'tie planes' if result.method == 'planes' else 'VGICP correspondences'}); "
+             f"{n_obs:,} observations ({result.matcher.label}); "
              f"{len(result.outer)} outer iterations (re-matching [1]), mean correspondence distance "
              + " → ".join(f"{o['mean_distance_m'] * 1e3:.1f}" for o in result.outer) + " mm.")
     if result.trajectory_model is not None and result.corrections:

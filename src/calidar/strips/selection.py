@@ -61,20 +61,6 @@ def candidate_mask(points) -> np.ndarray:
     return ground | PointSelection("last returns").mask(points)
 
 
-def parse_classes(text: str | None) -> tuple[int, ...] | None:
-    """'2,6' → (2, 6): LAS classes, integers 0–255 (None: choose per source)."""
-    if text is None:
-        return None
-    parts = [p.strip() for p in str(text).split(",")]
-    try:
-        classes = tuple(int(p) for p in parts)
-    except ValueError:
-        classes = ()
-    if not classes or any(not 0 <= c <= 255 for c in classes):
-        raise InputError(None, "--classes", f"expected LAS classes (integers 0–255) separated by commas, got {text!r}")
-    return tuple(sorted(set(classes)))
-
-
 def choose_selection(source, present: np.ndarray | None, classes: tuple[int, ...] | None = None) -> PointSelection:
     """The selection for one source from the classes ``present`` in it (None: no classification):
     the ``classes`` asked for (each must be present, else an error naming ``source``), else ground

@@ -337,7 +337,7 @@ def strip_verdict(result, stages, notes: list[str] = (), accuracy_text: str | No
     shown = [p.name for p in sol.parameters.free if not p.name.startswith(TRAJECTORY_PREFIX)]
     n_traj = len(sol.parameters.free) - len(shown)
     ranges = np.concatenate([s.obs.range_m[:: max(1, len(s) // 2000)] for s in result.strips])
-    what = "tie planes" if result.method == "planes" else "VGICP correspondences"
+    what = result.matcher.label
     summary = (f"{', '.join(shown)} from {len(result.pairs)} overlapping pairs of {len(result.strips)} strips "
                f"({what}, {result.outer[-1]['n_obs']:,} observations)"
                + (f", with {n_traj:,} trajectory corrections" if n_traj else ", trajectory taken as exact"))

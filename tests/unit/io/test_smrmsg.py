@@ -110,7 +110,7 @@ def test_found_beside_the_sbet(tmp_path):
 
 def test_text_trajectory_sigma_columns(tmp_path):
     from calidar.io.trajectory import read_trajectory
-    from calidar.pipelines.boresight import BoresightOptions, resolve_accuracy
+    from calidar.pipelines.boresight import resolve_accuracy
 
     head = "time,lat,lon,height,roll,pitch,heading,SDNorth,SDEast,SDHeight,SDRoll,SDPitch,SDHeading\n"
     rows = "".join(f"{1000 + k},45.0,7.0,500,0.1,0.2,{30 + k},0.02,0.03,0.05,0.002,0.003,{0.01 * (k + 1)}\n"
@@ -118,7 +118,7 @@ def test_text_trajectory_sigma_columns(tmp_path):
     path = tmp_path / "traj.csv"
     path.write_text(head + rows)
     traj = read_trajectory(path)
-    acc, found, note = resolve_accuracy(path, traj, BoresightOptions())
+    acc, found, note = resolve_accuracy(path, traj)
     assert note is None and "σ columns" in acc.source
     assert np.allclose(acc.position_m[0], [0.02, 0.03, 0.05])
     assert np.allclose(np.degrees(acc.attitude_rad[:, 2]), [0.01, 0.02, 0.03])  # the file's degrees, in rad
@@ -130,5 +130,5 @@ def test_text_trajectory_sigma_columns(tmp_path):
         read_trajectory(path)
     # no source at all: the survey-grade default, and a note that says so
     plain = Trajectory(traj.time, traj.lat, traj.lon, traj.height, traj.roll, traj.pitch, traj.heading)
-    acc, found, note = resolve_accuracy(tmp_path / "sbet.out", plain, BoresightOptions())
+    acc, found, note = resolve_accuracy(tmp_path / "sbet.out", plain)
     assert found is None and note.startswith("no trajectory accuracy found") and acc.constant

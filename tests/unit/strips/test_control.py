@@ -135,11 +135,13 @@ def test_a_common_height_bias_is_observed_by_control_only_and_its_jacobian_is_ex
 def test_height_bias_without_control_is_refused():
     from calidar.errors import InputError
     from calidar.strips.calibrate import calibrate
+    from calidar.strips.config import CalibrationConfig, Estimate
     from calidar.strips.control import check_estimate
 
+    estimate = Estimate.of("boresight", "height_bias")
     with pytest.raises(InputError, match="height_bias .* needs ground control"):
-        calibrate([], Sensor(), estimate="boresight,height_bias")
-    check_estimate(["boresight", "height_bias"], object())  # with control: fine
+        calibrate([], Sensor(), CalibrationConfig(estimate))
+    check_estimate(estimate, object())  # with control: fine
 
 
 def test_the_height_bias_goes_into_every_strips_trajectory_correction():

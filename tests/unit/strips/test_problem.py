@@ -14,7 +14,8 @@ from calidar import frames, georef
 from calidar.adjust import ParameterSet
 from calidar.adjust.solver import numerical_jacobian
 from calidar.sensor import Sensor
-from calidar.strips.parameters import build_parameters, parse_estimate
+from calidar.strips.config import Estimate
+from calidar.strips.parameters import build_parameters
 from calidar.strips.planes import match_pair_planes
 from calidar.strips.problem import Centroids, StripProblem
 from calidar.strips.strip import Pose, georeference_pose
@@ -64,7 +65,7 @@ def test_sensor_columns_are_exact(point_to_point):
     spans = {s.id: (float(s.time.min()), float(s.time.max())) for s in strips}
     model = TrajectoryModel(block_s=2.0, position_sigma_m=0.03, attitude_sigma_rad=np.radians(0.5), correlation_s=20.0,
                             attitude_correlation_s=3.0)
-    est = parse_estimate("boresight,lever_arm,range_offset,range_scale,trajectory_bias")
+    est = Estimate.of("boresight", "lever_arm", "range_offset", "range_scale")
     params = build_parameters(nominal, est, spans, model)
     rng = np.random.default_rng(5)
     params = ParameterSet(replace(p, value=p.value + rng.normal(0.0, p.prior_sigma or (1e-3 if p.unit == "rad" else 0.02)))

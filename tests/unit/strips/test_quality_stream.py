@@ -11,7 +11,8 @@ from calidar.errors import InputError
 from calidar.io.las import write_las
 from calidar.strips.cell_moments import CellMoments
 from calidar.strips.quality import QualitySettings, swath_differences
-from calidar.strips.selection import PointSelection, choose_selection, parse_classes
+from calidar.cli.options import parse_classes
+from calidar.strips.selection import PointSelection, choose_selection
 
 from test_strips_quality import _surface
 

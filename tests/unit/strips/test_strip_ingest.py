@@ -140,7 +140,7 @@ def test_strip_points_option_is_checked_and_used(survey, cli, tmp_path):
     assert not (tmp_path / "bad").exists()
     code, _, err = cli(*args, "--strip-points", "10000", "--trajectory-model", "off", "--out", tmp_path / "o")
     doc = __import__("json").loads((tmp_path / "o" / "solution.json").read_text())
-    assert doc["run"]["options"]["ingest"]["budget_points"] == 10000
+    assert doc["run"]["options"]["ingest"]["strip_points"] == 10000
     # the outputs are written either way; exit 3 says the verdict (the trajectory taken as exact) is FAIL
     assert code == (3 if doc["verdict"]["status"] == "fail" else 0), err
 
@@ -186,9 +186,9 @@ def test_overlap_quality_read_in_point_ranges_equals_whole_files(survey, monkeyp
     """The quality stages' tasks read files in ranges of TASK_POINTS (seeking in the LAZ): the
     same pairs and differences as one task a file."""
     import calidar.pipelines.boresight_outputs as outputs
-    from calidar.pipelines.boresight import BoresightOptions, load_inputs
+    from calidar.pipelines.boresight import load_inputs
 
-    inputs = load_inputs(*_inputs_paths(survey), BoresightOptions())
+    inputs = load_inputs(*_inputs_paths(survey))
     models = [None, (inputs.nominal, inputs.trajectory)]
     whole = outputs.measure_lines(inputs, models)
     monkeypatch.setattr(outputs, "TASK_POINTS", 3_001)
@@ -217,7 +217,7 @@ def test_geographic_strips_get_the_projected_quality_in_one_read(denser, tmp_pat
     import pyproj
 
     import calidar.pipelines.boresight_outputs as outputs
-    from calidar.pipelines.boresight import BoresightOptions, load_inputs
+    from calidar.pipelines.boresight import load_inputs
 
     paths, traj, _ = _inputs_paths(denser)
     (tmp_path / "strips").mkdir()
@@ -235,7 +235,7 @@ def test_geographic_strips_get_the_projected_quality_in_one_read(denser, tmp_pat
     monkeypatch.setattr(outputs, "_file_stages", lambda *a: tasks.append(a[-3:]) or task(*a))
     got = {}
     for name, sim in (("utm", denser), ("geo", tmp_path)):
-        inputs = load_inputs(*_inputs_paths(sim), BoresightOptions())
+        inputs = load_inputs(*_inputs_paths(sim))
         tasks.clear()
         got[name] = outputs.measure_lines(inputs, [None, (inputs.nominal, inputs.trajectory)])
         assert len(tasks) == len(paths)  # one read: every stage's own plan is the ingest's

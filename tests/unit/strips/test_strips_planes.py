@@ -11,7 +11,9 @@ from calidar.adjust import ParameterSet
 from calidar.adjust.solver import numerical_jacobian
 from calidar.errors import CalibrationError, InputError
 from calidar.sensor import Sensor
-from calidar.strips.calibrate import THRESHOLD_M, StripSettings, build_parameters, calibrate, parse_estimate
+from calidar.strips.calibrate import calibrate
+from calidar.strips.config import CalibrationConfig, Estimate, StripSettings, TiePlanes
+from calidar.strips.parameters import build_parameters
 from calidar.strips.problem import StripProblem
 from calidar.strips.correspond import moderated_variance
 from calidar.strips.overlap import find_overlaps
@@ -96,7 +98,7 @@ def test_calibration_recovers_boresight(strips):
         assert abs(err) < 3 * sol.sigma[name], name
     assert len(res.pairs) == 3 and all(p["n_obs"] > 300 for p in res.pairs)
     # the outer loop settled and the strips now agree much better than delivered
-    assert abs(res.outer[-1]["mean_distance_m"] - res.outer[-2]["mean_distance_m"]) < THRESHOLD_M["planes"]
+    assert abs(res.outer[-1]["mean_distance_m"] - res.outer[-2]["mean_distance_m"]) < TiePlanes().threshold_m
     assert np.sqrt(np.mean(res.residuals_after**2)) < 0.3 * np.sqrt(np.mean(res.residuals_before**2))
     # solution.json / the report say the same: "before" is the first matching at the nominal sensor
     doc = sol.to_dict()["residuals"]
@@ -112,7 +114,7 @@ def test_centroid_shortcut_equals_full_regeoreferencing(strips):
     nominal = Sensor(lever_arm_x=0.2, range_offset=0.01)
     full = StripProblem(nominal, poses, [c], ["scan_angle_scale"])
     assert full.centroids is None
-    vals = build_parameters(nominal, parse_estimate("boresight,lever_arm,range_offset,range_scale"), {}).values()
+    vals = build_parameters(nominal, Estimate.of("boresight", "lever_arm", "range_offset", "range_scale"), {}).values()
     vals.update(boresight_roll=1e-3, boresight_yaw=-2e-3, lever_arm_x=0.3, range_offset=0.05, range_scale=1e-4)
     fast = StripProblem(nominal, poses, [c], ["boresight_roll", "lever_arm_x", "range_offset"])
     assert fast.centroids is not None
@@ -154,7 +156,7 @@ def test_trajectory_columns_of_the_jacobian_are_exact(strips, point_to_point):
     spans = {s.id: (float(s.time.min()), float(s.time.max())) for s in strips[:2]}
     model = TrajectoryModel(block_s=2.0, position_sigma_m=0.03, attitude_sigma_rad=1e-5, correlation_s=20.0,
                             attitude_correlation_s=3.0)
-    params = build_parameters(Sensor(), ["boresight", "trajectory_bias"], spans, model)
+    params = build_parameters(Sensor(), Estimate.of("boresight"), spans, model)
     rng = np.random.default_rng(3)
     params = ParameterSet(replace(p, value=rng.normal(0.0, p.prior_sigma)) if p.prior_sigma else p for p in params)
     problem = StripProblem(Sensor(), poses, [c], params.free_names, {s.id: s.time for s in strips[:2]}, model, spans)
@@ -173,7 +175,7 @@ def test_per_strip_trajectory_bias_is_recovered(strips):
     # the delivered points moved: rebuild strip 2's observations from them
     s2 = shifted[1]
     shifted[1] = Strip.from_ecef(2, frame().to_ecef(s2.points), s2.time, s2.trajectory, Sensor(), frame())
-    res = calibrate(shifted, Sensor(), estimate="boresight,trajectory_bias")
+    res = calibrate(shifted, Sensor(), trajectory=TrajectoryModel())  # free strip shifts
     up = res.solution.values["trajectory_bias_up_2"]
     assert up == pytest.approx(-0.15, abs=0.01)
     assert "trajectory_bias_up_1" not in res.solution.values  # strip 1 is the datum
@@ -181,7 +183,7 @@ def test_per_strip_trajectory_bias_is_recovered(strips):
 
 def test_too_few_planes_is_a_clear_error(strips):
     with pytest.raises(CalibrationError, match=r"no usable strip pair: 1–2: only \d+ tie planes, need 100000"):
-        calibrate(strips, Sensor(), settings=StripSettings(min_correspondences=100_000))
+        calibrate(strips, Sensor(), CalibrationConfig(solver=StripSettings(min_correspondences=100_000)))
 
 
 def test_non_overlapping_strips_are_a_clear_error():
@@ -199,14 +201,18 @@ def test_trajectory_not_covering_the_strip_names_it():
 
 
 def test_unknown_estimate_names_are_rejected():
-    assert parse_estimate("boresight,lever_arm_x") == ["boresight", "lever_arm_x"]
-    with pytest.raises(InputError, match="--estimate: expected a comma-separated subset"):
-        parse_estimate("boresight,wobble")
+    assert Estimate.of("boresight", "lever_arm_x").names() == ["boresight", "lever_arm_x"]
+    assert Estimate.of("lever_arm_x", "lever_arm_y", "lever_arm_z").names() == ["lever_arm"]
+    assert "lever_arm" not in Estimate.of("boresight", "lever_arm_x") and "lever_arm_x" in Estimate.of("lever_arm")
+    with pytest.raises(InputError, match=r"estimate: expected one or more of the groups .* got \['wobble'\]"):
+        Estimate.of("boresight", "wobble")
+    with pytest.raises(InputError, match="estimate: expected one or more"):
+        Estimate(frozenset({"boresight"}))  # a group is no parameter name
 
 
 def test_same_result_in_process_and_on_a_local_dask_cluster(strips):
-    settings = StripSettings(max_outer=2)
-    local = calibrate(strips[:2], Sensor(), settings=settings).solution
-    dask = calibrate(strips[:2], Sensor(), settings=settings, workers=2).solution
+    config = CalibrationConfig(solver=StripSettings(max_outer=2))
+    local = calibrate(strips[:2], Sensor(), config).solution
+    dask = calibrate(strips[:2], Sensor(), config, workers=2).solution
     for name in ("boresight_roll", "boresight_pitch", "boresight_yaw"):
         assert dask.values[name] == pytest.approx(local.values[name], abs=1e-12)

@@ -11,6 +11,7 @@ import pytest
 import calidar.trajectory_accuracy
 import calidar.verdict
 from calidar.adjust import Parameter, ParameterSet, Solution
+from calidar.strips.matchers import TiePlanes
 from calidar.strips.quality import PairQuality
 from calidar.strips.report import QualityStage
 from calidar.strips.verdict import (agreement_finding, correlation_findings, overlap_finding, parameter_findings,
@@ -74,7 +75,8 @@ def test_sigma0_next_to_its_range_is_shown_with_the_digits_that_tell_them_apart(
 
 
 def _result(sol):
-    return SimpleNamespace(solution=sol, strips=[_Strip()], pairs=[{}], method="planes", residuals_after=np.zeros(3),
+    return SimpleNamespace(solution=sol, strips=[_Strip()], pairs=[{}], matcher=TiePlanes(), method="planes",
+                           residuals_after=np.zeros(3),
                            row_sigma=np.ones(3), warnings=[],
                            outer=[{"n_obs": 10, "mean_distance_m": 0.01}, {"n_obs": 10, "mean_distance_m": 0.01}])
 
@@ -145,7 +147,8 @@ class _Strip:
 
 def test_a_default_accuracy_makes_the_verdict_a_warning():
     result = SimpleNamespace(solution=_solution({"boresight_roll": 1e-6}), strips=[_Strip()], pairs=[{}],
-                             method="planes", residuals_after=np.zeros(3), row_sigma=np.ones(3), warnings=[],
+                             matcher=TiePlanes(), method="planes", residuals_after=np.zeros(3), row_sigma=np.ones(3),
+                             warnings=[],
                              outer=[{"n_obs": 10, "mean_distance_m": 0.01}, {"n_obs": 10, "mean_distance_m": 0.01}])
     stages = [QualityStage("as delivered", "", [_pq(1, 2, 0.05, 0.08)]), QualityStage("after", "", [_pq(1, 2, 0.0, 0.01)])]
     assert strip_verdict(result, stages, []).status == "pass"
@@ -174,7 +177,8 @@ def test_an_accuracy_estimated_from_the_overlaps_is_stated(heading_estimated):
     (a warning: the survey-grade default kept there). The "none found" note is not repeated."""
     sol = _solution({"boresight_roll": 1e-6})
     sol.extra["trajectory_accuracy_estimate"] = _level(heading_estimated)
-    result = SimpleNamespace(solution=sol, strips=[_Strip()], pairs=[{}], method="planes", residuals_after=np.zeros(3),
+    result = SimpleNamespace(solution=sol, strips=[_Strip()], pairs=[{}], matcher=TiePlanes(), method="planes",
+                             residuals_after=np.zeros(3),
                              row_sigma=np.ones(3), warnings=[],
                              outer=[{"n_obs": 10, "mean_distance_m": 0.01}, {"n_obs": 10, "mean_distance_m": 0.01}])
     stages = [QualityStage("as delivered", "", [_pq(1, 2, 0.05, 0.08)]), QualityStage("after", "", [_pq(1, 2, 0.0, 0.01)])]

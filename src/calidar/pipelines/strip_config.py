@@ -1,0 +1,283 @@
+"""The configuration of a strip calibration run (``calidar boresight``), as one typed value, and its
+TOML file: the file a user keeps and gives again with ``--config`` to repeat a run; the run
+writes it beside its results (``config.toml``).
+
+:class:`StripConfig` holds the calibration's own configuration
+(:class:`calidar.strips.config.CalibrationConfig`: what to estimate, the matchers, the
+trajectory model, the adjustment) and how the files are read (:class:`IngestOptions`, the
+point and text-trajectory options, the control points' CRS). The file, in the units a user
+reads (degrees for the trajectory's attitude σ)::
+
+    method = ["planes"]
+    estimate = ["boresight", "lever_arm_z"]
+
+    [trajectory_model]
+    on = true
+    block_s = 1.0
+    correlation_s = [20.0, 3.5]
+    sigma = [0.03, 0.002]        # position m, attitude deg (absent: the trajectory's accuracy)
+
+    [solver]                     # calidar.strips.config.StripSettings
+    [planes]                     # the tie planes' settings and threshold_m (calidar.strips.planes.PlaneSettings)
+    [vgicp]                      # VGICP's (calidar.strips.vgicp.VgicpSettings)
+    [ingest]                     # strip_points (0: every overlapping point), block_cells, gap_s, chunk_points
+    [inputs]                     # crs, time_system, geoid_undulation_m, trajectory_crs, trajectory_angles,
+                                 # trajectory_heading, trajectory_columns, control_crs, checkpoints_crs
+
+A key left out takes its default; an unknown key or a value of the wrong type is an error naming
+the file and the key.
+
+>>> import tempfile
+>>> from calidar.strips.config import CalibrationConfig, Estimate
+>>> config = StripConfig(CalibrationConfig(Estimate.of("boresight", "lever_arm_z")))
+>>> path = config.write(Path(tempfile.mkdtemp()) / "config.toml")
+>>> StripConfig.read(path) == config
+True
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+import types
+import typing
+from dataclasses import dataclass, field, fields, replace
+from pathlib import Path
+
+from calidar.errors import InputError
+from calidar.io.las import PointOptions
+from calidar.pipelines.inputs import TrajectoryOptions
+from calidar.pipelines.strip_source import IngestOptions
+from calidar.strips.config import MATCHERS, CalibrationConfig, Estimate, StripSettings, TrajectorySettings
+
+#: [ingest] keys → IngestOptions fields (strip_points as --strip-points: 0 keeps every overlapping point)
+INGEST_KEYS = {"strip_points": "budget_points", "block_cells": "block_cells", "gap_s": "gap_s",
+               "chunk_points": "chunk_points"}
+#: [inputs] keys → (PointOptions | TrajectoryOptions | StripConfig, field)
+INPUT_KEYS = {"crs": ("points", "crs"), "time_system": ("points", "time_system"),
+              "geoid_undulation_m": ("points", "geoid_undulation_m"), "trajectory_crs": ("trajectory", "crs"),
+              "trajectory_angles": ("trajectory", "angles"), "trajectory_heading": ("trajectory", "heading"),
+              "trajectory_columns": ("trajectory", "columns"), "control_crs": ("config", "control_crs"),
+              "checkpoints_crs": ("config", "checkpoints_crs")}
+
+
+@dataclass(frozen=True)
+class StripConfig:
+    """Everything a strip calibration run takes besides its files: the calibration's
+    configuration, how the strips are read (``ingest``, with the point options; its overlap grid
+    is the solver's), how a text trajectory is read, the control points' CRS.
+
+    >>> from calidar.strips.config import CalibrationConfig, Estimate, TrajectorySettings, Vgicp
+    >>> config = StripConfig(CalibrationConfig(Estimate.of("boresight", "range_offset"), matchers=(Vgicp(),),
+    ...                                        trajectory=TrajectorySettings(block_s=2.0)))
+    >>> config.to_dict()["estimate"], config.to_dict()["trajectory_model"]
+    (['boresight', 'range_offset'], {'on': True, 'block_s': 2.0, 'correlation_s': [20.0, 3.5]})
+    """
+
+    calibration: CalibrationConfig = field(default_factory=CalibrationConfig)
+    ingest: IngestOptions = field(default_factory=IngestOptions)
+    trajectory_input: TrajectoryOptions = field(default_factory=TrajectoryOptions)
+    control_crs: str | None = None  #: the control points' CRS when it is not the strips'
+    checkpoints_crs: str | None = None  #: the checkpoints' CRS when it is not the strips'
+    #: the ASPRS vertical accuracy class (cm) the calibrated strips must meet at the checkpoints (--class)
+    checkpoint_class_cm: float | None = None
+
+    @property
+    def points(self) -> PointOptions:
+        """How the strips' points are read (--crs, --time-system, --geoid-undulation)."""
+        return self.ingest.points
+
+    def ingest_options(self) -> IngestOptions:
+        """The ingest options on the calibration's overlap grid."""
+        s = self.calibration.solver
+        return replace(self.ingest, cell_m=s.overlap_cell_m, min_cells=s.min_overlap_cells)
+
+    def to_dict(self) -> dict:
+        """The TOML file's document (user units; None values left out)."""
+        c = self.calibration
+        doc = {"method": [m.name for m in c.matchers], "estimate": c.estimate.names()}
+        if self.checkpoint_class_cm is not None:
+            doc["checkpoint_class_cm"] = self.checkpoint_class_cm
+        traj = {"on": c.trajectory is not None}
+        if c.trajectory is not None:
+            t = c.trajectory
+            traj.update(block_s=t.block_s, correlation_s=list(t.correlation_s))
+            if t.sigma is not None:
+                traj["sigma"] = [t.sigma[0], math.degrees(t.sigma[1])]
+        doc["trajectory_model"] = traj
+        # no TOML null: no robust loss is "none", no clusters 0
+        doc["solver"] = {**_plain(c.solver), "robust": c.solver.robust or "none", "cluster_s": c.solver.cluster_s or 0}
+        for m in c.matchers:
+            doc[m.name] = {"threshold_m": m.threshold_m, **_plain(m.settings)}
+        ingest = {k: getattr(self.ingest, f) for k, f in INGEST_KEYS.items()}
+        ingest["strip_points"] = ingest["strip_points"] or 0
+        doc["ingest"] = {k: v for k, v in ingest.items() if v is not None}
+        owners = {"points": self.points, "trajectory": self.trajectory_input, "config": self}
+        inputs = {k: getattr(owners[o], f) for k, (o, f) in INPUT_KEYS.items()}
+        doc["inputs"] = {k: list(v) if isinstance(v, tuple) else str(v) if k.endswith("crs") else v
+                         for k, v in inputs.items() if v is not None}
+        return doc
+
+    def write(self, path: Path) -> Path:
+        """Write the TOML file (atomically); returns its path."""
+        from calidar.outputs import write_text_atomic
+
+        lines = ["# calidar boresight configuration: give it again with --config to repeat the run", ""]
+        sections = [(k, v) for k, v in self.to_dict().items() if isinstance(v, dict)]
+        lines += [f"{k} = {_toml(v)}" for k, v in self.to_dict().items() if not isinstance(v, dict)]
+        for name, table in sections:
+            lines += ["", f"[{name}]", *(f"{k} = {_toml(v)}" for k, v in table.items())]
+        return write_text_atomic(Path(path), "\n".join(lines) + "\n")
+
+    @classmethod
+    def read(cls, path: Path) -> StripConfig:
+        """The configuration of a TOML file (keys left out: their defaults)."""
+        from calidar.validate import read_text
+
+        path = Path(path)
+        try:
+            doc = tomllib.loads(read_text(path, "TOML file"))
+        except tomllib.TOMLDecodeError as e:
+            raise InputError(path, None, f"expected TOML ({e})") from None
+        return from_document(doc, path)
+
+
+def from_document(doc: dict, path: Path | None = None) -> StripConfig:
+    """:class:`StripConfig` from a TOML document (:meth:`StripConfig.to_dict`'s layout)."""
+    from calidar.sensor import validated_crs
+
+    known = {"method", "estimate", "checkpoint_class_cm", "trajectory_model", "solver", "ingest", "inputs", *MATCHERS}
+    _known(doc, known, path, "")
+    target = _typed(doc.get("checkpoint_class_cm"), float | None, path, "checkpoint_class_cm")
+    estimate = _typed(doc.get("estimate", ["boresight"]), tuple[str, ...], path, "estimate")
+    methods = _typed(doc.get("method", ["planes"]), tuple[str, ...], path, "method")
+    for m in methods:
+        if m not in MATCHERS:
+            raise InputError(path, "method", f"expected one or more of {', '.join(MATCHERS)}, got {m!r}")
+    matchers = tuple(_matcher(MATCHERS[m], _table(doc, m, path), path) for m in methods)
+    for m in set(MATCHERS) - set(methods):
+        _matcher(MATCHERS[m], _table(doc, m, path), path)  # checked, though not used
+    trajectory = _trajectory(_table(doc, "trajectory_model", path), path)
+    solver = _section(StripSettings, _solver(_table(doc, "solver", path)), path, "solver")
+    chosen = _build(path, "estimate", lambda: Estimate.of(*estimate))
+    calibration = _build(path, "method", lambda: CalibrationConfig(chosen, matchers, trajectory, solver))
+    ingest = _table(doc, "ingest", path)
+    _known(ingest, set(INGEST_KEYS), path, "ingest.")
+    kw = {INGEST_KEYS[k]: _typed(v, typing.get_type_hints(IngestOptions)[INGEST_KEYS[k]], path, f"ingest.{k}")
+          for k, v in ingest.items()}
+    if kw.get("budget_points") == 0:
+        kw["budget_points"] = None
+    inputs = _table(doc, "inputs", path)
+    _known(inputs, set(INPUT_KEYS), path, "inputs.")
+    parts: dict[str, dict] = {"points": {}, "trajectory": {}, "config": {}}
+    hints = {"points": typing.get_type_hints(PointOptions), "trajectory": typing.get_type_hints(TrajectoryOptions)}
+    for k, v in inputs.items():
+        owner, name = INPUT_KEYS[k]
+        parts[owner][name] = _typed(v, str | None if owner == "config" or name == "crs" else hints[owner][name],
+                                    path, f"inputs.{k}")
+        if k.endswith("crs"):
+            validated_crs(v, str(path), f"inputs.{k}")
+    points = _build(path, "inputs", lambda: PointOptions(**parts["points"]))
+    ingest_options = _build(path, "ingest", lambda: IngestOptions(points=points, **kw))
+    trajectory = _build(path, "inputs", lambda: TrajectoryOptions(**parts["trajectory"]))
+    return StripConfig(calibration, ingest_options, trajectory, **parts["config"], checkpoint_class_cm=target)
+
+
+def _solver(table: dict) -> dict:
+    """[solver] with "none" for no robust loss and 0 for no clusters (TOML has no null)."""
+    return {**table, **({"robust": None} if table.get("robust") == "none" else {}),
+            **({"cluster_s": None} if table.get("cluster_s") == 0 else {})}
+
+
+def _trajectory(table: dict, path) -> TrajectorySettings | None:
+    _known(table, {"on", "block_s", "correlation_s", "sigma"}, path, "trajectory_model.")
+    if not _typed(table.get("on", True), bool, path, "trajectory_model.on"):
+        extra = sorted(set(table) - {"on"})
+        if extra:
+            raise InputError(path, f"trajectory_model.{extra[0]}", "given with on = false; expected the model on or "
+                             "no trajectory-model settings")
+        return None
+    settings = _section(TrajectorySettings, {k: v for k, v in table.items() if k not in ("on", "sigma")}, path,
+                        "trajectory_model")
+    if "sigma" not in table:
+        return settings
+    pos, att_deg = _typed(table["sigma"], tuple[float, float], path, "trajectory_model.sigma")
+    return _build(path, "trajectory_model.sigma", lambda: replace(settings, sigma=(pos, math.radians(att_deg))))
+
+
+def _matcher(cls: type, table: dict, path):
+    settings_type = typing.get_type_hints(cls)["settings"]
+    threshold = {k: v for k, v in table.items() if k == "threshold_m"}
+    settings = _section(settings_type, {k: v for k, v in table.items() if k != "threshold_m"}, path, cls.name)
+    return cls(settings, **{k: _typed(v, float, path, f"{cls.name}.{k}") for k, v in threshold.items()})
+
+
+def _table(doc: dict, key: str, path) -> dict:
+    table = doc.get(key, {})
+    if not isinstance(table, dict):
+        raise InputError(path, key, f"expected a table [{key}], got {table!r}")
+    return table
+
+
+def _known(table: dict, known: set[str], path, prefix: str) -> None:
+    unknown = sorted(set(table) - known)
+    if unknown:
+        raise InputError(path, prefix + unknown[0], f"unknown key; expected one of {', '.join(sorted(known))}")
+
+
+def _section(cls: type, table: dict, path, name: str):
+    """A dataclass ``cls`` from a TOML table: every key one of its fields, of the field's type."""
+    hints = typing.get_type_hints(cls)
+    _known(table, {f.name for f in fields(cls)}, path, f"{name}.")
+    kw = {k: _typed(v, hints[k], path, f"{name}.{k}") for k, v in table.items()}
+    return _build(path, name, lambda: cls(**kw))
+
+
+def _build(path, name: str, make):
+    """``make()``, its complaints named by the file and the section or key."""
+    try:
+        return make()
+    except InputError as e:
+        raise InputError(path, f"{name} ({e.field})" if e.field and e.field != name else name, e.problem) from None
+    except (ValueError, TypeError) as e:
+        raise InputError(path, name, str(e)) from None
+
+
+def _typed(value, tp, path, key: str):
+    """``value`` of a TOML document as the type ``tp`` (float, int, str, bool, X | None, tuple[X, ...],
+    tuple[X, Y]), else an error naming the file and the key."""
+    origin, args = typing.get_origin(tp), typing.get_args(tp)
+    if origin in (typing.Union, types.UnionType):
+        if value is None and type(None) in args:
+            return None
+        return _typed(value, next(a for a in args if a is not type(None)), path, key)
+    if origin is tuple:
+        n = None if len(args) == 2 and args[1] is Ellipsis else len(args)
+        if not isinstance(value, list) or (n is not None and len(value) != n):
+            raise InputError(path, key, f"expected a list of {n or 'one or more'} values, got {value!r}")
+        return tuple(_typed(v, args[0] if n is None else args[k], path, key) for k, v in enumerate(value))
+    ok = {float: lambda v: isinstance(v, (int, float)) and not isinstance(v, bool),
+          int: lambda v: isinstance(v, int) and not isinstance(v, bool), str: lambda v: isinstance(v, str),
+          bool: lambda v: isinstance(v, bool)}
+    if tp not in ok or not ok[tp](value):
+        raise InputError(path, key, f"expected {getattr(tp, '__name__', tp)}, got {value!r}")
+    return float(value) if tp is float else value
+
+
+def _plain(settings) -> dict:
+    """A settings dataclass's fields as TOML values (None left out, tuples as lists)."""
+    return {f.name: list(v) if isinstance(v, tuple) else v for f in fields(settings)
+            if (v := getattr(settings, f.name)) is not None}
+
+
+def _toml(value) -> str:
+    """One TOML value (numbers, strings, booleans, lists of them)."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, (list, tuple)):
+        return "[" + ", ".join(_toml(v) for v in value) + "]"
+    if isinstance(value, float):
+        return repr(value)
+    if isinstance(value, int):
+        return str(value)
+    return '"' + str(value).replace("\\", "\\\\").replace('"', '\\"') + '"'

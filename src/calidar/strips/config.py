@@ -1,0 +1,153 @@
+"""The strip calibration's configuration: typed values, checked when they are made and handed
+down unchanged.
+
+- :class:`Estimate`: the sensor parameters to estimate (a set of names, made from groups such as
+  ``boresight`` or single parameters such as ``lever_arm_x``);
+- :class:`TrajectorySettings`: the trajectory model's knots, Gauss–Markov correlation times and,
+  optionally, one σ for every epoch (:mod:`calidar.strips.trajectory_errors`);
+- :class:`StripSettings`: how the adjustment runs (overlap grid, outer loop, robust loss, clusters);
+- the matchers (:mod:`calidar.strips.matchers`), each with its own settings, by name in :data:`MATCHERS`;
+- :class:`CalibrationConfig`: all of them, what :func:`calidar.strips.calibrate.calibrate` takes.
+
+SI units inside (radians, metres, seconds); degrees appear only where a user reads or writes them.
+
+>>> config = CalibrationConfig(Estimate.of("boresight", "lever_arm_z"), matchers=(Vgicp(),))
+>>> sorted(config.estimate.parameters)
+['boresight_pitch', 'boresight_roll', 'boresight_yaw', 'lever_arm_z']
+>>> config.estimate.names(), [m.name for m in config.matchers]
+(['boresight', 'lever_arm_z'], ['vgicp'])
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+from calidar.errors import InputError
+from calidar.strips.matchers import Matcher, TiePlanes, Vgicp
+from calidar.strips.parameters import ESTIMATE_GROUPS, SINGLE_PARAMETERS
+from calidar.strips.trajectory_errors import TrajectoryModel
+from calidar.trajectory_accuracy import MAX_ATTITUDE_SIGMA_RAD, MAX_POSITION_SIGMA_M
+
+#: the matchers by the name ``--method`` and the outputs use
+MATCHERS: dict[str, type] = {m.name: m for m in (TiePlanes, Vgicp)}
+#: the groups an :class:`Estimate` is made of (the trajectory's errors are the trajectory model's)
+GROUPS: dict[str, tuple[str, ...]] = {g: tuple(n for n, _ in p) for g, p in ESTIMATE_GROUPS.items()}
+MAX_TRAJECTORY_BLOCK_S = 600.0  #: s, the knots' spacing (longer: no trajectory correction at all)
+MAX_CORRELATION_S = 86400.0  #: s, correlation times (a day: constant errors)
+
+
+def matchers_named(*names: str) -> tuple[Matcher, ...]:
+    """The matchers of these names (:data:`MATCHERS`), each with its default settings."""
+    unknown = [n for n in names if n not in MATCHERS]
+    if unknown or not names:
+        raise InputError(None, "method", f"expected one or more of {', '.join(MATCHERS)}, got {list(names)}")
+    return tuple(MATCHERS[n]() for n in names)
+
+
+@dataclass(frozen=True)
+class Estimate:
+    """The sensor parameters to estimate, by the engine's names (``boresight_roll``, ...)."""
+
+    parameters: frozenset[str]
+
+    def __post_init__(self):
+        unknown = sorted(set(self.parameters) - set(SINGLE_PARAMETERS))
+        if unknown or not self.parameters:
+            raise InputError(None, "estimate", f"expected one or more of the groups {sorted(GROUPS)} or single "
+                             f"parameters such as lever_arm_x, got {unknown or 'none'}")
+
+    @classmethod
+    def of(cls, *names: str) -> Estimate:
+        """The parameters of groups (``boresight``) and single parameters (``lever_arm_x``)."""
+        unknown = [n for n in names if n not in GROUPS and n not in SINGLE_PARAMETERS]
+        if unknown or not names:
+            raise InputError(None, "estimate", f"expected one or more of the groups {sorted(GROUPS)} or single "
+                             f"parameters such as lever_arm_x, got {unknown or 'none'}")
+        return cls(frozenset(p for n in names for p in GROUPS.get(n, (n,))))
+
+    def __contains__(self, name: str) -> bool:
+        """A parameter, or a group whose every parameter is estimated."""
+        return all(p in self.parameters for p in GROUPS.get(name, (name,)))
+
+    def names(self) -> list[str]:
+        """The shortest list of group and single-parameter names that makes it (as a user writes it)."""
+        groups = [g for g, ps in GROUPS.items() if g in self]
+        covered = {p for g in groups for p in GROUPS[g]}
+        return groups + [p for p in SINGLE_PARAMETERS if p in self.parameters and p not in covered]
+
+
+def _positive(value: float, what: str, unit: str, hi: float) -> None:
+    if not (isinstance(value, (int, float)) and math.isfinite(value) and 0 < value <= hi):
+        raise InputError(None, what, f"expected a finite number > 0 and ≤ {hi:g} {unit}, got {value}")
+
+
+@dataclass(frozen=True)
+class TrajectorySettings:
+    """The trajectory model (:class:`calidar.strips.trajectory_errors.TrajectoryModel`) as a user sets
+    it: knots every ``block_s`` s, Gauss–Markov correlation times (position, attitude) s, and
+    ``sigma`` (position m, attitude rad), one σ for every epoch and axis instead of the
+    trajectory's stated accuracy (None: the accuracy of the trajectory's file, or estimated)."""
+
+    block_s: float = 1.0
+    correlation_s: tuple[float, float] = (20.0, 3.5)
+    sigma: tuple[float, float] | None = None
+
+    def __post_init__(self):
+        _positive(self.block_s, "trajectory block (--trajectory-block)", "s", MAX_TRAJECTORY_BLOCK_S)
+        if len(self.correlation_s) != 2:
+            raise InputError(None, "trajectory correlation (--trajectory-correlation)",
+                             f"expected 2 times (position, attitude), got {len(self.correlation_s)}")
+        for v in self.correlation_s:
+            _positive(v, "trajectory correlation (--trajectory-correlation)", "s", MAX_CORRELATION_S)
+        if self.sigma is not None:
+            if len(self.sigma) != 2:
+                raise InputError(None, "trajectory sigma (--trajectory-sigma)",
+                                 f"expected 2 values (position m, attitude), got {len(self.sigma)}")
+            _positive(self.sigma[0], "trajectory sigma (--trajectory-sigma)", "m", MAX_POSITION_SIGMA_M)
+            _positive(self.sigma[1], "trajectory sigma (--trajectory-sigma)", "rad", MAX_ATTITUDE_SIGMA_RAD)
+
+    def model(self, accuracy=None, estimate_level: bool = False) -> TrajectoryModel:
+        """The model with priors from ``accuracy`` (a TrajectoryAccuracy), else from :attr:`sigma`;
+        ``estimate_level``: the priors' level estimated from the overlaps."""
+        pos, att = (None, None) if accuracy is not None or self.sigma is None else self.sigma
+        return TrajectoryModel(self.block_s, pos, att, *self.correlation_s, accuracy, estimate_level)
+
+
+@dataclass(frozen=True)
+class StripSettings:
+    """How the strip adjustment runs (metres unless named)."""
+
+    overlap_cell_m: float = 5.0  #: grid of the overlap detection
+    min_overlap_cells: int = 4
+    min_correspondences: int = 10  #: pairs with fewer are skipped with a warning
+    max_outer: int = 8  #: outer (re-matching) iterations
+    #: stop when the mean correspondence distance changes by less (None: the matcher's threshold_m)
+    threshold_m: float | None = None
+    robust: str | None = "cauchy"
+    cluster_s: float | None = 10.0  #: trajectory errors correlate over this time: σ from a cluster-robust covariance
+
+    def __post_init__(self):
+        for name in ("overlap_cell_m", "min_overlap_cells", "min_correspondences", "max_outer"):
+            _positive(getattr(self, name), f"solver {name}", "", 1e9)
+        for name in ("threshold_m", "cluster_s"):
+            if getattr(self, name) is not None:
+                _positive(getattr(self, name), f"solver {name}", "", 1e9)
+        if self.robust not in (None, "cauchy", "huber"):
+            raise InputError(None, "solver robust", f"expected cauchy, huber or none, got {self.robust!r}")
+
+
+@dataclass(frozen=True)
+class CalibrationConfig:
+    """A strip calibration's configuration: what to estimate, with which matchers (one calibration
+    each, in order), the trajectory model (None: the trajectory taken as exact) and the adjustment."""
+
+    estimate: Estimate = field(default_factory=lambda: Estimate.of("boresight"))
+    matchers: tuple[Matcher, ...] = (TiePlanes(),)
+    trajectory: TrajectorySettings | None = field(default_factory=TrajectorySettings)
+    solver: StripSettings = field(default_factory=StripSettings)
+
+    def __post_init__(self):
+        names = [m.name for m in self.matchers]
+        if not names or len(set(names)) != len(names):
+            raise InputError(None, "method", f"expected one or more of {', '.join(MATCHERS)}, each once, got {names}")

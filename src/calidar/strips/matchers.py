@@ -1,0 +1,59 @@
+"""The matchers: how the correspondences between two overlapping strips are found.
+
+A matcher is an object that owns its settings, its matching, the outer loop's stop (how much
+the mean correspondence distance may still change, m) and the words the report and the verdict
+use for its observations. The calibrator (:mod:`calidar.strips.calibrate`) only calls
+:meth:`Matcher.match`; a new kind of correspondence is a new class of this shape, named in
+:data:`calidar.strips.config.MATCHERS`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import ClassVar, Protocol
+
+import numpy as np
+
+from calidar.strips.correspond import Correspondences
+from calidar.strips.planes import PlaneSettings, match_pair_planes
+from calidar.strips.vgicp import VgicpSettings, match_pair_vgicp
+
+
+class Matcher(Protocol):
+    """What the calibrator asks of a matcher (frozen, picklable: it travels to Dask workers)."""
+
+    name: ClassVar[str]  #: how ``--method`` and the outputs name it (solution_<name>.json)
+    label: ClassVar[str]  #: its observations in words ("tie planes")
+    threshold_m: float  #: the outer loop stops when the mean distance changes by less (m)
+
+    def match(self, strip_a: int, points_a: np.ndarray, strip_b: int, points_b: np.ndarray) -> Correspondences:
+        """The correspondences of two strips' overlapping points ((N, 3) local m each)."""
+        ...
+
+
+@dataclass(frozen=True)
+class TiePlanes:
+    """Tie planes (:func:`calidar.strips.planes.match_pair_planes`): one point-to-plane row per
+    small planar patch seen by both strips."""
+
+    name: ClassVar[str] = "planes"
+    label: ClassVar[str] = "tie planes"
+    settings: PlaneSettings = field(default_factory=PlaneSettings)
+    threshold_m: float = 2e-4  #: the matching is deterministic: 0.2 mm
+
+    def match(self, strip_a: int, points_a: np.ndarray, strip_b: int, points_b: np.ndarray) -> Correspondences:
+        return match_pair_planes(strip_a, points_a, strip_b, points_b, self.settings)
+
+
+@dataclass(frozen=True)
+class Vgicp:
+    """VGICP registration and nearest neighbours (:func:`calidar.strips.vgicp.match_pair_vgicp`)."""
+
+    name: ClassVar[str] = "vgicp"
+    label: ClassVar[str] = "VGICP correspondences"
+    settings: VgicpSettings = field(default_factory=VgicpSettings)
+    #: re-matching alone moves the mean distance by ~0.1 mm, so the tie planes' 0.2 mm would rarely stop it
+    threshold_m: float = 1e-3
+
+    def match(self, strip_a: int, points_a: np.ndarray, strip_b: int, points_b: np.ndarray) -> Correspondences:
+        return match_pair_vgicp(strip_a, points_a, strip_b, points_b, self.settings)
