@@ -97,7 +97,18 @@ def _precision(result) -> list[Finding]:
         f = "{:.2f}" if base == "footprint_diameter" else "{:+.2f}"
         detail = (f"{f.format(v)} m, 95 % interval {f.format(iv.low)} … {f.format(iv.high)} m" if iv
                   else f"{f.format(v)} ± {half:.2f} m")
-        if iv and (iv.open_low or iv.open_high):
+        was, now = u.profile_sigma.get(n, (1.0, 1.0))
+        if not 1 / 1.1 < now / was < 1.1:
+            detail += (f"; σ {now:.2f} m from this interval (the curvature at the maximum gives {was:.2f} m: the "
+                       "likelihood is not quadratic here)")
+        if iv and iv.level > 3.85:
+            detail += f" (deviance level {iv.level:.2f}, not χ²₁'s 3.84: fewer than 4 lit CCRs, a small sample)"
+        if iv and iv.failed:
+            out.append(Finding("warn", n, detail + ": no honest interval — the likelihood has no maximum with this "
+                               "parameter held just beyond the estimate (a bound or another parameter's limit is "
+                               "reached); treat its σ as a lower bound",
+                               "add lit CCRs (or passes), or check the CCR survey"))
+        elif iv and (iv.open_low or iv.open_high):
             out.append(Finding("warn", n, detail + ": the interval reaches the search limit, the data do not bound it "
                                "there (σ and the other intervals assume the value within the searched range)",
                                "add lit CCRs (or passes); widen --diameter-range/--max-bias only if values beyond "
