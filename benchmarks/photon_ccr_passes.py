@@ -13,7 +13,7 @@ diameter) the RMS and max of |error/σ|, the coverage of the reported 95 % profi
 intervals and of ±1.96 σ; and the same split by whether a nuisance parameter was held at a bound.
 
 Run (niced, one core): NUMBA_NUM_THREADS=1 OMP_NUM_THREADS=1 PYTHONPATH=src nice -n 10 \
-    python benchmarks/photon_ccr_passes.py --seeds 2000:2100 [--bootstrap 100] [--surface 9] [--log FILE]
+    python benchmarks/photon_ccr_passes.py --seeds 2000:2100 [--bootstrap 100] [--surface 9] [--n-ccr 2] [--log FILE]
 """
 
 from __future__ import annotations
@@ -34,9 +34,8 @@ from calidar.pipelines.ccr import run_ccr, simulate_photons
 from calidar.sim.photons import PhotonSimConfig
 
 
-def one_pass(seed: int, bootstrap: int, surface: int = 9) -> dict:
-    """Simulate, calibrate and compare one pass; a dict with its status and figures."""
-    n = 2
+def one_pass(seed: int, bootstrap: int, surface: int = 9, n: int = 2) -> dict:
+    """Simulate, calibrate and compare one pass with ``n`` lit CCRs; a dict with its status and figures."""
     cfg = PhotonSimConfig(seed=seed, n_ccr=n, ccr_dropout=0.33, ccr_spacing=min(60.0, 0.9 * 1200.0 / n))
     with tempfile.TemporaryDirectory(prefix="photon_ccr_") as tmp:
         sim_dir, out = Path(tmp) / "sim", Path(tmp) / "cal"
@@ -91,12 +90,13 @@ def main() -> None:
     ap.add_argument("--bootstrap", type=int, default=100, help="bootstrap replicates (calidar ccr's default: 100)")
     ap.add_argument("--surface", type=int, default=9, help="likelihood surface points per axis (the report's map; "
                     "no estimate, σ or interval depends on it; calidar ccr's default: 9)")
+    ap.add_argument("--n-ccr", type=int, default=2, help="lit CCRs a pass (issue 26's acceptance: 2)")
     ap.add_argument("--log", type=Path, default=None, help="JSON lines, one per pass (appended)")
     args = ap.parse_args()
     a, b = map(int, args.seeds.split(":"))
     rows, t0 = [], time.perf_counter()
     for seed in range(a, b):
-        row = one_pass(seed, args.bootstrap, args.surface)
+        row = one_pass(seed, args.bootstrap, args.surface, args.n_ccr)
         rows.append(row)
         if args.log:
             with open(args.log, "a", encoding="utf-8") as fh:
