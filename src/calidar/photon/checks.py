@@ -154,7 +154,8 @@ def _sigma_agreement(result) -> Finding:
     if not notes:
         which = "observed information" + (", bootstrap" if u.bootstrap else "") + " and Cramér–Rao"
         return Finding("pass", "σ", f"{which} agree within {SIGMA_AGREEMENT:.0%}")
-    return Finding("warn", "σ", "; ".join(notes), "use the bootstrap σ and the profile intervals, not ±1.96σ")
+    return Finding("warn", "σ", "; ".join(notes), "use the profile intervals (the σ given are their wider halves / 1.96 "
+                   "where the likelihood is not quadratic)")
 
 
 def _model_fit(fits: list[CCRFit]) -> Finding:

@@ -74,8 +74,12 @@ class Uncertainty:
     profile_sigma: dict[str, tuple[float, float]] = field(default_factory=dict)  #: σ (curvature, profile's) changed
     surfaces: list[Surface] = field(default_factory=list)
 
+    def sigma(self, name: str) -> float | None:
+        """The σ reported for ``name``: from its profile interval where that changed it, else the observed information's."""
+        return self.profile_sigma[name][1] if name in self.profile_sigma else self.observed.get(name)
+
     def disagreements(self) -> list[str]:
-        """Sentences for the geolocation parameters whose observed-information, bootstrap and
+        """Sentences for the geolocation parameters whose reported σ (:meth:`sigma`), bootstrap and
         Cramér–Rao σ differ by more than DISAGREE (or, for the bootstrap, by more than three times
         the sampling error of a σ from its replicates, 1/√(2(R − 1)))."""
         out = []
@@ -84,14 +88,15 @@ class Uncertainty:
         for n in self.names:
             if n.split("[")[0] not in GEOLOCATION:
                 continue
-            obs, boot, crb = self.observed.get(n), self.bootstrap.get(n), self.cramer_rao.get(n)
+            obs, boot, crb = self.sigma(n), self.bootstrap.get(n), self.cramer_rao.get(n)
+            what = "σ from the profile interval" if n in self.profile_sigma else "observed-information σ"
             if boot and obs and abs(boot / obs - 1.0) > boot_tol:
-                out.append(f"{n}: bootstrap σ {boot:.3g} m vs observed-information σ {obs:.3g} m — the likelihood "
-                           "is not quadratic here (few CCRs, or a nuisance parameter at its bound); the bootstrap σ "
-                           "and the profile interval are the ones to use")
+                out.append(f"{n}: bootstrap σ {boot:.3g} m vs {what} {obs:.3g} m — the likelihood is not quadratic "
+                           "here (few CCRs, or a nuisance parameter at its bound): the bootstrap's spread is this "
+                           "estimator's at the fitted values only")
             if crb and obs and obs / crb - 1.0 > DISAGREE:
-                out.append(f"{n}: observed-information σ {obs:.3g} m is {obs / crb:.2f}× the Cramér–Rao σ {crb:.3g} m: "
-                           "this pass's counts hold less than they are expected to")
+                out.append(f"{n}: {what} {obs:.3g} m is {obs / crb:.2f}× the Cramér–Rao σ {crb:.3g} m: this pass's "
+                           "counts hold less than they are expected to")
         return out
 
     def to_dict(self) -> dict:
@@ -230,7 +235,9 @@ def interval_level(result, name: str) -> float:
 
 def sigma_from_profile(result) -> dict[str, tuple[float, float]]:
     """σ of each geolocation parameter from its 95 % profile interval: the wider half / 1.96 when the
-    interval is closed on both sides, else at least that (an open or failed end bounds it from below).
+    interval is closed on both sides, else at least that (an open or failed end bounds it from below;
+    with a nuisance parameter held at its bound the profile keeps it there, so the observed information's
+    σ, which profiles it out (:func:`calidar.photon.fit.observed_information_solution`), stays when wider).
 
     The observed information is the curvature at one point; where the likelihood is far from
     quadratic (two chords: a CCR peak the data do not see, a shot-loss rate at its bound 0) that σ
@@ -239,13 +246,14 @@ def sigma_from_profile(result) -> dict[str, tuple[float, float]]:
     are scaled (correlations kept); returns {name: (curvature σ, σ now)} of those changed."""
     sol, u, out = result.solution, result.uncertainty, {}
     names = sol.parameters.free_names
+    held = bool(result.estimate.fit.at_limit)  # the profile keeps them at the bound; the curvature profiled them out
     cov = sol.covariance.copy()
     for i, n in enumerate(names):
         iv, s = u.profile.get(n), sol.sigma[n]
         if iv is None:
             continue
         half = max(sol.values[n] - iv.low, iv.high - sol.values[n]) / 1.96
-        closed = not (iv.open_low or iv.open_high or iv.failed)
+        closed = not (iv.open_low or iv.open_high or iv.failed) and not held
         new = half if closed and half > 0 else max(half, s) if np.isfinite(s) else half
         if not np.isfinite(new) or new <= 0 or abs(new - s) <= 1e-3 * new:
             continue
