@@ -10,7 +10,8 @@ JSON) and compared with the truth.
 
 Reported: passes solved / refused / internal errors; per geolocation parameter (along, cross,
 diameter) the RMS and max of |error/σ|, the coverage of the reported 95 % profile-likelihood
-intervals and of ±1.96 σ; and the same split by whether a nuisance parameter was held at a bound.
+intervals and of ±1.96 σ; and the same split by whether the verdict says no honest interval can be had
+from the pass, and by whether a nuisance parameter was held at a bound.
 
 Run (niced, one core): NUMBA_NUM_THREADS=1 OMP_NUM_THREADS=1 PYTHONPATH=src nice -n 10 \
     python benchmarks/photon_ccr_passes.py --seeds 2000:2100 [--bootstrap 100] [--surface 9] [--n-ccr 2] [--log FILE]
@@ -106,6 +107,13 @@ def main() -> None:
     print(f"{time.perf_counter() - t0:.0f} s")
     for line in summarise(rows, "all"):
         print(line)
+    warned = [r for r in rows if r["status"] == "solved" and any("no honest interval" in f["detail"]
+                                                                 for f in r.get("warnings") or [])]
+    if warned:
+        for line in summarise(warned, "verdict: no honest interval"):
+            print(line)
+        for line in summarise([r for r in rows if r not in warned], "the others"):
+            print(line)
     held = [r for r in rows if r["status"] == "solved" and r["held"]]
     if held:
         for line in summarise(held, "held at a bound"):

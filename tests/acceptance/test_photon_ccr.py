@@ -91,6 +91,18 @@ def test_a_near_singular_curvature_gives_way_to_the_profile_interval():
     assert json.loads(json.dumps(u.to_dict()))["sigma_from_profile"]["along_track_bias"]["curvature"] > 1
 
 
+def test_a_two_ccr_pass_whose_loss_rate_runs_to_zero_says_it_has_no_honest_interval():
+    """Seed 2083 of benchmarks/photon_ccr_passes.py: one chord saw 3 of its ~10 shots; the likelihood
+    reads the gaps as a sharp edge (no lost shots, a CCR peak of hundreds of photons) and puts the
+    along-track bias 1.4 m and the diameter 2.4 m off (4.1σ, 4.3σ, the profile deviance at the truth
+    16). The verdict says that no honest interval can be had from this pass."""
+    sim, result, err = solve(PhotonSimConfig(seed=2083, n_ccr=2, ccr_dropout=0.33, ccr_spacing=60.0))
+    assert result.solution.values["shot_loss_rate"] < 1e-3 and err["footprint_diameter"] < -1.0
+    found = [f for f in result.verdict.findings if f.check == "intervals"]
+    assert found and found[0].status == "warn" and "no honest interval" in found[0].detail
+    assert result.verdict.status == "warn"
+
+
 def test_a_diameter_beyond_the_bounds_is_held_there_and_fails_the_verdict():
     """Never a physically impossible answer: searched 8–10 m for an 11 m footprint → held at 10 m, FAIL."""
     sim = simulate_pass(PhotonSimConfig(seed=2, n_ccr=8))

@@ -22,6 +22,7 @@ DIAMETER_TOLERANCE = 1.0  #: m
 FIT_Z = 3.0
 SIGMA_AGREEMENT = 0.25  #: relative
 GOOD_CCRS = 4  #: lit CCRs per beam for a well-determined footprint
+LOSS_AT_BOUND = 1e-3  #: a shot-loss rate at most this has run to its bound 0 (the solver nears it asymptotically)
 
 
 @dataclass
@@ -138,6 +139,7 @@ def _solve_checks(result) -> list[Finding]:
                "taken as known (the likelihood is not convex there); the profile intervals re-maximise it")
         out.append(Finding("pass", "shot-loss rate", f"{', '.join(loss)} held at 0 (the counts show no lost shots); "
                            f"for the other parameters' σ it is {how}"))
+    out += _loss_at_zero_with_few_ccrs(result)
     if not sol.converged:
         out.append(Finding("warn", "solver", "the maximum-likelihood iterations did not converge",
                            "report this pass; treat the values with care"))
@@ -145,6 +147,26 @@ def _solve_checks(result) -> list[Finding]:
     if u.bootstrap_requested and u.bootstrap_failed > 0.05 * u.bootstrap_requested:
         out.append(Finding("warn", "bootstrap", f"{u.bootstrap_failed} of {u.bootstrap_requested} simulated passes "
                            "like this one gave no estimate", "add lit CCRs: this pass is at the edge of what can be solved"))
+    return out
+
+
+def _loss_at_zero_with_few_ccrs(result) -> list[Finding]:
+    """A beam with fewer than GOOD_CCRS lit CCRs whose shot-loss rate ran to its bound 0 (free or held):
+    its gaps are then read as a sharp footprint edge, and the along-track bias and diameter rest on that
+    edge, which two chords do not fix. On simulated 2-CCR passes (a third of the shots lost) the few that ran
+    there held most of the errors beyond 3σ, their diameters all short (docs/validation.md, "CCR on 2-CCR
+    passes"): no honest interval can be had from such a pass."""
+    lay, vals, out = result.layout, result.solution.values, []
+    for g, key in enumerate(lay.groups):
+        q = lay.name(g, "shot_loss_rate")
+        lit = sum(1 for s in result.estimate.segments if s.window.group == g)
+        if vals.get(q, 1.0) <= LOSS_AT_BOUND and lit < GOOD_CCRS:
+            who = f"{key}: " if len(lay.groups) > 1 else ""
+            out.append(Finding("warn", f"{who}intervals", f"no honest interval: the shot-loss rate ran to its bound 0 "
+                               f"with {lit} lit CCRs, so the counts' gaps are read as a sharp footprint edge that two "
+                               "or three chords do not fix; the along-track bias and the diameter (then short) may lie "
+                               "well outside their intervals",
+                               f"add lit CCRs (at least {GOOD_CCRS}) or solve several passes together"))
     return out
 
 

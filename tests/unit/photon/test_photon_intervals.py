@@ -10,7 +10,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from calidar.photon.checks import _precision
+from calidar.photon.checks import _loss_at_zero_with_few_ccrs, _precision
 from calidar.photon.fit import Bounds, Layout, Problem, maximise
 from calidar.photon.likelihood import Shots, count_distribution, simulate_counts
 from calidar.photon.search import SearchSettings
@@ -105,3 +105,14 @@ def test_an_interval_without_a_profile_maximum_is_a_warning_not_a_narrow_sigma(t
     assert findings["footprint_diameter"].status == "warn"
     assert "no honest interval" in findings["footprint_diameter"].detail
     assert findings["along_track_bias"].status == "pass"
+
+
+@pytest.mark.parametrize("q, lit, warned", [(2e-6, 2, True), (0.0, 3, True), (0.3, 2, False), (0.0, 5, False)])
+def test_a_loss_rate_run_to_zero_with_few_ccrs_says_no_honest_interval(two_chords, q, lit, warned):
+    prob, fit, _ = two_chords
+    result = result_of(fit, prob, [SimpleNamespace(window=SimpleNamespace(group=0))] * lit)
+    result.solution = SimpleNamespace(values={**fit.solution.values, "shot_loss_rate": q})
+    found = _loss_at_zero_with_few_ccrs(result)
+    assert bool(found) == warned
+    if warned:
+        assert found[0].status == "warn" and "no honest interval" in found[0].detail
