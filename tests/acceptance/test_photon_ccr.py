@@ -53,6 +53,9 @@ def test_many_lit_ccrs_recover_bias_and_diameter_with_honest_sigma(twelve):
         assert u.profile[k].covers(sol.values[k]) and u.profile[k].high - u.profile[k].low < 5 * sol.sigma[k]
     assert all(f.status == "pass" for f in result.verdict.findings if f.check in GEOLOCATION), result.verdict.findings
     assert result.verdict.status in ("pass", "warn")
+    for k in GEOLOCATION:  # near-quadratic: χ²₁'s level, and σ from the profile interval ≈ the curvature's
+        assert u.profile[k].level == pytest.approx(3.841)
+        assert 0.9 < sol.sigma[k] / u.observed[k] < 1.15
     assert u.surfaces and u.surfaces[0].deviance.min() < 0.5  # the estimate is the surface's minimum
 
 
@@ -67,6 +70,37 @@ def test_two_lit_ccrs_with_a_third_of_shots_lost(seed):
         assert abs(err[k]) < 3.0 * result.solution.sigma[k], (k, err[k])
     assert result.verdict.status == "warn"  # few CCRs: said in the verdict
     assert 0.1 < result.solution.values["shot_loss_rate"] < 0.6
+
+
+def test_a_near_singular_curvature_gives_way_to_the_profile_interval():
+    """Issue 26, seed 2029 of benchmarks/photon_ccr_passes.py: the shot-loss rate at its bound 0 left the
+    observed information near-singular (along-track σ 6.19 m beside a profile interval 1.7 m wide), and
+    the former interval search, stepping ±1.96σ, lost its lower end. σ is now the interval's wider half /
+    1.96, the interval cut at the small-sample level, and the verdict says both."""
+    sim, result, err = solve(PhotonSimConfig(seed=2029, n_ccr=2, ccr_dropout=0.33, ccr_spacing=60.0))
+    u, sol = result.uncertainty, result.solution
+    for k in GEOLOCATION:
+        iv = u.profile[k]
+        assert iv.level == pytest.approx(3.841 * 1.2)
+        assert not (iv.open_low or iv.open_high or iv.failed)
+        assert sol.sigma[k] == pytest.approx(max(sol.values[k] - iv.low, iv.high - sol.values[k]) / 1.96)
+        assert abs(err[k]) < 3 * sol.sigma[k], (k, err[k], sol.sigma[k])
+    assert u.observed["along_track_bias"] > 2 * sol.sigma["along_track_bias"]  # 1.6 m here, 6.2 m via the file
+    along = next(f for f in result.verdict.findings if f.check == "along_track_bias")
+    assert "from this interval" in along.detail and "small sample" in along.detail
+    assert json.loads(json.dumps(u.to_dict()))["sigma_from_profile"]["along_track_bias"]["curvature"] > 1
+
+
+def test_a_two_ccr_pass_whose_loss_rate_runs_to_zero_says_it_has_no_honest_interval():
+    """Seed 2083 of benchmarks/photon_ccr_passes.py: one chord saw 3 of its ~10 shots; the likelihood
+    reads the gaps as a sharp edge (no lost shots, a CCR peak of hundreds of photons) and puts the
+    along-track bias 1.4 m and the diameter 2.4 m off (4.1σ, 4.3σ, the profile deviance at the truth
+    16). The verdict says that no honest interval can be had from this pass."""
+    sim, result, err = solve(PhotonSimConfig(seed=2083, n_ccr=2, ccr_dropout=0.33, ccr_spacing=60.0))
+    assert result.solution.values["shot_loss_rate"] < 1e-3 and err["footprint_diameter"] < -1.0
+    found = [f for f in result.verdict.findings if f.check == "intervals"]
+    assert found and found[0].status == "warn" and "no honest interval" in found[0].detail
+    assert result.verdict.status == "warn"
 
 
 def test_a_diameter_beyond_the_bounds_is_held_there_and_fails_the_verdict():

@@ -33,7 +33,7 @@ from calidar.photon.fit import Layout, Problem
 from calidar.photon.passes import PassData, SystemParameters
 from calidar.photon.search import SearchSettings
 from calidar.photon.segments import CCRWindow
-from calidar.photon.uncertainty import assess
+from calidar.photon.uncertainty import assess, sigma_from_profile
 
 
 @dataclass
@@ -81,6 +81,7 @@ def calibrate(passes: list[PassData], survey, system: SystemParameters | None = 
     est = estimate(windows, problem, settings, system.shot_spacing)
     result = CCRResult(est, problem, windows, passes, system, settings, warnings)
     result.uncertainty = assess(result, progress)
+    result.uncertainty.profile_sigma = sigma_from_profile(result)
     result.verdict = verdict_of(result)
     return result
 
@@ -94,7 +95,9 @@ def describe(result: CCRResult) -> dict:
     return {
         "method": "maximum of the exact per-shot CCR count likelihood (calidar.adjust.solve on √(2·(−log P + ½)) "
                   "residuals, Fisher scoring), started from the published chord grid search",
-        "sigma_source": "observed information (inverse Hessian of −log L at the estimate)",
+        "sigma_source": "geolocation: the 95 % profile-likelihood interval's wider half / 1.96 (at least the observed "
+                        "information's where the interval is open); nuisance: observed information (inverse Hessian "
+                        "of −log L at the estimate); both in uncertainty",
         "uncertainty": result.uncertainty.to_dict() if result.uncertainty else None,
         "held_at_bound": result.estimate.fit.at_limit,
         "grid_search": {k: g.to_dict() for k, g in zip(result.layout.groups, result.estimate.grids)},

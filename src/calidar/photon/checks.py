@@ -22,6 +22,7 @@ DIAMETER_TOLERANCE = 1.0  #: m
 FIT_Z = 3.0
 SIGMA_AGREEMENT = 0.25  #: relative
 GOOD_CCRS = 4  #: lit CCRs per beam for a well-determined footprint
+LOSS_AT_BOUND = 1e-3  #: a shot-loss rate at most this has run to its bound 0 (the solver nears it asymptotically)
 
 
 @dataclass
@@ -97,7 +98,18 @@ def _precision(result) -> list[Finding]:
         f = "{:.2f}" if base == "footprint_diameter" else "{:+.2f}"
         detail = (f"{f.format(v)} m, 95 % interval {f.format(iv.low)} … {f.format(iv.high)} m" if iv
                   else f"{f.format(v)} ± {half:.2f} m")
-        if iv and (iv.open_low or iv.open_high):
+        was, now = u.profile_sigma.get(n, (1.0, 1.0))
+        if not 1 / 1.1 < now / was < 1.1:
+            detail += (f"; σ {now:.2f} m from this interval (the curvature at the maximum gives {was:.2f} m: the "
+                       "likelihood is not quadratic here)")
+        if iv and iv.level > 3.85:
+            detail += f" (deviance level {iv.level:.2f}, not χ²₁'s 3.84: fewer than 4 lit CCRs, a small sample)"
+        if iv and iv.failed:
+            out.append(Finding("warn", n, detail + ": no honest interval — the likelihood has no maximum with this "
+                               "parameter held just beyond the estimate (a bound or another parameter's limit is "
+                               "reached); treat its σ as a lower bound",
+                               "add lit CCRs (or passes), or check the CCR survey"))
+        elif iv and (iv.open_low or iv.open_high):
             out.append(Finding("warn", n, detail + ": the interval reaches the search limit, the data do not bound it "
                                "there (σ and the other intervals assume the value within the searched range)",
                                "add lit CCRs (or passes); widen --diameter-range/--max-bias only if values beyond "
@@ -127,6 +139,7 @@ def _solve_checks(result) -> list[Finding]:
                "taken as known (the likelihood is not convex there); the profile intervals re-maximise it")
         out.append(Finding("pass", "shot-loss rate", f"{', '.join(loss)} held at 0 (the counts show no lost shots); "
                            f"for the other parameters' σ it is {how}"))
+    out += _loss_at_zero_with_few_ccrs(result)
     if not sol.converged:
         out.append(Finding("warn", "solver", "the maximum-likelihood iterations did not converge",
                            "report this pass; treat the values with care"))
@@ -137,13 +150,34 @@ def _solve_checks(result) -> list[Finding]:
     return out
 
 
+def _loss_at_zero_with_few_ccrs(result) -> list[Finding]:
+    """A beam with fewer than GOOD_CCRS lit CCRs whose shot-loss rate ran to its bound 0 (free or held):
+    its gaps are then read as a sharp footprint edge, and the along-track bias and diameter rest on that
+    edge, which two chords do not fix. On simulated 2-CCR passes (a third of the shots lost) the few that ran
+    there held most of the errors beyond 3σ, their diameters all short (docs/validation.md, "CCR on 2-CCR
+    passes"): no honest interval can be had from such a pass."""
+    lay, vals, out = result.layout, result.solution.values, []
+    for g, key in enumerate(lay.groups):
+        q = lay.name(g, "shot_loss_rate")
+        lit = sum(1 for s in result.estimate.segments if s.window.group == g)
+        if vals.get(q, 1.0) <= LOSS_AT_BOUND and lit < GOOD_CCRS:
+            who = f"{key}: " if len(lay.groups) > 1 else ""
+            out.append(Finding("warn", f"{who}intervals", f"no honest interval: the shot-loss rate ran to its bound 0 "
+                               f"with {lit} lit CCRs, so the counts' gaps are read as a sharp footprint edge that two "
+                               "or three chords do not fix; the along-track bias and the diameter (then short) may lie "
+                               "well outside their intervals",
+                               f"add lit CCRs (at least {GOOD_CCRS}) or solve several passes together"))
+    return out
+
+
 def _sigma_agreement(result) -> Finding:
     notes = result.uncertainty.disagreements()
     u = result.uncertainty
     if not notes:
         which = "observed information" + (", bootstrap" if u.bootstrap else "") + " and Cramér–Rao"
         return Finding("pass", "σ", f"{which} agree within {SIGMA_AGREEMENT:.0%}")
-    return Finding("warn", "σ", "; ".join(notes), "use the bootstrap σ and the profile intervals, not ±1.96σ")
+    return Finding("warn", "σ", "; ".join(notes), "use the profile intervals (the σ given are their wider halves / 1.96 "
+                   "where the likelihood is not quadratic)")
 
 
 def _model_fit(fits: list[CCRFit]) -> Finding:

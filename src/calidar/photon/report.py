@@ -44,8 +44,9 @@ def _intro(sec, result) -> None:
         "Bias = true − reported footprint position (along-track positive in the direction of travel, cross-track "
         "positive to the left). The estimate is the maximum of the exact likelihood of every shot's CCR photon count "
         "(binomial over the detector channels, lost shots, pointing jitter, background), started from the published "
-        "grid search; the CCR peak photons Λ and the shot-loss rate q are nuisance parameters. σ below: the observed "
-        "information (inverse Hessian of −log L). The residuals are the solver's √(2·(−log P + ½)) per shot (their "
+        "grid search; the CCR peak photons Λ and the shot-loss rate q are nuisance parameters. σ below: for the geolocation "
+        "parameters the 95 % profile-likelihood interval's wider half / 1.96 (deviance level 3.84, or 4.61 with fewer "
+        "than 4 lit CCRs: a small sample), for the others the observed information (inverse Hessian of −log L). The residuals are the solver's √(2·(−log P + ½)) per shot (their "
         "squares sum to 2·(−log L) + shots), not distances.")
     held = result.estimate.fit.at_limit
     if held:
@@ -63,14 +64,14 @@ def _sigma_table(sec, result, truth) -> None:
         iv = u.profile.get(n)
         t = (truth or {}).get(n)
         v = result.solution.values[n]
-        rows.append([n, v, u.observed.get(n), u.bootstrap.get(n), u.cramer_rao.get(n),
+        rows.append([n, v, u.sigma(n), u.observed.get(n), u.bootstrap.get(n), u.cramer_rao.get(n),
                      f"{iv.low:.3f} … {iv.high:.3f}" + (" (open)" if iv.open_low or iv.open_high else "") if iv else None,
                      t, None if t is None else v - t])
     boot = (f"bootstrap: {u.bootstrap_values.shape[0]} parametric replicates re-solved by the same code"
             + (f" ({u.bootstrap_failed} without an estimate)" if u.bootstrap_failed else "")
             if u.bootstrap_values is not None else "bootstrap off")
-    sec.table(["parameter", "value", "σ observed info", "σ bootstrap", "σ Cramér–Rao", "95 % profile interval",
-               "truth", "error"], rows, caption=f"σ three ways (m for the geolocation parameters); {boot}")
+    sec.table(["parameter", "value", "σ", "σ observed info", "σ bootstrap", "σ Cramér–Rao", "95 % profile interval",
+               "truth", "error"], rows, caption=f"σ reported and three ways (m for the geolocation parameters); {boot}")
     for note in u.disagreements():
         sec.warning(note)
 

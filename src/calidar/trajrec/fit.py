@@ -7,6 +7,13 @@ by each observation type's MAD scale), smoothness priors on second differences o
 (a plausible acceleration and angular acceleration: where the points say little, the path stays
 smooth instead of wandering — the failure PDAL issue 4627 reports) and weak priors keeping roll and
 pitch within what an aircraft flies. The covariance of the coefficients is σ0²·N⁻¹.
+
+A scan-angle field in whole degrees (LAS 1.0–1.3) breaks that covariance: each angle's rounding
+error (uniform, variance Δ²/12) is a function of where the beam points, so points that share a
+stored value share much of their error sweep after sweep, and it does not average as 1/√N. There
+the scan-angle residuals' scale is at least Δ/√12 and the covariance is the cluster-robust sandwich
+N⁻¹·M·N⁻¹ with the scan-angle scores summed per stored value (Liang & Zeger 1986; Cameron & Miller
+2015, J. Human Resources 50:317, with their G/(G − 1) factor), where it is the wider.
 """
 
 from __future__ import annotations
@@ -27,6 +34,9 @@ FINE_ITERATIONS = 1  #: ... the last one all of them
 #: across-track / roll direction came out 4× its σ off)
 SCALE_FLOOR = 2e-7
 CAUCHY_C = 2.385  #: Cauchy constant (95 % efficiency at the normal distribution)
+#: a scan-angle field stored in steps at least this coarse (rad) is quantised (LAS 1.0–1.3: whole degrees);
+#: LAS 1.4's 0.006° steps are not
+QUANTUM_MIN = np.radians(0.05)
 
 
 def one_blas_thread():
@@ -185,8 +195,10 @@ def _iterate(obs: Observations, spline: Spline, coef: np.ndarray, settings: FitS
     p = 6 * spline.n_coef
     n_mat, rhs = np.zeros((p, p)), np.zeros(p)
     chi2, n_tot, scales, n_obs = 0.0, 0, {}, {}
+    quantum = scan_quantum(obs.scan) if obs.use_across else 0.0
     for name, basis, r, g, rel in _types(obs, spline, coef, settings.scan_plane_yaw):
-        w, scale = _robust(r / rel, SCALE_FLOOR / float(np.median(rel)))
+        floor = max(SCALE_FLOOR, quantum / np.sqrt(12.0)) if name == "across" else SCALE_FLOOR
+        w, scale = _robust(r / rel, floor / float(np.median(rel)))
         scales[name.rstrip("01")] = scale
         n_obs[name] = int(r.size)
         wr = w / rel**2
@@ -221,7 +233,63 @@ def solve_segment(obs: Observations, spline: Spline, coef0: np.ndarray, settings
     with one_blas_thread():
         inv = _banded_solve(n_mat, np.eye(6 * k), k, interleaved_out=True) * max(sigma0, 1.0) ** 2
     cov = np.stack([inv[c::6, c::6] for c in range(6)])  # rows/columns interleaved: coefficient k, channel c
+    quantum = scan_quantum(obs.scan) if obs.use_across else 0.0
+    if quantum:
+        cov = _widest(cov, _clustered_covariance(obs, spline, coef, settings, n_mat, quantum))
     return SegmentFit(spline, coef, cov, sigma0, scales, n_obs, it)
+
+
+def scan_quantum(scan: np.ndarray) -> float:
+    """The step (rad) of a quantised scan-angle field: every value a multiple of it, at least
+    QUANTUM_MIN; 0.0 when the field is finer (or has fewer than two values)."""
+    v = np.unique(scan[np.isfinite(scan)])
+    if v.size < 2:
+        return 0.0
+    step = float(np.min(np.diff(v)))
+    k = (v - v[0]) / step
+    return step if step >= QUANTUM_MIN and np.all(np.abs(k - np.round(k)) < 1e-3) else 0.0
+
+
+def _clustered_covariance(obs: Observations, spline: Spline, coef: np.ndarray, settings: FitSettings,
+                          n_mat: np.ndarray, quantum: float) -> np.ndarray:
+    """(6, K, K) channel blocks of N⁻¹ + N⁻¹·(M − N_a)·N⁻¹, the scan-angle residuals' information N_a
+    replaced by that of errors with a part shared by every point of one stored value (a random effect,
+    the survey statistician's design effect, Kish 1965): M = (1 − ρ)·N_a + ρ·σ²·Σ_c a_c a_cᵀ, a_c the sum
+    of value c's weighted partials, ρ the share of the residuals' variance between the values' means
+    (0 when each value's points scatter over its whole quantum, → 1 for a scanner firing the same
+    angles every sweep)."""
+    k = spline.n_coef
+    _, basis, r, g, rel = next(t for t in _types(obs, spline, coef, settings.scan_plane_yaw) if t[0] == "across")
+    w, _ = _robust(r / rel, max(SCALE_FLOOR, quantum / np.sqrt(12.0)))
+    wr = w / rel**2
+    first, bw = basis
+    labels = np.unique(np.round(obs.scan[np.isfinite(obs.scan)] / quantum), return_inverse=True)[1].ravel()
+    n_groups = int(labels.max()) + 1 if labels.size else 0
+    if n_groups < 2:
+        return np.full((6, k, k), np.inf)
+    size = np.bincount(labels, minlength=n_groups)
+    mean = np.bincount(labels, weights=r, minlength=n_groups) / np.maximum(size, 1)
+    total = max(float(np.mean((r - r.mean()) ** 2)), quantum**2 / 12.0)  # the fit absorbs part of the shared errors
+    within = float(np.mean((r - mean[labels]) ** 2))
+    rho = float(np.clip(1.0 - within / total, 0.0, 1.0))
+    a = np.zeros((n_groups, 6 * k))
+    for c in range(6):
+        for j in range(4):
+            np.add.at(a, (labels, c * k + first + j), bw[:, j] * g[:, c] * wr)
+    n_a, rhs = np.zeros((6 * k, 6 * k)), np.zeros(6 * k)
+    accumulate(n_a, rhs, first, bw, np.ascontiguousarray(g), r, wr, k)
+    n_a = symmetrize(n_a)
+    meat = (1.0 - rho) * n_a + rho * total * (a.T @ a)
+    with one_blas_thread():
+        n_inv = np.linalg.inv(n_mat)
+        cov = n_inv + n_inv @ (meat - n_a) @ n_inv
+    return np.stack([cov[c * k:(c + 1) * k, c * k:(c + 1) * k] for c in range(6)])
+
+
+def _widest(model: np.ndarray, robust: np.ndarray) -> np.ndarray:
+    """Per channel the block of the two (6, K, K) covariances whose variances sum to more."""
+    wider = np.trace(robust, axis1=1, axis2=2) > np.trace(model, axis1=1, axis2=2)
+    return np.where(wider[:, None, None], robust, model)
 
 
 def channel_sigma(fit: SegmentFit, t) -> np.ndarray:
