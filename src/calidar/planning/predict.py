@@ -1,0 +1,166 @@
+"""Predicted σ and correlations of a planned calibration flight, from the normal matrix alone.
+
+The strip adjustment (:mod:`calidar.strips.calibrate`) solves for the sensor's parameters and
+the trajectory's corrections (:mod:`calidar.strips.trajectory_errors`, priors from the stated
+trajectory accuracy, Gauss–Markov correlated knots) from tie planes. Its covariance is N⁻¹,
+N = JᵀWJ + P (W the rows' weights 1/σ², P the priors' precision). Here J is built by the same
+:class:`~calidar.strips.problem.StripProblem` from the tie planes :mod:`calidar.planning.geometry`
+samples, P by the engine's prior groups, and the sensor block of N⁻¹ taken by the Schur
+complement over the trajectory knots (a sparse LU of their block): σ = √diag, with the
+correlations. The model is linear in the trajectory corrections and nearly so in the mounting,
+so the covariance does not depend on the (unknown) true errors.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from calidar.adjust.solver import _prior_groups
+from calidar.errors import InputError
+from calidar.io.flight_lines import PlanLine
+from calidar.planning.geometry import Instrument, correspondences, fly_plan, pair_planes
+from calidar.strips.parameters import build_parameters, parse_estimate
+from calidar.strips.planes import PlaneSettings
+from calidar.strips.problem import StripProblem
+from calidar.strips.trajectory_errors import TrajectoryModel, parse_name
+from calidar.strips.verdict import CORRELATION_LIMIT, GROUND_LIMIT_M, LENGTH_LIMIT_M
+
+#: |ρ| above which a plan cannot separate two parameters (it is called poor)
+SEPARATION_LIMIT = 0.95
+#: eigenvalues of the scaled normal matrix below this fraction of the largest: directions the plan cannot see
+NULL_EIGENVALUE = 1e-10
+
+
+@dataclass(frozen=True)
+class PlanSettings:
+    """What to estimate and how the trajectory's errors enter (as ``calidar boresight`` does)."""
+
+    estimate: tuple[str, ...] = ("boresight",)
+    trajectory: TrajectoryModel = field(default_factory=lambda: TrajectoryModel(
+        1.0, 0.02, np.radians(0.002), 20.0, 3.5))
+    planes: PlaneSettings = field(default_factory=PlaneSettings)
+
+
+@dataclass
+class Prediction:
+    """The predicted σ (SI) and correlations of the estimated sensor parameters."""
+
+    names: list[str]
+    units: list[str]
+    sigma: np.ndarray
+    correlation: np.ndarray
+    median_range_m: float
+    pairs: list[dict]  #: per overlapping pair: lines a, b and tie planes
+    n_rows: int
+    heights: list[float]  #: distinct planned heights above ground (m)
+
+    def ground_effect(self, k: int) -> float:
+        """How far (m) a σ of parameter k moves a point at the median range (lengths: σ itself)."""
+        name, s = self.names[k], self.sigma[k]
+        if self.units[k] == "rad" or name == "range_scale":
+            return float(s * self.median_range_m)
+        if name == "scan_angle_scale":
+            return float(s * self.median_range_m * 0.35)
+        return float(s)
+
+    def limit(self, k: int) -> float:
+        """The σ's ground effect up to which parameter k counts as determined (as the verdict's)."""
+        return LENGTH_LIMIT_M if self.units[k] == "m" else GROUND_LIMIT_M
+
+    def determined(self, k: int) -> bool:
+        return bool(np.isfinite(self.sigma[k]) and self.ground_effect(k) <= self.limit(k))
+
+    def worst(self) -> int:
+        """Index of the parameter whose σ is furthest from (or closest to) its limit."""
+        return int(np.argmax([self.ground_effect(k) / self.limit(k) for k in range(len(self.names))]))
+
+    def correlated_pairs(self, limit: float = CORRELATION_LIMIT) -> list[tuple[str, str, float]]:
+        n = len(self.names)
+        return [(self.names[i], self.names[j], float(self.correlation[i, j]))
+                for i in range(n) for j in range(i + 1, n) if abs(self.correlation[i, j]) > limit]
+
+    @property
+    def poor(self) -> bool:
+        """Some parameter not determined, or two that the plan cannot separate."""
+        return (not all(self.determined(k) for k in range(len(self.names)))
+                or bool(self.correlated_pairs(SEPARATION_LIMIT)))
+
+
+def predict(lines: list[PlanLine], terrain, inst: Instrument, settings: PlanSettings = PlanSettings()) -> Prediction:
+    """The plan's predicted σ and correlations (see the module docstring)."""
+    flown = fly_plan(lines, terrain)
+    pairs = [p for a in range(len(flown)) for b in range(a + 1, len(flown))
+             if (p := pair_planes(flown[a], flown[b], a, b, terrain, inst, settings.planes)) is not None]
+    if not pairs:
+        raise InputError(None, "lines", "no two planned lines overlap (with tie planes on the terrain); expected "
+                         "swaths that overlap")
+    poses, times, corrs = correspondences(flown, pairs, inst, settings.planes)
+    by_id = {f.line.number: f for f in flown}
+    spans = {sid: (by_id[sid].t0, by_id[sid].t1) for sid in poses}
+    headings = {sid: by_id[sid].line.azimuth for sid in poses}
+    names, units, cov, n_rows = sensor_covariance(inst.nominal, poses, times, corrs, spans, headings, settings)
+    sigma = np.sqrt(np.where(np.isnan(np.diag(cov)), np.inf, np.clip(np.diag(cov), 0.0, None)))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        corr = cov / np.outer(sigma, sigma)
+    rng = np.concatenate([inst.nominal.true_range(p.range_m) for p in poses.values()])
+    return Prediction(names, units, sigma, corr, float(np.median(rng)),
+                      [{"a": flown[p.a].line.number, "b": flown[p.b].line.number, "tie_planes": int(p.centroid.shape[0])}
+                       for p in pairs], n_rows, sorted({ln.height_agl_m for ln in lines}))
+
+
+def sensor_covariance(nominal, poses: dict, times: dict, corrs: list, spans: dict, headings: dict,
+                      settings: PlanSettings) -> tuple[list[str], list[str], np.ndarray, int]:
+    """The estimated sensor parameters' names, units and covariance (SI) from correspondences and
+    poses as the strip adjustment takes them (``poses``, ``times`` per strip id), with the
+    trajectory model of ``settings`` over the strips' time ``spans`` and ``headings`` (rad)."""
+    groups = parse_estimate(list(settings.estimate))
+    params = build_parameters(nominal, [*groups, "trajectory_bias"], spans, settings.trajectory, headings)
+    free = params.free
+    problem = StripProblem(nominal, poses, corrs, [p.name for p in free], times, settings.trajectory, spans)
+    J = sp.csr_matrix(problem.jacobian(params.values(), free))
+    w = 1.0 / problem.sigma**2
+    N = (J.T @ sp.diags(w) @ J).tocsc() + _prior_precision(free, settings.trajectory.prior_correlation(spans))
+    sensor = np.array([k for k, p in enumerate(free) if parse_name(p.name) is None])
+    return [free[k].name for k in sensor], [free[k].unit for k in sensor], _sensor_covariance(N, sensor), J.shape[0]
+
+
+def _prior_precision(free, prior_correlation) -> sp.csc_matrix:
+    """The priors' precision P (n_free, n_free), as the engine adds it to N."""
+    n = len(free)
+    rows, cols, vals = [], [], []
+    for idx, _, P in _prior_groups(free, prior_correlation):
+        r, c = np.meshgrid(idx, idx, indexing="ij")
+        keep = P != 0
+        rows.append(r[keep]), cols.append(c[keep]), vals.append(P[keep])
+    if not rows:
+        return sp.csc_matrix((n, n))
+    return sp.csc_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(n, n))
+
+
+def _sensor_covariance(N: sp.csc_matrix, sensor: np.ndarray) -> np.ndarray:
+    """The sensor block of N⁻¹ by the Schur complement over the other (trajectory) parameters."""
+    n = N.shape[0]
+    other = np.setdiff1d(np.arange(n), sensor)
+    Nss = N[sensor][:, sensor].toarray()
+    if other.size:
+        Ntt = N[other][:, other].tocsc()
+        Nts = N[other][:, sensor].toarray()
+        X = spla.splu(Ntt).solve(Nts)
+        S = Nss - Nts.T @ X
+    else:
+        S = Nss
+    S = 0.5 * (S + S.T)
+    d = 1.0 / np.sqrt(np.maximum(np.diag(S), 1e-300))
+    lam, vec = np.linalg.eigh(S * np.outer(d, d))  # scaled: the rank test of the engine's Solution
+    null = lam < NULL_EIGENVALUE * max(float(lam.max()), 1e-300)
+    inv = (vec[:, ~null] / lam[~null]) @ vec[:, ~null].T
+    cov = inv * np.outer(d, d)
+    unseen = np.any(np.abs(vec[:, null]) > 0.1, axis=1) if null.any() else np.zeros(len(d), bool)
+    cov[unseen, :] = np.nan
+    cov[:, unseen] = np.nan
+    cov[unseen, unseen] = np.inf
+    return cov
