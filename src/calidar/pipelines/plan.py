@@ -179,10 +179,11 @@ def plan_document(lines, inst, options, terrain, pred, found, simulation, verdic
     from calidar.planning.findings import findings, headline
 
     corr = np.where(np.isfinite(pred.correlation), pred.correlation, np.nan)
-    params = [{"parameter": n, "unit": u, "sigma_si": float(s) if np.isfinite(s) else None,
+    params = [{"parameter": n, "unit": u, "sigma_reported_si": float(r) if np.isfinite(r) else None,
+               "sigma_error_si": float(s) if np.isfinite(s) else None,
                "determined": pred.determined(k), "ground_effect_m": pred.ground_effect(k)
                if np.isfinite(pred.ground_effect(k)) else None, "limit_m": pred.limit(k)}
-              for k, (n, u, s) in enumerate(zip(pred.names, pred.units, pred.sigma))]
+              for k, (n, u, s, r) in enumerate(zip(pred.names, pred.units, pred.sigma, pred.reported))]
     doc = {"headline": headline(pred), "poor": pred.poor, "lines": [ln.to_dict() for ln in lines],
            "terrain": terrain.name, "estimate": list(pred.names),
            "instrument": {"pulse_rate_hz": inst.pulse_rate_hz, "half_fov_deg": float(np.degrees(inst.half_fov_rad)),

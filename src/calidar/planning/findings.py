@@ -60,7 +60,8 @@ def findings(pred: Prediction) -> list[dict]:
     for k, name in enumerate(pred.names):
         effect, limit = pred.ground_effect(k), pred.limit(k)
         ok = pred.determined(k)
-        entry = {"parameter": name, "sigma": shown(name, pred.units[k], float(pred.sigma[k])), "determined": ok,
+        entry = {"parameter": name, "sigma": shown(name, pred.units[k], float(pred.reported[k])),
+                 "error_sigma": shown(name, pred.units[k], float(pred.sigma[k])), "determined": ok,
                  "ground_effect_m": effect if np.isfinite(effect) else None, "limit_m": limit}
         if not ok:
             entry["why"] = _why(pred, k)
@@ -75,7 +76,7 @@ def findings(pred: Prediction) -> list[dict]:
 def headline(pred: Prediction) -> str:
     """One sentence: good or poor, and the worst parameter."""
     k = pred.worst()
-    worst = f"{pred.names[k]} σ {shown(pred.names[k], pred.units[k], float(pred.sigma[k]))}"
+    worst = f"{pred.names[k]} σ {shown(pred.names[k], pred.units[k], float(pred.reported[k]))}"
     bad = [n for i, n in enumerate(pred.names) if not pred.determined(i)]
     if not pred.poor:
         return f"good: every estimated parameter is determined (the weakest: {worst})"

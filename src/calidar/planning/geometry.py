@@ -219,21 +219,27 @@ def point_variance(beam: np.ndarray, normal: np.ndarray, rho: np.ndarray, inst: 
 
 def correspondences(flown: list[Flown], pairs: list[PairPlanes], inst: Instrument,
                     settings: PlaneSettings = PlaneSettings()):
-    """Synthetic poses per strip, the pairs' Correspondences and each strip's point times."""
+    """Synthetic poses per strip, the pairs' Correspondences, each strip's point times, and the
+    variance (m²) the rows' residuals really have (in the Correspondences' order)."""
     poses, times, corrs = {}, {}, []
     parts: dict[int, list] = {k: [] for k in range(len(flown))}
     used = {k: 0 for k in range(len(flown))}
+    noise = []
     for p in pairs:
-        cols, var = [], []
+        cols, var, own = [], [], []
         for side, k, m in ((0, p.a, p.count_a), (1, p.b, p.count_b)):
             pose, t, beam = side_poses(flown[k], p.centroid, inst)
             parts[k].append((pose, t))
             cols.append(used[k] + np.arange(p.centroid.shape[0]))
             used[k] += p.centroid.shape[0]
-            scatter = point_variance(beam, p.normal, inst.nominal.true_range(pose.range_m), inst) + p.roughness_m**2
-            var.append(moderated_variance(scatter, m - 3) / m)  # as the calibrator weighs its rows
-        sigma = np.sqrt((var[0] + var[1] + settings.noise_floor_m**2) / np.maximum(p.agree, 1e-3))
-        corrs.append((p.a, p.b, cols, p.normal, sigma))
+            points = point_variance(beam, p.normal, inst.nominal.true_range(pose.range_m), inst)
+            var.append(moderated_variance(points + p.roughness_m**2, m - 3) / m)  # as the calibrator weighs its rows
+            own.append(points / m)
+        agree = np.maximum(p.agree, 1e-3)
+        corrs.append((p.a, p.b, cols, p.normal, np.sqrt((var[0] + var[1] + settings.noise_floor_m**2) / agree)))
+        # what the residual really scatters by: the points' noise; the surface's own unevenness is the same
+        # surface under both patches and cancels (σ0 ≈ 0.5 of the calibrator on the built-in scene)
+        noise.append((own[0] + own[1]) / agree)
     for k, items in parts.items():
         if not items:
             continue
@@ -243,7 +249,7 @@ def correspondences(flown: list[Flown], pairs: list[PairPlanes], inst: Instrumen
         times[sid] = np.concatenate([t for _, t in items])
     out = [Correspondences(flown[a].line.number, flown[b].line.number, _selector(cols[0], used[a]),
                            _selector(cols[1], used[b]), normal, sigma) for a, b, cols, normal, sigma in corrs]
-    return poses, times, out
+    return poses, times, out, np.concatenate(noise)
 
 
 def _selector(cols: np.ndarray, n_points: int) -> sp.csr_matrix:

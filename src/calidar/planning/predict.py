@@ -33,6 +33,8 @@ from calidar.strips.verdict import CORRELATION_LIMIT, GROUND_LIMIT_M, LENGTH_LIM
 SEPARATION_LIMIT = 0.95
 #: eigenvalues of the scaled normal matrix below this fraction of the largest: directions the plan cannot see
 NULL_EIGENVALUE = 1e-10
+#: a σ moving points by more than this (m) says the tie planes do not see the parameter at all
+UNSEEN_M = 10.0
 
 
 @dataclass(frozen=True)
@@ -43,6 +45,10 @@ class PlanSettings:
     trajectory: TrajectoryModel = field(default_factory=lambda: TrajectoryModel(
         1.0, 0.02, np.radians(0.002), 20.0, 3.5))
     planes: PlaneSettings = field(default_factory=PlaneSettings)
+    #: how the trajectory's errors really wander when not as the adjustment's Gauss–Markov priors
+    #: assume: (position, attitude) s, the kernel σ of Gaussian-smoothed noise (the simulator's: 10, 2).
+    #: None: as assumed (σ = √diag N⁻¹); else the estimator's actual error covariance (below)
+    true_smoothing_s: tuple[float, float] | None = None
 
 
 @dataclass
@@ -57,10 +63,13 @@ class Prediction:
     pairs: list[dict]  #: per overlapping pair: lines a, b and tie planes
     n_rows: int
     heights: list[float]  #: distinct planned heights above ground (m)
+    reported: np.ndarray | None = None  #: the σ the adjustment will report (its N⁻¹; SI)
 
-    def ground_effect(self, k: int) -> float:
-        """How far (m) a σ of parameter k moves a point at the median range (lengths: σ itself)."""
-        name, s = self.names[k], self.sigma[k]
+    def ground_effect(self, k: int, reported: bool = True) -> float:
+        """How far (m) a σ of parameter k moves a point at the median range (lengths: σ itself): the σ
+        the calibration will report (its verdict judges by it), or (``reported`` False) the expected error's."""
+        name = self.names[k]
+        s = self.reported[k] if reported and self.reported is not None else self.sigma[k]
         if self.units[k] == "rad" or name == "range_scale":
             return float(s * self.median_range_m)
         if name == "scan_angle_scale":
@@ -72,10 +81,11 @@ class Prediction:
         return LENGTH_LIMIT_M if self.units[k] == "m" else GROUND_LIMIT_M
 
     def determined(self, k: int) -> bool:
+        """Whether the calibration will call parameter k determined (its reported σ within the limit)."""
         return bool(np.isfinite(self.sigma[k]) and self.ground_effect(k) <= self.limit(k))
 
     def worst(self) -> int:
-        """Index of the parameter whose σ is furthest from (or closest to) its limit."""
+        """Index of the parameter whose reported σ is furthest beyond (or closest to) its limit."""
         return int(np.argmax([self.ground_effect(k) / self.limit(k) for k in range(len(self.names))]))
 
     def correlated_pairs(self, limit: float = CORRELATION_LIMIT) -> list[tuple[str, str, float]]:
@@ -98,34 +108,82 @@ def predict(lines: list[PlanLine], terrain, inst: Instrument, settings: PlanSett
     if not pairs:
         raise InputError(None, "lines", "no two planned lines overlap (with tie planes on the terrain); expected "
                          "swaths that overlap")
-    poses, times, corrs = correspondences(flown, pairs, inst, settings.planes)
+    poses, times, corrs, noise = correspondences(flown, pairs, inst, settings.planes)
     by_id = {f.line.number: f for f in flown}
     spans = {sid: (by_id[sid].t0, by_id[sid].t1) for sid in poses}
     headings = {sid: by_id[sid].line.azimuth for sid in poses}
-    names, units, cov, n_rows = sensor_covariance(inst.nominal, poses, times, corrs, spans, headings, settings)
+    names, units, cov, formal, n_rows = sensor_covariance(inst.nominal, poses, times, corrs, spans, headings, settings,
+                                                          noise)
     sigma = np.sqrt(np.where(np.isnan(np.diag(cov)), np.inf, np.clip(np.diag(cov), 0.0, None)))
     with np.errstate(invalid="ignore", divide="ignore"):
         corr = cov / np.outer(sigma, sigma)
     rng = np.concatenate([inst.nominal.true_range(p.range_m) for p in poses.values()])
-    return Prediction(names, units, sigma, corr, float(np.median(rng)),
+    pred = Prediction(names, units, sigma, corr, float(np.median(rng)),
                       [{"a": flown[p.a].line.number, "b": flown[p.b].line.number, "tie_planes": int(p.centroid.shape[0])}
-                       for p in pairs], n_rows, sorted({ln.height_agl_m for ln in lines}))
+                       for p in pairs], n_rows, sorted({ln.height_agl_m for ln in lines}),
+                      np.sqrt(np.where(np.isfinite(np.diag(formal)), np.clip(np.diag(formal), 0.0, None), np.inf)))
+    unseen = [k for k in range(len(names)) if pred.ground_effect(k, False) > UNSEEN_M]  # numerically null directions
+    pred.sigma[unseen] = np.inf
+    pred.reported[unseen] = np.inf
+    pred.correlation[unseen, :] = np.nan
+    pred.correlation[:, unseen] = np.nan
+    return pred
 
 
 def sensor_covariance(nominal, poses: dict, times: dict, corrs: list, spans: dict, headings: dict,
-                      settings: PlanSettings) -> tuple[list[str], list[str], np.ndarray, int]:
-    """The estimated sensor parameters' names, units and covariance (SI) from correspondences and
+                      settings: PlanSettings, row_noise=None) -> tuple[list[str], list[str], np.ndarray, np.ndarray, int]:
+    """The estimated sensor parameters' names, units, the covariance of their errors and the one the
+    adjustment will report (SI), from correspondences and
     poses as the strip adjustment takes them (``poses``, ``times`` per strip id), with the
-    trajectory model of ``settings`` over the strips' time ``spans`` and ``headings`` (rad)."""
+    trajectory model of ``settings`` over the strips' time ``spans`` and ``headings`` (rad).
+
+    ``row_noise``: the variance (m²) the rows' residuals really have, when not the σ² the adjustment
+    weighs them by (None: as weighed): the covariance is then the estimator's actual one,
+    N⁻¹(JᵀW·Σ·WJ + P·C·P)N⁻¹ (Σ the rows' variances, C the trajectory errors'; = N⁻¹ when both are as
+    assumed), not the σ the adjustment will report."""
     groups = parse_estimate(list(settings.estimate))
     params = build_parameters(nominal, [*groups, "trajectory_bias"], spans, settings.trajectory, headings)
     free = params.free
     problem = StripProblem(nominal, poses, corrs, [p.name for p in free], times, settings.trajectory, spans)
     J = sp.csr_matrix(problem.jacobian(params.values(), free))
     w = 1.0 / problem.sigma**2
-    N = (J.T @ sp.diags(w) @ J).tocsc() + _prior_precision(free, settings.trajectory.prior_correlation(spans))
+    JWJ = (J.T @ sp.diags(w) @ J).tocsc()
+    groups = settings.trajectory.prior_correlation(spans)
+    P = _prior_precision(free, groups)
+    N = JWJ + P
     sensor = np.array([k for k, p in enumerate(free) if parse_name(p.name) is None])
-    return [free[k].name for k in sensor], [free[k].unit for k in sensor], _sensor_covariance(N, sensor), J.shape[0]
+    cov = _sensor_covariance(N, sensor)
+    if (settings.true_smoothing_s is not None or row_noise is not None) and np.all(np.isfinite(cov)):
+        # the estimate is N⁻¹JᵀWy; with row errors ε of covariance Σ and trajectory errors e of covariance C
+        # (not the weights' W⁻¹ and the priors' P⁻¹) its error N⁻¹(JᵀWε − P·e) has covariance
+        # N⁻¹(JᵀW·Σ·WJ + P·C·P)N⁻¹
+        pcp = P if settings.true_smoothing_s is None else P @ _true_covariance(
+            free, groups, settings.trajectory.block_s or 1.0, settings.true_smoothing_s) @ P
+        meat = JWJ if row_noise is None else (J.T @ sp.diags(w * w * row_noise) @ J).tocsc()
+        X = spla.splu(N).solve(np.eye(len(free))[:, sensor])
+        return [free[k].name for k in sensor], [free[k].unit for k in sensor], X.T @ ((meat + pcp) @ X), cov, J.shape[0]
+    return [free[k].name for k in sensor], [free[k].unit for k in sensor], cov, cov, J.shape[0]
+
+
+def _true_covariance(free, groups, block_s: float, smoothing_s: tuple[float, float]) -> sp.csc_matrix:
+    """Covariance of the trajectory knots' true errors: each prior σ, correlated along a strip as
+    Gaussian-smoothed noise of kernel σ τ: exp(−Δt² / 4τ²) (position knots τ = smoothing_s[0], rotations [1])."""
+    index = {p.name: k for k, p in enumerate(free)}
+    rows, cols, vals, done = [], [], [], set()
+    for names, _ in groups:
+        idx = np.array([index[n] for n in names])
+        tau = smoothing_s[0] if names[0].startswith("trajectory_bias") else smoothing_s[1]
+        d = np.array([free[i].prior_sigma for i in idx])
+        lag = block_s * (np.arange(idx.size)[:, None] - np.arange(idx.size)[None, :])
+        block = np.outer(d, d) * np.exp(-(lag**2) / (4.0 * tau**2))
+        r, c = np.meshgrid(idx, idx, indexing="ij")
+        rows.append(r.ravel()), cols.append(c.ravel()), vals.append(block.ravel())
+        done.update(idx.tolist())
+    rest = [k for k, p in enumerate(free) if p.prior_sigma is not None and k not in done]
+    rows.append(np.array(rest, int)), cols.append(np.array(rest, int))
+    vals.append(np.array([free[k].prior_sigma ** 2 for k in rest]))
+    n = len(free)
+    return sp.csc_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(n, n))
 
 
 def _prior_precision(free, prior_correlation) -> sp.csc_matrix:

@@ -72,7 +72,7 @@ def write_report(path: Path, doc: dict, pred, terrain_image=None, verdict=None, 
     s.text("Predicted before flying, from the tie planes the planned lines will share (sampled on the terrain at "
            "the scanner's density, not simulated point by point) and the same observation equations, weights and "
            "trajectory priors the strip adjustment (calidar boresight) uses: σ = √diag of the inverted normal "
-           "matrix. A parameter is determined when its σ moves a point by at most 2 cm at the median range "
+           "matrix. A parameter is determined when its reported σ moves a point by at most 2 cm at the median range "
            f"({doc['median_range_m']:.0f} m), a length when its σ is at most 1 cm.")
     s.figure(_map(doc, terrain_image), "The plan on the terrain")
     ins = doc["instrument"]
@@ -84,9 +84,13 @@ def write_report(path: Path, doc: dict, pred, terrain_image=None, verdict=None, 
         ["tie planes", f"{sum(p['tie_planes'] for p in doc['pairs'])} in {len(doc['pairs'])} overlapping pairs"],
     ], caption="What the prediction assumed")
     s = report.section("Predicted σ")
-    s.table(["parameter", "predicted σ", "moves a point by", "determined", "why not", "what to fly"],
-            [[r["parameter"], r.get("sigma", ""), "" if r.get("ground_effect_m") is None else
-              f"{r['ground_effect_m'] * 100:.2f} cm", "yes" if r["determined"] else "NO", r.get("why", ""),
+    s.text("Two σ per parameter: the one the calibration will report (N⁻¹ with its weights and priors; its "
+           "verdict judges by it), and the expected error — the same estimator with the rows' real scatter (the "
+           "points' noise: the surface's own unevenness lies under both patches of a tie plane and largely cancels, "
+           "so on rough ground the reported σ of angles seen on slopes are conservative).")
+    s.table(["parameter", "σ reported", "expected error σ", "moves a point by", "determined", "why not", "what to fly"],
+            [[r["parameter"], r.get("sigma", ""), r.get("error_sigma", ""), "" if r.get("ground_effect_m") is None
+              else f"{r['ground_effect_m'] * 100:.2f} cm", "yes" if r["determined"] else "NO", r.get("why", ""),
               r.get("action", "")] for r in doc["findings"]], caption="Per estimated parameter")
     s.figure(_sigma_picture(doc), "Each σ against what counts as determined (red: not determined)")
     if len(pred.names) > 1:
@@ -106,7 +110,8 @@ def write_report(path: Path, doc: dict, pred, terrain_image=None, verdict=None, 
         s.text(f"{sim['runs']} surveys of this plan simulated and calibrated end to end (true mounting errors drawn "
                "per survey): the RMS error against the truth beside the predicted σ (a ratio near 1 says the "
                f"prediction holds; its sampling spread is ±{1 / np.sqrt(2 * sim['runs']):.2f}).")
-        s.table(["parameter", "predicted σ", "RMS error", "ratio", "calibration's mean σ"],
+        s.table(["parameter", "expected error σ", "RMS error", "ratio", "σ reported: predicted", "σ reported: mean"],
                 [[n, shown(n, u, p), shown(n, u, sim["rms_error"][n]), f"{sim['rms_error'][n] / p:.2f}",
-                  shown(n, u, sim["mean_sigma"][n])] for n, u, p in zip(pred.names, pred.units, pred.sigma)])
+                  shown(n, u, r), shown(n, u, sim["mean_sigma"][n])]
+                 for n, u, p, r in zip(pred.names, pred.units, pred.sigma, pred.reported)])
     return report.write(path)

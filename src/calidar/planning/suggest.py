@@ -22,7 +22,7 @@ from calidar.planning.predict import PlanSettings, Prediction, predict
 
 @dataclass
 class Suggestion:
-    """A candidate line, what it is and the worst parameter's σ with it (SI)."""
+    """A candidate line, what it is and the worst parameter's reported σ without and with it (SI)."""
 
     line: PlanLine
     kind: str
@@ -84,7 +84,8 @@ def suggest(lines: list[PlanLine], terrain, inst: Instrument, settings: PlanSett
             pred = predict([*lines, cand], terrain, inst, settings)
         except CalidarError:
             continue
-        found.append(Suggestion(cand, kind, name, float(base.sigma[worst]), float(pred.sigma[pred.names.index(name)]), pred))
+        found.append(Suggestion(cand, kind, name, float(base.reported[worst]),
+                                float(pred.reported[pred.names.index(name)]), pred))
         if progress:
             progress("trying candidate lines", k + 1, len(cands))
     return sorted(found, key=lambda s: s.sigma_after)
