@@ -60,6 +60,10 @@ class PlanLine:
         d = self.direction
         return float(np.arctan2(d[0], d[1]))
 
+    def to_json(self) -> str:
+        """The line as a hashable key (its fields)."""
+        return f"{self.number},{self.start.tolist()},{self.end.tolist()},{self.height_agl_m},{self.speed_mps}"
+
     def to_dict(self) -> dict:
         return {"line": self.number, "start": [float(v) for v in self.start], "end": [float(v) for v in self.end],
                 "height_agl_m": self.height_agl_m, "speed_mps": self.speed_mps}

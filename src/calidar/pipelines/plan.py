@@ -153,8 +153,9 @@ def run_plan(lines_path: Path, sensor_path: Path, out_dir: Path, options: PlanOp
     settings = plan_settings(options)
     terrain, base = load_terrain(options.terrain)
     progress("predicting", 0, 1)
-    pred = predict(lines, terrain, inst, settings)
-    found = suggest(lines, terrain, inst, settings, pred, progress) if options.suggest else []
+    cache: dict = {}
+    pred = predict(lines, terrain, inst, settings, cache)
+    found = suggest(lines, terrain, inst, settings, pred, progress, cache) if options.suggest else []
     simulation = None
     if options.simulate:
         if base is None:

@@ -31,7 +31,9 @@ from calidar.strips.planes import PlaneSettings
 from calidar.strips.strip import Pose
 
 SAMPLES = 4  #: a cell's surface is sampled on SAMPLES × SAMPLES positions
-GAP_S = 60.0  #: time between the end of one line's scan and the start of the next (turns)
+GAP_S = 60.0
+#: cells tried per kept tie plane when a pair overlaps by more than max_planes cells (even picks over the overlap)
+CANDIDATES = 2  #: time between the end of one line's scan and the start of the next (turns)
 
 
 @dataclass(frozen=True)
@@ -135,6 +137,8 @@ def pair_planes(fa: Flown, fb: Flown, ia: int, ib: int, terrain, inst: Instrumen
         xy = xy[keep]
     if xy.shape[0] == 0:
         return None
+    if xy.shape[0] > CANDIDATES * settings.max_planes:  # at most max_planes are kept, evenly: sample fewer cells
+        xy = xy[np.linspace(0, xy.shape[0] - 1, CANDIDATES * settings.max_planes).astype(np.int64)]
     centroid, normal, rough = _surface_planes(terrain, xy, cell)
     ok = np.isfinite(centroid[:, 2]) & (rough <= settings.max_rms_m)
     for f in (fa, fb):  # every corner and the centre seen by both lines (no shadow of a roof or crown)

@@ -13,7 +13,7 @@ so the covariance does not depend on the (unknown) true errors.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import scipy.sparse as sp
@@ -100,11 +100,20 @@ class Prediction:
                 or bool(self.correlated_pairs(SEPARATION_LIMIT)))
 
 
-def predict(lines: list[PlanLine], terrain, inst: Instrument, settings: PlanSettings = PlanSettings()) -> Prediction:
-    """The plan's predicted σ and correlations (see the module docstring)."""
+def predict(lines: list[PlanLine], terrain, inst: Instrument, settings: PlanSettings = PlanSettings(),
+            cache: dict | None = None) -> Prediction:
+    """The plan's predicted σ and correlations (see the module docstring); ``cache``: tie planes of
+    pairs already sampled (by the two lines), kept across calls (candidate lines tried one by one)."""
     flown = fly_plan(lines, terrain)
-    pairs = [p for a in range(len(flown)) for b in range(a + 1, len(flown))
-             if (p := pair_planes(flown[a], flown[b], a, b, terrain, inst, settings.planes)) is not None]
+    cache = {} if cache is None else cache
+    pairs = []
+    for a in range(len(flown)):
+        for b in range(a + 1, len(flown)):
+            key = (flown[a].line.to_json(), flown[b].line.to_json())
+            if key not in cache:
+                cache[key] = pair_planes(flown[a], flown[b], a, b, terrain, inst, settings.planes)
+            if cache[key] is not None:
+                pairs.append(replace(cache[key], a=a, b=b))
     if not pairs:
         raise InputError(None, "lines", "no two planned lines overlap (with tie planes on the terrain); expected "
                          "swaths that overlap")

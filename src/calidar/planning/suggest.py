@@ -73,15 +73,16 @@ def candidates(lines: list[PlanLine], inst: Instrument) -> list[tuple[str, PlanL
 
 
 def suggest(lines: list[PlanLine], terrain, inst: Instrument, settings: PlanSettings, base: Prediction,
-            progress=None) -> list[Suggestion]:
-    """Every candidate's effect on the worst-determined parameter of ``base``, best first."""
+            progress=None, cache: dict | None = None) -> list[Suggestion]:
+    """Every candidate's effect on the worst-determined parameter of ``base``, best first (``cache``:
+    the tie planes :func:`predict` sampled for ``base``)."""
     worst = base.worst()
     name = base.names[worst]
-    found = []
+    found, cache = [], {} if cache is None else cache
     cands = candidates(lines, inst)
     for k, (kind, cand) in enumerate(cands):
         try:
-            pred = predict([*lines, cand], terrain, inst, settings)
+            pred = predict([*lines, cand], terrain, inst, settings, cache)
         except CalidarError:
             continue
         found.append(Suggestion(cand, kind, name, float(base.reported[worst]),
