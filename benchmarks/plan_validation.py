@@ -44,7 +44,9 @@ PLANS = {
     "cross": ([L(1, -25, -60, -25, 60), L(2, 25, 60, 25, -60), L(3, -60, 0, 60, 0), L(4, 60, 10, -60, 10)],
               ("boresight",)),
     "three_alternate": ([L(1, -35, -60, -35, 60), L(2, 0, 60, 0, -60), L(3, 35, -60, 35, 60)], ("boresight",)),
-    "poor_one_height": ([L(1, 0, -60, 0, 60), L(2, 0, 60, 0, -60)], ("boresight", "lever_arm_x", "lever_arm_y")),
+    "pair_one_height": ([L(1, 0, -60, 0, 60), L(2, 0, 60, 0, -60)], ("boresight", "lever_arm_x", "lever_arm_y")),
+    "poor_one_height": ([L(1, -30, -60, -30, 60), L(2, -30, 60, -30, -60), L(3, 30, -60, 30, 60),
+                         L(4, 30, 60, 30, -60)], ("boresight", "lever_arm_x", "lever_arm_y")),
     "two_heights": ([L(1, -30, -60, -30, 60), L(2, -30, 60, -30, -60), L(3, 30, -60, 30, 60), L(4, 30, 60, 30, -60),
                      L(5, 0, -60, 0, 60, 130.0), L(6, 0, 60, 0, -60, 130.0)], ("boresight", "lever_arm_x", "lever_arm_y")),
 }
@@ -85,13 +87,38 @@ def run_plan(name, lines, estimate, runs, base, terrain, inst, log) -> dict:
     return out
 
 
+def table(paths: list[Path]) -> None:
+    """The validation table from the JSON rows of earlier runs, each plan predicted again with today's code
+    (the simulations do not depend on the prediction)."""
+    _, terrain, inst = setup()
+    print("| plan | named poor | parameter | predicted error σ | RMS error | ratio | σ reported: predicted | "
+          "σ reported: mean of the runs | runs |")
+    print("|---|---|---|---|---|---|---|---|---|")
+    for path in paths:
+        for text in path.read_text().splitlines():
+            row = json.loads(text)
+            if "rms_error" not in row:
+                continue
+            lines = [PlanLine(d["line"], np.array(d["start"]), np.array(d["end"]), d["height_agl_m"], d["speed_mps"])
+                     for d in row["lines"]]
+            pred = predict(lines, terrain, inst, PlanSettings(estimate=tuple(row["estimate"])))
+            for n, u, s, r in zip(pred.names, pred.units, pred.sigma, pred.reported):
+                rms = row["rms_error"][n]
+                print(f"| {row['plan']} | {'yes' if pred.poor else 'no'} | {n} | {shown(n, u, s)} | {shown(n, u, rms)} | "
+                      f"{rms / s:.2f} | {shown(n, u, r)} | {shown(n, u, row['mean_sigma'][n])} | {row['runs']} |")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--runs", type=int, default=40)
     ap.add_argument("--plans", default=",".join(PLANS))
     ap.add_argument("--no-suggestion", action="store_true")
     ap.add_argument("--json", type=Path, default=None)
+    ap.add_argument("--table", type=Path, nargs="*", default=None, help="JSON rows of earlier runs: print the table")
     args = ap.parse_args()
+    if args.table:
+        table(args.table)
+        return
     base, terrain, inst = setup()
     start = time.perf_counter()
 

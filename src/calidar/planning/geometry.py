@@ -19,6 +19,7 @@ builds the same Jacobian the adjustment uses.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 import scipy.sparse as sp
@@ -31,9 +32,10 @@ from calidar.strips.planes import PlaneSettings
 from calidar.strips.strip import Pose
 
 SAMPLES = 4  #: a cell's surface is sampled on SAMPLES × SAMPLES positions
-GAP_S = 60.0
-#: cells tried per kept tie plane when a pair overlaps by more than max_planes cells (even picks over the overlap)
-CANDIDATES = 2  #: time between the end of one line's scan and the start of the next (turns)
+GAP_S = 60.0  #: time between the end of one line's scan and the start of the next (turns)
+#: rows per pair that stand for its tie planes (evenly picked over the overlap, each weighing for the
+#: planes it stands for: the information is a sum over rows of a smoothly varying geometry)
+ROWS_PER_PAIR = 800
 
 
 @dataclass(frozen=True)
@@ -79,17 +81,22 @@ class Flown:
         of heading), as the simulator's platform does (:func:`calidar.sim.motion.fly`: turbulence
         smoothed over 1 s, the heading's 0.3× that plus a crab wandering over 24 s); one fixed
         pattern per line number."""
-        from calidar.sim.motion import smooth_noise
-
         t = np.atleast_1d(np.asarray(t, float))
-        rng = np.random.default_rng(self.line.number)
-        dt = 0.05
-        grid = self.t0 - 300.0 + np.arange(int((self.t1 - self.t0 + 600.0) / dt)) * dt  # ≫ 24 s: a stationary crab
-        turb = smooth_noise(rng, grid.size, dt, 1.0, 1.0, 3)
-        crab = smooth_noise(rng, grid.size, dt, 24.0, motion_rad[1])[:, 0]
+        grid, turb, crab = _wobble(self.line.number, self.t0, self.t1, motion_rad[1])
         roll, pitch = (np.interp(t, grid, motion_rad[0] * turb[:, k]) for k in range(2))
         heading = np.interp(t, grid, crab + 0.3 * motion_rad[1] * turb[:, 2])
         return frames.R_ENU_NED @ frames.rpy_to_matrix(roll, pitch, self.line.azimuth + heading)
+
+
+@lru_cache(maxsize=256)
+def _wobble(number: int, t0: float, t1: float, heading_sigma: float):
+    """A line's attitude pattern: times, unit turbulence (n, 3) smoothed over 1 s, the crab (rad, over 24 s)."""
+    from calidar.sim.motion import smooth_noise
+
+    rng = np.random.default_rng(number)
+    dt = 0.05
+    grid = t0 - 300.0 + np.arange(int((t1 - t0 + 600.0) / dt)) * dt  # ≫ 24 s: a stationary crab
+    return grid, smooth_noise(rng, grid.size, dt, 1.0, 1.0, 3), smooth_noise(rng, grid.size, dt, 24.0, heading_sigma)[:, 0]
 
 
 def fly_plan(lines: list[PlanLine], terrain) -> list[Flown]:
@@ -116,6 +123,12 @@ class PairPlanes:
     count_a: np.ndarray
     count_b: np.ndarray
     agree: np.ndarray  #: chance the two patches' normals agree (the row's information is weighed by it)
+    uneven_m: np.ndarray  #: the part of the roughness two patches on the cell do not share (m)
+    weight: float = 1.0  #: tie planes each row stands for
+
+    @property
+    def n_planes(self) -> int:
+        return int(round(self.centroid.shape[0] * self.weight))
 
 
 def pair_planes(fa: Flown, fb: Flown, ia: int, ib: int, terrain, inst: Instrument,
@@ -137,9 +150,10 @@ def pair_planes(fa: Flown, fb: Flown, ia: int, ib: int, terrain, inst: Instrumen
         xy = xy[keep]
     if xy.shape[0] == 0:
         return None
-    if xy.shape[0] > CANDIDATES * settings.max_planes:  # at most max_planes are kept, evenly: sample fewer cells
-        xy = xy[np.linspace(0, xy.shape[0] - 1, CANDIDATES * settings.max_planes).astype(np.int64)]
-    centroid, normal, rough = _surface_planes(terrain, xy, cell)
+    n_cells = xy.shape[0]
+    if n_cells > 2 * ROWS_PER_PAIR:  # cells tried, evenly over the overlap
+        xy = xy[np.linspace(0, n_cells - 1, 2 * ROWS_PER_PAIR).astype(np.int64)]
+    centroid, normal, rough, uneven = _surface_planes(terrain, xy, cell)
     ok = np.isfinite(centroid[:, 2]) & (rough <= settings.max_rms_m)
     for f in (fa, fb):  # every corner and the centre seen by both lines (no shadow of a roof or crown)
         ok[ok] &= _seen(f, centroid[ok], normal[ok], cell, terrain)
@@ -156,11 +170,13 @@ def pair_planes(fa: Flown, fb: Flown, ia: int, ib: int, terrain, inst: Instrumen
     tilt2 = 12.0 * var * (1.0 / counts[0] + 1.0 / counts[1]) / cell**2
     agree = 1.0 - np.exp(-np.radians(settings.max_normal_angle_deg) ** 2 / (2.0 * np.maximum(tilt2, 1e-30)))
     idx = np.flatnonzero(ok)
-    if idx.size > settings.max_planes:
-        idx = idx[np.linspace(0, idx.size - 1, settings.max_planes).astype(np.int64)]
     if idx.size == 0:
         return None
-    return PairPlanes(ia, ib, centroid[idx], normal[idx], rough[idx], counts[0][idx], counts[1][idx], agree[idx])
+    planes = min(idx.size * n_cells / xy.shape[0], settings.max_planes)  # the calibrator keeps ≤ max_planes
+    if idx.size > ROWS_PER_PAIR:
+        idx = idx[np.linspace(0, idx.size - 1, ROWS_PER_PAIR).astype(np.int64)]
+    return PairPlanes(ia, ib, centroid[idx], normal[idx], rough[idx], counts[0][idx], counts[1][idx], agree[idx],
+                      uneven[idx], planes / idx.size)
 
 
 def _surface_planes(terrain, xy: np.ndarray, cell: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -177,10 +193,14 @@ def _surface_planes(terrain, xy: np.ndarray, cell: float) -> tuple[np.ndarray, n
     coef, *_ = np.linalg.lstsq(G, np.where(np.isfinite(z), z, 0.0).T, rcond=None)
     res = np.where(np.isfinite(z), z, 0.0) - (G @ coef).T
     rough = np.sqrt(np.sum(res**2, axis=1) / (k - 3.0))  # 3 plane parameters fitted
+    # two regular samplings of the cell offset by one step (the checkerboard's two colours): what their
+    # means differ by is the unevenness two strips' patches do not share (smooth relief cancels, rough does not)
+    black = ((np.arange(k) // SAMPLES + np.arange(k) % SAMPLES) % 2 == 0)
+    uneven = np.abs(res[:, black].mean(axis=1) - res[:, ~black].mean(axis=1)) * np.sqrt(k / 4.0)
     normal = np.stack([-coef[1], -coef[2], np.ones(xy.shape[0])], axis=1)
     normal /= np.linalg.norm(normal, axis=1)[:, None]
     centroid = np.column_stack([xy, np.where(same, coef[0], np.nan)])
-    return centroid, normal, rough
+    return centroid, normal, rough, uneven
 
 
 def _seen(f: Flown, centroid: np.ndarray, normal: np.ndarray, cell: float, terrain) -> np.ndarray:
@@ -238,11 +258,11 @@ def correspondences(flown: list[Flown], pairs: list[PairPlanes], inst: Instrumen
             used[k] += p.centroid.shape[0]
             points = point_variance(beam, p.normal, inst.nominal.true_range(pose.range_m), inst)
             var.append(moderated_variance(points + p.roughness_m**2, m - 3) / m)  # as the calibrator weighs its rows
-            own.append(points / m)
-        agree = np.maximum(p.agree, 1e-3)
+            own.append((points + p.uneven_m**2) / m)
+        agree = np.maximum(p.agree, 1e-3) * p.weight  # a row standing for `weight` planes weighs as much
         corrs.append((p.a, p.b, cols, p.normal, np.sqrt((var[0] + var[1] + settings.noise_floor_m**2) / agree)))
-        # what the residual really scatters by: the points' noise; the surface's own unevenness is the same
-        # surface under both patches and cancels (σ0 ≈ 0.5 of the calibrator on the built-in scene)
+        # what the residual really scatters by: the points' noise and the unevenness the patches do not share
+        # (the rest lies under both and cancels: σ0 ≈ 0.5 of the calibrator on the built-in scene)
         noise.append((own[0] + own[1]) / agree)
     for k, items in parts.items():
         if not items:

@@ -128,7 +128,7 @@ def predict(lines: list[PlanLine], terrain, inst: Instrument, settings: PlanSett
         corr = cov / np.outer(sigma, sigma)
     rng = np.concatenate([inst.nominal.true_range(p.range_m) for p in poses.values()])
     pred = Prediction(names, units, sigma, corr, float(np.median(rng)),
-                      [{"a": flown[p.a].line.number, "b": flown[p.b].line.number, "tie_planes": int(p.centroid.shape[0])}
+                      [{"a": flown[p.a].line.number, "b": flown[p.b].line.number, "tie_planes": p.n_planes}
                        for p in pairs], n_rows, sorted({ln.height_agl_m for ln in lines}),
                       np.sqrt(np.where(np.isfinite(np.diag(formal)), np.clip(np.diag(formal), 0.0, None), np.inf)))
     unseen = [k for k in range(len(names)) if pred.ground_effect(k, False) > UNSEEN_M]  # numerically null directions

@@ -4,7 +4,7 @@ determined parameter kept.
 Candidates follow the rules crews fly by (Habib et al. 2010, *Alternative methodologies for
 LiDAR system calibration*, Remote Sensing 2: opposite directions for roll and pitch, lines with a
 large lateral separation for heading, a second flying height to part the along-track lever arm
-from pitch; cross lines): each line flown back; the middle line at 1.5× its height; a line across
+from pitch; cross lines): the middle and the two outermost lines flown back; the middle line at 1.5× its height; a line across
 the block's middle, each way; a line beyond the outermost one, one swath out with 20 % side overlap.
 """
 
@@ -42,7 +42,9 @@ def candidates(lines: list[PlanLine], inst: Instrument) -> list[tuple[str, PlanL
     number = max(ln.number for ln in lines) + 1
     out = []
     seen = set()
-    for ln in lines:  # flown back (once per track; a line already flown that way: flown again)
+    centre = np.mean([0.5 * (ln.start + ln.end) for ln in lines], axis=0)
+    by_offset = sorted(lines, key=lambda ln: float(np.linalg.norm(0.5 * (ln.start + ln.end) - centre)))
+    for ln in [*by_offset[:1], *by_offset[-2:]]:  # the middle and the two outermost lines flown back
         key = (round(float(ln.start[0] + ln.end[0]), 1), round(float(ln.start[1] + ln.end[1]), 1), ln.height_agl_m)
         if key in seen:
             continue
@@ -51,8 +53,7 @@ def candidates(lines: list[PlanLine], inst: Instrument) -> list[tuple[str, PlanL
         twin = next((o for o in lines if np.allclose(o.start, back.start) and np.allclose(o.end, back.end)
                      and o.height_agl_m == back.height_agl_m), None)
         out.append((f"line {ln.number}'s track flown back" if twin is None else f"line {twin.number} flown again", back))
-    centre = np.mean([np.r_[ln.start, ln.end].reshape(2, 2).mean(axis=0) for ln in lines], axis=0)
-    mid = min(lines, key=lambda ln: np.linalg.norm(0.5 * (ln.start + ln.end) - centre))
+    mid = by_offset[0]
     out.append((f"the middle line at a second height ({1.5 * mid.height_agl_m:g} m)",
                 PlanLine(0, mid.end.copy(), mid.start.copy(), 1.5 * mid.height_agl_m, mid.speed_mps)))
     d = mid.direction

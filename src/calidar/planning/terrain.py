@@ -86,18 +86,10 @@ class SceneTerrain:
         top = float(np.nanmax(self.scene.heights)) + 200.0
         o = np.stack([x, y, np.full(x.size, top)], axis=1)
         d = np.tile([0.0, 0.0, -1.0], (x.size, 1))
-        hits = cast(self.scene, o, d, np.ones(x.size))
+        hits = cast(self.scene, o, d, np.ones(x.size))  # u = 1: a ray through a crown returns from it
         z = np.where(np.isfinite(hits.t_solid), top - hits.t_solid, np.nan)
-        surface = hits.surface.astype(np.int64)
-        tc, tr = self.scene.tree_center, self.scene.tree_radius
-        if tc.shape[0]:
-            near = np.zeros(x.size, bool)
-            for k in range(0, x.size, 20000):  # chunks bound the (n, trees) distance table
-                dx = x[k:k + 20000, None] - tc[None, :, 0]
-                dy = y[k:k + 20000, None] - tc[None, :, 1]
-                near[k:k + 20000] = np.any(dx**2 + dy**2 < (tr[None, :] + 0.5) ** 2, axis=1)
-            surface = np.where(near, VEGETATION, surface)
-        surface = np.where(surface >= 0, surface, np.where(surface == VEGETATION, VEGETATION, TERRAIN))
+        surface = np.where(hits.surface >= 0, hits.surface, TERRAIN).astype(np.int64)
+        surface = np.where(np.isfinite(hits.t_vegetation), VEGETATION, surface)
         return z.reshape(shape), surface.reshape(shape)
 
     def mean_height(self, x, y) -> float:
