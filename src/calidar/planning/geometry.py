@@ -222,7 +222,7 @@ def side_poses(f: Flown, points: np.ndarray, inst: Instrument) -> tuple[Pose, np
     n = points.shape[0]
     nominal = inst.nominal
     s, _ = f.local(points[:, :2])
-    for _ in range(3):  # the time the scan plane (the body's y–z plane) sweeps over each point
+    for _ in range(2):  # the time the scan plane (the body's y–z plane) sweeps over each point (cm after two)
         t = f.t0 + s / f.line.speed_mps
         pos = np.column_stack([f.line.start + s[:, None] * f.line.direction, np.full(n, f.altitude_m)])
         R = f.r_lb(t, inst.motion_rad)

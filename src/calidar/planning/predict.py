@@ -33,6 +33,8 @@ from calidar.strips.verdict import CORRELATION_LIMIT, GROUND_LIMIT_M, LENGTH_LIM
 SEPARATION_LIMIT = 0.95
 #: eigenvalues of the scaled normal matrix below this fraction of the largest: directions the plan cannot see
 NULL_EIGENVALUE = 1e-10
+#: trajectory blocks up to this size are solved dense
+DENSE_MAX = 8000
 #: a σ moving points by more than this (m) says the tie planes do not see the parameter at all
 UNSEEN_M = 10.0
 
@@ -156,20 +158,21 @@ def sensor_covariance(nominal, poses: dict, times: dict, corrs: list, spans: dic
     problem = StripProblem(nominal, poses, corrs, [p.name for p in free], times, settings.trajectory, spans)
     J = sp.csr_matrix(problem.jacobian(params.values(), free))
     w = 1.0 / problem.sigma**2
-    JWJ = (J.T @ sp.diags(w) @ J).tocsc()
+    Jw = sp.csr_matrix(J.multiply(np.sqrt(w)[:, None]))
+    JWJ = (Jw.T @ Jw).tocsc()
     groups = settings.trajectory.prior_correlation(spans)
     P = _prior_precision(free, groups)
     N = JWJ + P
     sensor = np.array([k for k, p in enumerate(free) if parse_name(p.name) is None])
-    cov = _sensor_covariance(N, sensor)
+    cov, X = _sensor_covariance(N, sensor)
     if (settings.true_smoothing_s is not None or row_noise is not None) and np.all(np.isfinite(cov)):
         # the estimate is N⁻¹JᵀWy; with row errors ε of covariance Σ and trajectory errors e of covariance C
         # (not the weights' W⁻¹ and the priors' P⁻¹) its error N⁻¹(JᵀWε − P·e) has covariance
         # N⁻¹(JᵀW·Σ·WJ + P·C·P)N⁻¹
         pcp = P if settings.true_smoothing_s is None else P @ _true_covariance(
             free, groups, settings.trajectory.block_s or 1.0, settings.true_smoothing_s) @ P
-        meat = JWJ if row_noise is None else (J.T @ sp.diags(w * w * row_noise) @ J).tocsc()
-        X = spla.splu(N).solve(np.eye(len(free))[:, sensor])
+        Jn = None if row_noise is None else sp.csr_matrix(J.multiply((w * np.sqrt(row_noise))[:, None]))
+        meat = JWJ if Jn is None else (Jn.T @ Jn).tocsc()
         return [free[k].name for k in sensor], [free[k].unit for k in sensor], X.T @ ((meat + pcp) @ X), cov, J.shape[0]
     return [free[k].name for k in sensor], [free[k].unit for k in sensor], cov, cov, J.shape[0]
 
@@ -208,17 +211,31 @@ def _prior_precision(free, prior_correlation) -> sp.csc_matrix:
     return sp.csc_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(n, n))
 
 
-def _sensor_covariance(N: sp.csc_matrix, sensor: np.ndarray) -> np.ndarray:
-    """The sensor block of N⁻¹ by the Schur complement over the other (trajectory) parameters."""
+def _solve_spd(A: sp.csc_matrix, B: np.ndarray) -> np.ndarray:
+    """A⁻¹B for the symmetric positive definite trajectory block A (priors on every knot): dense Cholesky
+    (a few thousand knots: the sparse LU fills in across overlapping strips and is slower), else sparse LU."""
+    import scipy.linalg as la
+
+    if A.shape[0] <= DENSE_MAX:
+        try:
+            return la.cho_solve(la.cho_factor(A.toarray(), check_finite=False), B, check_finite=False)
+        except la.LinAlgError:
+            pass
+    return spla.splu(A.tocsc(), permc_spec="MMD_AT_PLUS_A").solve(B)
+
+
+def _sensor_covariance(N: sp.csc_matrix, sensor: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The sensor block of N⁻¹ by the Schur complement over the other (trajectory) parameters, and
+    N⁻¹'s sensor columns."""
     n = N.shape[0]
     other = np.setdiff1d(np.arange(n), sensor)
     Nss = N[sensor][:, sensor].toarray()
     if other.size:
-        Ntt = N[other][:, other].tocsc()
         Nts = N[other][:, sensor].toarray()
-        X = spla.splu(Ntt).solve(Nts)
+        X = _solve_spd(N[other][:, other], Nts)
         S = Nss - Nts.T @ X
     else:
+        X = np.zeros((0, sensor.size))
         S = Nss
     S = 0.5 * (S + S.T)
     d = 1.0 / np.sqrt(np.maximum(np.diag(S), 1e-300))
@@ -230,4 +247,7 @@ def _sensor_covariance(N: sp.csc_matrix, sensor: np.ndarray) -> np.ndarray:
     cov[unseen, :] = np.nan
     cov[:, unseen] = np.nan
     cov[unseen, unseen] = np.inf
-    return cov
+    full = np.zeros((n, sensor.size))  # the sensor columns of N⁻¹: [S⁻¹; −Ntt⁻¹·Nts·S⁻¹]
+    full[sensor] = cov
+    full[other] = -X @ cov
+    return cov, full
