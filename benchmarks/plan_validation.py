@@ -8,9 +8,11 @@ Every plan flies the UAV preset's scene (200 m × 200 m, scene seed 3: hills, a 
 simulated at 2 cm / 0.002°. For each plan: the prediction (`calidar.planning.predict`, before any
 simulation; whether it calls the plan poor), then ``--runs`` surveys (seeds 1…N; true mounting
 errors drawn per survey, σ 0.03° and 3 cm) calibrated by the strip calibrator with the trajectory
-model (`calidar.planning.simulate.simulate_and_calibrate`). Per parameter: predicted σ, RMS error,
-their ratio (0.8–1.25 asked; its sampling spread ≈ ±1/√(2N)), the calibration's mean σ. The poor
-plan's best suggested line (`calidar.planning.suggest`) is added and validated as its own plan.
+model (`calidar.planning.simulate.simulate_and_calibrate`). Per parameter: predicted σ (the σ the
+calibration will report, N⁻¹) and expected error σ, RMS error, their ratios (0.8–1.25 asked; the
+sampling spread ≈ ±1/√(2N)), the calibration's mean σ. A poor plan's best suggested line
+(`calidar.planning.suggest`) is added and validated as its own plan. ``--table rows.jsonl …``: the
+table of earlier runs, each plan predicted again with today's code (simulations do not depend on it).
 """
 
 from __future__ import annotations
@@ -91,9 +93,9 @@ def table(paths: list[Path]) -> None:
     """The validation table from the JSON rows of earlier runs, each plan predicted again with today's code
     (the simulations do not depend on the prediction)."""
     _, terrain, inst = setup()
-    print("| plan | named poor | parameter | predicted error σ | RMS error | ratio | σ reported: predicted | "
-          "σ reported: mean of the runs | runs |")
-    print("|---|---|---|---|---|---|---|---|---|")
+    print("| plan | lines | named poor | parameter | predicted σ (reported) | expected error σ | RMS error | "
+          "RMS / predicted σ | RMS / expected error σ | calibration's mean σ | runs |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
     for path in paths:
         for text in path.read_text().splitlines():
             row = json.loads(text)
@@ -104,8 +106,9 @@ def table(paths: list[Path]) -> None:
             pred = predict(lines, terrain, inst, PlanSettings(estimate=tuple(row["estimate"])))
             for n, u, s, r in zip(pred.names, pred.units, pred.sigma, pred.reported):
                 rms = row["rms_error"][n]
-                print(f"| {row['plan']} | {'yes' if pred.poor else 'no'} | {n} | {shown(n, u, s)} | {shown(n, u, rms)} | "
-                      f"{rms / s:.2f} | {shown(n, u, r)} | {shown(n, u, row['mean_sigma'][n])} | {row['runs']} |")
+                print(f"| {row['plan']} | {len(lines)} | {'yes' if pred.poor else 'no'} | {n} | {shown(n, u, r)} | "
+                      f"{shown(n, u, s)} | {shown(n, u, rms)} | {rms / r:.2f} | {rms / s:.2f} | "
+                      f"{shown(n, u, row['mean_sigma'][n])} | {row['runs']} |")
 
 
 def main() -> None:
