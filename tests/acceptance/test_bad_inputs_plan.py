@@ -69,6 +69,8 @@ PLAN = [
     case(["{L}/good.csv", *GOOD, "--range-sigma", "nan"], "--range-sigma", id="range-sigma-nan"),
     case(["{L}/good.csv", *GOOD, "--trajectory-sigma", "0.05"], "--trajectory-sigma", id="trajectory-sigma-one-number"),
     case(["{L}/good.csv", *GOOD, "--simulate", "-1"], "--simulate", id="simulate-negative"),
+    case(["{L}/good.csv", *GOOD, "--platform-motion", "1.5"], "--platform-motion", id="platform-motion-one-number"),
+    case(["{L}/good.csv", *GOOD, "--platform-motion", "1.5,-1"], "--platform-motion", id="platform-motion-negative"),
     case(["{L}/good.csv", *GOOD, "--simulate", "1", "--terrain", "{L}/not_a_dem.tif"], "not_a_dem.tif",
          id="simulate-bad-dem"),
 ]

@@ -27,6 +27,9 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
                                              "POSITION_M,ATTITUDE_DEG (1σ)."),
         range_sigma: float = typer.Option(0.01, "--range-sigma", help="Range noise, 1σ, m."),
         angle_sigma: float = typer.Option(0.002, "--angle-sigma", help="Encoder (scan-angle) noise, 1σ, degrees."),
+        platform_motion: str = typer.Option("1.5,1.0", "--platform-motion", help="σ of the platform's attitude "
+                                            "wobble along a line, ROLL_PITCH_DEG,HEADING_DEG (UAV ≈ 1.5,1; aircraft "
+                                            "≈ 0.8,1.5): a tilted body lets heading errors show."),
         suggest: bool = typer.Option(True, "--suggest/--no-suggest", help="Try candidate lines and name the one that "
                                      "most improves the worst-determined parameter."),
         simulate: int = typer.Option(0, "--simulate", help="Confirm the plan: simulate and calibrate it end to end "
@@ -43,7 +46,7 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
         from calidar.pipelines.plan import PlanOptions, run_plan
 
         options = PlanOptions(terrain, pulse_rate, fov, range_sigma, angle_sigma, estimate, trajectory_sigma, suggest,
-                              simulate)
+                              simulate, platform_motion)
         dem = Path(terrain) if not terrain.startswith(("flat", "scene")) else None
         with progress_bar() as bar, output_folder(out, force, inputs=[lines, sensor] + ([dem] if dem else [])) as tmp:
             run = run_plan(lines, sensor, tmp, options, progress_callback(bar))

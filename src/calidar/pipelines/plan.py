@@ -36,6 +36,7 @@ class PlanOptions:
     trajectory_sigma: str = "0.02,0.002"  #: POSITION_M,ATTITUDE_DEG, the expected trajectory accuracy
     suggest: bool = True
     simulate: int = 0
+    platform_motion: str = "1.5,1.0"  #: ROLL_PITCH_DEG,HEADING_DEG: σ of the platform's attitude wobble
 
 
 @dataclass
@@ -86,7 +87,7 @@ def instrument(sensor_path: Path, options: PlanOptions):
     from calidar.planning.geometry import Instrument
     from calidar.scanners.linear import LinearScanner
     from calidar.sensor import Sensor
-    from calidar.validate import number
+    from calidar.validate import number, parse_floats
 
     number(options.pulse_rate_hz, "--pulse-rate", 100.0, 5e6, "Hz")
     number(options.fov_deg, "--fov", 1.0, 150.0, "deg")
@@ -96,8 +97,11 @@ def instrument(sensor_path: Path, options: PlanOptions):
     if not isinstance(nominal.scanner, LinearScanner):
         raise InputError(sensor_path, "scanner", f"model {nominal.scanner.model!r}: calidar plan predicts linear "
                          "(oscillating-mirror or polygon) scanners; expected model = \"linear\"")
+    rp, hd = parse_floats(options.platform_motion, 2, "--platform-motion (ROLL_PITCH_DEG,HEADING_DEG)")
+    for v in (rp, hd):
+        number(v, "--platform-motion", 0.0, 10.0, "deg")
     return Instrument(nominal, options.pulse_rate_hz, float(np.radians(options.fov_deg / 2)), options.range_sigma_m,
-                      float(np.radians(options.angle_sigma_deg)))
+                      float(np.radians(options.angle_sigma_deg)), (float(np.radians(rp)), float(np.radians(hd))))
 
 
 def plan_settings(options: PlanOptions):

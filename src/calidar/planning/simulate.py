@@ -49,7 +49,8 @@ def plan_config(flown: list[Flown], inst: Instrument, settings: PlanSettings, ba
                   for f in flown)
     return replace(base, seed=seed, lines=lines, nominal=inst.nominal, pulse_rate_hz=inst.pulse_rate_hz, density=1.0,
                    scan_rate_hz=float(np.mean([scan_rate_hz(f, inst) for f in flown])), half_fov_rad=inst.half_fov_rad,
-                   motion=replace(base.motion, speed_mps=speed), range_noise_m=inst.range_noise_m,
+                   motion=replace(base.motion, speed_mps=speed, attitude_sigma_rad=inst.motion_rad[0],
+                                  heading_sigma_rad=inst.motion_rad[1]), range_noise_m=inst.range_noise_m,
                    angle_noise_rad=inst.angle_noise_rad, gnss_noise_m=pos, attitude_noise_rad=att,
                    errors=errors or {}, scene_seed=base.scene_seed if base.scene_seed is not None else 0)
 
