@@ -110,8 +110,9 @@ def write_report(path: Path, doc: dict, pred, terrain_image=None, verdict=None, 
         s.text(f"{sim['runs']} surveys of this plan simulated and calibrated end to end (true mounting errors drawn "
                "per survey): the RMS error against the truth beside the predicted σ (a ratio near 1 says the "
                f"prediction holds; its sampling spread is ±{1 / np.sqrt(2 * sim['runs']):.2f}).")
-        s.table(["parameter", "expected error σ", "RMS error", "ratio", "σ reported: predicted", "σ reported: mean"],
-                [[n, shown(n, u, p), shown(n, u, sim["rms_error"][n]), f"{sim['rms_error'][n] / p:.2f}",
-                  shown(n, u, r), shown(n, u, sim["mean_sigma"][n])]
+        s.table(["parameter", "predicted σ (reported)", "expected error σ", "RMS error", "RMS / predicted σ",
+                 "RMS / expected error σ", "calibrations' mean σ"],
+                [[n, shown(n, u, r), shown(n, u, p), shown(n, u, sim["rms_error"][n]), f"{sim['rms_error'][n] / r:.2f}",
+                  f"{sim['rms_error'][n] / p:.2f}", shown(n, u, sim["mean_sigma"][n])]
                  for n, u, p, r in zip(pred.names, pred.units, pred.sigma, pred.reported)])
     return report.write(path)
