@@ -261,6 +261,7 @@ def test_every_command_is_in_the_corpus():
     """A new command comes with its bad-input cases: every command (leaf of ``calidar --help``) is
     covered by one of the corpus modules."""
     import test_bad_inputs_photon
+    import test_bad_inputs_plan
     import test_bad_inputs_strips
     import test_bad_inputs_tools
     import test_bad_inputs_tpu
@@ -268,7 +269,7 @@ def test_every_command_is_in_the_corpus():
 
     leaves = {" ".join(n) for n, c in _commands(app) if not hasattr(c, "commands")}
     covered = (COMMANDS | test_bad_inputs_strips.COMMANDS | test_bad_inputs_photon.COMMANDS | test_bad_inputs_tools.COMMANDS
-               | test_bad_inputs_trajectory.COMMANDS | test_bad_inputs_tpu.COMMANDS)
+               | test_bad_inputs_trajectory.COMMANDS | test_bad_inputs_tpu.COMMANDS | test_bad_inputs_plan.COMMANDS)
     assert leaves - covered == set(), "commands without bad-input cases"
 
 

@@ -78,7 +78,7 @@ LAYERS: list[tuple[str, tuple[str, ...]]] = [
     ("demo", ("calidar.demo",)),
     ("pipelines", ("calidar.pipelines",)),
     ("methods", ("calidar.strips", "calidar.accuracy", "calidar.rangecal", "calidar.photon", "calidar.sim", "calidar.tpu",
-                 "calidar.trajrec", "calidar.scanners.analysis",
+                 "calidar.trajrec", "calidar.planning", "calidar.scanners.analysis",
                  "calidar.scanners.separability", "calidar.scanners.settings", "calidar.scanners.sources",
                  "calidar.scanners.verdict", "calidar.scanners.figures", "calidar.scanners.files",
                  "calidar.scanners.report")),

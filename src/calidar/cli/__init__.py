@@ -36,7 +36,7 @@ from calidar.outputs import shown_path
 
 COMMAND_MODULES: list[str] = [
     "info", "georef", "rangecal", "photon", "denoise", "ccr", "simulate_survey", "demo", "quality", "boresight",
-    "scanner", "sensor", "tpu", "accuracy", "trajectory",
+    "scanner", "sensor", "tpu", "accuracy", "trajectory", "plan",
 ]
 
 app = typer.Typer(

@@ -170,6 +170,14 @@ def _wall_faces(kind: str, length: float, width: float, eave: float, slope: floa
     return walls
 
 
+def scene_seed(seed: int, own: int | None = None) -> int:
+    """The seed of a survey's scene: its own (``SurveyConfig.scene_seed``), else drawn from the survey
+    seed's scene stream (the first of the six :func:`calidar.sim.survey.simulate_survey` spawns)."""
+    if own is not None:
+        return int(own)
+    return int(np.random.default_rng(np.random.SeedSequence(seed).spawn(6)[0]).integers(2**63))
+
+
 def build_scene(spec: SceneSpec, seed: int, lat0: float, lon0: float, h0: float) -> Scene:
     """Generate a scene from ``spec`` and ``seed`` around the origin (lat0, lon0 rad; h0 m)."""
     from calidar.sim.raycast import build_bins

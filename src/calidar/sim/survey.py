@@ -27,7 +27,7 @@ from calidar.sim.flightplan import FlightLine, check_plan_inputs, plan_lines
 from calidar.sim.motion import MotionSpec, accuracy_epochs, fly, measured_trajectory, trajectory_sigma
 from calidar.sim.patterns import half_field_of_view, scan_angles
 from calidar.sim.raycast import SURFACE_TERRAIN, cast
-from calidar.sim.scene import CLASS_BUILDING, CLASS_GROUND, CLASS_VEGETATION, Scene, SceneSpec, build_scene
+from calidar.sim.scene import CLASS_BUILDING, CLASS_GROUND, CLASS_VEGETATION, Scene, SceneSpec, build_scene, scene_seed
 from calidar.trajectory import Trajectory
 from calidar.trajectory_accuracy import TrajectoryAccuracy
 from calidar.validate import SEED_MAX, integer, number
@@ -85,6 +85,8 @@ class SurveyConfig:
     #: σ of the per-strip trajectory errors, in the order of STRIP_ERRORS (m, m/s, rad, rad/s)
     strip_error_sigma: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 0.0)
     density: float = 1.0  #: scales the pulse rate (and the scan rate by its square root)
+    lines: tuple[FlightLine, ...] | None = None  #: flown instead of the planned lines (``calidar plan``)
+    scene_seed: int | None = None  #: the scene's own seed (None: from ``seed``): one scene, fresh noise
 
 
 PRESETS: dict[str, SurveyConfig] = {
@@ -350,16 +352,16 @@ def simulate_survey(cfg: SurveyConfig, progress: Callable[[str, int, int], None]
     """
     check_config(cfg)
     ss = np.random.SeedSequence(cfg.seed)
-    rng_scene, rng_motion, rng_nav, rng_strip, rng_shots, rng_sigma = (np.random.default_rng(s) for s in ss.spawn(6))
+    _, rng_motion, rng_nav, rng_strip, rng_shots, rng_sigma = (np.random.default_rng(s) for s in ss.spawn(6))
     lat0, lon0, h0 = cfg.origin_deg
     crs = utm_crs(lat0, lon0)
-    scene = build_scene(cfg.scene, int(rng_scene.integers(2**63)), np.radians(lat0), np.radians(lon0), h0)
+    scene = build_scene(cfg.scene, scene_seed(cfg.seed, cfg.scene_seed), np.radians(lat0), np.radians(lon0), h0)
     nominal = replace(cfg.nominal, crs=crs)
     params = nominal.parameters()
     truth = nominal.with_parameters(**{k: params[k] + v for k, v in cfg.errors.items()})
     half_fov = half_field_of_view(nominal.scanner, cfg.scan_rate_hz, cfg.half_fov_rad, cfg.scan_pattern)
-    lines = plan_lines(scene.extent, float(np.mean(scene.heights)), cfg.height_agl_m, half_fov, cfg.side_overlap,
-                       cfg.directions, cfg.motion.speed_mps)
+    lines = list(cfg.lines or plan_lines(scene.extent, float(np.mean(scene.heights)), cfg.height_agl_m, half_fov,
+                                         cfg.side_overlap, cfg.directions, cfg.motion.speed_mps))
     traj_true, windows = fly(scene, lines, cfg.motion, rng_motion, GPS_WEEK_START_S)
     per_line = [cfg.pulse_rate_hz * cfg.density * (b - a) for a, b in windows]  # memory grows with what is held:
     if (pulses := max(per_line) if on_strip is not None else sum(per_line)) > MAX_PULSES:  # one strip, or all

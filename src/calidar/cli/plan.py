@@ -1,0 +1,59 @@
+"""``calidar plan``: predicted σ of a planned calibration flight, before it is flown."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import typer
+from rich.markup import escape
+
+from calidar.cli.common import FORCE_HELP, console, exit_with_verdict, print_verdict, progress_bar, progress_callback
+
+
+def register(app: typer.Typer, simulate: typer.Typer) -> None:
+    @app.command("plan")
+    def plan(
+        lines: Path = typer.Argument(..., help="Flight lines, CSV (line, start_x, start_y, end_x, end_y, height_agl_m, "
+                                     "speed_mps; projected metres) or GeoJSON LineStrings with those properties."),
+        sensor: Path = typer.Option(..., "--sensor", help="The nominal sensor.toml (lever arm, boresight, scanner)."),
+        out: Path = typer.Option(..., "--out", help="Output folder: plan.json and report.html."),
+        terrain: str = typer.Option("flat", "--terrain", help="flat, flat:HEIGHT_M, scene[:uav|airborne[:SEED]] (the "
+                                    "simulator's built-in scene with roofs), or a DEM GeoTIFF in the lines' metres."),
+        pulse_rate: float = typer.Option(20_000.0, "--pulse-rate", help="Pulses per second."),
+        fov: float = typer.Option(70.0, "--fov", help="Full field of view across track, degrees."),
+        estimate: str = typer.Option("boresight", "--estimate", help="What to estimate, as calidar boresight "
+                                     "--estimate: boresight, lever_arm, range_offset, range_scale or single names."),
+        trajectory_sigma: str = typer.Option("0.02,0.002", "--trajectory-sigma", help="Expected trajectory accuracy: "
+                                             "POSITION_M,ATTITUDE_DEG (1σ)."),
+        range_sigma: float = typer.Option(0.01, "--range-sigma", help="Range noise, 1σ, m."),
+        angle_sigma: float = typer.Option(0.002, "--angle-sigma", help="Encoder (scan-angle) noise, 1σ, degrees."),
+        platform_motion: str = typer.Option("1.5,1.0", "--platform-motion", help="σ of the platform's attitude "
+                                            "wobble along a line, ROLL_PITCH_DEG,HEADING_DEG (UAV ≈ 1.5,1; aircraft "
+                                            "≈ 0.8,1.5): a tilted body lets heading errors show."),
+        suggest: bool = typer.Option(True, "--suggest/--no-suggest", help="Try candidate lines and name the one that "
+                                     "most improves the worst-determined parameter."),
+        simulate: int = typer.Option(0, "--simulate", help="Confirm the plan: simulate and calibrate it end to end "
+                                     "N times (flat or scene terrain; each takes seconds to minutes)."),
+        force: bool = typer.Option(False, "--force", help=FORCE_HELP),
+    ) -> None:
+        """Predict the σ and correlations a planned calibration flight will give, before flying it: which
+        parameters it will not determine and why, and the line that helps most.
+
+        Exit codes: 0 every estimated parameter determined, 3 a poor plan (FAIL verdict), 1 bad input,
+        2 usage error, 130/143 interrupted.
+        """
+        from calidar.outputs import output_folder
+        from calidar.pipelines.plan import PlanOptions, run_plan
+
+        options = PlanOptions(terrain, pulse_rate, fov, range_sigma, angle_sigma, estimate, trajectory_sigma, suggest,
+                              simulate, platform_motion)
+        dem = Path(terrain) if not terrain.startswith(("flat", "scene")) else None
+        with progress_bar() as bar, output_folder(out, force, inputs=[lines, sensor] + ([dem] if dem else [])) as tmp:
+            run = run_plan(lines, sensor, tmp, options, progress_callback(bar))
+        print_verdict(run.verdict)
+        for s in run.suggestions[:1]:
+            console.print(f"suggested line: {escape(s.kind)}, from ({s.line.start[0]:.0f}, {s.line.start[1]:.0f}) to "
+                          f"({s.line.end[0]:.0f}, {s.line.end[1]:.0f}) at {s.line.height_agl_m:g} m", highlight=False,
+                          soft_wrap=True)
+        console.print(f"wrote {escape(str(out))}/plan.json and report.html", highlight=False, soft_wrap=True)
+        exit_with_verdict(run.verdict)

@@ -1,0 +1,221 @@
+"""Calibration flight planning (``calidar plan``): predicted σ of a planned flight, what it will not
+determine and why, the line that helps most, optionally confirmed by simulating the plan.
+
+:func:`run_plan` reads the flight lines (:mod:`calidar.io.flight_lines`), the sensor and the
+terrain (flat, a DEM GeoTIFF, or the simulator's built-in scene), predicts
+(:func:`calidar.planning.predict.predict`), tries candidate lines
+(:func:`calidar.planning.suggest.suggest`), with ``simulate`` > 0 flies and calibrates the plan
+that many times (:func:`calidar.planning.simulate.confirm`), and writes ``plan.json`` and ``report.html``.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from calidar.errors import InputError
+from calidar.pipelines import Progress, no_progress
+
+#: the most simulations ``--simulate`` runs (each is a whole survey simulated and calibrated)
+MAX_SIMULATE = 200
+
+
+@dataclass(frozen=True)
+class PlanOptions:
+    """What ``calidar plan`` takes besides its files (see its --help)."""
+
+    terrain: str = "flat"  #: flat | flat:HEIGHT | scene[:PRESET[:SEED]] | a DEM GeoTIFF path
+    pulse_rate_hz: float = 20_000.0
+    fov_deg: float = 70.0  #: full field of view
+    range_sigma_m: float = 0.01
+    angle_sigma_deg: float = 0.002
+    estimate: str = "boresight"
+    trajectory_sigma: str = "0.02,0.002"  #: POSITION_M,ATTITUDE_DEG, the expected trajectory accuracy
+    suggest: bool = True
+    simulate: int = 0
+    platform_motion: str = "1.5,1.0"  #: ROLL_PITCH_DEG,HEADING_DEG: σ of the platform's attitude wobble
+
+
+@dataclass
+class PlanRun:
+    """What :func:`run_plan` produced."""
+
+    prediction: object  #: calidar.planning.predict.Prediction
+    suggestions: list
+    simulation: dict | None
+    verdict: object  #: calidar.verdict.Verdict
+    doc: dict
+
+
+def load_terrain(text: str):
+    """--terrain → (terrain, the simulator's base configuration for --simulate or None for flat ground)."""
+    from dataclasses import replace
+
+    from calidar.planning.simulate import FLAT_SCENE
+    from calidar.planning.terrain import FlatTerrain, scene_terrain
+    from calidar.sim.survey import PRESETS, survey_config
+
+    kind, _, rest = text.partition(":")
+    if kind == "flat":
+        try:
+            height = float(rest) if rest else 0.0
+        except ValueError:
+            raise InputError(None, "--terrain", f"expected flat or flat:HEIGHT_M, got {text!r}") from None
+        if not np.isfinite(height) or abs(height) > 9000:
+            raise InputError(None, "--terrain", f"expected a height in [-9000, 9000] m, got {rest}")
+        base = survey_config("uav", scene_seed=0)
+        return FlatTerrain(height), replace(base, scene=replace(base.scene, **FLAT_SCENE), origin_deg=(47.0, 8.0, height))
+    if kind == "scene":
+        preset, _, seed = rest.partition(":")
+        preset = preset or "uav"
+        if preset not in PRESETS or (seed and not seed.isdigit()):
+            raise InputError(None, "--terrain", f"expected scene[:PRESET[:SEED]] with PRESET one of {', '.join(PRESETS)} "
+                             f"and SEED an integer ≥ 0, got {text!r}")
+        base = survey_config(preset, scene_seed=int(seed or 0))
+        return scene_terrain(base), base
+    from calidar.io.dem import read_dem
+    from calidar.planning.terrain import GridTerrain
+
+    heights, x0, y0, dx, dy = read_dem(Path(text))
+    return GridTerrain(heights, x0, y0, dx, dy, f"DEM {Path(text).name}"), None
+
+
+def instrument(sensor_path: Path, options: PlanOptions):
+    from calidar.planning.geometry import Instrument
+    from calidar.scanners.linear import LinearScanner
+    from calidar.sensor import Sensor
+    from calidar.validate import number, parse_floats
+
+    number(options.pulse_rate_hz, "--pulse-rate", 100.0, 5e6, "Hz")
+    number(options.fov_deg, "--fov", 1.0, 150.0, "deg")
+    number(options.range_sigma_m, "--range-sigma", 1e-5, 1.0, "m")
+    number(options.angle_sigma_deg, "--angle-sigma", 0.0, 1.0, "deg")
+    nominal = Sensor.read(sensor_path)
+    if not isinstance(nominal.scanner, LinearScanner):
+        raise InputError(sensor_path, "scanner", f"model {nominal.scanner.model!r}: calidar plan predicts linear "
+                         "(oscillating-mirror or polygon) scanners; expected model = \"linear\"")
+    rp, hd = parse_floats(options.platform_motion, 2, "--platform-motion (ROLL_PITCH_DEG,HEADING_DEG)")
+    for v in (rp, hd):
+        number(v, "--platform-motion", 0.0, 10.0, "deg")
+    return Instrument(nominal, options.pulse_rate_hz, float(np.radians(options.fov_deg / 2)), options.range_sigma_m,
+                      float(np.radians(options.angle_sigma_deg)), (float(np.radians(rp)), float(np.radians(hd))))
+
+
+def plan_settings(options: PlanOptions):
+    from calidar.pipelines.boresight import trajectory_model
+    from calidar.planning.predict import PlanSettings
+    from calidar.strips.parameters import parse_estimate
+
+    groups = parse_estimate(options.estimate)
+    if "trajectory_bias" in groups or "height_bias" in groups:
+        raise InputError(None, "--estimate", "trajectory_bias is always modelled and height_bias needs ground control; "
+                         "expected sensor parameters (boresight, lever_arm, range_offset, …)")
+    if any(g in ("palmer",) or g.startswith("scan_angle") for g in groups):
+        raise InputError(None, "--estimate", f"got {options.estimate!r}; calidar plan predicts boresight, lever_arm, "
+                         "range_offset and range_scale (and their single parameters)")
+    return PlanSettings(estimate=tuple(groups), trajectory=trajectory_model(options.trajectory_sigma))
+
+
+def _verdict(pred, found):
+    from calidar.planning.findings import findings, headline, shown
+    from calidar.verdict import Finding, Verdict
+
+    out = []
+    for f in findings(pred):
+        sigma = f"σ {f['sigma']}" if "sigma" in f else ""
+        if f["determined"]:
+            out.append(Finding("pass", f["parameter"], sigma))
+        else:
+            out.append(Finding("fail", f["parameter"], f"{sigma}: {f['why']}" if sigma else f["why"], f["action"]))
+    if found and pred.poor:
+        best = found[0]
+        unit = pred.units[pred.names.index(best.parameter)]
+        out.append(Finding("note", "suggested line", f"{best.kind}: {best.parameter} σ "
+                           f"{shown(best.parameter, unit, best.sigma_before)} → {shown(best.parameter, unit, best.sigma_after)}"))
+    return Verdict(f"calibration flight plan: {headline(pred)}", out)
+
+
+def run_plan(lines_path: Path, sensor_path: Path, out_dir: Path, options: PlanOptions = PlanOptions(),
+             progress: Progress = no_progress, argv: list[str] | None = None) -> PlanRun:
+    """The whole ``calidar plan`` run into the folder ``out_dir`` (see the module docstring)."""
+    from calidar.io.flight_lines import read_flight_lines
+    from calidar.outputs import write_text_atomic
+    from calidar.planning.geometry import fly_plan
+    from calidar.planning.predict import predict
+    from calidar.planning.simulate import confirm
+    from calidar.planning.suggest import suggest
+    from calidar.provenance import RunRecord
+
+    if not 0 <= options.simulate <= MAX_SIMULATE:
+        raise InputError(None, "--simulate", f"expected 0 to {MAX_SIMULATE} simulated surveys, got {options.simulate}")
+    record = RunRecord.capture(argv, inputs=[lines_path, sensor_path], options=options.__dict__)
+    lines = read_flight_lines(lines_path)
+    inst = instrument(Path(sensor_path), options)
+    settings = plan_settings(options)
+    terrain, base = load_terrain(options.terrain)
+    progress("predicting", 0, 1)
+    cache: dict = {}
+    pred = predict(lines, terrain, inst, settings, cache)
+    found = suggest(lines, terrain, inst, settings, pred, progress, cache) if options.suggest else []
+    simulation = None
+    if options.simulate:
+        if base is None:
+            raise InputError(None, "--simulate", "simulates flat ground or the built-in scene; expected --terrain flat "
+                             "or scene[:PRESET[:SEED]] with it (a DEM cannot be simulated)")
+        simulation = confirm(fly_plan(lines, terrain), inst, settings, pred.names, options.simulate, base,
+                             progress=progress)
+    verdict = _verdict(pred, found)
+    record.finish()
+    doc = plan_document(lines, inst, options, terrain, pred, found, simulation, verdict, record)
+    out_dir = Path(out_dir)
+    write_text_atomic(out_dir / "plan.json", json.dumps(doc, indent=2, allow_nan=False) + "\n")
+    from calidar.planning.report import write_report
+
+    write_report(out_dir / "report.html", doc, pred, _terrain_image(terrain, lines), verdict, record)
+    return PlanRun(pred, found, simulation, verdict, doc)
+
+
+def plan_document(lines, inst, options, terrain, pred, found, simulation, verdict, record) -> dict:
+    """plan.json: inputs, predicted σ (SI and display), correlations, findings, suggestions, simulation."""
+    from calidar.adjust.solution import json_ready
+    from calidar.planning.findings import findings, headline
+
+    corr = np.where(np.isfinite(pred.correlation), pred.correlation, np.nan)
+    params = [{"parameter": n, "unit": u, "sigma_reported_si": float(r) if np.isfinite(r) else None,
+               "sigma_error_si": float(s) if np.isfinite(s) else None,
+               "determined": pred.determined(k), "ground_effect_m": pred.ground_effect(k)
+               if np.isfinite(pred.ground_effect(k)) else None, "limit_m": pred.limit(k)}
+              for k, (n, u, s, r) in enumerate(zip(pred.names, pred.units, pred.sigma, pred.reported))]
+    doc = {"headline": headline(pred), "poor": pred.poor, "lines": [ln.to_dict() for ln in lines],
+           "terrain": terrain.name, "estimate": list(pred.names),
+           "instrument": {"pulse_rate_hz": inst.pulse_rate_hz, "half_fov_deg": float(np.degrees(inst.half_fov_rad)),
+                          "range_noise_m": inst.range_noise_m, "angle_noise_deg": float(np.degrees(inst.angle_noise_rad))},
+           "trajectory": f"{options.trajectory_sigma} (position m, attitude deg)",
+           "median_range_m": pred.median_range_m, "pairs": pred.pairs, "observations": pred.n_rows,
+           "parameters": params, "correlation": {"names": pred.names, "matrix": corr.tolist()},
+           "findings": findings(pred),
+           "suggestions": [{**s.to_dict(), "unit": pred.units[pred.names.index(s.parameter)]} for s in found],
+           "simulation": None if simulation is None else {k: v for k, v in simulation.items()},
+           "verdict": verdict.to_dict(), "run": record.to_dict()}
+    if simulation is not None:
+        doc["simulation"]["runs"] = len(simulation["runs"])
+        doc["simulation"]["per_run"] = simulation["runs"]
+    return json_ready(doc)
+
+
+def _terrain_image(terrain, lines):
+    """A height image (and its extent) of the terrain under the plan, for the map (None: flat)."""
+    from calidar.planning.terrain import FlatTerrain
+
+    if isinstance(terrain, FlatTerrain):
+        return None
+    ends = np.array([p for ln in lines for p in (ln.start, ln.end)])
+    pad = max(ln.height_agl_m for ln in lines)
+    lo, hi = ends.min(axis=0) - pad, ends.max(axis=0) + pad
+    x, y = np.linspace(lo[0], hi[0], 240), np.linspace(lo[1], hi[1], 240)
+    gx, gy = np.meshgrid(x, y)
+    z, _ = terrain.sample(gx, gy)
+    return z, (lo[0], hi[0], lo[1], hi[1])
