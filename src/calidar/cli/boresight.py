@@ -88,7 +88,6 @@ def boresight(
     from calidar.outputs import check_out_dir, output_folder
     from calidar.pipelines.boresight import calibrate_strips
     from calidar.pipelines.boresight_outputs import write_run
-    from calidar.provenance import describe_tasks
     from calidar.strips.distribute import check_cluster
 
     given = {k: v for k, v in ctx.params.items() if ctx.get_parameter_source(k).name != "DEFAULT"}
@@ -101,14 +100,20 @@ def boresight(
                                checkpoints=checkpoints, truth=truth, scheduler=scheduler, workers=workers,
                                progress=progress_callback(bar))
         written = write_run(run, tmp, write_strips=write_strips)
+    _print_run(run, out, sorted({p.name for p in written if p.parent == Path(tmp)}), write_strips)
+    exit_with_verdict(*run.verdicts.values())  # FAIL: exit 3; the outputs are written (to look at), not to be used
+
+
+def _print_run(run, out: Path, names: list[str], write_strips: bool) -> None:
+    """Each method's verdict and parameters, the Dask tasks, the files written (``names``)."""
+    from calidar.provenance import describe_tasks
+
     for m, result in run.results.items():
         print_verdict(run.verdicts[m], None if len(run.results) == 1 else m)
         _print(result, run.inputs.truth)
     if run.record.tasks:  # on Dask: what came back over the network
         console.print("Dask tasks — " + describe_tasks(run.record.tasks), markup=False)
-    names = sorted({p.name for p in written if p.parent == Path(tmp)})
     console.print(f"wrote {out}/: {', '.join(names)}" + (" and the recalibrated strips" if write_strips else ""), markup=False)
-    exit_with_verdict(*run.verdicts.values())  # FAIL: exit 3; the outputs are written (to look at), not to be used
 
 
 def _print(result, truth_si) -> None:

@@ -105,18 +105,24 @@ def instrument(sensor_path: Path, options: PlanOptions):
 
 
 def plan_settings(options: PlanOptions):
-    from calidar.pipelines.boresight import trajectory_model
     from calidar.planning.predict import PlanSettings
-    from calidar.strips.parameters import parse_estimate
+    from calidar.strips.config import Estimate, TrajectorySettings
+    from calidar.validate import parse_floats
 
-    groups = parse_estimate(options.estimate)
+    groups = [n.strip() for n in options.estimate.split(",") if n.strip()]
+    try:
+        Estimate.of(*groups)
+    except InputError as e:
+        raise InputError(None, "--estimate", f"{e.problem} (comma-separated), got {options.estimate!r}") from None
     if "trajectory_bias" in groups or "height_bias" in groups:
         raise InputError(None, "--estimate", "trajectory_bias is always modelled and height_bias needs ground control; "
                          "expected sensor parameters (boresight, lever_arm, range_offset, …)")
     if any(g in ("palmer",) or g.startswith("scan_angle") for g in groups):
         raise InputError(None, "--estimate", f"got {options.estimate!r}; calidar plan predicts boresight, lever_arm, "
                          "range_offset and range_scale (and their single parameters)")
-    return PlanSettings(estimate=tuple(groups), trajectory=trajectory_model(options.trajectory_sigma))
+    pos_m, att_deg = parse_floats(options.trajectory_sigma, 2, "--trajectory-sigma (POSITION_M,ATTITUDE_DEG)")
+    trajectory = TrajectorySettings(sigma=(pos_m, float(np.radians(att_deg)))).model()
+    return PlanSettings(estimate=tuple(groups), trajectory=trajectory)
 
 
 def _verdict(pred, found):

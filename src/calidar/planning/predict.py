@@ -23,7 +23,8 @@ from calidar.adjust.solver import _prior_groups
 from calidar.errors import InputError
 from calidar.io.flight_lines import PlanLine
 from calidar.planning.geometry import Instrument, correspondences, fly_plan, pair_planes
-from calidar.strips.parameters import build_parameters, parse_estimate
+from calidar.strips.config import Estimate
+from calidar.strips.parameters import build_parameters
 from calidar.strips.planes import PlaneSettings
 from calidar.strips.problem import StripProblem
 from calidar.strips.trajectory_errors import TrajectoryModel, parse_name
@@ -43,7 +44,7 @@ UNSEEN_M = 10.0
 class PlanSettings:
     """What to estimate and how the trajectory's errors enter (as ``calidar boresight`` does)."""
 
-    estimate: tuple[str, ...] = ("boresight",)
+    estimate: tuple[str, ...] = ("boresight",)  #: group and single-parameter names (:meth:`Estimate.of`)
     trajectory: TrajectoryModel = field(default_factory=lambda: TrajectoryModel(
         1.0, 0.02, np.radians(0.002), 20.0, 3.5))
     planes: PlaneSettings = field(default_factory=PlaneSettings)
@@ -152,8 +153,7 @@ def sensor_covariance(nominal, poses: dict, times: dict, corrs: list, spans: dic
     weighs them by (None: as weighed): the covariance is then the estimator's actual one,
     N⁻¹(JᵀW·Σ·WJ + P·C·P)N⁻¹ (Σ the rows' variances, C the trajectory errors'; = N⁻¹ when both are as
     assumed), not the σ the adjustment will report."""
-    groups = parse_estimate(list(settings.estimate))
-    params = build_parameters(nominal, [*groups, "trajectory_bias"], spans, settings.trajectory, headings)
+    params = build_parameters(nominal, Estimate.of(*settings.estimate), spans, settings.trajectory, headings)
     free = params.free
     problem = StripProblem(nominal, poses, corrs, [p.name for p in free], times, settings.trajectory, spans)
     J = sp.csr_matrix(problem.jacobian(params.values(), free))

@@ -68,16 +68,17 @@ def true_errors(names: list[str], rng: np.random.Generator) -> dict[str, float]:
 def simulate_and_calibrate(flown: list[Flown], inst: Instrument, settings: PlanSettings, names: list[str],
                            seed: int, base: SurveyConfig | None = None) -> dict:
     """One run: {"seed", "error": {name: SI}, "sigma": {name: SI}, "sigma0"}."""
-    from calidar.strips.calibrate import StripSettings, calibrate_with_client
+    from calidar.strips.calibrate import calibrate_with_client
+    from calidar.strips.config import CalibrationConfig, Estimate
+    from calidar.strips.matchers import TiePlanes
 
     errors = true_errors(names, np.random.default_rng(seed + 7919))
     cfg = plan_config(flown, inst, settings, base, seed, errors)
     res = simulate_survey(cfg)
     strips = res.calibration_strips()
     model = replace(settings.trajectory, accuracy=res.accuracy)
-    st = StripSettings(trajectory=model, planes=settings.planes)
-    result = calibrate_with_client(strips, res.nominal, method="planes", estimate=[*settings.estimate, "trajectory_bias"],
-                                   settings=st)
+    config = CalibrationConfig(Estimate.of(*settings.estimate), (TiePlanes(settings.planes),))
+    result = calibrate_with_client(strips, res.nominal, config, trajectory=model)
     sol, truth = result.solution, res.truth.parameters()
     return {"seed": seed, "error": {n: float(sol.values[n] - truth[n]) for n in names},
             "sigma": {n: float(sol.sigma[n]) for n in names}, "sigma0": float(sol.sigma0),
