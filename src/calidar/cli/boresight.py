@@ -80,7 +80,6 @@ def boresight(
     from calidar.cli.boresight_config import strip_config
     from calidar.outputs import check_out_dir, output_folder
     from calidar.pipelines.boresight import calibrate_strips
-    from calidar.pipelines.boresight_outputs import write_run
     from calidar.provenance import describe_tasks
     from calidar.strips.distribute import check_cluster
 
@@ -92,7 +91,7 @@ def boresight(
             as tmp, progress_bar() as bar:
         run = calibrate_strips(strips, trajectory, sensor, cfg, accuracy=trajectory_accuracy, control=control, truth=truth,
                                scheduler=scheduler, workers=workers, progress=progress_callback(bar))
-        written = write_run(run, tmp, write_strips=write_strips)
+        written = run.write(tmp, strips=write_strips)
     for m, result in run.results.items():
         print_verdict(run.verdicts[m], None if len(run.results) == 1 else m)
         _print(result, run.inputs.truth)

@@ -217,6 +217,7 @@ class StripCalibration:
     verdicts: dict[str, Verdict]
     corrected: dict[str, Trajectory | None]  #: matcher name → the corrected trajectory (None: no corrections)
     record: RunRecord
+    written: list[Path] = field(default_factory=list)  #: the files :meth:`write` wrote
 
     @property
     def sensor(self) -> Sensor:
@@ -224,14 +225,17 @@ class StripCalibration:
         version, the solution file and the σ of every estimated value."""
         from calidar.pipelines.boresight_outputs import calibrated_sensor
 
-        return calibrated_sensor(next(iter(self.results.values())), "solution.json")
+        m, result = next(iter(self.results.items()))
+        return calibrated_sensor(result, "solution.json" if len(self.results) == 1 else f"solution_{m}.json")
 
-    def write(self, folder: Path) -> list[Path]:
+    def write(self, folder: Path, strips: bool = False) -> list[Path]:
         """Write the results into ``folder`` (solution.json, sensor.toml, sbet_corrected.out, config.toml,
-        report.html; with several matchers, each file once per matcher: solution_planes.json, ...)."""
+        report.html; with several matchers, each file once per matcher: solution_planes.json, ...);
+        ``strips``: the recalibrated strips too. Returns the files written."""
         from calidar.pipelines.boresight_outputs import write_run
 
-        return write_run(self, Path(folder))
+        self.written = write_run(self, Path(folder), write_strips=strips)
+        return self.written
 
     def __repr__(self) -> str:
         lines = []
@@ -287,7 +291,9 @@ def calibrate_strips(strips, trajectory, sensor, config: StripConfig = StripConf
     with workers_for(scheduler, workers) as work:  # one cluster (or thread pool) for every stage
         inputs = load_inputs(strips, trajectory, sensor, config, accuracy=accuracy, control=control, truth=truth,
                              progress=progress, work=work)
-        record = RunRecord.capture(None, inputs=[*inputs.paths, truth], options=config.to_dict())
+        files = {"trajectory_accuracy": accuracy, "control": control, "truth": truth}
+        record = RunRecord.capture(None, inputs=[*inputs.paths, truth],
+                                   options={**config.to_dict(), **{k: v for k, v in files.items() if v is not None}})
         release_memory()
         results = calibrate_inputs(inputs, progress, work)
         release_memory()  # the solver's arrays (0.5 GiB at 8.75 M points) back to the system before the quality
