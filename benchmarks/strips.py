@@ -9,8 +9,8 @@ trajectory errors and the smrmsg.out that states them) is simulated once and cac
 SBET + smrmsg under ``--cache`` (not timed). Then the boresight pipeline runs as the command
 does (:func:`calidar.pipelines.boresight.calibrate_strips`, default options: the trajectory
 model on with the smrmsg's σ as priors), timed per stage: read the LAZ strips (two passes:
-footprints, then the overlap points thinned to the budget per strip, from what the first pass held
-in memory within ``HOLD_POINTS_BYTES``, else streamed again) and build them
+footprints, then the overlap points thinned to the budget per strip, from what the first pass kept
+on disk within ``HOLD_POINTS_BYTES``, else streamed again) and build them
 (one inverse georeferencing of the kept points), calibrate (per outer iteration:
 re-georeference the overlaps, match, solve), overlap quality of the whole strips (streamed
 again) as delivered / new mounting / + trajectory corrections, report and outputs. Reading

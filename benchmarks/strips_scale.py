@@ -10,8 +10,8 @@ the same, the points per m² grow; at 1 M, 0.1 point/m² in the overlaps, no 25 
 planar enough for a tie plane, in memory as streamed), each strip written as soon as it is simulated (one strip in
 memory at a time) and cached under ``--cache`` (not timed). Each run is a child process doing
 what ``calidar boresight`` does, end to end (default options: trajectory model on; each file a
-task on the in-process threads): read the strips (two passes, the second from memory for the files
-the first held within ``HOLD_POINTS_BYTES``; thinned to ``--budget``
+task on the in-process threads): read the strips (two passes, the second, and the quality stages,
+from what the first kept on disk within ``HOLD_POINTS_BYTES``; thinned to ``--budget``
 points per strip, :mod:`calidar.pipelines.strip_ingest`), calibrate, the three overlap-quality
 stages of the whole strips, report and outputs; with ``--quality`` also ``calidar quality`` of
 the strips. Wall time and peak RSS (``os.wait4`` of the child) are printed per size and method,

@@ -1,7 +1,8 @@
-"""Benchmark: VGICP's point-to-plane rows at the truth, by how planar b's neighbourhood is (issue 26).
+"""Benchmark: VGICP's point-to-plane rows at the truth, by how planar b's neighbourhood is (issue 26);
+``--method planes``: the tie planes' rows at the truth, by surface, and the global test's σ0 there.
 
     NUMBA_NUM_THREADS=1 PYTHONPATH=src python benchmarks/strips_vgicp_rows.py --seed 7 [--preset uav] \\
-        [--directions cross] [--exact-trajectory]
+        [--directions cross] [--exact-trajectory] [--method planes]
 
 Simulates ``calidar simulate survey --preset uav --seed 7 --boresight-error 0.05,-0.03,0.1
 --directions cross`` (``--exact-trajectory``: without trajectory errors, so that the strips agree
@@ -11,6 +12,12 @@ overlaps with the TRUE sensor and matches every pair with VGICP keeping every ne
 rated by √(λ_mid/λ_max) of its scatter (1: a disc, 0: a line); per bin: rows, share on walls
 (|n_z| < 0.5), RMS residual at the truth and RMS of residual/σ. Rows below the default
 ``min_spread`` (0.3) are what the fix drops. One UAV survey: ≈ 40 s to simulate, ≈ 30 s to match.
+
+``--method planes``: the default tie planes of every pair at the true sensor; per surface (walls
+|n_z| < 0.5, roofs, flat |n_z| ≥ 0.97): rows, RMS residual, RMS σ, RMS and MAD-scale of
+residual/σ; then the global test's σ0 over the non-wall rows as the verdict computes it (Cauchy
+weights, ÷ their consistency for normal residuals) against its χ² 95 % range: what the test
+would say if the calibration found the truth exactly.
 """
 
 from __future__ import annotations
@@ -20,14 +27,19 @@ import tempfile
 from pathlib import Path
 
 import numpy as np
+from scipy.special import chdtri
 
+from calidar.adjust.solver import robust_weights
 from calidar.pipelines.boresight import load_inputs
 from calidar.sim.survey import simulate_survey, survey_config
 from calidar.strips.calibrate import _Run
-from calidar.strips.config import StripSettings, Vgicp
+from calidar.strips.config import StripSettings
+from calidar.strips.matchers import TiePlanes, Vgicp
 from calidar.strips.parameters import sensor_of
 from calidar.strips.pca import eigh3
+from calidar.strips.planes import match_pair_planes
 from calidar.strips.problem import georeference
+from calidar.strips.verdict import robust_consistency
 from calidar.strips.vgicp import VgicpSettings, match_pair_vgicp
 
 ERRORS_DEG = {"boresight_roll": 0.05, "boresight_pitch": -0.03, "boresight_yaw": 0.1}  #: issue 26's survey
@@ -51,6 +63,7 @@ def main() -> None:
     ap.add_argument("--preset", default="uav")
     ap.add_argument("--directions", default="cross")
     ap.add_argument("--exact-trajectory", action="store_true")
+    ap.add_argument("--method", default="vgicp", choices=("vgicp", "planes"))
     ap.add_argument("--out", type=Path, default=None, help="keep the survey here (default: a temporary folder)")
     args = ap.parse_args()
     exact = {"gnss_noise_m": 0.0, "attitude_noise_rad": 0.0} if args.exact_trajectory else {}
@@ -62,23 +75,52 @@ def main() -> None:
     inputs = load_inputs(sorted((folder / "strips").glob("*.laz")), folder / "sbet.out", folder / "sensor.toml",
                          truth=folder / "truth.json")
     truth = sensor_of(inputs.nominal, inputs.truth)
-    run = _Run.start(inputs.strips, truth, Vgicp(), StripSettings())
+    run = _Run.start(inputs.strips, truth, TiePlanes() if args.method == "planes" else Vgicp(), StripSettings())
     at_truth = {i: georeference(truth, None, run.poses[i], run.by_id[i].time[idx]) for i, idx in run.need.items()}
-    rows = []  # (spread, wall, residual m, σ m)
+    print(f"{args.preset} seed {args.seed} {args.directions}{' exact trajectory' if exact else ''}, {args.method}: "
+          f"{len(run.overlaps)} pairs")
+    (planes_at_truth if args.method == "planes" else vgicp_at_truth)(run, at_truth)
+
+
+def _pairs(run, at_truth):
     for o in run.overlaps:
-        pa, pb = (at_truth[i][run.poses[i].rows_of(idx)] for i, idx in ((o.a, o.index_a), (o.b, o.index_b)))
+        yield o, *(at_truth[i][run.poses[i].rows_of(idx)] for i, idx in ((o.a, o.index_a), (o.b, o.index_b)))
+
+
+def vgicp_at_truth(run, at_truth) -> None:
+    rows = []  # (spread, wall, residual m, σ m)
+    for o, pa, pb in _pairs(run, at_truth):
         c = match_pair_vgicp(o.a, pa, o.b, pb, VgicpSettings(min_spread=0.0))
         r = c.residuals(pa, pb)
         rows.append(np.column_stack([spread_of_rows(c.B, pb), np.abs(c.normal[:, 2]) < 0.5, r,
                                      np.broadcast_to(c.sigma_m, r.shape)]))
     rows = np.concatenate(rows)
-    print(f"{args.preset} seed {args.seed} {args.directions}{' exact trajectory' if exact else ''}: {len(rows)} rows "
-          f"in {len(run.overlaps)} pairs")
     for lo, hi in zip(BINS[:-1], BINS[1:]):
         m = (rows[:, 0] >= lo) & (rows[:, 0] < hi)
         if m.any():
             print(f"√(λ_mid/λ_max) {lo:.1f}–{min(hi, 1):.1f}: {m.sum():6d} rows ({m.mean():5.1%}), walls {rows[m, 1].mean():5.1%}, "
                   f"RMS {np.sqrt(np.mean(rows[m, 2] ** 2)) * 1e3:6.1f} mm, RMS z {np.sqrt(np.mean((rows[m, 2] / rows[m, 3]) ** 2)):6.2f}")
+
+
+def planes_at_truth(run, at_truth) -> None:
+    rows = []  # (|n_z|, residual m, σ m)
+    for o, pa, pb in _pairs(run, at_truth):
+        c = match_pair_planes(o.a, pa, o.b, pb)
+        rows.append(np.column_stack([np.abs(c.normal[:, 2]), c.residuals(pa, pb), c.sigma_m]))
+    rows = np.concatenate(rows)
+    z = rows[:, 1] / rows[:, 2]
+    for lo, hi, name in ((0.0, 0.5, "walls"), (0.5, 0.97, "roofs"), (0.97, 1.01, "flat")):
+        m = (rows[:, 0] >= lo) & (rows[:, 0] < hi)
+        if m.any():
+            print(f"{name:5s}: {m.sum():6d} rows, RMS {np.sqrt(np.mean(rows[m, 1] ** 2)) * 1e3:6.1f} mm, RMS σ "
+                  f"{np.sqrt(np.mean(rows[m, 2] ** 2)) * 1e3:5.1f} mm, RMS z {np.sqrt(np.mean(z[m] ** 2)):5.3f}, "
+                  f"MAD z {1.4826 * np.median(np.abs(z[m])):5.3f}")
+    z = z[rows[:, 0] >= 0.5]
+    w = robust_weights(z, "cauchy")
+    s0 = np.sqrt(np.sum(w * z**2) / np.sum(w) / robust_consistency("cauchy"))
+    lo, hi = (np.sqrt(chdtri(z.size, 1.0 - q) / z.size) for q in (0.025, 0.975))
+    print(f"global test at the truth (non-wall rows): σ0 {s0:.3f} (plain RMS z {np.sqrt(np.mean(z ** 2)):.3f}); "
+          f"its χ² 95 % range for {z.size} rows {lo:.3f}–{hi:.3f}")
 
 
 if __name__ == "__main__":

@@ -37,6 +37,7 @@ class Assessment:
     strip_errors: list[StripError] = field(default_factory=list)
     selections: dict = field(default_factory=dict)  #: source → calidar.strips.selection.PointSelection
     crs_name: str | None = None
+    usgs_swaths: object = None  #: calidar.accuracy.usgs.SwathChecks (``--swaths``), None: not run
 
     @property
     def used(self) -> np.ndarray:
@@ -77,7 +78,9 @@ class Assessment:
         return rows
 
     def to_dict(self) -> dict:
-        return {"accuracy": self.accuracy.to_dict(), "crs": self.crs_name,
+        from calidar.accuracy.usgs import usgs_dict
+
+        return {"accuracy": self.accuracy.to_dict(), "crs": self.crs_name, "usgs": usgs_dict(self),
                 "survey_rmse_source": self.survey_source,
                 "checkpoints": {"file": str(self.checkpoints.path), "total": len(self.checkpoints),
                                 "used": int(self.used.sum()), "nva_used": int(self.nva.sum()),

@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from calidar.accuracy.asprs import LEGACY_95_FACTOR, MIN_NVA_CHECKPOINTS, OUTLIER_FACTOR, class_name
+from calidar.accuracy.usgs import usgs_section
 from calidar.accuracy.verdict import disagreeing_strips, tilted_strips
 
 REFERENCES = [
@@ -119,6 +120,7 @@ def add_sections(rep, a) -> None:
     rep.section("Residual map and histogram").figure(residual_figure(a), "dz = TIN surface − checkpoint height; "
                                                      "outliers: |dz| > 3 × RMSE_V(data), kept in the statistics")
     _where(rep, a)
+    usgs_section(rep, a)
     sec = rep.section("Checkpoints")
     sec.table(["id", "line", "cover", "x", "y", "z", "σ [cm]", "surface z", "dz [cm]", "ground pts", "edge [m]",
                "lines", "note"],

@@ -7,6 +7,7 @@ from __future__ import annotations
 import numpy as np
 
 from calidar.accuracy.asprs import MIN_NVA_CHECKPOINTS, VVA_REFERENCE_FACTOR, class_name
+from calidar.accuracy.usgs import usgs_findings
 from calidar.verdict import Finding, Verdict
 
 BIAS_T = 3.0  #: |mean| > 3 standard errors: a vertical bias
@@ -115,5 +116,6 @@ def accuracy_verdict(a, target_cm: float | None = None) -> Verdict:
         findings.append(Finding("warn", "flight lines", f"mean dz of a line's own surface differs from the others': "
                                 f"{_names(items)} checkpoints", "lines off in opposite directions point to the mounting "
                                 "(calidar boresight); one line off to its trajectory"))
+    findings += usgs_findings(a)
     summary = f"vertical accuracy at {acc.n_nva + acc.n_vva} of {len(cp)} checkpoints ({acc.n_nva} NVA, {acc.n_vva} VVA)"
     return Verdict(summary, findings)

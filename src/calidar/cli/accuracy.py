@@ -32,6 +32,9 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
                                               "a checkpoint (default: --radius); longer: a gap, not tested."),
         classes: str | None = typer.Option(None, "--classes", help="LAS classes taken as ground, e.g. 2 or 2,8 "
                                            "(default: 2 where a file has it, else last and single returns)."),
+        swaths: bool = typer.Option(False, "--swaths", help="Also the USGS Lidar Base Specification swath checks "
+                                    "(smooth-surface precision, interswath RMSDz and max |dz|) as calidar quality "
+                                    "measures them; the files are read twice more."),
         crs: str | None = CRS, time_system: str | None = TIME_SYSTEM, geoid_undulation: float | None = GEOID_UNDULATION,
         force: bool = typer.Option(False, "--force", help=FORCE_HELP),
     ) -> None:
@@ -45,7 +48,7 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
         from calidar.cli.options import parse_classes
 
         settings = AccuracySettings(crs_option(checkpoints_crs, "--checkpoints-crs"), survey_sigma, radius, max_edge,
-                                    target_class, parse_classes(classes)).checked()
+                                    target_class, parse_classes(classes), swaths).checked()
         options = point_options(crs, time_system, geoid_undulation)
         with progress_bar() as bar, output_folder(out, force, inputs=[*points, checkpoints]) as tmp:
             run = run_accuracy(points, checkpoints, tmp, settings, options, progress=progress_callback(bar))

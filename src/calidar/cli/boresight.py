@@ -21,6 +21,11 @@ CONTROL = typer.Option(
     "which the overlaps cannot see, become determinable.")
 CONTROL_CRS = typer.Option(None, "--control-crs", help="CRS of the control points when it is not the strips' "
                            "(e.g. EPSG:32632).")
+CHECKPOINTS = typer.Option(None, "--checkpoints", help="Checkpoints (CSV as calidar accuracy reads it), not in the "
+                           "adjustment: the calibrated strips' NVA against them is a finding of the verdict.")
+CHECKPOINTS_CRS = typer.Option(None, "--checkpoints-crs", help="CRS of the checkpoints when it is not the strips'.")
+TARGET_CLASS = typer.Option(None, "--class", help="With --checkpoints: the ASPRS vertical accuracy class (X cm) the "
+                            "calibrated strips must meet at them; not met: a FAIL verdict (exit 3).")
 
 
 def boresight(
@@ -64,6 +69,8 @@ def boresight(
     trajectory_crs: str | None = TRAJECTORY_CRS, trajectory_angles: str | None = TRAJECTORY_ANGLES,
     trajectory_heading: str | None = TRAJECTORY_HEADING, trajectory_columns: str | None = TRAJECTORY_COLUMNS,
     control: Path | None = CONTROL, control_crs: str | None = CONTROL_CRS,
+    checkpoints: Path | None = CHECKPOINTS, checkpoints_crs: str | None = CHECKPOINTS_CRS,
+    target_class: float | None = TARGET_CLASS,
     strip_points: int = typer.Option(
         BUDGET_POINTS, "--strip-points", help="Points of each strip's overlaps the calibration keeps (whole blocks "
         "spread evenly over them; the strips are streamed, memory and time grow with this, not with the files); "
@@ -87,10 +94,11 @@ def boresight(
     cfg = strip_config(config, given)
     check_cluster(scheduler, workers)
     check_out_dir(out, force)
-    with output_folder(out, force, inputs=[*strips, trajectory, sensor, trajectory_accuracy, truth, control, config]) \
-            as tmp, progress_bar() as bar:
-        run = calibrate_strips(strips, trajectory, sensor, cfg, accuracy=trajectory_accuracy, control=control, truth=truth,
-                               scheduler=scheduler, workers=workers, progress=progress_callback(bar))
+    with output_folder(out, force, inputs=[*strips, trajectory, sensor, trajectory_accuracy, truth, control, checkpoints,
+                                           config]) as tmp, progress_bar() as bar:
+        run = calibrate_strips(strips, trajectory, sensor, cfg, accuracy=trajectory_accuracy, control=control,
+                               checkpoints=checkpoints, truth=truth, scheduler=scheduler, workers=workers,
+                               progress=progress_callback(bar))
         written = run.write(tmp, strips=write_strips)
     for m, result in run.results.items():
         print_verdict(run.verdicts[m], None if len(run.results) == 1 else m)

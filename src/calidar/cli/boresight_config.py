@@ -52,8 +52,9 @@ def _trajectory(base, given: dict):
                                                                 "--trajectory-correlation (POS_S,ATT_S)"))
     if given.get("trajectory_sigma") is not None:
         if not on:
-            raise InputError(None, "--trajectory-model", "is off, so --trajectory-sigma has nothing to do; expected the "
-                             "trajectory model on (the default) or no --trajectory-sigma")
+            from calidar.pipelines.boresight import OFF_WITH_ACCURACY
+
+            raise InputError(None, "--trajectory-model", OFF_WITH_ACCURACY)
         settings = replace(settings, sigma=parse_sigma(given["trajectory_sigma"]))
     return settings if on else None
 
@@ -101,4 +102,18 @@ def strip_config(path: Path | None, given: dict):
                                                                                  if k in given}}.values()))
     if "control_crs" in given:
         config = replace(config, control_crs=crs_option(given["control_crs"], "--control-crs"))
+    if "checkpoints_crs" in given:
+        config = replace(config, checkpoints_crs=crs_option(given["checkpoints_crs"], "--checkpoints-crs"))
+    if given.get("target_class") is not None:
+        config = replace(config, checkpoint_class_cm=checked_class(given["target_class"], given.get("checkpoints")))
     return config
+
+
+def checked_class(target_cm: float, checkpoints: Path | None) -> float:
+    """--class: a class in cm, with --checkpoints."""
+    from calidar.validate import number
+
+    if checkpoints is None:
+        raise InputError(None, "--class", "given without --checkpoints; expected --checkpoints FILE with it")
+    number(target_cm, "--class", 0.1, 10000.0, "cm")
+    return float(target_cm)

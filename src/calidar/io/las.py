@@ -179,6 +179,14 @@ def _points(rec, header, path: Path, crs, time_system: str, fields, undulation=N
         else:
             kw[f] = np.asarray(getattr(rec, f))
     xyz = np.stack([np.asarray(rec.x, float), np.asarray(rec.y, float), np.asarray(rec.z, float)], axis=1)
+    _check_xyz(xyz, header, path, first)
+    return LasPoints(xyz=xyz, gps_time=np.asarray(rec.gps_time, float), time_system=time_system, crs=crs,
+                     path=path, geoid_undulation_m=undulation, **kw)
+
+
+def _check_xyz(xyz: np.ndarray, header, path: Path, first: int) -> None:
+    """Coordinates (N, 3) of points numbered from ``first``: finite, within ±MAX_COORDINATE and near
+    the header's bounds."""
     for k, axis in enumerate("xyz"):
         bad = ~(np.abs(xyz[:, k]) <= MAX_COORDINATE)
         if bad.any():
@@ -187,8 +195,6 @@ def _points(rec, header, path: Path, crs, time_system: str, fields, undulation=N
                              f"{xyz[i, k]:g} at point {first + i} ({int(bad.sum())} such points in this block): "
                              "check the header's scales and offsets")
     check_bounds(xyz, bounds_tolerance(header), header, path, first)
-    return LasPoints(xyz=xyz, gps_time=np.asarray(rec.gps_time, float), time_system=time_system, crs=crs,
-                     path=path, geoid_undulation_m=undulation, **kw)
 
 
 def _open(path: Path, selection=laspy.DecompressionSelection.all()) -> laspy.LasReader:
@@ -279,7 +285,7 @@ def read_las(path: str | Path, crs=None, fields=OPTIONAL_FIELDS, *, options: Poi
 
 _S = laspy.DecompressionSelection
 #: the LAZ 1.4 (formats 6–10) layer of each field (LasPoints' or laspy's names; x, y and the returns are in the base layer)
-_LAYERS = {"gps_time": _S.GPS_TIME, "z": _S.Z, "scan_angle_deg": _S.SCAN_ANGLE, "scan_angle": _S.SCAN_ANGLE,
+_LAYERS = {"gps_time": _S.GPS_TIME, "z": _S.Z, "Z": _S.Z, "scan_angle_deg": _S.SCAN_ANGLE, "scan_angle": _S.SCAN_ANGLE,
            "point_source_id": _S.POINT_SOURCE_ID, "classification": _S.CLASSIFICATION, "intensity": _S.INTENSITY}
 
 
@@ -319,13 +325,23 @@ def iter_las_times(path: str | Path, chunk_points: int = 2_000_000) -> Iterator[
 
 def iter_las_fields(path: str | Path, names, chunk_points: int = 2_000_000) -> Iterator[dict[str, np.ndarray]]:
     """Some raw point fields (laspy names: gps_time, classification, point_source_id, return_number,
-    ...) of a LAS/LAZ file chunk by chunk, decompressing only their layers (LAZ 1.4)."""
+    x, X (the stored integer), ...) of a LAS/LAZ file chunk by chunk, decompressing only their
+    layers (LAZ 1.4). With x, y and z, the coordinates are checked as :func:`iter_las_chunks`
+    checks them (finite, within ±MAX_COORDINATE, near the header's bounds) and also given as one
+    (N, 3) array "xyz"."""
     path = Path(path)
+    check = {"x", "y", "z"} <= set(names)
     with _open(path, _layers(names)) as reader:
         gps_time_system(reader.header, path)
-        for _, rec in _records(reader, chunk_points, path):
-            yield {name: np.asarray(getattr(rec, name), float if name in ("gps_time", "x", "y", "z") else None)
-                   for name in names}
+        for first, rec in _records(reader, chunk_points, path):
+            out = {name: np.asarray(getattr(rec, name), float if name in ("gps_time", "x", "y", "z") else None)
+                   for name in names if not (check and name in ("x", "y", "z"))}
+            if check:  # also as one (N, 3) array "xyz"
+                out["xyz"] = xyz = np.stack([np.asarray(rec.x, float), np.asarray(rec.y, float),
+                                             np.asarray(rec.z, float)], axis=1)
+                _check_xyz(xyz, reader.header, path, first)
+                out.update(x=xyz[:, 0], y=xyz[:, 1], z=xyz[:, 2])
+            yield out
 
 
 def rewrite_las_xyz(src: str | Path, dst: str | Path, new_xyz, *, crs=None, chunk_points: int = 2_000_000,
@@ -335,19 +351,31 @@ def rewrite_las_xyz(src: str | Path, dst: str | Path, new_xyz, *, crs=None, chun
 
     ``points`` is the chunk's :class:`LasPoints`. The output is written atomically.
     """
-    src, opts = Path(src), _options(crs, options)
+    def moved(rec, points):
+        xyz = np.asarray(new_xyz(points), float)
+        rec.x, rec.y, rec.z = xyz[:, 0], xyz[:, 1], xyz[:, 2]
+        return rec
+
+    return rewrite_las(src, dst, lambda header: header, moved, chunk_points=chunk_points, force=force,
+                       options=_options(crs, options))
+
+
+def rewrite_las(src: str | Path, dst: str | Path, out_header, rewrite, *, chunk_points: int, force: bool = False,
+                options: PointOptions | None = None) -> int:
+    """Copy a LAS/LAZ file chunk by chunk through ``rewrite(record, points) -> record`` (``points``:
+    the chunk's :class:`LasPoints`, read with ``options``), into a file with the header
+    ``out_header(source header)``; streamed and atomic. Returns the point count."""
+    src, opts = Path(src), _options(None, options)
     n = 0
     with _open(src) as reader, atomic_path(dst, force) as tmp:
         header = reader.header
         time_system = gps_time_system(header, src, opts.time_system)
         file_crs = _resolve_crs(header, opts.crs, src)
-        with laspy.open(tmp, mode="w", header=header, do_compress=Path(dst).suffix.lower() == ".laz") as writer:
+        with laspy.open(tmp, mode="w", header=out_header(header), do_compress=Path(dst).suffix.lower() == ".laz") as w:
             for first, rec in _records(reader, chunk_points, src):
                 points = _points(rec, header, src, file_crs, time_system, OPTIONAL_FIELDS, opts.geoid_undulation_m,
                                  first)
-                xyz = np.asarray(new_xyz(points), float)
-                rec.x, rec.y, rec.z = xyz[:, 0], xyz[:, 1], xyz[:, 2]
-                writer.write_points(rec)
+                w.write_points(rewrite(rec, points))
                 n += len(rec)
     return n
 

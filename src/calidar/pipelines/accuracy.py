@@ -39,6 +39,7 @@ class AccuracySettings:
     max_edge_m: float | None = None  #: longest edge of the containing triangle (default: radius_m)
     target_class_cm: float | None = None  #: the class a contract asks for (the verdict fails below it)
     classes: tuple[int, ...] | None = None  #: LAS classes taken as ground (default: 2, else last returns)
+    swaths: bool = False  #: also the USGS swath checks (the files read twice more, as calidar quality reads them)
 
     def checked(self) -> "AccuracySettings":
         number(self.radius_m, "--radius", *RADIUS_RANGE_M, "m")
@@ -140,6 +141,24 @@ def measure_accuracy(paths, checkpoints: Path, settings: AccuracySettings = Accu
                   None if crs is None else crs.name)
 
 
+def swath_checks(paths, classes, options: PointOptions, progress: Progress = no_progress):
+    """The USGS swath checks of ``calidar quality`` on the same files (:func:`calidar.pipelines.quality.measure`,
+    :func:`calidar.strips.usgs.usgs_checks`): a :class:`calidar.accuracy.usgs.SwathChecks`, with a
+    note instead when they do not apply (one flight line, no line overlapping another)."""
+    from calidar.accuracy.usgs import SwathChecks
+    from calidar.pipelines.quality import measure
+    from calidar.strips.usgs import usgs_checks
+
+    try:
+        _, _, results, _, _, precisions = measure(paths, None, classes, options)
+    except InputError as e:
+        if e.field in ("point_source_id", "STRIPS"):  # one flight line, or none overlapping another
+            return SwathChecks(note=e.problem)
+        raise
+    progress("swath checks", 1, 1)
+    return SwathChecks(usgs_checks(results, precisions), precisions)
+
+
 def checkpoints_csv(a) -> str:
     """checkpoints.csv: each checkpoint as read, its surface, residual and what became of it."""
     buf = io.StringIO()
@@ -171,6 +190,8 @@ def run_accuracy(paths, checkpoints: Path, out_dir: Path, settings: AccuracySett
 
     record = RunRecord.capture(argv, inputs=[*paths, checkpoints], options=asdict(settings))
     a = measure_accuracy(paths, checkpoints, settings, options, progress)
+    if settings.swaths:
+        a.usgs_swaths = swath_checks(paths, settings.classes, options, progress)
     verdict = accuracy_verdict(a, settings.target_class_cm)
     record.finish()
     out_dir = Path(out_dir)

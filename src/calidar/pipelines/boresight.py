@@ -60,6 +60,8 @@ class BoresightInputs:
     truth: dict | None = None  #: truth.json parameters, SI (simulations)
     control: ControlPoints | None = None  #: ground control in the strips' frame
     control_path: Path | None = None
+    checkpoints: ControlPoints | None = None  #: checkpoints in the strips' frame (tested after, not in the adjustment)
+    checkpoints_path: Path | None = None
 
     @property
     def spans(self) -> dict[int, tuple[float, float]]:
@@ -69,7 +71,8 @@ class BoresightInputs:
     def paths(self) -> list[Path]:
         """Every input file."""
         return [*self.strip_paths, self.trajectory_path, self.sensor_path,
-                *([self.accuracy_path] if self.accuracy_path else []), *([self.control_path] if self.control_path else [])]
+                *([self.accuracy_path] if self.accuracy_path else []),
+                *(p for p in (self.control_path, self.checkpoints_path) if p is not None)]
 
 
 def load_strips(paths, trajectory, sensor, options: IngestOptions | None = None, progress: Progress = no_progress):
@@ -110,13 +113,17 @@ def resolve_accuracy(trajectory_path: Path, trajectory, accuracy_path: Path | No
         "GNSS/INS — " + SURVEY_GRADE.describe().split(" (")[0] + " — which stays where the data cannot tell")
 
 
+#: the trajectory model off, yet its accuracy given (as a file or a σ)
+OFF_WITH_ACCURACY = ("is off, so --trajectory-accuracy and --trajectory-sigma have nothing to do; expected the "
+                     "trajectory model on (the default) or neither option")
+
+
 def _trajectory_accuracy(trajectory_path: Path, traj, config: StripConfig, accuracy_path: Path | None):
     """(accuracy, its file, notes) as the configuration's trajectory model asks."""
     settings = config.calibration.trajectory
     if settings is None:
         if accuracy_path is not None:
-            raise InputError(None, "--trajectory-model", "is off, so --trajectory-accuracy has nothing to do; expected "
-                             "the trajectory model on (the default) or no accuracy file")
+            raise InputError(None, "--trajectory-model", OFF_WITH_ACCURACY)
         return None, None, ["trajectory model off (--trajectory-model off): the trajectory is taken as exact, so the "
                             "σ miss its errors (ordinary GNSS/INS noise made them 2× too small on simulated surveys)"]
     accuracy, path, note = resolve_accuracy(trajectory_path, traj, accuracy_path, settings.sigma)
@@ -124,10 +131,11 @@ def _trajectory_accuracy(trajectory_path: Path, traj, config: StripConfig, accur
 
 
 def load_inputs(strip_paths, trajectory_path, sensor_path, config: StripConfig = StripConfig(), *,
-                accuracy: Path | None = None, control: Path | None = None, truth: Path | None = None,
-                progress: Progress = no_progress, work=None) -> BoresightInputs:
+                accuracy: Path | None = None, control: Path | None = None, checkpoints: Path | None = None,
+                truth: Path | None = None, progress: Progress = no_progress, work=None) -> BoresightInputs:
     """Read and check every input (the trajectory's accuracy must cover every strip); ``work``: where
-    the files are read (a :class:`calidar.strips.distribute.Workers`; None: one at a time here)."""
+    the files are read (a :class:`calidar.strips.distribute.Workers`; None: one at a time here);
+    ``checkpoints``: tested against the calibrated strips, not in the adjustment."""
     from dataclasses import replace
 
     from calidar.pipelines.inputs import load_trajectory
@@ -150,15 +158,20 @@ def load_inputs(strip_paths, trajectory_path, sensor_path, config: StripConfig =
         ingest, notes = replace(ingest, control_ecef=control_input.ecef), notes + list(control_input.notes)
     elif config.control_crs is not None:
         raise InputError(None, "--control-crs", "given without --control; expected --control FILE with it")
+    from calidar.pipelines.control import checked_checkpoints, with_checkpoints
+
+    ingest, checkpoint_input = with_checkpoints(checkpoints, config, strip_paths, nominal, ingest)
     progress("reading strips", 0, 1)
     strips, crs, source, unpaired = ingest_strips(list(strip_paths), traj, nominal, ingest, progress, work)
     inputs = BoresightInputs([Path(p) for p in strip_paths], trajectory_path, sensor_path, nominal, traj, strips, crs,
                              config, source, acc, accuracy_path, notes + unpaired,
-                             control_path=None if control is None else Path(control))
+                             control_path=None if control is None else Path(control),
+                             checkpoints_path=None if checkpoints is None else Path(checkpoints))
     if control_input is not None:
         from calidar.pipelines.control import control_points
 
         inputs.control = control_points(control_input, strips[0].frame)
+    inputs.checkpoints, inputs.notes = checked_checkpoints(checkpoint_input, strips[0].frame, inputs.notes)
     if acc is not None:
         acc.check_covers(inputs.spans)
         inputs.estimate_accuracy = estimates_accuracy(acc)
@@ -253,13 +266,14 @@ class StripCalibration:
 
 
 def calibrate_strips(strips, trajectory, sensor, config: StripConfig = StripConfig(), *, accuracy=None, control=None,
-                     truth=None, scheduler: str | None = None, workers: int | None = None,
+                     checkpoints=None, truth=None, scheduler: str | None = None, workers: int | None = None,
                      progress: Progress = no_progress) -> StripCalibration:
     """Calibrate a sensor from overlapping LAS/LAZ ``strips`` flown with the ``trajectory`` (SBET or
     text) and georeferenced with the nominal ``sensor`` (a sensor.toml), as ``config`` says (what
     to estimate, the matchers, the trajectory model, how the files are read). ``accuracy``: the
     trajectory's accuracy file (default: an smrmsg beside the SBET); ``control``: ground control
-    points (CSV); ``truth``: a simulation's truth.json; ``scheduler``/``workers``: match the pairs
+    points (CSV); ``checkpoints``: surveyed ground points (CSV) the calibrated strips are tested
+    against, not in the adjustment; ``truth``: a simulation's truth.json; ``scheduler``/``workers``: match the pairs
     on a Dask cluster. Returns a :class:`StripCalibration`: ``print`` it, take its ``.sensor``,
     ``.write(folder)`` the results.
 
@@ -285,13 +299,14 @@ def calibrate_strips(strips, trajectory, sensor, config: StripConfig = StripConf
     from calidar.pipelines import release_memory
     from calidar.pipelines.boresight_outputs import corrected_trajectory, quality_stages
     from calidar.provenance import RunRecord
+    from calidar.strips.checkpoint_verdict import checkpoint_findings
     from calidar.strips.distribute import workers_for
     from calidar.strips.verdict import agreement_finding, strip_verdict
 
     with workers_for(scheduler, workers) as work:  # one cluster (or thread pool) for every stage
-        inputs = load_inputs(strips, trajectory, sensor, config, accuracy=accuracy, control=control, truth=truth,
-                             progress=progress, work=work)
-        files = {"trajectory_accuracy": accuracy, "control": control, "truth": truth}
+        inputs = load_inputs(strips, trajectory, sensor, config, accuracy=accuracy, control=control,
+                             checkpoints=checkpoints, truth=truth, progress=progress, work=work)
+        files = {"trajectory_accuracy": accuracy, "control": control, "checkpoints": checkpoints, "truth": truth}
         record = RunRecord.capture(None, inputs=[*inputs.paths, truth],
                                    options={**config.to_dict(), **{k: v for k, v in files.items() if v is not None}})
         release_memory()
@@ -301,6 +316,7 @@ def calibrate_strips(strips, trajectory, sensor, config: StripConfig = StripConf
         quality = {m: quality_stages(inputs, r, corrected[m], progress, work) for m, r in results.items()}
     record.tasks = work.log.to_dict()
     agree = [agreement_finding(results)] if len(results) > 1 else []  # in both matchers' verdicts
-    verdicts = {m: strip_verdict(r, quality[m], inputs.notes, others=agree) for m, r in results.items()}
+    verdicts = {m: strip_verdict(r, quality[m], inputs.notes, others=agree + checkpoint_findings(inputs, r))
+                for m, r in results.items()}
     record.finish()
     return StripCalibration(inputs, results, quality, verdicts, corrected, record)

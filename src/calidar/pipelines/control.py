@@ -1,5 +1,6 @@
 """Ground control for ``calidar boresight --control FILE`` (issue 28): the control file read and
-checked, placed in the strips' frame.
+checked, placed in the strips' frame; and the same for ``--checkpoints FILE``, points tested after
+the calibration (not in it; their σ optional, :mod:`calidar.strips.checkpoint_verdict`).
 
 The file is a checkpoint CSV (:mod:`calidar.io.checkpoints`: id, x, y, z, σ; the land-cover
 column optional) in the strips' CRS unless ``--control-crs`` names another. Each point needs its
@@ -28,40 +29,76 @@ class ControlInput:
     notes: tuple[str, ...] = ()
 
 
-def read_control(path, control_crs: str | None, strip_path, points, sensor) -> ControlInput:
+def read_control(path, control_crs: str | None, strip_path, points, sensor, checkpoints: bool = False,
+                 crs_option: str = "--control-crs") -> ControlInput:
     """Read the control file ``path``; its CRS: ``control_crs`` or the strips' (the first strip
-    file's, ``points.crs`` or ``sensor.crs``)."""
-    import pyproj
-
-    from calidar.crs import from_crs
+    file's, ``points.crs`` or ``sensor.crs``). ``checkpoints``: a checkpoint file (``--checkpoints``,
+    tested after the calibration, not in it): its σ optional."""
     from calidar.io.checkpoints import read_checkpoints
-    from calidar.io.las import las_file_crs
 
     cp = read_checkpoints(path, cover=False)
-    if cp.sigma_m is None:
+    if cp.sigma_m is None and not checkpoints:
         raise InputError(path, "sigma", "no sigma column; expected each control point's survey σ (m) in a column "
                          "named sigma: the adjustment weighs the control by it")
     notes = []
+    role = "checkpoints" if checkpoints else "control points"
     if cp.vegetated.any():
         left = ", ".join(cp.ids[cp.vegetated][:5]) + (" …" if cp.vegetated.sum() > 5 else "")
-        notes.append(f"{int(cp.vegetated.sum())} control points marked vegetated left out of the adjustment ({left}): "
-                     "under trees a strip's surface is not the ground")
+        where = "of the check against the ground" if checkpoints else "of the adjustment"
+        notes.append(f"{int(cp.vegetated.sum())} {role} marked vegetated left out {where} ({left}): under trees a "
+                     "strip's surface is not the ground" + (" (calidar accuracy tests them: VVA)" if checkpoints else ""))
         keep = ~cp.vegetated
         if not keep.any():
-            raise InputError(path, "class", "every control point is marked vegetated; expected control on open ground")
-        cp = type(cp)(cp.path, cp.ids[keep], cp.xyz[keep], cp.vegetated[keep], cp.sigma_m[keep], cp.lines[keep])
+            raise InputError(path, "class", f"every {role[:-1]} is marked vegetated; expected {role} on open ground")
+        cp = type(cp)(cp.path, cp.ids[keep], cp.xyz[keep], cp.vegetated[keep],
+                      None if cp.sigma_m is None else cp.sigma_m[keep], cp.lines[keep])
+    crs, undulation = _crs(path, control_crs, crs_option, strip_path, points, sensor)
+    return ControlInput(cp, from_crs_of(cp, crs, undulation), tuple(notes))
+
+
+def _crs(path, given: str | None, option: str, strip_path, points, sensor):
+    """The file's CRS and geoid undulation: ``given`` (a CRS, the option ``option``) or the strips'."""
+    import pyproj
+
+    from calidar.io.las import las_file_crs
+
     crs = las_file_crs(Path(strip_path), points.crs) or las_file_crs(Path(strip_path), sensor.crs)
     undulation = points.geoid_undulation_m
-    if control_crs is not None:
+    if given is not None:
         try:
-            theirs = pyproj.CRS.from_user_input(control_crs)
+            theirs = pyproj.CRS.from_user_input(given)
         except pyproj.exceptions.CRSError as e:
-            raise InputError(None, "--control-crs", f"expected a CRS (e.g. EPSG:32632), got {control_crs!r} ({e})")
+            raise InputError(None, option, f"expected a CRS (e.g. EPSG:32632), got {given!r} ({e})")
         if crs is None or not theirs.equals(crs):
             crs, undulation = theirs, None
     if crs is None:
-        raise InputError(path, "crs", "the strips have no CRS; expected --crs for them or --control-crs")
-    return ControlInput(cp, from_crs(cp.xyz, crs, undulation, cp.path), tuple(notes))
+        raise InputError(path, "crs", f"the strips have no CRS; expected --crs for them or {option}")
+    return crs, undulation
+
+
+def from_crs_of(cp, crs, undulation) -> np.ndarray:
+    from calidar.crs import from_crs
+
+    return from_crs(cp.xyz, crs, undulation, cp.path)
+
+
+def with_checkpoints(checkpoints, config, strip_paths, nominal, ingest) -> tuple[object, ControlInput | None]:
+    """``calidar boresight --checkpoints``: the checkpoints read (None without the option) and the
+    ingest options keeping the strips' points around them too (beside the control's); ``config``:
+    the run's :class:`calidar.pipelines.strip_config.StripConfig` (their CRS, the class to meet)."""
+    from dataclasses import replace
+
+    if checkpoints is None:
+        for value, option in ((config.checkpoints_crs, "--checkpoints-crs"), (config.checkpoint_class_cm, "--class")):
+            if value is not None:
+                raise InputError(None, option, "given without --checkpoints; expected --checkpoints FILE with it")
+        return ingest, None
+    if not strip_paths:
+        raise InputError(None, "STRIPS", "expected at least one LAS/LAZ file")
+    cp = read_control(checkpoints, config.checkpoints_crs, strip_paths[0], config.points, nominal,
+                      checkpoints=True, crs_option="--checkpoints-crs")
+    ecef = cp.ecef if ingest.control_ecef is None else np.vstack([ingest.control_ecef, cp.ecef])
+    return replace(ingest, control_ecef=ecef), cp
 
 
 def control_points(control: ControlInput, frame):
@@ -73,4 +110,12 @@ def control_points(control: ControlInput, frame):
     cp = control.checkpoints
     local = frame.to_local(control.ecef)
     check_places(cp, local[:, :2])
-    return ControlPoints(cp.ids, local, np.asarray(cp.sigma_m, float))
+    return ControlPoints(cp.ids, local, np.zeros(len(cp.ids)) if cp.sigma_m is None else np.asarray(cp.sigma_m, float))
+
+
+def checked_checkpoints(checkpoints: ControlInput | None, frame, notes: list[str]):
+    """The checkpoints of ``with_checkpoints`` in the strips' local frame (None: none) and the run's
+    notes with theirs."""
+    if checkpoints is None:
+        return None, notes
+    return control_points(checkpoints, frame), [*notes, *checkpoints.notes]

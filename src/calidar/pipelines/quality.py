@@ -15,10 +15,12 @@ on those cells only; memory holds cells, not points. The boresight pipeline feed
 from __future__ import annotations
 
 import tempfile
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from numba import njit
 
 from calidar.errors import InputError
 from calidar.io.las import PointOptions
@@ -64,51 +66,199 @@ class Metric:
 class CellCounts:
     """The first pass of ``calidar quality``, chunk by chunk: for each file, its points of every
     candidate selection counted on the overlap grid, by (point_source_id, GPS second), so that
-    they go to flight lines (and the file's selection is chosen) once the pass is over."""
+    they go to flight lines (and the file's selection is chosen) once the pass is over; with
+    ``held``, what the second pass needs of each candidate point (:func:`held_arrays`)."""
 
-    def __init__(self, candidates: dict, metric: Metric, grid_m: float):
+    def __init__(self, candidates: dict, metric: Metric, grid_m: float, held=None):
         self.candidates, self.metric, self.grid_m = candidates, metric, grid_m  #: candidates: path → selections
-        self.counts: dict[tuple, tuple[np.ndarray, np.ndarray]] = {}  #: (path, selection, token) → keys, counts
+        self.parts: dict[tuple, list] = {}  #: (path, selection) → [(tokens, keys, counts)], each sorted
         self.time: dict[int, float] = {}  #: token → a GPS time of its points (s)
+        self.held = held  #: calidar.pipelines.held_points.HeldPoints, or None
 
     def __call__(self, path, c: dict) -> None:
         from types import SimpleNamespace
 
-        from calidar.strips.overlap import cell_keys
-
         t = c["gps_time"]
-        sec = np.where(np.isfinite(t), np.floor(np.nan_to_num(t)), 2**32 - 1).astype(np.int64).clip(0, 2**32 - 1)
-        token = (np.asarray(c["point_source_id"], np.int64) << 32) | sec
-        keys = cell_keys(self.metric.of(np.c_[c["x"], c["y"], c["z"]]), self.grid_m)
-        fields = SimpleNamespace(xyz=keys, **{f: c[f] for f in SELECTION_FIELDS})
-        for selection in self.candidates[path]:
-            keep = selection.mask(fields)
-            for tok in np.unique(token[keep]):
-                sel = keep & (token == tok)
-                self.time.setdefault(int(tok), float(t[np.argmax(sel)]))
-                uk, n = np.unique(keys[sel], return_counts=True)
-                k = (path, selection, int(tok))
-                self.counts[k] = merge_counts(self.counts[k], (uk, n)) if k in self.counts else (uk, n)
+        psid = np.asarray(c["point_source_id"], np.int64)
+        xyz = self.metric.of(c["xyz"] if "xyz" in c else np.c_[c["x"], c["y"], c["z"]])
+        sec, ij = _seconds_cells(t, xyz, float(self.grid_m))  # as cell_keys on the overlap grid
+        fields = SimpleNamespace(xyz=ij, **{f: c[f] for f in SELECTION_FIELDS})
+        masks = [selection.mask(fields) for selection in self.candidates[path]]
+        for selection, keep in zip(self.candidates[path], masks):
+            (tok, keys, n), first = _kept_counts(psid, sec, ij, keep)
+            for k in first:
+                self.time.setdefault(int((psid[k] << 32) | sec[k]), float(t[k]))
+            parts = self.parts.setdefault((path, selection), [])
+            parts.append((tok, keys, n))
+            if len(parts) >= MERGE_PARTS:
+                parts[:] = [_token_counts(*(np.concatenate(a) for a in zip(*parts)))]
+        if self.held is not None:
+            self.held.add(path, **held_arrays(c, xyz if self.metric.frame is not None else None, masks))
+
+    def _lines(self, index, key) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(flight line, cell key, count) of the counts of (path, selection) ``key``."""
+        tok, keys, n = _token_counts(*(np.concatenate(a) for a in zip(*self.parts[key])))
+        utok, inv = np.unique(tok, return_inverse=True)
+        lines = index.of(utok >> 32, np.array([self.time[int(u)] for u in utok])) if utok.size else utok
+        return lines[inv], keys, n
 
     def names(self, index) -> dict[int, str]:
         """The name of a file holding each flight line (for messages)."""
-        return {int(index.of(np.array([tok >> 32]), np.array([self.time[tok]]))[0]): path.name
-                for path, _, tok in self.counts}
+        out = {}
+        for key in self.parts:
+            out.update(dict.fromkeys(np.unique(self._lines(index, key)[0]).tolist(), key[0].name))
+        return out
 
     def by_line(self, index, selections: dict) -> dict[int, tuple[np.ndarray, np.ndarray]]:
         """(keys, counts) per flight line of the points each file's chosen selection keeps."""
         out = {}
-        for (path, selection, tok), kn in self.counts.items():
+        for (path, selection) in self.parts:
             if selections[path] == selection:
-                line = int(index.of(np.array([tok >> 32]), np.array([self.time[tok]]))[0])
-                out[line] = merge_counts(out[line], kn) if line in out else kn
+                lines, keys, n = self._lines(index, (path, selection))
+                for line in np.unique(lines).tolist():
+                    rows = lines == line
+                    kn = merge_counts((keys[rows], n[rows]))
+                    out[line] = merge_counts(out[line], kn) if line in out else kn
         return out
+
+
+MERGE_PARTS = 16  #: a file's chunk counts combined once this many wait
+
+
+def _token_counts(tokens: np.ndarray, keys: np.ndarray, n: np.ndarray | None = None):
+    """(tokens, keys, counts) of each distinct (token, key): the points' (``n`` None) or summed
+    over rows already counted. One bincount over the (line id, second, cell i, cell j) box when it
+    is small against the rows (a chunk's), else a sort."""
+    from calidar.strips.cell_moments import index_keys, key_indices
+
+    if tokens.size == 0:
+        return tokens, keys, np.zeros(0, np.int64)
+    ij = key_indices(keys)
+    cols = (tokens >> 32, tokens & 0xFFFFFFFF, ij[:, 0], ij[:, 1])
+    lo = [int(c.min()) for c in cols]
+    span = [int(c.max()) - low + 1 for c, low in zip(cols, lo)]
+    if np.prod(np.array(span, float)) <= 4 * tokens.size + 65536:
+        flat = np.ravel_multi_index(tuple(c - low for c, low in zip(cols, lo)), span)
+        count = np.bincount(flat, n, int(np.prod(span)))
+        at = np.flatnonzero(count)
+        psid, sec, i, j = (c + low for c, low in zip(np.unravel_index(at, span), lo))
+        return (psid << 32) | sec, index_keys(np.stack([i, j], axis=1)), count[at].astype(np.int64)
+    order = np.lexsort((keys, tokens))
+    tokens, keys = tokens[order], keys[order]
+    n = np.ones(tokens.size, np.int64) if n is None else n[order]
+    start = np.flatnonzero(np.r_[True, (tokens[1:] != tokens[:-1]) | (keys[1:] != keys[:-1])])
+    return tokens[start], keys[start], np.add.reduceat(n, start)
+
+
+def _kept_counts(psid, sec, ij, keep) -> tuple[tuple, np.ndarray]:
+    """(tokens, keys, counts) of the kept points' distinct (point_source_id << 32 | second, overlap
+    cell), and the row of the first kept point of each token: one numba pass over a dense
+    (id, second, i, j) box when it is small against the points (a chunk's), else sorts."""
+    from calidar.strips.cell_moments import index_keys
+
+    if not keep.any():
+        return (np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0, np.int64)), np.zeros(0, np.int64)
+    lo, span, counts, first, dense = _box_counts(psid, sec, ij, keep)
+    if not dense:
+        rows = np.flatnonzero(keep)
+        tok = (psid[rows] << 32) | sec[rows]
+        keys = (ij[rows, 0] << 32) + (ij[rows, 1] & 0xFFFFFFFF)
+        return _token_counts(tok, keys), rows[_first_rows(tok)]
+    at = np.flatnonzero(counts)
+    p, s, i, j = (c + low for c, low in zip(np.unravel_index(at, tuple(span)), lo))
+    return ((p << 32) | s, index_keys(np.stack([i, j], axis=1)), counts[at]), first[first < keep.size]
+
+
+@njit(cache=True, nogil=True)
+def _seconds_cells(t, xyz, grid):  # pragma: no cover - numba
+    """Per point the whole GPS second (2³² − 1 when not finite; clipped to 0…2³² − 1) and the
+    overlap-grid cell (i, j) = floor(x / grid), floor(y / grid)."""
+    n = t.size
+    sec, ij = np.empty(n, np.int64), np.empty((n, 2), np.int64)
+    for k in range(n):
+        s = np.floor(t[k]) if np.isfinite(t[k]) else 4294967295.0
+        sec[k] = min(max(np.int64(s), 0), 4294967295) if s < 9.2e18 else 4294967295
+        ij[k, 0] = np.int64(np.floor(xyz[k, 0] / grid))
+        ij[k, 1] = np.int64(np.floor(xyz[k, 1] / grid))
+    return sec, ij
+
+
+@njit(cache=True, nogil=True)
+def _box_counts(psid, sec, ij, keep):  # pragma: no cover - numba
+    """Counts over the dense (id, second, i, j) box of the kept points, flattened, and the first
+    kept row of each (id, second); ``dense`` False (nothing counted) when the box is too large."""
+    lo, hi = np.full(4, 9223372036854775807), np.full(4, -9223372036854775807)
+    n_kept = 0
+    for k in range(keep.size):
+        if keep[k]:
+            n_kept += 1
+            for d, v in enumerate((psid[k], sec[k], ij[k, 0], ij[k, 1])):
+                lo[d], hi[d] = min(lo[d], v), max(hi[d], v)
+    span = hi - lo + 1
+    size = 1.0
+    for d in range(4):
+        size *= span[d]
+    if size > 4 * n_kept + 65536:
+        return lo, span, np.zeros(0, np.int64), np.zeros(0, np.int64), False
+    counts, first = np.zeros(np.int64(size), np.int64), np.full(span[0] * span[1], keep.size)
+    for k in range(keep.size):
+        if keep[k]:
+            t = (psid[k] - lo[0]) * span[1] + sec[k] - lo[1]
+            counts[((t * span[2]) + ij[k, 0] - lo[2]) * span[3] + ij[k, 1] - lo[3]] += 1
+            first[t] = min(first[t], k)
+    return lo, span, counts, first, True
+
+
+def _first_rows(tokens: np.ndarray) -> np.ndarray:
+    """The row of the first occurrence of each distinct token (a dense table over the tokens'
+    (line id, second) box when small, else a sort)."""
+    if tokens.size == 0:
+        return np.zeros(0, np.int64)
+    psid, sec = tokens >> 32, tokens & 0xFFFFFFFF
+    span = (int(psid.max() - psid.min()) + 1, int(sec.max() - sec.min()) + 1)
+    if span[0] * span[1] > 4 * tokens.size + 65536:
+        return np.unique(tokens, return_index=True)[1]
+    flat = np.ravel_multi_index((psid - psid.min(), sec - sec.min()), span)
+    first = np.full(span[0] * span[1], tokens.size)
+    np.minimum.at(first, flat, np.arange(tokens.size))
+    return first[first < tokens.size]
+
+
+def held_arrays(c: dict, metric_xyz: np.ndarray | None, masks: list) -> dict[str, np.ndarray]:
+    """What the second pass needs of a chunk's points that some selection keeps: coordinates (the
+    stored integers X, Y, Z; ``metric_xyz`` instead when given), point_source_id, GPS time and
+    bit k set when ``masks[k]`` keeps the point."""
+    bits = np.zeros(len(c["gps_time"]), np.uint8)
+    for k, m in enumerate(masks):
+        bits |= m.astype(np.uint8) << k
+    rows = np.flatnonzero(bits)
+    xyz = {a: c[a][rows] for a in "XYZ"} if metric_xyz is None else {"xyz": metric_xyz[rows]}
+    return {**xyz, "point_source_id": c["point_source_id"][rows], "gps_time": c["gps_time"][rows], "bits": bits[rows]}
+
+
+def held_chunks(held, path: Path, bit: int, metric: Metric) -> Iterator[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    """(metric xyz, point_source_id, GPS time) of the points of ``path`` that selection ``bit``
+    keeps, chunk by chunk as the first pass read them (the coordinates exactly as laspy scales them)."""
+    from calidar.io.las import las_header
+
+    header = las_header(path)
+    for c in held.chunks(path):
+        rows = np.flatnonzero((c["bits"] >> bit) & 1)
+        if "xyz" in c:
+            xyz = c["xyz"][rows]
+        else:
+            xyz = np.empty((rows.size, 3))
+            for k, a in enumerate("XYZ"):
+                xyz[:, k] = c[a][rows] * header.scales[k] + header.offsets[k]
+        yield xyz, c["point_source_id"][rows], c["gps_time"][rows]
 
 
 def measure(paths, cell_m=None, classes=None, options: PointOptions = PointOptions(), chunk_points: int = CHUNK_POINTS):
     """Streamed ``calidar quality``: (line index, file CRS, PairQualitys, notes, selection per file,
-    each line's smooth-surface precision (:class:`calidar.strips.usgs.LinePrecision`))."""
-    from calidar.io.las import iter_las_chunks, las_file_crs, las_header
+    each line's smooth-surface precision (:class:`calidar.strips.usgs.LinePrecision`)). Every point
+    is decompressed once: the first pass keeps what the second needs (:mod:`calidar.pipelines.held_points`)."""
+    from calidar.io.las import las_file_crs, las_header
+    from calidar.pipelines.held_points import HeldPoints
     from calidar.strips.lines import index_flight_lines
     from calidar.strips.quality import QualitySettings, SwathAccumulator, overlap_cell, overlap_plan
     from calidar.strips.selection import PointSelection
@@ -118,22 +268,22 @@ def measure(paths, cell_m=None, classes=None, options: PointOptions = PointOptio
     metric = Metric.at(crs, header.mins, header.maxs, options.geoid_undulation_m, paths[0])
     first = [PointSelection("classes", classes)] if classes else [PointSelection("ground", (2,)),
                                                                   PointSelection("last returns")]
-    counts = CellCounts({p: first for p in paths}, metric, overlap_cell(cell_m))
-    index = index_flight_lines(paths, options, chunk_points=chunk_points, on_chunk=counts,
-                               fields=("x", "y", "z", *SELECTION_FIELDS[1:]))
-    if len(index.ids) < 2:
-        raise InputError(", ".join(sorted({str(p) for p in paths})), "point_source_id",
-                         f"found one flight line ({index.how}); expected at least two overlapping lines")
-    selections = {p: choose_selection(p, index.classes[p], classes) for p in paths}
-    settings = QualitySettings(cell_m=cell_m)
-    names = counts.names(index)  #: line → a file holding it (for messages)
-    plan = overlap_plan(counts.by_line(index, selections), counts.grid_m, settings, names)
-    with tempfile.TemporaryDirectory(prefix="calidar-moments-") as spill:  # cell moments beyond HOLD_BYTES
+    with tempfile.TemporaryDirectory(prefix="calidar-moments-") as spill:  # held points, cell moments beyond HOLD_BYTES
+        counts = CellCounts({p: first for p in paths}, metric, overlap_cell(cell_m), HeldPoints(Path(spill)))
+        raw = ("X", "Y", "Z") if metric.frame is None else ()
+        index = index_flight_lines(paths, options, chunk_points=chunk_points, on_chunk=counts,
+                                   fields=("x", "y", "z", *raw, *SELECTION_FIELDS[1:]))
+        if len(index.ids) < 2:
+            raise InputError(", ".join(sorted({str(p) for p in paths})), "point_source_id",
+                             f"found one flight line ({index.how}); expected at least two overlapping lines")
+        selections = {p: choose_selection(p, index.classes[p], classes) for p in paths}
+        settings = QualitySettings(cell_m=cell_m)
+        names = counts.names(index)  #: line → a file holding it (for messages)
+        plan = overlap_plan(counts.by_line(index, selections), counts.grid_m, settings, names)
         acc = SwathAccumulator(cell_m, plan, Path(spill))
         for p in paths:
-            for chunk in iter_las_chunks(p, chunk_points, fields=FIELDS, options=options):
-                chunk = chunk.select(selections[p].mask(chunk))
-                ids, xyz = index.of(chunk.point_source_id, chunk.gps_time), metric.of(chunk.xyz)
+            for xyz, psid, t in held_chunks(counts.held, p, first.index(selections[p]), metric):
+                ids = index.of(psid, t)
                 for i in np.unique(ids):
                     acc.add(int(i), xyz[ids == i], selections[p])
         for i in index.ids:  # lines without a selected point: named in the notes

@@ -22,7 +22,7 @@ reads (degrees for the trajectory's attitude σ)::
     [vgicp]                      # VGICP's (calidar.strips.vgicp.VgicpSettings)
     [ingest]                     # strip_points (0: every overlapping point), block_cells, gap_s, chunk_points
     [inputs]                     # crs, time_system, geoid_undulation_m, trajectory_crs, trajectory_angles,
-                                 # trajectory_heading, trajectory_columns, control_crs
+                                 # trajectory_heading, trajectory_columns, control_crs, checkpoints_crs
 
 A key left out takes its default; an unknown key or a value of the wrong type is an error naming
 the file and the key.
@@ -57,7 +57,8 @@ INGEST_KEYS = {"strip_points": "budget_points", "block_cells": "block_cells", "g
 INPUT_KEYS = {"crs": ("points", "crs"), "time_system": ("points", "time_system"),
               "geoid_undulation_m": ("points", "geoid_undulation_m"), "trajectory_crs": ("trajectory", "crs"),
               "trajectory_angles": ("trajectory", "angles"), "trajectory_heading": ("trajectory", "heading"),
-              "trajectory_columns": ("trajectory", "columns"), "control_crs": ("config", "control_crs")}
+              "trajectory_columns": ("trajectory", "columns"), "control_crs": ("config", "control_crs"),
+              "checkpoints_crs": ("config", "checkpoints_crs")}
 
 
 @dataclass(frozen=True)
@@ -77,6 +78,9 @@ class StripConfig:
     ingest: IngestOptions = field(default_factory=IngestOptions)
     trajectory_input: TrajectoryOptions = field(default_factory=TrajectoryOptions)
     control_crs: str | None = None  #: the control points' CRS when it is not the strips'
+    checkpoints_crs: str | None = None  #: the checkpoints' CRS when it is not the strips'
+    #: the ASPRS vertical accuracy class (cm) the calibrated strips must meet at the checkpoints (--class)
+    checkpoint_class_cm: float | None = None
 
     @property
     def points(self) -> PointOptions:
@@ -92,6 +96,8 @@ class StripConfig:
         """The TOML file's document (user units; None values left out)."""
         c = self.calibration
         doc = {"method": [m.name for m in c.matchers], "estimate": c.estimate.names()}
+        if self.checkpoint_class_cm is not None:
+            doc["checkpoint_class_cm"] = self.checkpoint_class_cm
         traj = {"on": c.trajectory is not None}
         if c.trajectory is not None:
             t = c.trajectory
@@ -140,8 +146,9 @@ def from_document(doc: dict, path: Path | None = None) -> StripConfig:
     """:class:`StripConfig` from a TOML document (:meth:`StripConfig.to_dict`'s layout)."""
     from calidar.sensor import validated_crs
 
-    known = {"method", "estimate", "trajectory_model", "solver", "ingest", "inputs", *MATCHERS}
+    known = {"method", "estimate", "checkpoint_class_cm", "trajectory_model", "solver", "ingest", "inputs", *MATCHERS}
     _known(doc, known, path, "")
+    target = _typed(doc.get("checkpoint_class_cm"), float | None, path, "checkpoint_class_cm")
     estimate = _typed(doc.get("estimate", ["boresight"]), tuple[str, ...], path, "estimate")
     methods = _typed(doc.get("method", ["planes"]), tuple[str, ...], path, "method")
     for m in methods:
@@ -173,7 +180,7 @@ def from_document(doc: dict, path: Path | None = None) -> StripConfig:
     points = _build(path, "inputs", lambda: PointOptions(**parts["points"]))
     ingest_options = _build(path, "ingest", lambda: IngestOptions(points=points, **kw))
     trajectory = _build(path, "inputs", lambda: TrajectoryOptions(**parts["trajectory"]))
-    return StripConfig(calibration, ingest_options, trajectory, **parts["config"])
+    return StripConfig(calibration, ingest_options, trajectory, **parts["config"], checkpoint_class_cm=target)
 
 
 def _solver(table: dict) -> dict:

@@ -146,16 +146,19 @@ class _Footprints:
 
 
 def _footprints(frame: LocalFrame, trajectory, options: IngestOptions, f: StripFile,
-                hold: bool = False) -> tuple[_Footprints, int | None, list | None]:
-    """Footprints and time checks of one file, chunk by chunk, its GPS week and (``hold``) what
-    pass 2 needs of its chunks: (LasPoints with xyz and point_source_id, times) (a task)."""
+                hold=None) -> tuple[_Footprints, int | None, bool]:
+    """Footprints and time checks of one file, chunk by chunk, its GPS week and whether ``hold``
+    (a :class:`calidar.pipelines.held_points.HeldFiles`, or None) keeps the whole file: what pass
+    2 and the overlap-quality stages need of its chunks (a task)."""
     acc, times, grid = _Footprints(), FileTimes(f.path, trajectory, f.time_system), overlap_cell(None)
-    held, check = [] if hold else None, GeometryCheck(f.path.name)
+    check, header = GeometryCheck(f.path.name), las_header(f.path)
     acc.checks[f.path] = check
     for chunk in iter_las_chunks(f.path, options.chunk_points, fields=("point_source_id", "scan_angle_deg",
                                                                        *SELECTION_FIELDS), options=f.points):
         t = times.feed(chunk.gps_time)
         ok = np.isfinite(t)
+        if hold is not None and not (ok.all() and hold.add(f.path, chunk, t, header.scales, header.offsets)):
+            hold = None  # not whole: read again
         chunk = chunk if ok.all() else chunk.select(ok)
         k = sample_rows(len(chunk))
         if np.all(trajectory.covers(t[ok][k])):  # points outside the trajectory: told by times.finish()
@@ -167,32 +170,34 @@ def _footprints(frame: LocalFrame, trajectory, options: IngestOptions, f: StripF
         keys = cell_keys(xy, options.cell_m)
         acc.add(group_keys(chunk.point_source_id, t[ok], options.gap_s), keys, t[ok], f.path.name, chunk,
                 keys if grid == options.cell_m else cell_keys(xy, grid))
-        if held is not None:
-            psid, tt = np.array(chunk.point_source_id, np.uint16), t[ok]  # copies: views would hold the records
-            held.append((replace(chunk, gps_time=tt, point_source_id=psid, **{n: None for n in SELECTION_FIELDS}), tt))
-    return acc, times.finish(name_trajectory=True), held  # the trajectory's span is what falls short
+    return acc, times.finish(name_trajectory=True), hold is not None  # the trajectory's span is what falls short
 
 
 def _pass1(files: list[StripFile], frame: LocalFrame, trajectory, options: IngestOptions, progress: Progress,
-           run: Callable | None = None, in_process: bool = True) -> tuple[_Footprints, dict, dict]:
+           run: Callable | None = None, in_process: bool = True) -> tuple[_Footprints, dict, object]:
     """Footprints and time checks of every file (one task each, run by ``run``: a
     :meth:`calidar.strips.distribute.Workers.run`; None: one at a time here); the GPS week of each
-    file; the chunks held for pass 2 (``in_process``: the tasks run here; see
-    :data:`calidar.pipelines.strip_source.HOLD_POINTS_BYTES`)
-    by path."""
+    file; the points kept for pass 2 and the overlap quality (``in_process``: the tasks run here;
+    see :data:`calidar.pipelines.strip_source.HOLD_POINTS_BYTES`): a HeldFiles, or None."""
+    import shutil
+    import tempfile
+
+    from calidar.pipelines.held_points import HeldFiles
     from calidar.strips.distribute import Workers
 
     run = run or Workers().run
-    acc, weeks, held, done = _Footprints(), {}, {}, 0
+    acc, weeks, done = _Footprints(), {}, 0
     counts = [las_header(f.path).point_count for f in files]
-    hold = _held_files(counts, options.hold_bytes if in_process else 0)
-    parts = run(_footprints, [(f, h) for f, h in zip(files, hold)], shared=(frame, trajectory, options),
+    room = min(options.hold_bytes, shutil.disk_usage(tempfile.gettempdir()).free // 2) if in_process else 0
+    hold = _held_files(counts, room)
+    held = HeldFiles() if any(hold) else None
+    parts = run(_footprints, [(f, held if h else None) for f, h in zip(files, hold)], shared=(frame, trajectory, options),
                 kind="read footprints")
-    for f, n, (part, week, points) in zip(files, counts, parts):
+    for f, n, (part, week, whole) in zip(files, counts, parts):
         acc.merge(part)
         weeks[f.path] = week
-        if points is not None:
-            held[f.path] = points
+        if whole:
+            held.complete.add(f.path)
         done += n
         progress("reading strips", done, 2 * sum(counts))  # points, both passes
     return acc, weeks, held
@@ -254,11 +259,11 @@ def block_cells(footprint: dict, options: IngestOptions) -> int:
     return int(np.clip(np.ceil(BLOCK_PATCHES * patch_m / options.cell_m), 1, MAX_BLOCK_CELLS))
 
 
-def _kept_points(source: StripSource, kept: dict, f: StripFile, held: list | None = None) -> dict[int, tuple]:
-    """The points of one file inside its lines' kept cells: line → (ECEF (n, 3) m, times s), from
-    the chunks pass 1 ``held`` or read again (a task)."""
+def _kept_points(source: StripSource, kept: dict, f: StripFile) -> dict[int, tuple]:
+    """The points of one file inside its lines' kept cells: line → (ECEF (n, 3) m, times s), as
+    pass 1 kept them or read again (a task)."""
     ecef, times = {}, {}
-    for _, chunk, ids, t in source.chunks(files=[f], held=held):
+    for _, chunk, ids, t in source.chunks(files=[f]):
         keys = source.cell_keys(chunk)
         for i, rows in split_rows(ids):
             cells = kept.get(i)
@@ -297,19 +302,17 @@ def ingest_strips(paths, trajectory, sensor, options: IngestOptions = IngestOpti
     line_of = dict(zip(groups.tolist(), line.tolist()))
     source = StripSource(files, frame, trajectory, groups, line, how, options, weeks,
                          {i: int(n.sum()) for i, (_, n) in footprint.items()},
-                         LineCounts(acc.quality.grid_m).merge(acc.quality, line_of.__getitem__), names)
+                         LineCounts(acc.quality.grid_m).merge(acc.quality, line_of.__getitem__), names, held)
     ecef, times, where = {}, {}, {}
     total = 2 * sum(las_header(f.path).point_count for f in files)
     done = total // 2
-    tasks = [(f, held.pop(f.path, None)) for f in files]
-    for f, part in zip(files, run(_kept_points, tasks, shared=(source, kept), kind="read kept points")):
+    for f, part in zip(files, run(_kept_points, [(f,) for f in files], shared=(source, kept), kind="read kept points")):
         for i, (e, t) in part.items():
             ecef.setdefault(i, []).append(e)
             times.setdefault(i, []).append(t)
             where.setdefault(i, {})[str(f.path)] = None
         done += las_header(f.path).point_count
         progress("reading strips", done, total)
-    del tasks  # the held chunks
     build = [(i, np.concatenate(ecef.pop(i)), np.concatenate(times.pop(i)), trajectory, sensor, frame,
               ", ".join(where[i]), span[i]) for i in sorted(ecef)]
     for i, e, t, *_ in build:  # wrong CRS or zone, wrong trajectory: one clear error before the adjustment

@@ -33,12 +33,13 @@ MAX_BLOCK_CELLS = 20
 #: points read at once: with the overlap-quality stages' copies (a chunk re-georeferenced per stage)
 #: this, not the files, sets the streaming memory (8.75 M points: 2 M → 2.1 GiB peak, 0.5 M → 1.3 GiB)
 CHUNK_POINTS = 250_000
-#: pass 1 holds in memory what pass 2 needs (xyz, times, point_source_id: 34 B a point) of the
-#: files that fit in this, in file order, when it runs in this process: pass 2 then reads them from
-#: memory instead of decompressing them again (8.75 M points: all held, −1.1 s). A fixed
-#: allowance, so memory still does not grow with the flight; 0 turns it off.
-HOLD_POINTS_BYTES = 320 * 2**20
-HELD_BYTES_PER_POINT = 34
+#: pass 1 keeps what pass 2 and the overlap-quality stages need of each point (stored coordinates,
+#: time, point_source_id, the selection's fields: 25 B a point) in files of a temporary folder
+#: (:class:`calidar.pipelines.held_points.HeldFiles`) when it runs in this process, so that no
+#: point is decompressed twice: files in file order while they fit in this and in half the folder's
+#: free space; the others are read again. Memory holds a chunk; 0 turns it off.
+HOLD_POINTS_BYTES = 64 * 2**30
+HELD_BYTES_PER_POINT = 25
 
 
 @dataclass(frozen=True)
@@ -89,13 +90,22 @@ class StripSource:
     counts: dict = field(default_factory=dict)  #: line id → points in the files
     quality: LineCounts | None = None  #: the lines' overlap-quality counts as delivered (the first pass's)
     names: dict = field(default_factory=dict)  #: line id → the name of a file holding it
+    #: the points pass 1 kept (:class:`calidar.pipelines.held_points.HeldFiles`; None: none), read
+    #: instead of the files; not sent to other processes
+    held: object = field(default=None, compare=False, repr=False)
+
+    def __getstate__(self):
+        return {**self.__dict__, "held": None}
 
     def chunks(self, fields: Sequence[str] = (), files: Sequence[StripFile] | None = None,
-               span: tuple[int, int | None] = (0, None), held: list | None = None) -> Iterator[tuple]:
+               span: tuple[int, int | None] = (0, None)) -> Iterator[tuple]:
         """(file, LasPoints chunk, line id per point, GPS time in the trajectory's system (s)) of
-        every chunk of every file (or of ``files``; of their points [``span``) only); ``held``:
-        the chunks (LasPoints, times) of the one file of ``files`` that pass 1 held, read instead."""
+        every chunk of every file (or of ``files``; of their points [``span``) only): as pass 1
+        kept them when it did (and ``fields`` are among those kept), else read again."""
+        from calidar.pipelines.held_points import STRIP_FIELDS
+
         for f in self.files if files is None else files:
+            held = None if self.held is None or not set(fields) <= set(STRIP_FIELDS) else self.held.chunks(f.path, span)
             for chunk, t in held if held is not None else self._read(f, fields, span):
                 g = group_keys(chunk.point_source_id, t, self.options.gap_s)
                 pos = np.minimum(np.searchsorted(self.groups, g), self.groups.size - 1)

@@ -1,10 +1,12 @@
 """Ground control as observations of the strip adjustment (issue 28): the building block.
 
 A control point (surveyed x, y, z with σ) observes a strip's local surface: the residual is the
-distance of the control point from the plane of the strip's points around it, along that plane's
-normal, r = n · (c − p) (c the points' centroid, p the control point; > 0 when the strip's
-surface lies above it, as ``calidar accuracy``'s dz), with σ² = σ_control² + s²/n (s the points'
-scatter about the plane). The rows are :class:`~calidar.strips.correspond.Correspondences`
+height of the strip's quadratic surface around it above the control point, along the surface's
+normal, r = n · (Σ wᵢ·pᵢ − c) (:func:`calidar.strips.control_surface.local_surface`: the weights w
+read the quadric at the control point c; > 0 when the strip's surface lies above it, as ``calidar
+accuracy``'s dz), with σ² = σ_control² + the quadric's noise there (a plane, used before, missed
+the ground's curvature by 9 mm RMS on the simulator's smooth ground, an error shared by every strip
+at the point and absent from σ: ``benchmarks/control_rows_truth.py``). The rows are :class:`~calidar.strips.correspond.Correspondences`
 between the strip and a *control pseudo-strip* (id :data:`CONTROL_ID`) whose :class:`Pose`
 (:func:`control_pose`) puts each "point" at its control point with a zero rotation: the lidar
 equation then returns the control point itself whatever the sensor, with no derivative and no
@@ -31,13 +33,13 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.spatial import cKDTree
 
+from calidar.strips.control_surface import MIN_POINTS, local_surface
 from calidar.strips.correspond import Correspondences
 from calidar.strips.problem import CONTROL_STRIP
 from calidar.strips.strip import Pose
 
 CONTROL_ID = CONTROL_STRIP  #: the id of the control pseudo-strip (-1; StripProblem leaves it out of height_bias)
-RADIUS_M = 2.0  #: a strip's points within this (x, y) of a control point form its plane
-MIN_POINTS = 8
+RADIUS_M = 2.0  #: a strip's points within this (x, y) of a control point form its surface
 #: points kept this much farther than RADIUS_M from a control point: the calibration moves them
 #: (by cm), and the rows are formed anew from the re-georeferenced points each matching
 MARGIN_M = 1.0
@@ -70,17 +72,16 @@ def control_correspondences(strip_id: int, index: np.ndarray, points: np.ndarray
     for k, near in enumerate(tree.query_ball_point(control.local[:, :2], radius_m)):
         if len(near) < min_points:
             continue
-        p = points[near]
-        c = p.mean(axis=0)
-        lam, vec = np.linalg.eigh(np.cov((p - c).T))
-        normal = vec[:, 0] if vec[2, 0] >= 0 else -vec[:, 0]
-        scatter2 = lam[0] * (len(near) - 1) / max(len(near) - 3, 1)
+        fit = local_surface(points[near], control.local[k])
+        if fit is None:
+            continue
+        w, normal, var = fit
         r = len(normals)
         rows += [r] * len(near)
         cols += list(np.asarray(index)[near])
-        weights += [1.0 / len(near)] * len(near)
+        weights += list(w)
         normals.append(normal)
-        sigmas.append(np.sqrt(control.sigma_m[k] ** 2 + scatter2 / len(near)))
+        sigmas.append(np.sqrt(control.sigma_m[k] ** 2 + var * normal[2] ** 2))
         targets.append(k)
     if not normals:
         return None
@@ -180,15 +181,18 @@ def control_rows(problem, residuals: np.ndarray) -> list[dict]:
 
 def control_summary(control: ControlPoints, before: list[dict], after: list[dict]) -> dict:
     """What solution.json holds of the control: per control point and strip covering it, dz
-    before (nominal sensor) and after (calibrated), with the row's σ; the points no strip covered;
+    before (nominal sensor) and after (calibrated), with the row's own σ (the survey's and the
+    surface's; "weight_sigma_m": the σ it is weighed by, its survey error shared among the k rows of
+    its point); the points no strip covered;
     the weighted mean and RMS of dz after (m)."""
     first = {(b["point"], b["strip"]): b["dz_m"] for b in before}
+    k = np.bincount([a["point"] for a in after], minlength=len(control.ids))
     rows = [{"id": str(control.ids[a["point"]]), "strip": a["strip"], "dz_before_m": first.get((a["point"], a["strip"])),
-             "dz_after_m": a["dz_m"], "sigma_m": a["sigma_m"], "survey_sigma_m": float(control.sigma_m[a["point"]])}
-            for a in after]
+             "dz_after_m": a["dz_m"], "sigma_m": _own_sigma(a["sigma_m"], control.sigma_m[a["point"]], k[a["point"]]),
+             "weight_sigma_m": a["sigma_m"], "survey_sigma_m": float(control.sigma_m[a["point"]])} for a in after]
     used = {a["point"] for a in after}
     dz = np.array([a["dz_m"] for a in after])
-    s = np.array([a["sigma_m"] for a in after])
+    s = np.array([r["sigma_m"] for r in rows])
     w = 1.0 / np.maximum(s, 1e-9) ** 2
     return {"n_points": len(control.ids), "n_used": len(used), "n_rows": len(rows),
             "not_covered": [str(control.ids[k]) for k in range(len(control.ids)) if k not in used],
@@ -196,6 +200,12 @@ def control_summary(control: ControlPoints, before: list[dict], after: list[dict
             "rms_dz_after_m": float(np.sqrt(np.mean(dz**2))) if dz.size else None,
             "rms_dz_before_m": (float(np.sqrt(np.mean([b["dz_m"] ** 2 for b in before]))) if before else None),
             "points": rows}
+
+
+def _own_sigma(weight_sigma: float, survey_sigma: float, k: int) -> float:
+    """A row's own σ (its survey error once, with its surface's noise) from the σ it is weighed by
+    (:func:`share_survey_error`: the survey variance counted ``k`` times, k the rows of its point)."""
+    return float(np.sqrt(max(weight_sigma**2 - (k - 1) * survey_sigma**2, 0.0)))
 
 
 def vertical_shift(result) -> tuple[float, float, float] | None:

@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 import pyproj
+from numba import njit
 
 from calidar.errors import InputError
 from calidar.io.las import (
@@ -161,8 +162,8 @@ def index_flight_lines(paths: Sequence[str | Path], options: PointOptions = Poin
         for c in iter_las_fields(path, ("point_source_id", "classification", "gps_time", *fields), chunk_points):
             if on_chunk is not None:
                 on_chunk(path, c)
-            ids.update(np.unique(c["point_source_id"]).tolist())
-            present[np.unique(c["classification"])] = True
+            ids.update(_distinct(c["point_source_id"]).tolist())
+            present[_distinct(c["classification"])] = True
             seconds.append(_second_spans(c["gps_time"]))
             add_spans(spans, c["point_source_id"], c["gps_time"], path.name)
         classes[path] = np.flatnonzero(present)
@@ -179,18 +180,52 @@ def add_spans(spans: dict, point_source_id, t: np.ndarray, name: str) -> None:
     """Widen ``spans`` {(point_source_id, file name): (first, last GPS time)} by a chunk's points."""
     psid = np.asarray(point_source_id, np.int64)
     ok = np.isfinite(t)
-    for i in np.unique(psid[ok]):
+    ids = _distinct(psid[ok])
+    if ids.size == 1:  # one line in the chunk (the usual case): no masks
+        ti = t[ok]
+        t0, t1 = spans.get((int(ids[0]), name), (np.inf, -np.inf))
+        spans[(int(ids[0]), name)] = (min(t0, float(ti.min())), max(t1, float(ti.max())))
+        return
+    for i in ids:
         ti = t[ok & (psid == i)]
         t0, t1 = spans.get((int(i), name), (np.inf, -np.inf))
         spans[(int(i), name)] = (min(t0, float(ti.min())), max(t1, float(ti.max())))
 
 
+def _distinct(values: np.ndarray) -> np.ndarray:
+    """The distinct values, ascending, of small non-negative integers (LAS ids, classes) by one
+    bincount; others by np.unique."""
+    v = np.asarray(values)
+    if v.size and v.dtype.kind in "ui" and 0 <= v.min() and v.max() < 1 << 16:
+        return np.flatnonzero(np.bincount(v.ravel())).astype(v.dtype)
+    return np.unique(v)
+
+
 def _second_spans(t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """First and last finite time (s) within each whole second holding any, seconds ascending."""
-    t = np.sort(t[np.isfinite(t)])
+    t = t[np.isfinite(t)]
+    if t.size == 0:
+        return t, t
     sec = np.floor(t)
-    start = np.r_[0, np.flatnonzero(sec[1:] != sec[:-1]) + 1] if t.size else np.zeros(0, np.int64)
-    return t[start], t[np.r_[start[1:], t.size] - 1] if t.size else t
+    lo = sec.min()
+    if sec.max() - lo < 4 * t.size + 65536:  # a chunk's seconds: one pass over a dense table
+        first, last, held = _dense_spans(t, (sec - lo).astype(np.int64), int(sec.max() - lo) + 1)
+        return first[held], last[held]
+    t = np.sort(t)
+    sec = np.floor(t)
+    start = np.r_[0, np.flatnonzero(sec[1:] != sec[:-1]) + 1]
+    return t[start], t[np.r_[start[1:], t.size] - 1]
+
+
+@njit(cache=True, nogil=True)
+def _dense_spans(t, k, n):  # pragma: no cover - numba
+    """Smallest and largest of the times ``t`` in each slot ``k`` (0 ≤ k < n), and which slots hold any."""
+    first, last, held = np.full(n, np.inf), np.full(n, -np.inf), np.zeros(n, np.bool_)
+    for m in range(t.size):
+        first[k[m]] = min(first[k[m]], t[m])
+        last[k[m]] = max(last[k[m]], t[m])
+        held[k[m]] = True
+    return first, last, held
 
 
 def _check_alike(paths: list[Path], options: PointOptions) -> None:

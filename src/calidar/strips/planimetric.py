@@ -52,6 +52,8 @@ class PlanimetricSettings:
     jackknife_groups: int = 5  #: groups of blocks along the overlap left out in turn (0: none)
     block_plane: bool = False  #: a vertical offset and tilt free per block (else an offset only; docs/validation.md)
     max_neighbour_dslope: float = 0.1  #: a cell is inside a facet: its 4 neighbours' slopes (tan) within this
+    random_effects: bool = True  #: dx, dy as the mean of a displacement varying along the overlap (_random_effects)
+    groups_across: int = 3  #: ... its stretches each cut in this many parts across the overlap
 
 
 @dataclass
@@ -201,7 +203,12 @@ def _fit(c: np.ndarray, d: np.ndarray, g: np.ndarray, e: np.ndarray, blocks: np.
     if jk is not None:  # each σ the larger of the two, the correlation the blocks' (positive definite)
         scale = np.sqrt(np.maximum(np.diag(jk), np.diag(cov)) / np.diag(cov))
         cov = cov * np.outer(scale, scale)
+    varying = _random_effects(aw, aw @ t + r, m, blocks[keep], c[keep], s) if s.random_effects else None
     cov, t = cov[-2:, -2:], t[-2:]  # dx, dy
+    if varying is not None:  # the displacement varies along the overlap: its mean, σ with its spread
+        t, sd_re = varying
+        scale = np.maximum(sd_re, np.sqrt(np.diag(cov))) / np.sqrt(np.diag(cov))
+        cov = cov * np.outer(scale, scale)
     out.n_cells, out.n_blocks = int(keep.sum()), used
     if used < s.min_blocks:
         out.reason = f"{used} blocks of {s.block_m:g} m hold the cells (at least {s.min_blocks} to tell the σ)"
@@ -233,6 +240,80 @@ def _within_fit(a, d, e, keep, blocks, n_blocks, centre=None):
     return aw, dw - aw @ t, m, t
 
 
+def groups_along(blocks: np.ndarray, centre: np.ndarray, k: int, across: int = 1) -> np.ndarray:
+    """Group (K,) 0…k·across−1 of each cell: whole blocks cut into ``k`` stretches of equal count
+    along the overlap's long axis (its cells' principal direction), each cut into ``across`` parts
+    of equal count across it."""
+    u = centre - centre.mean(axis=0)
+    axes = np.linalg.eigh(u.T @ u)[1]
+    _, inv = np.unique(blocks, return_inverse=True)
+    count = np.bincount(inv)
+    along = np.bincount(inv, u @ axes[:, -1]) / count  # each block's place along the overlap
+    side = np.bincount(inv, u @ axes[:, 0]) / count
+    stretch = np.searchsorted(np.quantile(along, np.linspace(0, 1, k + 1)[1:-1]), along)
+    group = stretch * across
+    for g in range(k) if across > 1 else ():
+        mine = stretch == g
+        if mine.any():
+            group[mine] += np.searchsorted(np.quantile(side[mine], np.linspace(0, 1, across + 1)[1:-1]), side[mine])
+    return group[inv]
+
+
+def _random_effects(a: np.ndarray, y: np.ndarray, m: np.ndarray, blocks: np.ndarray, centre: np.ndarray,
+                    s: PlanimetricSettings) -> tuple[np.ndarray, np.ndarray] | None:
+    """dx, dy as the mean of a displacement that varies along the overlap, and their σ: the fit on
+    each of ``s.jackknife_groups`` stretches alone (its σ cluster-robust), combined per axis as a
+    random-effects meta-analysis (DerSimonian & Laird 1986, Controlled Clinical Trials 7:177–188):
+    the stretches' spread beyond their noise, τ², is estimated from Cochran's Q, each stretch weighed
+    by 1/(σ² + τ²), the mean's variance 1/Σ weights (times the Hartung–Knapp factor when the
+    stretches scatter more than that says). A trajectory's slow errors move the strips
+    apart differently along the overlap (by ≈ 1 cm RMS on the simulated UAV surveys): the one-offset
+    fit then reads the stretches where the slopes are (and its σ, from residuals about that one
+    offset, misses the spread); this estimate weighs the stretches more evenly as τ² grows and its
+    σ holds τ². None with fewer than 4 stretches that determine both offsets."""
+    if s.jackknife_groups < 3:
+        return None
+    group = groups_along(blocks, centre, s.jackknife_groups, s.groups_across)
+    est, var = [], []
+    for g in range(s.jackknife_groups * s.groups_across):
+        rows = group == g
+        ag = a[rows]
+        if rows.sum() < s.min_cells or np.unique(blocks[rows]).size < 2:
+            continue
+        n_mat = ag.T @ ag - m[rows].sum(axis=0)
+        w = np.linalg.eigvalsh(n_mat)
+        if w[0] <= 1e-9 * max(w[-1], 1e-300):
+            continue
+        tg = np.linalg.solve(n_mat, ag.T @ y[rows])
+        cg, _ = _cluster_cov(ag, y[rows] - ag @ tg, blocks[rows], centre[rows], s.hac_m, m[rows], tg)
+        est.append(tg[-2:])
+        var.append(np.diag(cg)[-2:])
+    if len(est) < 4:
+        return None
+    return random_effects_mean(np.array(est), np.array(var))
+
+
+def random_effects_mean(est: np.ndarray, var: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The random-effects mean of ``est`` (k, m) with variances ``var`` (k, m), per column, and its σ:
+    τ² by DerSimonian & Laird (1986) from Cochran's Q about the fixed-effect mean, weights
+    1/(var + τ²), the variance 1/Σ weights times the Hartung–Knapp factor Σw(est − mean)²/(k − 1)
+    (Hartung & Knapp 2001, Stat. Med. 20:3875–3889) when it exceeds 1 (Röver, Knapp & Friede 2015,
+    BMC Med. Res. Methodol. 15:99): with a few stretches τ² from Q is often 0 by chance; and
+    widened by √((k−1)/(k−3)), the RMS of Student's t with k − 1 degrees of freedom (k ≥ 4)."""
+    est, var = np.asarray(est, float), np.maximum(np.asarray(var, float), 1e-12)
+    k = len(est)
+    w = 1.0 / var
+    fixed = (w * est).sum(axis=0) / w.sum(axis=0)
+    q = (w * (est - fixed) ** 2).sum(axis=0)
+    tau2 = np.maximum(0.0, (q - (k - 1)) / (w.sum(axis=0) - (w**2).sum(axis=0) / w.sum(axis=0)))
+    w = 1.0 / (var + tau2)
+    mean = (w * est).sum(axis=0) / w.sum(axis=0)
+    q_hk = np.maximum(1.0, (w * (est - mean) ** 2).sum(axis=0) / (k - 1))
+    # (mean − μ)/σ then follows Student's t with k − 1 degrees of freedom, whose RMS is √((k−1)/(k−3)):
+    # σ widened by it, so that error/σ has RMS 1 as every σ of calidar is read
+    return mean, np.sqrt(q_hk / w.sum(axis=0) * (k - 1) / max(k - 3, 1))
+
+
 def _jackknife(a: np.ndarray, y: np.ndarray, m: np.ndarray, blocks: np.ndarray, centre: np.ndarray,
                k: int) -> np.ndarray | None:
     """Delete-a-group jackknife covariance of the (noise-corrected) least squares a·t = y over ``k``
@@ -242,12 +323,7 @@ def _jackknife(a: np.ndarray, y: np.ndarray, m: np.ndarray, blocks: np.ndarray, 
     few independent stretches of overlap, cannot."""
     if k < 2:
         return None
-    u = centre - centre.mean(axis=0)
-    axis = np.linalg.eigh(u.T @ u)[1][:, -1]
-    _, inv = np.unique(blocks, return_inverse=True)
-    along = np.bincount(inv, u @ axis) / np.bincount(inv)  # each block's place along the overlap
-    cut = np.quantile(along, np.linspace(0, 1, k + 1)[1:-1])
-    group = np.searchsorted(cut, along)[inv]
+    group = groups_along(blocks, centre, k)
     n_mat, rhs = a.T @ a - m.sum(axis=0), a.T @ y
     ts = []
     for i in range(k):

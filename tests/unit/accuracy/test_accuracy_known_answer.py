@@ -159,5 +159,6 @@ def test_nothing_tested_is_a_failure_with_the_reason(tmp_path):
     (tmp_path / "out").mkdir()
     run = run_accuracy(strips, tmp_path / "cp.csv", tmp_path / "out")
     assert run.verdict.status == "fail" and run.assessment.accuracy.rmse_m is None
-    assert [f.check for f in run.verdict.findings] == ["NVA accuracy class", "checkpoint count", "checkpoints not tested"]
+    assert [f.check for f in run.verdict.findings] == ["NVA accuracy class", "checkpoint count", "checkpoints not tested",
+                                                         "USGS swath checks"]
     assert (tmp_path / "out" / "report.html").is_file()

@@ -1,0 +1,132 @@
+"""Benchmark: calidar's streamed commands against the floor — reading the same LAZ files.
+
+    nice -n 10 env NUMBA_NUM_THREADS=1 OMP_NUM_THREADS=1 PYTHONPATH=src python benchmarks/against_read.py \
+        [--size 8.75] [--what quality,planes,vgicp] [--runs 3] [--baseline ../main/src]
+
+The survey of ``benchmarks/strips_scale.py`` (8 airborne strips at ≈ ``--size`` million points,
+simulated once under ``--cache``, not timed). Each run is a whole child process, interleaved
+with the floor in one loop (floor, then each command, ``--runs`` times), so a comparison holds
+when the shared machine's speed drifts: the floor is laspy + lazrs decompressing every field of
+every file (chunks of 2 M points, laspy's default parallel LAZ backend, as calidar reads);
+``quality`` is ``calidar quality`` of the strips (:func:`calidar.pipelines.quality.measure`);
+``planes`` / ``vgicp`` the whole ``calidar boresight`` run (ingest, calibration, the three
+overlap-quality stages, report, outputs). Printed per command: the median wall and CPU time,
+the median of each run's ratio to the floor run just before it, the peak RSS (``os.wait4``) and
+the load average at each run.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from strips_scale import simulate  # noqa: E402  (the shared 8-strip survey at a size)
+
+
+def child(sim: Path, what: str) -> None:
+    """One run: ``what`` = "read" (the floor), "quality" or a boresight method."""
+    strips = sorted((sim / "strips").glob("*.laz"))
+    if what == "read":
+        import laspy
+
+        n = 0
+        for path in strips:
+            with laspy.open(path) as reader:
+                for rec in reader.chunk_iterator(2_000_000):
+                    n += len(rec)
+        print(json.dumps({"points": n}))
+        return
+    if what == "quality":
+        from calidar.pipelines.quality import measure
+
+        _, _, pairs, _, _, _ = measure(strips)
+        print(json.dumps({"pairs": len(pairs), "dz": [q.median_dz_m for q in pairs]}))
+        return
+    from calidar.pipelines.boresight import BoresightOptions, run_boresight
+
+    with tempfile.TemporaryDirectory() as out:
+        run = run_boresight(strips, sim / "sbet.out", sim / "sensor.toml", Path(out),
+                            BoresightOptions(methods=(what,), truth=sim / "truth.json"))
+    sol = run.results[what].solution
+    print(json.dumps({"values": {k: sol.values[k] for k in sol.values if k.startswith("boresight")},
+                      "sigma": {k: sol.sigma[k] for k in sol.sigma if k.startswith("boresight")}}))
+
+
+def run(sim: Path, what: str, src: Path | None = None) -> dict:
+    """A child run (importing calidar from ``src``, default this checkout's): wall and CPU
+    seconds, peak RSS (GiB), the load average before it, its JSON."""
+    env = {**os.environ, "PYTHONPATH": str(src or Path(__file__).resolve().parents[1] / "src")}
+    load = os.getloadavg()[0]
+    t = time.perf_counter()
+    proc = subprocess.Popen([sys.executable, __file__, "--child", str(sim), what], env=env, stdout=subprocess.PIPE,
+                            text=True)
+    out = proc.stdout.read()
+    _, status, usage = os.wait4(proc.pid, 0)
+    if os.waitstatus_to_exitcode(status):
+        raise SystemExit(f"run failed: {sim} {what}")
+    return {"wall_s": time.perf_counter() - t, "cpu_s": usage.ru_utime + usage.ru_stime,
+            "rss_gib": usage.ru_maxrss * 1024 / 2**30, "load": load, "out": json.loads(out.strip().splitlines()[-1])}
+
+
+def _which(label: str, baseline: Path | None) -> tuple[str, Path | None]:
+    """(command, source tree) of a label ("quality", "quality@base")."""
+    return (label[:-5], baseline) if label.endswith("@base") else (label, None)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--size", type=float, default=8.75, help="survey size, million points")
+    ap.add_argument("--what", default="quality,planes", help="commands: quality, planes, vgicp")
+    ap.add_argument("--runs", type=int, default=3)
+    ap.add_argument("--warmup", type=int, default=1, help="unmeasured rounds first (page cache, numba caches)")
+    ap.add_argument("--cache", type=Path, default=Path(tempfile.gettempdir()) / "calidar_bench_strips_scale")
+    ap.add_argument("--baseline", type=Path, help="another calidar source tree (e.g. main's src/): its runs "
+                    "interleaved too, labelled @base")
+    ap.add_argument("--child", nargs=2, help=argparse.SUPPRESS)
+    args = ap.parse_args()
+    if args.child:
+        return child(Path(args.child[0]), args.child[1])
+    sim = simulate(args.cache, args.size)
+    what = args.what.split(",")
+    if args.baseline:
+        what += [f"{w}@base" for w in what]
+    print(f"machine: {platform.machine()}, {os.cpu_count()} cores, python {platform.python_version()}; "
+          f"NUMBA_NUM_THREADS={os.environ.get('NUMBA_NUM_THREADS')} OMP_NUM_THREADS={os.environ.get('OMP_NUM_THREADS')}; "
+          f"{sim.name}", flush=True)
+    for _ in range(args.warmup):  # the files in the page cache, numba's caches compiled
+        run(sim, "read")
+        for w in what:
+            run(sim, *_which(w, args.baseline))
+    rows: dict[str, list[dict]] = {w: [] for w in ["read", *what]}
+    for k in range(args.runs):
+        floor = run(sim, "read")
+        rows["read"].append(floor)
+        for w in what:
+            r = run(sim, *_which(w, args.baseline))
+            r["ratio"] = r["wall_s"] / floor["wall_s"]
+            r["cpu_ratio"] = r["cpu_s"] / floor["cpu_s"]
+            rows[w].append(r)
+            print(f"run {k + 1}: {w:13s} {r['wall_s']:6.2f} s (floor {floor['wall_s']:5.2f} s: {r['ratio']:.2f}×), "
+                  f"CPU {r['cpu_s']:6.2f} s, peak {r['rss_gib']:.2f} GiB, load {r['load']:.2f}", flush=True)
+    points = rows["read"][0]["out"]["points"]
+    print(f"{points / 1e6:.2f} M points; medians of {args.runs} interleaved runs:")
+    for w, rs in rows.items():
+        med = {k: float(np.median([r[k] for r in rs])) for k in ("wall_s", "cpu_s", "rss_gib", "load")}
+        ratio = f"{np.median([r['ratio'] for r in rs]):.2f}× wall, {np.median([r['cpu_ratio'] for r in rs]):.2f}× CPU" \
+            if w != "read" else "(the floor)"
+        print(f"  {w:13s} {med['wall_s']:6.2f} s wall, {med['cpu_s']:6.2f} s CPU, peak {med['rss_gib']:.2f} GiB, "
+              f"{ratio}; load {min(r['load'] for r in rs):.1f}–{max(r['load'] for r in rs):.1f}", flush=True)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,134 @@
+"""What a streamed command needs of each point after its first pass, kept as the first pass reads
+it, so that the second pass reads these few fields back instead of decompressing every file again.
+
+Named arrays, chunk by chunk, per key (a file): appended to one plain binary file per key in a temporary folder (the operating system's page cache holds them while
+memory is free; the process holds one chunk), read back in the order and with the boundaries
+they were written. ``calidar quality`` keeps 23 bytes per candidate point (the stored integer
+coordinates, point_source_id, GPS time and which selection rules keep it): reading a LAZ point
+again costs more than 100 times as much as reading those bytes back.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+
+class HeldPoints:
+    """Chunks of named arrays per key, written to files of ``folder`` (which the caller removes)."""
+
+    def __init__(self, folder: Path):
+        import threading
+
+        self.folder = Path(folder)
+        self.files: dict = {}  #: key → (path, {name: dtype}, [points per chunk])
+        self._lock = threading.Lock()  # keys added from several threads (one key per thread)
+
+    def add(self, key, **arrays: np.ndarray) -> None:
+        """One chunk's arrays (the same names and dtypes, one length) after those already added
+        under ``key``: written one after another."""
+        fields = {name: (a.dtype, a.shape[1:]) for name, a in arrays.items()}
+        with self._lock:
+            if key not in self.files:
+                self.files[key] = (self.folder / f"held_{len(self.files)}.bin", fields, [])
+        path, known, sizes = self.files[key]
+        if fields != known:
+            raise ValueError(f"arrays {fields} under a key holding {known}")
+        with open(path, "ab") as f:
+            for a in arrays.values():
+                f.write(np.ascontiguousarray(a).data)
+        sizes.append(len(next(iter(arrays.values()))))
+
+    def chunks(self, key, which: range | None = None) -> Iterator[dict[str, np.ndarray]]:
+        """The arrays added under ``key``, chunk by chunk as added (``which``: those chunks only;
+        none added: nothing)."""
+        if key not in self.files:
+            return
+        path, fields, sizes = self.files[key]
+        which = range(len(sizes)) if which is None else which
+        per_point = sum(d.itemsize * int(np.prod(s)) for d, s in fields.values())
+        with open(path, "rb") as f:
+            f.seek(per_point * sum(sizes[:which.start]))
+            for n in sizes[which.start:which.stop]:
+                yield {name: np.fromfile(f, dtype, n * int(np.prod(shape))).reshape((n, *shape))
+                       for name, (dtype, shape) in fields.items()}
+
+    @property
+    def nbytes(self) -> int:
+        """Bytes written."""
+        return sum(sum(d.itemsize * int(np.prod(s)) for d, s in fields.values()) * sum(sizes)
+                   for _, fields, sizes in self.files.values())
+
+
+#: what the strip ingest keeps of a point: the stored coordinates, the time in the trajectory's
+#: system, point_source_id and the selection's fields (pass 2 and the overlap-quality stages need no more)
+STRIP_FIELDS = ("point_source_id", "classification", "return_number", "number_of_returns")
+STRIP_BYTES_PER_POINT = 12 + 8 + 2 + 3
+
+
+class HeldFiles:
+    """The points of LAS/LAZ files as the strip ingest's first pass read them, chunk by chunk
+    (LasPoints with xyz, the times in the trajectory's system and :data:`STRIP_FIELDS`), kept in
+    a temporary folder removed with this object (or by :meth:`close`); not sent to other
+    processes (a copy pickles without them: those read the files)."""
+
+    def __init__(self):
+        import tempfile
+        import threading
+
+        self._dir = tempfile.TemporaryDirectory(prefix="calidar-held-")
+        self.points = HeldPoints(Path(self._dir.name))
+        self.meta: dict = {}  #: path → (LasPoints of no points: CRS, time system…; scales; offsets)
+        self.complete: set = set()  #: paths held whole
+        self._lock = threading.Lock()
+
+    def close(self) -> None:
+        self._dir.cleanup()
+
+    def add(self, path: Path, chunk, t: np.ndarray, scales, offsets) -> bool:
+        """A chunk (LasPoints with STRIP_FIELDS) of ``path`` and its times; False (nothing kept)
+        when its coordinates are not the stored integers × scales + offsets exactly."""
+        from calidar.io.las import OPTIONAL_FIELDS
+        xyz = chunk.xyz
+        raw = np.round((xyz - offsets) / scales)
+        if not np.all(np.abs(raw) < 2**31):
+            return False
+        stored = raw.astype(np.int32)
+        back = np.empty_like(xyz)
+        for k in range(3):  # as laspy scales them (and so pass 2 will): bit for bit, or not held
+            back[:, k] = stored[:, k] * scales[k] + offsets[k]
+        if not np.array_equal(back, xyz):
+            return False
+        with self._lock:
+            self.meta.setdefault(path, (replace(chunk.select(slice(0, 0)), **dict.fromkeys(OPTIONAL_FIELDS)),
+                                        np.asarray(scales), np.asarray(offsets)))
+        self.points.add(path, X=stored[:, 0], Y=stored[:, 1], Z=stored[:, 2], t=np.asarray(t, float),
+                        **{f: np.asarray(getattr(chunk, f)) for f in STRIP_FIELDS})
+        return True
+
+    def chunks(self, path: Path, span: tuple[int, int | None]):
+        """(LasPoints, times) of the held chunks of ``path`` covering its points [span), or None
+        when the file is not held whole or the span does not start and end at chunk boundaries."""
+        if path not in self.complete:
+            return None
+        _, _, sizes = self.points.files[path]
+        edges = np.r_[0, np.cumsum(sizes)]
+        a, b = span[0], edges[-1] if span[1] is None else min(span[1], edges[-1])
+        first, last = np.searchsorted(edges, [a, b])
+        if first >= edges.size or edges[first] != a or last >= edges.size or edges[last] != b:
+            return None
+        empty, scales, offsets = self.meta[path]
+
+        def read():
+            for c in self.points.chunks(path, range(first, last)):
+                xyz = np.empty((len(c["t"]), 3))
+                for k, axis in enumerate("XYZ"):
+                    xyz[:, k] = c[axis] * scales[k] + offsets[k]
+                yield replace(empty, xyz=xyz, gps_time=c["t"], **{f: c[f] for f in STRIP_FIELDS}), c["t"]
+        return read()
+
+    def __getstate__(self):
+        raise TypeError("held points stay in their process")

@@ -1,0 +1,72 @@
+"""``calidar boresight`` decompresses every point once (issue 32): pass 2 and the overlap-quality
+stages read what pass 1 kept (pipelines/held_points.py HeldFiles), and give what reading the files
+again gives, bit for bit."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from pathlib import Path
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from calidar.io.trajectory import read_trajectory
+from calidar.pipelines.boresight_outputs import measure_lines
+from calidar.pipelines.strip_ingest import ingest_strips
+from calidar.pipelines.strip_source import IngestOptions
+from calidar.sensor import Sensor
+from calidar.sim.survey import simulate_survey, survey_config
+
+
+@pytest.fixture(scope="module")
+def survey(tmp_path_factory) -> Path:
+    res = simulate_survey(survey_config("uav", seed=12, density=0.02, directions="cross"))
+    return res.write(tmp_path_factory.mktemp("read_once") / "sim")
+
+
+def _run(sim: Path, options: IngestOptions):
+    paths = sorted((sim / "strips").glob("*.laz"))
+    traj, sensor = read_trajectory(sim / "sbet.out"), Sensor.read(sim / "sensor.toml")
+    strips, _, source, _ = ingest_strips(paths, traj, sensor, options)
+    moved = replace(sensor, boresight_roll=sensor.boresight_roll + np.radians(0.05))
+    stages = measure_lines(SimpleNamespace(source=source, nominal=sensor, trajectory=traj), [None, (moved, traj)])
+    return paths, strips, source, stages
+
+
+def test_each_point_decompressed_once_and_every_output_as_read_twice(survey, monkeypatch):
+    import calidar.pipelines.strip_ingest as ingest
+    import calidar.pipelines.strip_source as source_module
+
+    _, again, _, stages_again = _run(survey, IngestOptions(budget_points=20_000, hold_bytes=0))
+    reads = []
+    real = ingest.iter_las_chunks
+    for module in (ingest, source_module):  # pass 1 reads in the one, pass 2 and the stages in the other
+        monkeypatch.setattr(module, "iter_las_chunks", lambda path, *a, **k: reads.append(path) or real(path, *a, **k))
+    paths, held, source, stages = _run(survey, IngestOptions(budget_points=20_000))
+    assert sorted(reads) == sorted(paths)  # each file decompressed once, by pass 1
+    assert source.held is not None and source.held.complete == set(paths)
+    assert [s.id for s in held] == [s.id for s in again] and len(held) >= 3
+    for a, b in zip(held, again):
+        assert np.array_equal(a.points, b.points) and np.array_equal(a.time, b.time)
+    assert len(stages) == 2 and all(len(pairs) >= 2 for pairs in stages)
+    for pairs, pairs_again in zip(stages, stages_again):
+        assert [q.to_dict() for q in pairs] == [q.to_dict() for q in pairs_again]
+    assert stages[0][0].to_dict() != stages[1][0].to_dict()  # the stages differ: the moved mounting is seen
+    folder = Path(source.held._dir.name)
+    assert folder.exists() and source.held.points.nbytes == 25 * sum(source.counts.values())
+    source.held.close()
+    assert not folder.exists()
+
+
+def test_spans_off_the_chunks_and_other_fields_are_read_from_the_file(survey):
+    paths, _, source, _ = _run(survey, IngestOptions(budget_points=20_000, chunk_points=3_000))
+    f = source.files[0]
+    assert source.held.chunks(f.path, (0, None)) is not None
+    assert source.held.chunks(f.path, (1_000, None)) is None  # not a chunk's first point
+    whole = [(c.xyz, t) for _, c, _, t in source.chunks(files=[f], span=(3_000, 9_000))]
+    source.held.complete.clear()  # read the file instead
+    read = [(c.xyz, t) for _, c, _, t in source.chunks(files=[f], span=(3_000, 9_000))]
+    assert len(whole) == len(read) == 2
+    for (x, t), (y, u) in zip(whole, read):
+        assert np.array_equal(x, y) and np.array_equal(t, u)
