@@ -87,7 +87,6 @@ def boresight(
     from calidar.cli.boresight_config import strip_config
     from calidar.outputs import check_out_dir, output_folder
     from calidar.pipelines.boresight import calibrate_strips
-    from calidar.pipelines.boresight_outputs import write_run
     from calidar.strips.distribute import check_cluster
 
     given = {k: v for k, v in ctx.params.items() if ctx.get_parameter_source(k).name != "DEFAULT"}
@@ -99,7 +98,7 @@ def boresight(
         run = calibrate_strips(strips, trajectory, sensor, cfg, accuracy=trajectory_accuracy, control=control,
                                checkpoints=checkpoints, truth=truth, scheduler=scheduler, workers=workers,
                                progress=progress_callback(bar))
-        written = write_run(run, tmp, write_strips=write_strips)
+        written = run.write(tmp, strips=write_strips)
     _print_run(run, out, sorted({p.name for p in written if p.parent == Path(tmp)}), write_strips)
     exit_with_verdict(*run.verdicts.values())  # FAIL: exit 3; the outputs are written (to look at), not to be used
 

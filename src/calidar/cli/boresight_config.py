@@ -52,8 +52,9 @@ def _trajectory(base, given: dict):
                                                                 "--trajectory-correlation (POS_S,ATT_S)"))
     if given.get("trajectory_sigma") is not None:
         if not on:
-            raise InputError(None, "--trajectory-model", "is off, so --trajectory-sigma has nothing to do; expected the "
-                             "trajectory model on (the default) or no --trajectory-sigma")
+            from calidar.pipelines.boresight import OFF_WITH_ACCURACY
+
+            raise InputError(None, "--trajectory-model", OFF_WITH_ACCURACY)
         settings = replace(settings, sigma=parse_sigma(given["trajectory_sigma"]))
     return settings if on else None
 

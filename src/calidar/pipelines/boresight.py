@@ -113,13 +113,17 @@ def resolve_accuracy(trajectory_path: Path, trajectory, accuracy_path: Path | No
         "GNSS/INS — " + SURVEY_GRADE.describe().split(" (")[0] + " — which stays where the data cannot tell")
 
 
+#: the trajectory model off, yet its accuracy given (as a file or a σ)
+OFF_WITH_ACCURACY = ("is off, so --trajectory-accuracy and --trajectory-sigma have nothing to do; expected the "
+                     "trajectory model on (the default) or neither option")
+
+
 def _trajectory_accuracy(trajectory_path: Path, traj, config: StripConfig, accuracy_path: Path | None):
     """(accuracy, its file, notes) as the configuration's trajectory model asks."""
     settings = config.calibration.trajectory
     if settings is None:
         if accuracy_path is not None:
-            raise InputError(None, "--trajectory-model", "is off, so --trajectory-accuracy has nothing to do; expected "
-                             "the trajectory model on (the default) or no accuracy file")
+            raise InputError(None, "--trajectory-model", OFF_WITH_ACCURACY)
         return None, None, ["trajectory model off (--trajectory-model off): the trajectory is taken as exact, so the "
                             "σ miss its errors (ordinary GNSS/INS noise made them 2× too small on simulated surveys)"]
     accuracy, path, note = resolve_accuracy(trajectory_path, traj, accuracy_path, settings.sigma)
@@ -226,6 +230,7 @@ class StripCalibration:
     verdicts: dict[str, Verdict]
     corrected: dict[str, Trajectory | None]  #: matcher name → the corrected trajectory (None: no corrections)
     record: RunRecord
+    written: list[Path] = field(default_factory=list)  #: the files :meth:`write` wrote
 
     @property
     def sensor(self) -> Sensor:
@@ -233,14 +238,17 @@ class StripCalibration:
         version, the solution file and the σ of every estimated value."""
         from calidar.pipelines.boresight_outputs import calibrated_sensor
 
-        return calibrated_sensor(next(iter(self.results.values())), "solution.json")
+        m, result = next(iter(self.results.items()))
+        return calibrated_sensor(result, "solution.json" if len(self.results) == 1 else f"solution_{m}.json")
 
-    def write(self, folder: Path) -> list[Path]:
+    def write(self, folder: Path, strips: bool = False) -> list[Path]:
         """Write the results into ``folder`` (solution.json, sensor.toml, sbet_corrected.out, config.toml,
-        report.html; with several matchers, each file once per matcher: solution_planes.json, ...)."""
+        report.html; with several matchers, each file once per matcher: solution_planes.json, ...);
+        ``strips``: the recalibrated strips too. Returns the files written."""
         from calidar.pipelines.boresight_outputs import write_run
 
-        return write_run(self, Path(folder))
+        self.written = write_run(self, Path(folder), write_strips=strips)
+        return self.written
 
     def __repr__(self) -> str:
         lines = []
@@ -298,7 +306,9 @@ def calibrate_strips(strips, trajectory, sensor, config: StripConfig = StripConf
     with workers_for(scheduler, workers) as work:  # one cluster (or thread pool) for every stage
         inputs = load_inputs(strips, trajectory, sensor, config, accuracy=accuracy, control=control,
                              checkpoints=checkpoints, truth=truth, progress=progress, work=work)
-        record = RunRecord.capture(None, inputs=[*inputs.paths, truth], options=config.to_dict())
+        files = {"trajectory_accuracy": accuracy, "control": control, "checkpoints": checkpoints, "truth": truth}
+        record = RunRecord.capture(None, inputs=[*inputs.paths, truth],
+                                   options={**config.to_dict(), **{k: v for k, v in files.items() if v is not None}})
         release_memory()
         results = calibrate_inputs(inputs, progress, work)
         release_memory()  # the solver's arrays (0.5 GiB at 8.75 M points) back to the system before the quality

@@ -179,7 +179,7 @@ def test_options_given_replace_the_files_settings(tmp_path):
     assert given.ingest.budget_points is None and given.points.crs == "EPSG:32633"
     assert given.points.time_system == "gps_adjusted_standard" and given.ingest.block_cells == 3  # the file's
     assert strip_config(path, {"trajectory_model": "off"}).calibration.trajectory is None
-    with pytest.raises(InputError, match="--trajectory-model: is off, so --trajectory-sigma"):
+    with pytest.raises(InputError, match="--trajectory-model: is off, so --trajectory-accuracy and --trajectory-sigma"):
         strip_config(path, {"trajectory_model": "off", "trajectory_sigma": "0.03,0.002"})
 
 
