@@ -203,7 +203,7 @@ def _fit(c: np.ndarray, d: np.ndarray, g: np.ndarray, e: np.ndarray, blocks: np.
     if jk is not None:  # each σ the larger of the two, the correlation the blocks' (positive definite)
         scale = np.sqrt(np.maximum(np.diag(jk), np.diag(cov)) / np.diag(cov))
         cov = cov * np.outer(scale, scale)
-    varying = _random_effects(aw, aw @ t + r, m, blocks[keep], c[keep], s) if s.random_effects else None
+    varying = _random_effects(aw, aw @ t + r, m, blocks[keep], c[keep], s, cov) if s.random_effects else None
     cov, t = cov[-2:, -2:], t[-2:]  # dx, dy
     if varying is not None:  # the displacement varies along the overlap: its mean, σ with its spread
         t, sd_re = varying
@@ -259,8 +259,18 @@ def groups_along(blocks: np.ndarray, centre: np.ndarray, k: int, across: int = 1
     return group[inv]
 
 
+def _formal(a: np.ndarray, y: np.ndarray, m: np.ndarray, blocks: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Least squares a·t = y with the noise moments ``m`` out: t and its formal covariance (the
+    residuals' variance with a free offset per block counted in the degrees of freedom)."""
+    n_mat = a.T @ a - m.sum(axis=0)
+    t = np.linalg.solve(n_mat, a.T @ y)
+    r = y - a @ t
+    dof = max(len(y) - a.shape[1] - np.unique(blocks).size, 1)
+    return t, np.linalg.inv(n_mat) * (r @ r) / dof
+
+
 def _random_effects(a: np.ndarray, y: np.ndarray, m: np.ndarray, blocks: np.ndarray, centre: np.ndarray,
-                    s: PlanimetricSettings) -> tuple[np.ndarray, np.ndarray] | None:
+                    s: PlanimetricSettings, cov: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
     """dx, dy as the mean of a displacement that varies along the overlap, and their σ: the fit on
     each of ``s.jackknife_groups`` stretches alone (its σ cluster-robust), combined per axis as a
     random-effects meta-analysis (DerSimonian & Laird 1986, Controlled Clinical Trials 7:177–188):
@@ -274,20 +284,22 @@ def _random_effects(a: np.ndarray, y: np.ndarray, m: np.ndarray, blocks: np.ndar
     if s.jackknife_groups < 3:
         return None
     group = groups_along(blocks, centre, s.jackknife_groups, s.groups_across)
+    # a stretch holds a few blocks: its own cluster-robust variance is noisy, and may come out far too
+    # small; never below its formal one times the whole overlap's robust-to-formal ratio
+    ratio = np.maximum(1.0, np.diag(cov)[-2:] / np.diag(_formal(a, y, m, blocks)[1])[-2:])
     est, var = [], []
     for g in range(s.jackknife_groups * s.groups_across):
         rows = group == g
         ag = a[rows]
         if rows.sum() < s.min_cells or np.unique(blocks[rows]).size < 2:
             continue
-        n_mat = ag.T @ ag - m[rows].sum(axis=0)
-        w = np.linalg.eigvalsh(n_mat)
+        w = np.linalg.eigvalsh(ag.T @ ag - m[rows].sum(axis=0))
         if w[0] <= 1e-9 * max(w[-1], 1e-300):
             continue
-        tg = np.linalg.solve(n_mat, ag.T @ y[rows])
+        tg, formal = _formal(ag, y[rows], m[rows], blocks[rows])
         cg, _ = _cluster_cov(ag, y[rows] - ag @ tg, blocks[rows], centre[rows], s.hac_m, m[rows], tg)
         est.append(tg[-2:])
-        var.append(np.diag(cg)[-2:])
+        var.append(np.maximum(np.diag(cg)[-2:], np.diag(formal)[-2:] * ratio))
     if len(est) < 4:
         return None
     return random_effects_mean(np.array(est), np.array(var))

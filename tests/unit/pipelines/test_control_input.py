@@ -72,3 +72,25 @@ def test_two_points_at_one_place_are_named(strip, tmp_path):
     c = read_control(_write(tmp_path, text), None, strip, PointOptions(), SENSOR)
     with pytest.raises(InputError, match="'G2' is at the place of 'G1'"):
         control_points(c, LocalFrame.at(c.ecef))
+
+
+def test_checkpoints_for_the_boresight_need_no_sigma_and_join_the_kept_points(strip, tmp_path):
+    """--checkpoints: σ optional (0: not given), vegetated ones left out of the ground check with a
+    note, their places added to the control's for the ingest; --checkpoints-crs needs the file."""
+    from calidar.pipelines.control import checked_checkpoints, with_checkpoints
+    from calidar.pipelines.strip_source import IngestOptions
+
+    text = f"id,x,y,z,class\nC1,{X0 + 10},{Y0 + 10},400.02,open\nC2,{X0 + 20},{Y0 + 20},400,vegetated\n"
+    options = SimpleNamespace(checkpoints=_write(tmp_path, text), checkpoints_crs=None, points=PointOptions())
+    control = np.array([[1.0, 2.0, 3.0]])
+    ingest, cp = with_checkpoints(options, [strip], SENSOR, IngestOptions(control_ecef=control))
+    assert list(cp.checkpoints.ids) == ["C1"] and cp.checkpoints.sigma_m is None
+    assert "left out of the check against the ground" in cp.notes[0] and "C2" in cp.notes[0]
+    np.testing.assert_allclose(ingest.control_ecef, np.vstack([control, cp.ecef]))
+    frame = LocalFrame.at(cp.ecef)
+    points, notes = checked_checkpoints(cp, frame, ["before"])
+    assert points.sigma_m.tolist() == [0.0] and notes == ["before", *cp.notes]
+    same, none = with_checkpoints(SimpleNamespace(checkpoints=None, checkpoints_crs=None), [strip], SENSOR, ingest)
+    assert none is None and same is ingest
+    with pytest.raises(InputError, match="--checkpoints-crs"):
+        with_checkpoints(SimpleNamespace(checkpoints=None, checkpoints_crs="EPSG:4326"), [strip], SENSOR, ingest)
