@@ -76,17 +76,20 @@ class HeldFiles:
     processes (a copy pickles without them: those read the files)."""
 
     def __init__(self):
+        import shutil
         import tempfile
         import threading
+        import weakref
 
-        self._dir = tempfile.TemporaryDirectory(prefix="calidar-held-")
-        self.points = HeldPoints(Path(self._dir.name))
+        self.folder = Path(tempfile.mkdtemp(prefix="calidar-held-"))
+        self._remove = weakref.finalize(self, shutil.rmtree, self.folder, ignore_errors=True)  # also at exit
+        self.points = HeldPoints(self.folder)
         self.meta: dict = {}  #: path → (LasPoints of no points: CRS, time system…; scales; offsets)
         self.complete: set = set()  #: paths held whole
         self._lock = threading.Lock()
 
     def close(self) -> None:
-        self._dir.cleanup()
+        self._remove()
 
     def add(self, path: Path, chunk, t: np.ndarray, scales, offsets) -> bool:
         """A chunk (LasPoints with STRIP_FIELDS) of ``path`` and its times; False (nothing kept)

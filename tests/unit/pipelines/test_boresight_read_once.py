@@ -53,7 +53,7 @@ def test_each_point_decompressed_once_and_every_output_as_read_twice(survey, mon
     for pairs, pairs_again in zip(stages, stages_again):
         assert [q.to_dict() for q in pairs] == [q.to_dict() for q in pairs_again]
     assert stages[0][0].to_dict() != stages[1][0].to_dict()  # the stages differ: the moved mounting is seen
-    folder = Path(source.held._dir.name)
+    folder = source.held.folder
     assert folder.exists() and source.held.points.nbytes == 25 * sum(source.counts.values())
     source.held.close()
     assert not folder.exists()
