@@ -33,7 +33,7 @@ def test_every_benchmark_command_in_validation_exists():
             assert f'"{option}"' in source, f"docs/validation.md: {script} takes no option {option}"
 
 
-@pytest.mark.parametrize("doc", ["architecture.md", "validation.md", "conventions.md"])
+@pytest.mark.parametrize("doc", ["architecture.md", "strips.md", "validation.md", "conventions.md"])
 def test_every_module_and_test_path_named_exists(doc):
     """Paths like `pipelines/boresight.py` (under src/calidar), `tests/unit/...py`, `benchmarks/...py`."""
     text = (DOCS / doc).read_text(encoding="utf-8")
@@ -69,7 +69,7 @@ def _resolves(name: str) -> bool:
     return False
 
 
-@pytest.mark.parametrize("doc", ["architecture.md", "validation.md", "conventions.md", "sensor.md"])
+@pytest.mark.parametrize("doc", ["architecture.md", "strips.md", "validation.md", "conventions.md", "sensor.md"])
 def test_every_code_name_named_exists(doc):
     """`module.function` names whose first part is a calidar module or package exist in the code."""
     text = (DOCS / doc).read_text(encoding="utf-8")

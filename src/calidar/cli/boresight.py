@@ -80,7 +80,8 @@ def boresight(
         "its settings replace the defaults, options given on the command line replace its settings."),
 ) -> None:
     """Calibrate the mounting (and more) from overlapping strips; writes solution.json, sensor.toml,
-    sbet_corrected.out (the trajectory with its estimated corrections) and report.html.
+    sbet_corrected.out (the trajectory with its estimated corrections), config.toml (this run's settings, for
+    --config) and report.html.
 
     Exit codes: 0 pass or warn, 3 a FAIL verdict (outputs written, not to be used), 1 bad input, 2 usage."""
     from calidar.cli.boresight_config import strip_config

@@ -26,7 +26,7 @@ from calidar.sensor import Sensor
 from calidar.strips.correspond import Correspondences
 from calidar.strips.parameters import sensor_of
 from calidar.strips.strip import Pose, Strip, georeference_pose, position_table
-from calidar.strips.trajectory_errors import StripCorrection, TrajectoryModel, corrections, parse_name
+from calidar.strips.trajectory_errors import StripCorrection, TrajectoryModel, corrections
 
 BORESIGHT = ("boresight_roll", "boresight_pitch", "boresight_yaw")
 LEVER_ARM = ("lever_arm_x", "lever_arm_y", "lever_arm_z")
@@ -232,7 +232,8 @@ class StripProblem:
         two knots per strip and row, so the matrix is returned sparse when they are present);
         central differences when scanner parameters are free. The sparsity pattern is built on
         the first call; later calls only fill in the values."""
-        traj = {p.name: parse_name(p.name) for p in free} if self.trajectory else {}
+        layout = self.trajectory.layout(self.spans) if self.trajectory else {}
+        traj = {p.name: layout.get(p.name) for p in free}
         if self.centroids is None:
             return numerical_jacobian(self, ParameterSet(replace(p, value=values[p.name]) for p in free),
                                       np.array([values[p.name] for p in free]))

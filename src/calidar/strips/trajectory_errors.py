@@ -31,6 +31,7 @@ import re
 from collections.abc import Mapping
 from dataclasses import dataclass
 from functools import lru_cache
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit
@@ -44,6 +45,36 @@ from calidar.trajectory_accuracy import TrajectoryAccuracy, tilt_sigma
 AXES = ("east", "north", "up")
 PREFIX = "trajectory_"  #: every trajectory-correction parameter's name starts so (nuisance parameters)
 _NAME = re.compile(r"trajectory_(bias|tilt)_(east|north|up)_(\d+)(?:_(\d+))?$")
+
+
+class Knot(NamedTuple):
+    """The block a trajectory parameter belongs to: a shift ("bias") or a rotation ("tilt") about
+    one axis (0..2: east, north, up) of one strip at one knot."""
+
+    kind: str
+    axis: int
+    strip: int
+    knot: int
+
+
+def _n_knots(block_s: float | None, t_min: float, t_max: float) -> int:
+    return 1 if block_s is None else max(1, math.ceil((t_max - t_min) / block_s)) + 1
+
+
+@lru_cache(maxsize=64)
+def _layout(block_s: float | None, priors: bool, attitude: bool,
+            spans: tuple[tuple[int, tuple[float, float]], ...]) -> dict[str, Knot]:
+    """:meth:`TrajectoryModel.layout` for the model's knots and the strips' spans (sorted by id)."""
+    ids = [i for i, _ in spans]
+    if not priors:  # free whole-strip shifts, the first strip the datum
+        return {f"{PREFIX}bias_{ax}_{i}": Knot("bias", a, i, 0) for i in ids[1:] for a, ax in enumerate(AXES)}
+    out = {}
+    for i, span in spans:
+        for k in range(_n_knots(block_s, *span)):
+            suffix = f"{i}" if block_s is None else f"{i}_{k}"
+            for kind in ("bias", "tilt") if attitude else ("bias",):
+                out.update({f"{PREFIX}{kind}_{ax}_{suffix}": Knot(kind, a, i, k) for a, ax in enumerate(AXES)})
+    return out
 
 
 @dataclass(frozen=True)
@@ -94,7 +125,12 @@ class TrajectoryModel:
 
     def n_knots(self, t_min: float, t_max: float) -> int:
         """Knots of a strip spanning [t_min, t_max] s: t_min, t_min + block_s, … up to ≥ t_max."""
-        return 1 if self.block_s is None else max(1, math.ceil((t_max - t_min) / self.block_s)) + 1
+        return _n_knots(self.block_s, t_min, t_max)
+
+    def layout(self, spans: Mapping[int, tuple[float, float]]) -> dict[str, Knot]:
+        """Every trajectory parameter of strips with time spans {id: (t_min, t_max)} s, by the name
+        :meth:`parameters` gives it → its :class:`Knot` (shared: not to be changed)."""
+        return _layout(self.block_s, self.has_priors, self.has_attitude, tuple(sorted(spans.items())))
 
     def correlation(self, n: int, kind: str = "bias") -> np.ndarray:
         """Prior correlation (n, n) of a strip's n knots along one axis, for shifts (``kind``
@@ -203,11 +239,12 @@ def corrections(values: Mapping[str, float], model: TrajectoryModel | None,
     if model is None:
         return {}
     out: dict[int, StripCorrection] = {}
+    layout = model.layout(spans)
     for name, v in values.items():
-        parsed = parse_name(name)
-        if parsed is None:
+        knot = layout.get(name)
+        if knot is None:
             continue
-        kind, ax, sid, k = parsed
+        kind, ax, sid, k = knot
         if sid not in out:
             n = model.n_knots(*spans[sid])
             out[sid] = StripCorrection(spans[sid][0], model.block_s, np.zeros((n, 3)), np.zeros((n, 3)))

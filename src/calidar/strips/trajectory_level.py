@@ -20,13 +20,14 @@ that good is as good as exact for the calibration).
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, replace
 
 import numpy as np
 
 from calidar.adjust.variance_components import OBSERVATIONS, Components, estimate_components, normal_terms, split_blocks
 from calidar.errors import CalibrationError
-from calidar.strips.trajectory_errors import parse_name
+from calidar.strips.trajectory_errors import Knot
 from calidar.trajectory_accuracy import TrajectoryAccuracy
 
 GROUPS = ("position_horizontal", "position_vertical", "attitude_horizontal", "heading")
@@ -38,12 +39,11 @@ FLOOR_FACTOR = 0.01
 SOURCE = "estimated from the overlaps (variance components of the trajectory priors)"
 
 
-def group_of(name: str) -> str | None:
-    """The group (:data:`GROUPS`) of a trajectory parameter's name; None for other parameters."""
-    parsed = parse_name(name)
-    if parsed is None:
+def group_of(knot: Knot | None) -> str | None:
+    """The group (:data:`GROUPS`) of a trajectory parameter's knot; None for other parameters."""
+    if knot is None:
         return None
-    kind, axis = parsed[0], parsed[1]
+    kind, axis = knot.kind, knot.axis
     if kind == "bias":
         return GROUPS[0] if axis < 2 else GROUPS[1]
     return GROUPS[2] if axis < 2 else GROUPS[3]
@@ -92,12 +92,12 @@ class TrajectoryLevel:
                            for g, ok in self.estimated.items()}}
 
 
-def estimate_level(est, base: TrajectoryAccuracy) -> TrajectoryLevel:
+def estimate_level(est, base: TrajectoryAccuracy, layout: Mapping[str, Knot]) -> TrajectoryLevel:
     """The trajectory's level from an adjustment ``est`` (a :class:`calidar.adjust.solver.Estimate`
-    whose trajectory priors came from ``base``): groups with redundancy below
+    whose trajectory priors came from ``base``, its trajectory parameters' knots by name ``layout``): groups with redundancy below
     :data:`MIN_REDUNDANCY` are held at their stated σ and the others estimated again without them."""
     terms = normal_terms(est)
-    blocks = split_blocks(est.fit.priors, [group_of(p.name) for p in est.fit.free])
+    blocks = split_blocks(est.fit.priors, [group_of(layout.get(p.name)) for p in est.fit.free])
     present = [g for g in GROUPS if any(b.group == g for b in blocks)]
     fixed = ["other"]
     while True:  # tol: 1 % in variance, ½ % in σ — well inside the factors' own ±1/√(2rₖ)

@@ -112,3 +112,16 @@ def test_corrected_trajectory_moves_points_as_the_corrections_do():
     # records away from the strip are untouched
     far = (traj.time < t0 - 0.015) | (traj.time > t1 + 0.015)  # beyond the bracketing records
     assert far.any() and np.array_equal(traj.lat[far], strip.trajectory.lat[far])
+
+
+@pytest.mark.parametrize("model", [TrajectoryModel(), TrajectoryModel(None, 0.03), TrajectoryModel(2.0, 0.03),
+                                   TrajectoryModel(1.0, 0.03, 1e-5, 20.0, 3.5)], ids=["free", "constant", "knots", "tilts"])
+def test_the_layout_addresses_every_parameter_by_its_block(model):
+    """TrajectoryModel.layout: each parameter :meth:`parameters` makes, by name → its typed Knot
+    (kind, axis, strip, knot), the block the calibration addresses it by (issue 29: no name parsed)."""
+    spans = {3: (100.0, 107.5), 1: (50.0, 52.0), 9: (0.0, 0.5)}
+    names = [p.name for p in model.parameters(spans)]
+    layout = model.layout(spans)
+    assert sorted(layout) == sorted(names) and len(names) == len(set(names))
+    assert all(parse_name(n) == tuple(k) for n, k in layout.items())  # the names say the same
+    assert {k.strip for k in layout.values()} == ({3, 9} if not model.has_priors else {1, 3, 9})
