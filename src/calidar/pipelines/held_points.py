@@ -106,7 +106,8 @@ class HeldFiles:
         if not np.array_equal(back, xyz):
             return False
         with self._lock:
-            self.meta.setdefault(path, (replace(chunk.select(slice(0, 0)), **dict.fromkeys(OPTIONAL_FIELDS)),
+            # no points (copies, not views: a view would keep the chunk's buffers for the run)
+            self.meta.setdefault(path, (replace(chunk.select(np.zeros(0, np.int64)), **dict.fromkeys(OPTIONAL_FIELDS)),
                                         np.asarray(scales), np.asarray(offsets)))
         self.points.add(path, X=stored[:, 0], Y=stored[:, 1], Z=stored[:, 2], t=np.asarray(t, float),
                         **{f: np.asarray(getattr(chunk, f)) for f in STRIP_FIELDS})
