@@ -76,13 +76,16 @@ class HeldFiles:
     processes (a copy pickles without them: those read the files)."""
 
     def __init__(self):
-        import shutil
         import tempfile
         import threading
         import weakref
 
-        self.folder = Path(tempfile.mkdtemp(prefix="calidar-held-"))
-        self._remove = weakref.finalize(self, shutil.rmtree, self.folder, ignore_errors=True)  # also at exit
+        from calidar import outputs
+
+        # registered as the run's temporaries are: removed by outputs.remove_temporaries (an interrupted
+        # command ending while reader threads still hold this) as well as when it goes or at exit
+        self.folder = outputs._temporary(lambda: Path(tempfile.mkdtemp(prefix="calidar-held-")), "held points")
+        self._remove = weakref.finalize(self, _remove_folder, str(self.folder))
         self.points = HeldPoints(self.folder)
         self.meta: dict = {}  #: path → (LasPoints of no points: CRS, time system…; scales; offsets)
         self.complete: set = set()  #: paths held whole
@@ -136,3 +139,13 @@ class HeldFiles:
 
     def __getstate__(self):
         raise TypeError("held points stay in their process")
+
+
+def _remove_folder(folder: str) -> None:
+    """A held folder removed and no longer registered as a temporary."""
+    import shutil
+
+    from calidar import outputs
+
+    shutil.rmtree(folder, ignore_errors=True)
+    outputs._TEMPORARIES.pop(folder, None)

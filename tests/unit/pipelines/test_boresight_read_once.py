@@ -70,3 +70,20 @@ def test_spans_off_the_chunks_and_other_fields_are_read_from_the_file(survey):
     assert len(whole) == len(read) == 2
     for (x, t), (y, u) in zip(whole, read):
         assert np.array_equal(x, y) and np.array_equal(t, u)
+
+
+def test_held_folder_is_a_registered_temporary():
+    """Removed with its object, and by outputs.remove_temporaries (a command ending while reader
+    threads still hold it: the CLI's os._exit runs no finalizer)."""
+    from calidar import outputs
+    from calidar.pipelines.held_points import HeldFiles
+
+    held = HeldFiles()
+    (held.folder / "held_0.bin").write_bytes(b"0" * 10)
+    assert str(held.folder) in outputs._TEMPORARIES
+    outputs.remove_temporaries()
+    assert not held.folder.exists()
+    again = HeldFiles()
+    folder = again.folder
+    del again
+    assert not folder.exists() and str(folder) not in outputs._TEMPORARIES
