@@ -8,9 +8,10 @@ simulated once under ``--cache``, not timed). Each run is a whole child process,
 with the floor in one loop (floor, then each command, ``--runs`` times), so a comparison holds
 when the shared machine's speed drifts: the floor is laspy + lazrs decompressing every field of
 every file (chunks of 2 M points, laspy's default parallel LAZ backend, as calidar reads);
-``quality`` is ``calidar quality`` of the strips (:func:`calidar.pipelines.quality.measure`);
-``planes`` / ``vgicp`` the whole ``calidar boresight`` run (ingest, calibration, the three
-overlap-quality stages, report, outputs). Printed per command: the median wall and CPU time,
+``quality`` is ``python -m calidar quality STRIPS --out`` and ``planes`` / ``vgicp`` ``python -m
+calidar boresight STRIPS --trajectory --sensor --method --out`` (ingest, calibration, the three
+overlap-quality stages, report, outputs), whole commands as a user runs them, so that another
+version's (``--baseline``) run the same way. Printed per command: the median wall and CPU time,
 the median of each run's ratio to the floor run just before it, the peak RSS (``os.wait4``) and
 the load average at each run.
 """
@@ -29,53 +30,46 @@ from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from strips_scale import simulate  # noqa: E402  (the shared 8-strip survey at a size)
 
 
-def child(sim: Path, what: str) -> None:
-    """One run: ``what`` = "read" (the floor), "quality" or a boresight method."""
-    strips = sorted((sim / "strips").glob("*.laz"))
+def child(sim: Path) -> None:
+    """The floor: laspy + lazrs decompressing every field of every file (a JSON line: the points)."""
+    import laspy
+
+    n = 0
+    for path in sorted((sim / "strips").glob("*.laz")):
+        with laspy.open(path) as reader:
+            for rec in reader.chunk_iterator(2_000_000):
+                n += len(rec)
+    print(json.dumps({"points": n}))
+
+
+def command(sim: Path, what: str, out: Path) -> list[str]:
+    """The child's command line: the floor, or the ``calidar`` command as a user runs it."""
+    strips = [str(p) for p in sorted((sim / "strips").glob("*.laz"))]
     if what == "read":
-        import laspy
-
-        n = 0
-        for path in strips:
-            with laspy.open(path) as reader:
-                for rec in reader.chunk_iterator(2_000_000):
-                    n += len(rec)
-        print(json.dumps({"points": n}))
-        return
+        return [sys.executable, __file__, "--child", str(sim)]
     if what == "quality":
-        from calidar.pipelines.quality import measure
-
-        _, _, pairs, _, _, _ = measure(strips)
-        print(json.dumps({"pairs": len(pairs), "dz": [q.median_dz_m for q in pairs]}))
-        return
-    from calidar.pipelines.boresight import BoresightOptions, run_boresight
-
-    with tempfile.TemporaryDirectory() as out:
-        run = run_boresight(strips, sim / "sbet.out", sim / "sensor.toml", Path(out),
-                            BoresightOptions(methods=(what,), truth=sim / "truth.json"))
-    sol = run.results[what].solution
-    print(json.dumps({"values": {k: sol.values[k] for k in sol.values if k.startswith("boresight")},
-                      "sigma": {k: sol.sigma[k] for k in sol.sigma if k.startswith("boresight")}}))
+        return [sys.executable, "-m", "calidar", "quality", *strips, "--out", str(out), "--force"]
+    return [sys.executable, "-m", "calidar", "boresight", *strips, "--trajectory", str(sim / "sbet.out"), "--sensor",
+            str(sim / "sensor.toml"), "--method", what, "--out", str(out), "--force"]
 
 
 def run(sim: Path, what: str, src: Path | None = None) -> dict:
     """A child run (importing calidar from ``src``, default this checkout's): wall and CPU
-    seconds, peak RSS (GiB), the load average before it, its JSON."""
+    seconds, peak RSS (GiB), the load average before it."""
     env = {**os.environ, "PYTHONPATH": str(src or Path(__file__).resolve().parents[1] / "src")}
     load = os.getloadavg()[0]
-    t = time.perf_counter()
-    proc = subprocess.Popen([sys.executable, __file__, "--child", str(sim), what], env=env, stdout=subprocess.PIPE,
-                            text=True)
-    out = proc.stdout.read()
-    _, status, usage = os.wait4(proc.pid, 0)
-    if os.waitstatus_to_exitcode(status):
+    with tempfile.TemporaryDirectory() as out:
+        t = time.perf_counter()
+        proc = subprocess.Popen(command(sim, what, Path(out) / "out"), env=env, stdout=subprocess.PIPE, text=True)
+        text = proc.stdout.read()
+        _, status, usage = os.wait4(proc.pid, 0)
+        wall = time.perf_counter() - t
+    if os.waitstatus_to_exitcode(status) not in (0, 3):  # 3: a FAIL verdict, outputs written
         raise SystemExit(f"run failed: {sim} {what}")
-    return {"wall_s": time.perf_counter() - t, "cpu_s": usage.ru_utime + usage.ru_stime,
-            "rss_gib": usage.ru_maxrss * 1024 / 2**30, "load": load, "out": json.loads(out.strip().splitlines()[-1])}
+    return {"wall_s": wall, "cpu_s": usage.ru_utime + usage.ru_stime, "rss_gib": usage.ru_maxrss * 1024 / 2**30,
+            "load": load, "out": json.loads(text.strip().splitlines()[-1]) if what == "read" else None}
 
 
 def _which(label: str, baseline: Path | None) -> tuple[str, Path | None]:
@@ -92,10 +86,13 @@ def main() -> None:
     ap.add_argument("--cache", type=Path, default=Path(tempfile.gettempdir()) / "calidar_bench_strips_scale")
     ap.add_argument("--baseline", type=Path, help="another calidar source tree (e.g. main's src/): its runs "
                     "interleaved too, labelled @base")
-    ap.add_argument("--child", nargs=2, help=argparse.SUPPRESS)
+    ap.add_argument("--child", help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.child:
-        return child(Path(args.child[0]), args.child[1])
+        return child(Path(args.child))
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    from strips_scale import simulate  # the shared 8-strip survey at a size
+
     sim = simulate(args.cache, args.size)
     what = args.what.split(",")
     if args.baseline:

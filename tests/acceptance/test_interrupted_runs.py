@@ -44,7 +44,9 @@ def _interrupt(corpus, tmp_path, signum, writing: bool, command: str = "boresigh
     """Start a run, signal it once its temporary folder exists (``writing``: once the first result
     is written into it) and return (exit code, stderr); None when the run finished first."""
     out = tmp_path / "out"
-    env = {**os.environ, "NUMBA_NUM_THREADS": "1", "OMP_NUM_THREADS": "1"}
+    system_tmp = tmp_path.parent / f"{tmp_path.name}_tmp"  # the run's TMPDIR: held points go there (issue 32)
+    system_tmp.mkdir(exist_ok=True)
+    env = {**os.environ, "NUMBA_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "TMPDIR": str(system_tmp)}
     proc = subprocess.Popen([sys.executable, "-m", "calidar", *_command(corpus, out, command)],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
     deadline = time.monotonic() + 120
@@ -84,6 +86,7 @@ def test_interrupted_run_leaves_nothing(corpus, tmp_path, signum, command, writi
     assert code == 128 + signum, err
     assert err.strip() == "interrupted" + (" (SIGTERM)" if signum == signal.SIGTERM else "")
     assert list(tmp_path.iterdir()) == []  # no temporary folder, no partial result
+    assert list(tmp_path.parent.glob(f"{tmp_path.name}_tmp/calidar-*")) == []  # nor in the system's temporary folder
 
 
 def test_failed_boresight_leaves_nothing_or_the_previous_result(corpus, cli, tmp_path):

@@ -173,6 +173,10 @@ def _exit(code: int) -> None:
     if any(t.is_alive() for t in threading.enumerate() if t is not threading.main_thread()):
         import logging
 
+        from calidar.outputs import remove_temporaries
+
+        remove_temporaries()  # what threads still held (e.g. pipelines.held_points): atexit will not run
+
         logging.shutdown()
         for stream in (sys.stdout, sys.stderr):
             try:

@@ -78,15 +78,21 @@ class HeldFiles:
     def __init__(self):
         import tempfile
         import threading
+        import weakref
 
-        self._dir = tempfile.TemporaryDirectory(prefix="calidar-held-")
-        self.points = HeldPoints(Path(self._dir.name))
+        from calidar import outputs
+
+        # registered as the run's temporaries are: removed by outputs.remove_temporaries (an interrupted
+        # command ending while reader threads still hold this) as well as when it goes or at exit
+        self.folder = outputs._temporary(lambda: Path(tempfile.mkdtemp(prefix="calidar-held-")), "held points")
+        self._remove = weakref.finalize(self, _remove_folder, str(self.folder))
+        self.points = HeldPoints(self.folder)
         self.meta: dict = {}  #: path → (LasPoints of no points: CRS, time system…; scales; offsets)
         self.complete: set = set()  #: paths held whole
         self._lock = threading.Lock()
 
     def close(self) -> None:
-        self._dir.cleanup()
+        self._remove()
 
     def add(self, path: Path, chunk, t: np.ndarray, scales, offsets) -> bool:
         """A chunk (LasPoints with STRIP_FIELDS) of ``path`` and its times; False (nothing kept)
@@ -103,7 +109,8 @@ class HeldFiles:
         if not np.array_equal(back, xyz):
             return False
         with self._lock:
-            self.meta.setdefault(path, (replace(chunk.select(slice(0, 0)), **dict.fromkeys(OPTIONAL_FIELDS)),
+            # no points (copies, not views: a view would keep the chunk's buffers for the run)
+            self.meta.setdefault(path, (replace(chunk.select(np.zeros(0, np.int64)), **dict.fromkeys(OPTIONAL_FIELDS)),
                                         np.asarray(scales), np.asarray(offsets)))
         self.points.add(path, X=stored[:, 0], Y=stored[:, 1], Z=stored[:, 2], t=np.asarray(t, float),
                         **{f: np.asarray(getattr(chunk, f)) for f in STRIP_FIELDS})
@@ -132,3 +139,13 @@ class HeldFiles:
 
     def __getstate__(self):
         raise TypeError("held points stay in their process")
+
+
+def _remove_folder(folder: str) -> None:
+    """A held folder removed and no longer registered as a temporary."""
+    import shutil
+
+    from calidar import outputs
+
+    shutil.rmtree(folder, ignore_errors=True)
+    outputs._TEMPORARIES.pop(folder, None)

@@ -53,7 +53,7 @@ def test_each_point_decompressed_once_and_every_output_as_read_twice(survey, mon
     for pairs, pairs_again in zip(stages, stages_again):
         assert [q.to_dict() for q in pairs] == [q.to_dict() for q in pairs_again]
     assert stages[0][0].to_dict() != stages[1][0].to_dict()  # the stages differ: the moved mounting is seen
-    folder = Path(source.held._dir.name)
+    folder = source.held.folder
     assert folder.exists() and source.held.points.nbytes == 25 * sum(source.counts.values())
     source.held.close()
     assert not folder.exists()
@@ -70,3 +70,20 @@ def test_spans_off_the_chunks_and_other_fields_are_read_from_the_file(survey):
     assert len(whole) == len(read) == 2
     for (x, t), (y, u) in zip(whole, read):
         assert np.array_equal(x, y) and np.array_equal(t, u)
+
+
+def test_held_folder_is_a_registered_temporary():
+    """Removed with its object, and by outputs.remove_temporaries (a command ending while reader
+    threads still hold it: the CLI's os._exit runs no finalizer)."""
+    from calidar import outputs
+    from calidar.pipelines.held_points import HeldFiles
+
+    held = HeldFiles()
+    (held.folder / "held_0.bin").write_bytes(b"0" * 10)
+    assert str(held.folder) in outputs._TEMPORARIES
+    outputs.remove_temporaries()
+    assert not held.folder.exists()
+    again = HeldFiles()
+    folder = again.folder
+    del again
+    assert not folder.exists() and str(folder) not in outputs._TEMPORARIES
