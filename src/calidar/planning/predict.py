@@ -27,7 +27,7 @@ from calidar.strips.config import Estimate
 from calidar.strips.parameters import build_parameters
 from calidar.strips.planes import PlaneSettings
 from calidar.strips.problem import StripProblem
-from calidar.strips.trajectory_errors import TrajectoryModel, parse_name
+from calidar.strips.trajectory_errors import TrajectoryModel
 from calidar.strips.verdict import CORRELATION_LIMIT, GROUND_LIMIT_M, LENGTH_LIMIT_M
 
 #: |ρ| above which a plan cannot separate two parameters (it is called poor)
@@ -163,7 +163,8 @@ def sensor_covariance(nominal, poses: dict, times: dict, corrs: list, spans: dic
     groups = settings.trajectory.prior_correlation(spans)
     P = _prior_precision(free, groups)
     N = JWJ + P
-    sensor = np.array([k for k, p in enumerate(free) if parse_name(p.name) is None])
+    layout = settings.trajectory.layout(spans)
+    sensor = np.array([k for k, p in enumerate(free) if p.name not in layout])
     cov, X = _sensor_covariance(N, sensor)
     if (settings.true_smoothing_s is not None or row_noise is not None) and np.all(np.isfinite(cov)):
         # the estimate is N⁻¹JᵀWy; with row errors ε of covariance Σ and trajectory errors e of covariance C

@@ -214,11 +214,11 @@ def vertical_shift(result) -> tuple[float, float, float] | None:
     a = 1/K on the K "up" shift parameters) and its σ from the trajectory priors alone (aᵀ P a, P the priors' Gauss–Markov covariance); None without
     trajectory corrections. The overlaps see only differences between strips: this average (a
     vertical trajectory bias) is fixed by the priors alone unless ground control observes it."""
-    from calidar.strips.trajectory_errors import parse_name
-
     solution = result.solution
     free = solution.parameters.free_names
-    up = [j for j, n in enumerate(free) if (p := parse_name(n)) is not None and p[0] == "bias" and p[1] == 2]
+    model = getattr(result, "trajectory_model", None)
+    layout = {} if model is None else model.layout({st.id: st.time_span for st in result.strips})
+    up = [j for j, n in enumerate(free) if (k := layout.get(n)) is not None and k.kind == "bias" and k.axis == 2]
     if not up:
         return None
     a = np.zeros(len(free))
@@ -226,7 +226,6 @@ def vertical_shift(result) -> tuple[float, float, float] | None:
     values = np.array([solution.values[n] for n in free])
     prior = {p.name: (p.prior_sigma or 0.0) / len(up) for p in solution.parameters.free if p.name in {free[j] for j in up}}
     var_prior = 0.0
-    model = getattr(result, "trajectory_model", None)
     groups = [] if model is None else model.prior_correlation({st.id: st.time_span for st in result.strips})
     for names, R in groups:
         if names[0] in prior and all(n in prior for n in names):

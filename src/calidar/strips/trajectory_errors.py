@@ -27,7 +27,6 @@ strip is the datum: a strip-wise GNSS offset of unknown size.
 from __future__ import annotations
 
 import math
-import re
 from collections.abc import Mapping
 from dataclasses import dataclass
 from functools import lru_cache
@@ -44,7 +43,6 @@ from calidar.trajectory_accuracy import TrajectoryAccuracy, tilt_sigma
 
 AXES = ("east", "north", "up")
 PREFIX = "trajectory_"  #: every trajectory-correction parameter's name starts so (nuisance parameters)
-_NAME = re.compile(r"trajectory_(bias|tilt)_(east|north|up)_(\d+)(?:_(\d+))?$")
 
 
 class Knot(NamedTuple):
@@ -224,13 +222,6 @@ def _apply_kernel(points, origin, weight, k0, k1, f, shift, tilt):  # pragma: no
         out[i, 1] = points[i, 1] + weight[i] * s[1] + w[2] * d[0] - w[0] * d[2]
         out[i, 2] = points[i, 2] + weight[i] * s[2] + w[0] * d[1] - w[1] * d[0]
     return out
-
-
-@lru_cache(maxsize=1 << 16)  # every residual evaluation parses every name
-def parse_name(name: str) -> tuple[str, int, int, int] | None:
-    """A trajectory parameter's name → (kind "bias" | "tilt", axis 0..2, strip id, knot); None otherwise."""
-    m = _NAME.match(name)
-    return None if m is None else (m.group(1), AXES.index(m.group(2)), int(m.group(3)), int(m.group(4) or 0))
 
 
 def corrections(values: Mapping[str, float], model: TrajectoryModel | None,

@@ -21,10 +21,9 @@ from calidar.strips.planes import PlaneSettings
 from calidar.strips.vgicp import VgicpSettings
 
 SRC = Path(__file__).resolve().parents[3] / "src" / "calidar"
-#: modules that still parse names with a regular expression, each with its issue (the set only shrinks):
-#: trajectory_errors.parse_name, kept for strips/control.py (the calibration itself addresses the knots by
-#: TrajectoryModel.layout, typed blocks; issue 29)
-REGEX_ALLOWANCE = {"strips/trajectory_errors.py"}
+#: modules that still parse names with a regular expression, each with its issue (the set only shrinks;
+#: empty since the trajectory knots are addressed by TrajectoryModel.layout everywhere, issue 29)
+REGEX_ALLOWANCE: set[str] = set()
 
 
 def _library_modules():
