@@ -304,17 +304,13 @@ def test_both_methods_run_and_are_compared_in_the_report(cli, tmp_path):
 
 
 @pytest.mark.slow
-def test_uav_walls_right_with_the_default_and_a_wrong_option_fails_with_exit_3(cli, tmp_path, monkeypatch):
+def test_uav_walls_right_with_the_default_and_a_wrong_option_fails_with_exit_3(cli, tmp_path):
     """Issue 26's survey (`calidar simulate survey --preset uav --seed 7 --boresight-error 0.05,-0.03,0.1
     --directions cross`): its walls are crossed by single scan lines, whose 12 points gave VGICP rows
     with any normal about the line. With the default (neighbourhoods must span a plane) every VGICP
     angle is within 3σ and 0.01° of the truth (measured: 1.4/0.2/1.5σ) and the two methods agree; fed
     the old option (min_spread 0: lines kept) VGICP's yaw was 8.9 combined σ off the tie planes':
     the verdict FAILs naming the disagreement and `calidar boresight` exits 3."""
-    import functools
-
-    import calidar.strips.vgicp
-
     cfg = survey_config("uav", seed=7, directions="cross", errors={
         "boresight_roll": np.radians(0.05), "boresight_pitch": np.radians(-0.03), "boresight_yaw": np.radians(0.1)})
     sim = simulate_survey(cfg).write(tmp_path / "sim")
@@ -328,9 +324,9 @@ def test_uav_walls_right_with_the_default_and_a_wrong_option_fails_with_exit_3(c
     found = {f["check"]: f for f in docs["vgicp"]["verdict"]["findings"]}
     assert found["planes and vgicp agree"]["status"] == "pass" and code in (0, 3)
     assert (code == 3) == any(d["verdict"]["status"] == "fail" for d in docs.values())
-    old = functools.partial(VgicpSettings, min_spread=0.0)  # the wrong option: neighbourhoods along a line kept
-    monkeypatch.setattr(calidar.strips.vgicp, "VgicpSettings", old)
-    code, stdout, err = cli("boresight", *args, "--out", tmp_path / "wrong")
+    wrong = tmp_path / "wrong.toml"  # the wrong option, as a user would give it: neighbourhoods along a line kept
+    wrong.write_text('method = ["planes", "vgicp"]\n\n[vgicp]\nmin_spread = 0.0\n')
+    code, stdout, err = cli("boresight", *args, "--config", wrong, "--out", tmp_path / "wrong")
     assert code == 3, err
     doc = json.loads((tmp_path / "wrong" / "solution_vgicp.json").read_text())
     found = {f["check"]: f for f in doc["verdict"]["findings"]}

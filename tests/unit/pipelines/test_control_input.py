@@ -4,6 +4,7 @@ note, another CRS transformed, clear errors naming the file and the field."""
 
 from __future__ import annotations
 
+from dataclasses import replace
 from types import SimpleNamespace
 
 import numpy as np
@@ -81,16 +82,20 @@ def test_checkpoints_for_the_boresight_need_no_sigma_and_join_the_kept_points(st
     from calidar.pipelines.strip_source import IngestOptions
 
     text = f"id,x,y,z,class\nC1,{X0 + 10},{Y0 + 10},400.02,open\nC2,{X0 + 20},{Y0 + 20},400,vegetated\n"
-    options = SimpleNamespace(checkpoints=_write(tmp_path, text), checkpoints_crs=None, points=PointOptions())
+    from calidar.pipelines.strip_config import StripConfig
+
+    config = StripConfig()
     control = np.array([[1.0, 2.0, 3.0]])
-    ingest, cp = with_checkpoints(options, [strip], SENSOR, IngestOptions(control_ecef=control))
+    ingest, cp = with_checkpoints(_write(tmp_path, text), config, [strip], SENSOR, IngestOptions(control_ecef=control))
     assert list(cp.checkpoints.ids) == ["C1"] and cp.checkpoints.sigma_m is None
     assert "left out of the check against the ground" in cp.notes[0] and "C2" in cp.notes[0]
     np.testing.assert_allclose(ingest.control_ecef, np.vstack([control, cp.ecef]))
     frame = LocalFrame.at(cp.ecef)
     points, notes = checked_checkpoints(cp, frame, ["before"])
     assert points.sigma_m.tolist() == [0.0] and notes == ["before", *cp.notes]
-    same, none = with_checkpoints(SimpleNamespace(checkpoints=None, checkpoints_crs=None), [strip], SENSOR, ingest)
+    same, none = with_checkpoints(None, config, [strip], SENSOR, ingest)
     assert none is None and same is ingest
     with pytest.raises(InputError, match="--checkpoints-crs"):
-        with_checkpoints(SimpleNamespace(checkpoints=None, checkpoints_crs="EPSG:4326"), [strip], SENSOR, ingest)
+        with_checkpoints(None, replace(config, checkpoints_crs="EPSG:4326"), [strip], SENSOR, ingest)
+    with pytest.raises(InputError, match="--class"):
+        with_checkpoints(None, replace(config, checkpoint_class_cm=5.0), [strip], SENSOR, ingest)
