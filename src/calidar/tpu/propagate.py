@@ -50,7 +50,8 @@ CALIBRATION_STEPS = {"rad": 1e-6, "m": 1e-4, "1": 1e-7, "ppm": 1e-7}
 @dataclass(frozen=True)
 class TpuSettings:
     """The sensor's own noise, in SI: range σ (m), encoder angle σ (rad), beam divergence (rad, full
-    angle; 0 leaves the footprint out) and the cell (m) of the local surfaces (:func:`surface_normals`)."""
+    angle; 0 leaves the footprint out) and the cell (m) of local surfaces (:func:`surface_normals`; the
+    footprint term needs no normal since it is across the beam only: :func:`_footprint`)."""
 
     range_sigma_m: float = 0.01
     angle_sigma_rad: float = float(np.radians(0.002))
