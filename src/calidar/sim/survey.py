@@ -1,12 +1,12 @@
 """Simulate a lidar survey with a known truth and deliver it as a real system would.
 
-The *true* sensor (nominal + the requested errors) shoots rays from the *true* trajectory
-(plus range and beam-angle noise, and the beam's divergence: ``calidar.sim.shots``) into the
-scene; the instrument records GPS time, measured range and encoder angle. The GNSS/INS delivers a *measured* trajectory (true +
-smooth position/attitude errors, optionally per-strip biases and drifts), written as the
-SBET. Delivered points are georeferenced from those records with the *nominal* sensor and
-the measured trajectory (:func:`calidar.georef.forward`), so every error the user asks
-for shows in the strips exactly as it would in real data. Example: :func:`simulate_survey`.
+The *true* sensor (nominal + the requested errors) shoots rays from the *true* trajectory (plus
+range and beam-angle noise, and the beam's divergence: ``calidar.sim.shots``) into the scene; the
+instrument records GPS time, measured range and encoder angle. The GNSS/INS delivers a *measured*
+trajectory (true + smooth position/attitude errors, optionally per-strip biases and drifts), written
+as the SBET. Delivered points are georeferenced from those records with the *nominal* sensor and the
+measured trajectory (:func:`calidar.georef.forward`), so every error the user asks for shows in the
+strips exactly as it would in real data. Example: :func:`simulate_survey`.
 """
 
 from __future__ import annotations
