@@ -31,12 +31,13 @@ def test_same_seed_same_bytes(cli, tmp_path):
 def test_cli_options_reach_the_simulation(cli, tmp_path):
     code, out, err = cli("simulate", "survey", "--out", tmp_path, "--density", "0.01", "--directions", "cross",
                          "--lever-arm-error", "0.1,0,-0.2", "--range-offset", "0.07", "--range-noise", "0.004",
-                         "--vegetation", "0", "--strip-errors", "0.05,0.001,0.01,0.0005")
+                         "--vegetation", "0", "--strip-errors", "0.05,0.001,0.01,0.0005", "--beam-divergence", "0.5")
     assert code == 0, err
     truth = json.loads((tmp_path / "truth.json").read_text())
     assert truth["parameters"]["lever_arm_x"]["value"] - truth["parameters"]["lever_arm_x"]["nominal"] == pytest.approx(0.1)
     assert truth["parameters"]["range_offset"]["value"] == pytest.approx(0.07)
     assert truth["noise"]["range_m"] == 0.004 and truth["simulation"]["directions"] == "cross"
+    assert truth["noise"]["beam_divergence_mrad"] == pytest.approx(0.5)
     assert len(truth["strips"]) == 6 and all(abs(s["attitude_bias_deg"][0]) > 0 for s in truth["strips"])
     strips = sorted((tmp_path / "strips").iterdir())
     assert len(strips) == 6  # four parallel lines and two cross lines

@@ -21,6 +21,9 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
         lever_arm_error: str = typer.Option("0,0,0", "--lever-arm-error", help="True − nominal lever arm X,Y,Z in metres (body frame)."),
         range_offset: float = typer.Option(0.0, "--range-offset", help="True range offset in metres."),
         range_noise: float = typer.Option(None, "--range-noise", help="Range noise σ in metres (preset's value by default)."),
+        beam_divergence: float = typer.Option(0.0, "--beam-divergence", metavar="MRAD",
+                                              help="Beam divergence (full angle) in mrad: each return comes from "
+                                                   "within the footprint (0: one ray per pulse)."),
         vegetation: float = typer.Option(None, "--vegetation", help="Fraction of the area under tree crowns, 0–0.8."),
         strip_errors: str = typer.Option("0,0,0,0", "--strip-errors",
                                          help="σ of per-strip trajectory errors: POSITION_BIAS (m), POSITION_DRIFT (m/s), "
@@ -46,6 +49,8 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
                          strip_error_sigma=(pb, pd, np.radians(ab), np.radians(ad)))
         if range_noise is not None:
             overrides["range_noise_m"] = range_noise
+        if beam_divergence:
+            overrides["beam_divergence_rad"] = beam_divergence * 1e-3
         if vegetation is not None:
             overrides["vegetation"] = vegetation
         cfg = survey_config(preset, **overrides)

@@ -1,12 +1,12 @@
 """Simulate a lidar survey with a known truth and deliver it as a real system would.
 
-The *true* sensor (nominal + the requested errors) shoots rays from the *true* trajectory
-(plus range and beam-angle noise) into the scene; the instrument records GPS time,
-measured range and encoder angle. The GNSS/INS delivers a *measured* trajectory (true +
-smooth position/attitude errors, optionally per-strip biases and drifts), written as the
-SBET. Delivered points are georeferenced from those records with the *nominal* sensor and
-the measured trajectory (:func:`calidar.georef.forward`), so every error the user asks
-for shows in the strips exactly as it would in real data. Example: :func:`simulate_survey`.
+The *true* sensor (nominal + the requested errors) shoots rays from the *true* trajectory (plus
+range and beam-angle noise, and the beam's divergence: ``calidar.sim.shots``) into the scene; the
+instrument records GPS time, measured range and encoder angle. The GNSS/INS delivers a *measured*
+trajectory (true + smooth position/attitude errors, optionally per-strip biases and drifts), written
+as the SBET. Delivered points are georeferenced from those records with the *nominal* sensor and the
+measured trajectory (:func:`calidar.georef.forward`), so every error the user asks for shows in the
+strips exactly as it would in real data. Example: :func:`simulate_survey`.
 """
 
 from __future__ import annotations
@@ -25,9 +25,9 @@ from calidar.outputs import prepare_out_dir, write_text_atomic
 from calidar.sensor import Sensor
 from calidar.sim.flightplan import FlightLine, check_plan_inputs, plan_lines
 from calidar.sim.motion import MotionSpec, accuracy_epochs, fly, measured_trajectory, trajectory_sigma
-from calidar.sim.patterns import half_field_of_view, scan_angles
-from calidar.sim.raycast import SURFACE_TERRAIN, cast
-from calidar.sim.scene import CLASS_BUILDING, CLASS_GROUND, CLASS_VEGETATION, Scene, SceneSpec, build_scene, scene_seed
+from calidar.sim.patterns import half_field_of_view
+from calidar.sim.scene import Scene, SceneSpec, build_scene, scene_seed
+from calidar.sim.shots import SURFACE_VEGETATION, line_shots, record  # noqa: F401 (SURFACE_VEGETATION: re-exported)
 from calidar.trajectory import Trajectory
 from calidar.trajectory_accuracy import TrajectoryAccuracy
 from calidar.validate import SEED_MAX, integer, number
@@ -35,7 +35,6 @@ from calidar.validate import SEED_MAX, integer, number
 #: LAS header creation date of simulated strips, fixed so that a seed always gives the same bytes.
 SIMULATION_DATE = datetime.date(2026, 1, 1)
 
-SURFACE_VEGETATION = -3  #: ``Strip.surface`` of crown returns
 GPS_WEEK_START_S = 388800.0  #: simulated flights start on a Thursday, 12:00 GPS time
 CHUNK_SHOTS = 400_000
 
@@ -87,6 +86,9 @@ class SurveyConfig:
     density: float = 1.0  #: scales the pulse rate (and the scan rate by its square root)
     lines: tuple[FlightLine, ...] | None = None  #: flown instead of the planned lines (``calidar plan``)
     scene_seed: int | None = None  #: the scene's own seed (None: from ``seed``): one scene, fresh noise
+    #: full angle (rad) of the beam's divergence: each return comes from a direction drawn from the
+    #: Gaussian beam (σ = γ/4 per axis; ``calidar.sim.shots``); 0: one ray along the beam
+    beam_divergence_rad: float = 0.0
 
 
 PRESETS: dict[str, SurveyConfig] = {
@@ -160,6 +162,7 @@ def check_config(cfg: SurveyConfig) -> None:
         number(v, "strip_errors", 0.0, hi, field=name)
     integer(cfg.seed, "seed", 0, SEED_MAX)
     number(cfg.range_noise_m, "range_noise_m", 0.0, 1.0, "m")
+    number(cfg.beam_divergence_rad, "beam_divergence_rad", 0.0, 0.05, "rad")
     if cfg.pulse_rate_hz * cfg.density > 5e6:
         raise InputError(None, "density", f"pulse rate {cfg.pulse_rate_hz * cfg.density:.3g} Hz is beyond any scanner (max 5 MHz)")
     if len(cfg.origin_deg) != 3 or not -80 <= cfg.origin_deg[0] <= 84:
@@ -188,7 +191,9 @@ class Strip:
     classification: np.ndarray  #: 2 ground, 6 building, 5 vegetation
     intensity: np.ndarray
     surface: np.ndarray  #: building plane id, -1 terrain, -3 vegetation (N,)
-    true_enu: np.ndarray  #: the exact hit in the scene's ENU frame, before noise (N, 3), m
+    #: the exact hit in the scene's ENU frame, before noise (N, 3), m: where the true beam met the scene
+    #: (with beam divergence, the ray the return came from, off the nominal beam: ``calidar.sim.shots``)
+    true_enu: np.ndarray
 
     def __len__(self) -> int:
         return self.gps_time.size
@@ -240,7 +245,8 @@ class SurveyResult:
             "noise": {"range_m": c.range_noise_m, "angle_deg": float(np.degrees(c.angle_noise_rad)),
                       "gnss_position_m": c.gnss_noise_m, "attitude_deg": float(np.degrees(c.attitude_noise_rad)),
                       "trajectory_sigma_scale": list(c.trajectory_sigma_scale),
-                      "trajectory_sigma_variation": c.trajectory_sigma_variation},
+                      "trajectory_sigma_variation": c.trajectory_sigma_variation,
+                      **({"beam_divergence_mrad": c.beam_divergence_rad * 1e3} if c.beam_divergence_rad else {})},
             "strips": [{"point_source_id": ln.number, "position_bias_m": e["position_bias_m"].tolist(),
                         "position_drift_mps": e["position_drift_mps"].tolist(),
                         "attitude_bias_deg": np.degrees(e["attitude_bias_rad"]).tolist(),
@@ -304,37 +310,6 @@ def write_strip(out: Path, s: Strip, crs: str, force: bool = False) -> Path:
                      creation_date=SIMULATION_DATE, force=force)
 
 
-def _line_shots(cfg: SurveyConfig, sensor: Sensor, window: tuple[float, float], half_fov: float):
-    """Shot times (GPS s) and encoder angles (rad) over a scan window."""
-    prf = cfg.pulse_rate_hz * cfg.density
-    t = window[0] + np.arange(int((window[1] - window[0]) * prf)) / prf
-    return t, scan_angles(sensor.scanner, t, cfg.scan_rate_hz * np.sqrt(cfg.density), half_fov, cfg.scan_pattern)
-
-
-def _shoot(cfg, scene, traj_true, truth: Sensor, t, enc, rng):
-    """Cast the true beams; per return: pulse index, range (m), surface id, exact ENU hit."""
-    noisy = enc + rng.normal(0.0, cfg.angle_noise_rad, np.shape(enc)) if cfg.angle_noise_rad else enc
-    origin_e, dir_e = georef.beams(*georef.poses(traj_true, t), truth, noisy)
-    o, d = scene.ecef_to_enu(origin_e), dir_e @ scene.r_e_enu
-    hits = cast(scene, o, d, 1.0 - rng.random(t.size))
-    solid, veg = np.isfinite(hits.t_solid), np.isfinite(hits.t_vegetation)
-    pulse = np.r_[np.flatnonzero(veg), np.flatnonzero(solid)]
-    rng_m = np.r_[hits.t_vegetation[veg], hits.t_solid[solid]]
-    surface = np.r_[np.full(veg.sum(), SURFACE_VEGETATION), hits.surface[solid]]
-    first = np.r_[np.ones(veg.sum(), bool), ~veg[solid]]
-    order = np.lexsort((~first, pulse))
-    pulse, rng_m, surface, first = pulse[order], rng_m[order], surface[order], first[order]
-    n_ret = (veg.astype(np.uint8) + solid)[pulse]
-    return pulse, rng_m, surface, np.where(first, 1, 2).astype(np.uint8), n_ret, o[pulse] + rng_m[:, None] * d[pulse]
-
-
-def _intensity(surface, range_m, ref_range_m, rng) -> np.ndarray:
-    """Plausible 16-bit intensities: class reflectance × (R₀/R)² with speckle."""
-    refl = np.where(surface == SURFACE_VEGETATION, 0.25, np.where(surface == SURFACE_TERRAIN, 0.35, 0.5))
-    val = refl * (ref_range_m / range_m) ** 2 * rng.uniform(0.8, 1.2, range_m.size)
-    return np.clip(val * 40000, 1, 65535).astype(np.uint16)
-
-
 def simulate_survey(cfg: SurveyConfig, progress: Callable[[str, int, int], None] | None = None,
                     on_strip: Callable[[Strip], None] | None = None) -> SurveyResult:
     """Run the simulation described by ``cfg`` in memory (see the module docstring).
@@ -375,21 +350,9 @@ def simulate_survey(cfg: SurveyConfig, progress: Callable[[str, int, int], None]
 
     strips, streamed = [], 0
     for k, (line, window) in enumerate(zip(lines, windows)):
-        t_all, enc_all = _line_shots(cfg, nominal, window, cfg.half_fov_rad)
-        parts = []
-        for c0 in range(0, t_all.size, CHUNK_SHOTS):
-            t, enc = t_all[c0:c0 + CHUNK_SHOTS], enc_all[c0:c0 + CHUNK_SHOTS]
-            pulse, rho, surface, ret, n_ret, hit = _shoot(cfg, scene, traj_true, truth, t, enc, rng_shots)
-            measured = truth.measured_range(rho + rng_shots.normal(0.0, cfg.range_noise_m, rho.size))
-            ecef = georef.forward(traj, nominal, t[pulse], measured, enc[pulse])
-            u = nominal.scanner.directions(enc[pulse])
-            cls = np.where(surface == SURFACE_VEGETATION, CLASS_VEGETATION,
-                           np.where(surface == SURFACE_TERRAIN, CLASS_GROUND, CLASS_BUILDING)).astype(np.uint8)
-            parts.append(dict(ecef=ecef, gps_time=t[pulse], range_m=measured, angles=enc[pulse],
-                              scan_angle_deg=np.degrees(np.arctan2(u[:, 1], u[:, 2])), return_number=ret,
-                              number_of_returns=n_ret, classification=cls,
-                              intensity=_intensity(surface, rho, cfg.height_agl_m, rng_shots), surface=surface,
-                              true_enu=hit))
+        t_all, enc_all = line_shots(cfg, nominal, window, cfg.half_fov_rad)
+        parts = [record(cfg, scene, traj_true, traj, truth, nominal, t_all[c0:c0 + CHUNK_SHOTS],
+                        enc_all[c0:c0 + CHUNK_SHOTS], rng_shots) for c0 in range(0, t_all.size, CHUNK_SHOTS)]
         cat = {key: np.concatenate([p[key] for p in parts]) for key in parts[0]}
         strip = Strip(line, georef.to_crs(cat["ecef"], crs), **cat)
         streamed += 0 if on_strip is None else len(strip)

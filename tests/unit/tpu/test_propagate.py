@@ -101,3 +101,64 @@ def test_local_surface_normals_of_a_45_degree_plane():
     plane = np.c_[xy, xy[:, 0]]  # z = x: 45°
     normal = surface_normals(plane, 2.0)
     np.testing.assert_allclose(normal, np.tile([-np.sqrt(0.5), 0, np.sqrt(0.5)], (4000, 1)), atol=1e-6)
+
+
+@pytest.fixture(scope="module")
+def diverging():
+    """A small UAV survey whose beam diverges by 3 mrad (footprint σ = ρ·γ/4 ≈ 6 cm at 80 m, six
+    times the range noise), the trajectory nearly exact: the footprint dominates every error."""
+    cfg = calidar.survey_config("uav", seed=4, density=0.3, directions="cross", gnss_noise_m=1e-4,
+                                attitude_noise_rad=1e-7, beam_divergence_rad=3e-3)
+    return cfg, calidar.simulate_survey(replace(cfg, scene=replace(cfg.scene, width_m=150.0, length_m=150.0)))
+
+
+def test_footprint_sigma_matches_the_errors_by_incidence(diverging):
+    """Against the spot each return came from (``true_enu``), RMS of error/σ within 0.85–1.2 in every
+    incidence-angle bin: along the beam, on both axes across it, and along the surface's normal
+    (where the spot and the nominal beam's hit on the plane agree). Measured from the nominal
+    beam's hit instead, the error is along the beam and grows as tan α: not what σ describes."""
+    cfg, res = diverging
+    settings = TpuSettings(cfg.range_noise_m, cfg.angle_noise_rad, beam_divergence_rad=cfg.beam_divergence_rad)
+    z, inc, across_m, rho = [], [], [], []
+    for s in res.strips:
+        cov = point_covariance(res.trajectory, res.nominal, res.accuracy, s.gps_time, s.ecef, settings)
+        _, dir_e = calidar.georef.beams(*calidar.georef.poses(res.trajectory, s.gps_time), res.nominal, s.angles)
+        b = dir_e @ res.scene.r_e_enu
+        e1 = np.cross(b, [0.0, 0.0, 1.0])
+        e1 /= np.linalg.norm(e1, axis=1)[:, None]
+        normal = surface_normals(s.true_enu, 2.0)
+        err = res.scene.ecef_to_enu(s.ecef) - s.true_enu
+        axes = (b, e1, np.cross(b, e1), normal)
+        z.append(np.stack([np.einsum("ni,ni->n", err, v) / np.sqrt(np.einsum("ni,nij,nj->n", v, cov, v))
+                           for v in axes], 1))
+        inc.append(np.degrees(np.arccos(np.abs(np.einsum("ni,ni->n", normal, b)))))
+        across_m.append(np.einsum("ni,ni->n", err, e1))
+        rho.append(s.range_m)
+    z, inc, across_m, rho = map(np.concatenate, (z, inc, across_m, rho))
+    # the simulator itself: the spread across the beam is ρ·γ/4 (the Gaussian beam, σ = γ/4 per axis)
+    assert 0.95 < np.sqrt(np.mean((across_m / (rho * cfg.beam_divergence_rad / 4)) ** 2)) < 1.05
+    for lo, hi in [(0, 15), (15, 30), (30, 45), (45, 60), (60, 85)]:
+        m = (inc >= lo) & (inc < hi)
+        rms = np.sqrt(np.mean(z[m] ** 2, axis=0))
+        assert m.sum() > 2_000 and np.all((rms > 0.85) & (rms < 1.2)), (lo, hi, m.sum(), rms)
+
+
+def test_divergence_turns_each_beam_by_the_gaussian_profile_and_only_when_asked(monkeypatch):
+    """The simulator's ray offsets: unit directions, RMS angle √2·γ/4 (two axes of σ = γ/4); and with
+    γ = 0 the divergence (its random draws included) is never reached, so every simulation without
+    it stays bit-identical to the single-ray simulator's."""
+    from calidar.sim import shots
+
+    d = np.random.default_rng(0).normal(size=(20_000, 3))
+    d /= np.linalg.norm(d, axis=1)[:, None]
+    turned = shots.diverge(d, 3e-3, np.random.default_rng(1))
+    np.testing.assert_allclose(np.linalg.norm(turned, axis=1), 1.0, atol=1e-12)
+    angle = np.arccos(np.clip(np.einsum("ni,ni->n", d, turned), -1, 1))
+    assert 0.97 < np.sqrt(np.mean(angle ** 2)) / (np.sqrt(2) * 3e-3 / 4) < 1.03
+
+    def refuse(*args):
+        raise AssertionError("divergence drawn with γ = 0")
+
+    monkeypatch.setattr(shots, "diverge", refuse)
+    cfg = calidar.survey_config("uav", seed=2, density=0.02)
+    assert calidar.simulate_survey(replace(cfg, scene=replace(cfg.scene, width_m=150.0, length_m=150.0))).n_points
