@@ -9,7 +9,6 @@ truth (the delivered points' own height error at each checkpoint minus its surve
 from __future__ import annotations
 
 import json
-from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -17,21 +16,15 @@ import pytest
 from calidar.io.checkpoints import read_checkpoints, write_checkpoints
 from calidar.pipelines.boresight import calibrate_strips
 from calidar.pipelines.strip_config import StripConfig
-from calidar.sim.checkpoints import simulate_checkpoints
-from calidar.sim.survey import simulate_survey, survey_config
 from calidar.strips.config import CalibrationConfig, Estimate
+from range_offset_survey import range_offset_survey
 
 pytestmark = pytest.mark.slow
-RANGE_OFFSET = 0.05
 
 
 @pytest.fixture(scope="module")
 def sim(tmp_path_factory):
-    cfg = survey_config("uav", seed=5, density=0.2, directions="cross", errors={"range_offset": RANGE_OFFSET})
-    res = simulate_survey(replace(cfg, scene=replace(cfg.scene, width_m=200.0, length_m=200.0, vegetation_fraction=0.0)))
-    out = res.write(tmp_path_factory.mktemp("cp") / "sim")
-    simulated = simulate_checkpoints(res, 11, 0.01, seed=5, vegetated_share=0.0)
-    simulated.write(out)
+    out, simulated = range_offset_survey(tmp_path_factory.mktemp("cp"), 11)
     cp = read_checkpoints(out / "checkpoints.csv")
     for name, part in (("control.csv", slice(0, 6)), ("check.csv", slice(6, 11))):
         write_checkpoints(out / name, cp.ids[part], cp.xyz[part], cp.vegetated[part], cp.sigma_m[part])

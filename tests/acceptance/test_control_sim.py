@@ -10,7 +10,6 @@ delivered points 4 cm low, which to the strips is the control standing 4 cm high
 from __future__ import annotations
 
 import json
-from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -18,20 +17,14 @@ import pytest
 from calidar.pipelines.boresight import calibrate_strips
 from calidar.pipelines.strip_config import StripConfig
 from calidar.strips.config import CalibrationConfig, Estimate
-from calidar.sim.checkpoints import simulate_checkpoints
-from calidar.sim.survey import simulate_survey, survey_config
+from range_offset_survey import RANGE_OFFSET, range_offset_survey
 
 pytestmark = pytest.mark.slow
-RANGE_OFFSET = 0.05
 
 
 @pytest.fixture(scope="module")
 def sim(tmp_path_factory):
-    cfg = survey_config("uav", seed=5, density=0.2, directions="cross", errors={"range_offset": RANGE_OFFSET})
-    res = simulate_survey(replace(cfg, scene=replace(cfg.scene, width_m=200.0, length_m=200.0, vegetation_fraction=0.0)))
-    out = res.write(tmp_path_factory.mktemp("control") / "sim")
-    simulate_checkpoints(res, 10, 0.01, seed=5, vegetated_share=0.0).write(out)
-    return out
+    return range_offset_survey(tmp_path_factory.mktemp("control"), 10)[0]
 
 
 def _run(sim, out, estimate, control):
