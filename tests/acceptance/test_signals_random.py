@@ -23,7 +23,7 @@ import numpy as np
 import pytest
 
 RUNS = 50
-EXPECTED = {"report.html", "sbet_corrected.out", "sensor.toml", "solution.json"}
+EXPECTED = {"config.toml", "report.html", "sbet_corrected.out", "sensor.toml", "solution.json"}
 
 
 def _argv(corpus, out):

@@ -167,10 +167,14 @@ def _exit(code: int) -> None:
     """Exit with ``code``. When threads still run (a reader inside a native decoder, after an error or
     an interruption) the interpreter's finalisation would unwind them by force, which aborts the
     process ("FATAL: exception not rethrown", exit 134): then the streams are flushed and the process
-    ends without it (the run's temporaries are already gone: every transaction cleaned up)."""
+    ends without it (the run's temporaries are already gone: every transaction cleaned up). An
+    interrupted run always ends so: a worker thread that has just stopped may still be tearing down
+    its thread state while the interpreter finalises, which aborted one run in fifty on CI
+    ("PyThreadState_Get: ... the GIL is released", exit −6)."""
     import threading
 
-    if any(t.is_alive() for t in threading.enumerate() if t is not threading.main_thread()):
+    interrupted = code in (128 + signal.SIGINT, 128 + signal.SIGTERM)
+    if interrupted or any(t.is_alive() for t in threading.enumerate() if t is not threading.main_thread()):
         import logging
 
         from calidar.outputs import remove_temporaries
