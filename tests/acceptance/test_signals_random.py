@@ -50,6 +50,7 @@ def _wait_for_calidar(proc) -> float:
 
 def _commit_time(corpus, folder) -> float:
     """Seconds from calidar's first line to the run's committed output."""
+    folder.mkdir()
     out = folder / "reference"
     proc = subprocess.Popen(_argv(corpus, out), stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, env=ENV)
     t0 = _wait_for_calidar(proc)
@@ -63,7 +64,9 @@ def _commit_time(corpus, folder) -> float:
 
 @pytest.mark.slow
 def test_fifty_random_signals(corpus, tmp_path):
-    t_commit = _commit_time(corpus, tmp_path)
+    # the fastest of three: a run slower than its reference (load varies on a shared CI machine) is
+    # only interrupted the more surely; one faster would end before its signal and test nothing
+    t_commit = min(_commit_time(corpus, tmp_path / f"ref{k}") for k in range(3))
     rng = np.random.default_rng(27)
     interrupted, completed = 0, 0
     for i in range(RUNS):
