@@ -35,7 +35,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from strips import ERRORS  # noqa: E402  (the survey's mounting errors)
 from strips_scale import exponent, run, simulate  # noqa: E402  (the 8-strip survey at a size, a child run)
 
-HELD_BYTES_PER_POINT = 25  #: calidar.pipelines.strip_source.HELD_BYTES_PER_POINT
+HELD_BYTES_PER_POINT = 25  #: calidar.ingest.source.HELD_BYTES_PER_POINT
 
 
 def wait_for_load(max_load: float, patience_s: float = 600.0) -> float:

@@ -1,7 +1,7 @@
 """Cost of the input checks of issue 27 on a simulated UAV strip (LAZ 1.4, format 6).
 
 Times ``calidar inverse`` (the pipeline, streamed in 2 M-point chunks) with and without the
-geometry check (:class:`calidar.pipelines.plausibility.GeometryCheck`: 1 000 points a chunk
+geometry check (:class:`calidar.ingest.plausibility.GeometryCheck`: 1 000 points a chunk
 against the trajectory), the LAZ point-count check (chunk table and the layered chunks' own
 counts; uncached), the per-chunk bounds check (one min/max per axis) and boresight's ingest of
 two strips with and without the geometry checks, as CPU time of this process, best of 3 (ingest: 1).
@@ -58,15 +58,15 @@ def main(density: float = 2.0) -> None:
 
     count_s = best_of(count)
     from calidar.pipelines.inputs import load_trajectory
-    from calidar.pipelines.strip_ingest import ingest_strips
+    from calidar.ingest.strips import StripIngest
     from calidar.sensor import Sensor
 
     traj, model = load_trajectory(sbet), Sensor.read(sensor)
     pair = sorted((root / "sim" / "strips").glob("*.laz"))[:2]
-    ingest = best_of(lambda: ingest_strips(pair, traj, model), 1)
+    ingest = best_of(lambda: StripIngest().read(pair, traj, model), 1)
     plausibility.GeometryCheck.add = lambda *a, **k: None
     try:
-        ingest_without = best_of(lambda: ingest_strips(pair, traj, model), 1)
+        ingest_without = best_of(lambda: StripIngest().read(pair, traj, model), 1)
     finally:
         plausibility.GeometryCheck.add = add
     xyz = np.random.default_rng(0).uniform(header.mins, header.maxs, (2_000_000, 3))

@@ -20,6 +20,7 @@ from pathlib import Path
 
 from calidar.pipelines.plan import PlanOptions, run_plan
 from calidar.sensor import Sensor
+from calidar.strips.config import Estimate
 
 LINES = """line,start_x,start_y,end_x,end_y,height_agl_m,speed_mps
 1,-100,-120,-100,120,80,8
@@ -44,7 +45,7 @@ def main() -> None:
         root = Path(tmp)
         (root / "lines.csv").write_text(LINES)
         Sensor(lever_arm_x=0.05, lever_arm_z=0.12).write(root / "sensor.toml")
-        options = PlanOptions(terrain="scene:uav:0", estimate=args.estimate)
+        options = PlanOptions(terrain="scene:uav:0", estimate=Estimate.of(*args.estimate.split(",")))
         times = []
         for k in range(args.repeat + 1):
             out = root / f"out{k}"

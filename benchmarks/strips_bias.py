@@ -31,7 +31,7 @@ from strips_montecarlo import ANGLES, ERRORS, seeds_of  # noqa: E402
 
 from calidar.pipelines.boresight import calibrate_inputs, load_inputs  # noqa: E402
 from calidar.pipelines.strip_config import StripConfig  # noqa: E402
-from calidar.pipelines.strip_source import IngestOptions  # noqa: E402
+from calidar.ingest.settings import IngestSettings  # noqa: E402
 from calidar.sim.survey import simulate_survey, survey_config  # noqa: E402
 from calidar.strips.config import CalibrationConfig, StripSettings, TrajectorySettings, matchers_named  # noqa: E402
 from calidar.strips.parameters import sensor_of  # noqa: E402
@@ -53,8 +53,8 @@ def folder(cache: Path, seed: int, density: float, trajectory_errors: bool) -> P
 def from_truth(f: Path, methods: list[str], every_point: bool) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     """Per method: the angles' move from the truth (deg) and their σ (deg)."""
     config = StripConfig(CalibrationConfig(matchers=matchers_named(*methods), trajectory=TrajectorySettings(
-        sigma=TRAJECTORY_SIGMA), solver=StripSettings(max_outer=1)), IngestOptions(budget_points=None if every_point
-                                                                                        else IngestOptions().budget_points))
+        sigma=TRAJECTORY_SIGMA), solver=StripSettings(max_outer=1)), IngestSettings(budget_points=None if every_point
+                                                                                        else IngestSettings().budget_points))
     inputs = load_inputs(sorted((f / "strips").glob("*.laz")), f / "sbet.out", f / "sensor.toml", config,
                          truth=f / "truth.json")
     truth = sensor_of(inputs.nominal, inputs.truth)

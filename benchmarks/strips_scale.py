@@ -12,7 +12,7 @@ memory at a time) and cached under ``--cache`` (not timed). Each run is a child 
 what ``calidar boresight`` does, end to end (default options: trajectory model on; each file a
 task on the in-process threads): read the strips (two passes, the second, and the quality stages,
 from what the first kept on disk within ``HOLD_POINTS_BYTES``; thinned to ``--budget``
-points per strip, :mod:`calidar.pipelines.strip_ingest`), calibrate, the three overlap-quality
+points per strip, :mod:`calidar.ingest.strips`), calibrate, the three overlap-quality
 stages of the whole strips, report and outputs; with ``--quality`` also ``calidar quality`` of
 the strips. Wall time and peak RSS (``os.wait4`` of the child) are printed per size and method,
 with the exponent of time ∝ points^k fitted over the sizes, and the boresight of the largest
@@ -69,7 +69,7 @@ def child(sim: Path, what: str, budget: str) -> None:
     from calidar.pipelines.strip_config import StripConfig
     from calidar.strips.config import CalibrationConfig, matchers_named
     from calidar.pipelines.quality import measure
-    from calidar.pipelines.strip_source import IngestOptions
+    from calidar.ingest.settings import IngestSettings
 
     strips = sorted((sim / "strips").glob("*.laz"))
     t0 = time.perf_counter()
@@ -78,7 +78,7 @@ def child(sim: Path, what: str, budget: str) -> None:
         print(json.dumps({"points": None, "pairs": len(pairs)}))
         return
     stamps = {}
-    ingest = IngestOptions(budget_points=None if budget == "off" else int(budget))
+    ingest = IngestSettings(budget_points=None if budget == "off" else int(budget))
     config = StripConfig(CalibrationConfig(matchers=matchers_named(what)), ingest)
     with tempfile.TemporaryDirectory() as out:
         run = calibrate_strips(strips, sim / "sbet.out", sim / "sensor.toml", config, truth=sim / "truth.json",

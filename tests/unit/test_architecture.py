@@ -77,6 +77,7 @@ LAYERS: list[tuple[str, tuple[str, ...]]] = [
     ("cli", ("calidar.cli", "calidar.__main__")),
     ("demo", ("calidar.demo",)),
     ("pipelines", ("calidar.pipelines",)),
+    ("ingest", ("calidar.ingest",)),
     ("methods", ("calidar.strips", "calidar.accuracy", "calidar.rangecal", "calidar.photon", "calidar.sim", "calidar.tpu",
                  "calidar.trajrec", "calidar.planning", "calidar.scanners.analysis",
                  "calidar.scanners.separability", "calidar.scanners.settings", "calidar.scanners.sources",

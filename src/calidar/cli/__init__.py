@@ -179,7 +179,7 @@ def _exit(code: int) -> None:
 
         from calidar.outputs import remove_temporaries
 
-        remove_temporaries()  # what threads still held (e.g. pipelines.held_points): atexit will not run
+        remove_temporaries()  # what threads still held (e.g. ingest.held): atexit will not run
 
         logging.shutdown()
         for stream in (sys.stdout, sys.stderr):

@@ -10,7 +10,7 @@ from calidar.cli.common import FORCE_HELP, console, exit_with_verdict, print_ver
 from calidar.cli.options import (
     CRS, GEOID_UNDULATION, TIME_SYSTEM, TRAJECTORY_ANGLES, TRAJECTORY_COLUMNS, TRAJECTORY_CRS, TRAJECTORY_HEADING,
 )
-from calidar.pipelines.strip_source import BUDGET_POINTS
+from calidar.ingest.settings import BUDGET_POINTS
 from calidar.strips.trajectory_errors import PREFIX as TRAJECTORY_PREFIX
 
 #: the trajectory model's defaults as the options show them (those of calidar.strips.config.TrajectorySettings)

@@ -61,7 +61,7 @@ def _trajectory(base, given: dict):
 
 def _ingest(base, given: dict):
     """The ingest options: ``base``'s with --strip-points and the point options given."""
-    from calidar.pipelines.strip_source import MIN_BUDGET_POINTS
+    from calidar.ingest.settings import MIN_BUDGET_POINTS
 
     ingest = base
     if "strip_points" in given:

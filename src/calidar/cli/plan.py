@@ -7,7 +7,28 @@ from pathlib import Path
 import typer
 from rich.markup import escape
 
+from calidar.cli.boresight_config import parse_estimate
 from calidar.cli.common import FORCE_HELP, console, exit_with_verdict, print_verdict, progress_bar, progress_callback
+from calidar.cli.options import parse_sigma
+from calidar.errors import InputError
+
+
+def _estimate(text: str):
+    """--estimate as ``calidar boresight`` parses it; trajectory_bias is refused here: a plan always models the trajectory."""
+    if "trajectory_bias" in (n.strip() for n in text.split(",")):
+        raise InputError(None, "--estimate", "trajectory_bias is always modelled; expected sensor parameters "
+                         "(boresight, lever_arm, range_offset, …)")
+    return parse_estimate(text)
+
+
+def parse_platform_motion(text: str) -> tuple[float, float]:
+    """--platform-motion 'ROLL_PITCH_DEG,HEADING_DEG' → (σ roll/pitch, σ heading) rad (the pipeline checks the range)."""
+    import math
+
+    from calidar.validate import parse_floats
+
+    roll_pitch, heading = parse_floats(text, 2, "--platform-motion (ROLL_PITCH_DEG,HEADING_DEG)")
+    return math.radians(roll_pitch), math.radians(heading)
 
 
 def register(app: typer.Typer, simulate: typer.Typer) -> None:
@@ -45,8 +66,8 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
         from calidar.outputs import output_folder
         from calidar.pipelines.plan import PlanOptions, run_plan
 
-        options = PlanOptions(terrain, pulse_rate, fov, range_sigma, angle_sigma, estimate, trajectory_sigma, suggest,
-                              simulate, platform_motion)
+        options = PlanOptions(terrain, pulse_rate, fov, range_sigma, angle_sigma, _estimate(estimate),
+                              parse_sigma(trajectory_sigma), suggest, simulate, parse_platform_motion(platform_motion))
         dem = Path(terrain) if not terrain.startswith(("flat", "scene")) else None
         with progress_bar() as bar, output_folder(out, force, inputs=[lines, sensor] + ([dem] if dem else [])) as tmp:
             run = run_plan(lines, sensor, tmp, options, progress_callback(bar))

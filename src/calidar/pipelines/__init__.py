@@ -16,14 +16,9 @@ Layers, top to bottom (an import may only point down; ``tests/unit/test_architec
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from calidar.ingest import Progress, no_progress  # the callback convention every long step shares
 
-#: progress(description, done, total): what a long step reports as it goes
-Progress = Callable[[str, int, int], None]
-
-
-def no_progress(description: str, done: int, total: int) -> None:
-    """The default ``progress``: report nothing."""
+__all__ = ["Progress", "no_progress", "release_memory"]
 
 
 def release_memory() -> None:

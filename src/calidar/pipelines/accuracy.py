@@ -115,7 +115,7 @@ def measure_accuracy(paths, checkpoints: Path, settings: AccuracySettings = Accu
     from calidar.accuracy.tin import GroundCollector, heights_per_strip, tin_heights
     from calidar.io.checkpoints import check_places, read_checkpoints
     from calidar.io.las import iter_las_chunks
-    from calidar.pipelines.quality import Metric
+    from calidar.ingest.cell_counts import Metric
 
     settings = settings.checked()
     paths = [Path(p) for p in paths]

@@ -26,7 +26,8 @@ from calidar.pipelines.strip_config import StripConfig
 if TYPE_CHECKING:
     import pyproj
 
-    from calidar.pipelines.strip_source import IngestOptions, StripSource
+    from calidar.ingest.settings import IngestSettings
+    from calidar.ingest.source import StripSource
     from calidar.provenance import RunRecord
     from calidar.sensor import Sensor
     from calidar.strips.calibrate import CalibrationResult
@@ -75,14 +76,14 @@ class BoresightInputs:
                 *(p for p in (self.control_path, self.checkpoints_path) if p is not None)]
 
 
-def load_strips(paths, trajectory, sensor, options: IngestOptions | None = None, progress: Progress = no_progress):
+def load_strips(paths, trajectory, sensor, settings: IngestSettings | None = None, progress: Progress = no_progress):
     """Flight lines of the LAS/LAZ files as Strips in one local frame (times in the trajectory's
     system), streamed and thinned to their overlaps: (strips, CRS)."""
-    from calidar.pipelines.strip_ingest import ingest_strips
-    from calidar.pipelines.strip_source import IngestOptions
+    from calidar.ingest.settings import IngestSettings
+    from calidar.ingest.strips import StripIngest
 
-    strips, crs, _, _ = ingest_strips(list(paths), trajectory, sensor, options or IngestOptions(), progress)
-    return strips, crs
+    got = StripIngest(settings or IngestSettings()).read(list(paths), trajectory, sensor, progress=progress)
+    return got.strips, got.crs
 
 
 def resolve_accuracy(trajectory_path: Path, trajectory, accuracy_path: Path | None = None,
@@ -136,10 +137,9 @@ def load_inputs(strip_paths, trajectory_path, sensor_path, config: StripConfig =
     """Read and check every input (the trajectory's accuracy must cover every strip); ``work``: where
     the files are read (a :class:`calidar.strips.distribute.Workers`; None: one at a time here);
     ``checkpoints``: tested against the calibrated strips, not in the adjustment."""
-    from dataclasses import replace
-
+    from calidar.ingest.strips import StripIngest
+    from calidar.pipelines.control import checked_checkpoints, control_points, read_ground
     from calidar.pipelines.inputs import load_trajectory
-    from calidar.pipelines.strip_ingest import ingest_strips
     from calidar.sensor import Sensor
     from calidar.strips.control import check_estimate
 
@@ -148,30 +148,18 @@ def load_inputs(strip_paths, trajectory_path, sensor_path, config: StripConfig =
     nominal = Sensor.read(sensor_path)
     traj = load_trajectory(trajectory_path, config.trajectory_input)
     acc, accuracy_path, notes = _trajectory_accuracy(trajectory_path, traj, config, accuracy)
-    ingest, control_input = config.ingest_options(), None
-    if control is not None:
-        from calidar.pipelines.control import read_control
-
-        if not strip_paths:
-            raise InputError(None, "STRIPS", "expected at least one LAS/LAZ file")
-        control_input = read_control(control, config.control_crs, strip_paths[0], config.points, nominal)
-        ingest, notes = replace(ingest, control_ecef=control_input.ecef), notes + list(control_input.notes)
-    elif config.control_crs is not None:
-        raise InputError(None, "--control-crs", "given without --control; expected --control FILE with it")
-    from calidar.pipelines.control import checked_checkpoints, with_checkpoints
-
-    ingest, checkpoint_input = with_checkpoints(checkpoints, config, strip_paths, nominal, ingest)
+    ground = read_ground(control, checkpoints, config, strip_paths, nominal)
+    notes += [] if ground.control is None else list(ground.control.notes)
     progress("reading strips", 0, 1)
-    strips, crs, source, unpaired = ingest_strips(list(strip_paths), traj, nominal, ingest, progress, work)
+    strips, crs, source, unpaired = StripIngest(config.ingest).read(list(strip_paths), traj, nominal, ground.near,
+                                                                     progress, work)
     inputs = BoresightInputs([Path(p) for p in strip_paths], trajectory_path, sensor_path, nominal, traj, strips, crs,
                              config, source, acc, accuracy_path, notes + unpaired,
                              control_path=None if control is None else Path(control),
                              checkpoints_path=None if checkpoints is None else Path(checkpoints))
-    if control_input is not None:
-        from calidar.pipelines.control import control_points
-
-        inputs.control = control_points(control_input, strips[0].frame)
-    inputs.checkpoints, inputs.notes = checked_checkpoints(checkpoint_input, strips[0].frame, inputs.notes)
+    if ground.control is not None:
+        inputs.control = control_points(ground.control, strips[0].frame)
+    inputs.checkpoints, inputs.notes = checked_checkpoints(ground.checkpoints, strips[0].frame, inputs.notes)
     if acc is not None:
         acc.check_covers(inputs.spans)
         inputs.estimate_accuracy = estimates_accuracy(acc)

@@ -1,9 +1,9 @@
 """The deliverables of a strip calibration, made so that they reproduce the report.
 
 The overlap quality is measured on the WHOLE strips (streamed again from the files,
-:func:`calidar.pipelines.strip_source.line_chunks`) re-georeferenced in the files' CRS with the
+:func:`calidar.ingest.source.line_chunks`) re-georeferenced in the files' CRS with the
 plan, point selection and swath accumulator ``calidar quality`` uses
-(:mod:`calidar.pipelines.line_quality`), three times: as delivered, with the new mounting
+(:mod:`calidar.ingest.stages`), three times: as delivered, with the new mounting
 alone (``calidar regeoref --to sensor.toml``), and with the new mounting and the corrected
 trajectory (``--to-trajectory sbet_corrected.out``). Each stage names the commands that
 reproduce it from the written files.
@@ -36,9 +36,9 @@ def corrected_trajectory(inputs, result):
 
 
 def measure_lines(inputs, models, progress: Progress = no_progress, work=None) -> list[list]:
-    """Per model of :func:`calidar.pipelines.strip_source.line_chunks`, the
+    """Per model of :func:`calidar.ingest.source.line_chunks`, the
     :class:`calidar.strips.quality.PairQuality` of every overlapping pair of flight lines, by
-    :func:`calidar.pipelines.line_quality.lines_quality` on the plan of the ingest's counts: one
+    :func:`calidar.ingest.stages.lines_quality` on the plan of the ingest's counts: one
     read of the files (two when a stage's own plan differs), each file a task run by ``work``
     (a :class:`calidar.strips.distribute.Workers`; None: one at a time here); memory holds cells,
     not points."""
@@ -46,8 +46,8 @@ def measure_lines(inputs, models, progress: Progress = no_progress, work=None) -
 
     from calidar.io.las import las_file_crs, las_header
     from calidar.pipelines import release_memory
-    from calidar.pipelines.line_quality import StagePass, lines_quality
-    from calidar.pipelines.quality import Metric
+    from calidar.ingest.stages import StagePass, lines_quality
+    from calidar.ingest.cell_counts import Metric
     from calidar.strips.distribute import Workers
 
     source = inputs.source
@@ -76,10 +76,10 @@ def measure_lines(inputs, models, progress: Progress = no_progress, work=None) -
 
 
 def _file_stages(source, nominal, models, metric, plans, chosen, count, k: int, start: int, stop: int):
-    """:func:`calidar.pipelines.line_quality.stage_pass` of the points [start, stop) of the
+    """:func:`calidar.ingest.stages.stage_pass` of the points [start, stop) of the
     ``k``-th file (a task)."""
-    from calidar.pipelines.line_quality import stage_pass
-    from calidar.pipelines.strip_source import line_chunks
+    from calidar.ingest.stages import stage_pass
+    from calidar.ingest.source import line_chunks
     from calidar.strips.selection import FIELDS, candidate_mask
 
     chunks = line_chunks(source, nominal, models, FIELDS, candidate_mask, files=[source.files[k]], span=(start, stop))
@@ -220,8 +220,8 @@ def write_strips(inputs, sensor, trajectory, out_dir: Path) -> list[Path]:
     from contextlib import ExitStack
 
     from calidar.io.las import LasChunkWriter
-    from calidar.pipelines.strip_ingest import bounds
-    from calidar.pipelines.strip_source import line_chunks
+    from calidar.ingest.strips import bounds
+    from calidar.ingest.source import line_chunks
 
     out_dir.mkdir(parents=True, exist_ok=True)
     offsets = np.floor(bounds(inputs.source.files)[0])

@@ -29,11 +29,54 @@ class ControlInput:
     notes: tuple[str, ...] = ()
 
 
-def read_control(path, control_crs: str | None, strip_path, points, sensor, checkpoints: bool = False,
+@dataclass(frozen=True, eq=False)
+class Ground:
+    """The run's ground points as read (each None when not given): ``control`` (in the adjustment)
+    and ``checkpoints`` (tested after it)."""
+
+    control: ControlInput | None = None
+    checkpoints: ControlInput | None = None
+
+    @property
+    def near(self) -> np.ndarray | None:
+        """Every ground point, ECEF (N, 3) m: each flight line keeps its cells around them (None: none)."""
+        parts = [g.ecef for g in (self.control, self.checkpoints) if g is not None]
+        return np.vstack(parts) if parts else None
+
+
+def read_ground(control, checkpoints, config, strip_paths, sensor) -> Ground:
+    """``calidar boresight --control FILE`` and ``--checkpoints FILE`` read (either may be None) in
+    the CRS ``config`` (the run's :class:`calidar.pipelines.strip_config.StripConfig`) names for
+    each, else the strips' (the first strip file's, ``config.points.crs`` or ``sensor.crs``);
+    their options given without the file are an error."""
+    given = {"--control-crs": (control, config.control_crs), "--checkpoints-crs": (checkpoints, config.checkpoints_crs),
+             "--class": (checkpoints, config.checkpoint_class_cm)}
+    for option, (path, value) in given.items():
+        if path is None and value is not None:
+            flag = "--control" if option == "--control-crs" else "--checkpoints"
+            raise InputError(None, option, f"given without {flag}; expected {flag} FILE with it")
+    if control is None and checkpoints is None:
+        return Ground()
+    if not strip_paths:
+        raise InputError(None, "STRIPS", "expected at least one LAS/LAZ file")
+    strips_crs = _strips_crs(Path(strip_paths[0]), config.points, sensor)
+    return Ground(None if control is None else read_control(control, config.control_crs, strips_crs),
+                  None if checkpoints is None else read_control(checkpoints, config.checkpoints_crs, strips_crs,
+                                                                checkpoints=True, crs_option="--checkpoints-crs"))
+
+
+def _strips_crs(strip_path: Path, points, sensor) -> tuple:
+    """The strips' CRS (the first file's, ``points.crs`` or ``sensor.crs``; None: none) and geoid undulation."""
+    from calidar.io.las import las_file_crs
+
+    return las_file_crs(strip_path, points.crs) or las_file_crs(strip_path, sensor.crs), points.geoid_undulation_m
+
+
+def read_control(path, control_crs: str | None, strips_crs: tuple, checkpoints: bool = False,
                  crs_option: str = "--control-crs") -> ControlInput:
-    """Read the control file ``path``; its CRS: ``control_crs`` or the strips' (the first strip
-    file's, ``points.crs`` or ``sensor.crs``). ``checkpoints``: a checkpoint file (``--checkpoints``,
-    tested after the calibration, not in it): its σ optional."""
+    """Read the control file ``path``; its CRS: ``control_crs`` or the strips' (``strips_crs``: their
+    CRS and geoid undulation). ``checkpoints``: a checkpoint file (``--checkpoints``, tested after
+    the calibration, not in it): its σ optional."""
     from calidar.io.checkpoints import read_checkpoints
 
     cp = read_checkpoints(path, cover=False)
@@ -52,18 +95,15 @@ def read_control(path, control_crs: str | None, strip_path, points, sensor, chec
             raise InputError(path, "class", f"every {role[:-1]} is marked vegetated; expected {role} on open ground")
         cp = type(cp)(cp.path, cp.ids[keep], cp.xyz[keep], cp.vegetated[keep],
                       None if cp.sigma_m is None else cp.sigma_m[keep], cp.lines[keep])
-    crs, undulation = _crs(path, control_crs, crs_option, strip_path, points, sensor)
+    crs, undulation = _crs(path, control_crs, crs_option, strips_crs)
     return ControlInput(cp, from_crs_of(cp, crs, undulation), tuple(notes))
 
 
-def _crs(path, given: str | None, option: str, strip_path, points, sensor):
+def _crs(path, given: str | None, option: str, strips_crs: tuple):
     """The file's CRS and geoid undulation: ``given`` (a CRS, the option ``option``) or the strips'."""
     import pyproj
 
-    from calidar.io.las import las_file_crs
-
-    crs = las_file_crs(Path(strip_path), points.crs) or las_file_crs(Path(strip_path), sensor.crs)
-    undulation = points.geoid_undulation_m
+    crs, undulation = strips_crs
     if given is not None:
         try:
             theirs = pyproj.CRS.from_user_input(given)
@@ -82,25 +122,6 @@ def from_crs_of(cp, crs, undulation) -> np.ndarray:
     return from_crs(cp.xyz, crs, undulation, cp.path)
 
 
-def with_checkpoints(checkpoints, config, strip_paths, nominal, ingest) -> tuple[object, ControlInput | None]:
-    """``calidar boresight --checkpoints``: the checkpoints read (None without the option) and the
-    ingest options keeping the strips' points around them too (beside the control's); ``config``:
-    the run's :class:`calidar.pipelines.strip_config.StripConfig` (their CRS, the class to meet)."""
-    from dataclasses import replace
-
-    if checkpoints is None:
-        for value, option in ((config.checkpoints_crs, "--checkpoints-crs"), (config.checkpoint_class_cm, "--class")):
-            if value is not None:
-                raise InputError(None, option, "given without --checkpoints; expected --checkpoints FILE with it")
-        return ingest, None
-    if not strip_paths:
-        raise InputError(None, "STRIPS", "expected at least one LAS/LAZ file")
-    cp = read_control(checkpoints, config.checkpoints_crs, strip_paths[0], config.points, nominal,
-                      checkpoints=True, crs_option="--checkpoints-crs")
-    ecef = cp.ecef if ingest.control_ecef is None else np.vstack([ingest.control_ecef, cp.ecef])
-    return replace(ingest, control_ecef=ecef), cp
-
-
 def control_points(control: ControlInput, frame):
     """The control in the strips' local frame: a :class:`calidar.strips.control.ControlPoints`
     (two points at one place: an error naming them)."""
@@ -114,7 +135,7 @@ def control_points(control: ControlInput, frame):
 
 
 def checked_checkpoints(checkpoints: ControlInput | None, frame, notes: list[str]):
-    """The checkpoints of ``with_checkpoints`` in the strips' local frame (None: none) and the run's
+    """The checkpoints of :func:`read_ground` in the strips' local frame (None: none) and the run's
     notes with theirs."""
     if checkpoints is None:
         return None, notes

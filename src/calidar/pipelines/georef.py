@@ -19,7 +19,7 @@ from calidar.outputs import atomic_path, guard_inputs
 from calidar.pipelines import Progress, no_progress
 from calidar.pipelines import inputs
 from calidar.pipelines.inputs import TrajectoryOptions, load_trajectory, point_times, points_ecef, trajectory_for
-from calidar.pipelines.plausibility import GeometryCheck, heights_notes
+from calidar.ingest.plausibility import GeometryCheck, heights_notes
 from calidar.sensor import Sensor
 from calidar.sensor_import import from_optech_header
 from calidar.validate import values
@@ -35,7 +35,7 @@ def inverse_points(points: Path, trajectory: Path, out: Path, *, sensor: Path | 
     gps_time (s, as in the LAS), range_m (measured), x_s, y_s, z_s (m, scanner frame),
     across_track_angle_deg = atan2(y_s, z_s), along_track_angle_deg = atan2(x_s, hypot(y_s, z_s)).
     Returns the number of points; ``notes`` (when given) receives the vertical reference used and
-    the plausibility warnings (:mod:`calidar.pipelines.plausibility`, whose errors stop the run)."""
+    the plausibility warnings (:mod:`calidar.ingest.plausibility`, whose errors stop the run)."""
     guard_inputs([out], [points, trajectory, sensor])
     model = Sensor.read(sensor) if sensor else Sensor()
     traj, week = trajectory_for(points, load_trajectory(trajectory, trajectory_options), point_options,
@@ -68,7 +68,7 @@ def regeoreference_strips(strips: list[Path], trajectory: Path, old: Path, new: 
     forward with ``to_trajectory`` (default: ``trajectory``; e.g. calidar boresight's
     sbet_corrected.out) and ``new``, written into ``out_dir`` under the strips' names (formats, CRS
     and every other attribute kept). Every strip is checked (CRS, whole-file trajectory coverage)
-    before any is written, and its geometry while it is streamed (:mod:`calidar.pipelines.plausibility`).
+    before any is written, and its geometry while it is streamed (:mod:`calidar.ingest.plausibility`).
     Returns {output path: points}; ``notes`` (when given) receives the vertical reference and warnings."""
     old_s, new_s = Sensor.read(old), Sensor.read(new)
     traj0 = load_trajectory(trajectory, trajectory_options)

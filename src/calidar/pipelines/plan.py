@@ -11,13 +11,14 @@ that many times (:func:`calidar.planning.simulate.confirm`), and writes ``plan.j
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass
+from dataclasses import dataclass, field, fields
 from pathlib import Path
 
 import numpy as np
 
 from calidar.errors import InputError
 from calidar.pipelines import Progress, no_progress
+from calidar.strips.config import Estimate
 
 #: the most simulations ``--simulate`` runs (each is a whole survey simulated and calibrated)
 MAX_SIMULATE = 200
@@ -25,18 +26,28 @@ MAX_SIMULATE = 200
 
 @dataclass(frozen=True)
 class PlanOptions:
-    """What ``calidar plan`` takes besides its files (see its --help)."""
+    """What ``calidar plan`` takes besides its files (see its --help), typed: the CLI parses the
+    option strings (:mod:`calidar.cli.plan`), this pipeline checks ranges only. SI inside."""
 
     terrain: str = "flat"  #: flat | flat:HEIGHT | scene[:PRESET[:SEED]] | a DEM GeoTIFF path
     pulse_rate_hz: float = 20_000.0
     fov_deg: float = 70.0  #: full field of view
     range_sigma_m: float = 0.01
     angle_sigma_deg: float = 0.002
-    estimate: str = "boresight"
-    trajectory_sigma: str = "0.02,0.002"  #: POSITION_M,ATTITUDE_DEG, the expected trajectory accuracy
+    estimate: Estimate = field(default_factory=lambda: Estimate.of("boresight"))
+    #: the expected trajectory accuracy: position m, attitude rad
+    trajectory_sigma: tuple[float, float] = (0.02, float(np.radians(0.002)))
     suggest: bool = True
     simulate: int = 0
-    platform_motion: str = "1.5,1.0"  #: ROLL_PITCH_DEG,HEADING_DEG: σ of the platform's attitude wobble
+    #: σ of the platform's attitude wobble along a line: roll and pitch, heading (rad)
+    platform_motion: tuple[float, float] = (float(np.radians(1.5)), float(np.radians(1.0)))
+
+    def to_dict(self) -> dict:
+        """The options as a user gives them (degrees, names), for the run record."""
+        pos, att = self.trajectory_sigma
+        return {**{f.name: getattr(self, f.name) for f in fields(self)}, "estimate": self.estimate.names(),
+                "trajectory_sigma": f"{pos:g},{np.degrees(att):g}",
+                "platform_motion": ",".join(f"{np.degrees(v):g}" for v in self.platform_motion)}
 
 
 @dataclass
@@ -87,42 +98,40 @@ def instrument(sensor_path: Path, options: PlanOptions):
     from calidar.planning.geometry import Instrument
     from calidar.scanners.linear import LinearScanner
     from calidar.sensor import Sensor
-    from calidar.validate import number, parse_floats
+    from calidar.validate import number
 
     number(options.pulse_rate_hz, "--pulse-rate", 100.0, 5e6, "Hz")
     number(options.fov_deg, "--fov", 1.0, 150.0, "deg")
     number(options.range_sigma_m, "--range-sigma", 1e-5, 1.0, "m")
     number(options.angle_sigma_deg, "--angle-sigma", 0.0, 1.0, "deg")
+    for v in options.platform_motion:
+        number(float(np.degrees(v)), "--platform-motion", 0.0, 10.0 + 1e-12, "deg")  # (10° back from radians)
     nominal = Sensor.read(sensor_path)
     if not isinstance(nominal.scanner, LinearScanner):
         raise InputError(sensor_path, "scanner", f"model {nominal.scanner.model!r}: calidar plan predicts linear "
                          "(oscillating-mirror or polygon) scanners; expected model = \"linear\"")
-    rp, hd = parse_floats(options.platform_motion, 2, "--platform-motion (ROLL_PITCH_DEG,HEADING_DEG)")
-    for v in (rp, hd):
-        number(v, "--platform-motion", 0.0, 10.0, "deg")
     return Instrument(nominal, options.pulse_rate_hz, float(np.radians(options.fov_deg / 2)), options.range_sigma_m,
-                      float(np.radians(options.angle_sigma_deg)), (float(np.radians(rp)), float(np.radians(hd))))
+                      float(np.radians(options.angle_sigma_deg)), tuple(float(v) for v in options.platform_motion))
+
+
+#: what a plan does not predict: the scan-angle and Palmer parameters
+NOT_PLANNED = frozenset({"scan_angle_scale", "scan_angle_offset", "eccentricity_ratio", "eccentricity_phase", "delta_l",
+                         "delta_r"})
 
 
 def plan_settings(options: PlanOptions):
     from calidar.planning.predict import PlanSettings
-    from calidar.strips.config import Estimate, TrajectorySettings
-    from calidar.validate import parse_floats
+    from calidar.strips.config import TrajectorySettings
 
-    groups = [n.strip() for n in options.estimate.split(",") if n.strip()]
-    try:
-        Estimate.of(*groups)
-    except InputError as e:
-        raise InputError(None, "--estimate", f"{e.problem} (comma-separated), got {options.estimate!r}") from None
-    if "trajectory_bias" in groups or "height_bias" in groups:
-        raise InputError(None, "--estimate", "trajectory_bias is always modelled and height_bias needs ground control; "
-                         "expected sensor parameters (boresight, lever_arm, range_offset, …)")
-    if any(g in ("palmer",) or g.startswith("scan_angle") for g in groups):
-        raise InputError(None, "--estimate", f"got {options.estimate!r}; calidar plan predicts boresight, lever_arm, "
+    est = options.estimate
+    if "height_bias" in est.parameters:
+        raise InputError(None, "--estimate", "height_bias needs ground control; expected sensor parameters "
+                         "(boresight, lever_arm, range_offset, …)")
+    if est.parameters & NOT_PLANNED:
+        raise InputError(None, "--estimate", f"got {','.join(est.names())}; calidar plan predicts boresight, lever_arm, "
                          "range_offset and range_scale (and their single parameters)")
-    pos_m, att_deg = parse_floats(options.trajectory_sigma, 2, "--trajectory-sigma (POSITION_M,ATTITUDE_DEG)")
-    trajectory = TrajectorySettings(sigma=(pos_m, float(np.radians(att_deg)))).model()
-    return PlanSettings(estimate=tuple(groups), trajectory=trajectory)
+    trajectory = TrajectorySettings(sigma=options.trajectory_sigma).model()
+    return PlanSettings(estimate=tuple(est.names()), trajectory=trajectory)
 
 
 def _verdict(pred, found):
@@ -157,7 +166,7 @@ def run_plan(lines_path: Path, sensor_path: Path, out_dir: Path, options: PlanOp
 
     if not 0 <= options.simulate <= MAX_SIMULATE:
         raise InputError(None, "--simulate", f"expected 0 to {MAX_SIMULATE} simulated surveys, got {options.simulate}")
-    record = RunRecord.capture(argv, inputs=[lines_path, sensor_path], options=options.__dict__)
+    record = RunRecord.capture(argv, inputs=[lines_path, sensor_path], options=options.to_dict())
     lines = read_flight_lines(lines_path)
     inst = instrument(Path(sensor_path), options)
     settings = plan_settings(options)
@@ -199,7 +208,7 @@ def plan_document(lines, inst, options, terrain, pred, found, simulation, verdic
            "terrain": terrain.name, "estimate": list(pred.names),
            "instrument": {"pulse_rate_hz": inst.pulse_rate_hz, "half_fov_deg": float(np.degrees(inst.half_fov_rad)),
                           "range_noise_m": inst.range_noise_m, "angle_noise_deg": float(np.degrees(inst.angle_noise_rad))},
-           "trajectory": f"{options.trajectory_sigma} (position m, attitude deg)",
+           "trajectory": f"{options.to_dict()['trajectory_sigma']} (position m, attitude deg)",
            "median_range_m": pred.median_range_m, "pairs": pred.pairs, "observations": pred.n_rows,
            "parameters": params, "correlation": {"names": pred.names, "matrix": corr.tolist()},
            "findings": findings(pred),

@@ -4,7 +4,7 @@ writes it beside its results (``config.toml``).
 
 :class:`StripConfig` holds the calibration's own configuration
 (:class:`calidar.strips.config.CalibrationConfig`: what to estimate, the matchers, the
-trajectory model, the adjustment) and how the files are read (:class:`IngestOptions`, the
+trajectory model, the adjustment) and how the files are read (:class:`IngestSettings`, the
 point and text-trajectory options, the control points' CRS). The file, in the units a user
 reads (degrees for the trajectory's attitude σ)::
 
@@ -47,10 +47,10 @@ from pathlib import Path
 from calidar.errors import InputError
 from calidar.io.las import PointOptions
 from calidar.pipelines.inputs import TrajectoryOptions
-from calidar.pipelines.strip_source import IngestOptions
+from calidar.ingest.settings import IngestSettings
 from calidar.strips.config import MATCHERS, CalibrationConfig, Estimate, StripSettings, TrajectorySettings
 
-#: [ingest] keys → IngestOptions fields (strip_points as --strip-points: 0 keeps every overlapping point)
+#: [ingest] keys → IngestSettings fields (strip_points as --strip-points: 0 keeps every overlapping point)
 INGEST_KEYS = {"strip_points": "budget_points", "block_cells": "block_cells", "gap_s": "gap_s",
                "chunk_points": "chunk_points"}
 #: [inputs] keys → (PointOptions | TrajectoryOptions | StripConfig, field)
@@ -64,8 +64,8 @@ INPUT_KEYS = {"crs": ("points", "crs"), "time_system": ("points", "time_system")
 @dataclass(frozen=True)
 class StripConfig:
     """Everything a strip calibration run takes besides its files: the calibration's
-    configuration, how the strips are read (``ingest``, with the point options; its overlap grid
-    is the solver's), how a text trajectory is read, the control points' CRS.
+    configuration, how the strips are read (``ingest``, the streaming engine's settings with the
+    point options; its overlap grid set to the solver's), how a text trajectory is read, the control points' CRS.
 
     >>> from calidar.strips.config import CalibrationConfig, Estimate, TrajectorySettings, Vgicp
     >>> config = StripConfig(CalibrationConfig(Estimate.of("boresight", "range_offset"), matchers=(Vgicp(),),
@@ -75,22 +75,24 @@ class StripConfig:
     """
 
     calibration: CalibrationConfig = field(default_factory=CalibrationConfig)
-    ingest: IngestOptions = field(default_factory=IngestOptions)
+    ingest: IngestSettings = field(default_factory=IngestSettings)
     trajectory_input: TrajectoryOptions = field(default_factory=TrajectoryOptions)
     control_crs: str | None = None  #: the control points' CRS when it is not the strips'
     checkpoints_crs: str | None = None  #: the checkpoints' CRS when it is not the strips'
     #: the ASPRS vertical accuracy class (cm) the calibrated strips must meet at the checkpoints (--class)
     checkpoint_class_cm: float | None = None
 
+    def __post_init__(self):
+        # one overlap grid: the ingest reads on the calibration's (its solver settings), so that the
+        # engine takes ``ingest`` as it stands
+        s = self.calibration.solver
+        if (self.ingest.cell_m, self.ingest.min_cells) != (s.overlap_cell_m, s.min_overlap_cells):
+            object.__setattr__(self, "ingest", replace(self.ingest, cell_m=s.overlap_cell_m, min_cells=s.min_overlap_cells))
+
     @property
     def points(self) -> PointOptions:
         """How the strips' points are read (--crs, --time-system, --geoid-undulation)."""
         return self.ingest.points
-
-    def ingest_options(self) -> IngestOptions:
-        """The ingest options on the calibration's overlap grid."""
-        s = self.calibration.solver
-        return replace(self.ingest, cell_m=s.overlap_cell_m, min_cells=s.min_overlap_cells)
 
     def to_dict(self) -> dict:
         """The TOML file's document (user units; None values left out)."""
@@ -163,7 +165,7 @@ def from_document(doc: dict, path: Path | None = None) -> StripConfig:
     calibration = _build(path, "method", lambda: CalibrationConfig(chosen, matchers, trajectory, solver))
     ingest = _table(doc, "ingest", path)
     _known(ingest, set(INGEST_KEYS), path, "ingest.")
-    kw = {INGEST_KEYS[k]: _typed(v, typing.get_type_hints(IngestOptions)[INGEST_KEYS[k]], path, f"ingest.{k}")
+    kw = {INGEST_KEYS[k]: _typed(v, typing.get_type_hints(IngestSettings)[INGEST_KEYS[k]], path, f"ingest.{k}")
           for k, v in ingest.items()}
     if kw.get("budget_points") == 0:
         kw["budget_points"] = None
@@ -178,7 +180,7 @@ def from_document(doc: dict, path: Path | None = None) -> StripConfig:
         if k.endswith("crs"):
             validated_crs(v, str(path), f"inputs.{k}")
     points = _build(path, "inputs", lambda: PointOptions(**parts["points"]))
-    ingest_options = _build(path, "ingest", lambda: IngestOptions(points=points, **kw))
+    ingest_options = _build(path, "ingest", lambda: IngestSettings(points=points, **kw))
     trajectory = _build(path, "inputs", lambda: TrajectoryOptions(**parts["trajectory"]))
     return StripConfig(calibration, ingest_options, trajectory, **parts["config"], checkpoint_class_cm=target)
 

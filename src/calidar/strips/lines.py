@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import hashlib
 from collections.abc import Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -21,18 +21,11 @@ GAP_S = 10.0  #: a pause in GPS time longer than this starts a new flight line (
 
 
 def line_ids(point_source_id: np.ndarray | None, gps_time: np.ndarray, gap_s: float = GAP_S) -> tuple[np.ndarray, str]:
-    """One flight-line id per point and how they were found ("point_source_id" or "gps_time_gaps").
-
-    Ids come from point_source_id when it holds at least two distinct values; otherwise
-    lines are numbered 1, 2, … in time order, split where GPS time jumps by more than gap_s.
-    """
-    if point_source_id is not None and np.unique(point_source_id).size >= 2:
-        return np.asarray(point_source_id, np.int64), "point_source_id"
-    order = np.argsort(gps_time, kind="stable")
-    starts = np.r_[0, np.flatnonzero(np.diff(gps_time[order]) > gap_s) + 1]
-    ids = np.empty(gps_time.size, np.int64)
-    ids[order] = np.repeat(np.arange(1, starts.size + 1), np.diff(np.r_[starts, gps_time.size]))
-    return ids, "gps_time_gaps"
+    """One flight-line id per point and how they were found ("point_source_id" or "gps_time_gaps"):
+    :func:`split_lines` with every point its own span of time."""
+    psid = () if point_source_id is None else _distinct(np.asarray(point_source_id)).tolist()
+    index = split_lines(psid, {}, gps_time, gps_time, gap_s)
+    return index.of(point_source_id, gps_time), index.how
 
 
 def read_flight_lines(paths: Sequence[str | Path], crs=None, gap_s: float = GAP_S,
@@ -48,13 +41,14 @@ def read_flight_lines(paths: Sequence[str | Path], crs=None, gap_s: float = GAP_
     check_distinct(paths)
     clouds = [read_las(p, crs=crs, options=options) for p in paths]
     merged = concat_points(clouds)
-    ids, how = line_ids(merged.point_source_id, merged.gps_time, gap_s)
-    source = np.repeat(np.arange(len(clouds)), [len(c) for c in clouds])  # the file of each point
-    if how == "point_source_id":
-        spans: dict = {}
-        for c in clouds:
+    spans: dict = {}
+    for c in clouds:
+        if c.point_source_id is not None:
             add_spans(spans, c.point_source_id, c.gps_time, c.path.name)
-        ids = split_ids(ids, merged.gps_time, shared_id_splits(spans, gap_s)[0])
+    psid = () if merged.point_source_id is None else _distinct(merged.point_source_id).tolist()
+    index = split_lines(psid, spans, merged.gps_time, merged.gps_time, gap_s)
+    ids, how = index.of(merged.point_source_id, merged.gps_time), index.how
+    source = np.repeat(np.arange(len(clouds)), [len(c) for c in clouds])  # the file of each point
     return {int(i): replace(merged.select(ids == i), path=clouds[source[np.argmax(ids == i)]].path)
             for i in np.unique(ids)}, how
 
@@ -128,21 +122,46 @@ def split_ids(ids: np.ndarray, t: np.ndarray, splits: dict) -> np.ndarray:
 
 @dataclass(frozen=True)
 class LineIndex:
-    """The flight lines of LAS/LAZ files found by a streamed first pass (:func:`index_flight_lines`),
-    to sort the points of later chunks into them as :func:`line_ids` would sort all at once."""
+    """The flight lines of a survey (:func:`split_lines`), to sort points into them chunk by chunk
+    (:meth:`of`) as they would be sorted all at once."""
 
     how: str  #: "point_source_id" | "gps_time_gaps"
     ids: tuple[int, ...]
     starts: np.ndarray | None  #: gps_time_gaps: first GPS time (s) of each line
-    classes: dict[Path, np.ndarray]  #: LAS classes present in each file
-    splits: dict = None  #: point_source_ids shared by files apart in time (:func:`shared_id_splits`)
+    splits: dict = field(default_factory=dict)  #: point_source_ids shared by files apart in time (:func:`shared_id_splits`)
     notes: tuple[str, ...] = ()  #: what the user should know about how the lines were found
+    classes: dict = field(default_factory=dict)  #: LAS classes present in each file (:func:`index_flight_lines`)
 
     def of(self, point_source_id: np.ndarray | None, gps_time: np.ndarray) -> np.ndarray:
-        """The flight-line id of each point of a chunk."""
+        """The flight-line id of each point (or of each span of points starting at ``gps_time``)."""
         if self.starts is None:
-            return split_ids(np.asarray(point_source_id, np.int64), np.asarray(gps_time, float), self.splits or {})
+            return split_ids(np.asarray(point_source_id, np.int64), np.asarray(gps_time, float), self.splits)
         return np.searchsorted(self.starts, gps_time, side="right").astype(np.int64)
+
+
+def split_lines(point_source_ids, spans: dict, first: np.ndarray, last: np.ndarray, gap_s: float = GAP_S) -> LineIndex:
+    """The one flight-line splitter (every reader of strips calls it: points at once, a streamed
+    pass's seconds, the strip ingest's groups).
+
+    By point_source_id when ``point_source_ids`` (the distinct ids held) has at least two values,
+    files sharing an id at times that do not interleave kept apart (:func:`shared_id_splits` on
+    ``spans`` {(id, file name): (first, last GPS time)}); otherwise lines numbered 1, 2, … in time
+    order from spans of points [``first``, ``last``] (GPS s; a point, a second, a group of points,
+    none holding a gap > ``gap_s`` within): a line starts where a span begins more than ``gap_s``
+    after every earlier one ended."""
+    ids = {int(i) for i in point_source_ids}
+    if len(ids) >= 2:
+        splits, notes = shared_id_splits(spans, gap_s)
+        ids |= {int(j) for _, part_ids in splits.values() for j in part_ids}
+        return LineIndex("point_source_id", tuple(sorted(ids)), None, splits, tuple(notes))
+    first, last = np.asarray(first, float), np.asarray(last, float)
+    if first.size == 0:
+        return LineIndex("gps_time_gaps", (1,), np.zeros(1))
+    order = np.argsort(first, kind="stable")
+    reach = np.maximum.accumulate(last[order])  # the latest end so far
+    new = np.r_[True, first[order][1:] - reach[:-1] > gap_s]
+    starts = first[order][new]
+    return LineIndex("gps_time_gaps", tuple(range(1, starts.size + 1)), starts)
 
 
 def index_flight_lines(paths: Sequence[str | Path], options: PointOptions = PointOptions(), gap_s: float = GAP_S,
@@ -167,13 +186,8 @@ def index_flight_lines(paths: Sequence[str | Path], options: PointOptions = Poin
             seconds.append(_second_spans(c["gps_time"]))
             add_spans(spans, c["point_source_id"], c["gps_time"], path.name)
         classes[path] = np.flatnonzero(present)
-    if len(ids) >= 2:
-        splits, notes = shared_id_splits(spans, gap_s)
-        ids |= {int(j) for _, part_ids in splits.values() for j in part_ids}
-        return LineIndex("point_source_id", tuple(sorted(ids)), None, classes, splits, tuple(notes))
-    lo, hi = _second_spans(np.concatenate([s[0] for s in seconds] + [s[1] for s in seconds]))
-    starts = np.r_[lo[:1], lo[1:][lo[1:] - hi[:-1] > gap_s]] if lo.size else np.zeros(1)
-    return LineIndex("gps_time_gaps", tuple(range(1, starts.size + 1)), starts, classes)
+    lo, hi = _second_spans(np.concatenate([s[0] for s in seconds] + [s[1] for s in seconds])) if seconds else ((), ())
+    return replace(split_lines(ids, spans, lo, hi, gap_s), classes=classes)
 
 
 def add_spans(spans: dict, point_source_id, t: np.ndarray, name: str) -> None:

@@ -98,7 +98,7 @@ def find_overlaps(strips_xy: Mapping[int, np.ndarray], cell_m: float = 5.0, min_
     A cell counts as occupied by a strip when it holds at least ``min_points_per_cell``
     of its points; pairs sharing fewer than ``min_cells`` cells are left out. Returns the
     pairs (ids ascending) and plain-words notes about strips that overlap no other strip
-    (named by ``names`` {id: file name} when given). (Streamed files: :func:`calidar.pipelines.strip_ingest.ingest_strips` accumulates the
+    (named by ``names`` {id: file name} when given). (Streamed files: :class:`calidar.ingest.strips.StripIngest` accumulates the
     same footprints chunk by chunk with :func:`cell_counts` and :func:`merge_counts`.)
     """
     keys = {i: cell_keys(xy, cell_m) for i, xy in strips_xy.items()}

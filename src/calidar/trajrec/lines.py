@@ -8,6 +8,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from calidar.strips import lines as strip_lines
+
 MIN_GAP_S = 2.0  #: a pause in the GPS times longer than this (and 100 pulse intervals) splits a line
 TRACK_BIN_S = 2.0  #: ground-track headings are compared over bins of this length
 REVERSAL_RAD = np.radians(120.0)  #: a heading change larger than this between bins splits a line
@@ -37,10 +39,12 @@ class LinePoints:
 
 
 def _breaks(t: np.ndarray, xy: np.ndarray) -> np.ndarray:
-    """Times (sorted) where a line ends: gaps in time, reversals of the ground track."""
+    """Times (sorted) where a line ends: gaps in time (:func:`calidar.strips.lines.split_lines`, the
+    one splitter, at this scanner's own gap), reversals of the ground track."""
     dt = np.diff(t)
     gap = max(MIN_GAP_S, 100 * float(np.median(dt[dt > 0]))) if np.any(dt > 0) else MIN_GAP_S
-    cuts = [0.5 * (t[i] + t[i + 1]) for i in np.flatnonzero(dt > gap)]
+    starts = np.searchsorted(t, strip_lines.split_lines((), {}, t, t, gap).starts[1:])  # the first point after each gap
+    cuts = [0.5 * (t[i - 1] + t[i]) for i in starts]
     edges = np.arange(t[0], t[-1] + TRACK_BIN_S, TRACK_BIN_S)
     b = np.searchsorted(t, edges)
     centres = np.array([xy[s:e].mean(axis=0) if e > s else [np.nan, np.nan] for s, e in zip(b[:-1], b[1:])])

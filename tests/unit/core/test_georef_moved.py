@@ -39,7 +39,7 @@ def test_regeoreferencing_through_near_ecef_equals_the_exact_transform():
     """Inverse and forward through the same approximate ECEF: only the moves count, so the
     millimetre of near_ecef moves the re-georeferenced points by < 0.01 mm (≈ the mounting
     change, 2e-3 rad, times it: what
-    calidar.pipelines.strip_source.line_chunks relies on); with the tiles' Jacobians, within 0.1 mm."""
+    calidar.ingest.source.line_chunks relies on); with the tiles' Jacobians, within 0.1 mm."""
     from calidar.sensor import Sensor
     from calidar.trajectory import Trajectory
 

@@ -1,5 +1,5 @@
 """``calidar boresight`` decompresses every point once (issue 32): pass 2 and the overlap-quality
-stages read what pass 1 kept (pipelines/held_points.py HeldFiles), and give what reading the files
+stages read what pass 1 kept (ingest/held.py HeldFiles), and give what reading the files
 again gives, bit for bit."""
 
 from __future__ import annotations
@@ -13,8 +13,8 @@ import pytest
 
 from calidar.io.trajectory import read_trajectory
 from calidar.pipelines.boresight_outputs import measure_lines
-from calidar.pipelines.strip_ingest import ingest_strips
-from calidar.pipelines.strip_source import IngestOptions
+from calidar.ingest.strips import StripIngest
+from calidar.ingest.settings import IngestSettings
 from calidar.sensor import Sensor
 from calidar.sim.survey import simulate_survey, survey_config
 
@@ -25,25 +25,25 @@ def survey(tmp_path_factory) -> Path:
     return res.write(tmp_path_factory.mktemp("read_once") / "sim")
 
 
-def _run(sim: Path, options: IngestOptions):
+def _run(sim: Path, options: IngestSettings):
     paths = sorted((sim / "strips").glob("*.laz"))
     traj, sensor = read_trajectory(sim / "sbet.out"), Sensor.read(sim / "sensor.toml")
-    strips, _, source, _ = ingest_strips(paths, traj, sensor, options)
+    strips, _, source, _ = StripIngest(options).read(paths, traj, sensor)
     moved = replace(sensor, boresight_roll=sensor.boresight_roll + np.radians(0.05))
     stages = measure_lines(SimpleNamespace(source=source, nominal=sensor, trajectory=traj), [None, (moved, traj)])
     return paths, strips, source, stages
 
 
 def test_each_point_decompressed_once_and_every_output_as_read_twice(survey, monkeypatch):
-    import calidar.pipelines.strip_ingest as ingest
-    import calidar.pipelines.strip_source as source_module
+    import calidar.ingest.footprints as ingest
+    import calidar.ingest.source as source_module
 
-    _, again, _, stages_again = _run(survey, IngestOptions(budget_points=20_000, hold_bytes=0))
+    _, again, _, stages_again = _run(survey, IngestSettings(budget_points=20_000, hold_bytes=0))
     reads = []
     real = ingest.iter_las_chunks
     for module in (ingest, source_module):  # pass 1 reads in the one, pass 2 and the stages in the other
         monkeypatch.setattr(module, "iter_las_chunks", lambda path, *a, **k: reads.append(path) or real(path, *a, **k))
-    paths, held, source, stages = _run(survey, IngestOptions(budget_points=20_000))
+    paths, held, source, stages = _run(survey, IngestSettings(budget_points=20_000))
     assert sorted(reads) == sorted(paths)  # each file decompressed once, by pass 1
     assert source.held is not None and source.held.complete == set(paths)
     assert [s.id for s in held] == [s.id for s in again] and len(held) >= 3
@@ -60,7 +60,7 @@ def test_each_point_decompressed_once_and_every_output_as_read_twice(survey, mon
 
 
 def test_spans_off_the_chunks_and_other_fields_are_read_from_the_file(survey):
-    paths, _, source, _ = _run(survey, IngestOptions(budget_points=20_000, chunk_points=3_000))
+    paths, _, source, _ = _run(survey, IngestSettings(budget_points=20_000, chunk_points=3_000))
     f = source.files[0]
     assert source.held.chunks(f.path, (0, None)) is not None
     assert source.held.chunks(f.path, (1_000, None)) is None  # not a chunk's first point
@@ -76,7 +76,7 @@ def test_held_folder_is_a_registered_temporary():
     """Removed with its object, and by outputs.remove_temporaries (a command ending while reader
     threads still hold it: the CLI's os._exit runs no finalizer)."""
     from calidar import outputs
-    from calidar.pipelines.held_points import HeldFiles
+    from calidar.ingest.held import HeldFiles
 
     held = HeldFiles()
     (held.folder / "held_0.bin").write_bytes(b"0" * 10)

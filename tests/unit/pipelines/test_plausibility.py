@@ -1,4 +1,4 @@
-"""The geometry checks of calidar.pipelines.plausibility against simulated flights (issue 27, 26)."""
+"""The geometry checks of calidar.ingest.plausibility against simulated flights (issue 27, 26)."""
 
 import numpy as np
 import pytest
@@ -6,7 +6,7 @@ import pytest
 import calidar
 from calidar.errors import InputError
 from calidar.frames import r_en
-from calidar.pipelines.plausibility import GeometryCheck
+from calidar.ingest.plausibility import GeometryCheck
 
 HEIGHT_M = 1000.0
 

@@ -1,5 +1,5 @@
 """``calidar quality`` decompresses every point once (issue 32): the first pass keeps what the
-second needs (pipelines/held_points.py), exactly, and the results equal the points' in memory."""
+second needs (ingest/held.py), exactly, and the results equal the points' in memory."""
 
 from __future__ import annotations
 
@@ -11,8 +11,9 @@ import pytest
 
 import calidar.io.las as las
 from calidar.io.las import iter_las_chunks, write_las
-from calidar.pipelines.held_points import HeldPoints
-from calidar.pipelines.quality import Metric, _first_rows, _token_counts, held_chunks, measure
+from calidar.ingest.held import HeldPoints
+from calidar.ingest.cell_counts import Metric, _first_rows, _token_counts, held_chunks
+from calidar.pipelines.quality import measure
 from calidar.strips.lines import _second_spans
 from calidar.strips.quality import QualitySettings, swath_differences
 

@@ -15,7 +15,7 @@ from calidar.errors import InputError
 from calidar.io.las import PointOptions
 from calidar.pipelines.inputs import TrajectoryOptions
 from calidar.pipelines.strip_config import StripConfig
-from calidar.pipelines.strip_source import IngestOptions
+from calidar.ingest.settings import IngestSettings
 from calidar.strips.config import CalibrationConfig, Estimate, StripSettings, TiePlanes, TrajectorySettings, Vgicp
 from calidar.strips.planes import PlaneSettings
 from calidar.strips.vgicp import VgicpSettings
@@ -26,8 +26,12 @@ SRC = Path(__file__).resolve().parents[3] / "src" / "calidar"
 REGEX_ALLOWANCE: set[str] = set()
 
 
+#: the library below the CLI that takes a typed configuration: none of it parses an option string
+SCANNED = ("strips", "adjust", "planning", "ingest")
+
+
 def _library_modules():
-    return sorted([*(SRC / "strips").glob("*.py"), *(SRC / "adjust").glob("*.py")])
+    return sorted(p for package in SCANNED for p in (SRC / package).glob("*.py"))
 
 
 def _option_parsing(path: Path) -> list[str]:
@@ -61,7 +65,7 @@ def _option_parsing(path: Path) -> list[str]:
     return found
 
 
-def test_nothing_under_strips_and_adjust_parses_option_strings():
+def test_nothing_under_strips_adjust_planning_and_ingest_parses_option_strings():
     found = {p.relative_to(SRC).as_posix(): f for p in _library_modules() if (f := _option_parsing(p))}
     assert found == {}, f"option strings parsed below the CLI: {found}"
 
@@ -105,7 +109,7 @@ def _everything_changed() -> StripConfig:
          TiePlanes(PlaneSettings(cell_m=2.0, max_rms_m=0.05))),
         TrajectorySettings(block_s=2.0, correlation_s=(30.0, 5.0), sigma=(0.03, math.radians(0.002))),
         StripSettings(overlap_cell_m=4.0, max_outer=3, threshold_m=1e-3, robust=None, cluster_s=None))
-    return StripConfig(cal, IngestOptions(budget_points=None, block_cells=3, gap_s=5.0,
+    return StripConfig(cal, IngestSettings(budget_points=None, block_cells=3, gap_s=5.0,
                                           points=PointOptions("EPSG:32632", "adjusted", 47.5)),
                        TrajectoryOptions("EPSG:32615", "rad", "grid", ("time", "-", "lat")), "EPSG:4326")
 
@@ -159,7 +163,7 @@ def test_the_command_lines_defaults_are_the_configurations():
     defaults = TrajectorySettings()
     assert cli.TRAJECTORY_BLOCK_S == defaults.block_s
     assert tuple(float(v) for v in cli.TRAJECTORY_CORRELATION.split(",")) == defaults.correlation_s
-    assert cli.BUDGET_POINTS == IngestOptions().budget_points
+    assert cli.BUDGET_POINTS == IngestSettings().budget_points
     assert strip_config(None, {}) == StripConfig()
 
 

@@ -9,8 +9,8 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from calidar.pipelines.line_quality import LineCounts, lines_quality, stage_pass
-from calidar.pipelines.quality import Metric
+from calidar.ingest.stages import LineCounts, lines_quality, stage_pass
+from calidar.ingest.cell_counts import Metric
 from calidar.strips.overlap import cell_keys
 from calidar.strips.quality import overlap_cell, swath_differences
 

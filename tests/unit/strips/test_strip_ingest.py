@@ -10,8 +10,10 @@ import pytest
 
 from calidar.io.las import read_las, write_las
 from calidar.io.trajectory import read_trajectory
-from calidar.pipelines.strip_ingest import _held_files, _pass1, _plan, ingest_strips
-from calidar.pipelines.strip_source import HELD_BYTES_PER_POINT, IngestOptions, planar_xy
+from calidar.ingest.footprints import files_to_hold, first_pass
+from calidar.ingest.strips import StripIngest, _plan
+from calidar.ingest.settings import HELD_BYTES_PER_POINT, IngestSettings
+from calidar.ingest.source import planar_xy
 from calidar.sensor import Sensor
 from calidar.sim.survey import simulate_survey, survey_config
 from calidar.strips.lines import line_ids, read_flight_lines
@@ -31,8 +33,8 @@ def _inputs(sim: Path):
 
 def test_kept_points_do_not_depend_on_the_chunk_size(survey):
     paths, traj, sensor = _inputs(survey)
-    big, _, src, _ = ingest_strips(paths, traj, sensor, IngestOptions(budget_points=20_000))
-    small, _, _, _ = ingest_strips(paths, traj, sensor, IngestOptions(budget_points=20_000, chunk_points=7_777))
+    big, _, src, _ = StripIngest(IngestSettings(budget_points=20_000)).read(paths, traj, sensor)
+    small, _, _, _ = StripIngest(IngestSettings(budget_points=20_000, chunk_points=7_777)).read(paths, traj, sensor)
     assert [s.id for s in big] == [s.id for s in small] and len(big) >= 3
     for a, b in zip(big, small):
         assert np.array_equal(a.points, b.points) and np.array_equal(a.time, b.time)
@@ -45,31 +47,31 @@ def test_kept_points_do_not_depend_on_the_chunk_size(survey):
 def test_points_held_by_pass_1_give_the_strips_read_twice(survey, held_files, monkeypatch):
     """Pass 2 from what pass 1 held in memory (all files, or the first only) equals pass 2 reading
     the files again, and the held files are not read a second time."""
-    import calidar.pipelines.strip_ingest as ingest
-    import calidar.pipelines.strip_source as source
+    import calidar.ingest.footprints as ingest
+    import calidar.ingest.source as source
 
     paths, traj, sensor = _inputs(survey)
-    read_twice, _, _, _ = ingest_strips(paths, traj, sensor, IngestOptions(budget_points=20_000, hold_bytes=0))
+    read_twice, _, _, _ = StripIngest(IngestSettings(budget_points=20_000, hold_bytes=0)).read(paths, traj, sensor)
     reads = []
     real = ingest.iter_las_chunks
     for module in (ingest, source):  # pass 1 reads in the one, pass 2 in the other
         monkeypatch.setattr(module, "iter_las_chunks", lambda path, *a, **k: reads.append(path) or real(path, *a, **k))
     first = HELD_BYTES_PER_POINT * ingest.las_header(paths[0]).point_count
-    options = IngestOptions(budget_points=20_000, chunk_points=7_777, hold_bytes=first if held_files else 10**12)
-    held, _, _, _ = ingest_strips(paths, traj, sensor, options)
+    options = IngestSettings(budget_points=20_000, chunk_points=7_777, hold_bytes=first if held_files else 10**12)
+    held, _, _, _ = StripIngest(options).read(paths, traj, sensor)
     assert [s.id for s in held] == [s.id for s in read_twice]
     for a, b in zip(held, read_twice):
         assert np.array_equal(a.points, b.points) and np.array_equal(a.time, b.time)
     twice = sorted(p for p in set(reads) if reads.count(p) == 2)
     assert twice == (sorted(paths[1:]) if held_files else [])
-    assert _held_files([10, 30, 20], 30 * HELD_BYTES_PER_POINT) == [True, False, True]  # in file order while they fit
+    assert files_to_hold([10, 30, 20], 30 * HELD_BYTES_PER_POINT) == [True, False, True]  # in file order while they fit
 
 
 def test_footprints_and_overlaps_equal_the_whole_file_ones(survey):
     paths, traj, sensor = _inputs(survey)
-    options = IngestOptions(chunk_points=5_000)
-    _, _, src, _ = ingest_strips(paths, traj, sensor, options)
-    acc, _, _ = _pass1(src.files, src.frame, traj, options, lambda *a: None)
+    options = IngestSettings(chunk_points=5_000)
+    _, _, src, _ = StripIngest(options).read(paths, traj, sensor)
+    acc, _, _ = first_pass(src.files, src.frame, traj, options, lambda *a: None)
     _, _, how, footprint, _, pairs, _ = _plan(acc, options)
     lines, how_whole = read_flight_lines(paths)
     assert how == how_whole == "point_source_id" and sorted(footprint) == sorted(lines)
@@ -84,9 +86,9 @@ def test_footprints_and_overlaps_equal_the_whole_file_ones(survey):
 def test_thinning_keeps_whole_cells_of_whole_blocks_within_the_budget(survey):
     paths, traj, sensor = _inputs(survey)
     budget = 8_000
-    options = IngestOptions(budget_points=budget, block_cells=2)
-    strips, _, src, _ = ingest_strips(paths, traj, sensor, options)
-    acc, _, _ = _pass1(src.files, src.frame, traj, options, lambda *a: None)
+    options = IngestSettings(budget_points=budget, block_cells=2)
+    strips, _, src, _ = StripIngest(options).read(paths, traj, sensor)
+    acc, _, _ = first_pass(src.files, src.frame, traj, options, lambda *a: None)
     _, _, _, footprint, _, pairs, kept = _plan(acc, options)
     lines, _ = read_flight_lines(paths)
     for s in strips:
@@ -122,13 +124,13 @@ def test_lines_from_time_gaps_when_point_source_ids_do_not_tell(survey, tmp_path
         las = read_las(p)
         merged.append(write_las(tmp_path / p.name, las.xyz, las.crs, gps_time=las.gps_time,
                                 scan_angle_deg=las.scan_angle_deg, point_source_id=1))
-    strips, _, src, _ = ingest_strips(merged, traj, sensor, IngestOptions(chunk_points=3_000))
+    strips, _, src, _ = StripIngest(IngestSettings(chunk_points=3_000)).read(merged, traj, sensor)
     assert src.how == "gps_time_gaps"
     t = np.concatenate([read_las(p).gps_time for p in merged])
     ids, how = line_ids(np.ones(t.size, np.int64), t)
     assert how == "gps_time_gaps"
     assert src.counts == {int(i): int(n) for i, n in zip(*np.unique(ids, return_counts=True))}
-    reference, _, _, _ = ingest_strips(paths, traj, sensor, IngestOptions())
+    reference, _, _, _ = StripIngest(IngestSettings()).read(paths, traj, sensor)
     assert sorted(len(s) for s in strips) == sorted(len(s) for s in reference)  # the same lines, numbered in time
 
 
@@ -155,9 +157,9 @@ def test_adjusted_standard_times_become_the_trajectorys_week_seconds(survey, tmp
         adjusted.append(write_las(tmp_path / p.name, las.xyz, las.crs, point_source_id=las.point_source_id,
                                   gps_time=week_seconds_to_adjusted_standard(las.gps_time, 2345),
                                   scan_angle_deg=las.scan_angle_deg, time_system="gps_adjusted_standard"))
-    options = IngestOptions(budget_points=20_000, chunk_points=4_000)
-    got, _, src, _ = ingest_strips(adjusted, traj, sensor, options)
-    want, _, _, _ = ingest_strips(paths, traj, sensor, options)
+    options = IngestSettings(budget_points=20_000, chunk_points=4_000)
+    got, _, src, _ = StripIngest(options).read(adjusted, traj, sensor)
+    want, _, _, _ = StripIngest(options).read(paths, traj, sensor)
     assert set(src.weeks.values()) == {2345} and [s.id for s in got] == [s.id for s in want]
     for a, b in zip(got, want):
         assert np.allclose(a.time, b.time, atol=1e-6, rtol=0) and np.array_equal(a.points, b.points)
@@ -167,9 +169,9 @@ def test_files_read_on_two_threads_give_the_same_strips_and_quality_counts(surve
     from calidar.strips.distribute import Workers
 
     paths, traj, sensor = _inputs(survey)
-    options = IngestOptions(budget_points=20_000, chunk_points=9_000)
-    one, _, src1, _ = ingest_strips(paths, traj, sensor, options)
-    two, _, src2, _ = ingest_strips(paths, traj, sensor, options, work=Workers(threads=2))
+    options = IngestSettings(budget_points=20_000, chunk_points=9_000)
+    one, _, src1, _ = StripIngest(options).read(paths, traj, sensor)
+    two, _, src2, _ = StripIngest(options).read(paths, traj, sensor, work=Workers(threads=2))
     assert [s.id for s in one] == [s.id for s in two]
     for a, b in zip(one, two):
         assert np.array_equal(a.points, b.points) and np.array_equal(a.time, b.time) and a.source == b.source

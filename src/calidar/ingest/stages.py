@@ -22,6 +22,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from calidar.errors import InputError
 from calidar.strips.overlap import cell_counts, cell_keys, merge_counts
 from calidar.strips.quality import OverlapPlan, QualitySettings, SwathAccumulator, overlap_cell, overlap_plan
 from calidar.strips.selection import GROUND, PointSelection, choose_selection
@@ -131,7 +132,6 @@ def lines_quality(read: Callable[[list, dict, bool], StagePass], first: LineCoun
     (which decide the plan every stage is measured on first). Stages whose own plan differs are
     read again on it. The stages' differences are computed ``threads`` at a time (with
     threads > 1, all at once when no moments went to disk: they are small then)."""
-    from calidar.pipelines.quality import checked_differences
     from calidar.strips.distribute import run_tasks
 
     settings, names = QualitySettings(cell_m=cell_m), names or {}
@@ -151,3 +151,28 @@ def lines_quality(read: Callable[[list, dict, bool], StagePass], first: LineCoun
     spilled = any(a.spill_dir is not None and any(a.spilled.values()) for a in accs)
     return [r[0] for r in run_tasks(checked_differences, [(a, settings, names) for a in accs],
                                     threads=max(threads, len(accs)) if threads > 1 and not spilled else threads)]
+
+
+def checked_differences(acc, settings, names: dict[int, str]):
+    """The accumulator's pairs and notes; an error when no line overlaps another (lines named by
+    ``names`` {id: file name})."""
+    from calidar.strips.overlap import strip_name
+
+    results, notes = acc.differences(settings)
+    if not results:
+        listed = ", ".join(strip_name(i, names) for i in sorted(acc.selections))
+        if settings.cell_m is not None:
+            raise InputError(None, "--cell", f"no {settings.cell_m:g} m cell holds points of two of the "
+                             f"{len(acc.selections)} flight lines ({listed}); expected a larger cell (or leave "
+                             "--cell out to have one chosen), unless the lines do not overlap")
+        raise InputError(None, "STRIPS", f"none of the {len(acc.selections)} flight lines ({listed}) overlap another; "
+                         "nothing to compare")
+    empty = [f"{q.a}–{q.b}" for q in results if q.n_cells == 0]
+    if empty and settings.cell_m is not None:
+        if len(empty) == len(results):
+            raise InputError(None, "--cell", f"no {settings.cell_m:g} m cell of any overlap is smooth and holds enough "
+                             "points of both lines; expected a larger cell, to hold more points (or leave --cell out "
+                             "to have one chosen)")
+        notes.append(f"pairs {', '.join(empty)}: no {settings.cell_m:g} m cell is smooth and holds enough points of "
+                     "both lines (a larger --cell holds more points; a smaller one is smoother on rough ground)")
+    return results, notes
