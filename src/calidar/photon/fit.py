@@ -23,7 +23,7 @@ held at 0 the same way when the likelihood falls as it grows); a bias beyond its
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
-from functools import cached_property
+from functools import cached_property, lru_cache
 
 import numpy as np
 
@@ -57,9 +57,9 @@ class Layout:
         return list(dict.fromkeys(self.name(g, b) for g in range(len(self.groups)) for b in NAMES))
 
     def columns(self, names: list[str]) -> np.ndarray:
-        """(G, 5) position of each beam's parameter among ``names`` (−1: absent)."""
-        pos = {n: i for i, n in enumerate(names)}
-        return np.array([[pos.get(self.name(g, b), -1) for b in NAMES] for g in range(len(self.groups))])
+        """(G, 5) position of each beam's parameter among ``names`` (−1: absent); worked out once per
+        list of names (the solver asks on every Jacobian; not to be changed)."""
+        return _columns(self, tuple(names))
 
     @cached_property
     def block(self) -> Block:
@@ -184,6 +184,12 @@ class Problem(ResidualProblem):
             lo[nm] -= step
             h[:, j] = (self.gradient(hi, names) - self.gradient(lo, names)) / (2.0 * step)
         return 0.5 * (h + h.T)
+
+
+@lru_cache(maxsize=64)
+def _columns(layout: Layout, names: tuple[str, ...]) -> np.ndarray:
+    pos = {n: i for i, n in enumerate(names)}
+    return np.array([[pos.get(layout.name(g, b), -1) for b in NAMES] for g in range(len(layout.groups))])
 
 
 def _base(name: str) -> str:

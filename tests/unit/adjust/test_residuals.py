@@ -83,3 +83,25 @@ def test_values_read_by_name_and_by_typed_block():
     assert block.names == ("b", "a") and block.keys == (("knot", 1), ("knot", 0))
     assert block.take(v).tolist() == [20.0, 10.0]  # gathered from the vector
     assert block.take({"a": 1.5, "b": 2.5}).tolist() == [2.5, 1.5]  # a plain mapping: by name
+
+
+def test_the_library_calls_the_engine_with_problems_only():
+    """No call of solve/estimate under src/calidar uses the function form (a residual function or
+    lambda plus keyword settings): each passes a ResidualProblem and SolverOptions."""
+    import ast
+    from pathlib import Path
+
+    src = Path(__file__).resolve().parents[3] / "src" / "calidar"
+    found, bad = 0, []
+    for path in src.rglob("*.py"):
+        tree = ast.parse(path.read_text(encoding="utf-8"))
+        engine = {a.asname or a.name for node in ast.walk(tree) if isinstance(node, ast.ImportFrom)
+                  and (node.module or "").startswith("calidar.adjust") for a in node.names if a.name in ("solve", "estimate")}
+        for node in ast.walk(tree):
+            if isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id in engine:
+                found += 1
+                if (node.args and isinstance(node.args[0], ast.Lambda)) or len(node.args) > 2 or any(
+                        k.arg in ("sigma", "jacobian_fn", "normal_fn", "prior_correlation", "robust") for k in node.keywords):
+                    bad.append(f"{path.relative_to(src)}:{node.lineno}")
+    assert found >= 4, found  # strips, range calibration, CCR, scanner separability
+    assert not bad, f"the function form of the engine is called at {bad}"
