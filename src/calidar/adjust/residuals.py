@@ -137,7 +137,24 @@ class ResidualProblem:
 
     Subclasses implement :meth:`residuals` and, where they can, an analytic :meth:`jacobian`
     (the default is central differences with each parameter's step); :meth:`normal_matrix` may
-    replace JᵀWJ (a likelihood's expected information: Fisher scoring)."""
+    replace JᵀWJ (a likelihood's expected information: Fisher scoring). The engine asks for the
+    residuals at every trial step and for the Jacobian only where a step was taken.
+
+    >>> import numpy as np
+    >>> from calidar.adjust import Block, Parameter, ParameterSet, ResidualProblem, SolverOptions, solve
+    >>> class Mean(ResidualProblem):  # y_i = μ + e_i, σ = 0.5
+    ...     def __init__(self, y):
+    ...         self.y, self.sigma = y, 0.5
+    ...         self.parameters = ParameterSet([Parameter("mu", 0.0, "m")])
+    ...         self.mu = Block.of(self.parameters.names, {"mu": "mean"})
+    ...     def residuals(self, values):
+    ...         return self.mu.take(values)[0] - self.y
+    ...     def jacobian(self, values):
+    ...         return np.ones((self.y.size, 1))
+    >>> sol = solve(Mean(np.array([1.0, 2.0, 3.0, 6.0])), SolverOptions(robust=None))
+    >>> round(sol.values["mu"], 9), round(float(sol.sigma["mu"]), 6)  # the mean, σ = s/√n
+    (3.0, 1.080123)
+    """
 
     parameters: ParameterSet
     sigma: float | np.ndarray = 1.0
@@ -153,6 +170,10 @@ class ResidualProblem:
     def normal_matrix(self, values: Mapping[str, float]) -> np.ndarray | None:
         """The normal matrix to use instead of JᵀWJ, or None (the usual Gauss–Newton one)."""
         return None
+
+    def evaluate(self, values: Mapping[str, float], jacobian: bool = True):
+        """(residuals, Jacobian or None) at ``values``: both at once, as Ceres' ``Evaluate``."""
+        return self.residuals(values), (self.jacobian(values) if jacobian else None)
 
 
 class FunctionProblem(ResidualProblem):

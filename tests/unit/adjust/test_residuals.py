@@ -105,3 +105,12 @@ def test_the_library_calls_the_engine_with_problems_only():
                     bad.append(f"{path.relative_to(src)}:{node.lineno}")
     assert found >= 4, found  # strips, range calibration, CCR, scanner separability
     assert not bad, f"the function form of the engine is called at {bad}"
+
+
+@pytest.mark.parametrize("module", ["calidar.adjust", "calidar.adjust.residuals"])
+def test_the_examples_run(module):
+    import doctest
+    import importlib
+
+    result = doctest.testmod(importlib.import_module(module), report=True)
+    assert result.attempted > 0 and result.failed == 0
