@@ -58,6 +58,7 @@ class ParameterSet:
         names = [p.name for p in self._params]
         if len(set(names)) != len(names):
             raise ValueError(f"duplicate parameter names in {names}")
+        self._layout = None
 
     def __iter__(self):
         return iter(self._params)
@@ -82,6 +83,15 @@ class ParameterSet:
     @property
     def free_names(self) -> list[str]:
         return [p.name for p in self.free]
+
+    def layout(self) -> tuple[tuple[str, ...], dict[str, int], np.ndarray]:
+        """(names, name → position, positions of the free parameters), built once: the vector
+        layout :class:`calidar.adjust.residuals.Values` reads (never to be changed)."""
+        if self._layout is None:
+            names = tuple(p.name for p in self._params)
+            self._layout = (names, {n: i for i, n in enumerate(names)},
+                            np.array([i for i, p in enumerate(self._params) if p.free], dtype=np.intp))
+        return self._layout
 
     def values(self) -> dict[str, float]:
         """All values (SI) by name."""

@@ -12,7 +12,7 @@ a robust scale (1.4826 · MAD of r/σ) re-estimated every iteration, so that clu
 from __future__ import annotations
 
 import contextlib
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -21,15 +21,18 @@ import scipy.sparse as sp
 from numba import njit
 
 from calidar.adjust.parameters import ParameterSet
+from calidar.adjust.residuals import (ROBUST_K, STEP_IN_SIGMA, FunctionProblem, ResidualProblem, SolverOptions,
+                                      numerical_jacobian, prior_groups, values_of)
 from calidar.adjust.solution import Solution, cholesky_inverse, residual_stats
 from calidar.errors import CalibrationError
 
-ResidualFn = Callable[[dict[str, float]], np.ndarray]
-JacobianFn = Callable[[dict[str, float]], np.ndarray]
+__all__ = ["Estimate", "ROBUST_K", "STEP_IN_SIGMA", "estimate", "numerical_jacobian", "prior_groups", "robust_weights",
+           "solve"]
 
-ROBUST_K = {"huber": 1.345, "cauchy": 2.385}
-#: stop when every step is below this fraction of its parameter's σ (changes no one can see)
-STEP_IN_SIGMA = 1e-3
+Progress = Callable[[int, float], None]
+#: the keyword arguments of the function form (``solve(residual_fn, params, sigma=…, …)``) that are solver options
+_OPTION_KEYS = ("robust", "robust_k", "robust_scale", "max_iter", "tol", "step_in_sigma")
+_PROBLEM_KEYS = ("sigma", "jacobian_fn", "prior_correlation", "normal_fn")
 
 
 def robust_weights(u: np.ndarray, kind: str | None, k: float | None = None) -> np.ndarray:
@@ -45,88 +48,69 @@ def robust_weights(u: np.ndarray, kind: str | None, k: float | None = None) -> n
     raise ValueError(f"robust must be 'huber', 'cauchy' or None, got {kind!r}")
 
 
-def numerical_jacobian(fn: ResidualFn, params: ParameterSet, x: np.ndarray) -> np.ndarray:
-    """Central differences of fn w.r.t. the free parameters, (n_obs, n_free)."""
-    cols = []
-    for j, p in enumerate(params.free):
-        h = p.diff_step
-        xp, xm = x.copy(), x.copy()
-        xp[j] += h
-        xm[j] -= h
-        cols.append((fn(params.values_with(xp)) - fn(params.values_with(xm))) / (2.0 * h))
-    return np.stack(cols, axis=1) if cols else np.zeros((0, 0))
+def solve(problem: ResidualProblem, options: SolverOptions | None = None, *, progress: Progress | None = None,
+          clusters: np.ndarray | list[np.ndarray] | None = None, **function_form) -> Solution:
+    """Least-squares estimate of the free parameters of ``problem`` (a
+    :class:`calidar.adjust.residuals.ResidualProblem`: its parameters, row σ, priors, residuals and
+    Jacobian), iterated as ``options`` say (:class:`calidar.adjust.residuals.SolverOptions`;
+    None: the defaults, Cauchy-robust).
 
+    progress(iteration, cost) is called after every iteration. clusters: optional group id per
+    observation (n,) for observations whose errors are correlated within groups (e.g. by a smooth
+    trajectory error), or two ids per observation (n, 2) when each observation joins two groups
+    (dyadic: correlated when sharing either): σ then come from the cluster-robust sandwich
+    N⁻¹ (Σ_g J_gᵀW_g r_g r_gᵀW_g J_g) N⁻¹ · G/(G−1) (Liang & Zeger 1986; dyadic form of Cameron &
+    Miller 2014) where it exceeds the usual σ0²·N⁻¹ (σ raised, correlations kept); a list of such
+    groupings raises each σ to the largest of their estimates (sandwich estimates from few groups
+    run low). The covariance is σ0²·N⁻¹ without priors (σ relative) and max(σ0², 1)·N⁻¹ with them
+    (σ absolute: the priors are never tightened by an a-posteriori σ0 below 1).
 
-def solve(
-    residual_fn: ResidualFn,
-    params: ParameterSet,
-    *,
-    sigma: float | np.ndarray = 1.0,
-    jacobian_fn: JacobianFn | None = None,
-    robust: str | None = "cauchy",
-    robust_k: float | None = None,
-    max_iter: int = 30,
-    tol: float = 1e-10,
-    robust_scale: bool = True,
-    progress: Callable[[int, float], None] | None = None,
-    clusters: np.ndarray | list[np.ndarray] | None = None,
-    prior_correlation: Sequence[tuple[Sequence[str], np.ndarray]] = (),
-    normal_fn: Callable[[dict[str, float]], np.ndarray] | None = None,
-) -> Solution:
-    """Least-squares estimate of the free parameters of ``params``.
-
-    residual_fn(values) → residuals (n,) in observation units for all parameter values (SI);
-    sigma: a-priori σ of the observations (scalar or (n,)); jacobian_fn: analytic Jacobian
-    (n, n_free) or None for central differences; robust: "cauchy" (default, for clutter), "huber" or None;
-    robust_scale: re-estimate the residual scale by MAD for the robust weights (set False
-    when σ is trusted); progress(iteration, cost) is called after every iteration;
-    clusters: optional group id per observation (n,) for observations whose errors are
-    correlated within groups (e.g. by a smooth trajectory error), or two ids per observation
-    (n, 2) when each observation joins two groups (dyadic: correlated when sharing either):
-    σ then come from the cluster-robust sandwich N⁻¹ (Σ_g J_gᵀW_g r_g r_gᵀW_g J_g) N⁻¹ ·
-    G/(G−1) (Liang & Zeger 1986; dyadic form of Cameron & Miller 2014) where it exceeds the
-    usual σ0²·N⁻¹ (σ raised, correlations kept); a list of such groupings raises each σ to
-    the largest of their estimates (sandwich estimates from few groups run low);
-    prior_correlation: groups (names, correlation matrix R) of free parameters whose priors
-    (each its own prior_sigma) are jointly Gaussian with covariance D·R·D instead of
-    independent. ``jacobian_fn`` may return a scipy.sparse matrix (many parameters, few per row).
-    normal_fn(values): the normal matrix (n_free × n_free) to use instead of JᵀWJ — for a cost
-    that is a negative log-likelihood (residuals whose squares sum to it), its expected
-    information (Fisher scoring); the gradient stays JᵀWr.
-    The covariance is σ0²·N⁻¹ without priors (σ relative) and max(σ0², 1)·N⁻¹ with them (σ
-    absolute: the priors are never tightened by an a-posteriori σ0 below 1).
+    The function form ``solve(residual_fn, params, sigma=…, jacobian_fn=…, robust=…, …)`` (values
+    by name → residuals) is kept: it wraps the functions in a
+    :class:`calidar.adjust.residuals.FunctionProblem` and the option keywords in SolverOptions.
     """
-    return estimate(residual_fn, params, sigma=sigma, jacobian_fn=jacobian_fn, robust=robust, robust_k=robust_k,
-                    max_iter=max_iter, tol=tol, robust_scale=robust_scale, progress=progress,
-                    prior_correlation=prior_correlation, normal_fn=normal_fn).solution(clusters)
+    problem, options = _problem_and_options(problem, options, function_form)
+    return estimate(problem, options, progress=progress).solution(clusters)
 
 
-def estimate(residual_fn: ResidualFn, params: ParameterSet, *, sigma: float | np.ndarray = 1.0,
-             jacobian_fn: JacobianFn | None = None, robust: str | None = "cauchy", robust_k: float | None = None,
-             max_iter: int = 30, tol: float = 1e-10, robust_scale: bool = True,
-             progress: Callable[[int, float], None] | None = None,
-             prior_correlation: Sequence[tuple[Sequence[str], np.ndarray]] = (),
-             normal_fn: Callable[[dict[str, float]], np.ndarray] | None = None,
-             step_in_sigma: float = STEP_IN_SIGMA, step_scale: np.ndarray | None = None) -> "Estimate":
+def estimate(problem: ResidualProblem, options: SolverOptions | None = None, *, progress: Progress | None = None,
+             step_scale: np.ndarray | None = None, **function_form) -> "Estimate":
     """The iterations of :func:`solve` without its covariance: an :class:`Estimate` whose
-    ``solution()`` adds it. ``step_in_sigma``: stop when every step is below this fraction of its
-    σ (an outer loop that re-matches its observations can stop early and ``refine`` its last);
-    ``step_scale``: diag(N⁻¹) for that σ (an earlier Estimate's, whose normal matrix is nearly
-    this one's; None: from the first step's N)."""
+    ``solution()`` adds it. ``options.step_in_sigma``: stop when every step is below this fraction
+    of its σ (an outer loop that re-matches its observations can stop early and ``refine`` its
+    last); ``step_scale``: diag(N⁻¹) for that σ (an earlier Estimate's, whose normal matrix is
+    nearly this one's; None: from the first step's N)."""
+    problem, options = _problem_and_options(problem, options, function_form)
+    params = problem.parameters
     if not params.free:
         raise CalibrationError("no free parameters to estimate")
     with _one_blas_thread():
-        fit = _Fit(residual_fn, params, sigma, jacobian_fn, robust, robust_k, robust_scale, prior_correlation, normal_fn)
+        fit = _Fit(problem, options)
         history = [{"iteration": 0, "cost": fit.cost(fit.r0, fit.weights(fit.r0), fit.x0),
                     "rms": residual_stats(fit.r0)["rms"], "values": params.values()}]
-        start = Estimate(fit, fit.x0, fit.r0, fit.weights(fit.r0), history, False, step_scale, max_iter, tol, progress)
-        return start.refine(step_in_sigma)
+        start = Estimate(fit, fit.x0, fit.r0, fit.weights(fit.r0), history, False, step_scale, options, progress)
+        return start.refine(options.step_in_sigma)
+
+
+def _problem_and_options(problem, options, function_form: dict) -> tuple[ResidualProblem, SolverOptions]:
+    """(problem, options) from the protocol form, or from the function form
+    ``(residual_fn, params, **keywords)`` (``options`` then holds the ParameterSet)."""
+    if not isinstance(options, ParameterSet):
+        if function_form:
+            raise TypeError(f"solve(problem, options): unexpected keywords {sorted(function_form)}")
+        return problem, options or SolverOptions()
+    unknown = set(function_form) - set(_OPTION_KEYS) - set(_PROBLEM_KEYS)
+    if unknown:
+        raise TypeError(f"solve: unexpected keywords {sorted(unknown)}")
+    kw = {k: function_form[k] for k in _PROBLEM_KEYS if k in function_form}
+    opts = SolverOptions(**{k: function_form[k] for k in _OPTION_KEYS if k in function_form})
+    return FunctionProblem(problem, options, **kw), opts
 
 
 @dataclass
 class Estimate:
     """Where the iterations stopped: free values ``x`` (SI), residuals, robust weights (× 1/σ²),
-    the history, whether the stop rule fired, and the σ scale of that rule (diag N⁻¹)."""
+    the history, whether the stop rule fired, the σ scale of that rule (diag N⁻¹), the options."""
 
     fit: "_Fit"
     x: np.ndarray
@@ -135,9 +119,8 @@ class Estimate:
     history: list[dict]
     converged: bool
     step_scale: np.ndarray | None
-    max_iter: int = 30
-    tol: float = 1e-10
-    progress: Callable[[int, float], None] | None = None
+    options: SolverOptions = SolverOptions()
+    progress: Progress | None = None
 
     @property
     def parameters(self) -> ParameterSet:
@@ -179,32 +162,29 @@ class _Fit:
     """The weighted least-squares problem the iterations work on: residuals, Jacobian, robust
     weights, cost (priors included) at free-parameter vectors x (SI)."""
 
-    def __init__(self, residual_fn, params, sigma, jacobian_fn, robust, robust_k, robust_scale, prior_correlation,
-                 normal_fn=None):
-        self.residual_fn, self.params, self.jacobian_fn, self.normal_fn = residual_fn, params, jacobian_fn, normal_fn
-        self.robust, self.robust_k, self.robust_scale = robust, robust_k, robust_scale
-        self.free = params.free
-        self.priors = _prior_groups(self.free, prior_correlation)
+    def __init__(self, problem: ResidualProblem, options: SolverOptions):
+        self.problem, self.params = problem, problem.parameters
+        self.robust, self.robust_k, self.robust_scale = options.robust, options.robust_k, options.robust_scale
+        self.free = self.params.free
+        self.priors = prior_groups(self.free, getattr(problem, "prior_correlation", ()))
         self.n_prior = sum(idx.size for idx, _, _ in self.priors)
-        self.x0 = params.x()
+        self.x0 = self.params.x()
         self.r0 = self.residuals(self.x0)
         self.n = self.r0.size
-        self.sig = np.broadcast_to(np.asarray(sigma, float), (self.n,))
+        self.sig = np.broadcast_to(np.asarray(getattr(problem, "sigma", 1.0), float), (self.n,))
         if self.n < len(self.free) - self.n_prior:
             raise CalibrationError(f"{self.n} observations cannot determine {len(self.free)} parameters")
         if not np.all(np.isfinite(self.r0)):
             raise CalibrationError(f"{int(np.sum(~np.isfinite(self.r0)))} residuals are not finite at the start")
 
     def residuals(self, x: np.ndarray) -> np.ndarray:
-        r = np.asarray(self.residual_fn(self.params.values_with(x)), dtype=float)
+        r = np.asarray(self.problem.residuals(values_of(self.params, x)), dtype=float)
         if r.ndim != 1:
             raise CalibrationError(f"residual function returned shape {r.shape}, expected (n,)")
         return r
 
     def jacobian(self, x: np.ndarray):
-        if self.jacobian_fn:
-            return self.jacobian_fn(self.params.values_with(x))
-        return numerical_jacobian(self.residual_fn, self.params, x)
+        return self.problem.jacobian(values_of(self.params, x))
 
     def weights(self, r: np.ndarray) -> np.ndarray:
         """Relative robust weights (0..1) times 1/σ²."""
@@ -225,8 +205,8 @@ class _Fit:
 
     def normal_equations(self, J, w: np.ndarray, r: np.ndarray | None = None, x: np.ndarray | None = None):
         """N = JᵀWJ + P (priors' precision) and, with r and x, the gradient g = JᵀWr + P(x − centre)."""
-        N = (_normal_matrix(J, w) if self.normal_fn is None or x is None
-             else np.array(self.normal_fn(self.params.values_with(x)), float))
+        given = None if x is None else self.problem.normal_matrix(values_of(self.params, x))
+        N = _normal_matrix(J, w) if given is None else np.array(given, float)
         g = None if r is None else J.T @ (w * r)
         for idx, center, P in self.priors:
             N[np.ix_(idx, idx)] += P
@@ -254,7 +234,7 @@ def _levenberg_marquardt(at: Estimate, step_in_sigma: float) -> Estimate:
     steps = np.array([p.diff_step for p in fit.free])
     redundancy = max(fit.n + fit.n_prior - len(fit.free), 1)
     done = lambda conv: replace(at, x=x, r=r, w=w, history=history, converged=conv, step_scale=n_inv_diag)  # noqa: E731
-    for it in range(len(history), at.max_iter + 1):
+    for it in range(len(history), at.options.max_iter + 1):
         N, g = fit.normal_equations(fit.jacobian(x), w, r, x)
         if n_inv_diag is None:
             n_inv_diag = _inverse_diagonal(N)
@@ -277,7 +257,8 @@ def _levenberg_marquardt(at: Estimate, step_in_sigma: float) -> Estimate:
                         "values": fit.params.values_with(x)})
         if at.progress:
             at.progress(it, c)
-        if (np.all(np.abs(dx) < at.tol + 1e-4 * steps) or abs(c_prev - c) <= at.tol * max(c, 1e-300)
+        tol = at.options.tol
+        if (np.all(np.abs(dx) < tol + 1e-4 * steps) or abs(c_prev - c) <= tol * max(c, 1e-300)
                 or np.all(np.abs(dx) <= step_in_sigma * np.sqrt(n_inv_diag * 2.0 * c / redundancy))):
             return done(True)
     return done(False)
@@ -311,23 +292,7 @@ def _solve_damped(A: np.ndarray, g: np.ndarray) -> np.ndarray:
         return np.linalg.lstsq(A, g, rcond=None)[0]
 
 
-def _prior_groups(free, prior_correlation) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
-    """Priors as (free-parameter positions, centres, precision matrix) groups: the correlated
-    groups given, and the other parameters with a prior_sigma as one diagonal group."""
-    pos = {p.name: i for i, p in enumerate(free)}
-    out, joint = [], set()
-    for names, R in prior_correlation:
-        idx = np.array([pos[nm] for nm in names], dtype=int)
-        if any(free[i].prior_sigma is None for i in idx):
-            raise ValueError("prior_correlation: every parameter of a group needs a prior_sigma")
-        d = np.array([free[i].prior_sigma for i in idx])
-        out.append((idx, np.array([free[i].prior_center for i in idx]), np.linalg.inv(np.asarray(R, float)) / np.outer(d, d)))
-        joint.update(idx.tolist())
-    idx = np.array([i for i, p in enumerate(free) if p.prior_sigma is not None and i not in joint], dtype=int)
-    if idx.size:
-        out.append((idx, np.array([free[i].prior_center for i in idx]),
-                    np.diag([1.0 / free[i].prior_sigma ** 2 for i in idx])))
-    return out
+_prior_groups = prior_groups  # the former private name (public: calidar.adjust.residuals.prior_groups)
 
 
 def _normal_matrix(J, w: np.ndarray) -> np.ndarray:

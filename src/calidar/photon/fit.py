@@ -23,10 +23,11 @@ held at 0 the same way when the likelihood falls as it grows); a bias beyond its
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
+from functools import cached_property, lru_cache
 
 import numpy as np
 
-from calidar.adjust import Parameter, ParameterSet, Solution, solve
+from calidar.adjust import Block, Parameter, ParameterSet, ResidualProblem, Solution, SolverOptions, solve
 from calidar.errors import CalibrationError
 from calidar.photon.likelihood import Shots, fisher_information, log_likelihood
 from calidar.photon.parameters import BIASES, NAMES, UNITS, parameter_name
@@ -56,12 +57,28 @@ class Layout:
         return list(dict.fromkeys(self.name(g, b) for g in range(len(self.groups)) for b in NAMES))
 
     def columns(self, names: list[str]) -> np.ndarray:
-        """(G, 5) position of each beam's parameter among ``names`` (−1: absent)."""
-        pos = {n: i for i, n in enumerate(names)}
-        return np.array([[pos.get(self.name(g, b), -1) for b in NAMES] for g in range(len(self.groups))])
+        """(G, 5) position of each beam's parameter among ``names`` (−1: absent); worked out once per
+        list of names (the solver asks on every Jacobian; not to be changed)."""
+        return _columns(self, tuple(names))
+
+    @cached_property
+    def block(self) -> Block:
+        """The parameters as one typed block: key (beam index, quantity), the beam None for a shared bias."""
+        keys = {}
+        for g in range(len(self.groups)):
+            for b in NAMES:
+                shared = len(self.groups) == 1 or (self.shared_bias and b in BIASES)
+                keys.setdefault(self.name(g, b), (None if shared else g, b))
+        return Block(tuple(keys), tuple(keys.values()))
+
+    @cached_property
+    def _cells(self) -> np.ndarray:
+        """(G, 5): the position in :attr:`block` of each beam's parameter."""
+        return self.columns(list(self.block.names))
 
     def theta(self, values: dict[str, float]) -> np.ndarray:
-        return np.array([[values[self.name(g, b)] for b in NAMES] for g in range(len(self.groups))], float)
+        """(G, 5) the beams' parameter rows (:data:`NAMES`) from ``values``."""
+        return self.block.take(values)[self._cells]
 
     def values(self, theta: np.ndarray) -> dict[str, float]:
         out = {}
@@ -72,18 +89,25 @@ class Layout:
 
 
 @dataclass
-class Problem:
-    """The likelihood of the counts of ``shots`` as a function of named parameters."""
+class Problem(ResidualProblem):
+    """The likelihood of the counts of ``shots`` as a function of named parameters; with
+    ``parameters`` (:meth:`at`) the engine's problem: one residual per shot whose squares sum to
+    −log L (+ const), its exact Jacobian, the Fisher information as the normal matrix."""
 
     shots: Shots
     layout: Layout
     jitter: float
     _last: dict = field(default_factory=dict, repr=False, compare=False)
     _information: dict = field(default_factory=dict, repr=False, compare=False)
+    parameters: ParameterSet | None = field(default=None, repr=False, compare=False)
 
     def with_counts(self, counts: list[np.ndarray]) -> "Problem":
         return Problem(self.shots.with_counts(np.concatenate(counts)), self.layout, self.jitter,
                        _information=self._information)
+
+    def at(self, parameters: ParameterSet) -> "Problem":
+        """This problem solved for ``parameters`` (the caches shared)."""
+        return replace(self, parameters=parameters)
 
     def nll_terms(self, values: dict[str, float]) -> tuple[np.ndarray, np.ndarray]:
         """(log P, score) per shot at ``values``; the last evaluation is kept (the engine asks for the
@@ -116,10 +140,16 @@ class Problem:
         with np.errstate(invalid="ignore"):
             return np.sqrt(2.0 * (OFFSET - logp))
 
-    def jacobian(self, values: dict[str, float], free: list[str]) -> np.ndarray:
+    def jacobian(self, values: dict[str, float], free: list[str] | None = None) -> np.ndarray:
+        """∂residuals/∂ the parameters ``free`` (default: the free ones of :attr:`parameters`)."""
+        free = self.parameters.free_names if free is None else free
         logp, score = self.nll_terms(values)
         r = np.sqrt(2.0 * (OFFSET - logp))
         return -self._scatter(score, free) / r[:, None]
+
+    def normal_matrix(self, values: dict[str, float]) -> np.ndarray:
+        """Fisher scoring: the engine's normal matrix is the expected information (:meth:`scoring_information`)."""
+        return self.scoring_information(values, self.parameters.free_names)
 
     def information(self, values: dict[str, float], names: list[str]) -> np.ndarray:
         """Expected (Fisher) information of the counts w.r.t. ``names`` at ``values``."""
@@ -154,6 +184,12 @@ class Problem:
             lo[nm] -= step
             h[:, j] = (self.gradient(hi, names) - self.gradient(lo, names)) / (2.0 * step)
         return 0.5 * (h + h.T)
+
+
+@lru_cache(maxsize=64)
+def _columns(layout: Layout, names: tuple[str, ...]) -> np.ndarray:
+    pos = {n: i for i, n in enumerate(names)}
+    return np.array([[pos.get(layout.name(g, b), -1) for b in NAMES] for g in range(len(layout.groups))])
 
 
 def _base(name: str) -> str:
@@ -206,9 +242,7 @@ def maximise(problem: Problem, start: dict[str, float], bounds, fixed: dict[str,
 def _solve(problem: Problem, params: ParameterSet, max_iter: int) -> Solution:
     """The engine on the likelihood: exact gradient, Fisher information as its normal matrix
     (Fisher scoring, :meth:`Problem.scoring_information`)."""
-    free = params.free_names
-    return solve(problem.residuals, params, jacobian_fn=lambda v: problem.jacobian(v, free), robust=None,
-                 max_iter=max_iter, normal_fn=lambda v: problem.scoring_information(v, free))
+    return solve(problem.at(params), SolverOptions(robust=None, max_iter=max_iter))
 
 
 def observed_information_solution(problem: Problem, sol: Solution, held: list[str] = ()) -> Solution:

@@ -19,7 +19,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from calidar.adjust.solver import _prior_groups
+from calidar.adjust import prior_groups as _prior_groups
 from calidar.errors import InputError
 from calidar.io.flight_lines import PlanLine
 from calidar.planning.geometry import Instrument, correspondences, fly_plan, pair_planes

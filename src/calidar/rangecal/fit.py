@@ -25,7 +25,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import stats
 
-from calidar.adjust import Parameter, ParameterSet, Solution, solve
+from calidar.adjust import Block, Parameter, ParameterSet, ResidualProblem, Solution, SolverOptions, solve
 from calidar.errors import CalibrationError
 from calidar.io.total_station import TotalStationObservations
 from calidar.rangecal.geometry import distance_partials
@@ -74,29 +74,36 @@ def parameter_set(obs: TotalStationObservations, fix_scale: bool = False) -> Par
     return ParameterSet(params)
 
 
-def _model(obs: TotalStationObservations, fix_scale: bool = False):
-    """Residual and Jacobian functions (model − scanner range, m) over the parameter values."""
-    n_s = len(obs.setups)
-    names = [[p_parameter(s.id, part) for part in P_PARTS] for s in obs.setups]
+class RangeProblem(ResidualProblem):
+    """The observation equations of :mod:`calidar.rangecal.fit` as the engine's problem: residual
+    model − scanner range (m) per target, σ per equation (:func:`observation_sigma`), the analytic
+    Jacobian; P's polar observations addressed as one typed block (setup, part) per setup."""
 
-    def p_values(v):
-        return np.array([[v[nm] for nm in row] for row in names])
+    def __init__(self, obs: TotalStationObservations, fix_scale: bool = False, sigma: np.ndarray | None = None):
+        self.obs, self.fix_scale = obs, fix_scale
+        self.parameters = parameter_set(obs, fix_scale)
+        self.sigma = observation_sigma(obs) if sigma is None else sigma
+        self.p_block = Block.of(self.parameters.names, {p_parameter(s.id, part): (i, part) for i, s in enumerate(obs.setups)
+                                                        for part in P_PARTS})
 
-    def residual(v):
-        d, _ = target_distances(obs, p_values(v))
-        return (1.0 + v["range_scale"]) * d + v["range_offset"] - obs.scanner
+    def p_values(self, values) -> np.ndarray:
+        """P's (slope m, va rad, hz rad) per setup, (n_setups, 3)."""
+        return self.p_block.take(values).reshape(len(self.obs.setups), len(P_PARTS))
 
-    def jacobian(v):
-        d, part = target_distances(obs, p_values(v))
+    def residuals(self, values) -> np.ndarray:
+        d, _ = target_distances(self.obs, self.p_values(values))
+        return (1.0 + values["range_scale"]) * d + values["range_offset"] - self.obs.scanner
+
+    def jacobian(self, values) -> np.ndarray:
+        obs, n_s = self.obs, len(self.obs.setups)
+        d, part = target_distances(obs, self.p_values(values))
         J = np.zeros((len(obs), 2 + 3 * n_s))
         J[:, 0] = 1.0
         J[:, 1] = d
         for i in range(n_s):
             rows = obs.setup == i
-            J[rows, 2 + 3 * i: 5 + 3 * i] = (1.0 + v["range_scale"]) * part[rows, :3]
-        return np.delete(J, 1, axis=1) if fix_scale else J
-
-    return residual, jacobian
+            J[rows, 2 + 3 * i: 5 + 3 * i] = (1.0 + values["range_scale"]) * part[rows, :3]
+        return np.delete(J, 1, axis=1) if self.fix_scale else J
 
 
 def standardized_residuals(solution: Solution, jacobian: np.ndarray, sigma: np.ndarray) -> np.ndarray:
@@ -145,9 +152,9 @@ def fit_range_model(obs: TotalStationObservations, fix_scale: bool = False, crit
         sub = obs.subset(keep)
         if len(sub) < 3:
             raise CalibrationError(f"{obs.source}: {len(sub)} usable targets; at least 3 are needed to fit offset and scale")
-        residual, jacobian = _model(sub, fix_scale)
-        sol = solve(residual, parameter_set(sub, fix_scale), sigma=sigma_all[keep], jacobian_fn=jacobian, robust=None)
-        J = jacobian(sol.values)
+        problem = RangeProblem(sub, fix_scale, sigma_all[keep])
+        sol = solve(problem, SolverOptions(robust=None))
+        J = problem.jacobian(sol.values)
         w = standardized_residuals(sol, J, sigma_all[keep])
         worst = int(np.argmax(np.abs(w)))
         if abs(w[worst]) <= critical or len(sub) - 1 < 4:

@@ -30,7 +30,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from calidar.adjust import Parameter, ParameterSet, solve
+from calidar.adjust import FunctionProblem, Parameter, ParameterSet, SolverOptions, solve
 from calidar.frames import rpy_to_matrix
 from calidar.scanners import PalmerScanner, Scanner
 from calidar.scanners.sources import ErrorSource, error_sources
@@ -130,4 +130,7 @@ def control_adjustment(truth: dict[str, float], *, range_m: float = 500.0, n: in
     observed = points(full) + rng.normal(0.0, noise_m, 3 * n)
     start = {k: 0.0 for k in BORESIGHT} | base.parameters() | {"eccentricity_ratio": 1e-4}
     params = ParameterSet([Parameter(k, start[k], base.units.get(k, "rad"), free=k in free) for k in start])
-    return solve(lambda v: points(v) - observed, params, sigma=noise_m, robust=None)
+    def residuals(v: dict[str, float]) -> np.ndarray:
+        return points(v) - observed
+
+    return solve(FunctionProblem(residuals, params, sigma=noise_m), SolverOptions(robust=None))

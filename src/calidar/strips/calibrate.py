@@ -28,7 +28,7 @@ from types import SimpleNamespace
 import numpy as np
 import scipy.sparse as sp
 
-from calidar.adjust import ParameterSet, Solution
+from calidar.adjust import ParameterSet, Solution, SolverOptions
 from calidar.adjust.solver import Estimate, estimate
 from calidar.adjust.solution import residual_stats
 from calidar.errors import CalibrationError, CalidarError, InputError
@@ -224,12 +224,9 @@ class _Run:
               step_scale: np.ndarray | None) -> tuple[Estimate, StripProblem]:
         """One adjustment of ``params`` from the correspondences ``corrs``, iterated until every
         step is below ``step_in_sigma`` of its σ (``step_scale``: diag N⁻¹ of an earlier one)."""
-        problem = StripProblem(self.nominal, self.poses, corrs, params.free_names, self._times(), self.model, self.spans)
-        est = estimate(problem, params, sigma=problem.sigma, robust=self.settings.robust,
-                       jacobian_fn=lambda v, free=params.free: problem.jacobian(v, free),
-                       prior_correlation=self.model.prior_correlation(self.spans) if self.model else (),
-                       step_in_sigma=step_in_sigma, step_scale=step_scale)
-        return est, problem
+        problem = StripProblem(self.nominal, self.poses, corrs, params, self._times(), self.model, self.spans)
+        options = SolverOptions(robust=self.settings.robust, step_in_sigma=step_in_sigma)
+        return estimate(problem, options, step_scale=step_scale), problem
 
     def solution(self, est: Estimate, problem: StripProblem) -> Solution:
         """The final adjustment's :class:`Solution`, σ raised by the cluster-robust sandwich."""

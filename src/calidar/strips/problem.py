@@ -20,13 +20,14 @@ import scipy.sparse as sp
 from numba import njit
 
 from calidar import frames
-from calidar.adjust import Parameter, ParameterSet
-from calidar.adjust.solver import numerical_jacobian
+from calidar.adjust import Block, Parameter, ParameterSet, ResidualProblem, Values
+from calidar.adjust.residuals import numerical_jacobian
 from calidar.sensor import Sensor
 from calidar.strips.correspond import Correspondences
 from calidar.strips.parameters import sensor_of
 from calidar.strips.strip import Pose, Strip, georeference_pose, position_table
-from calidar.strips.trajectory_errors import StripCorrection, TrajectoryModel, corrections
+from calidar.strips.trajectory_errors import (StripCorrection, TrajectoryModel, corrections, corrections_of,
+                                              knot_scatter)
 
 BORESIGHT = ("boresight_roll", "boresight_pitch", "boresight_yaw")
 LEVER_ARM = ("lever_arm_x", "lever_arm_y", "lever_arm_z")
@@ -143,17 +144,24 @@ def georeference(sensor: Sensor, correction: StripCorrection | None, pose: Pose,
     return pts if correction is None else correction.apply(pts, pose.position, time)
 
 
-class StripProblem:
-    """Residuals of all correspondences for given parameter values (SI), with cached poses."""
+class StripProblem(ResidualProblem):
+    """Residuals of all correspondences for given parameter values (SI), with cached poses; given
+    the :class:`ParameterSet` to solve, the engine's problem (:class:`calidar.adjust.ResidualProblem`):
+    row σ, the trajectory knots' correlated priors, and the sensor and the knots read from the
+    engine's values as typed blocks (sensor names; :class:`calidar.strips.trajectory_errors.Knot`)."""
 
-    def __init__(self, nominal: Sensor, poses: dict[int, Pose], corrs: list[Correspondences], free: Sequence[str],
-                 times: dict[int, np.ndarray] | None = None, trajectory: TrajectoryModel | None = None,
-                 spans: dict[int, tuple[float, float]] | None = None):
+    def __init__(self, nominal: Sensor, poses: dict[int, Pose], corrs: list[Correspondences],
+                 free: Sequence[str] | ParameterSet, times: dict[int, np.ndarray] | None = None,
+                 trajectory: TrajectoryModel | None = None, spans: dict[int, tuple[float, float]] | None = None):
         """poses: per strip, cached poses holding at least every point the correspondences reference;
+        free: the free parameters' names, or the ParameterSet to solve (the engine's problem then);
         times: per strip, the GPS times (s) of all its points; trajectory, spans: the model of
         trajectory corrections (None: no corrections) and the strips' time spans."""
         self.nominal = nominal
         self.trajectory, self.spans = trajectory, spans or {}
+        if isinstance(free, ParameterSet):
+            self.parameters, free = free, free.free_names
+            self._blocks()
         used: dict[int, list[np.ndarray]] = {}
         for c in corrs:
             used.setdefault(c.strip_a, []).append(c.A.indices)
@@ -181,6 +189,29 @@ class StripProblem:
                                if self.time else None for m, sid in ((c.A, c.strip_a), (c.B, c.strip_b)))
                          for c in self.corrs]
 
+    def _blocks(self) -> None:
+        """The sensor's and the trajectory knots' typed blocks of :attr:`parameters`, resolved once."""
+        names = self.parameters.names
+        self.sensor_block = Block.of(names, {n: n for n in self.nominal.parameters()})
+        self.knot_block = None if self.trajectory is None else Block.of(names, self.trajectory.layout(self.spans))
+        self._scatter = None if self.knot_block is None else knot_scatter(self.knot_block.keys, self.trajectory,
+                                                                            self.spans)
+        self.prior_correlation = self.trajectory.prior_correlation(self.spans) if self.trajectory else ()
+
+    def _read(self, values: Mapping[str, float]) -> tuple[Sensor, dict[int, StripCorrection]]:
+        """The sensor and the strips' trajectory corrections at ``values``: by typed block from the
+        engine's :class:`Values`, by name from a plain mapping (other names ignored)."""
+        if not isinstance(values, Values) or not hasattr(self, "sensor_block"):
+            return sensor_of(self.nominal, values), corrections(values, self.trajectory, self.spans)
+        sensor = self.nominal.with_parameters(**dict(zip(self.sensor_block.names, self.sensor_block.take(values))))
+        if self.knot_block is None:
+            return sensor, {}
+        return sensor, corrections_of(self.knot_block.take(values), self._scatter, self.trajectory, self.spans)
+
+    def residuals(self, values: Mapping[str, float]) -> np.ndarray:
+        """The residuals (n,) at ``values`` (SI): :meth:`__call__`."""
+        return self(values)
+
     def clusters(self, strips: Mapping[int, Strip], block_s: float) -> list[np.ndarray]:
         """Groupings of the residuals by trajectory segment (strip, time block of ``block_s``):
         (n, 2) the segments of the a-side and b-side points (residuals sharing a segment share
@@ -202,8 +233,7 @@ class StripProblem:
         return list(zip(self.corrs, np.split(r, np.cumsum(sizes)[:-1])))
 
     def __call__(self, values: Mapping[str, float]) -> np.ndarray:
-        sensor = sensor_of(self.nominal, values)
-        fix = corrections(values, self.trajectory, self.spans)
+        sensor, fix = self._read(values)
         if self.centroids is None:  # scanner parameters free: re-georeference every referenced point
             pts = {i: georeference(sensor, fix.get(i), p, self.time.get(i)) for i, p in self.pose.items()}
             pts = {i: _shifted(q, values.get(HEIGHT_BIAS, 0.0), i) for i, q in pts.items()}
@@ -226,12 +256,13 @@ class StripProblem:
             self._knots[k, side] = f.knots(time)
         return self._knots[k, side]
 
-    def jacobian(self, values: Mapping[str, float], free: Sequence[Parameter]):
-        """∂residuals/∂(free parameters), (n, n_free): analytic for the sensor's parameters in
+    def jacobian(self, values: Mapping[str, float], free: Sequence[Parameter] | None = None):
+        """∂residuals/∂(``free``, default :attr:`parameters`' free ones), (n, n_free): analytic for the sensor's parameters in
         the centroid form, exact sparse columns for the trajectory corrections (linear in them;
         two knots per strip and row, so the matrix is returned sparse when they are present);
         central differences when scanner parameters are free. The sparsity pattern is built on
         the first call; later calls only fill in the values."""
+        free = self.parameters.free if free is None else free
         layout = self.trajectory.layout(self.spans) if self.trajectory else {}
         traj = {p.name: layout.get(p.name) for p in free}
         if self.centroids is None:
@@ -247,7 +278,7 @@ class StripProblem:
         ns = len(sensor_free)
         V = np.zeros(mask.shape)  # rows × (sensor columns, a-side and b-side 2 knots × 6)
         V[:, :ns] = sensor_cols
-        sensor = sensor_of(self.nominal, values)
+        sensor, _ = self._read(values)
         start = 0
         for c, sides, weights in zip(self.corrs, self.centroids, knot_weights):
             per = 3 if c.normal is None else 1
@@ -264,8 +295,7 @@ class StripProblem:
         ∂C/∂θ, turned by the side's trajectory tilt (the shift does not depend on θ)."""
         if HEIGHT_BIAS in names:
             return _with_height_column(self, values, names)
-        sensor = sensor_of(self.nominal, values)
-        fix = corrections(values, self.trajectory, self.spans)
+        sensor, fix = self._read(values)
         out = []
         for k, (c, sides, times) in enumerate(zip(self.corrs, self.centroids, self.row_time)):
             d = np.zeros((c.n_obs, 3, len(names)))

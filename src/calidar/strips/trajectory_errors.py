@@ -243,6 +243,28 @@ def corrections(values: Mapping[str, float], model: TrajectoryModel | None,
     return out
 
 
+def knot_scatter(keys, model: TrajectoryModel, spans: Mapping[int, tuple[float, float]]) -> dict[int, tuple]:
+    """How a typed block of :class:`Knot` keys fills the strips' corrections, worked out once: per
+    strip its knot count and, for shifts and rotations, (positions in the block, knot, axis)."""
+    plan: dict[int, list] = {}
+    for pos, (kind, ax, sid, k) in enumerate(keys):
+        plan.setdefault(sid, [[], []])[kind != "bias"].append((pos, k, ax))
+    return {sid: (model.n_knots(*spans[sid]), *(np.array(part, dtype=np.intp).reshape(-1, 3).T for part in parts))
+            for sid, parts in plan.items()}
+
+
+def corrections_of(values: np.ndarray, scatter: Mapping[int, tuple], model: TrajectoryModel,
+                   spans: Mapping[int, tuple[float, float]]) -> dict[int, StripCorrection]:
+    """:func:`corrections` from a block's value vector and its :func:`knot_scatter` plan."""
+    out = {}
+    for sid, (n, bias, tilt) in scatter.items():
+        shift, rot = np.zeros((n, 3)), np.zeros((n, 3))
+        shift[bias[1], bias[2]] = values[bias[0]]
+        rot[tilt[1], tilt[2]] = values[tilt[0]]
+        out[sid] = StripCorrection(spans[sid][0], model.block_s, shift, rot)
+    return out
+
+
 def corrected_trajectory(traj: Trajectory, fixes: Mapping[int, StripCorrection],
                          spans: Mapping[int, tuple[float, float]], frame) -> Trajectory:
     """``traj`` with each strip's estimated corrections applied to its records: position + shift,
