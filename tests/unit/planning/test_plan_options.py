@@ -38,3 +38,19 @@ def test_the_record_shows_the_options_in_user_units():
     shown = PlanOptions(estimate=Estimate.of("boresight", "range_offset")).to_dict()
     assert shown["estimate"] == ["boresight", "range_offset"]
     assert shown["trajectory_sigma"] == "0.02,0.002" and shown["platform_motion"] == "1.5,1"
+
+
+def test_the_terrain_is_parsed_at_the_cli_and_shown_back():
+    from pathlib import Path
+
+    from calidar.cli.plan import parse_terrain
+    from calidar.pipelines.plan import TerrainChoice
+
+    assert parse_terrain("flat") == TerrainChoice() and str(TerrainChoice()) == "flat"
+    assert parse_terrain("flat:412.5") == TerrainChoice("flat", 412.5) and str(parse_terrain("flat:412.5")) == "flat:412.5"
+    assert parse_terrain("scene") == TerrainChoice("scene", preset="uav", seed=0)
+    assert str(parse_terrain("scene:airborne:3")) == "scene:airborne:3"
+    assert parse_terrain("dem.tif") == TerrainChoice("dem", path=Path("dem.tif"))
+    for bad in ("flat:abc", "scene:uav:x"):
+        with pytest.raises(InputError, match="--terrain"):
+            parse_terrain(bad)
