@@ -16,7 +16,8 @@ from calidar.ingest.settings import HELD_BYTES_PER_POINT, IngestSettings
 from calidar.ingest.source import planar_xy
 from calidar.sensor import Sensor
 from calidar.sim.survey import simulate_survey, survey_config
-from calidar.strips.lines import line_ids, read_flight_lines
+from calidar.ingest.lines import read_flight_lines
+from calidar.strips.lines import line_ids
 from calidar.strips.overlap import cell_counts, cell_keys, common_cells, find_overlaps
 from calidar.strips.thin import spread_rank, thin_cells
 
