@@ -18,7 +18,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from calidar.pipelines.plan import PlanOptions, run_plan
+from calidar.pipelines.plan import PlanOptions, TerrainChoice, run_plan
 from calidar.sensor import Sensor
 from calidar.strips.config import Estimate
 
@@ -45,7 +45,7 @@ def main() -> None:
         root = Path(tmp)
         (root / "lines.csv").write_text(LINES)
         Sensor(lever_arm_x=0.05, lever_arm_z=0.12).write(root / "sensor.toml")
-        options = PlanOptions(terrain="scene:uav:0", estimate=Estimate.of(*args.estimate.split(",")))
+        options = PlanOptions(terrain=TerrainChoice("scene", preset="uav", seed=0), estimate=Estimate.of(*args.estimate.split(",")))
         times = []
         for k in range(args.repeat + 1):
             out = root / f"out{k}"

@@ -21,6 +21,24 @@ def _estimate(text: str):
     return parse_estimate(text)
 
 
+def parse_terrain(text: str):
+    """--terrain: flat, flat:HEIGHT_M, scene[:PRESET[:SEED]] or a DEM GeoTIFF's path → a TerrainChoice."""
+    from calidar.pipelines.plan import TerrainChoice
+
+    kind, _, rest = text.partition(":")
+    if kind == "flat":
+        try:
+            return TerrainChoice("flat", float(rest) if rest else 0.0)
+        except ValueError:
+            raise InputError(None, "--terrain", f"expected flat or flat:HEIGHT_M, got {text!r}") from None
+    if kind == "scene":
+        preset, _, seed = rest.partition(":")
+        if seed and not seed.isdigit():
+            raise InputError(None, "--terrain", f"expected scene[:PRESET[:SEED]] with SEED an integer ≥ 0, got {text!r}")
+        return TerrainChoice("scene", preset=preset or "uav", seed=int(seed or 0))
+    return TerrainChoice("dem", path=Path(text))
+
+
 def parse_platform_motion(text: str) -> tuple[float, float]:
     """--platform-motion 'ROLL_PITCH_DEG,HEADING_DEG' → (σ roll/pitch, σ heading) rad (the pipeline checks the range)."""
     import math
@@ -66,9 +84,9 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
         from calidar.outputs import output_folder
         from calidar.pipelines.plan import PlanOptions, run_plan
 
-        options = PlanOptions(terrain, pulse_rate, fov, range_sigma, angle_sigma, _estimate(estimate),
+        options = PlanOptions(parse_terrain(terrain), pulse_rate, fov, range_sigma, angle_sigma, _estimate(estimate),
                               parse_sigma(trajectory_sigma), suggest, simulate, parse_platform_motion(platform_motion))
-        dem = Path(terrain) if not terrain.startswith(("flat", "scene")) else None
+        dem = options.terrain.path
         with progress_bar() as bar, output_folder(out, force, inputs=[lines, sensor] + ([dem] if dem else [])) as tmp:
             run = run_plan(lines, sensor, tmp, options, progress_callback(bar))
         print_verdict(run.verdict)

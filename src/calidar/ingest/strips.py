@@ -43,7 +43,7 @@ from calidar.strips.thin import thin_cells
 def _files(paths, trajectory, sensor, settings: IngestSettings) -> list[StripFile]:
     """Each file's CRS (its own, --crs or sensor.toml's) and time system; all must agree, and
     match the trajectory's (adjusted standard points become its week seconds, not back)."""
-    from calidar.strips.lines import check_consistent, check_distinct
+    from calidar.ingest.lines import check_consistent, check_distinct
 
     check_distinct(paths)
     files = []

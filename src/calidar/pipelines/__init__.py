@@ -16,18 +16,6 @@ Layers, top to bottom (an import may only point down; ``tests/unit/test_architec
 
 from __future__ import annotations
 
-from calidar.ingest import Progress, no_progress  # the callback convention every long step shares
+from calidar.ingest import Progress, no_progress, release_memory  # shared with the streaming engine
 
 __all__ = ["Progress", "no_progress", "release_memory"]
-
-
-def release_memory() -> None:
-    """Hand the memory freed by a finished stage back to the system (glibc keeps freed pages of
-    its arenas: after the calibration, half a GiB of an 8.75 M-point run); elsewhere nothing."""
-    import ctypes
-    import ctypes.util
-
-    try:
-        ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6").malloc_trim(0)
-    except (OSError, AttributeError):  # not glibc
-        pass

@@ -1,7 +1,7 @@
 """The deliverables of a strip calibration, made so that they reproduce the report.
 
 The overlap quality is measured on the WHOLE strips (streamed again from the files,
-:func:`calidar.ingest.source.line_chunks`) re-georeferenced in the files' CRS with the
+:func:`calidar.ingest.measure.measure_lines`) re-georeferenced in the files' CRS with the
 plan, point selection and swath accumulator ``calidar quality`` uses
 (:mod:`calidar.ingest.stages`), three times: as delivered, with the new mounting
 alone (``calidar regeoref --to sensor.toml``), and with the new mounting and the corrected
@@ -20,11 +20,6 @@ import numpy as np
 from calidar.outputs import shown_path
 from calidar.pipelines import Progress, no_progress
 
-#: points of a file read by one overlap-quality task: what a task sends back (its cells' moments)
-#: stays small however large the files (≈ 40 MB at 20 points/m²)
-TASK_POINTS = 4_000_000
-
-
 def corrected_trajectory(inputs, result):
     """The trajectory with the estimated corrections applied (None when none were estimated)."""
     from calidar.strips.trajectory_errors import corrected_trajectory as apply
@@ -33,57 +28,6 @@ def corrected_trajectory(inputs, result):
         return None
     frame = inputs.strips[0].frame
     return apply(inputs.trajectory, result.corrections, inputs.spans, frame)
-
-
-def measure_lines(inputs, models, progress: Progress = no_progress, work=None) -> list[list]:
-    """Per model of :func:`calidar.ingest.source.line_chunks`, the
-    :class:`calidar.strips.quality.PairQuality` of every overlapping pair of flight lines, by
-    :func:`calidar.ingest.stages.lines_quality` on the plan of the ingest's counts: one
-    read of the files (two when a stage's own plan differs), each file a task run by ``work``
-    (a :class:`calidar.strips.distribute.Workers`; None: one at a time here); memory holds cells,
-    not points."""
-    import tempfile
-
-    from calidar.io.las import las_file_crs, las_header
-    from calidar.pipelines import release_memory
-    from calidar.ingest.stages import StagePass, lines_quality
-    from calidar.ingest.cell_counts import Metric
-    from calidar.strips.distribute import Workers
-
-    source = inputs.source
-    f = source.files[0]
-    crs = las_file_crs(f.path, f.points.crs)
-    metric = Metric(crs, source.frame if crs is not None and crs.is_geographic else None, f.points.geoid_undulation_m,
-                    f.path)  # the ingest's grid: its counts make the plan
-    tasks = [(k, a, min(a + TASK_POINTS, n)) for k, f in enumerate(source.files)
-             for n in [las_header(f.path).point_count] for a in range(0, max(n, 1), TASK_POINTS)]
-    total = sum(b - a for _, a, b in tasks)
-
-    def read(plans, chosen, count):
-        out, done = StagePass.start(plans, None, count, spill), 0
-        shared = (source, inputs.nominal, models, metric, plans, chosen, count)
-        for (_, a, b), part in zip(tasks, (work or Workers()).run(_file_stages, tasks, shared, kind="overlap quality")):
-            out.merge(part)
-            del part
-            release_memory()  # each task's working arrays
-            done += b - a
-            progress("overlap quality: reading strips", done, total)
-        return out
-
-    with tempfile.TemporaryDirectory(prefix="calidar-moments-") as spill:  # cell moments beyond HOLD_BYTES
-        return lines_quality(read, source.quality, len(models), source.names,
-                             threads=work.local_threads if work else 1)
-
-
-def _file_stages(source, nominal, models, metric, plans, chosen, count, k: int, start: int, stop: int):
-    """:func:`calidar.ingest.stages.stage_pass` of the points [start, stop) of the
-    ``k``-th file (a task)."""
-    from calidar.ingest.stages import stage_pass
-    from calidar.ingest.source import line_chunks
-    from calidar.strips.selection import FIELDS, candidate_mask
-
-    chunks = line_chunks(source, nominal, models, FIELDS, candidate_mask, files=[source.files[k]], span=(start, stop))
-    return stage_pass(chunks, metric, plans, chosen, count=count)
 
 
 def _files(paths) -> str:
@@ -116,6 +60,7 @@ def quality_stages(inputs, result, corrected, progress: Progress = no_progress, 
     """Overlap quality as delivered, with the new mounting, and (when trajectory corrections were
     estimated) with the new mounting and the corrected trajectory: calidar.strips.report.QualityStage s
     (their commands named when written: :func:`with_commands`)."""
+    from calidar.ingest.measure import measure_lines
     from calidar.strips.report import QualityStage
 
     labels = ["as delivered", "new mounting"]
@@ -124,7 +69,7 @@ def quality_stages(inputs, result, corrected, progress: Progress = no_progress, 
         labels.append("new mounting + trajectory corrections")
         models.append((result.sensor, corrected))
     progress("overlap quality", 0, 1)
-    measured = measure_lines(inputs, models, progress, work)  # one read of the files for every stage
+    measured = measure_lines(inputs.source, inputs.nominal, models, progress, work)  # one read of the files, every stage
     progress("overlap quality", 1, 1)
     return [QualityStage(label, "", pairs) for label, pairs in zip(labels, measured)]
 

@@ -25,11 +25,29 @@ MAX_SIMULATE = 200
 
 
 @dataclass(frozen=True)
+class TerrainChoice:
+    """--terrain, parsed (:func:`calidar.cli.plan.parse_terrain`): flat ground at ``height_m``, the
+    simulator's built-in scene (``preset``, ``seed``), or a DEM GeoTIFF at ``path``."""
+
+    kind: str = "flat"  #: "flat" | "scene" | "dem"
+    height_m: float = 0.0
+    preset: str = "uav"
+    seed: int = 0
+    path: Path | None = None
+
+    def __str__(self) -> str:
+        """As a user gives it."""
+        if self.kind == "flat":
+            return f"flat:{self.height_m:g}" if self.height_m else "flat"
+        return f"scene:{self.preset}:{self.seed}" if self.kind == "scene" else str(self.path)
+
+
+@dataclass(frozen=True)
 class PlanOptions:
     """What ``calidar plan`` takes besides its files (see its --help), typed: the CLI parses the
     option strings (:mod:`calidar.cli.plan`), this pipeline checks ranges only. SI inside."""
 
-    terrain: str = "flat"  #: flat | flat:HEIGHT | scene[:PRESET[:SEED]] | a DEM GeoTIFF path
+    terrain: TerrainChoice = field(default_factory=TerrainChoice)
     pulse_rate_hz: float = 20_000.0
     fov_deg: float = 70.0  #: full field of view
     range_sigma_m: float = 0.01
@@ -45,7 +63,8 @@ class PlanOptions:
     def to_dict(self) -> dict:
         """The options as a user gives them (degrees, names), for the run record."""
         pos, att = self.trajectory_sigma
-        return {**{f.name: getattr(self, f.name) for f in fields(self)}, "estimate": self.estimate.names(),
+        return {**{f.name: getattr(self, f.name) for f in fields(self)}, "terrain": str(self.terrain),
+                "estimate": self.estimate.names(),
                 "trajectory_sigma": f"{pos:g},{np.degrees(att):g}",
                 "platform_motion": ",".join(f"{np.degrees(v):g}" for v in self.platform_motion)}
 
@@ -61,37 +80,32 @@ class PlanRun:
     doc: dict
 
 
-def load_terrain(text: str):
-    """--terrain → (terrain, the simulator's base configuration for --simulate or None for flat ground)."""
+def load_terrain(choice: TerrainChoice):
+    """The terrain chosen (--terrain) → (terrain, the simulator's base configuration for --simulate or
+    None for a DEM)."""
     from dataclasses import replace
 
     from calidar.planning.simulate import FLAT_SCENE
     from calidar.planning.terrain import FlatTerrain, scene_terrain
     from calidar.sim.survey import PRESETS, survey_config
 
-    kind, _, rest = text.partition(":")
-    if kind == "flat":
-        try:
-            height = float(rest) if rest else 0.0
-        except ValueError:
-            raise InputError(None, "--terrain", f"expected flat or flat:HEIGHT_M, got {text!r}") from None
-        if not np.isfinite(height) or abs(height) > 9000:
-            raise InputError(None, "--terrain", f"expected a height in [-9000, 9000] m, got {rest}")
+    if choice.kind == "flat":
+        if not np.isfinite(choice.height_m) or abs(choice.height_m) > 9000:
+            raise InputError(None, "--terrain", f"expected a height in [-9000, 9000] m, got {choice.height_m:g}")
         base = survey_config("uav", scene_seed=0)
-        return FlatTerrain(height), replace(base, scene=replace(base.scene, **FLAT_SCENE), origin_deg=(47.0, 8.0, height))
-    if kind == "scene":
-        preset, _, seed = rest.partition(":")
-        preset = preset or "uav"
-        if preset not in PRESETS or (seed and not seed.isdigit()):
+        return FlatTerrain(choice.height_m), replace(base, scene=replace(base.scene, **FLAT_SCENE),
+                                                     origin_deg=(47.0, 8.0, choice.height_m))
+    if choice.kind == "scene":
+        if choice.preset not in PRESETS or choice.seed < 0:
             raise InputError(None, "--terrain", f"expected scene[:PRESET[:SEED]] with PRESET one of {', '.join(PRESETS)} "
-                             f"and SEED an integer ≥ 0, got {text!r}")
-        base = survey_config(preset, scene_seed=int(seed or 0))
+                             f"and SEED an integer ≥ 0, got {choice}")
+        base = survey_config(choice.preset, scene_seed=choice.seed)
         return scene_terrain(base), base
     from calidar.io.dem import read_dem
     from calidar.planning.terrain import GridTerrain
 
-    heights, x0, y0, dx, dy = read_dem(Path(text))
-    return GridTerrain(heights, x0, y0, dx, dy, f"DEM {Path(text).name}"), None
+    heights, x0, y0, dx, dy = read_dem(choice.path)
+    return GridTerrain(heights, x0, y0, dx, dy, f"DEM {choice.path.name}"), None
 
 
 def instrument(sensor_path: Path, options: PlanOptions):

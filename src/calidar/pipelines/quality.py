@@ -3,7 +3,7 @@ flight lines of LAS/LAZ files, the points fit for a swath difference, and the sw
 difference of every overlapping pair.
 
 ``calidar quality`` streams in two passes. The first reads point_source_id, classification,
-GPS time and coordinates (:func:`calidar.strips.lines.index_flight_lines`: the flight lines
+GPS time and coordinates (:func:`calidar.ingest.lines.index_flight_lines`: the flight lines
 and the classes each file holds, hence its point selection) and counts the points of each
 candidate selection on the 5 m overlap grid (:class:`calidar.ingest.cell_counts.CellCounts`): which lines overlap and the
 cell of each pair (:func:`calidar.strips.quality.overlap_plan`). The second feeds the selected
@@ -36,7 +36,7 @@ def measure(paths, cell_m=None, classes=None, options: PointOptions = PointOptio
     is decompressed once: the first pass keeps what the second needs (:mod:`calidar.ingest.held`)."""
     from calidar.io.las import las_file_crs, las_header
     from calidar.ingest.held import HeldPoints
-    from calidar.strips.lines import index_flight_lines
+    from calidar.ingest.lines import index_flight_lines
     from calidar.strips.quality import QualitySettings, SwathAccumulator, overlap_cell, overlap_plan
     from calidar.strips.selection import PointSelection
 

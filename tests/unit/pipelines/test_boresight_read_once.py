@@ -6,13 +6,12 @@ from __future__ import annotations
 
 from dataclasses import replace
 from pathlib import Path
-from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
 from calidar.io.trajectory import read_trajectory
-from calidar.pipelines.boresight_outputs import measure_lines
+from calidar.ingest.measure import measure_lines
 from calidar.ingest.strips import StripIngest
 from calidar.ingest.settings import IngestSettings
 from calidar.sensor import Sensor
@@ -30,7 +29,7 @@ def _run(sim: Path, options: IngestSettings):
     traj, sensor = read_trajectory(sim / "sbet.out"), Sensor.read(sim / "sensor.toml")
     strips, _, source, _ = StripIngest(options).read(paths, traj, sensor)
     moved = replace(sensor, boresight_roll=sensor.boresight_roll + np.radians(0.05))
-    stages = measure_lines(SimpleNamespace(source=source, nominal=sensor, trajectory=traj), [None, (moved, traj)])
+    stages = measure_lines(source, sensor, [None, (moved, traj)])
     return paths, strips, source, stages
 
 

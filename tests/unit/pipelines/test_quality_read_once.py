@@ -14,7 +14,7 @@ from calidar.io.las import iter_las_chunks, write_las
 from calidar.ingest.held import HeldPoints
 from calidar.ingest.cell_counts import Metric, _first_rows, _token_counts, held_chunks
 from calidar.pipelines.quality import measure
-from calidar.strips.lines import _second_spans
+from calidar.ingest.lines import _second_spans
 from calidar.strips.quality import QualitySettings, swath_differences
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "strips"))

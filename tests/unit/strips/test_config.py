@@ -195,3 +195,14 @@ def test_the_configurations_examples_run(module, tmp_path, monkeypatch):
     monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
     result = doctest.testmod(importlib.import_module(module), optionflags=doctest.ELLIPSIS)
     assert result.attempted > 0 and result.failed == 0, result
+
+
+def test_the_engine_reads_on_the_solvers_overlap_grid():
+    """One overlap grid: the streaming engine's settings (``config.ingest``, handed to it whole) carry the
+    solver's cell and minimum of common cells, however the configuration was made or changed."""
+    solver = StripSettings(overlap_cell_m=3.0, min_overlap_cells=6)
+    config = StripConfig(CalibrationConfig(solver=solver), IngestSettings(budget_points=50_000))
+    assert (config.ingest.cell_m, config.ingest.min_cells, config.ingest.budget_points) == (3.0, 6, 50_000)
+    changed = replace(config, calibration=replace(config.calibration, solver=StripSettings(overlap_cell_m=7.5)))
+    assert (changed.ingest.cell_m, changed.ingest.min_cells) == (7.5, StripSettings().min_overlap_cells)
+    assert StripConfig().ingest.cell_m == StripSettings().overlap_cell_m

@@ -4,7 +4,8 @@ apart, one line cut into tiles stays one line."""
 import numpy as np
 
 from calidar.io import write_las
-from calidar.strips.lines import index_flight_lines, read_flight_lines, shared_id_splits
+from calidar.ingest.lines import index_flight_lines, read_flight_lines
+from calidar.strips.lines import shared_id_splits
 
 
 def _file(path, t0, t1, psid, x0=500000.0, n=500):

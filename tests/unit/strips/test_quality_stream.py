@@ -148,7 +148,8 @@ def test_geographic_lines_are_compared_in_one_local_frame(cli, tmp_path):
 
 
 def test_streamed_line_index_splits_at_time_gaps_as_line_ids(tmp_path):
-    from calidar.strips.lines import index_flight_lines, line_ids
+    from calidar.ingest.lines import index_flight_lines
+    from calidar.strips.lines import line_ids
 
     rng = np.random.default_rng(6)
     t = np.sort(np.r_[rng.uniform(0, 30, 3000), rng.uniform(40.5, 70, 3000), rng.uniform(80.2, 81, 500)])

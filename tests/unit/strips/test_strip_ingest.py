@@ -16,7 +16,8 @@ from calidar.ingest.settings import HELD_BYTES_PER_POINT, IngestSettings
 from calidar.ingest.source import planar_xy
 from calidar.sensor import Sensor
 from calidar.sim.survey import simulate_survey, survey_config
-from calidar.strips.lines import line_ids, read_flight_lines
+from calidar.ingest.lines import read_flight_lines
+from calidar.strips.lines import line_ids
 from calidar.strips.overlap import cell_counts, cell_keys, common_cells, find_overlaps
 from calidar.strips.thin import spread_rank, thin_cells
 
@@ -187,14 +188,14 @@ def test_files_read_on_two_threads_give_the_same_strips_and_quality_counts(surve
 def test_overlap_quality_read_in_point_ranges_equals_whole_files(survey, monkeypatch):
     """The quality stages' tasks read files in ranges of TASK_POINTS (seeking in the LAZ): the
     same pairs and differences as one task a file."""
-    import calidar.pipelines.boresight_outputs as outputs
+    import calidar.ingest.measure as measure
     from calidar.pipelines.boresight import load_inputs
 
     inputs = load_inputs(*_inputs_paths(survey))
     models = [None, (inputs.nominal, inputs.trajectory)]
-    whole = outputs.measure_lines(inputs, models)
-    monkeypatch.setattr(outputs, "TASK_POINTS", 3_001)
-    ranged = outputs.measure_lines(inputs, models)
+    whole = measure.measure_lines(inputs.source, inputs.nominal, models)
+    monkeypatch.setattr(measure, "TASK_POINTS", 3_001)
+    ranged = measure.measure_lines(inputs.source, inputs.nominal, models)
     for a, b in zip(whole, ranged):
         assert [(q.a, q.b, q.n_cells, q.n_points_a) for q in a] == [(q.a, q.b, q.n_cells, q.n_points_a) for q in b]
         assert all(q.median_dz_m == pytest.approx(r.median_dz_m, abs=1e-9) for q, r in zip(a, b) if q.n_cells)
@@ -218,7 +219,7 @@ def test_geographic_strips_get_the_projected_quality_in_one_read(denser, tmp_pat
 
     import pyproj
 
-    import calidar.pipelines.boresight_outputs as outputs
+    import calidar.ingest.measure as measure
     from calidar.pipelines.boresight import load_inputs
 
     paths, traj, _ = _inputs_paths(denser)
@@ -233,13 +234,13 @@ def test_geographic_strips_get_the_projected_quality_in_one_read(denser, tmp_pat
                   classification=las.classification, return_number=las.return_number,
                   number_of_returns=las.number_of_returns)
     tasks = []
-    task = outputs._file_stages
-    monkeypatch.setattr(outputs, "_file_stages", lambda *a: tasks.append(a[-3:]) or task(*a))
+    task = measure._file_stages
+    monkeypatch.setattr(measure, "_file_stages", lambda *a: tasks.append(a[-3:]) or task(*a))
     got = {}
     for name, sim in (("utm", denser), ("geo", tmp_path)):
         inputs = load_inputs(*_inputs_paths(sim))
         tasks.clear()
-        got[name] = outputs.measure_lines(inputs, [None, (inputs.nominal, inputs.trajectory)])
+        got[name] = measure.measure_lines(inputs.source, inputs.nominal, [None, (inputs.nominal, inputs.trajectory)])
         assert len(tasks) == len(paths)  # one read: every stage's own plan is the ingest's
     for utm, geo in zip(got["utm"], got["geo"]):
         assert [(q.a, q.b) for q in utm] == [(q.a, q.b) for q in geo] and len(utm) >= 2
