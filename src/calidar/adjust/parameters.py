@@ -84,13 +84,14 @@ class ParameterSet:
     def free_names(self) -> list[str]:
         return [p.name for p in self.free]
 
-    def layout(self) -> tuple[tuple[str, ...], dict[str, int], np.ndarray]:
-        """(names, name → position, positions of the free parameters), built once: the vector
-        layout :class:`calidar.adjust.residuals.Values` reads (never to be changed)."""
+    def layout(self) -> tuple[tuple[str, ...], dict[str, int], np.ndarray, np.ndarray]:
+        """(names, name → position, positions of the free parameters, all values SI), built once: the
+        vector layout :class:`calidar.adjust.residuals.Values` reads (never to be changed)."""
         if self._layout is None:
             names = tuple(p.name for p in self._params)
             self._layout = (names, {n: i for i, n in enumerate(names)},
-                            np.array([i for i, p in enumerate(self._params) if p.free], dtype=np.intp))
+                            np.array([i for i, p in enumerate(self._params) if p.free], dtype=np.intp),
+                            np.array([p.value for p in self._params], dtype=float))
         return self._layout
 
     def values(self) -> dict[str, float]:

@@ -123,8 +123,8 @@ def _positions(names: tuple[str, ...], wanted: tuple[str, ...]) -> np.ndarray | 
 
 def values_of(params: ParameterSet, x: np.ndarray) -> Values:
     """``params``' values with the free ones from ``x``, as :class:`Values`."""
-    names, index, free = params.layout()
-    vector = np.array([p.value for p in params], dtype=float)
+    names, index, free, start = params.layout()
+    vector = start.copy()
     vector[free] = x
     return Values(names, vector, index)
 

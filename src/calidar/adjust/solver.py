@@ -1,7 +1,8 @@
 """Gauss–Newton / Levenberg–Marquardt with robust (IRLS) reweighting.
 
-Model: residual functions r(θ) over arrays, observations with a-priori σ, optional priors
-on parameters as pseudo-observations. The covariance of the free parameters is
+Model: a problem (:class:`calidar.adjust.residuals.ResidualProblem`) gives residuals r(θ) and
+their Jacobian, observations with a-priori σ, optional priors on parameters as
+pseudo-observations; how to iterate is a :class:`calidar.adjust.residuals.SolverOptions`. The covariance of the free parameters is
 σ0² · (JᵀWJ + P)⁻¹ with σ0² the a-posteriori variance factor.
 
 Robust weights (Huber, Cauchy) act on standardised residuals u = r / (σ · s), where s is

@@ -62,3 +62,17 @@ def test_the_jacobian_is_central_differences(problem):
     assert used.sum() > 50  # the sensor and the knots the correspondences reach
     assert np.all(np.abs(analytic - numeric).max(axis=0)[used] <= 1e-6 * scale[used])
     assert np.all(analytic[:, ~used] == 0)
+
+
+def test_solved_by_blocks_as_by_names(problem):
+    """The engine on the problem (sensor and knots read as blocks) and on functions handing it plain
+    name → value dicts (read by name) reach the same solution, bit for bit."""
+    from calidar.adjust import FunctionProblem, SolverOptions, solve
+
+    prob, _, _ = problem
+    by_name = FunctionProblem(lambda v: prob(dict(v)), prob.parameters, sigma=prob.sigma,
+                              jacobian_fn=lambda v: prob.jacobian(dict(v)), prior_correlation=prob.prior_correlation)
+    a = solve(prob, SolverOptions(max_iter=5))
+    b = solve(by_name, SolverOptions(max_iter=5))
+    assert a.values == b.values and np.array_equal(a.covariance, b.covariance)
+    assert len(a.history) > 2  # it moved
