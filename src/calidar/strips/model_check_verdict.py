@@ -34,7 +34,7 @@ WHAT = {"range_offset": "a range offset", "range_scale": "a range scale error", 
         "lever_arm_y": "an across-track lever-arm error"}
 
 
-def _value(unit: str, value: float, sigma: float | None = None) -> str:
+def value_text(unit: str, value: float, sigma: float | None = None) -> str:
     """A value in solution.json's display units (deg, m, ppm, 1: a ratio) as the verdict writes it."""
     if unit == "m":
         return length_text(value, sigma)
@@ -45,7 +45,7 @@ def _value(unit: str, value: float, sigma: float | None = None) -> str:
 
 
 def _shift_text(name: str, s: dict) -> str:
-    return f"{name} by {_value(s['unit'], s['shift'])} ({abs(s['in_own_sigma']):.1f}× its σ)"
+    return f"{name} by {value_text(s['unit'], s['shift'])} ({abs(s['in_own_sigma']):.1f}× its σ)"
 
 
 def _candidate(name: str, c: dict, sol) -> tuple[str, str]:
@@ -54,9 +54,9 @@ def _candidate(name: str, c: dict, sol) -> tuple[str, str]:
     shifts = c.get("shifts", {})
     worst = max(shifts, key=lambda s: abs(shifts[s]["in_own_sigma"]), default=None)
     moved = worst is not None and abs(shifts[worst]["in_own_sigma"]) > SHIFT_LIMIT
-    seen = f"the overlaps show {WHAT[name]} of {_value(c['unit'], c['value'], c['sigma'])} (z = {z:+.1f})"
+    seen = f"the overlaps show {WHAT[name]} of {value_text(c['unit'], c['value'], c['sigma'])} (z = {z:+.1f})"
     if abs(z) <= Z_WARN:
-        return "pass", f"{name} {_value(c['unit'], c['value'], c['sigma'])} (z = {z:+.1f})"
+        return "pass", f"{name} {value_text(c['unit'], c['value'], c['sigma'])} (z = {z:+.1f})"
     if not moved:
         where = "" if worst is None else f"; it moves {_shift_text(worst, shifts[worst])}"
         return NOTE, f"{seen}, not estimated{where}: the estimates do not depend on it"
@@ -105,18 +105,19 @@ def moved_parameters(findings: list[Finding], sol) -> list[Finding]:
     check = sol.extra.get("model_check") if isinstance(sol.extra, dict) else None
     if not check or "candidates" not in check:
         return findings
-    moved: dict[str, tuple[str, str]] = {}
+    moved: dict[str, tuple[str, str, float, float]] = {}
     for name, c in check["candidates"].items():
         status = _candidate(name, c, sol)[0] if c["separable"] else "pass"
         if status not in ("warn", "fail"):
             continue
         for p, s in c["shifts"].items():
-            if abs(s["in_own_sigma"]) > SHIFT_LIMIT and abs(s["in_own_sigma"]) > abs(moved.get(p, ("", "", 0))[2]):
-                moved[p] = (status, f"freeing {name} moves it by {_value(s['unit'], s['shift'])}", s["in_own_sigma"])
+            if abs(s["in_own_sigma"]) > SHIFT_LIMIT and abs(c["z"]) > moved.get(p, ("", "", 0, 0))[3]:  # the clearest
+                moved[p] = (status, f"freeing {name} moves it by {value_text(s['unit'], s['shift'])}", s["in_own_sigma"],
+                            abs(c["z"]))
     out = []
     for f in findings:
         if f.check in moved and f.status in ("pass", "warn"):
-            status, why, k = moved[f.check]
+            status, why, k, _ = moved[f.check]
             f = Finding(status, f.check, f"{f.detail.split(': ')[0]}: not determined — {why} ({abs(k):.1f}× this σ): "
                         "the value rests on a parameter held that the overlaps say is wrong", "see the model check")
         out.append(f)

@@ -139,6 +139,8 @@ def _control_part(sec, control: dict) -> None:
 
 def _model_check_part(sec, check: dict) -> None:
     """The model check (calidar.strips.model_check): each structural parameter not estimated, freed in turn."""
+    from calidar.strips.model_check_verdict import value_text
+
     sec.heading("Model check")
     sec.text("Each structural parameter the calibration held at its nominal value, freed on its own on the same "
              "final correspondences, weights and trajectory model (one linear solve each, "
@@ -153,9 +155,8 @@ def _model_check_part(sec, check: dict) -> None:
         shifts = c.get("shifts") or {}
         worst = max(shifts, key=lambda k: abs(shifts[k]["in_own_sigma"]), default=None)
         s = shifts.get(worst, {})
-        rows.append([name, f"{c['value']:+.4g} ± {c['sigma']:.2g} {c['unit']}", c["z"], worst,
-                     None if worst is None else f"{s['shift']:+.3g} ± {s['sigma']:.2g} {s['unit']}",
-                     s.get("in_own_sigma")])
+        rows.append([name, value_text(c["unit"], c["value"], c["sigma"]), c["z"], worst,
+                     None if worst is None else value_text(s["unit"], s["shift"], s["sigma"]), s.get("in_own_sigma")])
     sec.table(["freed parameter", "value the overlaps give it", "z", "most moved", "its shift", "shift / its own σ"],
               rows, formats=[None, None, "+.1f", None, None, "+.1f"])
 

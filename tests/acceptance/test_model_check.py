@@ -1,0 +1,69 @@
+"""The model check in ``calidar boresight`` (issue 26: never pass a wrong calibration). A UAV survey
+delivered with a 5 cm range offset that the run does not estimate: the tie planes close the
+overlaps, σ0 is below its range, and the boresight roll comes out ≈ 14σ from its true 0. Freeing the
+range offset on the same rows moves the roll back by > 2 of its σ with |z| far beyond the FAIL
+threshold: the verdict FAILs with exit 3 and the roll no longer reads "determined". The same survey
+without the offset passes the check; ``--model-check off`` leaves it out."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from calidar.strips.model_check_verdict import SHIFT_LIMIT, Z_FAIL, Z_WARN
+
+pytestmark = pytest.mark.slow
+
+#: the survey of the issue: calidar simulate survey --preset uav --seed 5 --density 0.2 --directions cross
+SURVEY = ("simulate", "survey", "--preset", "uav", "--seed", "5", "--density", "0.2", "--directions", "cross")
+
+
+@pytest.fixture(scope="module")
+def surveys(tmp_path_factory):
+    from calidar.cli import run
+
+    root = tmp_path_factory.mktemp("model_check")
+    assert run([*SURVEY, "--range-offset", "0.05", "--out", str(root / "offset")]) == 0
+    assert run([*SURVEY, "--out", str(root / "clean")]) == 0
+    return root
+
+
+def _boresight(cli, sim, out, *options):
+    return cli("boresight", *sorted((sim / "strips").glob("*.laz")), "--trajectory", sim / "sbet.out", "--sensor",
+               sim / "sensor.toml", "--truth", sim / "truth.json", "--out", out, *options)
+
+
+def test_an_unestimated_range_offset_that_moves_the_roll_fails_with_exit_3(surveys, cli, tmp_path):
+    code, out, err = _boresight(cli, surveys / "offset", tmp_path / "cal")
+    assert code == 3, (out, err)
+    doc = json.loads((tmp_path / "cal" / "solution.json").read_text())
+    ro = doc["model_check"]["candidates"]["range_offset"]
+    assert ro["separable"] and ro["z"] > Z_FAIL, ro
+    roll = ro["shifts"]["boresight_roll"]
+    assert roll["in_own_sigma"] < -SHIFT_LIMIT, roll  # the roll's error is +0.0057°: freeing the offset takes it back
+    error = doc["parameters"]["boresight_roll"]["error"]
+    assert abs(error + roll["shift"]) < 0.5 * abs(error), (error, roll)  # most of the roll's error undone
+    assert 0.035 < ro["value"] < 0.055, ro  # the 5 cm offset (part of it is a height the overlaps cannot see)
+    text = " ".join(out.split())
+    assert "fail model check: freeing range_offset moves boresight_roll by" in text, text
+    assert "--estimate boresight,range_offset" in text
+    assert "fail boresight_roll" in text and "not determined — freeing range_offset" in text
+    assert "Model check" in (tmp_path / "cal" / "report.html").read_text()
+
+
+def test_the_same_survey_without_the_offset_passes_the_check(surveys, cli, tmp_path):
+    code, out, err = _boresight(cli, surveys / "clean", tmp_path / "cal")
+    assert code == 0, (out, err)
+    check = json.loads((tmp_path / "cal" / "solution.json").read_text())["model_check"]
+    for name, c in check["candidates"].items():
+        assert not c["separable"] or abs(c["z"]) <= Z_WARN, (name, c)
+    assert check["candidates"]["scan_angle_offset"]["separable"] is False  # a linear scanner's: the roll itself
+    assert "pass model check" in " ".join(out.split())
+
+
+def test_model_check_off_leaves_it_out(surveys, cli, tmp_path):
+    code, out, err = _boresight(cli, surveys / "offset", tmp_path / "cal", "--model-check", "off")
+    assert code == 0, (out, err)  # the wrong calibration the check exists for: nothing else catches it
+    assert "model_check" not in json.loads((tmp_path / "cal" / "solution.json").read_text())
+    assert "model_check = false" in (tmp_path / "cal" / "config.toml").read_text()
