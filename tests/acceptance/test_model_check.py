@@ -58,7 +58,8 @@ def test_the_same_survey_without_the_offset_passes_the_check(surveys, cli, tmp_p
     check = json.loads((tmp_path / "cal" / "solution.json").read_text())["model_check"]
     for name, c in check["candidates"].items():
         assert not c["separable"] or abs(c["z"]) <= Z_WARN, (name, c)
-    assert check["candidates"]["scan_angle_offset"]["separable"] is False  # a linear scanner's: the roll itself
+    assert check["candidates"]["scan_angle_offset"] == {"separable": False, "information_share": 0.0, "unit": "deg",
+                                                        "same_as": "boresight_roll"}  # a linear scanner's: the roll
     assert "pass model check" in " ".join(out.split())
 
 

@@ -45,7 +45,7 @@ def boresight(
         "ordinary GNSS/INS noise)."),
     model_check: str = typer.Option(
         "on", "--model-check", help="on: after the adjustment, free each structural parameter not estimated (range "
-        "offset and scale, scan-angle scale, horizontal lever arm) in turn; one the overlaps see that moves the "
+        "offset, scan-angle scale, horizontal lever arm) in turn; one the overlaps see that moves the "
         "estimated values warns, or fails (exit 3) when it is clear; off: skip it."),
     trajectory_accuracy: Path | None = typer.Option(
         None, "--trajectory-accuracy", help="The trajectory's accuracy per epoch: a POSPac smrmsg file. Default: "

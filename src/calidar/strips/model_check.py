@@ -32,6 +32,7 @@ A candidate whose column the others (with their priors) already explain (S ≤ :
 
 from __future__ import annotations
 
+import contextlib
 import time
 from collections.abc import Mapping, Sequence
 
@@ -41,19 +42,29 @@ import scipy.linalg as sl
 from calidar.adjust import Parameter
 
 #: structural parameters the check frees, one at a time, when the scanner model has them and they
-#: are not estimated (the lever arm's height and a common height bias are datum defects of the
-#: overlaps: never determinable from them, so never candidates)
-CANDIDATES = ("range_offset", "range_scale", "scan_angle_scale", "scan_angle_offset", "lever_arm_x", "lever_arm_y")
+#: are not estimated. Not candidates: the lever arm's height and a common height bias (datum defects
+#: of the overlaps), and the range scale — at one flying height nearly a common height shift, known
+#: through the trajectory's priors rather than the overlaps (1.4 % of its information left after the
+#: others on a UAV survey); freed, it moved no angle by more than 0.2 of its σ, and its z was
+#: over-dispersed on clean surveys (RMS 1.7 over 10: docs/validation.md, "Model check")
+CANDIDATES = ("range_offset", "scan_angle_scale", "scan_angle_offset", "lever_arm_x", "lever_arm_y")
 #: the freed column is not separable when its information left after the estimated parameters is
 #: below this fraction of its own (its multiple correlation with them R² > 1 − SINGULAR)
 SINGULAR = 1e-6
-UNITS = {"range_offset": "m", "range_scale": "ppm", "scan_angle_scale": "1", "scan_angle_offset": "rad",
+UNITS = {"range_offset": "m", "scan_angle_scale": "1", "scan_angle_offset": "rad",
          "lever_arm_x": "m", "lever_arm_y": "m"}
 
 
+#: a candidate that IS an estimated parameter, not computed: the linear scanner's scan-angle offset turns
+#: every beam about the scanner's x axis, u(θ + δ) = Rx(−δ)·u(θ), so R_bs·u(θ + δ) is the boresight with
+#: roll − δ (Rz(yaw)·Ry(pitch)·Rx(roll − δ)): the boresight roll itself
+ALIASES = {"scan_angle_offset": "boresight_roll"}
+
+
 def candidates(nominal_parameters: Mapping[str, float], free: Sequence[str]) -> list[str]:
-    """The :data:`CANDIDATES` this sensor has and the calibration did not estimate."""
-    return [c for c in CANDIDATES if c in nominal_parameters and c not in free]
+    """The :data:`CANDIDATES` this sensor has, the calibration did not estimate and no estimated
+    parameter is (:data:`ALIASES`)."""
+    return [c for c in CANDIDATES if c in nominal_parameters and c not in free and ALIASES.get(c) not in free]
 
 
 class Groups:
@@ -150,6 +161,21 @@ def check(est, problem_for, nominal_parameters: Mapping[str, float], scanner: Se
     with ``names`` free too (see :func:`columns`; ``scanner``: the scanner model's parameter names); ``shown``: the estimated parameters whose shifts are reported (not the
     trajectory corrections); ``restricted_sigma``: their σ in the calibration. SI values; the
     seconds it took."""
+    with _one_blas_thread():
+        return _check(est, problem_for, nominal_parameters, scanner, groupings, shown, restricted_sigma)
+
+
+def _one_blas_thread():
+    """LAPACK on one thread, as the solver's: its Cholesky of ~1 300 parameters takes 0.04 s on one
+    thread and 10× that on two of a busy machine (calidar.adjust.solver)."""
+    try:
+        from threadpoolctl import threadpool_limits
+    except ImportError:  # pragma: no cover - a dependency of scikit-learn
+        return contextlib.nullcontext()
+    return threadpool_limits(1, user_api="blas")
+
+
+def _check(est, problem_for, nominal_parameters, scanner, groupings, shown, restricted_sigma) -> dict:
     clock = time.perf_counter()
     fit, x, r, w = est.fit, est.x, est.r, est.w
     free = fit.params.free_names
@@ -161,6 +187,9 @@ def check(est, problem_for, nominal_parameters: Mapping[str, float], scanner: Se
     out = {}
     names = candidates(nominal_parameters, free)
     cols = columns(problem_for, values, names, scanner)
+    for name in (c for c in CANDIDATES if c in nominal_parameters and c not in free and c not in names):
+        out[name] = {"separable": False, "information_share": 0.0, "unit": Parameter(name, 0.0, UNITS[name]).display_unit,
+                     "same_as": ALIASES[name]}
     for name in names:
         f = freed.free(cols[name]) if np.all(np.isfinite(cols[name])) else {"separable": False, "information_share": 0.0}
         out[name] = _display(f, Parameter(name, 0.0, UNITS[name]), {s: fit.params[s] for s in shown}, index,

@@ -27,9 +27,9 @@ Z_FAIL = 5.0
 #: a shift of an estimated parameter beyond this many of its own σ is one that matters
 SHIFT_LIMIT = 2.0
 #: the --estimate name of each candidate's group
-GROUP = {"range_offset": "range_offset", "range_scale": "range_scale", "scan_angle_scale": "scan_angle_scale",
+GROUP = {"range_offset": "range_offset", "scan_angle_scale": "scan_angle_scale",
          "scan_angle_offset": "scan_angle_offset", "lever_arm_x": "lever_arm_x", "lever_arm_y": "lever_arm_y"}
-WHAT = {"range_offset": "a range offset", "range_scale": "a range scale error", "scan_angle_scale": "a scan-angle "
+WHAT = {"range_offset": "a range offset", "scan_angle_scale": "a scan-angle "
         "scale error", "scan_angle_offset": "a scan-angle offset", "lever_arm_x": "an along-track lever-arm error",
         "lever_arm_y": "an across-track lever-arm error"}
 
@@ -73,8 +73,9 @@ def model_check_finding(check: dict, sol) -> Finding:
         if c["separable"]:
             rows.append((name, *_candidate(name, c, sol)))
         else:
-            skipped.append(name)
-    tail = (f" ({', '.join(skipped)}: not separable from the estimated parameters, not tested)" if skipped else "")
+            skipped.append(f"{name} is {c['same_as']}" if c.get("same_as") else
+                           f"{name}: not separable from the estimated parameters")
+    tail = f" (not tested: {'; '.join(skipped)})" if skipped else ""
     if not rows:
         return Finding(NOTE, "model check", "no parameter left to free" + tail)
     status = max((r[1] for r in rows), key=rank.get)

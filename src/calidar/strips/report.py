@@ -150,7 +150,8 @@ def _model_check_part(sec, check: dict) -> None:
     rows = []
     for name, c in check["candidates"].items():
         if not c["separable"]:
-            rows.append([name, "not separable from the estimated parameters", None, None, None, None])
+            rows.append([name, f"the same as {c['same_as']} (a rotation about the scanner's x axis)" if c.get("same_as")
+                         else "not separable from the estimated parameters", None, None, None, None])
             continue
         shifts = c.get("shifts") or {}
         worst = max(shifts, key=lambda k: abs(shifts[k]["in_own_sigma"]), default=None)

@@ -112,7 +112,8 @@ def _check(z: float, shift_in_sigma: float) -> dict:
                                                        "unit": "deg", "in_own_sigma": -shift_in_sigma},
                                     "boresight_pitch": {"shift": 0.0, "sigma": 0.0, "own_sigma": 0.002, "unit": "deg",
                                                         "in_own_sigma": 0.0}}},
-        "scan_angle_offset": {"separable": False, "information_share": 1e-14, "unit": "deg"}}, "seconds": 1.0}
+        "scan_angle_offset": {"separable": False, "information_share": 0.0, "unit": "deg", "same_as": "boresight_roll"},
+        "lever_arm_y": {"separable": False, "information_share": 1e-14, "unit": "m"}}, "seconds": 1.0}
 
 
 @pytest.mark.parametrize("z, shift, status", [
@@ -124,7 +125,7 @@ def _check(z: float, shift_in_sigma: float) -> dict:
 def test_the_finding_weighs_z_and_the_shift_in_the_angles_own_sigma(z, shift, status):
     f = model_check_finding(_check(z, shift), _solution())
     assert f.status == status, f.detail
-    assert "scan_angle_offset: not separable" in f.detail
+    assert "(not tested: scan_angle_offset is boresight_roll; lever_arm_y: not separable from the estimated" in f.detail
     if status in ("warn", "fail"):
         assert f"freeing range_offset moves boresight_roll by" in f.detail and f"({shift:.1f}× its σ)" in f.detail
         assert "a range offset of" in f.detail and "mm ±" in f.detail
@@ -145,3 +146,19 @@ def test_an_angle_a_flagged_parameter_moves_is_no_longer_determined():
     assert pitch == given[1]  # not moved
     sol.extra["model_check"] = _check(Z_WARN - 1.0, 12.5)  # the overlaps do not see it: nothing changes
     assert moved_parameters(given, sol) == given
+
+
+def test_a_linear_scanners_scan_angle_offset_is_the_boresight_roll():
+    """Why the check does not free it while the roll is estimated (model_check.ALIASES)."""
+    from calidar.sensor import Sensor
+    from calidar.strips.model_check import ALIASES, candidates
+
+    angles = np.column_stack([np.linspace(-0.6, 0.6, 7), np.linspace(-0.1, 0.1, 7)])
+    s = Sensor(boresight_roll=0.01, boresight_pitch=-0.02, boresight_yaw=0.3)
+    offset = s.r_bs @ s.with_parameters(scan_angle_offset=0.004).scanner.directions(angles).T
+    roll = s.with_parameters(boresight_roll=0.01 - 0.004).r_bs @ s.scanner.directions(angles).T
+    np.testing.assert_allclose(offset, roll, atol=1e-15)
+    assert ALIASES["scan_angle_offset"] == "boresight_roll"
+    names = candidates(s.parameters(), ["boresight_roll", "boresight_pitch", "boresight_yaw"])
+    assert "scan_angle_offset" not in names and "range_offset" in names and "lever_arm_z" not in names
+    assert "scan_angle_offset" in candidates(s.parameters(), ["boresight_pitch"])
