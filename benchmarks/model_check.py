@@ -13,8 +13,10 @@ pipeline with its default options (boresight, tie planes, trajectory model on;
 :func:`calidar.pipelines.boresight.load_inputs`, :func:`calibrate_inputs`). One JSON line per survey:
 each candidate's freed value, σ and z, the shifts of the angles in their own σ, the angles' errors
 against the truth in their σ, the check's seconds and the calibration's, and the verdict's model-check
-finding. ``--summary``: per (preset, range offset) the surveys, the largest |z| per candidate, the
-fraction with |z| above 2, 3, 4, 5, the warn / fail rates, the median seconds added.
+finding. ``--summary``: per (preset, range offset) the surveys, the model check's FAIL / WARN counts
+re-derived from the raw z and shifts with today's candidates and thresholds (and at other z
+thresholds), per candidate its σ, mean and RMS of z, the surveys with |z| above 2, 3, 4, 5 and the
+angles' shifts, the median seconds the check added and the calibration took.
 """
 
 from __future__ import annotations
@@ -73,26 +75,50 @@ def one(seed: int, preset: str, range_offset: float, directions: str) -> dict:
     return out
 
 
+def flagged(row: dict, z_limit: float, shift_limit: float) -> bool:
+    """Would a candidate of today's list (calidar.strips.model_check.CANDIDATES) in this survey's
+    record pass |z| > z_limit with an angle moved by more than shift_limit of its σ?"""
+    from calidar.strips.model_check import CANDIDATES
+
+    return any(c["separable"] and abs(c["z"]) > z_limit
+               and max(abs(v) for v in c["shift_in_own_sigma"].values()) > shift_limit
+               for name, c in row["candidates"].items() if name in CANDIDATES)
+
+
 def summary(paths: list[Path]) -> None:
+    """Per (preset, range offset): the surveys, the verdict's model-check status re-derived from the
+    raw z and shifts with today's candidates and thresholds, each candidate's z statistics, and the
+    warn / fail rates at other thresholds."""
+    from calidar.strips.model_check import CANDIDATES
+    from calidar.strips.model_check_verdict import SHIFT_LIMIT, Z_FAIL, Z_WARN
+
     rows = [json.loads(line) for p in paths for line in p.read_text().splitlines() if line.strip()]
     groups: dict[tuple, list] = {}
     for r in rows:
         groups.setdefault((r["preset"], r["range_offset_m"]), []).append(r)
     for (preset, ro), rs in sorted(groups.items()):
         n = len(rs)
-        status = {s: sum(r["status"] == s for r in rs) for s in ("pass", "note", "warn", "fail")}
-        print(f"{preset} range offset {ro * 100:g} cm: {n} surveys, verdict {status}, check "
-              f"{np.median([r['check_s'] for r in rs]):.2f} s median (calibration {np.median([r['calibrate_s'] for r in rs]):.1f} s)")
-        names = sorted({c for r in rs for c in r["candidates"]})
-        for c in names:
-            z = np.array([r["candidates"][c]["z"] for r in rs if r["candidates"].get(c, {}).get("separable")])
-            if not z.size:
-                print(f"  {c}: not separable")
+        fail = sum(flagged(r, Z_FAIL, SHIFT_LIMIT) for r in rs)
+        warn = sum(flagged(r, Z_WARN, SHIFT_LIMIT) for r in rs) - fail
+        dirs = {d: sum(r["directions"] == d for r in rs) for d in sorted({r["directions"] for r in rs})}
+        print(f"{preset} range offset {ro * 100:g} cm: {n} surveys {dirs}; model check FAIL {fail}, WARN {warn} "
+              f"(|z| > {Z_FAIL:g} / {Z_WARN:g}, shift > {SHIFT_LIMIT:g} σ); check {np.median([r['check_s'] for r in rs]):.2f} s "
+              f"median, calibration {np.median([r['calibrate_s'] for r in rs]):.1f} s median")
+        sweep = ", ".join(f"|z|>{t:g}: {sum(flagged(r, t, SHIFT_LIMIT) for r in rs)}" for t in (2, 3, 3.5, 4, 5))
+        print(f"  surveys flagged at other z thresholds (shift > {SHIFT_LIMIT:g} σ): {sweep}")
+        for c in [c for c in CANDIDATES if any(c in r["candidates"] for r in rs)] + sorted(
+                {c for r in rs for c in r["candidates"]} - set(CANDIDATES)):
+            sep = [r["candidates"][c] for r in rs if r["candidates"].get(c, {}).get("separable")]
+            tag = "" if c in CANDIDATES else " [no longer a candidate]"
+            if not sep:
+                print(f"  {c}: not separable / not freed{tag}")
                 continue
-            shift = np.array([max(abs(v) for v in r["candidates"][c]["shift_in_own_sigma"].values())
-                              for r in rs if r["candidates"].get(c, {}).get("separable")])
-            above = ", ".join(f">{t}: {np.mean(np.abs(z) > t):.0%}" for t in (2, 3, 4, 5))
-            print(f"  {c}: RMS z {np.sqrt(np.mean(z * z)):.2f}, max |z| {np.max(np.abs(z)):.1f} ({above}); "
+            z = np.array([x["z"] for x in sep])
+            shift = np.array([max(abs(v) for v in x["shift_in_own_sigma"].values()) for x in sep])
+            sig = np.median([x["sigma"] for x in sep])
+            above = ", ".join(f">{t}: {np.sum(np.abs(z) > t)}" for t in (2, 3, 4, 5))
+            print(f"  {c}{tag}: σ {sig:.3g} (median), mean z {np.mean(z):+.2f}, RMS z {np.sqrt(np.mean(z * z)):.2f}, "
+                  f"|z| min {np.min(np.abs(z)):.1f} max {np.max(np.abs(z)):.1f} (surveys with |z| {above}); "
                   f"largest angle shift {np.median(shift):.1f} σ median, {np.max(shift):.1f} σ max")
         za = np.array([r["angles"][a]["z"] for r in rs for a in ANGLES])
         print(f"  angles' error/σ: RMS {np.sqrt(np.mean(za * za)):.2f}, max |z| {np.max(np.abs(za)):.1f}")

@@ -68,3 +68,26 @@ def test_model_check_off_leaves_it_out(surveys, cli, tmp_path):
     assert code == 0, (out, err)  # the wrong calibration the check exists for: nothing else catches it
     assert "model_check" not in json.loads((tmp_path / "cal" / "solution.json").read_text())
     assert "model_check = false" in (tmp_path / "cal" / "config.toml").read_text()
+
+
+def test_both_methods_get_the_check(tmp_path):
+    """Tie planes (point-to-plane rows) and VGICP (point-to-point, three rows each) on a small survey
+    delivered with a 5 cm range offset: each method's own check sees it (|z| > Z_FAIL with the
+    roll moved > 2σ) and fails."""
+    from dataclasses import replace
+
+    import calidar
+    from calidar.pipelines.strip_config import StripConfig
+    from calidar.strips.config import CalibrationConfig, matchers_named
+
+    cfg = calidar.survey_config("uav", seed=3, density=0.1, directions="cross", errors={"range_offset": 0.05})
+    sim = calidar.simulate_survey(replace(cfg, scene=replace(cfg.scene, width_m=150.0, length_m=150.0))).write(
+        tmp_path / "sim")
+    run = calidar.calibrate_strips(sorted((sim / "strips").glob("*.laz")), sim / "sbet.out", sim / "sensor.toml",
+                                   StripConfig(CalibrationConfig(matchers=matchers_named("planes", "vgicp"))))
+    for method, result in run.results.items():
+        ro = result.solution.extra["model_check"]["candidates"]["range_offset"]
+        assert ro["z"] > Z_FAIL and ro["shifts"]["boresight_roll"]["in_own_sigma"] < -SHIFT_LIMIT, (method, ro)
+        assert abs(ro["value"] - 0.05) < 3 * ro["sigma"], (method, ro)
+        (f,) = [f for f in run.verdicts[method].findings if f.check == "model check"]
+        assert f.status == "fail", (method, f.detail)
