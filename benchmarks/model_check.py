@@ -2,11 +2,12 @@
 
     NUMBA_NUM_THREADS=1 OMP_NUM_THREADS=1 PYTHONPATH=src python benchmarks/model_check.py \\
         --seeds 1000-1029 [--preset uav] [--range-offset 0.0] [--directions cross,opposite] \\
-        [--json out.jsonl]
+        [--vegetation 0.3] [--json out.jsonl]
     python benchmarks/model_check.py --summary out.jsonl [more.jsonl ...]
 
 Each seed is one fresh survey of the preset (UAV: 300 m × 300 m at density 0.2, the preset's trees,
-2 cm / 0.002° trajectory errors and the smrmsg.out that states them), lines ``--directions`` (one
+2 cm / 0.002° trajectory errors and the smrmsg.out that states them; ``--vegetation``: another
+fraction under trees), lines ``--directions`` (one
 per seed, in turn), written as the simulator delivers it with a true range offset of
 ``--range-offset`` m that the calibration does NOT estimate, then calibrated by the boresight
 pipeline with its default options (boresight, tie planes, trajectory model on;
@@ -35,7 +36,7 @@ import numpy as np
 ANGLES = ("boresight_roll", "boresight_pitch", "boresight_yaw")
 
 
-def one(seed: int, preset: str, range_offset: float, directions: str) -> dict:
+def one(seed: int, preset: str, range_offset: float, directions: str, vegetation: float | None = None) -> dict:
     from calidar.pipelines.boresight import calibrate_inputs, load_inputs
     from calidar.pipelines.strip_config import StripConfig
     from calidar.sim.survey import simulate_survey, survey_config
@@ -44,6 +45,8 @@ def one(seed: int, preset: str, range_offset: float, directions: str) -> dict:
     clock = time.perf_counter()
     density = 0.2 if preset == "uav" else 1.0
     cfg = survey_config(preset, seed=seed, density=density, directions=directions, errors={"range_offset": range_offset})
+    if vegetation is not None:
+        cfg = replace(cfg, scene=replace(cfg.scene, vegetation_fraction=vegetation))
     res = simulate_survey(cfg)
     folder = Path(tempfile.mkdtemp(prefix=f"model_check_{seed}_"))
     try:
@@ -51,16 +54,18 @@ def one(seed: int, preset: str, range_offset: float, directions: str) -> dict:
         simulated = time.perf_counter() - clock
         inputs = load_inputs(sorted((sim / "strips").glob("*.laz")), sim / "sbet.out", sim / "sensor.toml",
                              StripConfig(), truth=sim / "truth.json")
-        start = time.perf_counter()
+        start, cpu = time.perf_counter(), time.process_time()
         result = calibrate_inputs(inputs)["planes"]
-        calibrated = time.perf_counter() - start
+        calibrated, calibrated_cpu = time.perf_counter() - start, time.process_time() - cpu
     finally:
         shutil.rmtree(folder, ignore_errors=True)
     sol = result.solution
     check = sol.extra["model_check"]
     finding = model_check_finding(check, sol)
     out = {"seed": seed, "preset": preset, "range_offset_m": range_offset, "directions": directions,
-           "simulate_s": simulated, "calibrate_s": calibrated, "check_s": check["seconds"],
+           "vegetation": cfg.scene.vegetation_fraction,
+           "simulate_s": simulated, "calibrate_s": calibrated, "check_s": check["seconds"], "check_parts": check.get("parts"),
+           "calibrate_cpu_s": calibrated_cpu, "check_cpu_s": check.get("cpu_seconds"),
            "status": finding.status, "finding": finding.detail, "sigma0": sol.sigma0}
     out["angles"] = {a: {"error": sol.values[a] - inputs.truth.get(a, 0.0), "sigma": sol.sigma[a],
                          "z": (sol.values[a] - inputs.truth.get(a, 0.0)) / sol.sigma[a]} for a in ANGLES}
@@ -105,6 +110,10 @@ def summary(paths: list[Path]) -> None:
               f"(|z| > {Z_FAIL:g} / {Z_WARN:g}, shift > {SHIFT_LIMIT:g} σ); check {np.median([r['check_s'] for r in rs]):.2f} s "
               f"median, calibration {np.median([r['calibrate_s'] for r in rs]):.1f} s median")
         sweep = ", ".join(f"|z|>{t:g}: {sum(flagged(r, t, SHIFT_LIMIT) for r in rs)}" for t in (2, 3, 3.5, 4, 5))
+        cpu = [(r["check_cpu_s"], r["calibrate_cpu_s"]) for r in rs if r.get("check_cpu_s") is not None]
+        if cpu:
+            print(f"  CPU: check {np.median([c for c, _ in cpu]):.2f} s median of calibration {np.median([k for _, k in cpu]):.1f} s "
+                  f"({np.median([c / k for c, k in cpu]):.1%} median, {max(c / k for c, k in cpu):.1%} max; {len(cpu)} surveys)")
         print(f"  surveys flagged at other z thresholds (shift > {SHIFT_LIMIT:g} σ): {sweep}")
         for c in [c for c in CANDIDATES if any(c in r["candidates"] for r in rs)] + sorted(
                 {c for r in rs for c in r["candidates"]} - set(CANDIDATES)):
@@ -130,6 +139,7 @@ def main() -> None:
     ap.add_argument("--preset", default="uav")
     ap.add_argument("--range-offset", type=float, default=0.0)
     ap.add_argument("--directions", default="cross,opposite")
+    ap.add_argument("--vegetation", type=float, help="fraction under trees (default: the preset's)")
     ap.add_argument("--json", type=Path)
     ap.add_argument("--summary", type=Path, nargs="+")
     args = ap.parse_args()
@@ -140,7 +150,7 @@ def main() -> None:
     seeds = range(int(lo), int(hi or lo) + 1)
     directions = args.directions.split(",")
     for k, seed in enumerate(seeds):
-        row = one(seed, args.preset, args.range_offset, directions[k % len(directions)])
+        row = one(seed, args.preset, args.range_offset, directions[k % len(directions)], args.vegetation)
         line = json.dumps(row)
         if args.json:
             with args.json.open("a") as f:
