@@ -181,7 +181,11 @@ def _check(est, problem_for, nominal_parameters, scanner, groupings, shown, rest
     free = fit.params.free_names
     J = fit.jacobian(x)
     N, g = fit.normal_equations(J, w, r, x)
-    freed = FreedFit(J, w, r, N, g, fit.variance_factor(r, w, x), groupings)
+    try:
+        freed = FreedFit(J, w, r, N, g, fit.variance_factor(r, w, x), groupings)
+    except (np.linalg.LinAlgError, ValueError):  # a direction the data do not determine: nothing to test against
+        return {"candidates": {}, "seconds": time.perf_counter() - clock, "cpu_seconds": time.process_time() - cpu,
+                "not_run": "the adjustment's normal matrix is singular (a parameter the strips do not determine)"}
     values = fit.params.values_with(x)
     index = [free.index(s) for s in shown]
     out = {}

@@ -76,6 +76,8 @@ def model_check_finding(check: dict, sol) -> Finding:
             skipped.append(f"{name} is {c['same_as']}" if c.get("same_as") else
                            f"{name}: not separable from the estimated parameters")
     tail = f" (not tested: {'; '.join(skipped)})" if skipped else ""
+    if check.get("not_run"):
+        return Finding(NOTE, "model check", f"not run: {check['not_run']}")
     if not rows:
         return Finding(NOTE, "model check", "no parameter left to free" + tail)
     status = max((r[1] for r in rows), key=rank.get)

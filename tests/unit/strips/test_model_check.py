@@ -162,3 +162,20 @@ def test_a_linear_scanners_scan_angle_offset_is_the_boresight_roll():
     names = candidates(s.parameters(), ["boresight_roll", "boresight_pitch", "boresight_yaw"])
     assert "scan_angle_offset" not in names and "range_offset" in names and "lever_arm_z" not in names
     assert "scan_angle_offset" in candidates(s.parameters(), ["boresight_pitch"])
+
+
+def test_a_singular_adjustment_is_not_checked_and_says_why():
+    from types import SimpleNamespace
+
+    from calidar.strips.model_check import check
+
+    X, j, y, w, _ = _problem(5, 0.0)
+    X = np.column_stack([X, X[:, 1]])  # two identical columns: N singular
+    params = ParameterSet([Parameter(f"p{k}", 0.0, "1") for k in range(4)])
+    fit = SimpleNamespace(params=params, jacobian=lambda x: X, variance_factor=lambda r, w, x: 1.0,
+                          normal_equations=lambda J, w, r, x: (J.T @ (w[:, None] * J), J.T @ (w * r)))
+    est = SimpleNamespace(fit=fit, x=np.zeros(4), r=-y, w=w)
+    out = check(est, None, {"range_offset": 0.0}, [], [], [], {})
+    assert out["candidates"] == {} and "singular" in out["not_run"]
+    f = model_check_finding(out, _solution())
+    assert f.status == "note" and f.detail.startswith("not run: the adjustment's normal matrix is singular")
