@@ -21,7 +21,7 @@ from calidar.strips.trajectory_errors import PREFIX as TRAJECTORY_PREFIX
 from calidar.verdict import NOTE, Finding, angle_text, length_text
 
 #: |z| of a freed parameter above which the overlaps see it (warn when it moves the estimates)
-Z_WARN = 3.5
+Z_WARN = 3.0
 #: |z| above which a freed parameter that moves the estimates fails the calibration
 Z_FAIL = 5.0
 #: a shift of an estimated parameter beyond this many of its own σ is one that matters
