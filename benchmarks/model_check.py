@@ -100,13 +100,13 @@ def summary(paths: list[Path]) -> None:
     rows = [json.loads(line) for p in paths for line in p.read_text().splitlines() if line.strip()]
     groups: dict[tuple, list] = {}
     for r in rows:
-        groups.setdefault((r["preset"], r["range_offset_m"]), []).append(r)
-    for (preset, ro), rs in sorted(groups.items()):
+        groups.setdefault((r["preset"], r.get("vegetation", 0.1), r["range_offset_m"]), []).append(r)
+    for (preset, trees, ro), rs in sorted(groups.items()):
         n = len(rs)
         fail = sum(flagged(r, Z_FAIL, SHIFT_LIMIT) for r in rs)
         warn = sum(flagged(r, Z_WARN, SHIFT_LIMIT) for r in rs) - fail
         dirs = {d: sum(r["directions"] == d for r in rs) for d in sorted({r["directions"] for r in rs})}
-        print(f"{preset} range offset {ro * 100:g} cm: {n} surveys {dirs}; model check FAIL {fail}, WARN {warn} "
+        print(f"{preset} ({trees:.0%} trees) range offset {ro * 100:g} cm: {n} surveys {dirs}; model check FAIL {fail}, WARN {warn} "
               f"(|z| > {Z_FAIL:g} / {Z_WARN:g}, shift > {SHIFT_LIMIT:g} σ); check {np.median([r['check_s'] for r in rs]):.2f} s "
               f"median, calibration {np.median([r['calibrate_s'] for r in rs]):.1f} s median")
         sweep = ", ".join(f"|z|>{t:g}: {sum(flagged(r, t, SHIFT_LIMIT) for r in rs)}" for t in (2, 3, 3.5, 4, 5))
@@ -131,6 +131,12 @@ def summary(paths: list[Path]) -> None:
                   f"largest angle shift {np.median(shift):.1f} σ median, {np.max(shift):.1f} σ max")
         za = np.array([r["angles"][a]["z"] for r in rs for a in ANGLES])
         print(f"  angles' error/σ: RMS {np.sqrt(np.mean(za * za)):.2f}, max |z| {np.max(np.abs(za)):.1f}")
+        freed = [r for r in rs if r["candidates"].get("range_offset", {}).get("separable")]
+        zf = np.array([r["angles"][a]["z"] + r["candidates"]["range_offset"]["shift_in_own_sigma"][a]
+                       for r in freed for a in ANGLES])  # error/σ (restricted σ) with the offset freed
+        if zf.size:
+            print(f"  with range_offset freed (error + shift, in the restricted σ): RMS {np.sqrt(np.mean(zf * zf)):.2f}, "
+                  f"max |z| {np.max(np.abs(zf)):.1f}")
 
 
 def main() -> None:
