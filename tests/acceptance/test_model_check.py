@@ -91,3 +91,16 @@ def test_both_methods_get_the_check(tmp_path):
         assert abs(ro["value"] - 0.05) < 3 * ro["sigma"], (method, ro)
         (f,) = [f for f in run.verdicts[method].findings if f.check == "model check"]
         assert f.status == "fail", (method, f.detail)
+
+
+def test_the_action_it_names_passes(surveys, cli, tmp_path):
+    """The FAIL's action, ``--estimate boresight,range_offset``: the range offset within 2σ of 5 cm,
+    the roll within 2σ of its true 0, the check passes."""
+    code, out, err = _boresight(cli, surveys / "offset", tmp_path / "cal", "--estimate", "boresight,range_offset")
+    assert code == 0, (out, err)
+    doc = json.loads((tmp_path / "cal" / "solution.json").read_text())
+    for name in ("range_offset", "boresight_roll"):
+        p = doc["parameters"][name]
+        assert abs(p["error"]) < 2 * p["sigma"], (name, p)
+    assert "range_offset" not in doc["model_check"]["candidates"]
+    assert "pass model check" in " ".join(out.split())

@@ -26,8 +26,11 @@ each shift's z equals the freed parameter's Wald z: with one parameter freed, th
 one. What the verdict weighs besides z is how far the shift moves each angle in units of the
 angle's own σ (:mod:`calidar.strips.model_check_verdict`).
 
-A candidate whose column the others (with their priors) already explain (S ≤ :data:`SINGULAR`·m:
-``scan_angle_offset`` of a linear scanner is the boresight roll) is reported as not separable.
+A candidate whose column the others (with their priors) already explain (S ≤ :data:`SINGULAR`·m)
+is reported as not separable; one that IS an estimated parameter (:data:`ALIASES`: a linear
+scanner's scan-angle offset is the boresight roll) is not freed. The freed value's σ is the
+cluster-robust one on the full model's residuals (r moved linearly by the full step): the σ the
+calibration would state with the parameter estimated.
 """
 
 from __future__ import annotations
@@ -46,7 +49,7 @@ from calidar.adjust import Parameter
 #: of the overlaps), and the range scale — at one flying height nearly a common height shift, known
 #: through the trajectory's priors rather than the overlaps (1.4 % of its information left after the
 #: others on a UAV survey); freed, it moved no angle by more than 0.2 of its σ, and its z was
-#: over-dispersed on clean surveys (RMS 1.7 over 10: docs/validation.md, "Model check")
+#: over-dispersed on clean surveys (RMS 1.4 over 30: docs/validation.md, "Model check")
 CANDIDATES = ("range_offset", "scan_angle_scale", "scan_angle_offset", "lever_arm_x", "lever_arm_y")
 #: the freed column is not separable when its information left after the estimated parameters is
 #: below this fraction of its own (its multiple correlation with them R² > 1 − SINGULAR)
@@ -202,6 +205,7 @@ def _check(est, problem_for, nominal_parameters, scanner, groupings, shown, rest
                              restricted_sigma)
     used = time.process_time() - cpu
     parts["solves_cpu_s"] = used - parts["normal_matrix_cpu_s"] - parts["columns_cpu_s"]
+    out = {name: out[name] for name in CANDIDATES if name in out}  # in the candidates' order
     return {"candidates": out, "seconds": time.perf_counter() - clock, "cpu_seconds": used, "parts": parts}
 
 
