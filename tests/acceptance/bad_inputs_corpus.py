@@ -215,6 +215,7 @@ def _texts(bad: Path) -> None:
         "config_sigma.toml": '[trajectory_model]\nsigma = [0.03]\n',
         "config_block.toml": '[trajectory_model]\nblock_s = -1.0\n',
         "config_off.toml": '[trajectory_model]\non = false\nsigma = [0.03, 0.002]\n',
+        "config_model_check.toml": 'model_check = "on"\n',
         "config_vgicp.toml": 'method = ["vgicp"]\n\n[vgicp]\nvoxel_m = [8.0, -2.0]\n',
         "config_crs.toml": '[inputs]\ncrs = "EPSG:999999"\n',
         "config_strip_points.toml": '[ingest]\nstrip_points = 1.5\n',

@@ -43,6 +43,10 @@ def boresight(
         "on", "--trajectory-model", help="on: estimate the trajectory's errors (priors: its accuracy, see "
         "--trajectory-accuracy), so the σ include them; off: take the trajectory as exact (σ too small with "
         "ordinary GNSS/INS noise)."),
+    model_check: str = typer.Option(
+        "on", "--model-check", help="on: after the adjustment, free each structural parameter not estimated (range "
+        "offset, scan-angle scale, horizontal lever arm) in turn; one the overlaps see that moves the "
+        "estimated values warns, or fails (exit 3) when it is clear; off: skip it."),
     trajectory_accuracy: Path | None = typer.Option(
         None, "--trajectory-accuracy", help="The trajectory's accuracy per epoch: a POSPac smrmsg file. Default: "
         "smrmsg*.out beside an sbet*.out, σ columns of a text trajectory, else its level is estimated from the "

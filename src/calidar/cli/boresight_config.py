@@ -93,6 +93,10 @@ def strip_config(path: Path | None, given: dict):
         changes["matchers"] = tuple(own.get(n) or MATCHERS[n]() for n in parse_methods(given["method"]))
     if "estimate" in given:
         changes["estimate"] = parse_estimate(given["estimate"], trajectory is not None)
+    if "model_check" in given:
+        if given["model_check"] not in ("on", "off"):
+            raise InputError(None, "--model-check", f"expected on or off, got {given['model_check']!r}")
+        changes["model_check"] = given["model_check"] == "on"
     config = replace(config, calibration=replace(cal, **changes), ingest=_ingest(config.ingest, given))
     keys = ("trajectory_crs", "trajectory_angles", "trajectory_heading", "trajectory_columns")
     if any(k in given for k in keys):

@@ -10,6 +10,7 @@ reads (degrees for the trajectory's attitude σ)::
 
     method = ["planes"]
     estimate = ["boresight", "lever_arm_z"]
+    model_check = true           # free each structural parameter not estimated in turn (calidar.strips.model_check)
 
     [trajectory_model]
     on = true
@@ -97,7 +98,7 @@ class StripConfig:
     def to_dict(self) -> dict:
         """The TOML file's document (user units; None values left out)."""
         c = self.calibration
-        doc = {"method": [m.name for m in c.matchers], "estimate": c.estimate.names()}
+        doc = {"method": [m.name for m in c.matchers], "estimate": c.estimate.names(), "model_check": c.model_check}
         if self.checkpoint_class_cm is not None:
             doc["checkpoint_class_cm"] = self.checkpoint_class_cm
         traj = {"on": c.trajectory is not None}
@@ -148,7 +149,7 @@ def from_document(doc: dict, path: Path | None = None) -> StripConfig:
     """:class:`StripConfig` from a TOML document (:meth:`StripConfig.to_dict`'s layout)."""
     from calidar.sensor import validated_crs
 
-    known = {"method", "estimate", "checkpoint_class_cm", "trajectory_model", "solver", "ingest", "inputs", *MATCHERS}
+    known = {"method", "estimate", "model_check", "checkpoint_class_cm", "trajectory_model", "solver", "ingest", "inputs", *MATCHERS}
     _known(doc, known, path, "")
     target = _typed(doc.get("checkpoint_class_cm"), float | None, path, "checkpoint_class_cm")
     estimate = _typed(doc.get("estimate", ["boresight"]), tuple[str, ...], path, "estimate")
@@ -162,7 +163,8 @@ def from_document(doc: dict, path: Path | None = None) -> StripConfig:
     trajectory = _trajectory(_table(doc, "trajectory_model", path), path)
     solver = _section(StripSettings, _solver(_table(doc, "solver", path)), path, "solver")
     chosen = _build(path, "estimate", lambda: Estimate.of(*estimate))
-    calibration = _build(path, "method", lambda: CalibrationConfig(chosen, matchers, trajectory, solver))
+    check = _typed(doc.get("model_check", True), bool, path, "model_check")
+    calibration = _build(path, "method", lambda: CalibrationConfig(chosen, matchers, trajectory, solver, check))
     ingest = _table(doc, "ingest", path)
     _known(ingest, set(INGEST_KEYS), path, "ingest.")
     kw = {INGEST_KEYS[k]: _typed(v, typing.get_type_hints(IngestSettings)[INGEST_KEYS[k]], path, f"ingest.{k}")

@@ -228,13 +228,29 @@ class _Run:
         options = SolverOptions(robust=self.settings.robust, step_in_sigma=step_in_sigma)
         return estimate(problem, options, step_scale=step_scale), problem
 
-    def solution(self, est: Estimate, problem: StripProblem) -> Solution:
-        """The final adjustment's :class:`Solution`, σ raised by the cluster-robust sandwich."""
+    def clusters(self, problem: StripProblem) -> list[np.ndarray]:
+        """The residuals' groupings by trajectory segment for the cluster-robust σ (none without ``cluster_s``)."""
         s = self.settings
         strips = self.by_id
         if self.control is not None:  # each control point its own cluster: their survey errors are independent
             strips = {**strips, CONTROL_ID: SimpleNamespace(time=np.arange(len(self.control.ids)) * (s.cluster_s or 1.0))}
-        return est.solution(problem.clusters(strips, s.cluster_s) if s.cluster_s else None)
+        return problem.clusters(strips, s.cluster_s) if s.cluster_s else []
+
+    def solution(self, est: Estimate, problem: StripProblem) -> Solution:
+        """The final adjustment's :class:`Solution`, σ raised by the cluster-robust sandwich."""
+        return est.solution(self.clusters(problem) or None)
+
+    def model_check(self, est: Estimate, problem: StripProblem, corrs: list[Correspondences], solution: Solution) -> dict:
+        """:func:`calidar.strips.model_check.check` on the final rows: each structural parameter not
+        estimated freed in turn, on a problem of the same correspondences with it free too."""
+        from calidar.strips.model_check import check
+
+        free = est.parameters.free_names
+        shown = [n for n in free if not n.startswith(TRAJECTORY_PREFIX)]
+        return check(est, lambda names: StripProblem(self.nominal, self.poses, corrs, [*free, *names], self._times(),
+                                                      self.model, self.spans),
+                     self.nominal.parameters(), list(self.nominal.scanner.parameters()), self.clusters(problem), shown,
+                     solution.sigma)
 
 
 def calibrate(strips: Sequence[Strip], nominal: Sensor, config: CalibrationConfig = CalibrationConfig(), *,
@@ -297,6 +313,9 @@ def calibrate_with_client(strips: Sequence[Strip], nominal: Sensor, config: Cali
     clock = time.perf_counter()
     est = est.refine(FINAL_STEP_IN_SIGMA)  # the last matching's adjustment, then its covariance
     solution = run.solution(est, problem)
+    if config.model_check:
+        say("model check: freeing the parameters not estimated", s.max_outer, s.max_outer)
+        solution.extra["model_check"] = run.model_check(est, problem, corrs, solution)
     outer[-1].update(mean_distance_m=_mean(problem, est.r), solver_iterations=len(est.history) - 1,
                      solve_s=outer[-1]["solve_s"] + time.perf_counter() - clock, values=est.parameters.values())
     say("calibrated", s.max_outer, s.max_outer)

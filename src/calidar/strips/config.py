@@ -146,8 +146,13 @@ class CalibrationConfig:
     matchers: tuple[Matcher, ...] = (TiePlanes(),)
     trajectory: TrajectorySettings | None = field(default_factory=TrajectorySettings)
     solver: StripSettings = field(default_factory=StripSettings)
+    #: after the adjustment, free each structural parameter not estimated in turn and test whether the
+    #: overlaps see it and it moves the estimated ones (:mod:`calidar.strips.model_check`)
+    model_check: bool = True
 
     def __post_init__(self):
         names = [m.name for m in self.matchers]
         if not names or len(set(names)) != len(names):
             raise InputError(None, "method", f"expected one or more of {', '.join(MATCHERS)}, each once, got {names}")
+        if not isinstance(self.model_check, bool):
+            raise InputError(None, "model check (--model-check)", f"expected on or off (true or false), got {self.model_check!r}")

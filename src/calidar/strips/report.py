@@ -33,6 +33,8 @@ REFERENCES = [
     "University of California, Davis. (Cluster-robust σ.)",
     "Heidemann, H. K. (2018). Lidar base specification (version 1.3). U.S. Geological Survey Techniques and "
     "Methods, book 11, chapter B4. (Swath-overlap difference, RMSDz.)",
+    "Hausman, J. A. (1978). Specification tests in econometrics. Econometrica 46(6), 1251–1271. (The model "
+    "check: the shift's covariance as the difference of the two covariances.)",
 ]
 
 
@@ -112,6 +114,8 @@ def add_report_section(report: Report, result: CalibrationResult, truth: dict[st
         correction_table(sec, result)
     if "control" in sol.extra:
         _control_part(sec, sol.extra["control"])
+    if sol.extra.get("model_check"):
+        _model_check_part(sec, sol.extra["model_check"])
     if quality:
         _quality_part(sec, quality, map_pair)
     sec.heading("References")
@@ -131,6 +135,31 @@ def _control_part(sec, control: dict) -> None:
             for r in control["points"]]
     sec.table(["control point", "strip", "dz before (cm)", "dz after (cm)", "σ (cm)", "|dz|/σ after"], rows,
               formats=[None, None, "+.1f", "+.1f", ".1f", ".2f"])
+
+
+def _model_check_part(sec, check: dict) -> None:
+    """The model check (calidar.strips.model_check): each structural parameter not estimated, freed in turn."""
+    from calidar.strips.model_check_verdict import value_text
+
+    sec.heading("Model check")
+    sec.text("Each structural parameter the calibration held at its nominal value, freed on its own on the same "
+             "final correspondences, weights and trajectory model (one linear solve each, "
+             f"{check['seconds']:.1f} s in all): the value the overlaps give it, its z, and the largest shift it causes "
+             "in an estimated parameter, in that parameter's own σ and with the shift's σ from the difference of the "
+             "two covariances [7] (whose z is the freed parameter's). See the verdict's \"model check\" finding.")
+    rows = []
+    for name, c in check["candidates"].items():
+        if not c["separable"]:
+            rows.append([name, f"the same as {c['same_as']} (a rotation about the scanner's x axis)" if c.get("same_as")
+                         else "not separable from the estimated parameters", None, None, None, None])
+            continue
+        shifts = c.get("shifts") or {}
+        worst = max(shifts, key=lambda k: abs(shifts[k]["in_own_sigma"]), default=None)
+        s = shifts.get(worst, {})
+        rows.append([name, value_text(c["unit"], c["value"], c["sigma"]), c["z"], worst,
+                     None if worst is None else value_text(s["unit"], s["shift"], s["sigma"]), s.get("in_own_sigma")])
+    sec.table(["freed parameter", "value the overlaps give it", "z", "most moved", "its shift", "shift / its own σ"],
+              rows, formats=[None, None, "+.1f", None, None, "+.1f"])
 
 
 def _quality_part(sec, quality: list[QualityStage], map_pair: tuple[int, int] | None) -> None:

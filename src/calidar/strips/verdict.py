@@ -13,6 +13,8 @@ Findings (each pass / warn / fail, with the numbers and, when not a pass, an act
   agreement (:func:`agreement_finding`); the residuals against the noise floor the
   correspondences' own scatter predicts, correlations between estimated parameters above
   :data:`CORRELATION_LIMIT`, convergence;
+- the model check (:mod:`calidar.strips.model_check_verdict`): structural parameters not
+  estimated, freed in turn — one the overlaps see that moves the estimates warns or fails;
 - the overlaps before and after (swath differences: no pair worse, no strip left offset by more
   than :data:`OFFSET_LIMIT_M`), and what the σ rest on (the trajectory's
   accuracy: a file, estimated from the overlaps, or a default assumed; the trajectory model off).
@@ -26,6 +28,7 @@ import numpy as np
 from scipy.special import chdtri  # χ² quantiles without scipy.stats' 0.5 s import
 
 from calidar.strips.control_verdict import vertical_findings
+from calidar.strips.model_check_verdict import finding_or_none, moved_parameters
 from calidar.strips.trajectory_errors import PREFIX as TRAJECTORY_PREFIX
 from calidar.verdict import NOTE, Finding, Verdict, angle_text, length_text, two_digits
 
@@ -342,9 +345,9 @@ def strip_verdict(result, stages, notes: list[str] = (), accuracy_text: str | No
                f"({what}, {result.outer[-1]['n_obs']:,} observations)"
                + (f", with {n_traj:,} trajectory corrections" if n_traj else ", trajectory taken as exact"))
     global_test = sigma0_finding(sol)
-    findings = vertical_findings(result, parameter_findings(result, float(np.median(ranges)), global_test),
-                                 LENGTH_LIMIT_M)
-    findings += [Finding(NOTE, "determined", DETERMINED_NOTE), global_test, *others,
+    findings = vertical_findings(result, moved_parameters(parameter_findings(result, float(np.median(ranges)),
+                                                                             global_test), sol), LENGTH_LIMIT_M)
+    findings += [Finding(NOTE, "determined", DETERMINED_NOTE), global_test, *finding_or_none(sol), *others,
                  noise_finding(result, result.row_sigma)]
     findings += correlation_findings(sol) + [convergence_finding(result), overlap_finding(stages)]
     findings += notes_findings(list(notes), sol.warnings, sol.extra.get("trajectory_accuracy_estimate"))

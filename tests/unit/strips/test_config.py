@@ -108,7 +108,7 @@ def _everything_changed() -> StripConfig:
         (Vgicp(VgicpSettings(voxel_m=(4.0, 1.0), num_neighbors=10, pair_distance_m=0.2), threshold_m=5e-4),
          TiePlanes(PlaneSettings(cell_m=2.0, max_rms_m=0.05))),
         TrajectorySettings(block_s=2.0, correlation_s=(30.0, 5.0), sigma=(0.03, math.radians(0.002))),
-        StripSettings(overlap_cell_m=4.0, max_outer=3, threshold_m=1e-3, robust=None, cluster_s=None))
+        StripSettings(overlap_cell_m=4.0, max_outer=3, threshold_m=1e-3, robust=None, cluster_s=None), model_check=False)
     return StripConfig(cal, IngestSettings(budget_points=None, block_cells=3, gap_s=5.0,
                                           points=PointOptions("EPSG:32632", "adjusted", 47.5)),
                        TrajectoryOptions("EPSG:32615", "rad", "grid", ("time", "-", "lat")), "EPSG:4326")
@@ -127,6 +127,7 @@ def test_the_file_gives_the_same_configuration_back(config, tmp_path):
         assert (t.block_s, t.correlation_s) == (u.block_s, u.correlation_s)
         assert t.sigma == u.sigma or t.sigma == pytest.approx(u.sigma, rel=1e-15)
     assert back.calibration.solver == config.calibration.solver
+    assert back.calibration.model_check == config.calibration.model_check
     assert back.ingest == config.ingest and back.trajectory_input == config.trajectory_input
     assert back.control_crs == config.control_crs
 
@@ -146,6 +147,7 @@ def test_the_file_gives_the_same_configuration_back(config, tmp_path):
     ("[inputs]\ntime_system = \"fortnight\"\n", "inputs", "time-system"),
     ("[ingest]\nstrip_points = \"all\"\n", "ingest.strip_points", "expected int"),
     ("[solver]\nrobust = \"tukey\"\n", "solver", "robust"),
+    ("model_check = \"yes\"\n", "model_check", "expected bool"),
 ])
 def test_a_wrong_key_is_named_with_its_file(text, key, what, tmp_path):
     path = tmp_path / "mine.toml"
@@ -182,6 +184,9 @@ def test_options_given_replace_the_files_settings(tmp_path):
     assert given.ingest.budget_points is None and given.points.crs == "EPSG:32633"
     assert given.points.time_system == "gps_adjusted_standard" and given.ingest.block_cells == 3  # the file's
     assert strip_config(path, {"trajectory_model": "off"}).calibration.trajectory is None
+    assert strip_config(path, {"model_check": "on"}).calibration.model_check is True  # the file's: off
+    with pytest.raises(InputError, match="--model-check: expected on or off, got 'maybe'"):
+        strip_config(path, {"model_check": "maybe"})
     with pytest.raises(InputError, match="--trajectory-model: is off, so --trajectory-accuracy and --trajectory-sigma"):
         strip_config(path, {"trajectory_model": "off", "trajectory_sigma": "0.03,0.002"})
 
