@@ -18,6 +18,11 @@ rated by √(λ_mid/λ_max) of its scatter (1: a disc, 0: a line); per bin: rows
 residual/σ; then the global test's σ0 over the non-wall rows as the verdict computes it (Cauchy
 weights, ÷ their consistency for normal residuals) against its χ² 95 % range: what the test
 would say if the calibration found the truth exactly.
+
+``--by-surface`` (with ``--scene urban``: strips_montecarlo's URBAN scene): the DEFAULT VGICP rows at the
+true sensor by surface (walls, roofs, flat ground) and by pair: RMS residual and σ, RMS and MAD-scale of
+residual/σ, the scatter of a's ball and of b's neighbourhood along b's normal, rows sharing points (issue 26:
+`--seed 309 --directions opposite --scene urban --exact-trajectory --by-surface`).
 """
 
 from __future__ import annotations
@@ -68,7 +73,7 @@ def main() -> None:
     ap.add_argument("--directions", default="cross")
     ap.add_argument("--exact-trajectory", action="store_true")
     ap.add_argument("--scene", default="preset", choices=("preset", "urban"), help="urban: strips_montecarlo's URBAN scene")
-    ap.add_argument("--by-surface", action="store_true", help="vgicp: the default rows by surface and σ model")
+    ap.add_argument("--by-surface", action="store_true", help="vgicp: the default rows by surface and by pair")
     ap.add_argument("--method", default="vgicp", choices=("vgicp", "planes"))
     ap.add_argument("--out", type=Path, default=None, help="keep the survey here (default: a temporary folder)")
     args = ap.parse_args()
@@ -135,7 +140,7 @@ def planes_at_truth(run, at_truth) -> None:
 
 
 
-def _row_moments(M, points: np.ndarray, normal: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _row_moments(M, points: np.ndarray, normal: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:  # noqa: E501
     """Per row of the averaging matrix M: point count, variance of the points along ``normal``
     about their mean (m², ddof 1), and their own PCA plane's scatter variance (m², ddof 3)."""
     M = M.tocsr()
@@ -153,32 +158,30 @@ def _row_moments(M, points: np.ndarray, normal: np.ndarray) -> tuple[np.ndarray,
 
 
 def vgicp_by_surface(run, at_truth) -> None:
-    """The default VGICP rows at the truth by surface (walls |n_z| < 0.5, roofs, flat |n_z| ≥ 0.97):
-    RMS residual, RMS σ, RMS z with the row σ as matched and with a's own scatter (its ball's
-    points along b's normal) in place of b's; and how many rows share points with another row."""
-    rows = []  # |n_z|, r, σ, var_a own, count a, var_b along n, k, shared
+    """The default VGICP rows at the truth by surface (walls |n_z| < 0.5, roofs, flat |n_z| ≥ 0.97) and per pair:
+    RMS residual, RMS σ, RMS and MAD-scale of residual/σ, the RMS scatter of a's ball and of b's neighbourhood
+    along b's normal, and the share of rows sharing a point with another row."""
+    rows = []  # |n_z|, r, σ, var_a along n, var_b along n, shares a point, pair
     for o, pa, pb in _pairs(run, at_truth):
         c = match_pair_vgicp(o.a, pa, o.b, pb)
         r = c.residuals(pa, pb)
-        na, va, _ = _row_moments(c.A, pa, c.normal)
-        nb, vb, _ = _row_moments(c.B, pb, c.normal)
+        _, va, _ = _row_moments(c.A, pa, c.normal)
+        _, vb, _ = _row_moments(c.B, pb, c.normal)
         share = ((c.B @ c.B.T).astype(bool).sum(axis=1).A1 > 1) | ((c.A @ c.A.T).astype(bool).sum(axis=1).A1 > 1)
-        rows.append(np.column_stack([np.abs(c.normal[:, 2]), r, np.broadcast_to(c.sigma_m, r.shape), va, na, vb, nb,
-                                     share]))
+        rows.append(np.column_stack([np.abs(c.normal[:, 2]), r, np.broadcast_to(c.sigma_m, r.shape), va, vb, share,
+                                     np.full(r.shape, 1000 * o.a + o.b)]))
     rows = np.concatenate(rows)
-    nz, r, s, va, na, vb, nb, share = rows.T
-    # σ with each side's own scatter (b's leverage approximated by its mean term 1/k × 2)
-    s_own = np.sqrt(va / na + vb * 2 / nb + 0.002**2)
-    for lo, hi, name in ((0.0, 0.5, "walls"), (0.5, 0.97, "roofs"), (0.97, 1.01, "flat"), (0.0, 1.01, "all")):
-        m = (nz >= lo) & (nz < hi)
+    groups = [(name, (rows[:, 0] >= lo) & (rows[:, 0] < hi)) for lo, hi, name in
+              ((0.0, 0.5, "walls"), (0.5, 0.97, "roofs"), (0.97, 1.01, "flat"), (0.0, 1.01, "all"))]
+    groups += [(f"pair {int(p) // 1000}–{int(p) % 1000}", rows[:, 6] == p) for p in np.unique(rows[:, 6])]
+    for name, m in groups:
         if m.any():
-            print(f"{name:5s}: {m.sum():6d} rows, RMS r {np.sqrt(np.mean(r[m] ** 2)) * 1e3:5.1f} mm, RMS σ "
-                  f"{np.sqrt(np.mean(s[m] ** 2)) * 1e3:5.1f} mm, RMS z {np.sqrt(np.mean((r[m] / s[m]) ** 2)):5.2f}, "
-                  f"MAD z {1.4826 * np.median(np.abs(r[m] / s[m])):5.2f} | a's scatter along n "
-                  f"{np.sqrt(np.mean(va[m])) * 1e3:5.1f} mm, b's {np.sqrt(np.mean(vb[m])) * 1e3:5.1f} mm; σ own "
-                  f"{np.sqrt(np.mean(s_own[m] ** 2)) * 1e3:5.1f} mm RMS z {np.sqrt(np.mean((r[m] / s_own[m]) ** 2)):5.2f} "
-                  f"MAD {1.4826 * np.median(np.abs(r[m] / s_own[m])):5.2f}; sharing points {share[m].mean():5.1%}")
-
+            nz, r, s, va, vb, share, _ = rows[m].T
+            print(f"{name:11s}: {m.sum():6d} rows, RMS r {np.sqrt(np.mean(r ** 2)) * 1e3:5.1f} mm, RMS σ "
+                  f"{np.sqrt(np.mean(s ** 2)) * 1e3:5.1f} mm, RMS z {np.sqrt(np.mean((r / s) ** 2)):5.2f}, MAD z "
+                  f"{1.4826 * np.median(np.abs(r / s)):5.2f}, mean z {np.mean(r / s):+5.2f} | scatter along n: a "
+                  f"{np.sqrt(np.mean(va)) * 1e3:5.1f} mm, b {np.sqrt(np.mean(vb)) * 1e3:5.1f} mm; rows sharing points "
+                  f"{share.mean():5.1%}")
 
 if __name__ == "__main__":
     main()
