@@ -3,7 +3,8 @@
     NUMBA_NUM_THREADS=1 OMP_NUM_THREADS=1 PYTHONPATH=src python benchmarks/strips_montecarlo.py \\
         --seeds 100-139 [--methods planes,vgicp] [--vegetation 0.3] [--no-source] [--density 0.3] \\
         [--preset uav] [--directions opposite] [--scene urban] [--only-hidden] \\
-        [--sigma-scale 1,1,1.5,1,1,5 --sigma-variation 0.4] [--jobs 1] [--json out.jsonl]
+        [--sigma-scale 1,1,1.5,1,1,5 --sigma-variation 0.4] [--jobs 1] [--json out.jsonl] \\
+        [--cache DIR [--simulate-only]]
 
 Each seed is one survey written to a folder as the simulator delivers it (airborne preset,
 6 lines in alternate directions + 2 cross lines, density 0.3 (``--density``), boresight errors
@@ -21,6 +22,9 @@ overlaps (:mod:`calidar.strips.trajectory_level`, starting from the survey-grade
 0.003° roll/pitch, 0.008° heading); ``--only-hidden``: only that calibration.
 
 One line per survey, source and method (errors, σ, z = error/σ), then per source and method:
+``--cache DIR``: each survey is simulated once into DIR and calibrated from there on later runs
+(the same bytes: a seed always gives the same survey); ``--simulate-only`` only fills DIR.
+
 RMS of z per angle (1 for honest σ; its sampling spread is ±1/√(2n)), the mean z, the largest
 |z|, the share of |z| > 2 (4.6 % for a normal z) and the count of |z| > 3.5.
 """
@@ -54,9 +58,10 @@ ANGLES = tuple(ERRORS)
 def _hidden_accuracy(folder: Path) -> Path:
     """A copy of the survey folder without smrmsg.out (links, no data copied)."""
     bare = folder.with_name(folder.name + "_bare")
-    bare.mkdir()
+    bare.mkdir(exist_ok=True)  # (a cached survey's may be there already)
     for name in ("strips", "sbet.out", "sensor.toml", "truth.json"):
-        (bare / name).symlink_to(folder / name)
+        if not (bare / name).is_symlink():
+            (bare / name).symlink_to(folder / name)
     return bare
 
 
@@ -66,7 +71,7 @@ URBAN = {"building_density_per_km2": 1200.0, "building_size_m": (10.0, 30.0), "b
 
 def survey(seed: int, methods: list[str], vegetation: float, scale: tuple, variation: float, no_source: bool,
            density: float = 0.3, only_hidden: bool = False, preset: str = "airborne", directions: str = "cross",
-           scene: str = "preset") -> list[dict]:
+           scene: str = "preset", cache: Path | None = None, simulate_only: bool = False) -> list[dict]:
     """One simulated survey calibrated with default options (and, with ``no_source``, without its
     smrmsg; ``only_hidden``: only without it)."""
     noise = {"range_noise_m": 0.03} if preset == "airborne" else {}  # uav: the preset's 1 cm
@@ -76,7 +81,9 @@ def survey(seed: int, methods: list[str], vegetation: float, scale: tuple, varia
         cfg = replace(cfg, scene=replace(cfg.scene, **URBAN))
     rows = []
     with tempfile.TemporaryDirectory(prefix="calidar_mc_") as tmp:
-        folder = simulate_survey(cfg).write(Path(tmp) / f"seed{seed}")
+        folder = _simulated(cfg, Path(tmp) / f"seed{seed}", cache, scale, variation, density)
+        if simulate_only:
+            return rows
         for source in ("default",) if only_hidden else ("smrmsg", "default") if no_source else ("smrmsg",):
             f = folder if source == "smrmsg" else _hidden_accuracy(folder)
             config = StripConfig(CalibrationConfig(matchers=matchers_named(*methods)))
@@ -92,8 +99,21 @@ def survey(seed: int, methods: list[str], vegetation: float, scale: tuple, varia
                              "sigma_deg": [float(np.degrees(sol.sigma[n])) for n in ANGLES],
                              "sigma0": sol.sigma0, "sigma0_range": sigma0_range(sol.dof), "seconds": seconds,
                              "level": sol.extra.get("trajectory_accuracy_estimate")})
-        shutil.rmtree(folder, ignore_errors=True)
+        if cache is None:
+            shutil.rmtree(folder, ignore_errors=True)
     return rows
+
+
+def _simulated(cfg, tmp: Path, cache: Path | None, scale: tuple, variation: float, density: float) -> Path:
+    """The survey's folder: simulated into ``tmp``, or once into ``cache`` and read from there after."""
+    if cache is None:
+        return simulate_survey(cfg).write(tmp)
+    tag = "" if scale == (1.0,) * 6 and variation == 0.0 else f"_s{'-'.join(f'{v:g}' for v in scale)}_v{variation:g}"
+    folder = cache / (f"{cfg.preset}_{cfg.directions}_seed{cfg.seed}_d{density:g}_veg{cfg.scene.vegetation_fraction:g}"
+                      f"_{'urban' if cfg.scene.building_height_m == URBAN['building_height_m'] else 'scene'}{tag}")
+    if not (folder / "truth.json").exists():  # written last
+        simulate_survey(cfg).write(folder, force=True)
+    return folder
 
 
 def sigma0_range(dof: float) -> list[float]:
@@ -148,6 +168,8 @@ def main() -> None:
     ap.add_argument("--only-hidden", action="store_true", help="calibrate each survey only with its smrmsg hidden")
     ap.add_argument("--jobs", type=int, default=1, help="surveys simulated and calibrated in parallel")
     ap.add_argument("--json", type=Path, default=None, help="append every row to this JSON-lines file")
+    ap.add_argument("--cache", type=Path, default=None, help="keep the simulated surveys here and reuse them")
+    ap.add_argument("--simulate-only", action="store_true", help="only simulate the surveys into --cache")
     args = ap.parse_args()
     methods, seeds = args.methods.split(","), seeds_of(args.seeds)
     scale = tuple(float(v) for v in args.sigma_scale.split(","))
@@ -157,7 +179,8 @@ def main() -> None:
         n = len(seeds)
         for found in pool.map(survey, seeds, [methods] * n, [args.vegetation] * n, [scale] * n,
                               [args.sigma_variation] * n, [args.no_source] * n, [density] * n,
-                              [args.only_hidden] * n, [args.preset] * n, [args.directions] * n, [args.scene] * n):
+                              [args.only_hidden] * n, [args.preset] * n, [args.directions] * n, [args.scene] * n,
+                              [args.cache] * n, [args.simulate_only] * n):
             for r in found:
                 r.update(vegetation=args.vegetation, sigma_scale=scale, sigma_variation=args.sigma_variation,
                          density=density, preset=args.preset, directions=args.directions, scene=args.scene)

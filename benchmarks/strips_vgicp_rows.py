@@ -18,12 +18,19 @@ rated by √(λ_mid/λ_max) of its scatter (1: a disc, 0: a line); per bin: rows
 residual/σ; then the global test's σ0 over the non-wall rows as the verdict computes it (Cauchy
 weights, ÷ their consistency for normal residuals) against its χ² 95 % range: what the test
 would say if the calibration found the truth exactly.
+
+``--by-surface`` (with ``--scene urban``: strips_montecarlo's URBAN scene): the DEFAULT VGICP rows at the
+true sensor by surface (walls, roofs, flat ground) and by pair: RMS residual and σ, RMS and MAD-scale of
+residual/σ, the scatter of a's ball and of b's neighbourhood along b's normal, rows sharing points (issue 26:
+`--seed 309 --directions opposite --scene urban --exact-trajectory --by-surface`).
 """
 
 from __future__ import annotations
 
 import argparse
+import sys
 import tempfile
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -31,6 +38,8 @@ from scipy.special import chdtri
 
 from calidar.adjust.solver import robust_weights
 from calidar.pipelines.boresight import load_inputs
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from strips_montecarlo import URBAN  # noqa: E402
 from calidar.sim.survey import simulate_survey, survey_config
 from calidar.strips.calibrate import _Run
 from calidar.strips.config import StripSettings
@@ -63,12 +72,16 @@ def main() -> None:
     ap.add_argument("--preset", default="uav")
     ap.add_argument("--directions", default="cross")
     ap.add_argument("--exact-trajectory", action="store_true")
+    ap.add_argument("--scene", default="preset", choices=("preset", "urban"), help="urban: strips_montecarlo's URBAN scene")
+    ap.add_argument("--by-surface", action="store_true", help="vgicp: the default rows by surface and by pair")
     ap.add_argument("--method", default="vgicp", choices=("vgicp", "planes"))
     ap.add_argument("--out", type=Path, default=None, help="keep the survey here (default: a temporary folder)")
     args = ap.parse_args()
     exact = {"gnss_noise_m": 0.0, "attitude_noise_rad": 0.0} if args.exact_trajectory else {}
     cfg = survey_config(args.preset, seed=args.seed, directions=args.directions,
                         errors={k: np.radians(v) for k, v in ERRORS_DEG.items()}, **exact)
+    if args.scene == "urban":
+        cfg = replace(cfg, scene=replace(cfg.scene, **URBAN))
     folder = args.out or Path(tempfile.mkdtemp(prefix="calidar_vgicp_rows_")) / "sim"
     if not (folder / "truth.json").exists():
         simulate_survey(cfg).write(folder, force=True)
@@ -79,7 +92,10 @@ def main() -> None:
     at_truth = {i: georeference(truth, None, run.poses[i], run.by_id[i].time[idx]) for i, idx in run.need.items()}
     print(f"{args.preset} seed {args.seed} {args.directions}{' exact trajectory' if exact else ''}, {args.method}: "
           f"{len(run.overlaps)} pairs")
-    (planes_at_truth if args.method == "planes" else vgicp_at_truth)(run, at_truth)
+    if args.by_surface:
+        vgicp_by_surface(run, at_truth)
+    else:
+        (planes_at_truth if args.method == "planes" else vgicp_at_truth)(run, at_truth)
 
 
 def _pairs(run, at_truth):
@@ -122,6 +138,50 @@ def planes_at_truth(run, at_truth) -> None:
     print(f"global test at the truth (non-wall rows): σ0 {s0:.3f} (plain RMS z {np.sqrt(np.mean(z ** 2)):.3f}); "
           f"its χ² 95 % range for {z.size} rows {lo:.3f}–{hi:.3f}")
 
+
+
+def _row_moments(M, points: np.ndarray, normal: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:  # noqa: E501
+    """Per row of the averaging matrix M: point count, variance of the points along ``normal``
+    about their mean (m², ddof 1), and their own PCA plane's scatter variance (m², ddof 3)."""
+    M = M.tocsr()
+    count = np.diff(M.indptr)
+    row = np.repeat(np.arange(M.shape[0]), count)
+    p = points[M.indices]
+    mean = np.add.reduceat(p, M.indptr[:-1], axis=0) / count[:, None]
+    d = p - mean[row]
+    along = np.einsum("ij,ij->i", d, normal[row])
+    var_n = np.bincount(row, along**2, M.shape[0]) / np.maximum(count - 1, 1)
+    cov = np.zeros((M.shape[0], 3, 3))
+    np.add.at(cov, row, d[:, :, None] * d[:, None, :])
+    lam, _ = eigh3(cov)
+    return count, var_n, np.clip(lam[:, 0], 0, None) / np.maximum(count - 3, 1)
+
+
+def vgicp_by_surface(run, at_truth) -> None:
+    """The default VGICP rows at the truth by surface (walls |n_z| < 0.5, roofs, flat |n_z| ≥ 0.97) and per pair:
+    RMS residual, RMS σ, RMS and MAD-scale of residual/σ, the RMS scatter of a's ball and of b's neighbourhood
+    along b's normal, and the share of rows sharing a point with another row."""
+    rows = []  # |n_z|, r, σ, var_a along n, var_b along n, shares a point, pair
+    for o, pa, pb in _pairs(run, at_truth):
+        c = match_pair_vgicp(o.a, pa, o.b, pb)
+        r = c.residuals(pa, pb)
+        _, va, _ = _row_moments(c.A, pa, c.normal)
+        _, vb, _ = _row_moments(c.B, pb, c.normal)
+        share = ((c.B @ c.B.T).astype(bool).sum(axis=1).A1 > 1) | ((c.A @ c.A.T).astype(bool).sum(axis=1).A1 > 1)
+        rows.append(np.column_stack([np.abs(c.normal[:, 2]), r, np.broadcast_to(c.sigma_m, r.shape), va, vb, share,
+                                     np.full(r.shape, 1000 * o.a + o.b)]))
+    rows = np.concatenate(rows)
+    groups = [(name, (rows[:, 0] >= lo) & (rows[:, 0] < hi)) for lo, hi, name in
+              ((0.0, 0.5, "walls"), (0.5, 0.97, "roofs"), (0.97, 1.01, "flat"), (0.0, 1.01, "all"))]
+    groups += [(f"pair {int(p) // 1000}–{int(p) % 1000}", rows[:, 6] == p) for p in np.unique(rows[:, 6])]
+    for name, m in groups:
+        if m.any():
+            nz, r, s, va, vb, share, _ = rows[m].T
+            print(f"{name:11s}: {m.sum():6d} rows, RMS r {np.sqrt(np.mean(r ** 2)) * 1e3:5.1f} mm, RMS σ "
+                  f"{np.sqrt(np.mean(s ** 2)) * 1e3:5.1f} mm, RMS z {np.sqrt(np.mean((r / s) ** 2)):5.2f}, MAD z "
+                  f"{1.4826 * np.median(np.abs(r / s)):5.2f}, mean z {np.mean(r / s):+5.2f} | scatter along n: a "
+                  f"{np.sqrt(np.mean(va)) * 1e3:5.1f} mm, b {np.sqrt(np.mean(vb)) * 1e3:5.1f} mm; rows sharing points "
+                  f"{share.mean():5.1%}")
 
 if __name__ == "__main__":
     main()

@@ -38,6 +38,12 @@ Residual kinds (see :mod:`calidar.strips.correspond`):
   scatter) is millimetres. At the truth such rows (√(λ_mid/λ_max) < 0.3: 29 % of the rows on the
   seed-7 UAV survey, 71 % of them on walls) had an RMS of 67 mm against 6 mm for the others; they
   pulled yaw 8.9 σ off (docs/validation.md).
+  a's ball must lie on b's plane as closely as b's own points do (``max_scatter_ratio``), and each side's
+  scatter along the normal enters the row's σ (a's from its own ball, not b's): the rows on sloping roofs of
+  an urban UAV survey had σ half their residuals with b's scatter standing for a's
+  (:mod:`calidar.strips.vgicp_planes`). An overlap narrower than ``min_registration_width_m`` is matched
+  as it lies: a 5 m × 120 m sliver between two lines' outer edges registered 1.1 m and 1.5° off at the
+  truth and offset all its rows by ≈ 6 cm (docs/validation.md).
 - ``point_to_point``: the 3-D difference of the pair, as the method describes; its noise
   includes the point spacing.
 
@@ -56,8 +62,8 @@ import scipy.sparse as sp
 import small_gicp
 
 from calidar.errors import CalibrationError
-from calidar.strips.correspond import Correspondences, moderated_variance
-from calidar.strips.pca import eigh3
+from calidar.strips.correspond import Correspondences
+from calidar.strips.vgicp_planes import Grid, local_planes, near, plane_rows
 
 KINDS = ("point_to_plane", "point_to_point")
 
@@ -82,6 +88,12 @@ class VgicpSettings:
     #: (a disc: 1; one scan line across a wall: ≈ 0, and its normal is then any direction about the line)
     min_spread: float = 0.3
     max_plane_distance_m: float = 0.3  #: point_to_plane: max distance of a's mean from b's plane after registration
+    #: point_to_plane: a's ball points scatter along b's normal at most this many times b's plane scatter (its σ,
+    #: moderated over the pair, or the noise floor): a ball reaching over a ridge, an eave or a wall's foot is not b's plane
+    max_scatter_ratio: float = 3.0
+    #: overlaps narrower than this (m, across their long axis) are matched as they lie, not registered: a sliver
+    #: cannot fix the rotation about its long axis (a 5 m × 120 m one registered 1.1 m and 1.5° off at the truth)
+    min_registration_width_m: float = 20.0
     #: point_to_plane: max in-plane distance of either strip's centroid from the neighbourhood's centre, in units
     #: of its radius (a full disc of 12 points: 0.14 per axis; one cut by an edge of the points: ≥ 0.4)
     max_centroid_offset: float = 0.35
@@ -119,63 +131,14 @@ class _Clock:
             self.t = now
 
 
-class _Grid:
-    """Square xy cells (m) over a bounding box, with O(n) membership tests by lookup table."""
-
-    MAX_TABLE = 50_000_000  #: beyond this many cells, membership falls back to sorting
-
-    def __init__(self, xy_min: np.ndarray, xy_max: np.ndarray, cell: float):
-        self.lo, self.cell = xy_min, cell
-        self.shape = np.floor((xy_max - xy_min) / cell).astype(np.int64) + 1
-
-    def ij(self, xy: np.ndarray) -> np.ndarray:
-        return np.floor((xy - self.lo) / self.cell).astype(np.int64)
-
-    @property
-    def size(self) -> int:
-        return int(self.shape[0] * self.shape[1])
-
-    def keys(self, ij: np.ndarray) -> np.ndarray:
-        return ij[:, 0] * self.shape[1] + ij[:, 1]
-
-    def isin(self, keys: np.ndarray, marked: np.ndarray) -> np.ndarray:
-        """Which ``keys`` are among the ``marked`` cell keys."""
-        if self.size > self.MAX_TABLE:
-            return np.isin(keys, marked)
-        table = np.zeros(self.size, bool)
-        table[marked] = True
-        return table[keys]
-
-    def first(self, keys: np.ndarray) -> np.ndarray:
-        """Index of the first of ``keys`` in each occupied cell, ascending."""
-        if self.size > self.MAX_TABLE:
-            return np.sort(np.unique(keys, return_index=True)[1])
-        first = np.full(self.size, keys.size)
-        np.minimum.at(first, keys, np.arange(keys.size))
-        return np.sort(first[first < keys.size])
-
-    def around(self, xy: np.ndarray) -> np.ndarray:
-        """Keys of the cells holding ``xy`` and of their 8 neighbours (inside the grid)."""
-        ij = self.ij(xy)
-        near = (ij[:, None, :] + np.array([(i, j) for i in (-1, 0, 1) for j in (-1, 0, 1)])).reshape(-1, 2)
-        near = near[np.all((near >= 0) & (near < self.shape), axis=1)]
-        return self.keys(near)
-
-
 def overlap_masks(points_a: np.ndarray, points_b: np.ndarray, cell_m: float) -> tuple[np.ndarray, np.ndarray, float]:
     """Points of a and b in xy cells (size cell_m, m) occupied by both; also the overlap area (m²)."""
     xy_a, xy_b = points_a[:, :2], points_b[:, :2]
-    grid = _Grid(np.minimum(xy_a.min(axis=0), xy_b.min(axis=0)), np.maximum(xy_a.max(axis=0), xy_b.max(axis=0)), cell_m)
+    grid = Grid(np.minimum(xy_a.min(axis=0), xy_b.min(axis=0)), np.maximum(xy_a.max(axis=0), xy_b.max(axis=0)), cell_m)
     ka, kb = grid.keys(grid.ij(xy_a)), grid.keys(grid.ij(xy_b))
     common = ka[grid.first(ka)]  # occupied cells of a ...
     common = common[grid.isin(common, kb)]  # ... also occupied by b
     return grid.isin(ka, common), grid.isin(kb, common), common.size * cell_m**2
-
-
-def _near(points: np.ndarray, at: np.ndarray, radius: float) -> np.ndarray:
-    """Indices of the points (m) that may lie within ``radius`` (m, in xy) of any of ``at``."""
-    grid = _Grid(points[:, :2].min(axis=0), points[:, :2].max(axis=0), radius)
-    return np.flatnonzero(grid.isin(grid.keys(grid.ij(points[:, :2])), grid.around(at[:, :2])))
 
 
 def register(points_a: np.ndarray, points_b: np.ndarray, settings: VgicpSettings, area_m2: float,
@@ -219,85 +182,17 @@ def _spread(points: np.ndarray, n_max: int, area_m2: float) -> np.ndarray:
     if points.shape[0] <= n_max:
         return np.arange(points.shape[0])
     xy = points[:, :2]
-    grid = _Grid(xy.min(axis=0), xy.max(axis=0), np.sqrt(area_m2 / n_max))
+    grid = Grid(xy.min(axis=0), xy.max(axis=0), np.sqrt(area_m2 / n_max))
     first = grid.first(grid.keys(grid.ij(xy)))
     if first.size > n_max:  # ragged overlap outline: thin regularly
         first = first[np.linspace(0, first.size - 1, n_max).astype(np.int64)]
     return first
 
 
-@dataclass(frozen=True)
-class _LocalPlanes:
-    """The surface of a cloud around M query points, each from its k nearest points (m)."""
-
-    index: np.ndarray  #: (M, k) the neighbours
-    distance: np.ndarray  #: (M, k) their distances, ascending, m
-    centroid: np.ndarray  #: (M, 3) m
-    eigval: np.ndarray  #: (M, 3) of the scatter matrix Σ(p − centroid)(p − centroid)ᵀ, ascending, m²
-    eigvec: np.ndarray  #: (M, 3, 3) its unit eigenvectors in columns; column 0 is the normal
-
-    @property
-    def normal(self) -> np.ndarray:
-        return self.eigvec[:, :, 0]
-
-    @property
-    def variation(self) -> np.ndarray:
-        """Surface variation λ_min / Σλ."""
-        return self.eigval[:, 0] / np.maximum(self.eigval.sum(axis=1), 1e-300)
-
-    @property
-    def spread(self) -> np.ndarray:
-        """√(λ_mid / λ_max): 1 for a disc of points, ≈ 0 for points along a line."""
-        return np.sqrt(np.clip(self.eigval[:, 1], 0, None) / np.maximum(self.eigval[:, 2], 1e-300))
-
-    @property
-    def scatter(self) -> np.ndarray:
-        """RMS of the points off their plane (m; 3 parameters fitted)."""
-        return np.sqrt(np.clip(self.eigval[:, 0], 0, None) / max(self.index.shape[1] - 3, 1))
-
-    def leverage(self, at: np.ndarray) -> np.ndarray:
-        """Variance of the fitted plane's height at ``at`` (M, 3) m, in units of the points' σ²:
-        1/k + Σ_j ((at − centroid)·e_j)² / λ_j over the two in-plane axes (least-squares prediction)."""
-        d = np.einsum("mi,mij->mj", at - self.centroid, self.eigvec[:, :, 1:])
-        return 1.0 / self.index.shape[1] + np.sum(d**2 / np.maximum(self.eigval[:, 1:], 1e-300), axis=1)
-
-
-def _local_planes(points: np.ndarray, at: np.ndarray, k: int, num_threads: int, tree=None) -> _LocalPlanes:
-    """The surface of ``points`` around each of ``at`` (both (·, 3) m) from its k nearest points
-    (``tree``: their small_gicp KdTree, built here when None)."""
-    tree = small_gicp.KdTree(points, num_threads=num_threads) if tree is None else tree
-    idx, d2 = tree.batch_knn_search(at, k, num_threads=num_threads)
-    idx = idx.astype(np.int64)
-    nb = points[idx]
-    centroid = nb.mean(axis=1)
-    nb = nb - centroid[:, None, :]
-    eigval, eigvec = eigh3(np.einsum("mki,mkj->mij", nb, nb))  # ascending
-    return _LocalPlanes(idx, np.sqrt(d2), centroid, eigval, eigvec)
-
-
-def _balanced(planes: _LocalPlanes, centre: np.ndarray, mean_a: np.ndarray, max_offset: float) -> np.ndarray:
-    """Whether b's centroid lies within ``max_offset`` × the radius of the ``centre`` (M, 3) m about
-    which its neighbours were found, and a's mean as near b's centroid, in b's plane: neither
-    strip's points stop inside the ball."""
-    def in_plane(d):
-        return np.linalg.norm(d - np.einsum("ij,ij->i", d, planes.normal)[:, None] * planes.normal, axis=1)
-
-    limit = max_offset * planes.distance[:, -1]
-    return (in_plane(planes.centroid - centre) <= limit) & (in_plane(mean_a - planes.centroid) <= limit)
-
-
-def _ball_means(points: np.ndarray, at: np.ndarray, radius: np.ndarray, k_max: int, num_threads: int
-                ) -> tuple[sp.csr_matrix, np.ndarray]:
-    """Averaging weights (M, len(points)) over the points (m) within ``radius`` (M,) m of each
-    of ``at`` (M, 3) m — at most the k_max nearest, and at least the nearest — and their counts (M,)."""
-    k_max = min(k_max, points.shape[0])
-    idx, d2 = small_gicp.KdTree(points, num_threads=num_threads).batch_knn_search(at, k_max, num_threads=num_threads)
-    inside = d2 <= radius[:, None] ** 2
-    inside[:, 0] = True
-    count = inside.sum(axis=1)
-    weights = (inside / count[:, None])[inside]
-    return sp.csr_matrix((weights, idx.astype(np.int64)[inside], np.concatenate([[0], np.cumsum(count)])),
-                         shape=(at.shape[0], points.shape[0])), count
+def overlap_width(points: np.ndarray) -> float:
+    """Width (m) of the points' xy footprint across its long axis: √12 × the smaller principal σ (a uniform strip)."""
+    xy = points[:, :2] - points[:, :2].mean(axis=0)
+    return float(np.sqrt(12.0 * max(np.linalg.eigvalsh(xy.T @ xy / max(len(xy), 1))[0], 0.0)))
 
 
 def match_pair_vgicp(strip_a_id: int, points_a: np.ndarray, strip_b_id: int, points_b: np.ndarray,
@@ -328,7 +223,10 @@ def match_pair_vgicp(strip_a_id: int, points_a: np.ndarray, strip_b_id: int, poi
     ov_a, ov_b = points_a[idx_a] - origin, points_b[idx_b] - origin
 
     clock.lap("preprocess")
-    reg = register(ov_a, ov_b, settings, area, clock)
+    if overlap_width(ov_a) >= settings.min_registration_width_m:
+        reg = register(ov_a, ov_b, settings, area, clock)
+    else:  # a sliver: the strips as they lie (the outer loop has brought them close by the other pairs)
+        reg = Registration(np.eye(4), True, 0, 0)
     R, t = reg.T_ab[:3, :3], reg.T_ab[:3, 3]
     b_on_a = ov_b @ R.T + t
 
@@ -336,35 +234,19 @@ def match_pair_vgicp(strip_a_id: int, points_a: np.ndarray, strip_b_id: int, poi
     threshold = settings.pair_distance_m or 1.5 * np.sqrt(area / len(idx_b))  # 1.5 × b's mean point spacing, m
     # only points near the candidates enter the KdTree: the nearest within the threshold and
     # the k nearest of b (≈ 2 spacings, about a centroid ≲ 1 spacing off the candidate) lie within it
-    near_b = _near(b_on_a, ov_a[cand], max(threshold, 4.0 * np.sqrt(area / len(idx_b))))
+    near_b = near(b_on_a, ov_a[cand], max(threshold, 4.0 * np.sqrt(area / len(idx_b))))
     k = settings.num_neighbors if settings.kind == "point_to_plane" else 1
     if near_b.size < k:  # (small_gicp aborts on an empty tree)
         raise CalibrationError(f"too few VGICP correspondences: registration left {near_b.size} points of b "
                                f"near a's points (need {settings.min_pairs} pairs)")
     b_near = b_on_a[near_b]
     tree_b = small_gicp.KdTree(b_near, num_threads=settings.num_threads)
-    planes = _local_planes(b_near, ov_a[cand], k, settings.num_threads, tree_b)
+    planes = local_planes(b_near, ov_a[cand], k, settings.num_threads, tree_b)
     keep = planes.distance[:, 0] < threshold
     sigma = 0.05 if settings.sigma_m is None else settings.sigma_m
     normal = None
     if settings.kind == "point_to_plane" and keep.any():
-        centre = planes.centroid  # b's k nearest again, about their centroid (see the module docstring)
-        planes = _local_planes(b_near, centre, k, settings.num_threads, tree_b)
-        # a's points in a ball as large about b's centroid (room for a denser a)
-        radius = planes.distance[:, -1]
-        near_a = _near(ov_a, planes.centroid, float(radius[keep].max()))
-        k_a = int(np.ceil(2 * k * max(1.0, n_a / n_b)))
-        A, count = _ball_means(ov_a[near_a], planes.centroid, radius, k_a, settings.num_threads)
-        mean_a = A @ ov_a[near_a]
-        off_plane = np.abs(np.einsum("ij,ij->i", mean_a - planes.centroid, planes.normal))
-        keep &= (planes.variation < settings.max_surface_variation) & (off_plane < settings.max_plane_distance_m)
-        keep &= planes.spread >= settings.min_spread
-        keep &= _balanced(planes, centre, mean_a, settings.max_centroid_offset)
-        normal = planes.normal[keep]
-        if settings.sigma_m is None:  # a's mean, and b's plane where a's mean lies; points scattered as b's
-            spread = 1.0 / count + planes.leverage(mean_a)
-            var = moderated_variance(planes.scatter[keep] ** 2, k - 3)  # over the pair's planes
-            sigma = np.sqrt(var * spread[keep] + settings.noise_floor_m**2)
+        planes, A, near_a, keep, normal, sigma = plane_rows(planes, b_near, tree_b, ov_a, keep, n_a / n_b, settings)
     n_pairs = int(keep.sum())
     if n_pairs < settings.min_pairs:
         where = " on planar surfaces" if settings.kind == "point_to_plane" else ""

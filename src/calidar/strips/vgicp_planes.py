@@ -1,0 +1,194 @@
+"""VGICP's point-to-plane rows: b's local planes and a's ball means about them (see :mod:`calidar.strips.vgicp`).
+
+For each candidate, b's ``num_neighbors`` nearest points (registered onto a) found again about their centroid
+give b's plane; a's points in a ball as large about that centroid give a's mean. A row is kept when b's points
+span a plane (thin: ``max_surface_variation``; not a line: ``min_spread``), a's mean lies near it
+(``max_plane_distance_m``), neither side's points stop inside the ball (``max_centroid_offset``) and a's points
+lie on b's plane as closely as b's own do (``max_scatter_ratio``). Its σ takes each side's own scatter along
+the normal, moderated over the pair's rows (as the tie planes do: :mod:`calidar.strips.planes`).
+
+Why a's own scatter (issue 26): on the urban UAV survey of seed 309 (opposite lines, exact trajectory, matched
+at the true sensor) a's ball points scattered along b's normal 19 mm RMS on roofs against b's 9 mm — a roof
+face seen head-on by one strip and at grazing incidence by the other, balls reaching over a ridge or an eave —
+and the rows on sloping surfaces had an RMS residual/σ of 2.4 with b's scatter standing for a's (1.2 on flat
+ground); with each side's own and the ratio test, 1.15 and 0.95 (``benchmarks/strips_vgicp_rows.py
+--by-surface``, docs/validation.md).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+import small_gicp
+
+from calidar.strips.correspond import moderated_variance
+from calidar.strips.pca import eigh3
+
+
+class Grid:
+    """Square xy cells (m) over a bounding box, with O(n) membership tests by lookup table."""
+
+    MAX_TABLE = 50_000_000  #: beyond this many cells, membership falls back to sorting
+
+    def __init__(self, xy_min: np.ndarray, xy_max: np.ndarray, cell: float):
+        self.lo, self.cell = xy_min, cell
+        self.shape = np.floor((xy_max - xy_min) / cell).astype(np.int64) + 1
+
+    def ij(self, xy: np.ndarray) -> np.ndarray:
+        return np.floor((xy - self.lo) / self.cell).astype(np.int64)
+
+    @property
+    def size(self) -> int:
+        return int(self.shape[0] * self.shape[1])
+
+    def keys(self, ij: np.ndarray) -> np.ndarray:
+        return ij[:, 0] * self.shape[1] + ij[:, 1]
+
+    def isin(self, keys: np.ndarray, marked: np.ndarray) -> np.ndarray:
+        """Which ``keys`` are among the ``marked`` cell keys."""
+        if self.size > self.MAX_TABLE:
+            return np.isin(keys, marked)
+        table = np.zeros(self.size, bool)
+        table[marked] = True
+        return table[keys]
+
+    def first(self, keys: np.ndarray) -> np.ndarray:
+        """Index of the first of ``keys`` in each occupied cell, ascending."""
+        if self.size > self.MAX_TABLE:
+            return np.sort(np.unique(keys, return_index=True)[1])
+        first = np.full(self.size, keys.size)
+        np.minimum.at(first, keys, np.arange(keys.size))
+        return np.sort(first[first < keys.size])
+
+    def around(self, xy: np.ndarray) -> np.ndarray:
+        """Keys of the cells holding ``xy`` and of their 8 neighbours (inside the grid)."""
+        ij = self.ij(xy)
+        near = (ij[:, None, :] + np.array([(i, j) for i in (-1, 0, 1) for j in (-1, 0, 1)])).reshape(-1, 2)
+        near = near[np.all((near >= 0) & (near < self.shape), axis=1)]
+        return self.keys(near)
+
+
+def near(points: np.ndarray, at: np.ndarray, radius: float) -> np.ndarray:
+    """Indices of the points (m) that may lie within ``radius`` (m, in xy) of any of ``at``."""
+    grid = Grid(points[:, :2].min(axis=0), points[:, :2].max(axis=0), radius)
+    return np.flatnonzero(grid.isin(grid.keys(grid.ij(points[:, :2])), grid.around(at[:, :2])))
+
+
+@dataclass(frozen=True)
+class LocalPlanes:
+    """The surface of a cloud around M query points, each from its k nearest points (m)."""
+
+    index: np.ndarray  #: (M, k) the neighbours
+    distance: np.ndarray  #: (M, k) their distances, ascending, m
+    centroid: np.ndarray  #: (M, 3) m
+    eigval: np.ndarray  #: (M, 3) of the scatter matrix Σ(p − centroid)(p − centroid)ᵀ, ascending, m²
+    eigvec: np.ndarray  #: (M, 3, 3) its unit eigenvectors in columns; column 0 is the normal
+
+    @property
+    def normal(self) -> np.ndarray:
+        return self.eigvec[:, :, 0]
+
+    @property
+    def variation(self) -> np.ndarray:
+        """Surface variation λ_min / Σλ."""
+        return self.eigval[:, 0] / np.maximum(self.eigval.sum(axis=1), 1e-300)
+
+    @property
+    def spread(self) -> np.ndarray:
+        """√(λ_mid / λ_max): 1 for a disc of points, ≈ 0 for points along a line."""
+        return np.sqrt(np.clip(self.eigval[:, 1], 0, None) / np.maximum(self.eigval[:, 2], 1e-300))
+
+    @property
+    def scatter(self) -> np.ndarray:
+        """RMS of the points off their plane (m; 3 parameters fitted)."""
+        return np.sqrt(np.clip(self.eigval[:, 0], 0, None) / max(self.index.shape[1] - 3, 1))
+
+    def leverage(self, at: np.ndarray) -> np.ndarray:
+        """Variance of the fitted plane's height at ``at`` (M, 3) m, in units of the points' σ²:
+        1/k + Σ_j ((at − centroid)·e_j)² / λ_j over the two in-plane axes (least-squares prediction)."""
+        d = np.einsum("mi,mij->mj", at - self.centroid, self.eigvec[:, :, 1:])
+        return 1.0 / self.index.shape[1] + np.sum(d**2 / np.maximum(self.eigval[:, 1:], 1e-300), axis=1)
+
+
+def local_planes(points: np.ndarray, at: np.ndarray, k: int, num_threads: int, tree=None) -> LocalPlanes:
+    """The surface of ``points`` around each of ``at`` (both (·, 3) m) from its k nearest points
+    (``tree``: their small_gicp KdTree, built here when None)."""
+    tree = small_gicp.KdTree(points, num_threads=num_threads) if tree is None else tree
+    idx, d2 = tree.batch_knn_search(at, k, num_threads=num_threads)
+    idx = idx.astype(np.int64)
+    nb = points[idx]
+    centroid = nb.mean(axis=1)
+    nb = nb - centroid[:, None, :]
+    eigval, eigvec = eigh3(np.einsum("mki,mkj->mij", nb, nb))  # ascending
+    return LocalPlanes(idx, np.sqrt(d2), centroid, eigval, eigvec)
+
+
+def _balanced(planes: LocalPlanes, centre: np.ndarray, mean_a: np.ndarray, max_offset: float) -> np.ndarray:
+    """Whether b's centroid lies within ``max_offset`` × the radius of the ``centre`` (M, 3) m about
+    which its neighbours were found, and a's mean as near b's centroid, in b's plane: neither
+    strip's points stop inside the ball."""
+    def in_plane(d):
+        return np.linalg.norm(d - np.einsum("ij,ij->i", d, planes.normal)[:, None] * planes.normal, axis=1)
+
+    limit = max_offset * planes.distance[:, -1]
+    return (in_plane(planes.centroid - centre) <= limit) & (in_plane(mean_a - planes.centroid) <= limit)
+
+
+def _ball_means(points: np.ndarray, at: np.ndarray, radius: np.ndarray, k_max: int, num_threads: int
+                ) -> tuple[sp.csr_matrix, np.ndarray]:
+    """Averaging weights (M, len(points)) over the points (m) within ``radius`` (M,) m of each
+    of ``at`` (M, 3) m — at most the k_max nearest, and at least the nearest — and their counts (M,)."""
+    k_max = min(k_max, points.shape[0])
+    idx, d2 = small_gicp.KdTree(points, num_threads=num_threads).batch_knn_search(at, k_max, num_threads=num_threads)
+    inside = d2 <= radius[:, None] ** 2
+    inside[:, 0] = True
+    count = inside.sum(axis=1)
+    weights = (inside / count[:, None])[inside]
+    return sp.csr_matrix((weights, idx.astype(np.int64)[inside], np.concatenate([[0], np.cumsum(count)])),
+                         shape=(at.shape[0], points.shape[0])), count
+
+
+def _along_normal_variance(A: sp.csr_matrix, points: np.ndarray, mean: np.ndarray, normal: np.ndarray) -> np.ndarray:
+    """Per row of the averaging matrix A (M, len(points)): the variance (m², n − 1 degrees of freedom; 0 for
+    one point) along ``normal`` (M, 3) of the row's points (m) about their ``mean`` (M, 3) m."""
+    count = np.diff(A.indptr)
+    row = np.repeat(np.arange(A.shape[0]), count)
+    d = np.einsum("ij,ij->i", points[A.indices] - mean[row], normal[row])
+    return np.bincount(row, d**2, A.shape[0]) / np.maximum(count - 1, 1)
+
+
+def plane_rows(planes: LocalPlanes, b_near: np.ndarray, tree_b, ov_a: np.ndarray, keep: np.ndarray,
+               density_ratio: float, settings) -> tuple:
+    """The point-to-plane rows from b's ``planes`` about the candidates (``keep``: b's nearest close enough).
+
+    b_near: b's points near the candidates, registered onto a (m), ``tree_b`` their KdTree; ov_a: a's overlap
+    points (m); density_ratio: a's points per b's; settings: :class:`~calidar.strips.vgicp.VgicpSettings`.
+    Returns b's planes found again, the averaging matrix of a's balls over ``ov_a[near_a]``, near_a, the rows
+    kept, their normals and σ (m; ``settings.sigma_m`` when set).
+    """
+    k = settings.num_neighbors
+    centre = planes.centroid  # b's k nearest again, about their centroid (see the module docstring)
+    planes = local_planes(b_near, centre, k, settings.num_threads, tree_b)
+    # a's points in a ball as large about b's centroid (room for a denser a)
+    radius = planes.distance[:, -1]
+    near_a = near(ov_a, planes.centroid, float(radius[keep].max()))
+    A, count = _ball_means(ov_a[near_a], planes.centroid, radius, int(np.ceil(2 * k * max(1.0, density_ratio))),
+                           settings.num_threads)
+    mean_a = A @ ov_a[near_a]
+    off_plane = np.abs(np.einsum("ij,ij->i", mean_a - planes.centroid, planes.normal))
+    keep = keep & (planes.variation < settings.max_surface_variation) & (off_plane < settings.max_plane_distance_m)
+    keep &= planes.spread >= settings.min_spread
+    keep &= _balanced(planes, centre, mean_a, settings.max_centroid_offset)
+    # a's ball about b's plane: its own scatter along b's normal, no more than max_scatter_ratio × b's
+    var_a = _along_normal_variance(A, ov_a[near_a], mean_a, planes.normal)
+    var_b = np.zeros(keep.size)
+    var_b[keep] = moderated_variance(planes.scatter[keep] ** 2, k - 3)
+    keep &= var_a <= settings.max_scatter_ratio**2 * np.maximum(var_b, settings.noise_floor_m**2)
+    sigma = settings.sigma_m
+    if sigma is None:  # a's mean with a's scatter, b's plane where a's mean lies with b's
+        var_a = moderated_variance(var_a[keep], count[keep] - 1)  # each side's own, over the pair's rows
+        var_b = moderated_variance(planes.scatter[keep] ** 2, k - 3)
+        sigma = np.sqrt(var_a / count[keep] + var_b * planes.leverage(mean_a)[keep] + settings.noise_floor_m**2)
+    return planes, A, near_a, keep, planes.normal[keep], sigma
