@@ -11,7 +11,13 @@ from calidar.verdict import NOTE, Finding, two_digits
 
 #: the parameters a height error common to all strips hides from the overlaps (ground control observes them)
 VERTICAL = ("range_offset", "lever_arm_z", "height_bias")
-CONTROL_ACTION = "give ground control points: calidar boresight --control FILE (id, x, y, z, sigma)"
+CONTROL_ACTION = ("give ground control points: calidar boresight --control FILE (id, x, y, z, sigma; or surveyed planes: "
+                  "plane, x, y, z, sigma)")
+
+
+def words(control: dict) -> str:
+    """What the control is, in words: "ground control points" or "control planes"."""
+    return "ground control points" if control.get("kind", "points") == "points" else control["label"]
 
 
 def vertical_findings(result, findings: list[Finding], limit_m: float) -> list[Finding]:
@@ -30,7 +36,7 @@ def vertical_findings(result, findings: list[Finding], limit_m: float) -> list[F
                         "heights; not tied to the ground" if f.status == "pass" else ""),
                         "; or ".join(x for x in (f.action, CONTROL_ACTION) if x))
         elif f.check in VERTICAL and f.status == "pass":
-            f = Finding(f.status, f.check, f.detail + f" with {control['n_used']} ground control points")
+            f = Finding(f.status, f.check, f.detail + f" with {control['n_used']} {words(control)}")
         out.append(f)
     shift = vertical_shift(result)
     estimated = any(n in sol.parameters.free_names for n in VERTICAL)
@@ -51,8 +57,7 @@ def _bias_finding(v: float, s: float, prior: float, control: dict | None, estima
                        "error shared by every strip does not show in the overlaps; only the trajectory's prior bounds it",
                        CONTROL_ACTION)
     if s <= limit_m and s <= prior / np.sqrt(2.0):
-        return Finding("pass", "vertical trajectory bias", text + f": determined by {control['n_used']} ground control "
-                       "points")
+        return Finding("pass", "vertical trajectory bias", text + f": determined by {control['n_used']} {words(control)}")
     return Finding("warn", "vertical trajectory bias", text + ": not determined beyond its prior even with the control "
                    f"(σ above {limit_m * 100:.0f} cm, or the control tells less of it than the priors)", "add control points spread over every strip")
 
@@ -62,7 +67,7 @@ def control_finding(control: dict) -> Finding:
     rows = control["points"]
     chi = [r["dz_after_m"] / r["sigma_m"] for r in rows if r["sigma_m"] > 0]
     rms_z = float(np.sqrt(np.mean(np.square(chi)))) if chi else float("nan")
-    detail = (f"{control['n_used']} of {control['n_points']} control points in the adjustment ({control['n_rows']} "
+    detail = (f"{control['n_used']} of {control['n_points']} {control.get('label', 'control points')} in the adjustment ({control['n_rows']} "
               f"rows): dz RMS {control['rms_dz_before_m'] * 100:.1f} → {control['rms_dz_after_m'] * 100:.1f} cm, "
               f"RMS of dz/σ {rms_z:.2f}")
     missing = control["not_covered"]
