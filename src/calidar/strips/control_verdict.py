@@ -41,8 +41,22 @@ def vertical_findings(result, findings: list[Finding], limit_m: float) -> list[F
     shift = vertical_shift(result)
     estimated = any(n in sol.parameters.free_names for n in VERTICAL)
     if shift is not None:
-        out.append(_bias_finding(*shift, control, estimated, limit_m))
+        bias = _bias_finding(*shift, control, estimated, limit_m)
+        out = [_with_the_whole(f, bias, shift[1]) for f in out] + [bias]
     return out + ([] if control is None else [control_finding(control)])
+
+
+def _with_the_whole(f: Finding, bias: Finding, sigma_m: float) -> Finding:
+    """``height_bias``'s finding when the whole common height correction (it + the trajectory knots'
+    mean: the vertical trajectory bias) is determined: the control sees only that sum, and the split
+    between the two follows the trajectory's priors (the flight's own mean height error, ≈ its σ /
+    √(flight / correlation time)), so height_bias alone is as uncertain as that prior; what the
+    corrected trajectory carries, the sum, is determined (issue 28)."""
+    if f.check != "height_bias" or f.status == "pass" or bias.status != "pass":
+        return f
+    return Finding("pass", f.check, f.detail + f" alone (its split from the trajectory's own mean height error follows "
+                   f"the trajectory's priors); with it, the vertical trajectory bias ±{two_digits(sigma_m * 100)} cm is "
+                   "determined")
 
 
 def _bias_finding(v: float, s: float, prior: float, control: dict | None, estimated: bool, limit_m: float) -> Finding:
