@@ -54,9 +54,9 @@ def _with_the_whole(f: Finding, bias: Finding, sigma_m: float) -> Finding:
     corrected trajectory carries, the sum, is determined (issue 28)."""
     if f.check != "height_bias" or f.status == "pass" or bias.status != "pass":
         return f
-    return Finding("pass", f.check, f.detail + f" alone (its split from the trajectory's own mean height error follows "
-                   f"the trajectory's priors); with it, the vertical trajectory bias ±{two_digits(sigma_m * 100)} cm is "
-                   "determined")
+    return Finding("pass", f.check, f.detail.split(":")[0] + ": the whole vertical correction (it and the trajectory's "
+                   f"mean height correction: the vertical trajectory bias, ±{two_digits(sigma_m * 100)} cm) is "
+                   "determined; its split between the two follows the trajectory's priors")
 
 
 def _bias_finding(v: float, s: float, prior: float, control: dict | None, estimated: bool, limit_m: float) -> Finding:
