@@ -2,13 +2,14 @@
 
     NUMBA_NUM_THREADS=1 OMP_NUM_THREADS=1 PYTHONPATH=src python benchmarks/control_montecarlo.py \\
         --seeds 100-139 [--estimate boresight,range_offset,height_bias] [--height-bias 0.04] [--control 10] \\
-        [--json out.jsonl]
+        [--kind points|planes] [--control-sigma 0.01] [--no-cluster] [--json out.jsonl]
 
 Each seed is one UAV survey (200 m × 200 m, density 0.2, lines across each other, no trees, a
 5 cm range offset, the preset's 2 cm / 0.002° trajectory errors and the smrmsg.out that states
 them) written as the simulator delivers it, with ``--control`` surveyed points on open ground
 (σ 1 cm, ``calidar.sim.checkpoints``) raised by ``--height-bias`` (a vertical trajectory bias:
-trajectory and points that much low are, to the strips, control that much high), then calibrated by the boresight pipeline with its default
+trajectory and points that much low are, to the strips, control that much high), (``--kind planes``: as many roof facets, surveyed at their corners with σ 1 cm, 3-D, ``calidar.sim.control_planes``),
+then calibrated by the boresight pipeline with its default
 options and ``--control checkpoints.csv`` (:func:`calidar.pipelines.boresight.load_inputs` and
 :func:`calibrate_inputs`). ``height_bias`` is compared with ``--height-bias``; "vertical", the
 whole common height correction (height_bias + the trajectory knots' mean up shift, what the
@@ -39,10 +40,11 @@ NAMES = ("range_offset", "height_bias", "lever_arm_z")
 SUMMARY = (*NAMES, "vertical")
 
 
-def one(seed: int, estimate: str, n_control: int, height_bias: float) -> dict:
+def one(seed: int, estimate: str, n_control: int, height_bias: float, kind: str = "points", cluster: bool = True,
+        control_sigma: float = 0.01) -> dict:
     from calidar.pipelines.boresight import calibrate_inputs, load_inputs
     from calidar.pipelines.strip_config import StripConfig
-    from calidar.strips.config import CalibrationConfig, Estimate
+    from calidar.strips.config import CalibrationConfig, Estimate, StripSettings
     from calidar.sim.checkpoints import simulate_checkpoints
     from calidar.sim.survey import simulate_survey, survey_config
     from calidar.strips.control import vertical_shift
@@ -53,12 +55,18 @@ def one(seed: int, estimate: str, n_control: int, height_bias: float) -> dict:
     folder = Path(tempfile.mkdtemp(prefix=f"control_mc_{seed}_"))
     try:
         sim = res.write(folder / "sim")
-        cp = simulate_checkpoints(res, n_control, 0.01, seed=seed, vegetated_share=0.0)
+        if kind == "planes":  # roof facets surveyed at their corners (σ 1 cm, 3-D)
+            from calidar.sim.control_planes import simulate_control_planes
+
+            cp = simulate_control_planes(res, n_control, control_sigma, seed=seed)
+        else:
+            cp = simulate_checkpoints(res, n_control, control_sigma, seed=seed, vegetated_share=0.0)
         cp.xyz[:, 2] += height_bias
-        cp.write(sim)
-        config = StripConfig(CalibrationConfig(Estimate.of(*estimate.split(","))))
+        control = cp.write(sim)
+        solver = StripSettings() if cluster else StripSettings(cluster_s=None)
+        config = StripConfig(CalibrationConfig(Estimate.of(*estimate.split(",")), solver=solver))
         inputs = load_inputs(sorted((sim / "strips").glob("*.laz")), sim / "sbet.out", sim / "sensor.toml", config,
-                             truth=sim / "truth.json", control=sim / "checkpoints.csv")
+                             truth=sim / "truth.json", control=control)
         result = calibrate_inputs(inputs)["planes"]
         sol = result.solution
     finally:
@@ -91,6 +99,11 @@ def main(argv=None) -> None:
     ap.add_argument("--estimate", default="boresight,range_offset,height_bias")
     ap.add_argument("--height-bias", type=float, default=0.04)
     ap.add_argument("--control", type=int, default=10)
+    ap.add_argument("--kind", choices=("points", "planes"), default="points",
+                    help="control points on open ground, or roof facets (control planes) surveyed at their corners")
+    ap.add_argument("--control-sigma", type=float, default=0.01, help="the control's survey σ, m")
+    ap.add_argument("--no-cluster", action="store_true",
+                    help="σ from the model alone (StripSettings.cluster_s None), not raised by the cluster-robust sandwich")
     ap.add_argument("--json", type=Path)
     a = ap.parse_args(argv)
     lo, hi = (int(x) for x in a.seeds.split("-"))
@@ -98,7 +111,7 @@ def main(argv=None) -> None:
     skipped = []
     for seed in range(lo, hi + 1):
         try:
-            r = one(seed, a.estimate, a.control, a.height_bias)
+            r = one(seed, a.estimate, a.control, a.height_bias, a.kind, not a.no_cluster, a.control_sigma)
         except InputError as e:  # e.g. a scene without room for the control points: told, not counted
             skipped.append(seed)
             print(f"seed {seed} skipped: {e}", file=sys.stderr)

@@ -81,7 +81,8 @@ def summary(rows: list[tuple], model: str) -> str:
         shared[(x[1], x[2])].append(x[4])
     pairs = np.array([(v[i], v[j]) for v in shared.values() for i in range(len(v)) for j in range(i + 1, len(v))])
     corr = np.corrcoef(pairs.T)[0, 1] if len(pairs) > 2 else float("nan")
-    return (f"{model}: {len(r)} rows; departure RMS {1e3 * np.sqrt(np.mean(dep**2)):.1f} mm (max "
+    return (f"{model}: {len(r)} rows; departure mean {1e3 * dep.mean():+.2f} mm (±{1e3 * dep.std() / np.sqrt(dep.size):.2f}), "
+            f"RMS {1e3 * np.sqrt(np.mean(dep**2)):.1f} mm (max "
             f"{1e3 * np.abs(dep).max():.1f}), correlation between strips at one point {corr:.2f}; with 1 cm noise: "
             f"noise σ median {1e3 * np.median(sig):.1f} mm, RMS residual/σ {np.sqrt(np.mean((tot / sig) ** 2)):.2f}, "
             f"noise alone {np.sqrt(np.mean(((tot - dep) / sig) ** 2)):.2f}")

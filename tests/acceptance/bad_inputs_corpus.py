@@ -37,6 +37,7 @@ def build(root: Path, cli) -> None:
     _photons(root / "photons", bad)
     _observations(root / "total-station" / "observations.csv", bad)
     _texts(bad)
+    _control_planes(root / "survey" / "strips", bad)
     _links(root, bad)
 
 
@@ -199,6 +200,24 @@ def _observations(obs: Path, bad: Path) -> None:
     (bad / "obs_nocol.csv").write_text("\n".join(lines[:k] + [",".join(r.split(",")[:-1]) for r in lines[k:]]) + "\n")
     (bad / "obs_header.csv").write_text("\n".join(lines[: k + 1]) + "\n")
     (bad / "obs_latin1.csv").write_bytes("\n".join(lines[:1] + ["# relevé à Zürich"] + lines[1:]).encode("latin-1"))
+
+
+def _control_planes(strips: Path, bad: Path) -> None:
+    """``calidar boresight --control`` control-surface files (issue 28), each wrong in one way, placed
+    over the survey's first strip (its CRS)."""
+    x, y, z = laspy.read(next(iter(sorted(strips.glob("*.laz"))))).header.mins + [20.0, 20.0, 10.0]
+    roof = [(x, y, z), (x + 8, y, z), (x + 8, y + 6, z + 3), (x, y + 6, z + 3)]
+
+    def write(name, rows, head="plane,x,y,z,sigma"):
+        (bad / name).write_text(head + "\n" + "".join(",".join(str(v) for v in r) + "\n" for r in rows))
+
+    write("planes_nosigma.csv", [("R1", *p) for p in roof], "plane,x,y,z")
+    write("planes_nan.csv", [("R1", *p, 0.01) for p in roof[:2]] + [("R1", x + 8, y + 6, "nan", 0.01), ("R1", *roof[3], 0.01)])
+    write("planes_two.csv", [("R1", *p, 0.01) for p in roof[:2]])
+    write("planes_sigma0.csv", [("R1", *p, 0.0) for p in roof])
+    write("planes_line.csv", [("R1", x + k, y, z, 0.01) for k in (0, 4, 8)])
+    write("planes_off.csv", [("R1", *p, 0.01) for p in roof[:3]] + [("R1", x, y + 6, z + 3.4, 0.01),
+                                                                    ("R1", x + 4, y + 3, z + 1.5, 0.01)])
 
 
 def _texts(bad: Path) -> None:

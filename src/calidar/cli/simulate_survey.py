@@ -33,6 +33,11 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
         checkpoints: int = typer.Option(0, "--checkpoints", help="Surveyed checkpoints to write (checkpoints.csv; "
                                         "a quarter under trees when there are trees), their truth in truth.json."),
         checkpoint_sigma: float = typer.Option(0.02, "--checkpoint-sigma", help="Survey σ of the checkpoints' heights, m."),
+        control_planes: int = typer.Option(0, "--control-planes", help="Roof facets surveyed at their corners to write "
+                                           "as control planes (control_planes.csv, for boresight --control), their "
+                                           "truth in truth.json."),
+        control_plane_sigma: float = typer.Option(0.01, "--control-plane-sigma",
+                                                  help="Survey σ (3-D) of the control planes' points, m."),
         force: bool = typer.Option(False, "--force", help=FORCE_HELP),
     ) -> None:
         """Simulate a survey: the true sensor shoots, the strips are delivered with the nominal one."""
@@ -56,6 +61,10 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
         cfg = survey_config(preset, **overrides)
         check_config(cfg)
         check_checkpoint_options(checkpoints, checkpoint_sigma)
+        if control_planes:
+            from calidar.sim.control_planes import check_control_plane_options
+
+            check_control_plane_options(control_planes, control_plane_sigma)
         check_out_dir(out, force)  # refuse early, before minutes of work
         with progress_bar() as bar, output_folder(out, force) as tmp:
             update = progress_callback(bar)
@@ -63,5 +72,9 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
             result.write(tmp, force=True, progress=update)
             if checkpoints:
                 simulate_checkpoints(result, checkpoints, checkpoint_sigma, seed).write(tmp)
+            if control_planes:
+                from calidar.sim.control_planes import simulate_control_planes
+
+                simulate_control_planes(result, control_planes, control_plane_sigma, seed).write(tmp)
         console.print(f"{result.n_points:,} points in {len(result.strips)} strips ({result.crs}) → {escape(str(out))}",
                       highlight=False, soft_wrap=True)

@@ -22,11 +22,15 @@ from calidar.errors import InputError
 
 @dataclass(frozen=True, eq=False)
 class ControlInput:
-    """The control as read: the file's points (open ground only), ECEF (N, 3) m, notes."""
+    """The control as read: the file's points (open ground only), ECEF (N, 3) m, notes; for control
+    planes (``kind`` "surfaces") the file read, the places over the patches whose points the ingest keeps
+    (``ecef``) and the surveyed points (``survey_ecef``)."""
 
-    checkpoints: object  #: calidar.io.checkpoints.Checkpoints, the points used
+    checkpoints: object  #: calidar.io.checkpoints.Checkpoints (or io.control_planes.ControlPlaneFile)
     ecef: np.ndarray
     notes: tuple[str, ...] = ()
+    kind: str = "points"  #: a name of calidar.strips.config.CONTROL_KINDS
+    survey_ecef: np.ndarray | None = None
 
 
 @dataclass(frozen=True, eq=False)
@@ -78,7 +82,10 @@ def read_control(path, control_crs: str | None, strips_crs: tuple, checkpoints: 
     CRS and geoid undulation). ``checkpoints``: a checkpoint file (``--checkpoints``, tested after
     the calibration, not in it): its σ optional."""
     from calidar.io.checkpoints import read_checkpoints
+    from calidar.io.control_planes import is_plane_file
 
+    if not checkpoints and is_plane_file(path):
+        return _read_planes(path, control_crs, crs_option, strips_crs)
     cp = read_checkpoints(path, cover=False)
     if cp.sigma_m is None and not checkpoints:
         raise InputError(path, "sigma", "no sigma column; expected each control point's survey σ (m) in a column "
@@ -97,6 +104,23 @@ def read_control(path, control_crs: str | None, strips_crs: tuple, checkpoints: 
                       None if cp.sigma_m is None else cp.sigma_m[keep], cp.lines[keep])
     crs, undulation = _crs(path, control_crs, crs_option, strips_crs)
     return ControlInput(cp, from_crs_of(cp, crs, undulation), tuple(notes))
+
+
+def _read_planes(path, control_crs, crs_option, strips_crs: tuple) -> ControlInput:
+    """A control-surface file (:mod:`calidar.io.control_planes`), its planes checked in a local
+    metric frame at them, and the places over the patches the ingest keeps."""
+    from calidar.io.control_planes import read_control_planes
+    from calidar.strips.config import CONTROL_KINDS
+    from calidar.strips.strip import LocalFrame
+
+    f = read_control_planes(path)
+    crs, undulation = _crs(path, control_crs, crs_option, strips_crs)
+    survey = from_crs_of(f, crs, undulation)
+    frame = LocalFrame.at(survey)
+    planes = CONTROL_KINDS["surfaces"].from_file(f, frame.to_local(survey))
+    keep = planes.keep_xy()
+    height = float(np.mean(planes.local[:, 2]))
+    return ControlInput(f, frame.to_ecef(np.c_[keep, np.full(len(keep), height)]), (), "surfaces", survey)
 
 
 def _crs(path, given: str | None, option: str, strips_crs: tuple):
@@ -126,8 +150,11 @@ def control_points(control: ControlInput, frame):
     """The control in the strips' local frame: a :class:`calidar.strips.control.ControlPoints`
     (two points at one place: an error naming them)."""
     from calidar.io.checkpoints import check_places
+    from calidar.strips.config import CONTROL_KINDS
     from calidar.strips.control import ControlPoints
 
+    if control.kind != ControlPoints.kind:
+        return CONTROL_KINDS[control.kind].from_file(control.checkpoints, frame.to_local(control.survey_ecef))
     cp = control.checkpoints
     local = frame.to_local(control.ecef)
     check_places(cp, local[:, :2])

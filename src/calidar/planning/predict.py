@@ -171,23 +171,31 @@ def sensor_covariance(nominal, poses: dict, times: dict, corrs: list, spans: dic
         # (not the weights' W⁻¹ and the priors' P⁻¹) its error N⁻¹(JᵀWε − P·e) has covariance
         # N⁻¹(JᵀW·Σ·WJ + P·C·P)N⁻¹
         pcp = P if settings.true_smoothing_s is None else P @ _true_covariance(
-            free, groups, settings.trajectory.block_s or 1.0, settings.true_smoothing_s) @ P
+            free, groups, _knot_times(settings.trajectory, spans), settings.true_smoothing_s) @ P
         Jn = None if row_noise is None else sp.csr_matrix(J.multiply((w * np.sqrt(row_noise))[:, None]))
         meat = JWJ if Jn is None else (Jn.T @ Jn).tocsc()
         return [free[k].name for k in sensor], [free[k].unit for k in sensor], X.T @ ((meat + pcp) @ X), cov, J.shape[0]
     return [free[k].name for k in sensor], [free[k].unit for k in sensor], cov, cov, J.shape[0]
 
 
-def _true_covariance(free, groups, block_s: float, smoothing_s: tuple[float, float]) -> sp.csc_matrix:
-    """Covariance of the trajectory knots' true errors: each prior σ, correlated along a strip as
-    Gaussian-smoothed noise of kernel σ τ: exp(−Δt² / 4τ²) (position knots τ = smoothing_s[0], rotations [1])."""
+def _knot_times(model, spans) -> dict[str, float]:
+    """Each trajectory parameter's knot time (s), by name."""
+    times = model.knot_times(spans)
+    return {name: float(times[k.strip][k.knot]) for name, k in model.layout(spans).items()}
+
+
+def _true_covariance(free, groups, knot_time: dict[str, float], smoothing_s: tuple[float, float]) -> sp.csc_matrix:
+    """Covariance of the trajectory knots' true errors: each prior σ, correlated within a group (a
+    strip's, or the flight's, knots) as Gaussian-smoothed noise of kernel σ τ: exp(−Δt² / 4τ²) (Δt
+    the knots' times apart; position knots τ = smoothing_s[0], rotations [1])."""
     index = {p.name: k for k, p in enumerate(free)}
     rows, cols, vals, done = [], [], [], set()
     for names, _ in groups:
         idx = np.array([index[n] for n in names])
         tau = smoothing_s[0] if names[0].startswith("trajectory_bias") else smoothing_s[1]
         d = np.array([free[i].prior_sigma for i in idx])
-        lag = block_s * (np.arange(idx.size)[:, None] - np.arange(idx.size)[None, :])
+        t = np.array([knot_time[n] for n in names])
+        lag = t[:, None] - t[None, :]
         block = np.outer(d, d) * np.exp(-(lag**2) / (4.0 * tau**2))
         r, c = np.meshgrid(idx, idx, indexing="ij")
         rows.append(r.ravel()), cols.append(c.ravel()), vals.append(block.ravel())

@@ -44,14 +44,20 @@ class MotionSpec:
     wander_tau_s: float = 6.0
 
 
-def smooth_noise(rng: np.random.Generator, n: int, dt_s: float, tau_s: float, sigma: float, dims: int = 1) -> np.ndarray:
-    """Gaussian-filtered white noise (n, dims): kernel std ``tau_s`` (s), output std ``sigma``."""
+def smooth_noise(rng: np.random.Generator, n: int, dt_s: float, tau_s: float, sigma: float, dims: int = 1,
+                 stationary: bool = False) -> np.ndarray:
+    """Gaussian-filtered white noise (n, dims): kernel std ``tau_s`` (s), output std ``sigma``:
+    that of this draw about its mean, or (``stationary``) the process's, of which this draw is one
+    sample (its RMS then varies from draw to draw as a real error's does, and its mean over the
+    record is part of it: a trajectory error whose σ a smrmsg states)."""
     w = rng.standard_normal((n, dims))
     if sigma == 0:
         return np.zeros((n, dims))
     # circular convolution with a Gaussian of std tau_s, in the frequency domain (stationary, O(n log n))
     f = np.fft.rfftfreq(n, dt_s)
     s = np.fft.irfft(np.fft.rfft(w, axis=0) * np.exp(-2.0 * (np.pi * f * tau_s) ** 2)[:, None], n, axis=0)
+    if stationary:  # the filter's power gain on unit white noise (Parseval over the full spectrum)
+        return s * (sigma / np.sqrt(np.mean(np.exp(-4.0 * (np.pi * np.fft.fftfreq(n, dt_s) * tau_s) ** 2))))
     return s * (sigma / s.std(axis=0))
 
 
@@ -162,8 +168,11 @@ def measured_trajectory(truth: Trajectory, rng: np.random.Generator, gnss_sigma_
     roll/pitch/heading; drifts grow from the window's middle; a 5 s cosine taper outside the window.
     """
     n, dt = len(truth), 1.0 / truth.rate_hz
-    d_ned = smooth_noise(rng, n, dt, 10.0, 1.0, 3) * gnss_sigma_m
-    d_att = smooth_noise(rng, n, dt, 2.0, 1.0, 3) * attitude_sigma_rad
+    # stationary: the errors' σ is the σ stated (smrmsg.out), their mean over the flight included (a
+    # draw's own std about its mean would scale a short flight's errors by 0.8–2×, all of the
+    # excess in the flight-wide part that no overlap sees: benchmarks/control_montecarlo.py)
+    d_ned = smooth_noise(rng, n, dt, 10.0, 1.0, 3, stationary=True) * gnss_sigma_m
+    d_att = smooth_noise(rng, n, dt, 2.0, 1.0, 3, stationary=True) * attitude_sigma_rad
     for t_a, t_b, e in strip_errors:
         gap = np.maximum(np.maximum(t_a - truth.time, truth.time - t_b), 0.0)
         w = np.where(gap < 5.0, 0.5 * (1 + np.cos(np.pi * gap / 5.0)), 0.0)[:, None]

@@ -35,7 +35,7 @@ from calidar.errors import CalibrationError, CalidarError, InputError
 from calidar.scanners.rotating import canonical_eccentricity
 from calidar.sensor import Sensor
 from calidar.strips.control import (
-    CONTROL_ID, ControlPoints, check_estimate, control_correspondences, control_pose, control_rows, control_summary,
+    CONTROL_ID, ControlPoints, check_estimate, control_pose, control_rows, control_summary,
     near_control, share_survey_error, with_height_bias,
 )
 from calidar.strips.correspond import Correspondences
@@ -198,8 +198,8 @@ class _Run:
 
     def _control_rows(self, current: dict) -> list[Correspondences]:
         """The control rows of every strip near control, from its re-georeferenced points."""
-        found = (control_correspondences(i, idx, current[i][1][self.poses[i].rows_of(idx)], len(self.by_id[i]),
-                                         self.control) for i, idx in self.near.items())
+        found = (self.control.rows(i, idx, current[i][1][self.poses[i].rows_of(idx)], len(self.by_id[i]))
+                 for i, idx in self.near.items())
         return share_survey_error([c for c in found if c is not None], self.control)
 
     def _times(self) -> dict[int, np.ndarray]:

@@ -7,6 +7,7 @@ down unchanged.
   optionally, one σ for every epoch (:mod:`calidar.strips.trajectory_errors`);
 - :class:`StripSettings`: how the adjustment runs (overlap grid, outer loop, robust loss, clusters);
 - the matchers (:mod:`calidar.strips.matchers`), each with its own settings, by name in :data:`MATCHERS`;
+- ground control's kinds (points, planes) by name in :data:`CONTROL_KINDS`;
 - :class:`CalibrationConfig`: all of them, what :func:`calidar.strips.calibrate.calibrate` takes.
 
 SI units inside (radians, metres, seconds); degrees appear only where a user reads or writes them.
@@ -24,6 +25,8 @@ import math
 from dataclasses import dataclass, field
 
 from calidar.errors import InputError
+from calidar.strips.control import ControlPoints
+from calidar.strips.control_planes import ControlPlanes
 from calidar.strips.matchers import Matcher, TiePlanes, Vgicp
 from calidar.strips.parameters import ESTIMATE_GROUPS, SINGLE_PARAMETERS
 from calidar.strips.trajectory_errors import TrajectoryModel
@@ -31,6 +34,9 @@ from calidar.trajectory_accuracy import MAX_ATTITUDE_SIGMA_RAD, MAX_POSITION_SIG
 
 #: the matchers by the name ``--method`` and the outputs use
 MATCHERS: dict[str, type] = {m.name: m for m in (TiePlanes, Vgicp)}
+#: ground control's kinds by name (``--control FILE``: points, or surfaces (planes) when the file names a plane
+#: column): each answers the calibrator's questions (:class:`calidar.strips.control.ControlPoints`)
+CONTROL_KINDS: dict[str, type] = {c.kind: c for c in (ControlPoints, ControlPlanes)}
 #: the groups an :class:`Estimate` is made of (the trajectory's errors are the trajectory model's)
 GROUPS: dict[str, tuple[str, ...]] = {g: tuple(n for n, _ in p) for g, p in ESTIMATE_GROUPS.items()}
 MAX_TRAJECTORY_BLOCK_S = 600.0  #: s, the knots' spacing (longer: no trajectory correction at all)

@@ -28,6 +28,7 @@ correction (:func:`with_height_bias`).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
 import scipy.sparse as sp
@@ -47,11 +48,26 @@ MARGIN_M = 1.0
 
 @dataclass(frozen=True)
 class ControlPoints:
-    """Control points in the strips' local frame (m)."""
+    """Control points in the strips' local frame (m). What the calibrator asks of ground control of
+    any kind (:data:`calidar.strips.config.CONTROL_KINDS`; control planes:
+    :class:`calidar.strips.control_planes.ControlPlanes`): ``ids``, ``local`` (the control pseudo-strip's
+    points), ``sigma_m`` (each one's survey σ, shared by the strips that see it), :meth:`keep_xy`
+    and :meth:`rows`."""
+
+    kind: ClassVar[str] = "points"
+    label: ClassVar[str] = "control points"
 
     ids: np.ndarray  #: (n,) str
     local: np.ndarray  #: (n, 3) m
     sigma_m: np.ndarray  #: (n,) survey σ of each, m
+
+    def keep_xy(self) -> np.ndarray:
+        """(n, 2) the places whose surrounding points (``RADIUS_M + MARGIN_M``) the calibrator keeps."""
+        return np.asarray(self.local, float)[:, :2]
+
+    def rows(self, strip_id: int, index: np.ndarray, points: np.ndarray, n_strip_points: int) -> Correspondences | None:
+        """:func:`control_correspondences` of a strip's points near control."""
+        return control_correspondences(strip_id, index, points, n_strip_points, self)
 
 
 def control_pose(control: ControlPoints, template: Pose) -> Pose:
@@ -136,11 +152,12 @@ def with_height_bias(fix: dict, h: float, spans: dict) -> dict:
 
 
 def near_control(points: np.ndarray, control: ControlPoints, reach_m: float = RADIUS_M + MARGIN_M) -> np.ndarray:
-    """Sorted indices of the ``points`` (local (N, 3) m) within ``reach_m`` (x, y) of a control point."""
+    """Sorted indices of the ``points`` (local (N, 3) m) within ``reach_m`` (x, y) of the control's
+    places (:meth:`ControlPoints.keep_xy`: the points; over a control plane, its patch)."""
     if len(points) == 0:
         return np.zeros(0, np.int64)
     tree = cKDTree(np.asarray(points)[:, :2])
-    hits = tree.query_ball_point(control.local[:, :2], reach_m)
+    hits = tree.query_ball_point(control.keep_xy(), reach_m)
     found = [np.asarray(h, np.int64) for h in hits if len(h)]
     return np.unique(np.concatenate(found)) if found else np.zeros(0, np.int64)
 
@@ -194,7 +211,7 @@ def control_summary(control: ControlPoints, before: list[dict], after: list[dict
     dz = np.array([a["dz_m"] for a in after])
     s = np.array([r["sigma_m"] for r in rows])
     w = 1.0 / np.maximum(s, 1e-9) ** 2
-    return {"n_points": len(control.ids), "n_used": len(used), "n_rows": len(rows),
+    return {"kind": control.kind, "label": control.label, "n_points": len(control.ids), "n_used": len(used), "n_rows": len(rows),
             "not_covered": [str(control.ids[k]) for k in range(len(control.ids)) if k not in used],
             "mean_dz_after_m": float(np.sum(w * dz) / np.sum(w)) if dz.size else None,
             "rms_dz_after_m": float(np.sqrt(np.mean(dz**2))) if dz.size else None,

@@ -11,7 +11,13 @@ from calidar.verdict import NOTE, Finding, two_digits
 
 #: the parameters a height error common to all strips hides from the overlaps (ground control observes them)
 VERTICAL = ("range_offset", "lever_arm_z", "height_bias")
-CONTROL_ACTION = "give ground control points: calidar boresight --control FILE (id, x, y, z, sigma)"
+CONTROL_ACTION = ("give ground control points: calidar boresight --control FILE (id, x, y, z, sigma; or surveyed planes: "
+                  "plane, x, y, z, sigma)")
+
+
+def words(control: dict) -> str:
+    """What the control is, in words: "ground control points" or "control planes"."""
+    return "ground control points" if control.get("kind", "points") == "points" else control["label"]
 
 
 def vertical_findings(result, findings: list[Finding], limit_m: float) -> list[Finding]:
@@ -30,13 +36,27 @@ def vertical_findings(result, findings: list[Finding], limit_m: float) -> list[F
                         "heights; not tied to the ground" if f.status == "pass" else ""),
                         "; or ".join(x for x in (f.action, CONTROL_ACTION) if x))
         elif f.check in VERTICAL and f.status == "pass":
-            f = Finding(f.status, f.check, f.detail + f" with {control['n_used']} ground control points")
+            f = Finding(f.status, f.check, f.detail + f" with {control['n_used']} {words(control)}")
         out.append(f)
     shift = vertical_shift(result)
     estimated = any(n in sol.parameters.free_names for n in VERTICAL)
     if shift is not None:
-        out.append(_bias_finding(*shift, control, estimated, limit_m))
+        bias = _bias_finding(*shift, control, estimated, limit_m)
+        out = [_with_the_whole(f, bias, shift[1]) for f in out] + [bias]
     return out + ([] if control is None else [control_finding(control)])
+
+
+def _with_the_whole(f: Finding, bias: Finding, sigma_m: float) -> Finding:
+    """``height_bias``'s finding when the whole common height correction (it + the trajectory knots'
+    mean: the vertical trajectory bias) is determined: the control sees only that sum, and the split
+    between the two follows the trajectory's priors (the flight's own mean height error, ≈ its σ /
+    √(flight / correlation time)), so height_bias alone is as uncertain as that prior; what the
+    corrected trajectory carries, the sum, is determined (issue 28)."""
+    if f.check != "height_bias" or f.status == "pass" or bias.status != "pass":
+        return f
+    return Finding("pass", f.check, f.detail.split(":")[0] + ": the whole vertical correction (it and the trajectory's "
+                   f"mean height correction: the vertical trajectory bias, ±{two_digits(sigma_m * 100)} cm) is "
+                   "determined; its split between the two follows the trajectory's priors")
 
 
 def _bias_finding(v: float, s: float, prior: float, control: dict | None, estimated: bool, limit_m: float) -> Finding:
@@ -51,8 +71,7 @@ def _bias_finding(v: float, s: float, prior: float, control: dict | None, estima
                        "error shared by every strip does not show in the overlaps; only the trajectory's prior bounds it",
                        CONTROL_ACTION)
     if s <= limit_m and s <= prior / np.sqrt(2.0):
-        return Finding("pass", "vertical trajectory bias", text + f": determined by {control['n_used']} ground control "
-                       "points")
+        return Finding("pass", "vertical trajectory bias", text + f": determined by {control['n_used']} {words(control)}")
     return Finding("warn", "vertical trajectory bias", text + ": not determined beyond its prior even with the control "
                    f"(σ above {limit_m * 100:.0f} cm, or the control tells less of it than the priors)", "add control points spread over every strip")
 
@@ -62,7 +81,7 @@ def control_finding(control: dict) -> Finding:
     rows = control["points"]
     chi = [r["dz_after_m"] / r["sigma_m"] for r in rows if r["sigma_m"] > 0]
     rms_z = float(np.sqrt(np.mean(np.square(chi)))) if chi else float("nan")
-    detail = (f"{control['n_used']} of {control['n_points']} control points in the adjustment ({control['n_rows']} "
+    detail = (f"{control['n_used']} of {control['n_points']} {control.get('label', 'control points')} in the adjustment ({control['n_rows']} "
               f"rows): dz RMS {control['rms_dz_before_m'] * 100:.1f} → {control['rms_dz_after_m'] * 100:.1f} cm, "
               f"RMS of dz/σ {rms_z:.2f}")
     missing = control["not_covered"]

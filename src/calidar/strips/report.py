@@ -125,15 +125,18 @@ def add_report_section(report: Report, result: CalibrationResult, truth: dict[st
 
 def _control_part(sec, control: dict) -> None:
     """The ground control's residuals (calidar boresight --control): per control point and strip."""
+    planes = control.get("kind", "points") != "points"  # control surfaces
     sec.heading("Ground control")
-    sec.text(f"{control['n_used']} of {control['n_points']} control points observed by the strips around them "
-             "(dz: the strip's local plane minus the control point, vertically; σ: the point's survey σ and the "
-             "plane's scatter)" + (f"; not covered by any strip: {', '.join(control['not_covered'])}"
-                                   if control["not_covered"] else "") + ".")
+    sec.text(f"{control['n_used']} of {control['n_points']} {control.get('label', 'control points')} observed by the "
+             "strips around them " + ("(dz: the strip's points on the patch minus the surveyed plane, vertically; σ: "
+                                      "the plane's survey σ there and the points' scatter)" if planes else
+                                      "(dz: the strip's local surface minus the control point, vertically; σ: the "
+                                      "point's survey σ and the surface's scatter)")
+             + (f"; not covered by any strip: {', '.join(control['not_covered'])}" if control["not_covered"] else "") + ".")
     rows = [[r["id"], r["strip"], None if r["dz_before_m"] is None else 100 * r["dz_before_m"], 100 * r["dz_after_m"],
              100 * r["sigma_m"], abs(r["dz_after_m"]) / r["sigma_m"] if r["sigma_m"] > 0 else None]
             for r in control["points"]]
-    sec.table(["control point", "strip", "dz before (cm)", "dz after (cm)", "σ (cm)", "|dz|/σ after"], rows,
+    sec.table(["control plane" if planes else "control point", "strip", "dz before (cm)", "dz after (cm)", "σ (cm)", "|dz|/σ after"], rows,
               formats=[None, None, "+.1f", "+.1f", ".1f", ".2f"])
 
 

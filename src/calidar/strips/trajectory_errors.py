@@ -13,12 +13,14 @@ block / √12 but from its chord by ≈ curvature × block² / 11, and the lefto
 row of a block alike (measured on the airborne Monte-Carlo: the data's share of the angles'
 error was 1.2–1.5× its σ with constant 1 s blocks, 0.9–1.2× with knots).
 
-Knots of one strip are correlated as a first-order Gauss–Markov process of correlation
-time ``correlation_s`` (a GNSS error wanders for tens of seconds): the prior of a strip's
-knots along one axis has covariance σ²·φ^|k−l|, φ = exp(−block_s / correlation_s), handed
-to the engine as ``prior_correlation`` (independent knots would let a strip's mean error
-shrink as 1/√knots and make the σ of the mounting too small). Each row of the Jacobian
-then touches two knots per strip: it is built sparse.
+Knots are correlated as a first-order Gauss–Markov process of correlation time
+``correlation_s`` (a GNSS error wanders for tens of seconds): the prior of a strip's knots
+along one axis has covariance σ²·φ^|k−l|, φ = exp(−block_s / correlation_s), handed to the
+engine as ``prior_correlation`` (independent knots would let a strip's mean error shrink as
+1/√knots and make the σ of the mounting too small). The shifts are one process over the whole
+flight, correlated across lines by their time apart (independent lines made the flight's mean
+height error, which only ground control observes, 10 % more certain than it is; issue 28). Each
+row of the Jacobian then touches two knots per strip: it is built sparse.
 
 Without a prior (``position_sigma_m`` None) the whole-strip shifts are free and the first
 strip is the datum: a strip-wise GNSS offset of unknown size.
@@ -42,6 +44,9 @@ from calidar.trajectory import Trajectory
 from calidar.trajectory_accuracy import TrajectoryAccuracy, tilt_sigma
 
 AXES = ("east", "north", "up")
+#: the part of the shifts' prior variance that is each strip's own, not shared with the other lines
+#: (:meth:`TrajectoryModel.flight_correlation`: keeps two strips flown at one time apart)
+OWN_STRIP_SHARE = 0.05
 PREFIX = "trajectory_"  #: every trajectory-correction parameter's name starts so (nuisance parameters)
 
 
@@ -138,17 +143,41 @@ class TrajectoryModel:
         k = np.arange(n)
         return phi ** np.abs(k[:, None] - k[None, :]).astype(float)
 
+    def knot_times(self, spans: Mapping[int, tuple[float, float]]) -> dict[int, np.ndarray]:
+        """Each strip's knots' times (s): its start, then every ``block_s`` (one knot: its start)."""
+        return {i: spans[i][0] + (self.block_s or 0.0) * np.arange(self.n_knots(*spans[i])) for i in sorted(spans)}
+
+    def flight_correlation(self, spans: Mapping[int, tuple[float, float]]) -> np.ndarray:
+        """Prior correlation of the shifts' knots of every strip (sorted by id, then knot) along one
+        axis: one Gauss–Markov process in time over the whole flight, exp(−|Δt| / correlation_s)
+        (a GNSS error does not restart with each line: consecutive lines share it, and their mean, a
+        vertical bias only ground control sees, is as uncertain as one process makes it), with
+        :data:`OWN_STRIP_SHARE` of it each strip's own (knots of two strips at one time: not singular)."""
+        times = self.knot_times(spans)
+        t = np.concatenate(list(times.values()))
+        strip = np.repeat(np.arange(len(times)), [v.size for v in times.values()])
+        tau = self.correlation_s
+        if self.block_s is None or tau is None:
+            return np.eye(t.size)
+        R = np.exp(-np.abs(t[:, None] - t[None, :]) / tau)
+        return np.where(strip[:, None] == strip[None, :], R, (1.0 - OWN_STRIP_SHARE) * R)
+
     def prior_correlation(self, spans: Mapping[int, tuple[float, float]]) -> list[tuple[list[str], np.ndarray]]:
-        """The engine's ``prior_correlation`` groups: per strip, kind and axis, its knots."""
+        """The engine's ``prior_correlation`` groups: the shifts per axis over every strip's knots
+        (:meth:`flight_correlation`), the rotations per strip and axis (about local axes that the
+        lines' headings turn: not one process across lines; their 3.5 s outlives no turn)."""
         if self.block_s is None or not self.has_priors:
             return []
         out = []
-        for i in sorted(spans):
+        R = self.flight_correlation(spans)
+        if np.any(R != np.eye(len(R))):
+            out += [([f"trajectory_bias_{ax}_{i}_{k}" for i, t in self.knot_times(spans).items() for k in range(t.size)], R)
+                    for ax in AXES]
+        for i in sorted(spans) if self.has_attitude else ():
             n = self.n_knots(*spans[i])
-            for kind in ("bias", "tilt") if self.has_attitude else ("bias",):
-                R = self.correlation(n, kind)
-                if np.any(R != np.eye(n)):
-                    out += [([f"trajectory_{kind}_{ax}_{i}_{k}" for k in range(n)], R) for ax in AXES]
+            R = self.correlation(n, "tilt")
+            if np.any(R != np.eye(n)):
+                out += [([f"trajectory_tilt_{ax}_{i}_{k}" for k in range(n)], R) for ax in AXES]
         return out
 
     def parameters(self, spans: Mapping[int, tuple[float, float]],

@@ -272,8 +272,12 @@ def test_linear_scan_patterns():
 def test_trajectory_errors_follow_the_smrmsg_written_beside_the_sbet(tmp_path):
     """σ per axis (down 1.5×, heading 10× the others) changing over the flight: the measured
     trajectory's errors divided by the σ the smrmsg.out states at their time are unit normal
-    on every axis, and the file reads back as written."""
+    on every axis — over many draws: one short flight's errors are one sample of a process that
+    wanders for 10 s, its own RMS 0.5–1.25× the σ and its mean over the flight part of the error
+    (normalising each draw to its own std about its mean made the flight-wide part 1.3× what
+    its σ says: issue 28) — and the file reads back as written."""
     from calidar.io.smrmsg import read_smrmsg
+    from calidar.sim.motion import measured_trajectory
 
     res = simulate_survey(survey_config("uav", seed=4, density=0.005, trajectory_sigma_scale=(1, 1, 1.5, 1, 1, 10),
                                         trajectory_sigma_variation=0.5))
@@ -282,12 +286,21 @@ def test_trajectory_errors_follow_the_smrmsg_written_beside_the_sbet(tmp_path):
     t = res.trajectory.time
     assert np.allclose(acc.position_m, res.accuracy.position_m)
     assert len(acc) == np.floor(t[-1]) - np.ceil(t[0]) + 1 and np.all(np.diff(acc.time) == 1.0)  # 1 Hz, whole seconds
-    tt, tm = res.trajectory_true, res.trajectory
-    d_ned = np.einsum("nji,nj->ni", frames.r_en(tt.lat, tt.lon), tm.ecef - tt.ecef)
-    d_att = np.stack([tm.roll - tt.roll, tm.pitch - tt.pitch, np.angle(np.exp(1j * (tm.heading - tt.heading)))], 1)
+    tt = res.trajectory_true
     pos, att = acc.at(tt.time)
-    z = np.concatenate([d_ned / pos, d_att / att], axis=1)
-    assert np.allclose(z.std(axis=0), 1.0, atol=0.15), z.std(axis=0)
+
+    def z_of(tm):
+        d_ned = np.einsum("nji,nj->ni", frames.r_en(tt.lat, tt.lon), tm.ecef - tt.ecef)
+        d_att = np.stack([tm.roll - tt.roll, tm.pitch - tt.pitch, np.angle(np.exp(1j * (tm.heading - tt.heading)))], 1)
+        return np.concatenate([d_ned / pos, d_att / att], axis=1)
+
+    z = z_of(res.trajectory)
+    assert np.all((z.std(axis=0) > 0.3) & (z.std(axis=0) < 2.0)), z.std(axis=0)  # the survey's own draw
+    draws = np.stack([z_of(measured_trajectory(tt, np.random.default_rng(k), pos, att)) for k in range(60)])
+    rms = np.sqrt(np.mean(draws**2, axis=(0, 1)))  # 60 flights: ±0.05 (position) for honest σ
+    assert np.allclose(rms, 1.0, atol=0.12), rms
+    flight_mean = draws[:, :, :3].mean(axis=1)  # the flights' mean errors: part of the σ, not beyond it
+    assert np.sqrt(np.mean(flight_mean**2)) < 0.6
     med = acc.medians()
     assert 7 < med["heading_rms_deg"] / med["roll_rms_deg"] < 14 and med["down_rms_m"] > med["north_rms_m"]
     assert acc.attitude_rad[:, 2].max() / acc.attitude_rad[:, 2].min() > 1.5  # it changes over the flight

@@ -21,11 +21,31 @@ def test_gauss_markov_prior_of_the_knots():
     assert np.allclose(np.triu(P, 2), 0.0, atol=1e-9)
     spans = {1: (0.0, 7.0), 2: (10.0, 11.0)}
     groups = m.prior_correlation(spans)
-    # knots every 2 s from each strip's start to past its end: 0…8 s (5) and 10, 12 s (2)
-    assert [names[0] for names, _ in groups] == [f"trajectory_bias_{ax}_{i}_0" for i in (1, 2)
-                                                 for ax in ("east", "north", "up")]
-    assert [len(names) for names, _ in groups] == [5, 5, 5, 2, 2, 2]
+    # knots every 2 s from each strip's start to past its end: 0…8 s (5) and 10, 12 s (2), the
+    # shifts one process over the flight: one group per axis holding both strips' knots
+    assert [names[0] for names, _ in groups] == [f"trajectory_bias_{ax}_1_0" for ax in ("east", "north", "up")]
+    assert [len(names) for names, _ in groups] == [7, 7, 7]
+    assert groups[2][0][5] == "trajectory_bias_up_2_0"
     assert TrajectoryModel(2.0, 0.03).prior_correlation(spans) == []  # no correlation time: independent
+
+
+def test_the_shifts_are_one_process_across_the_lines():
+    """The knots of two lines are correlated by their time apart, as one Gauss–Markov process
+    (less a 5 % share of each line's own), so the flight's mean shift is as uncertain as that
+    process makes it; two lines at the same time do not make the prior singular."""
+    from calidar.strips.trajectory_errors import OWN_STRIP_SHARE
+
+    m = TrajectoryModel(block_s=1.0, position_sigma_m=0.02, correlation_s=20.0)
+    spans = {3: (0.0, 20.0), 5: (30.0, 50.0)}
+    R = m.flight_correlation(spans)
+    t = np.r_[np.arange(21.0), 30.0 + np.arange(21.0)]
+    assert R.shape == (42, 42) and np.allclose(R[:21, :21], m.correlation(21))
+    assert R[20, 21] == pytest.approx((1 - OWN_STRIP_SHARE) * np.exp(-10.0 / 20.0))
+    # the flight's mean: σ² · mean(R), against independent lines' (each line's own block only)
+    own = np.where((t[:, None] < 25) == (t[None, :] < 25), R, 0.0)
+    assert np.sqrt(R.mean()) > 1.1 * np.sqrt(own.mean())  # 0.69 against 0.60
+    same_time = m.flight_correlation({1: (0.0, 10.0), 2: (0.0, 10.0)})
+    assert np.linalg.eigvalsh(same_time).min() > 1e-4
 
 
 def test_corrections_are_linear_in_time_between_knots():
@@ -87,7 +107,7 @@ def test_priors_follow_the_trajectory_accuracy_per_axis_and_in_time():
     assert np.degrees(params["trajectory_tilt_east_2_0"]) == pytest.approx(0.002)
     assert np.degrees(params["trajectory_tilt_north_2_0"]) == pytest.approx(0.004)
     groups = m.prior_correlation(spans)
-    assert len(groups) == 2 * 2 * 3  # per strip, kind and axis: the knots correlated
+    assert len(groups) == 3 + 2 * 3  # shifts per axis over both strips; rotations per strip and axis
 
 
 def test_corrected_trajectory_moves_points_as_the_corrections_do():
