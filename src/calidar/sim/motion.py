@@ -44,14 +44,23 @@ class MotionSpec:
     wander_tau_s: float = 6.0
 
 
-def smooth_noise(rng: np.random.Generator, n: int, dt_s: float, tau_s: float, sigma: float, dims: int = 1) -> np.ndarray:
-    """Gaussian-filtered white noise (n, dims): kernel std ``tau_s`` (s), output std ``sigma``."""
+def smooth_noise(rng: np.random.Generator, n: int, dt_s: float, tau_s: float, sigma: float, dims: int = 1,
+                 zero_mean: bool = False) -> np.ndarray:
+    """Gaussian-filtered white noise (n, dims): kernel std ``tau_s`` (s), output std ``sigma``.
+
+    The std is this realisation's, about its own mean; the mean (the white noise's, which the filter
+    passes) comes on top, a large part of the whole when n·dt is a few τ. ``zero_mean``: it is removed
+    first, so the realisation's RMS is ``sigma`` — for errors said to have σ (the RMS came out
+    1.4–1.5 σ with τ = 10 s over 100 s, ``tests/unit/sim/test_sim_trajectory_errors.py``).
+    """
     w = rng.standard_normal((n, dims))
     if sigma == 0:
         return np.zeros((n, dims))
     # circular convolution with a Gaussian of std tau_s, in the frequency domain (stationary, O(n log n))
     f = np.fft.rfftfreq(n, dt_s)
     s = np.fft.irfft(np.fft.rfft(w, axis=0) * np.exp(-2.0 * (np.pi * f * tau_s) ** 2)[:, None], n, axis=0)
+    if zero_mean:
+        s -= s.mean(axis=0)
     return s * (sigma / s.std(axis=0))
 
 
@@ -162,8 +171,8 @@ def measured_trajectory(truth: Trajectory, rng: np.random.Generator, gnss_sigma_
     roll/pitch/heading; drifts grow from the window's middle; a 5 s cosine taper outside the window.
     """
     n, dt = len(truth), 1.0 / truth.rate_hz
-    d_ned = smooth_noise(rng, n, dt, 10.0, 1.0, 3) * gnss_sigma_m
-    d_att = smooth_noise(rng, n, dt, 2.0, 1.0, 3) * attitude_sigma_rad
+    d_ned = smooth_noise(rng, n, dt, 10.0, 1.0, 3, zero_mean=True) * gnss_sigma_m  # RMS σ, as the smrmsg says
+    d_att = smooth_noise(rng, n, dt, 2.0, 1.0, 3, zero_mean=True) * attitude_sigma_rad
     for t_a, t_b, e in strip_errors:
         gap = np.maximum(np.maximum(t_a - truth.time, truth.time - t_b), 0.0)
         w = np.where(gap < 5.0, 0.5 * (1 + np.cos(np.pi * gap / 5.0)), 0.0)[:, None]
