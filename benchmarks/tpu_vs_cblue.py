@@ -233,7 +233,8 @@ def main() -> None:
     ap.add_argument("--cblue-python", default=os.environ.get("CBLUE_PYTHON", "python3"),
                     help="python with cBLUE's dependencies (sympy, numexpr, numpy)")
     ap.add_argument("--scanner", choices=("palmer", "linear"), default="palmer")
-    ap.add_argument("--mirror-tilt-deg", type=float, default=10.0, help="Palmer mirror tilt B (beam ≈ 2B off nadir)")
+    ap.add_argument("--mirror-tilt-deg", type=float, default=10.0,
+                    help="Palmer mirror tilt B, deg (10: the beam 14–20° off nadir, an oval like the VQ-880-G's)")
     ap.add_argument("--seeds", default="0-0", help="surveys FIRST-LAST, pooled")
     ap.add_argument("--width", type=float, default=200.0, help="scene width and length, m")
     ap.add_argument("--density", type=float, default=0.3)
