@@ -129,7 +129,7 @@ class FreedFit:
         sigma = float(np.sqrt(max(var_model, var_cluster)))
         return {"separable": True, "information_share": share, "value": phi, "sigma": sigma,
                 "sigma_model": float(np.sqrt(var_model)), "sigma_cluster": float(np.sqrt(var_cluster)),
-                "z": phi / sigma, "shift": -b * phi, "shift_sigma": np.abs(b) * sigma, "b": b}  # (Δθ)ᵢ σ: √ hausman()ᵢᵢ
+                "z": phi / sigma, "shift": -b * phi, "shift_sigma": np.abs(b) * sigma, "b": b}  # σ(Δθ)ᵢ = √hausman()ᵢᵢ
 
 
 def hausman(b: np.ndarray, sigma_phi: float) -> np.ndarray:
@@ -160,10 +160,12 @@ def columns(problem_for, values: Mapping[str, float], names: Sequence[str], scan
 def check(est, problem_for, nominal_parameters: Mapping[str, float], scanner: Sequence[str],
           groupings: Sequence[np.ndarray], shown: Sequence[str], restricted_sigma: Mapping[str, float]) -> dict:
     """The model check of a converged :class:`calidar.adjust.solver.Estimate`: every candidate
-    freed in turn (:class:`FreedFit`); ``problem_for(names)``: the strip problem on the same rows
-    with ``names`` free too (see :func:`columns`; ``scanner``: the scanner model's parameter names); ``shown``: the estimated parameters whose shifts are reported (not the
-    trajectory corrections); ``restricted_sigma``: their σ in the calibration. SI values; the
-    seconds it took."""
+    freed in turn (:class:`FreedFit`). ``problem_for(names)``: the strip problem on the same rows
+    with ``names`` free too (see :func:`columns`); ``scanner``: the scanner model's parameter names;
+    ``groupings``: the solution's cluster groupings; ``shown``: the estimated parameters whose shifts
+    are reported (not the trajectory corrections); ``restricted_sigma``: their σ in the calibration
+    (SI). Returns per candidate its freed value, σ, z and the shifts in the units solution.json
+    shows (deg, m, ppm), the wall and CPU seconds it took and their parts."""
     with _one_blas_thread():
         return _check(est, problem_for, nominal_parameters, scanner, groupings, shown, restricted_sigma)
 
