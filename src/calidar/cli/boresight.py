@@ -17,7 +17,8 @@ from calidar.strips.trajectory_errors import PREFIX as TRAJECTORY_PREFIX
 TRAJECTORY_BLOCK_S, TRAJECTORY_CORRELATION = 1.0, "20,3.5"
 CONTROL = typer.Option(
     None, "--control", help="Ground control points (CSV: id, x, y, z, sigma; land cover optional, vegetated ones left "
-    "out) observed in the adjustment with their σ: range offset, vertical lever arm and a vertical trajectory bias, "
+    "out), or control surfaces (CSV: plane, x, y, z, sigma; ≥ 3 surveyed points per planar patch such as a roof "
+    "facet), observed in the adjustment with their σ: range offset, vertical lever arm and a vertical trajectory bias, "
     "which the overlaps cannot see, become determinable.")
 CONTROL_CRS = typer.Option(None, "--control-crs", help="CRS of the control points when it is not the strips' "
                            "(e.g. EPSG:32632).")
