@@ -11,7 +11,7 @@ ASPRS Edition 2's (:func:`calidar.accuracy.asprs.vertical_accuracy`). The findin
 mean dz departs from zero by more than :data:`BIAS_T` standard errors (missing the ground,
 whatever the class), or when the calibration made the fit to the ground worse. The strips kept by the
 ingest hold only the points near overlaps and near control and checkpoints
-(:func:`calidar.pipelines.control.with_checkpoints`); the checkpoints choose which points are
+(:func:`calidar.pipelines.control.read_ground`); the checkpoints choose which points are
 kept, their heights never enter the adjustment."""
 
 from __future__ import annotations
