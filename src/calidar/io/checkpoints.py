@@ -74,10 +74,15 @@ class Checkpoints:
         return np.where(self.vegetated, "vegetated", "non-vegetated")
 
 
-def _columns(header: list[str], path: Path, line: int, required=REQUIRED) -> dict[str, int]:
+def _columns(header: list[str], path: Path, line: int, required=REQUIRED, columns=None,
+             expected: str = "id, x, y, z and class (land cover: non-vegetated or vegetated), optionally sigma",
+             ) -> dict[str, int]:
+    """Each known column's position in ``header`` (``columns``: key → accepted names, default the
+    checkpoints'); one line naming the file and field when one is named twice or a ``required`` one
+    is missing (``expected``: what the header should name)."""
     names = [_norm(h) for h in header]
     found = {}
-    for key, aliases in COLUMNS.items():
+    for key, aliases in (COLUMNS if columns is None else columns).items():
         hits = [i for i, n in enumerate(names) if n in aliases]
         if len(hits) > 1:
             raise InputError(path, key, f"line {line}: columns {', '.join(repr(header[i]) for i in hits)} all name "
@@ -87,8 +92,7 @@ def _columns(header: list[str], path: Path, line: int, required=REQUIRED) -> dic
     missing = [k for k in required if k not in found]
     if missing:
         raise InputError(path, missing[0], f"line {line}: no {' / '.join(missing)} column in the header "
-                         f"{','.join(header)!r}; expected a header naming id, x, y, z and class (land cover: "
-                         "non-vegetated or vegetated), optionally sigma")
+                         f"{','.join(header)!r}; expected a header naming {expected}")
     return found
 
 

@@ -32,6 +32,7 @@ import numpy as np
 
 from calidar.errors import InputError
 from calidar.io.checkpoints import MAX_COORDINATE, MAX_SIGMA_M, _norm, _number, _rows
+from calidar.io.checkpoints import _columns as _checkpoint_columns
 
 MIN_POINTS = 3
 MIN_SPREAD_M = 1.0  #: the points' smaller horizontal spread (2σ of their second principal axis)
@@ -76,20 +77,8 @@ def is_plane_file(path: str | Path) -> bool:
 
 
 def _columns(header: list[str], path: Path, line: int) -> dict[str, int]:
-    names = [_norm(h) for h in header]
-    found = {}
-    for key, aliases in COLUMNS.items():
-        hits = [i for i, n in enumerate(names) if n in aliases]
-        if len(hits) > 1:
-            raise InputError(path, key, f"line {line}: columns {', '.join(repr(header[i]) for i in hits)} all name "
-                             f"the {key} column; expected one")
-        if hits:
-            found[key] = hits[0]
-    missing = [k for k in REQUIRED if k not in found]
-    if missing:
-        raise InputError(path, missing[0], f"line {line}: no {' / '.join(missing)} column in the header "
-                         f"{','.join(header)!r}; expected a header naming plane, x, y, z and sigma")
-    return found
+    """The plane file's columns (:func:`calidar.io.checkpoints._columns` with this file's names)."""
+    return _checkpoint_columns(header, path, line, REQUIRED, COLUMNS, "plane, x, y, z and sigma")
 
 
 def read_control_planes(path: str | Path) -> ControlPlaneFile:
