@@ -293,7 +293,6 @@ def _solve_damped(A: np.ndarray, g: np.ndarray) -> np.ndarray:
         return np.linalg.lstsq(A, g, rcond=None)[0]
 
 
-_prior_groups = prior_groups  # the former private name (public: calidar.adjust.residuals.prior_groups)
 
 
 def _normal_matrix(J, w: np.ndarray) -> np.ndarray:

@@ -19,7 +19,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from calidar.adjust import prior_groups as _prior_groups
+from calidar.adjust import prior_groups
 from calidar.errors import InputError
 from calidar.io.flight_lines import PlanLine
 from calidar.planning.geometry import Instrument, correspondences, fly_plan, pair_planes
@@ -211,7 +211,7 @@ def _prior_precision(free, prior_correlation) -> sp.csc_matrix:
     """The priors' precision P (n_free, n_free), as the engine adds it to N."""
     n = len(free)
     rows, cols, vals = [], [], []
-    for idx, _, P in _prior_groups(free, prior_correlation):
+    for idx, _, P in prior_groups(free, prior_correlation):
         r, c = np.meshgrid(idx, idx, indexing="ij")
         keep = P != 0
         rows.append(r[keep]), cols.append(c[keep]), vals.append(P[keep])

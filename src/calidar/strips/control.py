@@ -99,12 +99,22 @@ def control_correspondences(strip_id: int, index: np.ndarray, points: np.ndarray
         normals.append(normal)
         sigmas.append(np.sqrt(control.sigma_m[k] ** 2 + var * normal[2] ** 2))
         targets.append(k)
+    return rows_to_correspondences(strip_id, (rows, cols, weights), normals, sigmas, targets,
+                                   (n_strip_points, len(control.ids)), "control")
+
+
+def rows_to_correspondences(strip_id: int, entries: tuple, normals: list, sigmas: list, targets: list,
+                            shape: tuple[int, int], label: str) -> Correspondences | None:
+    """Control rows gathered as lists into :class:`Correspondences` against the control pseudo-strip:
+    ``entries`` (row, strip point, weight) of each row's point average, one normal, σ (m) and control
+    target per row, ``shape`` (the strip's points, the control targets); None when there is no row."""
     if not normals:
         return None
+    rows, cols, weights = entries
     n = len(normals)
-    A = sp.csr_matrix((weights, (rows, cols)), shape=(n, n_strip_points))
-    B = sp.csr_matrix((np.ones(n), (np.arange(n), targets)), shape=(n, len(control.ids)))
-    return Correspondences(strip_id, CONTROL_ID, A, B, np.array(normals), np.array(sigmas), "control")
+    A = sp.csr_matrix((weights, (rows, cols)), shape=(n, shape[0]))
+    B = sp.csr_matrix((np.ones(n), (np.arange(n), targets)), shape=(n, shape[1]))
+    return Correspondences(strip_id, CONTROL_ID, A, B, np.array(normals), np.array(sigmas), label)
 
 
 def share_survey_error(corrs: list[Correspondences], control: ControlPoints) -> list[Correspondences]:

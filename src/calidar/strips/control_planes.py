@@ -29,10 +29,9 @@ from dataclasses import dataclass
 from typing import ClassVar
 
 import numpy as np
-import scipy.sparse as sp
 
+from calidar.strips.control import rows_to_correspondences
 from calidar.strips.correspond import Correspondences
-from calidar.strips.problem import CONTROL_STRIP
 
 INSET_M = 0.5  #: a strip's points this far inside the patch's edges (eaves, walls, gutters)
 GATE_M = 0.2  #: and this close to the points' median distance from the plane (m)
@@ -113,12 +112,8 @@ class ControlPlanes:
             normals.append(self.normal[k])
             sigmas.append(np.sqrt(noise + survey))
             targets.append(k)
-        if not normals:
-            return None
-        n = len(normals)
-        A = sp.csr_matrix((weights, (rows, cols)), shape=(n, n_strip_points))
-        B = sp.csr_matrix((np.ones(n), (np.arange(n), targets)), shape=(n, len(self.ids)))
-        return Correspondences(strip_id, CONTROL_STRIP, A, B, np.array(normals), np.array(sigmas), "control planes")
+        return rows_to_correspondences(strip_id, (rows, cols, weights), normals, sigmas, targets,
+                                       (n_strip_points, len(self.ids)), "control planes")
 
     def _on_plane(self, points: np.ndarray, k: int) -> np.ndarray:
         """Indices of ``points`` inside patch ``k`` (``INSET_M`` from its edges) near its plane."""
