@@ -243,7 +243,7 @@ def test_errors_name_the_output_not_its_temporary(cli, corpus, tmp_path, monkeyp
     def full_disk(q, folder, *args, **kw):
         raise OSError(28, "No space left on device", str(folder / f"dz_{q.a}_{q.b}.tif"))
 
-    monkeypatch.setattr("calidar.strips.quality.write_rasters", full_disk)
+    monkeypatch.setattr("calidar.pipelines.quality.write_rasters", full_disk)
     out = tmp_path / "q"
     code, _, err = cli(*corpus.args(["quality", *STRIPS, "--out", "{O}"], out))
     # --out, the file and the cause (issue 27: one line naming --out and the cause)

@@ -2,15 +2,12 @@
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 import scipy.linalg as sl
 
 from calidar.adjust.parameters import ParameterSet
-from calidar.outputs import write_text_atomic
 
 #: |correlation| above which two parameters are reported as not separated by the data.
 CORRELATION_WARNING = 0.95
@@ -206,8 +203,3 @@ class Solution:
             ],
             **self.extra,
         }
-
-    def write_json(self, path: str | Path, truth: dict[str, float] | None = None, force: bool = True) -> Path:
-        """Write solution.json atomically."""
-        return write_text_atomic(path, json.dumps(json_ready(self.to_dict(truth)), indent=2,
-                                                 allow_nan=False) + "\n", force)

@@ -33,7 +33,7 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
         (dx, dy ± σ, or not determined and why), and the USGS Lidar Base Specification swath checks with the
         quality level (QL0–QL3) each meets."""
         from calidar.outputs import check_out_dir, claim_output, guard_inputs, output_folder
-        from calidar.strips.quality import write_rasters
+        from calidar.pipelines.quality import write_rasters
         from calidar.cli.options import parse_classes
         from calidar.strips.usgs import SPECIFICATION, common_level, summary, usgs_checks
 

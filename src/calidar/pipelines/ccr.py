@@ -7,6 +7,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from calidar.errors import InputError
+from calidar.io.json_file import write_json
 from calidar.pipelines import Progress, no_progress
 
 
@@ -80,7 +81,7 @@ def run_ccr(files: list[Path], beams: str, ccr: Path, out_dir: Path, *, system=N
     result.solution.extra.update(describe(result))
     if record is not None:
         result.solution.extra["run"] = record.finish().to_dict()
-    result.solution.write_json(Path(out_dir) / "solution.json", truth)
+    write_json(Path(out_dir) / "solution.json", result.solution.to_dict(truth))
     own = report is None
     if own:
         report = Report("calidar: photon lidar CCR calibration")

@@ -201,9 +201,9 @@ def run_plan(lines_path: Path, sensor_path: Path, out_dir: Path, options: PlanOp
     doc = plan_document(lines, inst, options, terrain, pred, found, simulation, verdict, record)
     out_dir = Path(out_dir)
     write_text_atomic(out_dir / "plan.json", json.dumps(doc, indent=2, allow_nan=False) + "\n")
-    from calidar.planning.report import write_report
+    from calidar.planning.report import plan_report
 
-    write_report(out_dir / "report.html", doc, pred, _terrain_image(terrain, lines), verdict, record)
+    plan_report(doc, pred, _terrain_image(terrain, lines), verdict, record).write(out_dir / "report.html")
     return PlanRun(pred, found, simulation, verdict, doc)
 
 

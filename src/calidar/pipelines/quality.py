@@ -79,3 +79,19 @@ def line_precisions(acc, settings) -> list:
 
     return [line_precision(i, acc.line_moments(i), settings.max_rms_m, settings.max_slope_deg, settings.min_points)
             for i in sorted(acc.selections)]
+
+
+def write_rasters(q, out_dir: str | Path, crs=None, force: bool = False) -> list[Path]:
+    """A pair's dz grid as GeoTIFF (``dz_<a>_<b>.tif``, float32 m, NaN nodata) and its picture
+    (``dz_<a>_<b>.png``, :func:`calidar.strips.quality.dz_figure`); none when the pair has no grid."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from calidar.io.raster import write_geotiff, write_png
+    from calidar.strips.quality import dz_figure
+
+    if q.grid.size == 0:
+        return []
+    out_dir = Path(out_dir)
+    tif = write_geotiff(out_dir / f"dz_{q.a}_{q.b}.tif", q.grid, q.cell_m, q.origin, crs, force)
+    return [tif, write_png(out_dir / f"dz_{q.a}_{q.b}.png", dz_figure(q), force)]

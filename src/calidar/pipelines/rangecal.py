@@ -10,6 +10,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from calidar.errors import InputError
+from calidar.io.json_file import write_json
 from calidar.pipelines import Progress, no_progress
 from calidar.validate import SEED_MAX, integer, number, read_json
 
@@ -90,7 +91,7 @@ def run_range_cal(observations: Path, out_dir: Path, *, truth: Path | None = Non
     progress("range calibration", 1, 2)
     record.finish()
     result.solution.extra.update(verdict=verdict.to_dict(), run=record.to_dict())
-    result.solution.write_json(Path(out_dir) / "solution.json", truth_si)
+    write_json(Path(out_dir) / "solution.json", result.solution.to_dict(truth_si))
     with report_for(report, "calidar range calibration", record, Path(out_dir) / "report.html", verdict,
                     "Range calibration") as rep:
         add_section(rep, result, truth_si, title)

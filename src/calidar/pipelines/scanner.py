@@ -30,7 +30,7 @@ def run_scanner_analysis(settings, out_dir: Path, *, argv: list[str] | None = No
     from calidar.pipelines.reports import report_for
     from calidar.provenance import RunRecord
     from calidar.scanners.analysis import analyze, pattern_angles
-    from calidar.scanners.files import separability_summary, write_curves, write_summary
+    from calidar.pipelines.scanner_files import separability_summary, write_curves, write_summary
     from calidar.scanners.report import add_section
     from calidar.scanners.separability import SEPARATION_SAMPLES, separability
     from calidar.scanners.sources import error_sources

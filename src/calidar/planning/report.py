@@ -3,7 +3,6 @@ will not be determined and why, the suggested lines, and the simulations when as
 
 from __future__ import annotations
 
-from pathlib import Path
 
 import numpy as np
 
@@ -59,8 +58,8 @@ def _sigma_picture(doc: dict):
     return fig
 
 
-def write_report(path: Path, doc: dict, pred, terrain_image=None, verdict=None, record=None) -> Path:
-    """report.html of a ``calidar plan`` run (``doc``: what plan.json holds)."""
+def plan_report(doc: dict, pred, terrain_image=None, verdict=None, record=None) -> Report:
+    """The report of a ``calidar plan`` run (``doc``: what plan.json holds); the pipeline writes it."""
     from calidar.report.plots import correlation_figure
 
     report = Report("calidar plan: predicted calibration of a planned flight")
@@ -115,4 +114,4 @@ def write_report(path: Path, doc: dict, pred, terrain_image=None, verdict=None, 
                 [[n, shown(n, u, r), shown(n, u, p), shown(n, u, sim["rms_error"][n]), f"{sim['rms_error'][n] / r:.2f}",
                   f"{sim['rms_error'][n] / p:.2f}", shown(n, u, sim["mean_sigma"][n])]
                  for n, u, p, r in zip(pred.names, pred.units, pred.sigma, pred.reported)])
-    return report.write(path)
+    return report

@@ -307,38 +307,6 @@ def _planimetric(q: PairQuality, centre: np.ndarray, dz: np.ndarray, grad: np.nd
         q.dx_m, q.dy_m, q.sigma_dx_m, q.sigma_dy_m = p.dx_m, p.dy_m, p.sigma_dx_m, p.sigma_dy_m
 
 
-def write_rasters(q: PairQuality, out_dir: str | Path, crs=None, force: bool = False) -> list[Path]:
-    """dz grid as GeoTIFF (``dz_<a>_<b>.tif``, float32 m, NaN nodata) and a PNG picture."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    import rasterio
-    from affine import Affine
-
-    from calidar.outputs import atomic_path
-
-    out_dir = Path(out_dir)
-    paths = []
-    if q.grid.size == 0:
-        return paths
-    tif = out_dir / f"dz_{q.a}_{q.b}.tif"
-    with atomic_path(tif, force) as tmp, rasterio.MemoryFile() as mem:  # built in memory, written as bytes:
-        with mem.open(driver="GTiff", height=q.grid.shape[0], width=q.grid.shape[1], count=1,  # a full disk is
-                      dtype="float32", crs=crs, nodata=np.nan,  # one OSError, not libtiff's lines on stderr
-                      transform=Affine(q.cell_m, 0.0, q.origin[0], 0.0, -q.cell_m, q.origin[1])) as dst:
-            dst.write(q.grid.astype(np.float32), 1)
-        tmp.write_bytes(mem.read())
-    paths.append(tif)
-    fig = dz_figure(q)
-    png = out_dir / f"dz_{q.a}_{q.b}.png"
-    with atomic_path(png, force) as tmp:
-        fig.savefig(tmp, format="png", dpi=110, bbox_inches="tight")
-    plt.close(fig)
-    paths.append(png)
-    return paths
-
-
 def dz_figure(q: PairQuality, vmax: float | None = None):
     """A map of dz (m) for one pair, diverging colours centred on 0."""
     import matplotlib.pyplot as plt

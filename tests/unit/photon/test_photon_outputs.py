@@ -9,6 +9,7 @@ import numpy as np
 
 from calidar.adjust import Parameter, ParameterSet, solve
 from calidar.adjust.solution import json_ready
+from calidar.io.json_file import write_json
 
 
 def _strict(text: str):
@@ -32,6 +33,6 @@ def test_solution_json_with_numpy_extras_and_infinities_is_written(tmp_path):
     sol = solve(lambda v: np.array([v["a"] - 1.0, v["a"] + 1.0 - 2.0]), params)  # b unobservable: σ inf
     sol.extra.update({"open_low": np.bool_(False), "sigma": {"b": float("inf")}, "z": np.float64(-1.5),
                       "interval": np.array([8.75, np.nan])})
-    doc = _strict(sol.write_json(tmp_path / "solution.json").read_text())
+    doc = _strict(write_json(tmp_path / "solution.json", sol.to_dict()).read_text())
     assert doc["open_low"] is False and doc["sigma"] == {"b": None} and doc["z"] == -1.5
     assert doc["interval"] == [8.75, None] and doc["parameters"]["b"]["sigma"] is None

@@ -8,7 +8,7 @@ import pytest
 
 from calidar.report import Report
 from calidar.scanners.analysis import analyze, pattern_angles
-from calidar.scanners.files import separability_summary, write_curves
+from calidar.pipelines.scanner_files import separability_summary, write_curves
 from calidar.scanners.report import add_section
 from calidar.scanners.separability import separability
 from calidar.scanners.settings import AnalysisSettings

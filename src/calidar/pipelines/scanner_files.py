@@ -1,5 +1,5 @@
-"""The files of a structural-error analysis: pattern and displacement curves (CSV + PNG) and the
-JSON summary."""
+"""The files of a structural-error analysis (``calidar scanner analyze``): pattern and
+displacement curves (CSV + PNG) and the JSON summary."""
 
 from __future__ import annotations
 
@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
+from calidar.io.raster import write_png
 from calidar.outputs import atomic_path, write_text_atomic
 from calidar.scanners.analysis import ScannerAnalysis
 from calidar.scanners.separability import Separability
@@ -24,7 +25,6 @@ def _write_csv(path: Path, header: list[str], rows) -> None:
 
 def write_curves(a: ScannerAnalysis, out_dir: Path) -> list[Path]:
     """pattern.csv/.png and displacement_<error>.csv/.png (combined included) in ``out_dir``."""
-    from calidar.report.plots import plt
     from calidar.scanners.figures import displacement_figure, pattern_figure
 
     out_dir = Path(out_dir)
@@ -42,9 +42,7 @@ def write_curves(a: ScannerAnalysis, out_dir: Path) -> list[Path]:
                     for b, d, p in zip(deg, e.displacement_m, e.pointing_rad)))
         figs[f"displacement_{name}.png"] = displacement_figure(a, e, e.title(name, a.range_m))
     for name, fig in figs.items():
-        with atomic_path(out_dir / name) as tmp:
-            fig.savefig(tmp, format="png", dpi=110, bbox_inches="tight")
-        plt.close(fig)
+        write_png(out_dir / name, fig, force=True)
     return [out_dir / n for n in figs]
 
 
