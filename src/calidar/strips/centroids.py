@@ -1,0 +1,137 @@
+"""The weighted sums of one side of a strip correspondence set and their exact derivatives.
+
+The lidar equation (:func:`calidar.georef.lidar_points`), p = r + R_lb · (R_bs · ρ · u + a_b),
+is linear in what boresight, lever arm and range model act on: per correspondence row the
+weighted sums of r, R_lb, R_lb·ρ_m·u and R_lb·u are taken once (:class:`Centroids`), so that
+:class:`calidar.strips.problem.StripProblem` evaluates its residuals in O(rows) and its sensor
+and trajectory-correction Jacobian columns analytically.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+import scipy.sparse as sp
+from numba import njit
+
+from calidar import frames
+from calidar.sensor import Sensor
+from calidar.strips.strip import Pose, position_table
+
+BORESIGHT = ("boresight_roll", "boresight_pitch", "boresight_yaw")
+LEVER_ARM = ("lever_arm_x", "lever_arm_y", "lever_arm_z")
+#: sensor parameters whose Jacobian columns are analytic (the centroid form holds them exactly)
+ANALYTIC = (*BORESIGHT, *LEVER_ARM, "range_offset", "range_scale")
+
+
+def union(indices: list[np.ndarray]) -> np.ndarray:
+    """Sorted union of point-index arrays (O(N), unlike a hash-based unique)."""
+    return np.flatnonzero(np.bincount(np.concatenate(indices)))
+
+
+def compact(m: sp.csr_matrix, cols: np.ndarray) -> sp.csr_matrix:
+    """``m`` restricted to its columns ``cols`` (sorted, holding every column m references)."""
+    return sp.csr_matrix((m.data, position_table(cols)[m.indices], m.indptr), shape=(m.shape[0], cols.size))
+
+
+def boresight_derivatives(sensor: Sensor) -> np.ndarray:
+    """∂R_bs/∂(roll, pitch, yaw) as (9, 3): column k the flattened derivative. With
+    R_bs = Rz(yaw)·Ry(pitch)·Rx(roll) and ∂R_i(θ)/∂θ = R_i(θ)·[e_i]×."""
+    rx, ry, rz = frames.rot_x(sensor.boresight_roll), frames.rot_y(sensor.boresight_pitch), frames.rot_z(sensor.boresight_yaw)
+    gx, gy, gz = (np.cross(np.eye(3), e) for e in np.eye(3))  # [e]×: [e]×·v = e × v
+    d = [rz @ ry @ rx @ gx, rz @ ry @ gy @ rx, rz @ gz @ ry @ rx]
+    return np.stack([m.ravel() for m in d], axis=1)
+
+
+class Centroids:
+    """C = A · P(θ) for one side of a correspondence set, in O(n_obs) per evaluation.
+
+    With P = r + R_lb · (R_bs · v_s + a_b) and v_s = (ρ_m − offset) / (1 + scale) · u (the
+    lidar equation with the sensor's range model), the averages of r, R_lb, R_lb·ρ_m·u and
+    R_lb·u are taken once; boresight, lever arm and range offset/scale then act on them
+    exactly. (Scanner-angle parameters change u: see :class:`StripProblem`.)
+    """
+
+    def __init__(self, A: sp.csr_matrix, poses: Pose, nominal: Sensor, range_free: bool, lever_free: bool):
+        """A: averaging weights over a strip's points (columns = strip point indices); poses:
+        cached poses holding every point A references."""
+        cols = union([A.indices])  # only the points this side references
+        rows = poses.rows_of(cols)
+        u = nominal.scanner.directions(poses.angles[rows])
+        rho = poses.range_m[rows] if range_free else nominal.true_range(poses.range_m[rows])
+        self.rowsum = np.asarray(A.sum(axis=1)).ravel()
+        #: weighted sums of the IMU positions, of R_lb, of R_lb·ρ·u and (range model free) of R_lb·u
+        self.r, R, self.M_rho, M_u = _weighted_sums(A.indptr, position_table(cols)[A.indices], A.data, rows,
+                                                    poses.position, poses.r_lb, rho, u, range_free)
+        self.M_u = M_u if range_free else None
+        if lever_free:
+            self.R, self.const = R, self.r
+        else:  # a fixed lever arm adds a constant
+            self.R, self.const = None, self.r + R @ nominal.lever_arm
+
+    def _m(self, sensor: Sensor) -> np.ndarray:
+        """A·R_lb·v_s as (n·3, 9) acting on vec(R_bs)."""
+        M = self.M_rho if self.M_u is None else (self.M_rho - sensor.range_offset * self.M_u) / (1.0 + sensor.range_scale)
+        return M.reshape(-1, 9)
+
+    def __call__(self, sensor: Sensor) -> np.ndarray:
+        n = self.rowsum.size
+        out = self.const + (self._m(sensor) @ sensor.r_bs.ravel()).reshape(n, 3)
+        return out if self.R is None else out + self.R @ sensor.lever_arm
+
+    def derivatives(self, sensor: Sensor, names: Sequence[str]) -> np.ndarray:
+        """∂C/∂(the named sensor parameters, all in :data:`ANALYTIC`), (n, 3, len(names))."""
+        n = self.rowsum.size
+        out = np.zeros((n, 3, len(names)))
+        M = self._m(sensor)
+        db = (M @ boresight_derivatives(sensor)).reshape(n, 3, 3)
+        for j, name in enumerate(names):
+            if name in BORESIGHT:
+                out[:, :, j] = db[:, :, BORESIGHT.index(name)]
+            elif name in LEVER_ARM:
+                out[:, :, j] = self.R[:, :, LEVER_ARM.index(name)]
+            elif name == "range_offset":
+                out[:, :, j] = -(self.M_u.reshape(-1, 9) @ sensor.r_bs.ravel()).reshape(n, 3) / (1.0 + sensor.range_scale)
+            elif name == "range_scale":
+                out[:, :, j] = -(M @ sensor.r_bs.ravel()).reshape(n, 3) / (1.0 + sensor.range_scale)
+            else:
+                raise ValueError(f"no analytic derivative for {name}")
+        return out
+
+
+@njit(cache=True, nogil=True)
+def _weighted_sums(indptr, local, data, rows, position, r_lb, rho, u, with_u):  # pragma: no cover - numba
+    """Per row i of a CSR averaging matrix (indptr, local column, weight): Σ w·r, Σ w·R_lb,
+    Σ w·R_lb·ρ·u_k and (with_u) Σ w·R_lb·u_k as (n, 3), (n, 3, 3), (n, 3, 3, 3), (n, 3, 3, 3);
+    the column's point is ``rows[local]`` of position/r_lb and ``local`` of rho/u."""
+    n = indptr.size - 1
+    r, R = np.zeros((n, 3)), np.zeros((n, 3, 3))
+    M_rho, M_u = np.zeros((n, 3, 3, 3)), np.zeros((n if with_u else 0, 3, 3, 3))
+    for i in range(n):
+        for k in range(indptr[i], indptr[i + 1]):
+            j, w = local[k], data[k]
+            p = rows[j]
+            for a in range(3):
+                r[i, a] += w * position[p, a]
+                for b in range(3):
+                    wr = w * r_lb[p, a, b]
+                    R[i, a, b] += wr
+                    for c in range(3):
+                        M_rho[i, a, b, c] += wr * rho[j] * u[j, c]
+                        if with_u:
+                            M_u[i, a, b, c] += wr * u[j, c]
+    return r, R, M_rho, M_u
+
+
+def correction_derivatives(side: Centroids, sensor: Sensor, normal: np.ndarray | None) -> np.ndarray:
+    """∂(a side's corrected weighted sums)/∂(shift x, y, z, tilt x, y, z) of one knot carrying
+    all the weight, (n, per, 6): shift → row sums · e, rotation → e × (sums − IMU sums); along
+    the normals (per = 1) or in 3D (per = 3)."""
+    v = side(sensor) - side.r
+    if normal is not None:  # (e × v) · n = e · (v × n)
+        return np.concatenate([side.rowsum[:, None] * normal, np.cross(v, normal)], axis=1)[:, None, :]
+    D = np.zeros((v.shape[0], 3, 6))
+    D[:, [0, 1, 2], [0, 1, 2]] = side.rowsum[:, None]
+    D[:, :, 3:] = np.stack([np.cross(e, v) for e in np.eye(3)], axis=2)
+    return D
