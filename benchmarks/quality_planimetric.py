@@ -55,7 +55,7 @@ def _case(src: Path, dst: Path, shift, tilt: float) -> list[Path]:
 
 def run(seed: int, gnss: float, attitude_deg: float, work: Path) -> dict[str, list[tuple[float, float, float, float] | None]]:
     """Per case: for every pair with line 1, (z_dx, z_dy, σ_dx, σ_dy) or None when not determined."""
-    from calidar.pipelines.quality import measure
+    from calidar.pipelines.quality import QualityConfig, measure
     from calidar.sim.survey import simulate_survey, survey_config
 
     cfg = survey_config("uav", seed=seed, directions="cross", gnss_noise_m=gnss,
@@ -64,7 +64,7 @@ def run(seed: int, gnss: float, attitude_deg: float, work: Path) -> dict[str, li
     rows = {}
     for name, (shift, tilt) in CASES.items():
         paths = _case(folder / "strips", work / f"case{seed}_{name}", shift, tilt)
-        _, _, pairs, _, _, _ = measure(paths, classes=(2, 6))
+        _, _, pairs, _, _, _ = measure(paths, QualityConfig(classes=(2, 6)))
         rows[name] = []
         for q in pairs:
             sign = 1.0 if q.a == 1 else (-1.0 if q.b == 1 else 0.0)

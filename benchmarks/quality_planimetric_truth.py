@@ -44,7 +44,7 @@ def _cell_means(xy: np.ndarray, values: np.ndarray) -> dict[tuple[int, int], np.
 
 
 def run(seed: int, work: Path) -> list[tuple]:
-    from calidar.pipelines.quality import measure
+    from calidar.pipelines.quality import QualityConfig, measure
     from calidar.sim.survey import simulate_survey, survey_config
 
     noisy, clean = work / f"noisy{seed}", work / f"clean{seed}"
@@ -59,7 +59,7 @@ def run(seed: int, work: Path) -> list[tuple]:
         assert len(pn) == len(pc), "the two simulations did not shoot the same pulses"
         roof = cls == 6
         disp[i] = _cell_means(pc[roof, :2], (pn - pc)[roof, :2])
-    _, _, pairs, _, _, _ = measure(sorted((noisy / "strips").glob("*.laz")), classes=(2, 6))
+    _, _, pairs, _, _, _ = measure(sorted((noisy / "strips").glob("*.laz")), QualityConfig(classes=(2, 6)))
     rows = []
     for q in pairs:
         if q.dx_m is None:

@@ -15,7 +15,7 @@ engine hands them (:class:`Values`) are a vector that also reads by name.
 from __future__ import annotations
 
 from collections.abc import Callable, Iterator, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Generic, TypeVar
 
 import numpy as np
@@ -83,42 +83,33 @@ class Values(Mapping[str, float]):
 @dataclass(frozen=True)
 class Block(Generic[K]):
     """Parameters of one kind addressed by typed keys: ``keys[i]`` says what the parameter
-    ``names[i]`` is (e.g. a :class:`calidar.strips.trajectory_errors.Knot`); resolved once, read
-    on every evaluation as a vector (:meth:`take`) without looking at a name again."""
+    ``names[i]`` is (e.g. a :class:`calidar.strips.trajectory_errors.Knot`); resolved once, when
+    the problem is built, against its parameters' layout (``over``: their names in the engine's
+    vector order, ``positions``: where this block's sit in it), and read on every evaluation as a
+    vector (:meth:`take`) without looking at a name again."""
 
     names: tuple[str, ...]
     keys: tuple[K, ...]
+    over: tuple[str, ...] | None = field(default=None, repr=False, compare=False)
+    positions: np.ndarray | None = field(default=None, repr=False, compare=False)
 
     @classmethod
-    def of(cls, names: Sequence[str], layout: Mapping[str, K]) -> "Block[K]":
-        """The parameters among ``names`` that ``layout`` (name → key) knows, in the layout's order."""
-        present = set(names)
-        hit = [(n, k) for n, k in layout.items() if n in present]
-        return cls(tuple(n for n, _ in hit), tuple(k for _, k in hit))
+    def of(cls, names: ParameterSet | Sequence[str], layout: Mapping[str, K]) -> "Block[K]":
+        """The parameters among ``names`` (a problem's :class:`ParameterSet`, or their names in
+        order) that ``layout`` (name → key) knows, in the layout's order, with their positions."""
+        over = names.layout()[0] if isinstance(names, ParameterSet) else tuple(names)
+        index = {n: i for i, n in enumerate(over)}
+        hit = [(n, k) for n, k in layout.items() if n in index]
+        return cls(tuple(n for n, _ in hit), tuple(k for _, k in hit), over,
+                   np.array([index[n] for n, _ in hit], dtype=np.intp))
 
     def take(self, values: Mapping[str, float]) -> np.ndarray:
-        """This block's values (SI) in key order: a gather from a :class:`Values` vector, else by name."""
-        if isinstance(values, Values):
-            pos = _positions(values.names, self.names)
-            if pos is not None:
-                return values.vector[pos]
+        """This block's values (SI) in key order: a gather from a :class:`Values` vector of the
+        layout it was resolved against, else by name."""
+        if isinstance(values, Values) and self.positions is not None \
+                and (values.names is self.over or values.names == self.over):
+            return values.vector[self.positions]
         return np.array([values[n] for n in self.names], dtype=float)
-
-
-_POSITIONS: dict[tuple[int, int], tuple[tuple, tuple, np.ndarray | None]] = {}
-
-
-def _positions(names: tuple[str, ...], wanted: tuple[str, ...]) -> np.ndarray | None:
-    """Where ``wanted`` sit among ``names`` (cached per pair of name tuples; None: one missing)."""
-    key = (id(names), id(wanted))
-    hit = _POSITIONS.get(key)
-    if hit is None or hit[0] is not names or hit[1] is not wanted:
-        index = {n: i for i, n in enumerate(names)}
-        pos = np.array([index[n] for n in wanted], dtype=np.intp) if all(n in index for n in wanted) else None
-        if len(_POSITIONS) > 256:
-            _POSITIONS.clear()
-        hit = _POSITIONS[key] = (names, wanted, pos)
-    return hit[2]
 
 
 def values_of(params: ParameterSet, x: np.ndarray) -> Values:
@@ -146,7 +137,7 @@ class ResidualProblem:
     ...     def __init__(self, y):
     ...         self.y, self.sigma = y, 0.5
     ...         self.parameters = ParameterSet([Parameter("mu", 0.0, "m")])
-    ...         self.mu = Block.of(self.parameters.names, {"mu": "mean"})
+    ...         self.mu = Block.of(self.parameters, {"mu": "mean"})
     ...     def residuals(self, values):
     ...         return self.mu.take(values)[0] - self.y
     ...     def jacobian(self, values):

@@ -10,7 +10,8 @@ from rich.markup import escape
 
 from calidar.cli.common import FORCE_HELP, console
 from calidar.cli.options import CRS, GEOID_UNDULATION, TIME_SYSTEM, point_options
-from calidar.pipelines.quality import measure
+from calidar.pipelines.quality import QualityConfig, measure
+from calidar.strips.quality import QualitySettings
 from calidar.validate import number
 
 CELL_RANGE_M = (0.01, 1000.0)  #: m, grid cells accepted by --cell (finer than lidar spacing, coarser than overlaps)
@@ -45,7 +46,8 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
             check_out_dir(out, force)
             guard_inputs([], strips, [out])
             claim_output(out)  # --out is this run's from its start (released when the run ends)
-        index, file_crs, results, notes, selections, precisions = measure(strips, cell, wanted, options)
+        config = QualityConfig(QualitySettings(cell_m=cell), wanted, options)
+        index, file_crs, results, notes, selections, precisions = measure(strips, config)
         checks = usgs_checks(results, precisions)
         doc = {"lines_from": index.how, "points_used": {str(p): s.to_dict() for p, s in selections.items()},
                "pairs": [q.to_dict() for q in results], "notes": notes,

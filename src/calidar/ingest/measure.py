@@ -8,20 +8,22 @@ from __future__ import annotations
 from calidar.ingest import Progress, no_progress
 from calidar.ingest.source import line_chunks
 from calidar.ingest.stages import StagePass, lines_quality, stage_pass
+from calidar.strips.quality import QualitySettings
 
 #: points of a file read by one overlap-quality task: what a task sends back (its cells' moments)
 #: stays small however large the files (≈ 40 MB at 20 points/m²)
 TASK_POINTS = 4_000_000
 
 
-def measure_lines(source, nominal, models, progress: Progress = no_progress, work=None) -> list[list]:
+def measure_lines(source, nominal, models, progress: Progress = no_progress, work=None,
+                  settings: QualitySettings = QualitySettings()) -> list[list]:
     """Per model of :func:`calidar.ingest.source.line_chunks` (None: the lines of ``source`` as
     delivered, else a (sensor, trajectory) they are re-georeferenced with from the ``nominal`` sensor), the
     :class:`calidar.strips.quality.PairQuality` of every overlapping pair of flight lines, by
     :func:`calidar.ingest.stages.lines_quality` on the plan of the ingest's counts: one
     read of the files (two when a stage's own plan differs), each file a task run by ``work``
     (a :class:`calidar.strips.distribute.Workers`; None: one at a time here); memory holds cells,
-    not points."""
+    not points; ``settings``: the swath difference's (:class:`calidar.strips.quality.QualitySettings`)."""
     import tempfile
 
     from calidar.ingest import release_memory
@@ -38,8 +40,8 @@ def measure_lines(source, nominal, models, progress: Progress = no_progress, wor
     total = sum(b - a for _, a, b in tasks)
 
     def read(plans, chosen, count):
-        out, done = StagePass.start(plans, None, count, spill), 0
-        shared = (source, nominal, models, metric, plans, chosen, count)
+        out, done = StagePass.start(plans, settings.cell_m, count, spill), 0
+        shared = (source, nominal, models, metric, plans, chosen, count, settings.cell_m)
         for (_, a, b), part in zip(tasks, (work or Workers()).run(_file_stages, tasks, shared, kind="overlap quality")):
             out.merge(part)
             del part
@@ -49,13 +51,13 @@ def measure_lines(source, nominal, models, progress: Progress = no_progress, wor
         return out
 
     with tempfile.TemporaryDirectory(prefix="calidar-moments-") as spill:  # cell moments beyond HOLD_BYTES
-        return lines_quality(read, source.quality, len(models), source.names,
+        return lines_quality(read, source.quality, len(models), source.names, settings,
                              threads=work.local_threads if work else 1)
 
 
-def _file_stages(source, nominal, models, metric, plans, chosen, count, k: int, start: int, stop: int):
+def _file_stages(source, nominal, models, metric, plans, chosen, count, cell_m, k: int, start: int, stop: int):
     """:func:`calidar.ingest.stages.stage_pass` of the points [start, stop) of the ``k``-th file (a task)."""
     from calidar.strips.selection import FIELDS, candidate_mask
 
     chunks = line_chunks(source, nominal, models, FIELDS, candidate_mask, files=[source.files[k]], span=(start, stop))
-    return stage_pass(chunks, metric, plans, chosen, count=count)
+    return stage_pass(chunks, metric, plans, chosen, cell_m, count=count)

@@ -126,7 +126,8 @@ def stage_pass(chunks: Iterable[tuple[int, list]], metric, plans: list[OverlapPl
 
 
 def lines_quality(read: Callable[[list, dict, bool], StagePass], first: LineCounts, n_stages: int,
-                  names: Mapping[int, str] | None = None, cell_m: float | None = None, threads: int = 1) -> list[list]:
+                  names: Mapping[int, str] | None = None, settings: QualitySettings = QualitySettings(),
+                  threads: int = 1) -> list[list]:
     """Per stage, the PairQuality of every overlapping pair of lines: ``read(plans, chosen,
     count)`` streams every line through :func:`stage_pass`; ``first`` holds stage 0's counts
     (which decide the plan every stage is measured on first). Stages whose own plan differs are
@@ -134,14 +135,14 @@ def lines_quality(read: Callable[[list, dict, bool], StagePass], first: LineCoun
     threads > 1, all at once when no moments went to disk: they are small then)."""
     from calidar.strips.distribute import run_tasks
 
-    settings, names = QualitySettings(cell_m=cell_m), names or {}
+    names = names or {}
     chosen = first.chosen(names)
     used = [overlap_plan(first.of(chosen), first.grid_m, settings, names)] * n_stages
     got = read(used, chosen, True)
     base = got.counts[0]
     own = [base] + [{i: merge_counts(*([base[i]] if i in base else []), *([d[i]] if i in d else []))
                      for i in {*base, *d}} for d in got.counts[1:]]
-    plans = [overlap_plan(c, overlap_cell(cell_m), settings, names) for c in own]
+    plans = [overlap_plan(c, overlap_cell(settings.cell_m), settings, names) for c in own]
     redo = [p if p != u else None for p, u in zip(plans, used)]
     again = read(redo, chosen, False) if any(p is not None for p in redo) else None
     accs = [again.accs[k] if redo[k] is not None else acc for k, acc in enumerate(got.accs)]

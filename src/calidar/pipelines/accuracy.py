@@ -146,11 +146,11 @@ def swath_checks(paths, classes, options: PointOptions, progress: Progress = no_
     :func:`calidar.strips.usgs.usgs_checks`): a :class:`calidar.accuracy.usgs.SwathChecks`, with a
     note instead when they do not apply (one flight line, no line overlapping another)."""
     from calidar.accuracy.usgs import SwathChecks
-    from calidar.pipelines.quality import measure
+    from calidar.pipelines.quality import QualityConfig, measure
     from calidar.strips.usgs import usgs_checks
 
     try:
-        _, _, results, _, _, precisions = measure(paths, None, classes, options)
+        _, _, results, _, _, precisions = measure(paths, QualityConfig(classes=classes, points=options))
     except InputError as e:
         if e.field in ("point_source_id", "STRIPS"):  # one flight line, or none overlapping another
             return SwathChecks(note=e.problem)

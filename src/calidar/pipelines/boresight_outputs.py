@@ -61,6 +61,7 @@ def quality_stages(inputs, result, corrected, progress: Progress = no_progress, 
     estimated) with the new mounting and the corrected trajectory: calidar.strips.report.QualityStage s
     (their commands named when written: :func:`with_commands`)."""
     from calidar.ingest.measure import measure_lines
+    from calidar.strips.quality import QualitySettings
     from calidar.strips.report import QualityStage
 
     labels = ["as delivered", "new mounting"]
@@ -69,7 +70,8 @@ def quality_stages(inputs, result, corrected, progress: Progress = no_progress, 
         labels.append("new mounting + trajectory corrections")
         models.append((result.sensor, corrected))
     progress("overlap quality", 0, 1)
-    measured = measure_lines(inputs.source, inputs.nominal, models, progress, work)  # one read of the files, every stage
+    # one read of the files, every stage; the swath difference as ``calidar quality`` measures it by default
+    measured = measure_lines(inputs.source, inputs.nominal, models, progress, work, QualitySettings())
     progress("overlap quality", 1, 1)
     return [QualityStage(label, "", pairs) for label, pairs in zip(labels, measured)]
 

@@ -15,6 +15,7 @@ on those cells only; memory holds cells, not points. The boresight pipeline feed
 from __future__ import annotations
 
 import tempfile
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -23,6 +24,7 @@ from calidar.errors import InputError
 from calidar.ingest.cell_counts import CellCounts, Metric, held_chunks
 from calidar.ingest.stages import checked_differences
 from calidar.io.las import PointOptions
+from calidar.strips.quality import QualitySettings
 from calidar.strips.selection import FIELDS as SELECTION_FIELDS
 from calidar.strips.selection import choose_selection
 
@@ -30,16 +32,45 @@ CHUNK_POINTS = 500_000  #: points read at once (the chunk, not the file, sets th
 FIELDS = ("point_source_id", *SELECTION_FIELDS)  #: point fields a chunk needs: flight line and the selection's
 
 
-def measure(paths, cell_m=None, classes=None, options: PointOptions = PointOptions(), chunk_points: int = CHUNK_POINTS):
+@dataclass(frozen=True)
+class QualityConfig:
+    """Everything a ``calidar quality`` run takes besides its files, built and checked once at the
+    edge (the CLI, the accuracy pipeline) and passed down unchanged: the swath difference's
+    settings (``settings``, its grid cell among them), the LAS ``classes`` compared (None: ground,
+    class 2, where a file has it, else last and single returns on smooth cells), how the points
+    are read (``points``: --crs, --time-system, --geoid-undulation) and ``chunk_points`` read at once.
+
+    >>> QualityConfig(QualitySettings(cell_m=1.0), classes=(6, 2)).classes
+    (2, 6)
+    """
+
+    settings: QualitySettings = QualitySettings()
+    classes: tuple[int, ...] | None = None
+    points: PointOptions = PointOptions()
+    chunk_points: int = CHUNK_POINTS
+
+    def __post_init__(self):
+        if not isinstance(self.settings, QualitySettings) or not isinstance(self.points, PointOptions):
+            raise TypeError(f"expected QualitySettings and PointOptions, got {self.settings!r}, {self.points!r}")
+        if self.classes is not None:
+            if not self.classes or any(not isinstance(c, int) or not 0 <= c <= 255 for c in self.classes):
+                raise InputError(None, "--classes", f"expected LAS classes (integers 0–255), got {self.classes!r}")
+            object.__setattr__(self, "classes", tuple(sorted(set(self.classes))))
+        if not (isinstance(self.chunk_points, int) and self.chunk_points > 0):
+            raise ValueError(f"chunk_points must be an integer > 0, got {self.chunk_points!r}")
+
+
+def measure(paths, config: QualityConfig = QualityConfig()):
     """Streamed ``calidar quality``: (line index, file CRS, PairQualitys, notes, selection per file,
     each line's smooth-surface precision (:class:`calidar.strips.usgs.LinePrecision`)). Every point
     is decompressed once: the first pass keeps what the second needs (:mod:`calidar.ingest.held`)."""
     from calidar.io.las import las_file_crs, las_header
     from calidar.ingest.held import HeldPoints
     from calidar.ingest.lines import index_flight_lines
-    from calidar.strips.quality import QualitySettings, SwathAccumulator, overlap_cell, overlap_plan
+    from calidar.strips.quality import SwathAccumulator, overlap_cell, overlap_plan
     from calidar.strips.selection import PointSelection
 
+    settings, classes, options, cell_m = config.settings, config.classes, config.points, config.settings.cell_m
     paths = [Path(p) for p in paths]
     crs, header = las_file_crs(paths[0], options.crs), las_header(paths[0])
     metric = Metric.at(crs, header.mins, header.maxs, options.geoid_undulation_m, paths[0])
@@ -48,13 +79,12 @@ def measure(paths, cell_m=None, classes=None, options: PointOptions = PointOptio
     with tempfile.TemporaryDirectory(prefix="calidar-moments-") as spill:  # held points, cell moments beyond HOLD_BYTES
         counts = CellCounts({p: first for p in paths}, metric, overlap_cell(cell_m), HeldPoints(Path(spill)))
         raw = ("X", "Y", "Z") if metric.frame is None else ()
-        index = index_flight_lines(paths, options, chunk_points=chunk_points, on_chunk=counts,
+        index = index_flight_lines(paths, options, chunk_points=config.chunk_points, on_chunk=counts,
                                    fields=("x", "y", "z", *raw, *SELECTION_FIELDS[1:]))
         if len(index.ids) < 2:
             raise InputError(", ".join(sorted({str(p) for p in paths})), "point_source_id",
                              f"found one flight line ({index.how}); expected at least two overlapping lines")
         selections = {p: choose_selection(p, index.classes[p], classes) for p in paths}
-        settings = QualitySettings(cell_m=cell_m)
         names = counts.names(index)  #: line → a file holding it (for messages)
         plan = overlap_plan(counts.by_line(index, selections), counts.grid_m, settings, names)
         acc = SwathAccumulator(cell_m, plan, Path(spill))

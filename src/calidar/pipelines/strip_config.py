@@ -18,7 +18,8 @@ reads (degrees for the trajectory's attitude σ)::
     correlation_s = [20.0, 3.5]
     sigma = [0.03, 0.002]        # position m, attitude deg (absent: the trajectory's accuracy)
 
-    [solver]                     # calidar.strips.config.StripSettings
+    [solver]                     # calidar.strips.config.StripSettings, with robust, robust_k, robust_scale,
+                                 # max_iter, tol of its calidar.adjust.SolverOptions
     [planes]                     # the tie planes' settings and threshold_m (calidar.strips.planes.PlaneSettings)
     [vgicp]                      # VGICP's (calidar.strips.vgicp.VgicpSettings)
     [ingest]                     # strip_points (0: every overlapping point), block_cells, gap_s, chunk_points
@@ -45,6 +46,7 @@ import typing
 from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 
+from calidar.adjust import SolverOptions
 from calidar.errors import InputError
 from calidar.io.las import PointOptions
 from calidar.pipelines.inputs import TrajectoryOptions
@@ -54,6 +56,8 @@ from calidar.strips.config import MATCHERS, CalibrationConfig, Estimate, StripSe
 #: [ingest] keys → IngestSettings fields (strip_points as --strip-points: 0 keeps every overlapping point)
 INGEST_KEYS = {"strip_points": "budget_points", "block_cells": "block_cells", "gap_s": "gap_s",
                "chunk_points": "chunk_points"}
+#: [solver] keys of the engine's SolverOptions (StripSettings.adjustment); step_in_sigma is each outer iteration's
+ADJUSTMENT_KEYS = ("robust", "robust_k", "robust_scale", "max_iter", "tol")
 #: [inputs] keys → (PointOptions | TrajectoryOptions | StripConfig, field)
 INPUT_KEYS = {"crs": ("points", "crs"), "time_system": ("points", "time_system"),
               "geoid_undulation_m": ("points", "geoid_undulation_m"), "trajectory_crs": ("trajectory", "crs"),
@@ -109,7 +113,9 @@ class StripConfig:
                 traj["sigma"] = [t.sigma[0], math.degrees(t.sigma[1])]
         doc["trajectory_model"] = traj
         # no TOML null: no robust loss is "none", no clusters 0
-        doc["solver"] = {**_plain(c.solver), "robust": c.solver.robust or "none", "cluster_s": c.solver.cluster_s or 0}
+        a = c.solver.adjustment
+        doc["solver"] = {**_plain(c.solver), "cluster_s": c.solver.cluster_s or 0, "robust": a.robust or "none",
+                         **{k: v for k in ADJUSTMENT_KEYS[1:] if (v := getattr(a, k)) is not None}}
         for m in c.matchers:
             doc[m.name] = {"threshold_m": m.threshold_m, **_plain(m.settings)}
         ingest = {k: getattr(self.ingest, f) for k, f in INGEST_KEYS.items()}
@@ -161,7 +167,7 @@ def from_document(doc: dict, path: Path | None = None) -> StripConfig:
     for m in set(MATCHERS) - set(methods):
         _matcher(MATCHERS[m], _table(doc, m, path), path)  # checked, though not used
     trajectory = _trajectory(_table(doc, "trajectory_model", path), path)
-    solver = _section(StripSettings, _solver(_table(doc, "solver", path)), path, "solver")
+    solver = _solver(_table(doc, "solver", path), path)
     chosen = _build(path, "estimate", lambda: Estimate.of(*estimate))
     check = _typed(doc.get("model_check", True), bool, path, "model_check")
     calibration = _build(path, "method", lambda: CalibrationConfig(chosen, matchers, trajectory, solver, check))
@@ -187,10 +193,15 @@ def from_document(doc: dict, path: Path | None = None) -> StripConfig:
     return StripConfig(calibration, ingest_options, trajectory, **parts["config"], checkpoint_class_cm=target)
 
 
-def _solver(table: dict) -> dict:
-    """[solver] with "none" for no robust loss and 0 for no clusters (TOML has no null)."""
-    return {**table, **({"robust": None} if table.get("robust") == "none" else {}),
-            **({"cluster_s": None} if table.get("cluster_s") == 0 else {})}
+def _solver(table: dict, path) -> StripSettings:
+    """[solver]: StripSettings with the engine's SolverOptions (its :data:`ADJUSTMENT_KEYS`); "none" for
+    no robust loss and 0 for no clusters (TOML has no null)."""
+    table = {**table, **({"robust": None} if table.get("robust") == "none" else {}),
+             **({"cluster_s": None} if table.get("cluster_s") == 0 else {})}
+    if table.get("robust", "cauchy") not in (None, "cauchy", "huber"):
+        raise InputError(path, "solver.robust", f"expected cauchy, huber or none, got {table['robust']!r}")
+    engine = {k: table.pop(k) for k in ADJUSTMENT_KEYS if k in table}
+    return _section(StripSettings, table, path, "solver", adjustment=_section(SolverOptions, engine, path, "solver"))
 
 
 def _trajectory(table: dict, path) -> TrajectorySettings | None:
@@ -229,12 +240,13 @@ def _known(table: dict, known: set[str], path, prefix: str) -> None:
         raise InputError(path, prefix + unknown[0], f"unknown key; expected one of {', '.join(sorted(known))}")
 
 
-def _section(cls: type, table: dict, path, name: str):
-    """A dataclass ``cls`` from a TOML table: every key one of its fields, of the field's type."""
+def _section(cls: type, table: dict, path, name: str, **built):
+    """A dataclass ``cls`` from a TOML table: every key one of its fields (but those ``built``
+    already), of the field's type."""
     hints = typing.get_type_hints(cls)
-    _known(table, {f.name for f in fields(cls)}, path, f"{name}.")
+    _known(table, {f.name for f in fields(cls)} - set(built), path, f"{name}.")
     kw = {k: _typed(v, hints[k], path, f"{name}.{k}") for k, v in table.items()}
-    return _build(path, name, lambda: cls(**kw))
+    return _build(path, name, lambda: cls(**kw, **built))
 
 
 def _build(path, name: str, make):
@@ -269,9 +281,9 @@ def _typed(value, tp, path, key: str):
 
 
 def _plain(settings) -> dict:
-    """A settings dataclass's fields as TOML values (None left out, tuples as lists)."""
+    """A settings dataclass's fields as TOML values (None and nested settings left out, tuples as lists)."""
     return {f.name: list(v) if isinstance(v, tuple) else v for f in fields(settings)
-            if (v := getattr(settings, f.name)) is not None}
+            if (v := getattr(settings, f.name)) is not None and not hasattr(v, "__dataclass_fields__")}
 
 
 def _toml(value) -> str:

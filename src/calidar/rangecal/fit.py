@@ -83,8 +83,8 @@ class RangeProblem(ResidualProblem):
         self.obs, self.fix_scale = obs, fix_scale
         self.parameters = parameter_set(obs, fix_scale)
         self.sigma = observation_sigma(obs) if sigma is None else sigma
-        self.p_block = Block.of(self.parameters.names, {p_parameter(s.id, part): (i, part) for i, s in enumerate(obs.setups)
-                                                        for part in P_PARTS})
+        self.p_block = Block.of(self.parameters, {p_parameter(s.id, part): (i, part) for i, s in enumerate(obs.setups)
+                                                  for part in P_PARTS})
 
     def p_values(self, values) -> np.ndarray:
         """P's (slope m, va rad, hz rad) per setup, (n_setups, 3)."""

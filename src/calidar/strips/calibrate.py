@@ -28,7 +28,7 @@ from types import SimpleNamespace
 import numpy as np
 import scipy.sparse as sp
 
-from calidar.adjust import ParameterSet, Solution, SolverOptions
+from calidar.adjust import ParameterSet, Solution
 from calidar.adjust.solver import Estimate, estimate
 from calidar.adjust.solution import residual_stats
 from calidar.errors import CalibrationError, CalidarError, InputError
@@ -225,7 +225,7 @@ class _Run:
         """One adjustment of ``params`` from the correspondences ``corrs``, iterated until every
         step is below ``step_in_sigma`` of its σ (``step_scale``: diag N⁻¹ of an earlier one)."""
         problem = StripProblem(self.nominal, self.poses, corrs, params, self._times(), self.model, self.spans)
-        options = SolverOptions(robust=self.settings.robust, step_in_sigma=step_in_sigma)
+        options = replace(self.settings.adjustment, step_in_sigma=step_in_sigma)
         return estimate(problem, options, step_scale=step_scale), problem
 
     def clusters(self, problem: StripProblem) -> list[np.ndarray]:

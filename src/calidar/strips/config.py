@@ -5,7 +5,8 @@ down unchanged.
   ``boresight`` or single parameters such as ``lever_arm_x``);
 - :class:`TrajectorySettings`: the trajectory model's knots, Gauss–Markov correlation times and,
   optionally, one σ for every epoch (:mod:`calidar.strips.trajectory_errors`);
-- :class:`StripSettings`: how the adjustment runs (overlap grid, outer loop, robust loss, clusters);
+- :class:`StripSettings`: how the adjustment runs (overlap grid, outer loop, clusters, the engine's
+  :class:`calidar.adjust.SolverOptions`);
 - the matchers (:mod:`calidar.strips.matchers`), each with its own settings, by name in :data:`MATCHERS`;
 - ground control's kinds (points, planes) by name in :data:`CONTROL_KINDS`;
 - :class:`CalibrationConfig`: all of them, what :func:`calidar.strips.calibrate.calibrate` takes.
@@ -24,6 +25,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
+from calidar.adjust.residuals import SolverOptions
 from calidar.errors import InputError
 from calidar.strips.control import ControlPoints
 from calidar.strips.control_planes import ControlPlanes
@@ -130,8 +132,10 @@ class StripSettings:
     max_outer: int = 8  #: outer (re-matching) iterations
     #: stop when the mean correspondence distance changes by less (None: the matcher's threshold_m)
     threshold_m: float | None = None
-    robust: str | None = "cauchy"
     cluster_s: float | None = 10.0  #: trajectory errors correlate over this time: σ from a cluster-robust covariance
+    #: how the engine iterates each adjustment (robust loss "cauchy", "huber" or None, its k and MAD scale,
+    #: max_iter, tol); each outer iteration sets its own step_in_sigma (:func:`calidar.strips.calibrate.calibrate`)
+    adjustment: SolverOptions = SolverOptions(robust="cauchy")
 
     def __post_init__(self):
         for name in ("overlap_cell_m", "min_overlap_cells", "min_correspondences", "max_outer"):
@@ -139,8 +143,13 @@ class StripSettings:
         for name in ("threshold_m", "cluster_s"):
             if getattr(self, name) is not None:
                 _positive(getattr(self, name), f"solver {name}", "", 1e9)
-        if self.robust not in (None, "cauchy", "huber"):
-            raise InputError(None, "solver robust", f"expected cauchy, huber or none, got {self.robust!r}")
+        if not isinstance(self.adjustment, SolverOptions):
+            raise InputError(None, "solver adjustment", f"expected SolverOptions, got {self.adjustment!r}")
+
+    @property
+    def robust(self) -> str | None:
+        """The robust loss of the adjustment's IRLS weights (None: least squares)."""
+        return self.adjustment.robust
 
 
 @dataclass(frozen=True)

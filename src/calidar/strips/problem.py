@@ -86,9 +86,9 @@ class StripProblem(ResidualProblem):
 
     def _blocks(self) -> None:
         """The sensor's and the trajectory knots' typed blocks of :attr:`parameters`, resolved once."""
-        names = self.parameters.names
-        self.sensor_block = Block.of(names, {n: n for n in self.nominal.parameters()})
-        self.knot_block = None if self.trajectory is None else Block.of(names, self.trajectory.layout(self.spans))
+        params = self.parameters
+        self.sensor_block = Block.of(params, {n: n for n in self.nominal.parameters()})
+        self.knot_block = None if self.trajectory is None else Block.of(params, self.trajectory.layout(self.spans))
         self._scatter = None if self.knot_block is None else knot_scatter(self.knot_block.keys, self.trajectory,
                                                                             self.spans)
         self.prior_correlation = self.trajectory.prior_correlation(self.spans) if self.trajectory else ()

@@ -85,6 +85,19 @@ def test_values_read_by_name_and_by_typed_block():
     assert block.take({"a": 1.5, "b": 2.5}).tolist() == [2.5, 1.5]  # a plain mapping: by name
 
 
+def test_a_block_is_resolved_once_when_the_problem_is_built():
+    """Block.of(a ParameterSet, ...) resolves the block's positions in the engine's vector when it is
+    made: the engine's Values of that set are gathered by them; Values of another layout by name."""
+    params = ParameterSet([Parameter("a", 1.0, "m"), Parameter("k", 5.0, "1", free=False), Parameter("b", 2.0, "m")])
+    block = Block.of(params, {"b": ("knot", 1), "a": ("knot", 0)})
+    assert block.over is params.layout()[0] and block.positions.tolist() == [2, 0]
+    assert block.take(values_of(params, np.array([10.0, 20.0]))).tolist() == [20.0, 10.0]
+    other = ParameterSet([Parameter("b", 7.0, "m"), Parameter("a", 8.0, "m")])  # the same names, another order
+    assert block.take(values_of(other, np.array([7.0, 8.0]))).tolist() == [7.0, 8.0]
+    with pytest.raises(KeyError):
+        block.take(values_of(ParameterSet([Parameter("a", 0.0, "m")]), np.array([0.0])))
+
+
 def test_the_library_calls_the_engine_with_problems_only():
     """No call of solve/estimate under src/calidar uses the function form (a residual function or
     lambda plus keyword settings): each passes a ResidualProblem and SolverOptions."""

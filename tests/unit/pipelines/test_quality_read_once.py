@@ -13,7 +13,7 @@ import calidar.io.las as las
 from calidar.io.las import iter_las_chunks, write_las
 from calidar.ingest.held import HeldPoints
 from calidar.ingest.cell_counts import Metric, _first_rows, _token_counts, held_chunks
-from calidar.pipelines.quality import measure
+from calidar.pipelines.quality import QualityConfig, measure
 from calidar.ingest.lines import _second_spans
 from calidar.strips.quality import QualitySettings, swath_differences
 
@@ -47,7 +47,7 @@ def test_each_point_decompressed_once_and_pairs_equal_the_points_in_memory(tmp_p
             yield first, rec
 
     monkeypatch.setattr(las, "_records", counted)
-    _, _, pairs, _, selections, _ = measure(paths, chunk_points=7_000)  # many chunks, each line split
+    _, _, pairs, _, selections, _ = measure(paths, QualityConfig(chunk_points=7_000))  # many chunks, each line split
     assert read == {"s1.laz": 60_000, "s2.laz": 50_000}
     assert {p.name: s.rule for p, s in selections.items()} == {"s1.laz": "ground", "s2.laz": "ground"}
     (q,) = pairs
@@ -65,7 +65,7 @@ def test_geographic_strips_measured_in_a_local_frame(tmp_path):
     deg = 1.0 / 111_000  # ≈ 1 m in degrees: the surface on a geographic CRS, metric in a LocalFrame
     paths, _, _ = _strips(tmp_path, np.random.default_rng(2), crs="EPSG:4326", origin=np.array([7.0, 45.0, 400.0]),
                           scale=deg)
-    _, _, (q,), _, _, _ = measure(paths, chunk_points=9_000)
+    _, _, (q,), _, _, _ = measure(paths, QualityConfig(chunk_points=9_000))
     assert q.n_cells > 300 and q.median_dz_m == pytest.approx(0.03, abs=0.006)
 
 

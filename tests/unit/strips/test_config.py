@@ -16,6 +16,7 @@ from calidar.io.las import PointOptions
 from calidar.pipelines.inputs import TrajectoryOptions
 from calidar.pipelines.strip_config import StripConfig
 from calidar.ingest.settings import IngestSettings
+from calidar.adjust import SolverOptions
 from calidar.strips.config import CalibrationConfig, Estimate, StripSettings, TiePlanes, TrajectorySettings, Vgicp
 from calidar.strips.planes import PlaneSettings
 from calidar.strips.vgicp import VgicpSettings
@@ -108,7 +109,8 @@ def _everything_changed() -> StripConfig:
         (Vgicp(VgicpSettings(voxel_m=(4.0, 1.0), num_neighbors=10, pair_distance_m=0.2), threshold_m=5e-4),
          TiePlanes(PlaneSettings(cell_m=2.0, max_rms_m=0.05))),
         TrajectorySettings(block_s=2.0, correlation_s=(30.0, 5.0), sigma=(0.03, math.radians(0.002))),
-        StripSettings(overlap_cell_m=4.0, max_outer=3, threshold_m=1e-3, robust=None, cluster_s=None), model_check=False)
+        StripSettings(overlap_cell_m=4.0, max_outer=3, threshold_m=1e-3, cluster_s=None,
+                      adjustment=SolverOptions(robust=None, robust_scale=False, max_iter=20, tol=1e-9)), model_check=False)
     return StripConfig(cal, IngestSettings(budget_points=None, block_cells=3, gap_s=5.0,
                                           points=PointOptions("EPSG:32632", "adjusted", 47.5)),
                        TrajectoryOptions("EPSG:32615", "rad", "grid", ("time", "-", "lat")), "EPSG:4326")
@@ -146,7 +148,10 @@ def test_the_file_gives_the_same_configuration_back(config, tmp_path):
     ("[vgicp]\nkind = \"plane_to_plane\"\n", "vgicp", "kind"),
     ("[inputs]\ntime_system = \"fortnight\"\n", "inputs", "time-system"),
     ("[ingest]\nstrip_points = \"all\"\n", "ingest.strip_points", "expected int"),
-    ("[solver]\nrobust = \"tukey\"\n", "solver", "robust"),
+    ("[solver]\nrobust = \"tukey\"\n", "solver.robust", "expected cauchy, huber or none"),
+    ("[solver]\nmax_iter = -1\n", "solver", "max_iter"),
+    ("[solver]\nadjustment = 1\n", "solver.adjustment", "unknown key"),
+    ("[solver]\nstep_in_sigma = 0.1\n", "solver.step_in_sigma", "unknown key"),
     ("model_check = \"yes\"\n", "model_check", "expected bool"),
 ])
 def test_a_wrong_key_is_named_with_its_file(text, key, what, tmp_path):
