@@ -25,6 +25,16 @@ def points_ecef(points: LasPoints) -> np.ndarray:
     return _finite(points, georef.from_crs(points.xyz, points.crs, points.geoid_undulation_m, source=points.path))
 
 
+def point_times(points: LasPoints, traj: Trajectory, gps_week: int | None = None) -> np.ndarray:
+    """The points' GPS times in the trajectory's time system: adjusted standard → week seconds of
+    ``gps_week`` (the whole file's, from :func:`calidar.pipelines.inputs.check_coverage`; None: the week of these points)."""
+    if points.time_system == traj.time_system:
+        return points.gps_time
+    if gps_week is None:
+        return points.gps_week_seconds()
+    return adjusted_standard_in_week(points.gps_time, gps_week)
+
+
 def points_tile_linear(points: LasPoints) -> TileLinear:
     """The points' transform to ECEF linearized per tile (:func:`calidar.crs.tile_linear`: moved
     points to 0.1 mm, ECEF to ~1 mm); the errors of :func:`points_ecef`."""

@@ -12,20 +12,17 @@ import numpy as np
 
 from calidar import georef
 from calidar.errors import InputError
-from calidar.io.csv import write_csv_rows
-from calidar.io.las import PointOptions, iter_las_chunks, las_header, rewrite_las_xyz, write_las
+from calidar.io.las import PointOptions, las_header, write_las
 from calidar.io.optech_csd import csd_trajectory, read_csd, returns
 from calidar.outputs import atomic_path, guard_inputs
 from calidar.pipelines import Progress, no_progress
 from calidar.pipelines import inputs
-from calidar.pipelines.inputs import TrajectoryOptions, load_trajectory, point_times, points_ecef, trajectory_for
+from calidar.pipelines.inputs import TrajectoryOptions, load_trajectory, trajectory_for
 from calidar.ingest.plausibility import GeometryCheck, heights_notes
+from calidar.ingest.rewrite import VECTOR_COLUMNS, inverse_rows, regeoreference_file
 from calidar.sensor import Sensor
 from calidar.sensor_import import from_optech_header
 from calidar.validate import values
-
-VECTOR_COLUMNS = ("gps_time", "range_m", "x_s", "y_s", "z_s", "across_track_angle_deg", "along_track_angle_deg")
-
 
 def inverse_points(points: Path, trajectory: Path, out: Path, *, sensor: Path | None = None,
                    point_options: PointOptions = PointOptions(),
@@ -40,20 +37,11 @@ def inverse_points(points: Path, trajectory: Path, out: Path, *, sensor: Path | 
     model = Sensor.read(sensor) if sensor else Sensor()
     traj, week = trajectory_for(points, load_trajectory(trajectory, trajectory_options), point_options,
                                 inputs.CHUNK_POINTS)
-    total, n, check, crs = las_header(points).point_count, 0, GeometryCheck(points), None
+    check = GeometryCheck(points)
     with atomic_path(out, force) as tmp, open(tmp, "w", encoding="utf-8") as f:
         f.write(",".join(VECTOR_COLUMNS) + "\n")
-        for chunk in iter_las_chunks(points, inputs.CHUNK_POINTS, fields=("scan_angle_deg",), options=point_options):
-            t, ecef, crs = point_times(chunk, traj, week), points_ecef(chunk), chunk.crs
-            check.add(traj, t, ecef, chunk.scan_angle_deg)
-            obs = georef.inverse(traj, model, t, ecef)
-            v = obs.vector_s
-            across = np.degrees(np.arctan2(v[:, 1], v[:, 2]))
-            along = np.degrees(np.arctan2(v[:, 0], np.hypot(v[:, 1], v[:, 2])))
-            write_csv_rows(f, [chunk.gps_time, obs.range_m, v[:, 0], v[:, 1], v[:, 2], across, along],
-                           [6, 4, 4, 4, 4, 6, 6])
-            n += len(chunk)
-            progress("inverse georeferencing", n, total)
+        n, crs = inverse_rows(f, points, traj, week, model, point_options, check, progress,
+                              las_header(points).point_count, inputs.CHUNK_POINTS)
     if notes is not None:
         notes += heights_notes(crs, point_options.geoid_undulation_m, check)
     return n
@@ -82,15 +70,8 @@ def regeoreference_strips(strips: list[Path], trajectory: Path, old: Path, new: 
     written, checks, crs = {}, [], None
     for k, (s, traj, week, new_traj) in enumerate(plans):
         checks.append(GeometryCheck(s))
-
-        def moved(points, traj=traj, week=week, new_traj=new_traj, check=checks[-1]) -> np.ndarray:
-            t, ecef = point_times(points, traj, week), points_ecef(points)
-            check.add(traj, t, ecef, points.scan_angle_deg)
-            p = georef.regeoreference(traj, old_s, new_s, t, ecef, new_traj)
-            return georef.to_crs(p, points.crs, points.geoid_undulation_m, source=points.path)
-
-        written[out_dir / s.name] = rewrite_las_xyz(s, out_dir / s.name, moved, chunk_points=inputs.CHUNK_POINTS,
-                                                    force=True, options=point_options)
+        written[out_dir / s.name] = regeoreference_file(s, out_dir / s.name, traj, week, old_s, new_s, new_traj,
+                                                        point_options, checks[-1], inputs.CHUNK_POINTS)
         progress("re-georeferencing strips", k + 1, len(plans))
     if notes is not None and strips:
         crs = inputs.las_file_crs(strips[0], point_options.crs)

@@ -14,12 +14,10 @@ import dataclasses
 from dataclasses import dataclass
 from pathlib import Path
 
-import numpy as np
-
 from calidar.errors import InputError
-from calidar.ingest.times import NO_CRS, FileTimes, points_ecef
+from calidar.ingest.times import NO_CRS, FileTimes, point_times, points_ecef
 from calidar.io.las import (
-    LasPoints, PointOptions, adjusted_standard_in_week, adjusted_standard_to_week_seconds, iter_las_times,
+    PointOptions, adjusted_standard_to_week_seconds, iter_las_times,
     las_file_crs, las_time_system,
 )
 from calidar.io.trajectory import read_trajectory
@@ -82,16 +80,6 @@ def matching_trajectory(traj: Trajectory, system: str) -> Trajectory:
         return traj
     t, _ = adjusted_standard_to_week_seconds(traj.time, traj.source)
     return dataclasses.replace(traj, time=t, time_system="gps_week_seconds")
-
-
-def point_times(points: LasPoints, traj: Trajectory, gps_week: int | None = None) -> np.ndarray:
-    """The points' GPS times in the trajectory's time system: adjusted standard → week seconds of
-    ``gps_week`` (the whole file's, from :func:`check_coverage`; None: the week of these points)."""
-    if points.time_system == traj.time_system:
-        return points.gps_time
-    if gps_week is None:
-        return points.gps_week_seconds()
-    return adjusted_standard_in_week(points.gps_time, gps_week)
 
 
 def check_coverage(path: Path, traj: Trajectory, options: PointOptions = PointOptions(),

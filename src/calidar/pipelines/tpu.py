@@ -75,27 +75,23 @@ class _Collector:
 
 def tpu_file(path: Path, out: Path, traj, sensor, accuracy, options: TpuOptions, calibration) -> FileTpu:
     """One file: stream, propagate, write it with the extra bytes (see the module docstring)."""
-    from calidar.io.las_extra import rewrite_las_with_extra
-    from calidar.pipelines.inputs import point_times, points_ecef, trajectory_for
-    from calidar.tpu.propagate import point_covariance, thu_tvu
-
+    from calidar.ingest.rewrite import with_extra_bytes
     from calidar.io.las import las_header
+    from calidar.pipelines.inputs import trajectory_for
+    from calidar.tpu.propagate import point_covariance, thu_tvu
 
     if las_header(path).point_count == 0:
         raise InputError(path, "points", "no points; expected points to give an uncertainty to")
     traj, week = trajectory_for(path, traj, options.points, CHUNK_POINTS)
     collect = _Collector(len(str(path)))
 
-    def values(points):
-        t = point_times(points, traj, week)
-        cov = point_covariance(traj, sensor, accuracy, t, points_ecef(points), options.settings, calibration)
-        thu, tvu = thu_tvu(cov)
+    def values(t, ecef, points):
+        thu, tvu = thu_tvu(point_covariance(traj, sensor, accuracy, t, ecef, options.settings, calibration))
         scan = np.abs(points.scan_angle_deg) if points.scan_angle_deg is not None else np.full(thu.size, np.nan)
         collect.add(points.xyz[:, :2], thu, tvu, scan)
         return {"total_thu": thu, "total_tvu": tvu}
 
-    n = rewrite_las_with_extra(path, out, EXTRA_BYTES, values, chunk_points=CHUNK_POINTS, force=True,
-                               options=options.points)
+    n = with_extra_bytes(path, out, EXTRA_BYTES, traj, week, values, options.points, CHUNK_POINTS)
     s = collect.sample()
     bins = [{"scan_angle_deg": [lo, hi], "points_in_sample": int(m.sum()), **_percentiles(s["tvu"][m])}
             for lo, hi in zip(SCAN_BINS_DEG[:-1], SCAN_BINS_DEG[1:]) if (m := (s["scan"] >= lo) & (s["scan"] < hi)).any()]
