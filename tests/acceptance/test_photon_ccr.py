@@ -135,10 +135,10 @@ def test_a_loss_rate_held_at_zero_is_profiled_out_of_the_sigma_and_said():
 
 def test_an_impossible_bias_is_refused():
     """CCR coordinates 30 m off the pass's track frame: no footprint fits them within ±10 m → a clear error."""
-    from calidar.photon.fit import Bounds
+    from calidar.photon.fit import Bounds, Layout
 
     with pytest.raises(CalibrationError, match=r"along_track_bias = -95.*expected within ±10 m \(--max-bias\)"):
-        Bounds(8.0, 15.0, 10.0).check({"along_track_bias": -95.0, "footprint_diameter": 11.0})
+        Bounds(8.0, 15.0, 10.0).check({"along_track_bias": -95.0, "footprint_diameter": 11.0}, Layout(("gt1l",)))
 
 
 def test_strong_and_weak_beams_solved_jointly(tmp_path):

@@ -88,7 +88,7 @@ def _geometry(result) -> list[Finding]:
 def _precision(result) -> list[Finding]:
     u, sol, out = result.uncertainty, result.solution, []
     for n in sol.parameters.free_names:
-        base = n.split("[")[0]
+        base = result.layout.quantity[n]
         if base not in GEOLOCATION:
             continue
         iv = u.profile.get(n)
@@ -124,16 +124,17 @@ def _precision(result) -> list[Finding]:
 
 def _solve_checks(result) -> list[Finding]:
     fit, sol, out = result.estimate.fit, result.solution, []
-    if fit.at_limit and any(n.startswith("footprint_diameter") for n in fit.at_limit):
+    held = {result.layout.quantity[n] for n in fit.at_limit}
+    if "footprint_diameter" in held:
         s = result.settings
         out.append(Finding("fail", "footprint diameter", f"held at the search limit ({s.diameter_min:g}–"
                            f"{s.diameter_max:g} m): the likelihood's maximum lies beyond it",
                            "check the CCR survey (positions, pole heights); widen --diameter-range only if "
                            "a footprint that size is physically possible"))
-    if any(n.startswith("ccr_peak_photons") for n in fit.at_limit):
+    if "ccr_peak_photons" in held:
         out.append(Finding("warn", "CCR peak photons", "not bounded by the counts: held at its limit",
                            "the footprint's edge is seen but not its centre: add CCRs nearer the predicted track"))
-    loss = [n for n in fit.at_limit if n.startswith("shot_loss_rate")]
+    loss = [n for n in fit.at_limit if result.layout.quantity[n] == "shot_loss_rate"]
     if loss:
         how = ("profiled out: their σ are from the Schur complement of the observed information" if any("profiled out" in w for w in sol.warnings) else
                "taken as known (the likelihood is not convex there); the profile intervals re-maximise it")

@@ -72,6 +72,17 @@ class Layout:
         return Block(tuple(keys), tuple(keys.values()))
 
     @cached_property
+    def quantity(self) -> dict[str, str]:
+        """Each parameter's quantity (one of :data:`NAMES`) by its name: the typed block's keys, never
+        a name taken apart."""
+        return {n: q for n, (_, q) in zip(self.block.names, self.block.keys)}
+
+    def beams(self, name: str) -> range | tuple[int]:
+        """The beams (indices into :attr:`groups`) parameter ``name`` belongs to: all for a shared one."""
+        g = self.block.keys[self.block.names.index(name)][0]
+        return range(len(self.groups)) if g is None else (g,)
+
+    @cached_property
     def _cells(self) -> np.ndarray:
         """(G, 5): the position in :attr:`block` of each beam's parameter."""
         return self.columns(list(self.block.names))
@@ -175,10 +186,10 @@ class Problem(ResidualProblem):
         """Observed information: the Hessian of −log L w.r.t. ``names`` (central differences of the score)."""
         h = np.zeros((len(names), len(names)))
         for j, nm in enumerate(names):
-            step = STEPS[_base(nm)] * max(abs(values[nm]), 1.0)
+            step = STEPS[self.layout.quantity[nm]] * max(abs(values[nm]), 1.0)
             hi, lo = dict(values), dict(values)
             hi[nm] += step
-            if _base(nm) == "shot_loss_rate" and values[nm] < step:  # at its bound 0: forward differences
+            if self.layout.quantity[nm] == "shot_loss_rate" and values[nm] < step:  # at its bound 0: forward differences
                 h[:, j] = (self.gradient(hi, names) - self.gradient(lo, names)) / step
                 continue
             lo[nm] -= step
@@ -190,10 +201,6 @@ class Problem(ResidualProblem):
 def _columns(layout: Layout, names: tuple[str, ...]) -> np.ndarray:
     pos = {n: i for i, n in enumerate(names)}
     return np.array([[pos.get(layout.name(g, b), -1) for b in NAMES] for g in range(len(layout.groups))])
-
-
-def _base(name: str) -> str:
-    return name.split("[", 1)[0]
 
 
 @dataclass
@@ -208,8 +215,8 @@ class Fit:
 def parameter_set(layout: Layout, start: dict[str, float], fixed: dict[str, float] | None = None) -> ParameterSet:
     """Named parameters at ``start``; those in ``fixed`` held at the given value."""
     fixed = fixed or {}
-    return ParameterSet(Parameter(n, float(fixed.get(n, start[n])), UNITS[_base(n)], free=n not in fixed,
-                                  step=STEPS[_base(n)]) for n in layout.names)
+    return ParameterSet(Parameter(n, float(fixed.get(n, start[n])), UNITS[q], free=n not in fixed, step=STEPS[q])
+                        for n, q in layout.quantity.items())
 
 
 def maximise(problem: Problem, start: dict[str, float], bounds, fixed: dict[str, float] | None = None,
@@ -217,23 +224,23 @@ def maximise(problem: Problem, start: dict[str, float], bounds, fixed: dict[str,
     """The maximum likelihood from ``start`` (parameters in ``fixed`` held), within ``bounds``
     (:class:`Bounds`); the covariance from the observed information (``covariance=False``: the
     engine's, when only the estimate is wanted)."""
-    fixed = dict(fixed or {})
-    at_zero = {n: 0.0 for n in start if _base(n) == "shot_loss_rate" and n not in fixed and start[n] < LOSS_START}
+    fixed, kind = dict(fixed or {}), problem.layout.quantity
+    at_zero = {n: 0.0 for n in start if kind[n] == "shot_loss_rate" and n not in fixed and start[n] < LOSS_START}
     sol = _solve(problem, parameter_set(problem.layout, start, {**fixed, **at_zero}), max_iter)
     if at_zero:  # q = 0 is the constrained maximum where −log L grows with q (Kuhn–Tucker); free the others
         grow = problem.gradient(sol.values, list(at_zero))
         at_zero = {n: 0.0 for n, g in zip(at_zero, grow) if g >= 0}
         if len(at_zero) < len(grow):
-            freed = {n: max(start[n], 0.02) for n in sol.values if _base(n) == "shot_loss_rate" and n not in at_zero
+            freed = {n: max(start[n], 0.02) for n in sol.values if kind[n] == "shot_loss_rate" and n not in at_zero
                      and n not in fixed}
             sol = _solve(problem, parameter_set(problem.layout, {**sol.values, **freed}, {**fixed, **at_zero}),
                          max_iter)
     values = sol.values
-    held = bounds.beyond(values, fixed)
+    held = bounds.beyond(values, fixed, problem.layout)
     if held:
         sol = _solve(problem, parameter_set(problem.layout, values, {**fixed, **at_zero, **held}), max_iter)
         values = sol.values
-    bounds.check(values)
+    bounds.check(values, problem.layout)
     held_names = sorted(held) + sorted(at_zero)
     return Fit(observed_information_solution(problem, sol, held_names) if covariance else sol, problem.nll(values),
                held_names)
@@ -290,23 +297,24 @@ class Bounds:
     diameter_max: float
     max_bias: float
 
-    def beyond(self, values: dict[str, float], fixed: dict[str, float]) -> dict[str, float]:
+    def beyond(self, values: dict[str, float], fixed: dict[str, float], layout: Layout) -> dict[str, float]:
         """The free diameters outside [min, max] and CCR peak photons above MAX_PEAK, mapped to the
-        bound they crossed."""
+        bound they crossed (each parameter's quantity from ``layout``'s typed block)."""
         out = {}
         for n, v in values.items():
             if n in fixed:
                 continue
-            if _base(n) == "footprint_diameter" and not self.diameter_min <= v <= self.diameter_max:
+            q = layout.quantity[n]
+            if q == "footprint_diameter" and not self.diameter_min <= v <= self.diameter_max:
                 out[n] = self.diameter_min if v < self.diameter_min else self.diameter_max
-            elif _base(n) == "ccr_peak_photons" and v > MAX_PEAK:
+            elif q == "ccr_peak_photons" and v > MAX_PEAK:
                 out[n] = MAX_PEAK
         return out
 
-    def check(self, values: dict[str, float]) -> None:
+    def check(self, values: dict[str, float], layout: Layout) -> None:
         """A CalibrationError naming the first parameter beyond its physical bound."""
         for n, v in values.items():
-            base = _base(n)
+            base = layout.quantity[n]
             bad = ((base in BIASES and abs(v) > self.max_bias) or (base == "ccr_peak_photons" and v > MAX_PEAK)
                    or (base == "shot_loss_rate" and not 0.0 <= v < 1.0) or not np.isfinite(v))
             if bad:

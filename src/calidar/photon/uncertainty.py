@@ -73,6 +73,8 @@ class Uncertainty:
     profile: dict[str, Interval] = field(default_factory=dict)
     profile_sigma: dict[str, tuple[float, float]] = field(default_factory=dict)  #: σ (curvature, profile's) changed
     surfaces: list[Surface] = field(default_factory=list)
+    #: the free geolocation parameters (biases, footprint diameters; :data:`calidar.photon.parameters.GEOLOCATION`)
+    geolocation: list[str] = field(default_factory=list)
 
     def sigma(self, name: str) -> float | None:
         """The σ reported for ``name``: from its profile interval where that changed it, else the observed information's."""
@@ -85,9 +87,7 @@ class Uncertainty:
         out = []
         reps = 0 if self.bootstrap_values is None else self.bootstrap_values.shape[0]
         boot_tol = max(DISAGREE, 3.0 / np.sqrt(2.0 * max(reps - 1, 1)))
-        for n in self.names:
-            if n.split("[")[0] not in GEOLOCATION:
-                continue
+        for n in self.geolocation:
             obs, boot, crb = self.sigma(n), self.bootstrap.get(n), self.cramer_rao.get(n)
             what = "σ from the profile interval" if n in self.profile_sigma else "observed-information σ"
             if boot and obs and abs(boot / obs - 1.0) > boot_tol:
@@ -120,7 +120,7 @@ def _bounds(result) -> Bounds:
 
 def _limits(result, name: str) -> tuple[float, float]:
     s = result.settings
-    if name.startswith("footprint_diameter"):
+    if result.layout.quantity[name] == "footprint_diameter":
         return s.diameter_min, s.diameter_max
     return -s.max_bias, s.max_bias
 
@@ -156,7 +156,7 @@ def profile_interval(result, name: str, level: float = CHI2_95[1]) -> Interval:
     v0 = sol.values[name]
     lo_lim, hi_lim = _limits(result, name)
     target = np.sqrt(level)
-    small, large = PROFILE_STEP["footprint_diameter" if name.startswith("footprint_diameter") else "bias"]
+    small, large = PROFILE_STEP["footprint_diameter" if result.layout.quantity[name] == "footprint_diameter" else "bias"]
     sigma = sol.sigma.get(name, np.nan)
     h = float(np.clip(sigma, small, large)) if np.isfinite(sigma) and sigma > 0 else large
     ends = []
@@ -222,9 +222,7 @@ def _close(result, name: str, lo: tuple[float, float], hi: tuple[float, float], 
 
 def lit_ccrs(result, name: str) -> int:
     """Lit CCR segments of the beam(s) parameter ``name`` belongs to."""
-    lay = result.layout
-    base = name.split("[")[0]
-    groups = {g for g in range(len(lay.groups)) if lay.name(g, base) == name}
+    groups = set(result.layout.beams(name))
     return sum(1 for s in result.estimate.segments if s.window.group in groups)
 
 
@@ -318,14 +316,15 @@ def assess(result, progress=None) -> Uncertainty:
     names = sol.parameters.free_names
     info = prob.information(sol.values, names)
     crb = np.sqrt(np.clip(np.diag(np.linalg.pinv(info)), 0.0, None))
-    u = Uncertainty(names, {n: float(s) for n, s in sol.sigma.items()}, dict(zip(names, map(float, crb))))
+    u = Uncertainty(names, {n: float(s) for n, s in sol.sigma.items()}, dict(zip(names, map(float, crb))),
+                    geolocation=[n for n in names if result.layout.quantity[n] in GEOLOCATION])
     if settings.bootstrap:
         values, failed = bootstrap(result, settings.bootstrap, settings.seed, progress)
         u.bootstrap_values, u.bootstrap_failed, u.bootstrap_requested = values, failed, settings.bootstrap
         if values.shape[0] >= 2:
             u.bootstrap = dict(zip(names, map(float, values.std(axis=0, ddof=1))))
     for n in names:
-        if n.split("[")[0] in GEOLOCATION:
+        if result.layout.quantity[n] in GEOLOCATION:
             u.profile[n] = profile_interval(result, n, interval_level(result, n))
     if settings.surface_points:
         u.surfaces = [surface(result, g, settings.surface_points) for g in range(len(result.layout.groups))

@@ -68,12 +68,22 @@ def test_a_shot_loss_rate_without_lost_shots_is_held_at_zero():
 
 
 def test_bounds():
+    one, two = Layout(("a",)), Layout(("gt1l", "gt2l"))
     with pytest.raises(CalibrationError, match=r"cross_track_bias = 12.*within ±10 m"):
-        BOUNDS.check({"cross_track_bias": 12.0})
+        BOUNDS.check({"cross_track_bias": 12.0}, one)
     with pytest.raises(CalibrationError, match=r"ccr_peak_photons = 900.*≤ 500 photons"):
-        BOUNDS.check({"ccr_peak_photons": 900.0})
-    assert BOUNDS.beyond({"footprint_diameter[gt1l]": 16.0, "footprint_diameter[gt2l]": 9.0}, {}) == {
+        BOUNDS.check({"ccr_peak_photons": 900.0}, one)
+    assert BOUNDS.beyond({"footprint_diameter[gt1l]": 16.0, "footprint_diameter[gt2l]": 9.0}, {}, two) == {
         "footprint_diameter[gt1l]": 15.0}
+
+
+def test_parameters_are_told_apart_by_their_typed_keys_not_their_names():
+    """Each parameter's quantity and beams come from the layout's typed block (key: beam or None for a
+    shared bias, quantity), never from taking its name apart."""
+    lay = Layout(("gt1l", "gt2l"), shared_bias=True)
+    assert lay.quantity["along_track_bias"] == "along_track_bias" and list(lay.beams("along_track_bias")) == [0, 1]
+    assert lay.quantity["shot_loss_rate[gt2l]"] == "shot_loss_rate" and list(lay.beams("shot_loss_rate[gt2l]")) == [1]
+    assert set(lay.quantity) == set(lay.names) and len(lay.quantity) == 2 + 2 * 3
 
 
 def test_layout_names_per_beam_and_shared():
