@@ -12,7 +12,7 @@ class CalidarError(Exception):
 class InputError(CalidarError):
     """Bad input: names the file, the field and what was expected.
 
-    >>> str(InputError("sbet.out", "size", "a multiple of 136 bytes, got 1000"))
+    >>> str(InputError("sbet.out", "size", "expected a multiple of 136 bytes, got 1000"))
     'sbet.out: size: expected a multiple of 136 bytes, got 1000'
     """
 

@@ -1,11 +1,22 @@
 """A self-contained HTML report (plots embedded as PNG data URIs, no external assets).
 
+>>> import tempfile
+>>> from pathlib import Path
+>>> import numpy as np
+>>> from calidar.adjust import FunctionProblem, Parameter, ParameterSet, SolverOptions, solve
+>>> from calidar.report.plots import plt
+>>> roll = ParameterSet([Parameter("boresight_roll", 0.0, "rad")])
+>>> solution = solve(FunctionProblem(lambda v: v["boresight_roll"] - np.array([3.1e-4, 2.9e-4]), roll, sigma=1e-4),
+...                  SolverOptions(robust=None))
 >>> rep = Report("calidar demo")
 >>> sec = rep.section("Boresight from tie planes")
 >>> sec.text("12 strips, 8 overlapping pairs.")
 >>> sec.solution(solution, truth={"boresight_roll": 0.0003})   # parameter table
+>>> fig, ax = plt.subplots()
+>>> _ = ax.plot([1, 2], [0.03, 0.01])
 >>> sec.figure(fig, "Residuals before/after")
->>> rep.write("out/report.html")
+>>> rep.write(Path(tempfile.mkdtemp()) / "report.html").name
+'report.html'
 """
 
 from __future__ import annotations
