@@ -10,10 +10,9 @@ their centroid p̄'s distance from the plane along its surveyed normal n, r = n 
 plane's centroid: the control pseudo-strip's point, as for control points,
 :mod:`calidar.strips.control`), > 0 when the strip lies above. Its σ² = s²/m (s the points'
 scatter about their own plane, m − 3 degrees of freedom) + the plane's survey variance at p̄,
-n_z²·gᵀCg with g = (1, dx, dy) of p̄ from the centroid; the survey part, shared by every strip
-that sees the plane, is counted once among them as a control point's is
-(:func:`calidar.strips.control.share_survey_error`, through :attr:`ControlPlanes.sigma_m`, its value
-at the centroid).
+n_z²·gᵀCg with g = (1, dx, dy) of p̄ from the centroid; its part at the centroid
+(:attr:`ControlPlanes.sigma_m`), shared by every strip that sees the plane, is the plane's own
+nuisance parameter in the adjustment, an offset along its normal (:mod:`calidar.strips.control_survey`).
 
 A plane tells the height only along its normal, and a sloped roof's normal also leans
 horizontally: roof facets facing several ways observe a horizontal shift as well.
@@ -114,6 +113,12 @@ class ControlPlanes:
             targets.append(k)
         return rows_to_correspondences(strip_id, (rows, cols, weights), normals, sigmas, targets,
                                        (n_strip_points, len(self.ids)), "control planes")
+
+    @staticmethod
+    def survey_coefficients(normals: np.ndarray) -> np.ndarray:
+        """How a plane's offset along its normal (its survey error) moves each of its rows: by −1
+        per unit (:mod:`calidar.strips.control_survey`)."""
+        return np.ones(len(normals))
 
     def _on_plane(self, points: np.ndarray, k: int) -> np.ndarray:
         """Indices of ``points`` inside patch ``k`` (``INSET_M`` from its edges) near its plane."""
