@@ -35,6 +35,7 @@ import scipy.sparse as sp
 from scipy.spatial import cKDTree
 
 from calidar.strips.control_surface import MIN_POINTS, local_surface
+from calidar.strips.control_survey import per_target_design, per_target_parameters
 from calidar.strips.correspond import Correspondences
 from calidar.strips.problem import CONTROL_STRIP
 from calidar.strips.strip import Pose
@@ -69,11 +70,15 @@ class ControlPoints:
         """:func:`control_correspondences` of a strip's points near control."""
         return control_correspondences(strip_id, index, points, n_strip_points, self)
 
-    @staticmethod
-    def survey_coefficients(normals: np.ndarray) -> np.ndarray:
-        """How a point's survey error (its height, up) moves each of its rows r = n·(p̄ − c): by −n_z
-        per unit (:mod:`calidar.strips.control_survey`)."""
-        return np.asarray(normals, float)[:, 2]
+    def survey_parameters(self) -> list:
+        """Each point's survey error (its height) as a nuisance parameter (:mod:`calidar.strips.control_survey`)."""
+        return per_target_parameters(self.sigma_m)
+
+    def survey_design(self, k: np.ndarray, normals: np.ndarray, at: np.ndarray | None = None):
+        """Rows of points ``k`` with ``normals``: a point's height error moves its row r = n·(p̄ − c) by
+        −n_z per unit; the row's own σ holds its σ_c² (:func:`calidar.strips.control_survey.per_target_design`;
+        ``at``, the rows' places, unused)."""
+        return per_target_design(self.sigma_m, k, np.asarray(normals, float)[:, 2])
 
 
 def control_pose(control: ControlPoints, template: Pose) -> Pose:

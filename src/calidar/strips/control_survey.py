@@ -14,12 +14,12 @@ least squares with the rows' full covariance D + σ_c²·g·gᵀ (Koch 1999, Par
 Hypothesis Testing in Linear Models, §3.4: random parameters with priors ≡ correlated observations;
 tests/unit/strips/test_control_survey.py checks it against that GLS).
 
-g per row: a control point's height correction δ (up) moves its row r = n·(p̄ − c) by −n_z·δ
-(:meth:`calidar.strips.control.ControlPoints.survey_coefficients`); a control plane's offset δ
-along its normal moves its row by −δ (:meth:`calidar.strips.control_planes.ControlPlanes.survey_coefficients`).
-The rows as the control kinds build them hold the survey variance σ_c² (a row's own σ); here it
-is taken out of the weight (the rest stays: the surface's noise, a plane's tilt at the strip's
-points). :class:`SurveyErrors` wraps the :class:`~calidar.strips.problem.StripProblem` after the
+g per row (each kind's ``survey_design``): a control point's height correction δ (up) moves its
+row r = n·(p̄ − c) by −n_z·δ; a control plane's error is its three coefficients' (height at the
+centroid and two slopes, prior covariance C from its survey, one correlated group), which move a
+row at p̄ by −n_z·(1, dx, dy)·δ (dx, dy: p̄ from the centroid); a reference cloud's is its datum.
+The rows as the control kinds build them hold that survey variance (a row's own σ, what
+solution.json's dz/σ uses); here it is taken out of the weight. :class:`SurveyErrors` wraps the :class:`~calidar.strips.problem.StripProblem` after the
 residual protocol (:mod:`calidar.adjust.residuals`): the nuisance columns are a typed
 :class:`~calidar.adjust.Block` it owns, with their exact (constant) Jacobian −G.
 """
@@ -37,16 +37,47 @@ PREFIX = "control_survey_"  #: every control target's survey-error parameter's n
 CONTROL_STRIP = -1  #: the control pseudo-strip's id (calidar.strips.problem.CONTROL_STRIP)
 
 
-def survey_parameters(control) -> list[Parameter]:
+def per_target_parameters(sigma_m: np.ndarray) -> list[Parameter]:
     """One parameter per control target with a survey σ > 0: its survey error (m; a point's height,
-    a plane's offset along its normal), prior 0 ± σ."""
+    a plane's offset along its normal), prior 0 ± σ (what control points and planes answer to
+    ``survey_parameters()``)."""
     return [Parameter(f"{PREFIX}{k}", 0.0, "m", prior_sigma=float(s))
-            for k, s in enumerate(np.asarray(control.sigma_m, float)) if s > 0]
+            for k, s in enumerate(np.asarray(sigma_m, float)) if s > 0]
+
+
+def per_target_design(sigma_m: np.ndarray, k: np.ndarray, g: np.ndarray) -> tuple[sp.csr_matrix, np.ndarray]:  # noqa: D401
+    """The rows of targets ``k`` on :func:`per_target_parameters`' columns, each moved by ``g`` (n,)
+    per unit of its target's survey error, and the variance to take out of each row's σ² (its
+    target's survey variance, which the row's own σ holds)."""
+    sigma = np.asarray(sigma_m, float)
+    column = np.cumsum(sigma > 0) - 1  # target → its parameter's column (those with σ > 0)
+    has = sigma[k] > 0
+    rows = np.flatnonzero(has)
+    M = sp.csr_matrix((np.asarray(g, float)[has], (rows, column[k[has]])), shape=(len(k), int(np.sum(sigma > 0))))
+    return M, np.where(has, sigma[k] ** 2, 0.0)
+
+
+def survey_parameters(control) -> list[Parameter]:
+    """The control's survey-error parameters (its kind says which: ``survey_parameters()``)."""
+    return control.survey_parameters()
 
 
 def with_survey_parameters(params: ParameterSet, control) -> ParameterSet:
     """``params`` with the control's survey-error parameters appended (none without control)."""
     return params if control is None else ParameterSet([*params, *survey_parameters(control)])
+
+
+def row_places(inner, i: int) -> np.ndarray:
+    """Where the rows of correspondence set ``i`` of a StripProblem stand (n, 3) local m: the strip
+    side's weighted points at the nominal sensor (the calibration moves them by cm)."""
+    c = inner.corrs[i]
+    if inner.centroids is not None:
+        side = inner.centroids[i][0]
+        return side(inner.nominal) / np.maximum(side.rowsum, 1e-300)[:, None]
+    from calidar.strips.strip import georeference_pose
+
+    pts = georeference_pose(inner.nominal, inner.pose[c.strip_a])
+    return (c.A @ pts) / np.maximum(np.asarray(c.A.sum(axis=1)).ravel(), 1e-300)[:, None]
 
 
 class SurveyErrors(ResidualProblem):
@@ -55,29 +86,25 @@ class SurveyErrors(ResidualProblem):
     the survey part, Jacobian [∂r/∂θ, −G]. Everything else (``index``, ``split``, ``clusters``,
     calling it: residuals against the surveyed control) is the inner problem's."""
 
-    def __init__(self, inner, control, targets: Mapping[int, int] | None = None):
-        """``targets``: the control pseudo-strip's point index → control target (default: the same)."""
+    def __init__(self, inner, control):
         self.inner, self.parameters = inner, inner.parameters
-        self.prior_correlation = inner.prior_correlation
-        self.block = Block.of(self.parameters.names, {f"{PREFIX}{k}": k for k in range(len(control.ids))})
-        column = {k: j for j, k in enumerate(self.block.keys)}
+        self.prior_correlation = (*inner.prior_correlation, *getattr(control, "survey_correlation", tuple)())
+        names = [p.name for p in survey_parameters(control)]
+        self.block = Block.of(self.parameters.names, {n: j for j, n in enumerate(names)})
         sigma2 = np.broadcast_to(np.asarray(inner.sigma, float), (len(inner.sigma),)).copy() ** 2
-        rows, cols, coef, start = [], [], [], 0
-        for c in inner.corrs:
+        parts, start = [], 0
+        for i, c in enumerate(inner.corrs):
             n = c.n_obs * (3 if c.normal is None else 1)
             if c.strip_b == CONTROL_STRIP:
                 k = inner.index[CONTROL_STRIP][c.B.tocsr().indices]  # one target per row, in row order
-                g = control.survey_coefficients(c.normal)
-                has = np.array([kk in column for kk in k], bool)
-                rows.append(start + np.flatnonzero(has))
-                cols.append(np.array([column[kk] for kk in k[has]], np.int64))
-                coef.append(g[has])
-                at = start + np.flatnonzero(has)
-                sigma2[at] = np.maximum(sigma2[at] - np.asarray(control.sigma_m, float)[k[has]] ** 2, 1e-12)
+                M, removed = control.survey_design(k, c.normal, row_places(inner, i))
+                sigma2[start:start + n] = np.maximum(sigma2[start:start + n] - removed, 1e-12)
+                parts.append(M)
+            else:
+                parts.append(sp.csr_matrix((n, len(names))))
             start += n
-        cat = (lambda a, t: np.concatenate(a) if a else np.zeros(0, t))
-        self.G = sp.csr_matrix((cat(coef, float), (cat(rows, np.int64), cat(cols, np.int64))),
-                               shape=(start, len(self.block.names)))
+        G = sp.vstack(parts, format="csr") if parts else sp.csr_matrix((0, len(names)))
+        self.G = G[:, list(self.block.keys)]  # in the block's order
         self.sigma = np.sqrt(sigma2)
         free = self.parameters.free_names
         own = set(self.block.names)

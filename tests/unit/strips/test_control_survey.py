@@ -91,3 +91,51 @@ def test_the_range_offset_and_height_errors_match_their_sigma_over_draws():
         z.append([(sol.values[n] - t) / a_priori[names.index(n)] for n, t in zip(FREE, (0.05, 0.0))])
     rms = np.sqrt(np.mean(np.square(z), axis=0))
     assert np.all((rms > 0.8) & (rms < 1.25)), rms  # sampling spread ±0.11 for 40 draws
+
+
+def _planes(rng, errors: np.ndarray):
+    """Flat 12 m × 12 m patches (z = 0) surveyed at their corners (σ 1 cm), some reaching past the
+    first line's swath (|x| ≤ 42 m) so that its points cover part of them: the slopes' errors count."""
+    from calidar.strips.control_planes import ControlPlanes
+
+    cx = np.array([0.0, 15.0, 30.0, 40.0, 45.0, 20.0])
+    cy = np.array([-20.0, 0.0, 20.0, -10.0, 10.0, -25.0])
+    corners = np.array([[-6.0, -6.0], [6.0, -6.0], [6.0, 6.0], [-6.0, 6.0]])
+    X = np.c_[np.ones(4), corners]
+    cov = SIGMA_C**2 * np.linalg.inv(X.T @ X)
+    coef = np.c_[errors[:, 0], errors[:, 1:]]  # the surveyed plane: off by the drawn errors
+    hulls = tuple(corners + [x, y] for x, y in zip(cx, cy))
+    return ControlPlanes(np.array([f"R{k}" for k in range(cx.size)]), np.c_[cx, cy, errors[:, 0]], coef,
+                         np.repeat(cov[None], cx.size, axis=0), hulls), cov
+
+
+def test_the_planes_height_and_slopes_errors_are_the_gls_with_their_covariance():
+    from calidar.strips.control_survey import row_places
+
+    rng = np.random.default_rng(5)
+    nominal = Sensor()
+    errors = rng.multivariate_normal(np.zeros(3), _planes(rng, np.zeros((6, 3)))[1], 6)
+    planes, cov = _planes(rng, errors)
+    poses = {1: _strip(0.0, 0.05, rng, 40000), 2: _strip(30.0, 0.05, rng, 40000)}
+    corrs = [planes.rows(i, p.index, georeference_pose(nominal, p), len(p.index)) for i, p in poses.items()]
+    poses[CONTROL_ID] = control_pose(planes, poses[1])
+    params = with_survey_parameters(ParameterSet([Parameter(n, 0.0, "m") for n in FREE]), planes)
+    inner = StripProblem(nominal, poses, corrs, params)
+    problem = SurveyErrors(inner, planes)
+    assert len(problem.prior_correlation) == 6 and problem.G.shape[1] == 18
+    sol = estimate(problem, SolverOptions(robust=None)).solution()
+    values = {n: 0.0 for n in problem.parameters.names}
+    J = np.asarray(inner.jacobian(values, problem.inner_free))
+    r0 = inner(values)
+    target = np.concatenate([c.B.tocsr().indices for c in corrs])
+    nz = np.concatenate([c.normal[:, 2] for c in corrs])
+    at = np.concatenate([row_places(inner, i) for i in range(len(corrs))])
+    g = nz[:, None] * np.c_[np.ones(len(at)), at[:, :2] - planes.local[target, :2]]
+    shared = (target[:, None] == target[None, :]) * (g @ cov @ g.T)  # the same plane's error in both rows
+    own = np.concatenate([c.sigma_m for c in corrs]) ** 2
+    W = np.linalg.inv(np.diag(own - np.diag(shared)) + shared)
+    N_inv = np.linalg.inv(J.T @ W @ J)
+    np.testing.assert_allclose([sol.values[n] for n in FREE], -N_inv @ (J.T @ W @ r0), rtol=1e-6, atol=1e-8)
+    i = [sol.parameters.free_names.index(n) for n in FREE]
+    np.testing.assert_allclose(sol.covariance[np.ix_(i, i)] / max(sol.sigma0**2, 1.0), N_inv, rtol=1e-6)
+    assert np.ptp(at[target == 4, 0]) > 3.0  # the plane past the first swath: its two rows stand apart
