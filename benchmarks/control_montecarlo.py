@@ -2,7 +2,7 @@
 
     NUMBA_NUM_THREADS=1 OMP_NUM_THREADS=1 PYTHONPATH=src python benchmarks/control_montecarlo.py \\
         --seeds 100-139 [--estimate boresight,range_offset,height_bias] [--height-bias 0.04] [--control 10] \\
-        [--kind points|planes] [--control-sigma 0.01] [--no-cluster] [--json out.jsonl]
+        [--kind points|planes|cloud] [--control-sigma 0.01] [--no-cluster] [--json out.jsonl]
 
 Each seed is one UAV survey (200 m × 200 m, density 0.2, lines across each other, no trees, a
 5 cm range offset, the preset's 2 cm / 0.002° trajectory errors and the smrmsg.out that states
@@ -59,12 +59,17 @@ def one(seed: int, estimate: str, n_control: int, height_bias: float, kind: str 
             from calidar.sim.control_planes import simulate_control_planes
 
             cp = simulate_control_planes(res, n_control, control_sigma, seed=seed)
+        elif kind == "cloud":  # a dense scan of the open ground, its datum off by N(0, σ)
+            from calidar.sim.reference_cloud import simulate_reference_cloud
+
+            cp = simulate_reference_cloud(res, control_sigma, seed=seed)
         else:
             cp = simulate_checkpoints(res, n_control, control_sigma, seed=seed, vegetated_share=0.0)
         cp.xyz[:, 2] += height_bias
         control = cp.write(sim)
         solver = StripSettings() if cluster else StripSettings(cluster_s=None)
-        config = StripConfig(CalibrationConfig(Estimate.of(*estimate.split(",")), solver=solver))
+        config = StripConfig(CalibrationConfig(Estimate.of(*estimate.split(",")), solver=solver),
+                             control_sigma_m=control_sigma if kind == "cloud" else None)
         inputs = load_inputs(sorted((sim / "strips").glob("*.laz")), sim / "sbet.out", sim / "sensor.toml", config,
                              truth=sim / "truth.json", control=control)
         result = calibrate_inputs(inputs)["planes"]
@@ -99,9 +104,11 @@ def main(argv=None) -> None:
     ap.add_argument("--estimate", default="boresight,range_offset,height_bias")
     ap.add_argument("--height-bias", type=float, default=0.04)
     ap.add_argument("--control", type=int, default=10)
-    ap.add_argument("--kind", choices=("points", "planes"), default="points",
-                    help="control points on open ground, or roof facets (control planes) surveyed at their corners")
-    ap.add_argument("--control-sigma", type=float, default=0.01, help="the control's survey σ, m")
+    ap.add_argument("--kind", choices=("points", "planes", "cloud"), default="points",
+                    help="control points on open ground, roof facets (control planes) surveyed at their corners, or "
+                         "a reference cloud of the open ground")
+    ap.add_argument("--control-sigma", type=float, default=0.01,
+                    help="the control's survey σ, m (a reference cloud's: the σ of its datum)")
     ap.add_argument("--no-cluster", action="store_true",
                     help="σ from the model alone (StripSettings.cluster_s None), not raised by the cluster-robust sandwich")
     ap.add_argument("--json", type=Path)

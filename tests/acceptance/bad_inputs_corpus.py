@@ -130,6 +130,8 @@ def _strips(strips: Path, bad: Path) -> None:
         d.point_source_id[:] = 9
     _las_subset(strips / "line_004.laz", bad / "far.laz", 10**9, far)
     _las_subset(first, bad / "count.las")
+    # a "reference cloud" with no smooth cell: heights scattered by ±1 m (boresight --control rough.laz)
+    _las_subset(first, bad / "rough.laz", 20000, lambda d: setattr(d, "z", d.z + np.random.default_rng(1).uniform(-1, 1, len(d.z))))
     raw = bytearray((bad / "count.las").read_bytes())
     raw[247:255] = np.uint64(3000).tobytes()  # LAS 1.4 point count: 3000 in the header, 2000 records
     (bad / "count.las").write_bytes(bytes(raw))

@@ -122,6 +122,18 @@ OPTIONS = [
     case(["--trajectory-columns", "time,lat"], "sbet.out", "--trajectory-columns", id="trajectory-columns-of-an-sbet"),
     case(["--scheduler", "::::"], "--scheduler", id="scheduler-address"),
     case(["--control", "{B}/missing.csv"], "missing.csv", id="control-missing"),
+    # a reference cloud as control (LAS/LAZ with --control-sigma), each error one line naming file or option
+    case(["--control-sigma", "0.02"], "--control-sigma", "without --control", id="control-sigma-alone"),
+    case(["--control", S1], "line_001.laz", "--control-sigma", "stated vertical accuracy", id="control-cloud-no-sigma"),
+    case(["--control", S1, "--control-sigma", "nan"], "--control-sigma", id="control-cloud-sigma-nan"),
+    case(["--control", S1, "--control-sigma", "0"], "--control-sigma", id="control-cloud-sigma-0"),
+    case(["--control", "{B}/planes_nan.csv", "--control-sigma", "0.02"], "planes_nan.csv", "--control-sigma",
+         "reference cloud", id="control-sigma-with-a-csv"),
+    case(["--control", "{B}/empty.laz", "--control-sigma", "0.02"], "empty.laz", "no points", id="control-cloud-empty"),
+    case(["--control", "{B}/garbage.laz", "--control-sigma", "0.02"], "garbage.laz", id="control-cloud-garbage"),
+    case(["--control", "{B}/missing.laz", "--control-sigma", "0.02"], "missing.laz", id="control-cloud-missing"),
+    case(["--control", "{B}/rough.laz", "--control-sigma", "0.02"], "rough.laz", "smooth surface",
+         id="control-cloud-no-planar-cell"),
     # control surfaces (surveyed planes: plane, x, y, z, sigma), each named by file, line and field
     case(["--control", "{B}/planes_nosigma.csv"], "planes_nosigma.csv", "sigma", "line 1", id="control-planes-no-sigma"),
     case(["--control", "{B}/planes_nan.csv"], "planes_nan.csv", "z", "line 4", "'nan'", id="control-planes-nan"),

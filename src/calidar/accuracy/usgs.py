@@ -100,8 +100,8 @@ def usgs_section(rep, a) -> None:
               ABSOLUTE_SPECIFICATION + (f"; {SPECIFICATION}" if swaths is not None else ""),
               formats=[None, ".2f", "d", None, None, None, None, None])
     text = ("The NVA RMSEz is the one reported above (ASPRS Edition 2: the checkpoints' survey error included). The "
-            "thresholds are those of the 2024 revision as read for calidar; their agreement with the 2025 revision "
-            "was not verified (docs/validation.md). A quality level also sets the pulse density, not checked here.")
+            "thresholds are those of versions 1.2 to 2020 rev. A as read for calidar; their agreement with the current "
+            "2025 revision was not verified (docs/validation.md). A quality level also sets the pulse density, not checked here.")
     if swaths is None:
         text += " The swath checks (relative accuracy) were not run: give --swaths, or run calidar quality."
     elif swaths.note:

@@ -18,8 +18,11 @@ TRAJECTORY_BLOCK_S, TRAJECTORY_CORRELATION = 1.0, "20,3.5"
 CONTROL = typer.Option(
     None, "--control", help="Ground control points (CSV: id, x, y, z, sigma; land cover optional, vegetated ones left "
     "out), or control surfaces (CSV: plane, x, y, z, sigma; ≥ 3 surveyed points per planar patch such as a roof "
-    "facet), observed in the adjustment with their σ: range offset, vertical lever arm and a vertical trajectory bias, "
-    "which the overlaps cannot see, become determinable.")
+    "facet), or a reference point cloud (LAS/LAZ, with --control-sigma), observed in the adjustment with their σ: "
+    "range offset, vertical lever arm and a vertical trajectory bias, which the overlaps cannot see, become "
+    "determinable.")
+CONTROL_SIGMA = typer.Option(None, "--control-sigma", help="With a reference cloud as --control: its stated vertical "
+                             "accuracy (σ of its heights' datum, m, e.g. 0.02); its planar cells are control surfaces.")
 CONTROL_CRS = typer.Option(None, "--control-crs", help="CRS of the control points when it is not the strips' "
                            "(e.g. EPSG:32632).")
 CHECKPOINTS = typer.Option(None, "--checkpoints", help="Checkpoints (CSV as calidar accuracy reads it), not in the "
@@ -73,7 +76,7 @@ def boresight(
     crs: str | None = CRS, time_system: str | None = TIME_SYSTEM, geoid_undulation: float | None = GEOID_UNDULATION,
     trajectory_crs: str | None = TRAJECTORY_CRS, trajectory_angles: str | None = TRAJECTORY_ANGLES,
     trajectory_heading: str | None = TRAJECTORY_HEADING, trajectory_columns: str | None = TRAJECTORY_COLUMNS,
-    control: Path | None = CONTROL, control_crs: str | None = CONTROL_CRS,
+    control: Path | None = CONTROL, control_crs: str | None = CONTROL_CRS, control_sigma: float | None = CONTROL_SIGMA,
     checkpoints: Path | None = CHECKPOINTS, checkpoints_crs: str | None = CHECKPOINTS_CRS,
     target_class: float | None = TARGET_CLASS,
     strip_points: int = typer.Option(

@@ -106,6 +106,8 @@ def strip_config(path: Path | None, given: dict):
                                                                                  if k in given}}.values()))
     if "control_crs" in given:
         config = replace(config, control_crs=crs_option(given["control_crs"], "--control-crs"))
+    if given.get("control_sigma") is not None:
+        config = replace(config, control_sigma_m=float(given["control_sigma"]))
     if "checkpoints_crs" in given:
         config = replace(config, checkpoints_crs=crs_option(given["checkpoints_crs"], "--checkpoints-crs"))
     if given.get("target_class") is not None:

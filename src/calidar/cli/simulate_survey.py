@@ -38,11 +38,17 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
                                            "truth in truth.json."),
         control_plane_sigma: float = typer.Option(0.01, "--control-plane-sigma",
                                                   help="Survey σ (3-D) of the control planes' points, m."),
+        reference_cloud: bool = typer.Option(False, "--reference-cloud", help="Also write reference.laz: a dense (0.25 m), "
+                                             "precise (5 mm) scan of the open ground over the central part of the area, "
+                                             "its datum off by N(0, --reference-cloud-sigma) (truth.json), for boresight "
+                                             "--control reference.laz --control-sigma σ."),
+        reference_cloud_sigma: float = typer.Option(0.02, "--reference-cloud-sigma",
+                                                    help="The reference cloud's stated vertical accuracy (σ of its datum), m."),
         force: bool = typer.Option(False, "--force", help=FORCE_HELP),
     ) -> None:
         """Simulate a survey: the true sensor shoots, the strips are delivered with the nominal one."""
         from calidar.outputs import check_out_dir, output_folder
-        from calidar.sim.checkpoints import check_checkpoint_options, simulate_checkpoints
+        from calidar.sim.checkpoints import simulate_checkpoints
         from calidar.sim.survey import check_config, simulate_survey, survey_config
 
         r, p, y = np.radians(parse_floats(boresight_error, 3, "--boresight-error"))
@@ -60,11 +66,8 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
             overrides["vegetation"] = vegetation
         cfg = survey_config(preset, **overrides)
         check_config(cfg)
-        check_checkpoint_options(checkpoints, checkpoint_sigma)
-        if control_planes:
-            from calidar.sim.control_planes import check_control_plane_options
-
-            check_control_plane_options(control_planes, control_plane_sigma)
+        _check_ground(checkpoints, checkpoint_sigma, control_planes, control_plane_sigma,
+                      reference_cloud_sigma if reference_cloud else None)
         check_out_dir(out, force)  # refuse early, before minutes of work
         with progress_bar() as bar, output_folder(out, force) as tmp:
             update = progress_callback(bar)
@@ -76,5 +79,25 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
                 from calidar.sim.control_planes import simulate_control_planes
 
                 simulate_control_planes(result, control_planes, control_plane_sigma, seed).write(tmp)
+            if reference_cloud:
+                from calidar.sim.reference_cloud import simulate_reference_cloud
+
+                simulate_reference_cloud(result, reference_cloud_sigma, seed).write(tmp)
         console.print(f"{result.n_points:,} points in {len(result.strips)} strips ({result.crs}) → {escape(str(out))}",
                       highlight=False, soft_wrap=True)
+
+
+def _check_ground(checkpoints: int, checkpoint_sigma: float, control_planes: int, control_plane_sigma: float,
+                  reference_sigma: float | None) -> None:
+    """The surveyed ground's options (checkpoints, control planes, a reference cloud), before any work."""
+    from calidar.sim.checkpoints import check_checkpoint_options
+
+    check_checkpoint_options(checkpoints, checkpoint_sigma)
+    if control_planes:
+        from calidar.sim.control_planes import check_control_plane_options
+
+        check_control_plane_options(control_planes, control_plane_sigma)
+    if reference_sigma is not None:
+        from calidar.sim.reference_cloud import check_reference_options
+
+        check_reference_options(reference_sigma)

@@ -54,17 +54,18 @@ def read_ground(control, checkpoints, config, strip_paths, sensor) -> Ground:
     each, else the strips' (the first strip file's, ``config.points.crs`` or ``sensor.crs``);
     their options given without the file are an error."""
     given = {"--control-crs": (control, config.control_crs), "--checkpoints-crs": (checkpoints, config.checkpoints_crs),
-             "--class": (checkpoints, config.checkpoint_class_cm)}
+             "--class": (checkpoints, config.checkpoint_class_cm), "--control-sigma": (control, config.control_sigma_m)}
     for option, (path, value) in given.items():
         if path is None and value is not None:
-            flag = "--control" if option == "--control-crs" else "--checkpoints"
+            flag = "--control" if option.startswith("--control") else "--checkpoints"
             raise InputError(None, option, f"given without {flag}; expected {flag} FILE with it")
     if control is None and checkpoints is None:
         return Ground()
     if not strip_paths:
         raise InputError(None, "STRIPS", "expected at least one LAS/LAZ file")
     strips_crs = _strips_crs(Path(strip_paths[0]), config.points, sensor)
-    return Ground(None if control is None else read_control(control, config.control_crs, strips_crs),
+    return Ground(None if control is None else read_control(control, config.control_crs, strips_crs,
+                                                            sigma_m=config.control_sigma_m),
                   None if checkpoints is None else read_control(checkpoints, config.checkpoints_crs, strips_crs,
                                                                 checkpoints=True, crs_option="--checkpoints-crs"))
 
@@ -77,13 +78,20 @@ def _strips_crs(strip_path: Path, points, sensor) -> tuple:
 
 
 def read_control(path, control_crs: str | None, strips_crs: tuple, checkpoints: bool = False,
-                 crs_option: str = "--control-crs") -> ControlInput:
+                 crs_option: str = "--control-crs", sigma_m: float | None = None) -> ControlInput:
     """Read the control file ``path``; its CRS: ``control_crs`` or the strips' (``strips_crs``: their
     CRS and geoid undulation). ``checkpoints``: a checkpoint file (``--checkpoints``, tested after
-    the calibration, not in it): its σ optional."""
+    the calibration, not in it): its σ optional. ``sigma_m``: a reference cloud's stated σ
+    (``--control-sigma``; only with a LAS/LAZ file)."""
     from calidar.io.checkpoints import read_checkpoints
+    from calidar.io.control_cloud import is_cloud_file
     from calidar.io.control_planes import is_plane_file
 
+    if not checkpoints and is_cloud_file(path):
+        return _read_cloud(path, control_crs, crs_option, strips_crs, sigma_m)
+    if sigma_m is not None:
+        raise InputError(path, "--control-sigma", "given with a control CSV (its σ are in its sigma column); expected "
+                         "it only with a reference cloud (LAS/LAZ) as --control")
     if not checkpoints and is_plane_file(path):
         return _read_planes(path, control_crs, crs_option, strips_crs)
     cp = read_checkpoints(path, cover=False)
@@ -121,6 +129,25 @@ def _read_planes(path, control_crs, crs_option, strips_crs: tuple) -> ControlInp
     keep = planes.keep_xy()
     height = float(np.mean(planes.local[:, 2]))
     return ControlInput(f, frame.to_ecef(np.c_[keep, np.full(len(keep), height)]), (), "surfaces", survey)
+
+
+def _read_cloud(path, control_crs, crs_option, strips_crs: tuple, sigma_m) -> ControlInput:
+    """A reference cloud (:mod:`calidar.io.control_cloud`; CRS: the option's, the file's, the strips'),
+    its planar cells found in a local metric frame at it, and the places over them the ingest keeps."""
+    from calidar.io.control_cloud import read_reference_cloud
+    from calidar.strips.config import CONTROL_KINDS
+    from calidar.strips.strip import LocalFrame
+
+    f = read_reference_cloud(path, sigma_m)
+    crs, undulation = _crs(path, control_crs if control_crs is not None else f.crs, crs_option, strips_crs)
+    survey = from_crs_of(f, crs, undulation)
+    frame = LocalFrame.at(survey)
+    cells = CONTROL_KINDS["cloud"].from_file(f, frame.to_local(survey))
+    keep = cells.keep_xy()
+    height = float(np.mean(cells.local[:, 2]))
+    note = (f"reference cloud {Path(path).name}: {len(f.xyz):,} points, {len(cells.ids)} planar cells as control "
+            f"(σ of its datum {100 * f.sigma_m:g} cm)")
+    return ControlInput(f, frame.to_ecef(np.c_[keep, np.full(len(keep), height)]), (note,), "cloud", survey)
 
 
 def _crs(path, given: str | None, option: str, strips_crs: tuple):

@@ -63,7 +63,7 @@ INPUT_KEYS = {"crs": ("points", "crs"), "time_system": ("points", "time_system")
               "geoid_undulation_m": ("points", "geoid_undulation_m"), "trajectory_crs": ("trajectory", "crs"),
               "trajectory_angles": ("trajectory", "angles"), "trajectory_heading": ("trajectory", "heading"),
               "trajectory_columns": ("trajectory", "columns"), "control_crs": ("config", "control_crs"),
-              "checkpoints_crs": ("config", "checkpoints_crs")}
+              "checkpoints_crs": ("config", "checkpoints_crs"), "control_sigma_m": ("config", "control_sigma_m")}
 
 
 @dataclass(frozen=True)
@@ -83,6 +83,7 @@ class StripConfig:
     ingest: IngestSettings = field(default_factory=IngestSettings)
     trajectory_input: TrajectoryOptions = field(default_factory=TrajectoryOptions)
     control_crs: str | None = None  #: the control points' CRS when it is not the strips'
+    control_sigma_m: float | None = None  #: a reference cloud's stated vertical accuracy (--control-sigma), m
     checkpoints_crs: str | None = None  #: the checkpoints' CRS when it is not the strips'
     #: the ASPRS vertical accuracy class (cm) the calibrated strips must meet at the checkpoints (--class)
     checkpoint_class_cm: float | None = None
@@ -183,8 +184,9 @@ def from_document(doc: dict, path: Path | None = None) -> StripConfig:
     hints = {"points": typing.get_type_hints(PointOptions), "trajectory": typing.get_type_hints(TrajectoryOptions)}
     for k, v in inputs.items():
         owner, name = INPUT_KEYS[k]
-        parts[owner][name] = _typed(v, str | None if owner == "config" or name == "crs" else hints[owner][name],
-                                    path, f"inputs.{k}")
+        kind = (float | None if name == "control_sigma_m" else str | None) if owner == "config" or name == "crs" \
+            else hints[owner][name]
+        parts[owner][name] = _typed(v, kind, path, f"inputs.{k}")
         if k.endswith("crs"):
             validated_crs(v, str(path), f"inputs.{k}")
     points = _build(path, "inputs", lambda: PointOptions(**parts["points"]))

@@ -112,7 +112,8 @@ class Section:
         hidden_prefix = hidden_prefix or solution.nuisance_prefix
         hidden = [n for n in doc["parameters"] if hidden_prefix and n.startswith(hidden_prefix)]
         if hidden:
-            self.text(f"{len(hidden)} {hidden_prefix}* parameters are estimated too; solution.json lists them.")
+            shown = (hidden_prefix,) if isinstance(hidden_prefix, str) else hidden_prefix  # one prefix or several
+            self.text(f"{len(hidden)} {', '.join(p + '*' for p in shown)} parameters are estimated too; solution.json lists them.")
         rows = [[name, *parameter_cells(p)] for name, p in doc["parameters"].items() if name not in hidden]
         header = ["parameter", "estimate", "σ", "status", "truth", "error", "|error| / σ"]
         keep = len(header) if truth else 4  # no truth: no truth, error or |error|/σ columns

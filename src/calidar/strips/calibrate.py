@@ -36,8 +36,10 @@ from calidar.scanners.rotating import canonical_eccentricity
 from calidar.sensor import Sensor
 from calidar.strips.control import (
     CONTROL_ID, ControlPoints, check_estimate, control_pose, control_rows, control_summary,
-    near_control, share_survey_error, with_height_bias,
+    near_control, with_height_bias,
 )
+from calidar.strips.control_survey import PREFIX as CONTROL_PREFIX
+from calidar.strips.control_survey import SurveyErrors, with_survey_parameters
 from calidar.strips.correspond import Correspondences
 from calidar.strips.distribute import cluster_client, map_pairs
 from calidar.strips.geometry import geometry_warnings
@@ -200,7 +202,7 @@ class _Run:
         """The control rows of every strip near control, from its re-georeferenced points."""
         found = (self.control.rows(i, idx, current[i][1][self.poses[i].rows_of(idx)], len(self.by_id[i]))
                  for i, idx in self.near.items())
-        return share_survey_error([c for c in found if c is not None], self.control)
+        return [c for c in found if c is not None]
 
     def _times(self) -> dict[int, np.ndarray]:
         """Per strip its points' times; the control pseudo-strip's, one per control point, 0 (no trajectory)."""
@@ -225,6 +227,8 @@ class _Run:
         """One adjustment of ``params`` from the correspondences ``corrs``, iterated until every
         step is below ``step_in_sigma`` of its σ (``step_scale``: diag N⁻¹ of an earlier one)."""
         problem = StripProblem(self.nominal, self.poses, corrs, params, self._times(), self.model, self.spans)
+        if self.control is not None:  # each control target's survey error its own nuisance parameter
+            problem = SurveyErrors(problem, self.control)
         options = replace(self.settings.adjustment, step_in_sigma=step_in_sigma)
         return estimate(problem, options, step_scale=step_scale), problem
 
@@ -285,6 +289,7 @@ def calibrate_with_client(strips: Sequence[Strip], nominal: Sensor, config: Cali
     run = _Run.start(strips, nominal, matcher, s, trajectory, control)
     params = build_parameters(nominal, config.estimate, run.spans, trajectory,
                               run.headings() if trajectory is not None else None)
+    params = with_survey_parameters(params, control)
     outer: list[dict] = []
     first_residuals = first_control = est = problem = pairs = None
     for k in range(s.max_outer):
@@ -353,8 +358,9 @@ def _result(run: _Run, solution: Solution, problem: StripProblem, pairs: list[di
     # "before" for the user: the first matching at the nominal sensor (the last solve started
     # from the previous outer iteration's values)
     solution.residuals_before = residual_stats(first_residuals)
-    if run.model is not None:
-        solution.nuisance_prefix = TRAJECTORY_PREFIX
+    if run.model is not None or run.control is not None:
+        prefixes = ((TRAJECTORY_PREFIX,) if run.model is not None else ()) + ((CONTROL_PREFIX,) if run.control is not None else ())
+        solution.nuisance_prefix = prefixes[0] if len(prefixes) == 1 else prefixes
     if run.level is not None:
         solution.extra["trajectory_accuracy_estimate"] = run.level.to_dict()
     used_pairs = [(p["a"], p["b"]) for p in pairs]

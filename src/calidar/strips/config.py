@@ -28,6 +28,7 @@ from dataclasses import dataclass, field
 from calidar.adjust.residuals import SolverOptions
 from calidar.errors import InputError
 from calidar.strips.control import ControlPoints
+from calidar.strips.control_cloud import ControlCloud
 from calidar.strips.control_planes import ControlPlanes
 from calidar.strips.matchers import Matcher, TiePlanes, Vgicp
 from calidar.strips.parameters import ESTIMATE_GROUPS, SINGLE_PARAMETERS
@@ -37,8 +38,9 @@ from calidar.trajectory_accuracy import MAX_ATTITUDE_SIGMA_RAD, MAX_POSITION_SIG
 #: the matchers by the name ``--method`` and the outputs use
 MATCHERS: dict[str, type] = {m.name: m for m in (TiePlanes, Vgicp)}
 #: ground control's kinds by name (``--control FILE``: points, or surfaces (planes) when the file names a plane
-#: column): each answers the calibrator's questions (:class:`calidar.strips.control.ControlPoints`)
-CONTROL_KINDS: dict[str, type] = {c.kind: c for c in (ControlPoints, ControlPlanes)}
+#: column, or a reference cloud when it is LAS/LAZ): each answers the calibrator's questions
+#: (:class:`calidar.strips.control.ControlPoints`)
+CONTROL_KINDS: dict[str, type] = {c.kind: c for c in (ControlPoints, ControlPlanes, ControlCloud)}
 #: the groups an :class:`Estimate` is made of (the trajectory's errors are the trajectory model's)
 GROUPS: dict[str, tuple[str, ...]] = {g: tuple(n for n, _ in p) for g, p in ESTIMATE_GROUPS.items()}
 MAX_TRAJECTORY_BLOCK_S = 600.0  #: s, the knots' spacing (longer: no trajectory correction at all)

@@ -35,6 +35,7 @@ import scipy.sparse as sp
 from scipy.spatial import cKDTree
 
 from calidar.strips.control_surface import MIN_POINTS, local_surface
+from calidar.strips.control_survey import per_target_design, per_target_parameters
 from calidar.strips.correspond import Correspondences
 from calidar.strips.problem import CONTROL_STRIP
 from calidar.strips.strip import Pose
@@ -68,6 +69,16 @@ class ControlPoints:
     def rows(self, strip_id: int, index: np.ndarray, points: np.ndarray, n_strip_points: int) -> Correspondences | None:
         """:func:`control_correspondences` of a strip's points near control."""
         return control_correspondences(strip_id, index, points, n_strip_points, self)
+
+    def survey_parameters(self) -> list:
+        """Each point's survey error (its height) as a nuisance parameter (:mod:`calidar.strips.control_survey`)."""
+        return per_target_parameters(self.sigma_m)
+
+    def survey_design(self, k: np.ndarray, normals: np.ndarray, at: np.ndarray | None = None):
+        """Rows of points ``k`` with ``normals``: a point's height error moves its row r = n·(p̄ − c) by
+        −n_z per unit; the row's own σ holds its σ_c² (:func:`calidar.strips.control_survey.per_target_design`;
+        ``at``, the rows' places, unused)."""
+        return per_target_design(self.sigma_m, k, np.asarray(normals, float)[:, 2])
 
 
 def control_pose(control: ControlPoints, template: Pose) -> Pose:
@@ -115,22 +126,6 @@ def rows_to_correspondences(strip_id: int, entries: tuple, normals: list, sigmas
     A = sp.csr_matrix((weights, (rows, cols)), shape=(n, shape[0]))
     B = sp.csr_matrix((np.ones(n), (np.arange(n), targets)), shape=(n, shape[1]))
     return Correspondences(strip_id, CONTROL_ID, A, B, np.array(normals), np.array(sigmas), label)
-
-
-def share_survey_error(corrs: list[Correspondences], control: ControlPoints) -> list[Correspondences]:
-    """The control rows of every strip with each point's survey error shared among the k strips
-    that observe it: its variance counted k times in each of its k rows (σ² = k·σ_c² + the plane's
-    part), so that together they carry it once (the rows' common error is one survey error, not k)."""
-    from dataclasses import replace
-
-    cols = [c.B.tocsr().indices for c in corrs]
-    k = np.bincount(np.concatenate(cols), minlength=len(control.ids)) if cols else np.zeros(0)
-    out = []
-    for c, col in zip(corrs, cols):
-        sc2 = control.sigma_m[col] ** 2
-        plane2 = np.maximum(np.asarray(c.sigma_m, float) ** 2 - sc2, 0.0)
-        out.append(replace(c, sigma_m=np.sqrt(k[col] * sc2 + plane2)))
-    return out
 
 
 def check_estimate(estimate, control) -> None:
@@ -209,14 +204,14 @@ def control_rows(problem, residuals: np.ndarray) -> list[dict]:
 def control_summary(control: ControlPoints, before: list[dict], after: list[dict]) -> dict:
     """What solution.json holds of the control: per control point and strip covering it, dz
     before (nominal sensor) and after (calibrated), with the row's own σ (the survey's and the
-    surface's; "weight_sigma_m": the σ it is weighed by, its survey error shared among the k rows of
-    its point); the points no strip covered;
-    the weighted mean and RMS of dz after (m)."""
+    surface's; "weight_sigma_m": the σ it is weighed by, the surface's alone: the survey error is
+    the point's own nuisance parameter, :mod:`calidar.strips.control_survey`); the points no strip
+    covered; the weighted mean and RMS of dz after (m)."""
     first = {(b["point"], b["strip"]): b["dz_m"] for b in before}
-    k = np.bincount([a["point"] for a in after], minlength=len(control.ids))
     rows = [{"id": str(control.ids[a["point"]]), "strip": a["strip"], "dz_before_m": first.get((a["point"], a["strip"])),
-             "dz_after_m": a["dz_m"], "sigma_m": _own_sigma(a["sigma_m"], control.sigma_m[a["point"]], k[a["point"]]),
-             "weight_sigma_m": a["sigma_m"], "survey_sigma_m": float(control.sigma_m[a["point"]])} for a in after]
+             "dz_after_m": a["dz_m"], "sigma_m": a["sigma_m"],
+             "weight_sigma_m": float(np.sqrt(max(a["sigma_m"] ** 2 - control.sigma_m[a["point"]] ** 2, 0.0))),
+             "survey_sigma_m": float(control.sigma_m[a["point"]])} for a in after]
     used = {a["point"] for a in after}
     dz = np.array([a["dz_m"] for a in after])
     s = np.array([r["sigma_m"] for r in rows])
@@ -227,12 +222,6 @@ def control_summary(control: ControlPoints, before: list[dict], after: list[dict
             "rms_dz_after_m": float(np.sqrt(np.mean(dz**2))) if dz.size else None,
             "rms_dz_before_m": (float(np.sqrt(np.mean([b["dz_m"] ** 2 for b in before]))) if before else None),
             "points": rows}
-
-
-def _own_sigma(weight_sigma: float, survey_sigma: float, k: int) -> float:
-    """A row's own σ (its survey error once, with its surface's noise) from the σ it is weighed by
-    (:func:`share_survey_error`: the survey variance counted ``k`` times, k the rows of its point)."""
-    return float(np.sqrt(max(weight_sigma**2 - (k - 1) * survey_sigma**2, 0.0)))
 
 
 def vertical_shift(result) -> tuple[float, float, float] | None:

@@ -10,10 +10,10 @@ their centroid p̄'s distance from the plane along its surveyed normal n, r = n 
 plane's centroid: the control pseudo-strip's point, as for control points,
 :mod:`calidar.strips.control`), > 0 when the strip lies above. Its σ² = s²/m (s the points'
 scatter about their own plane, m − 3 degrees of freedom) + the plane's survey variance at p̄,
-n_z²·gᵀCg with g = (1, dx, dy) of p̄ from the centroid; the survey part, shared by every strip
-that sees the plane, is counted once among them as a control point's is
-(:func:`calidar.strips.control.share_survey_error`, through :attr:`ControlPlanes.sigma_m`, its value
-at the centroid).
+n_z²·gᵀCg with g = (1, dx, dy) of p̄ from the centroid; its part at the centroid
+(:attr:`ControlPlanes.sigma_m`) and its slopes', shared by every strip that sees the plane, are the
+plane's own nuisance parameters in the adjustment: its height and two slopes with their survey
+covariance (:mod:`calidar.strips.control_survey`).
 
 A plane tells the height only along its normal, and a sloped roof's normal also leans
 horizontally: roof facets facing several ways observe a horizontal shift as well.
@@ -29,8 +29,12 @@ from dataclasses import dataclass
 from typing import ClassVar
 
 import numpy as np
+import scipy.sparse as sp
+
+from calidar.adjust import Parameter
 
 from calidar.strips.control import rows_to_correspondences
+from calidar.strips.control_survey import PREFIX as SURVEY
 from calidar.strips.correspond import Correspondences
 
 INSET_M = 0.5  #: a strip's points this far inside the patch's edges (eaves, walls, gutters)
@@ -114,6 +118,38 @@ class ControlPlanes:
             targets.append(k)
         return rows_to_correspondences(strip_id, (rows, cols, weights), normals, sigmas, targets,
                                        (n_strip_points, len(self.ids)), "control planes")
+
+    def _survey_names(self, k: int) -> tuple[str, str, str]:
+        return f"{SURVEY}{k}", f"{SURVEY}{k}_slope_x", f"{SURVEY}{k}_slope_y"
+
+    def survey_parameters(self) -> list:
+        """Each plane's survey error as nuisance parameters (:mod:`calidar.strips.control_survey`): its
+        height at the centroid and its two slopes, priors 0 ± √diag(C) (correlated:
+        :meth:`survey_correlation`)."""
+        out = []
+        for k in range(len(self.ids)):
+            s = np.sqrt(np.diag(self.cov[k]))
+            out += [Parameter(n, 0.0, u, prior_sigma=float(v)) for n, u, v in zip(self._survey_names(k), ("m", "1", "1"), s)]
+        return out
+
+    def survey_correlation(self) -> list:
+        """Per plane (its three survey parameters, their correlation from C)."""
+        out = []
+        for k in range(len(self.ids)):
+            s = np.sqrt(np.diag(self.cov[k]))
+            out.append((self._survey_names(k), self.cov[k] / np.outer(s, s)))
+        return out
+
+    def survey_design(self, k: np.ndarray, normals: np.ndarray, at: np.ndarray):
+        """Rows of planes ``k`` at places ``at`` (n, 3): the plane's height and slopes' errors move a row
+        by −n_z·(1, dx, dy) (dx, dy from its centroid); the row's own σ holds all of their variance,
+        n_z²·gᵀCg, taken out."""
+        nz = np.asarray(normals, float)[:, 2]
+        g = np.c_[np.ones(len(k)), np.asarray(at, float)[:, :2] - self.local[k, :2]]
+        rows = np.repeat(np.arange(len(k)), 3)
+        M = sp.csr_matrix(((nz[:, None] * g).ravel(), (rows, (3 * k[:, None] + np.arange(3)).ravel())),
+                          shape=(len(k), 3 * len(self.ids)))
+        return M, nz**2 * np.einsum("ni,nij,nj->n", g, self.cov[k], g)
 
     def _on_plane(self, points: np.ndarray, k: int) -> np.ndarray:
         """Indices of ``points`` inside patch ``k`` (``INSET_M`` from its edges) near its plane."""

@@ -125,19 +125,31 @@ def add_report_section(report: Report, result: CalibrationResult, truth: dict[st
 
 def _control_part(sec, control: dict) -> None:
     """The ground control's residuals (calidar boresight --control): per control point and strip."""
-    planes = control.get("kind", "points") != "points"  # control surfaces
+    kind = control.get("kind", "points")
+    planes = kind != "points"  # control surfaces (surveyed planes, a reference cloud's planar cells)
+    what = {"points": "(dz: the strip's local surface minus the control point, vertically; σ: the point's survey σ "
+                      "and the surface's scatter)",
+            "cloud": "(dz: the strip's points in a planar cell of the reference cloud minus the cell's plane, "
+                     "vertically; σ: both clouds' scatter there; the reference cloud's datum is a parameter of its "
+                     "own, held to its stated σ)"}.get(kind, "(dz: the strip's points on the patch minus the surveyed "
+                                                          "plane, vertically; σ: the plane's survey σ there and the "
+                                                          "points' scatter)")
     sec.heading("Ground control")
     sec.text(f"{control['n_used']} of {control['n_points']} {control.get('label', 'control points')} observed by the "
-             "strips around them " + ("(dz: the strip's points on the patch minus the surveyed plane, vertically; σ: "
-                                      "the plane's survey σ there and the points' scatter)" if planes else
-                                      "(dz: the strip's local surface minus the control point, vertically; σ: the "
-                                      "point's survey σ and the surface's scatter)")
-             + (f"; not covered by any strip: {', '.join(control['not_covered'])}" if control["not_covered"] else "") + ".")
+             "strips around them " + what
+             + (f"; not covered by any strip: {', '.join(control['not_covered'][:20])}"
+                + (" …" if len(control["not_covered"]) > 20 else "") if control["not_covered"] else "") + ".")
     rows = [[r["id"], r["strip"], None if r["dz_before_m"] is None else 100 * r["dz_before_m"], 100 * r["dz_after_m"],
              100 * r["sigma_m"], abs(r["dz_after_m"]) / r["sigma_m"] if r["sigma_m"] > 0 else None]
             for r in control["points"]]
+    if len(rows) > MAX_CONTROL_ROWS:  # a reference cloud: hundreds of cells; the worst ones shown
+        sec.text(f"The {MAX_CONTROL_ROWS} rows of {len(rows)} with the largest |dz|/σ after (solution.json lists all).")
+        rows = sorted(rows, key=lambda r: -(r[5] or 0.0))[:MAX_CONTROL_ROWS]
     sec.table(["control plane" if planes else "control point", "strip", "dz before (cm)", "dz after (cm)", "σ (cm)", "|dz|/σ after"], rows,
               formats=[None, None, "+.1f", "+.1f", ".1f", ".2f"])
+
+
+MAX_CONTROL_ROWS = 40  #: the ground-control table's rows at most (the worst in |dz|/σ)
 
 
 def _model_check_part(sec, check: dict) -> None:

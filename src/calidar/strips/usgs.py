@@ -1,15 +1,23 @@
 """USGS Lidar Base Specification swath checks: the quality level (QL0–QL3) each meets.
 
-Table 2 of the USGS Lidar Base Specification (Techniques and Methods 11-B4; the 3DEP online edition,
-2024 rev. A, "Relative vertical accuracy for light detection and ranging swath data"): on smooth,
-non-vegetated, gently sloped surfaces,
+Table 2 of the USGS Lidar Base Specification (Techniques and Methods 11-B4, "Relative vertical accuracy
+for lidar swath data"; its number and title as in version 1.3, 2018): on smooth, non-vegetated, gently
+sloped surfaces,
 
     quality level   intraswath smooth-surface precision   interswath RMSDz   interswath max |dz|
     QL0             ≤ 0.03 m (max diff)                    ≤ 0.04 m           ≤ 0.08 m
     QL1, QL2        ≤ 0.06 m                               ≤ 0.08 m           ≤ 0.16 m
     QL3             ≤ 0.12 m                               ≤ 0.16 m           ≤ 0.32 m
 
-(docs/validation.md says which of these numbers were checked against which text.)
+Which edition: the numbers are those of versions 1.2–2.1 and the 2020 revision A as read for calidar
+(from memory, not from a text in this repository). The current edition is
+the 3DEP online one, "2025 rev. A"; its tables could not be read in the stored sources (27 Nov, third
+session: the `search` tool's documentation and web pages hold the 1.0–1.3 and 2.1 texts' openings and
+third-party summaries without the tables' values), so no number here is verified against it. What
+the sources did confirm: the table's place and title in 1.3 (a vendor's summary of 1.3 lists "Table 2
+Relative Vertical Accuracy for LiDAR Swath Data" with smooth-surface repeatability and swath-overlap
+RMSDz columns), and for the absolute table the ratio QL0 : QL1 (the USGS quality-level page: QL0's
+NVA and VVA "two times better than that of QL1 data"). docs/validation.md lists each number's state.
 
 How calidar measures them, from the cell moments the swath differences already hold:
 - interswath: the swath differences of :mod:`calidar.strips.quality` (cells smooth in both lines,
@@ -36,7 +44,8 @@ from calidar.strips.pca import eigh3
 
 SAMPLE_POINTS = 4  #: pulses of one swath in a sample area of 2 × the nominal pulse spacing on a side
 RANGE_SD_4 = 0.8798  #: d₃(4): the standard deviation of the range of 4 standard normal deviates (ASTM E2587)
-SPECIFICATION = "USGS Lidar Base Specification (2024 rev. A), table 2: relative vertical accuracy of swath data"
+SPECIFICATION = ("USGS Lidar Base Specification, table 2: relative vertical accuracy of swath data (values of "
+                 "v1.2–2020 rev. A as read for calidar; not verified against 2025 rev. A)")
 #: quality level → (intraswath max diff, interswath RMSDz, interswath max |dz|), metres
 THRESHOLDS_M: dict[str, tuple[float, float, float]] = {
     "QL0": (0.03, 0.04, 0.08),
@@ -48,12 +57,14 @@ CHECKS = ("intraswath max diff", "interswath RMSDz", "interswath max |dz|")
 
 #: The specification's absolute vertical accuracy of the lidar data (its table "absolute vertical
 #: accuracy for lidar data and digital elevation models"), tested at checkpoints as ``calidar
-#: accuracy`` does: NVA RMSEz and, over vegetated checkpoints, the 95th percentile of |dz|. These
-#: are the values of versions 1.2–2.1 and the 2020–2024 revisions as remembered; whether the 2025
-#: revision (aligned with ASPRS Edition 2, which reports VVA without pass/fail) keeps the VVA column
-#: was not verified (docs/validation.md).
-ABSOLUTE_SPECIFICATION = ("USGS Lidar Base Specification (2024 rev. A; thresholds unverified against 2025 rev. A): "
-                          "absolute vertical accuracy of the lidar data")
+#: accuracy`` does: NVA RMSEz and, over vegetated checkpoints, the 95th percentile of |dz| (table 4,
+#: "Absolute vertical accuracy for lidar data and digital elevation models", in version 1.3). These
+#: are the values of versions 1.2–2.1 and the 2020 revision A as read for calidar; of them only the
+#: ratio QL0 = QL1 / 2 was confirmed (USGS quality-level page); whether the 2025 revision (aligned
+#: with ASPRS Edition 2, which reports VVA without pass/fail) keeps them, and the VVA column, was
+#: not verified (docs/validation.md).
+ABSOLUTE_SPECIFICATION = ("USGS Lidar Base Specification, table 4: absolute vertical accuracy of the lidar data "
+                          "(values of v1.2–2020 rev. A as read for calidar; not verified against 2025 rev. A)")
 #: quality level → (NVA RMSEz, VVA 95th percentile), metres
 ABSOLUTE_THRESHOLDS_M: dict[str, tuple[float, float]] = {
     "QL0": (0.05, 0.15),

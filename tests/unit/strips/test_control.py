@@ -154,18 +154,3 @@ def test_the_height_bias_goes_into_every_strips_trajectory_correction():
     pts = np.zeros((3, 3))
     np.testing.assert_allclose(out[2].apply(pts, pts, np.array([5.0, 7.0, 9.0]))[:, 2], 0.04)
     assert with_height_bias(fix, 0.0, {1: (0.0, 1.0)}) is fix
-
-
-def test_a_control_points_survey_error_is_shared_by_the_strips_that_see_it():
-    from calidar.strips.control import share_survey_error
-
-    rng = np.random.default_rng(7)
-    pose, control = _strip(0.0, rng), _control(rng)
-    pts = georeference_pose(Sensor(), pose)
-    a = control_correspondences(7, pose.index, pts, len(pose.index), control)
-    b = control_correspondences(8, pose.index, pts, len(pose.index), control)
-    shared = share_survey_error([a, b], control)
-    plane2 = a.sigma_m**2 - 0.01**2
-    # each point seen by two strips: its 1 cm survey variance counted twice in each row
-    np.testing.assert_allclose(shared[0].sigma_m, np.sqrt(2 * 0.01**2 + plane2))
-    np.testing.assert_allclose(share_survey_error([a], control)[0].sigma_m, a.sigma_m)
