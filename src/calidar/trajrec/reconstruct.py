@@ -9,6 +9,7 @@ import numpy as np
 
 from calidar.crs import from_crs
 from calidar.errors import InputError
+from calidar.trajrec import mounting
 from calidar.trajrec.fit import FitSettings, Observations, channel_sigma, solve_segment
 from calidar.trajrec.frame import LocalFrame
 from calidar.trajrec.geometry import ray_basis
@@ -148,6 +149,8 @@ def reconstruct_line(line: LinePoints, crs, undulation, settings: FitSettings, r
             "planar": settings.planar_scanner,
             "start_from": start_from, "segments": len(fits), "iterations": max(f.iterations for f in fits),
             "sigma0": float(np.median([f.sigma0 for f in fits])),
+            "mount": {n: (float(np.median([f.mount[k] for f in fits])), float(np.median([f.mount_sigma[k] for f in fits])),
+                          float(settings.mount_sigma[k])) for k, n in enumerate(mounting.NAMES) if settings.mount_sigma[k] > 0},
             "scales": {k: float(np.median([f.scales[k] for f in fits if k in f.scales]))
                        for k in {k for f in fits for k in f.scales}}}
     return LineTrajectory(line.label, frame, out_t, enu, att, sig, info)
