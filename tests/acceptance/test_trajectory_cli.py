@@ -57,7 +57,7 @@ def test_simulated_survey_within_tolerance_and_readable(cli, survey, tmp_path):
     assert e2["position_3d_m"]["median"] < 0.01
     # by default the encoder's and the scan plane's priors (0.1°) are in the attitude σ: what points cannot know
     assert e2["heading_deg"]["median"] < 0.01 and e2["roll_deg"]["median"] < 0.01
-    assert "scan offset not determined by the points" in err + out
+    assert "not determined by the points, their prior σ in the σ columns: scan-angle offset 0.1°" in err + out
     code, out, err = cli("info", tmp_path / "sbet.out")
     assert code == 0 and "trajectory" in out
     # --compare: the errors against a known trajectory (at its own point: the IMU, 0.13 m from the scanner here)

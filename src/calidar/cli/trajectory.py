@@ -111,13 +111,13 @@ def _check_outputs(paths, force: bool) -> None:
 
 
 def _pair(text: str, option: str, units: tuple[float, float]) -> tuple[float, float]:
-    """Two non-negative numbers "a,b" (each at most 10 of its unit) in SI (times ``units``); a usage error otherwise."""
-    try:
-        a, b = (float(v) for v in text.split(","))
-    except ValueError:
-        raise typer.BadParameter(f"expected two numbers a,b, got {text!r}", param_hint=option) from None
-    if not all(np.isfinite(v) and 0.0 <= v <= 10.0 for v in (a, b)):
-        raise typer.BadParameter(f"expected two numbers from 0 to 10, got {text!r}", param_hint=option)
+    """Two numbers "a,b" from 0 to 10 (of the option's units), in SI (times ``units``)."""
+    from calidar.errors import InputError
+
+    parts = text.split(",")
+    if len(parts) != 2:
+        raise InputError(option, None, f"expected two numbers a,b, got {text!r}")
+    a, b = (number(v.strip(), option, 0.0, 10.0) for v in parts)
     return a * units[0], b * units[1]
 
 

@@ -178,7 +178,8 @@ def _notes(kept: Kept, done: list[LineTrajectory], system: str) -> list[str]:
             notes.append(f"line {ln.label}: the scan-angle field is missing or too coarse: roll is not determined "
                          "(held near 0 by its prior) and the position rests on the multi-return rays alone")
         if ln.info.get("mount"):
-            notes.append(f"line {ln.label}: the scanner's calibration: " + "; ".join(mounting.notes(ln.info["mount"])))
+            notes.append(f"line {ln.label}: the scanner's calibration (encoder, scan plane): "
+                         + "; ".join(mounting.notes(ln.info["mount"])))
         if weak:
             notes.append(f"line {ln.label}: not determined by its points: {', '.join(weak)} (median σ above "
                          "1 m / 0.1°); see the σ columns")

@@ -38,17 +38,20 @@ DEFAULT_SIGMA = (float(np.radians(0.1)), 0.003, float(np.radians(0.1)), float(np
 
 
 def notes(mount: dict) -> list[str]:
-    """In words, per parameter fitted: estimated (its value ± σ) where the points determine it (posterior
-    σ below half its prior's), else "not determined: its prior σ is in the σ columns". ``mount``:
-    name → (value, posterior σ, prior σ), SI."""
-    out = []
+    """In words: the parameters estimated (value ± σ) where the points determine them (posterior σ below
+    half the prior's), and those held, whose prior σ is in the σ columns. ``mount``: name → (value,
+    posterior σ, prior σ), SI."""
+    est, held = [], []
     for name, (v, s, prior) in mount.items():
-        scale, unit = (100.0, "%") if name == "scan_scale" else (float(np.degrees(1.0)), "°")
-        label = name.replace("_", " ")
+        scale, unit = (100.0, " %") if name == "scan_scale" else (float(np.degrees(1.0)), "°")
+        label = name.replace("scan_plane_", "scan-plane ").replace("scan_", "scan-angle ")
         if s < 0.5 * prior:
-            out.append(f"{label} {v * scale:+.3g} ± {s * scale:.2g}{unit} (estimated from the points)")
+            est.append(f"{label} {v * scale:+.2g} ± {s * scale:.2g}{unit}")
         else:
-            out.append(f"{label} not determined by the points (its prior σ {prior * scale:.2g}{unit} is in the σ columns)")
+            held.append(f"{label} {prior * scale:.2g}{unit}")
+    out = [f"estimated from the points: {', '.join(est)}"] if est else []
+    if held:
+        out.append(f"not determined by the points, their prior σ in the σ columns: {', '.join(held)}")
     return out
 
 

@@ -106,5 +106,5 @@ def test_notes_say_what_was_estimated_and_what_was_not(sigma):
     _, _, fit = _fit(*mounted_line(rng, np.zeros(4)), sigma)
     info = {n: (fit.mount[k], fit.mount_sigma[k], sigma[k]) for k, n in enumerate(mounting.NAMES) if sigma[k] > 0}
     text = " ".join(mounting.notes(info))
-    assert "scan scale" in text and "estimated from the points" in text
-    assert ("scan offset not determined" in text) == (sigma[0] > 0)
+    assert "estimated from the points: scan-angle scale" in text
+    assert ("not determined by the points, their prior σ in the σ columns: scan-angle offset 0.1°" in text) == (sigma[0] > 0)
