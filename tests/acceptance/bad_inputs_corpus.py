@@ -114,12 +114,33 @@ def _las_subset(src: Path, dst: Path, n: int = 2000, edit=None) -> None:
     las.write(dst)
 
 
+def _trajectory_cases(first: Path, bad: Path) -> None:
+    """What ``calidar trajectory`` cannot work with (issue 30): no GPS time, neither scan angles nor
+    multi-return pulses, every pulse a line of its own, a line of 0.2 s."""
+    las = laspy.read(first)
+    laspy.convert(las, point_format_id=0, file_version="1.2").write(bad / "no_gps_time.las")
+
+    def flat(d):  # one point a GPS time: no multi-return pulse
+        d.points = d.points[np.unique(np.asarray(d.gps_time), return_index=True)[1]]
+        d.scan_angle[:] = 0
+        d.return_number[:], d.number_of_returns[:] = 1, 1
+    _las_subset(first, bad / "no_scan_no_returns.laz", 20000, flat)
+
+    def own_lines(d):
+        flat(d)
+        d.point_source_id[:] = np.arange(len(d.points)) % 60000
+    _las_subset(first, bad / "one_pulse_per_line.laz", 20000, own_lines)
+    t = np.asarray(las.gps_time)
+    _las_subset(first, bad / "short_line.laz", int(np.searchsorted(np.sort(t), t.min() + 0.2)))
+
+
 def _strips(strips: Path, bad: Path) -> None:
     first = strips / "line_001.laz"
     _las_subset(first, bad / "empty.laz", 0)
     _las_subset(first, bad / "a[b]c.laz", 0)
     shutil.copy(first, bad / "copy_of_line_001.laz")
     _las_subset(first, bad / "nan_time.las", edit=lambda d: d.gps_time.__setitem__(slice(10, 20), np.nan))
+    _trajectory_cases(first, bad)
 
     def huge(d):
         d.header.offsets = np.array([1e300, 0.0, 0.0])

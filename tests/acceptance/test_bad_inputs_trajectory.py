@@ -24,6 +24,13 @@ TRAJECTORY = [
     case(["{B}/truncated.laz"], "truncated.laz", id="truncated"),
     case(["{B}/missing.laz"], "missing.laz", id="missing"),
     case(["{B}/huge.las"], "huge.las", id="coordinates-1e300"),
+    case(["{B}/no_gps_time.las"], "no_gps_time.las", "gps_time", "needs each point's GPS time", id="no-gps-time"),
+    case(["{B}/no_scan_no_returns.laz"], "no_scan_no_returns.laz", "scan-angle field", "multi-return pulses", id="no-scan-angles-no-returns"),
+    case(["{B}/one_pulse_per_line.laz"], "one_pulse_per_line.laz", "no flight line", id="one-pulse-per-line"),
+    case(["{B}/short_line.laz"], "short_line.laz", "the method needs ≥ 0.5 s", id="single-short-line"),
+    case([S1, "--encoder-sigma", "0.1"], "--encoder-sigma", "two numbers", id="encoder-sigma-one-number"),
+    case([S1, "--encoder-sigma", "0.1,-1"], "--encoder-sigma", id="encoder-sigma-negative"),
+    case([S1, "--scan-plane-sigma", "nan,0.1"], "--scan-plane-sigma", id="scan-plane-sigma-nan"),
 ]
 
 

@@ -37,7 +37,9 @@ def _errors(folder, path):
 
 def test_simulated_survey_within_tolerance_and_readable(cli, survey, tmp_path):
     strips = sorted((survey / "strips").glob("*.laz"))
-    code, out, err = cli("trajectory", *strips, "--out", tmp_path / "traj.csv", "--sensor-out", tmp_path / "s.toml")
+    # the simulator's scanner is exact (encoder and scan plane), and this user knows it: priors 0
+    code, out, err = cli("trajectory", *strips, "--out", tmp_path / "traj.csv", "--sensor-out", tmp_path / "s.toml",
+                         "--encoder-sigma", "0,0", "--scan-plane-sigma", "0,0")
     assert code == 0, err
     sensor = Sensor.read(tmp_path / "s.toml")
     assert sensor.crs == CRS and sensor.lever_arm_x == sensor.boresight_yaw == 0.0
@@ -51,7 +53,11 @@ def test_simulated_survey_within_tolerance_and_readable(cli, survey, tmp_path):
     assert read_trajectory(tmp_path / "traj.csv").extra.keys() >= {"sigma_north", "sigma_heading"}
     code, out, err = cli("trajectory", *strips, "--out", tmp_path / "sbet.out", "--report", tmp_path / "r2.html")
     assert code == 0, err
-    assert _errors(survey, tmp_path / "sbet.out")["position_3d_m"]["median"] < 0.01
+    e2 = _errors(survey, tmp_path / "sbet.out")
+    assert e2["position_3d_m"]["median"] < 0.01
+    # by default the encoder's and the scan plane's priors (0.1°) are in the attitude σ: what points cannot know
+    assert e2["heading_deg"]["median"] < 0.01 and e2["roll_deg"]["median"] < 0.01
+    assert "not determined by the points, their prior σ in the σ columns: scan-angle offset 0.1°" in err + out
     code, out, err = cli("info", tmp_path / "sbet.out")
     assert code == 0 and "trajectory" in out
     # --compare: the errors against a known trajectory (at its own point: the IMU, 0.13 m from the scanner here)
@@ -59,6 +65,8 @@ def test_simulated_survey_within_tolerance_and_readable(cli, survey, tmp_path):
                          "--json")
     assert code == 0, err
     assert 0.05 < json.loads(out)["comparison"]["position_3d_m"]["median"] < 0.2
+    z = _errors(survey, tmp_path / "c" / "t.csv")["rms_error_over_sigma"]  # default priors: σ ≥ 0.1° in attitude
+    assert all(z[k] < 0.2 for k in ("roll", "pitch", "heading")) and all(0.2 < z[k] < 2.0 for k in ("north", "east")), z
     assert "Against a known trajectory" in (tmp_path / "c" / "report.html").read_text()
 
 

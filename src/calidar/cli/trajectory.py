@@ -42,13 +42,17 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
         scan_plane_yaw: float = typer.Option(0.0, "--scan-plane-yaw", help="Yaw of the scan plane in the body, deg, "
                                              "when the scan-angle field holds body-frame angles (leeward's scanner: "
                                              "13.96); the heading written is then the body's."),
+        encoder_sigma: str = typer.Option("0.1,0.3", "--encoder-sigma", help="Prior σ of the scan-angle encoder's "
+                                          "offset (deg) and scale (%) against the true beam angle; 0,0 when they are "
+                                          "known. Fitted where the points determine them, else passed into the σ columns."),
+        scan_plane_sigma: str = typer.Option("0.1,0.1", "--scan-plane-sigma", help="Prior σ of the scan plane's yaw "
+                                             "(about --scan-plane-yaw) and pitch in the body, deg; 0,0 when known."),
         crs: str | None = CRS, time_system: str | None = TIME_SYSTEM, geoid_undulation: float | None = GEOID_UNDULATION,
         as_json: bool = typer.Option(False, "--json", help="Print the per-line summary as JSON."),
         force: bool = typer.Option(False, "--force", help="Overwrite the outputs."),
     ) -> None:
         """Reconstruct each flight line's sensor trajectory from the points alone (multi-return rays,
         scan angles, scan-line geometry), with a σ per epoch; write it and a report."""
-        from calidar.errors import OutputExistsError
         from calidar.outputs import guard_inputs
         from calidar.pipelines import trajectory as pipeline
         from calidar.trajrec.summary import line_summary
@@ -62,18 +66,17 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
         fmt = pipeline.output_format(out, fmt)
         if scanner not in ("planar", "other"):
             raise typer.BadParameter(f"expected planar or other, got {scanner!r}", param_hint="--scanner")
+        mount_sigma = _pair(encoder_sigma, "--encoder-sigma", (np.radians(1.0), 0.01)) + \
+            _pair(scan_plane_sigma, "--scan-plane-sigma", (np.radians(1.0), np.radians(1.0)))
         options = point_options(crs, time_system, geoid_undulation)
         rep = report if report is not None else out.parent / "report.html"
         guard_inputs([out, rep, sensor_out], [*points, compare])
-        for path in (out, rep, sensor_out):  # checked now, folders made only when writing (a failed run leaves none)
-            if path is not None and path.is_dir():
-                raise OutputExistsError(f"{path}: is a folder; expected a file name")
-            if path is not None and path.exists() and not force:
-                raise OutputExistsError(f"{path}: exists; pass --force to overwrite it")
+        _check_outputs((out, rep, sensor_out), force)
         base = pipeline.TrajectorySettings()
         settings = replace(base, rate_hz=rate, points_per_s=points_per_second,
                            fit=replace(base.fit, knot_s=knot_spacing, use_scan_angles=not no_scan_angles,
-                                       planar_scanner=scanner == "planar", scan_plane_yaw=np.radians(scan_plane_yaw)))
+                                       planar_scanner=scanner == "planar", scan_plane_yaw=np.radians(scan_plane_yaw),
+                                       mount_sigma=mount_sigma))
         with progress_bar() as bar:
             run = pipeline.reconstruct_trajectory(points, options, settings, progress_callback(bar))
         command = "calidar " + " ".join(shlex.quote(a) for a in sys.argv[1:])
@@ -94,6 +97,28 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
                           highlight=False, soft_wrap=True)
         also = f", {escape(str(sensor_out))}" if sensor_out is not None else ""
         console.print(f"wrote {escape(str(out))} ({fmt}){also} and {escape(str(rep))}", highlight=False, soft_wrap=True)
+
+
+def _check_outputs(paths, force: bool) -> None:
+    """Checked before the run; folders are made only when writing (a failed run leaves none)."""
+    from calidar.errors import OutputExistsError
+
+    for path in paths:
+        if path is not None and path.is_dir():
+            raise OutputExistsError(f"{path}: is a folder; expected a file name")
+        if path is not None and path.exists() and not force:
+            raise OutputExistsError(f"{path}: exists; pass --force to overwrite it")
+
+
+def _pair(text: str, option: str, units: tuple[float, float]) -> tuple[float, float]:
+    """Two numbers "a,b" from 0 to 10 (of the option's units), in SI (times ``units``)."""
+    from calidar.errors import InputError
+
+    parts = text.split(",")
+    if len(parts) != 2:
+        raise InputError(option, None, f"expected two numbers a,b, got {text!r}")
+    a, b = (number(v.strip(), option, 0.0, 10.0) for v in parts)
+    return a * units[0], b * units[1]
 
 
 def _print(run, summaries) -> None:

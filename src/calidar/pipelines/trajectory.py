@@ -19,6 +19,7 @@ from calidar.io.las import (
     PointOptions, adjusted_standard_in_week, iter_las_chunks, las_header, single_gps_week,
 )
 from calidar.trajectory import Trajectory
+from calidar.trajrec import mounting
 from calidar.trajrec.fit import FitSettings, one_blas_thread
 from calidar.trajrec.lines import split_lines
 from calidar.trajrec.pulses import Kept, keep_chunk
@@ -50,7 +51,7 @@ class TrajectorySettings:
 
     rate_hz: float = 50.0
     points_per_s: float = 600.0
-    fit: FitSettings = field(default_factory=FitSettings)
+    fit: FitSettings = field(default_factory=lambda: FitSettings(mount_sigma=mounting.DEFAULT_SIGMA))
 
 
 @dataclass
@@ -164,16 +165,21 @@ def _notes(kept: Kept, done: list[LineTrajectory], system: str) -> list[str]:
                      "highest and lowest point instead")
     for ln in done:
         med = np.median(ln.sigma, axis=0)
+        # an attitude σ at its mounting priors' level is what the priors say, not the points' weakness
+        prior = 2 * max([v[2] for k, v in ln.info.get("mount", {}).items() if k != "scan_scale"], default=0.0)
         weak = [name for name, s, lim in (("position", med[:3].max(), DETERMINED["position_m"]),
-                                          ("roll", med[3], DETERMINED["roll_rad"]),
-                                          ("pitch", med[4], DETERMINED["pitch_rad"]),
-                                          ("heading", med[5], DETERMINED["heading_rad"])) if s > lim]
+                                          ("roll", med[3], np.hypot(DETERMINED["roll_rad"], prior)),
+                                          ("pitch", med[4], np.hypot(DETERMINED["pitch_rad"], prior)),
+                                          ("heading", med[5], np.hypot(DETERMINED["heading_rad"], prior))) if s > lim]
         if not ln.info["scan_angles"] and not ln.info.get("planar", True):
             notes.append(f"line {ln.label}: without scan angles and scan-plane geometry the rays give the position "
                          "only: roll and pitch are their priors' (0) and heading the scan lines' trace on the ground")
         elif not ln.info["scan_angles"]:
             notes.append(f"line {ln.label}: the scan-angle field is missing or too coarse: roll is not determined "
                          "(held near 0 by its prior) and the position rests on the multi-return rays alone")
+        if ln.info.get("mount"):
+            notes.append(f"line {ln.label}: the scanner's calibration (encoder, scan plane): "
+                         + "; ".join(mounting.notes(ln.info["mount"])))
         if weak:
             notes.append(f"line {ln.label}: not determined by its points: {', '.join(weak)} (median σ above "
                          "1 m / 0.1°); see the σ columns")

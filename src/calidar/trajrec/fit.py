@@ -13,17 +13,24 @@ error (uniform, variance Δ²/12) is a function of where the beam points, so poi
 stored value share much of their error sweep after sweep, and it does not average as 1/√N. There
 the scan-angle residuals' scale is at least Δ/√12 and the covariance is the cluster-robust sandwich
 N⁻¹·M·N⁻¹ with the scan-angle scores summed per stored value (Liang & Zeger 1986; Cameron & Miller
-2015, J. Human Resources 50:317, with their G/(G − 1) factor), where it is the wider.
+2015, J. Human Resources 50:317, with their G/(G − 1) factor), where it is the wider
+(:mod:`calidar.trajrec.quantised`).
+
+The scanner's own calibration (encoder offset and scale, the scan plane's yaw and pitch in the body)
+are parameters with priors where ``FitSettings.mount_sigma`` gives them a σ (:mod:`calidar.trajrec.mounting`).
 """
 
 from __future__ import annotations
 
-import contextlib
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from calidar.trajrec.kernels import accumulate, ray_partials, scan_partials, symmetrize
+from calidar.trajrec import mounting
+from calidar.trajrec.kernels import (  # noqa: F401 - one_blas_thread: the pipeline's import
+    accumulate, mount_partials, one_blas_thread, ray_partials, scan_partials, symmetrize,
+)
+from calidar.trajrec.quantised import clustered_covariance, scan_quantum, widest
 from calidar.trajrec.spline import Spline
 
 CHANNELS = ("east", "north", "up", "roll", "pitch", "heading")
@@ -34,19 +41,6 @@ FINE_ITERATIONS = 1  #: ... the last one all of them
 #: across-track / roll direction came out 4× its σ off)
 SCALE_FLOOR = 2e-7
 CAUCHY_C = 2.385  #: Cauchy constant (95 % efficiency at the normal distribution)
-#: a scan-angle field stored in steps at least this coarse (rad) is quantised (LAS 1.0–1.3: whole degrees);
-#: LAS 1.4's 0.006° steps are not
-QUANTUM_MIN = np.radians(0.05)
-
-
-def one_blas_thread():
-    """BLAS on one thread while solving (these matrices are a few hundred wide: a second thread
-    gains nothing and, on a busy machine, costs 10×; as ``calidar.adjust.solver``)."""
-    try:
-        from threadpoolctl import threadpool_limits
-    except ImportError:  # pragma: no cover - a dependency of scikit-learn
-        return contextlib.nullcontext()
-    return threadpool_limits(1, user_api="blas")
 
 
 @dataclass(frozen=True)
@@ -66,6 +60,9 @@ class FitSettings:
     scan_plane_yaw: float = 0.0  #: that plane's yaw in the body, rad (the scan-angle field: body across-track angles)
     segment_s: float = 20.0  #: lines are solved in segments of this length (s) ...
     overlap_s: float = 2.0  #: ... overlapping by this much
+    #: prior σ of the scan-angle encoder's offset (rad) and scale (1), and of the scan plane's yaw (about
+    #: ``scan_plane_yaw``) and pitch in the body (rad); 0: known (held at 0), see :mod:`calidar.trajrec.mounting`
+    mount_sigma: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 0.0)
 
 
 @dataclass
@@ -100,6 +97,8 @@ class SegmentFit:
     scales: dict  #: robust scale of each residual type (rad)
     n_obs: dict
     iterations: int
+    mount: np.ndarray = field(default_factory=lambda: np.zeros(4))  #: estimates (mounting.NAMES)
+    mount_sigma: np.ndarray = field(default_factory=lambda: np.zeros(4))  #: their posterior σ (0: held)
 
 
 def _normal_blocks(spline: Spline, basis, r, g, w_obs, n_mat, rhs):
@@ -141,24 +140,37 @@ def _state(coef: np.ndarray, basis) -> np.ndarray:
     return np.einsum("nj,njc->nc", w, coef[i[:, None] + np.arange(4)])
 
 
-def _types(obs: Observations, spline: Spline, coef: np.ndarray, kappa: float = 0.0):
-    """Per residual type: (name, basis, residuals (n,), partials (n, 6), relative σ (n,))."""
+def _types(obs: Observations, spline: Spline, coef: np.ndarray, settings: FitSettings, mount: np.ndarray):
+    """Per residual type: (name, basis, residuals (n,), partials (n, 6), relative σ (n,), partials (n, m)
+    by the active mounting parameters), with the mounting ``mount`` (mounting.NAMES) applied."""
     out = []
+    idx = mounting.active(settings.mount_sigma)
     if obs.t.size and (obs.use_across or obs.use_along):
         basis = obs.basis(spline, "t")
-        r, g = scan_partials(obs.points, _state(coef, basis), np.nan_to_num(obs.scan), kappa)
+        state = _state(coef, basis)
+        scan = np.nan_to_num(obs.scan)
+        kappa, eps = settings.scan_plane_yaw + mount[2], mount[3]
+        r, g = scan_partials(obs.points, state, (1.0 + mount[1]) * scan + mount[0], kappa, eps)
         if obs.use_across:
             ok = np.isfinite(obs.scan)
-            out.append(("across", (basis[0][ok], basis[1][ok]), r[ok, 0], g[ok, 0], np.ones(int(ok.sum()))))
+            out.append(("across", (basis[0][ok], basis[1][ok]), r[ok, 0], g[ok, 0], np.ones(int(ok.sum())),
+                        mounting.design("across", int(ok.sum()), scan=scan[ok], idx=idx)))
         if obs.use_along:
-            out.append(("along", basis, r[:, 1], g[:, 1], np.ones(obs.t.size)))
+            gp = mount_partials(obs.points, state, kappa, eps) if np.any(idx >= 2) else None
+            out.append(("along", basis, r[:, 1], g[:, 1], np.ones(obs.t.size),
+                        mounting.design("along", obs.t.size, along_partials=gp, idx=idx)))
     if obs.ray_t.size:
         basis = obs.basis(spline, "ray_t")
         state = _state(coef, basis)
         r, g = ray_partials(np.ascontiguousarray(state[:, :3]), obs.ray_last, obs.ray_u1, obs.ray_u2)
         for k in range(2):
-            out.append((f"ray{k}", basis, r[:, k], g[:, k], obs.ray_sigma))
+            out.append((f"ray{k}", basis, r[:, k], g[:, k], obs.ray_sigma, np.zeros((obs.ray_t.size, idx.size))))
     return out
+
+
+def _interleaved(k: int) -> np.ndarray:
+    """Interleaved position (coefficient j, channel c → 6j + c) → channel-major index (c·K + j)."""
+    return (np.arange(6 * k) % 6) * k + np.arange(6 * k) // 6
 
 
 def _banded_solve(n_mat: np.ndarray, rhs: np.ndarray, k: int, interleaved_out: bool = False) -> np.ndarray:
@@ -168,7 +180,7 @@ def _banded_solve(n_mat: np.ndarray, rhs: np.ndarray, k: int, interleaved_out: b
     gives N⁻¹ in interleaved order (its channel blocks are [c::6, c::6])."""
     from scipy.linalg import solveh_banded
 
-    cm = (np.arange(6 * k) % 6) * k + np.arange(6 * k) // 6  # interleaved position → channel-major index
+    cm = _interleaved(k)
     ni = n_mat[np.ix_(cm, cm)]
     u = 23
     ab = np.zeros((u + 1, 6 * k))
@@ -190,106 +202,107 @@ def _thin(obs: Observations, step: int) -> Observations:
                         obs.ray_sigma[::step])
 
 
-def _iterate(obs: Observations, spline: Spline, coef: np.ndarray, settings: FitSettings, heading0=None):
-    """One Gauss–Newton step: (step (K, 6), normal matrix, χ², observations, scales, counts)."""
-    p = 6 * spline.n_coef
-    n_mat, rhs = np.zeros((p, p)), np.zeros(p)
+@dataclass
+class _Step:
+    """One Gauss–Newton step: the coefficients' step (K, 6), the mounting's (estimated ones), the
+    normal matrix with its border (B, C) to the active mounting parameters, and what the covariance needs."""
+
+    dx: np.ndarray
+    mount: mounting.MountStep | None
+    n_mat: np.ndarray
+    border: np.ndarray
+    c_mat: np.ndarray
+    chi2: float
+    n_tot: int
+    scales: dict
+    n_obs: dict
+
+
+def _iterate(obs: Observations, spline: Spline, coef: np.ndarray, settings: FitSettings, mount: np.ndarray,
+             est: np.ndarray | None, heading0=None) -> _Step:
+    """One Gauss–Newton step (see :class:`_Step`); ``est``: which active mounting parameters are
+    estimated (the others considered; None: decide from this step's information, see mounting.determined)."""
+    k = spline.n_coef
+    idx = mounting.active(settings.mount_sigma)
+    n_mat, rhs = np.zeros((6 * k, 6 * k)), np.zeros(6 * k)
+    b_mat, c_mat, r_g = np.zeros((6 * k, idx.size)), np.zeros((idx.size, idx.size)), np.zeros(idx.size)
     chi2, n_tot, scales, n_obs = 0.0, 0, {}, {}
     quantum = scan_quantum(obs.scan) if obs.use_across else 0.0
-    for name, basis, r, g, rel in _types(obs, spline, coef, settings.scan_plane_yaw):
+    for name, basis, r, g, rel, gm in _types(obs, spline, coef, settings, mount):
         floor = max(SCALE_FLOOR, quantum / np.sqrt(12.0)) if name == "across" else SCALE_FLOOR
         w, scale = _robust(r / rel, floor / float(np.median(rel)))
         scales[name.rstrip("01")] = scale
         n_obs[name] = int(r.size)
         wr = w / rel**2
         _normal_blocks(spline, basis, r, g, wr, n_mat, rhs)
+        if idx.size and name in ("across", "along"):
+            bb, cc, rr = mounting.border(basis, g, gm, wr, k, r)
+            b_mat, c_mat, r_g = b_mat + bb, c_mat + cc, r_g + rr
         chi2 += float(np.sum(wr * r**2))
         n_tot += r.size
     n_mat = symmetrize(n_mat)
     _prior_blocks(spline, coef, settings, n_mat, rhs, heading0)
     with one_blas_thread():
-        dx = _banded_solve(n_mat, rhs, spline.n_coef).reshape(6, spline.n_coef).T
-    return dx, n_mat, chi2, n_tot, scales, n_obs
+        if not idx.size:
+            return _Step(_banded_solve(n_mat, rhs, k).reshape(6, k).T, None, n_mat, b_mat, c_mat, chi2, n_tot,
+                         scales, n_obs)
+        y = _banded_solve(n_mat, np.c_[rhs, b_mat], k)
+        sigma = np.asarray(settings.mount_sigma, float)[idx]
+        if est is None:
+            est = mounting.determined(b_mat, c_mat, y[:, 1:], sigma, COARSE_STEP)  # the first, thinned, step
+        ms = mounting.mount_step(y[:, 0], y[:, 1:], b_mat, c_mat, r_g, sigma, mount[idx], est)
+    return _Step(ms.dx.reshape(6, k).T, ms, n_mat, b_mat, c_mat, chi2, n_tot, scales, n_obs)
 
 
 def solve_segment(obs: Observations, spline: Spline, coef0: np.ndarray, settings: FitSettings) -> SegmentFit:
     """Gauss–Newton with IRLS from ``coef0`` (K, 6); see the module docstring. The iterations use a
     quarter of the observations until the steps are below 1 cm and 1e-5 rad; then one iteration
-    (and the covariance) uses all of them."""
+    (and the covariance) uses all of them. Mounting parameters (``settings.mount_sigma``) that the
+    last coarse iteration finds determined are estimated, the others held and their σ passed on."""
     coef = np.array(coef0, float)
+    mount = np.zeros(4)
+    idx = mounting.active(settings.mount_sigma)
+    est = None
     heading0 = None if (obs.use_across or obs.use_along) else coef[:, 5].copy()
     thin = _thin(obs, COARSE_STEP)
     it = 0
     for it in range(1, settings.iterations + 1):
-        dx = _iterate(thin, spline, coef, settings, heading0)[0]
-        coef += dx
-        if np.all(np.abs(dx[:, :3]) < 1e-2) and np.all(np.abs(dx[:, 3:]) < 1e-5):
+        step = _iterate(thin, spline, coef, settings, mount, None, heading0)  # decided afresh each coarse step
+        coef += step.dx
+        dg = np.zeros(0)
+        if step.mount is not None:
+            est = step.mount.est
+            dg = step.mount.dg
+            mount[idx[est]] += dg
+        if np.all(np.abs(step.dx[:, :3]) < 1e-2) and np.all(np.abs(step.dx[:, 3:]) < 1e-5) and np.all(np.abs(dg) < 1e-6):
             break
     for _ in range(FINE_ITERATIONS):  # the covariance from the last one's normal matrix
-        dx, n_mat, chi2, n_tot, scales, n_obs = _iterate(obs, spline, coef, settings, heading0)
-        coef += dx
-    sigma0 = float(np.sqrt(chi2 / max(n_tot - 6 * spline.n_coef, 1)))
+        step = _iterate(obs, spline, coef, settings, mount, est, heading0)
+        coef += step.dx
+        if step.mount is not None:
+            mount[idx[est]] += step.mount.dg
+    sigma0 = float(np.sqrt(step.chi2 / max(step.n_tot - 6 * spline.n_coef, 1)))
     k = spline.n_coef
+    f = max(sigma0, 1.0) ** 2
     with one_blas_thread():
-        inv = _banded_solve(n_mat, np.eye(6 * k), k, interleaved_out=True) * max(sigma0, 1.0) ** 2
+        inv = _banded_solve(step.n_mat, np.eye(6 * k), k, interleaved_out=True)
+    if step.mount is not None:  # the mounting's uncertainty passed on (mounting.py)
+        low = step.mount.low_rank[_interleaved(k)]
+        inv = inv + low @ low.T
+    inv *= f
     cov = np.stack([inv[c::6, c::6] for c in range(6)])  # rows/columns interleaved: coefficient k, channel c
     quantum = scan_quantum(obs.scan) if obs.use_across else 0.0
     if quantum:
-        cov = _widest(cov, _clustered_covariance(obs, spline, coef, settings, n_mat, quantum))
-    return SegmentFit(spline, coef, cov, sigma0, scales, n_obs, it)
-
-
-def scan_quantum(scan: np.ndarray) -> float:
-    """The step (rad) of a quantised scan-angle field: every value a multiple of it, at least
-    QUANTUM_MIN; 0.0 when the field is finer (or has fewer than two values)."""
-    v = np.unique(scan[np.isfinite(scan)])
-    if v.size < 2:
-        return 0.0
-    step = float(np.min(np.diff(v)))
-    k = (v - v[0]) / step
-    return step if step >= QUANTUM_MIN and np.all(np.abs(k - np.round(k)) < 1e-3) else 0.0
-
-
-def _clustered_covariance(obs: Observations, spline: Spline, coef: np.ndarray, settings: FitSettings,
-                          n_mat: np.ndarray, quantum: float) -> np.ndarray:
-    """(6, K, K) channel blocks of N⁻¹ + N⁻¹·(M − N_a)·N⁻¹, the scan-angle residuals' information N_a
-    replaced by that of errors with a part shared by every point of one stored value (a random effect,
-    the survey statistician's design effect, Kish 1965): M = (1 − ρ)·N_a + ρ·σ²·Σ_c a_c a_cᵀ, a_c the sum
-    of value c's weighted partials, ρ the share of the residuals' variance between the values' means
-    (0 when each value's points scatter over its whole quantum, → 1 for a scanner firing the same
-    angles every sweep)."""
-    k = spline.n_coef
-    _, basis, r, g, rel = next(t for t in _types(obs, spline, coef, settings.scan_plane_yaw) if t[0] == "across")
-    w, _ = _robust(r / rel, max(SCALE_FLOOR, quantum / np.sqrt(12.0)))
-    wr = w / rel**2
-    first, bw = basis
-    labels = np.unique(np.round(obs.scan[np.isfinite(obs.scan)] / quantum), return_inverse=True)[1].ravel()
-    n_groups = int(labels.max()) + 1 if labels.size else 0
-    if n_groups < 2:
-        return np.full((6, k, k), np.inf)
-    size = np.bincount(labels, minlength=n_groups)
-    mean = np.bincount(labels, weights=r, minlength=n_groups) / np.maximum(size, 1)
-    total = max(float(np.mean((r - r.mean()) ** 2)), quantum**2 / 12.0)  # the fit absorbs part of the shared errors
-    within = float(np.mean((r - mean[labels]) ** 2))
-    rho = float(np.clip(1.0 - within / total, 0.0, 1.0))
-    a = np.zeros((n_groups, 6 * k))
-    for c in range(6):
-        for j in range(4):
-            np.add.at(a, (labels, c * k + first + j), bw[:, j] * g[:, c] * wr)
-    n_a, rhs = np.zeros((6 * k, 6 * k)), np.zeros(6 * k)
-    accumulate(n_a, rhs, first, bw, np.ascontiguousarray(g), r, wr, k)
-    n_a = symmetrize(n_a)
-    meat = (1.0 - rho) * n_a + rho * total * (a.T @ a)
-    with one_blas_thread():
-        n_inv = np.linalg.inv(n_mat)
-        cov = n_inv + n_inv @ (meat - n_a) @ n_inv
-    return np.stack([cov[c * k:(c + 1) * k, c * k:(c + 1) * k] for c in range(6)])
-
-
-def _widest(model: np.ndarray, robust: np.ndarray) -> np.ndarray:
-    """Per channel the block of the two (6, K, K) covariances whose variances sum to more."""
-    wider = np.trace(robust, axis1=1, axis2=2) > np.trace(model, axis1=1, axis2=2)
-    return np.where(wider[:, None, None], robust, model)
+        across = next(t for t in _types(obs, spline, coef, settings, mount) if t[0] == "across")
+        prior = np.diag(1.0 / np.asarray(settings.mount_sigma, float)[idx] ** 2)
+        full = np.block([[step.n_mat, step.border], [step.border.T, step.c_mat + prior]])
+        w, _ = _robust(across[2] / across[4], max(SCALE_FLOOR, quantum / np.sqrt(12.0)))
+        cov = widest(cov, clustered_covariance(across, w / across[4] ** 2, obs.scan[np.isfinite(obs.scan)], quantum,
+                                               full, k))
+    sig_m = np.zeros(4)
+    if step.mount is not None:
+        sig_m[idx] = step.mount.sigma * np.sqrt(f)
+    return SegmentFit(spline, coef, cov, sigma0, step.scales, step.n_obs, it, mount, sig_m)
 
 
 def channel_sigma(fit: SegmentFit, t) -> np.ndarray:

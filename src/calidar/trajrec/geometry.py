@@ -31,18 +31,20 @@ def body_vectors(points_enu: np.ndarray, sensor_enu: np.ndarray, attitude: np.nd
     return np.stack([v0, v1, v2], axis=1)
 
 
-def scan_residuals(points_enu, sensor_enu, attitude, scan_angle_rad, kappa: float = 0.0) -> np.ndarray:
+def scan_residuals(points_enu, sensor_enu, attitude, scan_angle_rad, kappa: float = 0.0,
+                   eps: float = 0.0) -> np.ndarray:
     """(N, 2): across-track angle − scan angle (NaN scan angle: 0), along-track angle (rad).
 
-    ``kappa``: the scan plane's yaw in the body (rad): the beams lie in the y-z plane of the scanner
-    frame s = Rz(κ)ᵀ·b, while the scan-angle field is the body's across-track angle (leeward's
-    scanner: κ = 13.96°, docs/conventions.md)."""
+    ``kappa``, ``eps``: the scan plane's yaw and pitch in the body (rad): the beams lie in the y-z
+    plane of the scanner frame s = Ry(ε)ᵀ·Rz(κ)ᵀ·b, while the scan-angle field is the body's
+    across-track angle (leeward's scanner: κ = 13.96°, docs/conventions.md)."""
     b = body_vectors(points_enu, sensor_enu, attitude)
     across = np.arctan2(b[:, 1], b[:, 2])
     across = np.where(np.isfinite(scan_angle_rad), across - np.nan_to_num(scan_angle_rad), 0.0)
     c, s = np.cos(kappa), np.sin(kappa)
     s0, s1 = c * b[:, 0] + s * b[:, 1], -s * b[:, 0] + c * b[:, 1]
-    along = np.arctan2(s0, np.hypot(s1, b[:, 2]))
+    s0, s2 = np.cos(eps) * s0 - np.sin(eps) * b[:, 2], np.sin(eps) * s0 + np.cos(eps) * b[:, 2]
+    along = np.arctan2(s0, np.hypot(s1, s2))
     return np.stack([across, along], axis=1)
 
 

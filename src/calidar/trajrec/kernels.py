@@ -5,6 +5,7 @@ tests/unit/trajrec/test_geometry.py holds these to them)."""
 
 from __future__ import annotations
 
+import contextlib
 import math
 
 import numpy as np
@@ -27,21 +28,28 @@ def _body(de, dn, du, roll, pitch, heading):
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _angles(b0, b1, b2, ck, sk):
-    """(across-track angle of the body vector, along-track angle of the scanner vector Rz(κ)ᵀ·b),
-    ck, sk = cos κ, sin κ of the scan plane's yaw κ in the body."""
+def _scanner(b0, b1, b2, ck, sk, ce, se):
+    """The scanner vector s = Ry(ε)ᵀ·Rz(κ)ᵀ·b (ck, sk, ce, se: cos, sin of the scan plane's yaw κ and
+    pitch ε in the body)."""
     s0, s1 = ck * b0 + sk * b1, -sk * b0 + ck * b1
-    return math.atan2(b1, b2), math.atan2(s0, math.hypot(s1, b2))
+    return ce * s0 - se * b2, s1, se * s0 + ce * b2
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _angles(b0, b1, b2, ck, sk, ce, se):
+    """(across-track angle of the body vector, along-track angle of the scanner vector)."""
+    s0, s1, s2 = _scanner(b0, b1, b2, ck, sk, ce, se)
+    return math.atan2(b1, b2), math.atan2(s0, math.hypot(s1, s2))
 
 
 @njit(cache=True, nogil=True)
-def scan_partials(points, state, scan, kappa=0.0):  # pragma: no cover - numba
+def scan_partials(points, state, scan, kappa=0.0, eps=0.0):  # pragma: no cover - numba
     """Residuals (n, 2) (across − scan angle, along) and partials (n, 2, 6): exact for the
     position (b is linear in p − S), central differences of 1e-5 rad for the attitude (their error,
     ~1e-11, stays far below the along-track angle's scatter, whose weight would amplify any more).
-    ``kappa``: the scan plane's yaw in the body (rad; see geometry.scan_residuals)."""
+    ``kappa``, ``eps``: the scan plane's yaw and pitch in the body (rad; see geometry.scan_residuals)."""
     n = points.shape[0]
-    ck, sk = math.cos(kappa), math.sin(kappa)
+    ck, sk, ce, se = math.cos(kappa), math.sin(kappa), math.cos(eps), math.sin(eps)
     r = np.empty((n, 2))
     g = np.empty((n, 2, 6))
     att = np.empty(3)
@@ -49,31 +57,49 @@ def scan_partials(points, state, scan, kappa=0.0):  # pragma: no cover - numba
         de, dn, du = points[k, 0] - state[k, 0], points[k, 1] - state[k, 1], points[k, 2] - state[k, 2]
         ro, pi, he = state[k, 3], state[k, 4], state[k, 5]
         b0, b1, b2 = _body(de, dn, du, ro, pi, he)
-        a0, c0 = _angles(b0, b1, b2, ck, sk)
+        a0, c0 = _angles(b0, b1, b2, ck, sk, ce, se)
         r[k, 0] = a0 - scan[k]
         r[k, 1] = c0
-        s0, s1 = ck * b0 + sk * b1, -sk * b0 + ck * b1
+        s0, s1, s2 = _scanner(b0, b1, b2, ck, sk, ce, se)
         q = b1 * b1 + b2 * b2
-        qs = s1 * s1 + b2 * b2
+        qs = s1 * s1 + s2 * s2
         h = math.sqrt(qs)
         big = qs + s0 * s0
         # ∂across/∂b = (0, b2, −b1)/q; ∂along/∂s = (h, −s0·s1/h, −s0·s2/h)/(s0² + h²); ∂b/∂S_j = −A e_j
         for j in range(3):
             e0, e1, e2 = _body(1.0 if j == 0 else 0.0, 1.0 if j == 1 else 0.0, 1.0 if j == 2 else 0.0, ro, pi, he)
-            f0, f1 = ck * e0 + sk * e1, -sk * e0 + ck * e1
+            f0, f1, f2 = _scanner(e0, e1, e2, ck, sk, ce, se)
             g[k, 0, j] = -(b2 * e1 - b1 * e2) / q
-            g[k, 1, j] = -(h * f0 - s0 * (s1 * f1 + b2 * e2) / h) / big
+            g[k, 1, j] = -(h * f0 - s0 * (s1 * f1 + s2 * f2) / h) / big
         for j in range(3):
             att[0], att[1], att[2] = ro, pi, he
             att[j] += _H_ANG
             b0j, b1j, b2j = _body(de, dn, du, att[0], att[1], att[2])
-            a1, c1 = _angles(b0j, b1j, b2j, ck, sk)
+            a1, c1 = _angles(b0j, b1j, b2j, ck, sk, ce, se)
             att[j] -= 2 * _H_ANG
             b0j, b1j, b2j = _body(de, dn, du, att[0], att[1], att[2])
-            a2, c2 = _angles(b0j, b1j, b2j, ck, sk)
+            a2, c2 = _angles(b0j, b1j, b2j, ck, sk, ce, se)
             g[k, 0, 3 + j] = (a1 - a2) / (2 * _H_ANG)
             g[k, 1, 3 + j] = (c1 - c2) / (2 * _H_ANG)
     return r, g
+
+
+@njit(cache=True, nogil=True)
+def mount_partials(points, state, kappa, eps):  # pragma: no cover - numba
+    """Partials (n, 2) of the along-track angle by the scan plane's yaw κ and pitch ε in the body
+    (central differences of 1e-5 rad, as the attitude's)."""
+    n = points.shape[0]
+    out = np.empty((n, 2))
+    for k in range(n):
+        b0, b1, b2 = _body(points[k, 0] - state[k, 0], points[k, 1] - state[k, 1], points[k, 2] - state[k, 2],
+                           state[k, 3], state[k, 4], state[k, 5])
+        for j in range(2):
+            ka, ea = (kappa + _H_ANG, eps) if j == 0 else (kappa, eps + _H_ANG)
+            kb, eb = (kappa - _H_ANG, eps) if j == 0 else (kappa, eps - _H_ANG)
+            c1 = _angles(b0, b1, b2, math.cos(ka), math.sin(ka), math.cos(ea), math.sin(ea))[1]
+            c2 = _angles(b0, b1, b2, math.cos(kb), math.sin(kb), math.cos(eb), math.sin(eb))[1]
+            out[k, j] = (c1 - c2) / (2 * _H_ANG)
+    return out
 
 
 @njit(cache=True, nogil=True)
@@ -125,3 +151,37 @@ def accumulate(n_mat, rhs, first, w, g, r, weight, k_coef):  # pragma: no cover 
 def symmetrize(n_mat: np.ndarray) -> np.ndarray:
     """The full normal matrix from the upper triangle :func:`accumulate` fills."""
     return np.triu(n_mat) + np.triu(n_mat, 1).T
+
+
+def one_blas_thread():
+    """BLAS on one thread while solving (these matrices are a few hundred wide: a second thread
+    gains nothing and, on a busy machine, costs 10×; as ``calidar.adjust.solver``)."""
+    try:
+        from threadpoolctl import threadpool_limits
+    except ImportError:  # pragma: no cover - a dependency of scikit-learn
+        return contextlib.nullcontext()
+    return threadpool_limits(1, user_api="blas")
+
+
+@njit(cache=True, nogil=True)
+def accumulate_border(b, c_mat, r_g, first, w, g, gm, r, weight, k_coef):  # pragma: no cover - numba
+    """b += Σ weight·a·gmᵀ (a: the row's partials by the spline coefficients, as :func:`accumulate`),
+    c_mat += Σ weight·gm·gmᵀ, r_g −= Σ weight·gm·r: the normal matrix's border with a few global
+    parameters (calidar.trajrec.mounting)."""
+    m = gm.shape[1]
+    for k in range(r.shape[0]):
+        wk = weight[k]
+        if wk == 0.0:
+            continue
+        for p in range(m):
+            gp = wk * gm[k, p]
+            if gp == 0.0:
+                continue
+            r_g[p] -= gp * r[k]
+            for q in range(m):
+                c_mat[p, q] += gp * gm[k, q]
+            for c in range(6):
+                if g[k, c] == 0.0:
+                    continue
+                for j in range(4):
+                    b[c * k_coef + first[k] + j, p] += gp * g[k, c] * w[k, j]

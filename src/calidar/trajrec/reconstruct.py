@@ -3,12 +3,13 @@ epochs at a regular rate with their σ (see the package docstring)."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from calidar.crs import from_crs
 from calidar.errors import InputError
+from calidar.trajrec import mounting
 from calidar.trajrec.fit import FitSettings, Observations, channel_sigma, solve_segment
 from calidar.trajrec.frame import LocalFrame
 from calidar.trajrec.geometry import ray_basis
@@ -42,7 +43,7 @@ def _scan_usable(scan_deg: np.ndarray) -> bool:
     return s.size > 0 and np.unique(s).size >= MIN_SCAN_VALUES and float(np.ptp(s)) >= MIN_SCAN_SPAN_DEG
 
 
-def _start(line: LinePoints, p, scan_rad, rays, use_scan) -> tuple[Spline, np.ndarray, int, str]:
+def _start(line: LinePoints, p, scan_rad, rays, use_scan, path=None) -> tuple[Spline, np.ndarray, int, str]:
     """A smooth starting path (spline over E, N, U, heading), the scan-angle sign, and its source."""
     sp, coef = ground_track(line.t, p)
     sign, source, rows = 1, "", np.empty((0, 4))
@@ -57,7 +58,7 @@ def _start(line: LinePoints, p, scan_rad, rays, use_scan) -> tuple[Spline, np.nd
     if rows.shape[0] < 2 and rays[0].size >= MIN_RAYS:
         rows, source = ray_start(rays[0], rays[1], rays[2]), "multi-return rays"
     if rows.shape[0] < 2:
-        raise InputError(None, f"line {line.label}", "cannot place the sensor: the method needs a usable scan-angle "
+        raise InputError(path, f"line {line.label}", "cannot place the sensor: the method needs a usable scan-angle "
                          f"field (≥ {MIN_SCAN_VALUES} distinct values over ≥ {MIN_SCAN_SPAN_DEG:g}°) or ≥ {MIN_RAYS} "
                          "multi-return pulses (returns sharing a GPS time)")
     st = Spline.covering(line.t[0], line.t[-1], START_KNOT_S)
@@ -136,7 +137,10 @@ def reconstruct_line(line: LinePoints, crs, undulation, settings: FitSettings, r
         raise InputError(source, f"line {line.label}", f"{line.ray_t.size} multi-return pulses and no scan-angle or "
                          f"scan-plane geometry; the method needs ≥ {MIN_RAYS} pulses with several returns")
     scan = np.radians(line.scan) if use_scan else np.full(line.t.size, np.nan)
-    st, sc, sign, start_from = _start(line, p, scan, (line.ray_t, last, d), use_scan)
+    # the encoder's terms need the scan-angle field, the scan plane's the planar geometry
+    m = np.asarray(settings.mount_sigma, float) * np.repeat([use_scan, settings.planar_scanner], 2)
+    settings = replace(settings, mount_sigma=tuple(float(v) for v in m))
+    st, sc, sign, start_from = _start(line, p, scan, (line.ray_t, last, d), use_scan, source)
     u1, u2 = ray_basis(d) if sep.size else (np.empty((0, 3)), np.empty((0, 3)))
     obs = Observations(p, line.t, sign * scan, use_scan, settings.planar_scanner, last, u1, u2, line.ray_t,
                        1.0 / np.maximum(sep, 0.1))
@@ -148,6 +152,8 @@ def reconstruct_line(line: LinePoints, crs, undulation, settings: FitSettings, r
             "planar": settings.planar_scanner,
             "start_from": start_from, "segments": len(fits), "iterations": max(f.iterations for f in fits),
             "sigma0": float(np.median([f.sigma0 for f in fits])),
+            "mount": {n: (float(np.median([f.mount[k] for f in fits])), float(np.median([f.mount_sigma[k] for f in fits])),
+                          float(settings.mount_sigma[k])) for k, n in enumerate(mounting.NAMES) if settings.mount_sigma[k] > 0},
             "scales": {k: float(np.median([f.scales[k] for f in fits if k in f.scales]))
                        for k in {k for f in fits for k in f.scales}}}
     return LineTrajectory(line.label, frame, out_t, enu, att, sig, info)

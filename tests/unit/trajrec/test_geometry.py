@@ -10,7 +10,7 @@ import pytest
 
 from calidar.trajrec.fit import FitSettings, Observations, channel_sigma, solve_segment
 from calidar.trajrec.geometry import body_vectors, channel_partials, ray_basis, ray_residuals, scan_residuals
-from calidar.trajrec.kernels import ray_partials, scan_partials
+from calidar.trajrec.kernels import mount_partials, ray_partials, scan_partials
 from calidar.trajrec.spline import Spline
 
 RNG = np.random.default_rng(5)
@@ -21,17 +21,24 @@ def _states(n):
                  RNG.uniform(-np.pi, np.pi, n)]
 
 
-@pytest.mark.parametrize("kappa", [0.0, np.radians(13.96)])
-def test_kernels_match_the_numpy_equations(kappa):
+@pytest.mark.parametrize("kappa,eps", [(0.0, 0.0), (np.radians(13.96), 0.0), (np.radians(0.3), np.radians(-0.5))])
+def test_kernels_match_the_numpy_equations(kappa, eps):
     n = 200
     state = _states(n)
     pts = np.c_[RNG.normal(0, 300, (n, 2)), RNG.normal(0, 20, n)]
     scan = RNG.normal(0, 0.3, n)
-    r, g = scan_partials(pts, state, scan, kappa)
-    r_ref, g_ref = channel_partials(lambda s: scan_residuals(pts, s[:, :3], s[:, 3:], scan, kappa), state,
+    r, g = scan_partials(pts, state, scan, kappa, eps)
+    r_ref, g_ref = channel_partials(lambda s: scan_residuals(pts, s[:, :3], s[:, 3:], scan, kappa, eps), state,
                                     np.array([1e-3, 1e-3, 1e-3, 1e-7, 1e-7, 1e-7]))
     np.testing.assert_allclose(r, r_ref, atol=1e-12)
     np.testing.assert_allclose(g, g_ref, rtol=1e-5, atol=1e-8)
+    # the scan plane's yaw and pitch: partials of the along-track angle
+    h = 1e-7
+    gm = mount_partials(pts, state, kappa, eps)
+    for j, (dk, de) in enumerate(((h, 0.0), (0.0, h))):
+        ref = (scan_residuals(pts, state[:, :3], state[:, 3:], scan, kappa + dk, eps + de)[:, 1]
+               - scan_residuals(pts, state[:, :3], state[:, 3:], scan, kappa - dk, eps - de)[:, 1]) / (2 * h)
+        np.testing.assert_allclose(gm[:, j], ref, rtol=1e-5, atol=1e-8)
     d = RNG.normal(0, 1, (n, 3))
     d /= np.linalg.norm(d, axis=1)[:, None]
     u1, u2 = ray_basis(d)
