@@ -28,7 +28,7 @@ import numpy as np
 from calidar.io.flight_lines import PlanLine
 from calidar.planning.geometry import Instrument, fly_plan
 from calidar.planning.predict import PlanSettings, predict
-from calidar.planning.simulate import confirm
+from calidar.planning.simulate import FLAT_SCENE, confirm
 from calidar.planning.suggest import suggest
 from calidar.planning.terrain import scene_terrain
 from calidar.sensor import Sensor
@@ -51,13 +51,40 @@ PLANS = {
                          L(4, 30, 60, 30, -60)], ("boresight", "lever_arm_x", "lever_arm_y")),
     "two_heights": ([L(1, -30, -60, -30, 60), L(2, -30, 60, -30, -60), L(3, 30, -60, 30, 60), L(4, 30, 60, 30, -60),
                      L(5, 0, -60, 0, 60, 130.0), L(6, 0, 60, 0, -60, 130.0)], ("boresight", "lever_arm_x", "lever_arm_y")),
+    # gentle hills (2 m relief; no roof, tree or rough band) under a steady platform: every point of a line
+    # moves along track by (height · pitch + lever_arm_x), the height the same ± 3 % (poor by design)
+    "gentle_one_height": ([L(1, -30, -60, -30, 60), L(2, -30, 60, -30, -60), L(3, 30, -60, 30, 60),
+                          L(4, 30, 60, 30, -60)], ("boresight_pitch", "lever_arm_x")),
+    # a Palmer scanner (VQ-880-G-like oval, ±10.6° across at the swath's edge: a 30 m swath at 80 m) sees
+    # every point twice, ahead and back; four lines 14 m apart
+    "palmer_opposite": ([L(1, -7, -60, -7, 60), L(2, -7, 60, -7, -60), L(3, 7, -60, 7, 60), L(4, 7, 60, 7, -60)],
+                        ("boresight",)),
 }
+#: plans whose sensor.toml names a rotating scanner (the plan's geometry and the simulation follow it)
+SCANNERS = {"palmer_opposite": "palmer"}
+#: plans flown over gentle hills only (no roof, tree or rough band) by a steady platform (a calm aircraft, a
+#: stabilised mount): (relief m; σ of the attitude wobble, roll/pitch and heading, deg)
+GENTLE = {"gentle_one_height": (2.0, (0.3, 0.3))}
 
 
-def setup():
+def setup(name: str = ""):
+    """The simulator's base configuration, the terrain and the instrument of plan ``name``."""
     base = survey_config("uav", scene_seed=3)
     base = replace(base, scene=replace(base.scene, width_m=200.0, length_m=200.0))
-    return base, scene_terrain(base), Instrument(Sensor(lever_arm_x=0.05, lever_arm_z=0.12), pulse_rate_hz=2000.0)
+    inst = Instrument(Sensor(lever_arm_x=0.05, lever_arm_z=0.12), pulse_rate_hz=2000.0)
+    key = name.split("+")[0]
+    if key in SCANNERS:
+        from calidar.planning.geometry import pattern_half_fov
+        from calidar.scanners import SCANNERS as MODELS
+
+        nominal = replace(inst.nominal, scanner=MODELS[SCANNERS[key]]())
+        inst = replace(inst, nominal=nominal, half_fov_rad=pattern_half_fov(nominal))
+    if key in GENTLE:
+        relief, motion = GENTLE[key]
+        scene = replace(base.scene, width_m=300.0, length_m=300.0, **{**FLAT_SCENE, "relief_m": relief})
+        base = replace(base, scene=scene)
+        return base, scene_terrain(base), replace(inst, motion_rad=tuple(np.radians(motion)))
+    return base, scene_terrain(base), inst
 
 
 def shown(name: str, unit: str, v: float) -> str:
@@ -92,7 +119,6 @@ def run_plan(name, lines, estimate, runs, base, terrain, inst, log) -> dict:
 def table(paths: list[Path]) -> None:
     """The validation table from the JSON rows of earlier runs, each plan predicted again with today's code
     (the simulations do not depend on the prediction)."""
-    _, terrain, inst = setup()
     print("| plan | lines | named poor | parameter | predicted σ (reported) | expected error σ | RMS error | "
           "RMS / predicted σ | RMS / expected error σ | calibration's mean σ | runs |")
     print("|---|---|---|---|---|---|---|---|---|---|---|")
@@ -103,6 +129,7 @@ def table(paths: list[Path]) -> None:
                 continue
             lines = [PlanLine(d["line"], np.array(d["start"]), np.array(d["end"]), d["height_agl_m"], d["speed_mps"])
                      for d in row["lines"]]
+            _, terrain, inst = setup(row["plan"])
             pred = predict(lines, terrain, inst, PlanSettings(estimate=tuple(row["estimate"])))
             for n, u, s, r in zip(pred.names, pred.units, pred.sigma, pred.reported):
                 rms = row["rms_error"][n]
@@ -122,7 +149,6 @@ def main() -> None:
     if args.table:
         table(args.table)
         return
-    base, terrain, inst = setup()
     start = time.perf_counter()
 
     def log(text):
@@ -135,6 +161,7 @@ def main() -> None:
 
     for name in args.plans.split(","):
         lines, estimate = PLANS[name]
+        base, terrain, inst = setup(name)
         row = run_plan(name, lines, estimate, args.runs, base, terrain, inst, log)
         keep(row)
         if row["poor"] and not args.no_suggestion:

@@ -90,3 +90,22 @@ def test_simulate_confirms_the_plan(cli, inputs, tmp_path):
         assert rms < 5 * next(p["sigma_error_si"] for p in json.loads((out / "plan.json").read_text())["parameters"]
                               if p["parameter"] == name)
     assert "Confirmed by simulation" in (out / "report.html").read_text()
+
+
+def test_plan_for_a_palmer_scanner(cli, inputs, tmp_path):
+    """A sensor.toml naming a Palmer scanner: its oval sets the swath (--fov is a linear scanner's), each
+    point is seen ahead and back; four lines 14 m apart over the scene are predicted with finite σ."""
+    from calidar.scanners.palmer import PalmerScanner
+    from calidar.sensor import Sensor
+
+    sensor = tmp_path / "palmer.toml"
+    Sensor(lever_arm_x=0.05, lever_arm_z=0.12, scanner=PalmerScanner()).write(sensor)
+    lines = tmp_path / "lines.csv"
+    lines.write_text(HEADER + "1,-7,-60,-7,60,80,8\n2,-7,60,-7,-60,80,8\n3,7,-60,7,60,80,8\n4,7,60,7,-60,80,8\n")
+    out = tmp_path / "palmer"
+    code, stdout, err = cli("plan", lines, "--sensor", sensor, "--out", out, "--terrain", "scene:uav:3",
+                            "--pulse-rate", "2000", "--no-suggest")
+    assert code == 0, err + stdout
+    doc = json.loads((out / "plan.json").read_text())
+    assert doc["instrument"]["half_fov_deg"] == pytest.approx(10.55, abs=0.1)
+    assert all(p["determined"] and p["sigma_reported_si"] > 0 for p in doc["parameters"])

@@ -59,7 +59,8 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
         terrain: str = typer.Option("flat", "--terrain", help="flat, flat:HEIGHT_M, scene[:uav|airborne[:SEED]] (the "
                                     "simulator's built-in scene with roofs), or a DEM GeoTIFF in the lines' metres."),
         pulse_rate: float = typer.Option(20_000.0, "--pulse-rate", help="Pulses per second."),
-        fov: float = typer.Option(70.0, "--fov", help="Full field of view across track, degrees."),
+        fov: float = typer.Option(70.0, "--fov", help="Full field of view across track, degrees (a linear "
+                                  "scanner; a rotating one's pattern in sensor.toml sets its own swath)."),
         estimate: str = typer.Option("boresight", "--estimate", help="What to estimate, as calidar boresight "
                                      "--estimate: boresight, lever_arm, range_offset, range_scale or single names."),
         trajectory_sigma: str = typer.Option("0.02,0.002", "--trajectory-sigma", help="Expected trajectory accuracy: "

@@ -109,7 +109,7 @@ def load_terrain(choice: TerrainChoice):
 
 
 def instrument(sensor_path: Path, options: PlanOptions):
-    from calidar.planning.geometry import Instrument
+    from calidar.planning.geometry import Instrument, pattern_half_fov
     from calidar.scanners.linear import LinearScanner
     from calidar.sensor import Sensor
     from calidar.validate import number
@@ -121,10 +121,10 @@ def instrument(sensor_path: Path, options: PlanOptions):
     for v in options.platform_motion:
         number(float(np.degrees(v)), "--platform-motion", 0.0, 10.0 + 1e-12, "deg")  # (10° back from radians)
     nominal = Sensor.read(sensor_path)
-    if not isinstance(nominal.scanner, LinearScanner):
-        raise InputError(sensor_path, "scanner", f"model {nominal.scanner.model!r}: calidar plan predicts linear "
-                         "(oscillating-mirror or polygon) scanners; expected model = \"linear\"")
-    return Instrument(nominal, options.pulse_rate_hz, float(np.radians(options.fov_deg / 2)), options.range_sigma_m,
+    # a linear scanner sweeps --fov; a rotating one (Palmer oval, wedge cone) its own pattern, seen twice
+    half_fov = (float(np.radians(options.fov_deg / 2)) if isinstance(nominal.scanner, LinearScanner)
+                else pattern_half_fov(nominal))
+    return Instrument(nominal, options.pulse_rate_hz, half_fov, options.range_sigma_m,
                       float(np.radians(options.angle_sigma_deg)), tuple(float(v) for v in options.platform_motion))
 
 

@@ -10,7 +10,8 @@ are dropped; at most ``max_planes`` per pair are kept, evenly, as the calibrator
 Each kept cell becomes one point-to-plane row of :class:`~calidar.strips.correspond.Correspondences`,
 each side one synthetic point at the patch's centroid with the pose the line has when it
 scans it (level flight along the line at the planned height and speed, the scanner's angles
-and range to the centroid); the row's σ is the calibrator's — each side's point scatter over
+and range to the centroid; a rotating scanner — Palmer oval, wedge cone — sees the patch twice,
+ahead and back, and the side averages the two looks); the row's σ is the calibrator's — each side's point scatter over
 its point count, plus the noise floor — with the scatter from range and angle noise along the
 normal and the surface's own roughness. :class:`calidar.strips.problem.StripProblem` then
 builds the same Jacobian the adjustment uses.
@@ -216,22 +217,90 @@ def _seen(f: Flown, centroid: np.ndarray, normal: np.ndarray, cell: float, terra
     return np.all(terrain.visible(origin, pts).reshape(n, len(off)), axis=1)
 
 
+def _looks(nominal: Sensor) -> np.ndarray | None:
+    """How far ahead a rotating scanner looks: None for a linear scanner (its beams stay in the body's
+    y–z plane), else (2, 2, n) the pattern's fore and aft branches, each as (p, q) over p = y/z (the
+    across-track ratio, increasing) with q = x/z (along track) in the body frame."""
+    if nominal.scanner.model == "linear":
+        return None
+    return _pattern_branches(nominal.scanner, tuple(np.asarray(nominal.r_bs, float).ravel()))
+
+
+def pattern_half_fov(nominal: Sensor) -> float:
+    """Largest across-track angle (rad) of a rotating scanner's beams in the body frame (its swath's edge)."""
+    p = _pattern_branches(nominal.scanner, tuple(np.asarray(nominal.r_bs, float).ravel()))[0, 0]
+    return float(np.arctan(np.max(np.abs(p))))
+
+
+@lru_cache(maxsize=32)
+def _pattern_branches(scanner, r_bs: tuple) -> np.ndarray:
+    """The scanner's beams over one turn in the body frame (u_b = R_bs · u_s), cut at every across-track
+    ratio p of a grid: the largest (fore) and smallest (aft) along-track ratio where the pattern crosses it."""
+    beta = np.linspace(-np.pi, np.pi, 2881)
+    u = scanner.directions(beta) @ np.reshape(r_bs, (3, 3)).T
+    p, q = u[:, 1] / u[:, 2], u[:, 0] / u[:, 2]
+    grid = np.linspace(p.min(), p.max(), 241)[1:-1]
+    p0, p1, q0, q1 = p[:-1, None], p[1:, None], q[:-1, None], q[1:, None]
+    cross = (grid[None, :] - p0) * (grid[None, :] - p1) <= 0.0
+    with np.errstate(invalid="ignore", divide="ignore"):
+        at = np.where(cross & (p1 != p0), q0 + (q1 - q0) * (grid[None, :] - p0) / (p1 - p0), np.nan)
+    fore, aft = np.nanmax(at, axis=0), np.nanmin(at, axis=0)
+    return np.array([[grid, fore], [grid, aft]])
+
+
+def _body(f: Flown, points: np.ndarray, s: np.ndarray, inst: Instrument):
+    """Line ``f`` at along-track ``s`` (m, per point): time, position, R_lb and the points in the body
+    frame from the lever arm's origin, R_lbᵀ · (p − r) − a."""
+    t = f.t0 + s / f.line.speed_mps
+    pos = np.column_stack([f.line.start + s[:, None] * f.line.direction, np.full(len(s), f.altitude_m)])
+    R = f.r_lb(t, inst.motion_rad)
+    return t, pos, R, np.einsum("nji,nj->ni", R, points - pos) - inst.nominal.lever_arm
+
+
+def _miss(f: Flown, points: np.ndarray, s: np.ndarray, inst: Instrument, branch) -> np.ndarray:
+    """How far (m, along the body's x) each point is from where the beams sweep with the line at ``s``."""
+    d_b = _body(f, points, s, inst)[3]
+    ahead = 0.0 if branch is None else d_b[:, 2] * np.interp(d_b[:, 1] / d_b[:, 2], branch[0], branch[1])
+    return d_b[:, 0] - ahead
+
+
+def _sweep(f: Flown, points: np.ndarray, inst: Instrument, branch) -> np.ndarray:
+    """Along-track position (m) of the line when its beams sweep over each point: a linear scanner's scan
+    plane by two fixed-point steps (cm); a rotating scanner's fore or aft ``branch`` by the sign change of
+    the miss nearest the level-flight guess (the wobbling body can cross a point more than once there),
+    then bisection to < 1 mm."""
+    s = f.local(points[:, :2])[0]
+    s = s + _miss(f, points, s, inst, branch)
+    if branch is None:
+        return s + _miss(f, points, s, inst, branch)
+    steps = np.arange(-16.0, 16.5, 1.0)
+    miss = np.stack([_miss(f, points, s + d, inst, branch) for d in steps])  # (steps, n)
+    change = np.sign(miss[:-1]) != np.sign(miss[1:])
+    order = np.argsort(np.abs(steps[:-1] + 0.5))  # nearest the guess first
+    first = order[np.argmax(change[order], axis=0)]
+    lo = s + steps[first]
+    hi = lo + 1.0
+    sign_lo = np.sign(miss[first, np.arange(len(s))])
+    for _ in range(11):
+        mid = 0.5 * (lo + hi)
+        same = np.sign(_miss(f, points, mid, inst, branch)) == sign_lo
+        lo, hi = np.where(same, mid, lo), np.where(same, hi, mid)
+    return 0.5 * (lo + hi)
+
+
 def side_poses(f: Flown, points: np.ndarray, inst: Instrument) -> tuple[Pose, np.ndarray, np.ndarray]:
     """The poses at which line ``f`` scans ``points`` (n, 3) (level flight, the nominal sensor's
-    angles and range), their times (s) and the beams' unit directions in the local frame."""
-    n = points.shape[0]
+    angles and range), their times (s) and the beams' unit directions in the local frame. A linear
+    scanner sees each point once (n poses); a rotating one (Palmer oval, wedge cone) twice, looking
+    ahead and back (2n: the n fore looks, then the n aft ones)."""
     nominal = inst.nominal
-    s, _ = f.local(points[:, :2])
-    for _ in range(2):  # the time the scan plane (the body's y–z plane) sweeps over each point (cm after two)
-        t = f.t0 + s / f.line.speed_mps
-        pos = np.column_stack([f.line.start + s[:, None] * f.line.direction, np.full(n, f.altitude_m)])
-        R = f.r_lb(t, inst.motion_rad)
-        d_b = np.einsum("nji,nj->ni", R, points - pos) - nominal.lever_arm  # body frame: R_lbᵀ · (p − r) − a
-        s = s + d_b[:, 0]
+    looks = _looks(nominal)
+    parts = [_body(f, points, _sweep(f, points, inst, branch), inst) for branch in ([None] if looks is None else looks)]
+    t, pos, R, d_b = (np.concatenate(v) for v in zip(*parts))
     rho = np.linalg.norm(d_b, axis=1)
     u_s = (d_b / rho[:, None]) @ nominal.r_bs  # R_bsᵀ · u_b
     angles = nominal.scanner.angles(u_s)
-    pose = Pose(np.arange(n), pos, R, nominal.measured_range(rho), angles)
+    pose = Pose(np.arange(len(rho)), pos, R, nominal.measured_range(rho), angles)
     return pose, t, np.einsum("nij,nj->ni", R, d_b) / rho[:, None]
 
 
@@ -251,12 +320,15 @@ def correspondences(flown: list[Flown], pairs: list[PairPlanes], inst: Instrumen
     noise = []
     for p in pairs:
         cols, var, own = [], [], []
+        n = p.centroid.shape[0]
         for side, k, m in ((0, p.a, p.count_a), (1, p.b, p.count_b)):
             pose, t, beam = side_poses(flown[k], p.centroid, inst)
+            looks = len(t) // n  # a rotating scanner's patch: half its points seen ahead, half back
             parts[k].append((pose, t))
-            cols.append(used[k] + np.arange(p.centroid.shape[0]))
-            used[k] += p.centroid.shape[0]
-            points = point_variance(beam, p.normal, inst.nominal.true_range(pose.range_m), inst)
+            cols.append(used[k] + np.arange(n * looks).reshape(looks, n).T)
+            used[k] += n * looks
+            points = point_variance(beam, np.tile(p.normal, (looks, 1)), inst.nominal.true_range(pose.range_m),
+                                    inst).reshape(looks, n).mean(axis=0)
             var.append(moderated_variance(points + p.roughness_m**2, m - 3) / m)  # as the calibrator weighs its rows
             own.append((points + p.uneven_m**2) / m)
         agree = np.maximum(p.agree, 1e-3) * p.weight  # a row standing for `weight` planes weighs as much
@@ -277,6 +349,6 @@ def correspondences(flown: list[Flown], pairs: list[PairPlanes], inst: Instrumen
 
 
 def _selector(cols: np.ndarray, n_points: int) -> sp.csr_matrix:
-    """Rows picking one point each (weight 1)."""
-    n = cols.size
-    return sp.csr_matrix((np.ones(n), cols, np.arange(n + 1)), shape=(n, n_points))
+    """Rows (n, k) averaging k points each (the patch's centroid: weight 1/k)."""
+    n, k = cols.shape
+    return sp.csr_matrix((np.full(n * k, 1.0 / k), cols.ravel(), np.arange(0, n * k + 1, k)), shape=(n, n_points))

@@ -29,7 +29,8 @@ FLAT_SCENE = dict(relief_m=0.0, rough_sigma_m=0.0, building_density_per_km2=0.0,
 
 def scan_rate_hz(flown: Flown, inst: Instrument) -> float:
     """The mirror frequency that spaces the points alike along and across track (oscillating: two
-    sweeps a period): (2f)² = PRF · v / swath."""
+    sweeps a period): (2f)² = PRF · v / swath; a rotating scanner's turn also crosses the swath twice
+    (ahead and back), so the same."""
     swath = 2.0 * flown.line.height_agl_m * np.tan(inst.half_fov_rad)
     return 0.5 * float(np.sqrt(inst.pulse_rate_hz * flown.line.speed_mps / swath))
 
