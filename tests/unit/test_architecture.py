@@ -184,7 +184,7 @@ def test_allowances_name_only_what_still_breaks(allowance):
 
 
 #: method and engine packages that write no file: outputs are written by pipelines/ (through io/)
-NO_WRITE_PACKAGES = ("strips", "adjust", "photon", "rangecal", "planning", "scanners")
+NO_WRITE_PACKAGES = ("strips", "adjust", "photon", "rangecal", "planning", "scanners", "tpu")
 #: modules that write scratch files of a run's temporary folder (never an output), by module:function
 SCRATCH_ALLOWANCE = {"calidar.strips.cell_moments:save"}  # moments spilled to the streaming engine's temporary folder
 _WRITE_CALLS = {"write_text", "write_bytes", "savefig", "savetxt", "savez", "savez_compressed", "to_csv", "tofile",
@@ -230,7 +230,7 @@ def _file_writes(tree: ast.AST) -> list[tuple[int, str, str]]:
 
 
 def test_methods_write_no_file():
-    """strips, adjust, photon, rangecal, planning and scanners compute; pipelines/ write their results
+    """strips, adjust, photon, rangecal, planning, scanners and tpu compute; pipelines/ write their results
     (through io/): no module of theirs opens a file for writing."""
     found = [f"{name}:{where} line {line}: {what}" for name, path in _modules().items()
              if name.split(".")[1:2] and name.split(".")[1] in NO_WRITE_PACKAGES

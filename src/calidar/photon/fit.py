@@ -87,9 +87,10 @@ class Layout:
         """(G, 5): the position in :attr:`block` of each beam's parameter."""
         return self.columns(list(self.block.names))
 
-    def theta(self, values: dict[str, float]) -> np.ndarray:
-        """(G, 5) the beams' parameter rows (:data:`NAMES`) from ``values``."""
-        return self.block.take(values)[self._cells]
+    def theta(self, values: dict[str, float], block: Block | None = None) -> np.ndarray:
+        """(G, 5) the beams' parameter rows (:data:`NAMES`) from ``values``, read through ``block``
+        (:attr:`block` resolved against a problem's parameters, :meth:`Problem.at`) when given."""
+        return (block or self.block).take(values)[self._cells]
 
     def values(self, theta: np.ndarray) -> dict[str, float]:
         out = {}
@@ -111,19 +112,23 @@ class Problem(ResidualProblem):
     _last: dict = field(default_factory=dict, repr=False, compare=False)
     _information: dict = field(default_factory=dict, repr=False, compare=False)
     parameters: ParameterSet | None = field(default=None, repr=False, compare=False)
+    #: the layout's block resolved against :attr:`parameters` (:meth:`at`): the engine's values gathered by position
+    block: Block | None = field(default=None, repr=False, compare=False)
 
     def with_counts(self, counts: list[np.ndarray]) -> "Problem":
         return Problem(self.shots.with_counts(np.concatenate(counts)), self.layout, self.jitter,
                        _information=self._information)
 
     def at(self, parameters: ParameterSet) -> "Problem":
-        """This problem solved for ``parameters`` (the caches shared)."""
-        return replace(self, parameters=parameters)
+        """This problem solved for ``parameters`` (the caches shared; the parameters' block resolved once)."""
+        layout = self.layout.block
+        block = Block.of(parameters, dict(zip(layout.names, layout.keys)))
+        return replace(self, parameters=parameters, block=block if block.names == layout.names else None)
 
     def nll_terms(self, values: dict[str, float]) -> tuple[np.ndarray, np.ndarray]:
         """(log P, score) per shot at ``values``; the last evaluation is kept (the engine asks for the
         residuals and then the Jacobian at the same point)."""
-        theta = self.layout.theta(values)
+        theta = self.layout.theta(values, self.block)
         key = theta.tobytes()
         if self._last.get("key") != key:
             self._last.update(key=key, terms=log_likelihood(theta, self.shots, self.jitter))

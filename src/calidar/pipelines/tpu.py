@@ -137,7 +137,7 @@ def run_tpu(points: list[Path], trajectory: Path, sensor_path: Path, out_dir: Pa
                "sigma_si": np.sqrt(np.diag(calibration.covariance)).tolist()},
            "files": [r.to_dict() for r in results]}
     write_text_atomic(Path(out_dir) / "tpu.json", json.dumps(doc, indent=2) + "\n", force=True)
-    from calidar.tpu.report import write_report
+    from calidar.tpu.report import tpu_report
 
-    write_report(Path(out_dir) / "report.html", results, doc)
+    tpu_report(results, doc).write(Path(out_dir) / "report.html")
     return results

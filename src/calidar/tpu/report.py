@@ -3,7 +3,6 @@ histograms of a sample of the points. Renders only."""
 
 from __future__ import annotations
 
-from pathlib import Path
 
 import numpy as np
 
@@ -35,8 +34,8 @@ def _figures(results):
     return fig
 
 
-def write_report(path: Path, results, doc: dict) -> Path:
-    """report.html for a ``calidar tpu`` run (``doc``: what tpu.json holds)."""
+def tpu_report(results, doc: dict) -> Report:
+    """The report of a ``calidar tpu`` run (``doc``: what tpu.json holds); the pipeline writes it."""
     report = Report("calidar tpu: per-point uncertainty")
     s = report.section("Per-point uncertainty (TPU)")
     s.text("Each point's horizontal (THU, radial: √(σ_east² + σ_north²)) and vertical (TVU) 1σ, propagated "
@@ -68,4 +67,4 @@ def write_report(path: Path, results, doc: dict) -> Path:
         s.table(["file", "|scan angle|", "TVU median [cm]", "TVU 95 % [cm]"], bins, caption="TVU by scan angle",
                 formats=[None, None, ".2f", ".2f"])
     s.figure(_figures(results), "THU and TVU of a sample of the points, and TVU on a map")
-    return report.write(path)
+    return report

@@ -95,9 +95,11 @@ def test_the_configurations_have_no_untyped_fields():
     import dataclasses
 
     from calidar.pipelines.boresight import BoresightInputs
+    from calidar.pipelines.quality import QualityConfig
+    from calidar.strips.quality import QualitySettings
 
     for cls in (StripConfig, CalibrationConfig, StripSettings, TrajectorySettings, Estimate, TiePlanes, Vgicp,
-                BoresightInputs):
+                BoresightInputs, SolverOptions, QualityConfig, QualitySettings):
         untyped = [f.name for f in dataclasses.fields(cls) if "object" in str(f.type) or f.type in ("", "Any")]
         assert not untyped, (cls.__name__, untyped)
 
