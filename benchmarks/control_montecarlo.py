@@ -36,7 +36,7 @@ import numpy as np
 from calidar.errors import InputError
 
 RANGE_OFFSET = 0.05
-NAMES = ("range_offset", "height_bias", "lever_arm_z")
+NAMES = ("range_offset", "height_bias", "lever_arm_z", "boresight_roll", "boresight_pitch", "boresight_yaw")
 SUMMARY = (*NAMES, "vertical")
 
 

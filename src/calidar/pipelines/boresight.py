@@ -239,10 +239,12 @@ class StripCalibration:
         return self.written
 
     def __repr__(self) -> str:
+        from calidar.strips.trajectory_errors import PREFIX as TRAJECTORY_PREFIX
+
         lines = []
         for m, result in self.results.items():
             sol = result.solution
-            n_traj = sum(1 for p in sol.parameters.free if sol.nuisance_prefix and p.name.startswith(sol.nuisance_prefix))
+            n_traj = sum(1 for p in sol.parameters.free if p.name.startswith(TRAJECTORY_PREFIX))
             lines.append(f"{m}: {self.verdicts[m].status.upper()}, {len(result.strips)} strips, {len(result.pairs)} pairs "
                          f"({result.matcher.label})" + (f", {n_traj} trajectory corrections" if n_traj else ""))
             for p in sol.parameters.free:

@@ -250,7 +250,7 @@ class _Run:
         from calidar.strips.model_check import check
 
         free = est.parameters.free_names
-        shown = [n for n in free if not n.startswith(TRAJECTORY_PREFIX)]
+        shown = [n for n in free if not n.startswith((TRAJECTORY_PREFIX, CONTROL_PREFIX))]
         return check(est, lambda names: StripProblem(self.nominal, self.poses, corrs, [*free, *names], self._times(),
                                                       self.model, self.spans),
                      self.nominal.parameters(), list(self.nominal.scanner.parameters()), self.clusters(problem), shown,

@@ -5,9 +5,10 @@ The reference cloud (a denser, more precise survey of part of the area: terrestr
 scans, a calibrated earlier flight) is cut into square cells of ``CELL_M``; a cell whose points
 fill it and scatter about their least-squares plane by ≤ ``MAX_SCATTER_M`` (open ground, a road,
 a roof facet; not trees, walls or edges), not steeper than ``MAX_SLOPE_DEG``, is one local plane
-— a control plane as :class:`calidar.strips.control_planes.ControlPlanes` holds them: its
-centroid, z = a + b·dx + c·dy about it with covariance s²·(XᵀX)⁻¹ from the reference points'
-own scatter s, its square as the patch. A strip observes it as it observes a surveyed plane (its
+— a control plane as :class:`calidar.strips.control_planes.ControlPlanes` holds them: fitted to
+its points ≥ 0.5 m inside (the square a strip's points are taken from, so that both sides average
+the ground's curvature alike), z = a + b·dx + c·dy about their centroid with covariance
+s²·(XᵀX)⁻¹ from their own scatter s, the cell's square as the patch. A strip observes it as it observes a surveyed plane (its
 points inside the cell, their centroid's distance from the plane along the normal); the row's σ²
 is the strip points' scatter over their number plus the reference plane's variance at their
 centroid: both sides' scatter, as the VGICP rows take both clouds' (:mod:`calidar.strips.vgicp_planes`).
@@ -33,13 +34,13 @@ import scipy.sparse as sp
 
 from calidar.adjust import Parameter
 from calidar.errors import InputError
-from calidar.strips.control_planes import ControlPlanes
+from calidar.strips.control_planes import INSET_M, ControlPlanes
 from calidar.strips.control_survey import PREFIX
 
 CELL_M = 3.0  #: the reference cloud's cells (m): a strip's points inside one less the patch inset (0.5 m a side)
-MIN_REFERENCE_POINTS = 30  #: reference points in a cell for its plane
+MIN_REFERENCE_POINTS = 30  #: reference points ≥ INSET_M inside a cell for its plane
 FILL = 0.8  #: the points must span this share of the cell along x and y
-MAX_SCATTER_M = 0.03  #: RMS of a cell's points about their plane (m): above it the cell is not one surface
+MAX_SCATTER_M = 0.02  #: RMS of a cell's points about their plane (m): above it the cell is not one surface
 MAX_SLOPE_DEG = 30.0
 MAX_TARGETS = 300  #: cells taken at most, evenly over the cloud
 DATUM = f"{PREFIX}datum"  #: the reference cloud's height offset (m, up), a nuisance parameter
@@ -113,27 +114,35 @@ class ControlCloud(ControlPlanes):
         return sp.csr_matrix(nz[:, None]), (nz * self.datum_sigma_m) ** 2
 
 
-def planar_cells(p: np.ndarray, cell_m: float):
+def planar_cells(p: np.ndarray, cell_m: float, inset_m: float = INSET_M):
     """The cells of ``cell_m`` of points ``p`` (N, 3) that hold one smooth surface: their keys (row,
-    column packed), the points' centroids (K, 3), plane coefficients a, b, c of z = a + b·dx + c·dy
-    about them (K, 3) and those coefficients' covariance (K, 3, 3) from the points' scatter; None
-    when there is none. Per cell from sums of moments (one pass over the points, any size)."""
+    column packed), the centroids (K, 3) of their points ≥ ``inset_m`` inside (where a strip's points
+    are taken, :meth:`ControlPlanes.rows`: both sides averaged over the same square, the ground's
+    curvature cancels), plane coefficients a, b, c of z = a + b·dx + c·dy about them (K, 3) and those
+    coefficients' covariance (K, 3, 3) from the points' scatter; None when there is none. Per cell
+    from sums of moments (one pass over the points, any size); the points must span ``FILL`` of the
+    cell both ways."""
     if len(p) == 0:
         return None
     ij = np.floor(p[:, :2] / cell_m).astype(np.int64)
     keys = ((ij[:, 1] + (1 << 30)) << 31) + (ij[:, 0] + (1 << 30))
-    key, inv, m = np.unique(keys, return_inverse=True, return_counts=True)
-    s = lambda v: np.bincount(inv, weights=v, minlength=key.size)  # noqa: E731 (a per-cell sum)
-    c = np.stack([s(p[:, a]) for a in range(3)], axis=1) / m[:, None]
-    d = p - c[inv]
-    Sxx, Sxy, Syy = s(d[:, 0] ** 2), s(d[:, 0] * d[:, 1]), s(d[:, 1] ** 2)
-    Sxz, Syz, Szz = s(d[:, 0] * d[:, 2]), s(d[:, 1] * d[:, 2]), s(d[:, 2] ** 2)
+    key, inv = np.unique(keys, return_inverse=True)
     lo = np.full((key.size, 2), np.inf)
     hi = np.full((key.size, 2), -np.inf)
     np.minimum.at(lo, inv, p[:, :2])
     np.maximum.at(hi, inv, p[:, :2])
+    full = np.all(hi - lo >= FILL * cell_m, axis=1)
+    u = p[:, :2] - ij * cell_m  # within the cell
+    inner = np.all((u >= inset_m) & (u <= cell_m - inset_m), axis=1)
+    p, inv = p[inner], inv[inner]
+    m = np.bincount(inv, minlength=key.size)
+    s = lambda v: np.bincount(inv, weights=v, minlength=key.size)  # noqa: E731 (a per-cell sum)
+    c = np.stack([s(p[:, a]) for a in range(3)], axis=1) / np.maximum(m, 1)[:, None]
+    d = p - c[inv]
+    Sxx, Sxy, Syy = s(d[:, 0] ** 2), s(d[:, 0] * d[:, 1]), s(d[:, 1] ** 2)
+    Sxz, Syz, Szz = s(d[:, 0] * d[:, 2]), s(d[:, 1] * d[:, 2]), s(d[:, 2] ** 2)
     det = Sxx * Syy - Sxy**2
-    ok = (m >= MIN_REFERENCE_POINTS) & np.all(hi - lo >= FILL * cell_m, axis=1) & (det > 1e-12)
+    ok = (m >= MIN_REFERENCE_POINTS) & full & (det > 1e-12)
     det = np.where(ok, det, 1.0)
     b, cc = (Syy * Sxz - Sxy * Syz) / det, (Sxx * Syz - Sxy * Sxz) / det
     rss = np.maximum(Szz - b * Sxz - cc * Syz, 0.0)

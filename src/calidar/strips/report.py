@@ -15,7 +15,7 @@ from calidar.report import Report
 from calidar.report.plots import correlation_figure, dz_map, residual_histogram
 from calidar.strips.calibrate import CalibrationResult
 from calidar.strips.quality import PairQuality
-from calidar.strips.trajectory_errors import PREFIX as TRAJECTORY_PREFIX
+from calidar.strips.verdict import NUISANCE
 
 REFERENCES = [
     "Besl, P. J., McKay, N. D. (1992). A method for registration of 3-D shapes. IEEE Transactions on Pattern "
@@ -101,7 +101,7 @@ def add_report_section(report: Report, result: CalibrationResult, truth: dict[st
                  f"and {m.attitude_correlation_s:g} s (attitude), with the trajectory's own accuracy as priors: "
                  + (accuracy.describe() if accuracy is not None else "see solution.json") + ".")
     sec.solution(sol, truth, residual_unit="mm", residual_factor=1e3)
-    shown = [n for n in sol.parameters.free_names if not n.startswith(TRAJECTORY_PREFIX)]
+    shown = [n for n in sol.parameters.free_names if not n.startswith(NUISANCE)]
     if len(shown) > 1:
         idx = [sol.parameters.free_names.index(n) for n in shown]
         sec.figure(correlation_figure(sol.correlation[np.ix_(idx, idx)], shown),
@@ -207,7 +207,7 @@ def add_comparison_section(report: Report, results: dict[str, CalibrationResult]
     va, vb, sa, sb = ra.solution.values, rb.solution.values, ra.solution.sigma, rb.solution.sigma
     rows = []
     for p in ra.solution.parameters.free:
-        if p.name.startswith(TRAJECTORY_PREFIX) or p.name not in sb:
+        if p.name.startswith(NUISANCE) or p.name not in sb:
             continue
         d = va[p.name] - vb[p.name]
         both = np.hypot(sa[p.name], sb[p.name])

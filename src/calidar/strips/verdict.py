@@ -29,7 +29,11 @@ from scipy.special import chdtri  # χ² quantiles without scipy.stats' 0.5 s im
 
 from calidar.strips.control_verdict import vertical_findings
 from calidar.strips.model_check_verdict import finding_or_none, moved_parameters
+from calidar.strips.control_survey import PREFIX as CONTROL_PREFIX
 from calidar.strips.trajectory_errors import PREFIX as TRAJECTORY_PREFIX
+
+#: nuisance parameters: not judged, not compared, not in the correlations (the trajectory's errors, the control's survey errors)
+NUISANCE = (TRAJECTORY_PREFIX, CONTROL_PREFIX)
 from calidar.verdict import NOTE, Finding, Verdict, angle_text, length_text, two_digits
 
 #: an angle (or scale) is "determined" when its σ moves points on the ground by at most this (m)
@@ -115,7 +119,7 @@ def parameter_findings(result, range_m: float, global_test: Finding | None = Non
     rejected = global_test is not None and global_test.status in ("warn", "fail")
     out = []
     for p in sol.parameters.free:
-        if p.name.startswith(TRAJECTORY_PREFIX):
+        if p.name.startswith(NUISANCE):
             continue
         s = sig[p.name]
         text = _value_text(p, p.value, s)
@@ -195,7 +199,7 @@ def agreement_finding(results: dict) -> Finding:
     va, vb, sa, sb = ra.solution.values, rb.solution.values, ra.solution.sigma, rb.solution.sigma
     rows, worst = [], []
     for p in ra.solution.parameters.free:
-        if p.name.startswith(TRAJECTORY_PREFIX) or p.name not in sb:
+        if p.name.startswith(NUISANCE) or p.name not in sb:
             continue
         both = math.hypot(sa[p.name], sb[p.name])
         if not math.isfinite(both) or both <= 0:
@@ -237,7 +241,7 @@ def noise_finding(result, sigma_rows: np.ndarray | None) -> Finding:
 
 
 def correlation_findings(sol) -> list[Finding]:
-    names = [n for n in sol.parameters.free_names if not n.startswith(TRAJECTORY_PREFIX)]
+    names = [n for n in sol.parameters.free_names if not n.startswith(NUISANCE)]
     idx = [sol.parameters.free_names.index(n) for n in names]
     corr = sol.correlation[np.ix_(idx, idx)]
     out = []
@@ -337,8 +341,8 @@ def strip_verdict(result, stages, notes: list[str] = (), accuracy_text: str | No
     quality stages (calidar.strips.report.QualityStage), the run's notes and ``others`` (findings
     about the whole run, e.g. :func:`agreement_finding`)."""
     sol = result.solution
-    shown = [p.name for p in sol.parameters.free if not p.name.startswith(TRAJECTORY_PREFIX)]
-    n_traj = len(sol.parameters.free) - len(shown)
+    shown = [p.name for p in sol.parameters.free if not p.name.startswith(NUISANCE)]
+    n_traj = sum(p.name.startswith(TRAJECTORY_PREFIX) for p in sol.parameters.free)
     ranges = np.concatenate([s.obs.range_m[:: max(1, len(s) // 2000)] for s in result.strips])
     what = result.matcher.label
     summary = (f"{', '.join(shown)} from {len(result.pairs)} overlapping pairs of {len(result.strips)} strips "

@@ -14,6 +14,7 @@ from calidar.errors import InputError
 from calidar.sensor import Sensor
 from calidar.strips.control import CONTROL_ID, control_pose
 from calidar.strips.control_cloud import CELL_M, DATUM, ControlCloud, planar_cells
+from calidar.strips.control_planes import INSET_M
 from calidar.strips.control_survey import SurveyErrors, with_survey_parameters
 from calidar.strips.problem import StripProblem
 from calidar.strips.strip import Pose, georeference_pose
@@ -26,16 +27,18 @@ def test_planar_cells_match_a_least_squares_fit_of_each_and_leave_out_the_rest()
     xy = rng.uniform(0.0, 4 * CELL_M, (8000, 2))  # 4 × 4 cells, ~500 points each
     z = 10.0 + 0.1 * xy[:, 0] - 0.05 * xy[:, 1] + rng.normal(0.0, 0.004, len(xy))
     wall = (xy[:, 0] < CELL_M) & (xy[:, 1] < CELL_M)
-    z[wall & (xy[:, 0] > CELL_M / 2)] += 0.5  # a step in cell (0, 0): not one surface
+    z[wall & (xy[:, 0] > CELL_M / 2)] += 0.5  # a step inside cell (0, 0): not one surface
     sparse = (xy[:, 0] > 3 * CELL_M) & (xy[:, 1] > 3 * CELL_M)
     keep = ~sparse | (rng.uniform(size=len(xy)) < 0.02)  # cell (3, 3): ~10 points
     p = np.c_[xy, z][keep]
     key, cent, coef, cov = planar_cells(p, CELL_M)
     assert key.size == 14  # 16 less the step and the sparse cell
     ij = np.floor(p[:, :2] / CELL_M).astype(int)
+    u = p[:, :2] - ij * CELL_M
+    inner = np.all((u >= INSET_M) & (u <= CELL_M - INSET_M), axis=1)  # where a strip's points are taken
     for k in range(key.size):
         i, j = np.floor(cent[k, :2] / CELL_M).astype(int)
-        q = p[(ij[:, 0] == i) & (ij[:, 1] == j)]
+        q = p[(ij[:, 0] == i) & (ij[:, 1] == j) & inner]
         X = np.c_[np.ones(len(q)), q[:, :2] - q[:, :2].mean(axis=0)]
         c, rss, *_ = np.linalg.lstsq(X, q[:, 2], rcond=None)
         s2 = rss[0] / (len(q) - 3)
