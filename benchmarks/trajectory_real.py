@@ -10,16 +10,19 @@ from __future__ import annotations
 import json
 import os
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 
 from calidar.io.sbet import read_sbet
-from calidar.pipelines.trajectory import STANDING_NOTES, reconstruct_trajectory
+from calidar.pipelines.trajectory import STANDING_NOTES, TrajectorySettings, reconstruct_trajectory
 from calidar.trajrec.result import compare, error_summary
 from calidar.trajrec.summary import line_summary
 
 FILES = {"lidr_topography": "Topography.laz", "pdal_autzen": "autzen_trim.laz", "leeward_sierra": "points.las"}
+#: the scan plane's known yaw in the body (docs/conventions.md), run as well as the default
+SCAN_PLANE_YAW_DEG = {"leeward_sierra": 13.96}
 
 
 def main() -> None:
@@ -45,6 +48,16 @@ def main() -> None:
         for n in run.notes[len(STANDING_NOTES):]:
             print("note:", n)
         sbet = root / name / "sbet.out"
+        if name in SCAN_PLANE_YAW_DEG and sbet.exists():
+            for mount, label in ((None, "default priors"), ((0.0, 0.0, 0.0, 0.0), "priors 0")):
+                base = TrajectorySettings()
+                fit = replace(base.fit, scan_plane_yaw=np.radians(SCAN_PLANE_YAW_DEG[name]),
+                              **({} if mount is None else {"mount_sigma": mount}))
+                told = reconstruct_trajectory([path], settings=replace(base, fit=fit))
+                print(f"--scan-plane-yaw {SCAN_PLANE_YAW_DEG[name]}, {label}: against the true SBET:",
+                      json.dumps(error_summary(compare(told.trajectory, read_sbet(sbet)))))
+                for n in told.notes[len(STANDING_NOTES):]:
+                    print("  note:", n)
         if sbet.exists():
             truth = read_sbet(sbet)
             print("against the true SBET:", json.dumps(error_summary(compare(run.trajectory, truth))))

@@ -140,11 +140,11 @@ def _state(coef: np.ndarray, basis) -> np.ndarray:
     return np.einsum("nj,njc->nc", w, coef[i[:, None] + np.arange(4)])
 
 
-def _types(obs: Observations, spline: Spline, coef: np.ndarray, settings: FitSettings, mount: np.ndarray):
+def _types(obs: Observations, spline: Spline, coef: np.ndarray, settings: FitSettings, mount: np.ndarray,
+           idx: np.ndarray = np.zeros(0, int)):
     """Per residual type: (name, basis, residuals (n,), partials (n, 6), relative σ (n,), partials (n, m)
-    by the active mounting parameters), with the mounting ``mount`` (mounting.NAMES) applied."""
+    by the mounting parameters ``idx``), with the mounting ``mount`` (mounting.NAMES) applied."""
     out = []
-    idx = mounting.active(settings.mount_sigma)
     if obs.t.size and (obs.use_across or obs.use_along):
         basis = obs.basis(spline, "t")
         state = _state(coef, basis)
@@ -219,16 +219,16 @@ class _Step:
 
 
 def _iterate(obs: Observations, spline: Spline, coef: np.ndarray, settings: FitSettings, mount: np.ndarray,
-             est: np.ndarray | None, heading0=None) -> _Step:
-    """One Gauss–Newton step (see :class:`_Step`); ``est``: which active mounting parameters are
-    estimated (the others considered; None: decide from this step's information, see mounting.determined)."""
+             idx: np.ndarray, est: np.ndarray | None, heading0=None) -> _Step:
+    """One Gauss–Newton step (see :class:`_Step`) with the mounting parameters ``idx`` in its border;
+    ``est``: which of them are estimated (the others considered; None: decide from this step's
+    information, see mounting.determined)."""
     k = spline.n_coef
-    idx = mounting.active(settings.mount_sigma)
     n_mat, rhs = np.zeros((6 * k, 6 * k)), np.zeros(6 * k)
     b_mat, c_mat, r_g = np.zeros((6 * k, idx.size)), np.zeros((idx.size, idx.size)), np.zeros(idx.size)
     chi2, n_tot, scales, n_obs = 0.0, 0, {}, {}
     quantum = scan_quantum(obs.scan) if obs.use_across else 0.0
-    for name, basis, r, g, rel, gm in _types(obs, spline, coef, settings, mount):
+    for name, basis, r, g, rel, gm in _types(obs, spline, coef, settings, mount, idx):
         floor = max(SCALE_FLOOR, quantum / np.sqrt(12.0)) if name == "across" else SCALE_FLOOR
         w, scale = _robust(r / rel, floor / float(np.median(rel)))
         scales[name.rstrip("01")] = scale
@@ -249,7 +249,7 @@ def _iterate(obs: Observations, spline: Spline, coef: np.ndarray, settings: FitS
         y = _banded_solve(n_mat, np.c_[rhs, b_mat], k)
         sigma = np.asarray(settings.mount_sigma, float)[idx]
         if est is None:
-            est = mounting.determined(b_mat, c_mat, y[:, 1:], sigma, COARSE_STEP)  # the first, thinned, step
+            est = mounting.determined(b_mat, c_mat, y[:, 1:], sigma, COARSE_STEP)  # a thinned step: its information × COARSE_STEP
         ms = mounting.mount_step(y[:, 0], y[:, 1:], b_mat, c_mat, r_g, sigma, mount[idx], est)
     return _Step(ms.dx.reshape(6, k).T, ms, n_mat, b_mat, c_mat, chi2, n_tot, scales, n_obs)
 
@@ -257,30 +257,36 @@ def _iterate(obs: Observations, spline: Spline, coef: np.ndarray, settings: FitS
 def solve_segment(obs: Observations, spline: Spline, coef0: np.ndarray, settings: FitSettings) -> SegmentFit:
     """Gauss–Newton with IRLS from ``coef0`` (K, 6); see the module docstring. The iterations use a
     quarter of the observations until the steps are below 1 cm and 1e-5 rad; then one iteration
-    (and the covariance) uses all of them. Mounting parameters (``settings.mount_sigma``) that the
-    last coarse iteration finds determined are estimated, the others held and their σ passed on."""
+    (and the covariance) uses all of them. The mounting parameters (``settings.mount_sigma``) join
+    once the trajectory has converged: one step finds which the points determine; those are
+    estimated with it, the others held and their σ passed on (in the last step)."""
     coef = np.array(coef0, float)
     mount = np.zeros(4)
-    idx = mounting.active(settings.mount_sigma)
-    est = None
+    every = mounting.active(settings.mount_sigma)
+    idx, est, decided = np.zeros(0, int), np.zeros(0, bool), not every.size
     heading0 = None if (obs.use_across or obs.use_along) else coef[:, 5].copy()
     thin = _thin(obs, COARSE_STEP)
     it = 0
     for it in range(1, settings.iterations + 1):
-        step = _iterate(thin, spline, coef, settings, mount, None, heading0)  # decided afresh each coarse step
+        step = _iterate(thin, spline, coef, settings, mount, idx, None if idx is every else est, heading0)
         coef += step.dx
         dg = np.zeros(0)
         if step.mount is not None:
-            est = step.mount.est
-            dg = step.mount.dg
+            est, dg = step.mount.est, step.mount.dg
             mount[idx[est]] += dg
+        if idx is every:  # decided: go on with the estimated ones alone
+            idx, est, decided = every[est], np.ones(int(est.sum()), bool), True
+            continue
         if np.all(np.abs(step.dx[:, :3]) < 1e-2) and np.all(np.abs(step.dx[:, 3:]) < 1e-5) and np.all(np.abs(dg) < 1e-6):
-            break
+            if decided:
+                break
+            idx = every  # converged without them: the next step decides
+    est = np.isin(every, idx) if decided else np.zeros(every.size, bool)
     for _ in range(FINE_ITERATIONS):  # the covariance from the last one's normal matrix
-        step = _iterate(obs, spline, coef, settings, mount, est, heading0)
+        step = _iterate(obs, spline, coef, settings, mount, every, est, heading0)
         coef += step.dx
         if step.mount is not None:
-            mount[idx[est]] += step.mount.dg
+            mount[every[est]] += step.mount.dg
     sigma0 = float(np.sqrt(step.chi2 / max(step.n_tot - 6 * spline.n_coef, 1)))
     k = spline.n_coef
     f = max(sigma0, 1.0) ** 2
@@ -293,15 +299,15 @@ def solve_segment(obs: Observations, spline: Spline, coef0: np.ndarray, settings
     cov = np.stack([inv[c::6, c::6] for c in range(6)])  # rows/columns interleaved: coefficient k, channel c
     quantum = scan_quantum(obs.scan) if obs.use_across else 0.0
     if quantum:
-        across = next(t for t in _types(obs, spline, coef, settings, mount) if t[0] == "across")
-        prior = np.diag(1.0 / np.asarray(settings.mount_sigma, float)[idx] ** 2)
+        across = next(t for t in _types(obs, spline, coef, settings, mount, every) if t[0] == "across")
+        prior = np.diag(1.0 / np.asarray(settings.mount_sigma, float)[every] ** 2)
         full = np.block([[step.n_mat, step.border], [step.border.T, step.c_mat + prior]])
         w, _ = _robust(across[2] / across[4], max(SCALE_FLOOR, quantum / np.sqrt(12.0)))
         cov = widest(cov, clustered_covariance(across, w / across[4] ** 2, obs.scan[np.isfinite(obs.scan)], quantum,
                                                full, k))
     sig_m = np.zeros(4)
     if step.mount is not None:
-        sig_m[idx] = step.mount.sigma * np.sqrt(f)
+        sig_m[every] = step.mount.sigma * np.sqrt(f)
     return SegmentFit(spline, coef, cov, sigma0, step.scales, step.n_obs, it, mount, sig_m)
 
 

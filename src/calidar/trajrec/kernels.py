@@ -153,14 +153,19 @@ def symmetrize(n_mat: np.ndarray) -> np.ndarray:
     return np.triu(n_mat) + np.triu(n_mat, 1).T
 
 
+_CONTROLLER = []  #: threadpoolctl's controller, made once: finding the BLAS libraries costs 3 ms a call
+
+
 def one_blas_thread():
     """BLAS on one thread while solving (these matrices are a few hundred wide: a second thread
     gains nothing and, on a busy machine, costs 10×; as ``calidar.adjust.solver``)."""
     try:
-        from threadpoolctl import threadpool_limits
+        from threadpoolctl import ThreadpoolController
     except ImportError:  # pragma: no cover - a dependency of scikit-learn
         return contextlib.nullcontext()
-    return threadpool_limits(1, user_api="blas")
+    if not _CONTROLLER:
+        _CONTROLLER.append(ThreadpoolController())
+    return _CONTROLLER[0].limit(limits=1, user_api="blas")
 
 
 @njit(cache=True, nogil=True)

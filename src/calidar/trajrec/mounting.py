@@ -33,7 +33,9 @@ from calidar.trajrec.kernels import accumulate_border
 NAMES = ("scan_offset", "scan_scale", "scan_plane_yaw", "scan_plane_pitch")
 #: ``calidar trajectory``'s default prior σ: offset 0.1°, scale 0.3 %, yaw and pitch 0.1° — of the order
 #: leeward's scanner shows against its SBET (−0.09°, +0.25 %, pitch 0.07°) and of the boresight errors a
-#: calibration flight removes (calidar's simulated surveys draw 0.1° per axis); a user who knows them gives 0
+#: calibration flight removes (calidar's simulated surveys draw 0.1° per axis). Datasheets give the encoder's
+#: resolution (RIEGL VQ-840-G: "angle measurement resolution 0.001°"), not its calibration against the
+#: trajectory, which no stored datasheet or calibration report states; a user who knows them gives 0
 DEFAULT_SIGMA = (float(np.radians(0.1)), 0.003, float(np.radians(0.1)), float(np.radians(0.1)))
 
 

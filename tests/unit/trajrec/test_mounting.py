@@ -81,7 +81,7 @@ def test_without_the_parameters_sigma_unchanged_and_errors_large():
     err0, sig0, _ = _fit(t, pts, stored, (0.0, 0.0, 0.0, 0.0))
     err_tiny, sig_tiny, _ = _fit(t, pts, stored, (1e-9, 1e-9, 1e-9, 1e-9))  # known to 1e-9: the same fit
     np.testing.assert_allclose(np.median(sig_tiny, axis=0), np.median(sig0, axis=0), rtol=0.1)
-    np.testing.assert_allclose(err_tiny, err0, atol=1e-6)
+    np.testing.assert_allclose(err_tiny, err0, atol=1e-3)  # within the iterations' 1 cm stopping rule
     # a user who claims to know a wrong calibration is told σ far below the errors it causes
     assert np.all(np.sqrt(np.mean((err0[:, 3:] / sig0[:, 3:]) ** 2, axis=0)) > 5)
 
