@@ -266,13 +266,31 @@ def _miss(f: Flown, points: np.ndarray, s: np.ndarray, inst: Instrument, branch)
 
 def _sweep(f: Flown, points: np.ndarray, inst: Instrument, branch) -> np.ndarray:
     """Along-track position (m) of the line when its beams sweep over each point: a linear scanner's scan
-    plane by one fixed-point step (cm); a rotating scanner's fore or aft ``branch`` by the sign change of
-    the miss nearest the level-flight guess (the wobbling body can cross a point more than once there),
-    then bisection to < 1 mm."""
+    plane by one fixed-point step (cm); a rotating scanner's fore or aft ``branch`` by secant steps to
+    < 1 mm, and where they fail (the wobbling body can cross a point more than once near the pattern's
+    edge) by the sign change of the miss nearest the guess, then bisection."""
     s = f.local(points[:, :2])[0]
-    s = s + _miss(f, points, s, inst, branch)
+    miss = _miss(f, points, s, inst, branch)
+    s = s + miss
     if branch is None:
         return s
+    guess, last = s.copy(), (s - miss, miss)
+    for _ in range(6):
+        miss = _miss(f, points, s, inst, branch)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            slope = (miss - last[1]) / (s - last[0])
+        ok = np.isfinite(slope) & (np.abs(slope + 1.0) < 0.9)  # the miss falls ≈ 1 m a metre flown
+        last, s = (s, miss), s - miss / np.where(ok, slope, -1.0)
+    d_b = _body(f, points, s, inst)[3]
+    across = d_b[:, 1] / d_b[:, 2]  # off the pattern's across-track range: a root of the clamped branch only
+    bad = (np.abs(_miss(f, points, s, inst, branch)) > 1e-3) | (across < branch[0][0]) | (across > branch[0][-1])
+    if bad.any():
+        s[bad] = _bracketed(f, points[bad], guess[bad], inst, branch)
+    return s
+
+
+def _bracketed(f: Flown, points: np.ndarray, s: np.ndarray, inst: Instrument, branch) -> np.ndarray:
+    """The sign change of the miss nearest ``s`` within ±16 m, refined by bisection (< 1 mm)."""
     steps = np.arange(-16.0, 16.5, 1.0)
     miss = np.stack([_miss(f, points, s + d, inst, branch) for d in steps])  # (steps, n)
     change = np.sign(miss[:-1]) != np.sign(miss[1:])
