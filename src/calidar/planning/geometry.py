@@ -28,7 +28,7 @@ import scipy.sparse as sp
 from calidar import frames
 from calidar.io.flight_lines import PlanLine
 from calidar.sensor import Sensor
-from calidar.strips.correspond import Correspondences, moderated_variance
+from calidar.strips.correspond import Correspondences, fitted_moderated_variance
 from calidar.strips.planes import PlaneSettings
 from calidar.strips.strip import Pose
 
@@ -266,13 +266,31 @@ def _miss(f: Flown, points: np.ndarray, s: np.ndarray, inst: Instrument, branch)
 
 def _sweep(f: Flown, points: np.ndarray, inst: Instrument, branch) -> np.ndarray:
     """Along-track position (m) of the line when its beams sweep over each point: a linear scanner's scan
-    plane by two fixed-point steps (cm); a rotating scanner's fore or aft ``branch`` by the sign change of
-    the miss nearest the level-flight guess (the wobbling body can cross a point more than once there),
-    then bisection to < 1 mm."""
+    plane by one fixed-point step (cm); a rotating scanner's fore or aft ``branch`` by secant steps to
+    < 1 mm, and where they fail (the wobbling body can cross a point more than once near the pattern's
+    edge) by the sign change of the miss nearest the guess, then bisection."""
     s = f.local(points[:, :2])[0]
-    s = s + _miss(f, points, s, inst, branch)
+    miss = _miss(f, points, s, inst, branch)
+    s = s + miss
     if branch is None:
-        return s + _miss(f, points, s, inst, branch)
+        return s
+    guess, last = s.copy(), (s - miss, miss)
+    for _ in range(6):
+        miss = _miss(f, points, s, inst, branch)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            slope = (miss - last[1]) / (s - last[0])
+        ok = np.isfinite(slope) & (np.abs(slope + 1.0) < 0.9)  # the miss falls ≈ 1 m a metre flown
+        last, s = (s, miss), s - miss / np.where(ok, slope, -1.0)
+    d_b = _body(f, points, s, inst)[3]
+    across = d_b[:, 1] / d_b[:, 2]  # off the pattern's across-track range: a root of the clamped branch only
+    bad = (np.abs(_miss(f, points, s, inst, branch)) > 1e-3) | (across < branch[0][0]) | (across > branch[0][-1])
+    if bad.any():
+        s[bad] = _bracketed(f, points[bad], guess[bad], inst, branch)
+    return s
+
+
+def _bracketed(f: Flown, points: np.ndarray, s: np.ndarray, inst: Instrument, branch) -> np.ndarray:
+    """The sign change of the miss nearest ``s`` within ±16 m, refined by bisection (< 1 mm)."""
     steps = np.arange(-16.0, 16.5, 1.0)
     miss = np.stack([_miss(f, points, s + d, inst, branch) for d in steps])  # (steps, n)
     change = np.sign(miss[:-1]) != np.sign(miss[1:])
@@ -311,13 +329,14 @@ def point_variance(beam: np.ndarray, normal: np.ndarray, rho: np.ndarray, inst: 
 
 
 def correspondences(flown: list[Flown], pairs: list[PairPlanes], inst: Instrument,
-                    settings: PlaneSettings = PlaneSettings()):
+                    settings: PlaneSettings = PlaneSettings(), terrain=None):
     """Synthetic poses per strip, the pairs' Correspondences, each strip's point times, and the
-    variance (m²) the rows' residuals really have (in the Correspondences' order)."""
+    variance (m²) the rows' residuals really have (in the Correspondences' order). A rotating scanner's
+    side averages the looks that see the patch (``terrain``: which do; a wall or crown hides one look
+    of many patches beside buildings, and a one-look patch moves as that look's points do)."""
     poses, times, corrs = {}, {}, []
     parts: dict[int, list] = {k: [] for k in range(len(flown))}
     used = {k: 0 for k in range(len(flown))}
-    noise = []
     for p in pairs:
         cols, var, own = [], [], []
         n = p.centroid.shape[0]
@@ -325,17 +344,22 @@ def correspondences(flown: list[Flown], pairs: list[PairPlanes], inst: Instrumen
             pose, t, beam = side_poses(flown[k], p.centroid, inst)
             looks = len(t) // n  # a rotating scanner's patch: half its points seen ahead, half back
             parts[k].append((pose, t))
-            cols.append(used[k] + np.arange(n * looks).reshape(looks, n).T)
+            seen = np.ones((n, looks))
+            if looks > 1 and terrain is not None:
+                origin = pose.position + np.einsum("nij,j->ni", pose.r_lb, inst.nominal.lever_arm)
+                seen = terrain.visible(origin, np.tile(p.centroid, (looks, 1))).reshape(looks, n).T.astype(float)
+                seen[seen.sum(axis=1) == 0] = 1.0  # seen from above the line (pair_planes), not from either look
+            cols.append((used[k] + np.arange(n * looks).reshape(looks, n).T, seen / seen.sum(axis=1, keepdims=True)))
             used[k] += n * looks
-            points = point_variance(beam, np.tile(p.normal, (looks, 1)), inst.nominal.true_range(pose.range_m),
-                                    inst).reshape(looks, n).mean(axis=0)
-            var.append(moderated_variance(points + p.roughness_m**2, m - 3) / m)  # as the calibrator weighs its rows
+            points = np.sum(point_variance(beam, np.tile(p.normal, (looks, 1)), inst.nominal.true_range(pose.range_m),
+                                           inst).reshape(looks, n).T * cols[-1][1], axis=1)
+            var.append(fitted_moderated_variance(points + p.roughness_m**2, m - 3, sampled=False) / m)  # as the calibrator weighs its rows
             own.append((points + p.uneven_m**2) / m)
         agree = np.maximum(p.agree, 1e-3) * p.weight  # a row standing for `weight` planes weighs as much
-        corrs.append((p.a, p.b, cols, p.normal, np.sqrt((var[0] + var[1] + settings.noise_floor_m**2) / agree)))
         # what the residual really scatters by: the points' noise and the unevenness the patches do not share
         # (the rest lies under both and cancels: σ0 ≈ 0.5 of the calibrator on the built-in scene)
-        noise.append((own[0] + own[1]) / agree)
+        corrs.append((p.a, p.b, cols, p.normal, np.sqrt((var[0] + var[1] + settings.noise_floor_m**2) / agree),
+                      (own[0] + own[1]) / agree))
     for k, items in parts.items():
         if not items:
             continue
@@ -343,12 +367,16 @@ def correspondences(flown: list[Flown], pairs: list[PairPlanes], inst: Instrumen
         cat = [np.concatenate([getattr(pz, f) for pz, _ in items]) for f in ("position", "r_lb", "range_m", "angles")]
         poses[sid] = Pose(np.arange(used[k]), *cat)
         times[sid] = np.concatenate([t for _, t in items])
-    out = [Correspondences(flown[a].line.number, flown[b].line.number, _selector(cols[0], used[a]),
-                           _selector(cols[1], used[b]), normal, sigma) for a, b, cols, normal, sigma in corrs]
+    out, noise = [], []
+    for a, b, cols, normal, sigma, real in corrs:
+        ids = flown[a].line.number, flown[b].line.number
+        out.append(Correspondences(*ids, _selector(cols[0], used[a]), _selector(cols[1], used[b]), normal, sigma))
+        noise.append(real)
     return poses, times, out, np.concatenate(noise)
 
 
-def _selector(cols: np.ndarray, n_points: int) -> sp.csr_matrix:
-    """Rows (n, k) averaging k points each (the patch's centroid: weight 1/k)."""
+def _selector(picked: tuple[np.ndarray, np.ndarray], n_points: int) -> sp.csr_matrix:
+    """Rows averaging k points each with weights (the patch's centroid): ``picked`` = (columns, weights), (n, k)."""
+    cols, weights = picked
     n, k = cols.shape
-    return sp.csr_matrix((np.full(n * k, 1.0 / k), cols.ravel(), np.arange(0, n * k + 1, k)), shape=(n, n_points))
+    return sp.csr_matrix((weights.ravel(), cols.ravel(), np.arange(0, n * k + 1, k)), shape=(n, n_points))
