@@ -225,7 +225,10 @@ class _Run:
         """One adjustment of ``params`` from the correspondences ``corrs``, iterated until every
         step is below ``step_in_sigma`` of its σ (``step_scale``: diag N⁻¹ of an earlier one)."""
         problem = StripProblem(self.nominal, self.poses, corrs, params, self._times(), self.model, self.spans)
-        options = SolverOptions(robust=self.settings.robust, step_in_sigma=step_in_sigma)
+        # the rows' σ are absolute (each side's scatter): σ0 < 1 never shrinks the angles' σ, with the
+        # trajectory model off too (issue 26: there σ0 ≈ 0.7 came from the sloped rows' generous σ and
+        # shrank roll's, whose flat-ground rows' σ hold, to 1/1.45 of its error; docs/validation.md)
+        options = SolverOptions(robust=self.settings.robust, step_in_sigma=step_in_sigma, absolute_sigma=True)
         return estimate(problem, options, step_scale=step_scale), problem
 
     def clusters(self, problem: StripProblem) -> list[np.ndarray]:
