@@ -13,6 +13,11 @@ process over the flight, the attitude's lines apart). Per survey the default cal
 (strips_montecarlo's cached survey), N_d and the prior groups taken at its solution, and for each prior
 shape the expected RMS of error/σ per angle printed: √(C_ii / (N⁻¹)_ii), the rows' ε taken as their σ say.
 
+``--draws K``: also the same expectation with Σ taken from K draws of the simulator's own generator
+(:func:`calidar.sim.motion.smooth_noise` on the survey's trajectory epochs, sampled at the knots): as
+it is (``stationary=True``, the σ at every epoch the smrmsg's) and as it was before 27 Nov (each draw
+scaled to σ about its own mean, the mean on top: 1.42–1.49 σ per axis on short flights).
+
 Prior shapes: ``gm1`` — first-order Gauss–Markov, ρ = exp(−|Δt|/T) (the model before issue 26's fix);
 ``gm2`` — second-order, ρ = (1 + 2|Δt|/T)·exp(−2|Δt|/T), the same integral time T (20 s / 3.5 s).
 """
@@ -72,6 +77,39 @@ def correlation(knots, shape: str, scale: dict) -> np.ndarray:
     return np.where(same, R, (1.0 - OWN_STRIP_SHARE) * R)
 
 
+def drawn(est, times: np.ndarray, draws: int, stationary: bool, seed: int = 0) -> np.ndarray:
+    """The expected RMS z per angle with Σ from ``draws`` draws of the simulator's generator
+    (``stationary`` as :func:`calidar.sim.motion.smooth_noise`) on the epochs ``times``."""
+    from calidar.sim.motion import smooth_noise
+
+    fit = est.fit
+    N = fit.normal_equations(fit.jacobian(est.x), est.w)[0]
+    N_d = N.copy()
+    groups = []
+    for idx, _, P in fit.priors:
+        N_d[np.ix_(idx, idx)] -= P
+        if idx.size > 1 and fit.free[idx[0]].name.startswith("trajectory_"):
+            axis = ("east", "north", "up").index(fit.free[idx[0]].name.split("_")[2])
+            t = np.array([k[2] for k in _knots(fit, idx)])
+            groups.append((idx, P, fit.free[idx[0]].name.split("_")[1], axis, t, np.sqrt(np.diag(np.linalg.inv(P)))))
+    ang = [next(i for i, p in enumerate(fit.free) if p.name == a) for a in ANGLES]
+    Ninv = np.linalg.inv(N)
+    G = Ninv[ang]
+    rows = np.diag(G @ N_d @ G.T)
+    rng = np.random.default_rng(seed)
+    dt = float(np.median(np.diff(times)))
+    acc = np.zeros(len(ang))
+    for _ in range(draws):
+        series = {"bias": smooth_noise(rng, times.size, dt, SIM_KERNEL_S["bias"], 1.0, 3, stationary=stationary),
+                  "tilt": smooth_noise(rng, times.size, dt, SIM_KERNEL_S["tilt"], 1.0, 3, stationary=stationary)}
+        u = np.zeros(len(ang))
+        for idx, P, kind, axis, t, sigma in groups:
+            e = np.interp(t, times, series[kind][:, axis]) * sigma
+            u += G[:, idx] @ (P @ e)
+        acc += u**2
+    return np.sqrt((rows + acc / draws) / np.diag(Ninv)[ang])
+
+
 def honesty(est) -> dict[str, np.ndarray]:
     """Per prior shape: the expected RMS z per angle, and the reported σ (deg)."""
     fit = est.fit
@@ -114,6 +152,7 @@ def main() -> None:
     ap.add_argument("--directions", default="opposite", choices=("cross", "opposite"))
     ap.add_argument("--vegetation", type=float, default=0.0)
     ap.add_argument("--cache", type=Path, required=True)
+    ap.add_argument("--draws", type=int, default=0, help="also Σ from this many draws of the simulator's generator")
     args = ap.parse_args()
     solver.Estimate.solution = _capture
     ratios: dict[str, list] = {}
@@ -137,6 +176,14 @@ def main() -> None:
                       + " / ".join(f"{v:.2f}" for v in r) + "  σ " + " / ".join(f"{v * 1e3:.3f}" for v in s)
                       + " mdeg, the rows' share of it " + " / ".join(f"{v * 1e3:.3f}" for v in rows) + " mdeg",
                       flush=True)
+            if args.draws:
+                from calidar.io.sbet import read_sbet
+                times = read_sbet(f / "sbet.out").time
+                for stationary, name in ((True, "drawn, today"), (False, "drawn, before 27 Nov")):
+                    r = drawn(est, times, args.draws, stationary)
+                    ratios.setdefault((m, name), []).append(r)
+                    print(f"seed {seed} {m:6s} {name}: expected RMS z roll/pitch/yaw " + " / ".join(f"{v:.2f}" for v in r),
+                          flush=True)
     for (m, shape), rs in sorted(ratios.items()):
         rs = np.array(rs)
         print(f"{m:6s} {shape}: {len(rs)} surveys, expected RMS z roll/pitch/yaw "
