@@ -39,7 +39,11 @@ class SolverOptions:
     (None: 2.385 Cauchy, 1.345 Huber, 95 % efficiency); robust_scale: re-estimate the residuals'
     scale by MAD for those weights (False when σ is trusted); max_iter: Levenberg–Marquardt steps
     at most; tol: relative change of the cost (and absolute step) below which it stops;
-    step_in_sigma: stop when every step is below this fraction of its parameter's σ.
+    step_in_sigma: stop when every step is below this fraction of its parameter's σ;
+    absolute_sigma: the observations' σ are absolute (each row's own noise, as the strips' from their
+    points' scatter), not only relative weights: the covariance is then never shrunk by an
+    a-posteriori σ0 below 1, priors or not (only raised by one above 1; cf. ``absolute_sigma`` of
+    scipy.optimize.curve_fit). False: σ0²·N⁻¹ without priors.
     """
 
     robust: str | None = "cauchy"
@@ -48,6 +52,7 @@ class SolverOptions:
     max_iter: int = 30
     tol: float = 1e-10
     step_in_sigma: float = STEP_IN_SIGMA
+    absolute_sigma: bool = False
 
     def __post_init__(self):
         if self.robust is not None and self.robust not in ROBUST_K:

@@ -64,7 +64,8 @@ def solve(problem: ResidualProblem, options: SolverOptions | None = None, *, pro
     Miller 2014) where it exceeds the usual σ0²·N⁻¹ (σ raised, correlations kept); a list of such
     groupings raises each σ to the largest of their estimates (sandwich estimates from few groups
     run low). The covariance is σ0²·N⁻¹ without priors (σ relative) and max(σ0², 1)·N⁻¹ with them
-    (σ absolute: the priors are never tightened by an a-posteriori σ0 below 1).
+    (σ absolute: the priors are never tightened by an a-posteriori σ0 below 1) or with
+    ``options.absolute_sigma`` (the observations' own σ are absolute).
 
     The function form ``solve(residual_fn, params, sigma=…, jacobian_fn=…, robust=…, …)`` (values
     by name → residuals) is kept: it wraps the functions in a
@@ -166,6 +167,7 @@ class _Fit:
     def __init__(self, problem: ResidualProblem, options: SolverOptions):
         self.problem, self.params = problem, problem.parameters
         self.robust, self.robust_k, self.robust_scale = options.robust, options.robust_k, options.robust_scale
+        self.absolute_sigma = options.absolute_sigma
         self.free = self.params.free
         self.priors = prior_groups(self.free, getattr(problem, "prior_correlation", ()))
         self.n_prior = sum(idx.size for idx, _, _ in self.priors)
@@ -220,10 +222,11 @@ class _Fit:
         return max(float(np.sum(w * self.sig**2)) + self.n_prior - len(self.free), 1.0)
 
     def variance_factor(self, r: np.ndarray, w: np.ndarray, x: np.ndarray) -> float:
-        """σ0² without priors (σ relative); max(σ0², 1) with them (σ absolute: σ0 < 1 there says
-        the priors were generous, not that the parameters are better known than they allow)."""
+        """σ0² without priors (σ relative); max(σ0², 1) with them or with absolute observation σ
+        (σ absolute: σ0 < 1 there says the priors or the rows' σ were generous, not that the
+        parameters are better known than they allow)."""
         s0 = 2.0 * self.cost(r, w, x) / self.dof(w)
-        return s0 if self.n_prior == 0 else max(s0, 1.0)
+        return s0 if self.n_prior == 0 and not self.absolute_sigma else max(s0, 1.0)
 
 
 def _levenberg_marquardt(at: Estimate, step_in_sigma: float) -> Estimate:

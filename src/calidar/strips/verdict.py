@@ -171,7 +171,7 @@ def sigma0_finding(sol) -> Finding:
         return Finding(NOTE, "global test", detail + ": below its range — the residuals are smaller than the "
                        "correspondences' scatter predicts, so the σ are conservative by up to this factor"
                        + (" (not shrunk for it: the trajectory priors are absolute)" if priors
-                          else " (they include it)"))
+                          else " (not shrunk for it: the rows' σ are absolute, each from its points' scatter)"))
     status = "fail" if s0 > SIGMA0_FAIL else "warn"
     return Finding(status, "global test", detail + ": above its range — the residuals are larger than the "
                    "correspondences' own scatter predicts, and the parameters' σ hold only if the excess is noise",

@@ -136,6 +136,28 @@ def test_priors_are_absolute_sigma0_below_one_does_not_shrink_them():
     assert held.covariance == pytest.approx(np.linalg.inv(N + np.diag([1 / 0.05**2, 0.0])), rel=1e-6)
 
 
+def test_absolute_sigma_keeps_the_stated_sigma_without_priors_too():
+    """With absolute observation σ (each row's own noise, as the strips' from their points' scatter) a
+    σ0 below 1 does not shrink the covariance even without priors (issue 26: the strip adjustment
+    with the trajectory model off shrank roll's σ by σ0 ≈ 0.7 to 1/1.45 of its error); σ0 above 1
+    still raises it."""
+    from calidar.adjust import SolverOptions
+    from calidar.adjust.residuals import FunctionProblem
+
+    x, y = _line(6)  # noise 0.1
+
+    def residuals(v):
+        return v["a"] + v["b"] * x - y
+
+    for stated in (0.4, 0.05):  # 4× too generous (σ0 ≈ 0.25), 2× too tight (σ0 ≈ 2)
+        N = np.array([[x.size, x.sum()], [x.sum(), x @ x]]) / stated**2
+        sol = solve(FunctionProblem(residuals, _params(), sigma=stated), SolverOptions(robust=None, absolute_sigma=True))
+        assert sol.sigma0 == pytest.approx(0.1 / stated, rel=0.15)
+        np.testing.assert_allclose(sol.covariance, max(sol.sigma0**2, 1.0) * np.linalg.inv(N), rtol=1e-6)
+    relative = solve(FunctionProblem(residuals, _params(), sigma=0.4), SolverOptions(robust=None))
+    np.testing.assert_allclose(relative.covariance, relative.sigma0**2 * np.linalg.inv(N * (0.05 / 0.4) ** 2), rtol=1e-6)
+
+
 def test_normal_matrix_of_a_sparse_jacobian_equals_the_dense_product():
     """JᵀWJ from CSR rows (repeated column indices within a row included) equals the dense product."""
     rng = np.random.default_rng(4)
