@@ -225,3 +225,38 @@ def over_time_accuracy(base, level: LevelOverTime, knot_times: Mapping[int, np.n
         part, axes = cols[g]
         (pos, att)[part][:, axes] *= f[:, None]
     return TrajectoryAccuracy(times, pos, att, None, SOURCE_OVER_TIME, False)
+
+
+#: the report's table of the level over the flight (:func:`level_table_rows`)
+LEVEL_TABLE_HEADER = ["strip", "time (s from the first)", "position horizontal (cm)", "position vertical (cm)",
+                      "roll·pitch (°)", "heading (°)"]
+_COLUMNS = (("position_horizontal", 100.0, "{:.2g}"), ("position_vertical", 100.0, "{:.2g}"),
+            ("attitude_horizontal", 1.0, "{:.2g}"), ("heading", 1.0, "{:.2g}"))
+
+
+def level_table_text(over_time: dict) -> str:
+    """What the table of the level over the flight shows (solution.json's "over_time" block)."""
+    tau = ", ".join(f"{g.replace('_', ' ')} ×e^±{v:.2f}" for g, v in over_time["tau_log_sigma"].items())
+    return (f"No accuracy file: the trajectory's σ estimated from the overlaps per segment of each strip (about "
+            f"{over_time['segment_s']:g} s), pooled over the flight (a process of correlation time "
+            f"{over_time['correlation_s']:g} s; estimated spread {tau}). Each σ ± the relative σ of its factor; "
+            "\"(pooled)\": the segment's own priors could not tell, its σ comes from its neighbours in time; "
+            "\"–\": a group the overlaps cannot tell, the survey-grade default kept.")
+
+
+def level_table_rows(over_time: dict) -> list[list[str]]:
+    """One row per segment: strip, time span from the first segment's start, each group's σ."""
+    segs = over_time["segments"]
+    t0 = segs[0]["t_start_s"] if segs else 0.0
+    rows = []
+    for s in segs:
+        row = [str(s["strip"]), f"{s['t_start_s'] - t0:.0f}–{s['t_end_s'] - t0:.0f}"]
+        for g, unit, fmt in _COLUMNS:
+            v = s.get(g)
+            if v is None:
+                row.append("–")
+                continue
+            rel = "" if v["relative_sigma"] is None else f" ± {100 * v['relative_sigma']:.0f} %"
+            row.append(fmt.format(v["sigma"] * unit) + rel + ("" if v["own"] else " (pooled)"))
+        rows.append(row)
+    return rows

@@ -142,3 +142,35 @@ def test_the_accuracy_over_time_gives_each_knot_its_segments_factor():
     assert att[:, 0] == pytest.approx(SURVEY_GRADE.attitude_rad[0, 0])  # a group not estimated keeps its σ
     assert pos == pytest.approx(np.repeat(SURVEY_GRADE.position_m[:1], KNOTS, 0))
     assert acc.at(times[0])[1][:, 2] == pytest.approx(SURVEY_GRADE.attitude_rad[0, 2] * 0.5)
+
+
+def _over_time_dict():
+    times = _flight()
+    segs = segments_of(times)
+    from calidar.strips.trajectory_level_time import Pooled
+    n = len(segs)
+    own = np.ones(n, bool)
+    own[2] = False
+    pooled = Pooled(np.log(np.linspace(0.25, 4.0, n)), np.full(n, 0.2), own, 1.0, 0.0)
+    lt = LevelOverTime(segs, {"heading": pooled}, {"heading": np.full(n, 10.0)}, 3, True)
+    return lt.to_dict({"heading": 0.008})
+
+
+def test_the_report_table_and_the_verdict_state_the_level_over_the_flight():
+    """The table: one row per segment with its strip, its time from the first and heading's σ ±
+    its relative σ ("(pooled)" where the segment could not tell); groups not followed read "–".
+    The accuracy finding names each group's range over the flight."""
+    from calidar.strips.trajectory_level_time import level_table_rows
+    from calidar.strips.verdict import accuracy_finding
+
+    d = _over_time_dict()
+    rows = level_table_rows(d)
+    assert len(rows) == STRIPS
+    assert rows[0][:2] == ["0", "0–29"] and rows[1][1] == "58–87"
+    assert rows[0][5] == "0.004 ± 11 %" and rows[-1][5] == "0.016 ± 11 %"
+    assert rows[2][5].endswith("(pooled)") and rows[0][2] == "–"
+    level = {"source": "data", "min_redundancy": 10.0, "headline": "position 3/3 cm (horizontal/vertical)",
+             "groups": {"heading": {"estimated": True, "sigma_factor": 1.0, "sigma_factor_relative_sigma": 0.1,
+                                    "redundancy_at_stated_sigma": 30.0}}, "over_time": d}
+    f = accuracy_finding(level)
+    assert f.status == "pass" and "over the flight (per segment, pooled in time): heading ×0.5–×2" in f.detail
