@@ -13,19 +13,23 @@ group of priors — four here, each the stated σ's shape kept within it:
 A group is estimated only when the data check enough of its priors at the stated σ: its
 redundancy rₖ there (how many of its nₖ priors the overlaps determine better than the priors do)
 must reach :data:`MIN_REDUNDANCY`; otherwise the stated σ stay ("the data cannot tell"). The
-estimate's own relative σ is ≈ 1/√(2rₖ) at the estimate (rₖ falls with the factor: a trajectory
-better than stated is checked by fewer of its now narrow priors). Each factor is held ≥ :data:`FLOOR_FACTOR` (a trajectory
+estimate's own relative σ is ≈ 1/√(2m), m the effective number of independent priors behind it
+(:mod:`calidar.adjust.variance_elements`; less than rₖ: a Gauss–Markov process sampled every
+second is worth far fewer independent priors than it has knots). Each estimated group then
+follows the flight in time (:mod:`calidar.strips.trajectory_level_time`). Each factor is held ≥ :data:`FLOOR_FACTOR` (a trajectory
 that good is as good as exact for the calibration).
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass, replace
 
 import numpy as np
 
 from calidar.adjust.variance_components import OBSERVATIONS, Components, estimate_components, normal_terms, split_blocks
+from calidar.adjust.variance_elements import estimate_elements
 from calidar.errors import CalibrationError
 from calidar.strips.trajectory_errors import Knot
 from calidar.strips.trajectory_level_time import LevelOverTime, estimate_over_time, over_time_accuracy
@@ -60,9 +64,18 @@ class TrajectoryLevel:
     estimated: dict[str, bool]  #: per group (present in the adjustment): estimated, or the data cannot tell
     accuracy: TrajectoryAccuracy  #: ``base`` × the factors
     over_time: LevelOverTime | None = None  #: the estimated groups' factors per segment of the flight
+    #: per estimated group the effective number m of independent priors behind its factor (its
+    #: relative σ 1/√(2m); correlated priors count less than their redundancy rₖ)
+    effective: dict[str, float] | None = None
 
     def factor(self, group: str) -> float:
         return self.components.sigma_factor(group) if self.estimated.get(group) else 1.0
+
+    def relative_sigma(self, group: str) -> float:
+        """The estimated factor's relative σ: 1/√(2m) with m its priors' effective number when known,
+        else 1/√(2rₖ)."""
+        m = (self.effective or {}).get(group)
+        return self.components.relative_sigma(group) if m is None else (float("inf") if m <= 0 else 1.0 / math.sqrt(2.0 * m))
 
     @property
     def any_estimated(self) -> bool:
@@ -88,7 +101,7 @@ class TrajectoryLevel:
                 "min_redundancy": MIN_REDUNDANCY, "iterations": c.iterations, "converged": c.converged,
                 "observations_sigma0": float(np.sqrt(c.variance[OBSERVATIONS])),
                 "groups": {g: {"estimated": ok, "sigma_factor": self.factor(g),
-                               "sigma_factor_relative_sigma": c.relative_sigma(g) if ok else None,
+                               "sigma_factor_relative_sigma": self.relative_sigma(g) if ok else None,
                                "redundancy": float(c.redundancy[g]),
                                "redundancy_at_stated_sigma": float(c.redundancy_start[g]), "priors": int(c.size[g])}
                            for g, ok in self.estimated.items()}} | self._over_time_dict()
@@ -133,6 +146,8 @@ def estimate_level(est, base: TrajectoryAccuracy, layout: Mapping[str, Knot],
     if knot_times is not None and level.any_estimated:
         start = {g: comps.variance[g] for g in present if estimated[g]}
         try:
+            level.effective = estimate_elements(terms[0], terms[1], terms[4], est.fit.priors, groups, start,
+                                                observations=comps.variance[OBSERVATIONS], max_iter=1).effective
             level.over_time = estimate_over_time(terms, est.fit.priors, knots, groups, knot_times, start,
                                                  comps.variance[OBSERVATIONS], FLOOR_FACTOR**2)
         except CalibrationError:  # a normal matrix singular at some segment's factors: the flight-wide level stays
