@@ -240,7 +240,9 @@ def level_table_text(over_time: dict) -> str:
     return (f"No accuracy file: the trajectory's σ estimated from the overlaps per segment of each strip (about "
             f"{over_time['segment_s']:g} s), pooled over the flight (a process of correlation time "
             f"{over_time['correlation_s']:g} s; estimated spread {tau}). Each σ ± the relative σ of its factor; "
-            "\"(pooled)\": the segment's own priors could not tell, its σ comes from its neighbours in time; "
+            "\"(pooled)\": the segment's own priors could not tell (fewer than "
+            f"{over_time['min_effective']:g} independent ones), its σ comes from its neighbours in time or, when "
+            "fewer than two segments can tell, from the flight-wide level; "
             "\"–\": a group the overlaps cannot tell, the survey-grade default kept.")
 
 
