@@ -236,7 +236,8 @@ _COLUMNS = (("position_horizontal", 100.0, "{:.2g}"), ("position_vertical", 100.
 
 def level_table_text(over_time: dict) -> str:
     """What the table of the level over the flight shows (solution.json's "over_time" block)."""
-    tau = ", ".join(f"{g.replace('_', ' ')} ×e^±{v:.2f}" for g, v in over_time["tau_log_sigma"].items())
+    tau = ", ".join(f"{g.replace('_', ' ')} " + (f"×e^±{v:.2f}" if v > 0 else "constant")
+                    for g, v in over_time["tau_log_sigma"].items())
     return (f"No accuracy file: the trajectory's σ estimated from the overlaps per segment of each strip (about "
             f"{over_time['segment_s']:g} s), pooled over the flight (a process of correlation time "
             f"{over_time['correlation_s']:g} s; estimated spread {tau}). Each σ ± the relative σ of its factor; "
