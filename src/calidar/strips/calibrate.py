@@ -340,7 +340,7 @@ def _trajectory_level(run: _Run, est: Estimate, corrs: list[Correspondences], sa
     from calidar.strips.trajectory_level import estimate_level
 
     say("estimating the trajectory's accuracy from the overlaps", run.settings.max_outer, run.settings.max_outer)
-    run.level = estimate_level(est, run.model.accuracy, run.model.layout(run.spans))
+    run.level = estimate_level(est, run.model.accuracy, run.model.layout(run.spans), run.model.knot_times(run.spans))
     run.model = replace(run.model, accuracy=run.level.accuracy, estimate_level=False)
     sigma = {p.name: p.prior_sigma for p in run.model.parameters(run.spans, run.headings())}
     params = ParameterSet(replace(p, prior_sigma=sigma[p.name]) if p.name in sigma else p for p in est.parameters)

@@ -112,6 +112,13 @@ def add_report_section(report: Report, result: CalibrationResult, truth: dict[st
     if result.corrections:
         sec.heading("Trajectory corrections")
         correction_table(sec, result)
+    over_time = sol.extra.get("trajectory_accuracy_estimate", {}).get("over_time")
+    if over_time:
+        from calidar.strips.trajectory_level_time import LEVEL_TABLE_HEADER, level_table_rows, level_table_text
+
+        sec.heading("Trajectory accuracy over the flight (estimated)")
+        sec.text(level_table_text(over_time))
+        sec.table(LEVEL_TABLE_HEADER, level_table_rows(over_time))
     if "control" in sol.extra:
         _control_part(sec, sol.extra["control"])
     if sol.extra.get("model_check"):

@@ -13,21 +13,26 @@ group of priors — four here, each the stated σ's shape kept within it:
 A group is estimated only when the data check enough of its priors at the stated σ: its
 redundancy rₖ there (how many of its nₖ priors the overlaps determine better than the priors do)
 must reach :data:`MIN_REDUNDANCY`; otherwise the stated σ stay ("the data cannot tell"). The
-estimate's own relative σ is ≈ 1/√(2rₖ) at the estimate (rₖ falls with the factor: a trajectory
-better than stated is checked by fewer of its now narrow priors). Each factor is held ≥ :data:`FLOOR_FACTOR` (a trajectory
+estimate's own relative σ is ≈ 1/√(2m), m the effective number of independent priors behind it
+(:mod:`calidar.adjust.variance_elements`; less than rₖ: a Gauss–Markov process sampled every
+second is worth far fewer independent priors than it has knots). Each estimated group then
+follows the flight in time (:mod:`calidar.strips.trajectory_level_time`). Each factor is held ≥ :data:`FLOOR_FACTOR` (a trajectory
 that good is as good as exact for the calibration).
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass, replace
 
 import numpy as np
 
 from calidar.adjust.variance_components import OBSERVATIONS, Components, estimate_components, normal_terms, split_blocks
+from calidar.adjust.variance_elements import estimate_elements
 from calidar.errors import CalibrationError
 from calidar.strips.trajectory_errors import Knot
+from calidar.strips.trajectory_level_time import LevelOverTime, estimate_over_time, over_time_accuracy
 from calidar.trajectory_accuracy import TrajectoryAccuracy
 
 GROUPS = ("position_horizontal", "position_vertical", "attitude_horizontal", "heading")
@@ -58,9 +63,19 @@ class TrajectoryLevel:
     components: Components
     estimated: dict[str, bool]  #: per group (present in the adjustment): estimated, or the data cannot tell
     accuracy: TrajectoryAccuracy  #: ``base`` × the factors
+    over_time: LevelOverTime | None = None  #: the estimated groups' factors per segment of the flight
+    #: per estimated group the effective number m of independent priors behind its factor (its
+    #: relative σ 1/√(2m); correlated priors count less than their redundancy rₖ)
+    effective: dict[str, float] | None = None
 
     def factor(self, group: str) -> float:
         return self.components.sigma_factor(group) if self.estimated.get(group) else 1.0
+
+    def relative_sigma(self, group: str) -> float:
+        """The estimated factor's relative σ: 1/√(2m) with m its priors' effective number when known,
+        else 1/√(2rₖ)."""
+        m = (self.effective or {}).get(group)
+        return self.components.relative_sigma(group) if m is None else (float("inf") if m <= 0 else 1.0 / math.sqrt(2.0 * m))
 
     @property
     def any_estimated(self) -> bool:
@@ -86,18 +101,31 @@ class TrajectoryLevel:
                 "min_redundancy": MIN_REDUNDANCY, "iterations": c.iterations, "converged": c.converged,
                 "observations_sigma0": float(np.sqrt(c.variance[OBSERVATIONS])),
                 "groups": {g: {"estimated": ok, "sigma_factor": self.factor(g),
-                               "sigma_factor_relative_sigma": c.relative_sigma(g) if ok else None,
+                               "sigma_factor_relative_sigma": self.relative_sigma(g) if ok else None,
                                "redundancy": float(c.redundancy[g]),
                                "redundancy_at_stated_sigma": float(c.redundancy_start[g]), "priors": int(c.size[g])}
-                           for g, ok in self.estimated.items()}}
+                           for g, ok in self.estimated.items()}} | self._over_time_dict()
+
+    def _over_time_dict(self) -> dict:
+        """The level per segment of the flight (solution.json's "over_time"), σ in m and degrees."""
+        if self.over_time is None:
+            return {}
+        pos, att = self.base.position_m[0], np.degrees(self.base.attitude_rad[0])
+        stated = {"position_horizontal": pos[0], "position_vertical": pos[2], "attitude_horizontal": att[0], "heading": att[2]}
+        return {"over_time": self.over_time.to_dict(stated)}
 
 
-def estimate_level(est, base: TrajectoryAccuracy, layout: Mapping[str, Knot]) -> TrajectoryLevel:
+def estimate_level(est, base: TrajectoryAccuracy, layout: Mapping[str, Knot],
+                   knot_times: Mapping[int, np.ndarray] | None = None) -> TrajectoryLevel:
     """The trajectory's level from an adjustment ``est`` (a :class:`calidar.adjust.solver.Estimate`
     whose trajectory priors came from ``base``, its trajectory parameters' knots by name ``layout``): groups with redundancy below
-    :data:`MIN_REDUNDANCY` are held at their stated σ and the others estimated again without them."""
+    :data:`MIN_REDUNDANCY` are held at their stated σ and the others estimated again without them.
+    With the strips' ``knot_times`` the estimated groups then follow the flight in time
+    (:mod:`calidar.strips.trajectory_level_time`)."""
     terms = normal_terms(est)
-    blocks = split_blocks(est.fit.priors, [group_of(layout.get(p.name)) for p in est.fit.free])
+    knots = [layout.get(p.name) for p in est.fit.free]
+    groups = [group_of(k) for k in knots]
+    blocks = split_blocks(est.fit.priors, groups)
     present = [g for g in GROUPS if any(b.group == g for b in blocks)]
     fixed = ["other"]
     while True:  # tol: 1 % in variance, ½ % in σ — well inside the factors' own ±1/√(2rₖ)
@@ -115,6 +143,16 @@ def estimate_level(est, base: TrajectoryAccuracy, layout: Mapping[str, Knot]) ->
     estimated = {g: g not in fixed for g in present}
     level = TrajectoryLevel(base, comps, estimated, base)
     level.accuracy = scaled(base, *(level.factor(g) for g in GROUPS), source=SOURCE if level.any_estimated else base.source)
+    if knot_times is not None and level.any_estimated:
+        start = {g: comps.variance[g] for g in present if estimated[g]}
+        try:
+            level.effective = estimate_elements(terms[0], terms[1], terms[4], est.fit.priors, groups, start,
+                                                observations=comps.variance[OBSERVATIONS], max_iter=1).effective
+            level.over_time = estimate_over_time(terms, est.fit.priors, knots, groups, knot_times, start,
+                                                 comps.variance[OBSERVATIONS], FLOOR_FACTOR**2)
+        except CalibrationError:  # a normal matrix singular at some segment's factors: the flight-wide level stays
+            return level
+        level.accuracy = over_time_accuracy(base, level.over_time, knot_times)
     return level
 
 

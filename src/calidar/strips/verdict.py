@@ -316,6 +316,12 @@ def accuracy_finding(level: dict) -> Finding:
     else:
         detail = (f"no accuracy file found, and the overlaps cannot tell the trajectory's accuracy: survey-grade "
                   f"default assumed, {level['headline']}; the σ of the results hold only if the trajectory is that good")
+    if level.get("over_time"):  # calidar.strips.trajectory_level_time
+        spans = [(g, [seg[g]["sigma_factor"] for seg in level["over_time"]["segments"]])
+                 for g in level["over_time"]["tau_log_sigma"]]
+        moving = [(g, f) for g, f in spans if max(f) > 1.01 * min(f)]
+        detail += "; over the flight (per segment, pooled in time): " + (", ".join(
+            f"{g.replace('_', ' ')} ×{min(f):.2g}–×{max(f):.2g}" for g, f in moving) or "constant")
     if weak:
         detail += "; the data cannot tell " + ", ".join(weak) + ": the survey-grade default kept there"
     return Finding("warn" if weak else "pass", "trajectory accuracy", detail, ACCURACY_ACTION if weak else "")
