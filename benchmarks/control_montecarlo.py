@@ -15,7 +15,7 @@ options and ``--control checkpoints.csv`` (:func:`calidar.pipelines.boresight.lo
 whole common height correction (height_bias + the trajectory knots' mean up shift, what the
 verdict calls the vertical trajectory bias), with ``--height-bias`` minus the measured
 trajectory's own mean height error at the points' times (its Gauss–Markov errors do not average
-out over a few minutes of flight). One line per survey (error, σ, z = error/σ), then
+out over a few minutes of flight). The boresight angles are recorded too (truth 0). One line per survey (error, σ, z = error/σ), then
 the RMS of z per parameter (1 for honest σ; its sampling spread ±1/√(2n)), the mean z, the largest
 |z|, and the number of surveys that ran.
 """
