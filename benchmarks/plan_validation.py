@@ -74,7 +74,7 @@ def setup(name: str = ""):
     inst = Instrument(Sensor(lever_arm_x=0.05, lever_arm_z=0.12), pulse_rate_hz=2000.0)
     key = name.split("+")[0]
     if key in SCANNERS:
-        from calidar.planning.geometry import pattern_half_fov
+        from calidar.planning.sweep import pattern_half_fov
         from calidar.scanners import SCANNERS as MODELS
 
         nominal = replace(inst.nominal, scanner=MODELS[SCANNERS[key]]())

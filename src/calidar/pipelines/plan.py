@@ -109,7 +109,8 @@ def load_terrain(choice: TerrainChoice):
 
 
 def instrument(sensor_path: Path, options: PlanOptions):
-    from calidar.planning.geometry import Instrument, pattern_half_fov
+    from calidar.planning.geometry import Instrument
+    from calidar.planning.sweep import pattern_half_fov
     from calidar.scanners.linear import LinearScanner
     from calidar.sensor import Sensor
     from calidar.validate import number

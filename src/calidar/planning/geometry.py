@@ -30,6 +30,7 @@ from calidar.io.flight_lines import PlanLine
 from calidar.sensor import Sensor
 from calidar.strips.correspond import Correspondences, fitted_moderated_variance
 from calidar.strips.planes import PlaneSettings
+from calidar.planning.sweep import body_at, pattern_looks, sweep_position
 from calidar.strips.strip import Pose
 
 SAMPLES = 4  #: a cell's surface is sampled on SAMPLES × SAMPLES positions
@@ -217,103 +218,15 @@ def _seen(f: Flown, centroid: np.ndarray, normal: np.ndarray, cell: float, terra
     return np.all(terrain.visible(origin, pts).reshape(n, len(off)), axis=1)
 
 
-def _looks(nominal: Sensor) -> np.ndarray | None:
-    """How far ahead a rotating scanner looks: None for a linear scanner (its beams stay in the body's
-    y–z plane), else (2, 2, n) the pattern's fore and aft branches, each as (p, q) over p = y/z (the
-    across-track ratio, increasing) with q = x/z (along track) in the body frame."""
-    if nominal.scanner.model == "linear":
-        return None
-    return _pattern_branches(nominal.scanner, tuple(np.asarray(nominal.r_bs, float).ravel()))
-
-
-def pattern_half_fov(nominal: Sensor) -> float:
-    """Largest across-track angle (rad) of a rotating scanner's beams in the body frame (its swath's edge)."""
-    p = _pattern_branches(nominal.scanner, tuple(np.asarray(nominal.r_bs, float).ravel()))[0, 0]
-    return float(np.arctan(np.max(np.abs(p))))
-
-
-@lru_cache(maxsize=32)
-def _pattern_branches(scanner, r_bs: tuple) -> np.ndarray:
-    """The scanner's beams over one turn in the body frame (u_b = R_bs · u_s), cut at every across-track
-    ratio p of a grid: the largest (fore) and smallest (aft) along-track ratio where the pattern crosses it."""
-    beta = np.linspace(-np.pi, np.pi, 2881)
-    u = scanner.directions(beta) @ np.reshape(r_bs, (3, 3)).T
-    p, q = u[:, 1] / u[:, 2], u[:, 0] / u[:, 2]
-    grid = np.linspace(p.min(), p.max(), 241)[1:-1]
-    p0, p1, q0, q1 = p[:-1, None], p[1:, None], q[:-1, None], q[1:, None]
-    cross = (grid[None, :] - p0) * (grid[None, :] - p1) <= 0.0
-    with np.errstate(invalid="ignore", divide="ignore"):
-        at = np.where(cross & (p1 != p0), q0 + (q1 - q0) * (grid[None, :] - p0) / (p1 - p0), np.nan)
-    fore, aft = np.nanmax(at, axis=0), np.nanmin(at, axis=0)
-    return np.array([[grid, fore], [grid, aft]])
-
-
-def _body(f: Flown, points: np.ndarray, s: np.ndarray, inst: Instrument):
-    """Line ``f`` at along-track ``s`` (m, per point): time, position, R_lb and the points in the body
-    frame from the lever arm's origin, R_lbᵀ · (p − r) − a."""
-    t = f.t0 + s / f.line.speed_mps
-    pos = np.column_stack([f.line.start + s[:, None] * f.line.direction, np.full(len(s), f.altitude_m)])
-    R = f.r_lb(t, inst.motion_rad)
-    return t, pos, R, np.einsum("nji,nj->ni", R, points - pos) - inst.nominal.lever_arm
-
-
-def _miss(f: Flown, points: np.ndarray, s: np.ndarray, inst: Instrument, branch) -> np.ndarray:
-    """How far (m, along the body's x) each point is from where the beams sweep with the line at ``s``."""
-    d_b = _body(f, points, s, inst)[3]
-    ahead = 0.0 if branch is None else d_b[:, 2] * np.interp(d_b[:, 1] / d_b[:, 2], branch[0], branch[1])
-    return d_b[:, 0] - ahead
-
-
-def _sweep(f: Flown, points: np.ndarray, inst: Instrument, branch) -> np.ndarray:
-    """Along-track position (m) of the line when its beams sweep over each point: a linear scanner's scan
-    plane by one fixed-point step (cm); a rotating scanner's fore or aft ``branch`` by secant steps to
-    < 1 mm, and where they fail (the wobbling body can cross a point more than once near the pattern's
-    edge) by the sign change of the miss nearest the guess, then bisection."""
-    s = f.local(points[:, :2])[0]
-    miss = _miss(f, points, s, inst, branch)
-    s = s + miss
-    if branch is None:
-        return s
-    guess, last = s.copy(), (s - miss, miss)
-    for _ in range(6):
-        miss = _miss(f, points, s, inst, branch)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            slope = (miss - last[1]) / (s - last[0])
-        ok = np.isfinite(slope) & (np.abs(slope + 1.0) < 0.9)  # the miss falls ≈ 1 m a metre flown
-        last, s = (s, miss), s - miss / np.where(ok, slope, -1.0)
-    d_b = _body(f, points, s, inst)[3]
-    across = d_b[:, 1] / d_b[:, 2]  # off the pattern's across-track range: a root of the clamped branch only
-    bad = (np.abs(_miss(f, points, s, inst, branch)) > 1e-3) | (across < branch[0][0]) | (across > branch[0][-1])
-    if bad.any():
-        s[bad] = _bracketed(f, points[bad], guess[bad], inst, branch)
-    return s
-
-
-def _bracketed(f: Flown, points: np.ndarray, s: np.ndarray, inst: Instrument, branch) -> np.ndarray:
-    """The sign change of the miss nearest ``s`` within ±16 m, refined by bisection (< 1 mm)."""
-    steps = np.arange(-16.0, 16.5, 1.0)
-    miss = np.stack([_miss(f, points, s + d, inst, branch) for d in steps])  # (steps, n)
-    change = np.sign(miss[:-1]) != np.sign(miss[1:])
-    order = np.argsort(np.abs(steps[:-1] + 0.5))  # nearest the guess first
-    first = order[np.argmax(change[order], axis=0)]
-    lo = s + steps[first]
-    hi = lo + 1.0
-    sign_lo = np.sign(miss[first, np.arange(len(s))])
-    for _ in range(11):
-        mid = 0.5 * (lo + hi)
-        same = np.sign(_miss(f, points, mid, inst, branch)) == sign_lo
-        lo, hi = np.where(same, mid, lo), np.where(same, hi, mid)
-    return 0.5 * (lo + hi)
-
-
 def side_poses(f: Flown, points: np.ndarray, inst: Instrument) -> tuple[Pose, np.ndarray, np.ndarray]:
     """The poses at which line ``f`` scans ``points`` (n, 3) (level flight, the nominal sensor's
     angles and range), their times (s) and the beams' unit directions in the local frame. A linear
     scanner sees each point once (n poses); a rotating one (Palmer oval, wedge cone) twice, looking
     ahead and back (2n: the n fore looks, then the n aft ones)."""
     nominal = inst.nominal
-    looks = _looks(nominal)
-    parts = [_body(f, points, _sweep(f, points, inst, branch), inst) for branch in ([None] if looks is None else looks)]
+    looks = pattern_looks(nominal)
+    branches = [None] if looks is None else looks
+    parts = [body_at(f, points, sweep_position(f, points, inst, branch), inst) for branch in branches]
     t, pos, R, d_b = (np.concatenate(v) for v in zip(*parts))
     rho = np.linalg.norm(d_b, axis=1)
     u_s = (d_b / rho[:, None]) @ nominal.r_bs  # R_bsᵀ · u_b
@@ -329,11 +242,12 @@ def point_variance(beam: np.ndarray, normal: np.ndarray, rho: np.ndarray, inst: 
 
 
 def correspondences(flown: list[Flown], pairs: list[PairPlanes], inst: Instrument,
-                    settings: PlaneSettings = PlaneSettings(), terrain=None):
+                    settings: PlaneSettings = PlaneSettings(), terrain=None, cache: dict | None = None):
     """Synthetic poses per strip, the pairs' Correspondences, each strip's point times, and the
     variance (m²) the rows' residuals really have (in the Correspondences' order). A rotating scanner's
     side averages the looks that see the patch (``terrain``: which do; a wall or crown hides one look
-    of many patches beside buildings, and a one-look patch moves as that look's points do)."""
+    of many patches beside buildings, and a one-look patch moves as that look's points do). ``cache``:
+    each side's poses and looks kept across calls (candidate lines tried one by one)."""
     poses, times, corrs = {}, {}, []
     parts: dict[int, list] = {k: [] for k in range(len(flown))}
     used = {k: 0 for k in range(len(flown))}
@@ -341,14 +255,9 @@ def correspondences(flown: list[Flown], pairs: list[PairPlanes], inst: Instrumen
         cols, var, own = [], [], []
         n = p.centroid.shape[0]
         for side, k, m in ((0, p.a, p.count_a), (1, p.b, p.count_b)):
-            pose, t, beam = side_poses(flown[k], p.centroid, inst)
+            pose, t, beam, seen = _side(flown[k], p.centroid, inst, terrain, cache)
             looks = len(t) // n  # a rotating scanner's patch: half its points seen ahead, half back
             parts[k].append((pose, t))
-            seen = np.ones((n, looks))
-            if looks > 1 and terrain is not None:
-                origin = pose.position + np.einsum("nij,j->ni", pose.r_lb, inst.nominal.lever_arm)
-                seen = terrain.visible(origin, np.tile(p.centroid, (looks, 1))).reshape(looks, n).T.astype(float)
-                seen[seen.sum(axis=1) == 0] = 1.0  # seen from above the line (pair_planes), not from either look
             cols.append((used[k] + np.arange(n * looks).reshape(looks, n).T, seen / seen.sum(axis=1, keepdims=True)))
             used[k] += n * looks
             points = np.sum(point_variance(beam, np.tile(p.normal, (looks, 1)), inst.nominal.true_range(pose.range_m),
@@ -373,6 +282,25 @@ def correspondences(flown: list[Flown], pairs: list[PairPlanes], inst: Instrumen
         out.append(Correspondences(*ids, _selector(cols[0], used[a]), _selector(cols[1], used[b]), normal, sigma))
         noise.append(real)
     return poses, times, out, np.concatenate(noise)
+
+
+def _side(f: Flown, centroid: np.ndarray, inst: Instrument, terrain, cache: dict | None):
+    """:func:`side_poses` of one side of a pair and which looks see each patch (n, looks), from ``cache``
+    when the same line (number, window) scanned the same tie planes before."""
+    key = ("side", f.line.to_json(), f.t0, id(centroid))
+    if cache is not None and key in cache:
+        return cache[key]
+    pose, t, beam = side_poses(f, centroid, inst)
+    n = centroid.shape[0]
+    looks = len(t) // n
+    seen = np.ones((n, looks))
+    if looks > 1 and terrain is not None:
+        origin = pose.position + np.einsum("nij,j->ni", pose.r_lb, inst.nominal.lever_arm)
+        seen = terrain.visible(origin, np.tile(centroid, (looks, 1))).reshape(looks, n).T.astype(float)
+        seen[seen.sum(axis=1) == 0] = 1.0  # seen from above the line (pair_planes), not from either look
+    if cache is not None:
+        cache[key] = (pose, t, beam, seen)
+    return pose, t, beam, seen
 
 
 def _selector(picked: tuple[np.ndarray, np.ndarray], n_points: int) -> sp.csr_matrix:

@@ -120,7 +120,7 @@ def predict(lines: list[PlanLine], terrain, inst: Instrument, settings: PlanSett
     if not pairs:
         raise InputError(None, "lines", "no two planned lines overlap (with tie planes on the terrain); expected "
                          "swaths that overlap")
-    poses, times, corrs, noise = correspondences(flown, pairs, inst, settings.planes, terrain)
+    poses, times, corrs, noise = correspondences(flown, pairs, inst, settings.planes, terrain, cache)
     by_id = {f.line.number: f for f in flown}
     spans = {sid: (by_id[sid].t0, by_id[sid].t1) for sid in poses}
     headings = {sid: by_id[sid].line.azimuth for sid in poses}

@@ -12,9 +12,10 @@ import pytest
 
 from calidar.io.flight_lines import PlanLine
 from calidar.planning.findings import findings
-from calidar.planning.geometry import Instrument, fly_plan, pattern_half_fov, side_poses
+from calidar.planning.geometry import Instrument, fly_plan, side_poses
 from calidar.planning.predict import PlanSettings, predict
 from calidar.planning.simulate import FLAT_SCENE
+from calidar.planning.sweep import pattern_half_fov
 from calidar.planning.suggest import suggest
 from calidar.planning.terrain import FlatTerrain, scene_terrain
 from calidar.scanners.palmer import PalmerScanner
