@@ -55,7 +55,11 @@ def body_at(f, points: np.ndarray, s: np.ndarray, inst):
 
 def _miss(f, points: np.ndarray, s: np.ndarray, inst, branch) -> np.ndarray:
     """How far (m, along the body's x) each point is from where the beams sweep with the line at ``s``."""
-    d_b = body_at(f, points, s, inst)[3]
+    return _miss_of(body_at(f, points, s, inst)[3], branch)
+
+
+def _miss_of(d_b: np.ndarray, branch) -> np.ndarray:
+    """:func:`_miss` from the points in the body frame (n, 3)."""
     ahead = 0.0 if branch is None else d_b[:, 2] * np.interp(d_b[:, 1] / d_b[:, 2], branch[0], branch[1])
     return d_b[:, 0] - ahead
 
@@ -63,23 +67,28 @@ def _miss(f, points: np.ndarray, s: np.ndarray, inst, branch) -> np.ndarray:
 def sweep_position(f, points: np.ndarray, inst, branch) -> np.ndarray:
     """Along-track position (m) of the line when its beams sweep over each point: a linear scanner's scan
     plane by one fixed-point step (cm); a rotating scanner's fore or aft ``branch`` by secant steps to
-    < 1 mm, and where they fail (the wobbling body can cross a point more than once near the pattern's
-    edge) by the sign change of the miss nearest the guess, then bisection."""
+    < 1 mm (each point until its own converges), and where they fail (the wobbling body can cross a point
+    more than once near the pattern's edge) by the sign change of the miss nearest the guess, then bisection."""
     s = f.local(points[:, :2])[0]
     miss = _miss(f, points, s, inst, branch)
     s = s + miss
     if branch is None:
         return s
-    guess, last = s.copy(), (s - miss, miss)
+    guess, last_s, last_m = s.copy(), s - miss, miss.copy()
+    act = np.arange(len(s))
     for _ in range(6):
-        miss = _miss(f, points, s, inst, branch)
+        m = _miss(f, points[act], s[act], inst, branch)
         with np.errstate(invalid="ignore", divide="ignore"):
-            slope = (miss - last[1]) / (s - last[0])
+            slope = (m - last_m[act]) / (s[act] - last_s[act])
         ok = np.isfinite(slope) & (np.abs(slope + 1.0) < 0.9)  # the miss falls ≈ 1 m a metre flown
-        last, s = (s, miss), s - miss / np.where(ok, slope, -1.0)
+        last_s[act], last_m[act] = s[act], m
+        s[act] = s[act] - m / np.where(ok, slope, -1.0)
+        act = act[np.abs(m) >= 1e-4]
+        if act.size == 0:
+            break
     d_b = body_at(f, points, s, inst)[3]
     across = d_b[:, 1] / d_b[:, 2]  # off the pattern's across-track range: a root of the clamped branch only
-    bad = (np.abs(_miss(f, points, s, inst, branch)) > 1e-3) | (across < branch[0][0]) | (across > branch[0][-1])
+    bad = (np.abs(_miss_of(d_b, branch)) > 1e-3) | (across < branch[0][0]) | (across > branch[0][-1])
     if bad.any():
         s[bad] = _bracketed(f, points[bad], guess[bad], inst, branch)
     return s
