@@ -57,42 +57,6 @@ class Correspondences:
 SCATTER_PRIOR_DOF = 20.0
 
 
-def fitted_prior(variance_m2: np.ndarray, dof: np.ndarray, sampled: bool = True) -> tuple[float, float]:
-    """The scaled inverse-χ² prior of the rows' true variances fitted to their log-variances' mean and
-    spread: (prior dof d0, prior scale s0²) (Smyth 2004, section 6.2, as limma's ``fitFDist``); d0 is
-    infinite when the spread is no more than sampling explains (the rows share one variance).
-    ``sampled`` False: the variances are expected values (a plan's), their spread all true spread."""
-    from scipy.special import digamma, polygamma
-
-    nu = np.broadcast_to(np.asarray(dof, float), np.shape(variance_m2))
-    e = np.log(np.maximum(variance_m2, 1e-30)) - (digamma(nu / 2) - np.log(nu / 2) if sampled else 0.0)
-    mean = float(np.mean(e))
-    spread = float(np.var(e, ddof=1)) - (float(np.mean(polygamma(1, nu / 2))) if sampled else 0.0) if e.size > 2 else 0.0
-    if spread <= 0:
-        return np.inf, float(np.exp(mean))
-    y = 0.5 + 1.0 / spread  # trigamma⁻¹(spread) by Newton's method (Smyth 2004, appendix)
-    for _ in range(50):
-        tri = float(polygamma(1, y))
-        step = tri * (1.0 - tri / spread) / float(polygamma(2, y))
-        y += step
-        if -step / y < 1e-8:
-            break
-    d0 = 2.0 * y
-    return d0, float(np.exp(mean + digamma(d0 / 2) - np.log(d0 / 2)))
-
-
-def fitted_moderated_variance(variance_m2: np.ndarray, dof: np.ndarray | float, sampled: bool = True) -> np.ndarray:
-    """Each row's variance moderated by the prior :func:`fitted_prior` finds for its pair's rows:
-    (ν·s² + d0·s0²) / (ν + d0); rows of one variance pool fully, rows on different surfaces (a roof's
-    noise, a rough band's unevenness) keep most of their own."""
-    s2 = np.asarray(variance_m2, float)
-    if s2.size == 0:
-        return s2
-    nu = np.broadcast_to(np.asarray(dof, float), s2.shape)
-    d0, s02 = fitted_prior(s2, nu, sampled)
-    return np.full(s2.shape, s02) if not np.isfinite(d0) else (nu * s2 + d0 * s02) / (nu + d0)
-
-
 def moderated_variance(variance_m2: np.ndarray, dof: np.ndarray | float, prior_dof: float = SCATTER_PRIOR_DOF
                        ) -> np.ndarray:
     """Each plane's scatter variance (m², from ``dof`` degrees of freedom) shrunk toward the

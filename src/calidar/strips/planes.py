@@ -23,7 +23,7 @@ import numpy as np
 import scipy.sparse as sp
 from numba import njit
 
-from calidar.strips.correspond import Correspondences, fitted_moderated_variance
+from calidar.strips.correspond import Correspondences, moderated_variance
 from calidar.strips.overlap import cell_keys, footprint_area_m2
 from calidar.strips.pca import eigh3
 
@@ -161,7 +161,7 @@ def match_pair_planes(strip_a_id: int, points_a: np.ndarray, strip_b_id: int, po
     A, ma = _averaging(pa, ia, s.max_points_per_patch, points_a.shape[0])
     B, mb = _averaging(pb, ib, s.max_points_per_patch, points_b.shape[0])
     # each side's scatter moderated over the pair's tie planes (its own from count − 3 degrees of freedom)
-    var_a = fitted_moderated_variance(pa.rms_m[ia] ** 2, pa.count[ia] - 3)
-    var_b = fitted_moderated_variance(pb.rms_m[ib] ** 2, pb.count[ib] - 3)
+    var_a = moderated_variance(pa.rms_m[ia] ** 2, pa.count[ia] - 3)
+    var_b = moderated_variance(pb.rms_m[ib] ** 2, pb.count[ib] - 3)
     sigma = np.sqrt(var_a / ma + var_b / mb + s.noise_floor_m**2)
     return Correspondences(strip_a_id, strip_b_id, A, B, pb.normal[ib].copy(), sigma, "planes")
