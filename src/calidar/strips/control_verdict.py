@@ -11,8 +11,8 @@ from calidar.verdict import NOTE, Finding, two_digits
 
 #: the parameters a height error common to all strips hides from the overlaps (ground control observes them)
 VERTICAL = ("range_offset", "lever_arm_z", "height_bias")
-CONTROL_ACTION = ("give ground control points: calidar boresight --control FILE (id, x, y, z, sigma; or surveyed planes: "
-                  "plane, x, y, z, sigma)")
+CONTROL_ACTION = ("give ground control: calidar boresight --control FILE (points: id, x, y, z, sigma; surveyed planes: "
+                  "plane, x, y, z, sigma; or a reference point cloud: --control ref.laz --control-sigma M)")
 
 
 def words(control: dict) -> str:
