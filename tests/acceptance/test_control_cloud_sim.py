@@ -11,12 +11,11 @@ from __future__ import annotations
 
 import json
 import re
-from dataclasses import replace
 
 import numpy as np
 import pytest
 
-from range_offset_survey import RANGE_OFFSET
+from range_offset_survey import RANGE_OFFSET, simulated_survey
 
 pytestmark = pytest.mark.slow
 HEIGHT_BIAS = 0.04
@@ -26,11 +25,8 @@ DATUM_SIGMA = 0.02
 @pytest.fixture(scope="module")
 def sim(tmp_path_factory):
     from calidar.sim.reference_cloud import simulate_reference_cloud
-    from calidar.sim.survey import simulate_survey, survey_config
 
-    cfg = survey_config("uav", seed=5, density=0.2, directions="cross", errors={"range_offset": RANGE_OFFSET})
-    res = simulate_survey(replace(cfg, scene=replace(cfg.scene, width_m=200.0, length_m=200.0, vegetation_fraction=0.0)))
-    out = res.write(tmp_path_factory.mktemp("cloud") / "sim")
+    res, out = simulated_survey(tmp_path_factory.mktemp("cloud"))
     cloud = simulate_reference_cloud(res, DATUM_SIGMA, seed=5)
     cloud.xyz[:, 2] += HEIGHT_BIAS
     cloud.write(out)

@@ -8,13 +8,12 @@ residuals; ``calidar simulate survey --control-planes N`` writes the file and it
 from __future__ import annotations
 
 import json
-from dataclasses import replace
 
 import numpy as np
 import pytest
 
 from calidar.io.control_planes import read_control_planes
-from range_offset_survey import RANGE_OFFSET
+from range_offset_survey import RANGE_OFFSET, simulated_survey
 
 pytestmark = pytest.mark.slow
 HEIGHT_BIAS = 0.04
@@ -23,11 +22,8 @@ HEIGHT_BIAS = 0.04
 @pytest.fixture(scope="module")
 def sim(tmp_path_factory):
     from calidar.sim.control_planes import simulate_control_planes
-    from calidar.sim.survey import simulate_survey, survey_config
 
-    cfg = survey_config("uav", seed=5, density=0.2, directions="cross", errors={"range_offset": RANGE_OFFSET})
-    res = simulate_survey(replace(cfg, scene=replace(cfg.scene, width_m=200.0, length_m=200.0, vegetation_fraction=0.0)))
-    out = res.write(tmp_path_factory.mktemp("planes") / "sim")
+    res, out = simulated_survey(tmp_path_factory.mktemp("planes"))
     planes = simulate_control_planes(res, 8, 0.01, seed=5)
     planes.xyz[:, 2] += HEIGHT_BIAS
     planes.write(out)
