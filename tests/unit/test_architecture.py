@@ -12,11 +12,26 @@ ROOT = Path(__file__).resolve().parents[2]
 SRC = ROOT / "src" / "calidar"
 MAX_FUNCTION_LINES = 80
 MAX_MODULE_LINES = 400
+MAX_LINE_CHARS = 100
 
 #: Known breaches still being mended (each entry names its issue); the lists only shrink.
 FUNCTION_ALLOWANCE: set[str] = set()  # issue 20
 MODULE_ALLOWANCE: set[str] = set()  # issue 20
 CLI_IMPORT_ALLOWANCE: set[str] = set()
+#: Modules whose lines may still pass MAX_LINE_CHARS (issue 29: reshaped package by package, the list
+#: only shrinks). "calidar.x.*" names the package calidar.x and all under it; any other entry one module.
+LINE_LENGTH_ALLOWANCE: set[str] = {
+    # the packages being reshaped
+    "calidar.accuracy.*", "calidar.io.*", "calidar.planning.*", "calidar.report.*",
+    "calidar.scanners.*", "calidar.sim.*",
+    # the packages not yet started
+    "calidar.adjust.*", "calidar.cli.*", "calidar.ingest.*", "calidar.photon.*", "calidar.pipelines.*",
+    "calidar.rangecal.*", "calidar.strips.*", "calidar.tpu.*", "calidar.trajrec.*",
+    # the top-level modules not yet started
+    "calidar", "calidar.cells", "calidar.crs", "calidar.frames", "calidar.georef", "calidar.interrupts",
+    "calidar.outputs", "calidar.provenance", "calidar.run_lock", "calidar.sensor", "calidar.sensor_import",
+    "calidar.trajectory", "calidar.trajectory_accuracy", "calidar.validate", "calidar.verdict",
+}
 
 
 def _modules() -> dict[str, Path]:
@@ -170,7 +185,42 @@ def test_modules_are_small():
     assert not big, f"modules over {MAX_MODULE_LINES} lines: {big}"
 
 
-@pytest.mark.parametrize("allowance", ["FUNCTION_ALLOWANCE", "MODULE_ALLOWANCE", "CLI_IMPORT_ALLOWANCE"])
+def _over_long(text: str) -> list[int]:
+    """Numbers (from 1) of the lines of ``text`` over MAX_LINE_CHARS characters."""
+    return [k for k, line in enumerate(text.splitlines(), 1) if len(line) > MAX_LINE_CHARS]
+
+
+def _long_lines() -> dict[str, list[int]]:
+    """Line numbers over MAX_LINE_CHARS characters, by module (only modules that have any)."""
+    found = {name: _over_long(path.read_text(encoding="utf-8")) for name, path in _modules().items()}
+    return {name: lines for name, lines in found.items() if lines}
+
+
+def _line_allowed(module: str, entry: str) -> bool:
+    """Whether the LINE_LENGTH_ALLOWANCE ``entry`` covers ``module``."""
+    if entry.endswith(".*"):
+        package = entry[:-2]
+        return module == package or module.startswith(package + ".")
+    return module == entry
+
+
+def test_lines_are_short():
+    """At most MAX_LINE_CHARS characters a line (docs/conventions.md, "Code layout"): a longer line is
+    reshaped (name the intermediate value, split the function), not wrapped."""
+    long = {m: lines for m, lines in _long_lines().items()
+            if not any(_line_allowed(m, entry) for entry in LINE_LENGTH_ALLOWANCE)}
+    assert not long, f"lines over {MAX_LINE_CHARS} characters (module: line numbers): {long}"
+
+
+def test_the_line_rule_finds_what_it_looks_for():
+    assert _line_allowed("calidar.io.las", "calidar.io.*") and _line_allowed("calidar.io", "calidar.io.*")
+    assert not _line_allowed("calidar.iox", "calidar.io.*") and not _line_allowed("calidar.io.las", "calidar")
+    text = "x = 1\n" + "y = '" + "é" * (MAX_LINE_CHARS - 6) + "'\n" + "z = '" + "é" * (MAX_LINE_CHARS - 5) + "'\n"
+    assert _over_long(text) == [3]  # characters, not bytes: line 2 has exactly MAX_LINE_CHARS
+
+
+@pytest.mark.parametrize("allowance", ["FUNCTION_ALLOWANCE", "MODULE_ALLOWANCE", "CLI_IMPORT_ALLOWANCE",
+                                       "LINE_LENGTH_ALLOWANCE"])
 def test_allowances_name_only_what_still_breaks(allowance):
     """An allowance entry that no longer breaks the rule must be removed (the lists only shrink)."""
     allowed = globals()[allowance]
@@ -178,6 +228,9 @@ def test_allowances_name_only_what_still_breaks(allowance):
         breaking = {f for f, _ in _long_functions()}
     elif allowance == "MODULE_ALLOWANCE":
         breaking = {m for m, p in _modules().items() if len(p.read_text(encoding="utf-8").splitlines()) > MAX_MODULE_LINES}
+    elif allowance == "LINE_LENGTH_ALLOWANCE":
+        long = _long_lines()
+        breaking = {entry for entry in allowed if any(_line_allowed(m, entry) for m in long)}
     else:
         breaking = {m for m, deps in _graph().items() if any(d.startswith("calidar.cli") for d in deps)}
     assert allowed <= breaking, f"{allowance} names modules that now keep the rule: {sorted(allowed - breaking)}"

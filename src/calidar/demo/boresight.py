@@ -12,23 +12,31 @@ from pathlib import Path
 
 from calidar.pipelines import Progress, no_progress
 
+BORESIGHT_ONLY = (
+    "The lever arm was measured when the scanner was mounted, so it is held there; the boresight "
+    "is what the overlaps determine. The trajectory's errors are estimated too, with the accuracy "
+    "POSPac states for it (smrmsg.out beside sbet.out) as priors, so the σ include them."
+)
+WITH_LEVER_ARM = (
+    "The same strips asked for the lever arm as well. The lines are flown at one height, where a "
+    "vertical lever-arm error moves every strip up or down alike: only the platform's roll and "
+    "pitch changes reveal it, and the verdict says lever_arm_z is not determined and what would "
+    "determine it (hold it at its measured value, or fly lines at a second height). Its outputs "
+    "are in boresight_lever_arm/."
+)
 #: the demo's two cases: (title, the parameters estimated, what the reader should take from it)
 CASES = (
-    ("Boresight from tie planes, lever arm held at its measured value (calidar boresight)", ("boresight",),
-     "The lever arm was measured when the scanner was mounted, so it is held there; the boresight is what the "
-     "overlaps determine. The trajectory's errors are estimated too, with the accuracy POSPac states for it "
-     "(smrmsg.out beside sbet.out) as priors, so the σ include them."),
-    ("Second case, for contrast: boresight and lever arm from the same strips (a warning)", ("boresight", "lever_arm"),
-     "The same strips asked for the lever arm as well. The lines are flown at one height, where a vertical "
-     "lever-arm error moves every strip up or down alike: only the platform's roll and pitch changes reveal it, "
-     "and the verdict says lever_arm_z is not determined and what would determine it (hold it at its measured "
-     "value, or fly lines at a second height). Its outputs are in boresight_lever_arm/."),
+    ("Boresight from tie planes, lever arm held at its measured value (calidar boresight)",
+     ("boresight",), BORESIGHT_ONLY),
+    ("Second case, for contrast: boresight and lever arm from the same strips (a warning)",
+     ("boresight", "lever_arm"), WITH_LEVER_ARM),
 )
 
 
 def boresight_step(report, out_dir, seed: int = 0, progress: Progress = no_progress) -> None:
     """Run both cases on out_dir/survey (written by the simulation step) with the truth, adding
-    their verdicts and sections to ``report``; outputs in out_dir/boresight and out_dir/boresight_lever_arm."""
+    their verdicts and sections to ``report``; outputs in out_dir/boresight and
+    out_dir/boresight_lever_arm."""
     from calidar.demo.survey import DEMO_SURVEY
     from calidar.pipelines.boresight import calibrate_strips
     from calidar.pipelines.boresight_outputs import write_run
@@ -37,12 +45,12 @@ def boresight_step(report, out_dir, seed: int = 0, progress: Progress = no_progr
 
     survey = Path(out_dir) / DEMO_SURVEY
     strips = sorted((survey / "strips").glob("*.laz"))
+    trajectory, sensor, truth = survey / "sbet.out", survey / "sensor.toml", survey / "truth.json"
     for k, (title, estimate, text) in enumerate(CASES):
         out = Path(out_dir) / ("boresight" if k == 0 else "boresight_lever_arm")
         out.mkdir(parents=True, exist_ok=True)
         config = StripConfig(CalibrationConfig(Estimate.of(*estimate)))
-        run = calibrate_strips(strips, survey / "sbet.out", survey / "sensor.toml", config, truth=survey / "truth.json",
-                               progress=progress)
+        run = calibrate_strips(strips, trajectory, sensor, config, truth=truth, progress=progress)
         write_run(run, out, report=report, verdict_title=title.split(" (")[0], section_title=title)
         report.sections[-1].blocks.insert(0, f"<p>{text}</p>")
         progress("boresight cases", k + 1, len(CASES))

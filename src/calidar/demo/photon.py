@@ -18,6 +18,7 @@ def photon_step(report, out_dir: Path, seed: int, progress: Progress = no_progre
 
     sim_dir = prepare_out_dir(Path(out_dir) / "photon" / "sim", force=True)
     paths = simulate_photons(PhotonSimConfig(seed=seed, n_ccr=8, n_unlit=1), sim_dir)
-    run_ccr([paths["atl03"]], "all", paths["ccr"], prepare_out_dir(Path(out_dir) / "photon" / "ccr", force=True),
-            system=SystemParameters(), settings=SearchSettings(bootstrap=50), truth_path=paths["truth"],
-            report=report, progress=progress)
+    ccr_dir = prepare_out_dir(Path(out_dir) / "photon" / "ccr", force=True)
+    run_ccr([paths["atl03"]], "all", paths["ccr"], ccr_dir, system=SystemParameters(),
+            settings=SearchSettings(bootstrap=50), truth_path=paths["truth"], report=report,
+            progress=progress)

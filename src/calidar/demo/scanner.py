@@ -9,15 +9,23 @@ import numpy as np
 
 from calidar.pipelines import Progress, no_progress
 
-#: Palmer errors of the demo (user units): a well-built scanner, together within a 10″ spec at 500 m
+#: Palmer errors of the demo (user units): a well-built scanner, within a 10″ spec at 500 m
 DEMO_SCANNER_ERRORS = {"eccentricity": 5e-6 / 0.075, "delta_l": 0.0005, "delta_r": 0.0005}
-#: the control-point adjustment's truth (SI): larger errors, so that the estimates stand out of the noise
-CONTROL_TRUTH = {"boresight_roll": np.radians(0.05), "boresight_pitch": np.radians(-0.03), "boresight_yaw": np.radians(0.1),
-                 "eccentricity_ratio": 2e-4, "eccentricity_phase": np.radians(30.0), "delta_l": np.radians(0.02),
-                 "delta_r": np.radians(0.02)}
+#: the control-point adjustment's truth (SI): larger errors, so that the estimates stand out of
+#: the noise
+CONTROL_TRUTH = {
+    "boresight_roll": np.radians(0.05),
+    "boresight_pitch": np.radians(-0.03),
+    "boresight_yaw": np.radians(0.1),
+    "eccentricity_ratio": 2e-4,
+    "eccentricity_phase": np.radians(30.0),
+    "delta_l": np.radians(0.02),
+    "delta_r": np.radians(0.02),
+}
 
 
-def scanner_analysis_step(report, out_dir: Path, seed: int, progress: Progress = no_progress) -> None:
+def scanner_analysis_step(report, out_dir: Path, seed: int,
+                          progress: Progress = no_progress) -> None:
     """Analyse a Palmer scanner at 500 m (``calidar scanner analyze``'s pipeline) into
     ``out_dir/scanner_analysis`` with its verdict and section, then add the control-point
     adjustment (noise drawn from ``seed``). A few seconds."""

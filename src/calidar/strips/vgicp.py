@@ -8,48 +8,29 @@ The pairs index the *un-registered* strips, so the calibrator's residual
 ``A·P_a(θ) − B·P_b(θ)`` measures what the mounting parameters must remove.
 
 Residual kinds (see :mod:`calidar.strips.correspond`):
-- ``point_to_plane`` (default): around each sampled point of a, the ball holding its k
-  nearest points of b; the residual is the distance of the centroid of a's points in that
-  ball from b's local plane (the centroid and normal of b's k points). Both sides average
-  the same piece of surface, as a tie plane does: a single point of a against b's plane
-  would carry the plane's curvature error (a centroid lies inside a curved surface by
-  ≈ κr²/4, a point on it), an error that is the same wherever the terrain is, and that the
-  trajectory corrections turn into a heading error (measured: 0.0018° on a noiseless
-  survey). A normal at a's point with b's single nearest point instead leaves a tangential
-  offset that, with the normal's noise in residual and Jacobian, biases the angles on dense
-  strips. Only pairs on locally planar surfaces of b lying near a's mean once registered
-  are kept, so clutter such as vegetation yields few pairs. Better conditioned on surfaces.
 
-  Both centroids must lie at the same place in the plane. Where either strip's points stop
-  inside the ball (the edge of the cells the ingest kept, cut where the points were delivered
-  and moved apart by each strip's mounting correction; the overlap's outline; a gap) the two
-  part along the plane, and b's normal error times that lever enters the residual and, through
-  the same normal, the Jacobian: an errors-in-variables bias of one sign along the flight
-  directions. On simulated 2.2 point/m² surveys thinned to 300 000 points a strip it left pitch
-  under-corrected by 0.9 σ (docs/validation.md). So b's k nearest are taken again about their
-  own centroid (a neighbourhood reaching over b's edge moves back inside), a's ball is centred on
-  b's centroid, and a row is dropped when either centroid still lies more than
-  ``max_centroid_offset`` radii off its centre (a full disc of 12 points: 0.14 per axis).
-  b's neighbourhood must span a plane (``min_spread``: √(λ_mid/λ_max) ≥ 0.3), not merely be thin
-  (``max_surface_variation`` alone passes a line). On UAV strips (≈ 20 points/m², 8 cm between scan
-  lines, 0.3–0.6 m along them) a wall is crossed by a few scan lines and b's 12 nearest points lie
-  along one of them: its "normal" is any direction about that line, a's ball mean (another scan line,
-  the ground at the wall's foot) lies off it by centimetres, and the row's σ (from the line's tiny
-  scatter) is millimetres. At the truth such rows (√(λ_mid/λ_max) < 0.3: 29 % of the rows on the
-  seed-7 UAV survey, 71 % of them on walls) had an RMS of 67 mm against 6 mm for the others; they
-  pulled yaw 8.9 σ off (docs/validation.md).
-  a's ball must lie on b's plane as closely as b's own points do (``max_scatter_ratio``), and each side's
-  scatter along the normal enters the row's σ (a's from its own ball, not b's): the rows on sloping roofs of
-  an urban UAV survey had σ half their residuals with b's scatter standing for a's
-  (:mod:`calidar.strips.vgicp_planes`). An overlap narrower than ``min_registration_width_m`` is matched
-  as it lies: a 5 m × 120 m sliver between two lines' outer edges registered 1.1 m and 1.5° off at the
-  truth and offset all its rows by ≈ 6 cm (docs/validation.md).
+- ``point_to_plane`` (default): the distance ``n_b · (c_a − c_b)`` of the centroid ``c_a`` of
+  a's points in a ball from b's local plane (centroid ``c_b``, normal ``n_b``: the smallest
+  eigenvector of the covariance of b's k nearest points). Both sides average the same piece of
+  surface, as a tie plane does; a single point of a against b's plane would carry the plane's
+  curvature error (a centroid lies inside a curved surface by ≈ κr²/4). A row is kept only
+  where b's neighbourhood is a plane (``max_surface_variation``: λ_min/Σλ; ``min_spread``:
+  √(λ_mid/λ_max), so that one scan line across a wall is not taken for one), a's centroid lies
+  near it (``max_plane_distance_m``) and on it as closely as b's own points
+  (``max_scatter_ratio``), and neither side's points stop inside the ball
+  (``max_centroid_offset``, in radii: where they do, the two centroids part along the plane
+  and b's normal error times that lever biases residual and Jacobian alike). Each side's
+  scatter along the normal enters the row's σ (:mod:`calidar.strips.vgicp_planes`).
 - ``point_to_point``: the 3-D difference of the pair, as the method describes; its noise
   includes the point spacing.
 
-Registration runs coarse to fine over ``VgicpSettings.voxel_m`` so that a start far from
-the truth (metres of strip offset) still locks in. All lengths are metres, in the local
-Cartesian frame of the points.
+Registration runs coarse to fine over ``VgicpSettings.voxel_m`` so that a start far from the
+truth (metres of strip offset) still locks in; an overlap narrower than
+``min_registration_width_m`` cannot fix the rotation about its long axis and is matched as it
+lies. All lengths are metres, in the local Cartesian frame of the points.
+
+What each of these tests was measured to fix: docs/validation.md, "VGICP's rows: each test and
+the measurement behind it".
 """
 
 from __future__ import annotations

@@ -1,18 +1,16 @@
-"""VGICP's point-to-plane rows: b's local planes and a's ball means about them (see :mod:`calidar.strips.vgicp`).
+"""VGICP's point-to-plane rows: b's local planes and a's ball means about them.
 
-For each candidate, b's ``num_neighbors`` nearest points (registered onto a) found again about their centroid
-give b's plane; a's points in a ball as large about that centroid give a's mean. A row is kept when b's points
-span a plane (thin: ``max_surface_variation``; not a line: ``min_spread``), a's mean lies near it
-(``max_plane_distance_m``), neither side's points stop inside the ball (``max_centroid_offset``) and a's points
-lie on b's plane as closely as b's own do (``max_scatter_ratio``). Its σ takes each side's own scatter along
-the normal, moderated over the pair's rows (as the tie planes do: :mod:`calidar.strips.planes`).
-
-Why a's own scatter (issue 26): on the urban UAV survey of seed 309 (opposite lines, exact trajectory, matched
-at the true sensor) a's ball points scattered along b's normal 19 mm RMS on roofs against b's 9 mm — a roof
-face seen head-on by one strip and at grazing incidence by the other, balls reaching over a ridge or an eave —
-and the rows on sloping surfaces had an RMS residual/σ of 2.4 with b's scatter standing for a's (1.2 on flat
-ground); with each side's own and the ratio test, 1.15 and 0.95 (``benchmarks/strips_vgicp_rows.py
---by-surface``, docs/validation.md).
+The rows' geometry and the tests they pass are described in :mod:`calidar.strips.vgicp`. For
+each candidate, b's ``num_neighbors`` nearest points (registered onto a), found again about
+their centroid, give b's plane; a's points in a ball as large about that centroid give a's mean.
+A row is kept when b's points span a plane (thin: ``max_surface_variation``; not a line:
+``min_spread``), a's mean lies near it (``max_plane_distance_m``), neither side's points stop
+inside the ball (``max_centroid_offset``) and a's points lie on b's plane as closely as b's own
+do (``max_scatter_ratio``). Its σ² = s_a²/n_a + s_b²·h + ``noise_floor_m``², with s_a, s_b each
+side's own scatter along b's normal, moderated over the pair's rows as the tie planes' are
+(:mod:`calidar.strips.planes`), n_a a's count and h the leverage of b's fitted plane at a's mean.
+Why a's own scatter, measured: docs/validation.md, "VGICP's rows: each test and the measurement
+behind it".
 """
 
 from __future__ import annotations
