@@ -6,8 +6,9 @@
 >>> from calidar.adjust import FunctionProblem, Parameter, ParameterSet, SolverOptions, solve
 >>> from calidar.report.plots import plt
 >>> roll = ParameterSet([Parameter("boresight_roll", 0.0, "rad")])
->>> solution = solve(FunctionProblem(lambda v: v["boresight_roll"] - np.array([3.1e-4, 2.9e-4]), roll, sigma=1e-4),
-...                  SolverOptions(robust=None))
+>>> observed = np.array([3.1e-4, 2.9e-4])
+>>> problem = FunctionProblem(lambda v: v["boresight_roll"] - observed, roll, sigma=1e-4)
+>>> solution = solve(problem, SolverOptions(robust=None))
 >>> rep = Report("calidar demo")
 >>> sec = rep.section("Boresight from tie planes")
 >>> sec.text("12 strips, 8 overlapping pairs.")
@@ -33,21 +34,45 @@ import numpy as np
 from calidar import __version__
 from calidar.outputs import shown_path, write_text_atomic
 
-_CSS = """
-body{font-family:system-ui,-apple-system,Segoe UI,Roboto,sans-serif;max-width:1100px;margin:2em auto;padding:0 1em;color:#222}
-h1{border-bottom:2px solid #246;padding-bottom:.2em} h2{color:#246;margin-top:2em;border-bottom:1px solid #ccd}
-table{border-collapse:collapse;margin:1em 0;font-size:.92em} th,td{border:1px solid #ccd;padding:.3em .6em;text-align:right}
-th{background:#eef2f8} td.l,th.l{text-align:left} .warn{background:#fff4e0;border-left:4px solid #e90;padding:.5em 1em;margin:.5em 0}
-.ok{color:#070} .bad{color:#b00} figure{margin:1em 0} figcaption{font-size:.9em;color:#555} img{max-width:100%}
-nav ul{columns:2} .meta{color:#666;font-size:.9em}
-pre{background:#f4f6fa;border:1px solid #dde;padding:.5em .8em;overflow-x:auto;white-space:pre-wrap;word-break:break-all}
-caption{caption-side:top;text-align:left;color:#555;font-size:.9em;padding:.2em 0} .refs{font-size:.9em}
-.verdict{border:2px solid #888;border-radius:6px;padding:.6em 1em;margin:1em 0}
-.verdict h3{margin:.1em 0 .4em 0} .verdict ul{margin:.2em 0;padding-left:1.2em} .verdict li{margin:.25em 0}
-.v-pass{border-color:#2a7;background:#effaf3} .v-warn{border-color:#e90;background:#fff8ec} .v-fail{border-color:#c33;background:#fdeeee}
-.tag{display:inline-block;min-width:3.2em;text-align:center;font-weight:600;border-radius:3px;padding:0 .3em;margin-right:.4em;color:#fff}
-.t-pass{background:#2a7} .t-warn{background:#d80} .t-fail{background:#c33} .t-note{background:#47a} .action{color:#333;font-style:italic}
-"""
+_CSS = (
+    "\n"
+    "body{font-family:system-ui,-apple-system,Segoe UI,Roboto,sans-serif;max-width:1100px;"
+    "margin:2em auto;padding:0 1em;color:#222}\n"
+    "h1{border-bottom:2px solid #246;padding-bottom:.2em} h2{color:#246;margin-top:2em;"
+    "border-bottom:1px solid #ccd}\n"
+    "table{border-collapse:collapse;margin:1em 0;font-size:.92em}"
+    " th,td{border:1px solid #ccd;padding:.3em .6em;text-align:right}\n"
+    "th{background:#eef2f8} td.l,th.l{text-align:left} .warn{background:#fff4e0;"
+    "border-left:4px solid #e90;padding:.5em 1em;margin:.5em 0}\n"
+    ".ok{color:#070} .bad{color:#b00} figure{margin:1em 0} figcaption{font-size:.9em;"
+    "color:#555} img{max-width:100%}\n"
+    "nav ul{columns:2} .meta{color:#666;font-size:.9em}\n"
+    "pre{background:#f4f6fa;border:1px solid #dde;padding:.5em .8em;overflow-x:auto;"
+    "white-space:pre-wrap;word-break:break-all}\n"
+    "caption{caption-side:top;text-align:left;color:#555;font-size:.9em;padding:.2em 0}"
+    " .refs{font-size:.9em}\n"
+    ".verdict{border:2px solid #888;border-radius:6px;padding:.6em 1em;margin:1em 0}\n"
+    ".verdict h3{margin:.1em 0 .4em 0} .verdict ul{margin:.2em 0;padding-left:1.2em}"
+    " .verdict li{margin:.25em 0}\n"
+    ".v-pass{border-color:#2a7;background:#effaf3} .v-warn{border-color:#e90;"
+    "background:#fff8ec} .v-fail{border-color:#c33;background:#fdeeee}\n"
+    ".tag{display:inline-block;min-width:3.2em;text-align:center;font-weight:600;"
+    "border-radius:3px;padding:0 .3em;margin-right:.4em;color:#fff}\n"
+    ".t-pass{background:#2a7} .t-warn{background:#d80} .t-fail{background:#c33}"
+    " .t-note{background:#47a} .action{color:#333;font-style:italic}\n"
+)
+
+
+def _align(column: int) -> str:
+    """A table cell's class: "l" (left-aligned) for the first column, the labels."""
+    return "l" if column == 0 else ""
+
+
+def _row_html(row: list, formats: list) -> str:
+    """One table row, each cell formatted with its column's spec."""
+    cells = "".join(f'<td class="{_align(i)}">{_fmt(c, spec=formats[i])}</td>'
+                    for i, c in enumerate(row))
+    return f"<tr>{cells}</tr>"
 
 
 def _fmt(v, digits: int = 6, spec: str | None = None) -> str:
@@ -85,53 +110,65 @@ class Section:
 
     def references(self, items: list[str]) -> None:
         """A numbered list of cited works."""
-        self.blocks.append("<ol class=\"refs\">" + "".join(f"<li>{html.escape(r)}</li>" for r in items) + "</ol>")
+        listed = "".join(f"<li>{html.escape(r)}</li>" for r in items)
+        self.blocks.append(f'<ol class="refs">{listed}</ol>')
 
     def warning(self, message: str) -> None:
         self.blocks.append(f'<div class="warn">⚠ {html.escape(message)}</div>')
 
-    def table(self, header: list[str], rows: list[list], caption: str | None = None, formats: list | None = None) -> None:
+    def table(self, header: list[str], rows: list[list], caption: str | None = None,
+              formats: list | None = None) -> None:
         """A table; the first column is left-aligned (labels). ``formats``: per column a format
         spec for numbers (e.g. ".1f"; a fixed-point zero is never shown as -0) or None (general)."""
-        head = "".join(f'<th class="{"l" if i == 0 else ""}">{html.escape(str(h))}</th>' for i, h in enumerate(header))
+        head = "".join(f'<th class="{_align(i)}">{html.escape(str(h))}</th>'
+                       for i, h in enumerate(header))
         fmts = list(formats or []) + [None] * len(header)
-        body = "".join(
-            "<tr>" + "".join(f'<td class="{"l" if i == 0 else ""}">{_fmt(c, spec=fmts[i])}</td>' for i, c in enumerate(r))
-            + "</tr>" for r in rows
-        )
+        body = "".join(_row_html(r, fmts) for r in rows)
         cap = f"<caption>{html.escape(caption)}</caption>" if caption else ""
-        self.blocks.append(f"<table>{cap}<thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>")
+        table = f"<thead><tr>{head}</tr></thead><tbody>{body}</tbody>"
+        self.blocks.append(f"<table>{cap}{table}</table>")
 
-    def solution(self, solution, truth: dict[str, float] | None = None, hidden_prefix: str | None = None,
-                 residual_unit: str = "m", residual_factor: float = 1.0) -> None:
+    def solution(self, solution, truth: dict[str, float] | None = None,
+                 hidden_prefix: str | None = None, residual_unit: str = "m",
+                 residual_factor: float = 1.0) -> None:
         """Parameter table (estimate, σ, truth and error when known, each with its unit, digits
         from σ) and diagnostics; parameters whose names start with ``hidden_prefix`` (default: the
-        solution's nuisance prefix) are counted, not listed. Residuals are shown × ``residual_factor``
-        in ``residual_unit`` (e.g. 1e3 and "mm" for residuals in metres)."""
+        solution's nuisance prefix) are counted, not listed. Residuals are shown
+        × ``residual_factor`` in ``residual_unit`` (e.g. 1e3 and "mm" for residuals in metres)."""
         doc = solution.to_dict(truth)
         hidden_prefix = hidden_prefix or solution.nuisance_prefix
         hidden = [n for n in doc["parameters"] if hidden_prefix and n.startswith(hidden_prefix)]
         if hidden:
-            shown = (hidden_prefix,) if isinstance(hidden_prefix, str) else hidden_prefix  # one prefix or several
-            self.text(f"{len(hidden)} {', '.join(p + '*' for p in shown)} parameters are estimated too; solution.json lists them.")
-        rows = [[name, *parameter_cells(p)] for name, p in doc["parameters"].items() if name not in hidden]
+            # one prefix or several
+            shown = (hidden_prefix,) if isinstance(hidden_prefix, str) else hidden_prefix
+            prefixes = ", ".join(p + "*" for p in shown)
+            self.text(f"{len(hidden)} {prefixes} parameters are estimated too; "
+                      "solution.json lists them.")
+        rows = [[name, *parameter_cells(p)] for name, p in doc["parameters"].items()
+                if name not in hidden]
         header = ["parameter", "estimate", "σ", "status", "truth", "error", "|error| / σ"]
         keep = len(header) if truth else 4  # no truth: no truth, error or |error|/σ columns
         self.table(header[:keep], [r[:keep] for r in rows])
-        rb, ra = doc["residuals"]["before"], doc["residuals"]["after"]
-        u = f" [{residual_unit}]" if residual_unit else ""
-        self.table(
-            ["residuals", "n", f"RMS{u}", f"median{u}", f"max |r|{u}"],
-            [[label, r.get("n")] + [None if r.get(k) is None else residual_factor * r[k] for k in ("rms", "median", "max_abs")]
-             for label, r in (("before", rb), ("after", ra))],
-            formats=[None, "d", ".3g", ".2g", ".3g"],
-        )
-        self.text(
-            f"σ0 = {doc['sigma0']:.3f}, redundancy {doc['dof']:.0f}, condition number {doc['condition_number']:.3g}, "
-            f"{len(doc['history']) - 1} iterations, {'converged' if doc['converged'] else 'NOT converged'}."
-        )
+        self._residuals(doc["residuals"], residual_unit, residual_factor)
+        converged = "converged" if doc["converged"] else "NOT converged"
+        self.text(f"σ0 = {doc['sigma0']:.3f}, redundancy {doc['dof']:.0f}, condition number "
+                  f"{doc['condition_number']:.3g}, {len(doc['history']) - 1} iterations, "
+                  f"{converged}.")
         for w in doc["warnings"]:
             self.warning(w)
+
+    def _residuals(self, residuals: dict, unit: str, factor: float) -> None:
+        """The residual table of solution.json's ``residuals`` (before, after), shown × ``factor``
+        in ``unit``."""
+        u = f" [{unit}]" if unit else ""
+        rows = []
+        for label in ("before", "after"):
+            r = residuals[label]
+            statistics = (r.get(k) for k in ("rms", "median", "max_abs"))
+            scaled = [None if v is None else factor * v for v in statistics]
+            rows.append([label, r.get("n"), *scaled])
+        self.table(["residuals", "n", f"RMS{u}", f"median{u}", f"max |r|{u}"], rows,
+                   formats=[None, "d", ".3g", ".2g", ".3g"])
 
     def figure(self, fig, caption: str = "", dpi: int = 110) -> None:
         """Embed a matplotlib figure as PNG and close it."""
@@ -147,7 +184,8 @@ class Section:
         )
 
     def html(self, anchor: str) -> str:
-        return f'<section id="{anchor}"><h2>{html.escape(self.title)}</h2>\n' + "\n".join(self.blocks) + "</section>"
+        blocks = "\n".join(self.blocks)
+        return f'<section id="{anchor}"><h2>{html.escape(self.title)}</h2>\n{blocks}</section>'
 
 
 UNIT_SYMBOLS = {"deg": "°", "1": ""}
@@ -159,12 +197,14 @@ def parameter_cells(p: dict) -> list:
     (zero never shown as -0 or as floating-point dust)."""
     unit = UNIT_SYMBOLS.get(p["unit"], f" {p['unit']}")
     sigma = p["sigma"]
-    d = 6 if not sigma or not np.isfinite(sigma) else min(max(0, 2 - int(np.floor(np.log10(sigma)))), 12)
+    known = bool(sigma) and np.isfinite(sigma)
+    # decimals: those of σ's second significant digit, 0 to 12
+    d = min(max(0, 2 - int(np.floor(np.log10(sigma)))), 12) if known else 6
 
     def show(v, sign=True):
         if v is None:
             return None
-        if not sigma or not np.isfinite(sigma):  # fixed (or undetermined): the value as it is
+        if not known:  # fixed (or undetermined): the value as it is
             return ("0" if v == 0 else f"{v:.6g}") + unit
         text = f"{v:{'+' if sign else ''}.{d}f}"
         if float(text) == 0:
@@ -173,19 +213,25 @@ def parameter_cells(p: dict) -> list:
 
     err = p.get("error")
     ratio = f"{abs(err) / sigma:.2f}" if err is not None and sigma else None
-    return [show(p["value"]), show(sigma, False) if sigma is not None else None, "estimated" if p["free"] else "held",
-            show(p.get("truth")), show(err), ratio]
+    shown_sigma = show(sigma, False) if sigma is not None else None
+    status = "estimated" if p["free"] else "held"
+    return [show(p["value"]), shown_sigma, status, show(p.get("truth")), show(err), ratio]
 
 
 def verdict_html(verdict, title: str | None = None) -> str:
     """A verdict box: the status and summary, then every finding with its numbers and what to do."""
-    items = "".join(
-        f'<li><span class="tag t-{f.status}">{f.status.upper()}</span><b>{html.escape(f.check)}</b>: '
-        f"{html.escape(f.detail)}" + (f'<br><span class="action">→ {html.escape(f.action)}</span>' if f.action else "")
-        + "</li>" for f in verdict.findings)
+    items = "".join(_finding_html(f) for f in verdict.findings)
     head = f"{html.escape(title)}: " if title else ""
-    return (f'<div class="verdict v-{verdict.status}"><h3><span class="tag t-{verdict.status}">'
-            f"{verdict.status.upper()}</span>{head}{html.escape(verdict.summary)}</h3><ul>{items}</ul></div>")
+    tag = f'<span class="tag t-{verdict.status}">{verdict.status.upper()}</span>'
+    return (f'<div class="verdict v-{verdict.status}"><h3>{tag}{head}'
+            f"{html.escape(verdict.summary)}</h3><ul>{items}</ul></div>")
+
+
+def _finding_html(f) -> str:
+    """One finding of a verdict: its status tag, check, detail and the action when there is one."""
+    tag = f'<span class="tag t-{f.status}">{f.status.upper()}</span>'
+    action = f'<br><span class="action">→ {html.escape(f.action)}</span>' if f.action else ""
+    return f"<li>{tag}<b>{html.escape(f.check)}</b>: {html.escape(f.detail)}{action}</li>"
 
 
 def record_html(record) -> str:
@@ -194,16 +240,19 @@ def record_html(record) -> str:
     from calidar.provenance import describe_tasks
 
     d = record.to_dict()
-    rows = "".join(f"<tr><td class=\"l\">{html.escape(i['path'])}</td><td>{i['size_bytes']:,}</td>"
-                   f"<td class=\"l\"><code>{i['sha256']}</code></td></tr>" for i in d["inputs"])
+    rows = "".join(f'<tr><td class="l">{html.escape(i["path"])}</td><td>{i["size_bytes"]:,}</td>'
+                   f'<td class="l"><code>{i["sha256"]}</code></td></tr>' for i in d["inputs"])
     opts = ", ".join(f"{k} = {v}" for k, v in d["options"].items())
-    return (f"<p>calidar {html.escape(d['calidar_version'])} (Python {html.escape(d['python'])}), started "
-            f"{html.escape(d['started_utc'])}, finished {html.escape(str(d['finished_utc']))}.</p>"
-            f"<p>Command: <code>{html.escape(' '.join(d['argv']))}</code></p>"
-            + (f"<p>Options: {html.escape(opts)}</p>" if opts else "")
-            + (f"<p>Dask tasks: {html.escape(describe_tasks(d['dask_tasks']))}</p>" if d.get("dask_tasks") else "")
-            + (f"<table><thead><tr><th class=\"l\">input</th><th>bytes</th><th class=\"l\">sha256</th></tr></thead>"
-               f"<tbody>{rows}</tbody></table>" if rows else ""))
+    made = (f"<p>calidar {html.escape(d['calidar_version'])} (Python {html.escape(d['python'])}), "
+            f"started {html.escape(d['started_utc'])}, finished "
+            f"{html.escape(str(d['finished_utc']))}.</p>"
+            f"<p>Command: <code>{html.escape(' '.join(d['argv']))}</code></p>")
+    options = f"<p>Options: {html.escape(opts)}</p>" if opts else ""
+    tasks = d.get("dask_tasks")
+    dask = f"<p>Dask tasks: {html.escape(describe_tasks(tasks))}</p>" if tasks else ""
+    head = '<thead><tr><th class="l">input</th><th>bytes</th><th class="l">sha256</th></tr></thead>'
+    inputs = f"<table>{head}<tbody>{rows}</tbody></table>" if rows else ""
+    return made + options + dask + inputs
 
 
 @dataclass
@@ -212,7 +261,8 @@ class Report:
 
     title: str = "calidar report"
     sections: list[Section] = field(default_factory=list)
-    verdicts: list[tuple[str | None, object]] = field(default_factory=list)  #: (title, calidar.verdict.Verdict)
+    #: (title, calidar.verdict.Verdict)
+    verdicts: list[tuple[str | None, object]] = field(default_factory=list)
     record: object | None = None  #: calidar.provenance.RunRecord
 
     def add_verdict(self, verdict, title: str | None = None) -> None:
@@ -227,17 +277,21 @@ class Report:
 
     def html(self) -> str:
         stamp = datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
-        nav = "".join(f'<li><a href="#s{i}">{html.escape(s.title)}</a></li>' for i, s in enumerate(self.sections))
+        nav = "".join(f'<li><a href="#s{i}">{html.escape(s.title)}</a></li>'
+                      for i, s in enumerate(self.sections))
         body = "\n".join(s.html(f"s{i}") for i, s in enumerate(self.sections))
         verdicts = "".join(verdict_html(v, t) for t, v in self.verdicts)
-        record = (f'<section id="run"><h2>How this was made</h2>{record_html(self.record)}</section>'
-                  if self.record is not None else "")
+        record = ""
+        if self.record is not None:
+            made = record_html(self.record)
+            record = f'<section id="run"><h2>How this was made</h2>{made}</section>'
         # a run writes into a temporary folder (calidar.outputs.output_folder): name the destination
+        title = html.escape(self.title)
+        head = f'<head><meta charset="utf-8"><title>{title}</title><style>{_CSS}</style></head>'
+        meta = f'<p class="meta">calidar {__version__} · {stamp}</p>'
         return shown_path(
-            f'<!DOCTYPE html>\n<html lang="en"><head><meta charset="utf-8"><title>{html.escape(self.title)}</title>'
-            f"<style>{_CSS}</style></head><body><h1>{html.escape(self.title)}</h1>"
-            f'<p class="meta">calidar {__version__} · {stamp}</p>{verdicts}<nav><ul>{nav}</ul></nav>\n{body}\n'
-            f"{record}</body></html>\n"
+            f'<!DOCTYPE html>\n<html lang="en">{head}<body><h1>{title}</h1>'
+            f"{meta}{verdicts}<nav><ul>{nav}</ul></nav>\n{body}\n{record}</body></html>\n"
         )
 
     def write(self, path: str | Path, force: bool = True) -> Path:
