@@ -1,1 +1,2 @@
-"""Absolute accuracy against surveyed checkpoints: the ground TIN at each checkpoint and the ASPRS statistics."""
+"""Absolute accuracy against surveyed checkpoints: the ground TIN at each checkpoint and the
+ASPRS statistics."""

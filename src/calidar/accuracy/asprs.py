@@ -36,8 +36,10 @@ import numpy as np
 VERTICAL_CLASSES_CM = (1.0, 2.5, 5.0, 10.0, 15.0, 20.0, 33.3, 66.7, 100.0, 333.3)
 MIN_NVA_CHECKPOINTS = 30  #: Edition 2's minimum for an NVA test
 LEGACY_95_FACTOR = 1.96  #: NSSDA vertical accuracy at 95 % = 1.96 × RMSEz
-VVA_REFERENCE_FACTOR = 3.0  #: Edition 1: VVA (95th percentile) ≤ 3.0 × X for the X-cm class (reference only)
+#: Edition 1: VVA (95th percentile) ≤ 3.0 × X for the X-cm class (reference only)
+VVA_REFERENCE_FACTOR = 3.0
 OUTLIER_FACTOR = 3.0  #: |dz| > 3 × RMSE_V(data) is listed as an outlier
+STANDARD = "ASPRS Positional Accuracy Standards for Digital Geospatial Data, Edition 2 (2023)"
 
 
 def percentile95(values) -> float:
@@ -59,7 +61,8 @@ def rmse_interval(rmse: float, n: int, level: float = 0.95) -> tuple[float, floa
     if n < 1 or not np.isfinite(rmse):
         return float("nan"), float("nan")
     a = (1.0 - level) / 2.0
-    return float(rmse * np.sqrt(n / chi2.ppf(1.0 - a, n))), float(rmse * np.sqrt(n / chi2.ppf(a, n)))
+    chi2_high, chi2_low = chi2.ppf(1.0 - a, n), chi2.ppf(a, n)
+    return float(rmse * np.sqrt(n / chi2_high)), float(rmse * np.sqrt(n / chi2_low))
 
 
 def accuracy_class_cm(rmse_m: float) -> float | None:
@@ -86,7 +89,8 @@ class VerticalAccuracy:
     sdom_m: float | None  #: standard error of the mean, std/√n
     rmse_data_m: float | None  #: RMSE_V(data) of the NVA residuals
     rmse_survey_m: float | None  #: the checkpoints' survey RMSE (None: not given)
-    rmse_m: float | None  #: RMSE_V = sqrt(data² + survey²) (the data term alone when the survey's is unknown)
+    #: RMSE_V = sqrt(data² + survey²) (the data term alone when the survey's is unknown)
+    rmse_m: float | None
     rmse_interval_m: tuple[float, float] | None  #: 95 % interval of the true RMSE_V(data) (χ²)
     rmse_sigma_m: float | None  #: ≈ RMSE/√(2n), the RMSE's standard uncertainty
     class_cm: float | None  #: the smallest tabulated class met
@@ -103,12 +107,14 @@ class VerticalAccuracy:
         """'tested 7.4 cm RMSEz: meets the 10-cm vertical accuracy class' (with the survey term)."""
         if self.rmse_m is None:
             return "no non-vegetated checkpoint could be tested: no NVA statement"
-        cls = (f"meets the {class_name(self.class_cm)} vertical accuracy class" if self.class_cm is not None
-               else f"beyond the largest tabulated class ({class_name(VERTICAL_CLASSES_CM[-1])})")
+        if self.class_cm is not None:
+            cls = f"meets the {class_name(self.class_cm)} vertical accuracy class"
+        else:
+            cls = f"beyond the largest tabulated class ({class_name(VERTICAL_CLASSES_CM[-1])})"
         text = f"tested {self.rmse_m * 100:.1f} cm RMSEz (NVA, {self.n_nva} checkpoints): {cls}"
         if self.rmse_survey_m is not None:
-            text += (f" (data {self.rmse_data_m * 100:.1f} cm combined with the checkpoints' survey "
-                     f"{self.rmse_survey_m * 100:.1f} cm, as Edition 2 prescribes)")
+            text += (f" (data {self.rmse_data_m * 100:.1f} cm combined with the checkpoints' "
+                     f"survey {self.rmse_survey_m * 100:.1f} cm, as Edition 2 prescribes)")
         return text
 
     def meets(self, x_cm: float) -> bool | None:
@@ -119,9 +125,10 @@ class VerticalAccuracy:
         d = asdict(self)
         d["outliers"] = list(self.outliers)
         d["rmse_interval_m"] = None if self.rmse_interval_m is None else list(self.rmse_interval_m)
-        d.update(statement=self.statement(), class_name=None if self.class_cm is None else class_name(self.class_cm),
+        d.update(statement=self.statement(),
+                 class_name=None if self.class_cm is None else class_name(self.class_cm),
                  minimum_nva_checkpoints=MIN_NVA_CHECKPOINTS, enough_checkpoints=self.enough,
-                 standard="ASPRS Positional Accuracy Standards for Digital Geospatial Data, Edition 2 (2023)")
+                 standard=STANDARD)
         return d
 
 
@@ -133,12 +140,15 @@ def vertical_accuracy(dz_nva, dz_vva=(), survey_rmse_m: float | None = None) -> 
     vva95 = percentile95(np.abs(v)) if v.size else None
     vva_rmse = float(np.sqrt(np.mean(v**2))) if v.size else None
     if n == 0:
-        return VerticalAccuracy(0, v.size, None, None, None, None, survey_rmse_m, None, None, None, None, None,
-                                vva95, vva_rmse, ())
+        return VerticalAccuracy(0, v.size, None, None, None, None, survey_rmse_m, None, None, None,
+                                None, None, vva95, vva_rmse, ())
     data = float(np.sqrt(np.mean(a**2)))
     total = float(np.hypot(data, survey_rmse_m)) if survey_rmse_m is not None else data
     std = float(np.std(a, ddof=1)) if n > 1 else None
-    outliers = tuple(int(i) for i in np.flatnonzero(np.abs(a) > OUTLIER_FACTOR * data)) if n > 2 else ()
-    return VerticalAccuracy(n, v.size, float(np.mean(a)), std, None if std is None else std / np.sqrt(n), data,
-                            survey_rmse_m, total, rmse_interval(data, n), data / np.sqrt(2 * n),
-                            accuracy_class_cm(total), LEGACY_95_FACTOR * total, vva95, vva_rmse, outliers)
+    sdom = None if std is None else std / np.sqrt(n)
+    outliers = ()
+    if n > 2:
+        outliers = tuple(int(i) for i in np.flatnonzero(np.abs(a) > OUTLIER_FACTOR * data))
+    return VerticalAccuracy(n, v.size, float(np.mean(a)), std, sdom, data, survey_rmse_m, total,
+                            rmse_interval(data, n), data / np.sqrt(2 * n), accuracy_class_cm(total),
+                            LEGACY_95_FACTOR * total, vva95, vva_rmse, outliers)
