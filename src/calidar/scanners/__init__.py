@@ -42,7 +42,11 @@ class Scanner(Protocol):
         """The ``[scanner]`` table for sensor.toml (user units, key names say them)."""
 
 
-SCANNERS: dict[str, type] = {"linear": LinearScanner, "palmer": PalmerScanner, "wedge": WedgeScanner}
+SCANNERS: dict[str, type] = {
+    "linear": LinearScanner,
+    "palmer": PalmerScanner,
+    "wedge": WedgeScanner,
+}
 
 
 def scanner_from_toml(table: dict, source: str = "sensor.toml") -> Scanner:
@@ -51,5 +55,6 @@ def scanner_from_toml(table: dict, source: str = "sensor.toml") -> Scanner:
 
     model = table.get("model", "linear")
     if model not in SCANNERS:
-        raise InputError(source, "scanner.model", f"expected one of {sorted(SCANNERS)}, got {model!r}")
+        raise InputError(source, "scanner.model",
+                         f"expected one of {sorted(SCANNERS)}, got {model!r}")
     return SCANNERS[model].from_toml(table, source)

@@ -26,7 +26,8 @@ def pattern_figure(a: ScannerAnalysis):
     ax.set_aspect("equal", adjustable="datalim")
     ax.set_xlabel("y (right) [m]")
     ax.set_ylabel("x (forward) [m]")
-    ax.set_title(f"{MODEL_NAMES[a.model]} pattern at {a.range_m:g} m: {ext[0]:.1f} m (x) × {ext[1]:.1f} m (y)")
+    extent = f"{ext[0]:.1f} m (x) × {ext[1]:.1f} m (y)"
+    ax.set_title(f"{MODEL_NAMES[a.model]} pattern at {a.range_m:g} m: {extent}")
     ax.legend(loc="upper right")
     ax.grid(alpha=0.3)
     return fig
@@ -47,6 +48,7 @@ def displacement_figure(a: ScannerAnalysis, effect: ErrorEffect, title: str):
 
 
 def _short(name: str) -> str:
+    """A parameter's name short enough for a matrix's axis."""
     return name.replace("boresight_", "bs_").replace("eccentricity", "ecc")
 
 
@@ -59,13 +61,15 @@ def correlation_axes(ax, names, corr, title: str) -> None:
     for i in range(len(names)):
         for j in range(len(names)):
             v = corr[i, j]
-            ax.text(j, i, fixed(v, 3 if 0.99 < abs(v) < 0.9995 else 2), ha="center", va="center", fontsize=7,
+            digits = 3 if 0.99 < abs(v) < 0.9995 else 2  # a third where two would read ±1.00
+            ax.text(j, i, fixed(v, digits), ha="center", va="center", fontsize=7,
                     color="white" if abs(v) > 0.6 else "black")
     ax.set_title(title, fontsize=9)
     return im
 
 
-def separability_figure(sep: Separability, name: str, value_si: float, label: str, unit_value: str, model: str):
+def separability_figure(sep: Separability, name: str, value_si: float, label: str,
+                        unit_value: str, model: str):
     """Left: the error ``name``'s displacements and what the best boresight leaves of them;
     right: the correlations of boresight and structural components (all points known)."""
     n = sep.jacobian.shape[0] // 3
@@ -75,16 +79,19 @@ def separability_figure(sep: Separability, name: str, value_si: float, label: st
     fig, (a1, a2) = plt.subplots(1, 2, figsize=(12, 4.4), gridspec_kw={"width_ratios": [1.3, 1]})
     for i, lab in enumerate("XYZ"):
         a1.plot(x, full[:, i] * 100, color=f"C{i}", label=f"d{lab} from the error")
-        a1.plot(x, rest[:, i] * 100, "--", color=f"C{i}", label=f"d{lab} left after the best boresight")
+        a1.plot(x, rest[:, i] * 100, "--", color=f"C{i}",
+                label=f"d{lab} left after the best boresight")
     a1.set_xlabel(_angle_axis_label(model))
     a1.set_ylabel("displacement [cm]")
     m = sep.mimic[name]
-    mimic = ", ".join(f"{k} {fixed(v, 3)}" for k, v in zip(("roll", "pitch", "yaw"), m) if abs(v) > 5e-4) or "none"
-    a1.set_title(f"{label} = {unit_value} at {sep.range_m:g} m: best boresight per unit error: {mimic}; "
-                 f"{100 * sep.unexplained[name]:.1f} % left", fontsize=9)
+    mimic = ", ".join(f"{k} {fixed(v, 3)}" for k, v in zip(("roll", "pitch", "yaw"), m)
+                      if abs(v) > 5e-4) or "none"
+    a1.set_title(f"{label} = {unit_value} at {sep.range_m:g} m: best boresight per unit error: "
+                 f"{mimic}; {100 * sep.unexplained[name]:.1f} % left", fontsize=9)
     a1.legend(fontsize=7, ncol=2)
     a1.grid(alpha=0.3)
-    im = correlation_axes(a2, sep.names, sep.correlation, "correlation of the estimates (all points known)")
+    im = correlation_axes(a2, sep.names, sep.correlation,
+                          "correlation of the estimates (all points known)")
     fig.colorbar(im, ax=a2, fraction=0.046)
     fig.tight_layout()
     return fig

@@ -32,7 +32,9 @@ class LinearScanner(NamedParameters):
         phi = 0.0 if a.ndim == 1 else a[:, 1]
         th = (1.0 + self.scan_angle_scale) * theta + self.scan_angle_offset
         cphi = np.cos(phi)
-        return np.stack(np.broadcast_arrays(np.sin(phi), cphi * np.sin(th), cphi * np.cos(th)), axis=-1)
+        # u_s = (sin φ, cos φ · sin θ', cos φ · cos θ') (docs/conventions.md)
+        u = np.broadcast_arrays(np.sin(phi), cphi * np.sin(th), cphi * np.cos(th))
+        return np.stack(u, axis=-1)
 
     def angles(self, directions) -> np.ndarray:
         u = np.asarray(directions, dtype=float)
@@ -55,7 +57,8 @@ class LinearScanner(NamedParameters):
         known = {"model", "scan_angle_offset_deg", "scan_angle_scale"}
         unknown = set(table) - known
         if unknown:
-            raise InputError(source, "scanner", f"unknown key(s) {sorted(unknown)}; expected {sorted(known)}")
+            raise InputError(source, "scanner",
+                             f"unknown key(s) {sorted(unknown)}; expected {sorted(known)}")
         return cls(
             scan_angle_offset=float(np.radians(table.get("scan_angle_offset_deg", 0.0))),
             scan_angle_scale=float(table.get("scan_angle_scale", 0.0)),

@@ -45,8 +45,8 @@ import numpy as np
 
 from calidar.frames import rot_y
 from calidar.scanners.named import NamedParameters
-from calidar.scanners.rotating import (as_encoder_angles, check_toml_keys, encoder_angle, refine_angles,
-                                       toml_number, true_angle)
+from calidar.scanners.rotating import (as_encoder_angles, check_toml_keys, encoder_angle,
+                                       refine_angles, toml_number, true_angle)
 
 _LASER = np.array([-1.0, 0.0, 0.0])  #: laser direction in frame s
 
@@ -56,8 +56,9 @@ def _motor_to_scanner(axis_angle_rad: float) -> np.ndarray:
     return rot_y(np.pi / 2 - axis_angle_rad)
 
 
-def palmer_directions(beta_rad, axis_angle: float, mirror_tilt: float, eccentricity_ratio: float = 0.0,
-                      eccentricity_phase: float = 0.0, delta_l: float = 0.0, delta_r: float = 0.0,
+def palmer_directions(beta_rad, axis_angle: float, mirror_tilt: float,
+                      eccentricity_ratio: float = 0.0, eccentricity_phase: float = 0.0,
+                      delta_l: float = 0.0, delta_r: float = 0.0,
                       reference: str = "laser") -> np.ndarray:
     """Unit beam vectors (N, 3) in frame s for encoder angles β (N,) rad; all angles rad.
 
@@ -71,7 +72,9 @@ def palmer_directions(beta_rad, axis_angle: float, mirror_tilt: float, eccentric
     r_sm = _motor_to_scanner(axis_angle + delta_l)
     v_l = r_sm.T @ _LASER  # laser in the motor frame: angle A + δ_L to the axis
     tilt = mirror_tilt + delta_r
-    m = np.stack([np.sin(tilt) * np.cos(b), np.sin(tilt) * np.sin(b), np.full_like(b, np.cos(tilt))], axis=-1)
+    # mirror normal M = R_z(β) · V_R, V_R = (sin B, 0, cos B); reflection V = V_L − 2 (V_L·M) M
+    m = np.stack([np.sin(tilt) * np.cos(b), np.sin(tilt) * np.sin(b),
+                  np.full_like(b, np.cos(tilt))], axis=-1)
     v = v_l - 2.0 * (m @ v_l)[:, None] * m
     back = r_sm if reference == "laser" else _motor_to_scanner(axis_angle)
     return v @ back.T
@@ -97,8 +100,10 @@ class PalmerScanner(NamedParameters):
 
     def directions(self, angles) -> np.ndarray:
         """Encoder angles β (N,) rad → unit beam vectors (N, 3) in frame s."""
-        return palmer_directions(as_encoder_angles(angles), self.palmer_axis_angle, self.palmer_mirror_tilt,
-                                 self.eccentricity_ratio, self.eccentricity_phase, self.delta_l, self.delta_r)
+        beta = as_encoder_angles(angles)
+        return palmer_directions(beta, self.palmer_axis_angle, self.palmer_mirror_tilt,
+                                 self.eccentricity_ratio, self.eccentricity_phase, self.delta_l,
+                                 self.delta_r)
 
     def angles(self, directions) -> np.ndarray:
         """Unit vectors (N, 3) in frame s → encoder angles β (N,) in rad, in (−π, π].
@@ -130,27 +135,31 @@ class PalmerScanner(NamedParameters):
 
     @classmethod
     def from_toml(cls, table: dict, source: str = "sensor.toml") -> "PalmerScanner":
-        keys = {"model", "axis_angle_deg", "mirror_tilt_deg", "eccentricity_ratio", "eccentricity_phase_deg",
-                "delta_l_deg", "delta_r_deg"}
+        keys = {"model", "axis_angle_deg", "mirror_tilt_deg", "eccentricity_ratio",
+                "eccentricity_phase_deg", "delta_l_deg", "delta_r_deg"}
         check_toml_keys(table, keys, source)
-        a = np.radians(toml_number(table, "axis_angle_deg", 45.0, source))
-        b = np.radians(toml_number(table, "mirror_tilt_deg", 7.5, source))
+
+        def radians(key: str, default_deg: float) -> float:
+            return np.radians(toml_number(table, key, default_deg, source))
+
+        a, b = radians("axis_angle_deg", 45.0), radians("mirror_tilt_deg", 7.5)
         e = toml_number(table, "eccentricity_ratio", 0.0, source)
         check_palmer(a, b, e, source, prefix="scanner.")
-        return cls(a, b, e, np.radians(toml_number(table, "eccentricity_phase_deg", 0.0, source)),
-                   np.radians(toml_number(table, "delta_l_deg", 0.0, source)),
-                   np.radians(toml_number(table, "delta_r_deg", 0.0, source)))
+        return cls(a, b, e, radians("eccentricity_phase_deg", 0.0), radians("delta_l_deg", 0.0),
+                   radians("delta_r_deg", 0.0))
 
 
-def check_palmer(axis_angle: float, mirror_tilt: float, eccentricity_ratio: float, source: str | None = None,
-                 prefix: str = "") -> None:
+def check_palmer(axis_angle: float, mirror_tilt: float, eccentricity_ratio: float,
+                 source: str | None = None, prefix: str = "") -> None:
     """Reject non-physical Palmer geometry (angles rad) with a clear :class:`InputError`."""
     from calidar.errors import InputError
 
+    a_deg, b_deg = np.degrees(axis_angle), np.degrees(mirror_tilt)
     if not 0.0 < axis_angle < np.pi / 2:
-        raise InputError(source, f"{prefix}axis_angle_deg", f"expected 0 < A < 90°, got {np.degrees(axis_angle):g}°")
+        raise InputError(source, f"{prefix}axis_angle_deg", f"expected 0 < A < 90°, got {a_deg:g}°")
     if not 0.0 < mirror_tilt < axis_angle:
         raise InputError(source, f"{prefix}mirror_tilt_deg",
-                         f"expected 0 < B < A = {np.degrees(axis_angle):g}°, got {np.degrees(mirror_tilt):g}°")
+                         f"expected 0 < B < A = {a_deg:g}°, got {b_deg:g}°")
     if not abs(eccentricity_ratio) < 1.0:
-        raise InputError(source, f"{prefix}eccentricity_ratio", f"expected |ε/r| < 1, got {eccentricity_ratio:g}")
+        raise InputError(source, f"{prefix}eccentricity_ratio",
+                         f"expected |ε/r| < 1, got {eccentricity_ratio:g}")

@@ -75,7 +75,8 @@ def as_encoder_angles(angles) -> np.ndarray:
     if a.ndim == 2 and a.shape[1] == 1:
         a = a[:, 0]
     if a.ndim != 1:
-        raise ValueError(f"rotating scanners take one encoder angle per shot, shape (N,); got {a.shape}")
+        raise ValueError("rotating scanners take one encoder angle per shot, shape (N,); "
+                         f"got {a.shape}")
     return a
 
 
@@ -85,7 +86,8 @@ def check_toml_keys(table: dict, known: set[str], source: str) -> None:
 
     unknown = set(table) - known
     if unknown:
-        raise InputError(source, "scanner", f"unknown key(s) {sorted(unknown)}; expected {sorted(known)}")
+        raise InputError(source, "scanner",
+                         f"unknown key(s) {sorted(unknown)}; expected {sorted(known)}")
 
 
 def toml_number(table: dict, key: str, default: float, source: str) -> float:

@@ -42,13 +42,16 @@ SEPARATION_SAMPLES = 360  #: angles over the pattern for the Jacobian
 
 @dataclass(frozen=True)
 class Separability:
-    """Jacobian-based separability of structural components from the boresight (see module docstring)."""
+    """Jacobian-based separability of structural components from the boresight (see the module
+    docstring)."""
 
     names: tuple[str, ...]  #: BORESIGHT + the components
     jacobian: np.ndarray  #: (3N, 3 + k) m per rad (or per unit ratio)
     correlation: np.ndarray  #: (3 + k, 3 + k)
-    unexplained: dict[str, float]  #: component or error name → fraction of its signature no boresight reproduces
-    mimic: dict[str, np.ndarray]  #: component or error name → best-imitating boresight (roll, pitch, yaw)
+    #: component or error name → fraction of its signature no boresight reproduces
+    unexplained: dict[str, float]
+    #: component or error name → best-imitating boresight (roll, pitch, yaw)
+    mimic: dict[str, np.ndarray]
     singular_values: np.ndarray  #: of the column-normalised Jacobian
     columns: dict[str, np.ndarray]  #: error name → its Jacobian column (3N,) at the analysed phase
     range_m: float
@@ -58,18 +61,22 @@ class Separability:
         return float(self.correlation[self.names.index(a), self.names.index(b)])
 
     def left_after_boresight(self, name: str, value_si: float) -> np.ndarray:
-        """Displacements (N, 3) m an error of ``value_si`` leaves after the best boresight (first order)."""
+        """Displacements (N, 3) m an error of ``value_si`` leaves after the best boresight (first
+        order)."""
         col = self.columns[name] - self.jacobian[:, :3] @ self.mimic[name]
         return (col * value_si).reshape(-1, 3)
 
 
-def _points(scanner: Scanner, angles: np.ndarray, range_m: float, rpy=(0.0, 0.0, 0.0), params=None) -> np.ndarray:
-    """Body-frame points (3N,) m of the pattern with a boresight ``rpy`` (rad) and scanner ``params`` (SI)."""
+def _points(scanner: Scanner, angles: np.ndarray, range_m: float, rpy=(0.0, 0.0, 0.0),
+            params=None) -> np.ndarray:
+    """Body-frame points (3N,) m of the pattern with a boresight ``rpy`` (rad) and scanner
+    ``params`` (SI)."""
     u = (scanner.with_parameters(**params) if params else scanner).directions(angles)
     return (range_m * u @ rpy_to_matrix(*rpy).T).ravel()
 
 
 def _column(fn, step: float) -> np.ndarray:
+    """The derivative of ``fn`` at 0 by central differences of ``step``."""
     return (fn(step) - fn(-step)) / (2.0 * step)
 
 
@@ -80,25 +87,32 @@ def _fit_boresight(jb: np.ndarray, col: np.ndarray) -> tuple[np.ndarray, float]:
     return a, float(np.linalg.norm(col - jb @ a) / norm) if norm > 0 else 0.0
 
 
-def separability(scanner: Scanner, sources: list[ErrorSource], angles: np.ndarray, range_m: float,
-                 step: float = 1e-7) -> Separability:
-    """Separability from the boresight of every component of ``sources`` over the pattern ``angles``."""
+def separability(scanner: Scanner, sources: list[ErrorSource], angles: np.ndarray,
+                 range_m: float, step: float = 1e-7) -> Separability:
+    """Separability from the boresight of every component of ``sources`` over the pattern
+    ``angles``."""
     comps = [(name, fn) for src in sources for name, fn in src.parts()]
-    eye = np.eye(3)
-    cols = [_column(lambda h, e=e: _points(scanner, angles, range_m, rpy=h * e), step) for e in eye]
-    cols += [_column(lambda h, fn=fn: _points(scanner, angles, range_m, params=fn(h)), step) for _, fn in comps]
+
+    def rotated(axis: np.ndarray):
+        return lambda h: _points(scanner, angles, range_m, rpy=h * axis)
+
+    def changed(fn):
+        return lambda h: _points(scanner, angles, range_m, params=fn(h))
+
+    cols = [_column(rotated(axis), step) for axis in np.eye(3)]
+    cols += [_column(changed(fn), step) for _, fn in comps]
     j = np.stack(cols, axis=1)
     cov = np.linalg.pinv(j.T @ j)
     s = np.sqrt(np.clip(np.diag(cov), 1e-300, None))
     jb = j[:, :3]
-    columns = {src.name: _column(lambda h, fn=src.apply: _points(scanner, angles, range_m, params=fn(h)), step)
-               for src in sources}
+    columns = {src.name: _column(changed(src.apply), step) for src in sources}
     unexplained, mimic = {}, {}
     for name, col in [(n, j[:, 3 + k]) for k, (n, _) in enumerate(comps)] + list(columns.items()):
         mimic[name], unexplained[name] = _fit_boresight(jb, col)
     sv = np.linalg.svd(j / np.maximum(np.linalg.norm(j, axis=0), 1e-300), compute_uv=False)
-    return Separability(BORESIGHT + tuple(n for n, _ in comps), j, np.clip(cov / np.outer(s, s), -1.0, 1.0),
-                        unexplained, mimic, sv, columns, float(range_m), np.asarray(angles, float))
+    correlation = np.clip(cov / np.outer(s, s), -1.0, 1.0)
+    return Separability(BORESIGHT + tuple(n for n, _ in comps), j, correlation, unexplained, mimic,
+                        sv, columns, float(range_m), np.asarray(angles, float))
 
 
 def palmer_separability(scanner: PalmerScanner | None = None, range_m: float = 500.0,
@@ -108,15 +122,22 @@ def palmer_separability(scanner: PalmerScanner | None = None, range_m: float = 5
     return separability(scanner or PalmerScanner(), error_sources("palmer"), beta, range_m, step)
 
 
-def control_adjustment(truth: dict[str, float], *, range_m: float = 500.0, n: int = 720, noise_m: float = 0.02,
-                       seed: int = 0, free: tuple[str, ...] = BORESIGHT + ("eccentricity_ratio", "eccentricity_phase",
-                                                                           "delta_l", "delta_r")):
-    """Estimate boresight + Palmer parameters through the adjustment engine from noisy control points.
+#: the parameters :func:`control_adjustment` estimates by default: the boresight and every
+#: Palmer structural parameter
+CONTROL_FREE = BORESIGHT + ("eccentricity_ratio", "eccentricity_phase", "delta_l", "delta_r")
 
-    Simulates one revolution at ``range_m`` with the ``truth`` (SI; keys from the boresight names and
-    PalmerScanner parameters), adds N(0, noise_m²) to every coordinate, and solves starting from
-    zero boresight, δ_L = δ_R = 0 and ε/r = 1e-4, C = 0 (C is undefined at ε = 0). Returns the
-    :class:`calidar.adjust.Solution` (its correlation shows the δ_L–pitch degeneracy).
+
+def control_adjustment(truth: dict[str, float], *, range_m: float = 500.0, n: int = 720,
+                       noise_m: float = 0.02, seed: int = 0,
+                       free: tuple[str, ...] = CONTROL_FREE):
+    """Estimate boresight + Palmer parameters through the adjustment engine from noisy control
+    points.
+
+    Simulates one revolution at ``range_m`` with the ``truth`` (SI; keys from the boresight
+    names and PalmerScanner parameters), adds N(0, noise_m²) to every coordinate, and solves
+    starting from zero boresight, δ_L = δ_R = 0 and ε/r = 1e-4, C = 0 (C is undefined at
+    ε = 0). Returns the :class:`calidar.adjust.Solution` (its correlation shows the δ_L–pitch
+    degeneracy).
     """
     rng = np.random.default_rng(seed)
     beta = np.linspace(0.0, 2 * np.pi, n, endpoint=False)
@@ -129,7 +150,8 @@ def control_adjustment(truth: dict[str, float], *, range_m: float = 500.0, n: in
     full = {k: 0.0 for k in BORESIGHT} | base.parameters() | truth
     observed = points(full) + rng.normal(0.0, noise_m, 3 * n)
     start = {k: 0.0 for k in BORESIGHT} | base.parameters() | {"eccentricity_ratio": 1e-4}
-    params = ParameterSet([Parameter(k, start[k], base.units.get(k, "rad"), free=k in free) for k in start])
+    params = ParameterSet([Parameter(k, start[k], base.units.get(k, "rad"), free=k in free)
+                           for k in start])
     def residuals(v: dict[str, float]) -> np.ndarray:
         return points(v) - observed
 

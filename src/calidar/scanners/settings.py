@@ -56,39 +56,55 @@ class AnalysisSettings:
         """Self when every number is finite and within its range, else an :class:`InputError`
         naming the option, the range and the value."""
         if self.model not in MODELS:
-            raise InputError(None, "--model", f"expected one of {', '.join(MODELS)}, got {self.model!r}")
+            raise InputError(None, "--model",
+                             f"expected one of {', '.join(MODELS)}, got {self.model!r}")
         for f in fields(self):
             if f.name in LIMITS:
                 option, lo, hi, unit, open_lo, open_hi = LIMITS[f.name]
-                number(getattr(self, f.name), option, lo, hi, unit, open_lo=open_lo, open_hi=open_hi)
+                number(getattr(self, f.name), option, lo, hi, unit, open_lo=open_lo,
+                       open_hi=open_hi)
         integer(self.points, "--points", MIN_POINTS, MAX_POINTS,
-                why="more only costs memory and time: 720 points resolve the curves' maxima to 1e-5")
+                why="more only costs memory and time: 720 points resolve the curves' maxima "
+                    "to 1e-5")
         self._check_errors()
         self._check_geometry()
         return self
 
     def _check_errors(self) -> None:
+        """Each error known to the model and within its limits (user units)."""
         sources = {s.name: s for s in error_sources(self.model)}
         for name, value in self.errors.items():
             src = sources.get(name)
             if src is None:
-                owners = [(m, s) for m in MODELS for s in error_sources(m) if s.name == name]
-                if not owners:
-                    raise InputError(None, "errors", f"unknown error {name!r}; expected one of {', '.join(sources)}")
-                raise InputError(None, owners[0][1].option,
-                                 f"applies to --model {' or '.join(m for m, _ in owners)}, not {self.model}")
+                self._wrong_error(name, sources)
             low = -src.limit if src.low is None else src.low
-            number(value, src.option, low, src.limit, src.unit if src.unit != "ratio" else "(ratio)")
+            unit = src.unit if src.unit != "ratio" else "(ratio)"
+            number(value, src.option, low, src.limit, unit)
+
+    def _wrong_error(self, name: str, sources: dict) -> None:
+        """Raise the error of an error ``name`` this model does not have: the models that have
+        it, or the ones it has."""
+        owners = [(m, s) for m in MODELS for s in error_sources(m) if s.name == name]
+        if not owners:
+            raise InputError(None, "errors",
+                             f"unknown error {name!r}; expected one of {', '.join(sources)}")
+        models = " or ".join(m for m, _ in owners)
+        raise InputError(None, owners[0][1].option,
+                         f"applies to --model {models}, not {self.model}")
 
     def _check_geometry(self) -> None:
+        """Palmer: B < A; wedge: no total reflection inside the wedge (n·sin α < 1)."""
         if self.model == "palmer" and not self.mirror_tilt_deg < self.axis_angle_deg:
-            raise InputError(None, "--mirror-tilt", f"expected B < A = {self.axis_angle_deg:g}° (--axis-angle), "
+            raise InputError(None, "--mirror-tilt",
+                             f"expected B < A = {self.axis_angle_deg:g}° (--axis-angle), "
                              f"got {self.mirror_tilt_deg:g}°")
         if self.model == "wedge":
             alpha = self.wedge_angle_deg + self.errors.get("wedge_angle_error", 0.0)
             if not self.refractive_index * np.sin(np.radians(alpha)) < 1.0:
-                raise InputError(None, "--wedge-angle", f"n·sin α = {self.refractive_index:g}·sin {alpha:g}° ≥ 1: the beam "
-                                 "is totally reflected inside the wedge; expected a smaller angle or refractive index")
+                raise InputError(None, "--wedge-angle",
+                                 f"n·sin α = {self.refractive_index:g}·sin {alpha:g}° ≥ 1: the "
+                                 "beam is totally reflected inside the wedge; expected a smaller "
+                                 "angle or refractive index")
 
     def options(self) -> dict:
         """The settings as the run record's options (user units)."""

@@ -24,8 +24,8 @@ import numpy as np
 
 from calidar.frames import rot_x, rot_y, rot_z
 from calidar.scanners.named import NamedParameters
-from calidar.scanners.rotating import (as_encoder_angles, check_toml_keys, encoder_angle, refine_angles,
-                                       toml_number, true_angle)
+from calidar.scanners.rotating import (as_encoder_angles, check_toml_keys, encoder_angle,
+                                       refine_angles, toml_number, true_angle)
 
 
 def deviation_angle(wedge_angle_rad: float, refractive_index: float, exact: bool = True) -> float:
@@ -93,7 +93,8 @@ class WedgeScanner(NamedParameters):
         """
         u = np.asarray(directions, float)
         u = u / np.linalg.norm(u, axis=1, keepdims=True)
-        b = encoder_angle(np.arctan2(u[:, 1], u[:, 0]), self.eccentricity_ratio, self.eccentricity_phase)
+        azimuth = np.arctan2(u[:, 1], u[:, 0])
+        b = encoder_angle(azimuth, self.eccentricity_ratio, self.eccentricity_phase)
         b = refine_angles(self.directions, u, b)
         return np.angle(np.exp(1j * b))
 
@@ -111,30 +112,34 @@ class WedgeScanner(NamedParameters):
 
     @classmethod
     def from_toml(cls, table: dict, source: str = "sensor.toml") -> "WedgeScanner":
-        keys = {"model", "wedge_angle_deg", "refractive_index", "wedge_angle_error_deg", "axis_tilt_x_deg",
-                "axis_tilt_y_deg", "eccentricity_ratio", "eccentricity_phase_deg"}
+        angle_keys = ("wedge_angle_error_deg", "axis_tilt_x_deg", "axis_tilt_y_deg",
+                      "eccentricity_phase_deg")
+        keys = {"model", "wedge_angle_deg", "refractive_index", "eccentricity_ratio", *angle_keys}
         check_toml_keys(table, keys, source)
         alpha = np.radians(toml_number(table, "wedge_angle_deg", 20.0, source))
         n = toml_number(table, "refractive_index", 1.5168, source)
         e = toml_number(table, "eccentricity_ratio", 0.0, source)
         check_wedge(alpha, n, e, source, prefix="scanner.")
-        deg = {k: np.radians(toml_number(table, k, 0.0, source))
-               for k in ("wedge_angle_error_deg", "axis_tilt_x_deg", "axis_tilt_y_deg", "eccentricity_phase_deg")}
-        return cls(alpha, n, deg["wedge_angle_error_deg"], deg["axis_tilt_x_deg"], deg["axis_tilt_y_deg"], e,
-                   deg["eccentricity_phase_deg"])
+        rad = {k: np.radians(toml_number(table, k, 0.0, source)) for k in angle_keys}
+        return cls(alpha, n, rad["wedge_angle_error_deg"], rad["axis_tilt_x_deg"],
+                   rad["axis_tilt_y_deg"], e, rad["eccentricity_phase_deg"])
 
 
-def check_wedge(wedge_angle: float, refractive_index: float, eccentricity_ratio: float, source: str | None = None,
-                prefix: str = "") -> None:
+def check_wedge(wedge_angle: float, refractive_index: float, eccentricity_ratio: float,
+                source: str | None = None, prefix: str = "") -> None:
     """Reject non-physical wedges (angle rad) with a clear :class:`InputError`."""
     from calidar.errors import InputError
 
+    n_sin_alpha = refractive_index * np.sin(wedge_angle)
     if not refractive_index > 1.0:
-        raise InputError(source, f"{prefix}refractive_index", f"expected n > 1 (glass ≈ 1.5), got {refractive_index:g}")
+        raise InputError(source, f"{prefix}refractive_index",
+                         f"expected n > 1 (glass ≈ 1.5), got {refractive_index:g}")
     if not 0.0 < wedge_angle < np.pi / 2:
-        raise InputError(source, f"{prefix}wedge_angle_deg", f"expected 0 < α < 90°, got {np.degrees(wedge_angle):g}°")
-    if not refractive_index * np.sin(wedge_angle) < 1.0:
         raise InputError(source, f"{prefix}wedge_angle_deg",
-                         f"n·sin α = {refractive_index * np.sin(wedge_angle):.3f} ≥ 1: the beam is totally reflected")
+                         f"expected 0 < α < 90°, got {np.degrees(wedge_angle):g}°")
+    if not n_sin_alpha < 1.0:
+        raise InputError(source, f"{prefix}wedge_angle_deg",
+                         f"n·sin α = {n_sin_alpha:.3f} ≥ 1: the beam is totally reflected")
     if not abs(eccentricity_ratio) < 1.0:
-        raise InputError(source, f"{prefix}eccentricity_ratio", f"expected |ε/r| < 1, got {eccentricity_ratio:g}")
+        raise InputError(source, f"{prefix}eccentricity_ratio",
+                         f"expected |ε/r| < 1, got {eccentricity_ratio:g}")
