@@ -1,1 +1,2 @@
-"""Calibration flight planning (``calidar plan``): predicted σ of a planned flight before it is flown."""
+"""Calibration flight planning (``calidar plan``): predicted σ of a planned flight before it is
+flown."""

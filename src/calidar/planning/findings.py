@@ -9,11 +9,16 @@ from calidar.planning.predict import SEPARATION_LIMIT, Prediction
 from calidar.strips.verdict import ACTIONS, CORRELATION_LIMIT, GENERIC_ACTION
 
 #: parameters no overlap can see: they move every strip alike
-COMMON_SHIFT = {"lever_arm_z": "a vertical lever-arm error shifts every strip alike (level flight), and the overlaps "
-                               "only compare strips with each other",
-                "range_offset": "a range offset shifts every strip alike near nadir, and the overlaps only compare "
-                                "strips with each other",
-                "height_bias": "a common height shift is invisible in the overlaps"}
+COMMON_SHIFT = {
+    "lever_arm_z": "a vertical lever-arm error shifts every strip alike (level flight), and the "
+                   "overlaps only compare strips with each other",
+    "range_offset": "a range offset shifts every strip alike near nadir, and the overlaps only "
+                    "compare strips with each other",
+    "height_bias": "a common height shift is invisible in the overlaps",
+}
+#: pairs one flying height cannot part: (boresight angle, lever arm, the direction it moves points)
+ONE_HEIGHT_PAIRS = (("boresight_pitch", "lever_arm_x", "along track", "along-track"),
+                    ("boresight_roll", "lever_arm_y", "across track", "across-track"))
 
 
 def shown(name: str, unit: str, value: float) -> str:
@@ -30,27 +35,32 @@ def shown(name: str, unit: str, value: float) -> str:
 
 
 def _why(pred: Prediction, k: int) -> str:
+    """Why parameter k is not determined, in plain words."""
     name = pred.names[k]
-    partners = [(b if a == name else a, rho) for a, b, rho in pred.correlated_pairs(CORRELATION_LIMIT) if name in (a, b)]
+    partners = [(b if a == name else a, rho)
+                for a, b, rho in pred.correlated_pairs(CORRELATION_LIMIT) if name in (a, b)]
     if not np.isfinite(pred.sigma[k]):
         return COMMON_SHIFT.get(name, "the tie planes of this plan do not move when it changes")
-    if {name, *[p for p, _ in partners]} >= {"boresight_pitch", "lever_arm_x"} and len(pred.heights) == 1:
-        return (f"every line flies at {pred.heights[0]:g} m: a pitch error moves points along track by height × "
-                "angle, as an along-track lever-arm error does")
-    if {name, *[p for p, _ in partners]} >= {"boresight_roll", "lever_arm_y"} and len(pred.heights) == 1:
-        return (f"every line flies at {pred.heights[0]:g} m: a roll error moves points across track by height × "
-                "angle, as an across-track lever-arm error does")
+    one_height = len(pred.heights) == 1
+    involved = {name, *[p for p, _ in partners]}
+    for angle, lever, moves, which in ONE_HEIGHT_PAIRS:
+        if involved >= {angle, lever} and one_height:
+            rotation = angle.removeprefix("boresight_")
+            return (f"every line flies at {pred.heights[0]:g} m: a {rotation} error moves points "
+                    f"{moves} by height × angle, as an {which} lever-arm error does")
     if partners:
         return "; ".join(f"ρ = {rho:+.3f} with {p}" for p, rho in partners)
-    if name == "lever_arm_x" and len(pred.heights) == 1 and "boresight_pitch" in pred.names:
+    if name == "lever_arm_x" and one_height and "boresight_pitch" in pred.names:
         rho = pred.correlation[k, pred.names.index("boresight_pitch")]
-        return (f"every line flies at {pred.heights[0]:g} m, where an along-track lever-arm error moves points as a "
-                f"pitch error does (ρ = {rho:+.2f} with boresight_pitch), and the trajectory's own position errors "
-                "hide the rest")
+        return (f"every line flies at {pred.heights[0]:g} m, where an along-track lever-arm error "
+                f"moves points as a pitch error does (ρ = {rho:+.2f} with boresight_pitch), and "
+                "the trajectory's own position errors hide the rest")
     if name == "boresight_yaw":
-        return "a heading error shows only where the terrain slopes or roofs tilt, far from the line"
+        return ("a heading error shows only where the terrain slopes or roofs tilt, far from the "
+                "line")
     if name.startswith("lever_arm"):
-        return "the trajectory's own position errors (its stated accuracy) hide a lever-arm error of this size"
+        return ("the trajectory's own position errors (its stated accuracy) hide a lever-arm error "
+                "of this size")
     return "too few tie planes see it"
 
 
@@ -68,8 +78,9 @@ def findings(pred: Prediction) -> list[dict]:
             entry["action"] = ACTIONS.get(name, GENERIC_ACTION)
         out.append(entry)
     for a, b, rho in pred.correlated_pairs(SEPARATION_LIMIT):
-        out.append({"parameter": f"{a} and {b}", "determined": False, "why": f"ρ = {rho:+.3f}: this plan cannot "
-                    "separate them", "action": ACTIONS.get(b if b.startswith("lever") else a, GENERIC_ACTION)})
+        action = ACTIONS.get(b if b.startswith("lever") else a, GENERIC_ACTION)
+        out.append({"parameter": f"{a} and {b}", "determined": False,
+                    "why": f"ρ = {rho:+.3f}: this plan cannot separate them", "action": action})
     return out
 
 
@@ -81,5 +92,9 @@ def headline(pred: Prediction) -> str:
     if not pred.poor:
         return f"good: every estimated parameter is determined (the weakest: {worst})"
     pairs = [f"{a}/{b}" for a, b, _ in pred.correlated_pairs(SEPARATION_LIMIT)]
-    parts = ([f"not determined: {', '.join(bad)}"] if bad else []) + ([f"inseparable: {', '.join(pairs)}"] if pairs else [])
+    parts = []
+    if bad:
+        parts.append(f"not determined: {', '.join(bad)}")
+    if pairs:
+        parts.append(f"inseparable: {', '.join(pairs)}")
     return f"poor: {'; '.join(parts)} (the weakest: {worst})"

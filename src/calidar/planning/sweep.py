@@ -1,8 +1,8 @@
-"""Where a planned line is when its beams sweep over a point: a linear scanner's scan plane (the body's
-y–z plane), or a rotating scanner's pattern (Palmer oval, wedge cone) cut into the fore and aft branches
-it sees each point with, in the body frame; the line's position by secant steps on the wobbling platform
-(bracketing and bisection where they fail). Used by :mod:`calidar.planning.geometry` (``f``: its
-``Flown`` line, ``inst``: its ``Instrument``)."""
+"""Where a planned line is when its beams sweep over a point: a linear scanner's scan plane (the
+body's y–z plane), or a rotating scanner's pattern (Palmer oval, wedge cone) cut into the fore and
+aft branches it sees each point with, in the body frame; the line's position by secant steps on the
+wobbling platform (bracketing and bisection where they fail). Used by :mod:`calidar.planning.rows`
+(``f``: its ``Flown`` line, ``inst``: its ``Instrument``)."""
 
 from __future__ import annotations
 
@@ -14,24 +14,26 @@ from calidar.sensor import Sensor
 
 
 def pattern_looks(nominal: Sensor) -> np.ndarray | None:
-    """How far ahead a rotating scanner looks: None for a linear scanner (its beams stay in the body's
-    y–z plane), else (2, 2, n) the pattern's fore and aft branches, each as (p, q) over p = y/z (the
-    across-track ratio, increasing) with q = x/z (along track) in the body frame."""
+    """How far ahead a rotating scanner looks: None for a linear scanner (its beams stay in the
+    body's y–z plane), else (2, 2, n) the pattern's fore and aft branches, each as (p, q) over p =
+    y/z (the across-track ratio, increasing) with q = x/z (along track) in the body frame."""
     if nominal.scanner.model == "linear":
         return None
     return _pattern_branches(nominal.scanner, tuple(np.asarray(nominal.r_bs, float).ravel()))
 
 
 def pattern_half_fov(nominal: Sensor) -> float:
-    """Largest across-track angle (rad) of a rotating scanner's beams in the body frame (its swath's edge)."""
+    """Largest across-track angle (rad) of a rotating scanner's beams in the body frame (its swath's
+    edge)."""
     p = _pattern_branches(nominal.scanner, tuple(np.asarray(nominal.r_bs, float).ravel()))[0, 0]
     return float(np.arctan(np.max(np.abs(p))))
 
 
 @lru_cache(maxsize=32)
 def _pattern_branches(scanner, r_bs: tuple) -> np.ndarray:
-    """The scanner's beams over one turn in the body frame (u_b = R_bs · u_s), cut at every across-track
-    ratio p of a grid: the largest (fore) and smallest (aft) along-track ratio where the pattern crosses it."""
+    """The scanner's beams over one turn in the body frame (u_b = R_bs · u_s), cut at every
+    across-track ratio p of a grid: the largest (fore) and smallest (aft) along-track ratio where
+    the pattern crosses it."""
     beta = np.linspace(-np.pi, np.pi, 2881)
     u = scanner.directions(beta) @ np.reshape(r_bs, (3, 3)).T
     p, q = u[:, 1] / u[:, 2], u[:, 0] / u[:, 2]
@@ -45,30 +47,35 @@ def _pattern_branches(scanner, r_bs: tuple) -> np.ndarray:
 
 
 def body_at(f, points: np.ndarray, s: np.ndarray, inst):
-    """Line ``f`` at along-track ``s`` (m, per point): time, position, R_lb and the points in the body
-    frame from the lever arm's origin, R_lbᵀ · (p − r) − a."""
+    """Line ``f`` at along-track ``s`` (m, per point): time, position, R_lb and the points in the
+    body frame from the lever arm's origin, R_lbᵀ · (p − r) − a."""
     t = f.t0 + s / f.line.speed_mps
-    pos = np.column_stack([f.line.start + s[:, None] * f.line.direction, np.full(len(s), f.altitude_m)])
+    on_line = f.line.start + s[:, None] * f.line.direction
+    pos = np.column_stack([on_line, np.full(len(s), f.altitude_m)])
     R = f.r_lb(t, inst.motion_rad)
     return t, pos, R, np.einsum("nji,nj->ni", R, points - pos) - inst.nominal.lever_arm
 
 
 def _miss(f, points: np.ndarray, s: np.ndarray, inst, branch) -> np.ndarray:
-    """How far (m, along the body's x) each point is from where the beams sweep with the line at ``s``."""
+    """How far (m, along the body's x) each point is from where the beams sweep with the line at
+    ``s``."""
     return _miss_of(body_at(f, points, s, inst)[3], branch)
 
 
 def _miss_of(d_b: np.ndarray, branch) -> np.ndarray:
     """:func:`_miss` from the points in the body frame (n, 3)."""
-    ahead = 0.0 if branch is None else d_b[:, 2] * np.interp(d_b[:, 1] / d_b[:, 2], branch[0], branch[1])
+    if branch is None:
+        return d_b[:, 0]
+    ahead = d_b[:, 2] * np.interp(d_b[:, 1] / d_b[:, 2], branch[0], branch[1])
     return d_b[:, 0] - ahead
 
 
 def sweep_position(f, points: np.ndarray, inst, branch) -> np.ndarray:
-    """Along-track position (m) of the line when its beams sweep over each point: a linear scanner's scan
-    plane by one fixed-point step (cm); a rotating scanner's fore or aft ``branch`` by secant steps to
-    < 1 mm (each point until its own converges), and where they fail (the wobbling body can cross a point
-    more than once near the pattern's edge) by the sign change of the miss nearest the guess, then bisection."""
+    """Along-track position (m) of the line when its beams sweep over each point: a linear scanner's
+    scan plane by one fixed-point step (cm); a rotating scanner's fore or aft ``branch`` by secant
+    steps to < 1 mm (each point until its own converges), and where they fail (the wobbling body can
+    cross a point more than once near the pattern's edge) by the sign change of the miss nearest the
+    guess, then bisection."""
     s = f.local(points[:, :2])[0]
     miss = _miss(f, points, s, inst, branch)
     s = s + miss
@@ -87,8 +94,10 @@ def sweep_position(f, points: np.ndarray, inst, branch) -> np.ndarray:
         if act.size == 0:
             break
     d_b = body_at(f, points, s, inst)[3]
-    across = d_b[:, 1] / d_b[:, 2]  # off the pattern's across-track range: a root of the clamped branch only
-    bad = (np.abs(_miss_of(d_b, branch)) > 1e-3) | (across < branch[0][0]) | (across > branch[0][-1])
+    # off the pattern's across-track range: a root of the clamped branch only
+    across = d_b[:, 1] / d_b[:, 2]
+    off_pattern = (across < branch[0][0]) | (across > branch[0][-1])
+    bad = (np.abs(_miss_of(d_b, branch)) > 1e-3) | off_pattern
     if bad.any():
         s[bad] = _bracketed(f, points[bad], guess[bad], inst, branch)
     return s

@@ -56,7 +56,9 @@ class GridTerrain:
         fu, fv = np.clip(u - j, 0, 1), np.clip(v - i, 0, 1)
         h = self.heights
         j1, i1 = np.minimum(j + 1, nx - 1), np.minimum(i + 1, ny - 1)
-        z = (h[i, j] * (1 - fu) * (1 - fv) + h[i, j1] * fu * (1 - fv) + h[i1, j] * (1 - fu) * fv + h[i1, j1] * fu * fv)
+        # bilinear: the row i's two corners, then the row i + 1's (the sum's order kept)
+        row_i = h[i, j] * (1 - fu) * (1 - fv) + h[i, j1] * fu * (1 - fv)
+        z = row_i + h[i1, j] * (1 - fu) * fv + h[i1, j1] * fu * fv
         z = np.where(inside, z, np.nan)
         return z, np.full(z.shape, TERRAIN, np.int64)
 
@@ -65,13 +67,15 @@ class GridTerrain:
         return float(np.nanmean(z)) if np.any(np.isfinite(z)) else float(np.nanmean(self.heights))
 
     def visible(self, origins, targets) -> np.ndarray:
-        """Whether each target is seen from its origin (a DEM holds no occluders at the planned heights)."""
+        """Whether each target is seen from its origin (a DEM holds no occluders at the planned
+        heights)."""
         return np.ones(len(targets), bool)
 
 
 @dataclass(frozen=True)
 class SceneTerrain:
-    """The simulator's scene (:mod:`calidar.sim.scene`): its terrain, roof planes and tree crowns."""
+    """The simulator's scene (:mod:`calidar.sim.scene`): its terrain, roof planes and tree
+    crowns."""
 
     scene: object  #: calidar.sim.scene.Scene
     name: str = "scene"
@@ -86,7 +90,8 @@ class SceneTerrain:
         top = float(np.nanmax(self.scene.heights)) + 200.0
         o = np.stack([x, y, np.full(x.size, top)], axis=1)
         d = np.tile([0.0, 0.0, -1.0], (x.size, 1))
-        hits = cast(self.scene, o, d, np.ones(x.size))  # u = 1: a ray through a crown returns from it
+        # u = 1: a ray through a crown returns from it
+        hits = cast(self.scene, o, d, np.ones(x.size))
         z = np.where(np.isfinite(hits.t_solid), top - hits.t_solid, np.nan)
         surface = np.where(hits.surface >= 0, hits.surface, TERRAIN).astype(np.int64)
         surface = np.where(np.isfinite(hits.t_vegetation), VEGETATION, surface)
@@ -102,15 +107,18 @@ class SceneTerrain:
 
         d = targets - origins
         dist = np.linalg.norm(d, axis=1)
-        hits = cast(self.scene, origins, d / dist[:, None], np.ones(len(targets)))  # u = 1: any crown returns
+        # u = 1: any crown returns
+        hits = cast(self.scene, origins, d / dist[:, None], np.ones(len(targets)))
         return (np.abs(hits.t_solid - dist) < 0.3) & ~np.isfinite(hits.t_vegetation)
 
 
 def scene_terrain(cfg) -> SceneTerrain:
     """The scene the simulator builds for the survey configuration ``cfg`` (a
-    :class:`calidar.sim.survey.SurveyConfig`: its scene, origin and seed, as ``simulate_survey``)."""
+    :class:`calidar.sim.survey.SurveyConfig`: its scene, origin and seed, as
+    ``simulate_survey``)."""
     from calidar.sim.scene import build_scene, scene_seed
 
     lat0, lon0, h0 = cfg.origin_deg
     seed = scene_seed(cfg.seed, cfg.scene_seed)
-    return SceneTerrain(build_scene(cfg.scene, seed, np.radians(lat0), np.radians(lon0), h0), f"scene:{cfg.preset}:{seed}")
+    scene = build_scene(cfg.scene, seed, np.radians(lat0), np.radians(lon0), h0)
+    return SceneTerrain(scene, f"scene:{cfg.preset}:{seed}")

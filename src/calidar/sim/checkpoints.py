@@ -24,11 +24,14 @@ from calidar.sim.scene import CLASS_GROUND
 MIN_SEPARATION_M = 10.0  #: checkpoints at least this far apart
 BUILDING_CLEARANCE_M = 4.0  #: open ground keeps this far from a building's footprint
 CROWN_CLEARANCE_M = 2.0  #: open ground keeps this far from a crown's edge
-UNDER_CROWN = 0.6  #: a vegetated checkpoint lies within this fraction of a crown's radius from its centre
-SMOOTH_RMS_M = 0.015  #: terrain within SMOOTH_RADIUS_M of a checkpoint departs from a plane by ≤ this (RMS)
+#: a vegetated checkpoint lies within this fraction of a crown's radius from its centre
+UNDER_CROWN = 0.6
+#: terrain within SMOOTH_RADIUS_M of a checkpoint departs from a plane by ≤ this (RMS)
+SMOOTH_RMS_M = 0.015
 SMOOTH_RADIUS_M = 1.5
 MAX_SLOPE = 0.25  #: rise over run: uniformly sloped, not steep
-MARGIN = 0.12  #: fraction of the scene's width and length kept clear at its edges (swath ends, turns)
+#: fraction of the scene's width and length kept clear at its edges (swath ends, turns)
+MARGIN = 0.12
 VEGETATED_SHARE = 0.25  #: of the checkpoints, when the scene has trees
 TRUTH_RADIUS_M = 1.0
 MAX_CHECKPOINTS = 1000
@@ -44,16 +47,22 @@ class SimulatedCheckpoints:
     xyz_true: np.ndarray  #: (N, 3)
     vegetated: np.ndarray  #: (N,) bool
     sigma_m: float
-    data_dz_m: np.ndarray  #: (N,) the delivered ground points' mean vertical error near each (NaN: none)
-    open_rmse_m: float  #: RMS vertical error of a TIN of the delivered ground points on open ground (data_truth)
+    #: (N,) the delivered ground points' mean vertical error near each (NaN: none)
+    data_dz_m: np.ndarray
+    #: RMS vertical error of a TIN of the delivered ground points on open ground (data_truth)
+    open_rmse_m: float
 
     def truth_dict(self) -> dict:
-        return {"sigma_m": self.sigma_m, "vegetated_share": float(self.vegetated.mean()) if len(self.ids) else 0.0,
-                "open_ground_tin_rmse_m": self.open_rmse_m,
-                "points": [{"id": i, "x": float(p[0]), "y": float(p[1]), "z_true": float(p[2]),
-                            "survey_error_m": float(s[2] - p[2]), "vegetated": bool(v),
-                            "data_dz_m": None if not np.isfinite(d) else float(d)}
-                           for i, p, s, v, d in zip(self.ids, self.xyz_true, self.xyz, self.vegetated, self.data_dz_m)]}
+        """truth.json's "checkpoints": each one's true height, survey error and the data's error
+        there (m)."""
+        points = [{"id": i, "x": float(p[0]), "y": float(p[1]), "z_true": float(p[2]),
+                   "survey_error_m": float(s[2] - p[2]), "vegetated": bool(v),
+                   "data_dz_m": None if not np.isfinite(d) else float(d)}
+                  for i, p, s, v, d in zip(self.ids, self.xyz_true, self.xyz, self.vegetated,
+                                           self.data_dz_m)]
+        share = float(self.vegetated.mean()) if len(self.ids) else 0.0
+        return {"sigma_m": self.sigma_m, "vegetated_share": share,
+                "open_ground_tin_rmse_m": self.open_rmse_m, "points": points}
 
     def write(self, out_dir: str | Path, force: bool = True) -> Path:
         """checkpoints.csv into ``out_dir``, and the truth under "checkpoints" in its truth.json."""
@@ -61,9 +70,9 @@ class SimulatedCheckpoints:
         from calidar.outputs import write_text_atomic
 
         out = Path(out_dir)
-        write_checkpoints(out / "checkpoints.csv", self.ids, self.xyz, self.vegetated,
-                          np.full(len(self.ids), self.sigma_m), f"simulated checkpoints, survey σ {self.sigma_m} m",
-                          force=force)
+        sigma = np.full(len(self.ids), self.sigma_m)
+        write_checkpoints(out / "checkpoints.csv", self.ids, self.xyz, self.vegetated, sigma,
+                          f"simulated checkpoints, survey σ {self.sigma_m} m", force=force)
         truth = out / "truth.json"
         doc = json.loads(truth.read_text(encoding="utf-8")) if truth.exists() else {}
         doc["checkpoints"] = self.truth_dict()
@@ -72,35 +81,43 @@ class SimulatedCheckpoints:
 
 
 def _smooth(scene, x, y) -> np.ndarray:
-    """Where the terrain around (x, y) is a plane within SMOOTH_RMS_M and not steeper than MAX_SLOPE."""
+    """Where the terrain around (x, y) is a plane within SMOOTH_RMS_M and not steeper than
+    MAX_SLOPE."""
     g = np.linspace(-SMOOTH_RADIUS_M, SMOOTH_RADIUS_M, 5)
     dx, dy = (a.ravel() for a in np.meshgrid(g, g))
     h = scene.terrain_height(x[:, None] + dx, y[:, None] + dy)  # (N, 25)
     a = np.c_[np.ones_like(dx), dx, dy]
     coef, *_ = np.linalg.lstsq(a, np.nan_to_num(h).T, rcond=None)
     rms = np.sqrt(np.mean((a @ coef - np.nan_to_num(h).T) ** 2, axis=0))
-    return np.isfinite(h).all(axis=1) & (rms <= SMOOTH_RMS_M) & (np.hypot(coef[1], coef[2]) <= MAX_SLOPE)
+    gentle = np.hypot(coef[1], coef[2]) <= MAX_SLOPE
+    return np.isfinite(h).all(axis=1) & (rms <= SMOOTH_RMS_M) & gentle
 
 
 def _clear_of_buildings(scene, x, y) -> np.ndarray:
+    """Where (x, y) lies outside every building's box grown by BUILDING_CLEARANCE_M."""
     ok = np.ones(x.size, bool)
     for b in np.unique(scene.plane_building):
-        v = scene.tri[np.isin(scene.tri_plane, np.flatnonzero(scene.plane_building == b))].reshape(-1, 3)
-        lo, hi = v[:, :2].min(axis=0) - BUILDING_CLEARANCE_M, v[:, :2].max(axis=0) + BUILDING_CLEARANCE_M
+        planes = np.flatnonzero(scene.plane_building == b)
+        v = scene.tri[np.isin(scene.tri_plane, planes)].reshape(-1, 3)
+        lo = v[:, :2].min(axis=0) - BUILDING_CLEARANCE_M
+        hi = v[:, :2].max(axis=0) + BUILDING_CLEARANCE_M
         ok &= ~((x >= lo[0]) & (x <= hi[0]) & (y >= lo[1]) & (y <= hi[1]))
     return ok
 
 
 def _crown_distance(scene, x, y) -> tuple[np.ndarray, np.ndarray]:
-    """(distance to the nearest crown's centre over its radius, distance beyond its edge) per point."""
+    """(distance to the nearest crown's centre over its radius, distance beyond its edge) per
+    point."""
     if scene.tree_radius.size == 0:
         return np.full(x.size, np.inf), np.full(x.size, np.inf)
-    d = np.hypot(x[:, None] - scene.tree_center[None, :, 0], y[:, None] - scene.tree_center[None, :, 1])
+    centre = scene.tree_center
+    d = np.hypot(x[:, None] - centre[None, :, 0], y[:, None] - centre[None, :, 1])
     return (d / scene.tree_radius).min(axis=1), (d - scene.tree_radius).min(axis=1)
 
 
 def _pick(x, y, count: int, taken: list) -> list[int]:
-    """Greedily up to ``count`` of the candidates, each MIN_SEPARATION_M from the others and ``taken``."""
+    """Greedily up to ``count`` of the candidates, each MIN_SEPARATION_M from the others and
+    ``taken``."""
     chosen = []
     for i in range(x.size):
         if len(chosen) == count:
@@ -112,7 +129,8 @@ def _pick(x, y, count: int, taken: list) -> list[int]:
 
 
 def _candidates(scene, count: int, rng) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``count`` random places inside the flown area; masks of those fit for an open and a vegetated checkpoint."""
+    """``count`` random places inside the flown area; masks of those fit for an open and a vegetated
+    checkpoint."""
     x0, x1, y0, y1 = scene.extent
     mx, my = MARGIN * (x1 - x0), MARGIN * (y1 - y0)
     cand = rng.uniform([x0 + mx, y0 + my], [x1 - mx, y1 - my], (count, 2))
@@ -122,8 +140,10 @@ def _candidates(scene, count: int, rng) -> tuple[np.ndarray, np.ndarray, np.ndar
     return cand, ok & (beyond >= CROWN_CLEARANCE_M), ok & (ratio <= UNDER_CROWN)
 
 
-def place_checkpoints(scene, n: int, rng, vegetated_share: float = VEGETATED_SHARE) -> tuple[np.ndarray, np.ndarray]:
-    """ENU (x, y) (N, 2) of ``n`` checkpoints and which are vegetated; an error when the scene has no room."""
+def place_checkpoints(scene, n: int, rng,
+                      vegetated_share: float = VEGETATED_SHARE) -> tuple[np.ndarray, np.ndarray]:
+    """ENU (x, y) (N, 2) of ``n`` checkpoints and which are vegetated; an error when the scene has
+    no room."""
     cand, open_ok, veg_ok = _candidates(scene, max(50 * n, 10_000), rng)
     x, y = cand[:, 0], cand[:, 1]
     n_veg = int(round(n * vegetated_share)) if scene.tree_radius.size else 0
@@ -133,8 +153,10 @@ def place_checkpoints(scene, n: int, rng, vegetated_share: float = VEGETATED_SHA
     open_ = np.flatnonzero(open_ok)
     open_ = open_[_pick(x[open_], y[open_], n - veg.size, taken)]
     if open_.size + veg.size < n:
-        raise InputError(None, "--checkpoints", f"room for {open_.size + veg.size} checkpoints {MIN_SEPARATION_M:g} m "
-                         f"apart on open, smooth ground and under trees in this scene; expected ≤ that many")
+        raise InputError(None, "--checkpoints",
+                         f"room for {open_.size + veg.size} checkpoints {MIN_SEPARATION_M:g} m "
+                         "apart on open, smooth ground and under trees in this scene; expected ≤ "
+                         "that many")
     idx = np.r_[open_, veg]
     return cand[idx], np.r_[np.zeros(open_.size, bool), np.ones(veg.size, bool)]
 
@@ -146,8 +168,8 @@ def vertical_errors(scene, ecef: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def ground_errors(scene, strips) -> tuple[np.ndarray, np.ndarray]:
-    """ENU x, y (K, 2) and vertical errors (K,) of the ground points (class 2) of ``strips`` (objects
-    with ``ecef`` and ``classification``), finite ones only."""
+    """ENU x, y (K, 2) and vertical errors (K,) of the ground points (class 2) of ``strips``
+    (objects with ``ecef`` and ``classification``), finite ones only."""
     xy, e = [], []
     for s in strips:
         pxy, pe = vertical_errors(scene, s.ecef[s.classification == CLASS_GROUND])
@@ -156,7 +178,8 @@ def ground_errors(scene, strips) -> tuple[np.ndarray, np.ndarray]:
     return np.concatenate(xy), np.concatenate(e)
 
 
-def data_truth(scene, strips, cp_xy: np.ndarray, rng=None, places: int = 2000) -> tuple[np.ndarray, np.ndarray, float]:
+def data_truth(scene, strips, cp_xy: np.ndarray, rng=None,
+               places: int = 2000) -> tuple[np.ndarray, np.ndarray, float]:
     """What the delivered ``strips`` should show at checkpoints:
 
     - per checkpoint (``cp_xy``, ENU) the mean vertical error of the ground points within
@@ -183,7 +206,8 @@ def data_truth(scene, strips, cp_xy: np.ndarray, rng=None, places: int = 2000) -
 
 
 def check_checkpoint_options(n: int, sigma_m: float) -> None:
-    """``--checkpoints`` in [0, MAX_CHECKPOINTS] and ``--checkpoint-sigma`` in [0, MAX_SIGMA_M] m."""
+    """``--checkpoints`` in [0, MAX_CHECKPOINTS] and ``--checkpoint-sigma`` in [0, MAX_SIGMA_M]
+    m."""
     from calidar.validate import integer, number
 
     integer(n, "--checkpoints", 0, MAX_CHECKPOINTS)
@@ -198,7 +222,8 @@ def simulate_checkpoints(result, n: int, sigma_m: float = 0.02, seed: int = 0,
 
     check_checkpoint_options(n, sigma_m)
     if not result.strips:
-        raise InputError(None, "--checkpoints", "the strips were handed over as simulated; expected them in memory")
+        raise InputError(None, "--checkpoints",
+                         "the strips were handed over as simulated; expected them in memory")
     rng = np.random.default_rng(np.random.SeedSequence([int(seed), 2028]))
     scene = result.scene
     xy, veg = place_checkpoints(scene, n, rng, vegetated_share)

@@ -37,13 +37,15 @@ class SimulatedControlPlanes:
     truth: list[dict]  #: per plane: id, normal (ENU), d (m), survey_error_m along the normal
 
     def write(self, out_dir: str | Path, force: bool = True) -> Path:
-        """control_planes.csv into ``out_dir``, the truth under "control_planes" in its truth.json."""
+        """control_planes.csv into ``out_dir``, the truth under "control_planes" in its
+        truth.json."""
         from calidar.io.control_planes import write_control_planes
         from calidar.outputs import write_text_atomic
 
         out = Path(out_dir)
-        write_control_planes(out / "control_planes.csv", self.plane, self.xyz, np.full(len(self.plane), self.sigma_m),
-                             f"simulated roof-facet control planes, survey σ {self.sigma_m} m (3-D, per point)",
+        sigma = np.full(len(self.plane), self.sigma_m)
+        comment = f"simulated roof-facet control planes, survey σ {self.sigma_m} m (3-D, per point)"
+        write_control_planes(out / "control_planes.csv", self.plane, self.xyz, sigma, comment,
                              force=force)
         truth = out / "truth.json"
         doc = json.loads(truth.read_text(encoding="utf-8")) if truth.exists() else {}
@@ -70,21 +72,24 @@ def roof_facets(scene) -> list[tuple[int, np.ndarray]]:
         if len(v) < 3:
             continue
         hull = ConvexHull(v[:, :2])
-        inside = np.all((v[:, 0] > x0 + mx) & (v[:, 0] < x1 - mx) & (v[:, 1] > y0 + my) & (v[:, 1] < y1 - my))
+        inside_x = (v[:, 0] > x0 + mx) & (v[:, 0] < x1 - mx)
+        inside = np.all(inside_x & (v[:, 1] > y0 + my) & (v[:, 1] < y1 - my))
         if hull.volume >= MIN_AREA_M2 and inside:  # a 2-D hull's "volume" is its area
             out.append((int(pid), v[hull.vertices]))
     return out
 
 
 def check_control_plane_options(n: int, sigma_m: float) -> None:
-    """``--control-planes`` in [1, MAX_PLANES] and ``--control-plane-sigma`` in [0, MAX_SIGMA_M] m."""
+    """``--control-planes`` in [1, MAX_PLANES] and ``--control-plane-sigma`` in [0, MAX_SIGMA_M]
+    m."""
     from calidar.validate import integer, number
 
     integer(n, "--control-planes", 1, MAX_PLANES)
     number(sigma_m, "--control-plane-sigma", 0.0, MAX_SIGMA_M, "m")
 
 
-def simulate_control_planes(result, n: int, sigma_m: float = 0.01, seed: int = 0) -> SimulatedControlPlanes:
+def simulate_control_planes(result, n: int, sigma_m: float = 0.01,
+                            seed: int = 0) -> SimulatedControlPlanes:
     """``n`` roof facets of a :class:`calidar.sim.survey.SurveyResult`'s scene, surveyed at their
     corners with σ ``sigma_m`` (3-D); an error when the scene has fewer fit ones."""
     from calidar.crs import to_crs
@@ -93,8 +98,10 @@ def simulate_control_planes(result, n: int, sigma_m: float = 0.01, seed: int = 0
     scene = result.scene
     facets = roof_facets(scene)
     if len(facets) < n:
-        raise InputError(None, "--control-planes", f"{len(facets)} roof facets of ≥ {MIN_AREA_M2:g} m² and ≤ "
-                         f"{MAX_SLOPE_DEG:g}° inside the flown area in this scene; expected ≤ that many")
+        raise InputError(None, "--control-planes",
+                         f"{len(facets)} roof facets of ≥ {MIN_AREA_M2:g} m² and ≤ "
+                         f"{MAX_SLOPE_DEG:g}° inside the flown area in this scene; expected ≤ that "
+                         "many")
     rng = np.random.default_rng(np.random.SeedSequence([int(seed), 2029]))
     pick = sorted(rng.choice(len(facets), n, replace=False))
     names, enu, truth = [], [], []
@@ -109,6 +116,7 @@ def simulate_control_planes(result, n: int, sigma_m: float = 0.01, seed: int = 0
         names += [name] * len(pts)
         enu.append(pts + err)
         truth.append({"id": name, "normal_enu": normal.tolist(), "d_m": float(scene.plane_d[pid]),
-                      "survey_error_m": float(np.mean(err @ normal)), "building": int(scene.plane_building[pid])})
+                      "survey_error_m": float(np.mean(err @ normal)),
+                      "building": int(scene.plane_building[pid])})
     xyz = to_crs(scene.enu_to_ecef(np.vstack(enu)), result.crs)
     return SimulatedControlPlanes(names, xyz, float(sigma_m), truth)

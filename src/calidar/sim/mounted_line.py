@@ -16,13 +16,17 @@ DURATION_S = 8.0
 
 
 def truth_of(t_s: np.ndarray) -> np.ndarray:
-    """The true trajectory at ``t_s`` (s): E, N, U (m), roll, pitch, heading (rad), one row a time."""
+    """The true trajectory at ``t_s`` (s): E, N, U (m), roll, pitch, heading (rad), one row a
+    time."""
     t = np.asarray(t_s, float)
-    return np.c_[5 * np.sin(t / 3), 60 * t, 1000 + 2 * np.sin(t / 2), np.radians(1.0) * np.sin(t),
-                 np.radians(2.0) + np.radians(0.5) * np.sin(t / 1.5), np.radians(3.0) + np.radians(0.3) * np.cos(t)]
+    roll = np.radians(1.0) * np.sin(t)
+    pitch = np.radians(2.0) + np.radians(0.5) * np.sin(t / 1.5)
+    heading = np.radians(3.0) + np.radians(0.3) * np.cos(t)
+    return np.c_[5 * np.sin(t / 3), 60 * t, 1000 + 2 * np.sin(t / 2), roll, pitch, heading]
 
 
 def _axis_rotation(axis: int, angle_rad: float) -> np.ndarray:
+    """The active rotation (3, 3) by ``angle_rad`` about axis 0 (x), 1 (y) or 2 (z)."""
     c, s = np.cos(angle_rad), np.sin(angle_rad)
     i, j = [(1, 2), (2, 0), (0, 1)][axis]
     r = np.eye(3)
@@ -32,9 +36,10 @@ def _axis_rotation(axis: int, angle_rad: float) -> np.ndarray:
 
 def mounted_line(rng: np.random.Generator, mount, n: int = 20000, relief_m: float = 40.0,
                  noise_deg: float = 0.003) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Times (s), ground points (ENU m, heights 0 ± ``relief_m``) and stored scan angles (rad) of the
-    line: b = Rz(κ)·Ry(ε)·s in the body, the stored angle the body's across-track angle read by the
-    encoder, (angle − δ)/(1 + k) plus ``noise_deg`` of noise; ``mount`` = (δ rad, k, κ rad, ε rad)."""
+    """Times (s), ground points (ENU m, heights 0 ± ``relief_m``) and stored scan angles (rad) of
+    the line: b = Rz(κ)·Ry(ε)·s in the body, the stored angle the body's across-track angle read by
+    the encoder, (angle − δ)/(1 + k) plus ``noise_deg`` of noise; ``mount`` = (δ rad, k, κ rad, ε
+    rad)."""
     d, k, kappa, eps = mount
     t = np.sort(rng.uniform(0, DURATION_S, n))
     tr = truth_of(t)
@@ -43,19 +48,21 @@ def mounted_line(rng: np.random.Generator, mount, n: int = 20000, relief_m: floa
     u_b = np.stack([np.zeros_like(theta), np.sin(theta), np.cos(theta)], 1) @ rot.T
     u_enu = np.einsum("ij,njk,nk->ni", R_ENU_NED, rpy_to_matrix(tr[:, 3], tr[:, 4], tr[:, 5]), u_b)
     pts = tr[:, :3] + ((tr[:, 2] - rng.normal(0, relief_m, n)) / -u_enu[:, 2])[:, None] * u_enu
-    stored = (np.arctan2(u_b[:, 1], u_b[:, 2]) - d) / (1 + k) + rng.normal(0, np.radians(noise_deg), n)
+    across = np.arctan2(u_b[:, 1], u_b[:, 2])
+    stored = (across - d) / (1 + k) + rng.normal(0, np.radians(noise_deg), n)
     return t, pts, stored
 
 
 def fit_line(t_s, points, stored_rad, mount_sigma):
-    """The line fitted from its points and scan angles alone with the mounting priors ``mount_sigma``
-    (δ rad, k, κ rad, ε rad; 0 = known): (errors, σ) at 50 epochs (columns as :func:`truth_of`) and
-    the fit itself."""
+    """The line fitted from its points and scan angles alone with the mounting priors
+    ``mount_sigma`` (δ rad, k, κ rad, ε rad; 0 = known): (errors, σ) at 50 epochs (columns as
+    :func:`truth_of`) and the fit itself."""
     obs = Observations(points, t_s, stored_rad, True, True, np.empty((0, 3)), np.empty((0, 3)),
                        np.empty((0, 3)), np.empty(0), np.empty(0))
     spline = Spline.covering(0, DURATION_S, 0.25)
     ts = np.linspace(0, DURATION_S, 200)
     start = truth_of(ts) * np.r_[1, 1, 1, 0, 0, 1] + np.r_[10.0, 20.0, -30.0, 0, 0, 0.01]
-    fit = solve_segment(obs, spline, spline.fit(ts, start), FitSettings(mount_sigma=tuple(mount_sigma)))
+    settings = FitSettings(mount_sigma=tuple(mount_sigma))
+    fit = solve_segment(obs, spline, spline.fit(ts, start), settings)
     tt = np.linspace(0.5, DURATION_S - 0.5, 50)
     return spline.evaluate(fit.coef, tt) - truth_of(tt), channel_sigma(fit, tt), fit

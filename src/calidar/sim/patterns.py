@@ -17,7 +17,8 @@ from calidar.errors import InputError
 LINEAR_KINDS = ("oscillating", "polygon")
 
 
-def linear_pattern(t_s, rate_hz: float, half_fov_rad: float, kind: str = "oscillating") -> np.ndarray:
+def linear_pattern(t_s, rate_hz: float, half_fov_rad: float,
+                   kind: str = "oscillating") -> np.ndarray:
     """Across-track scan angles θ (N,) rad, negative left: triangle wave (oscillating mirror,
     two scan lines per period) or sawtooth (rotating polygon, one line per period)."""
     phase = np.mod(np.asarray(t_s, float) * rate_hz, 1.0)
@@ -36,12 +37,15 @@ def rotating_pattern(t_s, rate_hz: float, half_fov_rad: float = 0.0, kind: str =
 SCAN_PATTERNS: dict[str, Callable[..., np.ndarray]] = {"linear": linear_pattern}
 
 
-def scan_angles(scanner, t_s, rate_hz: float, half_fov_rad: float, kind: str = "oscillating") -> np.ndarray:
-    """Encoder angles of ``scanner`` (any :class:`calidar.scanners.Scanner`) at shot times ``t_s``."""
+def scan_angles(scanner, t_s, rate_hz: float, half_fov_rad: float,
+                kind: str = "oscillating") -> np.ndarray:
+    """Encoder angles of ``scanner`` (any :class:`calidar.scanners.Scanner`) at shot times
+    ``t_s``."""
     return SCAN_PATTERNS.get(scanner.model, rotating_pattern)(t_s, rate_hz, half_fov_rad, kind)
 
 
-def half_field_of_view(scanner, rate_hz: float, half_fov_rad: float, kind: str = "oscillating") -> float:
+def half_field_of_view(scanner, rate_hz: float, half_fov_rad: float,
+                       kind: str = "oscillating") -> float:
     """Largest across-track angle (rad) of the beams the scanner produces over one period."""
     t = np.linspace(0.0, 1.0 / rate_hz, 721)
     u = scanner.directions(scan_angles(scanner, t, rate_hz, half_fov_rad, kind))

@@ -45,13 +45,15 @@ def coverage_map(result):
     sc = result.scene
     xmin, xmax, ymin, ymax = sc.extent
     fig, ax = plt.subplots(figsize=(8.5, 7))
-    im = ax.imshow(sc.heights, origin="lower", extent=(xmin, xmax, ymin, ymax), cmap="terrain", alpha=0.85)
+    extent = (xmin, xmax, ymin, ymax)
+    im = ax.imshow(sc.heights, origin="lower", extent=extent, cmap="terrain", alpha=0.85)
     fig.colorbar(im, ax=ax, label="terrain height (ENU up) [m]", shrink=0.8)
     roofs = np.flatnonzero(sc.plane_is_roof[sc.tri_plane]) if sc.tri.size else []
     for k in roofs:
         ax.fill(sc.tri[k, :, 0], sc.tri[k, :, 1], color="firebrick", lw=0)
     if sc.tree_radius.size:
-        ax.scatter(sc.tree_center[:, 0], sc.tree_center[:, 1], s=(sc.tree_radius / (xmax - xmin) * 500) ** 2,
+        crown_size = (sc.tree_radius / (xmax - xmin) * 500) ** 2  # marker area, points²
+        ax.scatter(sc.tree_center[:, 0], sc.tree_center[:, 1], s=crown_size,
                    color="darkgreen", alpha=0.5, lw=0)
     pts, ids = _enu_points(result, 100_000)
     colors = plt.cm.tab10(np.arange(len(result.strips)) % 10)
@@ -59,11 +61,13 @@ def coverage_map(result):
         outline = _footprint(pts[ids == s.line.number, :2], s.line)
         if outline is not None:
             ax.fill(outline[:, 0], outline[:, 1], color=colors[k], alpha=0.12, lw=0)
-            ax.plot(outline[:, 0], outline[:, 1], color=colors[k], lw=1.2, label=f"strip {s.line.number}")
+            ax.plot(outline[:, 0], outline[:, 1], color=colors[k], lw=1.2,
+                    label=f"strip {s.line.number}")
     p = result.scene.ecef_to_enu(result.trajectory_true.ecef[::20])
     ax.plot(p[:, 0], p[:, 1], "k-", lw=0.8, label="trajectory")
     for k, ln in enumerate(result.lines):
-        ax.annotate("", xy=ln.end, xytext=ln.start, arrowprops=dict(arrowstyle="->", color=colors[k], lw=2))
+        arrow = dict(arrowstyle="->", color=colors[k], lw=2)
+        ax.annotate("", xy=ln.end, xytext=ln.start, arrowprops=arrow)
         ax.text(*ln.start, f" {ln.number}", color="k", fontsize=9, weight="bold")
     pad = 0.15 * max(xmax - xmin, ymax - ymin)
     ax.set_xlim(xmin - pad, xmax + pad)
@@ -85,35 +89,41 @@ def density_map(result, cell_m: float | None = None):
     count = np.zeros((ny, nx))
     for s in result.strips:
         p = sc.ecef_to_enu(s.ecef)
-        h, _, _ = np.histogram2d(p[:, 1], p[:, 0], bins=(ny, nx), range=((ymin, ymax), (xmin, xmax)))
+        h, _, _ = np.histogram2d(p[:, 1], p[:, 0], bins=(ny, nx),
+                                 range=((ymin, ymax), (xmin, xmax)))
         count += h
     dens = count / cell_m**2
     fig, ax = plt.subplots(figsize=(8.5, 6.5))
     vmax = np.percentile(dens[dens > 0], 99) if np.any(dens > 0) else 1.0
-    im = ax.imshow(dens, origin="lower", extent=(xmin, xmax, ymin, ymax), cmap="viridis", vmin=0, vmax=vmax)
+    im = ax.imshow(dens, origin="lower", extent=(xmin, xmax, ymin, ymax), cmap="viridis", vmin=0,
+                   vmax=vmax)
     fig.colorbar(im, ax=ax, label="points per m²", shrink=0.8)
     ax.set_aspect("equal")
     ax.set_xlabel("east [m]")
     ax.set_ylabel("north [m]")
     covered = dens[dens > 0]
-    ax.set_title(f"Point density ({cell_m:.3g} m cells): median {np.median(covered):.3g} pts/m² where covered")
+    ax.set_title(f"Point density ({cell_m:.3g} m cells): median {np.median(covered):.3g} pts/m² "
+                 "where covered")
     return fig
 
 
 def trajectory_plot(result):
-    """Roll, pitch, heading, speed and height of the true trajectory over time; scan windows shaded."""
+    """Roll, pitch, heading, speed and height of the true trajectory over time; scan windows
+    shaded."""
     tr = result.trajectory_true
     t = tr.time - tr.time[0]
     speed = np.linalg.norm(tr.velocity_ned, axis=1)
     fig, axes = plt.subplots(5, 1, figsize=(9, 9), sharex=True)
     series = [(np.degrees(tr.roll), "roll [°]"), (np.degrees(tr.pitch), "pitch [°]"),
-              (np.degrees(np.unwrap(tr.heading)), "heading\n(unwrapped) [°]"), (speed, "speed [m/s]"), (tr.height, "height [m]")]
+              (np.degrees(np.unwrap(tr.heading)), "heading\n(unwrapped) [°]"),
+              (speed, "speed [m/s]"), (tr.height, "height [m]")]
     for ax, (y, label) in zip(axes, series):
         ax.plot(t, y, lw=0.7)
         ax.set_ylabel(label)
         for s in result.strips:
             if len(s):
-                ax.axvspan(s.gps_time[0] - tr.time[0], s.gps_time[-1] - tr.time[0], color="orange", alpha=0.15, lw=0)
+                start, end = s.gps_time[0] - tr.time[0], s.gps_time[-1] - tr.time[0]
+                ax.axvspan(start, end, color="orange", alpha=0.15, lw=0)
         ax.grid(alpha=0.3)
     axes[-1].set_xlabel(f"time since {tr.time[0]:.0f} s GPS week seconds [s] (scanning shaded)")
     fig.suptitle("True trajectory (200 Hz): turbulence, speed changes and turns")
@@ -148,11 +158,13 @@ def overlap_differences(result, cell_m: float | None = None, min_points: int = 3
         diff = np.where(np.isfinite(d), d, diff)
     fig, ax = plt.subplots(figsize=(8.5, 6.5))
     lim = np.nanpercentile(np.abs(diff), 98) if np.any(np.isfinite(diff)) else 0.1
-    im = ax.imshow(diff, origin="lower", extent=(xmin, xmax, ymin, ymax), cmap="RdBu_r", vmin=-lim, vmax=lim)
+    im = ax.imshow(diff, origin="lower", extent=(xmin, xmax, ymin, ymax), cmap="RdBu_r", vmin=-lim,
+                   vmax=lim)
     fig.colorbar(im, ax=ax, label="height difference, next − previous strip [m]", shrink=0.8)
     ax.set_aspect("equal")
     ax.set_xlabel("east [m]")
     ax.set_ylabel("north [m]")
     rms = np.sqrt(np.nanmean(diff**2)) if np.any(np.isfinite(diff)) else float("nan")
-    ax.set_title(f"Overlaps of opposite adjacent strips (ground, {cell_m:.3g} m cells): RMS {rms * 100:.3g} cm")
+    ax.set_title(f"Overlaps of opposite adjacent strips (ground, {cell_m:.3g} m cells): "
+                 f"RMS {rms * 100:.3g} cm")
     return fig

@@ -71,9 +71,13 @@ def build_bins(scene) -> dict:
     cells = np.repeat(np.arange(nx * ny), np.diff(tree_start))
     np.maximum.at(zmax.reshape(-1), cells, (c[:, 2] + r)[tree_idx])
     return {
-        "zmax": np.ascontiguousarray(zmax), "zmin_all": float(h.min()) - 1.0, "zmax_all": float(zmax.max()) + 1.0,
-        "tri_v0": np.ascontiguousarray(tri[:, 0]), "tri_e1": np.ascontiguousarray(tri[:, 1] - tri[:, 0]),
-        "tri_e2": np.ascontiguousarray(tri[:, 2] - tri[:, 0]), "tri_start": tri_start, "tri_idx": tri_idx,
+        "zmax": np.ascontiguousarray(zmax),
+        "zmin_all": float(h.min()) - 1.0,
+        "zmax_all": float(zmax.max()) + 1.0,
+        "tri_v0": np.ascontiguousarray(tri[:, 0]),
+        "tri_e1": np.ascontiguousarray(tri[:, 1] - tri[:, 0]),
+        "tri_e2": np.ascontiguousarray(tri[:, 2] - tri[:, 0]),
+        "tri_start": tri_start, "tri_idx": tri_idx,
         "tree_start": tree_start, "tree_idx": tree_idx,
     }
 
@@ -108,8 +112,9 @@ def _slab(o, d, lo, hi, t0, t1):
 
 
 @nb.njit(cache=True, parallel=True)
-def _cast(orig, dirs, u_veg, x0, y0, cell, heights, zmax, zmin_all, zmax_all, tri_v0, tri_e1, tri_e2, tri_plane,
-          tri_start, tri_idx, tree_c, tree_r, tree_start, tree_idx, ext, t_solid, surface, t_veg):
+def _cast(orig, dirs, u_veg, x0, y0, cell, heights, zmax, zmin_all, zmax_all, tri_v0, tri_e1,
+          tri_e2, tri_plane, tri_start, tri_idx, tree_c, tree_r, tree_start, tree_idx, ext, t_solid,
+          surface, t_veg):
     ny, nx = zmax.shape
     for r in nb.prange(orig.shape[0]):
         ox, oy, oz = orig[r, 0], orig[r, 1], orig[r, 2]
@@ -139,18 +144,23 @@ def _cast(orig, dirs, u_veg, x0, y0, cell, heights, zmax, zmin_all, zmax_all, tr
             if oz + tc1 * dz <= zmax[i, j]:
                 # terrain: triangles (00, 10, 11) and (00, 11, 01)
                 cx, cy = x0 + j * cell, y0 + i * cell
-                h00, h10, h01, h11 = heights[i, j], heights[i, j + 1], heights[i + 1, j], heights[i + 1, j + 1]
-                t = _tri_hit(ox, oy, oz, dx, dy, dz, cx, cy, h00, cell, 0.0, h10 - h00, cell, cell, h11 - h00)
+                h00, h10 = heights[i, j], heights[i, j + 1]
+                h01, h11 = heights[i + 1, j], heights[i + 1, j + 1]
+                t = _tri_hit(ox, oy, oz, dx, dy, dz, cx, cy, h00,
+                             cell, 0.0, h10 - h00, cell, cell, h11 - h00)
                 if t < best:
                     best, surf = t, -1
-                t = _tri_hit(ox, oy, oz, dx, dy, dz, cx, cy, h00, cell, cell, h11 - h00, 0.0, cell, h01 - h00)
+                t = _tri_hit(ox, oy, oz, dx, dy, dz, cx, cy, h00,
+                             cell, cell, h11 - h00, 0.0, cell, h01 - h00)
                 if t < best:
                     best, surf = t, -1
                 c = i * nx + j
                 for k in range(tri_start[c], tri_start[c + 1]):
                     m = tri_idx[k]
-                    t = _tri_hit(ox, oy, oz, dx, dy, dz, tri_v0[m, 0], tri_v0[m, 1], tri_v0[m, 2],
-                                 tri_e1[m, 0], tri_e1[m, 1], tri_e1[m, 2], tri_e2[m, 0], tri_e2[m, 1], tri_e2[m, 2])
+                    t = _tri_hit(ox, oy, oz, dx, dy, dz,
+                                 tri_v0[m, 0], tri_v0[m, 1], tri_v0[m, 2],
+                                 tri_e1[m, 0], tri_e1[m, 1], tri_e1[m, 2],
+                                 tri_e2[m, 0], tri_e2[m, 1], tri_e2[m, 2])
                     if t < best:
                         best, surf = t, tri_plane[m]
                 for k in range(tree_start[c], tree_start[c + 1]):
@@ -187,10 +197,17 @@ def cast(scene, origins, directions, u_vegetation) -> Hits:
     b = scene.bins
     n = len(origins)
     t_solid, surface, t_veg = np.empty(n), np.empty(n, np.int64), np.empty(n)
-    _cast(np.ascontiguousarray(origins, dtype=float), np.ascontiguousarray(directions, dtype=float),
-          np.ascontiguousarray(u_vegetation, dtype=float), float(scene.x0), float(scene.y0), float(scene.cell_m),
-          np.ascontiguousarray(scene.heights), b["zmax"], b["zmin_all"], b["zmax_all"], b["tri_v0"], b["tri_e1"],
-          b["tri_e2"], np.ascontiguousarray(scene.tri_plane, dtype=np.int64), b["tri_start"], b["tri_idx"],
-          np.ascontiguousarray(scene.tree_center, dtype=float), np.ascontiguousarray(scene.tree_radius, dtype=float),
-          b["tree_start"], b["tree_idx"], float(scene.extinction_per_m), t_solid, surface, t_veg)
+
+    def floats(a):
+        return np.ascontiguousarray(a, dtype=float)
+
+    rays = floats(origins), floats(directions), floats(u_vegetation)
+    heights = np.ascontiguousarray(scene.heights)
+    grid = float(scene.x0), float(scene.y0), float(scene.cell_m), heights
+    bounds = b["zmax"], b["zmin_all"], b["zmax_all"]
+    tri_plane = np.ascontiguousarray(scene.tri_plane, dtype=np.int64)
+    triangles = b["tri_v0"], b["tri_e1"], b["tri_e2"], tri_plane, b["tri_start"], b["tri_idx"]
+    trees = (floats(scene.tree_center), floats(scene.tree_radius), b["tree_start"], b["tree_idx"],
+             float(scene.extinction_per_m))
+    _cast(*rays, *grid, *bounds, *triangles, *trees, t_solid, surface, t_veg)
     return Hits(t_solid, surface, t_veg)

@@ -26,7 +26,8 @@ MAX_SIGMA_M = 1.0
 
 @dataclass(eq=False)
 class SimulatedReferenceCloud:
-    """The reference cloud: points (N, 3) in the survey's CRS, the stated σ, the true datum offset."""
+    """The reference cloud: points (N, 3) in the survey's CRS, the stated σ, the true datum
+    offset."""
 
     xyz: np.ndarray
     crs: object
@@ -43,8 +44,9 @@ class SimulatedReferenceCloud:
 
         out = Path(out_dir)
         n = len(self.xyz)
-        path = write_las(out / "reference.laz", self.xyz, self.crs, gps_time=np.zeros(n), scan_angle_deg=np.zeros(n),
-                         point_source_id=np.zeros(n, np.uint16), creation_date=datetime.date(2026, 1, 1), force=force)
+        path = write_las(out / "reference.laz", self.xyz, self.crs, gps_time=np.zeros(n),
+                         scan_angle_deg=np.zeros(n), point_source_id=np.zeros(n, np.uint16),
+                         creation_date=datetime.date(2026, 1, 1), force=force)
         truth = out / "truth.json"
         doc = json.loads(truth.read_text(encoding="utf-8")) if truth.exists() else {}
         doc["reference_cloud"] = {"sigma_m": self.sigma_m, "datum_offset_m": self.datum_offset_m,
@@ -60,11 +62,14 @@ def check_reference_options(sigma_m: float) -> None:
     number(sigma_m, "--reference-cloud-sigma", 0.0, MAX_SIGMA_M, "m", open_lo=True)
 
 
-def simulate_reference_cloud(result, sigma_m: float = 0.02, seed: int = 0, noise_m: float = NOISE_M,
+def simulate_reference_cloud(result, sigma_m: float = 0.02, seed: int = 0,
+                             noise_m: float = NOISE_M,
                              spacing_m: float = SPACING_M) -> SimulatedReferenceCloud:
-    """The reference cloud of a :class:`calidar.sim.survey.SurveyResult`, its datum off by N(0, ``sigma_m``)."""
+    """The reference cloud of a :class:`calidar.sim.survey.SurveyResult`, its datum off by N(0,
+    ``sigma_m``)."""
     from calidar.crs import to_crs
-    from calidar.sim.checkpoints import CROWN_CLEARANCE_M, MARGIN, _clear_of_buildings, _crown_distance
+    from calidar.sim.checkpoints import (CROWN_CLEARANCE_M, MARGIN, _clear_of_buildings,
+                                         _crown_distance)
 
     check_reference_options(sigma_m)
     rng = np.random.default_rng(np.random.SeedSequence([int(seed), 2029]))
@@ -72,10 +77,13 @@ def simulate_reference_cloud(result, sigma_m: float = 0.02, seed: int = 0, noise
     x0, x1, y0, y1 = scene.extent
     cx, cy = (x0 + x1) / 2, (y0 + y1) / 2
     hx, hy = SHARE * (1 - 2 * MARGIN) * (x1 - x0) / 2, SHARE * (1 - 2 * MARGIN) * (y1 - y0) / 2
-    gx, gy = np.meshgrid(np.arange(cx - hx, cx + hx, spacing_m), np.arange(cy - hy, cy + hy, spacing_m))
+    gx, gy = np.meshgrid(np.arange(cx - hx, cx + hx, spacing_m),
+                         np.arange(cy - hy, cy + hy, spacing_m))
     x, y = gx.ravel(), gy.ravel()
     keep = _clear_of_buildings(scene, x, y)
-    beyond = np.concatenate([_crown_distance(scene, x[i:i + 20000], y[i:i + 20000])[1] for i in range(0, x.size, 20000)])
+    chunk = 20000  # points a time: the distances to every crown are (chunk, crowns)
+    beyond = np.concatenate([_crown_distance(scene, x[i:i + chunk], y[i:i + chunk])[1]
+                             for i in range(0, x.size, chunk)])
     keep &= beyond >= CROWN_CLEARANCE_M
     x, y = x[keep], y[keep]
     z = scene.terrain_height(x, y)

@@ -65,7 +65,8 @@ class Scene:
     tree_center: np.ndarray  #: (K, 3) m
     tree_radius: np.ndarray  #: (K,) m
     extinction_per_m: float
-    bins: dict = field(default_factory=dict)  #: ray-casting acceleration structure (raycast.build_bins)
+    #: ray-casting acceleration structure (raycast.build_bins)
+    bins: dict = field(default_factory=dict)
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -124,14 +125,16 @@ def _smooth_terrain(rng, x, y, spec: SceneSpec) -> np.ndarray:
         wavelength = size * rng.uniform(0.4, 1.5) / (1 + k)
         ang = rng.uniform(0, np.pi)
         amp = spec.relief_m * rng.uniform(0.3, 1.0) / (1 + k)
-        z += amp * np.sin(2 * np.pi * (x * np.cos(ang) + y * np.sin(ang)) / wavelength + rng.uniform(0, 2 * np.pi))
+        along = x * np.cos(ang) + y * np.sin(ang)  # m along the wave's direction
+        z += amp * np.sin(2 * np.pi * along / wavelength + rng.uniform(0, 2 * np.pi))
     # rough band: the northern third, blended in smoothly
     frac = np.clip((y - y.min()) / max(np.ptp(y), 1e-9), 0, 1)
     weight = np.clip((frac - 0.6) / 0.1, 0, 1)
     return z + weight * rng.normal(0.0, spec.rough_sigma_m, x.shape)
 
 
-def _roof_faces(kind: str, length: float, width: float, eave: float, slope: float) -> list[np.ndarray]:
+def _roof_faces(kind: str, length: float, width: float, eave: float,
+                slope: float) -> list[np.ndarray]:
     """Roof polygons in the building frame (u along length, v along width, z up), m."""
     a, b = length / 2, width / 2
     rise = np.tan(slope)
@@ -151,7 +154,8 @@ def _roof_faces(kind: str, length: float, width: float, eave: float, slope: floa
             np.array([[-a, b, eave], [-a, -b, eave], [-r, 0, ridge]])]
 
 
-def _wall_faces(kind: str, length: float, width: float, eave: float, slope: float, base: float) -> list[np.ndarray]:
+def _wall_faces(kind: str, length: float, width: float, eave: float, slope: float,
+                base: float) -> list[np.ndarray]:
     """Vertical wall polygons (convex) from ``base`` up to the roof edge, building frame, m."""
     a, b = length / 2, width / 2
     rise = np.tan(slope)
@@ -171,8 +175,9 @@ def _wall_faces(kind: str, length: float, width: float, eave: float, slope: floa
 
 
 def scene_seed(seed: int, own: int | None = None) -> int:
-    """The seed of a survey's scene: its own (``SurveyConfig.scene_seed``), else drawn from the survey
-    seed's scene stream (the first of the six :func:`calidar.sim.survey.simulate_survey` spawns)."""
+    """The seed of a survey's scene: its own (``SurveyConfig.scene_seed``), else drawn from the
+    survey seed's scene stream (the first of the six :func:`calidar.sim.survey.simulate_survey`
+    spawns)."""
     if own is not None:
         return int(own)
     return int(np.random.default_rng(np.random.SeedSequence(seed).spawn(6)[0]).integers(2**63))
@@ -185,13 +190,22 @@ def build_scene(spec: SceneSpec, seed: int, lat0: float, lon0: float, h0: float)
     rng = np.random.default_rng(seed)
     nx, ny = int(np.ceil(spec.width_m / spec.cell_m)), int(np.ceil(spec.length_m / spec.cell_m))
     x0, y0 = -nx * spec.cell_m / 2, -ny * spec.cell_m / 2
-    gx, gy = np.meshgrid(x0 + spec.cell_m * np.arange(nx + 1), y0 + spec.cell_m * np.arange(ny + 1))
+    gx, gy = np.meshgrid(x0 + spec.cell_m * np.arange(nx + 1),
+                         y0 + spec.cell_m * np.arange(ny + 1))
     heights = _smooth_terrain(rng, gx, gy, spec)
-    scene = Scene(lat0, lon0, h0, x0, y0, spec.cell_m, heights, np.zeros((0, 3, 3)), np.zeros(0, np.int64),
-                  np.zeros((0, 3)), np.zeros(0), np.zeros(0, bool), np.zeros(0, np.int64), [], np.zeros((0, 3)),
-                  np.zeros(0), spec.extinction_per_m)
+    scene = Scene(lat0, lon0, h0, x0, y0, spec.cell_m, heights, np.zeros((0, 3, 3)),
+                  np.zeros(0, np.int64), np.zeros((0, 3)), np.zeros(0), np.zeros(0, bool),
+                  np.zeros(0, np.int64), [], np.zeros((0, 3)), np.zeros(0), spec.extinction_per_m)
+    footprints = _add_buildings(scene, spec, rng)
+    _add_trees(scene, spec, rng, footprints)
+    scene.bins = build_bins(scene)
+    return scene
 
-    # buildings on a jittered grid, kept inside the terrain and apart from each other
+
+def _add_buildings(scene: Scene, spec: SceneSpec, rng) -> list[tuple[float, float, float]]:
+    """Buildings on a jittered grid, kept inside the terrain and apart from each other: their
+    roof and wall triangles into ``scene``; their footprints (x, y, radius, m) returned."""
+    x0, y0 = scene.x0, scene.y0
     area_km2 = spec.width_m * spec.length_m / 1e6
     n_build = int(round(spec.building_density_per_km2 * area_km2))
     tris, tri_plane, normals, ds, is_roof, owner, footprints = [], [], [], [], [], [], []
@@ -210,7 +224,8 @@ def build_scene(spec: SceneSpec, seed: int, lat0: float, lon0: float, h0: float)
         slope = 0.0 if kind == "flat" else rng.uniform(*spec.roof_slope_rad)
         alpha = rng.uniform(0, 2 * np.pi)
         ca, sa = np.cos(alpha), np.sin(alpha)
-        corners = np.array([[u, v] for u in (-length / 2, length / 2) for v in (-width / 2, width / 2)])
+        corners = np.array([[u, v] for u in (-length / 2, length / 2)
+                            for v in (-width / 2, width / 2)])
         cxy = corners @ np.array([[ca, sa], [-sa, ca]]) + [cx, cy]
         ground = scene.terrain_height(cxy[:, 0], cxy[:, 1])
         base, eave = ground.min() - 0.5, ground.max() + rng.uniform(*spec.building_height_m)
@@ -239,22 +254,28 @@ def build_scene(spec: SceneSpec, seed: int, lat0: float, lon0: float, h0: float)
         scene.plane_d = np.array(ds)
         scene.plane_is_roof = np.array(is_roof)
         scene.plane_building = np.array(owner, np.int64)
+    return footprints
 
-    # trees: crowns covering about vegetation_fraction of the area, away from buildings
+
+def _add_trees(scene: Scene, spec: SceneSpec, rng, footprints: list) -> None:
+    """Tree crowns (spheres on trunks) covering about ``vegetation_fraction`` of the area, away
+    from the buildings' ``footprints``, into ``scene``."""
+    x0, y0 = scene.x0, scene.y0
     r_mean = np.mean(spec.crown_radius_m)
-    n_tree = int(round(spec.vegetation_fraction * spec.width_m * spec.length_m / (np.pi * r_mean**2)))
-    if n_tree:
-        r = rng.uniform(*spec.crown_radius_m, n_tree)
-        tx = rng.uniform(x0 + r, -x0 - r)
-        ty = rng.uniform(y0 + r, -y0 - r)
-        keep = np.ones(n_tree, bool)
-        for fx, fy, fr in footprints:
-            keep &= np.hypot(tx - fx, ty - fy) > fr + r + 1.0
-        r, tx, ty = r[keep], tx[keep], ty[keep]
-        trunk = rng.uniform(1.5, 5.0, r.size)
-        ground = np.nanmax(np.stack([scene.terrain_height(tx + dx, ty + dy) for dx in (-r, r) for dy in (-r, r)]
-                                    + [scene.terrain_height(tx, ty)]), axis=0)
-        scene.tree_center = np.stack([tx, ty, ground + trunk + r], -1)
-        scene.tree_radius = r
-    scene.bins = build_bins(scene)
-    return scene
+    crown_area = np.pi * r_mean**2
+    n_tree = int(round(spec.vegetation_fraction * spec.width_m * spec.length_m / crown_area))
+    if not n_tree:
+        return
+    r = rng.uniform(*spec.crown_radius_m, n_tree)
+    tx = rng.uniform(x0 + r, -x0 - r)
+    ty = rng.uniform(y0 + r, -y0 - r)
+    keep = np.ones(n_tree, bool)
+    for fx, fy, fr in footprints:
+        keep &= np.hypot(tx - fx, ty - fy) > fr + r + 1.0
+    r, tx, ty = r[keep], tx[keep], ty[keep]
+    trunk = rng.uniform(1.5, 5.0, r.size)
+    # the ground under a crown: the highest of its centre and the corners of its bounding square
+    under = [scene.terrain_height(tx + dx, ty + dy) for dx in (-r, r) for dy in (-r, r)]
+    ground = np.nanmax(np.stack(under + [scene.terrain_height(tx, ty)]), axis=0)
+    scene.tree_center = np.stack([tx, ty, ground + trunk + r], -1)
+    scene.tree_radius = r

@@ -30,7 +30,8 @@ def line_shots(cfg, sensor: Sensor, window: tuple[float, float], half_fov: float
     """Shot times (GPS s) and encoder angles (rad) over a scan window."""
     prf = cfg.pulse_rate_hz * cfg.density
     t = window[0] + np.arange(int((window[1] - window[0]) * prf)) / prf
-    return t, scan_angles(sensor.scanner, t, cfg.scan_rate_hz * np.sqrt(cfg.density), half_fov, cfg.scan_pattern)
+    scan_rate_hz = cfg.scan_rate_hz * np.sqrt(cfg.density)
+    return t, scan_angles(sensor.scanner, t, scan_rate_hz, half_fov, cfg.scan_pattern)
 
 
 def diverge(directions: np.ndarray, divergence_rad: float, rng: np.random.Generator) -> np.ndarray:
@@ -51,7 +52,9 @@ def diverge(directions: np.ndarray, divergence_rad: float, rng: np.random.Genera
 def shoot(cfg, scene, traj_true, truth: Sensor, t, enc, rng):
     """Cast the true beams; per return: pulse index, range (m), surface id, return number, number
     of returns, exact ENU hit."""
-    noisy = enc + rng.normal(0.0, cfg.angle_noise_rad, np.shape(enc)) if cfg.angle_noise_rad else enc
+    noisy = enc
+    if cfg.angle_noise_rad:
+        noisy = enc + rng.normal(0.0, cfg.angle_noise_rad, np.shape(enc))
     origin_e, dir_e = georef.beams(*georef.poses(traj_true, t), truth, noisy)
     o, d = scene.ecef_to_enu(origin_e), dir_e @ scene.r_e_enu
     if cfg.beam_divergence_rad > 0:  # drawn only then: γ = 0 keeps every simulation bit-identical
@@ -65,12 +68,14 @@ def shoot(cfg, scene, traj_true, truth: Sensor, t, enc, rng):
     order = np.lexsort((~first, pulse))
     pulse, rng_m, surface, first = pulse[order], rng_m[order], surface[order], first[order]
     n_ret = (veg.astype(np.uint8) + solid)[pulse]
-    return pulse, rng_m, surface, np.where(first, 1, 2).astype(np.uint8), n_ret, o[pulse] + rng_m[:, None] * d[pulse]
+    return_number = np.where(first, 1, 2).astype(np.uint8)
+    return pulse, rng_m, surface, return_number, n_ret, o[pulse] + rng_m[:, None] * d[pulse]
 
 
 def intensity(surface, range_m, ref_range_m, rng) -> np.ndarray:
     """Plausible 16-bit intensities: class reflectance × (R₀/R)² with speckle."""
-    refl = np.where(surface == SURFACE_VEGETATION, 0.25, np.where(surface == SURFACE_TERRAIN, 0.35, 0.5))
+    solid = np.where(surface == SURFACE_TERRAIN, 0.35, 0.5)
+    refl = np.where(surface == SURFACE_VEGETATION, 0.25, solid)
     val = refl * (ref_range_m / range_m) ** 2 * rng.uniform(0.8, 1.2, range_m.size)
     return np.clip(val * 40000, 1, 65535).astype(np.uint16)
 
@@ -78,14 +83,16 @@ def intensity(surface, range_m, ref_range_m, rng) -> np.ndarray:
 def record(cfg, scene, traj_true, traj, truth: Sensor, nominal: Sensor, t, enc, rng) -> dict:
     """One chunk of shots as delivered: the returns georeferenced from the instrument's records
     (measured range, encoder angle) with the nominal sensor and the measured trajectory, with their
-    attributes and exact hits (the fields of ``calidar.sim.survey.Strip`` but ``xyz`` and ``line``)."""
+    attributes and exact hits (the fields of ``calidar.sim.survey.Strip`` but ``xyz`` and
+    ``line``)."""
     pulse, rho, surface, ret, n_ret, hit = shoot(cfg, scene, traj_true, truth, t, enc, rng)
     measured = truth.measured_range(rho + rng.normal(0.0, cfg.range_noise_m, rho.size))
     ecef = georef.forward(traj, nominal, t[pulse], measured, enc[pulse])
     u = nominal.scanner.directions(enc[pulse])
-    cls = np.where(surface == SURFACE_VEGETATION, CLASS_VEGETATION,
-                   np.where(surface == SURFACE_TERRAIN, CLASS_GROUND, CLASS_BUILDING)).astype(np.uint8)
+    solid = np.where(surface == SURFACE_TERRAIN, CLASS_GROUND, CLASS_BUILDING)
+    cls = np.where(surface == SURFACE_VEGETATION, CLASS_VEGETATION, solid).astype(np.uint8)
     return dict(ecef=ecef, gps_time=t[pulse], range_m=measured, angles=enc[pulse],
                 scan_angle_deg=np.degrees(np.arctan2(u[:, 1], u[:, 2])), return_number=ret,
                 number_of_returns=n_ret, classification=cls,
-                intensity=intensity(surface, rho, cfg.height_agl_m, rng), surface=surface, true_enu=hit)
+                intensity=intensity(surface, rho, cfg.height_agl_m, rng), surface=surface,
+                true_enu=hit)

@@ -14,7 +14,7 @@ from __future__ import annotations
 import datetime
 import json
 from collections.abc import Callable
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -23,14 +23,17 @@ from calidar import georef
 from calidar.errors import InputError
 from calidar.outputs import prepare_out_dir, write_text_atomic
 from calidar.sensor import Sensor
-from calidar.sim.flightplan import FlightLine, check_plan_inputs, plan_lines
-from calidar.sim.motion import MotionSpec, accuracy_epochs, fly, measured_trajectory, trajectory_sigma
+from calidar.sim.flightplan import FlightLine, plan_lines
+from calidar.sim.motion import accuracy_epochs, fly, measured_trajectory, trajectory_sigma
 from calidar.sim.patterns import half_field_of_view
-from calidar.sim.scene import Scene, SceneSpec, build_scene, scene_seed
-from calidar.sim.shots import SURFACE_VEGETATION, line_shots, record  # noqa: F401 (SURFACE_VEGETATION: re-exported)
+from calidar.sim.scene import Scene, build_scene, scene_seed
+# SURFACE_VEGETATION and the settings (survey_config.py) are re-exported: this module is their
+# historical home
+from calidar.sim.shots import SURFACE_VEGETATION, line_shots, record  # noqa: F401
+from calidar.sim.survey_config import (PRESETS, STRIP_ERRORS, SurveyConfig,  # noqa: F401
+                                       check_config, survey_config)
 from calidar.trajectory import Trajectory
 from calidar.trajectory_accuracy import TrajectoryAccuracy
-from calidar.validate import SEED_MAX, integer, number
 
 #: LAS header creation date of simulated strips, fixed so that a seed always gives the same bytes.
 SIMULATION_DATE = datetime.date(2026, 1, 1)
@@ -38,135 +41,13 @@ SIMULATION_DATE = datetime.date(2026, 1, 1)
 GPS_WEEK_START_S = 388800.0  #: simulated flights start on a Thursday, 12:00 GPS time
 CHUNK_SHOTS = 400_000
 
-#: per-strip trajectory errors (NED position, roll/pitch/heading attitude), drawn per line
-STRIP_ERRORS = ("position_bias_m", "position_drift_mps", "attitude_bias_rad", "attitude_drift_radps")
-#: pulses a simulation may hold (≈ 100 bytes each, several times over while casting): all of them, or one
-#: strip's when the strips are handed over as simulated (``on_strip``)
+#: pulses a simulation may hold (≈ 100 bytes each, several times over while casting): all of them,
+#: or one strip's when the strips are handed over as simulated (``on_strip``)
 MAX_PULSES = 3e7
-STRIP_ERROR_MAX = (10.0, 1.0, np.radians(5.0), np.radians(1.0))  #: largest σ of each of STRIP_ERRORS
-ERROR_LIMITS = {  #: largest |true − nominal| of a sensor parameter simulated, by name prefix (rad, m, ratio)
-    "boresight": (np.radians(10.0), "rad"), "scan_angle_offset": (np.radians(10.0), "rad"), "lever_arm": (10.0, "m"),
-    "range_offset": (10.0, "m"), "range_scale": (0.01, ""), "scan_angle_scale": (0.01, "")}
-
 #: truth.json units of the parameters it always lists (value converted from SI)
-TRUTH_UNITS = {"boresight_roll": "deg", "boresight_pitch": "deg", "boresight_yaw": "deg", "lever_arm_x": "m",
-               "lever_arm_y": "m", "lever_arm_z": "m", "range_offset": "m", "scan_angle_scale": "ratio"}
-
-
-@dataclass(frozen=True)
-class SurveyConfig:
-    """Everything a simulation needs; SI units (m, s, rad, Hz)."""
-
-    preset: str = "uav"
-    seed: int = 0
-    origin_deg: tuple[float, float, float] = (47.0, 8.0, 450.0)  #: scene origin lat, lon (deg), h (m)
-    scene: SceneSpec = field(default_factory=SceneSpec)
-    motion: MotionSpec = field(default_factory=MotionSpec)
-    height_agl_m: float = 80.0
-    side_overlap: float = 0.5
-    directions: str = "opposite"
-    half_fov_rad: float = np.radians(35.0)  #: linear scanners; rotating ones have their own cone
-    pulse_rate_hz: float = 20_000.0
-    scan_rate_hz: float = 50.0  #: mirror/polygon/rotation frequency
-    scan_pattern: str = "oscillating"  #: linear scanners: oscillating | polygon
-    nominal: Sensor = field(default_factory=lambda: Sensor(lever_arm_x=0.05, lever_arm_z=0.12))
-    errors: dict = field(default_factory=dict)  #: true − nominal per parameter name (SI)
-    range_noise_m: float = 0.01
-    angle_noise_rad: float = np.radians(0.002)
-    gnss_noise_m: float = 0.02
-    attitude_noise_rad: float = np.radians(0.002)
-    #: per-axis factors on the trajectory errors' σ: north, east, down (× gnss_noise_m), roll, pitch,
-    #: heading (× attitude_noise_rad)
-    trajectory_sigma_scale: tuple[float, float, float, float, float, float] = (1.0, 1.0, 1.0, 1.0, 1.0, 1.0)
-    #: slow change of those σ over the flight (satellites come and go): σ(t) = σ · exp(v · g(t)),
-    #: g smooth unit noise over ``calidar.sim.motion.SIGMA_VARIATION_S``; 0: constant
-    trajectory_sigma_variation: float = 0.0
-    #: σ of the per-strip trajectory errors, in the order of STRIP_ERRORS (m, m/s, rad, rad/s)
-    strip_error_sigma: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 0.0)
-    density: float = 1.0  #: scales the pulse rate (and the scan rate by its square root)
-    lines: tuple[FlightLine, ...] | None = None  #: flown instead of the planned lines (``calidar plan``)
-    scene_seed: int | None = None  #: the scene's own seed (None: from ``seed``): one scene, fresh noise
-    #: full angle (rad) of the beam's divergence: each return comes from a direction drawn from the
-    #: Gaussian beam (σ = γ/4 per axis; ``calidar.sim.shots``); 0: one ray along the beam
-    beam_divergence_rad: float = 0.0
-
-
-PRESETS: dict[str, SurveyConfig] = {
-    "uav": SurveyConfig(),
-    "airborne": SurveyConfig(
-        preset="airborne",
-        scene=SceneSpec(width_m=2500.0, length_m=1600.0, cell_m=4.0, relief_m=40.0, rough_sigma_m=0.6,
-                        building_density_per_km2=120.0, building_size_m=(15.0, 50.0), building_height_m=(4.0, 20.0),
-                        crown_radius_m=(2.0, 6.0)),
-        motion=MotionSpec(speed_mps=60.0, run_in_m=300.0, turn_radius_m=400.0, pitch_rad=np.radians(2.0),
-                          attitude_sigma_rad=np.radians(0.8), heading_sigma_rad=np.radians(1.5), turbulence_tau_s=1.5,
-                          along_sigma_m=4.0, across_sigma_m=3.0, vertical_sigma_m=2.0, wander_tau_s=10.0),
-        height_agl_m=1000.0, side_overlap=0.3, half_fov_rad=np.radians(20.0), pulse_rate_hz=20_000.0,
-        scan_rate_hz=40.0, nominal=Sensor(lever_arm_x=0.25, lever_arm_y=-0.10, lever_arm_z=0.45),
-        range_noise_m=0.02, gnss_noise_m=0.03,
-    ),
-}
-
-
-def survey_config(preset: str = "uav", **overrides) -> SurveyConfig:
-    """A preset (``uav`` ≈ 80 m above ground over 300 m × 300 m; ``airborne`` ≈ 1000 m over
-    2.5 km × 1.6 km) with fields replaced by ``overrides`` (see :class:`SurveyConfig`).
-
-    ``vegetation=FRACTION`` is accepted as a shortcut for the scene's vegetation fraction.
-
-    >>> import calidar
-    >>> cfg = calidar.survey_config("airborne", seed=2, vegetation=0.3)
-    >>> cfg.height_agl_m, cfg.scene.vegetation_fraction, cfg.seed
-    (1000.0, 0.3, 2)
-    """
-    if preset not in PRESETS:
-        raise InputError(None, "preset", f"expected one of {', '.join(PRESETS)}, got {preset!r}")
-    cfg = PRESETS[preset]
-    if "vegetation" in overrides:
-        cfg = replace(cfg, scene=replace(cfg.scene, vegetation_fraction=float(overrides.pop("vegetation"))))
-    unknown = set(overrides) - set(SurveyConfig.__dataclass_fields__)
-    if unknown:
-        raise InputError(None, sorted(unknown)[0], f"unknown survey setting; expected one of {sorted(SurveyConfig.__dataclass_fields__)}")
-    return replace(cfg, **overrides)
-
-
-def check_config(cfg: SurveyConfig) -> None:
-    """Raise a clear :class:`InputError` for impossible settings."""
-    check_plan_inputs(cfg.height_agl_m, cfg.motion.speed_mps, cfg.side_overlap, cfg.half_fov_rad, cfg.directions)
-    positive = {"density": cfg.density, "pulse_rate_hz": cfg.pulse_rate_hz, "scan_rate_hz": cfg.scan_rate_hz}
-    for name, v in positive.items():
-        if not np.isfinite(v) or v <= 0:
-            raise InputError(None, name, f"expected a number > 0, got {v}")
-    for name in ("range_noise_m", "angle_noise_rad", "gnss_noise_m", "attitude_noise_rad"):
-        v = getattr(cfg, name)
-        if not np.isfinite(v) or v < 0:
-            raise InputError(None, name, f"expected a noise level >= 0, got {v}")
-    if len(cfg.strip_error_sigma) != len(STRIP_ERRORS) or not all(np.isfinite(v) and v >= 0 for v in cfg.strip_error_sigma):
-        raise InputError(None, "strip_errors", f"expected {len(STRIP_ERRORS)} σ values >= 0 ({', '.join(STRIP_ERRORS)}), "
-                         f"got {cfg.strip_error_sigma}")
-    if len(cfg.trajectory_sigma_scale) != 6 or not all(np.isfinite(v) and v > 0 for v in cfg.trajectory_sigma_scale):
-        raise InputError(None, "trajectory_sigma_scale", "expected 6 factors > 0 (north, east, down, roll, pitch, "
-                         f"heading), got {cfg.trajectory_sigma_scale}")
-    if not (np.isfinite(cfg.trajectory_sigma_variation) and 0 <= cfg.trajectory_sigma_variation <= 2):
-        raise InputError(None, "trajectory_sigma_variation", f"expected a number in [0, 2], got {cfg.trajectory_sigma_variation}")
-    if not 0 <= cfg.scene.vegetation_fraction <= 0.8:
-        raise InputError(None, "vegetation", f"expected a fraction of the area in [0, 0.8], got {cfg.scene.vegetation_fraction}")
-    known = cfg.nominal.parameters()
-    for name, v in cfg.errors.items():
-        if name not in known:
-            raise InputError(None, "errors", f"unknown sensor parameter {name!r}; expected one of {sorted(known)}")
-        limit, unit = next((lim for prefix, lim in ERROR_LIMITS.items() if name.startswith(prefix)), (1.0, ""))
-        if not (np.isfinite(v) and abs(v) <= limit):
-            raise InputError(None, name, f"expected a finite error within ±{limit:.4g} {unit}, got {v:.6g} {unit}".rstrip())
-    for name, v, hi in zip(STRIP_ERRORS, cfg.strip_error_sigma, STRIP_ERROR_MAX):
-        number(v, "strip_errors", 0.0, hi, field=name)
-    integer(cfg.seed, "seed", 0, SEED_MAX)
-    number(cfg.range_noise_m, "range_noise_m", 0.0, 1.0, "m")
-    number(cfg.beam_divergence_rad, "beam_divergence_rad", 0.0, 0.05, "rad")
-    if cfg.pulse_rate_hz * cfg.density > 5e6:
-        raise InputError(None, "density", f"pulse rate {cfg.pulse_rate_hz * cfg.density:.3g} Hz is beyond any scanner (max 5 MHz)")
-    if len(cfg.origin_deg) != 3 or not -80 <= cfg.origin_deg[0] <= 84:
-        raise InputError(None, "origin_deg", f"expected (lat, lon, h) with UTM latitude in [-80, 84], got {cfg.origin_deg}")
+TRUTH_UNITS = {"boresight_roll": "deg", "boresight_pitch": "deg", "boresight_yaw": "deg",
+               "lever_arm_x": "m", "lever_arm_y": "m", "lever_arm_z": "m", "range_offset": "m",
+               "scan_angle_scale": "ratio"}
 
 
 def utm_crs(lat_deg: float, lon_deg: float) -> str:
@@ -191,8 +72,9 @@ class Strip:
     classification: np.ndarray  #: 2 ground, 6 building, 5 vegetation
     intensity: np.ndarray
     surface: np.ndarray  #: building plane id, -1 terrain, -3 vegetation (N,)
-    #: the exact hit in the scene's ENU frame, before noise (N, 3), m: where the true beam met the scene
-    #: (with beam divergence, the ray the return came from, off the nominal beam: ``calidar.sim.shots``)
+    #: the exact hit in the scene's ENU frame, before noise (N, 3), m: where the true beam met the
+    #: scene (with beam divergence, the ray the return came from, off the nominal beam:
+    #: ``calidar.sim.shots``)
     true_enu: np.ndarray
 
     def __len__(self) -> int:
@@ -216,9 +98,12 @@ class SurveyResult:
     truth: Sensor  #: the sensor that shot them
     crs: str
     strips: list[Strip]
-    strip_errors: list[dict]  #: per line, keyed by STRIP_ERRORS (NED m, m/s; roll/pitch/heading rad, rad/s)
-    accuracy: TrajectoryAccuracy | None = None  #: the σ of the measured trajectory's errors (smrmsg.out)
-    streamed_points: int = 0  #: points of the strips handed to ``on_strip`` as simulated (not in ``strips``)
+    #: per line, keyed by STRIP_ERRORS (NED m, m/s; roll/pitch/heading rad, rad/s)
+    strip_errors: list[dict]
+    #: the σ of the measured trajectory's errors (smrmsg.out)
+    accuracy: TrajectoryAccuracy | None = None
+    #: points of the strips handed to ``on_strip`` as simulated (not in ``strips``)
+    streamed_points: int = 0
 
     @property
     def n_points(self) -> int:
@@ -226,35 +111,50 @@ class SurveyResult:
 
     def truth_dict(self) -> dict:
         """The truth.json document (degrees, metres, ratios)."""
+        c = self.config
+        strips = [{"point_source_id": ln.number,
+                   "position_bias_m": e["position_bias_m"].tolist(),
+                   "position_drift_mps": e["position_drift_mps"].tolist(),
+                   "attitude_bias_deg": np.degrees(e["attitude_bias_rad"]).tolist(),
+                   "attitude_drift_deg_per_s": np.degrees(e["attitude_drift_radps"]).tolist()}
+                  for ln, e in zip(self.lines, self.strip_errors)]
+        simulation = {"preset": c.preset, "seed": c.seed, "density": c.density,
+                      "directions": c.directions, "height_agl_m": c.height_agl_m, "crs": self.crs,
+                      "points": self.n_points}
+        return {"parameters": self._truth_parameters(), "noise": self._truth_noise(),
+                "strips": strips, "simulation": simulation}
+
+    def _truth_parameters(self) -> dict:
+        """truth.json's parameters: each one's true and nominal value in its unit (angles in
+        degrees)."""
         true, nominal = self.truth.parameters(), self.nominal.parameters()
         names = list(TRUTH_UNITS) + [k for k in self.config.errors if k not in TRUTH_UNITS]
         # other scanner parameters: units from the model's ``units`` table (rad → deg), else SI
-        units = {**{k: {"1": "ratio"}.get(u, u) for k, u in getattr(self.truth.scanner, "units", {}).items()},
+        scanner_units = getattr(self.truth.scanner, "units", {})
+        units = {**{k: {"1": "ratio"}.get(u, u) for k, u in scanner_units.items()},
                  "range_scale": "ratio", "scan_angle_offset": "deg", **TRUTH_UNITS}
         params = {}
         for k in names:
             if k not in true:
                 continue
             unit = units.get(k, "SI")
-            conv = np.degrees if unit in ("deg", "rad") else float
-            params[k] = {"value": float(conv(true[k])), "unit": "deg" if unit in ("deg", "rad") else unit,
+            angle = unit in ("deg", "rad")
+            conv = np.degrees if angle else float
+            params[k] = {"value": float(conv(true[k])), "unit": "deg" if angle else unit,
                          "nominal": float(conv(nominal[k]))}
+        return params
+
+    def _truth_noise(self) -> dict:
+        """truth.json's noise: the range, beam-angle and trajectory noise (m, degrees)."""
         c = self.config
-        return {
-            "parameters": params,
-            "noise": {"range_m": c.range_noise_m, "angle_deg": float(np.degrees(c.angle_noise_rad)),
-                      "gnss_position_m": c.gnss_noise_m, "attitude_deg": float(np.degrees(c.attitude_noise_rad)),
-                      "trajectory_sigma_scale": list(c.trajectory_sigma_scale),
-                      "trajectory_sigma_variation": c.trajectory_sigma_variation,
-                      **({"beam_divergence_mrad": c.beam_divergence_rad * 1e3} if c.beam_divergence_rad else {})},
-            "strips": [{"point_source_id": ln.number, "position_bias_m": e["position_bias_m"].tolist(),
-                        "position_drift_mps": e["position_drift_mps"].tolist(),
-                        "attitude_bias_deg": np.degrees(e["attitude_bias_rad"]).tolist(),
-                        "attitude_drift_deg_per_s": np.degrees(e["attitude_drift_radps"]).tolist()}
-                       for ln, e in zip(self.lines, self.strip_errors)],
-            "simulation": {"preset": c.preset, "seed": c.seed, "density": c.density, "directions": c.directions,
-                           "height_agl_m": c.height_agl_m, "crs": self.crs, "points": self.n_points},
-        }
+        noise = {"range_m": c.range_noise_m, "angle_deg": float(np.degrees(c.angle_noise_rad)),
+                 "gnss_position_m": c.gnss_noise_m,
+                 "attitude_deg": float(np.degrees(c.attitude_noise_rad)),
+                 "trajectory_sigma_scale": list(c.trajectory_sigma_scale),
+                 "trajectory_sigma_variation": c.trajectory_sigma_variation}
+        if c.beam_divergence_rad:
+            noise["beam_divergence_mrad"] = c.beam_divergence_rad * 1e3
+        return noise
 
     def calibration_strips(self) -> list:
         """The delivered lines as :class:`calidar.strips.strip.Strip` (what the strip calibrator
@@ -264,8 +164,8 @@ class SurveyResult:
         from calidar.strips.strip import Strip as CalibrationStrip
 
         frame = LocalFrame.at(np.concatenate([s.ecef[::50] for s in self.strips]))
-        return [CalibrationStrip.from_ecef(s.point_source_id, s.ecef, s.gps_time, self.trajectory, self.nominal, frame)
-                for s in self.strips]
+        return [CalibrationStrip.from_ecef(s.point_source_id, s.ecef, s.gps_time, self.trajectory,
+                                           self.nominal, frame) for s in self.strips]
 
     def las_points(self) -> list:
         """The strips as :class:`calidar.io.las.LasPoints` (what ``read_las`` of the written files
@@ -275,9 +175,11 @@ class SurveyResult:
         from calidar.io.las import LasPoints
 
         crs = pyproj.CRS.from_user_input(self.crs)
-        return [LasPoints(s.xyz, s.gps_time, "gps_week_seconds", crs, Path(f"<simulated line_{s.line.number:03d}>"),
-                          s.scan_angle_deg, np.full(len(s), s.line.number, np.uint16), s.return_number,
-                          s.number_of_returns, s.classification, s.intensity) for s in self.strips]
+        return [LasPoints(s.xyz, s.gps_time, "gps_week_seconds", crs,
+                          Path(f"<simulated line_{s.line.number:03d}>"), s.scan_angle_deg,
+                          np.full(len(s), s.line.number, np.uint16), s.return_number,
+                          s.number_of_returns, s.classification, s.intensity)
+                for s in self.strips]
 
     def write(self, out_dir: str | Path, force: bool = False,
               progress: Callable[[str, int, int], None] | None = None) -> Path:
@@ -296,7 +198,8 @@ class SurveyResult:
         if self.accuracy is not None:
             write_smrmsg(out / "smrmsg.out", self.accuracy, force=force)
         self.nominal.write(out / "sensor.toml", force=force)
-        write_text_atomic(out / "truth.json", json.dumps(self.truth_dict(), indent=2) + "\n", force=force)
+        truth = json.dumps(self.truth_dict(), indent=2) + "\n"
+        write_text_atomic(out / "truth.json", truth, force=force)
         return out
 
 
@@ -304,13 +207,15 @@ def write_strip(out: Path, s: Strip, crs: str, force: bool = False) -> Path:
     """One simulated strip as ``out/strips/line_NNN.laz``."""
     from calidar.io.las import write_las
 
-    return write_las(out / "strips" / f"line_{s.line.number:03d}.laz", s.xyz, crs, gps_time=s.gps_time,
-                     scan_angle_deg=s.scan_angle_deg, point_source_id=s.line.number, return_number=s.return_number,
-                     number_of_returns=s.number_of_returns, classification=s.classification, intensity=s.intensity,
-                     creation_date=SIMULATION_DATE, force=force)
+    path = out / "strips" / f"line_{s.line.number:03d}.laz"
+    return write_las(path, s.xyz, crs, gps_time=s.gps_time, scan_angle_deg=s.scan_angle_deg,
+                     point_source_id=s.line.number, return_number=s.return_number,
+                     number_of_returns=s.number_of_returns, classification=s.classification,
+                     intensity=s.intensity, creation_date=SIMULATION_DATE, force=force)
 
 
-def simulate_survey(cfg: SurveyConfig, progress: Callable[[str, int, int], None] | None = None,
+def simulate_survey(cfg: SurveyConfig,
+                    progress: Callable[[str, int, int], None] | None = None,
                     on_strip: Callable[[Strip], None] | None = None) -> SurveyResult:
     """Run the simulation described by ``cfg`` in memory (see the module docstring).
 
@@ -319,45 +224,69 @@ def simulate_survey(cfg: SurveyConfig, progress: Callable[[str, int, int], None]
     surveys: one strip in memory at a time).
 
     >>> import tempfile, numpy as np, calidar
-    >>> cfg = calidar.survey_config("uav", seed=1, density=0.1, directions="cross", errors={"boresight_roll": 1e-3})
-    >>> res = calidar.simulate_survey(replace(cfg, scene=replace(cfg.scene, width_m=150.0, length_m=150.0)))
-    >>> folder = res.write(Path(tempfile.mkdtemp()) / "sim")  # what a real system delivers, and the truth
+    >>> cfg = calidar.survey_config("uav", seed=1, density=0.1, directions="cross",
+    ...                             errors={"boresight_roll": 1e-3})
+    >>> small = replace(cfg.scene, width_m=150.0, length_m=150.0)
+    >>> res = calidar.simulate_survey(replace(cfg, scene=small))
+    >>> # what a real system delivers, and the truth
+    >>> folder = res.write(Path(tempfile.mkdtemp()) / "sim")
     >>> sorted(p.name for p in folder.iterdir()), res.truth.boresight_roll
     (['sbet.out', 'sensor.toml', 'smrmsg.out', 'strips', 'truth.json'], 0.001)
     """
     check_config(cfg)
     ss = np.random.SeedSequence(cfg.seed)
-    _, rng_motion, rng_nav, rng_strip, rng_shots, rng_sigma = (np.random.default_rng(s) for s in ss.spawn(6))
+    rngs = [np.random.default_rng(s) for s in ss.spawn(6)]
+    _, rng_motion, rng_nav, rng_strip, rng_shots, rng_sigma = rngs
     lat0, lon0, h0 = cfg.origin_deg
     crs = utm_crs(lat0, lon0)
-    scene = build_scene(cfg.scene, scene_seed(cfg.seed, cfg.scene_seed), np.radians(lat0), np.radians(lon0), h0)
+    seed = scene_seed(cfg.seed, cfg.scene_seed)
+    scene = build_scene(cfg.scene, seed, np.radians(lat0), np.radians(lon0), h0)
     nominal = replace(cfg.nominal, crs=crs)
     params = nominal.parameters()
     truth = nominal.with_parameters(**{k: params[k] + v for k, v in cfg.errors.items()})
-    half_fov = half_field_of_view(nominal.scanner, cfg.scan_rate_hz, cfg.half_fov_rad, cfg.scan_pattern)
-    lines = list(cfg.lines or plan_lines(scene.extent, float(np.mean(scene.heights)), cfg.height_agl_m, half_fov,
-                                         cfg.side_overlap, cfg.directions, cfg.motion.speed_mps))
+    lines = _lines(cfg, scene, nominal)
     traj_true, windows = fly(scene, lines, cfg.motion, rng_motion, GPS_WEEK_START_S)
-    per_line = [cfg.pulse_rate_hz * cfg.density * (b - a) for a, b in windows]  # memory grows with what is held:
-    if (pulses := max(per_line) if on_strip is not None else sum(per_line)) > MAX_PULSES:  # one strip, or all
-        where = " in one strip" if on_strip is not None else ""
-        raise InputError(None, "density", f"{pulses:.3g} pulses to simulate{where}; expected ≤ {MAX_PULSES:.3g} "
-                         "(a smaller --density)")
-    strip_errors = [{k: rng_strip.normal(0.0, sigma, 3) for k, sigma in zip(STRIP_ERRORS, cfg.strip_error_sigma)}
-                    for _ in lines]
+    _check_pulses(cfg, windows, one_strip=on_strip is not None)
+    strip_errors = [{k: rng_strip.normal(0.0, sigma, 3)
+                     for k, sigma in zip(STRIP_ERRORS, cfg.strip_error_sigma)} for _ in lines]
     sig_pos, sig_att = trajectory_sigma(cfg, traj_true.time, rng_sigma)
-    traj = measured_trajectory(traj_true, rng_nav, sig_pos, sig_att, [(a, b, e) for (a, b), e in zip(windows, strip_errors)])
+    per_strip = [(a, b, e) for (a, b), e in zip(windows, strip_errors)]
+    traj = measured_trajectory(traj_true, rng_nav, sig_pos, sig_att, per_strip)
 
     strips, streamed = [], 0
     for k, (line, window) in enumerate(zip(lines, windows)):
         t_all, enc_all = line_shots(cfg, nominal, window, cfg.half_fov_rad)
         parts = [record(cfg, scene, traj_true, traj, truth, nominal, t_all[c0:c0 + CHUNK_SHOTS],
-                        enc_all[c0:c0 + CHUNK_SHOTS], rng_shots) for c0 in range(0, t_all.size, CHUNK_SHOTS)]
+                        enc_all[c0:c0 + CHUNK_SHOTS], rng_shots)
+                 for c0 in range(0, t_all.size, CHUNK_SHOTS)]
         cat = {key: np.concatenate([p[key] for p in parts]) for key in parts[0]}
         strip = Strip(line, georef.to_crs(cat["ecef"], crs), **cat)
         streamed += 0 if on_strip is None else len(strip)
         (on_strip or strips.append)(strip)
         if progress:
             progress("simulating lines", k + 1, len(lines))
-    return SurveyResult(cfg, scene, lines, traj_true, traj, nominal, truth, crs, strips, strip_errors,
-                        accuracy_epochs(traj_true.time, sig_pos, sig_att), streamed)
+    accuracy = accuracy_epochs(traj_true.time, sig_pos, sig_att)
+    return SurveyResult(cfg, scene, lines, traj_true, traj, nominal, truth, crs, strips,
+                        strip_errors, accuracy, streamed)
+
+
+def _lines(cfg: SurveyConfig, scene: Scene, nominal: Sensor) -> list[FlightLine]:
+    """The lines to fly: ``cfg.lines``, else the plan over the scene at the configured height,
+    overlap and directions (the swath from the scanner's half field of view)."""
+    if cfg.lines:
+        return list(cfg.lines)
+    half_fov = half_field_of_view(nominal.scanner, cfg.scan_rate_hz, cfg.half_fov_rad,
+                                  cfg.scan_pattern)
+    return list(plan_lines(scene.extent, float(np.mean(scene.heights)), cfg.height_agl_m, half_fov,
+                           cfg.side_overlap, cfg.directions, cfg.motion.speed_mps))
+
+
+def _check_pulses(cfg: SurveyConfig, windows: list, one_strip: bool) -> None:
+    """Memory grows with the pulses held: all the strips', or one strip's when they are handed
+    over as simulated (``one_strip``); beyond MAX_PULSES, an error."""
+    per_line = [cfg.pulse_rate_hz * cfg.density * (b - a) for a, b in windows]
+    pulses = max(per_line) if one_strip else sum(per_line)
+    if pulses > MAX_PULSES:
+        where = " in one strip" if one_strip else ""
+        raise InputError(None, "density", f"{pulses:.3g} pulses to simulate{where}; expected "
+                         f"≤ {MAX_PULSES:.3g} (a smaller --density)")

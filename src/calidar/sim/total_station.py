@@ -38,7 +38,8 @@ class TotalStationSimConfig:
 
 
 def _observe(rng, o, omega, x, cfg) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Noisy polar observations (m, rad, rad) from the station at ``o`` (zero direction ``omega``) of points ``x``."""
+    """Noisy polar observations (m, rad, rad) from the station at ``o`` (zero direction ``omega``)
+    of points ``x``."""
     v = np.atleast_2d(x) - o
     s = np.linalg.norm(v, axis=1)
     va = np.arcsin(v[:, 2] / s)
@@ -49,9 +50,48 @@ def _observe(rng, o, omega, x, cfg) -> tuple[np.ndarray, np.ndarray, np.ndarray]
     return s, va, hz
 
 
+def _setup(rng, i: int, cfg: TotalStationSimConfig, theta: float) -> tuple[Setup, list[tuple]]:
+    """Setup ``i``: the station beside or behind the scanner, its observation of the scanner
+    (P), of the groups' four points on walls at a cone of half-angle ``theta`` about the
+    scanner's axis (A–D) and of the E points along the cone; rows (setup, group, point, kind,
+    slope m, vertical angle rad, horizontal angle rad, true scanner range m)."""
+    p = np.array([0.0, 0.0, rng.uniform(1.3, 1.7)])
+    az = rng.uniform(0, 2 * math.pi)
+    axis = np.array([math.sin(az), math.cos(az), 0.0])
+    left = np.array([-math.cos(az), math.sin(az), 0.0])
+    up = np.array([0.0, 0.0, 1.0])
+    psi = az + math.radians(rng.uniform(100.0, 260.0))  # beside or behind the scanner
+    r = rng.uniform(3.0, 6.0)
+    o = np.array([r * math.sin(psi), r * math.cos(psi), rng.uniform(1.4, 1.7)])
+    omega = rng.uniform(0, 2 * math.pi)
+    ps, pva, phz = _observe(rng, o, omega, p, cfg)
+    setup = Setup(f"TS{i + 1}", cfg.angle_arcsec * ARCSEC, cfg.distance_mm * 1e-3,
+                  cfg.distance_ppm, float(ps[0]), float(pva[0]), float(phz[0]), 0)
+    rows = []
+    n_groups = cfg.groups_per_setup
+    walls = np.linspace(3.0, 15.0, n_groups) + rng.uniform(-0.5, 0.5, n_groups)
+    for g, wall in enumerate(walls):
+        t = wall * math.tan(theta)
+        pts = p + wall * axis + t * np.array([left, -left, up, -up])
+        s, va, hz = _observe(rng, o, omega, pts, cfg)
+        group = f"G{i * n_groups + g + 1}"
+        for name, *ob in zip("ABCD", s, va, hz):
+            rows.append((i, group, name, "feature", *ob, wall / math.cos(theta)))
+    phase = rng.uniform(0, 2 * math.pi, cfg.e_per_setup)
+    dist = rng.uniform(2.0, 40.0, cfg.e_per_setup)
+    around = np.cos(phase)[:, None] * left + np.sin(phase)[:, None] * up
+    dirs = (math.cos(theta) * axis + math.sin(theta) * around)
+    s, va, hz = _observe(rng, o, omega, p + dist[:, None] * dirs, cfg)
+    for j in range(cfg.e_per_setup):
+        point = f"E{i * cfg.e_per_setup + j + 1}"
+        rows.append((i, "", point, "E", s[j], va[j], hz[j], dist[j]))
+    return setup, rows
+
+
 def simulate_total_station(seed: int, cfg: TotalStationSimConfig = TotalStationSimConfig()
                            ) -> tuple[TotalStationObservations, dict]:
-    """Observations and the truth (``range_offset_m``, ``range_scale_ppm``, noise levels, outliers)."""
+    """Observations and the truth (``range_offset_m``, ``range_scale_ppm``, noise levels,
+    outliers)."""
     rng = np.random.default_rng(seed)
     c = rng.uniform(-0.06, 0.06) if cfg.range_offset_m is None else cfg.range_offset_m
     k_ppm = rng.uniform(-200.0, 200.0) if cfg.range_scale_ppm is None else cfg.range_scale_ppm
@@ -59,49 +99,33 @@ def simulate_total_station(seed: int, cfg: TotalStationSimConfig = TotalStationS
     theta = math.radians(cfg.cone_half_angle_deg)
     setups, rows = [], []
     for i in range(cfg.n_setups):
-        p = np.array([0.0, 0.0, rng.uniform(1.3, 1.7)])
-        az = rng.uniform(0, 2 * math.pi)
-        axis = np.array([math.sin(az), math.cos(az), 0.0])
-        left = np.array([-math.cos(az), math.sin(az), 0.0])
-        up = np.array([0.0, 0.0, 1.0])
-        psi = az + math.radians(rng.uniform(100.0, 260.0))  # beside or behind the scanner
-        r = rng.uniform(3.0, 6.0)
-        o = np.array([r * math.sin(psi), r * math.cos(psi), rng.uniform(1.4, 1.7)])
-        omega = rng.uniform(0, 2 * math.pi)
-        sid = f"TS{i + 1}"
-        ps, pva, phz = _observe(rng, o, omega, p, cfg)
-        setups.append(Setup(sid, cfg.angle_arcsec * ARCSEC, cfg.distance_mm * 1e-3, cfg.distance_ppm,
-                            float(ps[0]), float(pva[0]), float(phz[0]), 0))
-        walls = np.linspace(3.0, 15.0, cfg.groups_per_setup) + rng.uniform(-0.5, 0.5, cfg.groups_per_setup)
-        for g, wall in enumerate(walls):
-            t = wall * math.tan(theta)
-            pts = p + wall * axis + t * np.array([left, -left, up, -up])
-            s, va, hz = _observe(rng, o, omega, pts, cfg)
-            for name, *ob in zip("ABCD", s, va, hz):
-                rows.append((i, f"G{i * cfg.groups_per_setup + g + 1}", name, "feature", *ob, wall / math.cos(theta)))
-        phase = rng.uniform(0, 2 * math.pi, cfg.e_per_setup)
-        dist = rng.uniform(2.0, 40.0, cfg.e_per_setup)
-        dirs = (math.cos(theta) * axis + math.sin(theta) * (np.cos(phase)[:, None] * left + np.sin(phase)[:, None] * up))
-        s, va, hz = _observe(rng, o, omega, p + dist[:, None] * dirs, cfg)
-        for j in range(cfg.e_per_setup):
-            rows.append((i, "", f"E{i * cfg.e_per_setup + j + 1}", "E", s[j], va[j], hz[j], dist[j]))
+        setup, setup_rows = _setup(rng, i, cfg, theta)
+        setups.append(setup)
+        rows += setup_rows
     cols = list(zip(*rows))
     true_range = np.array(cols[7])
-    scanner = (1.0 + k) * true_range + c + rng.normal(0.0, cfg.scanner_sigma_mm * 1e-3, true_range.size)
-    bad = rng.choice(true_range.size, cfg.outliers, replace=False) if cfg.outliers else np.zeros(0, int)
-    scanner[bad] += rng.choice([-1.0, 1.0], bad.size) * rng.uniform(10, 25, bad.size) * cfg.scanner_sigma_mm * 1e-3
+    sigma = cfg.scanner_sigma_mm * 1e-3
+    # the scanner's range: measured = (1 + k) · true + c + noise; gross errors of 10–25 σ
+    scanner = (1.0 + k) * true_range + c + rng.normal(0.0, sigma, true_range.size)
+    bad = np.zeros(0, int)
+    if cfg.outliers:
+        bad = rng.choice(true_range.size, cfg.outliers, replace=False)
+    sign = rng.choice([-1.0, 1.0], bad.size)
+    scanner[bad] += sign * rng.uniform(10, 25, bad.size) * cfg.scanner_sigma_mm * 1e-3
     obs = TotalStationObservations(
-        source="simulated", setups=setups, scanner_sigma=cfg.scanner_sigma_mm * 1e-3,
-        setup=np.array(cols[0], int), group=np.array(cols[1]).astype(str), point=np.array(cols[2]).astype(str),
-        kind=np.array(cols[3]).astype(str), slope=np.array(cols[4], float), va=np.array(cols[5], float),
+        source="simulated", setups=setups, scanner_sigma=sigma,
+        setup=np.array(cols[0], int), group=np.array(cols[1]).astype(str),
+        point=np.array(cols[2]).astype(str), kind=np.array(cols[3]).astype(str),
+        slope=np.array(cols[4], float), va=np.array(cols[5], float),
         hz=np.array(cols[6], float), scanner=np.round(scanner, 4), line=np.zeros(len(rows), int),
     )
+    outliers = [{"setup": setups[obs.setup[b]].id, "group": str(obs.group[b]),
+                 "point": str(obs.point[b])} for b in sorted(bad)]
     truth = {
         "range_offset_m": float(c), "range_scale_ppm": float(k_ppm),
         "noise": {"scanner_sigma_mm": cfg.scanner_sigma_mm, "angle_arcsec": cfg.angle_arcsec,
                   "distance_mm": cfg.distance_mm, "distance_ppm": cfg.distance_ppm},
-        "outliers": [{"setup": setups[obs.setup[b]].id, "group": str(obs.group[b]), "point": str(obs.point[b])}
-                     for b in sorted(bad)],
+        "outliers": outliers,
         "seed": seed,
     }
     return obs, truth

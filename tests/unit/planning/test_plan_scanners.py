@@ -12,7 +12,8 @@ import pytest
 
 from calidar.io.flight_lines import PlanLine
 from calidar.planning.findings import findings
-from calidar.planning.geometry import Instrument, fly_plan, side_poses
+from calidar.planning.geometry import Instrument, fly_plan
+from calidar.planning.rows import side_poses
 from calidar.planning.predict import PlanSettings, predict
 from calidar.planning.simulate import FLAT_SCENE
 from calidar.planning.sweep import pattern_half_fov
