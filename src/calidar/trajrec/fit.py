@@ -152,9 +152,13 @@ def _types(obs: Observations, spline: Spline, coef: np.ndarray, settings: FitSet
         kappa, eps = settings.scan_plane_yaw + mount[2], mount[3]
         r, g = scan_partials(obs.points, state, (1.0 + mount[1]) * scan + mount[0], kappa, eps)
         if obs.use_across:
+            # the stored angle is the observation, the geometry's angle read by the encoder its model:
+            # (angle − offset)/(1 + scale) − stored, whose partials hold no noise (mounting.design)
             ok = np.isfinite(obs.scan)
-            out.append(("across", (basis[0][ok], basis[1][ok]), r[ok, 0], g[ok, 0], np.ones(int(ok.sum())),
-                        mounting.design("across", int(ok.sum()), scan=scan[ok], idx=idx)))
+            f = 1.0 / (1.0 + mount[1])
+            read = (r[ok, 0] + (1.0 + mount[1]) * scan[ok]) * f  # (angle − offset)/(1 + scale)
+            out.append(("across", (basis[0][ok], basis[1][ok]), r[ok, 0] * f, g[ok, 0] * f, np.ones(int(ok.sum())),
+                        mounting.design("across", int(ok.sum()), scan=read, idx=idx, scale=mount[1])))
         if obs.use_along:
             gp = mount_partials(obs.points, state, kappa, eps) if np.any(idx >= 2) else None
             out.append(("along", basis, r[:, 1], g[:, 1], np.ones(obs.t.size),
