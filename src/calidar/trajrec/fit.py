@@ -62,7 +62,7 @@ class FitSettings:
     overlap_s: float = 2.0  #: ... overlapping by this much
     #: prior σ of the scan-angle encoder's offset (rad) and scale (1), and of the scan plane's yaw (about
     #: ``scan_plane_yaw``) and pitch in the body (rad); 0: known (held at 0), see :mod:`calidar.trajrec.mounting`
-    mount_sigma: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 0.0)
+    mount_sigma: tuple[float, ...] = (0.0,) * len(mounting.NAMES)
 
 
 @dataclass
@@ -80,6 +80,10 @@ class Observations:
     ray_t: np.ndarray  #: (M,)
     ray_sigma: np.ndarray  #: (M,) relative σ of the ray's direction (1 / separation of its returns)
     cache: dict = field(default_factory=dict, repr=False)  #: spline bases of t and ray_t (one spline per segment)
+    #: the least scale of the rays' residuals (m × 1/separation): √2 × the returns' coordinate rounding / √12, their
+    #: direction's σ from the two points alone; the rays' robust scale is at least this (a few rays' MAD is no scale:
+    #: leeward's one ray pulled its own scale to the floor and the along-track position 10 m off with it)
+    ray_floor: float = 0.0
 
     def basis(self, spline: Spline, which: str) -> tuple[np.ndarray, np.ndarray]:
         """``spline.basis`` of the point ("t") or ray ("ray_t") times, computed once."""
@@ -97,8 +101,8 @@ class SegmentFit:
     scales: dict  #: robust scale of each residual type (rad)
     n_obs: dict
     iterations: int
-    mount: np.ndarray = field(default_factory=lambda: np.zeros(4))  #: estimates (mounting.NAMES)
-    mount_sigma: np.ndarray = field(default_factory=lambda: np.zeros(4))  #: their posterior σ (0: held)
+    mount: np.ndarray = field(default_factory=lambda: np.zeros(len(mounting.NAMES)))  #: estimates (mounting.NAMES)
+    mount_sigma: np.ndarray = field(default_factory=lambda: np.zeros(len(mounting.NAMES)))  #: their posterior σ (0: held)
 
 
 def _normal_blocks(spline: Spline, basis, r, g, w_obs, n_mat, rhs):
@@ -156,12 +160,15 @@ def _types(obs: Observations, spline: Spline, coef: np.ndarray, settings: FitSet
             # (angle − offset)/(1 + scale) − stored, whose partials hold no noise (mounting.design)
             ok = np.isfinite(obs.scan)
             f = 1.0 / (1.0 + mount[1])
-            read = (r[ok, 0] + (1.0 + mount[1]) * scan[ok]) * f  # (angle − offset)/(1 + scale)
-            out.append(("across", (basis[0][ok], basis[1][ok]), r[ok, 0] * f, g[ok, 0] * f, np.ones(int(ok.sum())),
-                        mounting.design("across", int(ok.sum()), scan=read, idx=idx, scale=mount[1])))
+            angle = r[ok, 0] + (1.0 + mount[1]) * scan[ok] + mount[0]  # the geometry's across-track angle
+            q = mount[4] / mounting.CURVATURE_AT**2
+            read = (angle - mount[0] - q * angle**2) * f  # what the encoder reads of it
+            g_a = g[ok, 0] * (f * (1.0 - 2.0 * q * angle))[:, None]
+            gm = mounting.design("across", int(ok.sum()), scan=read, idx=idx, scale=mount[1], angle=angle)
+            out.append(("across", (basis[0][ok], basis[1][ok]), read - scan[ok], g_a, np.ones(int(ok.sum())), gm))
         if obs.use_along:
-            gp = mount_partials(obs.points, state, kappa, eps) if np.any(idx >= 2) else None
-            out.append(("along", basis, r[:, 1], g[:, 1], np.ones(obs.t.size),
+            gp = mount_partials(obs.points, state, kappa, eps) if np.any((idx == 2) | (idx == 3)) else None
+            out.append(("along", basis, r[:, 1] - mount[5], g[:, 1], np.ones(obs.t.size),
                         mounting.design("along", obs.t.size, along_partials=gp, idx=idx)))
     if obs.ray_t.size:
         basis = obs.basis(spline, "ray_t")
@@ -203,7 +210,7 @@ def _thin(obs: Observations, step: int) -> Observations:
         return obs
     return Observations(obs.points[::step], obs.t[::step], obs.scan[::step], obs.use_across, obs.use_along,
                         obs.ray_last[::step], obs.ray_u1[::step], obs.ray_u2[::step], obs.ray_t[::step],
-                        obs.ray_sigma[::step])
+                        obs.ray_sigma[::step], ray_floor=obs.ray_floor)
 
 
 @dataclass
@@ -234,7 +241,8 @@ def _iterate(obs: Observations, spline: Spline, coef: np.ndarray, settings: FitS
     quantum = scan_quantum(obs.scan) if obs.use_across else 0.0
     for name, basis, r, g, rel, gm in _types(obs, spline, coef, settings, mount, idx):
         floor = max(SCALE_FLOOR, quantum / np.sqrt(12.0)) if name == "across" else SCALE_FLOOR
-        w, scale = _robust(r / rel, floor / float(np.median(rel)))
+        floor = floor / float(np.median(rel))
+        w, scale = _robust(r / rel, max(floor, obs.ray_floor) if name.startswith("ray") else floor)
         scales[name.rstrip("01")] = scale
         n_obs[name] = int(r.size)
         wr = w / rel**2
@@ -265,7 +273,7 @@ def solve_segment(obs: Observations, spline: Spline, coef0: np.ndarray, settings
     once the trajectory has converged: one step finds which the points determine; those are
     estimated with it, the others held and their σ passed on (in the last step)."""
     coef = np.array(coef0, float)
-    mount = np.zeros(4)
+    mount = np.zeros(len(mounting.NAMES))
     every = mounting.active(settings.mount_sigma)
     idx, est, decided = np.zeros(0, int), np.zeros(0, bool), not every.size
     heading0 = None if (obs.use_across or obs.use_along) else coef[:, 5].copy()
@@ -309,7 +317,7 @@ def solve_segment(obs: Observations, spline: Spline, coef0: np.ndarray, settings
         w, _ = _robust(across[2] / across[4], max(SCALE_FLOOR, quantum / np.sqrt(12.0)))
         cov = widest(cov, clustered_covariance(across, w / across[4] ** 2, obs.scan[np.isfinite(obs.scan)], quantum,
                                                full, k))
-    sig_m = np.zeros(4)
+    sig_m = np.zeros(len(mounting.NAMES))
     if step.mount is not None:
         sig_m[every] = step.mount.sigma * np.sqrt(f)
     return SegmentFit(spline, coef, cov, sigma0, step.scales, step.n_obs, it, mount, sig_m)
