@@ -43,12 +43,10 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
                                              "when the scan-angle field holds body-frame angles (leeward's scanner: "
                                              "13.96); the heading written is then the body's."),
         encoder_sigma: str = typer.Option("0.1,0.3,0.2", "--encoder-sigma", help="Prior σ of the scan-angle encoder's "
-                                          "offset (deg), scale (%) and curvature (deg at 30°) against the true beam angle; "
-                                          "0,0 when they are known. Fitted where the points determine them, else passed "
-                                          "into the σ columns."),
+                                          "offset (deg), scale (%) and curvature (deg at 30°); 0,0 when known. Fitted where "
+                                          "the points determine them, else passed into the σ columns."),
         scan_plane_sigma: str = typer.Option("0.1,0.1,0.02", "--scan-plane-sigma", help="Prior σ of the scan plane's yaw "
-                                             "(about --scan-plane-yaw) and pitch in the body, and of the beams' cone "
-                                             "(their angle out of the plane), deg; 0,0 when known."),
+                                             "(about --scan-plane-yaw), pitch and cone (beams out of the plane), deg."),
         crs: str | None = CRS, time_system: str | None = TIME_SYSTEM, geoid_undulation: float | None = GEOID_UNDULATION,
         as_json: bool = typer.Option(False, "--json", help="Print the per-line summary as JSON."),
         force: bool = typer.Option(False, "--force", help="Overwrite the outputs."),
@@ -68,11 +66,7 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
         fmt = pipeline.output_format(out, fmt)
         if scanner not in ("planar", "other"):
             raise typer.BadParameter(f"expected planar or other, got {scanner!r}", param_hint="--scanner")
-        from calidar.trajrec.mounting import DEFAULT_SIGMA
-
-        enc = _pair(encoder_sigma, "--encoder-sigma", (np.radians(1.0), 0.01, np.radians(1.0)), DEFAULT_SIGMA[4])
-        plane = _pair(scan_plane_sigma, "--scan-plane-sigma", (np.radians(1.0),) * 3, DEFAULT_SIGMA[5])
-        mount_sigma = (enc[0], enc[1], plane[0], plane[1], enc[2], plane[2])  # the order of mounting.NAMES
+        mount_sigma = _mount_sigma(encoder_sigma, scan_plane_sigma)
         options = point_options(crs, time_system, geoid_undulation)
         rep = report if report is not None else out.parent / "report.html"
         guard_inputs([out, rep, sensor_out], [*points, compare])
@@ -113,6 +107,15 @@ def _check_outputs(paths, force: bool) -> None:
             raise OutputExistsError(f"{path}: is a folder; expected a file name")
         if path is not None and path.exists() and not force:
             raise OutputExistsError(f"{path}: exists; pass --force to overwrite it")
+
+
+def _mount_sigma(encoder_sigma: str, scan_plane_sigma: str) -> tuple[float, ...]:
+    """The prior σ of calidar.trajrec.mounting.NAMES (SI) from --encoder-sigma and --scan-plane-sigma."""
+    from calidar.trajrec.mounting import DEFAULT_SIGMA
+
+    enc = _pair(encoder_sigma, "--encoder-sigma", (np.radians(1.0), 0.01, np.radians(1.0)), DEFAULT_SIGMA[4])
+    plane = _pair(scan_plane_sigma, "--scan-plane-sigma", (np.radians(1.0),) * 3, DEFAULT_SIGMA[5])
+    return enc[0], enc[1], plane[0], plane[1], enc[2], plane[2]
 
 
 def _pair(text: str, option: str, units: tuple[float, float, float], third: float) -> tuple[float, float, float]:

@@ -22,6 +22,7 @@ are parameters with priors where ``FitSettings.mount_sigma`` gives them a σ (:m
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -119,16 +120,25 @@ def _robust(z: np.ndarray, floor: float = SCALE_FLOOR) -> tuple[np.ndarray, floa
     return 1.0 / (1.0 + (z / (CAUCHY_C * scale)) ** 2) / scale**2, scale
 
 
+@functools.lru_cache(maxsize=8)
+def _second_differences(k: int) -> np.ndarray:
+    """D₂ᵀ·D₂ of k coefficients (D₂ their second differences), made once per size."""
+    d2 = np.diff(np.eye(k), 2, axis=0)
+    out = d2.T @ d2
+    out.flags.writeable = False
+    return out
+
+
 def _prior_blocks(spline: Spline, coef: np.ndarray, s: FitSettings, n_mat, rhs, heading0=None) -> None:
     """Smoothness (second differences) on every channel, roll/pitch plausibility priors, and the
     starting heading ``heading0`` (coefficients) as a prior when nothing else determines it."""
     k = spline.n_coef
-    d2 = np.diff(np.eye(k), 2, axis=0)
+    dd = _second_differences(k)
     for c in range(6):
         sig = (s.accel_sigma if c < 3 else s.angular_accel_sigma) * spline.step**2
         sl = slice(c * k, (c + 1) * k)
-        n_mat[sl, sl] += d2.T @ d2 / sig**2
-        rhs[sl] -= d2.T @ (d2 @ coef[:, c]) / sig**2
+        n_mat[sl, sl] += dd / sig**2
+        rhs[sl] -= dd @ coef[:, c] / sig**2
     priors = [(3, s.roll_prior[0], s.roll_prior[1]), (4, s.pitch_prior[0], s.pitch_prior[1])]
     if heading0 is not None:
         priors.append((5, heading0, s.heading_start_sigma))
@@ -192,11 +202,10 @@ def _banded_solve(n_mat: np.ndarray, rhs: np.ndarray, k: int, interleaved_out: b
     from scipy.linalg import solveh_banded
 
     cm = _interleaved(k)
-    ni = n_mat[np.ix_(cm, cm)]
-    u = 23
-    ab = np.zeros((u + 1, 6 * k))
-    for d in range(u + 1):
-        ab[u - d, d:] = np.diagonal(ni, d)
+    u, n = 23, 6 * k
+    ab = np.zeros((u + 1, n))
+    for d in range(u + 1):  # the interleaved matrix's d-th diagonal, gathered from N without reordering all of it
+        ab[u - d, d:] = n_mat[cm[:n - d], cm[d:]]
     if interleaved_out:
         return solveh_banded(ab, rhs, check_finite=False)
     x = np.empty_like(rhs)
