@@ -83,7 +83,7 @@ def run_case(name: str, seed: int, folder: Path, repeats: int, mount: str = "def
     files = sorted((sim_dir / "strips").glob("*.laz"))
     base = TrajectorySettings()
     if mount == "known":
-        fit = {**fit, "mount_sigma": (0.0, 0.0, 0.0, 0.0)}
+        fit = {**fit, "mount_sigma": (0.0,) * 6}
     settings = replace(base, fit=replace(base.fit, **fit))
     n = _read_all(files)
     run, times = _interleaved(lambda: _read_all(files), lambda: reconstruct_trajectory(files, settings=settings), repeats)

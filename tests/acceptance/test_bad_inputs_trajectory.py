@@ -28,9 +28,11 @@ TRAJECTORY = [
     case(["{B}/no_scan_no_returns.laz"], "no_scan_no_returns.laz", "scan-angle field", "multi-return pulses", id="no-scan-angles-no-returns"),
     case(["{B}/one_pulse_per_line.laz"], "one_pulse_per_line.laz", "no flight line", id="one-pulse-per-line"),
     case(["{B}/short_line.laz"], "short_line.laz", "the method needs ≥ 0.5 s", id="single-short-line"),
-    case([S1, "--encoder-sigma", "0.1"], "--encoder-sigma", "two numbers", id="encoder-sigma-one-number"),
+    case([S1, "--encoder-sigma", "0.1"], "--encoder-sigma", "two or three numbers", id="encoder-sigma-one-number"),
     case([S1, "--encoder-sigma", "0.1,-1"], "--encoder-sigma", id="encoder-sigma-negative"),
     case([S1, "--scan-plane-sigma", "nan,0.1"], "--scan-plane-sigma", id="scan-plane-sigma-nan"),
+    case([S1, "--scan-plane-sigma", "0.1,0.1,0.02,1"], "--scan-plane-sigma", "two or three numbers",
+         id="scan-plane-sigma-four-numbers"),
 ]
 
 

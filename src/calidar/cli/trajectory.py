@@ -42,11 +42,11 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
         scan_plane_yaw: float = typer.Option(0.0, "--scan-plane-yaw", help="Yaw of the scan plane in the body, deg, "
                                              "when the scan-angle field holds body-frame angles (leeward's scanner: "
                                              "13.96); the heading written is then the body's."),
-        encoder_sigma: str = typer.Option("0.1,0.3", "--encoder-sigma", help="Prior σ of the scan-angle encoder's "
-                                          "offset (deg) and scale (%) against the true beam angle; 0,0 when they are "
-                                          "known. Fitted where the points determine them, else passed into the σ columns."),
-        scan_plane_sigma: str = typer.Option("0.1,0.1", "--scan-plane-sigma", help="Prior σ of the scan plane's yaw "
-                                             "(about --scan-plane-yaw) and pitch in the body, deg; 0,0 when known."),
+        encoder_sigma: str = typer.Option("0.1,0.3,0.2", "--encoder-sigma", help="Prior σ of the scan-angle encoder's "
+                                          "offset (deg), scale (%) and curvature (deg at 30°); 0,0 when known. Fitted where "
+                                          "the points determine them, else passed into the σ columns."),
+        scan_plane_sigma: str = typer.Option("0.1,0.1,0.02", "--scan-plane-sigma", help="Prior σ of the scan plane's yaw "
+                                             "(about --scan-plane-yaw), pitch and cone (beams out of the plane), deg."),
         crs: str | None = CRS, time_system: str | None = TIME_SYSTEM, geoid_undulation: float | None = GEOID_UNDULATION,
         as_json: bool = typer.Option(False, "--json", help="Print the per-line summary as JSON."),
         force: bool = typer.Option(False, "--force", help="Overwrite the outputs."),
@@ -66,8 +66,7 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
         fmt = pipeline.output_format(out, fmt)
         if scanner not in ("planar", "other"):
             raise typer.BadParameter(f"expected planar or other, got {scanner!r}", param_hint="--scanner")
-        mount_sigma = _pair(encoder_sigma, "--encoder-sigma", (np.radians(1.0), 0.01)) + \
-            _pair(scan_plane_sigma, "--scan-plane-sigma", (np.radians(1.0), np.radians(1.0)))
+        mount_sigma = _mount_sigma(encoder_sigma, scan_plane_sigma)
         options = point_options(crs, time_system, geoid_undulation)
         rep = report if report is not None else out.parent / "report.html"
         guard_inputs([out, rep, sensor_out], [*points, compare])
@@ -110,15 +109,27 @@ def _check_outputs(paths, force: bool) -> None:
             raise OutputExistsError(f"{path}: exists; pass --force to overwrite it")
 
 
-def _pair(text: str, option: str, units: tuple[float, float]) -> tuple[float, float]:
-    """Two numbers "a,b" from 0 to 10 (of the option's units), in SI (times ``units``)."""
+def _mount_sigma(encoder_sigma: str, scan_plane_sigma: str) -> tuple[float, ...]:
+    """The prior σ of calidar.trajrec.mounting.NAMES (SI) from --encoder-sigma and --scan-plane-sigma."""
+    from calidar.trajrec.mounting import DEFAULT_SIGMA
+
+    enc = _pair(encoder_sigma, "--encoder-sigma", (np.radians(1.0), 0.01, np.radians(1.0)), DEFAULT_SIGMA[4])
+    plane = _pair(scan_plane_sigma, "--scan-plane-sigma", (np.radians(1.0),) * 3, DEFAULT_SIGMA[5])
+    return enc[0], enc[1], plane[0], plane[1], enc[2], plane[2]
+
+
+def _pair(text: str, option: str, units: tuple[float, float, float], third: float) -> tuple[float, float, float]:
+    """Two or three numbers "a,b[,c]" from 0 to 10 (of the option's units), in SI (times ``units``); without c,
+    ``third`` (already SI), or 0 when a and b are both 0 (a scanner whose calibration is known)."""
     from calidar.errors import InputError
 
     parts = text.split(",")
-    if len(parts) != 2:
-        raise InputError(option, None, f"expected two numbers a,b, got {text!r}")
-    a, b = (number(v.strip(), option, 0.0, 10.0) for v in parts)
-    return a * units[0], b * units[1]
+    if len(parts) not in (2, 3):
+        raise InputError(option, None, f"expected two or three numbers a,b[,c], got {text!r}")
+    v = [number(p.strip(), option, 0.0, 10.0) * u for p, u in zip(parts, units)]
+    if len(v) == 2:
+        v.append(third if any(v) else 0.0)
+    return tuple(v)
 
 
 def _print(run, summaries) -> None:

@@ -38,18 +38,22 @@ def mounted_line(rng: np.random.Generator, mount, n: int = 20000, relief_m: floa
                  noise_deg: float = 0.003) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Times (s), ground points (ENU m, heights 0 ± ``relief_m``) and stored scan angles (rad) of
     the line: b = Rz(κ)·Ry(ε)·s in the body, the stored angle the body's across-track angle read by
-    the encoder, (angle − δ)/(1 + k) plus ``noise_deg`` of noise; ``mount`` = (δ rad, k, κ rad, ε
-    rad)."""
-    d, k, kappa, eps = mount
+    the encoder, (angle − δ − q·(angle/30°)²)/(1 + k) plus ``noise_deg`` of noise, the beams at an
+    angle c out of the scan plane; ``mount`` = (δ rad, k, κ rad, ε rad[, q rad, c rad])."""
+    # curvature q (at 30°) and cone c: 0 when not given
+    d, k, kappa, eps, curv, cone = (*mount, 0.0, 0.0)[:6]
     t = np.sort(rng.uniform(0, DURATION_S, n))
     tr = truth_of(t)
     theta = np.radians(20.0) * np.sin(2 * np.pi * 20 * t)
     rot = _axis_rotation(2, kappa) @ _axis_rotation(1, eps)
-    u_b = np.stack([np.zeros_like(theta), np.sin(theta), np.cos(theta)], 1) @ rot.T
+    beam = [np.full_like(theta, np.sin(cone)), np.cos(cone) * np.sin(theta),
+            np.cos(cone) * np.cos(theta)]
+    u_b = np.stack(beam, 1) @ rot.T
     u_enu = np.einsum("ij,njk,nk->ni", R_ENU_NED, rpy_to_matrix(tr[:, 3], tr[:, 4], tr[:, 5]), u_b)
     pts = tr[:, :3] + ((tr[:, 2] - rng.normal(0, relief_m, n)) / -u_enu[:, 2])[:, None] * u_enu
-    across = np.arctan2(u_b[:, 1], u_b[:, 2])
-    stored = (across - d) / (1 + k) + rng.normal(0, np.radians(noise_deg), n)
+    angle = np.arctan2(u_b[:, 1], u_b[:, 2])
+    read = angle - d - curv * (angle / np.radians(30.0)) ** 2
+    stored = read / (1 + k) + rng.normal(0, np.radians(noise_deg), n)
     return t, pts, stored
 
 

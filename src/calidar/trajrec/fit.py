@@ -22,6 +22,7 @@ are parameters with priors where ``FitSettings.mount_sigma`` gives them a σ (:m
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -62,7 +63,7 @@ class FitSettings:
     overlap_s: float = 2.0  #: ... overlapping by this much
     #: prior σ of the scan-angle encoder's offset (rad) and scale (1), and of the scan plane's yaw (about
     #: ``scan_plane_yaw``) and pitch in the body (rad); 0: known (held at 0), see :mod:`calidar.trajrec.mounting`
-    mount_sigma: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 0.0)
+    mount_sigma: tuple[float, ...] = (0.0,) * len(mounting.NAMES)
 
 
 @dataclass
@@ -80,6 +81,10 @@ class Observations:
     ray_t: np.ndarray  #: (M,)
     ray_sigma: np.ndarray  #: (M,) relative σ of the ray's direction (1 / separation of its returns)
     cache: dict = field(default_factory=dict, repr=False)  #: spline bases of t and ray_t (one spline per segment)
+    #: the least scale of the rays' residuals (m × 1/separation): √2 × the returns' coordinate rounding / √12, their
+    #: direction's σ from the two points alone; the rays' robust scale is at least this (a few rays' MAD is no scale:
+    #: leeward's one ray pulled its own scale to the floor and the along-track position 10 m off with it)
+    ray_floor: float = 0.0
 
     def basis(self, spline: Spline, which: str) -> tuple[np.ndarray, np.ndarray]:
         """``spline.basis`` of the point ("t") or ray ("ray_t") times, computed once."""
@@ -97,8 +102,8 @@ class SegmentFit:
     scales: dict  #: robust scale of each residual type (rad)
     n_obs: dict
     iterations: int
-    mount: np.ndarray = field(default_factory=lambda: np.zeros(4))  #: estimates (mounting.NAMES)
-    mount_sigma: np.ndarray = field(default_factory=lambda: np.zeros(4))  #: their posterior σ (0: held)
+    mount: np.ndarray = field(default_factory=lambda: np.zeros(len(mounting.NAMES)))  #: estimates (mounting.NAMES)
+    mount_sigma: np.ndarray = field(default_factory=lambda: np.zeros(len(mounting.NAMES)))  #: their posterior σ (0: held)
 
 
 def _normal_blocks(spline: Spline, basis, r, g, w_obs, n_mat, rhs):
@@ -115,16 +120,25 @@ def _robust(z: np.ndarray, floor: float = SCALE_FLOOR) -> tuple[np.ndarray, floa
     return 1.0 / (1.0 + (z / (CAUCHY_C * scale)) ** 2) / scale**2, scale
 
 
+@functools.lru_cache(maxsize=8)
+def _second_differences(k: int) -> np.ndarray:
+    """D₂ᵀ·D₂ of k coefficients (D₂ their second differences), made once per size."""
+    d2 = np.diff(np.eye(k), 2, axis=0)
+    out = d2.T @ d2
+    out.flags.writeable = False
+    return out
+
+
 def _prior_blocks(spline: Spline, coef: np.ndarray, s: FitSettings, n_mat, rhs, heading0=None) -> None:
     """Smoothness (second differences) on every channel, roll/pitch plausibility priors, and the
     starting heading ``heading0`` (coefficients) as a prior when nothing else determines it."""
     k = spline.n_coef
-    d2 = np.diff(np.eye(k), 2, axis=0)
+    dd = _second_differences(k)
     for c in range(6):
         sig = (s.accel_sigma if c < 3 else s.angular_accel_sigma) * spline.step**2
         sl = slice(c * k, (c + 1) * k)
-        n_mat[sl, sl] += d2.T @ d2 / sig**2
-        rhs[sl] -= d2.T @ (d2 @ coef[:, c]) / sig**2
+        n_mat[sl, sl] += dd / sig**2
+        rhs[sl] -= dd @ coef[:, c] / sig**2
     priors = [(3, s.roll_prior[0], s.roll_prior[1]), (4, s.pitch_prior[0], s.pitch_prior[1])]
     if heading0 is not None:
         priors.append((5, heading0, s.heading_start_sigma))
@@ -152,12 +166,19 @@ def _types(obs: Observations, spline: Spline, coef: np.ndarray, settings: FitSet
         kappa, eps = settings.scan_plane_yaw + mount[2], mount[3]
         r, g = scan_partials(obs.points, state, (1.0 + mount[1]) * scan + mount[0], kappa, eps)
         if obs.use_across:
+            # the stored angle is the observation, the geometry's angle read by the encoder its model:
+            # (angle − offset)/(1 + scale) − stored, whose partials hold no noise (mounting.design)
             ok = np.isfinite(obs.scan)
-            out.append(("across", (basis[0][ok], basis[1][ok]), r[ok, 0], g[ok, 0], np.ones(int(ok.sum())),
-                        mounting.design("across", int(ok.sum()), scan=scan[ok], idx=idx)))
+            f = 1.0 / (1.0 + mount[1])
+            angle = r[ok, 0] + (1.0 + mount[1]) * scan[ok] + mount[0]  # the geometry's across-track angle
+            q = mount[4] / mounting.CURVATURE_AT**2
+            read = (angle - mount[0] - q * angle**2) * f  # what the encoder reads of it
+            g_a = g[ok, 0] * (f * (1.0 - 2.0 * q * angle))[:, None]
+            gm = mounting.design("across", int(ok.sum()), scan=read, idx=idx, scale=mount[1], angle=angle)
+            out.append(("across", (basis[0][ok], basis[1][ok]), read - scan[ok], g_a, np.ones(int(ok.sum())), gm))
         if obs.use_along:
-            gp = mount_partials(obs.points, state, kappa, eps) if np.any(idx >= 2) else None
-            out.append(("along", basis, r[:, 1], g[:, 1], np.ones(obs.t.size),
+            gp = mount_partials(obs.points, state, kappa, eps) if np.any((idx == 2) | (idx == 3)) else None
+            out.append(("along", basis, r[:, 1] - mount[5], g[:, 1], np.ones(obs.t.size),
                         mounting.design("along", obs.t.size, along_partials=gp, idx=idx)))
     if obs.ray_t.size:
         basis = obs.basis(spline, "ray_t")
@@ -181,11 +202,10 @@ def _banded_solve(n_mat: np.ndarray, rhs: np.ndarray, k: int, interleaved_out: b
     from scipy.linalg import solveh_banded
 
     cm = _interleaved(k)
-    ni = n_mat[np.ix_(cm, cm)]
-    u = 23
-    ab = np.zeros((u + 1, 6 * k))
-    for d in range(u + 1):
-        ab[u - d, d:] = np.diagonal(ni, d)
+    u, n = 23, 6 * k
+    ab = np.zeros((u + 1, n))
+    for d in range(u + 1):  # the interleaved matrix's d-th diagonal, gathered from N without reordering all of it
+        ab[u - d, d:] = n_mat[cm[:n - d], cm[d:]]
     if interleaved_out:
         return solveh_banded(ab, rhs, check_finite=False)
     x = np.empty_like(rhs)
@@ -199,7 +219,7 @@ def _thin(obs: Observations, step: int) -> Observations:
         return obs
     return Observations(obs.points[::step], obs.t[::step], obs.scan[::step], obs.use_across, obs.use_along,
                         obs.ray_last[::step], obs.ray_u1[::step], obs.ray_u2[::step], obs.ray_t[::step],
-                        obs.ray_sigma[::step])
+                        obs.ray_sigma[::step], ray_floor=obs.ray_floor)
 
 
 @dataclass
@@ -230,7 +250,8 @@ def _iterate(obs: Observations, spline: Spline, coef: np.ndarray, settings: FitS
     quantum = scan_quantum(obs.scan) if obs.use_across else 0.0
     for name, basis, r, g, rel, gm in _types(obs, spline, coef, settings, mount, idx):
         floor = max(SCALE_FLOOR, quantum / np.sqrt(12.0)) if name == "across" else SCALE_FLOOR
-        w, scale = _robust(r / rel, floor / float(np.median(rel)))
+        floor = floor / float(np.median(rel))
+        w, scale = _robust(r / rel, max(floor, obs.ray_floor) if name.startswith("ray") else floor)
         scales[name.rstrip("01")] = scale
         n_obs[name] = int(r.size)
         wr = w / rel**2
@@ -261,7 +282,7 @@ def solve_segment(obs: Observations, spline: Spline, coef0: np.ndarray, settings
     once the trajectory has converged: one step finds which the points determine; those are
     estimated with it, the others held and their σ passed on (in the last step)."""
     coef = np.array(coef0, float)
-    mount = np.zeros(4)
+    mount = np.zeros(len(mounting.NAMES))
     every = mounting.active(settings.mount_sigma)
     idx, est, decided = np.zeros(0, int), np.zeros(0, bool), not every.size
     heading0 = None if (obs.use_across or obs.use_along) else coef[:, 5].copy()
@@ -305,7 +326,7 @@ def solve_segment(obs: Observations, spline: Spline, coef0: np.ndarray, settings
         w, _ = _robust(across[2] / across[4], max(SCALE_FLOOR, quantum / np.sqrt(12.0)))
         cov = widest(cov, clustered_covariance(across, w / across[4] ** 2, obs.scan[np.isfinite(obs.scan)], quantum,
                                                full, k))
-    sig_m = np.zeros(4)
+    sig_m = np.zeros(len(mounting.NAMES))
     if step.mount is not None:
         sig_m[every] = step.mount.sigma * np.sqrt(f)
     return SegmentFit(spline, coef, cov, sigma0, step.scales, step.n_obs, it, mount, sig_m)

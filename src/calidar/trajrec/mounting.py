@@ -29,14 +29,25 @@ import numpy as np
 
 from calidar.trajrec.kernels import accumulate_border
 
-#: the parameters, in order: scan-angle offset (rad), scan-angle scale (1), scan-plane yaw, pitch (rad)
-NAMES = ("scan_offset", "scan_scale", "scan_plane_yaw", "scan_plane_pitch")
+#: the parameters, in order: scan-angle offset (rad), scan-angle scale (1), scan-plane yaw, pitch (rad), the
+#: encoder's curvature (its error's quadratic term, as the angle it reaches at 30°, rad) and the scan's cone
+#: (the beams' constant angle out of the scan plane, rad: a scanner whose beams sweep a flat cone, not a plane)
+NAMES = ("scan_offset", "scan_scale", "scan_plane_yaw", "scan_plane_pitch", "scan_curvature", "scan_cone")
+LABELS = {"scan_offset": "scan-angle offset", "scan_scale": "scan-angle scale", "scan_plane_yaw": "scan-plane yaw",
+          "scan_plane_pitch": "scan-plane pitch", "scan_curvature": "scan-angle curvature (at 30°)",
+          "scan_cone": "scan cone"}
+#: which parameters the scan-angle field carries (the others: the planar scan lines)
+OF_SCAN_ANGLES = (True, True, False, False, True, False)
+CURVATURE_AT = float(np.radians(30.0))  #: the angle at which the curvature term is stated
 #: ``calidar trajectory``'s default prior σ: offset 0.1°, scale 0.3 %, yaw and pitch 0.1° — of the order
 #: leeward's scanner shows against its SBET (−0.09°, +0.25 %, pitch 0.07°) and of the boresight errors a
-#: calibration flight removes (calidar's simulated surveys draw 0.1° per axis). Datasheets give the encoder's
-#: resolution (RIEGL VQ-840-G: "angle measurement resolution 0.001°"), not its calibration against the
+#: calibration flight removes (calidar's simulated surveys draw 0.1° per axis); curvature 0.2° at 30° and cone
+#: 0.02°, the order of what leeward's angles show beyond an offset, a scale and a pitched plane (0.18° at 30°;
+#: along-track angles 0.067° − 0.042°·θ²: a plane pitched 0.083° and a cone of −0.016°). Datasheets give the
+#: encoder's resolution (RIEGL VQ-840-G: "angle measurement resolution 0.001°"), not its calibration against the
 #: trajectory, which no stored datasheet or calibration report states; a user who knows them gives 0
-DEFAULT_SIGMA = (float(np.radians(0.1)), 0.003, float(np.radians(0.1)), float(np.radians(0.1)))
+DEFAULT_SIGMA = (float(np.radians(0.1)), 0.003, float(np.radians(0.1)), float(np.radians(0.1)),
+                 float(np.radians(0.2)), float(np.radians(0.02)))
 
 
 def notes(mount: dict) -> list[str]:
@@ -46,7 +57,7 @@ def notes(mount: dict) -> list[str]:
     est, held = [], []
     for name, (v, s, prior) in mount.items():
         scale, unit = (100.0, " %") if name == "scan_scale" else (float(np.degrees(1.0)), "°")
-        label = name.replace("scan_plane_", "scan-plane ").replace("scan_", "scan-angle ")
+        label = LABELS[name]
         if s < 0.5 * prior:
             est.append(f"{label} {v * scale:+.2g} ± {s * scale:.2g}{unit}")
         else:
@@ -62,15 +73,27 @@ def active(sigmas) -> np.ndarray:
     return np.flatnonzero(np.asarray(sigmas, float) > 0)
 
 
-def design(name: str, n: int, scan=None, along_partials=None, idx=()) -> np.ndarray:
+def design(name: str, n: int, scan=None, along_partials=None, idx=(), scale: float = 0.0, angle=None) -> np.ndarray:
     """Partials (n, m) of one residual type by the active parameters ``idx``: the across-track residual
-    (angle − ((1 + scale)·scan + offset)) by offset and scale, the along-track one by the scan plane's
-    yaw and pitch (``along_partials`` (n, 2)); rays by none."""
-    full = np.zeros((n, 4))
+    ((angle − offset − curvature·(angle/30°)²)/(1 + scale) − stored angle; ``scan``: the model's reading,
+    the first term; ``angle``: the geometry's angle) by offset, scale and curvature, the along-track one
+    (angle − cone) by the scan plane's yaw and pitch (``along_partials`` (n, 2)) and the cone; rays by none.
+
+    The stored angle is the observation, not a regressor: written as angle − (1 + scale)·stored − offset,
+    the scale's partial −stored would carry the angle's noise e, and Σ stored·r its E[e²] per point, a bias
+    of about −σ_scale²·Σ 1/σ_e²·σ_e² = −n·σ_scale² (errors in variables; the scale is nearly collinear
+    with the height, so σ_scale is large: −1.4 σ measured on a synthetic line, −1e-4 and the height
+    0.1 m off on the simulated airborne survey with one return a pulse)."""
+    full = np.zeros((n, len(NAMES)))
     if name == "across":
-        full[:, 0], full[:, 1] = -1.0, -scan
+        f = 1.0 / (1.0 + scale)
+        full[:, 0], full[:, 1] = -f, -scan * f
+        if angle is not None:
+            full[:, 4] = -f * (angle / CURVATURE_AT) ** 2
     elif name == "along":
-        full[:, 2:] = along_partials
+        if along_partials is not None:
+            full[:, 2:4] = along_partials
+        full[:, 5] = -1.0
     return full[:, idx]
 
 
@@ -129,4 +152,7 @@ def mount_step(x_rhs: np.ndarray, x_b: np.ndarray, b: np.ndarray, c: np.ndarray,
     if h.size:
         z = x_b[:, h] - (x_b[:, e] @ s_e_inv @ s_all[np.ix_(e, h)] if e.size else 0.0)
         factors.append(z * sigma[h])
+        if e.size:  # the held ones move the estimated ones too: −S_e⁻¹·S_eh per unit, their prior σ passed on
+            moved = s_e_inv @ s_all[np.ix_(e, h)] * sigma[h]
+            post[e] = np.sqrt(post[e] ** 2 + np.sum(moved**2, axis=1))
     return MountStep(dx, dg, np.hstack(factors) if factors else np.zeros((x_rhs.size, 0)), post, est)

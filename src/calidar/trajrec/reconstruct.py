@@ -73,6 +73,13 @@ def _segments(t0: float, t1: float, s: FitSettings) -> list[tuple[float, float, 
     return [(max(a - s.overlap_s, t0), min(b + s.overlap_s, t1), a, b) for a, b in zip(edges[:-1], edges[1:])]
 
 
+def coordinate_step(xyz: np.ndarray) -> float:
+    """The heights' rounding step (the LAS scale, in the file's units): the smallest difference between
+    distinct heights (0 with fewer than two)."""
+    z = np.unique(xyz[:, 2]) if xyz.size else np.empty(0)
+    return float(np.min(np.diff(z))) if z.size > 1 else 0.0
+
+
 def height_unit_m(crs) -> float:
     """Metres per unit of the points' heights: a 2-D projected CRS in feet has its heights in feet
     too (LAS files carry one unit), which PROJ would pass through as metres."""
@@ -94,7 +101,7 @@ def _select(obs: Observations, a: float, b: float) -> Observations:
     pm = (obs.t >= a) & (obs.t <= b)
     rm = (obs.ray_t >= a) & (obs.ray_t <= b)
     return Observations(obs.points[pm], obs.t[pm], obs.scan[pm], obs.use_across, obs.use_along, obs.ray_last[rm],
-                        obs.ray_u1[rm], obs.ray_u2[rm], obs.ray_t[rm], obs.ray_sigma[rm])
+                        obs.ray_u1[rm], obs.ray_u2[rm], obs.ray_t[rm], obs.ray_sigma[rm], ray_floor=obs.ray_floor)
 
 
 def _fit_segments(obs: Observations, st: Spline, sc: np.ndarray, settings: FitSettings, out_t: np.ndarray):
@@ -138,12 +145,14 @@ def reconstruct_line(line: LinePoints, crs, undulation, settings: FitSettings, r
                          f"scan-plane geometry; the method needs ≥ {MIN_RAYS} pulses with several returns")
     scan = np.radians(line.scan) if use_scan else np.full(line.t.size, np.nan)
     # the encoder's terms need the scan-angle field, the scan plane's the planar geometry
-    m = np.asarray(settings.mount_sigma, float) * np.repeat([use_scan, settings.planar_scanner], 2)
+    m = np.zeros(len(mounting.NAMES))
+    m[:len(settings.mount_sigma)] = settings.mount_sigma  # older 4-term settings: the others known
+    m = m * np.where(mounting.OF_SCAN_ANGLES, use_scan, settings.planar_scanner)
     settings = replace(settings, mount_sigma=tuple(float(v) for v in m))
     st, sc, sign, start_from = _start(line, p, scan, (line.ray_t, last, d), use_scan, source)
     u1, u2 = ray_basis(d) if sep.size else (np.empty((0, 3)), np.empty((0, 3)))
     obs = Observations(p, line.t, sign * scan, use_scan, settings.planar_scanner, last, u1, u2, line.ray_t,
-                       1.0 / np.maximum(sep, 0.1))
+                       1.0 / np.maximum(sep, 0.1), ray_floor=np.sqrt(2.0 / 12.0) * coordinate_step(line.xyz) * height_unit_m(crs))
     # epochs reach EDGE_S past the kept points: the thinned-out points at a line's ends stay covered
     n_out = int(np.ceil((line.t[-1] - line.t[0] + 2 * EDGE_S) * rate_hz)) + 1
     out_t = line.t[0] - EDGE_S + np.arange(n_out) / rate_hz
