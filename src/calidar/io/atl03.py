@@ -32,6 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from calidar.errors import InputError
+from calidar.io.atl03_along import SEGMENTS_SOURCE, along_track
 from calidar.validate import existing_file
 from calidar.validate import values as checked
 
@@ -41,13 +42,15 @@ BEAMS = ("gt1l", "gt1r", "gt2l", "gt2r", "gt3l", "gt3r")
 SURFACE_TYPES = ("land", "ocean", "sea_ice", "land_ice", "inland_water")
 #: Detector channels of a strong and of a weak ATLAS beam.
 CHANNELS = {"strong": 16, "weak": 4}
-_HEIGHTS = ("delta_time", "lat_ph", "lon_ph", "h_ph", "dist_ph_along", "dist_ph_across", "signal_conf_ph")
+EPOCH_UNITS = "seconds since 2018-01-01"  #: the units attribute of ATL03's delta_time
+_HEIGHTS = ("delta_time", "lat_ph", "lon_ph", "h_ph", "dist_ph_along", "dist_ph_across",
+            "signal_conf_ph")
 _SEGMENTS = ("segment_id", "ph_index_beg", "segment_ph_cnt")
 #: Ranges every photon's values must lie in (SI; lat/lon in degrees as in the file).
-_RANGES = {"delta_time": (0.0, 1e10, "s"), "lat_ph": (-90.0, 90.0, "deg"), "lon_ph": (-180.0, 360.0, "deg"),
-           "h_ph": (-2000.0, 15000.0, "m"), "dist_ph_along": (-1000.0, 1000.0, "m"),
-           "dist_ph_across": (-20000.0, 20000.0, "m"), "signal_conf_ph": (-2.0, 4.0, "")}
-SEGMENTS_SOURCE = "segments"  #: along_track_source when the segment bookkeeping covers every photon
+_RANGES = {"delta_time": (0.0, 1e10, "s"), "lat_ph": (-90.0, 90.0, "deg"),
+           "lon_ph": (-180.0, 360.0, "deg"), "h_ph": (-2000.0, 15000.0, "m"),
+           "dist_ph_along": (-1000.0, 1000.0, "m"), "dist_ph_across": (-20000.0, 20000.0, "m"),
+           "signal_conf_ph": (-2.0, 4.0, "")}
 
 
 @dataclass
@@ -66,13 +69,17 @@ class PhotonBeam:
     segment_id: np.ndarray  #: (S,) int
     ph_index_beg: np.ndarray  #: (S,) 1-based index of each segment's first photon (0 = empty)
     segment_ph_cnt: np.ndarray  #: (S,) photons per segment
-    segment_dist_x: np.ndarray | None = None  #: (S,) m, along-track distance of each segment start
+    #: (S,) m, along-track distance of each segment start
+    segment_dist_x: np.ndarray | None = None
     source: str | None = None
-    segment_time: np.ndarray | None = None  #: (S,) s, delta_time of each segment's reference photon
+    #: (S,) s, delta_time of each segment's reference photon
+    segment_time: np.ndarray | None = None
     strength: str | None = None  #: "strong", "weak" or None (unknown)
     spot: int | None = None  #: ATLAS laser spot 1–6 (the physical beam), None when unknown
-    along_track: np.ndarray | None = None  #: (N,) m, set by :func:`along_track` (computed on first use)
-    along_track_source: str | None = None  #: how ``along_track`` was found (SEGMENTS_SOURCE or a note)
+    #: (N,) m, set by :func:`~calidar.io.atl03_along.along_track` (computed on first use)
+    along_track: np.ndarray | None = None
+    #: how ``along_track`` was found (SEGMENTS_SOURCE or a note)
+    along_track_source: str | None = None
 
     def __len__(self) -> int:
         return int(self.h.size)
@@ -92,7 +99,8 @@ class PhotonBeam:
     @property
     def label(self) -> str:
         """The ground track with its laser spot and strength when known: 'gt1l (spot 6, weak)'."""
-        extra = ", ".join(x for x in (f"spot {self.spot}" if self.spot else "", self.strength or "") if x)
+        parts = (f"spot {self.spot}" if self.spot else "", self.strength or "")
+        extra = ", ".join(x for x in parts if x)
         return f"{self.beam} ({extra})" if extra else self.beam
 
     def shot_index(self) -> np.ndarray:
@@ -102,74 +110,6 @@ class PhotonBeam:
             return np.concatenate([[0], np.cumsum(t[1:] != t[:-1])])
         _, inv = np.unique(t, return_inverse=True)
         return inv
-
-
-def _tiling_segments(beam: PhotonBeam) -> np.ndarray | None:
-    """Segment index of every photon when ph_index_beg/segment_ph_cnt tile photons 1…N exactly
-    (in order, no gap, no overlap); None when the bookkeeping is partial."""
-    n = beam.h.size
-    cnt = beam.segment_ph_cnt.astype(np.int64)
-    beg = beam.ph_index_beg.astype(np.int64)
-    used = np.flatnonzero((cnt > 0) & (beg > 0))
-    if n == 0 or used.size == 0:
-        return None
-    b, c = beg[used], cnt[used]
-    if b[0] != 1 or np.any(b[1:] != b[:-1] + c[:-1]) or b[-1] + c[-1] - 1 != n:
-        return None
-    return np.repeat(used, c)
-
-
-def _segment_starts(beam: PhotonBeam) -> np.ndarray | None:
-    return None if beam.segment_dist_x is None else np.asarray(beam.segment_dist_x, np.float64)
-
-
-def along_track(beam: PhotonBeam) -> tuple[np.ndarray, str]:
-    """(along-track distance of every photon (m), how it was found); see the module docstring."""
-    n = beam.h.size
-    if n == 0:
-        return np.zeros(0), SEGMENTS_SOURCE
-    starts = _segment_starts(beam)
-    seg = _tiling_segments(beam)
-    if seg is not None:
-        x = (starts[seg] if starts is not None else 0.0) + beam.dist_along
-        if starts is not None or beam.segment_id.size == 1:
-            return x, SEGMENTS_SOURCE
-    if starts is not None and beam.segment_time is not None and beam.segment_time.size >= 2:
-        x = _by_time(beam, starts)
-        if x is not None:
-            return x, ("photon times (the segment bookkeeping ph_index_beg/segment_ph_cnt does not match the "
-                       "photons, as in clipped or subset files: each photon placed on its 20 m segment by its time)")
-    missing = "segment_dist_x" if starts is None else "delta_time"
-    raise InputError(beam.source, f"{beam.beam}/geolocation/{missing}",
-                     "needed to place the photons on their 20 m segments: ph_index_beg/segment_ph_cnt do not match "
-                     "the photons (a clipped or subset file); expected the geolocation arrays of the granule")
-
-
-def _by_time(beam: PhotonBeam, starts: np.ndarray) -> np.ndarray | None:
-    """Along-track distance from each photon's time and dist_ph_along: the time predicts the
-    distance (segments' reference times → their centres, linear between and beyond them); the
-    photon's segment is the one whose start + dist_ph_along lies nearest. None when more than
-    1 % of the photons land over 5 m from the prediction (the arrays do not belong together)."""
-    order = np.argsort(beam.segment_time, kind="stable")
-    ts, xs = beam.segment_time[order], starts[order]
-    length = np.median(np.diff(xs)) if xs.size > 1 else 20.0
-    centre = xs + 0.5 * length
-    ok = np.concatenate([[True], np.diff(ts) > 0])
-    ts, centre, xs = ts[ok], centre[ok], xs[ok]
-    if ts.size < 2:
-        return None
-    speed = (centre[-1] - centre[0]) / (ts[-1] - ts[0])
-    t = beam.delta_time
-    pred = np.interp(t, ts, centre)
-    pred = np.where(t < ts[0], centre[0] + speed * (t - ts[0]), pred)
-    pred = np.where(t > ts[-1], centre[-1] + speed * (t - ts[-1]), pred)
-    start_sorted = np.sort(xs)
-    k = np.clip(np.searchsorted(start_sorted, pred - beam.dist_along), 1, start_sorted.size - 1)
-    cand = np.stack([start_sorted[k - 1], start_sorted[k]]) + beam.dist_along
-    x = np.where(np.abs(cand[0] - pred) <= np.abs(cand[1] - pred), cand[0], cand[1])
-    if np.mean(np.abs(x - pred) > 5.0) > 0.01:
-        return None
-    return x
 
 
 def _need(group, name: str, path, where: str):
@@ -208,15 +148,19 @@ def select_beams(path: str | Path, text: str) -> list[str]:
         return have
     for b in names or [""]:
         if b not in BEAMS:
-            raise InputError(None, "--beam", f"expected all, one of {', '.join(BEAMS)} or several separated by "
-                             f"commas, got {text!r}")
+            raise InputError(None, "--beam", f"expected all, one of {', '.join(BEAMS)} or several "
+                             f"separated by commas, got {text!r}")
         if b not in have:
-            raise InputError(path, b, f"beam group missing; the file has {', '.join(have) or 'no beams'}")
+            raise InputError(path, b,
+                             f"beam group missing; the file has {', '.join(have) or 'no beams'}")
     return list(dict.fromkeys(names))
 
 
 def _text(v) -> str:
-    return (v.decode() if isinstance(v, bytes) else str(np.asarray(v).ravel()[0] if np.ndim(v) else v)).strip().lower()
+    """An HDF5 attribute (bytes, a one-element array or a scalar) as lower-case text."""
+    if isinstance(v, bytes):
+        return v.decode().strip().lower()
+    return str(np.asarray(v).ravel()[0] if np.ndim(v) else v).strip().lower()
 
 
 def beam_strength(f, beam: str) -> tuple[str | None, int | None]:
@@ -236,14 +180,46 @@ def beam_strength(f, beam: str) -> tuple[str | None, int | None]:
 
 def read_atl03(path: str | Path, beam: str = "gt1l") -> PhotonBeam:
     """Read the photons of one beam of an ATL03 file (degrees in the file → radians); every
-    value checked (finite, in range); the along-track distance resolved (:func:`along_track`)."""
+    value checked (finite, in range); the along-track distance resolved
+    (:func:`~calidar.io.atl03_along.along_track`)."""
     path = Path(path)
     if beam not in BEAMS:
         raise InputError(None, "--beam", f"expected one of {', '.join(BEAMS)} or all, got {beam!r}")
+    d, s, quality, dist_x, seg_time, strength, spot = _read_beam(path, beam)
+    _check_heights(d, path, beam)
+    conf = d["signal_conf_ph"]
+    if conf.ndim != 2 or conf.shape[1] != len(SURFACE_TYPES):
+        raise InputError(path, f"{beam}/heights/signal_conf_ph",
+                         f"expected shape (N, 5), got {conf.shape}")
+
+    def f64(a):
+        return a.astype(np.float64)
+
+    pb = PhotonBeam(
+        beam=beam, delta_time=f64(d["delta_time"]), lat=np.radians(f64(d["lat_ph"])),
+        lon=np.radians(f64(d["lon_ph"])), h=f64(d["h_ph"]), dist_along=f64(d["dist_ph_along"]),
+        dist_across=f64(d["dist_ph_across"]), signal_conf=conf.astype(np.int8),
+        quality=np.asarray(quality, np.int8), segment_id=s["segment_id"].astype(np.int64),
+        ph_index_beg=s["ph_index_beg"].astype(np.int64),
+        segment_ph_cnt=s["segment_ph_cnt"].astype(np.int64),
+        segment_dist_x=None if dist_x is None else np.asarray(dist_x, np.float64),
+        source=str(path),
+        segment_time=None if seg_time is None else np.asarray(seg_time, np.float64),
+        strength=strength, spot=spot,
+    )
+    pb.along_track, pb.along_track_source = along_track(pb)
+    return pb
+
+
+def _read_beam(path: Path, beam: str):
+    """The raw arrays of one beam: its heights fields, its segments' bookkeeping, quality_ph
+    (zeros when absent), the segments' starts (m; from their lengths when absent; None), their
+    reference times (s; None) and the beam's strength and spot."""
     with _open_hdf5(path) as f:
         if beam not in f:
             have = [b for b in BEAMS if b in f]
-            raise InputError(path, beam, f"beam group missing; the file has {', '.join(have) or 'no beams'}")
+            raise InputError(path, beam,
+                             f"beam group missing; the file has {', '.join(have) or 'no beams'}")
         for grp in ("heights", "geolocation"):
             if grp not in f[beam]:
                 raise InputError(path, f"{beam}/{grp}", "group missing from the ATL03 file")
@@ -260,36 +236,31 @@ def read_atl03(path: str | Path, beam: str = "gt1l") -> PhotonBeam:
             dist_x = None
         seg_time = gg["delta_time"][()] if "delta_time" in gg else None
         strength, spot = beam_strength(f, beam)
-    for k in _HEIGHTS:  # one value per photon (signal_conf_ph: five): a 2-D field is named, not its neighbours
+    return d, s, quality, dist_x, seg_time, strength, spot
+
+
+def _check_heights(d: dict, path: Path, beam: str) -> None:
+    """One value per photon in every heights field (signal_conf_ph: five; a 2-D field is named,
+    not its neighbours), each in its range, the photons in time order."""
+    for k in _HEIGHTS:
         if d[k].ndim != (2 if k == "signal_conf_ph" else 1):
             want = "shape (N, 5)" if k == "signal_conf_ph" else "one value per photon (1-D)"
-            raise InputError(path, f"{beam}/heights/{k}", f"expected {want}, got shape {d[k].shape}")
+            raise InputError(path, f"{beam}/heights/{k}",
+                             f"expected {want}, got shape {d[k].shape}")
     n = d["h_ph"].shape[0]
     for k in _HEIGHTS:
         if d[k].shape[0] != n:
-            raise InputError(path, f"{beam}/heights/{k}", f"expected {n} rows like h_ph, got {d[k].shape[0]}")
+            raise InputError(path, f"{beam}/heights/{k}",
+                             f"expected {n} rows like h_ph, got {d[k].shape[0]}")
         lo, hi, unit = _RANGES[k]
         checked(d[k], path, f"{beam}/heights/{k}", lo, hi, unit, what="photon")
-    back = np.flatnonzero(np.diff(d["delta_time"]) < 0)
+    t = d["delta_time"]
+    back = np.flatnonzero(np.diff(t) < 0)
     if back.size:
         i = int(back[0])
-        raise InputError(path, f"{beam}/heights/delta_time", f"expected photons in time order; {back.size} steps back, "
-                         f"the first at photon {i + 1} ({d['delta_time'][i]:.6f} → {d['delta_time'][i + 1]:.6f} s)")
-    conf = d["signal_conf_ph"]
-    if conf.ndim != 2 or conf.shape[1] != len(SURFACE_TYPES):
-        raise InputError(path, f"{beam}/heights/signal_conf_ph", f"expected shape (N, 5), got {conf.shape}")
-    pb = PhotonBeam(
-        beam=beam, delta_time=d["delta_time"].astype(np.float64),
-        lat=np.radians(d["lat_ph"].astype(np.float64)), lon=np.radians(d["lon_ph"].astype(np.float64)),
-        h=d["h_ph"].astype(np.float64), dist_along=d["dist_ph_along"].astype(np.float64),
-        dist_across=d["dist_ph_across"].astype(np.float64), signal_conf=conf.astype(np.int8),
-        quality=np.asarray(quality, np.int8), segment_id=s["segment_id"].astype(np.int64),
-        ph_index_beg=s["ph_index_beg"].astype(np.int64), segment_ph_cnt=s["segment_ph_cnt"].astype(np.int64),
-        segment_dist_x=None if dist_x is None else np.asarray(dist_x, np.float64), source=str(path),
-        segment_time=None if seg_time is None else np.asarray(seg_time, np.float64), strength=strength, spot=spot,
-    )
-    pb.along_track, pb.along_track_source = along_track(pb)
-    return pb
+        raise InputError(path, f"{beam}/heights/delta_time", "expected photons in time order; "
+                         f"{back.size} steps back, the first at photon {i + 1} "
+                         f"({t[i]:.6f} → {t[i + 1]:.6f} s)")
 
 
 def atl03_summary(path: str | Path) -> dict:
@@ -300,21 +271,30 @@ def atl03_summary(path: str | Path) -> dict:
     path = Path(path)
     beams = atl03_beams(path)
     if not beams:
-        raise InputError(path, None, "an HDF5 file without ATL03 beam groups (gt1l … gt3r/heights); calidar info "
-                         "reads LAS/LAZ, SBET, text trajectories and ICESat-2 ATL03 (HDF5)")
-    span = lambda a: [float(a.min()), float(a.max())] if a.size else None  # noqa: E731
+        raise InputError(path, None, "an HDF5 file without ATL03 beam groups (gt1l … "
+                         "gt3r/heights); calidar info reads LAS/LAZ, SBET, text trajectories and "
+                         "ICESat-2 ATL03 (HDF5)")
+
+    def span(a):
+        return [float(a.min()), float(a.max())] if a.size else None
+
     rows = []
     for b in beams:
         pb = read_atl03(path, b)
-        rows.append({"beam": b, "photons": len(pb), "shots": int(pb.shot_index().max() + 1) if len(pb) else 0,
+        shots = int(pb.shot_index().max() + 1) if len(pb) else 0
+        rows.append({"beam": b, "photons": len(pb), "shots": shots,
                      "segments": int(pb.segment_id.size), "strength": pb.strength, "spot": pb.spot,
                      "along_track_from": pb.along_track_source, "delta_time": span(pb.delta_time),
-                     "lat_deg": span(np.degrees(pb.lat)), "lon_deg": span(np.degrees(pb.lon)), "h_m": span(pb.h)})
-    partial = [r["beam"] for r in rows if r["photons"] and r["along_track_from"] != SEGMENTS_SOURCE]
-    warning = (f"{', '.join(partial)}: along-track distance from the "
-               f"{next(r for r in rows if r['beam'] == partial[0])['along_track_from']}") if partial else None
-    return {"file": str(path), "kind": "photons (ICESat-2 ATL03)", "photons": sum(r["photons"] for r in rows),
-            "beams": rows, "warning": warning}
+                     "lat_deg": span(np.degrees(pb.lat)), "lon_deg": span(np.degrees(pb.lon)),
+                     "h_m": span(pb.h)})
+    partial = [r["beam"] for r in rows
+               if r["photons"] and r["along_track_from"] != SEGMENTS_SOURCE]
+    warning = None
+    if partial:
+        how = next(r for r in rows if r["beam"] == partial[0])["along_track_from"]
+        warning = f"{', '.join(partial)}: along-track distance from the {how}"
+    return {"file": str(path), "kind": "photons (ICESat-2 ATL03)",
+            "photons": sum(r["photons"] for r in rows), "beams": rows, "warning": warning}
 
 
 def segment_photons(x_m: np.ndarray, segment_length_m: float = 20.0, first_id: int = 1):
@@ -365,12 +345,14 @@ def _write_beams(f, beams: list[PhotonBeam]) -> None:
         if b.spot:
             grp.attrs["atlas_spot_number"] = str(b.spot)
         hg = grp.create_group("heights")
-        hg.create_dataset("delta_time", data=b.delta_time).attrs["units"] = "seconds since 2018-01-01"
-        hg.create_dataset("lat_ph", data=np.degrees(b.lat)).attrs["units"] = "degrees_north"
-        hg.create_dataset("lon_ph", data=np.degrees(b.lon)).attrs["units"] = "degrees_east"
-        hg.create_dataset("h_ph", data=b.h.astype(np.float32)).attrs["units"] = "meters"
-        hg.create_dataset("dist_ph_along", data=b.dist_along.astype(np.float32)).attrs["units"] = "meters"
-        hg.create_dataset("dist_ph_across", data=b.dist_across.astype(np.float32)).attrs["units"] = "meters"
+        with_units = (("delta_time", b.delta_time, EPOCH_UNITS),
+                      ("lat_ph", np.degrees(b.lat), "degrees_north"),
+                      ("lon_ph", np.degrees(b.lon), "degrees_east"),
+                      ("h_ph", b.h.astype(np.float32), "meters"),
+                      ("dist_ph_along", b.dist_along.astype(np.float32), "meters"),
+                      ("dist_ph_across", b.dist_across.astype(np.float32), "meters"))
+        for name, data, units in with_units:
+            hg.create_dataset(name, data=data).attrs["units"] = units
         hg.create_dataset("signal_conf_ph", data=b.signal_conf.astype(np.int8))
         hg.create_dataset("quality_ph", data=b.quality.astype(np.int8))
         gg = grp.create_group("geolocation")
@@ -380,4 +362,4 @@ def _write_beams(f, beams: list[PhotonBeam]) -> None:
         if b.segment_dist_x is not None:
             gg.create_dataset("segment_dist_x", data=b.segment_dist_x).attrs["units"] = "meters"
         if b.segment_time is not None:
-            gg.create_dataset("delta_time", data=b.segment_time).attrs["units"] = "seconds since 2018-01-01"
+            gg.create_dataset("delta_time", data=b.segment_time).attrs["units"] = EPOCH_UNITS

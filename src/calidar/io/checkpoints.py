@@ -44,14 +44,20 @@ COLUMNS = {
     "y": ("y", "northing", "north", "n"),
     "z": ("z", "elevation", "elev", "height", "h"),
     "class": ("class", "cover", "landcover", "landclass", "type", "category"),
-    "sigma": ("sigma", "sigmaz", "sigmam", "sigmazm", "sd", "sdz", "std", "stdz", "stddev", "accuracy"),
+    "sigma": ("sigma", "sigmaz", "sigmam", "sigmazm", "sd", "sdz", "std", "stdz", "stddev",
+              "accuracy"),
 }
 REQUIRED = ("id", "x", "y", "z", "class")
 NON_VEGETATED = ("nonvegetated", "nva", "open", "bare", "bareearth", "nonveg")
 VEGETATED = ("vegetated", "vva", "veg", "vegetation", "forest", "trees", "undertrees")
 
 
+EXPECTED_HEADER = ("id, x, y, z and class (land cover: non-vegetated or vegetated), optionally "
+                   "sigma")
+
+
 def _norm(text: str) -> str:
+    """A header name or land cover as compared: lower case, without spaces, "_" and "-"."""
     return "".join(ch for ch in text.strip().lower() if ch not in " _-")
 
 
@@ -75,46 +81,48 @@ class Checkpoints:
 
 
 def _columns(header: list[str], path: Path, line: int, required=REQUIRED, columns=None,
-             expected: str = "id, x, y, z and class (land cover: non-vegetated or vegetated), optionally sigma",
-             ) -> dict[str, int]:
+             expected: str = EXPECTED_HEADER) -> dict[str, int]:
     """Each known column's position in ``header`` (``columns``: key → accepted names, default the
-    checkpoints'); one line naming the file and field when one is named twice or a ``required`` one
-    is missing (``expected``: what the header should name)."""
+    checkpoints'); one line naming the file and field when one is named twice or a ``required``
+    one is missing (``expected``: what the header should name)."""
     names = [_norm(h) for h in header]
     found = {}
     for key, aliases in (COLUMNS if columns is None else columns).items():
         hits = [i for i, n in enumerate(names) if n in aliases]
         if len(hits) > 1:
-            raise InputError(path, key, f"line {line}: columns {', '.join(repr(header[i]) for i in hits)} all name "
-                             f"the {key} column; expected one")
+            named = ", ".join(repr(header[i]) for i in hits)
+            raise InputError(path, key, f"line {line}: columns {named} all name the {key} column; "
+                             "expected one")
         if hits:
             found[key] = hits[0]
     missing = [k for k in required if k not in found]
     if missing:
-        raise InputError(path, missing[0], f"line {line}: no {' / '.join(missing)} column in the header "
-                         f"{','.join(header)!r}; expected a header naming {expected}")
+        raise InputError(path, missing[0], f"line {line}: no {' / '.join(missing)} column in the "
+                         f"header {','.join(header)!r}; expected a header naming {expected}")
     return found
 
 
 def _number(text: str, path: Path, line: int, field: str, limit: float) -> float:
+    """The number in ``text``: finite and within ±``limit``, else an error naming the line."""
     try:
         v = float(text)
     except ValueError:
         v = None
     if v is None or not np.isfinite(v) or abs(v) > limit:
-        raise InputError(path, field, f"line {line}: expected a finite number (|value| ≤ {limit:g}), "
-                         f"got {text.strip()!r}")
+        raise InputError(path, field, f"line {line}: expected a finite number "
+                         f"(|value| ≤ {limit:g}), got {text.strip()!r}")
     return v
 
 
 def _cover(text: str, path: Path, line: int) -> bool:
+    """Whether the land cover in ``text`` is vegetated (VVA); an error for an unknown one."""
     v = _norm(text)
     if v in NON_VEGETATED:
         return False
     if v in VEGETATED:
         return True
-    raise InputError(path, "class", f"line {line}: expected a land cover, non-vegetated (NVA, open, bare) or "
-                     f"vegetated (VVA, forest, trees), got {text.strip()!r}")
+    raise InputError(path, "class", f"line {line}: expected a land cover, non-vegetated (NVA, "
+                     f"open, bare) or vegetated (VVA, forest, trees), got {text.strip()!r}")
 
 
 def _rows(path: Path):
@@ -122,10 +130,11 @@ def _rows(path: Path):
     from calidar.validate import read_text
 
     text = read_text(path, "checkpoint file")
-    lines = [(k + 1, s) for k, s in enumerate(text.splitlines()) if s.strip() and not s.lstrip().startswith("#")]
+    lines = [(k + 1, s) for k, s in enumerate(text.splitlines())
+             if s.strip() and not s.lstrip().startswith("#")]
     if not lines:
-        raise InputError(path, None, "no checkpoints: expected a header line (id,x,y,z,class[,sigma]) and one line "
-                         "per checkpoint")
+        raise InputError(path, None, "no checkpoints: expected a header line "
+                         "(id,x,y,z,class[,sigma]) and one line per checkpoint")
     head = lines[0][1]
     delimiter = "," if "," in head else (";" if ";" in head else ("\t" if "\t" in head else ","))
     for number, s in lines:
@@ -133,25 +142,28 @@ def _rows(path: Path):
 
 
 def _check_ids(ids, lines, path: Path) -> None:
+    """An error naming the first id used twice."""
     seen: dict[str, int] = {}
     for i, name in enumerate(ids):
         if name in seen:
-            raise InputError(path, "id", f"line {lines[i]}: id {name!r} is used again (first on line "
-                             f"{lines[seen[name]]}); expected one line per checkpoint")
+            raise InputError(path, "id", f"line {lines[i]}: id {name!r} is used again (first on "
+                             f"line {lines[seen[name]]}); expected one line per checkpoint")
         seen[name] = i
 
 
 def check_places(cp: "Checkpoints", xy_m: np.ndarray) -> None:
-    """An error naming two checkpoints within SAME_PLACE_M of each other (``xy_m``: their metric x, y)."""
+    """An error naming two checkpoints within SAME_PLACE_M of each other (``xy_m``: their metric x,
+    y)."""
     if len(xy_m) > 1:
         from scipy.spatial import cKDTree
 
         pairs = cKDTree(xy_m).query_pairs(SAME_PLACE_M, output_type="ndarray")
         if len(pairs):
             a, b = sorted(pairs[np.argmin(pairs.max(axis=1))])  # the first repeat in file order
-            raise InputError(cp.path, "x/y", f"line {cp.lines[b]}: checkpoint {str(cp.ids[b])!r} is at the place of "
-                             f"{str(cp.ids[a])!r} (line {cp.lines[a]}, within {SAME_PLACE_M * 1e3:g} mm); expected each "
-                             "place once")
+            again, first = str(cp.ids[b]), str(cp.ids[a])
+            raise InputError(cp.path, "x/y", f"line {cp.lines[b]}: checkpoint {again!r} is at the "
+                             f"place of {first!r} (line {cp.lines[a]}, within "
+                             f"{SAME_PLACE_M * 1e3:g} mm); expected each place once")
 
 
 def read_checkpoints(path: str | Path, cover: bool = True) -> Checkpoints:
@@ -161,37 +173,53 @@ def read_checkpoints(path: str | Path, cover: bool = True) -> Checkpoints:
     path = Path(path)
     rows = _rows(path)
     head_line, header = next(rows)
-    cols = _columns(header, path, head_line, REQUIRED if cover else tuple(k for k in REQUIRED if k != "class"))
+    required = REQUIRED if cover else tuple(k for k in REQUIRED if k != "class")
+    cols = _columns(header, path, head_line, required)
     ids, xyz, veg, sigma, lines = [], [], [], [], []
     for number, cells in rows:
-        if len(cells) < len(header):
-            missing = [k for k, i in cols.items() if i >= len(cells)]
-            raise InputError(path, missing[0] if missing else None, f"line {number}: {len(cells)} values, expected "
-                             f"{len(header)} (as the header {','.join(header)!r})")
-        name = cells[cols["id"]].strip()
-        if not name:
-            raise InputError(path, "id", f"line {number}: expected a checkpoint id, got an empty value")
+        name, point, vegetated, s = _checkpoint(cells, cols, header, path, number)
         ids.append(name)
-        xyz.append([_number(cells[cols[k]], path, number, k, MAX_COORDINATE) for k in ("x", "y", "z")])
-        veg.append(_cover(cells[cols["class"]], path, number) if "class" in cols else False)
-        if "sigma" in cols:
-            s = _number(cells[cols["sigma"]], path, number, "sigma", MAX_SIGMA_M)
-            if s < 0:
-                raise InputError(path, "sigma", f"line {number}: expected a σ ≥ 0 m, got {s:g}")
+        xyz.append(point)
+        veg.append(vegetated)
+        if s is not None:
             sigma.append(s)
         lines.append(number)
         if len(ids) > MAX_CHECKPOINTS:
-            raise InputError(path, None, f"more than {MAX_CHECKPOINTS} checkpoints; expected a checkpoint survey")
+            raise InputError(path, None, f"more than {MAX_CHECKPOINTS} checkpoints; expected a "
+                             "checkpoint survey")
     if not ids:
-        raise InputError(path, None, f"a header (line {head_line}) but no checkpoints; expected one line per checkpoint")
+        raise InputError(path, None, f"a header (line {head_line}) but no checkpoints; expected "
+                         "one line per checkpoint")
     xyz_a = np.asarray(xyz, float)
     _check_ids(ids, lines, path)
-    return Checkpoints(path, np.asarray(ids, dtype=str), xyz_a, np.asarray(veg, bool),
-                       np.asarray(sigma, float) if "sigma" in cols else None, np.asarray(lines, np.int64))
+    sigma_a = np.asarray(sigma, float) if "sigma" in cols else None
+    return Checkpoints(path, np.asarray(ids, dtype=str), xyz_a, np.asarray(veg, bool), sigma_a,
+                       np.asarray(lines, np.int64))
 
 
-def write_checkpoints(path: str | Path, ids, xyz, vegetated, sigma_m=None, comment: str | None = None,
-                      force: bool = False) -> Path:
+def _checkpoint(cells: list[str], cols: dict[str, int], header: list[str], path: Path,
+                number: int) -> tuple[str, list[float], bool, float | None]:
+    """One line's checkpoint: id, [x, y, z], vegetated, σ (m; None without the column)."""
+    if len(cells) < len(header):
+        missing = [k for k, i in cols.items() if i >= len(cells)]
+        raise InputError(path, missing[0] if missing else None,
+                         f"line {number}: {len(cells)} values, expected {len(header)} (as the "
+                         f"header {','.join(header)!r})")
+    name = cells[cols["id"]].strip()
+    if not name:
+        raise InputError(path, "id", f"line {number}: expected a checkpoint id, got an empty value")
+    point = [_number(cells[cols[k]], path, number, k, MAX_COORDINATE) for k in ("x", "y", "z")]
+    vegetated = _cover(cells[cols["class"]], path, number) if "class" in cols else False
+    s = None
+    if "sigma" in cols:
+        s = _number(cells[cols["sigma"]], path, number, "sigma", MAX_SIGMA_M)
+        if s < 0:
+            raise InputError(path, "sigma", f"line {number}: expected a σ ≥ 0 m, got {s:g}")
+    return name, point, vegetated, s
+
+
+def write_checkpoints(path: str | Path, ids, xyz, vegetated, sigma_m=None,
+                      comment: str | None = None, force: bool = False) -> Path:
     """Write a checkpoint CSV that :func:`read_checkpoints` reads (mm resolution), atomically."""
     from calidar.outputs import write_text_atomic
 
@@ -199,6 +227,7 @@ def write_checkpoints(path: str | Path, ids, xyz, vegetated, sigma_m=None, comme
     out = [f"# {c}" for c in (comment or "").splitlines()]
     out.append("id,x,y,z,class" + (",sigma" if sigma_m is not None else ""))
     for k, name in enumerate(ids):
-        row = f"{name},{xyz[k, 0]:.3f},{xyz[k, 1]:.3f},{xyz[k, 2]:.3f},{'vegetated' if vegetated[k] else 'non-vegetated'}"
+        cover = "vegetated" if vegetated[k] else "non-vegetated"
+        row = f"{name},{xyz[k, 0]:.3f},{xyz[k, 1]:.3f},{xyz[k, 2]:.3f},{cover}"
         out.append(row + (f",{float(np.asarray(sigma_m)[k]):.4f}" if sigma_m is not None else ""))
     return write_text_atomic(path, "\n".join(out) + "\n", force)

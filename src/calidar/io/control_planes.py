@@ -1,4 +1,5 @@
-"""Control surfaces (CSV): surveyed points on planar patches such as roof facets, checked on reading.
+"""Control surfaces (CSV): surveyed points on planar patches such as roof facets, checked on
+reading.
 
 A surveyor measures a few points on each plane (a roof facet's corners, or points inside it, by
 GNSS RTK or total station); the file lists them, one line a point, grouped by the plane's id::
@@ -14,10 +15,11 @@ GNSS RTK or total station); the file lists them, one line a point, grouped by th
   facet, roof), ``x`` (easting), ``y`` (northing), ``z`` (elevation, height) and ``sigma`` (sd, std:
   metres, each point's survey 1σ, taken as 3-D); a point ``id`` column may be there and is kept for
   messages. Commas, semicolons or tabs.
-- Each plane needs ≥ 3 points that are not on one line (spread ≥ ``MIN_SPREAD_M`` across), lying on
-  one plane (each within ``MAX_MISFIT_SIGMAS`` σ plus ``MISFIT_ALLOWANCE_M`` of the plane the others
-  fit); the patch is the polygon they span (their convex hull), so survey its corners or points near
-  its edges. Steeper than ``MAX_SLOPE_DEG``: a wall, not a surface a strip's points cover from above.
+- Each plane needs ≥ 3 points that are not on one line (spread ≥ ``MIN_SPREAD_M`` across), lying
+  on one plane (each within ``MAX_MISFIT_SIGMAS`` σ plus ``MISFIT_ALLOWANCE_M`` of the plane the
+  others fit); the patch is the polygon they span (their convex hull), so survey its corners or
+  points near its edges. Steeper than ``MAX_SLOPE_DEG``: a wall, not a surface a strip's points
+  cover from above.
 - x, y, z are in the CRS of the strips unless ``--control-crs`` names another.
 
 Every error names the file, the line and the field.
@@ -89,32 +91,42 @@ def read_control_planes(path: str | Path) -> ControlPlaneFile:
     cols = _columns(header, path, head_line)
     plane, xyz, sigma, lines = [], [], [], []
     for number, cells in rows:
-        if len(cells) < len(header):
-            raise InputError(path, None, f"line {number}: {len(cells)} values, expected {len(header)} (as the header "
-                             f"{','.join(header)!r})")
-        name = cells[cols["plane"]].strip()
-        if not name:
-            raise InputError(path, "plane", f"line {number}: expected the plane's id, got an empty value")
+        name, point, s = _point(cells, cols, header, path, number)
         plane.append(name)
-        xyz.append([_number(cells[cols[k]], path, number, k, MAX_COORDINATE) for k in ("x", "y", "z")])
-        s = _number(cells[cols["sigma"]], path, number, "sigma", MAX_SIGMA_M)
-        if s <= 0:
-            raise InputError(path, "sigma", f"line {number}: expected a survey σ > 0 m, got {s:g}")
+        xyz.append(point)
         sigma.append(s)
         lines.append(number)
     if not plane:
-        raise InputError(path, None, f"a header (line {head_line}) but no points; expected ≥ {MIN_POINTS} surveyed "
-                         "points per plane")
-    out = ControlPlaneFile(path, np.asarray(plane, str), np.asarray(xyz, float), np.asarray(sigma, float),
-                           np.asarray(lines, np.int64))
+        raise InputError(path, None, f"a header (line {head_line}) but no points; expected "
+                         f"≥ {MIN_POINTS} surveyed points per plane")
+    out = ControlPlaneFile(path, np.asarray(plane, str), np.asarray(xyz, float),
+                           np.asarray(sigma, float), np.asarray(lines, np.int64))
     if len(out.planes()) > MAX_PLANES:
         raise InputError(path, "plane", f"{len(out.planes())} planes; expected ≤ {MAX_PLANES}")
-    for name in out.planes():  # the geometry is checked in a metric frame (check_plane), once placed
+    # the geometry is checked in a metric frame (check_plane), once placed
+    for name in out.planes():
         k = np.flatnonzero(out.plane == name)
         if k.size < MIN_POINTS:
-            raise InputError(path, "plane", f"line {int(out.lines[k[0]])}: plane {name!r} has {k.size} point(s); "
-                             f"expected ≥ {MIN_POINTS} surveyed points on it")
+            raise InputError(path, "plane", f"line {int(out.lines[k[0]])}: plane {name!r} has "
+                             f"{k.size} point(s); expected ≥ {MIN_POINTS} surveyed points on it")
     return out
+
+
+def _point(cells: list[str], cols: dict[str, int], header: list[str], path: Path,
+           number: int) -> tuple[str, list[float], float]:
+    """One line's surveyed point: its plane's id, [x, y, z] and its σ (m, > 0)."""
+    if len(cells) < len(header):
+        raise InputError(path, None, f"line {number}: {len(cells)} values, expected {len(header)} "
+                         f"(as the header {','.join(header)!r})")
+    name = cells[cols["plane"]].strip()
+    if not name:
+        raise InputError(path, "plane",
+                         f"line {number}: expected the plane's id, got an empty value")
+    point = [_number(cells[cols[k]], path, number, k, MAX_COORDINATE) for k in ("x", "y", "z")]
+    s = _number(cells[cols["sigma"]], path, number, "sigma", MAX_SIGMA_M)
+    if s <= 0:
+        raise InputError(path, "sigma", f"line {number}: expected a survey σ > 0 m, got {s:g}")
+    return name, point, s
 
 
 def fit_plane(xyz: np.ndarray, sigma: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -137,26 +149,30 @@ def fit_plane(xyz: np.ndarray, sigma: np.ndarray) -> tuple[np.ndarray, np.ndarra
 
 def check_plane(f: ControlPlaneFile, k: np.ndarray, xyz: np.ndarray) -> None:
     """An error naming the plane (and the line of its worst point) of ``f`` whose points ``k`` at
-    ``xyz`` (metric: the file's or the strips' frame) do not make a plane as the module docstring asks."""
+    ``xyz`` (metric: the file's or the strips' frame) do not make a plane as the module docstring
+    asks."""
     name, first = f.plane[k[0]], int(f.lines[k[0]])
     d = xyz[:, :2] - xyz[:, :2].mean(axis=0)
     spread = 2.0 * float(np.sqrt(max(np.linalg.eigvalsh(d.T @ d / k.size)[0], 0.0)))
     if spread < MIN_SPREAD_M:
-        raise InputError(f.path, "x/y", f"line {first}: the points of plane {str(name)!r} lie along a line (spread "
-                         f"{spread:.2f} m across); expected points around the patch, ≥ {MIN_SPREAD_M:g} m apart both ways")
+        raise InputError(f.path, "x/y", f"line {first}: the points of plane {str(name)!r} lie "
+                         f"along a line (spread {spread:.2f} m across); expected points around "
+                         f"the patch, ≥ {MIN_SPREAD_M:g} m apart both ways")
     _, coef, _ = fit_plane(xyz, f.sigma_m[k])
     slope = float(np.degrees(np.arctan(np.hypot(coef[1], coef[2]))))
     if slope > MAX_SLOPE_DEG:
-        raise InputError(f.path, "z", f"line {first}: plane {str(name)!r} slopes {slope:.0f}°; expected a roof or ground "
-                         f"plane ≤ {MAX_SLOPE_DEG:g}° (a wall is not seen from above)")
+        raise InputError(f.path, "z", f"line {first}: plane {str(name)!r} slopes {slope:.0f}°; "
+                         f"expected a roof or ground plane ≤ {MAX_SLOPE_DEG:g}° (a wall is not "
+                         "seen from above)")
     if k.size > MIN_POINTS:
         miss, sd = _leave_one_out(xyz, f.sigma_m[k])
         limit = MAX_MISFIT_SIGMAS * sd + MISFIT_ALLOWANCE_M
         worst = int(np.argmax(miss / limit))
         if miss[worst] > limit[worst]:
-            raise InputError(f.path, "z", f"line {int(f.lines[k[worst]])}: point {worst + 1} of plane {str(name)!r} is "
-                             f"{miss[worst] * 100:.1f} cm off the plane the others make; expected ≤ "
-                             f"{limit[worst] * 100:.1f} cm (points on one plane)")
+            line = int(f.lines[k[worst]])
+            raise InputError(f.path, "z", f"line {line}: point {worst + 1} of plane {str(name)!r} "
+                             f"is {miss[worst] * 100:.1f} cm off the plane the others make; "
+                             f"expected ≤ {limit[worst] * 100:.1f} cm (points on one plane)")
 
 
 def _leave_one_out(xyz: np.ndarray, sigma: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -177,12 +193,14 @@ def _leave_one_out(xyz: np.ndarray, sigma: np.ndarray) -> tuple[np.ndarray, np.n
 
 def write_control_planes(path: str | Path, plane, xyz, sigma_m, comment: str | None = None,
                          force: bool = False) -> Path:
-    """Write a control-surface CSV that :func:`read_control_planes` reads (mm resolution), atomically."""
+    """Write a control-surface CSV that :func:`read_control_planes` reads (mm resolution),
+    atomically."""
     from calidar.outputs import write_text_atomic
 
     xyz = np.asarray(xyz, float)
     out = [f"# {c}" for c in (comment or "").splitlines()]
     out.append("plane,x,y,z,sigma")
-    out += [f"{name},{xyz[k, 0]:.3f},{xyz[k, 1]:.3f},{xyz[k, 2]:.3f},{float(np.asarray(sigma_m)[k]):.4f}"
+    sigma = np.asarray(sigma_m)
+    out += [f"{name},{xyz[k, 0]:.3f},{xyz[k, 1]:.3f},{xyz[k, 2]:.3f},{float(sigma[k]):.4f}"
             for k, name in enumerate(plane)]
     return write_text_atomic(path, "\n".join(out) + "\n", force)

@@ -56,8 +56,12 @@ def _format_rows(data, decimals, buf) -> int:
 
 
 def write_csv_rows(f: TextIO, columns, decimals, block_rows: int = 200_000) -> None:
-    """Append rows to an open text file: ``columns`` a list of k arrays (N,), ``decimals`` k ints."""
-    data = np.column_stack([np.asarray(c, dtype=float) for c in columns]) if len(columns) else np.empty((0, 0))
+    """Append rows to an open text file: ``columns`` a list of k arrays (N,), ``decimals`` k
+    ints."""
+    if len(columns):
+        data = np.column_stack([np.asarray(c, dtype=float) for c in columns])
+    else:
+        data = np.empty((0, 0))
     dec = np.asarray(decimals, dtype=np.int64)
     if data.shape[1] != dec.size:
         raise ValueError(f"expected {data.shape[1]} decimals, got {dec.size}")

@@ -62,11 +62,14 @@ class PlanLine:
 
     def to_json(self) -> str:
         """The line as a hashable key (its fields)."""
-        return f"{self.number},{self.start.tolist()},{self.end.tolist()},{self.height_agl_m},{self.speed_mps}"
+        ends = f"{self.start.tolist()},{self.end.tolist()}"
+        return f"{self.number},{ends},{self.height_agl_m},{self.speed_mps}"
 
     def to_dict(self) -> dict:
-        return {"line": self.number, "start": [float(v) for v in self.start], "end": [float(v) for v in self.end],
-                "height_agl_m": self.height_agl_m, "speed_mps": self.speed_mps}
+        """plan.json's entry: number, start and end (m), height above ground (m), speed (m/s)."""
+        return {"line": self.number, "start": [float(v) for v in self.start],
+                "end": [float(v) for v in self.end], "height_agl_m": self.height_agl_m,
+                "speed_mps": self.speed_mps}
 
 
 def read_flight_lines(path: str | Path) -> list[PlanLine]:
@@ -75,9 +78,11 @@ def read_flight_lines(path: str | Path) -> list[PlanLine]:
     try:
         text = path.read_text(encoding="utf-8-sig")
     except FileNotFoundError:
-        raise InputError(path, "file", "not found; expected a flight-line CSV or GeoJSON file") from None
+        raise InputError(path, "file",
+                         "not found; expected a flight-line CSV or GeoJSON file") from None
     except (OSError, UnicodeDecodeError) as e:
-        raise InputError(path, "file", f"cannot be read as text ({e.__class__.__name__}); expected a CSV or GeoJSON") from None
+        raise InputError(path, "file", f"cannot be read as text ({e.__class__.__name__}); "
+                         "expected a CSV or GeoJSON") from None
     rows = _geojson_rows(path, text) if text.lstrip().startswith("{") else _csv_rows(path, text)
     if not rows:
         raise InputError(path, "lines", "no flight line found; expected at least one")
@@ -92,15 +97,18 @@ def read_flight_lines(path: str | Path) -> list[PlanLine]:
 
 
 def _csv_rows(path: Path, text: str) -> list[tuple[str, dict]]:
+    """(where, {column: text}) of each line of a flight-line CSV."""
     body = [ln for ln in text.splitlines() if ln.strip() and not ln.lstrip().startswith("#")]
     if not body:
-        raise InputError(path, "header", f"empty; expected a header with columns {', '.join(COLUMNS)}")
+        raise InputError(path, "header",
+                         f"empty; expected a header with columns {', '.join(COLUMNS)}")
     reader = csv.DictReader(body)
     header = [h.strip() for h in reader.fieldnames or []]
     missing = [c for c in COLUMNS if c not in header]
     if missing:
-        raise InputError(path, "header", f"missing column(s) {', '.join(missing)}; expected {', '.join(COLUMNS)} "
-                         f"(and optionally line), got {', '.join(header) or 'nothing'}")
+        raise InputError(path, "header", f"missing column(s) {', '.join(missing)}; expected "
+                         f"{', '.join(COLUMNS)} (and optionally line), got "
+                         f"{', '.join(header) or 'nothing'}")
     out = []
     for k, row in enumerate(reader):
         row = {(key or "").strip(): (v or "").strip() for key, v in row.items() if key is not None}
@@ -109,34 +117,43 @@ def _csv_rows(path: Path, text: str) -> list[tuple[str, dict]]:
 
 
 def _geojson_rows(path: Path, text: str) -> list[tuple[str, dict]]:
+    """(where, {field: value}) of each LineString feature of a GeoJSON FeatureCollection: its
+    first and last positions and its properties."""
     try:
         doc = json.loads(text)
     except json.JSONDecodeError as e:
-        raise InputError(path, "json", f"not valid JSON ({e.msg} at line {e.lineno}); expected a GeoJSON "
-                         "FeatureCollection") from None
+        raise InputError(path, "json", f"not valid JSON ({e.msg} at line {e.lineno}); expected a "
+                         "GeoJSON FeatureCollection") from None
     feats = doc.get("features") if isinstance(doc, dict) else None
     if not isinstance(feats, list):
-        raise InputError(path, "features", "missing; expected a GeoJSON FeatureCollection of LineString features")
+        raise InputError(path, "features",
+                         "missing; expected a GeoJSON FeatureCollection of LineString features")
     out = []
     for k, f in enumerate(feats):
         where = f"feature {k + 1}"
         geom = f.get("geometry") if isinstance(f, dict) else None
         coords = geom.get("coordinates") if isinstance(geom, dict) else None
-        if not isinstance(geom, dict) or geom.get("type") != "LineString" or not isinstance(coords, list) or len(coords) < 2:
-            raise InputError(path, f"{where} geometry", "expected a LineString with at least two positions")
+        line_string = isinstance(geom, dict) and geom.get("type") == "LineString"
+        if not line_string or not isinstance(coords, list) or len(coords) < 2:
+            raise InputError(path, f"{where} geometry",
+                             "expected a LineString with at least two positions")
         props = f.get("properties") or {}
         if not isinstance(props, dict):
-            raise InputError(path, f"{where} properties", "expected an object with height_agl_m and speed_mps")
+            raise InputError(path, f"{where} properties",
+                             "expected an object with height_agl_m and speed_mps")
         try:
             (sx, sy), (ex, ey) = coords[0][:2], coords[-1][:2]
         except (TypeError, ValueError):
-            raise InputError(path, f"{where} coordinates", "expected [x, y] positions in projected metres") from None
+            raise InputError(path, f"{where} coordinates",
+                             "expected [x, y] positions in projected metres") from None
         row = {"start_x": sx, "start_y": sy, "end_x": ex, "end_y": ey, **props}
         out.append((where, row))
     return out
 
 
 def _line(path: Path, where: str, default_number: int, row: dict) -> PlanLine:
+    """The checked flight line of one row: numbers finite, the line number a LAS
+    point_source_id, height and speed in range, the line long enough to be in metres."""
     vals = {}
     for c in COLUMNS:
         v = row.get(c)
@@ -152,19 +169,24 @@ def _line(path: Path, where: str, default_number: int, row: dict) -> PlanLine:
     try:
         number = int(str(number))
     except ValueError:
-        raise InputError(path, f"{where} line", f"expected a positive integer, got {number!r}") from None
+        raise InputError(path, f"{where} line",
+                         f"expected a positive integer, got {number!r}") from None
     if not 1 <= number <= 65535:
-        raise InputError(path, f"{where} line", f"expected a positive integer ≤ 65535 (a LAS point_source_id), got {number}")
+        raise InputError(path, f"{where} line", "expected a positive integer ≤ 65535 (a LAS "
+                         f"point_source_id), got {number}")
     h, v = vals["height_agl_m"], vals["speed_mps"]
     if not 0 < h <= MAX_HEIGHT_M:
-        raise InputError(path, f"{where} height_agl_m", f"expected a height above ground in (0, {MAX_HEIGHT_M:g}] m, got {h:g}")
+        raise InputError(path, f"{where} height_agl_m", "expected a height above ground in "
+                         f"(0, {MAX_HEIGHT_M:g}] m, got {h:g}")
     if not 0 < v <= MAX_SPEED_MPS:
-        raise InputError(path, f"{where} speed_mps", f"expected a ground speed in (0, {MAX_SPEED_MPS:g}] m/s, got {v:g}")
+        raise InputError(path, f"{where} speed_mps",
+                         f"expected a ground speed in (0, {MAX_SPEED_MPS:g}] m/s, got {v:g}")
     start = np.array([vals["start_x"], vals["start_y"]])
     end = np.array([vals["end_x"], vals["end_y"]])
-    if np.linalg.norm(end - start) < MIN_LENGTH_M:
-        raise InputError(path, f"{where} end_x/end_y", f"the line is {np.linalg.norm(end - start):.3g} m long; expected "
-                         f"≥ {MIN_LENGTH_M:g} m in projected metres (not degrees)")
+    length_m = np.linalg.norm(end - start)
+    if length_m < MIN_LENGTH_M:
+        raise InputError(path, f"{where} end_x/end_y", f"the line is {length_m:.3g} m long; "
+                         f"expected ≥ {MIN_LENGTH_M:g} m in projected metres (not degrees)")
     return PlanLine(number, start, end, h, v)
 
 
@@ -172,6 +194,6 @@ def flight_lines_csv(lines: list[PlanLine]) -> str:
     """The CSV text of ``lines`` (what :func:`read_flight_lines` reads back)."""
     out = ["line," + ",".join(COLUMNS)]
     for ln in lines:
-        out.append(f"{ln.number},{ln.start[0]:.2f},{ln.start[1]:.2f},{ln.end[0]:.2f},{ln.end[1]:.2f},"
-                   f"{ln.height_agl_m:g},{ln.speed_mps:g}")
+        ends = f"{ln.start[0]:.2f},{ln.start[1]:.2f},{ln.end[0]:.2f},{ln.end[1]:.2f}"
+        out.append(f"{ln.number},{ends},{ln.height_agl_m:g},{ln.speed_mps:g}")
     return "\n".join(out) + "\n"

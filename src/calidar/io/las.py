@@ -20,18 +20,25 @@ import numpy as np
 import pyproj
 
 from calidar.errors import InputError
+# the GPS-time conversions are re-exported: this module is their historical home
+from calidar.io.gps_time import (  # noqa: F401
+    ADJUSTED_STANDARD_OFFSET_S, adjusted_standard_in_week, adjusted_standard_to_week_seconds,
+    single_gps_week, week_seconds_to_adjusted_standard,
+)
 from calidar.io.las_checks import bounds_tolerance, check_bounds, check_laz_count, check_scales
 from calidar.io.las_crs import las_crs
-from calidar.io.las_write import SCAN_ANGLE_STEP_DEG, LasChunkWriter, write_las  # noqa: F401 (the io face)
+# the writer is part of the io face
+from calidar.io.las_write import SCAN_ANGLE_STEP_DEG, LasChunkWriter, write_las  # noqa: F401
 from calidar.outputs import atomic_path
-from calidar.trajectory import SECONDS_PER_WEEK, TIME_SYSTEMS
+from calidar.trajectory import TIME_SYSTEMS
 from calidar.validate import existing_file, number
 
-ADJUSTED_STANDARD_OFFSET_S = 1e9  #: adjusted standard GPS time = GPS time − 1e9 s
-OPTIONAL_FIELDS = ("scan_angle_deg", "point_source_id", "return_number", "number_of_returns", "classification",
-                   "intensity")
-MAX_COORDINATE = 1e9  #: |x|, |y|, |z| beyond this (CRS units) is a damaged header or file, not a place
-TIME_SYSTEM_NAMES = {"week": "gps_week_seconds", "adjusted": "gps_adjusted_standard"}  #: --time-system values
+OPTIONAL_FIELDS = ("scan_angle_deg", "point_source_id", "return_number", "number_of_returns",
+                   "classification", "intensity")
+#: |x|, |y|, |z| beyond this (CRS units) is a damaged header or file, not a place
+MAX_COORDINATE = 1e9
+#: --time-system values
+TIME_SYSTEM_NAMES = {"week": "gps_week_seconds", "adjusted": "gps_adjusted_standard"}
 GEOID_UNDULATION_MAX_M = 150.0  #: |N| of every geoid model is below 110 m
 
 
@@ -51,12 +58,13 @@ class PointOptions:
         if self.time_system is not None:
             ts = TIME_SYSTEM_NAMES.get(self.time_system, self.time_system)
             if ts not in TIME_SYSTEMS:
-                raise InputError(None, "--time-system", f"expected one of {', '.join(TIME_SYSTEM_NAMES)}, "
-                                 f"got {self.time_system!r}")
+                raise InputError(None, "--time-system", "expected one of "
+                                 f"{', '.join(TIME_SYSTEM_NAMES)}, got {self.time_system!r}")
             object.__setattr__(self, "time_system", ts)
         if self.geoid_undulation_m is not None:
-            object.__setattr__(self, "geoid_undulation_m", number(
-                self.geoid_undulation_m, "--geoid-undulation", -GEOID_UNDULATION_MAX_M, GEOID_UNDULATION_MAX_M, "m"))
+            n = number(self.geoid_undulation_m, "--geoid-undulation", -GEOID_UNDULATION_MAX_M,
+                       GEOID_UNDULATION_MAX_M, "m")
+            object.__setattr__(self, "geoid_undulation_m", n)
 
 
 def _options(crs, options: PointOptions | None) -> PointOptions:
@@ -77,27 +85,31 @@ class LasPoints:
     time_system: str  #: "gps_week_seconds" | "gps_adjusted_standard"
     crs: pyproj.CRS | None
     path: Path
-    scan_angle_deg: np.ndarray | None = None  #: (N,) float, deg, negative left of the flight direction
+    #: (N,) float, deg, negative left of the flight direction
+    scan_angle_deg: np.ndarray | None = None
     point_source_id: np.ndarray | None = None  #: (N,) flight line id
     return_number: np.ndarray | None = None
     number_of_returns: np.ndarray | None = None
     classification: np.ndarray | None = None
     intensity: np.ndarray | None = None
-    geoid_undulation_m: float | None = None  #: N of PointOptions (heights in a geoid CRS + N = ellipsoidal)
+    #: N of PointOptions (heights in a geoid CRS + N = ellipsoidal)
+    geoid_undulation_m: float | None = None
 
     def __len__(self) -> int:
         return self.gps_time.size
 
     def gps_week_seconds(self) -> np.ndarray:
-        """GPS times as week seconds whatever the file holds (see :func:`adjusted_standard_to_week_seconds`;
-        the week comes from these points only: for chunks of a file use the file's week instead)."""
+        """GPS times as week seconds whatever the file holds (see
+        :func:`adjusted_standard_to_week_seconds`; the week comes from these points only: for
+        chunks of a file use the file's week instead)."""
         if self.time_system == "gps_week_seconds":
             return self.gps_time
         return adjusted_standard_to_week_seconds(self.gps_time, self.path)[0]
 
     def select(self, mask) -> "LasPoints":
         """The points where ``mask`` (boolean or index array) selects."""
-        kw = {f: None if getattr(self, f) is None else getattr(self, f)[mask] for f in OPTIONAL_FIELDS}
+        kw = {f: None if getattr(self, f) is None else getattr(self, f)[mask]
+              for f in OPTIONAL_FIELDS}
         return replace(self, xyz=self.xyz[mask], gps_time=self.gps_time[mask], **kw)
 
 
@@ -107,68 +119,32 @@ def concat_points(parts: Sequence[LasPoints]) -> LasPoints:
     first = parts[0]
     if len(parts) == 1:
         return first
-    kw = {f: None if any(getattr(c, f) is None for c in parts) else np.concatenate([getattr(c, f) for c in parts])
-          for f in OPTIONAL_FIELDS}
+    kw = {f: None if any(getattr(c, f) is None for c in parts)
+          else np.concatenate([getattr(c, f) for c in parts]) for f in OPTIONAL_FIELDS}
     return replace(first, xyz=np.concatenate([c.xyz for c in parts]),
                    gps_time=np.concatenate([c.gps_time for c in parts]), **kw)
-
-
-def single_gps_week(t_min_adjusted_s: float, t_max_adjusted_s: float, source=None) -> int:
-    """The GPS week holding adjusted standard GPS times from ``t_min`` to ``t_max`` (s); an error
-    naming both weeks when they differ (week seconds would jump back to 0 at the boundary)."""
-    w0, w1 = (int(np.floor((t + ADJUSTED_STANDARD_OFFSET_S) / SECONDS_PER_WEEK))
-              for t in (t_min_adjusted_s, t_max_adjusted_s))
-    if w0 != w1:
-        raise InputError(source, "gps_time",
-                         f"adjusted standard GPS times {t_min_adjusted_s:.3f}–{t_max_adjusted_s:.3f} s span GPS "
-                         f"weeks {w0}–{w1}; expected one week (split the file at the week boundary)")
-    return w0
-
-
-def adjusted_standard_in_week(t_adjusted_s, gps_week: int) -> np.ndarray:
-    """Adjusted standard GPS times (s) → seconds since the start of GPS week ``gps_week``."""
-    return np.asarray(t_adjusted_s, float) - (gps_week * SECONDS_PER_WEEK - ADJUSTED_STANDARD_OFFSET_S)  # integer shift
-
-
-def adjusted_standard_to_week_seconds(t_adjusted_s, source=None) -> tuple[np.ndarray, int]:
-    """Adjusted standard GPS times (s) → (GPS week seconds, GPS week number).
-
-    The week comes from the times themselves; times spanning a week boundary are an error
-    (:func:`single_gps_week`). For a file read in chunks, take the week of the whole file
-    (``calidar.cli.georef.check_coverage`` streams it) and convert each chunk with
-    :func:`adjusted_standard_in_week`.
-    """
-    t = np.asarray(t_adjusted_s, float)
-    finite = t[np.isfinite(t)]
-    if finite.size == 0:
-        return t, 0
-    week = single_gps_week(float(finite.min()), float(finite.max()), source)
-    return adjusted_standard_in_week(t, week), week
-
-
-def week_seconds_to_adjusted_standard(t_week_s, gps_week: int) -> np.ndarray:
-    """GPS week seconds of ``gps_week`` → adjusted standard GPS time (s)."""
-    return np.asarray(t_week_s, float) + gps_week * SECONDS_PER_WEEK - ADJUSTED_STANDARD_OFFSET_S
 
 
 def gps_time_system(header: laspy.LasHeader, path: Path, override: str | None = None) -> str:
     """"gps_week_seconds" or "gps_adjusted_standard": ``override`` (PointOptions.time_system) when
     given, else the global-encoding bit 0; an error for point formats without GPS time."""
     if "gps_time" not in header.point_format.dimension_names:
-        raise InputError(path, "point_format",
-                         f"point format {header.point_format.id} has no GPS time; expected formats 1 or 3–10")
+        raise InputError(path, "point_format", f"point format {header.point_format.id} has no GPS "
+                         "time; expected formats 1 or 3–10")
     if override is not None:
         return override
     standard = header.global_encoding.gps_time_type == laspy.header.GpsTimeType.STANDARD
     return "gps_adjusted_standard" if standard else "gps_week_seconds"
 
 
-def _points(rec, header, path: Path, crs, time_system: str, fields, undulation=None, first: int = 0) -> LasPoints:
+def _points(rec, header, path: Path, crs, time_system: str, fields, undulation=None,
+            first: int = 0) -> LasPoints:
     """LasPoints from a laspy record (whole file or chunk whose first point is number ``first``);
     coordinates must be finite, within ±MAX_COORDINATE and near the header's bounds."""
     unknown = set(fields) - set(OPTIONAL_FIELDS)
     if unknown:
-        raise ValueError(f"unknown LAS fields {sorted(unknown)}; expected some of {OPTIONAL_FIELDS}")
+        raise ValueError(f"unknown LAS fields {sorted(unknown)}; expected some of "
+                         f"{OPTIONAL_FIELDS}")
     kw = {}
     for f in fields:
         if f == "scan_angle_deg":
@@ -178,10 +154,11 @@ def _points(rec, header, path: Path, crs, time_system: str, fields, undulation=N
                 kw[f] = np.asarray(rec.scan_angle_rank, float)
         else:
             kw[f] = np.asarray(getattr(rec, f))
-    xyz = np.stack([np.asarray(rec.x, float), np.asarray(rec.y, float), np.asarray(rec.z, float)], axis=1)
+    xyz = np.stack([np.asarray(rec.x, float), np.asarray(rec.y, float), np.asarray(rec.z, float)],
+                   axis=1)
     _check_xyz(xyz, header, path, first)
-    return LasPoints(xyz=xyz, gps_time=np.asarray(rec.gps_time, float), time_system=time_system, crs=crs,
-                     path=path, geoid_undulation_m=undulation, **kw)
+    return LasPoints(xyz=xyz, gps_time=np.asarray(rec.gps_time, float), time_system=time_system,
+                     crs=crs, path=path, geoid_undulation_m=undulation, **kw)
 
 
 def _check_xyz(xyz: np.ndarray, header, path: Path, first: int) -> None:
@@ -191,15 +168,17 @@ def _check_xyz(xyz: np.ndarray, header, path: Path, first: int) -> None:
         bad = ~(np.abs(xyz[:, k]) <= MAX_COORDINATE)
         if bad.any():
             i = int(np.argmax(bad))
-            raise InputError(path, axis, f"expected finite coordinates within ±{MAX_COORDINATE:g}, got "
-                             f"{xyz[i, k]:g} at point {first + i} ({int(bad.sum())} such points in this block): "
-                             "check the header's scales and offsets")
+            raise InputError(path, axis, f"expected finite coordinates within "
+                             f"±{MAX_COORDINATE:g}, got {xyz[i, k]:g} at point {first + i} "
+                             f"({int(bad.sum())} such points in this block): check the header's "
+                             "scales and offsets")
     check_bounds(xyz, bounds_tolerance(header), header, path, first)
 
 
 def _open(path: Path, selection=laspy.DecompressionSelection.all()) -> laspy.LasReader:
     """A laspy reader; ``selection``: the LAZ (1.4 formats 6–10) layers to decompress."""
-    existing_file(path, "LAS/LAZ file")  # not a pipe or device: laspy would wait or read without end
+    # not a pipe or device: laspy would wait or read without end
+    existing_file(path, "LAS/LAZ file")
     try:
         reader = laspy.open(path, decompression_selection=selection)
     except laspy.errors.LaspyException as e:
@@ -212,12 +191,13 @@ def _open(path: Path, selection=laspy.DecompressionSelection.all()) -> laspy.Las
         reader.close()
         raise
     if not h.are_points_compressed:  # the records a LAS file holds follow from its size
-        end = h.start_of_first_evlr if getattr(h, "number_of_evlrs", 0) else Path(path).stat().st_size
+        has_evlrs = getattr(h, "number_of_evlrs", 0)
+        end = h.start_of_first_evlr if has_evlrs else Path(path).stat().st_size
         held = (end - h.offset_to_point_data) // h.point_format.size
         if held != h.point_count:
             reader.close()
-            raise InputError(path, "point_count", f"the header says {h.point_count} points, the file holds {held} "
-                             "point records: truncated or a damaged header")
+            raise InputError(path, "point_count", f"the header says {h.point_count} points, the "
+                             f"file holds {held} point records: truncated or a damaged header")
     return reader
 
 
@@ -228,10 +208,12 @@ def _resolve_crs(header, crs, path: Path) -> pyproj.CRS | None:
     try:
         return pyproj.CRS.from_user_input(crs)
     except pyproj.exceptions.CRSError:
-        raise InputError(path, "crs", f"expected a CRS pyproj knows (e.g. EPSG:32611), got {crs!r}") from None
+        raise InputError(path, "crs",
+                         f"expected a CRS pyproj knows (e.g. EPSG:32611), got {crs!r}") from None
 
 
-def _records(reader: laspy.LasReader, chunk_points: int, path: Path, start: int = 0, stop: int | None = None):
+def _records(reader: laspy.LasReader, chunk_points: int, path: Path, start: int = 0,
+             stop: int | None = None):
     """(first point number, laspy point record of ``chunk_points`` at most) of the points
     [start, stop) (default: all); damaged files and fewer records than the header says become
     clear errors."""
@@ -250,22 +232,25 @@ def _records(reader: laspy.LasReader, chunk_points: int, path: Path, start: int 
     except (laspy.errors.LaspyException, lazrs.LazrsError, ValueError) as e:
         size = getattr(reader.header, "calidar_laz_chunk_size", None)
         where = f" from point {n} on" + (f" (LAZ chunk {n // size})" if size else "")
-        raise InputError(path, None, f"cannot read the points{where} ({e}): a truncated file or a corrupted "
-                         "chunk") from None
-    if n != (reader.header.point_count if stop is None else min(stop, reader.header.point_count)):
-        raise InputError(path, "point_count", f"the header says {reader.header.point_count} points, the file holds "
+        raise InputError(path, None, f"cannot read the points{where} ({e}): a truncated file or a "
+                         "corrupted chunk") from None
+    count = reader.header.point_count
+    if n != (count if stop is None else min(stop, count)):
+        raise InputError(path, "point_count", f"the header says {count} points, the file holds "
                          f"{n}: truncated or a damaged header")
 
 
-def read_las(path: str | Path, crs=None, fields=OPTIONAL_FIELDS, *, options: PointOptions | None = None) -> LasPoints:
+def read_las(path: str | Path, crs=None, fields=OPTIONAL_FIELDS, *,
+             options: PointOptions | None = None) -> LasPoints:
     """Read a LAS/LAZ file (all points). ``crs`` overrides the file's CRS (or give ``options``:
     CRS, time system, geoid undulation); ``fields`` picks which of :data:`OPTIONAL_FIELDS` to load
     besides xyz and gps_time.
 
     >>> import tempfile, numpy as np, calidar
-    >>> xyz = np.array([[500000.0, 5200000.0, 400.0], [500001.0, 5200002.0, 401.5]])  # UTM 32N, m
-    >>> path = calidar.write_las(Path(tempfile.mkdtemp()) / "strip.laz", xyz, "EPSG:32632", gps_time=[10.0, 10.5],
-    ...                          scan_angle_deg=[-3.0, 4.5], point_source_id=7)
+    >>> xyz = np.array([[500000.0, 5200000.0, 400.0], [500001.0, 5200002.0, 401.5]])  # UTM 32N
+    >>> path = calidar.write_las(Path(tempfile.mkdtemp()) / "strip.laz", xyz, "EPSG:32632",
+    ...                          gps_time=[10.0, 10.5], scan_angle_deg=[-3.0, 4.5],
+    ...                          point_source_id=7)
     >>> points = calidar.read_las(path)
     >>> len(points), points.crs.to_epsg(), points.xyz[1].tolist(), points.point_source_id.tolist()
     (2, 32632, [500001.0, 5200002.0, 401.5], [7, 7])
@@ -275,18 +260,21 @@ def read_las(path: str | Path, crs=None, fields=OPTIONAL_FIELDS, *, options: Poi
         header = reader.header
         time_system = gps_time_system(header, path, opts.time_system)
         file_crs = _resolve_crs(header, opts.crs, path)
-        chunks = [_points(rec, header, path, file_crs, time_system, fields, opts.geoid_undulation_m, first)
+        undulation = opts.geoid_undulation_m
+        chunks = [_points(rec, header, path, file_crs, time_system, fields, undulation, first)
                   for first, rec in _records(reader, max(header.point_count, 1), path)]
     if not chunks:
         rec = laspy.ScaleAwarePointRecord.zeros(0, header=header)
-        return _points(rec, header, path, file_crs, time_system, fields, opts.geoid_undulation_m)
+        return _points(rec, header, path, file_crs, time_system, fields, undulation)
     return chunks[0]
 
 
 _S = laspy.DecompressionSelection
-#: the LAZ 1.4 (formats 6–10) layer of each field (LasPoints' or laspy's names; x, y and the returns are in the base layer)
-_LAYERS = {"gps_time": _S.GPS_TIME, "z": _S.Z, "Z": _S.Z, "scan_angle_deg": _S.SCAN_ANGLE, "scan_angle": _S.SCAN_ANGLE,
-           "point_source_id": _S.POINT_SOURCE_ID, "classification": _S.CLASSIFICATION, "intensity": _S.INTENSITY}
+#: the LAZ 1.4 (formats 6–10) layer of each field (LasPoints' or laspy's names; x, y and the
+#: returns are in the base layer)
+_LAYERS = {"gps_time": _S.GPS_TIME, "z": _S.Z, "Z": _S.Z, "scan_angle_deg": _S.SCAN_ANGLE,
+           "scan_angle": _S.SCAN_ANGLE, "point_source_id": _S.POINT_SOURCE_ID,
+           "classification": _S.CLASSIFICATION, "intensity": _S.INTENSITY}
 
 
 def _layers(names) -> laspy.DecompressionSelection:
@@ -298,12 +286,14 @@ def _layers(names) -> laspy.DecompressionSelection:
 
 
 def _selection(fields) -> laspy.DecompressionSelection:
-    """The LAZ 1.4 (formats 6–10) layers holding xyz, GPS time and ``fields``: the others are skipped."""
+    """The LAZ 1.4 (formats 6–10) layers holding xyz, GPS time and ``fields``: the others are
+    skipped."""
     return _layers(("z", "gps_time", *fields))
 
 
-def iter_las_chunks(path: str | Path, chunk_points: int = 2_000_000, crs=None, fields=OPTIONAL_FIELDS, *,
-                    options: PointOptions | None = None, start: int = 0, stop: int | None = None) -> Iterator[LasPoints]:
+def iter_las_chunks(path: str | Path, chunk_points: int = 2_000_000, crs=None,
+                    fields=OPTIONAL_FIELDS, *, options: PointOptions | None = None, start: int = 0,
+                    stop: int | None = None) -> Iterator[LasPoints]:
     """Read a LAS/LAZ file in chunks of at most ``chunk_points`` points (files larger than memory),
     the points [start, stop) only when given (a LAZ file seeks by its chunk table); of a LAZ 1.4
     file only the layers of xyz, GPS time and ``fields`` are decompressed."""
@@ -312,8 +302,9 @@ def iter_las_chunks(path: str | Path, chunk_points: int = 2_000_000, crs=None, f
         header = reader.header
         time_system = gps_time_system(header, path, opts.time_system)
         file_crs = _resolve_crs(header, opts.crs, path)
+        undulation = opts.geoid_undulation_m
         for first, rec in _records(reader, chunk_points, path, start, stop):
-            yield _points(rec, header, path, file_crs, time_system, fields, opts.geoid_undulation_m, first)
+            yield _points(rec, header, path, file_crs, time_system, fields, undulation, first)
 
 
 def iter_las_times(path: str | Path, chunk_points: int = 2_000_000) -> Iterator[np.ndarray]:
@@ -323,7 +314,8 @@ def iter_las_times(path: str | Path, chunk_points: int = 2_000_000) -> Iterator[
         yield chunk["gps_time"]
 
 
-def iter_las_fields(path: str | Path, names, chunk_points: int = 2_000_000) -> Iterator[dict[str, np.ndarray]]:
+def iter_las_fields(path: str | Path, names,
+                    chunk_points: int = 2_000_000) -> Iterator[dict[str, np.ndarray]]:
     """Some raw point fields (laspy names: gps_time, classification, point_source_id, return_number,
     x, X (the stored integer), ...) of a LAS/LAZ file chunk by chunk, decompressing only their
     layers (LAZ 1.4). With x, y and z, the coordinates are checked as :func:`iter_las_chunks`
@@ -331,10 +323,11 @@ def iter_las_fields(path: str | Path, names, chunk_points: int = 2_000_000) -> I
     (N, 3) array "xyz"."""
     path = Path(path)
     check = {"x", "y", "z"} <= set(names)
+    scaled = ("gps_time", "x", "y", "z")  # read as floats; the others as stored
     with _open(path, _layers(names)) as reader:
         gps_time_system(reader.header, path)
         for first, rec in _records(reader, chunk_points, path):
-            out = {name: np.asarray(getattr(rec, name), float if name in ("gps_time", "x", "y", "z") else None)
+            out = {name: np.asarray(getattr(rec, name), float if name in scaled else None)
                    for name in names if not (check and name in ("x", "y", "z"))}
             if check:  # also as one (N, 3) array "xyz"
                 out["xyz"] = xyz = np.stack([np.asarray(rec.x, float), np.asarray(rec.y, float),
@@ -344,10 +337,12 @@ def iter_las_fields(path: str | Path, names, chunk_points: int = 2_000_000) -> I
             yield out
 
 
-def rewrite_las_xyz(src: str | Path, dst: str | Path, new_xyz, *, crs=None, chunk_points: int = 2_000_000,
-                    force: bool = False, options: PointOptions | None = None) -> int:
+def rewrite_las_xyz(src: str | Path, dst: str | Path, new_xyz, *, crs=None,
+                    chunk_points: int = 2_000_000, force: bool = False,
+                    options: PointOptions | None = None) -> int:
     """Copy a LAS/LAZ file chunk by chunk, replacing coordinates by ``new_xyz(points) -> (n, 3)``
-    (same CRS, scales, offsets and point format; every other attribute kept). Returns the point count.
+    (same CRS, scales, offsets and point format; every other attribute kept). Returns the point
+    count.
 
     ``points`` is the chunk's :class:`LasPoints`. The output is written atomically.
     """
@@ -356,25 +351,27 @@ def rewrite_las_xyz(src: str | Path, dst: str | Path, new_xyz, *, crs=None, chun
         rec.x, rec.y, rec.z = xyz[:, 0], xyz[:, 1], xyz[:, 2]
         return rec
 
-    return rewrite_las(src, dst, lambda header: header, moved, chunk_points=chunk_points, force=force,
-                       options=_options(crs, options))
+    return rewrite_las(src, dst, lambda header: header, moved, chunk_points=chunk_points,
+                       force=force, options=_options(crs, options))
 
 
-def rewrite_las(src: str | Path, dst: str | Path, out_header, rewrite, *, chunk_points: int, force: bool = False,
-                options: PointOptions | None = None) -> int:
-    """Copy a LAS/LAZ file chunk by chunk through ``rewrite(record, points) -> record`` (``points``:
-    the chunk's :class:`LasPoints`, read with ``options``), into a file with the header
-    ``out_header(source header)``; streamed and atomic. Returns the point count."""
+def rewrite_las(src: str | Path, dst: str | Path, out_header, rewrite, *, chunk_points: int,
+                force: bool = False, options: PointOptions | None = None) -> int:
+    """Copy a LAS/LAZ file chunk by chunk through ``rewrite(record, points) -> record``
+    (``points``: the chunk's :class:`LasPoints`, read with ``options``), into a file with the
+    header ``out_header(source header)``; streamed and atomic. Returns the point count."""
     src, opts = Path(src), _options(None, options)
     n = 0
     with _open(src) as reader, atomic_path(dst, force) as tmp:
         header = reader.header
         time_system = gps_time_system(header, src, opts.time_system)
         file_crs = _resolve_crs(header, opts.crs, src)
-        with laspy.open(tmp, mode="w", header=out_header(header), do_compress=Path(dst).suffix.lower() == ".laz") as w:
+        undulation = opts.geoid_undulation_m
+        compress = Path(dst).suffix.lower() == ".laz"
+        with laspy.open(tmp, mode="w", header=out_header(header), do_compress=compress) as w:
             for first, rec in _records(reader, chunk_points, src):
-                points = _points(rec, header, src, file_crs, time_system, OPTIONAL_FIELDS, opts.geoid_undulation_m,
-                                 first)
+                points = _points(rec, header, src, file_crs, time_system, OPTIONAL_FIELDS,
+                                 undulation, first)
                 w.write_points(rewrite(rec, points))
                 n += len(rec)
     return n
@@ -394,6 +391,6 @@ def las_file_crs(path: str | Path, crs=None) -> pyproj.CRS | None:
 
 
 def las_time_system(path: str | Path, override: str | None = None) -> str:
-    """The GPS time system of a LAS/LAZ file: ``override`` (PointOptions.time_system) or its header's
-    (error for formats without GPS time)."""
+    """The GPS time system of a LAS/LAZ file: ``override`` (PointOptions.time_system) or its
+    header's (error for formats without GPS time)."""
     return gps_time_system(las_header(path), Path(path), override)

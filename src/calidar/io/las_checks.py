@@ -34,16 +34,20 @@ LAYERED_FORMAT = 6  #: LAS point formats from 6 on are compressed in layers (LAZ
 def check_scales(header: laspy.LasHeader, path: Path) -> None:
     """Error unless every scale factor is finite, positive and ≤ :data:`MAX_SCALE`, and every offset
     finite within ±:data:`MAX_OFFSET` (a zero scale stores every coordinate at the offset)."""
-    for axis, scale, offset in zip("xyz", np.asarray(header.scales, float), np.asarray(header.offsets, float)):
+    scales, offsets = np.asarray(header.scales, float), np.asarray(header.offsets, float)
+    for axis, scale, offset in zip("xyz", scales, offsets):
         if not (MIN_SCALE <= scale <= MAX_SCALE):
-            raise InputError(path, f"{axis} scale factor", f"expected a positive scale ≤ {MAX_SCALE:g} (e.g. 0.01 or "
-                             f"0.001), got {scale:g}: a damaged or wrongly written header")
+            raise InputError(path, f"{axis} scale factor", "expected a positive scale ≤ "
+                             f"{MAX_SCALE:g} (e.g. 0.01 or 0.001), got {scale:g}: a damaged or "
+                             "wrongly written header")
         if not abs(offset) <= MAX_OFFSET:
-            raise InputError(path, f"{axis} offset", f"expected a finite offset within ±{MAX_OFFSET:g}, got {offset:g}: "
-                             "a damaged or wrongly written header")
+            raise InputError(path, f"{axis} offset", "expected a finite offset within "
+                             f"±{MAX_OFFSET:g}, got {offset:g}: a damaged or wrongly written "
+                             "header")
 
 
 def _laz_vlr(header: laspy.LasHeader):
+    """The LAZ VLR of ``header`` (None: not a LAZ file)."""
     for v in header.vlrs:
         if getattr(v, "record_id", None) == LAZ_RECORD_ID:
             return v
@@ -57,18 +61,23 @@ def check_laz_count(header: laspy.LasHeader, path: Path) -> None:
     if not header.are_points_compressed or header.point_count == 0:
         return
     vlr = _laz_vlr(header)
-    if vlr is not None:  # laspy drops the LAZ VLR once points are read: kept for check_bounds' messages
+    # laspy drops the LAZ VLR once points are read: its chunk size kept for check_bounds' messages
+    if vlr is not None:
         laz = lazrs.LazVlr(vlr.record_data)
-        header.calidar_laz_chunk_size = None if laz.uses_variable_size_chunks() else laz.chunk_size()
+        fixed = not laz.uses_variable_size_chunks()
+        header.calidar_laz_chunk_size = laz.chunk_size() if fixed else None
     st = os.stat(path)
-    problem = _laz_count_problem(str(Path(path).resolve()), st.st_size, st.st_mtime_ns, int(header.offset_to_point_data),
-                                 int(header.point_count), header.point_format.id >= LAYERED_FORMAT)
+    layered = header.point_format.id >= LAYERED_FORMAT
+    problem = _laz_count_problem(str(Path(path).resolve()), st.st_size, st.st_mtime_ns,
+                                 int(header.offset_to_point_data), int(header.point_count),
+                                 layered)
     if problem:
         raise InputError(path, "point_count", problem)
 
 
 @lru_cache(maxsize=256)
-def _laz_count_problem(path: str, size: int, mtime_ns: int, offset: int, count: int, layered: bool) -> str | None:
+def _laz_count_problem(path: str, size: int, mtime_ns: int, offset: int, count: int,
+                       layered: bool) -> str | None:
     """What is wrong with the point count of a LAZ file (None: nothing); size and mtime key the
     cache. ``layered``: point formats 6–10, whose chunks state their own point counts."""
     with laspy.open(path) as reader:
@@ -85,31 +94,41 @@ def _laz_count_problem(path: str, size: int, mtime_ns: int, offset: int, count: 
         return None  # no chunk table: the points are read sequentially and checked while read
     if not table:
         return None
-    counts = np.array([c[0] for c in table], np.int64)
     if layered:
         return _layered_count_problem(path, data_start, table, laz.item_size(), count)
+    problem, last_first = _table_count_problem(laz, table, count)
+    if problem:
+        return problem
+    last_bytes = int(table[-1][1])
+    chunk_end = data_start + sum(int(c[1]) for c in table)
+    return _last_chunk_problem(path, offset, vlr.record_data, laz, last_first, count - last_first,
+                               chunk_end, last_bytes)
+
+
+def _table_count_problem(laz, table, count: int) -> tuple[str | None, int]:
+    """The header's ``count`` against a point-wise LAZ chunk table (what is wrong, None: nothing)
+    and the number of the last chunk's first point: variable-size chunks state their counts,
+    fixed-size ones hold ``chunk_size`` points each, the last one 1 to ``chunk_size``."""
+    counts = np.array([c[0] for c in table], np.int64)
     if laz.uses_variable_size_chunks():
         held = int(counts.sum())
         if held != count:
-            return (f"the header says {count} points, the LAZ chunk table {held}: a damaged header (or a truncated "
-                    "file); expected the same count")
-        last_first = held - int(counts[-1])
-    else:
-        size_ = laz.chunk_size()
-        lo, hi = (len(table) - 1) * size_ + 1, len(table) * size_
-        if not lo <= count <= hi:
-            return (f"the header says {count} points, the LAZ chunk table {len(table)} chunks of {size_} "
-                    f"({lo}–{hi} points): a damaged header; expected a count in that range")
-        last_first = (len(table) - 1) * size_
-    last_bytes = int(table[-1][1])
-    chunk_end = data_start + sum(int(c[1]) for c in table)
-    return _last_chunk_problem(path, offset, vlr.record_data, laz, last_first, count - last_first, chunk_end, last_bytes)
+            return (f"the header says {count} points, the LAZ chunk table {held}: a damaged header "
+                    "(or a truncated file); expected the same count"), 0
+        return None, held - int(counts[-1])
+    size_ = laz.chunk_size()
+    lo, hi = (len(table) - 1) * size_ + 1, len(table) * size_
+    if not lo <= count <= hi:
+        return (f"the header says {count} points, the LAZ chunk table {len(table)} chunks of "
+                f"{size_} ({lo}–{hi} points): a damaged header; expected a count in that range"), 0
+    return None, (len(table) - 1) * size_
 
 
-def _layered_count_problem(path: str, data_start: int, table, item_size: int, count: int) -> str | None:
-    """The header's count against the counts the chunks of a layered LAZ (formats 6–10) state: each
-    chunk starts with its first point raw (``item_size`` bytes), then its point count (uint32;
-    LASzip's layered chunk layout)."""
+def _layered_count_problem(path: str, data_start: int, table, item_size: int,
+                           count: int) -> str | None:
+    """The header's count against the counts the chunks of a layered LAZ (formats 6–10) state:
+    each chunk starts with its first point raw (``item_size`` bytes), then its point count
+    (uint32; LASzip's layered chunk layout)."""
     held, start = 0, data_start
     with open(path, "rb") as f:
         for n_bytes in (int(c[1]) for c in table):
@@ -121,14 +140,17 @@ def _layered_count_problem(path: str, data_start: int, table, item_size: int, co
             start += n_bytes
     if held != count:
         what = "fewer" if count < held else "more"
-        return (f"the header says {count} points, the LAZ chunks hold {held}: a header counting {what} points than the "
-                "file holds; expected the true count (rewrite the file, e.g. with las2las or pdal translate)")
+        return (f"the header says {count} points, the LAZ chunks hold {held}: a header counting "
+                f"{what} points than the file holds; expected the true count (rewrite the file, "
+                "e.g. with las2las or pdal translate)")
     return None
 
 
-def _last_chunk_problem(path, offset, record_data, laz, first, n, chunk_end, chunk_bytes) -> str | None:
+def _last_chunk_problem(path, offset, record_data, laz, first, n, chunk_end,
+                        chunk_bytes) -> str | None:
     """Decode the last chunk's ``n`` points (by the header): the decoder must have used its bytes
-    (to within :data:`LAZ_SLACK_BYTES`), else the chunk holds more points than the header counts."""
+    (to within :data:`LAZ_SLACK_BYTES`), else the chunk holds more points than the header
+    counts."""
     with open(path, "rb") as f:
         f.seek(offset)
         try:
@@ -136,18 +158,20 @@ def _last_chunk_problem(path, offset, record_data, laz, first, n, chunk_end, chu
             dec.seek(first)
             dec.decompress_many(bytearray(n * laz.item_size()))
         except (lazrs.LazrsError, ValueError, OSError) as e:
-            return (f"cannot decode the {n} points the header counts in the last LAZ chunk (points {first}–"
-                    f"{first + n - 1}: {e}): a truncated or damaged file, or a header counting more points than it holds")
+            return (f"cannot decode the {n} points the header counts in the last LAZ chunk "
+                    f"(points {first}–{first + n - 1}: {e}): a truncated or damaged file, or a "
+                    "header counting more points than it holds")
         used = f.tell()
     if used > chunk_end + LAZ_SLACK_BYTES:
-        return (f"the header says {first + n} points, but the last LAZ chunk ends before its {n}th point (decoding "
-                f"ran {used - chunk_end} bytes past it): a header counting more points than the file holds; "
-                "expected the true count")
+        return (f"the header says {first + n} points, but the last LAZ chunk ends before its "
+                f"{n}th point (decoding ran {used - chunk_end} bytes past it): a header counting "
+                "more points than the file holds; expected the true count")
     if used < chunk_end - LAZ_SLACK_BYTES:
         share = (used - (chunk_end - chunk_bytes)) / max(chunk_bytes, 1)
-        return (f"the header says {first + n} points, but the last LAZ chunk holds more (its {n} points use "
-                f"{share:.0%} of its {chunk_bytes} bytes): a header counting fewer points than the file holds; "
-                "expected the true count (rewrite the file, e.g. with las2las or pdal translate)")
+        return (f"the header says {first + n} points, but the last LAZ chunk holds more (its {n} "
+                f"points use {share:.0%} of its {chunk_bytes} bytes): a header counting fewer "
+                "points than the file holds; expected the true count (rewrite the file, e.g. with "
+                "las2las or pdal translate)")
     return None
 
 
@@ -155,13 +179,15 @@ def bounds_tolerance(header: laspy.LasHeader) -> tuple[np.ndarray, np.ndarray]:
     """Low and high limits of plausible coordinates: the header's bounds widened on each axis by its
     own extent (at least 1 unit) and ten scale steps; (-inf, inf) when the header has no bounds."""
     lo, hi = np.asarray(header.mins, float), np.asarray(header.maxs, float)
-    if not (np.all(np.isfinite(lo)) and np.all(np.isfinite(hi)) and np.all(hi >= lo)) or not (lo.any() or hi.any()):
+    valid = np.all(np.isfinite(lo)) and np.all(np.isfinite(hi)) and np.all(hi >= lo)
+    if not valid or not (lo.any() or hi.any()):
         return np.full(3, -np.inf), np.full(3, np.inf)
     tol = np.maximum(hi - lo, 1.0) + 10 * np.asarray(header.scales, float)
     return lo - tol, hi + tol
 
 
-def check_bounds(xyz: np.ndarray, limits: tuple[np.ndarray, np.ndarray], header: laspy.LasHeader, path, first: int) -> None:
+def check_bounds(xyz: np.ndarray, limits: tuple[np.ndarray, np.ndarray],
+                 header: laspy.LasHeader, path, first: int) -> None:
     """Error when points of a chunk (``first``: the number of its first point) lie outside the
     header's bounds by more than their extent: a corrupted (LAZ) chunk or a damaged header. Costs
     one min and max per axis."""
@@ -177,13 +203,14 @@ def check_bounds(xyz: np.ndarray, limits: tuple[np.ndarray, np.ndarray], header:
         i0, i1 = first + int(rows[0]), first + int(rows[-1])
         where = _laz_chunks(header, i0, i1)
         raise InputError(path, axis, f"{rows.size} points ({i0}–{i1}{where}) have {axis} from "
-                         f"{xyz[rows, k].min():.6g} to {xyz[rows, k].max():.6g}, outside the header's bounds "
-                         f"{header.mins[k]:.6g}–{header.maxs[k]:.6g}: a corrupted chunk or a damaged header; "
-                         "expected coordinates within the bounds")
+                         f"{xyz[rows, k].min():.6g} to {xyz[rows, k].max():.6g}, outside the "
+                         f"header's bounds {header.mins[k]:.6g}–{header.maxs[k]:.6g}: a corrupted "
+                         "chunk or a damaged header; expected coordinates within the bounds")
 
 
 def _laz_chunks(header: laspy.LasHeader, i0: int, i1: int) -> str:
-    """", LAZ chunk k" (or "chunks k–l") of points i0–i1 of a LAZ file with fixed-size chunks, else ""."""
+    """", LAZ chunk k" (or "chunks k–l") of points i0–i1 of a LAZ file with fixed-size chunks,
+    else ""."""
     size = getattr(header, "calidar_laz_chunk_size", None)
     if not size:
         return ""

@@ -9,7 +9,8 @@ import pyproj
 
 def _geokey_crs(header: laspy.LasHeader) -> pyproj.CRS | None:
     """CRS of GeoTIFF keys laspy does not resolve: a user-defined projected CRS given by an EPSG
-    projection (conversion) code, e.g. UTM zone 11N = 16011, on an EPSG or WGS 84-parameter datum."""
+    projection (conversion) code, e.g. UTM zone 11N = 16011, on an EPSG or WGS 84-parameter
+    datum."""
     keys = doubles = None
     for v in header.vlrs:
         if isinstance(v, laspy.vlrs.known.GeoKeyDirectoryVlr):
@@ -74,7 +75,8 @@ def las_crs(header: laspy.LasHeader) -> pyproj.CRS | None:
     """The CRS of a LAS header (WKT VLR preferred, then GeoTIFF keys), or None.
 
     GeoTIFF keys with model type geocentric (1024 = 3) mean ECEF on the datum of the
-    GeographicTypeGeoKey; laspy returns that geographic CRS, which would read ECEF metres as degrees.
+    GeographicTypeGeoKey; laspy returns that geographic CRS, which would read ECEF metres as
+    degrees.
     """
     try:
         crs = header.parse_crs()

@@ -11,8 +11,8 @@ import numpy as np
 from calidar.io.las import rewrite_las
 
 
-def rewrite_las_with_extra(src: str | Path, dst: str | Path, extra: dict[str, str], values, *, chunk_points: int,
-                           force: bool = False, options=None) -> int:
+def rewrite_las_with_extra(src: str | Path, dst: str | Path, extra: dict[str, str], values, *,
+                           chunk_points: int, force: bool = False, options=None) -> int:
     """Copy a LAS/LAZ file chunk by chunk with float32 extra-byte dimensions added (LAS 1.4 extra
     bytes: ``extra`` maps each name to its description, units in the text) and every other
     attribute kept; ``values(points) -> {name: (n,) array}`` for each chunk's
@@ -22,8 +22,10 @@ def rewrite_las_with_extra(src: str | Path, dst: str | Path, extra: dict[str, st
     def with_extra(header: laspy.LasHeader) -> laspy.LasHeader:
         out = laspy.LasHeader(point_format=header.point_format.id, version=header.version)
         for d in header.point_format.extra_dimensions:
-            out.add_extra_dim(laspy.ExtraBytesParams(d.name, d.dtype, description=d.description or ""))
-        out.add_extra_dims([laspy.ExtraBytesParams(k, np.float32, description=v) for k, v in extra.items()])
+            kept = laspy.ExtraBytesParams(d.name, d.dtype, description=d.description or "")
+            out.add_extra_dim(kept)
+        out.add_extra_dims([laspy.ExtraBytesParams(k, np.float32, description=v)
+                            for k, v in extra.items()])
         out.scales, out.offsets = header.scales, header.offsets
         out.global_encoding = header.global_encoding
         out.vlrs.extend(v for v in header.vlrs if not isinstance(v, laspy.vlrs.known.ExtraBytesVlr))
@@ -38,4 +40,5 @@ def rewrite_las_with_extra(src: str | Path, dst: str | Path, extra: dict[str, st
             out[name] = np.asarray(v, np.float32)
         return out
 
-    return rewrite_las(src, dst, with_extra, add, chunk_points=chunk_points, force=force, options=options)
+    return rewrite_las(src, dst, with_extra, add, chunk_points=chunk_points, force=force,
+                       options=options)

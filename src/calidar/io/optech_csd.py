@@ -31,14 +31,16 @@ from calidar.validate import existing_file, values
 
 SIGNATURE = b"CSD\x00"
 HEADER = np.dtype([
-    ("signature", "S4"), ("vendor", "S64"), ("software", "S32"), ("format_version", "<f4"), ("header_size", "<u2"),
-    ("gps_week", "<u2"), ("min_time", "<f8"), ("max_time", "<f8"), ("records", "<u4"), ("strips", "<u2"),
-    ("strip_pointers", "<u4", 256), ("misalignment", "<f8", 3), ("imu_offsets", "<f8", 3), ("temperature", "<f8"),
+    ("signature", "S4"), ("vendor", "S64"), ("software", "S32"), ("format_version", "<f4"),
+    ("header_size", "<u2"), ("gps_week", "<u2"), ("min_time", "<f8"), ("max_time", "<f8"),
+    ("records", "<u4"), ("strips", "<u2"), ("strip_pointers", "<u4", 256),
+    ("misalignment", "<f8", 3), ("imu_offsets", "<f8", 3), ("temperature", "<f8"),
     ("pressure", "<f8"), ("free", "V830"),
 ])
 RECORD = np.dtype([
-    ("time", "<f8"), ("returns", "u1"), ("range", "<f4", 4), ("intensity", "<u2", 4), ("scan_angle", "<f4"),
-    ("roll", "<f4"), ("pitch", "<f4"), ("heading", "<f4"), ("lat", "<f8"), ("lon", "<f8"), ("elevation", "<f4"),
+    ("time", "<f8"), ("returns", "u1"), ("range", "<f4", 4), ("intensity", "<u2", 4),
+    ("scan_angle", "<f4"), ("roll", "<f4"), ("pitch", "<f4"), ("heading", "<f4"), ("lat", "<f8"),
+    ("lon", "<f8"), ("elevation", "<f4"),
 ])
 MAX_RETURNS = 4
 
@@ -94,22 +96,28 @@ def _text(raw: bytes) -> str:
 
 
 def read_csd_header(path: str | Path) -> CsdHeader:
-    """The header of a CSD file; clear errors for another file, a short file or impossible values."""
+    """The header of a CSD file; clear errors for another file, a short file or impossible
+    values."""
     path = existing_file(path, "CSD file")
     raw = path.read_bytes()[:HEADER.itemsize]
     if raw[:4] != SIGNATURE:
-        raise InputError(path, "signature", f"expected an Optech CSD file (starting with 'CSD'), got {raw[:4]!r}")
+        raise InputError(path, "signature",
+                         f"expected an Optech CSD file (starting with 'CSD'), got {raw[:4]!r}")
     if len(raw) < HEADER.itemsize:
-        raise InputError(path, "header", f"expected a {HEADER.itemsize}-byte header, the file has {len(raw)} bytes")
+        raise InputError(path, "header", f"expected a {HEADER.itemsize}-byte header, the file has "
+                         f"{len(raw)} bytes")
     h = np.frombuffer(raw, HEADER)[0]
     if h["header_size"] < HEADER.itemsize:
-        raise InputError(path, "header_size", f"expected ≥ {HEADER.itemsize} bytes, got {h['header_size']}")
+        raise InputError(path, "header_size",
+                         f"expected ≥ {HEADER.itemsize} bytes, got {h['header_size']}")
     for name in ("misalignment", "imu_offsets"):
         values(h[name], path, name, -np.pi, np.pi, "rad", what="angle")
     return CsdHeader(
-        vendor=_text(h["vendor"]), software=_text(h["software"]), format_version=round(float(h["format_version"]), 4),
+        vendor=_text(h["vendor"]), software=_text(h["software"]),
+        format_version=round(float(h["format_version"]), 4),
         header_size=int(h["header_size"]), gps_week=int(h["gps_week"]),
-        time_range=(float(h["min_time"]), float(h["max_time"])), records=int(h["records"]), strips=int(h["strips"]),
+        time_range=(float(h["min_time"]), float(h["max_time"])), records=int(h["records"]),
+        strips=int(h["strips"]),
         misalignment_rad=tuple(float(v) for v in h["misalignment"]),
         imu_offsets_rad=tuple(float(v) for v in h["imu_offsets"]),
         temperature_c=float(h["temperature"]), pressure_mbar=float(h["pressure"]),
@@ -123,9 +131,9 @@ def read_csd(path: str | Path) -> CsdPulses:
     path = Path(path)
     body = path.stat().st_size - header.header_size
     if body != header.records * RECORD.itemsize:
-        raise InputError(path, "records", f"header says {header.records} records of {RECORD.itemsize} bytes "
-                         f"({header.records * RECORD.itemsize} bytes), the file holds {body} bytes after the header: "
-                         "truncated or damaged")
+        raise InputError(path, "records", f"header says {header.records} records of "
+                         f"{RECORD.itemsize} bytes ({header.records * RECORD.itemsize} bytes), the "
+                         f"file holds {body} bytes after the header: truncated or damaged")
     with open(path, "rb") as f:
         f.seek(header.header_size)
         r = np.fromfile(f, RECORD, header.records)
@@ -133,14 +141,15 @@ def read_csd(path: str | Path) -> CsdPulses:
     values(r["returns"], path, "return_count", 0, 255)
     ranges = values(r["range"], path, "range", 0.0, 1e4, "m").astype(float)
     scan = values(r["scan_angle"], path, "scan_angle", -np.pi / 2, np.pi / 2, "rad")
-    att = {k: values(r[k], path, k, lo, hi, "rad") for k, lo, hi in
-           (("roll", -np.pi, np.pi), ("pitch", -np.pi / 2, np.pi / 2), ("heading", -2 * np.pi, 2 * np.pi))}
+    attitude_ranges = (("roll", -np.pi, np.pi), ("pitch", -np.pi / 2, np.pi / 2),
+                       ("heading", -2 * np.pi, 2 * np.pi))
+    att = {k: values(r[k], path, k, lo, hi, "rad") for k, lo, hi in attitude_ranges}
     lat = values(r["lat"], path, "latitude", -np.pi / 2, np.pi / 2, "rad")
     lon = values(r["lon"], path, "longitude", -8 * np.pi, 8 * np.pi, "rad")
     height = values(r["elevation"], path, "elevation", -1000.0, 1e5, "m")
-    return CsdPulses(header=header, path=path, time=time, returns=r["returns"].astype(np.int64), range_m=ranges,
-                     intensity=r["intensity"].astype(np.int64), scan_angle=scan, lat=lat,
-                     lon=np.angle(np.exp(1j * lon)), height=height, **att)
+    return CsdPulses(header=header, path=path, time=time, returns=r["returns"].astype(np.int64),
+                     range_m=ranges, intensity=r["intensity"].astype(np.int64), scan_angle=scan,
+                     lat=lat, lon=np.angle(np.exp(1j * lon)), height=height, **att)
 
 
 def returns(p: CsdPulses) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -157,5 +166,7 @@ def returns(p: CsdPulses) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarra
 def csd_trajectory(p: CsdPulses) -> Trajectory:
     """The trajectory the pulses carry: one record per pulse (position of the laser, attitude;
     GPS week seconds), so that georeferencing at a pulse's time uses exactly its own record."""
-    return Trajectory(time=p.time, lat=p.lat, lon=p.lon, height=p.height, roll=p.roll, pitch=p.pitch,
-                      heading=np.angle(np.exp(1j * p.heading)), time_system="gps_week_seconds", source=str(p.path))
+    heading = np.angle(np.exp(1j * p.heading))  # wrapped to (−π, π]
+    return Trajectory(time=p.time, lat=p.lat, lon=p.lon, height=p.height, roll=p.roll,
+                      pitch=p.pitch, heading=heading, time_system="gps_week_seconds",
+                      source=str(p.path))

@@ -10,18 +10,22 @@ import numpy as np
 from calidar.outputs import atomic_path
 
 
-def write_geotiff(path: str | Path, grid: np.ndarray, cell_m: float, origin: tuple[float, float], crs=None,
-                  force: bool = False) -> Path:
+def write_geotiff(path: str | Path, grid: np.ndarray, cell_m: float, origin: tuple[float, float],
+                  crs=None, force: bool = False) -> Path:
     """``grid`` (ny, nx; row 0 north, NaN no data) as a float32 GeoTIFF with pixel corners at
-    ``origin`` (west x, north y) and square cells of ``cell_m``; ``crs`` a rasterio-readable CRS or None."""
+    ``origin`` (west x, north y) and square cells of ``cell_m``; ``crs`` a rasterio-readable CRS or
+    None.
+
+    Built in memory and written as bytes: a full disk is one OSError, not libtiff's lines on
+    stderr."""
     import rasterio
     from affine import Affine
 
     path = Path(path)
-    with atomic_path(path, force) as tmp, rasterio.MemoryFile() as mem:  # built in memory, written as bytes:
-        with mem.open(driver="GTiff", height=grid.shape[0], width=grid.shape[1], count=1,  # a full disk is
-                      dtype="float32", crs=crs, nodata=np.nan,  # one OSError, not libtiff's lines on stderr
-                      transform=Affine(cell_m, 0.0, origin[0], 0.0, -cell_m, origin[1])) as dst:
+    transform = Affine(cell_m, 0.0, origin[0], 0.0, -cell_m, origin[1])
+    with atomic_path(path, force) as tmp, rasterio.MemoryFile() as mem:
+        with mem.open(driver="GTiff", height=grid.shape[0], width=grid.shape[1], count=1,
+                      dtype="float32", crs=crs, nodata=np.nan, transform=transform) as dst:
             dst.write(grid.astype(np.float32), 1)
         tmp.write_bytes(mem.read())
     return path

@@ -31,12 +31,19 @@ FIELDS = (
 RECORD_BYTES = 8 * len(FIELDS)
 _EXTRA = ("wander_angle", "x_acc", "y_acc", "z_acc", "x_ang_rate", "y_ang_rate", "z_ang_rate")
 _ANGLE = (-2 * np.pi, 2 * np.pi, "rad")
-#: what every record must hold (a file of another kind, or damaged, fails here with the field's name)
+#: what every record must hold (a file of another kind, or damaged, fails here with the field's
+#: name)
 RAW_LIMITS = {
-    "time": (0.0, 2 * SECONDS_PER_WEEK, "s of week"), "lat": (-np.pi / 2, np.pi / 2, "rad"), "lon": _ANGLE,
-    "height": (*HEIGHT_RANGE_M, "m"), **{k: (-1000.0, 1000.0, "m/s") for k in ("x_vel", "y_vel", "z_vel")},
-    "roll": (-np.pi, np.pi, "rad"), "pitch": (-np.pi / 2, np.pi / 2, "rad"), "platform_heading": _ANGLE,
-    "wander_angle": _ANGLE, **{k: (-1000.0, 1000.0, "m/s²") for k in ("x_acc", "y_acc", "z_acc")},
+    "time": (0.0, 2 * SECONDS_PER_WEEK, "s of week"),
+    "lat": (-np.pi / 2, np.pi / 2, "rad"),
+    "lon": _ANGLE,
+    "height": (*HEIGHT_RANGE_M, "m"),
+    **{k: (-1000.0, 1000.0, "m/s") for k in ("x_vel", "y_vel", "z_vel")},
+    "roll": (-np.pi, np.pi, "rad"),
+    "pitch": (-np.pi / 2, np.pi / 2, "rad"),
+    "platform_heading": _ANGLE,
+    "wander_angle": _ANGLE,
+    **{k: (-1000.0, 1000.0, "m/s²") for k in ("x_acc", "y_acc", "z_acc")},
     **{k: (-100.0, 100.0, "rad/s") for k in ("x_ang_rate", "y_ang_rate", "z_ang_rate")},
 }
 
@@ -59,9 +66,10 @@ def read_sbet(path: str | Path) -> Trajectory:
 
     >>> import tempfile, numpy as np, calidar
     >>> t = np.arange(0.0, 1.0, 0.01)  # 100 Hz, one second
-    >>> traj = calidar.Trajectory(time=t, lat=np.radians(47.0 + 1e-5 * t), lon=np.full(t.size, np.radians(8.0)),
-    ...                           height=np.full(t.size, 500.0), roll=np.zeros(t.size), pitch=np.zeros(t.size),
-    ...                           heading=np.full(t.size, 0.1))
+    >>> n = t.size
+    >>> traj = calidar.Trajectory(time=t, lat=np.radians(47.0 + 1e-5 * t),
+    ...                           lon=np.full(n, np.radians(8.0)), height=np.full(n, 500.0),
+    ...                           roll=np.zeros(n), pitch=np.zeros(n), heading=np.full(n, 0.1))
     >>> path = calidar.write_sbet(Path(tempfile.mkdtemp()) / "sbet.out", traj)
     >>> back = calidar.read_sbet(path)
     >>> len(back), path.stat().st_size, bool(np.allclose(back.heading, 0.1))
@@ -74,8 +82,9 @@ def read_sbet(path: str | Path) -> Trajectory:
     if size % RECORD_BYTES:
         raise InputError(
             path, "size",
-            f"expected a multiple of {RECORD_BYTES} bytes (17 float64 per record), got {size} bytes "
-            f"({size // RECORD_BYTES} records + {size % RECORD_BYTES} bytes): not an SBET, or truncated",
+            f"expected a multiple of {RECORD_BYTES} bytes (17 float64 per record), got {size} "
+            f"bytes ({size // RECORD_BYTES} records + {size % RECORD_BYTES} bytes): not an SBET, "
+            "or truncated",
         )
     a = np.fromfile(path, dtype="<f8").reshape(-1, len(FIELDS))
     col = {name: a[:, i] for i, name in enumerate(FIELDS)}
@@ -95,13 +104,14 @@ def read_sbet(path: str | Path) -> Trajectory:
 def write_sbet(path: str | Path, traj: Trajectory, force: bool = False) -> Path:
     """Write ``traj`` as an SBET (atomically; refuses to overwrite unless ``force``).
 
-    Uses ``traj.extra`` for the wander angle, accelerations and angular rates when present
-    (zero otherwise) and zero velocities when the trajectory has none. Reading back: :func:`read_sbet`.
+    Uses ``traj.extra`` for the wander angle, accelerations and angular rates when present (zero
+    otherwise) and zero velocities when the trajectory has none. Reading back: :func:`read_sbet`.
 
     >>> import tempfile, numpy as np, calidar
     >>> t = np.arange(3.0)
-    >>> traj = calidar.Trajectory(time=t, lat=np.radians(47.0 + 1e-5 * t), lon=np.full(3, np.radians(8.0)),
-    ...                           height=np.full(3, 500.0), roll=np.zeros(3), pitch=np.zeros(3), heading=np.zeros(3))
+    >>> traj = calidar.Trajectory(time=t, lat=np.radians(47.0 + 1e-5 * t),
+    ...                           lon=np.full(3, np.radians(8.0)), height=np.full(3, 500.0),
+    ...                           roll=np.zeros(3), pitch=np.zeros(3), heading=np.zeros(3))
     >>> path = calidar.write_sbet(Path(tempfile.mkdtemp()) / "sbet.out", traj)
     >>> path.stat().st_size  # 3 records of 17 float64
     408
@@ -110,7 +120,8 @@ def write_sbet(path: str | Path, traj: Trajectory, force: bool = False) -> Path:
     calidar.errors.OutputExistsError: ...sbet.out: exists; pass --force to overwrite it
     """
     if traj.time_system != "gps_week_seconds":
-        raise InputError(traj.source, "time_system", f"SBET holds GPS week seconds, got {traj.time_system}")
+        raise InputError(traj.source, "time_system",
+                         f"SBET holds GPS week seconds, got {traj.time_system}")
     n = len(traj)
     extra = {k: np.asarray(traj.extra.get(k, np.zeros(n)), float) for k in _EXTRA}
     wander = extra["wander_angle"]
@@ -119,7 +130,8 @@ def write_sbet(path: str | Path, traj: Trajectory, force: bool = False) -> Path:
     cols = {
         "time": traj.time, "lat": traj.lat, "lon": traj.lon, "height": traj.height,
         "x_vel": v_w[:, 0], "y_vel": v_w[:, 1], "z_vel": v_w[:, 2],
-        "roll": traj.roll, "pitch": traj.pitch, "platform_heading": _wrap(traj.heading + wander), **extra,
+        "roll": traj.roll, "pitch": traj.pitch, "platform_heading": _wrap(traj.heading + wander),
+        **extra,
     }
     a = np.stack([np.asarray(cols[k], float) for k in FIELDS], axis=1).astype("<f8")
     with atomic_path(path, force) as tmp:

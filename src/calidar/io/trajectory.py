@@ -13,8 +13,9 @@ from calidar.trajectory import Trajectory
 from calidar.validate import existing_file
 
 SBET_SUFFIXES = (".out", ".sbet", ".smrmsg")
-TEXT_OPTIONS = {"crs": "--trajectory-crs", "angles": "--trajectory-angles", "heading_reference": "--trajectory-heading",
-                "columns": "--trajectory-columns"}  #: the CLI options of the text-trajectory reader's arguments
+#: the CLI options of the text-trajectory reader's arguments
+TEXT_OPTIONS = {"crs": "--trajectory-crs", "angles": "--trajectory-angles",
+                "heading_reference": "--trajectory-heading", "columns": "--trajectory-columns"}
 
 
 def is_binary(path: Path, probe_bytes: int = 4096) -> bool:
@@ -27,14 +28,16 @@ def is_binary(path: Path, probe_bytes: int = 4096) -> bool:
 
 def read_trajectory(path: str | Path, **text_options) -> Trajectory:
     """An Optech CSD's pulses (by its signature), an SBET when the file is binary, else an ASCII/CSV
-    trajectory read with ``text_options`` (see :func:`calidar.io.trajectory_text.read_trajectory_text`;
-    options given as None are not given, and giving one for a binary file is an error).
+    trajectory read with ``text_options`` (see
+    :func:`calidar.io.trajectory_text.read_trajectory_text`; options given as None are not given,
+    and giving one for a binary file is an error).
 
     >>> import tempfile, numpy as np, calidar
     >>> t = np.arange(0.0, 1.0, 0.01)  # 100 Hz, one second
-    >>> traj = calidar.Trajectory(time=t, lat=np.radians(47.0 + 1e-5 * t), lon=np.full(t.size, np.radians(8.0)),
-    ...                           height=np.full(t.size, 500.0), roll=np.zeros(t.size), pitch=np.zeros(t.size),
-    ...                           heading=np.full(t.size, 0.1))
+    >>> n = t.size
+    >>> traj = calidar.Trajectory(time=t, lat=np.radians(47.0 + 1e-5 * t),
+    ...                           lon=np.full(n, np.radians(8.0)), height=np.full(n, 500.0),
+    ...                           roll=np.zeros(n), pitch=np.zeros(n), heading=np.full(n, 0.1))
     >>> folder = Path(tempfile.mkdtemp())
     >>> sbet = calidar.read_trajectory(calidar.write_sbet(folder / "sbet.out", traj))
     >>> text = calidar.read_trajectory(calidar.write_trajectory_text(folder / "traj.csv", traj))
@@ -57,7 +60,8 @@ def read_trajectory(path: str | Path, **text_options) -> Trajectory:
 
 
 MAX_SPEED_M_S = 2000.0  #: far faster than any survey aircraft (jets cruise below 260 m/s)
-MAX_TILT_RATE_DEG_S = 500.0  #: roll or pitch changing faster: a glitch, not a manoeuvre (turns: 10–30 °/s)
+#: roll or pitch changing faster: a glitch, not a manoeuvre (turns: 10–30 °/s)
+MAX_TILT_RATE_DEG_S = 500.0
 
 
 def check_motion(traj: Trajectory) -> None:
@@ -68,16 +72,22 @@ def check_motion(traj: Trajectory) -> None:
     dt = np.diff(traj.time)
     speed = np.linalg.norm(np.diff(traj.ecef, axis=0), axis=1) / dt
     fast = np.flatnonzero(speed > MAX_SPEED_M_S)
+
+    def records(i: int) -> str:
+        return f"records {i}–{i + 1} ({traj.time[i]:.3f}–{traj.time[i + 1]:.3f} s)"
+
     if fast.size:
         i = int(fast[0])
-        raise InputError(traj.source, "position", f"records {i}–{i + 1} ({traj.time[i]:.3f}–{traj.time[i + 1]:.3f} s) "
-                         f"move {speed[i] * dt[i]:.1f} m in {dt[i]:.3g} s ({speed[i]:.3g} m/s; {fast.size} such steps); "
-                         f"expected below {MAX_SPEED_M_S:g} m/s: a position glitch or a wrong unit")
+        raise InputError(traj.source, "position",
+                         f"{records(i)} move {speed[i] * dt[i]:.1f} m in {dt[i]:.3g} s "
+                         f"({speed[i]:.3g} m/s; {fast.size} such steps); expected below "
+                         f"{MAX_SPEED_M_S:g} m/s: a position glitch or a wrong unit")
     for name in ("roll", "pitch"):
         rate = np.degrees(np.abs(np.diff(getattr(traj, name)))) / dt
         bad = np.flatnonzero(rate > MAX_TILT_RATE_DEG_S)
         if bad.size:
             i = int(bad[0])
-            raise InputError(traj.source, name, f"records {i}–{i + 1} ({traj.time[i]:.3f}–{traj.time[i + 1]:.3f} s) "
-                             f"change by {rate[i] * dt[i]:.2f}° ({rate[i]:.3g} °/s; {bad.size} such steps); expected "
-                             f"below {MAX_TILT_RATE_DEG_S:g} °/s: an attitude glitch or a wrong unit")
+            raise InputError(traj.source, name,
+                             f"{records(i)} change by {rate[i] * dt[i]:.2f}° ({rate[i]:.3g} °/s; "
+                             f"{bad.size} such steps); expected below {MAX_TILT_RATE_DEG_S:g} °/s: "
+                             "an attitude glitch or a wrong unit")

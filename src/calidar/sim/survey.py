@@ -31,7 +31,7 @@ from calidar.sim.scene import Scene, build_scene, scene_seed
 # historical home
 from calidar.sim.shots import SURFACE_VEGETATION, line_shots, record  # noqa: F401
 from calidar.sim.survey_config import (PRESETS, STRIP_ERRORS, SurveyConfig,  # noqa: F401
-                                       check_config, survey_config)
+                                       check_config)
 from calidar.trajectory import Trajectory
 from calidar.trajectory_accuracy import TrajectoryAccuracy
 
@@ -48,6 +48,31 @@ MAX_PULSES = 3e7
 TRUTH_UNITS = {"boresight_roll": "deg", "boresight_pitch": "deg", "boresight_yaw": "deg",
                "lever_arm_x": "m", "lever_arm_y": "m", "lever_arm_z": "m", "range_offset": "m",
                "scan_angle_scale": "ratio"}
+
+
+def survey_config(preset: str = "uav", **overrides) -> SurveyConfig:
+    """A preset (``uav`` ≈ 80 m above ground over 300 m × 300 m; ``airborne`` ≈ 1000 m over
+    2.5 km × 1.6 km) with fields replaced by ``overrides`` (see :class:`SurveyConfig`).
+
+    ``vegetation=FRACTION`` is accepted as a shortcut for the scene's vegetation fraction.
+
+    >>> import calidar
+    >>> cfg = calidar.survey_config("airborne", seed=2, vegetation=0.3)
+    >>> cfg.height_agl_m, cfg.scene.vegetation_fraction, cfg.seed
+    (1000.0, 0.3, 2)
+    """
+    if preset not in PRESETS:
+        raise InputError(None, "preset", f"expected one of {', '.join(PRESETS)}, got {preset!r}")
+    cfg = PRESETS[preset]
+    if "vegetation" in overrides:
+        fraction = float(overrides.pop("vegetation"))
+        cfg = replace(cfg, scene=replace(cfg.scene, vegetation_fraction=fraction))
+    fields = SurveyConfig.__dataclass_fields__
+    unknown = set(overrides) - set(fields)
+    if unknown:
+        raise InputError(None, sorted(unknown)[0],
+                         f"unknown survey setting; expected one of {sorted(fields)}")
+    return replace(cfg, **overrides)
 
 
 def utm_crs(lat_deg: float, lon_deg: float) -> str:

@@ -1,13 +1,14 @@
 """The simulator's settings: :class:`SurveyConfig` (SI units), its presets and their checks.
 
-:func:`survey_config` gives a preset with fields replaced; :func:`check_config` rejects what no
-survey could fly, with a clear :class:`~calidar.errors.InputError`. The simulation itself is
+:func:`check_config` rejects what no survey could fly, with a clear
+:class:`~calidar.errors.InputError`. A preset with fields replaced:
+:func:`calidar.sim.survey.survey_config`; the simulation itself:
 :func:`calidar.sim.survey.simulate_survey`.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -94,31 +95,6 @@ PRESETS: dict[str, SurveyConfig] = {
         range_noise_m=0.02, gnss_noise_m=0.03,
     ),
 }
-
-
-def survey_config(preset: str = "uav", **overrides) -> SurveyConfig:
-    """A preset (``uav`` ≈ 80 m above ground over 300 m × 300 m; ``airborne`` ≈ 1000 m over
-    2.5 km × 1.6 km) with fields replaced by ``overrides`` (see :class:`SurveyConfig`).
-
-    ``vegetation=FRACTION`` is accepted as a shortcut for the scene's vegetation fraction.
-
-    >>> import calidar
-    >>> cfg = calidar.survey_config("airborne", seed=2, vegetation=0.3)
-    >>> cfg.height_agl_m, cfg.scene.vegetation_fraction, cfg.seed
-    (1000.0, 0.3, 2)
-    """
-    if preset not in PRESETS:
-        raise InputError(None, "preset", f"expected one of {', '.join(PRESETS)}, got {preset!r}")
-    cfg = PRESETS[preset]
-    if "vegetation" in overrides:
-        fraction = float(overrides.pop("vegetation"))
-        cfg = replace(cfg, scene=replace(cfg.scene, vegetation_fraction=fraction))
-    fields = SurveyConfig.__dataclass_fields__
-    unknown = set(overrides) - set(fields)
-    if unknown:
-        raise InputError(None, sorted(unknown)[0],
-                         f"unknown survey setting; expected one of {sorted(fields)}")
-    return replace(cfg, **overrides)
 
 
 def check_config(cfg: SurveyConfig) -> None:

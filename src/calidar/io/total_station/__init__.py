@@ -40,8 +40,8 @@ angles, zenith distances converted), distances metres, σ SI.
 """
 
 from calidar.io.total_station.observations import (  # noqa: F401 - the format's public face
-    ANGLE_UNITS, ARCSEC, FEATURE_POINTS, FORMAT_LINE, FULL_CIRCLE, MAX_DISTANCE_M, MAX_FILE_BYTES, MAX_SETUPS,
-    MAX_TARGETS, Setup, TotalStationObservations,
+    ANGLE_UNITS, ARCSEC, FEATURE_POINTS, FORMAT_LINE, FULL_CIRCLE, MAX_DISTANCE_M, MAX_FILE_BYTES,
+    MAX_SETUPS, MAX_TARGETS, Setup, TotalStationObservations,
 )
 from calidar.io.total_station.read import read_observations  # noqa: F401
 from calidar.io.total_station.write import format_observations, write_observations  # noqa: F401

@@ -14,7 +14,8 @@ ANGLE_UNITS = {"deg": math.pi / 180.0, "gon": math.pi / 200.0}  #: unit → radi
 FULL_CIRCLE = {"deg": 360.0, "gon": 400.0}
 FEATURE_POINTS = ("A", "B", "C", "D")
 BASE_COLUMNS = ("setup", "group", "point", "slope_m", "scanner_m")
-MAX_DISTANCE_M = 1e6  #: longest slope distance or scanner range read (m); units are checked by magnitude later
+#: longest slope distance or scanner range read (m); units are checked by magnitude later
+MAX_DISTANCE_M = 1e6
 
 
 @dataclass(frozen=True)
@@ -60,8 +61,8 @@ class TotalStationObservations:
 
     def subset(self, keep: np.ndarray) -> "TotalStationObservations":
         """The observations with the targets selected by the boolean/int index ``keep``."""
-        arrays = {k: getattr(self, k)[keep] for k in ("setup", "group", "point", "kind", "slope", "va", "hz",
-                                                      "scanner", "line")}
+        per_target = ("setup", "group", "point", "kind", "slope", "va", "hz", "scanner", "line")
+        arrays = {k: getattr(self, k)[keep] for k in per_target}
         return TotalStationObservations(self.source, self.setups, self.scanner_sigma, **arrays)
 
     @property

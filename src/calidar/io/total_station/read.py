@@ -13,13 +13,14 @@ import numpy as np
 
 from calidar.errors import InputError
 from calidar.io.total_station.observations import (
-    ANGLE_UNITS, ARCSEC, BASE_COLUMNS, FEATURE_POINTS, FORMAT_LINE, FULL_CIRCLE, MAX_DISTANCE_M, MAX_FILE_BYTES,
-    MAX_SETUPS, MAX_TARGETS, Setup, TotalStationObservations,
+    ANGLE_UNITS, ARCSEC, BASE_COLUMNS, FEATURE_POINTS, FORMAT_LINE, FULL_CIRCLE, MAX_DISTANCE_M,
+    MAX_FILE_BYTES, MAX_SETUPS, MAX_TARGETS, Setup, TotalStationObservations,
 )
 from calidar.validate import existing_file, read_text
 
 
 def _float(text: str, src: str, line: int, field: str, what: str) -> float:
+    """The finite number in ``text``, else an error naming the line, the field and ``what``."""
     try:
         v = float(text)
     except ValueError:
@@ -30,6 +31,7 @@ def _float(text: str, src: str, line: int, field: str, what: str) -> float:
 
 
 def _parse_setup(value: str, src: str, line: int) -> dict:
+    """A ``#! setup:`` directive's id and σ (angle rad, distance m and ppm)."""
     parts = value.split()
     need = ("angle_arcsec", "distance_mm", "distance_ppm")
     expect = "'ID angle_arcsec=a distance_mm=b distance_ppm=c'"
@@ -38,54 +40,75 @@ def _parse_setup(value: str, src: str, line: int) -> dict:
     kv = {}
     for p in parts[1:]:
         k, eq, v = p.partition("=")
+        where = f"line {line}: setup {parts[0]}"
         if not eq or k not in need:
-            raise InputError(src, f"line {line}: setup {parts[0]}", f"unknown item {p!r}; expected {expect}")
+            raise InputError(src, where, f"unknown item {p!r}; expected {expect}")
         kv[k] = _float(v, src, line, f"setup {parts[0]}: {k}", "a number")
         if kv[k] < 0 or (k != "distance_ppm" and kv[k] == 0):
-            raise InputError(src, f"line {line}: setup {parts[0]}: {k}", f"expected a positive number, got {v}")
+            raise InputError(src, f"{where}: {k}", f"expected a positive number, got {v}")
     missing = [k for k in need if k not in kv]
     if missing:
-        raise InputError(src, f"line {line}: setup {parts[0]}", f"missing {', '.join(missing)}; expected {expect}")
-    return {"id": parts[0], "angle_sigma": kv["angle_arcsec"] * ARCSEC, "distance_sigma_m": kv["distance_mm"] * 1e-3,
+        raise InputError(src, f"line {line}: setup {parts[0]}",
+                         f"missing {', '.join(missing)}; expected {expect}")
+    return {"id": parts[0], "angle_sigma": kv["angle_arcsec"] * ARCSEC,
+            "distance_sigma_m": kv["distance_mm"] * 1e-3,
             "distance_sigma_ppm": kv["distance_ppm"], "line": line}
 
 
-def _parse_header(cells: list[str], src: str, line: int) -> tuple[dict[str, int], str, str]:
-    """Column positions, the angle unit and the vertical convention ("va" | "zd") from the header."""
-    cells = [c.strip() for c in cells]
-    expected = "setup, group, point, hz_<deg|gon>, va_<deg|gon> or zd_<deg|gon>, slope_m, scanner_m"
-    for sep in (";", "\t"):
-        if len(cells) == 1 and sep in cells[0]:
-            raise InputError(src, f"line {line}: header", f"the columns are separated by {sep!r}; expected commas "
-                             "(with a decimal point)")
+EXPECTED_COLUMNS = ("setup, group, point, hz_<deg|gon>, va_<deg|gon> or zd_<deg|gon>, slope_m, "
+                    "scanner_m")
+
+
+def _angle_columns(cells: list[str], src: str, line: int) -> dict[str, tuple[str, str]]:
+    """The header's angle columns: {"hz" | "va" | "zd": (column, unit)}; an error for an unknown
+    column or unit, or a second hz or vertical column."""
+    where = f"line {line}: header"
     angle = {}
     for c in cells:
         m = re.fullmatch(r"(hz|va|zd)_(\w+)", c)
         if c in BASE_COLUMNS:
             continue
         if m and m.group(2) in ANGLE_UNITS:
-            if m.group(1) in angle or (m.group(1) in ("va", "zd") and ({"va", "zd"} & angle.keys())):
-                what = "hz" if m.group(1) == "hz" else "vertical (va_ or zd_)"
-                raise InputError(src, f"line {line}: header", f"more than one {what} column; expected {expected}")
-            angle[m.group(1)] = (c, m.group(2))
+            kind = m.group(1)
+            if kind in angle or (kind in ("va", "zd") and ({"va", "zd"} & angle.keys())):
+                what = "hz" if kind == "hz" else "vertical (va_ or zd_)"
+                raise InputError(src, where,
+                                 f"more than one {what} column; expected {EXPECTED_COLUMNS}")
+            angle[kind] = (c, m.group(2))
         elif m:
-            raise InputError(src, f"line {line}: header: {c}", f"unknown angle unit {m.group(2)!r}; expected deg or gon")
+            raise InputError(src, f"{where}: {c}",
+                             f"unknown angle unit {m.group(2)!r}; expected deg or gon")
         else:
-            raise InputError(src, f"line {line}: header", f"unknown column {c!r}; expected {expected}")
+            raise InputError(src, where, f"unknown column {c!r}; expected {EXPECTED_COLUMNS}")
+    return angle
+
+
+def _parse_header(cells: list[str], src: str, line: int) -> tuple[dict[str, int], str, str]:
+    """Column positions, the angle unit and the vertical convention ("va" | "zd") from the
+    header."""
+    cells = [c.strip() for c in cells]
+    where = f"line {line}: header"
+    for sep in (";", "\t"):
+        if len(cells) == 1 and sep in cells[0]:
+            raise InputError(src, where, f"the columns are separated by {sep!r}; expected commas "
+                             "(with a decimal point)")
+    angle = _angle_columns(cells, src, line)
     missing = [c for c in BASE_COLUMNS if c not in cells]
     if "hz" not in angle:
         missing.append("hz_<deg|gon>")
     if not {"va", "zd"} & angle.keys():
         missing.append("va_<deg|gon> or zd_<deg|gon>")
     if missing:
-        raise InputError(src, f"line {line}: header", f"missing column(s) {', '.join(missing)}; expected {expected}")
+        raise InputError(src, where,
+                         f"missing column(s) {', '.join(missing)}; expected {EXPECTED_COLUMNS}")
     if len(set(cells)) != len(cells):
-        raise InputError(src, f"line {line}: header", f"a column appears twice; expected {expected}")
+        raise InputError(src, where, f"a column appears twice; expected {EXPECTED_COLUMNS}")
     vertical = "va" if "va" in angle else "zd"
     units = {angle["hz"][1], angle[vertical][1]}
     if len(units) > 1:
-        raise InputError(src, f"line {line}: header", f"mixed angle units ({angle['hz'][0]} and {angle[vertical][0]}); "
-                         "expected both angle columns in deg or both in gon")
+        raise InputError(src, where, f"mixed angle units ({angle['hz'][0]} and "
+                         f"{angle[vertical][0]}); expected both angle columns in deg or both in "
+                         "gon")
     cols = {c: i for i, c in enumerate(cells)}
     cols["hz"] = cols[angle["hz"][0]]
     cols["v"] = cols[angle[vertical][0]]
@@ -116,19 +139,23 @@ def _directive(parsed: _Parsed, text: str, src: str, no: int) -> None:
     key, colon, value = body.partition(":")
     key, value = key.strip(), value.strip()
     if not colon or key not in ("scanner_sigma_mm", "setup"):
-        raise InputError(src, f"line {no}", "unknown directive; expected '#! calidar-total-station 1', "
-                         f"'#! scanner_sigma_mm: S' or '#! setup: ID ...', got {text!r}")
+        raise InputError(src, f"line {no}", "unknown directive; expected '#! calidar-total-station "
+                         f"1', '#! scanner_sigma_mm: S' or '#! setup: ID ...', got {text!r}")
     if key == "setup":
         s = _parse_setup(value, src, no)
         if s["id"] in parsed.setups:
-            raise InputError(src, f"line {no}: setup {s['id']}", f"declared twice (first on line {parsed.setups[s['id']]['line']})")
+            first = parsed.setups[s["id"]]["line"]
+            raise InputError(src, f"line {no}: setup {s['id']}",
+                             f"declared twice (first on line {first})")
         if len(parsed.setups) >= MAX_SETUPS:
-            raise InputError(src, f"line {no}: setup", f"more than {MAX_SETUPS} setups; expected at most {MAX_SETUPS} "
-                             "(the adjustment's memory grows with setups × targets)")
+            raise InputError(src, f"line {no}: setup", f"more than {MAX_SETUPS} setups; expected "
+                             f"at most {MAX_SETUPS} (the adjustment's memory grows with setups × "
+                             "targets)")
         parsed.setups[s["id"]] = s
         return
     if key in parsed.directives:
-        raise InputError(src, f"line {no}: {key}", f"given twice (first on line {parsed.directives[key][1]})")
+        first = parsed.directives[key][1]
+        raise InputError(src, f"line {no}: {key}", f"given twice (first on line {first})")
     parsed.directives[key] = (value, no)
 
 
@@ -142,30 +169,34 @@ def _scan(lines: list[str], src: str) -> _Parsed:
         elif not text or text.startswith("#"):
             continue
         elif parsed.header is None:
-            parsed.header, parsed.header_line = _parse_header(next(csv.reader([raw])), src, no), no
+            parsed.header = _parse_header(next(csv.reader([raw])), src, no)
+            parsed.header_line = no
         else:
             parsed.rows.append((no, [c.strip() for c in next(csv.reader([raw]))]))
             if len(parsed.rows) > MAX_TARGETS + MAX_SETUPS:
-                raise InputError(src, f"line {no}", f"more than {MAX_TARGETS} targets; expected at most {MAX_TARGETS} "
-                                 "(the adjustment's memory grows with them)")
+                raise InputError(src, f"line {no}", f"more than {MAX_TARGETS} targets; expected at "
+                                 f"most {MAX_TARGETS} (the adjustment's memory grows with them)")
     return parsed
 
 
 def _scanner_sigma(parsed: _Parsed, src: str, n_lines: int) -> float:
-    """The checked ``scanner_sigma_mm`` directive (m), after the format line and before the header."""
+    """The checked ``scanner_sigma_mm`` directive (m), after the format line and before the
+    header."""
     end = parsed.header_line or n_lines + 1  # directives are missing before this line
     if "format" not in parsed.directives:
-        raise InputError(src, "line 1", f"expected the directive '#! {FORMAT_LINE}' (not a calidar total-station file?)")
+        raise InputError(src, "line 1", f"expected the directive '#! {FORMAT_LINE}' (not a "
+                         "calidar total-station file?)")
     if "scanner_sigma_mm" not in parsed.directives:
-        raise InputError(src, f"line {end}", "expected the directive '#! scanner_sigma_mm: S' (1σ scanner range noise, mm) "
-                         "before this line")
+        raise InputError(src, f"line {end}", "expected the directive '#! scanner_sigma_mm: S' (1σ "
+                         "scanner range noise, mm) before this line")
     text, line = parsed.directives["scanner_sigma_mm"]
     sigma = _float(text, src, line, "scanner_sigma_mm", "a positive number (mm)") * 1e-3
     if not 0 < sigma <= 1.0:
-        raise InputError(src, f"line {line}: scanner_sigma_mm", f"expected a positive number up to 1000 (mm), got {text}")
+        raise InputError(src, f"line {line}: scanner_sigma_mm",
+                         f"expected a positive number up to 1000 (mm), got {text}")
     if not parsed.setups:
-        raise InputError(src, f"line {end}", "expected at least one '#! setup: ID angle_arcsec=a distance_mm=b "
-                         "distance_ppm=c' directive before this line")
+        raise InputError(src, f"line {end}", "expected at least one '#! setup: ID angle_arcsec=a "
+                         "distance_mm=b distance_ppm=c' directive before this line")
     return sigma
 
 
@@ -174,15 +205,17 @@ def read_observations(path: str | Path) -> TotalStationObservations:
     src = str(path)
     size = existing_file(path, "total-station observation file").stat().st_size
     if size > MAX_FILE_BYTES:
-        raise InputError(src, "size", f"expected at most {MAX_FILE_BYTES >> 20} MB (≤ {MAX_TARGETS} targets), "
-                         f"got {size / 2**20:.0f} MB")
+        raise InputError(src, "size", f"expected at most {MAX_FILE_BYTES >> 20} MB "
+                         f"(≤ {MAX_TARGETS} targets), got {size / 2**20:.0f} MB")
     lines = read_text(path, "total-station observation file").splitlines()
     parsed = _scan(lines, src)
     scanner_sigma = _scanner_sigma(parsed, src, len(lines))
     if parsed.header is None:
-        raise InputError(src, f"line {len(lines) + 1}", "expected a header row and observations; the file has none")
+        raise InputError(src, f"line {len(lines) + 1}",
+                         "expected a header row and observations; the file has none")
     if not parsed.rows:
-        raise InputError(src, f"line {parsed.header_line}", "expected observation rows after the header; there are none")
+        raise InputError(src, f"line {parsed.header_line}",
+                         "expected observation rows after the header; there are none")
     return _parse_rows(src, parsed.rows, parsed.header, parsed.setups, scanner_sigma)
 
 
@@ -199,27 +232,31 @@ class _Columns:
         unit, full = self.unit, FULL_CIRCLE[self.unit]
         hz = _float(get["hz"], src, no, f"hz_{unit}", f"a horizontal direction in {unit}")
         if not 0.0 <= hz < full:
-            raise InputError(src, f"line {no}: hz_{unit}",
-                             f"angle out of range: expected 0 ≤ hz < {full:g} {unit}, got {get['hz']}")
+            raise InputError(src, f"line {no}: hz_{unit}", "angle out of range: expected "
+                             f"0 ≤ hz < {full:g} {unit}, got {get['hz']}")
         vname = f"{self.vertical}_{unit}"
         lo, hi = (-full / 4, full / 4) if self.vertical == "va" else (0.0, full / 2)
-        v = _float(get["v"], src, no, vname, f"a {'vertical angle' if self.vertical == 'va' else 'zenith distance'} in {unit}")
+        what = "vertical angle" if self.vertical == "va" else "zenith distance"
+        v = _float(get["v"], src, no, vname, f"a {what} in {unit}")
         if not lo <= v <= hi:
-            raise InputError(src, f"line {no}: {vname}", f"angle out of range: expected {lo:g} ≤ {self.vertical} ≤ "
-                             f"{hi:g} {unit}" + (" (face I)" if self.vertical == "zd" else "") + f", got {get['v']}")
+            face = " (face I)" if self.vertical == "zd" else ""
+            raise InputError(src, f"line {no}: {vname}", "angle out of range: expected "
+                             f"{lo:g} ≤ {self.vertical} ≤ {hi:g} {unit}{face}, got {get['v']}")
         to_rad = ANGLE_UNITS[unit]
         return (v * to_rad if self.vertical == "va" else math.pi / 2 - v * to_rad), hz * to_rad
 
 
 def _kind(pt: str, grp: str, src: str, no: int) -> str:
-    """"feature" (A–D, in a group) or "E" (E…, no group) for a target row; anything else is an error."""
+    """"feature" (A–D, in a group) or "E" (E…, no group) for a target row; anything else is an
+    error."""
     if pt in FEATURE_POINTS:
         if not grp:
             raise InputError(src, f"line {no}: group", f"feature point {pt} needs a group id")
         return "feature"
     if pt.startswith("E") and len(pt) > 1:
         if grp:
-            raise InputError(src, f"line {no}: group", f"E point {pt} belongs to no group; expected an empty group")
+            raise InputError(src, f"line {no}: group",
+                             f"E point {pt} belongs to no group; expected an empty group")
         return "E"
     raise InputError(src, f"line {no}: point", f"expected P, A, B, C, D or E<name>, got {pt!r}")
 
@@ -228,23 +265,28 @@ def _parse_row(src: str, no: int, cells: list[str], columns: _Columns, setups: d
     """One data row → ("P", setup id, P observation) or ("target", target tuple)."""
     cols = columns.cols
     if len(cells) != len(cols) - 2:
-        raise InputError(src, f"line {no}", f"expected {len(cols) - 2} comma-separated values, got {len(cells)}")
+        raise InputError(src, f"line {no}",
+                         f"expected {len(cols) - 2} comma-separated values, got {len(cells)}")
     get = {k: cells[i] for k, i in cols.items()}
     sid, grp, pt = get["setup"], get["group"], get["point"]
     if sid not in setups:
-        raise InputError(src, f"line {no}: setup", f"{sid!r} is not declared; expected one of {', '.join(setups)}")
+        raise InputError(src, f"line {no}: setup",
+                         f"{sid!r} is not declared; expected one of {', '.join(setups)}")
     va, hz = columns.angles(get, src, no)
     slope = _float(get["slope_m"], src, no, "slope_m", "a slope distance in m")
     if not 0 < slope <= MAX_DISTANCE_M:
-        raise InputError(src, f"line {no}: slope_m", f"expected a distance in (0, {MAX_DISTANCE_M:g}] m, got {get['slope_m']}")
+        raise InputError(src, f"line {no}: slope_m", f"expected a distance in "
+                         f"(0, {MAX_DISTANCE_M:g}] m, got {get['slope_m']}")
     if pt == "P":
         if grp or get["scanner_m"]:
-            raise InputError(src, f"line {no}", "a P observation has no group and no scanner range; expected both empty")
+            raise InputError(src, f"line {no}", "a P observation has no group and no scanner "
+                             "range; expected both empty")
         return "P", sid, {"p_slope": slope, "p_va": va, "p_hz": hz, "line": no}
     kind = _kind(pt, grp, src, no)
     scan = _float(get["scanner_m"], src, no, "scanner_m", f"the scanner range of {pt} in m")
     if not 0 < scan <= MAX_DISTANCE_M:
-        raise InputError(src, f"line {no}: scanner_m", f"expected a range in (0, {MAX_DISTANCE_M:g}] m, got {get['scanner_m']}")
+        raise InputError(src, f"line {no}: scanner_m", f"expected a range in "
+                         f"(0, {MAX_DISTANCE_M:g}] m, got {get['scanner_m']}")
     return "target", (list(setups).index(sid), grp, pt, kind, slope, va, hz, scan, no)
 
 
@@ -254,12 +296,13 @@ def _check_groups(src: str, group_rows: dict[str, list]) -> None:
         seen = {}
         for pt, sid, no in members:
             if pt in seen:
-                raise InputError(src, f"line {no}: group {grp}",
-                                 f"second point {pt} (first on line {seen[pt]}); expected one each of A, B, C, D")
+                raise InputError(src, f"line {no}: group {grp}", f"second point {pt} (first on "
+                                 f"line {seen[pt]}); expected one each of A, B, C, D")
             seen[pt] = no
             if sid != members[0][1]:
-                raise InputError(src, f"line {no}: group {grp}", f"setup {sid} differs from {members[0][1]} on line "
-                                 f"{members[0][2]}; expected one setup per group")
+                raise InputError(src, f"line {no}: group {grp}", f"setup {sid} differs from "
+                                 f"{members[0][1]} on line {members[0][2]}; expected one setup "
+                                 "per group")
         missing = [p for p in FEATURE_POINTS if p not in seen]
         if missing:
             raise InputError(src, f"line {members[-1][2]}: group {grp}",
@@ -274,14 +317,16 @@ def _check_setups(src: str, setups: dict, p_obs: dict, targets: list) -> None:
         if sid not in p_obs:
             rows_of = [t[8] for t in targets if setup_ids[t[0]] == sid]
             where = f"line {rows_of[0]}" if rows_of else f"line {s['line']}"
-            raise InputError(src, f"{where}: setup {sid}",
-                             "missing its P observation (the mirror centre); expected one row with point P")
+            raise InputError(src, f"{where}: setup {sid}", "missing its P observation (the mirror "
+                             "centre); expected one row with point P")
         if setup_ids.index(sid) not in used:
-            raise InputError(src, f"line {s['line']}: setup {sid}", "has no targets; expected feature or E points observed from it")
+            raise InputError(src, f"line {s['line']}: setup {sid}",
+                             "has no targets; expected feature or E points observed from it")
 
 
 def _parse_rows(src, rows, header, setups, scanner_sigma) -> TotalStationObservations:
-    """The data rows → checked observations (groups complete, one P per setup, targets per setup)."""
+    """The data rows → checked observations (groups complete, one P per setup, targets per
+    setup)."""
     columns = _Columns(*header)
     p_obs: dict[str, dict] = {}
     targets, group_rows = [], {}
@@ -290,8 +335,9 @@ def _parse_rows(src, rows, header, setups, scanner_sigma) -> TotalStationObserva
         if kind == "P":
             sid, p = value
             if sid in p_obs:
+                first = p_obs[sid]["line"]
                 raise InputError(src, f"line {no}: setup {sid}",
-                                 f"second P observation (first on line {p_obs[sid]['line']}); expected one")
+                                 f"second P observation (first on line {first}); expected one")
             p_obs[sid] = p
             continue
         t = value[0]
@@ -301,14 +347,15 @@ def _parse_rows(src, rows, header, setups, scanner_sigma) -> TotalStationObserva
     _check_groups(src, group_rows)
     _check_setups(src, setups, p_obs, targets)
     if not group_rows:
-        raise InputError(src, f"line {rows[-1][0]}", "no feature-point group in the file; expected at least one group "
-                         "of A, B, C, D")
+        raise InputError(src, f"line {rows[-1][0]}", "no feature-point group in the file; expected "
+                         "at least one group of A, B, C, D")
     built = [Setup(id=sid, angle_sigma=s["angle_sigma"], distance_sigma_m=s["distance_sigma_m"],
-                   distance_sigma_ppm=s["distance_sigma_ppm"], **p_obs[sid]) for sid, s in setups.items()]
+                   distance_sigma_ppm=s["distance_sigma_ppm"], **p_obs[sid])
+             for sid, s in setups.items()]
     c = list(zip(*targets))
     return TotalStationObservations(
-        source=src, setups=built, scanner_sigma=scanner_sigma,
-        setup=np.array(c[0], int), group=np.array(c[1], dtype=object).astype(str), point=np.array(c[2]).astype(str),
+        source=src, setups=built, scanner_sigma=scanner_sigma, setup=np.array(c[0], int),
+        group=np.array(c[1], dtype=object).astype(str), point=np.array(c[2]).astype(str),
         kind=np.array(c[3]).astype(str), slope=np.array(c[4], float), va=np.array(c[5], float),
         hz=np.array(c[6], float), scanner=np.array(c[7], float), line=np.array(c[8], int),
     )
