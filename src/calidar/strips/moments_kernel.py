@@ -81,3 +81,46 @@ def _dense_moments(p, cell_m):  # pragma: no cover - numba
         scatter[g, 4] += dy * dz
         scatter[g, 5] += dz * dz
     return keys, count, mean, scatter, True
+
+
+def dense_cell_counts(keys: np.ndarray):
+    """(distinct keys ascending, how many of ``keys`` in each) of cell keys (int64, as
+    :func:`calidar.strips.overlap.cell_keys`) by a dense table over their cells' bounding box, or
+    None when it is too large (> 4 N + 65 536 cells: the caller sorts)."""
+    cells, counts, dense = _dense_counts(np.ascontiguousarray(keys, np.int64))
+    return (cells, counts) if dense else None
+
+
+@njit(cache=True, nogil=True)
+def _dense_counts(keys):  # pragma: no cover - numba
+    n = keys.size
+    lo0, hi0, lo1, hi1 = 0, 0, 0, 0
+    for k in range(n):
+        i, j = keys[k] >> 32, keys[k] & 0xFFFFFFFF
+        j = j - 4294967296 if j >= 2147483648 else j
+        if k == 0:
+            lo0, hi0, lo1, hi1 = i, i, j, j
+        else:
+            lo0, hi0, lo1, hi1 = min(lo0, i), max(hi0, i), min(lo1, j), max(hi1, j)
+    width = hi1 - lo1 + 1
+    if n == 0 or (hi0 - lo0 + 1) * width > 4 * n + 65536:
+        e = np.zeros(0, np.int64)
+        return e, e, n == 0
+    table = np.zeros((hi0 - lo0 + 1) * width, np.int64)
+    for k in range(n):
+        i, j = keys[k] >> 32, keys[k] & 0xFFFFFFFF
+        j = j - 4294967296 if j >= 2147483648 else j
+        table[(i - lo0) * width + j - lo1] += 1
+    held = 0
+    for s in range(table.size):
+        held += table[s] > 0
+    cells, counts, r = np.empty(held, np.int64), np.empty(held, np.int64), 0
+    j_split = min(max(-lo1, 0), width)  # key order: i ascending, then j >= 0, then j < 0
+    for a in range(hi0 - lo0 + 1):
+        for b in range(width):
+            col = b + j_split if b + j_split < width else b + j_split - width
+            c = table[a * width + col]
+            if c > 0:
+                cells[r], counts[r] = ((lo0 + a) << 32) + ((lo1 + col) & 0xFFFFFFFF), c
+                r += 1
+    return cells, counts, True

@@ -49,3 +49,22 @@ def test_moments_match_direct_statistics():
         d = sel - sel.mean(axis=0)
         np.testing.assert_allclose(m.scatter[k], [d[:, a] @ d[:, b] for a, b in
                                                   ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))], atol=1e-9)
+
+
+@pytest.mark.parametrize("origin", [(0.0, 0.0), (-3000.0, -50.0), (512_345.0, 5_123_456.0)])
+def test_dense_cell_counts_equal_the_sort(origin):
+    from calidar.strips.moments_kernel import dense_cell_counts
+    from calidar.strips.overlap import cell_counts, cell_keys
+
+    rng = np.random.default_rng(11)
+    keys = cell_keys(np.asarray(origin) + rng.uniform(-300, 200, (20000, 2)), 5.0)
+    dense = dense_cell_counts(keys)
+    assert dense is not None
+    ks = np.sort(keys)  # the sort it replaces
+    start = np.r_[0, np.flatnonzero(ks[1:] != ks[:-1]) + 1]
+    for got, want in zip(dense, (ks[start], np.diff(np.r_[start, ks.size]))):
+        assert got.dtype == np.int64 and np.array_equal(got, want)
+    assert all(np.array_equal(a, b) for a, b in zip(cell_counts(keys), dense))
+    far = np.r_[keys[:3], cell_keys(np.array([[1e7, 1e7]]), 5.0)]
+    assert dense_cell_counts(far) is None and cell_counts(far)[1].sum() == 4  # sparse: the sort
+    assert [a.size for a in cell_counts(np.zeros(0, np.int64))] == [0, 0]
