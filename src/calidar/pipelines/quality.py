@@ -68,6 +68,7 @@ def measure(paths, config: QualityConfig = QualityConfig()):
     from calidar.ingest.held import HeldPoints
     from calidar.ingest.lines import index_flight_lines
     from calidar.strips.quality import SwathAccumulator, overlap_cell, overlap_plan
+    from calidar.strips.distribute import IN_PROCESS_THREADS
     from calidar.strips.selection import PointSelection
 
     settings, classes, options, cell_m = config.settings, config.classes, config.points, config.settings.cell_m
@@ -95,7 +96,7 @@ def measure(paths, config: QualityConfig = QualityConfig()):
                     acc.add(int(i), xyz[ids == i], selections[p])
         for i in index.ids:  # lines without a selected point: named in the notes
             acc.add(i, np.zeros((0, 3)))
-        results, notes = checked_differences(acc, settings, names)
+        results, notes = checked_differences(acc, settings, names, IN_PROCESS_THREADS)  # pairs in threads
         precisions = line_precisions(acc, settings)
     from calidar.ingest.plausibility import heights_notes
 

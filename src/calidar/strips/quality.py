@@ -211,19 +211,29 @@ class SwathAccumulator:
         sizes = self.plan.sizes(line) if self.plan else {self.base_m}
         return self._at(line, min(sizes)) if sizes else CellMoments.empty(self.base_m)
 
-    def differences(self, settings: QualitySettings | None = None) -> tuple[list[PairQuality], list[str]]:
+    def differences(self, settings: QualitySettings | None = None, threads: int = 1
+                    ) -> tuple[list[PairQuality], list[str]]:
         """The PairQuality of every overlapping pair of lines (ids ascending) and notes about lines
-        that overlap no other."""
+        that overlap no other; the pairs computed ``threads`` at a time (each pair on its own: the
+        same results however many), once every line's moments are combined here."""
+        from calidar.strips.distribute import run_tasks
+
         s = settings or QualitySettings(cell_m=self.cell_m)
         plan = self.plan
         if plan is None:
             grid = overlap_cell(self.cell_m)
             counts = {i: self._at(i, grid) for i in self.selections}
             plan = overlap_plan({i: (c.keys, c.count) for i, c in counts.items()}, grid, s)
+        if any(self.spilled.values()):  # moments on disk: one pair's at a time in memory
+            threads, tasks = 1, ((a, cell, b) for (a, b), cell in plan.cells.items())
+            pairs = (pair_quality(a, self._at(a, cell), b, self._at(b, cell), s) for a, cell, b in tasks)
+        else:  # each line's moments combined here (not in the threads), the pairs in threads
+            moments = {(i, cell): self._at(i, cell) for (a, b), cell in plan.cells.items() for i in (a, b)}
+            pairs = run_tasks(pair_quality, [(a, moments[a, cell], b, moments[b, cell], s)
+                                             for (a, b), cell in plan.cells.items()], threads=threads)
         results = []
-        for (a, b), cell in plan.cells.items():
-            q = pair_quality(a, self._at(a, cell), b, self._at(b, cell), s)
-            q.points_a, q.points_b = self.selections.get(a, []), self.selections.get(b, [])
+        for q in pairs:
+            q.points_a, q.points_b = self.selections.get(q.a, []), self.selections.get(q.b, [])
             results.append(q)
         return results, plan.notes
 

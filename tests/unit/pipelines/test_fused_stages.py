@@ -81,3 +81,27 @@ def test_stages_equal_the_model_by_model_path(run, monkeypatch):
         assert [q.to_dict() for q in a] == [q.to_dict() for q in b]
         assert all(np.array_equal(p.grid, q.grid, equal_nan=True) for p, q in zip(a, b))
     assert fused[1][0].to_dict() != fused[0][0].to_dict() != fused[2][0].to_dict()
+
+
+def test_calidar_quality_equals_its_unfused_path(run, monkeypatch):
+    """``calidar quality`` (pipelines.quality.measure) with the fused kernels (moments, counts), the
+    next chunk decompressed ahead and the pairs in two threads equals the numpy path, one pair at
+    a time, on the same files: every pair, grid and line precision."""
+    import calidar.ingest.lines as lines
+    import calidar.strips.distribute as distribute
+    import calidar.strips.moments_kernel as kernel
+    from calidar.pipelines.quality import measure
+
+    source, *_ = run
+    paths = [f.path for f in source.files]
+    monkeypatch.setattr(distribute, "IN_PROCESS_THREADS", 2)
+    fused = measure(paths)
+    monkeypatch.setattr(kernel, "dense_moments", lambda *a: None)
+    monkeypatch.setattr(kernel, "dense_cell_counts", lambda *a: None)
+    monkeypatch.setattr(distribute, "IN_PROCESS_THREADS", 1)
+    monkeypatch.setattr(lines, "prefetched", lambda items: items)
+    unfused = measure(paths)
+    assert len(fused[2]) >= 2 and [q.to_dict() for q in fused[2]] == [q.to_dict() for q in unfused[2]]
+    assert all(np.array_equal(p.grid, q.grid, equal_nan=True) for p, q in zip(fused[2], unfused[2]))
+    assert [p.to_dict() for p in fused[5]] == [p.to_dict() for p in unfused[5]]
+    assert fused[3] == unfused[3]
