@@ -124,3 +124,37 @@ def _dense_counts(keys):  # pragma: no cover - numba
                 cells[r], counts[r] = ((lo0 + a) << 32) + ((lo1 + col) & 0xFFFFFFFF), c
                 r += 1
     return cells, counts, True
+
+
+def dense_row_ids(ij: np.ndarray):
+    """(id of each row, number of distinct rows) of integer rows (K, 2), ids in the lexicographic
+    order of the rows — ``np.unique(ij, axis=0, return_inverse=True)``'s — by a dense table over
+    their bounding box, or None when it is too large (> 4 K + 65 536 cells)."""
+    inv, n, dense = _dense_row_ids(np.ascontiguousarray(ij, np.int64))
+    return (inv, n) if dense else None
+
+
+@njit(cache=True, nogil=True)
+def _dense_row_ids(ij):  # pragma: no cover - numba
+    n = ij.shape[0]
+    if n == 0:
+        return np.zeros(0, np.int64), 0, True
+    lo0, hi0, lo1, hi1 = ij[0, 0], ij[0, 0], ij[0, 1], ij[0, 1]
+    for k in range(n):
+        lo0, hi0 = min(lo0, ij[k, 0]), max(hi0, ij[k, 0])
+        lo1, hi1 = min(lo1, ij[k, 1]), max(hi1, ij[k, 1])
+    width = hi1 - lo1 + 1
+    if (hi0 - lo0 + 1) * width > 4 * n + 65536:
+        return np.zeros(0, np.int64), 0, False
+    table = np.full((hi0 - lo0 + 1) * width, -1, np.int64)
+    for k in range(n):
+        table[(ij[k, 0] - lo0) * width + ij[k, 1] - lo1] = 0
+    ids = 0
+    for s in range(table.size):  # the table's order is the rows' lexicographic order
+        if table[s] == 0:
+            table[s] = ids
+            ids += 1
+    inv = np.empty(n, np.int64)
+    for k in range(n):
+        inv[k] = table[(ij[k, 0] - lo0) * width + ij[k, 1] - lo1]
+    return inv, ids, True

@@ -68,3 +68,20 @@ def test_dense_cell_counts_equal_the_sort(origin):
     far = np.r_[keys[:3], cell_keys(np.array([[1e7, 1e7]]), 5.0)]
     assert dense_cell_counts(far) is None and cell_counts(far)[1].sum() == 4  # sparse: the sort
     assert [a.size for a in cell_counts(np.zeros(0, np.int64))] == [0, 0]
+
+
+def test_block_ids_numbered_as_numpy_unique():
+    from calidar.strips.moments_kernel import dense_row_ids
+    from calidar.strips.planimetric import block_ids
+
+    rng = np.random.default_rng(5)
+    for origin in ((0.0, 0.0), (-450.0, 3.0), (423_000.0, 5_205_000.0)):
+        centre = np.asarray(origin) + rng.uniform(-200, 300, (3000, 2))
+        want = np.unique(np.floor(centre / 20.0).astype(np.int64), axis=0, return_inverse=True)[1].ravel()
+        inv, n = block_ids(centre, 20.0)
+        assert dense_row_ids(np.floor(centre / 20.0).astype(np.int64)) is not None
+        assert np.array_equal(inv, want) and n == want.max() + 1
+    far = np.array([[0.0, 0.0], [1e9, 1e9], [5.0, 1.0]])
+    inv, n = block_ids(far, 20.0)  # not dense: np.unique
+    assert inv.tolist() == [0, 1, 0] and n == 2
+    assert block_ids(np.zeros((0, 2)), 20.0)[1] == 0
