@@ -34,7 +34,7 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
         (dx, dy ± σ, or not determined and why), and the USGS Lidar Base Specification swath checks with the
         quality level (QL0–QL3) each meets."""
         from calidar.outputs import check_out_dir, claim_output, guard_inputs, output_folder
-        from calidar.pipelines.quality import write_rasters
+        from calidar.pipelines.quality import write_pairs_rasters
         from calidar.cli.options import parse_classes
         from calidar.strips.usgs import SPECIFICATION, common_level, summary, usgs_checks
 
@@ -56,9 +56,8 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
         text = json.dumps(doc, indent=2, allow_nan=False) + "\n"
         if out:
             with output_folder(out, force, inputs=strips) as tmp:
-                for q in results:
-                    write_rasters(q, tmp, file_crs if file_crs is not None and not file_crs.is_geographic else None,
-                                  force=True)
+                write_pairs_rasters(results, tmp, file_crs if file_crs is not None and not file_crs.is_geographic
+                                    else None, force=True)
                 (tmp / "quality.json").write_text(text, encoding="utf-8")
         if as_json:
             print(text, end="")

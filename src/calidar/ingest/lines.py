@@ -15,6 +15,7 @@ import pyproj
 from numba import njit
 
 from calidar.errors import InputError
+from calidar.ingest.prefetch import prefetched
 from calidar.io.las import LasPoints, PointOptions, concat_points, iter_las_fields, las_header, las_time_system, read_las
 from calidar.io.las_crs import las_crs
 from calidar.strips.lines import GAP_S, LineIndex, add_spans, distinct, split_lines
@@ -79,7 +80,9 @@ def index_flight_lines(paths: Sequence[str | Path], options: PointOptions = Poin
     ids, seconds, classes, spans = set(), [], {}, {}
     for path in paths:
         present = np.zeros(256, bool)
-        for c in iter_las_fields(path, ("point_source_id", "classification", "gps_time", *fields), chunk_points):
+        # the next chunk decompressed while this one is worked on (calidar.ingest.prefetch)
+        for c in prefetched(iter_las_fields(path, ("point_source_id", "classification", "gps_time", *fields),
+                                            chunk_points)):
             if on_chunk is not None:
                 on_chunk(path, c)
             ids.update(distinct(c["point_source_id"]).tolist())

@@ -92,6 +92,7 @@ def line_chunks(source: StripSource, nominal, models=(None,), fields=None, where
     (default: all) as read; ``where(chunk)``: a mask of the points wanted. Whole lines, chunk by
     chunk (bounded memory)."""
     from calidar import georef
+    from calidar.ingest.regeoref import moved_versions
     from calidar.io.las import OPTIONAL_FIELDS
 
     for _, chunk, ids, t in source.chunks(OPTIONAL_FIELDS if fields is None else fields, files, span):
@@ -99,10 +100,14 @@ def line_chunks(source: StripSource, nominal, models=(None,), fields=None, where
             keep = where(chunk)
             chunk, ids, t = chunk.select(keep), ids[keep], t[keep]
         lin = None if all(m is None for m in models) else points_tile_linear(chunk)  # one for every model
-        ecef = None if lin is None else lin.near_ecef()  # ~1 mm: only the moves below count
-        v_s = None if ecef is None else georef.scanner_vectors(source.trajectory, nominal, t, ecef)
-        versions = [chunk if m is None else replace(chunk, xyz=lin.moved(
-            georef.reforward(nominal, m[0], m[1], t, v_s) - ecef)) for m in models]
+        # every model in one pass (poses interpolated once; calidar.ingest.regeoref), else model by model
+        moved = None if lin is None else moved_versions(source.trajectory, nominal, models, t, lin)
+        if moved is None and lin is not None:
+            ecef = lin.near_ecef()  # ~1 mm: only the moves below count
+            v_s = georef.scanner_vectors(source.trajectory, nominal, t, ecef)
+            moved = [None if m is None else lin.moved(georef.reforward(nominal, m[0], m[1], t, v_s) - ecef)
+                     for m in models]
+        versions = [chunk if m is None else replace(chunk, xyz=xyz) for m, xyz in zip(models, moved or models)]
         if ids.size and ids[0] == ids[-1] and np.all(ids == ids[0]):  # one line: no copies
             yield int(ids[0]), versions
             continue

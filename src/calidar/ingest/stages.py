@@ -154,12 +154,12 @@ def lines_quality(read: Callable[[list, dict, bool], StagePass], first: LineCoun
                                     threads=max(threads, len(accs)) if threads > 1 and not spilled else threads)]
 
 
-def checked_differences(acc, settings, names: dict[int, str]):
-    """The accumulator's pairs and notes; an error when no line overlaps another (lines named by
-    ``names`` {id: file name})."""
+def checked_differences(acc, settings, names: dict[int, str], threads: int = 1):
+    """The accumulator's pairs and notes (``threads`` pairs at a time); an error when no line
+    overlaps another (lines named by ``names`` {id: file name})."""
     from calidar.strips.overlap import strip_name
 
-    results, notes = acc.differences(settings)
+    results, notes = acc.differences(settings, threads)
     if not results:
         listed = ", ".join(strip_name(i, names) for i in sorted(acc.selections))
         if settings.cell_m is not None:

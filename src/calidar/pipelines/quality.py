@@ -68,6 +68,7 @@ def measure(paths, config: QualityConfig = QualityConfig()):
     from calidar.ingest.held import HeldPoints
     from calidar.ingest.lines import index_flight_lines
     from calidar.strips.quality import SwathAccumulator, overlap_cell, overlap_plan
+    from calidar.strips.distribute import IN_PROCESS_THREADS
     from calidar.strips.selection import PointSelection
 
     settings, classes, options, cell_m = config.settings, config.classes, config.points, config.settings.cell_m
@@ -95,7 +96,7 @@ def measure(paths, config: QualityConfig = QualityConfig()):
                     acc.add(int(i), xyz[ids == i], selections[p])
         for i in index.ids:  # lines without a selected point: named in the notes
             acc.add(i, np.zeros((0, 3)))
-        results, notes = checked_differences(acc, settings, names)
+        results, notes = checked_differences(acc, settings, names, IN_PROCESS_THREADS)  # pairs in threads
         precisions = line_precisions(acc, settings)
     from calidar.ingest.plausibility import heights_notes
 
@@ -111,17 +112,42 @@ def line_precisions(acc, settings) -> list:
             for i in sorted(acc.selections)]
 
 
-def write_rasters(q, out_dir: str | Path, crs=None, force: bool = False) -> list[Path]:
+def write_rasters(q, out_dir: str | Path, crs=None, force: bool = False, figure=None) -> list[Path]:
     """A pair's dz grid as GeoTIFF (``dz_<a>_<b>.tif``, float32 m, NaN nodata) and its picture
-    (``dz_<a>_<b>.png``, :func:`calidar.strips.quality.dz_figure`); none when the pair has no grid."""
+    (``dz_<a>_<b>.png``, :class:`calidar.strips.quality.DzFigure`: ``figure``, drawn again, or a
+    new one); none when the pair has no grid."""
     import matplotlib
 
     matplotlib.use("Agg")
-    from calidar.io.raster import write_geotiff, write_png
-    from calidar.strips.quality import dz_figure
+    from calidar.io.raster import write_geotiff
+    from calidar.outputs import atomic_path
+    from calidar.strips.quality import DzFigure
 
     if q.grid.size == 0:
         return []
     out_dir = Path(out_dir)
     tif = write_geotiff(out_dir / f"dz_{q.a}_{q.b}.tif", q.grid, q.cell_m, q.origin, crs, force)
-    return [tif, write_png(out_dir / f"dz_{q.a}_{q.b}.png", dz_figure(q), force)]
+    own = figure is None
+    figure = DzFigure() if own else figure
+    try:
+        png = out_dir / f"dz_{q.a}_{q.b}.png"
+        with atomic_path(png, force) as tmp:  # as calidar.io.raster.write_png, the figure kept
+            figure.show(q).savefig(tmp, format="png", dpi=110, bbox_inches="tight")
+    finally:
+        if own:
+            figure.close()
+    return [tif, png]
+
+
+def write_pairs_rasters(results, out_dir: str | Path, crs=None, force: bool = False) -> list[Path]:
+    """:func:`write_rasters` of every pair, their pictures drawn on one figure."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from calidar.strips.quality import DzFigure
+
+    figure = DzFigure()
+    try:
+        return [f for q in results for f in write_rasters(q, out_dir, crs, force, figure)]
+    finally:
+        figure.close()

@@ -56,8 +56,20 @@ class CellMoments:
 
     @classmethod
     def of_points(cls, points: np.ndarray, cell_m: float) -> "CellMoments":
-        """Moments of points (N, 3) m, z up (:func:`calidar.cells.group_cells`, then two passes to sum)."""
+        """Moments of points (N, 3) m, z up (:func:`calidar.cells.group_cells`, then two passes to sum;
+        one numba kernel when the cells fit a dense table: :mod:`calidar.strips.moments_kernel`)."""
+        from calidar.strips.moments_kernel import dense_moments
+
         p = np.ascontiguousarray(points, float)
+        fused = dense_moments(p, cell_m)
+        if fused is not None:
+            return cls(float(cell_m), *fused)
+        return cls.sorted_points(p, cell_m)
+
+    @classmethod
+    def sorted_points(cls, p: np.ndarray, cell_m: float) -> "CellMoments":
+        """:meth:`of_points` in numpy (group_cells, sorts); any cells."""
+        p = np.ascontiguousarray(p, float)
         ij = np.floor(p[:, :2] / cell_m).astype(np.int64)
         inv, first = group_cells(ij)
         keys = index_keys(ij[first])

@@ -47,7 +47,13 @@ def footprint_area_m2(xy: np.ndarray, cell_m: float = 5.0) -> float:
 
 
 def cell_counts(keys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The distinct cell keys (sorted) and how many of ``keys`` fall in each."""
+    """The distinct cell keys (sorted) and how many of ``keys`` fall in each (a dense table in numba
+    when the cells' box is small against the keys: :func:`calidar.strips.moments_kernel.dense_cell_counts`)."""
+    from calidar.strips.moments_kernel import dense_cell_counts
+
+    dense = dense_cell_counts(keys)
+    if dense is not None:
+        return dense
     ks = np.sort(np.asarray(keys, np.int64))
     start = np.r_[0, np.flatnonzero(ks[1:] != ks[:-1]) + 1] if ks.size else np.zeros(0, np.int64)
     return ks[start], np.diff(np.r_[start, ks.size]).astype(np.int64)

@@ -94,8 +94,15 @@ def gradient_noise(cov: np.ndarray, count: np.ndarray, normal: np.ndarray) -> np
 
 
 def block_ids(centre: np.ndarray, block_m: float) -> tuple[np.ndarray, int]:
-    """Block index (K,) of each cell on squares of ``block_m`` and the number of blocks."""
-    inv = np.unique(np.floor(centre / block_m).astype(np.int64), axis=0, return_inverse=True)[1].ravel()
+    """Block index (K,) of each cell on squares of ``block_m`` and the number of blocks (numbered
+    as np.unique(axis=0) orders them; a dense table in numba when the blocks fit one)."""
+    from calidar.strips.moments_kernel import dense_row_ids
+
+    ij = np.floor(centre / block_m).astype(np.int64)
+    dense = dense_row_ids(ij)
+    if dense is not None:
+        return dense
+    inv = np.unique(ij, axis=0, return_inverse=True)[1].ravel()
     return inv, int(inv.max()) + 1 if inv.size else 0
 
 

@@ -1,0 +1,99 @@
+"""The overlap-quality stages' points re-georeferenced in one numba pass per chunk
+(:func:`moved_versions`): per point the trajectory's pose is interpolated once, the delivered
+point taken back into the scanner frame with the nominal mounting, then forward with every
+stage's mounting (the same pose when a stage keeps the trajectory; a corrected trajectory's
+own pose, once, for the stages flown with it), and each move applied to the point's CRS
+coordinates through the chunk's per-tile Jacobians (:class:`calidar.crs.TileLinear`).
+
+It is :func:`calidar.georef.scanner_vectors`, :func:`calidar.georef.reforward` (a new mounting
+only: same range model and scanner) and :meth:`calidar.crs.TileLinear.moved` operation for
+operation in one loop: the coordinates are bit for bit theirs
+(``tests/unit/ingest/test_regeoref.py``), without three interpolations of the poses and the
+(N, 3) arrays between the calls. Anything else (a new range model or scanner, a third
+trajectory) returns None: the caller goes the long way.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from calidar.georef import _pose
+
+
+def moved_versions(traj, nominal, models, t: np.ndarray, lin) -> list[np.ndarray] | None:
+    """CRS coordinates (N, 3) of the chunk's points (``lin``: their TileLinear, times ``t`` in
+    ``traj``'s system) re-georeferenced with each (sensor, trajectory) of ``models`` (None
+    entries: skipped, None in the list returned), or None when the models are not all new
+    mountings on ``traj`` and at most one other trajectory."""
+    kept = [m for m in models if m is not None]
+    if any((s.range_offset, s.range_scale, s.scanner) != (nominal.range_offset, nominal.range_scale, nominal.scanner)
+           for s, _ in kept):
+        return None
+    others = list({id(tr): tr for _, tr in kept if tr is not traj}.values())
+    if len(others) > 1:
+        return None
+    other = others[0] if others else traj
+    t = np.ascontiguousarray(t, float)
+    out = np.empty((len(kept), t.size, 3))
+    c = lambda a: np.ascontiguousarray(a, float)  # noqa: E731 - as calidar.georef._c
+    which = np.array([0 if tr is traj else 1 for _, tr in kept], np.int64)
+    n_out, n_out2 = _versions_kernel(
+        traj.time, c(traj.ecef), c(traj.q_eb), other.time, c(other.ecef), c(other.q_eb), t, lin.near_ecef(),
+        c(nominal.r_bs), c(nominal.lever_arm), np.stack([c(s.r_bs) for s, _ in kept]) if kept else np.zeros((0, 3, 3)),
+        np.stack([c(s.lever_arm) for s, _ in kept]) if kept else np.zeros((0, 3)), which,
+        lin.xyz, lin.jac, lin.rows, out)
+    if n_out:
+        traj.check_covers(t)
+    if n_out2 and np.any(which == 1):
+        other.check_covers(t)
+    it = iter(out)
+    return [None if m is None else next(it) for m in models]
+
+
+@njit(cache=True, nogil=True)
+def _versions_kernel(tt, pos, q, tt2, pos2, q2, t, p, r_bs0, lever0, r_bs, lever, which, base, jac, rows,
+                     out):  # pragma: no cover - numba
+    """out[m] = base + J · (forward_m(inverse(p)) − p) per point (see the module); returns how many
+    times lie outside each trajectory (NaN counts as outside)."""
+    n_out, i, i_prev, theta, s, sign = 0, 0, -1, 0.0, 0.0, 1.0
+    n_out2, i2, i2_prev, theta2, s2, sign2 = 0, 0, -1, 0.0, 0.0, 1.0
+    second = False
+    for m in range(which.size):
+        second = second or which[m] == 1
+    qx = qy = qz = r00 = r01 = r02 = r10 = r11 = r12 = r20 = r21 = r22 = 0.0
+    for k in range(t.size):
+        tk = t[k]
+        n_out += not tt[0] <= tk <= tt[tt.size - 1]
+        i, i_prev, theta, s, sign, px, py, pz, a00, a01, a02, a10, a11, a12, a20, a21, a22 = _pose(
+            tt, pos, q, tk, i, i_prev, theta, s, sign)
+        if second:
+            n_out2 += not tt2[0] <= tk <= tt2[tt2.size - 1]
+            i2, i2_prev, theta2, s2, sign2, qx, qy, qz, r00, r01, r02, r10, r11, r12, r20, r21, r22 = _pose(
+                tt2, pos2, q2, tk, i2, i2_prev, theta2, s2, sign2)
+        # the scanner-frame vector (calidar.georef._inverse_kernel)
+        dx, dy, dz = p[k, 0] - px, p[k, 1] - py, p[k, 2] - pz
+        bx = a00 * dx + a10 * dy + a20 * dz - lever0[0]
+        by = a01 * dx + a11 * dy + a21 * dz - lever0[1]
+        bz = a02 * dx + a12 * dy + a22 * dz - lever0[2]
+        sx = r_bs0[0, 0] * bx + r_bs0[1, 0] * by + r_bs0[2, 0] * bz
+        sy = r_bs0[0, 1] * bx + r_bs0[1, 1] * by + r_bs0[2, 1] * bz
+        sz = r_bs0[0, 2] * bx + r_bs0[1, 2] * by + r_bs0[2, 2] * bz
+        for m in range(which.size):
+            if which[m] == 0:
+                ox, oy, oz, e00, e01, e02, e10, e11, e12, e20, e21, e22 = (px, py, pz, a00, a01, a02, a10, a11, a12,
+                                                                           a20, a21, a22)
+            else:
+                ox, oy, oz, e00, e01, e02, e10, e11, e12, e20, e21, e22 = (qx, qy, qz, r00, r01, r02, r10, r11, r12,
+                                                                           r20, r21, r22)
+            # the lidar equation (calidar.georef._lidar_equation), then the move (calidar.crs._moved)
+            cx = r_bs[m, 0, 0] * sx + r_bs[m, 0, 1] * sy + r_bs[m, 0, 2] * sz + lever[m, 0]
+            cy = r_bs[m, 1, 0] * sx + r_bs[m, 1, 1] * sy + r_bs[m, 1, 2] * sz + lever[m, 1]
+            cz = r_bs[m, 2, 0] * sx + r_bs[m, 2, 1] * sy + r_bs[m, 2, 2] * sz + lever[m, 2]
+            d0 = (ox + e00 * cx + e01 * cy + e02 * cz) - p[k, 0]
+            d1 = (oy + e10 * cx + e11 * cy + e12 * cz) - p[k, 1]
+            d2 = (oz + e20 * cx + e21 * cy + e22 * cz) - p[k, 2]
+            j = rows[k]
+            for a in range(3):
+                out[m, k, a] = base[k, a] + (jac[j, a, 0] * d0 + jac[j, a, 1] * d1 + jac[j, a, 2] * d2)
+    return n_out, n_out2
