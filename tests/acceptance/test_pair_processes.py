@@ -36,6 +36,15 @@ def test_tasks_run_in_other_processes_in_task_order(pool):
     assert map_in_processes(pool, abs, []) == []
 
 
+def test_a_broken_pool_leaves_the_tasks_to_this_process():
+    class Broken:
+        def map(self, *args):
+            from concurrent.futures.process import BrokenProcessPool
+            raise BrokenProcessPool("a worker died")
+
+    assert map_in_processes(Broken(), abs, [(-3,), (4,)]) == [3, 4]
+
+
 def test_one_process_is_no_pool_and_only_large_rounds_go_to_the_workers():
     with pair_processes(1) as p:
         assert p is None

@@ -53,5 +53,13 @@ def worth_processes(tasks: Sequence[tuple], min_points: int | None = None) -> bo
 
 def map_in_processes(pool: Any, func: Callable[..., Any], tasks: Sequence[tuple]) -> list[Any]:
     """``[func(*task) for task in tasks]`` on the pool's workers, in task order (a task's exception is
-    raised here)."""
-    return list(pool.map(func, *zip(*tasks))) if tasks else []
+    raised here); in this process when the workers cannot run them (none could start, or one died: the
+    pool is broken), with the same results."""
+    from concurrent.futures.process import BrokenProcessPool
+
+    if not tasks:
+        return []
+    try:
+        return list(pool.map(func, *zip(*tasks)))
+    except (BrokenProcessPool, OSError):
+        return [func(*task) for task in tasks]
