@@ -11,7 +11,7 @@ The workers come from a ``forkserver`` (``spawn`` where there is none): never fo
 process, whose reader and BLAS threads a fork would leave half-copied. They start on the first task
 (≈ 1–2 s importing calidar) and serve every outer iteration of a calibration; a round of pairs with
 fewer than :data:`MIN_POINTS` points stays in this process, where that start would cost more than the
-second core gains.
+second core gains. A pool that cannot start or loses a worker leaves the round to this process.
 """
 
 from __future__ import annotations
