@@ -245,7 +245,7 @@ def _levenberg_marquardt(at: Estimate, step_in_sigma: float) -> Estimate:
         dN = np.diag(N).copy()
         dN[dN <= 0] = 1.0
         for _ in range(12):
-            dx = -_solve_damped(N + lam * np.diag(dN), g)
+            dx = -_solve_damped(_damped(N, lam * dN), g)
             r_new = fit.residuals(x + dx)
             c_new = fit.cost(r_new, w, x + dx)
             if np.isfinite(c_new) and c_new <= c:
@@ -286,6 +286,13 @@ def _inverse_diagonal(N: np.ndarray) -> np.ndarray:
     """diag(N⁻¹), ≥ 0 (zeros when N is not positive definite: the stop rule then never fires on it)."""
     inv = cholesky_inverse(N)
     return np.zeros(N.shape[0]) if inv is None else np.clip(np.diag(inv), 0, None)
+
+
+def _damped(N: np.ndarray, add: np.ndarray) -> np.ndarray:
+    """N + diag(add), without building the dense diagonal matrix (the same sums)."""
+    A = N.copy()
+    A[np.diag_indices_from(A)] += add
+    return A
 
 
 def _solve_damped(A: np.ndarray, g: np.ndarray) -> np.ndarray:

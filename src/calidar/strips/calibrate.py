@@ -47,6 +47,7 @@ from calidar.strips.overlap import Overlap, find_overlaps, strip_name
 from calidar.strips.config import CalibrationConfig, StripSettings
 from calidar.strips.matchers import Matcher
 from calidar.strips.parameters import build_parameters, sensor_of
+from calidar.strips.processes import PROCESSES, map_in_processes, pair_processes, worth_processes
 
 #: an outer iteration's adjustment stops when every step is below this fraction of its σ: the next
 #: matching moves the points anyway; the last one is then refined until every step (of ~1 500
@@ -174,9 +175,11 @@ class _Run:
     def headings(self) -> dict[int, float]:
         return {i: st.heading_enu() for i, st in self.by_id.items()}
 
-    def match(self, values: dict[str, float], k: int, client, say, log=None) -> tuple[list[Correspondences], list[dict], dict]:
-        """Re-georeference the overlap points with ``values`` and match every pair: the usable
-        correspondence sets (whole-strip columns), their pairs, and the stage times (s)."""
+    def match(self, values: dict[str, float], k: int, client, say, log=None,
+              pool=None) -> tuple[list[Correspondences], list[dict], dict]:
+        """Re-georeference the overlap points with ``values`` and match every pair (``pool``: worker
+        processes, :mod:`calidar.strips.processes`): the usable correspondence sets (whole-strip
+        columns), their pairs, and the stage times (s)."""
         clock = time.perf_counter()
         sensor, fix = sensor_of(self.nominal, values), corrections(values, self.model, self.spans)
         current = {i: (idx, georeference(sensor, fix.get(i), self.poses[i], self.by_id[i].time[idx]))
@@ -189,7 +192,10 @@ class _Run:
         tasks = [(self.matcher, o.a, subset(o.a, o.index_a), o.b, subset(o.b, o.index_b)) for o in self.overlaps]
         say(f"iteration {k + 1}: matching {len(tasks)} pairs ({self.matcher.name})", k, self.settings.max_outer)
         clock = time.perf_counter()
-        found = map_pairs(_match_or_error, tasks, client=client, log=log)
+        if pool is not None and client is None and worth_processes(tasks):  # a GIL-holding matcher: both cores
+            found = map_in_processes(pool, _match_or_error, tasks)
+        else:
+            found = map_pairs(_match_or_error, tasks, client=client, log=log)
         times["match_s"] = time.perf_counter() - clock
         corrs, pairs, skipped = self._usable(found)
         if k == 0 and skipped:
@@ -293,10 +299,36 @@ def calibrate_with_client(strips: Sequence[Strip], nominal: Sensor, config: Cali
     params = build_parameters(nominal, config.estimate, run.spans, trajectory,
                               run.headings() if trajectory is not None else None)
     params = with_survey_parameters(params, control)
+    processes = pair_processes(PROCESSES if client is None and getattr(matcher, "holds_gil", False) else 1)
+    with processes as pool:
+        outer, est, problem, corrs, pairs, first_residuals, first_control = _outer_loop(
+            run, params, client, say, log, pool, threshold_m)
+    if run.model is not None and run.model.estimate_level:
+        est, problem = _trajectory_level(run, est, corrs, say)
+    say("refining the last adjustment and its σ", s.max_outer, s.max_outer)
+    clock = time.perf_counter()
+    est = est.refine(FINAL_STEP_IN_SIGMA)  # the last matching's adjustment, then its covariance
+    solution = run.solution(est, problem)
+    if config.model_check:
+        say("model check: freeing the parameters not estimated", s.max_outer, s.max_outer)
+        solution.extra["model_check"] = run.model_check(est, problem, corrs, solution)
+    outer[-1].update(mean_distance_m=_mean(problem, est.r), solver_iterations=len(est.history) - 1,
+                     solve_s=outer[-1]["solve_s"] + time.perf_counter() - clock, values=est.parameters.values())
+    say("calibrated", s.max_outer, s.max_outer)
+    if run.control is not None:
+        solution.extra["control"] = control_summary(run.control, first_control,
+                                                    control_rows(problem, problem(solution.parameters.values())))
+    return _result(run, solution, problem, pairs, outer, first_residuals, strips)
+
+
+def _outer_loop(run: _Run, params: ParameterSet, client, say, log, pool, threshold_m: float) -> tuple:
+    """Match and solve until the mean correspondence distance settles: (the outer iterations, the last
+    estimate, its problem, correspondences and pairs, the first residuals and control rows)."""
+    s = run.settings
     outer: list[dict] = []
     first_residuals = first_control = est = problem = pairs = None
     for k in range(s.max_outer):
-        corrs, pairs, times = run.match(params.values(), k, client, say, log)
+        corrs, pairs, times = run.match(params.values(), k, client, say, log, pool)
         say(f"iteration {k + 1}: solving {sum(c.n_obs for c in corrs)} observations", k, s.max_outer)
         clock = time.perf_counter()
         est, problem = run.solve(corrs, params, OUTER_STEP_IN_SIGMA, None if est is None else est.step_scale)
@@ -315,22 +347,7 @@ def calibrate_with_client(strips: Sequence[Strip], nominal: Sensor, config: Cali
         change = abs(outer[-1]["mean_distance_m"] - outer[-2]["mean_distance_m"]) if len(outer) > 1 else float("nan")
         run.warnings.append(f"the outer loop stopped after {s.max_outer} iterations before the mean correspondence "
                             f"distance settled (last change {change * 1e3:.2g} mm)")
-    if run.model is not None and run.model.estimate_level:
-        est, problem = _trajectory_level(run, est, corrs, say)
-    say("refining the last adjustment and its σ", s.max_outer, s.max_outer)
-    clock = time.perf_counter()
-    est = est.refine(FINAL_STEP_IN_SIGMA)  # the last matching's adjustment, then its covariance
-    solution = run.solution(est, problem)
-    if config.model_check:
-        say("model check: freeing the parameters not estimated", s.max_outer, s.max_outer)
-        solution.extra["model_check"] = run.model_check(est, problem, corrs, solution)
-    outer[-1].update(mean_distance_m=_mean(problem, est.r), solver_iterations=len(est.history) - 1,
-                     solve_s=outer[-1]["solve_s"] + time.perf_counter() - clock, values=est.parameters.values())
-    say("calibrated", s.max_outer, s.max_outer)
-    if run.control is not None:
-        solution.extra["control"] = control_summary(run.control, first_control,
-                                                    control_rows(problem, problem(solution.parameters.values())))
-    return _result(run, solution, problem, pairs, outer, first_residuals, strips)
+    return outer, est, problem, corrs, pairs, first_residuals, first_control
 
 
 def _trajectory_level(run: _Run, est: Estimate, corrs: list[Correspondences], say) -> tuple[Estimate, StripProblem]:

@@ -10,6 +10,7 @@ and trajectory-correction Jacobian columns analytically.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from functools import lru_cache
 
 import numpy as np
 import scipy.sparse as sp
@@ -37,11 +38,20 @@ def compact(m: sp.csr_matrix, cols: np.ndarray) -> sp.csr_matrix:
 
 def boresight_derivatives(sensor: Sensor) -> np.ndarray:
     """∂R_bs/∂(roll, pitch, yaw) as (9, 3): column k the flattened derivative. With
-    R_bs = Rz(yaw)·Ry(pitch)·Rx(roll) and ∂R_i(θ)/∂θ = R_i(θ)·[e_i]×."""
-    rx, ry, rz = frames.rot_x(sensor.boresight_roll), frames.rot_y(sensor.boresight_pitch), frames.rot_z(sensor.boresight_yaw)
+    R_bs = Rz(yaw)·Ry(pitch)·Rx(roll) and ∂R_i(θ)/∂θ = R_i(θ)·[e_i]×. Read-only: kept for the
+    last few angles (every side of every correspondence set asks at the same sensor)."""
+    return _boresight_derivatives(float(sensor.boresight_roll), float(sensor.boresight_pitch),
+                                  float(sensor.boresight_yaw))
+
+
+@lru_cache(maxsize=16)
+def _boresight_derivatives(roll: float, pitch: float, yaw: float) -> np.ndarray:
+    rx, ry, rz = frames.rot_x(roll), frames.rot_y(pitch), frames.rot_z(yaw)
     gx, gy, gz = (np.cross(np.eye(3), e) for e in np.eye(3))  # [e]×: [e]×·v = e × v
     d = [rz @ ry @ rx @ gx, rz @ ry @ gy @ rx, rz @ gz @ ry @ rx]
-    return np.stack([m.ravel() for m in d], axis=1)
+    out = np.stack([m.ravel() for m in d], axis=1)
+    out.setflags(write=False)
+    return out
 
 
 class Centroids:

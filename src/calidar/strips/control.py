@@ -239,7 +239,8 @@ def vertical_shift(result) -> tuple[float, float, float] | None:
         return None
     a = np.zeros(len(free))
     a[up] = 1.0 / len(up)
-    values = np.array([solution.values[n] for n in free])
+    all_values = solution.values  # (a dict built per access: once, not per parameter)
+    values = np.array([all_values[n] for n in free])
     prior = {p.name: (p.prior_sigma or 0.0) / len(up) for p in solution.parameters.free if p.name in {free[j] for j in up}}
     var_prior = 0.0
     groups = [] if model is None else model.prior_correlation({st.id: st.time_span for st in result.strips})

@@ -54,6 +54,8 @@ class Vgicp:
     settings: VgicpSettings = field(default_factory=VgicpSettings)
     #: re-matching alone moves the mean distance by ~0.1 mm, so the tie planes' 0.2 mm would rarely stop it
     threshold_m: float = 1e-3
+    #: small_gicp holds the GIL: in-process runs match the pairs in worker processes (:mod:`calidar.strips.processes`)
+    holds_gil: ClassVar[bool] = True
 
     def match(self, strip_a: int, points_a: np.ndarray, strip_b: int, points_b: np.ndarray) -> Correspondences:
         return match_pair_vgicp(strip_a, points_a, strip_b, points_b, self.settings)
