@@ -86,6 +86,17 @@ class Observations:
     #: leeward's one ray pulled its own scale to the floor and the along-track position 10 m off with it)
     ray_floor: float = 0.0
 
+    def quantum(self) -> float:
+        """The scan-angle field's step where it is quantised (quantised.scan_quantum), computed once."""
+        if "quantum" not in self.cache:
+            self.cache["quantum"] = scan_quantum(self.scan) if self.use_across else 0.0
+        return self.cache["quantum"]
+
+    def median_ray_sigma(self) -> float:
+        if "ray_sigma" not in self.cache:
+            self.cache["ray_sigma"] = float(np.median(self.ray_sigma)) if self.ray_sigma.size else 1.0
+        return self.cache["ray_sigma"]
+
     def basis(self, spline: Spline, which: str) -> tuple[np.ndarray, np.ndarray]:
         """``spline.basis`` of the point ("t") or ray ("ray_t") times, computed once."""
         if which not in self.cache:
@@ -270,10 +281,10 @@ def _iterate(obs: Observations, spline: Spline, coef: np.ndarray, settings: FitS
     n_mat, rhs = np.zeros((6 * k, 6 * k)), np.zeros(6 * k)
     b_mat, c_mat, r_g = np.zeros((6 * k, idx.size)), np.zeros((idx.size, idx.size)), np.zeros(idx.size)
     chi2, n_tot, scales, n_obs = 0.0, 0, {}, {}
-    quantum = scan_quantum(obs.scan) if obs.use_across else 0.0
+    quantum = obs.quantum()
     for name, basis, r, g, rel, gm in _types(obs, spline, coef, settings, mount, idx):
         floor = max(SCALE_FLOOR, quantum / np.sqrt(12.0)) if name == "across" else SCALE_FLOOR
-        floor = floor / float(np.median(rel))
+        floor = floor / (obs.median_ray_sigma() if name.startswith("ray") else 1.0)
         w, scale = _robust(r / rel, max(floor, obs.ray_floor) if name.startswith("ray") else floor)
         scales[name.rstrip("01")] = scale
         n_obs[name] = int(r.size)
@@ -336,7 +347,7 @@ def solve_segment(obs: Observations, spline: Spline, coef0: np.ndarray, settings
     f = max(sigma0, 1.0) ** 2
     low = step.mount.low_rank[_interleaved(k)] if step.mount is not None else None  # the mounting's (mounting.py)
     cov = _band_covariance(step.n_mat, low, k, f)
-    quantum = scan_quantum(obs.scan) if obs.use_across else 0.0
+    quantum = obs.quantum()
     if quantum:
         across = next(t for t in _types(obs, spline, coef, settings, mount, every) if t[0] == "across")
         prior = np.diag(1.0 / np.asarray(settings.mount_sigma, float)[every] ** 2)
