@@ -52,16 +52,22 @@ def pulse_rays(t, xyz, scan, source, return_number=None):
     """Rays of the multi-point pulses among points: (index of first, index of last, repeated-return
     pulses); first = highest point, last = lowest. Only points whose time another point shares are
     looked at (a tenth of an airborne file), in runs of one time (:func:`_pulse_groups`)."""
-    order = np.arange(t.size) if np.all(t[1:] >= t[:-1]) else np.argsort(t, kind="stable")  # files are mostly in time order
-    ts = t[order]
-    same = ts[1:] == ts[:-1]
-    cand = order[np.r_[same, False] | np.r_[False, same]]
+    if np.all(t[1:] >= t[:-1]):  # files are mostly in time order
+        same = t[1:] == t[:-1]
+        cand = np.flatnonzero(np.r_[same, False] | np.r_[False, same])
+    else:
+        order = np.argsort(t, kind="stable")
+        ts = t[order]
+        same = ts[1:] == ts[:-1]
+        cand = order[np.r_[same, False] | np.r_[False, same]]
     if cand.size == 0:
         return np.empty(0, np.int64), np.empty(0, np.int64), 0
-    key_scan = np.zeros(t.size) if scan is None else np.nan_to_num(np.asarray(scan, float))
-    rn = np.zeros(t.size, np.int64) if return_number is None else np.asarray(return_number, np.int64)
-    first, last, repeated = _pulse_groups(cand, np.asarray(t, float), np.asarray(source, float), key_scan,
-                                          np.ascontiguousarray(xyz[:, 2], dtype=float), rn, return_number is not None)
+    key_scan = np.zeros(cand.size) if scan is None else np.nan_to_num(np.asarray(scan, float)[cand])
+    rn = np.zeros(cand.size, np.int64) if return_number is None else np.asarray(return_number, np.int64)[cand]
+    first, last, repeated = _pulse_groups(np.arange(cand.size), np.asarray(t, float)[cand],
+                                          np.asarray(source, float)[cand], key_scan, np.asarray(xyz[cand, 2], float), rn,
+                                          return_number is not None)
+    first, last = cand[first], cand[last]
     d = xyz[first] - xyz[last]
     sep = np.linalg.norm(d, axis=1)
     ok = (sep >= MIN_SEPARATION_M) & (d[:, 2] > np.cos(MAX_RAY_ANGLE_RAD) * sep)
