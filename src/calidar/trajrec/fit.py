@@ -29,7 +29,7 @@ import numpy as np
 
 from calidar.trajrec import mounting
 from calidar.trajrec.kernels import (  # noqa: F401 - one_blas_thread: the pipeline's import
-    accumulate, mount_partials, one_blas_thread, ray_partials, scan_partials, symmetrize,
+    accumulate, band_of_inverse, mount_partials, one_blas_thread, ray_partials, scan_partials, symmetrize,
 )
 from calidar.trajrec.quantised import clustered_covariance, scan_quantum, widest
 from calidar.trajrec.spline import Spline
@@ -85,6 +85,17 @@ class Observations:
     #: direction's σ from the two points alone; the rays' robust scale is at least this (a few rays' MAD is no scale:
     #: leeward's one ray pulled its own scale to the floor and the along-track position 10 m off with it)
     ray_floor: float = 0.0
+
+    def quantum(self) -> float:
+        """The scan-angle field's step where it is quantised (quantised.scan_quantum), computed once."""
+        if "quantum" not in self.cache:
+            self.cache["quantum"] = scan_quantum(self.scan) if self.use_across else 0.0
+        return self.cache["quantum"]
+
+    def median_ray_sigma(self) -> float:
+        if "ray_sigma" not in self.cache:
+            self.cache["ray_sigma"] = float(np.median(self.ray_sigma)) if self.ray_sigma.size else 1.0
+        return self.cache["ray_sigma"]
 
     def basis(self, spline: Spline, which: str) -> tuple[np.ndarray, np.ndarray]:
         """``spline.basis`` of the point ("t") or ray ("ray_t") times, computed once."""
@@ -194,23 +205,46 @@ def _interleaved(k: int) -> np.ndarray:
     return (np.arange(6 * k) % 6) * k + np.arange(6 * k) // 6
 
 
-def _banded_solve(n_mat: np.ndarray, rhs: np.ndarray, k: int, interleaved_out: bool = False) -> np.ndarray:
-    """N⁻¹·rhs by a banded Cholesky: with the unknowns interleaved (coefficient j, channel c → 6j + c) N
-    is banded (half-bandwidth 23: a row touches 4 consecutive coefficients of each channel). ``rhs``
-    (6K,) in channel-major order gives the answer in that order; ``interleaved_out`` with rhs = I
-    gives N⁻¹ in interleaved order (its channel blocks are [c::6, c::6])."""
+def _band(n_mat: np.ndarray, k: int) -> np.ndarray:
+    """N in upper banded storage with its unknowns interleaved (coefficient j, channel c → 6j + c): then N is
+    banded (half-bandwidth 23: a row touches 4 consecutive coefficients of each channel). Gathered diagonal by
+    diagonal, without reordering the whole matrix."""
+    cm, u, n = _interleaved(k), 23, 6 * k
+    ab = np.zeros((u + 1, n))
+    for d in range(u + 1):
+        ab[u - d, d:] = n_mat[cm[:n - d], cm[d:]]
+    return ab
+
+
+def _banded_solve(n_mat: np.ndarray, rhs: np.ndarray, k: int) -> np.ndarray:
+    """N⁻¹·rhs (rhs (6K,) or (6K, m) in channel-major order, the answer in that order) by a banded Cholesky
+    (:func:`_band`)."""
     from scipy.linalg import solveh_banded
 
     cm = _interleaved(k)
-    u, n = 23, 6 * k
-    ab = np.zeros((u + 1, n))
-    for d in range(u + 1):  # the interleaved matrix's d-th diagonal, gathered from N without reordering all of it
-        ab[u - d, d:] = n_mat[cm[:n - d], cm[d:]]
-    if interleaved_out:
-        return solveh_banded(ab, rhs, check_finite=False)
     x = np.empty_like(rhs)
-    x[cm] = solveh_banded(ab, rhs[cm], check_finite=False)
+    x[cm] = solveh_banded(_band(n_mat, k), rhs[cm], check_finite=False)
     return x
+
+
+def _band_covariance(n_mat: np.ndarray, low: np.ndarray | None, k: int, f: float) -> np.ndarray:
+    """(6, K, K) channel blocks of f·(N⁻¹ + L·Lᵀ) where a channel's coefficients are at most 3 apart (all that
+    :func:`channel_sigma` and the traces of quantised.widest use; 0 elsewhere), from N's band alone."""
+    from scipy.linalg import cholesky_banded
+
+    u = 23
+    with one_blas_thread():
+        z = band_of_inverse(cholesky_banded(_band(n_mat, k), check_finite=False))
+    cov = np.zeros((6, k, k))
+    j = np.arange(k)
+    for c in range(6):
+        for d in range(4):
+            a, b = 6 * j[:k - d] + c, 6 * j[d:] + c  # interleaved rows and columns, 6·d apart
+            v = z[u - 6 * d, b]
+            if low is not None:
+                v = v + np.einsum("ij,ij->i", low[a], low[b])
+            cov[c, j[:k - d], j[d:]] = cov[c, j[d:], j[:k - d]] = f * v
+    return cov
 
 
 def _thin(obs: Observations, step: int) -> Observations:
@@ -247,10 +281,10 @@ def _iterate(obs: Observations, spline: Spline, coef: np.ndarray, settings: FitS
     n_mat, rhs = np.zeros((6 * k, 6 * k)), np.zeros(6 * k)
     b_mat, c_mat, r_g = np.zeros((6 * k, idx.size)), np.zeros((idx.size, idx.size)), np.zeros(idx.size)
     chi2, n_tot, scales, n_obs = 0.0, 0, {}, {}
-    quantum = scan_quantum(obs.scan) if obs.use_across else 0.0
+    quantum = obs.quantum()
     for name, basis, r, g, rel, gm in _types(obs, spline, coef, settings, mount, idx):
         floor = max(SCALE_FLOOR, quantum / np.sqrt(12.0)) if name == "across" else SCALE_FLOOR
-        floor = floor / float(np.median(rel))
+        floor = floor / (obs.median_ray_sigma() if name.startswith("ray") else 1.0)
         w, scale = _robust(r / rel, max(floor, obs.ray_floor) if name.startswith("ray") else floor)
         scales[name.rstrip("01")] = scale
         n_obs[name] = int(r.size)
@@ -311,14 +345,9 @@ def solve_segment(obs: Observations, spline: Spline, coef0: np.ndarray, settings
     sigma0 = float(np.sqrt(step.chi2 / max(step.n_tot - 6 * spline.n_coef, 1)))
     k = spline.n_coef
     f = max(sigma0, 1.0) ** 2
-    with one_blas_thread():
-        inv = _banded_solve(step.n_mat, np.eye(6 * k), k, interleaved_out=True)
-    if step.mount is not None:  # the mounting's uncertainty passed on (mounting.py)
-        low = step.mount.low_rank[_interleaved(k)]
-        inv = inv + low @ low.T
-    inv *= f
-    cov = np.stack([inv[c::6, c::6] for c in range(6)])  # rows/columns interleaved: coefficient k, channel c
-    quantum = scan_quantum(obs.scan) if obs.use_across else 0.0
+    low = step.mount.low_rank[_interleaved(k)] if step.mount is not None else None  # the mounting's (mounting.py)
+    cov = _band_covariance(step.n_mat, low, k, f)
+    quantum = obs.quantum()
     if quantum:
         across = next(t for t in _types(obs, spline, coef, settings, mount, every) if t[0] == "across")
         prior = np.diag(1.0 / np.asarray(settings.mount_sigma, float)[every] ** 2)

@@ -13,6 +13,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
+from numba import njit
 
 MIN_SEPARATION_M = 1.0  #: returns of one pulse closer than this give no usable direction
 MAX_RAY_ANGLE_RAD = np.radians(75.0)  #: a pulse's ray further from the vertical is not one pulse
@@ -50,30 +51,78 @@ class Kept:
 def pulse_rays(t, xyz, scan, source, return_number=None):
     """Rays of the multi-point pulses among points: (index of first, index of last, repeated-return
     pulses); first = highest point, last = lowest. Only points whose time another point shares are
-    sorted (a tenth of an airborne file), so this costs little."""
-    order = np.arange(t.size) if np.all(t[1:] >= t[:-1]) else np.argsort(t, kind="stable")  # files are mostly in time order
-    ts = t[order]
-    same = ts[1:] == ts[:-1]
-    cand = order[np.r_[same, False] | np.r_[False, same]]
+    looked at (a tenth of an airborne file), in runs of one time (:func:`_pulse_groups`)."""
+    if np.all(t[1:] >= t[:-1]):  # files are mostly in time order
+        same = t[1:] == t[:-1]
+        cand = np.flatnonzero(np.r_[same, False] | np.r_[False, same])
+    else:
+        order = np.argsort(t, kind="stable")
+        ts = t[order]
+        same = ts[1:] == ts[:-1]
+        cand = order[np.r_[same, False] | np.r_[False, same]]
     if cand.size == 0:
         return np.empty(0, np.int64), np.empty(0, np.int64), 0
-    key_scan = np.zeros(cand.size) if scan is None else np.nan_to_num(scan[cand])
-    o = cand[np.lexsort((-xyz[cand, 2], key_scan, source[cand], t[cand]))]
-    ts, ss, sc = t[o], (np.zeros(o.size) if scan is None else np.nan_to_num(scan[o])), source[o]
-    new = np.r_[True, (ts[1:] != ts[:-1]) | (ss[1:] != ss[:-1]) | (sc[1:] != sc[:-1])]
-    start = np.flatnonzero(new)
-    end = np.r_[start[1:], ts.size] - 1
-    multi = end > start
-    first, last = o[start[multi]], o[end[multi]]
-    repeated = 0
-    if return_number is not None and multi.any():
-        rn = np.asarray(return_number)[o]
-        dup = np.r_[False, (~new[1:]) & (rn[1:] == rn[:-1])]
-        repeated = int(np.unique(np.cumsum(new)[dup]).size)
+    key_scan = np.zeros(cand.size) if scan is None else np.nan_to_num(np.asarray(scan, float)[cand])
+    rn = np.zeros(cand.size, np.int64) if return_number is None else np.asarray(return_number, np.int64)[cand]
+    first, last, repeated = _pulse_groups(np.arange(cand.size), np.asarray(t, float)[cand],
+                                          np.asarray(source, float)[cand], key_scan, np.asarray(xyz[cand, 2], float), rn,
+                                          return_number is not None)
+    first, last = cand[first], cand[last]
     d = xyz[first] - xyz[last]
     sep = np.linalg.norm(d, axis=1)
     ok = (sep >= MIN_SEPARATION_M) & (d[:, 2] > np.cos(MAX_RAY_ANGLE_RAD) * sep)
-    return first[ok], last[ok], repeated
+    return first[ok], last[ok], int(repeated)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _before(v, w, source, scan, z):
+    """(source, scan, −z) of point v sorts before that of w."""
+    if source[v] != source[w]:
+        return source[v] < source[w]
+    if scan[v] != scan[w]:
+        return scan[v] < scan[w]
+    return z[v] > z[w]
+
+
+@njit(cache=True, nogil=True)
+def _pulse_groups(cand, t, source, scan, z, rn, has_rn):  # pragma: no cover - numba
+    """Per run of ``cand`` (indices in time order) sharing one time, its points sorted by (point source, scan
+    angle, height downwards; stable) and cut where source or scan angle change: a pulse of ≥ 2 points gives
+    (its highest, its lowest) point; a pulse with two height-adjacent points of one return number counts as
+    repeating it. The same as a lexsort of all candidates by (time, source, scan, −z), without it (runs
+    are 2–5 points: an insertion sort each)."""
+    n = cand.size
+    first, last = np.empty(n, np.int64), np.empty(n, np.int64)
+    buf = np.empty(n, np.int64)
+    m, repeated, s = 0, 0, 0
+    while s < n:
+        e = s + 1
+        while e < n and t[cand[e]] == t[cand[s]]:
+            e += 1
+        g = e - s
+        for a in range(g):
+            v = cand[s + a]
+            b = a - 1
+            while b >= 0 and _before(v, buf[b], source, scan, z):
+                buf[b + 1] = buf[b]
+                b -= 1
+            buf[b + 1] = v
+        a = 0
+        while a < g:
+            c = a + 1
+            while c < g and source[buf[c]] == source[buf[a]] and scan[buf[c]] == scan[buf[a]]:
+                c += 1
+            if c - a > 1:
+                first[m], last[m] = buf[a], buf[c - 1]
+                m += 1
+                if has_rn:
+                    for q in range(a + 1, c):
+                        if rn[buf[q]] == rn[buf[q - 1]]:
+                            repeated += 1
+                            break
+            a = c
+        s = e
+    return first[:m], last[:m], repeated
 
 
 def keep_chunk(kept: Kept, chunk, rate_per_s: float) -> None:
