@@ -41,8 +41,9 @@ def read_document(path: Path) -> dict:
 
 def toml_document(doc: dict, comment: str) -> str:
     """A document's TOML text: ``comment`` on top, plain keys, then one ``[table]`` per dict value."""
-    lines = [f"# {comment}", ""]
-    lines += [f"{k} = {toml_value(v)}" for k, v in doc.items() if not isinstance(v, dict)]
+    lines = [f"# {comment}"]
+    plain = [f"{k} = {toml_value(v)}" for k, v in doc.items() if not isinstance(v, dict)]
+    lines += ["", *plain] if plain else []
     for name, table in ((k, v) for k, v in doc.items() if isinstance(v, dict)):
         lines += ["", f"[{name}]", *(f"{k} = {toml_value(v)}" for k, v in table.items())]
     return "\n".join(lines) + "\n"
