@@ -8,12 +8,18 @@ from __future__ import annotations
 import json
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from calidar.errors import InputError
 from calidar.io.json_file import write_json
 from calidar.pipelines import Progress, no_progress
 from calidar.pipelines.rangecal_config import RangeCalConfig
 from calidar.validate import SEED_MAX, integer, number, read_json
+
+if TYPE_CHECKING:  # the run's parts, by type (imported when used: the demo imports this module first)
+    from calidar.provenance import RunRecord
+    from calidar.rangecal import RangeCalibration
+    from calidar.verdict import Verdict
 
 ANGLE_UNITS = ("deg", "gon")
 VERTICALS = ("zd", "va")
@@ -23,9 +29,9 @@ VERTICALS = ("zd", "va")
 class RangeCalRun:
     """What one range calibration produced."""
 
-    result: object  #: calidar.rangecal.RangeCalibration
-    verdict: object  #: calidar.verdict.Verdict
-    record: object  #: calidar.provenance.RunRecord
+    result: RangeCalibration
+    verdict: Verdict
+    record: RunRecord
     truth: dict | None  #: SI truth by parameter name, when a truth.json was given
 
 
