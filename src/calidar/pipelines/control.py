@@ -14,10 +14,20 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Protocol
 
 import numpy as np
 
 from calidar.errors import InputError
+
+
+class SurveyFile(Protocol):
+    """What a ground-control file read gives the pipeline whatever its kind (a checkpoint CSV's
+    :class:`calidar.io.checkpoints.Checkpoints`, :class:`calidar.io.control_planes.ControlPlaneFile`, a
+    :class:`calidar.io.control_cloud.ReferenceCloud`, …): its path and surveyed points."""
+
+    path: Path
+    xyz: np.ndarray  #: (N, 3) in the CRS they were surveyed in
 
 
 @dataclass(frozen=True, eq=False)
@@ -26,7 +36,7 @@ class ControlInput:
     (control planes, a reference cloud: ``kind``) the file read, the places over its targets whose points the
     ingest keeps (``ecef``) and the surveyed points (``survey_ecef``)."""
 
-    checkpoints: object  #: calidar.io.checkpoints.Checkpoints (or io.control_planes.ControlPlaneFile)
+    checkpoints: SurveyFile  #: the file read (the kind's own type: its from_file takes it)
     ecef: np.ndarray
     notes: tuple[str, ...] = ()
     kind: str | None = None  #: a name of calidar.strips.config.CONTROL_KINDS (None: control points, the first)
