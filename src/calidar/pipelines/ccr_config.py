@@ -33,7 +33,7 @@ naming the file and the key.
 True
 >>> CCRConfig(search=SearchSettings(diameter_step=5.0))
 Traceback (most recent call last):
-calidar.errors.InputError: search.diameter_step (--diameter-step): expected a finite number in [0.01, 2] m, got 5.0
+calidar.errors.InputError: --diameter-step: expected a finite number in [0.01, 2] m, got 5.0
 """
 
 from __future__ import annotations
@@ -64,29 +64,45 @@ SYSTEM_KEYS = {"dead_time_s": ("dead_time", "ns", 1e-9, "--dead-time-ns", 0.1, 1
                "pointing_jitter_m": ("pointing_jitter", "m", 1.0, "--pointing-jitter-m", 0.0, 5.0)}
 
 
-def _label(section_key: str, option: str | None) -> str:
-    return f"{section_key} ({option})" if option else section_key
+def _label(key: str, option: str | None, keyed: bool) -> str:
+    """Where a value is named: its option (as the command line gives it) or, ``keyed`` (read from a file),
+    its key with the option."""
+    if option is None:
+        return key
+    return f"{key} ({option})" if keyed else option
 
 
-def _check_search(s: SearchSettings) -> None:
+def check_search(s: SearchSettings, keyed: bool = False) -> None:
+    """The search settings in their ranges (an error naming the option, or ``keyed`` the file's key)."""
     for key, (option, lo, hi, unit) in SEARCH_RANGES.items():
-        where = _label(f"search.{key}", option)
+        where = _label(f"search.{key}", option, keyed)
         if unit is None:
             integer(getattr(s, key), None, lo, hi, field=where)
         else:
             number(getattr(s, key), None, lo, hi, unit, field=where)
     if not s.diameter_min < s.diameter_max:
-        raise InputError(None, "search.diameter_min, diameter_max (--diameter-range)",
+        raise InputError(None, _label("search.diameter_min, diameter_max", "--diameter-range", keyed),
                          f"expected MIN < MAX, got {s.diameter_min:g}, {s.diameter_max:g}")
     if not isinstance(s.shared_bias, bool):
-        raise InputError(None, "search.shared_bias (--shared-bias)", f"expected true or false, got {s.shared_bias!r}")
+        raise InputError(None, _label("search.shared_bias", "--shared-bias", keyed),
+                         f"expected true or false, got {s.shared_bias!r}")
 
 
-def _check_system(s: SystemParameters) -> None:
+def check_system(s: SystemParameters, keyed: bool = False) -> None:
+    """The instrument's constants in their ranges (an error naming the option, or ``keyed`` the file's key)."""
     for key, (name, unit, factor, option, lo, hi) in SYSTEM_KEYS.items():
-        number(getattr(s, name) / factor, None, lo, hi, unit, field=_label(f"system.{key}", option))
+        number(getattr(s, name) / factor, None, lo, hi, unit, field=_label(f"system.{key}", option, keyed))
     if s.channels is not None:
-        integer(s.channels, None, 1, 64, field="system.channels (--channels)")
+        integer(s.channels, None, 1, 64, field=_label("system.channels", "--channels", keyed))
+
+
+def check_beams(beams: tuple[str, ...] | None, keyed: bool = False) -> None:
+    """The beams: None (all) or names of ATL03 beams, each once."""
+    if beams is not None:
+        bad = [b for b in beams if b not in BEAMS]
+        if bad or not beams or len(set(beams)) != len(beams):
+            raise InputError(None, _label("beams", "--beam", keyed), f"expected all, or one or more of "
+                             f"{', '.join(BEAMS)} (each once), got {', '.join(beams) or 'none'}")
 
 
 @dataclass(frozen=True)
@@ -105,15 +121,11 @@ class CCRConfig:
     system: SystemParameters = field(default_factory=SystemParameters)
 
     def __post_init__(self):
-        if self.beams is not None:
-            bad = [b for b in self.beams if b not in BEAMS]
-            if bad or not self.beams or len(set(self.beams)) != len(self.beams):
-                raise InputError(None, "beams (--beam)", f"expected all, or one or more of {', '.join(BEAMS)} (each "
-                                 f"once), got {', '.join(self.beams) or 'none'}")
         if not isinstance(self.search, SearchSettings) or not isinstance(self.system, SystemParameters):
             raise InputError(None, "search, system", "expected SearchSettings and SystemParameters")
-        _check_search(self.search)
-        _check_system(self.system)
+        check_beams(self.beams)
+        check_search(self.search)
+        check_system(self.system)
 
     @property
     def beam_text(self) -> str:
@@ -148,4 +160,6 @@ class CCRConfig:
         if "channels" in given:
             kw["channels"] = typed(given["channels"], int, path, "system.channels")
         system = build(path, "system", lambda: replace(SystemParameters(), **kw))
+        for check, part in ((check_beams, beams), (check_search, search), (check_system, system)):
+            build(path, "", lambda: check(part, keyed=True))  # named by the file's keys
         return build(path, "", lambda: cls(beams, search, system))

@@ -90,8 +90,8 @@ def test_options_given_replace_the_files_settings(tmp_path):
     assert cfg.beams == ("gt1l",) and cfg.search.diameter_step == 0.2 and cfg.search.bootstrap == 0
     assert (cfg.search.diameter_min, cfg.search.diameter_max, cfg.system.dead_time) == (9.0, 14.0, 3.0 * 1e-9)
     assert ccr_config(path, {"beam": "all"}).beams is None and ccr_config(None, {"beam": "GT2L"}).beams == ("gt2l",)
-    with pytest.raises(InputError, match=r"search.diameter_step \(--diameter-step\)"):
-        ccr_config(path, {"diameter_step": 0.0})
+    with pytest.raises(InputError, match=r"^--diameter-step: expected a finite number in \[0.01, 2\] m, got 0.0"):
+        ccr_config(path, {"diameter_step": 0.0})  # an option given: the error names the option
 
     path = TpuConfig(TpuSettings(range_sigma_m=0.03), (0.05, 1e-4)).write(tmp_path / "tpu.toml")
     cfg = tpu_config(path, {"angle_sigma": 0.004, "crs": "EPSG:32632"})
