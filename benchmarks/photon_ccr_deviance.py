@@ -28,7 +28,7 @@ from calidar.photon.likelihood import count_distribution, simulate_counts
 from calidar.photon.parameters import GEOLOCATION
 from calidar.photon.passes import SystemParameters
 from calidar.photon.search import SearchSettings
-from calidar.photon.survey import read_ccr_csv
+from calidar.pipelines.ccr import read_ccr_csv
 from calidar.pipelines.ccr import load_passes, simulate_photons
 from calidar.sim.photons import PhotonSimConfig
 

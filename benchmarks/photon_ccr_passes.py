@@ -32,6 +32,7 @@ from calidar.errors import CalidarError
 from calidar.photon.parameters import GEOLOCATION
 from calidar.photon.search import SearchSettings
 from calidar.pipelines.ccr import run_ccr, simulate_photons
+from calidar.pipelines.ccr_config import CCRConfig
 from calidar.sim.photons import PhotonSimConfig
 
 
@@ -45,8 +46,8 @@ def one_pass(seed: int, bootstrap: int, surface: int = 9, n: int = 2) -> dict:
         paths = simulate_photons(cfg, sim_dir)
         t0 = time.perf_counter()
         try:
-            run_ccr([paths["atl03"]], "all", paths["ccr"], out, settings=SearchSettings(bootstrap=bootstrap, surface_points=surface),
-                    truth_path=paths["truth"])
+            run_ccr([paths["atl03"]], paths["ccr"], out,
+                    CCRConfig(search=SearchSettings(bootstrap=bootstrap, surface_points=surface)), truth_path=paths["truth"])
         except CalidarError as e:
             return {"seed": seed, "status": "refused", "message": str(e)}
         except Exception as e:  # noqa: BLE001 - what the CLI reports as an internal error

@@ -17,9 +17,8 @@ import time
 from pathlib import Path
 
 from calidar.photon.parameters import GEOLOCATION
-from calidar.photon.passes import SystemParameters
-from calidar.photon.search import SearchSettings
 from calidar.pipelines.ccr import run_ccr
+from calidar.pipelines.ccr_config import CCRConfig
 from calidar.sim.photons import PhotonSimConfig, simulate_pass, write_pass
 
 
@@ -29,8 +28,7 @@ def run(length_m: float, seed: int, folder: Path) -> None:
     out = folder / "out"
     out.mkdir()
     c, w = time.process_time(), time.perf_counter()
-    result = run_ccr([paths["atl03"]], "all", paths["ccr"], out, system=SystemParameters(), settings=SearchSettings(),
-                     truth_path=paths["truth"])
+    result = run_ccr([paths["atl03"]], paths["ccr"], out, CCRConfig(), truth_path=paths["truth"])
     cpu, wall = time.process_time() - c, time.perf_counter() - w
     errs = "  ".join(f"{k.split('_')[0]} {result.solution.values[k] - sim.truth[k]:+.3f}±{result.solution.sigma[k]:.3f}"
                      for k in GEOLOCATION)

@@ -57,7 +57,10 @@ _API = {
     "calibrate_strips": ("calidar.pipelines.boresight", "calibrate_strips"),
     "StripConfig": ("calidar.pipelines.strip_config", "StripConfig"),
     "calibrate_range": ("calidar.pipelines.rangecal", "run_range_cal"),
+    "RangeCalConfig": ("calidar.pipelines.rangecal_config", "RangeCalConfig"),
     "calibrate_ccr": ("calidar.pipelines.ccr", "run_ccr"),
+    "CCRConfig": ("calidar.pipelines.ccr_config", "CCRConfig"),
+    "TpuConfig": ("calidar.pipelines.tpu_config", "TpuConfig"),
     "survey_config": ("calidar.sim.survey", "survey_config"),
     "simulate_survey": ("calidar.sim.survey", "simulate_survey"),
 }

@@ -262,6 +262,19 @@ def _texts(bad: Path) -> None:
         "config_crs.toml": '[inputs]\ncrs = "EPSG:999999"\n',
         "config_strip_points.toml": '[ingest]\nstrip_points = 1.5\n',
         "config_not_toml.toml": 'estimate = [boresight\n',
+        # calidar range-cal / ccr / tpu --config files
+        "rangecal_tolerance.toml": 'tolerance_m = -1.0\n',
+        "rangecal_unknown.toml": 'tolerence_m = 0.05\n',
+        "rangecal_fix_scale.toml": 'fix_scale = "yes"\n',
+        "ccr_step.toml": '[search]\ndiameter_step = 5.0\n',
+        "ccr_range.toml": '[search]\ndiameter_min = 15.0\ndiameter_max = 8.0\n',
+        "ccr_beams.toml": 'beams = ["gt9x"]\n',
+        "ccr_system.toml": '[system]\ndead_time_s = "fast"\n',
+        "ccr_unknown.toml": '[system]\ndead_time_ns = 3.2\n',
+        "tpu_noise.toml": '[noise]\nrange_sigma_m = -0.01\n',
+        "tpu_sigma.toml": 'trajectory_sigma = [0.05]\n',
+        "tpu_crs.toml": '[inputs]\ncrs = "EPSG:999999"\n',
+        "tpu_unknown.toml": '[noise]\nangle_sigma_deg = 0.002\n',
     }
     for name, text in configs.items():
         (bad / name).write_text(text)

@@ -102,6 +102,15 @@ CCR_CASES = [
     case(["--truth", "{B}/truth_notjson.json"], "truth_notjson.json", id="truth-not-json"),
     case(["--truth", "{B}/truth_latin1.json"], "truth_latin1.json", id="truth-not-utf8"),
     case(["--truth", "{S}/truth.json"], "truth.json", id="truth-of-another-simulation"),
+    case(["--config", "{B}/missing.toml"], "missing.toml", id="config-missing"),
+    case(["--config", "{B}/ccr_step.toml"], "ccr_step.toml", "search.diameter_step", "[0.01, 2] m",
+         id="config-diameter-step-huge"),
+    case(["--config", "{B}/ccr_range.toml"], "ccr_range.toml", "diameter_min", "MIN < MAX", id="config-range-reversed"),
+    case(["--config", "{B}/ccr_beams.toml"], "ccr_beams.toml", "beams", "gt9x", id="config-beam-bogus"),
+    case(["--config", "{B}/ccr_system.toml"], "ccr_system.toml", "system.dead_time_s", "expected float",
+         id="config-dead-time-text"),
+    case(["--config", "{B}/ccr_unknown.toml"], "ccr_unknown.toml", "system.dead_time_ns", "unknown key",
+         id="config-unknown-key"),
 ]
 
 

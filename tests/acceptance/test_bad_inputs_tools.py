@@ -30,6 +30,14 @@ RANGECAL = [
     case([OBS, "--tolerance", "100"], "--tolerance", id="tolerance-huge"),
     case([OBS, "--truth", "{B}/truth_notjson.json"], "truth_notjson.json", id="truth-not-json"),
     case([OBS, "--truth", "{S}/truth.json"], "truth.json", id="truth-of-another-simulation"),
+    case([OBS, "--config", "{B}/missing.toml"], "missing.toml", id="config-missing"),
+    case([OBS, "--config", "{B}/config_not_toml.toml"], "config_not_toml.toml", "TOML", id="config-not-toml"),
+    case([OBS, "--config", "{B}/rangecal_tolerance.toml"], "rangecal_tolerance.toml", "tolerance_m", "(0, 10] m",
+         id="config-tolerance-negative"),
+    case([OBS, "--config", "{B}/rangecal_unknown.toml"], "rangecal_unknown.toml", "tolerence_m", "unknown key",
+         id="config-unknown-key"),
+    case([OBS, "--config", "{B}/rangecal_fix_scale.toml"], "rangecal_fix_scale.toml", "fix_scale", "expected bool",
+         id="config-fix-scale-text"),
 ]
 
 

@@ -26,6 +26,14 @@ TPU = [
     case([S1, *GOOD, "--calibration", "{S}/sensor.toml"], "sensor.toml", "JSON", id="calibration-not-json"),
     case([S1, *GOOD, "--calibration", "{S}/truth.json"], "truth.json", "solution.json", id="calibration-truth-json"),
     case([S1, *GOOD, "--trajectory-sigma", "0.05"], "--trajectory-sigma", id="trajectory-sigma-one-number"),
+    case([S1, *GOOD, "--config", "{B}/missing.toml"], "missing.toml", id="config-missing"),
+    case([S1, *GOOD, "--config", "{B}/tpu_noise.toml"], "tpu_noise.toml", "noise.range_sigma_m", "[0, 10] m",
+         id="config-range-sigma-negative"),
+    case([S1, *GOOD, "--config", "{B}/tpu_sigma.toml"], "tpu_sigma.toml", "trajectory_sigma", "list of 2",
+         id="config-trajectory-sigma-one-number"),
+    case([S1, *GOOD, "--config", "{B}/tpu_crs.toml"], "tpu_crs.toml", "inputs.crs", id="config-crs-unknown"),
+    case([S1, *GOOD, "--config", "{B}/tpu_unknown.toml"], "tpu_unknown.toml", "noise.angle_sigma_deg", "unknown key",
+         id="config-unknown-key"),
 ]
 
 

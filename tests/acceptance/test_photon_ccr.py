@@ -16,7 +16,8 @@ from calidar.photon.ccr import calibrate
 from calidar.photon.parameters import GEOLOCATION
 from calidar.photon.passes import SystemParameters, prepare_pass
 from calidar.photon.search import SearchSettings
-from calidar.photon.survey import CCRSurvey, read_ccr_csv
+from calidar.photon.survey import CCRSurvey
+from calidar.pipelines.ccr import read_ccr_csv
 from calidar.sim.photons import PhotonSimConfig, simulate_pass, write_ccr_csv
 
 SYSTEM = SystemParameters()

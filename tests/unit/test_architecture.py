@@ -315,3 +315,85 @@ def test_scratch_allowance_names_only_what_still_writes():
     writes = {f"{name}:{where}" for name, path in _modules().items()
               for _, where, _ in _file_writes(ast.parse(path.read_text(encoding="utf-8")))}
     assert SCRATCH_ALLOWANCE <= writes, f"SCRATCH_ALLOWANCE names what writes no more: {sorted(SCRATCH_ALLOWANCE - writes)}"
+
+
+#: modules that read back scratch files of a run's temporary folder (never an input), by module:function
+READ_SCRATCH_ALLOWANCE = {"calidar.strips.cell_moments:load"}  # the moments cell_moments:save spilled
+#: calls that open or read a file: builtin/laspy/rasterio/h5py open, numpy's and pandas' readers, csv readers,
+#: pathlib's read_text/read_bytes, and every ``read_…`` function (calidar.validate.read_text, the io readers)
+_READ_CALLS = {"open", "File", "loadtxt", "genfromtxt", "fromfile", "memmap", "reader", "DictReader", "imread",
+               "read_text", "read_bytes"}
+_READ_MODULES = ("csv", "h5py", "laspy", "rasterio", "tomllib", "pandas")
+
+
+def _file_reads(tree: ast.AST) -> list[tuple[int, str, str]]:
+    """(line, enclosing function, what) of each file read in a module's syntax tree: the calls of
+    :data:`_READ_CALLS`, any ``read_…`` function, ``np.load``/``json.load``/``pickle.load``/``tomllib.load``, a
+    class's or laspy's ``read``, and importing a file-format module (:data:`_READ_MODULES`)."""
+    found = []
+
+    def visit(node, where):
+        for child in ast.iter_child_nodes(node):
+            inner = child.name if isinstance(child, (ast.FunctionDef, ast.AsyncFunctionDef)) else where
+            what = None
+            if isinstance(child, (ast.Import, ast.ImportFrom)):
+                mods = [a.name for a in child.names] if isinstance(child, ast.Import) else [child.module or ""]
+                hit = [m for m in mods if m.split(".")[0] in _READ_MODULES]
+                what = f"imports {hit[0]}" if hit else None
+            elif isinstance(child, ast.Call):
+                f = child.func
+                name = f.attr if isinstance(f, ast.Attribute) else f.id if isinstance(f, ast.Name) else ""
+                owner = f.value.id if isinstance(f, ast.Attribute) and isinstance(f.value, ast.Name) else ""
+                if name in _READ_CALLS or name.startswith("read_") \
+                        or (name == "load" and owner in ("np", "numpy", "json", "pickle", "tomllib")) \
+                        or (name == "read" and (owner == "laspy" or owner[:1].isupper())):
+                    what = f"{owner + '.' if owner else ''}{name}"
+            if what:
+                found.append((child.lineno, where, what))
+            visit(child, inner)
+
+    visit(tree, "")
+    return found
+
+
+def test_methods_read_no_file():
+    """strips, adjust, photon, rangecal, planning, scanners and tpu compute on what they are given: files
+    are read by io/ and called from pipelines/ (no module of theirs opens a file for reading either)."""
+    found = [f"{name}:{where} line {line}: {what}" for name, path in _modules().items()
+             if name.split(".")[1:2] and name.split(".")[1] in NO_WRITE_PACKAGES
+             for line, where, what in _file_reads(ast.parse(path.read_text(encoding="utf-8")))
+             if f"{name}:{where}" not in READ_SCRATCH_ALLOWANCE]
+    assert not found, "file reads in the method layer (move them to io/, called from pipelines/):\n" + "\n".join(found)
+
+
+def test_the_read_scan_finds_what_it_looks_for():
+    source = '''
+import csv
+import numpy as np
+def a(p, q):
+    with open(p) as f:
+        f.read()
+    np.loadtxt(p)
+    np.load(p)
+    q.read_text()
+    read_las(p)
+    laspy.open(p)
+    h5py.File(p, "r")
+    Sensor.read(p)
+    csv.reader(f)
+    np.loadtxts(p)
+    ns.read(p)
+    np.save(p, q)
+'''
+    found = _file_reads(ast.parse(source))
+    assert [w for _, _, w in found] == ["imports csv", "open", "np.loadtxt", "np.load", "q.read_text", "read_las",
+                                        "laspy.open", "h5py.File", "Sensor.read", "csv.reader"]
+    assert [line for line, _, _ in found] == [2, 5, 7, 8, 9, 10, 11, 12, 13, 14]  # f.read(), ns.read, np.save: not
+    assert {where for _, where, _ in found} == {"", "a"}
+
+
+def test_read_scratch_allowance_names_only_what_still_reads():
+    reads = {f"{name}:{where}" for name, path in _modules().items()
+             for _, where, _ in _file_reads(ast.parse(path.read_text(encoding="utf-8")))}
+    assert READ_SCRATCH_ALLOWANCE <= reads, f"READ_SCRATCH_ALLOWANCE names what reads no more: " \
+                                            f"{sorted(READ_SCRATCH_ALLOWANCE - reads)}"

@@ -3,49 +3,54 @@ from the returns of surveyed corner-cube retroreflectors."""
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import typer
 
 from calidar.cli.common import (
-    FORCE_HELP, console, exit_with_verdict, print_verdict, print_warning, progress_bar, progress_callback,
+    CONFIG_HELP, FORCE_HELP, console, exit_with_verdict, given_options, print_verdict, print_warning, progress_bar,
+    progress_callback,
 )
-from calidar.cli.denoise import BEAM_HELP, SHOT_SPACING_RANGE
+from calidar.cli.denoise import BEAM_HELP
+
+#: options → the search settings' fields (calidar.photon.search.SearchSettings)
+SEARCH_OPTIONS = {"diameter_step": "diameter_step", "length_step": "length_step", "max_bias": "max_bias",
+                  "bootstrap": "bootstrap", "seed": "seed", "shared_bias": "shared_bias"}
+#: options → (the instrument's field, factor to SI; None: as given) (calidar.photon.passes.SystemParameters)
+SYSTEM_OPTIONS = {"dead_time_ns": ("dead_time", 1e-9), "pulse_width_ns": ("pulse_width", 1e-9),
+                  "shot_spacing": ("shot_spacing", 1.0), "channels": ("channels", None),
+                  "jitter": ("pointing_jitter", 1.0)}
 
 
-def _settings(diameter_range, diameter_step, length_step, max_bias, bootstrap, seed, shared_bias):
+def ccr_config(path: Path | None, given: dict):
+    """The configuration: the ``--config`` file's (else the defaults), with the options ``given`` on the
+    command line ({parameter name: value}) replacing its settings; checked."""
     from calidar.errors import InputError
-    from calidar.photon.search import SearchSettings
-    from calidar.validate import SEED_MAX, integer, number, parse_floats
+    from calidar.pipelines.ccr_config import CCRConfig
+    from calidar.validate import parse_floats
 
-    dmin, dmax = parse_floats(diameter_range, 2, "--diameter-range")
-    number(dmin, "--diameter-range", 0.5, 500.0, "m", field="MIN")
-    number(dmax, "--diameter-range", 0.5, 500.0, "m", field="MAX")
-    if not dmin < dmax:
-        raise InputError(None, "--diameter-range", f"expected MIN < MAX, got {diameter_range}")
-    return SearchSettings(dmin, dmax, number(diameter_step, "--diameter-step", 0.01, 2.0, "m"),
-                          number(length_step, "--length-step", 0.01, 2.0, "m"),
-                          max_bias=number(max_bias, "--max-bias", 0.5, 200.0, "m"),
-                          bootstrap=integer(bootstrap, "--bootstrap", 0, 10_000),
-                          seed=integer(seed, "--seed", 0, SEED_MAX), shared_bias=shared_bias)
-
-
-def _system(dead_time_ns, pulse_width_ns, shot_spacing, channels, jitter):
-    from calidar.photon.passes import SystemParameters
-    from calidar.validate import integer, number
-
-    return SystemParameters(number(dead_time_ns, "--dead-time-ns", 0.1, 100.0, "ns") * 1e-9,
-                            number(pulse_width_ns, "--pulse-width-ns", 0.01, 50.0, "ns") * 1e-9,
-                            number(shot_spacing, "--shot-spacing-m", *SHOT_SPACING_RANGE, "m"),
-                            None if channels is None else integer(channels, "--channels", 1, 64),
-                            number(jitter, "--pointing-jitter-m", 0.0, 5.0, "m"))
+    config = CCRConfig.read(path) if path is not None else CCRConfig()
+    search = {SEARCH_OPTIONS[k]: v for k, v in given.items() if k in SEARCH_OPTIONS}
+    if "diameter_range" in given:
+        search["diameter_min"], search["diameter_max"] = parse_floats(given["diameter_range"], 2, "--diameter-range")
+    system = {SYSTEM_OPTIONS[k][0]: v if SYSTEM_OPTIONS[k][1] is None else v * SYSTEM_OPTIONS[k][1]
+              for k, v in given.items() if k in SYSTEM_OPTIONS}
+    beams = config.beams
+    if "beam" in given:
+        names = tuple(b.strip().lower() for b in given["beam"].split(",") if b.strip())
+        beams = None if names == ("all",) else names
+        if not names:
+            raise InputError(None, "--beam", f"expected all or beam names separated by commas, got {given['beam']!r}")
+    return CCRConfig(beams, replace(config.search, **search), replace(config.system, **system))
 
 
 def ccr(
+    ctx: typer.Context,
     atl03: list[Path] = typer.Argument(..., help="ATL03 file(s); several passes and beams are solved jointly."),
     ccr_file: Path = typer.Option(..., "--ccr", help="CCR survey CSV: id,lat,lon,height (deg, deg, m above ground) "
                                   "or, for one pass only, id,x,y,height (m)."),
-    out: Path = typer.Option(..., "--out", help="Output folder (solution.json, report.html)."),
+    out: Path = typer.Option(..., "--out", help="Output folder (solution.json, config.toml, report.html)."),
     beam: str = typer.Option("all", "--beam", help=BEAM_HELP),
     shared_bias: bool = typer.Option(False, "--shared-bias", help="One along/cross-track bias for every beam "
                                      "(default: one per beam; the footprint diameter is always per beam)."),
@@ -64,23 +69,20 @@ def ccr(
     seed: int = typer.Option(0, "--seed", help="Seed of the bootstrap."),
     truth: Path | None = typer.Option(None, "--truth", help="truth.json of a simulation (adds errors to the outputs)."),
     force: bool = typer.Option(False, "--force", help=FORCE_HELP),
+    config: Path | None = typer.Option(None, "--config", help=CONFIG_HELP),
 ) -> None:
-    """Solve along/cross-track geolocation bias and footprint diameter from CCR returns (maximum likelihood)."""
+    """Solve along/cross-track geolocation bias and footprint diameter from CCR returns (maximum likelihood);
+    writes solution.json, config.toml (this run's settings, for --config) and report.html."""
     from calidar.outputs import check_out_dir, output_folder
     from calidar.pipelines.ccr import run_ccr
     from calidar.provenance import RunRecord
 
-    settings = _settings(diameter_range, diameter_step, length_step, max_bias, bootstrap, seed, shared_bias)
-    system = _system(dead_time_ns, pulse_width_ns, shot_spacing, channels, jitter)
-    inputs = [*atl03, ccr_file, truth]
+    cfg = ccr_config(config, given_options(ctx))
+    inputs = [*atl03, ccr_file, truth, config]
     check_out_dir(out, force)
-    record = RunRecord.capture(None, inputs=inputs, options={
-        "beam": beam, "shared_bias": shared_bias, "dead_time_ns": dead_time_ns, "pulse_width_ns": pulse_width_ns,
-        "shot_spacing_m": shot_spacing, "channels": channels, "pointing_jitter_m": jitter,
-        "diameter_range": diameter_range, "max_bias_m": max_bias, "bootstrap": bootstrap, "seed": seed})
+    record = RunRecord.capture(None, inputs=inputs, options=cfg.to_dict())
     with output_folder(out, force, inputs=inputs) as tmp, progress_bar() as bar:
-        result = run_ccr(atl03, beam, ccr_file, tmp, system=system, settings=settings, truth_path=truth,
-                         record=record, progress=progress_callback(bar))
+        result = run_ccr(atl03, ccr_file, tmp, cfg, truth_path=truth, record=record, progress=progress_callback(bar))
     sol = result.solution
     for n in sol.parameters.free_names:
         if n.split("[")[0] in ("along_track_bias", "cross_track_bias", "footprint_diameter"):
@@ -88,7 +90,8 @@ def ccr(
     for w in result.warnings:
         print_warning(w)
     print_verdict(result.verdict, "CCR calibration")
-    console.print(f"wrote {out / 'solution.json'} and {out / 'report.html'}", highlight=False, markup=False)
+    console.print(f"wrote {out / 'solution.json'}, {out / 'config.toml'} and {out / 'report.html'}", highlight=False,
+                  markup=False)
     exit_with_verdict(result.verdict)
 
 

@@ -27,8 +27,16 @@ EXIT_INPUT = 1  #: bad input or unwritable results
 EXIT_USAGE = 2  #: usage error
 EXIT_FAIL = 3  #: done with a FAIL verdict
 FORCE_HELP = "Replace a non-empty output folder whole: its previous files go (an input inside it is refused)."
+CONFIG_HELP = ("A configuration file (TOML, as the config.toml every run writes beside its results): its settings "
+               "replace the defaults, options given on the command line replace its settings.")
 EXIT_CODES_HELP = ("Exit codes: 0 pass or warn, 3 fail verdict, 1 input error (or results not writable), "
                    "2 usage error, 130 interrupted (Ctrl-C), 143 terminated (SIGTERM).")
+
+
+def given_options(ctx) -> dict:
+    """The options given on the command line ({parameter name: value}) of a ``typer.Context``, not those
+    left at their defaults (they replace a ``--config`` file's settings)."""
+    return {k: v for k, v in ctx.params.items() if ctx.get_parameter_source(k).name != "DEFAULT"}
 
 
 def verdict_exit_code(*verdicts) -> int:

@@ -9,7 +9,6 @@ import typer
 from calidar.cli.common import console, print_warning
 
 BEAM_HELP = "ATL03 beam(s): gt1l … gt3r, several separated by commas, or all."
-SHOT_SPACING_RANGE = (0.05, 10.0)  #: m, along-track shot spacing accepted (ATLAS: 0.7 m)
 
 
 def denoise(
@@ -23,6 +22,7 @@ def denoise(
     """Classify every photon as signal (1) or noise (0): slope-following neighbour counts against the
     measured solar background (ATL03 ATBD slant histograms, ATL08 DRAGANN); weak beams and daylight too."""
     from calidar.outputs import atomic_path, guard_inputs
+    from calidar.pipelines.ccr_config import SHOT_SPACING_RANGE
     from calidar.pipelines.denoise import run_denoise
     from calidar.validate import existing_file, number
 

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import typer
 
-from calidar.cli.common import FORCE_HELP, EXIT_FAIL, console, exit_with_verdict, print_verdict
+from calidar.cli.common import CONFIG_HELP, FORCE_HELP, EXIT_FAIL, given_options, console, exit_with_verdict, print_verdict
 
 ACCEPTANCE_FAILED = EXIT_FAIL  #: exit code when --tolerance is given and the check fails
 
@@ -21,15 +21,29 @@ def _say(text: str) -> None:
     console.print(text, highlight=False, soft_wrap=True)
 
 
+def range_cal_config(path: Path | None, given: dict):
+    """The configuration: the ``--config`` file's (else the defaults), with --tolerance and --fix-scale
+    when given on the command line; checked."""
+    from dataclasses import replace
+
+    from calidar.pipelines.rangecal_config import RangeCalConfig
+
+    config = RangeCalConfig.read(path) if path is not None else RangeCalConfig()
+    keys = {"tolerance": "tolerance_m", "fix_scale": "fix_scale"}
+    return replace(config, **{keys[k]: v for k, v in given.items() if k in keys})
+
+
 def range_cal(
+    ctx: typer.Context,
     observations: Path = typer.Argument(..., help="Observation file (CSV, format in docs/conventions.md)."),
-    out: Path = typer.Option(..., "--out", help="Output folder: solution.json, report.html."),
+    out: Path = typer.Option(..., "--out", help="Output folder: solution.json, config.toml, report.html."),
     truth: Path | None = typer.Option(None, "--truth", help="truth.json of a simulation: adds truth and error."),
     tolerance: float | None = typer.Option(None, "--tolerance", help="Acceptance tolerance of the raw range error "
                                            "(m, ≤ 10); exit code 3 when the 95 % bound exceeds it."),
     fix_scale: bool = typer.Option(False, "--fix-scale", help="Estimate the offset only (range_scale fixed at 0), "
                                    "e.g. when all targets are at one distance."),
     force: bool = typer.Option(False, "--force", help=FORCE_HELP),
+    config: Path | None = typer.Option(None, "--config", help=CONFIG_HELP),
 ) -> None:
     """Calibrate range offset and scale of a circular-scan lidar against total-station observations.
 
@@ -37,11 +51,11 @@ def range_cal(
     3 FAIL verdict (e.g. acceptance failed), 130/143 interrupted.
     """
     from calidar.outputs import output_folder
-    from calidar.pipelines.rangecal import check_tolerance, run_range_cal
+    from calidar.pipelines.rangecal import run_range_cal
 
-    check_tolerance(tolerance)
-    with output_folder(out, force, inputs=[observations, truth]) as tmp:
-        run = run_range_cal(observations, tmp, truth=truth, tolerance_m=tolerance, fix_scale=fix_scale)
+    cfg = range_cal_config(config, given_options(ctx))
+    with output_folder(out, force, inputs=[observations, truth, config]) as tmp:
+        run = run_range_cal(observations, tmp, cfg, truth=truth)
     result = run.result
     sol = result.solution
     for name, f, unit in (("range_offset", 1e3, "mm"), ("range_scale", 1e6, "ppm")):
@@ -55,7 +69,7 @@ def range_cal(
         _say(f"acceptance: {'PASS' if a['passed'] else 'FAIL'} (95 % bound {a['max_bound95_m'] * 1e3:.2f} mm, "
              f"tolerance {a['tolerance_m'] * 1e3:.2f} mm)")
     print_verdict(run.verdict)
-    _say(f"wrote {out / 'solution.json'} and {out / 'report.html'}")
+    _say(f"wrote {out / 'solution.json'}, {out / 'config.toml'} and {out / 'report.html'}")
     if result.acceptance is not None and not result.acceptance["passed"]:
         raise typer.Exit(ACCEPTANCE_FAILED)
     exit_with_verdict(run.verdict)

@@ -4,17 +4,46 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import numpy as np
 import typer
 from rich.markup import escape
 
-from calidar.cli.common import FORCE_HELP, console, progress_bar, progress_callback
+from calidar.cli.common import CONFIG_HELP, FORCE_HELP, console, given_options, progress_bar, progress_callback
 from calidar.cli.options import CRS, GEOID_UNDULATION, TIME_SYSTEM, point_options
+
+#: options → (the noise settings' field, factor to SI) (calidar.tpu.propagate.TpuSettings)
+NOISE_OPTIONS = {"range_sigma": ("range_sigma_m", 1.0), "angle_sigma": ("angle_sigma_rad", None),
+                 "beam_divergence": ("beam_divergence_rad", 1e-3)}
+
+
+def tpu_config(path: Path | None, given: dict):
+    """The configuration: the ``--config`` file's (else the defaults), with the options ``given`` on the
+    command line ({parameter name: value}) replacing its settings; checked."""
+    from dataclasses import replace
+
+    import numpy as np
+
+    from calidar.cli.options import parse_sigma
+    from calidar.pipelines.tpu_config import TpuConfig
+
+    config = TpuConfig.read(path) if path is not None else TpuConfig()
+    # degrees → radians as numpy converts them (the value calidar tpu has always used)
+    noise = {NOISE_OPTIONS[k][0]: float(np.radians(v)) if NOISE_OPTIONS[k][1] is None else v * NOISE_OPTIONS[k][1]
+             for k, v in given.items() if k in NOISE_OPTIONS}
+    changes = {"noise": replace(config.noise, **noise)}
+    if given.get("trajectory_sigma") is not None:
+        changes["trajectory_sigma"] = parse_sigma(given["trajectory_sigma"])
+    keys = ("crs", "time_system", "geoid_undulation")
+    if any(k in given for k in keys):
+        p = config.points
+        mine = dict(zip(keys, (p.crs, p.time_system, p.geoid_undulation_m)))
+        changes["points"] = point_options(**{**mine, **{k: given[k] for k in keys if k in given}})
+    return replace(config, **changes)
 
 
 def register(app: typer.Typer, simulate: typer.Typer) -> None:
     @app.command("tpu")
     def tpu(
+        ctx: typer.Context,
         points: list[Path] = typer.Argument(..., help="LAS/LAZ files georeferenced with --trajectory and --sensor."),
         trajectory: Path = typer.Option(..., "--trajectory", "-t", help="The trajectory the points were made with "
                                         "(SBET, text or CSD)."),
@@ -33,32 +62,27 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
                                               "(0: no footprint term)."),
         crs: str | None = CRS, time_system: str | None = TIME_SYSTEM, geoid_undulation: float | None = GEOID_UNDULATION,
         force: bool = typer.Option(False, "--force", help=FORCE_HELP),
+        config: Path | None = typer.Option(None, "--config", help=CONFIG_HELP),
     ) -> None:
         """Per-point uncertainty (TPU): horizontal and vertical 1σ of every point from the trajectory's
         accuracy, range and scan-angle noise, the footprint on the local surface and the calibration's
-        covariance, written as LAS extra bytes total_thu/total_tvu (m)."""
+        covariance, written as LAS extra bytes total_thu/total_tvu (m); config.toml holds this run's settings
+        (for --config)."""
         from calidar.outputs import check_out_dir, claim_output, guard_inputs, output_folder
-        from calidar.cli.options import parse_sigma
-        from calidar.pipelines.tpu import TpuOptions, run_tpu
-        from calidar.tpu.propagate import TpuSettings
-        from calidar.validate import number
+        from calidar.pipelines.tpu import run_tpu
 
-        number(range_sigma, "--range-sigma", 0.0, 10.0, "m")
-        number(angle_sigma, "--angle-sigma", 0.0, 5.0, "deg")
-        number(beam_divergence, "--beam-divergence", 0.0, 50.0, "mrad")
-        settings = TpuSettings(range_sigma, float(np.radians(angle_sigma)), beam_divergence * 1e-3)
-        sigma = None if trajectory_sigma is None else parse_sigma(trajectory_sigma)
-        options = TpuOptions(settings, trajectory_accuracy, sigma, calibration,
-                             point_options(crs, time_system, geoid_undulation))
+        cfg = tpu_config(config, given_options(ctx))
         check_out_dir(out, force)
-        guard_inputs([out / p.name for p in points], [*points, trajectory, sensor, calibration, trajectory_accuracy],
-                     [out])
+        guard_inputs([out / p.name for p in points], [*points, trajectory, sensor, calibration, trajectory_accuracy,
+                                                      config], [out])
         claim_output(out)  # --out is this run's from its start (released when the run ends)
         with progress_bar() as bar, output_folder(out, force, inputs=points) as tmp:
-            results = run_tpu(points, trajectory, sensor, tmp, options, progress_callback(bar))
+            results = run_tpu(points, trajectory, sensor, tmp, cfg, accuracy=trajectory_accuracy, calibration=calibration,
+                              progress=progress_callback(bar))
         for r in results:
             console.print(f"{escape(r.path.name)}: {r.n_points:,} points, THU median {r.thu['median'] * 100:.2f} cm "
                           f"(95 % {r.thu['p95'] * 100:.2f}), TVU median {r.tvu['median'] * 100:.2f} cm "
                           f"(95 % {r.tvu['p95'] * 100:.2f})", highlight=False, soft_wrap=True)
-        console.print(f"wrote {escape(str(out))}/: {len(results)} files with total_thu/total_tvu, tpu.json, report.html",
+        console.print(f"wrote {escape(str(out))}/: {len(results)} files with total_thu/total_tvu, tpu.json, config.toml, "
+                      "report.html",
                       highlight=False, soft_wrap=True)

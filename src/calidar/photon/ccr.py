@@ -33,7 +33,8 @@ from calidar.photon.fit import Layout, Problem
 from calidar.photon.passes import PassData, SystemParameters
 from calidar.photon.search import SearchSettings
 from calidar.photon.segments import CCRWindow
-from calidar.photon.uncertainty import assess, sigma_from_profile
+from calidar.photon.uncertainty import Uncertainty, assess, sigma_from_profile
+from calidar.verdict import Verdict
 
 
 @dataclass
@@ -47,9 +48,9 @@ class CCRResult:
     system: SystemParameters
     settings: SearchSettings
     warnings: list[str] = field(default_factory=list)
-    uncertainty: object = None  #: calidar.photon.uncertainty.Uncertainty
+    uncertainty: Uncertainty | None = None
     fits: list | None = None  #: calidar.photon.checks.CCRFit per window
-    verdict: object = None  #: calidar.verdict.Verdict
+    verdict: Verdict | None = None
 
     @property
     def solution(self):

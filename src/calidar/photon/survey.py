@@ -1,29 +1,20 @@
-"""The surveyed CCRs: reading the survey CSV, and each CCR's position in a pass's track.
+"""The surveyed CCRs and each CCR's position in a pass's track.
 
-A CCR survey is ``id,lat,lon,height`` (deg, deg, m above ground) or ``id,x,y,height`` (m along
-track, m cross-track left of ONE pass's reported track, m). A pass's track is not straight over
-thousands of km, so each CCR is placed on a straight track line fitted to the photons within
+A CCR survey (read by :func:`calidar.io.ccr_survey.read_ccr_survey`) gives geodetic positions or
+track positions (m along track, m cross-track left of ONE pass's reported track). A pass's track
+is not straight over thousands of km, so each CCR is placed on a straight track line fitted to the photons within
 ``local_m`` of the photon nearest to it (over a few km a ground track is straight to millimetres).
 """
 
 from __future__ import annotations
 
-import csv
-import io
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 
-from calidar.errors import InputError
 from calidar.frames import geodetic_to_ecef
+from calidar.io.ccr_survey import CCRSurveyRows
 from calidar.photon.track import TrackLine
-from calidar.validate import number, read_text
-
-CCR_COLUMNS = ({"id", "lat", "lon", "height"}, {"id", "x", "y", "height"})
-EXPECTED = "id,lat,lon,height or id,x,y,height"
-RANGES = {"lat": (-90.0, 90.0, "deg"), "lon": (-180.0, 360.0, "deg"), "height": (-5.0, 100.0, "m above ground"),
-          "x": (-1e8, 1e8, "m"), "y": (-1e4, 1e4, "m")}
 
 
 @dataclass
@@ -37,6 +28,11 @@ class CCRSurvey:
     x: np.ndarray | None = None
     y: np.ndarray | None = None
     source: str | None = None
+
+    @classmethod
+    def from_rows(cls, rows: CCRSurveyRows) -> CCRSurvey:
+        """The survey of a file's rows (:func:`calidar.io.ccr_survey.read_ccr_survey`)."""
+        return cls(list(rows.ids), rows.height, rows.lat, rows.lon, rows.x, rows.y, rows.source)
 
     def in_track(self, x_m: np.ndarray, lat_rad: np.ndarray, lon_rad: np.ndarray, local_m: float = 1000.0,
                  subsample: int = 20) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -63,37 +59,3 @@ class CCRSurvey:
             a, b = line.to_track(self.lat[k:k + 1], self.lon[k:k + 1])
             xk[k], yk[k] = a[0], b[0]
         return xk, yk, dist
-
-
-def read_ccr_csv(path: str | Path) -> CCRSurvey:
-    """Read a CCR survey CSV (see the module docstring); every value checked, errors name the
-    file, the line and the column."""
-    path = Path(path)
-    rows = list(csv.reader(io.StringIO(read_text(path, "CCR survey CSV"))))
-    if not rows:
-        raise InputError(path, "header", f"empty file; expected {EXPECTED}")
-    header = [c.strip().lower() for c in rows[0]]
-    cols = set(header)
-    unknown = sorted(cols - {"id", "lat", "lon", "x", "y", "height"})
-    if unknown or cols not in CCR_COLUMNS or len(cols) != len(header):
-        what = f"unknown column(s) {', '.join(unknown)}" if unknown else f"columns {','.join(header)}"
-        raise InputError(path, "header", f"{what}; expected {EXPECTED}")
-    data = [(n, r) for n, r in enumerate(rows[1:], start=2) if any(c.strip() for c in r)]
-    if not data:
-        raise InputError(path, "rows", "no CCRs listed")
-    vals = {c: [] for c in header}
-    for n, r in data:
-        if len(r) != len(header):
-            raise InputError(path, f"line {n}", f"expected {len(header)} values, got {len(r)}")
-        for c, v in zip(header, r):
-            if c == "id":
-                vals[c].append(v.strip())
-            else:
-                vals[c].append(number(v.strip(), path, *RANGES[c][:2], RANGES[c][2], field=f"line {n}: {c}"))
-    if len(set(vals["id"])) != len(vals["id"]) or "" in vals["id"]:
-        raise InputError(path, "id", "expected a unique, non-empty id per CCR")
-    height = np.asarray(vals["height"])
-    if "lat" in cols:
-        lat, lon = np.asarray(vals["lat"]), np.asarray(vals["lon"])
-        return CCRSurvey(vals["id"], height, lat=np.radians(lat), lon=np.radians(lon), source=str(path))
-    return CCRSurvey(vals["id"], height, x=np.asarray(vals["x"]), y=np.asarray(vals["y"]), source=str(path))

@@ -16,6 +16,7 @@ import io
 import json
 from dataclasses import asdict, dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -23,6 +24,11 @@ from calidar.errors import InputError
 from calidar.io.las import PointOptions
 from calidar.pipelines import Progress, no_progress
 from calidar.validate import number
+
+if TYPE_CHECKING:  # the run's parts, by type (imported where used)
+    from calidar.accuracy.assess import Assessment
+    from calidar.provenance import RunRecord
+    from calidar.verdict import Verdict
 
 CHUNK_POINTS = 1_000_000
 FIELDS = ("point_source_id", "classification", "return_number", "number_of_returns", "scan_angle_deg")
@@ -58,9 +64,9 @@ class AccuracySettings:
 
 @dataclass
 class AccuracyRun:
-    assessment: object  #: calidar.accuracy.assess.Assessment
-    verdict: object  #: calidar.verdict.Verdict
-    record: object  #: calidar.provenance.RunRecord
+    assessment: Assessment
+    verdict: Verdict
+    record: RunRecord
 
 
 def _points_crs(paths, options: PointOptions):

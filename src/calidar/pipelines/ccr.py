@@ -9,6 +9,7 @@ from pathlib import Path
 from calidar.errors import InputError
 from calidar.io.json_file import write_json
 from calidar.pipelines import Progress, no_progress
+from calidar.pipelines.ccr_config import CCRConfig
 
 
 def read_truth(path: Path) -> dict[str, float]:
@@ -23,8 +24,18 @@ def read_truth(path: Path) -> dict[str, float]:
         raise InputError(path, None, f"expected JSON with numbers {', '.join(GEOLOCATION)}") from None
 
 
+def read_ccr_csv(path: Path):
+    """The CCR survey of a CSV file (:func:`calidar.io.ccr_survey.read_ccr_survey`) as the method takes it
+    (:class:`calidar.photon.survey.CCRSurvey`)."""
+    from calidar.io.ccr_survey import read_ccr_survey
+    from calidar.photon.survey import CCRSurvey
+
+    return CCRSurvey.from_rows(read_ccr_survey(path))
+
+
 def load_passes(files: list[Path], beams: str, survey, system, progress: Progress = no_progress):
-    """Every chosen beam of every ATL03 file as a pass prepared near the CCRs (beams without photons skipped)."""
+    """Every chosen beam (``beams``: "all" or names separated by commas) of every ATL03 file as a pass
+    prepared near the CCRs (beams without photons skipped)."""
     from calidar.io.atl03 import read_atl03, select_beams
     from calidar.photon.passes import prepare_pass
     from calidar.validate import existing_file
@@ -44,13 +55,12 @@ def load_passes(files: list[Path], beams: str, survey, system, progress: Progres
     return passes
 
 
-def run_ccr(files: list[Path], beams: str, ccr: Path, out_dir: Path, *, system=None, settings=None,
+def run_ccr(files: list[Path], ccr: Path, out_dir: Path, config: CCRConfig = CCRConfig(), *,
             truth_path: Path | None = None, record=None, report=None, progress: Progress = no_progress):
-    """Read, calibrate, write ``out_dir``/solution.json and (unless a report is passed in, as the demo
-    does) report.html (``calidar.calibrate_ccr``). ``system``: :class:`calidar.photon.passes.SystemParameters`,
-    ``settings``: :class:`calidar.photon.search.SearchSettings` (defaults: ``calidar ccr``'s);
-    ``record``: the run's :class:`calidar.provenance.RunRecord`. Returns the
-    :class:`calidar.photon.ccr.CCRResult`.
+    """Read, calibrate with ``config`` (:class:`calidar.pipelines.ccr_config.CCRConfig`: the beams, the
+    search's and the fit's settings, the instrument), write ``out_dir``/solution.json, config.toml and
+    (unless a report is passed in, as the demo does) report.html (``calidar.calibrate_ccr``).
+    ``record``: the run's :class:`calidar.provenance.RunRecord`. Returns the :class:`calidar.photon.ccr.CCRResult`.
 
     >>> import tempfile, calidar
     >>> from calidar.photon.search import SearchSettings
@@ -58,30 +68,26 @@ def run_ccr(files: list[Path], beams: str, ccr: Path, out_dir: Path, *, system=N
     >>> folder = Path(tempfile.mkdtemp())
     >>> sim = simulate_photons(PhotonSimConfig(seed=1, n_ccr=8, along_bias=1.5, cross_bias=-2.0), folder)
     >>> quick = SearchSettings(bootstrap=0, surface_points=0)  # no bootstrap σ, no likelihood map in the report
-    >>> result = calidar.calibrate_ccr([sim["atl03"]], "all", sim["ccr"], folder, settings=quick)
+    >>> result = calidar.calibrate_ccr([sim["atl03"]], sim["ccr"], folder, calidar.CCRConfig(search=quick))
     >>> v, s = result.solution.values, result.solution.sigma
     >>> [bool(abs(v[k] - truth) < 3 * s[k]) for k, truth in (("along_track_bias", 1.5), ("cross_track_bias", -2.0))]
     [True, True]
-    >>> sorted(p.name for p in folder.iterdir() if p.suffix in (".json", ".html"))
-    ['report.html', 'solution.json', 'truth.json']
+    >>> sorted(p.name for p in folder.iterdir() if p.suffix in (".json", ".html", ".toml"))
+    ['config.toml', 'report.html', 'solution.json', 'truth.json']
     """
     from calidar.photon.ccr import calibrate, describe
-    from calidar.photon.passes import SystemParameters
     from calidar.photon.report import add_section
-    from calidar.photon.search import SearchSettings
-    from calidar.photon.survey import read_ccr_csv
     from calidar.report import Report
 
-    system = SystemParameters() if system is None else system
-    settings = SearchSettings() if settings is None else settings
     survey = read_ccr_csv(ccr)
     truth = read_truth(truth_path) if truth_path is not None else None
-    passes = load_passes(files, beams, survey, system, progress)
-    result = calibrate(passes, survey, system, settings, progress)
+    passes = load_passes(files, config.beam_text, survey, config.system, progress)
+    result = calibrate(passes, survey, config.system, config.search, progress)
     result.solution.extra.update(describe(result))
     if record is not None:
         result.solution.extra["run"] = record.finish().to_dict()
     write_json(Path(out_dir) / "solution.json", result.solution.to_dict(truth))
+    config.write(Path(out_dir) / "config.toml")
     own = report is None
     if own:
         report = Report("calidar: photon lidar CCR calibration")

@@ -14,22 +14,32 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Protocol
 
 import numpy as np
 
 from calidar.errors import InputError
 
 
+class SurveyFile(Protocol):
+    """What a ground-control file read gives the pipeline whatever its kind (a checkpoint CSV's
+    :class:`calidar.io.checkpoints.Checkpoints`, :class:`calidar.io.control_planes.ControlPlaneFile`, a
+    :class:`calidar.io.control_cloud.ReferenceCloud`, …): its path and surveyed points."""
+
+    path: Path
+    xyz: np.ndarray  #: (N, 3) in the CRS they were surveyed in
+
+
 @dataclass(frozen=True, eq=False)
 class ControlInput:
-    """The control as read: the file's points (open ground only), ECEF (N, 3) m, notes; for control
-    planes (``kind`` "surfaces") the file read, the places over the patches whose points the ingest keeps
-    (``ecef``) and the surveyed points (``survey_ecef``)."""
+    """The control as read: the file's points (open ground only), ECEF (N, 3) m, notes; for another kind
+    (control planes, a reference cloud: ``kind``) the file read, the places over its targets whose points the
+    ingest keeps (``ecef``) and the surveyed points (``survey_ecef``)."""
 
-    checkpoints: object  #: calidar.io.checkpoints.Checkpoints (or io.control_planes.ControlPlaneFile)
+    checkpoints: SurveyFile  #: the file read (the kind's own type: its from_file takes it)
     ecef: np.ndarray
     notes: tuple[str, ...] = ()
-    kind: str = "points"  #: a name of calidar.strips.config.CONTROL_KINDS
+    kind: str | None = None  #: a name of calidar.strips.config.CONTROL_KINDS (None: control points, the first)
     survey_ecef: np.ndarray | None = None
 
 
@@ -77,23 +87,37 @@ def _strips_crs(strip_path: Path, points, sensor) -> tuple:
     return las_file_crs(strip_path, points.crs) or las_file_crs(strip_path, sensor.crs), points.geoid_undulation_m
 
 
+def control_kind_of(path) -> type:
+    """The kind of ground control (:data:`calidar.strips.config.CONTROL_KINDS`) a ``--control`` file is: the
+    last registered whose ``accepts(path)`` holds (a reference cloud: LAS/LAZ; control planes: a CSV naming
+    a plane column), else the one that accepts any file (control points)."""
+    from calidar.strips.config import CONTROL_KINDS
+
+    kinds = list(CONTROL_KINDS.values())[::-1]
+    return next((k for k in kinds if k.accepts is not None and k.accepts(path)),
+                next(k for k in kinds if k.accepts is None))
+
+
 def read_control(path, control_crs: str | None, strips_crs: tuple, checkpoints: bool = False,
                  crs_option: str = "--control-crs", sigma_m: float | None = None) -> ControlInput:
     """Read the control file ``path``; its CRS: ``control_crs`` or the strips' (``strips_crs``: their
     CRS and geoid undulation). ``checkpoints``: a checkpoint file (``--checkpoints``, tested after
     the calibration, not in it): its σ optional. ``sigma_m``: a reference cloud's stated σ
-    (``--control-sigma``; only with a LAS/LAZ file)."""
-    from calidar.io.checkpoints import read_checkpoints
-    from calidar.io.control_cloud import is_cloud_file
-    from calidar.io.control_planes import is_plane_file
-
-    if not checkpoints and is_cloud_file(path):
-        return _read_cloud(path, control_crs, crs_option, strips_crs, sigma_m)
-    if sigma_m is not None:
+    (``--control-sigma``; only with a kind that takes it)."""
+    kind = None if checkpoints else control_kind_of(path)
+    if sigma_m is not None and not (kind is not None and kind.takes_sigma):
         raise InputError(path, "--control-sigma", "given with a control CSV (its σ are in its sigma column); expected "
                          "it only with a reference cloud (LAS/LAZ) as --control")
-    if not checkpoints and is_plane_file(path):
-        return _read_planes(path, control_crs, crs_option, strips_crs)
+    if kind is not None and kind.reader is not None:
+        return _read_targets(kind, path, control_crs, crs_option, strips_crs, sigma_m)
+    return _read_points(path, control_crs, strips_crs, checkpoints, crs_option)
+
+
+def _read_points(path, control_crs: str | None, strips_crs: tuple, checkpoints: bool, crs_option: str) -> ControlInput:
+    """Control points or checkpoints: a checkpoint CSV (:mod:`calidar.io.checkpoints`), the vegetated ones
+    left out with a note; control points need their σ."""
+    from calidar.io.checkpoints import read_checkpoints
+
     cp = read_checkpoints(path, cover=False)
     if cp.sigma_m is None and not checkpoints:
         raise InputError(path, "sigma", "no sigma column; expected each control point's survey σ (m) in a column "
@@ -114,40 +138,22 @@ def read_control(path, control_crs: str | None, strips_crs: tuple, checkpoints: 
     return ControlInput(cp, from_crs_of(cp, crs, undulation), tuple(notes))
 
 
-def _read_planes(path, control_crs, crs_option, strips_crs: tuple) -> ControlInput:
-    """A control-surface file (:mod:`calidar.io.control_planes`), its planes checked in a local
-    metric frame at them, and the places over the patches the ingest keeps."""
-    from calidar.io.control_planes import read_control_planes
-    from calidar.strips.config import CONTROL_KINDS
+def _read_targets(kind: type, path, control_crs, crs_option, strips_crs: tuple, sigma_m) -> ControlInput:
+    """A kind's file read by its io reader (CRS: the option's, else the file's own when it names one, else
+    the strips'), its targets made in a local metric frame at it (checked there), and the places over them
+    whose points the ingest keeps."""
     from calidar.strips.strip import LocalFrame
 
-    f = read_control_planes(path)
-    crs, undulation = _crs(path, control_crs, crs_option, strips_crs)
+    f = kind.reader(path, sigma_m) if kind.takes_sigma else kind.reader(path)
+    own = getattr(f, "crs", None)
+    crs, undulation = _crs(path, control_crs if control_crs is not None else own, crs_option, strips_crs)
     survey = from_crs_of(f, crs, undulation)
     frame = LocalFrame.at(survey)
-    planes = CONTROL_KINDS["surfaces"].from_file(f, frame.to_local(survey))
-    keep = planes.keep_xy()
-    height = float(np.mean(planes.local[:, 2]))
-    return ControlInput(f, frame.to_ecef(np.c_[keep, np.full(len(keep), height)]), (), "surfaces", survey)
-
-
-def _read_cloud(path, control_crs, crs_option, strips_crs: tuple, sigma_m) -> ControlInput:
-    """A reference cloud (:mod:`calidar.io.control_cloud`; CRS: the option's, the file's, the strips'),
-    its planar cells found in a local metric frame at it, and the places over them the ingest keeps."""
-    from calidar.io.control_cloud import read_reference_cloud
-    from calidar.strips.config import CONTROL_KINDS
-    from calidar.strips.strip import LocalFrame
-
-    f = read_reference_cloud(path, sigma_m)
-    crs, undulation = _crs(path, control_crs if control_crs is not None else f.crs, crs_option, strips_crs)
-    survey = from_crs_of(f, crs, undulation)
-    frame = LocalFrame.at(survey)
-    cells = CONTROL_KINDS["cloud"].from_file(f, frame.to_local(survey))
-    keep = cells.keep_xy()
-    height = float(np.mean(cells.local[:, 2]))
-    note = (f"reference cloud {Path(path).name}: {len(f.xyz):,} points, {len(cells.ids)} planar cells as control "
-            f"(σ of its datum {100 * f.sigma_m:g} cm)")
-    return ControlInput(f, frame.to_ecef(np.c_[keep, np.full(len(keep), height)]), (note,), "cloud", survey)
+    targets = kind.from_file(f, frame.to_local(survey))
+    keep = targets.keep_xy()
+    height = float(np.mean(targets.local[:, 2]))
+    return ControlInput(f, frame.to_ecef(np.c_[keep, np.full(len(keep), height)]), kind.notes(f, targets), kind.kind,
+                        survey)
 
 
 def _crs(path, given: str | None, option: str, strips_crs: tuple):
@@ -177,15 +183,15 @@ def control_points(control: ControlInput, frame):
     """The control in the strips' local frame: a :class:`calidar.strips.control.ControlPoints`
     (two points at one place: an error naming them)."""
     from calidar.io.checkpoints import check_places
-    from calidar.strips.config import CONTROL_KINDS
-    from calidar.strips.control import ControlPoints
+    from calidar.strips.config import control_kind
 
-    if control.kind != ControlPoints.kind:
-        return CONTROL_KINDS[control.kind].from_file(control.checkpoints, frame.to_local(control.survey_ecef))
+    kind = control_kind(control.kind)
+    if kind.reader is not None:
+        return kind.from_file(control.checkpoints, frame.to_local(control.survey_ecef))
     cp = control.checkpoints
     local = frame.to_local(control.ecef)
     check_places(cp, local[:, :2])
-    return ControlPoints(cp.ids, local, np.zeros(len(cp.ids)) if cp.sigma_m is None else np.asarray(cp.sigma_m, float))
+    return kind(cp.ids, local, np.zeros(len(cp.ids)) if cp.sigma_m is None else np.asarray(cp.sigma_m, float))
 
 
 def checked_checkpoints(checkpoints: ControlInput | None, frame, notes: list[str]):

@@ -13,12 +13,17 @@ from __future__ import annotations
 import json
 from dataclasses import dataclass, field, fields
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from calidar.errors import InputError
 from calidar.pipelines import Progress, no_progress
 from calidar.strips.config import Estimate
+
+if TYPE_CHECKING:  # the run's parts, by type (imported where used)
+    from calidar.planning.predict import Prediction
+    from calidar.verdict import Verdict
 
 #: the most simulations ``--simulate`` runs (each is a whole survey simulated and calibrated)
 MAX_SIMULATE = 200
@@ -73,10 +78,10 @@ class PlanOptions:
 class PlanRun:
     """What :func:`run_plan` produced."""
 
-    prediction: object  #: calidar.planning.predict.Prediction
+    prediction: Prediction
     suggestions: list
     simulation: dict | None
-    verdict: object  #: calidar.verdict.Verdict
+    verdict: Verdict
     doc: dict
 
 

@@ -8,13 +8,19 @@ from __future__ import annotations
 import json
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from calidar.errors import InputError
 from calidar.io.json_file import write_json
 from calidar.pipelines import Progress, no_progress
+from calidar.pipelines.rangecal_config import RangeCalConfig
 from calidar.validate import SEED_MAX, integer, number, read_json
 
-MAX_TOLERANCE_M = 10.0  #: largest --tolerance (m)
+if TYPE_CHECKING:  # the run's parts, by type (imported when used: the demo imports this module first)
+    from calidar.provenance import RunRecord
+    from calidar.rangecal import RangeCalibration
+    from calidar.verdict import Verdict
+
 ANGLE_UNITS = ("deg", "gon")
 VERTICALS = ("zd", "va")
 
@@ -23,9 +29,9 @@ VERTICALS = ("zd", "va")
 class RangeCalRun:
     """What one range calibration produced."""
 
-    result: object  #: calidar.rangecal.RangeCalibration
-    verdict: object  #: calidar.verdict.Verdict
-    record: object  #: calidar.provenance.RunRecord
+    result: RangeCalibration
+    verdict: Verdict
+    record: RunRecord
     truth: dict | None  #: SI truth by parameter name, when a truth.json was given
 
 
@@ -43,55 +49,51 @@ def read_truth(path: Path) -> dict[str, float]:
     return truth
 
 
-def check_tolerance(tolerance_m: float | None) -> float | None:
-    """``--tolerance`` (m): None or a distance in (0, MAX_TOLERANCE_M]."""
-    return None if tolerance_m is None else number(tolerance_m, "--tolerance", 0.0, MAX_TOLERANCE_M, "m", open_lo=True)
-
-
-def calibrate_file(observations: Path, *, truth: Path | None = None, tolerance_m: float | None = None,
-                   fix_scale: bool = False) -> tuple[object, object, dict | None]:
-    """Read and calibrate ``observations`` (and ``truth``, a simulator's truth.json): returns the
-    :class:`calidar.rangecal.RangeCalibration`, its verdict and the SI truth (None without)."""
+def calibrate_file(observations: Path, config: RangeCalConfig = RangeCalConfig(), *,
+                   truth: Path | None = None) -> tuple[object, object, dict | None]:
+    """Read and calibrate ``observations`` with ``config`` (and ``truth``, a simulator's truth.json): returns
+    the :class:`calidar.rangecal.RangeCalibration`, its verdict and the SI truth (None without)."""
     from calidar.io.total_station import read_observations
     from calidar.rangecal import calibrate
     from calidar.rangecal.verdict import range_verdict
 
-    tolerance_m = check_tolerance(tolerance_m)
     obs = read_observations(observations)
     truth_si = read_truth(truth) if truth is not None else None
-    result = calibrate(obs, tolerance_m, fix_scale)
+    result = calibrate(obs, config.tolerance_m, config.fix_scale)
     return result, range_verdict(result, truth_si), truth_si
 
 
-def run_range_cal(observations: Path, out_dir: Path, *, truth: Path | None = None, tolerance_m: float | None = None,
-                  fix_scale: bool = False, argv: list[str] | None = None, report=None, title: str | None = None,
+def run_range_cal(observations: Path, out_dir: Path, config: RangeCalConfig = RangeCalConfig(), *,
+                  truth: Path | None = None, argv: list[str] | None = None, report=None, title: str | None = None,
                   progress: Progress = no_progress) -> RangeCalRun:
     """:func:`calibrate_file`, then write solution.json (with the verdict and the run record, key
-    "run") and report.html into the existing folder ``out_dir`` — or, when ``report`` is given, add
-    the verdict and the section to it instead of writing report.html (``calidar.calibrate_range``).
+    "run"), config.toml (``config``, for ``--config``) and report.html into the existing folder ``out_dir`` —
+    or, when ``report`` is given, add the verdict and the section to it instead of writing report.html
+    (``calidar.calibrate_range``).
 
     >>> import tempfile, calidar
     >>> folder = Path(tempfile.mkdtemp())
     >>> obs, truth, csv = run_simulate_total_station(folder, 0, simulation_config())  # offset 16 mm, scale −92 ppm
-    >>> run = calidar.calibrate_range(csv, folder, truth=folder / "truth.json", tolerance_m=0.05)
+    >>> config = calidar.RangeCalConfig(tolerance_m=0.05)
+    >>> run = calidar.calibrate_range(csv, folder, config, truth=folder / "truth.json")
     >>> sol = run.result.solution
     >>> [bool(abs(sol.values[k] - run.truth[k]) < 3 * sol.sigma[k]) for k in ("range_offset", "range_scale")]
     [True, True]
     >>> run.verdict.status, sorted(p.name for p in folder.iterdir())  # pass: the raw error stays within 5 cm
-    ('pass', ['observations.csv', 'report.html', 'solution.json', 'truth.json'])
+    ('pass', ['config.toml', 'observations.csv', 'report.html', 'solution.json', 'truth.json'])
     """
     from calidar.provenance import RunRecord
     from calidar.pipelines.reports import report_for
     from calidar.rangecal.report import add_section
 
-    record = RunRecord.capture(argv, inputs=[observations, truth],
-                               options={"tolerance_m": check_tolerance(tolerance_m), "fix_scale": fix_scale})
+    record = RunRecord.capture(argv, inputs=[observations, truth], options=config.to_dict())
     progress("range calibration", 0, 2)
-    result, verdict, truth_si = calibrate_file(observations, truth=truth, tolerance_m=tolerance_m, fix_scale=fix_scale)
+    result, verdict, truth_si = calibrate_file(observations, config, truth=truth)
     progress("range calibration", 1, 2)
     record.finish()
     result.solution.extra.update(verdict=verdict.to_dict(), run=record.to_dict())
     write_json(Path(out_dir) / "solution.json", result.solution.to_dict(truth_si))
+    config.write(Path(out_dir) / "config.toml")
     with report_for(report, "calidar range calibration", record, Path(out_dir) / "report.html", verdict,
                     "Range calibration") as rep:
         add_section(rep, result, truth_si, title)

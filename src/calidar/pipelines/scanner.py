@@ -5,19 +5,25 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from calidar.pipelines import Progress, no_progress
+
+if TYPE_CHECKING:  # the run's parts, by type (imported where used)
+    from calidar.scanners.analysis import ScannerAnalysis
+    from calidar.scanners.separability import Separability
+    from calidar.verdict import Verdict
 
 
 @dataclass
 class ScannerRun:
     """What one analysis produced: the analysis, its separability, the verdict and summary.json's document."""
 
-    analysis: object  #: calidar.scanners.analysis.ScannerAnalysis
-    separability: object  #: calidar.scanners.separability.Separability
-    verdict: object  #: calidar.verdict.Verdict
+    analysis: ScannerAnalysis
+    separability: Separability
+    verdict: Verdict
     summary: dict
 
 

@@ -40,15 +40,17 @@ True
 from __future__ import annotations
 
 import math
-import tomllib
-import types
 import typing
-from dataclasses import dataclass, field, fields, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from calidar.adjust import SolverOptions
 from calidar.errors import InputError
 from calidar.io.las import PointOptions
+from calidar.pipelines.config_toml import (
+    build as _build, known as _known, plain as _plain, read_document, section as _section, table as _table,
+    typed as _typed, write_document,
+)
 from calidar.pipelines.inputs import TrajectoryOptions
 from calidar.ingest.settings import IngestSettings
 from calidar.strips.config import MATCHERS, CalibrationConfig, Estimate, StripSettings, TrajectorySettings
@@ -130,26 +132,13 @@ class StripConfig:
 
     def write(self, path: Path) -> Path:
         """Write the TOML file (atomically); returns its path."""
-        from calidar.outputs import write_text_atomic
-
-        lines = ["# calidar boresight configuration: give it again with --config to repeat the run", ""]
-        sections = [(k, v) for k, v in self.to_dict().items() if isinstance(v, dict)]
-        lines += [f"{k} = {_toml(v)}" for k, v in self.to_dict().items() if not isinstance(v, dict)]
-        for name, table in sections:
-            lines += ["", f"[{name}]", *(f"{k} = {_toml(v)}" for k, v in table.items())]
-        return write_text_atomic(Path(path), "\n".join(lines) + "\n")
+        return write_document(path, self.to_dict(), "calidar boresight configuration: give it again with --config "
+                              "to repeat the run")
 
     @classmethod
     def read(cls, path: Path) -> StripConfig:
         """The configuration of a TOML file (keys left out: their defaults)."""
-        from calidar.validate import read_text
-
-        path = Path(path)
-        try:
-            doc = tomllib.loads(read_text(path, "TOML file"))
-        except tomllib.TOMLDecodeError as e:
-            raise InputError(path, None, f"expected TOML ({e})") from None
-        return from_document(doc, path)
+        return from_document(read_document(path), Path(path))
 
 
 def from_document(doc: dict, path: Path | None = None) -> StripConfig:
@@ -227,75 +216,3 @@ def _matcher(cls: type, table: dict, path):
     threshold = {k: v for k, v in table.items() if k == "threshold_m"}
     settings = _section(settings_type, {k: v for k, v in table.items() if k != "threshold_m"}, path, cls.name)
     return cls(settings, **{k: _typed(v, float, path, f"{cls.name}.{k}") for k, v in threshold.items()})
-
-
-def _table(doc: dict, key: str, path) -> dict:
-    table = doc.get(key, {})
-    if not isinstance(table, dict):
-        raise InputError(path, key, f"expected a table [{key}], got {table!r}")
-    return table
-
-
-def _known(table: dict, known: set[str], path, prefix: str) -> None:
-    unknown = sorted(set(table) - known)
-    if unknown:
-        raise InputError(path, prefix + unknown[0], f"unknown key; expected one of {', '.join(sorted(known))}")
-
-
-def _section(cls: type, table: dict, path, name: str, **built):
-    """A dataclass ``cls`` from a TOML table: every key one of its fields (but those ``built``
-    already), of the field's type."""
-    hints = typing.get_type_hints(cls)
-    _known(table, {f.name for f in fields(cls)} - set(built), path, f"{name}.")
-    kw = {k: _typed(v, hints[k], path, f"{name}.{k}") for k, v in table.items()}
-    return _build(path, name, lambda: cls(**kw, **built))
-
-
-def _build(path, name: str, make):
-    """``make()``, its complaints named by the file and the section or key."""
-    try:
-        return make()
-    except InputError as e:
-        raise InputError(path, f"{name} ({e.field})" if e.field and e.field != name else name, e.problem) from None
-    except (ValueError, TypeError) as e:
-        raise InputError(path, name, str(e)) from None
-
-
-def _typed(value, tp, path, key: str):
-    """``value`` of a TOML document as the type ``tp`` (float, int, str, bool, X | None, tuple[X, ...],
-    tuple[X, Y]), else an error naming the file and the key."""
-    origin, args = typing.get_origin(tp), typing.get_args(tp)
-    if origin in (typing.Union, types.UnionType):
-        if value is None and type(None) in args:
-            return None
-        return _typed(value, next(a for a in args if a is not type(None)), path, key)
-    if origin is tuple:
-        n = None if len(args) == 2 and args[1] is Ellipsis else len(args)
-        if not isinstance(value, list) or (n is not None and len(value) != n):
-            raise InputError(path, key, f"expected a list of {n or 'one or more'} values, got {value!r}")
-        return tuple(_typed(v, args[0] if n is None else args[k], path, key) for k, v in enumerate(value))
-    ok = {float: lambda v: isinstance(v, (int, float)) and not isinstance(v, bool),
-          int: lambda v: isinstance(v, int) and not isinstance(v, bool), str: lambda v: isinstance(v, str),
-          bool: lambda v: isinstance(v, bool)}
-    if tp not in ok or not ok[tp](value):
-        raise InputError(path, key, f"expected {getattr(tp, '__name__', tp)}, got {value!r}")
-    return float(value) if tp is float else value
-
-
-def _plain(settings) -> dict:
-    """A settings dataclass's fields as TOML values (None and nested settings left out, tuples as lists)."""
-    return {f.name: list(v) if isinstance(v, tuple) else v for f in fields(settings)
-            if (v := getattr(settings, f.name)) is not None and not hasattr(v, "__dataclass_fields__")}
-
-
-def _toml(value) -> str:
-    """One TOML value (numbers, strings, booleans, lists of them)."""
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    if isinstance(value, (list, tuple)):
-        return "[" + ", ".join(_toml(v) for v in value) + "]"
-    if isinstance(value, float):
-        return repr(value)
-    if isinstance(value, int):
-        return str(value)
-    return '"' + str(value).replace("\\", "\\\\").replace('"', '\\"') + '"'

@@ -12,25 +12,13 @@ import numpy as np
 
 from calidar.errors import InputError
 from calidar.pipelines import Progress, no_progress
-from calidar.pipelines.inputs import CHUNK_POINTS, PointOptions, TrajectoryOptions
-from calidar.tpu.propagate import TpuSettings
+from calidar.pipelines.inputs import CHUNK_POINTS
+from calidar.pipelines.tpu_config import TpuConfig
 
 EXTRA_BYTES = {"total_thu": "horizontal TPU, 1 sigma [m]",
                "total_tvu": "vertical TPU, 1 sigma [m]"}
 SCAN_BINS_DEG = (0.0, 10.0, 20.0, 30.0, 45.0, 90.0)
 SAMPLE_POINTS = 100_000  #: points per file kept for the report's figures
-
-
-@dataclass(frozen=True)
-class TpuOptions:
-    """What ``calidar tpu`` takes besides its files (see its --help)."""
-
-    settings: TpuSettings = TpuSettings()
-    trajectory_accuracy: Path | None = None  #: smrmsg file (default: found beside an sbet*.out)
-    trajectory_sigma: tuple[float, float] | None = None  #: (position m, attitude rad) for every epoch
-    calibration: Path | None = None  #: a calidar solution.json whose covariance is propagated
-    points: PointOptions = PointOptions()
-    trajectory_input: TrajectoryOptions = TrajectoryOptions()
 
 
 @dataclass
@@ -73,7 +61,7 @@ class _Collector:
         return dict(zip(("xy", "thu", "tvu", "scan"), (c[keep] for c in cat)))
 
 
-def tpu_file(path: Path, out: Path, traj, sensor, accuracy, options: TpuOptions, calibration) -> FileTpu:
+def tpu_file(path: Path, out: Path, traj, sensor, accuracy, config: TpuConfig, calibration) -> FileTpu:
     """One file: stream, propagate, write it with the extra bytes (see the module docstring)."""
     from calidar.ingest.rewrite import with_extra_bytes
     from calidar.io.las import las_header
@@ -82,16 +70,16 @@ def tpu_file(path: Path, out: Path, traj, sensor, accuracy, options: TpuOptions,
 
     if las_header(path).point_count == 0:
         raise InputError(path, "points", "no points; expected points to give an uncertainty to")
-    traj, week = trajectory_for(path, traj, options.points, CHUNK_POINTS)
+    traj, week = trajectory_for(path, traj, config.points, CHUNK_POINTS)
     collect = _Collector(len(str(path)))
 
     def values(t, ecef, points):
-        thu, tvu = thu_tvu(point_covariance(traj, sensor, accuracy, t, ecef, options.settings, calibration))
+        thu, tvu = thu_tvu(point_covariance(traj, sensor, accuracy, t, ecef, config.noise, calibration))
         scan = np.abs(points.scan_angle_deg) if points.scan_angle_deg is not None else np.full(thu.size, np.nan)
         collect.add(points.xyz[:, :2], thu, tvu, scan)
         return {"total_thu": thu, "total_tvu": tvu}
 
-    n = with_extra_bytes(path, out, EXTRA_BYTES, traj, week, values, options.points, CHUNK_POINTS)
+    n = with_extra_bytes(path, out, EXTRA_BYTES, traj, week, values, config.points, CHUNK_POINTS)
     s = collect.sample()
     bins = [{"scan_angle_deg": [lo, hi], "points_in_sample": int(m.sum()), **_percentiles(s["tvu"][m])}
             for lo, hi in zip(SCAN_BINS_DEG[:-1], SCAN_BINS_DEG[1:]) if (m := (s["scan"] >= lo) & (s["scan"] < hi)).any()]
@@ -108,10 +96,13 @@ def load_calibration(path: Path | None, sensor):
     return CalibrationCovariance(*read_calibration_covariance(path, set(sensor.parameters())))
 
 
-def run_tpu(points: list[Path], trajectory: Path, sensor_path: Path, out_dir: Path,
-            options: TpuOptions = TpuOptions(), progress: Progress = no_progress) -> list[FileTpu]:
-    """Every file of ``points`` with per-point THU/TVU into ``out_dir`` (same names), ``tpu.json``
-    and ``report.html``. Returns the per-file summaries."""
+def run_tpu(points: list[Path], trajectory: Path, sensor_path: Path, out_dir: Path, config: TpuConfig = TpuConfig(),
+            *, accuracy: Path | None = None, calibration: Path | None = None,
+            progress: Progress = no_progress) -> list[FileTpu]:
+    """Every file of ``points`` with per-point THU/TVU into ``out_dir`` (same names), ``tpu.json``,
+    ``config.toml`` and ``report.html``. ``accuracy``: the trajectory's smrmsg file (default: found beside
+    an sbet*.out); ``calibration``: a calidar solution.json whose covariance is propagated. Returns the
+    per-file summaries."""
     import json
 
     from calidar.outputs import write_text_atomic
@@ -123,20 +114,21 @@ def run_tpu(points: list[Path], trajectory: Path, sensor_path: Path, out_dir: Pa
     if len(set(names)) != len(names):
         raise InputError(None, "POINTS", f"expected distinct file names (outputs share the folder), got {names}")
     sensor = Sensor.read(sensor_path)
-    traj = load_trajectory(trajectory, options.trajectory_input)
-    accuracy, _, note = resolve_accuracy(Path(trajectory), traj, options.trajectory_accuracy, options.trajectory_sigma)
-    calibration = load_calibration(options.calibration, sensor)
+    traj = load_trajectory(trajectory, config.trajectory_input)
+    stated, _, note = resolve_accuracy(Path(trajectory), traj, accuracy, config.trajectory_sigma)
+    covariance = load_calibration(calibration, sensor)
     results = []
     for k, p in enumerate(points):
-        results.append(tpu_file(Path(p), Path(out_dir) / Path(p).name, traj, sensor, accuracy, options, calibration))
+        results.append(tpu_file(Path(p), Path(out_dir) / Path(p).name, traj, sensor, stated, config, covariance))
         progress("per-point uncertainty", k + 1, len(points))
-    doc = {"accuracy": accuracy.to_dict(), "accuracy_note": note,
-           "settings": {k: float(v) for k, v in options.settings.__dict__.items()},
-           "calibration": None if calibration is None else {
-               "file": str(options.calibration), "parameters": list(calibration.names),
-               "sigma_si": np.sqrt(np.diag(calibration.covariance)).tolist()},
+    doc = {"accuracy": stated.to_dict(), "accuracy_note": note,
+           "settings": {k: float(v) for k, v in config.noise.__dict__.items()},
+           "calibration": None if covariance is None else {
+               "file": str(calibration), "parameters": list(covariance.names),
+               "sigma_si": np.sqrt(np.diag(covariance.covariance)).tolist()},
            "files": [r.to_dict() for r in results]}
     write_text_atomic(Path(out_dir) / "tpu.json", json.dumps(doc, indent=2) + "\n", force=True)
+    config.write(Path(out_dir) / "config.toml")
     from calidar.tpu.report import tpu_report
 
     tpu_report(results, doc).write(Path(out_dir) / "report.html")

@@ -41,6 +41,19 @@ MATCHERS: dict[str, type] = {m.name: m for m in (TiePlanes, Vgicp)}
 #: column, or a reference cloud when it is LAS/LAZ): each answers the calibrator's questions
 #: (:class:`calidar.strips.control.ControlPoints`)
 CONTROL_KINDS: dict[str, type] = {c.kind: c for c in (ControlPoints, ControlPlanes, ControlCloud)}
+
+
+def control_kind(name: str | None) -> type:
+    """The kind of ground control of this name (solution.json's ``control.kind``; None, as files written
+    before there were kinds: the first, control points)."""
+    return CONTROL_KINDS[name] if name is not None else next(iter(CONTROL_KINDS.values()))
+
+
+def control_action() -> str:
+    """What the verdict tells a user to give when ground control is missing: every kind's file."""
+    ways = [k.how_to_give for k in CONTROL_KINDS.values()]
+    listed = "; ".join(ways[:-1]) + "; or " + ways[-1] if len(ways) > 1 else ways[0]
+    return f"give ground control: calidar boresight --control FILE ({listed})"
 #: the groups an :class:`Estimate` is made of (the trajectory's errors are the trajectory model's)
 GROUPS: dict[str, tuple[str, ...]] = {g: tuple(n for n, _ in p) for g, p in ESTIMATE_GROUPS.items()}
 MAX_TRAJECTORY_BLOCK_S = 600.0  #: s, the knots' spacing (longer: no trajectory correction at all)

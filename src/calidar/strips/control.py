@@ -49,18 +49,40 @@ MARGIN_M = 1.0
 
 @dataclass(frozen=True)
 class ControlPoints:
-    """Control points in the strips' local frame (m). What the calibrator asks of ground control of
-    any kind (:data:`calidar.strips.config.CONTROL_KINDS`; control planes:
-    :class:`calidar.strips.control_planes.ControlPlanes`): ``ids``, ``local`` (the control pseudo-strip's
-    points), ``sigma_m`` (each one's survey σ, shared by the strips that see it), :meth:`keep_xy`
-    and :meth:`rows`."""
+    """Control points in the strips' local frame (m). What the calibrator, the pipeline, the verdict and
+    the report ask of ground control of any kind (:data:`calidar.strips.config.CONTROL_KINDS`; control
+    planes: :class:`calidar.strips.control_planes.ControlPlanes`): ``ids``, ``local`` (the control
+    pseudo-strip's points), ``sigma_m`` (each one's survey σ, shared by the strips that see it),
+    :meth:`keep_xy`, :meth:`rows` (its rows and, through them, their Jacobian), :meth:`survey_parameters`
+    and :meth:`survey_design` (its survey errors as nuisance parameters), and the class attributes below
+    (its names and words, how its file is recognised and read). A new kind is one module with such a
+    class, and its name in ``CONTROL_KINDS``."""
 
-    kind: ClassVar[str] = "points"
-    label: ClassVar[str] = "control points"
+    kind: ClassVar[str] = "points"  #: its name (CONTROL_KINDS, solution.json's control.kind)
+    label: ClassVar[str] = "control points"  #: what the report and solution.json call its targets
+    words: ClassVar[str] = "ground control points"  #: what the verdict calls them ("… with 10 ground control points")
+    row_noun: ClassVar[str] = "control point"  #: one target, the report table's first column
+    #: what a row's dz and σ are, in the report's ground-control section
+    dz_meaning: ClassVar[str] = ("(dz: the strip's local surface minus the control point, vertically; σ: the point's "
+                                 "survey σ and the surface's scatter)")
+    how_to_give: ClassVar[str] = "points: id, x, y, z, sigma"  #: its file, as the verdict's action names it
+    #: targets no strip covers are expected (a cloud reaching beyond the strips), not a warning
+    reaches_beyond_strips: ClassVar[bool] = False
+    #: reading at the edge (pipelines/control.py): ``accepts(path)`` whether a --control file is of this kind (None:
+    #: any file no other kind accepts), ``reader(path[, sigma_m])`` its io reader (None: the checkpoint CSV, read as
+    #: --checkpoints are), ``takes_sigma`` whether --control-sigma goes with it
+    accepts: ClassVar = None
+    reader: ClassVar = None
+    takes_sigma: ClassVar[bool] = False
 
     ids: np.ndarray  #: (n,) str
     local: np.ndarray  #: (n, 3) m
     sigma_m: np.ndarray  #: (n,) survey σ of each, m
+
+    @classmethod
+    def notes(cls, f, targets) -> tuple[str, ...]:
+        """What the run's notes say of the file ``f`` read and its targets (none)."""
+        return ()
 
     def keep_xy(self) -> np.ndarray:
         """(n, 2) the places whose surrounding points (``RADIUS_M + MARGIN_M``) the calibrator keeps."""

@@ -27,6 +27,7 @@ tenths of a millimetre).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 from typing import ClassVar
 
 import numpy as np
@@ -34,6 +35,7 @@ import scipy.sparse as sp
 
 from calidar.adjust import Parameter
 from calidar.errors import InputError
+from calidar.io.control_cloud import is_cloud_file, read_reference_cloud
 from calidar.strips.control_planes import INSET_M, ControlPlanes
 from calidar.strips.control_survey import PREFIX
 
@@ -52,10 +54,26 @@ class ControlCloud(ControlPlanes):
 
     kind: ClassVar[str] = "cloud"
     label: ClassVar[str] = "reference-cloud cells"
+    words: ClassVar[str] = "reference-cloud cells"
+    row_noun: ClassVar[str] = "control plane"
+    dz_meaning: ClassVar[str] = ("(dz: the strip's points in a planar cell of the reference cloud minus the cell's "
+                                 "plane, vertically; σ: both clouds' scatter there; the reference cloud's datum is a "
+                                 "parameter of its own, held to its stated σ)")
+    how_to_give: ClassVar[str] = "a reference point cloud: --control ref.laz --control-sigma M"
+    reaches_beyond_strips: ClassVar[bool] = True  #: a reference cloud may reach beyond the strips
+    accepts: ClassVar = staticmethod(is_cloud_file)  #: a LAS/LAZ file
+    reader: ClassVar = staticmethod(read_reference_cloud)
+    takes_sigma: ClassVar[bool] = True  #: --control-sigma: the σ of its heights' datum
 
     datum_sigma_m: float = 0.0  #: the cloud's stated vertical accuracy (σ of its height datum), m
     source: str = ""  #: the file it came from
     n_points: int = 0  #: the reference points read
+
+    @classmethod
+    def notes(cls, f, targets) -> tuple[str, ...]:
+        """The run's note on the cloud read: its points, the planar cells taken, its datum's σ."""
+        return (f"reference cloud {Path(f.path).name}: {len(f.xyz):,} points, {len(targets.ids)} planar cells as "
+                f"control (σ of its datum {100 * f.sigma_m:g} cm)",)
 
     @classmethod
     def from_file(cls, f, local: np.ndarray) -> "ControlCloud":

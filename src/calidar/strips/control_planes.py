@@ -32,7 +32,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from calidar.adjust import Parameter
-
+from calidar.io.control_planes import is_plane_file, read_control_planes
 from calidar.strips.control import rows_to_correspondences
 from calidar.strips.control_survey import PREFIX as SURVEY
 from calidar.strips.correspond import Correspondences
@@ -49,12 +49,26 @@ class ControlPlanes:
 
     kind: ClassVar[str] = "surfaces"
     label: ClassVar[str] = "control planes"
+    words: ClassVar[str] = "control planes"
+    row_noun: ClassVar[str] = "control plane"
+    dz_meaning: ClassVar[str] = ("(dz: the strip's points on the patch minus the surveyed plane, vertically; σ: the "
+                                 "plane's survey σ there and the points' scatter)")
+    how_to_give: ClassVar[str] = "surveyed planes: plane, x, y, z, sigma"
+    reaches_beyond_strips: ClassVar[bool] = False
+    accepts: ClassVar = staticmethod(is_plane_file)  #: a CSV whose header names a plane column
+    reader: ClassVar = staticmethod(read_control_planes)
+    takes_sigma: ClassVar[bool] = False
 
     ids: np.ndarray  #: (n,) str
     local: np.ndarray  #: (n, 3) each plane's centroid (the control pseudo-strip's points)
     coef: np.ndarray  #: (n, 3) a, b, c of z = a + b·dx + c·dy about the centroid (a = its height)
     cov: np.ndarray  #: (n, 3, 3) their covariance, m²
     hulls: tuple[np.ndarray, ...]  #: per plane, the patch's corners (k, 2), counter-clockwise
+
+    @classmethod
+    def notes(cls, f, targets) -> tuple[str, ...]:
+        """What the run's notes say of the file read (none)."""
+        return ()
 
     @classmethod
     def from_file(cls, f, local: np.ndarray) -> ControlPlanes:

@@ -7,17 +7,18 @@ from __future__ import annotations
 
 import numpy as np
 
+from calidar.strips.config import control_action, control_kind
 from calidar.verdict import NOTE, Finding, two_digits
+
 
 #: the parameters a height error common to all strips hides from the overlaps (ground control observes them)
 VERTICAL = ("range_offset", "lever_arm_z", "height_bias")
-CONTROL_ACTION = ("give ground control: calidar boresight --control FILE (points: id, x, y, z, sigma; surveyed planes: "
-                  "plane, x, y, z, sigma; or a reference point cloud: --control ref.laz --control-sigma M)")
 
 
 def words(control: dict) -> str:
-    """What the control is, in words: "ground control points" or "control planes"."""
-    return "ground control points" if control.get("kind", "points") == "points" else control["label"]
+    """What the control (solution.json's ``control``) is, in words: "ground control points", "control planes", …
+    (its kind's :attr:`~calidar.strips.control.ControlPoints.words`)."""
+    return control_kind(control.get("kind")).words
 
 
 def vertical_findings(result, findings: list[Finding], limit_m: float) -> list[Finding]:
@@ -34,7 +35,7 @@ def vertical_findings(result, findings: list[Finding], limit_m: float) -> list[F
         if f.check in VERTICAL and control is None:
             f = Finding(f.status, f.check, f.detail + (" — by the overlaps' geometry only, relative to the trajectory's "
                         "heights; not tied to the ground" if f.status == "pass" else ""),
-                        "; or ".join(x for x in (f.action, CONTROL_ACTION) if x))
+                        "; or ".join(x for x in (f.action, control_action()) if x))
         elif f.check in VERTICAL and f.status == "pass":
             f = Finding(f.status, f.check, f.detail + f" with {control['n_used']} {words(control)}")
         out.append(f)
@@ -69,7 +70,7 @@ def _bias_finding(v: float, s: float, prior: float, control: dict | None, estima
     if control is None:
         return Finding("warn" if estimated else NOTE, "vertical trajectory bias", text + ": not determined — a height "
                        "error shared by every strip does not show in the overlaps; only the trajectory's prior bounds it",
-                       CONTROL_ACTION)
+                       control_action())
     if s <= limit_m and s <= prior / np.sqrt(2.0):
         return Finding("pass", "vertical trajectory bias", text + f": determined by {control['n_used']} {words(control)}")
     return Finding("warn", "vertical trajectory bias", text + ": not determined beyond its prior even with the control "
@@ -87,6 +88,6 @@ def control_finding(control: dict) -> Finding:
     missing = control["not_covered"]
     if missing:
         detail += f"; not covered by any strip: {', '.join(missing[:5])}" + (" …" if len(missing) > 5 else "")
-    ok = (not missing or control.get("kind") == "cloud") and rms_z < 3.0  # a reference cloud may reach beyond the strips
+    ok = (not missing or control_kind(control.get("kind")).reaches_beyond_strips) and rms_z < 3.0
     return Finding("pass" if ok else "warn", "ground control", detail,
                    "" if ok else "check the control points far off (solution.json: control) and their coordinates' CRS")

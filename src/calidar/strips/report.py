@@ -14,6 +14,7 @@ import numpy as np
 from calidar.report import Report
 from calidar.report.plots import correlation_figure, dz_map, residual_histogram
 from calidar.strips.calibrate import CalibrationResult
+from calidar.strips.config import control_kind
 from calidar.strips.quality import PairQuality
 from calidar.strips.verdict import NUISANCE
 
@@ -132,18 +133,10 @@ def add_report_section(report: Report, result: CalibrationResult, truth: dict[st
 
 def _control_part(sec, control: dict) -> None:
     """The ground control's residuals (calidar boresight --control): per control point and strip."""
-    kind = control.get("kind", "points")
-    planes = kind != "points"  # control surfaces (surveyed planes, a reference cloud's planar cells)
-    what = {"points": "(dz: the strip's local surface minus the control point, vertically; σ: the point's survey σ "
-                      "and the surface's scatter)",
-            "cloud": "(dz: the strip's points in a planar cell of the reference cloud minus the cell's plane, "
-                     "vertically; σ: both clouds' scatter there; the reference cloud's datum is a parameter of its "
-                     "own, held to its stated σ)"}.get(kind, "(dz: the strip's points on the patch minus the surveyed "
-                                                          "plane, vertically; σ: the plane's survey σ there and the "
-                                                          "points' scatter)")
+    kind = control_kind(control.get("kind"))
     sec.heading("Ground control")
     sec.text(f"{control['n_used']} of {control['n_points']} {control.get('label', 'control points')} observed by the "
-             "strips around them " + what
+             "strips around them " + kind.dz_meaning
              + (f"; not covered by any strip: {', '.join(control['not_covered'][:20])}"
                 + (" …" if len(control["not_covered"]) > 20 else "") if control["not_covered"] else "") + ".")
     rows = [[r["id"], r["strip"], None if r["dz_before_m"] is None else 100 * r["dz_before_m"], 100 * r["dz_after_m"],
@@ -152,7 +145,7 @@ def _control_part(sec, control: dict) -> None:
     if len(rows) > MAX_CONTROL_ROWS:  # a reference cloud: hundreds of cells; the worst ones shown
         sec.text(f"The {MAX_CONTROL_ROWS} rows of {len(rows)} with the largest |dz|/σ after (solution.json lists all).")
         rows = sorted(rows, key=lambda r: -(r[5] or 0.0))[:MAX_CONTROL_ROWS]
-    sec.table(["control plane" if planes else "control point", "strip", "dz before (cm)", "dz after (cm)", "σ (cm)", "|dz|/σ after"], rows,
+    sec.table([kind.row_noun, "strip", "dz before (cm)", "dz after (cm)", "σ (cm)", "|dz|/σ after"], rows,
               formats=[None, None, "+.1f", "+.1f", ".1f", ".2f"])
 
 

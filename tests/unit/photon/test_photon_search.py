@@ -8,7 +8,7 @@ import pytest
 from calidar.errors import InputError
 from calidar.photon.search import SearchSettings, _cross_errors, grid_search
 from calidar.photon.segments import CCRSegment, CCRWindow, segment_of, with_silent_shots
-from calidar.photon.survey import read_ccr_csv
+from calidar.pipelines.ccr import read_ccr_csv
 
 
 def test_cross_errors_equal_the_brute_force_over_every_candidate_chord():

@@ -1,0 +1,165 @@
+"""The configuration of a CCR calibration (``calidar ccr``) as one typed value, and its TOML file:
+written beside the results (``config.toml``) and given again with ``--config`` to repeat the run. In
+the units a user reads (ns for the detector's times)::
+
+    beams = "all"              # or a list: ["gt1l", "gt2l"]
+
+    [search]                   # calidar.photon.search.SearchSettings (m)
+    diameter_min = 8.0
+    diameter_max = 15.0
+    diameter_step = 0.1
+    length_step = 0.1
+    bias_step = 0.05
+    max_bias = 10.0
+    bootstrap = 100
+    seed = 0
+    shared_bias = false
+    surface_points = 9
+
+    [system]                   # calidar.photon.passes.SystemParameters
+    dead_time_s = 3.2e-09
+    pulse_width_s = 1e-09
+    shot_spacing_m = 0.7
+    pointing_jitter_m = 0.3
+    # channels = 16            # absent: from each beam's strength (16 strong, 4 weak)
+
+A key left out takes its default; an unknown key or a value of the wrong type or range is an error
+naming the file and the key.
+
+>>> import tempfile
+>>> from calidar.photon.search import SearchSettings
+>>> config = CCRConfig(beams=("gt1l",), search=SearchSettings(bootstrap=20))
+>>> CCRConfig.read(config.write(Path(tempfile.mkdtemp()) / "config.toml")) == config
+True
+>>> CCRConfig(search=SearchSettings(diameter_step=5.0))
+Traceback (most recent call last):
+calidar.errors.InputError: --diameter-step: expected a finite number in [0.01, 2] m, got 5.0
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, fields, replace
+from pathlib import Path
+
+from calidar.errors import InputError
+from calidar.io.atl03 import BEAMS
+from calidar.photon.passes import SystemParameters
+from calidar.photon.search import SearchSettings
+from calidar.pipelines.config_toml import build, known, read_document, section, table, typed, write_document
+from calidar.validate import SEED_MAX, integer, number
+
+SHOT_SPACING_RANGE = (0.05, 10.0)  #: m, along-track shot spacing accepted (ATLAS: 0.7 m)
+#: [search] keys with a command-line option: (low, high, unit) of a number, or an integer's (low, high, None)
+SEARCH_RANGES = {"diameter_min": ("--diameter-range", 0.5, 500.0, "m"),
+                 "diameter_max": ("--diameter-range", 0.5, 500.0, "m"),
+                 "diameter_step": ("--diameter-step", 0.01, 2.0, "m"), "length_step": ("--length-step", 0.01, 2.0, "m"),
+                 "bias_step": (None, 0.001, 1.0, "m"), "max_bias": ("--max-bias", 0.5, 200.0, "m"),
+                 "bootstrap": ("--bootstrap", 0, 10_000, None), "seed": ("--seed", 0, SEED_MAX, None),
+                 "surface_points": (None, 0, 101, None)}
+#: [system] keys (SI) → (SystemParameters field, the option's unit and its factor to SI, option, low, high in
+#: the option's unit)
+SYSTEM_KEYS = {"dead_time_s": ("dead_time", "ns", 1e-9, "--dead-time-ns", 0.1, 100.0),
+               "pulse_width_s": ("pulse_width", "ns", 1e-9, "--pulse-width-ns", 0.01, 50.0),
+               "shot_spacing_m": ("shot_spacing", "m", 1.0, "--shot-spacing-m", *SHOT_SPACING_RANGE),
+               "pointing_jitter_m": ("pointing_jitter", "m", 1.0, "--pointing-jitter-m", 0.0, 5.0)}
+
+
+def _label(key: str, option: str | None, keyed: bool) -> str:
+    """Where a value is named: its option (as the command line gives it) or, ``keyed`` (read from a file),
+    its key with the option."""
+    if option is None:
+        return key
+    return f"{key} ({option})" if keyed else option
+
+
+def check_search(s: SearchSettings, keyed: bool = False) -> None:
+    """The search settings in their ranges (an error naming the option, or ``keyed`` the file's key)."""
+    for key, (option, lo, hi, unit) in SEARCH_RANGES.items():
+        where = _label(f"search.{key}", option, keyed)
+        if unit is None:
+            integer(getattr(s, key), None, lo, hi, field=where)
+        else:
+            number(getattr(s, key), None, lo, hi, unit, field=where)
+    if not s.diameter_min < s.diameter_max:
+        raise InputError(None, _label("search.diameter_min, diameter_max", "--diameter-range", keyed),
+                         f"expected MIN < MAX, got {s.diameter_min:g}, {s.diameter_max:g}")
+    if not isinstance(s.shared_bias, bool):
+        raise InputError(None, _label("search.shared_bias", "--shared-bias", keyed),
+                         f"expected true or false, got {s.shared_bias!r}")
+
+
+def check_system(s: SystemParameters, keyed: bool = False) -> None:
+    """The instrument's constants in their ranges (an error naming the option, or ``keyed`` the file's key)."""
+    for key, (name, unit, factor, option, lo, hi) in SYSTEM_KEYS.items():
+        number(getattr(s, name) / factor, None, lo, hi, unit, field=_label(f"system.{key}", option, keyed))
+    if s.channels is not None:
+        integer(s.channels, None, 1, 64, field=_label("system.channels", "--channels", keyed))
+
+
+def check_beams(beams: tuple[str, ...] | None, keyed: bool = False) -> None:
+    """The beams: None (all) or names of ATL03 beams, each once."""
+    if beams is not None:
+        bad = [b for b in beams if b not in BEAMS]
+        if bad or not beams or len(set(beams)) != len(beams):
+            raise InputError(None, _label("beams", "--beam", keyed), f"expected all, or one or more of "
+                             f"{', '.join(BEAMS)} (each once), got {', '.join(beams) or 'none'}")
+
+
+@dataclass(frozen=True)
+class CCRConfig:
+    """What ``calidar ccr`` takes besides its files: the beams (None: every beam of each file), the grid
+    search's and the fit's settings, and the instrument's constants; every value checked when made.
+
+    >>> from calidar.photon.search import SearchSettings
+    >>> config = CCRConfig(beams=("gt1l", "gt2l"), search=SearchSettings(bootstrap=0))
+    >>> config.beam_text, config.to_dict()["search"]["bootstrap"]
+    ('gt1l,gt2l', 0)
+    """
+
+    beams: tuple[str, ...] | None = None
+    search: SearchSettings = field(default_factory=SearchSettings)
+    system: SystemParameters = field(default_factory=SystemParameters)
+
+    def __post_init__(self):
+        if not isinstance(self.search, SearchSettings) or not isinstance(self.system, SystemParameters):
+            raise InputError(None, "search, system", "expected SearchSettings and SystemParameters")
+        check_beams(self.beams)
+        check_search(self.search)
+        check_system(self.system)
+
+    @property
+    def beam_text(self) -> str:
+        """The beams as ``--beam`` names them ("all" or "gt1l,gt2l")."""
+        return "all" if self.beams is None else ",".join(self.beams)
+
+    def to_dict(self) -> dict:
+        """The TOML file's document (SI; no channels: the key left out)."""
+        system = {k: getattr(self.system, name) for k, (name, *_) in SYSTEM_KEYS.items()}
+        if self.system.channels is not None:
+            system["channels"] = self.system.channels
+        return {"beams": "all" if self.beams is None else list(self.beams),
+                "search": {f.name: getattr(self.search, f.name) for f in fields(SearchSettings)}, "system": system}
+
+    def write(self, path: Path) -> Path:
+        """Write the TOML file (atomically); returns its path."""
+        return write_document(path, self.to_dict(), "calidar ccr configuration: give it again with --config "
+                              "to repeat the run")
+
+    @classmethod
+    def read(cls, path: Path) -> CCRConfig:
+        """The configuration of a TOML file (keys left out: their defaults)."""
+        path = Path(path)
+        doc = read_document(path)
+        known(doc, {"beams", "search", "system"}, path)
+        beams = doc.get("beams", "all")
+        beams = None if beams == "all" else typed(beams, tuple[str, ...], path, "beams")
+        search = section(SearchSettings, table(doc, "search", path), path, "search")
+        given = table(doc, "system", path)
+        known(given, {*SYSTEM_KEYS, "channels"}, path, "system.")
+        kw = {SYSTEM_KEYS[k][0]: typed(v, float, path, f"system.{k}") for k, v in given.items() if k in SYSTEM_KEYS}
+        if "channels" in given:
+            kw["channels"] = typed(given["channels"], int, path, "system.channels")
+        system = build(path, "system", lambda: replace(SystemParameters(), **kw))
+        for check, part in ((check_beams, beams), (check_search, search), (check_system, system)):
+            build(path, "", lambda: check(part, keyed=True))  # named by the file's keys
+        return build(path, "", lambda: cls(beams, search, system))
