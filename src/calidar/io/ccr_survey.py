@@ -1,4 +1,4 @@
-"""The CCR survey CSV of ``calidar ccr``: the surveyed corner-cube retroreflectors, read and checked.
+"""The CCR survey CSV of ``calidar ccr``: the surveyed corner-cube retroreflectors, read, checked.
 
 A CCR survey is ``id,lat,lon,height`` (deg, deg, m above ground) or ``id,x,y,height`` (m along
 track, m cross-track left of ONE pass's reported track, m). Every value is range-checked; errors
@@ -27,8 +27,14 @@ from calidar.validate import number, read_text
 
 CCR_COLUMNS = ({"id", "lat", "lon", "height"}, {"id", "x", "y", "height"})
 EXPECTED = "id,lat,lon,height or id,x,y,height"
-RANGES = {"lat": (-90.0, 90.0, "deg"), "lon": (-180.0, 360.0, "deg"), "height": (-5.0, 100.0, "m above ground"),
-          "x": (-1e8, 1e8, "m"), "y": (-1e4, 1e4, "m")}
+#: each numeric column's (lowest, highest, unit) accepted
+RANGES = {
+    "lat": (-90.0, 90.0, "deg"),
+    "lon": (-180.0, 360.0, "deg"),
+    "height": (-5.0, 100.0, "m above ground"),
+    "x": (-1e8, 1e8, "m"),
+    "y": (-1e4, 1e4, "m"),
+}
 
 
 @dataclass(frozen=True)
@@ -52,9 +58,18 @@ def _header(path: Path, rows: list[list[str]]) -> list[str]:
     cols = set(header)
     unknown = sorted(cols - {"id", "lat", "lon", "x", "y", "height"})
     if unknown or cols not in CCR_COLUMNS or len(cols) != len(header):
-        what = f"unknown column(s) {', '.join(unknown)}" if unknown else f"columns {','.join(header)}"
+        if unknown:
+            what = f"unknown column(s) {', '.join(unknown)}"
+        else:
+            what = f"columns {','.join(header)}"
         raise InputError(path, "header", f"{what}; expected {EXPECTED}")
     return header
+
+
+def _value(path: Path, line: int, column: str, text: str) -> float:
+    """One numeric cell, checked against the column's range (errors name the line and column)."""
+    low, high, unit = RANGES[column]
+    return number(text.strip(), path, low, high, unit, field=f"line {line}: {column}")
 
 
 def read_ccr_survey(path: str | Path) -> CCRSurveyRows:
@@ -71,14 +86,12 @@ def read_ccr_survey(path: str | Path) -> CCRSurveyRows:
         if len(r) != len(header):
             raise InputError(path, f"line {n}", f"expected {len(header)} values, got {len(r)}")
         for c, v in zip(header, r):
-            if c == "id":
-                vals[c].append(v.strip())
-            else:
-                vals[c].append(number(v.strip(), path, *RANGES[c][:2], RANGES[c][2], field=f"line {n}: {c}"))
+            vals[c].append(v.strip() if c == "id" else _value(path, n, c, v))
     if len(set(vals["id"])) != len(vals["id"]) or "" in vals["id"]:
         raise InputError(path, "id", "expected a unique, non-empty id per CCR")
     height = np.asarray(vals["height"])
     if "lat" in header:
         return CCRSurveyRows(vals["id"], height, lat=np.radians(np.asarray(vals["lat"])),
                              lon=np.radians(np.asarray(vals["lon"])), source=str(path))
-    return CCRSurveyRows(vals["id"], height, x=np.asarray(vals["x"]), y=np.asarray(vals["y"]), source=str(path))
+    x, y = np.asarray(vals["x"]), np.asarray(vals["y"])
+    return CCRSurveyRows(vals["id"], height, x=x, y=y, source=str(path))
