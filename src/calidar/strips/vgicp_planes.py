@@ -5,7 +5,7 @@ give b's plane; a's points in a ball as large about that centroid give a's mean.
 span a plane (thin: ``max_surface_variation``; not a line: ``min_spread``), a's mean lies near it
 (``max_plane_distance_m``), neither side's points stop inside the ball (``max_centroid_offset``) and a's points
 lie on b's plane as closely as b's own do (``max_scatter_ratio``). Its σ takes each side's own scatter along
-the normal, moderated over the pair's rows (as the tie planes do: :mod:`calidar.strips.planes`).
+the normal, each row's posterior mean under a prior fitted to the pair's rows (:mod:`calidar.strips.row_variance`).
 
 Why a's own scatter (issue 26): on the urban UAV survey of seed 309 (opposite lines, exact trajectory, matched
 at the true sensor) a's ball points scattered along b's normal 19 mm RMS on roofs against b's 9 mm — a roof
@@ -25,6 +25,7 @@ import small_gicp
 
 from calidar.strips.correspond import moderated_variance
 from calidar.strips.pca import eigh3
+from calidar.strips.row_variance import posterior_variance
 
 
 class Grid:
@@ -188,7 +189,7 @@ def plane_rows(planes: LocalPlanes, b_near: np.ndarray, tree_b, ov_a: np.ndarray
     keep &= var_a <= settings.max_scatter_ratio**2 * np.maximum(var_b, settings.noise_floor_m**2)
     sigma = settings.sigma_m
     if sigma is None:  # a's mean with a's scatter, b's plane where a's mean lies with b's
-        var_a = moderated_variance(var_a[keep], count[keep] - 1)  # each side's own, over the pair's rows
-        var_b = moderated_variance(planes.scatter[keep] ** 2, k - 3)
+        var_a = posterior_variance(var_a[keep], count[keep] - 1)  # each side's own, a prior fitted over the pair
+        var_b = posterior_variance(planes.scatter[keep] ** 2, k - 3)
         sigma = np.sqrt(var_a / count[keep] + var_b * planes.leverage(mean_a)[keep] + settings.noise_floor_m**2)
     return planes, A, near_a, keep, planes.normal[keep], sigma
