@@ -26,7 +26,7 @@ from numba import njit
 from calidar.strips.correspond import Correspondences
 from calidar.strips.overlap import cell_keys, footprint_area_m2
 from calidar.strips.pca import eigh3
-from calidar.strips.row_variance import posterior_variance
+from calidar.strips.row_variance import posterior, satterthwaite
 
 
 @dataclass(frozen=True)
@@ -181,8 +181,9 @@ def match_pair_planes(strip_a_id: int, points_a: np.ndarray, strip_b_id: int, po
     B, mb = _averaging(pb, ib, s.max_points_per_patch, points_b.shape[0])
     # each side's scatter (its own from count − 3 degrees of freedom): the posterior mean under a prior fitted
     # to the pair's tie planes (issue 26: moderated toward their mean, quiet rows' σ were 1.2–1.3× too wide)
-    var_a = posterior_variance(pa.rms_m[ia] ** 2, pa.count[ia] - 3)
-    var_b = posterior_variance(pb.rms_m[ib] ** 2, pb.count[ib] - 3)
-    lev_b = plane_leverage(pb, ib, mb, pa.centroid[ia])  # b's plane where a's centroid lies
-    sigma = np.sqrt(var_a / ma + var_b * lev_b + s.noise_floor_m**2)
-    return Correspondences(strip_a_id, strip_b_id, A, B, pb.normal[ib].copy(), sigma, "planes")
+    var_a, nu_a = posterior(pa.rms_m[ia] ** 2, pa.count[ia] - 3)
+    var_b, nu_b = posterior(pb.rms_m[ib] ** 2, pb.count[ib] - 3)
+    parts = [var_a / ma, var_b * plane_leverage(pb, ib, mb, pa.centroid[ia])]  # b's plane where a's centroid lies
+    sigma = np.sqrt(parts[0] + parts[1] + s.noise_floor_m**2)
+    dof = satterthwaite(parts + [np.full(ia.size, s.noise_floor_m**2)], [nu_a, nu_b, np.inf])
+    return Correspondences(strip_a_id, strip_b_id, A, B, pb.normal[ib].copy(), sigma, "planes", dof)

@@ -53,14 +53,77 @@ def fitted_prior(variance_m2: np.ndarray, dof: np.ndarray) -> tuple[float, float
     return d0, float(np.exp(np.mean(e) + digamma(d0 / 2) - np.log(d0 / 2)))
 
 
-def posterior_variance(variance_m2: np.ndarray, dof: np.ndarray | float) -> np.ndarray:
-    """Each row's E[τ² | s²] (m²) under the prior fitted to all of ``variance_m2`` (see the module docstring)."""
+def posterior(variance_m2: np.ndarray, dof: np.ndarray | float) -> tuple[np.ndarray, np.ndarray]:
+    """Each row's E[τ² | s²] (m²) under the prior fitted to all of ``variance_m2`` (see the module docstring) and
+    its posterior degrees of freedom ν′ = d0 + d (inf when the rows pool fully)."""
     s2 = np.asarray(variance_m2, float)
-    if s2.size == 0:
-        return s2
     d = np.broadcast_to(np.asarray(dof, float), s2.shape)
+    if s2.size == 0:
+        return s2, s2.copy()
     d0, s02 = fitted_prior(s2, d)
     if not np.isfinite(d0):
-        return np.full(s2.shape, s02)
+        return np.full(s2.shape, s02), np.full(s2.shape, np.inf)
     nu = d0 + d
-    return (d0 * s02 + d * s2) / (nu - 2.0)
+    return (d0 * s02 + d * s2) / (nu - 2.0), nu
+
+
+def posterior_variance(variance_m2: np.ndarray, dof: np.ndarray | float) -> np.ndarray:
+    """Each row's E[τ² | s²] (m²): :func:`posterior` without the degrees of freedom."""
+    return posterior(variance_m2, dof)[0]
+
+
+def satterthwaite(parts: list[np.ndarray], dofs: list[np.ndarray]) -> np.ndarray:
+    """Degrees of freedom of a sum of variance estimates (each (R,) m² with its own degrees of freedom; inf for
+    a known term): (Σ v)² / Σ v²/ν (Welch 1947, Satterthwaite 1946); inf when every term is known."""
+    total = np.sum(parts, axis=0)
+    spread = np.sum([np.where(np.isfinite(d), v**2 / np.where(np.isfinite(d), d, 1.0), 0.0)
+                     for v, d in zip(parts, dofs)], axis=0)
+    with np.errstate(divide="ignore"):
+        return np.where(spread > 0, total**2 / np.maximum(spread, 1e-300), np.inf)
+
+
+#: representative degrees of freedom kept of a solution's rows (the means of this many quantile bins)
+DOF_BINS = 20
+#: stands for an infinite number of degrees of freedom in solution.json (JSON has no inf)
+KNOWN_DOF = 1e9
+
+
+def dof_summary(dof: np.ndarray) -> list[float]:
+    """The rows' degrees of freedom as :data:`DOF_BINS` representative values (each the mean of 1/ν over a
+    quantile bin, inverted; :data:`KNOWN_DOF` for known σ) — what :func:`consistency` needs, small enough for
+    solution.json."""
+    inv = np.sort(1.0 / np.clip(np.asarray(dof, float).ravel(), 2.05, KNOWN_DOF))
+    if inv.size == 0 or inv[-1] <= 1.0 / KNOWN_DOF:  # no row, or every σ known
+        return []
+    return [float(1.0 / np.mean(b)) for b in np.array_split(inv, min(DOF_BINS, inv.size))]
+
+
+def consistency(kind: str | None, dofs: list[float] | None = None) -> float:
+    """The engine's robust σ0² (IRLS weights of ``kind`` on z / s, s = 1.4826 · MAD of z; σ0² = Σ w z² / Σ w)
+    for rows whose z = residual/σ follow Student's t with ``dofs`` degrees of freedom, scaled to unit variance
+    (σ² = E[τ² | s²]: a row's σ estimated from its scatter, Smyth 2004 §3; equal shares of the rows), relative
+    to 1: the factor the global test divides out. None or [] → normal z (Cauchy: 0.794, Huber: 0.92…).
+
+    The mixture's MAD scale is found by bisection on its CDF, the expectations by the trapezoid rule on a
+    sinh-spaced grid (the t's tails fall as |x|^−(ν+1); w·u² stays bounded)."""
+    from scipy.special import gammaln, stdtr
+
+    from calidar.adjust.solver import robust_weights
+
+    if kind is None:
+        return 1.0
+    nu = np.clip(np.asarray(dofs if dofs else [KNOWN_DOF], float), 2.05, KNOWN_DOF)
+    unit = np.sqrt((nu - 2.0) / nu)  # t_ν times this has variance 1
+    lo, hi = 0.0, 10.0
+    for _ in range(60):  # median of |z| over the mixture
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if np.mean(2.0 * stdtr(nu, mid / unit) - 1.0) < 0.5 else (lo, mid)
+    s = 1.4826 * 0.5 * (lo + hi)
+    x = np.sinh(np.linspace(-9.0, 9.0, 6001))  # z / unit for each ν
+    dx = np.gradient(x)
+    log_c = gammaln((nu + 1) / 2) - gammaln(nu / 2) - 0.5 * np.log(nu * np.pi)
+    dens = np.exp(log_c[:, None] - (nu[:, None] + 1) / 2 * np.log1p(x[None, :] ** 2 / nu[:, None]))
+    u = unit[:, None] * x[None, :] / s
+    w = robust_weights(u, kind)
+    num = np.mean(np.sum(dens * dx * w * u * u, axis=1))
+    return float(s * s * num / np.mean(np.sum(dens * dx * w, axis=1)))

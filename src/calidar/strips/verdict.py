@@ -98,9 +98,17 @@ def robust_consistency(kind: str | None) -> float:
 
 
 def global_test_sigma0(sol) -> float:
-    """The σ0 the global test takes: the engine's, consistent for normal residuals (see
-    :func:`robust_consistency`; the strips' robust kind is in ``solution.extra["strips"]``)."""
-    kind = sol.extra.get("strips", {}).get("robust") if isinstance(sol.extra, dict) else None
+    """The σ0 the global test takes: the engine's, made consistent for the rows' residuals — normal ones (see
+    :func:`robust_consistency`), or, when the solution records the degrees of freedom of its rows' estimated σ
+    (``solution.extra["strips"]["row_dof"]``), Student-t ones with those degrees of freedom
+    (:func:`calidar.strips.row_variance.consistency`; issue 26: with 12-point patches the normal factor read
+    the σ0 of rows exactly right at the truth 2–3 % low)."""
+    strips = sol.extra.get("strips", {}) if isinstance(sol.extra, dict) else {}
+    kind, dofs = strips.get("robust"), strips.get("row_dof")
+    if dofs and kind is not None:
+        from calidar.strips.row_variance import consistency
+
+        return sol.sigma0 / math.sqrt(consistency(kind, dofs))
     return sol.sigma0 / math.sqrt(robust_consistency(kind))
 
 
@@ -161,7 +169,9 @@ def sigma0_finding(sol) -> Finding:
     digits = 2  # enough that σ0 and its range's nearer bound read apart
     while digits < 5 and f"{s0:.{digits}f}" in (f"{lo:.{digits}f}", f"{hi:.{digits}f}"):
         digits += 1
-    robust = "" if s0 == sol.sigma0 else f"; {sol.sigma0:.2f} from the robustly weighted residuals, ÷ {sol.sigma0 / s0:.3f} for normal ones"
+    t_rows = bool(isinstance(sol.extra, dict) and sol.extra.get("strips", {}).get("row_dof"))
+    robust = "" if s0 == sol.sigma0 else (f"; {sol.sigma0:.2f} from the robustly weighted residuals, ÷ {sol.sigma0 / s0:.3f} for "
+                                          + ("Student-t ones (each row's σ estimated from its points)" if t_rows else "normal ones"))
     detail = (f"σ0 = {s0:.{digits}f} (1 expected; the χ² test's 95 % range for {sol.dof:,.0f} degrees of freedom is "
               f"{lo:.{digits}f}–{hi:.{digits}f}{robust})")
     if lo <= s0 <= hi:

@@ -25,7 +25,7 @@ import small_gicp
 
 from calidar.strips.correspond import moderated_variance
 from calidar.strips.pca import eigh3
-from calidar.strips.row_variance import posterior_variance
+from calidar.strips.row_variance import posterior, satterthwaite
 
 
 class Grid:
@@ -167,7 +167,7 @@ def plane_rows(planes: LocalPlanes, b_near: np.ndarray, tree_b, ov_a: np.ndarray
     b_near: b's points near the candidates, registered onto a (m), ``tree_b`` their KdTree; ov_a: a's overlap
     points (m); density_ratio: a's points per b's; settings: :class:`~calidar.strips.vgicp.VgicpSettings`.
     Returns b's planes found again, the averaging matrix of a's balls over ``ov_a[near_a]``, near_a, the rows
-    kept, their normals and σ (m; ``settings.sigma_m`` when set).
+    kept, their normals, σ (m; ``settings.sigma_m`` when set) and the degrees of freedom of σ² (inf when set).
     """
     k = settings.num_neighbors
     centre = planes.centroid  # b's k nearest again, about their centroid (see the module docstring)
@@ -187,9 +187,11 @@ def plane_rows(planes: LocalPlanes, b_near: np.ndarray, tree_b, ov_a: np.ndarray
     var_b = np.zeros(keep.size)
     var_b[keep] = moderated_variance(planes.scatter[keep] ** 2, k - 3)
     keep &= var_a <= settings.max_scatter_ratio**2 * np.maximum(var_b, settings.noise_floor_m**2)
-    sigma = settings.sigma_m
+    sigma, dof = settings.sigma_m, np.inf
     if sigma is None:  # a's mean with a's scatter, b's plane where a's mean lies with b's
-        var_a = posterior_variance(var_a[keep], count[keep] - 1)  # each side's own, a prior fitted over the pair
-        var_b = posterior_variance(planes.scatter[keep] ** 2, k - 3)
-        sigma = np.sqrt(var_a / count[keep] + var_b * planes.leverage(mean_a)[keep] + settings.noise_floor_m**2)
-    return planes, A, near_a, keep, planes.normal[keep], sigma
+        var_a, nu_a = posterior(var_a[keep], count[keep] - 1)  # each side's own, a prior fitted over the pair
+        var_b, nu_b = posterior(planes.scatter[keep] ** 2, k - 3)
+        parts = [var_a / count[keep], var_b * planes.leverage(mean_a)[keep], np.full(nu_a.size, settings.noise_floor_m**2)]
+        sigma = np.sqrt(np.sum(parts, axis=0))
+        dof = satterthwaite(parts, [nu_a, nu_b, np.inf])
+    return planes, A, near_a, keep, planes.normal[keep], sigma, dof

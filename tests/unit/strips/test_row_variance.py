@@ -51,3 +51,25 @@ def test_few_rows_fall_back_to_the_pair_mean():
     v = posterior_variance(np.array([1e-6, 4e-6, 9e-6]), 9)
     assert np.all(np.isfinite(v)) and np.all(v > 0)
     assert posterior_variance(np.zeros(0), 9).size == 0
+
+
+def test_satterthwaite_degrees_of_freedom():
+    from calidar.strips.row_variance import satterthwaite
+
+    v, nu = np.array([1.0, 1.0]), np.array([10.0, 10.0])
+    assert satterthwaite([v, v], [nu, nu]) == pytest.approx([20.0, 20.0])
+    assert satterthwaite([v, v], [nu, np.full(2, np.inf)]) == pytest.approx([40.0, 40.0])  # a known term dilutes
+    assert np.all(np.isinf(satterthwaite([v], [np.full(2, np.inf)])))
+
+
+@pytest.mark.parametrize("nu", [6.0, 12.0, 40.0])
+def test_consistency_of_the_robust_sigma0_for_student_t_rows(nu):
+    """The factor equals the engine's σ0² (MAD scale, Cauchy weights) over 400 000 unit-variance t residuals."""
+    from calidar.adjust.solver import robust_weights
+    from calidar.strips.row_variance import consistency
+
+    z = np.random.default_rng(int(nu)).standard_t(nu, 400_000) * np.sqrt((nu - 2) / nu)
+    s = 1.4826 * np.median(np.abs(z))
+    w = robust_weights(z / s, "cauchy")
+    assert consistency("cauchy", [nu]) == pytest.approx(np.sum(w * z * z) / np.sum(w), rel=0.006)
+    assert consistency("cauchy") == pytest.approx(0.794, abs=0.002)  # normal residuals

@@ -248,3 +248,11 @@ def test_rows_sigma_match_the_residuals_at_the_truth():
     z = c.residuals(a, b) / c.sigma_m
     assert z.size > 2000
     assert np.sqrt(np.mean(z**2)) == pytest.approx(1.0, abs=0.05)
+    # the global test's σ0 over them, with the factor for their recorded degrees of freedom
+    from calidar.adjust.solver import robust_weights
+    from calidar.strips.row_variance import consistency, dof_summary
+
+    s = 1.4826 * np.median(np.abs(z))
+    w = robust_weights(z / s, "cauchy")
+    assert np.all(c.dof > 9)  # two sides of ≥ 6 points (inf where the pair's rows pool fully)
+    assert np.sqrt(np.sum(w * z * z) / np.sum(w) / consistency("cauchy", dof_summary(c.dof))) == pytest.approx(1.0, abs=0.05)
