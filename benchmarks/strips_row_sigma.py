@@ -9,7 +9,8 @@ the TRUE sensor and matched with each method's default rows: the residuals then 
 noise. Per method: rows (walls |n_z| < 0.5 left out, as few as they are), RMS of residual/σ (1 when the σ are
 right) over all, flat (|n_z| ≥ 0.97) and roofs, by quartile of σ (right row by row, quiet or rough), the
 MAD-scale of residual/σ, and the global test's σ0 as the engine and the verdict compute it (Cauchy weights on
-z / 1.4826·MAD, ÷ their consistency for normal residuals) against its χ² 95 % range.
+z / 1.4826·MAD, ÷ their consistency for Student-t residuals with the rows' degrees of freedom; also ÷ the
+normal factor) against its χ² 95 % range.
 """
 
 from __future__ import annotations
@@ -33,6 +34,7 @@ from calidar.strips.config import StripSettings  # noqa: E402
 from calidar.strips.matchers import TiePlanes, Vgicp  # noqa: E402
 from calidar.strips.parameters import sensor_of  # noqa: E402
 from calidar.strips.problem import georeference  # noqa: E402
+from calidar.strips.row_variance import consistency, dof_summary  # noqa: E402
 from calidar.strips.verdict import robust_consistency  # noqa: E402
 
 ERRORS_DEG = {"boresight_roll": 0.05, "boresight_pitch": -0.03, "boresight_yaw": 0.1}  #: issue 26's survey
@@ -52,7 +54,7 @@ def survey_folder(preset: str, seed: int, directions: str, scene: str, cache: Pa
 
 
 def rows_at_truth(folder: Path, method: str) -> np.ndarray:
-    """(|n_z|, residual m, σ m) of every row of every pair, matched at the true sensor."""
+    """(|n_z|, residual m, σ m, degrees of freedom of σ²) of every row of every pair, matched at the true sensor."""
     inputs = load_inputs(sorted((folder / "strips").glob("*.laz")), folder / "sbet.out", folder / "sensor.toml",
                          truth=folder / "truth.json")
     truth = sensor_of(inputs.nominal, inputs.truth)
@@ -63,20 +65,23 @@ def rows_at_truth(folder: Path, method: str) -> np.ndarray:
         pa, pb = (at[i][run.poses[i].rows_of(idx)] for i, idx in ((o.a, o.index_a), (o.b, o.index_b)))
         c = run.matcher.match(o.a, pa, o.b, pb)
         r = c.residuals(pa, pb)
-        out.append(np.column_stack([np.abs(c.normal[:, 2]), r, np.broadcast_to(c.sigma_m, r.shape)]))
+        out.append(np.column_stack([np.abs(c.normal[:, 2]), r, np.broadcast_to(c.sigma_m, r.shape),
+                                    np.broadcast_to(c.dof, r.shape)]))
     return np.concatenate(out)
 
 
-def global_test_sigma0(z: np.ndarray) -> float:
-    """The engine's σ0 (Cauchy weights on z over its MAD scale) ÷ the verdict's consistency factor."""
+def global_test_sigma0(z: np.ndarray, dof: np.ndarray | None = None) -> float:
+    """The engine's σ0 (Cauchy weights on z over its MAD scale) ÷ the verdict's consistency factor: for Student-t
+    rows with these degrees of freedom, or (None) for normal ones."""
     s = 1.4826 * np.median(np.abs(z - np.median(z)))
     w = robust_weights(z / s, "cauchy")
-    return float(np.sqrt(np.sum(w * z * z) / np.sum(w) / robust_consistency("cauchy")))
+    factor = robust_consistency("cauchy") if dof is None else consistency("cauchy", dof_summary(dof))
+    return float(np.sqrt(np.sum(w * z * z) / np.sum(w) / factor))
 
 
 def line(label: str, rows: np.ndarray) -> str:
     rows = rows[rows[:, 0] >= 0.5]
-    nz, r, s = rows.T
+    nz, r, s, dof = rows.T
     z = r / s
     rms = lambda m: np.sqrt(np.mean(z[m] ** 2))  # noqa: E731
     q = np.digitize(s, np.quantile(s, [0.25, 0.5, 0.75]))
@@ -84,8 +89,9 @@ def line(label: str, rows: np.ndarray) -> str:
     return (f"{label}: {z.size:6d} rows, RMS σ {np.sqrt(np.mean(s**2)) * 1e3:5.2f} mm, RMS z {rms(slice(None)):.3f} "
             f"(flat {rms(nz >= 0.97):.3f}, roofs {rms(nz < 0.97):.3f}; by σ quartile "
             + "/".join(f"{rms(q == k):.2f}" for k in range(4))
-            + f"), MAD-scale z {1.4826 * np.median(np.abs(z)):.3f}, global test σ0 {global_test_sigma0(z):.3f} "
-            f"(χ² 95 % range {lo:.3f}–{hi:.3f})")
+            + f"), MAD-scale z {1.4826 * np.median(np.abs(z)):.3f}, global test σ0 {global_test_sigma0(z, dof):.3f} "
+            f"(÷ the normal factor: {global_test_sigma0(z):.3f}; median ν {np.median(dof):.0f}; χ² 95 % range "
+            f"{lo:.3f}–{hi:.3f})")
 
 
 def main() -> None:

@@ -28,8 +28,9 @@ import scipy.sparse as sp
 from calidar import frames
 from calidar.io.flight_lines import PlanLine
 from calidar.sensor import Sensor
-from calidar.strips.correspond import Correspondences, moderated_variance
+from calidar.strips.correspond import Correspondences
 from calidar.strips.planes import PlaneSettings
+from calidar.strips.row_variance import posterior
 from calidar.planning.sweep import body_at, pattern_looks, sweep_position
 from calidar.strips.strip import Pose
 
@@ -262,7 +263,10 @@ def correspondences(flown: list[Flown], pairs: list[PairPlanes], inst: Instrumen
             used[k] += n * looks
             points = np.sum(point_variance(beam, np.tile(p.normal, (looks, 1)), inst.nominal.true_range(pose.range_m),
                                            inst).reshape(looks, n).T * cols[-1][1], axis=1)
-            var.append(moderated_variance(points + p.roughness_m**2, m - 3) / m)  # as the calibrator weighs its rows
+            # as the calibrator weighs its rows (strips/planes.py): each side's posterior variance, and b's plane's
+            # prediction variance at a's centroid, whose in-plane offset spreads by both centroids' (1/m each)
+            lev = 1.0 + (2.0 * (1.0 + m / p.count_a) / m if side == 1 else 0.0)
+            var.append(posterior(points + p.roughness_m**2, m - 3, sampled=False)[0] * lev / m)
             own.append((points + p.uneven_m**2) / m)
         agree = np.maximum(p.agree, 1e-3) * p.weight  # a row standing for `weight` planes weighs as much
         # what the residual really scatters by: the points' noise and the unevenness the patches do not share

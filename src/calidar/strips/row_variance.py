@@ -37,30 +37,33 @@ def _trigamma_inverse(y: float) -> float:
     return float(np.sqrt(lo * hi))
 
 
-def fitted_prior(variance_m2: np.ndarray, dof: np.ndarray) -> tuple[float, float]:
+def fitted_prior(variance_m2: np.ndarray, dof: np.ndarray, sampled: bool = True) -> tuple[float, float]:
     """(d0, s0²) of the scaled inverse χ² prior of the true variances behind ``variance_m2`` (each from ``dof``
     degrees of freedom), by the moments of the log-variances (Smyth 2004 §6.2); d0 = inf when the rows
-    scatter no more than their sampling allows (one variance for all)."""
+    scatter no more than their sampling allows (one variance for all). ``sampled`` False: the variances are
+    expected values (a plan's, mirroring the calibrator), their whole spread the prior's."""
     ok = (dof > 0) & (variance_m2 > 0)
     s2, d = variance_m2[ok], dof[ok].astype(float)
     if s2.size < MIN_ROWS:
         return SCATTER_PRIOR_DOF, float(np.mean(variance_m2)) if variance_m2.size else 0.0
-    e = np.log(s2) - digamma(d / 2) + np.log(d / 2)
-    excess = float(np.var(e, ddof=1) - np.mean(polygamma(1, d / 2)))
+    e = np.log(s2) - (digamma(d / 2) - np.log(d / 2) if sampled else 0.0)
+    excess = float(np.var(e, ddof=1) - (np.mean(polygamma(1, d / 2)) if sampled else 0.0))
     if excess <= 0:
         return np.inf, float(np.exp(np.mean(e)))
     d0 = max(2.0 * _trigamma_inverse(excess), MIN_PRIOR_DOF)
     return d0, float(np.exp(np.mean(e) + digamma(d0 / 2) - np.log(d0 / 2)))
 
 
-def posterior(variance_m2: np.ndarray, dof: np.ndarray | float) -> tuple[np.ndarray, np.ndarray]:
+def posterior(variance_m2: np.ndarray, dof: np.ndarray | float, sampled: bool = True
+              ) -> tuple[np.ndarray, np.ndarray]:
     """Each row's E[τ² | s²] (m²) under the prior fitted to all of ``variance_m2`` (see the module docstring) and
-    its posterior degrees of freedom ν′ = d0 + d (inf when the rows pool fully)."""
+    its posterior degrees of freedom ν′ = d0 + d (inf when the rows pool fully); ``sampled``: see
+    :func:`fitted_prior`."""
     s2 = np.asarray(variance_m2, float)
     d = np.broadcast_to(np.asarray(dof, float), s2.shape)
     if s2.size == 0:
         return s2, s2.copy()
-    d0, s02 = fitted_prior(s2, d)
+    d0, s02 = fitted_prior(s2, d, sampled)
     if not np.isfinite(d0):
         return np.full(s2.shape, s02), np.full(s2.shape, np.inf)
     nu = d0 + d
