@@ -45,6 +45,10 @@ LENGTH_LIMIT_M = 0.01
 CORRELATION_LIMIT = 0.9
 #: σ0 above its χ² range warns; above SIGMA0_FAIL the model does not fit (fail)
 SIGMA0_FAIL = 2.0
+#: how closely rows' σ estimated from their points' scatter are known: at the truth (simulated surveys without
+#: trajectory errors, ``benchmarks/strips_row_sigma.py``) the global test's σ0 read 0.93–1.03 over both methods and
+#: presets (issue 26); beyond its χ² range but within this of 1, σ0 passes, and the finding says so
+ROW_SIGMA_TOLERANCE = 0.07
 #: RMSDz of a pair may grow by this much (m) before the verdict calls it worse
 WORSE_M = 0.002
 #: a pair whose median dz stays beyond this after calibration is still offset (m)
@@ -160,7 +164,8 @@ DETERMINED_NOTE = ("\"determined\" says how closely these strips fix a parameter
 
 
 def sigma0_finding(sol) -> Finding:
-    """The global test: σ0 against its χ² 95 % range. Inside: pass. Below: a note (the residuals are
+    """The global test: σ0 against its χ² 95 % range. Inside: pass; outside but within
+    :data:`ROW_SIGMA_TOLERANCE` of 1 when the rows' σ are estimated (``row_dof`` recorded): pass, saying so. Below: a note (the residuals are
     smaller than the rows' σ say, so the parameters' σ are conservative by up to that factor). Above:
     warn (fail beyond :data:`SIGMA0_FAIL`): the model leaves residuals its σ do not explain."""
     priors = any(p.prior_sigma is not None for p in sol.parameters.free)
@@ -177,6 +182,11 @@ def sigma0_finding(sol) -> Finding:
     if lo <= s0 <= hi:
         return Finding("pass", "global test", detail + ": the residuals are as large as the correspondences' scatter "
                        "predicts")
+    if t_rows and abs(s0 - 1.0) <= ROW_SIGMA_TOLERANCE:
+        return Finding("pass", "global test", detail + f": outside that range but within ±{ROW_SIGMA_TOLERANCE * 100:.0f} % of 1, "
+                       "as closely as the rows' σ are known (each estimated from a few points' scatter; at the truth "
+                       "σ0 reads 0.93–1.03): the residuals are as large as the correspondences' scatter predicts to "
+                       "that accuracy")
     if s0 < lo:
         return Finding(NOTE, "global test", detail + ": below its range — the residuals are smaller than the "
                        "correspondences' scatter predicts, so the σ are conservative by up to this factor"
