@@ -130,3 +130,13 @@ def consistency(kind: str | None, dofs: list[float] | None = None) -> float:
     w = robust_weights(u, kind)
     num = np.mean(np.sum(dens * dx * w * u * u, axis=1))
     return float(s * s * num / np.mean(np.sum(dens * dx * w, axis=1)))
+
+
+def rows_dof(c) -> np.ndarray:
+    """The degrees of freedom of each residual of correspondences ``c`` (inf where unknown: σ taken as known, or
+    a matcher that picked rows without carrying ``dof`` along)."""
+    n = c.n_obs * (3 if c.normal is None else 1)
+    dof = np.asarray(c.dof, float).ravel()
+    if dof.size == c.n_obs and n == c.n_obs:
+        return dof
+    return np.full(n, float(dof[0]) if dof.size == 1 else np.inf)
