@@ -234,7 +234,7 @@ def test_the_global_test_takes_sigma0_consistent_for_rows_whose_sigma_are_estima
 
 @pytest.mark.parametrize("sigma0, status", [(1.03, "pass"), (0.95, "pass"), (1.10, "warn"), (0.90, calidar.verdict.NOTE)])
 def test_the_global_test_allows_for_rows_sigma_estimated_from_their_points(sigma0, status):
-    """Issue 26: rows' σ estimated from a few points each are known to a few % (σ0 0.93–1.03 at the truth),
+    """Issue 26: rows' σ estimated from a few points each are known to a few % (σ0 0.91–1.04 at the truth),
     far wider than the χ² range of 40 000 rows (±0.7 %): within ±7 % of 1 the test passes and says why; beyond,
     it reads as before. Rows with known σ (no ``row_dof``) keep the χ² range alone."""
     from calidar.strips.verdict import ROW_SIGMA_TOLERANCE
