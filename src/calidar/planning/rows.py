@@ -17,7 +17,8 @@ import scipy.sparse as sp
 
 from calidar.planning.geometry import Flown, Instrument, PairPlanes
 from calidar.planning.sweep import body_at, pattern_looks, sweep_position
-from calidar.strips.correspond import Correspondences, moderated_variance
+from calidar.strips.correspond import Correspondences
+from calidar.strips.row_variance import posterior
 from calidar.strips.planes import PlaneSettings
 from calidar.strips.strip import Pose
 
@@ -49,12 +50,21 @@ def point_variance(beam: np.ndarray, normal: np.ndarray, rho: np.ndarray,
     return (inst.range_noise_m * cos) ** 2 + (rho * inst.angle_noise_rad) ** 2 * (1.0 - cos**2)
 
 
+def _weighed_variance(scatter_m2: np.ndarray, m: np.ndarray, count_a: np.ndarray | None):
+    """The variance (m²) the calibrator gives a side's mean of ``m`` points scattering
+    ``scatter_m2`` (strips/planes.py): the posterior variance of the scatter (Smyth 2004 §6.2),
+    and on b's side (``count_a`` given) b's plane's prediction variance at a's centroid, whose
+    in-plane offset spreads by both centroids' (1/m each)."""
+    leverage = 1.0 if count_a is None else 1.0 + 2.0 * (1.0 + m / count_a) / m
+    return posterior(scatter_m2, m - 3, sampled=False)[0] * leverage / m
+
+
 def _side_rows(p: PairPlanes, f: Flown, m: np.ndarray, first: int, inst: Instrument, terrain,
-               cache: dict | None):
+               cache: dict | None, b_side: bool):
     """One side of pair ``p`` scanned by line ``f`` (its points numbered from ``first``): its
     poses and times, the (columns, weights) of each row's looks, the variance (m²) the
     calibrator gives the side and the variance its residual really has, for ``m`` points a
-    patch."""
+    patch (``b_side``: the side whose plane the row is, predicted at a's centroid)."""
     n = p.centroid.shape[0]
     pose, t, beam, seen = _side(f, p.centroid, inst, terrain, cache)
     looks = len(t) // n  # a rotating scanner's patch: half its points seen ahead, half back
@@ -63,7 +73,7 @@ def _side_rows(p: PairPlanes, f: Flown, m: np.ndarray, first: int, inst: Instrum
     rho = inst.nominal.true_range(pose.range_m)
     per_look = point_variance(beam, np.tile(p.normal, (looks, 1)), rho, inst)
     points = np.sum(per_look.reshape(looks, n).T * picked[1], axis=1)
-    var = moderated_variance(points + p.roughness_m**2, m - 3) / m  # as the calibrator weighs rows
+    var = _weighed_variance(points + p.roughness_m**2, m, p.count_a if b_side else None)
     own = (points + p.uneven_m**2) / m
     return (pose, t), picked, var, own
 
@@ -78,7 +88,7 @@ def correspondences(flown: list[Flown], pairs: list[PairPlanes], inst: Instrumen
     points do). ``cache``: each side's poses and looks kept across calls (candidate lines tried
     one by one).
 
-    A row's σ is the calibrator's (both sides' variance and the noise floor); what the residual
+    A row's σ is the calibrator's (both sides' variance, and a noise floor if set); what the residual
     really scatters by is the points' noise and the unevenness the patches do not share (the
     rest lies under both and cancels: σ0 ≈ 0.5 of the calibrator on the built-in scene). A row
     standing for ``weight`` planes weighs as much."""
@@ -88,7 +98,8 @@ def correspondences(flown: list[Flown], pairs: list[PairPlanes], inst: Instrumen
     for p in pairs:
         cols, var, own = [], [], []
         for k, m in ((p.a, p.count_a), (p.b, p.count_b)):
-            scanned, picked, v, o = _side_rows(p, flown[k], m, used[k], inst, terrain, cache)
+            scanned, picked, v, o = _side_rows(p, flown[k], m, used[k], inst, terrain, cache,
+                                               b_side=k == p.b)
             parts[k].append(scanned)
             cols.append(picked)
             used[k] += picked[0].size

@@ -41,6 +41,7 @@ from calidar.strips.control import (
 from calidar.strips.control_survey import PREFIX as CONTROL_PREFIX
 from calidar.strips.control_survey import SurveyErrors, with_survey_parameters
 from calidar.strips.correspond import Correspondences
+from calidar.strips.row_variance import dof_summary, rows_dof
 from calidar.strips.distribute import cluster_client, map_pairs
 from calidar.strips.geometry import geometry_warnings
 from calidar.strips.overlap import Overlap, find_overlaps, strip_name
@@ -389,6 +390,7 @@ def _result(run: _Run, solution: Solution, problem: StripProblem, pairs: list[di
     sensor, fix = sensor_of(run.nominal, params.values()), corrections(params.values(), run.model, run.spans)
     fix = with_height_bias(fix, params.values().get("height_bias", 0.0), run.spans)
     solution.extra["strips"] = {"method": run.matcher.name, "robust": run.settings.robust, "pairs": pairs, "outer_iterations": [
-        {kk: v for kk, v in o.items() if kk != "values"} for o in outer]}
+        {kk: v for kk, v in o.items() if kk != "values"} for o in outer],
+        "row_dof": dof_summary(np.concatenate([rows_dof(c) for c in problem.corrs]))}
     return CalibrationResult(solution, sensor, run.nominal, list(strips), run.overlaps, run.matcher, pairs,
                              first_residuals, solution.residuals, outer, fix, run.model, problem.sigma)

@@ -30,6 +30,9 @@ class Correspondences:
     normal: np.ndarray | None  #: (n_obs, 3) unit normals for point_to_plane, None for point_to_point
     sigma_m: np.ndarray | float = 0.05  #: a-priori σ of each residual, m
     method: str = "planes"  #: "planes" | "vgicp"
+    #: degrees of freedom of each row's σ² when it is estimated from its points' scatter (residual/σ then follows
+    #: Student's t; inf: σ taken as known) — the global test's consistency for the robust weights (issue 26)
+    dof: np.ndarray | float = np.inf
 
     def __post_init__(self):
         if self.A.shape[0] != self.B.shape[0]:

@@ -45,6 +45,10 @@ LENGTH_LIMIT_M = 0.01
 CORRELATION_LIMIT = 0.9
 #: σ0 above its χ² range warns; above SIGMA0_FAIL the model does not fit (fail)
 SIGMA0_FAIL = 2.0
+#: how closely rows' σ estimated from their points' scatter are known: at the truth (simulated surveys without
+#: trajectory errors, ``benchmarks/strips_row_sigma.py``) the global test's σ0 read 0.91–1.04 over both methods and
+#: presets (issue 26); beyond its χ² range but within this of 1, σ0 passes, and the finding says so
+ROW_SIGMA_TOLERANCE = 0.07
 #: RMSDz of a pair may grow by this much (m) before the verdict calls it worse
 WORSE_M = 0.002
 #: a pair whose median dz stays beyond this after calibration is still offset (m)
@@ -98,9 +102,17 @@ def robust_consistency(kind: str | None) -> float:
 
 
 def global_test_sigma0(sol) -> float:
-    """The σ0 the global test takes: the engine's, consistent for normal residuals (see
-    :func:`robust_consistency`; the strips' robust kind is in ``solution.extra["strips"]``)."""
-    kind = sol.extra.get("strips", {}).get("robust") if isinstance(sol.extra, dict) else None
+    """The σ0 the global test takes: the engine's, made consistent for the rows' residuals — normal ones (see
+    :func:`robust_consistency`), or, when the solution records the degrees of freedom of its rows' estimated σ
+    (``solution.extra["strips"]["row_dof"]``), Student-t ones with those degrees of freedom
+    (:func:`calidar.strips.row_variance.consistency`; issue 26: with 12-point patches the normal factor read
+    the σ0 of rows exactly right at the truth 2–3 % low)."""
+    strips = sol.extra.get("strips", {}) if isinstance(sol.extra, dict) else {}
+    kind, dofs = strips.get("robust"), strips.get("row_dof")
+    if dofs and kind is not None:
+        from calidar.strips.row_variance import consistency
+
+        return sol.sigma0 / math.sqrt(consistency(kind, dofs))
     return sol.sigma0 / math.sqrt(robust_consistency(kind))
 
 
@@ -152,7 +164,8 @@ DETERMINED_NOTE = ("\"determined\" says how closely these strips fix a parameter
 
 
 def sigma0_finding(sol) -> Finding:
-    """The global test: σ0 against its χ² 95 % range. Inside: pass. Below: a note (the residuals are
+    """The global test: σ0 against its χ² 95 % range. Inside: pass; outside but within
+    :data:`ROW_SIGMA_TOLERANCE` of 1 when the rows' σ are estimated (``row_dof`` recorded): pass, saying so. Below: a note (the residuals are
     smaller than the rows' σ say, so the parameters' σ are conservative by up to that factor). Above:
     warn (fail beyond :data:`SIGMA0_FAIL`): the model leaves residuals its σ do not explain."""
     priors = any(p.prior_sigma is not None for p in sol.parameters.free)
@@ -161,12 +174,19 @@ def sigma0_finding(sol) -> Finding:
     digits = 2  # enough that σ0 and its range's nearer bound read apart
     while digits < 5 and f"{s0:.{digits}f}" in (f"{lo:.{digits}f}", f"{hi:.{digits}f}"):
         digits += 1
-    robust = "" if s0 == sol.sigma0 else f"; {sol.sigma0:.2f} from the robustly weighted residuals, ÷ {sol.sigma0 / s0:.3f} for normal ones"
+    t_rows = bool(isinstance(sol.extra, dict) and sol.extra.get("strips", {}).get("row_dof"))
+    robust = "" if s0 == sol.sigma0 else (f"; {sol.sigma0:.2f} from the robustly weighted residuals, ÷ {sol.sigma0 / s0:.3f} for "
+                                          + ("Student-t ones (each row's σ estimated from its points)" if t_rows else "normal ones"))
     detail = (f"σ0 = {s0:.{digits}f} (1 expected; the χ² test's 95 % range for {sol.dof:,.0f} degrees of freedom is "
               f"{lo:.{digits}f}–{hi:.{digits}f}{robust})")
     if lo <= s0 <= hi:
         return Finding("pass", "global test", detail + ": the residuals are as large as the correspondences' scatter "
                        "predicts")
+    if t_rows and abs(s0 - 1.0) <= ROW_SIGMA_TOLERANCE:
+        return Finding("pass", "global test", detail + f": outside that range but within ±{ROW_SIGMA_TOLERANCE * 100:.0f} % of 1, "
+                       "as closely as the rows' σ are known (each estimated from a few points' scatter; at the truth "
+                       "σ0 reads 0.91–1.04): the residuals are as large as the correspondences' scatter predicts to "
+                       "that accuracy")
     if s0 < lo:
         return Finding(NOTE, "global test", detail + ": below its range — the residuals are smaller than the "
                        "correspondences' scatter predicts, so the σ are conservative by up to this factor"

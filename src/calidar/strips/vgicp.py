@@ -224,10 +224,11 @@ def match_pair_vgicp(strip_a_id: int, points_a: np.ndarray, strip_b_id: int, poi
     tree_b = small_gicp.KdTree(b_near, num_threads=settings.num_threads)
     planes = local_planes(b_near, ov_a[cand], k, settings.num_threads, tree_b)
     keep = planes.distance[:, 0] < threshold
-    sigma = 0.05 if settings.sigma_m is None else settings.sigma_m
+    sigma, dof = (0.05 if settings.sigma_m is None else settings.sigma_m), np.inf
     normal = None
     if settings.kind == "point_to_plane" and keep.any():
-        planes, A, near_a, keep, normal, sigma = plane_rows(planes, b_near, tree_b, ov_a, keep, n_a / n_b, settings)
+        planes, A, near_a, keep, normal, sigma, dof = plane_rows(planes, b_near, tree_b, ov_a, keep, n_a / n_b,
+                                                                 settings)
     n_pairs = int(keep.sum())
     if n_pairs < settings.min_pairs:
         where = " on planar surfaces" if settings.kind == "point_to_plane" else ""
@@ -241,4 +242,4 @@ def match_pair_vgicp(strip_a_id: int, points_a: np.ndarray, strip_b_id: int, poi
     B = sp.csr_matrix((np.full(n_pairs * k, 1.0 / k), idx_b[near_b[planes.index[keep]]].ravel(), np.arange(n_pairs + 1) * k),
                       shape=(n_pairs, points_b.shape[0]))
     clock.lap("correspond")
-    return Correspondences(strip_a_id, strip_b_id, A, B, normal, sigma_m=sigma, method="vgicp")
+    return Correspondences(strip_a_id, strip_b_id, A, B, normal, sigma_m=sigma, method="vgicp", dof=dof)

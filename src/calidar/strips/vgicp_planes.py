@@ -7,10 +7,10 @@ A row is kept when b's points span a plane (thin: ``max_surface_variation``; not
 ``min_spread``), a's mean lies near it (``max_plane_distance_m``), neither side's points stop
 inside the ball (``max_centroid_offset``) and a's points lie on b's plane as closely as b's own
 do (``max_scatter_ratio``). Its σ² = s_a²/n_a + s_b²·h + ``noise_floor_m``², with s_a, s_b each
-side's own scatter along b's normal, moderated over the pair's rows as the tie planes' are
-(:mod:`calidar.strips.planes`), n_a a's count and h the leverage of b's fitted plane at a's mean.
-Why a's own scatter, measured: docs/validation.md, "VGICP's rows: each test and the measurement
-behind it".
+side's own scatter along b's normal, each the posterior mean under a prior fitted to the pair's
+rows (:mod:`calidar.strips.row_variance`; Smyth 2004 §6.2), n_a a's count and h the leverage of
+b's fitted plane at a's mean. Why a's own scatter, measured: docs/validation.md, "VGICP's rows:
+each test and the measurement behind it".
 """
 
 from __future__ import annotations
@@ -23,6 +23,7 @@ import small_gicp
 
 from calidar.strips.correspond import moderated_variance
 from calidar.strips.pca import eigh3
+from calidar.strips.row_variance import posterior, satterthwaite
 
 
 class Grid:
@@ -164,7 +165,7 @@ def plane_rows(planes: LocalPlanes, b_near: np.ndarray, tree_b, ov_a: np.ndarray
     b_near: b's points near the candidates, registered onto a (m), ``tree_b`` their KdTree; ov_a: a's overlap
     points (m); density_ratio: a's points per b's; settings: :class:`~calidar.strips.vgicp.VgicpSettings`.
     Returns b's planes found again, the averaging matrix of a's balls over ``ov_a[near_a]``, near_a, the rows
-    kept, their normals and σ (m; ``settings.sigma_m`` when set).
+    kept, their normals, σ (m; ``settings.sigma_m`` when set) and the degrees of freedom of σ² (inf when set).
     """
     k = settings.num_neighbors
     centre = planes.centroid  # b's k nearest again, about their centroid (see the module docstring)
@@ -184,9 +185,11 @@ def plane_rows(planes: LocalPlanes, b_near: np.ndarray, tree_b, ov_a: np.ndarray
     var_b = np.zeros(keep.size)
     var_b[keep] = moderated_variance(planes.scatter[keep] ** 2, k - 3)
     keep &= var_a <= settings.max_scatter_ratio**2 * np.maximum(var_b, settings.noise_floor_m**2)
-    sigma = settings.sigma_m
+    sigma, dof = settings.sigma_m, np.inf
     if sigma is None:  # a's mean with a's scatter, b's plane where a's mean lies with b's
-        var_a = moderated_variance(var_a[keep], count[keep] - 1)  # each side's own, over the pair's rows
-        var_b = moderated_variance(planes.scatter[keep] ** 2, k - 3)
-        sigma = np.sqrt(var_a / count[keep] + var_b * planes.leverage(mean_a)[keep] + settings.noise_floor_m**2)
-    return planes, A, near_a, keep, planes.normal[keep], sigma
+        var_a, nu_a = posterior(var_a[keep], count[keep] - 1)  # each side's own, a prior fitted over the pair
+        var_b, nu_b = posterior(planes.scatter[keep] ** 2, k - 3)
+        parts = [var_a / count[keep], var_b * planes.leverage(mean_a)[keep], np.full(nu_a.size, settings.noise_floor_m**2)]
+        sigma = np.sqrt(np.sum(parts, axis=0))
+        dof = satterthwaite(parts, [nu_a, nu_b, np.inf])
+    return planes, A, near_a, keep, planes.normal[keep], sigma, dof

@@ -235,3 +235,24 @@ def test_rows_sigma_are_absolute_with_the_trajectory_model_off(strips, monkeypat
     names = [p.name for p in est.fit.free]
     idx = [names.index(n) for n in ("boresight_roll", "boresight_pitch", "boresight_yaw")]
     np.testing.assert_allclose(np.diag(sol.covariance)[idx], np.diag(np.linalg.inv(N))[idx], rtol=1e-6)
+
+
+def test_rows_sigma_match_the_residuals_at_the_truth():
+    """Issue 26: two strips of one plane with 3 mm noise and the default ≈ 12-point patches, matched where
+    they coincide: the rows' residuals scatter as their σ say (RMS of r/σ ≈ 1; a fixed 2 mm floor made
+    them 0.5). The t-distribution of a σ estimated from ν + ν0 = 29 degrees of freedom allows ≈ +2 %."""
+    rng = np.random.default_rng(26)
+    a = _plane_points(rng, 60000, noise=0.003)
+    b = _plane_points(rng, 60000, noise=0.003)
+    c = match_pair_planes(1, a, 2, b)
+    z = c.residuals(a, b) / c.sigma_m
+    assert z.size > 2000
+    assert np.sqrt(np.mean(z**2)) == pytest.approx(1.0, abs=0.05)
+    # the global test's σ0 over them, with the factor for their recorded degrees of freedom
+    from calidar.adjust.solver import robust_weights
+    from calidar.strips.row_variance import consistency, dof_summary
+
+    s = 1.4826 * np.median(np.abs(z))
+    w = robust_weights(z / s, "cauchy")
+    assert np.all(c.dof > 9)  # two sides of ≥ 6 points (inf where the pair's rows pool fully)
+    assert np.sqrt(np.sum(w * z * z) / np.sum(w) / consistency("cauchy", dof_summary(c.dof))) == pytest.approx(1.0, abs=0.05)

@@ -1,0 +1,119 @@
+"""Benchmark: are the rows' σ right at the truth, and what does the global test read there? (issue 26)
+
+    NUMBA_NUM_THREADS=1 PYTHONPATH=src python benchmarks/strips_row_sigma.py --seeds 7,8 [--preset airborne] \\
+        [--directions cross] [--scene urban] [--methods planes,vgicp] [--cache DIR]
+
+Each seed: ``calidar simulate survey --preset P --seed S --boresight-error 0.05,-0.03,0.1`` WITHOUT trajectory
+errors (``--cache DIR`` keeps it), read as ``calidar boresight`` reads it, every overlap re-georeferenced with
+the TRUE sensor and matched with each method's default rows: the residuals then hold nothing but the points'
+noise. Per method: rows (walls |n_z| < 0.5 left out, as few as they are), RMS of residual/σ (1 when the σ are
+right) over all, flat (|n_z| ≥ 0.97) and roofs, by quartile of σ (right row by row, quiet or rough), the
+MAD-scale of residual/σ, and the global test's σ0 as the engine and the verdict compute it (Cauchy weights on
+z / 1.4826·MAD, ÷ their consistency for Student-t residuals with the rows' degrees of freedom; also ÷ the
+normal factor) against its χ² 95 % range.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+from scipy.special import chdtri
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from strips_montecarlo import URBAN, seeds_of  # noqa: E402
+
+from calidar.adjust.solver import robust_weights  # noqa: E402
+from calidar.pipelines.boresight import load_inputs  # noqa: E402
+from calidar.sim.survey import simulate_survey, survey_config  # noqa: E402
+from calidar.strips.calibrate import _Run  # noqa: E402
+from calidar.strips.config import StripSettings  # noqa: E402
+from calidar.strips.matchers import TiePlanes, Vgicp  # noqa: E402
+from calidar.strips.parameters import sensor_of  # noqa: E402
+from calidar.strips.problem import georeference  # noqa: E402
+from calidar.strips.row_variance import consistency, dof_summary  # noqa: E402
+from calidar.strips.verdict import robust_consistency  # noqa: E402
+
+ERRORS_DEG = {"boresight_roll": 0.05, "boresight_pitch": -0.03, "boresight_yaw": 0.1}  #: issue 26's survey
+MATCHERS = {"planes": TiePlanes, "vgicp": Vgicp}
+
+
+def survey_folder(preset: str, seed: int, directions: str, scene: str, cache: Path) -> Path:
+    """The survey simulated without trajectory errors (once, into ``cache``)."""
+    folder = cache / f"{preset}_{directions}_seed{seed}_{scene}_exact"
+    if not (folder / "truth.json").exists():
+        cfg = survey_config(preset, seed=seed, directions=directions, gnss_noise_m=0.0, attitude_noise_rad=0.0,
+                            errors={k: np.radians(v) for k, v in ERRORS_DEG.items()})
+        if scene == "urban":
+            cfg = replace(cfg, scene=replace(cfg.scene, **URBAN))
+        simulate_survey(cfg).write(folder, force=True)
+    return folder
+
+
+def rows_at_truth(folder: Path, method: str) -> np.ndarray:
+    """(|n_z|, residual m, σ m, degrees of freedom of σ²) of every row of every pair, matched at the true sensor."""
+    inputs = load_inputs(sorted((folder / "strips").glob("*.laz")), folder / "sbet.out", folder / "sensor.toml",
+                         truth=folder / "truth.json")
+    truth = sensor_of(inputs.nominal, inputs.truth)
+    run = _Run.start(inputs.strips, truth, MATCHERS[method](), StripSettings())
+    at = {i: georeference(truth, None, run.poses[i], run.by_id[i].time[idx]) for i, idx in run.need.items()}
+    out = []
+    for o in run.overlaps:
+        pa, pb = (at[i][run.poses[i].rows_of(idx)] for i, idx in ((o.a, o.index_a), (o.b, o.index_b)))
+        c = run.matcher.match(o.a, pa, o.b, pb)
+        r = c.residuals(pa, pb)
+        out.append(np.column_stack([np.abs(c.normal[:, 2]), r, np.broadcast_to(c.sigma_m, r.shape),
+                                    np.broadcast_to(c.dof, r.shape)]))
+    return np.concatenate(out)
+
+
+def global_test_sigma0(z: np.ndarray, dof: np.ndarray | None = None) -> float:
+    """The engine's σ0 (Cauchy weights on z over its MAD scale) ÷ the verdict's consistency factor: for Student-t
+    rows with these degrees of freedom, or (None) for normal ones."""
+    s = 1.4826 * np.median(np.abs(z - np.median(z)))
+    w = robust_weights(z / s, "cauchy")
+    factor = robust_consistency("cauchy") if dof is None else consistency("cauchy", dof_summary(dof))
+    return float(np.sqrt(np.sum(w * z * z) / np.sum(w) / factor))
+
+
+def line(label: str, rows: np.ndarray) -> str:
+    rows = rows[rows[:, 0] >= 0.5]
+    nz, r, s, dof = rows.T
+    z = r / s
+    rms = lambda m: np.sqrt(np.mean(z[m] ** 2))  # noqa: E731
+    q = np.digitize(s, np.quantile(s, [0.25, 0.5, 0.75]))
+    lo, hi = (np.sqrt(chdtri(z.size, 1.0 - p) / z.size) for p in (0.025, 0.975))
+    return (f"{label}: {z.size:6d} rows, RMS σ {np.sqrt(np.mean(s**2)) * 1e3:5.2f} mm, RMS z {rms(slice(None)):.3f} "
+            f"(flat {rms(nz >= 0.97):.3f}, roofs {rms(nz < 0.97):.3f}; by σ quartile "
+            + "/".join(f"{rms(q == k):.2f}" for k in range(4))
+            + f"), MAD-scale z {1.4826 * np.median(np.abs(z)):.3f}, global test σ0 {global_test_sigma0(z, dof):.3f} "
+            f"(÷ the normal factor: {global_test_sigma0(z):.3f}; median ν {np.median(dof):.0f}; χ² 95 % range "
+            f"{lo:.3f}–{hi:.3f})")
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--seeds", default="7")
+    ap.add_argument("--preset", default="uav", choices=("uav", "airborne"))
+    ap.add_argument("--directions", default="cross", choices=("cross", "opposite"))
+    ap.add_argument("--scene", default="preset", choices=("preset", "urban"))
+    ap.add_argument("--methods", default="planes,vgicp")
+    ap.add_argument("--cache", type=Path, default=Path("/tmp/calidar_row_sigma"))
+    args = ap.parse_args()
+    pooled: dict[str, list] = {}
+    for seed in seeds_of(args.seeds):
+        folder = survey_folder(args.preset, seed, args.directions, args.scene, args.cache)
+        for method in args.methods.split(","):
+            rows = rows_at_truth(folder, method)
+            pooled.setdefault(method, []).append(rows)
+            print(line(f"{args.preset} {args.directions} {args.scene} seed {seed} {method:6s}", rows), flush=True)
+    for method, parts in pooled.items():
+        if len(parts) > 1:
+            print(line(f"{args.preset} {args.directions} {args.scene} pooled  {method:6s}", np.concatenate(parts)))
+
+
+if __name__ == "__main__":
+    main()
