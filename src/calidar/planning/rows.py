@@ -88,9 +88,9 @@ def correspondences(flown: list[Flown], pairs: list[PairPlanes], inst: Instrumen
     points do). ``cache``: each side's poses and looks kept across calls (candidate lines tried
     one by one).
 
-    A row's σ is the calibrator's (both sides' variance, and a noise floor if set); what the residual
-    really scatters by is the points' noise and the unevenness the patches do not share (the
-    rest lies under both and cancels: σ0 ≈ 0.5 of the calibrator on the built-in scene). A row
+    A row's σ is the calibrator's (both sides' variance, and a noise floor if set); what the
+    residual really scatters by is the points' noise and the unevenness the patches do not share
+    (the rest lies under both and cancels: σ0 ≈ 0.5 of the calibrator on the built-in scene). A row
     standing for ``weight`` planes weighs as much."""
     corrs = []
     parts: dict[int, list] = {k: [] for k in range(len(flown))}
