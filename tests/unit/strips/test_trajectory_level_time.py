@@ -174,3 +174,80 @@ def test_the_report_table_and_the_verdict_state_the_level_over_the_flight():
                                     "redundancy_at_stated_sigma": 30.0}}, "over_time": d}
     f = accuracy_finding(level)
     assert f.status == "pass" and "over the flight (per segment, pooled in time): heading ×0.5–×2" in f.detail
+
+
+def _position_problem(rng, factor_of_time, tau_s=20.0):
+    """Shift knots east/north/up (stated σ 5/5/8, a Gauss–Markov prior of ``tau_s`` per strip and
+    axis: the position's few independent priors per segment) whose real σ is the stated ×
+    ``factor_of_time(t)``, each observed directly with noise 0.3 of the stated σ."""
+    times = _flight()
+    stated = np.array([5.0, 5.0, 8.0])
+    R = np.exp(-np.abs(np.arange(KNOTS)[:, None] - np.arange(KNOTS)[None, :]) / tau_s)
+    L, P = np.linalg.cholesky(R), np.linalg.inv(R)
+    xs, ws, priors, knots = [], [], [], []
+    for s in range(STRIPS):
+        for ax in range(3):
+            start = len(knots)
+            xs.append(stated[ax] * factor_of_time(times[s]) * (L @ rng.standard_normal(KNOTS)))
+            ws.append(np.full(KNOTS, 1.0 / (NOISE * stated[ax]) ** 2))
+            priors.append((np.arange(start, start + KNOTS), np.zeros(KNOTS), P / stated[ax] ** 2))
+            knots += [Knot("bias", ax, s, k) for k in range(KNOTS)]
+    x, w = np.concatenate(xs), np.concatenate(ws)
+    y = x + rng.standard_normal(x.size) / np.sqrt(w)
+    terms = (np.diag(w), -w * y, float(y @ (w * y)), float(x.size), np.zeros(x.size))
+    return times, terms, priors, knots
+
+
+def test_the_position_group_with_few_priors_per_segment_follows_a_known_variation():
+    """The position's shifts: a 20 s process gives each 30 s segment only a few independent priors
+    per axis (m < 3 for one axis alone: such a segment could not tell), so the three axes are one
+    group (calidar.strips.trajectory_level.group_of). Real σ from ×0.5 to ×2 over the flight: over
+    8 draws each segment's own update enters (m ≥ 3), the per-segment factors' errors against the
+    truth divided by their stated σ have an RMS in 0.6–1.4, and they are closer to the truth than
+    one flight-wide factor."""
+    from calidar.strips.trajectory_level import group_of
+
+    z, err_time, err_flat, m_axis = [], [], [], []
+    for seed in range(8):
+        times, terms, priors, knots = _position_problem(np.random.default_rng(300 + seed), _varying)
+        groups = [group_of(k) for k in knots]
+        assert set(groups) == {"position"}
+        flat = estimate_components(*terms, split_blocks(priors, groups), estimate_observations=False, marginal=True,
+                                   tol=1e-4).variance["position"]
+        lt = estimate_over_time(terms, priors, knots, groups, times, {"position": flat}, 1.0, 1e-4)
+        p = lt.groups["position"]
+        assert p.own.all()
+        one_axis = [f"{k.strip}" if k.axis == 0 else None for k in knots]  # the east shifts alone, per strip
+        m_axis += list(estimate_elements(terms[0], terms[1], terms[4], priors, one_axis, {f"{s}": 1.0 for s in range(STRIPS)},
+                                         max_iter=1).effective.values())
+        for i, s in enumerate(lt.segments):
+            truth = math.log(float(np.sqrt(np.mean(_varying(times[s.strip][s.first:s.last + 1]) ** 2))))
+            est = 0.5 * p.log_var[i]
+            z.append((est - truth) / (0.5 * p.sigma[i]))
+            err_time.append(est - truth)
+            err_flat.append(0.5 * math.log(flat) - truth)
+    assert np.median(m_axis) < 3.0, np.median(m_axis)
+    rms = float(np.sqrt(np.mean(np.square(z))))
+    assert 0.6 < rms < 1.4, rms
+    assert np.sqrt(np.mean(np.square(err_time))) < 0.7 * np.sqrt(np.mean(np.square(err_flat)))
+
+
+def test_the_position_factor_scales_all_three_axes_and_is_reported_as_horizontal_and_vertical():
+    """One factor on the position's stated σ (north, east and down alike: their ratio kept), shown
+    as the horizontal and the vertical σ in solution.json's "over_time" block."""
+    from calidar.strips.trajectory_level_time import Pooled
+
+    times = _flight()
+    segs = segments_of(times)
+    n = len(segs)
+    pooled = Pooled(np.log(np.linspace(0.25, 4.0, n)), np.full(n, 0.2), np.ones(n, bool), 1.0, 0.0)
+    lt = LevelOverTime(segs, {"position": pooled}, {"position": np.full(n, 10.0)}, 3, True)
+    pos, att = over_time_accuracy(SURVEY_GRADE, lt, times).at(times[0])
+    assert pos == pytest.approx(np.repeat(SURVEY_GRADE.position_m[:1] * 0.5, KNOTS, 0))
+    assert att == pytest.approx(np.repeat(SURVEY_GRADE.attitude_rad[:1], KNOTS, 0))
+    d = lt.to_dict({"position_horizontal": 0.05, "position_vertical": 0.08},
+                   {"position_horizontal": "position", "position_vertical": "position"})
+    first = d["segments"][0]
+    assert first["position_horizontal"]["sigma"] == pytest.approx(0.025)
+    assert first["position_vertical"]["sigma"] == pytest.approx(0.04)
+    assert set(d["tau_log_sigma"]) == {"position_horizontal", "position_vertical"}
