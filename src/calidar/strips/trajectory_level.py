@@ -6,20 +6,9 @@ those priors really are is a variance-component problem (:mod:`calidar.adjust.va
 the corrections the overlaps ask for, against the priors' stated covariance, give a factor per
 group of priors — four here, each the stated σ's shape kept within it:
 
-- ``position``: the knots' east, north and up shifts, one factor on the stated σ of all three
-  (reported as ``position_horizontal`` and ``position_vertical``, :data:`REPORTED`);
+- ``position_horizontal``: the knots' east and north shifts; ``position_vertical``: the up shifts;
 - ``attitude_horizontal``: the rotations about east and north (roll and pitch, mixed by the
   line's heading); ``heading``: the rotations about up.
-
-Why the position's axes share one factor (issue 26, measured on 27 airborne surveys with per-axis
-varying errors and 12 with constant ones): a GNSS error is smooth (it wanders for tens of
-seconds), so a short flight holds few independent values of it and the overlaps see fewer still.
-The horizontal shifts alone gave their factor with a stated relative σ of 18–20 % (m ≈ 12–16
-effective priors) but scattered ±38 % about the truth, and pitch (which trades with the
-along-track shift) took that scatter: its σ spread ±28 % about the σ the true priors give
-(RMS error/σ 1.34 over 31 surveys). One factor for the three axes keeps the stated ratio of
-vertical to horizontal σ (a GNSS solution's horizontal and vertical σ move together: one
-satellite geometry, one baseline) and rests on twice the priors.
 
 A group is estimated only when the data check enough of its priors at the stated σ: its
 redundancy rₖ there (how many of its nₖ priors the overlaps determine better than the priors do)
@@ -46,10 +35,7 @@ from calidar.strips.trajectory_errors import Knot
 from calidar.strips.trajectory_level_time import LevelOverTime, estimate_over_time, over_time_accuracy
 from calidar.trajectory_accuracy import TrajectoryAccuracy
 
-GROUPS = ("position", "attitude_horizontal", "heading")  #: the groups of priors, each with its factor
-#: the groups reported (solution.json, the report, the verdict) → the group whose factor each takes
-REPORTED = {"position_horizontal": "position", "position_vertical": "position",
-            "attitude_horizontal": "attitude_horizontal", "heading": "heading"}
+GROUPS = ("position_horizontal", "position_vertical", "attitude_horizontal", "heading")
 #: a group's factor is estimated only when the overlaps check at least this many of its priors at
 #: the stated σ (its redundancy there; the factor is then known to ±1/√(2·10) ≈ 22 % at that level)
 MIN_REDUNDANCY = 10.0
@@ -64,8 +50,8 @@ def group_of(knot: Knot | None) -> str | None:
         return None
     kind, axis = knot.kind, knot.axis
     if kind == "bias":
-        return GROUPS[0]
-    return GROUPS[1] if axis < 2 else GROUPS[2]
+        return GROUPS[0] if axis < 2 else GROUPS[1]
+    return GROUPS[2] if axis < 2 else GROUPS[3]
 
 
 @dataclass
@@ -106,10 +92,6 @@ class TrajectoryLevel:
         return [f"{g.replace('_', ' ')} (redundancy {self.components.redundancy_start[g]:.1f} < {MIN_REDUNDANCY:g})"
                 for g, ok in self.estimated.items() if not ok]
 
-    def reported(self) -> dict[str, str]:
-        """The reported groups present here (:data:`REPORTED`) → their group of priors."""
-        return {r: g for r, g in REPORTED.items() if g in self.estimated}
-
     def to_dict(self) -> dict:
         c = self.components
         m = self.accuracy.medians()
@@ -118,12 +100,11 @@ class TrajectoryLevel:
                 "attitude_deg": {"roll_pitch": m["roll_rms_deg"], "heading": m["heading_rms_deg"]},
                 "min_redundancy": MIN_REDUNDANCY, "iterations": c.iterations, "converged": c.converged,
                 "observations_sigma0": float(np.sqrt(c.variance[OBSERVATIONS])),
-                "groups": {r: {"estimated": self.estimated[g], "sigma_factor": self.factor(g),
-                               "sigma_factor_relative_sigma": self.relative_sigma(g) if self.estimated[g] else None,
+                "groups": {g: {"estimated": ok, "sigma_factor": self.factor(g),
+                               "sigma_factor_relative_sigma": self.relative_sigma(g) if ok else None,
                                "redundancy": float(c.redundancy[g]),
                                "redundancy_at_stated_sigma": float(c.redundancy_start[g]), "priors": int(c.size[g])}
-                           | ({"pooled_as": g} if g != r else {})
-                           for r, g in self.reported().items()}} | self._over_time_dict()
+                           for g, ok in self.estimated.items()}} | self._over_time_dict()
 
     def _over_time_dict(self) -> dict:
         """The level per segment of the flight (solution.json's "over_time"), σ in m and degrees."""
@@ -131,8 +112,7 @@ class TrajectoryLevel:
             return {}
         pos, att = self.base.position_m[0], np.degrees(self.base.attitude_rad[0])
         stated = {"position_horizontal": pos[0], "position_vertical": pos[2], "attitude_horizontal": att[0], "heading": att[2]}
-        reported = {r: g for r, g in self.reported().items() if g in self.over_time.groups}
-        return {"over_time": self.over_time.to_dict(stated, reported)}
+        return {"over_time": self.over_time.to_dict(stated)}
 
 
 def estimate_level(est, base: TrajectoryAccuracy, layout: Mapping[str, Knot],
@@ -176,9 +156,10 @@ def estimate_level(est, base: TrajectoryAccuracy, layout: Mapping[str, Knot],
     return level
 
 
-def scaled(base: TrajectoryAccuracy, position: float, tilt: float, heading: float, source: str) -> TrajectoryAccuracy:
-    """``base`` with its position σ (north, east, down) × ``position``, its attitude σ roll/pitch ×
-    ``tilt`` and heading × ``heading``."""
-    pos = base.position_m * position
+def scaled(base: TrajectoryAccuracy, horizontal: float, vertical: float, tilt: float, heading: float,
+           source: str) -> TrajectoryAccuracy:
+    """``base`` with its position σ north/east × ``horizontal``, down × ``vertical``, its attitude σ
+    roll/pitch × ``tilt`` and heading × ``heading``."""
+    pos = base.position_m * np.array([horizontal, horizontal, vertical])
     att = base.attitude_rad * np.array([tilt, tilt, heading])
     return replace(base, position_m=pos, attitude_rad=att, source=source)

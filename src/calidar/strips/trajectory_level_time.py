@@ -136,26 +136,21 @@ class LevelOverTime:
     iterations: int
     converged: bool
 
-    def to_dict(self, base_sigma: Mapping[str, float], reported: Mapping[str, str] | None = None) -> dict:
-        """solution.json's block: per segment its strip, times and per reported group σ
-        (``base_sigma``: its stated σ, m or °) with its factor's relative σ and whether its own
-        priors told; ``reported``: reported group → the group whose factor it takes (default:
-        each group as itself)."""
-        reported = reported or {g: g for g in self.groups}
+    def to_dict(self, base_sigma: Mapping[str, float]) -> dict:
+        """solution.json's block: per segment its strip, times and per group σ (``base_sigma``:
+        the group's stated σ, m or °) with its factor's relative σ and whether its own priors told."""
         segs = []
         for i, s in enumerate(self.segments):
             row = {"strip": s.strip, "t_start_s": s.t_start, "t_end_s": s.t_end}
-            for r, g in reported.items():
-                p = self.groups[g]
-                row[r] = {"sigma": base_sigma[r] * self.factor(g, i), "sigma_factor": self.factor(g, i),
+            for g, p in self.groups.items():
+                row[g] = {"sigma": base_sigma[g] * self.factor(g, i), "sigma_factor": self.factor(g, i),
                           "relative_sigma": float(np.expm1(0.5 * p.sigma[i])) if np.isfinite(p.sigma[i]) else None,
                           "own": bool(p.own[i]), "redundancy": float(self.redundancy[g][i])}
             segs.append(row)
         return {"segment_s": SEGMENT_S, "correlation_s": LEVEL_CORRELATION_S, "min_effective": MIN_SEGMENT_REDUNDANCY,
                 "iterations": self.iterations, "converged": self.converged,
-                "tau_log_sigma": {r: 0.5 * self.groups[g].tau for r, g in reported.items()},
-                "flight_mean_factor": {r: float(np.exp(0.5 * self.groups[g].mean)) for r, g in reported.items()},
-                "segments": segs}
+                "tau_log_sigma": {g: 0.5 * p.tau for g, p in self.groups.items()},
+                "flight_mean_factor": {g: float(np.exp(0.5 * p.mean)) for g, p in self.groups.items()}, "segments": segs}
 
     def factor(self, group: str, segment: int) -> float:
         """The σ factor of a group in a segment (1 for a group not here)."""
@@ -215,11 +210,12 @@ def estimate_over_time(terms: tuple, priors, knots: list, groups: list[str | Non
 
 def over_time_accuracy(base, level: LevelOverTime, knot_times: Mapping[int, np.ndarray]):
     """``base`` (a :class:`calidar.trajectory_accuracy.TrajectoryAccuracy`) at every knot's time
-    × the factors of the knot's segment: position north/east/down × position, roll/pitch ×
-    attitude horizontal, heading × heading (the knots' priors then take exactly them)."""
+    × the factors of the knot's segment: position north/east × horizontal, down × vertical,
+    roll/pitch × attitude horizontal, heading × heading (the knots' priors then take exactly them)."""
     from calidar.trajectory_accuracy import TrajectoryAccuracy
 
-    cols = {"position": (0, [0, 1, 2]), "attitude_horizontal": (1, [0, 1]), "heading": (1, [2])}
+    cols = {"position_horizontal": (0, [0, 1]), "position_vertical": (0, [2]), "attitude_horizontal": (1, [0, 1]),
+            "heading": (1, [2])}
     times = None
     for g in cols:
         t, f = level.factors_at_knots(knot_times, g)
