@@ -247,11 +247,9 @@ def _write_mode(call: ast.Call) -> str:
     return mode.value if isinstance(mode, ast.Constant) and isinstance(mode.value, str) else "r"
 
 
-def _file_writes(tree: ast.AST) -> list[tuple[int, str, str]]:
-    """(line, enclosing function, what) of each file write in a module's syntax tree: ``open`` (builtin,
-    laspy's, rasterio's) in a writing mode, pathlib/matplotlib/numpy/pandas writers, ``json``/``pickle``
-    ``dump`` to a file, the atomic writers of :mod:`calidar.outputs` (and importing that module), a
-    report's ``write``."""
+def _scan(tree: ast.AST, on_import, on_call) -> list[tuple[int, str, str]]:
+    """(line, enclosing function, what) of each import and call of a module's syntax tree that
+    ``on_import(modules)`` / ``on_call(call, name, owner)`` name (a string; None: not a hit)."""
     found = []
 
     def visit(node, where):
@@ -260,23 +258,37 @@ def _file_writes(tree: ast.AST) -> list[tuple[int, str, str]]:
             what = None
             if isinstance(child, (ast.Import, ast.ImportFrom)):
                 mods = [a.name for a in child.names] if isinstance(child, ast.Import) else [child.module or ""]
-                what = "imports calidar.outputs" if "calidar.outputs" in mods else None
+                what = on_import(mods)
             elif isinstance(child, ast.Call):
                 f = child.func
                 name = f.attr if isinstance(f, ast.Attribute) else f.id if isinstance(f, ast.Name) else ""
                 owner = f.value.id if isinstance(f, ast.Attribute) and isinstance(f.value, ast.Name) else ""
-                if name == "open" and set(_write_mode(child)) & set("wax+"):
-                    what = f"open(..., {_write_mode(child)!r})"
-                elif name in _WRITE_CALLS or (name == "save" and owner in ("np", "numpy")) \
-                        or (name == "dump" and owner in ("json", "pickle")) \
-                        or (name == "write" and "report" in owner.lower()):
-                    what = f"{owner + '.' if owner else ''}{name}"
+                what = on_call(child, name, owner)
             if what:
                 found.append((child.lineno, where, what))
             visit(child, inner)
 
     visit(tree, "")
     return found
+
+
+def _write_call(call: ast.Call, name: str, owner: str) -> str | None:
+    if name == "open" and set(_write_mode(call)) & set("wax+"):
+        return f"open(..., {_write_mode(call)!r})"
+    if name in _WRITE_CALLS or (name == "save" and owner in ("np", "numpy")) \
+            or (name == "dump" and owner in ("json", "pickle")) \
+            or (name == "write" and "report" in owner.lower()):
+        return f"{owner + '.' if owner else ''}{name}"
+    return None
+
+
+def _file_writes(tree: ast.AST) -> list[tuple[int, str, str]]:
+    """(line, enclosing function, what) of each file write in a module's syntax tree: ``open`` (builtin,
+    laspy's, rasterio's) in a writing mode, pathlib/matplotlib/numpy/pandas writers, ``json``/``pickle``
+    ``dump`` to a file, the atomic writers of :mod:`calidar.outputs` (and importing that module), a
+    report's ``write``."""
+    return _scan(tree, lambda mods: "imports calidar.outputs" if "calidar.outputs" in mods else None,
+                 _write_call)
 
 
 def test_methods_write_no_file():
@@ -326,34 +338,24 @@ _READ_CALLS = {"open", "File", "loadtxt", "genfromtxt", "fromfile", "memmap", "r
 _READ_MODULES = ("csv", "h5py", "laspy", "rasterio", "tomllib", "pandas")
 
 
+def _read_import(mods: list[str]) -> str | None:
+    hit = [m for m in mods if m.split(".")[0] in _READ_MODULES]
+    return f"imports {hit[0]}" if hit else None
+
+
+def _read_call(call: ast.Call, name: str, owner: str) -> str | None:
+    if name in _READ_CALLS or name.startswith("read_") \
+            or (name == "load" and owner in ("np", "numpy", "json", "pickle", "tomllib")) \
+            or (name == "read" and (owner == "laspy" or owner[:1].isupper())):
+        return f"{owner + '.' if owner else ''}{name}"
+    return None
+
+
 def _file_reads(tree: ast.AST) -> list[tuple[int, str, str]]:
     """(line, enclosing function, what) of each file read in a module's syntax tree: the calls of
     :data:`_READ_CALLS`, any ``read_…`` function, ``np.load``/``json.load``/``pickle.load``/``tomllib.load``, a
     class's or laspy's ``read``, and importing a file-format module (:data:`_READ_MODULES`)."""
-    found = []
-
-    def visit(node, where):
-        for child in ast.iter_child_nodes(node):
-            inner = child.name if isinstance(child, (ast.FunctionDef, ast.AsyncFunctionDef)) else where
-            what = None
-            if isinstance(child, (ast.Import, ast.ImportFrom)):
-                mods = [a.name for a in child.names] if isinstance(child, ast.Import) else [child.module or ""]
-                hit = [m for m in mods if m.split(".")[0] in _READ_MODULES]
-                what = f"imports {hit[0]}" if hit else None
-            elif isinstance(child, ast.Call):
-                f = child.func
-                name = f.attr if isinstance(f, ast.Attribute) else f.id if isinstance(f, ast.Name) else ""
-                owner = f.value.id if isinstance(f, ast.Attribute) and isinstance(f.value, ast.Name) else ""
-                if name in _READ_CALLS or name.startswith("read_") \
-                        or (name == "load" and owner in ("np", "numpy", "json", "pickle", "tomllib")) \
-                        or (name == "read" and (owner == "laspy" or owner[:1].isupper())):
-                    what = f"{owner + '.' if owner else ''}{name}"
-            if what:
-                found.append((child.lineno, where, what))
-            visit(child, inner)
-
-    visit(tree, "")
-    return found
+    return _scan(tree, _read_import, _read_call)
 
 
 def test_methods_read_no_file():

@@ -17,17 +17,11 @@ from calidar.io.ccr_survey import CCRSurveyRows
 from calidar.photon.track import TrackLine
 
 
-@dataclass
-class CCRSurvey:
-    """Surveyed CCRs: geodetic (rad) or track (m) positions, and pole heights above ground (m)."""
-
-    ids: list[str]
-    height: np.ndarray
-    lat: np.ndarray | None = None
-    lon: np.ndarray | None = None
-    x: np.ndarray | None = None
-    y: np.ndarray | None = None
-    source: str | None = None
+@dataclass(frozen=True)
+class CCRSurvey(CCRSurveyRows):
+    """Surveyed CCRs: geodetic (rad) or track (m) positions, and pole heights above ground (m) —
+    a survey file's rows (:class:`calidar.io.ccr_survey.CCRSurveyRows`), placed on a pass's track
+    by :meth:`in_track`."""
 
     @classmethod
     def from_rows(cls, rows: CCRSurveyRows) -> CCRSurvey:
