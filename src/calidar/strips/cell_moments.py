@@ -21,6 +21,7 @@ import numpy as np
 from numba import njit
 
 from calidar.cells import group_cells
+from calidar.strips.moments_kernel import dense_moments, moments
 
 #: the 6 distinct products of a symmetric 3 × 3 scatter, in this order
 PRODUCTS = ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))
@@ -58,7 +59,6 @@ class CellMoments:
     def of_points(cls, points: np.ndarray, cell_m: float) -> "CellMoments":
         """Moments of points (N, 3) m, z up (:func:`calidar.cells.group_cells`, then two passes to sum;
         one numba kernel when the cells fit a dense table: :mod:`calidar.strips.moments_kernel`)."""
-        from calidar.strips.moments_kernel import dense_moments
 
         p = np.ascontiguousarray(points, float)
         fused = dense_moments(p, cell_m)
@@ -76,7 +76,7 @@ class CellMoments:
         order = np.argsort(keys)
         inv = np.argsort(order)[inv]  # groups in key order
         keys = keys[order]
-        count, mean, scatter = _moments(p, inv, cell_centres(keys, cell_m))
+        count, mean, scatter = moments(p, inv, cell_centres(keys, cell_m))
         return cls(float(cell_m), keys, count, mean, scatter)
 
     @classmethod
@@ -157,30 +157,3 @@ def _combine(cell_m: float, keys, count, mean, scatter) -> CellMoments:
     s = np.stack([np.bincount(inv, scatter[:, k] + count * d[:, a] * d[:, b], uk.size)
                   for k, (a, b) in enumerate(PRODUCTS)], axis=1)
     return CellMoments(cell_m, uk, n.astype(np.int64), m, s)
-
-
-@njit(cache=True, nogil=True)
-def _moments(p: np.ndarray, inv: np.ndarray, centres: np.ndarray):  # pragma: no cover - numba
-    """Count, mean (x, y from the cell centre, z) and centred scatter (PRODUCTS) of the points of
-    each group: two passes (the mean, then the products about it)."""
-    K = centres.shape[0]
-    count, mean, scatter = np.zeros(K, np.int64), np.zeros((K, 3)), np.zeros((K, 6))
-    for k in range(p.shape[0]):
-        g = inv[k]
-        count[g] += 1
-        mean[g, 0] += p[k, 0] - centres[g, 0]
-        mean[g, 1] += p[k, 1] - centres[g, 1]
-        mean[g, 2] += p[k, 2]
-    for g in range(K):
-        for a in range(3):
-            mean[g, a] /= count[g]
-    for k in range(p.shape[0]):
-        g = inv[k]
-        dx, dy, dz = p[k, 0] - centres[g, 0] - mean[g, 0], p[k, 1] - centres[g, 1] - mean[g, 1], p[k, 2] - mean[g, 2]
-        scatter[g, 0] += dx * dx
-        scatter[g, 1] += dx * dy
-        scatter[g, 2] += dx * dz
-        scatter[g, 3] += dy * dy
-        scatter[g, 4] += dy * dz
-        scatter[g, 5] += dz * dz
-    return count, mean, scatter

@@ -1,6 +1,6 @@
 """Per-cell point moments of a chunk in one numba kernel (:func:`dense_moments`): the cells
 (``floor(x / cell_m)``, ``floor(y / cell_m)``), their grouping over a dense table, the keys in
-ascending order (a walk over the table, no sort) and the two passes of :func:`calidar.strips.cell_moments._moments` (the mean,
+ascending order (a walk over the table, no sort) and the two passes of :func:`moments` (the mean,
 then the centred products about it), without the N-sized temporaries of doing it in numpy
 (the floored coordinates, the cell of each point, its group renumbered into key order).
 
@@ -61,18 +61,31 @@ def _dense_moments(p, cell_m):  # pragma: no cover - numba
                 keys[r], rank[g] = (i << 32) + (j & 0xFFFFFFFF), r
                 centres[r, 0], centres[r, 1] = (i + 0.5) * cell_m, (j + 0.5) * cell_m
                 r += 1
-    count, mean, scatter = np.zeros(groups, np.int64), np.zeros((groups, 3)), np.zeros((groups, 6))
-    for k in range(n):
-        g = rank[inv[k]]
+    for k in range(n):  # each point's group in key order
+        inv[k] = rank[inv[k]]
+    count, mean, scatter = moments(p, inv, centres)
+    return keys, count, mean, scatter, True
+
+
+@njit(cache=True, nogil=True)
+def moments(p: np.ndarray, inv: np.ndarray, centres: np.ndarray):  # pragma: no cover - numba
+    """Count, mean (x, y from the cell centre ``centres`` (K, 2) m, z) and centred scatter (m², the
+    PRODUCTS order of :mod:`calidar.strips.cell_moments`) of points (N, 3) m in groups ``inv``
+    (N,) numbered 0..K−1: two passes (the mean, then the products about it), points summed in
+    their order within each group."""
+    K = centres.shape[0]
+    count, mean, scatter = np.zeros(K, np.int64), np.zeros((K, 3)), np.zeros((K, 6))
+    for k in range(p.shape[0]):
+        g = inv[k]
         count[g] += 1
         mean[g, 0] += p[k, 0] - centres[g, 0]
         mean[g, 1] += p[k, 1] - centres[g, 1]
         mean[g, 2] += p[k, 2]
-    for g in range(groups):
+    for g in range(K):
         for a in range(3):
             mean[g, a] /= count[g]
-    for k in range(n):
-        g = rank[inv[k]]
+    for k in range(p.shape[0]):
+        g = inv[k]
         dx, dy, dz = p[k, 0] - centres[g, 0] - mean[g, 0], p[k, 1] - centres[g, 1] - mean[g, 1], p[k, 2] - mean[g, 2]
         scatter[g, 0] += dx * dx
         scatter[g, 1] += dx * dy
@@ -80,7 +93,7 @@ def _dense_moments(p, cell_m):  # pragma: no cover - numba
         scatter[g, 3] += dy * dy
         scatter[g, 4] += dy * dz
         scatter[g, 5] += dz * dz
-    return keys, count, mean, scatter, True
+    return count, mean, scatter
 
 
 def dense_cell_counts(keys: np.ndarray):
