@@ -115,6 +115,14 @@ def typed(value, tp, path, key: str):
     return float(value) if tp is float else value
 
 
+def inputs_table(owners: dict, keys: dict) -> dict:
+    """The ``[inputs]`` table: each key of ``keys`` (key → (owner, field)) read from ``owners[owner]``
+    (None values left out; tuples as lists, CRS as their text)."""
+    values = {k: getattr(owners[o], f) for k, (o, f) in keys.items()}
+    return {k: list(v) if isinstance(v, tuple) else str(v) if k.endswith("crs") else v
+            for k, v in values.items() if v is not None}
+
+
 def plain(settings) -> dict:
     """A settings dataclass's fields as TOML values (None and nested settings left out, tuples as lists)."""
     return {f.name: list(v) if isinstance(v, tuple) else v for f in fields(settings)

@@ -48,8 +48,8 @@ from calidar.adjust import SolverOptions
 from calidar.errors import InputError
 from calidar.io.las import PointOptions
 from calidar.pipelines.config_toml import (
-    build as _build, known as _known, plain as _plain, read_document, section as _section, table as _table,
-    typed as _typed, write_document,
+    build as _build, inputs_table, known as _known, plain as _plain, read_document, section as _section,
+    table as _table, typed as _typed, write_document,
 )
 from calidar.pipelines.inputs import TrajectoryOptions
 from calidar.ingest.settings import IngestSettings
@@ -125,9 +125,7 @@ class StripConfig:
         ingest["strip_points"] = ingest["strip_points"] or 0
         doc["ingest"] = {k: v for k, v in ingest.items() if v is not None}
         owners = {"points": self.points, "trajectory": self.trajectory_input, "config": self}
-        inputs = {k: getattr(owners[o], f) for k, (o, f) in INPUT_KEYS.items()}
-        doc["inputs"] = {k: list(v) if isinstance(v, tuple) else str(v) if k.endswith("crs") else v
-                         for k, v in inputs.items() if v is not None}
+        doc["inputs"] = inputs_table(owners, INPUT_KEYS)
         return doc
 
     def write(self, path: Path) -> Path:

@@ -35,7 +35,8 @@ from pathlib import Path
 
 from calidar.errors import InputError
 from calidar.io.las import PointOptions
-from calidar.pipelines.config_toml import build, known, read_document, section, table, typed, write_document
+from calidar.pipelines.config_toml import (build, inputs_table, known, read_document, section, table, typed,
+                                           write_document)
 from calidar.pipelines.inputs import TrajectoryOptions
 from calidar.tpu.propagate import TpuSettings
 from calidar.trajectory_accuracy import MAX_ATTITUDE_SIGMA_RAD, MAX_POSITION_SIGMA_M
@@ -89,9 +90,7 @@ class TpuConfig:
         doc: dict = {} if self.trajectory_sigma is None else {"trajectory_sigma": list(self.trajectory_sigma)}
         doc["noise"] = {k: getattr(self.noise, k) for k in NOISE_RANGES}
         owners = {"points": self.points, "trajectory": self.trajectory_input}
-        inputs = {k: getattr(owners[o], f) for k, (o, f) in INPUT_KEYS.items()}
-        doc["inputs"] = {k: list(v) if isinstance(v, tuple) else str(v) if k.endswith("crs") else v
-                         for k, v in inputs.items() if v is not None}
+        doc["inputs"] = inputs_table(owners, INPUT_KEYS)
         return doc
 
     def write(self, path: Path) -> Path:
