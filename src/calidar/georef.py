@@ -95,14 +95,33 @@ def _pose(tt, pos, q, tk, i, i_prev, theta, s, sign):
 
 @njit(cache=True, nogil=True, inline="always")
 def _lidar_equation(sx, sy, sz, r_bs, lever, px, py, pz, r00, r01, r02, r10, r11, r12, r20, r21, r22, out, k):
-    """out[k] = r + R_eb·(R_bs·v_s + a): the scanner-frame vector (sx, sy, sz) m at the pose
-    (px, py, pz; R_eb row by row) of :func:`_pose`, into ECEF."""
+    """out[k] = :func:`lidar_point` of the scanner-frame vector (sx, sy, sz) m."""
+    out[k, 0], out[k, 1], out[k, 2] = lidar_point(sx, sy, sz, r_bs, lever, px, py, pz,
+                                                  r00, r01, r02, r10, r11, r12, r20, r21, r22)
+
+
+@njit(cache=True, nogil=True)
+def lidar_point(sx, sy, sz, r_bs, lever, px, py, pz, r00, r01, r02, r10, r11, r12, r20, r21, r22):
+    """r + R_eb·(R_bs·v_s + a): the scanner-frame vector (sx, sy, sz) m at the pose (px, py, pz
+    m ECEF; R_eb row by row) of :func:`_pose`, into ECEF (m) — the lidar equation."""
     bx = r_bs[0, 0] * sx + r_bs[0, 1] * sy + r_bs[0, 2] * sz + lever[0]
     by = r_bs[1, 0] * sx + r_bs[1, 1] * sy + r_bs[1, 2] * sz + lever[1]
     bz = r_bs[2, 0] * sx + r_bs[2, 1] * sy + r_bs[2, 2] * sz + lever[2]
-    out[k, 0] = px + r00 * bx + r01 * by + r02 * bz
-    out[k, 1] = py + r10 * bx + r11 * by + r12 * bz
-    out[k, 2] = pz + r20 * bx + r21 * by + r22 * bz
+    return px + r00 * bx + r01 * by + r02 * bz, py + r10 * bx + r11 * by + r12 * bz, \
+        pz + r20 * bx + r21 * by + r22 * bz
+
+
+@njit(cache=True, nogil=True)
+def scanner_vector(x, y, z, px, py, pz, r00, r01, r02, r10, r11, r12, r20, r21, r22, r_bs, lever):
+    """v_s = R_bsᵀ·(R_ebᵀ·(p − r) − a): the ECEF point (x, y, z) m seen from the pose (px, py,
+    pz; R_eb row by row) of :func:`_pose`, in the scanner frame (m) — the lidar equation inverted."""
+    dx, dy, dz = x - px, y - py, z - pz
+    bx = r00 * dx + r10 * dy + r20 * dz - lever[0]
+    by = r01 * dx + r11 * dy + r21 * dz - lever[1]
+    bz = r02 * dx + r12 * dy + r22 * dz - lever[2]
+    return (r_bs[0, 0] * bx + r_bs[1, 0] * by + r_bs[2, 0] * bz,
+            r_bs[0, 1] * bx + r_bs[1, 1] * by + r_bs[2, 1] * bz,
+            r_bs[0, 2] * bx + r_bs[1, 2] * by + r_bs[2, 2] * bz)
 
 
 @njit(cache=True, nogil=True)
@@ -152,13 +171,8 @@ def _inverse_kernel(tt, pos, q, t, p, r_bs, lever, out):
         n_out += not tt[0] <= tk <= tt[tt.size - 1]  # NaN counts as outside
         i, i_prev, theta, s, sign, px, py, pz, r00, r01, r02, r10, r11, r12, r20, r21, r22 = _pose(
             tt, pos, q, tk, i, i_prev, theta, s, sign)
-        dx, dy, dz = p[k, 0] - px, p[k, 1] - py, p[k, 2] - pz
-        bx = r00 * dx + r10 * dy + r20 * dz - lever[0]
-        by = r01 * dx + r11 * dy + r21 * dz - lever[1]
-        bz = r02 * dx + r12 * dy + r22 * dz - lever[2]
-        out[k, 0] = r_bs[0, 0] * bx + r_bs[1, 0] * by + r_bs[2, 0] * bz
-        out[k, 1] = r_bs[0, 1] * bx + r_bs[1, 1] * by + r_bs[2, 1] * bz
-        out[k, 2] = r_bs[0, 2] * bx + r_bs[1, 2] * by + r_bs[2, 2] * bz
+        out[k, 0], out[k, 1], out[k, 2] = scanner_vector(p[k, 0], p[k, 1], p[k, 2], px, py, pz, r00, r01, r02,
+                                                         r10, r11, r12, r20, r21, r22, r_bs, lever)
     return n_out
 
 

@@ -18,7 +18,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from calidar.georef import _pose
+from calidar.georef import _pose, lidar_point, scanner_vector
 
 
 def moved_versions(traj, nominal, models, t: np.ndarray, lin) -> list[np.ndarray] | None:
@@ -71,14 +71,8 @@ def _versions_kernel(tt, pos, q, tt2, pos2, q2, t, p, r_bs0, lever0, r_bs, lever
             n_out2 += not tt2[0] <= tk <= tt2[tt2.size - 1]
             i2, i2_prev, theta2, s2, sign2, qx, qy, qz, r00, r01, r02, r10, r11, r12, r20, r21, r22 = _pose(
                 tt2, pos2, q2, tk, i2, i2_prev, theta2, s2, sign2)
-        # the scanner-frame vector (calidar.georef._inverse_kernel)
-        dx, dy, dz = p[k, 0] - px, p[k, 1] - py, p[k, 2] - pz
-        bx = a00 * dx + a10 * dy + a20 * dz - lever0[0]
-        by = a01 * dx + a11 * dy + a21 * dz - lever0[1]
-        bz = a02 * dx + a12 * dy + a22 * dz - lever0[2]
-        sx = r_bs0[0, 0] * bx + r_bs0[1, 0] * by + r_bs0[2, 0] * bz
-        sy = r_bs0[0, 1] * bx + r_bs0[1, 1] * by + r_bs0[2, 1] * bz
-        sz = r_bs0[0, 2] * bx + r_bs0[1, 2] * by + r_bs0[2, 2] * bz
+        sx, sy, sz = scanner_vector(p[k, 0], p[k, 1], p[k, 2], px, py, pz, a00, a01, a02, a10, a11, a12,
+                                    a20, a21, a22, r_bs0, lever0)
         for m in range(which.size):
             if which[m] == 0:
                 ox, oy, oz, e00, e01, e02, e10, e11, e12, e20, e21, e22 = (px, py, pz, a00, a01, a02, a10, a11, a12,
@@ -86,13 +80,10 @@ def _versions_kernel(tt, pos, q, tt2, pos2, q2, t, p, r_bs0, lever0, r_bs, lever
             else:
                 ox, oy, oz, e00, e01, e02, e10, e11, e12, e20, e21, e22 = (qx, qy, qz, r00, r01, r02, r10, r11, r12,
                                                                            r20, r21, r22)
-            # the lidar equation (calidar.georef._lidar_equation), then the move (calidar.crs._moved)
-            cx = r_bs[m, 0, 0] * sx + r_bs[m, 0, 1] * sy + r_bs[m, 0, 2] * sz + lever[m, 0]
-            cy = r_bs[m, 1, 0] * sx + r_bs[m, 1, 1] * sy + r_bs[m, 1, 2] * sz + lever[m, 1]
-            cz = r_bs[m, 2, 0] * sx + r_bs[m, 2, 1] * sy + r_bs[m, 2, 2] * sz + lever[m, 2]
-            d0 = (ox + e00 * cx + e01 * cy + e02 * cz) - p[k, 0]
-            d1 = (oy + e10 * cx + e11 * cy + e12 * cz) - p[k, 1]
-            d2 = (oz + e20 * cx + e21 * cy + e22 * cz) - p[k, 2]
+            # the lidar equation, then the move (calidar.crs._moved)
+            x, y, z = lidar_point(sx, sy, sz, r_bs[m], lever[m], ox, oy, oz, e00, e01, e02, e10, e11, e12,
+                                  e20, e21, e22)
+            d0, d1, d2 = x - p[k, 0], y - p[k, 1], z - p[k, 2]
             j = rows[k]
             for a in range(3):
                 out[m, k, a] = base[k, a] + (jac[j, a, 0] * d0 + jac[j, a, 1] * d1 + jac[j, a, 2] * d2)
