@@ -8,9 +8,11 @@ errors (``--cache DIR`` keeps it), read as ``calidar boresight`` reads it, every
 the TRUE sensor and matched with each method's default rows: the residuals then hold nothing but the points'
 noise. Per method: rows (walls |n_z| < 0.5 left out, as few as they are), RMS of residual/σ (1 when the σ are
 right) over all, flat (|n_z| ≥ 0.97) and roofs, by quartile of σ (right row by row, quiet or rough), the
-MAD-scale of residual/σ, and the global test's σ0 as the engine and the verdict compute it (Cauchy weights on
-z / 1.4826·MAD, ÷ their consistency for Student-t residuals with the rows' degrees of freedom; also ÷ the
-normal factor) against its χ² 95 % range.
+MAD-scale of residual/σ, and the global test's σ0 as the verdict takes it (the RMS of residual/σ, rows beyond 7 σ0
+skipped as gross: ``calidar.adjust.unit_weight.skipped_sigma0``, issue 26, fifth session; at the truth no parameter
+is estimated, so no redundancy correction) against its χ² 95 % range, and as it took it before (Cauchy weights on
+z / 1.4826·MAD, ÷ their consistency for Student-t residuals with the rows' degrees of freedom; also ÷ the normal
+factor).
 """
 
 from __future__ import annotations
@@ -27,6 +29,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from strips_montecarlo import URBAN, seeds_of  # noqa: E402
 
 from calidar.adjust.solver import robust_weights  # noqa: E402
+from calidar.adjust.unit_weight import skipped_sigma0  # noqa: E402
 from calidar.pipelines.boresight import load_inputs  # noqa: E402
 from calidar.sim.survey import simulate_survey, survey_config  # noqa: E402
 from calidar.strips.calibrate import _Run  # noqa: E402
@@ -70,8 +73,8 @@ def rows_at_truth(folder: Path, method: str) -> np.ndarray:
     return np.concatenate(out)
 
 
-def global_test_sigma0(z: np.ndarray, dof: np.ndarray | None = None) -> float:
-    """The engine's σ0 (Cauchy weights on z over its MAD scale) ÷ the verdict's consistency factor: for Student-t
+def weighted_sigma0(z: np.ndarray, dof: np.ndarray | None = None) -> float:
+    """Before (issue 26, fourth session): the engine's σ0 (Cauchy weights on z over its MAD scale) ÷ the verdict's consistency factor: for Student-t
     rows with these degrees of freedom, or (None) for normal ones."""
     s = 1.4826 * np.median(np.abs(z - np.median(z)))
     w = robust_weights(z / s, "cauchy")
@@ -89,8 +92,9 @@ def line(label: str, rows: np.ndarray) -> str:
     return (f"{label}: {z.size:6d} rows, RMS σ {np.sqrt(np.mean(s**2)) * 1e3:5.2f} mm, RMS z {rms(slice(None)):.3f} "
             f"(flat {rms(nz >= 0.97):.3f}, roofs {rms(nz < 0.97):.3f}; by σ quartile "
             + "/".join(f"{rms(q == k):.2f}" for k in range(4))
-            + f"), MAD-scale z {1.4826 * np.median(np.abs(z)):.3f}, global test σ0 {global_test_sigma0(z, dof):.3f} "
-            f"(÷ the normal factor: {global_test_sigma0(z):.3f}; median ν {np.median(dof):.0f}; χ² 95 % range "
+            + f"), MAD-scale z {1.4826 * np.median(np.abs(z)):.3f}, global test σ0 {skipped_sigma0(z)[0]:.3f} "
+            f"({skipped_sigma0(z)[1]} rows skipped; before: Cauchy-weighted ÷ the t factor {weighted_sigma0(z, dof):.3f}, "
+            f"÷ the normal factor {weighted_sigma0(z):.3f}; median ν {np.median(dof):.0f}; χ² 95 % range "
             f"{lo:.3f}–{hi:.3f})")
 
 

@@ -39,11 +39,8 @@ class SolverOptions:
     (None: 2.385 Cauchy, 1.345 Huber, 95 % efficiency); robust_scale: re-estimate the residuals'
     scale by MAD for those weights (False when σ is trusted); max_iter: Levenberg–Marquardt steps
     at most; tol: relative change of the cost (and absolute step) below which it stops;
-    step_in_sigma: stop when every step is below this fraction of its parameter's σ;
-    absolute_sigma: the observations' σ are absolute (each row's own noise, as the strips' from their
-    points' scatter), not only relative weights: the covariance is then never shrunk by an
-    a-posteriori σ0 below 1, priors or not (only raised by one above 1; cf. ``absolute_sigma`` of
-    scipy.optimize.curve_fit). False: σ0²·N⁻¹ without priors.
+    step_in_sigma: stop when every step is below this fraction of its parameter's σ. Whether the
+    observations' σ are absolute is the problem's (:attr:`ResidualProblem.absolute_sigma`), not an option.
     """
 
     robust: str | None = "cauchy"
@@ -52,7 +49,6 @@ class SolverOptions:
     max_iter: int = 30
     tol: float = 1e-10
     step_in_sigma: float = STEP_IN_SIGMA
-    absolute_sigma: bool = False
 
     def __post_init__(self):
         if self.robust is not None and self.robust not in ROBUST_K:
@@ -155,6 +151,10 @@ class ResidualProblem:
     parameters: ParameterSet
     sigma: float | np.ndarray = 1.0
     prior_correlation: PriorCorrelation = ()
+    #: the rows' σ are absolute (each row's own noise, as the strips' from their points' scatter), not only relative
+    #: weights: the covariance is then never shrunk by an a-posteriori σ0 below 1, priors or not (only raised by one
+    #: above 1; cf. ``absolute_sigma`` of scipy.optimize.curve_fit). False: σ0²·N⁻¹ without priors.
+    absolute_sigma: bool = False
 
     def residuals(self, values: Mapping[str, float]) -> np.ndarray:
         raise NotImplementedError
@@ -178,9 +178,10 @@ class FunctionProblem(ResidualProblem):
 
     def __init__(self, residual_fn: Callable[[Mapping[str, float]], np.ndarray], parameters: ParameterSet,
                  sigma: float | np.ndarray = 1.0, jacobian_fn=None, prior_correlation: PriorCorrelation = (),
-                 normal_fn=None):
+                 normal_fn=None, absolute_sigma: bool = False):
         self.residual_fn, self.jacobian_fn, self.normal_fn = residual_fn, jacobian_fn, normal_fn
         self.parameters, self.sigma, self.prior_correlation = parameters, sigma, prior_correlation
+        self.absolute_sigma = absolute_sigma
 
     def residuals(self, values):
         return self.residual_fn(values)

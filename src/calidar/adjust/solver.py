@@ -25,6 +25,7 @@ from calidar.adjust.parameters import ParameterSet
 from calidar.adjust.residuals import (ROBUST_K, STEP_IN_SIGMA, FunctionProblem, ResidualProblem, SolverOptions,
                                       numerical_jacobian, prior_groups, values_of)
 from calidar.adjust.solution import Solution, cholesky_inverse, residual_stats
+from calidar.adjust.unit_weight import GROSS_Z, skipped_sigma0
 from calidar.errors import CalibrationError
 
 __all__ = ["Estimate", "ROBUST_K", "STEP_IN_SIGMA", "estimate", "numerical_jacobian", "prior_groups", "robust_weights",
@@ -33,7 +34,7 @@ __all__ = ["Estimate", "ROBUST_K", "STEP_IN_SIGMA", "estimate", "numerical_jacob
 Progress = Callable[[int, float], None]
 #: the keyword arguments of the function form (``solve(residual_fn, params, sigma=…, …)``) that are solver options
 _OPTION_KEYS = ("robust", "robust_k", "robust_scale", "max_iter", "tol", "step_in_sigma")
-_PROBLEM_KEYS = ("sigma", "jacobian_fn", "prior_correlation", "normal_fn")
+_PROBLEM_KEYS = ("sigma", "jacobian_fn", "prior_correlation", "normal_fn", "absolute_sigma")
 
 
 def robust_weights(u: np.ndarray, kind: str | None, k: float | None = None) -> np.ndarray:
@@ -64,8 +65,9 @@ def solve(problem: ResidualProblem, options: SolverOptions | None = None, *, pro
     Miller 2014) where it exceeds the usual σ0²·N⁻¹ (σ raised, correlations kept); a list of such
     groupings raises each σ to the largest of their estimates (sandwich estimates from few groups
     run low). The covariance is σ0²·N⁻¹ without priors (σ relative) and max(σ0², 1)·N⁻¹ with them
-    (σ absolute: the priors are never tightened by an a-posteriori σ0 below 1) or with
-    ``options.absolute_sigma`` (the observations' own σ are absolute).
+    (σ absolute: the priors are never tightened by an a-posteriori σ0 below 1) or when the problem's
+    ``absolute_sigma`` says its observations' own σ are absolute; with robust weights σ0 is
+    :func:`calidar.adjust.unit_weight.skipped_sigma0` (the one the strips' global test reads).
 
     The function form ``solve(residual_fn, params, sigma=…, jacobian_fn=…, robust=…, …)`` (values
     by name → residuals) is kept: it wraps the functions in a
@@ -167,7 +169,7 @@ class _Fit:
     def __init__(self, problem: ResidualProblem, options: SolverOptions):
         self.problem, self.params = problem, problem.parameters
         self.robust, self.robust_k, self.robust_scale = options.robust, options.robust_k, options.robust_scale
-        self.absolute_sigma = options.absolute_sigma
+        self.absolute_sigma = bool(getattr(problem, "absolute_sigma", False))
         self.free = self.params.free
         self.priors = prior_groups(self.free, getattr(problem, "prior_correlation", ()))
         self.n_prior = sum(idx.size for idx, _, _ in self.priors)
@@ -221,11 +223,19 @@ class _Fit:
         """Effective redundancy: down-weighted observations count by their relative weight."""
         return max(float(np.sum(w * self.sig**2)) + self.n_prior - len(self.free), 1.0)
 
+    def sigma0(self, r: np.ndarray, x: np.ndarray) -> tuple[float, int]:
+        """(σ0, rows skipped as gross) by :func:`calidar.adjust.unit_weight.skipped_sigma0`: the RMS of r/σ with
+        the priors' terms over the redundancy, rows beyond GROSS_Z σ0 skipped (issue 26: the robustly weighted
+        σ0 read rows whose σ are right in the mean but heavy-tailed 5–8 % low)."""
+        prior_sq = 2.0 * (self.cost(r, np.zeros_like(r), x))  # the priors' part of the cost
+        return skipped_sigma0(r / self.sig, prior_sq, self.n_prior, len(self.free), GROSS_Z)
+
     def variance_factor(self, r: np.ndarray, w: np.ndarray, x: np.ndarray) -> float:
         """σ0² without priors (σ relative); max(σ0², 1) with them or with absolute observation σ
         (σ absolute: σ0 < 1 there says the priors or the rows' σ were generous, not that the
-        parameters are better known than they allow)."""
-        s0 = 2.0 * self.cost(r, w, x) / self.dof(w)
+        parameters are better known than they allow). σ0: the least-squares one without robust
+        weights, :meth:`sigma0` with them."""
+        s0 = self.sigma0(r, x)[0] ** 2 if self.robust else 2.0 * self.cost(r, w, x) / self.dof(w)
         return s0 if self.n_prior == 0 and not self.absolute_sigma else max(s0, 1.0)
 
 
@@ -279,6 +289,9 @@ def _solution(fit: _Fit, x: np.ndarray, r: np.ndarray, w: np.ndarray, history: l
         residuals=r, weights=w * fit.sig**2, before=residual_stats(fit.r0), history=history, converged=converged,
         jacobian=J,
     )
+    if fit.robust:  # the σ0 the variance factor took, for the global test (calidar.strips.verdict)
+        s0, skipped = fit.sigma0(r, x)
+        sol.extra["unit_weight"] = {"sigma0": s0, "rows_skipped": skipped, "gross_z": GROSS_Z}
     return sol, J, N
 
 

@@ -236,10 +236,7 @@ class _Run:
         problem = StripProblem(self.nominal, self.poses, corrs, params, self._times(), self.model, self.spans)
         if self.control is not None:  # each control target's survey error its own nuisance parameter
             problem = SurveyErrors(problem, self.control)
-        # the rows' σ are absolute (each side's scatter): σ0 < 1 never shrinks the angles' σ, with the
-        # trajectory model off too (issue 26: there σ0 ≈ 0.7 came from the sloped rows' generous σ and
-        # shrank roll's, whose flat-ground rows' σ hold, to 1/1.45 of its error; docs/validation.md)
-        options = replace(self.settings.adjustment, step_in_sigma=step_in_sigma, absolute_sigma=True)
+        options = replace(self.settings.adjustment, step_in_sigma=step_in_sigma)  # σ absolute: StripProblem's
         return estimate(problem, options, step_scale=step_scale), problem
 
     def clusters(self, problem: StripProblem) -> list[np.ndarray]:

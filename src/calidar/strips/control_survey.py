@@ -88,6 +88,7 @@ class SurveyErrors(ResidualProblem):
 
     def __init__(self, inner, control):
         self.inner, self.parameters = inner, inner.parameters
+        self.absolute_sigma = inner.absolute_sigma
         self.prior_correlation = (*inner.prior_correlation, *getattr(control, "survey_correlation", tuple)())
         names = [p.name for p in survey_parameters(control)]
         self.block = Block.of(self.parameters.names, {n: j for j, n in enumerate(names)})

@@ -45,6 +45,12 @@ class StripProblem(ResidualProblem):
     row σ, the trajectory knots' correlated priors, and the sensor and the knots read from the
     engine's values as typed blocks (sensor names; :class:`calidar.strips.trajectory_errors.Knot`)."""
 
+    #: the rows' σ are absolute, each side's from its points' scatter (the matchers' rows,
+    #: :mod:`calidar.strips.row_variance`), a control row's from its survey: σ0 < 1 never shrinks the angles' σ, with
+    #: the trajectory model off too (issue 26: there σ0 ≈ 0.7 came from the sloped rows' generous σ and shrank roll's,
+    #: whose flat-ground rows' σ hold, to 1/1.45 of its error; docs/validation.md)
+    absolute_sigma = True
+
     def __init__(self, nominal: Sensor, poses: dict[int, Pose], corrs: list[Correspondences],
                  free: Sequence[str] | ParameterSet, times: dict[int, np.ndarray] | None = None,
                  trajectory: TrajectoryModel | None = None, spans: dict[int, tuple[float, float]] | None = None):

@@ -25,9 +25,11 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy.special import chdtri  # χ² quantiles without scipy.stats' 0.5 s import
 
 from calidar.strips.control_verdict import vertical_findings
+from calidar.strips.global_test import (  # noqa: F401  (the verdict's global test, kept importable from here)
+    ROW_SIGMA_TOLERANCE, SIGMA0_FAIL, global_test_sigma0, robust_consistency, sigma0_finding, sigma0_range,
+)
 from calidar.strips.model_check_verdict import finding_or_none, moved_parameters
 from calidar.strips.control_survey import PREFIX as CONTROL_PREFIX
 from calidar.strips.trajectory_errors import PREFIX as TRAJECTORY_PREFIX
@@ -43,12 +45,6 @@ GROUND_LIMIT_M = 0.02
 LENGTH_LIMIT_M = 0.01
 #: |ρ| between two estimated parameters above which the strips barely tell them apart
 CORRELATION_LIMIT = 0.9
-#: σ0 above its χ² range warns; above SIGMA0_FAIL the model does not fit (fail)
-SIGMA0_FAIL = 2.0
-#: how closely rows' σ estimated from their points' scatter are known: at the truth (simulated surveys without
-#: trajectory errors, ``benchmarks/strips_row_sigma.py``) the global test's σ0 read 0.91–1.04 over both methods and
-#: presets (issue 26); beyond its χ² range but within this of 1, σ0 passes, and the finding says so
-ROW_SIGMA_TOLERANCE = 0.07
 #: RMSDz of a pair may grow by this much (m) before the verdict calls it worse
 WORSE_M = 0.002
 #: a pair whose median dz stays beyond this after calibration is still offset (m)
@@ -83,43 +79,6 @@ def _ground_effect(p, sigma: float, range_m: float) -> float:
     if p.name == "range_scale" or p.name == "scan_angle_scale":
         return sigma * range_m * (0.35 if p.name == "scan_angle_scale" else 1.0)
     return sigma if p.unit == "m" else math.nan
-
-
-def robust_consistency(kind: str | None) -> float:
-    """E[w(u)·u²] / E[w(u)] for u ~ N(0, 1) with the engine's IRLS weights w of ``kind`` (1 without).
-
-    The engine's σ0² is Σ w r²/σ² over Σ w (+ priors − parameters): with robust weights it is
-    this factor times the variance of honest normal residuals (Cauchy: 0.794, σ0 0.89 for σ
-    exactly right), as the MAD needs 1.4826 to estimate σ. The global test divides it out
-    (Gauss–Hermite quadrature, 80 nodes)."""
-    from calidar.adjust.solver import robust_weights
-
-    if kind is None:
-        return 1.0
-    u, h = np.polynomial.hermite_e.hermegauss(80)
-    w = robust_weights(u, kind)
-    return float(np.sum(h * w * u * u) / np.sum(h * w))
-
-
-def global_test_sigma0(sol) -> float:
-    """The σ0 the global test takes: the engine's, made consistent for the rows' residuals — normal ones (see
-    :func:`robust_consistency`), or, when the solution records the degrees of freedom of its rows' estimated σ
-    (``solution.extra["strips"]["row_dof"]``), Student-t ones with those degrees of freedom
-    (:func:`calidar.strips.row_variance.consistency`; issue 26: with 12-point patches the normal factor read
-    the σ0 of rows exactly right at the truth 2–3 % low)."""
-    strips = sol.extra.get("strips", {}) if isinstance(sol.extra, dict) else {}
-    kind, dofs = strips.get("robust"), strips.get("row_dof")
-    if dofs and kind is not None:
-        from calidar.strips.row_variance import consistency
-
-        return sol.sigma0 / math.sqrt(consistency(kind, dofs))
-    return sol.sigma0 / math.sqrt(robust_consistency(kind))
-
-
-def sigma0_range(sol) -> tuple[float, float]:
-    """The χ² test's 95 % range of σ0 for the solution's degrees of freedom: σ0² · dof ~ χ²(dof)."""
-    lo, hi = (math.sqrt(chdtri(sol.dof, 1.0 - q) / sol.dof) for q in (0.025, 0.975))  # χ² quantiles
-    return lo, hi
 
 
 def parameter_findings(result, range_m: float, global_test: Finding | None = None) -> list[Finding]:
@@ -161,43 +120,6 @@ def parameter_findings(result, range_m: float, global_test: Finding | None = Non
 DETERMINED_NOTE = ("\"determined\" says how closely these strips fix a parameter if the model holds (its σ), not that "
                    "the value is correct: that rests on the global test, the residuals, the overlaps and, when both "
                    "methods ran, their agreement")
-
-
-def sigma0_finding(sol) -> Finding:
-    """The global test: σ0 against its χ² 95 % range. Inside: pass; outside but within
-    :data:`ROW_SIGMA_TOLERANCE` of 1 when the rows' σ are estimated (``row_dof`` recorded): pass, saying so. Below: a note (the residuals are
-    smaller than the rows' σ say, so the parameters' σ are conservative by up to that factor). Above:
-    warn (fail beyond :data:`SIGMA0_FAIL`): the model leaves residuals its σ do not explain."""
-    priors = any(p.prior_sigma is not None for p in sol.parameters.free)
-    lo, hi = sigma0_range(sol)
-    s0 = global_test_sigma0(sol)
-    digits = 2  # enough that σ0 and its range's nearer bound read apart
-    while digits < 5 and f"{s0:.{digits}f}" in (f"{lo:.{digits}f}", f"{hi:.{digits}f}"):
-        digits += 1
-    t_rows = bool(isinstance(sol.extra, dict) and sol.extra.get("strips", {}).get("row_dof"))
-    robust = "" if s0 == sol.sigma0 else (f"; {sol.sigma0:.2f} from the robustly weighted residuals, ÷ {sol.sigma0 / s0:.3f} for "
-                                          + ("Student-t ones (each row's σ estimated from its points)" if t_rows else "normal ones"))
-    detail = (f"σ0 = {s0:.{digits}f} (1 expected; the χ² test's 95 % range for {sol.dof:,.0f} degrees of freedom is "
-              f"{lo:.{digits}f}–{hi:.{digits}f}{robust})")
-    if lo <= s0 <= hi:
-        return Finding("pass", "global test", detail + ": the residuals are as large as the correspondences' scatter "
-                       "predicts")
-    if t_rows and abs(s0 - 1.0) <= ROW_SIGMA_TOLERANCE:
-        return Finding("pass", "global test", detail + f": outside that range but within ±{ROW_SIGMA_TOLERANCE * 100:.0f} % of 1, "
-                       "as closely as the rows' σ are known (each estimated from a few points' scatter; at the truth "
-                       "σ0 reads 0.91–1.04): the residuals are as large as the correspondences' scatter predicts to "
-                       "that accuracy")
-    if s0 < lo:
-        return Finding(NOTE, "global test", detail + ": below its range — the residuals are smaller than the "
-                       "correspondences' scatter predicts, so the σ are conservative by up to this factor"
-                       + (" (not shrunk for it: the trajectory priors are absolute)" if priors
-                          else " (not shrunk for it: the rows' σ are absolute, each from its points' scatter)"))
-    status = "fail" if s0 > SIGMA0_FAIL else "warn"
-    return Finding(status, "global test", detail + ": above its range — the residuals are larger than the "
-                   "correspondences' own scatter predicts, and the parameters' σ hold only if the excess is noise",
-                   "look for what the model does not hold: trajectory errors (leave the trajectory model on), a "
-                   "wrong nominal sensor or time system, scanner errors beyond the estimated parameters, "
-                   "vegetation or moving objects in the overlaps")
 
 
 #: two methods' estimates differing by more than this many combined σ (see :func:`agreement_finding`) fail

@@ -151,7 +151,7 @@ def test_absolute_sigma_keeps_the_stated_sigma_without_priors_too():
 
     for stated in (0.4, 0.05):  # 4× too generous (σ0 ≈ 0.25), 2× too tight (σ0 ≈ 2)
         N = np.array([[x.size, x.sum()], [x.sum(), x @ x]]) / stated**2
-        sol = solve(FunctionProblem(residuals, _params(), sigma=stated), SolverOptions(robust=None, absolute_sigma=True))
+        sol = solve(FunctionProblem(residuals, _params(), sigma=stated, absolute_sigma=True), SolverOptions(robust=None))
         assert sol.sigma0 == pytest.approx(0.1 / stated, rel=0.15)
         np.testing.assert_allclose(sol.covariance, max(sol.sigma0**2, 1.0) * np.linalg.inv(N), rtol=1e-6)
     relative = solve(FunctionProblem(residuals, _params(), sigma=0.4), SolverOptions(robust=None))
