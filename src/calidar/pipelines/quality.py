@@ -112,42 +112,32 @@ def line_precisions(acc, settings) -> list:
             for i in sorted(acc.selections)]
 
 
-def write_rasters(q, out_dir: str | Path, crs=None, force: bool = False, figure=None) -> list[Path]:
+def write_rasters(q, out_dir: str | Path, crs=None, force: bool = False) -> list[Path]:
     """A pair's dz grid as GeoTIFF (``dz_<a>_<b>.tif``, float32 m, NaN nodata) and its picture
-    (``dz_<a>_<b>.png``, :class:`calidar.strips.quality.DzFigure`: ``figure``, drawn again, or a
-    new one); none when the pair has no grid."""
-    import matplotlib
-
-    matplotlib.use("Agg")
+    (``dz_<a>_<b>.png``: :func:`dz_picture`); none when the pair has no grid."""
     from calidar.io.raster import write_geotiff
     from calidar.outputs import atomic_path
-    from calidar.strips.quality import DzFigure
 
     if q.grid.size == 0:
         return []
     out_dir = Path(out_dir)
     tif = write_geotiff(out_dir / f"dz_{q.a}_{q.b}.tif", q.grid, q.cell_m, q.origin, crs, force)
-    own = figure is None
-    figure = DzFigure() if own else figure
-    try:
-        png = out_dir / f"dz_{q.a}_{q.b}.png"
-        with atomic_path(png, force) as tmp:  # as calidar.io.raster.write_png, the figure kept
-            figure.show(q).savefig(tmp, format="png", dpi=110, bbox_inches="tight")
-    finally:
-        if own:
-            figure.close()
+    png = out_dir / f"dz_{q.a}_{q.b}.png"
+    with atomic_path(png, force) as tmp:
+        tmp.write_bytes(dz_picture(q))
     return [tif, png]
 
 
+def dz_picture(q) -> bytes:
+    """A pair's dz map as PNG bytes (:func:`calidar.report.map_picture.map_png`, no matplotlib
+    figure): diverging colours on ± the 98th percentile of |dz|, its colour bar and title."""
+    from calidar.report.map_picture import map_png
+
+    return map_png(q.grid, q.origin, q.cell_m,
+                   f"strips {q.a} − {q.b}: median {q.median_dz_m or 0:+.3f} m, RMSDz {q.rmsdz_m or 0:.3f} m",
+                   f"dz = z({q.a}) − z({q.b}) [m]")
+
+
 def write_pairs_rasters(results, out_dir: str | Path, crs=None, force: bool = False) -> list[Path]:
-    """:func:`write_rasters` of every pair, their pictures drawn on one figure."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    from calidar.strips.quality import DzFigure
-
-    figure = DzFigure()
-    try:
-        return [f for q in results for f in write_rasters(q, out_dir, crs, force, figure)]
-    finally:
-        figure.close()
+    """:func:`write_rasters` of every pair."""
+    return [f for q in results for f in write_rasters(q, out_dir, crs, force)]
