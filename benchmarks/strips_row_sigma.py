@@ -32,7 +32,7 @@ from calidar.adjust.solver import robust_weights  # noqa: E402
 from calidar.adjust.unit_weight import skipped_sigma0  # noqa: E402
 from calidar.pipelines.boresight import load_inputs  # noqa: E402
 from calidar.sim.survey import simulate_survey, survey_config  # noqa: E402
-from calidar.strips.calibrate import _Run  # noqa: E402
+from calidar.strips.outer_loop import Run  # noqa: E402
 from calidar.strips.config import StripSettings  # noqa: E402
 from calidar.strips.matchers import TiePlanes, Vgicp  # noqa: E402
 from calidar.strips.parameters import sensor_of  # noqa: E402
@@ -61,7 +61,7 @@ def rows_at_truth(folder: Path, method: str) -> np.ndarray:
     inputs = load_inputs(sorted((folder / "strips").glob("*.laz")), folder / "sbet.out", folder / "sensor.toml",
                          truth=folder / "truth.json")
     truth = sensor_of(inputs.nominal, inputs.truth)
-    run = _Run.start(inputs.strips, truth, MATCHERS[method](), StripSettings())
+    run = Run.start(inputs.strips, truth, MATCHERS[method](), StripSettings())
     at = {i: georeference(truth, None, run.poses[i], run.by_id[i].time[idx]) for i, idx in run.need.items()}
     out = []
     for o in run.overlaps:

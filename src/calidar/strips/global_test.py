@@ -73,9 +73,17 @@ def _sigma0_source(sol, s0: float) -> str:
             + ("Student-t ones (each row's σ estimated from its points)" if t_rows else "normal ones"))
 
 
+def redundancy(sol) -> float:
+    """The degrees of freedom of the global test's σ0: those of the rows it kept (``unit_weight``), else the
+    engine's effective redundancy (robustly down-weighted rows counting by their weight)."""
+    extra = sol.extra if isinstance(sol.extra, dict) else {}
+    return float(extra["unit_weight"].get("redundancy", sol.dof)) if "unit_weight" in extra else float(sol.dof)
+
+
 def sigma0_range(sol) -> tuple[float, float]:
-    """The χ² test's 95 % range of σ0 for the solution's degrees of freedom: σ0² · dof ~ χ²(dof)."""
-    lo, hi = (math.sqrt(chdtri(sol.dof, 1.0 - q) / sol.dof) for q in (0.025, 0.975))  # χ² quantiles
+    """The χ² test's 95 % range of σ0 for the test's degrees of freedom f (:func:`redundancy`): σ0² · f ~ χ²(f)."""
+    f = redundancy(sol)
+    lo, hi = (math.sqrt(chdtri(f, 1.0 - q) / f) for q in (0.025, 0.975))  # χ² quantiles
     return lo, hi
 
 
@@ -91,7 +99,7 @@ def sigma0_finding(sol) -> Finding:
     while digits < 5 and f"{s0:.{digits}f}" in (f"{lo:.{digits}f}", f"{hi:.{digits}f}"):
         digits += 1
     t_rows = bool(isinstance(sol.extra, dict) and sol.extra.get("strips", {}).get("row_dof"))
-    detail = (f"σ0 = {s0:.{digits}f} (1 expected; the χ² test's 95 % range for {sol.dof:,.0f} degrees of freedom is "
+    detail = (f"σ0 = {s0:.{digits}f} (1 expected; the χ² test's 95 % range for {redundancy(sol):,.0f} degrees of freedom is "
               f"{lo:.{digits}f}–{hi:.{digits}f}{_sigma0_source(sol, s0)})")
     if lo <= s0 <= hi:
         return Finding("pass", "global test", detail + ": the residuals are as large as the correspondences' scatter "
