@@ -4,7 +4,7 @@
 
 The 8-strip survey of ``benchmarks/strips_scale.py`` (cached under ``--cache``, not timed), its strips built as
 ``calidar boresight`` builds them and georeferenced with the nominal sensor; every overlapping pair matched
-as the calibrator matches one outer iteration's pairs (:func:`calidar.strips.calibrate._match_or_error`),
+as the calibrator matches one outer iteration's pairs (:func:`calidar.strips.outer_loop.match_or_error`),
 interleaved: in this process (as before), then on :func:`calidar.strips.processes.pair_processes`' two
 workers (the pool started once, its start timed on its own, as a calibration's first round pays it).
 Printed per round the wall seconds of each, this process's CPU seconds and the workers' (summed over
@@ -47,7 +47,7 @@ def main() -> None:
     from calidar.io.trajectory import read_trajectory
     from calidar.pipelines.boresight import load_strips
     from calidar.sensor import Sensor
-    from calidar.strips.calibrate import _match_or_error
+    from calidar.strips.outer_loop import match_or_error
     from calidar.strips.matchers import Vgicp
     from calidar.strips.overlap import find_overlaps
     from calidar.strips.processes import map_in_processes, pair_processes
@@ -74,11 +74,11 @@ def main() -> None:
         print(f"pool start {time.perf_counter() - clock:.2f} s wall", flush=True)
         for k in range(args.rounds):
             wall, cpu = time.perf_counter(), time.process_time()
-            local = [_match_or_error(*t) for t in tasks]
+            local = [match_or_error(*t) for t in tasks]
             ours.append((time.perf_counter() - wall, time.process_time() - cpu))
             load = os.getloadavg()[0]
             wall, cpu = time.perf_counter(), time.process_time()
-            spent = map_in_processes(pool, timed, [(_match_or_error, *t) for t in tasks])
+            spent = map_in_processes(pool, timed, [(match_or_error, *t) for t in tasks])
             theirs.append((time.perf_counter() - wall, time.process_time() - cpu))
             remote = [r for _, r in spent]
             print(f"round {k + 1}: in process {ours[-1][0]:.2f} s wall ({ours[-1][1]:.2f} s CPU); two workers "

@@ -1,7 +1,7 @@
 """Benchmark: are the rows' σ right at the truth, and what does the global test read there? (issue 26)
 
     NUMBA_NUM_THREADS=1 PYTHONPATH=src python benchmarks/strips_row_sigma.py --seeds 7,8 [--preset airborne] \\
-        [--directions cross] [--scene urban] [--methods planes,vgicp] [--cache DIR]
+        [--directions cross] [--scene urban] [--methods planes,vgicp] [--cache DIR] [--estimators]
 
 Each seed: ``calidar simulate survey --preset P --seed S --boresight-error 0.05,-0.03,0.1`` WITHOUT trajectory
 errors (``--cache DIR`` keeps it), read as ``calidar boresight`` reads it, every overlap re-georeferenced with
@@ -13,6 +13,11 @@ skipped as gross: ``calidar.adjust.unit_weight.skipped_sigma0``, issue 26, fifth
 is estimated, so no redundancy correction) against its χ² 95 % range, and as it took it before (Cauchy weights on
 z / 1.4826·MAD, ÷ their consistency for Student-t residuals with the rows' degrees of freedom; also ÷ the normal
 factor).
+
+``--estimators`` (issue 26, fifth session): per method also the |z| quantiles against the normal's and the rows' t
+mixture's, and what σ0 estimators read — the plain RMS, the old Cauchy-weighted one, an M-estimator of scale with
+the Cauchy ρ made consistent for the rows' t mixture (δ = E[ρ(u)] under it, Maronna, Martin & Yohai 2006 §2.5), the
+skipped RMS — each with the change 1 % of the rows given 10σ errors (of either sign) makes.
 """
 
 from __future__ import annotations
@@ -23,7 +28,7 @@ from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
-from scipy.special import chdtri
+from scipy.special import chdtri, gammaln, stdtr
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from strips_montecarlo import URBAN, seeds_of  # noqa: E402
@@ -32,7 +37,7 @@ from calidar.adjust.solver import robust_weights  # noqa: E402
 from calidar.adjust.unit_weight import skipped_sigma0  # noqa: E402
 from calidar.pipelines.boresight import load_inputs  # noqa: E402
 from calidar.sim.survey import simulate_survey, survey_config  # noqa: E402
-from calidar.strips.calibrate import _Run  # noqa: E402
+from calidar.strips.outer_loop import Run  # noqa: E402
 from calidar.strips.config import StripSettings  # noqa: E402
 from calidar.strips.matchers import TiePlanes, Vgicp  # noqa: E402
 from calidar.strips.parameters import sensor_of  # noqa: E402
@@ -61,7 +66,7 @@ def rows_at_truth(folder: Path, method: str) -> np.ndarray:
     inputs = load_inputs(sorted((folder / "strips").glob("*.laz")), folder / "sbet.out", folder / "sensor.toml",
                          truth=folder / "truth.json")
     truth = sensor_of(inputs.nominal, inputs.truth)
-    run = _Run.start(inputs.strips, truth, MATCHERS[method](), StripSettings())
+    run = Run.start(inputs.strips, truth, MATCHERS[method](), StripSettings())
     at = {i: georeference(truth, None, run.poses[i], run.by_id[i].time[idx]) for i, idx in run.need.items()}
     out = []
     for o in run.overlaps:
@@ -80,6 +85,59 @@ def weighted_sigma0(z: np.ndarray, dof: np.ndarray | None = None) -> float:
     w = robust_weights(z / s, "cauchy")
     factor = robust_consistency("cauchy") if dof is None else consistency("cauchy", dof_summary(dof))
     return float(np.sqrt(np.sum(w * z * z) / np.sum(w) / factor))
+
+
+QUANTILES = (0.5, 0.9, 0.99, 0.999)
+
+
+def _mixture(dof: np.ndarray):
+    """(ν, unit) of the rows' t mixture (:func:`dof_summary`'s representative ν; t_ν · unit has variance 1)."""
+    nu = np.clip(np.asarray(dof_summary(dof) or [1e9], float), 2.05, 1e9)
+    return nu, np.sqrt((nu - 2.0) / nu)
+
+
+def mixture_quantiles(dof: np.ndarray) -> list[float]:
+    """The |z| quantiles :data:`QUANTILES` of the rows' t mixture (bisection on its CDF)."""
+    nu, unit = _mixture(dof)
+    out = []
+    for q in QUANTILES:
+        lo, hi = 0.0, 60.0
+        for _ in range(60):
+            mid = 0.5 * (lo + hi)
+            lo, hi = (mid, hi) if np.mean(2.0 * stdtr(nu, mid / unit) - 1.0) < q else (lo, mid)
+        out.append(0.5 * (lo + hi))
+    return out
+
+
+def m_scale(z: np.ndarray, dof: np.ndarray, k: float = 2.385) -> float:
+    """The M-estimator of scale s with mean ρ(z/s) = E[ρ(u)] for u from the rows' t mixture, ρ(u) = log(1 + (u/k)²)
+    (the Cauchy loss; trapezoid rule on a sinh grid, bisection on log s)."""
+    nu, unit = _mixture(dof)
+    rho = lambda u: np.log1p((u / k) ** 2)  # noqa: E731
+    x = np.sinh(np.linspace(-9.0, 9.0, 6001))
+    log_c = gammaln((nu + 1) / 2) - gammaln(nu / 2) - 0.5 * np.log(nu * np.pi)
+    dens = np.exp(log_c[:, None] - (nu[:, None] + 1) / 2 * np.log1p(x[None, :] ** 2 / nu[:, None]))
+    delta = float(np.mean(np.sum(dens * np.gradient(x) * rho(unit[:, None] * x[None, :]), axis=1)))
+    lo, hi = 0.1, 10.0
+    for _ in range(60):
+        mid = np.sqrt(lo * hi)
+        lo, hi = (mid, hi) if np.mean(rho(z / mid)) > delta else (lo, mid)
+    return float(np.sqrt(lo * hi))
+
+
+def estimators(label: str, rows: np.ndarray) -> str:
+    """The |z| quantiles and what each σ0 estimator reads, with 1 % of the rows given 10σ errors (see the docstring)."""
+    rows = rows[rows[:, 0] >= 0.5]
+    z, dof = rows[:, 1] / rows[:, 2], rows[:, 3]
+    rng = np.random.default_rng(1)
+    bad = z.copy()
+    i = rng.choice(z.size, z.size // 100, replace=False)
+    bad[i] += 10.0 * rng.choice([-1.0, 1.0], i.size)
+    reads = {"RMS": lambda v: float(np.sqrt(np.mean(v * v))), "before": lambda v: weighted_sigma0(v, dof),
+             "M-scale": lambda v: m_scale(v, dof), "skipped": lambda v: skipped_sigma0(v)[0]}
+    text = "; ".join(f"{k} {f(z):.3f} ({100 * (f(bad) / f(z) - 1):+.1f} %)" for k, f in reads.items())
+    return (f"{label}: |z| quantiles {'/'.join(f'{q:.2f}' for q in np.quantile(np.abs(z), QUANTILES))} (t mixture "
+            + "/".join(f"{q:.2f}" for q in mixture_quantiles(dof)) + f"); σ0 {text} (1 % of 10σ errors)")
 
 
 def line(label: str, rows: np.ndarray) -> str:
@@ -106,6 +164,7 @@ def main() -> None:
     ap.add_argument("--scene", default="preset", choices=("preset", "urban"))
     ap.add_argument("--methods", default="planes,vgicp")
     ap.add_argument("--cache", type=Path, default=Path("/tmp/calidar_row_sigma"))
+    ap.add_argument("--estimators", action="store_true", help="also what each σ0 estimator reads (issue 26)")
     args = ap.parse_args()
     pooled: dict[str, list] = {}
     for seed in seeds_of(args.seeds):
@@ -114,9 +173,13 @@ def main() -> None:
             rows = rows_at_truth(folder, method)
             pooled.setdefault(method, []).append(rows)
             print(line(f"{args.preset} {args.directions} {args.scene} seed {seed} {method:6s}", rows), flush=True)
+            if args.estimators:
+                print(estimators(f"{args.preset} {args.directions} {args.scene} seed {seed} {method:6s}", rows), flush=True)
     for method, parts in pooled.items():
         if len(parts) > 1:
             print(line(f"{args.preset} {args.directions} {args.scene} pooled  {method:6s}", np.concatenate(parts)))
+        if args.estimators:
+            print(estimators(f"{args.preset} {args.directions} {args.scene} pooled  {method:6s}", np.concatenate(parts)))
 
 
 if __name__ == "__main__":

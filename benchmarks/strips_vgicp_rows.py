@@ -41,7 +41,7 @@ from calidar.pipelines.boresight import load_inputs
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from strips_montecarlo import URBAN  # noqa: E402
 from calidar.sim.survey import simulate_survey, survey_config
-from calidar.strips.calibrate import _Run
+from calidar.strips.outer_loop import Run
 from calidar.strips.config import StripSettings
 from calidar.strips.matchers import TiePlanes, Vgicp
 from calidar.strips.parameters import sensor_of
@@ -88,7 +88,7 @@ def main() -> None:
     inputs = load_inputs(sorted((folder / "strips").glob("*.laz")), folder / "sbet.out", folder / "sensor.toml",
                          truth=folder / "truth.json")
     truth = sensor_of(inputs.nominal, inputs.truth)
-    run = _Run.start(inputs.strips, truth, TiePlanes() if args.method == "planes" else Vgicp(), StripSettings())
+    run = Run.start(inputs.strips, truth, TiePlanes() if args.method == "planes" else Vgicp(), StripSettings())
     at_truth = {i: georeference(truth, None, run.poses[i], run.by_id[i].time[idx]) for i, idx in run.need.items()}
     print(f"{args.preset} seed {args.seed} {args.directions}{' exact trajectory' if exact else ''}, {args.method}: "
           f"{len(run.overlaps)} pairs")

@@ -8,8 +8,10 @@ import numpy as np
 import pytest
 
 import calidar.strips.calibrate as calibrate_module
+import calidar.strips.outer_loop as outer_loop_module
 from calidar.strips import processes
-from calidar.strips.calibrate import _match_or_error, calibrate
+from calidar.strips.calibrate import calibrate
+from calidar.strips.outer_loop import match_or_error
 from calidar.strips.config import CalibrationConfig, StripSettings, Vgicp
 from calidar.strips.matchers import TiePlanes
 from calidar.strips.processes import map_in_processes, pair_processes, worth_processes
@@ -57,8 +59,8 @@ def test_vgicp_correspondences_identical_in_worker_processes(pool):
     a, b, c = strips_for(1)
     matcher = Vgicp(VgicpSettings(max_pairs=800))
     tasks = [(matcher, 1, a, 2, b), (matcher, 1, a, 3, c)]
-    local = [_match_or_error(*t) for t in tasks]
-    remote = map_in_processes(pool, _match_or_error, tasks)
+    local = [match_or_error(*t) for t in tasks]
+    remote = map_in_processes(pool, match_or_error, tasks)
     for x, y in zip(local, remote):
         assert (x.strip_a, x.strip_b) == (y.strip_a, y.strip_b) and x.n_obs == y.n_obs > 100
         assert (x.A != y.A).nnz == 0 and (x.B != y.B).nnz == 0
@@ -74,7 +76,7 @@ def test_calibration_identical_with_pairs_in_worker_processes(monkeypatch):
     monkeypatch.setattr(calibrate_module, "PROCESSES", 2)
     monkeypatch.setattr(processes, "MIN_POINTS", 0)  # this small survey's rounds go to the workers too
     used = []
-    monkeypatch.setattr(calibrate_module, "map_in_processes",
+    monkeypatch.setattr(outer_loop_module, "map_in_processes",
                         lambda *a: used.append(1) or processes.map_in_processes(*a))
     remote = calibrate(strips, res.nominal, config)
     assert used and local.pairs == remote.pairs and len(local.pairs) >= 4

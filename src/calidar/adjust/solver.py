@@ -291,7 +291,8 @@ def _solution(fit: _Fit, x: np.ndarray, r: np.ndarray, w: np.ndarray, history: l
     )
     if fit.robust:  # the σ0 the variance factor took, for the global test (calidar.strips.verdict)
         s0, skipped = fit.sigma0(r, x)
-        sol.extra["unit_weight"] = {"sigma0": s0, "rows_skipped": skipped, "gross_z": GROSS_Z}
+        sol.extra["unit_weight"] = {"sigma0": s0, "rows_skipped": skipped, "gross_z": GROSS_Z,
+                                    "redundancy": float(max(fit.n - skipped + fit.n_prior - len(fit.free), 1))}
     return sol, J, N
 
 

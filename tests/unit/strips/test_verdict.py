@@ -209,6 +209,9 @@ def test_the_global_test_takes_sigma0_consistent_for_normal_residuals():
     assert global_test_sigma0(sol) == pytest.approx(1.0, abs=0.015)  # the σ0 the variance factor took
     f = sigma0_finding(sol)
     assert f.status == "pass" and "the RMS of the residuals over their σ, 0 rows beyond 7 σ0 skipped" in f.detail
+    from calidar.strips.global_test import redundancy
+
+    assert redundancy(sol) == 20_000 - 1  # the rows the σ0 kept, less the parameter: the χ² range's dof
     del sol.extra["unit_weight"]  # a solution from before it was recorded: the engine's σ0 ÷ the normal factor
     assert global_test_sigma0(sol) == pytest.approx(1.0, abs=0.015)
     f = sigma0_finding(sol)
