@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from strips_scale import simulate  # noqa: E402  (the shared 8-strip survey at a size)
+from survey_pairs import survey_pairs  # noqa: E402  (the shared survey's pairs, as vgicp_pairs.py sets them up)
 
 
 def same(x, y) -> bool:
@@ -44,12 +44,8 @@ def timed(func, *args):
 
 
 def main() -> None:
-    from calidar.io.trajectory import read_trajectory
-    from calidar.pipelines.boresight import load_strips
-    from calidar.sensor import Sensor
     from calidar.strips.outer_loop import match_or_error
     from calidar.strips.matchers import Vgicp
-    from calidar.strips.overlap import find_overlaps
     from calidar.strips.processes import map_in_processes, pair_processes
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -57,14 +53,8 @@ def main() -> None:
     ap.add_argument("--cache", type=Path, default=Path(tempfile.gettempdir()) / "calidar_bench_strips_scale")
     ap.add_argument("--rounds", type=int, default=3)
     args = ap.parse_args()
-    sim = simulate(args.cache, args.size)
-    nominal = Sensor.read(sim / "sensor.toml")
-    strips, _ = load_strips(sorted((sim / "strips").glob("*.laz")), read_trajectory(sim / "sbet.out"), nominal)
-    by_id = {s.id: s for s in strips}
-    overlaps, _ = find_overlaps({i: s.points for i, s in by_id.items()}, 5.0, 4)
     matcher = Vgicp()
-    tasks = [(matcher, o.a, by_id[o.a].georeference(nominal, o.index_a), o.b, by_id[o.b].georeference(nominal, o.index_b))
-             for o in overlaps]
+    tasks = [(matcher, *pair) for pair in survey_pairs(args.cache, args.size)]
     print(f"{len(tasks)} pairs, {sum(len(t[2]) + len(t[4]) for t in tasks) / 1e6:.2f} M points; "
           f"{os.cpu_count()} cores", flush=True)
     ours, theirs = [], []

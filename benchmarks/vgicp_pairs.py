@@ -29,16 +29,12 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from strips_scale import simulate  # noqa: E402  (the shared 8-strip survey at a size)
+from survey_pairs import survey_pairs  # noqa: E402  (the shared survey's pairs, as pair_processes.py sets them up)
 
 
 def main() -> None:
     import small_gicp
 
-    from calidar.io.trajectory import read_trajectory
-    from calidar.pipelines.boresight import load_strips
-    from calidar.sensor import Sensor
-    from calidar.strips.overlap import find_overlaps
     from calidar.strips.vgicp import VgicpSettings, match_pair_vgicp, overlap_masks
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -46,18 +42,13 @@ def main() -> None:
     ap.add_argument("--cache", type=Path, default=Path(tempfile.gettempdir()) / "calidar_bench_strips_scale")
     ap.add_argument("--repeat", type=int, default=3)
     args = ap.parse_args()
-    sim = simulate(args.cache, args.size)
-    nominal = Sensor.read(sim / "sensor.toml")
-    strips, _ = load_strips(sorted((sim / "strips").glob("*.laz")), read_trajectory(sim / "sbet.out"), nominal)
-    by_id = {s.id: s for s in strips}
+    pairs = survey_pairs(args.cache, args.size)
     settings = VgicpSettings()
-    overlaps, _ = find_overlaps({i: s.points for i, s in by_id.items()}, 5.0, 4)
     print(f"machine: {platform.machine()}, {os.cpu_count()} cores, python {platform.python_version()}; "
           f"NUMBA_NUM_THREADS={os.environ.get('NUMBA_NUM_THREADS')}; load average {os.getloadavg()[0]:.1f}; "
-          f"{len(overlaps)} pairs", flush=True)
+          f"{len(pairs)} pairs", flush=True)
     ours_all, theirs_all, same_all, stages = [], [], [], {}
-    for o in overlaps:
-        pa, pb = by_id[o.a].georeference(nominal, o.index_a), by_id[o.b].georeference(nominal, o.index_b)
+    for a, pa, b, pb in pairs:
         in_a, in_b, area = overlap_masks(pa, pb, settings.overlap_cell_m)
         origin = pa[in_a].mean(axis=0)
         crop_a, crop_b = pa[in_a] - origin, pb[in_b] - origin
@@ -68,9 +59,9 @@ def main() -> None:
         for _ in range(args.repeat):
             t = time.process_time()
             try:
-                match_pair_vgicp(o.a, pa, o.b, pb, settings, stages)
+                match_pair_vgicp(a, pa, b, pb, settings, stages)
             except Exception as e:  # a skipped pair still counts its time
-                print(f"  pair {o.a}–{o.b}: {e}")
+                print(f"  pair {a}–{b}: {e}")
             ours.append(time.process_time() - t)
             t = time.process_time()
             small_gicp.align(crop_a, crop_b, registration_type="VGICP", num_threads=1)
@@ -82,7 +73,7 @@ def main() -> None:
         ours_all.append(np.median(ours))
         theirs_all.append(np.median(theirs))
         same_all.append(np.median(same))
-        print(f"pair {o.a}–{o.b}: {len(crop_a):7d} + {len(crop_b):7d} points: calidar {ours_all[-1]:.3f} s; small_gicp "
+        print(f"pair {a}–{b}: {len(crop_a):7d} + {len(crop_b):7d} points: calidar {ours_all[-1]:.3f} s; small_gicp "
               f"align, defaults {theirs_all[-1]:.3f} s ({ours_all[-1] / theirs_all[-1]:.2f}×), at calidar's finest "
               f"stage ({down:.2f} m, voxel {voxel:.2f} m) {same_all[-1]:.3f} s ({ours_all[-1] / same_all[-1]:.2f}×)",
               flush=True)

@@ -26,20 +26,65 @@ def _dense_groups(ij: np.ndarray):  # pragma: no cover - numba
     n = ij.shape[0]
     if n == 0:
         return np.zeros(0, np.int64), np.zeros(0, np.int64), True
+    box = cell_box(ij)
+    if not dense_fits(n, box):
+        return np.zeros(0, np.int64), np.zeros(0, np.int64), False
+    _, inv, first = first_appearance(ij, box)
+    return inv, first, True
+
+
+# The dense table, one implementation for every grouping by cells (here and in
+# calidar.strips.moments_kernel): the cells' bounding box (lo0, hi0, lo1, hi1), table slot
+# (i − lo0) · width + j − lo1, used when it holds ≤ 4 N + 65 536 cells.
+
+@njit(cache=True, nogil=True)
+def cell_box(ij: np.ndarray):  # pragma: no cover - numba
+    """(lo0, hi0, lo1, hi1): the bounding box of integer cells ij (N ≥ 1, 2)."""
     lo0, hi0, lo1, hi1 = ij[0, 0], ij[0, 0], ij[0, 1], ij[0, 1]
-    for k in range(n):
+    for k in range(ij.shape[0]):
         lo0, hi0 = min(lo0, ij[k, 0]), max(hi0, ij[k, 0])
         lo1, hi1 = min(lo1, ij[k, 1]), max(hi1, ij[k, 1])
+    return lo0, hi0, lo1, hi1
+
+
+@njit(cache=True, nogil=True)
+def dense_fits(n: int, box) -> bool:  # pragma: no cover - numba
+    """Whether a dense table over ``box`` is small against ``n`` points (≤ 4 n + 65 536 cells)."""
+    lo0, hi0, lo1, hi1 = box
+    return (hi0 - lo0 + 1) * (hi1 - lo1 + 1) <= 4 * n + 65536
+
+
+@njit(cache=True, nogil=True)
+def first_appearance(ij: np.ndarray, box):  # pragma: no cover - numba
+    """(table: each slot's group or −1, group of each point (N,), first point of each group (K,))
+    of cells ij (N, 2) inside ``box``, groups numbered in order of first appearance."""
+    lo0, hi0, lo1, hi1 = box
     width = hi1 - lo1 + 1
-    if (hi0 - lo0 + 1) * width > 4 * n + 65536:
-        return np.zeros(0, np.int64), np.zeros(0, np.int64), False
     slot = np.full((hi0 - lo0 + 1) * width, -1, np.int64)
-    inv, first, groups = np.empty(n, np.int64), np.empty(n, np.int64), 0
-    for k in range(n):
+    inv, first, groups = np.empty(ij.shape[0], np.int64), np.empty(ij.shape[0], np.int64), 0
+    for k in range(ij.shape[0]):
         s = (ij[k, 0] - lo0) * width + ij[k, 1] - lo1
         if slot[s] < 0:
             slot[s] = groups
             first[groups] = k
             groups += 1
         inv[k] = slot[s]
-    return inv, first[:groups], True
+    return slot, inv, first[:groups]
+
+
+@njit(cache=True, nogil=True)
+def key_order(occupied: np.ndarray, box):  # pragma: no cover - numba
+    """The occupied slots of a table over ``box`` in the order of their cells' keys
+    ((i << 32) + (j & 0xFFFFFFFF), :func:`calidar.strips.overlap.cell_keys`): a walk over the
+    table, i ascending, then j ≥ 0 ascending, then j < 0 ascending — no sort."""
+    lo0, hi0, lo1, hi1 = box
+    width = hi1 - lo1 + 1
+    out, r = np.empty(np.count_nonzero(occupied), np.int64), 0
+    j_split = min(max(-lo1, 0), width)  # table columns of j < 0 come first in the table, last in key order
+    for a in range(hi0 - lo0 + 1):
+        for b in range(width):
+            col = b + j_split if b + j_split < width else b + j_split - width
+            if occupied[a * width + col]:
+                out[r] = a * width + col
+                r += 1
+    return out
