@@ -110,6 +110,10 @@ class LasChunkWriter:
     def write(self, xyz, **fields) -> None:
         self._writer.write_points(_las_data(self.header, xyz, **fields).points)
 
+    def write_record(self, record: laspy.PackedPointRecord) -> None:
+        """Points already packed as records of ``self.header`` (fast writers that build them)."""
+        self._writer.write_points(record)
+
     def __exit__(self, *exc) -> bool:
         self._writer.close()
         return bool(self._atomic.__exit__(*exc))

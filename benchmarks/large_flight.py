@@ -1,0 +1,162 @@
+"""Benchmark: a measured large flight (issue 32) — simulated fast to LAZ on disk, then calibrated
+from the files by ``calidar boresight``, against the floor of reading them.
+
+    # simulate (once per size; the strips of the 8-line survey of benchmarks/strips_scale.py)
+    nice -n 10 env NUMBA_NUM_THREADS=1 OMP_NUM_THREADS=1 PYTHONPATH=src python benchmarks/large_flight.py \
+        simulate --size 1000 --data /work/bigsim [--workers 2]
+    # measure: the floor (laspy + lazrs reading every field) and `calidar boresight`, interleaved
+    nice -n 10 env NUMBA_NUM_THREADS=1 OMP_NUM_THREADS=1 PYTHONPATH=src python benchmarks/large_flight.py \
+        measure --size 1000 --data /work/bigsim [--runs 1] [--method planes]
+
+The survey is benchmarks/strips.py's (airborne preset, 6 parallel lines flown in alternate
+directions + 2 cross lines, boresight errors 0.03 / −0.04 / 0.05°, the preset's 3 cm / 0.002°
+trajectory errors and their smrmsg.out, 3 cm range noise) at the density that gives ≈ ``--size``
+million points, simulated by :func:`calidar.sim.large_survey.simulate_large_survey` (the same
+flight over a closed-form piecewise-planar ground, one return per pulse, ≈ 5 B a point in LAZ)
+in a child process: wall, CPU seconds and peak RSS (``os.wait4``) into ``DIR/<size>/simulate.json``.
+``--stages``: then one run of the same pipeline (benchmarks/strips_scale.py's child) timed per
+stage (reading, calibrating, overlap quality). ``measure`` runs whole child processes — the floor (benchmarks/against_read.py's: every field of
+every file decompressed by laspy + lazrs) then ``python -m calidar boresight STRIPS --trajectory
+--sensor --method --out DIR/<size>/out_<method>``, ``--runs`` times interleaved — and prints each
+one's wall and CPU seconds and peak RSS (``os.wait4``), the ratio to the floor run just before it,
+and the boresight's error against truth.json in units of its σ; the command's stderr (its
+progress) goes to ``DIR/<size>/boresight_<method>_<run>.log``. Data stay outside the repository:
+delete ``DIR/flight_<size>M`` when done.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import subprocess
+import sys
+import time
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+ERRORS = {"boresight_roll": np.radians(0.03), "boresight_pitch": np.radians(-0.04), "boresight_yaw": np.radians(0.05)}
+PULSES_PER_DENSITY = 4.86e6  #: points of the 8-line survey per unit of simulator density (one return a pulse)
+HERE = Path(__file__).resolve()
+
+
+def survey(density: float):
+    """benchmarks/strips.py's 8-line airborne survey at ``density``."""
+    from calidar.sim.survey import PRESETS, survey_config
+
+    scene = replace(PRESETS["airborne"].scene, width_m=3300.0)
+    return survey_config("airborne", seed=5, density=density, directions="cross", scene=scene, errors=ERRORS,
+                         range_noise_m=0.03)
+
+
+def folder(data: Path, size: float) -> Path:
+    return data / f"flight_{size:g}M"
+
+
+def child_simulate(sim: Path, size: float, workers: int) -> None:
+    from calidar.sim.large_survey import simulate_large_survey
+
+    density = round(size * 1e6 / PULSES_PER_DENSITY, 4)
+    res = simulate_large_survey(survey(density), sim, workers=workers)
+    print(json.dumps({"points": res.n_points, "density": density, "files": len(res.lines)}))
+
+
+def child_read(sim: Path) -> None:
+    """The floor: laspy + lazrs decompressing every field of every file (benchmarks/against_read.py)."""
+    import laspy
+
+    n = 0
+    for path in sorted((sim / "strips").glob("*.laz")):
+        with laspy.open(path) as reader:
+            for rec in reader.chunk_iterator(2_000_000):
+                n += len(rec)
+    print(json.dumps({"points": n}))
+
+
+def measured(cmd: list[str], log: Path | None = None) -> dict:
+    """A child process: its last JSON line (if any), wall and CPU seconds, peak RSS GiB."""
+    env = {**os.environ, "PYTHONPATH": str(HERE.parents[1] / "src")}
+    load = os.getloadavg()[0]
+    t = time.perf_counter()
+    with open(log or os.devnull, "w") as err:
+        proc = subprocess.Popen(cmd, env=env, stdout=subprocess.PIPE, stderr=err, text=True)
+        text = proc.stdout.read()
+        _, status, usage = os.wait4(proc.pid, 0)
+    wall = time.perf_counter() - t
+    code = os.waitstatus_to_exitcode(status)
+    if code not in (0, 3):  # 3: a FAIL verdict, outputs written
+        raise SystemExit(f"run failed ({code}): {' '.join(cmd[:4])} …")
+    lines = [ln for ln in text.strip().splitlines() if ln.startswith("{")]
+    return {"wall_s": wall, "cpu_s": usage.ru_utime + usage.ru_stime, "rss_gib": usage.ru_maxrss * 1024 / 2**30,
+            "load": load, "out": json.loads(lines[-1]) if lines else None}
+
+
+def simulate(data: Path, size: float, workers: int) -> dict:
+    sim = folder(data, size)
+    r = measured([sys.executable, str(HERE), "--child-simulate", str(sim), str(size), str(workers)])
+    gb = sum(p.stat().st_size for p in (sim / "strips").glob("*.laz")) / 1e9
+    doc = {**r, **r.pop("out"), "gb": gb, "workers": workers}
+    (sim / "simulate.json").write_text(json.dumps(doc, indent=1))
+    print(f"simulated {doc['points'] / 1e6:.1f} M points in {doc['files']} files, {gb:.2f} GB: {r['wall_s']:.0f} s wall, "
+          f"{r['cpu_s']:.0f} s CPU, peak {r['rss_gib']:.2f} GiB, {workers} worker(s), load {r['load']:.1f}", flush=True)
+    return doc
+
+
+def errors_in_sigma(out: Path, sim: Path) -> dict:
+    """The boresight's error against truth.json in units of its σ (roll, pitch, yaw)."""
+    sol = json.loads((out / "solution.json").read_text())["parameters"]
+    truth = json.loads((sim / "truth.json").read_text())["parameters"]
+    return {k: (sol[k]["value"] - truth[k]["value"]) / sol[k]["sigma"] for k in ERRORS}
+
+
+def measure(data: Path, size: float, runs: int, method: str, stages: bool = False) -> None:
+    sim = folder(data, size)
+    strips = [str(p) for p in sorted((sim / "strips").glob("*.laz"))]
+    out = sim / f"out_{method}"
+    cmd = [sys.executable, "-m", "calidar", "boresight", *strips, "--trajectory", str(sim / "sbet.out"), "--sensor",
+           str(sim / "sensor.toml"), "--method", method, "--out", str(out), "--force"]
+    print(f"machine: {platform.machine()}, {os.cpu_count()} cores, python {platform.python_version()}; "
+          f"NUMBA_NUM_THREADS={os.environ.get('NUMBA_NUM_THREADS')}; {sim}", flush=True)
+    for k in range(runs):
+        floor = measured([sys.executable, str(HERE), "--child-read", str(sim)])
+        print(f"run {k + 1}: read {floor['out']['points'] / 1e6:.1f} M points: {floor['wall_s']:.1f} s wall, "
+              f"{floor['cpu_s']:.1f} s CPU, peak {floor['rss_gib']:.2f} GiB, load {floor['load']:.1f}", flush=True)
+        r = measured(cmd, log=sim / f"boresight_{method}_{k + 1}.log")
+        z = errors_in_sigma(out, sim)
+        print(f"run {k + 1}: boresight ({method}) {r['wall_s']:.1f} s wall ({r['wall_s'] / floor['wall_s']:.2f}× the read), "
+              f"{r['cpu_s']:.1f} s CPU ({r['cpu_s'] / floor['cpu_s']:.2f}×), peak {r['rss_gib']:.2f} GiB, "
+              f"load {r['load']:.1f}; error/σ roll {z['boresight_roll']:+.2f}, pitch {z['boresight_pitch']:+.2f}, "
+              f"yaw {z['boresight_yaw']:+.2f}", flush=True)
+    if stages:  # where the time goes: benchmarks/strips_scale.py's child, the same pipeline with its progress stamped
+        r = measured([sys.executable, str(HERE.parent / "strips_scale.py"), "--child", str(sim), method, "300000"])
+        o = r["out"]
+        print(f"stages ({method}, the pipeline in one process): {r['wall_s']:.1f} s wall, {r['cpu_s']:.1f} s CPU, "
+              f"peak {r['rss_gib']:.2f} GiB: reading {o['ingest_s']:.1f} s, calibrating {o['calibrate_s']:.1f} s, "
+              f"overlap quality {o['quality_s']:.1f} s, then report and outputs", flush=True)
+
+
+def main() -> None:
+    if len(sys.argv) > 1 and sys.argv[1] == "--child-simulate":
+        return child_simulate(Path(sys.argv[2]), float(sys.argv[3]), int(sys.argv[4]))
+    if len(sys.argv) > 1 and sys.argv[1] == "--child-read":
+        return child_read(Path(sys.argv[2]))
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("what", choices=["simulate", "measure"])
+    ap.add_argument("--size", type=float, default=64.0, help="million points")
+    ap.add_argument("--data", type=Path, default=Path("/work/bigsim"))
+    ap.add_argument("--workers", type=int, default=2, help="simulate: processes writing strips")
+    ap.add_argument("--runs", type=int, default=1, help="measure: interleaved floor + boresight rounds")
+    ap.add_argument("--method", default="planes", choices=["planes", "vgicp"])
+    ap.add_argument("--stages", action="store_true", help="measure: then one run timed per stage")
+    args = ap.parse_args()
+    if args.what == "simulate":
+        simulate(args.data, args.size, args.workers)
+    else:
+        measure(args.data, args.size, args.runs, args.method, args.stages)
+
+
+if __name__ == "__main__":
+    main()
