@@ -26,7 +26,7 @@ SYSTEM_OPTIONS = {"dead_time_ns": ("dead_time", 1e-9), "pulse_width_ns": ("pulse
 def ccr_config(path: Path | None, given: dict):
     """The configuration: the ``--config`` file's (else the defaults), with the options ``given`` on the
     command line ({parameter name: value}) replacing its settings; checked."""
-    from calidar.errors import InputError
+    from calidar.cli.options import parse_beams
     from calidar.pipelines.ccr_config import CCRConfig
     from calidar.validate import parse_floats
 
@@ -36,12 +36,7 @@ def ccr_config(path: Path | None, given: dict):
         search["diameter_min"], search["diameter_max"] = parse_floats(given["diameter_range"], 2, "--diameter-range")
     system = {SYSTEM_OPTIONS[k][0]: v if SYSTEM_OPTIONS[k][1] is None else v * SYSTEM_OPTIONS[k][1]
               for k, v in given.items() if k in SYSTEM_OPTIONS}
-    beams = config.beams
-    if "beam" in given:
-        names = tuple(b.strip().lower() for b in given["beam"].split(",") if b.strip())
-        beams = None if names == ("all",) else names
-        if not names:
-            raise InputError(None, "--beam", f"expected all or beam names separated by commas, got {given['beam']!r}")
+    beams = parse_beams(given["beam"]) if "beam" in given else config.beams
     return CCRConfig(beams, replace(config.search, **search), replace(config.system, **system))
 
 
