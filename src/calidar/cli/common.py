@@ -65,7 +65,7 @@ def exit_with_verdict(*verdicts) -> None:
         raise typer.Exit(code)
 
 console = Console()
-err_console = Console(stderr=True, soft_wrap=True)  # one error = one line, never wrapped
+err_console = Console(stderr=True, soft_wrap=True, emoji=False)  # one error = one line, never wrapped (":moon:" as written)
 
 
 def print_error(message: str, prefix: str = "error: ") -> None:

@@ -144,7 +144,8 @@ class FileConfig:
             keys = [k for k in cls.KEYS if k.option == option and k.attr in from_file and k.attr not in given]
             if path is None or not keys:
                 raise
-            raise InputError(path, keys[0].label, e.problem) from None
+            label = keys[0].label if len(keys) == 1 else f"{', '.join(k.key for k in keys)} ({option})"
+            raise InputError(path, label, e.problem) from None
         return config
 
 
