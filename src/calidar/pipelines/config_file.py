@@ -62,9 +62,10 @@ class Key:
 
 
 def get(obj, attr: str):
-    """The value at a dotted attribute path (dataclass fields, dict entries; a missing entry: None)."""
+    """The value at a dotted attribute path (dataclass fields, dict entries, a missing one None, tuple
+    items by index)."""
     for part in attr.split("."):
-        obj = obj.get(part) if isinstance(obj, dict) else getattr(obj, part)
+        obj = obj.get(part) if isinstance(obj, dict) else obj[int(part)] if isinstance(obj, tuple) else getattr(obj, part)
     return obj
 
 
@@ -74,8 +75,18 @@ def put(obj, attr: str, value):
     if isinstance(obj, dict):
         inner = put(obj.get(head), rest, value) if rest else value
         return {**{k: v for k, v in obj.items() if k != head}, **({} if inner is None else {head: inner})}
+    if isinstance(obj, tuple):
+        k = int(head)
+        return (*obj[:k], put(obj[k], rest, value) if rest else value, *obj[k + 1:])
     inner = put(getattr(obj, head), rest, value) if rest else value
     return dataclasses.replace(obj, **{head: inner})
+
+
+def _toml(value):
+    """A value as TOML holds it: tuples as lists, numpy scalars as Python numbers."""
+    if isinstance(value, (tuple, list)):
+        return [_toml(v) for v in value]
+    return value.item() if hasattr(value, "item") and not isinstance(value, (str, bytes)) else value
 
 
 def hint(cls: type, attr: str):
@@ -105,7 +116,7 @@ class FileConfig:
             if value is None:
                 continue
             section, _, name = k.key.rpartition(".")
-            (doc.setdefault(section, {}) if section else doc)[name] = list(value) if isinstance(value, tuple) else value
+            (doc.setdefault(section, {}) if section else doc)[name] = _toml(value)
         return doc
 
     def write(self, path: Path) -> Path:
