@@ -69,17 +69,24 @@ def get(obj, attr: str):
     return obj
 
 
-def put(obj, attr: str, value):
-    """A copy of ``obj`` with ``value`` at a dotted attribute path (None removes a dict entry)."""
-    head, _, rest = attr.partition(".")
+def put(obj, values: dict):
+    """A copy of ``obj`` with ``values`` ({dotted attribute path: value}) put in, each nested object
+    made once with all of its changes (its checks see them together); None removes a dict entry."""
+    direct: dict = {}
+    nested: dict[str, dict] = {}
+    for attr, value in values.items():
+        head, _, rest = attr.partition(".")
+        if rest:
+            nested.setdefault(head, {})[rest] = value
+        else:
+            direct[head] = value
+    changes = {**direct, **{h: put(get(obj, h), sub) for h, sub in nested.items()}}
     if isinstance(obj, dict):
-        inner = put(obj.get(head), rest, value) if rest else value
-        return {**{k: v for k, v in obj.items() if k != head}, **({} if inner is None else {head: inner})}
+        merged = {**obj, **changes}
+        return {k: v for k, v in merged.items() if v is not None}
     if isinstance(obj, tuple):
-        k = int(head)
-        return (*obj[:k], put(obj[k], rest, value) if rest else value, *obj[k + 1:])
-    inner = put(getattr(obj, head), rest, value) if rest else value
-    return dataclasses.replace(obj, **{head: inner})
+        return tuple(changes.get(str(k), v) for k, v in enumerate(obj))
+    return dataclasses.replace(obj, **changes)
 
 
 def _toml(value):
@@ -112,7 +119,7 @@ class FileConfig:
         doc: dict = {}
         for k in self.KEYS:
             value = get(self, k.attr)
-            value = k.encode(value) if k.encode is not None and value is not None else value
+            value = k.encode(value) if k.encode is not None else value
             if value is None:
                 continue
             section, _, name = k.key.rpartition(".")
@@ -145,19 +152,28 @@ class FileConfig:
     def configure_values(cls, from_file: dict, given: dict, path) -> FileConfig:
         """The defaults with ``from_file`` then ``given`` ({attribute path: value}) put in; checked.
         A bad value is named by its option when given on the command line, else by the file and the key."""
-        config = cls()
         try:
-            for attr, value in {**from_file, **given}.items():
-                config = put(config, attr, value)
+            config = put(cls(), {**from_file, **given})
             config.check()
         except InputError as e:
-            option = next((o for o in (e.field, e.source) if o and o.startswith("--")), None)
-            keys = [k for k in cls.KEYS if k.option == option and k.attr in from_file and k.attr not in given]
-            if path is None or not keys:
-                raise
-            label = keys[0].label if len(keys) == 1 else f"{', '.join(k.key for k in keys)} ({option})"
-            raise InputError(path, label, e.problem) from None
+            raise _named(e, cls.KEYS, from_file, given, path) from None
         return config
+
+
+def _named(e: InputError, keys: tuple[Key, ...], from_file: dict, given: dict, path) -> InputError:
+    """The error of a value checked: as it is when a value given on the command line is at fault (it names the
+    option), else named by the file and the key (with its option) it came from."""
+    where = " ".join(p for p in (e.field, e.source) if p)
+    words = {w.strip("(),") for w in where.split()}  # "key (--option)", "--option": the option named
+    hit = [k for k in keys if (k.option is not None and k.option in words) or k.key == e.field]
+    if path is None or any(k.attr in given for k in hit) or not from_file:
+        return e
+    mine = [k for k in hit if k.attr in from_file]
+    if not mine:
+        return InputError(path, where or None, e.problem)
+    option = mine[0].option
+    label = mine[0].label if len(mine) == 1 else f"{', '.join(k.key for k in mine)}" + (f" ({option})" if option else "")
+    return InputError(path, label, e.problem)
 
 
 def _values(cls: type, doc: dict, path) -> dict:
@@ -181,6 +197,11 @@ def _values(cls: type, doc: dict, path) -> dict:
     return values
 
 
+def text(value) -> str | None:
+    """A value as TOML text (a CRS, a path; None stays None)."""
+    return None if value is None else str(value)
+
+
 def crs_decoder(option: str) -> Callable[[str], str]:
     def decode(text: str) -> str:
         from calidar.sensor import validated_crs
@@ -193,7 +214,7 @@ def crs_decoder(option: str) -> Callable[[str], str]:
 def point_keys(owner: str = "points", section: str = "inputs") -> tuple[Key, ...]:
     """The keys of how points are read (:class:`calidar.io.las.PointOptions` at ``owner``: --crs,
     --time-system, --geoid-undulation) in the table ``[section]``."""
-    return (Key(f"{section}.crs", f"{owner}.crs", "--crs", str | None, encode=str, decode=crs_decoder("--crs")),
+    return (Key(f"{section}.crs", f"{owner}.crs", "--crs", str | None, encode=text, decode=crs_decoder("--crs")),
             Key(f"{section}.time_system", f"{owner}.time_system", "--time-system"),
             Key(f"{section}.geoid_undulation_m", f"{owner}.geoid_undulation_m", "--geoid-undulation"))
 
@@ -201,3 +222,12 @@ def point_keys(owner: str = "points", section: str = "inputs") -> tuple[Key, ...
 def config_beside(out: Path) -> Path:
     """Where a command writing one file writes its configuration: <stem>.config.toml beside it."""
     return Path(out).with_name(Path(out).stem + ".config.toml")
+
+
+def trajectory_keys(owner: str = "trajectory_input", section: str = "inputs") -> tuple[Key, ...]:
+    """The keys of how a text trajectory is read (:class:`calidar.pipelines.inputs.TrajectoryOptions` at
+    ``owner``: --trajectory-crs, --trajectory-angles, --trajectory-heading, --trajectory-columns)."""
+    return (Key(f"{section}.trajectory_crs", f"{owner}.crs", "--trajectory-crs", str | None, encode=text,
+                decode=crs_decoder("--trajectory-crs")),
+            *(Key(f"{section}.trajectory_{k}", f"{owner}.{k}", f"--trajectory-{k}") for k in ("angles", "heading",
+                                                                                              "columns")))

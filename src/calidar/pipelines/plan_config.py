@@ -28,7 +28,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from calidar.errors import InputError
-from calidar.pipelines.config_file import FileConfig, Key
+from calidar.pipelines.config_file import FileConfig, Key, text
 from calidar.pipelines.plan import PlanOptions, check_estimate, check_numbers, check_terrain
 from calidar.strips.config import Estimate
 
@@ -49,7 +49,7 @@ class PlanConfig(FileConfig):
     """What ``calidar plan`` takes besides its files (:class:`calidar.pipelines.plan.PlanOptions`)."""
 
     KEYS = (*(Key(f"terrain.{k}", f"options.terrain.{k}", "--terrain") for k in ("kind", "height_m", "preset", "seed")),
-            Key("terrain.path", "options.terrain.path", "--terrain", str | None, encode=str, decode=Path),
+            Key("terrain.path", "options.terrain.path", "--terrain", str | None, encode=text, decode=Path),
             Key("pulse_rate_hz", "options.pulse_rate_hz", "--pulse-rate"), Key("fov_deg", "options.fov_deg", "--fov"),
             Key("range_sigma_m", "options.range_sigma_m", "--range-sigma"),
             Key("angle_sigma_deg", "options.angle_sigma_deg", "--angle-sigma"),
