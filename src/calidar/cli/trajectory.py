@@ -16,6 +16,7 @@ from calidar.cli.common import CONFIG_HELP, config_values, console, given_option
 from calidar.cli.options import CRS, GEOID_UNDULATION, POINT_VALUES, TIME_SYSTEM
 from calidar.validate import number
 
+ENCODER_SIGMA, SCAN_PLANE_SIGMA = "0.1,0.3,0.2", "0.1,0.1,0.02"  #: the options' defaults (mounting.DEFAULT_SIGMA)
 #: options → (TrajectoryConfig attribute, parse); --encoder-sigma and --scan-plane-sigma set the mount σ together
 OPTIONS = {"rate": ("settings.rate_hz", None), "points_per_second": ("settings.points_per_s", None),
            "knot_spacing": ("settings.fit.knot_s", None),
@@ -53,10 +54,10 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
         scan_plane_yaw: float = typer.Option(0.0, "--scan-plane-yaw", help="Yaw of the scan plane in the body, deg, "
                                              "when the scan-angle field holds body-frame angles (leeward's scanner: "
                                              "13.96); the heading written is then the body's."),
-        encoder_sigma: str = typer.Option("0.1,0.3,0.2", "--encoder-sigma", help="Prior σ of the scan-angle encoder's "
+        encoder_sigma: str = typer.Option(ENCODER_SIGMA, "--encoder-sigma", help="Prior σ of the scan-angle encoder's "
                                           "offset (deg), scale (%) and curvature (deg at 30°); 0,0 when known. Fitted where "
                                           "the points determine them, else passed into the σ columns."),
-        scan_plane_sigma: str = typer.Option("0.1,0.1,0.02", "--scan-plane-sigma", help="Prior σ of the scan plane's yaw "
+        scan_plane_sigma: str = typer.Option(SCAN_PLANE_SIGMA, "--scan-plane-sigma", help="Prior σ of the scan plane's yaw "
                                              "(about --scan-plane-yaw), pitch and cone (beams out of the plane), deg."),
         crs: str | None = CRS, time_system: str | None = TIME_SYSTEM, geoid_undulation: float | None = GEOID_UNDULATION,
         as_json: bool = typer.Option(False, "--json", help="Print the per-line summary as JSON."),
@@ -69,19 +70,9 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
         from calidar.outputs import guard_inputs
         from calidar.pipelines import trajectory as pipeline
         from calidar.pipelines.config_file import config_beside
-        from calidar.pipelines.trajectory_config import TrajectoryConfig
         from calidar.trajrec.summary import line_summary
 
-        given = given_options(ctx)
-        values = config_values(given, OPTIONS)
-        if "scanner" in given:
-            if scanner not in ("planar", "other"):
-                raise typer.BadParameter(f"expected planar or other, got {scanner!r}", param_hint="--scanner")
-            values["settings.fit.planar_scanner"] = scanner == "planar"
-        mount = _mount_sigma(encoder_sigma, scan_plane_sigma)  # (the defaults: mounting.DEFAULT_SIGMA)
-        for option, items in (("encoder_sigma", (0, 1, 4)), ("scan_plane_sigma", (2, 3, 5))):
-            values.update({f"settings.fit.mount_sigma.{k}": float(mount[k]) for k in items if option in given})
-        cfg = TrajectoryConfig.configure(config, values)
+        cfg = _config(config, given_options(ctx))
         if fmt is not None and fmt not in pipeline.FORMATS:
             raise typer.BadParameter(f"expected text or sbet, got {fmt!r}", param_hint="--format")
         fmt = pipeline.output_format(out, fmt)
@@ -110,6 +101,22 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
         also = f", {escape(str(sensor_out))}" if sensor_out is not None else ""
         console.print(f"wrote {escape(str(out))} ({fmt}){also}, {escape(str(config_beside(out)))} and {escape(str(rep))}",
                       highlight=False, soft_wrap=True)
+
+
+def _config(path: Path | None, given: dict):
+    """The run's TrajectoryConfig: the ``--config`` file's (else the defaults) with the options ``given``."""
+    from calidar.pipelines.trajectory_config import TrajectoryConfig
+
+    values = config_values(given, OPTIONS)
+    if "scanner" in given:
+        if given["scanner"] not in ("planar", "other"):
+            raise typer.BadParameter(f"expected planar or other, got {given['scanner']!r}", param_hint="--scanner")
+        values["settings.fit.planar_scanner"] = given["scanner"] == "planar"
+    # each of the two options replaces its own three priors (their defaults: mounting.DEFAULT_SIGMA)
+    mount = _mount_sigma(given.get("encoder_sigma", ENCODER_SIGMA), given.get("scan_plane_sigma", SCAN_PLANE_SIGMA))
+    for option, items in (("encoder_sigma", (0, 1, 4)), ("scan_plane_sigma", (2, 3, 5))):
+        values.update({f"settings.fit.mount_sigma.{k}": float(mount[k]) for k in items if option in given})
+    return TrajectoryConfig.configure(path, values)
 
 
 def _check_outputs(paths, force: bool) -> None:
