@@ -63,13 +63,13 @@ CASES = [
     Case(("scanner", "analyze"), (), ("--model", "palmer", "--range", "150", "--delta-l", "0.01"),
          {"model": "palmer", "range_m": 150.0, "errors.delta_l_deg": 0.01}, ("summary.json",),
          (("--range", "120"), {"range_m": 120.0, "errors.delta_l_deg": 0.01}),
-         ('model = "palmer"\nrange_m = 100.0\n\n[errors]\nscan_angle_offset_deg = 0.1\n',
-          "errors.scan_angle_offset_deg (--scan-angle-offset)")),
+         ('model = "palmer"\nrange_m = -5.0\n', "range_m (--range)")),
     Case(("denoise",), ("{P}/ATL03_sim.h5",), ("--beam", "GT1L"), {"beams": ["gt1l"], "shot_spacing_m": 0.7},
          ("photons.csv",), (("--shot-spacing-m", "0.8"), {"shot_spacing_m": 0.8, "beams": ["gt1l"]}),
          ('beams = ["gt9x"]\n', "beams (--beam)"), file_out="photons.csv", codes=(0,)),
-    Case(("georef",), ("{R}/optech_csd/sample.csd",), ("--crs", "EPSG:32611"), {"crs": "EPSG:32611"}, ("points.las",),
-         (("--geoid-undulation", "10"), {"crs": "EPSG:32611", "geoid_undulation_m": 10.0}),
+    Case(("georef",), ("{R}/optech_csd/sample.csd",), ("--crs", "EPSG:32611+3855", "--geoid-undulation", "-30"),
+         {"crs": "EPSG:32611+3855", "geoid_undulation_m": -30.0}, ("points.las",),
+         (("--geoid-undulation", "-25"), {"crs": "EPSG:32611+3855", "geoid_undulation_m": -25.0}),
          ("geoid_undulation_m = 1e6\n", "geoid_undulation_m (--geoid-undulation)"), file_out="points.las", codes=(0,)),
     Case(("trajectory",), ("{S}/strips/line_001.laz",), ("--rate", "20", "--encoder-sigma", "0.2,0.3"),
          {"rate_hz": 20.0, "mount_sigma.scan_offset_rad": math.radians(0.2)}, ("trajectory.csv",), None,
@@ -117,7 +117,8 @@ def _checkpoints(strip: Path, path: Path) -> None:
     las = laspy.read(strip)
     ground = np.flatnonzero(np.asarray(las.classification) == 2)
     pick = ground[np.linspace(0, len(ground) - 1, 30).astype(int)]
-    rows = [f"C{k},{las.x[i]:.3f},{las.y[i]:.3f},{las.z[i]:.3f},non-vegetated" for k, i in enumerate(pick)]
+    x, y, z = (np.asarray(v)[pick] for v in (las.x, las.y, las.z))
+    rows = [f"C{k},{x[k]:.3f},{y[k]:.3f},{z[k]:.3f},non-vegetated" for k in range(len(pick))]
     path.write_text("id,x,y,z,class\n" + "\n".join(rows) + "\n")
 
 

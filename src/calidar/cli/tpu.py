@@ -8,7 +8,7 @@ import typer
 from rich.markup import escape
 
 from calidar.cli.common import CONFIG_HELP, FORCE_HELP, console, given_options, progress_bar, progress_callback
-from calidar.cli.options import CRS, GEOID_UNDULATION, TIME_SYSTEM, point_options
+from calidar.cli.options import CRS, GEOID_UNDULATION, TIME_SYSTEM
 
 #: options → (the noise settings' field, factor to SI) (calidar.tpu.propagate.TpuSettings)
 NOISE_OPTIONS = {"range_sigma": ("range_sigma_m", 1.0), "angle_sigma": ("angle_sigma_rad", None),
