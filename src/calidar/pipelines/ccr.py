@@ -51,7 +51,7 @@ def load_passes(files: list[Path], beams: tuple[str, ...] | None, survey, system
                 passes.append(prepare_pass(beam, survey, system, name=f"{label}:{b}"))
         progress("reading passes", i + 1, len(files))
     if not passes:
-        raise InputError(files[0], beams, "no photons in the chosen beam(s)")
+        raise InputError(files[0], "all" if beams is None else ",".join(beams), "no photons in the chosen beam(s)")
     return passes
 
 
