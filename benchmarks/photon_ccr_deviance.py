@@ -59,7 +59,7 @@ def one_seed(seed: int, draws: int, rng) -> dict:
         paths = simulate_photons(cfg, Path(tmp))
         doc = json.loads(paths["truth"].read_text())
         survey = read_ccr_csv(paths["ccr"])
-        passes = load_passes([paths["atl03"]], "all", survey, SYSTEM)
+        passes = load_passes([paths["atl03"]], None, survey, SYSTEM)
     truth = {k: doc[k] for k in GEOLOCATION}
     full = {**truth, "ccr_peak_photons": cfg.ccr_photons, "shot_loss_rate": cfg.ccr_dropout}
     windows, _ = windows_of(passes, survey, SYSTEM, SETTINGS)

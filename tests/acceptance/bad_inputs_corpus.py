@@ -275,6 +275,20 @@ def _texts(bad: Path) -> None:
         "tpu_sigma.toml": 'trajectory_sigma = [0.05]\n',
         "tpu_crs.toml": '[inputs]\ncrs = "EPSG:999999"\n',
         "tpu_unknown.toml": '[noise]\nangle_sigma_deg = 0.002\n',
+        # quality / accuracy / plan / scanner analyze / denoise / georef / trajectory --config files
+        "quality_cell.toml": 'cell_m = 0.0\n',
+        "quality_classes.toml": 'classes = [2, 300]\n',
+        "accuracy_radius.toml": 'radius_m = -1.0\n',
+        "accuracy_crs.toml": 'checkpoints_crs = "EPSG:0"\n',
+        "plan_estimate.toml": 'estimate = ["heading"]\n',
+        "plan_terrain.toml": '[terrain]\nkind = "moon"\n',
+        "scanner_model.toml": 'model = "spiral"\nrange_m = 100.0\n',
+        "scanner_error.toml": 'model = "palmer"\nrange_m = 100.0\n\n[errors]\nscan_angle_offset_deg = 0.1\n',
+        "denoise_beams.toml": 'beams = ["gt9x"]\n',
+        "denoise_spacing.toml": 'shot_spacing_m = "0.7 m"\n',
+        "georef_geoid.toml": 'geoid_undulation_m = 1e6\n',
+        "trajectory_rate.toml": 'rate_hz = 0.0\n',
+        "trajectory_mount.toml": '[mount_sigma]\nscan_scale = -1.0\n',
     }
     for name, text in configs.items():
         (bad / name).write_text(text)

@@ -211,6 +211,11 @@ GEOREF = [
     case(["{B}/garbage.csd", "--out", "{O}.laz", "--crs", "EPSG:0"], "--crs", id="crs-bogus"),
     case(["{B}/garbage.csd", "--out", "{O}.laz", "--geoid-undulation", "1e9"], "--geoid-undulation",
          id="undulation-huge"),
+    case(["{B}/garbage.csd", "--out", "{O}.laz", "--config", "{B}/missing.toml"], "missing.toml", id="config-missing"),
+    case(["{B}/garbage.csd", "--out", "{O}.laz", "--config", "{B}/georef_geoid.toml"],
+         "georef_geoid.toml: geoid_undulation_m (--geoid-undulation): expected", id="config-undulation-huge"),
+    case(["{B}/garbage.csd", "--out", "{O}.laz", "--config", "{B}/config_crs.toml"], "config_crs.toml: inputs: unknown key",
+         id="config-of-boresight"),
 ]
 
 

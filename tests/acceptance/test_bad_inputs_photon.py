@@ -34,6 +34,12 @@ DENOISE = [
     case([H5, "--out", "{O}.csv", "--beam", "gt2l"], "gt2l", id="beam-absent"),
     case([H5, "--out", "{P}", "--force"], "{P}", id="out-is-a-folder"),
     case([H5, "--out", "{B}/atl03_hardlink.csv", "--force"], "atl03_hardlink.csv", "input", id="out-is-a-hard-link"),
+    case([H5, "--out", "{O}.csv", "--config", "{B}/missing.toml"], "missing.toml", id="config-missing"),
+    case([H5, "--out", "{O}.csv", "--config", "{B}/denoise_beams.toml"], "denoise_beams.toml: beams (--beam): expected",
+         id="config-beam-bogus"),
+    case([H5, "--out", "{O}.csv", "--config", "{B}/denoise_spacing.toml"],
+         "denoise_spacing.toml: shot_spacing_m: expected float", id="config-shot-spacing-text"),
+    case([H5, "--out", "{O}.csv", "--config", H5], "ATL03_sim.h5", id="config-not-text"),
 ]
 
 

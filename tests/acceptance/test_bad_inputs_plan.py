@@ -71,6 +71,11 @@ PLAN = [
     case(["{L}/good.csv", *GOOD, "--simulate", "-1"], "--simulate", id="simulate-negative"),
     case(["{L}/good.csv", *GOOD, "--platform-motion", "1.5"], "--platform-motion", id="platform-motion-one-number"),
     case(["{L}/good.csv", *GOOD, "--platform-motion", "1.5,-1"], "--platform-motion", id="platform-motion-negative"),
+    case(["{L}/good.csv", *GOOD, "--config", "{B}/missing.toml"], "missing.toml", id="config-missing"),
+    case(["{L}/good.csv", *GOOD, "--config", "{B}/plan_estimate.toml"], "plan_estimate.toml: estimate (--estimate)",
+         id="config-estimate-unknown"),
+    case(["{L}/good.csv", *GOOD, "--config", "{B}/plan_terrain.toml"], "plan_terrain.toml: terrain.kind (--terrain)",
+         id="config-terrain-unknown"),
     case(["{L}/good.csv", *GOOD, "--simulate", "1", "--terrain", "{L}/not_a_dem.tif"], "not_a_dem.tif",
          id="simulate-bad-dem"),
 ]

@@ -41,6 +41,13 @@ QUALITY = [
     case([S1, S2, "--out", S1, "--force"], "line_001.laz", id="out-is-input"),
     case([S1, S2, "--out", "{S}/strips", "--force"], "strips", "input", id="out-holds-inputs"),
     case([S1, S2, "--out", "{B}/strips_link", "--force"], "strips_link", "input", id="out-links-to-the-inputs"),
+    case([S1, S2, "--config", "{B}/missing.toml"], "missing.toml", id="config-missing"),
+    case([S1, S2, "--config", "{B}/config_not_toml.toml"], "config_not_toml.toml", "TOML", id="config-not-toml"),
+    case([S1, S2, "--config", "{B}/quality_cell.toml"], "quality_cell.toml: cell_m (--cell): expected",
+         id="config-cell-0"),
+    case([S1, S2, "--config", "{B}/quality_classes.toml"], "quality_classes.toml: classes (--classes)",
+         id="config-class-300"),
+    case([S1, S2, "--config", "{B}/tpu_unknown.toml"], "tpu_unknown.toml: noise: unknown key", id="config-of-tpu"),
 ]
 
 

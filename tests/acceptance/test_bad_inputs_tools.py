@@ -144,15 +144,20 @@ SCANNER = [
     case(["--model", "wedge", "--wedge-angle", "95"], "--wedge-angle", id="wedge-angle-95"),
     case(["--model", "wedge", "--axis-tilt", "-1"], "--axis-tilt", id="wedge-tilt-negative"),
     case(["--model", "wedge", "--axis-tilt-azimuth", "inf"], "--axis-tilt-azimuth", id="wedge-azimuth-inf"),
+    case(["--config", "{B}/missing.toml"], "missing.toml", id="config-missing"),
+    case(["--config", "{B}/scanner_model.toml", "--range", "100"], "scanner_model.toml: model (--model): expected",
+         id="config-model-spiral"),
+    case(["--config", "{B}/scanner_error.toml"], "scanner_error.toml: errors.scan_angle_offset_deg (--scan-angle-offset)",
+         id="config-error-of-another-model"),
 ]
 
 
 @pytest.mark.parametrize("extra, messages", SCANNER)
 def test_scanner_analyze(bad_input, extra, messages):
     args = ["scanner", "analyze", *extra, "--out", "{O}"]
-    if "--model" not in extra:
+    if "--model" not in extra and "--config" not in extra:
         args += ["--model", "linear"]
-    if "--range" not in extra:
+    if "--range" not in extra and "--config" not in extra:
         args += ["--range", "100"]
     bad_input(args, 1, *messages)
 
@@ -178,6 +183,11 @@ ACCURACY = [
     case(["--checkpoints", "{T}/observations.csv", "--class", "0"], "--class", id="class-0"),
     case(["--checkpoints", "{T}/observations.csv", "--checkpoints-crs", "EPSG:0"], "--checkpoints-crs", id="crs-unknown"),
     case(["--checkpoints", "{T}/observations.csv", "--classes", "ground"], "--classes", id="classes-not-numbers"),
+    case(["--checkpoints", "{T}/observations.csv", "--config", "{B}/missing.toml"], "missing.toml", id="config-missing"),
+    case(["--checkpoints", "{T}/observations.csv", "--config", "{B}/accuracy_radius.toml"],
+         "accuracy_radius.toml: radius_m (--radius): expected", id="config-radius-negative"),
+    case(["--checkpoints", "{T}/observations.csv", "--config", "{B}/accuracy_crs.toml"],
+         "accuracy_crs.toml: checkpoints_crs (--checkpoints-crs): expected a CRS", id="config-crs-unknown"),
 ]
 
 

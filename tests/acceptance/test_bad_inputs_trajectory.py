@@ -33,6 +33,10 @@ TRAJECTORY = [
     case([S1, "--scan-plane-sigma", "nan,0.1"], "--scan-plane-sigma", id="scan-plane-sigma-nan"),
     case([S1, "--scan-plane-sigma", "0.1,0.1,0.02,1"], "--scan-plane-sigma", "two or three numbers",
          id="scan-plane-sigma-four-numbers"),
+    case([S1, "--config", "{B}/missing.toml"], "missing.toml", id="config-missing"),
+    case([S1, "--config", "{B}/trajectory_rate.toml"], "trajectory_rate.toml: rate_hz (--rate): expected", id="config-rate-0"),
+    case([S1, "--config", "{B}/trajectory_mount.toml"], "trajectory_mount.toml: mount_sigma.scan_scale (--encoder-sigma)",
+         id="config-mount-sigma-negative"),
 ]
 
 

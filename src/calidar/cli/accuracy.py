@@ -7,15 +7,24 @@ from pathlib import Path
 import typer
 from rich.markup import escape
 
-from calidar.cli.common import EXIT_FAIL, FORCE_HELP, console, exit_with_verdict, print_verdict, progress_bar, progress_callback
-from calidar.cli.options import CRS, GEOID_UNDULATION, TIME_SYSTEM, crs_option, point_options
+from calidar.cli.common import (
+    CONFIG_HELP, EXIT_FAIL, FORCE_HELP, config_values, console, exit_with_verdict, given_options, print_verdict,
+    progress_bar, progress_callback,
+)
+from calidar.cli.options import CRS, GEOID_UNDULATION, POINT_VALUES, TIME_SYSTEM, crs_option, parse_classes
 
 CLASS_NOT_MET = EXIT_FAIL  #: exit code when --class is given and not met
+#: options → (AccuracyConfig attribute, parse)
+OPTIONS = {"checkpoints_crs": ("settings.checkpoints_crs", lambda v: crs_option(v, "--checkpoints-crs")),
+           "survey_sigma": ("settings.survey_sigma_m", None), "target_class": ("settings.target_class_cm", None),
+           "radius": ("settings.radius_m", None), "max_edge": ("settings.max_edge_m", None),
+           "classes": ("settings.classes", parse_classes), "swaths": ("settings.swaths", None), **POINT_VALUES}
 
 
 def register(app: typer.Typer, simulate: typer.Typer) -> None:
     @app.command("accuracy")
     def accuracy(
+        ctx: typer.Context,
         points: list[Path] = typer.Argument(..., help="LAS/LAZ files (the delivered points)."),
         checkpoints: Path = typer.Option(..., "--checkpoints", help="Checkpoint CSV: id, x, y, z, class "
                                          "(non-vegetated | vegetated; NVA/VVA, open/vegetated accepted), optional sigma (m)."),
@@ -37,6 +46,7 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
                                     "measures them; the files are read twice more."),
         crs: str | None = CRS, time_system: str | None = TIME_SYSTEM, geoid_undulation: float | None = GEOID_UNDULATION,
         force: bool = typer.Option(False, "--force", help=FORCE_HELP),
+        config: Path | None = typer.Option(None, "--config", help=CONFIG_HELP),
     ) -> None:
         """Vertical accuracy of the points at surveyed checkpoints: NVA RMSEz and class, VVA, per ASPRS Edition 2.
 
@@ -44,18 +54,18 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
         the --class not met, 130/143 interrupted.
         """
         from calidar.outputs import output_folder
-        from calidar.pipelines.accuracy import AccuracySettings, run_accuracy
-        from calidar.cli.options import parse_classes
+        from calidar.pipelines.accuracy import run_accuracy
+        from calidar.pipelines.accuracy_config import AccuracyConfig
 
-        settings = AccuracySettings(crs_option(checkpoints_crs, "--checkpoints-crs"), survey_sigma, radius, max_edge,
-                                    target_class, parse_classes(classes), swaths).checked()
-        options = point_options(crs, time_system, geoid_undulation)
-        with progress_bar() as bar, output_folder(out, force, inputs=[*points, checkpoints]) as tmp:
-            run = run_accuracy(points, checkpoints, tmp, settings, options, progress=progress_callback(bar))
+        cfg = AccuracyConfig.configure(config, config_values(given_options(ctx), OPTIONS))
+        with progress_bar() as bar, output_folder(out, force, inputs=[*points, checkpoints, config]) as tmp:
+            run = run_accuracy(points, checkpoints, tmp, cfg.settings, cfg.points, progress=progress_callback(bar))
+            cfg.write(tmp / "config.toml")
         print_verdict(run.verdict)
-        console.print(f"wrote {escape(str(out))}/accuracy.json, checkpoints.csv and report.html", highlight=False,
-                      soft_wrap=True)
-        met = run.assessment.accuracy.meets(target_class) if target_class is not None else True
+        console.print(f"wrote {escape(str(out))}/accuracy.json, checkpoints.csv, config.toml and report.html",
+                      highlight=False, soft_wrap=True)
+        target = cfg.settings.target_class_cm
+        met = run.assessment.accuracy.meets(target) if target is not None else True
         if not met:
             raise typer.Exit(CLASS_NOT_MET)
         exit_with_verdict(run.verdict)  # the contract of every command: a FAIL verdict exits 3

@@ -3,7 +3,6 @@ from the returns of surveyed corner-cube retroreflectors."""
 
 from __future__ import annotations
 
-from dataclasses import replace
 from pathlib import Path
 
 import typer
@@ -26,23 +25,19 @@ SYSTEM_OPTIONS = {"dead_time_ns": ("dead_time", 1e-9), "pulse_width_ns": ("pulse
 def ccr_config(path: Path | None, given: dict):
     """The configuration: the ``--config`` file's (else the defaults), with the options ``given`` on the
     command line ({parameter name: value}) replacing its settings; checked."""
-    from calidar.errors import InputError
+    from calidar.cli.common import config_values
+    from calidar.cli.options import parse_beams
     from calidar.pipelines.ccr_config import CCRConfig
     from calidar.validate import parse_floats
 
-    config = CCRConfig.read(path) if path is not None else CCRConfig()
-    search = {SEARCH_OPTIONS[k]: v for k, v in given.items() if k in SEARCH_OPTIONS}
+    options = {k: (f"search.{f}", None) for k, f in SEARCH_OPTIONS.items()}
+    options.update({k: (f"system.{f}", None if c is None else (lambda v, c=c: v * c))
+                    for k, (f, c) in SYSTEM_OPTIONS.items()}, beam=("beams", parse_beams))
+    values = config_values(given, options)
     if "diameter_range" in given:
-        search["diameter_min"], search["diameter_max"] = parse_floats(given["diameter_range"], 2, "--diameter-range")
-    system = {SYSTEM_OPTIONS[k][0]: v if SYSTEM_OPTIONS[k][1] is None else v * SYSTEM_OPTIONS[k][1]
-              for k, v in given.items() if k in SYSTEM_OPTIONS}
-    beams = config.beams
-    if "beam" in given:
-        names = tuple(b.strip().lower() for b in given["beam"].split(",") if b.strip())
-        beams = None if names == ("all",) else names
-        if not names:
-            raise InputError(None, "--beam", f"expected all or beam names separated by commas, got {given['beam']!r}")
-    return CCRConfig(beams, replace(config.search, **search), replace(config.system, **system))
+        values["search.diameter_min"], values["search.diameter_max"] = parse_floats(given["diameter_range"], 2,
+                                                                                      "--diameter-range")
+    return CCRConfig.configure(path, values)
 
 
 def ccr(

@@ -39,6 +39,12 @@ def given_options(ctx) -> dict:
     return {k: v for k, v in ctx.params.items() if ctx.get_parameter_source(k).name != "DEFAULT"}
 
 
+def config_values(given: dict, options: dict) -> dict:
+    """The options ``given`` (:func:`given_options`) as a configuration's values ({attribute path: value}):
+    ``options`` maps each parameter name to (attribute path, a parse of its text or None: as given)."""
+    return {attr: given[p] if parse is None else parse(given[p]) for p, (attr, parse) in options.items() if p in given}
+
+
 def verdict_exit_code(*verdicts) -> int:
     """The exit code of a run that ended with these verdicts (:class:`calidar.verdict.Verdict`,
     or their status strings; None ignored): :data:`EXIT_FAIL` when one is FAIL, else :data:`EXIT_OK`.
@@ -59,7 +65,7 @@ def exit_with_verdict(*verdicts) -> None:
         raise typer.Exit(code)
 
 console = Console()
-err_console = Console(stderr=True, soft_wrap=True)  # one error = one line, never wrapped
+err_console = Console(stderr=True, soft_wrap=True, emoji=False)  # one error = one line, never wrapped (":moon:" as written)
 
 
 def print_error(message: str, prefix: str = "error: ") -> None:

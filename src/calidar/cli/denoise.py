@@ -6,31 +6,39 @@ from pathlib import Path
 
 import typer
 
-from calidar.cli.common import console, print_warning
+from calidar.cli.common import CONFIG_HELP, config_values, console, given_options, print_warning
+from calidar.cli.options import parse_beams
 
 BEAM_HELP = "ATL03 beam(s): gt1l … gt3r, several separated by commas, or all."
+#: options → (DenoiseConfig attribute, parse)
+OPTIONS = {"beam": ("beams", parse_beams), "shot_spacing": ("shot_spacing_m", None)}
 
 
 def denoise(
+    ctx: typer.Context,
     atl03: Path = typer.Argument(..., help="ATL03 HDF5 file."),
     beam: str = typer.Option("all", "--beam", help=BEAM_HELP),
     out: Path = typer.Option(..., "--out", help="CSV to write: beam, strength, delta_time, along_track_m, "
                              "dist_ph_along, lat, lon, h_ph, atl03_conf, signal."),
     shot_spacing: float = typer.Option(0.7, "--shot-spacing-m", help="Along-track shot spacing d_l (m)."),
     force: bool = typer.Option(False, "--force", help="Overwrite an existing CSV (never an input)."),
+    config: Path | None = typer.Option(None, "--config", help=CONFIG_HELP),
 ) -> None:
     """Classify every photon as signal (1) or noise (0): slope-following neighbour counts against the
-    measured solar background (ATL03 ATBD slant histograms, ATL08 DRAGANN); weak beams and daylight too."""
-    from calidar.outputs import atomic_path, guard_inputs
-    from calidar.pipelines.ccr_config import SHOT_SPACING_RANGE
-    from calidar.pipelines.denoise import run_denoise
-    from calidar.validate import existing_file, number
+    measured solar background (ATL03 ATBD slant histograms, ATL08 DRAGANN); weak beams and daylight too.
+    The run's settings go beside the CSV as <name>.config.toml (for --config)."""
+    from calidar.outputs import atomic_path, check_writable, guard_inputs
+    from calidar.pipelines.config_file import config_beside
+    from calidar.pipelines.denoise import DenoiseConfig, run_denoise
+    from calidar.validate import existing_file
 
-    number(shot_spacing, "--shot-spacing-m", *SHOT_SPACING_RANGE, "m")
-    guard_inputs([out], [atl03])
+    cfg = DenoiseConfig.configure(config, config_values(given_options(ctx), OPTIONS))
+    guard_inputs([out, config_beside(out)], [atl03, config])
     existing_file(atl03, "ATL03 file")
+    check_writable(config_beside(out), force)
     with atomic_path(out, force) as tmp:
-        result = run_denoise(atl03, beam, tmp, shot_spacing)
+        result = run_denoise(atl03, tmp, cfg)
+    cfg.write(config_beside(out))
     for b in result.beams:
         agree = ("" if b.atl03_agreement is None else f"; {b.atl03_agreement:.1%} of the {b.atl03_confident:,} "
                  "ATL03 rates medium/high confidence")

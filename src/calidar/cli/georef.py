@@ -8,7 +8,7 @@ from pathlib import Path
 
 import typer
 
-from calidar.cli.common import FORCE_HELP, console
+from calidar.cli.common import CONFIG_HELP, FORCE_HELP, config_values, console, given_options
 from calidar.cli.options import (
     CRS, GEOID_UNDULATION, TIME_SYSTEM, TRAJECTORY_ANGLES, TRAJECTORY_COLUMNS, TRAJECTORY_CRS, TRAJECTORY_HEADING,
     crs_option, point_options, trajectory_options,
@@ -79,6 +79,7 @@ def regeoref(
 
 
 def georef(
+    ctx: typer.Context,
     raw: Path = typer.Argument(..., help="Optech CSD file (raw pulses: ranges, scan angles, positions, attitudes)."),
     out: Path = typer.Option(..., "--out", "-o", help="Output LAS/LAZ (the sensor model goes beside it: "
                              "<name>.sensor.toml)."),
@@ -86,19 +87,27 @@ def georef(
                                    "the first pulse, ellipsoidal heights)."),
     geoid_undulation: float | None = GEOID_UNDULATION,
     force: bool = typer.Option(False, "--force", help="Overwrite the outputs."),
+    config: Path | None = typer.Option(None, "--config", help=CONFIG_HELP),
 ) -> None:
-    """Georeference raw Optech CSD pulses with calidar's lidar equation; writes the points and the
-    header's boresight as a calidar sensor.toml (docs/sensor.md, "Optech CSD")."""
-    crs = crs_option(crs)
-    geoid = point_options(geoid_undulation=geoid_undulation).geoid_undulation_m
-    guard_inputs([out, pipeline.sensor_path(out)], [raw])
-    for path in (out, pipeline.sensor_path(out)):
+    """Georeference raw Optech CSD pulses with calidar's lidar equation; writes the points, the
+    header's boresight as a calidar sensor.toml (docs/sensor.md, "Optech CSD") and the run's settings
+    as <name>.config.toml (for --config)."""
+    from calidar.pipelines.config_file import config_beside
+
+    options = {"crs": ("crs", crs_option), "geoid_undulation": ("geoid_undulation_m", None)}
+    cfg = pipeline.GeorefConfig.configure(config, config_values(given_options(ctx), options))
+    written = (out, pipeline.sensor_path(out), config_beside(out))
+    guard_inputs(written, [raw, config])
+    for path in written:
         check_writable(path, force)
-    r = pipeline.georeference_csd(raw, out, crs=crs, geoid_undulation_m=geoid, force=force)
+    r = pipeline.georeference_csd(raw, out, crs=cfg.crs, geoid_undulation_m=cfg.geoid_undulation_m, force=force)
+    cfg.write(config_beside(out))
+    geoid = cfg.geoid_undulation_m
     x, y, z = r.first_xyz
     from calidar.crs import vertical_reference
 
-    console.print(f"{r.n_points} points → {r.points} ({r.crs}); sensor model → {r.sensor}\n"
+    console.print(f"{r.n_points} points → {r.points} ({r.crs}); sensor model → {r.sensor}; settings → "
+                  f"{config_beside(out)}\n"
                   f"first point: GPS time {r.first_gps_time:.6f} s, {x:.3f}, {y:.3f}, {z:.3f}\n"
                   f"heights: {vertical_reference(r.crs, geoid)[0]}", highlight=False, soft_wrap=True, markup=False)
 

@@ -92,3 +92,17 @@ def parse_classes(text: str | None) -> tuple[int, ...] | None:
     if not classes or any(not 0 <= c <= 255 for c in classes):
         raise InputError(None, "--classes", f"expected LAS classes (integers 0–255) separated by commas, got {text!r}")
     return tuple(sorted(set(classes)))
+
+
+#: the shared point options → (PointOptions attribute under ``points``, parse) for cli.common.config_values
+POINT_VALUES = {"crs": ("points.crs", crs_option), "time_system": ("points.time_system", None),
+                "geoid_undulation": ("points.geoid_undulation_m", None)}
+
+
+def parse_beams(text: str) -> tuple[str, ...] | None:
+    """--beam: 'all' → None (every beam a file has), 'gt1l, GT2L' → ('gt1l', 'gt2l'): ATL03 beam names, each
+    once (the configuration checks them; io checks them against each file)."""
+    names = tuple(dict.fromkeys(b.strip().lower() for b in text.split(",") if b.strip()))
+    if not names:
+        raise InputError(None, "--beam", f"expected all or beam names separated by commas, got {text!r}")
+    return None if names == ("all",) else names

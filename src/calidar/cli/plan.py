@@ -7,18 +7,20 @@ from pathlib import Path
 import typer
 from rich.markup import escape
 
-from calidar.cli.boresight_config import parse_estimate
-from calidar.cli.common import FORCE_HELP, console, exit_with_verdict, print_verdict, progress_bar, progress_callback
+from calidar.cli.common import (
+    CONFIG_HELP, FORCE_HELP, config_values, console, exit_with_verdict, given_options, print_verdict, progress_bar,
+    progress_callback,
+)
 from calidar.cli.options import parse_sigma
 from calidar.errors import InputError
 
 
 def _estimate(text: str):
-    """--estimate as ``calidar boresight`` parses it; trajectory_bias is refused here: a plan always models the trajectory."""
-    if "trajectory_bias" in (n.strip() for n in text.split(",")):
-        raise InputError(None, "--estimate", "trajectory_bias is always modelled; expected sensor parameters "
-                         "(boresight, lever_arm, range_offset, …)")
-    return parse_estimate(text)
+    """--estimate as ``calidar boresight`` writes it (names separated by commas); trajectory_bias is refused
+    here: a plan always models the trajectory."""
+    from calidar.pipelines.plan_config import estimate_of
+
+    return estimate_of(tuple(n.strip() for n in text.split(",") if n.strip()))
 
 
 def parse_terrain(text: str):
@@ -52,6 +54,7 @@ def parse_platform_motion(text: str) -> tuple[float, float]:
 def register(app: typer.Typer, simulate: typer.Typer) -> None:
     @app.command("plan")
     def plan(
+        ctx: typer.Context,
         lines: Path = typer.Argument(..., help="Flight lines, CSV (line, start_x, start_y, end_x, end_y, height_agl_m, "
                                      "speed_mps; projected metres) or GeoJSON LineStrings with those properties."),
         sensor: Path = typer.Option(..., "--sensor", help="The nominal sensor.toml (lever arm, boresight, scanner)."),
@@ -75,21 +78,31 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
         simulate: int = typer.Option(0, "--simulate", help="Confirm the plan: simulate and calibrate it end to end "
                                      "N times (flat or scene terrain; each takes seconds to minutes)."),
         force: bool = typer.Option(False, "--force", help=FORCE_HELP),
+        config: Path | None = typer.Option(None, "--config", help=CONFIG_HELP),
     ) -> None:
         """Predict the σ and correlations a planned calibration flight will give, before flying it: which
-        parameters it will not determine and why, and the line that helps most.
+        parameters it will not determine and why, and the line that helps most; config.toml holds this run's
+        settings (for --config).
 
         Exit codes: 0 every estimated parameter determined, 3 a poor plan (FAIL verdict), 1 bad input,
         2 usage error, 130/143 interrupted.
         """
         from calidar.outputs import output_folder
-        from calidar.pipelines.plan import PlanOptions, run_plan
+        from calidar.pipelines.plan import run_plan
+        from calidar.pipelines.plan_config import PlanConfig
 
-        options = PlanOptions(parse_terrain(terrain), pulse_rate, fov, range_sigma, angle_sigma, _estimate(estimate),
-                              parse_sigma(trajectory_sigma), suggest, simulate, parse_platform_motion(platform_motion))
-        dem = options.terrain.path
-        with progress_bar() as bar, output_folder(out, force, inputs=[lines, sensor] + ([dem] if dem else [])) as tmp:
-            run = run_plan(lines, sensor, tmp, options, progress_callback(bar))
+        options = {"terrain": ("options.terrain", parse_terrain), "pulse_rate": ("options.pulse_rate_hz", None),
+                   "fov": ("options.fov_deg", None), "range_sigma": ("options.range_sigma_m", None),
+                   "angle_sigma": ("options.angle_sigma_deg", None), "estimate": ("options.estimate", _estimate),
+                   "trajectory_sigma": ("options.trajectory_sigma", parse_sigma), "suggest": ("options.suggest", None),
+                   "simulate": ("options.simulate", None),
+                   "platform_motion": ("options.platform_motion", parse_platform_motion)}
+        cfg = PlanConfig.configure(config, config_values(given_options(ctx), options))
+        dem = cfg.options.terrain.path
+        inputs = [lines, sensor, config] + ([dem] if dem else [])
+        with progress_bar() as bar, output_folder(out, force, inputs=inputs) as tmp:
+            run = run_plan(lines, sensor, tmp, cfg.options, progress_callback(bar))
+            cfg.write(tmp / "config.toml")
         print_verdict(run.verdict)
         for s in run.suggestions[:1]:
             console.print(f"suggested line: {escape(s.kind)}, from ({s.line.start[0]:.0f}, {s.line.start[1]:.0f}) to "

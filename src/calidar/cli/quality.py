@@ -8,18 +8,18 @@ from pathlib import Path
 import typer
 from rich.markup import escape
 
-from calidar.cli.common import FORCE_HELP, console
-from calidar.cli.options import CRS, GEOID_UNDULATION, TIME_SYSTEM, point_options
+from calidar.cli.common import CONFIG_HELP, FORCE_HELP, config_values, console, given_options
+from calidar.cli.options import CRS, GEOID_UNDULATION, POINT_VALUES, TIME_SYSTEM, parse_classes
 from calidar.pipelines.quality import QualityConfig, measure
-from calidar.strips.quality import QualitySettings
-from calidar.validate import number
 
-CELL_RANGE_M = (0.01, 1000.0)  #: m, grid cells accepted by --cell (finer than lidar spacing, coarser than overlaps)
+#: options → (QualityConfig attribute, parse)
+OPTIONS = {"cell": ("settings.cell_m", None), "classes": ("classes", parse_classes), **POINT_VALUES}
 
 
 def register(app: typer.Typer, simulate: typer.Typer) -> None:
     @app.command("quality")
     def quality(
+        ctx: typer.Context,
         strips: list[Path] = typer.Argument(..., help="LAS/LAZ files (one or several flight lines each)."),
         as_json: bool = typer.Option(False, "--json", help="Print the per-pair results as JSON."),
         out: Path | None = typer.Option(None, "--out", help="Folder for quality.json and dz rasters (GeoTIFF, PNG)."),
@@ -29,25 +29,21 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
             "it, else last and single returns on smooth cells)."),
         crs: str | None = CRS, time_system: str | None = TIME_SYSTEM, geoid_undulation: float | None = GEOID_UNDULATION,
         force: bool = typer.Option(False, "--force", help=FORCE_HELP),
+        config: Path | None = typer.Option(None, "--config", help=CONFIG_HELP),
     ) -> None:
         """Swath-overlap differences between flight lines (dz = a − b): median, RMSDz, max, planimetric offsets
         (dx, dy ± σ, or not determined and why), and the USGS Lidar Base Specification swath checks with the
-        quality level (QL0–QL3) each meets."""
+        quality level (QL0–QL3) each meets; with --out, config.toml holds this run's settings (for --config)."""
         from calidar.outputs import check_out_dir, claim_output, guard_inputs, output_folder
         from calidar.pipelines.quality import write_pairs_rasters
-        from calidar.cli.options import parse_classes
         from calidar.strips.usgs import SPECIFICATION, common_level, summary, usgs_checks
 
-        if cell is not None:
-            number(cell, "--cell", *CELL_RANGE_M, "m")
-        wanted = parse_classes(classes)
-        options = point_options(crs, time_system, geoid_undulation)
+        cfg = QualityConfig.configure(config, config_values(given_options(ctx), OPTIONS))
         if out:
             check_out_dir(out, force)
-            guard_inputs([], strips, [out])
+            guard_inputs([], [*strips, config], [out])
             claim_output(out)  # --out is this run's from its start (released when the run ends)
-        config = QualityConfig(QualitySettings(cell_m=cell), wanted, options)
-        index, file_crs, results, notes, selections, precisions = measure(strips, config)
+        index, file_crs, results, notes, selections, precisions = measure(strips, cfg)
         checks = usgs_checks(results, precisions)
         doc = {"lines_from": index.how, "points_used": {str(p): s.to_dict() for p, s in selections.items()},
                "pairs": [q.to_dict() for q in results], "notes": notes,
@@ -55,17 +51,18 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
                         "checks": [c.to_dict() for c in checks], "lines": [p.to_dict() for p in precisions]}}
         text = json.dumps(doc, indent=2, allow_nan=False) + "\n"
         if out:
-            with output_folder(out, force, inputs=strips) as tmp:
+            with output_folder(out, force, inputs=[*strips, config]) as tmp:
                 write_pairs_rasters(results, tmp, file_crs if file_crs is not None and not file_crs.is_geographic
                                     else None, force=True)
                 (tmp / "quality.json").write_text(text, encoding="utf-8")
+                cfg.write(tmp / "config.toml")
         if as_json:
             print(text, end="")
             return
         _print_table(index.how, results, selections, notes)
         _print_usgs(checks, precisions)
         if out:
-            console.print(f"wrote {escape(str(out))}/quality.json and dz rasters", highlight=False, soft_wrap=True)
+            console.print(f"wrote {escape(str(out))}/quality.json, config.toml and dz rasters", highlight=False, soft_wrap=True)
 
 
 def _print_table(how, results, selections, notes) -> None:

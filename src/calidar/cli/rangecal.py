@@ -24,13 +24,11 @@ def _say(text: str) -> None:
 def range_cal_config(path: Path | None, given: dict):
     """The configuration: the ``--config`` file's (else the defaults), with --tolerance and --fix-scale
     when given on the command line; checked."""
-    from dataclasses import replace
-
+    from calidar.cli.common import config_values
     from calidar.pipelines.rangecal_config import RangeCalConfig
 
-    config = RangeCalConfig.read(path) if path is not None else RangeCalConfig()
-    keys = {"tolerance": "tolerance_m", "fix_scale": "fix_scale"}
-    return replace(config, **{keys[k]: v for k, v in given.items() if k in keys})
+    return RangeCalConfig.configure(path, config_values(given, {"tolerance": ("tolerance_m", None),
+                                                                "fix_scale": ("fix_scale", None)}))
 
 
 def range_cal(

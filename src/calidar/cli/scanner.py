@@ -8,12 +8,26 @@ from pathlib import Path
 
 import typer
 
-from calidar.cli.common import FORCE_HELP, console, exit_with_verdict, print_verdict, progress_bar, progress_callback
+from calidar.cli.common import (
+    CONFIG_HELP, FORCE_HELP, config_values, console, exit_with_verdict, given_options, print_verdict, progress_bar,
+    progress_callback,
+)
+
+#: options → (ScannerConfig attribute, parse): the settings' fields and the errors' names
+OPTIONS = {**{p: (f"settings.{f}", None) for p, f in (
+    ("model", "model"), ("range_m", "range_m"), ("phase", "phase_deg"), ("axis_tilt_azimuth", "axis_tilt_azimuth_deg"),
+    ("axis_angle", "axis_angle_deg"), ("mirror_tilt", "mirror_tilt_deg"), ("wedge_angle", "wedge_angle_deg"),
+    ("refractive_index", "refractive_index"), ("fov", "fov_deg"), ("grating_radius_mm", "grating_radius_mm"),
+    ("spec_arcsec", "spec_arcsec"), ("points", "points"))},
+    **{e: (f"settings.errors.{e}", None) for e in ("eccentricity", "delta_l", "delta_r", "wedge_angle_error", "axis_tilt",
+                                                  "scan_angle_offset", "scan_angle_scale")}}
 
 
 def analyze(
-    model: str = typer.Option(..., "--model", help="palmer | wedge | linear"),
-    range_m: float = typer.Option(..., "--range", help="Range to the pattern (m, > 0, ≤ 1e6)."),
+    ctx: typer.Context,
+    model: str | None = typer.Option(None, "--model", help="palmer | wedge | linear (required unless in --config)."),
+    range_m: float | None = typer.Option(None, "--range", help="Range to the pattern (m, > 0, ≤ 1e6; required "
+                                         "unless in --config)."),
     out: Path = typer.Option(..., "--out", help="Output folder (CSV, PNG, summary.json, report.html)."),
     eccentricity: float | None = typer.Option(None, "--eccentricity", help="Encoder eccentricity ε/r (ratio, 0–0.1)."),
     phase: float = typer.Option(0.0, "--phase", help="Eccentricity phase C (deg)."),
@@ -34,23 +48,22 @@ def analyze(
     points: int = typer.Option(720, "--points", help="Points around the pattern (8–100000)."),
     as_json: bool = typer.Option(False, "--json", help="Print the summary as JSON on stdout."),
     force: bool = typer.Option(False, "--force", help=FORCE_HELP),
+    config: Path | None = typer.Option(None, "--config", help=CONFIG_HELP),
 ) -> None:
     """Scan pattern at a range, per-error point displacements, error budget, tolerances, separability
-    from the boresight, and a verdict against the pointing spec."""
+    from the boresight, and a verdict against the pointing spec; config.toml holds this run's settings
+    (for --config)."""
     from calidar.outputs import output_folder
     from calidar.pipelines.scanner import run_scanner_analysis
-    from calidar.scanners.settings import AnalysisSettings
+    from calidar.pipelines.scanner_config import ScannerConfig
 
-    given = {"eccentricity": eccentricity, "delta_l": delta_l, "delta_r": delta_r,
-             "wedge_angle_error": wedge_angle_error, "axis_tilt": axis_tilt,
-             "scan_angle_offset": scan_angle_offset, "scan_angle_scale": scan_angle_scale}
-    settings = AnalysisSettings(
-        model, range_m, {k: v for k, v in given.items() if v is not None}, spec_arcsec=spec_arcsec, phase_deg=phase,
-        axis_tilt_azimuth_deg=axis_tilt_azimuth, grating_radius_mm=grating_radius_mm, fov_deg=fov, points=points,
-        axis_angle_deg=axis_angle, mirror_tilt_deg=mirror_tilt, wedge_angle_deg=wedge_angle,
-        refractive_index=refractive_index).checked()
-    with output_folder(out, force) as tmp, progress_bar() as bar:
-        run = run_scanner_analysis(settings, tmp, progress=progress_callback(bar))
+    for name, option in (("model", "--model"), ("range_m", "--range")):
+        if config is None and ctx.params[name] is None:
+            raise typer.BadParameter("missing (give it, or a --config file with it)", param_hint=option)
+    cfg = ScannerConfig.configure(config, config_values(given_options(ctx), OPTIONS))
+    with output_folder(out, force, inputs=[config]) as tmp, progress_bar() as bar:
+        run = run_scanner_analysis(cfg.settings, tmp, progress=progress_callback(bar))
+        cfg.write(tmp / "config.toml")
     if as_json:
         sys.stdout.write(json.dumps(run.summary, allow_nan=False) + "\n")
         exit_with_verdict(run.verdict)

@@ -8,7 +8,7 @@ import typer
 from rich.markup import escape
 
 from calidar.cli.common import CONFIG_HELP, FORCE_HELP, console, given_options, progress_bar, progress_callback
-from calidar.cli.options import CRS, GEOID_UNDULATION, TIME_SYSTEM, point_options
+from calidar.cli.options import CRS, GEOID_UNDULATION, TIME_SYSTEM
 
 #: options → (the noise settings' field, factor to SI) (calidar.tpu.propagate.TpuSettings)
 NOISE_OPTIONS = {"range_sigma": ("range_sigma_m", 1.0), "angle_sigma": ("angle_sigma_rad", None),
@@ -18,26 +18,17 @@ NOISE_OPTIONS = {"range_sigma": ("range_sigma_m", 1.0), "angle_sigma": ("angle_s
 def tpu_config(path: Path | None, given: dict):
     """The configuration: the ``--config`` file's (else the defaults), with the options ``given`` on the
     command line ({parameter name: value}) replacing its settings; checked."""
-    from dataclasses import replace
-
     import numpy as np
 
-    from calidar.cli.options import parse_sigma
+    from calidar.cli.common import config_values
+    from calidar.cli.options import POINT_VALUES, parse_sigma
     from calidar.pipelines.tpu_config import TpuConfig
 
-    config = TpuConfig.read(path) if path is not None else TpuConfig()
     # degrees → radians as numpy converts them (the value calidar tpu has always used)
-    noise = {NOISE_OPTIONS[k][0]: float(np.radians(v)) if NOISE_OPTIONS[k][1] is None else v * NOISE_OPTIONS[k][1]
-             for k, v in given.items() if k in NOISE_OPTIONS}
-    changes = {"noise": replace(config.noise, **noise)}
-    if given.get("trajectory_sigma") is not None:
-        changes["trajectory_sigma"] = parse_sigma(given["trajectory_sigma"])
-    keys = ("crs", "time_system", "geoid_undulation")
-    if any(k in given for k in keys):
-        p = config.points
-        mine = dict(zip(keys, (p.crs, p.time_system, p.geoid_undulation_m)))
-        changes["points"] = point_options(**{**mine, **{k: given[k] for k in keys if k in given}})
-    return replace(config, **changes)
+    options = {k: (f"noise.{f}", (lambda v: float(np.radians(v))) if factor is None else (lambda v, c=factor: v * c))
+               for k, (f, factor) in NOISE_OPTIONS.items()}
+    options.update(trajectory_sigma=("trajectory_sigma", parse_sigma), **POINT_VALUES)
+    return TpuConfig.configure(path, config_values({k: v for k, v in given.items() if v is not None}, options))
 
 
 def register(app: typer.Typer, simulate: typer.Typer) -> None:

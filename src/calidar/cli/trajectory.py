@@ -6,21 +6,33 @@ from __future__ import annotations
 import json
 import shlex
 import sys
-from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 import typer
 from rich.markup import escape
 
-from calidar.cli.common import console, print_warning, progress_bar, progress_callback
-from calidar.cli.options import CRS, GEOID_UNDULATION, TIME_SYSTEM, point_options
+from calidar.cli.common import CONFIG_HELP, config_values, console, given_options, print_warning, progress_bar, progress_callback
+from calidar.cli.options import CRS, GEOID_UNDULATION, POINT_VALUES, TIME_SYSTEM
 from calidar.validate import number
+
+ENCODER_SIGMA, SCAN_PLANE_SIGMA = "0.1,0.3,0.2", "0.1,0.1,0.02"  #: the options' defaults (mounting.DEFAULT_SIGMA)
+#: options → (TrajectoryConfig attribute, parse); --encoder-sigma and --scan-plane-sigma set the mount σ together
+OPTIONS = {"rate": ("settings.rate_hz", None), "points_per_second": ("settings.points_per_s", None),
+           "knot_spacing": ("settings.fit.knot_s", None),
+           "no_scan_angles": ("settings.fit.use_scan_angles", lambda no: not no),
+           "scan_plane_yaw": ("settings.fit.scan_plane_yaw", lambda deg: _radians_yaw(deg)), **POINT_VALUES}
+
+
+def _radians_yaw(deg: float) -> float:
+    """--scan-plane-yaw in degrees, checked, in radians."""
+    return float(np.radians(number(deg, "--scan-plane-yaw", -90.0, 90.0, "deg")))
 
 
 def register(app: typer.Typer, simulate: typer.Typer) -> None:
     @app.command("trajectory")
     def trajectory(
+        ctx: typer.Context,
         points: list[Path] = typer.Argument(..., help="LAS/LAZ files with GPS times (one or several flight lines each)."),
         out: Path = typer.Option(..., "--out", "-o", help="Trajectory file to write (text with σ columns, or SBET)."),
         fmt: str | None = typer.Option(None, "--format", help="text (CSV with σ columns) or sbet (default: sbet for "
@@ -42,45 +54,37 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
         scan_plane_yaw: float = typer.Option(0.0, "--scan-plane-yaw", help="Yaw of the scan plane in the body, deg, "
                                              "when the scan-angle field holds body-frame angles (leeward's scanner: "
                                              "13.96); the heading written is then the body's."),
-        encoder_sigma: str = typer.Option("0.1,0.3,0.2", "--encoder-sigma", help="Prior σ of the scan-angle encoder's "
+        encoder_sigma: str = typer.Option(ENCODER_SIGMA, "--encoder-sigma", help="Prior σ of the scan-angle encoder's "
                                           "offset (deg), scale (%) and curvature (deg at 30°); 0,0 when known. Fitted where "
                                           "the points determine them, else passed into the σ columns."),
-        scan_plane_sigma: str = typer.Option("0.1,0.1,0.02", "--scan-plane-sigma", help="Prior σ of the scan plane's yaw "
+        scan_plane_sigma: str = typer.Option(SCAN_PLANE_SIGMA, "--scan-plane-sigma", help="Prior σ of the scan plane's yaw "
                                              "(about --scan-plane-yaw), pitch and cone (beams out of the plane), deg."),
         crs: str | None = CRS, time_system: str | None = TIME_SYSTEM, geoid_undulation: float | None = GEOID_UNDULATION,
         as_json: bool = typer.Option(False, "--json", help="Print the per-line summary as JSON."),
         force: bool = typer.Option(False, "--force", help="Overwrite the outputs."),
+        config: Path | None = typer.Option(None, "--config", help=CONFIG_HELP),
     ) -> None:
         """Reconstruct each flight line's sensor trajectory from the points alone (multi-return rays,
-        scan angles, scan-line geometry), with a σ per epoch; write it and a report."""
+        scan angles, scan-line geometry), with a σ per epoch; write it, a report and the run's settings
+        (<name>.config.toml beside it, for --config)."""
         from calidar.outputs import guard_inputs
         from calidar.pipelines import trajectory as pipeline
+        from calidar.pipelines.config_file import config_beside
         from calidar.trajrec.summary import line_summary
 
-        number(rate, "--rate", 0.1, 1000.0, "Hz")
-        number(points_per_second, "--points-per-second", 10.0, 1e6, "1/s")
-        number(knot_spacing, "--knot-spacing", 0.02, 10.0, "s")
-        number(scan_plane_yaw, "--scan-plane-yaw", -90.0, 90.0, "deg")
+        cfg = _config(config, given_options(ctx))
         if fmt is not None and fmt not in pipeline.FORMATS:
             raise typer.BadParameter(f"expected text or sbet, got {fmt!r}", param_hint="--format")
         fmt = pipeline.output_format(out, fmt)
-        if scanner not in ("planar", "other"):
-            raise typer.BadParameter(f"expected planar or other, got {scanner!r}", param_hint="--scanner")
-        mount_sigma = _mount_sigma(encoder_sigma, scan_plane_sigma)
-        options = point_options(crs, time_system, geoid_undulation)
         rep = report if report is not None else out.parent / "report.html"
-        guard_inputs([out, rep, sensor_out], [*points, compare])
-        _check_outputs((out, rep, sensor_out), force)
-        base = pipeline.TrajectorySettings()
-        settings = replace(base, rate_hz=rate, points_per_s=points_per_second,
-                           fit=replace(base.fit, knot_s=knot_spacing, use_scan_angles=not no_scan_angles,
-                                       planar_scanner=scanner == "planar", scan_plane_yaw=np.radians(scan_plane_yaw),
-                                       mount_sigma=mount_sigma))
+        guard_inputs([out, rep, sensor_out, config_beside(out)], [*points, compare, config])
+        _check_outputs((out, rep, sensor_out, config_beside(out)), force)
         with progress_bar() as bar:
-            run = pipeline.reconstruct_trajectory(points, options, settings, progress_callback(bar))
+            run = pipeline.reconstruct_trajectory(points, cfg.points, cfg.settings, progress_callback(bar))
         command = "calidar " + " ".join(shlex.quote(a) for a in sys.argv[1:])
         comparison = pipeline.compare_with(run, compare) if compare is not None else None
         pipeline.write_outputs(run, out, fmt, rep, [command], force, sensor_out, comparison)
+        cfg.write(config_beside(out))
         summaries = [line_summary(ln) for ln in run.lines]
         if as_json:
             print(json.dumps({"lines_from": run.lines_from, "lines": summaries, "notes": run.notes, "counts": run.counts,
@@ -95,7 +99,24 @@ def register(app: typer.Typer, simulate: typer.Typer) -> None:
                           f"roll {comparison['roll_deg']['median']:.4f}°, pitch {comparison['pitch_deg']['median']:.4f}°",
                           highlight=False, soft_wrap=True)
         also = f", {escape(str(sensor_out))}" if sensor_out is not None else ""
-        console.print(f"wrote {escape(str(out))} ({fmt}){also} and {escape(str(rep))}", highlight=False, soft_wrap=True)
+        console.print(f"wrote {escape(str(out))} ({fmt}){also}, {escape(str(config_beside(out)))} and {escape(str(rep))}",
+                      highlight=False, soft_wrap=True)
+
+
+def _config(path: Path | None, given: dict):
+    """The run's TrajectoryConfig: the ``--config`` file's (else the defaults) with the options ``given``."""
+    from calidar.pipelines.trajectory_config import TrajectoryConfig
+
+    values = config_values(given, OPTIONS)
+    if "scanner" in given:
+        if given["scanner"] not in ("planar", "other"):
+            raise typer.BadParameter(f"expected planar or other, got {given['scanner']!r}", param_hint="--scanner")
+        values["settings.fit.planar_scanner"] = given["scanner"] == "planar"
+    # each of the two options replaces its own three priors (their defaults: mounting.DEFAULT_SIGMA)
+    mount = _mount_sigma(given.get("encoder_sigma", ENCODER_SIGMA), given.get("scan_plane_sigma", SCAN_PLANE_SIGMA))
+    for option, items in (("encoder_sigma", (0, 1, 4)), ("scan_plane_sigma", (2, 3, 5))):
+        values.update({f"settings.fit.mount_sigma.{k}": float(mount[k]) for k in items if option in given})
+    return TrajectoryConfig.configure(path, values)
 
 
 def _check_outputs(paths, force: bool) -> None:

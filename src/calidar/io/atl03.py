@@ -137,23 +137,23 @@ def atl03_beams(path: str | Path) -> list[str]:
         return [b for b in BEAMS if b in f and "heights" in f[b]]
 
 
-def select_beams(path: str | Path, text: str) -> list[str]:
-    """The beams chosen by ``--beam``: "all" (every beam the file has), one name, or names
-    separated by commas; a clear error for an unknown name or one the file lacks."""
-    names = [b.strip().lower() for b in str(text).split(",") if b.strip()]
+def select_beams(path: str | Path, beams: tuple[str, ...] | None) -> list[str]:
+    """The beams to read: every beam the file has (``beams`` None), else ``beams`` (ATL03 beam
+    names, parsed from ``--beam`` at the edge) each checked against the file, in their order, each
+    once."""
     have = atl03_beams(path)
-    if names == ["all"]:
+    if beams is None:
         if not have:
             raise InputError(path, None, "no ATL03 beam groups (gt1l … gt3r with a heights group)")
         return have
-    for b in names or [""]:
+    for b in beams or ("",):
         if b not in BEAMS:
             raise InputError(None, "--beam", f"expected all, one of {', '.join(BEAMS)} or several "
-                             f"separated by commas, got {text!r}")
+                             f"separated by commas, got {', '.join(beams)!r}")
         if b not in have:
             raise InputError(path, b,
                              f"beam group missing; the file has {', '.join(have) or 'no beams'}")
-    return list(dict.fromkeys(names))
+    return list(dict.fromkeys(beams))
 
 
 def _text(v) -> str:

@@ -33,8 +33,8 @@ def read_ccr_csv(path: Path):
     return CCRSurvey.from_rows(read_ccr_survey(path))
 
 
-def load_passes(files: list[Path], beams: str, survey, system, progress: Progress = no_progress):
-    """Every chosen beam (``beams``: "all" or names separated by commas) of every ATL03 file as a pass
+def load_passes(files: list[Path], beams: tuple[str, ...] | None, survey, system, progress: Progress = no_progress):
+    """Every chosen beam (``beams``: ATL03 beam names; None: every beam) of every ATL03 file as a pass
     prepared near the CCRs (beams without photons skipped)."""
     from calidar.io.atl03 import read_atl03, select_beams
     from calidar.photon.passes import prepare_pass
@@ -51,7 +51,7 @@ def load_passes(files: list[Path], beams: str, survey, system, progress: Progres
                 passes.append(prepare_pass(beam, survey, system, name=f"{label}:{b}"))
         progress("reading passes", i + 1, len(files))
     if not passes:
-        raise InputError(files[0], beams, "no photons in the chosen beam(s)")
+        raise InputError(files[0], "all" if beams is None else ",".join(beams), "no photons in the chosen beam(s)")
     return passes
 
 
@@ -81,7 +81,7 @@ def run_ccr(files: list[Path], ccr: Path, out_dir: Path, config: CCRConfig = CCR
 
     survey = read_ccr_csv(ccr)
     truth = read_truth(truth_path) if truth_path is not None else None
-    passes = load_passes(files, config.beam_text, survey, config.system, progress)
+    passes = load_passes(files, config.beams, survey, config.system, progress)
     result = calibrate(passes, survey, config.system, config.search, progress)
     result.solution.extra.update(describe(result))
     if record is not None:

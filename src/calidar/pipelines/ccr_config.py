@@ -38,14 +38,14 @@ calidar.errors.InputError: --diameter-step: expected a finite number in [0.01, 2
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, fields, replace
+from dataclasses import dataclass, field, fields
 from pathlib import Path
 
 from calidar.errors import InputError
 from calidar.io.atl03 import BEAMS
 from calidar.photon.passes import SystemParameters
 from calidar.photon.search import SearchSettings
-from calidar.pipelines.config_toml import build, known, read_document, section, table, typed, write_document
+from calidar.pipelines.config_file import FileConfig, Key
 from calidar.validate import SEED_MAX, integer, number
 
 SHOT_SPACING_RANGE = (0.05, 10.0)  #: m, along-track shot spacing accepted (ATLAS: 0.7 m)
@@ -105,8 +105,17 @@ def check_beams(beams: tuple[str, ...] | None, keyed: bool = False) -> None:
                              f"{', '.join(BEAMS)} (each once), got {', '.join(beams) or 'none'}")
 
 
+def _beams(value: str | tuple[str, ...]) -> tuple[str, ...] | None:
+    """The file's beams: "all" (None) or a list of names."""
+    if isinstance(value, str):
+        if value != "all":
+            raise InputError(None, "--beam", f"expected all or a list of beam names, got {value!r}")
+        return None
+    return value
+
+
 @dataclass(frozen=True)
-class CCRConfig:
+class CCRConfig(FileConfig):
     """What ``calidar ccr`` takes besides its files: the beams (None: every beam of each file), the grid
     search's and the fit's settings, and the instrument's constants; every value checked when made.
 
@@ -115,6 +124,15 @@ class CCRConfig:
     >>> config.beam_text, config.to_dict()["search"]["bootstrap"]
     ('gt1l,gt2l', 0)
     """
+
+    KEYS = (Key("beams", "beams", "--beam", str | tuple[str, ...], encode=lambda b: "all" if b is None else b,
+                decode=_beams),
+            *(Key(f"search.{f.name}", f"search.{f.name}", {**{k: v[0] for k, v in SEARCH_RANGES.items()},
+                                                           "shared_bias": "--shared-bias"}.get(f.name))
+              for f in fields(SearchSettings)),
+            *(Key(f"system.{k}", f"system.{name}", option, float) for k, (name, _, _, option, *_) in SYSTEM_KEYS.items()),
+            Key("system.channels", "system.channels", "--channels"))
+    COMMAND = "ccr"
 
     beams: tuple[str, ...] | None = None
     search: SearchSettings = field(default_factory=SearchSettings)
@@ -131,35 +149,3 @@ class CCRConfig:
     def beam_text(self) -> str:
         """The beams as ``--beam`` names them ("all" or "gt1l,gt2l")."""
         return "all" if self.beams is None else ",".join(self.beams)
-
-    def to_dict(self) -> dict:
-        """The TOML file's document (SI; no channels: the key left out)."""
-        system = {k: getattr(self.system, name) for k, (name, *_) in SYSTEM_KEYS.items()}
-        if self.system.channels is not None:
-            system["channels"] = self.system.channels
-        return {"beams": "all" if self.beams is None else list(self.beams),
-                "search": {f.name: getattr(self.search, f.name) for f in fields(SearchSettings)}, "system": system}
-
-    def write(self, path: Path) -> Path:
-        """Write the TOML file (atomically); returns its path."""
-        return write_document(path, self.to_dict(), "calidar ccr configuration: give it again with --config "
-                              "to repeat the run")
-
-    @classmethod
-    def read(cls, path: Path) -> CCRConfig:
-        """The configuration of a TOML file (keys left out: their defaults)."""
-        path = Path(path)
-        doc = read_document(path)
-        known(doc, {"beams", "search", "system"}, path)
-        beams = doc.get("beams", "all")
-        beams = None if beams == "all" else typed(beams, tuple[str, ...], path, "beams")
-        search = section(SearchSettings, table(doc, "search", path), path, "search")
-        given = table(doc, "system", path)
-        known(given, {*SYSTEM_KEYS, "channels"}, path, "system.")
-        kw = {SYSTEM_KEYS[k][0]: typed(v, float, path, f"system.{k}") for k, v in given.items() if k in SYSTEM_KEYS}
-        if "channels" in given:
-            kw["channels"] = typed(given["channels"], int, path, "system.channels")
-        system = build(path, "system", lambda: replace(SystemParameters(), **kw))
-        for check, part in ((check_beams, beams), (check_search, search), (check_system, system)):
-            build(path, "", lambda: check(part, keyed=True))  # named by the file's keys
-        return build(path, "", lambda: cls(beams, search, system))

@@ -101,7 +101,13 @@ def typed(value, tp, path, key: str):
     if origin in (typing.Union, types.UnionType):
         if value is None and type(None) in args:
             return None
-        return typed(value, next(a for a in args if a is not type(None)), path, key)
+        alternatives = [a for a in args if a is not type(None)]
+        for a in alternatives[:-1]:  # the first that fits (str | tuple[str, ...]: "all" or a list)
+            try:
+                return typed(value, a, path, key)
+            except InputError:
+                pass
+        return typed(value, alternatives[-1], path, key)
     if origin is tuple:
         n = None if len(args) == 2 and args[1] is Ellipsis else len(args)
         if not isinstance(value, list) or (n is not None and len(value) != n):

@@ -16,9 +16,38 @@ from pathlib import Path
 import numpy as np
 
 from calidar.pipelines import Progress, no_progress
+from calidar.pipelines.config_file import FileConfig, Key
 
 COLUMNS = ("beam", "strength", "delta_time", "along_track_m", "dist_ph_along", "lat", "lon", "h_ph", "atl03_conf",
            "signal")
+
+
+@dataclass(frozen=True)
+class DenoiseConfig(FileConfig):
+    """What ``calidar denoise`` takes besides its files: the beams (None: every beam of the file) and the
+    along-track shot spacing (m); its TOML file is written beside the CSV (``<name>.config.toml``).
+
+    >>> DenoiseConfig(beams=("gt1l",)).to_dict()
+    {'beams': ['gt1l'], 'shot_spacing_m': 0.7}
+    """
+
+    KEYS = (Key("beams", "beams", "--beam"), Key("shot_spacing_m", "shot_spacing_m", "--shot-spacing-m"))
+    COMMAND = "denoise"
+
+    beams: tuple[str, ...] | None = None
+    shot_spacing_m: float = 0.7
+
+    def check(self) -> None:
+        """Beam names of ATL03, each once; the shot spacing in its range."""
+        from calidar.errors import InputError
+        from calidar.io.atl03 import BEAMS
+        from calidar.pipelines.ccr_config import SHOT_SPACING_RANGE
+        from calidar.validate import number
+
+        if self.beams is not None and (not self.beams or any(b not in BEAMS for b in self.beams)):
+            raise InputError(None, "--beam", f"expected all, one of {', '.join(BEAMS)} or several separated by "
+                             f"commas, got {','.join(self.beams)!r}")
+        number(self.shot_spacing_m, "--shot-spacing-m", *SHOT_SPACING_RANGE, "m")
 
 
 @dataclass
@@ -53,14 +82,14 @@ class DenoiseResult:
         return sum(b.signal for b in self.beams)
 
 
-def run_denoise(atl03: Path, beams: str, out_csv: Path, shot_spacing_m: float = 0.7,
+def run_denoise(atl03: Path, out_csv: Path, config: DenoiseConfig = DenoiseConfig(),
                 progress: Progress = no_progress) -> DenoiseResult:
-    """Denoise the chosen beams (``"all"``, one name, or names separated by commas) of ``atl03``
-    and write the CSV ``out_csv`` (a fresh path: the CLI hands in an atomic temporary)."""
+    """Denoise the chosen beams (``config.beams``; None: every beam) of ``atl03`` and write the CSV
+    ``out_csv`` (a fresh path: the CLI hands in an atomic temporary)."""
     from calidar.io.atl03 import read_atl03, select_beams
     from calidar.photon.denoise import denoise
 
-    names = select_beams(atl03, beams)
+    names = select_beams(atl03, config.beams)
     result = DenoiseResult([])
     with open(out_csv, "w", encoding="utf-8", newline="") as fh:
         fh.write(",".join(COLUMNS) + "\n")
@@ -70,7 +99,7 @@ def run_denoise(atl03: Path, beams: str, out_csv: Path, shot_spacing_m: float = 
             if len(b) == 0:
                 result.skipped.append(name)
                 continue
-            sig = denoise(b.x, b.h, shot_spacing_m)
+            sig = denoise(b.x, b.h, config.shot_spacing_m)
             _write_rows(fh, b, sig)
             conf = b.signal_conf.max(axis=1) >= 3 if b.signal_conf.size else np.zeros(len(b), bool)
             result.beams.append(BeamDenoised(name, b.strength, len(b), int(sig.sum()), b.along_track_source,

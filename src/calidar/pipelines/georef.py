@@ -17,6 +17,7 @@ from calidar.io.optech_csd import csd_trajectory, read_csd, returns
 from calidar.outputs import atomic_path, guard_inputs
 from calidar.pipelines import Progress, no_progress
 from calidar.pipelines import inputs
+from calidar.pipelines.config_file import FileConfig, Key, crs_decoder
 from calidar.pipelines.inputs import TrajectoryOptions, load_trajectory, trajectory_for
 from calidar.ingest.plausibility import GeometryCheck, heights_notes
 from calidar.ingest.rewrite import VECTOR_COLUMNS, inverse_rows, regeoreference_file
@@ -90,6 +91,28 @@ class CsdResult:
     crs: str
     first_xyz: tuple[float, float, float]  #: the first point, in ``crs``
     first_gps_time: float
+
+
+@dataclass(frozen=True)
+class GeorefConfig(FileConfig):
+    """What ``calidar georef`` takes besides its files: the output's CRS (None: the WGS 84 UTM zone of the
+    first pulse) and a geoid undulation N (m) for a CRS with geoid heights; written beside the points as
+    <name>.config.toml.
+
+    >>> GeorefConfig(crs="EPSG:32611").to_dict()
+    {'crs': 'EPSG:32611'}
+    """
+
+    KEYS = (Key("crs", "crs", "--crs", decode=crs_decoder("--crs")),
+            Key("geoid_undulation_m", "geoid_undulation_m", "--geoid-undulation"))
+    COMMAND = "georef"
+
+    crs: str | None = None
+    geoid_undulation_m: float | None = None
+
+    def check(self) -> None:
+        """N within its range (the CRS is checked when given)."""
+        PointOptions(geoid_undulation_m=self.geoid_undulation_m)
 
 
 def sensor_path(out: Path) -> Path:

@@ -85,6 +85,20 @@ class PlanRun:
     doc: dict
 
 
+def check_terrain(choice: TerrainChoice) -> None:
+    """The terrain chosen: flat at a height in ±9 km, a known scene preset and seed, or a DEM's path."""
+    from calidar.sim.survey import PRESETS
+
+    if choice.kind == "flat" and (not np.isfinite(choice.height_m) or abs(choice.height_m) > 9000):
+        raise InputError(None, "--terrain", f"expected a height in [-9000, 9000] m, got {choice.height_m:g}")
+    if choice.kind == "scene" and (choice.preset not in PRESETS or choice.seed < 0):
+        raise InputError(None, "--terrain", f"expected scene[:PRESET[:SEED]] with PRESET one of {', '.join(PRESETS)} "
+                         f"and SEED an integer ≥ 0, got {choice}")
+    if choice.kind not in ("flat", "scene", "dem") or (choice.kind == "dem") != (choice.path is not None):
+        raise InputError(None, "--terrain", f"expected flat, scene or dem (with a path, the DEM's alone), got "
+                         f"{choice.kind!r}")
+
+
 def load_terrain(choice: TerrainChoice):
     """The terrain chosen (--terrain) → (terrain, the simulator's base configuration for --simulate or
     None for a DEM)."""
@@ -92,18 +106,14 @@ def load_terrain(choice: TerrainChoice):
 
     from calidar.planning.simulate import FLAT_SCENE
     from calidar.planning.terrain import FlatTerrain, scene_terrain
-    from calidar.sim.survey import PRESETS, survey_config
+    from calidar.sim.survey import survey_config
 
+    check_terrain(choice)
     if choice.kind == "flat":
-        if not np.isfinite(choice.height_m) or abs(choice.height_m) > 9000:
-            raise InputError(None, "--terrain", f"expected a height in [-9000, 9000] m, got {choice.height_m:g}")
         base = survey_config("uav", scene_seed=0)
         return FlatTerrain(choice.height_m), replace(base, scene=replace(base.scene, **FLAT_SCENE),
                                                      origin_deg=(47.0, 8.0, choice.height_m))
     if choice.kind == "scene":
-        if choice.preset not in PRESETS or choice.seed < 0:
-            raise InputError(None, "--terrain", f"expected scene[:PRESET[:SEED]] with PRESET one of {', '.join(PRESETS)} "
-                             f"and SEED an integer ≥ 0, got {choice}")
         base = survey_config(choice.preset, scene_seed=choice.seed)
         return scene_terrain(base), base
     from calidar.io.dem import read_dem
@@ -113,19 +123,26 @@ def load_terrain(choice: TerrainChoice):
     return GridTerrain(heights, x0, y0, dx, dy, f"DEM {choice.path.name}"), None
 
 
-def instrument(sensor_path: Path, options: PlanOptions):
-    from calidar.planning.geometry import Instrument
-    from calidar.planning.sweep import pattern_half_fov
-    from calidar.scanners.linear import LinearScanner
-    from calidar.sensor import Sensor
+def check_numbers(options: PlanOptions) -> None:
+    """The options' numbers in their ranges (an error naming the option)."""
     from calidar.validate import number
 
+    if not 0 <= options.simulate <= MAX_SIMULATE:
+        raise InputError(None, "--simulate", f"expected 0 to {MAX_SIMULATE} simulated surveys, got {options.simulate}")
     number(options.pulse_rate_hz, "--pulse-rate", 100.0, 5e6, "Hz")
     number(options.fov_deg, "--fov", 1.0, 150.0, "deg")
     number(options.range_sigma_m, "--range-sigma", 1e-5, 1.0, "m")
     number(options.angle_sigma_deg, "--angle-sigma", 0.0, 1.0, "deg")
     for v in options.platform_motion:
         number(float(np.degrees(v)), "--platform-motion", 0.0, 10.0 + 1e-12, "deg")  # (10° back from radians)
+
+
+def instrument(sensor_path: Path, options: PlanOptions):
+    from calidar.planning.geometry import Instrument
+    from calidar.planning.sweep import pattern_half_fov
+    from calidar.scanners.linear import LinearScanner
+    from calidar.sensor import Sensor
+
     nominal = Sensor.read(sensor_path)
     # a linear scanner sweeps --fov; a rotating one (Palmer oval, wedge cone) its own pattern, seen twice
     half_fov = (float(np.radians(options.fov_deg / 2)) if isinstance(nominal.scanner, LinearScanner)
@@ -143,15 +160,19 @@ def plan_settings(options: PlanOptions):
     from calidar.planning.predict import PlanSettings
     from calidar.strips.config import TrajectorySettings
 
-    est = options.estimate
+    check_estimate(options.estimate)
+    trajectory = TrajectorySettings(sigma=options.trajectory_sigma).model()
+    return PlanSettings(estimate=tuple(options.estimate.names()), trajectory=trajectory)
+
+
+def check_estimate(est: Estimate) -> None:
+    """What a plan predicts: sensor parameters, not the Palmer and scan-angle ones (an error naming --estimate)."""
     if "height_bias" in est.parameters:
         raise InputError(None, "--estimate", "height_bias needs ground control; expected sensor parameters "
                          "(boresight, lever_arm, range_offset, …)")
     if est.parameters & NOT_PLANNED:
         raise InputError(None, "--estimate", f"got {','.join(est.names())}; calidar plan predicts boresight, lever_arm, "
                          "range_offset and range_scale (and their single parameters)")
-    trajectory = TrajectorySettings(sigma=options.trajectory_sigma).model()
-    return PlanSettings(estimate=tuple(est.names()), trajectory=trajectory)
 
 
 def _verdict(pred, found):
@@ -184,8 +205,7 @@ def run_plan(lines_path: Path, sensor_path: Path, out_dir: Path, options: PlanOp
     from calidar.planning.suggest import suggest
     from calidar.provenance import RunRecord
 
-    if not 0 <= options.simulate <= MAX_SIMULATE:
-        raise InputError(None, "--simulate", f"expected 0 to {MAX_SIMULATE} simulated surveys, got {options.simulate}")
+    check_numbers(options)
     record = RunRecord.capture(argv, inputs=[lines_path, sensor_path], options=options.to_dict())
     lines = read_flight_lines(lines_path)
     inst = instrument(Path(sensor_path), options)

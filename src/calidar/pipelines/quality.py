@@ -24,16 +24,18 @@ from calidar.errors import InputError
 from calidar.ingest.cell_counts import CellCounts, Metric, held_chunks
 from calidar.ingest.stages import checked_differences
 from calidar.io.las import PointOptions
+from calidar.pipelines.config_file import FileConfig, Key, point_keys
 from calidar.strips.quality import QualitySettings
 from calidar.strips.selection import FIELDS as SELECTION_FIELDS
 from calidar.strips.selection import choose_selection
 
+CELL_RANGE_M = (0.01, 1000.0)  #: m, grid cells accepted by --cell (finer than lidar spacing, coarser than overlaps)
 CHUNK_POINTS = 500_000  #: points read at once (the chunk, not the file, sets the peak memory with the cells)
 FIELDS = ("point_source_id", *SELECTION_FIELDS)  #: point fields a chunk needs: flight line and the selection's
 
 
 @dataclass(frozen=True)
-class QualityConfig:
+class QualityConfig(FileConfig):
     """Everything a ``calidar quality`` run takes besides its files, built and checked once at the
     edge (the CLI, the accuracy pipeline) and passed down unchanged: the swath difference's
     settings (``settings``, its grid cell among them), the LAS ``classes`` compared (None: ground,
@@ -43,6 +45,10 @@ class QualityConfig:
     >>> QualityConfig(QualitySettings(cell_m=1.0), classes=(6, 2)).classes
     (2, 6)
     """
+
+    #: its TOML file (``config.toml`` beside quality.json, ``--config``): the options' settings
+    KEYS = (Key("cell_m", "settings.cell_m", "--cell"), Key("classes", "classes", "--classes"), *point_keys())
+    COMMAND = "quality"
 
     settings: QualitySettings = QualitySettings()
     classes: tuple[int, ...] | None = None
@@ -58,6 +64,13 @@ class QualityConfig:
             object.__setattr__(self, "classes", tuple(sorted(set(self.classes))))
         if not (isinstance(self.chunk_points, int) and self.chunk_points > 0):
             raise ValueError(f"chunk_points must be an integer > 0, got {self.chunk_points!r}")
+
+    def check(self) -> None:
+        """The grid cell in its range (the other values are checked when made)."""
+        from calidar.validate import number
+
+        if self.settings.cell_m is not None:
+            number(self.settings.cell_m, "--cell", *CELL_RANGE_M, "m")
 
 
 def measure(paths, config: QualityConfig = QualityConfig()):

@@ -22,20 +22,23 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from calidar.errors import InputError
-from calidar.pipelines.config_toml import read_document, section, write_document
+from calidar.pipelines.config_file import FileConfig, Key
 from calidar.validate import number
 
 MAX_TOLERANCE_M = 10.0  #: largest --tolerance (m)
 
 
 @dataclass(frozen=True)
-class RangeCalConfig:
+class RangeCalConfig(FileConfig):
     """What ``calidar range-cal`` takes besides its files: the acceptance tolerance of the raw range
     error (m, None: no acceptance check) and whether the scale is held at 0 (the offset only).
 
     >>> RangeCalConfig(tolerance_m=0.05).to_dict()
     {'tolerance_m': 0.05, 'fix_scale': False}
     """
+
+    KEYS = (Key("tolerance_m", "tolerance_m", "--tolerance"), Key("fix_scale", "fix_scale", "--fix-scale"))
+    COMMAND = "range-cal"
 
     tolerance_m: float | None = None
     fix_scale: bool = False
@@ -46,17 +49,3 @@ class RangeCalConfig:
             object.__setattr__(self, "tolerance_m", float(self.tolerance_m))
         if not isinstance(self.fix_scale, bool):
             raise InputError(None, "fix_scale (--fix-scale)", f"expected true or false, got {self.fix_scale!r}")
-
-    def to_dict(self) -> dict:
-        """The TOML file's document (no tolerance: the key left out)."""
-        return {**({} if self.tolerance_m is None else {"tolerance_m": self.tolerance_m}), "fix_scale": self.fix_scale}
-
-    def write(self, path: Path) -> Path:
-        """Write the TOML file (atomically); returns its path."""
-        return write_document(path, self.to_dict(), "calidar range-cal configuration: give it again with --config "
-                              "to repeat the run")
-
-    @classmethod
-    def read(cls, path: Path) -> RangeCalConfig:
-        """The configuration of a TOML file (keys left out: their defaults)."""
-        return section(cls, read_document(path), Path(path), "")

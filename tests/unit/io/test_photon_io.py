@@ -113,11 +113,11 @@ def test_strength_from_sc_orient_and_beam_choice(tmp_path):
             f["orbit_info/sc_orient"] = np.array([orient], np.int8)
         got = {n: read_atl03(path, n).strength for n in ("gt1l", "gt1r")}
         assert got[strong] == "strong" and list(got.values()).count("weak") == 1
-    assert select_beams(path, "all") == ["gt1l", "gt1r"] and select_beams(path, "gt1r, gt1l") == ["gt1r", "gt1l"]
+    assert select_beams(path, None) == ["gt1l", "gt1r"] and select_beams(path, ("gt1r", "gt1l")) == ["gt1r", "gt1l"]
     with pytest.raises(InputError, match="--beam: expected all, one of gt1l"):
-        select_beams(path, "gt7x")
+        select_beams(path, ("gt7x",))
     with pytest.raises(InputError, match="a.h5: gt2l: beam group missing; the file has gt1l, gt1r"):
-        select_beams(path, "gt2l")
+        select_beams(path, ("gt2l",))
 
 
 def test_bad_photon_values_are_named(tmp_path):

@@ -1,10 +1,12 @@
-"""The typed configurations of ``calidar range-cal``, ``ccr`` and ``tpu`` (issue 29): each is checked
-when made, written as the TOML file a user keeps and read back equal; a bad value in the file names the
-file and the key; options on the command line replace the file's settings."""
+"""The typed configurations of every command but boresight (issue 29): each is checked when made,
+written as the TOML file a user keeps and read back equal; a bad value in the file names the file, the
+key and its option; options on the command line replace the file's settings."""
 
 from __future__ import annotations
 
 import math
+from dataclasses import replace
+from pathlib import Path
 
 import pytest
 
@@ -16,6 +18,19 @@ from calidar.pipelines.inputs import PointOptions, TrajectoryOptions
 from calidar.pipelines.rangecal_config import RangeCalConfig
 from calidar.pipelines.tpu_config import TpuConfig
 from calidar.tpu.propagate import TpuSettings
+from calidar.pipelines.accuracy import AccuracySettings
+from calidar.pipelines.accuracy_config import AccuracyConfig
+from calidar.pipelines.denoise import DenoiseConfig
+from calidar.pipelines.georef import GeorefConfig
+from calidar.pipelines.plan import PlanOptions, TerrainChoice
+from calidar.pipelines.plan_config import PlanConfig
+from calidar.pipelines.quality import QualityConfig
+from calidar.pipelines.scanner_config import ScannerConfig
+from calidar.pipelines.trajectory import TrajectorySettings
+from calidar.pipelines.trajectory_config import TrajectoryConfig
+from calidar.scanners.settings import AnalysisSettings
+from calidar.strips.config import Estimate
+from calidar.strips.quality import QualitySettings
 
 CONFIGS = [
     RangeCalConfig(), RangeCalConfig(tolerance_m=0.05, fix_scale=True),
@@ -24,6 +39,16 @@ CONFIGS = [
     TpuConfig(), TpuConfig(TpuSettings(0.02, math.radians(0.003), 0.3 * 1e-3, 1.5), (0.04, math.radians(0.004)),
                            PointOptions("EPSG:32632", "week", 47.3), TrajectoryOptions("EPSG:32632", "rad", "grid",
                                                                                        ("time", "x", "y"))),
+    QualityConfig(), QualityConfig(QualitySettings(cell_m=3.0), (2, 6), PointOptions("EPSG:32632", "adjusted", -3.5)),
+    AccuracyConfig(), AccuracyConfig(AccuracySettings("EPSG:6340", 0.03, 8.0, 6.0, 10.0, (2, 8), True)),
+    PlanConfig(), PlanConfig(PlanOptions(TerrainChoice("dem", path=Path("dem.tif")), 30_000.0, 60.0, 0.02, 0.004,
+                                         Estimate.of("boresight", "lever_arm_z"), (0.05, 1e-4), False, 3, (0.01, 0.02))),
+    ScannerConfig(AnalysisSettings("linear", 80.0)),
+    ScannerConfig(AnalysisSettings("wedge", 80.0, {"axis_tilt": 0.5, "wedge_angle_error": -0.1}, wedge_angle_deg=15.0)),
+    DenoiseConfig(), DenoiseConfig(("gt2r", "gt1l"), 0.8),
+    GeorefConfig(), GeorefConfig("EPSG:32611", 12.5),
+    TrajectoryConfig(), TrajectoryConfig(replace(TrajectorySettings(), rate_hz=20.0, points_per_s=300.0),
+                                         PointOptions(time_system="week")),
 ]
 
 
@@ -44,7 +69,7 @@ BAD = [
     (CCRConfig, "[search]\nbootstrap = 1.5\n", "search.bootstrap: expected int, got 1.5"),
     (CCRConfig, "[search]\nbootstrap = -1\n", "search.bootstrap (--bootstrap): expected an integer in [0, 10000]"),
     (CCRConfig, "[search]\nmax_bias = 1e9\n", "search.max_bias (--max-bias): expected a finite number in [0.5, 200]"),
-    (CCRConfig, "[search]\ndiameter_min = 20.0\n", "diameter_min, diameter_max (--diameter-range): expected MIN < MAX"),
+    (CCRConfig, "[search]\ndiameter_min = 20.0\n", "search.diameter_min (--diameter-range): expected MIN < MAX"),
     (CCRConfig, "[search]\nwobble = 1\n", "search.wobble: unknown key"),
     (CCRConfig, "[system]\nchannels = 0\n", "system.channels (--channels): expected an integer in [1, 64], got 0"),
     (CCRConfig, "[system]\ndead_time_s = 3.2\n", "system.dead_time_s (--dead-time-ns): expected a finite number in "
@@ -58,10 +83,28 @@ BAD = [
     (TpuConfig, "[noise]\nnormal_cell_m = 0.0\n", "noise.normal_cell_m: expected a finite number in [0.01, 1000] m"),
     (TpuConfig, "trajectory_sigma = [0.05, 0.0]\n", "trajectory_sigma (--trajectory-sigma): expected a finite number "
                                                     "in (0,"),
-    (TpuConfig, '[inputs]\ntime_system = "utc"\n', "inputs (--time-system): expected one of"),
-    (TpuConfig, '[inputs]\ntrajectory_angles = "grad"\n', "trajectory_angles: expected deg or rad, got 'grad'"),
+    (TpuConfig, '[inputs]\ntime_system = "utc"\n', "inputs.time_system (--time-system): expected one of"),
+    (TpuConfig, '[inputs]\ntrajectory_angles = "grad"\n', "inputs.trajectory_angles (--trajectory-angles): expected deg or rad, "
+                                                             "got 'grad'"),
     (TpuConfig, '[inputs]\ntrajectory_columns = "time,x,y"\n', "inputs.trajectory_columns: expected a list"),
     (TpuConfig, "noise = [1]\n", "noise: expected a table [noise]"),
+    (QualityConfig, "cell_m = 0.0\n", "cell_m (--cell): expected a finite number in [0.01, 1000] m, got 0.0"),
+    (QualityConfig, "classes = [2, 300]\n", "classes (--classes): expected LAS classes"),
+    (QualityConfig, '[inputs]\ncrs = "EPSG:0"\n', "inputs.crs (--crs): expected a CRS pyproj knows"),
+    (AccuracyConfig, "max_edge_m = 1e6\n", "max_edge_m (--max-edge): expected a finite number in [0.1, 100] m"),
+    (AccuracyConfig, "swaths = 1\n", "swaths: expected bool, got 1"),
+    (PlanConfig, "simulate = 1000\n", "simulate (--simulate): expected 0 to 200"),
+    (PlanConfig, "platform_motion_rad = [0.01]\n", "platform_motion_rad: expected a list of 2 values"),
+    (PlanConfig, '[terrain]\nkind = "dem"\n', "terrain.kind (--terrain): expected flat, scene or dem"),
+    (ScannerConfig, 'model = "wedge"\nrange_m = -5.0\n', "range_m (--range): expected a finite number in (0,"),
+    (ScannerConfig, 'model = "linear"\nrange_m = 50.0\npoints = 2\n', "points (--points): expected an integer"),
+    (ScannerConfig, 'model = "linear"\nrange_m = 50.0\n\n[errors]\nspin = 1.0\n', "errors.spin: unknown key"),
+    (DenoiseConfig, 'beams = "all"\n', "beams: expected a list"),
+    (DenoiseConfig, "shot_spacing_m = 50.0\n", "shot_spacing_m (--shot-spacing-m): expected a finite number in [0.05,"),
+    (GeorefConfig, 'crs = "EPSG:0"\n', "crs (--crs): expected a CRS"),
+    (TrajectoryConfig, "knot_s = 100.0\n", "knot_s (--knot-spacing): expected a finite number in [0.02, 10] s"),
+    (TrajectoryConfig, "scan_plane_yaw_rad = 2.0\n", "scan_plane_yaw_rad (--scan-plane-yaw)"),
+    (TrajectoryConfig, "[mount_sigma]\nscan_cone_rad = -0.1\n", "mount_sigma.scan_cone_rad (--scan-plane-sigma)"),
 ]
 
 
@@ -102,6 +145,46 @@ def test_options_given_replace_the_files_settings(tmp_path):
         tpu_config(None, {"range_sigma": -1.0})
 
 
+def test_options_given_replace_the_files_settings_of_every_command(tmp_path):
+    """The options (their parameters' values, as typer gives them) on a file of each command's configuration:
+    the option's value replaces its key, the file's other keys stay, a bad option is named by the option."""
+    from calidar.cli.accuracy import OPTIONS as ACCURACY
+    from calidar.cli.common import config_values
+    from calidar.cli.denoise import OPTIONS as DENOISE
+    from calidar.cli.quality import OPTIONS as QUALITY
+    from calidar.cli.scanner import OPTIONS as SCANNER
+    from calidar.cli.trajectory import OPTIONS as TRAJECTORY
+
+    for cls, options, config, given, check in (
+            (QualityConfig, QUALITY, QualityConfig(QualitySettings(cell_m=3.0), (2,)), {"classes": "6, 2"},
+             lambda c: c.settings.cell_m == 3.0 and c.classes == (2, 6)),
+            (AccuracyConfig, ACCURACY, AccuracyConfig(AccuracySettings(radius_m=8.0, survey_sigma_m=0.03)),
+             {"radius": 6.0, "crs": "EPSG:32632"},
+             lambda c: c.settings.radius_m == 6.0 and c.settings.survey_sigma_m == 0.03 and c.points.crs == "EPSG:32632"),
+            (ScannerConfig, SCANNER, ScannerConfig(AnalysisSettings("palmer", 100.0, {"delta_l": 0.01})),
+             {"delta_r": 0.02, "range_m": 50.0},
+             lambda c: c.settings.errors == {"delta_l": 0.01, "delta_r": 0.02} and c.settings.range_m == 50.0),
+            (DenoiseConfig, DENOISE, DenoiseConfig(("gt1l",), 0.8), {"beam": "all"},
+             lambda c: c.beams is None and c.shot_spacing_m == 0.8),
+            (TrajectoryConfig, TRAJECTORY, TrajectoryConfig(replace(TrajectorySettings(), rate_hz=20.0)),
+             {"no_scan_angles": True, "scan_plane_yaw": 13.96},
+             lambda c: c.settings.rate_hz == 20.0 and not c.settings.fit.use_scan_angles
+             and c.settings.fit.scan_plane_yaw == math.radians(13.96))):
+        path = config.write(tmp_path / f"{cls.__name__}.toml")
+        assert cls.configure(path, {}) == config
+        assert check(cls.configure(path, config_values(given, options))), cls.__name__
+    path = QualityConfig(QualitySettings(cell_m=3.0)).write(tmp_path / "q.toml")
+    with pytest.raises(InputError, match=r"^--cell: expected a finite number"):
+        QualityConfig.configure(path, {"settings.cell_m": -1.0})
+
+
+def test_each_nested_value_is_put_in_once():
+    """A cross-field check sees every value of the file at once (diameter_min above the default maximum is
+    fine with the file's own maximum), whatever the order of the keys."""
+    config = CCRConfig.configure_values({"search.diameter_min": 16.0, "search.diameter_max": 20.0}, {}, "mine.toml")
+    assert (config.search.diameter_min, config.search.diameter_max) == (16.0, 20.0)
+
+
 def test_the_command_lines_defaults_are_the_configurations():
     """Without --config and options, each command runs with its configuration's defaults."""
     from calidar.cli.ccr import ccr_config
@@ -111,3 +194,5 @@ def test_the_command_lines_defaults_are_the_configurations():
     assert range_cal_config(None, {}) == RangeCalConfig()
     assert ccr_config(None, {}) == CCRConfig(None, SearchSettings(), SystemParameters())
     assert tpu_config(None, {}) == TpuConfig()
+    for cls in (QualityConfig, AccuracyConfig, PlanConfig, DenoiseConfig, GeorefConfig, TrajectoryConfig):
+        assert cls.configure(None, {}) == cls()
