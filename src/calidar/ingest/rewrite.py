@@ -55,7 +55,7 @@ def regeoreference_file(path: Path, out: Path, traj: Trajectory, week: int | Non
                         chunk_points: int = CHUNK_POINTS) -> int:
     """``path`` re-georeferenced into ``out``: each point inverted with ``traj`` and the ``old`` sensor,
     forward with ``new_traj`` (None: ``traj``) and ``new``, in the file's CRS; returns the points written."""
-    from calidar.io.las import rewrite_las_xyz
+    from calidar.io.las_rewrite import rewrite_las_xyz
 
     def moved(points) -> np.ndarray:
         t, ecef = point_times(points, traj, week), points_ecef(points)
