@@ -22,9 +22,8 @@ CLI_IMPORT_ALLOWANCE: set[str] = set()
 #: only shrinks). "calidar.x.*" names the package calidar.x and all under it; any other entry one module.
 LINE_LENGTH_ALLOWANCE: set[str] = {
     # the packages not yet started
-    "calidar.cli.*", "calidar.ingest.*", "calidar.photon.*", "calidar.pipelines.*",
-    "calidar.strips.*",
-    # the modules left of a package otherwise reshaped
+    "calidar.cli.*", "calidar.pipelines.*", "calidar.strips.*",
+    # the modules left of a package otherwise reshaped (being edited elsewhere at the time)
     "calidar.adjust.residuals", "calidar.adjust.solver", "calidar.adjust.variance_components",
     "calidar.adjust.variance_elements",
 }

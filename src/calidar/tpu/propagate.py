@@ -174,8 +174,8 @@ def _footprint(cov: np.ndarray, b: np.ndarray, rho: np.ndarray, settings: TpuSet
     beam at the range of that spot, so it is off it by ρ·δ across the beam (δ the spot's angular
     offset, σ = γ/4 per axis) and by ~ρ·δ²/2 along it. Baltsavias' along-beam spread (ρ·γ/4)·tan α
     (α the incidence) is that same ρ·δ seen from where the nominal beam meets the surface: both give
-    (ρ·γ/4)·sin α normal to a plane, so it is not added again (docs/validation.md,
-    "Per-point uncertainty").
+    (ρ·γ/4)·sin α normal to a plane, so it is not added again (docs/validation.md, "Lines of at
+    most 100 characters … fifth session", has the measurement that showed it).
     """
     radius = rho * settings.beam_divergence_rad / 4.0
     across = np.eye(3)[None] - b[:, :, None] * b[:, None, :]
