@@ -9,8 +9,9 @@ The public API, one name per job (each documented with an example)::
     traj = calidar.read_trajectory("sbet.out")        # SBET, ASCII/CSV or Optech CSD
     sensor = calidar.Sensor.read("sensor.toml")
     points = calidar.read_las("line_001.laz")
-    run = calidar.calibrate_strips(["line_001.laz", "line_002.laz"], "sbet.out", "sensor.toml", calidar.StripConfig())
-    run.write("out/")                                  # solution.json, sensor.toml, config.toml, report.html
+    strips = ["line_001.laz", "line_002.laz"]
+    run = calidar.calibrate_strips(strips, "sbet.out", "sensor.toml", calidar.StripConfig())
+    run.write("out/")                      # solution.json, sensor.toml, config.toml, report.html
 
 Names are imported on first use, so ``import calidar`` stays cheap.
 """
@@ -18,10 +19,10 @@ Names are imported on first use, so ``import calidar`` stays cheap.
 
 
 def _record_signals_when_the_cli_starts() -> None:
-    """The ``calidar`` command (or ``python -m calidar``) starting: record SIGINT / SIGTERM from this
-    first line of calidar on (:mod:`calidar.interrupts`), so that a Ctrl-C while the CLI's modules
-    load ends the run cleanly, not in a KeyboardInterrupt traceback (``calidar.cli.signals`` takes
-    over). A library import changes no signal handler."""
+    """The ``calidar`` command (or ``python -m calidar``) starting: record SIGINT / SIGTERM from
+    this first line of calidar on (:mod:`calidar.interrupts`), so that a Ctrl-C while the CLI's
+    modules load ends the run cleanly, not in a KeyboardInterrupt traceback
+    (``calidar.cli.signals`` takes over). A library import changes no signal handler."""
     import os
     import signal
     import sys
@@ -29,7 +30,8 @@ def _record_signals_when_the_cli_starts() -> None:
 
     argv0 = os.path.basename(sys.argv[0]) if sys.argv else ""
     orig = list(getattr(sys, "orig_argv", []))
-    starting = argv0 == "calidar" or any(a == "-m" and b == "calidar" for a, b in zip(orig, orig[1:]))
+    run_as_module = any(a == "-m" and b == "calidar" for a, b in zip(orig, orig[1:]))
+    starting = argv0 == "calidar" or run_as_module
     if starting and threading.current_thread() is threading.main_thread():
         from calidar import interrupts
 

@@ -22,7 +22,8 @@ def group_cells(ij: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 @njit(cache=True, nogil=True)
 def _dense_groups(ij: np.ndarray):  # pragma: no cover - numba
-    """:func:`group_cells` by a dense table, and whether the cells fit one (else nothing grouped)."""
+    """:func:`group_cells` by a dense table, and whether the cells fit one (else nothing
+    grouped)."""
     n = ij.shape[0]
     if n == 0:
         return np.zeros(0, np.int64), np.zeros(0, np.int64), True

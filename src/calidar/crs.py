@@ -22,7 +22,8 @@ ECEF_CRS = "EPSG:4978"
 
 @lru_cache(maxsize=64)
 def _cached_transformer(src: pyproj.CRS, dst: pyproj.CRS) -> pyproj.Transformer:
-    with warnings.catch_warnings():  # "best transformation is not available": checked by _transformer
+    # PROJ's warning "best transformation is not available" is checked by _transformer
+    with warnings.catch_warnings():
         warnings.simplefilter("ignore", UserWarning)
         return pyproj.Transformer.from_crs(src, dst, always_xy=True)
 
@@ -35,7 +36,8 @@ def _missing_grids(src: pyproj.CRS, dst: pyproj.CRS) -> list[str]:
     names = []
     for op in group.unavailable_operations:
         for g in op.grids:
-            if not g.available and g.short_name and g.short_name not in [n.split(" ")[0] for n in names]:
+            known = [n.split(" ")[0] for n in names]
+            if not g.available and g.short_name and g.short_name not in known:
                 names.append(f"{g.short_name} ({g.url})" if g.url else g.short_name)
     return names
 
@@ -46,15 +48,16 @@ def _transformer(src, dst, source=None) -> pyproj.Transformer:
     try:
         src, dst = pyproj.CRS.from_user_input(src), pyproj.CRS.from_user_input(dst)
     except (pyproj.exceptions.CRSError, TypeError) as e:
-        raise InputError(source, "crs", f"expected a CRS pyproj knows (e.g. EPSG:32611): {e}") from None
+        message = f"expected a CRS pyproj knows (e.g. EPSG:32611): {e}"
+        raise InputError(source, "crs", message) from None
     t = _cached_transformer(src, dst)
     if "ballpark vertical" in t.description.lower():
         geoid = src if src.is_compound or src.is_vertical else dst
-        grids = _missing_grids(src, dst)
-        raise InputError(source, "crs", f"{geoid.name} has heights above a geoid and PROJ lacks its grid "
-                         f"({', '.join(grids[:2]) or 'no grid known'}); install it (projsync --file NAME, or "
-                         "PROJ_NETWORK=ON), give --geoid-undulation N (m, constant: a small area) or an ellipsoidal "
-                         "--crs (docs/conventions.md, Heights)")
+        grids = ", ".join(_missing_grids(src, dst)[:2]) or "no grid known"
+        raise InputError(source, "crs", f"{geoid.name} has heights above a geoid and PROJ lacks "
+                         f"its grid ({grids}); install it (projsync --file NAME, or "
+                         "PROJ_NETWORK=ON), give --geoid-undulation N (m, constant: a small area) "
+                         "or an ellipsoidal --crs (docs/conventions.md, Heights)")
     return t
 
 
@@ -63,8 +66,9 @@ def _horizontal(crs, source, undulation_m) -> pyproj.CRS:
     adding ``undulation_m``); an error for a CRS without geoid heights."""
     crs = pyproj.CRS.from_user_input(crs)
     if not crs.is_compound:
-        raise InputError(source, "--geoid-undulation", f"given ({undulation_m} m) but {crs.name} has ellipsoidal "
-                         "heights; expected a compound CRS with a geoid (e.g. EPSG:32632+3855)")
+        raise InputError(source, "--geoid-undulation",
+                         f"given ({undulation_m} m) but {crs.name} has ellipsoidal heights; "
+                         "expected a compound CRS with a geoid (e.g. EPSG:32632+3855)")
     return crs.sub_crs_list[0]
 
 
@@ -115,22 +119,31 @@ class TileLinear:
     def near_ecef(self) -> np.ndarray:
         """The points in ECEF from the anchors' Jacobians: off the full transform by up to ~1 mm
         (≈ d²/R for d ≤ the tile's diagonal, and Δh·d/R across heights), which cancels where only
-        the moves of points count (re-georeferencing: inverse and forward through the same points)."""
+        the moves of points count (re-georeferencing: inverse and forward through the same
+        points)."""
         inv = np.linalg.inv(self.jac)
-        return _moved(self.anchor_ecef[self.rows], inv, self.rows, self.xyz - self.xyz[self.anchor][self.rows])
+        from_anchor = self.xyz - self.xyz[self.anchor][self.rows]
+        return _moved(self.anchor_ecef[self.rows], inv, self.rows, from_anchor)
 
 
-def tile_linear(xyz, crs, geoid_undulation_m: float | None = None, source=None, tile_m: float = 50.0) -> TileLinear:
+def tile_linear(xyz, crs, geoid_undulation_m: float | None = None, source=None,
+                tile_m: float = 50.0) -> TileLinear:
     """:class:`TileLinear` of points (N, 3) in ``crs`` on tiles of ``tile_m`` m (of ≈ tile_m/1e5
     degrees in a geographic CRS); ``geoid_undulation_m``, ``source`` as in :func:`from_crs`."""
     xyz = np.asarray(xyz, float)
     if xyz.shape[0] == 0:
-        return TileLinear(xyz, np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros((0, 3)), np.zeros((0, 3, 3)))
-    tile = tile_m / 1e5 if pyproj.CRS.from_user_input(crs).is_geographic else tile_m  # ≈ 1e5 m a degree
-    rows, anchor = group_cells(np.floor(xyz[:, :2] / tile).astype(np.int64))  # anchor: each tile's first point
+        none = np.zeros(0, np.int64)
+        return TileLinear(xyz, none, none, np.zeros((0, 3)), np.zeros((0, 3, 3)))
+    geographic = pyproj.CRS.from_user_input(crs).is_geographic
+    tile = tile_m / 1e5 if geographic else tile_m  # ≈ 1e5 m a degree
+    # anchor: each tile's first point
+    rows, anchor = group_cells(np.floor(xyz[:, :2] / tile).astype(np.int64))
     anchor_ecef = from_crs(xyz[anchor], crs, geoid_undulation_m, source)
     at = to_crs(anchor_ecef, crs, geoid_undulation_m, source)
-    jac = np.stack([to_crs(anchor_ecef + step, crs, geoid_undulation_m, source) - at for step in np.eye(3)], axis=2)
+    def moved(step):
+        return to_crs(anchor_ecef + step, crs, geoid_undulation_m, source) - at
+
+    jac = np.stack([moved(step) for step in np.eye(3)], axis=2)
     return TileLinear(xyz, rows, anchor, anchor_ecef, jac)
 
 
@@ -156,15 +169,22 @@ def vertical_reference(crs, geoid_undulation_m: float | None = None) -> tuple[st
     if crs.is_compound:
         vertical = crs.sub_crs_list[-1].name
         if geoid_undulation_m is not None:
-            return (f"heights above {vertical} made ellipsoidal with a constant geoid undulation N = "
-                    f"{geoid_undulation_m:g} m (--geoid-undulation)"), None
+            return (f"heights above {vertical} made ellipsoidal with a constant geoid undulation "
+                    f"N = {geoid_undulation_m:g} m (--geoid-undulation)"), None
         return f"heights above {vertical}, made ellipsoidal with its geoid grid (PROJ)", None
     if len(crs.axis_info) >= 3:
         return f"ellipsoidal ({name} is 3-D: its heights are above the ellipsoid)", None
-    horizontal = f"EPSG:{crs.to_epsg()}+{5720 if crs.to_epsg() == 2154 else 3855}" if crs.to_epsg() else "CRS+3855"
-    return (f"ellipsoidal (assumed: {name} has no vertical part)",
-            f"{name} has no vertical part: the heights are taken as ellipsoidal (above the ellipsoid). If they are "
-            f"above a geoid (orthometric, e.g. French LiDAR HD: NGF-IGN69), give a compound --crs (e.g. --crs "
-            f"{horizontal}) with --geoid-undulation N (m, the geoid's height above the ellipsoid there; "
-            "a constant for a small area), or install the geoid grid for PROJ (projsync) and give the compound --crs "
-            "alone; this machine cannot download grids")
+    return f"ellipsoidal (assumed: {name} has no vertical part)", _no_vertical_warning(crs, name)
+
+
+def _no_vertical_warning(crs: pyproj.CRS, name: str) -> str:
+    """The warning for heights taken as ellipsoidal in a CRS without a vertical part, with the
+    compound CRS to give instead (NGF-IGN69, EPSG:5720, beside Lambert-93; else EGM2008 height)."""
+    epsg = crs.to_epsg()
+    horizontal = f"EPSG:{epsg}+{5720 if epsg == 2154 else 3855}" if epsg else "CRS+3855"
+    return (f"{name} has no vertical part: the heights are taken as ellipsoidal (above the "
+            "ellipsoid). If they are above a geoid (orthometric, e.g. French LiDAR HD: NGF-IGN69), "
+            f"give a compound --crs (e.g. --crs {horizontal}) with --geoid-undulation N (m, the "
+            "geoid's height above the ellipsoid there; a constant for a small area), or install "
+            "the geoid grid for PROJ (projsync) and give the compound --crs alone; this machine "
+            "cannot download grids")

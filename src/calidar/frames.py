@@ -24,23 +24,25 @@ R_ENU_NED = np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])
 
 def geodetic_to_ecef(lat_rad, lon_rad, h_m) -> np.ndarray:
     """Geodetic latitude, longitude (rad) and ellipsoidal height (m) → ECEF (…, 3) in m."""
-    lat, lon, h = np.broadcast_arrays(*(np.asarray(v, dtype=float) for v in (lat_rad, lon_rad, h_m)))
+    lat, lon, h = np.broadcast_arrays(*(np.asarray(v, float) for v in (lat_rad, lon_rad, h_m)))
     sl, cl = np.sin(lat), np.cos(lat)
-    n = WGS84_A / np.sqrt(1.0 - WGS84_E2 * sl * sl)
-    return np.stack(
-        [(n + h) * cl * np.cos(lon), (n + h) * cl * np.sin(lon), (n * (1.0 - WGS84_E2) + h) * sl], axis=-1
-    )
+    n = WGS84_A / np.sqrt(1.0 - WGS84_E2 * sl * sl)  # prime-vertical radius of curvature
+    x = (n + h) * cl * np.cos(lon)
+    y = (n + h) * cl * np.sin(lon)
+    z = (n * (1.0 - WGS84_E2) + h) * sl
+    return np.stack([x, y, z], axis=-1)
 
 
 def ecef_to_geodetic(xyz_m) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """ECEF (…, 3) in m → (lat_rad, lon_rad, h_m); Bowring's method, two iterations (< 1e-9 m near Earth)."""
+    """ECEF (…, 3) in m → (lat_rad, lon_rad, h_m); Bowring's method (< 1e-9 m near Earth)."""
     xyz = np.asarray(xyz_m, dtype=float)
     x, y, z = xyz[..., 0], xyz[..., 1], xyz[..., 2]
     lon = np.arctan2(y, x)
     p = np.hypot(x, y)
     beta = np.arctan2(z, p * (1.0 - WGS84_F))
     for _ in range(3):
-        lat = np.arctan2(z + WGS84_EP2 * WGS84_B * np.sin(beta) ** 3, p - WGS84_E2 * WGS84_A * np.cos(beta) ** 3)
+        numerator = z + WGS84_EP2 * WGS84_B * np.sin(beta) ** 3
+        lat = np.arctan2(numerator, p - WGS84_E2 * WGS84_A * np.cos(beta) ** 3)
         beta = np.arctan2((1.0 - WGS84_F) * np.sin(lat), np.cos(lat))
     sl = np.sin(lat)
     n = WGS84_A / np.sqrt(1.0 - WGS84_E2 * sl * sl)
@@ -54,7 +56,7 @@ def rot_x(a) -> np.ndarray:
     a = np.asarray(a, dtype=float)
     c, s = np.cos(a), np.sin(a)
     o, z = np.ones_like(a), np.zeros_like(a)
-    return np.stack([np.stack([o, z, z], -1), np.stack([z, c, -s], -1), np.stack([z, s, c], -1)], -2)
+    return _matrix([o, z, z], [z, c, -s], [z, s, c])
 
 
 def rot_y(a) -> np.ndarray:
@@ -62,7 +64,7 @@ def rot_y(a) -> np.ndarray:
     a = np.asarray(a, dtype=float)
     c, s = np.cos(a), np.sin(a)
     o, z = np.ones_like(a), np.zeros_like(a)
-    return np.stack([np.stack([c, z, s], -1), np.stack([z, o, z], -1), np.stack([-s, z, c], -1)], -2)
+    return _matrix([c, z, s], [z, o, z], [-s, z, c])
 
 
 def rot_z(a) -> np.ndarray:
@@ -70,7 +72,12 @@ def rot_z(a) -> np.ndarray:
     a = np.asarray(a, dtype=float)
     c, s = np.cos(a), np.sin(a)
     o, z = np.ones_like(a), np.zeros_like(a)
-    return np.stack([np.stack([c, -s, z], -1), np.stack([s, c, z], -1), np.stack([z, z, o], -1)], -2)
+    return _matrix([c, -s, z], [s, c, z], [z, z, o])
+
+
+def _matrix(*rows) -> np.ndarray:
+    """Matrices (…, n, m) from n rows of m arrays (…) each."""
+    return np.stack([np.stack(row, -1) for row in rows], -2)
 
 
 def rpy_to_matrix(roll_rad, pitch_rad, heading_rad) -> np.ndarray:
@@ -89,7 +96,9 @@ def matrix_to_rpy(r) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 def small_angle_matrix(roll_rad, pitch_rad, yaw_rad) -> np.ndarray:
     """First-order rotation I + [ω]× for small angles (boresight linearisation), (3, 3)."""
-    return np.array([[1.0, -yaw_rad, pitch_rad], [yaw_rad, 1.0, -roll_rad], [-pitch_rad, roll_rad, 1.0]])
+    return np.array([[1.0, -yaw_rad, pitch_rad],
+                     [yaw_rad, 1.0, -roll_rad],
+                     [-pitch_rad, roll_rad, 1.0]])
 
 
 def r_en(lat_rad, lon_rad) -> np.ndarray:
@@ -106,16 +115,17 @@ def matrix_to_quat(r) -> np.ndarray:
     """Rotation matrices (…, 3, 3) → unit quaternions (…, 4) [w, x, y, z], w ≥ 0."""
     r = np.asarray(r, dtype=float)
     m00, m11, m22 = r[..., 0, 0], r[..., 1, 1], r[..., 2, 2]
-    cand = np.stack(
-        [
-            np.stack([1 + m00 + m11 + m22, r[..., 2, 1] - r[..., 1, 2], r[..., 0, 2] - r[..., 2, 0], r[..., 1, 0] - r[..., 0, 1]], -1),
-            np.stack([r[..., 2, 1] - r[..., 1, 2], 1 + m00 - m11 - m22, r[..., 0, 1] + r[..., 1, 0], r[..., 0, 2] + r[..., 2, 0]], -1),
-            np.stack([r[..., 0, 2] - r[..., 2, 0], r[..., 0, 1] + r[..., 1, 0], 1 - m00 + m11 - m22, r[..., 1, 2] + r[..., 2, 1]], -1),
-            np.stack([r[..., 1, 0] - r[..., 0, 1], r[..., 0, 2] + r[..., 2, 0], r[..., 1, 2] + r[..., 2, 1], 1 - m00 - m11 + m22], -1),
-        ],
-        -2,
-    )
-    diag = np.stack([1 + m00 + m11 + m22, 1 + m00 - m11 - m22, 1 - m00 + m11 - m22, 1 - m00 - m11 + m22], -1)
+    # Shepperd's method: d = 4w², 4x², 4y², 4z²; row k is 4·q_k·(w, x, y, z), the row of the
+    # largest q_k the best conditioned
+    d = [1 + m00 + m11 + m22, 1 + m00 - m11 - m22, 1 - m00 + m11 - m22, 1 - m00 - m11 + m22]
+    x = r[..., 2, 1] - r[..., 1, 2]  # the antisymmetric part: 4w·(x, y, z)
+    y = r[..., 0, 2] - r[..., 2, 0]
+    z = r[..., 1, 0] - r[..., 0, 1]
+    xy = r[..., 0, 1] + r[..., 1, 0]  # the symmetric part: 4xy, 4xz, 4yz
+    xz = r[..., 0, 2] + r[..., 2, 0]
+    yz = r[..., 1, 2] + r[..., 2, 1]
+    cand = _matrix([d[0], x, y, z], [x, d[1], xy, xz], [y, xy, d[2], yz], [z, xz, yz, d[3]])
+    diag = np.stack(d, -1)
     best = np.argmax(diag, axis=-1)
     q = np.take_along_axis(cand, best[..., None, None], axis=-2)[..., 0, :]
     q /= np.linalg.norm(q, axis=-1, keepdims=True)

@@ -21,7 +21,8 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from calidar.crs import ECEF_CRS, TileLinear, from_crs, tile_linear, to_crs  # noqa: F401 (georef's face)
+# georef's face: the CRS transforms callers reach through it
+from calidar.crs import ECEF_CRS, TileLinear, from_crs, tile_linear, to_crs  # noqa: F401
 from calidar.scanners.linear import LinearScanner
 from calidar.sensor import Sensor
 from calidar.trajectory import Trajectory
@@ -58,13 +59,14 @@ def _interval(tt, t, i):
 def _pose(tt, pos, q, tk, i, i_prev, theta, s, sign):
     """Position (linear) and attitude matrix (SLERP, as :func:`calidar.frames.slerp`) at time tk.
 
-    (i_prev, theta, s = 1/sin θ, sign) cache the SLERP angle of the last interval: recomputed only when
-    the interval changes (cheap for time-sorted points). Returns the updated cache, then
+    (i_prev, theta, s = 1/sin θ, sign) cache the SLERP angle of the last interval: recomputed only
+    when the interval changes (cheap for time-sorted points). Returns the updated cache, then
     px, py, pz and the nine entries of R_eb row by row.
     """
     i = _interval(tt, tk, i)
     if i != i_prev:
-        dot = q[i, 0] * q[i + 1, 0] + q[i, 1] * q[i + 1, 1] + q[i, 2] * q[i + 1, 2] + q[i, 3] * q[i + 1, 3]
+        a, b = q[i], q[i + 1]
+        dot = a[0] * b[0] + a[1] * b[1] + a[2] * b[2] + a[3] * b[3]
         sign = -1.0 if dot < 0.0 else 1.0
         theta = np.arccos(min(abs(dot), 1.0))
         s = np.sin(theta)
@@ -94,7 +96,8 @@ def _pose(tt, pos, q, tk, i, i_prev, theta, s, sign):
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _lidar_equation(sx, sy, sz, r_bs, lever, px, py, pz, r00, r01, r02, r10, r11, r12, r20, r21, r22, out, k):
+def _lidar_equation(sx, sy, sz, r_bs, lever, px, py, pz,
+                    r00, r01, r02, r10, r11, r12, r20, r21, r22, out, k):
     """out[k] = :func:`lidar_point` of the scanner-frame vector (sx, sy, sz) m."""
     out[k, 0], out[k, 1], out[k, 2] = lidar_point(sx, sy, sz, r_bs, lever, px, py, pz,
                                                   r00, r01, r02, r10, r11, r12, r20, r21, r22)
@@ -114,7 +117,8 @@ def lidar_point(sx, sy, sz, r_bs, lever, px, py, pz, r00, r01, r02, r10, r11, r1
 @njit(cache=True, nogil=True)
 def scanner_vector(x, y, z, px, py, pz, r00, r01, r02, r10, r11, r12, r20, r21, r22, r_bs, lever):
     """v_s = R_bsᵀ·(R_ebᵀ·(p − r) − a): the ECEF point (x, y, z) m seen from the pose (px, py,
-    pz; R_eb row by row) of :func:`_pose`, in the scanner frame (m) — the lidar equation inverted."""
+    pz; R_eb row by row) of :func:`_pose`, in the scanner frame (m) — the lidar equation
+    inverted."""
     dx, dy, dz = x - px, y - py, z - pz
     bx = r00 * dx + r10 * dy + r20 * dz - lever[0]
     by = r01 * dx + r11 * dy + r21 * dz - lever[1]
@@ -135,13 +139,14 @@ def _forward_kernel(tt, pos, q, t, vec, r_bs, lever, out):
         i, i_prev, theta, s, sign, px, py, pz, r00, r01, r02, r10, r11, r12, r20, r21, r22 = _pose(
             tt, pos, q, tk, i, i_prev, theta, s, sign)
         sx, sy, sz = vec[k, 0], vec[k, 1], vec[k, 2]
-        _lidar_equation(sx, sy, sz, r_bs, lever, px, py, pz, r00, r01, r02, r10, r11, r12, r20, r21, r22, out, k)
+        _lidar_equation(sx, sy, sz, r_bs, lever, px, py, pz,
+                        r00, r01, r02, r10, r11, r12, r20, r21, r22, out, k)
     return n_out
 
 
 @njit(cache=True, nogil=True)
-def _forward_linear_kernel(tt, pos, q, t, range_m, theta_enc, phi, has_phi, range_offset, range_scale, angle_offset,
-                           angle_scale, r_bs, lever, out):
+def _forward_linear_kernel(tt, pos, q, t, range_m, theta_enc, phi, has_phi,
+                           range_offset, range_scale, angle_offset, angle_scale, r_bs, lever, out):
     """:func:`_forward_kernel` fused with the range model and the linear scanner
     (:class:`calidar.scanners.linear.LinearScanner`); φ = 0 unless ``has_phi``."""
     n_out, i, i_prev, theta, s, sign = 0, 0, -1, 0.0, 0.0, 1.0
@@ -157,7 +162,8 @@ def _forward_linear_kernel(tt, pos, q, t, range_m, theta_enc, phi, has_phi, rang
             sx, sy, sz = rho * np.sin(phi[k]), rho * (cphi * np.sin(th)), rho * (cphi * np.cos(th))
         else:
             sx, sy, sz = 0.0, rho * np.sin(th), rho * np.cos(th)
-        _lidar_equation(sx, sy, sz, r_bs, lever, px, py, pz, r00, r01, r02, r10, r11, r12, r20, r21, r22, out, k)
+        _lidar_equation(sx, sy, sz, r_bs, lever, px, py, pz,
+                        r00, r01, r02, r10, r11, r12, r20, r21, r22, out, k)
     return n_out
 
 
@@ -171,14 +177,16 @@ def _inverse_kernel(tt, pos, q, t, p, r_bs, lever, out):
         n_out += not tt[0] <= tk <= tt[tt.size - 1]  # NaN counts as outside
         i, i_prev, theta, s, sign, px, py, pz, r00, r01, r02, r10, r11, r12, r20, r21, r22 = _pose(
             tt, pos, q, tk, i, i_prev, theta, s, sign)
-        out[k, 0], out[k, 1], out[k, 2] = scanner_vector(p[k, 0], p[k, 1], p[k, 2], px, py, pz, r00, r01, r02,
-                                                         r10, r11, r12, r20, r21, r22, r_bs, lever)
+        out[k, 0], out[k, 1], out[k, 2] = scanner_vector(
+            p[k, 0], p[k, 1], p[k, 2], px, py, pz,
+            r00, r01, r02, r10, r11, r12, r20, r21, r22, r_bs, lever)
     return n_out
 
 
 @njit(cache=True, nogil=True)
 def _poses_kernel(tt, pos, q, t, pos_out, r_out):
-    """r(t) → pos_out (N, 3) and R_eb(t) → r_out (N, 3, 3). Returns how many times lie outside tt."""
+    """r(t) → pos_out (N, 3) and R_eb(t) → r_out (N, 3, 3). Returns how many times lie outside
+    tt."""
     n_out, i, i_prev, theta, s, sign = 0, 0, -1, 0.0, 0.0, 1.0
     for k in range(t.size):
         tk = t[k]
@@ -226,11 +234,14 @@ def lidar_points(position, rotation, sensor: Sensor, range_m, angles) -> np.ndar
 
 @njit(cache=True, nogil=True)
 def _posed_kernel(position, rotation, vec, r_bs, lever, out):  # pragma: no cover - numba
-    """:func:`_lidar_equation` at given poses: position (N, 3), rotation (N, 3, 3), scanner-frame vectors (N, 3)."""
+    """:func:`_lidar_equation` at given poses: position (N, 3), rotation (N, 3, 3), scanner-frame
+    vectors (N, 3)."""
     for k in range(vec.shape[0]):
-        r = rotation[k]
-        _lidar_equation(vec[k, 0], vec[k, 1], vec[k, 2], r_bs, lever, position[k, 0], position[k, 1], position[k, 2],
-                        r[0, 0], r[0, 1], r[0, 2], r[1, 0], r[1, 1], r[1, 2], r[2, 0], r[2, 1], r[2, 2], out, k)
+        r, p, v = rotation[k], position[k], vec[k]
+        _lidar_equation(v[0], v[1], v[2], r_bs, lever, p[0], p[1], p[2],
+                        r[0, 0], r[0, 1], r[0, 2],
+                        r[1, 0], r[1, 1], r[1, 2],
+                        r[2, 0], r[2, 1], r[2, 2], out, k)
 
 
 def _c(a) -> np.ndarray:
@@ -238,13 +249,16 @@ def _c(a) -> np.ndarray:
 
 
 def _run(kernel, traj: Trajectory, sensor: Sensor, time, *args) -> np.ndarray:
-    """Call a kernel with the trajectory and mounting; a clear error for times outside the trajectory."""
+    """Call a kernel with the trajectory and mounting; a clear error for times outside the
+    trajectory."""
     t = _c(time)
     out = np.empty((t.size, 3))
     for a in args:
         if isinstance(a, np.ndarray) and a.shape[0] != t.size:
-            raise ValueError(f"expected {t.size} rows to match the times, got an array of shape {a.shape}")
-    if kernel(traj.time, _c(traj.ecef), _c(traj.q_eb), t, *args, _c(sensor.r_bs), _c(sensor.lever_arm), out):
+            raise ValueError(f"expected {t.size} rows to match the times, "
+                             f"got an array of shape {a.shape}")
+    trajectory = (traj.time, _c(traj.ecef), _c(traj.q_eb))
+    if kernel(*trajectory, t, *args, _c(sensor.r_bs), _c(sensor.lever_arm), out):
         traj.check_covers(t)
     return out
 
@@ -260,10 +274,11 @@ def forward(traj: Trajectory, sensor: Sensor, time, range_m, angles) -> np.ndarr
 
     >>> import numpy as np, calidar
     >>> t = np.array([0.0, 1.0])  # level flight due north at 500 m
-    >>> traj = calidar.Trajectory(time=t, lat=np.radians([47.0, 47.0001]), lon=np.radians([8.0, 8.0]),
-    ...                           height=[500.0, 500.0], roll=[0.0, 0.0], pitch=[0.0, 0.0], heading=[0.0, 0.0])
+    >>> lat, lon, level = np.radians([47.0, 47.0001]), np.radians([8.0, 8.0]), [0.0, 0.0]
+    >>> traj = calidar.Trajectory(time=t, lat=lat, lon=lon, height=[500.0, 500.0],
+    ...                           roll=level, pitch=level, heading=level)
     >>> sensor = calidar.Sensor()  # no mounting errors, linear scanner
-    >>> p = calidar.georeference(traj, sensor, [0.5], [100.0], [0.0])  # nadir shot of 100 m at t = 0.5 s
+    >>> p = calidar.georeference(traj, sensor, [0.5], [100.0], [0.0])  # 100 m nadir at t = 0.5 s
     >>> lat, lon, h = calidar.frames.ecef_to_geodetic(p)
     >>> round(float(h[0]), 4), round(float(np.degrees(lat[0])), 6)  # 100 m below the IMU
     (400.0, 47.00005)
@@ -272,15 +287,15 @@ def forward(traj: Trajectory, sensor: Sensor, time, range_m, angles) -> np.ndarr
     if type(sc) is LinearScanner:  # exactly: a subclass may change the beam model
         a = np.asarray(angles, dtype=float)
         theta, phi = (a, a) if a.ndim == 1 else (a[:, 0], a[:, 1])
-        return _run(_forward_linear_kernel, traj, sensor, time, _c(range_m), _c(theta), _c(phi), a.ndim == 2,
-                    float(sensor.range_offset), float(sensor.range_scale), float(sc.scan_angle_offset),
-                    float(sc.scan_angle_scale))
+        return _run(_forward_linear_kernel, traj, sensor, time, _c(range_m), _c(theta), _c(phi),
+                    a.ndim == 2, *_linear_model(sensor))
     rho = sensor.true_range(range_m)
     return forward_vectors(traj, sensor, time, rho[:, None] * sc.directions(angles))
 
 
 @njit(cache=True, nogil=True)
-def _linear_observations(v_s, range_offset, range_scale, angle_offset, angle_scale, range_m, angles):
+def _linear_observations(v_s, range_offset, range_scale, angle_offset, angle_scale,
+                         range_m, angles):
     """Measured ranges and linear-scanner angles [θ, φ] of scanner vectors (N, 3), as
     :meth:`calidar.scanners.linear.LinearScanner.angles` and :meth:`Sensor.measured_range`."""
     for k in range(v_s.shape[0]):
@@ -296,12 +311,14 @@ def inverse(traj: Trajectory, sensor: Sensor, time, points_ecef) -> ScanObservat
 
     >>> import numpy as np, calidar
     >>> t = np.array([0.0, 1.0])
-    >>> traj = calidar.Trajectory(time=t, lat=np.radians([47.0, 47.0001]), lon=np.radians([8.0, 8.0]),
-    ...                           height=[500.0, 500.0], roll=[0.0, 0.0], pitch=[0.0, 0.0], heading=[0.0, 0.0])
+    >>> lat, lon, level = np.radians([47.0, 47.0001]), np.radians([8.0, 8.0]), [0.0, 0.0]
+    >>> traj = calidar.Trajectory(time=t, lat=lat, lon=lon, height=[500.0, 500.0],
+    ...                           roll=level, pitch=level, heading=level)
     >>> sensor = calidar.Sensor(boresight_roll=np.radians(0.01), lever_arm_z=0.2)
     >>> p = calidar.georeference(traj, sensor, [0.5, 0.7], [100.0, 120.0], [0.0, np.radians(10.0)])
     >>> obs = calidar.inverse_georeference(traj, sensor, [0.5, 0.7], p)
-    >>> np.round(obs.range_m, 9).tolist(), (np.round(np.degrees(obs.angles[:, 0]), 9) + 0.0).tolist()
+    >>> theta_deg = np.round(np.degrees(obs.angles[:, 0]), 9) + 0.0
+    >>> np.round(obs.range_m, 9).tolist(), theta_deg.tolist()
     ([100.0, 120.0], [0.0, 10.0])
     """
     time = np.asarray(time, float)
@@ -311,7 +328,8 @@ def inverse(traj: Trajectory, sensor: Sensor, time, points_ecef) -> ScanObservat
 def scanner_vectors(traj: Trajectory, sensor: Sensor, time, points_ecef) -> np.ndarray:
     """The scanner-frame vectors (N, 3) m of points (N, 3) ECEF: :func:`inverse` without its
     ranges and angles."""
-    return _run(_inverse_kernel, traj, sensor, np.asarray(time, float), _c(points_ecef).reshape(-1, 3))
+    points = _c(points_ecef).reshape(-1, 3)
+    return _run(_inverse_kernel, traj, sensor, np.asarray(time, float), points)
 
 
 def observations(sensor: Sensor, time, v_s: np.ndarray) -> ScanObservations:
@@ -319,11 +337,18 @@ def observations(sensor: Sensor, time, v_s: np.ndarray) -> ScanObservations:
     time, sc = np.asarray(time, float), sensor.scanner
     if type(sc) is LinearScanner:
         range_m, angles = np.empty(time.size), np.empty((time.size, 2))
-        _linear_observations(v_s, float(sensor.range_offset), float(sensor.range_scale), float(sc.scan_angle_offset),
-                             float(sc.scan_angle_scale), range_m, angles)
+        _linear_observations(v_s, *_linear_model(sensor), range_m, angles)
         return ScanObservations(time, range_m, angles, v_s)
     rho = np.linalg.norm(v_s, axis=1)
     return ScanObservations(time, sensor.measured_range(rho), sc.angles(v_s / rho[:, None]), v_s)
+
+
+def _linear_model(sensor: Sensor) -> tuple[float, float, float, float]:
+    """The range offset (m) and scale, the linear scanner's angle offset (rad) and scale, as the
+    fused kernels take them."""
+    sc = sensor.scanner
+    return (float(sensor.range_offset), float(sensor.range_scale), float(sc.scan_angle_offset),
+            float(sc.scan_angle_scale))
 
 
 def regeoreference(traj: Trajectory, old: Sensor, new: Sensor, time, points_ecef,
@@ -339,7 +364,10 @@ def reforward(old: Sensor, new: Sensor, traj: Trajectory, time, v_s: np.ndarray)
     the scanner-frame vectors v_s (N, 3) m (:func:`scanner_vectors`): the same vectors when the
     range model and the scanner are the same (a new mounting only), else through the ranges and
     angles ``old`` measured."""
-    if (new.range_offset, new.range_scale, new.scanner) == (old.range_offset, old.range_scale, old.scanner):
+    def model(s: Sensor):
+        return s.range_offset, s.range_scale, s.scanner
+
+    if model(new) == model(old):
         return forward_vectors(traj, new, time, v_s)
     obs = observations(old, time, v_s)
     return forward(traj, new, obs.time, obs.range_m, obs.angles)

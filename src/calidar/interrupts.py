@@ -22,7 +22,8 @@ from collections.abc import Callable, Iterator
 _RECORDED: list[int] = []  #: signals received by this run, in order
 _STATE = {"committed": False}
 _DEFERRED = {"depth": 0}  #: how deep the main thread is in :func:`deferred` blocks
-_DELIVER: list[Callable[[], None]] = []  #: acts on signals held back by :func:`deferred` (set by the CLI)
+#: acts on signals held back by :func:`deferred` (set by the CLI)
+_DELIVER: list[Callable[[], None]] = []
 
 
 class Interrupted(KeyboardInterrupt):

@@ -1,4 +1,5 @@
-"""Safe output writing: runs as transactions, atomic files, no silent overwrite, inputs never touched.
+"""Safe output writing: runs as transactions, atomic files, no silent overwrite, inputs never
+touched.
 
 Every command that writes goes through two calls:
 
@@ -30,6 +31,7 @@ from calidar.errors import CalidarError, OutputExistsError, OutputWriteError
 
 _TEMPORARIES: dict[str, str] = {}  #: temporary path → the destination it stands for (for messages)
 _DEPTH = [0]  #: transactions open in this process (the outermost one's commit is the run's)
+_PathOrNone = str | os.PathLike | None
 
 
 def shown_path(text: str) -> str:
@@ -66,16 +68,16 @@ def _inside(child: Path, folder: Path) -> bool:
         return False
 
 
-def guard_inputs(outputs: Iterable[str | os.PathLike | None], inputs: Iterable[str | os.PathLike | None],
-                 folders: Iterable[str | os.PathLike | None] = ()) -> None:
+def guard_inputs(outputs: Iterable[_PathOrNone], inputs: Iterable[_PathOrNone],
+                 folders: Iterable[_PathOrNone] = ()) -> None:
     """Refuse, whatever ``--force`` says, an output file that is an input (same path or hard link)
     and an output folder that holds an input. ``outputs``: files; ``folders``: output folders."""
     ins = [Path(i) for i in inputs if i is not None]
     for o in (Path(p) for p in outputs if p is not None):
         for i in ins:
             if _same(o, i):
-                raise OutputExistsError(f"{o}: is an input of this command ({i}); choose another output "
-                                        "(inputs are never modified, even with --force)")
+                raise OutputExistsError(f"{o}: is an input of this command ({i}); choose another "
+                                        "output (inputs are never modified, even with --force)")
     for d in (Path(p) for p in folders if p is not None):
         for i in ins:
             if _same(d, i) or _inside(i, d):
@@ -106,13 +108,14 @@ def claim_output(path: str | os.PathLike) -> None:
 
 
 def check_out_dir(path: str | os.PathLike, force: bool = False) -> Path:
-    """Refuse (before any work) an output folder that is a file, or exists non-empty without ``force``.
-    Creates nothing."""
+    """Refuse (before any work) an output folder that is a file, or exists non-empty without
+    ``force``. Creates nothing."""
     path = Path(path)
     if path.exists() and not path.is_dir():
         raise OutputExistsError(f"{path}: exists and is not a folder")
     if path.is_dir() and any(path.iterdir()) and not force:
-        raise OutputExistsError(f"{path}: folder exists and is not empty; pass --force to write into it")
+        raise OutputExistsError(f"{path}: folder exists and is not empty; "
+                                "pass --force to write into it")
     return path
 
 
@@ -125,7 +128,8 @@ def prepare_out_dir(path: str | os.PathLike, force: bool = False) -> Path:
 
 
 @contextlib.contextmanager
-def output_folder(path: str | os.PathLike, force: bool = False, inputs: Iterable = ()) -> Iterator[Path]:
+def output_folder(path: str | os.PathLike, force: bool = False,
+                  inputs: Iterable = ()) -> Iterator[Path]:
     """A run's output folder as a transaction: yields a fresh hidden folder beside ``path``; on
     success it replaces ``path`` whole (created when absent; under ``--force`` the previous folder
     goes whole, so no file of an earlier run stays); on any exception (interruptions included) it
@@ -140,15 +144,9 @@ def output_folder(path: str | os.PathLike, force: bool = False, inputs: Iterable
     if path.is_symlink():  # a link to a folder: the folder it points to is the output
         path = Path(os.path.realpath(path))
     with run_lock.hold(path, shown):
-        check_out_dir(path, force)  # again under the lock: another run may have written it meanwhile
-        def create() -> Path:
-            try:
-                path.parent.mkdir(parents=True, exist_ok=True)
-                return Path(tempfile.mkdtemp(prefix=f".{path.name}.calidar-", dir=path.parent))
-            except OSError as e:
-                raise OutputWriteError(f"{shown}: cannot create the output folder: {e.strerror or e}") from None
-
-        tmp = _temporary(create, shown)
+        # again under the lock: another run may have written it meanwhile
+        check_out_dir(path, force)
+        tmp = _temporary(lambda: _create_folder_beside(path, shown), shown)
         _DEPTH[0] += 1
         try:
             yield tmp
@@ -164,6 +162,16 @@ def output_folder(path: str | os.PathLike, force: bool = False, inputs: Iterable
                 _TEMPORARIES.pop(str(tmp), None)
 
 
+def _create_folder_beside(path: Path, shown: str) -> Path:
+    """A fresh hidden folder beside ``path`` (its parents created), or a one-line error."""
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        return Path(tempfile.mkdtemp(prefix=f".{path.name}.calidar-", dir=path.parent))
+    except OSError as e:
+        message = f"{shown}: cannot create the output folder: {e.strerror or e}"
+        raise OutputWriteError(message) from None
+
+
 def _commit(tmp: Path, path: Path, shown: str) -> None:
     """Put a finished run's folder in place of ``path``, whole: renamed when ``path`` is absent,
     else exchanged with the previous folder in one step (Linux ``renameat2(RENAME_EXCHANGE)``, or
@@ -175,24 +183,29 @@ def _commit(tmp: Path, path: Path, shown: str) -> None:
     if not os.path.lexists(path):
         os.rename(tmp, path)
     elif path.is_symlink() or not path.is_dir():
-        raise OutputExistsError(f"{shown}: changed during the run (now {'a link' if path.is_symlink() else 'a file'}, "
-                                "not the folder it was); left as it is, nothing written")
+        now = "a link" if path.is_symlink() else "a file"
+        raise OutputExistsError(f"{shown}: changed during the run (now {now}, not the folder it "
+                                "was); left as it is, nothing written")
     else:
         try:
             _exchange(tmp, path)
         except OSError as e:
-            raise OutputWriteError(f"{shown}: cannot replace the folder ({e.strerror or e}{_why(e)}); the previous "
-                                   "result is left as it was") from None
+            raise OutputWriteError(f"{shown}: cannot replace the folder ({e.strerror or e}"
+                                   f"{_why(e)}); the previous result is left as it was") from None
     if top:
         interrupts.mark_committed()
 
 
+_WHY = {errno.EBUSY: ": a mount point or in use", errno.EXDEV: ": another file system"}
+
+
 def _why(e: OSError) -> str:
-    return {errno.EBUSY: ": a mount point or in use", errno.EXDEV: ": another file system"}.get(e.errno, "")
+    return _WHY.get(e.errno, "")
 
 
 def _exchange(a: Path, b: Path) -> None:
-    """Swap two folders' names: atomically where the kernel can, else two renames (undone on failure)."""
+    """Swap two folders' names: atomically where the kernel can, else two renames (undone on
+    failure)."""
     if _renameat2(a, b):
         return
     aside = Path(tempfile.mkdtemp(prefix=f".{b.name}.calidar-old-", dir=b.parent))
@@ -229,20 +242,21 @@ def _renameat2(a: Path, b: Path) -> bool:
 
 
 _WRITE_ERRNOS = {errno.ENOSPC, errno.EFBIG, errno.EDQUOT, errno.EROFS, errno.EIO}
-_WRITE_WORDS = ("No space left on device", "os error 28", "errno = 28", "File too large", "Disk quota exceeded",
-                "Read-only file system")
+_WRITE_WORDS = ("No space left on device", "os error 28", "errno = 28", "File too large",
+                "Disk quota exceeded", "Read-only file system")
 
 
 def _raise_write_error(e: BaseException, shown: str, tmp: Path) -> None:
-    """Turn an error of writing the results (a full disk, a file too large, a read-only file system),
-    however a library reports it (an OSError, LazrsError, h5py's errors), into one line naming the
-    destination and the cause; other errors pass unchanged."""
+    """Turn an error of writing the results (a full disk, a file too large, a read-only file
+    system), however a library reports it (an OSError, LazrsError, h5py's errors), into one line
+    naming the destination and the cause; other errors pass unchanged."""
     if isinstance(e, (CalidarError, KeyboardInterrupt)) or not isinstance(e, Exception):
         return
     cause = _write_cause(e, tmp)
     if cause is not None:
         what, file = cause
-        raise OutputWriteError(f"{shown}: cannot write {shown_path(file) if file else 'the results'}: {what}") from None
+        target = shown_path(file) if file else "the results"
+        raise OutputWriteError(f"{shown}: cannot write {target}: {what}") from None
 
 
 def _write_cause(e: BaseException, tmp: Path) -> tuple[str, str | None] | None:
@@ -322,7 +336,8 @@ def atomic_path(path: str | os.PathLike, force: bool = True) -> Iterator[Path]:
         try:
             fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=path.suffix, dir=path.parent)
         except OSError as e:
-            raise OutputWriteError(f"{shown_path(str(path))}: cannot write: {e.strerror or e}") from None
+            message = f"{shown_path(str(path))}: cannot write: {e.strerror or e}"
+            raise OutputWriteError(message) from None
         os.close(fd)
         return Path(tmp)
 

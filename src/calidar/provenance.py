@@ -2,7 +2,8 @@
 sha256), the options and the time — recorded in ``solution.json`` and shown in the report, so
 that a deliverable can be traced and reproduced.
 
->>> rec = RunRecord.capture(["calidar", "boresight", "a.laz"], inputs=[], options={"method": "planes"})
+>>> argv = ["calidar", "boresight", "a.laz"]
+>>> rec = RunRecord.capture(argv, inputs=[], options={"method": "planes"})
 >>> sorted(rec.to_dict())
 ['argv', 'calidar_version', 'finished_utc', 'inputs', 'options', 'python', 'started_utc']
 """
@@ -42,18 +43,14 @@ class RunRecord:
     options: dict = field(default_factory=dict)
     started_utc: str = field(default_factory=_now)
     finished_utc: str | None = None
-    tasks: dict = field(default_factory=dict)  #: tasks run on Dask, by kind: how many, bytes sent back
+    #: tasks run on Dask, by kind: how many, bytes sent back
+    tasks: dict = field(default_factory=dict)
 
     @classmethod
-    def capture(cls, argv: list[str] | None = None, inputs=(), options: dict | None = None) -> "RunRecord":
+    def capture(cls, argv: list[str] | None = None, inputs=(),
+                options: dict | None = None) -> "RunRecord":
         """Record ``argv`` (default: this process's), the input files that exist and ``options``."""
-        files = []
-        for p in inputs:
-            if p is None:
-                continue
-            p = Path(p)
-            if p.is_file():
-                files.append({"path": str(p.resolve()), "size_bytes": p.stat().st_size, "sha256": sha256(p)})
+        files = [_file_entry(Path(p)) for p in inputs if p is not None and Path(p).is_file()]
         return cls(list(sys.argv) if argv is None else [str(a) for a in argv], files,
                    {k: _plain(v) for k, v in (options or {}).items()})
 
@@ -62,9 +59,17 @@ class RunRecord:
         return self
 
     def to_dict(self) -> dict:
-        return {"calidar_version": __version__, "python": platform.python_version(), "argv": self.argv,
-                "inputs": self.inputs, "options": self.options, "started_utc": self.started_utc,
-                "finished_utc": self.finished_utc, **({"dask_tasks": self.tasks} if self.tasks else {})}
+        doc = {"calidar_version": __version__, "python": platform.python_version(),
+               "argv": self.argv, "inputs": self.inputs, "options": self.options,
+               "started_utc": self.started_utc, "finished_utc": self.finished_utc}
+        if self.tasks:
+            doc["dask_tasks"] = self.tasks
+        return doc
+
+
+def _file_entry(path: Path) -> dict:
+    """An input file's entry: its absolute path, size and SHA-256."""
+    return {"path": str(path.resolve()), "size_bytes": path.stat().st_size, "sha256": sha256(path)}
 
 
 def _plain(v):

@@ -54,20 +54,12 @@ def _acquire(path: Path, shown: str) -> int:
     for _ in range(50):
         try:
             fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o644)
-        except OSError as e:  # a read-only or unwritable destination: named as given, not the lock file
+        except OSError as e:  # a read-only or unwritable destination: named as given, not the lock
             raise OutputWriteError(f"{shown}: cannot write: {e.strerror or e}") from None
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
-            owner = {}
-            for _ in range(20):  # the owner may be writing its details this very moment
-                owner = _owner(fd)
-                if owner:
-                    break
-                time.sleep(0.01)
-            os.close(fd)
-            raise OutputExistsError(f"{shown}: in use by another calidar run ({_describe(owner)}); wait for it to "
-                                    "end or choose another output") from None
+            _refuse_busy(fd, shown)
         except BaseException:
             os.close(fd)
             raise
@@ -76,17 +68,38 @@ def _acquire(path: Path, shown: str) -> int:
         except FileNotFoundError:
             same = False
         if same:
-            started = _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%d %H:%M:%S UTC")
-            doc = {"pid": os.getpid(), "command": " ".join(["calidar", *sys.argv[1:]]), "started": started}
-            try:  # best effort: the flock is the lock; the details only name us to another run
-                os.ftruncate(fd, 0)
-                os.lseek(fd, 0, os.SEEK_SET)
-                os.write(fd, json.dumps(doc).encode("utf-8"))
-            except OSError:
-                pass
+            _write_details(fd)
             return fd
         os.close(fd)  # the previous owner removed the file after we opened it: take the new one
-    raise OutputExistsError(f"{shown}: its lock file {path.name} keeps changing; is another run starting?")
+    raise OutputExistsError(f"{shown}: its lock file {path.name} keeps changing; "
+                            "is another run starting?")
+
+
+def _refuse_busy(fd: int, shown: str) -> None:
+    """Close ``fd`` (a lock file another run holds) and raise the error naming that run."""
+    owner = {}
+    for _ in range(20):  # the owner may be writing its details this very moment
+        owner = _owner(fd)
+        if owner:
+            break
+        time.sleep(0.01)
+    os.close(fd)
+    raise OutputExistsError(f"{shown}: in use by another calidar run ({_describe(owner)}); "
+                            "wait for it to end or choose another output") from None
+
+
+def _write_details(fd: int) -> None:
+    """Write this run's pid, command and start time into the lock file ``fd`` (best effort: the
+    flock is the lock; the details only name us to another run)."""
+    started = _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%d %H:%M:%S UTC")
+    command = " ".join(["calidar", *sys.argv[1:]])
+    doc = {"pid": os.getpid(), "command": command, "started": started}
+    try:
+        os.ftruncate(fd, 0)
+        os.lseek(fd, 0, os.SEEK_SET)
+        os.write(fd, json.dumps(doc).encode("utf-8"))
+    except OSError:
+        pass
 
 
 @contextlib.contextmanager
@@ -132,12 +145,14 @@ def _give_back(key: str) -> None:
             os.close(entry[0])
 
 
-_CLAIMS: list[str] = []  #: lock files claimed for the rest of the run (released by :func:`release_claims`)
+#: lock files claimed for the rest of the run (released by :func:`release_claims`)
+_CLAIMS: list[str] = []
 
 
 def claim(destination: str | os.PathLike, shown: str | None = None) -> None:
-    """Take the lock of ``destination`` now and keep it until :func:`release_claims` (the CLI calls it
-    when the run ends): for a command whose work precedes its output folder (``calidar quality``)."""
+    """Take the lock of ``destination`` now and keep it until :func:`release_claims` (the CLI calls
+    it when the run ends): for a command whose work precedes its output folder (``calidar
+    quality``)."""
     path = lock_path(destination)
     with interrupts.deferred():
         _take(path, shown or str(destination))
@@ -145,7 +160,8 @@ def claim(destination: str | os.PathLike, shown: str | None = None) -> None:
 
 
 def release_claims() -> None:
-    """Release what :func:`claim` took (the lock files go when no one in this process holds them)."""
+    """Release what :func:`claim` took (the lock files go when no one in this process holds
+    them)."""
     while _CLAIMS:
         _give_back(_CLAIMS.pop())
 

@@ -25,7 +25,8 @@ from calidar.scanners import Scanner, scanner_from_toml
 from calidar.scanners.linear import LinearScanner
 from calidar.validate import read_text, table_number
 
-MOUNTING_PARAMETERS = ("boresight_roll", "boresight_pitch", "boresight_yaw", "lever_arm_x", "lever_arm_y", "lever_arm_z")
+MOUNTING_PARAMETERS = ("boresight_roll", "boresight_pitch", "boresight_yaw",
+                       "lever_arm_x", "lever_arm_y", "lever_arm_z")
 RANGE_PARAMETERS = ("range_offset", "range_scale")
 MOUNTING_KEYS = ("boresight_roll_deg", "boresight_pitch_deg", "boresight_yaw_deg", "lever_arm_m")
 #: the physical ranges sensor.toml values are checked against (docs/sensor.md)
@@ -58,7 +59,8 @@ class CalibrationRecord:
         if self.method:
             lines.append(f"method = {_toml_value(self.method)}")
         if self.sigma:
-            lines += ["", "[calibration.sigma]  # 1σ of each estimated value, in the unit its key names"]
+            header = "[calibration.sigma]  # 1σ of each estimated value, in the unit its key names"
+            lines += ["", header]
             lines += [f"{k} = {_toml_value(v)}" for k, v in self.sigma.items()]
         return lines
 
@@ -74,7 +76,8 @@ class CalibrationRecord:
         sigma = table.get("sigma", {})
         if not isinstance(sigma, dict):
             raise InputError(source, "calibration.sigma", "expected a table of σ values")
-        values = {k: table_number(sigma, k, source, 0.0, None, "", "calibration.sigma.") for k in sigma}
+        values = {k: table_number(sigma, k, source, 0.0, None, "", "calibration.sigma.")
+                  for k in sigma}
         return cls(**text, sigma=values)
 
 
@@ -84,7 +87,8 @@ class Sensor:
     degrees, metres and ppm (:meth:`read`, :meth:`write`; keys in docs/sensor.md).
 
     >>> import tempfile, numpy as np, calidar
-    >>> sensor = calidar.Sensor(boresight_roll=np.radians(0.05), lever_arm_z=0.12, range_offset=0.03)
+    >>> roll = np.radians(0.05)
+    >>> sensor = calidar.Sensor(boresight_roll=roll, lever_arm_z=0.12, range_offset=0.03)
     >>> path = sensor.write(Path(tempfile.mkdtemp()) / "sensor.toml")
     >>> print(path.read_text().split("[range]")[0].split("[mounting]")[1].strip())
     boresight_roll_deg = 0.05
@@ -92,8 +96,10 @@ class Sensor:
     boresight_yaw_deg = 0.0
     lever_arm_m = [0.0, 0.0, 0.12]
     >>> back = calidar.Sensor.read(path)
-    >>> round(float(np.degrees(back.boresight_roll)), 12), back.range_offset, type(back.scanner).__name__
-    (0.05, 0.03, 'LinearScanner')
+    >>> round(float(np.degrees(back.boresight_roll)), 12), back.range_offset
+    (0.05, 0.03)
+    >>> type(back.scanner).__name__
+    'LinearScanner'
     """
 
     boresight_roll: float = 0.0
@@ -138,7 +144,8 @@ class Sensor:
 
     def with_parameters(self, **values: float) -> "Sensor":
         """A copy with named parameters replaced (mounting, range or scanner ones)."""
-        own = {k: float(v) for k, v in values.items() if k in MOUNTING_PARAMETERS + RANGE_PARAMETERS}
+        mine = MOUNTING_PARAMETERS + RANGE_PARAMETERS
+        own = {k: float(v) for k, v in values.items() if k in mine}
         rest = {k: float(v) for k, v in values.items() if k not in own}
         scanner = self.scanner.with_parameters(**rest) if rest else self.scanner
         return replace(self, scanner=scanner, **own)
@@ -174,8 +181,8 @@ class Sensor:
 
     @classmethod
     def read(cls, path: str | Path) -> "Sensor":
-        """Read sensor.toml (docs/sensor.md): unknown tables/keys, wrong types, missing keys without a
-        documented default and values outside their range are clear errors naming the key."""
+        """Read sensor.toml (docs/sensor.md): unknown tables/keys, wrong types, missing keys without
+        a documented default and values outside their range are clear errors naming the key."""
         text = read_text(path, "sensor.toml")
         try:
             doc = tomllib.loads(text)
@@ -185,36 +192,44 @@ class Sensor:
 
     @classmethod
     def from_dict(cls, doc: dict, source: str = "sensor.toml") -> "Sensor":
-        """A Sensor from a parsed sensor.toml (see :meth:`read` and docs/sensor.md for keys, units, ranges)."""
+        """A Sensor from a parsed sensor.toml (see :meth:`read` and docs/sensor.md for keys, units,
+        ranges)."""
         _only(doc, {"crs", "mounting", "range", "scanner", "calibration"}, source, "")
         scanner = scanner_from_toml(doc.get("scanner", {"model": "linear"}), source)
         if "mounting" not in doc:
-            raise InputError(source, "mounting", "missing table; expected [mounting] with boresight_roll_deg, "
-                             "boresight_pitch_deg, boresight_yaw_deg and lever_arm_m (docs/sensor.md)")
+            raise InputError(source, "mounting", "missing table; expected [mounting] with "
+                             "boresight_roll_deg, boresight_pitch_deg, boresight_yaw_deg and "
+                             "lever_arm_m (docs/sensor.md)")
         m = doc["mounting"]
         _only(m, set(MOUNTING_KEYS), source, "mounting.")
         r = doc.get("range", {})
         _only(r, {"offset_m", "scale_ppm"}, source, "range.")
-        angles = [np.radians(table_number(m, k, source, -BORESIGHT_MAX_DEG, BORESIGHT_MAX_DEG, "deg", "mounting."))
+        b = BORESIGHT_MAX_DEG
+        angles = [np.radians(table_number(m, k, source, -b, b, "deg", "mounting."))
                   for k in MOUNTING_KEYS[:3]]
-        return cls(
-            *angles, *_lever_arm(m.get("lever_arm_m"), source),
-            range_offset=table_number(r, "offset_m", source, -RANGE_OFFSET_MAX_M, RANGE_OFFSET_MAX_M, "m", "range.", 0.0),
-            range_scale=table_number(r, "scale_ppm", source, -RANGE_SCALE_MAX_PPM, RANGE_SCALE_MAX_PPM, "ppm", "range.",
-                                     0.0) * 1e-6,
-            scanner=scanner, crs=validated_crs(doc.get("crs"), source),
-            calibration=CalibrationRecord.from_dict(doc["calibration"], source) if "calibration" in doc else None,
-        )
+        lever_arm = _lever_arm(m.get("lever_arm_m"), source)
+        offset = table_number(r, "offset_m", source, -RANGE_OFFSET_MAX_M, RANGE_OFFSET_MAX_M, "m",
+                              "range.", 0.0)
+        scale_ppm = table_number(r, "scale_ppm", source, -RANGE_SCALE_MAX_PPM, RANGE_SCALE_MAX_PPM,
+                                 "ppm", "range.", 0.0)
+        crs = validated_crs(doc.get("crs"), source)
+        calibration = doc.get("calibration")
+        if calibration is not None:
+            calibration = CalibrationRecord.from_dict(calibration, source)
+        return cls(*angles, *lever_arm, range_offset=offset, range_scale=scale_ppm * 1e-6,
+                   scanner=scanner, crs=crs, calibration=calibration)
 
 
 def _lever_arm(lever, source: str) -> tuple[float, float, float]:
     """mounting.lever_arm_m: three finite numbers within ±LEVER_ARM_MAX_M (m)."""
     field = "mounting.lever_arm_m"
     if lever is None:
-        raise InputError(source, field, "missing; expected [x, y, z] in metres (body frame: forward, right, down)")
+        raise InputError(source, field, "missing; expected [x, y, z] in metres (body frame: "
+                         "forward, right, down)")
     if not (isinstance(lever, list) and len(lever) == 3):
         raise InputError(source, field, f"expected 3 numbers [x, y, z] in metres, got {lever!r}")
-    return tuple(table_number({k: v}, k, source, -LEVER_ARM_MAX_M, LEVER_ARM_MAX_M, "m", field + ".")
+    m = LEVER_ARM_MAX_M
+    return tuple(table_number({k: v}, k, source, -m, m, "m", field + ".")
                  for k, v in zip("xyz", lever))
 
 
@@ -228,7 +243,8 @@ def validated_crs(crs, source: str | None, field: str = "crs") -> str | None:
     try:
         pyproj.CRS.from_user_input(crs)
     except (pyproj.exceptions.CRSError, TypeError):
-        raise InputError(source, field, f"expected a CRS pyproj knows (e.g. 'EPSG:32611'), got {crs!r}") from None
+        message = f"expected a CRS pyproj knows (e.g. 'EPSG:32611'), got {crs!r}"
+        raise InputError(source, field, message) from None
     return crs
 
 
@@ -237,7 +253,8 @@ def _only(table: dict, known: set[str], source: str, prefix: str) -> None:
         raise InputError(source, prefix.rstrip(".") or None, "expected a table")
     unknown = set(table) - known
     if unknown:
-        raise InputError(source, prefix + sorted(unknown)[0], f"unknown key; expected one of {sorted(known)}")
+        message = f"unknown key; expected one of {sorted(known)}"
+        raise InputError(source, prefix + sorted(unknown)[0], message)
 
 
 def _toml_value(v) -> str:

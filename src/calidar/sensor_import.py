@@ -44,8 +44,8 @@ def axes(spec: str, what: str = "--scanner-axes") -> np.ndarray:
         used.add(match.group(2))
         m[row, "xyz".index(match.group(2))] = -1.0 if match.group(1) == "-" else 1.0
     if len(used) != 3 or np.linalg.det(m) < 0:
-        raise InputError(None, what, f"expected calidar's x,y,z as three distinct signed vendor axes forming a "
-                         f"right-handed frame (e.g. 'y,x,-z'), got {spec!r}")
+        raise InputError(None, what, "expected calidar's x,y,z as three distinct signed vendor "
+                         f"axes forming a right-handed frame (e.g. 'y,x,-z'), got {spec!r}")
     return m
 
 
@@ -59,7 +59,7 @@ def from_vendor(r_vendor, t_vendor_m, body: str = "x,y,z", scanner: str = "x,y,z
     return Sensor(roll, pitch, yaw, *(float(v) for v in lever), **kw)
 
 
-# --- Applanix POS / POSPac (POS MV V4/V5 user guides: reference frame x forward, y starboard, z down) ---
+# --- Applanix POS / POSPac (POS MV V4/V5 user guides: x forward, y starboard, z down) ---------
 def lever_arm_from_pospac(reference_to_sensor_m, reference_to_imu_m=(0.0, 0.0, 0.0)) -> np.ndarray:
     """calidar's lever arm (m) from POS lever arms "reference to sensor" and "reference to IMU"
     (x forward, y starboard, z down: calidar's body axes), for an SBET output at the IMU whose axes
@@ -93,58 +93,72 @@ def from_optech_csd(path: str | Path) -> Sensor:
 
 
 # --- leeward (github.com/gadomski/leeward: src/measurement.rs, RollPitchYaw::as_matrix) ----------
-#: leeward's scanner beam is ρ(cos α, 0, sin α): calidar x = leeward y, y = leeward z, z = leeward x.
+#: leeward's scanner beam is ρ(cos α, 0, sin α): calidar x = leeward y, y = leeward z,
+#: z = leeward x.
 LEEWARD_SCANNER_AXES = "y,z,x"
 
 
 def from_leeward(path: str | Path) -> Sensor:
-    """leeward's config.toml: boresight roll/pitch/yaw (rad) as Rz(yaw)·Ry(pitch)·Rx(roll) in leeward's
-    scanner frame, body frame as calidar's; leeward subtracts its lever arm (body = R·s − lever_arm),
-    so a_b = −lever_arm."""
+    """leeward's config.toml: boresight roll/pitch/yaw (rad) as Rz(yaw)·Ry(pitch)·Rx(roll) in
+    leeward's scanner frame, body frame as calidar's; leeward subtracts its lever arm (body = R·s −
+    lever_arm), so a_b = −lever_arm."""
     try:
         doc = tomllib.loads(read_text(path, "leeward config.toml"))
     except tomllib.TOMLDecodeError as e:
         raise InputError(path, None, f"not valid TOML ({e})") from None
     b = doc.get("boresight")
     if not isinstance(b, dict):
-        raise InputError(path, "boresight", "missing table; expected [boresight] with roll, pitch, yaw (rad)")
-    rpy = [table_number(b, k, path, -2 * np.pi, 2 * np.pi, "rad", "boresight.") for k in ("roll", "pitch", "yaw")]
+        raise InputError(path, "boresight",
+                         "missing table; expected [boresight] with roll, pitch, yaw (rad)")
+    rpy = [table_number(b, k, path, -2 * np.pi, 2 * np.pi, "rad", "boresight.")
+           for k in ("roll", "pitch", "yaw")]
     lever = doc.get("lever_arm", [0.0, 0.0, 0.0])
     if isinstance(lever, dict):  # older leeward: { x = …, y = …, z = … }
         lever = [lever.get(k) for k in "xyz"]
     if not (isinstance(lever, list) and len(lever) == 3):
         raise InputError(path, "lever_arm", f"expected [x, y, z] in metres, got {lever!r}")
-    t = [-table_number({k: v}, k, path, -50.0, 50.0, "m", "lever_arm.") for k, v in zip("xyz", lever)]
+    t = [-table_number({k: v}, k, path, -50.0, 50.0, "m", "lever_arm.")
+         for k, v in zip("xyz", lever)]
     return from_vendor(frames.rpy_to_matrix(*rpy), t, "x,y,z", LEEWARD_SCANNER_AXES)
 
 
 # --- PDAL filters.georeference scan2imu ----------------------------------------------------------
 def read_scan2imu(path: str | Path) -> np.ndarray:
-    """The 4 × 4 scan2imu matrix (row-major) from a text file of 16 numbers, or from a PDAL pipeline
-    (JSON) holding a filters.georeference stage."""
+    """The 4 × 4 scan2imu matrix (row-major) from a text file of 16 numbers, or from a PDAL
+    pipeline (JSON) holding a filters.georeference stage."""
     text = read_text(path, "scan2imu file").strip()
     if text[:1] in "[{":
-        try:
-            doc = json.loads(text)
-        except json.JSONDecodeError as e:
-            raise InputError(path, f"line {e.lineno}", f"expected a PDAL pipeline (JSON): {e.msg}") from None
-        stages = doc.get("pipeline", []) if isinstance(doc, dict) else doc
-        found = [s["scan2imu"] for s in stages if isinstance(s, dict) and "scan2imu" in s]
-        if not found:
-            raise InputError(path, "scan2imu", "expected a filters.georeference stage with a scan2imu option")
-        text = str(found[0])
+        text = _scan2imu_option(text, path)
     try:
         vals = np.array([float(v) for v in re.split(r"[\s,;]+", text.strip()) if v], float)
     except ValueError:
         vals = np.array([])
     if vals.size != 16 or not np.all(np.isfinite(vals)):
-        raise InputError(path, "scan2imu", f"expected 16 finite numbers (a 4 × 4 matrix, row by row), got {vals.size}")
+        raise InputError(path, "scan2imu", "expected 16 finite numbers (a 4 × 4 matrix, row by "
+                         f"row), got {vals.size}")
     m = vals.reshape(4, 4)
     r = m[:3, :3]
-    if not (np.allclose(r @ r.T, np.eye(3), atol=1e-5) and np.linalg.det(r) > 0) or not np.allclose(m[3], [0, 0, 0, 1]):
-        raise InputError(path, "scan2imu", "expected a rigid transformation: a rotation (orthonormal to 1e-5, "
-                         "determinant +1) and a translation, last row 0 0 0 1")
+    rotation = np.allclose(r @ r.T, np.eye(3), atol=1e-5) and np.linalg.det(r) > 0
+    if not rotation or not np.allclose(m[3], [0, 0, 0, 1]):
+        raise InputError(path, "scan2imu", "expected a rigid transformation: a rotation "
+                         "(orthonormal to 1e-5, determinant +1) and a translation, last row "
+                         "0 0 0 1")
     return m
+
+
+def _scan2imu_option(text: str, path) -> str:
+    """The scan2imu option of the first stage that has one in a PDAL pipeline (JSON text)."""
+    try:
+        doc = json.loads(text)
+    except json.JSONDecodeError as e:
+        message = f"expected a PDAL pipeline (JSON): {e.msg}"
+        raise InputError(path, f"line {e.lineno}", message) from None
+    stages = doc.get("pipeline", []) if isinstance(doc, dict) else doc
+    found = [s["scan2imu"] for s in stages if isinstance(s, dict) and "scan2imu" in s]
+    if not found:
+        raise InputError(path, "scan2imu",
+                         "expected a filters.georeference stage with a scan2imu option")
+    return str(found[0])
 
 
 def from_scan2imu(matrix, scanner: str = "x,y,z") -> Sensor:
@@ -161,7 +175,8 @@ def import_sensor(source: str, path: str | Path, scanner: str | None = None) -> 
     if source not in SOURCES:
         raise InputError(None, "--from", f"expected one of {', '.join(SOURCES)}, got {source!r}")
     if scanner is not None and source != "pdal-scan2imu":
-        raise InputError(None, "--scanner-axes", f"only for --from pdal-scan2imu; {source} states its own axes")
+        message = f"only for --from pdal-scan2imu; {source} states its own axes"
+        raise InputError(None, "--scanner-axes", message)
     if source == "leeward":
         return from_leeward(path)
     if source == "optech-csd":

@@ -25,8 +25,20 @@ HEIGHT_RANGE_M = (-1000.0, 100_000.0)  #: ellipsoidal heights a platform can hav
 GAP_INTERVALS, GAP_MIN_S = 10.0, 1.0
 #: physical range of every per-record field, SI (rad, m): checked on every trajectory
 LIMITS = {"lat": (-np.pi / 2, np.pi / 2, "rad"), "lon": (-2 * np.pi, 2 * np.pi, "rad"),
-          "height": (*HEIGHT_RANGE_M, "m"), "roll": (-np.pi, np.pi, "rad"), "pitch": (-np.pi / 2, np.pi / 2, "rad"),
-          "heading": (-2 * np.pi, 2 * np.pi, "rad")}
+          "height": (*HEIGHT_RANGE_M, "m"), "roll": (-np.pi, np.pi, "rad"),
+          "pitch": (-np.pi / 2, np.pi / 2, "rad"), "heading": (-2 * np.pi, 2 * np.pi, "rad")}
+
+
+def _check_times(t: np.ndarray, source: str) -> None:
+    """A clear error unless the record times ``t`` (s) are finite and strictly increasing."""
+    if not np.all(np.isfinite(t)):
+        message = f"expected finite times, found {int(np.sum(~np.isfinite(t)))} NaN/inf"
+        raise InputError(source, "time", message)
+    bad = np.flatnonzero(np.diff(t) <= 0)
+    if bad.size:
+        i = bad[0]
+        raise InputError(source, "time", f"expected strictly increasing times, record {i + 1} "
+                         f"({t[i + 1]:.6f}) follows {t[i]:.6f} ({bad.size} such places)")
 
 
 def _sign_continuous(q: np.ndarray) -> np.ndarray:
@@ -42,8 +54,10 @@ class Trajectory:
 
     >>> import numpy as np, calidar
     >>> t = np.array([0.0, 1.0, 2.0])
-    >>> traj = calidar.Trajectory(time=t, lat=np.radians(47.0 + 1e-4 * t), lon=np.full(3, np.radians(8.0)),
-    ...                           height=np.full(3, 500.0), roll=np.zeros(3), pitch=np.zeros(3), heading=np.zeros(3))
+    >>> lat, lon = np.radians(47.0 + 1e-4 * t), np.full(3, np.radians(8.0))
+    >>> level = np.zeros(3)
+    >>> traj = calidar.Trajectory(time=t, lat=lat, lon=lon, height=np.full(3, 500.0),
+    ...                           roll=level, pitch=level, heading=level)
     >>> len(traj), traj.time_system
     (3, 'gps_week_seconds')
     """
@@ -70,18 +84,10 @@ class Trajectory:
                 raise InputError(self.source, name, f"expected {t.size} values, got {a.shape}")
             object.__setattr__(self, name, values(a, self.source, name, *LIMITS[name]))
         object.__setattr__(self, "time", t)
-        if not np.all(np.isfinite(t)):
-            raise InputError(self.source, "time", f"expected finite times, found {int(np.sum(~np.isfinite(t)))} NaN/inf")
-        bad = np.flatnonzero(np.diff(t) <= 0)
-        if bad.size:
-            i = bad[0]
-            raise InputError(
-                self.source, "time",
-                f"expected strictly increasing times, record {i + 1} ({t[i + 1]:.6f}) follows {t[i]:.6f} "
-                f"({bad.size} such places)",
-            )
+        _check_times(t, self.source)
         if self.time_system not in TIME_SYSTEMS:
-            raise InputError(self.source, "time_system", f"expected one of {TIME_SYSTEMS}, got {self.time_system!r}")
+            message = f"expected one of {TIME_SYSTEMS}, got {self.time_system!r}"
+            raise InputError(self.source, "time_system", message)
 
     def __len__(self) -> int:
         return self.time.size
@@ -99,19 +105,25 @@ class Trajectory:
     @cached_property
     def q_eb(self) -> np.ndarray:
         """Attitude body → ECEF as quaternions (N, 4), sign-continuous for SLERP."""
-        r_eb = frames.r_en(self.lat, self.lon) @ frames.rpy_to_matrix(self.roll, self.pitch, self.heading)
+        r_eb = frames.r_en(self.lat, self.lon) @ self._r_nb()
         return _sign_continuous(frames.matrix_to_quat(r_eb))
+
+    def _r_nb(self) -> np.ndarray:
+        """Attitude body → NED as rotation matrices (N, 3, 3)."""
+        return frames.rpy_to_matrix(self.roll, self.pitch, self.heading)
 
     @cached_property
     def velocity_ecef(self) -> np.ndarray | None:
         """Velocities in ECEF (N, 3), m/s, when the trajectory has them."""
         if self.velocity_ned is None:
             return None
-        return np.einsum("nij,nj->ni", frames.r_en(self.lat, self.lon), np.asarray(self.velocity_ned, float))
+        r_en = frames.r_en(self.lat, self.lon)
+        return np.einsum("nij,nj->ni", r_en, np.asarray(self.velocity_ned, float))
 
     @cached_property
     def gaps(self) -> np.ndarray:
-        """Indices i of the record intervals (time[i], time[i+1]) that are gaps (see GAP_INTERVALS)."""
+        """Indices i of the record intervals (time[i], time[i+1]) that are gaps (see
+        GAP_INTERVALS)."""
         dt = np.diff(self.time)
         return np.flatnonzero(dt > max(GAP_MIN_S, GAP_INTERVALS * float(np.median(dt))))
 
@@ -127,8 +139,9 @@ class Trajectory:
     def gap_text(self) -> str:
         """The gaps in words, for messages: "2 gap(s) without records (a–b s, c–d s)"."""
         g = self.gaps
-        spans = ", ".join(f"{self.time[i]:.3f}–{self.time[i + 1]:.3f} s" for i in g[:3]) + (" …" if g.size > 3 else "")
-        return f"{g.size} gap(s) without records ({spans})"
+        spans = ", ".join(f"{self.time[i]:.3f}–{self.time[i + 1]:.3f} s" for i in g[:3])
+        more = " …" if g.size > 3 else ""
+        return f"{g.size} gap(s) without records ({spans}{more})"
 
     def check_covers(self, t, what: str = "points") -> None:
         """Raise a clear error when times fall outside the trajectory or in its gaps (how many,
@@ -137,11 +150,11 @@ class Trajectory:
         inside = self.covers(t)
         if not np.all(inside):
             out = t[~inside]
+            gaps = " or in its " + self.gap_text() if self.gaps.size else ""
             raise InputError(
                 self.source, "time",
                 f"{out.size} of {t.size} {what} have GPS times outside the trajectory "
-                f"({self.time[0]:.3f}–{self.time[-1]:.3f} s){' or in its ' + self.gap_text() if self.gaps.size else ''}"
-                f": theirs span "
+                f"({self.time[0]:.3f}–{self.time[-1]:.3f} s){gaps}: theirs span "
                 f"{out.min():.3f}–{out.max():.3f} s",
             )
 
@@ -163,7 +176,8 @@ class Trajectory:
         if cubic:
             v = self.velocity_ecef
             if v is None:
-                raise InputError(self.source, "velocity", "cubic interpolation needs velocities; this trajectory has none")
+                raise InputError(self.source, "velocity",
+                                 "cubic interpolation needs velocities; this trajectory has none")
             dt = (self.time[i + 1] - self.time[i])[:, None]
             ff = f[:, None]
             h00 = 2 * ff**3 - 3 * ff**2 + 1
@@ -185,7 +199,7 @@ class Trajectory:
 
     @cached_property
     def _q_nb(self) -> np.ndarray:
-        return _sign_continuous(frames.matrix_to_quat(frames.rpy_to_matrix(self.roll, self.pitch, self.heading)))
+        return _sign_continuous(frames.matrix_to_quat(self._r_nb()))
 
     def subset(self, t0: float, t1: float, margin_s: float = 0.0) -> "Trajectory":
         """The records within [t0 − margin, t1 + margin] (at least the two bracketing ones)."""
@@ -194,8 +208,6 @@ class Trajectory:
         hi = max(hi, lo + 2)
         sel = slice(lo, hi)
         vel = None if self.velocity_ned is None else np.asarray(self.velocity_ned)[sel]
-        return Trajectory(
-            self.time[sel], self.lat[sel], self.lon[sel], self.height[sel], self.roll[sel], self.pitch[sel],
-            self.heading[sel], vel, self.time_system, self.source,
-            {k: np.asarray(v)[sel] for k, v in self.extra.items()},
-        )
+        fields = (self.time, self.lat, self.lon, self.height, self.roll, self.pitch, self.heading)
+        return Trajectory(*(a[sel] for a in fields), vel, self.time_system, self.source,
+                          {k: np.asarray(v)[sel] for k, v in self.extra.items()})

@@ -1,6 +1,7 @@
 """Checks at the edges: every number read from a file or an option is finite and within its
 physical range, or a clear :class:`~calidar.errors.InputError` names the file (or option), the
-field and the expected range.
+field and the expected range. (The examples' long messages are wrapped: run them with doctest's
+NORMALIZE_WHITESPACE, as tests/unit/test_doctests.py does.)
 
 >>> number(5.0, "--cell", 0.01, 1000.0, "m")
 5.0
@@ -11,7 +12,8 @@ calidar.errors.InputError: --cell: expected a finite number in [0.01, 1000] m, g
 >>> values(np.array([1.0, 2.0, np.inf]), "sbet.out", "height", -1000.0, 20000.0, "m")
 Traceback (most recent call last):
 ...
-calidar.errors.InputError: sbet.out: height: expected finite values in [-1000, 20000] m, got inf (1 of 3 values, first at record 2)
+calidar.errors.InputError: sbet.out: height: expected finite values in [-1000, 20000] m, got inf
+(1 of 3 values, first at record 2)
 """
 
 from __future__ import annotations
@@ -34,10 +36,14 @@ def _g(v: float) -> str:
     return f"{v:.6g}" if abs(v) < 1e6 or v != int(v) or abs(v) >= 1e8 else f"{v:.0f}"
 
 
-def _range_text(lo: float | None, hi: float | None, unit: str, open_lo: bool = False, open_hi: bool = False) -> str:
+def _range_text(lo: float | None, hi: float | None, unit: str, open_lo: bool = False,
+                open_hi: bool = False) -> str:
+    """The range as an error states it: "in [lo, hi] unit", "≥ lo unit" or "≤ hi unit" (a round
+    bracket or a strict sign for an open end), "" with neither bound."""
     u = f" {unit}" if unit else ""
     if lo is not None and hi is not None:
-        return f"in {'(' if open_lo else '['}{_g(lo)}, {_g(hi)}{')' if open_hi else ']'}{u}"
+        left, right = "(" if open_lo else "[", ")" if open_hi else "]"
+        return f"in {left}{_g(lo)}, {_g(hi)}{right}{u}"
     if lo is not None:
         return f"{'>' if open_lo else '≥'} {_g(lo)}{u}"
     if hi is not None:
@@ -45,10 +51,12 @@ def _range_text(lo: float | None, hi: float | None, unit: str, open_lo: bool = F
     return ""
 
 
-def number(value, where: str | os.PathLike | None, lo: float | None = None, hi: float | None = None,
-           unit: str = "", field: str | None = None, open_lo: bool = False, open_hi: bool = False) -> float:
+def number(value, where: str | os.PathLike | None, lo: float | None = None,
+           hi: float | None = None, unit: str = "", field: str | None = None,
+           open_lo: bool = False, open_hi: bool = False) -> float:
     """``value`` as a float when finite and within [lo, hi] (``open_lo`` / ``open_hi``: that end
-    excluded), else an error naming ``where`` (an option such as "--cell", or a file with ``field``)."""
+    excluded), else an error naming ``where`` (an option such as "--cell", or a file with
+    ``field``)."""
     try:
         v = float(value)
     except (TypeError, ValueError):
@@ -69,22 +77,26 @@ def integer(value, where: str | os.PathLike | None, lo: int | None = None, hi: i
     >>> integer(2_000_000, "--points", 8, 100_000, why="memory grows with it")
     Traceback (most recent call last):
     ...
-    calidar.errors.InputError: --points: expected an integer in [8, 100000] (memory grows with it), got 2000000
+    calidar.errors.InputError: --points: expected an integer in [8, 100000] (memory grows with it),
+    got 2000000
     """
     ok = isinstance(value, (int, np.integer)) and not isinstance(value, bool)
     if ok and (lo is None or value >= lo) and (hi is None or value <= hi):
         return int(value)
-    expected = " ".join(p for p in ("an integer", _range_text(lo, hi, unit), f"({why})" if why else "") if p)
+    parts = ("an integer", _range_text(lo, hi, unit), f"({why})" if why else "")
+    expected = " ".join(p for p in parts if p)
     raise InputError(where, field, f"expected {expected}, got {value}")
 
 
-def positive(value, where, unit: str = "", field: str | None = None, hi: float | None = None) -> float:
+def positive(value, where, unit: str = "", field: str | None = None,
+             hi: float | None = None) -> float:
     """A finite number > 0 (and ≤ ``hi``)."""
     return number(value, where, 0.0, hi, unit, field, open_lo=True)
 
 
-def values(array, source: str | os.PathLike | None, field: str, lo: float | None = None, hi: float | None = None,
-           unit: str = "", what: str = "record", labels=None) -> np.ndarray:
+def values(array, source: str | os.PathLike | None, field: str, lo: float | None = None,
+           hi: float | None = None, unit: str = "", what: str = "record",
+           labels=None) -> np.ndarray:
     """``array`` unchanged when every value is finite and within [lo, hi]; else an error naming
     the file, the field, the expected range, the first bad value, how many and where (its index,
     or ``labels[index]``, e.g. line numbers)."""
@@ -104,12 +116,15 @@ def values(array, source: str | os.PathLike | None, field: str, lo: float | None
     return a
 
 
-MAX_TEXT_BYTES = 64 << 20  #: text inputs (sensor.toml, CSV, JSON): read at most this much (a device never ends)
+#: text inputs (sensor.toml, CSV, JSON): read at most this much (a device never ends)
+MAX_TEXT_BYTES = 64 << 20
+#: the kinds of file that are not regular, as an error names them
+_KINDS = ((stat.S_ISFIFO, "a pipe"), (stat.S_ISCHR, "a character device"),
+          (stat.S_ISBLK, "a block device"), (stat.S_ISSOCK, "a socket"))
 
 
 def _kind(mode: int) -> str:
-    for test, name in ((stat.S_ISFIFO, "a pipe"), (stat.S_ISCHR, "a character device"), (stat.S_ISBLK, "a block device"),
-                       (stat.S_ISSOCK, "a socket")):
+    for test, name in _KINDS:
         if test(mode):
             return name
     return "not a regular file"
@@ -130,8 +145,8 @@ def existing_file(path: str | os.PathLike, what: str = "file") -> Path:
         raise InputError(path, None, f"is a folder; expected a {what}")
     if not stat.S_ISREG(st.st_mode):
         article = "an" if what[:1].lower() in "aeio" else "a"
-        raise InputError(path, None, f"is {_kind(st.st_mode)}, not a regular file; expected {article} {what} (save "
-                         "the stream to a file first)")
+        raise InputError(path, None, f"is {_kind(st.st_mode)}, not a regular file; expected "
+                         f"{article} {what} (save the stream to a file first)")
     if not os.access(path, os.R_OK):
         raise InputError(path, None, "cannot be read: permission denied")
     return path
@@ -152,7 +167,8 @@ def read_text(path: str | os.PathLike, what: str = "text file", limit: int = MAX
     try:
         return data.decode("utf-8-sig")
     except UnicodeDecodeError as e:
-        raise InputError(path, "encoding", f"expected UTF-8 text, got byte 0x{e.object[e.start]:02x} "
+        byte = e.object[e.start]
+        raise InputError(path, "encoding", f"expected UTF-8 text, got byte 0x{byte:02x} "
                          f"at offset {e.start}") from None
 
 
@@ -168,7 +184,8 @@ def parse_floats(text: str, n: int, option: str) -> tuple[float, ...]:
 
 
 def read_json(path: Path) -> dict:
-    """A JSON object from ``path``, or a clear error naming the file (missing, not JSON, not an object)."""
+    """A JSON object from ``path``, or a clear error naming the file (missing, not JSON, not an
+    object)."""
     try:
         doc = json.loads(read_text(path, "JSON file"))
     except json.JSONDecodeError as e:
@@ -183,8 +200,8 @@ SEED_MAX = 2**32 - 1  #: the largest random seed (numpy's seeds are 32-bit here)
 _MISSING = object()
 
 
-def table_number(table: dict, key: str, source, lo: float | None = None, hi: float | None = None, unit: str = "",
-                 prefix: str = "", default=_MISSING) -> float:
+def table_number(table: dict, key: str, source, lo: float | None = None, hi: float | None = None,
+                 unit: str = "", prefix: str = "", default=_MISSING) -> float:
     """``table[key]`` (a TOML/JSON table) as a float: a number (not a bool or a string), finite,
     within [lo, hi]; a missing key is an error unless a ``default`` is given (docs must name it)."""
     if key not in table:
@@ -194,6 +211,7 @@ def table_number(table: dict, key: str, source, lo: float | None = None, hi: flo
         return float(default)
     v = table[key]
     if isinstance(v, bool) or not isinstance(v, (int, float)):
-        raise InputError(source, prefix + key, f"expected a number {_range_text(lo, hi, unit)}, got {v!r}".replace("  ", " "))
+        message = f"expected a number {_range_text(lo, hi, unit)}, got {v!r}".replace("  ", " ")
+        raise InputError(source, prefix + key, message)
     return number(v, source, lo, hi, unit, field=prefix + key)
 

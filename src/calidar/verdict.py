@@ -37,7 +37,8 @@ NOTE = "note"  #: a finding that informs and does not rate: it never changes the
 
 @dataclass(frozen=True)
 class Finding:
-    """One check: its status, what was checked, the numbers, and what to do when it is not a pass."""
+    """One check: its status, what was checked, the numbers, and what to do when it is not a
+    pass."""
 
     status: str  #: "pass" | "warn" | "fail" | "note"
     check: str  #: what was checked, a few words ("global test of σ0", "lever_arm_z")
@@ -58,14 +59,16 @@ class Verdict:
 
     @property
     def status(self) -> str:
-        return max((f.status for f in self.findings if f.status != NOTE), key=STATUSES.index, default="pass")
+        rated = [f.status for f in self.findings if f.status != NOTE]
+        return max(rated, key=STATUSES.index, default="pass")
 
     def headline(self) -> str:
         """One line: PASS / WARN / FAIL and the summary."""
         return f"{self.status.upper()}: {self.summary}"
 
     def to_dict(self) -> dict:
-        return {"status": self.status, "summary": self.summary, "findings": [asdict(f) for f in self.findings]}
+        findings = [asdict(f) for f in self.findings]
+        return {"status": self.status, "summary": self.summary, "findings": findings}
 
 
 def signed(value: float, digits: int) -> str:
@@ -80,14 +83,16 @@ def angle_text(value_rad: float, sigma_rad: float | None = None) -> str:
     if sigma_rad is None or not math.isfinite(sigma_rad):
         return f"{signed(v, 5)}°" + ("" if sigma_rad is None else " ± ∞")
     s = math.degrees(sigma_rad)
-    digits = min(max(2, 1 - math.floor(math.log10(s)) if s > 0 else 5), 7)  # σ to two significant digits
+    # decimals that show σ to two significant digits (2 to 7)
+    digits = min(max(2, 1 - math.floor(math.log10(s)) if s > 0 else 5), 7)
     return f"{signed(v, digits)}° ± {s:.{digits}f}° ({two_digits(s * 3600)}″)"
 
 
 def length_text(value_m: float, sigma_m: float | None = None) -> str:
     """A length in millimetres (metres beyond 10 m): "+31.2 mm ± 4.1 mm"."""
     if abs(value_m) >= 10:
-        return f"{signed(value_m, 3)} m" + ("" if sigma_m is None else f" ± {two_digits(sigma_m)} m")
+        sigma = "" if sigma_m is None else f" ± {two_digits(sigma_m)} m"
+        return f"{signed(value_m, 3)} m{sigma}"
     if sigma_m is None:
         return f"{signed(value_m * 1e3, 1)} mm"
     if not math.isfinite(sigma_m):

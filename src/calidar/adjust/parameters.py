@@ -9,7 +9,8 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 #: How each SI unit is shown to users: (display unit, factor SI → display).
-DISPLAY_UNITS = {"rad": ("deg", 180.0 / math.pi), "m": ("m", 1.0), "1": ("1", 1.0), "ppm": ("ppm", 1e6)}
+DISPLAY_UNITS = {"rad": ("deg", 180.0 / math.pi), "m": ("m", 1.0), "1": ("1", 1.0),
+                 "ppm": ("ppm", 1e6)}
 #: Default central-difference steps per SI unit for numerical Jacobians.
 DEFAULT_STEPS = {"rad": 1e-6, "m": 1e-4, "1": 1e-7, "ppm": 1e-7}
 
@@ -29,9 +30,11 @@ class Parameter:
 
     def __post_init__(self):
         if self.unit not in DISPLAY_UNITS:
-            raise ValueError(f"parameter {self.name}: unit must be one of {sorted(DISPLAY_UNITS)}, got {self.unit!r}")
+            raise ValueError(f"parameter {self.name}: unit must be one of "
+                             f"{sorted(DISPLAY_UNITS)}, got {self.unit!r}")
         if self.prior_sigma is not None and not self.prior_sigma > 0:
-            raise ValueError(f"parameter {self.name}: prior_sigma must be > 0, got {self.prior_sigma}")
+            raise ValueError(f"parameter {self.name}: prior_sigma must be > 0, "
+                             f"got {self.prior_sigma}")
 
     @property
     def display_unit(self) -> str:
@@ -85,12 +88,13 @@ class ParameterSet:
         return [p.name for p in self.free]
 
     def layout(self) -> tuple[tuple[str, ...], dict[str, int], np.ndarray, np.ndarray]:
-        """(names, name → position, positions of the free parameters, all values SI), built once: the
-        vector layout :class:`calidar.adjust.residuals.Values` reads (never to be changed)."""
+        """(names, name → position, positions of the free parameters, all values SI), built once:
+        the vector layout :class:`calidar.adjust.residuals.Values` reads (never to be changed)."""
         if self._layout is None:
             names = tuple(p.name for p in self._params)
+            free = [i for i, p in enumerate(self._params) if p.free]
             self._layout = (names, {n: i for i, n in enumerate(names)},
-                            np.array([i for i, p in enumerate(self._params) if p.free], dtype=np.intp),
+                            np.array(free, dtype=np.intp),
                             np.array([p.value for p in self._params], dtype=float))
         return self._layout
 
@@ -111,6 +115,5 @@ class ParameterSet:
     def updated(self, x: np.ndarray) -> "ParameterSet":
         """A copy with the free values replaced by x (priors stay centred where they were)."""
         it = iter(map(float, x))
-        return ParameterSet(
-            replace(p, value=next(it), prior_value=p.prior_center) if p.free else p for p in self._params
-        )
+        return ParameterSet(replace(p, value=next(it), prior_value=p.prior_center) if p.free else p
+                            for p in self._params)

@@ -84,9 +84,33 @@ def _inverse(Ns: np.ndarray) -> tuple[np.ndarray, float, np.ndarray | None, np.n
     return (evecs[:, keep] / evals[keep]) @ evecs[:, keep].T, cond, evals, evecs
 
 
+def _observability_warnings(names, prior, jacobian, evecs, bad) -> list[str]:
+    """Warnings for the free parameters no observation depends on (columns of ``jacobian`` all
+    zero, no prior) and for the combinations of parameters along the normal matrix's singular
+    directions (eigenvectors ``evecs`` where ``bad``)."""
+    warnings = []
+    zero_cols = []
+    if jacobian is not None and jacobian.size:
+        used = np.asarray(abs(jacobian).sum(axis=0)).ravel() > 0  # dense or sparse
+        zero_cols = [names[j] for j in range(len(names)) if not used[j] and not prior[j]]
+        for nm in zero_cols:
+            warnings.append(f"{nm} is not observable: no observation depends on it; its value is "
+                            "the start value")
+    for k in np.flatnonzero(bad):
+        v = evecs[:, k]
+        involved = [names[j] for j in np.argsort(-np.abs(v))
+                    if abs(v[j]) > 0.2 and names[j] not in zero_cols]
+        if involved:
+            warnings.append("the data cannot separate " + " and ".join(involved) + ": only a "
+                            "combination of them is determined (a singular direction of the "
+                            "normal equations)")
+    return warnings
+
+
 @dataclass
 class Solution:
-    """Estimates with their covariance and diagnostics. Values/σ SI inside; JSON in display units."""
+    """Estimates with their covariance and diagnostics. Values/σ SI inside; JSON in display
+    units."""
 
     parameters: ParameterSet
     covariance: np.ndarray  #: (n_free, n_free), SI
@@ -100,8 +124,9 @@ class Solution:
     history: list[dict] = field(default_factory=list)
     converged: bool = True
     extra: dict = field(default_factory=dict)  #: method-specific results for the JSON
-    #: free parameters named so are nuisance (e.g. hundreds of trajectory corrections): solution.json
-    #: gives their values and σ but leaves them out of the correlation matrix and the history
+    #: free parameters named so are nuisance (e.g. hundreds of trajectory corrections):
+    #: solution.json gives their values and σ but leaves them out of the correlation matrix and
+    #: the history
     nuisance_prefix: str | None = None
 
     @classmethod
@@ -114,22 +139,8 @@ class Solution:
         d = np.sqrt(np.clip(np.diag(N), 1e-300, None))
         Ns = N / np.outer(d, d)
         cov_s, cond, evals, evecs = _inverse(Ns)
-        warnings = []
-        zero_cols = []
-        if jacobian is not None and jacobian.size:
-            used = np.asarray(abs(jacobian).sum(axis=0)).ravel() > 0  # dense or sparse
-            zero_cols = [names[j] for j in range(len(names)) if not used[j] and not prior[j]]
-            for nm in zero_cols:
-                warnings.append(f"{nm} is not observable: no observation depends on it; its value is the start value")
         bad = np.zeros(0, bool) if evecs is None else evals < RANK_TOLERANCE * evals[-1]
-        for k in np.flatnonzero(bad):
-            v = evecs[:, k]
-            involved = [names[j] for j in np.argsort(-np.abs(v)) if abs(v[j]) > 0.2 and names[j] not in zero_cols]
-            if involved:
-                warnings.append(
-                    "the data cannot separate " + " and ".join(involved)
-                    + ": only a combination of them is determined (a singular direction of the normal equations)"
-                )
+        warnings = _observability_warnings(names, prior, jacobian, evecs, bad)
         cov = (sigma0_sq if variance_factor is None else variance_factor) * cov_s / np.outer(d, d)
         sig = np.sqrt(np.clip(np.diag(cov), 0, None))
         if np.any(bad):
@@ -155,7 +166,8 @@ class Solution:
     @property
     def sigma(self) -> dict[str, float]:
         """σ of each free parameter (SI)."""
-        return dict(zip(self.parameters.free_names, np.sqrt(np.clip(np.diag(self.covariance), 0, None))))
+        sigma = np.sqrt(np.clip(np.diag(self.covariance), 0, None))
+        return dict(zip(self.parameters.free_names, sigma))
 
     @property
     def correlation(self) -> np.ndarray:
@@ -172,7 +184,8 @@ class Solution:
         sig = self.sigma
         params = {}
         for p in self.parameters:
-            entry = {"value": p.to_display(p.value), "sigma": None, "unit": p.display_unit, "free": p.free}
+            entry = {"value": p.to_display(p.value), "sigma": None, "unit": p.display_unit,
+                     "free": p.free}
             if p.name in sig:
                 s = sig[p.name]
                 entry["sigma"] = p.to_display(s) if np.isfinite(s) else None
@@ -188,7 +201,8 @@ class Solution:
             "parameters": params,
             "correlation": {
                 "names": [p.name for p in free],
-                "matrix": [[None if not np.isfinite(v) else round(float(v), 6) for v in row] for row in corr],
+                "matrix": [[None if not np.isfinite(v) else round(float(v), 6) for v in row]
+                           for row in corr],
             },
             "residuals": {"before": self.residuals_before, "after": self.residuals_after},
             "sigma0": self.sigma0,

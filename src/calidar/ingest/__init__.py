@@ -1,6 +1,7 @@
 """The streaming engine: LAS/LAZ strips read chunk by chunk in bounded memory, for the strip
-calibration (:class:`calidar.ingest.strips.StripIngest`, one :class:`~calidar.ingest.settings.IngestSettings`)
-and the overlap quality (:mod:`calidar.ingest.stages`, :mod:`calidar.ingest.cell_counts`).
+calibration (:class:`calidar.ingest.strips.StripIngest`, one
+:class:`~calidar.ingest.settings.IngestSettings`) and the overlap quality
+(:mod:`calidar.ingest.stages`, :mod:`calidar.ingest.cell_counts`).
 
 A layer of its own between the pipelines (which orchestrate: inputs, outputs, verdicts) and the
 methods (``strips``: lines, overlaps, thinning, strips): it reads files through ``calidar.io`` and

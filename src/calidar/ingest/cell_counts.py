@@ -46,7 +46,8 @@ class Metric:
             return xyz
         from calidar.georef import from_crs
 
-        return self.frame.to_local(from_crs(xyz, self.crs, self.geoid_undulation_m, source=self.source))
+        ecef = from_crs(xyz, self.crs, self.geoid_undulation_m, source=self.source)
+        return self.frame.to_local(ecef)
 
 
 class CellCounts:
@@ -56,8 +57,10 @@ class CellCounts:
     ``held``, what the second pass needs of each candidate point (:func:`held_arrays`)."""
 
     def __init__(self, candidates: dict, metric: Metric, grid_m: float, held=None):
-        self.candidates, self.metric, self.grid_m = candidates, metric, grid_m  #: candidates: path → selections
-        self.parts: dict[tuple, list] = {}  #: (path, selection) → [(tokens, keys, counts)], each sorted
+        #: candidates: path → selections
+        self.candidates, self.metric, self.grid_m = candidates, metric, grid_m
+        #: (path, selection) → [(tokens, keys, counts)], each sorted
+        self.parts: dict[tuple, list] = {}
         self.time: dict[int, float] = {}  #: token → a GPS time of its points (s)
         self.held = held  #: calidar.ingest.held.HeldPoints, or None
 
@@ -79,13 +82,17 @@ class CellCounts:
             if len(parts) >= MERGE_PARTS:
                 parts[:] = [_token_counts(*(np.concatenate(a) for a in zip(*parts)))]
         if self.held is not None:
-            self.held.add(path, **held_arrays(c, xyz if self.metric.frame is not None else None, masks))
+            metric_xyz = xyz if self.metric.frame is not None else None
+            self.held.add(path, **held_arrays(c, metric_xyz, masks))
 
     def _lines(self, index, key) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(flight line, cell key, count) of the counts of (path, selection) ``key``."""
         tok, keys, n = _token_counts(*(np.concatenate(a) for a in zip(*self.parts[key])))
         utok, inv = np.unique(tok, return_inverse=True)
-        lines = index.of(utok >> 32, np.array([self.time[int(u)] for u in utok])) if utok.size else utok
+        if utok.size:  # a token: point_source_id << 32 | GPS second
+            lines = index.of(utok >> 32, np.array([self.time[int(u)] for u in utok]))
+        else:
+            lines = utok
         return lines[inv], keys, n
 
     def names(self, index) -> dict[int, str]:
@@ -143,7 +150,8 @@ def _kept_counts(psid, sec, ij, keep) -> tuple[tuple, np.ndarray]:
     from calidar.strips.cell_moments import index_keys
 
     if not keep.any():
-        return (np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0, np.int64)), np.zeros(0, np.int64)
+        none = np.zeros(0, np.int64)
+        return (none, none.copy(), none.copy()), none.copy()
     lo, span, counts, first, dense = _box_counts(psid, sec, ij, keep)
     if not dense:
         rows = np.flatnonzero(keep)
@@ -152,7 +160,8 @@ def _kept_counts(psid, sec, ij, keep) -> tuple[tuple, np.ndarray]:
         return _token_counts(tok, keys), rows[_first_rows(tok)]
     at = np.flatnonzero(counts)
     p, s, i, j = (c + low for c, low in zip(np.unravel_index(at, tuple(span)), lo))
-    return ((p << 32) | s, index_keys(np.stack([i, j], axis=1)), counts[at]), first[first < keep.size]
+    tokens = (p << 32) | s
+    return (tokens, index_keys(np.stack([i, j], axis=1)), counts[at]), first[first < keep.size]
 
 
 @njit(cache=True, nogil=True)
@@ -219,12 +228,15 @@ def held_arrays(c: dict, metric_xyz: np.ndarray | None, masks: list) -> dict[str
         bits |= m.astype(np.uint8) << k
     rows = np.flatnonzero(bits)
     xyz = {a: c[a][rows] for a in "XYZ"} if metric_xyz is None else {"xyz": metric_xyz[rows]}
-    return {**xyz, "point_source_id": c["point_source_id"][rows], "gps_time": c["gps_time"][rows], "bits": bits[rows]}
+    return {**xyz, "point_source_id": c["point_source_id"][rows],
+            "gps_time": c["gps_time"][rows], "bits": bits[rows]}
 
 
-def held_chunks(held, path: Path, bit: int, metric: Metric) -> Iterator[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+def held_chunks(held, path: Path, bit: int,
+                metric: Metric) -> Iterator[tuple[np.ndarray, np.ndarray, np.ndarray]]:
     """(metric xyz, point_source_id, GPS time) of the points of ``path`` that selection ``bit``
-    keeps, chunk by chunk as the first pass read them (the coordinates exactly as laspy scales them)."""
+    keeps, chunk by chunk as the first pass read them (the coordinates exactly as laspy scales
+    them)."""
     from calidar.io.las import las_header
 
     header = las_header(path)

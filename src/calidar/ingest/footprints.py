@@ -39,10 +39,12 @@ class Footprints:
     t_max: dict = field(default_factory=dict)
     files: dict = field(default_factory=dict)  #: group → the name of the (first) file holding it
     spans: dict = field(default_factory=dict)  #: (point_source_id, file name) → (first, last time)
-    checks: dict = field(default_factory=dict)  #: file → its GeometryCheck (calidar.ingest.plausibility)
+    #: file → its GeometryCheck (calidar.ingest.plausibility)
+    checks: dict = field(default_factory=dict)
     quality: LineCounts = field(default_factory=lambda: LineCounts(overlap_cell(None)))
 
-    def add(self, groups: np.ndarray, keys: np.ndarray, t: np.ndarray, name: str, chunk, quality_keys) -> None:
+    def add(self, groups: np.ndarray, keys: np.ndarray, t: np.ndarray, name: str, chunk,
+            quality_keys) -> None:
         """A chunk's points (LasPoints with the selection fields) of ``groups`` in overlap cells
         ``keys`` and quality-grid cells ``quality_keys``, at times ``t``."""
         if chunk.point_source_id is not None:
@@ -52,8 +54,10 @@ class Footprints:
             self.cells.setdefault(g, []).append(cell_counts(keys[rows]))
             self.t_min[g] = min(self.t_min.get(g, np.inf), float(t[rows].min()))
             self.t_max[g] = max(self.t_max.get(g, -np.inf), float(t[rows].max()))
-            fields = {f: None if getattr(chunk, f) is None else getattr(chunk, f)[rows] for f in SELECTION_FIELDS}
-            self.quality.add(g, SimpleNamespace(xyz=quality_keys[rows], **fields), quality_keys[rows])
+            fields = {f: None if getattr(chunk, f) is None else getattr(chunk, f)[rows]
+                      for f in SELECTION_FIELDS}
+            points = SimpleNamespace(xyz=quality_keys[rows], **fields)
+            self.quality.add(g, points, quality_keys[rows])
 
     def merge(self, other: "Footprints") -> "Footprints":
         """Both files' groups (a group may span files)."""
@@ -87,31 +91,38 @@ def file_footprints(frame: LocalFrame, trajectory, settings: IngestSettings, f: 
     """Footprints and time checks of one file, chunk by chunk, its GPS week and whether ``hold``
     (a :class:`calidar.ingest.held.HeldFiles`, or None) keeps the whole file: what pass
     2 and the overlap-quality stages need of its chunks (a task)."""
-    acc, times, grid = Footprints(), FileTimes(f.path, trajectory, f.time_system), overlap_cell(None)
+    acc, grid = Footprints(), overlap_cell(None)
+    times = FileTimes(f.path, trajectory, f.time_system)
     check, header = GeometryCheck(f.path.name), las_header(f.path)
+    scaling = (header.scales, header.offsets)
     acc.checks[f.path] = check
-    for chunk in iter_las_chunks(f.path, settings.chunk_points, fields=("point_source_id", "scan_angle_deg",
-                                                                       *SELECTION_FIELDS), options=f.points):
+    fields = ("point_source_id", "scan_angle_deg", *SELECTION_FIELDS)
+    for chunk in iter_las_chunks(f.path, settings.chunk_points, fields=fields, options=f.points):
         t = times.feed(chunk.gps_time)
         ok = np.isfinite(t)
-        if hold is not None and not (ok.all() and hold.add(f.path, chunk, t, header.scales, header.offsets)):
+        if hold is not None and not (ok.all() and hold.add(f.path, chunk, t, *scaling)):
             hold = None  # not whole: read again
         chunk = chunk if ok.all() else chunk.select(ok)
         k = sample_rows(len(chunk))
-        if np.all(trajectory.covers(t[ok][k])):  # points outside the trajectory: told by times.finish()
-            check.add(trajectory, t[ok][k], points_ecef(chunk.select(k)), chunk.scan_angle_deg[k], len(chunk))
+        # points outside the trajectory: told by times.finish()
+        if np.all(trajectory.covers(t[ok][k])):
+            check.add(trajectory, t[ok][k], points_ecef(chunk.select(k)), chunk.scan_angle_deg[k],
+                      len(chunk))
         else:
             check.seen += len(chunk)
         chunk = replace(chunk, scan_angle_deg=None)
         xy = planar_xy(chunk, frame)
         keys = cell_keys(xy, settings.cell_m)
-        acc.add(group_keys(chunk.point_source_id, t[ok], settings.gap_s), keys, t[ok], f.path.name, chunk,
-                keys if grid == settings.cell_m else cell_keys(xy, grid))
-    return acc, times.finish(name_trajectory=True), hold is not None  # the trajectory's span is what falls short
+        quality_keys = keys if grid == settings.cell_m else cell_keys(xy, grid)
+        groups = group_keys(chunk.point_source_id, t[ok], settings.gap_s)
+        acc.add(groups, keys, t[ok], f.path.name, chunk, quality_keys)
+    # the trajectory's span is what falls short
+    return acc, times.finish(name_trajectory=True), hold is not None
 
 
-def first_pass(files: list[StripFile], frame: LocalFrame, trajectory, settings: IngestSettings, progress: Progress,
-           run: Callable | None = None, in_process: bool = True) -> tuple[Footprints, dict, object]:
+def first_pass(files: list[StripFile], frame: LocalFrame, trajectory, settings: IngestSettings,
+               progress: Progress, run: Callable | None = None,
+               in_process: bool = True) -> tuple[Footprints, dict, object]:
     """Footprints and time checks of every file (one task each, run by ``run``: a
     :meth:`calidar.strips.distribute.Workers.run`; None: one at a time here); the GPS week of each
     file; the points kept for pass 2 and the overlap quality (``in_process``: the tasks run here;
@@ -125,10 +136,12 @@ def first_pass(files: list[StripFile], frame: LocalFrame, trajectory, settings: 
     run = run or Workers().run
     acc, weeks, done = Footprints(), {}, 0
     counts = [las_header(f.path).point_count for f in files]
-    room = min(settings.hold_bytes, shutil.disk_usage(tempfile.gettempdir()).free // 2) if in_process else 0
+    free = shutil.disk_usage(tempfile.gettempdir()).free // 2 if in_process else 0
+    room = min(settings.hold_bytes, free) if in_process else 0
     hold = files_to_hold(counts, room)
     held = HeldFiles() if any(hold) else None
-    parts = run(file_footprints, [(f, held if h else None) for f, h in zip(files, hold)], shared=(frame, trajectory, settings),
+    tasks = [(f, held if h else None) for f, h in zip(files, hold)]
+    parts = run(file_footprints, tasks, shared=(frame, trajectory, settings),
                 kind="read footprints")
     for f, n, (part, week, whole) in zip(files, counts, parts):
         acc.merge(part)
@@ -141,7 +154,8 @@ def first_pass(files: list[StripFile], frame: LocalFrame, trajectory, settings: 
 
 
 def files_to_hold(counts: list[int], room: int) -> list[bool]:
-    """Which files pass 1 holds for pass 2: in file order, those whose points still fit in ``room`` bytes."""
+    """Which files pass 1 holds for pass 2: in file order, those whose points still fit in
+    ``room`` bytes."""
     hold = []
     for n in counts:
         need = HELD_BYTES_PER_POINT * n

@@ -1,11 +1,12 @@
 """What a streamed command needs of each point after its first pass, kept as the first pass reads
 it, so that the second pass reads these few fields back instead of decompressing every file again.
 
-Named arrays, chunk by chunk, per key (a file): appended to one plain binary file per key in a temporary folder (the operating system's page cache holds them while
-memory is free; the process holds one chunk), read back in the order and with the boundaries
-they were written. ``calidar quality`` keeps 23 bytes per candidate point (the stored integer
-coordinates, point_source_id, GPS time and which selection rules keep it): reading a LAZ point
-again costs more than 100 times as much as reading those bytes back.
+Named arrays, chunk by chunk, per key (a file): appended to one plain binary file per key in a
+temporary folder (the operating system's page cache holds them while memory is free; the process
+holds one chunk), read back in the order and with the boundaries they were written. ``calidar
+quality`` keeps 23 bytes per candidate point (the stored integer coordinates, point_source_id, GPS
+time and which selection rules keep it): reading a LAZ point again costs more than 100 times as
+much as reading those bytes back.
 """
 
 from __future__ import annotations
@@ -64,7 +65,8 @@ class HeldPoints:
 
 
 #: what the strip ingest keeps of a point: the stored coordinates, the time in the trajectory's
-#: system, point_source_id and the selection's fields (pass 2 and the overlap-quality stages need no more)
+#: system, point_source_id and the selection's fields (pass 2 and the overlap-quality stages need
+#: no more)
 STRIP_FIELDS = ("point_source_id", "classification", "return_number", "number_of_returns")
 STRIP_BYTES_PER_POINT = 12 + 8 + 2 + 3
 
@@ -82,9 +84,13 @@ class HeldFiles:
 
         from calidar import outputs
 
-        # registered as the run's temporaries are: removed by outputs.remove_temporaries (an interrupted
-        # command ending while reader threads still hold this) as well as when it goes or at exit
-        self.folder = outputs._temporary(lambda: Path(tempfile.mkdtemp(prefix="calidar-held-")), "held points")
+        # registered as the run's temporaries are: removed by outputs.remove_temporaries (an
+        # interrupted command ending while reader threads still hold this) as well as when it goes
+        # or at exit
+        def create() -> Path:
+            return Path(tempfile.mkdtemp(prefix="calidar-held-"))
+
+        self.folder = outputs._temporary(create, "held points")
         self._remove = weakref.finalize(self, _remove_folder, str(self.folder))
         self.points = HeldPoints(self.folder)
         self.meta: dict = {}  #: path → (LasPoints of no points: CRS, time system…; scales; offsets)
@@ -110,10 +116,11 @@ class HeldFiles:
             return False
         with self._lock:
             # no points (copies, not views: a view would keep the chunk's buffers for the run)
-            self.meta.setdefault(path, (replace(chunk.select(np.zeros(0, np.int64)), **dict.fromkeys(OPTIONAL_FIELDS)),
-                                        np.asarray(scales), np.asarray(offsets)))
-        self.points.add(path, X=stored[:, 0], Y=stored[:, 1], Z=stored[:, 2], t=np.asarray(t, float),
-                        **{f: np.asarray(getattr(chunk, f)) for f in STRIP_FIELDS})
+            empty = replace(chunk.select(np.zeros(0, np.int64)), **dict.fromkeys(OPTIONAL_FIELDS))
+            self.meta.setdefault(path, (empty, np.asarray(scales), np.asarray(offsets)))
+        fields = {f: np.asarray(getattr(chunk, f)) for f in STRIP_FIELDS}
+        self.points.add(path, X=stored[:, 0], Y=stored[:, 1], Z=stored[:, 2],
+                        t=np.asarray(t, float), **fields)
         return True
 
     def chunks(self, path: Path, span: tuple[int, int | None]):
@@ -134,7 +141,8 @@ class HeldFiles:
                 xyz = np.empty((len(c["t"]), 3))
                 for k, axis in enumerate("XYZ"):
                     xyz[:, k] = c[axis] * scales[k] + offsets[k]
-                yield replace(empty, xyz=xyz, gps_time=c["t"], **{f: c[f] for f in STRIP_FIELDS}), c["t"]
+                fields = {f: c[f] for f in STRIP_FIELDS}
+                yield replace(empty, xyz=xyz, gps_time=c["t"], **fields), c["t"]
         return read()
 
     def __getstate__(self):

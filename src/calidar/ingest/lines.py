@@ -16,7 +16,8 @@ from numba import njit
 
 from calidar.errors import InputError
 from calidar.ingest.prefetch import prefetched
-from calidar.io.las import LasPoints, PointOptions, concat_points, iter_las_fields, las_header, las_time_system, read_las
+from calidar.io.las import (LasPoints, PointOptions, concat_points, iter_las_fields, las_header,
+                            las_time_system, read_las)
 from calidar.io.las_crs import las_crs
 from calidar.strips.lines import GAP_S, LineIndex, add_spans, distinct, split_lines
 
@@ -54,7 +55,8 @@ def check_distinct(paths: Sequence[str | Path]) -> None:
     for path in map(Path, paths):
         h = las_header(path)
         if h.point_count == 0:
-            raise InputError(path, "points", "no points; expected a strip (flight line) with points")
+            raise InputError(path, "points",
+                             "no points; expected a strip (flight line) with points")
         with open(path, "rb") as f:
             f.seek(h.offset_to_point_data)
             head = hashlib.sha256(f.read(1 << 20)).hexdigest()
@@ -62,12 +64,14 @@ def check_distinct(paths: Sequence[str | Path]) -> None:
         other = seen.setdefault(key, path)
         if other is not path:
             same = other.resolve() == path.resolve() or other.samefile(path)
-            raise InputError(path, None, "given twice; expected each strip once" if same else
-                             f"holds the same points as {other.name}: a duplicate; expected each strip once")
+            copy = f"holds the same points as {other.name}: a duplicate"
+            raise InputError(path, None, f"{'given twice' if same else copy}; expected each strip "
+                             "once")
 
 
-def index_flight_lines(paths: Sequence[str | Path], options: PointOptions = PointOptions(), gap_s: float = GAP_S,
-                       chunk_points: int = 2_000_000, fields: tuple[str, ...] = (), on_chunk=None) -> LineIndex:
+def index_flight_lines(paths: Sequence[str | Path], options: PointOptions = PointOptions(),
+                       gap_s: float = GAP_S, chunk_points: int = 2_000_000,
+                       fields: tuple[str, ...] = (), on_chunk=None) -> LineIndex:
     """Flight lines and classes of LAS/LAZ files from a pass over their point_source_id,
     classification and GPS time only (every file: one CRS, one time system, clear errors otherwise).
     Time gaps are found from each second's first and last time, so memory holds seconds, not points.
@@ -81,8 +85,8 @@ def index_flight_lines(paths: Sequence[str | Path], options: PointOptions = Poin
     for path in paths:
         present = np.zeros(256, bool)
         # the next chunk decompressed while this one is worked on (calidar.ingest.prefetch)
-        for c in prefetched(iter_las_fields(path, ("point_source_id", "classification", "gps_time", *fields),
-                                            chunk_points)):
+        names = ("point_source_id", "classification", "gps_time", *fields)
+        for c in prefetched(iter_las_fields(path, names, chunk_points)):
             if on_chunk is not None:
                 on_chunk(path, c)
             ids.update(distinct(c["point_source_id"]).tolist())
@@ -90,7 +94,10 @@ def index_flight_lines(paths: Sequence[str | Path], options: PointOptions = Poin
             seconds.append(_second_spans(c["gps_time"]))
             add_spans(spans, c["point_source_id"], c["gps_time"], path.name)
         classes[path] = np.flatnonzero(present)
-    lo, hi = _second_spans(np.concatenate([s[0] for s in seconds] + [s[1] for s in seconds])) if seconds else ((), ())
+    if seconds:  # each second's first and last time, of every chunk
+        lo, hi = _second_spans(np.concatenate([s[0] for s in seconds] + [s[1] for s in seconds]))
+    else:
+        lo, hi = (), ()
     return replace(split_lines(ids, spans, lo, hi, gap_s), classes=classes)
 
 
@@ -112,7 +119,8 @@ def _second_spans(t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 @njit(cache=True, nogil=True)
 def _dense_spans(t, k, n):  # pragma: no cover - numba
-    """Smallest and largest of the times ``t`` in each slot ``k`` (0 ≤ k < n), and which slots hold any."""
+    """Smallest and largest of the times ``t`` in each slot ``k`` (0 ≤ k < n), and which slots hold
+    any."""
     first, last, held = np.full(n, np.inf), np.full(n, -np.inf), np.zeros(n, np.bool_)
     for m in range(t.size):
         first[k[m]] = min(first[k[m]], t[m])
@@ -123,18 +131,22 @@ def _dense_spans(t, k, n):  # pragma: no cover - numba
 
 def _check_alike(paths: list[Path], options: PointOptions) -> None:
     """Every file in the CRS and GPS time system of the first (from their headers)."""
-    check_consistent([(p, las_crs(las_header(p)) if options.crs is None else None, las_time_system(p, options.time_system))
-                      for p in paths])
+    check_consistent([(p, las_crs(las_header(p)) if options.crs is None else None,
+                       las_time_system(p, options.time_system)) for p in paths])
 
 
 def check_consistent(files: Sequence[tuple[Path, pyproj.CRS | None, str]]) -> None:
     """Error unless every (path, CRS, GPS time system) has the CRS and time system of the first."""
     path0, crs0, system0 = files[0]
     for path, crs, system in files[1:]:
-        if (crs is None) != (crs0 is None) or (crs is not None and not crs.equals(crs0, ignore_axis_order=True)):
-            raise InputError(path, "crs", f"expected the CRS of {Path(path0).name} ({_name(crs0)}), got {_name(crs)}")
+        other = (crs is None) != (crs0 is None)
+        other |= crs is not None and not crs.equals(crs0, ignore_axis_order=True)
+        if other:
+            raise InputError(path, "crs", f"expected the CRS of {Path(path0).name} "
+                             f"({_name(crs0)}), got {_name(crs)}")
         if system != system0:
-            raise InputError(path, "gps_time", f"expected {system0} like {Path(path0).name}, got {system}")
+            raise InputError(path, "gps_time",
+                             f"expected {system0} like {Path(path0).name}, got {system}")
 
 
 def _name(crs: pyproj.CRS | None) -> str:

@@ -18,12 +18,13 @@ TASK_POINTS = 4_000_000
 def measure_lines(source, nominal, models, progress: Progress = no_progress, work=None,
                   settings: QualitySettings = QualitySettings()) -> list[list]:
     """Per model of :func:`calidar.ingest.source.line_chunks` (None: the lines of ``source`` as
-    delivered, else a (sensor, trajectory) they are re-georeferenced with from the ``nominal`` sensor), the
-    :class:`calidar.strips.quality.PairQuality` of every overlapping pair of flight lines, by
-    :func:`calidar.ingest.stages.lines_quality` on the plan of the ingest's counts: one
-    read of the files (two when a stage's own plan differs), each file a task run by ``work``
-    (a :class:`calidar.strips.distribute.Workers`; None: one at a time here); memory holds cells,
-    not points; ``settings``: the swath difference's (:class:`calidar.strips.quality.QualitySettings`)."""
+    delivered, else a (sensor, trajectory) they are re-georeferenced with from the ``nominal``
+    sensor), the :class:`calidar.strips.quality.PairQuality` of every overlapping pair of flight
+    lines, by :func:`calidar.ingest.stages.lines_quality` on the plan of the ingest's counts: one
+    read of the files (two when a stage's own plan differs), each file a task run by ``work`` (a
+    :class:`calidar.strips.distribute.Workers`; None: one at a time here); memory holds cells, not
+    points; ``settings``: the swath difference's
+    (:class:`calidar.strips.quality.QualitySettings`)."""
     import tempfile
 
     from calidar.ingest import release_memory
@@ -33,8 +34,9 @@ def measure_lines(source, nominal, models, progress: Progress = no_progress, wor
 
     f = source.files[0]
     crs = las_file_crs(f.path, f.points.crs)
-    metric = Metric(crs, source.frame if crs is not None and crs.is_geographic else None, f.points.geoid_undulation_m,
-                    f.path)  # the ingest's grid: its counts make the plan
+    frame = source.frame if crs is not None and crs.is_geographic else None
+    # the ingest's grid: its counts make the plan
+    metric = Metric(crs, frame, f.points.geoid_undulation_m, f.path)
     tasks = [(k, a, min(a + TASK_POINTS, n)) for k, f in enumerate(source.files)
              for n in [las_header(f.path).point_count] for a in range(0, max(n, 1), TASK_POINTS)]
     total = sum(b - a for _, a, b in tasks)
@@ -42,7 +44,8 @@ def measure_lines(source, nominal, models, progress: Progress = no_progress, wor
     def read(plans, chosen, count):
         out, done = StagePass.start(plans, settings.cell_m, count, spill), 0
         shared = (source, nominal, models, metric, plans, chosen, count, settings.cell_m)
-        for (_, a, b), part in zip(tasks, (work or Workers()).run(_file_stages, tasks, shared, kind="overlap quality")):
+        parts = (work or Workers()).run(_file_stages, tasks, shared, kind="overlap quality")
+        for (_, a, b), part in zip(tasks, parts):
             out.merge(part)
             del part
             release_memory()  # each task's working arrays
@@ -50,14 +53,18 @@ def measure_lines(source, nominal, models, progress: Progress = no_progress, wor
             progress("overlap quality: reading strips", done, total)
         return out
 
-    with tempfile.TemporaryDirectory(prefix="calidar-moments-") as spill:  # cell moments beyond HOLD_BYTES
+    # the cell moments beyond HOLD_BYTES spill into a temporary folder
+    with tempfile.TemporaryDirectory(prefix="calidar-moments-") as spill:
         return lines_quality(read, source.quality, len(models), source.names, settings,
                              threads=work.local_threads if work else 1)
 
 
-def _file_stages(source, nominal, models, metric, plans, chosen, count, cell_m, k: int, start: int, stop: int):
-    """:func:`calidar.ingest.stages.stage_pass` of the points [start, stop) of the ``k``-th file (a task)."""
+def _file_stages(source, nominal, models, metric, plans, chosen, count, cell_m, k: int,
+                 start: int, stop: int):
+    """:func:`calidar.ingest.stages.stage_pass` of the points [start, stop) of the ``k``-th file
+    (a task)."""
     from calidar.strips.selection import FIELDS, candidate_mask
 
-    chunks = line_chunks(source, nominal, models, FIELDS, candidate_mask, files=[source.files[k]], span=(start, stop))
+    chunks = line_chunks(source, nominal, models, FIELDS, candidate_mask,
+                         files=[source.files[k]], span=(start, stop))
     return stage_pass(chunks, metric, plans, chosen, cell_m, count=count)

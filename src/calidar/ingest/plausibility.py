@@ -14,11 +14,11 @@ Vertical offset: with the file's scan angle θ (LAS: from nadir, aircraft roll i
 right) the points' across-track offsets satisfy across = (down + δ) tan(θ + r), r a constant roll
 or boresight bias; linearized, across − down tanθ = δ tanθ + r down sec²θ, solved by least
 squares over the sample (points with 5° ≤ |θ| ≤ 60°, the outermost degree left out: a
-whole-degree bin at the edge of the field of view holds half a bin), each row divided by down·sec²θ (an
-error in θ moves across by that much: equal weights would understate σ by 1.4×). δ ≠ 0 means the heights are δ m too high
-for the angles: e.g. heights above a geoid taken as ellipsoidal (δ = −N). With LAS 1.2's whole-
-degree scan angles each point's δ scatters by ~0.25 % of the height; hundreds of points bring
-the estimate's σ below a metre.
+whole-degree bin at the edge of the field of view holds half a bin), each row divided by
+down·sec²θ (an error in θ moves across by that much; equal weights would understate σ). δ ≠ 0
+means the heights are δ m too high for the angles: e.g. heights above a geoid taken as
+ellipsoidal (δ = −N). With LAS 1.2's whole-degree scan angles each point's δ scatters by ~0.25 %
+of the height; hundreds of points bring the estimate's σ below a metre.
 """
 
 from __future__ import annotations
@@ -32,11 +32,13 @@ from calidar.errors import InputError
 
 SAMPLE_POINTS = 1000  #: points of each chunk checked
 MAX_OFF_NADIR_DEG = 75.0  #: a median look angle beyond this is no airborne scan
-MAX_ALONG_TRACK = 0.6  #: median along-track offset over height beyond this (31°): no scanner looks so far ahead
-MAX_SCAN_ANGLE_MISMATCH_DEG = 10.0  #: median | |computed| − |file's| | across-track angle beyond this: wrong geometry
+#: median along-track offset over height beyond this (31°): no scanner looks so far ahead
+MAX_ALONG_TRACK = 0.6
+#: median | |computed| − |file's| | across-track angle beyond this: wrong geometry
+MAX_SCAN_ANGLE_MISMATCH_DEG = 10.0
 MIN_VERTICAL_WARNING_M = 5.0  #: |δ| below this is not reported
-CAUSES = ("wrong CRS or UTM zone (--crs), wrong trajectory or its CRS (--trajectory-crs), or wrong time system "
-          "(--time-system)")
+CAUSES = ("wrong CRS or UTM zone (--crs), wrong trajectory or its CRS (--trajectory-crs), or wrong "
+          "time system (--time-system)")
 
 
 def sample_rows(n: int, k: int = SAMPLE_POINTS) -> np.ndarray:
@@ -44,7 +46,8 @@ def sample_rows(n: int, k: int = SAMPLE_POINTS) -> np.ndarray:
     return np.arange(n) if n <= k else np.linspace(0, n - 1, k).astype(np.int64)
 
 
-def local_geometry(traj, t: np.ndarray, ecef: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def local_geometry(traj, t: np.ndarray,
+                   ecef: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(down, across, along) m of points (N, 3) ECEF at times t seen from the trajectory: the
     sensor's height above each point, the horizontal offset right of and along its heading."""
     pos, _ = traj.interpolate(t)
@@ -60,8 +63,8 @@ def local_geometry(traj, t: np.ndarray, ecef: np.ndarray) -> tuple[np.ndarray, n
 def traj_speed(traj, t: np.ndarray) -> float:
     """The trajectory's median ground speed (m/s) over the times ``t``."""
     i = np.clip(np.searchsorted(traj.time, t), 1, traj.time.size - 1)
-    step = np.linalg.norm(traj.ecef[i] - traj.ecef[i - 1], axis=1) / (traj.time[i] - traj.time[i - 1])
-    return float(np.median(step))
+    moved = np.linalg.norm(traj.ecef[i] - traj.ecef[i - 1], axis=1)
+    return float(np.median(moved / (traj.time[i] - traj.time[i - 1])))
 
 
 @dataclass
@@ -70,9 +73,11 @@ class GeometryCheck:
     vertical offset their scan angles imply over the whole file (:meth:`vertical_offset`)."""
 
     source: object  #: the points' file (for messages)
-    rows: list = field(default_factory=list)  #: (down, across, scan angle deg) samples with scan angles
+    #: (down, across, scan angle deg) samples with scan angles
+    rows: list = field(default_factory=list)
     seen: int = 0  #: points of the chunks added so far (the next chunk's first point)
-    label: str | None = None  #: what the points are, for messages (default: "points i–j" of the file)
+    #: what the points are, for messages (default: "points i–j" of the file)
+    label: str | None = None
 
     def add(self, traj, t: np.ndarray, ecef: np.ndarray, scan_angle_deg: np.ndarray | None,
             size: int | None = None) -> None:
@@ -88,26 +93,7 @@ class GeometryCheck:
             return
         down, across, along = local_geometry(traj, t[k], ecef[k])
         where = self.label or f"points {first}–{self.seen - 1}"
-        height = float(np.median(down))
-        if height <= 0:
-            raise InputError(self.source, "z", f"{where}: the points lie a median {-height:.0f} m above the trajectory "
-                             f"at their times; expected them below the sensor: {CAUSES}")
-        look = np.degrees(np.arctan2(np.hypot(across, along), down))
-        if float(np.median(look)) > MAX_OFF_NADIR_DEG:
-            ahead, side = float(np.median(along)), float(np.median(np.abs(across)))
-            causes = (f"a time offset ({ahead / max(traj_speed(traj, t[k]), 1e-3):+.1f} s at the aircraft's speed: wrong time "
-                      "system, UTC against GPS time?), or " + CAUSES) if abs(ahead) > 3 * side else CAUSES
-            raise InputError(self.source, "xyz", f"{where}: the points lie a median {np.median(np.hypot(across, along)):.0f} m "
-                             f"sideways from the trajectory at their times ({ahead:+.0f} m along its heading, {side:.0f} m "
-                             f"across), {height:.0f} m below it (look angle {np.median(look):.1f}° from nadir, expected "
-                             f"below {MAX_OFF_NADIR_DEG:g}°): {causes}")
-        ahead = float(np.median(along))
-        if abs(ahead) > MAX_ALONG_TRACK * height:
-            raise InputError(self.source, "gps_time", f"{where}: the points lie a median {abs(ahead):.0f} m "
-                             f"{'ahead of' if ahead > 0 else 'behind'} the sensor at their times, {height:.0f} m below "
-                             f"it (expected within {MAX_ALONG_TRACK:g}× the height): a time offset of about "
-                             f"{ahead / max(traj_speed(traj, t[k]), 1e-3):+.1f} s (wrong time system, UTC against GPS "
-                             f"time?), or {CAUSES}")
+        self._check_position(where, down, across, along, lambda: traj_speed(traj, t[k]))
         if scan_angle_deg is None:
             return
         theta = np.asarray(scan_angle_deg, float)[k]
@@ -116,11 +102,45 @@ class GeometryCheck:
         computed = np.degrees(np.arctan2(across, down))
         miss = float(np.median(np.abs(np.abs(computed) - np.abs(theta))))
         if miss > MAX_SCAN_ANGLE_MISMATCH_DEG:
-            raise InputError(self.source, "scan_angle", f"{where}: the across-track angles from the trajectory "
-                             f"({np.min(computed):.1f}…{np.max(computed):.1f}°) differ from the file's scan angles "
-                             f"({theta.min():.1f}…{theta.max():.1f}°) by a median {miss:.1f}°; expected them to agree: "
-                             f"{CAUSES}, or heights in another vertical datum (--crs, --geoid-undulation)")
+            raise InputError(self.source, "scan_angle", f"{where}: the across-track angles from "
+                             f"the trajectory ({np.min(computed):.1f}…{np.max(computed):.1f}°) "
+                             "differ from the file's scan angles "
+                             f"({theta.min():.1f}…{theta.max():.1f}°) by a median {miss:.1f}°; "
+                             f"expected them to agree: {CAUSES}, or heights in another vertical "
+                             "datum (--crs, --geoid-undulation)")
         self.rows.append(np.stack([down, across, theta], axis=1))
+
+    def _check_position(self, where: str, down, across, along, speed) -> None:
+        """Raise when the sample lies above the sensor, too far off nadir or too far ahead of or
+        behind it (``speed()``: the aircraft's, m/s, to state the time offset that would explain
+        it)."""
+        height = float(np.median(down))
+        if height <= 0:
+            raise InputError(self.source, "z", f"{where}: the points lie a median {-height:.0f} m "
+                             "above the trajectory at their times; expected them below the sensor: "
+                             f"{CAUSES}")
+        look = np.degrees(np.arctan2(np.hypot(across, along), down))
+        if float(np.median(look)) > MAX_OFF_NADIR_DEG:
+            ahead, side = float(np.median(along)), float(np.median(np.abs(across)))
+            causes = CAUSES
+            if abs(ahead) > 3 * side:
+                offset = ahead / max(speed(), 1e-3)
+                causes = (f"a time offset ({offset:+.1f} s at the aircraft's speed: wrong time "
+                          "system, UTC against GPS time?), or " + CAUSES)
+            distance = np.median(np.hypot(across, along))
+            raise InputError(self.source, "xyz", f"{where}: the points lie a median {distance:.0f} "
+                             f"m sideways from the trajectory at their times ({ahead:+.0f} m along "
+                             f"its heading, {side:.0f} m across), {height:.0f} m below it (look "
+                             f"angle {np.median(look):.1f}° from nadir, expected below "
+                             f"{MAX_OFF_NADIR_DEG:g}°): {causes}")
+        ahead = float(np.median(along))
+        if abs(ahead) > MAX_ALONG_TRACK * height:
+            side = "ahead of" if ahead > 0 else "behind"
+            raise InputError(self.source, "gps_time", f"{where}: the points lie a median "
+                             f"{abs(ahead):.0f} m {side} the sensor at their times, {height:.0f} m "
+                             f"below it (expected within {MAX_ALONG_TRACK:g}× the height): a time "
+                             f"offset of about {ahead / max(speed(), 1e-3):+.1f} s (wrong time "
+                             f"system, UTC against GPS time?), or {CAUSES}")
 
     def vertical_offset(self) -> tuple[float, float, float] | None:
         """(δ m, its σ m, median sensor height above the points m) from the scan angles, or None
@@ -128,14 +148,16 @@ class GeometryCheck:
         if not self.rows:
             return None
         down, across, theta = np.concatenate(self.rows).T
-        edge = np.abs(theta).max() - 1.0  # the outermost degree: whole-degree angles there are biased inwards
+        # the outermost degree left out: whole-degree angles there are biased inwards
+        edge = np.abs(theta).max() - 1.0
         use = (np.abs(theta) >= 5.0) & (np.abs(theta) <= min(60.0, edge))
         if np.count_nonzero(use) < 30 or np.unique(np.sign(theta[use])).size < 2:
             return None
         if np.median(np.sign(across[use]) * np.sign(theta[use])) < 0:
             theta = -theta  # a file whose scan angles are positive to the left
         down, across, tan = down[use], across[use], np.tan(np.radians(theta[use]))
-        w = 1.0 / (down * (1 + tan**2))  # an angle error ε moves across by down·sec²θ·ε: rows in angle units
+        # an angle error ε moves across by down·sec²θ·ε: rows in angle units
+        w = 1.0 / (down * (1 + tan**2))
         a = np.stack([tan, down * (1 + tan**2)], axis=1) * w[:, None]
         b = (across - down * tan) * w
         keep = np.ones(b.size, bool)
@@ -156,30 +178,38 @@ class GeometryCheck:
         delta, sigma, height = est
         if abs(delta) < max(MIN_VERTICAL_WARNING_M, 5 * sigma, 0.005 * height):
             return None
-        return (f"{self.source}: the heights are {delta:+.1f} ± {sigma:.1f} m off what the file's scan angles imply "
-                f"(sensor {height:.0f} m above the points; ranges {'shorter' if delta > 0 else 'longer'} than the scan "
-                f"angles imply): a vertical-datum mismatch? Heights were taken as {reference}")
+        ranges = "shorter" if delta > 0 else "longer"
+        return (f"{self.source}: the heights are {delta:+.1f} ± {sigma:.1f} m off what the file's "
+                f"scan angles imply (sensor {height:.0f} m above the points; ranges {ranges} than "
+                f"the scan angles imply): a vertical-datum mismatch? Heights were taken as "
+                f"{reference}")
 
 
-def heights_notes(crs, geoid_undulation_m: float | None, check=None, relative: bool = False) -> list[str]:
+def heights_notes(crs, geoid_undulation_m: float | None, check=None,
+                  relative: bool = False) -> list[str]:
     """What a command tells about heights (issue 26): the vertical reference it used, the warning
     for a CRS without a vertical part unless the scan angles of every file (``check``: a
     :class:`GeometryCheck` or a list of them) confirm the heights, and the vertical-offset warning
     of each file whose heights they contradict. ``relative``: the command compares strips with
-    each other only (a datum offset common to all does not change its results): the statement alone."""
+    each other only (a datum offset common to all does not change its results): the statement
+    alone."""
     from calidar.crs import vertical_reference
 
     if crs is None:
         return []
     reference, warning = vertical_reference(crs, geoid_undulation_m)
     if relative:
-        return [f"heights: {reference}" + ("; an offset of the datum common to every strip does not change the "
-                                           "differences" if warning else "")]
+        common = ("; an offset of the datum common to every strip does not change the differences"
+                  if warning else "")
+        return [f"heights: {reference}{common}"]
     checks = [] if check is None else check if isinstance(check, list) else [check]
     estimates = [c.vertical_offset() for c in checks]
     offsets = [w for w in (c.vertical_warning(reference) for c in checks) if w]
     if warning and checks and all(e is not None for e in estimates) and not offsets:
         worst = max(estimates, key=lambda e: abs(e[0]))
-        what = "file's scan angles agree" if len(checks) == 1 else f"scan angles of all {len(checks)} files agree"
+        if len(checks) == 1:
+            what = "file's scan angles agree"
+        else:
+            what = f"scan angles of all {len(checks)} files agree"
         return [f"heights: {reference}; the {what} to {worst[0]:+.1f} ± {worst[1]:.1f} m"]
     return [f"heights: {warning or reference}", *offsets]

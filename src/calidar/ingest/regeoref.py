@@ -27,8 +27,11 @@ def moved_versions(traj, nominal, models, t: np.ndarray, lin) -> list[np.ndarray
     entries: skipped, None in the list returned), or None when the models are not all new
     mountings on ``traj`` and at most one other trajectory."""
     kept = [m for m in models if m is not None]
-    if any((s.range_offset, s.range_scale, s.scanner) != (nominal.range_offset, nominal.range_scale, nominal.scanner)
-           for s, _ in kept):
+
+    def model(s):
+        return s.range_offset, s.range_scale, s.scanner
+
+    if any(model(s) != model(nominal) for s, _ in kept):
         return None
     others = list({id(tr): tr for _, tr in kept if tr is not traj}.values())
     if len(others) > 1:
@@ -38,11 +41,13 @@ def moved_versions(traj, nominal, models, t: np.ndarray, lin) -> list[np.ndarray
     out = np.empty((len(kept), t.size, 3))
     c = lambda a: np.ascontiguousarray(a, float)  # noqa: E731 - as calidar.georef._c
     which = np.array([0 if tr is traj else 1 for _, tr in kept], np.int64)
-    n_out, n_out2 = _versions_kernel(
-        traj.time, c(traj.ecef), c(traj.q_eb), other.time, c(other.ecef), c(other.q_eb), t, lin.near_ecef(),
-        c(nominal.r_bs), c(nominal.lever_arm), np.stack([c(s.r_bs) for s, _ in kept]) if kept else np.zeros((0, 3, 3)),
-        np.stack([c(s.lever_arm) for s, _ in kept]) if kept else np.zeros((0, 3)), which,
-        lin.xyz, lin.jac, lin.rows, out)
+    r_bs = np.stack([c(s.r_bs) for s, _ in kept]) if kept else np.zeros((0, 3, 3))
+    lever = np.stack([c(s.lever_arm) for s, _ in kept]) if kept else np.zeros((0, 3))
+    trajectories = (traj.time, c(traj.ecef), c(traj.q_eb), other.time, c(other.ecef),
+                    c(other.q_eb))
+    n_out, n_out2 = _versions_kernel(*trajectories, t, lin.near_ecef(), c(nominal.r_bs),
+                                     c(nominal.lever_arm), r_bs, lever, which, lin.xyz, lin.jac,
+                                     lin.rows, out)
     if n_out:
         traj.check_covers(t)
     if n_out2 and np.any(which == 1):
@@ -52,10 +57,10 @@ def moved_versions(traj, nominal, models, t: np.ndarray, lin) -> list[np.ndarray
 
 
 @njit(cache=True, nogil=True)
-def _versions_kernel(tt, pos, q, tt2, pos2, q2, t, p, r_bs0, lever0, r_bs, lever, which, base, jac, rows,
-                     out):  # pragma: no cover - numba
-    """out[m] = base + J · (forward_m(inverse(p)) − p) per point (see the module); returns how many
-    times lie outside each trajectory (NaN counts as outside)."""
+def _versions_kernel(tt, pos, q, tt2, pos2, q2, t, p, r_bs0, lever0, r_bs, lever, which, base,
+                     jac, rows, out):  # pragma: no cover - numba
+    """out[m] = base + J · (forward_m(inverse(p)) − p) per point (see the module); returns how
+    many times lie outside each trajectory (NaN counts as outside)."""
     n_out, i, i_prev, theta, s, sign = 0, 0, -1, 0.0, 0.0, 1.0
     n_out2, i2, i2_prev, theta2, s2, sign2 = 0, 0, -1, 0.0, 0.0, 1.0
     second = False
@@ -69,22 +74,26 @@ def _versions_kernel(tt, pos, q, tt2, pos2, q2, t, p, r_bs0, lever0, r_bs, lever
             tt, pos, q, tk, i, i_prev, theta, s, sign)
         if second:
             n_out2 += not tt2[0] <= tk <= tt2[tt2.size - 1]
-            i2, i2_prev, theta2, s2, sign2, qx, qy, qz, r00, r01, r02, r10, r11, r12, r20, r21, r22 = _pose(
+            (i2, i2_prev, theta2, s2, sign2,
+             qx, qy, qz, r00, r01, r02, r10, r11, r12, r20, r21, r22) = _pose(
                 tt2, pos2, q2, tk, i2, i2_prev, theta2, s2, sign2)
-        sx, sy, sz = scanner_vector(p[k, 0], p[k, 1], p[k, 2], px, py, pz, a00, a01, a02, a10, a11, a12,
-                                    a20, a21, a22, r_bs0, lever0)
+        sx, sy, sz = scanner_vector(p[k, 0], p[k, 1], p[k, 2], px, py, pz,
+                                    a00, a01, a02, a10, a11, a12, a20, a21, a22, r_bs0, lever0)
         for m in range(which.size):
-            if which[m] == 0:
-                ox, oy, oz, e00, e01, e02, e10, e11, e12, e20, e21, e22 = (px, py, pz, a00, a01, a02, a10, a11, a12,
-                                                                           a20, a21, a22)
-            else:
-                ox, oy, oz, e00, e01, e02, e10, e11, e12, e20, e21, e22 = (qx, qy, qz, r00, r01, r02, r10, r11, r12,
-                                                                           r20, r21, r22)
+            if which[m] == 0:  # the pose on the first trajectory
+                ox, oy, oz = px, py, pz
+                e00, e01, e02, e10, e11, e12 = a00, a01, a02, a10, a11, a12
+                e20, e21, e22 = a20, a21, a22
+            else:  # on the second
+                ox, oy, oz = qx, qy, qz
+                e00, e01, e02, e10, e11, e12 = r00, r01, r02, r10, r11, r12
+                e20, e21, e22 = r20, r21, r22
             # the lidar equation, then the move (calidar.crs._moved)
-            x, y, z = lidar_point(sx, sy, sz, r_bs[m], lever[m], ox, oy, oz, e00, e01, e02, e10, e11, e12,
-                                  e20, e21, e22)
+            x, y, z = lidar_point(sx, sy, sz, r_bs[m], lever[m], ox, oy, oz,
+                                  e00, e01, e02, e10, e11, e12, e20, e21, e22)
             d0, d1, d2 = x - p[k, 0], y - p[k, 1], z - p[k, 2]
             j = rows[k]
             for a in range(3):
-                out[m, k, a] = base[k, a] + (jac[j, a, 0] * d0 + jac[j, a, 1] * d1 + jac[j, a, 2] * d2)
+                moved = jac[j, a, 0] * d0 + jac[j, a, 1] * d1 + jac[j, a, 2] * d2
+                out[m, k, a] = base[k, a] + moved
     return n_out, n_out2

@@ -18,8 +18,8 @@ BIN_BITS = 40  #: group key = point_source_id << 40 | GPS time bin
 BLOCK_PATCHES = 6
 MAX_BLOCK_CELLS = 20
 
-#: points read at once: with the overlap-quality stages' copies (a chunk re-georeferenced per stage)
-#: this, not the files, sets the streaming memory (8.75 M points: 2 M → 2.1 GiB peak, 0.5 M → 1.3 GiB)
+#: points read at once: with the overlap-quality stages' copies (a chunk re-georeferenced per
+#: stage) this, not the files, sets the streaming memory (docs/validation.md has the peaks measured)
 CHUNK_POINTS = 250_000
 #: pass 1 keeps what pass 2 and the overlap-quality stages need of each point (stored coordinates,
 #: time, point_source_id, the selection's fields: 25 B a point) in files of a temporary folder

@@ -41,9 +41,11 @@ class StripSource:
     group_line: np.ndarray  #: flight-line id of each group
     how: str  #: "point_source_id" | "gps_time_gaps"
     settings: IngestSettings
-    weeks: dict = field(default_factory=dict)  #: path → GPS week of the time conversion (None: none)
+    #: path → GPS week of the time conversion (None: none)
+    weeks: dict = field(default_factory=dict)
     counts: dict = field(default_factory=dict)  #: line id → points in the files
-    quality: LineCounts | None = None  #: the lines' overlap-quality counts as delivered (the first pass's)
+    #: the lines' overlap-quality counts as delivered (the first pass's)
+    quality: LineCounts | None = None
     names: dict = field(default_factory=dict)  #: line id → the name of a file holding it
     #: the points pass 1 kept (:class:`calidar.ingest.held.HeldFiles`; None: none), read
     #: instead of the files; not sent to other processes
@@ -59,8 +61,9 @@ class StripSource:
         kept them when it did (and ``fields`` are among those kept), else read again."""
         from calidar.ingest.held import STRIP_FIELDS
 
+        kept = self.held is not None and set(fields) <= set(STRIP_FIELDS)
         for f in self.files if files is None else files:
-            held = None if self.held is None or not set(fields) <= set(STRIP_FIELDS) else self.held.chunks(f.path, span)
+            held = self.held.chunks(f.path, span) if kept else None
             for chunk, t in held if held is not None else self._read(f, fields, span):
                 g = group_keys(chunk.point_source_id, t, self.settings.gap_s)
                 pos = np.minimum(np.searchsorted(self.groups, g), self.groups.size - 1)
@@ -68,12 +71,13 @@ class StripSource:
                     raise InputError(f.path, None, "the file changed while it was read")
                 yield f, chunk, self.group_line[pos], t
 
-    def _read(self, f: StripFile, fields: Sequence[str], span: tuple[int, int | None]) -> Iterator[tuple]:
+    def _read(self, f: StripFile, fields: Sequence[str],
+              span: tuple[int, int | None]) -> Iterator[tuple]:
         """(LasPoints chunk, its GPS times in the trajectory's system) of the file ``f``."""
         times = FileTimes(f.path, self.trajectory, f.time_system)
-        for chunk in iter_las_chunks(f.path, self.settings.chunk_points,
-                                     fields=tuple(dict.fromkeys(("point_source_id", *fields))), options=f.points,
-                                     start=span[0], stop=span[1]):
+        names = tuple(dict.fromkeys(("point_source_id", *fields)))
+        for chunk in iter_las_chunks(f.path, self.settings.chunk_points, fields=names,
+                                     options=f.points, start=span[0], stop=span[1]):
             yield chunk, times.feed(chunk.gps_time)
 
     def cell_keys(self, chunk) -> np.ndarray:
@@ -82,7 +86,8 @@ class StripSource:
 
 
 def line_chunks(source: StripSource, nominal, models=(None,), fields=None, where=None,
-                files: Sequence[StripFile] | None = None, span=(0, None)) -> Iterator[tuple[int, list]]:
+                files: Sequence[StripFile] | None = None,
+                span=(0, None)) -> Iterator[tuple[int, list]]:
     """Per chunk of the files (or of ``files``, their points [``span``)) and flight line, (line
     id, [LasPoints per model]):
     for each of ``models`` the delivered points (None) or those re-georeferenced with a (sensor,
@@ -95,19 +100,26 @@ def line_chunks(source: StripSource, nominal, models=(None,), fields=None, where
     from calidar.ingest.regeoref import moved_versions
     from calidar.io.las import OPTIONAL_FIELDS
 
-    for _, chunk, ids, t in source.chunks(OPTIONAL_FIELDS if fields is None else fields, files, span):
+    names = OPTIONAL_FIELDS if fields is None else fields
+    for _, chunk, ids, t in source.chunks(names, files, span):
         if where is not None:
             keep = where(chunk)
             chunk, ids, t = chunk.select(keep), ids[keep], t[keep]
-        lin = None if all(m is None for m in models) else points_tile_linear(chunk)  # one for every model
-        # every model in one pass (poses interpolated once; calidar.ingest.regeoref), else model by model
+        # one TileLinear for every model
+        lin = None if all(m is None for m in models) else points_tile_linear(chunk)
+        # every model in one pass (poses interpolated once; calidar.ingest.regeoref), else model
+        # by model
         moved = None if lin is None else moved_versions(source.trajectory, nominal, models, t, lin)
         if moved is None and lin is not None:
             ecef = lin.near_ecef()  # ~1 mm: only the moves below count
             v_s = georef.scanner_vectors(source.trajectory, nominal, t, ecef)
-            moved = [None if m is None else lin.moved(georef.reforward(nominal, m[0], m[1], t, v_s) - ecef)
-                     for m in models]
-        versions = [chunk if m is None else replace(chunk, xyz=xyz) for m, xyz in zip(models, moved or models)]
+
+            def move(m):
+                return lin.moved(georef.reforward(nominal, m[0], m[1], t, v_s) - ecef)
+
+            moved = [None if m is None else move(m) for m in models]
+        versions = [chunk if m is None else replace(chunk, xyz=xyz)
+                    for m, xyz in zip(models, moved or models)]
         if ids.size and ids[0] == ids[-1] and np.all(ids == ids[0]):  # one line: no copies
             yield int(ids[0]), versions
             continue

@@ -24,7 +24,8 @@ import numpy as np
 
 from calidar.errors import InputError
 from calidar.strips.overlap import cell_counts, cell_keys, merge_counts
-from calidar.strips.quality import OverlapPlan, QualitySettings, SwathAccumulator, overlap_cell, overlap_plan
+from calidar.strips.quality import (OverlapPlan, QualitySettings, SwathAccumulator, overlap_cell,
+                                    overlap_plan)
 from calidar.strips.selection import GROUND, PointSelection, choose_selection
 
 #: the default rules, counted for every line before its classes decide between them
@@ -45,11 +46,13 @@ class LineCounts:
         if points.classification is not None:
             self.present.setdefault(line, set()).update(np.unique(points.classification).tolist())
         for rule in RULES:
-            if rule.classes is None or points.classification is not None:  # (no classes: last returns only)
+            # (no classes: last returns only)
+            if rule.classes is None or points.classification is not None:
                 self._put((line, rule), cell_counts(keys[rule.mask(points)]))
 
     def merge(self, other: "LineCounts", line_of: Callable[[int], int] = int) -> "LineCounts":
-        """``other``'s counts added to these, its ids mapped by ``line_of`` (e.g. groups → lines)."""
+        """``other``'s counts added to these, its ids mapped by ``line_of`` (e.g. groups →
+        lines)."""
         for (i, rule), kn in other.counts.items():
             self._put((line_of(i), rule), kn)
         for i, classes in other.present.items():
@@ -62,8 +65,11 @@ class LineCounts:
     def chosen(self, names: Mapping[int, str]) -> dict[int, PointSelection]:
         """The selection of each line from the classes it holds (ground, else last returns)."""
         lines = sorted({i for i, _ in self.counts})
-        return {i: choose_selection(names.get(i), np.array(sorted(self.present[i])) if i in self.present else None)
-                for i in lines}
+
+        def classes(i):
+            return np.array(sorted(self.present[i])) if i in self.present else None
+
+        return {i: choose_selection(names.get(i), classes(i)) for i in lines}
 
     def of(self, chosen: Mapping[int, PointSelection]) -> dict[int, tuple[np.ndarray, np.ndarray]]:
         """(keys, counts) per line of the points its chosen selection keeps."""
@@ -81,7 +87,8 @@ class StagePass:
     @classmethod
     def start(cls, plans: list[OverlapPlan | None], cell_m: float | None = None, count: bool = True,
               spill_dir=None) -> "StagePass":
-        """Nothing read yet: an accumulator per planned stage (spilling to ``spill_dir``, if given)."""
+        """Nothing read yet: an accumulator per planned stage (spilling to ``spill_dir``, if
+        given)."""
         return cls([None if p is None else SwathAccumulator(cell_m, p, spill_dir) for p in plans],
                    [{} for _ in plans] if count else [])
 
@@ -97,7 +104,8 @@ class StagePass:
 
 
 def stage_pass(chunks: Iterable[tuple[int, list]], metric, plans: list[OverlapPlan | None],
-               chosen: Mapping[int, PointSelection], cell_m: float | None = None, count: bool = True) -> StagePass:
+               chosen: Mapping[int, PointSelection], cell_m: float | None = None,
+               count: bool = True) -> StagePass:
     """One read of ``chunks`` (line id, [LasPoints per stage]): stage k's cell moments on
     ``plans[k]`` (None: not measured) of each line's ``chosen`` points in ``metric``
     coordinates; with ``count``, stage 0's counts on the overlap grid and, for later stages, the
@@ -126,8 +134,8 @@ def stage_pass(chunks: Iterable[tuple[int, list]], metric, plans: list[OverlapPl
 
 
 def lines_quality(read: Callable[[list, dict, bool], StagePass], first: LineCounts, n_stages: int,
-                  names: Mapping[int, str] | None = None, settings: QualitySettings = QualitySettings(),
-                  threads: int = 1) -> list[list]:
+                  names: Mapping[int, str] | None = None,
+                  settings: QualitySettings = QualitySettings(), threads: int = 1) -> list[list]:
     """Per stage, the PairQuality of every overlapping pair of lines: ``read(plans, chosen,
     count)`` streams every line through :func:`stage_pass`; ``first`` holds stage 0's counts
     (which decide the plan every stage is measured on first). Stages whose own plan differs are
@@ -150,8 +158,10 @@ def lines_quality(read: Callable[[list, dict, bool], StagePass], first: LineCoun
         for i in chosen:  # lines without a selected point: named in the notes
             acc.add(i, np.zeros((0, 3)))
     spilled = any(a.spill_dir is not None and any(a.spilled.values()) for a in accs)
-    return [r[0] for r in run_tasks(checked_differences, [(a, settings, names) for a in accs],
-                                    threads=max(threads, len(accs)) if threads > 1 and not spilled else threads)]
+    # all at once when the moments are in memory and threads are allowed
+    at_once = max(threads, len(accs)) if threads > 1 and not spilled else threads
+    tasks = [(a, settings, names) for a in accs]
+    return [r[0] for r in run_tasks(checked_differences, tasks, threads=at_once)]
 
 
 def checked_differences(acc, settings, names: dict[int, str], threads: int = 1):
@@ -162,18 +172,22 @@ def checked_differences(acc, settings, names: dict[int, str], threads: int = 1):
     results, notes = acc.differences(settings, threads)
     if not results:
         listed = ", ".join(strip_name(i, names) for i in sorted(acc.selections))
+        n = len(acc.selections)
         if settings.cell_m is not None:
-            raise InputError(None, "--cell", f"no {settings.cell_m:g} m cell holds points of two of the "
-                             f"{len(acc.selections)} flight lines ({listed}); expected a larger cell (or leave "
-                             "--cell out to have one chosen), unless the lines do not overlap")
-        raise InputError(None, "STRIPS", f"none of the {len(acc.selections)} flight lines ({listed}) overlap another; "
-                         "nothing to compare")
+            raise InputError(None, "--cell", f"no {settings.cell_m:g} m cell holds points of two "
+                             f"of the {n} flight lines ({listed}); expected a larger cell (or "
+                             "leave --cell out to have one chosen), unless the lines do not "
+                             "overlap")
+        raise InputError(None, "STRIPS", f"none of the {n} flight lines ({listed}) overlap "
+                         "another; nothing to compare")
     empty = [f"{q.a}–{q.b}" for q in results if q.n_cells == 0]
     if empty and settings.cell_m is not None:
+        cell = f"{settings.cell_m:g} m cell"
         if len(empty) == len(results):
-            raise InputError(None, "--cell", f"no {settings.cell_m:g} m cell of any overlap is smooth and holds enough "
-                             "points of both lines; expected a larger cell, to hold more points (or leave --cell out "
-                             "to have one chosen)")
-        notes.append(f"pairs {', '.join(empty)}: no {settings.cell_m:g} m cell is smooth and holds enough points of "
-                     "both lines (a larger --cell holds more points; a smaller one is smoother on rough ground)")
+            raise InputError(None, "--cell", f"no {cell} of any overlap is smooth and holds "
+                             "enough points of both lines; expected a larger cell, to hold more "
+                             "points (or leave --cell out to have one chosen)")
+        notes.append(f"pairs {', '.join(empty)}: no {cell} is smooth and holds enough points of "
+                     "both lines (a larger --cell holds more points; a smaller one is smoother on "
+                     "rough ground)")
     return results, notes

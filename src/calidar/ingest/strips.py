@@ -50,19 +50,23 @@ def _files(paths, trajectory, sensor, settings: IngestSettings) -> list[StripFil
     for p in map(Path, paths):
         crs = las_file_crs(p, settings.points.crs)
         if crs is None and sensor.crs is None:
-            raise InputError(p, "crs", "the file has no CRS and sensor.toml gives none; expected one of them")
+            raise InputError(p, "crs", "the file has no CRS and sensor.toml gives none; expected "
+                             "one of them")
         opts = settings.points if crs is not None else replace(settings.points, crs=sensor.crs)
         files.append(StripFile(p, opts, las_time_system(p, opts.time_system)))
-        if files[-1].time_system == "gps_week_seconds" and trajectory.time_system == "gps_adjusted_standard":
-            raise InputError(p, "gps_time", "holds GPS week seconds but the trajectory holds adjusted standard GPS "
-                             "time; expected the same time system")
+        week_seconds = files[-1].time_system == "gps_week_seconds"
+        if week_seconds and trajectory.time_system == "gps_adjusted_standard":
+            raise InputError(p, "gps_time", "holds GPS week seconds but the trajectory holds "
+                             "adjusted standard GPS time; expected the same time system")
     check_consistent([(f.path, las_file_crs(f.path, f.points.crs), f.time_system) for f in files])
     return files
 
 
 def bounds(files: list[StripFile]) -> tuple[np.ndarray, np.ndarray]:
-    """Smallest and largest x, y, z (CRS units) of the files' headers (of those holding points)."""
-    headers = [h for h in (las_header(f.path) for f in files) if h.point_count] or [las_header(files[0].path)]
+    """Smallest and largest x, y, z (CRS units) of the files' headers (of those holding
+    points)."""
+    headers = [h for h in (las_header(f.path) for f in files) if h.point_count]
+    headers = headers or [las_header(files[0].path)]
     return np.min([h.mins for h in headers], axis=0), np.max([h.maxs for h in headers], axis=0)
 
 
@@ -71,14 +75,15 @@ def _frame(files: list[StripFile]) -> LocalFrame:
     from calidar import georef
 
     lo, hi = bounds(files)
-    corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+    corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1])
+                        for z in (lo[2], hi[2])])
     f = files[0]
     crs = las_file_crs(f.path, f.points.crs)
     return LocalFrame.at(georef.from_crs(corners, crs, f.points.geoid_undulation_m, source=f.path))
 
 
-def _plan(acc: Footprints, settings: IngestSettings, notes: list | None = None) -> tuple[np.ndarray, np.ndarray, str, dict, dict,
-                                                                        list, dict]:
+def _plan(acc: Footprints, settings: IngestSettings,
+          notes: list | None = None) -> tuple[np.ndarray, np.ndarray, str, dict, dict, list, dict]:
     """Lines, their footprints, the overlapping pairs and the cells each line keeps (what the
     user should know about the lines added to ``notes``)."""
     groups, line, how = acc.lines(settings.gap_s, notes)
@@ -89,13 +94,16 @@ def _plan(acc: Footprints, settings: IngestSettings, notes: list | None = None) 
         span[int(i)] = (min(acc.t_min[int(g)] for g in gs), max(acc.t_max[int(g)] for g in gs))
     occupied = {i: c[n >= settings.min_points_per_cell] for i, (c, n) in footprint.items()}
     pairs = common_cells(occupied, settings.min_cells)
-    kept = thin_cells(pairs, footprint, settings.budget_points, settings.block_cells or block_cells(footprint, settings))
+    block = settings.block_cells or block_cells(footprint, settings)
+    kept = thin_cells(pairs, footprint, settings.budget_points, block)
     return groups, line, how, footprint, span, pairs, kept
 
 
-def _with_near(kept: dict, footprint: dict, f: StripFile, frame: LocalFrame, near: np.ndarray, cell_m: float) -> dict:
-    """``kept`` with, for each line kept, its occupied cells around the points ``near`` (ECEF (N, 3) m; in the
-    overlap grid's plane: the CRS's own metres when projected, else ``frame``'s east/north)."""
+def _with_near(kept: dict, footprint: dict, f: StripFile, frame: LocalFrame, near: np.ndarray,
+               cell_m: float) -> dict:
+    """``kept`` with, for each line kept, its occupied cells around the points ``near`` (ECEF (N,
+    3) m; in the overlap grid's plane: the CRS's own metres when projected, else ``frame``'s
+    east/north)."""
     from calidar.crs import to_crs
     from calidar.strips.control import cells_near
 
@@ -118,7 +126,9 @@ def block_cells(footprint: dict, settings: IngestSettings) -> int:
     ≈ PlaneSettings.target_points points at the median density of the lines."""
     from calidar.strips.planes import PlaneSettings
 
-    density = np.median([n.sum() / max(n.size * settings.cell_m**2, 1e-9) for _, n in footprint.values()])
+    # points per m² of each line's occupied cells
+    density = np.median([n.sum() / max(n.size * settings.cell_m**2, 1e-9)
+                         for _, n in footprint.values()])
     patch_m = np.sqrt(PlaneSettings().target_points / max(density, 1e-9))
     return int(np.clip(np.ceil(BLOCK_PATCHES * patch_m / settings.cell_m), 1, MAX_BLOCK_CELLS))
 
@@ -159,12 +169,13 @@ class StripIngest:
 
     settings: IngestSettings = field(default_factory=IngestSettings)
 
-    def read(self, paths, trajectory, sensor, near: np.ndarray | None = None, progress: Progress = no_progress,
-             work=None) -> Ingested:
-        """The strips of the LAS/LAZ files ``paths`` flown with ``trajectory`` and georeferenced with
-        ``sensor`` (only their kept overlap points; each line also keeps its cells around the points
-        ``near``, ECEF (N, 3) m: ground control, checkpoints). Each file is read as one task per
-        pass, run by ``work`` (a :class:`calidar.strips.distribute.Workers`; None: one at a time here)."""
+    def read(self, paths, trajectory, sensor, near: np.ndarray | None = None,
+             progress: Progress = no_progress, work=None) -> Ingested:
+        """The strips of the LAS/LAZ files ``paths`` flown with ``trajectory`` and georeferenced
+        with ``sensor`` (only their kept overlap points; each line also keeps its cells around the
+        points ``near``, ECEF (N, 3) m: ground control, checkpoints). Each file is read as one task
+        per pass, run by ``work`` (a :class:`calidar.strips.distribute.Workers`; None: one at a
+        time here)."""
         from calidar.strips.distribute import Workers
 
         s = self.settings
@@ -173,7 +184,8 @@ class StripIngest:
         run = (work or Workers()).run
         files = _files(paths, trajectory, sensor, s)
         frame = _frame(files)
-        acc, weeks, held = first_pass(files, frame, trajectory, s, progress, run, work is None or work.client is None)
+        in_process = work is None or work.client is None
+        acc, weeks, held = first_pass(files, frame, trajectory, s, progress, run, in_process)
         line_notes: list[str] = []
         groups, line, how, footprint, span, pairs, kept = _plan(acc, s, line_notes)
         if near is not None:
@@ -181,28 +193,34 @@ class StripIngest:
         names = {int(i): acc.files[int(groups[line == i][0])] for i in footprint}
         if not pairs:
             listed = ", ".join(strip_name(i, names) for i in sorted(footprint))
-            raise CalibrationError(f"no two of the {len(footprint)} flight lines ({listed}) overlap (no {s.min_cells} "
-                                   f"common {s.cell_m:g} m cells); strip calibration needs overlapping flight lines")
+            raise CalibrationError(f"no two of the {len(footprint)} flight lines ({listed}) "
+                                   f"overlap (no {s.min_cells} common {s.cell_m:g} m cells); strip "
+                                   "calibration needs overlapping flight lines")
         line_of = dict(zip(groups.tolist(), line.tolist()))
-        source = StripSource(files, frame, trajectory, groups, line, how, s, weeks,
-                             {i: int(n.sum()) for i, (_, n) in footprint.items()},
-                             LineCounts(acc.quality.grid_m).merge(acc.quality, line_of.__getitem__), names, held)
+        counts = {i: int(n.sum()) for i, (_, n) in footprint.items()}
+        quality = LineCounts(acc.quality.grid_m).merge(acc.quality, line_of.__getitem__)
+        source = StripSource(files, frame, trajectory, groups, line, how, s, weeks, counts,
+                             quality, names, held)
         strips = _strips(source, kept, sensor, span, progress, work)
         crs = las_file_crs(files[0].path, files[0].points.crs)
         notes = line_notes + unpaired_notes(footprint, pairs, s.cell_m, s.min_cells, names)
         checks = [acc.checks[f.path] for f in files if f.path in acc.checks]
-        return Ingested(strips, crs, source, notes + heights_notes(crs, files[0].points.geoid_undulation_m, checks))
+        notes += heights_notes(crs, files[0].points.geoid_undulation_m, checks)
+        return Ingested(strips, crs, source, notes)
 
 
-def _strips(source: StripSource, kept: dict, sensor, span: dict, progress: Progress, work) -> list[Strip]:
-    """Pass 2: the points of each line in its ``kept`` cells (one task per file), checked and built into Strips."""
+def _strips(source: StripSource, kept: dict, sensor, span: dict, progress: Progress,
+            work) -> list[Strip]:
+    """Pass 2: the points of each line in its ``kept`` cells (one task per file), checked and
+    built into Strips."""
     from calidar.strips.distribute import Workers, run_tasks
 
     files, trajectory, names = source.files, source.trajectory, source.names
     ecef, times, where = {}, {}, {}
     total = 2 * sum(las_header(f.path).point_count for f in files)
     done = total // 2
-    parts = (work or Workers()).run(_kept_points, [(f,) for f in files], shared=(source, kept), kind="read kept points")
+    parts = (work or Workers()).run(_kept_points, [(f,) for f in files], shared=(source, kept),
+                                    kind="read kept points")
     for f, part in zip(files, parts):
         for i, (e, t) in part.items():
             ecef.setdefault(i, []).append(e)
@@ -210,8 +228,10 @@ def _strips(source: StripSource, kept: dict, sensor, span: dict, progress: Progr
             where.setdefault(i, {})[str(f.path)] = None
         done += las_header(f.path).point_count
         progress("reading strips", done, total)
-    build = [(i, np.concatenate(ecef.pop(i)), np.concatenate(times.pop(i)), trajectory, sensor, source.frame,
-              ", ".join(where[i]), span[i]) for i in sorted(ecef)]
-    for i, e, t, *_ in build:  # wrong CRS or zone, wrong trajectory: one clear error before the adjustment
-        GeometryCheck(f"flight line {strip_name(i, names)}", label="its overlap points").add(trajectory, t, e, None)
+    build = [(i, np.concatenate(ecef.pop(i)), np.concatenate(times.pop(i)), trajectory, sensor,
+              source.frame, ", ".join(where[i]), span[i]) for i in sorted(ecef)]
+    # wrong CRS or zone, wrong trajectory: one clear error before the adjustment
+    for i, e, t, *_ in build:
+        check = GeometryCheck(f"flight line {strip_name(i, names)}", label="its overlap points")
+        check.add(trajectory, t, e, None)
     return list(run_tasks(Strip.from_ecef, build, threads=work.local_threads if work else 1))

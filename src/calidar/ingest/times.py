@@ -22,12 +22,14 @@ def points_ecef(points: LasPoints) -> np.ndarray:
     without its grid, or an impossible transform."""
     if points.crs is None:
         raise InputError(points.path, "crs", NO_CRS)
-    return _finite(points, georef.from_crs(points.xyz, points.crs, points.geoid_undulation_m, source=points.path))
+    ecef = georef.from_crs(points.xyz, points.crs, points.geoid_undulation_m, source=points.path)
+    return _finite(points, ecef)
 
 
 def point_times(points: LasPoints, traj: Trajectory, gps_week: int | None = None) -> np.ndarray:
     """The points' GPS times in the trajectory's time system: adjusted standard → week seconds of
-    ``gps_week`` (the whole file's, from :func:`calidar.pipelines.inputs.check_coverage`; None: the week of these points)."""
+    ``gps_week`` (the whole file's, from :func:`calidar.pipelines.inputs.check_coverage`; None:
+    the week of these points)."""
     if points.time_system == traj.time_system:
         return points.gps_time
     if gps_week is None:
@@ -48,8 +50,8 @@ def points_tile_linear(points: LasPoints) -> TileLinear:
 def _finite(points: LasPoints, values: np.ndarray) -> np.ndarray:
     """``values`` transformed from the points' CRS, or an error naming the CRS when PROJ failed."""
     if not np.all(np.isfinite(values)):
-        raise InputError(points.path, "crs", f"cannot transform from {points.crs.name} to ECEF (a PROJ grid may be "
-                         "missing); give an ellipsoidal CRS with --crs")
+        raise InputError(points.path, "crs", f"cannot transform from {points.crs.name} to ECEF (a "
+                         "PROJ grid may be missing); give an ellipsoidal CRS with --crs")
     return values
 
 
@@ -69,8 +71,9 @@ class Coverage:
         lo, hi = t < self.traj.time[0], t > self.traj.time[-1]
         for side, mask in (("before", lo), ("after", hi)):
             if mask.any():
-                o = self.outside[side]
-                o[:] = [o[0] + int(mask.sum()), min(o[1], float(t[mask].min())), max(o[2], float(t[mask].max()))]
+                o = self.outside[side]  # [count, first time, last time]
+                o[:] = [o[0] + int(mask.sum()), min(o[1], float(t[mask].min())),
+                        max(o[2], float(t[mask].max()))]
         covered = self.traj.covers(t)
         self.in_gaps += int(np.count_nonzero(finite & ~(lo | hi) & ~covered))
         return covered
@@ -80,14 +83,13 @@ class Coverage:
         n = sum(o[0] for o in self.outside.values()) + self.not_finite + self.in_gaps
         if n == 0:
             return
-        parts = [f"{o[0]} {side} it ({o[1]:.3f}–{o[2]:.3f} s)" for side, o in self.outside.items() if o[0]]
+        parts = [f"{o[0]} {side} it ({o[1]:.3f}–{o[2]:.3f} s)"
+                 for side, o in self.outside.items() if o[0]]
         parts += [f"{self.not_finite} NaN/inf"] if self.not_finite else []
         parts += [f"{self.in_gaps} in its {self.traj.gap_text()}"] if self.in_gaps else []
-        raise InputError(
-            source, "gps_time",
-            f"{n} of {self.total} points have GPS times outside the trajectory "
-            f"{self.traj.source} ({self.traj.time[0]:.3f}–{self.traj.time[-1]:.3f} s): " + ", ".join(parts),
-        )
+        span = f"{self.traj.time[0]:.3f}–{self.traj.time[-1]:.3f} s"
+        raise InputError(source, "gps_time", f"{n} of {self.total} points have GPS times outside "
+                         f"the trajectory {self.traj.source} ({span}): " + ", ".join(parts))
 
 
 class FileTimes:
@@ -96,7 +98,8 @@ class FileTimes:
     time), counting the points outside the trajectory (:class:`Coverage`)."""
 
     def __init__(self, path: Path, traj: Trajectory, system: str):
-        self.path, self.cover, self.week, self.t_range = path, Coverage(traj), None, [np.inf, -np.inf]
+        self.path, self.cover, self.week = path, Coverage(traj), None
+        self.t_range = [np.inf, -np.inf]
         self.convert = system == "gps_adjusted_standard" and traj.time_system == "gps_week_seconds"
 
     def feed(self, t: np.ndarray) -> np.ndarray:
@@ -104,8 +107,10 @@ class FileTimes:
         if self.convert:
             finite = t[np.isfinite(t)]
             if finite.size:
-                self.t_range = [min(self.t_range[0], float(finite.min())), max(self.t_range[1], float(finite.max()))]
-                self.week = single_gps_week(self.t_range[0], self.t_range[0], self.path) if self.week is None else self.week
+                self.t_range = [min(self.t_range[0], float(finite.min())),
+                                max(self.t_range[1], float(finite.max()))]
+                if self.week is None:
+                    self.week = single_gps_week(self.t_range[0], self.t_range[0], self.path)
             t = adjusted_standard_in_week(t, 0 if self.week is None else self.week)
         self.cover.inside(t)
         return t
@@ -115,11 +120,14 @@ class FileTimes:
         error of the trajectory's time field when ``name_trajectory``); the GPS week of the
         conversion (None: none)."""
         if self.week is not None:
-            single_gps_week(*self.t_range, self.path)  # the whole file, before its counts (which assume one week)
+            # the whole file, before its counts (which assume one week)
+            single_gps_week(*self.t_range, self.path)
         try:
             self.cover.check(self.path)
         except InputError as e:
-            if not name_trajectory or self.cover.not_finite:  # NaN/inf times are the file's own fault
+            # NaN/inf times are the file's own fault
+            if not name_trajectory or self.cover.not_finite:
                 raise
-            raise InputError(self.cover.traj.source, "time", f"the points of {self.path.name}: {e.problem}") from None
+            message = f"the points of {self.path.name}: {e.problem}"
+            raise InputError(self.cover.traj.source, "time", message) from None
         return self.week

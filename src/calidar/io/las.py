@@ -29,7 +29,6 @@ from calidar.io.las_checks import bounds_tolerance, check_bounds, check_laz_coun
 from calidar.io.las_crs import las_crs
 # the writer is part of the io face
 from calidar.io.las_write import SCAN_ANGLE_STEP_DEG, LasChunkWriter, write_las  # noqa: F401
-from calidar.outputs import atomic_path
 from calidar.trajectory import TIME_SYSTEMS
 from calidar.validate import existing_file, number
 
@@ -335,46 +334,6 @@ def iter_las_fields(path: str | Path, names,
                 _check_xyz(xyz, reader.header, path, first)
                 out.update(x=xyz[:, 0], y=xyz[:, 1], z=xyz[:, 2])
             yield out
-
-
-def rewrite_las_xyz(src: str | Path, dst: str | Path, new_xyz, *, crs=None,
-                    chunk_points: int = 2_000_000, force: bool = False,
-                    options: PointOptions | None = None) -> int:
-    """Copy a LAS/LAZ file chunk by chunk, replacing coordinates by ``new_xyz(points) -> (n, 3)``
-    (same CRS, scales, offsets and point format; every other attribute kept). Returns the point
-    count.
-
-    ``points`` is the chunk's :class:`LasPoints`. The output is written atomically.
-    """
-    def moved(rec, points):
-        xyz = np.asarray(new_xyz(points), float)
-        rec.x, rec.y, rec.z = xyz[:, 0], xyz[:, 1], xyz[:, 2]
-        return rec
-
-    return rewrite_las(src, dst, lambda header: header, moved, chunk_points=chunk_points,
-                       force=force, options=_options(crs, options))
-
-
-def rewrite_las(src: str | Path, dst: str | Path, out_header, rewrite, *, chunk_points: int,
-                force: bool = False, options: PointOptions | None = None) -> int:
-    """Copy a LAS/LAZ file chunk by chunk through ``rewrite(record, points) -> record``
-    (``points``: the chunk's :class:`LasPoints`, read with ``options``), into a file with the
-    header ``out_header(source header)``; streamed and atomic. Returns the point count."""
-    src, opts = Path(src), _options(None, options)
-    n = 0
-    with _open(src) as reader, atomic_path(dst, force) as tmp:
-        header = reader.header
-        time_system = gps_time_system(header, src, opts.time_system)
-        file_crs = _resolve_crs(header, opts.crs, src)
-        undulation = opts.geoid_undulation_m
-        compress = Path(dst).suffix.lower() == ".laz"
-        with laspy.open(tmp, mode="w", header=out_header(header), do_compress=compress) as w:
-            for first, rec in _records(reader, chunk_points, src):
-                points = _points(rec, header, src, file_crs, time_system, OPTIONAL_FIELDS,
-                                 undulation, first)
-                w.write_points(rewrite(rec, points))
-                n += len(rec)
-    return n
 
 
 def las_header(path: str | Path) -> laspy.LasHeader:

@@ -8,7 +8,7 @@ from pathlib import Path
 import laspy
 import numpy as np
 
-from calidar.io.las import rewrite_las
+from calidar.io.las_rewrite import rewrite_las
 
 
 def rewrite_las_with_extra(src: str | Path, dst: str | Path, extra: dict[str, str], values, *,

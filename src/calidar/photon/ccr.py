@@ -39,7 +39,8 @@ from calidar.verdict import Verdict
 
 @dataclass
 class CCRResult:
-    """Calibration outcome: the Solution (σ from the observed information) and everything behind it."""
+    """Calibration outcome: the Solution (σ from the observed information) and everything behind
+    it."""
 
     estimate: Estimate
     problem: Problem
@@ -68,17 +69,20 @@ def calibrate(passes: list[PassData], survey, system: SystemParameters | None = 
     system = system or SystemParameters()
     settings = settings or SearchSettings()
     if survey.lat is None and len(passes) > 1:
-        raise InputError(survey.source, "columns", f"x,y are along/cross-track positions in ONE pass's track, but "
-                         f"{len(passes)} passes were given; give the CCRs as id,lat,lon,height")
+        raise InputError(survey.source, "columns", "x,y are along/cross-track positions in ONE "
+                         f"pass's track, but {len(passes)} passes were given; give the CCRs as "
+                         "id,lat,lon,height")
     windows, warnings = windows_of(passes, survey, system, settings)
-    keys = list(dict.fromkeys(p.group_key for p in passes if any(w.pass_name == p.name for w in windows)))
+    lit = {w.pass_name for w in windows}  # the passes with CCR photons
+    keys = list(dict.fromkeys(p.group_key for p in passes if p.name in lit))
     if not windows:
         raise CalibrationError("no CCR photons found in any pass: " + "; ".join(warnings))
     for p in passes:
         p.group = keys.index(p.group_key) if p.group_key in keys else -1
     for w in windows:
         w.group = next(p.group for p in passes if p.name == w.pass_name)
-    problem = Problem(shots_of(windows), Layout(tuple(keys), settings.shared_bias), system.pointing_jitter)
+    layout = Layout(tuple(keys), settings.shared_bias)
+    problem = Problem(shots_of(windows), layout, system.pointing_jitter)
     est = estimate(windows, problem, settings, system.shot_spacing)
     result = CCRResult(est, problem, windows, passes, system, settings, warnings)
     result.uncertainty = assess(result, progress)
@@ -92,28 +96,40 @@ def describe(result: CCRResult) -> dict:
     search, segments, CCR fits, beams, settings and the verdict."""
     from dataclasses import asdict
 
-    s = result.settings
+    s, system = result.settings, result.system
+    grids = zip(result.layout.groups, result.estimate.grids)
     return {
-        "method": "maximum of the exact per-shot CCR count likelihood (calidar.adjust.solve on √(2·(−log P + ½)) "
-                  "residuals, Fisher scoring), started from the published chord grid search",
-        "sigma_source": "geolocation: the 95 % profile-likelihood interval's wider half / 1.96 (at least the observed "
-                        "information's where the interval is open); nuisance: observed information (inverse Hessian "
-                        "of −log L at the estimate); both in uncertainty",
+        "method": METHOD,
+        "sigma_source": SIGMA_SOURCE,
         "uncertainty": result.uncertainty.to_dict() if result.uncertainty else None,
         "held_at_bound": result.estimate.fit.at_limit,
-        "grid_search": {k: g.to_dict() for k, g in zip(result.layout.groups, result.estimate.grids)},
+        "grid_search": {k: g.to_dict() for k, g in grids},
         "segments": [sg.summary() for sg in result.estimate.segments],
-        "ccr_fit": [{"pass": f.pass_name, "ccr": f.ccr_id, "detections": f.detections, "expected": f.expected,
-                     "z": f.z, "photons": f.photons, "expected_photons": f.expected_photons}
-                    for f in (result.fits or [])],
-        "beams": [{"key": k, "labels": sorted({p.label for p in result.passes if p.group_key == k}),
-                   "channels": next(p.channels for p in result.passes if p.group_key == k),
-                   "passes": [p.name for p in result.passes if p.group_key == k]} for k in result.layout.groups],
+        "ccr_fit": [{"pass": f.pass_name, "ccr": f.ccr_id, "detections": f.detections,
+                     "expected": f.expected, "z": f.z, "photons": f.photons,
+                     "expected_photons": f.expected_photons} for f in (result.fits or [])],
+        "beams": [_beam(result, k) for k in result.layout.groups],
         "shared_bias": result.layout.shared_bias,
-        "system": {"dead_time_s": result.system.dead_time, "pulse_width_s": result.system.pulse_width,
-                   "shot_spacing_m": result.system.shot_spacing, "pointing_jitter_m": result.system.pointing_jitter,
-                   "delta_h_m": result.system.delta_h},
+        "system": {"dead_time_s": system.dead_time, "pulse_width_s": system.pulse_width,
+                   "shot_spacing_m": system.shot_spacing,
+                   "pointing_jitter_m": system.pointing_jitter, "delta_h_m": system.delta_h},
         "settings": asdict(s),
         "verdict": result.verdict.to_dict() if result.verdict else None,
         "warnings_input": result.warnings,
     }
+
+
+#: how the solution was found and where its σ come from, as solution.json states them
+METHOD = ("maximum of the exact per-shot CCR count likelihood (calidar.adjust.solve on "
+          "√(2·(−log P + ½)) residuals, Fisher scoring), started from the published chord grid "
+          "search")
+SIGMA_SOURCE = ("geolocation: the 95 % profile-likelihood interval's wider half / 1.96 (at least "
+                "the observed information's where the interval is open); nuisance: observed "
+                "information (inverse Hessian of −log L at the estimate); both in uncertainty")
+
+
+def _beam(result: CCRResult, key: str) -> dict:
+    """One beam's entry of solution.json: its labels, detector channels and passes."""
+    passes = [p for p in result.passes if p.group_key == key]
+    return {"key": key, "labels": sorted({p.label for p in passes}),
+            "channels": next(p.channels for p in passes), "passes": [p.name for p in passes]}

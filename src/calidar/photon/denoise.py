@@ -19,8 +19,9 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-def coarse_histogram(x_m: np.ndarray, h_m: np.ndarray, bin_along: float = 20.0, bin_height: float = 0.5,
-                     k_sigma: float = 3.0, min_count: int = 3, half_window: float = 20.0) -> np.ndarray:
+def coarse_histogram(x_m: np.ndarray, h_m: np.ndarray, bin_along: float = 20.0,
+                     bin_height: float = 0.5, k_sigma: float = 3.0, min_count: int = 3,
+                     half_window: float = 20.0) -> np.ndarray:
     """Boolean mask of photons in signal bins of the along-track height histogram.
 
     Each ``bin_along`` window is histogrammed over ±``half_window`` m around its median
@@ -50,7 +51,8 @@ def coarse_histogram(x_m: np.ndarray, h_m: np.ndarray, bin_along: float = 20.0, 
 
 
 @numba.njit(cache=True)
-def _dbscan_keep(x: np.ndarray, h: np.ndarray, min_samples: int) -> np.ndarray:  # pragma: no cover - numba
+def _dbscan_keep(x: np.ndarray, h: np.ndarray,
+                 min_samples: int) -> np.ndarray:  # pragma: no cover - numba
     """DBSCAN noise test on points sorted by x, unit radius: keep = core or within 1 of a core."""
     n = x.size
     core = np.zeros(n, np.bool_)
@@ -81,8 +83,8 @@ def _dbscan_keep(x: np.ndarray, h: np.ndarray, min_samples: int) -> np.ndarray: 
     return keep
 
 
-def fine_dbscan(x_m: np.ndarray, h_m: np.ndarray, radius_along: float = 2.5, radius_height: float = 0.6,
-                min_samples: int = 4) -> np.ndarray:
+def fine_dbscan(x_m: np.ndarray, h_m: np.ndarray, radius_along: float = 2.5,
+                radius_height: float = 0.6, min_samples: int = 4) -> np.ndarray:
     """Boolean mask of photons DBSCAN keeps (core or border points) in scaled (x/ra, h/rh) space.
 
     Only DBSCAN's noise decision is needed, not the cluster labels, so it is computed directly
@@ -109,11 +111,13 @@ def denoise_stages(x_m: np.ndarray, h_m: np.ndarray, shot_spacing: float = 0.7,
                                                        np.concatenate([[h[0]], h]))[1:]
     signal = np.zeros(x.size, bool)
     idx = np.flatnonzero(coarse)
-    signal[idx] = fine_dbscan(x[idx], h[idx], radius_along=3.5 * shot_spacing, min_samples=min_samples)
+    signal[idx] = fine_dbscan(x[idx], h[idx], radius_along=3.5 * shot_spacing,
+                              min_samples=min_samples)
     return coarse, signal
 
 
-def denoise(x_m: np.ndarray, h_m: np.ndarray, shot_spacing: float = 0.7, settings=None) -> np.ndarray:
+def denoise(x_m: np.ndarray, h_m: np.ndarray, shot_spacing: float = 0.7,
+            settings=None) -> np.ndarray:
     """Signal mask of every photon: :func:`calidar.photon.density.signal_photons` (slope-following
     neighbour counts tested against the local background; robust on weak beams in daylight over
     sloping ground, where the fixed histograms of :func:`denoise_stages` break the ground line)."""

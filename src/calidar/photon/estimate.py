@@ -19,7 +19,8 @@ from calidar.photon.segments import CCRSegment, CCRWindow, ccr_window, segment_o
 
 @dataclass
 class Estimate:
-    """Steps 2–3 on one set of counts: the maximum-likelihood fit, the grids and segments it started from."""
+    """Steps 2–3 on one set of counts: the maximum-likelihood fit, the grids and segments it
+    started from."""
 
     fit: Fit
     grids: list[GridResult]
@@ -45,7 +46,8 @@ def windows_of(passes: list[PassData], survey, system: SystemParameters, setting
                 w, why = ccr_window(p, k, x, y, survey, system, settings.reach)
                 windows.append(w) if w is not None else warnings.append(why)
         if outside:
-            warnings.append(f"{p.name}: {_few(outside)} outside the pass (distance to its nearest photon); ignored")
+            warnings.append(f"{p.name}: {_few(outside)} outside the pass (distance to its nearest "
+                            "photon); ignored")
         if across:
             warnings.append(f"{p.name}: {_few(across)} across the track beyond any footprint "
                             f"(more than ±{settings.reach:g} m); ignored")
@@ -55,11 +57,13 @@ def windows_of(passes: list[PassData], survey, system: SystemParameters, setting
 def _few(items: list[str], most: int = 6) -> str:
     """'CCR a, b and c' or 'CCRs a, b, … and 4 more'."""
     head = ", ".join(items[:most])
-    return f"CCR{'s' if len(items) > 1 else ''} {head}" + (f" and {len(items) - most} more" if len(items) > most else "")
+    more = f" and {len(items) - most} more" if len(items) > most else ""
+    return f"CCR{'s' if len(items) > 1 else ''} {head}{more}"
 
 
 def shots_of(windows: list[CCRWindow], counts: list[np.ndarray] | None = None) -> Shots:
-    """The likelihood's shots of the windows (with ``counts`` instead of the recorded ones when given)."""
+    """The likelihood's shots of the windows (with ``counts`` instead of the recorded ones when
+    given)."""
     cnt = counts or [w.counts for w in windows]
     n = [w.shot_x.size for w in windows]
     rep = lambda f: np.repeat([f(w) for w in windows], n)  # noqa: E731
@@ -69,18 +73,23 @@ def shots_of(windows: list[CCRWindow], counts: list[np.ndarray] | None = None) -
                  rep(lambda w: w.channels).astype(np.int64), np.repeat(np.arange(len(windows)), n))
 
 
-def _starts(layout: Layout, grids: list[GridResult], segments: list[CCRSegment]) -> list[dict[str, float]]:
-    """The grid optimum, and each beam's alternative local minima with the other beams at their optimum."""
+def _starts(layout: Layout, grids: list[GridResult],
+            segments: list[CCRSegment]) -> list[dict[str, float]]:
+    """The grid optimum, and each beam's alternative local minima with the other beams at their
+    optimum."""
     base = []
     for g, grid in enumerate(grids):
         segs = [s for s in segments if s.window.group == g]
         n = segs[0].window.channels
         peak = max(max(s.central_count for s in segs), 1.0)
+        # the mean photons Λ that fill ``peak`` of n channels: n·(1 − e^(−Λ/n)) = peak
         lam = float(-n * np.log1p(-min(peak, n - 0.5) / n))
-        base.append([grid.along_bias, grid.cross_bias, grid.diameter, max(lam, 2.0), grid.loss_rate])
+        base.append([grid.along_bias, grid.cross_bias, grid.diameter, max(lam, 2.0),
+                     grid.loss_rate])
     theta = np.array(base)
     if layout.shared_bias:
-        weights = np.array([sum(s.n_shots for s in segments if s.window.group == g) for g in range(len(grids))])
+        weights = np.array([sum(s.n_shots for s in segments if s.window.group == g)
+                            for g in range(len(grids))])
         theta[:, :2] = np.average(theta[:, :2], axis=0, weights=weights)
     starts = [layout.values(theta)]
     for g, grid in enumerate(grids):
@@ -104,9 +113,10 @@ def estimate(windows: list[CCRWindow], problem: Problem, settings: SearchSetting
         ys = np.array([s.window.y_ccr for s in segs])
         if len(segs) < 2 or np.ptp(ys) < 0.5:
             raise CalibrationError(
-                f"{key}: {len(segs)} lit CCR segment(s) at cross-track offsets {np.round(ys, 2).tolist()} m: need at "
-                "least two CCRs at different cross-track offsets (one chord gives |cross-track offset| only, not its "
-                "side, and not the footprint diameter)")
+                f"{key}: {len(segs)} lit CCR segment(s) at cross-track offsets "
+                f"{np.round(ys, 2).tolist()} m: need at least two CCRs at different cross-track "
+                "offsets (one chord gives |cross-track offset| only, not its side, and not the "
+                "footprint diameter)")
         grids.append(grid_search(segs, spacing, settings))
     bounds = Bounds(settings.diameter_min, settings.diameter_max, settings.max_bias)
     fits, errors = [], []
@@ -119,6 +129,7 @@ def estimate(windows: list[CCRWindow], problem: Problem, settings: SearchSetting
         raise CalibrationError(errors[0])
     best = min(fits, key=lambda f: f.nll)
     if covariance:
-        best = replace(best, solution=observed_information_solution(problem.with_counts(counts), best.solution,
-                                                                     best.at_limit))
+        solution = observed_information_solution(problem.with_counts(counts), best.solution,
+                                                  best.at_limit)
+        best = replace(best, solution=solution)
     return Estimate(best, grids, segments)

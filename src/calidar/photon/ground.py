@@ -28,7 +28,8 @@ def _per_bin(ix: np.ndarray, h: np.ndarray, q: float, nbin: int) -> tuple[np.nda
 
 
 def ground_profile(x_m: np.ndarray, h_m: np.ndarray, bin_m: float = 5.0, min_photons: int = 3,
-                   low_quantile: float = 0.1, smoothing_m: float = 10.0) -> Callable[[np.ndarray], np.ndarray]:
+                   low_quantile: float = 0.1,
+                   smoothing_m: float = 10.0) -> Callable[[np.ndarray], np.ndarray]:
     """Ground height (m) as a function of along-track distance (m), from signal photons.
 
     ``smoothing_m``: length scale of the spline (its penalty λ = smoothing_m⁴ / bin_m, so
@@ -48,6 +49,7 @@ def ground_profile(x_m: np.ndarray, h_m: np.ndarray, bin_m: float = 5.0, min_pho
     xc = np.bincount(ix[near], weights=x[near], minlength=nbin)[ok] / cnt[ok]
     hc = med[ok]
     if xc.size < 5:
-        raise CalibrationError(f"only {xc.size} along-track bins with ground photons; need 5 to model the ground")
+        raise CalibrationError(f"only {xc.size} along-track bins with ground photons; need 5 to "
+                               "model the ground")
     spline = make_smoothing_spline(xc, hc, lam=smoothing_m**4 / bin_m)
     return lambda xq: spline(np.asarray(xq, float))

@@ -52,8 +52,8 @@ class Shots:
         return int(self.x.size)
 
     def with_counts(self, counts: np.ndarray) -> "Shots":
-        return Shots(self.x, self.x_ccr, self.y_ccr, self.background, np.asarray(counts, np.int64), self.group,
-                     self.channels, self.window)
+        return Shots(self.x, self.x_ccr, self.y_ccr, self.background, np.asarray(counts, np.int64),
+                     self.group, self.channels, self.window)
 
 
 @functools.lru_cache(maxsize=8)
@@ -63,7 +63,8 @@ def jitter_nodes(jitter_m: float) -> tuple[np.ndarray, np.ndarray]:
     return jitter_m * z, wz / wz.sum()
 
 
-BACKGROUND_TOLERANCE = 1e-13  #: background terms Poisson(j; β) below this fraction of Poisson(0; β) are dropped
+#: background terms Poisson(j; β) below this fraction of Poisson(0; β) are dropped
+BACKGROUND_TOLERANCE = 1e-13
 
 
 @numba.njit(cache=True)
@@ -102,7 +103,8 @@ def _ccr_terms(n, dx0, dy0, th, nodes, wts, work, mlo, mhi):  # pragma: no cover
                 mm = mlo + m
                 if m > 0:
                     b *= (n - mm + 1.0) / mm * ratio
-                t = wij * b * (mm * u_over - (n - mm) * u)  # w·(dB/du)·u: u's derivatives are u times these
+                # w·(dB/du)·u: u's derivatives are u times these
+                t = wij * b * (mm * u_over - (n - mm) * u)
                 work[0, m] += wij * b
                 work[1, m] -= t * 4.0 * dx / w2
                 work[2, m] -= t * 4.0 * dy / w2
@@ -155,7 +157,8 @@ def _shot_probability(k, n, beta, dx0, dy0, th, nodes, wts, grad, work):  # prag
 
 @numba.njit(cache=True)
 def _poisson(beta, kmax, out):  # pragma: no cover - numba
-    """Poisson(j; β) for j = 0 … jmax into ``out``, jmax ≤ kmax the last term ≥ BACKGROUND_TOLERANCE·P(0); returns jmax."""
+    """Poisson(j; β) for j = 0 … jmax into ``out``, jmax ≤ kmax the last term ≥
+    BACKGROUND_TOLERANCE·P(0); returns jmax."""
     out[0] = exp(-beta) if beta > 0.0 else 1.0
     if beta <= 0.0:
         return 0
@@ -193,7 +196,8 @@ def log_probabilities(theta, x, xc, yc, beta, k, g, nch, nodes, wts):  # pragma:
         if not _valid(th):
             logp[s] = -np.inf
             continue
-        p = _shot_probability(k[s], nch[s], beta[s], x[s] + th[0] - xc[s], th[1] - yc[s], th, nodes, wts, grad, work)
+        dx0, dy0 = x[s] + th[0] - xc[s], th[1] - yc[s]
+        p = _shot_probability(k[s], nch[s], beta[s], dx0, dy0, th, nodes, wts, grad, work)
         if not p > 0.0:
             logp[s] = -np.inf
             continue
@@ -216,8 +220,10 @@ def _largest_count(n, lam, ax, by):  # pragma: no cover - numba
 
 
 @numba.njit(cache=True)
-def _shot_table(s, th, x, xc, yc, beta, nch, kmax, nodes, wts, grad, work, p, dp):  # pragma: no cover - numba
-    """Row ``s`` of P(k), k = 0 … kmax, and its gradient (k beyond what the shot can record stay 0)."""
+def _shot_table(s, th, x, xc, yc, beta, nch, kmax, nodes, wts, grad, work, p,
+                dp):  # pragma: no cover - numba
+    """Row ``s`` of P(k), k = 0 … kmax, and its gradient (k beyond what the shot can record stay
+    0)."""
     n = nch[s]
     dx0, dy0 = x[s] + th[0] - xc[s], th[1] - yc[s]
     _ccr_terms(n, dx0, dy0, th, nodes, wts, work, 0, 0)  # fills the node factors work[5], work[6]
@@ -247,7 +253,8 @@ def probability_table(theta, x, xc, yc, beta, g, nch, kmax, nodes, wts):  # prag
 
 
 @numba.njit(cache=True)
-def information_blocks(theta, x, xc, yc, beta, g, nch, kmax, nodes, wts):  # pragma: no cover - numba
+def information_blocks(theta, x, xc, yc, beta, g, nch, kmax, nodes,
+                       wts):  # pragma: no cover - numba
     """Σ over each group's shots of Σ_k ∂P_k ∂P_kᵀ / P_k: (groups, 5, 5)."""
     n = x.size
     out = np.zeros((theta.shape[0], N_PARAMS, N_PARAMS))
@@ -260,7 +267,8 @@ def information_blocks(theta, x, xc, yc, beta, g, nch, kmax, nodes, wts):  # pra
             continue
         p[0, :] = 0.0
         dp[0, :, :] = 0.0
-        _shot_table(0, th, x[s:s + 1], xc[s:s + 1], yc[s:s + 1], beta[s:s + 1], nch[s:s + 1], kmax, nodes, wts, grad,
+        one = slice(s, s + 1)  # this shot alone, as row 0
+        _shot_table(0, th, x[one], xc[one], yc[one], beta[one], nch[one], kmax, nodes, wts, grad,
                     work, p, dp)
         for k in range(kmax + 1):
             if p[0, k] > 1e-300:
@@ -275,17 +283,25 @@ def _args(shots: Shots, jitter_m: float):
             (shots.group.astype(np.int64), shots.channels.astype(np.int64)), jitter_nodes(jitter_m))
 
 
-def log_likelihood(theta: np.ndarray, shots: Shots, jitter_m: float) -> tuple[np.ndarray, np.ndarray]:
-    """Per shot: log P(observed count) and its gradient w.r.t. the shot's group row of ``theta`` (G, 5)."""
+def log_likelihood(theta: np.ndarray, shots: Shots,
+                   jitter_m: float) -> tuple[np.ndarray, np.ndarray]:
+    """Per shot: log P(observed count) and its gradient w.r.t. the shot's group row of ``theta``
+    (G, 5)."""
     (x, xc, yc, beta), (g, nch), nodes = _args(shots, jitter_m)
-    return log_probabilities(np.asarray(theta, float), x, xc, yc, beta, shots.counts.astype(np.int64), g, nch, *nodes)
+    counts = shots.counts.astype(np.int64)
+    return log_probabilities(np.asarray(theta, float), x, xc, yc, beta, counts, g, nch, *nodes)
 
 
 def max_count(shots: Shots) -> int:
-    """The largest count with a probability worth keeping: channels + background photons to 1e-12."""
+    """The largest count with a probability worth keeping: channels + background photons to
+    1e-12."""
     beta = float(np.max(shots.background, initial=0.0))
+
+    def poisson_term(j):  # Poisson(j + 1; β)
+        return np.exp(-beta) * beta ** (j + 1) / np.prod(np.arange(1, j + 2, dtype=float))
+
     j = 0
-    while beta > 0 and np.exp(-beta) * beta ** (j + 1) / np.prod(np.arange(1, j + 2, dtype=float)) > 1e-12:
+    while beta > 0 and poisson_term(j) > 1e-12:
         j += 1
     return int(shots.channels.max()) + j
 
@@ -297,11 +313,13 @@ def count_distribution(theta: np.ndarray, shots: Shots, jitter_m: float, kmax: i
                              max_count(shots) if kmax is None else kmax, *nodes)
 
 
-def fisher_information(theta: np.ndarray, shots: Shots, jitter_m: float, columns: np.ndarray, n_free: int) -> np.ndarray:
+def fisher_information(theta: np.ndarray, shots: Shots, jitter_m: float, columns: np.ndarray,
+                       n_free: int) -> np.ndarray:
     """Expected Fisher information of the shots' counts (n_free × n_free); ``columns`` (G, 5) maps
     each group's parameter to its position among the free parameters (−1: not free)."""
     (x, xc, yc, beta), (g, nch), nodes = _args(shots, jitter_m)
-    blocks = information_blocks(np.asarray(theta, float), x, xc, yc, beta, g, nch, max_count(shots), *nodes)
+    blocks = information_blocks(np.asarray(theta, float), x, xc, yc, beta, g, nch,
+                                max_count(shots), *nodes)
     info = np.zeros((n_free, n_free))
     for grp in range(blocks.shape[0]):
         col = columns[grp]
@@ -311,7 +329,8 @@ def fisher_information(theta: np.ndarray, shots: Shots, jitter_m: float, columns
 
 
 def simulate_counts(table: np.ndarray, rng: np.random.Generator) -> np.ndarray:
-    """Counts drawn shot by shot from the distributions P(k) of :func:`count_distribution` (n, K)."""
+    """Counts drawn shot by shot from the distributions P(k) of :func:`count_distribution` (n,
+    K)."""
     cdf = np.cumsum(table, axis=1)
     u = rng.random(table.shape[0]) * cdf[:, -1]
     return np.minimum((cdf < u[:, None]).sum(axis=1), table.shape[1] - 1)

@@ -19,8 +19,8 @@ GEOLOCATION = ("along_track_bias", "cross_track_bias", "footprint_diameter")
 NUISANCE = ("ccr_peak_photons", "shot_loss_rate")
 #: Every parameter of one beam, in the order of the likelihood's arrays.
 NAMES = GEOLOCATION + NUISANCE
-UNITS = {"along_track_bias": "m", "cross_track_bias": "m", "footprint_diameter": "m", "ccr_peak_photons": "1",
-         "shot_loss_rate": "1"}
+UNITS = {"along_track_bias": "m", "cross_track_bias": "m", "footprint_diameter": "m",
+         "ccr_peak_photons": "1", "shot_loss_rate": "1"}
 BIASES = GEOLOCATION[:2]
 LN2 = float(np.log(2.0))
 
@@ -30,7 +30,8 @@ def footprint_radius_1e2(diameter, peak_photons):
     for a CCR returning ``peak_photons`` Λ (mean, at the centre): Λ·exp(−2(D/2)²/w²) = ln 2, so
     w = (D/2)·√(2 / ln(Λ / ln 2)). Arrays or scalars; NaN for Λ ≤ ln 2 (never detected at 50 %)."""
     with np.errstate(invalid="ignore", divide="ignore"):
-        return 0.5 * np.asarray(diameter, float) * np.sqrt(2.0 / np.log(np.asarray(peak_photons, float) / LN2))
+        log_ratio = np.log(np.asarray(peak_photons, float) / LN2)  # ln(Λ / ln 2)
+        return 0.5 * np.asarray(diameter, float) * np.sqrt(2.0 / log_ratio)
 
 
 def parameter_name(base: str, group: str | None) -> str:

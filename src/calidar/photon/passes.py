@@ -23,14 +23,15 @@ GROUND_SAMPLE = 1.0  #: m
 
 @dataclass(frozen=True)
 class SystemParameters:
-    """Instrument constants: dead time t_d (s), RMS pulse width σ (s), along-track shot spacing d_l (m),
-    detector channels (a CCR return arrives within the dead time, so each channel records ≤ 1 photon),
-    pointing jitter σ_j (m, per axis)."""
+    """Instrument constants: dead time t_d (s), RMS pulse width σ (s), along-track shot spacing
+    d_l (m), detector channels (a CCR return arrives within the dead time, so each channel records
+    ≤ 1 photon), pointing jitter σ_j (m, per axis)."""
 
     dead_time: float = 3.2e-9
     pulse_width: float = 1.0e-9
     shot_spacing: float = 0.7
-    channels: int | None = None  #: None: from the beam's strength (16 strong, 4 weak; 16 when unknown)
+    #: None: from the beam's strength (16 strong, 4 weak; 16 when unknown)
+    channels: int | None = None
     pointing_jitter: float = 0.3
 
     @property
@@ -53,10 +54,12 @@ class SystemParameters:
 
 @dataclass
 class PassData:
-    """The photons of one beam of one pass near its CCRs (sorted by along-track x) and its CCRs' track positions."""
+    """The photons of one beam of one pass near its CCRs (sorted by along-track x) and its CCRs'
+    track positions."""
 
     name: str
-    group_key: str  #: the beam's parameter group: 'spot N' when the laser spot is known, else the ground track
+    #: the beam's parameter group: 'spot N' when the laser spot is known, else the ground track
+    group_key: str
     label: str  #: e.g. 'gt1l (spot 6, weak)'
     channels: int
     x: np.ndarray  #: m, along track
@@ -71,12 +74,15 @@ class PassData:
     photons_total: int  #: photons of the whole beam
     group: int = 0  #: parameter group index (set by the calibration)
     above_ground: np.ndarray | None = None  #: h − ground(x)
-    ground_x: np.ndarray | None = None  #: m, the ground model sampled every GROUND_SAMPLE m (for plots)
+    #: m, the ground model sampled every GROUND_SAMPLE m (for plots)
+    ground_x: np.ndarray | None = None
     ground_h: np.ndarray | None = None
 
 
-def prepare_pass(beam, survey, system: SystemParameters, name: str | None = None, reach: float = 17.5) -> PassData:
-    """Locate the CCRs in the beam's track, keep the photons of their sites, denoise them and model the ground."""
+def prepare_pass(beam, survey, system: SystemParameters, name: str | None = None,
+                 reach: float = 17.5) -> PassData:
+    """Locate the CCRs in the beam's track, keep the photons of their sites, denoise them and
+    model the ground."""
     name = name or f"{beam.source}:{beam.beam}"
     if len(beam) == 0:
         raise CalibrationError(f"{name}: no photons")
@@ -93,14 +99,16 @@ def prepare_pass(beam, survey, system: SystemParameters, name: str | None = None
     idx = idx[np.argsort(x_all[idx], kind="stable")]
     x, h, shot = x_all[idx], beam.h[idx], beam.shot_index()[idx]
     key = f"spot {beam.spot}" if beam.spot else beam.beam
+    beam_of = (name, key, beam.label, system.channels_of(beam))
+    ccrs = (np.where(near, xk, np.nan), yk, dist, len(beam))
     if x.size < 10:
-        return PassData(name, key, beam.label, system.channels_of(beam), x, h, shot, np.zeros(x.size, bool),
-                        np.zeros(x.size, bool), None, np.where(near, xk, np.nan), yk, dist, len(beam))
+        none = np.zeros(x.size, bool)
+        return PassData(*beam_of, x, h, shot, none, none.copy(), None, *ccrs)
     coarse, signal = denoise_stages(x, h, system.shot_spacing)
     if signal.sum() < 10:
-        raise CalibrationError(f"{name}: denoising kept {signal.sum()} photons near the CCRs; no surface found")
+        raise CalibrationError(f"{name}: denoising kept {signal.sum()} photons near the CCRs; no "
+                               "surface found")
     ground = ground_profile(x[signal], h[signal])
     gx = np.unique(np.round(x / GROUND_SAMPLE) * GROUND_SAMPLE)
-    return PassData(name, key, beam.label, system.channels_of(beam), x, h, shot, signal, coarse, ground,
-                    np.where(near, xk, np.nan), yk, dist, len(beam), above_ground=h - ground(x), ground_x=gx,
-                    ground_h=ground(gx))
+    return PassData(*beam_of, x, h, shot, signal, coarse, ground, *ccrs,
+                    above_ground=h - ground(x), ground_x=gx, ground_h=ground(gx))

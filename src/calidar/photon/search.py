@@ -52,7 +52,8 @@ class GridResult:
     diameter: float
     sides: list[int]  #: +1 CCR left of the footprint track, −1 right
     loss_rate: float  #: shot-loss rate inside the segments' centres
-    alternatives: list[tuple[float, float]]  #: (cross bias, diameter) of the other local minima over b_c
+    #: (cross bias, diameter) of the other local minima over b_c
+    alternatives: list[tuple[float, float]]
 
     @property
     def total(self) -> np.ndarray:
@@ -61,8 +62,8 @@ class GridResult:
     def to_dict(self) -> dict:
         return {"along_track_bias": self.along_bias, "cross_track_bias": self.cross_bias,
                 "footprint_diameter": self.diameter, "rms_along": self.rms_along,
-                "rms_cross": float(self.rms_cross.min()), "ccr_sides": self.sides, "shot_loss_rate": self.loss_rate,
-                "unit": "m"}
+                "rms_cross": float(self.rms_cross.min()), "ccr_sides": self.sides,
+                "shot_loss_rate": self.loss_rate, "unit": "m"}
 
 
 def shot_loss_rate(segments, spacing: float) -> float:
@@ -71,7 +72,10 @@ def shot_loss_rate(segments, spacing: float) -> float:
     for s in segments:
         lo, hi = s.midpoint - s.length / 4.0, s.midpoint + s.length / 4.0
         det += int(np.count_nonzero((s.shot_x >= lo) & (s.shot_x <= hi)))
-        exp += int(np.floor((hi - s.first) / spacing + 1e-6) - np.ceil((lo - s.first) / spacing - 1e-6) + 1)
+        # the shots of the segment's spacing grid that fall in [lo, hi]
+        last = np.floor((hi - s.first) / spacing + 1e-6)
+        first = np.ceil((lo - s.first) / spacing - 1e-6)
+        exp += int(last - first + 1)
     return float(np.clip(1.0 - det / exp, 0.0, 0.8)) if exp else 0.0
 
 
@@ -81,11 +85,13 @@ def chords(segments, spacing: float, loss: float) -> np.ndarray:
 
 
 @numba.njit(cache=True)
-def _squared_cross_errors(y, n_shots, n_cand, spacing, diam, biases, length_step):  # pragma: no cover - numba
-    """Σ over CCRs of the squared |surveyed − theoretical| cross-track distance (m²), best side and chord
-    candidate each, for every (diameter, bias): (n_diameters, n_biases). The distance √(r² − (L/2)²)
-    falls with the candidate L = l + Δl·k, so the best candidate is one of the two around
-    L* = 2√(r² − a²), a = |y − b|; a chord longer than the footprint (L/2 > r) is off by its excess."""
+def _squared_cross_errors(y, n_shots, n_cand, spacing, diam, biases,
+                          length_step):  # pragma: no cover - numba
+    """Σ over CCRs of the squared |surveyed − theoretical| cross-track distance (m²), best side and
+    chord candidate each, for every (diameter, bias): (n_diameters, n_biases). The distance
+    √(r² − (L/2)²) falls with the candidate L = l + Δl·k, so the best candidate is one of the two
+    around L* = 2√(r² − a²), a = |y − b|; a chord longer than the footprint (L/2 > r) is off by its
+    excess."""
     out = np.zeros((diam.size, biases.size))
     for c in range(y.size):
         l0 = n_shots[c] * spacing
@@ -103,11 +109,13 @@ def _squared_cross_errors(y, n_shots, n_cand, spacing, diam, biases, length_step
     return out
 
 
-def _cross_errors(y: float, n_shots: int, missing: int, spacing: float, diam: np.ndarray, biases: np.ndarray,
-                  length_step: float) -> np.ndarray:
+def _cross_errors(y: float, n_shots: int, missing: int, spacing: float, diam: np.ndarray,
+                  biases: np.ndarray, length_step: float) -> np.ndarray:
     """|surveyed − theoretical| cross-track distance (m) of one CCR for every (diameter, bias)."""
     n_cand = np.array([int(np.ceil(missing * spacing / length_step)) + 1])
-    return np.sqrt(_squared_cross_errors(np.array([y]), np.array([n_shots]), n_cand, spacing, diam, biases, length_step))
+    sq = _squared_cross_errors(np.array([y]), np.array([n_shots]), n_cand, spacing, diam, biases,
+                               length_step)
+    return np.sqrt(sq)
 
 
 def grid_search(segments, spacing: float, settings: SearchSettings) -> GridResult:
@@ -118,13 +126,15 @@ def grid_search(segments, spacing: float, settings: SearchSettings) -> GridResul
     rms_a = float(np.sqrt(np.mean((resid_a - b_a) ** 2)))
     diam = np.arange(settings.diameter_min, settings.diameter_max + 1e-9, settings.diameter_step)
     half = settings.diameter_max / 2.0
-    biases = np.arange(max(y.min() - half, -settings.max_bias), min(y.max() + half, settings.max_bias) + 1e-9,
-                       settings.bias_step)
+    lo, hi = max(y.min() - half, -settings.max_bias), min(y.max() + half, settings.max_bias)
+    biases = np.arange(lo, hi + 1e-9, settings.bias_step)
     if biases.size == 0:
         biases = np.array([float(np.clip(y.mean(), -settings.max_bias, settings.max_bias))])
-    n_cand = np.array([int(np.ceil(s.missing_shots * spacing / settings.length_step)) + 1 for s in segments])
-    sq = _squared_cross_errors(y, np.array([s.n_shots for s in segments]), n_cand, spacing, diam, biases,
-                               settings.length_step)
+    # chord candidates: the lit shots' length plus up to the missing shots, Δl apart
+    n_cand = np.array([int(np.ceil(s.missing_shots * spacing / settings.length_step)) + 1
+                       for s in segments])
+    n_shots = np.array([s.n_shots for s in segments])
+    sq = _squared_cross_errors(y, n_shots, n_cand, spacing, diam, biases, settings.length_step)
     rms_c = np.sqrt(sq / len(segments))
     i, j = np.unravel_index(np.argmin(rms_c + rms_a), rms_c.shape)
     sides = [int(np.sign(yi - biases[j]) or 1) for yi in y]
@@ -132,13 +142,15 @@ def grid_search(segments, spacing: float, settings: SearchSettings) -> GridResul
                       shot_loss_rate(segments, spacing), _other_minima(rms_c, diam, biases, j))
 
 
-COMPETING_RMS = (1.25, 0.05)  #: an alternative minimum competes when its RMS ≤ 1.25 × the best + 0.05 m
+#: an alternative minimum competes when its RMS ≤ 1.25 × the best + 0.05 m
+COMPETING_RMS = (1.25, 0.05)
 
 
 def _other_minima(rms_c: np.ndarray, diam: np.ndarray, biases: np.ndarray, best: int, n: int = 2,
                   separation: float = 1.0) -> list[tuple[float, float]]:
     """Up to ``n`` other local minima over the cross-track bias of min-over-D RMS that compete with
-    the best (COMPETING_RMS), ≥ ``separation`` m from it and from each other, best first: (bias, diameter)."""
+    the best (COMPETING_RMS), ≥ ``separation`` m from it and from each other, best first: (bias,
+    diameter)."""
     profile = rms_c.min(axis=0)
     lm = np.flatnonzero((profile <= np.roll(profile, 1)) & (profile <= np.roll(profile, -1)))
     lm = lm[profile[lm] <= COMPETING_RMS[0] * profile[best] + COMPETING_RMS[1]]

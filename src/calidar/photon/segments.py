@@ -22,7 +22,8 @@ from dataclasses import dataclass
 import numpy as np
 
 BACKGROUND_BAND = 4.0  #: m of height above the count band where the background rate is measured
-GROUND_CLEARANCE = 2.0  #: count band half-heights the ground must lie below a CCR for a shot to count
+#: count band half-heights the ground must lie below a CCR for a shot to count
+GROUND_CLEARANCE = 2.0
 RUN_GAP_SPACINGS = 7.0  #: largest gap (in shot spacings) inside one CCR segment
 
 
@@ -69,7 +70,8 @@ class CCRSegment:
 
     @property
     def midpoint(self) -> float:
-        """Mean along-track position of the shots that saw the CCR (robust to a stray edge photon)."""
+        """Mean along-track position of the shots that saw the CCR (robust to a stray edge
+        photon)."""
         return float(self.shot_x.mean())
 
     @property
@@ -90,26 +92,35 @@ class CCRSegment:
     def summary(self) -> dict:
         w = self.window
         return {"pass": w.pass_name, "ccr": w.ccr_id, "x_ccr": w.x_ccr, "y_ccr": w.y_ccr,
-                "pole_height": w.pole_height, "n_photons": int(self.shot_counts.sum()), "n_shots": self.n_shots,
-                "missing_shots": self.missing_shots, "first": self.first, "last": self.last, "length": self.length,
-                "midpoint": self.midpoint, "angle_rad": w.angle, "intercept_above_ground": w.intercept,
+                "pole_height": w.pole_height, "n_photons": int(self.shot_counts.sum()),
+                "n_shots": self.n_shots, "missing_shots": self.missing_shots,
+                "first": self.first, "last": self.last, "length": self.length,
+                "midpoint": self.midpoint, "angle_rad": w.angle,
+                "intercept_above_ground": w.intercept,
                 "central_photons_per_shot": self.central_count}
 
 
-def segment_of(window: CCRWindow, counts: np.ndarray, spacing: float, min_shots: int = 3) -> CCRSegment | None:
+def _runs(index: np.ndarray, x: np.ndarray, gap: float) -> list[np.ndarray]:
+    """``index`` (into ``x``, m, increasing) cut where consecutive positions are over ``gap``
+    m apart."""
+    return np.split(index, np.flatnonzero(np.diff(x[index]) > gap) + 1)
+
+
+def segment_of(window: CCRWindow, counts: np.ndarray, spacing: float,
+               min_shots: int = 3) -> CCRSegment | None:
     """The longest run of shots of ``window`` with counts > 0 (gaps ≤ RUN_GAP_SPACINGS·d_l); None
     when it has fewer than ``min_shots`` shots."""
     hit = np.flatnonzero(counts > 0)
     if hit.size < min_shots:
         return None
-    runs = np.split(hit, np.flatnonzero(np.diff(window.shot_x[hit]) > RUN_GAP_SPACINGS * spacing) + 1)
-    run = max(runs, key=len)
+    run = max(_runs(hit, window.shot_x, RUN_GAP_SPACINGS * spacing), key=len)
     if run.size < min_shots:
         return None
     return CCRSegment(window, window.shot_x[run], counts[run], spacing)
 
 
-def with_silent_shots(x: np.ndarray, counts: np.ndarray, spacing: float) -> tuple[np.ndarray, np.ndarray]:
+def with_silent_shots(x: np.ndarray, counts: np.ndarray,
+                      spacing: float) -> tuple[np.ndarray, np.ndarray]:
     """Insert the shots that recorded no photon at all (absent from ATL03) with count 0:
     where consecutive shots at along-track x (m, increasing) are ≥ 1.5 spacings apart."""
     step = np.diff(x)
@@ -118,27 +129,23 @@ def with_silent_shots(x: np.ndarray, counts: np.ndarray, spacing: float) -> tupl
     if not missing.any():
         return x, counts
     i = np.repeat(np.arange(gaps.size), missing)
-    j = np.arange(i.size) - np.repeat(np.cumsum(missing) - missing, missing) + 1  # 1 … missing within each gap
+    # 1 … missing within each gap
+    j = np.arange(i.size) - np.repeat(np.cumsum(missing) - missing, missing) + 1
     xs = np.concatenate([x, x[i] + j * step[i] / gaps[i]])
     order = np.argsort(xs, kind="stable")
     return xs[order], np.concatenate([counts, np.zeros(i.size, counts.dtype)])[order]
 
 
 def ccr_window(p, k: int, x_ccr: float, y_ccr: float, survey, system, reach: float):
-    """The window of CCR ``k`` of ``survey`` in pass ``p`` (:class:`~calidar.photon.passes.PassData`),
-    or a sentence saying why there is none."""
+    """The window of CCR ``k`` of ``survey`` in pass ``p``
+    (:class:`~calidar.photon.passes.PassData`), or a sentence saying why there is none."""
     cid, pole = survey.ids[k], float(survey.height[k])
     above = p.above_ground
     lo, hi = np.searchsorted(p.x, [x_ccr - reach, x_ccr + reach + 1e-9])
-    band = lo + np.flatnonzero(p.coarse[lo:hi] & (np.abs(above[lo:hi] - pole) <= system.delta_h))
-    if band.size:  # the longest run of band photons: a stray photon far out does not tilt the line
-        runs = np.split(band, np.flatnonzero(np.diff(p.x[band]) > RUN_GAP_SPACINGS * system.shot_spacing) + 1)
-        band = max(runs, key=len)
-    if band.size >= 3:
-        a, b = np.polyfit(p.x[band], above[band], 1)
-        band = band[np.abs(above[band] - (a * p.x[band] + b)) <= 3.0 * system.height_sigma]
+    band = _ccr_band(p, lo, hi, pole, system)
     if np.unique(p.shot[band]).size < 3:
-        return None, (f"{p.name}: no CCR photons found for CCR {cid} ({np.unique(p.shot[band]).size} shots in the "
+        shots = np.unique(p.shot[band]).size
+        return None, (f"{p.name}: no CCR photons found for CCR {cid} ({shots} shots in the "
                       f"{pole:.2f} ± {system.delta_h:.2f} m band)")
     x_mean = float(p.x[band].mean())
     a, b = np.polyfit(p.x[band] - x_mean, above[band], 1)  # the published method's line (reported)
@@ -150,9 +157,27 @@ def ccr_window(p, k: int, x_ccr: float, y_ccr: float, survey, system, reach: flo
     inband = np.abs(off) <= half
     counts = np.bincount(np.searchsorted(wshots, p.shot[win][inband]), minlength=wshots.size)
     wx, counts = with_silent_shots(p.x[win][wone], counts, system.shot_spacing)
-    clear = h_ccr - p.ground(wx) >= GROUND_CLEARANCE * half  # where the ground rises into the band, photons of
-    wx, counts = wx[clear], counts[clear]  # the ground and of the CCR cannot be told apart: those shots are left out
+    # where the ground rises into the band, photons of the ground and of the CCR cannot be told
+    # apart: those shots are left out
+    clear = h_ccr - p.ground(wx) >= GROUND_CLEARANCE * half
+    wx, counts = wx[clear], counts[clear]
     n_ref = np.count_nonzero((off > 3.0 * half) & (off <= 3.0 * half + BACKGROUND_BAND))
-    background = (n_ref + 0.5) / (wx.size * BACKGROUND_BAND) * 2.0 * half  # + ½: never exactly 0
-    return CCRWindow(p.name, p.group, cid, float(x_ccr), float(y_ccr), pole, wx, counts, float(background), p.channels,
-                     float(np.arctan(a)), float(b), win[inband]), None
+    # + ½: never exactly 0
+    background = (n_ref + 0.5) / (wx.size * BACKGROUND_BAND) * 2.0 * half
+    return CCRWindow(p.name, p.group, cid, float(x_ccr), float(y_ccr), pole, wx, counts,
+                     float(background), p.channels, float(np.arctan(a)), float(b),
+                     win[inband]), None
+
+
+def _ccr_band(p, lo: int, hi: int, pole: float, system) -> np.ndarray:
+    """The photons (indices into ``p``'s) of rows [lo, hi) in the CCR's height band: its pole
+    height above ground ± Δh, the longest run of them (a stray photon far out does not tilt the
+    line), within 3σ of their straight line."""
+    above = p.above_ground
+    band = lo + np.flatnonzero(p.coarse[lo:hi] & (np.abs(above[lo:hi] - pole) <= system.delta_h))
+    if band.size:
+        band = max(_runs(band, p.x, RUN_GAP_SPACINGS * system.shot_spacing), key=len)
+    if band.size >= 3:
+        a, b = np.polyfit(p.x[band], above[band], 1)
+        band = band[np.abs(above[band] - (a * p.x[band] + b)) <= 3.0 * system.height_sigma]
+    return band

@@ -2,8 +2,9 @@
 
 A CCR survey (read by :func:`calidar.io.ccr_survey.read_ccr_survey`) gives geodetic positions or
 track positions (m along track, m cross-track left of ONE pass's reported track). A pass's track
-is not straight over thousands of km, so each CCR is placed on a straight track line fitted to the photons within
-``local_m`` of the photon nearest to it (over a few km a ground track is straight to millimetres).
+is not straight over thousands of km, so each CCR is placed on a straight track line fitted to
+the photons within ``local_m`` of the photon nearest to it (over a few km a ground track is
+straight to millimetres).
 """
 
 from __future__ import annotations
@@ -28,7 +29,8 @@ class CCRSurvey(CCRSurveyRows):
         """The survey of a file's rows (:func:`calidar.io.ccr_survey.read_ccr_survey`)."""
         return cls(list(rows.ids), rows.height, rows.lat, rows.lon, rows.x, rows.y, rows.source)
 
-    def in_track(self, x_m: np.ndarray, lat_rad: np.ndarray, lon_rad: np.ndarray, local_m: float = 1000.0,
+    def in_track(self, x_m: np.ndarray, lat_rad: np.ndarray, lon_rad: np.ndarray,
+                 local_m: float = 1000.0,
                  subsample: int = 20) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(along-track x, cross-track y left positive, distance to the nearest photon) of every
         CCR (m) in the track of a pass whose photons are at along-track ``x_m`` and lat/lon (rad).

@@ -15,14 +15,16 @@ import numpy as np
 from calidar.frames import ecef_to_geodetic, geodetic_to_ecef, r_en
 
 
-def geodetic_to_en(lat_rad, lon_rad, lat0_rad: float, lon0_rad: float) -> tuple[np.ndarray, np.ndarray]:
+def geodetic_to_en(lat_rad, lon_rad, lat0_rad: float,
+                   lon0_rad: float) -> tuple[np.ndarray, np.ndarray]:
     """Geodetic (rad) → local east, north (m) in the tangent plane at (lat0, lon0), height 0."""
     d = geodetic_to_ecef(lat_rad, lon_rad, 0.0) - geodetic_to_ecef(lat0_rad, lon0_rad, 0.0)
     ned = d @ r_en(lat0_rad, lon0_rad)
     return ned[..., 1], ned[..., 0]
 
 
-def en_to_geodetic(east_m, north_m, lat0_rad: float, lon0_rad: float) -> tuple[np.ndarray, np.ndarray]:
+def en_to_geodetic(east_m, north_m, lat0_rad: float,
+                   lon0_rad: float) -> tuple[np.ndarray, np.ndarray]:
     """Local east, north (m) in the tangent plane at (lat0, lon0) → geodetic lat, lon (rad)."""
     east, north = np.broadcast_arrays(np.asarray(east_m, float), np.asarray(north_m, float))
     ned = np.stack([north, east, np.zeros_like(east)], -1)
@@ -67,4 +69,6 @@ class TrackLine:
         ue, un = self.direction
         dx = np.asarray(x_m, float) - self.x_ref
         y = np.asarray(y_m, float)
-        return en_to_geodetic(self.east0 + dx * ue - y * un, self.north0 + dx * un + y * ue, self.lat0, self.lon0)
+        # along the track's unit direction (ue, un), left of it along (−un, ue)
+        east, north = self.east0 + dx * ue - y * un, self.north0 + dx * un + y * ue
+        return en_to_geodetic(east, north, self.lat0, self.lon0)

@@ -24,24 +24,26 @@ from calidar.photon.likelihood import count_distribution, simulate_counts
 from calidar.photon.parameters import GEOLOCATION
 
 CHI2_95 = {1: 3.841, 2: 5.991}  #: 95 % points of χ² with 1 and 2 degrees of freedom
-FEW_CCRS = 4  #: a beam with fewer lit CCRs than this is in the small-sample regime (checks.GOOD_CCRS)
-#: the deviance's 95 % point there, as a multiple of χ²₁'s: the profile deviance at the truth on 2-CCR
-#: passes (counts drawn from the model itself, and the simulator's) has a heavier tail than χ²₁ — four
-#: nuisance parameters (cross bias or diameter, CCR peak, shot loss) from two chords of ~10 shots —
-#: its 95 % point measured 4.5–4.6 on seeds 2000–2099 (docs/validation.md); confirmed on fresh seeds
+#: a beam with fewer lit CCRs than this is in the small-sample regime (checks.GOOD_CCRS)
+FEW_CCRS = 4
+#: the deviance's 95 % point there, as a multiple of χ²₁'s: the profile deviance at the truth on
+#: 2-CCR passes has a heavier tail than χ²₁ (four nuisance parameters from two chords of ~10 shots;
+#: measured in docs/validation.md, "CCR on 2-CCR passes")
 SMALL_SAMPLE_LEVEL = 1.2
 DISAGREE = 0.25  #: relative difference of two σ reported as a disagreement
 
 
 @dataclass
 class Interval:
-    """A 95 % profile-likelihood interval (m); ``open_low``/``open_high``: cut at the search limit."""
+    """A 95 % profile-likelihood interval (m); ``open_low``/``open_high``: cut at the search
+    limit."""
 
     low: float
     high: float
     open_low: bool = False
     open_high: bool = False
-    #: an end where no profile maximum could be found even near the estimate: the interval is not honest
+    #: an end where no profile maximum could be found even near the estimate: the interval is not
+    #: honest
     failed: bool = False
     level: float = 3.841  #: the deviance level it was cut at
 
@@ -71,14 +73,19 @@ class Uncertainty:
     bootstrap_failed: int = 0
     bootstrap_requested: int = 0
     profile: dict[str, Interval] = field(default_factory=dict)
-    profile_sigma: dict[str, tuple[float, float]] = field(default_factory=dict)  #: σ (curvature, profile's) changed
+    #: σ (curvature, profile's) where the profile changed it
+    profile_sigma: dict[str, tuple[float, float]] = field(default_factory=dict)
     surfaces: list[Surface] = field(default_factory=list)
-    #: the free geolocation parameters (biases, footprint diameters; :data:`calidar.photon.parameters.GEOLOCATION`)
+    #: the free geolocation parameters (biases, footprint diameters;
+    #: :data:`calidar.photon.parameters.GEOLOCATION`)
     geolocation: list[str] = field(default_factory=list)
 
     def sigma(self, name: str) -> float | None:
-        """The σ reported for ``name``: from its profile interval where that changed it, else the observed information's."""
-        return self.profile_sigma[name][1] if name in self.profile_sigma else self.observed.get(name)
+        """The σ reported for ``name``: from its profile interval where that changed it, else the
+        observed information's."""
+        if name in self.profile_sigma:
+            return self.profile_sigma[name][1]
+        return self.observed.get(name)
 
     def disagreements(self) -> list[str]:
         """Sentences for the geolocation parameters whose reported σ (:meth:`sigma`), bootstrap and
@@ -89,28 +96,39 @@ class Uncertainty:
         boot_tol = max(DISAGREE, 3.0 / np.sqrt(2.0 * max(reps - 1, 1)))
         for n in self.geolocation:
             obs, boot, crb = self.sigma(n), self.bootstrap.get(n), self.cramer_rao.get(n)
-            what = "σ from the profile interval" if n in self.profile_sigma else "observed-information σ"
+            if n in self.profile_sigma:
+                what = "σ from the profile interval"
+            else:
+                what = "observed-information σ"
             if boot and obs and abs(boot / obs - 1.0) > boot_tol:
-                out.append(f"{n}: bootstrap σ {boot:.3g} m vs {what} {obs:.3g} m — the likelihood is not quadratic "
-                           "here (few CCRs, or a nuisance parameter at its bound): the bootstrap's spread is this "
-                           "estimator's at the fitted values only")
+                out.append(f"{n}: bootstrap σ {boot:.3g} m vs {what} {obs:.3g} m — the "
+                           "likelihood is not quadratic here (few CCRs, or a nuisance parameter at "
+                           "its bound): the bootstrap's spread is this estimator's at the fitted "
+                           "values only")
             if crb and obs and obs / crb - 1.0 > DISAGREE:
-                out.append(f"{n}: {what} {obs:.3g} m is {obs / crb:.2f}× the Cramér–Rao σ {crb:.3g} m: this pass's "
-                           "counts hold less than they are expected to")
+                out.append(f"{n}: {what} {obs:.3g} m is {obs / crb:.2f}× the Cramér–Rao σ "
+                           f"{crb:.3g} m: this pass's counts hold less than they are expected to")
         return out
 
     def to_dict(self) -> dict:
-        boot = None if self.bootstrap_values is None else {
-            "replicates": int(self.bootstrap_values.shape[0]), "requested": self.bootstrap_requested,
-            "failed": self.bootstrap_failed, "sigma": self.bootstrap,
-            "interval_95": {n: [float(v) for v in np.percentile(self.bootstrap_values[:, i], [2.5, 97.5])]
-                            for i, n in enumerate(self.names)} if self.bootstrap_values.shape[0] else {}}
-        return {"observed_information_sigma": self.observed, "cramer_rao_sigma": self.cramer_rao, "bootstrap": boot,
-                "profile_interval_95": {n: {"low": i.low, "high": i.high, "open_low": i.open_low,
-                                            "open_high": i.open_high, "failed": i.failed, "deviance_level": i.level}
-                                        for n, i in self.profile.items()},
-                "sigma_from_profile": {n: {"curvature": a, "profile": b} for n, (a, b) in self.profile_sigma.items()},
-                "disagreements": self.disagreements()}
+        profile = {n: {"low": i.low, "high": i.high, "open_low": i.open_low,
+                       "open_high": i.open_high, "failed": i.failed, "deviance_level": i.level}
+                   for n, i in self.profile.items()}
+        from_profile = {n: {"curvature": a, "profile": b}
+                        for n, (a, b) in self.profile_sigma.items()}
+        return {"observed_information_sigma": self.observed, "cramer_rao_sigma": self.cramer_rao,
+                "bootstrap": self._bootstrap_dict(), "profile_interval_95": profile,
+                "sigma_from_profile": from_profile, "disagreements": self.disagreements()}
+
+    def _bootstrap_dict(self) -> dict | None:
+        """The bootstrap's replicates, σ and 2.5–97.5 % interval of each parameter (None: off)."""
+        values = self.bootstrap_values
+        if values is None:
+            return None
+        intervals = {n: [float(v) for v in np.percentile(values[:, i], [2.5, 97.5])]
+                     for i, n in enumerate(self.names)} if values.shape[0] else {}
+        return {"replicates": int(values.shape[0]), "requested": self.bootstrap_requested,
+                "failed": self.bootstrap_failed, "sigma": self.bootstrap, "interval_95": intervals}
 
 
 def _bounds(result) -> Bounds:
@@ -125,11 +143,13 @@ def _limits(result, name: str) -> tuple[float, float]:
     return -s.max_bias, s.max_bias
 
 
-def profile_nll(result, fixed: dict[str, float], start: dict[str, float]) -> tuple[float, dict[str, float]]:
-    """−log L maximised over every parameter but ``fixed``; (inf, start) when no maximum within the bounds."""
+def profile_nll(result, fixed: dict[str, float],
+                start: dict[str, float]) -> tuple[float, dict[str, float]]:
+    """−log L maximised over every parameter but ``fixed``; (inf, start) when no maximum within
+    the bounds."""
     try:
-        fit = maximise(result.problem, {**start, **fixed}, _bounds(result), fixed=fixed, max_iter=30,
-                       covariance=False)
+        fit = maximise(result.problem, {**start, **fixed}, _bounds(result), fixed=fixed,
+                       max_iter=30, covariance=False)
     except CalibrationError:
         return np.inf, start
     return fit.nll, fit.solution.values
@@ -142,21 +162,21 @@ ROOT_TOLERANCE = 0.03  #: on the signed root √deviance
 
 
 def profile_interval(result, name: str, level: float = CHI2_95[1]) -> Interval:
-    """The profile-likelihood interval of ``name``: where the deviance 2·(−log L_profile − −log L_max)
-    reaches ``level``, every other parameter re-maximised.
+    """The profile-likelihood interval of ``name``: where the deviance 2·(−log L_profile − −log
+    L_max) reaches ``level``, every other parameter re-maximised.
 
-    Each side is bracketed first — steps from the estimate that start at σ (clipped to PROFILE_STEP: a
-    curvature σ from a flat or ragged maximum can be far off either way) and grow with the signed root's
-    slope — and then closed by regula falsi on the root. A point without a maximum within the bounds
-    (a bias or peak beyond its limit) is beyond the interval; a maximum from the previous point's
-    solution above the level is checked from the estimate too (a warm start can sit in another mode).
-    On 2-CCR passes the former search (secant steps from ±1.96σ) lost the root where σ was wrong and
-    covered the truth on 85.7 % of 98 passes (docs/validation.md)."""
+    Each side is bracketed first — steps from the estimate that start at σ (clipped to
+    PROFILE_STEP: a curvature σ from a flat or ragged maximum can be far off either way) and grow
+    with the signed root's slope — and then closed by regula falsi on the root. A point without a
+    maximum within the bounds (a bias or peak beyond its limit) is beyond the interval; a maximum
+    from the previous point's solution above the level is checked from the estimate too (a warm
+    start can sit in another mode)."""
     sol = result.solution
     v0 = sol.values[name]
     lo_lim, hi_lim = _limits(result, name)
     target = np.sqrt(level)
-    small, large = PROFILE_STEP["footprint_diameter" if result.layout.quantity[name] == "footprint_diameter" else "bias"]
+    diameter = result.layout.quantity[name] == "footprint_diameter"
+    small, large = PROFILE_STEP["footprint_diameter" if diameter else "bias"]
     sigma = sol.sigma.get(name, np.nan)
     h = float(np.clip(sigma, small, large)) if np.isfinite(sigma) and sigma > 0 else large
     ends = []
@@ -164,13 +184,15 @@ def profile_interval(result, name: str, level: float = CHI2_95[1]) -> Interval:
         limit = lo_lim if side < 0 else hi_lim
         ends.append(_side(result, name, v0, side * h, limit, target))
     (lo, open_lo, bad_lo), (hi, open_hi, bad_hi) = ends
-    return Interval(float(min(lo, v0)), float(max(hi, v0)), bool(open_lo), bool(open_hi), bool(bad_lo or bad_hi),
-                    float(level))
+    return Interval(float(min(lo, v0)), float(max(hi, v0)), bool(open_lo), bool(open_hi),
+                    bool(bad_lo or bad_hi), float(level))
 
 
-def _root(result, name: str, v: float, start: dict[str, float], target: float) -> tuple[float, dict[str, float]]:
-    """The signed-root size √deviance of the profile at ``name`` = v (inf: no maximum within the bounds),
-    from ``start``, re-tried from the estimate when that gives more than ``target`` or none."""
+def _root(result, name: str, v: float, start: dict[str, float],
+          target: float) -> tuple[float, dict[str, float]]:
+    """The signed-root size √deviance of the profile at ``name`` = v (inf: no maximum within the
+    bounds), from ``start``, re-tried from the estimate when that gives more than ``target`` or
+    none."""
     best = result.estimate.fit.nll
     nll, at = profile_nll(result, {name: v}, start)
     if start is not result.solution.values and not 2.0 * (nll - best) < target**2:
@@ -180,9 +202,10 @@ def _root(result, name: str, v: float, start: dict[str, float], target: float) -
     return (np.sqrt(max(2.0 * (nll - best), 0.0)) if np.isfinite(nll) else np.inf), at
 
 
-def _side(result, name: str, v0: float, step: float, limit: float, target: float) -> tuple[float, bool, bool]:
-    """One end of the interval: (value, open — cut at ``limit`` below the level or never reached, failed —
-    no profile maximum within a first step of the estimate)."""
+def _side(result, name: str, v0: float, step: float, limit: float,
+          target: float) -> tuple[float, bool, bool]:
+    """One end of the interval: (value, open — cut at ``limit`` below the level or never reached,
+    failed — no profile maximum within a first step of the estimate)."""
     a, ra, start = v0, 0.0, result.solution.values
     v = v0 + step
     for _ in range(PROFILE_EVALUATIONS):
@@ -195,7 +218,10 @@ def _side(result, name: str, v0: float, step: float, limit: float, target: float
             return v, True, False
         d = abs(v - a)
         slope = (r - ra) / d  # of the root, per metre outward
-        size = float(np.clip(1.2 * (target - r) / slope, 0.5 * d, 4.0 * d)) if slope > 0 else 2.0 * d
+        if slope > 0:  # 1.2 × the linear extrapolation to the level, 0.5–4 × the last step
+            size = float(np.clip(1.2 * (target - r) / slope, 0.5 * d, 4.0 * d))
+        else:
+            size = 2.0 * d
         a, ra, start = v, r, at
         v = v + np.sign(step) * size
     return v, True, False
@@ -227,24 +253,27 @@ def lit_ccrs(result, name: str) -> int:
 
 
 def interval_level(result, name: str) -> float:
-    """The deviance level of ``name``'s 95 % profile interval: χ²₁'s, × SMALL_SAMPLE_LEVEL below FEW_CCRS."""
+    """The deviance level of ``name``'s 95 % profile interval: χ²₁'s, × SMALL_SAMPLE_LEVEL below
+    FEW_CCRS."""
     return CHI2_95[1] * (SMALL_SAMPLE_LEVEL if lit_ccrs(result, name) < FEW_CCRS else 1.0)
 
 
 def sigma_from_profile(result) -> dict[str, tuple[float, float]]:
-    """σ of each geolocation parameter from its 95 % profile interval: the wider half / 1.96 when the
-    interval is closed on both sides, else at least that (an open or failed end bounds it from below;
-    with a nuisance parameter held at its bound the profile keeps it there, so the observed information's
-    σ, which profiles it out (:func:`calidar.photon.fit.observed_information_solution`), stays when wider).
+    """σ of each geolocation parameter from its 95 % profile interval: the wider half / 1.96 when
+    the interval is closed on both sides, else at least that (an open or failed end bounds it from
+    below; with a nuisance parameter held at its bound the profile keeps it there, so the observed
+    information's σ, which profiles it out
+    (:func:`calidar.photon.fit.observed_information_solution`), stays when wider).
 
     The observed information is the curvature at one point; where the likelihood is far from
     quadratic (two chords: a CCR peak the data do not see, a shot-loss rate at its bound 0) that σ
-    was too small (2-CCR passes: RMS error/σ 1.32 along track, one at 4.5σ) or, at a near-singular
-    Hessian, meaninglessly large (6 m for an interval ±0.8 m wide). The covariance's rows and columns
-    are scaled (correlations kept); returns {name: (curvature σ, σ now)} of those changed."""
+    is too small or, at a near-singular Hessian, meaninglessly large (docs/validation.md, "CCR on
+    2-CCR passes"). The covariance's rows and columns are scaled (correlations kept); returns
+    {name: (curvature σ, σ now)} of those changed."""
     sol, u, out = result.solution, result.uncertainty, {}
     names = sol.parameters.free_names
-    held = bool(result.estimate.fit.at_limit)  # the profile keeps them at the bound; the curvature profiled them out
+    # the profile keeps them at the bound; the curvature profiled them out
+    held = bool(result.estimate.fit.at_limit)
     cov = sol.covariance.copy()
     for i, n in enumerate(names):
         iv, s = u.profile.get(n), sol.sigma[n]
@@ -267,8 +296,8 @@ def sigma_from_profile(result) -> dict[str, tuple[float, float]]:
 
 
 def surface(result, group: int, points: int) -> Surface:
-    """The profile deviance over cross-track bias × diameter of beam ``group``, ±3σ (at least ±0.5 m
-    and ±1 m) around the estimate, within the search limits."""
+    """The profile deviance over cross-track bias × diameter of beam ``group``, ±3σ (at least ±0.5
+    m and ±1 m) around the estimate, within the search limits."""
     lay, sol = result.layout, result.solution
     xn, yn = lay.name(group, "cross_track_bias"), lay.name(group, "footprint_diameter")
     v = sol.values
@@ -289,8 +318,9 @@ def surface(result, group: int, points: int) -> Surface:
 
 
 def bootstrap(result, replicates: int, seed: int, progress=None) -> tuple[np.ndarray, int]:
-    """(replicates × free parameters) re-estimates from counts simulated from the fitted model, and
-    how many replicates had no estimate (a beam without two lit CCRs, or an estimate beyond the bounds)."""
+    """(replicates × free parameters) re-estimates from counts simulated from the fitted model,
+    and how many replicates had no estimate (a beam without two lit CCRs, or an estimate beyond the
+    bounds)."""
 
     sol, prob = result.solution, result.problem
     names = sol.parameters.free_names
@@ -301,7 +331,8 @@ def bootstrap(result, replicates: int, seed: int, progress=None) -> tuple[np.nda
     for r in range(replicates):
         counts = np.split(simulate_counts(table, rng), split)
         try:
-            est = estimate(result.windows, prob, result.settings, result.system.shot_spacing, counts, covariance=False)
+            est = estimate(result.windows, prob, result.settings, result.system.shot_spacing,
+                           counts, covariance=False)
             out.append([est.fit.solution.values[n] for n in names])
         except CalibrationError:
             failed += 1
@@ -316,17 +347,20 @@ def assess(result, progress=None) -> Uncertainty:
     names = sol.parameters.free_names
     info = prob.information(sol.values, names)
     crb = np.sqrt(np.clip(np.diag(np.linalg.pinv(info)), 0.0, None))
-    u = Uncertainty(names, {n: float(s) for n, s in sol.sigma.items()}, dict(zip(names, map(float, crb))),
-                    geolocation=[n for n in names if result.layout.quantity[n] in GEOLOCATION])
+    geolocation = [n for n in names if result.layout.quantity[n] in GEOLOCATION]
+    u = Uncertainty(names, {n: float(s) for n, s in sol.sigma.items()},
+                    dict(zip(names, map(float, crb))), geolocation=geolocation)
     if settings.bootstrap:
         values, failed = bootstrap(result, settings.bootstrap, settings.seed, progress)
-        u.bootstrap_values, u.bootstrap_failed, u.bootstrap_requested = values, failed, settings.bootstrap
+        u.bootstrap_values, u.bootstrap_failed = values, failed
+        u.bootstrap_requested = settings.bootstrap
         if values.shape[0] >= 2:
             u.bootstrap = dict(zip(names, map(float, values.std(axis=0, ddof=1))))
     for n in names:
         if result.layout.quantity[n] in GEOLOCATION:
             u.profile[n] = profile_interval(result, n, interval_level(result, n))
     if settings.surface_points:
-        u.surfaces = [surface(result, g, settings.surface_points) for g in range(len(result.layout.groups))
+        beams = range(len(result.layout.groups))
+        u.surfaces = [surface(result, g, settings.surface_points) for g in beams
                       if result.layout.name(g, "footprint_diameter") in names]
     return u

@@ -16,7 +16,8 @@ from dataclasses import dataclass
 
 from calidar.adjust import Solution
 from calidar.io.total_station import TotalStationObservations
-from calidar.rangecal.fit import FitResult, acceptance, fit_range_model, observation_sigma, target_distances
+from calidar.rangecal.fit import (FitResult, acceptance, fit_range_model, observation_sigma,
+                                  target_distances)
 from calidar.rangecal.method import MethodResult, level_check, two_step_method
 from calidar.rangecal.units import check_units
 
@@ -37,25 +38,31 @@ class RangeCalibration:
 
     def extra(self) -> dict:
         """The method-specific results for ``solution.json`` (SI; range_scale also in ppm)."""
-        obs = self.observations
         intervals = {}
         for name, unit, f in (("range_offset", "m", 1.0), ("range_scale", "ppm", 1e6)):
             if (iv := self.fit.interval(name)) is not None:
                 intervals[name] = {"low": iv[0] * f, "high": iv[1] * f, "unit": unit}
-        return {
+        snooping = "Baarda data snooping, |w| > 3.29 (alpha 0.001)"
+        doc = {
             "intervals95": {**intervals, "t_factor": self.fit.t_factor, "dof": self.solution.dof},
             "two_step_method": {**self.method.to_dict(), "level_check": self.level},
-            "outliers": {"test": "Baarda data snooping, |w| > 3.29 (alpha 0.001)", "rejected": self.fit.rejected},
+            "outliers": {"test": snooping, "rejected": self.fit.rejected},
             "global_test": self.fit.global_test,
-            "observations": [
-                {"line": int(obs.line[i]), "setup": obs.setups[obs.setup[i]].id, "group": str(obs.group[i]),
-                 "point": str(obs.point[i]), "scanner_m": float(obs.scanner[i]), "distance_m": float(self.fit.distance[i]),
-                 "sigma_m": float(self.fit.sigma[i]), "residual_m": float(self.fit.residuals[i]),
-                 "w": None if not self.fit.keep[i] else float(self.fit.w[i]), "used": bool(self.fit.keep[i])}
-                for i in range(len(obs))
-            ],
-            **({"acceptance": self.acceptance} if self.acceptance is not None else {}),
+            "observations": [self._observation(i) for i in range(len(self.observations))],
         }
+        if self.acceptance is not None:
+            doc["acceptance"] = self.acceptance
+        return doc
+
+    def _observation(self, i: int) -> dict:
+        """Row ``i`` of the observations with its distance, σ, residual (m), w and whether the
+        outlier tests kept it."""
+        obs, fit = self.observations, self.fit
+        return {"line": int(obs.line[i]), "setup": obs.setups[obs.setup[i]].id,
+                "group": str(obs.group[i]), "point": str(obs.point[i]),
+                "scanner_m": float(obs.scanner[i]), "distance_m": float(fit.distance[i]),
+                "sigma_m": float(fit.sigma[i]), "residual_m": float(fit.residuals[i]),
+                "w": None if not fit.keep[i] else float(fit.w[i]), "used": bool(fit.keep[i])}
 
 
 def calibrate(obs: TotalStationObservations, tolerance_m: float | None = None,
@@ -68,12 +75,13 @@ def calibrate(obs: TotalStationObservations, tolerance_m: float | None = None,
     kept = obs.subset(fit.keep)
     _, partials = target_distances(kept)
     method = two_step_method(kept, target_distances(kept)[0], partials, observation_sigma(kept))
-    result = RangeCalibration(obs, fit, method, acceptance(fit, tolerance_m) if tolerance_m is not None else None,
-                              level_check(kept))
+    accepted = acceptance(fit, tolerance_m) if tolerance_m is not None else None
+    result = RangeCalibration(obs, fit, method, accepted, level_check(kept))
     fit.solution.extra = result.extra()
     return result
 
 
 def truth_parameters(truth: dict) -> dict[str, float]:
     """SI truth by parameter name from a simulator's truth.json document."""
-    return {"range_offset": float(truth["range_offset_m"]), "range_scale": float(truth["range_scale_ppm"]) * 1e-6}
+    return {"range_offset": float(truth["range_offset_m"]),
+            "range_scale": float(truth["range_scale_ppm"]) * 1e-6}

@@ -27,14 +27,17 @@ def residual_figure(result: RangeCalibration):
     rej = ~fit.keep
     if rej.any():
         for ax, x in ((ax1, idx), (ax2, fit.distance)):
-            ax.plot(x[rej], fit.residuals[rej] * MM, "kx", ms=9, mew=2, label="rejected (data snooping)")
+            ax.plot(x[rej], fit.residuals[rej] * MM, "kx", ms=9, mew=2,
+                    label="rejected (data snooping)")
         ok = fit.residuals[fit.keep] * MM
         span = max(np.abs(ok).max() + 2 * fit.sigma[fit.keep].max() * MM, 1.0) * 1.3
-        if np.abs(fit.residuals[rej] * MM).max() > 3 * span:  # keep the kept ones readable; say where the rest went
+        # keep the kept ones readable; say where the rest went
+        if np.abs(fit.residuals[rej] * MM).max() > 3 * span:
             for ax in (ax1, ax2):
                 ax.set_ylim(-span, span)
-            ax1.set_title(f"rejected residuals up to {np.abs(fit.residuals[rej]).max() * MM:.0f} mm lie off the scale",
-                          fontsize=8)
+            largest = np.abs(fit.residuals[rej]).max() * MM
+            title = f"rejected residuals up to {largest:.0f} mm lie off the scale"
+            ax1.set_title(title, fontsize=8)
     for ax in (ax1, ax2):
         ax.axhline(0, color="k", lw=0.8)
         ax.set_ylabel("model − scanner range [mm]")
@@ -56,11 +59,12 @@ def group_figure(result: RangeCalibration):
         ax.plot(np.full(sel.sum(), i), diff[sel], ".", color="0.5")
         if len(m.groups) <= MAX_LABELS:
             for y, p in zip(diff[sel], m.feature_point[sel]):
-                ax.annotate(p, (i, y), xytext=(4, 0), textcoords="offset points", fontsize=7, color="0.4")
+                ax.annotate(p, (i, y), xytext=(4, 0), textcoords="offset points", fontsize=7,
+                            color="0.4")
     ax.plot(range(len(m.groups)), m.group_delta_s * MM, "o", color="C0", label="ΔS_i (group mean)")
     ax.axhline(m.delta_s * MM, color="C1", label=f"ΔS = {m.delta_s * MM:.2f} mm")
-    ax.axhspan((m.delta_s - m.delta_s_half_width) * MM, (m.delta_s + m.delta_s_half_width) * MM, color="C1",
-               alpha=0.2, label="95 % interval of ΔS")
+    lo, hi = m.delta_s - m.delta_s_half_width, m.delta_s + m.delta_s_half_width
+    ax.axhspan(lo * MM, hi * MM, color="C1", alpha=0.2, label="95 % interval of ΔS")
     step = max(1, len(m.groups) // MAX_LABELS)
     ax.set_xticks(range(0, len(m.groups), step), m.groups[::step])
     ax.set_ylabel("scanner range − S_PX [mm]")

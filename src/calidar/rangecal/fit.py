@@ -25,7 +25,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import stats
 
-from calidar.adjust import Block, Parameter, ParameterSet, ResidualProblem, Solution, SolverOptions, solve
+from calidar.adjust import (Block, Parameter, ParameterSet, ResidualProblem, Solution,
+                            SolverOptions, solve)
 from calidar.errors import CalibrationError
 from calidar.io.total_station import TotalStationObservations
 from calidar.rangecal.geometry import distance_partials
@@ -41,7 +42,8 @@ def p_parameter(setup_id: str, part: str) -> str:
     return f"P_{part}_{setup_id}"
 
 
-def target_distances(obs: TotalStationObservations, p_values: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+def target_distances(obs: TotalStationObservations,
+                     p_values: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """S_PX (m) of every target and its partials (n, 6) (see geometry.distance_partials).
     ``p_values`` (n_setups, 3): P's (slope m, va rad, hz rad); default the observed ones."""
     if p_values is None:
@@ -57,17 +59,21 @@ def observation_sigma(obs: TotalStationObservations) -> np.ndarray:
     sig_s = np.empty(len(obs))
     for i, s in enumerate(obs.setups):
         sig_s[obs.setup == i] = s.distance_sigma(obs.slope[obs.setup == i])
-    var = obs.scanner_sigma**2 + (part[:, 3] * sig_s) ** 2 + (part[:, 4] ** 2 + part[:, 5] ** 2) * ang**2
+    # ∂S_PX/∂S_X · σ_S, and the two angles of X with one σ each
+    angles = (part[:, 4] ** 2 + part[:, 5] ** 2) * ang**2
+    var = obs.scanner_sigma**2 + (part[:, 3] * sig_s) ** 2 + angles
     return np.sqrt(var)
 
 
 def parameter_set(obs: TotalStationObservations, fix_scale: bool = False) -> ParameterSet:
     """range_offset (m), range_scale (ppm; fixed at 0 with ``fix_scale``) and each setup's P
     nuisance parameters with priors."""
-    params = [Parameter("range_offset", 0.0, "m"), Parameter("range_scale", 0.0, "ppm", free=not fix_scale)]
+    params = [Parameter("range_offset", 0.0, "m"),
+              Parameter("range_scale", 0.0, "ppm", free=not fix_scale)]
     for s in obs.setups:
+        slope_sigma = float(s.distance_sigma(s.p_slope))
         params += [
-            Parameter(p_parameter(s.id, "slope"), s.p_slope, "m", prior_sigma=float(s.distance_sigma(s.p_slope))),
+            Parameter(p_parameter(s.id, "slope"), s.p_slope, "m", prior_sigma=slope_sigma),
             Parameter(p_parameter(s.id, "va"), s.p_va, "rad", prior_sigma=s.angle_sigma),
             Parameter(p_parameter(s.id, "hz"), s.p_hz, "rad", prior_sigma=s.angle_sigma),
         ]
@@ -79,12 +85,14 @@ class RangeProblem(ResidualProblem):
     model − scanner range (m) per target, σ per equation (:func:`observation_sigma`), the analytic
     Jacobian; P's polar observations addressed as one typed block (setup, part) per setup."""
 
-    def __init__(self, obs: TotalStationObservations, fix_scale: bool = False, sigma: np.ndarray | None = None):
+    def __init__(self, obs: TotalStationObservations, fix_scale: bool = False,
+                 sigma: np.ndarray | None = None):
         self.obs, self.fix_scale = obs, fix_scale
         self.parameters = parameter_set(obs, fix_scale)
         self.sigma = observation_sigma(obs) if sigma is None else sigma
-        self.p_block = Block.of(self.parameters, {p_parameter(s.id, part): (i, part) for i, s in enumerate(obs.setups)
-                                                  for part in P_PARTS})
+        keys = {p_parameter(s.id, part): (i, part)
+                for i, s in enumerate(obs.setups) for part in P_PARTS}
+        self.p_block = Block.of(self.parameters, keys)
 
     def p_values(self, values) -> np.ndarray:
         """P's (slope m, va rad, hz rad) per setup, (n_setups, 3)."""
@@ -106,7 +114,8 @@ class RangeProblem(ResidualProblem):
         return np.delete(J, 1, axis=1) if self.fix_scale else J
 
 
-def standardized_residuals(solution: Solution, jacobian: np.ndarray, sigma: np.ndarray) -> np.ndarray:
+def standardized_residuals(solution: Solution, jacobian: np.ndarray,
+                           sigma: np.ndarray) -> np.ndarray:
     """Baarda's w_i = v_i / σ_v_i (a-priori variance factor 1) of the observation equations."""
     params = solution.parameters
     N = jacobian.T @ (jacobian / sigma[:, None] ** 2)
@@ -140,39 +149,20 @@ class FitResult:
         return v - self.t_factor * s, v + self.t_factor * s
 
 
-def fit_range_model(obs: TotalStationObservations, fix_scale: bool = False, critical: float = SNOOPING_CRITICAL,
-                    level: float = 0.95) -> FitResult:
+def fit_range_model(obs: TotalStationObservations, fix_scale: bool = False,
+                    critical: float = SNOOPING_CRITICAL, level: float = 0.95) -> FitResult:
     """Fit offset and scale (or the offset alone, ``fix_scale``) over ``obs`` with data
     snooping; raise CalibrationError when the data cannot determine them (too few targets,
     or distances too alike to separate scale from offset)."""
     sigma_all = observation_sigma(obs)
-    keep = np.ones(len(obs), bool)
-    rejected = []
-    while True:
-        sub = obs.subset(keep)
-        if len(sub) < 3:
-            raise CalibrationError(f"{obs.source}: {len(sub)} usable targets; at least 3 are needed to fit offset and scale")
-        problem = RangeProblem(sub, fix_scale, sigma_all[keep])
-        sol = solve(problem, SolverOptions(robust=None))
-        J = problem.jacobian(sol.values)
-        w = standardized_residuals(sol, J, sigma_all[keep])
-        worst = int(np.argmax(np.abs(w)))
-        if abs(w[worst]) <= critical or len(sub) - 1 < 4:
-            break
-        if len(rejected) >= MAX_REJECTED_FRACTION * len(obs):
-            sol.warnings.append(f"data snooping stopped after {len(rejected)} rejections with |w| = {abs(w[worst]):.1f} "
-                                "still above the critical value: the stated precisions look too optimistic "
-                                "(see the global test)")
-            break
-        idx = np.flatnonzero(keep)[worst]
-        rejected.append({"line": int(obs.line[idx]), "point": str(obs.point[idx]), "group": str(obs.group[idx]),
-                         "w": float(w[worst]), "residual_m": float(sol.residuals[worst])})
-        keep[idx] = False
+    sol, keep, w, rejected = _snoop(obs, fix_scale, critical, sigma_all)
     if not fix_scale and not abs(sol.correlation[0, 1]) <= SEPARABLE_CORRELATION:
         d = target_distances(obs.subset(keep))[0]
-        raise CalibrationError(f"{obs.source}: the targets span only {d.min():.2f}–{d.max():.2f} m: range_scale cannot be "
-                               "separated from range_offset; add groups or E points at other distances, or fix the scale")
-    sol.nuisance_prefix = "P_"  # P's polar observations: in solution.json, not in the report's table
+        raise CalibrationError(f"{obs.source}: the targets span only {d.min():.2f}–{d.max():.2f} "
+                               "m: range_scale cannot be separated from range_offset; add groups "
+                               "or E points at other distances, or fix the scale")
+    # P's polar observations: in solution.json, not in the report's table
+    sol.nuisance_prefix = "P_"
     v = sol.values
     p_all = np.array([[v[p_parameter(s.id, part)] for part in P_PARTS] for s in obs.setups])
     d_all, _ = target_distances(obs, p_all)
@@ -187,6 +177,36 @@ def fit_range_model(obs: TotalStationObservations, fix_scale: bool = False, crit
     )
 
 
+def _snoop(obs: TotalStationObservations, fix_scale: bool, critical: float, sigma_all: np.ndarray):
+    """Baarda's data snooping: fit, reject the target of the largest |w| above ``critical``, fit
+    again, until none is (or too few targets, or :data:`MAX_REJECTED_FRACTION` rejected).
+    Returns the last fit's solution, the targets kept (n,) bool, their w and the rejections."""
+    keep = np.ones(len(obs), bool)
+    rejected = []
+    while True:
+        sub = obs.subset(keep)
+        if len(sub) < 3:
+            raise CalibrationError(f"{obs.source}: {len(sub)} usable targets; at least 3 are "
+                                   "needed to fit offset and scale")
+        problem = RangeProblem(sub, fix_scale, sigma_all[keep])
+        sol = solve(problem, SolverOptions(robust=None))
+        J = problem.jacobian(sol.values)
+        w = standardized_residuals(sol, J, sigma_all[keep])
+        worst = int(np.argmax(np.abs(w)))
+        if abs(w[worst]) <= critical or len(sub) - 1 < 4:
+            return sol, keep, w, rejected
+        if len(rejected) >= MAX_REJECTED_FRACTION * len(obs):
+            sol.warnings.append(f"data snooping stopped after {len(rejected)} rejections with "
+                                f"|w| = {abs(w[worst]):.1f} still above the critical value: the "
+                                "stated precisions look too optimistic (see the global test)")
+            return sol, keep, w, rejected
+        idx = np.flatnonzero(keep)[worst]
+        rejected.append({"line": int(obs.line[idx]), "point": str(obs.point[idx]),
+                         "group": str(obs.group[idx]), "w": float(w[worst]),
+                         "residual_m": float(sol.residuals[worst])})
+        keep[idx] = False
+
+
 def global_test(sigma0: float, dof: float, level: float = 0.95) -> dict:
     """χ² test of σ0² · dof on ``dof`` degrees of freedom (two-sided at ``level``): σ0, χ², p and
     the σ0 range that passes."""
@@ -194,7 +214,8 @@ def global_test(sigma0: float, dof: float, level: float = 0.95) -> dict:
     lo, hi = stats.chi2.ppf((1 - level) / 2, dof), stats.chi2.ppf((1 + level) / 2, dof)
     return {"sigma0": float(sigma0), "dof": float(dof), "chi2": float(chi2),
             "p_value": float(2 * min(stats.chi2.cdf(chi2, dof), stats.chi2.sf(chi2, dof))),
-            "sigma0_range95": [float(np.sqrt(lo / dof)), float(np.sqrt(hi / dof))], "passed": bool(lo <= chi2 <= hi)}
+            "sigma0_range95": [float(np.sqrt(lo / dof)), float(np.sqrt(hi / dof))],
+            "passed": bool(lo <= chi2 <= hi)}
 
 
 def acceptance(fit: FitResult, tolerance_m: float) -> dict:

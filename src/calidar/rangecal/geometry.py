@@ -26,7 +26,8 @@ def polar_to_local(slope, va, hz) -> np.ndarray:
 
 def distance_law_of_cosines(s_p, va_p, hz_p, s_x, va_x, hz_x) -> np.ndarray:
     """3-D distance P→X (m) from the polar observations of P and X (m, rad)."""
-    cos_g = np.cos(va_p) * np.cos(va_x) * np.cos(np.asarray(hz_x) - hz_p) + np.sin(va_p) * np.sin(va_x)
+    alpha = np.asarray(hz_x) - hz_p
+    cos_g = np.cos(va_p) * np.cos(va_x) * np.cos(alpha) + np.sin(va_p) * np.sin(va_x)
     d2 = np.asarray(s_p) ** 2 + np.asarray(s_x) ** 2 - 2.0 * np.asarray(s_p) * s_x * cos_g
     return np.sqrt(np.clip(d2, 0.0, None))
 
@@ -34,7 +35,8 @@ def distance_law_of_cosines(s_p, va_p, hz_p, s_x, va_x, hz_x) -> np.ndarray:
 def distance_level(s_p, va_p, hz_p, s_x, va_x, hz_x) -> np.ndarray:
     """Special case for A/B (level with P): plane law of cosines of horizontal distances (m)."""
     d_p, d_x = np.asarray(s_p) * np.cos(va_p), np.asarray(s_x) * np.cos(va_x)
-    return np.sqrt(np.clip(d_p**2 + d_x**2 - 2.0 * d_p * d_x * np.cos(np.asarray(hz_x) - hz_p), 0.0, None))
+    d2 = d_p**2 + d_x**2 - 2.0 * d_p * d_x * np.cos(np.asarray(hz_x) - hz_p)
+    return np.sqrt(np.clip(d2, 0.0, None))
 
 
 def distance_partials(s_p, va_p, hz_p, s_x, va_x, hz_x) -> tuple[np.ndarray, np.ndarray]:

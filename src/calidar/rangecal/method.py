@@ -25,11 +25,13 @@ from calidar.io.total_station import TotalStationObservations
 def propagated_sigma(obs: TotalStationObservations, weights: np.ndarray, partials: np.ndarray,
                      sigma: np.ndarray) -> float:
     """σ (m) of Σ w_i·(scanner_i − S_PX,i): ``sigma`` (n,) the σ of each target's own
-    observations (scanner + polar, m), ``partials`` (n, 6) of S_PX; P's errors are shared per setup."""
+    observations (scanner + polar, m), ``partials`` (n, 6) of S_PX; P's errors are shared per
+    setup."""
     var = float(np.sum(weights**2 * sigma**2))
     for i, s in enumerate(obs.setups):
         g = -np.sum(weights[obs.setup == i, None] * partials[obs.setup == i, :3], axis=0)
-        var += g[0] ** 2 * float(s.distance_sigma(s.p_slope)) ** 2 + (g[1] ** 2 + g[2] ** 2) * s.angle_sigma**2
+        slope_sigma = float(s.distance_sigma(s.p_slope))
+        var += g[0] ** 2 * slope_sigma ** 2 + (g[1] ** 2 + g[2] ** 2) * s.angle_sigma**2
     return float(np.sqrt(var))
 
 
@@ -91,8 +93,9 @@ def two_step_method(obs: TotalStationObservations, distance: np.ndarray, partial
         delta_sig = propagated_sigma(obs, w_d, partials, sigma)
         delta_hw = z * delta_sig
     feat = obs.kind == "feature"
-    return MethodResult(groups, g_ds, ds, ds_sig, z * ds_sig, list(obs.point[is_e]), obs.line[is_e], e_delta,
-                        delta, delta_sig, delta_hw, obs.group[feat], obs.point[feat], diff[feat])
+    return MethodResult(groups, g_ds, ds, ds_sig, z * ds_sig,
+                        list(obs.point[is_e]), obs.line[is_e], e_delta, delta, delta_sig, delta_hw,
+                        obs.group[feat], obs.point[feat], diff[feat])
 
 
 LEVEL_CRITICAL = 3.29  #: |height offset / σ| above which A or B is not level with P (α = 0.001)
@@ -105,13 +108,16 @@ def level_check(obs: TotalStationObservations) -> dict:
     ab = (obs.kind == "feature") & np.isin(obs.point, ["A", "B"])
     if not ab.any():
         return {"level": True, "max_abs_height_m": 0.0, "max_abs_z": 0.0, "worst_line": None}
-    p = np.array([[s.p_slope, s.p_va, s.angle_sigma, float(s.distance_sigma(s.p_slope))] for s in obs.setups])[obs.setup[ab]]
+    setups = np.array([[s.p_slope, s.p_va, s.angle_sigma, float(s.distance_sigma(s.p_slope))]
+                       for s in obs.setups])
+    s_p, va_p, ang, sig_sp = setups[obs.setup[ab]].T
     s_x, va_x = obs.slope[ab], obs.va[ab]
-    dh = s_x * np.sin(va_x) - p[:, 0] * np.sin(p[:, 1])
+    dh = s_x * np.sin(va_x) - s_p * np.sin(va_p)
     sig_sx = np.array([float(obs.setups[i].distance_sigma(s)) for i, s in zip(obs.setup[ab], s_x)])
-    var = ((np.sin(va_x) * sig_sx) ** 2 + (s_x * np.cos(va_x) * p[:, 2]) ** 2
-           + (np.sin(p[:, 1]) * p[:, 3]) ** 2 + (p[:, 0] * np.cos(p[:, 1]) * p[:, 2]) ** 2)
+    var = ((np.sin(va_x) * sig_sx) ** 2 + (s_x * np.cos(va_x) * ang) ** 2
+           + (np.sin(va_p) * sig_sp) ** 2 + (s_p * np.cos(va_p) * ang) ** 2)
     z = dh / np.sqrt(var)
     worst = int(np.argmax(np.abs(z)))
-    return {"level": bool(abs(z[worst]) <= LEVEL_CRITICAL), "max_abs_height_m": float(np.max(np.abs(dh))),
+    return {"level": bool(abs(z[worst]) <= LEVEL_CRITICAL),
+            "max_abs_height_m": float(np.max(np.abs(dh))),
             "max_abs_z": float(abs(z[worst])), "worst_line": int(obs.line[ab][worst])}

@@ -25,9 +25,9 @@ def _parameter_rows(result: RangeCalibration, truth: dict | None) -> list[list]:
         lo, hi = fit.interval(name)
         t = truth.get(name) if truth else None
         err = None if t is None else sol.values[name] - t
-        rows.append([f"{name} [{unit}]", _f(sol.values[name] * f, d), f"{sol.sigma[name] * f:.{d}f}",
-                     f"{_f(lo * f, d)} … {_f(hi * f, d)}", _f(None if t is None else t * f, d),
-                     _f(None if err is None else err * f, d),
+        rows.append([f"{name} [{unit}]", _f(sol.values[name] * f, d),
+                     f"{sol.sigma[name] * f:.{d}f}", f"{_f(lo * f, d)} … {_f(hi * f, d)}",
+                     _f(None if t is None else t * f, d), _f(None if err is None else err * f, d),
                      "—" if err is None else f"{abs(err) / sol.sigma[name]:.1f}"])
     return rows
 
@@ -47,34 +47,59 @@ def _method_rows(result: RangeCalibration) -> list[list]:
     return rows
 
 
+def _model_text(result: RangeCalibration) -> str:
+    """The targets, the model and the stated precisions, in words."""
+    obs = result.observations
+    n_feature, n_e = int(np.sum(obs.kind == "feature")), int(np.sum(obs.kind == "E"))
+    return (f"{len(obs)} targets ({n_feature} feature points in {len(obs.groups)} groups, "
+            f"{n_e} E points) from {len(obs.setups)} total-station setup(s). Model: scanner "
+            "range = (1 + range_scale)·S_PX + range_offset, S_PX the distance from the scanner's "
+            "mirror centre P to the target from the two polar observations; P's observations are "
+            "nuisance parameters held by their stated precision. Stated precisions: "
+            f"{stated_precisions(result)}.")
+
+
+def _global_test_text(result: RangeCalibration) -> str:
+    """σ0 with its 0.95 range, χ², p and the residuals' RMS, in words."""
+    g, after = result.fit.global_test, result.solution.residuals_after
+    lo, hi = g["sigma0_range95"]
+    return (f"Global test: σ0 = {g['sigma0']:.3f} (0.95 range {lo:.2f}–{hi:.2f}), "
+            f"χ² = {g['chi2']:.1f} on {g['dof']:.0f} degrees of freedom, p = {g['p_value']:.3f}; "
+            f"RMS of the residuals {after['rms'] * MM:.2f} mm over {after['n']} targets.")
+
+
+#: the two-step method in words
+METHOD_TEXT = ("The prescribed two-step method on the same targets: ΔS_i = mean of (scanner range "
+               "− S_PX) over group i's feature points, ΔS their mean; Δ = the range error left at "
+               "the E points after ΔS (zero without a scale error). σ propagated from the stated "
+               "precisions, 95 % = ±1.96 σ.")
+
+
 def add_section(report: Report, result: RangeCalibration, truth: dict[str, float] | None = None,
                 title: str | None = None) -> None:
-    """Add the range-calibration section; ``truth``: SI values by parameter name (a simulation's)."""
+    """Add the range-calibration section; ``truth``: SI values by parameter name (a
+    simulation's)."""
     obs, fit, sol = result.observations, result.fit, result.solution
-    sec = report.section(title or f"Range calibration against a total station ({Path(obs.source).name})")
-    sec.text(f"{len(obs)} targets ({int(np.sum(obs.kind == 'feature'))} feature points in {len(obs.groups)} groups, "
-             f"{int(np.sum(obs.kind == 'E'))} E points) from {len(obs.setups)} total-station setup(s). Model: scanner "
-             "range = (1 + range_scale)·S_PX + range_offset, S_PX the distance from the scanner's mirror centre P to the "
-             "target from the two polar observations; P's observations are nuisance parameters held by their stated "
-             f"precision. Stated precisions: {stated_precisions(result)}.")
+    name = Path(obs.source).name
+    sec = report.section(title or f"Range calibration against a total station ({name})")
+    sec.text(_model_text(result))
     sec.table(["parameter", "value", "σ", "95 % interval", "truth", "error", "|error| / σ"],
               _parameter_rows(result, truth),
-              caption=f"Estimates; 95 % intervals from Student's t with {sol.dof:.0f} degrees of freedom "
-                      f"(factor {fit.t_factor:.3f})")
-    g = fit.global_test
-    sec.text(f"Global test: σ0 = {g['sigma0']:.3f} (0.95 range {g['sigma0_range95'][0]:.2f}–{g['sigma0_range95'][1]:.2f}), "
-             f"χ² = {g['chi2']:.1f} on {g['dof']:.0f} degrees of freedom, p = {g['p_value']:.3f}; "
-             f"RMS of the residuals {sol.residuals_after['rms'] * MM:.2f} mm over {sol.residuals_after['n']} targets.")
-    sec.text("The prescribed two-step method on the same targets: ΔS_i = mean of (scanner range − S_PX) over group i's "
-             "feature points, ΔS their mean; Δ = the range error left at the E points after ΔS (zero without a scale "
-             "error). σ propagated from the stated precisions, 95 % = ±1.96 σ.")
-    sec.table(["two-step method", "value [mm]", "σ [mm]", "95 % interval [mm]"], _method_rows(result))
+              caption="Estimates; 95 % intervals from Student's t with "
+                      f"{sol.dof:.0f} degrees of freedom (factor {fit.t_factor:.3f})")
+    sec.text(_global_test_text(result))
+    sec.text(METHOD_TEXT)
+    sec.table(["two-step method", "value [mm]", "σ [mm]", "95 % interval [mm]"],
+              _method_rows(result))
     if fit.rejected:
-        sec.table(["line", "point", "group", "w (standardized)", "residual [mm]"],
-                  [[r["line"], r["point"], r["group"] or "—", _f(r["w"], 1), _f(r["residual_m"] * MM, 1)]
-                   for r in fit.rejected], caption="Rejected by data snooping (|w| > 3.29)")
-    sec.figure(residual_figure(result), "Residuals (model − scanner range) per observation and against distance; "
-               "bars ±2σ of each observation equation; crosses: rejected targets.")
-    sec.figure(group_figure(result), "Per group: scanner range − S_PX of each feature point, ΔS_i and ΔS.")
+        rows = [[r["line"], r["point"], r["group"] or "—", _f(r["w"], 1),
+                 _f(r["residual_m"] * MM, 1)] for r in fit.rejected]
+        sec.table(["line", "point", "group", "w (standardized)", "residual [mm]"], rows,
+                  caption="Rejected by data snooping (|w| > 3.29)")
+    sec.figure(residual_figure(result), "Residuals (model − scanner range) per observation and "
+               "against distance; bars ±2σ of each observation equation; crosses: rejected "
+               "targets.")
+    sec.figure(group_figure(result),
+               "Per group: scanner range − S_PX of each feature point, ΔS_i and ΔS.")
     for w in sol.warnings:
         sec.warning(w)

@@ -38,18 +38,30 @@ def check_units(obs: TotalStationObservations, distance: np.ndarray) -> None:
     med = float(np.median(ratio))
     n = len(obs)
     if not PLAUSIBLE[0] <= med <= PLAUSIBLE[1]:
-        said = f"the scanner ranges are {med:.4g}× the distances P→X from the total station (median of {n} targets)"
-        if unit := unit_of_ratio(med):
-            raise InputError(obs.source, "scanner_m", f"{said}: expected metres; scanner_m looks like {unit}")
-        if unit := unit_of_ratio(1.0 / med):
-            raise InputError(obs.source, "slope_m", f"{said}: expected metres; the total station's slope_m look like {unit}")
-        raise InputError(obs.source, "scanner_m", f"{said}; expected them to agree within a few per cent: check that "
-                         "both are in metres and that each row's scanner_m belongs to its point")
+        _refuse_the_file(obs, med, n)
     for unit in ROW_UNITS:
         bad = np.flatnonzero(np.abs(ratio / UNIT_FACTORS[unit] - 1.0) < MATCH)
         if bad.size:
             i = bad[0]
             more = f" ({bad.size} rows like it)" if bad.size > 1 else ""
             raise InputError(obs.source, f"line {obs.line[i]}: scanner_m",
-                             f"{obs.scanner[i]:g} is {ratio[i]:.0f}× the distance P→{obs.point[i]} from the total station "
-                             f"({distance[i]:.3f} m): expected metres; it looks like {unit}{more}")
+                             f"{obs.scanner[i]:g} is {ratio[i]:.0f}× the distance P→{obs.point[i]} "
+                             f"from the total station ({distance[i]:.3f} m): expected metres; it "
+                             f"looks like {unit}{more}")
+
+
+def _refuse_the_file(obs: TotalStationObservations, med: float, n: int) -> None:
+    """The error for a whole file whose median scanner range / S_PX ``med`` (of ``n`` targets) is
+    implausible: naming the unit of the scanner ranges or of the slope distances when it looks
+    like one."""
+    said = (f"the scanner ranges are {med:.4g}× the distances P→X from the total station "
+            f"(median of {n} targets)")
+    if unit := unit_of_ratio(med):
+        raise InputError(obs.source, "scanner_m",
+                         f"{said}: expected metres; scanner_m looks like {unit}")
+    if unit := unit_of_ratio(1.0 / med):
+        raise InputError(obs.source, "slope_m",
+                         f"{said}: expected metres; the total station's slope_m look like {unit}")
+    raise InputError(obs.source, "scanner_m", f"{said}; expected them to agree within a few per "
+                     "cent: check that both are in metres and that each row's scanner_m belongs "
+                     "to its point")

@@ -50,8 +50,8 @@ CALIBRATION_STEPS = {"rad": 1e-6, "m": 1e-4, "1": 1e-7, "ppm": 1e-7}
 @dataclass(frozen=True)
 class TpuSettings:
     """The sensor's own noise, in SI: range σ (m), encoder angle σ (rad), beam divergence (rad, full
-    angle; 0 leaves the footprint out) and the cell (m) of local surfaces (:func:`surface_normals`; the
-    footprint term needs no normal since it is across the beam only: :func:`_footprint`)."""
+    angle; 0 leaves the footprint out) and the cell (m) of local surfaces (:func:`surface_normals`;
+    the footprint term needs no normal since it is across the beam only: :func:`_footprint`)."""
 
     range_sigma_m: float = 0.01
     angle_sigma_rad: float = float(np.radians(0.002))
@@ -70,8 +70,9 @@ class CalibrationCovariance:
 
     def __post_init__(self):
         c = np.asarray(self.covariance, float)
-        if c.shape != (len(self.names), len(self.names)):
-            raise ValueError(f"covariance must be {len(self.names)}×{len(self.names)}, got {c.shape}")
+        k = len(self.names)
+        if c.shape != (k, k):
+            raise ValueError(f"covariance must be {k}×{k}, got {c.shape}")
         object.__setattr__(self, "covariance", c)
 
 
@@ -107,8 +108,8 @@ def _outer_sum(cov: np.ndarray, d: np.ndarray, sigma) -> None:
     cov += (np.asarray(sigma, float) ** 2)[..., None, None] * d[:, :, None] * d[:, None, :]
 
 
-def point_covariance(traj: Trajectory, sensor: Sensor, accuracy: TrajectoryAccuracy, time, points_ecef,
-                     settings: TpuSettings = TpuSettings(),
+def point_covariance(traj: Trajectory, sensor: Sensor, accuracy: TrajectoryAccuracy, time,
+                     points_ecef, settings: TpuSettings = TpuSettings(),
                      calibration: CalibrationCovariance | None = None) -> np.ndarray:
     """The covariance (N, 3, 3) m² in local east/north/up of points (N, 3) ECEF at GPS times (N,) s,
     georeferenced from ``traj`` with ``sensor`` (see the module docstring for every term)."""
@@ -125,21 +126,30 @@ def point_covariance(traj: Trajectory, sensor: Sensor, accuracy: TrajectoryAccur
     b = np.einsum("nij,nj->ni", r_nb, beam)
     cov = np.zeros((time.size, 3, 3))
     sig_pos, sig_att = accuracy.at(time)  # north, east, down; roll, pitch, heading
-    cov[:, 0, 0], cov[:, 1, 1], cov[:, 2, 2] = sig_pos[:, 1] ** 2, sig_pos[:, 0] ** 2, sig_pos[:, 2] ** 2
-    forward = r_nb[:, :, 0]
-    right = np.stack([forward[:, 1], -forward[:, 0], np.zeros(time.size)], 1)  # horizontal, right of the heading
-    right /= np.linalg.norm(right, axis=1)[:, None]
-    for k, axis in enumerate((forward, right, np.broadcast_to([0.0, 0.0, -1.0], w.shape))):
-        _outer_sum(cov, np.cross(axis, w), sig_att[:, k])
+    north, east, down = sig_pos.T
+    cov[:, 0, 0], cov[:, 1, 1], cov[:, 2, 2] = east ** 2, north ** 2, down ** 2
+    _attitude_terms(cov, r_nb, w, sig_att)
     _outer_sum(cov, b, settings.range_sigma_m / (1.0 + sensor.range_scale))
     if settings.angle_sigma_rad:
-        _outer_sum(cov, rho[:, None] * _direction_derivative(sensor, obs.angles, r_nb), settings.angle_sigma_rad)
+        d_angle = rho[:, None] * _direction_derivative(sensor, obs.angles, r_nb)
+        _outer_sum(cov, d_angle, settings.angle_sigma_rad)
     if settings.beam_divergence_rad:
         _footprint(cov, b, rho, settings)
     if calibration is not None:
-        jac = calibration_jacobian(sensor, calibration, position, r_eb, obs.range_m, obs.angles) @ enu.T
+        jac = calibration_jacobian(sensor, calibration, position, r_eb, obs.range_m, obs.angles)
+        jac = jac @ enu.T
         cov += np.einsum("nki,kl,nlj->nij", jac, calibration.covariance, jac)
     return cov
+
+
+def _attitude_terms(cov: np.ndarray, r_nb: np.ndarray, w: np.ndarray, sig_att: np.ndarray) -> None:
+    """cov += the roll, pitch and heading σ (N, 3) rad as rotations of the lever vector ``w`` (N, 3)
+    about the forward axis, the horizontal axis right of the heading and down (ENU)."""
+    forward = r_nb[:, :, 0]
+    right = np.stack([forward[:, 1], -forward[:, 0], np.zeros(len(w))], 1)
+    right /= np.linalg.norm(right, axis=1)[:, None]
+    for k, axis in enumerate((forward, right, np.broadcast_to([0.0, 0.0, -1.0], w.shape))):
+        _outer_sum(cov, np.cross(axis, w), sig_att[:, k])
 
 
 def _direction_derivative(sensor: Sensor, angles, r_nb: np.ndarray) -> np.ndarray:
@@ -162,29 +172,28 @@ def _footprint(cov: np.ndarray, b: np.ndarray, rho: np.ndarray, settings: TpuSet
     The error judged is the point's against the spot its return came from (the simulator's
     ``Strip.true_enu``, the reference of every other term here). The point lies along the nominal
     beam at the range of that spot, so it is off it by ρ·δ across the beam (δ the spot's angular
-    offset, σ = γ/4 per axis) and by ~ρ·δ²/2 along it. An earlier version also added (ρ·γ/4)·tan α
-    along the beam (α the incidence on the local surface): that is the same ρ·δ seen from where
-    the nominal beam meets the surface, so the sum was √2 too large normal to the surface (measured:
-    RMS error/σ along the normal 0.70–0.80 in every incidence bin with γ = 3 mrad,
-    ``benchmarks/tpu.py --beam-divergence-mrad 3``). Both terms give the same distance to a plane,
-    (ρ·γ/4)·sin α; only the reference differs, and the actual spot is the one a point represents.
+    offset, σ = γ/4 per axis) and by ~ρ·δ²/2 along it. Baltsavias' along-beam spread (ρ·γ/4)·tan α
+    (α the incidence) is that same ρ·δ seen from where the nominal beam meets the surface: both give
+    (ρ·γ/4)·sin α normal to a plane, so it is not added again (docs/validation.md, "Lines of at
+    most 100 characters … fifth session", has the measurement that showed it).
     """
     radius = rho * settings.beam_divergence_rad / 4.0
     across = np.eye(3)[None] - b[:, :, None] * b[:, None, :]
     cov += (radius ** 2)[:, None, None] * across
 
 
-def calibration_jacobian(sensor: Sensor, calibration: CalibrationCovariance, position, r_eb, range_m,
-                         angles) -> np.ndarray:
+def calibration_jacobian(sensor: Sensor, calibration: CalibrationCovariance, position, r_eb,
+                         range_m, angles) -> np.ndarray:
     """∂p/∂θ_cal (N, k, 3) in the poses' frame: central differences of the lidar equation in each
     calibrated parameter (boresight, lever arm, range, scanner), at the sensor's values."""
     values = sensor.parameters()
     out = np.empty((len(range_m), len(calibration.names), 3))
     for k, (name, unit) in enumerate(zip(calibration.names, calibration.units)):
         h = CALIBRATION_STEPS[unit]
-        hi = georef.lidar_points(position, r_eb, sensor.with_parameters(**{name: values[name] + h}), range_m, angles)
-        lo = georef.lidar_points(position, r_eb, sensor.with_parameters(**{name: values[name] - h}), range_m, angles)
-        out[:, k] = (hi - lo) / (2 * h)
+        hi, lo = (sensor.with_parameters(**{name: values[name] + step}) for step in (h, -h))
+        p_hi = georef.lidar_points(position, r_eb, hi, range_m, angles)
+        p_lo = georef.lidar_points(position, r_eb, lo, range_m, angles)
+        out[:, k] = (p_hi - p_lo) / (2 * h)
     return out
 
 

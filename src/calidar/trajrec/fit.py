@@ -16,8 +16,9 @@ N⁻¹·M·N⁻¹ with the scan-angle scores summed per stored value (Liang & Ze
 2015, J. Human Resources 50:317, with their G/(G − 1) factor), where it is the wider
 (:mod:`calidar.trajrec.quantised`).
 
-The scanner's own calibration (encoder offset and scale, the scan plane's yaw and pitch in the body)
-are parameters with priors where ``FitSettings.mount_sigma`` gives them a σ (:mod:`calidar.trajrec.mounting`).
+The scanner's own calibration (encoder offset and scale, the scan plane's yaw and pitch in the
+body) are parameters with priors where ``FitSettings.mount_sigma`` gives them a σ
+(:mod:`calidar.trajrec.mounting`).
 """
 
 from __future__ import annotations
@@ -28,8 +29,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from calidar.trajrec import mounting
+from calidar.trajrec.banded import band_covariance, banded_solve, interleaved
 from calidar.trajrec.kernels import (  # noqa: F401 - one_blas_thread: the pipeline's import
-    accumulate, band_of_inverse, mount_partials, one_blas_thread, ray_partials, scan_partials, symmetrize,
+    accumulate, mount_partials, one_blas_thread, ray_partials, scan_partials, symmetrize,
 )
 from calidar.trajrec.quantised import clustered_covariance, scan_quantum, widest
 from calidar.trajrec.spline import Spline
@@ -37,9 +39,8 @@ from calidar.trajrec.spline import Spline
 CHANNELS = ("east", "north", "up", "roll", "pitch", "heading")
 COARSE_STEP = 8  #: the first iterations use every 4th observation ...
 FINE_ITERATIONS = 1  #: ... the last one all of them
-#: smallest scale of an angle residual, rad (0.2 mm at 1 km): simulated scan lines can be planar to 1e-9 rad,
-#: whose weight would make the normal matrix too ill-conditioned to solve in float64 (the weak
-#: across-track / roll direction came out 4× its σ off)
+#: smallest scale of an angle residual, rad (0.2 mm at 1 km): simulated scan lines can be planar to
+#: 1e-9 rad, whose weight would make the normal matrix too ill-conditioned to solve in float64
 SCALE_FLOOR = 2e-7
 CAUCHY_C = 2.385  #: Cauchy constant (95 % efficiency at the normal distribution)
 
@@ -53,16 +54,20 @@ class FitSettings:
     angular_accel_sigma: float = 0.1  #: prior σ of roll/pitch/heading angular acceleration, rad/s²
     roll_prior: tuple[float, float] = (0.0, np.radians(30.0))  #: roll (mean, σ), rad
     pitch_prior: tuple[float, float] = (0.0, np.radians(10.0))  #: pitch (mean, σ), rad
-    #: σ of the starting heading (the scan lines' trace) when neither scan angles nor scan planes are fitted, rad
+    #: σ of the starting heading (the scan lines' trace) when neither scan angles nor scan planes
+    #: are fitted, rad
     heading_start_sigma: float = np.radians(2.0)
     iterations: int = 12
     use_scan_angles: bool = True  #: fit the scan-angle field (when usable)
-    planar_scanner: bool = True  #: the beams of a scan line lie in one plane (linear/oscillating scanners)
-    scan_plane_yaw: float = 0.0  #: that plane's yaw in the body, rad (the scan-angle field: body across-track angles)
+    #: the beams of a scan line lie in one plane (linear/oscillating scanners)
+    planar_scanner: bool = True
+    #: that plane's yaw in the body, rad (the scan-angle field: body across-track angles)
+    scan_plane_yaw: float = 0.0
     segment_s: float = 20.0  #: lines are solved in segments of this length (s) ...
     overlap_s: float = 2.0  #: ... overlapping by this much
-    #: prior σ of the scan-angle encoder's offset (rad) and scale (1), and of the scan plane's yaw (about
-    #: ``scan_plane_yaw``) and pitch in the body (rad); 0: known (held at 0), see :mod:`calidar.trajrec.mounting`
+    #: prior σ of the scan-angle encoder's offset (rad) and scale (1), and of the scan plane's yaw
+    #: (about ``scan_plane_yaw``) and pitch in the body (rad); 0: known (held at 0), see
+    #: :mod:`calidar.trajrec.mounting`
     mount_sigma: tuple[float, ...] = (0.0,) * len(mounting.NAMES)
 
 
@@ -80,21 +85,24 @@ class Observations:
     ray_u2: np.ndarray
     ray_t: np.ndarray  #: (M,)
     ray_sigma: np.ndarray  #: (M,) relative σ of the ray's direction (1 / separation of its returns)
-    cache: dict = field(default_factory=dict, repr=False)  #: spline bases of t and ray_t (one spline per segment)
-    #: the least scale of the rays' residuals (m × 1/separation): √2 × the returns' coordinate rounding / √12, their
-    #: direction's σ from the two points alone; the rays' robust scale is at least this (a few rays' MAD is no scale:
-    #: leeward's one ray pulled its own scale to the floor and the along-track position 10 m off with it)
+    #: spline bases of t and ray_t (one spline per segment)
+    cache: dict = field(default_factory=dict, repr=False)
+    #: the least scale of the rays' residuals (m × 1/separation): √2 × the returns' coordinate
+    #: rounding / √12, their direction's σ from the two points alone; the rays' robust scale is at
+    #: least this (a few rays' MAD is no scale)
     ray_floor: float = 0.0
 
     def quantum(self) -> float:
-        """The scan-angle field's step where it is quantised (quantised.scan_quantum), computed once."""
+        """The scan-angle field's step where it is quantised (quantised.scan_quantum), computed
+        once."""
         if "quantum" not in self.cache:
             self.cache["quantum"] = scan_quantum(self.scan) if self.use_across else 0.0
         return self.cache["quantum"]
 
     def median_ray_sigma(self) -> float:
         if "ray_sigma" not in self.cache:
-            self.cache["ray_sigma"] = float(np.median(self.ray_sigma)) if self.ray_sigma.size else 1.0
+            median = float(np.median(self.ray_sigma)) if self.ray_sigma.size else 1.0
+            self.cache["ray_sigma"] = median
         return self.cache["ray_sigma"]
 
     def basis(self, spline: Spline, which: str) -> tuple[np.ndarray, np.ndarray]:
@@ -113,8 +121,10 @@ class SegmentFit:
     scales: dict  #: robust scale of each residual type (rad)
     n_obs: dict
     iterations: int
-    mount: np.ndarray = field(default_factory=lambda: np.zeros(len(mounting.NAMES)))  #: estimates (mounting.NAMES)
-    mount_sigma: np.ndarray = field(default_factory=lambda: np.zeros(len(mounting.NAMES)))  #: their posterior σ (0: held)
+    #: estimates (mounting.NAMES)
+    mount: np.ndarray = field(default_factory=lambda: np.zeros(len(mounting.NAMES)))
+    #: their posterior σ (0: held)
+    mount_sigma: np.ndarray = field(default_factory=lambda: np.zeros(len(mounting.NAMES)))
 
 
 def _normal_blocks(spline: Spline, basis, r, g, w_obs, n_mat, rhs):
@@ -140,7 +150,8 @@ def _second_differences(k: int) -> np.ndarray:
     return out
 
 
-def _prior_blocks(spline: Spline, coef: np.ndarray, s: FitSettings, n_mat, rhs, heading0=None) -> None:
+def _prior_blocks(spline: Spline, coef: np.ndarray, s: FitSettings, n_mat, rhs,
+                  heading0=None) -> None:
     """Smoothness (second differences) on every channel, roll/pitch plausibility priors, and the
     starting heading ``heading0`` (coefficients) as a prior when nothing else determines it."""
     k = spline.n_coef
@@ -165,10 +176,11 @@ def _state(coef: np.ndarray, basis) -> np.ndarray:
     return np.einsum("nj,njc->nc", w, coef[i[:, None] + np.arange(4)])
 
 
-def _types(obs: Observations, spline: Spline, coef: np.ndarray, settings: FitSettings, mount: np.ndarray,
-           idx: np.ndarray = np.zeros(0, int)):
-    """Per residual type: (name, basis, residuals (n,), partials (n, 6), relative σ (n,), partials (n, m)
-    by the mounting parameters ``idx``), with the mounting ``mount`` (mounting.NAMES) applied."""
+def _types(obs: Observations, spline: Spline, coef: np.ndarray, settings: FitSettings,
+           mount: np.ndarray, idx: np.ndarray = np.zeros(0, int)):
+    """Per residual type: (name, basis, residuals (n,), partials (n, 6), relative σ (n,), partials
+    (n, m) by the mounting parameters ``idx``), with the mounting ``mount`` (mounting.NAMES)
+    applied."""
     out = []
     if obs.t.size and (obs.use_across or obs.use_along):
         basis = obs.basis(spline, "t")
@@ -177,89 +189,53 @@ def _types(obs: Observations, spline: Spline, coef: np.ndarray, settings: FitSet
         kappa, eps = settings.scan_plane_yaw + mount[2], mount[3]
         r, g = scan_partials(obs.points, state, (1.0 + mount[1]) * scan + mount[0], kappa, eps)
         if obs.use_across:
-            # the stored angle is the observation, the geometry's angle read by the encoder its model:
-            # (angle − offset)/(1 + scale) − stored, whose partials hold no noise (mounting.design)
-            ok = np.isfinite(obs.scan)
-            f = 1.0 / (1.0 + mount[1])
-            angle = r[ok, 0] + (1.0 + mount[1]) * scan[ok] + mount[0]  # the geometry's across-track angle
-            q = mount[4] / mounting.CURVATURE_AT**2
-            read = (angle - mount[0] - q * angle**2) * f  # what the encoder reads of it
-            g_a = g[ok, 0] * (f * (1.0 - 2.0 * q * angle))[:, None]
-            gm = mounting.design("across", int(ok.sum()), scan=read, idx=idx, scale=mount[1], angle=angle)
-            out.append(("across", (basis[0][ok], basis[1][ok]), read - scan[ok], g_a, np.ones(int(ok.sum())), gm))
+            out.append(_across(obs, basis, r, g, scan, mount, idx))
         if obs.use_along:
-            gp = mount_partials(obs.points, state, kappa, eps) if np.any((idx == 2) | (idx == 3)) else None
+            plane = np.any((idx == 2) | (idx == 3))
+            gp = mount_partials(obs.points, state, kappa, eps) if plane else None
             out.append(("along", basis, r[:, 1] - mount[5], g[:, 1], np.ones(obs.t.size),
                         mounting.design("along", obs.t.size, along_partials=gp, idx=idx)))
     if obs.ray_t.size:
         basis = obs.basis(spline, "ray_t")
         state = _state(coef, basis)
-        r, g = ray_partials(np.ascontiguousarray(state[:, :3]), obs.ray_last, obs.ray_u1, obs.ray_u2)
+        sensor = np.ascontiguousarray(state[:, :3])
+        r, g = ray_partials(sensor, obs.ray_last, obs.ray_u1, obs.ray_u2)
+        none = np.zeros((obs.ray_t.size, idx.size))
         for k in range(2):
-            out.append((f"ray{k}", basis, r[:, k], g[:, k], obs.ray_sigma, np.zeros((obs.ray_t.size, idx.size))))
+            out.append((f"ray{k}", basis, r[:, k], g[:, k], obs.ray_sigma, none))
     return out
 
 
-def _interleaved(k: int) -> np.ndarray:
-    """Interleaved position (coefficient j, channel c → 6j + c) → channel-major index (c·K + j)."""
-    return (np.arange(6 * k) % 6) * k + np.arange(6 * k) // 6
-
-
-def _band(n_mat: np.ndarray, k: int) -> np.ndarray:
-    """N in upper banded storage with its unknowns interleaved (coefficient j, channel c → 6j + c): then N is
-    banded (half-bandwidth 23: a row touches 4 consecutive coefficients of each channel). Gathered diagonal by
-    diagonal, without reordering the whole matrix."""
-    cm, u, n = _interleaved(k), 23, 6 * k
-    ab = np.zeros((u + 1, n))
-    for d in range(u + 1):
-        ab[u - d, d:] = n_mat[cm[:n - d], cm[d:]]
-    return ab
-
-
-def _banded_solve(n_mat: np.ndarray, rhs: np.ndarray, k: int) -> np.ndarray:
-    """N⁻¹·rhs (rhs (6K,) or (6K, m) in channel-major order, the answer in that order) by a banded Cholesky
-    (:func:`_band`)."""
-    from scipy.linalg import solveh_banded
-
-    cm = _interleaved(k)
-    x = np.empty_like(rhs)
-    x[cm] = solveh_banded(_band(n_mat, k), rhs[cm], check_finite=False)
-    return x
-
-
-def _band_covariance(n_mat: np.ndarray, low: np.ndarray | None, k: int, f: float) -> np.ndarray:
-    """(6, K, K) channel blocks of f·(N⁻¹ + L·Lᵀ) where a channel's coefficients are at most 3 apart (all that
-    :func:`channel_sigma` and the traces of quantised.widest use; 0 elsewhere), from N's band alone."""
-    from scipy.linalg import cholesky_banded
-
-    u = 23
-    with one_blas_thread():
-        z = band_of_inverse(cholesky_banded(_band(n_mat, k), check_finite=False))
-    cov = np.zeros((6, k, k))
-    j = np.arange(k)
-    for c in range(6):
-        for d in range(4):
-            a, b = 6 * j[:k - d] + c, 6 * j[d:] + c  # interleaved rows and columns, 6·d apart
-            v = z[u - 6 * d, b]
-            if low is not None:
-                v = v + np.einsum("ij,ij->i", low[a], low[b])
-            cov[c, j[:k - d], j[d:]] = cov[c, j[d:], j[:k - d]] = f * v
-    return cov
+def _across(obs: Observations, basis, r, g, scan, mount, idx):
+    """The across-track type of :func:`_types`. The stored angle is the observation, the
+    geometry's angle read by the encoder its model: (angle − offset − curvature)/(1 + scale) −
+    stored, whose partials hold no noise (mounting.design)."""
+    ok = np.isfinite(obs.scan)
+    f = 1.0 / (1.0 + mount[1])
+    angle = r[ok, 0] + (1.0 + mount[1]) * scan[ok] + mount[0]  # the geometry's across-track angle
+    q = mount[4] / mounting.CURVATURE_AT**2
+    read = (angle - mount[0] - q * angle**2) * f  # what the encoder reads of it
+    g_a = g[ok, 0] * (f * (1.0 - 2.0 * q * angle))[:, None]
+    n = int(ok.sum())
+    gm = mounting.design("across", n, scan=read, idx=idx, scale=mount[1], angle=angle)
+    return "across", (basis[0][ok], basis[1][ok]), read - scan[ok], g_a, np.ones(n), gm
 
 
 def _thin(obs: Observations, step: int) -> Observations:
     """Every ``step``-th observation (the first iterations, far from the answer, need fewer)."""
     if step == 1:
         return obs
-    return Observations(obs.points[::step], obs.t[::step], obs.scan[::step], obs.use_across, obs.use_along,
-                        obs.ray_last[::step], obs.ray_u1[::step], obs.ray_u2[::step], obs.ray_t[::step],
-                        obs.ray_sigma[::step], ray_floor=obs.ray_floor)
+    s = slice(None, None, step)
+    return Observations(obs.points[s], obs.t[s], obs.scan[s], obs.use_across, obs.use_along,
+                        obs.ray_last[s], obs.ray_u1[s], obs.ray_u2[s], obs.ray_t[s],
+                        obs.ray_sigma[s], ray_floor=obs.ray_floor)
 
 
 @dataclass
 class _Step:
     """One Gauss–Newton step: the coefficients' step (K, 6), the mounting's (estimated ones), the
-    normal matrix with its border (B, C) to the active mounting parameters, and what the covariance needs."""
+    normal matrix with its border (B, C) to the active mounting parameters, and what the
+    covariance needs."""
 
     dx: np.ndarray
     mount: mounting.MountStep | None
@@ -272,14 +248,15 @@ class _Step:
     n_obs: dict
 
 
-def _iterate(obs: Observations, spline: Spline, coef: np.ndarray, settings: FitSettings, mount: np.ndarray,
-             idx: np.ndarray, est: np.ndarray | None, heading0=None) -> _Step:
-    """One Gauss–Newton step (see :class:`_Step`) with the mounting parameters ``idx`` in its border;
-    ``est``: which of them are estimated (the others considered; None: decide from this step's
-    information, see mounting.determined)."""
+def _iterate(obs: Observations, spline: Spline, coef: np.ndarray, settings: FitSettings,
+             mount: np.ndarray, idx: np.ndarray, est: np.ndarray | None, heading0=None) -> _Step:
+    """One Gauss–Newton step (see :class:`_Step`) with the mounting parameters ``idx`` in its
+    border; ``est``: which of them are estimated (the others considered; None: decide from this
+    step's information, see mounting.determined)."""
     k = spline.n_coef
     n_mat, rhs = np.zeros((6 * k, 6 * k)), np.zeros(6 * k)
-    b_mat, c_mat, r_g = np.zeros((6 * k, idx.size)), np.zeros((idx.size, idx.size)), np.zeros(idx.size)
+    b_mat, c_mat = np.zeros((6 * k, idx.size)), np.zeros((idx.size, idx.size))
+    r_g = np.zeros(idx.size)
     chi2, n_tot, scales, n_obs = 0.0, 0, {}, {}
     quantum = obs.quantum()
     for name, basis, r, g, rel, gm in _types(obs, spline, coef, settings, mount, idx):
@@ -297,19 +274,20 @@ def _iterate(obs: Observations, spline: Spline, coef: np.ndarray, settings: FitS
         n_tot += r.size
     n_mat = symmetrize(n_mat)
     _prior_blocks(spline, coef, settings, n_mat, rhs, heading0)
+    rest = (n_mat, b_mat, c_mat, chi2, n_tot, scales, n_obs)
     with one_blas_thread():
         if not idx.size:
-            return _Step(_banded_solve(n_mat, rhs, k).reshape(6, k).T, None, n_mat, b_mat, c_mat, chi2, n_tot,
-                         scales, n_obs)
-        y = _banded_solve(n_mat, np.c_[rhs, b_mat], k)
+            return _Step(banded_solve(n_mat, rhs, k).reshape(6, k).T, None, *rest)
+        y = banded_solve(n_mat, np.c_[rhs, b_mat], k)
         sigma = np.asarray(settings.mount_sigma, float)[idx]
-        if est is None:
-            est = mounting.determined(b_mat, c_mat, y[:, 1:], sigma, COARSE_STEP)  # a thinned step: its information × COARSE_STEP
+        if est is None:  # a thinned step: its information × COARSE_STEP
+            est = mounting.determined(b_mat, c_mat, y[:, 1:], sigma, COARSE_STEP)
         ms = mounting.mount_step(y[:, 0], y[:, 1:], b_mat, c_mat, r_g, sigma, mount[idx], est)
-    return _Step(ms.dx.reshape(6, k).T, ms, n_mat, b_mat, c_mat, chi2, n_tot, scales, n_obs)
+    return _Step(ms.dx.reshape(6, k).T, ms, *rest)
 
 
-def solve_segment(obs: Observations, spline: Spline, coef0: np.ndarray, settings: FitSettings) -> SegmentFit:
+def solve_segment(obs: Observations, spline: Spline, coef0: np.ndarray,
+                  settings: FitSettings) -> SegmentFit:
     """Gauss–Newton with IRLS from ``coef0`` (K, 6); see the module docstring. The iterations use a
     quarter of the observations until the steps are below 1 cm and 1e-5 rad; then one iteration
     (and the covariance) uses all of them. The mounting parameters (``settings.mount_sigma``) join
@@ -323,16 +301,20 @@ def solve_segment(obs: Observations, spline: Spline, coef0: np.ndarray, settings
     thin = _thin(obs, COARSE_STEP)
     it = 0
     for it in range(1, settings.iterations + 1):
-        step = _iterate(thin, spline, coef, settings, mount, idx, None if idx is every else est, heading0)
+        deciding = idx is every
+        step = _iterate(thin, spline, coef, settings, mount, idx, None if deciding else est,
+                        heading0)
         coef += step.dx
         dg = np.zeros(0)
         if step.mount is not None:
             est, dg = step.mount.est, step.mount.dg
             mount[idx[est]] += dg
-        if idx is every:  # decided: go on with the estimated ones alone
+        if deciding:  # decided: go on with the estimated ones alone
             idx, est, decided = every[est], np.ones(int(est.sum()), bool), True
             continue
-        if np.all(np.abs(step.dx[:, :3]) < 1e-2) and np.all(np.abs(step.dx[:, 3:]) < 1e-5) and np.all(np.abs(dg) < 1e-6):
+        small = (np.all(np.abs(step.dx[:, :3]) < 1e-2) and np.all(np.abs(step.dx[:, 3:]) < 1e-5)
+                 and np.all(np.abs(dg) < 1e-6))  # 1 cm, 1e-5 rad, and the mounting's
+        if small:
             if decided:
                 break
             idx = every  # converged without them: the next step decides
@@ -345,20 +327,29 @@ def solve_segment(obs: Observations, spline: Spline, coef0: np.ndarray, settings
     sigma0 = float(np.sqrt(step.chi2 / max(step.n_tot - 6 * spline.n_coef, 1)))
     k = spline.n_coef
     f = max(sigma0, 1.0) ** 2
-    low = step.mount.low_rank[_interleaved(k)] if step.mount is not None else None  # the mounting's (mounting.py)
-    cov = _band_covariance(step.n_mat, low, k, f)
-    quantum = obs.quantum()
-    if quantum:
-        across = next(t for t in _types(obs, spline, coef, settings, mount, every) if t[0] == "across")
-        prior = np.diag(1.0 / np.asarray(settings.mount_sigma, float)[every] ** 2)
-        full = np.block([[step.n_mat, step.border], [step.border.T, step.c_mat + prior]])
-        w, _ = _robust(across[2] / across[4], max(SCALE_FLOOR, quantum / np.sqrt(12.0)))
-        cov = widest(cov, clustered_covariance(across, w / across[4] ** 2, obs.scan[np.isfinite(obs.scan)], quantum,
-                                               full, k))
+    # the mounting's share of the covariance (mounting.py)
+    low = step.mount.low_rank[interleaved(k)] if step.mount is not None else None
+    cov = band_covariance(step.n_mat, low, k, f)
+    if obs.quantum():
+        cov = widest(cov, _clustered(obs, spline, coef, settings, mount, every, step))
     sig_m = np.zeros(len(mounting.NAMES))
     if step.mount is not None:
         sig_m[every] = step.mount.sigma * np.sqrt(f)
     return SegmentFit(spline, coef, cov, sigma0, step.scales, step.n_obs, it, mount, sig_m)
+
+
+def _clustered(obs: Observations, spline: Spline, coef: np.ndarray, settings: FitSettings,
+               mount: np.ndarray, every: np.ndarray, step: _Step) -> np.ndarray:
+    """The cluster-robust covariance of a quantised scan-angle field (see the module docstring)
+    from the last step's normal matrix with its mounting border and priors."""
+    quantum = obs.quantum()
+    types = _types(obs, spline, coef, settings, mount, every)
+    across = next(t for t in types if t[0] == "across")
+    prior = np.diag(1.0 / np.asarray(settings.mount_sigma, float)[every] ** 2)
+    full = np.block([[step.n_mat, step.border], [step.border.T, step.c_mat + prior]])
+    w, _ = _robust(across[2] / across[4], max(SCALE_FLOOR, quantum / np.sqrt(12.0)))
+    scan = obs.scan[np.isfinite(obs.scan)]
+    return clustered_covariance(across, w / across[4] ** 2, scan, quantum, full, k=spline.n_coef)
 
 
 def channel_sigma(fit: SegmentFit, t) -> np.ndarray:

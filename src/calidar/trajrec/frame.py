@@ -35,6 +35,7 @@ class LocalFrame:
         tangent frame tilts by distance / Earth radius: 0.09° at 10 km)."""
         lat, lon, h = frames.ecef_to_geodetic(self.to_ecef(enu))
         r_e_n0 = frames.r_en(self.lat0, self.lon0)
-        r_nb = np.swapaxes(frames.r_en(lat, lon), -1, -2) @ r_e_n0 @ frames.rpy_to_matrix(roll, pitch, heading)
+        r_n_e = np.swapaxes(frames.r_en(lat, lon), -1, -2)
+        r_nb = r_n_e @ r_e_n0 @ frames.rpy_to_matrix(roll, pitch, heading)
         r, p, y = frames.matrix_to_rpy(r_nb)
         return lat, lon, h, r, p, y

@@ -4,7 +4,7 @@ A point p seen from the sensor at S with attitude (roll φ, pitch θ, heading ψ
 R_nb = Rz(ψ)·Ry(θ)·Rx(φ) about the local north-east-down axes) has the body vector
 b = R_nbᵀ · v_ned(p − S). A planar scanner fires in the body's y-z plane, so
 
-    across-track angle  atan2(b_y, b_z) = the scan-angle field (positive right of the flight direction)
+    across-track angle  atan2(b_y, b_z) = the scan-angle field (positive right of the flight)
     along-track angle   atan2(b_x, hypot(b_y, b_z)) = 0.
 
 A multi-return pulse gives its ray (last return p_l, unit direction d towards the sensor): the
@@ -17,7 +17,8 @@ from __future__ import annotations
 import numpy as np
 
 
-def body_vectors(points_enu: np.ndarray, sensor_enu: np.ndarray, attitude: np.ndarray) -> np.ndarray:
+def body_vectors(points_enu: np.ndarray, sensor_enu: np.ndarray,
+                 attitude: np.ndarray) -> np.ndarray:
     """b = R_nbᵀ · v_ned for points (N, 3) seen from sensor positions (N, 3) with attitudes (N, 3)
     (roll, pitch, heading, rad)."""
     d = points_enu - sensor_enu
@@ -50,7 +51,8 @@ def scan_residuals(points_enu, sensor_enu, attitude, scan_angle_rad, kappa: floa
 
 def ray_basis(direction: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Two unit vectors normal to each unit direction (N, 3) and to each other."""
-    ref = np.where(np.abs(direction[:, [0]]) < 0.9, np.array([[1.0, 0.0, 0.0]]), np.array([[0.0, 1.0, 0.0]]))
+    x_axis, y_axis = np.array([[1.0, 0.0, 0.0]]), np.array([[0.0, 1.0, 0.0]])
+    ref = np.where(np.abs(direction[:, [0]]) < 0.9, x_axis, y_axis)  # the axis least along it
     u1 = np.cross(direction, ref)
     u1 /= np.linalg.norm(u1, axis=1)[:, None]
     return u1, np.cross(direction, u1)

@@ -29,8 +29,8 @@ def _body(de, dn, du, roll, pitch, heading):
 
 @njit(cache=True, nogil=True, inline="always")
 def _scanner(b0, b1, b2, ck, sk, ce, se):
-    """The scanner vector s = Ry(ε)ᵀ·Rz(κ)ᵀ·b (ck, sk, ce, se: cos, sin of the scan plane's yaw κ and
-    pitch ε in the body)."""
+    """The scanner vector s = Ry(ε)ᵀ·Rz(κ)ᵀ·b (ck, sk, ce, se: cos, sin of the scan plane's yaw κ
+    and pitch ε in the body)."""
     s0, s1 = ck * b0 + sk * b1, -sk * b0 + ck * b1
     return ce * s0 - se * b2, s1, se * s0 + ce * b2
 
@@ -47,14 +47,17 @@ def scan_partials(points, state, scan, kappa=0.0, eps=0.0):  # pragma: no cover 
     """Residuals (n, 2) (across − scan angle, along) and partials (n, 2, 6): exact for the
     position (b is linear in p − S), central differences of 1e-5 rad for the attitude (their error,
     ~1e-11, stays far below the along-track angle's scatter, whose weight would amplify any more).
-    ``kappa``, ``eps``: the scan plane's yaw and pitch in the body (rad; see geometry.scan_residuals)."""
+    ``kappa``, ``eps``: the scan plane's yaw and pitch in the body (rad; see
+    geometry.scan_residuals)."""
     n = points.shape[0]
     ck, sk, ce, se = math.cos(kappa), math.sin(kappa), math.cos(eps), math.sin(eps)
     r = np.empty((n, 2))
     g = np.empty((n, 2, 6))
     att = np.empty(3)
+    eye = np.eye(3)
     for k in range(n):
-        de, dn, du = points[k, 0] - state[k, 0], points[k, 1] - state[k, 1], points[k, 2] - state[k, 2]
+        p, st = points[k], state[k]
+        de, dn, du = p[0] - st[0], p[1] - st[1], p[2] - st[2]
         ro, pi, he = state[k, 3], state[k, 4], state[k, 5]
         b0, b1, b2 = _body(de, dn, du, ro, pi, he)
         a0, c0 = _angles(b0, b1, b2, ck, sk, ce, se)
@@ -65,9 +68,10 @@ def scan_partials(points, state, scan, kappa=0.0, eps=0.0):  # pragma: no cover 
         qs = s1 * s1 + s2 * s2
         h = math.sqrt(qs)
         big = qs + s0 * s0
-        # ∂across/∂b = (0, b2, −b1)/q; ∂along/∂s = (h, −s0·s1/h, −s0·s2/h)/(s0² + h²); ∂b/∂S_j = −A e_j
+        # ∂across/∂b = (0, b2, −b1)/q; ∂along/∂s = (h, −s0·s1/h, −s0·s2/h)/(s0² + h²);
+        # ∂b/∂S_j = −A e_j
         for j in range(3):
-            e0, e1, e2 = _body(1.0 if j == 0 else 0.0, 1.0 if j == 1 else 0.0, 1.0 if j == 2 else 0.0, ro, pi, he)
+            e0, e1, e2 = _body(eye[j, 0], eye[j, 1], eye[j, 2], ro, pi, he)
             f0, f1, f2 = _scanner(e0, e1, e2, ck, sk, ce, se)
             g[k, 0, j] = -(b2 * e1 - b1 * e2) / q
             g[k, 1, j] = -(h * f0 - s0 * (s1 * f1 + s2 * f2) / h) / big
@@ -91,8 +95,8 @@ def mount_partials(points, state, kappa, eps):  # pragma: no cover - numba
     n = points.shape[0]
     out = np.empty((n, 2))
     for k in range(n):
-        b0, b1, b2 = _body(points[k, 0] - state[k, 0], points[k, 1] - state[k, 1], points[k, 2] - state[k, 2],
-                           state[k, 3], state[k, 4], state[k, 5])
+        p, st = points[k], state[k]
+        b0, b1, b2 = _body(p[0] - st[0], p[1] - st[1], p[2] - st[2], st[3], st[4], st[5])
         for j in range(2):
             ka, ea = (kappa + _H_ANG, eps) if j == 0 else (kappa, eps + _H_ANG)
             kb, eb = (kappa - _H_ANG, eps) if j == 0 else (kappa, eps - _H_ANG)
@@ -149,14 +153,15 @@ def accumulate(n_mat, rhs, first, w, g, r, weight, k_coef):  # pragma: no cover 
 
 
 def symmetrize(n_mat: np.ndarray) -> np.ndarray:
-    """The full normal matrix from the upper triangle :func:`accumulate` fills (its lower triangle zero):
-    N + Nᵀ with the diagonal once (np.triu's masks cost 3 ms a call at 6K = 546, a third of the fit)."""
+    """The full normal matrix from the upper triangle :func:`accumulate` fills (its lower triangle
+    zero): N + Nᵀ with the diagonal once (cheaper than np.triu's masks)."""
     out = n_mat + n_mat.T
     np.fill_diagonal(out, np.diagonal(n_mat))
     return out
 
 
-_CONTROLLER = []  #: threadpoolctl's controller, made once: finding the BLAS libraries costs 3 ms a call
+#: threadpoolctl's controller, made once (finding the BLAS libraries costs a few ms a call)
+_CONTROLLER = []
 
 
 def one_blas_thread():
@@ -167,9 +172,9 @@ def one_blas_thread():
     except ImportError:  # pragma: no cover - a dependency of scikit-learn
         return contextlib.nullcontext()
     if not _CONTROLLER:
-        # the controller sees only the libraries loaded when it is made: scipy.linalg's own OpenBLAS (the banded
-        # solves) must be loaded first, or its threads stay unlimited and spin (a solve 1.2 s wall, 0.3 s CPU
-        # at load 25 against 5 ms and 1 ms on one thread)
+        # the controller sees only the libraries loaded when it is made: scipy.linalg's own
+        # OpenBLAS (the banded solves) must be loaded first, or its threads stay unlimited and spin
+        # (docs/validation.md, "Lines of at most 100 characters … fifth session")
         import scipy.linalg  # noqa: F401
 
         _CONTROLLER.append(ThreadpoolController())
@@ -177,10 +182,11 @@ def one_blas_thread():
 
 
 @njit(cache=True, nogil=True)
-def accumulate_border(b, c_mat, r_g, first, w, g, gm, r, weight, k_coef):  # pragma: no cover - numba
-    """b += Σ weight·a·gmᵀ (a: the row's partials by the spline coefficients, as :func:`accumulate`),
-    c_mat += Σ weight·gm·gmᵀ, r_g −= Σ weight·gm·r: the normal matrix's border with a few global
-    parameters (calidar.trajrec.mounting)."""
+def accumulate_border(b, c_mat, r_g, first, w, g, gm, r, weight,
+                      k_coef):  # pragma: no cover - numba
+    """b += Σ weight·a·gmᵀ (a: the row's partials by the spline coefficients, as
+    :func:`accumulate`), c_mat += Σ weight·gm·gmᵀ, r_g −= Σ weight·gm·r: the normal matrix's border
+    with a few global parameters (calidar.trajrec.mounting)."""
     m = gm.shape[1]
     for k in range(r.shape[0]):
         wk = weight[k]
@@ -202,10 +208,11 @@ def accumulate_border(b, c_mat, r_g, first, w, g, gm, r, weight, k_coef):  # pra
 
 @njit(cache=True, nogil=True)
 def band_of_inverse(ub):  # pragma: no cover - numba
-    """The band of N⁻¹ from the banded Cholesky factor N = UᵀU (``ub``: upper form, ub[u + i − j, j] = U[i, j]),
-    in the same form: Z = U⁻¹U⁻ᵀ row by row upwards, Z_ij = (δ_ij/U_ii − Σ_{k=i+1}^{i+u} U_ik·Z_kj)/U_ii, which
-    needs only Z's band (Takahashi, Fagan & Chin 1973; Rue & Held 2005, §2.4.1): O(n·u²) against O(n²·u) for
-    the whole inverse, which a segment's σ (values 4 coefficients apart at most) never use."""
+    """The band of N⁻¹ from the banded Cholesky factor N = UᵀU (``ub``: upper form, ub[u + i − j,
+    j] = U[i, j]), in the same form: Z = U⁻¹U⁻ᵀ row by row upwards,
+    Z_ij = (δ_ij/U_ii − Σ_{k=i+1}^{i+u} U_ik·Z_kj)/U_ii, which needs only Z's band (Takahashi,
+    Fagan & Chin 1973; Rue & Held 2005, §2.4.1): O(n·u²) against O(n²·u) for the whole inverse,
+    which a segment's σ (values 4 coefficients apart at most) never use."""
     u, n = ub.shape[0] - 1, ub.shape[1]
     z = np.zeros((u + 1, n))
     for i in range(n - 1, -1, -1):

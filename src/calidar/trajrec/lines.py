@@ -10,7 +10,8 @@ import numpy as np
 
 from calidar.strips import lines as strip_lines
 
-MIN_GAP_S = 2.0  #: a pause in the GPS times longer than this (and 100 pulse intervals) splits a line
+#: a pause in the GPS times longer than this (and 100 pulse intervals) splits a line
+MIN_GAP_S = 2.0
 TRACK_BIN_S = 2.0  #: ground-track headings are compared over bins of this length
 REVERSAL_RAD = np.radians(120.0)  #: a heading change larger than this between bins splits a line
 
@@ -43,11 +44,13 @@ def _breaks(t: np.ndarray, xy: np.ndarray) -> np.ndarray:
     one splitter, at this scanner's own gap), reversals of the ground track."""
     dt = np.diff(t)
     gap = max(MIN_GAP_S, 100 * float(np.median(dt[dt > 0]))) if np.any(dt > 0) else MIN_GAP_S
-    starts = np.searchsorted(t, strip_lines.split_lines((), {}, t, t, gap).starts[1:])  # the first point after each gap
+    gap_starts = strip_lines.split_lines((), {}, t, t, gap).starts[1:]
+    starts = np.searchsorted(t, gap_starts)  # the first point after each gap
     cuts = [0.5 * (t[i - 1] + t[i]) for i in starts]
     edges = np.arange(t[0], t[-1] + TRACK_BIN_S, TRACK_BIN_S)
     b = np.searchsorted(t, edges)
-    centres = np.array([xy[s:e].mean(axis=0) if e > s else [np.nan, np.nan] for s, e in zip(b[:-1], b[1:])])
+    centres = np.array([xy[s:e].mean(axis=0) if e > s else [np.nan, np.nan]
+                        for s, e in zip(b[:-1], b[1:])])
     if len(centres) >= 3:
         v = np.diff(centres, axis=0)
         head = np.arctan2(v[:, 0], v[:, 1])
@@ -69,12 +72,13 @@ def split_lines(a: dict) -> tuple[list[LinePoints], str]:
         cuts = _breaks(t, xyz[:, :2])
         split |= cuts.size > 0
         rm = a["ray_source"] == source
+        rays = [a[key][rm] for key in ("ray_t", "ray_first", "ray_last", "ray_scan")]
         seg_p = np.searchsorted(cuts, t)
-        seg_r = np.searchsorted(cuts, a["ray_t"][rm])
+        seg_r = np.searchsorted(cuts, rays[0])
         for k in range(cuts.size + 1):
             p, r = seg_p == k, seg_r == k
-            ro = np.argsort(a["ray_t"][rm][r], kind="stable")
-            lines.append(LinePoints(int(source), k, t[p], xyz[p], scan[p], a["ray_t"][rm][r][ro],
-                                    a["ray_first"][rm][r][ro], a["ray_last"][rm][r][ro], a["ray_scan"][rm][r][ro]))
+            ro = np.argsort(rays[0][r], kind="stable")
+            lines.append(LinePoints(int(source), k, t[p], xyz[p], scan[p],
+                                    *(ray[r][ro] for ray in rays)))
     how = "point source ids" + (", split at time gaps and track reversals" if split else "")
     return lines, how

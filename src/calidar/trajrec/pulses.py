@@ -63,10 +63,14 @@ def pulse_rays(t, xyz, scan, source, return_number=None):
     if cand.size == 0:
         return np.empty(0, np.int64), np.empty(0, np.int64), 0
     key_scan = np.zeros(cand.size) if scan is None else np.nan_to_num(np.asarray(scan, float)[cand])
-    rn = np.zeros(cand.size, np.int64) if return_number is None else np.asarray(return_number, np.int64)[cand]
-    first, last, repeated = _pulse_groups(np.arange(cand.size), np.asarray(t, float)[cand],
-                                          np.asarray(source, float)[cand], key_scan, np.asarray(xyz[cand, 2], float), rn,
-                                          return_number is not None)
+    if return_number is None:
+        rn = np.zeros(cand.size, np.int64)
+    else:
+        rn = np.asarray(return_number, np.int64)[cand]
+    t_cand, source_cand = np.asarray(t, float)[cand], np.asarray(source, float)[cand]
+    z_cand = np.asarray(xyz[cand, 2], float)
+    first, last, repeated = _pulse_groups(np.arange(cand.size), t_cand, source_cand, key_scan,
+                                          z_cand, rn, return_number is not None)
     first, last = cand[first], cand[last]
     d = xyz[first] - xyz[last]
     sep = np.linalg.norm(d, axis=1)
@@ -86,11 +90,11 @@ def _before(v, w, source, scan, z):
 
 @njit(cache=True, nogil=True)
 def _pulse_groups(cand, t, source, scan, z, rn, has_rn):  # pragma: no cover - numba
-    """Per run of ``cand`` (indices in time order) sharing one time, its points sorted by (point source, scan
-    angle, height downwards; stable) and cut where source or scan angle change: a pulse of ≥ 2 points gives
-    (its highest, its lowest) point; a pulse with two height-adjacent points of one return number counts as
-    repeating it. The same as a lexsort of all candidates by (time, source, scan, −z), without it (runs
-    are 2–5 points: an insertion sort each)."""
+    """Per run of ``cand`` (indices in time order) sharing one time, its points sorted by (point
+    source, scan angle, height downwards; stable) and cut where source or scan angle change: a
+    pulse of ≥ 2 points gives (its highest, its lowest) point; a pulse with two height-adjacent
+    points of one return number counts as repeating it. The same as a lexsort of all candidates by
+    (time, source, scan, −z), without it (runs are 2–5 points: an insertion sort each)."""
     n = cand.size
     first, last = np.empty(n, np.int64), np.empty(n, np.int64)
     buf = np.empty(n, np.int64)
@@ -139,7 +143,10 @@ def keep_chunk(kept: Kept, chunk, rate_per_s: float) -> None:
     idx = slice(None) if good.all() else np.flatnonzero(good)  # no copies of a clean chunk
     t, xyz = t[idx], chunk.xyz[idx]
     scan = None if chunk.scan_angle_deg is None else np.asarray(chunk.scan_angle_deg, float)[idx]
-    source = np.zeros(t.size) if chunk.point_source_id is None else np.asarray(chunk.point_source_id)[idx]
+    if chunk.point_source_id is None:
+        source = np.zeros(t.size)
+    else:
+        source = np.asarray(chunk.point_source_id)[idx]
     rn = None if chunk.return_number is None else chunk.return_number[idx]
     if chunk.number_of_returns is not None:
         kept.n_multi += int(np.count_nonzero(chunk.number_of_returns[idx] > 1))

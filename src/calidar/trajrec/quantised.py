@@ -9,8 +9,8 @@ import numpy as np
 from calidar.trajrec import mounting
 from calidar.trajrec.kernels import accumulate, one_blas_thread, symmetrize
 
-#: a scan-angle field stored in steps at least this coarse (rad) is quantised (LAS 1.0–1.3: whole degrees);
-#: LAS 1.4's 0.006° steps are not
+#: a scan-angle field stored in steps at least this coarse (rad) is quantised (LAS 1.0–1.3: whole
+#: degrees); LAS 1.4's 0.006° steps are not
 QUANTUM_MIN = np.radians(0.05)
 
 
@@ -25,18 +25,19 @@ def scan_quantum(scan: np.ndarray) -> float:
     return step if step >= QUANTUM_MIN and np.all(np.abs(k - np.round(k)) < 1e-3) else 0.0
 
 
-def clustered_covariance(across, wr: np.ndarray, scan: np.ndarray, quantum: float, n_full: np.ndarray,
-                         k: int) -> np.ndarray:
-    """(6, K, K) channel blocks of N⁻¹ + N⁻¹·(M − N_a)·N⁻¹, the scan-angle residuals' information N_a
-    replaced by that of errors with a part shared by every point of one stored value (a random effect,
-    the survey statistician's design effect, Kish 1965): M = (1 − ρ)·N_a + ρ·σ²·Σ_c a_c a_cᵀ, a_c the sum
-    of value c's weighted partials, ρ the share of the residuals' variance between the values' means
-    (0 when each value's points scatter over its whole quantum, → 1 for a scanner firing the same
-    angles every sweep).
+def clustered_covariance(across, wr: np.ndarray, scan: np.ndarray, quantum: float,
+                         n_full: np.ndarray, k: int) -> np.ndarray:
+    """(6, K, K) channel blocks of N⁻¹ + N⁻¹·(M − N_a)·N⁻¹, the scan-angle residuals' information
+    N_a replaced by that of errors with a part shared by every point of one stored value (a random
+    effect, the survey statistician's design effect, Kish 1965): M = (1 − ρ)·N_a + ρ·σ²·Σ_c a_c
+    a_cᵀ, a_c the sum of value c's weighted partials, ρ the share of the residuals' variance
+    between the values' means (0 when each value's points scatter over its whole quantum, → 1 for
+    a scanner firing the same angles every sweep).
 
-    ``across``: the fit's across-track type (name, basis, residuals, partials, relative σ, partials by
-    the mounting parameters), ``wr`` its weights, ``scan`` its stored angles; ``n_full``: the normal
-    matrix (6K + m)² with its mounting border (:mod:`calidar.trajrec.mounting`)."""
+    ``across``: the fit's across-track type (name, basis, residuals, partials, relative σ,
+    partials by the mounting parameters), ``wr`` its weights, ``scan`` its stored angles;
+    ``n_full``: the normal matrix (6K + m)² with its mounting border
+    (:mod:`calidar.trajrec.mounting`)."""
     _, basis, r, g, _, gm = across
     m = gm.shape[1]
     first, bw = basis
@@ -46,7 +47,8 @@ def clustered_covariance(across, wr: np.ndarray, scan: np.ndarray, quantum: floa
         return np.full((6, k, k), np.inf)
     size = np.bincount(labels, minlength=n_groups)
     mean = np.bincount(labels, weights=r, minlength=n_groups) / np.maximum(size, 1)
-    total = max(float(np.mean((r - r.mean()) ** 2)), quantum**2 / 12.0)  # the fit absorbs part of the shared errors
+    # at least a uniform rounding error's variance: the fit absorbs part of the shared errors
+    total = max(float(np.mean((r - r.mean()) ** 2)), quantum**2 / 12.0)
     within = float(np.mean((r - mean[labels]) ** 2))
     rho = float(np.clip(1.0 - within / total, 0.0, 1.0))
     a = np.zeros((n_groups, 6 * k + m))

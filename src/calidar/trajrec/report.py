@@ -21,18 +21,20 @@ def _line_figure(ln: LineTrajectory):
     fig, ax = plt.subplots(2, 2, figsize=(11, 7))
     sc = ax[0, 0].scatter(ln.enu[:, 0], ln.enu[:, 1], c=t, s=2, cmap="viridis")
     ax[0, 0].set_aspect("equal", adjustable="datalim")
-    ax[0, 0].set(title="map view (local east/north of the line's centre)", xlabel="east [m]", ylabel="north [m]")
+    ax[0, 0].set(title="map view (local east/north of the line's centre)", xlabel="east [m]",
+                 ylabel="north [m]")
     fig.colorbar(sc, ax=ax[0, 0], label="time [s]")
-    ax[0, 1].plot(t, ln.enu[:, 2], lw=1)
-    ax[0, 1].fill_between(t, ln.enu[:, 2] - 2 * ln.sigma[:, 2], ln.enu[:, 2] + 2 * ln.sigma[:, 2], alpha=0.3,
-                          label="± 2σ")
+    up, sigma_up = ln.enu[:, 2], ln.sigma[:, 2]
+    ax[0, 1].plot(t, up, lw=1)
+    ax[0, 1].fill_between(t, up - 2 * sigma_up, up + 2 * sigma_up, alpha=0.3, label="± 2σ")
     ax[0, 1].set(title="height above the line's centre", xlabel="time [s]", ylabel="up [m]")
     ax[0, 1].legend()
     att = np.degrees(ln.attitude)
     for k, name in enumerate(("roll", "pitch")):
         ax[1, 0].plot(t, att[:, k], lw=1, label=name)
-    ax[1, 0].plot(t, np.degrees(np.unwrap(ln.attitude[:, 2])) - np.degrees(np.mean(np.unwrap(ln.attitude[:, 2]))),
-                  lw=1, label="heading − mean")
+    heading = np.unwrap(ln.attitude[:, 2])
+    ax[1, 0].plot(t, np.degrees(heading) - np.degrees(np.mean(heading)), lw=1,
+                  label="heading − mean")
     ax[1, 0].set(title="attitude", xlabel="time [s]", ylabel="deg")
     ax[1, 0].legend()
     for k, name in enumerate(("σ east", "σ north", "σ up")):
@@ -50,22 +52,29 @@ def trajectory_report(run, commands: list[str], comparison: dict | None = None) 
     """The report of a :class:`calidar.pipelines.trajectory.TrajectoryRun`."""
     rep = Report("calidar trajectory: the flight path reconstructed from the points")
     sec = rep.section("Summary")
-    sec.text(f"{len(run.lines)} flight line(s) from {len(run.files)} file(s) ({run.counts['points_read']} points read; "
-             f"lines from {run.lines_from}). Reading {run.timings['read_s']:.2f} s, fitting {run.timings['fit_s']:.2f} s.")
+    times = run.timings
+    sec.text(f"{len(run.lines)} flight line(s) from {len(run.files)} file(s) "
+             f"({run.counts['points_read']} points read; lines from {run.lines_from}). "
+             f"Reading {times['read_s']:.2f} s, fitting {times['fit_s']:.2f} s.")
     header, rows, fmts = summary_rows([line_summary(ln) for ln in run.lines])
-    sec.table(header, rows, "Each reconstructed line (heights ellipsoidal; σ: medians over the line)", fmts)
+    sec.table(header, rows,
+              "Each reconstructed line (heights ellipsoidal; σ: medians over the line)", fmts)
     for n in run.notes:
         sec.warning(n)
     sec.code("\n".join(commands), "Reproduce with:")
-    sec.references(["Gatziolis D., McGaughey R. J. (2019), Reconstructing aircraft trajectories from multi-return "
-                    "airborne laser-scanning data, Remote Sensing 11(19):2258.",
-                    "ASPRS LAS specification 1.4 R15: GPS time, return number, scan angle."])
+    sec.references(REFERENCES)
     if comparison:
         cs = rep.section("Against a known trajectory")
-        cs.table(["quantity", "median", "95th percentile"],
-                 [[k, v["median"], v["p95"]] for k, v in comparison.items() if isinstance(v, dict) and "median" in v],
+        rows = [[k, v["median"], v["p95"]] for k, v in comparison.items()
+                if isinstance(v, dict) and "median" in v]
+        cs.table(["quantity", "median", "95th percentile"], rows,
                  "|reconstructed − known| at the reconstructed epochs", [None, ".4g", ".4g"])
     for ln in run.lines:
-        rep.section(f"Line {ln.label}").figure(_line_figure(ln), f"line {ln.label}: map view, height with ± 2σ, "
-                                               "attitude, σ per epoch")
+        caption = f"line {ln.label}: map view, height with ± 2σ, attitude, σ per epoch"
+        rep.section(f"Line {ln.label}").figure(_line_figure(ln), caption)
     return rep
+
+
+REFERENCES = ["Gatziolis D., McGaughey R. J. (2019), Reconstructing aircraft trajectories from "
+              "multi-return airborne laser-scanning data, Remote Sensing 11(19):2258.",
+              "ASPRS LAS specification 1.4 R15: GPS time, return number, scan angle."]

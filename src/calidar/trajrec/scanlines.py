@@ -27,9 +27,10 @@ def _bins(t: np.ndarray, width: float) -> tuple[np.ndarray, np.ndarray]:
 
 def ground_track(t: np.ndarray, p: np.ndarray) -> tuple[Spline, np.ndarray]:
     """A smooth spline over (east, north, up, heading) of the points, bin by bin (t sorted): the
-    bin's median point, and the heading normal to the scan lines' trace on the ground (the principal
-    axis of the bin's points, across the track whatever the crab; its sense from the line's motion).
-    The trace is normal to the scan plane, hence to the body's x axis: the heading, not the course."""
+    bin's median point, and the heading normal to the scan lines' trace on the ground (the
+    principal axis of the bin's points, across the track whatever the crab; its sense from the
+    line's motion). The trace is normal to the scan plane, hence to the body's x axis: the
+    heading, not the course."""
     edges, b = _bins(t, BIN_S)
     tc, c, across = [], [], []
     for s, e in zip(b[:-1], b[1:]):
@@ -40,12 +41,13 @@ def ground_track(t: np.ndarray, p: np.ndarray) -> tuple[Spline, np.ndarray]:
             c.append(np.median(p[s:e], axis=0))
             across.append(v[:, 1] if w[1] > 4 * w[0] else np.array([np.nan, np.nan]))
     if len(tc) < 2:
-        raise InputError(None, "gps_time", "fewer than two time bins of 0.5 s with ≥ 10 points; the method needs "
-                         "several scan lines of one flight line")
+        raise InputError(None, "gps_time", "fewer than two time bins of 0.5 s with ≥ 10 points; "
+                         "the method needs several scan lines of one flight line")
     tc, c, across = np.asarray(tc), np.asarray(c), np.asarray(across)
     motion = c[-1, :2] - c[0, :2]
-    forward = np.stack([across[:, 1], -across[:, 0]], axis=1)  # normal to the trace, either sense ...
-    forward *= np.sign(forward @ motion)[:, None]  # ... turned to the sense the line flies
+    # normal to the trace, either sense, turned to the sense the line flies
+    forward = np.stack([across[:, 1], -across[:, 0]], axis=1)
+    forward *= np.sign(forward @ motion)[:, None]
     ok = np.all(np.isfinite(forward), axis=1)
     if ok.sum() < 2:  # no clear scan lines: the course over ground
         forward = np.gradient(c[:, :2], tc, axis=0)
@@ -69,9 +71,10 @@ def course(sp: Spline, coef: np.ndarray, t) -> np.ndarray:
     return sp.evaluate(coef, t)[:, 3]
 
 
-def _grouped_median(v: np.ndarray, labels: np.ndarray, starts: np.ndarray, keep: np.ndarray) -> np.ndarray:
-    """The median of ``v[keep]`` in each group of consecutive ``labels`` (group k starts at ``starts[k]``);
-    NaN for an empty group."""
+def _grouped_median(v: np.ndarray, labels: np.ndarray, starts: np.ndarray,
+                    keep: np.ndarray) -> np.ndarray:
+    """The median of ``v[keep]`` in each group of consecutive ``labels`` (group k starts at
+    ``starts[k]``); NaN for an empty group."""
     vv = np.where(keep, v, np.inf)
     s = vv[np.lexsort((vv, labels))]
     n = np.bincount(labels, weights=keep, minlength=starts.size).astype(np.int64)
@@ -80,9 +83,9 @@ def _grouped_median(v: np.ndarray, labels: np.ndarray, starts: np.ndarray, keep:
 
 
 def _line_fits(x: np.ndarray, y: np.ndarray, labels: np.ndarray, starts: np.ndarray):
-    """Per group of consecutive ``labels``, the robust straight line y = c0 + c1·x (two least-squares passes
-    dropping > 3 MAD) and the residuals' MAD: (c0, c1, mad), NaN and inf where fewer than 5 points or no
-    spread in x are left. All groups at once (was a loop of numpy calls per 0.5 s bin: 0.3 s of an airborne strip)."""
+    """Per group of consecutive ``labels``, the robust straight line y = c0 + c1·x (two
+    least-squares passes dropping > 3 MAD) and the residuals' MAD: (c0, c1, mad), NaN and inf
+    where fewer than 5 points or no spread in x are left. All groups at once, by weighted sums."""
     nb = starts.size
     keep = np.ones(x.size, bool)
     c0 = c1 = np.full(nb, np.nan)
@@ -90,8 +93,13 @@ def _line_fits(x: np.ndarray, y: np.ndarray, labels: np.ndarray, starts: np.ndar
     ok = np.ones(nb, bool)
     for _ in range(2):
         w = keep.astype(float)
-        s0, sx, sy = (np.bincount(labels, weights=w * v, minlength=nb) for v in (np.ones_like(x), x, y))
-        sxx, sxy = np.bincount(labels, weights=w * x * x, minlength=nb), np.bincount(labels, weights=w * x * y, minlength=nb)
+
+        def total(v):
+            return np.bincount(labels, weights=w * v, minlength=nb)
+
+        s0, sx, sy = total(np.ones_like(x)), total(x), total(y)
+        sxx = np.bincount(labels, weights=w * x * x, minlength=nb)
+        sxy = np.bincount(labels, weights=w * x * y, minlength=nb)
         det = s0 * sxx - sx * sx
         ok &= (s0 >= 5) & (det > 1e-12 * np.maximum(s0, 1.0) ** 2)
         d = np.where(ok, det, 1.0)
@@ -104,9 +112,9 @@ def _line_fits(x: np.ndarray, y: np.ndarray, labels: np.ndarray, starts: np.ndar
 
 
 def scan_angle_start(t, p, scan_rad, sp, coef) -> tuple[np.ndarray, int, float]:
-    """Rows (time, across offset, height) per bin from the scan angles, the sign of the scan-angle field
-    that fits (+1: positive right of the flight direction, as LAS says; −1: the file's are flipped)
-    and the median misfit (m)."""
+    """Rows (time, across offset, height) per bin from the scan angles, the sign of the scan-angle
+    field that fits (+1: positive right of the flight direction, as LAS says; −1: the file's are
+    flipped) and the median misfit (m)."""
     track = sp.evaluate(coef, t)
     psi = track[:, 3]
     right = np.stack([np.cos(psi), -np.sin(psi)], axis=1)
@@ -115,7 +123,8 @@ def scan_angle_start(t, p, scan_rad, sp, coef) -> tuple[np.ndarray, int, float]:
     starts = b[:-1]
     labels = np.repeat(np.arange(starts.size), np.diff(b))
     every = np.ones(t.size, bool)
-    t_mid, z_mid = _grouped_median(t, labels, starts, every), _grouped_median(p[:, 2], labels, starts, every)
+    t_mid = _grouped_median(t, labels, starts, every)
+    z_mid = _grouped_median(p[:, 2], labels, starts, every)
     best = None
     for sign in (1, -1):
         tan = np.tan(sign * scan_rad)
@@ -140,8 +149,10 @@ def ray_start(ray_t, last, direction) -> np.ndarray:
         d, q = direction[s:e], last[s:e]
         keep = np.ones(e - s, bool)
         for _ in range(3):
+            # the point nearest every ray: Σ (I − d dᵀ) x = Σ (I − d dᵀ) q
             proj = np.eye(3)[None] - d[keep, :, None] * d[keep, None, :]
-            x = np.linalg.lstsq(proj.sum(axis=0), np.einsum("nij,nj->i", proj, q[keep]), rcond=None)[0]
+            rhs = np.einsum("nij,nj->i", proj, q[keep])
+            x = np.linalg.lstsq(proj.sum(axis=0), rhs, rcond=None)[0]
             w = x - q
             off = np.linalg.norm(w - np.einsum("ij,ij->i", w, d)[:, None] * d, axis=1)
             keep = off <= 3 * np.median(off[keep]) + 1e-6

@@ -29,13 +29,19 @@ class Spline:
         return self.t0 + self.n_intervals * self.step
 
     def basis(self, t) -> tuple[np.ndarray, np.ndarray]:
-        """(first coefficient index (N,), weights (N, 4)) of times ``t``: value = Σ_j w_j · c[i + j]."""
+        """(first coefficient index (N,), weights (N, 4)) of times ``t``: value = Σ_j w_j · c[i +
+        j], the uniform cubic B-spline's blending functions."""
+        i, f = self._interval(t)
+        f2, f3 = f * f, f * f * f
+        blend = [(1 - f) ** 3, 3 * f3 - 6 * f2 + 4, -3 * f3 + 3 * f2 + 3 * f + 1, f3]
+        w = np.stack(blend, axis=1) / 6.0
+        return i, w
+
+    def _interval(self, t) -> tuple[np.ndarray, np.ndarray]:
+        """(interval index (N,), fraction of it (N,)) of times ``t`` (s)."""
         u = (np.asarray(t, float) - self.t0) / self.step
         i = np.clip(np.floor(u).astype(np.int64), 0, self.n_intervals - 1)
-        f = u - i
-        f2, f3 = f * f, f * f * f
-        w = np.stack([(1 - f) ** 3, 3 * f3 - 6 * f2 + 4, -3 * f3 + 3 * f2 + 3 * f + 1, f3], axis=1) / 6.0
-        return i, w
+        return i, u - i
 
     def evaluate(self, coef: np.ndarray, t) -> np.ndarray:
         """Values at ``t`` of coefficients (n_coef,) or (n_coef, k)."""
@@ -46,10 +52,9 @@ class Spline:
 
     def derivative(self, coef: np.ndarray, t) -> np.ndarray:
         """First derivative (per s) at ``t``."""
-        u = (np.asarray(t, float) - self.t0) / self.step
-        i = np.clip(np.floor(u).astype(np.int64), 0, self.n_intervals - 1)
-        f = u - i
-        w = np.stack([-(1 - f) ** 2, 3 * f * f - 4 * f, -3 * f * f + 2 * f + 1, f * f], axis=1) / (2.0 * self.step)
+        i, f = self._interval(t)
+        blend = [-(1 - f) ** 2, 3 * f * f - 4 * f, -3 * f * f + 2 * f + 1, f * f]
+        w = np.stack(blend, axis=1) / (2.0 * self.step)
         c = np.asarray(coef)
         return np.einsum("nj,nj...->n...", w, c[i[:, None] + np.arange(4)])
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from calidar.trajrec.fit import _band_covariance, _interleaved
+from calidar.trajrec.banded import band_covariance, interleaved
 
 
 def _banded_spd(k: int, rng) -> np.ndarray:
@@ -23,8 +23,8 @@ def test_band_of_the_inverse_equals_the_whole_inverse_there():
     k = 30
     n = _banded_spd(k, rng)
     low = rng.normal(size=(6 * k, 3)) * 0.1  # interleaved rows, as the fit's
-    cov = _band_covariance(n, low, k, 2.0)
-    full = np.linalg.inv(n)[np.ix_(_interleaved(k), _interleaved(k))] + low @ low.T  # interleaved order
+    cov = band_covariance(n, low, k, 2.0)
+    full = np.linalg.inv(n)[np.ix_(interleaved(k), interleaved(k))] + low @ low.T  # interleaved order
     for c in range(6):
         want = 2.0 * full[c::6, c::6]
         for d in range(4):
