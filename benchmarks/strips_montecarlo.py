@@ -50,7 +50,7 @@ from strips import ERRORS  # noqa: E402  (the benchmarks' boresight errors)
 from calidar.pipelines.boresight import calibrate_inputs, load_inputs  # noqa: E402
 from calidar.pipelines.strip_config import StripConfig  # noqa: E402
 from calidar.strips.config import CalibrationConfig, matchers_named  # noqa: E402
-from calidar.strips.global_test import global_test_sigma0, redundancy  # noqa: E402
+from calidar.strips.verdict import global_test_sigma0  # noqa: E402
 from calidar.sim.survey import simulate_survey, survey_config  # noqa: E402
 
 ANGLES = tuple(ERRORS)
@@ -98,8 +98,9 @@ def survey(seed: int, methods: list[str], vegetation: float, scale: tuple, varia
                 rows.append({"seed": seed, "source": source, "method": method,
                              "error_deg": [float(np.degrees(sol.values[n] - inputs.truth[n])) for n in ANGLES],
                              "sigma_deg": [float(np.degrees(sol.sigma[n])) for n in ANGLES],
-                             "sigma0": sol.sigma0, "sigma0_range": sigma0_range(redundancy(sol)), "seconds": seconds,
+                             "sigma0": sol.sigma0, "sigma0_range": sigma0_range(sol.dof), "seconds": seconds,
                              "sigma0_test": global_test_sigma0(sol),
+                             "sigma0_skipped": sol.extra.get("unit_weight", {}).get("sigma0"),
                              "level": sol.extra.get("trajectory_accuracy_estimate")})
         if cache is None:
             shutil.rmtree(folder, ignore_errors=True)

@@ -8,11 +8,11 @@ errors (``--cache DIR`` keeps it), read as ``calidar boresight`` reads it, every
 the TRUE sensor and matched with each method's default rows: the residuals then hold nothing but the points'
 noise. Per method: rows (walls |n_z| < 0.5 left out, as few as they are), RMS of residual/σ (1 when the σ are
 right) over all, flat (|n_z| ≥ 0.97) and roofs, by quartile of σ (right row by row, quiet or rough), the
-MAD-scale of residual/σ, and the global test's σ0 as the verdict takes it (the RMS of residual/σ, rows beyond 7 σ0
-skipped as gross: ``calidar.adjust.unit_weight.skipped_sigma0``, issue 26, fifth session; at the truth no parameter
-is estimated, so no redundancy correction) against its χ² 95 % range, and as it took it before (Cauchy weights on
-z / 1.4826·MAD, ÷ their consistency for Student-t residuals with the rows' degrees of freedom; also ÷ the normal
-factor).
+MAD-scale of residual/σ, and the global test's σ0 as the engine and the verdict compute it (Cauchy weights on
+z / 1.4826·MAD, ÷ their consistency for Student-t residuals with the rows' degrees of freedom; also ÷ the
+normal factor) against its χ² 95 % range; beside it the RMS of residual/σ with the rows beyond 7 σ0 skipped as
+gross (``calidar.adjust.unit_weight.skipped_sigma0``, recorded in every robust solution; at the truth no parameter
+is estimated, so no redundancy correction).
 
 ``--estimators`` (issue 26, fifth session): per method also the |z| quantiles against the normal's and the rows' t
 mixture's, and what σ0 estimators read — the plain RMS, the old Cauchy-weighted one, an M-estimator of scale with
@@ -79,7 +79,7 @@ def rows_at_truth(folder: Path, method: str) -> np.ndarray:
 
 
 def weighted_sigma0(z: np.ndarray, dof: np.ndarray | None = None) -> float:
-    """Before (issue 26, fourth session): the engine's σ0 (Cauchy weights on z over its MAD scale) ÷ the verdict's consistency factor: for Student-t
+    """The engine's σ0 (Cauchy weights on z over its MAD scale) ÷ the verdict's consistency factor: for Student-t
     rows with these degrees of freedom, or (None) for normal ones."""
     s = 1.4826 * np.median(np.abs(z - np.median(z)))
     w = robust_weights(z / s, "cauchy")
@@ -133,7 +133,7 @@ def estimators(label: str, rows: np.ndarray) -> str:
     bad = z.copy()
     i = rng.choice(z.size, z.size // 100, replace=False)
     bad[i] += 10.0 * rng.choice([-1.0, 1.0], i.size)
-    reads = {"RMS": lambda v: float(np.sqrt(np.mean(v * v))), "before": lambda v: weighted_sigma0(v, dof),
+    reads = {"RMS": lambda v: float(np.sqrt(np.mean(v * v))), "Cauchy-weighted": lambda v: weighted_sigma0(v, dof),
              "M-scale": lambda v: m_scale(v, dof), "skipped": lambda v: skipped_sigma0(v)[0]}
     text = "; ".join(f"{k} {f(z):.3f} ({100 * (f(bad) / f(z) - 1):+.1f} %)" for k, f in reads.items())
     return (f"{label}: |z| quantiles {'/'.join(f'{q:.2f}' for q in np.quantile(np.abs(z), QUANTILES))} (t mixture "
@@ -150,10 +150,9 @@ def line(label: str, rows: np.ndarray) -> str:
     return (f"{label}: {z.size:6d} rows, RMS σ {np.sqrt(np.mean(s**2)) * 1e3:5.2f} mm, RMS z {rms(slice(None)):.3f} "
             f"(flat {rms(nz >= 0.97):.3f}, roofs {rms(nz < 0.97):.3f}; by σ quartile "
             + "/".join(f"{rms(q == k):.2f}" for k in range(4))
-            + f"), MAD-scale z {1.4826 * np.median(np.abs(z)):.3f}, global test σ0 {skipped_sigma0(z)[0]:.3f} "
-            f"({skipped_sigma0(z)[1]} rows skipped; before: Cauchy-weighted ÷ the t factor {weighted_sigma0(z, dof):.3f}, "
-            f"÷ the normal factor {weighted_sigma0(z):.3f}; median ν {np.median(dof):.0f}; χ² 95 % range "
-            f"{lo:.3f}–{hi:.3f})")
+            + f"), MAD-scale z {1.4826 * np.median(np.abs(z)):.3f}, global test σ0 {weighted_sigma0(z, dof):.3f} "
+            f"(÷ the normal factor: {weighted_sigma0(z):.3f}; median ν {np.median(dof):.0f}; χ² 95 % range "
+            f"{lo:.3f}–{hi:.3f}); skipped RMS {skipped_sigma0(z)[0]:.3f} ({skipped_sigma0(z)[1]} rows beyond 7 σ0)")
 
 
 def main() -> None:
@@ -174,12 +173,14 @@ def main() -> None:
             pooled.setdefault(method, []).append(rows)
             print(line(f"{args.preset} {args.directions} {args.scene} seed {seed} {method:6s}", rows), flush=True)
             if args.estimators:
-                print(estimators(f"{args.preset} {args.directions} {args.scene} seed {seed} {method:6s}", rows), flush=True)
+                print(estimators(f"{args.preset} {args.directions} {args.scene} seed {seed} {method:6s}", rows),
+                      flush=True)
     for method, parts in pooled.items():
         if len(parts) > 1:
             print(line(f"{args.preset} {args.directions} {args.scene} pooled  {method:6s}", np.concatenate(parts)))
         if args.estimators:
-            print(estimators(f"{args.preset} {args.directions} {args.scene} pooled  {method:6s}", np.concatenate(parts)))
+            print(estimators(f"{args.preset} {args.directions} {args.scene} pooled  {method:6s}",
+                             np.concatenate(parts)))
 
 
 if __name__ == "__main__":

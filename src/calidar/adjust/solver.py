@@ -66,8 +66,8 @@ def solve(problem: ResidualProblem, options: SolverOptions | None = None, *, pro
     groupings raises each σ to the largest of their estimates (sandwich estimates from few groups
     run low). The covariance is σ0²·N⁻¹ without priors (σ relative) and max(σ0², 1)·N⁻¹ with them
     (σ absolute: the priors are never tightened by an a-posteriori σ0 below 1) or when the problem's
-    ``absolute_sigma`` says its observations' own σ are absolute; with robust weights σ0 is
-    :func:`calidar.adjust.unit_weight.skipped_sigma0` (the one the strips' global test reads).
+    ``absolute_sigma`` says its observations' own σ are absolute. With robust weights the solution also
+    records :func:`calidar.adjust.unit_weight.skipped_sigma0` (``extra["unit_weight"]``).
 
     The function form ``solve(residual_fn, params, sigma=…, jacobian_fn=…, robust=…, …)`` (values
     by name → residuals) is kept: it wraps the functions in a
@@ -225,17 +225,18 @@ class _Fit:
 
     def sigma0(self, r: np.ndarray, x: np.ndarray) -> tuple[float, int]:
         """(σ0, rows skipped as gross) by :func:`calidar.adjust.unit_weight.skipped_sigma0`: the RMS of r/σ with
-        the priors' terms over the redundancy, rows beyond GROSS_Z σ0 skipped (issue 26: the robustly weighted
-        σ0 read rows whose σ are right in the mean but heavy-tailed 5–8 % low)."""
+        the priors' terms over the redundancy, rows beyond GROSS_Z σ0 skipped — recorded beside the engine's σ0,
+        not (yet) its variance factor (issue 26, docs/validation.md: it reads heavy-tailed rows with right σ as 1
+        where the robustly weighted σ0 reads them 5–8 % low, but it also counts the clutter the robust weights
+        leave out, and raised the σ of urban opposite-line surveys whose σ were already wide enough)."""
         prior_sq = 2.0 * (self.cost(r, np.zeros_like(r), x))  # the priors' part of the cost
         return skipped_sigma0(r / self.sig, prior_sq, self.n_prior, len(self.free), GROSS_Z)
 
     def variance_factor(self, r: np.ndarray, w: np.ndarray, x: np.ndarray) -> float:
         """σ0² without priors (σ relative); max(σ0², 1) with them or with absolute observation σ
         (σ absolute: σ0 < 1 there says the priors or the rows' σ were generous, not that the
-        parameters are better known than they allow). σ0: the least-squares one without robust
-        weights, :meth:`sigma0` with them."""
-        s0 = self.sigma0(r, x)[0] ** 2 if self.robust else 2.0 * self.cost(r, w, x) / self.dof(w)
+        parameters are better known than they allow)."""
+        s0 = 2.0 * self.cost(r, w, x) / self.dof(w)
         return s0 if self.n_prior == 0 and not self.absolute_sigma else max(s0, 1.0)
 
 
@@ -289,7 +290,7 @@ def _solution(fit: _Fit, x: np.ndarray, r: np.ndarray, w: np.ndarray, history: l
         residuals=r, weights=w * fit.sig**2, before=residual_stats(fit.r0), history=history, converged=converged,
         jacobian=J,
     )
-    if fit.robust:  # the σ0 the variance factor took, for the global test (calidar.strips.verdict)
+    if fit.robust:  # σ0 read as the RMS of r/σ, gross rows skipped (calidar.strips.global_test shows it)
         s0, skipped = fit.sigma0(r, x)
         sol.extra["unit_weight"] = {"sigma0": s0, "rows_skipped": skipped, "gross_z": GROSS_Z,
                                     "redundancy": float(max(fit.n - skipped + fit.n_prior - len(fit.free), 1))}

@@ -34,7 +34,9 @@ from calidar.adjust.solver import Estimate
 from calidar.adjust.solution import residual_stats
 from calidar.scanners.rotating import canonical_eccentricity
 from calidar.sensor import Sensor
-from calidar.strips.control import CONTROL_ID, ControlPoints, check_estimate, control_rows, control_summary, with_height_bias
+from calidar.strips.control import (
+    CONTROL_ID, ControlPoints, check_estimate, control_rows, control_summary, with_height_bias,
+)
 from calidar.strips.control_survey import PREFIX as CONTROL_PREFIX
 from calidar.strips.control_survey import with_survey_parameters
 from calidar.strips.correspond import Correspondences
