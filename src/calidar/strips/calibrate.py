@@ -60,6 +60,7 @@ from calidar.strips.problem import StripProblem, georeference, union
 from calidar.strips.strip import Pose, Strip
 from calidar.strips.trajectory_errors import PREFIX as TRAJECTORY_PREFIX
 from calidar.strips.trajectory_errors import StripCorrection, TrajectoryModel, corrections
+from calidar.strips.trajectory_level import carry_uncertainty
 
 
 @dataclass
@@ -310,6 +311,8 @@ def calibrate_with_client(strips: Sequence[Strip], nominal: Sensor, config: Cali
     clock = time.perf_counter()
     est = est.refine(FINAL_STEP_IN_SIGMA)  # the last matching's adjustment, then its covariance
     solution = run.solution(est, problem)
+    if run.level is not None:  # the estimated level's own uncertainty carried into the mounting's σ
+        carry_uncertainty(run.level, est, solution, run.model.layout(run.spans))
     if config.model_check:
         say("model check: freeing the parameters not estimated", s.max_outer, s.max_outer)
         solution.extra["model_check"] = run.model_check(est, problem, corrs, solution)
