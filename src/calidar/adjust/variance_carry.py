@@ -35,7 +35,7 @@ MIN_EFFECTIVE = 2.5
 
 
 def posterior_multipliers(m: float) -> np.ndarray:
-    """The multipliers of σ̂² at the quadrature nodes of its posterior σ̂² · m / χ²_m (equal weights)."""
+    """The multipliers of σ̂² at the quadrature nodes of its posterior σ̂²·m/χ²_m (equal weights)."""
     m = max(float(m), MIN_EFFECTIVE)
     return m / chi2.ppf(np.array(QUANTILES), m)
 
@@ -54,7 +54,8 @@ def solve_scaled(JtWJ: np.ndarray, JtWr: np.ndarray, x0: np.ndarray,
     try:
         c = sl.cho_factor(N, lower=True)
     except (np.linalg.LinAlgError, ValueError):
-        raise CalibrationError("variance components: the normal matrix is not positive definite") from None
+        raise CalibrationError("variance components: the normal matrix is not positive definite") \
+            from None
     rhs = np.zeros((N.shape[0], keep.size + 1))
     rhs[:, 0] = b
     rhs[keep, np.arange(1, keep.size + 1)] = 1.0
@@ -63,7 +64,8 @@ def solve_scaled(JtWJ: np.ndarray, JtWr: np.ndarray, x0: np.ndarray,
 
 
 def carried_covariance(JtWJ: np.ndarray, JtWr: np.ndarray, x0: np.ndarray,
-                       priors: Sequence[tuple[np.ndarray, np.ndarray, np.ndarray]], labels: Sequence[str | None],
+                       priors: Sequence[tuple[np.ndarray, np.ndarray, np.ndarray]],
+                       labels: Sequence[str | None],
                        effective: Mapping[str, float], keep: np.ndarray,
                        observations: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
     """(Q, ΔQ) of the free parameters ``keep`` (positions): the plug-in covariance of the
@@ -82,7 +84,8 @@ def carried_covariance(JtWJ: np.ndarray, JtWr: np.ndarray, x0: np.ndarray,
             continue
         mult = posterior_multipliers(m)
         for s2 in mult:
-            xs, Qs = solve_scaled(JtWJ, JtWr, x0, priors, np.where(on, np.sqrt(s2), 1.0), keep, observations)
+            scale = np.where(on, np.sqrt(s2), 1.0)
+            xs, Qs = solve_scaled(JtWJ, JtWr, x0, priors, scale, keep, observations)
             d = xs - x
             delta += (Qs - Q + np.outer(d, d)) / mult.size
     return Q, delta

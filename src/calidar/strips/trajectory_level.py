@@ -72,7 +72,8 @@ class TrajectoryLevel:
     #: per estimated group the effective number m of independent priors behind its factor (its
     #: relative σ 1/√(2m); correlated priors count less than their redundancy rₖ)
     effective: dict[str, float] | None = None
-    #: per non-trajectory parameter the factor on its σ from the level's own uncertainty (:func:`carry_uncertainty`)
+    #: per non-trajectory parameter the factor on its σ from the level's own uncertainty
+    #: (:func:`carry_uncertainty`)
     carried: dict[str, float] | None = None
 
     def factor(self, group: str) -> float:
@@ -111,10 +112,13 @@ class TrajectoryLevel:
                                "sigma_factor_relative_sigma": self.relative_sigma(g) if ok else None,
                                "redundancy": float(c.redundancy[g]),
                                "redundancy_at_stated_sigma": float(c.redundancy_start[g]), "priors": int(c.size[g])}
-                           for g, ok in self.estimated.items()}} | self._over_time_dict() | self._carried_dict()
+                           for g, ok in self.estimated.items()}} \
+            | self._over_time_dict() | self._carried_dict()
 
     def _carried_dict(self) -> dict:
-        return {} if self.carried is None else {"sigma_widened_by_level_uncertainty": dict(self.carried)}
+        if self.carried is None:
+            return {}
+        return {"sigma_widened_by_level_uncertainty": dict(self.carried)}
 
     def _over_time_dict(self) -> dict:
         """The level per segment of the flight (solution.json's "over_time"), σ in m and degrees."""
@@ -186,13 +190,15 @@ def carry_uncertainty(level: TrajectoryLevel, est, solution, layout: Mapping[str
     groups = [group_of(layout.get(n)) for n in names]
     where = {n: i for i, n in enumerate(solution.parameters.free_names)}
     cov = solution.covariance
-    own = np.array([i for i, (n, g) in enumerate(zip(names, groups)) if g is None and np.isfinite(cov[where[n], where[n]])], int)
+    own = np.array([i for i, (n, g) in enumerate(zip(names, groups))
+                    if g is None and np.isfinite(cov[where[n], where[n]])], int)
     if not effective or own.size == 0:
         return
     terms = normal_terms(est)
     try:
-        Q, delta = carried_covariance(terms[0], terms[1], terms[4], est.fit.priors, groups, effective, own)
-    except CalibrationError:  # a normal matrix singular at some factor: the plug-in covariance stays
+        Q, delta = carried_covariance(terms[0], terms[1], terms[4], est.fit.priors, groups,
+                                      effective, own)
+    except CalibrationError:  # a normal matrix singular at some factor: the plug-in σ stay
         return
     pos = np.array([where[names[i]] for i in own])
     # the solution's covariance is its variance factor × N⁻¹: ΔQ scaled alike
