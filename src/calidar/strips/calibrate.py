@@ -53,6 +53,7 @@ from calidar.strips.row_variance import dof_summary, rows_dof
 from calidar.strips.strip import Strip
 from calidar.strips.trajectory_errors import PREFIX as TRAJECTORY_PREFIX
 from calidar.strips.trajectory_errors import StripCorrection, TrajectoryModel, corrections
+from calidar.strips.trajectory_level import carry_uncertainty
 
 #: the last outer iteration's adjustment (stopped at OUTER_STEP_IN_SIGMA of its σ) is refined until every step (of
 #: ~1 500 parameters with the trajectory model) is below this fraction of its σ — the boresight then moves by < 1e-3 σ
@@ -144,6 +145,8 @@ def calibrate_with_client(strips: Sequence[Strip], nominal: Sensor, config: Cali
     clock = time.perf_counter()
     est = est.refine(FINAL_STEP_IN_SIGMA)  # the last matching's adjustment, then its covariance
     solution = run.solution(est, problem)
+    if run.level is not None:  # the estimated level's own uncertainty carried into the mounting's σ
+        carry_uncertainty(run.level, est, solution, run.model.layout(run.spans))
     if config.model_check:
         say("model check: freeing the parameters not estimated", s.max_outer, s.max_outer)
         solution.extra["model_check"] = run.model_check(est, problem, corrs, solution)

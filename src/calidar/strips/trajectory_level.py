@@ -18,6 +18,10 @@ estimate's own relative σ is ≈ 1/√(2m), m the effective number of independe
 second is worth far fewer independent priors than it has knots). Each estimated group then
 follows the flight in time (:mod:`calidar.strips.trajectory_level_time`). Each factor is held ≥ :data:`FLOOR_FACTOR` (a trajectory
 that good is as good as exact for the calibration).
+
+The level is itself an estimate, known to ±1/√(2m): :func:`carry_uncertainty` carries that into
+the mounting's covariance (:mod:`calidar.adjust.variance_carry`: the plug-in covariance averaged
+over each factor's posterior, plus the spread of the estimate over it; Kackar & Harville 1984).
 """
 
 from __future__ import annotations
@@ -28,6 +32,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from calidar.adjust.variance_carry import carried_covariance
 from calidar.adjust.variance_components import OBSERVATIONS, Components, estimate_components, normal_terms, split_blocks
 from calidar.adjust.variance_elements import estimate_elements
 from calidar.errors import CalibrationError
@@ -67,6 +72,9 @@ class TrajectoryLevel:
     #: per estimated group the effective number m of independent priors behind its factor (its
     #: relative σ 1/√(2m); correlated priors count less than their redundancy rₖ)
     effective: dict[str, float] | None = None
+    #: per non-trajectory parameter the factor on its σ from the level's own uncertainty
+    #: (:func:`carry_uncertainty`)
+    carried: dict[str, float] | None = None
 
     def factor(self, group: str) -> float:
         return self.components.sigma_factor(group) if self.estimated.get(group) else 1.0
@@ -104,7 +112,13 @@ class TrajectoryLevel:
                                "sigma_factor_relative_sigma": self.relative_sigma(g) if ok else None,
                                "redundancy": float(c.redundancy[g]),
                                "redundancy_at_stated_sigma": float(c.redundancy_start[g]), "priors": int(c.size[g])}
-                           for g, ok in self.estimated.items()}} | self._over_time_dict()
+                           for g, ok in self.estimated.items()}} \
+            | self._over_time_dict() | self._carried_dict()
+
+    def _carried_dict(self) -> dict:
+        if self.carried is None:
+            return {}
+        return {"sigma_widened_by_level_uncertainty": dict(self.carried)}
 
     def _over_time_dict(self) -> dict:
         """The level per segment of the flight (solution.json's "over_time"), σ in m and degrees."""
@@ -163,3 +177,32 @@ def scaled(base: TrajectoryAccuracy, horizontal: float, vertical: float, tilt: f
     pos = base.position_m * np.array([horizontal, horizontal, vertical])
     att = base.attitude_rad * np.array([tilt, tilt, heading])
     return replace(base, position_m=pos, attitude_rad=att, source=source)
+
+
+def carry_uncertainty(level: TrajectoryLevel, est, solution, layout: Mapping[str, Knot]) -> None:
+    """The level's own uncertainty carried into ``solution``'s covariance (a
+    :class:`calidar.adjust.solution.Solution` of the adjustment ``est`` with the level's priors):
+    each estimated group's factor at its flight-wide effective number m of independent priors
+    (:mod:`calidar.adjust.variance_carry`). Only the non-trajectory parameters' block changes (the
+    trajectory corrections keep their plug-in σ); their σ's widening goes to ``level.carried``."""
+    effective = {g: m for g, m in (level.effective or {}).items() if level.estimated.get(g)}
+    names = [p.name for p in est.fit.free]
+    groups = [group_of(layout.get(n)) for n in names]
+    where = {n: i for i, n in enumerate(solution.parameters.free_names)}
+    cov = solution.covariance
+    own = np.array([i for i, (n, g) in enumerate(zip(names, groups))
+                    if g is None and np.isfinite(cov[where[n], where[n]])], int)
+    if not effective or own.size == 0:
+        return
+    terms = normal_terms(est)
+    try:
+        Q, delta = carried_covariance(terms[0], terms[1], terms[4], est.fit.priors, groups,
+                                      effective, own)
+    except CalibrationError:  # a normal matrix singular at some factor: the plug-in σ stay
+        return
+    pos = np.array([where[names[i]] for i in own])
+    # the solution's covariance is its variance factor × N⁻¹: ΔQ scaled alike
+    factor = float(np.median(np.diag(cov)[pos] / np.diag(Q)))
+    before = np.sqrt(np.diag(cov)[pos])
+    cov[np.ix_(pos, pos)] += factor * delta
+    level.carried = {names[i]: float(np.sqrt(cov[p, p]) / b) for i, p, b in zip(own, pos, before)}
