@@ -38,6 +38,7 @@ from calidar.strips.processes import map_in_processes, worth_processes
 from calidar.strips.strip import Pose, Strip
 from calidar.strips.trajectory_errors import PREFIX as TRAJECTORY_PREFIX
 from calidar.strips.trajectory_errors import TrajectoryModel, corrections
+from calidar.strips.trajectory_level import TrajectoryLevel
 
 #: an outer iteration's adjustment stops when every step is below this fraction of its σ: the next matching moves
 #: the points anyway (the last one is then refined: :data:`calidar.strips.calibrate.FINAL_STEP_IN_SIGMA`)
@@ -81,7 +82,7 @@ class Run:
     need: dict[int, np.ndarray]  #: per strip the points inside any of its overlaps
     poses: dict[int, Pose]
     warnings: list[str]
-    level: object | None = None  #: calidar.strips.trajectory_level.TrajectoryLevel, when estimated
+    level: TrajectoryLevel | None = None  #: the trajectory's accuracy level, when estimated
     control: ControlPoints | None = None  #: ground control in the adjustment (calidar.strips.control)
     near: dict[int, np.ndarray] = field(default_factory=dict)  #: per strip its points near control
 
