@@ -81,7 +81,8 @@ def key_order(occupied: np.ndarray, box):  # pragma: no cover - numba
     lo0, hi0, lo1, hi1 = box
     width = hi1 - lo1 + 1
     out, r = np.empty(np.count_nonzero(occupied), np.int64), 0
-    j_split = min(max(-lo1, 0), width)  # table columns of j < 0 come first in the table, last in key order
+    # the table columns of j < 0 come first in the table, last in key order
+    j_split = min(max(-lo1, 0), width)
     for a in range(hi0 - lo0 + 1):
         for b in range(width):
             col = b + j_split if b + j_split < width else b + j_split - width

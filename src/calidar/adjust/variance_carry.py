@@ -35,7 +35,8 @@ MIN_EFFECTIVE = 2.5
 
 
 def posterior_multipliers(m: float) -> np.ndarray:
-    """The multipliers of σ̂² at the quadrature nodes of its posterior σ̂²·m/χ²_m (equal weights)."""
+    """The multipliers of σ̂² at the quadrature nodes of its posterior σ̂²·m/χ²_m (equal
+    weights)."""
     m = max(float(m), MIN_EFFECTIVE)
     return m / chi2.ppf(np.array(QUANTILES), m)
 
