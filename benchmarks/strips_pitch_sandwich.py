@@ -169,6 +169,11 @@ def _capture(cell_m: float):
             out["dyadic_r0"] = var(_meat(s0c, groupings[0]))
             out["pair_seg_r0"] = var(_meat(s0c, groupings[1]))
         out["cells_r0"] = var(_meat(s0c, _cells(problem, self.by_id, cell_m)))
+        if groupings:  # the dyadic meat at the truth from one class of rows alone (the others' scores set to 0)
+            nz = np.concatenate([np.abs(k.normal[:, 2]) if k.normal is not None else np.ones(3 * k.n_obs)
+                                 for k in problem.corrs])
+            for name, keep in (("dyadic_r0_flat", nz >= 0.97), ("dyadic_r0_sloped", nz < 0.97)):
+                out[name] = var(_meat(sp.diags(keep.astype(float)) @ s0c, groupings[0]))
         out["meat+prior"] = out["dyadic"] + out["prior"]
         out["sandwich_now"] = np.maximum(out["dyadic"], out["model"])
         out["reported"] = np.diag(sol.covariance)[k]
