@@ -16,7 +16,8 @@ errors that ``strips_roll.py`` writes beside it) is adjusted once from the TRUE 
 - ``meat+prior``: N⁻¹(meat_dyadic + P)N⁻¹, the sandwich with the priors' share kept;
 - ``hc0_r0`` / ``dyadic_r0`` / ``pair_seg_r0`` / ``cells_r0``: the same meats on the residuals at the START (the
   truth): on the twin without trajectory errors they hold the rows' own errors before the knots absorb any of
-  them (``pair_seg``: clusters of one pair's rows in one a-side 10 s segment, no sharing across pairs).
+  them (``pair_seg``: clusters of one pair's rows in one a-side 10 s segment, no sharing across pairs);
+  ``dyadic_r0_flat`` / ``dyadic_r0_sloped``: the dyadic meat at the truth from the rows with |n_z| ≥ 0.97 / < 0.97 alone.
 
 It also prints each pair's and each slope class's share of the linear move −N⁻¹ Σ J_iᵀ w_i r0_i, and how much
 the rows' residuals at the start hang together in time (variance inflation of time-bin means, lag-1 correlation).
