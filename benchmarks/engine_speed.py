@@ -31,7 +31,7 @@ def strip_solves(folder: Path) -> tuple[float, float]:
     """(CPU seconds in the strip adjustment's solves, CPU seconds of the whole calibration) of one
     ``calidar.calibrate_strips`` run on a simulated survey folder."""
     import calidar
-    import calidar.strips.calibrate as cal
+    import calidar.strips.outer_loop as cal
     from calidar.adjust import solver
 
     spent, depth = [0.0], [0]
@@ -48,8 +48,8 @@ def strip_solves(folder: Path) -> tuple[float, float]:
                     spent[0] += time.process_time() - t
         return wrap
 
-    cal._Run.solve = timed(cal._Run.solve)
-    cal._Run.solution = timed(cal._Run.solution)
+    cal.Run.solve = timed(cal.Run.solve)
+    cal.Run.solution = timed(cal.Run.solution)
     solver.Estimate.refine = timed(solver.Estimate.refine)
     t0 = time.process_time()
     calidar.calibrate_strips(sorted((folder / "strips").glob("*.laz")), folder / "sbet.out", folder / "sensor.toml")
