@@ -60,7 +60,7 @@ def test_real_ign_lines_305_306(cli, real_data, tmp_path):
     assert (pair["a"], pair["b"]) == (305, 306) and doc["lines_from"] == "point_source_id"
     assert pair["median_dz_m"] == pytest.approx(-0.025, abs=0.004)
     assert pair["n_cells"] > 50 and pair["rmsdz_m"] < 0.05
-    assert {p.name for p in (tmp_path / "q").iterdir()} == {"quality.json", "dz_305_306.tif", "dz_305_306.png"}
+    assert {p.name for p in (tmp_path / "q").iterdir()} == {"quality.json", "config.toml", "dz_305_306.tif", "dz_305_306.png"}
     import rasterio
 
     with rasterio.open(tmp_path / "q" / "dz_305_306.tif") as src:
