@@ -88,14 +88,15 @@ def child_stages(sim: Path, method: str) -> None:
     from calidar.pipelines.strip_config import StripConfig
     from calidar.strips.config import CalibrationConfig, matchers_named
 
-    t0, last = time.perf_counter(), [None]
+    t0, last = time.perf_counter(), [None, -1]
 
     def stamp(description: str, done: int, total: int) -> None:
         stage = description.split(":")[0].split(" (")[0]
-        if stage != last[0]:
-            last[0] = stage
+        tenth = int(10 * done / total) if total else 0  # and at each tenth of a stage
+        if stage != last[0] or tenth > last[1]:
+            last[0], last[1] = stage, tenth
             hwm = next(int(ln.split()[1]) for ln in open("/proc/self/status") if ln.startswith("VmHWM"))
-            print(json.dumps({"stage": stage, "wall_s": round(time.perf_counter() - t0, 1),
+            print(json.dumps({"stage": stage, "done": f"{done}/{total}", "wall_s": round(time.perf_counter() - t0, 1),
                               "cpu_s": round(time.process_time(), 1), "peak_gib": round(hwm / 2**20, 3)}),
                   file=sys.stderr, flush=True)
 
@@ -179,7 +180,7 @@ def stage_run(sim: Path, method: str) -> None:
     z = ", ".join(f"{(r['out']['values'][k] - truth[k]['value']) / r['out']['sigma'][k]:+.2f}" for k in ERRORS)
     print(f"stages ({method}, the pipeline in one process): {r['wall_s']:.1f} s wall, {r['cpu_s']:.1f} s CPU, "
           f"peak {r['rss_gib']:.2f} GiB; error/σ {z}; stage starts (wall s / CPU s / peak GiB so far): "
-          + "; ".join(f"{s['stage']} {s['wall_s']}/{s['cpu_s']}/{s['peak_gib']}" for s in stamps), flush=True)
+          + "; ".join(f"{s['stage']} {s['done']} {s['wall_s']}/{s['cpu_s']}/{s['peak_gib']}" for s in stamps), flush=True)
 
 
 def main() -> None:
