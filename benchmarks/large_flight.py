@@ -134,7 +134,8 @@ def simulate(data: Path, size: float, workers: int) -> dict:
     sim = folder(data, size)
     r = measured([sys.executable, str(HERE), "--child-simulate", str(sim), str(size), str(workers)])
     gb = sum(p.stat().st_size for p in (sim / "strips").glob("*.laz")) / 1e9
-    doc = {**r, **r.pop("out"), "gb": gb, "workers": workers}
+    out = r.pop("out")
+    doc = {**r, **out, "gb": gb, "workers": workers}
     (sim / "simulate.json").write_text(json.dumps(doc, indent=1))
     print(f"simulated {doc['points'] / 1e6:.1f} M points in {doc['files']} files, {gb:.2f} GB: {r['wall_s']:.0f} s wall, "
           f"{r['cpu_s']:.0f} s CPU, peak {r['rss_gib']:.2f} GiB, {workers} worker(s), load {r['load']:.1f}", flush=True)
