@@ -14,8 +14,9 @@ trajectory errors and their smrmsg.out, 3 cm range noise) at the density that gi
 million points, simulated by :func:`calidar.sim.large_survey.simulate_large_survey` (the same
 flight over a closed-form piecewise-planar ground, one return per pulse, ≈ 5 B a point in LAZ)
 in a child process: wall, CPU seconds and peak RSS (``os.wait4``) into ``DIR/<size>/simulate.json``.
-``--stages``: then one run of the same pipeline (benchmarks/strips_scale.py's child) timed per
-stage (reading, calibrating, overlap quality). ``measure`` runs whole child processes — the floor (benchmarks/against_read.py's: every field of
+``--stages`` (or ``stages`` alone): then one run of the same pipeline in one process with each
+stage's start stamped live (wall, CPU, peak RSS so far) into ``DIR/flight_<size>M/stages_<method>.log``:
+where the time goes, and how far a run got if stopped. ``measure`` runs whole child processes — the floor (benchmarks/against_read.py's: every field of
 every file decompressed by laspy + lazrs) then ``python -m calidar boresight STRIPS --trajectory
 --sensor --method --out DIR/<size>/out_<method>``, ``--runs`` times interleaved — and prints each
 one's wall and CPU seconds and peak RSS (``os.wait4``), the ratio to the floor run just before it,
@@ -76,6 +77,41 @@ def child_read(sim: Path) -> None:
     print(json.dumps({"points": n}))
 
 
+def child_stages(sim: Path, method: str) -> None:
+    """``calidar boresight``'s pipeline in this process (:func:`calidar.pipelines.boresight.calibrate_strips`,
+    default settings, outputs into a temporary folder), a JSON line on stderr as each stage begins
+    (wall and CPU seconds so far, peak RSS so far: a run stopped early still says where it got),
+    the solution's boresight and σ on stdout at the end."""
+    import tempfile
+
+    from calidar.pipelines.boresight import calibrate_strips
+    from calidar.pipelines.strip_config import StripConfig
+    from calidar.strips.config import CalibrationConfig, matchers_named
+
+    t0, last = time.perf_counter(), [None, -1]
+
+    def stamp(description: str, done: int, total: int) -> None:
+        stage = description.split(":")[0].split(" (")[0]
+        tenth = int(10 * done / total) if total else 0  # and at each tenth of a stage
+        if stage != last[0] or tenth > last[1]:
+            last[0], last[1] = stage, tenth
+            hwm = next(int(ln.split()[1]) for ln in open("/proc/self/status") if ln.startswith("VmHWM"))
+            print(json.dumps({"stage": stage, "done": f"{done}/{total}", "wall_s": round(time.perf_counter() - t0, 1),
+                              "cpu_s": round(time.process_time(), 1), "peak_gib": round(hwm / 2**20, 3)}),
+                  file=sys.stderr, flush=True)
+
+    strips = sorted((sim / "strips").glob("*.laz"))
+    config = StripConfig(CalibrationConfig(matchers=matchers_named(method)))
+    with tempfile.TemporaryDirectory() as out:
+        run = calibrate_strips(strips, sim / "sbet.out", sim / "sensor.toml", config, progress=stamp)
+        stamp("writing outputs", 0, 1)
+        run.write(Path(out))
+    stamp("done", 1, 1)
+    sol = run.results[method].solution
+    print(json.dumps({"values": {k: float(np.degrees(sol.values[k])) for k in ERRORS},
+                      "sigma": {k: float(np.degrees(sol.sigma[k])) for k in ERRORS}}))
+
+
 def measured(cmd: list[str], log: Path | None = None) -> dict:
     """A child process: its last JSON line (if any), wall and CPU seconds, peak RSS GiB."""
     env = {**os.environ, "PYTHONPATH": str(HERE.parents[1] / "src")}
@@ -98,7 +134,8 @@ def simulate(data: Path, size: float, workers: int) -> dict:
     sim = folder(data, size)
     r = measured([sys.executable, str(HERE), "--child-simulate", str(sim), str(size), str(workers)])
     gb = sum(p.stat().st_size for p in (sim / "strips").glob("*.laz")) / 1e9
-    doc = {**r, **r.pop("out"), "gb": gb, "workers": workers}
+    out = r.pop("out")
+    doc = {**r, **out, "gb": gb, "workers": workers}
     (sim / "simulate.json").write_text(json.dumps(doc, indent=1))
     print(f"simulated {doc['points'] / 1e6:.1f} M points in {doc['files']} files, {gb:.2f} GB: {r['wall_s']:.0f} s wall, "
           f"{r['cpu_s']:.0f} s CPU, peak {r['rss_gib']:.2f} GiB, {workers} worker(s), load {r['load']:.1f}", flush=True)
@@ -130,21 +167,32 @@ def measure(data: Path, size: float, runs: int, method: str, stages: bool = Fals
               f"{r['cpu_s']:.1f} s CPU ({r['cpu_s'] / floor['cpu_s']:.2f}×), peak {r['rss_gib']:.2f} GiB, "
               f"load {r['load']:.1f}; error/σ roll {z['boresight_roll']:+.2f}, pitch {z['boresight_pitch']:+.2f}, "
               f"yaw {z['boresight_yaw']:+.2f}", flush=True)
-    if stages:  # where the time goes: benchmarks/strips_scale.py's child, the same pipeline with its progress stamped
-        r = measured([sys.executable, str(HERE.parent / "strips_scale.py"), "--child", str(sim), method, "300000"])
-        o = r["out"]
-        print(f"stages ({method}, the pipeline in one process): {r['wall_s']:.1f} s wall, {r['cpu_s']:.1f} s CPU, "
-              f"peak {r['rss_gib']:.2f} GiB: reading {o['ingest_s']:.1f} s, calibrating {o['calibrate_s']:.1f} s, "
-              f"overlap quality {o['quality_s']:.1f} s, then report and outputs", flush=True)
+    if stages:
+        stage_run(sim, method)
+
+
+def stage_run(sim: Path, method: str) -> None:
+    """Where the time goes: :func:`child_stages` (the same pipeline with its stages stamped, live,
+    into ``DIR/<size>/stages_<method>.log``)."""
+    log = sim / f"stages_{method}.log"
+    r = measured([sys.executable, str(HERE), "--child-stages", str(sim), method], log=log)
+    stamps = [json.loads(ln) for ln in log.read_text().splitlines() if ln.startswith("{")]
+    truth = json.loads((sim / "truth.json").read_text())["parameters"]
+    z = ", ".join(f"{(r['out']['values'][k] - truth[k]['value']) / r['out']['sigma'][k]:+.2f}" for k in ERRORS)
+    print(f"stages ({method}, the pipeline in one process): {r['wall_s']:.1f} s wall, {r['cpu_s']:.1f} s CPU, "
+          f"peak {r['rss_gib']:.2f} GiB; error/σ {z}; stage starts (wall s / CPU s / peak GiB so far): "
+          + "; ".join(f"{s['stage']} {s['done']} {s['wall_s']}/{s['cpu_s']}/{s['peak_gib']}" for s in stamps), flush=True)
 
 
 def main() -> None:
     if len(sys.argv) > 1 and sys.argv[1] == "--child-simulate":
         return child_simulate(Path(sys.argv[2]), float(sys.argv[3]), int(sys.argv[4]))
+    if len(sys.argv) > 1 and sys.argv[1] == "--child-stages":
+        return child_stages(Path(sys.argv[2]), sys.argv[3])
     if len(sys.argv) > 1 and sys.argv[1] == "--child-read":
         return child_read(Path(sys.argv[2]))
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("what", choices=["simulate", "measure"])
+    ap.add_argument("what", choices=["simulate", "measure", "stages"])
     ap.add_argument("--size", type=float, default=64.0, help="million points")
     ap.add_argument("--data", type=Path, default=Path("/work/bigsim"))
     ap.add_argument("--workers", type=int, default=2, help="simulate: processes writing strips")
@@ -154,6 +202,8 @@ def main() -> None:
     args = ap.parse_args()
     if args.what == "simulate":
         simulate(args.data, args.size, args.workers)
+    elif args.what == "stages":
+        stage_run(folder(args.data, args.size), args.method)
     else:
         measure(args.data, args.size, args.runs, args.method, args.stages)
 
