@@ -9,6 +9,7 @@ import numpy as np
 
 from calidar.accuracy.asprs import VerticalAccuracy, vertical_accuracy
 from calidar.accuracy.tin import TinHeights
+from calidar.io.checkpoints import Checkpoints
 
 
 @dataclass(frozen=True)
@@ -28,7 +29,7 @@ class StripError:
 class Assessment:
     """Everything ``calidar accuracy`` reports (lengths in m, heights in the points' CRS)."""
 
-    checkpoints: object  #: calidar.io.checkpoints.Checkpoints as read
+    checkpoints: Checkpoints  #: as read
     xyz: np.ndarray  #: (N, 3) the checkpoints in the points' CRS
     heights: TinHeights
     dz: np.ndarray  #: (N,) surface − checkpoint (NaN: not used)

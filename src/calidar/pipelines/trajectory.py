@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+from pyproj import CRS
 
 from calidar.errors import CalidarError, InputError
 from calidar.io.las import (
@@ -57,7 +58,7 @@ class TrajectorySettings:
 @dataclass
 class TrajectoryRun:
     trajectory: Trajectory
-    crs: object  #: the points' CRS (pyproj)
+    crs: CRS  #: the points' CRS
     lines: list[LineTrajectory]
     files: list[Path]
     lines_from: str

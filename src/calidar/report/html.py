@@ -33,6 +33,7 @@ import numpy as np
 
 from calidar import __version__
 from calidar.outputs import shown_path, write_text_atomic
+from calidar.provenance import RunRecord
 
 _CSS = (
     "\n"
@@ -263,7 +264,7 @@ class Report:
     sections: list[Section] = field(default_factory=list)
     #: (title, calidar.verdict.Verdict)
     verdicts: list[tuple[str | None, object]] = field(default_factory=list)
-    record: object | None = None  #: calidar.provenance.RunRecord
+    record: RunRecord | None = None
 
     def add_verdict(self, verdict, title: str | None = None) -> None:
         """Show ``verdict`` at the top of the page (several: one box each, in order)."""

@@ -46,6 +46,9 @@ from calidar.sim.patterns import scan_angles
 from calidar.sim.scene import CLASS_BUILDING, CLASS_GROUND, Scene
 from calidar.sim.survey import (GPS_WEEK_START_S, SIMULATION_DATE, STRIP_ERRORS, SurveyConfig,
                                 SurveyResult, _lines, check_config, utm_crs)
+from calidar.sensor import Sensor
+from calidar.trajectory import Trajectory
+from calidar.trajectory_accuracy import TrajectoryAccuracy
 
 CHUNK_PULSES = 1_000_000  #: pulses simulated and written at a time (≈ 200 B each while in flight)
 CRS_TILE_M = 10.0  #: side of the tiles on which ECEF → CRS is linear (module docstring)
@@ -161,13 +164,13 @@ class LargeSurvey:
     scene: Scene  #: the frame (ENU origin) and extent only: no buildings, trees or raster ground
     lines: list
     windows: list  #: scan window (t0, t1) GPS s per line
-    trajectory_true: object
-    trajectory: object  #: measured (sbet.out)
-    nominal: object
-    truth: object
+    trajectory_true: Trajectory
+    trajectory: Trajectory  #: measured (sbet.out)
+    nominal: Sensor
+    truth: Sensor
     crs: str
     strip_errors: list
-    accuracy: object
+    accuracy: TrajectoryAccuracy
 
     @property
     def pulse_rate_hz(self) -> float:

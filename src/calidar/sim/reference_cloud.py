@@ -17,6 +17,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from pyproj import CRS
 
 SPACING_M = 0.25  #: 16 points per m²
 NOISE_M = 0.005  #: each point's height noise, m
@@ -30,7 +31,7 @@ class SimulatedReferenceCloud:
     offset."""
 
     xyz: np.ndarray
-    crs: object
+    crs: CRS
     sigma_m: float
     datum_offset_m: float
     noise_m: float
