@@ -65,18 +65,6 @@ def child_simulate(sim: Path, size: float, workers: int) -> None:
     print(json.dumps({"points": res.n_points, "density": density, "files": len(res.lines)}))
 
 
-def child_read(sim: Path) -> None:
-    """The floor: laspy + lazrs decompressing every field of every file (benchmarks/against_read.py)."""
-    import laspy
-
-    n = 0
-    for path in sorted((sim / "strips").glob("*.laz")):
-        with laspy.open(path) as reader:
-            for rec in reader.chunk_iterator(2_000_000):
-                n += len(rec)
-    print(json.dumps({"points": n}))
-
-
 def child_stages(sim: Path, method: str) -> None:
     """``calidar boresight``'s pipeline in this process (:func:`calidar.pipelines.boresight.calibrate_strips`,
     default settings, outputs into a temporary folder), a JSON line on stderr as each stage begins
@@ -158,7 +146,7 @@ def measure(data: Path, size: float, runs: int, method: str, stages: bool = Fals
     print(f"machine: {platform.machine()}, {os.cpu_count()} cores, python {platform.python_version()}; "
           f"NUMBA_NUM_THREADS={os.environ.get('NUMBA_NUM_THREADS')}; {sim}", flush=True)
     for k in range(runs):
-        floor = measured([sys.executable, str(HERE), "--child-read", str(sim)])
+        floor = measured([sys.executable, str(HERE.parent / "against_read.py"), "--child", str(sim)])
         print(f"run {k + 1}: read {floor['out']['points'] / 1e6:.1f} M points: {floor['wall_s']:.1f} s wall, "
               f"{floor['cpu_s']:.1f} s CPU, peak {floor['rss_gib']:.2f} GiB, load {floor['load']:.1f}", flush=True)
         r = measured(cmd, log=sim / f"boresight_{method}_{k + 1}.log")
@@ -189,8 +177,6 @@ def main() -> None:
         return child_simulate(Path(sys.argv[2]), float(sys.argv[3]), int(sys.argv[4]))
     if len(sys.argv) > 1 and sys.argv[1] == "--child-stages":
         return child_stages(Path(sys.argv[2]), sys.argv[3])
-    if len(sys.argv) > 1 and sys.argv[1] == "--child-read":
-        return child_read(Path(sys.argv[2]))
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("what", choices=["simulate", "measure", "stages"])
     ap.add_argument("--size", type=float, default=64.0, help="million points")
