@@ -26,6 +26,7 @@ import numpy as np
 import scipy.linalg as sl
 from scipy.stats import chi2
 
+from calidar.adjust.variance_elements import scaled_normals
 from calidar.errors import CalibrationError
 
 #: the quadrature's nodes: the midpoints of five equal-probability slices of χ²_m
@@ -47,11 +48,7 @@ def solve_scaled(JtWJ: np.ndarray, JtWr: np.ndarray, x0: np.ndarray,
     """(x̂[keep], Q[keep, keep]) of the linearised problem (the arguments of
     :func:`calidar.adjust.variance_elements.estimate_elements`) with each free parameter's prior σ
     multiplied by ``scale[i]``: one Cholesky factor and solves for the ``keep`` columns only."""
-    N, b = JtWJ / observations, -JtWr / observations
-    for idx, center, P in priors:
-        Pf = P / np.outer(scale[idx], scale[idx])
-        N[np.ix_(idx, idx)] += Pf
-        b[idx] -= Pf @ (x0[idx] - center)
+    N, b = scaled_normals(JtWJ, JtWr, x0, priors, scale, observations)
     try:
         c = sl.cho_factor(N, lower=True)
     except (np.linalg.LinAlgError, ValueError):

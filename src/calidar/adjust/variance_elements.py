@@ -49,6 +49,20 @@ class ElementComponents:
     converged: bool
 
 
+def scaled_normals(JtWJ: np.ndarray, JtWr: np.ndarray, x0: np.ndarray,
+                   priors: Sequence[tuple[np.ndarray, np.ndarray, np.ndarray]], scale: np.ndarray,
+                   observations: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
+    """(N, b) of the linearised problem (the arguments of :func:`estimate_elements`) with each free
+    parameter's prior σ multiplied by ``scale[i]``: N = JᵀWJ / σ²_obs + Σ P/(s sᵀ), b the matching
+    right-hand side, so that x̂ = x0 + N⁻¹ b."""
+    N, b = JtWJ / observations, -JtWr / observations
+    for idx, center, P in priors:
+        Pf = P / np.outer(scale[idx], scale[idx])
+        N[np.ix_(idx, idx)] += Pf
+        b[idx] -= Pf @ (x0[idx] - center)
+    return N, b
+
+
 def estimate_elements(JtWJ: np.ndarray, JtWr: np.ndarray, x0: np.ndarray,
                       priors: Sequence[tuple[np.ndarray, np.ndarray, np.ndarray]], labels: Sequence[str | None],
                       start: Mapping[str, float], *, observations: float = 1.0, pool: Pool | None = None,
@@ -75,11 +89,7 @@ def estimate_elements(JtWJ: np.ndarray, JtWr: np.ndarray, x0: np.ndarray,
     as_dict = lambda a: {n: float(a[k]) for n, k in code.items()}  # noqa: E731
     for it in range(1, max_iter + 1):
         f = np.where(which >= 0, np.sqrt(var[np.maximum(which, 0)]), 1.0)
-        N, b = JtWJ / observations, -JtWr / observations
-        for idx, center, P in priors:
-            Pf = P / np.outer(f[idx], f[idx])
-            N[np.ix_(idx, idx)] += Pf
-            b[idx] -= Pf @ (x0[idx] - center)
+        N, b = scaled_normals(JtWJ, JtWr, x0, priors, f, observations)
         Q = cholesky_inverse(N)
         if Q is None:
             raise CalibrationError("variance components: the normal matrix is not positive definite")
