@@ -53,15 +53,16 @@ def survey(density: float):
                          range_noise_m=0.03)
 
 
-def folder(data: Path, size: float) -> Path:
-    return data / f"flight_{size:g}M"
+def folder(data: Path, size: float, crop: str | None = None) -> Path:
+    return data / (f"flight_{size:g}M" + (f"_crop{crop.replace(',', 'x')}" if crop else ""))
 
 
-def child_simulate(sim: Path, size: float, workers: int) -> None:
+def child_simulate(sim: Path, size: float, workers: int, crop: str = "") -> None:
     from calidar.sim.large_survey import simulate_large_survey
 
     density = round(size * 1e6 / PULSES_PER_DENSITY, 4)
-    res = simulate_large_survey(survey(density), sim, workers=workers)
+    box = tuple(float(v) for v in crop.split(",")) if crop else None
+    res = simulate_large_survey(survey(density), sim, workers=workers, crop=box)
     print(json.dumps({"points": res.n_points, "density": density, "files": len(res.lines)}))
 
 
@@ -118,9 +119,10 @@ def measured(cmd: list[str], log: Path | None = None) -> dict:
             "load": load, "out": json.loads(lines[-1]) if lines else None}
 
 
-def simulate(data: Path, size: float, workers: int) -> dict:
-    sim = folder(data, size)
-    r = measured([sys.executable, str(HERE), "--child-simulate", str(sim), str(size), str(workers)])
+def simulate(data: Path, size: float, workers: int, crop: str | None = None) -> dict:
+    sim = folder(data, size, crop)
+    r = measured([sys.executable, str(HERE), "--child-simulate", str(sim), str(size), str(workers),
+                  crop or ""])
     gb = sum(p.stat().st_size for p in (sim / "strips").glob("*.laz")) / 1e9
     out = r.pop("out")
     doc = {**r, **out, "gb": gb, "workers": workers}
@@ -137,8 +139,7 @@ def errors_in_sigma(out: Path, sim: Path) -> dict:
     return {k: (sol[k]["value"] - truth[k]["value"]) / sol[k]["sigma"] for k in ERRORS}
 
 
-def measure(data: Path, size: float, runs: int, method: str, stages: bool = False) -> None:
-    sim = folder(data, size)
+def measure(sim: Path, runs: int, method: str, stages: bool = False) -> None:
     strips = [str(p) for p in sorted((sim / "strips").glob("*.laz"))]
     out = sim / f"out_{method}"
     cmd = [sys.executable, "-m", "calidar", "boresight", *strips, "--trajectory", str(sim / "sbet.out"), "--sensor",
@@ -174,7 +175,7 @@ def stage_run(sim: Path, method: str) -> None:
 
 def main() -> None:
     if len(sys.argv) > 1 and sys.argv[1] == "--child-simulate":
-        return child_simulate(Path(sys.argv[2]), float(sys.argv[3]), int(sys.argv[4]))
+        return child_simulate(Path(sys.argv[2]), float(sys.argv[3]), int(sys.argv[4]), *sys.argv[5:])
     if len(sys.argv) > 1 and sys.argv[1] == "--child-stages":
         return child_stages(Path(sys.argv[2]), sys.argv[3])
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -185,13 +186,17 @@ def main() -> None:
     ap.add_argument("--runs", type=int, default=1, help="measure: interleaved floor + boresight rounds")
     ap.add_argument("--method", default="planes", choices=["planes", "vgicp"])
     ap.add_argument("--stages", action="store_true", help="measure: then one run timed per stage")
+    ap.add_argument("--crop", metavar="E,N", help="only the lines' parts flown within E m east and N m "
+                    "north of the scene's centre: the --size flight's density on a smaller area "
+                    "(issue 26/32: the 10⁹ run's density in 10⁸ points)")
     args = ap.parse_args()
+    sim = folder(args.data, args.size, args.crop)
     if args.what == "simulate":
-        simulate(args.data, args.size, args.workers)
+        simulate(args.data, args.size, args.workers, args.crop)
     elif args.what == "stages":
-        stage_run(folder(args.data, args.size), args.method)
+        stage_run(sim, args.method)
     else:
-        measure(args.data, args.size, args.runs, args.method, args.stages)
+        measure(sim, args.runs, args.method, args.stages)
 
 
 if __name__ == "__main__":

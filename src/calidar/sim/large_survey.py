@@ -221,6 +221,24 @@ def plan_large_survey(cfg: SurveyConfig, ground: FacetGround | None = None) -> L
                        strip_errors, accuracy)
 
 
+def cropped(plan: LargeSurvey, east_m: float, north_m: float) -> LargeSurvey:
+    """``plan`` with each line's scan window cut to the times its true position lies within
+    |east| ≤ ``east_m``, |north| ≤ ``north_m`` of the scene's origin (lines left with none
+    dropped): the same flight, pulses and density over a smaller area (issue 26/32: the 10⁹ run's
+    density in 10⁸ points)."""
+    tr = plan.trajectory_true
+    enu = plan.scene.ecef_to_enu(tr.ecef)
+    inside = (np.abs(enu[:, 0]) <= east_m) & (np.abs(enu[:, 1]) <= north_m)
+    keep, windows = [], []
+    for k, (a, b) in enumerate(plan.windows):
+        t = tr.time[inside & (tr.time >= a) & (tr.time <= b)]
+        if t.size > 1:
+            keep.append(k)
+            windows.append((float(t[0]), float(t[-1])))
+    pick = [plan.lines[k] for k in keep], [plan.strip_errors[k] for k in keep]
+    return replace(plan, lines=pick[0], windows=windows, strip_errors=pick[1])
+
+
 def shoot(plan: LargeSurvey, t: np.ndarray, angles: np.ndarray):
     """The true beams at GPS times t (N,) with encoder angles (N,) or (N, k) rad (noise included)
     met with the ground: true ranges (N,) m, hits (N, 3) in the scene's ENU m, block kinds (N,)."""
@@ -314,10 +332,13 @@ def _write_lines(args) -> int:
 
 def simulate_large_survey(cfg: SurveyConfig, out: str | Path, ground: FacetGround | None = None,
                           workers: int = 1, chunk_pulses: int = CHUNK_PULSES,
-                          progress: Callable[[str, int, int], None] | None = None) -> SurveyResult:
+                          progress: Callable[[str, int, int], None] | None = None,
+                          crop: tuple[float, float] | None = None) -> SurveyResult:
     """Simulate ``cfg`` over the closed-form ground into ``out`` (strips/line_NNN.laz, sbet.out,
     smrmsg.out, sensor.toml, truth.json; existing files replaced), the strips written by
-    ``workers`` processes. Returns the result (no points held: ``streamed_points``).
+    ``workers`` processes; ``crop`` (east, north) m: only the lines' parts flown within that
+    half-width of the origin (:func:`cropped`). Returns the result (no points held:
+    ``streamed_points``).
 
     >>> import tempfile, calidar
     >>> from calidar.sim.large_survey import simulate_large_survey
@@ -329,6 +350,8 @@ def simulate_large_survey(cfg: SurveyConfig, out: str | Path, ground: FacetGroun
     """
     out = Path(out)
     plan = plan_large_survey(cfg, ground)
+    if crop is not None:
+        plan = cropped(plan, *crop)
     (out / "strips").mkdir(parents=True, exist_ok=True)
     workers = max(1, min(workers, len(plan.lines)))
     order = sorted(range(len(plan.lines)), key=plan.pulses, reverse=True)

@@ -9,8 +9,8 @@ import pytest
 
 import calidar
 from calidar import georef
-from calidar.sim.large_survey import (FacetGround, facet_height, plan_large_survey, shoot, simulate_chunk,
-                                      simulate_large_survey, tiled_to_crs)
+from calidar.sim.large_survey import (FacetGround, cropped, facet_height, plan_large_survey, shoot,
+                                      simulate_chunk, simulate_large_survey, tiled_to_crs)
 from calidar.sim.patterns import scan_angles
 from calidar.sim.survey import PRESETS, survey_config
 
@@ -35,6 +35,23 @@ def test_the_flight_is_the_detailed_simulators(plan):
     assert plan.truth.boresight_yaw == pytest.approx(plan.nominal.boresight_yaw + ERRORS["boresight_yaw"])
     dpos = plan.trajectory.ecef - plan.trajectory_true.ecef
     assert 0.005 < np.std(dpos) < 0.2  # the preset's 3 cm GNSS errors, not zero
+
+
+def test_a_cropped_plan_flies_the_same_pulses_over_a_smaller_area(plan):
+    """cropped (issue 26/32: the 10⁹ run's density in fewer points): the lines' windows cut to the
+    box, lines outside it dropped, the same trajectory and pulse rate."""
+    box = (200.0, 200.0)  # the two cross lines
+    part = cropped(plan, *box)
+    assert 0 < len(part.lines) < len(plan.lines)
+    whole = {ln.number: k for k, ln in enumerate(plan.lines)}
+    for k, line in enumerate(part.lines):
+        (a, b), (a0, b0) = part.windows[k], plan.windows[whole[line.number]]
+        assert a0 <= a < b <= b0 and part.strip_errors[k] is plan.strip_errors[whole[line.number]]
+        tr = plan.trajectory_true
+        enu = plan.scene.ecef_to_enu(tr.ecef[(tr.time >= a) & (tr.time <= b)])
+        assert np.all(np.abs(enu[:, :2]) <= np.array(box) + 1e-9)
+        assert b - a > 1.0  # each kept line crosses the box
+    assert part.pulse_rate_hz == plan.pulse_rate_hz
 
 
 def test_hits_lie_on_the_ground_and_invert_to_the_simulated_ranges_and_angles(plan):
