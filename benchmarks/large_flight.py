@@ -175,7 +175,8 @@ def stage_run(sim: Path, method: str) -> None:
 
 def main() -> None:
     if len(sys.argv) > 1 and sys.argv[1] == "--child-simulate":
-        return child_simulate(Path(sys.argv[2]), float(sys.argv[3]), int(sys.argv[4]), *sys.argv[5:])
+        return child_simulate(Path(sys.argv[2]), float(sys.argv[3]), int(sys.argv[4]),
+                              *sys.argv[5:])
     if len(sys.argv) > 1 and sys.argv[1] == "--child-stages":
         return child_stages(Path(sys.argv[2]), sys.argv[3])
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -186,9 +187,10 @@ def main() -> None:
     ap.add_argument("--runs", type=int, default=1, help="measure: interleaved floor + boresight rounds")
     ap.add_argument("--method", default="planes", choices=["planes", "vgicp"])
     ap.add_argument("--stages", action="store_true", help="measure: then one run timed per stage")
-    ap.add_argument("--crop", metavar="E,N", help="only the lines' parts flown within E m east and N m "
-                    "north of the scene's centre: the --size flight's density on a smaller area "
-                    "(issue 26/32: the 10⁹ run's density in 10⁸ points)")
+    ap.add_argument("--crop", metavar="E,N",
+                    help="only the lines' parts flown within E m east and N m north of the "
+                    "scene's centre: the --size flight's density on a smaller area (issue 26/32: "
+                    "the 10⁹ run's density in 10⁸ points)")
     args = ap.parse_args()
     sim = folder(args.data, args.size, args.crop)
     if args.what == "simulate":

@@ -1,21 +1,23 @@
-"""Benchmark (issue 26/32): the 10⁹-point flight of benchmarks/large_flight.py calibrated from only
-the points its run keeps, simulated at its density — the same lines, the same kept cells, a few
-million points instead of 10⁹.
+"""Benchmark (issue 26/32): the 10⁹-point flight of benchmarks/large_flight.py calibrated from
+only the points its run keeps, simulated at its density — the same lines, the same kept cells, a
+few million points instead of 10⁹.
 
 ``calidar boresight`` keeps whole 5 m overlap cells per strip (300 000 points a strip by default,
 :mod:`calidar.strips.thin`); which cells depends on the lines' footprints only, so a low-density
 simulation of the same flight (``large_flight.py simulate --size SMALL``) gives them with the
 budget scaled by the densities (``300 000 × SMALL / SIZE``, blocks of one cell as at ≥ 20
-points/m²). Then, per line, the pulses flown while the line passes over its kept cells (the low-density
-points' times in them, ± ``PAD_S``) are simulated at the density of ``--size`` and only those delivered
-into the kept cells written (the points the full run's second pass keeps); sbet.out, smrmsg.out,
-sensor.toml and truth.json as the full flight's. Calibrate them with ``--strip-points 0``:
+points/m²). Then, per line, the pulses flown while the line passes over its kept cells (the
+low-density points' times in them, ± ``PAD_S``) are simulated at the density of ``--size`` and
+only those delivered into the kept cells written (the points the full run's second pass keeps);
+sbet.out, smrmsg.out, sensor.toml and truth.json as the full flight's. Calibrate them with
+``--strip-points 0``:
 
-    nice -n 10 env NUMBA_NUM_THREADS=1 OMP_NUM_THREADS=1 PYTHONPATH=src python benchmarks/large_flight.py \
-        simulate --size 20 --data /work/bigsim
-    nice -n 10 env NUMBA_NUM_THREADS=1 OMP_NUM_THREADS=1 PYTHONPATH=src python benchmarks/large_flight_cells.py \
-        --size 1000 --from /work/bigsim/flight_20M --out /work/bigsim/cells_1000M
-    calidar boresight /work/bigsim/cells_1000M/strips/*.laz --trajectory … --sensor … --truth … --strip-points 0
+    export NUMBA_NUM_THREADS=1 OMP_NUM_THREADS=1 PYTHONPATH=src
+    nice -n 10 python benchmarks/large_flight.py simulate --size 20 --data /work/bigsim
+    nice -n 10 python benchmarks/large_flight_cells.py --size 1000 --from /work/bigsim/flight_20M \
+        --out /work/bigsim/cells_1000M
+    cd /work/bigsim/cells_1000M && calidar boresight strips/*.laz --trajectory sbet.out \
+        --sensor sensor.toml --truth truth.json --strip-points 0 --out cal
 """
 
 from __future__ import annotations
@@ -24,6 +26,7 @@ import argparse
 import json
 import sys
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import laspy
@@ -37,8 +40,8 @@ GAP_S = 0.2  #: a line's times in its kept cells further apart than this start a
 
 
 def kept_cells(small: Path, budget: int) -> dict[int, np.ndarray]:
-    """Point_source_id → the overlap cells its line keeps, as the ingest plans them for the files of
-    ``small`` with ``budget`` points a strip and blocks of one cell."""
+    """Point_source_id → the overlap cells its line keeps, as the ingest plans them for the files
+    of ``small`` with ``budget`` points a strip and blocks of one cell."""
     from calidar.ingest.footprints import first_pass
     from calidar.ingest.settings import IngestSettings
     from calidar.ingest.strips import _files, _frame, _plan
@@ -47,8 +50,8 @@ def kept_cells(small: Path, budget: int) -> dict[int, np.ndarray]:
 
     traj = read_trajectory(small / "sbet.out")
     settings = IngestSettings(budget_points=budget, block_cells=1)
-    files = _files(sorted((small / "strips").glob("*.laz")), traj, Sensor.read(small / "sensor.toml"),
-                   settings)
+    sensor = Sensor.read(small / "sensor.toml")
+    files = _files(sorted((small / "strips").glob("*.laz")), traj, sensor, settings)
     acc, _, _ = first_pass(files, _frame(files), traj, settings, lambda *a: None, None, False)
     groups, line, how, *_, kept = _plan(acc, settings)
     assert how == "point_source_id", how
@@ -78,16 +81,19 @@ def main() -> None:
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--size", type=float, default=1000.0, help="the full flight's million points")
-    ap.add_argument("--from", dest="small", type=Path, required=True, help="a low-density simulation")
+    ap.add_argument("--from", dest="small", type=Path, required=True,
+                    help="a low-density simulation")
     ap.add_argument("--out", type=Path, required=True)
-    ap.add_argument("--budget", type=int, default=300_000, help="the full run's points kept a strip")
+    ap.add_argument("--budget", type=int, default=300_000,
+                    help="the full run's points kept a strip")
+    ap.add_argument("--range-noise", type=float, default=0.03, help="m (the survey's: 0.03)")
     args = ap.parse_args()
     density = round(args.size * 1e6 / PULSES_PER_DENSITY, 4)
     small = json.loads((args.small / "simulate.json").read_text())
     budget = round(args.budget * small["density"] / density)
     t0 = time.perf_counter()
     kept = kept_cells(args.small, budget)
-    plan = plan_large_survey(survey(density))
+    plan = plan_large_survey(replace(survey(density), range_noise_m=args.range_noise))
     (args.out / "strips").mkdir(parents=True, exist_ok=True)
     offsets = np.floor(to_crs(plan.scene.origin_ecef[None], plan.crs)[0] / 1000.0) * 1000.0
     total, shot = 0, 0
@@ -114,8 +120,9 @@ def main() -> None:
                     total, shot = total + int(sel.sum()), shot + sel.size
         print(f"line {line.number}: {cells.size} kept cells, {total} points so far", flush=True)
     plan.result(total).write(args.out, force=True)
-    print(json.dumps({"points": total, "pulses_shot": shot, "density": density, "budget_small": budget,
-                      "wall_s": round(time.perf_counter() - t0, 1)}), flush=True)
+    print(json.dumps({"points": total, "pulses_shot": shot, "density": density,
+                      "budget_small": budget, "wall_s": round(time.perf_counter() - t0, 1)}),
+          flush=True)
 
 
 if __name__ == "__main__":
