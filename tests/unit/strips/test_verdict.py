@@ -250,3 +250,31 @@ def test_the_global_test_allows_for_rows_sigma_estimated_from_their_points(sigma
     assert ROW_SIGMA_TOLERANCE == 0.07
     del sol.extra["strips"]["row_dof"]
     assert sigma0_finding(sol).status == ("warn" if sigma0 > 1 else calidar.verdict.NOTE)
+
+
+def _crawl(z_per_iteration, sigma=np.radians(0.00055)):
+    """A result whose pitch was at these error/σ after each outer iteration (the mean correspondence
+    distance settled: what the loop's own rule stops on)."""
+    sol = _solution({"boresight_pitch": sigma, "trajectory_tilt_north_1_0": 1e-5})
+    values = [{"boresight_pitch": -0.04 + z * sigma, "trajectory_tilt_north_1_0": 1e-3 * k}
+              for k, z in enumerate(z_per_iteration)]
+    outer = [{"n_obs": 10, "mean_distance_m": 0.005, "values": v} for v in values]
+    return SimpleNamespace(solution=sol, outer=outer, warnings=[])
+
+
+@pytest.mark.parametrize("trace, status", [
+    ((32.8, 16.4, 12.0, 9.5, 7.7), "fail"),  # the 10⁹ run's kept cells (docs/validation.md): +7.7σ
+    ((73.0, 8.52, 1.22, 0.09), "pass"),  # the same cells at 53 points/m²: converged in 3
+    ((-0.47, -0.53, -0.52, -0.56), "pass"),  # settled: steps at the matching's noise
+    ((3.0, 2.0, 2.6), "pass"),  # 1σ forward, 0.6σ back (ρ < 0): bounded, not a crawl
+])
+def test_a_loop_stopped_while_the_pitch_still_travels_fails_the_convergence_check(trace, status):
+    """Issue 26/32: the 10⁹ run's loop stopped on its rules (mean distance settled) while its pitch
+    still moved 1.8σ an iteration at 80 % of the step before; the convergence line read "pass"."""
+    from calidar.strips.verdict import convergence_finding
+
+    f = convergence_finding(_crawl(trace))
+    assert f.status == status, f.detail
+    if status == "fail":
+        assert "boresight_pitch still moved -1.8 σ an iteration" in f.detail
+        assert "max_outer" in f.action
