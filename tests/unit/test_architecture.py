@@ -22,7 +22,10 @@ CLI_IMPORT_ALLOWANCE: set[str] = set()
 #: only shrinks). "calidar.x.*" names the package calidar.x and all under it; any other entry one module.
 LINE_LENGTH_ALLOWANCE: set[str] = {
     # the packages not yet started
-    "calidar.cli.*", "calidar.pipelines.*", "calidar.strips.*",
+    "calidar.cli.*", "calidar.strips.*",
+    # pipelines: the boresight path, being made faster elsewhere at the time
+    "calidar.pipelines.boresight", "calidar.pipelines.boresight_outputs",
+    "calidar.pipelines.quality",
     # the modules left of a package otherwise reshaped (being edited elsewhere at the time)
     "calidar.adjust.residuals", "calidar.adjust.solver", "calidar.adjust.variance_components",
     "calidar.adjust.variance_elements",
