@@ -22,7 +22,10 @@ CLI_IMPORT_ALLOWANCE: set[str] = set()
 #: only shrinks). "calidar.x.*" names the package calidar.x and all under it; any other entry one module.
 LINE_LENGTH_ALLOWANCE: set[str] = {
     # the packages not yet started
-    "calidar.cli.*", "calidar.pipelines.*",
+    "calidar.cli.*",
+    # pipelines: the boresight path, being made faster elsewhere at the time
+    "calidar.pipelines.boresight", "calidar.pipelines.boresight_outputs",
+    "calidar.pipelines.quality",
     # calidar.strips: the modules not yet reshaped (issue 29, sixth session: a–m done)
     "calidar.strips.centroids", "calidar.strips.correspond", "calidar.strips.geometry",
     "calidar.strips.outer_loop", "calidar.strips.overlap", "calidar.strips.parameters",
