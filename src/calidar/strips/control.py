@@ -4,9 +4,9 @@ A control point (surveyed x, y, z with σ) observes a strip's local surface: the
 height of the strip's quadratic surface around it above the control point, along the surface's
 normal, r = n · (Σ wᵢ·pᵢ − c) (:func:`calidar.strips.control_surface.local_surface`: the weights w
 read the quadric at the control point c; > 0 when the strip's surface lies above it, as ``calidar
-accuracy``'s dz), with σ² = σ_control² + the quadric's noise there (a plane, used before, missed
-the ground's curvature by 9 mm RMS on the simulator's smooth ground, an error shared by every strip
-at the point and absent from σ: ``benchmarks/control_rows_truth.py``). The rows are
+accuracy``'s dz), with σ² = σ_control² + the quadric's noise there (a plane misses the ground's
+curvature, an error shared by every strip at the point and absent from σ: docs/validation.md,
+"Ground control in the strip adjustment"). The rows are
 :class:`~calidar.strips.correspond.Correspondences` between the strip and a *control pseudo-strip*
 (id :data:`CONTROL_ID`) whose :class:`Pose` (:func:`control_pose`) puts each "point" at its control
 point with a zero rotation: the lidar equation then returns the control point itself whatever the
