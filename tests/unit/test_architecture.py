@@ -22,7 +22,22 @@ CLI_IMPORT_ALLOWANCE: set[str] = set()
 #: only shrinks). "calidar.x.*" names the package calidar.x and all under it; any other entry one module.
 LINE_LENGTH_ALLOWANCE: set[str] = {
     # the packages not yet started
-    "calidar.cli.*", "calidar.pipelines.*", "calidar.strips.*",
+    "calidar.cli.*", "calidar.pipelines.*",
+    # strips/: the modules still with long lines (issue 29, sixth session)
+    "calidar.strips.calibrate", "calidar.strips.cell_moments", "calidar.strips.centroids",
+    "calidar.strips.checkpoint_verdict", "calidar.strips.config", "calidar.strips.control",
+    "calidar.strips.control_cloud", "calidar.strips.control_planes",
+    "calidar.strips.control_surface", "calidar.strips.control_survey",
+    "calidar.strips.control_verdict", "calidar.strips.correspond", "calidar.strips.distribute",
+    "calidar.strips.geometry", "calidar.strips.global_test", "calidar.strips.lines",
+    "calidar.strips.matchers", "calidar.strips.model_check",
+    "calidar.strips.model_check_verdict", "calidar.strips.moments_kernel",
+    "calidar.strips.overlap", "calidar.strips.parameters", "calidar.strips.pca",
+    "calidar.strips.planes", "calidar.strips.problem", "calidar.strips.processes",
+    "calidar.strips.quality", "calidar.strips.row_variance", "calidar.strips.selection",
+    "calidar.strips.strip", "calidar.strips.thin", "calidar.strips.trajectory_errors",
+    "calidar.strips.trajectory_level", "calidar.strips.trajectory_level_time",
+    "calidar.strips.usgs", "calidar.strips.vgicp", "calidar.strips.vgicp_planes",
     # the modules left of a package otherwise reshaped (being edited elsewhere at the time)
     "calidar.adjust.residuals", "calidar.adjust.solver", "calidar.adjust.variance_components",
     "calidar.adjust.variance_elements",

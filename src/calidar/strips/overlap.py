@@ -48,7 +48,8 @@ def footprint_area_m2(xy: np.ndarray, cell_m: float = 5.0) -> float:
 
 def cell_counts(keys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The distinct cell keys (sorted) and how many of ``keys`` fall in each (a dense table in numba
-    when the cells' box is small against the keys: :func:`calidar.strips.moments_kernel.dense_cell_counts`)."""
+    when the cells' box is small against the keys:
+    :func:`calidar.strips.moments_kernel.dense_cell_counts`)."""
     from calidar.strips.moments_kernel import dense_cell_counts
 
     dense = dense_cell_counts(keys)
@@ -86,8 +87,8 @@ def unpaired_notes(ids, pairs, cell_m: float, min_cells: int, names: Mapping[int
     """Plain-words notes about the strips ``ids`` in none of the ``pairs`` (a, b, ...), named by
     ``names`` {id: file name} when given."""
     paired = {p[0] for p in pairs} | {p[1] for p in pairs}
-    return [f"strip {strip_name(i, names)} overlaps no other strip (fewer than {min_cells} common {cell_m:g} m cells); "
-            "it is not used"
+    return [f"strip {strip_name(i, names)} overlaps no other strip (fewer than {min_cells} common "
+            f"{cell_m:g} m cells); it is not used"
             for i in sorted(ids) if i not in paired]
 
 
@@ -104,8 +105,9 @@ def find_overlaps(strips_xy: Mapping[int, np.ndarray], cell_m: float = 5.0, min_
     A cell counts as occupied by a strip when it holds at least ``min_points_per_cell``
     of its points; pairs sharing fewer than ``min_cells`` cells are left out. Returns the
     pairs (ids ascending) and plain-words notes about strips that overlap no other strip
-    (named by ``names`` {id: file name} when given). (Streamed files: :class:`calidar.ingest.strips.StripIngest` accumulates the
-    same footprints chunk by chunk with :func:`cell_counts` and :func:`merge_counts`.)
+    (named by ``names`` {id: file name} when given). (Streamed files:
+    :class:`calidar.ingest.strips.StripIngest` accumulates the same footprints chunk by chunk with
+    :func:`cell_counts` and :func:`merge_counts`.)
     """
     keys = {i: cell_keys(xy, cell_m) for i, xy in strips_xy.items()}
     occupied = {}

@@ -34,12 +34,14 @@ from calidar.strips.planes import PlaneSettings, planar_cells
 from calidar.strips.planimetric import (Planimetric, PlanimetricSettings, gradient_noise, gradients,
                                         planimetric_offsets)
 
-BASE_CELL_M = 1.0  #: accumulation grid when the cell is chosen per pair (whole metres coarsen from it)
-OVERLAP_CELL_M = 5.0  #: which lines overlap: cells of this size occupied by both (as the strip calibration)
+#: accumulation grid when the cell is chosen per pair (whole metres coarsen from it)
+BASE_CELL_M = 1.0
+#: which lines overlap: cells of this size occupied by both (as the strip calibration)
+OVERLAP_CELL_M = 5.0
 OVERLAP_MIN_POINTS = 3  #: points of a line that make an overlap cell occupied
 MERGE_PARTS = 16  #: chunk moments a line holds before they are combined into one
-#: cell moments an accumulator with a spill folder holds in memory before they go to disk (per stage)
-#: (88 B a cell: a 10⁹-point survey's 2 m cells of three stages would be ≈ 4 GB)
+#: cell moments an accumulator with a spill folder holds in memory before they go to disk (per
+#: stage) (88 B a cell: a 10⁹-point survey's 2 m cells of three stages would be ≈ 4 GB)
 HOLD_BYTES = 64 * 2**20
 
 
@@ -71,18 +73,23 @@ class PairQuality:
     sigma_dx_m: float | None = None  #: cluster-robust σ (calidar.strips.planimetric)
     sigma_dy_m: float | None = None
     n_sloped: int = 0  #: planar cells sloped more than min_slope_deg
-    planimetric: Planimetric | None = None  #: the joint fit (offset, tilt, dx, dy) or why not determined
+    #: the joint fit (offset, tilt, dx, dy) or why not determined
+    planimetric: Planimetric | None = None
     cell_m: float = 2.0
     n_points_a: int = 0  #: points of a in the n_cells compared cells
     n_points_b: int = 0
-    points_a: list[dict] = field(default_factory=list)  #: which points of a were used (PointSelection.to_dict)
+    #: which points of a were used (PointSelection.to_dict)
+    points_a: list[dict] = field(default_factory=list)
     points_b: list[dict] = field(default_factory=list)
-    grid: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)), repr=False)  #: (ny, nx) dz, NaN outside, row 0 north
+    #: (ny, nx) dz, NaN outside, row 0 north
+    grid: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)), repr=False)
     origin: tuple[float, float] = (0.0, 0.0)  #: (west x, north y) of the grid, m
 
     def to_dict(self) -> dict:
-        keys = ("a", "b", "median_dz_m", "rmsdz_m", "max_abs_dz_m", "mean_dz_m", "n_cells", "n_points_a", "n_points_b",
-                "dx_m", "dy_m", "sigma_dx_m", "sigma_dy_m", "n_sloped", "cell_m", "points_a", "points_b")
+        keys = ("a", "b", "median_dz_m", "rmsdz_m", "max_abs_dz_m", "mean_dz_m", "n_cells",
+                "n_points_a", "n_points_b",
+                "dx_m", "dy_m", "sigma_dx_m", "sigma_dy_m", "n_sloped", "cell_m", "points_a",
+                "points_b")
         out = {k: getattr(self, k) for k in keys}
         out["planimetric"] = None if self.planimetric is None else self.planimetric.to_dict()
         return out
@@ -136,8 +143,10 @@ class SwathAccumulator:
         self.spill_dir = None if spill_dir is None else Path(tempfile.mkdtemp(prefix="lines-", dir=spill_dir))  # its own
         self._written = 0  #: files written to spill_dir (their names)
         self.base_m = float(cell_m) if cell_m else BASE_CELL_M
-        self.parts: dict[tuple[int, float], list[CellMoments]] = {}  #: (line, cell m) → moments not yet combined
-        self.spilled: dict[tuple[int, float], list[Path]] = {}  #: (line, cell m) → moments written to spill_dir
+        #: (line, cell m) → moments not yet combined
+        self.parts: dict[tuple[int, float], list[CellMoments]] = {}
+        #: (line, cell m) → moments written to spill_dir
+        self.spilled: dict[tuple[int, float], list[Path]] = {}
         self.selections: dict[int, list[dict]] = {}
 
     def add(self, line: int, xyz: np.ndarray, selection=None) -> None:
@@ -186,7 +195,8 @@ class SwathAccumulator:
             return self._combined(line, cell)
         f = int(round(cell / self.base_m))
         if not np.isclose(f * self.base_m, cell):
-            raise ValueError(f"a {cell} m cell is not a whole number of the {self.base_m} m accumulation cells")
+            raise ValueError(f"a {cell} m cell is not a whole number of the {self.base_m} m "
+                             "accumulation cells")
         return self._combined(line, self.base_m).coarsened(f)
 
     def _combined(self, line: int, cell: float) -> CellMoments:
@@ -245,7 +255,8 @@ def _cell_size(densities, s: QualitySettings) -> float:
 
 def swath_difference(a: int, points_a: np.ndarray, b: int, points_b: np.ndarray,
                      settings: QualitySettings | None = None) -> PairQuality:
-    """Vertical and planimetric agreement of two strips' points (each (N, 3), metres, z up) held in memory."""
+    """Vertical and planimetric agreement of two strips' points (each (N, 3), metres, z up) held in
+    memory."""
     s = settings or QualitySettings()
     (q,) = swath_differences({a: [points_a], b: [points_b]}, s)[0] or [_no_overlap(a, b, s)]
     return q
@@ -272,7 +283,8 @@ def pair_quality(a: int, moments_a: CellMoments, b: int, moments_b: CellMoments,
     cell = moments_a.cell_m
     ps = PlaneSettings(min_points=s.min_points, max_rms_m=s.max_rms_m, min_spread=0.15)
     _, ia, ib = np.intersect1d(moments_a.keys, moments_b.keys, assume_unique=True, return_indices=True)
-    pa, pb = _planes(moments_a.select(ia), ps), _planes(moments_b.select(ib), ps)  # planes of the shared cells only
+    # planes of the shared cells only
+    pa, pb = _planes(moments_a.select(ia), ps), _planes(moments_b.select(ib), ps)
     keys, ia, ib = np.intersect1d(pa[0].keys, pb[0].keys, assume_unique=True, return_indices=True)
     ij = key_indices(keys)
     centre = (ij + 0.5) * cell
@@ -295,7 +307,8 @@ def pair_quality(a: int, moments_a: CellMoments, b: int, moments_b: CellMoments,
         q.grid[hi[1] - ij[flat, 1], ij[flat, 0] - lo[0]] = d
         q.origin = (float(lo[0] * cell), float((hi[1] + 1) * cell))
     noise = 0.25 * (gradient_noise(ma.covariance(), ma.count, na) + gradient_noise(mb.covariance(), mb.count, nb))
-    ga, gb = gradients(na), gradients(nb)  # a cell one line sees across a fold (a sliver of another face): out
+    # a cell one line sees across a fold (a sliver of another face): out
+    ga, gb = gradients(na), gradients(nb)
     alike = np.hypot(*(ga - gb).T) <= s.planimetric.max_neighbour_dslope / 2
     _planimetric(q, centre, np.where(alike, dz, np.nan), 0.5 * (ga + gb), noise, s)
     return q

@@ -27,7 +27,8 @@ FIELDS = ("classification", "return_number", "number_of_returns")
 
 @dataclass(frozen=True)
 class PointSelection:
-    """A rule ("classes", "ground" or "last returns") and the classes it keeps (None: any but EXCLUDED_CLASSES)."""
+    """A rule ("classes", "ground" or "last returns") and the classes it keeps (None: any but
+    EXCLUDED_CLASSES)."""
 
     rule: str
     classes: tuple[int, ...] | None = None
@@ -69,9 +70,10 @@ def choose_selection(source, present: np.ndarray | None, classes: tuple[int, ...
     if classes is not None:
         missing = [c for c in classes if c not in found]
         if missing:
-            raise InputError(source, "classification", f"has no points of class {', '.join(map(str, missing))} "
-                             f"(classes present: {', '.join(map(str, sorted(found))) or 'none'}); expected every "
-                             "class given to --classes")
+            raise InputError(source, "classification",
+                             f"has no points of class {', '.join(map(str, missing))} "
+                             f"(classes present: {', '.join(map(str, sorted(found))) or 'none'}); "
+                             "expected every class given to --classes")
         return PointSelection("classes", classes)
     if GROUND in found:
         return PointSelection("ground", (GROUND,))

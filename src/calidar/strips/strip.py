@@ -32,7 +32,8 @@ class LocalFrame:
 
     @classmethod
     def at(cls, points_ecef: np.ndarray) -> "LocalFrame":
-        """The frame at the centre of the points' bounding box, at their median height (ECEF m, (N, 3))."""
+        """The frame at the centre of the points' bounding box, at their median height (ECEF m, (N,
+        3))."""
         p = np.asarray(points_ecef, float)
         lat, lon, _ = frames.ecef_to_geodetic(0.5 * (p.min(axis=0) + p.max(axis=0)))
         height = float(np.median(frames.ecef_to_geodetic(p[:: max(1, len(p) // 10000)])[2]))
@@ -97,8 +98,10 @@ class Strip:
     trajectory: Trajectory
     frame: LocalFrame
     source: str = "<memory>"
-    extra: dict = field(default_factory=dict)  #: per-point attributes kept for output (classification, ...)
-    span: tuple[float, float] | None = None  #: GPS time span (s) of the whole line when ``points`` are a subset
+    #: per-point attributes kept for output (classification, ...)
+    extra: dict = field(default_factory=dict)
+    #: GPS time span (s) of the whole line when ``points`` are a subset
+    span: tuple[float, float] | None = None
 
     @property
     def time_span(self) -> tuple[float, float]:
@@ -133,7 +136,8 @@ class Strip:
         return self.obs.time
 
     def pose(self, index: np.ndarray | None = None) -> Pose:
-        """Trajectory poses at the times of the points ``index`` (all when None), cached by the caller."""
+        """Trajectory poses at the times of the points ``index`` (all when None), cached by the
+        caller."""
         idx = np.arange(len(self)) if index is None else np.asarray(index, dtype=np.int64)
         pos_e, r_eb = georef.poses(self.trajectory, self.obs.time[idx])
         r_lb = _rotated(self.frame.r_le, r_eb)
@@ -163,7 +167,8 @@ def georeference_pose(sensor: Sensor, pose: Pose) -> np.ndarray:
 
 @njit(cache=True, nogil=True)
 def _rotated(r: np.ndarray, m: np.ndarray) -> np.ndarray:  # pragma: no cover - numba
-    """r @ m[k] for every 3 × 3 matrix of m (N, 3, 3) (numpy's broadcast matmul costs 200 ns each)."""
+    """r @ m[k] for every 3 × 3 matrix of m (N, 3, 3) (numpy's broadcast matmul costs 200 ns
+    each)."""
     out = np.empty_like(m)
     for k in range(m.shape[0]):
         for a in range(3):

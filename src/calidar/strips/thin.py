@@ -7,8 +7,8 @@ well as millions. So the overlap cells (those of :func:`calidar.strips.overlap.c
 are grouped in square blocks (several tie-plane patches across, so that few patches are cut
 at a block's edge) ranked by :func:`spread_rank`, a bit-reversed Morton (Z-order) code of the
 block indices: the blocks ranked below 2⁻ᵏ form a regular lattice of stride 2^(k/2) blocks,
-and any prefix of the ranking is spread evenly over the grid. Each strip keeps the lowest-ranked of its overlap
-cells that fit its budget (threshold τ); a pair keeps its common cells ranked below
+and any prefix of the ranking is spread evenly over the grid. Each strip keeps the lowest-ranked of
+its overlap cells that fit its budget (threshold τ); a pair keeps its common cells ranked below
 min(τ_a, τ_b), so that both strips keep the same cells and no kept point lacks a partner.
 """
 

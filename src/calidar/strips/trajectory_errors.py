@@ -47,7 +47,8 @@ AXES = ("east", "north", "up")
 #: the part of the shifts' prior variance that is each strip's own, not shared with the other lines
 #: (:meth:`TrajectoryModel.flight_correlation`: keeps two strips flown at one time apart)
 OWN_STRIP_SHARE = 0.05
-PREFIX = "trajectory_"  #: every trajectory-correction parameter's name starts so (nuisance parameters)
+#: every trajectory-correction parameter's name starts so (nuisance parameters)
+PREFIX = "trajectory_"
 
 
 class Knot(NamedTuple):
@@ -84,19 +85,24 @@ def _layout(block_s: float | None, priors: bool, attitude: bool,
 class TrajectoryModel:
     """How trajectory errors enter the adjustment (see the module docstring)."""
 
-    block_s: float | None = None  #: spacing of the knots (s); None: one constant correction per strip
-    position_sigma_m: float | None = None  #: prior σ of each knot's shift; None: free, first strip fixed
+    #: spacing of the knots (s); None: one constant correction per strip
+    block_s: float | None = None
+    #: prior σ of each knot's shift; None: free, first strip fixed
+    position_sigma_m: float | None = None
     attitude_sigma_rad: float | None = None  #: prior σ of each knot's rotation; None: no rotations
-    correlation_s: float | None = None  #: Gauss–Markov correlation time of the shifts (s); None: independent
+    #: Gauss–Markov correlation time of the shifts (s); None: independent
+    correlation_s: float | None = None
     attitude_correlation_s: float | None = None  #: the same for the rotations
-    #: the trajectory's σ per epoch: the priors of every knot, per axis (the two σ above are then unused)
+    #: the trajectory's σ per epoch: the priors of every knot, per axis (the two σ above are then
+    #: unused)
     accuracy: TrajectoryAccuracy | None = None
     #: the priors' level to be estimated from the overlaps (no accuracy file: :attr:`accuracy` is a
     #: default to start from; :mod:`calidar.strips.trajectory_level`)
     estimate_level: bool = False
 
     def __post_init__(self):
-        for name in ("block_s", "position_sigma_m", "attitude_sigma_rad", "correlation_s", "attitude_correlation_s"):
+        for name in ("block_s", "position_sigma_m", "attitude_sigma_rad", "correlation_s",
+                     "attitude_correlation_s"):
             v = getattr(self, name)
             if v is not None and not (math.isfinite(v) and v > 0):
                 raise InputError(None, name, f"expected a number > 0, got {v}")
@@ -106,7 +112,8 @@ class TrajectoryModel:
 
     @property
     def has_priors(self) -> bool:
-        """Whether the corrections have priors (else: free whole-strip shifts, the first strip the datum)."""
+        """Whether the corrections have priors (else: free whole-strip shifts, the first strip the
+        datum)."""
         return self.position_sigma_m is not None or self.accuracy is not None
 
     @property
@@ -144,7 +151,8 @@ class TrajectoryModel:
         return phi ** np.abs(k[:, None] - k[None, :]).astype(float)
 
     def knot_times(self, spans: Mapping[int, tuple[float, float]]) -> dict[int, np.ndarray]:
-        """Each strip's knots' times (s): its start, then every ``block_s`` (one knot: its start)."""
+        """Each strip's knots' times (s): its start, then every ``block_s`` (one knot: its
+        start)."""
         return {i: spans[i][0] + (self.block_s or 0.0) * np.arange(self.n_knots(*spans[i])) for i in sorted(spans)}
 
     def flight_correlation(self, spans: Mapping[int, tuple[float, float]]) -> np.ndarray:
@@ -152,7 +160,8 @@ class TrajectoryModel:
         axis: one Gauss–Markov process in time over the whole flight, exp(−|Δt| / correlation_s)
         (a GNSS error does not restart with each line: consecutive lines share it, and their mean, a
         vertical bias only ground control sees, is as uncertain as one process makes it), with
-        :data:`OWN_STRIP_SHARE` of it each strip's own (knots of two strips at one time: not singular)."""
+        :data:`OWN_STRIP_SHARE` of it each strip's own (knots of two strips at one time: not
+        singular)."""
         times = self.knot_times(spans)
         t = np.concatenate(list(times.values()))
         strip = np.repeat(np.arange(len(times)), [v.size for v in times.values()])
@@ -224,7 +233,8 @@ class StripCorrection:
 
     def apply(self, points: np.ndarray, origin: np.ndarray, time: np.ndarray, weight=1.0,
               knots: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None) -> np.ndarray:
-        """Corrected ``points`` (M, 3) m: + shift + tilt × (points − origin), at each point's time (s).
+        """Corrected ``points`` (M, 3) m: + shift + tilt × (points − origin), at each point's time
+        (s).
 
         For averages of points (rows of a correspondence matrix) pass the row sums of the
         weights as ``weight``, the weighted sums as points and origin and the rows' mean times;
@@ -255,7 +265,8 @@ def _apply_kernel(points, origin, weight, k0, k1, f, shift, tilt):  # pragma: no
 
 def corrections(values: Mapping[str, float], model: TrajectoryModel | None,
                 spans: Mapping[int, tuple[float, float]]) -> dict[int, StripCorrection]:
-    """The strips' corrections from parameter values (SI) named as :meth:`TrajectoryModel.parameters`."""
+    """The strips' corrections from parameter values (SI) named as
+    :meth:`TrajectoryModel.parameters`."""
     if model is None:
         return {}
     out: dict[int, StripCorrection] = {}

@@ -16,8 +16,8 @@ must reach :data:`MIN_REDUNDANCY`; otherwise the stated σ stay ("the data canno
 estimate's own relative σ is ≈ 1/√(2m), m the effective number of independent priors behind it
 (:mod:`calidar.adjust.variance_elements`; less than rₖ: a Gauss–Markov process sampled every
 second is worth far fewer independent priors than it has knots). Each estimated group then
-follows the flight in time (:mod:`calidar.strips.trajectory_level_time`). Each factor is held ≥ :data:`FLOOR_FACTOR` (a trajectory
-that good is as good as exact for the calibration).
+follows the flight in time (:mod:`calidar.strips.trajectory_level_time`). Each factor is held ≥
+:data:`FLOOR_FACTOR` (a trajectory that good is as good as exact for the calibration).
 
 The level is itself an estimate, known to ±1/√(2m): :func:`carry_uncertainty` carries that into
 the mounting's covariance (:mod:`calidar.adjust.variance_carry`: the plug-in covariance averaged
@@ -66,9 +66,11 @@ class TrajectoryLevel:
 
     base: TrajectoryAccuracy  #: the σ started from (the survey-grade default)
     components: Components
-    estimated: dict[str, bool]  #: per group (present in the adjustment): estimated, or the data cannot tell
+    #: per group (present in the adjustment): estimated, or the data cannot tell
+    estimated: dict[str, bool]
     accuracy: TrajectoryAccuracy  #: ``base`` × the factors
-    over_time: LevelOverTime | None = None  #: the estimated groups' factors per segment of the flight
+    #: the estimated groups' factors per segment of the flight
+    over_time: LevelOverTime | None = None
     #: per estimated group the effective number m of independent priors behind its factor (its
     #: relative σ 1/√(2m); correlated priors count less than their redundancy rₖ)
     effective: dict[str, float] | None = None
@@ -80,8 +82,8 @@ class TrajectoryLevel:
         return self.components.sigma_factor(group) if self.estimated.get(group) else 1.0
 
     def relative_sigma(self, group: str) -> float:
-        """The estimated factor's relative σ: 1/√(2m) with m its priors' effective number when known,
-        else 1/√(2rₖ)."""
+        """The estimated factor's relative σ: 1/√(2m) with m its priors' effective number when
+        known, else 1/√(2rₖ)."""
         m = (self.effective or {}).get(group)
         return self.components.relative_sigma(group) if m is None else (float("inf") if m <= 0 else 1.0 / math.sqrt(2.0 * m))
 
@@ -90,14 +92,17 @@ class TrajectoryLevel:
         return any(self.estimated.values())
 
     def headline(self) -> str:
-        """'position 2.9/4.4 cm (horizontal/vertical), attitude 0.0020/0.0079° (roll·pitch/heading)'."""
+        """'position 2.9/4.4 cm (horizontal/vertical), attitude 0.0020/0.0079°
+        (roll·pitch/heading)'."""
         m = self.accuracy.medians()
-        return (f"position {m['north_rms_m'] * 100:.2g}/{m['down_rms_m'] * 100:.2g} cm (horizontal/vertical), attitude "
+        return (f"position {m['north_rms_m'] * 100:.2g}/{m['down_rms_m'] * 100:.2g} cm "
+                "(horizontal/vertical), attitude "
                 f"{m['roll_rms_deg']:.2g}/{m['heading_rms_deg']:.2g}° (roll·pitch/heading)")
 
     def undetermined(self) -> list[str]:
         """The groups the data cannot tell, with their redundancy: 'heading (r = 3.1 < 10)'."""
-        return [f"{g.replace('_', ' ')} (redundancy {self.components.redundancy_start[g]:.1f} < {MIN_REDUNDANCY:g})"
+        return [f"{g.replace('_', ' ')} (redundancy {self.components.redundancy_start[g]:.1f} < "
+                f"{MIN_REDUNDANCY:g})"
                 for g, ok in self.estimated.items() if not ok]
 
     def to_dict(self) -> dict:
@@ -132,10 +137,10 @@ class TrajectoryLevel:
 def estimate_level(est, base: TrajectoryAccuracy, layout: Mapping[str, Knot],
                    knot_times: Mapping[int, np.ndarray] | None = None) -> TrajectoryLevel:
     """The trajectory's level from an adjustment ``est`` (a :class:`calidar.adjust.solver.Estimate`
-    whose trajectory priors came from ``base``, its trajectory parameters' knots by name ``layout``): groups with redundancy below
-    :data:`MIN_REDUNDANCY` are held at their stated σ and the others estimated again without them.
-    With the strips' ``knot_times`` the estimated groups then follow the flight in time
-    (:mod:`calidar.strips.trajectory_level_time`)."""
+    whose trajectory priors came from ``base``, its trajectory parameters' knots by name
+    ``layout``): groups with redundancy below :data:`MIN_REDUNDANCY` are held at their stated σ and
+    the others estimated again without them. With the strips' ``knot_times`` the estimated groups
+    then follow the flight in time (:mod:`calidar.strips.trajectory_level_time`)."""
     terms = normal_terms(est)
     knots = [layout.get(p.name) for p in est.fit.free]
     groups = [group_of(k) for k in knots]
@@ -164,7 +169,8 @@ def estimate_level(est, base: TrajectoryAccuracy, layout: Mapping[str, Knot],
                                                 observations=comps.variance[OBSERVATIONS], max_iter=1).effective
             level.over_time = estimate_over_time(terms, est.fit.priors, knots, groups, knot_times, start,
                                                  comps.variance[OBSERVATIONS], FLOOR_FACTOR**2)
-        except CalibrationError:  # a normal matrix singular at some segment's factors: the flight-wide level stays
+        # a normal matrix singular at some segment's factors: the flight-wide level stays
+        except CalibrationError:
             return level
         level.accuracy = over_time_accuracy(base, level.over_time, knot_times)
     return level

@@ -38,7 +38,8 @@ LEVEL_CORRELATION_S = 120.0
 #: a segment's own update enters the pooling only when its priors are checked this many times
 MIN_SEGMENT_REDUNDANCY = 3.0
 SOURCE_OVER_TIME = "estimated from the overlaps over the flight (variance components of the trajectory priors per segment)"
-#: the process's σ of log factor² tried (0: a constant level); a factor 0.2–5× over the flight at the most
+#: the process's σ of log factor² tried (0: a constant level); a factor 0.2–5× over the flight at
+#: the most
 TAU_GRID = np.linspace(0.0, 1.6, 33)
 
 
@@ -96,7 +97,8 @@ def pool_in_time(times: np.ndarray, raw: np.ndarray, effective: np.ndarray, fall
     if own.sum() < 2:
         return Pooled(np.full(n, math.log(fallback)), np.full(n, np.inf), own, 0.0, math.log(fallback))
     R = np.exp(-np.abs(times[:, None] - times[None, :]) / (correlation_s or LEVEL_CORRELATION_S))
-    # log of a χ²ₘ/m: mean ψ(m/2) − log(m/2), variance ψ′(m/2) (not −1/m and 2/m only: m is small here)
+    # log of a χ²ₘ/m: mean ψ(m/2) − log(m/2), variance ψ′(m/2) (not −1/m and 2/m only: m is small
+    # here)
     m = effective[own] / 2.0
     y, d = np.log(raw[own]) - (digamma(m) - np.log(m)), polygamma(1, m)
     Rdd = R[np.ix_(own, own)]
@@ -132,13 +134,15 @@ class LevelOverTime:
 
     segments: list[Segment]
     groups: dict[str, Pooled]  #: per group its pooled log factor² per segment
-    redundancy: dict[str, np.ndarray]  #: per group each segment's redundancy at the flight-wide level
+    #: per group each segment's redundancy at the flight-wide level
+    redundancy: dict[str, np.ndarray]
     iterations: int
     converged: bool
 
     def to_dict(self, base_sigma: Mapping[str, float]) -> dict:
         """solution.json's block: per segment its strip, times and per group σ (``base_sigma``:
-        the group's stated σ, m or °) with its factor's relative σ and whether its own priors told."""
+        the group's stated σ, m or °) with its factor's relative σ and whether its own priors
+        told."""
         segs = []
         for i, s in enumerate(self.segments):
             row = {"strip": s.strip, "t_start_s": s.t_start, "t_end_s": s.t_end}
@@ -199,7 +203,8 @@ def estimate_over_time(terms: tuple, priors, knots: list, groups: list[str | Non
                               {f"{g}@{i}": float(start[g]) for g, segs in present.items() for i in segs},
                               observations=observations, pool=pool, floor=floor, tol=0.01)
     full = {}
-    for g, segs in present.items():  # onto every segment (a group absent from one: its flight-wide σ² there)
+    # onto every segment (a group absent from one: its flight-wide σ² there)
+    for g, segs in present.items():
         p = pooled[g]
         log_var, sig, own = np.full(len(segments), math.log(start[g])), np.full(len(segments), np.inf), np.zeros(len(segments), bool)
         log_var[segs], sig[segs], own[segs] = p.log_var, p.sigma, p.own
@@ -211,7 +216,8 @@ def estimate_over_time(terms: tuple, priors, knots: list, groups: list[str | Non
 def over_time_accuracy(base, level: LevelOverTime, knot_times: Mapping[int, np.ndarray]):
     """``base`` (a :class:`calidar.trajectory_accuracy.TrajectoryAccuracy`) at every knot's time
     × the factors of the knot's segment: position north/east × horizontal, down × vertical,
-    roll/pitch × attitude horizontal, heading × heading (the knots' priors then take exactly them)."""
+    roll/pitch × attitude horizontal, heading × heading (the knots' priors then take exactly
+    them)."""
     from calidar.trajectory_accuracy import TrajectoryAccuracy
 
     cols = {"position_horizontal": (0, [0, 1]), "position_vertical": (0, [2]), "attitude_horizontal": (1, [0, 1]),
@@ -228,7 +234,8 @@ def over_time_accuracy(base, level: LevelOverTime, knot_times: Mapping[int, np.n
 
 
 #: the report's table of the level over the flight (:func:`level_table_rows`)
-LEVEL_TABLE_HEADER = ["strip", "time (s from the first)", "position horizontal (cm)", "position vertical (cm)",
+LEVEL_TABLE_HEADER = ["strip", "time (s from the first)", "position horizontal (cm)",
+                      "position vertical (cm)",
                       "roll·pitch (°)", "heading (°)"]
 _COLUMNS = (("position_horizontal", 100.0, "{:.2g}"), ("position_vertical", 100.0, "{:.2g}"),
             ("attitude_horizontal", 1.0, "{:.2g}"), ("heading", 1.0, "{:.2g}"))
@@ -238,13 +245,13 @@ def level_table_text(over_time: dict) -> str:
     """What the table of the level over the flight shows (solution.json's "over_time" block)."""
     tau = ", ".join(f"{g.replace('_', ' ')} " + (f"×e^±{v:.2f}" if v > 0 else "constant")
                     for g, v in over_time["tau_log_sigma"].items())
-    return (f"No accuracy file: the trajectory's σ estimated from the overlaps per segment of each strip (about "
-            f"{over_time['segment_s']:g} s), pooled over the flight (a process of correlation time "
-            f"{over_time['correlation_s']:g} s; estimated spread {tau}). Each σ ± the relative σ of its factor; "
-            "\"(pooled)\": the segment's own priors could not tell (fewer than "
-            f"{over_time['min_effective']:g} independent ones), its σ comes from its neighbours in time or, when "
-            "fewer than two segments can tell, from the flight-wide level; "
-            "\"–\": a group the overlaps cannot tell, the survey-grade default kept.")
+    return ("No accuracy file: the trajectory's σ estimated from the overlaps per segment of each "
+            f"strip (about {over_time['segment_s']:g} s), pooled over the flight (a process of "
+            f"correlation time {over_time['correlation_s']:g} s; estimated spread {tau}). Each σ ± "
+            "the relative σ of its factor; \"(pooled)\": the segment's own priors could not tell "
+            f"(fewer than {over_time['min_effective']:g} independent ones), its σ comes from its "
+            "neighbours in time or, when fewer than two segments can tell, from the flight-wide "
+            "level; \"–\": a group the overlaps cannot tell, the survey-grade default kept.")
 
 
 def level_table_rows(over_time: dict) -> list[list[str]]:
