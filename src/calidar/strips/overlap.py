@@ -43,7 +43,8 @@ def footprint_area_m2(xy: np.ndarray, cell_m: float = 5.0) -> float:
         return 0.0
     ij = np.floor(np.asarray(xy, float)[:, :2] / cell_m).astype(np.int64)
     ij -= ij.min(axis=0)
-    return float(np.count_nonzero(np.bincount(ij[:, 0] * (int(ij[:, 1].max()) + 1) + ij[:, 1])) * cell_m**2)
+    flat = ij[:, 0] * (int(ij[:, 1].max()) + 1) + ij[:, 1]  # one index per cell of the box
+    return float(np.count_nonzero(np.bincount(flat)) * cell_m**2)
 
 
 def cell_counts(keys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -66,11 +67,15 @@ def merge_counts(*parts: tuple[np.ndarray, np.ndarray]) -> tuple[np.ndarray, np.
     counts = np.concatenate([p[1] for p in parts])
     order = np.argsort(cells, kind="stable")
     cells, counts = cells[order], counts[order]
-    start = np.r_[0, np.flatnonzero(cells[1:] != cells[:-1]) + 1] if cells.size else np.zeros(0, np.int64)
+    if cells.size:
+        start = np.r_[0, np.flatnonzero(cells[1:] != cells[:-1]) + 1]
+    else:
+        start = np.zeros(0, np.int64)
     return cells[start], np.add.reduceat(counts, start) if cells.size else counts
 
 
-def common_cells(occupied: Mapping[int, np.ndarray], min_cells: int) -> list[tuple[int, int, np.ndarray]]:
+def common_cells(occupied: Mapping[int, np.ndarray],
+                 min_cells: int) -> list[tuple[int, int, np.ndarray]]:
     """(a, b, sorted common cells) of every pair of strips (ids ascending) sharing at least
     ``min_cells`` of their occupied cells {id: sorted unique keys}."""
     ids = sorted(occupied)
@@ -83,7 +88,8 @@ def common_cells(occupied: Mapping[int, np.ndarray], min_cells: int) -> list[tup
     return out
 
 
-def unpaired_notes(ids, pairs, cell_m: float, min_cells: int, names: Mapping[int, str] | None = None) -> list[str]:
+def unpaired_notes(ids, pairs, cell_m: float, min_cells: int,
+                   names: Mapping[int, str] | None = None) -> list[str]:
     """Plain-words notes about the strips ``ids`` in none of the ``pairs`` (a, b, ...), named by
     ``names`` {id: file name} when given."""
     paired = {p[0] for p in pairs} | {p[1] for p in pairs}

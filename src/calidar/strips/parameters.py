@@ -18,7 +18,8 @@ ESTIMATE_GROUPS: dict[str, tuple[tuple[str, str], ...]] = {
     "range_scale": (("range_scale", "ppm"),),
     "scan_angle_scale": (("scan_angle_scale", "1"),),
     "scan_angle_offset": (("scan_angle_offset", "rad"),),
-    "palmer": (("eccentricity_ratio", "1"), ("eccentricity_phase", "rad"), ("delta_l", "rad"), ("delta_r", "rad")),
+    "palmer": (("eccentricity_ratio", "1"), ("eccentricity_phase", "rad"), ("delta_l", "rad"),
+               ("delta_r", "rad")),
     #: a height shift common to every strip (a vertical trajectory bias): only ground control sees
     #: it
     "height_bias": (("height_bias", "m"),),

@@ -49,7 +49,8 @@ def pair_processes(processes: int = PROCESSES) -> Iterator[Any]:
 def worth_processes(tasks: Sequence[tuple], min_points: int | None = None) -> bool:
     """Whether a round's tasks hold enough points (every 2-D array argument's rows; ``min_points``,
     default :data:`MIN_POINTS`) for the workers."""
-    return sum(len(a) for t in tasks for a in t if hasattr(a, "ndim") and a.ndim == 2) >= (MIN_POINTS if min_points is None else min_points)
+    points = sum(len(a) for t in tasks for a in t if hasattr(a, "ndim") and a.ndim == 2)
+    return points >= (MIN_POINTS if min_points is None else min_points)
 
 
 def map_in_processes(pool: Any, func: Callable[..., Any], tasks: Sequence[tuple]) -> list[Any]:

@@ -118,8 +118,9 @@ def overlap_plan(counts: Mapping[int, tuple[np.ndarray, np.ndarray]], overlap_m:
     notes = unpaired_notes(occupied, list(common), overlap_m, 4, names)
     cells = {}
     for ab, shared in common.items():
-        dens = [counts[i][1][np.searchsorted(counts[i][0], shared)].sum() / (shared.size * overlap_m**2)
-                for i in ab]  # shared ⊂ each line's sorted keys
+        area = shared.size * overlap_m**2
+        # shared ⊂ each line's sorted keys
+        dens = [counts[i][1][np.searchsorted(counts[i][0], shared)].sum() / area for i in ab]
         cells[ab] = float(settings.cell_m) if settings.cell_m else _cell_size(dens, settings)
     return OverlapPlan(cells, notes)
 
@@ -138,9 +139,12 @@ class SwathAccumulator:
     coarsened into the overlap grid to make the plan. Also which selections (PointSelection) the
     points came through."""
 
-    def __init__(self, cell_m: float | None = None, plan: OverlapPlan | None = None, spill_dir: Path | None = None):
+    def __init__(self, cell_m: float | None = None, plan: OverlapPlan | None = None,
+                 spill_dir: Path | None = None):
         self.cell_m, self.plan = cell_m, plan
-        self.spill_dir = None if spill_dir is None else Path(tempfile.mkdtemp(prefix="lines-", dir=spill_dir))  # its own
+        self.spill_dir = None
+        if spill_dir is not None:  # its own folder in spill_dir
+            self.spill_dir = Path(tempfile.mkdtemp(prefix="lines-", dir=spill_dir))
         self._written = 0  #: files written to spill_dir (their names)
         self.base_m = float(cell_m) if cell_m else BASE_CELL_M
         #: (line, cell m) → moments not yet combined
@@ -161,7 +165,8 @@ class SwathAccumulator:
         for line, chosen in other.selections.items():
             self._chose(line, chosen)
         for key in {*other.parts, *other.spilled}:
-            self._put(key, other.parts.get(key, []) + [CellMoments.load(f, key[1]) for f in other.spilled.get(key, [])])
+            loaded = [CellMoments.load(f, key[1]) for f in other.spilled.get(key, [])]
+            self._put(key, other.parts.get(key, []) + loaded)
         return self
 
     def _chose(self, line: int, selections: list[dict]) -> None:
@@ -176,7 +181,8 @@ class SwathAccumulator:
         held += parts
         if len(held) >= MERGE_PARTS:
             self.parts[key] = [CellMoments.combined(held)]
-        if self.spill_dir is not None and sum(m.nbytes for ms in self.parts.values() for m in ms) > HOLD_BYTES:
+        held = sum(m.nbytes for ms in self.parts.values() for m in ms)
+        if self.spill_dir is not None and held > HOLD_BYTES:
             for k, ms in self.parts.items():
                 if ms:
                     self._write(k, ms)
@@ -236,11 +242,14 @@ class SwathAccumulator:
             plan = overlap_plan({i: (c.keys, c.count) for i, c in counts.items()}, grid, s)
         if any(self.spilled.values()):  # moments on disk: one pair's at a time in memory
             threads, tasks = 1, ((a, cell, b) for (a, b), cell in plan.cells.items())
-            pairs = (pair_quality(a, self._at(a, cell), b, self._at(b, cell), s) for a, cell, b in tasks)
+            pairs = (pair_quality(a, self._at(a, cell), b, self._at(b, cell), s)
+                     for a, cell, b in tasks)
         else:  # each line's moments combined here (not in the threads), the pairs in threads
-            moments = {(i, cell): self._at(i, cell) for (a, b), cell in plan.cells.items() for i in (a, b)}
+            moments = {(i, cell): self._at(i, cell)
+                       for (a, b), cell in plan.cells.items() for i in (a, b)}
             pairs = run_tasks(pair_quality, [(a, moments[a, cell], b, moments[b, cell], s)
-                                             for (a, b), cell in plan.cells.items()], threads=threads)
+                                             for (a, b), cell in plan.cells.items()],
+                              threads=threads)
         results = []
         for q in pairs:
             q.points_a, q.points_b = self.selections.get(q.a, []), self.selections.get(q.b, [])
@@ -262,7 +271,8 @@ def swath_difference(a: int, points_a: np.ndarray, b: int, points_b: np.ndarray,
     return q
 
 
-def swath_differences(lines: Mapping[int, Iterable[np.ndarray]], settings: QualitySettings | None = None
+def swath_differences(lines: Mapping[int, Iterable[np.ndarray]],
+                      settings: QualitySettings | None = None
                       ) -> tuple[list[PairQuality], list[str]]:
     """Swath differences of every overlapping pair of flight lines, each given as an iterable of
     point chunks (N, 3) metric, z up (already selected: :mod:`calidar.strips.selection`)."""
@@ -278,11 +288,13 @@ def _no_overlap(a: int, b: int, s: QualitySettings) -> PairQuality:
     return PairQuality(a, b, 0, None, None, None, None, cell_m=s.cell_m or 2.0)
 
 
-def pair_quality(a: int, moments_a: CellMoments, b: int, moments_b: CellMoments, s: QualitySettings) -> PairQuality:
+def pair_quality(a: int, moments_a: CellMoments, b: int, moments_b: CellMoments,
+                 s: QualitySettings) -> PairQuality:
     """Swath difference of two lines from their cell moments on one grid (the pair's cell)."""
     cell = moments_a.cell_m
     ps = PlaneSettings(min_points=s.min_points, max_rms_m=s.max_rms_m, min_spread=0.15)
-    _, ia, ib = np.intersect1d(moments_a.keys, moments_b.keys, assume_unique=True, return_indices=True)
+    _, ia, ib = np.intersect1d(moments_a.keys, moments_b.keys, assume_unique=True,
+                               return_indices=True)
     # planes of the shared cells only
     pa, pb = _planes(moments_a.select(ia), ps), _planes(moments_b.select(ib), ps)
     keys, ia, ib = np.intersect1d(pa[0].keys, pb[0].keys, assume_unique=True, return_indices=True)
@@ -292,9 +304,11 @@ def pair_quality(a: int, moments_a: CellMoments, b: int, moments_b: CellMoments,
     ca, cb = ma.centroid(), mb.centroid()
 
     def z_at(c, n):  # height of the plane through c with normal n at the cell centre
-        return c[:, 2] - (n[:, 0] * (centre[:, 0] - c[:, 0]) + n[:, 1] * (centre[:, 1] - c[:, 1])) / n[:, 2]
+        off = centre - c[:, :2]  # the cell centre from the plane's centroid
+        return c[:, 2] - (n[:, 0] * off[:, 0] + n[:, 1] * off[:, 1]) / n[:, 2]
 
-    flat = (na[:, 2] >= np.cos(np.radians(s.max_slope_deg))) & (nb[:, 2] >= np.cos(np.radians(s.max_slope_deg)))
+    cos_max = np.cos(np.radians(s.max_slope_deg))
+    flat = (na[:, 2] >= cos_max) & (nb[:, 2] >= cos_max)
     dz = z_at(ca, na) - z_at(cb, nb)
     q = PairQuality(a, b, int(flat.sum()), None, None, None, None, cell_m=cell,
                     n_points_a=int(ma.count[flat].sum()), n_points_b=int(mb.count[flat].sum()))
@@ -306,7 +320,8 @@ def pair_quality(a: int, moments_a: CellMoments, b: int, moments_b: CellMoments,
         q.grid = np.full((hi[1] - lo[1] + 1, hi[0] - lo[0] + 1), np.nan)
         q.grid[hi[1] - ij[flat, 1], ij[flat, 0] - lo[0]] = d
         q.origin = (float(lo[0] * cell), float((hi[1] + 1) * cell))
-    noise = 0.25 * (gradient_noise(ma.covariance(), ma.count, na) + gradient_noise(mb.covariance(), mb.count, nb))
+    noise = 0.25 * (gradient_noise(ma.covariance(), ma.count, na)
+                    + gradient_noise(mb.covariance(), mb.count, nb))
     # a cell one line sees across a fold (a sliver of another face): out
     ga, gb = gradients(na), gradients(nb)
     alike = np.hypot(*(ga - gb).T) <= s.planimetric.max_neighbour_dslope / 2
@@ -321,8 +336,8 @@ def _planes(m: CellMoments, ps: PlaneSettings) -> tuple[CellMoments, np.ndarray]
     return m.select(planar), normal
 
 
-def _planimetric(q: PairQuality, centre: np.ndarray, dz: np.ndarray, grad: np.ndarray, noise: np.ndarray,
-                 s: QualitySettings) -> None:
+def _planimetric(q: PairQuality, centre: np.ndarray, dz: np.ndarray, grad: np.ndarray,
+                 noise: np.ndarray, s: QualitySettings) -> None:
     """dx, dy of a relative to b jointly with the difference's offset and tilt, where determined."""
     q.n_sloped = int(np.sum(np.hypot(grad[:, 0], grad[:, 1]) > np.tan(np.radians(s.min_slope_deg))))
     q.planimetric = p = planimetric_offsets(centre, dz, grad, q.cell_m, s.planimetric, noise)

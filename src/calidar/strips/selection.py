@@ -47,8 +47,10 @@ class PointSelection:
 
     def describe(self) -> str:
         if self.classes is None:
-            return "last and single returns (return_number = number_of_returns), no vegetation/noise/water classes"
-        return f"{self.rule}: class{'es' if len(self.classes) > 1 else ''} {', '.join(map(str, self.classes))}"
+            return ("last and single returns (return_number = number_of_returns), no "
+                    "vegetation/noise/water classes")
+        plural = "es" if len(self.classes) > 1 else ""
+        return f"{self.rule}: class{plural} {', '.join(map(str, self.classes))}"
 
     def to_dict(self) -> dict:
         return {"rule": self.rule, "classes": None if self.classes is None else list(self.classes),
@@ -62,7 +64,8 @@ def candidate_mask(points) -> np.ndarray:
     return ground | PointSelection("last returns").mask(points)
 
 
-def choose_selection(source, present: np.ndarray | None, classes: tuple[int, ...] | None = None) -> PointSelection:
+def choose_selection(source, present: np.ndarray | None,
+                     classes: tuple[int, ...] | None = None) -> PointSelection:
     """The selection for one source from the classes ``present`` in it (None: no classification):
     the ``classes`` asked for (each must be present, else an error naming ``source``), else ground
     when present, else last returns."""

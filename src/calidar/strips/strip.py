@@ -62,7 +62,8 @@ class Pose:
 
     def take(self, rows: np.ndarray) -> "Pose":
         """The poses at positions ``rows`` of this one."""
-        return Pose(self.index[rows], self.position[rows], self.r_lb[rows], self.range_m[rows], self.angles[rows])
+        return Pose(self.index[rows], self.position[rows], self.r_lb[rows], self.range_m[rows],
+                    self.angles[rows])
 
     def rows_of(self, index: np.ndarray) -> np.ndarray:
         """Positions in this pose of the strip's points ``index`` (all must be present)."""
@@ -106,12 +107,14 @@ class Strip:
     @property
     def time_span(self) -> tuple[float, float]:
         """First and last GPS time (s) of the flight line (of all its points, also when thinned)."""
-        return self.span if self.span is not None else (float(self.obs.time.min()), float(self.obs.time.max()))
+        if self.span is not None:
+            return self.span
+        return float(self.obs.time.min()), float(self.obs.time.max())
 
     @classmethod
     def from_ecef(cls, strip_id: int, points_ecef, time, trajectory: Trajectory, nominal: Sensor,
-                  frame: LocalFrame, source: str = "<memory>", span: tuple[float, float] | None = None,
-                  **extra) -> "Strip":
+                  frame: LocalFrame, source: str = "<memory>",
+                  span: tuple[float, float] | None = None, **extra) -> "Strip":
         """Build a strip from delivered ECEF points (N, 3) m and GPS times (N,) s (``span``: the
         whole line's time span when these are some of its points).
 
@@ -126,7 +129,8 @@ class Strip:
         except InputError as e:
             raise InputError(trajectory.source, "time", e.problem) from None
         obs = georef.inverse(trajectory, nominal, time, points_ecef)
-        return cls(int(strip_id), frame.to_local(points_ecef), obs, trajectory, frame, source, dict(extra), span)
+        return cls(int(strip_id), frame.to_local(points_ecef), obs, trajectory, frame, source,
+                   dict(extra), span)
 
     def __len__(self) -> int:
         return self.points.shape[0]
@@ -141,9 +145,11 @@ class Strip:
         idx = np.arange(len(self)) if index is None else np.asarray(index, dtype=np.int64)
         pos_e, r_eb = georef.poses(self.trajectory, self.obs.time[idx])
         r_lb = _rotated(self.frame.r_le, r_eb)
-        return Pose(idx, self.frame.to_local(pos_e), r_lb, self.obs.range_m[idx], self.obs.angles[idx])
+        return Pose(idx, self.frame.to_local(pos_e), r_lb, self.obs.range_m[idx],
+                    self.obs.angles[idx])
 
-    def georeference(self, sensor: Sensor, index: np.ndarray | None = None, pose: Pose | None = None) -> np.ndarray:
+    def georeference(self, sensor: Sensor, index: np.ndarray | None = None,
+                     pose: Pose | None = None) -> np.ndarray:
         """Points (M, 3) local ENU m re-georeferenced with ``sensor`` (the lidar equation).
 
         ``pose`` (from :meth:`pose`) avoids re-interpolating the trajectory when the same

@@ -52,7 +52,8 @@ def spread_rank(cells: np.ndarray, block: int = 1) -> np.ndarray:
     return code.astype(np.float64) / 2.0**32
 
 
-def budget_threshold(cells: np.ndarray, counts: np.ndarray, budget: int | None, block: int = 1) -> float:
+def budget_threshold(cells: np.ndarray, counts: np.ndarray, budget: int | None,
+                     block: int = 1) -> float:
     """The rank τ below which the lowest-ranked ``cells`` (with their point ``counts``) hold at most
     ``budget`` points (2.0, all of them, when they fit or ``budget`` is None)."""
     if budget is None or int(np.sum(counts)) <= budget:
@@ -63,8 +64,9 @@ def budget_threshold(cells: np.ndarray, counts: np.ndarray, budget: int | None, 
     return float(rank[order[over[0]]])
 
 
-def thin_cells(pairs: Sequence[tuple[int, int, np.ndarray]], footprints: Mapping[int, tuple[np.ndarray, np.ndarray]],
-               budget: int | None, block: int = 1) -> dict[int, np.ndarray]:
+def thin_cells(pairs: Sequence[tuple[int, int, np.ndarray]],
+               footprints: Mapping[int, tuple[np.ndarray, np.ndarray]], budget: int | None,
+               block: int = 1) -> dict[int, np.ndarray]:
     """The cells each strip keeps: {id: sorted keys}, at most ``budget`` points per strip (None: no
     limit), whole blocks of ``block`` × ``block`` cells at a time.
 

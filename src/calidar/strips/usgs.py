@@ -111,7 +111,10 @@ def levels_met(value_m: float | None, check: str) -> list[str]:
 
 def judged(name: str, value_m: float | None, n_cells: int) -> UsgsCheck:
     met = levels_met(value_m, name)
-    status = "not measured" if value_m is None else (f"meets {met[0]}" if met else "meets no quality level")
+    if value_m is None:
+        status = "not measured"
+    else:
+        status = f"meets {met[0]}" if met else "meets no quality level"
     return UsgsCheck(name, value_m, n_cells, met, status)
 
 
@@ -192,7 +195,9 @@ def summary(checks: list[UsgsCheck]) -> str:
         "USGS swath checks: not all meet any quality level (QL3 is the loosest)"
 
 
-def absolute_checks(nva_rmse_m: float | None, n_nva: int, vva95_m: float | None, n_vva: int) -> list[UsgsCheck]:
+def absolute_checks(nva_rmse_m: float | None, n_nva: int, vva95_m: float | None,
+                    n_vva: int) -> list[UsgsCheck]:
     """The absolute vertical accuracy checks at checkpoints (``n_nva`` / ``n_vva`` of them; a value
     None: not measured). ``n_cells`` holds the checkpoint count."""
-    return [judged(ABSOLUTE_CHECKS[0], nva_rmse_m, n_nva), judged(ABSOLUTE_CHECKS[1], vva95_m, n_vva)]
+    return [judged(ABSOLUTE_CHECKS[0], nva_rmse_m, n_nva),
+            judged(ABSOLUTE_CHECKS[1], vva95_m, n_vva)]
