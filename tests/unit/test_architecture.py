@@ -33,9 +33,6 @@ LINE_LENGTH_ALLOWANCE: set[str] = {
     "calidar.strips.matchers", "calidar.strips.model_check",
     "calidar.strips.model_check_verdict", "calidar.strips.moments_kernel", "calidar.strips.pca",
     "calidar.strips.planes", "calidar.strips.problem", "calidar.strips.row_variance",
-    "calidar.strips.trajectory_errors", "calidar.strips.trajectory_level",
-    "calidar.strips.trajectory_level_time", "calidar.strips.vgicp",
-    "calidar.strips.vgicp_planes",
     # the modules left of a package otherwise reshaped (being edited elsewhere at the time)
     "calidar.adjust.residuals", "calidar.adjust.solver", "calidar.adjust.variance_components",
     "calidar.adjust.variance_elements",

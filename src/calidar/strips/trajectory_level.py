@@ -33,11 +33,13 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from calidar.adjust.variance_carry import carried_covariance
-from calidar.adjust.variance_components import OBSERVATIONS, Components, estimate_components, normal_terms, split_blocks
+from calidar.adjust.variance_components import (OBSERVATIONS, Components, estimate_components,
+                                                normal_terms, split_blocks)
 from calidar.adjust.variance_elements import estimate_elements
 from calidar.errors import CalibrationError
 from calidar.strips.trajectory_errors import Knot
-from calidar.strips.trajectory_level_time import LevelOverTime, estimate_over_time, over_time_accuracy
+from calidar.strips.trajectory_level_time import (LevelOverTime, estimate_over_time,
+                                                  over_time_accuracy)
 from calidar.trajectory_accuracy import TrajectoryAccuracy
 
 GROUPS = ("position_horizontal", "position_vertical", "attitude_horizontal", "heading")
@@ -85,7 +87,9 @@ class TrajectoryLevel:
         """The estimated factor's relative σ: 1/√(2m) with m its priors' effective number when
         known, else 1/√(2rₖ)."""
         m = (self.effective or {}).get(group)
-        return self.components.relative_sigma(group) if m is None else (float("inf") if m <= 0 else 1.0 / math.sqrt(2.0 * m))
+        if m is None:
+            return self.components.relative_sigma(group)
+        return float("inf") if m <= 0 else 1.0 / math.sqrt(2.0 * m)
 
     @property
     def any_estimated(self) -> bool:
@@ -108,17 +112,20 @@ class TrajectoryLevel:
     def to_dict(self) -> dict:
         c = self.components
         m = self.accuracy.medians()
-        return {"source": "data" if self.any_estimated else "default", "method": SOURCE, "headline": self.headline(),
+        groups = {g: {"estimated": ok, "sigma_factor": self.factor(g),
+                      "sigma_factor_relative_sigma": self.relative_sigma(g) if ok else None,
+                      "redundancy": float(c.redundancy[g]),
+                      "redundancy_at_stated_sigma": float(c.redundancy_start[g]),
+                      "priors": int(c.size[g])}
+                  for g, ok in self.estimated.items()}
+        return {"source": "data" if self.any_estimated else "default", "method": SOURCE,
+                "headline": self.headline(),
                 "position_m": {"horizontal": m["north_rms_m"], "vertical": m["down_rms_m"]},
                 "attitude_deg": {"roll_pitch": m["roll_rms_deg"], "heading": m["heading_rms_deg"]},
-                "min_redundancy": MIN_REDUNDANCY, "iterations": c.iterations, "converged": c.converged,
+                "min_redundancy": MIN_REDUNDANCY, "iterations": c.iterations,
+                "converged": c.converged,
                 "observations_sigma0": float(np.sqrt(c.variance[OBSERVATIONS])),
-                "groups": {g: {"estimated": ok, "sigma_factor": self.factor(g),
-                               "sigma_factor_relative_sigma": self.relative_sigma(g) if ok else None,
-                               "redundancy": float(c.redundancy[g]),
-                               "redundancy_at_stated_sigma": float(c.redundancy_start[g]), "priors": int(c.size[g])}
-                           for g, ok in self.estimated.items()}} \
-            | self._over_time_dict() | self._carried_dict()
+                "groups": groups} | self._over_time_dict() | self._carried_dict()
 
     def _carried_dict(self) -> dict:
         if self.carried is None:
@@ -130,7 +137,8 @@ class TrajectoryLevel:
         if self.over_time is None:
             return {}
         pos, att = self.base.position_m[0], np.degrees(self.base.attitude_rad[0])
-        stated = {"position_horizontal": pos[0], "position_vertical": pos[2], "attitude_horizontal": att[0], "heading": att[2]}
+        stated = {"position_horizontal": pos[0], "position_vertical": pos[2],
+                  "attitude_horizontal": att[0], "heading": att[2]}
         return {"over_time": self.over_time.to_dict(stated)}
 
 
@@ -149,7 +157,8 @@ def estimate_level(est, base: TrajectoryAccuracy, layout: Mapping[str, Knot],
     fixed = ["other"]
     while True:  # tol: 1 % in variance, ½ % in σ — well inside the factors' own ±1/√(2rₖ)
         try:
-            comps = estimate_components(*terms, blocks, fixed=fixed, floor=FLOOR_FACTOR**2, marginal=True, tol=0.01)
+            comps = estimate_components(*terms, blocks, fixed=fixed, floor=FLOOR_FACTOR**2,
+                                        marginal=True, tol=0.01)
         except CalibrationError:  # a normal matrix singular at some factors: nothing estimated
             fixed = ["other", *present]
             comps = estimate_components(*terms, blocks, fixed=fixed, max_iter=1)
@@ -161,14 +170,18 @@ def estimate_level(est, base: TrajectoryAccuracy, layout: Mapping[str, Knot],
         fixed += weak
     estimated = {g: g not in fixed for g in present}
     level = TrajectoryLevel(base, comps, estimated, base)
-    level.accuracy = scaled(base, *(level.factor(g) for g in GROUPS), source=SOURCE if level.any_estimated else base.source)
+    source = SOURCE if level.any_estimated else base.source
+    level.accuracy = scaled(base, *(level.factor(g) for g in GROUPS), source=source)
     if knot_times is not None and level.any_estimated:
         start = {g: comps.variance[g] for g in present if estimated[g]}
         try:
-            level.effective = estimate_elements(terms[0], terms[1], terms[4], est.fit.priors, groups, start,
-                                                observations=comps.variance[OBSERVATIONS], max_iter=1).effective
-            level.over_time = estimate_over_time(terms, est.fit.priors, knots, groups, knot_times, start,
-                                                 comps.variance[OBSERVATIONS], FLOOR_FACTOR**2)
+            elements = estimate_elements(terms[0], terms[1], terms[4], est.fit.priors, groups,
+                                         start, observations=comps.variance[OBSERVATIONS],
+                                         max_iter=1)
+            level.effective = elements.effective
+            level.over_time = estimate_over_time(terms, est.fit.priors, knots, groups, knot_times,
+                                                 start, comps.variance[OBSERVATIONS],
+                                                 FLOOR_FACTOR**2)
         # a normal matrix singular at some segment's factors: the flight-wide level stays
         except CalibrationError:
             return level
@@ -176,8 +189,8 @@ def estimate_level(est, base: TrajectoryAccuracy, layout: Mapping[str, Knot],
     return level
 
 
-def scaled(base: TrajectoryAccuracy, horizontal: float, vertical: float, tilt: float, heading: float,
-           source: str) -> TrajectoryAccuracy:
+def scaled(base: TrajectoryAccuracy, horizontal: float, vertical: float, tilt: float,
+           heading: float, source: str) -> TrajectoryAccuracy:
     """``base`` with its position σ north/east × ``horizontal``, down × ``vertical``, its attitude σ
     roll/pitch × ``tilt`` and heading × ``heading``."""
     pos = base.position_m * np.array([horizontal, horizontal, vertical])

@@ -119,11 +119,13 @@ class _Clock:
             self.t = now
 
 
-def overlap_masks(points_a: np.ndarray, points_b: np.ndarray, cell_m: float) -> tuple[np.ndarray, np.ndarray, float]:
+def overlap_masks(points_a: np.ndarray, points_b: np.ndarray,
+                  cell_m: float) -> tuple[np.ndarray, np.ndarray, float]:
     """Points of a and b in xy cells (size cell_m, m) occupied by both; also the overlap area
     (m²)."""
     xy_a, xy_b = points_a[:, :2], points_b[:, :2]
-    grid = Grid(np.minimum(xy_a.min(axis=0), xy_b.min(axis=0)), np.maximum(xy_a.max(axis=0), xy_b.max(axis=0)), cell_m)
+    lower = np.minimum(xy_a.min(axis=0), xy_b.min(axis=0))
+    grid = Grid(lower, np.maximum(xy_a.max(axis=0), xy_b.max(axis=0)), cell_m)
     ka, kb = grid.keys(grid.ij(xy_a)), grid.keys(grid.ij(xy_b))
     common = ka[grid.first(ka)]  # occupied cells of a ...
     common = common[grid.isin(common, kb)]  # ... also occupied by b
@@ -153,13 +155,15 @@ def register(points_a: np.ndarray, points_b: np.ndarray, settings: VgicpSettings
     T = np.eye(4)
     result = None
     for voxel, down in stages:
-        target, _ = small_gicp.preprocess_points(fine_a, down, settings.num_neighbors, settings.num_threads)
-        source, _ = small_gicp.preprocess_points(fine_b, down, settings.num_neighbors, settings.num_threads)
+        neighbours, threads = settings.num_neighbors, settings.num_threads
+        target, _ = small_gicp.preprocess_points(fine_a, down, neighbours, threads)
+        source, _ = small_gicp.preprocess_points(fine_b, down, neighbours, threads)
         voxelmap = small_gicp.GaussianVoxelMap(voxel)
         voxelmap.insert(target)
         clock.lap("preprocess")
         result = small_gicp.align(voxelmap, source, T, max_correspondence_distance=2.0 * voxel,
-                                  num_threads=settings.num_threads, max_iterations=settings.max_iterations,
+                                  num_threads=settings.num_threads,
+                                  max_iterations=settings.max_iterations,
                                   rotation_epsilon=1e-5, translation_epsilon=1e-4)
         T = np.asarray(result.T_target_source)
         clock.lap("register")
@@ -186,7 +190,8 @@ def overlap_width(points: np.ndarray) -> float:
 
 
 def match_pair_vgicp(strip_a_id: int, points_a: np.ndarray, strip_b_id: int, points_b: np.ndarray,
-                     settings: VgicpSettings | None = None, timings: dict[str, float] | None = None) -> Correspondences:
+                     settings: VgicpSettings | None = None,
+                     timings: dict[str, float] | None = None) -> Correspondences:
     """Corresponding points of strips a and b by VGICP registration + nearest neighbours.
 
     points_a, points_b: (N, 3) float64, the strips re-georeferenced with the current
@@ -240,8 +245,8 @@ def match_pair_vgicp(strip_a_id: int, points_a: np.ndarray, strip_b_id: int, poi
     sigma, dof = (0.05 if settings.sigma_m is None else settings.sigma_m), np.inf
     normal = None
     if settings.kind == "point_to_plane" and keep.any():
-        planes, A, near_a, keep, normal, sigma, dof = plane_rows(planes, b_near, tree_b, ov_a, keep, n_a / n_b,
-                                                                 settings)
+        planes, A, near_a, keep, normal, sigma, dof = plane_rows(planes, b_near, tree_b, ov_a,
+                                                                 keep, n_a / n_b, settings)
     n_pairs = int(keep.sum())
     if n_pairs < settings.min_pairs:
         where = " on planar surfaces" if settings.kind == "point_to_plane" else ""
@@ -249,11 +254,15 @@ def match_pair_vgicp(strip_a_id: int, points_a: np.ndarray, strip_b_id: int, poi
                                f"{threshold:.2f} m{where} after registration, need "
                                f"{settings.min_pairs})")
     if settings.kind == "point_to_point":
-        A = sp.csr_matrix((np.ones(n_pairs), (np.arange(n_pairs), idx_a[cand[keep]])), shape=(n_pairs, points_a.shape[0]))
+        A = sp.csr_matrix((np.ones(n_pairs), (np.arange(n_pairs), idx_a[cand[keep]])),
+                          shape=(n_pairs, points_a.shape[0]))
     else:  # columns: the ball's points of a among all of a's points
         A = A[keep]
-        A = sp.csr_matrix((A.data, idx_a[near_a[A.indices]], A.indptr), shape=(n_pairs, points_a.shape[0]))
-    B = sp.csr_matrix((np.full(n_pairs * k, 1.0 / k), idx_b[near_b[planes.index[keep]]].ravel(), np.arange(n_pairs + 1) * k),
+        A = sp.csr_matrix((A.data, idx_a[near_a[A.indices]], A.indptr),
+                          shape=(n_pairs, points_a.shape[0]))
+    columns_b = idx_b[near_b[planes.index[keep]]].ravel()  # each row's k nearest of b
+    B = sp.csr_matrix((np.full(n_pairs * k, 1.0 / k), columns_b, np.arange(n_pairs + 1) * k),
                       shape=(n_pairs, points_b.shape[0]))
     clock.lap("correspond")
-    return Correspondences(strip_a_id, strip_b_id, A, B, normal, sigma_m=sigma, method="vgicp", dof=dof)
+    return Correspondences(strip_a_id, strip_b_id, A, B, normal, sigma_m=sigma, method="vgicp",
+                           dof=dof)

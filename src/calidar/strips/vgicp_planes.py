@@ -64,7 +64,8 @@ class Grid:
     def around(self, xy: np.ndarray) -> np.ndarray:
         """Keys of the cells holding ``xy`` and of their 8 neighbours (inside the grid)."""
         ij = self.ij(xy)
-        near = (ij[:, None, :] + np.array([(i, j) for i in (-1, 0, 1) for j in (-1, 0, 1)])).reshape(-1, 2)
+        steps = np.array([(i, j) for i in (-1, 0, 1) for j in (-1, 0, 1)])
+        near = (ij[:, None, :] + steps).reshape(-1, 2)
         near = near[np.all((near >= 0) & (near < self.shape), axis=1)]
         return self.keys(near)
 
@@ -110,10 +111,12 @@ class LocalPlanes:
         1/k + Σ_j ((at − centroid)·e_j)² / λ_j over the two in-plane axes (least-squares
         prediction)."""
         d = np.einsum("mi,mij->mj", at - self.centroid, self.eigvec[:, :, 1:])
-        return 1.0 / self.index.shape[1] + np.sum(d**2 / np.maximum(self.eigval[:, 1:], 1e-300), axis=1)
+        in_plane = np.sum(d**2 / np.maximum(self.eigval[:, 1:], 1e-300), axis=1)
+        return 1.0 / self.index.shape[1] + in_plane
 
 
-def local_planes(points: np.ndarray, at: np.ndarray, k: int, num_threads: int, tree=None) -> LocalPlanes:
+def local_planes(points: np.ndarray, at: np.ndarray, k: int, num_threads: int,
+                 tree=None) -> LocalPlanes:
     """The surface of ``points`` around each of ``at`` (both (·, 3) m) from its k nearest points
     (``tree``: their small_gicp KdTree, built here when None)."""
     tree = small_gicp.KdTree(points, num_threads=num_threads) if tree is None else tree
@@ -126,15 +129,18 @@ def local_planes(points: np.ndarray, at: np.ndarray, k: int, num_threads: int, t
     return LocalPlanes(idx, np.sqrt(d2), centroid, eigval, eigvec)
 
 
-def _balanced(planes: LocalPlanes, centre: np.ndarray, mean_a: np.ndarray, max_offset: float) -> np.ndarray:
+def _balanced(planes: LocalPlanes, centre: np.ndarray, mean_a: np.ndarray,
+              max_offset: float) -> np.ndarray:
     """Whether b's centroid lies within ``max_offset`` × the radius of the ``centre`` (M, 3) m about
     which its neighbours were found, and a's mean as near b's centroid, in b's plane: neither
     strip's points stop inside the ball."""
     def in_plane(d):
-        return np.linalg.norm(d - np.einsum("ij,ij->i", d, planes.normal)[:, None] * planes.normal, axis=1)
+        along = np.einsum("ij,ij->i", d, planes.normal)[:, None] * planes.normal
+        return np.linalg.norm(d - along, axis=1)
 
     limit = max_offset * planes.distance[:, -1]
-    return (in_plane(planes.centroid - centre) <= limit) & (in_plane(mean_a - planes.centroid) <= limit)
+    return ((in_plane(planes.centroid - centre) <= limit)
+            & (in_plane(mean_a - planes.centroid) <= limit))
 
 
 def _ball_means(points: np.ndarray, at: np.ndarray, radius: np.ndarray, k_max: int, num_threads: int
@@ -143,16 +149,19 @@ def _ball_means(points: np.ndarray, at: np.ndarray, radius: np.ndarray, k_max: i
     of ``at`` (M, 3) m — at most the k_max nearest, and at least the nearest — and their counts
     (M,)."""
     k_max = min(k_max, points.shape[0])
-    idx, d2 = small_gicp.KdTree(points, num_threads=num_threads).batch_knn_search(at, k_max, num_threads=num_threads)
+    tree = small_gicp.KdTree(points, num_threads=num_threads)
+    idx, d2 = tree.batch_knn_search(at, k_max, num_threads=num_threads)
     inside = d2 <= radius[:, None] ** 2
     inside[:, 0] = True
     count = inside.sum(axis=1)
     weights = (inside / count[:, None])[inside]
-    return sp.csr_matrix((weights, idx.astype(np.int64)[inside], np.concatenate([[0], np.cumsum(count)])),
+    indptr = np.concatenate([[0], np.cumsum(count)])
+    return sp.csr_matrix((weights, idx.astype(np.int64)[inside], indptr),
                          shape=(at.shape[0], points.shape[0])), count
 
 
-def _along_normal_variance(A: sp.csr_matrix, points: np.ndarray, mean: np.ndarray, normal: np.ndarray) -> np.ndarray:
+def _along_normal_variance(A: sp.csr_matrix, points: np.ndarray, mean: np.ndarray,
+                           normal: np.ndarray) -> np.ndarray:
     """Per row of the averaging matrix A (M, len(points)): the variance (m², n − 1 degrees of
     freedom; 0 for one point) along ``normal`` (M, 3) of the row's points (m) about their ``mean``
     (M, 3) m."""
@@ -179,15 +188,15 @@ def plane_rows(planes: LocalPlanes, b_near: np.ndarray, tree_b, ov_a: np.ndarray
     # a's points in a ball as large about b's centroid (room for a denser a)
     radius = planes.distance[:, -1]
     near_a = near(ov_a, planes.centroid, float(radius[keep].max()))
-    A, count = _ball_means(ov_a[near_a], planes.centroid, radius, int(np.ceil(2 * k * max(1.0, density_ratio))),
-                           settings.num_threads)
+    k_max = int(np.ceil(2 * k * max(1.0, density_ratio)))
+    A, count = _ball_means(ov_a[near_a], planes.centroid, radius, k_max, settings.num_threads)
     mean_a = A @ ov_a[near_a]
     off_plane = np.abs(np.einsum("ij,ij->i", mean_a - planes.centroid, planes.normal))
-    keep = keep & (planes.variation < settings.max_surface_variation) & (off_plane < settings.max_plane_distance_m)
+    keep = keep & (planes.variation < settings.max_surface_variation)
+    keep &= off_plane < settings.max_plane_distance_m
     keep &= planes.spread >= settings.min_spread
     keep &= _balanced(planes, centre, mean_a, settings.max_centroid_offset)
-    # a's ball about b's plane: its own scatter along b's normal, no more than max_scatter_ratio ×
-    # b's
+    # a's ball about b's plane: its own scatter along b's normal, at most max_scatter_ratio × b's
     var_a = _along_normal_variance(A, ov_a[near_a], mean_a, planes.normal)
     var_b = np.zeros(keep.size)
     var_b[keep] = moderated_variance(planes.scatter[keep] ** 2, k - 3)
@@ -197,7 +206,8 @@ def plane_rows(planes: LocalPlanes, b_near: np.ndarray, tree_b, ov_a: np.ndarray
         # each side's own, a prior fitted over the pair
         var_a, nu_a = posterior(var_a[keep], count[keep] - 1)
         var_b, nu_b = posterior(planes.scatter[keep] ** 2, k - 3)
-        parts = [var_a / count[keep], var_b * planes.leverage(mean_a)[keep], np.full(nu_a.size, settings.noise_floor_m**2)]
+        parts = [var_a / count[keep], var_b * planes.leverage(mean_a)[keep],
+                 np.full(nu_a.size, settings.noise_floor_m**2)]
         sigma = np.sqrt(np.sum(parts, axis=0))
         dof = satterthwaite(parts, [nu_a, nu_b, np.inf])
     return planes, A, near_a, keep, planes.normal[keep], sigma, dof
