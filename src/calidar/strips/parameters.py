@@ -20,8 +20,8 @@ ESTIMATE_GROUPS: dict[str, tuple[tuple[str, str], ...]] = {
     "scan_angle_offset": (("scan_angle_offset", "rad"),),
     "palmer": (("eccentricity_ratio", "1"), ("eccentricity_phase", "rad"), ("delta_l", "rad"),
                ("delta_r", "rad")),
-    #: a height shift common to every strip (a vertical trajectory bias): only ground control sees
-    #: it
+    #: a height shift common to every strip (a vertical trajectory bias): only ground control
+    #: sees it
     "height_bias": (("height_bias", "m"),),
 }
 #: Single parameters ``--estimate`` also accepts (e.g. lever_arm_x,lever_arm_y without z).

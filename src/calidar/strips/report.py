@@ -79,8 +79,7 @@ def quality_table(sec, stages: list[QualityStage]) -> None:
 
 
 def correction_table(sec, result: CalibrationResult) -> None:
-    """Per strip: the largest estimated trajectory shift (horizontal, vertical, mm) and rotation
-    (″)."""
+    """Per strip: the largest estimated trajectory shift (horizontal, vertical, mm) and tilt (″)."""
     rows = []
     for sid, c in sorted(result.corrections.items()):
         horizontal = 1e3 * float(np.max(np.hypot(c.shift[:, 0], c.shift[:, 1])))

@@ -32,8 +32,8 @@ class LocalFrame:
 
     @classmethod
     def at(cls, points_ecef: np.ndarray) -> "LocalFrame":
-        """The frame at the centre of the points' bounding box, at their median height (ECEF m, (N,
-        3))."""
+        """The frame at the centre of the bounding box of the points (ECEF m, (N, 3)), at their
+        median height."""
         p = np.asarray(points_ecef, float)
         lat, lon, _ = frames.ecef_to_geodetic(0.5 * (p.min(axis=0) + p.max(axis=0)))
         height = float(np.median(frames.ecef_to_geodetic(p[:: max(1, len(p) // 10000)])[2]))

@@ -95,7 +95,7 @@ class TrajectoryModel:
     #: Gauss–Markov correlation time of the shifts (s); None: independent
     correlation_s: float | None = None
     attitude_correlation_s: float | None = None  #: the same for the rotations
-    #: the trajectory's σ per epoch: the priors of every knot, per axis (the two σ above are then
+    #: the trajectory's σ per epoch: the priors of every knot, per axis (the two σ above then
     #: unused)
     accuracy: TrajectoryAccuracy | None = None
     #: the priors' level to be estimated from the overlaps (no accuracy file: :attr:`accuracy` is a

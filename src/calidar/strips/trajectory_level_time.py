@@ -102,8 +102,8 @@ def pool_in_time(times: np.ndarray, raw: np.ndarray, effective: np.ndarray, fall
         return Pooled(np.full(n, math.log(fallback)), np.full(n, np.inf), own, 0.0,
                       math.log(fallback))
     R = np.exp(-np.abs(times[:, None] - times[None, :]) / (correlation_s or LEVEL_CORRELATION_S))
-    # log of a χ²ₘ/m: mean ψ(m/2) − log(m/2), variance ψ′(m/2) (not −1/m and 2/m only: m is small
-    # here)
+    # log of a χ²ₘ/m: mean ψ(m/2) − log(m/2), variance ψ′(m/2) (not −1/m and 2/m only: m is
+    # small here)
     m = effective[own] / 2.0
     y, d = np.log(raw[own]) - (digamma(m) - np.log(m)), polygamma(1, m)
     Rdd = R[np.ix_(own, own)]

@@ -121,8 +121,7 @@ class _Clock:
 
 def overlap_masks(points_a: np.ndarray, points_b: np.ndarray,
                   cell_m: float) -> tuple[np.ndarray, np.ndarray, float]:
-    """Points of a and b in xy cells (size cell_m, m) occupied by both; also the overlap area
-    (m²)."""
+    """Points of a and b in xy cells (size cell_m, m) occupied by both; also the overlap (m²)."""
     xy_a, xy_b = points_a[:, :2], points_b[:, :2]
     lower = np.minimum(xy_a.min(axis=0), xy_b.min(axis=0))
     grid = Grid(lower, np.maximum(xy_a.max(axis=0), xy_b.max(axis=0)), cell_m)
@@ -231,8 +230,8 @@ def match_pair_vgicp(strip_a_id: int, points_a: np.ndarray, strip_b_id: int, poi
     # 1.5 × b's mean point spacing, m
     threshold = settings.pair_distance_m or 1.5 * np.sqrt(area / len(idx_b))
     # only points near the candidates enter the KdTree: the nearest within the threshold and
-    # the k nearest of b (≈ 2 spacings, about a centroid ≲ 1 spacing off the candidate) lie within
-    # it
+    # the k nearest of b (≈ 2 spacings, about a centroid ≲ 1 spacing off the candidate) lie
+    # within it
     near_b = near(b_on_a, ov_a[cand], max(threshold, 4.0 * np.sqrt(area / len(idx_b))))
     k = settings.num_neighbors if settings.kind == "point_to_plane" else 1
     if near_b.size < k:  # (small_gicp aborts on an empty tree)
