@@ -22,7 +22,13 @@ CLI_IMPORT_ALLOWANCE: set[str] = set()
 #: only shrinks). "calidar.x.*" names the package calidar.x and all under it; any other entry one module.
 LINE_LENGTH_ALLOWANCE: set[str] = {
     # the packages not yet started
-    "calidar.cli.*", "calidar.pipelines.*", "calidar.strips.*",
+    "calidar.pipelines.*", "calidar.strips.*",
+    # calidar.cli: the modules still to be reshaped
+    "calidar.cli", "calidar.cli.accuracy", "calidar.cli.boresight_config", "calidar.cli.ccr",
+    "calidar.cli.common", "calidar.cli.demo", "calidar.cli.denoise", "calidar.cli.georef",
+    "calidar.cli.info", "calidar.cli.options", "calidar.cli.photon", "calidar.cli.plan",
+    "calidar.cli.quality", "calidar.cli.rangecal", "calidar.cli.scanner", "calidar.cli.sensor",
+    "calidar.cli.simulate_survey", "calidar.cli.tpu",
     # the modules left of a package otherwise reshaped (being edited elsewhere at the time)
     "calidar.adjust.residuals", "calidar.adjust.solver", "calidar.adjust.variance_components",
     "calidar.adjust.variance_elements",
