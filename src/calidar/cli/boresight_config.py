@@ -29,8 +29,9 @@ def parse_estimate(text: str, trajectory_model: bool = True):
 
     names = [n.strip() for n in text.split(",") if n.strip()]
     if "trajectory_bias" in names and not trajectory_model:
-        raise InputError(None, "--estimate", "trajectory_bias: the trajectory's errors are estimated by the trajectory "
-                         "model; expected --trajectory-model on (the default)")
+        raise InputError(None, "--estimate", "trajectory_bias: the trajectory's errors are "
+                         "estimated by the trajectory model; expected --trajectory-model on (the "
+                         "default)")
     try:
         return Estimate.of(*[n for n in names if n != "trajectory_bias"])
     except InputError as e:
@@ -67,8 +68,8 @@ def _ingest(base, given: dict):
     if "strip_points" in given:
         n = given["strip_points"]
         if n != 0 and n < MIN_BUDGET_POINTS:
-            raise InputError(None, "--strip-points", f"expected 0 (every overlapping point) or at least "
-                             f"{MIN_BUDGET_POINTS}, got {n}")
+            raise InputError(None, "--strip-points", "expected 0 (every overlapping point) or at "
+                             f"least {MIN_BUDGET_POINTS}, got {n}")
         ingest = replace(ingest, budget_points=n or None)
     keys = ("crs", "time_system", "geoid_undulation")
     if any(k in given for k in keys):

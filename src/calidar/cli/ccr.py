@@ -40,34 +40,58 @@ def ccr_config(path: Path | None, given: dict):
     return CCRConfig.configure(path, values)
 
 
+ATL03 = typer.Argument(..., help="ATL03 file(s); several passes and beams are solved jointly.")
+CCR_FILE = typer.Option(..., "--ccr", help="CCR survey CSV: id,lat,lon,height (deg, deg, m above "
+                        "ground) or, for one pass only, id,x,y,height (m).")
+OUT = typer.Option(..., "--out", help="Output folder (solution.json, config.toml, report.html).")
+SHARED_BIAS = typer.Option(False, "--shared-bias", help="One along/cross-track bias for every beam "
+                           "(default: one per beam; the footprint diameter is always per beam).")
+SHOT_SPACING = typer.Option(0.7, "--shot-spacing-m", help="Along-track shot spacing d_l (m).")
+CHANNELS = typer.Option(None, "--channels", help="Detector channels per beam (default: 16 strong, "
+                        "4 weak, from the file).")
+JITTER = typer.Option(0.3, "--pointing-jitter-m", help="RMS shot-to-shot footprint jitter per axis "
+                                                       "(m).")
+DIAMETER_RANGE = typer.Option("8,15", "--diameter-range", help="Footprint diameters searched "
+                              "MIN,MAX (m); also the estimate's bounds.")
+DIAMETER_STEP = typer.Option(0.1, "--diameter-step", help="Diameter step Δr of the grid search "
+                                                          "(m).")
+LENGTH_STEP = typer.Option(0.1, "--length-step", help="Segment-length step Δl of the grid search "
+                                                      "(m).")
+BOOTSTRAP = typer.Option(100, "--bootstrap", help="Parametric bootstrap replicates for σ (0 = "
+                                                  "none).")
+TRUTH = typer.Option(None, "--truth", help="truth.json of a simulation (adds errors to the "
+                                           "outputs).")
+
+
+#: the command's help (its line breaks are those --help shows)
+CCR_HELP = ("Solve along/cross-track geolocation bias and footprint diameter from CCR returns "
+            "(maximum likelihood);\nwrites solution.json, config.toml (this run's settings, for "
+            "--config) and report.html.")
+
+
 def ccr(
     ctx: typer.Context,
-    atl03: list[Path] = typer.Argument(..., help="ATL03 file(s); several passes and beams are solved jointly."),
-    ccr_file: Path = typer.Option(..., "--ccr", help="CCR survey CSV: id,lat,lon,height (deg, deg, m above ground) "
-                                  "or, for one pass only, id,x,y,height (m)."),
-    out: Path = typer.Option(..., "--out", help="Output folder (solution.json, config.toml, report.html)."),
+    atl03: list[Path] = ATL03,
+    ccr_file: Path = CCR_FILE,
+    out: Path = OUT,
     beam: str = typer.Option("all", "--beam", help=BEAM_HELP),
-    shared_bias: bool = typer.Option(False, "--shared-bias", help="One along/cross-track bias for every beam "
-                                     "(default: one per beam; the footprint diameter is always per beam)."),
+    shared_bias: bool = SHARED_BIAS,
     dead_time_ns: float = typer.Option(3.2, "--dead-time-ns", help="Detector dead time t_d (ns)."),
     pulse_width_ns: float = typer.Option(1.0, "--pulse-width-ns", help="RMS pulse width σ (ns)."),
-    shot_spacing: float = typer.Option(0.7, "--shot-spacing-m", help="Along-track shot spacing d_l (m)."),
-    channels: int | None = typer.Option(None, "--channels", help="Detector channels per beam (default: 16 strong, "
-                                        "4 weak, from the file)."),
-    jitter: float = typer.Option(0.3, "--pointing-jitter-m", help="RMS shot-to-shot footprint jitter per axis (m)."),
-    diameter_range: str = typer.Option("8,15", "--diameter-range", help="Footprint diameters searched MIN,MAX (m); "
-                                       "also the estimate's bounds."),
-    diameter_step: float = typer.Option(0.1, "--diameter-step", help="Diameter step Δr of the grid search (m)."),
-    length_step: float = typer.Option(0.1, "--length-step", help="Segment-length step Δl of the grid search (m)."),
+    shot_spacing: float = SHOT_SPACING,
+    channels: int | None = CHANNELS,
+    jitter: float = JITTER,
+    diameter_range: str = DIAMETER_RANGE,
+    diameter_step: float = DIAMETER_STEP,
+    length_step: float = LENGTH_STEP,
     max_bias: float = typer.Option(10.0, "--max-bias", help="Largest |bias| accepted (m)."),
-    bootstrap: int = typer.Option(100, "--bootstrap", help="Parametric bootstrap replicates for σ (0 = none)."),
+    bootstrap: int = BOOTSTRAP,
     seed: int = typer.Option(0, "--seed", help="Seed of the bootstrap."),
-    truth: Path | None = typer.Option(None, "--truth", help="truth.json of a simulation (adds errors to the outputs)."),
+    truth: Path | None = TRUTH,
     force: bool = typer.Option(False, "--force", help=FORCE_HELP),
     config: Path | None = typer.Option(None, "--config", help=CONFIG_HELP),
 ) -> None:
-    """Solve along/cross-track geolocation bias and footprint diameter from CCR returns (maximum likelihood);
-    writes solution.json, config.toml (this run's settings, for --config) and report.html."""
+    """``calidar ccr`` (its help: CCR_HELP)."""
     from calidar.outputs import check_out_dir, output_folder
     from calidar.pipelines.ccr import run_ccr
     from calidar.provenance import RunRecord
@@ -91,4 +115,4 @@ def ccr(
 
 
 def register(app: typer.Typer, simulate: typer.Typer) -> None:
-    app.command("ccr")(ccr)
+    app.command("ccr", help=CCR_HELP)(ccr)

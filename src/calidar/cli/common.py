@@ -26,11 +26,13 @@ EXIT_OK = 0  #: done; the verdict, if any, is PASS or WARN
 EXIT_INPUT = 1  #: bad input or unwritable results
 EXIT_USAGE = 2  #: usage error
 EXIT_FAIL = 3  #: done with a FAIL verdict
-FORCE_HELP = "Replace a non-empty output folder whole: its previous files go (an input inside it is refused)."
-CONFIG_HELP = ("A configuration file (TOML, as the config.toml every run writes beside its results): its settings "
-               "replace the defaults, options given on the command line replace its settings.")
-EXIT_CODES_HELP = ("Exit codes: 0 pass or warn, 3 fail verdict, 1 input error (or results not writable), "
-                   "2 usage error, 130 interrupted (Ctrl-C), 143 terminated (SIGTERM).")
+FORCE_HELP = ("Replace a non-empty output folder whole: its previous files go (an input inside it "
+              "is refused).")
+CONFIG_HELP = ("A configuration file (TOML, as the config.toml every run writes beside its "
+               "results): its settings replace the defaults, options given on the command line "
+               "replace its settings.")
+EXIT_CODES_HELP = ("Exit codes: 0 pass or warn, 3 fail verdict, 1 input error (or results not "
+                   "writable), 2 usage error, 130 interrupted (Ctrl-C), 143 terminated (SIGTERM).")
 
 
 def given_options(ctx) -> dict:
@@ -97,10 +99,12 @@ def print_verdict(verdict, title: str | None = None, brief: bool = False) -> Non
     """A verdict (:class:`calidar.verdict.Verdict`) on stdout: the status and summary, then each
     finding with its numbers and, when not a pass, what to do (``brief``: the findings that are not a pass)."""
     head = f"{escape(title)}: " if title else ""
-    console.print(f"[{_STATUS_STYLE[verdict.status]}]{verdict.status.upper()}[/] {head}{escape(verdict.summary)}",
+    console.print(f"[{_STATUS_STYLE[verdict.status]}]{verdict.status.upper()}[/] "
+                  f"{head}{escape(verdict.summary)}",
                   highlight=False)
     for f in (f for f in verdict.findings if not (brief and f.status == "pass")):
-        console.print(f"  [{_STATUS_STYLE[f.status]}]{f.status:4s}[/] {escape(f.check)}: {escape(f.detail)}",
+        console.print(f"  [{_STATUS_STYLE[f.status]}]{f.status:4s}[/] {escape(f.check)}: "
+                      f"{escape(f.detail)}",
                       highlight=False)
         if f.action:
             console.print(f"       → {escape(f.action)}", highlight=False)

@@ -19,11 +19,15 @@ from calidar.pipelines import georef as pipeline
 TRAJECTORY = typer.Option(..., "--trajectory", "-t", help="SBET, text trajectory or Optech CSD.")
 
 
+SENSOR = typer.Option(None, "--sensor", help="sensor.toml (default: linear scanner, zero boresight "
+                                             "and lever arm).")
+
+
 def inverse(
     points: Path = typer.Argument(..., help="LAS/LAZ file with GPS times."),
     trajectory: Path = TRAJECTORY,
     out: Path = typer.Option(..., "--out", "-o", help="CSV of scanner-frame vectors."),
-    sensor: Path = typer.Option(None, "--sensor", help="sensor.toml (default: linear scanner, zero boresight and lever arm)."),
+    sensor: Path = SENSOR,
     crs: str | None = CRS, time_system: str | None = TIME_SYSTEM, geoid_undulation: float | None = GEOID_UNDULATION,
     trajectory_crs: str | None = TRAJECTORY_CRS, trajectory_angles: str | None = TRAJECTORY_ANGLES,
     trajectory_heading: str | None = TRAJECTORY_HEADING, trajectory_columns: str | None = TRAJECTORY_COLUMNS,
@@ -46,8 +50,13 @@ def inverse(
     console.print(f"{n} points → {out}", highlight=False, soft_wrap=True, markup=False)
 
 
+STRIPS = typer.Argument(..., help="LAS/LAZ strips georeferenced with the --from sensor.")
+TO_TRAJECTORY = typer.Option(None, "--to-trajectory", help="Forward with this trajectory instead "
+                             "(e.g. the sbet_corrected.out of calidar boresight).")
+
+
 def regeoref(
-    strips: list[Path] = typer.Argument(..., help="LAS/LAZ strips georeferenced with the --from sensor."),
+    strips: list[Path] = STRIPS,
     trajectory: Path = TRAJECTORY,
     old: Path = typer.Option(..., "--from", help="sensor.toml the strips were georeferenced with."),
     new: Path = typer.Option(..., "--to", help="sensor.toml to re-georeference them with."),
@@ -56,8 +65,7 @@ def regeoref(
     trajectory_crs: str | None = TRAJECTORY_CRS, trajectory_angles: str | None = TRAJECTORY_ANGLES,
     trajectory_heading: str | None = TRAJECTORY_HEADING, trajectory_columns: str | None = TRAJECTORY_COLUMNS,
     force: bool = typer.Option(False, "--force", help=FORCE_HELP),
-    to_trajectory: Path | None = typer.Option(None, "--to-trajectory", help="Forward with this trajectory instead "
-                                              "(e.g. the sbet_corrected.out of calidar boresight)."),
+    to_trajectory: Path | None = TO_TRAJECTORY,
 ) -> None:
     """Re-georeference delivered strips with a new sensor model (and trajectory).
 
@@ -78,20 +86,30 @@ def regeoref(
         console.print(f"{out / path.name}: {n} points", highlight=False, soft_wrap=True, markup=False)
 
 
+RAW = typer.Argument(..., help="Optech CSD file (raw pulses: ranges, scan angles, positions, "
+                               "attitudes).")
+OUT = typer.Option(..., "--out", "-o", help="Output LAS/LAZ (the sensor model goes beside it: "
+                   "<name>.sensor.toml).")
+CRS_OPTION = typer.Option(None, "--crs", help="CRS of the output points (default: the WGS 84 UTM "
+                          "zone of the first pulse, ellipsoidal heights).")
+
+
+#: the command's help (its line breaks are those --help shows)
+GEOREF_HELP = ("Georeference raw Optech CSD pulses with calidar's lidar equation; writes the "
+               "points, the\nheader's boresight as a calidar sensor.toml (docs/sensor.md, \"Optech "
+               "CSD\") and the run's settings\nas <name>.config.toml (for --config).")
+
+
 def georef(
     ctx: typer.Context,
-    raw: Path = typer.Argument(..., help="Optech CSD file (raw pulses: ranges, scan angles, positions, attitudes)."),
-    out: Path = typer.Option(..., "--out", "-o", help="Output LAS/LAZ (the sensor model goes beside it: "
-                             "<name>.sensor.toml)."),
-    crs: str | None = typer.Option(None, "--crs", help="CRS of the output points (default: the WGS 84 UTM zone of "
-                                   "the first pulse, ellipsoidal heights)."),
+    raw: Path = RAW,
+    out: Path = OUT,
+    crs: str | None = CRS_OPTION,
     geoid_undulation: float | None = GEOID_UNDULATION,
     force: bool = typer.Option(False, "--force", help="Overwrite the outputs."),
     config: Path | None = typer.Option(None, "--config", help=CONFIG_HELP),
 ) -> None:
-    """Georeference raw Optech CSD pulses with calidar's lidar equation; writes the points, the
-    header's boresight as a calidar sensor.toml (docs/sensor.md, "Optech CSD") and the run's settings
-    as <name>.config.toml (for --config)."""
+    """``calidar georef`` (its help: GEOREF_HELP)."""
     from calidar.pipelines.config_file import config_beside
 
     options = {"crs": ("crs", crs_option), "geoid_undulation": ("geoid_undulation_m", None)}
@@ -115,4 +133,4 @@ def georef(
 def register(app: typer.Typer, simulate: typer.Typer) -> None:
     app.command("inverse")(inverse)
     app.command("regeoref")(regeoref)
-    app.command("georef")(georef)
+    app.command("georef", help=GEOREF_HELP)(georef)

@@ -10,28 +10,49 @@ import typer
 from calidar.cli.common import FORCE_HELP, console
 
 
+OUT = typer.Option(..., "--out", help="Output folder (ATL03_sim.h5, ccr.csv, truth.json).")
+DROPOUT = typer.Option(0.0, "--ccr-dropout", help="Fraction of shots whose CCR returns are lost.")
+ALONG_BIAS = typer.Option(None, "--along-bias", help="Along-track bias (m); default random ±3 m.")
+CROSS_BIAS = typer.Option(None, "--cross-bias", help="Cross-track bias (m, left +); default random "
+                                                     "±3 m.")
+STRENGTH = typer.Option("strong", "--strength", help="Beam strength: strong (16 channels) or weak "
+                                                     "(4).")
+CCR_PHOTONS = typer.Option(20.0, "--ccr-photons", help="Mean photons of a CCR at the footprint "
+                                                       "centre.")
+GROUND_PHOTONS = typer.Option(3.0, "--ground-photons", help="Mean signal photons a shot from the "
+                              "ground (a weak beam carries about a quarter of a strong beam's: "
+                              "0.75).")
+BACKGROUND = typer.Option(3.0, "--background-mhz", help="Solar background rate (MHz; daylight "
+                                                        "1–10, night ≈ 0.01).")
+WINDOW = typer.Option(30.0, "--window-m", help="Telemetry height window (m, from 10 m below the "
+                                               "ground).")
+RELIEF_WAVELENGTH = typer.Option(300.0, "--relief-wavelength", help="Wavelength of the hills (m).")
+CANOPY_COVER = typer.Option(0.0, "--canopy-cover", help="Fraction of the track under trees (40 m "
+                                                        "stands).")
+CANOPY_HEIGHT = typer.Option(15.0, "--canopy-height", help="Height of the tallest trees (m).")
+
+
 def simulate_photons(
-    out: Path = typer.Option(..., "--out", help="Output folder (ATL03_sim.h5, ccr.csv, truth.json)."),
+    out: Path = OUT,
     seed: int = typer.Option(0, "--seed", help="Random seed (≥ 0)."),
     n_ccr: int = typer.Option(8, "--n-ccr", help="CCRs within the footprints' reach (≥ 1)."),
     n_unlit: int = typer.Option(0, "--n-unlit", help="Extra CCRs out of reach (no returns)."),
-    dropout: float = typer.Option(0.0, "--ccr-dropout", help="Fraction of shots whose CCR returns are lost."),
-    along_bias: float | None = typer.Option(None, "--along-bias", help="Along-track bias (m); default random ±3 m."),
-    cross_bias: float | None = typer.Option(None, "--cross-bias", help="Cross-track bias (m, left +); default random ±3 m."),
+    dropout: float = DROPOUT,
+    along_bias: float | None = ALONG_BIAS,
+    cross_bias: float | None = CROSS_BIAS,
     diameter: float = typer.Option(11.0, "--footprint-diameter", help="Footprint diameter (m)."),
     length: float = typer.Option(1200.0, "--length", help="Track length simulated (m)."),
-    strength: str = typer.Option("strong", "--strength", help="Beam strength: strong (16 channels) or weak (4)."),
-    ccr_photons: float = typer.Option(20.0, "--ccr-photons", help="Mean photons of a CCR at the footprint centre."),
-    ground_photons: float = typer.Option(3.0, "--ground-photons", help="Mean signal photons a shot from the ground "
-                                         "(a weak beam carries about a quarter of a strong beam's: 0.75)."),
-    background: float = typer.Option(3.0, "--background-mhz", help="Solar background rate (MHz; daylight 1–10, night ≈ 0.01)."),
-    window: float = typer.Option(30.0, "--window-m", help="Telemetry height window (m, from 10 m below the ground)."),
+    strength: str = STRENGTH,
+    ccr_photons: float = CCR_PHOTONS,
+    ground_photons: float = GROUND_PHOTONS,
+    background: float = BACKGROUND,
+    window: float = WINDOW,
     slope: float = typer.Option(0.02, "--slope", help="Along-track terrain slope (m/m)."),
     relief: float = typer.Option(2.0, "--relief", help="Amplitude of the terrain's hills (m)."),
-    relief_wavelength: float = typer.Option(300.0, "--relief-wavelength", help="Wavelength of the hills (m)."),
+    relief_wavelength: float = RELIEF_WAVELENGTH,
     roughness: float = typer.Option(0.05, "--roughness", help="RMS surface roughness (m)."),
-    canopy_cover: float = typer.Option(0.0, "--canopy-cover", help="Fraction of the track under trees (40 m stands)."),
-    canopy_height: float = typer.Option(15.0, "--canopy-height", help="Height of the tallest trees (m)."),
+    canopy_cover: float = CANOPY_COVER,
+    canopy_height: float = CANOPY_HEIGHT,
     force: bool = typer.Option(False, "--force", help=FORCE_HELP),
 ) -> None:
     """Simulate an ATL03-layout pass over surveyed CCRs with a known geolocation bias."""
