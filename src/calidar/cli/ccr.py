@@ -49,18 +49,18 @@ SHARED_BIAS = typer.Option(False, "--shared-bias", help="One along/cross-track b
 SHOT_SPACING = typer.Option(0.7, "--shot-spacing-m", help="Along-track shot spacing d_l (m).")
 CHANNELS = typer.Option(None, "--channels", help="Detector channels per beam (default: 16 strong, "
                         "4 weak, from the file).")
-JITTER = typer.Option(0.3, "--pointing-jitter-m", help="RMS shot-to-shot footprint jitter per axis "
-                                                       "(m).")
+JITTER = typer.Option(0.3, "--pointing-jitter-m",
+                      help="RMS shot-to-shot footprint jitter per axis (m).")
 DIAMETER_RANGE = typer.Option("8,15", "--diameter-range", help="Footprint diameters searched "
                               "MIN,MAX (m); also the estimate's bounds.")
-DIAMETER_STEP = typer.Option(0.1, "--diameter-step", help="Diameter step Δr of the grid search "
-                                                          "(m).")
-LENGTH_STEP = typer.Option(0.1, "--length-step", help="Segment-length step Δl of the grid search "
-                                                      "(m).")
-BOOTSTRAP = typer.Option(100, "--bootstrap", help="Parametric bootstrap replicates for σ (0 = "
-                                                  "none).")
-TRUTH = typer.Option(None, "--truth", help="truth.json of a simulation (adds errors to the "
-                                           "outputs).")
+DIAMETER_STEP = typer.Option(0.1, "--diameter-step",
+                             help="Diameter step Δr of the grid search (m).")
+LENGTH_STEP = typer.Option(0.1, "--length-step",
+                           help="Segment-length step Δl of the grid search (m).")
+BOOTSTRAP = typer.Option(100, "--bootstrap",
+                         help="Parametric bootstrap replicates for σ (0 = none).")
+TRUTH = typer.Option(None, "--truth",
+                     help="truth.json of a simulation (adds errors to the outputs).")
 
 
 #: the command's help (its line breaks are those --help shows)

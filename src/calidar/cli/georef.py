@@ -19,8 +19,8 @@ from calidar.pipelines import georef as pipeline
 TRAJECTORY = typer.Option(..., "--trajectory", "-t", help="SBET, text trajectory or Optech CSD.")
 
 
-SENSOR = typer.Option(None, "--sensor", help="sensor.toml (default: linear scanner, zero boresight "
-                                             "and lever arm).")
+SENSOR = typer.Option(None, "--sensor",
+                      help="sensor.toml (default: linear scanner, zero boresight and lever arm).")
 
 
 def inverse(

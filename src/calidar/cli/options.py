@@ -25,22 +25,22 @@ from calidar.pipelines.inputs import PointOptions, TrajectoryOptions
 CRS = typer.Option(None, "--crs", help="CRS of the points, overriding (or supplying) the file's, "
                                        "e.g. EPSG:32611.")
 TIME_SYSTEM = typer.Option(
-    None, "--time-system", help="GPS time of the points: week (seconds of the GPS week) or adjusted (GPS time − 1e9 s), "
-    "overriding the LAS global-encoding bit when it is wrong.")
+    None, "--time-system", help="GPS time of the points: week (seconds of the GPS week) or "
+    "adjusted (GPS time − 1e9 s), overriding the LAS global-encoding bit when it is wrong.")
 GEOID_UNDULATION = typer.Option(
-    None, "--geoid-undulation", help="Geoid undulation N (m) for a CRS with heights above a geoid when PROJ lacks the "
-    "geoid grid: ellipsoidal height = height + N (one value: a small area).")
+    None, "--geoid-undulation", help="Geoid undulation N (m) for a CRS with heights above a geoid "
+    "when PROJ lacks the geoid grid: ellipsoidal height = height + N (one value: a small area).")
 TRAJECTORY_CRS = typer.Option(None, "--trajectory-crs",
-                              help="CRS of a text trajectory's x/y (or lat/lon) columns, e.g. EPSG:32615.")
-TRAJECTORY_ANGLES = typer.Option(None, "--trajectory-angles", help="Angle unit of a text "
-                                                                   "trajectory: deg (default) or "
-                                                                   "rad.")
+                              help="CRS of a text trajectory's x/y (or lat/lon) columns, e.g. "
+                                   "EPSG:32615.")
+TRAJECTORY_ANGLES = typer.Option(None, "--trajectory-angles",
+                                 help="Angle unit of a text trajectory: deg (default) or rad.")
 TRAJECTORY_HEADING = typer.Option(
-    None, "--trajectory-heading", help="Heading of a text trajectory: true (default), or grid (then corrected by the "
-    "meridian convergence of --trajectory-crs).")
+    None, "--trajectory-heading", help="Heading of a text trajectory: true (default), or grid "
+    "(then corrected by the meridian convergence of --trajectory-crs).")
 TRAJECTORY_COLUMNS = typer.Option(
-    None, "--trajectory-columns", help="Columns of a text trajectory, comma-separated, '-' to skip one: time, lat, lon "
-    "or x, y, height, roll, pitch, heading (default: from its header line).")
+    None, "--trajectory-columns", help="Columns of a text trajectory, comma-separated, '-' to skip "
+    "one: time, lat, lon or x, y, height, roll, pitch, heading (default: from its header line).")
 
 
 def crs_option(crs: str | None, option: str = "--crs") -> str | None:

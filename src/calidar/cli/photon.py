@@ -13,22 +13,22 @@ from calidar.cli.common import FORCE_HELP, console
 OUT = typer.Option(..., "--out", help="Output folder (ATL03_sim.h5, ccr.csv, truth.json).")
 DROPOUT = typer.Option(0.0, "--ccr-dropout", help="Fraction of shots whose CCR returns are lost.")
 ALONG_BIAS = typer.Option(None, "--along-bias", help="Along-track bias (m); default random ±3 m.")
-CROSS_BIAS = typer.Option(None, "--cross-bias", help="Cross-track bias (m, left +); default random "
-                                                     "±3 m.")
-STRENGTH = typer.Option("strong", "--strength", help="Beam strength: strong (16 channels) or weak "
-                                                     "(4).")
-CCR_PHOTONS = typer.Option(20.0, "--ccr-photons", help="Mean photons of a CCR at the footprint "
-                                                       "centre.")
+CROSS_BIAS = typer.Option(None, "--cross-bias",
+                          help="Cross-track bias (m, left +); default random ±3 m.")
+STRENGTH = typer.Option("strong", "--strength",
+                        help="Beam strength: strong (16 channels) or weak (4).")
+CCR_PHOTONS = typer.Option(20.0, "--ccr-photons",
+                           help="Mean photons of a CCR at the footprint centre.")
 GROUND_PHOTONS = typer.Option(3.0, "--ground-photons", help="Mean signal photons a shot from the "
                               "ground (a weak beam carries about a quarter of a strong beam's: "
                               "0.75).")
-BACKGROUND = typer.Option(3.0, "--background-mhz", help="Solar background rate (MHz; daylight "
-                                                        "1–10, night ≈ 0.01).")
-WINDOW = typer.Option(30.0, "--window-m", help="Telemetry height window (m, from 10 m below the "
-                                               "ground).")
+BACKGROUND = typer.Option(3.0, "--background-mhz",
+                          help="Solar background rate (MHz; daylight 1–10, night ≈ 0.01).")
+WINDOW = typer.Option(30.0, "--window-m",
+                      help="Telemetry height window (m, from 10 m below the ground).")
 RELIEF_WAVELENGTH = typer.Option(300.0, "--relief-wavelength", help="Wavelength of the hills (m).")
-CANOPY_COVER = typer.Option(0.0, "--canopy-cover", help="Fraction of the track under trees (40 m "
-                                                        "stands).")
+CANOPY_COVER = typer.Option(0.0, "--canopy-cover",
+                            help="Fraction of the track under trees (40 m stands).")
 CANOPY_HEIGHT = typer.Option(15.0, "--canopy-height", help="Height of the tallest trees (m).")
 
 

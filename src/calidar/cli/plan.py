@@ -58,8 +58,8 @@ def parse_platform_motion(text: str) -> tuple[float, float]:
 LINES = typer.Argument(..., help="Flight lines, CSV (line, start_x, start_y, end_x, end_y, "
                        "height_agl_m, speed_mps; projected metres) or GeoJSON LineStrings with "
                        "those properties.")
-SENSOR = typer.Option(..., "--sensor", help="The nominal sensor.toml (lever arm, boresight, "
-                                            "scanner).")
+SENSOR = typer.Option(..., "--sensor",
+                      help="The nominal sensor.toml (lever arm, boresight, scanner).")
 TERRAIN = typer.Option("flat", "--terrain", help="flat, flat:HEIGHT_M, scene[:uav|airborne[:SEED]] "
                        "(the simulator's built-in scene with roofs), or a DEM GeoTIFF in the "
                        "lines' metres.")

@@ -18,11 +18,11 @@ OPTIONS = {"cell": ("settings.cell_m", None), "classes": ("classes", parse_class
 
 STRIPS = typer.Argument(..., help="LAS/LAZ files (one or several flight lines each).")
 OUT = typer.Option(None, "--out", help="Folder for quality.json and dz rasters (GeoTIFF, PNG).")
-CELL = typer.Option(None, "--cell", help="Grid cell of the difference, m (default 2 m or coarser "
-                                         "when sparse).")
+CELL = typer.Option(None, "--cell",
+                    help="Grid cell of the difference, m (default 2 m or coarser when sparse).")
 CLASSES = typer.Option(
-    None, "--classes", help="LAS classes to compare, e.g. 2 or 2,6 (default: ground, class 2, when a file has "
-    "it, else last and single returns on smooth cells).")
+    None, "--classes", help="LAS classes to compare, e.g. 2 or 2,6 (default: ground, class 2, when "
+    "a file has it, else last and single returns on smooth cells).")
 
 
 #: the command's help (its line breaks are those --help shows)

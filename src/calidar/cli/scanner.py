@@ -32,26 +32,26 @@ RANGE_M = typer.Option(None, "--range", help="Range to the pattern (m, > 0, ≤ 
 OUT = typer.Option(..., "--out", help="Output folder (CSV, PNG, summary.json, report.html).")
 ECCENTRICITY = typer.Option(None, "--eccentricity", help="Encoder eccentricity ε/r (ratio, 0–0.1).")
 DELTA_L = typer.Option(None, "--delta-l", help="Palmer laser–axis angle error δ_L (deg, |·| ≤ 10).")
-DELTA_R = typer.Option(None, "--delta-r", help="Palmer mirror-normal–axis angle error δ_R (deg, "
-                                               "|·| ≤ 10).")
-WEDGE_ANGLE_ERROR = typer.Option(None, "--wedge-angle-error", help="Wedge angle error (deg, |·| ≤ "
-                                                                   "10).")
+DELTA_R = typer.Option(None, "--delta-r",
+                       help="Palmer mirror-normal–axis angle error δ_R (deg, |·| ≤ 10).")
+WEDGE_ANGLE_ERROR = typer.Option(None, "--wedge-angle-error",
+                                 help="Wedge angle error (deg, |·| ≤ 10).")
 AXIS_TILT = typer.Option(None, "--axis-tilt", help="Wedge rotation-axis tilt (deg, 0–10).")
-AXIS_TILT_AZIMUTH = typer.Option(0.0, "--axis-tilt-azimuth", help="Direction of the tilt from x "
-                                                                  "(deg).")
-SCAN_ANGLE_OFFSET = typer.Option(None, "--scan-angle-offset", help="Linear scan-angle offset (deg, "
-                                                                   "|·| ≤ 10).")
-SCAN_ANGLE_SCALE = typer.Option(None, "--scan-angle-scale", help="Linear scan-angle scale (ppm, "
-                                                                 "|·| ≤ 1e5).")
-AXIS_ANGLE = typer.Option(45.0, "--axis-angle", help="Palmer motor-axis to laser angle A (deg, "
-                                                     "0–90).")
-MIRROR_TILT = typer.Option(7.5, "--mirror-tilt", help="Palmer mirror-normal to axis angle B (deg, "
-                                                      "0–A).")
+AXIS_TILT_AZIMUTH = typer.Option(0.0, "--axis-tilt-azimuth",
+                                 help="Direction of the tilt from x (deg).")
+SCAN_ANGLE_OFFSET = typer.Option(None, "--scan-angle-offset",
+                                 help="Linear scan-angle offset (deg, |·| ≤ 10).")
+SCAN_ANGLE_SCALE = typer.Option(None, "--scan-angle-scale",
+                                help="Linear scan-angle scale (ppm, |·| ≤ 1e5).")
+AXIS_ANGLE = typer.Option(45.0, "--axis-angle",
+                          help="Palmer motor-axis to laser angle A (deg, 0–90).")
+MIRROR_TILT = typer.Option(7.5, "--mirror-tilt",
+                           help="Palmer mirror-normal to axis angle B (deg, 0–A).")
 REFRACTIVE_INDEX = typer.Option(1.5168, "--refractive-index", help="Wedge refractive index (1–4).")
-GRATING_RADIUS_MM = typer.Option(75.0, "--grating-radius-mm", help="Encoder grating radius (mm, "
-                                                                   "0–1000).")
-SPEC_ARCSEC = typer.Option(10.0, "--spec-arcsec", help="Pointing spec for the verdict and "
-                                                       "tolerances (arcsec).")
+GRATING_RADIUS_MM = typer.Option(75.0, "--grating-radius-mm",
+                                 help="Encoder grating radius (mm, 0–1000).")
+SPEC_ARCSEC = typer.Option(10.0, "--spec-arcsec",
+                           help="Pointing spec for the verdict and tolerances (arcsec).")
 
 
 #: the command's help (its line breaks are those --help shows)

@@ -18,8 +18,8 @@ FILE = typer.Argument(..., help="The vendor file: leeward config.toml, Optech CS
                       "scan2imu matrix (16 numbers, or a PDAL pipeline JSON with "
                       "filters.georeference).")
 SCANNER_AXES = typer.Option(
-    None, "--scanner-axes", help="pdal-scan2imu only: calidar's scanner x,y,z (forward, right, nadir) as the "
-    "scanner's own axes, e.g. 'y,x,-z' (default x,y,z).")
+    None, "--scanner-axes", help="pdal-scan2imu only: calidar's scanner x,y,z (forward, right, "
+    "nadir) as the scanner's own axes, e.g. 'y,x,-z' (default x,y,z).")
 CRS = typer.Option(None, "--crs", help="Output CRS to record in sensor.toml (optional).")
 
 

@@ -13,30 +13,31 @@ from calidar.cli.common import FORCE_HELP, console, parse_floats, progress_bar, 
 
 OUT = typer.Option(..., "--out", help="Output folder (strips/*.laz, sbet.out, sensor.toml, "
                                       "truth.json).")
-PRESET = typer.Option("uav", "--preset", help="uav (≈80 m above ground, 300 m × 300 m) or airborne "
-                                              "(≈1000 m, 2.5 km × 1.6 km).")
-BORESIGHT_ERROR = typer.Option("0,0,0", "--boresight-error", help="True − nominal boresight "
-                                                                  "ROLL,PITCH,YAW in degrees.")
-LEVER_ARM_ERROR = typer.Option("0,0,0", "--lever-arm-error", help="True − nominal lever arm X,Y,Z "
-                                                                  "in metres (body frame).")
-RANGE_NOISE = typer.Option(None, "--range-noise", help="Range noise σ in metres (preset's value by "
-                                                       "default).")
+PRESET = typer.Option("uav", "--preset",
+                      help="uav (≈80 m above ground, 300 m × 300 m) or airborne (≈1000 m, 2.5 km × "
+                           "1.6 km).")
+BORESIGHT_ERROR = typer.Option("0,0,0", "--boresight-error",
+                               help="True − nominal boresight ROLL,PITCH,YAW in degrees.")
+LEVER_ARM_ERROR = typer.Option("0,0,0", "--lever-arm-error",
+                               help="True − nominal lever arm X,Y,Z in metres (body frame).")
+RANGE_NOISE = typer.Option(None, "--range-noise",
+                           help="Range noise σ in metres (preset's value by default).")
 BEAM_DIVERGENCE = typer.Option(0.0, "--beam-divergence", metavar="MRAD",
                                help="Beam divergence (full angle) in mrad: each return comes from "
                                     "within the footprint (0: one ray per pulse).")
-VEGETATION = typer.Option(None, "--vegetation", help="Fraction of the area under tree crowns, "
-                                                     "0–0.8.")
+VEGETATION = typer.Option(None, "--vegetation",
+                          help="Fraction of the area under tree crowns, 0–0.8.")
 STRIP_ERRORS = typer.Option("0,0,0,0", "--strip-errors",
                             help="σ of per-strip trajectory errors: POSITION_BIAS (m), "
                                  "POSITION_DRIFT (m/s), ATTITUDE_BIAS (deg), ATTITUDE_DRIFT "
                                  "(deg/s).")
-DIRECTIONS = typer.Option("opposite", "--directions", help="Line directions: same, opposite or "
-                                                           "cross.")
+DIRECTIONS = typer.Option("opposite", "--directions",
+                          help="Line directions: same, opposite or cross.")
 CHECKPOINTS = typer.Option(0, "--checkpoints", help="Surveyed checkpoints to write "
                            "(checkpoints.csv; a quarter under trees when there are trees), their "
                            "truth in truth.json.")
-CHECKPOINT_SIGMA = typer.Option(0.02, "--checkpoint-sigma", help="Survey σ of the checkpoints' "
-                                                                 "heights, m.")
+CHECKPOINT_SIGMA = typer.Option(0.02, "--checkpoint-sigma",
+                                help="Survey σ of the checkpoints' heights, m.")
 CONTROL_PLANES = typer.Option(0, "--control-planes", help="Roof facets surveyed at their corners "
                               "to write as control planes (control_planes.csv, for boresight "
                               "--control), their truth in truth.json.")

@@ -37,8 +37,8 @@ def _radians_yaw(deg: float) -> float:
 
 POINTS = typer.Argument(..., help="LAS/LAZ files with GPS times (one or several flight lines "
                                   "each).")
-OUT = typer.Option(..., "--out", "-o", help="Trajectory file to write (text with σ columns, or "
-                                            "SBET).")
+OUT = typer.Option(..., "--out", "-o",
+                   help="Trajectory file to write (text with σ columns, or SBET).")
 FMT = typer.Option(None, "--format", help="text (CSV with σ columns) or sbet (default: sbet for "
                    "a .out/.sbet name, else text).")
 REPORT = typer.Option(None, "--report", help="Report file (default: report.html beside --out).")
