@@ -7,7 +7,9 @@ from pathlib import Path
 
 import typer
 
-from calidar.cli.common import FORCE_HELP, console, exit_with_verdict, print_verdict, progress_bar, progress_callback
+from calidar.cli.common import (
+    FORCE_HELP, console, exit_with_verdict, print_verdict, progress_bar, progress_callback,
+)
 
 
 OUT = typer.Option(..., "--out", help="Output folder for report.html and the simulated survey.")

@@ -52,13 +52,15 @@ def denoise(
     for b in result.beams:
         agree = ("" if b.atl03_agreement is None else f"; {b.atl03_agreement:.1%} of the "
                  f"{b.atl03_confident:,} ATL03 rates medium/high confidence")
-        console.print(f"  {b.beam} ({b.strength or 'strength unknown'}): {b.photons:,} photons, {b.signal:,} signal "
+        strength = b.strength or "strength unknown"
+        console.print(f"  {b.beam} ({strength}): {b.photons:,} photons, {b.signal:,} signal "
                       f"({b.signal / b.photons:.1%}){agree}", highlight=False, markup=False)
         if b.along_track_from != "segments":
             print_warning(f"{b.beam}: along-track distance from the {b.along_track_from}")
     if result.skipped:
         print_warning(f"no photons in {', '.join(result.skipped)}; skipped")
-    console.print(f"{out}: {result.photons:,} photons, {result.signal:,} signal", highlight=False, markup=False)
+    console.print(f"{out}: {result.photons:,} photons, {result.signal:,} signal", highlight=False,
+                  markup=False)
 
 
 def register(app: typer.Typer, simulate: typer.Typer) -> None:
