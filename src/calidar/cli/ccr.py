@@ -1,5 +1,5 @@
-"""``calidar ccr``: photon-lidar geolocation calibration (along/cross-track bias, footprint diameter)
-from the returns of surveyed corner-cube retroreflectors."""
+"""``calidar ccr``: photon-lidar geolocation calibration (along/cross-track bias, footprint
+diameter) from the returns of surveyed corner-cube retroreflectors."""
 
 from __future__ import annotations
 
@@ -8,23 +8,25 @@ from pathlib import Path
 import typer
 
 from calidar.cli.common import (
-    CONFIG_HELP, FORCE_HELP, console, exit_with_verdict, given_options, print_verdict, print_warning, progress_bar,
-    progress_callback,
+    CONFIG_HELP, FORCE_HELP, console, exit_with_verdict, given_options, print_verdict,
+    print_warning, progress_bar, progress_callback,
 )
 from calidar.cli.denoise import BEAM_HELP
 
 #: options → the search settings' fields (calidar.photon.search.SearchSettings)
-SEARCH_OPTIONS = {"diameter_step": "diameter_step", "length_step": "length_step", "max_bias": "max_bias",
-                  "bootstrap": "bootstrap", "seed": "seed", "shared_bias": "shared_bias"}
-#: options → (the instrument's field, factor to SI; None: as given) (calidar.photon.passes.SystemParameters)
+SEARCH_OPTIONS = {"diameter_step": "diameter_step", "length_step": "length_step",
+                  "max_bias": "max_bias", "bootstrap": "bootstrap", "seed": "seed",
+                  "shared_bias": "shared_bias"}
+#: options → (the instrument's field, factor to SI; None: as given)
+#: (calidar.photon.passes.SystemParameters)
 SYSTEM_OPTIONS = {"dead_time_ns": ("dead_time", 1e-9), "pulse_width_ns": ("pulse_width", 1e-9),
                   "shot_spacing": ("shot_spacing", 1.0), "channels": ("channels", None),
                   "jitter": ("pointing_jitter", 1.0)}
 
 
 def ccr_config(path: Path | None, given: dict):
-    """The configuration: the ``--config`` file's (else the defaults), with the options ``given`` on the
-    command line ({parameter name: value}) replacing its settings; checked."""
+    """The configuration: the ``--config`` file's (else the defaults), with the options ``given`` on
+    the command line ({parameter name: value}) replacing its settings; checked."""
     from calidar.cli.common import config_values
     from calidar.cli.options import parse_beams
     from calidar.pipelines.ccr_config import CCRConfig
@@ -35,8 +37,8 @@ def ccr_config(path: Path | None, given: dict):
                     for k, (f, c) in SYSTEM_OPTIONS.items()}, beam=("beams", parse_beams))
     values = config_values(given, options)
     if "diameter_range" in given:
-        values["search.diameter_min"], values["search.diameter_max"] = parse_floats(given["diameter_range"], 2,
-                                                                                      "--diameter-range")
+        low, high = parse_floats(given["diameter_range"], 2, "--diameter-range")
+        values["search.diameter_min"], values["search.diameter_max"] = low, high
     return CCRConfig.configure(path, values)
 
 
@@ -101,16 +103,18 @@ def ccr(
     check_out_dir(out, force)
     record = RunRecord.capture(None, inputs=inputs, options=cfg.to_dict())
     with output_folder(out, force, inputs=inputs) as tmp, progress_bar() as bar:
-        result = run_ccr(atl03, ccr_file, tmp, cfg, truth_path=truth, record=record, progress=progress_callback(bar))
+        result = run_ccr(atl03, ccr_file, tmp, cfg, truth_path=truth, record=record,
+                         progress=progress_callback(bar))
     sol = result.solution
     for n in sol.parameters.free_names:
         if n.split("[")[0] in ("along_track_bias", "cross_track_bias", "footprint_diameter"):
-            console.print(f"  {n:34s} {sol.values[n]:8.3f} ± {sol.sigma[n]:.3f} m", highlight=False, markup=False)
+            console.print(f"  {n:34s} {sol.values[n]:8.3f} ± {sol.sigma[n]:.3f} m",
+                          highlight=False, markup=False)
     for w in result.warnings:
         print_warning(w)
     print_verdict(result.verdict, "CCR calibration")
-    console.print(f"wrote {out / 'solution.json'}, {out / 'config.toml'} and {out / 'report.html'}", highlight=False,
-                  markup=False)
+    console.print(f"wrote {out / 'solution.json'}, {out / 'config.toml'} and "
+                  f"{out / 'report.html'}", highlight=False, markup=False)
     exit_with_verdict(result.verdict)
 
 

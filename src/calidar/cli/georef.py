@@ -10,8 +10,8 @@ import typer
 
 from calidar.cli.common import CONFIG_HELP, FORCE_HELP, config_values, console, given_options
 from calidar.cli.options import (
-    CRS, GEOID_UNDULATION, TIME_SYSTEM, TRAJECTORY_ANGLES, TRAJECTORY_COLUMNS, TRAJECTORY_CRS, TRAJECTORY_HEADING,
-    crs_option, point_options, trajectory_options,
+    CRS, GEOID_UNDULATION, TIME_SYSTEM, TRAJECTORY_ANGLES, TRAJECTORY_COLUMNS, TRAJECTORY_CRS,
+    TRAJECTORY_HEADING, crs_option, point_options, trajectory_options,
 )
 from calidar.outputs import check_out_dir, check_writable, guard_inputs, output_folder
 from calidar.pipelines import georef as pipeline
@@ -28,9 +28,11 @@ def inverse(
     trajectory: Path = TRAJECTORY,
     out: Path = typer.Option(..., "--out", "-o", help="CSV of scanner-frame vectors."),
     sensor: Path = SENSOR,
-    crs: str | None = CRS, time_system: str | None = TIME_SYSTEM, geoid_undulation: float | None = GEOID_UNDULATION,
+    crs: str | None = CRS, time_system: str | None = TIME_SYSTEM,
+    geoid_undulation: float | None = GEOID_UNDULATION,
     trajectory_crs: str | None = TRAJECTORY_CRS, trajectory_angles: str | None = TRAJECTORY_ANGLES,
-    trajectory_heading: str | None = TRAJECTORY_HEADING, trajectory_columns: str | None = TRAJECTORY_COLUMNS,
+    trajectory_heading: str | None = TRAJECTORY_HEADING,
+    trajectory_columns: str | None = TRAJECTORY_COLUMNS,
     force: bool = typer.Option(False, "--force", help="Overwrite the output."),
 ) -> None:
     """Inverse georeferencing: per point the range and the scanner-frame vector (CSV).
@@ -41,10 +43,12 @@ def inverse(
     """
     check_writable(out, force)
     notes: list[str] = []
+    points_in = point_options(crs, time_system, geoid_undulation)
+    trajectory_in = trajectory_options(trajectory_crs, trajectory_angles, trajectory_heading,
+                                       trajectory_columns)
     n = pipeline.inverse_points(
-        points, trajectory, out, sensor=sensor, point_options=point_options(crs, time_system, geoid_undulation),
-        trajectory_options=trajectory_options(trajectory_crs, trajectory_angles, trajectory_heading, trajectory_columns),
-        force=force, notes=notes)
+        points, trajectory, out, sensor=sensor, point_options=points_in,
+        trajectory_options=trajectory_in, force=force, notes=notes)
     for note in notes:
         console.print(f"note: {note}", highlight=False, soft_wrap=True, markup=False)
     console.print(f"{n} points → {out}", highlight=False, soft_wrap=True, markup=False)
@@ -61,9 +65,11 @@ def regeoref(
     old: Path = typer.Option(..., "--from", help="sensor.toml the strips were georeferenced with."),
     new: Path = typer.Option(..., "--to", help="sensor.toml to re-georeference them with."),
     out: Path = typer.Option(..., "--out", "-o", help="Output folder (same file names)."),
-    crs: str | None = CRS, time_system: str | None = TIME_SYSTEM, geoid_undulation: float | None = GEOID_UNDULATION,
+    crs: str | None = CRS, time_system: str | None = TIME_SYSTEM,
+    geoid_undulation: float | None = GEOID_UNDULATION,
     trajectory_crs: str | None = TRAJECTORY_CRS, trajectory_angles: str | None = TRAJECTORY_ANGLES,
-    trajectory_heading: str | None = TRAJECTORY_HEADING, trajectory_columns: str | None = TRAJECTORY_COLUMNS,
+    trajectory_heading: str | None = TRAJECTORY_HEADING,
+    trajectory_columns: str | None = TRAJECTORY_COLUMNS,
     force: bool = typer.Option(False, "--force", help=FORCE_HELP),
     to_trajectory: Path | None = TO_TRAJECTORY,
 ) -> None:
@@ -75,15 +81,18 @@ def regeoref(
     """
     check_out_dir(out, force)
     notes: list[str] = []
+    points_in = point_options(crs, time_system, geoid_undulation)
+    trajectory_in = trajectory_options(trajectory_crs, trajectory_angles, trajectory_heading,
+                                       trajectory_columns)
     with output_folder(out, force, inputs=[*strips, trajectory, old, new, to_trajectory]) as tmp:
         written = pipeline.regeoreference_strips(
-            strips, trajectory, old, new, tmp, point_options=point_options(crs, time_system, geoid_undulation),
-            trajectory_options=trajectory_options(trajectory_crs, trajectory_angles, trajectory_heading,
-                                                  trajectory_columns), to_trajectory=to_trajectory, notes=notes)
+            strips, trajectory, old, new, tmp, point_options=points_in,
+            trajectory_options=trajectory_in, to_trajectory=to_trajectory, notes=notes)
     for note in notes:
         console.print(f"note: {note}", highlight=False, soft_wrap=True, markup=False)
     for path, n in written.items():
-        console.print(f"{out / path.name}: {n} points", highlight=False, soft_wrap=True, markup=False)
+        console.print(f"{out / path.name}: {n} points", highlight=False, soft_wrap=True,
+                      markup=False)
 
 
 RAW = typer.Argument(..., help="Optech CSD file (raw pulses: ranges, scan angles, positions, "
@@ -118,16 +127,18 @@ def georef(
     guard_inputs(written, [raw, config])
     for path in written:
         check_writable(path, force)
-    r = pipeline.georeference_csd(raw, out, crs=cfg.crs, geoid_undulation_m=cfg.geoid_undulation_m, force=force)
+    r = pipeline.georeference_csd(raw, out, crs=cfg.crs, geoid_undulation_m=cfg.geoid_undulation_m,
+                                  force=force)
     cfg.write(config_beside(out))
     geoid = cfg.geoid_undulation_m
     x, y, z = r.first_xyz
     from calidar.crs import vertical_reference
 
-    console.print(f"{r.n_points} points → {r.points} ({r.crs}); sensor model → {r.sensor}; settings → "
-                  f"{config_beside(out)}\n"
+    console.print(f"{r.n_points} points → {r.points} ({r.crs}); sensor model → {r.sensor}; "
+                  f"settings → {config_beside(out)}\n"
                   f"first point: GPS time {r.first_gps_time:.6f} s, {x:.3f}, {y:.3f}, {z:.3f}\n"
-                  f"heights: {vertical_reference(r.crs, geoid)[0]}", highlight=False, soft_wrap=True, markup=False)
+                  f"heights: {vertical_reference(r.crs, geoid)[0]}", highlight=False,
+                  soft_wrap=True, markup=False)
 
 
 def register(app: typer.Typer, simulate: typer.Typer) -> None:

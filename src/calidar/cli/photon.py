@@ -1,4 +1,5 @@
-"""``calidar simulate photons``: an ATL03-layout pass over surveyed CCRs with a known geolocation bias."""
+"""``calidar simulate photons``: an ATL03-layout pass over surveyed CCRs with a known geolocation
+bias."""
 
 from __future__ import annotations
 
@@ -70,24 +71,30 @@ def simulate_photons(
     cfg = PhotonSimConfig(
         seed=integer(seed, "--seed", 0, SEED_MAX), n_ccr=n, n_unlit=unlit,
         ccr_dropout=number(dropout, "--ccr-dropout", 0.0, 0.95),
-        along_bias=None if along_bias is None else number(along_bias, "--along-bias", -50.0, 50.0, "m"),
-        cross_bias=None if cross_bias is None else number(cross_bias, "--cross-bias", -50.0, 50.0, "m"),
+        along_bias=None if along_bias is None
+        else number(along_bias, "--along-bias", -50.0, 50.0, "m"),
+        cross_bias=None if cross_bias is None
+        else number(cross_bias, "--cross-bias", -50.0, 50.0, "m"),
         footprint_diameter=number(diameter, "--footprint-diameter", 1.0, 100.0, "m"), length=length,
         strength=strength, ccr_photons=number(ccr_photons, "--ccr-photons", 1.0, 500.0),
         ccr_spacing=min(60.0, 0.9 * length / max(n + unlit, 1)),
         ground_photons=number(ground_photons, "--ground-photons", 0.0, 100.0),
         background_rate=number(background, "--background-mhz", 0.0, 50.0, "MHz") * 1e6,
-        window=number(window, "--window-m", 5.0, 2000.0, "m"), slope_along=number(slope, "--slope", -2.0, 2.0),
+        window=number(window, "--window-m", 5.0, 2000.0, "m"),
+        slope_along=number(slope, "--slope", -2.0, 2.0),
         undulation=number(relief, "--relief", 0.0, 500.0, "m"),
-        undulation_wavelength=number(relief_wavelength, "--relief-wavelength", 10.0, 100_000.0, "m"),
+        undulation_wavelength=number(relief_wavelength, "--relief-wavelength", 10.0, 100_000.0,
+                                     "m"),
         roughness=number(roughness, "--roughness", 0.0, 10.0, "m"),
         canopy_cover=number(canopy_cover, "--canopy-cover", 0.0, 1.0),
         canopy_height=number(canopy_height, "--canopy-height", 0.0, 100.0, "m"))
     with output_folder(out, force) as tmp:
         paths = run(cfg, tmp)
         t = json.loads(paths["truth"].read_text())
-    console.print(f"wrote {out}/ATL03_sim.h5 (each photon's truth in <beam>/heights/sim_class_ph), ccr.csv, truth.json; truth: along {t['along_track_bias']:+.3f} m, "
-                  f"cross {t['cross_track_bias']:+.3f} m, diameter {t['footprint_diameter']:.2f} m", highlight=False, markup=False)
+    console.print(f"wrote {out}/ATL03_sim.h5 (each photon's truth in "
+                  "<beam>/heights/sim_class_ph), ccr.csv, truth.json; truth: along "
+                  f"{t['along_track_bias']:+.3f} m, cross {t['cross_track_bias']:+.3f} m, "
+                  f"diameter {t['footprint_diameter']:.2f} m", highlight=False, markup=False)
 
 
 def register(app: typer.Typer, simulate: typer.Typer) -> None:

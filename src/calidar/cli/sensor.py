@@ -11,7 +11,8 @@ import typer
 from calidar.cli.common import console
 from calidar.outputs import check_writable, guard_inputs
 
-sensor_app = typer.Typer(help="Sensor models (sensor.toml): import a vendor's mounting.", no_args_is_help=True)
+sensor_app = typer.Typer(help="Sensor models (sensor.toml): import a vendor's mounting.",
+                         no_args_is_help=True)
 
 
 FILE = typer.Argument(..., help="The vendor file: leeward config.toml, Optech CSD, or a PDAL "
@@ -55,8 +56,10 @@ def import_(
         sensor = replace(sensor, crs=crs)
     sensor.write(out, force=force)
     angles = np.degrees([sensor.boresight_roll, sensor.boresight_pitch, sensor.boresight_yaw])
-    console.print(f"{out}: boresight roll {angles[0]:.6f}°, pitch {angles[1]:.6f}°, yaw {angles[2]:.6f}°; lever arm "
-                  f"{', '.join(f'{v:.4f}' for v in sensor.lever_arm)} m", highlight=False, soft_wrap=True, markup=False)
+    lever_arm = ", ".join(f"{v:.4f}" for v in sensor.lever_arm)
+    console.print(f"{out}: boresight roll {angles[0]:.6f}°, pitch {angles[1]:.6f}°, yaw "
+                  f"{angles[2]:.6f}°; lever arm {lever_arm} m", highlight=False, soft_wrap=True,
+                  markup=False)
 
 
 def register(app: typer.Typer, simulate: typer.Typer) -> None:
