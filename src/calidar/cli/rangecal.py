@@ -12,7 +12,9 @@ from pathlib import Path
 
 import typer
 
-from calidar.cli.common import CONFIG_HELP, FORCE_HELP, EXIT_FAIL, given_options, console, exit_with_verdict, print_verdict
+from calidar.cli.common import (
+    CONFIG_HELP, FORCE_HELP, EXIT_FAIL, given_options, console, exit_with_verdict, print_verdict,
+)
 
 ACCEPTANCE_FAILED = EXIT_FAIL  #: exit code when --tolerance is given and the check fails
 
@@ -22,8 +24,8 @@ def _say(text: str) -> None:
 
 
 def range_cal_config(path: Path | None, given: dict):
-    """The configuration: the ``--config`` file's (else the defaults), with --tolerance and --fix-scale
-    when given on the command line; checked."""
+    """The configuration: the ``--config`` file's (else the defaults), with --tolerance and
+    --fix-scale when given on the command line; checked."""
     from calidar.cli.common import config_values
     from calidar.pipelines.rangecal_config import RangeCalConfig
 
@@ -71,7 +73,8 @@ def range_cal(
             _say(f"{name} = {sol.values[name] * f:+.3f} ± {sol.sigma[name] * f:.3f} {unit} "
                  f"(95 %: {iv[0] * f:+.3f} … {iv[1] * f:+.3f} {unit})")
     m = result.method
-    _say(f"two-step method: ΔS = {m.delta_s * 1e3:+.3f} mm" + (f", Δ = {m.delta * 1e3:+.3f} mm" if m.delta is not None else ""))
+    delta = f", Δ = {m.delta * 1e3:+.3f} mm" if m.delta is not None else ""
+    _say(f"two-step method: ΔS = {m.delta_s * 1e3:+.3f} mm" + delta)
     if result.acceptance is not None:
         a = result.acceptance
         _say(f"acceptance: {'PASS' if a['passed'] else 'FAIL'} (95 % bound "
@@ -110,7 +113,8 @@ def simulate_total_station(
 
     config = simulation_config(setups, groups, e_points, outliers)
     with output_folder(out, force) as tmp:
-        obs, truth, _ = run_simulate_total_station(tmp, seed, config, angle_unit=angle_unit, vertical=vertical)
+        obs, truth, _ = run_simulate_total_station(tmp, seed, config, angle_unit=angle_unit,
+                                                   vertical=vertical)
     _say(f"wrote {out / 'observations.csv'} ({len(obs)} targets) and {out / 'truth.json'}: "
          f"range_offset {truth['range_offset_m'] * 1e3:+.2f} mm, range_scale "
          f"{truth['range_scale_ppm']:+.1f} ppm")

@@ -7,7 +7,9 @@ from pathlib import Path
 import typer
 from rich.markup import escape
 
-from calidar.cli.common import CONFIG_HELP, FORCE_HELP, console, given_options, progress_bar, progress_callback
+from calidar.cli.common import (
+    CONFIG_HELP, FORCE_HELP, console, given_options, progress_bar, progress_callback,
+)
 from calidar.cli.options import CRS, GEOID_UNDULATION, TIME_SYSTEM
 
 #: options → (the noise settings' field, factor to SI) (calidar.tpu.propagate.TpuSettings)
@@ -16,8 +18,8 @@ NOISE_OPTIONS = {"range_sigma": ("range_sigma_m", 1.0), "angle_sigma": ("angle_s
 
 
 def tpu_config(path: Path | None, given: dict):
-    """The configuration: the ``--config`` file's (else the defaults), with the options ``given`` on the
-    command line ({parameter name: value}) replacing its settings; checked."""
+    """The configuration: the ``--config`` file's (else the defaults), with the options ``given`` on
+    the command line ({parameter name: value}) replacing its settings; checked."""
     import numpy as np
 
     from calidar.cli.common import config_values
@@ -25,10 +27,14 @@ def tpu_config(path: Path | None, given: dict):
     from calidar.pipelines.tpu_config import TpuConfig
 
     # degrees → radians as numpy converts them (the value calidar tpu has always used)
-    options = {k: (f"noise.{f}", (lambda v: float(np.radians(v))) if factor is None else (lambda v, c=factor: v * c))
+    def radians(v):
+        return float(np.radians(v))
+
+    options = {k: (f"noise.{f}", radians if factor is None else (lambda v, c=factor: v * c))
                for k, (f, factor) in NOISE_OPTIONS.items()}
     options.update(trajectory_sigma=("trajectory_sigma", parse_sigma), **POINT_VALUES)
-    return TpuConfig.configure(path, config_values({k: v for k, v in given.items() if v is not None}, options))
+    values = config_values({k: v for k, v in given.items() if v is not None}, options)
+    return TpuConfig.configure(path, values)
 
 
 POINTS = typer.Argument(..., help="LAS/LAZ files georeferenced with --trajectory and --sensor.")
@@ -66,7 +72,8 @@ def tpu(
     range_sigma: float = typer.Option(0.01, "--range-sigma", help="Range noise, 1σ, m."),
     angle_sigma: float = ANGLE_SIGMA,
     beam_divergence: float = BEAM_DIVERGENCE,
-    crs: str | None = CRS, time_system: str | None = TIME_SYSTEM, geoid_undulation: float | None = GEOID_UNDULATION,
+    crs: str | None = CRS, time_system: str | None = TIME_SYSTEM,
+    geoid_undulation: float | None = GEOID_UNDULATION,
     force: bool = typer.Option(False, "--force", help=FORCE_HELP),
     config: Path | None = typer.Option(None, "--config", help=CONFIG_HELP),
 ) -> None:
@@ -76,19 +83,19 @@ def tpu(
 
     cfg = tpu_config(config, given_options(ctx))
     check_out_dir(out, force)
-    guard_inputs([out / p.name for p in points], [*points, trajectory, sensor, calibration, trajectory_accuracy,
-                                                  config], [out])
+    inputs = [*points, trajectory, sensor, calibration, trajectory_accuracy, config]
+    guard_inputs([out / p.name for p in points], inputs, [out])
     claim_output(out)  # --out is this run's from its start (released when the run ends)
     with progress_bar() as bar, output_folder(out, force, inputs=points) as tmp:
-        results = run_tpu(points, trajectory, sensor, tmp, cfg, accuracy=trajectory_accuracy, calibration=calibration,
-                          progress=progress_callback(bar))
+        results = run_tpu(points, trajectory, sensor, tmp, cfg, accuracy=trajectory_accuracy,
+                          calibration=calibration, progress=progress_callback(bar))
     for r in results:
-        console.print(f"{escape(r.path.name)}: {r.n_points:,} points, THU median {r.thu['median'] * 100:.2f} cm "
-                      f"(95 % {r.thu['p95'] * 100:.2f}), TVU median {r.tvu['median'] * 100:.2f} cm "
-                      f"(95 % {r.tvu['p95'] * 100:.2f})", highlight=False, soft_wrap=True)
+        console.print(f"{escape(r.path.name)}: {r.n_points:,} points, THU median "
+                      f"{r.thu['median'] * 100:.2f} cm (95 % {r.thu['p95'] * 100:.2f}), TVU median "
+                      f"{r.tvu['median'] * 100:.2f} cm (95 % {r.tvu['p95'] * 100:.2f})",
+                      highlight=False, soft_wrap=True)
     console.print(f"wrote {escape(str(out))}/: {len(results)} files with total_thu/total_tvu, "
-                  "tpu.json, config.toml, report.html",
-                  highlight=False, soft_wrap=True)
+                  "tpu.json, config.toml, report.html", highlight=False, soft_wrap=True)
 
 
 def register(app: typer.Typer, simulate: typer.Typer) -> None:
