@@ -22,7 +22,8 @@ CLI_IMPORT_ALLOWANCE: set[str] = set()
 #: only shrinks). "calidar.x.*" names the package calidar.x and all under it; any other entry one module.
 LINE_LENGTH_ALLOWANCE: set[str] = {
     # the packages not yet started
-    "calidar.cli.*",
+    # calidar.cli's __init__ (its command imports made lazy elsewhere this session)
+    "calidar.cli",
     # pipelines: the boresight path, being made faster elsewhere at the time
     "calidar.pipelines.boresight", "calidar.pipelines.boresight_outputs",
     "calidar.pipelines.quality",
@@ -30,9 +31,6 @@ LINE_LENGTH_ALLOWANCE: set[str] = {
     "calidar.strips.centroids", "calidar.strips.correspond", "calidar.strips.geometry",
     "calidar.strips.pca", "calidar.strips.planes", "calidar.strips.problem",
     "calidar.strips.row_variance",
-    # the modules left of a package otherwise reshaped (being edited elsewhere at the time)
-    "calidar.adjust.residuals", "calidar.adjust.solver", "calidar.adjust.variance_components",
-    "calidar.adjust.variance_elements",
 }
 
 
