@@ -19,6 +19,10 @@ the estimator's error and move/σ has RMS 1 when its σ is honest:
 - ``block05`` / ``block2``: knots every 0.5 / 2 s; ``tau``: correlation times 10 / 2 s;
 - ``nocluster``: no cluster-robust sandwich; ``every``: every overlapping point (no thinning).
 
+``--noise-scale S``: the twin without trajectory errors simulated with its range and angle noise
+times S (the same random draws, scaled; folder ``…_exact_noiseS``): how the rows' share grows with
+the points' noise (issue 26, sixth session).
+
 Per variant and method: RMS of move/σ per angle, RMS move and mean σ (mdeg); ``default − exact``, the
 move the trajectory errors alone cause (same hits, same noise), against √(σ_default² − σ_exact_rows²).
 """
@@ -90,8 +94,10 @@ def _gauss_priors(second_order: bool = False):
     te.TrajectoryModel.correlation, te.TrajectoryModel.flight_correlation = correlation, flight_correlation
 
 
-def folders(cache: Path, seed: int, preset: str, directions: str, scene: str, vegetation: float) -> tuple[Path, Path]:
-    """The survey with trajectory errors (strips_montecarlo's cache folder) and without."""
+def folders(cache: Path, seed: int, preset: str, directions: str, scene: str, vegetation: float,
+            noise_scale: float = 1.0) -> tuple[Path, Path]:
+    """The survey with trajectory errors (strips_montecarlo's cache folder) and without (with the
+    range and angle noise times ``noise_scale``: the same draws, scaled)."""
     noise = {"range_noise_m": 0.03} if preset == "airborne" else {}
     density = 0.3 if preset == "airborne" else 1.0
     cfg = survey_config(preset, seed=seed, density=density, vegetation=vegetation, directions=directions,
@@ -99,9 +105,13 @@ def folders(cache: Path, seed: int, preset: str, directions: str, scene: str, ve
     if scene == "urban":
         cfg = replace(cfg, scene=replace(cfg.scene, **URBAN))
     with_errors = _simulated(cfg, cache / "tmp", cache, (1.0,) * 6, 0.0, density)
-    exact = with_errors.with_name(with_errors.name + "_exact")
+    tag = "" if noise_scale == 1.0 else f"_noise{noise_scale:g}"
+    exact = with_errors.with_name(with_errors.name + "_exact" + tag)
     if not (exact / "truth.json").exists():
-        simulate_survey(replace(cfg, gnss_noise_m=0.0, attitude_noise_rad=0.0)).write(exact, force=True)
+        twin = replace(cfg, gnss_noise_m=0.0, attitude_noise_rad=0.0,
+                       range_noise_m=cfg.range_noise_m * noise_scale,
+                       angle_noise_rad=cfg.angle_noise_rad * noise_scale)
+        simulate_survey(twin).write(exact, force=True)
     return with_errors, exact
 
 
@@ -176,6 +186,8 @@ def main() -> None:
     ap.add_argument("--directions", default="opposite", choices=("cross", "opposite"))
     ap.add_argument("--vegetation", type=float, default=0.0)
     ap.add_argument("--variants", default="default,exact,nomodel")
+    ap.add_argument("--noise-scale", type=float, default=1.0,
+                    help="the twin without trajectory errors: its range and angle noise times this")
     ap.add_argument("--cache", type=Path, required=True)
     ap.add_argument("--json", type=Path, default=None, help="append every row; --summary reads it back")
     ap.add_argument("--summary", action="store_true", help="only print the summary of --json")
@@ -189,11 +201,13 @@ def main() -> None:
             ap.error("--variants gauss or gm2 runs alone (it patches the trajectory model)")
         _gauss_priors(variants == ["gm2"])
     for seed in seeds_of(args.seeds):
-        with_errors, exact = folders(args.cache, seed, args.preset, args.directions, args.scene, args.vegetation)
+        with_errors, exact = folders(args.cache, seed, args.preset, args.directions, args.scene,
+                                     args.vegetation, args.noise_scale)
         for v in variants:
             t = time.perf_counter()
             for m, res in run(exact if VARIANTS[v][0] else with_errors, v, methods, args.preset).items():
-                row = {"seed": seed, "variant": v, "method": m, **res}
+                row = {"seed": seed, "variant": v, "method": m, "noise_scale": args.noise_scale,
+                       **res}
                 rows.append(row)
                 if args.json:
                     with args.json.open("a") as f:
