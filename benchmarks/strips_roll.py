@@ -19,6 +19,12 @@ the estimator's error and move/σ has RMS 1 when its σ is honest:
 - ``block05`` / ``block2``: knots every 0.5 / 2 s; ``tau``: correlation times 10 / 2 s;
 - ``nocluster``: no cluster-robust sandwich; ``every``: every overlapping point (no thinning).
 
+``--noise-scale S``: the twin without trajectory errors simulated with its range and angle noise
+times S (the same random draws, scaled; folder ``…_exact_noiseS``): how the rows' share grows with
+the points' noise (issue 26, sixth session). ``--noise-draws 1-8``: twins with the same hits and
+other draws of that noise (folders ``…_exact_drawD``): the spread of the rows' share on one
+geometry; the summary pools the draws of a seed as if they were seeds.
+
 Per variant and method: RMS of move/σ per angle, RMS move and mean σ (mdeg); ``default − exact``, the
 move the trajectory errors alone cause (same hits, same noise), against √(σ_default² − σ_exact_rows²).
 """
@@ -90,8 +96,38 @@ def _gauss_priors(second_order: bool = False):
     te.TrajectoryModel.correlation, te.TrajectoryModel.flight_correlation = correlation, flight_correlation
 
 
-def folders(cache: Path, seed: int, preset: str, directions: str, scene: str, vegetation: float) -> tuple[Path, Path]:
-    """The survey with trajectory errors (strips_montecarlo's cache folder) and without."""
+class _OtherNoise:
+    """The shots' generator with its normal draws (the range and angle noise) taken from another
+    stream; the others (which surface a beam hits in a crown, intensities) are the survey's own."""
+
+    def __init__(self, rng: np.random.Generator, other: np.random.Generator):
+        self.rng, self.other = rng, other
+
+    def normal(self, *args, **kwargs):
+        self.rng.normal(*args, **kwargs)  # the survey's stream kept in step
+        return self.other.normal(*args, **kwargs)
+
+    def __getattr__(self, name):
+        return getattr(self.rng, name)
+
+
+def _simulate_with_noise_draw(cfg, draw: int):
+    """The survey simulated with the range and angle noise of another draw (same hits otherwise)."""
+    import calidar.sim.survey as survey_module
+
+    record, other = survey_module.record, np.random.default_rng(10_000 + draw)
+    survey_module.record = lambda *a: record(*a[:-1], _OtherNoise(a[-1], other))
+    try:
+        return simulate_survey(cfg)
+    finally:
+        survey_module.record = record
+
+
+def folders(cache: Path, seed: int, preset: str, directions: str, scene: str, vegetation: float,
+            noise_scale: float = 1.0, noise_draw: int = 0) -> tuple[Path, Path]:
+    """The survey with trajectory errors (strips_montecarlo's cache folder) and without (with the
+    range and angle noise times ``noise_scale``: the same draws, scaled; ``noise_draw`` > 0: other
+    draws of that noise, the same hits)."""
     noise = {"range_noise_m": 0.03} if preset == "airborne" else {}
     density = 0.3 if preset == "airborne" else 1.0
     cfg = survey_config(preset, seed=seed, density=density, vegetation=vegetation, directions=directions,
@@ -99,9 +135,15 @@ def folders(cache: Path, seed: int, preset: str, directions: str, scene: str, ve
     if scene == "urban":
         cfg = replace(cfg, scene=replace(cfg.scene, **URBAN))
     with_errors = _simulated(cfg, cache / "tmp", cache, (1.0,) * 6, 0.0, density)
-    exact = with_errors.with_name(with_errors.name + "_exact")
+    tag = "" if noise_scale == 1.0 else f"_noise{noise_scale:g}"
+    tag += f"_draw{noise_draw}" if noise_draw else ""
+    exact = with_errors.with_name(with_errors.name + "_exact" + tag)
     if not (exact / "truth.json").exists():
-        simulate_survey(replace(cfg, gnss_noise_m=0.0, attitude_noise_rad=0.0)).write(exact, force=True)
+        twin = replace(cfg, gnss_noise_m=0.0, attitude_noise_rad=0.0,
+                       range_noise_m=cfg.range_noise_m * noise_scale,
+                       angle_noise_rad=cfg.angle_noise_rad * noise_scale)
+        sim = _simulate_with_noise_draw(twin, noise_draw) if noise_draw else simulate_survey(twin)
+        sim.write(exact, force=True)
     return with_errors, exact
 
 
@@ -133,7 +175,7 @@ def summary(rows: list[dict]) -> str:
     lines = []
     by = {}
     for r in rows:
-        by.setdefault((r["variant"], r["method"]), {})[r["seed"]] = r
+        by.setdefault((r["variant"], r["method"]), {})[r["seed"], r.get("noise_draw", 0)] = r
     for (v, m), sel in sorted(by.items()):
         mv = np.array([s["move_deg"] for s in sel.values()]) * 1e3
         sg = np.array([s["sigma_deg"] for s in sel.values()]) * 1e3
@@ -176,6 +218,10 @@ def main() -> None:
     ap.add_argument("--directions", default="opposite", choices=("cross", "opposite"))
     ap.add_argument("--vegetation", type=float, default=0.0)
     ap.add_argument("--variants", default="default,exact,nomodel")
+    ap.add_argument("--noise-scale", type=float, default=1.0,
+                    help="the twin without trajectory errors: its range and angle noise times this")
+    ap.add_argument("--noise-draws", default="0",
+                    help="e.g. 1-8: twins with other draws of the range and angle noise")
     ap.add_argument("--cache", type=Path, required=True)
     ap.add_argument("--json", type=Path, default=None, help="append every row; --summary reads it back")
     ap.add_argument("--summary", action="store_true", help="only print the summary of --json")
@@ -188,12 +234,14 @@ def main() -> None:
         if len(variants) != 1:
             ap.error("--variants gauss or gm2 runs alone (it patches the trajectory model)")
         _gauss_priors(variants == ["gm2"])
-    for seed in seeds_of(args.seeds):
-        with_errors, exact = folders(args.cache, seed, args.preset, args.directions, args.scene, args.vegetation)
+    for seed, draw in [(s, d) for s in seeds_of(args.seeds) for d in seeds_of(args.noise_draws)]:
+        with_errors, exact = folders(args.cache, seed, args.preset, args.directions, args.scene,
+                                     args.vegetation, args.noise_scale, draw)
         for v in variants:
             t = time.perf_counter()
             for m, res in run(exact if VARIANTS[v][0] else with_errors, v, methods, args.preset).items():
-                row = {"seed": seed, "variant": v, "method": m, **res}
+                row = {"seed": seed, "variant": v, "method": m, "noise_scale": args.noise_scale,
+                       "noise_draw": draw, **res}
                 rows.append(row)
                 if args.json:
                     with args.json.open("a") as f:

@@ -7,12 +7,22 @@ it is planar (√λ0 ≤ ``max_rms_m``), large enough (≥ ``min_points`` points
 cell (√λ1 ≥ ``min_spread`` · cell, a uniform square gives 0.29). A cell planar in both
 strips with agreeing normals is a tie plane ("connection plane", as in strip adjustment
 by Kager 2004, *Discrepancies between overlapping laser scanner strips*, and Ressl et al.
-2011): its centroid in strip a must lie on its plane in strip b,
+2011): strip a's fitted plane, where b's centroid lies, must meet b's centroid,
 
-    r = n_b · (mean(P_a[patch]) − mean(P_b[patch]))    (m)
+    r = n_b · (â − mean(P_b[patch])),   â = Σ h_i P_a,i   (m)
 
-which becomes one point-to-plane row of :class:`~calidar.strips.correspond.Correspondences`
-with centroid-averaging weights. Vegetation and edges fail the planarity test.
+â the point of a's least-squares plane at b's centroid (h: the fit's hat weights,
+:func:`plane_point_weights`), which becomes one point-to-plane row of
+:class:`~calidar.strips.correspond.Correspondences` with these weights. Vegetation and edges fail
+the planarity test.
+
+Why not a's plain centroid (issue 26, sixth session): a's and b's centroids in one cell lie apart
+by a few cm, and not at random (the point density falls across each swath), so r = n_b · (c_a − c_b)
+held b's normal's noisy tilt times that offset. On flat ground the row's derivative by pitch is that
+same tilt times the strips' relative along-track move: the row's own noise sat in its regressor and
+its residual alike (errors in variables), which biased pitch (z ±2–3 on one flat overlap,
+``tests/unit/strips/test_tie_plane_pitch.py``). At b's centroid, â − c_b lies along a's normal: b's
+tilt no longer enters the residual.
 """
 
 from __future__ import annotations
@@ -85,16 +95,28 @@ def fit_patches(points: np.ndarray, cell_m: float, settings: PlaneSettings) -> P
                    count[sel], order)
 
 
-def plane_leverage(patches: Patches, rows: np.ndarray, m: np.ndarray, at: np.ndarray) -> np.ndarray:
-    """Variance of the height of the patches' fitted planes (``rows``) at ``at`` (R, 3) m, in units of their
-    points' σ²: 1/m for the offset (a centroid of m points) plus Σ_j ((at − centroid)·e_j)² / (n·λ_j) for the
-    tilt, fitted from all n points (the least-squares prediction variance, e.g. Draper & Smith 1998 §3.2).
-
-    A tie plane's residual is b's plane at a's centroid: a's centroid lies off b's by a few cm in the plane, and
-    b's normal's tilt error moves the residual by that much times it — on 12-point patches +17 % in variance
-    (issue 26: RMS of residual/σ 1.10 on an exact plane without this term, 1.0 with it)."""
-    d = np.einsum("ri,rij->rj", at - patches.centroid[rows], patches.axes[rows])
-    return 1.0 / m + np.sum(d**2 / (patches.count[rows, None] * patches.spread_m2[rows]), axis=1)
+def plane_point_weights(points: np.ndarray, A: sp.csr_matrix, target: np.ndarray
+                        ) -> tuple[sp.csr_matrix, np.ndarray]:
+    """Weights over each row's points (those of the averaging matrix ``A``, (R, N)) whose weighted
+    sum is the point of the row's least-squares plane (PCA of those points) at ``target`` (R, 3) m:
+    the in-plane coordinates of ``target``, on the fitted plane. They sum to 1 (a rigid move moves
+    that point alike): h_i = (1/m)·(1 + Σ_j (e_j·(t − x̄))(e_j·(x_i − x̄)) / λ_j), e_j the in-plane
+    axes and λ_j the points' variances along them (the regression's hat-matrix row at t, e.g.
+    Draper & Smith 1998 §3.2). Also Σ h_i² per row: the variance of the plane's height there in
+    units of its points' σ² (1/m at the centroid, more off it)."""
+    rows = np.repeat(np.arange(A.shape[0]), np.diff(A.indptr))
+    mean = A @ points
+    d = points[A.indices] - mean[rows]
+    cov = np.zeros((A.shape[0], 3, 3))
+    for i in range(3):
+        for j in range(i, 3):
+            cov[:, i, j] = cov[:, j, i] = np.bincount(rows, A.data * d[:, i] * d[:, j], A.shape[0])
+    lam, vec = eigh3(cov)
+    axes = vec[:, :, 1:]  # (R, 3, 2)
+    coef = np.einsum("ri,rij->rj", target - mean, axes) / np.clip(lam[:, 1:], 1e-12, None)
+    h = A.data * (1.0 + np.einsum("kj,kj->k", coef[rows], np.einsum("ki,kij->kj", d, axes[rows])))
+    weights = sp.csr_matrix((h, A.indices.copy(), A.indptr.copy()), shape=A.shape)
+    return weights, np.bincount(rows, h * h, A.shape[0])
 
 
 def planar_cells(cov: np.ndarray, cell_m: float, settings: PlaneSettings) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -159,8 +181,9 @@ def match_pair_planes(strip_a_id: int, points_a: np.ndarray, strip_b_id: int, po
                       settings: PlaneSettings | None = None) -> Correspondences:
     """Tie planes between two strips' overlapping points (each (N, 3) local ENU m).
 
-    Returns point-to-plane correspondences: one row per tie plane, A/B averaging the patch
-    points of each strip, normal = the plane normal in strip b, σ from the plane scatter.
+    Returns point-to-plane correspondences: one row per tie plane, A: a's plane at b's centroid
+    (:func:`plane_point_weights`), B averaging b's patch points, normal = the plane normal in
+    strip b, σ from the plane scatter.
     """
     s = settings or PlaneSettings()
     points_a = np.asarray(points_a, float)
@@ -177,13 +200,14 @@ def match_pair_planes(strip_a_id: int, points_a: np.ndarray, strip_b_id: int, po
     if keep.size > s.max_planes:  # cells in key order: an even pick spreads over the overlap
         keep = keep[np.linspace(0, keep.size - 1, s.max_planes).astype(np.int64)]
     ia, ib = ia[keep], ib[keep]
-    A, ma = _averaging(pa, ia, s.max_points_per_patch, points_a.shape[0])
+    A, _ = _averaging(pa, ia, s.max_points_per_patch, points_a.shape[0])
     B, mb = _averaging(pb, ib, s.max_points_per_patch, points_b.shape[0])
+    A, leverage_a = plane_point_weights(points_a, A, B @ points_b)  # a's plane at b's centroid
     # each side's scatter (its own from count − 3 degrees of freedom): the posterior mean under a prior fitted
     # to the pair's tie planes (issue 26: moderated toward their mean, quiet rows' σ were 1.2–1.3× too wide)
     var_a, nu_a = posterior(pa.rms_m[ia] ** 2, pa.count[ia] - 3)
     var_b, nu_b = posterior(pb.rms_m[ib] ** 2, pb.count[ib] - 3)
-    parts = [var_a / ma, var_b * plane_leverage(pb, ib, mb, pa.centroid[ia])]  # b's plane where a's centroid lies
+    parts = [var_a * leverage_a, var_b / mb]
     sigma = np.sqrt(parts[0] + parts[1] + s.noise_floor_m**2)
     dof = satterthwaite(parts + [np.full(ia.size, s.noise_floor_m**2)], [nu_a, nu_b, np.inf])
     return Correspondences(strip_a_id, strip_b_id, A, B, pb.normal[ib].copy(), sigma, "planes", dof)
