@@ -50,12 +50,12 @@ def point_variance(beam: np.ndarray, normal: np.ndarray, rho: np.ndarray,
     return (inst.range_noise_m * cos) ** 2 + (rho * inst.angle_noise_rad) ** 2 * (1.0 - cos**2)
 
 
-def _weighed_variance(scatter_m2: np.ndarray, m: np.ndarray, count_a: np.ndarray | None):
+def _weighed_variance(scatter_m2: np.ndarray, m: np.ndarray, count_b: np.ndarray | None):
     """The variance (m²) the calibrator gives a side's mean of ``m`` points scattering
     ``scatter_m2`` (strips/planes.py): the posterior variance of the scatter (Smyth 2004 §6.2),
-    and on b's side (``count_a`` given) b's plane's prediction variance at a's centroid, whose
+    and on a's side (``count_b`` given) a's plane's prediction variance at b's centroid, whose
     in-plane offset spreads by both centroids' (1/m each)."""
-    leverage = 1.0 if count_a is None else 1.0 + 2.0 * (1.0 + m / count_a) / m
+    leverage = 1.0 if count_b is None else 1.0 + 2.0 * (1.0 + m / count_b) / m
     return posterior(scatter_m2, m - 3, sampled=False)[0] * leverage / m
 
 
@@ -64,7 +64,7 @@ def _side_rows(p: PairPlanes, f: Flown, m: np.ndarray, first: int, inst: Instrum
     """One side of pair ``p`` scanned by line ``f`` (its points numbered from ``first``): its
     poses and times, the (columns, weights) of each row's looks, the variance (m²) the
     calibrator gives the side and the variance its residual really has, for ``m`` points a
-    patch (``b_side``: the side whose plane the row is, predicted at a's centroid)."""
+    patch (``b_side``: b's side; a's is the plane the row predicts at b's centroid)."""
     n = p.centroid.shape[0]
     pose, t, beam, seen = _side(f, p.centroid, inst, terrain, cache)
     looks = len(t) // n  # a rotating scanner's patch: half its points seen ahead, half back
@@ -73,7 +73,7 @@ def _side_rows(p: PairPlanes, f: Flown, m: np.ndarray, first: int, inst: Instrum
     rho = inst.nominal.true_range(pose.range_m)
     per_look = point_variance(beam, np.tile(p.normal, (looks, 1)), rho, inst)
     points = np.sum(per_look.reshape(looks, n).T * picked[1], axis=1)
-    var = _weighed_variance(points + p.roughness_m**2, m, p.count_a if b_side else None)
+    var = _weighed_variance(points + p.roughness_m**2, m, None if b_side else p.count_b)
     own = (points + p.uneven_m**2) / m
     return (pose, t), picked, var, own
 
