@@ -26,6 +26,12 @@ class Overlap:
 
 def cell_keys(xy: np.ndarray, cell_m: float, origin: np.ndarray | None = None) -> np.ndarray:
     """One int64 key per point for the grid cell holding it (cells of ``cell_m`` metres)."""
+    if origin is None:  # one numba pass (bit for bit the numpy below), unless a coordinate is not finite
+        from calidar.strips.moments_kernel import point_cell_keys
+
+        keys = point_cell_keys(np.asarray(xy, float), float(cell_m))
+        if keys is not None:
+            return keys
     o = np.zeros(2) if origin is None else origin
     ij = np.floor((np.asarray(xy, float)[:, :2] - o) / cell_m).astype(np.int64)
     return (ij[:, 0] << 32) + (ij[:, 1] & 0xFFFFFFFF)
