@@ -82,10 +82,19 @@ def common_cells(occupied: Mapping[int, np.ndarray], min_cells: int) -> list[tup
     out = []
     for k, a in enumerate(ids):
         for b in ids[k + 1:]:
-            common = np.intersect1d(occupied[a], occupied[b], assume_unique=True)
+            common = _intersection(occupied[a], occupied[b])
             if common.size >= min_cells:
                 out.append((a, b, common))
     return out
+
+
+def _intersection(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``np.intersect1d(a, b, assume_unique=True)`` of sorted unique keys by binary search (no
+    sort of both together); the same array."""
+    increasing = a.size and b.size and np.all(a[1:] > a[:-1]) and np.all(b[1:] > b[:-1])
+    if increasing and a.dtype == b.dtype:
+        return a[_members(a, b)]
+    return np.intersect1d(a, b, assume_unique=True)
 
 
 def unpaired_notes(ids, pairs, cell_m: float, min_cells: int, names: Mapping[int, str] | None = None) -> list[str]:

@@ -108,3 +108,20 @@ def test_point_cell_keys_bit_for_bit_numpys():
     q[5, 1] = np.nan
     with np.errstate(invalid="ignore"):
         assert np.array_equal(cell_keys(q, 5.0), numpy_keys(q, 5.0))
+
+
+def test_common_cells_intersection_is_numpys():
+    # common_cells' binary-search intersection (issue 32) against np.intersect1d, sizes 0 to 10⁵
+    from calidar.strips.overlap import _intersection, common_cells
+
+    rng = np.random.default_rng(8)
+    for n in (0, 1, 5, 1000, 100_000):
+        for m in (0, 1, 7, 2000, 50_000):
+            a = np.unique(rng.integers(-2**40, 2**40, n))
+            extra = rng.choice(a, min(a.size, m // 2)) if a.size else np.zeros(0, np.int64)
+            b = np.unique(np.r_[extra, rng.integers(-2**40, 2**40, m)].astype(np.int64))
+            got, want = _intersection(a, b), np.intersect1d(a, b, assume_unique=True)
+            assert got.dtype == want.dtype and np.array_equal(got, want), (n, m)
+    occupied = {1: np.arange(0, 100), 2: np.arange(50, 300, 2), 3: np.arange(1000, 1010)}
+    assert [(a, b, c.tolist()) for a, b, c in common_cells(occupied, 4)] == [
+        (1, 2, list(range(50, 100, 2)))]
