@@ -26,7 +26,7 @@ class Overlap:
 
 def cell_keys(xy: np.ndarray, cell_m: float, origin: np.ndarray | None = None) -> np.ndarray:
     """One int64 key per point for the grid cell holding it (cells of ``cell_m`` metres)."""
-    if origin is None:  # one numba pass (bit for bit the numpy below), unless a coordinate is not finite
+    if origin is None:  # one numba pass, bit for bit the numpy below (NaN, ±inf: the numpy)
         from calidar.strips.moments_kernel import point_cell_keys
 
         keys = point_cell_keys(np.asarray(xy, float), float(cell_m))

@@ -88,7 +88,7 @@ def test_block_ids_numbered_as_numpy_unique():
 
 
 def test_point_cell_keys_bit_for_bit_numpys():
-    # cell_keys' numba pass (issue 32) against the numpy it replaces, negative, large, on cell edges,
+    # cell_keys' numba pass (issue 32) against the numpy it replaces: negative, large, on edges,
     # strided; a NaN goes the numpy way
     from calidar.strips.overlap import cell_keys
 
