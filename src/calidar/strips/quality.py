@@ -229,10 +229,8 @@ class SwathAccumulator:
             pairs = (pair_quality(a, self._at(a, cell), b, self._at(b, cell), s) for a, cell, b in tasks)
         else:  # each line's moments combined here (not in the threads), the pairs in threads
             moments = {(i, cell): self._at(i, cell) for (a, b), cell in plan.cells.items() for i in (a, b)}
-            planes = line_planes(moments, plan.cells, s, threads)
-            tasks = [(a, moments[a, cell], b, moments[b, cell], s,
-                      (planes[a, cell], planes[b, cell])) for (a, b), cell in plan.cells.items()]
-            pairs = run_tasks(pair_quality, tasks, threads=threads)
+            pairs = run_tasks(pair_quality, [(a, moments[a, cell], b, moments[b, cell], s)
+                                             for (a, b), cell in plan.cells.items()], threads=threads)
         results = []
         for q in pairs:
             q.points_a, q.points_b = self.selections.get(q.a, []), self.selections.get(q.b, [])
@@ -269,18 +267,12 @@ def _no_overlap(a: int, b: int, s: QualitySettings) -> PairQuality:
     return PairQuality(a, b, 0, None, None, None, None, cell_m=s.cell_m or 2.0)
 
 
-def pair_quality(a: int, moments_a: CellMoments, b: int, moments_b: CellMoments, s: QualitySettings,
-                 planes: tuple | None = None) -> PairQuality:
-    """Swath difference of two lines from their cell moments on one grid (the pair's cell);
-    ``planes``: each line's planar cells from :func:`line_planes` (None: computed here)."""
+def pair_quality(a: int, moments_a: CellMoments, b: int, moments_b: CellMoments, s: QualitySettings) -> PairQuality:
+    """Swath difference of two lines from their cell moments on one grid (the pair's cell)."""
     cell = moments_a.cell_m
-    if planes is None:  # planes of the shared cells only
-        _, ia, ib = np.intersect1d(moments_a.keys, moments_b.keys, assume_unique=True,
-                                   return_indices=True)
-        ps = _plane_settings(s)
-        pa, pb = _planes(moments_a.select(ia), ps), _planes(moments_b.select(ib), ps)
-    else:  # the same: the planarity test is cell by cell
-        pa, pb = _shared(planes[0], moments_b.keys), _shared(planes[1], moments_a.keys)
+    ps = PlaneSettings(min_points=s.min_points, max_rms_m=s.max_rms_m, min_spread=0.15)
+    _, ia, ib = np.intersect1d(moments_a.keys, moments_b.keys, assume_unique=True, return_indices=True)
+    pa, pb = _planes(moments_a.select(ia), ps), _planes(moments_b.select(ib), ps)  # planes of the shared cells only
     keys, ia, ib = np.intersect1d(pa[0].keys, pb[0].keys, assume_unique=True, return_indices=True)
     ij = key_indices(keys)
     centre = (ij + 0.5) * cell
@@ -307,40 +299,6 @@ def pair_quality(a: int, moments_a: CellMoments, b: int, moments_b: CellMoments,
     alike = np.hypot(*(ga - gb).T) <= s.planimetric.max_neighbour_dslope / 2
     _planimetric(q, centre, np.where(alike, dz, np.nan), 0.5 * (ga + gb), noise, s)
     return q
-
-
-def line_planes(moments: dict, cells: Mapping[tuple[int, int], float], s: QualitySettings,
-                threads: int = 1) -> dict:
-    """{(line, cell): its planar cells and normals} over the cells each line shares with any of
-    its pairs (``cells`` {(a, b): cell}): each cell's plane once, however many pairs hold it."""
-    from calidar.strips.distribute import run_tasks
-
-    shared: dict = {}
-    for (a, b), cell in cells.items():
-        both = np.intersect1d(moments[a, cell].keys, moments[b, cell].keys, assume_unique=True)
-        for i in (a, b):
-            shared.setdefault((i, cell), []).append(both)
-    keys = list(shared)
-    ps = _plane_settings(s)
-    tasks = [(moments[k].select(_members(np.unique(np.concatenate(shared[k])), moments[k].keys)),
-              ps) for k in keys]
-    return dict(zip(keys, run_tasks(_planes, tasks, threads=threads)))
-
-
-def _members(keys: np.ndarray, of: np.ndarray) -> np.ndarray:
-    """Indices (ascending) of the sorted unique ``of`` that are among ``keys``."""
-    return np.flatnonzero(np.isin(of, keys, assume_unique=True))
-
-
-def _shared(planes: tuple[CellMoments, np.ndarray], keys: np.ndarray
-            ) -> tuple[CellMoments, np.ndarray]:
-    """A line's planar cells (and normals) among ``keys``."""
-    at = _members(keys, planes[0].keys)
-    return planes[0].select(at), planes[1][at]
-
-
-def _plane_settings(s: QualitySettings) -> PlaneSettings:
-    return PlaneSettings(min_points=s.min_points, max_rms_m=s.max_rms_m, min_spread=0.15)
 
 
 def _planes(m: CellMoments, ps: PlaneSettings) -> tuple[CellMoments, np.ndarray]:

@@ -83,27 +83,3 @@ def test_quality_errors_are_one_line(cli, tmp_path):
     assert code == 1 and "none of the 2 flight lines (1 (one.laz), 2 (far.laz)) overlap another" in err
     code, out, err = cli("quality", tmp_path / "missing.laz", one)
     assert code == 1 and "missing.laz" in err
-
-
-def test_each_lines_planes_once_equal_each_pairs_own():
-    # issue 32: the planes of a line's cells computed once for all its pairs (line_planes) give
-    # every pair bit for bit what computing them per pair gives; three lines, cells shared by all
-    from calidar.strips.quality import SwathAccumulator, pair_quality
-
-    rng = np.random.default_rng(4)
-    lines = {1: _surface(rng, 60_000, shift=(0.1, 0.0, 0.03)), 2: _surface(rng, 60_000),
-             3: _surface(rng, 60_000, shift=(0.0, -0.08, -0.02))[::2] + [40, 0, 0]}
-    s = QualitySettings(cell_m=2.0)
-    acc = SwathAccumulator(2.0)
-    for i, p in lines.items():
-        acc.add(i, p)
-    got, _ = acc.differences(s, threads=2)
-    assert len(got) == 3
-    for q in got:
-        want = pair_quality(q.a, acc._at(q.a, q.cell_m), q.b, acc._at(q.b, q.cell_m), s)
-        assert want.n_cells == q.n_cells > 100
-        def text(x):
-            return json.dumps(x.to_dict(), sort_keys=True, default=str)
-
-        assert text(q) == text(want)
-        assert np.array_equal(q.grid, want.grid, equal_nan=True)
