@@ -75,7 +75,7 @@ def main() -> None:
     from scipy.sparse.csgraph import reverse_cuthill_mckee
     from threadpoolctl import threadpool_limits
 
-    from calidar.adjust.solver import _normal_matrix, _solve_damped
+    from calidar.adjust.normals import normal_matrix, solve_damped
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--size", type=float, default=8.75, help="survey size, million points")
@@ -88,8 +88,8 @@ def main() -> None:
     J, w, N, g = last["J"].tocsr(), last["w"], last["N"], last["g"]
     n = N.shape[0]
     with threadpool_limits(1, user_api="blas"):
-        t_gram, NJ = median_cpu(lambda: _normal_matrix(J, w), args.repeat)
-        t_solve, x = median_cpu(lambda: _solve_damped(N, g), args.repeat)
+        t_gram, NJ = median_cpu(lambda: normal_matrix(J, w), args.repeat)
+        t_solve, x = median_cpu(lambda: solve_damped(N, g), args.repeat)
         t_inv, _ = median_cpu(lambda: sl.lapack.dpotri(sl.cho_factor(N, lower=True)[0], lower=True), args.repeat)
         scale = np.sqrt(np.outer(np.diag(N), np.diag(N)))
         Ns = np.where(np.abs(N) < 1e-13 * scale, 0.0, N)

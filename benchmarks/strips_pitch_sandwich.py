@@ -40,7 +40,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from strips_montecarlo import ANGLES, ERRORS, _simulated, seeds_of  # noqa: E402
 from strips_roll import SIGMA  # noqa: E402
 
-from calidar.adjust import solver as engine  # noqa: E402
+from calidar.adjust import normals  # noqa: E402
 from calidar.ingest.settings import IngestSettings  # noqa: E402
 from calidar.pipelines.boresight import calibrate_inputs, load_inputs  # noqa: E402
 from calidar.pipelines.strip_config import StripConfig  # noqa: E402
@@ -141,7 +141,7 @@ def _capture(cell_m: float):
         sol = original(self, est, problem)
         fit, x, r, w = est.fit, est.x, est.r, est.w
         J = fit.jacobian(x)
-        D = engine._normal_matrix(J, w)
+        D = normals.normal_matrix(J, w)
         N, _ = fit.normal_equations(J, w, x=x)
         Ninv = np.linalg.inv(N)
         names = list(fit.params.free_names) if hasattr(fit.params, "free_names") else [p.name for p in fit.free]

@@ -114,7 +114,7 @@ class TileLinear:
         """CRS coordinates of the points moved by ``d_ecef`` (N, 3) m: xyz + J · d; below 0.1 mm
         from the full transform for moves up to ~10 m (J changes by ~tile/R ≈ 1e-5 across a
         tile, a second-order term by |d|²/R)."""
-        return _moved(self.xyz, self.jac, self.rows, np.asarray(d_ecef, float))
+        return tile_moved(self.xyz, self.jac, self.rows, np.asarray(d_ecef, float))
 
     def near_ecef(self) -> np.ndarray:
         """The points in ECEF from the anchors' Jacobians: off the full transform by up to ~1 mm
@@ -123,7 +123,7 @@ class TileLinear:
         points)."""
         inv = np.linalg.inv(self.jac)
         from_anchor = self.xyz - self.xyz[self.anchor][self.rows]
-        return _moved(self.anchor_ecef[self.rows], inv, self.rows, from_anchor)
+        return tile_moved(self.anchor_ecef[self.rows], inv, self.rows, from_anchor)
 
 
 def tile_linear(xyz, crs, geoid_undulation_m: float | None = None, source=None,
@@ -148,7 +148,7 @@ def tile_linear(xyz, crs, geoid_undulation_m: float | None = None, source=None,
 
 
 @njit(cache=True, nogil=True)
-def _moved(base: np.ndarray, jac: np.ndarray, rows: np.ndarray, d: np.ndarray) -> np.ndarray:
+def tile_moved(base: np.ndarray, jac: np.ndarray, rows: np.ndarray, d: np.ndarray) -> np.ndarray:
     """base + jac[rows] · d, point by point (no (n, 3, 3) gather)."""
     out = base.copy()
     for i in range(base.shape[0]):

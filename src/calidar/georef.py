@@ -56,7 +56,7 @@ def _interval(tt, t, i):
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _pose(tt, pos, q, tk, i, i_prev, theta, s, sign):
+def pose(tt, pos, q, tk, i, i_prev, theta, s, sign):
     """Position (linear) and attitude matrix (SLERP, as :func:`calidar.frames.slerp`) at time tk.
 
     (i_prev, theta, s = 1/sin θ, sign) cache the SLERP angle of the last interval: recomputed only
@@ -106,7 +106,7 @@ def _lidar_equation(sx, sy, sz, r_bs, lever, px, py, pz,
 @njit(cache=True, nogil=True)
 def lidar_point(sx, sy, sz, r_bs, lever, px, py, pz, r00, r01, r02, r10, r11, r12, r20, r21, r22):
     """r + R_eb·(R_bs·v_s + a): the scanner-frame vector (sx, sy, sz) m at the pose (px, py, pz
-    m ECEF; R_eb row by row) of :func:`_pose`, into ECEF (m) — the lidar equation."""
+    m ECEF; R_eb row by row) of :func:`pose`, into ECEF (m) — the lidar equation."""
     bx = r_bs[0, 0] * sx + r_bs[0, 1] * sy + r_bs[0, 2] * sz + lever[0]
     by = r_bs[1, 0] * sx + r_bs[1, 1] * sy + r_bs[1, 2] * sz + lever[1]
     bz = r_bs[2, 0] * sx + r_bs[2, 1] * sy + r_bs[2, 2] * sz + lever[2]
@@ -117,7 +117,7 @@ def lidar_point(sx, sy, sz, r_bs, lever, px, py, pz, r00, r01, r02, r10, r11, r1
 @njit(cache=True, nogil=True)
 def scanner_vector(x, y, z, px, py, pz, r00, r01, r02, r10, r11, r12, r20, r21, r22, r_bs, lever):
     """v_s = R_bsᵀ·(R_ebᵀ·(p − r) − a): the ECEF point (x, y, z) m seen from the pose (px, py,
-    pz; R_eb row by row) of :func:`_pose`, in the scanner frame (m) — the lidar equation
+    pz; R_eb row by row) of :func:`pose`, in the scanner frame (m) — the lidar equation
     inverted."""
     dx, dy, dz = x - px, y - py, z - pz
     bx = r00 * dx + r10 * dy + r20 * dz - lever[0]
@@ -136,7 +136,7 @@ def _forward_kernel(tt, pos, q, t, vec, r_bs, lever, out):
     for k in range(t.size):
         tk = t[k]
         n_out += not tt[0] <= tk <= tt[tt.size - 1]  # NaN counts as outside
-        i, i_prev, theta, s, sign, px, py, pz, r00, r01, r02, r10, r11, r12, r20, r21, r22 = _pose(
+        i, i_prev, theta, s, sign, px, py, pz, r00, r01, r02, r10, r11, r12, r20, r21, r22 = pose(
             tt, pos, q, tk, i, i_prev, theta, s, sign)
         sx, sy, sz = vec[k, 0], vec[k, 1], vec[k, 2]
         _lidar_equation(sx, sy, sz, r_bs, lever, px, py, pz,
@@ -153,7 +153,7 @@ def _forward_linear_kernel(tt, pos, q, t, range_m, theta_enc, phi, has_phi,
     for k in range(t.size):
         tk = t[k]
         n_out += not tt[0] <= tk <= tt[tt.size - 1]  # NaN counts as outside
-        i, i_prev, theta, s, sign, px, py, pz, r00, r01, r02, r10, r11, r12, r20, r21, r22 = _pose(
+        i, i_prev, theta, s, sign, px, py, pz, r00, r01, r02, r10, r11, r12, r20, r21, r22 = pose(
             tt, pos, q, tk, i, i_prev, theta, s, sign)
         rho = (range_m[k] - range_offset) / (1.0 + range_scale)
         th = (1.0 + angle_scale) * theta_enc[k] + angle_offset
@@ -175,7 +175,7 @@ def _inverse_kernel(tt, pos, q, t, p, r_bs, lever, out):
     for k in range(t.size):
         tk = t[k]
         n_out += not tt[0] <= tk <= tt[tt.size - 1]  # NaN counts as outside
-        i, i_prev, theta, s, sign, px, py, pz, r00, r01, r02, r10, r11, r12, r20, r21, r22 = _pose(
+        i, i_prev, theta, s, sign, px, py, pz, r00, r01, r02, r10, r11, r12, r20, r21, r22 = pose(
             tt, pos, q, tk, i, i_prev, theta, s, sign)
         out[k, 0], out[k, 1], out[k, 2] = scanner_vector(
             p[k, 0], p[k, 1], p[k, 2], px, py, pz,
@@ -191,7 +191,7 @@ def _poses_kernel(tt, pos, q, t, pos_out, r_out):
     for k in range(t.size):
         tk = t[k]
         n_out += not tt[0] <= tk <= tt[tt.size - 1]  # NaN counts as outside
-        i, i_prev, theta, s, sign, px, py, pz, r00, r01, r02, r10, r11, r12, r20, r21, r22 = _pose(
+        i, i_prev, theta, s, sign, px, py, pz, r00, r01, r02, r10, r11, r12, r20, r21, r22 = pose(
             tt, pos, q, tk, i, i_prev, theta, s, sign)
         pos_out[k, 0], pos_out[k, 1], pos_out[k, 2] = px, py, pz
         r_out[k, 0, 0], r_out[k, 0, 1], r_out[k, 0, 2] = r00, r01, r02

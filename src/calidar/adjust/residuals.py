@@ -40,7 +40,8 @@ class SolverOptions:
     scale by MAD for those weights (False when σ is trusted); max_iter: Levenberg–Marquardt steps
     at most; tol: relative change of the cost (and absolute step) below which it stops;
     step_in_sigma: stop when every step is below this fraction of its parameter's σ. Whether the
-    observations' σ are absolute is the problem's (:attr:`ResidualProblem.absolute_sigma`), not an option.
+    observations' σ are absolute is the problem's (:attr:`ResidualProblem.absolute_sigma`), not an
+    option.
     """
 
     robust: str | None = "cauchy"
@@ -52,11 +53,13 @@ class SolverOptions:
 
     def __post_init__(self):
         if self.robust is not None and self.robust not in ROBUST_K:
-            raise ValueError(f"robust must be one of {sorted(ROBUST_K)} or None, got {self.robust!r}")
+            raise ValueError(f"robust must be one of {sorted(ROBUST_K)} or None, "
+                             f"got {self.robust!r}")
         if not (isinstance(self.max_iter, int) and self.max_iter >= 0):
             raise ValueError(f"max_iter must be an integer ≥ 0, got {self.max_iter!r}")
         if not (self.tol >= 0 and self.step_in_sigma >= 0):
-            raise ValueError(f"tol and step_in_sigma must be ≥ 0, got {self.tol}, {self.step_in_sigma}")
+            raise ValueError("tol and step_in_sigma must be ≥ 0, "
+                             f"got {self.tol}, {self.step_in_sigma}")
 
 
 class Values(Mapping[str, float]):
@@ -133,7 +136,8 @@ class ResidualProblem:
     residuals at every trial step and for the Jacobian only where a step was taken.
 
     >>> import numpy as np
-    >>> from calidar.adjust import Block, Parameter, ParameterSet, ResidualProblem, SolverOptions, solve
+    >>> from calidar.adjust import (Block, Parameter, ParameterSet, ResidualProblem, SolverOptions,
+    ...                             solve)
     >>> class Mean(ResidualProblem):  # y_i = μ + e_i, σ = 0.5
     ...     def __init__(self, y):
     ...         self.y, self.sigma = y, 0.5
@@ -151,9 +155,10 @@ class ResidualProblem:
     parameters: ParameterSet
     sigma: float | np.ndarray = 1.0
     prior_correlation: PriorCorrelation = ()
-    #: the rows' σ are absolute (each row's own noise, as the strips' from their points' scatter), not only relative
-    #: weights: the covariance is then never shrunk by an a-posteriori σ0 below 1, priors or not (only raised by one
-    #: above 1; cf. ``absolute_sigma`` of scipy.optimize.curve_fit). False: σ0²·N⁻¹ without priors.
+    #: the rows' σ are absolute (each row's own noise, as the strips' from their points' scatter),
+    #: not only relative weights: the covariance is then never shrunk by an a-posteriori σ0 below 1,
+    #: priors or not (only raised by one above 1; cf. ``absolute_sigma`` of
+    #: scipy.optimize.curve_fit). False: σ0²·N⁻¹ without priors.
     absolute_sigma: bool = False
 
     def residuals(self, values: Mapping[str, float]) -> np.ndarray:
@@ -161,7 +166,8 @@ class ResidualProblem:
 
     def jacobian(self, values: Mapping[str, float]):
         params = self.parameters
-        return numerical_jacobian(self.residuals, params, np.array([values[n] for n in params.free_names], float))
+        x = np.array([values[n] for n in params.free_names], float)
+        return numerical_jacobian(self.residuals, params, x)
 
     def normal_matrix(self, values: Mapping[str, float]) -> np.ndarray | None:
         """The normal matrix to use instead of JᵀWJ, or None (the usual Gauss–Newton one)."""
@@ -176,9 +182,10 @@ class FunctionProblem(ResidualProblem):
     """A problem from plain functions of the values (name → SI): ``residual_fn`` and optionally
     ``jacobian_fn`` (else central differences) and ``normal_fn``."""
 
-    def __init__(self, residual_fn: Callable[[Mapping[str, float]], np.ndarray], parameters: ParameterSet,
-                 sigma: float | np.ndarray = 1.0, jacobian_fn=None, prior_correlation: PriorCorrelation = (),
-                 normal_fn=None, absolute_sigma: bool = False):
+    def __init__(self, residual_fn: Callable[[Mapping[str, float]], np.ndarray],
+                 parameters: ParameterSet, sigma: float | np.ndarray = 1.0, jacobian_fn=None,
+                 prior_correlation: PriorCorrelation = (), normal_fn=None,
+                 absolute_sigma: bool = False):
         self.residual_fn, self.jacobian_fn, self.normal_fn = residual_fn, jacobian_fn, normal_fn
         self.parameters, self.sigma, self.prior_correlation = parameters, sigma, prior_correlation
         self.absolute_sigma = absolute_sigma
@@ -206,7 +213,8 @@ def numerical_jacobian(fn: Callable[[Mapping[str, float]], np.ndarray], params: 
     return np.stack(cols, axis=1) if cols else np.zeros((0, 0))
 
 
-def prior_groups(free, prior_correlation: PriorCorrelation) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+def prior_groups(free, prior_correlation: PriorCorrelation
+                 ) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
     """Priors as (free-parameter positions, centres, precision matrix) groups: the correlated
     groups given, and the other parameters with a prior_sigma as one diagonal group."""
     pos = {p.name: i for i, p in enumerate(free)}
@@ -216,9 +224,11 @@ def prior_groups(free, prior_correlation: PriorCorrelation) -> list[tuple[np.nda
         if any(free[i].prior_sigma is None for i in idx):
             raise ValueError("prior_correlation: every parameter of a group needs a prior_sigma")
         d = np.array([free[i].prior_sigma for i in idx])
-        out.append((idx, np.array([free[i].prior_center for i in idx]), np.linalg.inv(np.asarray(R, float)) / np.outer(d, d)))
+        precision = np.linalg.inv(np.asarray(R, float)) / np.outer(d, d)  # Σ⁻¹ = D⁻¹R⁻¹D⁻¹
+        out.append((idx, np.array([free[i].prior_center for i in idx]), precision))
         joint.update(idx.tolist())
-    idx = np.array([i for i, p in enumerate(free) if p.prior_sigma is not None and i not in joint], dtype=int)
+    alone = [i for i, p in enumerate(free) if p.prior_sigma is not None and i not in joint]
+    idx = np.array(alone, dtype=int)
     if idx.size:
         out.append((idx, np.array([free[i].prior_center for i in idx]),
                     np.diag([1.0 / free[i].prior_sigma ** 2 for i in idx])))

@@ -2,8 +2,9 @@
 
 Model: a problem (:class:`calidar.adjust.residuals.ResidualProblem`) gives residuals r(θ) and
 their Jacobian, observations with a-priori σ, optional priors on parameters as
-pseudo-observations; how to iterate is a :class:`calidar.adjust.residuals.SolverOptions`. The covariance of the free parameters is
-σ0² · (JᵀWJ + P)⁻¹ with σ0² the a-posteriori variance factor.
+pseudo-observations; how to iterate is a :class:`calidar.adjust.residuals.SolverOptions`. The
+covariance of the free parameters is σ0² · (JᵀWJ + P)⁻¹ with σ0² the a-posteriori variance factor
+(the linear algebra in :mod:`calidar.adjust.normals`).
 
 Robust weights (Huber, Cauchy) act on standardised residuals u = r / (σ · s), where s is
 a robust scale (1.4826 · MAD of r/σ) re-estimated every iteration, so that clutter
@@ -17,22 +18,24 @@ from collections.abc import Callable
 from dataclasses import dataclass, replace
 
 import numpy as np
-import scipy.linalg as sl
 import scipy.sparse as sp
-from numba import njit
 
+from calidar.adjust.normals import (
+    cluster_robust, damped, inverse_diagonal, normal_matrix, solve_damped,
+)
 from calidar.adjust.parameters import ParameterSet
-from calidar.adjust.residuals import (ROBUST_K, STEP_IN_SIGMA, FunctionProblem, ResidualProblem, SolverOptions,
-                                      numerical_jacobian, prior_groups, values_of)
-from calidar.adjust.solution import Solution, cholesky_inverse, residual_stats
+from calidar.adjust.residuals import (ROBUST_K, STEP_IN_SIGMA, FunctionProblem, ResidualProblem,
+                                      SolverOptions, numerical_jacobian, prior_groups, values_of)
+from calidar.adjust.solution import Solution, residual_stats
 from calidar.adjust.unit_weight import GROSS_Z, skipped_sigma0
 from calidar.errors import CalibrationError
 
-__all__ = ["Estimate", "ROBUST_K", "STEP_IN_SIGMA", "estimate", "numerical_jacobian", "prior_groups", "robust_weights",
-           "solve"]
+__all__ = ["Estimate", "ROBUST_K", "STEP_IN_SIGMA", "estimate", "numerical_jacobian",
+           "prior_groups", "robust_weights", "solve"]
 
 Progress = Callable[[int, float], None]
-#: the keyword arguments of the function form (``solve(residual_fn, params, sigma=…, …)``) that are solver options
+#: the keyword arguments of the function form (``solve(residual_fn, params, sigma=…, …)``) that
+#: are solver options
 _OPTION_KEYS = ("robust", "robust_k", "robust_scale", "max_iter", "tol", "step_in_sigma")
 _PROBLEM_KEYS = ("sigma", "jacobian_fn", "prior_correlation", "normal_fn", "absolute_sigma")
 
@@ -50,7 +53,8 @@ def robust_weights(u: np.ndarray, kind: str | None, k: float | None = None) -> n
     raise ValueError(f"robust must be 'huber', 'cauchy' or None, got {kind!r}")
 
 
-def solve(problem: ResidualProblem, options: SolverOptions | None = None, *, progress: Progress | None = None,
+def solve(problem: ResidualProblem, options: SolverOptions | None = None, *,
+          progress: Progress | None = None,
           clusters: np.ndarray | list[np.ndarray] | None = None, **function_form) -> Solution:
     """Least-squares estimate of the free parameters of ``problem`` (a
     :class:`calidar.adjust.residuals.ResidualProblem`: its parameters, row σ, priors, residuals and
@@ -66,8 +70,8 @@ def solve(problem: ResidualProblem, options: SolverOptions | None = None, *, pro
     groupings raises each σ to the largest of their estimates (sandwich estimates from few groups
     run low). The covariance is σ0²·N⁻¹ without priors (σ relative) and max(σ0², 1)·N⁻¹ with them
     (σ absolute: the priors are never tightened by an a-posteriori σ0 below 1) or when the problem's
-    ``absolute_sigma`` says its observations' own σ are absolute. With robust weights the solution also
-    records :func:`calidar.adjust.unit_weight.skipped_sigma0` (``extra["unit_weight"]``).
+    ``absolute_sigma`` says its observations' own σ are absolute. With robust weights the solution
+    also records :func:`calidar.adjust.unit_weight.skipped_sigma0` (``extra["unit_weight"]``).
 
     The function form ``solve(residual_fn, params, sigma=…, jacobian_fn=…, robust=…, …)`` (values
     by name → residuals) is kept: it wraps the functions in a
@@ -77,8 +81,9 @@ def solve(problem: ResidualProblem, options: SolverOptions | None = None, *, pro
     return estimate(problem, options, progress=progress).solution(clusters)
 
 
-def estimate(problem: ResidualProblem, options: SolverOptions | None = None, *, progress: Progress | None = None,
-             step_scale: np.ndarray | None = None, **function_form) -> "Estimate":
+def estimate(problem: ResidualProblem, options: SolverOptions | None = None, *,
+             progress: Progress | None = None, step_scale: np.ndarray | None = None,
+             **function_form) -> "Estimate":
     """The iterations of :func:`solve` without its covariance: an :class:`Estimate` whose
     ``solution()`` adds it. ``options.step_in_sigma``: stop when every step is below this fraction
     of its σ (an outer loop that re-matches its observations can stop early and ``refine`` its
@@ -92,11 +97,13 @@ def estimate(problem: ResidualProblem, options: SolverOptions | None = None, *, 
         fit = _Fit(problem, options)
         history = [{"iteration": 0, "cost": fit.cost(fit.r0, fit.weights(fit.r0), fit.x0),
                     "rms": residual_stats(fit.r0)["rms"], "values": params.values()}]
-        start = Estimate(fit, fit.x0, fit.r0, fit.weights(fit.r0), history, False, step_scale, options, progress)
+        start = Estimate(fit, fit.x0, fit.r0, fit.weights(fit.r0), history, False, step_scale,
+                         options, progress)
         return start.refine(options.step_in_sigma)
 
 
-def _problem_and_options(problem, options, function_form: dict) -> tuple[ResidualProblem, SolverOptions]:
+def _problem_and_options(problem, options,
+                         function_form: dict) -> tuple[ResidualProblem, SolverOptions]:
     """(problem, options) from the protocol form, or from the function form
     ``(residual_fn, params, **keywords)`` (``options`` then holds the ParameterSet)."""
     if not isinstance(options, ParameterSet):
@@ -141,13 +148,15 @@ class Estimate:
         fit, x, r, w = self.fit, self.x, self.r, self.w
         with _one_blas_thread():
             sol, J, N = _solution(fit, x, r, w, self.history, self.converged)
-        groupings = [] if clusters is None else clusters if isinstance(clusters, list) else [clusters]
+        groupings = clusters if isinstance(clusters, list) else [clusters]
+        groupings = [] if clusters is None else groupings
         if groupings:
             factor = fit.variance_factor(r, w, x)
             scores = sp.diags(w * r) @ J  # per observation ∂cost/∂θ (dense or sparse like J)
-            Ninv = sol.covariance / factor if factor > 0 and np.all(np.isfinite(sol.covariance)) else np.linalg.pinv(N)
+            finite = factor > 0 and np.all(np.isfinite(sol.covariance))
+            Ninv = sol.covariance / factor if finite else np.linalg.pinv(N)
             for grouping in groupings:
-                sol.covariance = _cluster_robust(sol.covariance, Ninv, scores, np.asarray(grouping))
+                sol.covariance = cluster_robust(sol.covariance, Ninv, scores, np.asarray(grouping))
         return sol
 
 
@@ -168,7 +177,8 @@ class _Fit:
 
     def __init__(self, problem: ResidualProblem, options: SolverOptions):
         self.problem, self.params = problem, problem.parameters
-        self.robust, self.robust_k, self.robust_scale = options.robust, options.robust_k, options.robust_scale
+        self.robust, self.robust_k = options.robust, options.robust_k
+        self.robust_scale = options.robust_scale
         self.absolute_sigma = bool(getattr(problem, "absolute_sigma", False))
         self.free = self.params.free
         self.priors = prior_groups(self.free, getattr(problem, "prior_correlation", ()))
@@ -178,9 +188,11 @@ class _Fit:
         self.n = self.r0.size
         self.sig = np.broadcast_to(np.asarray(getattr(problem, "sigma", 1.0), float), (self.n,))
         if self.n < len(self.free) - self.n_prior:
-            raise CalibrationError(f"{self.n} observations cannot determine {len(self.free)} parameters")
+            raise CalibrationError(f"{self.n} observations cannot determine {len(self.free)} "
+                                   "parameters")
         if not np.all(np.isfinite(self.r0)):
-            raise CalibrationError(f"{int(np.sum(~np.isfinite(self.r0)))} residuals are not finite at the start")
+            n_bad = int(np.sum(~np.isfinite(self.r0)))
+            raise CalibrationError(f"{n_bad} residuals are not finite at the start")
 
     def residuals(self, x: np.ndarray) -> np.ndarray:
         r = np.asarray(self.problem.residuals(values_of(self.params, x)), dtype=float)
@@ -208,10 +220,12 @@ class _Fit:
             c += 0.5 * d @ P @ d
         return float(c)
 
-    def normal_equations(self, J, w: np.ndarray, r: np.ndarray | None = None, x: np.ndarray | None = None):
-        """N = JᵀWJ + P (priors' precision) and, with r and x, the gradient g = JᵀWr + P(x − centre)."""
+    def normal_equations(self, J, w: np.ndarray, r: np.ndarray | None = None,
+                         x: np.ndarray | None = None):
+        """N = JᵀWJ + P (priors' precision) and, with r and x, the gradient g = JᵀWr + P(x −
+        centre)."""
         given = None if x is None else self.problem.normal_matrix(values_of(self.params, x))
-        N = _normal_matrix(J, w) if given is None else np.array(given, float)
+        N = normal_matrix(J, w) if given is None else np.array(given, float)
         g = None if r is None else J.T @ (w * r)
         for idx, center, P in self.priors:
             N[np.ix_(idx, idx)] += P
@@ -224,11 +238,9 @@ class _Fit:
         return max(float(np.sum(w * self.sig**2)) + self.n_prior - len(self.free), 1.0)
 
     def sigma0(self, r: np.ndarray, x: np.ndarray) -> tuple[float, int]:
-        """(σ0, rows skipped as gross) by :func:`calidar.adjust.unit_weight.skipped_sigma0`: the RMS of r/σ with
-        the priors' terms over the redundancy, rows beyond GROSS_Z σ0 skipped — recorded beside the engine's σ0,
-        not (yet) its variance factor (issue 26, docs/validation.md: it reads heavy-tailed rows with right σ as 1
-        where the robustly weighted σ0 reads them 5–8 % low, but it also counts the clutter the robust weights
-        leave out, and raised the σ of urban opposite-line surveys whose σ were already wide enough)."""
+        """(σ0, rows skipped as gross) by :func:`calidar.adjust.unit_weight.skipped_sigma0`: the RMS
+        of r/σ with the priors' terms over the redundancy, rows beyond GROSS_Z σ0 skipped — recorded
+        beside the engine's σ0, not its variance factor (why: docs/validation.md, issue 26)."""
         prior_sq = 2.0 * (self.cost(r, np.zeros_like(r), x))  # the priors' part of the cost
         return skipped_sigma0(r / self.sig, prior_sq, self.n_prior, len(self.free), GROSS_Z)
 
@@ -248,15 +260,17 @@ def _levenberg_marquardt(at: Estimate, step_in_sigma: float) -> Estimate:
     c = fit.cost(r, w, x)
     steps = np.array([p.diff_step for p in fit.free])
     redundancy = max(fit.n + fit.n_prior - len(fit.free), 1)
-    done = lambda conv: replace(at, x=x, r=r, w=w, history=history, converged=conv, step_scale=n_inv_diag)  # noqa: E731
+    def done(conv: bool) -> Estimate:
+        return replace(at, x=x, r=r, w=w, history=history, converged=conv, step_scale=n_inv_diag)
+
     for it in range(len(history), at.options.max_iter + 1):
         N, g = fit.normal_equations(fit.jacobian(x), w, r, x)
         if n_inv_diag is None:
-            n_inv_diag = _inverse_diagonal(N)
+            n_inv_diag = inverse_diagonal(N)
         dN = np.diag(N).copy()
         dN[dN <= 0] = 1.0
         for _ in range(12):
-            dx = -_solve_damped(_damped(N, lam * dN), g)
+            dx = -solve_damped(damped(N, lam * dN), g)
             r_new = fit.residuals(x + dx)
             c_new = fit.cost(r_new, w, x + dx)
             if np.isfinite(c_new) and c_new <= c:
@@ -273,108 +287,29 @@ def _levenberg_marquardt(at: Estimate, step_in_sigma: float) -> Estimate:
         if at.progress:
             at.progress(it, c)
         tol = at.options.tol
+        sigma = np.sqrt(n_inv_diag * 2.0 * c / redundancy)  # each parameter's σ at this cost
         if (np.all(np.abs(dx) < tol + 1e-4 * steps) or abs(c_prev - c) <= tol * max(c, 1e-300)
-                or np.all(np.abs(dx) <= step_in_sigma * np.sqrt(n_inv_diag * 2.0 * c / redundancy))):
+                or np.all(np.abs(dx) <= step_in_sigma * sigma)):
             return done(True)
     return done(False)
 
 
-def _solution(fit: _Fit, x: np.ndarray, r: np.ndarray, w: np.ndarray, history: list[dict], converged: bool):
+def _solution(fit: _Fit, x: np.ndarray, r: np.ndarray, w: np.ndarray, history: list[dict],
+              converged: bool):
     """The :class:`Solution` at x (covariance = variance factor · N⁻¹, see
     :meth:`_Fit.variance_factor`), with the Jacobian and normal matrix there."""
     J = fit.jacobian(x)
     N, _ = fit.normal_equations(J, w, x=x)
     dof = fit.dof(w)
     sol = Solution.from_normal_matrix(
-        fit.params.updated(x), N, 2.0 * fit.cost(r, w, x) / dof, dof, variance_factor=fit.variance_factor(r, w, x),
-        residuals=r, weights=w * fit.sig**2, before=residual_stats(fit.r0), history=history, converged=converged,
-        jacobian=J,
+        fit.params.updated(x), N, 2.0 * fit.cost(r, w, x) / dof, dof,
+        variance_factor=fit.variance_factor(r, w, x), residuals=r, weights=w * fit.sig**2,
+        before=residual_stats(fit.r0), history=history, converged=converged, jacobian=J,
     )
-    if fit.robust:  # σ0 read as the RMS of r/σ, gross rows skipped (calidar.strips.global_test shows it)
+    # σ0 read as the RMS of r/σ, gross rows skipped (calidar.strips.global_test shows it)
+    if fit.robust:
         s0, skipped = fit.sigma0(r, x)
+        redundancy = float(max(fit.n - skipped + fit.n_prior - len(fit.free), 1))
         sol.extra["unit_weight"] = {"sigma0": s0, "rows_skipped": skipped, "gross_z": GROSS_Z,
-                                    "redundancy": float(max(fit.n - skipped + fit.n_prior - len(fit.free), 1))}
+                                    "redundancy": redundancy}
     return sol, J, N
-
-
-def _inverse_diagonal(N: np.ndarray) -> np.ndarray:
-    """diag(N⁻¹), ≥ 0 (zeros when N is not positive definite: the stop rule then never fires on it)."""
-    inv = cholesky_inverse(N)
-    return np.zeros(N.shape[0]) if inv is None else np.clip(np.diag(inv), 0, None)
-
-
-def _damped(N: np.ndarray, add: np.ndarray) -> np.ndarray:
-    """N + diag(add), without building the dense diagonal matrix (the same sums)."""
-    A = N.copy()
-    A[np.diag_indices_from(A)] += add
-    return A
-
-
-def _solve_damped(A: np.ndarray, g: np.ndarray) -> np.ndarray:
-    """A⁻¹g for the damped normal matrix (Cholesky; least squares when it is not positive definite)."""
-    try:
-        return sl.cho_solve(sl.cho_factor(A, lower=True), g)
-    except (np.linalg.LinAlgError, ValueError):
-        return np.linalg.lstsq(A, g, rcond=None)[0]
-
-
-
-
-def _normal_matrix(J, w: np.ndarray) -> np.ndarray:
-    """JᵀWJ (dense) for a dense or scipy.sparse J."""
-    if sp.issparse(J):
-        J = J.tocsr()
-        return _weighted_gram(J.indptr, J.indices, J.data, np.asarray(w, float), J.shape[1])
-    return J.T @ (w[:, None] * J)
-
-
-@njit(cache=True)
-def _weighted_gram(indptr, indices, data, w, n_cols):  # pragma: no cover - numba
-    """Σ_rows w_i · j_i j_iᵀ of a CSR matrix into a dense (n_cols, n_cols) array: O(Σ nnz_row²)
-    over each row's pairs of entries once (upper triangle, then mirrored), without the sparse
-    product's intermediate matrices. Repeated column indices within a row count as their sum."""
-    N = np.zeros((n_cols, n_cols))
-    for i in range(indptr.size - 1):
-        for a in range(indptr[i], indptr[i + 1]):
-            ja, va = indices[a], w[i] * data[a]
-            N[ja, ja] += va * data[a]
-            for b in range(a + 1, indptr[i + 1]):
-                jb, v = indices[b], va * data[b]
-                if ja < jb:
-                    N[ja, jb] += v
-                elif jb < ja:
-                    N[jb, ja] += v
-                else:  # the same column twice: (a, b) and (b, a)
-                    N[ja, ja] += 2.0 * v
-    for j in range(n_cols):
-        for k in range(j + 1, n_cols):
-            N[k, j] = N[j, k]
-    return N
-
-
-def _cluster_robust(cov: np.ndarray, Ninv: np.ndarray, scores: np.ndarray, clusters: np.ndarray) -> np.ndarray:
-    """``cov`` with each σ raised to the cluster-robust (sandwich) σ where that is larger; correlations kept.
-
-    clusters (n,) one group per observation, or (n, 2) two groups (dyadic): the "meat" sums
-    s_i s_jᵀ over observation pairs sharing a group = Σ_groups S_g S_gᵀ − Σ_dyads S_d S_dᵀ.
-    """
-    c = np.asarray(clusters).reshape(scores.shape[0], -1)
-    nodes, g = np.unique(c, return_inverse=True)
-    g = g.reshape(c.shape)
-    G = nodes.size
-    if G < 2 or not np.all(np.isfinite(cov)):
-        return cov
-
-    def group_sums(labels, n_groups):  # Σ of the scores per group, (n_groups, p) dense
-        member = sp.csr_matrix((np.ones(labels.size), (labels, np.arange(labels.size))), shape=(n_groups, labels.size))
-        return np.asarray((member @ scores).todense()) if sp.issparse(scores) else member @ scores
-
-    S = sum(group_sums(g[:, col], G) for col in range(c.shape[1]))
-    sand = np.sum((Ninv @ S.T) ** 2, axis=1)  # diag(N⁻¹ SᵀS N⁻¹), O(p² G) for G groups
-    if c.shape[1] == 2:  # observations sharing both groups were counted twice
-        _, d = np.unique(np.sort(g, axis=1), axis=0, return_inverse=True)
-        sand -= np.sum((Ninv @ group_sums(d.ravel(), int(d.max()) + 1).T) ** 2, axis=1)
-    sand *= G / (G - 1)
-    d = np.maximum(np.diag(cov), 1e-300)
-    scale = np.sqrt(np.maximum(sand, d) / d)
-    return cov * np.outer(scale, scale)

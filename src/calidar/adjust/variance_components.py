@@ -25,8 +25,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from calidar.adjust.normals import normal_matrix
 from calidar.adjust.solution import cholesky_inverse
-from calidar.adjust.solver import _normal_matrix
 from calidar.errors import CalibrationError
 
 OBSERVATIONS = "observations"  #: the name of the observations' own component
@@ -54,7 +54,8 @@ class Components:
     iterations: int
     converged: bool
     fixed: tuple[str, ...] = field(default=())  #: groups held at 1 (not estimated)
-    #: per group rₖ at the start (the stated σ, or ``start``): how many priors the data check at that level
+    #: per group rₖ at the start (the stated σ, or ``start``): how many priors the data check at
+    #: that level
     redundancy_start: dict[str, float] = field(default_factory=dict)
 
     def sigma_factor(self, group: str) -> float:
@@ -62,15 +63,18 @@ class Components:
         return float(np.sqrt(self.variance[group]))
 
     def relative_sigma(self, group: str) -> float:
-        """The σ of the estimated σ factor relative to it, 1/√(2 rₖ) (χ² with rₖ degrees of freedom)."""
+        """The σ of the estimated σ factor relative to it, 1/√(2 rₖ) (χ² with rₖ degrees of
+        freedom)."""
         r = self.redundancy[group]
         return float("inf") if r <= 0 else float(1.0 / np.sqrt(2.0 * r))
 
 
-def estimate_components(JtWJ: np.ndarray, JtWr: np.ndarray, rWr: float, n_obs: float, x0: np.ndarray,
-                        blocks: Sequence[PriorBlock], *, fixed: Sequence[str] = (), estimate_observations: bool = True,
-                        start: Mapping[str, float] | None = None, max_iter: int = 60, tol: float = 1e-3,
-                        floor: float = 1e-6, marginal: bool = False) -> Components:
+def estimate_components(JtWJ: np.ndarray, JtWr: np.ndarray, rWr: float, n_obs: float,
+                        x0: np.ndarray, blocks: Sequence[PriorBlock], *, fixed: Sequence[str] = (),
+                        estimate_observations: bool = True,
+                        start: Mapping[str, float] | None = None, max_iter: int = 60,
+                        tol: float = 1e-3, floor: float = 1e-6,
+                        marginal: bool = False) -> Components:
     """The variance components of the observations and of each group of ``blocks`` (see the
     module docstring) for the linearised problem r(x) = r₀ + J(x − x0): ``JtWJ`` = JᵀWJ,
     ``JtWr`` = JᵀWr₀, ``rWr`` = r₀ᵀWr₀, ``n_obs`` the observations' effective number (Σ of the
@@ -84,12 +88,14 @@ def estimate_components(JtWJ: np.ndarray, JtWr: np.ndarray, rWr: float, n_obs: f
     the identity in place of Σ⁻¹), iterated as Förstner's (the priors the data cannot check drop
     out of numerator and denominator alike). The same estimate when the stated correlations are
     right; the level of the stated σ themselves when they are not (an error smoother than the
-    stated correlation is seen by vᵀPv mostly through its small increments: its level comes out low)."""
+    stated correlation is seen by vᵀPv mostly through its small increments: its level comes out
+    low)."""
     u = JtWJ.shape[0]
     groups = sorted({b.group for b in blocks})
     var = {g: 1.0 for g in [OBSERVATIONS, *groups]} | dict(start or {})
     frozen = set(fixed) | (set() if estimate_observations else {OBSERVATIONS})
-    size = {OBSERVATIONS: float(n_obs)} | {g: sum(b.index.size for b in blocks if b.group == g) for g in groups}
+    size = {OBSERVATIONS: float(n_obs)}
+    size |= {g: sum(b.index.size for b in blocks if b.group == g) for g in groups}
     converged, it, x, red, red_start = False, 0, x0, {}, {}
     stated = [np.diag(np.linalg.inv(b.precision)) if marginal else None for b in blocks]  # Σᵢᵢ
     for it in range(1, max_iter + 1):
@@ -99,7 +105,8 @@ def estimate_components(JtWJ: np.ndarray, JtWr: np.ndarray, rWr: float, n_obs: f
             b[blk.index] -= blk.precision @ (x0[blk.index] - blk.center) / var[blk.group]
         Q = cholesky_inverse(N)
         if Q is None:
-            raise CalibrationError("variance components: the normal matrix is not positive definite")
+            raise CalibrationError("variance components: the normal matrix is not positive "
+                                   "definite")
         dx = Q @ b
         x = x0 + dx
         quad = {g: 0.0 for g in groups}
@@ -117,7 +124,8 @@ def estimate_components(JtWJ: np.ndarray, JtWr: np.ndarray, rWr: float, n_obs: f
         red = {g: size[g] - trace[g] / var[g] for g in groups}
         red[OBSERVATIONS] = n_obs - (u - sum(trace[g] / var[g] for g in groups))
         red_start = red_start or dict(red)
-        new = {g: (var[g] if g in frozen or red[g] <= 1e-9 else max(quad[g] / red[g], floor)) for g in var}
+        new = {g: (var[g] if g in frozen or red[g] <= 1e-9 else max(quad[g] / red[g], floor))
+               for g in var}
         if marginal:  # σ²ₖ ← Σ vᵢ²/Σᵢᵢ / (nₖ − Σ Qᵢᵢ/(σ²ₖΣᵢᵢ)): the redundancy's diagonal analogue
             new |= {g: max(spread[g] / max(size[g] - trace_marginal[g] / var[g], 1e-9), floor)
                     for g in groups if g not in frozen and red[g] > 1e-9}
@@ -126,11 +134,13 @@ def estimate_components(JtWJ: np.ndarray, JtWr: np.ndarray, rWr: float, n_obs: f
         if change < tol:
             converged = True
             break
-    return Components(var, red, {g: int(round(s)) if g != OBSERVATIONS else s for g, s in size.items()},
-                      x, it, converged, tuple(sorted(frozen - {OBSERVATIONS})), red_start)
+    sizes = {g: int(round(s)) if g != OBSERVATIONS else s for g, s in size.items()}
+    return Components(var, red, sizes, x, it, converged, tuple(sorted(frozen - {OBSERVATIONS})),
+                      red_start)
 
 
-def split_blocks(priors: Sequence[tuple[np.ndarray, np.ndarray, np.ndarray]], group_of: Sequence[str | None]) -> list[PriorBlock]:
+def split_blocks(priors: Sequence[tuple[np.ndarray, np.ndarray, np.ndarray]],
+                 group_of: Sequence[str | None]) -> list[PriorBlock]:
     """The engine's prior groups (free-parameter positions, centres, precision) cut by the group
     each parameter belongs to (``group_of[position]``; None: not in any component, its priors
     kept as stated under the group "other"). A prior group whose precision couples two groups
@@ -141,7 +151,8 @@ def split_blocks(priors: Sequence[tuple[np.ndarray, np.ndarray, np.ndarray]], gr
         for g in dict.fromkeys(labels.tolist()):
             sel = labels == g
             if np.any(P[np.ix_(sel, ~sel)] != 0):
-                raise ValueError(f"variance components: a prior group couples {g!r} with another group")
+                raise ValueError(f"variance components: a prior group couples {g!r} with "
+                                 "another group")
             out.append(PriorBlock(idx[sel], center[sel], P[np.ix_(sel, sel)], g))
     return out
 
@@ -152,5 +163,5 @@ def normal_terms(est) -> tuple[np.ndarray, np.ndarray, float, float, np.ndarray]
     its values, robust weights as they stand: the first arguments of :func:`estimate_components`."""
     fit, w, r = est.fit, est.w, est.r
     J = fit.jacobian(est.x)
-    return _normal_matrix(J, w), np.asarray(J.T @ (w * r)).ravel(), float(np.sum(w * r * r)), \
+    return normal_matrix(J, w), np.asarray(J.T @ (w * r)).ravel(), float(np.sum(w * r * r)), \
         float(np.sum(w * fit.sig**2)), np.asarray(est.x, float)

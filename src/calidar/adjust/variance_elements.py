@@ -64,9 +64,10 @@ def scaled_normals(JtWJ: np.ndarray, JtWr: np.ndarray, x0: np.ndarray,
 
 
 def estimate_elements(JtWJ: np.ndarray, JtWr: np.ndarray, x0: np.ndarray,
-                      priors: Sequence[tuple[np.ndarray, np.ndarray, np.ndarray]], labels: Sequence[str | None],
-                      start: Mapping[str, float], *, observations: float = 1.0, pool: Pool | None = None,
-                      floor: float = 1e-6, tol: float = 1e-3, max_iter: int = 60) -> ElementComponents:
+                      priors: Sequence[tuple[np.ndarray, np.ndarray, np.ndarray]],
+                      labels: Sequence[str | None], start: Mapping[str, float], *,
+                      observations: float = 1.0, pool: Pool | None = None, floor: float = 1e-6,
+                      tol: float = 1e-3, max_iter: int = 60) -> ElementComponents:
     """The factors σ²ₖ (module docstring) of the linearised problem r(x) = r₀ + J(x − x0) with
     ``JtWJ`` = JᵀWJ, ``JtWr`` = JᵀWr₀ (the observations' variance factor held at ``observations``),
     the engine's ``priors`` (free-parameter positions, centres, stated precision), ``labels[i]``
@@ -77,7 +78,8 @@ def estimate_elements(JtWJ: np.ndarray, JtWr: np.ndarray, x0: np.ndarray,
     names = sorted(start)
     code = {n: k for k, n in enumerate(names)}
     which = np.array([code.get(s, -1) for s in lab])  # −1: stated
-    sigma, centre = np.zeros((lab.size, lab.size)), np.zeros(lab.size)  # Σ: the stated prior covariance
+    # Σ: the stated prior covariance
+    sigma, centre = np.zeros((lab.size, lab.size)), np.zeros(lab.size)
     for idx, center, P in priors:
         sigma[np.ix_(idx, idx)], centre[idx] = np.linalg.inv(P), center
     sii = np.diag(sigma).copy()
@@ -92,14 +94,16 @@ def estimate_elements(JtWJ: np.ndarray, JtWr: np.ndarray, x0: np.ndarray,
         N, b = scaled_normals(JtWJ, JtWr, x0, priors, f, observations)
         Q = cholesky_inverse(N)
         if Q is None:
-            raise CalibrationError("variance components: the normal matrix is not positive definite")
+            raise CalibrationError("variance components: the normal matrix is not positive "
+                                   "definite")
         x = x0 + Q @ b
         spread = np.bincount(which[on], (x[on] - centre[on]) ** 2 / sii[on], len(names))
         trace = np.bincount(which[on], np.diag(Q)[on] / sii[on], len(names))
         red = np.array([size[n] for n in names]) - trace / var
         red_start = red.copy() if red_start is None else red_start
         raw = np.where(red > 1e-9, spread / np.maximum(red, 1e-9), var)
-        eff = {n: _effective(var[code[n]] * sigma[np.ix_(i, i)] - Q[np.ix_(i, i)], sii[i]) for n, i in members.items()}
+        eff = {n: _effective(var[code[n]] * sigma[np.ix_(i, i)] - Q[np.ix_(i, i)], sii[i])
+               for n, i in members.items()}
         new = pool(as_dict(raw), eff, as_dict(red_start)) if pool else as_dict(raw)
         new = np.maximum(np.array([new[n] for n in names], float), floor)
         change = float(np.max(np.abs(np.log(new / var)))) if names else 0.0
@@ -107,11 +111,13 @@ def estimate_elements(JtWJ: np.ndarray, JtWr: np.ndarray, x0: np.ndarray,
         if change < tol:
             converged = True
             break
-    return ElementComponents(as_dict(var), as_dict(red), as_dict(red_start), as_dict(raw), eff, size, it, converged)
+    return ElementComponents(as_dict(var), as_dict(red), as_dict(red_start), as_dict(raw), eff,
+                             size, it, converged)
 
 
 def _effective(cov: np.ndarray, sii: np.ndarray) -> float:
-    """(tr C)² / tr(C²) of C = ``cov`` normalised by √Σᵢᵢ: how many independent priors it is worth."""
+    """(tr C)² / tr(C²) of C = ``cov`` normalised by √Σᵢᵢ: how many independent priors it is
+    worth."""
     if sii.size == 0:
         return 0.0
     C = cov / np.sqrt(np.outer(sii, sii))

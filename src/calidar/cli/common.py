@@ -26,38 +26,46 @@ EXIT_OK = 0  #: done; the verdict, if any, is PASS or WARN
 EXIT_INPUT = 1  #: bad input or unwritable results
 EXIT_USAGE = 2  #: usage error
 EXIT_FAIL = 3  #: done with a FAIL verdict
-FORCE_HELP = "Replace a non-empty output folder whole: its previous files go (an input inside it is refused)."
-CONFIG_HELP = ("A configuration file (TOML, as the config.toml every run writes beside its results): its settings "
-               "replace the defaults, options given on the command line replace its settings.")
-EXIT_CODES_HELP = ("Exit codes: 0 pass or warn, 3 fail verdict, 1 input error (or results not writable), "
-                   "2 usage error, 130 interrupted (Ctrl-C), 143 terminated (SIGTERM).")
+FORCE_HELP = ("Replace a non-empty output folder whole: its previous files go (an input inside it "
+              "is refused).")
+CONFIG_HELP = ("A configuration file (TOML, as the config.toml every run writes beside its "
+               "results): its settings replace the defaults, options given on the command line "
+               "replace its settings.")
+EXIT_CODES_HELP = ("Exit codes: 0 pass or warn, 3 fail verdict, 1 input error (or results not "
+                   "writable), 2 usage error, 130 interrupted (Ctrl-C), 143 terminated (SIGTERM).")
 
 
 def given_options(ctx) -> dict:
-    """The options given on the command line ({parameter name: value}) of a ``typer.Context``, not those
-    left at their defaults (they replace a ``--config`` file's settings)."""
+    """The options given on the command line ({parameter name: value}) of a ``typer.Context``, not
+    those left at their defaults (they replace a ``--config`` file's settings)."""
     return {k: v for k, v in ctx.params.items() if ctx.get_parameter_source(k).name != "DEFAULT"}
 
 
 def config_values(given: dict, options: dict) -> dict:
-    """The options ``given`` (:func:`given_options`) as a configuration's values ({attribute path: value}):
-    ``options`` maps each parameter name to (attribute path, a parse of its text or None: as given)."""
-    return {attr: given[p] if parse is None else parse(given[p]) for p, (attr, parse) in options.items() if p in given}
+    """The options ``given`` (:func:`given_options`) as a configuration's values ({attribute path:
+    value}): ``options`` maps each parameter name to (attribute path, a parse of its text or None:
+    as given)."""
+    return {attr: given[p] if parse is None else parse(given[p])
+            for p, (attr, parse) in options.items() if p in given}
 
 
 def verdict_exit_code(*verdicts) -> int:
     """The exit code of a run that ended with these verdicts (:class:`calidar.verdict.Verdict`,
-    or their status strings; None ignored): :data:`EXIT_FAIL` when one is FAIL, else :data:`EXIT_OK`.
+    or their status strings; None ignored): :data:`EXIT_FAIL` when one is FAIL, else
+    :data:`EXIT_OK`.
 
-    >>> verdict_exit_code("pass", "warn"), verdict_exit_code("warn", "fail"), verdict_exit_code(None)
-    (0, 3, 0)
+    >>> verdict_exit_code("pass", "warn"), verdict_exit_code("warn", "fail")
+    (0, 3)
+    >>> verdict_exit_code(None)
+    0
     """
     status = [getattr(v, "status", v) for v in verdicts if v is not None]
     return EXIT_FAIL if "fail" in status else EXIT_OK
 
 
 def exit_with_verdict(*verdicts) -> None:
-    """End a command with :func:`verdict_exit_code` (after its output is printed): exit 3 on FAIL."""
+    """End a command with :func:`verdict_exit_code` (after its output is printed): exit 3 on
+    FAIL."""
     import typer
 
     code = verdict_exit_code(*verdicts)
@@ -65,14 +73,15 @@ def exit_with_verdict(*verdicts) -> None:
         raise typer.Exit(code)
 
 console = Console()
-err_console = Console(stderr=True, soft_wrap=True, emoji=False)  # one error = one line, never wrapped (":moon:" as written)
+#: one error = one line, never wrapped (":moon:" as written)
+err_console = Console(stderr=True, soft_wrap=True, emoji=False)
 
 
 def print_error(message: str, prefix: str = "error: ") -> None:
     """One line on stderr: ``prefix`` in bold red, then ``message`` as written (brackets in file
     names and messages are not rich markup)."""
-    err_console.print(f"[bold red]{escape(prefix)}[/]{escape(message)}" if prefix else escape(message),
-                      highlight=False, soft_wrap=True)
+    text = f"[bold red]{escape(prefix)}[/]{escape(message)}" if prefix else escape(message)
+    err_console.print(text, highlight=False, soft_wrap=True)
 
 
 def print_warning(message: str) -> None:
@@ -84,24 +93,27 @@ def print_warning(message: str) -> None:
 def progress_bar(transient: bool = True):
     """A rich progress bar on stderr (hidden when stderr is not a terminal)."""
     with Progress(
-        TextColumn("[progress.description]{task.description}"), BarColumn(), TextColumn("{task.completed}/{task.total}"),
+        TextColumn("[progress.description]{task.description}"), BarColumn(),
+        TextColumn("{task.completed}/{task.total}"),
         TimeElapsedColumn(), TimeRemainingColumn(), console=err_console, transient=transient,
     ) as p:
         yield p
 
 
-_STATUS_STYLE = {"pass": "bold green", "warn": "bold yellow", "fail": "bold red", "note": "bold blue"}
+_STATUS_STYLE = {"pass": "bold green", "warn": "bold yellow", "fail": "bold red",
+                 "note": "bold blue"}
 
 
 def print_verdict(verdict, title: str | None = None, brief: bool = False) -> None:
     """A verdict (:class:`calidar.verdict.Verdict`) on stdout: the status and summary, then each
-    finding with its numbers and, when not a pass, what to do (``brief``: the findings that are not a pass)."""
+    finding with its numbers and, when not a pass, what to do (``brief``: the findings that are not
+    a pass)."""
     head = f"{escape(title)}: " if title else ""
-    console.print(f"[{_STATUS_STYLE[verdict.status]}]{verdict.status.upper()}[/] {head}{escape(verdict.summary)}",
-                  highlight=False)
+    console.print(f"[{_STATUS_STYLE[verdict.status]}]{verdict.status.upper()}[/] "
+                  f"{head}{escape(verdict.summary)}", highlight=False)
     for f in (f for f in verdict.findings if not (brief and f.status == "pass")):
-        console.print(f"  [{_STATUS_STYLE[f.status]}]{f.status:4s}[/] {escape(f.check)}: {escape(f.detail)}",
-                      highlight=False)
+        console.print(f"  [{_STATUS_STYLE[f.status]}]{f.status:4s}[/] {escape(f.check)}: "
+                      f"{escape(f.detail)}", highlight=False)
         if f.action:
             console.print(f"       → {escape(f.action)}", highlight=False)
 
@@ -111,7 +123,8 @@ def progress_callback(progress):
     tasks: dict[str, int] = {}
 
     def update(description: str, done: int, total: int) -> None:
-        interrupts.check()  # a signal a native callback swallowed ends the run here, before its commit
+        # a signal a native callback swallowed ends the run here, before its commit
+        interrupts.check()
         if description not in tasks:
             tasks[description] = progress.add_task(description, total=total)
         progress.update(tasks[description], completed=done)

@@ -7,11 +7,16 @@ from pathlib import Path
 
 import typer
 
-from calidar.cli.common import FORCE_HELP, console, exit_with_verdict, print_verdict, progress_bar, progress_callback
+from calidar.cli.common import (
+    FORCE_HELP, console, exit_with_verdict, print_verdict, progress_bar, progress_callback,
+)
+
+
+OUT = typer.Option(..., "--out", help="Output folder for report.html and the simulated survey.")
 
 
 def demo(
-    out: Path = typer.Option(..., "--out", help="Output folder for report.html and the simulated survey."),
+    out: Path = OUT,
     seed: int = typer.Option(0, "--seed", min=0, help="Random seed of the simulated survey (≥ 0)."),
     force: bool = typer.Option(False, "--force", help=FORCE_HELP),
 ) -> None:

@@ -18,7 +18,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from calidar.georef import _pose, lidar_point, scanner_vector
+from calidar.georef import lidar_point, pose, scanner_vector
 
 
 def moved_versions(traj, nominal, models, t: np.ndarray, lin) -> list[np.ndarray] | None:
@@ -70,12 +70,12 @@ def _versions_kernel(tt, pos, q, tt2, pos2, q2, t, p, r_bs0, lever0, r_bs, lever
     for k in range(t.size):
         tk = t[k]
         n_out += not tt[0] <= tk <= tt[tt.size - 1]
-        i, i_prev, theta, s, sign, px, py, pz, a00, a01, a02, a10, a11, a12, a20, a21, a22 = _pose(
+        i, i_prev, theta, s, sign, px, py, pz, a00, a01, a02, a10, a11, a12, a20, a21, a22 = pose(
             tt, pos, q, tk, i, i_prev, theta, s, sign)
         if second:
             n_out2 += not tt2[0] <= tk <= tt2[tt2.size - 1]
             (i2, i2_prev, theta2, s2, sign2,
-             qx, qy, qz, r00, r01, r02, r10, r11, r12, r20, r21, r22) = _pose(
+             qx, qy, qz, r00, r01, r02, r10, r11, r12, r20, r21, r22) = pose(
                 tt2, pos2, q2, tk, i2, i2_prev, theta2, s2, sign2)
         sx, sy, sz = scanner_vector(p[k, 0], p[k, 1], p[k, 2], px, py, pz,
                                     a00, a01, a02, a10, a11, a12, a20, a21, a22, r_bs0, lever0)
@@ -88,7 +88,7 @@ def _versions_kernel(tt, pos, q, tt2, pos2, q2, t, p, r_bs0, lever0, r_bs, lever
                 ox, oy, oz = qx, qy, qz
                 e00, e01, e02, e10, e11, e12 = r00, r01, r02, r10, r11, r12
                 e20, e21, e22 = r20, r21, r22
-            # the lidar equation, then the move (calidar.crs._moved)
+            # the lidar equation, then the move (calidar.crs.tile_moved)
             x, y, z = lidar_point(sx, sy, sz, r_bs[m], lever[m], ox, oy, oz,
                                   e00, e01, e02, e10, e11, e12, e20, e21, e22)
             d0, d1, d2 = x - p[k, 0], y - p[k, 1], z - p[k, 2]

@@ -31,7 +31,8 @@ if TYPE_CHECKING:  # the run's parts, by type (imported where used)
     from calidar.verdict import Verdict
 
 CHUNK_POINTS = 1_000_000
-FIELDS = ("point_source_id", "classification", "return_number", "number_of_returns", "scan_angle_deg")
+FIELDS = ("point_source_id", "classification", "return_number", "number_of_returns",
+          "scan_angle_deg")
 RADIUS_RANGE_M = (0.1, 100.0)
 
 
@@ -43,9 +44,12 @@ class AccuracySettings:
     survey_sigma_m: float | None = None  #: the checkpoints' survey RMSE (else the file's σ column)
     radius_m: float = 5.0  #: ground points within this of a checkpoint form its TIN
     max_edge_m: float | None = None  #: longest edge of the containing triangle (default: radius_m)
-    target_class_cm: float | None = None  #: the class a contract asks for (the verdict fails below it)
-    classes: tuple[int, ...] | None = None  #: LAS classes taken as ground (default: 2, else last returns)
-    swaths: bool = False  #: also the USGS swath checks (the files read twice more, as calidar quality reads them)
+    #: the class a contract asks for (the verdict fails below it)
+    target_class_cm: float | None = None
+    #: LAS classes taken as ground (default: 2, else last returns)
+    classes: tuple[int, ...] | None = None
+    #: also the USGS swath checks (the files read twice more, as calidar quality reads them)
+    swaths: bool = False
 
     def checked(self) -> "AccuracySettings":
         number(self.radius_m, "--radius", *RADIUS_RANGE_M, "m")
@@ -79,15 +83,17 @@ def _points_crs(paths, options: PointOptions):
         if k == 0:
             crs = c
         elif (c is None) != (crs is None) or (c is not None and not c.equals(crs)):
-            raise InputError(p, "crs", f"{getattr(c, 'name', None)} differs from {getattr(crs, 'name', None)} of "
-                             f"{paths[0]}; expected one CRS for all files")
+            theirs, first = getattr(c, "name", None), getattr(crs, "name", None)
+            raise InputError(p, "crs", f"{theirs} differs from {first} of {paths[0]}; expected one "
+                             "CRS for all files")
         h = las_header(p)
         lo, hi = np.minimum(lo, h.mins), np.maximum(hi, h.maxs)
     return crs, lo, hi
 
 
 def checkpoints_in(cp, crs, options: PointOptions, checkpoints_crs: str | None) -> np.ndarray:
-    """The checkpoints' coordinates in the points' CRS (transformed when ``checkpoints_crs`` differs)."""
+    """The checkpoints' coordinates in the points' CRS (transformed when ``checkpoints_crs``
+    differs)."""
     if checkpoints_crs is None:
         return cp.xyz
     import pyproj
@@ -96,22 +102,27 @@ def checkpoints_in(cp, crs, options: PointOptions, checkpoints_crs: str | None) 
 
     theirs = pyproj.CRS.from_user_input(checkpoints_crs)
     if crs is None:
-        raise InputError(cp.path, "--checkpoints-crs", "given, but the points have no CRS; expected --crs for them")
+        raise InputError(cp.path, "--checkpoints-crs",
+                         "given, but the points have no CRS; expected --crs for them")
     if theirs.equals(crs):
         return cp.xyz
-    return to_crs(from_crs(cp.xyz, theirs, None, cp.path), crs, options.geoid_undulation_m, cp.path)
+    ecef = from_crs(cp.xyz, theirs, None, cp.path)
+    return to_crs(ecef, crs, options.geoid_undulation_m, cp.path)
 
 
 def check_inside(cp, xyz: np.ndarray, lo, hi, crs) -> None:
     """An error naming the first checkpoints outside every file's bounds."""
-    out = np.flatnonzero((xyz[:, 0] < lo[0]) | (xyz[:, 0] > hi[0]) | (xyz[:, 1] < lo[1]) | (xyz[:, 1] > hi[1]))
+    x, y = xyz[:, 0], xyz[:, 1]
+    out = np.flatnonzero((x < lo[0]) | (x > hi[0]) | (y < lo[1]) | (y > hi[1]))
     if out.size:
         i = out[0]
         more = f" (and {out.size - 1} more)" if out.size > 1 else ""
-        raise InputError(cp.path, "x/y", f"line {cp.lines[i]}: checkpoint {str(cp.ids[i])!r} at ({xyz[i, 0]:.3f}, "
-                         f"{xyz[i, 1]:.3f}){more} lies outside the points (x {lo[0]:.3f} … {hi[0]:.3f}, y {lo[1]:.3f} … "
-                         f"{hi[1]:.3f}{', ' + crs.name if crs is not None else ''}); expected checkpoints on the data "
-                         "(in another CRS? give --checkpoints-crs)")
+        crs_name = ", " + crs.name if crs is not None else ""
+        bounds = f"x {lo[0]:.3f} … {hi[0]:.3f}, y {lo[1]:.3f} … {hi[1]:.3f}{crs_name}"
+        raise InputError(cp.path, "x/y", f"line {cp.lines[i]}: checkpoint {str(cp.ids[i])!r} at "
+                         f"({x[i]:.3f}, {y[i]:.3f}){more} lies outside the points ({bounds}); "
+                         "expected checkpoints on the data (in another CRS? give "
+                         "--checkpoints-crs)")
 
 
 def measure_accuracy(paths, checkpoints: Path, settings: AccuracySettings = AccuracySettings(),
@@ -135,30 +146,34 @@ def measure_accuracy(paths, checkpoints: Path, settings: AccuracySettings = Accu
     collector = GroundCollector(local[:, :2], settings.radius_m)
     for k, p in enumerate(paths):
         for chunk in iter_las_chunks(p, CHUNK_POINTS, fields=FIELDS, options=options):
-            collector.add(p, metric.of(chunk.xyz), chunk.point_source_id, chunk.classification, chunk.return_number,
-                          chunk.number_of_returns, chunk.scan_angle_deg)
+            collector.add(p, metric.of(chunk.xyz), chunk.point_source_id, chunk.classification,
+                          chunk.return_number, chunk.number_of_returns, chunk.scan_angle_deg)
         progress("reading points", k + 1, len(paths))
     ground, ids, angles, selections = collector.ground(settings.classes)
-    heights = tin_heights(ground, ids, local[:, :2], settings.radius_m, settings.edge_m)
-    per_strip = heights_per_strip(ground, ids, local[:, :2], settings.radius_m, settings.edge_m, angles)
+    at, radius, edge = local[:, :2], settings.radius_m, settings.edge_m
+    heights = tin_heights(ground, ids, at, radius, edge)
+    per_strip = heights_per_strip(ground, ids, at, radius, edge, angles)
     progress("triangulating", 1, 1)
-    return assess(cp, np.c_[xyz[:, :2], local[:, 2]] if metric.frame is not None else xyz, heights, per_strip,
-                  settings.survey_sigma_m, {p.name: s for p, s in selections.items()},
-                  None if crs is None else crs.name)
+    tested = np.c_[xyz[:, :2], local[:, 2]] if metric.frame is not None else xyz
+    return assess(cp, tested, heights, per_strip, settings.survey_sigma_m,
+                  {p.name: s for p, s in selections.items()}, None if crs is None else crs.name)
 
 
 def swath_checks(paths, classes, options: PointOptions, progress: Progress = no_progress):
-    """The USGS swath checks of ``calidar quality`` on the same files (:func:`calidar.pipelines.quality.measure`,
-    :func:`calidar.strips.usgs.usgs_checks`): a :class:`calidar.accuracy.usgs.SwathChecks`, with a
-    note instead when they do not apply (one flight line, no line overlapping another)."""
+    """The USGS swath checks of ``calidar quality`` on the same files
+    (:func:`calidar.pipelines.quality.measure`, :func:`calidar.strips.usgs.usgs_checks`): a
+    :class:`calidar.accuracy.usgs.SwathChecks`, with a note instead when they do not apply (one
+    flight line, no line overlapping another)."""
     from calidar.accuracy.usgs import SwathChecks
     from calidar.pipelines.quality import QualityConfig, measure
     from calidar.strips.usgs import usgs_checks
 
     try:
-        _, _, results, _, _, precisions = measure(paths, QualityConfig(classes=classes, points=options))
+        config = QualityConfig(classes=classes, points=options)
+        _, _, results, _, _, precisions = measure(paths, config)
     except InputError as e:
-        if e.field in ("point_source_id", "STRIPS"):  # one flight line, or none overlapping another
+        # one flight line, or none overlapping another
+        if e.field in ("point_source_id", "STRIPS"):
             return SwathChecks(note=e.problem)
         raise
     progress("swath checks", 1, 1)
@@ -169,22 +184,24 @@ def checkpoints_csv(a) -> str:
     """checkpoints.csv: each checkpoint as read, its surface, residual and what became of it."""
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
-    w.writerow(["id", "line", "x", "y", "z", "class", "sigma_m", "surface_z", "dz_m", "ground_points",
-                "triangle_edge_m", "flight_lines", "outlier", "not_used"])
+    w.writerow(["id", "line", "x", "y", "z", "class", "sigma_m", "surface_z", "dz_m",
+                "ground_points", "triangle_edge_m", "flight_lines", "outlier", "not_used"])
 
     def f(v, d):
         return "" if v is None else f"{v:.{d}f}"
 
     for r in a.rows():
-        w.writerow([r["id"], r["line"], f(r["x"], 3), f(r["y"], 3), f(r["z"], 3), r["cover"], f(r["sigma_m"], 4),
-                    f(r["surface_z"], 4), f(r["dz_m"], 4), r["ground_points"], f(r["triangle_edge_m"], 2),
-                    " ".join(map(str, r["strips"])), "yes" if r["outlier"] else "", r["not_used"] or ""])
+        w.writerow([r["id"], r["line"], f(r["x"], 3), f(r["y"], 3), f(r["z"], 3), r["cover"],
+                    f(r["sigma_m"], 4), f(r["surface_z"], 4), f(r["dz_m"], 4), r["ground_points"],
+                    f(r["triangle_edge_m"], 2), " ".join(map(str, r["strips"])),
+                    "yes" if r["outlier"] else "", r["not_used"] or ""])
     return buf.getvalue()
 
 
-def run_accuracy(paths, checkpoints: Path, out_dir: Path, settings: AccuracySettings = AccuracySettings(),
-                 options: PointOptions = PointOptions(), argv: list[str] | None = None, report=None,
-                 progress: Progress = no_progress) -> AccuracyRun:
+def run_accuracy(paths, checkpoints: Path, out_dir: Path,
+                 settings: AccuracySettings = AccuracySettings(),
+                 options: PointOptions = PointOptions(), argv: list[str] | None = None,
+                 report=None, progress: Progress = no_progress) -> AccuracyRun:
     """:func:`measure_accuracy`, then accuracy.json (with the verdict and the run record),
     checkpoints.csv and report.html in the existing folder ``out_dir`` (or, given ``report``, the
     verdict and sections added to it)."""

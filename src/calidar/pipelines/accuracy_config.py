@@ -1,8 +1,9 @@
-"""The configuration of ``calidar accuracy`` as one typed value, and its TOML file (``config.toml``
-beside accuracy.json; ``--config`` repeats the run)::
+"""The configuration of ``calidar accuracy`` as one typed value, and its TOML file
+(``config.toml`` beside accuracy.json; ``--config`` repeats the run)::
 
     radius_m = 5.0             # ground points within this of a checkpoint form its TIN
-    max_edge_m = 5.0           # longest edge of the triangle holding a checkpoint (absent: radius_m)
+    max_edge_m = 5.0           # longest edge of the triangle holding a checkpoint
+                               # (absent: radius_m)
     survey_sigma_m = 0.02      # the checkpoints' survey RMSE (absent: the file's sigma column)
     target_class_cm = 10.0     # the vertical accuracy class the contract asks for (absent: none)
     classes = [2]              # LAS classes taken as ground (absent: 2, else last returns)
@@ -29,13 +30,15 @@ from calidar.pipelines.config_file import FileConfig, Key, crs_decoder, point_ke
 
 @dataclass(frozen=True)
 class AccuracyConfig(FileConfig):
-    """What ``calidar accuracy`` takes besides its files: the assessment's settings and how the points
-    are read."""
+    """What ``calidar accuracy`` takes besides its files: the assessment's settings and how the
+    points are read."""
 
-    KEYS = (Key("radius_m", "settings.radius_m", "--radius"), Key("max_edge_m", "settings.max_edge_m", "--max-edge"),
+    KEYS = (Key("radius_m", "settings.radius_m", "--radius"),
+            Key("max_edge_m", "settings.max_edge_m", "--max-edge"),
             Key("survey_sigma_m", "settings.survey_sigma_m", "--survey-sigma"),
             Key("target_class_cm", "settings.target_class_cm", "--class"),
-            Key("classes", "settings.classes", "--classes"), Key("swaths", "settings.swaths", "--swaths"),
+            Key("classes", "settings.classes", "--classes"),
+            Key("swaths", "settings.swaths", "--swaths"),
             Key("checkpoints_crs", "settings.checkpoints_crs", "--checkpoints-crs",
                 decode=crs_decoder("--checkpoints-crs")), *point_keys())
     COMMAND = "accuracy"

@@ -21,21 +21,23 @@ def read_truth(path: Path) -> dict[str, float]:
     try:
         return {k: float(doc[k]) for k in GEOLOCATION}
     except (KeyError, TypeError, ValueError):
-        raise InputError(path, None, f"expected JSON with numbers {', '.join(GEOLOCATION)}") from None
+        raise InputError(path, None,
+                         f"expected JSON with numbers {', '.join(GEOLOCATION)}") from None
 
 
 def read_ccr_csv(path: Path):
-    """The CCR survey of a CSV file (:func:`calidar.io.ccr_survey.read_ccr_survey`) as the method takes it
-    (:class:`calidar.photon.survey.CCRSurvey`)."""
+    """The CCR survey of a CSV file (:func:`calidar.io.ccr_survey.read_ccr_survey`) as the method
+    takes it (:class:`calidar.photon.survey.CCRSurvey`)."""
     from calidar.io.ccr_survey import read_ccr_survey
     from calidar.photon.survey import CCRSurvey
 
     return CCRSurvey.from_rows(read_ccr_survey(path))
 
 
-def load_passes(files: list[Path], beams: tuple[str, ...] | None, survey, system, progress: Progress = no_progress):
-    """Every chosen beam (``beams``: ATL03 beam names; None: every beam) of every ATL03 file as a pass
-    prepared near the CCRs (beams without photons skipped)."""
+def load_passes(files: list[Path], beams: tuple[str, ...] | None, survey, system,
+                progress: Progress = no_progress):
+    """Every chosen beam (``beams``: ATL03 beam names; None: every beam) of every ATL03 file as a
+    pass prepared near the CCRs (beams without photons skipped)."""
     from calidar.io.atl03 import read_atl03, select_beams
     from calidar.photon.passes import prepare_pass
     from calidar.validate import existing_file
@@ -51,26 +53,33 @@ def load_passes(files: list[Path], beams: tuple[str, ...] | None, survey, system
                 passes.append(prepare_pass(beam, survey, system, name=f"{label}:{b}"))
         progress("reading passes", i + 1, len(files))
     if not passes:
-        raise InputError(files[0], "all" if beams is None else ",".join(beams), "no photons in the chosen beam(s)")
+        chosen = "all" if beams is None else ",".join(beams)
+        raise InputError(files[0], chosen, "no photons in the chosen beam(s)")
     return passes
 
 
 def run_ccr(files: list[Path], ccr: Path, out_dir: Path, config: CCRConfig = CCRConfig(), *,
-            truth_path: Path | None = None, record=None, report=None, progress: Progress = no_progress):
-    """Read, calibrate with ``config`` (:class:`calidar.pipelines.ccr_config.CCRConfig`: the beams, the
-    search's and the fit's settings, the instrument), write ``out_dir``/solution.json, config.toml and
-    (unless a report is passed in, as the demo does) report.html (``calidar.calibrate_ccr``).
-    ``record``: the run's :class:`calidar.provenance.RunRecord`. Returns the :class:`calidar.photon.ccr.CCRResult`.
+            truth_path: Path | None = None, record=None, report=None,
+            progress: Progress = no_progress):
+    """Read, calibrate with ``config`` (:class:`calidar.pipelines.ccr_config.CCRConfig`: the beams,
+    the search's and the fit's settings, the instrument), write ``out_dir``/solution.json,
+    config.toml and (unless a report is passed in, as the demo does) report.html
+    (``calidar.calibrate_ccr``). ``record``: the run's :class:`calidar.provenance.RunRecord`.
+    Returns the :class:`calidar.photon.ccr.CCRResult`.
+
+    Quick (no bootstrap σ, no likelihood map in the report):
 
     >>> import tempfile, calidar
     >>> from calidar.photon.search import SearchSettings
     >>> from calidar.sim.photons import PhotonSimConfig
     >>> folder = Path(tempfile.mkdtemp())
-    >>> sim = simulate_photons(PhotonSimConfig(seed=1, n_ccr=8, along_bias=1.5, cross_bias=-2.0), folder)
-    >>> quick = SearchSettings(bootstrap=0, surface_points=0)  # no bootstrap σ, no likelihood map in the report
-    >>> result = calidar.calibrate_ccr([sim["atl03"]], sim["ccr"], folder, calidar.CCRConfig(search=quick))
+    >>> truth = {"along_track_bias": 1.5, "cross_track_bias": -2.0}
+    >>> sim_config = PhotonSimConfig(seed=1, n_ccr=8, along_bias=1.5, cross_bias=-2.0)
+    >>> sim = simulate_photons(sim_config, folder)
+    >>> quick = calidar.CCRConfig(search=SearchSettings(bootstrap=0, surface_points=0))
+    >>> result = calidar.calibrate_ccr([sim["atl03"]], sim["ccr"], folder, quick)
     >>> v, s = result.solution.values, result.solution.sigma
-    >>> [bool(abs(v[k] - truth) < 3 * s[k]) for k, truth in (("along_track_bias", 1.5), ("cross_track_bias", -2.0))]
+    >>> [bool(abs(v[k] - t) < 3 * s[k]) for k, t in truth.items()]
     [True, True]
     >>> sorted(p.name for p in folder.iterdir() if p.suffix in (".json", ".html", ".toml"))
     ['config.toml', 'report.html', 'solution.json', 'truth.json']
@@ -99,8 +108,8 @@ def run_ccr(files: list[Path], ccr: Path, out_dir: Path, config: CCRConfig = CCR
 
 
 def simulate_photons(cfg, out_dir: Path) -> dict[str, Path]:
-    """Simulate a pass (:class:`calidar.sim.photons.PhotonSimConfig`) into ``out_dir``: ATL03_sim.h5,
-    ccr.csv, truth.json."""
+    """Simulate a pass (:class:`calidar.sim.photons.PhotonSimConfig`) into ``out_dir``:
+    ATL03_sim.h5, ccr.csv, truth.json."""
     from calidar.sim.photons import simulate_pass, write_pass
 
     return write_pass(simulate_pass(cfg), Path(out_dir))

@@ -1,10 +1,10 @@
-"""One mapping between a command's typed configuration and its TOML file, used by every command's
-configuration: each :class:`Key` ties a TOML key (``cell_m``, ``inputs.crs``) to the attribute it
-fills (``settings.cell_m``: a field of a nested settings dataclass, or an entry of a dict field) and
-to the command-line option that sets it. From the keys alone a :class:`FileConfig` writes its
-``config.toml``, reads one back (each value checked against its type; a key not among them an error),
-takes the options given on the command line over the file's settings and names a bad value by the
-file, the key and the option::
+"""One mapping between a command's typed configuration and its TOML file, used by every
+command's configuration: each :class:`Key` ties a TOML key (``cell_m``, ``inputs.crs``) to the
+attribute it fills (``settings.cell_m``: a field of a nested settings dataclass, or an entry of a
+dict field) and to the command-line option that sets it. From the keys alone a
+:class:`FileConfig` writes its ``config.toml``, reads one back (each value checked against its
+type; a key not among them an error), takes the options given on the command line over the file's
+settings and names a bad value by the file, the key and the option::
 
     mine.toml: settings.radius_m (--radius): expected a finite number in (0, 1000] m, got -1.0
 
@@ -45,8 +45,8 @@ from calidar.pipelines.config_toml import known, read_document, table, typed, wr
 class Key:
     """One setting: its TOML key (``section.name`` or ``name``), the config's attribute it fills
     (dotted through nested dataclasses and dicts), its command-line option, the TOML value's type
-    (default: the attribute's annotation) and, where the file holds it otherwise than the attribute,
-    ``encode`` (attribute → TOML) and ``decode`` (checked TOML value → attribute)."""
+    (default: the attribute's annotation) and, where the file holds it otherwise than the
+    attribute, ``encode`` (attribute → TOML) and ``decode`` (checked TOML value → attribute)."""
 
     key: str
     attr: str
@@ -62,16 +62,22 @@ class Key:
 
 
 def get(obj, attr: str):
-    """The value at a dotted attribute path (dataclass fields, dict entries, a missing one None, tuple
-    items by index)."""
+    """The value at a dotted attribute path (dataclass fields, dict entries, a missing one None,
+    tuple items by index)."""
     for part in attr.split("."):
-        obj = obj.get(part) if isinstance(obj, dict) else obj[int(part)] if isinstance(obj, tuple) else getattr(obj, part)
+        if isinstance(obj, dict):
+            obj = obj.get(part)
+        elif isinstance(obj, tuple):
+            obj = obj[int(part)]
+        else:
+            obj = getattr(obj, part)
     return obj
 
 
 def put(obj, values: dict):
-    """A copy of ``obj`` with ``values`` ({dotted attribute path: value}) put in, each nested object
-    made once with all of its changes (its checks see them together); None removes a dict entry."""
+    """A copy of ``obj`` with ``values`` ({dotted attribute path: value}) put in, each nested
+    object made once with all of its changes (its checks see them together); None removes a dict
+    entry."""
     direct: dict = {}
     nested: dict[str, dict] = {}
     for attr, value in values.items():
@@ -105,8 +111,9 @@ def hint(cls: type, attr: str):
 
 
 class FileConfig:
-    """A frozen dataclass configuration whose fields (with defaults) map to a TOML file by ``KEYS``.
-    ``check`` raises an :class:`InputError` naming the option of a value out of its range."""
+    """A frozen dataclass configuration whose fields (with defaults) map to a TOML file by
+    ``KEYS``. ``check`` raises an :class:`InputError` naming the option of a value out of its
+    range."""
 
     KEYS: ClassVar[tuple[Key, ...]] = ()
     COMMAND: ClassVar[str] = ""
@@ -128,8 +135,8 @@ class FileConfig:
 
     def write(self, path: Path) -> Path:
         """Write the TOML file (atomically); returns its path."""
-        return write_document(path, self.to_dict(), f"calidar {self.COMMAND} configuration: give it again with "
-                              "--config to repeat the run")
+        return write_document(path, self.to_dict(), f"calidar {self.COMMAND} configuration: give "
+                              "it again with --config to repeat the run")
 
     @classmethod
     def from_document(cls, doc: dict, path) -> FileConfig:
@@ -143,15 +150,17 @@ class FileConfig:
 
     @classmethod
     def configure(cls, path: Path | None, given: dict) -> FileConfig:
-        """The ``--config`` file's configuration (else the defaults) with ``given`` ({attribute path:
-        value}, from the options on the command line) replacing its settings; checked once."""
+        """The ``--config`` file's configuration (else the defaults) with ``given`` ({attribute
+        path: value}, from the options on the command line) replacing its settings; checked
+        once."""
         from_file = {} if path is None else _values(cls, read_document(Path(path)), Path(path))
         return cls.configure_values(from_file, given, path)
 
     @classmethod
     def configure_values(cls, from_file: dict, given: dict, path) -> FileConfig:
-        """The defaults with ``from_file`` then ``given`` ({attribute path: value}) put in; checked.
-        A bad value is named by its option when given on the command line, else by the file and the key."""
+        """The defaults with ``from_file`` then ``given`` ({attribute path: value}) put in;
+        checked. A bad value is named by its option when given on the command line, else by the
+        file and the key."""
         try:
             config = put(cls(), {**from_file, **given})
             config.check()
@@ -160,11 +169,13 @@ class FileConfig:
         return config
 
 
-def _named(e: InputError, keys: tuple[Key, ...], from_file: dict, given: dict, path) -> InputError:
-    """The error of a value checked: as it is when a value given on the command line is at fault (it names the
-    option), else named by the file and the key (with its option) it came from."""
+def _named(e: InputError, keys: tuple[Key, ...], from_file: dict, given: dict,
+           path) -> InputError:
+    """The error of a value checked: as it is when a value given on the command line is at fault
+    (it names the option), else named by the file and the key (with its option) it came from."""
     where = " ".join(p for p in (e.field, e.source) if p)
-    words = {w.strip("(),") for w in where.split()}  # "key (--option)", "--option": the option named
+    # "key (--option)", "--option": the option named
+    words = {w.strip("(),") for w in where.split()}
     hit = [k for k in keys if (k.option is not None and k.option in words) or k.key == e.field]
     if path is None or any(k.attr in given for k in hit) or not from_file:
         return e
@@ -172,12 +183,16 @@ def _named(e: InputError, keys: tuple[Key, ...], from_file: dict, given: dict, p
     if not mine:
         return InputError(path, where or None, e.problem)
     option = mine[0].option
-    label = mine[0].label if len(mine) == 1 else f"{', '.join(k.key for k in mine)}" + (f" ({option})" if option else "")
+    if len(mine) == 1:
+        label = mine[0].label
+    else:
+        label = ", ".join(k.key for k in mine) + (f" ({option})" if option else "")
     return InputError(path, label, e.problem)
 
 
 def _values(cls: type, doc: dict, path) -> dict:
-    """{attribute path: value} of a TOML document, each value of its key's type (errors naming the key)."""
+    """{attribute path: value} of a TOML document, each value of its key's type (errors naming the
+    key)."""
     by_section: dict[str, dict[str, Key]] = {}
     for k in cls.KEYS:
         section, _, name = k.key.rpartition(".")
@@ -214,9 +229,11 @@ def crs_decoder(option: str) -> Callable[[str], str]:
 def point_keys(owner: str = "points", section: str = "inputs") -> tuple[Key, ...]:
     """The keys of how points are read (:class:`calidar.io.las.PointOptions` at ``owner``: --crs,
     --time-system, --geoid-undulation) in the table ``[section]``."""
-    return (Key(f"{section}.crs", f"{owner}.crs", "--crs", str | None, encode=text, decode=crs_decoder("--crs")),
+    return (Key(f"{section}.crs", f"{owner}.crs", "--crs", str | None, encode=text,
+                decode=crs_decoder("--crs")),
             Key(f"{section}.time_system", f"{owner}.time_system", "--time-system"),
-            Key(f"{section}.geoid_undulation_m", f"{owner}.geoid_undulation_m", "--geoid-undulation"))
+            Key(f"{section}.geoid_undulation_m", f"{owner}.geoid_undulation_m",
+                "--geoid-undulation"))
 
 
 def config_beside(out: Path) -> Path:
@@ -225,9 +242,10 @@ def config_beside(out: Path) -> Path:
 
 
 def trajectory_keys(owner: str = "trajectory_input", section: str = "inputs") -> tuple[Key, ...]:
-    """The keys of how a text trajectory is read (:class:`calidar.pipelines.inputs.TrajectoryOptions` at
-    ``owner``: --trajectory-crs, --trajectory-angles, --trajectory-heading, --trajectory-columns)."""
-    return (Key(f"{section}.trajectory_crs", f"{owner}.crs", "--trajectory-crs", str | None, encode=text,
-                decode=crs_decoder("--trajectory-crs")),
-            *(Key(f"{section}.trajectory_{k}", f"{owner}.{k}", f"--trajectory-{k}") for k in ("angles", "heading",
-                                                                                              "columns")))
+    """The keys of how a text trajectory is read
+    (:class:`calidar.pipelines.inputs.TrajectoryOptions` at ``owner``: --trajectory-crs,
+    --trajectory-angles, --trajectory-heading, --trajectory-columns)."""
+    return (Key(f"{section}.trajectory_crs", f"{owner}.crs", "--trajectory-crs", str | None,
+                encode=text, decode=crs_decoder("--trajectory-crs")),
+            *(Key(f"{section}.trajectory_{k}", f"{owner}.{k}", f"--trajectory-{k}")
+              for k in ("angles", "heading", "columns")))

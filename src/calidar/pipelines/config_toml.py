@@ -1,6 +1,6 @@
-"""The TOML side of every method's typed configuration (``--config FILE``, ``config.toml`` beside the
-results): reading a document, each value checked against the type of the field it fills, and writing
-one back. Errors name the file and the key (``solver.max_outer``), and what was expected.
+"""The TOML side of every method's typed configuration (``--config FILE``, ``config.toml`` beside
+the results): reading a document, each value checked against the type of the field it fills, and
+writing one back. Errors name the file and the key (``solver.max_outer``), and what was expected.
 
 >>> typed([20, 3.5], tuple[float, float], "config.toml", "trajectory_model.correlation_s")
 (20.0, 3.5)
@@ -29,7 +29,8 @@ from calidar.errors import InputError
 
 
 def read_document(path: Path) -> dict:
-    """The TOML document of ``path`` (an error naming the file when it is not TOML or not UTF-8 text)."""
+    """The TOML document of ``path`` (an error naming the file when it is not TOML or not UTF-8
+    text)."""
     from calidar.validate import read_text
 
     path = Path(path)
@@ -40,7 +41,8 @@ def read_document(path: Path) -> dict:
 
 
 def toml_document(doc: dict, comment: str) -> str:
-    """A document's TOML text: ``comment`` on top, plain keys, then one ``[table]`` per dict value."""
+    """A document's TOML text: ``comment`` on top, plain keys, then one ``[table]`` per dict
+    value."""
     lines = [f"# {comment}"]
     plain = [f"{k} = {toml_value(v)}" for k, v in doc.items() if not isinstance(v, dict)]
     lines += ["", *plain] if plain else []
@@ -68,7 +70,8 @@ def known(doc: dict, keys: set[str], path, prefix: str = "") -> None:
     """An error naming the first key of ``doc`` not among ``keys``."""
     unknown = sorted(set(doc) - keys)
     if unknown:
-        raise InputError(path, prefix + unknown[0], f"unknown key; expected one of {', '.join(sorted(keys))}")
+        raise InputError(path, prefix + unknown[0],
+                         f"unknown key; expected one of {', '.join(sorted(keys))}")
 
 
 def section(cls: type, doc: dict, path, name: str, **built):
@@ -88,15 +91,15 @@ def build(path, name: str, make):
         return make()
     except InputError as e:
         inner = e.field or (e.source if e.source and e.source.startswith("--") else None)
-        raise InputError(path, f"{name} ({inner})" if name and inner and inner != name else name or inner,
-                         e.problem) from None
+        label = f"{name} ({inner})" if name and inner and inner != name else name or inner
+        raise InputError(path, label, e.problem) from None
     except (ValueError, TypeError) as e:
         raise InputError(path, name or None, str(e)) from None
 
 
 def typed(value, tp, path, key: str):
-    """``value`` of a TOML document as the type ``tp`` (float, int, str, bool, X | None, tuple[X, ...],
-    tuple[X, Y]), else an error naming the file and the key."""
+    """``value`` of a TOML document as the type ``tp`` (float, int, str, bool, X | None,
+    tuple[X, ...], tuple[X, Y]), else an error naming the file and the key."""
     origin, args = typing.get_origin(tp), typing.get_args(tp)
     if origin in (typing.Union, types.UnionType):
         if value is None and type(None) in args:
@@ -111,10 +114,13 @@ def typed(value, tp, path, key: str):
     if origin is tuple:
         n = None if len(args) == 2 and args[1] is Ellipsis else len(args)
         if not isinstance(value, list) or (n is not None and len(value) != n):
-            raise InputError(path, key, f"expected a list of {n or 'one or more'} values, got {value!r}")
-        return tuple(typed(v, args[0] if n is None else args[k], path, key) for k, v in enumerate(value))
+            raise InputError(path, key,
+                             f"expected a list of {n or 'one or more'} values, got {value!r}")
+        item_types = [args[0] if n is None else args[k] for k in range(len(value))]
+        return tuple(typed(v, t, path, key) for v, t in zip(value, item_types))
     ok = {float: lambda v: isinstance(v, (int, float)) and not isinstance(v, bool),
-          int: lambda v: isinstance(v, int) and not isinstance(v, bool), str: lambda v: isinstance(v, str),
+          int: lambda v: isinstance(v, int) and not isinstance(v, bool),
+          str: lambda v: isinstance(v, str),
           bool: lambda v: isinstance(v, bool)}
     if tp not in ok or not ok[tp](value):
         raise InputError(path, key, f"expected {getattr(tp, '__name__', tp)}, got {value!r}")
@@ -122,17 +128,19 @@ def typed(value, tp, path, key: str):
 
 
 def inputs_table(owners: dict, keys: dict) -> dict:
-    """The ``[inputs]`` table: each key of ``keys`` (key → (owner, field)) read from ``owners[owner]``
-    (None values left out; tuples as lists, CRS as their text)."""
+    """The ``[inputs]`` table: each key of ``keys`` (key → (owner, field)) read from
+    ``owners[owner]`` (None values left out; tuples as lists, CRS as their text)."""
     values = {k: getattr(owners[o], f) for k, (o, f) in keys.items()}
     return {k: list(v) if isinstance(v, tuple) else str(v) if k.endswith("crs") else v
             for k, v in values.items() if v is not None}
 
 
 def plain(settings) -> dict:
-    """A settings dataclass's fields as TOML values (None and nested settings left out, tuples as lists)."""
-    return {f.name: list(v) if isinstance(v, tuple) else v for f in fields(settings)
-            if (v := getattr(settings, f.name)) is not None and not hasattr(v, "__dataclass_fields__")}
+    """A settings dataclass's fields as TOML values (None and nested settings left out, tuples as
+    lists)."""
+    values = {f.name: getattr(settings, f.name) for f in fields(settings)}
+    return {k: list(v) if isinstance(v, tuple) else v for k, v in values.items()
+            if v is not None and not hasattr(v, "__dataclass_fields__")}
 
 
 def toml_value(value) -> str:

@@ -23,7 +23,8 @@ from calidar.errors import InputError
 
 class SurveyFile(Protocol):
     """What a ground-control file read gives the pipeline whatever its kind (a checkpoint CSV's
-    :class:`calidar.io.checkpoints.Checkpoints`, :class:`calidar.io.control_planes.ControlPlaneFile`, a
+    :class:`calidar.io.checkpoints.Checkpoints`,
+    :class:`calidar.io.control_planes.ControlPlaneFile`, a
     :class:`calidar.io.control_cloud.ReferenceCloud`, …): its path and surveyed points."""
 
     path: Path
@@ -32,14 +33,15 @@ class SurveyFile(Protocol):
 
 @dataclass(frozen=True, eq=False)
 class ControlInput:
-    """The control as read: the file's points (open ground only), ECEF (N, 3) m, notes; for another kind
-    (control planes, a reference cloud: ``kind``) the file read, the places over its targets whose points the
-    ingest keeps (``ecef``) and the surveyed points (``survey_ecef``)."""
+    """The control as read: the file's points (open ground only), ECEF (N, 3) m, notes; for
+    another kind (control planes, a reference cloud: ``kind``) the file read, the places over its
+    targets whose points the ingest keeps (``ecef``) and the surveyed points (``survey_ecef``)."""
 
     checkpoints: SurveyFile  #: the file read (the kind's own type: its from_file takes it)
     ecef: np.ndarray
     notes: tuple[str, ...] = ()
-    kind: str | None = None  #: a name of calidar.strips.config.CONTROL_KINDS (None: control points, the first)
+    #: a name of calidar.strips.config.CONTROL_KINDS (None: control points, the first)
+    kind: str | None = None
     survey_ecef: np.ndarray | None = None
 
 
@@ -53,7 +55,8 @@ class Ground:
 
     @property
     def near(self) -> np.ndarray | None:
-        """Every ground point, ECEF (N, 3) m: each flight line keeps its cells around them (None: none)."""
+        """Every ground point, ECEF (N, 3) m: each flight line keeps its cells around them (None:
+        none)."""
         parts = [g.ecef for g in (self.control, self.checkpoints) if g is not None]
         return np.vstack(parts) if parts else None
 
@@ -63,8 +66,10 @@ def read_ground(control, checkpoints, config, strip_paths, sensor) -> Ground:
     the CRS ``config`` (the run's :class:`calidar.pipelines.strip_config.StripConfig`) names for
     each, else the strips' (the first strip file's, ``config.points.crs`` or ``sensor.crs``);
     their options given without the file are an error."""
-    given = {"--control-crs": (control, config.control_crs), "--checkpoints-crs": (checkpoints, config.checkpoints_crs),
-             "--class": (checkpoints, config.checkpoint_class_cm), "--control-sigma": (control, config.control_sigma_m)}
+    given = {"--control-crs": (control, config.control_crs),
+             "--checkpoints-crs": (checkpoints, config.checkpoints_crs),
+             "--class": (checkpoints, config.checkpoint_class_cm),
+             "--control-sigma": (control, config.control_sigma_m)}
     for option, (path, value) in given.items():
         if path is None and value is not None:
             flag = "--control" if option.startswith("--control") else "--checkpoints"
@@ -74,23 +79,29 @@ def read_ground(control, checkpoints, config, strip_paths, sensor) -> Ground:
     if not strip_paths:
         raise InputError(None, "STRIPS", "expected at least one LAS/LAZ file")
     strips_crs = _strips_crs(Path(strip_paths[0]), config.points, sensor)
-    return Ground(None if control is None else read_control(control, config.control_crs, strips_crs,
-                                                            sigma_m=config.control_sigma_m),
-                  None if checkpoints is None else read_control(checkpoints, config.checkpoints_crs, strips_crs,
-                                                                checkpoints=True, crs_option="--checkpoints-crs"))
+    control_input = checkpoint_input = None
+    if control is not None:
+        control_input = read_control(control, config.control_crs, strips_crs,
+                                     sigma_m=config.control_sigma_m)
+    if checkpoints is not None:
+        checkpoint_input = read_control(checkpoints, config.checkpoints_crs, strips_crs,
+                                        checkpoints=True, crs_option="--checkpoints-crs")
+    return Ground(control_input, checkpoint_input)
 
 
 def _strips_crs(strip_path: Path, points, sensor) -> tuple:
-    """The strips' CRS (the first file's, ``points.crs`` or ``sensor.crs``; None: none) and geoid undulation."""
+    """The strips' CRS (the first file's, ``points.crs`` or ``sensor.crs``; None: none) and geoid
+    undulation."""
     from calidar.io.las import las_file_crs
 
-    return las_file_crs(strip_path, points.crs) or las_file_crs(strip_path, sensor.crs), points.geoid_undulation_m
+    crs = las_file_crs(strip_path, points.crs) or las_file_crs(strip_path, sensor.crs)
+    return crs, points.geoid_undulation_m
 
 
 def control_kind_of(path) -> type:
-    """The kind of ground control (:data:`calidar.strips.config.CONTROL_KINDS`) a ``--control`` file is: the
-    last registered whose ``accepts(path)`` holds (a reference cloud: LAS/LAZ; control planes: a CSV naming
-    a plane column), else the one that accepts any file (control points)."""
+    """The kind of ground control (:data:`calidar.strips.config.CONTROL_KINDS`) a ``--control``
+    file is: the last registered whose ``accepts(path)`` holds (a reference cloud: LAS/LAZ; control
+    planes: a CSV naming a plane column), else the one that accepts any file (control points)."""
     from calidar.strips.config import CONTROL_KINDS
 
     kinds = list(CONTROL_KINDS.values())[::-1]
@@ -100,64 +111,79 @@ def control_kind_of(path) -> type:
 
 def read_control(path, control_crs: str | None, strips_crs: tuple, checkpoints: bool = False,
                  crs_option: str = "--control-crs", sigma_m: float | None = None) -> ControlInput:
-    """Read the control file ``path``; its CRS: ``control_crs`` or the strips' (``strips_crs``: their
-    CRS and geoid undulation). ``checkpoints``: a checkpoint file (``--checkpoints``, tested after
-    the calibration, not in it): its σ optional. ``sigma_m``: a reference cloud's stated σ
+    """Read the control file ``path``; its CRS: ``control_crs`` or the strips' (``strips_crs``:
+    their CRS and geoid undulation). ``checkpoints``: a checkpoint file (``--checkpoints``, tested
+    after the calibration, not in it): its σ optional. ``sigma_m``: a reference cloud's stated σ
     (``--control-sigma``; only with a kind that takes it)."""
     kind = None if checkpoints else control_kind_of(path)
     if sigma_m is not None and not (kind is not None and kind.takes_sigma):
-        raise InputError(path, "--control-sigma", "given with a control CSV (its σ are in its sigma column); expected "
-                         "it only with a reference cloud (LAS/LAZ) as --control")
+        raise InputError(path, "--control-sigma", "given with a control CSV (its σ are in its "
+                         "sigma column); expected it only with a reference cloud (LAS/LAZ) as "
+                         "--control")
     if kind is not None and kind.reader is not None:
         return _read_targets(kind, path, control_crs, crs_option, strips_crs, sigma_m)
     return _read_points(path, control_crs, strips_crs, checkpoints, crs_option)
 
 
-def _read_points(path, control_crs: str | None, strips_crs: tuple, checkpoints: bool, crs_option: str) -> ControlInput:
-    """Control points or checkpoints: a checkpoint CSV (:mod:`calidar.io.checkpoints`), the vegetated ones
-    left out with a note; control points need their σ."""
+def _read_points(path, control_crs: str | None, strips_crs: tuple, checkpoints: bool,
+                 crs_option: str) -> ControlInput:
+    """Control points or checkpoints: a checkpoint CSV (:mod:`calidar.io.checkpoints`), the
+    vegetated ones left out with a note; control points need their σ."""
     from calidar.io.checkpoints import read_checkpoints
 
     cp = read_checkpoints(path, cover=False)
     if cp.sigma_m is None and not checkpoints:
-        raise InputError(path, "sigma", "no sigma column; expected each control point's survey σ (m) in a column "
-                         "named sigma: the adjustment weighs the control by it")
+        raise InputError(path, "sigma", "no sigma column; expected each control point's survey σ "
+                         "(m) in a column named sigma: the adjustment weighs the control by it")
     notes = []
-    role = "checkpoints" if checkpoints else "control points"
     if cp.vegetated.any():
-        left = ", ".join(cp.ids[cp.vegetated][:5]) + (" …" if cp.vegetated.sum() > 5 else "")
-        where = "of the check against the ground" if checkpoints else "of the adjustment"
-        notes.append(f"{int(cp.vegetated.sum())} {role} marked vegetated left out {where} ({left}): under trees a "
-                     "strip's surface is not the ground" + (" (calidar accuracy tests them: VVA)" if checkpoints else ""))
-        keep = ~cp.vegetated
-        if not keep.any():
-            raise InputError(path, "class", f"every {role[:-1]} is marked vegetated; expected {role} on open ground")
-        cp = type(cp)(cp.path, cp.ids[keep], cp.xyz[keep], cp.vegetated[keep],
-                      None if cp.sigma_m is None else cp.sigma_m[keep], cp.lines[keep])
+        cp, note = _open_ground(cp, path, checkpoints)
+        notes.append(note)
     crs, undulation = _crs(path, control_crs, crs_option, strips_crs)
     return ControlInput(cp, from_crs_of(cp, crs, undulation), tuple(notes))
 
 
-def _read_targets(kind: type, path, control_crs, crs_option, strips_crs: tuple, sigma_m) -> ControlInput:
-    """A kind's file read by its io reader (CRS: the option's, else the file's own when it names one, else
-    the strips'), its targets made in a local metric frame at it (checked there), and the places over them
-    whose points the ingest keeps."""
+def _open_ground(cp, path, checkpoints: bool):
+    """The points of a checkpoint CSV ``cp`` on open ground (an error when none is) and the note
+    naming those marked vegetated, left out."""
+    role = "checkpoints" if checkpoints else "control points"
+    left = ", ".join(cp.ids[cp.vegetated][:5]) + (" …" if cp.vegetated.sum() > 5 else "")
+    where = "of the check against the ground" if checkpoints else "of the adjustment"
+    tested = " (calidar accuracy tests them: VVA)" if checkpoints else ""
+    note = (f"{int(cp.vegetated.sum())} {role} marked vegetated left out {where} ({left}): under "
+            "trees a strip's surface is not the ground" + tested)
+    keep = ~cp.vegetated
+    if not keep.any():
+        raise InputError(path, "class",
+                         f"every {role[:-1]} is marked vegetated; expected {role} on open ground")
+    sigma = None if cp.sigma_m is None else cp.sigma_m[keep]
+    kept = type(cp)(cp.path, cp.ids[keep], cp.xyz[keep], cp.vegetated[keep], sigma, cp.lines[keep])
+    return kept, note
+
+
+def _read_targets(kind: type, path, control_crs, crs_option, strips_crs: tuple,
+                  sigma_m) -> ControlInput:
+    """A kind's file read by its io reader (CRS: the option's, else the file's own when it names
+    one, else the strips'), its targets made in a local metric frame at it (checked there), and the
+    places over them whose points the ingest keeps."""
     from calidar.strips.strip import LocalFrame
 
     f = kind.reader(path, sigma_m) if kind.takes_sigma else kind.reader(path)
     own = getattr(f, "crs", None)
-    crs, undulation = _crs(path, control_crs if control_crs is not None else own, crs_option, strips_crs)
+    given = control_crs if control_crs is not None else own
+    crs, undulation = _crs(path, given, crs_option, strips_crs)
     survey = from_crs_of(f, crs, undulation)
     frame = LocalFrame.at(survey)
     targets = kind.from_file(f, frame.to_local(survey))
     keep = targets.keep_xy()
     height = float(np.mean(targets.local[:, 2]))
-    return ControlInput(f, frame.to_ecef(np.c_[keep, np.full(len(keep), height)]), kind.notes(f, targets), kind.kind,
-                        survey)
+    places = frame.to_ecef(np.c_[keep, np.full(len(keep), height)])
+    return ControlInput(f, places, kind.notes(f, targets), kind.kind, survey)
 
 
 def _crs(path, given: str | None, option: str, strips_crs: tuple):
-    """The file's CRS and geoid undulation: ``given`` (a CRS, the option ``option``) or the strips'."""
+    """The file's CRS and geoid undulation: ``given`` (a CRS, the option ``option``) or the
+    strips'."""
     import pyproj
 
     crs, undulation = strips_crs
@@ -169,7 +195,8 @@ def _crs(path, given: str | None, option: str, strips_crs: tuple):
         if crs is None or not theirs.equals(crs):
             crs, undulation = theirs, None
     if crs is None:
-        raise InputError(path, "crs", f"the strips have no CRS; expected --crs for them or {option}")
+        raise InputError(path, "crs",
+                         f"the strips have no CRS; expected --crs for them or {option}")
     return crs, undulation
 
 
@@ -191,7 +218,8 @@ def control_points(control: ControlInput, frame):
     cp = control.checkpoints
     local = frame.to_local(control.ecef)
     check_places(cp, local[:, :2])
-    return kind(cp.ids, local, np.zeros(len(cp.ids)) if cp.sigma_m is None else np.asarray(cp.sigma_m, float))
+    sigma = np.zeros(len(cp.ids)) if cp.sigma_m is None else np.asarray(cp.sigma_m, float)
+    return kind(cp.ids, local, sigma)
 
 
 def checked_checkpoints(checkpoints: ControlInput | None, frame, notes: list[str]):

@@ -18,20 +18,22 @@ import numpy as np
 from calidar.pipelines import Progress, no_progress
 from calidar.pipelines.config_file import FileConfig, Key
 
-COLUMNS = ("beam", "strength", "delta_time", "along_track_m", "dist_ph_along", "lat", "lon", "h_ph", "atl03_conf",
-           "signal")
+COLUMNS = ("beam", "strength", "delta_time", "along_track_m", "dist_ph_along", "lat", "lon",
+           "h_ph", "atl03_conf", "signal")
 
 
 @dataclass(frozen=True)
 class DenoiseConfig(FileConfig):
-    """What ``calidar denoise`` takes besides its files: the beams (None: every beam of the file) and the
-    along-track shot spacing (m); its TOML file is written beside the CSV (``<name>.config.toml``).
+    """What ``calidar denoise`` takes besides its files: the beams (None: every beam of the file)
+    and the along-track shot spacing (m); its TOML file is written beside the CSV
+    (``<name>.config.toml``).
 
     >>> DenoiseConfig(beams=("gt1l",)).to_dict()
     {'beams': ['gt1l'], 'shot_spacing_m': 0.7}
     """
 
-    KEYS = (Key("beams", "beams", "--beam"), Key("shot_spacing_m", "shot_spacing_m", "--shot-spacing-m"))
+    KEYS = (Key("beams", "beams", "--beam"),
+            Key("shot_spacing_m", "shot_spacing_m", "--shot-spacing-m"))
     COMMAND = "denoise"
 
     beams: tuple[str, ...] | None = None
@@ -45,8 +47,8 @@ class DenoiseConfig(FileConfig):
         from calidar.validate import number
 
         if self.beams is not None and (not self.beams or any(b not in BEAMS for b in self.beams)):
-            raise InputError(None, "--beam", f"expected all, one of {', '.join(BEAMS)} or several separated by "
-                             f"commas, got {','.join(self.beams)!r}")
+            raise InputError(None, "--beam", f"expected all, one of {', '.join(BEAMS)} or several "
+                             f"separated by commas, got {','.join(self.beams)!r}")
         number(self.shot_spacing_m, "--shot-spacing-m", *SHOT_SPACING_RANGE, "m")
 
 
@@ -59,12 +61,14 @@ class BeamDenoised:
     photons: int
     signal: int
     along_track_from: str
-    atl03_confident: int = 0  #: photons ATL03 rates medium or high confidence (signal_conf_ph ≥ 3 on any surface)
+    #: photons ATL03 rates medium or high confidence (signal_conf_ph ≥ 3 on any surface)
+    atl03_confident: int = 0
     atl03_confident_kept: int = 0  #: of those, flagged signal here
 
     @property
     def atl03_agreement(self) -> float | None:
-        """Fraction of ATL03's medium/high-confidence photons flagged signal (None: the file rates none)."""
+        """Fraction of ATL03's medium/high-confidence photons flagged signal (None: the file rates
+        none)."""
         return self.atl03_confident_kept / self.atl03_confident if self.atl03_confident else None
 
 
@@ -102,13 +106,15 @@ def run_denoise(atl03: Path, out_csv: Path, config: DenoiseConfig = DenoiseConfi
             sig = denoise(b.x, b.h, config.shot_spacing_m)
             _write_rows(fh, b, sig)
             conf = b.signal_conf.max(axis=1) >= 3 if b.signal_conf.size else np.zeros(len(b), bool)
-            result.beams.append(BeamDenoised(name, b.strength, len(b), int(sig.sum()), b.along_track_source,
-                                             int(conf.sum()), int((conf & sig).sum())))
+            result.beams.append(BeamDenoised(name, b.strength, len(b), int(sig.sum()),
+                                             b.along_track_source, int(conf.sum()),
+                                             int((conf & sig).sum())))
         progress("beams", len(names), len(names))
     if not result.beams:
         from calidar.errors import InputError
 
-        raise InputError(atl03, f"{'/'.join(names)}/heights", "no photons in the chosen beam(s); nothing to denoise")
+        raise InputError(atl03, f"{'/'.join(names)}/heights",
+                         "no photons in the chosen beam(s); nothing to denoise")
     return result
 
 
@@ -116,7 +122,8 @@ def _write_rows(fh, b, signal: np.ndarray) -> None:
     """The beam's rows (see the module docstring), written in chunks of 200 000 photons."""
     conf = b.signal_conf.max(axis=1) if b.signal_conf.size else np.zeros(0, np.int8)
     lead = f"{b.beam},{b.strength or 'unknown'},"
-    cols = (b.delta_time, b.x, b.dist_along, np.degrees(b.lat), np.degrees(b.lon), b.h, conf, signal.astype(int))
+    cols = (b.delta_time, b.x, b.dist_along, np.degrees(b.lat), np.degrees(b.lon), b.h, conf,
+            signal.astype(int))
     fmt = lead + "%.9f,%.4f,%.4f,%.9f,%.9f,%.4f,%d,%d"
     for s in range(0, len(b), 200_000):
         np.savetxt(fh, np.column_stack([c[s:s + 200_000] for c in cols]), fmt=fmt)

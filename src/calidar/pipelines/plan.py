@@ -1,11 +1,12 @@
-"""Calibration flight planning (``calidar plan``): predicted σ of a planned flight, what it will not
-determine and why, the line that helps most, optionally confirmed by simulating the plan.
+"""Calibration flight planning (``calidar plan``): predicted σ of a planned flight, what it will
+not determine and why, the line that helps most, optionally confirmed by simulating the plan.
 
 :func:`run_plan` reads the flight lines (:mod:`calidar.io.flight_lines`), the sensor and the
 terrain (flat, a DEM GeoTIFF, or the simulator's built-in scene), predicts
 (:func:`calidar.planning.predict.predict`), tries candidate lines
 (:func:`calidar.planning.suggest.suggest`), with ``simulate`` > 0 flies and calibrates the plan
-that many times (:func:`calidar.planning.simulate.confirm`), and writes ``plan.json`` and ``report.html``.
+that many times (:func:`calidar.planning.simulate.confirm`), and writes ``plan.json`` and
+``report.html``.
 """
 
 from __future__ import annotations
@@ -68,7 +69,8 @@ class PlanOptions:
     def to_dict(self) -> dict:
         """The options as a user gives them (degrees, names), for the run record."""
         pos, att = self.trajectory_sigma
-        return {**{f.name: getattr(self, f.name) for f in fields(self)}, "terrain": str(self.terrain),
+        values = {f.name: getattr(self, f.name) for f in fields(self)}
+        return {**values, "terrain": str(self.terrain),
                 "estimate": self.estimate.names(),
                 "trajectory_sigma": f"{pos:g},{np.degrees(att):g}",
                 "platform_motion": ",".join(f"{np.degrees(v):g}" for v in self.platform_motion)}
@@ -86,22 +88,25 @@ class PlanRun:
 
 
 def check_terrain(choice: TerrainChoice) -> None:
-    """The terrain chosen: flat at a height in ±9 km, a known scene preset and seed, or a DEM's path."""
+    """The terrain chosen: flat at a height in ±9 km, a known scene preset and seed, or a DEM's
+    path."""
     from calidar.sim.survey import PRESETS
 
     if choice.kind == "flat" and (not np.isfinite(choice.height_m) or abs(choice.height_m) > 9000):
-        raise InputError(None, "--terrain", f"expected a height in [-9000, 9000] m, got {choice.height_m:g}")
+        raise InputError(None, "--terrain",
+                         f"expected a height in [-9000, 9000] m, got {choice.height_m:g}")
     if choice.kind == "scene" and (choice.preset not in PRESETS or choice.seed < 0):
-        raise InputError(None, "--terrain", f"expected scene[:PRESET[:SEED]] with PRESET one of {', '.join(PRESETS)} "
-                         f"and SEED an integer ≥ 0, got {choice}")
-    if choice.kind not in ("flat", "scene", "dem") or (choice.kind == "dem") != (choice.path is not None):
-        raise InputError(None, "--terrain", f"expected flat, scene or dem (with a path, the DEM's alone), got "
-                         f"{choice.kind!r}")
+        raise InputError(None, "--terrain", "expected scene[:PRESET[:SEED]] with PRESET one of "
+                         f"{', '.join(PRESETS)} and SEED an integer ≥ 0, got {choice}")
+    path_mismatch = (choice.kind == "dem") != (choice.path is not None)
+    if choice.kind not in ("flat", "scene", "dem") or path_mismatch:
+        raise InputError(None, "--terrain", "expected flat, scene or dem (with a path, the DEM's "
+                         f"alone), got {choice.kind!r}")
 
 
 def load_terrain(choice: TerrainChoice):
-    """The terrain chosen (--terrain) → (terrain, the simulator's base configuration for --simulate or
-    None for a DEM)."""
+    """The terrain chosen (--terrain) → (terrain, the simulator's base configuration for
+    --simulate or None for a DEM)."""
     from dataclasses import replace
 
     from calidar.planning.simulate import FLAT_SCENE
@@ -128,13 +133,15 @@ def check_numbers(options: PlanOptions) -> None:
     from calidar.validate import number
 
     if not 0 <= options.simulate <= MAX_SIMULATE:
-        raise InputError(None, "--simulate", f"expected 0 to {MAX_SIMULATE} simulated surveys, got {options.simulate}")
+        raise InputError(None, "--simulate",
+                         f"expected 0 to {MAX_SIMULATE} simulated surveys, got {options.simulate}")
     number(options.pulse_rate_hz, "--pulse-rate", 100.0, 5e6, "Hz")
     number(options.fov_deg, "--fov", 1.0, 150.0, "deg")
     number(options.range_sigma_m, "--range-sigma", 1e-5, 1.0, "m")
     number(options.angle_sigma_deg, "--angle-sigma", 0.0, 1.0, "deg")
     for v in options.platform_motion:
-        number(float(np.degrees(v)), "--platform-motion", 0.0, 10.0 + 1e-12, "deg")  # (10° back from radians)
+        # 10° with a margin: the option comes back from radians
+        number(float(np.degrees(v)), "--platform-motion", 0.0, 10.0 + 1e-12, "deg")
 
 
 def instrument(sensor_path: Path, options: PlanOptions):
@@ -144,16 +151,19 @@ def instrument(sensor_path: Path, options: PlanOptions):
     from calidar.sensor import Sensor
 
     nominal = Sensor.read(sensor_path)
-    # a linear scanner sweeps --fov; a rotating one (Palmer oval, wedge cone) its own pattern, seen twice
+    # a linear scanner sweeps --fov; a rotating one (Palmer oval, wedge cone) its own pattern,
+    # seen twice
     half_fov = (float(np.radians(options.fov_deg / 2)) if isinstance(nominal.scanner, LinearScanner)
                 else pattern_half_fov(nominal))
+    angle_sigma_rad = float(np.radians(options.angle_sigma_deg))
+    motion = tuple(float(v) for v in options.platform_motion)
     return Instrument(nominal, options.pulse_rate_hz, half_fov, options.range_sigma_m,
-                      float(np.radians(options.angle_sigma_deg)), tuple(float(v) for v in options.platform_motion))
+                      angle_sigma_rad, motion)
 
 
 #: what a plan does not predict: the scan-angle and Palmer parameters
-NOT_PLANNED = frozenset({"scan_angle_scale", "scan_angle_offset", "eccentricity_ratio", "eccentricity_phase", "delta_l",
-                         "delta_r"})
+NOT_PLANNED = frozenset({"scan_angle_scale", "scan_angle_offset", "eccentricity_ratio",
+                         "eccentricity_phase", "delta_l", "delta_r"})
 
 
 def plan_settings(options: PlanOptions):
@@ -166,13 +176,15 @@ def plan_settings(options: PlanOptions):
 
 
 def check_estimate(est: Estimate) -> None:
-    """What a plan predicts: sensor parameters, not the Palmer and scan-angle ones (an error naming --estimate)."""
+    """What a plan predicts: sensor parameters, not the Palmer and scan-angle ones (an error
+    naming --estimate)."""
     if "height_bias" in est.parameters:
-        raise InputError(None, "--estimate", "height_bias needs ground control; expected sensor parameters "
-                         "(boresight, lever_arm, range_offset, …)")
+        raise InputError(None, "--estimate", "height_bias needs ground control; expected sensor "
+                         "parameters (boresight, lever_arm, range_offset, …)")
     if est.parameters & NOT_PLANNED:
-        raise InputError(None, "--estimate", f"got {','.join(est.names())}; calidar plan predicts boresight, lever_arm, "
-                         "range_offset and range_scale (and their single parameters)")
+        raise InputError(None, "--estimate", f"got {','.join(est.names())}; calidar plan predicts "
+                         "boresight, lever_arm, range_offset and range_scale (and their single "
+                         "parameters)")
 
 
 def _verdict(pred, found):
@@ -185,17 +197,21 @@ def _verdict(pred, found):
         if f["determined"]:
             out.append(Finding("pass", f["parameter"], sigma))
         else:
-            out.append(Finding("fail", f["parameter"], f"{sigma}: {f['why']}" if sigma else f["why"], f["action"]))
+            why = f"{sigma}: {f['why']}" if sigma else f["why"]
+            out.append(Finding("fail", f["parameter"], why, f["action"]))
     if found and pred.poor:
         best = found[0]
         unit = pred.units[pred.names.index(best.parameter)]
-        out.append(Finding("note", "suggested line", f"{best.kind}: {best.parameter} σ "
-                           f"{shown(best.parameter, unit, best.sigma_before)} → {shown(best.parameter, unit, best.sigma_after)}"))
+        before = shown(best.parameter, unit, best.sigma_before)
+        after = shown(best.parameter, unit, best.sigma_after)
+        out.append(Finding("note", "suggested line",
+                           f"{best.kind}: {best.parameter} σ {before} → {after}"))
     return Verdict(f"calibration flight plan: {headline(pred)}", out)
 
 
-def run_plan(lines_path: Path, sensor_path: Path, out_dir: Path, options: PlanOptions = PlanOptions(),
-             progress: Progress = no_progress, argv: list[str] | None = None) -> PlanRun:
+def run_plan(lines_path: Path, sensor_path: Path, out_dir: Path,
+             options: PlanOptions = PlanOptions(), progress: Progress = no_progress,
+             argv: list[str] | None = None) -> PlanRun:
     """The whole ``calidar plan`` run into the folder ``out_dir`` (see the module docstring)."""
     from calidar.io.flight_lines import read_flight_lines
     from calidar.outputs import write_text_atomic
@@ -214,14 +230,17 @@ def run_plan(lines_path: Path, sensor_path: Path, out_dir: Path, options: PlanOp
     progress("predicting", 0, 1)
     cache: dict = {}
     pred = predict(lines, terrain, inst, settings, cache)
-    found = suggest(lines, terrain, inst, settings, pred, progress, cache) if options.suggest else []
+    found = []
+    if options.suggest:
+        found = suggest(lines, terrain, inst, settings, pred, progress, cache)
     simulation = None
     if options.simulate:
         if base is None:
-            raise InputError(None, "--simulate", "simulates flat ground or the built-in scene; expected --terrain flat "
-                             "or scene[:PRESET[:SEED]] with it (a DEM cannot be simulated)")
-        simulation = confirm(fly_plan(lines, terrain), inst, settings, pred.names, options.simulate, base,
-                             progress=progress)
+            raise InputError(None, "--simulate", "simulates flat ground or the built-in scene; "
+                             "expected --terrain flat or scene[:PRESET[:SEED]] with it (a DEM "
+                             "cannot be simulated)")
+        simulation = confirm(fly_plan(lines, terrain), inst, settings, pred.names,
+                             options.simulate, base, progress=progress)
     verdict = _verdict(pred, found)
     record.finish()
     doc = plan_document(lines, inst, options, terrain, pred, found, simulation, verdict, record)
@@ -229,36 +248,57 @@ def run_plan(lines_path: Path, sensor_path: Path, out_dir: Path, options: PlanOp
     write_text_atomic(out_dir / "plan.json", json.dumps(doc, indent=2, allow_nan=False) + "\n")
     from calidar.planning.report import plan_report
 
-    plan_report(doc, pred, _terrain_image(terrain, lines), verdict, record).write(out_dir / "report.html")
+    image = _terrain_image(terrain, lines)
+    plan_report(doc, pred, image, verdict, record).write(out_dir / "report.html")
     return PlanRun(pred, found, simulation, verdict, doc)
 
 
 def plan_document(lines, inst, options, terrain, pred, found, simulation, verdict, record) -> dict:
-    """plan.json: inputs, predicted σ (SI and display), correlations, findings, suggestions, simulation."""
+    """plan.json: inputs, predicted σ (SI and display), correlations, findings, suggestions,
+    simulation."""
     from calidar.adjust.solution import json_ready
     from calidar.planning.findings import findings, headline
 
     corr = np.where(np.isfinite(pred.correlation), pred.correlation, np.nan)
-    params = [{"parameter": n, "unit": u, "sigma_reported_si": float(r) if np.isfinite(r) else None,
-               "sigma_error_si": float(s) if np.isfinite(s) else None,
-               "determined": pred.determined(k), "ground_effect_m": pred.ground_effect(k)
-               if np.isfinite(pred.ground_effect(k)) else None, "limit_m": pred.limit(k)}
-              for k, (n, u, s, r) in enumerate(zip(pred.names, pred.units, pred.sigma, pred.reported))]
+    instrument_doc = {"pulse_rate_hz": inst.pulse_rate_hz,
+                      "half_fov_deg": float(np.degrees(inst.half_fov_rad)),
+                      "range_noise_m": inst.range_noise_m,
+                      "angle_noise_deg": float(np.degrees(inst.angle_noise_rad))}
+    suggestions = [{**s.to_dict(), "unit": pred.units[pred.names.index(s.parameter)]}
+                   for s in found]
     doc = {"headline": headline(pred), "poor": pred.poor, "lines": [ln.to_dict() for ln in lines],
            "terrain": terrain.name, "estimate": list(pred.names),
-           "instrument": {"pulse_rate_hz": inst.pulse_rate_hz, "half_fov_deg": float(np.degrees(inst.half_fov_rad)),
-                          "range_noise_m": inst.range_noise_m, "angle_noise_deg": float(np.degrees(inst.angle_noise_rad))},
+           "instrument": instrument_doc,
            "trajectory": f"{options.to_dict()['trajectory_sigma']} (position m, attitude deg)",
            "median_range_m": pred.median_range_m, "pairs": pred.pairs, "observations": pred.n_rows,
-           "parameters": params, "correlation": {"names": pred.names, "matrix": corr.tolist()},
+           "parameters": _parameter_rows(pred),
+           "correlation": {"names": pred.names, "matrix": corr.tolist()},
            "findings": findings(pred),
-           "suggestions": [{**s.to_dict(), "unit": pred.units[pred.names.index(s.parameter)]} for s in found],
+           "suggestions": suggestions,
            "simulation": None if simulation is None else {k: v for k, v in simulation.items()},
            "verdict": verdict.to_dict(), "run": record.to_dict()}
     if simulation is not None:
         doc["simulation"]["runs"] = len(simulation["runs"])
         doc["simulation"]["per_run"] = simulation["runs"]
     return json_ready(doc)
+
+
+def _finite_or_none(value: float) -> float | None:
+    """``value`` as a float, None when it is not finite (JSON has no inf or NaN)."""
+    return float(value) if np.isfinite(value) else None
+
+
+def _parameter_rows(pred) -> list[dict]:
+    """plan.json's "parameters": each parameter's predicted σ (SI; reported and of its error),
+    whether it is determined, its effect on the ground and its limit (m)."""
+    rows = []
+    for k, (n, u, s, r) in enumerate(zip(pred.names, pred.units, pred.sigma, pred.reported)):
+        effect = pred.ground_effect(k)
+        rows.append({"parameter": n, "unit": u, "sigma_reported_si": _finite_or_none(r),
+                     "sigma_error_si": _finite_or_none(s), "determined": pred.determined(k),
+                     "ground_effect_m": effect if np.isfinite(effect) else None,
+                     "limit_m": pred.limit(k)})
+    return rows
 
 
 def _terrain_image(terrain, lines):

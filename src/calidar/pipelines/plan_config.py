@@ -1,5 +1,5 @@
-"""The configuration of ``calidar plan`` as one typed value, and its TOML file (``config.toml`` beside
-plan.json; ``--config`` repeats the run). SI, as the run used them::
+"""The configuration of ``calidar plan`` as one typed value, and its TOML file (``config.toml``
+beside plan.json; ``--config`` repeats the run). SI, as the run used them::
 
     pulse_rate_hz = 20000.0
     fov_deg = 70.0
@@ -34,10 +34,11 @@ from calidar.strips.config import Estimate
 
 
 def estimate_of(names: tuple[str, ...]) -> Estimate:
-    """The parameters a plan predicts, by name (``trajectory_bias`` refused: a plan always models the trajectory)."""
+    """The parameters a plan predicts, by name (``trajectory_bias`` refused: a plan always models
+    the trajectory)."""
     if "trajectory_bias" in names:
-        raise InputError(None, "--estimate", "trajectory_bias is always modelled; expected sensor parameters "
-                         "(boresight, lever_arm, range_offset, …)")
+        raise InputError(None, "--estimate", "trajectory_bias is always modelled; expected sensor "
+                         "parameters (boresight, lever_arm, range_offset, …)")
     try:
         return Estimate.of(*names)
     except InputError as e:
@@ -46,18 +47,23 @@ def estimate_of(names: tuple[str, ...]) -> Estimate:
 
 @dataclass(frozen=True)
 class PlanConfig(FileConfig):
-    """What ``calidar plan`` takes besides its files (:class:`calidar.pipelines.plan.PlanOptions`)."""
+    """What ``calidar plan`` takes besides its files
+    (:class:`calidar.pipelines.plan.PlanOptions`)."""
 
-    KEYS = (*(Key(f"terrain.{k}", f"options.terrain.{k}", "--terrain") for k in ("kind", "height_m", "preset", "seed")),
-            Key("terrain.path", "options.terrain.path", "--terrain", str | None, encode=text, decode=Path),
-            Key("pulse_rate_hz", "options.pulse_rate_hz", "--pulse-rate"), Key("fov_deg", "options.fov_deg", "--fov"),
+    KEYS = (*(Key(f"terrain.{k}", f"options.terrain.{k}", "--terrain")
+              for k in ("kind", "height_m", "preset", "seed")),
+            Key("terrain.path", "options.terrain.path", "--terrain", str | None, encode=text,
+                decode=Path),
+            Key("pulse_rate_hz", "options.pulse_rate_hz", "--pulse-rate"),
+            Key("fov_deg", "options.fov_deg", "--fov"),
             Key("range_sigma_m", "options.range_sigma_m", "--range-sigma"),
             Key("angle_sigma_deg", "options.angle_sigma_deg", "--angle-sigma"),
-            Key("estimate", "options.estimate", "--estimate", tuple[str, ...], encode=lambda e: e.names(),
-                decode=estimate_of),
+            Key("estimate", "options.estimate", "--estimate", tuple[str, ...],
+                encode=lambda e: e.names(), decode=estimate_of),
             Key("trajectory_sigma_m_rad", "options.trajectory_sigma", "--trajectory-sigma"),
             Key("platform_motion_rad", "options.platform_motion", "--platform-motion"),
-            Key("suggest", "options.suggest", "--suggest"), Key("simulate", "options.simulate", "--simulate"))
+            Key("suggest", "options.suggest", "--suggest"),
+            Key("simulate", "options.simulate", "--simulate"))
     COMMAND = "plan"
 
     options: PlanOptions = field(default_factory=PlanOptions)

@@ -4,7 +4,8 @@
     model = "palmer"
     range_m = 100.0
     spec_arcsec = 10.0
-    axis_angle_deg = 45.0      # and the other design values of calidar.scanners.settings.AnalysisSettings
+    axis_angle_deg = 45.0      # and the other design values of
+                               # calidar.scanners.settings.AnalysisSettings
 
     [errors]                   # the structural errors (absent: the published example values)
     eccentricity_ratio = 0.001
@@ -26,25 +27,29 @@ from calidar.pipelines.config_file import FileConfig, Key
 from calidar.scanners.settings import AnalysisSettings
 
 #: the settings' fields → their options (calidar.scanners.settings.LIMITS, --model and --points)
-SETTINGS_OPTIONS = {"model": "--model", "range_m": "--range", "spec_arcsec": "--spec-arcsec", "phase_deg": "--phase",
-                    "axis_tilt_azimuth_deg": "--axis-tilt-azimuth", "grating_radius_mm": "--grating-radius-mm",
+SETTINGS_OPTIONS = {"model": "--model", "range_m": "--range", "spec_arcsec": "--spec-arcsec",
+                    "phase_deg": "--phase", "axis_tilt_azimuth_deg": "--axis-tilt-azimuth",
+                    "grating_radius_mm": "--grating-radius-mm",
                     "fov_deg": "--fov", "points": "--points", "axis_angle_deg": "--axis-angle",
                     "mirror_tilt_deg": "--mirror-tilt", "wedge_angle_deg": "--wedge-angle",
                     "refractive_index": "--refractive-index"}
 #: the [errors] keys (name and unit) → (the error's name, its option)
-ERROR_KEYS = {"eccentricity_ratio": ("eccentricity", "--eccentricity"), "delta_l_deg": ("delta_l", "--delta-l"),
-              "delta_r_deg": ("delta_r", "--delta-r"), "wedge_angle_error_deg": ("wedge_angle_error", "--wedge-angle-error"),
-              "axis_tilt_deg": ("axis_tilt", "--axis-tilt"), "scan_angle_offset_deg": ("scan_angle_offset",
-                                                                                       "--scan-angle-offset"),
+ERROR_KEYS = {"eccentricity_ratio": ("eccentricity", "--eccentricity"),
+              "delta_l_deg": ("delta_l", "--delta-l"), "delta_r_deg": ("delta_r", "--delta-r"),
+              "wedge_angle_error_deg": ("wedge_angle_error", "--wedge-angle-error"),
+              "axis_tilt_deg": ("axis_tilt", "--axis-tilt"),
+              "scan_angle_offset_deg": ("scan_angle_offset", "--scan-angle-offset"),
               "scan_angle_scale_ppm": ("scan_angle_scale", "--scan-angle-scale")}
 
 
 @dataclass(frozen=True)
 class ScannerConfig(FileConfig):
-    """What ``calidar scanner analyze`` takes: the analysis's settings (model, range, errors, design)."""
+    """What ``calidar scanner analyze`` takes: the analysis's settings (model, range, errors,
+    design)."""
 
     KEYS = (*(Key(k, f"settings.{k}", o) for k, o in SETTINGS_OPTIONS.items()),
-            *(Key(f"errors.{k}", f"settings.errors.{name}", o, float | None) for k, (name, o) in ERROR_KEYS.items()))
+            *(Key(f"errors.{k}", f"settings.errors.{name}", o, float | None)
+              for k, (name, o) in ERROR_KEYS.items()))
     COMMAND = "scanner analyze"
 
     settings: AnalysisSettings = field(default_factory=lambda: AnalysisSettings("", 0.0))

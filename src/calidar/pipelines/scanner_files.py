@@ -37,9 +37,10 @@ def write_curves(a: ScannerAnalysis, out_dir: Path) -> list[Path]:
     if a.combined is not None:
         effects["combined"] = a.combined
     for name, e in effects.items():
-        _write_csv(out_dir / f"displacement_{name}.csv", [lab, "dx_m", "dy_m", "dz_m", "pointing_arcsec"],
-                   ([f"{b:.6f}", *(f"{v:.9f}" for v in d), f"{p / ARCSEC:.6f}"]
-                    for b, d, p in zip(deg, e.displacement_m, e.pointing_rad)))
+        rows = ([f"{b:.6f}", *(f"{v:.9f}" for v in d), f"{p / ARCSEC:.6f}"]
+                for b, d, p in zip(deg, e.displacement_m, e.pointing_rad))
+        _write_csv(out_dir / f"displacement_{name}.csv",
+                   [lab, "dx_m", "dy_m", "dz_m", "pointing_arcsec"], rows)
         figs[f"displacement_{name}.png"] = displacement_figure(a, e, e.title(name, a.range_m))
     for name, fig in figs.items():
         write_png(out_dir / name, fig, force=True)
@@ -47,12 +48,14 @@ def write_curves(a: ScannerAnalysis, out_dir: Path) -> list[Path]:
 
 
 def separability_summary(sep: Separability) -> dict:
-    """The separability for summary.json: own part and best boresight per component, correlations."""
+    """The separability for summary.json: own part and best boresight per component,
+    correlations."""
     names = [n for n in sep.names[3:]]
+    matrix = [[round(float(v), 6) for v in row] for row in sep.correlation]
     return {
         "own_part": {n: sep.unexplained[n] for n in names},
         "best_boresight_rad_per_unit": {n: [float(v) for v in sep.mimic[n]] for n in names},
-        "correlation": {"names": list(sep.names), "matrix": [[round(float(v), 6) for v in row] for row in sep.correlation]},
+        "correlation": {"names": list(sep.names), "matrix": matrix},
     }
 
 

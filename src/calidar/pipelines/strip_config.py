@@ -1,5 +1,5 @@
-"""The configuration of a strip calibration run (``calidar boresight``), as one typed value, and its
-TOML file: the file a user keeps and gives again with ``--config`` to repeat a run; the run
+"""The configuration of a strip calibration run (``calidar boresight``), as one typed value, and
+its TOML file: the file a user keeps and gives again with ``--config`` to repeat a run; the run
 writes it beside its results (``config.toml``).
 
 :class:`StripConfig` holds the calibration's own configuration
@@ -10,7 +10,8 @@ reads (degrees for the trajectory's attitude σ)::
 
     method = ["planes"]
     estimate = ["boresight", "lever_arm_z"]
-    model_check = true           # free each structural parameter not estimated in turn (calidar.strips.model_check)
+    model_check = true           # free each structural parameter not estimated in turn
+                                 # (calidar.strips.model_check)
 
     [trajectory_model]
     on = true
@@ -18,13 +19,16 @@ reads (degrees for the trajectory's attitude σ)::
     correlation_s = [20.0, 3.5]
     sigma = [0.03, 0.002]        # position m, attitude deg (absent: the trajectory's accuracy)
 
-    [solver]                     # calidar.strips.config.StripSettings, with robust, robust_k, robust_scale,
-                                 # max_iter, tol of its calidar.adjust.SolverOptions
-    [planes]                     # the tie planes' settings and threshold_m (calidar.strips.planes.PlaneSettings)
+    [solver]                     # calidar.strips.config.StripSettings, with robust, robust_k,
+                                 # robust_scale, max_iter, tol of its calidar.adjust.SolverOptions
+    [planes]                     # the tie planes' settings and threshold_m
+                                 # (calidar.strips.planes.PlaneSettings)
     [vgicp]                      # VGICP's (calidar.strips.vgicp.VgicpSettings)
-    [ingest]                     # strip_points (0: every overlapping point), block_cells, gap_s, chunk_points
-    [inputs]                     # crs, time_system, geoid_undulation_m, trajectory_crs, trajectory_angles,
-                                 # trajectory_heading, trajectory_columns, control_crs, checkpoints_crs
+    [ingest]                     # strip_points (0: every overlapping point), block_cells, gap_s,
+                                 # chunk_points
+    [inputs]                     # crs, time_system, geoid_undulation_m, trajectory_crs,
+                                 # trajectory_angles, trajectory_heading, trajectory_columns,
+                                 # control_crs, checkpoints_crs
 
 A key left out takes its default; an unknown key or a value of the wrong type is an error naming
 the file and the key.
@@ -48,34 +52,47 @@ from calidar.adjust import SolverOptions
 from calidar.errors import InputError
 from calidar.io.las import PointOptions
 from calidar.pipelines.config_toml import (
-    build as _build, inputs_table, known as _known, plain as _plain, read_document, section as _section,
-    table as _table, typed as _typed, write_document,
+    build as _build, inputs_table, known as _known, plain as _plain, read_document,
+    section as _section, table as _table, typed as _typed, write_document,
 )
 from calidar.pipelines.inputs import TrajectoryOptions
 from calidar.ingest.settings import IngestSettings
-from calidar.strips.config import MATCHERS, CalibrationConfig, Estimate, StripSettings, TrajectorySettings
+from calidar.strips.config import (
+    MATCHERS, CalibrationConfig, Estimate, StripSettings, TrajectorySettings,
+)
 
-#: [ingest] keys → IngestSettings fields (strip_points as --strip-points: 0 keeps every overlapping point)
+#: [ingest] keys → IngestSettings fields (strip_points as --strip-points: 0 keeps every
+#: overlapping point)
 INGEST_KEYS = {"strip_points": "budget_points", "block_cells": "block_cells", "gap_s": "gap_s",
                "chunk_points": "chunk_points"}
-#: [solver] keys of the engine's SolverOptions (StripSettings.adjustment); step_in_sigma is each outer iteration's
+#: [solver] keys of the engine's SolverOptions (StripSettings.adjustment); step_in_sigma is each
+#: outer iteration's
 ADJUSTMENT_KEYS = ("robust", "robust_k", "robust_scale", "max_iter", "tol")
 #: [inputs] keys → (PointOptions | TrajectoryOptions | StripConfig, field)
 INPUT_KEYS = {"crs": ("points", "crs"), "time_system": ("points", "time_system"),
-              "geoid_undulation_m": ("points", "geoid_undulation_m"), "trajectory_crs": ("trajectory", "crs"),
-              "trajectory_angles": ("trajectory", "angles"), "trajectory_heading": ("trajectory", "heading"),
-              "trajectory_columns": ("trajectory", "columns"), "control_crs": ("config", "control_crs"),
-              "checkpoints_crs": ("config", "checkpoints_crs"), "control_sigma_m": ("config", "control_sigma_m")}
+              "geoid_undulation_m": ("points", "geoid_undulation_m"),
+              "trajectory_crs": ("trajectory", "crs"),
+              "trajectory_angles": ("trajectory", "angles"),
+              "trajectory_heading": ("trajectory", "heading"),
+              "trajectory_columns": ("trajectory", "columns"),
+              "control_crs": ("config", "control_crs"),
+              "checkpoints_crs": ("config", "checkpoints_crs"),
+              "control_sigma_m": ("config", "control_sigma_m")}
+#: the top-level keys of the file besides the matchers' tables
+TOP_KEYS = {"method", "estimate", "model_check", "checkpoint_class_cm", "trajectory_model",
+            "solver", "ingest", "inputs"}
 
 
 @dataclass(frozen=True)
 class StripConfig:
     """Everything a strip calibration run takes besides its files: the calibration's
     configuration, how the strips are read (``ingest``, the streaming engine's settings with the
-    point options; its overlap grid set to the solver's), how a text trajectory is read, the control points' CRS.
+    point options; its overlap grid set to the solver's), how a text trajectory is read, the
+    control points' CRS.
 
     >>> from calidar.strips.config import CalibrationConfig, Estimate, TrajectorySettings, Vgicp
-    >>> config = StripConfig(CalibrationConfig(Estimate.of("boresight", "range_offset"), matchers=(Vgicp(),),
+    >>> estimate = Estimate.of("boresight", "range_offset")
+    >>> config = StripConfig(CalibrationConfig(estimate, matchers=(Vgicp(),),
     ...                                        trajectory=TrajectorySettings(block_s=2.0)))
     >>> config.to_dict()["estimate"], config.to_dict()["trajectory_model"]
     (['boresight', 'range_offset'], {'on': True, 'block_s': 2.0, 'correlation_s': [20.0, 3.5]})
@@ -85,9 +102,11 @@ class StripConfig:
     ingest: IngestSettings = field(default_factory=IngestSettings)
     trajectory_input: TrajectoryOptions = field(default_factory=TrajectoryOptions)
     control_crs: str | None = None  #: the control points' CRS when it is not the strips'
-    control_sigma_m: float | None = None  #: a reference cloud's stated vertical accuracy (--control-sigma), m
+    #: a reference cloud's stated vertical accuracy (--control-sigma), m
+    control_sigma_m: float | None = None
     checkpoints_crs: str | None = None  #: the checkpoints' CRS when it is not the strips'
-    #: the ASPRS vertical accuracy class (cm) the calibrated strips must meet at the checkpoints (--class)
+    #: the ASPRS vertical accuracy class (cm) the calibrated strips must meet at the checkpoints
+    #: (--class)
     checkpoint_class_cm: float | None = None
 
     def __post_init__(self):
@@ -95,7 +114,8 @@ class StripConfig:
         # engine takes ``ingest`` as it stands
         s = self.calibration.solver
         if (self.ingest.cell_m, self.ingest.min_cells) != (s.overlap_cell_m, s.min_overlap_cells):
-            object.__setattr__(self, "ingest", replace(self.ingest, cell_m=s.overlap_cell_m, min_cells=s.min_overlap_cells))
+            ingest = replace(self.ingest, cell_m=s.overlap_cell_m, min_cells=s.min_overlap_cells)
+            object.__setattr__(self, "ingest", ingest)
 
     @property
     def points(self) -> PointOptions:
@@ -105,7 +125,8 @@ class StripConfig:
     def to_dict(self) -> dict:
         """The TOML file's document (user units; None values left out)."""
         c = self.calibration
-        doc = {"method": [m.name for m in c.matchers], "estimate": c.estimate.names(), "model_check": c.model_check}
+        doc = {"method": [m.name for m in c.matchers], "estimate": c.estimate.names(),
+               "model_check": c.model_check}
         if self.checkpoint_class_cm is not None:
             doc["checkpoint_class_cm"] = self.checkpoint_class_cm
         traj = {"on": c.trajectory is not None}
@@ -117,8 +138,9 @@ class StripConfig:
         doc["trajectory_model"] = traj
         # no TOML null: no robust loss is "none", no clusters 0
         a = c.solver.adjustment
-        doc["solver"] = {**_plain(c.solver), "cluster_s": c.solver.cluster_s or 0, "robust": a.robust or "none",
-                         **{k: v for k in ADJUSTMENT_KEYS[1:] if (v := getattr(a, k)) is not None}}
+        engine = {k: v for k in ADJUSTMENT_KEYS[1:] if (v := getattr(a, k)) is not None}
+        doc["solver"] = {**_plain(c.solver), "cluster_s": c.solver.cluster_s or 0,
+                         "robust": a.robust or "none", **engine}
         for m in c.matchers:
             doc[m.name] = {"threshold_m": m.threshold_m, **_plain(m.settings)}
         ingest = {k: getattr(self.ingest, f) for k, f in INGEST_KEYS.items()}
@@ -130,8 +152,8 @@ class StripConfig:
 
     def write(self, path: Path) -> Path:
         """Write the TOML file (atomically); returns its path."""
-        return write_document(path, self.to_dict(), "calidar boresight configuration: give it again with --config "
-                              "to repeat the run")
+        return write_document(path, self.to_dict(), "calidar boresight configuration: give it "
+                              "again with --config to repeat the run")
 
     @classmethod
     def read(cls, path: Path) -> StripConfig:
@@ -141,16 +163,14 @@ class StripConfig:
 
 def from_document(doc: dict, path: Path | None = None) -> StripConfig:
     """:class:`StripConfig` from a TOML document (:meth:`StripConfig.to_dict`'s layout)."""
-    from calidar.sensor import validated_crs
-
-    known = {"method", "estimate", "model_check", "checkpoint_class_cm", "trajectory_model", "solver", "ingest", "inputs", *MATCHERS}
-    _known(doc, known, path, "")
+    _known(doc, {*TOP_KEYS, *MATCHERS}, path, "")
     target = _typed(doc.get("checkpoint_class_cm"), float | None, path, "checkpoint_class_cm")
     estimate = _typed(doc.get("estimate", ["boresight"]), tuple[str, ...], path, "estimate")
     methods = _typed(doc.get("method", ["planes"]), tuple[str, ...], path, "method")
     for m in methods:
         if m not in MATCHERS:
-            raise InputError(path, "method", f"expected one or more of {', '.join(MATCHERS)}, got {m!r}")
+            raise InputError(path, "method",
+                             f"expected one or more of {', '.join(MATCHERS)}, got {m!r}")
     matchers = tuple(_matcher(MATCHERS[m], _table(doc, m, path), path) for m in methods)
     for m in set(MATCHERS) - set(methods):
         _matcher(MATCHERS[m], _table(doc, m, path), path)  # checked, though not used
@@ -158,39 +178,60 @@ def from_document(doc: dict, path: Path | None = None) -> StripConfig:
     solver = _solver(_table(doc, "solver", path), path)
     chosen = _build(path, "estimate", lambda: Estimate.of(*estimate))
     check = _typed(doc.get("model_check", True), bool, path, "model_check")
-    calibration = _build(path, "method", lambda: CalibrationConfig(chosen, matchers, trajectory, solver, check))
-    ingest = _table(doc, "ingest", path)
-    _known(ingest, set(INGEST_KEYS), path, "ingest.")
-    kw = {INGEST_KEYS[k]: _typed(v, typing.get_type_hints(IngestSettings)[INGEST_KEYS[k]], path, f"ingest.{k}")
-          for k, v in ingest.items()}
-    if kw.get("budget_points") == 0:
-        kw["budget_points"] = None
-    inputs = _table(doc, "inputs", path)
-    _known(inputs, set(INPUT_KEYS), path, "inputs.")
-    parts: dict[str, dict] = {"points": {}, "trajectory": {}, "config": {}}
-    hints = {"points": typing.get_type_hints(PointOptions), "trajectory": typing.get_type_hints(TrajectoryOptions)}
-    for k, v in inputs.items():
-        owner, name = INPUT_KEYS[k]
-        kind = (float | None if name == "control_sigma_m" else str | None) if owner == "config" or name == "crs" \
-            else hints[owner][name]
-        parts[owner][name] = _typed(v, kind, path, f"inputs.{k}")
-        if k.endswith("crs"):
-            validated_crs(v, str(path), f"inputs.{k}")
+    calibration = _build(path, "method",
+                         lambda: CalibrationConfig(chosen, matchers, trajectory, solver, check))
+    kw = _ingest_fields(_table(doc, "ingest", path), path)
+    parts = _input_fields(_table(doc, "inputs", path), path)
     points = _build(path, "inputs", lambda: PointOptions(**parts["points"]))
     ingest_options = _build(path, "ingest", lambda: IngestSettings(points=points, **kw))
     trajectory = _build(path, "inputs", lambda: TrajectoryOptions(**parts["trajectory"]))
-    return StripConfig(calibration, ingest_options, trajectory, **parts["config"], checkpoint_class_cm=target)
+    return StripConfig(calibration, ingest_options, trajectory, **parts["config"],
+                       checkpoint_class_cm=target)
+
+
+def _ingest_fields(ingest: dict, path) -> dict:
+    """[ingest]: the IngestSettings fields it sets (strip_points 0: every overlapping point)."""
+    _known(ingest, set(INGEST_KEYS), path, "ingest.")
+    hints = typing.get_type_hints(IngestSettings)
+    kw = {INGEST_KEYS[k]: _typed(v, hints[INGEST_KEYS[k]], path, f"ingest.{k}")
+          for k, v in ingest.items()}
+    if kw.get("budget_points") == 0:
+        kw["budget_points"] = None
+    return kw
+
+
+def _input_fields(inputs: dict, path) -> dict[str, dict]:
+    """[inputs]: the fields it sets of each owner of :data:`INPUT_KEYS` (points, trajectory,
+    config), each CRS checked."""
+    from calidar.sensor import validated_crs
+
+    _known(inputs, set(INPUT_KEYS), path, "inputs.")
+    parts: dict[str, dict] = {"points": {}, "trajectory": {}, "config": {}}
+    hints = {"points": typing.get_type_hints(PointOptions),
+             "trajectory": typing.get_type_hints(TrajectoryOptions)}
+    for k, v in inputs.items():
+        owner, name = INPUT_KEYS[k]
+        if owner == "config" or name == "crs":
+            kind = float | None if name == "control_sigma_m" else str | None
+        else:
+            kind = hints[owner][name]
+        parts[owner][name] = _typed(v, kind, path, f"inputs.{k}")
+        if k.endswith("crs"):
+            validated_crs(v, str(path), f"inputs.{k}")
+    return parts
 
 
 def _solver(table: dict, path) -> StripSettings:
-    """[solver]: StripSettings with the engine's SolverOptions (its :data:`ADJUSTMENT_KEYS`); "none" for
-    no robust loss and 0 for no clusters (TOML has no null)."""
+    """[solver]: StripSettings with the engine's SolverOptions (its :data:`ADJUSTMENT_KEYS`);
+    "none" for no robust loss and 0 for no clusters (TOML has no null)."""
     table = {**table, **({"robust": None} if table.get("robust") == "none" else {}),
              **({"cluster_s": None} if table.get("cluster_s") == 0 else {})}
     if table.get("robust", "cauchy") not in (None, "cauchy", "huber"):
-        raise InputError(path, "solver.robust", f"expected cauchy, huber or none, got {table['robust']!r}")
+        raise InputError(path, "solver.robust",
+                         f"expected cauchy, huber or none, got {table['robust']!r}")
     engine = {k: table.pop(k) for k in ADJUSTMENT_KEYS if k in table}
-    return _section(StripSettings, table, path, "solver", adjustment=_section(SolverOptions, engine, path, "solver"))
+    adjustment = _section(SolverOptions, engine, path, "solver")
+    return _section(StripSettings, table, path, "solver", adjustment=adjustment)
 
 
 def _trajectory(table: dict, path) -> TrajectorySettings | None:
@@ -198,19 +239,22 @@ def _trajectory(table: dict, path) -> TrajectorySettings | None:
     if not _typed(table.get("on", True), bool, path, "trajectory_model.on"):
         extra = sorted(set(table) - {"on"})
         if extra:
-            raise InputError(path, f"trajectory_model.{extra[0]}", "given with on = false; expected the model on or "
-                             "no trajectory-model settings")
+            raise InputError(path, f"trajectory_model.{extra[0]}", "given with on = false; "
+                             "expected the model on or no trajectory-model settings")
         return None
-    settings = _section(TrajectorySettings, {k: v for k, v in table.items() if k not in ("on", "sigma")}, path,
-                        "trajectory_model")
+    fields = {k: v for k, v in table.items() if k not in ("on", "sigma")}
+    settings = _section(TrajectorySettings, fields, path, "trajectory_model")
     if "sigma" not in table:
         return settings
     pos, att_deg = _typed(table["sigma"], tuple[float, float], path, "trajectory_model.sigma")
-    return _build(path, "trajectory_model.sigma", lambda: replace(settings, sigma=(pos, math.radians(att_deg))))
+    return _build(path, "trajectory_model.sigma",
+                  lambda: replace(settings, sigma=(pos, math.radians(att_deg))))
 
 
 def _matcher(cls: type, table: dict, path):
     settings_type = typing.get_type_hints(cls)["settings"]
     threshold = {k: v for k, v in table.items() if k == "threshold_m"}
-    settings = _section(settings_type, {k: v for k, v in table.items() if k != "threshold_m"}, path, cls.name)
-    return cls(settings, **{k: _typed(v, float, path, f"{cls.name}.{k}") for k, v in threshold.items()})
+    fields = {k: v for k, v in table.items() if k != "threshold_m"}
+    settings = _section(settings_type, fields, path, cls.name)
+    typed_threshold = {k: _typed(v, float, path, f"{cls.name}.{k}") for k, v in threshold.items()}
+    return cls(settings, **typed_threshold)

@@ -1,7 +1,8 @@
 """Per-point uncertainty (``calidar tpu``): each point's horizontal and vertical 1σ from the
 trajectory's accuracy, the sensor's noise, its footprint and the calibration's covariance
-(:mod:`calidar.tpu.propagate`), written as LAS extra bytes ``total_thu`` / ``total_tvu`` (metres,
-as cBLUE names them) beside a summary and a report. Streamed: memory does not grow with the files."""
+(:mod:`calidar.tpu.propagate`), written as LAS extra bytes ``total_thu`` / ``total_tvu``
+(metres, as cBLUE names them) beside a summary and a report. Streamed: memory does not grow with
+the files."""
 
 from __future__ import annotations
 
@@ -34,13 +35,14 @@ class FileTpu:
     sample: dict = field(repr=False, default_factory=dict)
 
     def to_dict(self) -> dict:
-        return {"file": str(self.path), "written": self.written.name, "points": self.n_points, "thu_m": self.thu,
-                "tvu_m": self.tvu, "tvu_by_scan_angle": self.tvu_by_scan_angle}
+        return {"file": str(self.path), "written": self.written.name, "points": self.n_points,
+                "thu_m": self.thu, "tvu_m": self.tvu, "tvu_by_scan_angle": self.tvu_by_scan_angle}
 
 
 def _percentiles(v: np.ndarray) -> dict:
     q = np.percentile(v, [50, 95]) if v.size else [np.nan, np.nan]
-    return {"median": float(q[0]), "p95": float(q[1]), "max": float(v.max()) if v.size else float("nan")}
+    largest = float(v.max()) if v.size else float("nan")
+    return {"median": float(q[0]), "p95": float(q[1]), "max": largest}
 
 
 class _Collector:
@@ -55,13 +57,16 @@ class _Collector:
         self.n += thu.size
 
     def sample(self) -> dict:
-        cat = [np.concatenate([p[k] for p in self.parts]) for k in range(4)] if self.parts else [np.zeros((0, 2))] + [
-            np.zeros(0)] * 3
+        if self.parts:
+            cat = [np.concatenate([p[k] for p in self.parts]) for k in range(4)]
+        else:
+            cat = [np.zeros((0, 2))] + [np.zeros(0)] * 3
         keep = self.rng.permutation(cat[1].size)[:SAMPLE_POINTS]
         return dict(zip(("xy", "thu", "tvu", "scan"), (c[keep] for c in cat)))
 
 
-def tpu_file(path: Path, out: Path, traj, sensor, accuracy, config: TpuConfig, calibration) -> FileTpu:
+def tpu_file(path: Path, out: Path, traj, sensor, accuracy, config: TpuConfig,
+             calibration) -> FileTpu:
     """One file: stream, propagate, write it with the extra bytes (see the module docstring)."""
     from calidar.ingest.rewrite import with_extra_bytes
     from calidar.io.las import las_header
@@ -74,16 +79,30 @@ def tpu_file(path: Path, out: Path, traj, sensor, accuracy, config: TpuConfig, c
     collect = _Collector(len(str(path)))
 
     def values(t, ecef, points):
-        thu, tvu = thu_tvu(point_covariance(traj, sensor, accuracy, t, ecef, config.noise, calibration))
-        scan = np.abs(points.scan_angle_deg) if points.scan_angle_deg is not None else np.full(thu.size, np.nan)
+        cov = point_covariance(traj, sensor, accuracy, t, ecef, config.noise, calibration)
+        thu, tvu = thu_tvu(cov)
+        if points.scan_angle_deg is not None:
+            scan = np.abs(points.scan_angle_deg)
+        else:
+            scan = np.full(thu.size, np.nan)
         collect.add(points.xyz[:, :2], thu, tvu, scan)
         return {"total_thu": thu, "total_tvu": tvu}
 
     n = with_extra_bytes(path, out, EXTRA_BYTES, traj, week, values, config.points, CHUNK_POINTS)
     s = collect.sample()
-    bins = [{"scan_angle_deg": [lo, hi], "points_in_sample": int(m.sum()), **_percentiles(s["tvu"][m])}
-            for lo, hi in zip(SCAN_BINS_DEG[:-1], SCAN_BINS_DEG[1:]) if (m := (s["scan"] >= lo) & (s["scan"] < hi)).any()]
-    return FileTpu(path, out, n, _percentiles(s["thu"]), _percentiles(s["tvu"]), bins, s)
+    return FileTpu(path, out, n, _percentiles(s["thu"]), _percentiles(s["tvu"]), _scan_bins(s), s)
+
+
+def _scan_bins(s: dict) -> list[dict]:
+    """The TVU percentiles (m) of a file's sample ``s`` in each bin of |scan angle|
+    (:data:`SCAN_BINS_DEG`) that holds points."""
+    bins = []
+    for lo, hi in zip(SCAN_BINS_DEG[:-1], SCAN_BINS_DEG[1:]):
+        m = (s["scan"] >= lo) & (s["scan"] < hi)
+        if m.any():
+            bins.append({"scan_angle_deg": [lo, hi], "points_in_sample": int(m.sum()),
+                         **_percentiles(s["tvu"][m])})
+    return bins
 
 
 def load_calibration(path: Path | None, sensor):
@@ -96,13 +115,14 @@ def load_calibration(path: Path | None, sensor):
     return CalibrationCovariance(*read_calibration_covariance(path, set(sensor.parameters())))
 
 
-def run_tpu(points: list[Path], trajectory: Path, sensor_path: Path, out_dir: Path, config: TpuConfig = TpuConfig(),
-            *, accuracy: Path | None = None, calibration: Path | None = None,
+def run_tpu(points: list[Path], trajectory: Path, sensor_path: Path, out_dir: Path,
+            config: TpuConfig = TpuConfig(), *, accuracy: Path | None = None,
+            calibration: Path | None = None,
             progress: Progress = no_progress) -> list[FileTpu]:
     """Every file of ``points`` with per-point THU/TVU into ``out_dir`` (same names), ``tpu.json``,
-    ``config.toml`` and ``report.html``. ``accuracy``: the trajectory's smrmsg file (default: found beside
-    an sbet*.out); ``calibration``: a calidar solution.json whose covariance is propagated. Returns the
-    per-file summaries."""
+    ``config.toml`` and ``report.html``. ``accuracy``: the trajectory's smrmsg file (default: found
+    beside an sbet*.out); ``calibration``: a calidar solution.json whose covariance is propagated.
+    Returns the per-file summaries."""
     import json
 
     from calidar.outputs import write_text_atomic
@@ -112,14 +132,16 @@ def run_tpu(points: list[Path], trajectory: Path, sensor_path: Path, out_dir: Pa
 
     names = [Path(p).name for p in points]
     if len(set(names)) != len(names):
-        raise InputError(None, "POINTS", f"expected distinct file names (outputs share the folder), got {names}")
+        raise InputError(None, "POINTS",
+                         f"expected distinct file names (outputs share the folder), got {names}")
     sensor = Sensor.read(sensor_path)
     traj = load_trajectory(trajectory, config.trajectory_input)
     stated, _, note = resolve_accuracy(Path(trajectory), traj, accuracy, config.trajectory_sigma)
     covariance = load_calibration(calibration, sensor)
     results = []
     for k, p in enumerate(points):
-        results.append(tpu_file(Path(p), Path(out_dir) / Path(p).name, traj, sensor, stated, config, covariance))
+        out = Path(out_dir) / Path(p).name
+        results.append(tpu_file(Path(p), out, traj, sensor, stated, config, covariance))
         progress("per-point uncertainty", k + 1, len(points))
     doc = {"accuracy": stated.to_dict(), "accuracy_note": note,
            "settings": {k: float(v) for k, v in config.noise.__dict__.items()},

@@ -1,8 +1,9 @@
-"""The configuration of a per-point uncertainty run (``calidar tpu``) as one typed value, and its TOML
-file: written beside the results (``config.toml``) and given again with ``--config`` to repeat the run.
-In SI units, as the run used them to the last digit::
+"""The configuration of a per-point uncertainty run (``calidar tpu``) as one typed value, and its
+TOML file: written beside the results (``config.toml``) and given again with ``--config`` to repeat
+the run. In SI units, as the run used them to the last digit::
 
-    trajectory_sigma = [0.05, 8.726646259971648e-05]   # position m, attitude rad (absent: the accuracy file's)
+    trajectory_sigma = [0.05, 8.726646259971648e-05]   # position m, attitude rad
+                                                       # (absent: the accuracy file's)
 
     [noise]                    # calidar.tpu.propagate.TpuSettings
     range_sigma_m = 0.01
@@ -11,7 +12,8 @@ In SI units, as the run used them to the last digit::
     normal_cell_m = 2.0
 
     [inputs]                   # crs, time_system, geoid_undulation_m (the points), trajectory_crs,
-                               # trajectory_angles, trajectory_heading, trajectory_columns (a text trajectory)
+                               # trajectory_angles, trajectory_heading, trajectory_columns
+                               # (a text trajectory)
 
 A key left out takes its default; an unknown key or a value of the wrong type or range is an error
 naming the file and the key.
@@ -21,9 +23,11 @@ naming the file and the key.
 >>> config = TpuConfig(TpuSettings(range_sigma_m=0.02), trajectory_sigma=(0.05, 1e-4))
 >>> TpuConfig.read(config.write(Path(tempfile.mkdtemp()) / "config.toml")) == config
 True
->>> TpuConfig(TpuSettings(range_sigma_m=-0.01))
-Traceback (most recent call last):
-calidar.errors.InputError: noise.range_sigma_m (--range-sigma): expected a finite number in [0, 10] m, got -0.01
+>>> try:
+...     TpuConfig(TpuSettings(range_sigma_m=-0.01))
+... except InputError as e:
+...     print(e)
+noise.range_sigma_m (--range-sigma): expected a finite number in [0, 10] m, got -0.01
 """
 
 from __future__ import annotations
@@ -45,21 +49,23 @@ NOISE_RANGES = {"range_sigma_m": ("--range-sigma", "m", 1.0, 0.0, 10.0),
                 "angle_sigma_rad": ("--angle-sigma", "deg", math.pi / 180.0, 0.0, 5.0),
                 "beam_divergence_rad": ("--beam-divergence", "mrad", 1e-3, 0.0, 50.0),
                 "normal_cell_m": (None, "m", 1.0, 0.01, 1000.0)}
-CHOICES = {"angles": ("deg", "rad"), "heading": ("true", "grid")}  #: TrajectoryOptions' fields with their choices
+#: TrajectoryOptions' fields with their choices
+CHOICES = {"angles": ("deg", "rad"), "heading": ("true", "grid")}
 
 
 @dataclass(frozen=True)
 class TpuConfig(FileConfig):
-    """What ``calidar tpu`` takes besides its files: the sensor's noise (SI), one trajectory σ for every
-    epoch (position m, attitude rad; None: the trajectory's accuracy file), how the points and a text
-    trajectory are read; every value checked when made.
+    """What ``calidar tpu`` takes besides its files: the sensor's noise (SI), one trajectory σ for
+    every epoch (position m, attitude rad; None: the trajectory's accuracy file), how the points and
+    a text trajectory are read; every value checked when made.
 
     >>> TpuConfig(trajectory_sigma=(0.05, 1e-4)).to_dict()["trajectory_sigma"]
     [0.05, 0.0001]
     """
 
     KEYS = (Key("trajectory_sigma", "trajectory_sigma", "--trajectory-sigma"),
-            *(Key(f"noise.{k}", f"noise.{k}", option) for k, (option, *_) in NOISE_RANGES.items()),
+            *(Key(f"noise.{k}", f"noise.{k}", option)
+              for k, (option, *_) in NOISE_RANGES.items()),
             *point_keys("points"), *trajectory_keys("trajectory_input"))
     COMMAND = "tpu"
 
@@ -75,10 +81,13 @@ class TpuConfig(FileConfig):
         if self.trajectory_sigma is not None:
             where = "trajectory_sigma (--trajectory-sigma)"
             if len(self.trajectory_sigma) != 2:
-                raise InputError(None, where, f"expected 2 values (position m, attitude rad), got {self.trajectory_sigma}")
-            number(self.trajectory_sigma[0], None, 0.0, MAX_POSITION_SIGMA_M, "m", field=where, open_lo=True)
-            number(self.trajectory_sigma[1], None, 0.0, MAX_ATTITUDE_SIGMA_RAD, "rad", field=where, open_lo=True)
+                raise InputError(None, where, "expected 2 values (position m, attitude rad), got "
+                                 f"{self.trajectory_sigma}")
+            position, attitude = self.trajectory_sigma
+            number(position, None, 0.0, MAX_POSITION_SIGMA_M, "m", field=where, open_lo=True)
+            number(attitude, None, 0.0, MAX_ATTITUDE_SIGMA_RAD, "rad", field=where, open_lo=True)
         for name, choices in CHOICES.items():
             value = getattr(self.trajectory_input, name)
             if value is not None and value not in choices:
-                raise InputError(None, f"--trajectory-{name}", f"expected {' or '.join(choices)}, got {value!r}")
+                raise InputError(None, f"--trajectory-{name}",
+                                 f"expected {' or '.join(choices)}, got {value!r}")

@@ -1,5 +1,6 @@
-"""The configuration of ``calidar trajectory`` as one typed value, and its TOML file (``<name>.config.toml``
-beside the trajectory written; ``--config`` repeats the run). SI, as the run used them::
+"""The configuration of ``calidar trajectory`` as one typed value, and its TOML file
+(``<name>.config.toml`` beside the trajectory written; ``--config`` repeats the run). SI, as the run
+used them::
 
     rate_hz = 50.0
     points_per_s = 600.0
@@ -8,7 +9,8 @@ beside the trajectory written; ``--config`` repeats the run). SI, as the run use
     planar_scanner = true
     scan_plane_yaw_rad = 0.0
 
-    [mount_sigma]              # prior σ of calidar.trajrec.mounting.NAMES (--encoder-sigma, --scan-plane-sigma)
+    [mount_sigma]              # prior σ of calidar.trajrec.mounting.NAMES (--encoder-sigma,
+                               # --scan-plane-sigma)
     scan_offset_rad = 0.0017453292519943296
     scan_scale = 0.003
     ...
@@ -34,7 +36,8 @@ from calidar.pipelines.config_file import FileConfig, Key, point_keys
 from calidar.pipelines.trajectory import TrajectorySettings
 from calidar.trajrec.mounting import NAMES
 
-#: calidar.trajrec.mounting.NAMES → (TOML key, the option giving it, the option's unit in SI, its largest value)
+#: calidar.trajrec.mounting.NAMES → (TOML key, the option giving it, the option's unit in SI, its
+#: largest value)
 MOUNT_KEYS = {"scan_offset": ("scan_offset_rad", "--encoder-sigma", math.radians(1.0)),
               "scan_scale": ("scan_scale", "--encoder-sigma", 0.01),
               "scan_plane_yaw": ("scan_plane_yaw_rad", "--scan-plane-sigma", math.radians(1.0)),
@@ -46,8 +49,8 @@ MOUNT_MAX = 10.0  #: the largest prior σ, in the options' units (deg, %)
 
 @dataclass(frozen=True)
 class TrajectoryConfig(FileConfig):
-    """What ``calidar trajectory`` takes besides its files: the reconstruction's settings and how the points
-    are read."""
+    """What ``calidar trajectory`` takes besides its files: the reconstruction's settings and how
+    the points are read."""
 
     KEYS = (Key("rate_hz", "settings.rate_hz", "--rate"),
             Key("points_per_s", "settings.points_per_s", "--points-per-second"),
@@ -55,7 +58,8 @@ class TrajectoryConfig(FileConfig):
             Key("use_scan_angles", "settings.fit.use_scan_angles", "--no-scan-angles"),
             Key("planar_scanner", "settings.fit.planar_scanner", "--scanner"),
             Key("scan_plane_yaw_rad", "settings.fit.scan_plane_yaw", "--scan-plane-yaw"),
-            *(Key(f"mount_sigma.{key}", f"settings.fit.mount_sigma.{NAMES.index(name)}", option, float)
+            *(Key(f"mount_sigma.{key}", f"settings.fit.mount_sigma.{NAMES.index(name)}", option,
+                  float)
               for name, (key, option, _) in MOUNT_KEYS.items()),
             *point_keys())
     COMMAND = "trajectory"
@@ -73,6 +77,8 @@ class TrajectoryConfig(FileConfig):
         number(s.fit.knot_s, "--knot-spacing", 0.02, 10.0, "s")
         number(s.fit.scan_plane_yaw, "--scan-plane-yaw", -math.pi / 2, math.pi / 2, "rad")
         if len(s.fit.mount_sigma) != len(NAMES):
-            raise InputError(None, "--encoder-sigma", f"expected {len(NAMES)} prior σ, got {len(s.fit.mount_sigma)}")
+            raise InputError(None, "--encoder-sigma",
+                             f"expected {len(NAMES)} prior σ, got {len(s.fit.mount_sigma)}")
         for name, (_, option, unit) in MOUNT_KEYS.items():
-            number(s.fit.mount_sigma[NAMES.index(name)], option, 0.0, MOUNT_MAX * unit, "" if name == "scan_scale" else "rad")
+            sigma = s.fit.mount_sigma[NAMES.index(name)]
+            number(sigma, option, 0.0, MOUNT_MAX * unit, "" if name == "scan_scale" else "rad")

@@ -38,14 +38,14 @@ from numba import njit
 
 from calidar import georef
 from calidar.cells import group_cells
-from calidar.crs import _moved, to_crs
-from calidar.georef import _pose, lidar_point
+from calidar.crs import tile_moved, to_crs
+from calidar.georef import lidar_point, pose
 from calidar.io.las_write import SCAN_ANGLE_STEP_DEG, LasChunkWriter
 from calidar.sim.motion import accuracy_epochs, fly, measured_trajectory, trajectory_sigma
 from calidar.sim.patterns import scan_angles
 from calidar.sim.scene import CLASS_BUILDING, CLASS_GROUND, Scene
 from calidar.sim.survey import (GPS_WEEK_START_S, SIMULATION_DATE, STRIP_ERRORS, SurveyConfig,
-                                SurveyResult, _lines, check_config, utm_crs)
+                                SurveyResult, check_config, survey_lines, utm_crs)
 from calidar.sensor import Sensor
 from calidar.trajectory import Trajectory
 from calidar.trajectory_accuracy import TrajectoryAccuracy
@@ -132,7 +132,7 @@ def _shoot_kernel(tt, pos, q, t, u, r_bs, lever, r_e_enu, origin, base, top, blo
     no_lever = np.zeros(3)
     for k in range(t.size):
         n_out += not tt[0] <= t[k] <= tt[tt.size - 1]
-        i, i_prev, theta, s, sign, px, py, pz, r00, r01, r02, r10, r11, r12, r20, r21, r22 = _pose(
+        i, i_prev, theta, s, sign, px, py, pz, r00, r01, r02, r10, r11, r12, r20, r21, r22 = pose(
             tt, pos, q, t[k], i, i_prev, theta, s, sign)
         ax, ay, az = lidar_point(0.0, 0.0, 0.0, r_bs, lever, px, py, pz,
                                  r00, r01, r02, r10, r11, r12, r20, r21, r22)
@@ -209,7 +209,7 @@ def plan_large_survey(cfg: SurveyConfig, ground: FacetGround | None = None) -> L
     nominal = replace(cfg.nominal, crs=crs)
     params = nominal.parameters()
     truth = nominal.with_parameters(**{k: params[k] + v for k, v in cfg.errors.items()})
-    lines = _lines(cfg, scene, nominal)
+    lines = survey_lines(cfg, scene, nominal)
     traj_true, windows = fly(scene, lines, cfg.motion, rng_motion, GPS_WEEK_START_S)
     strip_errors = [{k: rng_strip.normal(0.0, sigma, 3)
                      for k, sigma in zip(STRIP_ERRORS, cfg.strip_error_sigma)} for _ in lines]
@@ -269,7 +269,7 @@ def tiled_to_crs(ecef: np.ndarray, key_xy: np.ndarray, crs: str,
     rows, anchor = group_cells(np.floor(key_xy / tile_m).astype(np.int64))
     at = to_crs(ecef[anchor], crs)
     jac = np.stack([to_crs(ecef[anchor] + step, crs) - at for step in np.eye(3)], axis=2)
-    return _moved(at[rows], jac, rows, ecef - ecef[anchor][rows])
+    return tile_moved(at[rows], jac, rows, ecef - ecef[anchor][rows])
 
 
 def las_record(header: laspy.LasHeader, xyz: np.ndarray, chunk: dict,

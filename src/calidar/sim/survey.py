@@ -269,7 +269,7 @@ def simulate_survey(cfg: SurveyConfig,
     nominal = replace(cfg.nominal, crs=crs)
     params = nominal.parameters()
     truth = nominal.with_parameters(**{k: params[k] + v for k, v in cfg.errors.items()})
-    lines = _lines(cfg, scene, nominal)
+    lines = survey_lines(cfg, scene, nominal)
     traj_true, windows = fly(scene, lines, cfg.motion, rng_motion, GPS_WEEK_START_S)
     _check_pulses(cfg, windows, one_strip=on_strip is not None)
     strip_errors = [{k: rng_strip.normal(0.0, sigma, 3)
@@ -295,7 +295,7 @@ def simulate_survey(cfg: SurveyConfig,
                         strip_errors, accuracy, streamed)
 
 
-def _lines(cfg: SurveyConfig, scene: Scene, nominal: Sensor) -> list[FlightLine]:
+def survey_lines(cfg: SurveyConfig, scene: Scene, nominal: Sensor) -> list[FlightLine]:
     """The lines to fly: ``cfg.lines``, else the plan over the scene at the configured height,
     overlap and directions (the swath from the scanner's half field of view)."""
     if cfg.lines:

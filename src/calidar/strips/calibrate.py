@@ -12,9 +12,10 @@ An outer loop as in ICP (Besl & McKay 1992) around the one adjustment engine:
 4. repeat until the mean correspondence distance changes by less than ``threshold_m``; then
    refine the last adjustment to :data:`FINAL_STEP_IN_SIGMA` and compute its σ, once.
 
-Steps 1–4 are :mod:`calidar.strips.outer_loop` (one run's fixed inputs, :class:`calidar.strips.outer_loop.Run`, and
-the loop); here the calibration around it: the parameters, the trajectory accuracy estimated from the overlaps, the
-last refinement, the model check and the :class:`CalibrationResult`.
+Steps 1–4 are :mod:`calidar.strips.outer_loop` (one run's fixed inputs,
+:class:`calidar.strips.outer_loop.Run`, and the loop); here the calibration around it: the
+parameters, the trajectory accuracy estimated from the overlaps, the last refinement, the model
+check and the :class:`CalibrationResult`.
 
 The parameters are in :mod:`calidar.strips.parameters`, the residuals and Jacobian in
 :mod:`calidar.strips.problem`, the trajectory corrections in
@@ -55,9 +56,9 @@ from calidar.strips.trajectory_errors import PREFIX as TRAJECTORY_PREFIX
 from calidar.strips.trajectory_errors import StripCorrection, TrajectoryModel, corrections
 from calidar.strips.trajectory_level import carry_uncertainty
 
-#: the last outer iteration's adjustment (stopped at OUTER_STEP_IN_SIGMA of its σ) is refined until every step (of
-#: ~1 500 parameters with the trajectory model) is below this fraction of its σ — the boresight then moves by < 1e-3 σ
-#: more (8.75 M-point survey: 4 LM iterations fewer than at 1e-3 σ)
+#: the last outer iteration's adjustment (stopped at OUTER_STEP_IN_SIGMA of its σ) is refined until
+#: every step (of ~1 500 parameters with the trajectory model) is below this fraction of its σ — the
+#: boresight then moves by < 1e-3 σ more (8.75 M-point survey: 4 LM iterations fewer than at 1e-3 σ)
 FINAL_STEP_IN_SIGMA = 0.01
 
 
@@ -77,7 +78,8 @@ class CalibrationResult:
     outer: list[dict]  #: per outer iteration: mean distance, observations, values (SI)
     corrections: dict[int, StripCorrection]  #: estimated trajectory corrections per strip
     trajectory_model: TrajectoryModel | None = None  #: the corrections' model (None: not estimated)
-    row_sigma: np.ndarray | None = field(default=None, repr=False)  #: a-priori σ of residuals_after, m
+    #: a-priori σ of residuals_after, m
+    row_sigma: np.ndarray | None = field(default=None, repr=False)
 
     @property
     def method(self) -> str:
@@ -89,10 +91,11 @@ class CalibrationResult:
         return self.solution.warnings
 
     def max_trajectory_shift_m(self) -> float:
-        """The largest estimated trajectory shift at any knot (m; 0 without trajectory corrections)."""
+        """The largest estimated trajectory shift at any knot (m; 0 without corrections)."""
         return max((float(np.abs(c.shift).max()) for c in self.corrections.values()), default=0.0)
 
-    def georeference(self, strip: Strip, calibrated: bool = True, index=None, trajectory: bool = True) -> np.ndarray:
+    def georeference(self, strip: Strip, calibrated: bool = True, index=None,
+                     trajectory: bool = True) -> np.ndarray:
         """A strip's points (local m) with the calibrated (or nominal) sensor and, when
         ``trajectory``, its trajectory correction."""
         if not calibrated:
@@ -102,16 +105,20 @@ class CalibrationResult:
         return georeference(self.sensor, fix, pose, strip.time[pose.index])
 
 
-def calibrate(strips: Sequence[Strip], nominal: Sensor, config: CalibrationConfig = CalibrationConfig(), *,
-              scheduler: str | None = None, workers: int | None = None, **options) -> CalibrationResult:
+def calibrate(strips: Sequence[Strip], nominal: Sensor,
+              config: CalibrationConfig = CalibrationConfig(), *,
+              scheduler: str | None = None, workers: int | None = None,
+              **options) -> CalibrationResult:
     """:func:`calibrate_with_client` with ONE Dask client (``scheduler`` address or a LocalCluster
     of ``workers`` processes, None: in-process) for every outer iteration's pair matching."""
     with cluster_client(scheduler, workers) as client:
         return calibrate_with_client(strips, nominal, config, client=client, **options)
 
 
-def calibrate_with_client(strips: Sequence[Strip], nominal: Sensor, config: CalibrationConfig = CalibrationConfig(),
-                          *, matcher: Matcher | None = None, trajectory: TrajectoryModel | None = None, client=None,
+def calibrate_with_client(strips: Sequence[Strip], nominal: Sensor,
+                          config: CalibrationConfig = CalibrationConfig(),
+                          *, matcher: Matcher | None = None,
+                          trajectory: TrajectoryModel | None = None, client=None,
                           progress: Callable[[str, int, int], None] | None = None, log=None,
                           control: ControlPoints | None = None) -> CalibrationResult:
     """Calibrate the sensor from overlapping strips (all in one :class:`LocalFrame`).
@@ -135,7 +142,8 @@ def calibrate_with_client(strips: Sequence[Strip], nominal: Sensor, config: Cali
     params = build_parameters(nominal, config.estimate, run.spans, trajectory,
                               run.headings() if trajectory is not None else None)
     params = with_survey_parameters(params, control)
-    processes = pair_processes(PROCESSES if client is None and getattr(matcher, "holds_gil", False) else 1)
+    in_processes = client is None and getattr(matcher, "holds_gil", False)
+    processes = pair_processes(PROCESSES if in_processes else 1)
     with processes as pool:
         outer, est, problem, corrs, pairs, first_residuals, first_control = outer_loop(
             run, params, client, say, log, pool, threshold_m)
@@ -150,31 +158,38 @@ def calibrate_with_client(strips: Sequence[Strip], nominal: Sensor, config: Cali
     if config.model_check:
         say("model check: freeing the parameters not estimated", s.max_outer, s.max_outer)
         solution.extra["model_check"] = run.model_check(est, problem, corrs, solution)
-    outer[-1].update(mean_distance_m=mean_distance(problem, est.r), solver_iterations=len(est.history) - 1,
-                     solve_s=outer[-1]["solve_s"] + time.perf_counter() - clock, values=est.parameters.values())
+    outer[-1].update(mean_distance_m=mean_distance(problem, est.r),
+                     solver_iterations=len(est.history) - 1,
+                     solve_s=outer[-1]["solve_s"] + time.perf_counter() - clock,
+                     values=est.parameters.values())
     say("calibrated", s.max_outer, s.max_outer)
     if run.control is not None:
-        solution.extra["control"] = control_summary(run.control, first_control,
-                                                    control_rows(problem, problem(solution.parameters.values())))
+        final_rows = control_rows(problem, problem(solution.parameters.values()))
+        solution.extra["control"] = control_summary(run.control, first_control, final_rows)
     return _result(run, solution, problem, pairs, outer, first_residuals, strips)
 
 
-def _trajectory_level(run: Run, est: Estimate, corrs: list[Correspondences], say) -> tuple[Estimate, StripProblem]:
+def _trajectory_level(run: Run, est: Estimate, corrs: list[Correspondences],
+                      say) -> tuple[Estimate, StripProblem]:
     """No accuracy file: the trajectory priors' level estimated from the overlaps
     (:mod:`calidar.strips.trajectory_level`), the model's accuracy replaced by it and the last
     matching adjusted again with those priors."""
     from calidar.strips.trajectory_level import estimate_level
 
-    say("estimating the trajectory's accuracy from the overlaps", run.settings.max_outer, run.settings.max_outer)
-    run.level = estimate_level(est, run.model.accuracy, run.model.layout(run.spans), run.model.knot_times(run.spans))
+    say("estimating the trajectory's accuracy from the overlaps", run.settings.max_outer,
+        run.settings.max_outer)
+    run.level = estimate_level(est, run.model.accuracy, run.model.layout(run.spans),
+                               run.model.knot_times(run.spans))
     run.model = replace(run.model, accuracy=run.level.accuracy, estimate_level=False)
     sigma = {p.name: p.prior_sigma for p in run.model.parameters(run.spans, run.headings())}
-    params = ParameterSet(replace(p, prior_sigma=sigma[p.name]) if p.name in sigma else p for p in est.parameters)
+    params = ParameterSet(replace(p, prior_sigma=sigma[p.name]) if p.name in sigma else p
+                          for p in est.parameters)
     return run.solve(corrs, params, OUTER_STEP_IN_SIGMA, None)
 
 
-def _result(run: Run, solution: Solution, problem: StripProblem, pairs: list[dict], outer: list[dict],
-            first_residuals: np.ndarray, strips: Sequence[Strip]) -> CalibrationResult:
+def _result(run: Run, solution: Solution, problem: StripProblem, pairs: list[dict],
+            outer: list[dict], first_residuals: np.ndarray,
+            strips: Sequence[Strip]) -> CalibrationResult:
     """The last solve as a :class:`CalibrationResult`: canonical values, "before" statistics from
     the first matching at the nominal sensor, warnings, the outer loop's record."""
     canonical_eccentricity(solution)
@@ -183,17 +198,23 @@ def _result(run: Run, solution: Solution, problem: StripProblem, pairs: list[dic
     # from the previous outer iteration's values)
     solution.residuals_before = residual_stats(first_residuals)
     if run.model is not None or run.control is not None:
-        prefixes = ((TRAJECTORY_PREFIX,) if run.model is not None else ()) + ((CONTROL_PREFIX,) if run.control is not None else ())
+        prefixes = (((TRAJECTORY_PREFIX,) if run.model is not None else ())
+                    + ((CONTROL_PREFIX,) if run.control is not None else ()))
         solution.nuisance_prefix = prefixes[0] if len(prefixes) == 1 else prefixes
     if run.level is not None:
         solution.extra["trajectory_accuracy_estimate"] = run.level.to_dict()
     used_pairs = [(p["a"], p["b"]) for p in pairs]
-    solution.warnings = run.warnings + geometry_warnings([run.by_id[i] for i in problem.index if i != CONTROL_ID], used_pairs,
-                                                         params.free_names) + solution.warnings
-    sensor, fix = sensor_of(run.nominal, params.values()), corrections(params.values(), run.model, run.spans)
+    adjusted = [run.by_id[i] for i in problem.index if i != CONTROL_ID]
+    solution.warnings = (run.warnings + geometry_warnings(adjusted, used_pairs, params.free_names)
+                         + solution.warnings)
+    sensor = sensor_of(run.nominal, params.values())
+    fix = corrections(params.values(), run.model, run.spans)
     fix = with_height_bias(fix, params.values().get("height_bias", 0.0), run.spans)
-    solution.extra["strips"] = {"method": run.matcher.name, "robust": run.settings.robust, "pairs": pairs, "outer_iterations": [
-        {kk: v for kk, v in o.items() if kk != "values"} for o in outer],
+    iterations = [{kk: v for kk, v in o.items() if kk != "values"} for o in outer]
+    solution.extra["strips"] = {
+        "method": run.matcher.name, "robust": run.settings.robust, "pairs": pairs,
+        "outer_iterations": iterations,
         "row_dof": dof_summary(np.concatenate([rows_dof(c) for c in problem.corrs]))}
-    return CalibrationResult(solution, sensor, run.nominal, list(strips), run.overlaps, run.matcher, pairs,
-                             first_residuals, solution.residuals, outer, fix, run.model, problem.sigma)
+    return CalibrationResult(solution, sensor, run.nominal, list(strips), run.overlaps, run.matcher,
+                             pairs, first_residuals, solution.residuals, outer, fix, run.model,
+                             problem.sigma)

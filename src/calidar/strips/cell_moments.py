@@ -28,7 +28,7 @@ PRODUCTS = ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))
 
 
 def key_indices(keys: np.ndarray) -> np.ndarray:
-    """Integer grid indices (K, 2) (i east, j north) of :func:`calidar.strips.overlap.cell_keys` keys."""
+    """Grid indices (K, 2) (i east, j north) of :func:`calidar.strips.overlap.cell_keys` keys."""
     i = keys >> 32
     j = keys & 0xFFFFFFFF
     j = np.where(j >= 2**31, j - 2**32, j)
@@ -53,12 +53,14 @@ class CellMoments:
 
     @classmethod
     def empty(cls, cell_m: float) -> "CellMoments":
-        return cls(float(cell_m), np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros((0, 3)), np.zeros((0, 6)))
+        return cls(float(cell_m), np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros((0, 3)),
+                   np.zeros((0, 6)))
 
     @classmethod
     def of_points(cls, points: np.ndarray, cell_m: float) -> "CellMoments":
-        """Moments of points (N, 3) m, z up (:func:`calidar.cells.group_cells`, then two passes to sum;
-        one numba kernel when the cells fit a dense table: :mod:`calidar.strips.moments_kernel`)."""
+        """Moments of points (N, 3) m, z up (:func:`calidar.cells.group_cells`, then two passes to
+        sum; one numba kernel when the cells fit a dense table:
+        :mod:`calidar.strips.moments_kernel`)."""
 
         p = np.ascontiguousarray(points, float)
         fused = dense_moments(p, cell_m)
@@ -87,7 +89,8 @@ class CellMoments:
         if len(parts) == 1:
             return parts[0]
         if len({p.cell_m for p in parts}) > 1:
-            raise ValueError(f"cannot merge moments on cells of {sorted({p.cell_m for p in parts})} m")
+            raise ValueError("cannot merge moments on cells of "
+                             f"{sorted({p.cell_m for p in parts})} m")
         return _combine(parts[0].cell_m, *(np.concatenate([getattr(p, f) for p in parts])
                                            for f in ("keys", "count", "mean", "scatter")))
 
@@ -97,14 +100,16 @@ class CellMoments:
 
     def save(self, path) -> None:
         """To an .npy file of ``path`` (one record array, read back by :meth:`load`)."""
-        np.save(path, np.column_stack([self.keys.view(np.float64), self.count.view(np.float64), self.mean,
-                                       self.scatter]), allow_pickle=False)
+        table = np.column_stack([self.keys.view(np.float64), self.count.view(np.float64),
+                                 self.mean, self.scatter])
+        np.save(path, table, allow_pickle=False)
 
     @classmethod
     def load(cls, path, cell_m: float) -> "CellMoments":
         a = np.load(path, allow_pickle=False)
         return cls(float(cell_m), np.ascontiguousarray(a[:, 0]).view(np.int64),
-                   np.ascontiguousarray(a[:, 1]).view(np.int64), a[:, 2:5].copy(), a[:, 5:11].copy())
+                   np.ascontiguousarray(a[:, 1]).view(np.int64), a[:, 2:5].copy(),
+                   a[:, 5:11].copy())
 
     def __len__(self) -> int:
         return self.keys.size
@@ -127,7 +132,8 @@ class CellMoments:
 
     def centroid(self) -> np.ndarray:
         """Means (K, 3) in the points' coordinates, m."""
-        return self.mean + np.column_stack([cell_centres(self.keys, self.cell_m), np.zeros(len(self))])
+        return self.mean + np.column_stack([cell_centres(self.keys, self.cell_m),
+                                            np.zeros(len(self))])
 
     def covariance(self) -> np.ndarray:
         """Covariances (K, 3, 3) m² of the points of each cell (divided by n)."""
@@ -137,7 +143,8 @@ class CellMoments:
         return cov
 
     def select(self, index) -> "CellMoments":
-        return CellMoments(self.cell_m, self.keys[index], self.count[index], self.mean[index], self.scatter[index])
+        return CellMoments(self.cell_m, self.keys[index], self.count[index], self.mean[index],
+                           self.scatter[index])
 
 
 def cell_centres(keys: np.ndarray, cell_m: float) -> np.ndarray:
@@ -152,7 +159,8 @@ def _combine(cell_m: float, keys, count, mean, scatter) -> CellMoments:
         order = np.argsort(keys)
         return CellMoments(cell_m, keys[order], count[order], mean[order], scatter[order])
     n = np.bincount(inv, count, uk.size)
-    m = np.stack([np.bincount(inv, count * mean[:, k], uk.size) for k in range(3)], axis=1) / n[:, None]
+    sums = np.stack([np.bincount(inv, count * mean[:, k], uk.size) for k in range(3)], axis=1)
+    m = sums / n[:, None]
     d = mean - m[inv]
     s = np.stack([np.bincount(inv, scatter[:, k] + count * d[:, a] * d[:, b], uk.size)
                   for k, (a, b) in enumerate(PRODUCTS)], axis=1)

@@ -51,8 +51,9 @@ class ControlPlanes:
     label: ClassVar[str] = "control planes"
     words: ClassVar[str] = "control planes"
     row_noun: ClassVar[str] = "control plane"
-    dz_meaning: ClassVar[str] = ("(dz: the strip's points on the patch minus the surveyed plane, vertically; σ: the "
-                                 "plane's survey σ there and the points' scatter)")
+    dz_meaning: ClassVar[str] = ("(dz: the strip's points on the patch minus the surveyed plane, "
+                                 "vertically; σ: the plane's survey σ there and the points' "
+                                 "scatter)")
     how_to_give: ClassVar[str] = "surveyed planes: plane, x, y, z, sigma"
     reaches_beyond_strips: ClassVar[bool] = False
     accepts: ClassVar = staticmethod(is_plane_file)  #: a CSV whose header names a plane column
@@ -73,7 +74,8 @@ class ControlPlanes:
     @classmethod
     def from_file(cls, f, local: np.ndarray) -> ControlPlanes:
         """The planes of a :class:`calidar.io.control_planes.ControlPlaneFile` whose points are at
-        ``local`` (N, 3) m in the strips' frame; each checked there (an error naming plane and line)."""
+        ``local`` (N, 3) m in the strips' frame; each checked there (an error naming plane and
+        line)."""
         from scipy.spatial import ConvexHull
 
         from calidar.io.control_planes import check_plane, fit_plane
@@ -85,8 +87,10 @@ class ControlPlanes:
             c, coef, cov = fit_plane(local[k], f.sigma_m[k])
             xy = local[k, :2]
             hull = xy[ConvexHull(xy).vertices] if k.size > 3 else xy[_ccw(xy)]
-            ids.append(name), cents.append(c), coefs.append(coef), covs.append(cov), hulls.append(hull)
-        return cls(np.asarray(ids, str), np.asarray(cents), np.asarray(coefs), np.asarray(covs), tuple(hulls))
+            for found, value in zip((ids, cents, coefs, covs, hulls), (name, c, coef, cov, hull)):
+                found.append(value)
+        return cls(np.asarray(ids, str), np.asarray(cents), np.asarray(coefs), np.asarray(covs),
+                   tuple(hulls))
 
     @property
     def normal(self) -> np.ndarray:
@@ -100,7 +104,7 @@ class ControlPlanes:
         return self.normal[:, 2] * np.sqrt(self.cov[:, 0, 0])
 
     def keep_xy(self) -> np.ndarray:
-        """(K, 2) places over every patch, ≤ ``KEEP_SPACING_M`` apart: the points around them are kept."""
+        """(K, 2) places over every patch, ≤ ``KEEP_SPACING_M`` apart, whose points are kept."""
         out = []
         for hull in self.hulls:
             lo, hi = hull.min(axis=0), hull.max(axis=0)
@@ -110,7 +114,8 @@ class ControlPlanes:
             out += [hull, grid[inside(grid, hull, 0.0)]]
         return np.vstack(out)
 
-    def rows(self, strip_id: int, index: np.ndarray, points: np.ndarray, n_strip_points: int) -> Correspondences | None:
+    def rows(self, strip_id: int, index: np.ndarray, points: np.ndarray,
+             n_strip_points: int) -> Correspondences | None:
         """Rows between strip ``strip_id`` (its points ``index`` at local ``points`` (M, 3), of
         ``n_strip_points`` in all) and the planes it covers; None when it covers none."""
         points = np.asarray(points, float)
@@ -120,7 +125,8 @@ class ControlPlanes:
             sel = self._on_plane(points, k)
             if sel.size < MIN_POINTS:
                 continue
-            noise = self.normal[k, 2] ** 2 * _scatter_variance(points[sel]) / sel.size  # height → along n
+            # height → along n
+            noise = self.normal[k, 2] ** 2 * _scatter_variance(points[sel]) / sel.size
             g = np.r_[1.0, points[sel, :2].mean(axis=0) - self.local[k, :2]]
             survey = self.normal[k, 2] ** 2 * float(g @ self.cov[k] @ g)
             r = len(normals)
@@ -137,13 +143,14 @@ class ControlPlanes:
         return f"{SURVEY}{k}", f"{SURVEY}{k}_slope_x", f"{SURVEY}{k}_slope_y"
 
     def survey_parameters(self) -> list:
-        """Each plane's survey error as nuisance parameters (:mod:`calidar.strips.control_survey`): its
-        height at the centroid and its two slopes, priors 0 ± √diag(C) (correlated:
+        """Each plane's survey error as nuisance parameters (:mod:`calidar.strips.control_survey`):
+        its height at the centroid and its two slopes, priors 0 ± √diag(C) (correlated:
         :meth:`survey_correlation`)."""
         out = []
         for k in range(len(self.ids)):
             s = np.sqrt(np.diag(self.cov[k]))
-            out += [Parameter(n, 0.0, u, prior_sigma=float(v)) for n, u, v in zip(self._survey_names(k), ("m", "1", "1"), s)]
+            out += [Parameter(n, 0.0, u, prior_sigma=float(v))
+                    for n, u, v in zip(self._survey_names(k), ("m", "1", "1"), s)]
         return out
 
     def survey_correlation(self) -> list:
@@ -155,13 +162,14 @@ class ControlPlanes:
         return out
 
     def survey_design(self, k: np.ndarray, normals: np.ndarray, at: np.ndarray):
-        """Rows of planes ``k`` at places ``at`` (n, 3): the plane's height and slopes' errors move a row
-        by −n_z·(1, dx, dy) (dx, dy from its centroid); the row's own σ holds all of their variance,
-        n_z²·gᵀCg, taken out."""
+        """Rows of planes ``k`` at places ``at`` (n, 3): the plane's height and slopes' errors move
+        a row by −n_z·(1, dx, dy) (dx, dy from its centroid); the row's own σ holds all of their
+        variance, n_z²·gᵀCg, taken out."""
         nz = np.asarray(normals, float)[:, 2]
         g = np.c_[np.ones(len(k)), np.asarray(at, float)[:, :2] - self.local[k, :2]]
         rows = np.repeat(np.arange(len(k)), 3)
-        M = sp.csr_matrix(((nz[:, None] * g).ravel(), (rows, (3 * k[:, None] + np.arange(3)).ravel())),
+        M = sp.csr_matrix(((nz[:, None] * g).ravel(),
+                           (rows, (3 * k[:, None] + np.arange(3)).ravel())),
                           shape=(len(k), 3 * len(self.ids)))
         return M, nz**2 * np.einsum("ni,nij,nj->n", g, self.cov[k], g)
 
@@ -178,8 +186,8 @@ class ControlPlanes:
 
 
 def inside(xy: np.ndarray, hull: np.ndarray, inset_m: float) -> np.ndarray:
-    """Whether each of ``xy`` (M, 2) lies inside the convex polygon ``hull`` (k, 2, counter-clockwise),
-    at least ``inset_m`` from each of its edges."""
+    """Whether each of ``xy`` (M, 2) lies inside the convex polygon ``hull`` (k, 2,
+    counter-clockwise), at least ``inset_m`` from each of its edges."""
     e = np.roll(hull, -1, axis=0) - hull
     inward = np.c_[-e[:, 1], e[:, 0]] / np.maximum(np.linalg.norm(e, axis=1), 1e-12)[:, None]
     dist = np.einsum("mkj,kj->mk", xy[:, None, :] - hull[None], inward)

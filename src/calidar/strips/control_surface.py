@@ -24,7 +24,8 @@ MIN_POINTS = 15  #: the quadric's 6 coefficients with 9 degrees of freedom for i
 MAX_SPREAD = 16.0
 
 
-def local_surface(points: np.ndarray, at: np.ndarray) -> tuple[np.ndarray, np.ndarray, float] | None:
+def local_surface(points: np.ndarray,
+                  at: np.ndarray) -> tuple[np.ndarray, np.ndarray, float] | None:
     """For a strip's ``points`` (m, 3) around the control point ``at`` (3,), local m: the weights
     w (m,) whose Σ wᵢ·pᵢ is the quadric's point above/below ``at``, the surface's unit normal there
     (up), and the noise variance of that height (m²); None when the points cannot tell it."""

@@ -19,9 +19,10 @@ row r = n·(p̄ − c) by −n_z·δ; a control plane's error is its three coeff
 centroid and two slopes, prior covariance C from its survey, one correlated group), which move a
 row at p̄ by −n_z·(1, dx, dy)·δ (dx, dy: p̄ from the centroid); a reference cloud's is its datum.
 The rows as the control kinds build them hold that survey variance (a row's own σ, what
-solution.json's dz/σ uses); here it is taken out of the weight. :class:`SurveyErrors` wraps the :class:`~calidar.strips.problem.StripProblem` after the
-residual protocol (:mod:`calidar.adjust.residuals`): the nuisance columns are a typed
-:class:`~calidar.adjust.Block` it owns, with their exact (constant) Jacobian −G.
+solution.json's dz/σ uses); here it is taken out of the weight. :class:`SurveyErrors` wraps the
+:class:`~calidar.strips.problem.StripProblem` after the residual protocol
+(:mod:`calidar.adjust.residuals`): the nuisance columns are a typed :class:`~calidar.adjust.Block`
+it owns, with their exact (constant) Jacobian −G.
 """
 
 from __future__ import annotations
@@ -33,7 +34,8 @@ import scipy.sparse as sp
 
 from calidar.adjust import Block, Parameter, ParameterSet, ResidualProblem
 
-PREFIX = "control_survey_"  #: every control target's survey-error parameter's name starts so (nuisance)
+#: every control target's survey-error parameter's name starts so (nuisance)
+PREFIX = "control_survey_"
 CONTROL_STRIP = -1  #: the control pseudo-strip's id (calidar.strips.problem.CONTROL_STRIP)
 
 
@@ -45,7 +47,8 @@ def per_target_parameters(sigma_m: np.ndarray) -> list[Parameter]:
             for k, s in enumerate(np.asarray(sigma_m, float)) if s > 0]
 
 
-def per_target_design(sigma_m: np.ndarray, k: np.ndarray, g: np.ndarray) -> tuple[sp.csr_matrix, np.ndarray]:  # noqa: D401
+def per_target_design(sigma_m: np.ndarray, k: np.ndarray,
+                      g: np.ndarray) -> tuple[sp.csr_matrix, np.ndarray]:  # noqa: D401
     """The rows of targets ``k`` on :func:`per_target_parameters`' columns, each moved by ``g`` (n,)
     per unit of its target's survey error, and the variance to take out of each row's σ² (its
     target's survey variance, which the row's own σ holds)."""
@@ -53,7 +56,8 @@ def per_target_design(sigma_m: np.ndarray, k: np.ndarray, g: np.ndarray) -> tupl
     column = np.cumsum(sigma > 0) - 1  # target → its parameter's column (those with σ > 0)
     has = sigma[k] > 0
     rows = np.flatnonzero(has)
-    M = sp.csr_matrix((np.asarray(g, float)[has], (rows, column[k[has]])), shape=(len(k), int(np.sum(sigma > 0))))
+    M = sp.csr_matrix((np.asarray(g, float)[has], (rows, column[k[has]])),
+                      shape=(len(k), int(np.sum(sigma > 0))))
     return M, np.where(has, sigma[k] ** 2, 0.0)
 
 
@@ -89,7 +93,8 @@ class SurveyErrors(ResidualProblem):
     def __init__(self, inner, control):
         self.inner, self.parameters = inner, inner.parameters
         self.absolute_sigma = inner.absolute_sigma
-        self.prior_correlation = (*inner.prior_correlation, *getattr(control, "survey_correlation", tuple)())
+        self.prior_correlation = (*inner.prior_correlation,
+                                  *getattr(control, "survey_correlation", tuple)())
         names = [p.name for p in survey_parameters(control)]
         self.block = Block.of(self.parameters.names, {n: j for j, n in enumerate(names)})
         sigma2 = np.broadcast_to(np.asarray(inner.sigma, float), (len(inner.sigma),)).copy() ** 2
@@ -97,7 +102,8 @@ class SurveyErrors(ResidualProblem):
         for i, c in enumerate(inner.corrs):
             n = c.n_obs * (3 if c.normal is None else 1)
             if c.strip_b == CONTROL_STRIP:
-                k = inner.index[CONTROL_STRIP][c.B.tocsr().indices]  # one target per row, in row order
+                # one target per row, in row order
+                k = inner.index[CONTROL_STRIP][c.B.tocsr().indices]
                 M, removed = control.survey_design(k, c.normal, row_places(inner, i))
                 sigma2[start:start + n] = np.maximum(sigma2[start:start + n] - removed, 1e-12)
                 parts.append(M)
@@ -110,7 +116,8 @@ class SurveyErrors(ResidualProblem):
         free = self.parameters.free_names
         own = set(self.block.names)
         self.inner_free = [p for p in self.parameters.free if p.name not in own]
-        order = [i for i, n in enumerate(free) if n not in own] + [i for i, n in enumerate(free) if n in own]
+        order = ([i for i, n in enumerate(free) if n not in own]
+                 + [i for i, n in enumerate(free) if n in own])
         self._nuisance = [self.block.names.index(free[i]) for i in order[len(self.inner_free):]]
         self._order = None if order == list(range(len(order))) else np.argsort(order)
 
@@ -120,7 +127,7 @@ class SurveyErrors(ResidualProblem):
         return getattr(self.inner, name)
 
     def __call__(self, values: Mapping[str, float]) -> np.ndarray:
-        """The inner problem's residuals: the strips against the surveyed control (no survey correction)."""
+        """The inner problem's residuals: the strips against the control as surveyed."""
         return self.inner(values)
 
     def residuals(self, values: Mapping[str, float]) -> np.ndarray:
@@ -137,5 +144,6 @@ class SurveyErrors(ResidualProblem):
 
     def survey_errors(self, solution) -> dict[int, tuple[float, float]]:
         """Per control target with a parameter: its estimated survey error and σ (m)."""
-        return {k: (float(solution.values[n]), float(solution.sigma[n])) for n, k in zip(self.block.names, self.block.keys)
+        return {k: (float(solution.values[n]), float(solution.sigma[n]))
+                for n, k in zip(self.block.names, self.block.keys)
                 if n in solution.values}

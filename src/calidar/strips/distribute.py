@@ -16,12 +16,16 @@ import numpy as np
 
 from calidar.errors import CalibrationError
 
-SCATTER_BYTES = 1_000_000  #: arrays larger than this are sent to the workers once, ahead of the tasks
+#: arrays larger than this are sent to the workers once, ahead of the tasks
+SCATTER_BYTES = 1_000_000
 CONNECT_TIMEOUT_S = 10.0  #: how long to wait for a scheduler given by address
-PROBE_TIMEOUT_S = 5.0  #: how long the first TCP connection and the scheduler's greeting may take each
-MAX_GREETING_BYTES = 1 << 20  #: a Dask scheduler's first message (its handshake) is a few hundred bytes
+#: how long the first TCP connection and the scheduler's greeting may take each
+PROBE_TIMEOUT_S = 5.0
+#: a Dask scheduler's first message (its handshake) is a few hundred bytes
+MAX_GREETING_BYTES = 1 << 20
 MAX_LOCAL_WORKERS = 256  #: local worker processes accepted (each takes a process and its memory)
-#: files read at once in this process (each holds one chunk's working arrays, ≈ 0.2 GB at 0.5 M points)
+#: files read at once in this process (each holds one chunk's working arrays, ≈ 0.2 GB at 0.5 M
+#: points)
 IN_PROCESS_THREADS = min(2, os.cpu_count() or 1)
 JOIN_S = 0.5  #: how long a closing reader pool waits for its threads' current calls
 
@@ -32,8 +36,8 @@ def check_cluster(scheduler: str | None = None, workers: int | None = None) -> N
     from calidar.validate import integer
 
     if scheduler is not None and workers is not None:
-        raise CalibrationError("give either --scheduler (a Dask scheduler address) or --workers (local processes), "
-                               "not both")
+        raise CalibrationError("give either --scheduler (a Dask scheduler address) or --workers "
+                               "(local processes), not both")
     if workers is not None:
         integer(workers, "--workers", 1, MAX_LOCAL_WORKERS, why="local worker processes")
     if scheduler is not None:
@@ -53,7 +57,8 @@ def scheduler_address(text: str) -> tuple[str, str, int | None]:
         return protocol, rest, None
     host, _, port = rest.rpartition(":")
     host = host.strip("[]")
-    if not host or not port.isdigit() or not 0 < int(port) < 65536 or any(c.isspace() or c in "/?#@" for c in host):
+    odd_host = any(c.isspace() or c in "/?#@" for c in host)
+    if not host or not port.isdigit() or not 0 < int(port) < 65536 or odd_host:
         raise InputError(None, "--scheduler", expected)
     return protocol, host, int(port)
 
@@ -76,12 +81,13 @@ def probe_scheduler(text: str, timeout: float = PROBE_TIMEOUT_S) -> None:
             head = _recv(sock, 8)
             (n,) = struct.unpack("<Q", head)
             if not 0 < n <= MAX_GREETING_BYTES:
-                raise CalibrationError(f"{where}: not a Dask scheduler (it answered {head!r}…); check the address "
-                                       "and port (the scheduler's default is 8786)")
+                raise CalibrationError(f"{where}: not a Dask scheduler (it answered {head!r}…); "
+                                       "check the address and port (the scheduler's default is "
+                                       "8786)")
             _recv(sock, n)
     except socket.timeout:
-        raise CalibrationError(f"{where}: no answer within {timeout:g} s as a Dask scheduler would give; is it one "
-                               "(the scheduler's default port is 8786)?") from None
+        raise CalibrationError(f"{where}: no answer within {timeout:g} s as a Dask scheduler would "
+                               "give; is it one (the scheduler's default port is 8786)?") from None
     except OSError as exc:
         raise CalibrationError(f"cannot reach {where}: {exc.strerror or exc}") from None
 
@@ -91,7 +97,8 @@ def _recv(sock, n: int) -> bytes:
     while len(data) < n:
         chunk = sock.recv(n - len(data))
         if not chunk:
-            raise CalibrationError(f"{sock.getpeername()}: closed the connection: not a Dask scheduler")
+            raise CalibrationError(f"{sock.getpeername()}: closed the connection: not a Dask "
+                                   "scheduler")
         data += chunk
     return data
 
@@ -112,22 +119,26 @@ def cluster_client(scheduler: str | None = None, workers: int | None = None) -> 
         try:
             client = Client(scheduler, timeout=CONNECT_TIMEOUT_S)
         except (OSError, TimeoutError) as exc:
-            raise CalibrationError(f"cannot reach the Dask scheduler at {scheduler}: {exc}") from None
+            reason = f"cannot reach the Dask scheduler at {scheduler}: {exc}"
+            raise CalibrationError(reason) from None
         with client:
             yield client
         return
     # no dashboard; the scheduler's small HTTP endpoint on a free port, so clusters never collide
-    # the cluster's own log (its processes' too) only with CALIDAR_DEBUG: the tasks' errors come back as
-    # exceptions, and an interrupted run tears the cluster down mid-way (connections closed under it)
+    # the cluster's own log (its processes' too) only with CALIDAR_DEBUG: the tasks' errors come
+    # back as exceptions, and an interrupted run tears the cluster down mid-way (connections closed
+    # under it)
     quiet = logging.ERROR if os.environ.get("CALIDAR_DEBUG") else logging.CRITICAL
     with _workers_in_own_session(), LocalCluster(
             n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None,
-            scheduler_kwargs={"dashboard": False, "dashboard_address": ":0"}, silence_logs=quiet) as cluster, \
+            scheduler_kwargs={"dashboard": False, "dashboard_address": ":0"},
+            silence_logs=quiet) as cluster, \
             Client(cluster) as client:
         try:
             yield client
         except KeyboardInterrupt:
-            for name in ("distributed", "asyncio", "tornado"):  # "Task exception was never retrieved" and the like
+            # "Task exception was never retrieved" and the like
+            for name in ("distributed", "asyncio", "tornado"):
                 logging.getLogger(name).setLevel(quiet)
             raise
 
@@ -135,18 +146,20 @@ def cluster_client(scheduler: str | None = None, workers: int | None = None) -> 
 @contextmanager
 def _workers_in_own_session() -> Iterator[None]:
     """Worker processes started in a session of their own while the block runs (multiprocessing's
-    spawn, which a LocalCluster's nannies use, made to call ``setsid``): a Ctrl-C, which the terminal
-    sends to every process of its foreground group, reaches this process alone — which ends the run
-    and closes the cluster — instead of printing each worker's KeyboardInterrupt traceback. (Blocking
-    or ignoring SIGINT around the start does not reach them: they are spawned later, from Dask's
-    own threads, and asyncio installs its own SIGINT handler in each.)"""
+    spawn, which a LocalCluster's nannies use, made to call ``setsid``): a Ctrl-C, which the
+    terminal sends to every process of its foreground group, reaches this process alone — which ends
+    the run and closes the cluster — instead of printing each worker's KeyboardInterrupt traceback.
+    (Blocking or ignoring SIGINT around the start does not reach them: they are spawned later, from
+    Dask's own threads, and asyncio installs its own SIGINT handler in each.)"""
     import subprocess
     from multiprocessing import util
 
-    spawned: list = []  # kept so that no Popen object warns when collected; multiprocessing reaps them
+    # kept so that no Popen object warns when collected; multiprocessing reaps them
+    spawned: list = []
 
     def spawn(path, args, passfds):
-        proc = subprocess.Popen(args, executable=path, pass_fds=tuple(sorted(map(int, passfds))), close_fds=True,
+        fds = tuple(sorted(map(int, passfds)))
+        proc = subprocess.Popen(args, executable=path, pass_fds=fds, close_fds=True,
                                 start_new_session=True)
         spawned.append(proc)
         return proc.pid
@@ -179,8 +192,9 @@ def map_pairs(func: Callable[..., Any], tasks: Sequence[tuple], scheduler: str |
         return list(run_tasks(func, tasks, client=own, log=log, kind=kind))
 
 
-def run_tasks(func: Callable[..., Any], tasks: Sequence[tuple], *, shared: tuple = (), client: Any = None,
-              threads: int = 1, log: "TaskLog | None" = None, kind: str = "task") -> Iterator[Any]:
+def run_tasks(func: Callable[..., Any], tasks: Sequence[tuple], *, shared: tuple = (),
+              client: Any = None, threads: int = 1, log: "TaskLog | None" = None,
+              kind: str = "task") -> Iterator[Any]:
     """``func(*shared, *task)`` for each task, yielded in task order as they finish: in this
     process (``threads`` at once, each result taken before more start, so that at most
     ``threads`` + 1 results are held) or on a Dask ``client`` (``shared`` sent to the workers
@@ -238,11 +252,11 @@ class _DaemonPool:
         return future
 
     def close(self, wait_s: float = JOIN_S) -> None:
-        """Cancel the calls not started and wait up to ``wait_s`` for the threads to end their current
-        one: a thread still inside a native decoder (lazrs) when the interpreter exits is unwound by
-        force and aborts the process ("FATAL: exception not rethrown", exit 134) after the run's own
-        error. An interrupted run does not wait longer: the CLI ends a process whose threads still
-        run without the interpreter's finalisation (``calidar.cli.main``)."""
+        """Cancel the calls not started and wait up to ``wait_s`` for the threads to end their
+        current one: a thread still inside a native decoder (lazrs) when the interpreter exits is
+        unwound by force and aborts the process ("FATAL: exception not rethrown", exit 134) after
+        the run's own error. An interrupted run does not wait longer: the CLI ends a process whose
+        threads still run without the interpreter's finalisation (``calidar.cli.main``)."""
         import queue
         import time
 
@@ -261,7 +275,7 @@ class _DaemonPool:
 
 
 def _on_dask(client, func, tasks, shared, log, kind) -> Iterator[Any]:
-    """Scatter the shared arguments and each large array once, submit every task, gather in order."""
+    """Scatter the shared arguments and each large array once, submit all tasks, gather in order."""
     scattered: dict[int, Any] = {}
 
     def ship(arg):
@@ -292,7 +306,8 @@ class TaskLog:
 
     def to_dict(self) -> dict:
         """{kind: tasks, bytes sent back in all and by the largest}."""
-        return {k: {"tasks": len(v), "bytes_sent_back": int(sum(v)), "max_bytes_per_task": int(max(v))}
+        return {k: {"tasks": len(v), "bytes_sent_back": int(sum(v)),
+                    "max_bytes_per_task": int(max(v))}
                 for k, v in self.sent.items()}
 
 
@@ -324,12 +339,14 @@ class Workers:
 
     @property
     def local_threads(self) -> int:
-        """Threads for work that stays in this process (its arrays are here): ours, or 1 beside a cluster."""
+        """Threads for work kept in this process (its arrays are here): ours, 1 beside a cluster."""
         return self.threads if self.client is None else 1
 
-    def run(self, func: Callable[..., Any], tasks: Sequence[tuple], shared: tuple = (), kind: str = "task") -> Iterator[Any]:
+    def run(self, func: Callable[..., Any], tasks: Sequence[tuple], shared: tuple = (),
+            kind: str = "task") -> Iterator[Any]:
         """:func:`run_tasks` here."""
-        return run_tasks(func, tasks, shared=shared, client=self.client, threads=self.threads, log=self.log, kind=kind)
+        return run_tasks(func, tasks, shared=shared, client=self.client, threads=self.threads,
+                         log=self.log, kind=kind)
 
 
 @contextmanager

@@ -1,8 +1,10 @@
-"""The global test of a strip calibration: σ0 (the a-posteriori standard deviation of unit weight) against 1.
+"""The global test of a strip calibration: σ0 (the a-posteriori standard deviation of unit weight)
+against 1.
 
-σ0, the engine's made consistent for the rows' residuals, is judged against the χ² test's 95 % range for the
-solution's redundancy and, when the rows' σ are estimated from their points, against :data:`ROW_SIGMA_TOLERANCE`
-(issue 26). Split from :mod:`calidar.strips.verdict`, which gives the finding its place among the others.
+σ0, the engine's made consistent for the rows' residuals, is judged against the χ² test's 95 % range
+for the solution's redundancy and, when the rows' σ are estimated from their points, against
+:data:`ROW_SIGMA_TOLERANCE` (issue 26). Split from :mod:`calidar.strips.verdict`, which gives the
+finding its place among the others.
 """
 
 from __future__ import annotations
@@ -16,14 +18,16 @@ from calidar.verdict import NOTE, Finding
 
 #: σ0 above its χ² range warns; above SIGMA0_FAIL the model does not fit (fail)
 SIGMA0_FAIL = 2.0
-#: how closely rows' σ estimated from their points' scatter are known: at the truth (simulated surveys without
-#: trajectory errors, ``benchmarks/strips_row_sigma.py``) the global test's σ0 read 0.91–1.04 over both methods and
-#: presets (issue 26); beyond its χ² range but within this of 1, σ0 passes, and the finding says so
+#: how closely rows' σ estimated from their points' scatter are known: at the truth (simulated
+#: surveys without trajectory errors, ``benchmarks/strips_row_sigma.py``) the global test's σ0 read
+#: 0.91–1.04 over both methods and presets (issue 26); beyond its χ² range but within this of 1, σ0
+#: passes, and the finding says so
 ROW_SIGMA_TOLERANCE = 0.07
 
 
 def robust_consistency(kind: str | None) -> float:
-    """E[w(u)·u²] / E[w(u)] for u ~ N(0, 1) with the engine's IRLS weights w of ``kind`` (1 without).
+    """E[w(u)·u²] / E[w(u)] for u ~ N(0, 1) with the engine's IRLS weights w of ``kind`` (1
+    without).
 
     The engine's σ0² is Σ w r²/σ² over Σ w (+ priors − parameters): with robust weights it is
     this factor times the variance of honest normal residuals (Cauchy: 0.794, σ0 0.89 for σ
@@ -39,13 +43,14 @@ def robust_consistency(kind: str | None) -> float:
 
 
 def global_test_sigma0(sol) -> float:
-    """The σ0 the global test takes: the engine's, made consistent for the rows' residuals — normal ones (see
-    :func:`robust_consistency`), or, when the solution records the degrees of freedom of its rows' estimated σ
-    (``solution.extra["strips"]["row_dof"]``), Student-t ones with those degrees of freedom
-    (:func:`calidar.strips.row_variance.consistency`; issue 26: with 12-point patches the normal factor read
-    the σ0 of rows exactly right at the truth 2–3 % low). The RMS of the standardised residuals with gross rows
-    skipped (``extra["unit_weight"]``, :func:`calidar.adjust.unit_weight.skipped_sigma0`) is shown beside it, not
-    taken: docs/validation.md (issue 26, fifth session)."""
+    """The σ0 the global test takes: the engine's, made consistent for the rows' residuals — normal
+    ones (see :func:`robust_consistency`), or, when the solution records the degrees of freedom of
+    its rows' estimated σ (``solution.extra["strips"]["row_dof"]``), Student-t ones with those
+    degrees of freedom (:func:`calidar.strips.row_variance.consistency`; issue 26: with 12-point
+    patches the normal factor read the σ0 of rows exactly right at the truth 2–3 % low). The RMS of
+    the standardised residuals with gross rows skipped (``extra["unit_weight"]``,
+    :func:`calidar.adjust.unit_weight.skipped_sigma0`) is shown beside it, not taken:
+    docs/validation.md (issue 26, fifth session)."""
     strips = sol.extra.get("strips", {}) if isinstance(sol.extra, dict) else {}
     kind, dofs = strips.get("robust"), strips.get("row_dof")
     if dofs and kind is not None:
@@ -56,8 +61,9 @@ def global_test_sigma0(sol) -> float:
 
 
 def _sigma0_source(sol, s0: float) -> str:
-    """How the global test's σ0 was read, for its finding ("" for the engine's own least-squares σ0), and the
-    RMS of the residuals over their σ with gross rows skipped when the solution records it."""
+    """How the global test's σ0 was read, for its finding ("" for the engine's own least-squares
+    σ0), and the RMS of the residuals over their σ with gross rows skipped when the solution records
+    it."""
     extra = sol.extra if isinstance(sol.extra, dict) else {}
     t_rows = bool(extra.get("strips", {}).get("row_dof"))
     text = "" if s0 == sol.sigma0 else (
@@ -65,8 +71,8 @@ def _sigma0_source(sol, s0: float) -> str:
         + ("Student-t ones (each row's σ estimated from its points)" if t_rows else "normal ones"))
     if "unit_weight" in extra:
         u = extra["unit_weight"]
-        text += (f"; the RMS of the residuals over their σ, the {u['rows_skipped']:,} beyond {u['gross_z']:g} σ0 "
-                 f"skipped, {u['sigma0']:.2f}")
+        text += (f"; the RMS of the residuals over their σ, the {u['rows_skipped']:,} beyond "
+                 f"{u['gross_z']:g} σ0 skipped, {u['sigma0']:.2f}")
     return text
 
 
@@ -78,9 +84,10 @@ def sigma0_range(sol) -> tuple[float, float]:
 
 def sigma0_finding(sol) -> Finding:
     """The global test: σ0 against its χ² 95 % range. Inside: pass; outside but within
-    :data:`ROW_SIGMA_TOLERANCE` of 1 when the rows' σ are estimated (``row_dof`` recorded): pass, saying so. Below: a note (the residuals are
-    smaller than the rows' σ say, so the parameters' σ are conservative by up to that factor). Above:
-    warn (fail beyond :data:`SIGMA0_FAIL`): the model leaves residuals its σ do not explain."""
+    :data:`ROW_SIGMA_TOLERANCE` of 1 when the rows' σ are estimated (``row_dof`` recorded): pass,
+    saying so. Below: a note (the residuals are smaller than the rows' σ say, so the parameters' σ
+    are conservative by up to that factor). Above: warn (fail beyond :data:`SIGMA0_FAIL`): the model
+    leaves residuals its σ do not explain."""
     priors = any(p.prior_sigma is not None for p in sol.parameters.free)
     lo, hi = sigma0_range(sol)
     s0 = global_test_sigma0(sol)
@@ -88,24 +95,28 @@ def sigma0_finding(sol) -> Finding:
     while digits < 5 and f"{s0:.{digits}f}" in (f"{lo:.{digits}f}", f"{hi:.{digits}f}"):
         digits += 1
     t_rows = bool(isinstance(sol.extra, dict) and sol.extra.get("strips", {}).get("row_dof"))
-    detail = (f"σ0 = {s0:.{digits}f} (1 expected; the χ² test's 95 % range for {sol.dof:,.0f} degrees of freedom is "
-              f"{lo:.{digits}f}–{hi:.{digits}f}{_sigma0_source(sol, s0)})")
+    detail = (f"σ0 = {s0:.{digits}f} (1 expected; the χ² test's 95 % range for {sol.dof:,.0f} "
+              f"degrees of freedom is {lo:.{digits}f}–{hi:.{digits}f}{_sigma0_source(sol, s0)})")
     if lo <= s0 <= hi:
-        return Finding("pass", "global test", detail + ": the residuals are as large as the correspondences' scatter "
-                       "predicts")
+        fits = ": the residuals are as large as the correspondences' scatter predicts"
+        return Finding("pass", "global test", detail + fits)
     if t_rows and abs(s0 - 1.0) <= ROW_SIGMA_TOLERANCE:
-        return Finding("pass", "global test", detail + f": outside that range but within ±{ROW_SIGMA_TOLERANCE * 100:.0f} % of 1, "
-                       "as closely as the rows' σ are known (each estimated from a few points' scatter; at the truth "
-                       "σ0 reads 0.91–1.04): the residuals are as large as the correspondences' scatter predicts to "
-                       "that accuracy")
+        known = (f": outside that range but within ±{ROW_SIGMA_TOLERANCE * 100:.0f} % of 1, as "
+                 "closely as the rows' σ are known (each estimated from a few points' scatter; at "
+                 "the truth σ0 reads 0.91–1.04): the residuals are as large as the "
+                 "correspondences' scatter predicts to that accuracy")
+        return Finding("pass", "global test", detail + known)
     if s0 < lo:
-        return Finding(NOTE, "global test", detail + ": below its range — the residuals are smaller than the "
-                       "correspondences' scatter predicts, so the σ are conservative by up to this factor"
-                       + (" (not shrunk for it: the trajectory priors are absolute)" if priors
-                          else " (not shrunk for it: the rows' σ are absolute, each from its points' scatter)"))
+        absolute = ("the trajectory priors are absolute" if priors
+                    else "the rows' σ are absolute, each from its points' scatter")
+        below = (": below its range — the residuals are smaller than the correspondences' scatter "
+                 f"predicts, so the σ are conservative by up to this factor (not shrunk for it: "
+                 f"{absolute})")
+        return Finding(NOTE, "global test", detail + below)
     status = "fail" if s0 > SIGMA0_FAIL else "warn"
-    return Finding(status, "global test", detail + ": above its range — the residuals are larger than the "
-                   "correspondences' own scatter predicts, and the parameters' σ hold only if the excess is noise",
-                   "look for what the model does not hold: trajectory errors (leave the trajectory model on), a "
-                   "wrong nominal sensor or time system, scanner errors beyond the estimated parameters, "
-                   "vegetation or moving objects in the overlaps")
+    above = (": above its range — the residuals are larger than the correspondences' own scatter "
+             "predicts, and the parameters' σ hold only if the excess is noise")
+    return Finding(status, "global test", detail + above,
+                   "look for what the model does not hold: trajectory errors (leave the trajectory "
+                   "model on), a wrong nominal sensor or time system, scanner errors beyond the "
+                   "estimated parameters, vegetation or moving objects in the overlaps")

@@ -1,5 +1,5 @@
-"""Flight lines: by point_source_id, or by gaps in GPS time when ids are missing (:func:`split_lines`,
-the one splitter; the files are read by :mod:`calidar.ingest.lines`)."""
+"""Flight lines: by point_source_id, or by gaps in GPS time when ids are missing
+(:func:`split_lines`, the one splitter; the files are read by :mod:`calidar.ingest.lines`)."""
 
 from __future__ import annotations
 
@@ -10,7 +10,8 @@ import numpy as np
 GAP_S = 10.0  #: a pause in GPS time longer than this starts a new flight line (s)
 
 
-def line_ids(point_source_id: np.ndarray | None, gps_time: np.ndarray, gap_s: float = GAP_S) -> tuple[np.ndarray, str]:
+def line_ids(point_source_id: np.ndarray | None, gps_time: np.ndarray,
+             gap_s: float = GAP_S) -> tuple[np.ndarray, str]:
     """One flight-line id per point and how they were found ("point_source_id" or "gps_time_gaps"):
     :func:`split_lines` with every point its own span of time."""
     psid = () if point_source_id is None else distinct(np.asarray(point_source_id)).tolist()
@@ -45,10 +46,11 @@ def shared_id_splits(spans: dict[tuple[int, str], tuple[float, float]], gap_s: f
         ids = np.array([i, *range(free, free + len(parts) - 1)], np.int64)
         free += len(parts) - 1
         splits[i] = (np.array([p[0][0] for p in parts]), ids)
-        listed = "; ".join(f"{', '.join(f[2] for f in p)} ({p[0][0]:.1f}–{max(f[1] for f in p):.1f} s) as line {j}"
+        listed = "; ".join(f"{', '.join(f[2] for f in p)} "
+                           f"({p[0][0]:.1f}–{max(f[1] for f in p):.1f} s) as line {j}"
                            for p, j in zip(parts, ids))
-        notes.append(f"point_source_id {i} is held by {sum(map(len, parts))} files whose GPS times do not interleave: "
-                     f"kept apart as {len(parts)} flight lines: {listed}")
+        notes.append(f"point_source_id {i} is held by {sum(map(len, parts))} files whose GPS times "
+                     f"do not interleave: kept apart as {len(parts)} flight lines: {listed}")
     return splits, notes
 
 
@@ -61,7 +63,8 @@ def split_ids(ids: np.ndarray, t: np.ndarray, splits: dict) -> np.ndarray:
     for i, (starts, part_ids) in splits.items():
         rows = np.flatnonzero(ids == i)
         if rows.size:
-            ids[rows] = part_ids[np.clip(np.searchsorted(starts, t[rows], side="right") - 1, 0, starts.size - 1)]
+            ids[rows] = part_ids[np.clip(np.searchsorted(starts, t[rows], side="right") - 1, 0,
+                                         starts.size - 1)]
     return ids
 
 
@@ -73,18 +76,22 @@ class LineIndex:
     how: str  #: "point_source_id" | "gps_time_gaps"
     ids: tuple[int, ...]
     starts: np.ndarray | None  #: gps_time_gaps: first GPS time (s) of each line
-    splits: dict = field(default_factory=dict)  #: point_source_ids shared by files apart in time (:func:`shared_id_splits`)
+    #: point_source_ids shared by files apart in time (:func:`shared_id_splits`)
+    splits: dict = field(default_factory=dict)
     notes: tuple[str, ...] = ()  #: what the user should know about how the lines were found
-    classes: dict = field(default_factory=dict)  #: LAS classes present in each file (:func:`calidar.ingest.lines.index_flight_lines`)
+    #: LAS classes present in each file (:func:`calidar.ingest.lines.index_flight_lines`)
+    classes: dict = field(default_factory=dict)
 
     def of(self, point_source_id: np.ndarray | None, gps_time: np.ndarray) -> np.ndarray:
         """The flight-line id of each point (or of each span of points starting at ``gps_time``)."""
         if self.starts is None:
-            return split_ids(np.asarray(point_source_id, np.int64), np.asarray(gps_time, float), self.splits)
+            return split_ids(np.asarray(point_source_id, np.int64), np.asarray(gps_time, float),
+                             self.splits)
         return np.searchsorted(self.starts, gps_time, side="right").astype(np.int64)
 
 
-def split_lines(point_source_ids, spans: dict, first: np.ndarray, last: np.ndarray, gap_s: float = GAP_S) -> LineIndex:
+def split_lines(point_source_ids, spans: dict, first: np.ndarray, last: np.ndarray,
+                gap_s: float = GAP_S) -> LineIndex:
     """The one flight-line splitter (every reader of strips calls it: points at once, a streamed
     pass's seconds, the strip ingest's groups).
 
@@ -110,7 +117,7 @@ def split_lines(point_source_ids, spans: dict, first: np.ndarray, last: np.ndarr
 
 
 def add_spans(spans: dict, point_source_id, t: np.ndarray, name: str) -> None:
-    """Widen ``spans`` {(point_source_id, file name): (first, last GPS time)} by a chunk's points."""
+    """Widen ``spans`` {(point_source_id, file name): (first, last GPS time)} by a chunk."""
     psid = np.asarray(point_source_id, np.int64)
     ok = np.isfinite(t)
     ids = distinct(psid[ok])

@@ -26,7 +26,8 @@ class Matcher(Protocol):
     label: ClassVar[str]  #: its observations in words ("tie planes")
     threshold_m: float  #: the outer loop stops when the mean distance changes by less (m)
 
-    def match(self, strip_a: int, points_a: np.ndarray, strip_b: int, points_b: np.ndarray) -> Correspondences:
+    def match(self, strip_a: int, points_a: np.ndarray, strip_b: int,
+              points_b: np.ndarray) -> Correspondences:
         """The correspondences of two strips' overlapping points ((N, 3) local m each)."""
         ...
 
@@ -41,7 +42,8 @@ class TiePlanes:
     settings: PlaneSettings = field(default_factory=PlaneSettings)
     threshold_m: float = 2e-4  #: the matching is deterministic: 0.2 mm
 
-    def match(self, strip_a: int, points_a: np.ndarray, strip_b: int, points_b: np.ndarray) -> Correspondences:
+    def match(self, strip_a: int, points_a: np.ndarray, strip_b: int,
+              points_b: np.ndarray) -> Correspondences:
         return match_pair_planes(strip_a, points_a, strip_b, points_b, self.settings)
 
 
@@ -52,10 +54,13 @@ class Vgicp:
     name: ClassVar[str] = "vgicp"
     label: ClassVar[str] = "VGICP correspondences"
     settings: VgicpSettings = field(default_factory=VgicpSettings)
-    #: re-matching alone moves the mean distance by ~0.1 mm, so the tie planes' 0.2 mm would rarely stop it
+    #: re-matching alone moves the mean distance by ~0.1 mm, so the tie planes' 0.2 mm would rarely
+    #: stop it
     threshold_m: float = 1e-3
-    #: small_gicp holds the GIL: in-process runs match the pairs in worker processes (:mod:`calidar.strips.processes`)
+    #: small_gicp holds the GIL: in-process runs match the pairs in worker processes
+    #: (:mod:`calidar.strips.processes`)
     holds_gil: ClassVar[bool] = True
 
-    def match(self, strip_a: int, points_a: np.ndarray, strip_b: int, points_b: np.ndarray) -> Correspondences:
+    def match(self, strip_a: int, points_a: np.ndarray, strip_b: int,
+              points_b: np.ndarray) -> Correspondences:
         return match_pair_vgicp(strip_a, points_a, strip_b, points_b, self.settings)

@@ -58,27 +58,31 @@ UNITS = {"range_offset": "m", "scan_angle_scale": "1", "scan_angle_offset": "rad
          "lever_arm_x": "m", "lever_arm_y": "m"}
 
 
-#: a candidate that IS an estimated parameter, not computed: the linear scanner's scan-angle offset turns
-#: every beam about the scanner's x axis, u(θ + δ) = Rx(−δ)·u(θ), so R_bs·u(θ + δ) is the boresight with
-#: roll − δ (Rz(yaw)·Ry(pitch)·Rx(roll − δ)): the boresight roll itself
+#: a candidate that IS an estimated parameter, not computed: the linear scanner's scan-angle offset
+#: turns every beam about the scanner's x axis, u(θ + δ) = Rx(−δ)·u(θ), so R_bs·u(θ + δ) is the
+#: boresight with roll − δ (Rz(yaw)·Ry(pitch)·Rx(roll − δ)): the boresight roll itself
 ALIASES = {"scan_angle_offset": "boresight_roll"}
 
 
 def candidates(nominal_parameters: Mapping[str, float], free: Sequence[str]) -> list[str]:
     """The :data:`CANDIDATES` this sensor has, the calibration did not estimate and no estimated
     parameter is (:data:`ALIASES`)."""
-    return [c for c in CANDIDATES if c in nominal_parameters and c not in free and ALIASES.get(c) not in free]
+    return [c for c in CANDIDATES if c in nominal_parameters and c not in free
+            and ALIASES.get(c) not in free]
 
 
 class Groups:
-    """A grouping of the observations for cluster-robust variances, indexed once: (n,) one group each,
-    or (n, 2) two groups (dyadic: observations correlated when they share either)."""
+    """A grouping of the observations for cluster-robust variances, indexed once: (n,) one group
+    each, or (n, 2) two groups (dyadic: observations correlated when they share either)."""
 
     def __init__(self, grouping: np.ndarray):
         c = np.asarray(grouping).reshape(len(grouping), -1)
         nodes, g = np.unique(c, return_inverse=True)
         self.g, self.G = g.reshape(c.shape), nodes.size
-        self.dyads = np.unique(np.sort(self.g, axis=1), axis=0, return_inverse=True)[1].ravel() if c.shape[1] == 2 else None
+        self.dyads = None
+        if c.shape[1] == 2:  # each pair of groups, in either order, one dyad
+            pairs = np.sort(self.g, axis=1)
+            self.dyads = np.unique(pairs, axis=0, return_inverse=True)[1].ravel()
 
     def variance(self, e: np.ndarray) -> float:
         """Cluster-robust variance of Σᵢ eᵢ (eᵢ: one observation's part of a linear statistic):
@@ -86,7 +90,8 @@ class Groups:
         :func:`calidar.adjust.solver.solve`'s sandwich (Cameron & Miller 2014)."""
         if self.G < 2:
             return 0.0
-        sums = sum(np.bincount(self.g[:, k], weights=e, minlength=self.G) for k in range(self.g.shape[1]))
+        sums = sum(np.bincount(self.g[:, k], weights=e, minlength=self.G)
+                   for k in range(self.g.shape[1]))
         total = float(np.sum(sums ** 2))
         if self.dyads is not None:
             total -= float(np.sum(np.bincount(self.dyads, weights=e) ** 2))
@@ -97,19 +102,23 @@ class FreedFit:
     """The restricted adjustment's normal equations at its optimum, factored once, and the freed
     fit of any extra column (:meth:`free`). J (n × p, dense or sparse), w (n,) the final weights
     (× 1/σ²), r (n,) residuals, N (p × p) the normal matrix with priors, g (p,) the gradient with
-    priors, factor the solution's variance factor, groupings the cluster groupings (may be empty)."""
+    priors, factor the solution's variance factor, groupings the cluster groupings (may be
+    empty)."""
 
     def __init__(self, J, w: np.ndarray, r: np.ndarray, N: np.ndarray, g: np.ndarray, factor: float,
                  groupings: Sequence[np.ndarray] = ()):
-        self.J, self.w, self.r, self.g, self.factor = J, np.asarray(w, float), np.asarray(r, float), g, factor
+        self.J, self.g, self.factor = J, g, factor
+        self.w, self.r = np.asarray(w, float), np.asarray(r, float)
         self.groups = [Groups(grouping) for grouping in groupings]
         self.cho = sl.cho_factor(N, lower=True)
-        self.rest = -sl.cho_solve(self.cho, g)  # the restricted model's own remaining step (≈ 0 at its optimum)
+        # the restricted model's own remaining step (≈ 0 at its optimum)
+        self.rest = -sl.cho_solve(self.cho, g)
 
     def free(self, j: np.ndarray) -> dict:
-        """The freed parameter of Jacobian column ``j`` (n,): its value φ̂, σ (model, cluster-robust,
-        used), z, the shifts Δθ of the estimated parameters with their σ (:func:`hausman`), and the
-        Schur complement's share of its information (1: independent of the others, 0: singular).
+        """The freed parameter of Jacobian column ``j`` (n,): its value φ̂, σ (model,
+        cluster-robust, used), z, the shifts Δθ of the estimated parameters with their σ
+        (:func:`hausman`), and the Schur complement's share of its information (1: independent of
+        the others, 0: singular).
 
         The cluster-robust σ takes the full model's residuals (r moved by the full step, linear):
         the σ the calibration would state with the parameter estimated (a Wald test)."""
@@ -128,25 +137,29 @@ class FreedFit:
         var_cluster = max((groups.variance(e) for groups in self.groups), default=0.0)
         sigma = float(np.sqrt(max(var_model, var_cluster)))
         return {"separable": True, "information_share": share, "value": phi, "sigma": sigma,
-                "sigma_model": float(np.sqrt(var_model)), "sigma_cluster": float(np.sqrt(var_cluster)),
-                "z": phi / sigma, "shift": -b * phi, "shift_sigma": np.abs(b) * sigma, "b": b}  # σ(Δθ)ᵢ = √hausman()ᵢᵢ
+                "sigma_model": float(np.sqrt(var_model)),
+                "sigma_cluster": float(np.sqrt(var_cluster)), "z": phi / sigma, "shift": -b * phi,
+                "shift_sigma": np.abs(b) * sigma, "b": b}  # σ(Δθ)ᵢ = √hausman()ᵢᵢ
 
 
 def hausman(b: np.ndarray, sigma_phi: float) -> np.ndarray:
     """cov(Δθ) = C_full − C_restricted on the shared parameters for one freed parameter: b·bᵀ·σ(φ̂)²
-    (b = N⁻¹n: by block inversion the full normal matrix's inverse on θ is N⁻¹ + b·bᵀ/S; Hausman 1978)."""
+    (b = N⁻¹n: by block inversion the full normal matrix's inverse on θ is N⁻¹ + b·bᵀ/S;
+    Hausman 1978)."""
     return np.outer(b, b) * sigma_phi ** 2
 
 
-def columns(problem_for, values: Mapping[str, float], names: Sequence[str], scanner: Sequence[str]) -> dict:
-    """∂residuals/∂(each of ``names``) at ``values``, from a problem on the same rows in which they are
-    free (``problem_for(names)`` builds one): analytic for range and lever arm (one problem for all
-    of them), central differences for the ``scanner``'s angle parameters (which re-georeference
+def columns(problem_for, values: Mapping[str, float], names: Sequence[str],
+            scanner: Sequence[str]) -> dict:
+    """∂residuals/∂(each of ``names``) at ``values``, from a problem on the same rows in which they
+    are free (``problem_for(names)`` builds one): analytic for range and lever arm (one problem for
+    all of them), central differences for the ``scanner``'s angle parameters (which re-georeference
     every referenced point)."""
     out = {}
     analytic = [n for n in names if n not in scanner]
     if analytic:
-        J = problem_for(analytic).jacobian(values, [Parameter(n, values[n], UNITS[n]) for n in analytic])
+        J = problem_for(analytic).jacobian(values,
+                                           [Parameter(n, values[n], UNITS[n]) for n in analytic])
         out.update(zip(analytic, np.asarray(J, float).T))
     angles = [n for n in names if n in scanner]
     problem = problem_for(angles) if angles else None
@@ -158,16 +171,18 @@ def columns(problem_for, values: Mapping[str, float], names: Sequence[str], scan
 
 
 def check(est, problem_for, nominal_parameters: Mapping[str, float], scanner: Sequence[str],
-          groupings: Sequence[np.ndarray], shown: Sequence[str], restricted_sigma: Mapping[str, float]) -> dict:
+          groupings: Sequence[np.ndarray], shown: Sequence[str],
+          restricted_sigma: Mapping[str, float]) -> dict:
     """The model check of a converged :class:`calidar.adjust.solver.Estimate`: every candidate
     freed in turn (:class:`FreedFit`). ``problem_for(names)``: the strip problem on the same rows
     with ``names`` free too (see :func:`columns`); ``scanner``: the scanner model's parameter names;
-    ``groupings``: the solution's cluster groupings; ``shown``: the estimated parameters whose shifts
-    are reported (not the trajectory corrections); ``restricted_sigma``: their σ in the calibration
-    (SI). Returns per candidate its freed value, σ, z and the shifts in the units solution.json
-    shows (deg, m, ppm), the wall and CPU seconds it took and their parts."""
+    ``groupings``: the solution's cluster groupings; ``shown``: the estimated parameters whose
+    shifts are reported (not the trajectory corrections); ``restricted_sigma``: their σ in the
+    calibration (SI). Returns per candidate its freed value, σ, z and the shifts in the units
+    solution.json shows (deg, m, ppm), the wall and CPU seconds it took and their parts."""
     with _one_blas_thread():
-        return _check(est, problem_for, nominal_parameters, scanner, groupings, shown, restricted_sigma)
+        return _check(est, problem_for, nominal_parameters, scanner, groupings, shown,
+                      restricted_sigma)
 
 
 def _one_blas_thread():
@@ -180,7 +195,8 @@ def _one_blas_thread():
     return threadpool_limits(1, user_api="blas")
 
 
-def _check(est, problem_for, nominal_parameters, scanner, groupings, shown, restricted_sigma) -> dict:
+def _check(est, problem_for, nominal_parameters, scanner, groupings, shown,
+           restricted_sigma) -> dict:
     clock, cpu = time.perf_counter(), time.process_time()
     fit, x, r, w = est.fit, est.x, est.r, est.w
     free = fit.params.free_names
@@ -188,40 +204,53 @@ def _check(est, problem_for, nominal_parameters, scanner, groupings, shown, rest
     N, g = fit.normal_equations(J, w, r, x)
     try:
         freed = FreedFit(J, w, r, N, g, fit.variance_factor(r, w, x), groupings)
-    except (np.linalg.LinAlgError, ValueError):  # a direction the data do not determine: nothing to test against
-        return {"candidates": {}, "seconds": time.perf_counter() - clock, "cpu_seconds": time.process_time() - cpu,
-                "not_run": "the adjustment's normal matrix is singular (a parameter the strips do not determine)"}
+    except (np.linalg.LinAlgError, ValueError):
+        # a direction the data do not determine: nothing to test against
+        return {"candidates": {}, "seconds": time.perf_counter() - clock,
+                "cpu_seconds": time.process_time() - cpu,
+                "not_run": "the adjustment's normal matrix is singular (a parameter the strips do "
+                           "not determine)"}
     values = fit.params.values_with(x)
     index = [free.index(s) for s in shown]
     out = {}
     names = candidates(nominal_parameters, free)
-    parts = {"normal_matrix_cpu_s": time.process_time() - cpu}  # CPU: on a shared machine the wall time waits
+    # CPU: on a shared machine the wall time waits
+    parts = {"normal_matrix_cpu_s": time.process_time() - cpu}
     cols = columns(problem_for, values, names, scanner)
     parts["columns_cpu_s"] = time.process_time() - cpu - parts["normal_matrix_cpu_s"]
-    for name in (c for c in CANDIDATES if c in nominal_parameters and c not in free and c not in names):
-        out[name] = {"separable": False, "information_share": 0.0, "unit": Parameter(name, 0.0, UNITS[name]).display_unit,
+    for name in (c for c in CANDIDATES if c in nominal_parameters and c not in free
+                 and c not in names):
+        out[name] = {"separable": False, "information_share": 0.0,
+                     "unit": Parameter(name, 0.0, UNITS[name]).display_unit,
                      "same_as": ALIASES[name]}
     for name in names:
-        f = freed.free(cols[name]) if np.all(np.isfinite(cols[name])) else {"separable": False, "information_share": 0.0}
-        out[name] = _display(f, Parameter(name, 0.0, UNITS[name]), {s: fit.params[s] for s in shown}, index,
+        usable = np.all(np.isfinite(cols[name]))
+        f = freed.free(cols[name]) if usable else {"separable": False, "information_share": 0.0}
+        out[name] = _display(f, Parameter(name, 0.0, UNITS[name]),
+                             {s: fit.params[s] for s in shown}, index,
                              restricted_sigma)
     used = time.process_time() - cpu
     parts["solves_cpu_s"] = used - parts["normal_matrix_cpu_s"] - parts["columns_cpu_s"]
     out = {name: out[name] for name in CANDIDATES if name in out}  # in the candidates' order
-    return {"candidates": out, "seconds": time.perf_counter() - clock, "cpu_seconds": used, "parts": parts}
+    return {"candidates": out, "seconds": time.perf_counter() - clock, "cpu_seconds": used,
+            "parts": parts}
 
 
 def _display(f: dict, p: Parameter, shown: Mapping[str, Parameter], index: Sequence[int],
              restricted_sigma: Mapping[str, float]) -> dict:
     """One freed fit (:meth:`FreedFit.free`) in display units, the shifts by estimated parameter."""
-    out = {"separable": f["separable"], "information_share": f["information_share"], "unit": p.display_unit}
+    out = {"separable": f["separable"], "information_share": f["information_share"],
+           "unit": p.display_unit}
     if not f["separable"]:
         return out
-    out.update({k: p.to_display(f[k]) for k in ("value", "sigma", "sigma_model", "sigma_cluster")}, z=f["z"])
+    out.update({k: p.to_display(f[k]) for k in ("value", "sigma", "sigma_model", "sigma_cluster")},
+               z=f["z"])
     out["shifts"] = {}
     for (name, q), i in zip(shown.items(), index):
         own = restricted_sigma[name]
-        out["shifts"][name] = {"shift": q.to_display(f["shift"][i]), "sigma": q.to_display(f["shift_sigma"][i]),
+        out["shifts"][name] = {"shift": q.to_display(f["shift"][i]),
+                               "sigma": q.to_display(f["shift_sigma"][i]),
                                "own_sigma": q.to_display(own), "unit": q.display_unit,
-                               "in_own_sigma": float(f["shift"][i] / own) if own > 0 else float("inf")}
+                               "in_own_sigma": float(f["shift"][i] / own) if own > 0
+                               else float("inf")}
     return out

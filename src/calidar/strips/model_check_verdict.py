@@ -1,5 +1,6 @@
-"""The model check's verdict finding (:mod:`calidar.strips.model_check`): does a structural parameter
-the calibration did not estimate show in the overlaps, and would freeing it move the estimated ones?
+"""The model check's verdict finding (:mod:`calidar.strips.model_check`): does a structural
+parameter the calibration did not estimate show in the overlaps, and would freeing it move the
+estimated ones?
 
 Per candidate the freed value's z (Wald; with one parameter freed, every estimated parameter's
 Hausman z is the same number) and the largest shift of an estimated parameter in units of its own σ:
@@ -28,14 +29,16 @@ Z_FAIL = 5.0
 SHIFT_LIMIT = 2.0
 #: the --estimate name of each candidate's group
 GROUP = {"range_offset": "range_offset", "scan_angle_scale": "scan_angle_scale",
-         "scan_angle_offset": "scan_angle_offset", "lever_arm_x": "lever_arm_x", "lever_arm_y": "lever_arm_y"}
+         "scan_angle_offset": "scan_angle_offset", "lever_arm_x": "lever_arm_x",
+         "lever_arm_y": "lever_arm_y"}
 WHAT = {"range_offset": "a range offset", "scan_angle_scale": "a scan-angle "
-        "scale error", "scan_angle_offset": "a scan-angle offset", "lever_arm_x": "an along-track lever-arm error",
+        "scale error", "scan_angle_offset": "a scan-angle offset",
+        "lever_arm_x": "an along-track lever-arm error",
         "lever_arm_y": "an across-track lever-arm error"}
 
 
 def value_text(unit: str, value: float, sigma: float | None = None) -> str:
-    """A value in solution.json's display units (deg, m, ppm, 1: a ratio) as the verdict writes it."""
+    """A value in solution.json's display units (deg, m, ppm, 1: a ratio), as the verdict says."""
     if unit == "m":
         return length_text(value, sigma)
     if unit == "deg":
@@ -54,12 +57,14 @@ def _candidate(name: str, c: dict, sol) -> tuple[str, str]:
     shifts = c.get("shifts", {})
     worst = max(shifts, key=lambda s: abs(shifts[s]["in_own_sigma"]), default=None)
     moved = worst is not None and abs(shifts[worst]["in_own_sigma"]) > SHIFT_LIMIT
-    seen = f"the overlaps show {WHAT[name]} of {value_text(c['unit'], c['value'], c['sigma'])} (z = {z:+.1f})"
+    value = value_text(c['unit'], c['value'], c['sigma'])
+    seen = f"the overlaps show {WHAT[name]} of {value} (z = {z:+.1f})"
     if abs(z) <= Z_WARN:
-        return "pass", f"{name} {value_text(c['unit'], c['value'], c['sigma'])} (z = {z:+.1f})"
+        return "pass", f"{name} {value} (z = {z:+.1f})"
     if not moved:
         where = "" if worst is None else f"; it moves {_shift_text(worst, shifts[worst])}"
-        return NOTE, (f"{seen}, not estimated{where}: freed, it moves no estimate by more than {SHIFT_LIMIT:g} of its σ "
+        return NOTE, (f"{seen}, not estimated{where}: freed, it moves no estimate by more than "
+                      f"{SHIFT_LIMIT:g} of its σ "
                       "(estimating it is the better model; the estimates hardly change)")
     status = "fail" if abs(z) > Z_FAIL else "warn"
     return status, (f"freeing {name} moves {_shift_text(worst, shifts[worst])}; {seen} that is "
@@ -67,7 +72,7 @@ def _candidate(name: str, c: dict, sol) -> tuple[str, str]:
 
 
 def model_check_finding(check: dict, sol) -> Finding:
-    """The verdict finding of a model check (``solution.extra["model_check"]``) on solution ``sol``."""
+    """The verdict finding of the model check (``solution.extra["model_check"]``) of ``sol``."""
     rank = {"fail": 3, "warn": 2, NOTE: 1, "pass": 0}
     rows, skipped = [], []
     for name, c in check["candidates"].items():
@@ -84,22 +89,29 @@ def model_check_finding(check: dict, sol) -> Finding:
     status = max((r[1] for r in rows), key=rank.get)
     if status == "pass":
         z = ", ".join(r[2] for r in rows)
-        return Finding("pass", "model check", f"each structural parameter not estimated, freed in turn, is within "
+        return Finding("pass", "model check",
+                       f"each structural parameter not estimated, freed in turn, is within "
                        f"{Z_WARN:g} σ of its nominal value: {z}" + tail)
-    flagged = sorted((r for r in rows if r[1] == status), key=lambda r: -abs(check["candidates"][r[0]]["z"]))
+    flagged = sorted((r for r in rows if r[1] == status),
+                     key=lambda r: -abs(check["candidates"][r[0]]["z"]))
     detail = "; ".join(r[2] for r in flagged)
     if len(flagged) > 1:
-        detail = f"{detail} — each freed alone: alternative explanations of one misfit, the first the clearest"
+        detail = (f"{detail} — each freed alone: alternative explanations of one misfit, "
+                  "the first the clearest")
     if status == NOTE:
         return Finding(NOTE, "model check", detail + tail)
     estimated = [p.name for p in sol.parameters.free if not p.name.startswith(TRAJECTORY_PREFIX)]
     best = flagged[0][0]
     estimate = f"--estimate {_estimate_text(estimated)},{GROUP[best]}"
-    action = (f"estimate {best} ({estimate}) and run again, or give --control / --checkpoints, which tell it from "
-              "the mounting; until then the estimated values are not to be used" if status == "fail" else
-              f"estimate {best} ({estimate}) and compare, or give --control / --checkpoints")
-    return Finding(status, "model check", detail + f" (|z| > {Z_FAIL if status == 'fail' else Z_WARN:g}, shift > "
-                   f"{SHIFT_LIMIT:g} σ)" + tail, action)
+    if status == "fail":
+        action = (f"estimate {best} ({estimate}) and run again, or give --control / --checkpoints, "
+                  "which tell it from the mounting; until then the estimated values are not to "
+                  "be used")
+    else:
+        action = f"estimate {best} ({estimate}) and compare, or give --control / --checkpoints"
+    limit = Z_FAIL if status == 'fail' else Z_WARN
+    return Finding(status, "model check",
+                   detail + f" (|z| > {limit:g}, shift > {SHIFT_LIMIT:g} σ)" + tail, action)
 
 
 def moved_parameters(findings: list[Finding], sol) -> list[Finding]:
@@ -115,15 +127,18 @@ def moved_parameters(findings: list[Finding], sol) -> list[Finding]:
         if status not in ("warn", "fail"):
             continue
         for p, s in c["shifts"].items():
-            if abs(s["in_own_sigma"]) > SHIFT_LIMIT and abs(c["z"]) > moved.get(p, ("", "", 0, 0))[3]:  # the clearest
-                moved[p] = (status, f"freeing {name} moves it by {value_text(s['unit'], s['shift'])}", s["in_own_sigma"],
-                            abs(c["z"]))
+            clearest = abs(c["z"]) > moved.get(p, ("", "", 0, 0))[3]
+            if abs(s["in_own_sigma"]) > SHIFT_LIMIT and clearest:
+                moves = f"freeing {name} moves it by {value_text(s['unit'], s['shift'])}"
+                moved[p] = (status, moves, s["in_own_sigma"], abs(c["z"]))
     out = []
     for f in findings:
         if f.check in moved and f.status in ("pass", "warn"):
             status, why, k, _ = moved[f.check]
-            f = Finding(status, f.check, f"{f.detail.split(': ')[0]}: not determined — {why} ({abs(k):.1f}× this σ): "
-                        "the value rests on a parameter held that the overlaps say is wrong", "see the model check")
+            f = Finding(status, f.check,
+                        f"{f.detail.split(': ')[0]}: not determined — {why} ({abs(k):.1f}× this "
+                        "σ): the value rests on a parameter held that the overlaps say is wrong",
+                        "see the model check")
         out.append(f)
     return out
 

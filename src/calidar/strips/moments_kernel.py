@@ -34,14 +34,16 @@ def _dense_moments(p, cell_m):  # pragma: no cover - numba
         return e, e, np.zeros((0, 3)), np.zeros((0, 6)), True
     ij = np.empty((n, 2), np.int64)
     for k in range(n):
-        ij[k, 0], ij[k, 1] = np.int64(np.floor(p[k, 0] / cell_m)), np.int64(np.floor(p[k, 1] / cell_m))
+        ij[k, 0] = np.int64(np.floor(p[k, 0] / cell_m))
+        ij[k, 1] = np.int64(np.floor(p[k, 1] / cell_m))
     box = cell_box(ij)
     if not dense_fits(n, box):
         return e, e, np.zeros((0, 3)), np.zeros((0, 6)), False
     slot, inv, _ = first_appearance(ij, box)  # groups in order of first appearance (as group_cells)
     order = key_order(slot >= 0, box)  # the groups in key order, no sort
     width = box[3] - box[2] + 1
-    keys, rank, centres = np.empty(order.size, np.int64), np.empty(order.size, np.int64), np.empty((order.size, 2))
+    keys, rank = np.empty(order.size, np.int64), np.empty(order.size, np.int64)
+    centres = np.empty((order.size, 2))
     for r in range(order.size):
         i, j = box[0] + order[r] // width, box[2] + order[r] % width
         keys[r], rank[slot[order[r]]] = (i << 32) + (j & 0xFFFFFFFF), r
@@ -71,7 +73,9 @@ def moments(p: np.ndarray, inv: np.ndarray, centres: np.ndarray):  # pragma: no 
             mean[g, a] /= count[g]
     for k in range(p.shape[0]):
         g = inv[k]
-        dx, dy, dz = p[k, 0] - centres[g, 0] - mean[g, 0], p[k, 1] - centres[g, 1] - mean[g, 1], p[k, 2] - mean[g, 2]
+        dx = p[k, 0] - centres[g, 0] - mean[g, 0]
+        dy = p[k, 1] - centres[g, 1] - mean[g, 1]
+        dz = p[k, 2] - mean[g, 2]
         scatter[g, 0] += dx * dx
         scatter[g, 1] += dx * dy
         scatter[g, 2] += dx * dz
@@ -98,7 +102,10 @@ def _dense_counts(keys):  # pragma: no cover - numba
     lo0, hi0, lo1, hi1 = 0, 0, 0, 0
     for k in range(n):  # the box from the keys (no (N, 2) cells: twice as fast as cells.cell_box)
         i, j = _unpacked(keys[k])
-        lo0, hi0, lo1, hi1 = (i, i, j, j) if k == 0 else (min(lo0, i), max(hi0, i), min(lo1, j), max(hi1, j))
+        if k == 0:
+            lo0, hi0, lo1, hi1 = i, i, j, j
+        else:
+            lo0, hi0, lo1, hi1 = min(lo0, i), max(hi0, i), min(lo1, j), max(hi1, j)
     box = (lo0, hi0, lo1, hi1)
     if not dense_fits(n, box):
         return e, e, False

@@ -1,12 +1,13 @@
-"""The strip calibrator's outer loop (:mod:`calidar.strips.calibrate`): one run's fixed inputs and the loop of
-matching and adjusting.
+"""The strip calibrator's outer loop (:mod:`calidar.strips.calibrate`): one run's fixed inputs and
+the loop of matching and adjusting.
 
-:class:`Run` holds what stays fixed over the outer iterations — the strips by id, their overlaps, the overlap
-points' poses, the parameters' time spans, the trajectory model, ground control — and does one iteration's two
-steps: re-georeference the overlap points and match every pair (:meth:`Run.match`, as independent tasks through
-:func:`calidar.strips.distribute.map_pairs` or the pair processes of :mod:`calidar.strips.processes`), and adjust
-the parameters to the correspondences (:meth:`Run.solve`). :func:`outer_loop` repeats them until the mean
-correspondence distance settles (ICP, Besl & McKay 1992). Split from :mod:`calidar.strips.calibrate` (issue 26).
+:class:`Run` holds what stays fixed over the outer iterations — the strips by id, their overlaps,
+the overlap points' poses, the parameters' time spans, the trajectory model, ground control — and
+does one iteration's two steps: re-georeference the overlap points and match every pair
+(:meth:`Run.match`, as independent tasks through :func:`calidar.strips.distribute.map_pairs` or the
+pair processes of :mod:`calidar.strips.processes`), and adjust the parameters to the correspondences
+(:meth:`Run.solve`). :func:`outer_loop` repeats them until the mean correspondence distance settles
+(ICP, Besl & McKay 1992). Split from :mod:`calidar.strips.calibrate` (issue 26).
 """
 
 from __future__ import annotations
@@ -24,7 +25,8 @@ from calidar.adjust import ParameterSet, Solution
 from calidar.adjust.solver import Estimate, estimate
 from calidar.errors import CalibrationError, CalidarError, InputError
 from calidar.sensor import Sensor
-from calidar.strips.control import CONTROL_ID, ControlPoints, control_pose, control_rows, near_control
+from calidar.strips.control import (CONTROL_ID, ControlPoints, control_pose, control_rows,
+                                    near_control)
 from calidar.strips.control_survey import PREFIX as CONTROL_PREFIX
 from calidar.strips.control_survey import SurveyErrors
 from calidar.strips.config import StripSettings
@@ -40,13 +42,15 @@ from calidar.strips.trajectory_errors import PREFIX as TRAJECTORY_PREFIX
 from calidar.strips.trajectory_errors import TrajectoryModel, corrections
 from calidar.strips.trajectory_level import TrajectoryLevel
 
-#: an outer iteration's adjustment stops when every step is below this fraction of its σ: the next matching moves
-#: the points anyway (the last one is then refined: :data:`calidar.strips.calibrate.FINAL_STEP_IN_SIGMA`)
+#: an outer iteration's adjustment stops when every step is below this fraction of its σ: the next
+#: matching moves the points anyway (the last one is then refined:
+#: :data:`calidar.strips.calibrate.FINAL_STEP_IN_SIGMA`)
 OUTER_STEP_IN_SIGMA = 0.1
 
 
 def match_or_error(matcher: Matcher, strip_a_id, points_a, strip_b_id, points_b):
-    """``matcher.match(...)``, or the user-facing error it raised for this pair (picklable, for map_pairs)."""
+    """``matcher.match(...)``, or the user-facing error it raised for this pair (picklable, for
+    map_pairs)."""
     try:
         return matcher.match(strip_a_id, points_a, strip_b_id, points_b)
     except CalidarError as e:
@@ -83,28 +87,33 @@ class Run:
     poses: dict[int, Pose]
     warnings: list[str]
     level: TrajectoryLevel | None = None  #: the trajectory's accuracy level, when estimated
-    control: ControlPoints | None = None  #: ground control in the adjustment (calidar.strips.control)
+    #: ground control in the adjustment (calidar.strips.control)
+    control: ControlPoints | None = None
     near: dict[int, np.ndarray] = field(default_factory=dict)  #: per strip its points near control
 
     @classmethod
-    def start(cls, strips: Sequence[Strip], nominal: Sensor, matcher: Matcher, settings: StripSettings,
-              model: TrajectoryModel | None = None, control: ControlPoints | None = None) -> "Run":
+    def start(cls, strips: Sequence[Strip], nominal: Sensor, matcher: Matcher,
+              settings: StripSettings, model: TrajectoryModel | None = None,
+              control: ControlPoints | None = None) -> "Run":
         by_id = {st.id: st for st in strips}
         if len(by_id) != len(strips):
-            raise InputError(None, "strips", "two strips share an id; flight-line ids must be unique")
+            raise InputError(None, "strips",
+                             "two strips share an id; flight-line ids must be unique")
         s = settings
         names = {i: Path(st.source).name for i, st in by_id.items() if st.source != "<memory>"}
-        overlaps, notes = find_overlaps({i: st.points for i, st in by_id.items()}, s.overlap_cell_m, s.min_overlap_cells,
-                                        names=names)
+        points = {i: st.points for i, st in by_id.items()}
+        overlaps, notes = find_overlaps(points, s.overlap_cell_m, s.min_overlap_cells, names=names)
         if not overlaps:
             listed = f" ({', '.join(strip_name(i, names) for i in by_id)})" if names else ""
             raise CalibrationError(f"no two of the {len(by_id)} strips{listed} overlap (no common "
-                                   f"{s.overlap_cell_m:g} m cells); strip calibration needs overlapping flight lines")
+                                   f"{s.overlap_cell_m:g} m cells); strip calibration needs "
+                                   "overlapping flight lines")
         need: dict[int, list[np.ndarray]] = {}
         for o in overlaps:
             need.setdefault(o.a, []).append(o.index_a)
             need.setdefault(o.b, []).append(o.index_b)
-        near = {} if control is None else {i: near_control(st.points, control) for i, st in by_id.items()}
+        near = ({} if control is None
+                else {i: near_control(st.points, control) for i, st in by_id.items()})
         near = {i: v for i, v in near.items() if v.size}
         for i, v in near.items():
             need.setdefault(i, []).append(v)
@@ -113,7 +122,8 @@ class Run:
         poses = {i: by_id[i].pose(idx) for i, idx in need.items()}  # one trajectory interpolation
         if control is not None:
             poses[CONTROL_ID] = control_pose(control, next(iter(poses.values())))
-        return cls(by_id, nominal, matcher, s, overlaps, spans, model, need, poses, list(notes), control=control, near=near)
+        return cls(by_id, nominal, matcher, s, overlaps, spans, model, need, poses, list(notes),
+                   control=control, near=near)
 
     def headings(self) -> dict[int, float]:
         return {i: st.heading_enu() for i, st in self.by_id.items()}
@@ -125,17 +135,21 @@ class Run:
         columns), their pairs, and the stage times (s)."""
         clock = time.perf_counter()
         sensor, fix = sensor_of(self.nominal, values), corrections(values, self.model, self.spans)
-        current = {i: (idx, georeference(sensor, fix.get(i), self.poses[i], self.by_id[i].time[idx]))
-                   for i, idx in self.need.items()}
+        current = {
+            i: (idx, georeference(sensor, fix.get(i), self.poses[i], self.by_id[i].time[idx]))
+            for i, idx in self.need.items()}
         times = {"georeference_s": time.perf_counter() - clock}
 
         def subset(i, index):  # the points ``index`` of strip i (the pose cache's rows, by table)
             return current[i][1][self.poses[i].rows_of(index)]
 
-        tasks = [(self.matcher, o.a, subset(o.a, o.index_a), o.b, subset(o.b, o.index_b)) for o in self.overlaps]
-        say(f"iteration {k + 1}: matching {len(tasks)} pairs ({self.matcher.name})", k, self.settings.max_outer)
+        tasks = [(self.matcher, o.a, subset(o.a, o.index_a), o.b, subset(o.b, o.index_b))
+                 for o in self.overlaps]
+        say(f"iteration {k + 1}: matching {len(tasks)} pairs ({self.matcher.name})", k,
+            self.settings.max_outer)
         clock = time.perf_counter()
-        if pool is not None and client is None and worth_processes(tasks):  # a GIL-holding matcher: both cores
+        # a GIL-holding matcher: both cores
+        if pool is not None and client is None and worth_processes(tasks):
             found = map_in_processes(pool, match_or_error, tasks)
         else:
             found = map_pairs(match_or_error, tasks, client=client, log=log)
@@ -149,14 +163,18 @@ class Run:
 
     def _control_rows(self, current: dict) -> list[Correspondences]:
         """The control rows of every strip near control, from its re-georeferenced points."""
-        found = (self.control.rows(i, idx, current[i][1][self.poses[i].rows_of(idx)], len(self.by_id[i]))
+        found = (self.control.rows(i, idx, current[i][1][self.poses[i].rows_of(idx)],
+                                   len(self.by_id[i]))
                  for i, idx in self.near.items())
         return [c for c in found if c is not None]
 
     def _times(self) -> dict[int, np.ndarray]:
-        """Per strip its points' times; the control pseudo-strip's, one per control point, 0 (no trajectory)."""
+        """Per strip its points' times; the control pseudo-strip's, one per control point, 0 (no
+        trajectory)."""
         times = {i: st.time for i, st in self.by_id.items()}
-        return times if self.control is None else {**times, CONTROL_ID: np.zeros(len(self.control.ids))}
+        if self.control is None:
+            return times
+        return {**times, CONTROL_ID: np.zeros(len(self.control.ids))}
 
     def _usable(self, found) -> tuple[list[Correspondences], list[dict], list[str]]:
         what = self.matcher.label
@@ -165,7 +183,8 @@ class Run:
             if isinstance(c, CalidarError):
                 skipped.append(f"{o.a}–{o.b}: {c}")
             elif c.n_obs < self.settings.min_correspondences:
-                skipped.append(f"{o.a}–{o.b}: only {c.n_obs} {what}, need {self.settings.min_correspondences}")
+                skipped.append(f"{o.a}–{o.b}: only {c.n_obs} {what}, need "
+                               f"{self.settings.min_correspondences}")
             else:
                 corrs.append(_to_strip_columns(c, o, len(self.by_id[o.a]), len(self.by_id[o.b])))
                 pairs.append({"a": o.a, "b": o.b, "n_obs": c.n_obs})
@@ -175,63 +194,79 @@ class Run:
               step_scale: np.ndarray | None) -> tuple[Estimate, StripProblem]:
         """One adjustment of ``params`` from the correspondences ``corrs``, iterated until every
         step is below ``step_in_sigma`` of its σ (``step_scale``: diag N⁻¹ of an earlier one)."""
-        problem = StripProblem(self.nominal, self.poses, corrs, params, self._times(), self.model, self.spans)
-        if self.control is not None:  # each control target's survey error its own nuisance parameter
+        problem = StripProblem(self.nominal, self.poses, corrs, params, self._times(), self.model,
+                               self.spans)
+        if self.control is not None:  # each control target's survey error: its own nuisance
             problem = SurveyErrors(problem, self.control)
-        options = replace(self.settings.adjustment, step_in_sigma=step_in_sigma)  # σ absolute: StripProblem's
+        # σ absolute: StripProblem's
+        options = replace(self.settings.adjustment, step_in_sigma=step_in_sigma)
         return estimate(problem, options, step_scale=step_scale), problem
 
     def clusters(self, problem: StripProblem) -> list[np.ndarray]:
-        """The residuals' groupings by trajectory segment for the cluster-robust σ (none without ``cluster_s``)."""
+        """The residuals' groupings by trajectory segment for the cluster-robust σ (none without
+        ``cluster_s``)."""
         s = self.settings
         strips = self.by_id
-        if self.control is not None:  # each control point its own cluster: their survey errors are independent
-            strips = {**strips, CONTROL_ID: SimpleNamespace(time=np.arange(len(self.control.ids)) * (s.cluster_s or 1.0))}
+        if self.control is not None:
+            # each control point its own cluster: their survey errors are independent
+            times = np.arange(len(self.control.ids)) * (s.cluster_s or 1.0)
+            strips = {**strips, CONTROL_ID: SimpleNamespace(time=times)}
         return problem.clusters(strips, s.cluster_s) if s.cluster_s else []
 
     def solution(self, est: Estimate, problem: StripProblem) -> Solution:
         """The final adjustment's :class:`Solution`, σ raised by the cluster-robust sandwich."""
         return est.solution(self.clusters(problem) or None)
 
-    def model_check(self, est: Estimate, problem: StripProblem, corrs: list[Correspondences], solution: Solution) -> dict:
+    def model_check(self, est: Estimate, problem: StripProblem, corrs: list[Correspondences],
+                    solution: Solution) -> dict:
         """:func:`calidar.strips.model_check.check` on the final rows: each structural parameter not
         estimated freed in turn, on a problem of the same correspondences with it free too."""
         from calidar.strips.model_check import check
 
         free = est.parameters.free_names
         shown = [n for n in free if not n.startswith((TRAJECTORY_PREFIX, CONTROL_PREFIX))]
-        return check(est, lambda names: StripProblem(self.nominal, self.poses, corrs, [*free, *names], self._times(),
-                                                      self.model, self.spans),
-                     self.nominal.parameters(), list(self.nominal.scanner.parameters()), self.clusters(problem), shown,
+        def with_freed(names):  # the same rows with ``names`` free too
+            return StripProblem(self.nominal, self.poses, corrs, [*free, *names], self._times(),
+                                self.model, self.spans)
+
+        return check(est, with_freed, self.nominal.parameters(),
+                     list(self.nominal.scanner.parameters()), self.clusters(problem), shown,
                      solution.sigma)
 
 
 def outer_loop(run: Run, params: ParameterSet, client, say, log, pool, threshold_m: float) -> tuple:
-    """Match and solve until the mean correspondence distance settles: (the outer iterations, the last
-    estimate, its problem, correspondences and pairs, the first residuals and control rows)."""
+    """Match and solve until the mean correspondence distance settles: (the outer iterations, the
+    last estimate, its problem, correspondences and pairs, the first residuals and control rows)."""
     s = run.settings
     outer: list[dict] = []
     first_residuals = first_control = est = problem = pairs = None
     for k in range(s.max_outer):
         corrs, pairs, times = run.match(params.values(), k, client, say, log, pool)
-        say(f"iteration {k + 1}: solving {sum(c.n_obs for c in corrs)} observations", k, s.max_outer)
+        n_obs = sum(c.n_obs for c in corrs)
+        say(f"iteration {k + 1}: solving {n_obs} observations", k, s.max_outer)
         clock = time.perf_counter()
-        est, problem = run.solve(corrs, params, OUTER_STEP_IN_SIGMA, None if est is None else est.step_scale)
+        step_scale = None if est is None else est.step_scale
+        est, problem = run.solve(corrs, params, OUTER_STEP_IN_SIGMA, step_scale)
         times["solve_s"] = time.perf_counter() - clock
         if first_residuals is None:
             first_residuals = problem(params.values())
             first_control = control_rows(problem, first_residuals)
         params = est.parameters
-        outer.append({"iteration": k + 1, "mean_distance_m": mean_distance(problem, est.r), "n_obs": int(problem.sigma.size),
-                      "n_pairs": len(corrs), "solver_iterations": len(est.history) - 1, **times,
+        outer.append({"iteration": k + 1, "mean_distance_m": mean_distance(problem, est.r),
+                      "n_obs": int(problem.sigma.size), "n_pairs": len(corrs),
+                      "solver_iterations": len(est.history) - 1, **times,
                       "values": params.values()})
-        if len(outer) > 1 and abs(outer[-2]["mean_distance_m"] - outer[-1]["mean_distance_m"]) < threshold_m:
+        settled = len(outer) > 1 and abs(
+            outer[-2]["mean_distance_m"] - outer[-1]["mean_distance_m"]) < threshold_m
+        if settled:
             say("outer iterations settled", s.max_outer, s.max_outer)
             break
     else:
-        change = abs(outer[-1]["mean_distance_m"] - outer[-2]["mean_distance_m"]) if len(outer) > 1 else float("nan")
-        run.warnings.append(f"the outer loop stopped after {s.max_outer} iterations before the mean correspondence "
-                            f"distance settled (last change {change * 1e3:.2g} mm)")
+        change = (abs(outer[-1]["mean_distance_m"] - outer[-2]["mean_distance_m"])
+                  if len(outer) > 1 else float("nan"))
+        run.warnings.append(f"the outer loop stopped after {s.max_outer} iterations before the "
+                            "mean correspondence distance settled (last change "
+                            f"{change * 1e3:.2g} mm)")
     return outer, est, problem, corrs, pairs, first_residuals, first_control
 
 

@@ -49,12 +49,14 @@ def footprint_area_m2(xy: np.ndarray, cell_m: float = 5.0) -> float:
         return 0.0
     ij = np.floor(np.asarray(xy, float)[:, :2] / cell_m).astype(np.int64)
     ij -= ij.min(axis=0)
-    return float(np.count_nonzero(np.bincount(ij[:, 0] * (int(ij[:, 1].max()) + 1) + ij[:, 1])) * cell_m**2)
+    flat = ij[:, 0] * (int(ij[:, 1].max()) + 1) + ij[:, 1]  # one index per cell of the box
+    return float(np.count_nonzero(np.bincount(flat)) * cell_m**2)
 
 
 def cell_counts(keys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The distinct cell keys (sorted) and how many of ``keys`` fall in each (a dense table in numba
-    when the cells' box is small against the keys: :func:`calidar.strips.moments_kernel.dense_cell_counts`)."""
+    when the cells' box is small against the keys:
+    :func:`calidar.strips.moments_kernel.dense_cell_counts`)."""
     from calidar.strips.moments_kernel import dense_cell_counts
 
     dense = dense_cell_counts(keys)
@@ -71,11 +73,15 @@ def merge_counts(*parts: tuple[np.ndarray, np.ndarray]) -> tuple[np.ndarray, np.
     counts = np.concatenate([p[1] for p in parts])
     order = np.argsort(cells, kind="stable")
     cells, counts = cells[order], counts[order]
-    start = np.r_[0, np.flatnonzero(cells[1:] != cells[:-1]) + 1] if cells.size else np.zeros(0, np.int64)
+    if cells.size:
+        start = np.r_[0, np.flatnonzero(cells[1:] != cells[:-1]) + 1]
+    else:
+        start = np.zeros(0, np.int64)
     return cells[start], np.add.reduceat(counts, start) if cells.size else counts
 
 
-def common_cells(occupied: Mapping[int, np.ndarray], min_cells: int) -> list[tuple[int, int, np.ndarray]]:
+def common_cells(occupied: Mapping[int, np.ndarray],
+                 min_cells: int) -> list[tuple[int, int, np.ndarray]]:
     """(a, b, sorted common cells) of every pair of strips (ids ascending) sharing at least
     ``min_cells`` of their occupied cells {id: sorted unique keys}."""
     ids = sorted(occupied)
@@ -97,12 +103,13 @@ def _intersection(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.intersect1d(a, b, assume_unique=True)
 
 
-def unpaired_notes(ids, pairs, cell_m: float, min_cells: int, names: Mapping[int, str] | None = None) -> list[str]:
+def unpaired_notes(ids, pairs, cell_m: float, min_cells: int,
+                   names: Mapping[int, str] | None = None) -> list[str]:
     """Plain-words notes about the strips ``ids`` in none of the ``pairs`` (a, b, ...), named by
     ``names`` {id: file name} when given."""
     paired = {p[0] for p in pairs} | {p[1] for p in pairs}
-    return [f"strip {strip_name(i, names)} overlaps no other strip (fewer than {min_cells} common {cell_m:g} m cells); "
-            "it is not used"
+    return [f"strip {strip_name(i, names)} overlaps no other strip (fewer than {min_cells} common "
+            f"{cell_m:g} m cells); it is not used"
             for i in sorted(ids) if i not in paired]
 
 
@@ -119,8 +126,9 @@ def find_overlaps(strips_xy: Mapping[int, np.ndarray], cell_m: float = 5.0, min_
     A cell counts as occupied by a strip when it holds at least ``min_points_per_cell``
     of its points; pairs sharing fewer than ``min_cells`` cells are left out. Returns the
     pairs (ids ascending) and plain-words notes about strips that overlap no other strip
-    (named by ``names`` {id: file name} when given). (Streamed files: :class:`calidar.ingest.strips.StripIngest` accumulates the
-    same footprints chunk by chunk with :func:`cell_counts` and :func:`merge_counts`.)
+    (named by ``names`` {id: file name} when given). (Streamed files:
+    :class:`calidar.ingest.strips.StripIngest` accumulates the same footprints chunk by chunk with
+    :func:`cell_counts` and :func:`merge_counts`.)
     """
     keys = {i: cell_keys(xy, cell_m) for i, xy in strips_xy.items()}
     occupied = {}

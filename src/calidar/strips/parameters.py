@@ -18,8 +18,10 @@ ESTIMATE_GROUPS: dict[str, tuple[tuple[str, str], ...]] = {
     "range_scale": (("range_scale", "ppm"),),
     "scan_angle_scale": (("scan_angle_scale", "1"),),
     "scan_angle_offset": (("scan_angle_offset", "rad"),),
-    "palmer": (("eccentricity_ratio", "1"), ("eccentricity_phase", "rad"), ("delta_l", "rad"), ("delta_r", "rad")),
-    #: a height shift common to every strip (a vertical trajectory bias): only ground control sees it
+    "palmer": (("eccentricity_ratio", "1"), ("eccentricity_phase", "rad"), ("delta_l", "rad"),
+               ("delta_r", "rad")),
+    #: a height shift common to every strip (a vertical trajectory bias): only ground control
+    #: sees it
     "height_bias": (("height_bias", "m"),),
 }
 #: Single parameters ``--estimate`` also accepts (e.g. lever_arm_x,lever_arm_y without z).
@@ -37,7 +39,8 @@ def build_parameters(nominal: Sensor, estimate, spans: Mapping[int, tuple[float,
     units = {name: unit for g in ESTIMATE_GROUPS.values() for name, unit in g}
     params = [Parameter(name, value, units.get(name, "1"), free=name in free)
               for name, value in nominal.parameters().items() if name in units]
-    if "height_bias" in free:  # not a sensor parameter: a shift of every strip (calidar.strips.problem)
+    # not a sensor parameter: a shift of every strip (calidar.strips.problem)
+    if "height_bias" in free:
         params.append(Parameter("height_bias", 0.0, "m"))
     if trajectory is not None:
         params += trajectory.parameters(spans, headings)

@@ -1,4 +1,5 @@
-"""Planimetric offset of one strip against another, estimated jointly with the height difference's tilt.
+"""Planimetric offset of one strip against another, estimated jointly with the height difference's
+tilt.
 
 On the overlap cells where both strips fit a plane, the difference of the two planes' heights at
 the cell centre is, to first order in a horizontal shift d = (dx, dy) of strip a relative to b, a
@@ -24,8 +25,8 @@ cells is too small. Three estimates, each σ the largest: the formal one; the es
 summed per block and correlated between blocks with product-Bartlett weights out to ``hac_m``
 (Conley 1999, J. Econometrics 92:1–45; with L = 0 the cluster-robust CR1 of Liang & Zeger 1986,
 Cameron & Miller 2015); and a delete-a-group jackknife over ``jackknife_groups`` stretches of the
-overlap (Künsch 1989), which widens σ when the displacement itself varies along the strips.
-docs/validation.md measures how honest the result is.
+overlap (Künsch 1989), which widens σ when the displacement itself varies along the strips
+(:mod:`calidar.strips.planimetric_sigma`). docs/validation.md measures how honest the result is.
 """
 
 from __future__ import annotations
@@ -33,6 +34,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+
+from calidar.strips.planimetric_sigma import (cluster_cov, formal_fit, groups_along, jackknife_cov,
+                                              random_effects_mean)
 
 SCALE_M = 100.0  #: positions enter the design in units of 100 m (tilts in m per 100 m internally)
 
@@ -43,16 +47,21 @@ class PlanimetricSettings:
 
     max_slope_deg: float = 45.0  #: steeper planes (walls, their edges) are left out
     min_cells: int = 30
-    min_slope_spread: float = 0.03  #: slope (tan) σ within the blocks in the weakest direction (gradient noise ≪ this)
+    #: slope (tan) σ within the blocks in the weakest direction (gradient noise ≪ this)
+    min_slope_spread: float = 0.03
     min_sloped_cells: int = 10  #: information at least that of this many cells ...
     min_slope_deg: float = 15.0  #: ... sloped this much in each direction
     block_m: float = 20.0  #: blocks of the free vertical offsets and of the robust covariance
     min_blocks: int = 10
-    hac_m: float = 100.0  #: blocks this close (Bartlett weights per axis) err together in the covariance
+    #: blocks this close (Bartlett weights per axis) err together in the covariance
+    hac_m: float = 100.0
     jackknife_groups: int = 5  #: groups of blocks along the overlap left out in turn (0: none)
-    block_plane: bool = False  #: a vertical offset and tilt free per block (else an offset only; docs/validation.md)
-    max_neighbour_dslope: float = 0.1  #: a cell is inside a facet: its 4 neighbours' slopes (tan) within this
-    random_effects: bool = True  #: dx, dy as the mean of a displacement varying along the overlap (_random_effects)
+    #: a vertical offset and tilt free per block (else an offset only; docs/validation.md)
+    block_plane: bool = False
+    #: a cell is inside a facet: its 4 neighbours' slopes (tan) within this
+    max_neighbour_dslope: float = 0.1
+    #: dx, dy as the mean of a displacement varying along the overlap (_random_effects)
+    random_effects: bool = True
     groups_across: int = 3  #: ... its stretches each cut in this many parts across the overlap
 
 
@@ -106,7 +115,8 @@ def block_ids(centre: np.ndarray, block_m: float) -> tuple[np.ndarray, int]:
     return inv, int(inv.max()) + 1 if inv.size else 0
 
 
-def within(values: np.ndarray, blocks: np.ndarray, n_blocks: int, centre: np.ndarray | None = None) -> np.ndarray:
+def within(values: np.ndarray, blocks: np.ndarray, n_blocks: int,
+           centre: np.ndarray | None = None) -> np.ndarray:
     """``values`` (K, m) less what a vertical offset per block (with ``centre`` (K, 2) m: an offset
     and a tilt per block, a plane) explains: their least-squares residuals block by block."""
     v = values.reshape(len(values), -1)
@@ -119,13 +129,16 @@ def within(values: np.ndarray, blocks: np.ndarray, n_blocks: int, centre: np.nda
     np.add.at(xx, blocks, x[:, :, None] * x[:, None, :])
     xv = np.zeros((n_blocks, 3, v.shape[1]))
     np.add.at(xv, blocks, x[:, :, None] * v[:, None, :])
-    coef = np.linalg.pinv(xx) @ xv  # blocks whose cells lie on a line: their offset and the one slope
+    # blocks whose cells lie on a line: their offset and the one slope
+    coef = np.linalg.pinv(xx) @ xv
     return (v - np.einsum("ki,kim->km", x, coef[blocks])).reshape(values.shape)
 
 
-def noise_moments(noise: np.ndarray, blocks: np.ndarray, n_blocks: int, free: int = 1) -> np.ndarray:
+def noise_moments(noise: np.ndarray, blocks: np.ndarray, n_blocks: int,
+                  free: int = 1) -> np.ndarray:
     """Each cell's gradient-noise covariance (K, 2, 2) as it enters the within-block products: a
-    block's ``free`` parameters (1: offset; 3: plane) take about free/m of it out (m cells in the block)."""
+    block's ``free`` parameters (1: offset; 3: plane) take about free/m of it out (m cells in the
+    block)."""
     m = np.bincount(blocks, minlength=n_blocks)[blocks]
     return noise * np.clip(1.0 - free / np.maximum(m, 1), 0.0, 1.0)[:, None, None]
 
@@ -136,22 +149,28 @@ def conditioning(grad: np.ndarray, noise: np.ndarray, blocks: np.ndarray, n_bloc
     dy per cell once a vertical offset per block is free, in (m/m)², the gradients' own noise taken
     out) and the full 2 × 2 matrix."""
     r = within(grad, blocks, n_blocks, centre)
-    s = (r.T @ r - noise_moments(noise, blocks, n_blocks, 1 if centre is None else 3).sum(axis=0)) / max(len(r), 1)
+    moments = noise_moments(noise, blocks, n_blocks, 1 if centre is None else 3)
+    s = (r.T @ r - moments.sum(axis=0)) / max(len(r), 1)
     return float(np.linalg.eigvalsh(s)[0]), s
+
+
+def _cell_key(i: np.ndarray, j: np.ndarray) -> np.ndarray:
+    """One int64 key per cell of grid indices (i, j): i in the high 32 bits, j in the low."""
+    return (i.astype(np.int64) << 32) + (j.astype(np.int64) & 0xFFFFFFFF)
 
 
 def inside_facets(ij: np.ndarray, grad: np.ndarray, tolerance: float) -> np.ndarray:
     """Cells (K,) whose 4 neighbours (grid indices ij (K, 2)) are all there with gradients within
-    ``tolerance``: inside a planar facet. A cell a fold crosses (a ridge, a hip, a slope's foot) fits
-    a plane whose slope weights the cell's middle more than the height at its centre does (the
+    ``tolerance``: inside a planar facet. A cell a fold crosses (a ridge, a hip, a slope's foot)
+    fits a plane whose slope weights the cell's middle more than the height at its centre does (the
     least-squares slope is a parabola-weighted mean of the surface's slope, the shift's effect on
     the centre height an even mean): such cells bias dx, dy towards zero and are left out."""
-    key = (ij[:, 0].astype(np.int64) << 32) + (ij[:, 1].astype(np.int64) & 0xFFFFFFFF)
+    key = _cell_key(ij[:, 0], ij[:, 1])
     order = np.argsort(key)
     sk = key[order]
     ok = np.ones(len(key), bool)
     for di, dj in ((1, 0), (-1, 0), (0, 1), (0, -1)):
-        nk = ((ij[:, 0] + di).astype(np.int64) << 32) + ((ij[:, 1] + dj).astype(np.int64) & 0xFFFFFFFF)
+        nk = _cell_key(ij[:, 0] + di, ij[:, 1] + dj)
         at = np.clip(np.searchsorted(sk, nk), 0, len(sk) - 1)
         found = sk[at] == nk
         other = grad[order[at]]
@@ -160,11 +179,13 @@ def inside_facets(ij: np.ndarray, grad: np.ndarray, tolerance: float) -> np.ndar
 
 
 def planimetric_offsets(centre: np.ndarray, dz: np.ndarray, grad: np.ndarray, cell_m: float,
-                        settings: PlanimetricSettings | None = None, noise: np.ndarray | None = None) -> Planimetric:
-    """Joint fit of dz (K,) at the centres (K, 2) m of cells of ``cell_m`` with the planes' gradients
-    (K, 2), whose noise covariances (K, 2, 2) (:func:`gradient_noise`; none: exact gradients) are
-    taken out of the normal equations: a noisy regressor would shrink dx, dy towards zero
-    (errors in variables; the moment correction of Fuller 1987, Measurement Error Models, §2.2)."""
+                        settings: PlanimetricSettings | None = None,
+                        noise: np.ndarray | None = None) -> Planimetric:
+    """Joint fit of dz (K,) at the centres (K, 2) m of cells of ``cell_m`` with the planes'
+    gradients (K, 2), whose noise covariances (K, 2, 2) (:func:`gradient_noise`; none: exact
+    gradients) are taken out of the normal equations: a noisy regressor would shrink dx, dy towards
+    zero (errors in variables; the moment correction of Fuller 1987, Measurement Error Models,
+    §2.2)."""
     s = settings or PlanimetricSettings()
     noise = np.zeros((len(dz), 2, 2)) if noise is None else noise
     keep = np.hypot(grad[:, 0], grad[:, 1]) <= np.tan(np.radians(s.max_slope_deg))
@@ -172,7 +193,8 @@ def planimetric_offsets(centre: np.ndarray, dz: np.ndarray, grad: np.ndarray, ce
     keep &= np.isfinite(dz) & np.all(np.isfinite(grad), axis=1)
     c, d, g, e = centre[keep], dz[keep], grad[keep], noise[keep]
     if d.size < s.min_cells:
-        return Planimetric("not determined", f"{d.size} planar cells inside facets shared (at least {s.min_cells} "
+        return Planimetric("not determined",
+                           f"{d.size} planar cells inside facets shared (at least {s.min_cells} "
                            "needed)")
     blocks, n_blocks = block_ids(c, s.block_m)
     spread2, info = conditioning(g, e, blocks, n_blocks, c if s.block_plane else None)
@@ -181,16 +203,17 @@ def planimetric_offsets(centre: np.ndarray, dz: np.ndarray, grad: np.ndarray, ce
     if spread2 < s.min_slope_spread**2 or spread2 * d.size < needed:
         w, v = np.linalg.eigh(info)
         weak = np.degrees(np.arctan2(v[1, 0], v[0, 0])) % 180.0
-        out.reason = (f"the slopes do not constrain both directions: within {s.block_m:g} m blocks their spread "
-                      f"across the {weak:.0f}° direction (x east, counter-clockwise) is {out.slope_spread:.3f} (tan) "
-                      f"over {d.size} cells (needed ≥ {s.min_slope_spread:g} and the weight of "
-                      f"{s.min_sloped_cells} cells of {s.min_slope_deg:g}°)")
+        out.reason = (f"the slopes do not constrain both directions: within {s.block_m:g} m blocks "
+                      f"their spread across the {weak:.0f}° direction (x east, counter-clockwise) "
+                      f"is {out.slope_spread:.3f} (tan) over {d.size} cells (needed ≥ "
+                      f"{s.min_slope_spread:g} and the weight of {s.min_sloped_cells} cells of "
+                      f"{s.min_slope_deg:g}°)")
         return out
     return _fit(c, d, g, e, blocks, n_blocks, s, out)
 
 
-def _fit(c: np.ndarray, d: np.ndarray, g: np.ndarray, e: np.ndarray, blocks: np.ndarray, n_blocks: int,
-         s: PlanimetricSettings, out: Planimetric) -> Planimetric:
+def _fit(c: np.ndarray, d: np.ndarray, g: np.ndarray, e: np.ndarray, blocks: np.ndarray,
+         n_blocks: int, s: PlanimetricSettings, out: Planimetric) -> Planimetric:
     """dx, dy and the tilt with a free vertical offset per block (within-block least squares with
     the gradients' noise ``e`` taken out, 3·MAD rejection), their cluster-robust covariance over the
     blocks; then the offset and tilt over the whole overlap with dx, dy held. ``out`` filled in."""
@@ -205,20 +228,23 @@ def _fit(c: np.ndarray, d: np.ndarray, g: np.ndarray, e: np.ndarray, blocks: np.
         keep[np.flatnonzero(keep)[bad]] = False
     else:  # the last rejection's fit
         aw, r, m, t = _within_fit(a, d, e, keep, blocks, n_blocks, c if s.block_plane else None)
-    cov, used = _cluster_cov(aw, r, blocks[keep], c[keep], s.hac_m, m, t)
-    jk = _jackknife(aw, aw @ t + r, m, blocks[keep], c[keep], s.jackknife_groups)
-    if jk is not None:  # each σ the larger of the two, the correlation the blocks' (positive definite)
+    cov, used = cluster_cov(aw, r, blocks[keep], c[keep], s.hac_m, m, t)
+    jk = jackknife_cov(aw, aw @ t + r, m, blocks[keep], c[keep], s.jackknife_groups)
+    if jk is not None:  # each σ the larger of the two, the blocks' correlation (positive definite)
         scale = np.sqrt(np.maximum(np.diag(jk), np.diag(cov)) / np.diag(cov))
         cov = cov * np.outer(scale, scale)
-    varying = _random_effects(aw, aw @ t + r, m, blocks[keep], c[keep], s, cov) if s.random_effects else None
+    varying = None
+    if s.random_effects:
+        varying = _random_effects(aw, aw @ t + r, m, blocks[keep], c[keep], s, cov)
     cov, t = cov[-2:, -2:], t[-2:]  # dx, dy
-    if varying is not None:  # the displacement varies along the overlap: its mean, σ with its spread
+    if varying is not None:  # the displacement varies along the overlap: its mean, σ its spread
         t, sd_re = varying
         scale = np.maximum(sd_re, np.sqrt(np.diag(cov))) / np.sqrt(np.diag(cov))
         cov = cov * np.outer(scale, scale)
     out.n_cells, out.n_blocks = int(keep.sum()), used
     if used < s.min_blocks:
-        out.reason = f"{used} blocks of {s.block_m:g} m hold the cells (at least {s.min_blocks} to tell the σ)"
+        out.reason = (f"{used} blocks of {s.block_m:g} m hold the cells (at least {s.min_blocks} "
+                      "to tell the σ)")
         return out
     sd = np.sqrt(np.diag(cov))
     out.status, out.reason = "determined", ""
@@ -227,8 +253,9 @@ def _fit(c: np.ndarray, d: np.ndarray, g: np.ndarray, e: np.ndarray, blocks: np.
     out.corr_dxy = float(cov[0, 1] / (sd[0] * sd[1])) if sd[0] * sd[1] > 0 else None
     x = np.column_stack([np.ones(keep.sum()), a[keep, :2]])
     level, *_ = np.linalg.lstsq(x, d[keep] - a[keep, 2:] @ t, rcond=None)
-    lcov, _ = _cluster_cov(x, d[keep] - a[keep, 2:] @ t - x @ level, blocks[keep], c[keep], s.hac_m)
-    out.dz0_m, out.tilt_x, out.tilt_y = float(level[0]), float(level[1] / SCALE_M), float(level[2] / SCALE_M)
+    lcov, _ = cluster_cov(x, d[keep] - a[keep, 2:] @ t - x @ level, blocks[keep], c[keep], s.hac_m)
+    out.dz0_m = float(level[0])
+    out.tilt_x, out.tilt_y = float(level[1] / SCALE_M), float(level[2] / SCALE_M)
     out.sigma_tilt = float(np.sqrt(max(lcov[1, 1], lcov[2, 2])) / SCALE_M)
     return out
 
@@ -247,42 +274,14 @@ def _within_fit(a, d, e, keep, blocks, n_blocks, centre=None):
     return aw, dw - aw @ t, m, t
 
 
-def groups_along(blocks: np.ndarray, centre: np.ndarray, k: int, across: int = 1) -> np.ndarray:
-    """Group (K,) 0…k·across−1 of each cell: whole blocks cut into ``k`` stretches of equal count
-    along the overlap's long axis (its cells' principal direction), each cut into ``across`` parts
-    of equal count across it."""
-    u = centre - centre.mean(axis=0)
-    axes = np.linalg.eigh(u.T @ u)[1]
-    _, inv = np.unique(blocks, return_inverse=True)
-    count = np.bincount(inv)
-    along = np.bincount(inv, u @ axes[:, -1]) / count  # each block's place along the overlap
-    side = np.bincount(inv, u @ axes[:, 0]) / count
-    stretch = np.searchsorted(np.quantile(along, np.linspace(0, 1, k + 1)[1:-1]), along)
-    group = stretch * across
-    for g in range(k) if across > 1 else ():
-        mine = stretch == g
-        if mine.any():
-            group[mine] += np.searchsorted(np.quantile(side[mine], np.linspace(0, 1, across + 1)[1:-1]), side[mine])
-    return group[inv]
-
-
-def _formal(a: np.ndarray, y: np.ndarray, m: np.ndarray, blocks: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Least squares a·t = y with the noise moments ``m`` out: t and its formal covariance (the
-    residuals' variance with a free offset per block counted in the degrees of freedom)."""
-    n_mat = a.T @ a - m.sum(axis=0)
-    t = np.linalg.solve(n_mat, a.T @ y)
-    r = y - a @ t
-    dof = max(len(y) - a.shape[1] - np.unique(blocks).size, 1)
-    return t, np.linalg.inv(n_mat) * (r @ r) / dof
-
-
-def _random_effects(a: np.ndarray, y: np.ndarray, m: np.ndarray, blocks: np.ndarray, centre: np.ndarray,
-                    s: PlanimetricSettings, cov: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+def _random_effects(a: np.ndarray, y: np.ndarray, m: np.ndarray, blocks: np.ndarray,
+                    centre: np.ndarray, s: PlanimetricSettings,
+                    cov: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
     """dx, dy as the mean of a displacement that varies along the overlap, and their σ: the fit on
     each of ``s.jackknife_groups`` stretches alone (its σ cluster-robust), combined per axis as a
     random-effects meta-analysis (DerSimonian & Laird 1986, Controlled Clinical Trials 7:177–188):
-    the stretches' spread beyond their noise, τ², is estimated from Cochran's Q, each stretch weighed
-    by 1/(σ² + τ²), the mean's variance 1/Σ weights (times the Hartung–Knapp factor when the
+    the stretches' spread beyond their noise, τ², is estimated from Cochran's Q, each stretch
+    weighed by 1/(σ² + τ²), the mean's variance 1/Σ weights (times the Hartung–Knapp factor when the
     stretches scatter more than that says). A trajectory's slow errors move the strips
     apart differently along the overlap (by ≈ 1 cm RMS on the simulated UAV surveys): the one-offset
     fit then reads the stretches where the slopes are (and its σ, from residuals about that one
@@ -291,9 +290,9 @@ def _random_effects(a: np.ndarray, y: np.ndarray, m: np.ndarray, blocks: np.ndar
     if s.jackknife_groups < 3:
         return None
     group = groups_along(blocks, centre, s.jackknife_groups, s.groups_across)
-    # a stretch holds a few blocks: its own cluster-robust variance is noisy, and may come out far too
-    # small; never below its formal one times the whole overlap's robust-to-formal ratio
-    ratio = np.maximum(1.0, np.diag(cov)[-2:] / np.diag(_formal(a, y, m, blocks)[1])[-2:])
+    # a stretch holds a few blocks: its own cluster-robust variance is noisy, and may come out far
+    # too small; never below its formal one times the whole overlap's robust-to-formal ratio
+    ratio = np.maximum(1.0, np.diag(cov)[-2:] / np.diag(formal_fit(a, y, m, blocks)[1])[-2:])
     est, var = [], []
     for g in range(s.jackknife_groups * s.groups_across):
         rows = group == g
@@ -303,8 +302,8 @@ def _random_effects(a: np.ndarray, y: np.ndarray, m: np.ndarray, blocks: np.ndar
         w = np.linalg.eigvalsh(ag.T @ ag - m[rows].sum(axis=0))
         if w[0] <= 1e-9 * max(w[-1], 1e-300):
             continue
-        tg, formal = _formal(ag, y[rows], m[rows], blocks[rows])
-        cg, _ = _cluster_cov(ag, y[rows] - ag @ tg, blocks[rows], centre[rows], s.hac_m, m[rows], tg)
+        tg, formal = formal_fit(ag, y[rows], m[rows], blocks[rows])
+        cg, _ = cluster_cov(ag, y[rows] - ag @ tg, blocks[rows], centre[rows], s.hac_m, m[rows], tg)
         est.append(tg[-2:])
         var.append(np.maximum(np.diag(cg)[-2:], np.diag(formal)[-2:] * ratio))
     if len(est) < 4:
@@ -312,81 +311,3 @@ def _random_effects(a: np.ndarray, y: np.ndarray, m: np.ndarray, blocks: np.ndar
     return random_effects_mean(np.array(est), np.array(var))
 
 
-def random_effects_mean(est: np.ndarray, var: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The random-effects mean of ``est`` (k, m) with variances ``var`` (k, m), per column, and its σ:
-    τ² by DerSimonian & Laird (1986) from Cochran's Q about the fixed-effect mean, weights
-    1/(var + τ²), the variance 1/Σ weights times the Hartung–Knapp factor Σw(est − mean)²/(k − 1)
-    (Hartung & Knapp 2001, Stat. Med. 20:3875–3889) when it exceeds 1 (Röver, Knapp & Friede 2015,
-    BMC Med. Res. Methodol. 15:99): with a few stretches τ² from Q is often 0 by chance; and
-    widened by √((k−1)/(k−3)), the RMS of Student's t with k − 1 degrees of freedom (k ≥ 4)."""
-    est, var = np.asarray(est, float), np.maximum(np.asarray(var, float), 1e-12)
-    k = len(est)
-    w = 1.0 / var
-    fixed = (w * est).sum(axis=0) / w.sum(axis=0)
-    q = (w * (est - fixed) ** 2).sum(axis=0)
-    tau2 = np.maximum(0.0, (q - (k - 1)) / (w.sum(axis=0) - (w**2).sum(axis=0) / w.sum(axis=0)))
-    w = 1.0 / (var + tau2)
-    mean = (w * est).sum(axis=0) / w.sum(axis=0)
-    q_hk = np.maximum(1.0, (w * (est - mean) ** 2).sum(axis=0) / (k - 1))
-    # (mean − μ)/σ then follows Student's t with k − 1 degrees of freedom, whose RMS is √((k−1)/(k−3)):
-    # σ widened by it, so that error/σ has RMS 1 as every σ of calidar is read
-    return mean, np.sqrt(q_hk / w.sum(axis=0) * (k - 1) / max(k - 3, 1))
-
-
-def _jackknife(a: np.ndarray, y: np.ndarray, m: np.ndarray, blocks: np.ndarray, centre: np.ndarray,
-               k: int) -> np.ndarray | None:
-    """Delete-a-group jackknife covariance of the (noise-corrected) least squares a·t = y over ``k``
-    groups of whole blocks cut along the overlap's long axis (Künsch 1989, Ann. Statist. 17:1217–1241,
-    for dependent data): a displacement that varies along the strips by more than the cells'
-    scatter says makes the groups disagree, and widens the σ where the blocks' covariance, with
-    few independent stretches of overlap, cannot."""
-    if k < 2:
-        return None
-    group = groups_along(blocks, centre, k)
-    n_mat, rhs = a.T @ a - m.sum(axis=0), a.T @ y
-    ts = []
-    for i in range(k):
-        out = group == i
-        if not out.any():
-            continue
-        ai = a[out]
-        ts.append(np.linalg.lstsq(n_mat - ai.T @ ai + m[out].sum(axis=0), rhs - ai.T @ y[out], rcond=None)[0])
-    if len(ts) < 2:
-        return None
-    ts = np.array(ts)
-    d = ts - ts.mean(axis=0)
-    return (len(ts) - 1) / len(ts) * d.T @ d
-
-
-def _cluster_cov(a: np.ndarray, r: np.ndarray, blocks: np.ndarray, centre: np.ndarray, hac_m: float,
-                 m: np.ndarray | None = None, t: np.ndarray | None = None) -> tuple[np.ndarray, int]:
-    """Robust covariance of least squares with design ``a`` and residuals ``r``: the rows'
-    estimating functions (a·r, plus m·t with the per-row noise moments ``m`` (K, p, p) taken out of
-    the normal equations at the solution ``t``) summed per block, and the blocks' sums correlated
-    with product-Bartlett weights (1 − |Δx|/L)(1 − |Δy|/L) of their centres' distance, L = ``hac_m``
-    (Conley 1999, J. Econometrics 92:1–45; L = 0: the cluster-robust CR1 of Liang & Zeger 1986),
-    small-sample factor G/(G−1)·(N−1)/(N−p); never below the formal one. Also how many blocks
-    hold cells."""
-    n, p = a.shape
-    used, blocks = np.unique(blocks, return_inverse=True)
-    g = used.size
-    psi = a * r[:, None]
-    if m is not None:
-        psi = psi + m @ t
-    bread = np.linalg.pinv(a.T @ a - (0.0 if m is None else m.sum(axis=0)))
-    score = np.zeros((g, p))
-    np.add.at(score, blocks, psi)
-    formal = bread * (r @ r) / max(n - p - g, 1)
-    if g < 2:
-        return formal, g
-    at = np.stack([np.bincount(blocks, centre[:, k]) for k in range(2)], axis=1) / np.bincount(blocks)[:, None]
-    meat = score.T @ score
-    if hac_m > 0:  # the block pairs closer than hac_m on both axes (a k-d tree: memory grows with g, not g²)
-        from scipy.spatial import cKDTree
-
-        i, j = cKDTree(at).query_pairs(hac_m, p=np.inf, output_type="ndarray").T
-        w = np.prod(np.clip(1.0 - np.abs(at[i] - at[j]) / hac_m, 0.0, 1.0), axis=1)
-        cross = (score[i] * w[:, None]).T @ score[j]
-        meat += cross + cross.T
-    cov = g / (g - 1) * (n - 1) / max(n - p, 1) * bread @ meat @ bread
-    return (cov if np.trace(cov) >= np.trace(formal) else formal), g

@@ -1,17 +1,17 @@
 """Pair matching on this machine's cores in worker processes, for matchers that hold the GIL.
 
-small_gicp 1.0.1 holds the GIL during its calls (docs/validation.md, issue 32: a Python thread got 42
-ticks in 88 s of ``KdTree``/``align`` calls), so two threads cannot overlap two pairs' VGICP matching;
-two processes can. Each pair is matched by the same code on the same inputs in a worker as in this
-process (one small_gicp thread: bit-reproducible), so the correspondences, and everything after them,
-are identical; only the pairs' points travel (pickled, ≈ 14 MB a pair of 300 000-point strips) and their
-correspondences come back, in task order.
+small_gicp 1.0.1 holds the GIL during its calls (docs/validation.md, issue 32: a Python thread got
+42 ticks in 88 s of ``KdTree``/``align`` calls), so two threads cannot overlap two pairs' VGICP
+matching; two processes can. Each pair is matched by the same code on the same inputs in a worker as
+in this process (one small_gicp thread: bit-reproducible), so the correspondences, and everything
+after them, are identical; only the pairs' points travel (pickled, ≈ 14 MB a pair of 300 000-point
+strips) and their correspondences come back, in task order.
 
 The workers come from a ``forkserver`` (``spawn`` where there is none): never forked from this
 process, whose reader and BLAS threads a fork would leave half-copied. They start on the first task
 (≈ 1–2 s importing calidar) and serve every outer iteration of a calibration; a round of pairs with
-fewer than :data:`MIN_POINTS` points stays in this process, where that start would cost more than the
-second core gains. A pool that cannot start or loses a worker leaves the round to this process.
+fewer than :data:`MIN_POINTS` points stays in this process, where that start would cost more than
+the second core gains. A pool that cannot start or loses a worker leaves the round to this process.
 """
 
 from __future__ import annotations
@@ -21,7 +21,8 @@ from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from typing import Any
 
-#: worker processes for GIL-holding pair matching (this machine's cores, at most 2: the figure measured)
+#: worker processes for GIL-holding pair matching (this machine's cores, at most 2: the figure
+#: measured)
 PROCESSES = min(2, os.cpu_count() or 1)
 #: a round's pairs hold at least this many points (both sides, all pairs) to go to the workers
 MIN_POINTS = 1_000_000
@@ -48,13 +49,14 @@ def pair_processes(processes: int = PROCESSES) -> Iterator[Any]:
 def worth_processes(tasks: Sequence[tuple], min_points: int | None = None) -> bool:
     """Whether a round's tasks hold enough points (every 2-D array argument's rows; ``min_points``,
     default :data:`MIN_POINTS`) for the workers."""
-    return sum(len(a) for t in tasks for a in t if hasattr(a, "ndim") and a.ndim == 2) >= (MIN_POINTS if min_points is None else min_points)
+    points = sum(len(a) for t in tasks for a in t if hasattr(a, "ndim") and a.ndim == 2)
+    return points >= (MIN_POINTS if min_points is None else min_points)
 
 
 def map_in_processes(pool: Any, func: Callable[..., Any], tasks: Sequence[tuple]) -> list[Any]:
-    """``[func(*task) for task in tasks]`` on the pool's workers, in task order (a task's exception is
-    raised here); in this process when the workers cannot run them (none could start, or one died: the
-    pool is broken), with the same results."""
+    """``[func(*task) for task in tasks]`` on the pool's workers, in task order (a task's exception
+    is raised here); in this process when the workers cannot run them (none could start, or one
+    died: the pool is broken), with the same results."""
     from concurrent.futures.process import BrokenProcessPool
 
     if not tasks:

@@ -34,12 +34,14 @@ from calidar.strips.planes import PlaneSettings, planar_cells
 from calidar.strips.planimetric import (Planimetric, PlanimetricSettings, gradient_noise, gradients,
                                         planimetric_offsets)
 
-BASE_CELL_M = 1.0  #: accumulation grid when the cell is chosen per pair (whole metres coarsen from it)
-OVERLAP_CELL_M = 5.0  #: which lines overlap: cells of this size occupied by both (as the strip calibration)
+#: accumulation grid when the cell is chosen per pair (whole metres coarsen from it)
+BASE_CELL_M = 1.0
+#: which lines overlap: cells of this size occupied by both (as the strip calibration)
+OVERLAP_CELL_M = 5.0
 OVERLAP_MIN_POINTS = 3  #: points of a line that make an overlap cell occupied
 MERGE_PARTS = 16  #: chunk moments a line holds before they are combined into one
-#: cell moments an accumulator with a spill folder holds in memory before they go to disk (per stage)
-#: (88 B a cell: a 10⁹-point survey's 2 m cells of three stages would be ≈ 4 GB)
+#: cell moments an accumulator with a spill folder holds in memory before they go to disk (per
+#: stage) (88 B a cell: a 10⁹-point survey's 2 m cells of three stages would be ≈ 4 GB)
 HOLD_BYTES = 64 * 2**20
 
 
@@ -71,18 +73,23 @@ class PairQuality:
     sigma_dx_m: float | None = None  #: cluster-robust σ (calidar.strips.planimetric)
     sigma_dy_m: float | None = None
     n_sloped: int = 0  #: planar cells sloped more than min_slope_deg
-    planimetric: Planimetric | None = None  #: the joint fit (offset, tilt, dx, dy) or why not determined
+    #: the joint fit (offset, tilt, dx, dy) or why not determined
+    planimetric: Planimetric | None = None
     cell_m: float = 2.0
     n_points_a: int = 0  #: points of a in the n_cells compared cells
     n_points_b: int = 0
-    points_a: list[dict] = field(default_factory=list)  #: which points of a were used (PointSelection.to_dict)
+    #: which points of a were used (PointSelection.to_dict)
+    points_a: list[dict] = field(default_factory=list)
     points_b: list[dict] = field(default_factory=list)
-    grid: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)), repr=False)  #: (ny, nx) dz, NaN outside, row 0 north
+    #: (ny, nx) dz, NaN outside, row 0 north
+    grid: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)), repr=False)
     origin: tuple[float, float] = (0.0, 0.0)  #: (west x, north y) of the grid, m
 
     def to_dict(self) -> dict:
-        keys = ("a", "b", "median_dz_m", "rmsdz_m", "max_abs_dz_m", "mean_dz_m", "n_cells", "n_points_a", "n_points_b",
-                "dx_m", "dy_m", "sigma_dx_m", "sigma_dy_m", "n_sloped", "cell_m", "points_a", "points_b")
+        keys = ("a", "b", "median_dz_m", "rmsdz_m", "max_abs_dz_m", "mean_dz_m", "n_cells",
+                "n_points_a", "n_points_b",
+                "dx_m", "dy_m", "sigma_dx_m", "sigma_dy_m", "n_sloped", "cell_m", "points_a",
+                "points_b")
         out = {k: getattr(self, k) for k in keys}
         out["planimetric"] = None if self.planimetric is None else self.planimetric.to_dict()
         return out
@@ -111,8 +118,9 @@ def overlap_plan(counts: Mapping[int, tuple[np.ndarray, np.ndarray]], overlap_m:
     notes = unpaired_notes(occupied, list(common), overlap_m, 4, names)
     cells = {}
     for ab, shared in common.items():
-        dens = [counts[i][1][np.searchsorted(counts[i][0], shared)].sum() / (shared.size * overlap_m**2)
-                for i in ab]  # shared ⊂ each line's sorted keys
+        area = shared.size * overlap_m**2
+        # shared ⊂ each line's sorted keys
+        dens = [counts[i][1][np.searchsorted(counts[i][0], shared)].sum() / area for i in ab]
         cells[ab] = float(settings.cell_m) if settings.cell_m else _cell_size(dens, settings)
     return OverlapPlan(cells, notes)
 
@@ -131,13 +139,18 @@ class SwathAccumulator:
     coarsened into the overlap grid to make the plan. Also which selections (PointSelection) the
     points came through."""
 
-    def __init__(self, cell_m: float | None = None, plan: OverlapPlan | None = None, spill_dir: Path | None = None):
+    def __init__(self, cell_m: float | None = None, plan: OverlapPlan | None = None,
+                 spill_dir: Path | None = None):
         self.cell_m, self.plan = cell_m, plan
-        self.spill_dir = None if spill_dir is None else Path(tempfile.mkdtemp(prefix="lines-", dir=spill_dir))  # its own
+        self.spill_dir = None
+        if spill_dir is not None:  # its own folder in spill_dir
+            self.spill_dir = Path(tempfile.mkdtemp(prefix="lines-", dir=spill_dir))
         self._written = 0  #: files written to spill_dir (their names)
         self.base_m = float(cell_m) if cell_m else BASE_CELL_M
-        self.parts: dict[tuple[int, float], list[CellMoments]] = {}  #: (line, cell m) → moments not yet combined
-        self.spilled: dict[tuple[int, float], list[Path]] = {}  #: (line, cell m) → moments written to spill_dir
+        #: (line, cell m) → moments not yet combined
+        self.parts: dict[tuple[int, float], list[CellMoments]] = {}
+        #: (line, cell m) → moments written to spill_dir
+        self.spilled: dict[tuple[int, float], list[Path]] = {}
         self.selections: dict[int, list[dict]] = {}
 
     def add(self, line: int, xyz: np.ndarray, selection=None) -> None:
@@ -152,7 +165,8 @@ class SwathAccumulator:
         for line, chosen in other.selections.items():
             self._chose(line, chosen)
         for key in {*other.parts, *other.spilled}:
-            self._put(key, other.parts.get(key, []) + [CellMoments.load(f, key[1]) for f in other.spilled.get(key, [])])
+            loaded = [CellMoments.load(f, key[1]) for f in other.spilled.get(key, [])]
+            self._put(key, other.parts.get(key, []) + loaded)
         return self
 
     def _chose(self, line: int, selections: list[dict]) -> None:
@@ -167,7 +181,8 @@ class SwathAccumulator:
         held += parts
         if len(held) >= MERGE_PARTS:
             self.parts[key] = [CellMoments.combined(held)]
-        if self.spill_dir is not None and sum(m.nbytes for ms in self.parts.values() for m in ms) > HOLD_BYTES:
+        held = sum(m.nbytes for ms in self.parts.values() for m in ms)
+        if self.spill_dir is not None and held > HOLD_BYTES:
             for k, ms in self.parts.items():
                 if ms:
                     self._write(k, ms)
@@ -186,7 +201,8 @@ class SwathAccumulator:
             return self._combined(line, cell)
         f = int(round(cell / self.base_m))
         if not np.isclose(f * self.base_m, cell):
-            raise ValueError(f"a {cell} m cell is not a whole number of the {self.base_m} m accumulation cells")
+            raise ValueError(f"a {cell} m cell is not a whole number of the {self.base_m} m "
+                             "accumulation cells")
         return self._combined(line, self.base_m).coarsened(f)
 
     def _combined(self, line: int, cell: float) -> CellMoments:
@@ -226,11 +242,14 @@ class SwathAccumulator:
             plan = overlap_plan({i: (c.keys, c.count) for i, c in counts.items()}, grid, s)
         if any(self.spilled.values()):  # moments on disk: one pair's at a time in memory
             threads, tasks = 1, ((a, cell, b) for (a, b), cell in plan.cells.items())
-            pairs = (pair_quality(a, self._at(a, cell), b, self._at(b, cell), s) for a, cell, b in tasks)
+            pairs = (pair_quality(a, self._at(a, cell), b, self._at(b, cell), s)
+                     for a, cell, b in tasks)
         else:  # each line's moments combined here (not in the threads), the pairs in threads
-            moments = {(i, cell): self._at(i, cell) for (a, b), cell in plan.cells.items() for i in (a, b)}
+            moments = {(i, cell): self._at(i, cell)
+                       for (a, b), cell in plan.cells.items() for i in (a, b)}
             pairs = run_tasks(pair_quality, [(a, moments[a, cell], b, moments[b, cell], s)
-                                             for (a, b), cell in plan.cells.items()], threads=threads)
+                                             for (a, b), cell in plan.cells.items()],
+                              threads=threads)
         results = []
         for q in pairs:
             q.points_a, q.points_b = self.selections.get(q.a, []), self.selections.get(q.b, [])
@@ -245,13 +264,15 @@ def _cell_size(densities, s: QualitySettings) -> float:
 
 def swath_difference(a: int, points_a: np.ndarray, b: int, points_b: np.ndarray,
                      settings: QualitySettings | None = None) -> PairQuality:
-    """Vertical and planimetric agreement of two strips' points (each (N, 3), metres, z up) held in memory."""
+    """Vertical and planimetric agreement of two strips' points (each (N, 3), metres, z up) held in
+    memory."""
     s = settings or QualitySettings()
     (q,) = swath_differences({a: [points_a], b: [points_b]}, s)[0] or [_no_overlap(a, b, s)]
     return q
 
 
-def swath_differences(lines: Mapping[int, Iterable[np.ndarray]], settings: QualitySettings | None = None
+def swath_differences(lines: Mapping[int, Iterable[np.ndarray]],
+                      settings: QualitySettings | None = None
                       ) -> tuple[list[PairQuality], list[str]]:
     """Swath differences of every overlapping pair of flight lines, each given as an iterable of
     point chunks (N, 3) metric, z up (already selected: :mod:`calidar.strips.selection`)."""
@@ -267,12 +288,15 @@ def _no_overlap(a: int, b: int, s: QualitySettings) -> PairQuality:
     return PairQuality(a, b, 0, None, None, None, None, cell_m=s.cell_m or 2.0)
 
 
-def pair_quality(a: int, moments_a: CellMoments, b: int, moments_b: CellMoments, s: QualitySettings) -> PairQuality:
+def pair_quality(a: int, moments_a: CellMoments, b: int, moments_b: CellMoments,
+                 s: QualitySettings) -> PairQuality:
     """Swath difference of two lines from their cell moments on one grid (the pair's cell)."""
     cell = moments_a.cell_m
     ps = PlaneSettings(min_points=s.min_points, max_rms_m=s.max_rms_m, min_spread=0.15)
-    _, ia, ib = np.intersect1d(moments_a.keys, moments_b.keys, assume_unique=True, return_indices=True)
-    pa, pb = _planes(moments_a.select(ia), ps), _planes(moments_b.select(ib), ps)  # planes of the shared cells only
+    _, ia, ib = np.intersect1d(moments_a.keys, moments_b.keys, assume_unique=True,
+                               return_indices=True)
+    # planes of the shared cells only
+    pa, pb = _planes(moments_a.select(ia), ps), _planes(moments_b.select(ib), ps)
     keys, ia, ib = np.intersect1d(pa[0].keys, pb[0].keys, assume_unique=True, return_indices=True)
     ij = key_indices(keys)
     centre = (ij + 0.5) * cell
@@ -280,9 +304,11 @@ def pair_quality(a: int, moments_a: CellMoments, b: int, moments_b: CellMoments,
     ca, cb = ma.centroid(), mb.centroid()
 
     def z_at(c, n):  # height of the plane through c with normal n at the cell centre
-        return c[:, 2] - (n[:, 0] * (centre[:, 0] - c[:, 0]) + n[:, 1] * (centre[:, 1] - c[:, 1])) / n[:, 2]
+        off = centre - c[:, :2]  # the cell centre from the plane's centroid
+        return c[:, 2] - (n[:, 0] * off[:, 0] + n[:, 1] * off[:, 1]) / n[:, 2]
 
-    flat = (na[:, 2] >= np.cos(np.radians(s.max_slope_deg))) & (nb[:, 2] >= np.cos(np.radians(s.max_slope_deg)))
+    cos_max = np.cos(np.radians(s.max_slope_deg))
+    flat = (na[:, 2] >= cos_max) & (nb[:, 2] >= cos_max)
     dz = z_at(ca, na) - z_at(cb, nb)
     q = PairQuality(a, b, int(flat.sum()), None, None, None, None, cell_m=cell,
                     n_points_a=int(ma.count[flat].sum()), n_points_b=int(mb.count[flat].sum()))
@@ -294,8 +320,10 @@ def pair_quality(a: int, moments_a: CellMoments, b: int, moments_b: CellMoments,
         q.grid = np.full((hi[1] - lo[1] + 1, hi[0] - lo[0] + 1), np.nan)
         q.grid[hi[1] - ij[flat, 1], ij[flat, 0] - lo[0]] = d
         q.origin = (float(lo[0] * cell), float((hi[1] + 1) * cell))
-    noise = 0.25 * (gradient_noise(ma.covariance(), ma.count, na) + gradient_noise(mb.covariance(), mb.count, nb))
-    ga, gb = gradients(na), gradients(nb)  # a cell one line sees across a fold (a sliver of another face): out
+    noise = 0.25 * (gradient_noise(ma.covariance(), ma.count, na)
+                    + gradient_noise(mb.covariance(), mb.count, nb))
+    # a cell one line sees across a fold (a sliver of another face): out
+    ga, gb = gradients(na), gradients(nb)
     alike = np.hypot(*(ga - gb).T) <= s.planimetric.max_neighbour_dslope / 2
     _planimetric(q, centre, np.where(alike, dz, np.nan), 0.5 * (ga + gb), noise, s)
     return q
@@ -308,8 +336,8 @@ def _planes(m: CellMoments, ps: PlaneSettings) -> tuple[CellMoments, np.ndarray]
     return m.select(planar), normal
 
 
-def _planimetric(q: PairQuality, centre: np.ndarray, dz: np.ndarray, grad: np.ndarray, noise: np.ndarray,
-                 s: QualitySettings) -> None:
+def _planimetric(q: PairQuality, centre: np.ndarray, dz: np.ndarray, grad: np.ndarray,
+                 noise: np.ndarray, s: QualitySettings) -> None:
     """dx, dy of a relative to b jointly with the difference's offset and tilt, where determined."""
     q.n_sloped = int(np.sum(np.hypot(grad[:, 0], grad[:, 1]) > np.tan(np.radians(s.min_slope_deg))))
     q.planimetric = p = planimetric_offsets(centre, dz, grad, q.cell_m, s.planimetric, noise)

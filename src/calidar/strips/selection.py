@@ -27,7 +27,8 @@ FIELDS = ("classification", "return_number", "number_of_returns")
 
 @dataclass(frozen=True)
 class PointSelection:
-    """A rule ("classes", "ground" or "last returns") and the classes it keeps (None: any but EXCLUDED_CLASSES)."""
+    """A rule ("classes", "ground" or "last returns") and the classes it keeps (None: any but
+    EXCLUDED_CLASSES)."""
 
     rule: str
     classes: tuple[int, ...] | None = None
@@ -46,8 +47,10 @@ class PointSelection:
 
     def describe(self) -> str:
         if self.classes is None:
-            return "last and single returns (return_number = number_of_returns), no vegetation/noise/water classes"
-        return f"{self.rule}: class{'es' if len(self.classes) > 1 else ''} {', '.join(map(str, self.classes))}"
+            return ("last and single returns (return_number = number_of_returns), no "
+                    "vegetation/noise/water classes")
+        plural = "es" if len(self.classes) > 1 else ""
+        return f"{self.rule}: class{plural} {', '.join(map(str, self.classes))}"
 
     def to_dict(self) -> dict:
         return {"rule": self.rule, "classes": None if self.classes is None else list(self.classes),
@@ -61,7 +64,8 @@ def candidate_mask(points) -> np.ndarray:
     return ground | PointSelection("last returns").mask(points)
 
 
-def choose_selection(source, present: np.ndarray | None, classes: tuple[int, ...] | None = None) -> PointSelection:
+def choose_selection(source, present: np.ndarray | None,
+                     classes: tuple[int, ...] | None = None) -> PointSelection:
     """The selection for one source from the classes ``present`` in it (None: no classification):
     the ``classes`` asked for (each must be present, else an error naming ``source``), else ground
     when present, else last returns."""
@@ -69,9 +73,10 @@ def choose_selection(source, present: np.ndarray | None, classes: tuple[int, ...
     if classes is not None:
         missing = [c for c in classes if c not in found]
         if missing:
-            raise InputError(source, "classification", f"has no points of class {', '.join(map(str, missing))} "
-                             f"(classes present: {', '.join(map(str, sorted(found))) or 'none'}); expected every "
-                             "class given to --classes")
+            raise InputError(source, "classification",
+                             f"has no points of class {', '.join(map(str, missing))} "
+                             f"(classes present: {', '.join(map(str, sorted(found))) or 'none'}); "
+                             "expected every class given to --classes")
         return PointSelection("classes", classes)
     if GROUND in found:
         return PointSelection("ground", (GROUND,))

@@ -32,7 +32,8 @@ class LocalFrame:
 
     @classmethod
     def at(cls, points_ecef: np.ndarray) -> "LocalFrame":
-        """The frame at the centre of the points' bounding box, at their median height (ECEF m, (N, 3))."""
+        """The frame at the centre of the bounding box of the points (ECEF m, (N, 3)), at their
+        median height."""
         p = np.asarray(points_ecef, float)
         lat, lon, _ = frames.ecef_to_geodetic(0.5 * (p.min(axis=0) + p.max(axis=0)))
         height = float(np.median(frames.ecef_to_geodetic(p[:: max(1, len(p) // 10000)])[2]))
@@ -61,7 +62,8 @@ class Pose:
 
     def take(self, rows: np.ndarray) -> "Pose":
         """The poses at positions ``rows`` of this one."""
-        return Pose(self.index[rows], self.position[rows], self.r_lb[rows], self.range_m[rows], self.angles[rows])
+        return Pose(self.index[rows], self.position[rows], self.r_lb[rows], self.range_m[rows],
+                    self.angles[rows])
 
     def rows_of(self, index: np.ndarray) -> np.ndarray:
         """Positions in this pose of the strip's points ``index`` (all must be present)."""
@@ -97,18 +99,22 @@ class Strip:
     trajectory: Trajectory
     frame: LocalFrame
     source: str = "<memory>"
-    extra: dict = field(default_factory=dict)  #: per-point attributes kept for output (classification, ...)
-    span: tuple[float, float] | None = None  #: GPS time span (s) of the whole line when ``points`` are a subset
+    #: per-point attributes kept for output (classification, ...)
+    extra: dict = field(default_factory=dict)
+    #: GPS time span (s) of the whole line when ``points`` are a subset
+    span: tuple[float, float] | None = None
 
     @property
     def time_span(self) -> tuple[float, float]:
         """First and last GPS time (s) of the flight line (of all its points, also when thinned)."""
-        return self.span if self.span is not None else (float(self.obs.time.min()), float(self.obs.time.max()))
+        if self.span is not None:
+            return self.span
+        return float(self.obs.time.min()), float(self.obs.time.max())
 
     @classmethod
     def from_ecef(cls, strip_id: int, points_ecef, time, trajectory: Trajectory, nominal: Sensor,
-                  frame: LocalFrame, source: str = "<memory>", span: tuple[float, float] | None = None,
-                  **extra) -> "Strip":
+                  frame: LocalFrame, source: str = "<memory>",
+                  span: tuple[float, float] | None = None, **extra) -> "Strip":
         """Build a strip from delivered ECEF points (N, 3) m and GPS times (N,) s (``span``: the
         whole line's time span when these are some of its points).
 
@@ -123,7 +129,8 @@ class Strip:
         except InputError as e:
             raise InputError(trajectory.source, "time", e.problem) from None
         obs = georef.inverse(trajectory, nominal, time, points_ecef)
-        return cls(int(strip_id), frame.to_local(points_ecef), obs, trajectory, frame, source, dict(extra), span)
+        return cls(int(strip_id), frame.to_local(points_ecef), obs, trajectory, frame, source,
+                   dict(extra), span)
 
     def __len__(self) -> int:
         return self.points.shape[0]
@@ -133,13 +140,16 @@ class Strip:
         return self.obs.time
 
     def pose(self, index: np.ndarray | None = None) -> Pose:
-        """Trajectory poses at the times of the points ``index`` (all when None), cached by the caller."""
+        """Trajectory poses at the times of the points ``index`` (all when None), cached by the
+        caller."""
         idx = np.arange(len(self)) if index is None else np.asarray(index, dtype=np.int64)
         pos_e, r_eb = georef.poses(self.trajectory, self.obs.time[idx])
         r_lb = _rotated(self.frame.r_le, r_eb)
-        return Pose(idx, self.frame.to_local(pos_e), r_lb, self.obs.range_m[idx], self.obs.angles[idx])
+        return Pose(idx, self.frame.to_local(pos_e), r_lb, self.obs.range_m[idx],
+                    self.obs.angles[idx])
 
-    def georeference(self, sensor: Sensor, index: np.ndarray | None = None, pose: Pose | None = None) -> np.ndarray:
+    def georeference(self, sensor: Sensor, index: np.ndarray | None = None,
+                     pose: Pose | None = None) -> np.ndarray:
         """Points (M, 3) local ENU m re-georeferenced with ``sensor`` (the lidar equation).
 
         ``pose`` (from :meth:`pose`) avoids re-interpolating the trajectory when the same
@@ -163,7 +173,8 @@ def georeference_pose(sensor: Sensor, pose: Pose) -> np.ndarray:
 
 @njit(cache=True, nogil=True)
 def _rotated(r: np.ndarray, m: np.ndarray) -> np.ndarray:  # pragma: no cover - numba
-    """r @ m[k] for every 3 × 3 matrix of m (N, 3, 3) (numpy's broadcast matmul costs 200 ns each)."""
+    """r @ m[k] for every 3 × 3 matrix of m (N, 3, 3) (numpy's broadcast matmul costs 200 ns
+    each)."""
     out = np.empty_like(m)
     for k in range(m.shape[0]):
         for a in range(3):

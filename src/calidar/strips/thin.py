@@ -7,8 +7,8 @@ well as millions. So the overlap cells (those of :func:`calidar.strips.overlap.c
 are grouped in square blocks (several tie-plane patches across, so that few patches are cut
 at a block's edge) ranked by :func:`spread_rank`, a bit-reversed Morton (Z-order) code of the
 block indices: the blocks ranked below 2⁻ᵏ form a regular lattice of stride 2^(k/2) blocks,
-and any prefix of the ranking is spread evenly over the grid. Each strip keeps the lowest-ranked of its overlap
-cells that fit its budget (threshold τ); a pair keeps its common cells ranked below
+and any prefix of the ranking is spread evenly over the grid. Each strip keeps the lowest-ranked of
+its overlap cells that fit its budget (threshold τ); a pair keeps its common cells ranked below
 min(τ_a, τ_b), so that both strips keep the same cells and no kept point lacks a partner.
 """
 
@@ -52,7 +52,8 @@ def spread_rank(cells: np.ndarray, block: int = 1) -> np.ndarray:
     return code.astype(np.float64) / 2.0**32
 
 
-def budget_threshold(cells: np.ndarray, counts: np.ndarray, budget: int | None, block: int = 1) -> float:
+def budget_threshold(cells: np.ndarray, counts: np.ndarray, budget: int | None,
+                     block: int = 1) -> float:
     """The rank τ below which the lowest-ranked ``cells`` (with their point ``counts``) hold at most
     ``budget`` points (2.0, all of them, when they fit or ``budget`` is None)."""
     if budget is None or int(np.sum(counts)) <= budget:
@@ -63,8 +64,9 @@ def budget_threshold(cells: np.ndarray, counts: np.ndarray, budget: int | None, 
     return float(rank[order[over[0]]])
 
 
-def thin_cells(pairs: Sequence[tuple[int, int, np.ndarray]], footprints: Mapping[int, tuple[np.ndarray, np.ndarray]],
-               budget: int | None, block: int = 1) -> dict[int, np.ndarray]:
+def thin_cells(pairs: Sequence[tuple[int, int, np.ndarray]],
+               footprints: Mapping[int, tuple[np.ndarray, np.ndarray]], budget: int | None,
+               block: int = 1) -> dict[int, np.ndarray]:
     """The cells each strip keeps: {id: sorted keys}, at most ``budget`` points per strip (None: no
     limit), whole blocks of ``block`` × ``block`` cells at a time.
 

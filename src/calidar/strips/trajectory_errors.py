@@ -47,7 +47,8 @@ AXES = ("east", "north", "up")
 #: the part of the shifts' prior variance that is each strip's own, not shared with the other lines
 #: (:meth:`TrajectoryModel.flight_correlation`: keeps two strips flown at one time apart)
 OWN_STRIP_SHARE = 0.05
-PREFIX = "trajectory_"  #: every trajectory-correction parameter's name starts so (nuisance parameters)
+#: every trajectory-correction parameter's name starts so (nuisance parameters)
+PREFIX = "trajectory_"
 
 
 class Knot(NamedTuple):
@@ -70,13 +71,15 @@ def _layout(block_s: float | None, priors: bool, attitude: bool,
     """:meth:`TrajectoryModel.layout` for the model's knots and the strips' spans (sorted by id)."""
     ids = [i for i, _ in spans]
     if not priors:  # free whole-strip shifts, the first strip the datum
-        return {f"{PREFIX}bias_{ax}_{i}": Knot("bias", a, i, 0) for i in ids[1:] for a, ax in enumerate(AXES)}
+        return {f"{PREFIX}bias_{ax}_{i}": Knot("bias", a, i, 0)
+                for i in ids[1:] for a, ax in enumerate(AXES)}
     out = {}
     for i, span in spans:
         for k in range(_n_knots(block_s, *span)):
             suffix = f"{i}" if block_s is None else f"{i}_{k}"
             for kind in ("bias", "tilt") if attitude else ("bias",):
-                out.update({f"{PREFIX}{kind}_{ax}_{suffix}": Knot(kind, a, i, k) for a, ax in enumerate(AXES)})
+                out.update({f"{PREFIX}{kind}_{ax}_{suffix}": Knot(kind, a, i, k)
+                            for a, ax in enumerate(AXES)})
     return out
 
 
@@ -84,29 +87,37 @@ def _layout(block_s: float | None, priors: bool, attitude: bool,
 class TrajectoryModel:
     """How trajectory errors enter the adjustment (see the module docstring)."""
 
-    block_s: float | None = None  #: spacing of the knots (s); None: one constant correction per strip
-    position_sigma_m: float | None = None  #: prior σ of each knot's shift; None: free, first strip fixed
+    #: spacing of the knots (s); None: one constant correction per strip
+    block_s: float | None = None
+    #: prior σ of each knot's shift; None: free, first strip fixed
+    position_sigma_m: float | None = None
     attitude_sigma_rad: float | None = None  #: prior σ of each knot's rotation; None: no rotations
-    correlation_s: float | None = None  #: Gauss–Markov correlation time of the shifts (s); None: independent
+    #: Gauss–Markov correlation time of the shifts (s); None: independent
+    correlation_s: float | None = None
     attitude_correlation_s: float | None = None  #: the same for the rotations
-    #: the trajectory's σ per epoch: the priors of every knot, per axis (the two σ above are then unused)
+    #: the trajectory's σ per epoch: the priors of every knot, per axis (the two σ above then
+    #: unused)
     accuracy: TrajectoryAccuracy | None = None
     #: the priors' level to be estimated from the overlaps (no accuracy file: :attr:`accuracy` is a
     #: default to start from; :mod:`calidar.strips.trajectory_level`)
     estimate_level: bool = False
 
     def __post_init__(self):
-        for name in ("block_s", "position_sigma_m", "attitude_sigma_rad", "correlation_s", "attitude_correlation_s"):
+        for name in ("block_s", "position_sigma_m", "attitude_sigma_rad", "correlation_s",
+                     "attitude_correlation_s"):
             v = getattr(self, name)
             if v is not None and not (math.isfinite(v) and v > 0):
                 raise InputError(None, name, f"expected a number > 0, got {v}")
-        if not self.has_priors and (self.block_s is not None or self.attitude_sigma_rad is not None):
+        knots_or_attitude = self.block_s is not None or self.attitude_sigma_rad is not None
+        if not self.has_priors and knots_or_attitude:
             raise InputError(None, "trajectory sigma", "knots and attitude corrections need the "
-                             "trajectory's a-priori position σ (e.g. --trajectory-sigma 0.03,0.002)")
+                             "trajectory's a-priori position σ (e.g. --trajectory-sigma "
+                             "0.03,0.002)")
 
     @property
     def has_priors(self) -> bool:
-        """Whether the corrections have priors (else: free whole-strip shifts, the first strip the datum)."""
+        """Whether the corrections have priors (else: free whole-strip shifts, the first strip the
+        datum)."""
         return self.position_sigma_m is not None or self.accuracy is not None
 
     @property
@@ -114,7 +125,8 @@ class TrajectoryModel:
         """Whether the corrections include rotations."""
         return self.attitude_sigma_rad is not None or self.accuracy is not None
 
-    def knot_sigma(self, span: tuple[float, float], heading_rad: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    def knot_sigma(self, span: tuple[float, float],
+                   heading_rad: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
         """Prior σ of a strip's knots, (n, 3) shift east/north/up (m) and (n, 3) rotation about
         east/north/up (rad): from :attr:`accuracy` at the knots' times (the rotation about up gets
         heading's σ, the horizontal ones roll's and pitch's as the line's heading mixes them), else
@@ -133,7 +145,8 @@ class TrajectoryModel:
     def layout(self, spans: Mapping[int, tuple[float, float]]) -> dict[str, Knot]:
         """Every trajectory parameter of strips with time spans {id: (t_min, t_max)} s, by the name
         :meth:`parameters` gives it → its :class:`Knot` (shared: not to be changed)."""
-        return _layout(self.block_s, self.has_priors, self.has_attitude, tuple(sorted(spans.items())))
+        sorted_spans = tuple(sorted(spans.items()))
+        return _layout(self.block_s, self.has_priors, self.has_attitude, sorted_spans)
 
     def correlation(self, n: int, kind: str = "bias") -> np.ndarray:
         """Prior correlation (n, n) of a strip's n knots along one axis, for shifts (``kind``
@@ -144,15 +157,17 @@ class TrajectoryModel:
         return phi ** np.abs(k[:, None] - k[None, :]).astype(float)
 
     def knot_times(self, spans: Mapping[int, tuple[float, float]]) -> dict[int, np.ndarray]:
-        """Each strip's knots' times (s): its start, then every ``block_s`` (one knot: its start)."""
-        return {i: spans[i][0] + (self.block_s or 0.0) * np.arange(self.n_knots(*spans[i])) for i in sorted(spans)}
+        """Each strip's knot times (s): its start, then every ``block_s`` (one knot: its start)."""
+        step = self.block_s or 0.0
+        return {i: spans[i][0] + step * np.arange(self.n_knots(*spans[i])) for i in sorted(spans)}
 
     def flight_correlation(self, spans: Mapping[int, tuple[float, float]]) -> np.ndarray:
         """Prior correlation of the shifts' knots of every strip (sorted by id, then knot) along one
         axis: one Gauss–Markov process in time over the whole flight, exp(−|Δt| / correlation_s)
         (a GNSS error does not restart with each line: consecutive lines share it, and their mean, a
         vertical bias only ground control sees, is as uncertain as one process makes it), with
-        :data:`OWN_STRIP_SHARE` of it each strip's own (knots of two strips at one time: not singular)."""
+        :data:`OWN_STRIP_SHARE` of it each strip's own (knots of two strips at one time: not
+        singular)."""
         times = self.knot_times(spans)
         t = np.concatenate(list(times.values()))
         strip = np.repeat(np.arange(len(times)), [v.size for v in times.values()])
@@ -162,7 +177,8 @@ class TrajectoryModel:
         R = np.exp(-np.abs(t[:, None] - t[None, :]) / tau)
         return np.where(strip[:, None] == strip[None, :], R, (1.0 - OWN_STRIP_SHARE) * R)
 
-    def prior_correlation(self, spans: Mapping[int, tuple[float, float]]) -> list[tuple[list[str], np.ndarray]]:
+    def prior_correlation(self, spans: Mapping[int, tuple[float, float]]
+                          ) -> list[tuple[list[str], np.ndarray]]:
         """The engine's ``prior_correlation`` groups: the shifts per axis over every strip's knots
         (:meth:`flight_correlation`), the rotations per strip and axis (about local axes that the
         lines' headings turn: not one process across lines; their 3.5 s outlives no turn)."""
@@ -171,8 +187,8 @@ class TrajectoryModel:
         out = []
         R = self.flight_correlation(spans)
         if np.any(R != np.eye(len(R))):
-            out += [([f"trajectory_bias_{ax}_{i}_{k}" for i, t in self.knot_times(spans).items() for k in range(t.size)], R)
-                    for ax in AXES]
+            knots = [(i, k) for i, t in self.knot_times(spans).items() for k in range(t.size)]
+            out += [([f"trajectory_bias_{ax}_{i}_{k}" for i, k in knots], R) for ax in AXES]
         for i in sorted(spans) if self.has_attitude else ():
             n = self.n_knots(*spans[i])
             R = self.correlation(n, "tilt")
@@ -187,7 +203,8 @@ class TrajectoryModel:
         out = []
         ids = sorted(spans)
         if not self.has_priors:  # free whole-strip shifts, the first strip the datum
-            return [Parameter(f"trajectory_bias_{ax}_{i}", 0.0, "m") for i in ids[1:] for ax in AXES]
+            return [Parameter(f"trajectory_bias_{ax}_{i}", 0.0, "m")
+                    for i in ids[1:] for ax in AXES]
         for i in ids:
             shift, tilt = self.knot_sigma(spans[i], (headings or {}).get(i, 0.0))
             for k in range(shift.shape[0]):
@@ -195,8 +212,8 @@ class TrajectoryModel:
                 out += [Parameter(f"trajectory_bias_{ax}_{suffix}", 0.0, "m", float(shift[k, a]))
                         for a, ax in enumerate(AXES)]
                 if self.has_attitude:
-                    out += [Parameter(f"trajectory_tilt_{ax}_{suffix}", 0.0, "rad", float(tilt[k, a]))
-                            for a, ax in enumerate(AXES)]
+                    out += [Parameter(f"trajectory_tilt_{ax}_{suffix}", 0.0, "rad",
+                                      float(tilt[k, a])) for a, ax in enumerate(AXES)]
         return out
 
 
@@ -224,16 +241,20 @@ class StripCorrection:
 
     def apply(self, points: np.ndarray, origin: np.ndarray, time: np.ndarray, weight=1.0,
               knots: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None) -> np.ndarray:
-        """Corrected ``points`` (M, 3) m: + shift + tilt × (points − origin), at each point's time (s).
+        """Corrected ``points`` (M, 3) m: + shift + tilt × (points − origin), at each point's time
+        (s).
 
         For averages of points (rows of a correspondence matrix) pass the row sums of the
         weights as ``weight``, the weighted sums as points and origin and the rows' mean times;
         ``knots``: ``self.knots(time)`` when already known (the same times corrected again)."""
         points = np.asarray(points, float)
         m = points.shape[0]
-        k0, k1, f = self.knots(np.broadcast_to(np.asarray(time, float), (m,))) if knots is None else knots
-        return _apply_kernel(points, np.broadcast_to(np.asarray(origin, float), (m, 3)),
-                             np.broadcast_to(np.asarray(weight, float), (m,)), k0, k1, f, self.shift, self.tilt)
+        if knots is None:
+            knots = self.knots(np.broadcast_to(np.asarray(time, float), (m,)))
+        k0, k1, f = knots
+        origin = np.broadcast_to(np.asarray(origin, float), (m, 3))
+        weight = np.broadcast_to(np.asarray(weight, float), (m,))
+        return _apply_kernel(points, origin, weight, k0, k1, f, self.shift, self.tilt)
 
 
 @njit(cache=True)
@@ -255,7 +276,8 @@ def _apply_kernel(points, origin, weight, k0, k1, f, shift, tilt):  # pragma: no
 
 def corrections(values: Mapping[str, float], model: TrajectoryModel | None,
                 spans: Mapping[int, tuple[float, float]]) -> dict[int, StripCorrection]:
-    """The strips' corrections from parameter values (SI) named as :meth:`TrajectoryModel.parameters`."""
+    """The strips' corrections from parameter values (SI) named as
+    :meth:`TrajectoryModel.parameters`."""
     if model is None:
         return {}
     out: dict[int, StripCorrection] = {}
@@ -267,18 +289,21 @@ def corrections(values: Mapping[str, float], model: TrajectoryModel | None,
         kind, ax, sid, k = knot
         if sid not in out:
             n = model.n_knots(*spans[sid])
-            out[sid] = StripCorrection(spans[sid][0], model.block_s, np.zeros((n, 3)), np.zeros((n, 3)))
+            out[sid] = StripCorrection(spans[sid][0], model.block_s, np.zeros((n, 3)),
+                                       np.zeros((n, 3)))
         (out[sid].shift if kind == "bias" else out[sid].tilt)[k, ax] = v
     return out
 
 
-def knot_scatter(keys, model: TrajectoryModel, spans: Mapping[int, tuple[float, float]]) -> dict[int, tuple]:
+def knot_scatter(keys, model: TrajectoryModel,
+                 spans: Mapping[int, tuple[float, float]]) -> dict[int, tuple]:
     """How a typed block of :class:`Knot` keys fills the strips' corrections, worked out once: per
     strip its knot count and, for shifts and rotations, (positions in the block, knot, axis)."""
     plan: dict[int, list] = {}
     for pos, (kind, ax, sid, k) in enumerate(keys):
         plan.setdefault(sid, [[], []])[kind != "bias"].append((pos, k, ax))
-    return {sid: (model.n_knots(*spans[sid]), *(np.array(part, dtype=np.intp).reshape(-1, 3).T for part in parts))
+    return {sid: (model.n_knots(*spans[sid]),
+                  *(np.array(part, dtype=np.intp).reshape(-1, 3).T for part in parts))
             for sid, parts in plan.items()}
 
 
@@ -304,7 +329,8 @@ def corrected_trajectory(traj: Trajectory, fixes: Mapping[int, StripCorrection],
     result moves a point as the adjustment's correction does (to second order in the rotation)."""
     t = traj.time
     ecef = traj.ecef.copy()
-    r_eb = frames.r_en(traj.lat, traj.lon) @ frames.rpy_to_matrix(traj.roll, traj.pitch, traj.heading)
+    r_nb = frames.rpy_to_matrix(traj.roll, traj.pitch, traj.heading)
+    r_eb = frames.r_en(traj.lat, traj.lon) @ r_nb
     touched = np.zeros(t.size, bool)
     for sid, fix in fixes.items():
         lo = max(int(np.searchsorted(t, spans[sid][0], side="right")) - 1, 0)
@@ -318,7 +344,8 @@ def corrected_trajectory(traj: Trajectory, fixes: Mapping[int, StripCorrection],
         r_eb[idx] = turn @ r_eb[idx]
         touched[idx] = True
     lat, lon, h = frames.ecef_to_geodetic(ecef)
-    lat, lon, h = np.where(touched, lat, traj.lat), np.where(touched, lon, traj.lon), np.where(touched, h, traj.height)
+    lat, lon = np.where(touched, lat, traj.lat), np.where(touched, lon, traj.lon)
+    h = np.where(touched, h, traj.height)
     roll, pitch, heading = frames.matrix_to_rpy(np.swapaxes(frames.r_en(lat, lon), -1, -2) @ r_eb)
     roll, pitch = np.where(touched, roll, traj.roll), np.where(touched, pitch, traj.pitch)
     heading = np.where(touched, heading, traj.heading)
@@ -336,5 +363,6 @@ def rotation_matrices(w: np.ndarray) -> np.ndarray:
     K -= np.swapaxes(K, 1, 2)
     small = theta < 1e-8
     a = np.where(small, 1.0 - theta**2 / 6.0, np.sin(theta) / np.where(small, 1.0, theta))
-    b = np.where(small, 0.5 - theta**2 / 24.0, (1.0 - np.cos(theta)) / np.where(small, 1.0, theta) ** 2)
+    b = np.where(small, 0.5 - theta**2 / 24.0,
+                 (1.0 - np.cos(theta)) / np.where(small, 1.0, theta) ** 2)
     return np.eye(3) + a[:, None, None] * K + b[:, None, None] * (K @ K)

@@ -16,8 +16,8 @@ must reach :data:`MIN_REDUNDANCY`; otherwise the stated σ stay ("the data canno
 estimate's own relative σ is ≈ 1/√(2m), m the effective number of independent priors behind it
 (:mod:`calidar.adjust.variance_elements`; less than rₖ: a Gauss–Markov process sampled every
 second is worth far fewer independent priors than it has knots). Each estimated group then
-follows the flight in time (:mod:`calidar.strips.trajectory_level_time`). Each factor is held ≥ :data:`FLOOR_FACTOR` (a trajectory
-that good is as good as exact for the calibration).
+follows the flight in time (:mod:`calidar.strips.trajectory_level_time`). Each factor is held ≥
+:data:`FLOOR_FACTOR` (a trajectory that good is as good as exact for the calibration).
 
 The level is itself an estimate, known to ±1/√(2m): :func:`carry_uncertainty` carries that into
 the mounting's covariance (:mod:`calidar.adjust.variance_carry`: the plug-in covariance averaged
@@ -33,11 +33,13 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from calidar.adjust.variance_carry import carried_covariance
-from calidar.adjust.variance_components import OBSERVATIONS, Components, estimate_components, normal_terms, split_blocks
+from calidar.adjust.variance_components import (OBSERVATIONS, Components, estimate_components,
+                                                normal_terms, split_blocks)
 from calidar.adjust.variance_elements import estimate_elements
 from calidar.errors import CalibrationError
 from calidar.strips.trajectory_errors import Knot
-from calidar.strips.trajectory_level_time import LevelOverTime, estimate_over_time, over_time_accuracy
+from calidar.strips.trajectory_level_time import (LevelOverTime, estimate_over_time,
+                                                  over_time_accuracy)
 from calidar.trajectory_accuracy import TrajectoryAccuracy
 
 GROUPS = ("position_horizontal", "position_vertical", "attitude_horizontal", "heading")
@@ -66,9 +68,11 @@ class TrajectoryLevel:
 
     base: TrajectoryAccuracy  #: the σ started from (the survey-grade default)
     components: Components
-    estimated: dict[str, bool]  #: per group (present in the adjustment): estimated, or the data cannot tell
+    #: per group (present in the adjustment): estimated, or the data cannot tell
+    estimated: dict[str, bool]
     accuracy: TrajectoryAccuracy  #: ``base`` × the factors
-    over_time: LevelOverTime | None = None  #: the estimated groups' factors per segment of the flight
+    #: the estimated groups' factors per segment of the flight
+    over_time: LevelOverTime | None = None
     #: per estimated group the effective number m of independent priors behind its factor (its
     #: relative σ 1/√(2m); correlated priors count less than their redundancy rₖ)
     effective: dict[str, float] | None = None
@@ -80,40 +84,48 @@ class TrajectoryLevel:
         return self.components.sigma_factor(group) if self.estimated.get(group) else 1.0
 
     def relative_sigma(self, group: str) -> float:
-        """The estimated factor's relative σ: 1/√(2m) with m its priors' effective number when known,
-        else 1/√(2rₖ)."""
+        """The estimated factor's relative σ: 1/√(2m) with m its priors' effective number when
+        known, else 1/√(2rₖ)."""
         m = (self.effective or {}).get(group)
-        return self.components.relative_sigma(group) if m is None else (float("inf") if m <= 0 else 1.0 / math.sqrt(2.0 * m))
+        if m is None:
+            return self.components.relative_sigma(group)
+        return float("inf") if m <= 0 else 1.0 / math.sqrt(2.0 * m)
 
     @property
     def any_estimated(self) -> bool:
         return any(self.estimated.values())
 
     def headline(self) -> str:
-        """'position 2.9/4.4 cm (horizontal/vertical), attitude 0.0020/0.0079° (roll·pitch/heading)'."""
+        """'position 2.9/4.4 cm (horizontal/vertical), attitude 0.0020/0.0079°
+        (roll·pitch/heading)'."""
         m = self.accuracy.medians()
-        return (f"position {m['north_rms_m'] * 100:.2g}/{m['down_rms_m'] * 100:.2g} cm (horizontal/vertical), attitude "
+        return (f"position {m['north_rms_m'] * 100:.2g}/{m['down_rms_m'] * 100:.2g} cm "
+                "(horizontal/vertical), attitude "
                 f"{m['roll_rms_deg']:.2g}/{m['heading_rms_deg']:.2g}° (roll·pitch/heading)")
 
     def undetermined(self) -> list[str]:
         """The groups the data cannot tell, with their redundancy: 'heading (r = 3.1 < 10)'."""
-        return [f"{g.replace('_', ' ')} (redundancy {self.components.redundancy_start[g]:.1f} < {MIN_REDUNDANCY:g})"
+        return [f"{g.replace('_', ' ')} (redundancy {self.components.redundancy_start[g]:.1f} < "
+                f"{MIN_REDUNDANCY:g})"
                 for g, ok in self.estimated.items() if not ok]
 
     def to_dict(self) -> dict:
         c = self.components
         m = self.accuracy.medians()
-        return {"source": "data" if self.any_estimated else "default", "method": SOURCE, "headline": self.headline(),
+        groups = {g: {"estimated": ok, "sigma_factor": self.factor(g),
+                      "sigma_factor_relative_sigma": self.relative_sigma(g) if ok else None,
+                      "redundancy": float(c.redundancy[g]),
+                      "redundancy_at_stated_sigma": float(c.redundancy_start[g]),
+                      "priors": int(c.size[g])}
+                  for g, ok in self.estimated.items()}
+        return {"source": "data" if self.any_estimated else "default", "method": SOURCE,
+                "headline": self.headline(),
                 "position_m": {"horizontal": m["north_rms_m"], "vertical": m["down_rms_m"]},
                 "attitude_deg": {"roll_pitch": m["roll_rms_deg"], "heading": m["heading_rms_deg"]},
-                "min_redundancy": MIN_REDUNDANCY, "iterations": c.iterations, "converged": c.converged,
+                "min_redundancy": MIN_REDUNDANCY, "iterations": c.iterations,
+                "converged": c.converged,
                 "observations_sigma0": float(np.sqrt(c.variance[OBSERVATIONS])),
-                "groups": {g: {"estimated": ok, "sigma_factor": self.factor(g),
-                               "sigma_factor_relative_sigma": self.relative_sigma(g) if ok else None,
-                               "redundancy": float(c.redundancy[g]),
-                               "redundancy_at_stated_sigma": float(c.redundancy_start[g]), "priors": int(c.size[g])}
-                           for g, ok in self.estimated.items()}} \
-            | self._over_time_dict() | self._carried_dict()
+                "groups": groups} | self._over_time_dict() | self._carried_dict()
 
     def _carried_dict(self) -> dict:
         if self.carried is None:
@@ -125,17 +137,18 @@ class TrajectoryLevel:
         if self.over_time is None:
             return {}
         pos, att = self.base.position_m[0], np.degrees(self.base.attitude_rad[0])
-        stated = {"position_horizontal": pos[0], "position_vertical": pos[2], "attitude_horizontal": att[0], "heading": att[2]}
+        stated = {"position_horizontal": pos[0], "position_vertical": pos[2],
+                  "attitude_horizontal": att[0], "heading": att[2]}
         return {"over_time": self.over_time.to_dict(stated)}
 
 
 def estimate_level(est, base: TrajectoryAccuracy, layout: Mapping[str, Knot],
                    knot_times: Mapping[int, np.ndarray] | None = None) -> TrajectoryLevel:
     """The trajectory's level from an adjustment ``est`` (a :class:`calidar.adjust.solver.Estimate`
-    whose trajectory priors came from ``base``, its trajectory parameters' knots by name ``layout``): groups with redundancy below
-    :data:`MIN_REDUNDANCY` are held at their stated σ and the others estimated again without them.
-    With the strips' ``knot_times`` the estimated groups then follow the flight in time
-    (:mod:`calidar.strips.trajectory_level_time`)."""
+    whose trajectory priors came from ``base``, its trajectory parameters' knots by name
+    ``layout``): groups with redundancy below :data:`MIN_REDUNDANCY` are held at their stated σ and
+    the others estimated again without them. With the strips' ``knot_times`` the estimated groups
+    then follow the flight in time (:mod:`calidar.strips.trajectory_level_time`)."""
     terms = normal_terms(est)
     knots = [layout.get(p.name) for p in est.fit.free]
     groups = [group_of(k) for k in knots]
@@ -144,7 +157,8 @@ def estimate_level(est, base: TrajectoryAccuracy, layout: Mapping[str, Knot],
     fixed = ["other"]
     while True:  # tol: 1 % in variance, ½ % in σ — well inside the factors' own ±1/√(2rₖ)
         try:
-            comps = estimate_components(*terms, blocks, fixed=fixed, floor=FLOOR_FACTOR**2, marginal=True, tol=0.01)
+            comps = estimate_components(*terms, blocks, fixed=fixed, floor=FLOOR_FACTOR**2,
+                                        marginal=True, tol=0.01)
         except CalibrationError:  # a normal matrix singular at some factors: nothing estimated
             fixed = ["other", *present]
             comps = estimate_components(*terms, blocks, fixed=fixed, max_iter=1)
@@ -156,22 +170,27 @@ def estimate_level(est, base: TrajectoryAccuracy, layout: Mapping[str, Knot],
         fixed += weak
     estimated = {g: g not in fixed for g in present}
     level = TrajectoryLevel(base, comps, estimated, base)
-    level.accuracy = scaled(base, *(level.factor(g) for g in GROUPS), source=SOURCE if level.any_estimated else base.source)
+    source = SOURCE if level.any_estimated else base.source
+    level.accuracy = scaled(base, *(level.factor(g) for g in GROUPS), source=source)
     if knot_times is not None and level.any_estimated:
         start = {g: comps.variance[g] for g in present if estimated[g]}
         try:
-            level.effective = estimate_elements(terms[0], terms[1], terms[4], est.fit.priors, groups, start,
-                                                observations=comps.variance[OBSERVATIONS], max_iter=1).effective
-            level.over_time = estimate_over_time(terms, est.fit.priors, knots, groups, knot_times, start,
-                                                 comps.variance[OBSERVATIONS], FLOOR_FACTOR**2)
-        except CalibrationError:  # a normal matrix singular at some segment's factors: the flight-wide level stays
+            elements = estimate_elements(terms[0], terms[1], terms[4], est.fit.priors, groups,
+                                         start, observations=comps.variance[OBSERVATIONS],
+                                         max_iter=1)
+            level.effective = elements.effective
+            level.over_time = estimate_over_time(terms, est.fit.priors, knots, groups, knot_times,
+                                                 start, comps.variance[OBSERVATIONS],
+                                                 FLOOR_FACTOR**2)
+        # a normal matrix singular at some segment's factors: the flight-wide level stays
+        except CalibrationError:
             return level
         level.accuracy = over_time_accuracy(base, level.over_time, knot_times)
     return level
 
 
-def scaled(base: TrajectoryAccuracy, horizontal: float, vertical: float, tilt: float, heading: float,
-           source: str) -> TrajectoryAccuracy:
+def scaled(base: TrajectoryAccuracy, horizontal: float, vertical: float, tilt: float,
+           heading: float, source: str) -> TrajectoryAccuracy:
     """``base`` with its position σ north/east × ``horizontal``, down × ``vertical``, its attitude σ
     roll/pitch × ``tilt`` and heading × ``heading``."""
     pos = base.position_m * np.array([horizontal, horizontal, vertical])

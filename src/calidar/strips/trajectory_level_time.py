@@ -37,8 +37,10 @@ SEGMENT_S = 30.0
 LEVEL_CORRELATION_S = 120.0
 #: a segment's own update enters the pooling only when its priors are checked this many times
 MIN_SEGMENT_REDUNDANCY = 3.0
-SOURCE_OVER_TIME = "estimated from the overlaps over the flight (variance components of the trajectory priors per segment)"
-#: the process's σ of log factor² tried (0: a constant level); a factor 0.2–5× over the flight at the most
+SOURCE_OVER_TIME = ("estimated from the overlaps over the flight (variance components of the "
+                    "trajectory priors per segment)")
+#: the process's σ of log factor² tried (0: a constant level); a factor 0.2–5× over the flight at
+#: the most
 TAU_GRID = np.linspace(0.0, 1.6, 33)
 
 
@@ -57,14 +59,16 @@ class Segment:
         return 0.5 * (self.t_start + self.t_end)
 
 
-def segments_of(knot_times: Mapping[int, np.ndarray], segment_s: float | None = None) -> list[Segment]:
+def segments_of(knot_times: Mapping[int, np.ndarray],
+                segment_s: float | None = None) -> list[Segment]:
     """Each strip's knots (times by strip) cut into ⌈duration / segment_s⌉ stretches of equal
     knot count, sorted by time."""
     out, segment_s = [], segment_s or SEGMENT_S
     for sid, t in knot_times.items():
         n = max(1, math.ceil((t[-1] - t[0]) / segment_s)) if t.size > 1 else 1
         cuts = np.linspace(0, t.size, n + 1).round().astype(int)
-        out += [Segment(sid, int(a), int(b) - 1, float(t[a]), float(t[b - 1])) for a, b in zip(cuts[:-1], cuts[1:]) if b > a]
+        out += [Segment(sid, int(a), int(b) - 1, float(t[a]), float(t[b - 1]))
+                for a, b in zip(cuts[:-1], cuts[1:]) if b > a]
     return sorted(out, key=lambda s: s.t_start)
 
 
@@ -84,19 +88,22 @@ class Pooled:
     mean: float  #: the flight-wide mean of log σ²
 
 
-def pool_in_time(times: np.ndarray, raw: np.ndarray, effective: np.ndarray, fallback: float, own: np.ndarray | None = None,
-                 correlation_s: float | None = None) -> Pooled:
+def pool_in_time(times: np.ndarray, raw: np.ndarray, effective: np.ndarray, fallback: float,
+                 own: np.ndarray | None = None, correlation_s: float | None = None) -> Pooled:
     """Kriging of one group's log factor² over the segments (module docstring): ``raw`` the
     segments' own updates σ², ``effective`` the effective number of independent priors behind
     each (its log's variance 2/m), ``own`` which of them enter (default: m ≥
     :data:`MIN_SEGMENT_REDUNDANCY`), ``fallback`` the flight-wide σ² (taken when fewer than two
     segments can tell)."""
-    own = (effective >= MIN_SEGMENT_REDUNDANCY if own is None else np.asarray(own, bool)) & (raw > 0) & (effective > 0)
+    own = effective >= MIN_SEGMENT_REDUNDANCY if own is None else np.asarray(own, bool)
+    own = own & (raw > 0) & (effective > 0)
     n = times.size
     if own.sum() < 2:
-        return Pooled(np.full(n, math.log(fallback)), np.full(n, np.inf), own, 0.0, math.log(fallback))
+        return Pooled(np.full(n, math.log(fallback)), np.full(n, np.inf), own, 0.0,
+                      math.log(fallback))
     R = np.exp(-np.abs(times[:, None] - times[None, :]) / (correlation_s or LEVEL_CORRELATION_S))
-    # log of a χ²ₘ/m: mean ψ(m/2) − log(m/2), variance ψ′(m/2) (not −1/m and 2/m only: m is small here)
+    # log of a χ²ₘ/m: mean ψ(m/2) − log(m/2), variance ψ′(m/2) (not −1/m and 2/m only: m is
+    # small here)
     m = effective[own] / 2.0
     y, d = np.log(raw[own]) - (digamma(m) - np.log(m)), polygamma(1, m)
     Rdd = R[np.ix_(own, own)]
@@ -132,44 +139,53 @@ class LevelOverTime:
 
     segments: list[Segment]
     groups: dict[str, Pooled]  #: per group its pooled log factor² per segment
-    redundancy: dict[str, np.ndarray]  #: per group each segment's redundancy at the flight-wide level
+    #: per group each segment's redundancy at the flight-wide level
+    redundancy: dict[str, np.ndarray]
     iterations: int
     converged: bool
 
     def to_dict(self, base_sigma: Mapping[str, float]) -> dict:
         """solution.json's block: per segment its strip, times and per group σ (``base_sigma``:
-        the group's stated σ, m or °) with its factor's relative σ and whether its own priors told."""
+        the group's stated σ, m or °) with its factor's relative σ and whether its own priors
+        told."""
         segs = []
         for i, s in enumerate(self.segments):
             row = {"strip": s.strip, "t_start_s": s.t_start, "t_end_s": s.t_end}
             for g, p in self.groups.items():
-                row[g] = {"sigma": base_sigma[g] * self.factor(g, i), "sigma_factor": self.factor(g, i),
-                          "relative_sigma": float(np.expm1(0.5 * p.sigma[i])) if np.isfinite(p.sigma[i]) else None,
+                relative = float(np.expm1(0.5 * p.sigma[i])) if np.isfinite(p.sigma[i]) else None
+                row[g] = {"sigma": base_sigma[g] * self.factor(g, i),
+                          "sigma_factor": self.factor(g, i), "relative_sigma": relative,
                           "own": bool(p.own[i]), "redundancy": float(self.redundancy[g][i])}
             segs.append(row)
-        return {"segment_s": SEGMENT_S, "correlation_s": LEVEL_CORRELATION_S, "min_effective": MIN_SEGMENT_REDUNDANCY,
+        return {"segment_s": SEGMENT_S, "correlation_s": LEVEL_CORRELATION_S,
+                "min_effective": MIN_SEGMENT_REDUNDANCY,
                 "iterations": self.iterations, "converged": self.converged,
                 "tau_log_sigma": {g: 0.5 * p.tau for g, p in self.groups.items()},
-                "flight_mean_factor": {g: float(np.exp(0.5 * p.mean)) for g, p in self.groups.items()}, "segments": segs}
+                "flight_mean_factor": {g: float(np.exp(0.5 * p.mean))
+                                       for g, p in self.groups.items()},
+                "segments": segs}
 
     def factor(self, group: str, segment: int) -> float:
         """The σ factor of a group in a segment (1 for a group not here)."""
         g = self.groups.get(group)
         return 1.0 if g is None else float(np.exp(0.5 * g.log_var[segment]))
 
-    def factors_at_knots(self, knot_times: Mapping[int, np.ndarray], group: str) -> tuple[np.ndarray, np.ndarray]:
+    def factors_at_knots(self, knot_times: Mapping[int, np.ndarray],
+                         group: str) -> tuple[np.ndarray, np.ndarray]:
         """Every knot's time and the group's σ factor there (sorted by time; knots of two strips at
         one time: their mean)."""
         where = segment_index(self.segments)
         t = np.concatenate([knot_times[s] for s in knot_times])
-        f = np.concatenate([[self.factor(group, where[(s, k)]) for k in range(knot_times[s].size)] for s in knot_times])
+        f = np.concatenate([[self.factor(group, where[(s, k)]) for k in range(knot_times[s].size)]
+                            for s in knot_times])
         order = np.argsort(t, kind="stable")
         times, inverse = np.unique(t[order], return_inverse=True)
         return times, np.bincount(inverse, f[order]) / np.bincount(inverse)
 
 
-def estimate_over_time(terms: tuple, priors, knots: list, groups: list[str | None], knot_times: Mapping[int, np.ndarray],
-                       start: Mapping[str, float], observations: float, floor: float) -> LevelOverTime:
+def estimate_over_time(terms: tuple, priors, knots: list, groups: list[str | None],
+                       knot_times: Mapping[int, np.ndarray], start: Mapping[str, float],
+                       observations: float, floor: float) -> LevelOverTime:
     """The level per group and segment (module docstring) for an adjustment's ``terms``
     (:func:`calidar.adjust.variance_components.normal_terms`) and prior groups ``priors``, its free
     parameters' ``knots`` (:class:`calidar.strips.trajectory_errors.Knot` or None) and ``groups``,
@@ -178,44 +194,52 @@ def estimate_over_time(terms: tuple, priors, knots: list, groups: list[str | Non
     ``observations``; each factor² ≥ ``floor``."""
     segments = segments_of(knot_times)
     where = segment_index(segments)
-    labels = [f"{g}@{where[(k.strip, k.knot)]}" if g in start and k is not None else None for g, k in zip(groups, knots)]
-    present = {g: sorted({int(s.split("@")[1]) for s in labels if s and s.split("@")[0] == g}) for g in start}
+    labels = [f"{g}@{where[(k.strip, k.knot)]}" if g in start and k is not None else None
+              for g, k in zip(groups, knots)]
+    present = {g: sorted({int(s.split("@")[1]) for s in labels if s and s.split("@")[0] == g})
+               for g in start}
     times = np.array([s.centre for s in segments])
     pooled: dict[str, Pooled] = {}
     own: dict[str, bool] = {}  # fixed at the flight-wide level: which segments tell
 
     def pool(raw: dict, effective: dict, red_start: dict) -> dict:
         out = {}
-        own.update({n: m >= MIN_SEGMENT_REDUNDANCY for n, m in effective.items()} if not own else {})
+        if not own:
+            own.update({n: m >= MIN_SEGMENT_REDUNDANCY for n, m in effective.items()})
         for g, segs in present.items():
             names = [f"{g}@{i}" for i in segs]
-            p = pool_in_time(times[segs], np.array([raw[n] for n in names]), np.array([effective[n] for n in names]),
-                             start[g], own=np.array([own[n] for n in names]))
+            p = pool_in_time(times[segs], np.array([raw[n] for n in names]),
+                             np.array([effective[n] for n in names]), start[g],
+                             own=np.array([own[n] for n in names]))
             pooled[g] = p
             out |= {n: float(np.exp(v)) for n, v in zip(names, p.log_var)}
         return out
 
-    comps = estimate_elements(terms[0], terms[1], terms[4], priors, labels,
-                              {f"{g}@{i}": float(start[g]) for g, segs in present.items() for i in segs},
+    first = {f"{g}@{i}": float(start[g]) for g, segs in present.items() for i in segs}
+    comps = estimate_elements(terms[0], terms[1], terms[4], priors, labels, first,
                               observations=observations, pool=pool, floor=floor, tol=0.01)
     full = {}
-    for g, segs in present.items():  # onto every segment (a group absent from one: its flight-wide σ² there)
+    # onto every segment (a group absent from one: its flight-wide σ² there)
+    for g, segs in present.items():
         p = pooled[g]
-        log_var, sig, own = np.full(len(segments), math.log(start[g])), np.full(len(segments), np.inf), np.zeros(len(segments), bool)
+        n = len(segments)
+        log_var, sig, own = np.full(n, math.log(start[g])), np.full(n, np.inf), np.zeros(n, bool)
         log_var[segs], sig[segs], own[segs] = p.log_var, p.sigma, p.own
         full[g] = Pooled(log_var, sig, own, p.tau, p.mean)
-    red = {g: np.array([comps.redundancy_start.get(f"{g}@{i}", 0.0) for i in range(len(segments))]) for g in present}
+    red = {g: np.array([comps.redundancy_start.get(f"{g}@{i}", 0.0) for i in range(len(segments))])
+           for g in present}
     return LevelOverTime(segments, full, red, comps.iterations, comps.converged)
 
 
 def over_time_accuracy(base, level: LevelOverTime, knot_times: Mapping[int, np.ndarray]):
     """``base`` (a :class:`calidar.trajectory_accuracy.TrajectoryAccuracy`) at every knot's time
     × the factors of the knot's segment: position north/east × horizontal, down × vertical,
-    roll/pitch × attitude horizontal, heading × heading (the knots' priors then take exactly them)."""
+    roll/pitch × attitude horizontal, heading × heading (the knots' priors then take exactly
+    them)."""
     from calidar.trajectory_accuracy import TrajectoryAccuracy
 
-    cols = {"position_horizontal": (0, [0, 1]), "position_vertical": (0, [2]), "attitude_horizontal": (1, [0, 1]),
-            "heading": (1, [2])}
+    cols = {"position_horizontal": (0, [0, 1]), "position_vertical": (0, [2]),
+            "attitude_horizontal": (1, [0, 1]), "heading": (1, [2])}
     times = None
     for g in cols:
         t, f = level.factors_at_knots(knot_times, g)
@@ -228,7 +252,8 @@ def over_time_accuracy(base, level: LevelOverTime, knot_times: Mapping[int, np.n
 
 
 #: the report's table of the level over the flight (:func:`level_table_rows`)
-LEVEL_TABLE_HEADER = ["strip", "time (s from the first)", "position horizontal (cm)", "position vertical (cm)",
+LEVEL_TABLE_HEADER = ["strip", "time (s from the first)", "position horizontal (cm)",
+                      "position vertical (cm)",
                       "roll·pitch (°)", "heading (°)"]
 _COLUMNS = (("position_horizontal", 100.0, "{:.2g}"), ("position_vertical", 100.0, "{:.2g}"),
             ("attitude_horizontal", 1.0, "{:.2g}"), ("heading", 1.0, "{:.2g}"))
@@ -238,13 +263,13 @@ def level_table_text(over_time: dict) -> str:
     """What the table of the level over the flight shows (solution.json's "over_time" block)."""
     tau = ", ".join(f"{g.replace('_', ' ')} " + (f"×e^±{v:.2f}" if v > 0 else "constant")
                     for g, v in over_time["tau_log_sigma"].items())
-    return (f"No accuracy file: the trajectory's σ estimated from the overlaps per segment of each strip (about "
-            f"{over_time['segment_s']:g} s), pooled over the flight (a process of correlation time "
-            f"{over_time['correlation_s']:g} s; estimated spread {tau}). Each σ ± the relative σ of its factor; "
-            "\"(pooled)\": the segment's own priors could not tell (fewer than "
-            f"{over_time['min_effective']:g} independent ones), its σ comes from its neighbours in time or, when "
-            "fewer than two segments can tell, from the flight-wide level; "
-            "\"–\": a group the overlaps cannot tell, the survey-grade default kept.")
+    return ("No accuracy file: the trajectory's σ estimated from the overlaps per segment of each "
+            f"strip (about {over_time['segment_s']:g} s), pooled over the flight (a process of "
+            f"correlation time {over_time['correlation_s']:g} s; estimated spread {tau}). Each σ ± "
+            "the relative σ of its factor; \"(pooled)\": the segment's own priors could not tell "
+            f"(fewer than {over_time['min_effective']:g} independent ones), its σ comes from its "
+            "neighbours in time or, when fewer than two segments can tell, from the flight-wide "
+            "level; \"–\": a group the overlaps cannot tell, the survey-grade default kept.")
 
 
 def level_table_rows(over_time: dict) -> list[list[str]]:

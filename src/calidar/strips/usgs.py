@@ -1,8 +1,8 @@
 """USGS Lidar Base Specification swath checks: the quality level (QL0–QL3) each meets.
 
-Table 2 of the USGS Lidar Base Specification (Techniques and Methods 11-B4, "Relative vertical accuracy
-for lidar swath data"; its number and title as in version 1.3, 2018): on smooth, non-vegetated, gently
-sloped surfaces,
+Table 2 of the USGS Lidar Base Specification (Techniques and Methods 11-B4, "Relative vertical
+accuracy for lidar swath data"; its number and title as in version 1.3, 2018): on smooth,
+non-vegetated, gently sloped surfaces,
 
     quality level   intraswath smooth-surface precision   interswath RMSDz   interswath max |dz|
     QL0             ≤ 0.03 m (max diff)                    ≤ 0.04 m           ≤ 0.08 m
@@ -11,13 +11,14 @@ sloped surfaces,
 
 Which edition: the numbers are those of versions 1.2–2.1 and the 2020 revision A as read for calidar
 (from memory, not from a text in this repository). The current edition is
-the 3DEP online one, "2025 rev. A"; its tables could not be read in the stored sources (27 Nov, third
-session: the `search` tool's documentation and web pages hold the 1.0–1.3 and 2.1 texts' openings and
-third-party summaries without the tables' values), so no number here is verified against it. What
-the sources did confirm: the table's place and title in 1.3 (a vendor's summary of 1.3 lists "Table 2
-Relative Vertical Accuracy for LiDAR Swath Data" with smooth-surface repeatability and swath-overlap
-RMSDz columns), and for the absolute table the ratio QL0 : QL1 (the USGS quality-level page: QL0's
-NVA and VVA "two times better than that of QL1 data"). docs/validation.md lists each number's state.
+the 3DEP online one, "2025 rev. A"; its tables could not be read in the stored sources (27 Nov,
+third session: the `search` tool's documentation and web pages hold the 1.0–1.3 and 2.1 texts'
+openings and third-party summaries without the tables' values), so no number here is verified
+against it. What the sources did confirm: the table's place and title in 1.3 (a vendor's summary of
+1.3 lists "Table 2 Relative Vertical Accuracy for LiDAR Swath Data" with smooth-surface
+repeatability and swath-overlap RMSDz columns), and for the absolute table the ratio QL0 : QL1 (the
+USGS quality-level page: QL0's NVA and VVA "two times better than that of QL1 data").
+docs/validation.md lists each number's state.
 
 How calidar measures them, from the cell moments the swath differences already hold:
 - interswath: the swath differences of :mod:`calidar.strips.quality` (cells smooth in both lines,
@@ -42,10 +43,13 @@ import numpy as np
 
 from calidar.strips.pca import eigh3
 
-SAMPLE_POINTS = 4  #: pulses of one swath in a sample area of 2 × the nominal pulse spacing on a side
-RANGE_SD_4 = 0.8798  #: d₃(4): the standard deviation of the range of 4 standard normal deviates (ASTM E2587)
-SPECIFICATION = ("USGS Lidar Base Specification, table 2: relative vertical accuracy of swath data (values of "
-                 "v1.2–2020 rev. A as read for calidar; not verified against 2025 rev. A)")
+#: pulses of one swath in a sample area of 2 × the nominal pulse spacing on a side
+SAMPLE_POINTS = 4
+#: d₃(4): the standard deviation of the range of 4 standard normal deviates (ASTM E2587)
+RANGE_SD_4 = 0.8798
+SPECIFICATION = ("USGS Lidar Base Specification, table 2: relative vertical accuracy of swath data "
+                 "(values of v1.2–2020 rev. A as read for calidar; not verified "
+                 "against 2025 rev. A)")
 #: quality level → (intraswath max diff, interswath RMSDz, interswath max |dz|), metres
 THRESHOLDS_M: dict[str, tuple[float, float, float]] = {
     "QL0": (0.03, 0.04, 0.08),
@@ -63,8 +67,9 @@ CHECKS = ("intraswath max diff", "interswath RMSDz", "interswath max |dz|")
 #: ratio QL0 = QL1 / 2 was confirmed (USGS quality-level page); whether the 2025 revision (aligned
 #: with ASPRS Edition 2, which reports VVA without pass/fail) keeps them, and the VVA column, was
 #: not verified (docs/validation.md).
-ABSOLUTE_SPECIFICATION = ("USGS Lidar Base Specification, table 4: absolute vertical accuracy of the lidar data "
-                          "(values of v1.2–2020 rev. A as read for calidar; not verified against 2025 rev. A)")
+ABSOLUTE_SPECIFICATION = ("USGS Lidar Base Specification, table 4: absolute vertical accuracy of "
+                          "the lidar data (values of v1.2–2020 rev. A as read for calidar; not "
+                          "verified against 2025 rev. A)")
 #: quality level → (NVA RMSEz, VVA 95th percentile), metres
 ABSOLUTE_THRESHOLDS_M: dict[str, tuple[float, float]] = {
     "QL0": (0.05, 0.15),
@@ -97,7 +102,8 @@ class UsgsCheck:
 
 
 def levels_met(value_m: float | None, check: str) -> list[str]:
-    """The quality levels whose threshold for ``check`` (one of CHECKS or ABSOLUTE_CHECKS) the value meets."""
+    """The quality levels whose threshold for ``check`` (one of CHECKS or ABSOLUTE_CHECKS) the value
+    meets."""
     if value_m is None:
         return []
     return [ql for ql in THRESHOLDS_M if value_m <= threshold_m(check, ql) + 1e-12]
@@ -105,7 +111,10 @@ def levels_met(value_m: float | None, check: str) -> list[str]:
 
 def judged(name: str, value_m: float | None, n_cells: int) -> UsgsCheck:
     met = levels_met(value_m, name)
-    status = "not measured" if value_m is None else (f"meets {met[0]}" if met else "meets no quality level")
+    if value_m is None:
+        status = "not measured"
+    else:
+        status = f"meets {met[0]}" if met else "meets no quality level"
     return UsgsCheck(name, value_m, n_cells, met, status)
 
 
@@ -128,8 +137,10 @@ class LinePrecision:
 
     line: int
     n_cells: int
-    sigma_m: float | None  #: RMS of the points about their cell's plane, pooled over the smooth cells
-    max_diff_m: float | None  #: RMS max diff of 4-point sample areas, √(d₂² + d₃²)·σ: the specification's, estimated
+    #: RMS of the points about their cell's plane, pooled over the smooth cells
+    sigma_m: float | None
+    #: RMS max diff of 4-point sample areas, √(d₂² + d₃²)·σ: the specification's, estimated
+    max_diff_m: float | None
     cell_m: float = 0.0
 
     def to_dict(self) -> dict:
@@ -138,7 +149,8 @@ class LinePrecision:
 
 def line_precision(line: int, moments, max_rms_m: float = 0.08, max_slope_deg: float = 10.0,
                    min_points: int = 6) -> LinePrecision:
-    """Intraswath precision of one line from its cell moments (:class:`calidar.strips.cell_moments.CellMoments`)."""
+    """Intraswath precision of one line from its cell moments
+    (:class:`calidar.strips.cell_moments.CellMoments`)."""
     m = moments.select(np.flatnonzero(moments.count >= max(min_points, 4)))
     if len(m) == 0:
         return LinePrecision(line, 0, None, None, moments.cell_m)
@@ -183,7 +195,9 @@ def summary(checks: list[UsgsCheck]) -> str:
         "USGS swath checks: not all meet any quality level (QL3 is the loosest)"
 
 
-def absolute_checks(nva_rmse_m: float | None, n_nva: int, vva95_m: float | None, n_vva: int) -> list[UsgsCheck]:
+def absolute_checks(nva_rmse_m: float | None, n_nva: int, vva95_m: float | None,
+                    n_vva: int) -> list[UsgsCheck]:
     """The absolute vertical accuracy checks at checkpoints (``n_nva`` / ``n_vva`` of them; a value
     None: not measured). ``n_cells`` holds the checkpoint count."""
-    return [judged(ABSOLUTE_CHECKS[0], nva_rmse_m, n_nva), judged(ABSOLUTE_CHECKS[1], vva95_m, n_vva)]
+    return [judged(ABSOLUTE_CHECKS[0], nva_rmse_m, n_nva),
+            judged(ABSOLUTE_CHECKS[1], vva95_m, n_vva)]

@@ -4,9 +4,9 @@ Findings (each pass / warn / fail, with the numbers and, when not a pass, an act
 
 - every estimated parameter: value ± σ (degrees and arc-seconds, millimetres), determined when
   its σ moves a point on the ground by at most :data:`GROUND_LIMIT_M` at the survey's median
-  range (lengths: σ ≤ :data:`LENGTH_LIMIT_M`), not determined otherwise (warn; infinite σ: fail),
-  and not determined either when the global test rejects the model (its warn or fail) — with a
-  note that "determined" is not "correct";
+  range (lengths: σ ≤ :data:`LENGTH_LIMIT_M`), not determined otherwise (warn; infinite σ:
+  fail), and not determined either when the global test rejects the model (its warn or fail) —
+  with a note that "determined" is not "correct";
 - the global test of σ0 (the a-posteriori standard deviation of unit weight against 1, with
   the χ² test's 95 % range: inside passes, below is a note — the σ are conservative by that
   factor —, above warns, beyond :data:`SIGMA0_FAIL` fails); when two methods ran, their
@@ -27,14 +27,17 @@ import math
 import numpy as np
 
 from calidar.strips.control_verdict import vertical_findings
-from calidar.strips.global_test import (  # noqa: F401  (the verdict's global test, kept importable from here)
-    ROW_SIGMA_TOLERANCE, SIGMA0_FAIL, global_test_sigma0, robust_consistency, sigma0_finding, sigma0_range,
+# the verdict's global test, kept importable from here
+from calidar.strips.global_test import (  # noqa: F401
+    ROW_SIGMA_TOLERANCE, SIGMA0_FAIL, global_test_sigma0, robust_consistency, sigma0_finding,
+    sigma0_range,
 )
 from calidar.strips.model_check_verdict import finding_or_none, moved_parameters
 from calidar.strips.control_survey import PREFIX as CONTROL_PREFIX
 from calidar.strips.trajectory_errors import PREFIX as TRAJECTORY_PREFIX
 
-#: nuisance parameters: not judged, not compared, not in the correlations (the trajectory's errors, the control's survey errors)
+#: nuisance parameters: not judged, not compared, not in the correlations (the trajectory's errors,
+#: the control's survey errors)
 NUISANCE = (TRAJECTORY_PREFIX, CONTROL_PREFIX)
 from calidar.verdict import NOTE, Finding, Verdict, angle_text, length_text, two_digits
 
@@ -54,14 +57,16 @@ ANGLES = {"boresight_roll", "boresight_pitch", "boresight_yaw", "scan_angle_offs
 #: what separates a parameter the strips cannot determine
 ACTIONS = {
     "lever_arm_z": "hold it at the measured value or add a flight line at a second height",
-    "lever_arm_x": "hold it at the measured value, or fly lines at two heights (a pitch error and an along-track "
-                   "lever-arm error then move points differently)",
+    "lever_arm_x": "hold it at the measured value, or fly lines at two heights (a pitch error and "
+                   "an along-track lever-arm error then move points differently)",
     "lever_arm_y": "hold it at the measured value, or fly lines at two heights and across",
-    "boresight_pitch": "fly lines in opposite directions (and at two heights when the lever arm is estimated too)",
+    "boresight_pitch": "fly lines in opposite directions (and at two heights when the lever arm is "
+                       "estimated too)",
     "boresight_roll": "fly overlapping lines in opposite directions",
     "boresight_yaw": "fly cross lines, or lines with more side overlap",
 }
-GENERIC_ACTION = "hold it at its known value, or add flight lines that separate it (opposite directions, cross lines, a second height)"
+GENERIC_ACTION = ("hold it at its known value, or add flight lines that separate it (opposite "
+                  "directions, cross lines, a second height)")
 
 
 def _value_text(p, value: float, sigma: float) -> str:
@@ -82,9 +87,10 @@ def _ground_effect(p, sigma: float, range_m: float) -> float:
 
 
 def parameter_findings(result, range_m: float, global_test: Finding | None = None) -> list[Finding]:
-    """One finding per estimated parameter: "determined" (its σ moves a point by at most the limit),
-    "not determined" (more, or infinite σ), or — when ``global_test`` rejects the model (warn or fail)
-    — not determined either way, with that test's status: the σ rest on a model the data reject."""
+    """One finding per estimated parameter: "determined" (its σ moves a point by at most the
+    limit), "not determined" (more, or infinite σ), or — when ``global_test`` rejects the model
+    (warn or fail) — not determined either way, with that test's status: the σ rest on a model the
+    data reject."""
     sol = result.solution
     sig = sol.sigma
     rejected = global_test is not None and global_test.status in ("warn", "fail")
@@ -95,34 +101,43 @@ def parameter_findings(result, range_m: float, global_test: Finding | None = Non
         s = sig[p.name]
         text = _value_text(p, p.value, s)
         if not math.isfinite(s):
-            out.append(Finding("fail", p.name, f"{text}: not determined at all by these strips (a singular direction)",
+            out.append(Finding("fail", p.name,
+                               f"{text}: not determined at all by these strips "
+                               "(a singular direction)",
                                ACTIONS.get(p.name, GENERIC_ACTION)))
             continue
         g = _ground_effect(p, s, range_m)
         size = f"{two_digits(g * 100)} cm" if g >= 0.01 else f"{two_digits(g * 1000)} mm"
-        where = f"{size} on the ground at the {range_m:,.0f} m median range" if p.unit != "m" else ""
+        ground = f"{size} on the ground at the {range_m:,.0f} m median range"
+        where = ground if p.unit != "m" else ""
         if rejected:
-            out.append(Finding(global_test.status, p.name, f"{text}: not determined — the global test rejects the "
-                               f"model this σ rests on ({global_test.detail.split(' (')[0]}); it would hold only if "
-                               "the model did", "see the global test"))
+            out.append(Finding(global_test.status, p.name,
+                               f"{text}: not determined — the global test rejects the "
+                               f"model this σ rests on ({global_test.detail.split(' (')[0]}); it "
+                               "would hold only if the model did", "see the global test"))
         elif math.isfinite(g) and g > (LENGTH_LIMIT_M if p.unit == "m" else GROUND_LIMIT_M):
-            limit = f"{LENGTH_LIMIT_M * 100:.0f} cm" if p.unit == "m" else f"{GROUND_LIMIT_M * 100:.0f} cm"
-            out.append(Finding("warn", p.name, f"{text}: not determined by these strips (σ {two_digits(s * 100)} cm), "
-                               f"more than {limit}" if p.unit == "m" else
-                               f"{text}: not determined (its σ moves a point {where}; limit {limit})",
+            limit_m = LENGTH_LIMIT_M if p.unit == "m" else GROUND_LIMIT_M
+            limit = f"{limit_m * 100:.0f} cm"
+            out.append(Finding("warn", p.name,
+                               f"{text}: not determined by these strips (σ {two_digits(s * 100)} "
+                               f"cm), more than {limit}" if p.unit == "m" else
+                               f"{text}: not determined (its σ moves a point {where}; "
+                               f"limit {limit})",
                                ACTIONS.get(p.name, GENERIC_ACTION)))
         else:
-            out.append(Finding("pass", p.name, f"{text}: determined to this σ" + (f" ({where})" if where else "")))
+            where_text = f" ({where})" if where else ""
+            out.append(Finding("pass", p.name, f"{text}: determined to this σ{where_text}"))
     return out
 
 
 #: what "determined" means, on every strip verdict (the report and the CLI show it)
-DETERMINED_NOTE = ("\"determined\" says how closely these strips fix a parameter if the model holds (its σ), not that "
-                   "the value is correct: that rests on the global test, the residuals, the overlaps and, when both "
-                   "methods ran, their agreement")
+DETERMINED_NOTE = ("\"determined\" says how closely these strips fix a parameter if the model "
+                   "holds (its σ), not that the value is correct: that rests on the global test, "
+                   "the residuals, the overlaps and, when both methods ran, their agreement")
 
 
-#: two methods' estimates differing by more than this many combined σ (see :func:`agreement_finding`) fail
+#: two methods' estimates differing by more than this many combined σ (see
+#: :func:`agreement_finding`) fail
 AGREEMENT_LIMIT = 3.0
 
 
@@ -132,8 +147,8 @@ def agreement_finding(results: dict) -> Finding:
 
     The two estimates come from the same strips, trajectory and trajectory model, so their errors
     are positively correlated (ρ > 0: the shared trajectory errors move both alike); the σ of
-    the difference is then √(σ_a² + σ_b² − 2ρσ_aσ_b) ≤ √(σ_a² + σ_b²). The combination without ρ
-    (unknown: it would need the two methods' joint covariance) is therefore an upper bound on the
+    the difference is then √(σ_a² + σ_b² − 2ρσ_aσ_b) ≤ √(σ_a² + σ_b²). The combination without
+    ρ (unknown: it would need the two methods' joint covariance) is therefore an upper bound on the
     difference's σ: z is, if anything, too small, and a FAIL at 3 (< 0.3 % by chance per parameter
     for ρ = 0, less for ρ > 0) is not a false alarm from an optimistic σ; measured on simulated
     UAV surveys: docs/validation.md. Each σ is the method's own, already scaled by its σ0."""
@@ -149,17 +164,19 @@ def agreement_finding(results: dict) -> Finding:
         d = va[p.name] - vb[p.name]
         z = abs(d) / both
         unit = "°" if p.display_unit == "deg" else f" {p.display_unit}"
-        text = f"{p.name} {ma} − {mb} = {p.to_display(d):+.3g}{unit} ± {p.to_display(both):.2g}{unit} (|z| = {z:.1f})"
+        difference = f"{p.to_display(d):+.3g}{unit} ± {p.to_display(both):.2g}{unit}"
+        text = f"{p.name} {ma} − {mb} = {difference} (|z| = {z:.1f})"
         rows.append((z, text))
         if z > AGREEMENT_LIMIT:
             worst.append(text)
     check = f"{ma} and {mb} agree"
-    combination = (f"z = difference / √(σ_{ma}² + σ_{mb}²), an upper bound on its σ as both use the same strips; "
-                   f"limit {AGREEMENT_LIMIT:g}")
+    combination = (f"z = difference / √(σ_{ma}² + σ_{mb}²), an upper bound on its σ as both use "
+                   f"the same strips; limit {AGREEMENT_LIMIT:g}")
     if worst:
         return Finding("fail", check, "they disagree: " + "; ".join(worst) + f" ({combination})",
-                       "one method is misled by these strips (see each one's global test and residuals): use neither "
-                       "result until the cause is found; the tie planes' and VGICP's pairs can be compared in the report")
+                       "one method is misled by these strips (see each one's global test and "
+                       "residuals): use neither result until the cause is found; the tie planes' "
+                       "and VGICP's pairs can be compared in the report")
     if not rows:
         return Finding(NOTE, check, "no parameter estimated by both methods with a finite σ")
     z, text = max(rows)
@@ -173,12 +190,13 @@ def noise_finding(result, sigma_rows: np.ndarray | None) -> Finding:
     if sigma_rows is None or sigma_rows.size != r.size or r.size == 0:
         return Finding("pass", "residuals", f"RMS {r.std() * 1e3:.1f} mm after calibration")
     scale = 1.4826 * float(np.median(np.abs(r / sigma_rows)))
-    detail = (f"robust spread {scale:.2f}× the noise floor the correspondences' scatter predicts (median σ "
-              f"{np.median(sigma_rows) * 1e3:.1f} mm; RMS {np.sqrt(np.mean(r * r)) * 1e3:.1f} mm), "
-              f"{down:.1%} down-weighted as clutter")
+    detail = (f"robust spread {scale:.2f}× the noise floor the correspondences' scatter predicts "
+              f"(median σ {np.median(sigma_rows) * 1e3:.1f} mm; RMS "
+              f"{np.sqrt(np.mean(r * r)) * 1e3:.1f} mm), {down:.1%} down-weighted as clutter")
     if scale <= 1.5:
         return Finding("pass", "residuals", detail)
-    return Finding("warn", "residuals", detail, "the strips disagree beyond their noise where the model says they "
+    return Finding("warn", "residuals", detail,
+                   "the strips disagree beyond their noise where the model says they "
                    "should agree: check the dz maps for strips or places that stand out")
 
 
@@ -191,9 +209,11 @@ def correlation_findings(sol) -> list[Finding]:
         for j in range(i + 1, len(names)):
             rho = corr[i, j]
             if np.isfinite(rho) and abs(rho) > CORRELATION_LIMIT:
-                weaker = names[j] if names[j] in ACTIONS and names[j].startswith("lever") else names[i]
+                lever_j = names[j] in ACTIONS and names[j].startswith("lever")
+                weaker = names[j] if lever_j else names[i]
                 out.append(Finding("warn", f"{names[i]} and {names[j]}",
-                                   f"ρ = {rho:+.3f}: the strips barely tell them apart, and their σ are large",
+                                   f"ρ = {rho:+.3f}: the strips barely tell them apart, and "
+                                   "their σ are large",
                                    f"{weaker}: {ACTIONS.get(weaker, GENERIC_ACTION)}"))
     return out
 
@@ -203,13 +223,17 @@ def convergence_finding(result) -> Finding:
     moved = " → ".join(f"{o['mean_distance_m'] * 1e3:.1f}" for o in outer)
     settled = len(outer) > 1 and not any("outer loop stopped" in w for w in result.warnings)
     if result.solution.converged and settled:
-        return Finding("pass", "convergence", f"{len(outer)} outer iterations, mean correspondence distance {moved} mm")
-    return Finding("warn", "convergence", f"not settled after {len(outer)} outer iterations ({moved} mm)",
-                   "check the nominal sensor (a start far from the truth), or run again from the calibrated sensor.toml")
+        return Finding("pass", "convergence",
+                       f"{len(outer)} outer iterations, mean correspondence distance {moved} mm")
+    return Finding("warn", "convergence",
+                   f"not settled after {len(outer)} outer iterations ({moved} mm)",
+                   "check the nominal sensor (a start far from the truth), or run again from the "
+                   "calibrated sensor.toml")
 
 
 def overlap_finding(stages) -> Finding:
-    """Swath differences as delivered against the last stage (new mounting and trajectory corrections)."""
+    """Swath differences as delivered against the last stage (new mounting and trajectory
+    corrections)."""
     first, last = stages[0], stages[-1]
     before = {(q.a, q.b): q for q in first.pairs}
     worse, rms_b, rms_a, med_a = [], [], [], []
@@ -225,22 +249,25 @@ def overlap_finding(stages) -> Finding:
     if not rms_b:
         return Finding("warn", "overlaps", "no pair had smooth overlapping surfaces to compare",
                        "check the overlaps (classification, side overlap)")
-    detail = (f"median RMSDz over {len(rms_b)} pairs {np.median(rms_b) * 1e3:.1f} → {np.median(rms_a) * 1e3:.1f} mm "
-              f"({last.label}); largest |median dz| after {max(med_a) * 1e3:.1f} mm")
+    detail = (f"median RMSDz over {len(rms_b)} pairs {np.median(rms_b) * 1e3:.1f} → "
+              f"{np.median(rms_a) * 1e3:.1f} mm ({last.label}); largest |median dz| after "
+              f"{max(med_a) * 1e3:.1f} mm")
     if worse:
         return Finding("warn", "overlaps", detail + "; worse after: " + ", ".join(worse),
-                       "look at those pairs' dz maps: a local problem (a trajectory outage, a moving object) "
-                       "or an error the estimated parameters do not cover")
+                       "look at those pairs' dz maps: a local problem (a trajectory outage, a "
+                       "moving object) or an error the estimated parameters do not cover")
     if max(med_a) > OFFSET_LIMIT_M:
-        return Finding("warn", "overlaps", detail + f": strips still offset by more than {OFFSET_LIMIT_M * 1e3:.0f} mm",
-                       "an error the calibration did not estimate shifts whole strips: trajectory errors (leave the "
-                       "trajectory model on) or a parameter held fixed")
-    return Finding("pass", "overlaps", detail + " (with trajectory corrections the overlaps close whatever the "
+        return Finding("warn", "overlaps", detail +
+                       f": strips still offset by more than {OFFSET_LIMIT_M * 1e3:.0f} mm",
+                       "an error the calibration did not estimate shifts whole strips: trajectory "
+                       "errors (leave the trajectory model on) or a parameter held fixed")
+    return Finding("pass", "overlaps", detail +
+                   " (with trajectory corrections the overlaps close whatever the "
                    "mounting: this says the strips fit, not that the mounting is right)")
 
 
-ACCURACY_ACTION = ("give the trajectory's accuracy file (POSPac smrmsg) with --trajectory-accuracy, or put it "
-                   "beside the SBET as smrmsg*.out")
+ACCURACY_ACTION = ("give the trajectory's accuracy file (POSPac smrmsg) with "
+                   "--trajectory-accuracy, or put it beside the SBET as smrmsg*.out")
 
 
 def accuracy_finding(level: dict) -> Finding:
@@ -248,38 +275,47 @@ def accuracy_finding(level: dict) -> Finding:
     every group of priors was estimated, a warning naming those the data cannot tell (the
     survey-grade default kept there) and the criterion."""
     groups = level["groups"]
-    weak = [f"{g.replace('_', ' ')} (redundancy {v['redundancy_at_stated_sigma']:.1f} < {level['min_redundancy']:g})"
+    weak = [f"{g.replace('_', ' ')} (redundancy {v['redundancy_at_stated_sigma']:.1f} < "
+            f"{level['min_redundancy']:g})"
             for g, v in groups.items() if not v["estimated"]]
-    factors = ", ".join(f"{g.replace('_', ' ')} ×{v['sigma_factor']:.2g}" + (
-        f" ± {100 * v['sigma_factor_relative_sigma']:.0f} %" if v["estimated"] else "") for g, v in groups.items())
+    factors = ", ".join(
+        f"{g.replace('_', ' ')} ×{v['sigma_factor']:.2g}"
+        + (f" ± {100 * v['sigma_factor_relative_sigma']:.0f} %" if v["estimated"] else "")
+        for g, v in groups.items())
     if level["source"] == "data":
-        detail = (f"no accuracy file found; trajectory accuracy estimated from the overlaps: {level['headline']}; "
-                  f"source: data (the survey-grade default's σ {factors})")
+        detail = ("no accuracy file found; trajectory accuracy estimated from the overlaps: "
+                  f"{level['headline']}; source: data (the survey-grade default's σ {factors})")
     else:
-        detail = (f"no accuracy file found, and the overlaps cannot tell the trajectory's accuracy: survey-grade "
-                  f"default assumed, {level['headline']}; the σ of the results hold only if the trajectory is that good")
+        detail = ("no accuracy file found, and the overlaps cannot tell the trajectory's "
+                  f"accuracy: survey-grade default assumed, {level['headline']}; the σ of the "
+                  "results hold only if the trajectory is that good")
     if level.get("over_time"):  # calidar.strips.trajectory_level_time
         spans = [(g, [seg[g]["sigma_factor"] for seg in level["over_time"]["segments"]])
                  for g in level["over_time"]["tau_log_sigma"]]
         moving = [(g, f) for g, f in spans if max(f) > 1.01 * min(f)]
-        detail += "; over the flight (per segment, pooled in time): " + (", ".join(
-            f"{g.replace('_', ' ')} ×{min(f):.2g}–×{max(f):.2g}" for g, f in moving) or "constant")
+        moved = ", ".join(f"{g.replace('_', ' ')} ×{min(f):.2g}–×{max(f):.2g}" for g, f in moving)
+        detail += "; over the flight (per segment, pooled in time): " + (moved or "constant")
     if weak:
-        detail += "; the data cannot tell " + ", ".join(weak) + ": the survey-grade default kept there"
-    return Finding("warn" if weak else "pass", "trajectory accuracy", detail, ACCURACY_ACTION if weak else "")
+        detail += ("; the data cannot tell " + ", ".join(weak)
+                   + ": the survey-grade default kept there")
+    action = ACCURACY_ACTION if weak else ""
+    return Finding("warn" if weak else "pass", "trajectory accuracy", detail, action)
 
 
-def notes_findings(notes: list[str], warnings: list[str], level: dict | None = None) -> list[Finding]:
+def notes_findings(notes: list[str], warnings: list[str],
+                   level: dict | None = None) -> list[Finding]:
     out = [] if level is None else [accuracy_finding(level)]
     for n in notes:
         if n.startswith("no trajectory accuracy found"):
             if level is None:
                 out.append(Finding("warn", "trajectory accuracy", n, ACCURACY_ACTION))
         elif n.startswith("trajectory model off"):
-            out.append(Finding("warn", "trajectory model", n, "leave the trajectory model on (the default)"))
+            out.append(Finding("warn", "trajectory model", n,
+                               "leave the trajectory model on (the default)"))
     for w in warnings:
         if w.startswith("strip pairs skipped"):
-            out.append(Finding("warn", "pairs", w, "check those pairs' overlap (too small, vegetation, water)"))
+            out.append(Finding("warn", "pairs", w,
+                               "check those pairs' overlap (too small, vegetation, water)"))
     return out
 
 
@@ -293,14 +329,17 @@ def strip_verdict(result, stages, notes: list[str] = (), accuracy_text: str | No
     n_traj = sum(p.name.startswith(TRAJECTORY_PREFIX) for p in sol.parameters.free)
     ranges = np.concatenate([s.obs.range_m[:: max(1, len(s) // 2000)] for s in result.strips])
     what = result.matcher.label
-    summary = (f"{', '.join(shown)} from {len(result.pairs)} overlapping pairs of {len(result.strips)} strips "
-               f"({what}, {result.outer[-1]['n_obs']:,} observations)"
-               + (f", with {n_traj:,} trajectory corrections" if n_traj else ", trajectory taken as exact"))
+    exact = ", trajectory taken as exact"
+    trajectory = f", with {n_traj:,} trajectory corrections" if n_traj else exact
+    summary = (f"{', '.join(shown)} from {len(result.pairs)} overlapping pairs of "
+               f"{len(result.strips)} strips ({what}, {result.outer[-1]['n_obs']:,} observations)"
+               + trajectory)
     global_test = sigma0_finding(sol)
-    findings = vertical_findings(result, moved_parameters(parameter_findings(result, float(np.median(ranges)),
-                                                                             global_test), sol), LENGTH_LIMIT_M)
-    findings += [Finding(NOTE, "determined", DETERMINED_NOTE), global_test, *finding_or_none(sol), *others,
-                 noise_finding(result, result.row_sigma)]
+    parameters = parameter_findings(result, float(np.median(ranges)), global_test)
+    findings = vertical_findings(result, moved_parameters(parameters, sol), LENGTH_LIMIT_M)
+    findings += [Finding(NOTE, "determined", DETERMINED_NOTE), global_test, *finding_or_none(sol),
+                 *others, noise_finding(result, result.row_sigma)]
     findings += correlation_findings(sol) + [convergence_finding(result), overlap_finding(stages)]
-    findings += notes_findings(list(notes), sol.warnings, sol.extra.get("trajectory_accuracy_estimate"))
+    level = sol.extra.get("trajectory_accuracy_estimate")
+    findings += notes_findings(list(notes), sol.warnings, level)
     return Verdict(summary, findings)

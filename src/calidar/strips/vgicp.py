@@ -61,24 +61,31 @@ class VgicpSettings:
     max_iterations: int = 30  #: per registration stage
     overlap_cell_m: float = 10.0  #: xy cell of the overlap test (coarse enough for sparse strips)
     min_overlap_points: int = 500  #: fewer points of either strip in the overlap → skip
-    pair_distance_m: float | None = None  #: max pair distance after registration; None: 1.5 × b's point spacing
+    #: max pair distance after registration; None: 1.5 × b's point spacing
+    pair_distance_m: float | None = None
     max_pairs: int = 2000  #: at most this many correspondences per strip pair, spread on an xy grid
     min_pairs: int = 50  #: fewer usable pairs → the pair is skipped
     max_surface_variation: float = 0.003  #: point_to_plane: λ_min / Σλ of the local covariance
-    #: point_to_plane: √(λ_mid / λ_max) of b's neighbourhood at least — its points span a plane, not a line
-    #: (a disc: 1; one scan line across a wall: ≈ 0, and its normal is then any direction about the line)
+    #: point_to_plane: √(λ_mid / λ_max) of b's neighbourhood at least — its points span a plane, not
+    #: a line (a disc: 1; one scan line across a wall: ≈ 0, and its normal is then any direction
+    #: about the line)
     min_spread: float = 0.3
-    max_plane_distance_m: float = 0.3  #: point_to_plane: max distance of a's mean from b's plane after registration
-    #: point_to_plane: a's ball points scatter along b's normal at most this many times b's plane scatter (its σ,
-    #: moderated over the pair, or the noise floor): a ball reaching over a ridge, an eave or a wall's foot is not b's plane
+    #: point_to_plane: max distance of a's mean from b's plane after registration
+    max_plane_distance_m: float = 0.3
+    #: point_to_plane: a's ball points scatter along b's normal at most this many times b's plane
+    #: scatter (its σ, moderated over the pair, or the noise floor): a ball reaching over a ridge,
+    #: an eave or a wall's foot is not b's plane
     max_scatter_ratio: float = 3.0
-    #: overlaps narrower than this (m, across their long axis) are matched as they lie, not registered: a sliver
-    #: cannot fix the rotation about its long axis (a 5 m × 120 m one registered 1.1 m and 1.5° off at the truth)
+    #: overlaps narrower than this (m, across their long axis) are matched as they lie, not
+    #: registered: a sliver cannot fix the rotation about its long axis (a 5 m × 120 m one
+    #: registered 1.1 m and 1.5° off at the truth)
     min_registration_width_m: float = 20.0
-    #: point_to_plane: max in-plane distance of either strip's centroid from the neighbourhood's centre, in units
-    #: of its radius (a full disc of 12 points: 0.14 per axis; one cut by an edge of the points: ≥ 0.4)
+    #: point_to_plane: max in-plane distance of either strip's centroid from the neighbourhood's
+    #: centre, in units of its radius (a full disc of 12 points: 0.14 per axis; one cut by an edge
+    #: of the points: ≥ 0.4)
     max_centroid_offset: float = 0.35
-    sigma_m: float | None = None  #: a-priori σ of one residual; None: from b's plane scatter (point_to_plane) or 5 cm
+    #: a-priori σ of one residual; None: from b's plane scatter (point_to_plane) or 5 cm
+    sigma_m: float | None = None
     noise_floor_m: float = 0.002  #: added to the scatter σ for model errors (roughness)
     num_threads: int = 1  #: small_gicp threads (1 is bit-reproducible; see docs)
 
@@ -112,10 +119,12 @@ class _Clock:
             self.t = now
 
 
-def overlap_masks(points_a: np.ndarray, points_b: np.ndarray, cell_m: float) -> tuple[np.ndarray, np.ndarray, float]:
-    """Points of a and b in xy cells (size cell_m, m) occupied by both; also the overlap area (m²)."""
+def overlap_masks(points_a: np.ndarray, points_b: np.ndarray,
+                  cell_m: float) -> tuple[np.ndarray, np.ndarray, float]:
+    """Points of a and b in xy cells (size cell_m, m) occupied by both; also the overlap (m²)."""
     xy_a, xy_b = points_a[:, :2], points_b[:, :2]
-    grid = Grid(np.minimum(xy_a.min(axis=0), xy_b.min(axis=0)), np.maximum(xy_a.max(axis=0), xy_b.max(axis=0)), cell_m)
+    lower = np.minimum(xy_a.min(axis=0), xy_b.min(axis=0))
+    grid = Grid(lower, np.maximum(xy_a.max(axis=0), xy_b.max(axis=0)), cell_m)
     ka, kb = grid.keys(grid.ij(xy_a)), grid.keys(grid.ij(xy_b))
     common = ka[grid.first(ka)]  # occupied cells of a ...
     common = common[grid.isin(common, kb)]  # ... also occupied by b
@@ -145,13 +154,15 @@ def register(points_a: np.ndarray, points_b: np.ndarray, settings: VgicpSettings
     T = np.eye(4)
     result = None
     for voxel, down in stages:
-        target, _ = small_gicp.preprocess_points(fine_a, down, settings.num_neighbors, settings.num_threads)
-        source, _ = small_gicp.preprocess_points(fine_b, down, settings.num_neighbors, settings.num_threads)
+        neighbours, threads = settings.num_neighbors, settings.num_threads
+        target, _ = small_gicp.preprocess_points(fine_a, down, neighbours, threads)
+        source, _ = small_gicp.preprocess_points(fine_b, down, neighbours, threads)
         voxelmap = small_gicp.GaussianVoxelMap(voxel)
         voxelmap.insert(target)
         clock.lap("preprocess")
         result = small_gicp.align(voxelmap, source, T, max_correspondence_distance=2.0 * voxel,
-                                  num_threads=settings.num_threads, max_iterations=settings.max_iterations,
+                                  num_threads=settings.num_threads,
+                                  max_iterations=settings.max_iterations,
                                   rotation_epsilon=1e-5, translation_epsilon=1e-4)
         T = np.asarray(result.T_target_source)
         clock.lap("register")
@@ -171,13 +182,15 @@ def _spread(points: np.ndarray, n_max: int, area_m2: float) -> np.ndarray:
 
 
 def overlap_width(points: np.ndarray) -> float:
-    """Width (m) of the points' xy footprint across its long axis: √12 × the smaller principal σ (a uniform strip)."""
+    """Width (m) of the points' xy footprint across its long axis: √12 × the smaller principal σ (a
+    uniform strip)."""
     xy = points[:, :2] - points[:, :2].mean(axis=0)
     return float(np.sqrt(12.0 * max(np.linalg.eigvalsh(xy.T @ xy / max(len(xy), 1))[0], 0.0)))
 
 
 def match_pair_vgicp(strip_a_id: int, points_a: np.ndarray, strip_b_id: int, points_b: np.ndarray,
-                     settings: VgicpSettings | None = None, timings: dict[str, float] | None = None) -> Correspondences:
+                     settings: VgicpSettings | None = None,
+                     timings: dict[str, float] | None = None) -> Correspondences:
     """Corresponding points of strips a and b by VGICP registration + nearest neighbours.
 
     points_a, points_b: (N, 3) float64, the strips re-georeferenced with the current
@@ -186,9 +199,10 @@ def match_pair_vgicp(strip_a_id: int, points_a: np.ndarray, strip_b_id: int, poi
     of a and b's nearest point (point_to_point), or the ``num_neighbors`` nearest points of b
     around a point of a (found again about their centroid) with their plane's normal and the
     points of a in a ball as large about b's centroid (point_to_plane); A and B average them. Raises
-    CalibrationError (the calibrator skips the pair with a warning naming it) when either strip has fewer than ``min_overlap_points`` in the overlap or
-    fewer than ``min_pairs`` pairs are found. ``timings``, when given, accumulates the
-    seconds spent per stage ("preprocess", "register", "correspond").
+    CalibrationError (the calibrator skips the pair with a warning naming it) when either strip has
+    fewer than ``min_overlap_points`` in the overlap or fewer than ``min_pairs`` pairs are found.
+    ``timings``, when given, accumulates the seconds spent per stage ("preprocess", "register",
+    "correspond").
     """
     settings = settings or VgicpSettings()
     clock = _Clock(timings)
@@ -197,8 +211,8 @@ def match_pair_vgicp(strip_a_id: int, points_a: np.ndarray, strip_b_id: int, poi
     in_a, in_b, area = overlap_masks(points_a, points_b, settings.overlap_cell_m)
     n_a, n_b = int(in_a.sum()), int(in_b.sum())
     if min(n_a, n_b) < settings.min_overlap_points:
-        raise CalibrationError(f"too little overlap for VGICP ({n_a} and {n_b} points in {area:.0f} m², "
-                               f"need {settings.min_overlap_points} of each strip)")
+        raise CalibrationError(f"too little overlap for VGICP ({n_a} and {n_b} points in "
+                               f"{area:.0f} m², need {settings.min_overlap_points} of each strip)")
     idx_a, idx_b = np.flatnonzero(in_a), np.flatnonzero(in_b)
     origin = points_a[idx_a].mean(axis=0)
     ov_a, ov_b = points_a[idx_a] - origin, points_b[idx_b] - origin
@@ -206,20 +220,23 @@ def match_pair_vgicp(strip_a_id: int, points_a: np.ndarray, strip_b_id: int, poi
     clock.lap("preprocess")
     if overlap_width(ov_a) >= settings.min_registration_width_m:
         reg = register(ov_a, ov_b, settings, area, clock)
-    else:  # a sliver: the strips as they lie (the outer loop has brought them close by the other pairs)
+    # a sliver: the strips as they lie (the outer loop has brought them close by the other pairs)
+    else:
         reg = Registration(np.eye(4), True, 0, 0)
     R, t = reg.T_ab[:3, :3], reg.T_ab[:3, 3]
     b_on_a = ov_b @ R.T + t
 
     cand = _spread(ov_a, settings.max_pairs, area)
-    threshold = settings.pair_distance_m or 1.5 * np.sqrt(area / len(idx_b))  # 1.5 × b's mean point spacing, m
+    # 1.5 × b's mean point spacing, m
+    threshold = settings.pair_distance_m or 1.5 * np.sqrt(area / len(idx_b))
     # only points near the candidates enter the KdTree: the nearest within the threshold and
-    # the k nearest of b (≈ 2 spacings, about a centroid ≲ 1 spacing off the candidate) lie within it
+    # the k nearest of b (≈ 2 spacings, about a centroid ≲ 1 spacing off the candidate) lie
+    # within it
     near_b = near(b_on_a, ov_a[cand], max(threshold, 4.0 * np.sqrt(area / len(idx_b))))
     k = settings.num_neighbors if settings.kind == "point_to_plane" else 1
     if near_b.size < k:  # (small_gicp aborts on an empty tree)
-        raise CalibrationError(f"too few VGICP correspondences: registration left {near_b.size} points of b "
-                               f"near a's points (need {settings.min_pairs} pairs)")
+        raise CalibrationError(f"too few VGICP correspondences: registration left {near_b.size} "
+                               f"points of b near a's points (need {settings.min_pairs} pairs)")
     b_near = b_on_a[near_b]
     tree_b = small_gicp.KdTree(b_near, num_threads=settings.num_threads)
     planes = local_planes(b_near, ov_a[cand], k, settings.num_threads, tree_b)
@@ -227,19 +244,24 @@ def match_pair_vgicp(strip_a_id: int, points_a: np.ndarray, strip_b_id: int, poi
     sigma, dof = (0.05 if settings.sigma_m is None else settings.sigma_m), np.inf
     normal = None
     if settings.kind == "point_to_plane" and keep.any():
-        planes, A, near_a, keep, normal, sigma, dof = plane_rows(planes, b_near, tree_b, ov_a, keep, n_a / n_b,
-                                                                 settings)
+        planes, A, near_a, keep, normal, sigma, dof = plane_rows(planes, b_near, tree_b, ov_a,
+                                                                 keep, n_a / n_b, settings)
     n_pairs = int(keep.sum())
     if n_pairs < settings.min_pairs:
         where = " on planar surfaces" if settings.kind == "point_to_plane" else ""
-        raise CalibrationError(f"too few VGICP correspondences ({n_pairs} closer than {threshold:.2f} m{where} "
-                               f"after registration, need {settings.min_pairs})")
+        raise CalibrationError(f"too few VGICP correspondences ({n_pairs} closer than "
+                               f"{threshold:.2f} m{where} after registration, need "
+                               f"{settings.min_pairs})")
     if settings.kind == "point_to_point":
-        A = sp.csr_matrix((np.ones(n_pairs), (np.arange(n_pairs), idx_a[cand[keep]])), shape=(n_pairs, points_a.shape[0]))
+        A = sp.csr_matrix((np.ones(n_pairs), (np.arange(n_pairs), idx_a[cand[keep]])),
+                          shape=(n_pairs, points_a.shape[0]))
     else:  # columns: the ball's points of a among all of a's points
         A = A[keep]
-        A = sp.csr_matrix((A.data, idx_a[near_a[A.indices]], A.indptr), shape=(n_pairs, points_a.shape[0]))
-    B = sp.csr_matrix((np.full(n_pairs * k, 1.0 / k), idx_b[near_b[planes.index[keep]]].ravel(), np.arange(n_pairs + 1) * k),
+        A = sp.csr_matrix((A.data, idx_a[near_a[A.indices]], A.indptr),
+                          shape=(n_pairs, points_a.shape[0]))
+    columns_b = idx_b[near_b[planes.index[keep]]].ravel()  # each row's k nearest of b
+    B = sp.csr_matrix((np.full(n_pairs * k, 1.0 / k), columns_b, np.arange(n_pairs + 1) * k),
                       shape=(n_pairs, points_b.shape[0]))
     clock.lap("correspond")
-    return Correspondences(strip_a_id, strip_b_id, A, B, normal, sigma_m=sigma, method="vgicp", dof=dof)
+    return Correspondences(strip_a_id, strip_b_id, A, B, normal, sigma_m=sigma, method="vgicp",
+                           dof=dof)

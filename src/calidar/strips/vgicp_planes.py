@@ -64,7 +64,8 @@ class Grid:
     def around(self, xy: np.ndarray) -> np.ndarray:
         """Keys of the cells holding ``xy`` and of their 8 neighbours (inside the grid)."""
         ij = self.ij(xy)
-        near = (ij[:, None, :] + np.array([(i, j) for i in (-1, 0, 1) for j in (-1, 0, 1)])).reshape(-1, 2)
+        steps = np.array([(i, j) for i in (-1, 0, 1) for j in (-1, 0, 1)])
+        near = (ij[:, None, :] + steps).reshape(-1, 2)
         near = near[np.all((near >= 0) & (near < self.shape), axis=1)]
         return self.keys(near)
 
@@ -82,7 +83,8 @@ class LocalPlanes:
     index: np.ndarray  #: (M, k) the neighbours
     distance: np.ndarray  #: (M, k) their distances, ascending, m
     centroid: np.ndarray  #: (M, 3) m
-    eigval: np.ndarray  #: (M, 3) of the scatter matrix Σ(p − centroid)(p − centroid)ᵀ, ascending, m²
+    #: (M, 3) of the scatter matrix Σ(p − centroid)(p − centroid)ᵀ, ascending, m²
+    eigval: np.ndarray
     eigvec: np.ndarray  #: (M, 3, 3) its unit eigenvectors in columns; column 0 is the normal
 
     @property
@@ -106,12 +108,15 @@ class LocalPlanes:
 
     def leverage(self, at: np.ndarray) -> np.ndarray:
         """Variance of the fitted plane's height at ``at`` (M, 3) m, in units of the points' σ²:
-        1/k + Σ_j ((at − centroid)·e_j)² / λ_j over the two in-plane axes (least-squares prediction)."""
+        1/k + Σ_j ((at − centroid)·e_j)² / λ_j over the two in-plane axes (least-squares
+        prediction)."""
         d = np.einsum("mi,mij->mj", at - self.centroid, self.eigvec[:, :, 1:])
-        return 1.0 / self.index.shape[1] + np.sum(d**2 / np.maximum(self.eigval[:, 1:], 1e-300), axis=1)
+        in_plane = np.sum(d**2 / np.maximum(self.eigval[:, 1:], 1e-300), axis=1)
+        return 1.0 / self.index.shape[1] + in_plane
 
 
-def local_planes(points: np.ndarray, at: np.ndarray, k: int, num_threads: int, tree=None) -> LocalPlanes:
+def local_planes(points: np.ndarray, at: np.ndarray, k: int, num_threads: int,
+                 tree=None) -> LocalPlanes:
     """The surface of ``points`` around each of ``at`` (both (·, 3) m) from its k nearest points
     (``tree``: their small_gicp KdTree, built here when None)."""
     tree = small_gicp.KdTree(points, num_threads=num_threads) if tree is None else tree
@@ -124,34 +129,42 @@ def local_planes(points: np.ndarray, at: np.ndarray, k: int, num_threads: int, t
     return LocalPlanes(idx, np.sqrt(d2), centroid, eigval, eigvec)
 
 
-def _balanced(planes: LocalPlanes, centre: np.ndarray, mean_a: np.ndarray, max_offset: float) -> np.ndarray:
+def _balanced(planes: LocalPlanes, centre: np.ndarray, mean_a: np.ndarray,
+              max_offset: float) -> np.ndarray:
     """Whether b's centroid lies within ``max_offset`` × the radius of the ``centre`` (M, 3) m about
     which its neighbours were found, and a's mean as near b's centroid, in b's plane: neither
     strip's points stop inside the ball."""
     def in_plane(d):
-        return np.linalg.norm(d - np.einsum("ij,ij->i", d, planes.normal)[:, None] * planes.normal, axis=1)
+        along = np.einsum("ij,ij->i", d, planes.normal)[:, None] * planes.normal
+        return np.linalg.norm(d - along, axis=1)
 
     limit = max_offset * planes.distance[:, -1]
-    return (in_plane(planes.centroid - centre) <= limit) & (in_plane(mean_a - planes.centroid) <= limit)
+    return ((in_plane(planes.centroid - centre) <= limit)
+            & (in_plane(mean_a - planes.centroid) <= limit))
 
 
 def _ball_means(points: np.ndarray, at: np.ndarray, radius: np.ndarray, k_max: int, num_threads: int
                 ) -> tuple[sp.csr_matrix, np.ndarray]:
     """Averaging weights (M, len(points)) over the points (m) within ``radius`` (M,) m of each
-    of ``at`` (M, 3) m — at most the k_max nearest, and at least the nearest — and their counts (M,)."""
+    of ``at`` (M, 3) m — at most the k_max nearest, and at least the nearest — and their counts
+    (M,)."""
     k_max = min(k_max, points.shape[0])
-    idx, d2 = small_gicp.KdTree(points, num_threads=num_threads).batch_knn_search(at, k_max, num_threads=num_threads)
+    tree = small_gicp.KdTree(points, num_threads=num_threads)
+    idx, d2 = tree.batch_knn_search(at, k_max, num_threads=num_threads)
     inside = d2 <= radius[:, None] ** 2
     inside[:, 0] = True
     count = inside.sum(axis=1)
     weights = (inside / count[:, None])[inside]
-    return sp.csr_matrix((weights, idx.astype(np.int64)[inside], np.concatenate([[0], np.cumsum(count)])),
+    indptr = np.concatenate([[0], np.cumsum(count)])
+    return sp.csr_matrix((weights, idx.astype(np.int64)[inside], indptr),
                          shape=(at.shape[0], points.shape[0])), count
 
 
-def _along_normal_variance(A: sp.csr_matrix, points: np.ndarray, mean: np.ndarray, normal: np.ndarray) -> np.ndarray:
-    """Per row of the averaging matrix A (M, len(points)): the variance (m², n − 1 degrees of freedom; 0 for
-    one point) along ``normal`` (M, 3) of the row's points (m) about their ``mean`` (M, 3) m."""
+def _along_normal_variance(A: sp.csr_matrix, points: np.ndarray, mean: np.ndarray,
+                           normal: np.ndarray) -> np.ndarray:
+    """Per row of the averaging matrix A (M, len(points)): the variance (m², n − 1 degrees of
+    freedom; 0 for one point) along ``normal`` (M, 3) of the row's points (m) about their ``mean``
+    (M, 3) m."""
     count = np.diff(A.indptr)
     row = np.repeat(np.arange(A.shape[0]), count)
     d = np.einsum("ij,ij->i", points[A.indices] - mean[row], normal[row])
@@ -160,12 +173,14 @@ def _along_normal_variance(A: sp.csr_matrix, points: np.ndarray, mean: np.ndarra
 
 def plane_rows(planes: LocalPlanes, b_near: np.ndarray, tree_b, ov_a: np.ndarray, keep: np.ndarray,
                density_ratio: float, settings) -> tuple:
-    """The point-to-plane rows from b's ``planes`` about the candidates (``keep``: b's nearest close enough).
+    """The point-to-plane rows from b's ``planes`` about the candidates (``keep``: b's nearest close
+    enough).
 
-    b_near: b's points near the candidates, registered onto a (m), ``tree_b`` their KdTree; ov_a: a's overlap
-    points (m); density_ratio: a's points per b's; settings: :class:`~calidar.strips.vgicp.VgicpSettings`.
-    Returns b's planes found again, the averaging matrix of a's balls over ``ov_a[near_a]``, near_a, the rows
-    kept, their normals, σ (m; ``settings.sigma_m`` when set) and the degrees of freedom of σ² (inf when set).
+    b_near: b's points near the candidates, registered onto a (m), ``tree_b`` their KdTree; ov_a:
+    a's overlap points (m); density_ratio: a's points per b's; settings:
+    :class:`~calidar.strips.vgicp.VgicpSettings`. Returns b's planes found again, the averaging
+    matrix of a's balls over ``ov_a[near_a]``, near_a, the rows kept, their normals, σ (m;
+    ``settings.sigma_m`` when set) and the degrees of freedom of σ² (inf when set).
     """
     k = settings.num_neighbors
     centre = planes.centroid  # b's k nearest again, about their centroid (see the module docstring)
@@ -173,23 +188,26 @@ def plane_rows(planes: LocalPlanes, b_near: np.ndarray, tree_b, ov_a: np.ndarray
     # a's points in a ball as large about b's centroid (room for a denser a)
     radius = planes.distance[:, -1]
     near_a = near(ov_a, planes.centroid, float(radius[keep].max()))
-    A, count = _ball_means(ov_a[near_a], planes.centroid, radius, int(np.ceil(2 * k * max(1.0, density_ratio))),
-                           settings.num_threads)
+    k_max = int(np.ceil(2 * k * max(1.0, density_ratio)))
+    A, count = _ball_means(ov_a[near_a], planes.centroid, radius, k_max, settings.num_threads)
     mean_a = A @ ov_a[near_a]
     off_plane = np.abs(np.einsum("ij,ij->i", mean_a - planes.centroid, planes.normal))
-    keep = keep & (planes.variation < settings.max_surface_variation) & (off_plane < settings.max_plane_distance_m)
+    keep = keep & (planes.variation < settings.max_surface_variation)
+    keep &= off_plane < settings.max_plane_distance_m
     keep &= planes.spread >= settings.min_spread
     keep &= _balanced(planes, centre, mean_a, settings.max_centroid_offset)
-    # a's ball about b's plane: its own scatter along b's normal, no more than max_scatter_ratio × b's
+    # a's ball about b's plane: its own scatter along b's normal, at most max_scatter_ratio × b's
     var_a = _along_normal_variance(A, ov_a[near_a], mean_a, planes.normal)
     var_b = np.zeros(keep.size)
     var_b[keep] = moderated_variance(planes.scatter[keep] ** 2, k - 3)
     keep &= var_a <= settings.max_scatter_ratio**2 * np.maximum(var_b, settings.noise_floor_m**2)
     sigma, dof = settings.sigma_m, np.inf
     if sigma is None:  # a's mean with a's scatter, b's plane where a's mean lies with b's
-        var_a, nu_a = posterior(var_a[keep], count[keep] - 1)  # each side's own, a prior fitted over the pair
+        # each side's own, a prior fitted over the pair
+        var_a, nu_a = posterior(var_a[keep], count[keep] - 1)
         var_b, nu_b = posterior(planes.scatter[keep] ** 2, k - 3)
-        parts = [var_a / count[keep], var_b * planes.leverage(mean_a)[keep], np.full(nu_a.size, settings.noise_floor_m**2)]
+        parts = [var_a / count[keep], var_b * planes.leverage(mean_a)[keep],
+                 np.full(nu_a.size, settings.noise_floor_m**2)]
         sigma = np.sqrt(np.sum(parts, axis=0))
         dof = satterthwaite(parts, [nu_a, nu_b, np.inf])
     return planes, A, near_a, keep, planes.normal[keep], sigma, dof

@@ -5,7 +5,7 @@ import pytest
 import scipy.sparse as sp
 
 from calidar.adjust import Parameter, ParameterSet, solve
-from calidar.adjust.solver import _normal_matrix
+from calidar.adjust.normals import normal_matrix
 from calidar.errors import CalibrationError
 
 
@@ -166,7 +166,7 @@ def test_normal_matrix_of_a_sparse_jacobian_equals_the_dense_product():
     J = sp.csr_matrix((rng.normal(size=indices.size), indices, indptr), shape=(4, 5))
     w = rng.uniform(0.5, 2.0, 4)
     D = J.toarray()
-    assert np.allclose(_normal_matrix(J, w), D.T @ (w[:, None] * D), rtol=1e-12, atol=1e-12)
+    assert np.allclose(normal_matrix(J, w), D.T @ (w[:, None] * D), rtol=1e-12, atol=1e-12)
 
 
 def test_a_loose_estimate_refined_equals_the_full_solve():
@@ -190,7 +190,7 @@ def test_a_loose_estimate_refined_equals_the_full_solve():
 @pytest.mark.parametrize("dyadic", [False, True])
 def test_cluster_robust_sigma_is_the_sandwich(dyadic):
     """diag(N⁻¹ · Σ_g S_g S_gᵀ · N⁻¹) · G/(G−1), computed the long way (the meat formed explicitly)."""
-    from calidar.adjust.solver import _cluster_robust
+    from calidar.adjust.normals import cluster_robust
 
     rng = np.random.default_rng(2)
     n, p = 300, 4
@@ -211,7 +211,7 @@ def test_cluster_robust_sigma_is_the_sandwich(dyadic):
             if shared:
                 meat += np.outer(scores[i], scores[j])
     want = np.diag(Ninv @ meat @ Ninv) * G / (G - 1)
-    got = _cluster_robust(cov, Ninv, scores, groups)
+    got = cluster_robust(cov, Ninv, scores, groups)
     assert np.allclose(np.diag(got), want, rtol=1e-9)
     corr = lambda c: c / np.sqrt(np.outer(np.diag(c), np.diag(c)))  # noqa: E731
     assert np.allclose(corr(got), corr(cov))  # correlations kept

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from calidar.adjust import Parameter, ParameterSet, Solution
-from calidar.adjust.solver import _cluster_robust
+from calidar.adjust.normals import cluster_robust
 from calidar.strips.model_check import FreedFit, Groups, hausman
 from calidar.strips.model_check_verdict import SHIFT_LIMIT, Z_FAIL, Z_WARN, model_check_finding
 
@@ -92,7 +92,7 @@ def test_cluster_variance_is_the_solvers_sandwich_and_the_brute_force_sum(two):
     G = np.unique(labels).size
     brute = float(e @ share @ e) * G / (G - 1)  # Σ over pairs sharing a group (each pair once, with itself)
     assert got == pytest.approx(brute, rel=1e-12)
-    solver = _cluster_robust(np.array([[1e-30]]), np.array([[1.0]]), e[:, None], grouping)
+    solver = cluster_robust(np.array([[1e-30]]), np.array([[1.0]]), e[:, None], grouping)
     assert got == pytest.approx(float(solver[0, 0]), rel=1e-12)
 
 
