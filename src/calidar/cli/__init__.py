@@ -2,7 +2,10 @@
 
 Each command lives in its own module under ``calidar.cli`` as a module-level function over a
 pipeline (``calidar.pipelines``), added to the app by the module's ``register(app, simulate)``;
-``COMMAND_MODULES`` lists them. How a run ends:
+``COMMAND_MODULES`` lists them. A run imports only the module of the command it runs
+(``COMMAND_NAMES``: which module registers each command; a name not there, ``--help`` or no
+command: every module, so ``calidar --help`` lists them all); ``calidar.cli.app`` is the whole app.
+How a run ends:
 
 - the exit codes are one contract for every command (:mod:`calidar.cli.common`, README "Exit codes"):
   0 pass or warn, 3 a FAIL verdict (:func:`calidar.cli.common.exit_with_verdict`), 1 input error,
@@ -38,17 +41,17 @@ COMMAND_MODULES: list[str] = [
     "info", "georef", "rangecal", "photon", "denoise", "ccr", "simulate_survey", "demo", "quality", "boresight",
     "scanner", "sensor", "tpu", "accuracy", "trajectory", "plan",
 ]
-
-app = typer.Typer(
-    name="calidar",
-    help="Open geometric calibration of laser scanning (LiDAR) systems.",
-    no_args_is_help=True,
-    add_completion=False,
-    pretty_exceptions_enable=False,
-    epilog=EXIT_CODES_HELP,
-)
-simulate = typer.Typer(help="Simulate inputs with a known truth.", no_args_is_help=True)
-app.add_typer(simulate, name="simulate")
+# the module registering each command ("simulate X" under SIMULATE_NAMES); a command missing here
+# costs only time (every module is imported), tests/unit/test_cli_lazy.py checks both maps
+COMMAND_NAMES: dict[str, str] = {
+    "info": "info", "inverse": "georef", "regeoref": "georef", "georef": "georef",
+    "range-cal": "rangecal", "denoise": "denoise", "ccr": "ccr", "demo": "demo",
+    "quality": "quality", "boresight": "boresight", "scanner": "scanner", "sensor": "sensor",
+    "tpu": "tpu", "accuracy": "accuracy", "trajectory": "trajectory", "plan": "plan",
+}
+SIMULATE_NAMES: dict[str, str] = {
+    "total-station": "rangecal", "photons": "photon", "survey": "simulate_survey",
+}
 
 
 def _version(value: bool) -> None:
@@ -57,13 +60,44 @@ def _version(value: bool) -> None:
         raise typer.Exit()
 
 
-@app.callback()
-def _root(version: bool = typer.Option(False, "--version", callback=_version, is_eager=True, help="Print the version.")) -> None:
+def _root(version: bool = typer.Option(False, "--version", callback=_version, is_eager=True,
+                                       help="Print the version.")) -> None:
     """Open geometric calibration of laser scanning (LiDAR) systems."""
 
 
-for _name in COMMAND_MODULES:
-    importlib.import_module(f"calidar.cli.{_name}").register(app, simulate)
+def build_app(modules: list[str] | None = None) -> typer.Typer:
+    """The ``calidar`` app with the commands of ``modules`` (default every one), registered in
+    ``COMMAND_MODULES``' order whatever the order asked."""
+    app = typer.Typer(
+        name="calidar",
+        help="Open geometric calibration of laser scanning (LiDAR) systems.",
+        no_args_is_help=True,
+        add_completion=False,
+        pretty_exceptions_enable=False,
+        epilog=EXIT_CODES_HELP,
+    )
+    simulate = typer.Typer(help="Simulate inputs with a known truth.", no_args_is_help=True)
+    app.add_typer(simulate, name="simulate")
+    app.callback()(_root)
+    wanted = COMMAND_MODULES if modules is None else set(modules)
+    for name in COMMAND_MODULES:
+        if name in wanted:
+            importlib.import_module(f"calidar.cli.{name}").register(app, simulate)
+    _exit_codes_in_help(app)
+    return app
+
+
+def modules_for(argv: list[str]) -> list[str] | None:
+    """The modules a run of ``argv`` needs: its command's, or None (every module) for ``--help``,
+    no command or a name not in ``COMMAND_NAMES`` (click then says what is wrong, as before)."""
+    words = [a for a in argv if not a.startswith("-")]
+    if not words or any(a in ("--help", "-h") for a in argv[:argv.index(words[0])]):
+        return None
+    if words[0] == "simulate":
+        module = SIMULATE_NAMES.get(words[1]) if len(words) > 1 else None
+    else:
+        module = COMMAND_NAMES.get(words[0])
+    return [module] if module else None
 
 
 def _exit_codes_in_help(t: typer.Typer) -> None:
@@ -75,7 +109,16 @@ def _exit_codes_in_help(t: typer.Typer) -> None:
         _exit_codes_in_help(g.typer_instance)
 
 
-_exit_codes_in_help(app)
+_whole: list[typer.Typer] = []
+
+
+def __getattr__(name: str) -> typer.Typer:
+    """``calidar.cli.app``: the app with every command (built once, on first use)."""
+    if name != "app":
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    if not _whole:
+        _whole.append(build_app())
+    return _whole[0]
 
 
 def _is(e: BaseException, *names: str) -> bool:
@@ -103,7 +146,9 @@ def run(argv: list[str] | None = None) -> int:
 def _run(argv: list[str] | None) -> int:
     try:
         # with standalone_mode=False click returns the code of a typer.Exit raised in a command
-        code = app(args=argv, prog_name="calidar", standalone_mode=False)
+        args = sys.argv[1:] if argv is None else list(argv)
+        app = __getattr__("app") if modules_for(args) is None else build_app(modules_for(args))
+        code = app(args=args, prog_name="calidar", standalone_mode=False)
         interrupts.check()  # a signal swallowed on the way (typer returns 130 silently, or a callback dropped it)
         return code if isinstance(code, int) else 0
     except KeyboardInterrupt as e:

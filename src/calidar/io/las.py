@@ -153,11 +153,24 @@ def _points(rec, header, path: Path, crs, time_system: str, fields, undulation=N
                 kw[f] = np.asarray(rec.scan_angle_rank, float)
         else:
             kw[f] = np.asarray(getattr(rec, f))
-    xyz = np.stack([np.asarray(rec.x, float), np.asarray(rec.y, float), np.asarray(rec.z, float)],
-                   axis=1)
+    xyz = _scaled_xyz(rec)
     _check_xyz(xyz, header, path, first)
     return LasPoints(xyz=xyz, gps_time=np.asarray(rec.gps_time, float), time_system=time_system,
                      crs=crs, path=path, geoid_undulation_m=undulation, **kw)
+
+
+def _scaled_xyz(rec) -> np.ndarray:
+    """The records' coordinates (N, 3): laspy's X · scale + offset per axis, written in place
+    (the same two operations as ``np.asarray(rec.x, float)``, bit for bit, without three
+    temporaries and a stacking copy)."""
+    views = (rec.x, rec.y, rec.z)
+    xyz = np.empty((len(rec), 3))
+    for k, v in enumerate(views):
+        if not all(hasattr(v, a) for a in ("array", "scale", "offset")):  # another laspy
+            return np.stack([np.asarray(u, float) for u in views], axis=1)
+        np.multiply(v.array, v.scale, out=xyz[:, k])
+        np.add(xyz[:, k], v.offset, out=xyz[:, k])
+    return xyz
 
 
 def _check_xyz(xyz: np.ndarray, header, path: Path, first: int) -> None:
@@ -329,8 +342,7 @@ def iter_las_fields(path: str | Path, names,
             out = {name: np.asarray(getattr(rec, name), float if name in scaled else None)
                    for name in names if not (check and name in ("x", "y", "z"))}
             if check:  # also as one (N, 3) array "xyz"
-                out["xyz"] = xyz = np.stack([np.asarray(rec.x, float), np.asarray(rec.y, float),
-                                             np.asarray(rec.z, float)], axis=1)
+                out["xyz"] = xyz = _scaled_xyz(rec)
                 _check_xyz(xyz, reader.header, path, first)
                 out.update(x=xyz[:, 0], y=xyz[:, 1], z=xyz[:, 2])
             yield out

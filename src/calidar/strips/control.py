@@ -32,7 +32,6 @@ from typing import ClassVar
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.spatial import cKDTree
 
 from calidar.strips.control_surface import MIN_POINTS, local_surface
 from calidar.strips.control_survey import per_target_design, per_target_parameters
@@ -125,6 +124,8 @@ def control_correspondences(strip_id: int, index: np.ndarray, points: np.ndarray
                             min_points: int = MIN_POINTS) -> Correspondences | None:
     """Rows between strip ``strip_id`` (its points ``index`` at local ``points`` (M, 3), of
     ``n_strip_points`` in all) and the control points it covers; None when it covers none."""
+    from scipy.spatial import cKDTree  # here: runs without control points need no scipy.spatial
+
     tree = cKDTree(np.asarray(points)[:, :2])
     rows, cols, weights, normals, sigmas, targets = [], [], [], [], [], []
     for k, near in enumerate(tree.query_ball_point(control.local[:, :2], radius_m)):
@@ -197,6 +198,8 @@ def near_control(points: np.ndarray, control: ControlPoints,
     places (:meth:`ControlPoints.keep_xy`: the points; over a control plane, its patch)."""
     if len(points) == 0:
         return np.zeros(0, np.int64)
+    from scipy.spatial import cKDTree
+
     tree = cKDTree(np.asarray(points)[:, :2])
     hits = tree.query_ball_point(control.keep_xy(), reach_m)
     found = [np.asarray(h, np.int64) for h in hits if len(h)]

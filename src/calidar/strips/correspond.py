@@ -16,9 +16,12 @@ normal in strip b); it is held fixed during one solve.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
-import scipy.sparse as sp
+
+if TYPE_CHECKING:  # the matrices' type only: `calidar quality` imports no scipy
+    import scipy.sparse as sp
 
 
 @dataclass(frozen=True)

@@ -159,3 +159,25 @@ def _dense_row_ids(ij):  # pragma: no cover - numba
     for k in range(n):
         inv[k] = table[(ij[k, 0] - lo0) * width + ij[k, 1] - lo1]
     return inv, ids, True
+
+
+def point_cell_keys(points: np.ndarray, cell_m: float) -> np.ndarray | None:
+    """:func:`calidar.strips.overlap.cell_keys` of points (N, ≥ 2) without an origin in one pass:
+    ``(floor(x / cell_m) << 32) + (floor(y / cell_m) & 0xFFFFFFFF)`` per point, the same
+    operations as the numpy there (no (N, 2) temporaries); None when a coordinate is not finite
+    (numpy's cast of NaN is the caller's)."""
+    if points.ndim != 2 or points.shape[1] < 2:
+        return None
+    out = np.empty(points.shape[0], np.int64)
+    return out if _point_cell_keys(points, cell_m, out) else None
+
+
+@njit(cache=True, nogil=True)
+def _point_cell_keys(p, cell_m, out):  # pragma: no cover - numba
+    for k in range(p.shape[0]):
+        x, y = p[k, 0] / cell_m, p[k, 1] / cell_m
+        if not (np.isfinite(x) and np.isfinite(y)):
+            return False
+        i, j = np.int64(np.floor(x)), np.int64(np.floor(y))
+        out[k] = (i << 32) + (j & 0xFFFFFFFF)
+    return True

@@ -28,15 +28,18 @@ tilt no longer enters the residual.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
-import scipy.sparse as sp
 from numba import njit
 
 from calidar.strips.correspond import Correspondences
 from calidar.strips.overlap import cell_keys, footprint_area_m2
 from calidar.strips.pca import eigh3
 from calidar.strips.row_variance import posterior, satterthwaite
+
+if TYPE_CHECKING:  # scipy.sparse imported where used: `calidar quality` needs none of it
+    import scipy.sparse as sp
 
 
 @dataclass(frozen=True)
@@ -167,6 +170,8 @@ def _cell_moments(points, order, start, count):
 
 def _averaging(patches: Patches, rows: np.ndarray, cap: int, n_points: int) -> tuple[sp.csr_matrix, np.ndarray]:
     """Sparse centroid weights for the patches ``rows`` (at most ``cap`` evenly picked points each)."""
+    import scipy.sparse as sp
+
     c = patches.count[rows]
     m = np.minimum(c, cap)
     indptr = np.r_[0, np.cumsum(m)]
@@ -185,6 +190,8 @@ def match_pair_planes(strip_a_id: int, points_a: np.ndarray, strip_b_id: int, po
     (:func:`plane_point_weights`), B averaging b's patch points, normal = the plane normal in
     strip b, σ from the plane scatter.
     """
+    import scipy.sparse as sp
+
     s = settings or PlaneSettings()
     points_a = np.asarray(points_a, float)
     points_b = np.asarray(points_b, float)

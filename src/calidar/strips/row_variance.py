@@ -18,7 +18,6 @@ which is what the global test asks of every row (s̃² alone, the moderated-t sc
 from __future__ import annotations
 
 import numpy as np
-from scipy.special import digamma, polygamma
 
 from calidar.strips.correspond import SCATTER_PRIOR_DOF
 
@@ -30,6 +29,8 @@ MIN_PRIOR_DOF = 2.5
 
 def _trigamma_inverse(y: float) -> float:
     """x with ψ'(x) = y (y > 0), by bisection on log x (ψ' falls monotonically)."""
+    from scipy.special import polygamma  # here, not at import: `calidar quality` needs no scipy
+
     lo, hi = 1e-6, 1e8
     for _ in range(80):
         mid = np.sqrt(lo * hi)
@@ -42,6 +43,8 @@ def fitted_prior(variance_m2: np.ndarray, dof: np.ndarray, sampled: bool = True)
     degrees of freedom), by the moments of the log-variances (Smyth 2004 §6.2); d0 = inf when the rows
     scatter no more than their sampling allows (one variance for all). ``sampled`` False: the variances are
     expected values (a plan's, mirroring the calibrator), their whole spread the prior's."""
+    from scipy.special import digamma, polygamma
+
     ok = (dof > 0) & (variance_m2 > 0)
     s2, d = variance_m2[ok], dof[ok].astype(float)
     if s2.size < MIN_ROWS:

@@ -75,3 +75,14 @@ def test_posterior_multipliers_mean(m):
     exact = m / (m - 2.0)
     assert mean == pytest.approx(exact, rel=0.35 if m < 5 else 0.05)
     assert mean >= 1.0
+
+
+@pytest.mark.parametrize("m", [2.5, 3.0, 7.25, 100.0, 12345.6])
+def test_posterior_multipliers_are_scipy_stats_quantiles_bit_for_bit(m):
+    # the quantiles by scipy.special (no scipy.stats import, issue 32) equal scipy.stats.chi2.ppf's
+    from scipy.stats import chi2
+
+    from calidar.adjust.variance_carry import QUANTILES
+
+    expected = m / chi2.ppf(np.array(QUANTILES), m)
+    assert np.array_equal(posterior_multipliers(m), expected)

@@ -245,3 +245,21 @@ def test_point_options_override_the_time_system(tmp_path):
         PointOptions(geoid_undulation_m=float("nan"))
     with pytest.raises(ValueError, match="not both"):
         read_las(path, crs="EPSG:32611", options=opts)
+
+
+@pytest.mark.parametrize("suffix", [".las", ".laz"])
+def test_coordinates_are_laspys_scaled_values_bit_for_bit(tmp_path, suffix):
+    # the (N, 3) coordinates written in place (issue 32) equal laspy's own x, y, z arrays stacked
+    from calidar.io.las import iter_las_fields
+
+    xyz, t, ang = _points(5000, seed=3)
+    path = write_las(tmp_path / f"b{suffix}", xyz, "EPSG:32611", gps_time=t, scan_angle_deg=ang,
+                     point_source_id=2)
+    with laspy.open(path) as r:
+        rec = r.read_points(5000)
+    expected = np.stack([np.asarray(rec.x, float), np.asarray(rec.y, float),
+                         np.asarray(rec.z, float)], axis=1)
+    assert np.array_equal(read_las(path).xyz, expected)
+    chunks = list(iter_las_fields(path, ("x", "y", "z", "gps_time"), 1700))
+    assert np.array_equal(np.concatenate([c["xyz"] for c in chunks]), expected)
+    assert np.array_equal(np.concatenate([c["x"] for c in chunks]), expected[:, 0])

@@ -85,3 +85,43 @@ def test_block_ids_numbered_as_numpy_unique():
     inv, n = block_ids(far, 20.0)  # not dense: np.unique
     assert inv.tolist() == [0, 1, 0] and n == 2
     assert block_ids(np.zeros((0, 2)), 20.0)[1] == 0
+
+
+def test_point_cell_keys_bit_for_bit_numpys():
+    # cell_keys' numba pass (issue 32) against the numpy it replaces: negative, large, on edges,
+    # strided; a NaN goes the numpy way
+    from calidar.strips.overlap import cell_keys
+
+    def numpy_keys(xy, c):
+        ij = np.floor(np.asarray(xy, float)[:, :2] / c).astype(np.int64)
+        return (ij[:, 0] << 32) + (ij[:, 1] & 0xFFFFFFFF)
+
+    rng = np.random.default_rng(5)
+    for spread in (1.0, 1e3, 1e6, 1e9):
+        p = rng.normal(0.0, spread, (20_000, 3))
+        p[::7] = np.round(p[::7] / 5) * 5  # exactly on cell edges
+        for c in (0.5, 2.0, 5.0, 3.7):
+            assert np.array_equal(cell_keys(p, c), numpy_keys(p, c))
+            assert np.array_equal(cell_keys(p[::3, :2], c), numpy_keys(p[::3, :2], c))
+    assert cell_keys(np.zeros((0, 3)), 5.0).shape == (0,)
+    q = p.copy()
+    q[5, 1] = np.nan
+    with np.errstate(invalid="ignore"):
+        assert np.array_equal(cell_keys(q, 5.0), numpy_keys(q, 5.0))
+
+
+def test_common_cells_intersection_is_numpys():
+    # common_cells' binary-search intersection (issue 32) against np.intersect1d, sizes 0 to 10⁵
+    from calidar.strips.overlap import _intersection, common_cells
+
+    rng = np.random.default_rng(8)
+    for n in (0, 1, 5, 1000, 100_000):
+        for m in (0, 1, 7, 2000, 50_000):
+            a = np.unique(rng.integers(-2**40, 2**40, n))
+            extra = rng.choice(a, min(a.size, m // 2)) if a.size else np.zeros(0, np.int64)
+            b = np.unique(np.r_[extra, rng.integers(-2**40, 2**40, m)].astype(np.int64))
+            got, want = _intersection(a, b), np.intersect1d(a, b, assume_unique=True)
+            assert got.dtype == want.dtype and np.array_equal(got, want), (n, m)
+    occupied = {1: np.arange(0, 100), 2: np.arange(50, 300, 2), 3: np.arange(1000, 1010)}
+    assert [(a, b, c.tolist()) for a, b, c in common_cells(occupied, 4)] == [
+        (1, 2, list(range(50, 100, 2)))]
