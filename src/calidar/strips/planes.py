@@ -107,6 +107,8 @@ def plane_point_weights(points: np.ndarray, A: sp.csr_matrix, target: np.ndarray
     axes and λ_j the points' variances along them (the regression's hat-matrix row at t, e.g.
     Draper & Smith 1998 §3.2). Also Σ h_i² per row: the variance of the plane's height there in
     units of its points' σ² (1/m at the centroid, more off it)."""
+    import scipy.sparse as sp
+
     rows = np.repeat(np.arange(A.shape[0]), np.diff(A.indptr))
     mean = A @ points
     d = points[A.indices] - mean[rows]
