@@ -7,11 +7,12 @@ pipeline (``calidar.pipelines``), added to the app by the module's ``register(ap
 command: every module, so ``calidar --help`` lists them all); ``calidar.cli.app`` is the whole app.
 How a run ends:
 
-- the exit codes are one contract for every command (:mod:`calidar.cli.common`, README "Exit codes"):
-  0 pass or warn, 3 a FAIL verdict (:func:`calidar.cli.common.exit_with_verdict`), 1 input error,
-  2 usage error, 130/143 interrupted;
+- the exit codes are one contract for every command (:mod:`calidar.cli.common`, README
+  "Exit codes"): 0 pass or warn, 3 a FAIL verdict (:func:`calidar.cli.common.exit_with_verdict`),
+  1 input error, 2 usage error, 130/143 interrupted;
 - errors a user can fix (:class:`calidar.errors.CalidarError`, missing or unreadable files, a full
-  disk — any ``OSError``): one line naming the file (the ``--out`` destination, never a temporary), exit 1;
+  disk — any ``OSError``): one line naming the file (the ``--out`` destination, never a
+  temporary), exit 1;
 - usage errors (unknown command or option, a value of the wrong type, a missing argument):
   the usage line and the error, exit 2 — for click itself and for the click that newer typer
   releases bundle (both are recognised by their class names);
@@ -33,13 +34,15 @@ import warnings
 import typer
 
 from calidar import __version__, interrupts, run_lock
-from calidar.cli.common import EXIT_CODES_HELP, EXIT_FAIL, EXIT_INPUT, EXIT_OK, EXIT_USAGE, print_error, print_warning
+from calidar.cli.common import (
+    EXIT_CODES_HELP, EXIT_FAIL, EXIT_INPUT, EXIT_OK, EXIT_USAGE, print_error, print_warning,
+)
 from calidar.errors import CalidarError
 from calidar.outputs import shown_path
 
 COMMAND_MODULES: list[str] = [
-    "info", "georef", "rangecal", "photon", "denoise", "ccr", "simulate_survey", "demo", "quality", "boresight",
-    "scanner", "sensor", "tpu", "accuracy", "trajectory", "plan",
+    "info", "georef", "rangecal", "photon", "denoise", "ccr", "simulate_survey", "demo", "quality",
+    "boresight", "scanner", "sensor", "tpu", "accuracy", "trajectory", "plan",
 ]
 # the module registering each command ("simulate X" under SIMULATE_NAMES); a command missing here
 # costs only time (every module is imported), tests/unit/test_cli_lazy.py checks both maps
@@ -122,7 +125,8 @@ def __getattr__(name: str) -> typer.Typer:
 
 
 def _is(e: BaseException, *names: str) -> bool:
-    """Whether ``e`` is an instance of a class of one of these names (click's, or the click typer bundles)."""
+    """Whether ``e`` is an instance of a class of one of these names (click's, or the click
+    typer bundles)."""
     return any(c.__name__ in names for c in type(e).__mro__)
 
 
@@ -149,12 +153,14 @@ def _run(argv: list[str] | None) -> int:
         args = sys.argv[1:] if argv is None else list(argv)
         app = __getattr__("app") if modules_for(args) is None else build_app(modules_for(args))
         code = app(args=args, prog_name="calidar", standalone_mode=False)
-        interrupts.check()  # a signal swallowed on the way (typer returns 130 silently, or a callback dropped it)
+        # a signal swallowed on the way (typer returns 130 silently, or a callback dropped it)
+        interrupts.check()
         return code if isinstance(code, int) else 0
     except KeyboardInterrupt as e:
         return _interrupted(getattr(e, "signum", signal.SIGINT))
     except Exception as e:  # noqa: BLE001 - dispatched by kind in _report
-        if interrupts.pending() is not None:  # an error the interruption caused (e.g. inside a native callback)
+        # an error the interruption caused (e.g. inside a native callback)
+        if interrupts.pending() is not None:
             return _interrupted(interrupts.pending())
         return _report(e)
 
@@ -169,7 +175,8 @@ def _report(e: Exception) -> int:
     if isinstance(e, CalidarError):
         print_error(shown_path(str(e)))
         return EXIT_INPUT
-    if isinstance(e, OSError):  # missing files, permissions, a full disk: the system's word, naming the file
+    # missing files, permissions, a full disk: the system's word, naming the file
+    if isinstance(e, OSError):
         name = f"{shown_path(str(e.filename))}: " if e.filename is not None else ""
         print_error(f"{name}{e.strerror or e}")
         return EXIT_INPUT
@@ -177,7 +184,8 @@ def _report(e: Exception) -> int:
         return int(getattr(e, "exit_code", 0) or 0)
     if _is(e, "Abort"):
         return _interrupted(signal.SIGINT)
-    if _unreadable(e):  # click's "Path '…' is not readable.": an input error, as a missing file is
+    # click's "Path '…' is not readable.": an input error, as a missing file is
+    if _unreadable(e):
         print_error(_unreadable(e))
         return EXIT_INPUT
     if _is(e, "ClickException") and hasattr(e, "show"):
@@ -185,7 +193,8 @@ def _report(e: Exception) -> int:
         return int(getattr(e, "exit_code", EXIT_USAGE))
     if os.environ.get("CALIDAR_DEBUG"):
         raise e
-    print_error(f"internal error: {type(e).__name__}: {e} (set CALIDAR_DEBUG=1 for the traceback)", prefix="")
+    bug = f"{type(e).__name__}: {e}"
+    print_error(f"internal error: {bug} (set CALIDAR_DEBUG=1 for the traceback)", prefix="")
     return EXIT_USAGE
 
 
@@ -196,12 +205,13 @@ def _unreadable(e: Exception) -> str:
 
 
 def main() -> None:
-    """The ``calidar`` command: signals handled by :mod:`calidar.cli.signals` from here on (they were
-    only recorded while the CLI was being imported, see ``calidar.__main__``)."""
+    """The ``calidar`` command: signals handled by :mod:`calidar.cli.signals` from here on (they
+    were only recorded while the CLI was being imported, see ``calidar.__main__``)."""
     from calidar.cli import signals
 
     signals.install()
-    if interrupts.pending() is not None:  # Ctrl-C while Python was importing: end now, nothing begun
+    # Ctrl-C while Python was importing: end now, nothing begun
+    if interrupts.pending() is not None:
         sys.exit(_interrupted(interrupts.pending()))
     code = run(sys.argv[1:])
     signals.finish()
@@ -209,17 +219,18 @@ def main() -> None:
 
 
 def _exit(code: int) -> None:
-    """Exit with ``code``. When threads still run (a reader inside a native decoder, after an error or
-    an interruption) the interpreter's finalisation would unwind them by force, which aborts the
-    process ("FATAL: exception not rethrown", exit 134): then the streams are flushed and the process
-    ends without it (the run's temporaries are already gone: every transaction cleaned up). An
-    interrupted run always ends so: a worker thread that has just stopped may still be tearing down
-    its thread state while the interpreter finalises, which aborted one run in fifty on CI
-    ("PyThreadState_Get: ... the GIL is released", exit −6)."""
+    """Exit with ``code``. When threads still run (a reader inside a native decoder, after an
+    error or an interruption) the interpreter's finalisation would unwind them by force, which
+    aborts the process ("FATAL: exception not rethrown", exit 134): then the streams are flushed
+    and the process ends without it (the run's temporaries are already gone: every transaction
+    cleaned up). An interrupted run always ends so: a worker thread that has just stopped may
+    still be tearing down its thread state while the interpreter finalises, which aborted one
+    run in fifty on CI ("PyThreadState_Get: ... the GIL is released", exit −6)."""
     import threading
 
     interrupted = code in (128 + signal.SIGINT, 128 + signal.SIGTERM)
-    if interrupted or any(t.is_alive() for t in threading.enumerate() if t is not threading.main_thread()):
+    others = [t for t in threading.enumerate() if t is not threading.main_thread()]
+    if interrupted or any(t.is_alive() for t in others):
         import logging
 
         from calidar.outputs import remove_temporaries

@@ -41,16 +41,20 @@ def _files(paths) -> str:
     return " ".join(shlex.quote(str(p)) for p in paths)
 
 
-def stage_commands(inputs, shown_out: Path, tag: str, with_trajectory: bool) -> tuple[str, str, str]:
+def stage_commands(inputs, shown_out: Path, tag: str,
+                   with_trajectory: bool) -> tuple[str, str, str]:
     """The commands that reproduce the three quality stages from the written files."""
     from calidar.pipelines.inputs import option_args
 
     q = lambda p: shlex.quote(str(p))  # noqa: E731
     strips = _files(inputs.strip_paths)
     given = option_args(inputs.config.points)
-    regeo = (f"calidar regeoref {strips} --trajectory {q(inputs.trajectory_path)} --from {q(inputs.sensor_path)} "
-             f"--to {q(shown_out / f'sensor{tag}.toml')}{option_args(inputs.config.points, inputs.config.trajectory_input)}")
-    traj = f" --to-trajectory {q(shown_out / f'sbet_corrected{tag}.out')}" if with_trajectory else ""
+    regeo_given = option_args(inputs.config.points, inputs.config.trajectory_input)
+    sensor_out = q(shown_out / f"sensor{tag}.toml")
+    sbet_out = q(shown_out / f"sbet_corrected{tag}.out")
+    regeo = (f"calidar regeoref {strips} --trajectory {q(inputs.trajectory_path)} "
+             f"--from {q(inputs.sensor_path)} --to {sensor_out}{regeo_given}")
+    traj = f" --to-trajectory {sbet_out}" if with_trajectory else ""
     return (f"calidar quality {strips}{given}",
             f"{regeo} --out MOUNTING && calidar quality MOUNTING/*",
             f"{regeo}{traj} --out CORRECTED && calidar quality CORRECTED/*")
@@ -58,8 +62,9 @@ def stage_commands(inputs, shown_out: Path, tag: str, with_trajectory: bool) -> 
 
 def quality_stages(inputs, result, corrected, progress: Progress = no_progress, work=None) -> list:
     """Overlap quality as delivered, with the new mounting, and (when trajectory corrections were
-    estimated) with the new mounting and the corrected trajectory: calidar.strips.report.QualityStage s
-    (their commands named when written: :func:`with_commands`)."""
+    estimated) with the new mounting and the corrected trajectory:
+    calidar.strips.report.QualityStage s (their commands named when written:
+    :func:`with_commands`)."""
     from calidar.ingest.measure import measure_lines
     from calidar.strips.quality import QualitySettings
     from calidar.strips.report import QualityStage
@@ -70,14 +75,17 @@ def quality_stages(inputs, result, corrected, progress: Progress = no_progress, 
         labels.append("new mounting + trajectory corrections")
         models.append((result.sensor, corrected))
     progress("overlap quality", 0, 1)
-    # one read of the files, every stage; the swath difference as ``calidar quality`` measures it by default
-    measured = measure_lines(inputs.source, inputs.nominal, models, progress, work, QualitySettings())
+    # one read of the files, every stage; the swath difference as ``calidar quality`` measures it
+    # by default
+    measured = measure_lines(inputs.source, inputs.nominal, models, progress, work,
+                             QualitySettings())
     progress("overlap quality", 1, 1)
     return [QualityStage(label, "", pairs) for label, pairs in zip(labels, measured)]
 
 
 def with_commands(inputs, stages: list, folder: Path, tag: str) -> list:
-    """The quality stages with the commands that reproduce them from the files written in ``folder``."""
+    """The quality stages with the commands that reproduce them from the files written in
+    ``folder``."""
     from dataclasses import replace
 
     commands = stage_commands(inputs, Path(shown_path(str(folder))), tag, len(stages) > 2)
@@ -99,7 +107,8 @@ def calibrated_sensor(result, solution_name: str, method: str = ""):
     prefix = solution.nuisance_prefix
     values = {}
     for p in solution.parameters.free:
-        if (prefix and p.name.startswith(prefix)) or p.name not in sigma or not np.isfinite(sigma[p.name]):
+        nuisance = prefix and p.name.startswith(prefix)
+        if nuisance or p.name not in sigma or not np.isfinite(sigma[p.name]):
             continue
         key = p.name if p.display_unit == "1" else f"{p.name}_{p.display_unit}"
         values[key] = p.to_display(sigma[p.name])
@@ -108,33 +117,37 @@ def calibrated_sensor(result, solution_name: str, method: str = ""):
     return replace(result.sensor, calibration=record)
 
 
-def write_run(run, out_dir: Path, report=None, verdict_title: str | None = None, section_title: str | None = None,
-              write_strips: bool = False) -> list[Path]:
+def write_run(run, out_dir: Path, report=None, verdict_title: str | None = None,
+              section_title: str | None = None, write_strips: bool = False) -> list[Path]:
     """Write a :class:`calidar.pipelines.boresight.StripCalibration` into ``out_dir``: per matcher
     :func:`write_outputs` (a ``_<name>`` suffix with several), config.toml and report.html — or,
-    given a ``report``, its verdicts and sections added there (``verdict_title``, ``section_title``:
-    what to call them); ``write_strips``: the recalibrated strips too (in out_dir/<name>/ with several)."""
+    given a ``report``, its verdicts and sections added there (``verdict_title``,
+    ``section_title``: what to call them); ``write_strips``: the recalibrated strips too (in
+    out_dir/<name>/ with several)."""
     from calidar.report import Report
     from calidar.strips.report import add_comparison_section, add_report_section
 
     inputs, results, several = run.inputs, run.results, len(run.results) > 1
     out_dir, own = Path(out_dir), report is None
     report = Report("calidar boresight") if own else report
-    stages = {m: with_commands(inputs, run.quality[m], out_dir, f"_{m}" if several else "") for m in results}
+    stages = {m: with_commands(inputs, run.quality[m], out_dir, f"_{m}" if several else "")
+              for m in results}
     for m, result in results.items():
         label = m if several else None
-        report.add_verdict(run.verdicts[m], " ".join(x for x in (verdict_title, label) if x) or None)
-        add_report_section(report, result, inputs.truth, stages[m], accuracy=accuracy_used(inputs, result),
-                           map_pair=map_pair(inputs, stages[m]),
-                           title=section_title and (f"{section_title} ({m})" if label else section_title))
+        verdict_label = " ".join(x for x in (verdict_title, label) if x) or None
+        report.add_verdict(run.verdicts[m], verdict_label)
+        title = section_title and (f"{section_title} ({m})" if label else section_title)
+        add_report_section(report, result, inputs.truth, stages[m],
+                           accuracy=accuracy_used(inputs, result),
+                           map_pair=map_pair(inputs, stages[m]), title=title)
     if several:
         add_comparison_section(report, results, inputs.truth)
     written = []
     for m, result in results.items():
         tag = f"_{m}" if several else ""
         strips_dir = (out_dir / m if tag else out_dir) if write_strips else None
-        written += write_outputs(inputs, result, run.corrected[m], run.verdicts[m], run.record, stages[m], out_dir, tag,
-                                 strips_dir)
+        written += write_outputs(inputs, result, run.corrected[m], run.verdicts[m], run.record,
+                                 stages[m], out_dir, tag, strips_dir)
     written.append(inputs.config.write(out_dir / "config.toml"))
     if own:
         report.record = run.record
@@ -150,14 +163,17 @@ def write_outputs(inputs, result, corrected, verdict, record, stages, out_dir: P
     from calidar.outputs import write_text_atomic
 
     out_dir = Path(out_dir)
-    written = [write_text_atomic(out_dir / f"solution{tag}.json",
-                                 solution_document(result, inputs.truth, verdict, record, accuracy_used(inputs, result),
-                                                   stages)),
-               calibrated_sensor(result, f"solution{tag}.json").write(out_dir / f"sensor{tag}.toml", force=True)]
-    if corrected is not None and corrected.time_system == "gps_week_seconds":  # SBETs hold week seconds
+    document = solution_document(result, inputs.truth, verdict, record,
+                                 accuracy_used(inputs, result), stages)
+    sensor = calibrated_sensor(result, f"solution{tag}.json")
+    written = [write_text_atomic(out_dir / f"solution{tag}.json", document),
+               sensor.write(out_dir / f"sensor{tag}.toml", force=True)]
+    # SBETs hold week seconds
+    if corrected is not None and corrected.time_system == "gps_week_seconds":
         written.append(write_sbet(out_dir / f"sbet_corrected{tag}.out", corrected, force=True))
     if strips_dir is not None:
-        written += write_strips(inputs, result.sensor, corrected or inputs.trajectory, Path(strips_dir))
+        trajectory = corrected or inputs.trajectory
+        written += write_strips(inputs, result.sensor, trajectory, Path(strips_dir))
     return written
 
 
@@ -177,12 +193,14 @@ def write_strips(inputs, sensor, trajectory, out_dir: Path) -> list[Path]:
         for sid, (las,) in line_chunks(inputs.source, inputs.nominal, [(sensor, trajectory)]):
             if sid not in writers:
                 crs = las.crs if las.crs is not None else inputs.crs
-                writers[sid] = stack.enter_context(LasChunkWriter(out_dir / f"strip_{sid}.laz", crs, offsets,
-                                                                  las.time_system, force=True))
-            writers[sid].write(las.xyz, gps_time=las.gps_time, point_source_id=sid, return_number=las.return_number,
-                               scan_angle_deg=las.scan_angle_deg if las.scan_angle_deg is not None else np.zeros(len(las)),
-                               number_of_returns=las.number_of_returns, classification=las.classification,
-                               intensity=las.intensity)
+                writer = LasChunkWriter(out_dir / f"strip_{sid}.laz", crs, offsets,
+                                        las.time_system, force=True)
+                writers[sid] = stack.enter_context(writer)
+            scan = las.scan_angle_deg if las.scan_angle_deg is not None else np.zeros(len(las))
+            writers[sid].write(las.xyz, gps_time=las.gps_time, point_source_id=sid,
+                               return_number=las.return_number, scan_angle_deg=scan,
+                               number_of_returns=las.number_of_returns,
+                               classification=las.classification, intensity=las.intensity)
     return [out_dir / f"strip_{sid}.laz" for sid in sorted(writers)]
 
 
@@ -213,8 +231,9 @@ def solution_document(result, truth, verdict, record, accuracy, stages=()) -> st
     with the commands that reproduce it), the trajectory accuracy used and the run."""
     doc = result.solution.to_dict(truth)
     doc["verdict"] = verdict.to_dict()
-    doc["overlap_quality"] = [{"stage": st.label, "reproduce": st.command, "pairs": [q.to_dict() for q in st.pairs]}
-                              for st in stages]
+    doc["overlap_quality"] = [{"stage": st.label, "reproduce": st.command,
+                               "pairs": [q.to_dict() for q in st.pairs]} for st in stages]
     doc["trajectory_accuracy"] = None if accuracy is None else accuracy.to_dict()
     doc["run"] = record.to_dict()
-    return shown_path(json.dumps(doc, indent=2, allow_nan=False) + "\n")  # destinations, not temporary folders
+    # destinations, not temporary folders
+    return shown_path(json.dumps(doc, indent=2, allow_nan=False) + "\n")

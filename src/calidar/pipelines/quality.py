@@ -5,11 +5,12 @@ difference of every overlapping pair.
 ``calidar quality`` streams in two passes. The first reads point_source_id, classification,
 GPS time and coordinates (:func:`calidar.ingest.lines.index_flight_lines`: the flight lines
 and the classes each file holds, hence its point selection) and counts the points of each
-candidate selection on the 5 m overlap grid (:class:`calidar.ingest.cell_counts.CellCounts`): which lines overlap and the
-cell of each pair (:func:`calidar.strips.quality.overlap_plan`). The second feeds the selected
-points of each chunk to a :class:`calidar.strips.quality.SwathAccumulator` that keeps moments
-on those cells only; memory holds cells, not points. The boresight pipeline feeds its
-(re-georeferenced) lines to the same plan and accumulator (:mod:`calidar.ingest.stages`).
+candidate selection on the 5 m overlap grid (:class:`calidar.ingest.cell_counts.CellCounts`):
+which lines overlap and the cell of each pair (:func:`calidar.strips.quality.overlap_plan`).
+The second feeds the selected points of each chunk to a
+:class:`calidar.strips.quality.SwathAccumulator` that keeps moments on those cells only; memory
+holds cells, not points. The boresight pipeline feeds its (re-georeferenced) lines to the same
+plan and accumulator (:mod:`calidar.ingest.stages`).
 """
 
 from __future__ import annotations
@@ -29,9 +30,12 @@ from calidar.strips.quality import QualitySettings
 from calidar.strips.selection import FIELDS as SELECTION_FIELDS
 from calidar.strips.selection import choose_selection
 
-CELL_RANGE_M = (0.01, 1000.0)  #: m, grid cells accepted by --cell (finer than lidar spacing, coarser than overlaps)
-CHUNK_POINTS = 500_000  #: points read at once (the chunk, not the file, sets the peak memory with the cells)
-FIELDS = ("point_source_id", *SELECTION_FIELDS)  #: point fields a chunk needs: flight line and the selection's
+#: m, grid cells accepted by --cell (finer than lidar spacing, coarser than overlaps)
+CELL_RANGE_M = (0.01, 1000.0)
+#: points read at once (the chunk, not the file, sets the peak memory with the cells)
+CHUNK_POINTS = 500_000
+#: point fields a chunk needs: flight line and the selection's
+FIELDS = ("point_source_id", *SELECTION_FIELDS)
 
 
 @dataclass(frozen=True)
@@ -40,14 +44,16 @@ class QualityConfig(FileConfig):
     edge (the CLI, the accuracy pipeline) and passed down unchanged: the swath difference's
     settings (``settings``, its grid cell among them), the LAS ``classes`` compared (None: ground,
     class 2, where a file has it, else last and single returns on smooth cells), how the points
-    are read (``points``: --crs, --time-system, --geoid-undulation) and ``chunk_points`` read at once.
+    are read (``points``: --crs, --time-system, --geoid-undulation) and ``chunk_points`` read at
+    once.
 
     >>> QualityConfig(QualitySettings(cell_m=1.0), classes=(6, 2)).classes
     (2, 6)
     """
 
     #: its TOML file (``config.toml`` beside quality.json, ``--config``): the options' settings
-    KEYS = (Key("cell_m", "settings.cell_m", "--cell"), Key("classes", "classes", "--classes"), *point_keys())
+    KEYS = (Key("cell_m", "settings.cell_m", "--cell"), Key("classes", "classes", "--classes"),
+            *point_keys())
     COMMAND = "quality"
 
     settings: QualitySettings = QualitySettings()
@@ -56,11 +62,14 @@ class QualityConfig(FileConfig):
     chunk_points: int = CHUNK_POINTS
 
     def __post_init__(self):
-        if not isinstance(self.settings, QualitySettings) or not isinstance(self.points, PointOptions):
-            raise TypeError(f"expected QualitySettings and PointOptions, got {self.settings!r}, {self.points!r}")
+        typed = isinstance(self.settings, QualitySettings) and isinstance(self.points, PointOptions)
+        if not typed:
+            got = f"{self.settings!r}, {self.points!r}"
+            raise TypeError(f"expected QualitySettings and PointOptions, got {got}")
         if self.classes is not None:
-            if not self.classes or any(not isinstance(c, int) or not 0 <= c <= 255 for c in self.classes):
-                raise InputError(None, "--classes", f"expected LAS classes (integers 0–255), got {self.classes!r}")
+            if not self.classes or not all(_las_class(c) for c in self.classes):
+                expected = f"expected LAS classes (integers 0–255), got {self.classes!r}"
+                raise InputError(None, "--classes", expected)
             object.__setattr__(self, "classes", tuple(sorted(set(self.classes))))
         if not (isinstance(self.chunk_points, int) and self.chunk_points > 0):
             raise ValueError(f"chunk_points must be an integer > 0, got {self.chunk_points!r}")
@@ -73,10 +82,16 @@ class QualityConfig(FileConfig):
             number(self.settings.cell_m, "--cell", *CELL_RANGE_M, "m")
 
 
+def _las_class(c) -> bool:
+    """Whether ``c`` is a LAS classification (an integer 0–255)."""
+    return isinstance(c, int) and 0 <= c <= 255
+
+
 def measure(paths, config: QualityConfig = QualityConfig()):
     """Streamed ``calidar quality``: (line index, file CRS, PairQualitys, notes, selection per file,
     each line's smooth-surface precision (:class:`calidar.strips.usgs.LinePrecision`)). Every point
-    is decompressed once: the first pass keeps what the second needs (:mod:`calidar.ingest.held`)."""
+    is decompressed once: the first pass keeps what the second needs
+    (:mod:`calidar.ingest.held`)."""
     from calidar.io.las import las_file_crs, las_header
     from calidar.ingest.held import HeldPoints
     from calidar.ingest.lines import index_flight_lines
@@ -84,20 +99,26 @@ def measure(paths, config: QualityConfig = QualityConfig()):
     from calidar.strips.distribute import IN_PROCESS_THREADS
     from calidar.strips.selection import PointSelection
 
-    settings, classes, options, cell_m = config.settings, config.classes, config.points, config.settings.cell_m
+    settings, classes, options = config.settings, config.classes, config.points
+    cell_m = settings.cell_m
     paths = [Path(p) for p in paths]
     crs, header = las_file_crs(paths[0], options.crs), las_header(paths[0])
     metric = Metric.at(crs, header.mins, header.maxs, options.geoid_undulation_m, paths[0])
     first = [PointSelection("classes", classes)] if classes else [PointSelection("ground", (2,)),
                                                                   PointSelection("last returns")]
-    with tempfile.TemporaryDirectory(prefix="calidar-moments-") as spill:  # held points, cell moments beyond HOLD_BYTES
-        counts = CellCounts({p: first for p in paths}, metric, overlap_cell(cell_m), HeldPoints(Path(spill)))
+    # spill: held points, cell moments beyond HOLD_BYTES
+    with tempfile.TemporaryDirectory(prefix="calidar-moments-") as spill:
+        held = HeldPoints(Path(spill))
+        counts = CellCounts({p: first for p in paths}, metric, overlap_cell(cell_m), held)
         raw = ("X", "Y", "Z") if metric.frame is None else ()
-        index = index_flight_lines(paths, options, chunk_points=config.chunk_points, on_chunk=counts,
-                                   fields=("x", "y", "z", *raw, *SELECTION_FIELDS[1:]))
+        fields = ("x", "y", "z", *raw, *SELECTION_FIELDS[1:])
+        index = index_flight_lines(paths, options, chunk_points=config.chunk_points,
+                                   on_chunk=counts, fields=fields)
         if len(index.ids) < 2:
-            raise InputError(", ".join(sorted({str(p) for p in paths})), "point_source_id",
-                             f"found one flight line ({index.how}); expected at least two overlapping lines")
+            files = ", ".join(sorted({str(p) for p in paths}))
+            found = f"found one flight line ({index.how})"
+            raise InputError(files, "point_source_id",
+                             f"{found}; expected at least two overlapping lines")
         selections = {p: choose_selection(p, index.classes[p], classes) for p in paths}
         names = counts.names(index)  #: line → a file holding it (for messages)
         plan = overlap_plan(counts.by_line(index, selections), counts.grid_m, settings, names)
@@ -109,7 +130,8 @@ def measure(paths, config: QualityConfig = QualityConfig()):
                     acc.add(int(i), xyz[ids == i], selections[p])
         for i in index.ids:  # lines without a selected point: named in the notes
             acc.add(i, np.zeros((0, 3)))
-        results, notes = checked_differences(acc, settings, names, IN_PROCESS_THREADS)  # pairs in threads
+        # the pairs in threads
+        results, notes = checked_differences(acc, settings, names, IN_PROCESS_THREADS)
         precisions = line_precisions(acc, settings)
     from calidar.ingest.plausibility import heights_notes
 
@@ -118,11 +140,12 @@ def measure(paths, config: QualityConfig = QualityConfig()):
 
 
 def line_precisions(acc, settings) -> list:
-    """Each line's intraswath precision from the accumulator's moments (:mod:`calidar.strips.usgs`)."""
+    """Each line's intraswath precision from the accumulator's moments
+    (:mod:`calidar.strips.usgs`)."""
     from calidar.strips.usgs import line_precision
 
-    return [line_precision(i, acc.line_moments(i), settings.max_rms_m, settings.max_slope_deg, settings.min_points)
-            for i in sorted(acc.selections)]
+    limits = (settings.max_rms_m, settings.max_slope_deg, settings.min_points)
+    return [line_precision(i, acc.line_moments(i), *limits) for i in sorted(acc.selections)]
 
 
 def write_rasters(q, out_dir: str | Path, crs=None, force: bool = False) -> list[Path]:
@@ -146,8 +169,9 @@ def dz_picture(q) -> bytes:
     figure): diverging colours on ± the 98th percentile of |dz|, its colour bar and title."""
     from calidar.report.map_picture import map_png
 
+    median, rmsdz = f"{q.median_dz_m or 0:+.3f} m", f"{q.rmsdz_m or 0:.3f} m"
     return map_png(q.grid, q.origin, q.cell_m,
-                   f"strips {q.a} − {q.b}: median {q.median_dz_m or 0:+.3f} m, RMSDz {q.rmsdz_m or 0:.3f} m",
+                   f"strips {q.a} − {q.b}: median {median}, RMSDz {rmsdz}",
                    f"dz = z({q.a}) − z({q.b}) [m]")
 
 
