@@ -26,8 +26,6 @@ LINE_LENGTH_ALLOWANCE: set[str] = {
     # pipelines: the boresight path, being made faster elsewhere at the time
     "calidar.pipelines.boresight", "calidar.pipelines.boresight_outputs",
     "calidar.pipelines.quality",
-    # strips/: the modules still with long lines (issue 29, sixth session)
-    "calidar.strips.planes", "calidar.strips.problem", "calidar.strips.row_variance",
 }
 
 
