@@ -33,13 +33,14 @@ def union(indices: list[np.ndarray]) -> np.ndarray:
 
 def compact(m: sp.csr_matrix, cols: np.ndarray) -> sp.csr_matrix:
     """``m`` restricted to its columns ``cols`` (sorted, holding every column m references)."""
-    return sp.csr_matrix((m.data, position_table(cols)[m.indices], m.indptr), shape=(m.shape[0], cols.size))
+    local = position_table(cols)[m.indices]
+    return sp.csr_matrix((m.data, local, m.indptr), shape=(m.shape[0], cols.size))
 
 
 def boresight_derivatives(sensor: Sensor) -> np.ndarray:
     """∂R_bs/∂(roll, pitch, yaw) as (9, 3): column k the flattened derivative. With
-    R_bs = Rz(yaw)·Ry(pitch)·Rx(roll) and ∂R_i(θ)/∂θ = R_i(θ)·[e_i]×. Read-only: kept for the
-    last few angles (every side of every correspondence set asks at the same sensor)."""
+    R_bs = Rz(yaw)·Ry(pitch)·Rx(roll) and ∂R_i(θ)/∂θ = R_i(θ)·[e_i]×. Read-only: kept for
+    the last few angles (every side of every correspondence set asks at the same sensor)."""
     return _boresight_derivatives(float(sensor.boresight_roll), float(sensor.boresight_pitch),
                                   float(sensor.boresight_yaw))
 
@@ -63,7 +64,8 @@ class Centroids:
     exactly. (Scanner-angle parameters change u: see :class:`StripProblem`.)
     """
 
-    def __init__(self, A: sp.csr_matrix, poses: Pose, nominal: Sensor, range_free: bool, lever_free: bool):
+    def __init__(self, A: sp.csr_matrix, poses: Pose, nominal: Sensor, range_free: bool,
+                 lever_free: bool):
         """A: averaging weights over a strip's points (columns = strip point indices); poses:
         cached poses holding every point A references."""
         cols = union([A.indices])  # only the points this side references
@@ -71,9 +73,11 @@ class Centroids:
         u = nominal.scanner.directions(poses.angles[rows])
         rho = poses.range_m[rows] if range_free else nominal.true_range(poses.range_m[rows])
         self.rowsum = np.asarray(A.sum(axis=1)).ravel()
-        #: weighted sums of the IMU positions, of R_lb, of R_lb·ρ·u and (range model free) of R_lb·u
-        self.r, R, self.M_rho, M_u = _weighted_sums(A.indptr, position_table(cols)[A.indices], A.data, rows,
-                                                    poses.position, poses.r_lb, rho, u, range_free)
+        local = position_table(cols)[A.indices]
+        #: weighted sums of the IMU positions, of R_lb, of R_lb·ρ·u and (range model free) of
+        #: R_lb·u
+        self.r, R, self.M_rho, M_u = _weighted_sums(A.indptr, local, A.data, rows, poses.position,
+                                                    poses.r_lb, rho, u, range_free)
         self.M_u = M_u if range_free else None
         if lever_free:
             self.R, self.const = R, self.r
@@ -82,7 +86,9 @@ class Centroids:
 
     def _m(self, sensor: Sensor) -> np.ndarray:
         """A·R_lb·v_s as (n·3, 9) acting on vec(R_bs)."""
-        M = self.M_rho if self.M_u is None else (self.M_rho - sensor.range_offset * self.M_u) / (1.0 + sensor.range_scale)
+        if self.M_u is None:
+            return self.M_rho.reshape(-1, 9)
+        M = (self.M_rho - sensor.range_offset * self.M_u) / (1.0 + sensor.range_scale)
         return M.reshape(-1, 9)
 
     def __call__(self, sensor: Sensor) -> np.ndarray:
@@ -96,25 +102,27 @@ class Centroids:
         out = np.zeros((n, 3, len(names)))
         M = self._m(sensor)
         db = (M @ boresight_derivatives(sensor)).reshape(n, 3, 3)
+        r_bs, stretch = sensor.r_bs.ravel(), 1.0 + sensor.range_scale
         for j, name in enumerate(names):
             if name in BORESIGHT:
                 out[:, :, j] = db[:, :, BORESIGHT.index(name)]
             elif name in LEVER_ARM:
                 out[:, :, j] = self.R[:, :, LEVER_ARM.index(name)]
             elif name == "range_offset":
-                out[:, :, j] = -(self.M_u.reshape(-1, 9) @ sensor.r_bs.ravel()).reshape(n, 3) / (1.0 + sensor.range_scale)
+                out[:, :, j] = -(self.M_u.reshape(-1, 9) @ r_bs).reshape(n, 3) / stretch
             elif name == "range_scale":
-                out[:, :, j] = -(M @ sensor.r_bs.ravel()).reshape(n, 3) / (1.0 + sensor.range_scale)
+                out[:, :, j] = -(M @ r_bs).reshape(n, 3) / stretch
             else:
                 raise ValueError(f"no analytic derivative for {name}")
         return out
 
 
 @njit(cache=True, nogil=True)
-def _weighted_sums(indptr, local, data, rows, position, r_lb, rho, u, with_u):  # pragma: no cover - numba
+def _weighted_sums(indptr, local, data, rows, position, r_lb, rho, u, with_u):  # pragma: no cover
     """Per row i of a CSR averaging matrix (indptr, local column, weight): Σ w·r, Σ w·R_lb,
-    Σ w·R_lb·ρ·u_k and (with_u) Σ w·R_lb·u_k as (n, 3), (n, 3, 3), (n, 3, 3, 3), (n, 3, 3, 3);
-    the column's point is ``rows[local]`` of position/r_lb and ``local`` of rho/u."""
+    Σ w·R_lb·ρ·u_k and (with_u) Σ w·R_lb·u_k as (n, 3), (n, 3, 3), (n, 3, 3, 3),
+    (n, 3, 3, 3); the column's point is ``rows[local]`` of position/r_lb and ``local`` of
+    rho/u."""
     n = indptr.size - 1
     r, R = np.zeros((n, 3)), np.zeros((n, 3, 3))
     M_rho, M_u = np.zeros((n, 3, 3, 3)), np.zeros((n if with_u else 0, 3, 3, 3))
@@ -134,13 +142,15 @@ def _weighted_sums(indptr, local, data, rows, position, r_lb, rho, u, with_u):  
     return r, R, M_rho, M_u
 
 
-def correction_derivatives(side: Centroids, sensor: Sensor, normal: np.ndarray | None) -> np.ndarray:
+def correction_derivatives(side: Centroids, sensor: Sensor,
+                           normal: np.ndarray | None) -> np.ndarray:
     """∂(a side's corrected weighted sums)/∂(shift x, y, z, tilt x, y, z) of one knot carrying
-    all the weight, (n, per, 6): shift → row sums · e, rotation → e × (sums − IMU sums); along
-    the normals (per = 1) or in 3D (per = 3)."""
+    all the weight, (n, per, 6): shift → row sums · e, rotation → e × (sums − IMU sums);
+    along the normals (per = 1) or in 3D (per = 3)."""
     v = side(sensor) - side.r
     if normal is not None:  # (e × v) · n = e · (v × n)
-        return np.concatenate([side.rowsum[:, None] * normal, np.cross(v, normal)], axis=1)[:, None, :]
+        along = np.concatenate([side.rowsum[:, None] * normal, np.cross(v, normal)], axis=1)
+        return along[:, None, :]
     D = np.zeros((v.shape[0], 3, 6))
     D[:, [0, 1, 2], [0, 1, 2]] = side.rowsum[:, None]
     D[:, :, 3:] = np.stack([np.cross(e, v) for e in np.eye(3)], axis=2)

@@ -30,11 +30,13 @@ class Correspondences:
     strip_b: int
     A: sp.csr_matrix  #: (n_obs, n_points_a) averaging weights, rows sum to 1
     B: sp.csr_matrix  #: (n_obs, n_points_b)
-    normal: np.ndarray | None  #: (n_obs, 3) unit normals for point_to_plane, None for point_to_point
+    #: (n_obs, 3) unit normals for point_to_plane, None for point_to_point
+    normal: np.ndarray | None
     sigma_m: np.ndarray | float = 0.05  #: a-priori σ of each residual, m
     method: str = "planes"  #: "planes" | "vgicp"
-    #: degrees of freedom of each row's σ² when it is estimated from its points' scatter (residual/σ then follows
-    #: Student's t; inf: σ taken as known) — the global test's consistency for the robust weights (issue 26)
+    #: degrees of freedom of each row's σ² when it is estimated from its points' scatter
+    #: (residual/σ then follows Student's t; inf: σ taken as known) — the global test's
+    #: consistency for the robust weights (issue 26)
     dof: np.ndarray | float = np.inf
 
     def __post_init__(self):
@@ -63,8 +65,8 @@ class Correspondences:
 SCATTER_PRIOR_DOF = 20.0
 
 
-def moderated_variance(variance_m2: np.ndarray, dof: np.ndarray | float, prior_dof: float = SCATTER_PRIOR_DOF
-                       ) -> np.ndarray:
+def moderated_variance(variance_m2: np.ndarray, dof: np.ndarray | float,
+                       prior_dof: float = SCATTER_PRIOR_DOF) -> np.ndarray:
     """Each plane's scatter variance (m², from ``dof`` degrees of freedom) shrunk toward the
     mean of all of them: (ν·s² + ν0·s̄²) / (ν + ν0) (empirical Bayes moderated variances,
     Smyth 2004, *Stat. Appl. Genet. Mol. Biol.* 3:3).

@@ -36,7 +36,9 @@ def _null_vector(a00, a01, a02, a11, a12, a22, lam):  # pragma: no cover - numba
     x0, x1, x2 = a01 * a12 - a02 * r11, a02 * a01 - r00 * a12, r00 * r11 - a01 * a01
     y0, y1, y2 = a01 * r22 - a02 * a12, a02 * a02 - r00 * r22, r00 * a12 - a01 * a02
     z0, z1, z2 = r11 * r22 - a12 * a12, a12 * a02 - a01 * r22, a01 * a12 - r11 * a02
-    nx, ny, nz = x0 * x0 + x1 * x1 + x2 * x2, y0 * y0 + y1 * y1 + y2 * y2, z0 * z0 + z1 * z1 + z2 * z2
+    nx = x0 * x0 + x1 * x1 + x2 * x2
+    ny = y0 * y0 + y1 * y1 + y2 * y2
+    nz = z0 * z0 + z1 * z1 + z2 * z2
     if nx >= ny and nx >= nz:
         c0, c1, c2, n2 = x0, x1, x2, nx
     elif ny >= nz:
@@ -52,21 +54,26 @@ def _null_vector(a00, a01, a02, a11, a12, a22, lam):  # pragma: no cover - numba
 @njit(cache=True, nogil=True)
 def _eigh3_kernel(a, lam, vec):  # pragma: no cover - numba
     for m in range(a.shape[0]):
-        a00, a01, a02, a11, a12, a22 = a[m, 0, 0], a[m, 0, 1], a[m, 0, 2], a[m, 1, 1], a[m, 1, 2], a[m, 2, 2]
+        a00, a01, a02 = a[m, 0, 0], a[m, 0, 1], a[m, 0, 2]
+        a11, a12, a22 = a[m, 1, 1], a[m, 1, 2], a[m, 2, 2]
         q = (a00 + a11 + a22) / 3.0
         b00, b11, b22 = a00 - q, a11 - q, a22 - q
-        p = np.sqrt((b00 * b00 + b11 * b11 + b22 * b22 + 2.0 * (a01 * a01 + a02 * a02 + a12 * a12)) / 6.0)
+        off_diagonal = a01 * a01 + a02 * a02 + a12 * a12
+        p = np.sqrt((b00 * b00 + b11 * b11 + b22 * b22 + 2.0 * off_diagonal) / 6.0)
         if p == 0.0:  # a multiple of the identity
             for i in range(3):
                 lam[m, i] = q
                 for j in range(3):
                     vec[m, i, j] = 1.0 if i == j else 0.0
             continue
-        det = b00 * (b11 * b22 - a12 * a12) - a01 * (a01 * b22 - a12 * a02) + a02 * (a01 * a12 - b11 * a02)
+        # det(A − q·I) by cofactors along the first row
+        det = (b00 * (b11 * b22 - a12 * a12) - a01 * (a01 * b22 - a12 * a02)
+               + a02 * (a01 * a12 - b11 * a02))
         phi = np.arccos(min(max(det / (2.0 * p * p * p), -1.0), 1.0)) / 3.0
         hi = q + 2.0 * p * np.cos(phi)
         lo = q + 2.0 * p * np.cos(phi + 2.0 * np.pi / 3.0)
-        low_end = (3.0 * q - hi - lo) - lo >= hi - (3.0 * q - hi - lo)  # the better separated end first
+        mid = 3.0 * q - hi - lo
+        low_end = mid - lo >= hi - mid  # the better separated end first
         v0, v1, v2 = _null_vector(a00, a01, a02, a11, a12, a22, lo if low_end else hi)
         # u ⟂ v: v crossed with the axis it is least aligned with; w = v × u
         if abs(v0) <= abs(v1) and abs(v0) <= abs(v2):
@@ -79,9 +86,15 @@ def _eigh3_kernel(a, lam, vec):  # pragma: no cover - numba
         u0, u1, u2 = u0 * f, u1 * f, u2 * f
         w0, w1, w2 = v1 * u2 - v2 * u1, v2 * u0 - v0 * u2, v0 * u1 - v1 * u0
         # the 2×2 problem in the (u, w) plane, solved by one rotation
-        au0, au1, au2 = a00 * u0 + a01 * u1 + a02 * u2, a01 * u0 + a11 * u1 + a12 * u2, a02 * u0 + a12 * u1 + a22 * u2
-        aw0, aw1, aw2 = a00 * w0 + a01 * w1 + a02 * w2, a01 * w0 + a11 * w1 + a12 * w2, a02 * w0 + a12 * w1 + a22 * w2
-        suu, suw, sww = u0 * au0 + u1 * au1 + u2 * au2, u0 * aw0 + u1 * aw1 + u2 * aw2, w0 * aw0 + w1 * aw1 + w2 * aw2
+        au0 = a00 * u0 + a01 * u1 + a02 * u2
+        au1 = a01 * u0 + a11 * u1 + a12 * u2
+        au2 = a02 * u0 + a12 * u1 + a22 * u2
+        aw0 = a00 * w0 + a01 * w1 + a02 * w2
+        aw1 = a01 * w0 + a11 * w1 + a12 * w2
+        aw2 = a02 * w0 + a12 * w1 + a22 * w2
+        suu = u0 * au0 + u1 * au1 + u2 * au2
+        suw = u0 * aw0 + u1 * aw1 + u2 * aw2
+        sww = w0 * aw0 + w1 * aw1 + w2 * aw2
         t = 0.5 * np.arctan2(2.0 * suw, suu - sww)
         c, s = np.cos(t), np.sin(t)
         l_big = c * c * suu + 2.0 * c * s * suw + s * s * sww
@@ -91,5 +104,6 @@ def _eigh3_kernel(a, lam, vec):  # pragma: no cover - numba
         iv, ism, ibg = (0, 1, 2) if low_end else (2, 0, 1)
         lam[m, iv], lam[m, ism], lam[m, ibg] = l_v, l_small, l_big
         vec[m, 0, iv], vec[m, 1, iv], vec[m, 2, iv] = v0, v1, v2
-        vec[m, 0, ism], vec[m, 1, ism], vec[m, 2, ism] = -s * u0 + c * w0, -s * u1 + c * w1, -s * u2 + c * w2
-        vec[m, 0, ibg], vec[m, 1, ibg], vec[m, 2, ibg] = c * u0 + s * w0, c * u1 + s * w1, c * u2 + s * w2
+        vec[m, 0, ism], vec[m, 0, ibg] = -s * u0 + c * w0, c * u0 + s * w0
+        vec[m, 1, ism], vec[m, 1, ibg] = -s * u1 + c * w1, c * u1 + s * w1
+        vec[m, 2, ism], vec[m, 2, ibg] = -s * u2 + c * w2, c * u2 + s * w2

@@ -16,13 +16,13 @@ by Kager 2004, *Discrepancies between overlapping laser scanner strips*, and Res
 :class:`~calidar.strips.correspond.Correspondences` with these weights. Vegetation and edges fail
 the planarity test.
 
-Why not a's plain centroid (issue 26, sixth session): a's and b's centroids in one cell lie apart
-by a few cm, and not at random (the point density falls across each swath), so r = n_b · (c_a − c_b)
-held b's normal's noisy tilt times that offset. On flat ground the row's derivative by pitch is that
-same tilt times the strips' relative along-track move: the row's own noise sat in its regressor and
-its residual alike (errors in variables), which biased pitch (z ±2–3 on one flat overlap,
-``tests/unit/strips/test_tie_plane_pitch.py``). At b's centroid, â − c_b lies along a's normal: b's
-tilt no longer enters the residual.
+Why not a's plain centroid (issue 26, sixth session): a's and b's centroids in one cell lie
+apart by a few cm, and not at random (the point density falls across each swath), so
+r = n_b · (c_a − c_b) held b's normal's noisy tilt times that offset. On flat ground the row's
+derivative by pitch is that same tilt times the strips' relative along-track move: the row's
+own noise sat in its regressor and its residual alike (errors in variables), which biased
+pitch (z ±2–3 on one flat overlap, ``tests/unit/strips/test_tie_plane_pitch.py``). At b's
+centroid, â − c_b lies along a's normal: b's tilt no longer enters the residual.
 """
 
 from __future__ import annotations
@@ -46,7 +46,8 @@ if TYPE_CHECKING:  # scipy.sparse imported where used: `calidar quality` needs n
 class PlaneSettings:
     """Tie-plane detection settings (metres, degrees where named)."""
 
-    cell_m: float | None = None  #: patch size; None → chosen so that a patch holds ≈ target_points
+    #: patch size; None → chosen so that a patch holds ≈ target_points
+    cell_m: float | None = None
     target_points: int = 12  #: small patches: more of them planar on roofs and between trees
     min_points: int = 6
     max_rms_m: float = 0.10  #: largest point scatter about the fitted plane
@@ -55,8 +56,9 @@ class PlaneSettings:
     max_offset_m: float = 1.0  #: gate on |r| (tie planes further apart are not the same surface)
     max_points_per_patch: int = 64  #: centroid from at most this many points (evenly picked)
     max_planes: int = 5000  #: at most this many tie planes per pair, evenly picked (dense strips)
-    #: added to each row's σ for model errors (roughness); 0: the patches' own scatter already holds the
-    #: roughness both strips sample (issue 26: at the truth the 2 mm made the UAV rows 15 % conservative)
+    #: added to each row's σ for model errors (roughness); 0: the patches' own scatter already
+    #: holds the roughness both strips sample (issue 26: at the truth the 2 mm made the UAV rows
+    #: 15 % conservative)
     noise_floor_m: float = 0.0
 
 
@@ -67,7 +69,8 @@ class Patches:
     keys: np.ndarray  #: (P,) cell keys
     centroid: np.ndarray  #: (P, 3) m
     normal: np.ndarray  #: (P, 3) unit, pointing up
-    rms_m: np.ndarray  #: (P,) RMS of the points off the plane, √(λ0 · n / (n − 3)) (the planarity test takes √λ0)
+    #: (P,) RMS of the points off the plane, √(λ0 · n / (n − 3)) (the planarity test takes √λ0)
+    rms_m: np.ndarray
     axes: np.ndarray  #: (P, 3, 2) unit in-plane axes (the eigenvectors of λ1, λ2)
     spread_m2: np.ndarray  #: (P, 2) the points' variance along them, λ1, λ2 (m²)
     start: np.ndarray  #: (P,) first position of the patch's points in ``order``
@@ -89,12 +92,14 @@ def fit_patches(points: np.ndarray, cell_m: float, settings: PlaneSettings) -> P
     start = np.r_[0, np.flatnonzero(ks[1:] != ks[:-1]) + 1] if ks.size else np.zeros(0, np.int64)
     uk, count = ks[start], np.diff(np.r_[start, ks.size])
     ok = np.flatnonzero(count >= max(settings.min_points, 4))  # a plane and its scatter
-    mean, cov = _cell_moments(np.ascontiguousarray(points, dtype=np.float64), order, start[ok], count[ok])
+    contiguous = np.ascontiguousarray(points, dtype=np.float64)
+    mean, cov = _cell_moments(contiguous, order, start[ok], count[ok])
     planar, normal, lam0 = planar_cells(cov, cell_m, settings)
     sel = ok[planar]
     rms = np.sqrt(lam0 * count[sel] / (count[sel] - 3))  # 3 plane parameters fitted
     lam, vec = eigh3(cov[planar]) if planar.any() else (np.zeros((0, 3)), np.zeros((0, 3, 3)))
-    return Patches(uk[sel], mean[planar], normal, rms, vec[:, :, 1:], np.clip(lam[:, 1:], 1e-12, None), start[sel],
+    spread = np.clip(lam[:, 1:], 1e-12, None)
+    return Patches(uk[sel], mean[planar], normal, rms, vec[:, :, 1:], spread, start[sel],
                    count[sel], order)
 
 
@@ -103,10 +108,13 @@ def plane_point_weights(points: np.ndarray, A: sp.csr_matrix, target: np.ndarray
     """Weights over each row's points (those of the averaging matrix ``A``, (R, N)) whose weighted
     sum is the point of the row's least-squares plane (PCA of those points) at ``target`` (R, 3) m:
     the in-plane coordinates of ``target``, on the fitted plane. They sum to 1 (a rigid move moves
-    that point alike): h_i = (1/m)·(1 + Σ_j (e_j·(t − x̄))(e_j·(x_i − x̄)) / λ_j), e_j the in-plane
-    axes and λ_j the points' variances along them (the regression's hat-matrix row at t, e.g.
-    Draper & Smith 1998 §3.2). Also Σ h_i² per row: the variance of the plane's height there in
-    units of its points' σ² (1/m at the centroid, more off it)."""
+    that point alike):
+
+        h_i = (1/m)·(1 + Σ_j (e_j·(t − x̄))(e_j·(x_i − x̄)) / λ_j),
+
+    e_j the in-plane axes and λ_j the points' variances along them (the regression's hat-matrix
+    row at t, e.g. Draper & Smith 1998 §3.2). Also Σ h_i² per row: the variance of the plane's
+    height there in units of its points' σ² (1/m at the centroid, more off it)."""
     import scipy.sparse as sp
 
     rows = np.repeat(np.arange(A.shape[0]), np.diff(A.indptr))
@@ -124,12 +132,16 @@ def plane_point_weights(points: np.ndarray, A: sp.csr_matrix, target: np.ndarray
     return weights, np.bincount(rows, h * h, A.shape[0])
 
 
-def planar_cells(cov: np.ndarray, cell_m: float, settings: PlaneSettings) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def planar_cells(cov: np.ndarray, cell_m: float,
+                 settings: PlaneSettings) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The planarity test of cells from their point covariances (K, 3, 3) m²: mask of the planar
-    cells (√λ0 ≤ max_rms_m, √λ1 ≥ min_spread · cell_m), their unit normals pointing up and λ0 (m²)."""
+    cells (√λ0 ≤ max_rms_m, √λ1 ≥ min_spread · cell_m), their unit normals pointing up and λ0
+    (m²)."""
     lam, vec = eigh3(cov)
     lam = np.clip(lam, 0.0, None)
-    planar = (np.sqrt(lam[:, 0]) <= settings.max_rms_m) & (np.sqrt(lam[:, 1]) >= settings.min_spread * cell_m)
+    thin = np.sqrt(lam[:, 0]) <= settings.max_rms_m
+    filled = np.sqrt(lam[:, 1]) >= settings.min_spread * cell_m
+    planar = thin & filled
     normal = vec[planar][:, :, 0]
     normal *= np.where(normal[:, 2] < 0, -1.0, 1.0)[:, None]
     return planar, normal, lam[planar, 0]
@@ -170,8 +182,10 @@ def _cell_moments(points, order, start, count):
     return mean, cov
 
 
-def _averaging(patches: Patches, rows: np.ndarray, cap: int, n_points: int) -> tuple[sp.csr_matrix, np.ndarray]:
-    """Sparse centroid weights for the patches ``rows`` (at most ``cap`` evenly picked points each)."""
+def _averaging(patches: Patches, rows: np.ndarray, cap: int,
+               n_points: int) -> tuple[sp.csr_matrix, np.ndarray]:
+    """Sparse centroid weights for the patches ``rows`` (at most ``cap`` evenly picked points
+    each)."""
     import scipy.sparse as sp
 
     c = patches.count[rows]
@@ -199,21 +213,25 @@ def match_pair_planes(strip_a_id: int, points_a: np.ndarray, strip_b_id: int, po
     points_b = np.asarray(points_b, float)
     if points_a.shape[0] == 0 or points_b.shape[0] == 0:
         empty = sp.csr_matrix((0, points_a.shape[0])), sp.csr_matrix((0, points_b.shape[0]))
-        return Correspondences(strip_a_id, strip_b_id, *empty, np.zeros((0, 3)), np.zeros(0), "planes")
-    cell = s.cell_m or max(patch_cell_size(points_a, s.target_points), patch_cell_size(points_b, s.target_points))
+        return Correspondences(strip_a_id, strip_b_id, *empty, np.zeros((0, 3)), np.zeros(0),
+                               "planes")
+    cell = s.cell_m or max(patch_cell_size(points_a, s.target_points),
+                           patch_cell_size(points_b, s.target_points))
     pa, pb = fit_patches(points_a, cell, s), fit_patches(points_b, cell, s)
     _, ia, ib = np.intersect1d(pa.keys, pb.keys, assume_unique=True, return_indices=True)
     cos_ab = np.abs(np.einsum("ij,ij->i", pa.normal[ia], pb.normal[ib]))
     offset = np.einsum("ij,ij->i", pa.centroid[ia] - pb.centroid[ib], pb.normal[ib])
-    keep = np.flatnonzero((cos_ab >= np.cos(np.radians(s.max_normal_angle_deg))) & (np.abs(offset) <= s.max_offset_m))
+    parallel = cos_ab >= np.cos(np.radians(s.max_normal_angle_deg))
+    keep = np.flatnonzero(parallel & (np.abs(offset) <= s.max_offset_m))
     if keep.size > s.max_planes:  # cells in key order: an even pick spreads over the overlap
         keep = keep[np.linspace(0, keep.size - 1, s.max_planes).astype(np.int64)]
     ia, ib = ia[keep], ib[keep]
     A, _ = _averaging(pa, ia, s.max_points_per_patch, points_a.shape[0])
     B, mb = _averaging(pb, ib, s.max_points_per_patch, points_b.shape[0])
     A, leverage_a = plane_point_weights(points_a, A, B @ points_b)  # a's plane at b's centroid
-    # each side's scatter (its own from count − 3 degrees of freedom): the posterior mean under a prior fitted
-    # to the pair's tie planes (issue 26: moderated toward their mean, quiet rows' σ were 1.2–1.3× too wide)
+    # each side's scatter (its own from count − 3 degrees of freedom): the posterior mean under a
+    # prior fitted to the pair's tie planes (issue 26: moderated toward their mean, quiet rows' σ
+    # were 1.2–1.3× too wide)
     var_a, nu_a = posterior(pa.rms_m[ia] ** 2, pa.count[ia] - 3)
     var_b, nu_b = posterior(pb.rms_m[ib] ** 2, pb.count[ib] - 3)
     parts = [var_a * leverage_a, var_b / mb]

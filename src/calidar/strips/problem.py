@@ -3,10 +3,11 @@ values, and their Jacobian.
 
 Residuals are cheap because the lidar equation is linear in what boresight, lever arm and
 range model act on: per correspondence row its weighted sums are taken once
-(:class:`calidar.strips.centroids.Centroids`) and every evaluation costs O(rows). Their derivatives are
-exact and analytic (boresight, lever arm, range offset and scale; the trajectory corrections,
-linear in their knots, as sparse columns). Scanner-angle parameters change u: then every
-referenced point is re-georeferenced and the Jacobian comes from central differences.
+(:class:`calidar.strips.centroids.Centroids`) and every evaluation costs O(rows). Their
+derivatives are exact and analytic (boresight, lever arm, range offset and scale; the
+trajectory corrections, linear in their knots, as sparse columns). Scanner-angle parameters
+change u: then every referenced point is re-georeferenced and the Jacobian comes from central
+differences.
 """
 
 from __future__ import annotations
@@ -24,8 +25,8 @@ from calidar.strips.centroids import Centroids, compact, correction_derivatives,
 from calidar.strips.correspond import Correspondences
 from calidar.strips.parameters import sensor_of
 from calidar.strips.strip import Pose, Strip, georeference_pose
-from calidar.strips.trajectory_errors import (StripCorrection, TrajectoryModel, corrections, corrections_of,
-                                              knot_scatter)
+from calidar.strips.trajectory_errors import (StripCorrection, TrajectoryModel, corrections,
+                                              corrections_of, knot_scatter)
 
 #: a height shift common to every strip (m, up; a vertical trajectory bias): the overlaps cannot see
 #: it, ground control can (the control pseudo-strip, id -1, is not shifted; calidar.strips.control)
@@ -33,31 +34,36 @@ HEIGHT_BIAS = "height_bias"
 CONTROL_STRIP = -1
 
 
-def georeference(sensor: Sensor, correction: StripCorrection | None, pose: Pose, time: np.ndarray) -> np.ndarray:
-    """Points (local m) of cached poses with ``sensor`` and a strip's trajectory correction (or None)."""
+def georeference(sensor: Sensor, correction: StripCorrection | None, pose: Pose,
+                 time: np.ndarray) -> np.ndarray:
+    """Points (local m) of cached poses with ``sensor`` and a strip's trajectory correction (or
+    None)."""
     pts = georeference_pose(sensor, pose)
     return pts if correction is None else correction.apply(pts, pose.position, time)
 
 
 class StripProblem(ResidualProblem):
     """Residuals of all correspondences for given parameter values (SI), with cached poses; given
-    the :class:`ParameterSet` to solve, the engine's problem (:class:`calidar.adjust.ResidualProblem`):
-    row σ, the trajectory knots' correlated priors, and the sensor and the knots read from the
-    engine's values as typed blocks (sensor names; :class:`calidar.strips.trajectory_errors.Knot`)."""
+    the :class:`ParameterSet` to solve, the engine's problem
+    (:class:`calidar.adjust.ResidualProblem`): row σ, the trajectory knots' correlated priors,
+    and the sensor and the knots read from the engine's values as typed blocks (sensor names;
+    :class:`calidar.strips.trajectory_errors.Knot`)."""
 
     #: the rows' σ are absolute, each side's from its points' scatter (the matchers' rows,
-    #: :mod:`calidar.strips.row_variance`), a control row's from its survey: σ0 < 1 never shrinks the angles' σ, with
-    #: the trajectory model off too (issue 26: there σ0 ≈ 0.7 came from the sloped rows' generous σ and shrank roll's,
-    #: whose flat-ground rows' σ hold, to 1/1.45 of its error; docs/validation.md)
+    #: :mod:`calidar.strips.row_variance`), a control row's from its survey: σ0 < 1 never shrinks
+    #: the angles' σ, with the trajectory model off too (issue 26: there σ0 ≈ 0.7 came from the
+    #: sloped rows' generous σ and shrank roll's, whose flat-ground rows' σ hold, to 1/1.45 of its
+    #: error; docs/validation.md)
     absolute_sigma = True
 
     def __init__(self, nominal: Sensor, poses: dict[int, Pose], corrs: list[Correspondences],
                  free: Sequence[str] | ParameterSet, times: dict[int, np.ndarray] | None = None,
-                 trajectory: TrajectoryModel | None = None, spans: dict[int, tuple[float, float]] | None = None):
-        """poses: per strip, cached poses holding at least every point the correspondences reference;
-        free: the free parameters' names, or the ParameterSet to solve (the engine's problem then);
-        times: per strip, the GPS times (s) of all its points; trajectory, spans: the model of
-        trajectory corrections (None: no corrections) and the strips' time spans."""
+                 trajectory: TrajectoryModel | None = None,
+                 spans: dict[int, tuple[float, float]] | None = None):
+        """poses: per strip, cached poses holding at least every point the correspondences
+        reference; free: the free parameters' names, or the ParameterSet to solve (the engine's
+        problem then); times: per strip, the GPS times (s) of all its points; trajectory, spans:
+        the model of trajectory corrections (None: no corrections) and the strips' time spans."""
         self.nominal = nominal
         self.trajectory, self.spans = trajectory, spans or {}
         if isinstance(free, ParameterSet):
@@ -79,35 +85,43 @@ class StripProblem(ResidualProblem):
         #: poses of every referenced point, for re-georeferencing them all (scanner parameters free)
         self.pose: dict[int, Pose] = {} if self.centroids is not None else {
             i: poses[i].take(poses[i].rows_of(idx)) for i, idx in self.index.items()}
-        self.corrs = [replace(c, A=compact(c.A, self.index[c.strip_a]), B=compact(c.B, self.index[c.strip_b]))
-                      for c in corrs]
-        self.sigma = np.concatenate([
-            np.repeat(np.broadcast_to(np.asarray(c.sigma_m, float), (c.n_obs,)), 3 if c.normal is None else 1)
-            for c in self.corrs])
+        self.corrs = [replace(c, A=compact(c.A, self.index[c.strip_a]),
+                              B=compact(c.B, self.index[c.strip_b])) for c in corrs]
+        self.sigma = np.concatenate([_row_sigma(c) for c in self.corrs])
         self._pattern = None  # the trajectory Jacobian's sparsity, built on its first call
         self._knots: dict[tuple[int, int], tuple] = {}  # (set, side) → the rows' knots and weights
-        self.row_time = [tuple((m @ self.time[sid]) / np.maximum(np.asarray(m.sum(axis=1)).ravel(), 1e-300)
-                               if self.time else None for m, sid in ((c.A, c.strip_a), (c.B, c.strip_b)))
+        self.row_time = [(self._side_time(c.A, c.strip_a), self._side_time(c.B, c.strip_b))
                          for c in self.corrs]
 
+    def _side_time(self, m: sp.csr_matrix, strip_id: int) -> np.ndarray | None:
+        """The weighted mean GPS time (s) of each row of one side (None: no trajectory model)."""
+        if not self.time:
+            return None
+        return (m @ self.time[strip_id]) / np.maximum(np.asarray(m.sum(axis=1)).ravel(), 1e-300)
+
     def _blocks(self) -> None:
-        """The sensor's and the trajectory knots' typed blocks of :attr:`parameters`, resolved once."""
+        """The sensor's and the trajectory knots' typed blocks of :attr:`parameters`, resolved
+        once."""
         params = self.parameters
         self.sensor_block = Block.of(params, {n: n for n in self.nominal.parameters()})
-        self.knot_block = None if self.trajectory is None else Block.of(params, self.trajectory.layout(self.spans))
-        self._scatter = None if self.knot_block is None else knot_scatter(self.knot_block.keys, self.trajectory,
-                                                                            self.spans)
-        self.prior_correlation = self.trajectory.prior_correlation(self.spans) if self.trajectory else ()
+        if self.trajectory is None:
+            self.knot_block, self._scatter, self.prior_correlation = None, None, ()
+            return
+        self.knot_block = Block.of(params, self.trajectory.layout(self.spans))
+        self._scatter = knot_scatter(self.knot_block.keys, self.trajectory, self.spans)
+        self.prior_correlation = self.trajectory.prior_correlation(self.spans)
 
     def _read(self, values: Mapping[str, float]) -> tuple[Sensor, dict[int, StripCorrection]]:
         """The sensor and the strips' trajectory corrections at ``values``: by typed block from the
         engine's :class:`Values`, by name from a plain mapping (other names ignored)."""
         if not isinstance(values, Values) or not hasattr(self, "sensor_block"):
             return sensor_of(self.nominal, values), corrections(values, self.trajectory, self.spans)
-        sensor = self.nominal.with_parameters(**dict(zip(self.sensor_block.names, self.sensor_block.take(values))))
+        named = dict(zip(self.sensor_block.names, self.sensor_block.take(values)))
+        sensor = self.nominal.with_parameters(**named)
         if self.knot_block is None:
             return sensor, {}
-        return sensor, corrections_of(self.knot_block.take(values), self._scatter, self.trajectory, self.spans)
+        knots = self.knot_block.take(values)
+        return sensor, corrections_of(knots, self._scatter, self.trajectory, self.spans)
 
     def residuals(self, values: Mapping[str, float]) -> np.ndarray:
         """The residuals (n,) at ``values`` (SI): :meth:`__call__`."""
@@ -121,7 +135,8 @@ class StripProblem(ResidualProblem):
         for k, c in enumerate(self.corrs):
             block = [np.floor(m @ strips[sid].time[self.index[sid]] / block_s).astype(np.int64)
                      for sid, m in ((c.strip_a, c.A), (c.strip_b, c.B))]
-            g = np.stack([(np.int64(c.strip_a) << 32) + block[0], (np.int64(c.strip_b) << 32) + block[1]], axis=1)
+            g = np.stack([(np.int64(c.strip_a) << 32) + block[0],
+                          (np.int64(c.strip_b) << 32) + block[1]], axis=1)
             p = (np.int64(k) << 32) + block[0]
             rep = 3 if c.normal is None else 1
             dyadic.append(np.repeat(g, rep, axis=0))
@@ -135,8 +150,9 @@ class StripProblem(ResidualProblem):
 
     def __call__(self, values: Mapping[str, float]) -> np.ndarray:
         sensor, fix = self._read(values)
-        if self.centroids is None:  # scanner parameters free: re-georeference every referenced point
-            pts = {i: georeference(sensor, fix.get(i), p, self.time.get(i)) for i, p in self.pose.items()}
+        if self.centroids is None:  # scanner parameters free: re-georeference every point used
+            pts = {i: georeference(sensor, fix.get(i), p, self.time.get(i))
+                   for i, p in self.pose.items()}
             pts = {i: _shifted(q, values.get(HEIGHT_BIAS, 0.0), i) for i, q in pts.items()}
             return np.concatenate([c.residuals(pts[c.strip_a], pts[c.strip_b]) for c in self.corrs])
         out = []
@@ -145,30 +161,32 @@ class StripProblem(ResidualProblem):
             for s, (side, sid, t) in enumerate(zip(sides, (c.strip_a, c.strip_b), times)):
                 q = side(sensor)
                 f = fix.get(sid)
-                q = q if f is None else f.apply(q, side.r, t, side.rowsum, self._row_knots(k, s, f, t))
+                if f is not None:
+                    q = f.apply(q, side.r, t, side.rowsum, self._row_knots(k, s, f, t))
                 p.append(_shifted(q, values.get(HEIGHT_BIAS, 0.0), sid, side.rowsum))
             d = p[0] - p[1]
             out.append(d.ravel() if c.normal is None else np.einsum("ij,ij->i", d, c.normal))
         return np.concatenate(out)
 
     def _row_knots(self, k: int, side: int, f: StripCorrection, time: np.ndarray):
-        """``f.knots(time)`` for side 0 (a) or 1 (b) of correspondence set k, computed once (fixed times)."""
+        """``f.knots(time)`` for side 0 (a) or 1 (b) of correspondence set k, computed once (fixed
+        times)."""
         if (k, side) not in self._knots:
             self._knots[k, side] = f.knots(time)
         return self._knots[k, side]
 
     def jacobian(self, values: Mapping[str, float], free: Sequence[Parameter] | None = None):
-        """∂residuals/∂(``free``, default :attr:`parameters`' free ones), (n, n_free): analytic for the sensor's parameters in
-        the centroid form, exact sparse columns for the trajectory corrections (linear in them;
-        two knots per strip and row, so the matrix is returned sparse when they are present);
-        central differences when scanner parameters are free. The sparsity pattern is built on
-        the first call; later calls only fill in the values."""
+        """∂residuals/∂(``free``, default :attr:`parameters`' free ones), (n, n_free): analytic
+        for the sensor's parameters in the centroid form, exact sparse columns for the trajectory
+        corrections (linear in them; two knots per strip and row, so the matrix is returned
+        sparse when they are present); central differences when scanner parameters are free.
+        The sparsity pattern is built on the first call; later calls only fill in the values."""
         free = self.parameters.free if free is None else free
         layout = self.trajectory.layout(self.spans) if self.trajectory else {}
         traj = {p.name: layout.get(p.name) for p in free}
         if self.centroids is None:
-            return numerical_jacobian(self, ParameterSet(replace(p, value=values[p.name]) for p in free),
-                                      np.array([values[p.name] for p in free]))
+            at = ParameterSet(replace(p, value=values[p.name]) for p in free)
+            return numerical_jacobian(self, at, np.array([values[p.name] for p in free]))
         sensor_free = [j for j, p in enumerate(free) if traj.get(p.name) is None]
         sensor_cols = self._sensor_columns(values, [free[j].name for j in sensor_free])
         if not any(traj.values()):
@@ -187,7 +205,9 @@ class StripProblem(ResidualProblem):
             for s, (sign, side, w) in enumerate(zip((1.0, -1.0), sides, weights)):
                 if w is not None:
                     D = correction_derivatives(side, sensor, c.normal)
-                    block[:, ns + 12 * s:ns + 12 * (s + 1)] = (sign * D[:, :, None, :] * w[:, None, :, None]).reshape(-1, 12)
+                    # (rows, per, 2 knots, 6): the knot's share w of the one-knot derivative
+                    knot_d = sign * D[:, :, None, :] * w[:, None, :, None]
+                    block[:, ns + 12 * s:ns + 12 * (s + 1)] = knot_d.reshape(-1, 12)
             start += c.n_obs * per
         return sp.csr_matrix((V[mask], indices, indptr), shape=(mask.shape[0], len(free)))
 
@@ -200,7 +220,8 @@ class StripProblem(ResidualProblem):
         out = []
         for k, (c, sides, times) in enumerate(zip(self.corrs, self.centroids, self.row_time)):
             d = np.zeros((c.n_obs, 3, len(names)))
-            for s, (sign, side, sid, t) in enumerate(zip((1.0, -1.0), sides, (c.strip_a, c.strip_b), times)):
+            ids = (c.strip_a, c.strip_b)
+            for s, (sign, side, sid, t) in enumerate(zip((1.0, -1.0), sides, ids, times)):
                 dq = side.derivatives(sensor, names)
                 f = fix.get(sid)
                 if f is not None:
@@ -208,7 +229,10 @@ class StripProblem(ResidualProblem):
                     w = (1.0 - frac)[:, None] * f.tilt[k0] + frac[:, None] * f.tilt[k1]
                     dq = dq + np.cross(w[:, :, None], dq, axis=1)
                 d += sign * dq
-            out.append(d.reshape(-1, len(names)) if c.normal is None else np.einsum("nik,ni->nk", d, c.normal))
+            if c.normal is None:
+                out.append(d.reshape(-1, len(names)))
+            else:
+                out.append(np.einsum("nik,ni->nk", d, c.normal))
         return np.concatenate(out)
 
     def _jacobian_pattern(self, free: Sequence[Parameter], traj: dict, sensor_free: list[int]):
@@ -231,11 +255,11 @@ class StripProblem(ResidualProblem):
                     weights.append(None)
                     continue
                 k0, k1, frac = self._row_knots(i, s, f, t)
-                colmap = np.array([[column.get((kind, ax, sid, k), -1) for kind in ("bias", "tilt") for ax in range(3)]
-                                   for k in range(f.shift.shape[0])])  # (n_knots, 6), −1 where not free
+                colmap = _knot_columns(column, sid, f.shift.shape[0])
                 w = np.stack([1.0 - frac, frac], axis=1)
                 cols = np.where(w[:, :, None] != 0, np.stack([colmap[k0], colmap[k1]], axis=1), -1)
-                C[start:start + c.n_obs * per, ns + 12 * s:ns + 12 * (s + 1)] = np.repeat(cols.reshape(-1, 12), per, axis=0)
+                row_cols = np.repeat(cols.reshape(-1, 12), per, axis=0)
+                C[start:start + c.n_obs * per, ns + 12 * s:ns + 12 * (s + 1)] = row_cols
                 weights.append(w)
             knot_weights.append(weights)
             start += c.n_obs * per
@@ -244,16 +268,31 @@ class StripProblem(ResidualProblem):
         return mask, C[mask], indptr, knot_weights
 
 
-def _shifted(q: np.ndarray, h: float, strip_id: int, rowsum: np.ndarray | None = None) -> np.ndarray:
-    """Points (or weighted sums, with ``rowsum``) of a strip raised by the common height bias ``h``
-    (m); the control pseudo-strip stays."""
+def _row_sigma(c: Correspondences) -> np.ndarray:
+    """The σ (m) of each residual of ``c``: its rows' σ, three times for 3D rows."""
+    per_row = np.broadcast_to(np.asarray(c.sigma_m, float), (c.n_obs,))
+    return np.repeat(per_row, 3 if c.normal is None else 1)
+
+
+def _knot_columns(column: dict, strip_id: int, n_knots: int) -> np.ndarray:
+    """The Jacobian columns of each knot's (bias x, y, z, tilt x, y, z) of strip ``strip_id``,
+    (n_knots, 6), −1 where not free."""
+    return np.array([[column.get((kind, ax, strip_id, k), -1)
+                      for kind in ("bias", "tilt") for ax in range(3)] for k in range(n_knots)])
+
+
+def _shifted(q: np.ndarray, h: float, strip_id: int,
+             rowsum: np.ndarray | None = None) -> np.ndarray:
+    """Points (or weighted sums, with ``rowsum``) of a strip raised by the common height bias
+    ``h`` (m); the control pseudo-strip stays."""
     if h == 0.0 or strip_id == CONTROL_STRIP:
         return q
     up = np.array([0.0, 0.0, h])
     return q + (up if rowsum is None else rowsum[:, None] * up)
 
 
-def _with_height_column(problem: StripProblem, values: Mapping[str, float], names: Sequence[str]) -> np.ndarray:
+def _with_height_column(problem: StripProblem, values: Mapping[str, float],
+                        names: Sequence[str]) -> np.ndarray:
     """:meth:`StripProblem._sensor_columns` with the :data:`HEIGHT_BIAS` column: each strip side's
     row sums along the normal's up part (e_up for 3D rows), signed a − b; the control side 0."""
     own = [n for n in names if n != HEIGHT_BIAS]

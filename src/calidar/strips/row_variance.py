@@ -1,18 +1,26 @@
 """A row's variance from its points' scatter, with a prior fitted to the pair's rows (issue 26).
 
-Each side of a VGICP row estimates its points' scatter along the normal from a handful of points (a's ball:
-n − 1 degrees of freedom; b's 12-point plane: 9). Moderated toward the pair's mean with a fixed weight
-(:func:`calidar.strips.correspond.moderated_variance`, ν0 = 20) the rows' σ are right on average but wrong
-row by row where surfaces differ in roughness: at the truth (``benchmarks/strips_vgicp_rows.py --rows``) the
-quiet rows' residuals were 0.66–0.85 of their σ on the airborne survey and the rough ones' 1.23.
+Each side of a VGICP row estimates its points' scatter along the normal from a handful of points
+(a's ball: n − 1 degrees of freedom; b's 12-point plane: 9). Moderated toward the pair's mean with
+a fixed weight (:func:`calidar.strips.correspond.moderated_variance`, ν0 = 20) the rows' σ are
+right on average but wrong row by row where surfaces differ in roughness: at the truth
+(``benchmarks/strips_vgicp_rows.py --rows``) the quiet rows' residuals were 0.66–0.85 of their σ
+on the airborne survey and the rough ones' 1.23.
 
-Here the spread of the true variances over the pair is fitted as a scaled inverse χ² prior (d0, s0²) from
-the rows' log-variances (Smyth 2004, *Linear models and empirical Bayes methods for assessing differential
-expression in microarray experiments*, Stat. Appl. Genet. Mol. Biol. 3:3, §6.2; limma's ``fitFDist``):
-E[e] = log s0² + ψ(d0/2) − log(d0/2) and Var[e] = ψ'(d0/2) + mean ψ'(d/2) for e = log s² − ψ(d/2) + log(d/2).
-Each row's variance is then the posterior mean E[τ² | s²] = ν′ s̃² / (ν′ − 2), s̃² = (d0 s0² + d s²) / ν′,
-ν′ = d0 + d (the inverse-χ² posterior): a row's squared residual over it has expectation 1 under the model,
-which is what the global test asks of every row (s̃² alone, the moderated-t scale, leaves ν′/(ν′ − 2) > 1).
+Here the spread of the true variances over the pair is fitted as a scaled inverse χ² prior
+(d0, s0²) from the rows' log-variances (Smyth 2004, *Linear models and empirical Bayes methods for
+assessing differential expression in microarray experiments*, Stat. Appl. Genet. Mol. Biol. 3:3,
+§6.2; limma's ``fitFDist``):
+
+    E[e] = log s0² + ψ(d0/2) − log(d0/2),   Var[e] = ψ'(d0/2) + mean ψ'(d/2)
+
+for e = log s² − ψ(d/2) + log(d/2). Each row's variance is then the posterior mean
+
+    E[τ² | s²] = ν′ s̃² / (ν′ − 2),   s̃² = (d0 s0² + d s²) / ν′,   ν′ = d0 + d
+
+(the inverse-χ² posterior): a row's squared residual over it has expectation 1 under the model,
+which is what the global test asks of every row (s̃² alone, the moderated-t scale, leaves
+ν′/(ν′ − 2) > 1).
 """
 
 from __future__ import annotations
@@ -21,7 +29,8 @@ import numpy as np
 
 from calidar.strips.correspond import SCATTER_PRIOR_DOF
 
-#: fewer usable rows than this in a pair: no prior fitted, the pair's mean with :data:`SCATTER_PRIOR_DOF`
+#: fewer usable rows than this in a pair: no prior fitted, the pair's mean with
+#: :data:`SCATTER_PRIOR_DOF`
 MIN_ROWS = 8
 #: the fitted prior's degrees of freedom at least this: d0 + d > 2 keeps every posterior mean finite
 MIN_PRIOR_DOF = 2.5
@@ -38,11 +47,13 @@ def _trigamma_inverse(y: float) -> float:
     return float(np.sqrt(lo * hi))
 
 
-def fitted_prior(variance_m2: np.ndarray, dof: np.ndarray, sampled: bool = True) -> tuple[float, float]:
-    """(d0, s0²) of the scaled inverse χ² prior of the true variances behind ``variance_m2`` (each from ``dof``
-    degrees of freedom), by the moments of the log-variances (Smyth 2004 §6.2); d0 = inf when the rows
-    scatter no more than their sampling allows (one variance for all). ``sampled`` False: the variances are
-    expected values (a plan's, mirroring the calibrator), their whole spread the prior's."""
+def fitted_prior(variance_m2: np.ndarray, dof: np.ndarray,
+                 sampled: bool = True) -> tuple[float, float]:
+    """(d0, s0²) of the scaled inverse χ² prior of the true variances behind ``variance_m2`` (each
+    from ``dof`` degrees of freedom), by the moments of the log-variances (Smyth 2004 §6.2);
+    d0 = inf when the rows scatter no more than their sampling allows (one variance for all).
+    ``sampled`` False: the variances are expected values (a plan's, mirroring the calibrator),
+    their whole spread the prior's."""
     from scipy.special import digamma, polygamma
 
     ok = (dof > 0) & (variance_m2 > 0)
@@ -59,9 +70,9 @@ def fitted_prior(variance_m2: np.ndarray, dof: np.ndarray, sampled: bool = True)
 
 def posterior(variance_m2: np.ndarray, dof: np.ndarray | float, sampled: bool = True
               ) -> tuple[np.ndarray, np.ndarray]:
-    """Each row's E[τ² | s²] (m²) under the prior fitted to all of ``variance_m2`` (see the module docstring) and
-    its posterior degrees of freedom ν′ = d0 + d (inf when the rows pool fully); ``sampled``: see
-    :func:`fitted_prior`."""
+    """Each row's E[τ² | s²] (m²) under the prior fitted to all of ``variance_m2`` (see the
+    module docstring) and its posterior degrees of freedom ν′ = d0 + d (inf when the rows pool
+    fully); ``sampled``: see :func:`fitted_prior`."""
     s2 = np.asarray(variance_m2, float)
     d = np.broadcast_to(np.asarray(dof, float), s2.shape)
     if s2.size == 0:
@@ -79,8 +90,9 @@ def posterior_variance(variance_m2: np.ndarray, dof: np.ndarray | float) -> np.n
 
 
 def satterthwaite(parts: list[np.ndarray], dofs: list[np.ndarray]) -> np.ndarray:
-    """Degrees of freedom of a sum of variance estimates (each (R,) m² with its own degrees of freedom; inf for
-    a known term): (Σ v)² / Σ v²/ν (Welch 1947, Satterthwaite 1946); inf when every term is known."""
+    """Degrees of freedom of a sum of variance estimates (each (R,) m² with its own degrees of
+    freedom; inf for a known term): (Σ v)² / Σ v²/ν (Welch 1947, Satterthwaite 1946); inf when
+    every term is known."""
     total = np.sum(parts, axis=0)
     spread = np.sum([np.where(np.isfinite(d), v**2 / np.where(np.isfinite(d), d, 1.0), 0.0)
                      for v, d in zip(parts, dofs)], axis=0)
@@ -88,16 +100,17 @@ def satterthwaite(parts: list[np.ndarray], dofs: list[np.ndarray]) -> np.ndarray
         return np.where(spread > 0, total**2 / np.maximum(spread, 1e-300), np.inf)
 
 
-#: representative degrees of freedom kept of a solution's rows (the means of this many quantile bins)
+#: representative degrees of freedom kept of a solution's rows (the means of this many quantile
+#: bins)
 DOF_BINS = 20
 #: stands for an infinite number of degrees of freedom in solution.json (JSON has no inf)
 KNOWN_DOF = 1e9
 
 
 def dof_summary(dof: np.ndarray) -> list[float]:
-    """The rows' degrees of freedom as :data:`DOF_BINS` representative values (each the mean of 1/ν over a
-    quantile bin, inverted; :data:`KNOWN_DOF` for known σ) — what :func:`consistency` needs, small enough for
-    solution.json."""
+    """The rows' degrees of freedom as :data:`DOF_BINS` representative values (each the mean of
+    1/ν over a quantile bin, inverted; :data:`KNOWN_DOF` for known σ) — what :func:`consistency`
+    needs, small enough for solution.json."""
     inv = np.sort(1.0 / np.clip(np.asarray(dof, float).ravel(), 2.05, KNOWN_DOF))
     if inv.size == 0 or inv[-1] <= 1.0 / KNOWN_DOF:  # no row, or every σ known
         return []
@@ -105,13 +118,14 @@ def dof_summary(dof: np.ndarray) -> list[float]:
 
 
 def consistency(kind: str | None, dofs: list[float] | None = None) -> float:
-    """The engine's robust σ0² (IRLS weights of ``kind`` on z / s, s = 1.4826 · MAD of z; σ0² = Σ w z² / Σ w)
-    for rows whose z = residual/σ follow Student's t with ``dofs`` degrees of freedom, scaled to unit variance
-    (σ² = E[τ² | s²]: a row's σ estimated from its scatter, Smyth 2004 §3; equal shares of the rows), relative
-    to 1: the factor the global test divides out. None or [] → normal z (Cauchy: 0.794, Huber: 0.92…).
+    """The engine's robust σ0² (IRLS weights of ``kind`` on z / s, s = 1.4826 · MAD of z;
+    σ0² = Σ w z² / Σ w) for rows whose z = residual/σ follow Student's t with ``dofs`` degrees of
+    freedom, scaled to unit variance (σ² = E[τ² | s²]: a row's σ estimated from its scatter,
+    Smyth 2004 §3; equal shares of the rows), relative to 1: the factor the global test divides
+    out. None or [] → normal z (Cauchy: 0.794, Huber: 0.92…).
 
-    The mixture's MAD scale is found by bisection on its CDF, the expectations by the trapezoid rule on a
-    sinh-spaced grid (the t's tails fall as |x|^−(ν+1); w·u² stays bounded)."""
+    The mixture's MAD scale is found by bisection on its CDF, the expectations by the trapezoid
+    rule on a sinh-spaced grid (the t's tails fall as |x|^−(ν+1); w·u² stays bounded)."""
     from scipy.special import gammaln, stdtr
 
     from calidar.adjust.solver import robust_weights
@@ -136,8 +150,8 @@ def consistency(kind: str | None, dofs: list[float] | None = None) -> float:
 
 
 def rows_dof(c) -> np.ndarray:
-    """The degrees of freedom of each residual of correspondences ``c`` (inf where unknown: σ taken as known, or
-    a matcher that picked rows without carrying ``dof`` along)."""
+    """The degrees of freedom of each residual of correspondences ``c`` (inf where unknown: σ taken
+    as known, or a matcher that picked rows without carrying ``dof`` along)."""
     n = c.n_obs * (3 if c.normal is None else 1)
     dof = np.asarray(c.dof, float).ravel()
     if dof.size == c.n_obs and n == c.n_obs:
