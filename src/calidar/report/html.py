@@ -151,10 +151,10 @@ class Section:
         keep = len(header) if truth else 4  # no truth: no truth, error or |error|/σ columns
         self.table(header[:keep], [r[:keep] for r in rows])
         self._residuals(doc["residuals"], residual_unit, residual_factor)
-        converged = "converged" if doc["converged"] else "NOT converged"
+        solver = "converged" if doc["converged"] else "did NOT converge"
         self.text(f"σ0 = {doc['sigma0']:.3f}, redundancy {doc['dof']:.0f}, condition number "
-                  f"{doc['condition_number']:.3g}, {len(doc['history']) - 1} iterations, "
-                  f"{converged}.")
+                  f"{doc['condition_number']:.3g}; the solver {solver} in "
+                  f"{len(doc['history']) - 1} iterations.")
         for w in doc["warnings"]:
             self.warning(w)
 
