@@ -260,7 +260,7 @@ def convergence_finding(result) -> Finding:
                        f"steps; mean correspondence distance {moved} mm): the estimate has not "
                        "converged",
                        "run again with more outer iterations (--config FILE with [solver] "
-                       "max_outer = 40 and [planes] threshold_m = 1e-6)")
+                       "max_outer = 40 and threshold_m = 1e-6, whichever the method)")
     if result.solution.converged and settled:
         return Finding("pass", "convergence",
                        f"{len(outer)} outer iterations, mean correspondence distance {moved} mm")
