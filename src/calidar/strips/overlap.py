@@ -103,18 +103,6 @@ def _intersection(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.intersect1d(a, b, assume_unique=True)
 
 
-def intersection_indices(a: np.ndarray,
-                         b: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``np.intersect1d(a, b, assume_unique=True, return_indices=True)`` (the common keys, their
-    positions in a and in b) by binary search when both are sorted unique keys; the same arrays."""
-    increasing = a.size and b.size and np.all(a[1:] > a[:-1]) and np.all(b[1:] > b[:-1])
-    if increasing and a.dtype == b.dtype:
-        ia = _members(a, b)
-        common = a[ia]
-        return common, ia, np.searchsorted(b, common)
-    return np.intersect1d(a, b, assume_unique=True, return_indices=True)
-
-
 def unpaired_notes(ids, pairs, cell_m: float, min_cells: int,
                    names: Mapping[int, str] | None = None) -> list[str]:
     """Plain-words notes about the strips ``ids`` in none of the ``pairs`` (a, b, ...), named by

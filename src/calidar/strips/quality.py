@@ -29,7 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from calidar.strips.cell_moments import CellMoments, key_indices
-from calidar.strips.overlap import common_cells, intersection_indices, unpaired_notes
+from calidar.strips.overlap import common_cells, unpaired_notes
 from calidar.strips.planes import PlaneSettings, planar_cells
 from calidar.strips.planimetric import (Planimetric, PlanimetricSettings, gradient_noise, gradients,
                                         planimetric_offsets)
@@ -293,10 +293,11 @@ def pair_quality(a: int, moments_a: CellMoments, b: int, moments_b: CellMoments,
     """Swath difference of two lines from their cell moments on one grid (the pair's cell)."""
     cell = moments_a.cell_m
     ps = PlaneSettings(min_points=s.min_points, max_rms_m=s.max_rms_m, min_spread=0.15)
-    _, ia, ib = intersection_indices(moments_a.keys, moments_b.keys)
+    _, ia, ib = np.intersect1d(moments_a.keys, moments_b.keys, assume_unique=True,
+                               return_indices=True)
     # planes of the shared cells only
     pa, pb = _planes(moments_a.select(ia), ps), _planes(moments_b.select(ib), ps)
-    keys, ia, ib = intersection_indices(pa[0].keys, pb[0].keys)
+    keys, ia, ib = np.intersect1d(pa[0].keys, pb[0].keys, assume_unique=True, return_indices=True)
     ij = key_indices(keys)
     centre = (ij + 0.5) * cell
     (ma, na), (mb, nb) = (pa[0].select(ia), pa[1][ia]), (pb[0].select(ib), pb[1][ib])

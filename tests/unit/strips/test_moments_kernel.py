@@ -125,21 +125,3 @@ def test_common_cells_intersection_is_numpys():
     occupied = {1: np.arange(0, 100), 2: np.arange(50, 300, 2), 3: np.arange(1000, 1010)}
     assert [(a, b, c.tolist()) for a, b, c in common_cells(occupied, 4)] == [
         (1, 2, list(range(50, 100, 2)))]
-
-
-def test_intersection_indices_are_numpys():
-    # the pairs' shared cells (issue 32, seventh session): common keys and both positions, as
-    # np.intersect1d(..., return_indices=True), sorted or not
-    from calidar.strips.overlap import intersection_indices
-
-    rng = np.random.default_rng(9)
-    for n in (0, 1, 5, 1000, 100_000):
-        for m in (0, 1, 7, 2000, 50_000):
-            a = np.unique(rng.integers(-2**40, 2**40, n))
-            extra = rng.choice(a, min(a.size, m // 2)) if a.size else np.zeros(0, np.int64)
-            b = np.unique(np.r_[extra, rng.integers(-2**40, 2**40, m)].astype(np.int64))
-            for x, y in ((a, b), (b, a), (a, rng.permutation(b))):
-                got = intersection_indices(x, y)
-                want = np.intersect1d(x, y, assume_unique=True, return_indices=True)
-                for g, w in zip(got, want):
-                    assert g.dtype == w.dtype and np.array_equal(g, w), (n, m)
