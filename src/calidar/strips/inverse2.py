@@ -7,9 +7,11 @@ arithmetic, operation for operation as the OpenBLAS kernels numpy ships with (th
 reciprocal multiplied in, the back substitution's update fused: one rounding), so that results
 stay equal to the last bit (``tests/unit/strips/test_inverse2.py`` compares random and covariance
 matrices of every scale). Anything LAPACK would call singular, a non-finite entry or another dtype
-than float64 goes to ``np.linalg.inv`` itself (its error, its NaNs, its precision). The kernels
-are those OpenBLAS picks on this machine (x86-64, Haswell and later); where it picks others,
-numpy's own last bits may differ from these as they differ between its builds.
+than float64 goes to ``np.linalg.inv`` itself (its error, its NaNs, its precision). The operations
+are those of the kernels OpenBLAS picks on x86-64 (Haswell and later); numpy built with another
+LAPACK, or OpenBLAS picking other kernels, may round differently: each process checks the kernel
+once against ``np.linalg.inv`` on :data:`PROBES` matrices and, unless every bit agrees, leaves all
+inverses to numpy.
 """
 
 from __future__ import annotations
@@ -30,18 +32,37 @@ def _fma(typingctx, a, b, c):  # pragma: no cover - numba
     return sig, codegen
 
 
+PROBES = 2000  #: matrices of the once-per-process check that the kernel rounds as numpy does
+_AGREES: list[bool] = []  #: the check's answer, once made
+
+
 def inv2(a: np.ndarray) -> np.ndarray:
     """The inverses (K, 2, 2) of matrices ``a`` (K, 2, 2), as ``np.linalg.inv(a)``."""
     a = np.asarray(a)
     if a.ndim != 3 or a.shape[1:] != (2, 2):
         raise ValueError(f"expected (K, 2, 2) matrices, got shape {a.shape}")
-    if a.dtype != np.float64:  # numpy's own precision (float32: sgesv)
+    if a.dtype != np.float64 or not agrees():  # numpy's own precision (float32: sgesv), or rounding
         return np.linalg.inv(a)
     a = np.ascontiguousarray(a)
     out = np.empty_like(a)
     if not _inv2_kernel(a, out):  # a zero pivot or a non-finite entry: LAPACK's own answer
         return np.linalg.inv(a)
     return out
+
+
+def agrees() -> bool:
+    """Whether the kernel gives ``np.linalg.inv``'s bits on :data:`PROBES` seeded matrices of every
+    scale (random, covariance-like, pivots of equal size, zero first entries): checked once."""
+    if not _AGREES:
+        rng = np.random.default_rng(20261127)
+        a = rng.normal(size=(PROBES, 2, 2)) * rng.lognormal(0.0, 4.0, (PROBES, 1, 1))
+        a[::4] = a[::4] @ a[::4].transpose(0, 2, 1)  # symmetric positive definite
+        a[1::7, 1, 0], a[2::9, 0, 0] = a[1::7, 0, 0], 0.0
+        out = np.empty_like(a)
+        ok = _inv2_kernel(a, out)
+        _AGREES.append(bool(ok and np.array_equal(out.view(np.int64),
+                                                  np.linalg.inv(a).view(np.int64))))
+    return _AGREES[0]
 
 
 @njit(cache=True, nogil=True)

@@ -3,6 +3,7 @@
 import numpy as np
 import pytest
 
+from calidar.strips import inverse2
 from calidar.strips.inverse2 import inv2
 from calidar.strips.planimetric import gradient_noise
 
@@ -12,6 +13,33 @@ def _same(a):
     got = inv2(a)
     assert got.shape == ref.shape
     np.testing.assert_array_equal(got.view(np.int64), ref.view(np.int64))  # every bit
+    if inverse2.agrees():  # the kernel itself, not numpy standing in for it
+        out = np.empty_like(ref)
+        assert inverse2._inv2_kernel(np.ascontiguousarray(a), out)
+        np.testing.assert_array_equal(out.view(np.int64), ref.view(np.int64))
+
+
+def test_the_kernel_is_used_where_numpy_is_openblas_on_x86_64_with_fma():
+    # (elsewhere numpy does the inverses: the results stay numpy's, only slower)
+    import platform
+    from pathlib import Path
+
+    blas = np.show_config(mode="dicts")["Build Dependencies"]["blas"]["name"]
+    cpu = Path("/proc/cpuinfo")
+    fma = cpu.is_file() and " fma " in cpu.read_text()
+    if platform.machine().lower() not in ("x86_64", "amd64") or "openblas" not in blas or not fma:
+        pytest.skip("the kernel mirrors OpenBLAS's x86-64 FMA kernels")
+    assert inverse2.agrees()
+
+
+def test_numpy_does_every_inverse_when_the_check_disagrees(monkeypatch):
+    monkeypatch.setattr(inverse2, "_AGREES", [False])
+    a = np.random.default_rng(6).normal(size=(1000, 2, 2))
+    calls = []
+    real = np.linalg.inv
+    monkeypatch.setattr(np.linalg, "inv", lambda x: calls.append(1) or real(x))
+    np.testing.assert_array_equal(inv2(a), real(a))
+    assert calls == [1]
 
 
 def test_random_matrices_of_every_scale_bit_for_bit():
