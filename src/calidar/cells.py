@@ -1,7 +1,7 @@
 """Points grouped by the grid cell holding them, in O(N): a dense table over the cells' bounding
 box when it is small against the points (≤ 4 N + 65 536 cells, as for a chunk of a strip), else a
 sort. Used for the per-cell moments of the overlap quality and the per-tile transforms of
-:mod:`calidar.crs`."""
+:mod:`calidar.crs`. Also rows of point and cell arrays taken by position (:func:`take_rows`)."""
 
 from __future__ import annotations
 
@@ -90,3 +90,19 @@ def key_order(occupied: np.ndarray, box):  # pragma: no cover - numba
                 out[r] = a * width + col
                 r += 1
     return out
+
+
+def index_rows(mask, n: int):
+    """``mask`` over n rows as the positions it selects (a boolean array of n: its true rows),
+    else unchanged: what :func:`take_rows` takes."""
+    if isinstance(mask, np.ndarray) and mask.dtype == np.bool_ and mask.shape == (n,):
+        return np.flatnonzero(mask)
+    return mask
+
+
+def take_rows(a: np.ndarray, rows) -> np.ndarray:
+    """``a[rows]``, the same array: ``np.take`` along the first axis for an integer index array
+    (several times faster than indexing an (N, 3) array with a boolean mask), else indexing."""
+    if isinstance(rows, np.ndarray) and rows.dtype.kind in "iu" and rows.ndim == 1 and a.ndim:
+        return a.take(rows, axis=0)
+    return a[rows]

@@ -227,7 +227,8 @@ def held_arrays(c: dict, metric_xyz: np.ndarray | None, masks: list) -> dict[str
     for k, m in enumerate(masks):
         bits |= m.astype(np.uint8) << k
     rows = np.flatnonzero(bits)
-    xyz = {a: c[a][rows] for a in "XYZ"} if metric_xyz is None else {"xyz": metric_xyz[rows]}
+    xyz = ({a: c[a][rows] for a in "XYZ"} if metric_xyz is None
+           else {"xyz": metric_xyz.take(rows, axis=0)})
     return {**xyz, "point_source_id": c["point_source_id"][rows],
             "gps_time": c["gps_time"][rows], "bits": bits[rows]}
 
@@ -243,7 +244,7 @@ def held_chunks(held, path: Path, bit: int,
     for c in held.chunks(path):
         rows = np.flatnonzero((c["bits"] >> bit) & 1)
         if "xyz" in c:
-            xyz = c["xyz"][rows]
+            xyz = c["xyz"].take(rows, axis=0)
         else:
             xyz = np.empty((rows.size, 3))
             for k, a in enumerate("XYZ"):

@@ -107,9 +107,13 @@ class LasPoints:
 
     def select(self, mask) -> "LasPoints":
         """The points where ``mask`` (boolean or index array) selects."""
-        kw = {f: None if getattr(self, f) is None else getattr(self, f)[mask]
+        from calidar.cells import index_rows, take_rows
+
+        rows = index_rows(mask, len(self))
+        kw = {f: None if getattr(self, f) is None else take_rows(getattr(self, f), rows)
               for f in OPTIONAL_FIELDS}
-        return replace(self, xyz=self.xyz[mask], gps_time=self.gps_time[mask], **kw)
+        return replace(self, xyz=take_rows(self.xyz, rows), gps_time=take_rows(self.gps_time, rows),
+                       **kw)
 
 
 def concat_points(parts: Sequence[LasPoints]) -> LasPoints:

@@ -126,8 +126,12 @@ def measure(paths, config: QualityConfig = QualityConfig()):
         for p in paths:
             for xyz, psid, t in held_chunks(counts.held, p, first.index(selections[p]), metric):
                 ids = index.of(psid, t)
-                for i in np.unique(ids):
-                    acc.add(int(i), xyz[ids == i], selections[p])
+                lines = np.unique(ids)
+                if lines.size == 1:  # the chunk's points of one line (as usual): no copy
+                    acc.add(int(lines[0]), xyz, selections[p])
+                    continue
+                for i in lines:
+                    acc.add(int(i), xyz.take(np.flatnonzero(ids == i), axis=0), selections[p])
         for i in index.ids:  # lines without a selected point: named in the notes
             acc.add(i, np.zeros((0, 3)))
         # the pairs in threads

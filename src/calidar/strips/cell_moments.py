@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from calidar.cells import group_cells
+from calidar.cells import group_cells, index_rows, take_rows
 from calidar.strips.moments_kernel import dense_moments, moments
 
 #: the 6 distinct products of a symmetric 3 × 3 scatter, in this order
@@ -143,8 +143,9 @@ class CellMoments:
         return cov
 
     def select(self, index) -> "CellMoments":
-        return CellMoments(self.cell_m, self.keys[index], self.count[index], self.mean[index],
-                           self.scatter[index])
+        rows = index_rows(index, len(self))
+        return CellMoments(self.cell_m, *(take_rows(a, rows) for a in (self.keys, self.count,
+                                                                        self.mean, self.scatter)))
 
 
 def cell_centres(keys: np.ndarray, cell_m: float) -> np.ndarray:

@@ -99,7 +99,9 @@ def gradient_noise(cov: np.ndarray, count: np.ndarray, normal: np.ndarray) -> np
     scatter σ²_z = λ_min / n_z² · n / (n − 3)."""
     lam = np.einsum("ki,kij,kj->k", normal, cov, normal)
     var_z = lam / normal[:, 2] ** 2 * count / np.maximum(count - 3, 1)
-    return var_z[:, None, None] * np.linalg.inv(cov[:, :2, :2]) / count[:, None, None]
+    from calidar.strips.inverse2 import inv2  # np.linalg.inv's bits, without its per-matrix cost
+
+    return var_z[:, None, None] * inv2(cov[:, :2, :2]) / count[:, None, None]
 
 
 def block_ids(centre: np.ndarray, block_m: float) -> tuple[np.ndarray, int]:

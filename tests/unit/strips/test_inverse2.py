@@ -1,0 +1,87 @@
+"""The 2×2 inverses of :mod:`calidar.strips.inverse2` equal ``np.linalg.inv``'s bit for bit."""
+
+import numpy as np
+import pytest
+
+from calidar.strips import inverse2
+from calidar.strips.inverse2 import inv2
+from calidar.strips.planimetric import gradient_noise
+
+
+def _same(a):
+    ref = np.linalg.inv(a)
+    got = inv2(a)
+    assert got.shape == ref.shape
+    np.testing.assert_array_equal(got.view(np.int64), ref.view(np.int64))  # every bit
+    if inverse2.agrees():  # the kernel itself, not numpy standing in for it
+        out = np.empty_like(ref)
+        assert inverse2._inv2_kernel(np.ascontiguousarray(a), out)
+        np.testing.assert_array_equal(out.view(np.int64), ref.view(np.int64))
+
+
+def test_the_kernel_is_used_where_numpy_is_openblas_on_x86_64_with_fma():
+    # (elsewhere numpy does the inverses: the results stay numpy's, only slower)
+    import platform
+    from pathlib import Path
+
+    blas = np.show_config(mode="dicts")["Build Dependencies"]["blas"]["name"]
+    cpu = Path("/proc/cpuinfo")
+    fma = cpu.is_file() and " fma " in cpu.read_text()
+    if platform.machine().lower() not in ("x86_64", "amd64") or "openblas" not in blas or not fma:
+        pytest.skip("the kernel mirrors OpenBLAS's x86-64 FMA kernels")
+    assert inverse2.agrees()
+
+
+def test_numpy_does_every_inverse_when_the_check_disagrees(monkeypatch):
+    monkeypatch.setattr(inverse2, "_AGREES", [False])
+    a = np.random.default_rng(6).normal(size=(1000, 2, 2))
+    calls = []
+    real = np.linalg.inv
+    monkeypatch.setattr(np.linalg, "inv", lambda x: calls.append(1) or real(x))
+    np.testing.assert_array_equal(inv2(a), real(a))
+    assert calls == [1]
+
+
+def test_random_matrices_of_every_scale_bit_for_bit():
+    rng = np.random.default_rng(3)
+    a = rng.normal(size=(400_000, 2, 2)) * rng.lognormal(0, 5, size=(400_000, 1, 1))
+    a[::7, 1, 0] = a[::7, 0, 0]  # equal magnitudes in the pivot column: no swap
+    a[::11, 1, 0] = -a[::11, 0, 0]
+    a[::13, 0, 0] = 0.0  # a zero first entry: the rows swap
+    _same(a)
+
+
+def test_covariances_and_strided_input_bit_for_bit():
+    rng = np.random.default_rng(4)
+    s = rng.normal(size=(200_000, 3, 5))
+    cov = s @ s.transpose(0, 2, 1) * rng.lognormal(-6, 2, size=(200_000, 1, 1))
+    _same(cov[:, :2, :2])  # a strided view, as gradient_noise passes it
+    single = cov[:, :2, :2].astype(np.float32)
+    assert inv2(single).dtype == np.float32
+    np.testing.assert_array_equal(inv2(single), np.linalg.inv(single))
+
+
+def test_singular_and_non_finite_as_numpy():
+    with pytest.raises(np.linalg.LinAlgError):
+        inv2(np.array([[[1.0, 0.0], [0.0, 1.0]], [[1.0, 2.0], [2.0, 4.0]]]))
+    with pytest.raises(np.linalg.LinAlgError):
+        inv2(np.zeros((1, 2, 2)))
+    a = np.array([[[1.0, np.nan], [0.5, 2.0]], [[2.0, 1.0], [1.0, 3.0]]])
+    np.testing.assert_array_equal(inv2(a), np.linalg.inv(a))  # NaN where numpy's are
+    assert inv2(np.zeros((0, 2, 2))).shape == (0, 2, 2)
+    with pytest.raises(ValueError, match="2, 2"):
+        inv2(np.zeros((3, 3, 3)))
+
+
+def test_gradient_noise_as_with_numpy_inverse():
+    rng = np.random.default_rng(5)
+    pts = rng.normal(size=(5000, 12, 3)) * [1.0, 0.7, 0.05]
+    cov = np.einsum("kni,knj->kij", pts - pts.mean(1, keepdims=True),
+                    pts - pts.mean(1, keepdims=True)) / 12
+    normal = np.linalg.eigh(cov)[1][:, :, 0]
+    normal *= np.sign(normal[:, 2:3])
+    count = rng.integers(6, 40, 5000).astype(float)
+    lam = np.einsum("ki,kij,kj->k", normal, cov, normal)
+    var_z = lam / normal[:, 2] ** 2 * count / np.maximum(count - 3, 1)
+    ref = var_z[:, None, None] * np.linalg.inv(cov[:, :2, :2]) / count[:, None, None]
+    np.testing.assert_array_equal(gradient_noise(cov, count, normal), ref)
