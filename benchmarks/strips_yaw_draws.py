@@ -18,9 +18,8 @@ the default calibration is run once; at its solution
   ``measured_trajectory``: no points simulated, the same numbers as the survey's SBET);
 - its expected spread for the simulator's process: in closed form (Gaussian-filtered white noise,
   kernel std 10 s position, 2 s attitude: ρ = exp(−Δt²/4k²); ``_circular``: with the
-  generator's
-  circular convolution, the record's two ends neighbours), and over ``--draws`` other draws of
-  the generator itself;
+  generator's circular convolution, the record's two ends neighbours), and over ``--draws``
+  other draws of the generator itself;
 - ``rows``: the rest of the actual error (actual − traj), against the rows' share
   √(N⁻¹N_dN⁻¹);
 - the survey's draw as z: traj / its spread. Its RMS over seeds is 1 for ordinary draws.
