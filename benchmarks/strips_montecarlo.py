@@ -101,6 +101,7 @@ def survey(seed: int, methods: list[str], vegetation: float, scale: tuple, varia
                              "sigma0": sol.sigma0, "sigma0_range": sigma0_range(sol.dof), "seconds": seconds,
                              "sigma0_test": global_test_sigma0(sol),
                              "sigma0_skipped": sol.extra.get("unit_weight", {}).get("sigma0"),
+                             "outer_iterations": len(result.outer),
                              "level": sol.extra.get("trajectory_accuracy_estimate")})
         if cache is None:
             shutil.rmtree(folder, ignore_errors=True)

@@ -155,7 +155,7 @@ class StripSettings:
     overlap_cell_m: float = 5.0  #: grid of the overlap detection
     min_overlap_cells: int = 4
     min_correspondences: int = 10  #: pairs with fewer are skipped with a warning
-    max_outer: int = 8  #: outer (re-matching) iterations
+    max_outer: int = 40  #: outer (re-matching) iterations at most (calidar.strips.convergence)
     #: stop when the mean correspondence distance changes by less (None: the matcher's threshold_m)
     threshold_m: float | None = None
     #: trajectory errors correlate over this time: σ from a cluster-robust covariance

@@ -30,6 +30,7 @@ from calidar.strips.control import (CONTROL_ID, ControlPoints, control_pose, con
 from calidar.strips.control_survey import PREFIX as CONTROL_PREFIX
 from calidar.strips.control_survey import SurveyErrors
 from calidar.strips.config import StripSettings
+from calidar.strips.convergence import extrapolated, moving
 from calidar.strips.correspond import Correspondences
 from calidar.strips.distribute import map_pairs
 from calidar.strips.matchers import Matcher
@@ -42,6 +43,8 @@ from calidar.strips.trajectory_errors import PREFIX as TRAJECTORY_PREFIX
 from calidar.strips.trajectory_errors import TrajectoryModel, corrections
 from calidar.strips.trajectory_level import TrajectoryLevel
 
+#: the parameters the convergence rule does not watch (nuisance: trajectory corrections, control)
+NUISANCE = (TRAJECTORY_PREFIX, CONTROL_PREFIX)
 #: an outer iteration's adjustment stops when every step is below this fraction of its σ: the next
 #: matching moves the points anyway (the last one is then refined:
 #: :data:`calidar.strips.calibrate.FINAL_STEP_IN_SIGMA`)
@@ -235,11 +238,15 @@ class Run:
 
 
 def outer_loop(run: Run, params: ParameterSet, client, say, log, pool, threshold_m: float) -> tuple:
-    """Match and solve until the mean correspondence distance settles: (the outer iterations, the
-    last estimate, its problem, correspondences and pairs, the first residuals and control rows)."""
+    """Match and solve until the mean correspondence distance settles and no estimated parameter
+    is still moving (:func:`calidar.strips.convergence.moving`, the verdict's rule), jumping ahead
+    along steady steps (:func:`calidar.strips.convergence.extrapolated`): (the outer iterations,
+    the last estimate, its problem, correspondences and pairs, the first residuals and control
+    rows)."""
     s = run.settings
     outer: list[dict] = []
     first_residuals = first_control = est = problem = pairs = None
+    jumped = -3  # the iteration count at the last jump: the rule reads three iterations after it
     for k in range(s.max_outer):
         corrs, pairs, times = run.match(params.values(), k, client, say, log, pool)
         n_obs = sum(c.n_obs for c in corrs)
@@ -258,16 +265,36 @@ def outer_loop(run: Run, params: ParameterSet, client, say, log, pool, threshold
                       "values": params.values()})
         settled = len(outer) > 1 and abs(
             outer[-2]["mean_distance_m"] - outer[-1]["mean_distance_m"]) < threshold_m
-        if settled:
+        if len(outer) - jumped < 3:  # the steps since the jump: not yet three iterations
+            continue
+        sigma = _sigma(est)
+        still = moving([o["values"] for o in outer], sigma, NUISANCE)
+        if settled and still is None:
             say("outer iterations settled", s.max_outer, s.max_outer)
             break
+        ahead = None if still is None else extrapolated(
+            [o["values"] for o in outer], sigma, params.free_names, NUISANCE)
+        if ahead is not None:
+            outer[-1]["extrapolated"] = True
+            params = ParameterSet(replace(p, value=ahead[p.name]) if p.free else p
+                                  for p in params)
+            jumped = len(outer)
     else:
         change = (abs(outer[-1]["mean_distance_m"] - outer[-2]["mean_distance_m"])
                   if len(outer) > 1 else float("nan"))
-        run.warnings.append(f"the outer loop stopped after {s.max_outer} iterations before the "
-                            "mean correspondence distance settled (last change "
+        run.warnings.append(f"the outer loop stopped after {s.max_outer} iterations before it "
+                            "converged (mean correspondence distance's last change "
                             f"{change * 1e3:.2g} mm)")
     return outer, est, problem, corrs, pairs, first_residuals, first_control
+
+
+def _sigma(est: Estimate) -> dict[str, float]:
+    """The free parameters' σ at ``est`` (diag N⁻¹ of its step scale times its variance factor):
+    the scale of :func:`calidar.strips.convergence.moving`."""
+    if est.step_scale is None:
+        return {}
+    factor = est.fit.variance_factor(est.r, est.w, est.x)
+    return dict(zip(est.parameters.free_names, np.sqrt(est.step_scale * factor)))
 
 
 def mean_distance(problem: StripProblem, residuals: np.ndarray) -> float:

@@ -37,6 +37,7 @@ from calidar.strips.correspond import Correspondences
 from calidar.strips.overlap import cell_keys, footprint_area_m2
 from calidar.strips.pca import eigh3
 from calidar.strips.row_variance import posterior, satterthwaite
+from calidar.strips.tilt import calibrated_normals
 
 if TYPE_CHECKING:  # scipy.sparse imported where used: `calidar quality` needs none of it
     import scipy.sparse as sp
@@ -237,4 +238,8 @@ def match_pair_planes(strip_a_id: int, points_a: np.ndarray, strip_b_id: int, po
     parts = [var_a * leverage_a, var_b / mb]
     sigma = np.sqrt(parts[0] + parts[1] + s.noise_floor_m**2)
     dof = satterthwaite(parts + [np.full(ia.size, s.noise_floor_m**2)], [nu_a, nu_b, np.inf])
-    return Correspondences(strip_a_id, strip_b_id, A, B, pb.normal[ib].copy(), sigma, "planes", dof)
+    # b's normal with its tilt's expectation given the fit (regression calibration, issue 26:
+    # flat rows' noisy tilts held the outer loop where the last matching left it)
+    normal = calibrated_normals(pb.normal[ib], pb.axes[ib], pb.spread_m2[ib], pb.rms_m[ib],
+                                pb.count[ib])
+    return Correspondences(strip_a_id, strip_b_id, A, B, normal, sigma, "planes", dof)

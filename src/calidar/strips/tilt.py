@@ -1,0 +1,72 @@
+"""A tie plane's normal as the adjustment's regressor: its tilt replaced by the expected true tilt
+given the fit (issue 26, the outer loop's crawl).
+
+A tie-plane row r = n_b · (â − c_b) (:mod:`calidar.strips.planes`) moves, in the adjustment's
+linear model, by n_b · δ when the strips move apart horizontally by δ: on flat ground by b's
+fitted tilt times δ. After the next matching, however, â is a's plane again at b's centroid and
+the row has moved by *a's* fitted tilt times δ. On flat ground both tilts are the fits' noise,
+independent of each other: the model's regressor (b's noise) says nothing of how the re-matched row
+moves, yet it weighs in the normal equations as if it did. Every flat row then acts as a prior that
+holds the strips' horizontal offsets where the last matching found them — re-centred at every
+matching, so the outer loop becomes a proximal iteration that crawls wherever the flat rows outweigh
+what parts the mounting from the trajectory corrections (the 10⁹ run's kept cells: ≈ 20 % of the
+pitch's error removed an outer iteration; docs/validation.md, seventh session). It also counts as
+information the angles' σ took in.
+
+The remedy is regression calibration (Carroll, Ruppert, Stefanski & Crainiceanu 2006, *Measurement
+Error in Nonlinear Models*, ch. 4): the noisy regressor replaced by its expectation given the data.
+The fitted normal's tilt from the vertical along its in-plane axes e_j, τ_j = z · e_j, has noise
+variance v_j = σ² / (m λ_j) (the least-squares slope's: σ² the points' scatter about the plane,
+m points, λ_j their variance along e_j). The true tilts of one pair's patches get a prior fitted to
+those patches — a mixture of zero-mean normals on a fixed grid of variances, zero included (flat
+ground), its weights by EM (the adaptive shrinkage of Stephens 2017, *Biostatistics* 18:275) — and
+each row's normal takes the posterior mean of its tilt: flat patches' rows no longer couple to
+horizontal moves, sloped ones keep their normals. Only b's fit is used, which the row's residual
+does not hold (its noise is a's and b's centroid's): the regressor stays independent of the
+residual's noise and the outer loop's fixed point unbiased.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+#: the prior's variances of a true tilt (rad²): flat, then 3·10⁻⁴ rad to 1 rad (walls are steeper:
+#: their tilts are far beyond the fits' noise and kept whatever the prior)
+PRIOR_VARIANCES = np.r_[0.0, np.logspace(-7.0, 0.0, 15)]
+EM_ITERATIONS = 60
+
+
+def expected_tilt(tau: np.ndarray, var: np.ndarray) -> np.ndarray:
+    """The posterior mean (R, 2) of true tilts given fitted ones ``tau`` (R, 2) with noise
+    variances ``var`` (R, 2), under a prior fitted to them (mixture of normals N(0, s²) over
+    :data:`PRIOR_VARIANCES`, weights by EM)."""
+    if tau.shape[0] == 0:
+        return tau.copy()
+    s2 = PRIOR_VARIANCES[None, :, None]
+    total = var[:, None, :] + s2  # (R, K, 2)
+    loglik = -0.5 * np.sum(np.log(total) + tau[:, None, :] ** 2 / total, axis=2)  # (R, K)
+    loglik -= loglik.max(axis=1, keepdims=True)
+    lik = np.exp(loglik)
+    weight = np.full(PRIOR_VARIANCES.size, 1.0 / PRIOR_VARIANCES.size)
+    for _ in range(EM_ITERATIONS):
+        post = lik * weight
+        post /= post.sum(axis=1, keepdims=True)
+        weight = post.mean(axis=0)
+    post = lik * weight
+    post /= post.sum(axis=1, keepdims=True)
+    return np.einsum("rk,rkj->rj", post, s2 / total) * tau
+
+
+def calibrated_normals(normal: np.ndarray, axes: np.ndarray, spread_m2: np.ndarray,
+                       rms_m: np.ndarray, count: np.ndarray) -> np.ndarray:
+    """Unit normals (R, 3) pointing up whose tilt from the vertical is the expected true tilt
+    (:func:`expected_tilt`) of the fitted ``normal`` (R, 3), from each patch's in-plane axes
+    (``axes`` (R, 3, 2)), its points' variances along them (``spread_m2`` (R, 2), m²), its
+    scatter about the plane (``rms_m``, m) and its points (``count``)."""
+    normal = np.asarray(normal, float)
+    tau = axes[:, 2, :]  # z · e_j: the tilt along each in-plane axis (rad, small angles)
+    var = np.clip(rms_m, 1e-6, None)[:, None] ** 2 / (count[:, None] * spread_m2)
+    shrunk = expected_tilt(tau, var)
+    # z = (z·n) n + Σ_j τ_j e_j, so n ≈ z − Σ_j τ_j e_j: the tilt τ_j replaced by its expectation
+    out = normal + np.einsum("rij,rj->ri", axes, tau - shrunk)
+    return out / np.linalg.norm(out, axis=1)[:, None]
