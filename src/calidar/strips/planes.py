@@ -237,4 +237,5 @@ def match_pair_planes(strip_a_id: int, points_a: np.ndarray, strip_b_id: int, po
     parts = [var_a * leverage_a, var_b / mb]
     sigma = np.sqrt(parts[0] + parts[1] + s.noise_floor_m**2)
     dof = satterthwaite(parts + [np.full(ia.size, s.noise_floor_m**2)], [nu_a, nu_b, np.inf])
-    return Correspondences(strip_a_id, strip_b_id, A, B, pb.normal[ib].copy(), sigma, "planes", dof)
+    return Correspondences(strip_a_id, strip_b_id, A, B, pb.normal[ib].copy(), sigma, "planes", dof,
+                           np.stack(parts, axis=1), np.stack([nu_a, nu_b], axis=1))
