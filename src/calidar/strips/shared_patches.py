@@ -27,11 +27,19 @@ from calidar.strips.correspond import Correspondences
 from calidar.strips.row_variance import satterthwaite
 
 
+def _carries(c: Correspondences) -> bool:
+    """Whether ``c`` carries its rows' sides' variances (a matcher that picks rows without
+    carrying them along leaves them unused)."""
+    shape = (c.n_obs, 2)
+    return (c.n_obs > 0 and c.side_variance is not None and c.side_dof is not None
+            and np.shape(c.side_variance) == shape and np.shape(c.side_dof) == shape)
+
+
 def _uses(corrs: list[Correspondences]) -> dict[int, np.ndarray]:
     """Per strip, how many rows of the sets that carry their sides' variances use each point."""
     count: dict[int, np.ndarray] = {}
     for c in corrs:
-        if c.side_variance is None:
+        if not _carries(c):
             continue
         for sid, m in ((c.strip_a, c.A), (c.strip_b, c.B)):
             n = count.setdefault(sid, np.zeros(0))
@@ -63,7 +71,7 @@ def counted_once(corrs: list[Correspondences]) -> tuple[list[Correspondences], l
     uses = _uses(corrs)
     out, shares = [], []
     for c in corrs:
-        if c.side_variance is None or c.n_obs == 0:
+        if not _carries(c):
             out.append(c)
             shares.append(np.ones(c.n_obs * (3 if c.normal is None else 1)))
             continue

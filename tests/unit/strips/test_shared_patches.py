@@ -98,3 +98,16 @@ def test_one_pair_and_other_rows_unchanged():
     for a, b in zip(again, counted):
         np.testing.assert_array_equal(a.sigma_m, b.sigma_m)
     assert all(np.all(s == 1.0) for s in share2)
+
+
+def test_rows_picked_without_their_sides_pass_through():
+    """A matcher that keeps every other row but not the sides' variances: its rows as matched."""
+    from dataclasses import replace
+
+    corrs, _ = _rows(1)
+    c = corrs[0]
+    half = replace(c, A=c.A[::2], B=c.B[::2], normal=c.normal[::2], sigma_m=c.sigma_m[::2],
+                   dof=c.dof[::2])
+    out, share = counted_once([half, *corrs[1:]])
+    np.testing.assert_array_equal(out[0].sigma_m, half.sigma_m)
+    assert np.all(share[0] == 1.0)
