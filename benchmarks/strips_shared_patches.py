@@ -1,8 +1,9 @@
 """Benchmark: how much the tie planes' rows share their patches across pairs, and what that does to
 the angles' σ (issue 26, seventh session).
 
-    NUMBA_NUM_THREADS=1 OMP_NUM_THREADS=1 PYTHONPATH=src python benchmarks/strips_shared_patches.py \\
-        --preset uav --directions cross --seeds 1000-1003 --cache DIR [--exact] [--json out.jsonl]
+    NUMBA_NUM_THREADS=1 OMP_NUM_THREADS=1 PYTHONPATH=src \\
+        python benchmarks/strips_shared_patches.py --preset uav --directions cross \\
+        --seeds 1000-1003 --cache DIR [--exact] [--json out.jsonl]
 
 Each cached survey (``strips_montecarlo.py``'s ``--cache``; ``--exact``: ``strips_roll.py``'s twin
 without trajectory errors, the preset's priors) is adjusted once from the TRUE sensor with the tie
@@ -18,7 +19,8 @@ covariance from the rows is taken two ways:
   rows' sharing.
 
 Also printed: how many rows use each strip point (k), the share of the rows whose sides have k ≥ 2,
-and the pitch move. ``shared``/``claimed`` near 1 for ``counted`` says the rows' σ carry the sharing.
+and the pitch move. ``shared``/``claimed`` near 1 for ``counted`` says the rows' σ carry the
+sharing.
 """
 
 from __future__ import annotations
@@ -44,7 +46,8 @@ from calidar.sim.survey import survey_config  # noqa: E402
 from calidar.strips import outer_loop as cal  # noqa: E402
 from calidar.strips import problem as problem_module  # noqa: E402
 from calidar.strips import shared_patches  # noqa: E402
-from calidar.strips.config import CalibrationConfig, StripSettings, TrajectorySettings, matchers_named  # noqa: E402
+from calidar.strips.config import (CalibrationConfig, StripSettings,  # noqa: E402
+                                   TrajectorySettings, matchers_named)
 from calidar.strips.parameters import sensor_of  # noqa: E402
 
 CAPTURED: list = []
@@ -92,8 +95,8 @@ def _uses(matched) -> tuple[float, float]:
     """The mean number of rows using a used strip point, and the share of row sides with k ≥ 2."""
     uses = shared_patches._uses(matched)
     ks = np.concatenate([u[u > 0] for u in uses.values()])
-    sides = [shared_patches.side_factor(m, uses[sid]) for c in matched if c.side_variance is not None
-             for sid, m in ((c.strip_a, c.A), (c.strip_b, c.B))]
+    sides = [shared_patches.side_factor(m, uses[sid]) for c in matched
+             if c.side_variance is not None for sid, m in ((c.strip_a, c.A), (c.strip_b, c.B))]
     f = np.concatenate(sides)
     return float(ks.mean()), float(np.mean(f > 1.25))
 
@@ -173,7 +176,8 @@ def main() -> None:
                   f"{row['move_deg'][1] * 1e3:+.3f} mdeg, σ {row['sigma_deg'][1] * 1e3:.3f}; rows' "
                   f"share claimed r/p/y " + "/".join(f"{x:.3f}" for x in c) + ", with the sharing "
                   + "/".join(f"{x:.3f}" for x in s) + f" (ratio {s[1] / c[1]:.2f} pitch); mean k "
-                  f"{row['mean_k']:.2f}, sides shared {100 * row['sides_shared']:.0f} %", flush=True)
+                  f"{row['mean_k']:.2f}, sides shared {100 * row['sides_shared']:.0f} %",
+                  flush=True)
 
 
 if __name__ == "__main__":
