@@ -187,6 +187,9 @@ class _Fit:
         self.r0 = self.residuals(self.x0)
         self.n = self.r0.size
         self.sig = np.broadcast_to(np.asarray(getattr(problem, "sigma", 1.0), float), (self.n,))
+        #: each residual's share of an observation (rows that share a noise term count partly)
+        self.share = np.broadcast_to(np.asarray(getattr(problem, "row_share", 1.0), float),
+                                     (self.n,))
         if self.n < len(self.free) - self.n_prior:
             raise CalibrationError(f"{self.n} observations cannot determine {len(self.free)} "
                                    "parameters")
@@ -234,15 +237,18 @@ class _Fit:
         return N, g
 
     def dof(self, w: np.ndarray) -> float:
-        """Effective redundancy: down-weighted observations count by their relative weight."""
-        return max(float(np.sum(w * self.sig**2)) + self.n_prior - len(self.free), 1.0)
+        """Effective redundancy: down-weighted observations count by their relative weight (and
+        by their share, :attr:`share`)."""
+        redundancy = float(np.sum(w * self.sig**2 * self.share))
+        return max(redundancy + self.n_prior - len(self.free), 1.0)
 
     def sigma0(self, r: np.ndarray, x: np.ndarray) -> tuple[float, int]:
         """(σ0, rows skipped as gross) by :func:`calidar.adjust.unit_weight.skipped_sigma0`: the RMS
         of r/σ with the priors' terms over the redundancy, rows beyond GROSS_Z σ0 skipped — recorded
         beside the engine's σ0, not its variance factor (why: docs/validation.md, issue 26)."""
         prior_sq = 2.0 * (self.cost(r, np.zeros_like(r), x))  # the priors' part of the cost
-        return skipped_sigma0(r / self.sig, prior_sq, self.n_prior, len(self.free), GROSS_Z)
+        return skipped_sigma0(r / self.sig, prior_sq, self.n_prior, len(self.free), GROSS_Z,
+                              self.share)
 
     def variance_factor(self, r: np.ndarray, w: np.ndarray, x: np.ndarray) -> float:
         """σ0² without priors (σ relative); max(σ0², 1) with them or with absolute observation σ
@@ -259,7 +265,7 @@ def _levenberg_marquardt(at: Estimate, step_in_sigma: float) -> Estimate:
     lam, history, n_inv_diag = 1e-3, list(at.history), at.step_scale  # n_inv_diag: N hardly changes
     c = fit.cost(r, w, x)
     steps = np.array([p.diff_step for p in fit.free])
-    redundancy = max(fit.n + fit.n_prior - len(fit.free), 1)
+    redundancy = max(float(np.sum(fit.share)) + fit.n_prior - len(fit.free), 1)
     def done(conv: bool) -> Estimate:
         return replace(at, x=x, r=r, w=w, history=history, converged=conv, step_scale=n_inv_diag)
 
@@ -309,7 +315,8 @@ def _solution(fit: _Fit, x: np.ndarray, r: np.ndarray, w: np.ndarray, history: l
     # σ0 read as the RMS of r/σ, gross rows skipped (calidar.strips.global_test shows it)
     if fit.robust:
         s0, skipped = fit.sigma0(r, x)
-        redundancy = float(max(fit.n - skipped + fit.n_prior - len(fit.free), 1))
+        kept = np.abs(r / fit.sig) <= GROSS_Z * s0
+        redundancy = float(max(np.sum(fit.share[kept]) + fit.n_prior - len(fit.free), 1))
         sol.extra["unit_weight"] = {"sigma0": s0, "rows_skipped": skipped, "gross_z": GROSS_Z,
                                     "redundancy": redundancy}
     return sol, J, N

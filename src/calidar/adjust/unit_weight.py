@@ -25,20 +25,22 @@ ITERATIONS = 30
 
 
 def skipped_sigma0(z: np.ndarray, prior_sq: float = 0.0, n_prior: int = 0, n_free: int = 0,
-                   gross_z: float | None = GROSS_Z) -> tuple[float, int]:
+                   gross_z: float | None = GROSS_Z,
+                   share: np.ndarray | None = None) -> tuple[float, int]:
     """(σ0, rows skipped) of standardised residuals ``z`` (r/σ), iterated from the MAD scale:
 
         σ0 = √((Σ z² over |z| ≤ gross_z·σ0 + prior_sq) / (rows kept + n_prior − n_free))
 
     ``prior_sq``: the priors' Σ (x − centre)ᵀ P (x − centre) over ``n_prior`` priors; ``gross_z``
-    None: no row skipped (the least-squares σ0)."""
+    None: no row skipped (the least-squares σ0); ``share``: each row's share of an observation in
+    the rows kept (1 each without)."""
     z = np.asarray(z, float).ravel()
     a = np.abs(z)
     keep = np.ones(a.size, bool)
     s = 1.4826 * float(np.median(a)) if a.size else 0.0
     for _ in range(ITERATIONS if gross_z is not None and s > 0 else 1):
         keep = a <= gross_z * s if gross_z is not None and s > 0 else keep
-        n = int(np.sum(keep))
+        n = float(np.sum(keep) if share is None else np.sum(np.ravel(share)[keep]))
         new = float(np.sqrt((np.sum(a[keep] ** 2) + prior_sq) / max(n + n_prior - n_free, 1)))
         if new == s:
             break

@@ -6,7 +6,9 @@ scans it (level flight along the line at the planned height and speed, the scann
 and range to the centroid; a rotating scanner — Palmer oval, wedge cone — sees the patch
 twice, ahead and back, and the side averages the two looks). The row's σ is the calibrator's —
 each side's point scatter over its point count, plus the noise floor — with the scatter from
-range and angle noise along the normal and the surface's own roughness.
+range and angle noise along the normal and the surface's own roughness; where a line's patch
+also lies in its other pairs' overlaps, its side's variance is raised as the calibrator's is
+for a patch that several pairs' rows use (:func:`shared_factor`).
 :class:`calidar.strips.problem.StripProblem` then builds the same Jacobian the adjustment uses.
 """
 
@@ -103,7 +105,7 @@ def correspondences(flown: list[Flown], pairs: list[PairPlanes], inst: Instrumen
             parts[k].append(scanned)
             cols.append(picked)
             used[k] += picked[0].size
-            var.append(v)
+            var.append(v * shared_factor(p, k, pairs, flown, inst))
             own.append(o)
         agree = np.maximum(p.agree, 1e-3) * p.weight
         sigma = np.sqrt((var[0] + var[1] + settings.noise_floor_m**2) / agree)
@@ -116,6 +118,22 @@ def correspondences(flown: list[Flown], pairs: list[PairPlanes], inst: Instrumen
         out.append(Correspondences(*ids, *selectors, normal, sigma))
         noise.append(real)
     return poses, times, out, np.concatenate(noise)
+
+
+def shared_factor(p: PairPlanes, line: int, pairs: list[PairPlanes], flown: list[Flown],
+                  inst: Instrument) -> np.ndarray:
+    """(k + 1)/2 per tie plane of pair ``p`` for its side on ``line``: k the pairs of that line
+    whose other line's swath also covers the plane (the calibrator counts a patch that k pairs'
+    rows use once, :mod:`calidar.strips.shared_patches`)."""
+    k = np.ones(p.centroid.shape[0])
+    for q in pairs:
+        if q is p or line not in (q.a, q.b):
+            continue
+        other = flown[q.b if q.a == line else q.a]
+        s, c = other.local(p.centroid[:, :2])
+        half = other.line.height_agl_m * np.tan(inst.half_fov_rad)
+        k += (s >= 0.0) & (s <= other.line.length_m) & (np.abs(c) <= half)
+    return 0.5 * (k + 1.0)
 
 
 def _strip_poses(flown: list[Flown], parts: dict[int, list], used: dict[int, int]):

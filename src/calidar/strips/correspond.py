@@ -38,6 +38,11 @@ class Correspondences:
     #: (residual/σ then follows Student's t; inf: σ taken as known) — the global test's
     #: consistency for the robust weights (issue 26)
     dof: np.ndarray | float = np.inf
+    #: (n_obs, 2) each side's share of the row's variance (m², a then b) and (n_obs, 2) their
+    #: degrees of freedom, when the matcher knows them (tie planes): a patch that several pairs'
+    #: rows use is then counted once (:mod:`calidar.strips.shared_patches`, issue 26)
+    side_variance: np.ndarray | None = None
+    side_dof: np.ndarray | None = None
 
     def __post_init__(self):
         if self.A.shape[0] != self.B.shape[0]:

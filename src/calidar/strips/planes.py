@@ -242,4 +242,5 @@ def match_pair_planes(strip_a_id: int, points_a: np.ndarray, strip_b_id: int, po
     # flat rows' noisy tilts held the outer loop where the last matching left it)
     normal = calibrated_normals(pb.normal[ib], pb.axes[ib], pb.spread_m2[ib], pb.rms_m[ib],
                                 pb.count[ib])
-    return Correspondences(strip_a_id, strip_b_id, A, B, normal, sigma, "planes", dof)
+    return Correspondences(strip_a_id, strip_b_id, A, B, normal, sigma, "planes", dof,
+                           np.stack(parts, axis=1), np.stack([nu_a, nu_b], axis=1))

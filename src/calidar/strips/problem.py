@@ -24,6 +24,7 @@ from calidar.sensor import Sensor
 from calidar.strips.centroids import Centroids, compact, correction_derivatives, union
 from calidar.strips.correspond import Correspondences
 from calidar.strips.parameters import sensor_of
+from calidar.strips.shared_patches import counted_once
 from calidar.strips.strip import Pose, Strip, georeference_pose
 from calidar.strips.trajectory_errors import (StripCorrection, TrajectoryModel, corrections,
                                               corrections_of, knot_scatter)
@@ -66,6 +67,9 @@ class StripProblem(ResidualProblem):
         the model of trajectory corrections (None: no corrections) and the strips' time spans."""
         self.nominal = nominal
         self.trajectory, self.spans = trajectory, spans or {}
+        corrs, shares = counted_once(list(corrs))  # a patch several pairs use, counted once
+        #: each residual's share of an observation in the redundancy (the engine's σ0)
+        self.row_share = np.concatenate(shares) if shares else np.zeros(0)
         if isinstance(free, ParameterSet):
             self.parameters, free = free, free.free_names
             self._blocks()
