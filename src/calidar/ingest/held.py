@@ -16,6 +16,7 @@ from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
+from numba import njit
 
 
 class HeldPoints:
@@ -104,15 +105,8 @@ class HeldFiles:
         """A chunk (LasPoints with STRIP_FIELDS) of ``path`` and its times; False (nothing kept)
         when its coordinates are not the stored integers × scales + offsets exactly."""
         from calidar.io.las import OPTIONAL_FIELDS
-        xyz = chunk.xyz
-        raw = np.round((xyz - offsets) / scales)
-        if not np.all(np.abs(raw) < 2**31):
-            return False
-        stored = raw.astype(np.int32)
-        back = np.empty_like(xyz)
-        for k in range(3):  # as laspy scales them (and so pass 2 will): bit for bit, or not held
-            back[:, k] = stored[:, k] * scales[k] + offsets[k]
-        if not np.array_equal(back, xyz):
+        stored = stored_integers(chunk.xyz, scales, offsets)
+        if stored is None:
             return False
         with self._lock:
             # no points (copies, not views: a view would keep the chunk's buffers for the run)
@@ -147,6 +141,30 @@ class HeldFiles:
 
     def __getstate__(self):
         raise TypeError("held points stay in their process")
+
+
+def stored_integers(xyz: np.ndarray, scales, offsets) -> np.ndarray | None:
+    """The LAS integers (N, 3) int32 whose X · scale + offset, as laspy scales them (and so a
+    second pass will), are ``xyz`` bit for bit; None when some coordinate is not such a value.
+    One numba pass: round((xyz − offset) / scale) within ±2³¹, then scaled back and compared."""
+    xyz = np.ascontiguousarray(xyz, dtype=np.float64)
+    stored = np.empty(xyz.shape, np.int32)
+    scales, offsets = (np.ascontiguousarray(v, dtype=np.float64) for v in (scales, offsets))
+    return stored if _stored_kernel(xyz, scales, offsets, stored) else None
+
+
+@njit(cache=True, nogil=True)
+def _stored_kernel(xyz, scales, offsets, stored):  # pragma: no cover - numba
+    for i in range(xyz.shape[0]):
+        for a in range(3):
+            r = np.rint((xyz[i, a] - offsets[a]) / scales[a])  # np.round: half to even
+            if not abs(r) < 2147483648.0:  # (NaN too)
+                return False
+            s = np.int32(r)
+            if np.float64(s) * scales[a] + offsets[a] != xyz[i, a]:
+                return False
+            stored[i, a] = s
+    return True
 
 
 def _remove_folder(folder: str) -> None:
