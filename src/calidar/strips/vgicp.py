@@ -44,6 +44,8 @@ import small_gicp
 
 from calidar.errors import CalibrationError
 from calidar.strips.correspond import Correspondences
+from calidar.strips.vgicp_kernels import cell_keys, common_cells, first_in_cells, xy_bounds
+from calidar.strips.vgicp_knn import GridKnn
 from calidar.strips.vgicp_planes import Grid, local_planes, near, plane_rows
 
 KINDS = ("point_to_plane", "point_to_point")
@@ -122,6 +124,15 @@ class _Clock:
 def overlap_masks(points_a: np.ndarray, points_b: np.ndarray,
                   cell_m: float) -> tuple[np.ndarray, np.ndarray, float]:
     """Points of a and b in xy cells (size cell_m, m) occupied by both; also the overlap (m²)."""
+    if len(points_a) and len(points_b):  # one pass each (strips.vgicp_kernels), the same cells
+        (lo_a, hi_a), (lo_b, hi_b) = xy_bounds(points_a), xy_bounds(points_b)
+        lower = np.minimum(lo_a, lo_b)
+        grid = Grid(lower, np.maximum(hi_a, hi_b), cell_m)
+        if grid.size <= Grid.MAX_TABLE:
+            ncol, cell = grid.shape[1], float(cell_m)
+            in_a, in_b, common = common_cells(cell_keys(points_a, lower, cell, ncol),
+                                              cell_keys(points_b, lower, cell, ncol), grid.size)
+            return in_a, in_b, common * cell_m**2
     xy_a, xy_b = points_a[:, :2], points_b[:, :2]
     lower = np.minimum(xy_a.min(axis=0), xy_b.min(axis=0))
     grid = Grid(lower, np.maximum(xy_a.max(axis=0), xy_b.max(axis=0)), cell_m)
@@ -173,9 +184,12 @@ def _spread(points: np.ndarray, n_max: int, area_m2: float) -> np.ndarray:
     """Indices of at most ~n_max points spread evenly in xy (one per grid cell, deterministic)."""
     if points.shape[0] <= n_max:
         return np.arange(points.shape[0])
-    xy = points[:, :2]
-    grid = Grid(xy.min(axis=0), xy.max(axis=0), np.sqrt(area_m2 / n_max))
-    first = grid.first(grid.keys(grid.ij(xy)))
+    lo, hi = xy_bounds(points)
+    grid = Grid(lo, hi, np.sqrt(area_m2 / n_max))
+    if grid.size <= Grid.MAX_TABLE:  # one pass (strips.vgicp_kernels), the same indices
+        first = first_in_cells(cell_keys(points, lo, float(grid.cell), grid.shape[1]), grid.size)
+    else:
+        first = grid.first(grid.keys(grid.ij(points[:, :2])))
     if first.size > n_max:  # ragged overlap outline: thin regularly
         first = first[np.linspace(0, first.size - 1, n_max).astype(np.int64)]
     return first
@@ -238,7 +252,7 @@ def match_pair_vgicp(strip_a_id: int, points_a: np.ndarray, strip_b_id: int, poi
         raise CalibrationError(f"too few VGICP correspondences: registration left {near_b.size} "
                                f"points of b near a's points (need {settings.min_pairs} pairs)")
     b_near = b_on_a[near_b]
-    tree_b = small_gicp.KdTree(b_near, num_threads=settings.num_threads)
+    tree_b = GridKnn(b_near)  # small_gicp's KdTree's neighbours, without its build's cost
     planes = local_planes(b_near, ov_a[cand], k, settings.num_threads, tree_b)
     keep = planes.distance[:, 0] < threshold
     sigma, dof = (0.05 if settings.sigma_m is None else settings.sigma_m), np.inf
