@@ -50,7 +50,8 @@ class GridKnn:
 
 @njit(cache=True, nogil=True)
 def _bucket(keys, size):  # pragma: no cover - numba
-    """Counting sort of the points by cell key: (point order, each cell's start in it (size + 1))."""
+    """Counting sort of the points by cell key: (point order, each cell's start in it, size + 1
+    entries)."""
     start = np.zeros(size + 1, np.int64)
     for key in keys:
         start[key + 1] += 1
