@@ -97,18 +97,20 @@ def _knn(points, order, start, lo, cell, shape, queries, k):  # pragma: no cover
         # cells + this away
         edge = min(fx - ci, ci + 1 - fx, fy - cj, cj + 1 - fy) * cell
         r_max = max(ci + 1, ni - ci, cj + 1, nj - cj)  # beyond it no cell of the grid
+        r_min = max(0, -ci, ci - (ni - 1), -cj, cj - (nj - 1))  # nearer rings: none either
         n = 0
-        for r in range(r_max + 1):
+        for r in range(r_min, r_max + 1):
             if r > 0 and n == k:  # (less a margin far above the rounding of fx, fy and d)
                 bound = (r - 1) * cell + edge - 1e-7 * cell
                 if bound > 0 and bound * bound > d2[m, k - 1]:
                     break
-            for i in range(ci - r, ci + r + 1):
-                if i < 0 or i >= ni:
-                    continue
-                edge_row = i == ci - r or i == ci + r
-                step = 1 if edge_row else 2 * r
-                for j in range(cj - r, cj + r + 1, max(step, 1)):
-                    if 0 <= j < nj:
+            for i in range(max(ci - r, 0), min(ci + r, ni - 1) + 1):
+                if i == ci - r or i == ci + r:  # a whole row of the ring
+                    for j in range(max(cj - r, 0), min(cj + r, nj - 1) + 1):
                         n = _visit(points, order, start, i * nj + j, q, idx[m], d2[m], n, k)
+                else:  # its two ends
+                    if cj - r >= 0:
+                        n = _visit(points, order, start, i * nj + cj - r, q, idx[m], d2[m], n, k)
+                    if cj + r < nj:
+                        n = _visit(points, order, start, i * nj + cj + r, q, idx[m], d2[m], n, k)
     return idx, d2

@@ -46,6 +46,15 @@ def test_degenerate_clouds():
         assert np.array_equal(d2, want_d2) and np.array_equal(idx, want_idx)
 
 
+def test_far_queries():
+    """Queries far off the points (10⁵ cells away) start at the grid's nearest ring."""
+    pts = _surface(5_000, 2)
+    queries = np.array([[4.0e5, 3.0e5, 0.0], [-2.0e5, 10.0, 1.0], [0.0, -5.0e5, 0.0]])
+    idx, d2 = GridKnn(pts).batch_knn_search(queries, 12)
+    want_idx, want_d2 = _kdtree(pts, queries, 12)
+    assert np.array_equal(d2, want_d2) and np.array_equal(idx, want_idx)
+
+
 def test_k_out_of_range():
     pts = _surface(100, 1)
     with pytest.raises(ValueError):
