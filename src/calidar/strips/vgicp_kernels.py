@@ -130,3 +130,30 @@ def ball_rows(idx, d2, radius2):  # pragma: no cover - numba
                 columns[n] = idx[m, j]
                 n += 1
     return weights, columns, indptr, count
+
+
+@njit(cache=True, nogil=True)
+def neighbourhood_moments(points, idx):  # pragma: no cover - numba
+    """Centroid (M, 3) and scatter matrix Σ(p − centroid)(p − centroid)ᵀ (M, 3, 3) of each row's
+    points ``idx`` (M, k), as ``nb.mean(axis=1)`` and ``np.einsum("mki,mkj->mij", nb − centroid,
+    nb − centroid)`` sum them: over the k points in order."""
+    m_rows, k = idx.shape
+    centroid = np.empty((m_rows, 3))
+    scatter = np.empty((m_rows, 3, 3))
+    d = np.empty((k, 3))
+    for m in range(m_rows):
+        for c in range(3):
+            s = points[idx[m, 0], c]
+            for j in range(1, k):
+                s += points[idx[m, j], c]
+            centroid[m, c] = s / k
+        for j in range(k):
+            for c in range(3):
+                d[j, c] = points[idx[m, j], c] - centroid[m, c]
+        for a in range(3):
+            for b in range(3):
+                s = 0.0
+                for j in range(k):
+                    s += d[j, a] * d[j, b]
+                scatter[m, a, b] = s
+    return centroid, scatter

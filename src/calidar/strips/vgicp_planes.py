@@ -24,7 +24,8 @@ import small_gicp
 from calidar.strips.correspond import moderated_variance
 from calidar.strips.pca import eigh3
 from calidar.strips.row_variance import posterior, satterthwaite
-from calidar.strips.vgicp_kernels import ball_rows, cell_keys, near_cells, xy_bounds
+from calidar.strips.vgicp_kernels import (ball_rows, cell_keys, near_cells, neighbourhood_moments,
+                                          xy_bounds)
 from calidar.strips.vgicp_knn import GridKnn
 
 
@@ -131,10 +132,8 @@ def local_planes(points: np.ndarray, at: np.ndarray, k: int, num_threads: int,
     tree = small_gicp.KdTree(points, num_threads=num_threads) if tree is None else tree
     idx, d2 = tree.batch_knn_search(at, k, num_threads=num_threads)
     idx = idx.astype(np.int64)
-    nb = points[idx]
-    centroid = nb.mean(axis=1)
-    nb = nb - centroid[:, None, :]
-    eigval, eigvec = eigh3(np.einsum("mki,mkj->mij", nb, nb))  # ascending
+    centroid, scatter = neighbourhood_moments(points, idx)
+    eigval, eigvec = eigh3(scatter)  # ascending
     return LocalPlanes(idx, np.sqrt(d2), centroid, eigval, eigvec)
 
 

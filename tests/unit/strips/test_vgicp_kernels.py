@@ -8,7 +8,7 @@ import pytest
 import scipy.sparse as sp
 
 from calidar.strips.vgicp import _spread, overlap_masks
-from calidar.strips.vgicp_kernels import ball_rows, xy_bounds
+from calidar.strips.vgicp_kernels import ball_rows, neighbourhood_moments, xy_bounds
 from calidar.strips.vgicp_planes import Grid, near
 
 
@@ -64,3 +64,16 @@ def test_ball_rows_equal_numpy(k):
     assert np.array_equal(count, inside.sum(axis=1))
     assert np.array_equal(weights, want.data) and np.array_equal(columns, want.indices)
     assert np.array_equal(indptr, want.indptr)
+
+
+@pytest.mark.parametrize("m_rows, k", [(1, 3), (700, 12), (2500, 30)])
+def test_neighbourhood_moments_equal_numpy(m_rows, k):
+    rng = np.random.default_rng(m_rows + k)
+    points = rng.normal(0, 1, (5_000, 3)) * [40, 30, 0.5] + [1e3 / 3, -77.7, 12.0]
+    idx = rng.integers(0, len(points), (m_rows, k))
+    centroid, scatter = neighbourhood_moments(points, idx)
+    nb = points[idx]
+    want_centroid = nb.mean(axis=1)
+    nb = nb - want_centroid[:, None, :]
+    assert np.array_equal(centroid, want_centroid)
+    assert np.array_equal(scatter, np.einsum("mki,mkj->mij", nb, nb))
