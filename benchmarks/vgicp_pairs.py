@@ -13,7 +13,7 @@ georeferenced with the nominal sensor. For every overlapping pair, in one run an
 thread, timed in CPU seconds of this process
 (``time.process_time``: on a shared machine the CPU a call takes, not the wall clock it waited).
 Printed per pair the medians and the ratio, and over all pairs the sums and their ratio; the
-calidar stages (preprocess / register / correspond) summed over the pairs.
+calidar stages (preprocess / register / correspond, CPU seconds) summed over the pairs.
 """
 
 from __future__ import annotations
@@ -81,7 +81,7 @@ def main() -> None:
         print(f"all pairs: calidar {sum(ours_all):.2f} s, small_gicp align ({label}) {sum(ref):.2f} s: "
               f"{sum(ours_all) / sum(ref):.2f}× (median per pair {np.median(np.divide(ours_all, ref)):.2f}×)")
     print(f"load average {os.getloadavg()[0]:.1f}")
-    print("calidar stages over the pairs and repeats: " + ", ".join(f"{k} {v:.2f} s" for k, v in stages.items()))
+    print("calidar stages over the pairs and repeats (CPU): " + ", ".join(f"{k} {v:.2f} s" for k, v in stages.items()))
 
 
 if __name__ == "__main__":

@@ -44,6 +44,8 @@ import small_gicp
 
 from calidar.errors import CalibrationError
 from calidar.strips.correspond import Correspondences
+from calidar.strips.vgicp_kernels import cell_keys, common_cells, first_in_cells, xy_bounds
+from calidar.strips.vgicp_knn import GridKnn
 from calidar.strips.vgicp_planes import Grid, local_planes, near, plane_rows
 
 KINDS = ("point_to_plane", "point_to_point")
@@ -107,14 +109,15 @@ class Registration:
 
 
 class _Clock:
-    """Accumulates wall-clock seconds per stage into a dict (or does nothing for None)."""
+    """Accumulates this process's CPU seconds per stage into a dict (or does nothing for None): on
+    a shared machine the CPU a stage takes, not the wall clock it waited."""
 
     def __init__(self, timings: dict[str, float] | None):
-        self.timings, self.t = timings, time.perf_counter()
+        self.timings, self.t = timings, time.process_time()
 
     def lap(self, stage: str) -> None:
         if self.timings is not None:
-            now = time.perf_counter()
+            now = time.process_time()
             self.timings[stage] = self.timings.get(stage, 0.0) + now - self.t
             self.t = now
 
@@ -122,6 +125,15 @@ class _Clock:
 def overlap_masks(points_a: np.ndarray, points_b: np.ndarray,
                   cell_m: float) -> tuple[np.ndarray, np.ndarray, float]:
     """Points of a and b in xy cells (size cell_m, m) occupied by both; also the overlap (m²)."""
+    if len(points_a) and len(points_b):  # one pass each (strips.vgicp_kernels), the same cells
+        (lo_a, hi_a), (lo_b, hi_b) = xy_bounds(points_a), xy_bounds(points_b)
+        lower = np.minimum(lo_a, lo_b)
+        grid = Grid(lower, np.maximum(hi_a, hi_b), cell_m)
+        if grid.size <= Grid.MAX_TABLE:
+            ncol, cell = grid.shape[1], float(cell_m)
+            in_a, in_b, common = common_cells(cell_keys(points_a, lower, cell, ncol),
+                                              cell_keys(points_b, lower, cell, ncol), grid.size)
+            return in_a, in_b, common * cell_m**2
     xy_a, xy_b = points_a[:, :2], points_b[:, :2]
     lower = np.minimum(xy_a.min(axis=0), xy_b.min(axis=0))
     grid = Grid(lower, np.maximum(xy_a.max(axis=0), xy_b.max(axis=0)), cell_m)
@@ -173,9 +185,12 @@ def _spread(points: np.ndarray, n_max: int, area_m2: float) -> np.ndarray:
     """Indices of at most ~n_max points spread evenly in xy (one per grid cell, deterministic)."""
     if points.shape[0] <= n_max:
         return np.arange(points.shape[0])
-    xy = points[:, :2]
-    grid = Grid(xy.min(axis=0), xy.max(axis=0), np.sqrt(area_m2 / n_max))
-    first = grid.first(grid.keys(grid.ij(xy)))
+    lo, hi = xy_bounds(points)
+    grid = Grid(lo, hi, np.sqrt(area_m2 / n_max))
+    if grid.size <= Grid.MAX_TABLE:  # one pass (strips.vgicp_kernels), the same indices
+        first = first_in_cells(cell_keys(points, lo, float(grid.cell), grid.shape[1]), grid.size)
+    else:
+        first = grid.first(grid.keys(grid.ij(points[:, :2])))
     if first.size > n_max:  # ragged overlap outline: thin regularly
         first = first[np.linspace(0, first.size - 1, n_max).astype(np.int64)]
     return first
@@ -201,7 +216,7 @@ def match_pair_vgicp(strip_a_id: int, points_a: np.ndarray, strip_b_id: int, poi
     points of a in a ball as large about b's centroid (point_to_plane); A and B average them. Raises
     CalibrationError (the calibrator skips the pair with a warning naming it) when either strip has
     fewer than ``min_overlap_points`` in the overlap or fewer than ``min_pairs`` pairs are found.
-    ``timings``, when given, accumulates the seconds spent per stage ("preprocess", "register",
+    ``timings``, when given, accumulates the CPU seconds spent per stage ("preprocess", "register",
     "correspond").
     """
     settings = settings or VgicpSettings()
@@ -214,8 +229,10 @@ def match_pair_vgicp(strip_a_id: int, points_a: np.ndarray, strip_b_id: int, poi
         raise CalibrationError(f"too little overlap for VGICP ({n_a} and {n_b} points in "
                                f"{area:.0f} m², need {settings.min_overlap_points} of each strip)")
     idx_a, idx_b = np.flatnonzero(in_a), np.flatnonzero(in_b)
-    origin = points_a[idx_a].mean(axis=0)
-    ov_a, ov_b = points_a[idx_a] - origin, points_b[idx_b] - origin
+    ov_a = points_a[idx_a]  # gathered once
+    origin = ov_a.mean(axis=0)
+    ov_a -= origin
+    ov_b = points_b[idx_b] - origin
 
     clock.lap("preprocess")
     if overlap_width(ov_a) >= settings.min_registration_width_m:
@@ -238,7 +255,7 @@ def match_pair_vgicp(strip_a_id: int, points_a: np.ndarray, strip_b_id: int, poi
         raise CalibrationError(f"too few VGICP correspondences: registration left {near_b.size} "
                                f"points of b near a's points (need {settings.min_pairs} pairs)")
     b_near = b_on_a[near_b]
-    tree_b = small_gicp.KdTree(b_near, num_threads=settings.num_threads)
+    tree_b = GridKnn(b_near)  # small_gicp's KdTree's neighbours, without its build's cost
     planes = local_planes(b_near, ov_a[cand], k, settings.num_threads, tree_b)
     keep = planes.distance[:, 0] < threshold
     sigma, dof = (0.05 if settings.sigma_m is None else settings.sigma_m), np.inf

@@ -24,6 +24,9 @@ import small_gicp
 from calidar.strips.correspond import moderated_variance
 from calidar.strips.pca import eigh3
 from calidar.strips.row_variance import posterior, satterthwaite
+from calidar.strips.vgicp_kernels import (ball_rows, cell_keys, near_cells, neighbourhood_moments,
+                                          xy_bounds)
+from calidar.strips.vgicp_knn import GridKnn
 
 
 class Grid:
@@ -72,6 +75,12 @@ class Grid:
 
 def near(points: np.ndarray, at: np.ndarray, radius: float) -> np.ndarray:
     """Indices of the points (m) that may lie within ``radius`` (m, in xy) of any of ``at``."""
+    if len(points) and len(at):  # one pass each (strips.vgicp_kernels), the same indices
+        lo, hi = xy_bounds(points)
+        grid = Grid(lo, hi, radius)
+        if grid.size <= Grid.MAX_TABLE:
+            return near_cells(cell_keys(points, lo, float(radius), grid.shape[1]), at, lo,
+                              float(radius), grid.shape)
     grid = Grid(points[:, :2].min(axis=0), points[:, :2].max(axis=0), radius)
     return np.flatnonzero(grid.isin(grid.keys(grid.ij(points[:, :2])), grid.around(at[:, :2])))
 
@@ -118,14 +127,13 @@ class LocalPlanes:
 def local_planes(points: np.ndarray, at: np.ndarray, k: int, num_threads: int,
                  tree=None) -> LocalPlanes:
     """The surface of ``points`` around each of ``at`` (both (·, 3) m) from its k nearest points
-    (``tree``: their small_gicp KdTree, built here when None)."""
+    (``tree``: their small_gicp KdTree or :class:`~calidar.strips.vgicp_knn.GridKnn`, a KdTree
+    built here when None)."""
     tree = small_gicp.KdTree(points, num_threads=num_threads) if tree is None else tree
     idx, d2 = tree.batch_knn_search(at, k, num_threads=num_threads)
     idx = idx.astype(np.int64)
-    nb = points[idx]
-    centroid = nb.mean(axis=1)
-    nb = nb - centroid[:, None, :]
-    eigval, eigvec = eigh3(np.einsum("mki,mkj->mij", nb, nb))  # ascending
+    centroid, scatter = neighbourhood_moments(points, idx)
+    eigval, eigvec = eigh3(scatter)  # ascending
     return LocalPlanes(idx, np.sqrt(d2), centroid, eigval, eigvec)
 
 
@@ -149,15 +157,9 @@ def _ball_means(points: np.ndarray, at: np.ndarray, radius: np.ndarray, k_max: i
     of ``at`` (M, 3) m — at most the k_max nearest, and at least the nearest — and their counts
     (M,)."""
     k_max = min(k_max, points.shape[0])
-    tree = small_gicp.KdTree(points, num_threads=num_threads)
-    idx, d2 = tree.batch_knn_search(at, k_max, num_threads=num_threads)
-    inside = d2 <= radius[:, None] ** 2
-    inside[:, 0] = True
-    count = inside.sum(axis=1)
-    weights = (inside / count[:, None])[inside]
-    indptr = np.concatenate([[0], np.cumsum(count)])
-    return sp.csr_matrix((weights, idx.astype(np.int64)[inside], indptr),
-                         shape=(at.shape[0], points.shape[0])), count
+    idx, d2 = GridKnn(points).batch_knn_search(at, k_max, num_threads=num_threads)
+    weights, columns, indptr, count = ball_rows(idx, d2, radius**2)
+    return sp.csr_matrix((weights, columns, indptr), shape=(at.shape[0], points.shape[0])), count
 
 
 def _along_normal_variance(A: sp.csr_matrix, points: np.ndarray, mean: np.ndarray,
@@ -176,7 +178,7 @@ def plane_rows(planes: LocalPlanes, b_near: np.ndarray, tree_b, ov_a: np.ndarray
     """The point-to-plane rows from b's ``planes`` about the candidates (``keep``: b's nearest close
     enough).
 
-    b_near: b's points near the candidates, registered onto a (m), ``tree_b`` their KdTree; ov_a:
+    b_near: b's points near the candidates, registered onto a (m), ``tree_b`` their search; ov_a:
     a's overlap points (m); density_ratio: a's points per b's; settings:
     :class:`~calidar.strips.vgicp.VgicpSettings`. Returns b's planes found again, the averaging
     matrix of a's balls over ``ov_a[near_a]``, near_a, the rows kept, their normals, σ (m;

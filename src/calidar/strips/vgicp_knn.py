@@ -1,0 +1,116 @@
+"""Exact k nearest neighbours on an xy grid: the full-density searches of VGICP's correspondences.
+
+VGICP's rows look up b's k nearest points about ~2 000 candidates and a's balls about as many
+centroids, among the ~10⁵ points of each side's overlap. A small_gicp ``KdTree`` built for those
+few queries spends most of its time building (docs/validation.md, issue 32, seventh session);
+here the points are bucketed once by xy cell (a counting sort, O(N)) and each query visits the
+rings of cells about its own until the nearest unseen cell lies farther than its k-th neighbour,
+so the search is exact, as small_gicp's (ε = 0). The squared distances are computed as
+small_gicp 1.0's ``(p − q).squaredNorm()`` on 4-vectors sums them, (dx² + dz²) + dy², and the
+neighbours come in ascending distance (equal distances: first visited first, as a KdTree's
+leaf order does — a different order only between points exactly as far), so the rows are bit
+for bit the KdTree's (tests/unit/strips/test_vgicp_knn.py, and the pairs of the 8.75 M survey).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from calidar.strips.vgicp_kernels import cell_keys, xy_bounds
+
+#: points per cell on average (≈ k: few cells to visit, few points per cell to test)
+POINTS_PER_CELL = 8.0
+
+
+class GridKnn:
+    """The points (N, 3) m bucketed by xy cell, with small_gicp ``KdTree``'s
+    ``batch_knn_search``."""
+
+    def __init__(self, points: np.ndarray):
+        self.points = np.ascontiguousarray(points, dtype=np.float64)
+        lo, hi = xy_bounds(self.points)
+        extent = np.maximum(hi - lo, 1e-9)
+        cell = float(np.sqrt(extent[0] * extent[1] * POINTS_PER_CELL / len(self.points)))
+        cell = max(cell, float(extent.max()) / 4096.0, 1e-9)  # at most 4096 cells a side
+        self.lo, self.cell = lo, cell
+        self.shape = (np.floor(extent / cell).astype(np.int64) + 1)
+        keys = cell_keys(self.points, lo, cell, self.shape[1])
+        self.order, self.start = _bucket(keys, int(self.shape[0] * self.shape[1]))
+
+    def batch_knn_search(self, queries: np.ndarray, k: int, num_threads: int = 1):
+        """(indices (M, k) int64, squared distances (M, k)) of each query's k nearest points,
+        ascending (k ≤ N; ``num_threads`` is accepted for the KdTree's signature)."""
+        if not 1 <= k <= len(self.points):
+            raise ValueError(f"k must be 1 … {len(self.points)} (the points), got {k}")
+        queries = np.ascontiguousarray(queries, dtype=np.float64)
+        return _knn(self.points, self.order, self.start, self.lo, self.cell, self.shape,
+                    queries, k)
+
+
+@njit(cache=True, nogil=True)
+def _bucket(keys, size):  # pragma: no cover - numba
+    """Counting sort of the points by cell key: (point order, each cell's start in it, size + 1
+    entries)."""
+    start = np.zeros(size + 1, np.int64)
+    for key in keys:
+        start[key + 1] += 1
+    for c in range(size):
+        start[c + 1] += start[c]
+    fill = start[:-1].copy()
+    order = np.empty(keys.size, np.int64)
+    for p in range(keys.size):
+        order[fill[keys[p]]] = p
+        fill[keys[p]] += 1
+    return order, start
+
+
+@njit(cache=True, nogil=True)
+def _visit(points, order, start, c, q, best_i, best_d, n, k):  # pragma: no cover - numba
+    """Offer cell c's points to the query's sorted k best (n of them so far); the new n."""
+    for s in range(start[c], start[c + 1]):
+        p = order[s]
+        dx, dy, dz = points[p, 0] - q[0], points[p, 1] - q[1], points[p, 2] - q[2]
+        d = (dx * dx + dz * dz) + dy * dy  # small_gicp's squaredNorm of (dx, dy, dz, 0)
+        if n == k and d >= best_d[k - 1]:
+            continue
+        j = n if n < k else k - 1
+        while j > 0 and best_d[j - 1] > d:
+            best_d[j], best_i[j] = best_d[j - 1], best_i[j - 1]
+            j -= 1
+        best_d[j], best_i[j] = d, p
+        n = min(n + 1, k)
+    return n
+
+
+@njit(cache=True, nogil=True)
+def _knn(points, order, start, lo, cell, shape, queries, k):  # pragma: no cover - numba
+    m_rows = queries.shape[0]
+    idx = np.empty((m_rows, k), np.int64)
+    d2 = np.empty((m_rows, k), np.float64)
+    ni, nj = shape[0], shape[1]
+    for m in range(m_rows):
+        q = queries[m]
+        fx, fy = (q[0] - lo[0]) / cell, (q[1] - lo[1]) / cell
+        ci, cj = np.int64(np.floor(fx)), np.int64(np.floor(fy))
+        # distance (m) from the query to the edge of its own cell: ring r's cells lie ≥ (r − 1)
+        # cells + this away
+        edge = min(fx - ci, ci + 1 - fx, fy - cj, cj + 1 - fy) * cell
+        r_max = max(ci + 1, ni - ci, cj + 1, nj - cj)  # beyond it no cell of the grid
+        r_min = max(0, -ci, ci - (ni - 1), -cj, cj - (nj - 1))  # nearer rings: none either
+        n = 0
+        for r in range(r_min, r_max + 1):
+            if r > 0 and n == k:  # (less a margin far above the rounding of fx, fy and d)
+                bound = (r - 1) * cell + edge - 1e-7 * cell
+                if bound > 0 and bound * bound > d2[m, k - 1]:
+                    break
+            for i in range(max(ci - r, 0), min(ci + r, ni - 1) + 1):
+                if i == ci - r or i == ci + r:  # a whole row of the ring
+                    for j in range(max(cj - r, 0), min(cj + r, nj - 1) + 1):
+                        n = _visit(points, order, start, i * nj + j, q, idx[m], d2[m], n, k)
+                else:  # its two ends
+                    if cj - r >= 0:
+                        n = _visit(points, order, start, i * nj + cj - r, q, idx[m], d2[m], n, k)
+                    if cj + r < nj:
+                        n = _visit(points, order, start, i * nj + cj + r, q, idx[m], d2[m], n, k)
+    return idx, d2

@@ -1,0 +1,79 @@
+"""VGICP's numba kernels against the numpy expressions they replace: the same values, bit for bit
+(the pairs' correspondences must not change; docs/validation.md, issue 32, seventh session)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+
+from calidar.strips.vgicp import _spread, overlap_masks
+from calidar.strips.vgicp_kernels import ball_rows, neighbourhood_moments, xy_bounds
+from calidar.strips.vgicp_planes import Grid, near
+
+
+def _clouds(seed: int = 3):
+    rng = np.random.default_rng(seed)
+    a = rng.uniform([0, 0, 0], [300, 120, 5], (20_000, 3)) + [1.0e3 + 1 / 3, -2.0e3, 0]
+    b = rng.uniform([0, 0, 0], [300, 120, 5], (15_000, 3)) + [1.1e3 + 0.1, -1.95e3, 0]
+    return a, b
+
+
+def _overlap_numpy(pa, pb, cell):  # the expression before the kernels
+    xy_a, xy_b = pa[:, :2], pb[:, :2]
+    grid = Grid(np.minimum(xy_a.min(axis=0), xy_b.min(axis=0)),
+                np.maximum(xy_a.max(axis=0), xy_b.max(axis=0)), cell)
+    ka, kb = grid.keys(grid.ij(xy_a)), grid.keys(grid.ij(xy_b))
+    common = ka[grid.first(ka)]
+    common = common[grid.isin(common, kb)]
+    return grid.isin(ka, common), grid.isin(kb, common), common.size * cell**2
+
+
+def test_bounds_and_overlap_equal_numpy():
+    a, b = _clouds()
+    lo, hi = xy_bounds(a)
+    assert np.array_equal(lo, a[:, :2].min(axis=0)) and np.array_equal(hi, a[:, :2].max(axis=0))
+    for cell in (10.0, 7.3, 0.9):
+        got, want = overlap_masks(a, b, cell), _overlap_numpy(a, b, cell)
+        assert np.array_equal(got[0], want[0]) and np.array_equal(got[1], want[1])
+        assert got[2] == want[2] and 0 < got[2] < 300 * 120
+
+
+def test_near_and_spread_equal_numpy(monkeypatch):
+    a, b = _clouds(5)
+    at = a[::97]
+    got_near = near(b, at, 2.7)
+    got_spread = _spread(a, 500, 300 * 120)
+    monkeypatch.setattr(Grid, "MAX_TABLE", 0)  # the sorting fallback: the numpy path
+    assert np.array_equal(got_near, near(b, at, 2.7)) and 0 < got_near.size < len(b)
+    assert np.array_equal(got_spread, _spread(a, 500, 300 * 120)) and got_spread.size == 500
+
+
+@pytest.mark.parametrize("k", [1, 5, 24])
+def test_ball_rows_equal_numpy(k):
+    rng = np.random.default_rng(k)
+    d2 = np.sort(rng.uniform(0, 4, (300, k)), axis=1)
+    idx = rng.integers(0, 10_000, (300, k)).astype(np.uint64)
+    radius = rng.uniform(0.2, 2.5, 300)
+    weights, columns, indptr, count = ball_rows(idx, d2, radius**2)
+    inside = d2 <= radius[:, None] ** 2
+    inside[:, 0] = True  # the nearest always
+    want = sp.csr_matrix(((inside / inside.sum(axis=1)[:, None])[inside],
+                          idx.astype(np.int64)[inside],
+                          np.concatenate([[0], np.cumsum(inside.sum(axis=1))])))
+    assert np.array_equal(count, inside.sum(axis=1))
+    assert np.array_equal(weights, want.data) and np.array_equal(columns, want.indices)
+    assert np.array_equal(indptr, want.indptr)
+
+
+@pytest.mark.parametrize("m_rows, k", [(1, 3), (700, 12), (2500, 30)])
+def test_neighbourhood_moments_equal_numpy(m_rows, k):
+    rng = np.random.default_rng(m_rows + k)
+    points = rng.normal(0, 1, (5_000, 3)) * [40, 30, 0.5] + [1e3 / 3, -77.7, 12.0]
+    idx = rng.integers(0, len(points), (m_rows, k))
+    centroid, scatter = neighbourhood_moments(points, idx)
+    nb = points[idx]
+    want_centroid = nb.mean(axis=1)
+    nb = nb - want_centroid[:, None, :]
+    assert np.array_equal(centroid, want_centroid)
+    assert np.array_equal(scatter, np.einsum("mki,mkj->mij", nb, nb))
