@@ -310,8 +310,11 @@ def test_uav_walls_right_with_the_default_and_a_wrong_option_fails_with_exit_3(c
     with any normal about the line. With the default (neighbourhoods must span a plane) every VGICP
     angle is within 3σ and 0.01° of the truth (measured: 1.4/0.2/1.5σ) and the two methods agree; fed
     the old options (min_spread 0: lines kept; max_scatter_ratio off: a's ball unchecked) and one fixed σ for
-    every row, VGICP's yaw is 8.6 combined σ off the tie planes':
-    the verdict FAILs naming the disagreement and `calidar boresight` exits 3."""
+    every row, VGICP's rows do not fit their σ (σ0 2.19): the global test FAILs, so does every angle
+    ("not determined") and `calidar boresight` exits 3. (Until the outer loop ran on while a parameter
+    still moved — 27 Nov, seventh session — that run stopped after 2 iterations with yaw 8.6 combined σ
+    off the tie planes', and the disagreement failed it too; the loop now takes yaw to 2.3σ of the
+    truth and the two agree: the disagreement's FAIL is tested in tests/unit/strips/test_verdict.py.)"""
     cfg = survey_config("uav", seed=7, directions="cross", errors={
         "boresight_roll": np.radians(0.05), "boresight_pitch": np.radians(-0.03), "boresight_yaw": np.radians(0.1)})
     sim = simulate_survey(cfg).write(tmp_path / "sim")
@@ -335,6 +338,8 @@ def test_uav_walls_right_with_the_default_and_a_wrong_option_fails_with_exit_3(c
     assert code == 3, err
     doc = json.loads((tmp_path / "wrong" / "solution_vgicp.json").read_text())
     found = {f["check"]: f for f in doc["verdict"]["findings"]}
-    assert doc["verdict"]["status"] == "fail" and found["planes and vgicp agree"]["status"] == "fail"
-    assert "boresight_yaw planes − vgicp" in found["planes and vgicp agree"]["detail"]
-    assert "planes and vgicp agree" in " ".join(stdout.split())
+    assert doc["verdict"]["status"] == "fail" and found["global test"]["status"] == "fail"
+    assert doc["sigma0"] > 1.5, doc["sigma0"]
+    for name in ANGLES:
+        assert found[name]["status"] == "fail" and "not determined" in found[name]["detail"], found[name]
+    assert "fail global test" in " ".join(stdout.split())
