@@ -22,6 +22,12 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
+from calidar.strips.control_survey import PREFIX as CONTROL_PREFIX
+from calidar.strips.trajectory_errors import PREFIX as TRAJECTORY_PREFIX
+
+#: nuisance parameters: not watched by the rule — nor judged, compared or shown in the correlations
+#: by the verdict (the trajectory's errors, the control's survey errors)
+NUISANCE = (TRAJECTORY_PREFIX, CONTROL_PREFIX)
 #: the rule's thresholds (σ of each parameter): the last step, and the steps still to come
 STILL_STEP_SIGMA = 0.2
 STILL_LEFT_SIGMA = 1.0

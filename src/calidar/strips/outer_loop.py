@@ -27,10 +27,9 @@ from calidar.errors import CalibrationError, CalidarError, InputError
 from calidar.sensor import Sensor
 from calidar.strips.control import (CONTROL_ID, ControlPoints, control_pose, control_rows,
                                     near_control)
-from calidar.strips.control_survey import PREFIX as CONTROL_PREFIX
 from calidar.strips.control_survey import SurveyErrors
 from calidar.strips.config import StripSettings
-from calidar.strips.convergence import extrapolated, moving
+from calidar.strips.convergence import NUISANCE, extrapolated, moving
 from calidar.strips.correspond import Correspondences
 from calidar.strips.distribute import map_pairs
 from calidar.strips.matchers import Matcher
@@ -39,12 +38,9 @@ from calidar.strips.parameters import sensor_of
 from calidar.strips.problem import StripProblem, georeference, union
 from calidar.strips.processes import map_in_processes, worth_processes
 from calidar.strips.strip import Pose, Strip
-from calidar.strips.trajectory_errors import PREFIX as TRAJECTORY_PREFIX
 from calidar.strips.trajectory_errors import TrajectoryModel, corrections
 from calidar.strips.trajectory_level import TrajectoryLevel
 
-#: the parameters the convergence rule does not watch (nuisance: trajectory corrections, control)
-NUISANCE = (TRAJECTORY_PREFIX, CONTROL_PREFIX)
 #: an outer iteration's adjustment stops when every step is below this fraction of its σ: the next
 #: matching moves the points anyway (the last one is then refined:
 #: :data:`calidar.strips.calibrate.FINAL_STEP_IN_SIGMA`)
@@ -227,7 +223,7 @@ class Run:
         from calidar.strips.model_check import check
 
         free = est.parameters.free_names
-        shown = [n for n in free if not n.startswith((TRAJECTORY_PREFIX, CONTROL_PREFIX))]
+        shown = [n for n in free if not n.startswith(NUISANCE)]
         def with_freed(names):  # the same rows with ``names`` free too
             return StripProblem(self.nominal, self.poses, corrs, [*free, *names], self._times(),
                                 self.model, self.spans)

@@ -21,6 +21,8 @@ stays 1 for honest rows).
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from calidar.strips.correspond import Correspondences
@@ -66,8 +68,6 @@ def counted_once(corrs: list[Correspondences]) -> tuple[list[Correspondences], l
     patches its sides share with other pairs' rows, and per set each row's share of an
     observation (1 where nothing is shared, or the set carries no sides' variances: VGICP,
     control). The sets' columns must be whole strips' points (the same for every pair)."""
-    from dataclasses import replace
-
     uses = _uses(corrs)
     out, shares = [], []
     for c in corrs:

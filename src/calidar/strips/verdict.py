@@ -27,19 +27,14 @@ import math
 import numpy as np
 
 from calidar.strips.control_verdict import vertical_findings
-from calidar.strips.convergence import moving
+from calidar.strips.convergence import NUISANCE, moving  # NUISANCE kept importable from here
 # the verdict's global test, kept importable from here
 from calidar.strips.global_test import (  # noqa: F401
     ROW_SIGMA_TOLERANCE, SIGMA0_FAIL, global_test_sigma0, robust_consistency, sigma0_finding,
     sigma0_range,
 )
 from calidar.strips.model_check_verdict import finding_or_none, moved_parameters
-from calidar.strips.control_survey import PREFIX as CONTROL_PREFIX
 from calidar.strips.trajectory_errors import PREFIX as TRAJECTORY_PREFIX
-
-#: nuisance parameters: not judged, not compared, not in the correlations (the trajectory's errors,
-#: the control's survey errors)
-NUISANCE = (TRAJECTORY_PREFIX, CONTROL_PREFIX)
 from calidar.verdict import NOTE, Finding, Verdict, angle_text, length_text, two_digits
 
 #: an angle (or scale) is "determined" when its σ moves points on the ground by at most this (m)
