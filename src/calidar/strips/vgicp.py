@@ -62,6 +62,9 @@ class VgicpSettings:
     max_registration_points: int = 10_000  #: ... coarsened so the overlap holds about this many
     num_neighbors: int = 12  #: neighbours of the registration covariances and of b's local planes
     max_iterations: int = 30  #: per registration stage
+    #: a stage has converged when its last step turned less than this (rad) ...
+    rotation_epsilon_rad: float = 1e-5
+    translation_epsilon_m: float = 1e-4  #: ... and moved less than this (m)
     #: the finest stage alone is kept where it converged with at least this fraction of b's
     #: registration points on a's voxels; else coarse to fine over ``voxel_m`` from the start
     min_inlier_fraction: float = 0.5
@@ -176,7 +179,8 @@ def _align(voxelmap, source, voxel: float, T: np.ndarray, settings: VgicpSetting
     return small_gicp.align(voxelmap, source, T, max_correspondence_distance=2.0 * voxel,
                             num_threads=settings.num_threads,
                             max_iterations=settings.max_iterations,
-                            rotation_epsilon=1e-5, translation_epsilon=1e-4)
+                            rotation_epsilon=settings.rotation_epsilon_rad,
+                            translation_epsilon=settings.translation_epsilon_m)
 
 
 def locked_in(result, n_source: int, settings: VgicpSettings) -> bool:
