@@ -43,7 +43,8 @@ def main() -> None:
     ap.add_argument("--size", type=float, default=8.75, help="survey size, million points")
     ap.add_argument("--cache", type=Path, default=Path(tempfile.gettempdir()) / "calidar_bench_strips_scale")
     ap.add_argument("--repeat", type=int, default=3)
-    ap.add_argument("--register-only", action="store_true", help="time calidar's registration alone")
+    ap.add_argument("--register-only", action="store_true",
+                    help="time calidar's registration alone")
     args = ap.parse_args()
     pairs = survey_pairs(args.cache, args.size)
     settings = VgicpSettings()
