@@ -158,7 +158,7 @@ def registration_stages(settings: VgicpSettings, area_m2: float) -> list[tuple[f
     ``max_registration_points``; sparse data merge the finest stages into one."""
     min_down = np.sqrt(area_m2 / settings.max_registration_points)
     stages = []
-    for voxel in settings.voxel_m:
+    for voxel in sorted(settings.voxel_m, reverse=True):  # coarse to fine, however given
         down = max(settings.downsampling_ratio * voxel, min_down)
         stage = (max(voxel, 2.0 * down), down)
         if stage not in stages:

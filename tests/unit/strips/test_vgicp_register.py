@@ -128,3 +128,10 @@ def test_one_downsampling_gives_small_gicps_preprocessed_clouds_bit_for_bit(scen
 def test_min_inlier_fraction_outside_0_1_is_refused(fraction):
     with pytest.raises(ValueError, match="min_inlier_fraction"):
         VgicpSettings(min_inlier_fraction=fraction)
+
+
+def test_stages_run_coarse_to_fine_however_the_voxels_are_given():
+    given = vgicp.registration_stages(VgicpSettings(voxel_m=(1.0, 8.0, 2.0)), 10_000.0)
+    assert given == vgicp.registration_stages(VgicpSettings(voxel_m=(8.0, 2.0, 1.0)), 10_000.0)
+    # 10 000 points on 10 000 m²: 1 m downsampling at least, so the 1 m voxels' stage is the 2 m one
+    assert given == [(8.0, 4.0), (2.0, 1.0)]
