@@ -53,11 +53,12 @@ def robust_consistency(kind: str | None) -> float:
 
 def _takes_skipped(sol) -> bool:
     """Whether the global test reads the skipped RMS (``extra["unit_weight"]``): robust rows of a
-    matcher in :data:`SKIPPED_RMS_METHODS`."""
+    matcher in :data:`SKIPPED_RMS_METHODS` whose σ were estimated from their points (``row_dof``
+    recorded; one σ given for every row keeps the engine's σ0 ÷ the normal factor)."""
     extra = sol.extra if isinstance(sol.extra, dict) else {}
     strips = extra.get("strips", {})
     return (strips.get("method") in SKIPPED_RMS_METHODS and strips.get("robust") is not None
-            and "unit_weight" in extra)
+            and bool(strips.get("row_dof")) and "unit_weight" in extra)
 
 
 def global_test_sigma0(sol) -> float:

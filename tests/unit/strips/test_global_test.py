@@ -71,3 +71,15 @@ def test_least_squares_vgicp_keeps_the_engines_sigma0():
     sol = _solved(y, nu, "vgicp", robust=None)
     assert "unit_weight" not in sol.extra
     assert global_test_sigma0(sol) == sol.sigma0
+
+
+def test_vgicp_rows_with_one_given_sigma_keep_the_normal_factor():
+    """``sigma_m`` given: one σ for every row, no row_dof — the rows are not a mixture of estimated σ, and the
+    global test reads the engine's σ0 ÷ the normal factor as before (the wrong options of
+    tests/acceptance/test_vgicp.py: 2.19 on the seed-7 survey)."""
+    from calidar.strips.global_test import robust_consistency
+
+    y, _ = _mixture(n=20_000)
+    sol = _solved(y, np.full(y.size, np.inf), "vgicp")
+    assert sol.extra["strips"]["row_dof"] == [] and "unit_weight" in sol.extra
+    assert global_test_sigma0(sol) == pytest.approx(sol.sigma0 / np.sqrt(robust_consistency("cauchy")))
