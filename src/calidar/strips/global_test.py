@@ -92,9 +92,9 @@ def _sigma0_source(sol, s0: float) -> str:
     if _takes_skipped(sol):
         u = extra["unit_weight"]
         return (f"; the RMS of the residuals over their σ, the {u['rows_skipped']:,} beyond "
-                f"{u['gross_z']:g} σ0 skipped (these rows' σ are right in the mean, not row by "
-                f"row: the robustly weighted residuals' {sol.sigma0:.2f} has no consistency "
-                "factor)")
+                f"{u['gross_z']:g} σ0 skipped — these rows' σ are right in the mean, not row by "
+                f"row, so the robustly weighted residuals' {sol.sigma0:.2f} has no factor that "
+                "makes it consistent")
     text = "" if s0 == sol.sigma0 else (
         f"; {sol.sigma0:.2f} from the robustly weighted residuals, ÷ {sol.sigma0 / s0:.3f} for "
         + ("Student-t ones (each row's σ estimated from its points)" if t_rows else "normal ones"))
