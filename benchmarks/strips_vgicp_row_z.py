@@ -5,7 +5,8 @@ options; at its final adjustment, the standardised residuals z = r/σ are broken
 - the pair's kind: parallel lines (their xy long axes within 30°, same or opposite direction) or
   crossing ones;
 - the larger |scan angle| of the row's two sides (a's ball and b's k points, their mean);
-- the row's σ (quartiles);
+- the row's σ (quartiles), a's point count, a's ball radius and the two centroids' distance in
+  b's plane (terciles);
 
 with RMS z over the rows within 7σ (the rest: the tail's share), and the σ0 the global test could read:
 the engine's Cauchy-weighted σ0 ÷ its t-mixture factor, the RMS with rows beyond 7 σ0 skipped, and the
@@ -76,18 +77,34 @@ def survey(folder: Path, method: str, settings: dict) -> dict:
     fit, problem = est.fit, est.fit.problem
     z = est.r / fit.sig
     strips = {s.id: s for s in inputs.strips}
-    kind, angle = [], []
+    kind, angle, count, radius, offset = [], [], [], [], []
     for c in problem.corrs:
+        pa = strips[c.strip_a].points[problem.index[c.strip_a]]
+        pb = strips[c.strip_b].points[problem.index[c.strip_b]]
+        mean_a, mean_b = c.A @ pa, c.B @ pb
+        count.append(np.diff(c.A.indptr))
+        rows_a = np.repeat(np.arange(c.n_obs), np.diff(c.A.indptr))
+        far = np.linalg.norm(pa[c.A.indices] - mean_a[rows_a], axis=1)
+        radius.append(np.maximum.reduceat(far, c.A.indptr[:-1]) if far.size else far)
+        d = mean_a - mean_b
+        offset.append(np.linalg.norm(d - np.einsum("ij,ij->i", d, c.normal)[:, None] * c.normal,
+                                     axis=1))
         cos = abs(_axis(strips[c.strip_a].points) @ _axis(strips[c.strip_b].points))
         kind.append(np.full(c.n_obs, cos > np.cos(np.radians(30))))
         sides = [m @ np.abs(strips[i].obs.angles[problem.index[i], 0])
                  for i, m in ((c.strip_a, c.A), (c.strip_b, c.B))]
         angle.append(np.degrees(np.maximum(*sides)))
     parallel, angle = np.concatenate(kind), np.concatenate(angle)
+    count, radius, offset = (np.concatenate(v) for v in (count, radius, offset))
     q = np.quantile(fit.sig, [0.25, 0.5, 0.75, 0.9])
     masks = {"parallel": parallel, "crossing": ~parallel}
     masks.update({f"|scan| {lo}-{hi}°": (angle >= lo) & (angle < hi)
                   for lo, hi in ((0, 10), (10, 20), (20, 30), (30, 90))})
+    for name, v in (("a's points", count), ("a's ball radius", radius),
+                    ("centroids apart", offset)):
+        t = np.quantile(v, [1 / 3, 2 / 3])
+        masks.update({f"{name} {k + 1}/3": (v >= lo) & (v < hi)
+                      for k, (lo, hi) in enumerate(zip([-np.inf, *t], [*t, np.inf]))})
     edges = [0.0, *q, np.inf]
     names = ["σ 0-25 %", "σ 25-50 %", "σ 50-75 %", "σ 75-90 %", "σ 90-100 %"]
     masks.update({name: (fit.sig >= edges[k]) & (fit.sig < edges[k + 1])
@@ -125,7 +142,7 @@ def main() -> None:
               + f"; σ0 t-model {row['sigma0_t_model']:.3f}, skipped {row['sigma0_skipped']:.3f}, "
               f"RMS {row['rms']:.3f} ({row['rows']} rows)", flush=True)
         for name, (n, rms, tail, gross) in row["groups"].items():
-            print(f"    {name:16s} {n:6d} rows  RMS z (|z| ≤ 7) {rms:.2f}  beyond 3σ {tail:.2f} %  "
+            print(f"    {name:20s} {n:6d} rows  RMS z (|z| ≤ 7) {rms:.2f}  beyond 3σ {tail:.2f} %  "
                   f"Σz² beyond 7σ {100 * gross:.0f} %", flush=True)
 
 
