@@ -8,12 +8,13 @@ options; at its final adjustment, the standardised residuals z = r/σ are broken
 - the row's σ (quartiles), a's point count, a's ball radius and the two centroids' distance in
   b's plane (terciles);
 
-with RMS z over the rows within 7σ (the rest: the tail's share), and the σ0 the global test could read:
-the engine's Cauchy-weighted σ0 ÷ its t-mixture factor, the RMS with rows beyond 7 σ0 skipped, and the
-plain RMS.
+with RMS z over the rows within 7σ (the rest: the tail's share), and the σ0 the global test could
+read: the engine's Cauchy-weighted σ0 ÷ its t-mixture factor, the RMS with rows beyond 7 σ0
+skipped, and the plain RMS.
 
     NUMBA_NUM_THREADS=1 OMP_NUM_THREADS=1 PYTHONPATH=src python benchmarks/strips_vgicp_row_z.py \\
-        --cache DIR --seeds 1112-1117 [--method vgicp] [--set max_scatter_ratio=2] [--json out.jsonl]
+        --cache DIR --seeds 1112-1117 [--method vgicp] [--set max_scatter_ratio=2] \\
+        [--json out.jsonl]
 """
 
 from __future__ import annotations
@@ -52,7 +53,8 @@ def _axis(points: np.ndarray) -> np.ndarray:
 
 
 def _groups(z: np.ndarray, masks: dict[str, np.ndarray]) -> dict[str, list[float]]:
-    """Per named mask: rows, RMS z within 7σ, share of rows beyond 3σ (%), share of Σz² beyond 7σ."""
+    """Per named mask: rows, RMS z within 7σ, share of rows beyond 3σ (%), share of Σz² beyond
+    7σ."""
     out = {}
     for name, m in masks.items():
         if m.sum():
