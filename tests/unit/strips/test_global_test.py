@@ -13,8 +13,8 @@ from calidar.strips.row_variance import dof_summary
 def _mixture(n=200_000, seed=11, gross=0.0):
     """Residuals (m) of rows with σ = 1 cm stated, Student-t as their estimated σ make them
     (ν 9–30), but each row's true σ 0.8× the stated on 90 % of the rows and 2.06× on the rest:
-    E[z²] = 1, a peak and a tail (|z| quantiles 50 / 99.9 % ≈ 0.58 / 5.6, as VGICP's rows at the truth:
-    0.60 / 5.60). ``gross``: that share of the rows given ±10σ errors."""
+    E[z²] = 1, a peak and a tail (|z| quantiles 50 / 99.9 % ≈ 0.58 / 5.6, as VGICP's rows at
+    the truth: 0.60 / 5.60). ``gross``: that share of the rows given ±10σ errors."""
     rng = np.random.default_rng(seed)
     nu = rng.choice([9.0, 12.0, 30.0], n)
     k = np.where(rng.random(n) < 0.9, 0.8, np.sqrt((1 - 0.9 * 0.64) / 0.1))
