@@ -115,7 +115,8 @@ def _capture(scene_of):
             for k, label in enumerate(labels):
                 sel = cls[key] == k
                 out[f"{key}:{label}"] = {
-                    "n": int(sel.sum()), "sum_mdeg": (np.degrees(contrib[sel].sum(0)) * 1e3).tolist(),
+                    "n": int(sel.sum()),
+                    "sum_mdeg": (np.degrees(contrib[sel].sum(0)) * 1e3).tolist(),
                     "share_mdeg": (np.degrees(np.sqrt(share2[sel].sum(0))) * 1e3).tolist()}
         out["sum_mdeg"] = out["sum_mdeg"].tolist()
         CAPTURED.append(out)
@@ -184,7 +185,8 @@ def summary(rows: list[dict], axis: int = 1) -> str:
         sm = np.array([r["sum_mdeg"][axis] for r in sel])
         sg = np.array([r["sigma_mdeg"][axis] for r in sel])
         out.append(f"{m}: n={len(sel)} move mean {mv.mean():+.2f} mdeg (z {np.mean(mv / sg):+.2f},"
-                   f" RMS z {np.sqrt(np.mean((mv / sg) ** 2)):.2f}); the rows' sum {sm.mean():+.2f}")
+                   f" RMS z {np.sqrt(np.mean((mv / sg) ** 2)):.2f});"
+                   f" the rows' sum {sm.mean():+.2f}")
         for key, labels in CLASSES.items():
             for label in labels:
                 c = [r[f"{key}:{label}"] for r in sel]
