@@ -11,7 +11,9 @@ the truth minus the nominal's offset from it (the Monte-Carlo's boresight errors
 sign: a start as far from the truth on the other side); ``truth``, the true sensor. Printed: the
 angles' error (mdeg), σ and outer iterations per start. A calibration that depends on its start
 (stops short, or its matches pull toward the start) leans toward the start: with ``mirror`` its
-error flips sign against the Monte-Carlo rows from the nominal.
+error flips sign against the Monte-Carlo rows from the nominal. ``--exact-priors``: the preset's
+trajectory σ instead of the smrmsg (for a ``--cache`` of twins without GNSS/INS errors, named as
+the surveys: ``strips_roll.py``'s ``…_exact`` folders linked under the survey's name).
 """
 
 from __future__ import annotations
@@ -26,11 +28,13 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from strips_montecarlo import ANGLES, ERRORS, _simulated, seeds_of  # noqa: E402
+from strips_roll import SIGMA  # noqa: E402
 
 from calidar.pipelines.boresight import calibrate_inputs, load_inputs  # noqa: E402
 from calidar.pipelines.strip_config import StripConfig  # noqa: E402
 from calidar.sim.survey import survey_config  # noqa: E402
-from calidar.strips.config import CalibrationConfig, matchers_named  # noqa: E402
+from calidar.strips.config import (CalibrationConfig, TrajectorySettings,  # noqa: E402
+                                   matchers_named)
 from calidar.strips.parameters import sensor_of  # noqa: E402
 
 
@@ -39,7 +43,10 @@ def run(args, seed: int, start: str) -> list[dict]:
                         directions=args.directions, errors=ERRORS)
     folder = _simulated(cfg, args.cache / "tmp", args.cache, (1.0,) * 6, 0.0, 1.0)
     methods = args.methods.split(",")
-    config = StripConfig(CalibrationConfig(matchers=matchers_named(*methods), model_check=False))
+    traj = (TrajectorySettings(sigma=SIGMA[args.preset]) if args.exact_priors
+            else TrajectorySettings())
+    config = StripConfig(CalibrationConfig(matchers=matchers_named(*methods), trajectory=traj,
+                                           model_check=False))
     inputs = load_inputs(sorted((folder / "strips").glob("*.laz")), folder / "sbet.out",
                          folder / "sensor.toml", config, truth=folder / "truth.json")
     truth = dict(inputs.truth)
@@ -70,6 +77,8 @@ def main() -> None:
     ap.add_argument("--directions", default="cross", choices=("cross", "opposite"))
     ap.add_argument("--vegetation", type=float, default=0.3)
     ap.add_argument("--start", default="mirror", choices=("mirror", "truth"))
+    ap.add_argument("--exact-priors", action="store_true",
+                    help="the preset's trajectory σ (twins without GNSS/INS errors)")
     ap.add_argument("--cache", type=Path, required=True)
     ap.add_argument("--json", type=Path, default=None)
     args = ap.parse_args()
