@@ -14,6 +14,8 @@ angles' error (mdeg), σ and outer iterations per start. A calibration that depe
 error flips sign against the Monte-Carlo rows from the nominal. ``--exact-priors``: the preset's
 trajectory σ instead of the smrmsg (for a ``--cache`` of twins without GNSS/INS errors, named as
 the surveys: ``strips_roll.py``'s ``…_exact`` folders linked under the survey's name).
+``--max-outer 1`` with ``--start truth``: the rows matched once at the truth, as
+``strips_roll.py --variants default``.
 """
 
 from __future__ import annotations
@@ -33,8 +35,8 @@ from strips_roll import SIGMA  # noqa: E402
 from calidar.pipelines.boresight import calibrate_inputs, load_inputs  # noqa: E402
 from calidar.pipelines.strip_config import StripConfig  # noqa: E402
 from calidar.sim.survey import survey_config  # noqa: E402
-from calidar.strips.config import (CalibrationConfig, TrajectorySettings,  # noqa: E402
-                                   matchers_named)
+from calidar.strips.config import (CalibrationConfig, StripSettings,  # noqa: E402
+                                   TrajectorySettings, matchers_named)
 from calidar.strips.parameters import sensor_of  # noqa: E402
 
 
@@ -45,8 +47,9 @@ def run(args, seed: int, start: str) -> list[dict]:
     methods = args.methods.split(",")
     traj = (TrajectorySettings(sigma=SIGMA[args.preset]) if args.exact_priors
             else TrajectorySettings())
+    solver = StripSettings() if args.max_outer is None else StripSettings(max_outer=args.max_outer)
     config = StripConfig(CalibrationConfig(matchers=matchers_named(*methods), trajectory=traj,
-                                           model_check=False))
+                                           solver=solver, model_check=False))
     inputs = load_inputs(sorted((folder / "strips").glob("*.laz")), folder / "sbet.out",
                          folder / "sensor.toml", config, truth=folder / "truth.json")
     truth = dict(inputs.truth)
@@ -79,6 +82,8 @@ def main() -> None:
     ap.add_argument("--start", default="mirror", choices=("mirror", "truth"))
     ap.add_argument("--exact-priors", action="store_true",
                     help="the preset's trajectory σ (twins without GNSS/INS errors)")
+    ap.add_argument("--max-outer", type=int, default=None,
+                    help="at most this many outer iterations (1: the rows matched at the start)")
     ap.add_argument("--cache", type=Path, required=True)
     ap.add_argument("--json", type=Path, default=None)
     args = ap.parse_args()
