@@ -14,6 +14,9 @@ angles' error (mdeg), σ and outer iterations per start. A calibration that depe
 error flips sign against the Monte-Carlo rows from the nominal. ``--exact-priors``: the preset's
 trajectory σ instead of the smrmsg (for a ``--cache`` of twins without GNSS/INS errors, named as
 the surveys: ``strips_roll.py``'s ``…_exact`` folders linked under the survey's name).
+``--match-uncorrected``: the outer loop matches the strips with the current sensor but WITHOUT the
+estimated trajectory corrections (the adjustment still applies them to the matched points): is the
+loop's shift made by matching at the corrected positions?
 ``--max-outer 1`` with ``--start truth``: the rows matched once at the truth, as
 ``strips_roll.py --variants default``.
 """
@@ -63,6 +66,7 @@ def run(args, seed: int, start: str) -> list[dict]:
     for m, r in calibrate_inputs(replace(inputs, nominal=sensor)).items():
         sol = r.solution
         out.append({"seed": seed, "method": m, "start": start,
+                    "match_uncorrected": args.match_uncorrected,
                     "start_offset_mdeg": [float(np.degrees(values[a] - truth[a]) * 1e3)
                                           for a in ANGLES],
                     "error_mdeg": [float(np.degrees(sol.values[a] - truth[a]) * 1e3)
@@ -84,9 +88,15 @@ def main() -> None:
                     help="the preset's trajectory σ (twins without GNSS/INS errors)")
     ap.add_argument("--max-outer", type=int, default=None,
                     help="at most this many outer iterations (1: the rows matched at the start)")
+    ap.add_argument("--match-uncorrected", action="store_true",
+                    help="match without the estimated trajectory corrections")
     ap.add_argument("--cache", type=Path, required=True)
     ap.add_argument("--json", type=Path, default=None)
     args = ap.parse_args()
+    if args.match_uncorrected:
+        from calidar.strips import outer_loop
+
+        outer_loop.corrections = lambda values, model, spans: {}
     for seed in seeds_of(args.seeds):
         for r in run(args, seed, args.start):
             if args.json:
