@@ -56,7 +56,9 @@ def run(args, seed: int, start: str) -> list[dict]:
     inputs = load_inputs(sorted((folder / "strips").glob("*.laz")), folder / "sbet.out",
                          folder / "sensor.toml", config, truth=folder / "truth.json")
     truth = dict(inputs.truth)
-    if start == "mirror":  # truth − (nominal − truth), per angle
+    if start == "nominal":  # the delivered nominal (the Monte-Carlo's start)
+        values = {a: inputs.nominal.parameters()[a] for a in ANGLES}
+    elif start == "mirror":  # truth − (nominal − truth), per angle
         nominal = inputs.nominal.parameters()
         values = {a: 2.0 * truth[a] - nominal[a] for a in ANGLES}
     else:
@@ -83,7 +85,7 @@ def main() -> None:
     ap.add_argument("--preset", default="uav", choices=("airborne", "uav"))
     ap.add_argument("--directions", default="cross", choices=("cross", "opposite"))
     ap.add_argument("--vegetation", type=float, default=0.3)
-    ap.add_argument("--start", default="mirror", choices=("mirror", "truth"))
+    ap.add_argument("--start", default="mirror", choices=("mirror", "truth", "nominal"))
     ap.add_argument("--exact-priors", action="store_true",
                     help="the preset's trajectory σ (twins without GNSS/INS errors)")
     ap.add_argument("--max-outer", type=int, default=None,
