@@ -235,11 +235,12 @@ def load_functional(path: Path, t0: float) -> list:
 def transfer(args) -> None:
     """The saved functional of one survey applied to other seeds' replayed draws (no calibration):
     their trajectory-caused part as z of its closed-form spread, against the Monte-Carlo rows'."""
-    mc = {}
+    mc, err = {}, {}  # the Monte-Carlo rows' z and errors (mdeg)
     for path in args.rows:
         for line in path.read_text().splitlines():
             r = json.loads(line)
             mc[r["seed"], r["method"]] = np.divide(r["error_deg"], r["sigma_deg"])
+            err[r["seed"], r["method"]] = np.multiply(r["error_deg"], 1e3)
     out = []
     for seed in seeds_of(args.seeds):
         cfg = config(args.preset, args.scene, args.directions, args.vegetation, seed)
@@ -271,7 +272,8 @@ def transfer(args) -> None:
                     float(np.degrees(response(sub, measured, true, 0.0)[2]) * 1e3),
                     float(np.degrees(analytic_spread(sub, cfg.gnss_noise_m,
                                                      cfg.attitude_noise_rad)[2]) * 1e3))
-            out.append((seed, path.stem, z, mc.get((seed, m)), parts))
+            own = np.degrees(response(groups, measured, true, 0.0)) * 1e3  # mdeg
+            out.append((seed, path.stem, z, mc.get((seed, m)), parts, own, err.get((seed, m))))
             own_mc = mc.get((seed, m))
             print(f"seed {seed} functional {path.stem}: trajectory part z "
                   + " ".join(f"{x:+.2f}" for x in z)
@@ -289,6 +291,14 @@ def transfer(args) -> None:
                      f"{np.corrcoef(a[:, 2], b[:, 2])[0, 1]:+.2f}, MC RMS z "
                      + " / ".join(f"{x:.2f}" for x in rms(b)))
         print(line)
+        if len(both) > 2:  # the lean: the draws' and the rest's means (the rest: MC − draw part)
+            own = np.array([o[5] for o in both])
+            rest = np.array([o[6] for o in both]) - own
+            f = lambda v: " / ".join(f"{x:+.2f}" for x in v)  # noqa: E731
+            print(f"    mean draw z {f(a.mean(0))} (± {1 / np.sqrt(len(both)):.2f}), mean MC z "
+                  f"{f(b.mean(0))}; mean trajectory part {f(own.mean(0))} mdeg, mean rest "
+                  f"(MC error − trajectory part) {f(rest.mean(0))} mdeg, RMS rest "
+                  f"{f(rms(rest))} mdeg")
         for key in sel[0][4]:
             v = np.array([o[4][key][0] for o in sel])
             print(f"    yaw's part from {key}: RMS {rms(v):.2f} mdeg, "
