@@ -1,10 +1,11 @@
 """Benchmark: calidar's streamed commands against the floor — reading the same LAZ files.
 
     nice -n 10 env NUMBA_NUM_THREADS=1 OMP_NUM_THREADS=1 PYTHONPATH=src python benchmarks/against_read.py \
-        [--size 8.75] [--what quality,planes,vgicp] [--runs 3] [--baseline ../main/src]
+        [--size 8.75 | --sim DATA/flight_64M] [--what quality,planes,vgicp] [--runs 3] [--baseline ../main/src]
 
 The survey of ``benchmarks/strips_scale.py`` (8 airborne strips at ≈ ``--size`` million points,
-simulated once under ``--cache``, not timed). Each run is a whole child process, interleaved
+simulated once under ``--cache``, not timed; or ``--sim``: a survey simulated already, such as
+``benchmarks/large_flight.py simulate``'s). Each run is a whole child process, interleaved
 with the floor in one loop (floor, then each command, ``--runs`` times), so a comparison holds
 when the shared machine's speed drifts: the floor is laspy + lazrs decompressing every field of
 every file (chunks of 2 M points, laspy's default parallel LAZ backend, as calidar reads);
@@ -86,6 +87,8 @@ def main() -> None:
     ap.add_argument("--cache", type=Path, default=Path(tempfile.gettempdir()) / "calidar_bench_strips_scale")
     ap.add_argument("--baseline", type=Path, help="another calidar source tree (e.g. main's src/): its runs "
                     "interleaved too, labelled @base")
+    ap.add_argument("--sim", type=Path, help="a survey simulated already (strips/*.laz, sbet.out, sensor.toml), "
+                    "e.g. benchmarks/large_flight.py's DATA/flight_64M, instead of --size's")
     ap.add_argument("--child", help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.child:
@@ -93,7 +96,7 @@ def main() -> None:
     sys.path.insert(0, str(Path(__file__).resolve().parent))
     from strips_scale import simulate  # the shared 8-strip survey at a size
 
-    sim = simulate(args.cache, args.size)
+    sim = args.sim if args.sim else simulate(args.cache, args.size)
     what = args.what.split(",")
     if args.baseline:
         what += [f"{w}@base" for w in what]

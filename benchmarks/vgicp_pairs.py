@@ -9,11 +9,13 @@ georeferenced with the nominal sensor. For every overlapping pair, in one run an
 (crop to the overlap, coarse-to-fine VGICP registration, correspondences and their planes) and
 ``small_gicp.align(a, b, registration_type="VGICP")`` on the same overlap crop, at its defaults
 (0.25 m downsampling, 1 m voxels) and at the downsampling and voxel of calidar's finest stage
-(one registration where calidar runs three coarse to fine, then finds the correspondences), one
+(one registration; calidar then finds the correspondences), one
 thread, timed in CPU seconds of this process
 (``time.process_time``: on a shared machine the CPU a call takes, not the wall clock it waited).
 Printed per pair the medians and the ratio, and over all pairs the sums and their ratio; the
 calidar stages (preprocess / register / correspond, CPU seconds) summed over the pairs.
+``--register-only``: calidar's :func:`calidar.strips.vgicp.register` alone on the crop (as
+``match_pair_vgicp`` calls it), without the crop and the correspondences.
 """
 
 from __future__ import annotations
@@ -35,12 +37,14 @@ from survey_pairs import survey_pairs  # noqa: E402  (the shared survey's pairs,
 def main() -> None:
     import small_gicp
 
-    from calidar.strips.vgicp import VgicpSettings, match_pair_vgicp, overlap_masks
+    from calidar.strips.vgicp import VgicpSettings, match_pair_vgicp, overlap_masks, register
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--size", type=float, default=8.75, help="survey size, million points")
     ap.add_argument("--cache", type=Path, default=Path(tempfile.gettempdir()) / "calidar_bench_strips_scale")
     ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--register-only", action="store_true",
+                    help="time calidar's registration alone")
     args = ap.parse_args()
     pairs = survey_pairs(args.cache, args.size)
     settings = VgicpSettings()
@@ -59,7 +63,10 @@ def main() -> None:
         for _ in range(args.repeat):
             t = time.process_time()
             try:
-                match_pair_vgicp(a, pa, b, pb, settings, stages)
+                if args.register_only:
+                    register(crop_a, crop_b, settings, area)
+                else:
+                    match_pair_vgicp(a, pa, b, pb, settings, stages)
             except Exception as e:  # a skipped pair still counts its time
                 print(f"  pair {a}–{b}: {e}")
             ours.append(time.process_time() - t)

@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 from numba import njit
 
+from calidar.ingest.chunk_pass import chunk_pass, held_rows, selected_points
 from calidar.strips.overlap import merge_counts
 from calidar.strips.selection import FIELDS as SELECTION_FIELDS
 
@@ -70,10 +71,16 @@ class CellCounts:
         t = c["gps_time"]
         psid = np.asarray(c["point_source_id"], np.int64)
         xyz = self.metric.of(c["xyz"] if "xyz" in c else np.c_[c["x"], c["y"], c["z"]])
-        sec, ij = _seconds_cells(t, xyz, float(self.grid_m))  # as cell_keys on the overlap grid
-        fields = SimpleNamespace(xyz=ij, **{f: c[f] for f in SELECTION_FIELDS})
-        masks = [selection.mask(fields) for selection in self.candidates[path]]
-        for selection, keep in zip(self.candidates[path], masks):
+        selections = self.candidates[path]
+        fused = chunk_pass(t, xyz, float(self.grid_m), c, selections)
+        if fused is not None:  # one numba pass: seconds, cells, every selection's bit
+            sec, ij, bits = fused
+            masks = [(bits & np.uint8(1 << k)) != 0 for k in range(len(selections))]
+        else:
+            sec, ij = _seconds_cells(t, xyz, float(self.grid_m))  # as cell_keys on the grid
+            fields = SimpleNamespace(xyz=ij, **{f: c[f] for f in SELECTION_FIELDS})
+            masks, bits = [selection.mask(fields) for selection in selections], None
+        for selection, keep in zip(selections, masks):
             (tok, keys, n), first = _kept_counts(psid, sec, ij, keep)
             for k in first:
                 self.time.setdefault(int((psid[k] << 32) | sec[k]), float(t[k]))
@@ -83,7 +90,7 @@ class CellCounts:
                 parts[:] = [_token_counts(*(np.concatenate(a) for a in zip(*parts)))]
         if self.held is not None:
             metric_xyz = xyz if self.metric.frame is not None else None
-            self.held.add(path, **held_arrays(c, metric_xyz, masks))
+            self.held.add(path, **held_arrays(c, metric_xyz, masks, bits))
 
     def _lines(self, index, key) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(flight line, cell key, count) of the counts of (path, selection) ``key``."""
@@ -219,13 +226,21 @@ def _first_rows(tokens: np.ndarray) -> np.ndarray:
     return first[first < tokens.size]
 
 
-def held_arrays(c: dict, metric_xyz: np.ndarray | None, masks: list) -> dict[str, np.ndarray]:
+def held_arrays(c: dict, metric_xyz: np.ndarray | None, masks: list,
+                bits: np.ndarray | None = None) -> dict[str, np.ndarray]:
     """What the second pass needs of a chunk's points that some selection keeps: coordinates (the
     stored integers X, Y, Z; ``metric_xyz`` instead when given), point_source_id, GPS time and
-    bit k set when ``masks[k]`` keeps the point."""
-    bits = np.zeros(len(c["gps_time"]), np.uint8)
-    for k, m in enumerate(masks):
-        bits |= m.astype(np.uint8) << k
+    bit k set when ``masks[k]`` keeps the point (``bits``: those bits, when already made; then
+    gathered in one numba loop, :func:`calidar.ingest.chunk_pass.held_rows`)."""
+    if bits is not None and metric_xyz is None and all(a in c for a in "XYZ"):
+        names = ("X", "Y", "Z", "point_source_id", "gps_time")
+        held = held_rows(bits, {a: c[a] for a in names})
+        if held is not None:
+            return held
+    if bits is None:
+        bits = np.zeros(len(c["gps_time"]), np.uint8)
+        for k, m in enumerate(masks):
+            bits |= m.astype(np.uint8) << k
     rows = np.flatnonzero(bits)
     xyz = ({a: c[a][rows] for a in "XYZ"} if metric_xyz is None
            else {"xyz": metric_xyz.take(rows, axis=0)})
@@ -242,6 +257,10 @@ def held_chunks(held, path: Path, bit: int,
 
     header = las_header(path)
     for c in held.chunks(path):
+        fast = None if "xyz" in c else selected_points(c, bit, header.scales, header.offsets)
+        if fast is not None:  # one numba loop (calidar.ingest.chunk_pass)
+            yield fast
+            continue
         rows = np.flatnonzero((c["bits"] >> bit) & 1)
         if "xyz" in c:
             xyz = c["xyz"].take(rows, axis=0)

@@ -132,9 +132,7 @@ class HeldFiles:
 
         def read():
             for c in self.points.chunks(path, range(first, last)):
-                xyz = np.empty((len(c["t"]), 3))
-                for k, axis in enumerate("XYZ"):
-                    xyz[:, k] = c[axis] * scales[k] + offsets[k]
+                xyz = scaled_integers(c["X"], c["Y"], c["Z"], scales, offsets)
                 fields = {f: c[f] for f in STRIP_FIELDS}
                 yield replace(empty, xyz=xyz, gps_time=c["t"], **fields), c["t"]
         return read()
@@ -151,6 +149,25 @@ def stored_integers(xyz: np.ndarray, scales, offsets) -> np.ndarray | None:
     stored = np.empty(xyz.shape, np.int32)
     scales, offsets = (np.ascontiguousarray(v, dtype=np.float64) for v in (scales, offsets))
     return stored if _stored_kernel(xyz, scales, offsets, stored) else None
+
+
+def scaled_integers(x: np.ndarray, y: np.ndarray, z: np.ndarray, scales, offsets) -> np.ndarray:
+    """Coordinates (N, 3) float64 of stored LAS integers: X · scale + offset as laspy (and numpy,
+    axis by axis) scale them, in one numba pass without the per-axis temporaries."""
+    scales, offsets = (np.ascontiguousarray(v, dtype=np.float64) for v in (scales, offsets))
+    if any(a.dtype.kind not in "iu" for a in (x, y, z)):
+        return np.stack([a * scales[k] + offsets[k] for k, a in enumerate((x, y, z))], axis=1)
+    return _scaled_kernel(x, y, z, scales, offsets)
+
+
+@njit(cache=True, nogil=True)
+def _scaled_kernel(x, y, z, scales, offsets):  # pragma: no cover - numba
+    out = np.empty((x.size, 3))
+    for i in range(x.size):
+        out[i, 0] = np.float64(x[i]) * scales[0] + offsets[0]
+        out[i, 1] = np.float64(y[i]) * scales[1] + offsets[1]
+        out[i, 2] = np.float64(z[i]) * scales[2] + offsets[2]
+    return out
 
 
 @njit(cache=True, nogil=True)

@@ -15,6 +15,7 @@ import pyproj
 from numba import njit
 
 from calidar.errors import InputError
+from calidar.ingest.chunk_pass import chunk_summary
 from calidar.ingest.prefetch import prefetched
 from calidar.io.las import (LasPoints, PointOptions, concat_points, iter_las_fields, las_header,
                             las_time_system, read_las)
@@ -89,10 +90,20 @@ def index_flight_lines(paths: Sequence[str | Path], options: PointOptions = Poin
         for c in prefetched(iter_las_fields(path, names, chunk_points)):
             if on_chunk is not None:
                 on_chunk(path, c)
-            ids.update(distinct(c["point_source_id"]).tolist())
-            present[distinct(c["classification"])] = True
-            seconds.append(_second_spans(c["gps_time"]))
-            add_spans(spans, c["point_source_id"], c["gps_time"], path.name)
+            psid, t = c["point_source_id"], c["gps_time"]
+            got = chunk_summary(psid, c["classification"], t)  # one numba pass, the same values
+            if got is None:
+                ids.update(distinct(psid).tolist())
+                present[distinct(c["classification"])] = True
+                seconds.append(_second_spans(t))
+                add_spans(spans, psid, t, path.name)
+                continue
+            ids.update(got[0].tolist())
+            present[got[1]] = True
+            seconds.append(got[2] if got[2] is not None else _second_spans(t))
+            for i, (t0, t1) in got[3].items():  # as add_spans
+                was = spans.get((i, path.name), (np.inf, -np.inf))
+                spans[(i, path.name)] = (min(was[0], t0), max(was[1], t1))
         classes[path] = np.flatnonzero(present)
     if seconds:  # each second's first and last time, of every chunk
         lo, hi = _second_spans(np.concatenate([s[0] for s in seconds] + [s[1] for s in seconds]))

@@ -45,9 +45,11 @@ def moved_versions(traj, nominal, models, t: np.ndarray, lin) -> list[np.ndarray
     lever = np.stack([c(s.lever_arm) for s, _ in kept]) if kept else np.zeros((0, 3))
     trajectories = (traj.time, c(traj.ecef), c(traj.q_eb), other.time, c(other.ecef),
                     c(other.q_eb))
-    n_out, n_out2 = _versions_kernel(*trajectories, t, lin.near_ecef(), c(nominal.r_bs),
-                                     c(nominal.lever_arm), r_bs, lever, which, lin.xyz, lin.jac,
-                                     lin.rows, out)
+    # the points' ECEF as TileLinear.near_ecef gives them, computed in the kernel's loop
+    near = (np.linalg.inv(lin.jac), c(lin.anchor_ecef), np.ascontiguousarray(lin.anchor, np.int64))
+    n_out, n_out2 = _versions_kernel(*trajectories, t, *near, c(nominal.r_bs),
+                                     c(nominal.lever_arm), r_bs, lever, which, c(lin.xyz), lin.jac,
+                                     np.ascontiguousarray(lin.rows, np.int64), out)
     if n_out:
         traj.check_covers(t)
     if n_out2 and np.any(which == 1):
@@ -57,18 +59,26 @@ def moved_versions(traj, nominal, models, t: np.ndarray, lin) -> list[np.ndarray
 
 
 @njit(cache=True, nogil=True)
-def _versions_kernel(tt, pos, q, tt2, pos2, q2, t, p, r_bs0, lever0, r_bs, lever, which, base,
-                     jac, rows, out):  # pragma: no cover - numba
-    """out[m] = base + J · (forward_m(inverse(p)) − p) per point (see the module); returns how
-    many times lie outside each trajectory (NaN counts as outside)."""
+def _versions_kernel(tt, pos, q, tt2, pos2, q2, t, inv, anchor_ecef, anchor, r_bs0, lever0, r_bs,
+                     lever, which, base, jac, rows, out):  # pragma: no cover - numba
+    """out[m] = base + J · (forward_m(inverse(p)) − p) per point (see the module), p the point's
+    ECEF from its tile's anchor (``inv`` = J⁻¹; :meth:`calidar.crs.TileLinear.near_ecef` operation
+    for operation); returns how many times lie outside each trajectory (NaN counts as
+    outside)."""
     n_out, i, i_prev, theta, s, sign = 0, 0, -1, 0.0, 0.0, 1.0
     n_out2, i2, i2_prev, theta2, s2, sign2 = 0, 0, -1, 0.0, 0.0, 1.0
     second = False
     for m in range(which.size):
         second = second or which[m] == 1
     qx = qy = qz = r00 = r01 = r02 = r10 = r11 = r12 = r20 = r21 = r22 = 0.0
+    p = np.empty(3)
     for k in range(t.size):
         tk = t[k]
+        j = rows[k]  # p = anchor_ecef + J⁻¹ · (xyz − the anchor's xyz), as calidar.crs.tile_moved
+        a0 = anchor[j]
+        d0, d1, d2 = base[k, 0] - base[a0, 0], base[k, 1] - base[a0, 1], base[k, 2] - base[a0, 2]
+        for a in range(3):
+            p[a] = anchor_ecef[j, a] + (inv[j, a, 0] * d0 + inv[j, a, 1] * d1 + inv[j, a, 2] * d2)
         n_out += not tt[0] <= tk <= tt[tt.size - 1]
         i, i_prev, theta, s, sign, px, py, pz, a00, a01, a02, a10, a11, a12, a20, a21, a22 = pose(
             tt, pos, q, tk, i, i_prev, theta, s, sign)
@@ -77,7 +87,7 @@ def _versions_kernel(tt, pos, q, tt2, pos2, q2, t, p, r_bs0, lever0, r_bs, lever
             (i2, i2_prev, theta2, s2, sign2,
              qx, qy, qz, r00, r01, r02, r10, r11, r12, r20, r21, r22) = pose(
                 tt2, pos2, q2, tk, i2, i2_prev, theta2, s2, sign2)
-        sx, sy, sz = scanner_vector(p[k, 0], p[k, 1], p[k, 2], px, py, pz,
+        sx, sy, sz = scanner_vector(p[0], p[1], p[2], px, py, pz,
                                     a00, a01, a02, a10, a11, a12, a20, a21, a22, r_bs0, lever0)
         for m in range(which.size):
             if which[m] == 0:  # the pose on the first trajectory
@@ -91,8 +101,7 @@ def _versions_kernel(tt, pos, q, tt2, pos2, q2, t, p, r_bs0, lever0, r_bs, lever
             # the lidar equation, then the move (calidar.crs.tile_moved)
             x, y, z = lidar_point(sx, sy, sz, r_bs[m], lever[m], ox, oy, oz,
                                   e00, e01, e02, e10, e11, e12, e20, e21, e22)
-            d0, d1, d2 = x - p[k, 0], y - p[k, 1], z - p[k, 2]
-            j = rows[k]
+            d0, d1, d2 = x - p[0], y - p[1], z - p[2]
             for a in range(3):
                 moved = jac[j, a, 0] * d0 + jac[j, a, 1] * d1 + jac[j, a, 2] * d2
                 out[m, k, a] = base[k, a] + moved

@@ -104,7 +104,8 @@ def line_chunks(source: StripSource, nominal, models=(None,), fields=None, where
     for _, chunk, ids, t in source.chunks(names, files, span):
         if where is not None:
             keep = where(chunk)
-            chunk, ids, t = chunk.select(keep), ids[keep], t[keep]
+            if not keep.all():  # (every point kept, as usual: the chunk itself, no copies)
+                chunk, ids, t = chunk.select(keep), ids[keep], t[keep]
         # one TileLinear for every model
         lin = None if all(m is None for m in models) else points_tile_linear(chunk)
         # every model in one pass (poses interpolated once; calidar.ingest.regeoref), else model

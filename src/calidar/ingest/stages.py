@@ -116,8 +116,12 @@ def stage_pass(chunks: Iterable[tuple[int, list]], metric, plans: list[OverlapPl
         sel = chosen.get(i)
         if sel is None:  # a line without any selected point in the counts
             continue
-        rows = np.flatnonzero(sel.mask(versions[0]))
-        xyz = [metric.of(v.xyz.take(rows, axis=0)) for v in versions]  # (v.xyz[mask], faster)
+        keep = sel.mask(versions[0])
+        if keep.all():  # every point (as usual): the versions' own arrays, no copies
+            xyz = [metric.of(v.xyz) for v in versions]
+        else:
+            rows = np.flatnonzero(keep)
+            xyz = [metric.of(v.xyz.take(rows, axis=0)) for v in versions]  # (v.xyz[mask], faster)
         for acc, x in zip(out.accs, xyz):
             if acc is not None:
                 acc.add(i, x, sel)

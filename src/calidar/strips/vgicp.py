@@ -24,8 +24,9 @@ Residual kinds (see :mod:`calidar.strips.correspond`):
 - ``point_to_point``: the 3-D difference of the pair, as the method describes; its noise
   includes the point spacing.
 
-Registration runs coarse to fine over ``VgicpSettings.voxel_m`` so that a start far from the
-truth (metres of strip offset) still locks in; an overlap narrower than
+Registration runs the finest stage of ``VgicpSettings.voxel_m`` first, and coarse to fine over
+them only where that stage does not lock in, so that a start far from the truth (metres of strip
+offset) still does; an overlap narrower than
 ``min_registration_width_m`` cannot fix the rotation about its long axis and is matched as it
 lies. All lengths are metres, in the local Cartesian frame of the points.
 
@@ -61,6 +62,12 @@ class VgicpSettings:
     max_registration_points: int = 10_000  #: ... coarsened so the overlap holds about this many
     num_neighbors: int = 12  #: neighbours of the registration covariances and of b's local planes
     max_iterations: int = 30  #: per registration stage
+    #: a stage has converged when its last step turned less than this (rad) ...
+    rotation_epsilon_rad: float = 1e-5
+    translation_epsilon_m: float = 1e-4  #: ... and moved less than this (m)
+    #: the finest stage alone is kept where it converged with at least this fraction of b's
+    #: registration points on a's voxels; else coarse to fine over ``voxel_m`` from the start
+    min_inlier_fraction: float = 0.5
     overlap_cell_m: float = 10.0  #: xy cell of the overlap test (coarse enough for sparse strips)
     min_overlap_points: int = 500  #: fewer points of either strip in the overlap → skip
     #: max pair distance after registration; None: 1.5 × b's point spacing
@@ -96,6 +103,8 @@ class VgicpSettings:
             raise ValueError(f"kind must be one of {KINDS}, got {self.kind!r}")
         if not self.voxel_m or any(v <= 0 for v in self.voxel_m):
             raise ValueError(f"voxel_m must be positive sizes, got {self.voxel_m}")
+        if not 0.0 <= self.min_inlier_fraction <= 1.0:
+            raise ValueError(f"min_inlier_fraction must be 0 … 1, got {self.min_inlier_fraction}")
 
 
 @dataclass(frozen=True)
@@ -143,41 +152,82 @@ def overlap_masks(points_a: np.ndarray, points_b: np.ndarray,
     return grid.isin(ka, common), grid.isin(kb, common), common.size * cell_m**2
 
 
-def register(points_a: np.ndarray, points_b: np.ndarray, settings: VgicpSettings, area_m2: float,
-             clock=None) -> Registration:
-    """VGICP registration of b onto a, coarse to fine over ``settings.voxel_m``.
-
-    Points are (N, 3) metres, best centred near the origin (small_gicp discretises at 21 bits);
-    area_m2 is the overlap's area, which bounds the downsampled cloud sizes.
-    ``clock`` (optional) gets "preprocess" and "register" laps.
-    """
-    clock = clock or _Clock(None)
+def registration_stages(settings: VgicpSettings, area_m2: float) -> list[tuple[float, float]]:
+    """(voxel, downsampling) m of each registration stage, coarse to fine: ``settings.voxel_m``
+    with the downsampling coarsened so the overlap (area_m2) holds about
+    ``max_registration_points``; sparse data merge the finest stages into one."""
     min_down = np.sqrt(area_m2 / settings.max_registration_points)
-    stages = []  # (voxel, downsampling) m, coarse to fine; sparse data merge the finest stages
-    for voxel in settings.voxel_m:
+    stages = []
+    for voxel in sorted(settings.voxel_m, reverse=True):  # coarse to fine, however given
         down = max(settings.downsampling_ratio * voxel, min_down)
         stage = (max(voxel, 2.0 * down), down)
         if stage not in stages:
             stages.append(stage)
-    finest = min(d for _, d in stages)
-    # one pass over the full strips at the finest resolution; coarser stages start from it
-    fine_a = small_gicp.voxelgrid_sampling(points_a, finest, settings.num_threads).points()
-    fine_b = small_gicp.voxelgrid_sampling(points_b, finest, settings.num_threads).points()
-    T = np.eye(4)
-    result = None
-    for voxel, down in stages:
-        neighbours, threads = settings.num_neighbors, settings.num_threads
-        target, _ = small_gicp.preprocess_points(fine_a, down, neighbours, threads)
-        source, _ = small_gicp.preprocess_points(fine_b, down, neighbours, threads)
-        voxelmap = small_gicp.GaussianVoxelMap(voxel)
-        voxelmap.insert(target)
-        clock.lap("preprocess")
-        result = small_gicp.align(voxelmap, source, T, max_correspondence_distance=2.0 * voxel,
-                                  num_threads=settings.num_threads,
-                                  max_iterations=settings.max_iterations,
-                                  rotation_epsilon=1e-5, translation_epsilon=1e-4)
-        T = np.asarray(result.T_target_source)
+    return stages
+
+
+def _with_covariances(cloud, settings: VgicpSettings):
+    """The downsampled cloud with its points' covariances (``num_neighbors``), as small_gicp's
+    ``preprocess_points`` sets them, without downsampling it again."""
+    tree = small_gicp.KdTree(cloud, settings.num_threads)
+    small_gicp.estimate_covariances(cloud, tree, settings.num_neighbors, settings.num_threads)
+    return cloud
+
+
+def _align(voxelmap, source, voxel: float, T: np.ndarray, settings: VgicpSettings):
+    """One VGICP stage: b's cloud onto a's voxel map from T, correspondences up to 2 voxels."""
+    return small_gicp.align(voxelmap, source, T, max_correspondence_distance=2.0 * voxel,
+                            num_threads=settings.num_threads,
+                            max_iterations=settings.max_iterations,
+                            rotation_epsilon=settings.rotation_epsilon_rad,
+                            translation_epsilon=settings.translation_epsilon_m)
+
+
+def locked_in(result, n_source: int, settings: VgicpSettings) -> bool:
+    """Did a stage find the minimum its voxels reach: converged, and at least
+    ``min_inlier_fraction`` of b's points with a's voxel within reach?"""
+    return bool(result.converged) and result.num_inliers >= settings.min_inlier_fraction * n_source
+
+
+def register(points_a: np.ndarray, points_b: np.ndarray, settings: VgicpSettings, area_m2: float,
+             clock=None) -> Registration:
+    """VGICP registration of b onto a: the finest of ``settings.voxel_m`` first; coarse to fine
+    from the start again only where that stage did not lock in (:func:`locked_in`).
+
+    Points are (N, 3) metres, best centred near the origin (small_gicp discretises at 21 bits);
+    area_m2 is the overlap's area, which bounds the downsampled cloud sizes. The strips come
+    with the current parameters, within decimetres of each other after the nominal mounting and
+    within millimetres on later outer iterations; the finest stage then reaches the same minimum
+    as the coarse-to-fine ladder, at the cost of one stage (docs/validation.md, issue 32, eighth
+    session). Each cloud is downsampled once at the finest resolution; its covariances and a's
+    voxel map serve the finest stage on either path. ``clock`` (optional) gets "preprocess" and
+    "register" laps.
+    """
+    clock = clock or _Clock(None)
+    stages = registration_stages(settings, area_m2)
+    voxel, down = stages[-1]
+    fine_a = small_gicp.voxelgrid_sampling(points_a, down, settings.num_threads)
+    fine_b = small_gicp.voxelgrid_sampling(points_b, down, settings.num_threads)
+    fine_a, fine_b = _with_covariances(fine_a, settings), _with_covariances(fine_b, settings)
+    voxelmap = small_gicp.GaussianVoxelMap(voxel)
+    voxelmap.insert(fine_a)
+    clock.lap("preprocess")
+    result = _align(voxelmap, fine_b, voxel, np.eye(4), settings)
+    clock.lap("register")
+    if len(stages) > 1 and not locked_in(result, fine_b.size(), settings):
+        T = np.eye(4)  # the start was beyond the finest stage's reach: coarse to fine from it
+        for coarse_voxel, coarse_down in stages[:-1]:
+            k, threads = settings.num_neighbors, settings.num_threads
+            target, _ = small_gicp.preprocess_points(fine_a.points(), coarse_down, k, threads)
+            source, _ = small_gicp.preprocess_points(fine_b.points(), coarse_down, k, threads)
+            coarse_map = small_gicp.GaussianVoxelMap(coarse_voxel)
+            coarse_map.insert(target)
+            clock.lap("preprocess")
+            T = np.asarray(_align(coarse_map, source, coarse_voxel, T, settings).T_target_source)
+            clock.lap("register")
+        result = _align(voxelmap, fine_b, voxel, T, settings)
         clock.lap("register")
+    T = np.asarray(result.T_target_source)
     return Registration(T, bool(result.converged), int(result.iterations), int(result.num_inliers))
 
 

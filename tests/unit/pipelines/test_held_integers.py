@@ -59,3 +59,24 @@ def test_the_same_refusals():
     half = np.array([[0.025, 0.035, -0.025]])  # (x − o) / s at .5 (in binary near it): as numpy
     np.testing.assert_array_equal(stored_integers(half, scales, offsets) is None,
                                   _numpy(half, scales, offsets) is None)
+
+
+def test_scaled_integers_equal_the_axis_by_axis_numpy_scaling():
+    from calidar.ingest.held import scaled_integers
+
+    rng = np.random.default_rng(4)
+    for scales, offsets in (([0.01, 0.01, 0.001], [500000.0, 5000000.0, 0.0]),
+                            ([1e-7, 1e-7, 0.001], [7.5, 45.0, -17.3]),
+                            ([0.0025, 3.0, 1e-9], [-1e6, 0.1, 1e9])):
+        scales, offsets = np.array(scales), np.array(offsets)
+        stored = rng.integers(-2**31, 2**31 - 1, (20000, 3), dtype=np.int64).astype(np.int32)
+        stored[:3] = [[-2**31, 2**31 - 1, 0]] * 3  # the ends of the range
+        x, y, z = (np.ascontiguousarray(stored[:, k]) for k in range(3))
+        got = scaled_integers(x, y, z, scales, offsets)
+        assert got.shape == (20000, 3) and got.dtype == np.float64
+        assert got.tobytes() == _scaled(stored, scales, offsets).tobytes()  # every bit
+    empty = np.zeros(0, np.int32)
+    assert scaled_integers(empty, empty, empty, scales, offsets).shape == (0, 3)
+    floats = [np.array([1.0, 2.0])] * 3  # not integers: the numpy way, the same values
+    np.testing.assert_array_equal(scaled_integers(*floats, scales, offsets),
+                                  _scaled(np.stack(floats, axis=1), scales, offsets))
