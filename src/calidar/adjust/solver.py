@@ -236,11 +236,19 @@ class _Fit:
                 g[idx] += P @ (x[idx] - center)
         return N, g
 
+    def redundancy(self, counted: np.ndarray | None = None,
+                   kept: np.ndarray | None = None) -> float:
+        """Rows (each by its :attr:`share`, times ``counted`` — e.g. its relative weight — when
+        given; only the ``kept`` ones when given) + the priors' terms − the free parameters, ≥ 1:
+        the one count of the redundancy every σ0 of this fit is divided by."""
+        share = self.share if kept is None else self.share[kept]
+        rows = np.sum(share) if counted is None else np.sum(counted * share)
+        return max(float(rows) + self.n_prior - len(self.free), 1.0)
+
     def dof(self, w: np.ndarray) -> float:
         """Effective redundancy: down-weighted observations count by their relative weight (and
         by their share, :attr:`share`)."""
-        redundancy = float(np.sum(w * self.sig**2 * self.share))
-        return max(redundancy + self.n_prior - len(self.free), 1.0)
+        return self.redundancy(w * self.sig**2)
 
     def sigma0(self, r: np.ndarray, x: np.ndarray) -> tuple[float, int]:
         """(σ0, rows skipped as gross) by :func:`calidar.adjust.unit_weight.skipped_sigma0`: the RMS
@@ -265,7 +273,7 @@ def _levenberg_marquardt(at: Estimate, step_in_sigma: float) -> Estimate:
     lam, history, n_inv_diag = 1e-3, list(at.history), at.step_scale  # n_inv_diag: N hardly changes
     c = fit.cost(r, w, x)
     steps = np.array([p.diff_step for p in fit.free])
-    redundancy = max(float(np.sum(fit.share)) + fit.n_prior - len(fit.free), 1)
+    redundancy = fit.redundancy()
     def done(conv: bool) -> Estimate:
         return replace(at, x=x, r=r, w=w, history=history, converged=conv, step_scale=n_inv_diag)
 
@@ -316,7 +324,6 @@ def _solution(fit: _Fit, x: np.ndarray, r: np.ndarray, w: np.ndarray, history: l
     if fit.robust:
         s0, skipped = fit.sigma0(r, x)
         kept = np.abs(r / fit.sig) <= GROSS_Z * s0
-        redundancy = float(max(np.sum(fit.share[kept]) + fit.n_prior - len(fit.free), 1))
         sol.extra["unit_weight"] = {"sigma0": s0, "rows_skipped": skipped, "gross_z": GROSS_Z,
-                                    "redundancy": redundancy}
+                                    "redundancy": fit.redundancy(kept=kept)}
     return sol, J, N
