@@ -80,6 +80,11 @@ STRIP_POINTS = typer.Option(
     BUDGET_POINTS, "--strip-points", help="Points of each strip's overlaps the calibration keeps "
     "(whole blocks spread evenly over them; the strips are streamed, memory and time grow with "
     "this, not with the files); 0: every overlapping point.")
+ALL_CLASSES = typer.Option(
+    False, "--all-classes/--no-all-classes", help="Keep every LAS class in the calibration's "
+    "points. Default: a classified file's vegetation (3–5), noise (7, 18) and water (9) points are "
+    "left out before the --strip-points budget is spent (as `calidar quality` leaves them out); "
+    "unclassified files lose none.")
 CONFIG = typer.Option(
     None, "--config", help="A configuration file (TOML, as the config.toml every run writes beside "
     "its results): its settings replace the defaults, options given on the command line replace "
@@ -124,6 +129,7 @@ def boresight(
     checkpoints: Path | None = CHECKPOINTS, checkpoints_crs: str | None = CHECKPOINTS_CRS,
     target_class: float | None = TARGET_CLASS,
     strip_points: int = STRIP_POINTS,
+    all_classes: bool = ALL_CLASSES,
     config: Path | None = CONFIG,
 ) -> None:
     """Calibrate the mounting (and more) from overlapping strips (the command's help: HELP)."""

@@ -70,7 +70,8 @@ def _trajectory(base, given: dict):
 
 
 def _ingest(base, given: dict):
-    """The ingest options: ``base``'s with --strip-points and the point options given."""
+    """The ingest options: ``base``'s with --strip-points, --all-classes and the point options
+    given."""
     from calidar.ingest.settings import MIN_BUDGET_POINTS
 
     ingest = base
@@ -80,6 +81,8 @@ def _ingest(base, given: dict):
             raise InputError(None, "--strip-points", "expected 0 (every overlapping point) or at "
                              f"least {MIN_BUDGET_POINTS}, got {n}")
         ingest = replace(ingest, budget_points=n or None)
+    if "all_classes" in given:
+        ingest = replace(ingest, all_classes=bool(given["all_classes"]))
     keys = ("crs", "time_system", "geoid_undulation")
     if any(k in given for k in keys):
         p = ingest.points

@@ -18,7 +18,9 @@ import numpy as np
 from calidar.ingest import Progress
 from calidar.ingest.plausibility import GeometryCheck, sample_rows
 from calidar.ingest.settings import BIN_BITS, HELD_BYTES_PER_POINT, IngestSettings
-from calidar.ingest.source import StripFile, group_keys, planar_xy, split_rows
+from calidar.ingest.source import (
+    StripFile, calibration_mask, group_keys, planar_xy, split_rows,
+)
 from calidar.ingest.stages import LineCounts
 from calidar.ingest.times import FileTimes, points_ecef
 from calidar.io.las import iter_las_chunks, las_header
@@ -38,20 +40,24 @@ class Footprints:
     t_min: dict = field(default_factory=dict)
     t_max: dict = field(default_factory=dict)
     files: dict = field(default_factory=dict)  #: group → the name of the (first) file holding it
+    points: dict = field(default_factory=dict)  #: group → its points (every class)
     spans: dict = field(default_factory=dict)  #: (point_source_id, file name) → (first, last time)
     #: file → its GeometryCheck (calidar.ingest.plausibility)
     checks: dict = field(default_factory=dict)
     quality: LineCounts = field(default_factory=lambda: LineCounts(overlap_cell(None)))
 
     def add(self, groups: np.ndarray, keys: np.ndarray, t: np.ndarray, name: str, chunk,
-            quality_keys) -> None:
+            quality_keys, use: np.ndarray | None = None) -> None:
         """A chunk's points (LasPoints with the selection fields) of ``groups`` in overlap cells
-        ``keys`` and quality-grid cells ``quality_keys``, at times ``t``."""
+        ``keys`` and quality-grid cells ``quality_keys``, at times ``t``; the footprints count
+        the points of ``use`` only (None: all; :func:`calidar.ingest.source.calibration_mask`)."""
         if chunk.point_source_id is not None:
             add_spans(self.spans, chunk.point_source_id, t, name)
         for g, rows in split_rows(groups):
             self.files.setdefault(g, name)
-            self.cells.setdefault(g, []).append(cell_counts(keys[rows]))
+            self.points[g] = self.points.get(g, 0) + rows.size
+            counted = rows if use is None else rows[use[rows]]
+            self.cells.setdefault(g, []).append(cell_counts(keys[counted]))
             self.t_min[g] = min(self.t_min.get(g, np.inf), float(t[rows].min()))
             self.t_max[g] = max(self.t_max.get(g, -np.inf), float(t[rows].max()))
             fields = {f: None if getattr(chunk, f) is None else getattr(chunk, f)[rows]
@@ -67,6 +73,7 @@ class Footprints:
             self.spans[k] = (min(s0, t0), max(s1, t1))
         for g, cells in other.cells.items():
             self.files.setdefault(g, other.files[g])
+            self.points[g] = self.points.get(g, 0) + other.points[g]
             self.cells.setdefault(g, []).extend(cells)
             self.t_min[g] = min(self.t_min.get(g, np.inf), other.t_min[g])
             self.t_max[g] = max(self.t_max.get(g, -np.inf), other.t_max[g])
@@ -115,7 +122,8 @@ def file_footprints(frame: LocalFrame, trajectory, settings: IngestSettings, f: 
         keys = cell_keys(xy, settings.cell_m)
         quality_keys = keys if grid == settings.cell_m else cell_keys(xy, grid)
         groups = group_keys(chunk.point_source_id, t[ok], settings.gap_s)
-        acc.add(groups, keys, t[ok], f.path.name, chunk, quality_keys)
+        use = calibration_mask(chunk, settings)
+        acc.add(groups, keys, t[ok], f.path.name, chunk, quality_keys, use)
     # the trajectory's span is what falls short
     return acc, times.finish(name_trajectory=True), hold is not None
 

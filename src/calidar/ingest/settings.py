@@ -38,7 +38,10 @@ class IngestSettings:
     tell them apart), the overlap grid (``cell_m``, ``min_cells``, ``min_points_per_cell``
     as :func:`calidar.strips.overlap.find_overlaps`) and the side of the square blocks kept
     whole (``block_cells`` overlap cells; None: :data:`BLOCK_PATCHES` tie-plane patches at the
-    survey's density, at most :data:`MAX_BLOCK_CELLS`)."""
+    survey's density, at most :data:`MAX_BLOCK_CELLS`), and whether the calibration's points
+    keep every LAS class (``all_classes``; default False: the points of
+    :data:`calidar.strips.selection.EXCLUDED_CLASSES`, vegetation 3–5, noise 7/18 and water 9,
+    are neither counted in the budget nor kept — an unclassified file loses none)."""
 
     budget_points: int | None = BUDGET_POINTS
     block_cells: int | None = None
@@ -49,3 +52,4 @@ class IngestSettings:
     min_cells: int = 4
     min_points_per_cell: int = 3
     hold_bytes: int = HOLD_POINTS_BYTES  #: see :data:`HOLD_POINTS_BYTES`
+    all_classes: bool = False

@@ -19,6 +19,7 @@ from calidar.ingest.stages import LineCounts
 from calidar.ingest.times import FileTimes, points_ecef, points_tile_linear
 from calidar.io.las import PointOptions, iter_las_chunks
 from calidar.strips.overlap import cell_keys
+from calidar.strips.selection import excluded
 from calidar.strips.strip import LocalFrame
 
 @dataclass(frozen=True)
@@ -135,6 +136,15 @@ def planar_xy(chunk, frame: LocalFrame) -> np.ndarray:
     if axis is not None and axis.unit_conversion_factor:
         return chunk.xyz[:, :2] * axis.unit_conversion_factor
     return frame.to_local(points_ecef(chunk))[:, :2]
+
+
+def calibration_mask(chunk, settings: IngestSettings) -> np.ndarray | None:
+    """Mask of the points of a chunk the strip calibration may use: all but the classes of
+    :func:`calidar.strips.selection.excluded` (vegetation, noise, water), unless
+    ``settings.all_classes``; None: every point (that option, or no classification read)."""
+    if settings.all_classes or chunk.classification is None:
+        return None
+    return ~excluded(chunk.classification)
 
 
 def group_keys(psid, t: np.ndarray, gap_s: float) -> np.ndarray:

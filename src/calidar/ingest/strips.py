@@ -31,7 +31,7 @@ from calidar.ingest import Progress, no_progress
 from calidar.ingest.footprints import Footprints, first_pass
 from calidar.ingest.plausibility import GeometryCheck, heights_notes
 from calidar.ingest.settings import BLOCK_PATCHES, MAX_BLOCK_CELLS, IngestSettings
-from calidar.ingest.source import StripFile, StripSource, split_rows
+from calidar.ingest.source import StripFile, StripSource, calibration_mask, split_rows
 from calidar.ingest.stages import LineCounts
 from calidar.ingest.times import points_ecef
 from calidar.io.las import las_file_crs, las_header, las_time_system
@@ -134,17 +134,20 @@ def block_cells(footprint: dict, settings: IngestSettings) -> int:
 
 
 def _kept_points(source: StripSource, kept: dict, f: StripFile) -> dict[int, tuple]:
-    """The points of one file inside its lines' kept cells: line → (ECEF (n, 3) m, times s), as
-    pass 1 kept them or read again (a task)."""
+    """The points of one file inside its lines' kept cells (of the classes the calibration uses:
+    :func:`~calidar.ingest.source.calibration_mask`): line → (ECEF (n, 3) m, times s), as pass 1
+    kept them or read again (a task)."""
     ecef, times = {}, {}
-    for _, chunk, ids, t in source.chunks(files=[f]):
+    for _, chunk, ids, t in source.chunks(("classification",), files=[f]):
         keys = source.cell_keys(chunk)
+        use = calibration_mask(chunk, source.settings)
         for i, rows in split_rows(ids):
             cells = kept.get(i)
             if cells is None or cells.size == 0:
                 continue
             pos = np.minimum(np.searchsorted(cells, keys[rows]), cells.size - 1)
-            sel = rows[cells[pos] == keys[rows]]
+            inside = cells[pos] == keys[rows]
+            sel = rows[inside if use is None else inside & use[rows]]
             ecef.setdefault(i, []).append(points_ecef(chunk.select(sel)))
             times.setdefault(i, []).append(t[sel])
     return {i: (np.concatenate(ecef[i]), np.concatenate(times[i])) for i in ecef}
@@ -197,7 +200,7 @@ class StripIngest:
                                    f"overlap (no {s.min_cells} common {s.cell_m:g} m cells); strip "
                                    "calibration needs overlapping flight lines")
         line_of = dict(zip(groups.tolist(), line.tolist()))
-        counts = {i: int(n.sum()) for i, (_, n) in footprint.items()}
+        counts = {i: sum(acc.points[int(g)] for g in groups[line == i]) for i in footprint}
         quality = LineCounts(acc.quality.grid_m).merge(acc.quality, line_of.__getitem__)
         source = StripSource(files, frame, trajectory, groups, line, how, s, weeks, counts,
                              quality, names, held)

@@ -25,7 +25,8 @@ reads (degrees for the trajectory's attitude σ)::
                                  # (calidar.strips.planes.PlaneSettings)
     [vgicp]                      # VGICP's (calidar.strips.vgicp.VgicpSettings)
     [ingest]                     # strip_points (0: every overlapping point), block_cells, gap_s,
-                                 # chunk_points
+                                 # chunk_points, all_classes (false: no vegetation, noise or
+                                 # water classes in the calibration's points)
     [inputs]                     # crs, time_system, geoid_undulation_m, trajectory_crs,
                                  # trajectory_angles, trajectory_heading, trajectory_columns,
                                  # control_crs, checkpoints_crs
@@ -64,7 +65,7 @@ from calidar.strips.config import (
 #: [ingest] keys → IngestSettings fields (strip_points as --strip-points: 0 keeps every
 #: overlapping point)
 INGEST_KEYS = {"strip_points": "budget_points", "block_cells": "block_cells", "gap_s": "gap_s",
-               "chunk_points": "chunk_points"}
+               "chunk_points": "chunk_points", "all_classes": "all_classes"}
 #: [solver] keys of the engine's SolverOptions (StripSettings.adjustment); step_in_sigma is each
 #: outer iteration's
 ADJUSTMENT_KEYS = ("robust", "robust_k", "robust_scale", "max_iter", "tol")

@@ -25,6 +25,12 @@ EXCLUDED_CLASSES = (3, 4, 5, 7, 9, 18)
 FIELDS = ("classification", "return_number", "number_of_returns")
 
 
+def excluded(classification: np.ndarray) -> np.ndarray:
+    """Mask of the points of :data:`EXCLUDED_CLASSES` (vegetation, noise, water): what neither
+    the overlap-quality rule nor the strip calibration's points use (issue 26)."""
+    return np.isin(classification, EXCLUDED_CLASSES)
+
+
 @dataclass(frozen=True)
 class PointSelection:
     """A rule ("classes", "ground" or "last returns") and the classes it keeps (None: any but
@@ -40,7 +46,7 @@ class PointSelection:
         if self.classes is not None:
             return np.isin(points.classification, self.classes)
         if points.classification is not None:
-            keep &= ~np.isin(points.classification, EXCLUDED_CLASSES)
+            keep &= ~excluded(points.classification)
         if points.return_number is not None and points.number_of_returns is not None:
             keep &= points.return_number == points.number_of_returns
         return keep

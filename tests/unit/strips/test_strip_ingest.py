@@ -3,6 +3,7 @@ thinning by whole blocks within the budget, flight lines from GPS-time gaps."""
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -18,6 +19,7 @@ from calidar.sensor import Sensor
 from calidar.sim.survey import simulate_survey, survey_config
 from calidar.ingest.lines import read_flight_lines
 from calidar.strips.lines import line_ids
+from calidar.strips.selection import EXCLUDED_CLASSES
 from calidar.strips.overlap import cell_counts, cell_keys, common_cells, find_overlaps
 from calidar.strips.thin import spread_rank, thin_cells
 
@@ -68,14 +70,20 @@ def test_points_held_by_pass_1_give_the_strips_read_twice(survey, held_files, mo
     assert files_to_hold([10, 30, 20], 30 * HELD_BYTES_PER_POINT) == [True, False, True]  # in file order while they fit
 
 
-def test_footprints_and_overlaps_equal_the_whole_file_ones(survey):
+@pytest.mark.parametrize("all_classes", [False, True])
+def test_footprints_and_overlaps_equal_the_whole_file_ones(survey, all_classes):
+    """The footprints count the calibration's points: every class with all_classes, else all but
+    the vegetation, noise and water classes (the survey has class 5 trees)."""
     paths, traj, sensor = _inputs(survey)
-    options = IngestSettings(chunk_points=5_000)
+    options = IngestSettings(chunk_points=5_000, all_classes=all_classes)
     _, _, src, _ = StripIngest(options).read(paths, traj, sensor)
     acc, _, _ = first_pass(src.files, src.frame, traj, options, lambda *a: None)
     _, _, how, footprint, _, pairs, _ = _plan(acc, options)
     lines, how_whole = read_flight_lines(paths)
     assert how == how_whole == "point_source_id" and sorted(footprint) == sorted(lines)
+    assert any((p.classification == 5).any() for p in lines.values())
+    if not all_classes:
+        lines = {i: p.select(~np.isin(p.classification, EXCLUDED_CLASSES)) for i, p in lines.items()}
     xy = {i: planar_xy(p, src.frame) for i, p in lines.items()}
     for i, p in xy.items():
         cells, counts = cell_counts(cell_keys(p, options.cell_m))
@@ -95,8 +103,9 @@ def test_thinning_keeps_whole_cells_of_whole_blocks_within_the_budget(survey):
     for s in strips:
         assert 0.5 * budget < len(s) <= budget  # the budget is used, never exceeded
         keys = cell_keys(planar_xy(lines[s.id], src.frame), options.cell_m)
-        inside = np.isin(keys, kept[s.id])
-        assert inside.sum() == len(s)  # every point of a kept cell, nothing else
+        # every point of a kept cell but the vegetation, noise and water classes, nothing else
+        inside = np.isin(keys, kept[s.id]) & ~np.isin(lines[s.id].classification, EXCLUDED_CLASSES)
+        assert inside.sum() == len(s)
         assert np.array_equal(np.sort(lines[s.id].gps_time[inside]), np.sort(s.time))
     for a, b, common in pairs:  # a pair keeps its common cells by whole blocks
         rank = spread_rank(common, 2)
@@ -131,8 +140,9 @@ def test_lines_from_time_gaps_when_point_source_ids_do_not_tell(survey, tmp_path
     ids, how = line_ids(np.ones(t.size, np.int64), t)
     assert how == "gps_time_gaps"
     assert src.counts == {int(i): int(n) for i, n in zip(*np.unique(ids, return_counts=True))}
-    reference, _, _, _ = StripIngest(IngestSettings()).read(paths, traj, sensor)
-    assert sorted(len(s) for s in strips) == sorted(len(s) for s in reference)  # the same lines, numbered in time
+    # the same lines, numbered in time (unclassified files: every class, as all_classes reads the others)
+    reference, _, _, _ = StripIngest(IngestSettings(all_classes=True)).read(paths, traj, sensor)
+    assert sorted(len(s) for s in strips) == sorted(len(s) for s in reference)
 
 
 def test_strip_points_option_is_checked_and_used(survey, cli, tmp_path):
@@ -160,7 +170,8 @@ def test_adjusted_standard_times_become_the_trajectorys_week_seconds(survey, tmp
                                   scan_angle_deg=las.scan_angle_deg, time_system="gps_adjusted_standard"))
     options = IngestSettings(budget_points=20_000, chunk_points=4_000)
     got, _, src, _ = StripIngest(options).read(adjusted, traj, sensor)
-    want, _, _, _ = StripIngest(options).read(paths, traj, sensor)
+    # the rewritten files are unclassified: every class, as all_classes reads the originals
+    want, _, _, _ = StripIngest(replace(options, all_classes=True)).read(paths, traj, sensor)
     assert set(src.weeks.values()) == {2345} and [s.id for s in got] == [s.id for s in want]
     for a, b in zip(got, want):
         assert np.allclose(a.time, b.time, atol=1e-6, rtol=0) and np.array_equal(a.points, b.points)
@@ -248,3 +259,78 @@ def test_geographic_strips_get_the_projected_quality_in_one_read(denser, tmp_pat
             assert abs(q.n_cells - r.n_cells) <= 0.05 * q.n_cells + 2
             assert q.n_cells < 100 or r.median_dz_m == pytest.approx(q.median_dz_m, abs=0.002)
         assert sum(q.n_cells >= 100 for q in utm) >= 2
+
+
+@pytest.fixture(scope="module")
+def noisy(survey, tmp_path_factory) -> list[Path]:
+    """The survey's strips with every 40th ground point made noise (7, 18 by turns): classified
+    files holding canopy (5) and noise."""
+    out = tmp_path_factory.mktemp("noisy")
+    paths = []
+    for p in _inputs(survey)[0]:
+        las = read_las(p)
+        cls = las.classification.copy()
+        ground = np.flatnonzero(cls == 2)[::40]
+        cls[ground] = np.where(np.arange(ground.size) % 2, 7, 18)
+        paths.append(write_las(out / p.name, las.xyz, las.crs, gps_time=las.gps_time,
+                               scan_angle_deg=las.scan_angle_deg, point_source_id=las.point_source_id,
+                               return_number=las.return_number, number_of_returns=las.number_of_returns,
+                               classification=cls))
+    return paths
+
+
+def _kept_classes(strips, paths, frame) -> dict[int, np.ndarray]:
+    """The LAS class of each kept point of each strip (the line's point at the same place and
+    time: a pulse's returns share its time)."""
+    from scipy.spatial import cKDTree
+
+    from calidar.ingest.times import points_ecef
+
+    lines, _ = read_flight_lines(paths)
+    out = {}
+    for s in strips:
+        line = lines[s.id]
+        local = frame.to_local(points_ecef(line))
+        d, pos = cKDTree(local).query(s.points)
+        assert d.max() < 1e-6 and np.array_equal(line.gps_time[pos], s.time)
+        out[s.id] = line.classification[pos]
+    return out
+
+
+@pytest.mark.parametrize("hold_bytes", [0, 10**12])  # pass 2 reads the files again / the held points
+def test_canopy_and_noise_points_are_left_out_before_the_budget_unless_all_classes(survey, noisy, hold_bytes):
+    """Classified strips: the default keeps none of the vegetation, noise or water classes, and the
+    budget goes to the other points; all_classes keeps canopy and noise as before."""
+    _, traj, sensor = _inputs(survey)
+    options = IngestSettings(budget_points=5_000, chunk_points=7_777, hold_bytes=hold_bytes)
+    default, _, src, _ = StripIngest(options).read(noisy, traj, sensor)
+    every, _, _, _ = StripIngest(replace(options, all_classes=True)).read(noisy, traj, sensor)
+    assert [s.id for s in default] == [s.id for s in every] and len(default) >= 3
+    mine, theirs = _kept_classes(default, noisy, src.frame), _kept_classes(every, noisy, src.frame)
+    for s in default:
+        assert not np.isin(mine[s.id], EXCLUDED_CLASSES).any()
+        assert len(s) <= 5_000 and np.isin(mine[s.id], (2, 6)).all()
+    kept_all = np.concatenate(list(theirs.values()))
+    assert all((kept_all == c).sum() > 50 for c in (5, 7, 18))  # canopy and noise were there
+    # the budget spent on the other points: their share of it that canopy and noise took
+    # (≈ 7 % here) comes back to them, at least half of it
+    share = np.isin(kept_all, EXCLUDED_CLASSES).mean()
+    used = sum(np.isin(c, (2, 6)).sum() for c in mine.values())
+    used_all = sum(np.isin(c, (2, 6)).sum() for c in theirs.values())
+    assert share > 0.03 and used > used_all / (1 - share / 2), (share, used, used_all)
+
+
+def test_all_classes_option_from_the_command_line_and_the_config_file(tmp_path):
+    from calidar.cli.boresight_config import strip_config
+    from calidar.pipelines.strip_config import StripConfig
+
+    assert strip_config(None, {}).ingest.all_classes is False
+    config = strip_config(None, {"all_classes": True})
+    assert config.ingest.all_classes is True and config.to_dict()["ingest"]["all_classes"] is True
+    path = config.write(tmp_path / "config.toml")
+    assert StripConfig.read(path) == config
+    assert strip_config(path, {"all_classes": False}).ingest.all_classes is False
+    bad = tmp_path / "bad.toml"
+    bad.write_text(path.read_text().replace("all_classes = true", 'all_classes = "yes"'))
+    with pytest.raises(Exception, match="ingest.all_classes"):
+        StripConfig.read(bad)
