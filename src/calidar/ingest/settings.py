@@ -53,3 +53,10 @@ class IngestSettings:
     min_points_per_cell: int = 3
     hold_bytes: int = HOLD_POINTS_BYTES  #: see :data:`HOLD_POINTS_BYTES`
     all_classes: bool = False
+
+    def classes_text(self) -> str:
+        """Which LAS classes the calibration's points are of, for the report."""
+        if self.all_classes:
+            return "points of every LAS class (--all-classes)"
+        return ("points of every LAS class but vegetation (3–5), noise (7, 18) and water (9) "
+                "(of classified files; --all-classes keeps them)")

@@ -139,7 +139,8 @@ def write_run(run, out_dir: Path, report=None, verdict_title: str | None = None,
         title = section_title and (f"{section_title} ({m})" if label else section_title)
         add_report_section(report, result, inputs.truth, stages[m],
                            accuracy=accuracy_used(inputs, result),
-                           map_pair=map_pair(inputs, stages[m]), title=title)
+                           map_pair=map_pair(inputs, stages[m]), title=title,
+                           classes=inputs.config.ingest.classes_text())
     if several:
         add_comparison_section(report, results, inputs.truth)
     written = []

@@ -96,10 +96,12 @@ def correction_table(sec, result: CalibrationResult) -> None:
 def add_report_section(report: Report, result: CalibrationResult,
                        truth: dict[str, float] | None = None,
                        quality: list[QualityStage] | None = None, title: str | None = None,
-                       accuracy=None, map_pair: tuple[int, int] | None = None):
-    """Add a section: what was done, parameters (with truth, SI dict, when given), correlations,
-    residual histograms, the overlap quality stages with their commands and the dz maps of
-    ``map_pair`` (a, b) before and after, references."""
+                       accuracy=None, map_pair: tuple[int, int] | None = None,
+                       classes: str | None = None):
+    """Add a section: what was done (``classes``: which LAS classes the strips' points are of),
+    parameters (with truth, SI dict, when given), correlations, residual histograms, the overlap
+    quality stages with their commands and the dz maps of ``map_pair`` (a, b) before and after,
+    references."""
     sol = result.solution
     sec = report.section(title or f"Strip calibration ({result.method})")
     n_obs = result.outer[-1]["n_obs"] if result.outer else 0
@@ -107,7 +109,7 @@ def add_report_section(report: Report, result: CalibrationResult,
     sec.text(f"{len(result.strips)} strips, {len(result.overlaps)} overlapping pairs, "
              f"{len(result.pairs)} used; {n_obs:,} observations ({result.matcher.label}); "
              f"{len(result.outer)} outer iterations (re-matching [1]), mean correspondence "
-             "distance " + distances + " mm.")
+             "distance " + distances + " mm." + (f" The strips' {classes}." if classes else ""))
     if result.trajectory_model is not None and result.corrections:
         m = result.trajectory_model
         sec.text("Trajectory errors estimated as corrections per strip [2]: a shift and a "

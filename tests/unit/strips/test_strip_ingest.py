@@ -154,6 +154,8 @@ def test_strip_points_option_is_checked_and_used(survey, cli, tmp_path):
     code, _, err = cli(*args, "--strip-points", "10000", "--trajectory-model", "off", "--out", tmp_path / "o")
     doc = __import__("json").loads((tmp_path / "o" / "solution.json").read_text())
     assert doc["run"]["options"]["ingest"]["strip_points"] == 10000
+    assert doc["run"]["options"]["ingest"]["all_classes"] is False  # and the report says so:
+    assert "but vegetation (3–5), noise (7, 18) and water (9)" in (tmp_path / "o" / "report.html").read_text()
     # the outputs are written either way; exit 3 says the verdict (the trajectory taken as exact) is FAIL
     assert code == (3 if doc["verdict"]["status"] == "fail" else 0), err
 
