@@ -57,6 +57,6 @@ class IngestSettings:
     def classes_text(self) -> str:
         """Which LAS classes the calibration's points are of, for the report."""
         if self.all_classes:
-            return "points of every LAS class (--all-classes)"
-        return ("points of every LAS class but vegetation (3–5), noise (7, 18) and water (9) "
+            return "every LAS class (--all-classes)"
+        return ("every LAS class but vegetation (3–5), noise (7, 18) and water (9) "
                 "(of classified files; --all-classes keeps them)")

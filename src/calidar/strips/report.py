@@ -109,7 +109,8 @@ def add_report_section(report: Report, result: CalibrationResult,
     sec.text(f"{len(result.strips)} strips, {len(result.overlaps)} overlapping pairs, "
              f"{len(result.pairs)} used; {n_obs:,} observations ({result.matcher.label}); "
              f"{len(result.outer)} outer iterations (re-matching [1]), mean correspondence "
-             "distance " + distances + " mm." + (f" The strips' {classes}." if classes else ""))
+             "distance " + distances + " mm."
+             + (f" The strips' points: {classes}." if classes else ""))
     if result.trajectory_model is not None and result.corrections:
         m = result.trajectory_model
         sec.text("Trajectory errors estimated as corrections per strip [2]: a shift and a "
