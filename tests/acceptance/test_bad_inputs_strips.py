@@ -204,7 +204,7 @@ STRIP_CASES = [
 
 
 #: options a user cannot give wrongly (flags) or covered by the tests below
-NOT_IN_CORPUS = {"--force", "--write-strips", "--help"}
+NOT_IN_CORPUS = {"--force", "--write-strips", "--all-classes", "--no-all-classes", "--help"}
 
 
 def test_every_boresight_option_is_in_the_corpus():
