@@ -152,7 +152,10 @@ class Section:
         self.table(header[:keep], [r[:keep] for r in rows])
         self._residuals(doc["residuals"], residual_unit, residual_factor)
         solver = "converged" if doc["converged"] else "did NOT converge"
-        self.text(f"σ0 = {doc['sigma0']:.3f}, redundancy {doc['dof']:.0f}, condition number "
+        # a robust fit's engine σ0 is not what its global test reads (calidar.strips.global_test)
+        which = ("σ0 of the robustly weighted residuals (the verdict's global test says how it is "
+                 "read)" if "unit_weight" in doc else "σ0")
+        self.text(f"{which} = {doc['sigma0']:.3f}, redundancy {doc['dof']:.0f}, condition number "
                   f"{doc['condition_number']:.3g}; the solver {solver} in "
                   f"{len(doc['history']) - 1} iterations.")
         for w in doc["warnings"]:
