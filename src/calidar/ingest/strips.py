@@ -198,7 +198,10 @@ class StripIngest:
             listed = ", ".join(strip_name(i, names) for i in sorted(footprint))
             raise CalibrationError(f"no two of the {len(footprint)} flight lines ({listed}) "
                                    f"overlap (no {s.min_cells} common {s.cell_m:g} m cells); strip "
-                                   "calibration needs overlapping flight lines")
+                                   "calibration needs overlapping flight lines"
+                                   + ("" if s.all_classes else
+                                      " (of classified files, vegetation, noise and water are "
+                                      "left out: --all-classes counts them)"))
         line_of = dict(zip(groups.tolist(), line.tolist()))
         counts = {i: sum(acc.points[int(g)] for g in groups[line == i]) for i in footprint}
         quality = LineCounts(acc.quality.grid_m).merge(acc.quality, line_of.__getitem__)
