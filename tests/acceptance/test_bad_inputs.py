@@ -26,6 +26,9 @@ USAGE = [
     case(["simulate", "survey", "--seed", "abc", "--out", "{O}"], "'--seed': 'abc' is not a valid integer",
                  id="seed-abc"),
     case(["info", "--jsn", "x"], "No such option '--jsn'", id="info-jsn"),
+    # click raises this one before any context exists: the usage line is calidar's to give
+    case(["info", "--json=3", S1], "Usage: calidar info", "'--json' does not take a value",
+                 id="flag-given-a-value"),
     case(["quality", S1, "--cell", "abc"], "'--cell': 'abc' is not a valid float", id="quality-cell-abc"),
     case(["boresight", S1, "--trajectory", SBET, "--out", "{O}"], "Missing option '--sensor'",
                  id="boresight-no-sensor"),

@@ -148,6 +148,7 @@ def run(argv: list[str] | None = None) -> int:
 
 
 def _run(argv: list[str] | None) -> int:
+    app, args = None, []
     try:
         # with standalone_mode=False click returns the code of a typer.Exit raised in a command
         args = sys.argv[1:] if argv is None else list(argv)
@@ -162,7 +163,25 @@ def _run(argv: list[str] | None) -> int:
         # an error the interruption caused (e.g. inside a native callback)
         if interrupts.pending() is not None:
             return _interrupted(interrupts.pending())
+        _give_usage_context(e, app, args)
         return _report(e)
+
+
+def _give_usage_context(e: Exception, app, args: list[str]) -> None:
+    """click's parser raises some usage errors (``--force=1``: an option given a value it does
+    not take) before any context exists, so they would print no usage line: give them the
+    context of the command the arguments name (exit 2 with the usage line, as every other)."""
+    if app is None or not _is(e, "UsageError") or getattr(e, "ctx", None) is not None:
+        return
+    command = typer.main.get_command(app)
+    ctx = command.context_class(command, info_name="calidar")
+    for word in args:
+        sub = None if word.startswith("-") else getattr(command, "get_command", None)
+        sub = sub and sub(ctx, word)
+        if sub is None:
+            break
+        command, ctx = sub, sub.context_class(sub, info_name=word, parent=ctx)
+    e.ctx = ctx
 
 
 def _interrupted(signum: int) -> int:
