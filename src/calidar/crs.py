@@ -148,13 +148,21 @@ def tile_linear(xyz, crs, geoid_undulation_m: float | None = None, source=None,
 
 
 @njit(cache=True, nogil=True)
+def plus_jd(b0, b1, b2, jac, j, d0, d1, d2):  # pragma: no cover - numba
+    """b + jac[j] · d of one point, component by component: the one form of a tile's linear move
+    (:func:`tile_moved`, and the re-georeferencing kernel's, calidar.ingest.regeoref)."""
+    return (b0 + (jac[j, 0, 0] * d0 + jac[j, 0, 1] * d1 + jac[j, 0, 2] * d2),
+            b1 + (jac[j, 1, 0] * d0 + jac[j, 1, 1] * d1 + jac[j, 1, 2] * d2),
+            b2 + (jac[j, 2, 0] * d0 + jac[j, 2, 1] * d1 + jac[j, 2, 2] * d2))
+
+
+@njit(cache=True, nogil=True)
 def tile_moved(base: np.ndarray, jac: np.ndarray, rows: np.ndarray, d: np.ndarray) -> np.ndarray:
     """base + jac[rows] · d, point by point (no (n, 3, 3) gather)."""
-    out = base.copy()
+    out = np.empty_like(base)
     for i in range(base.shape[0]):
-        j = rows[i]
-        for a in range(3):
-            out[i, a] += jac[j, a, 0] * d[i, 0] + jac[j, a, 1] * d[i, 1] + jac[j, a, 2] * d[i, 2]
+        out[i, 0], out[i, 1], out[i, 2] = plus_jd(base[i, 0], base[i, 1], base[i, 2], jac,
+                                                  rows[i], d[i, 0], d[i, 1], d[i, 2])
     return out
 
 

@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 from numba import njit
 
-from calidar.ingest.chunk_pass import chunk_pass, held_rows, selected_points
+from calidar.ingest.chunk_pass import chunk_pass, held_rows, second_and_cell, selected_points
 from calidar.strips.overlap import merge_counts
 from calidar.strips.selection import FIELDS as SELECTION_FIELDS
 
@@ -178,10 +178,7 @@ def _seconds_cells(t, xyz, grid):  # pragma: no cover - numba
     n = t.size
     sec, ij = np.empty(n, np.int64), np.empty((n, 2), np.int64)
     for k in range(n):
-        s = np.floor(t[k]) if np.isfinite(t[k]) else 4294967295.0
-        sec[k] = min(max(np.int64(s), 0), 4294967295) if s < 9.2e18 else 4294967295
-        ij[k, 0] = np.int64(np.floor(xyz[k, 0] / grid))
-        ij[k, 1] = np.int64(np.floor(xyz[k, 1] / grid))
+        sec[k], ij[k, 0], ij[k, 1] = second_and_cell(t[k], xyz[k, 0], xyz[k, 1], grid)
     return sec, ij
 
 

@@ -60,14 +60,21 @@ def chunk_pass(t: np.ndarray, xyz: np.ndarray, grid_m: float, fields: dict, sele
 
 
 @njit(cache=True, nogil=True)
+def second_and_cell(t, x, y, grid):  # pragma: no cover - numba
+    """A point's whole GPS second (2³² − 1 when not finite; clipped to 0…2³² − 1) and overlap-grid
+    cell (i, j) = floor(x / grid), floor(y / grid): the one rule of
+    :func:`calidar.ingest.cell_counts._seconds_cells` and :func:`_chunk_kernel`."""
+    s = np.floor(t) if np.isfinite(t) else 4294967295.0
+    sec = min(max(np.int64(s), 0), 4294967295) if s < 9.2e18 else np.int64(4294967295)
+    return sec, np.int64(np.floor(x / grid)), np.int64(np.floor(y / grid))
+
+
+@njit(cache=True, nogil=True)
 def _chunk_kernel(t, xyz, grid, cls, rn, nr, keeps, last):  # pragma: no cover - numba
     n = t.size
     sec, ij, bits = np.empty(n, np.int64), np.empty((n, 2), np.int64), np.empty(n, np.uint8)
-    for k in range(n):  # as calidar.ingest.cell_counts._seconds_cells
-        s = np.floor(t[k]) if np.isfinite(t[k]) else 4294967295.0
-        sec[k] = min(max(np.int64(s), 0), 4294967295) if s < 9.2e18 else 4294967295
-        ij[k, 0] = np.int64(np.floor(xyz[k, 0] / grid))
-        ij[k, 1] = np.int64(np.floor(xyz[k, 1] / grid))
+    for k in range(n):
+        sec[k], ij[k, 0], ij[k, 1] = second_and_cell(t[k], xyz[k, 0], xyz[k, 1], grid)
         same, b = rn[k] == nr[k], 0
         for m in range(keeps.shape[0]):
             if keeps[m, cls[k]] and (same or not last[m]):

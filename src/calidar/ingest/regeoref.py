@@ -18,6 +18,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from calidar.crs import plus_jd
 from calidar.georef import lidar_point, pose, scanner_vector
 
 
@@ -71,14 +72,13 @@ def _versions_kernel(tt, pos, q, tt2, pos2, q2, t, inv, anchor_ecef, anchor, r_b
     for m in range(which.size):
         second = second or which[m] == 1
     qx = qy = qz = r00 = r01 = r02 = r10 = r11 = r12 = r20 = r21 = r22 = 0.0
-    p = np.empty(3)
     for k in range(t.size):
         tk = t[k]
-        j = rows[k]  # p = anchor_ecef + J⁻¹ · (xyz − the anchor's xyz), as calidar.crs.tile_moved
+        j = rows[k]  # p = anchor_ecef + J⁻¹ · (xyz − the anchor's xyz), as near_ecef
         a0 = anchor[j]
         d0, d1, d2 = base[k, 0] - base[a0, 0], base[k, 1] - base[a0, 1], base[k, 2] - base[a0, 2]
-        for a in range(3):
-            p[a] = anchor_ecef[j, a] + (inv[j, a, 0] * d0 + inv[j, a, 1] * d1 + inv[j, a, 2] * d2)
+        p0, p1, p2 = plus_jd(anchor_ecef[j, 0], anchor_ecef[j, 1], anchor_ecef[j, 2], inv, j,
+                             d0, d1, d2)
         n_out += not tt[0] <= tk <= tt[tt.size - 1]
         i, i_prev, theta, s, sign, px, py, pz, a00, a01, a02, a10, a11, a12, a20, a21, a22 = pose(
             tt, pos, q, tk, i, i_prev, theta, s, sign)
@@ -87,7 +87,7 @@ def _versions_kernel(tt, pos, q, tt2, pos2, q2, t, inv, anchor_ecef, anchor, r_b
             (i2, i2_prev, theta2, s2, sign2,
              qx, qy, qz, r00, r01, r02, r10, r11, r12, r20, r21, r22) = pose(
                 tt2, pos2, q2, tk, i2, i2_prev, theta2, s2, sign2)
-        sx, sy, sz = scanner_vector(p[0], p[1], p[2], px, py, pz,
+        sx, sy, sz = scanner_vector(p0, p1, p2, px, py, pz,
                                     a00, a01, a02, a10, a11, a12, a20, a21, a22, r_bs0, lever0)
         for m in range(which.size):
             if which[m] == 0:  # the pose on the first trajectory
@@ -101,8 +101,6 @@ def _versions_kernel(tt, pos, q, tt2, pos2, q2, t, inv, anchor_ecef, anchor, r_b
             # the lidar equation, then the move (calidar.crs.tile_moved)
             x, y, z = lidar_point(sx, sy, sz, r_bs[m], lever[m], ox, oy, oz,
                                   e00, e01, e02, e10, e11, e12, e20, e21, e22)
-            d0, d1, d2 = x - p[0], y - p[1], z - p[2]
-            for a in range(3):
-                moved = jac[j, a, 0] * d0 + jac[j, a, 1] * d1 + jac[j, a, 2] * d2
-                out[m, k, a] = base[k, a] + moved
+            out[m, k, 0], out[m, k, 1], out[m, k, 2] = plus_jd(
+                base[k, 0], base[k, 1], base[k, 2], jac, j, x - p0, y - p1, z - p2)
     return n_out, n_out2
