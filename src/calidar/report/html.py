@@ -153,9 +153,9 @@ class Section:
         self._residuals(doc["residuals"], residual_unit, residual_factor)
         solver = "converged" if doc["converged"] else "did NOT converge"
         # a robust fit's engine σ0 is not what its global test reads (calidar.strips.global_test)
-        which = ("σ0 of the robustly weighted residuals (the verdict's global test says how it is "
-                 "read)" if "unit_weight" in doc else "σ0")
-        self.text(f"{which} = {doc['sigma0']:.3f}, redundancy {doc['dof']:.0f}, condition number "
+        which = (" from the robustly weighted residuals (the verdict's global test says how it is "
+                 "read)" if "unit_weight" in doc else "")
+        self.text(f"σ0 = {doc['sigma0']:.3f}{which}, redundancy {doc['dof']:.0f}, condition number "
                   f"{doc['condition_number']:.3g}; the solver {solver} in "
                   f"{len(doc['history']) - 1} iterations.")
         for w in doc["warnings"]:
