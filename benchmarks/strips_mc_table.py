@@ -1,0 +1,77 @@
+"""The issue-26 Monte-Carlo table from ``strips_montecarlo.py``'s rows (issue 26, ninth session).
+
+    python benchmarks/strips_mc_table.py ROWS.jsonl [ROWS2.jsonl ...] [--pool]
+
+One markdown row per cell (preset, scene, directions, trees) and method: surveys (seeds), RMS of
+z = error/σ per angle (± its sampling spread 1/√(2n)), mean z, largest |z| per angle, the count
+of |z| > 3.5, σ0 as the global test reads it (``sigma0_test``) inside its χ² 95 % range and within
+±7 % of 1, and the outer iterations' mean (largest). ``--pool`` adds one row per method over all
+the rows read. Only the ``smrmsg`` source's rows (the accuracy file beside the SBET).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+import numpy as np
+
+
+def cell_of(r: dict) -> str:
+    """A row's cell: e.g. 'uav urban cross, 0 %'."""
+    scene = "urban" if r.get("scene") == "urban" else r.get("preset", "airborne")
+    pattern = r.get("directions", "cross")
+    return f"{scene} {pattern}, {100 * r.get('vegetation', 0.0):.0f} %"
+
+
+def seeds_text(seeds: list[int]) -> str:
+    """[860, 861, …, 879, 930] → '860–879, 930'."""
+    out, run = [], [seeds[0]]
+    for s in seeds[1:]:
+        if s == run[-1] + 1:
+            run.append(s)
+        else:
+            out.append(run)
+            run = [s]
+    out.append(run)
+    return ", ".join(f"{r[0]}–{r[-1]}" if len(r) > 1 else f"{r[0]}" for r in out)
+
+
+def line(label: str, method: str, sel: list[dict]) -> str:
+    """One markdown row over the rows ``sel``."""
+    z = np.array([np.divide(r["error_deg"], r["sigma_deg"]) for r in sel])
+    n = len(sel)
+    s0 = np.array([r["sigma0_test"] for r in sel])
+    lo, hi = np.array([r["sigma0_range"] for r in sel]).T
+    outer = [r["outer_iterations"] for r in sel]
+    f = lambda v, fmt: " / ".join(format(x, fmt) for x in v)  # noqa: E731
+    return (f"| {label} | {method} | {n} ({seeds_text(sorted({r['seed'] for r in sel}))}) | "
+            f"{f(np.sqrt(np.mean(z**2, 0)), '.2f')} (±{1 / np.sqrt(2 * n):.2f}) | "
+            f"{f(z.mean(0), '+.2f')} | {f(np.abs(z).max(0), '.2f')} | "
+            f"{int(np.sum(np.abs(z) > 3.5))} | {s0.mean():.3f} ({s0.min():.3f}–{s0.max():.3f}) | "
+            f"{int(np.sum((s0 >= lo) & (s0 <= hi)))} / {int(np.sum(np.abs(s0 - 1) <= 0.07))} | "
+            f"{np.mean(outer):.1f} ({max(outer)}) |")
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("rows", type=Path, nargs="+", help="strips_montecarlo.py --json files")
+    ap.add_argument("--pool", action="store_true", help="also one row per method over all")
+    args = ap.parse_args()
+    rows = [json.loads(x) for p in args.rows for x in p.read_text().splitlines() if x.strip()]
+    rows = list({(r["seed"], r["method"], cell_of(r)): r for r in rows
+                 if r.get("source", "smrmsg") == "smrmsg"}.values())  # the last run of each
+    print("| cell | method | surveys (seeds) | RMS z roll / pitch / yaw | mean z | max abs z "
+          "| abs z > 3.5 | σ0 mean (min–max) | σ0 in χ² range / ±7 % | outer iterations |")
+    print("|---|---|---|---|---|---|---|---|---|---|")
+    for cell in sorted({cell_of(r) for r in rows}):
+        for method in sorted({r["method"] for r in rows if cell_of(r) == cell}):
+            print(line(cell, method, [r for r in rows if (cell_of(r), r["method"]) == (cell, method)]))
+    if args.pool:
+        for method in sorted({r["method"] for r in rows}):
+            print(line("**pooled**", method, [r for r in rows if r["method"] == method]))
+
+
+if __name__ == "__main__":
+    main()
