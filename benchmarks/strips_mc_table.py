@@ -2,10 +2,10 @@
 
     python benchmarks/strips_mc_table.py ROWS.jsonl [ROWS2.jsonl ...] [--pool]
 
-One markdown row per cell (preset, scene, directions, trees) and method: surveys (seeds), RMS of
-z = error/σ per angle (± its sampling spread 1/√(2n)), mean z, largest |z| per angle, the count
-of |z| > 3.5, σ0 as the global test reads it (``sigma0_test``) inside its χ² 95 % range and within
-±7 % of 1, and the outer iterations' mean (largest). ``--pool`` adds one row per method over all
+One markdown row per cell (preset, scene, directions, trees) and method: surveys (seeds), RMS
+of z = error/σ per angle (± its sampling spread 1/√(2n)), mean z, largest |z| per angle, the
+count of |z| > 3.5, σ0 as the global test reads it (``sigma0_test``) inside its χ² 95 % range
+and within ±7 % of 1, and the outer iterations' mean (largest). ``--pool`` adds one row per method over all
 the rows read. Only the ``smrmsg`` source's rows (the accuracy file beside the SBET).
 """
 
@@ -67,7 +67,8 @@ def main() -> None:
     print("|---|---|---|---|---|---|---|---|---|---|")
     for cell in sorted({cell_of(r) for r in rows}):
         for method in sorted({r["method"] for r in rows if cell_of(r) == cell}):
-            print(line(cell, method, [r for r in rows if (cell_of(r), r["method"]) == (cell, method)]))
+            sel = [r for r in rows if (cell_of(r), r["method"]) == (cell, method)]
+            print(line(cell, method, sel))
     if args.pool:
         for method in sorted({r["method"] for r in rows}):
             print(line("**pooled**", method, [r for r in rows if r["method"] == method]))
