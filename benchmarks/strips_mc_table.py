@@ -6,7 +6,8 @@ One markdown row per cell (preset, scene, directions, trees) and method: surveys
 of z = error/σ per angle (± its sampling spread 1/√(2n)), mean z, largest |z| per angle, the
 count of |z| > 3.5, σ0 as the global test reads it (``sigma0_test``) inside its χ² 95 % range
 and within ±7 % of 1, and the outer iterations' mean (largest). ``--pool`` adds one row per
-method over all the rows read. Only the ``smrmsg`` source's rows (the accuracy file beside the SBET).
+method over all the rows read. Only the ``smrmsg`` source's rows (the accuracy file beside the
+SBET).
 """
 
 from __future__ import annotations
