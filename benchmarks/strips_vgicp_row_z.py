@@ -66,8 +66,8 @@ def _plane_rows(*args):
         (va, dof_a, pa), (vb, _, pb) = _POSTERIOR
         s = args[-1]
         count = dof_a + 1
-        rough = row_variance.rough_rows_variance(pa, dof_a, pb, 9.0, s.roughness_factor,
-                                                 s.roughness_quantile)[0]
+        rough = row_variance.rough_rows_variance(pa, np.maximum(dof_a, 1), pb, 9.0,
+                                                 s.roughness_factor, s.roughness_quantile)[0]
         h = (sigma**2 - s.noise_floor_m**2 - pa / count - rough) / np.maximum(pb, 1e-300)
         _ROWS[sigma.tobytes()] = {"var_a_raw": va, "count": count, "var_b_raw": vb,
                                   "var_a_post": pa, "var_b_post": pb, "leverage": h}

@@ -95,13 +95,13 @@ class VgicpSettings:
     max_centroid_offset: float = 0.35
     #: a-priori σ of one residual; None: from b's plane scatter (point_to_plane) or 5 cm
     sigma_m: float | None = None
-    #: added to the rows' σ in quadrature, for every row alike (issue 26, ninth session: 0.002
-    #: until then; the quiet rows' residuals say none, docs/validation.md)
-    noise_floor_m: float = 0.0
+    #: added to the rows' σ in quadrature, every row alike (UAV rows fit 0 with the roughness term)
+    noise_floor_m: float = 0.002
     #: point_to_plane: κ of the rough rows' model error κ·ρ² in σ², ρ² a row's scatter beyond the
-    #: pair's ``roughness_quantile`` (:func:`calidar.strips.row_variance.rough_rows_variance`;
-    #: 0.9 from 6 simulated UAV surveys by variance components, docs/validation.md)
-    roughness_factor: float = 0.9
+    #: pair's ``roughness_quantile`` (:func:`calidar.strips.row_variance.rough_rows_variance`).
+    #: UAV surveys: 0.9 with ``noise_floor_m`` 0 (variance components on 6 simulated surveys); the
+    #: airborne rows fit 0 and widen with 0.9, so 0 by default (docs/validation.md, issue 26)
+    roughness_factor: float = 0.0
     roughness_quantile: float = 0.75
     #: point_to_plane: b's scatter in ``max_scatter_ratio``'s test at least this (m)
     min_scatter_m: float = 0.002

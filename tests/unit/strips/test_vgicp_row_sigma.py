@@ -81,7 +81,8 @@ def test_variance_components_recover_a_known_component():
 
 def test_an_unmodelled_offset_still_reads_sigma0_far_above_one():
     var_a, count, var_b, leverage, r = _rows(4)
-    sigma = row_sigma(var_a, count, var_b, 9, leverage, VgicpSettings())[0]
+    uav = replace(VgicpSettings(), roughness_factor=0.9, noise_floor_m=0.0)  # the UAV option
+    sigma = row_sigma(var_a, count, var_b, 9, leverage, uav)[0]
     assert np.sqrt(np.mean((r / sigma) ** 2)) < 1.2
     assert np.sqrt(np.mean(((r + 0.01) / sigma) ** 2)) > 2.0  # a 1 cm wrong offset
 
