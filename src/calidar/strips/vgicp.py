@@ -99,8 +99,9 @@ class VgicpSettings:
     noise_floor_m: float = 0.002
     #: point_to_plane: κ of the rough rows' model error κ·ρ² in σ², ρ² a row's scatter beyond the
     #: pair's ``roughness_quantile`` (:func:`calidar.strips.row_variance.rough_rows_variance`).
-    #: UAV surveys: 0.9 with ``noise_floor_m`` 0 (variance components on 6 simulated surveys); the
-    #: airborne rows fit 0 and widen with 0.9, so 0 by default (docs/validation.md, issue 26)
+    #: UAV rows fit 0.9 with ``noise_floor_m`` 0 (variance components, 6 simulated surveys), which
+    #: helps opposite lines but not cross lines' pitch, urban scenes or airborne rows (these fit
+    #: 0): so 0 by default (docs/validation.md, issue 26, ninth session)
     roughness_factor: float = 0.0
     roughness_quantile: float = 0.75
     #: point_to_plane: b's scatter in ``max_scatter_ratio``'s test at least this (m)
