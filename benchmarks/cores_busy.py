@@ -60,7 +60,8 @@ def sample(pid: int, done: threading.Event, samples: list, period: float = 0.2) 
         done.wait(period)
 
 
-def run(sim: Path, method: str, src: Path) -> tuple[list, list]:
+def run(sim: Path, method: str, src: Path) -> tuple[list, list, dict | None]:
+    """The samples, the stages' starts and the run's result (boresight values and σ, degrees)."""
     env = {**os.environ, "PYTHONPATH": str(src)}
     cmd = [sys.executable, str(HERE.parent / "large_flight.py"), "--child-stages", str(sim), method]
     proc = subprocess.Popen(cmd, env=env, stderr=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
@@ -79,14 +80,14 @@ def run(sim: Path, method: str, src: Path) -> tuple[list, list]:
                 stage += " (pass 1)" if 2 * n < total else " (pass 2, build)"
             if stage != stamps[-1][1]:
                 stamps.append((time.monotonic(), stage))
-    proc.stdout.read()
+    result = [ln for ln in proc.stdout.read().splitlines() if ln.startswith("{")]
     # the last sample before the process is reaped: its threads' times are still readable
     time.sleep(0.3)
     done.set()
     sampler.join()
     proc.wait()
     stamps.append((time.monotonic(), "end"))
-    return samples, stamps
+    return samples, stamps, json.loads(result[-1]) if result else None
 
 
 def at(samples: list, t: float) -> tuple[float, float]:
@@ -122,7 +123,7 @@ def main() -> None:
                     help="also print cores busy and wanted every S seconds")
     args = ap.parse_args()
     load = os.getloadavg()[0]
-    samples, stamps = run(args.sim, args.method, args.src)
+    samples, stamps, result = run(args.sim, args.method, args.src)
     rows = per_stage(samples, stamps)
     wall = stamps[-1][0] - stamps[0][0]
     r, w = samples[-1][1] / 1e9, samples[-1][2] / 1e9
@@ -139,7 +140,8 @@ def main() -> None:
         print(f"{row['stage']:28s} wall {row['wall_s']:7.1f} s  CPU {row['cpu_s']:7.1f} s  "
               f"busy {row['cores_busy']}  wanted {row['cores_wanted']}")
     if args.out:
-        args.out.write_text(json.dumps({"load": load, "src": str(args.src), "stages": rows}, indent=1))
+        args.out.write_text(json.dumps({"load": load, "src": str(args.src), "stages": rows,
+                                        "result": result}, indent=1))
 
 
 if __name__ == "__main__":
