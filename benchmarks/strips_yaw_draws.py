@@ -270,13 +270,13 @@ def transfer(args) -> None:
             spread = analytic_spread(groups, cfg.gnss_noise_m, cfg.attitude_noise_rad)
             z = response(groups, measured, true, 0.0) / spread
             m = path.stem.split("_")[1]
-            parts = {}  # the yaw's trajectory part by error kind and axis (mdeg), and its spread
+            parts = {}  # the angles' trajectory part by error kind and axis (mdeg), and its spread
             for kind, axis in [(k, a) for k in ("bias", "tilt") for a in range(3)]:
                 sub = [g for g in groups if g[1] == kind and g[2] == axis]
                 parts[f"{kind}_{'enu'[axis]}"] = (
-                    float(np.degrees(response(sub, measured, true, 0.0)[2]) * 1e3),
-                    float(np.degrees(analytic_spread(sub, cfg.gnss_noise_m,
-                                                     cfg.attitude_noise_rad)[2]) * 1e3))
+                    np.degrees(response(sub, measured, true, 0.0)) * 1e3,
+                    np.degrees(analytic_spread(sub, cfg.gnss_noise_m,
+                                               cfg.attitude_noise_rad)) * 1e3)
             own = np.degrees(response(groups, measured, true, 0.0)) * 1e3  # mdeg
             out.append((seed, path.stem, z, mc.get((seed, m)), parts, own, err.get((seed, m))))
             own_mc = mc.get((seed, m))
@@ -306,8 +306,9 @@ def transfer(args) -> None:
                   f"{f(rms(rest))} mdeg")
         for key in sel[0][4]:
             v = np.array([o[4][key][0] for o in sel])
-            print(f"    yaw's part from {key}: RMS {rms(v):.2f} mdeg, "
-                  f"expected {sel[0][4][key][1]:.2f}")
+            print(f"    roll/pitch/yaw's part from {key}: RMS "
+                  + " / ".join(f"{x:.3f}" for x in rms(v)) + " mdeg, expected (closed form) "
+                  + " / ".join(f"{x:.3f}" for x in sel[0][4][key][1]))
 
 
 def rms(x) -> np.ndarray:
