@@ -148,3 +148,18 @@ def test_signal_while_the_temporary_folder_is_created_leaves_nothing(tmp_path, m
     finally:
         signal.signal(signal.SIGINT, old)
     assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("as_command", [True, False])
+def test_the_command_reports_a_crash_with_its_stacks(as_command):
+    """The ``calidar`` command (its script's name, as ``calidar`` runs it) prints Python's stacks on
+    a crash (faulthandler) rather than dying in silence; a library import changes nothing."""
+    name = "sys.argv[0] = 'calidar'; " if as_command else ""
+    code = (f"import sys; {name}import calidar, faulthandler, ctypes; "
+            "print(faulthandler.is_enabled(), flush=True); ctypes.string_at(0)")
+    p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60,
+                       env={k: v for k, v in os.environ.items() if k != "PYTHONFAULTHANDLER"})
+    assert p.returncode == -signal.SIGSEGV
+    assert p.stdout.strip() == str(as_command)
+    assert ("Fatal Python error: Segmentation fault" in p.stderr) == as_command, p.stderr
+    assert ("string_at" in p.stderr) == as_command, p.stderr
