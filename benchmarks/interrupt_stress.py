@@ -13,7 +13,9 @@ crash prints its Python stacks) kept in ``--log``.
         benchmarks/interrupt_stress.py --survey /work/mc/segv/survey --tries 200 --load 2 --cold
 
 ``--load K`` runs K busy loops (``python -c "while 1: pass"``) beside the tries, as a loaded CI
-machine; ``--cold`` gives every try a fresh numba cache and bytecode cache (``NUMBA_CACHE_DIR``,
+machine; ``--perturb`` sets MALLOC_PERTURB_ (freed memory overwritten: a use after free crashes
+sooner); ``--threads 4 --min 0 --max 1.5`` counts the moments from the reader threads' start;
+``--cold`` gives every try a fresh numba cache and bytecode cache (``NUMBA_CACHE_DIR``,
 ``PYTHONPYCACHEPREFIX``), as a fresh clone; ``--neighbour`` runs uninterrupted boresight runs
 with the same caches beside the tries (pytest-xdist's other worker).
 """
@@ -56,13 +58,29 @@ def wait_for_calidar(proc: subprocess.Popen) -> float:
         time.sleep(0.001)
 
 
-def one_try(survey: Path, work: Path, env: dict, delay: float, signum: int) -> tuple[str, str]:
-    """('interrupted' | 'completed' | 'crash' | 'wrong', what) of one interrupted run."""
+def wait_for_threads(proc: subprocess.Popen, threads: int) -> float:
+    """The moment ``proc`` runs ``threads`` threads or more (its reader pool has started)."""
+    while proc.poll() is None:
+        try:
+            if len(os.listdir(f"/proc/{proc.pid}/task")) >= threads:
+                break
+        except OSError:
+            break
+        time.sleep(0.001)
+    return time.monotonic()
+
+
+def one_try(survey: Path, work: Path, env: dict, delay: float, signum: int,
+            threads: int = 0) -> tuple[str, str]:
+    """('interrupted' | 'completed' | 'crash' | 'wrong', what) of one interrupted run: ``delay``
+    s after calidar's first line, or after the process runs ``threads`` threads when given."""
     work.mkdir()
     out = work / "out"
     proc = subprocess.Popen(argv(survey, out), stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                             text=True, env=env)
     wait_for_calidar(proc)
+    if threads:
+        wait_for_threads(proc, threads)
     time.sleep(delay)
     proc.send_signal(signum)
     stdout, stderr = proc.communicate(timeout=300)
@@ -95,11 +113,19 @@ def main() -> None:
     p.add_argument("--load", type=int, default=0, help="busy loops beside the tries")
     p.add_argument("--cold", action="store_true", help="fresh numba and bytecode caches a try")
     p.add_argument("--neighbour", action="store_true", help="an uninterrupted run beside")
+    p.add_argument("--threads", type=int, default=0,
+                   help="count the moment from when the run has this many threads (4: main, the "
+                        "progress bar's, two readers)")
+    p.add_argument("--perturb", action="store_true",
+                   help="glibc fills freed and new memory with a pattern (MALLOC_PERTURB_): a read "
+                        "of freed memory shows as a crash or an error, not as luck")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--log", type=Path, default=Path("interrupt_stress.log"))
     a = p.parse_args()
     base = {**os.environ, "NUMBA_NUM_THREADS": "1", "OMP_NUM_THREADS": "1",
             "PYTHONFAULTHANDLER": "1"}
+    if a.perturb:
+        base["MALLOC_PERTURB_"] = "165"
     if not (a.survey / "sbet.out").exists():
         subprocess.run([sys.executable, "-m", "calidar", "simulate", "survey", "--density",
                         "0.02", "--out", str(a.survey)], check=True, env=base)
@@ -120,7 +146,7 @@ def main() -> None:
                     near = neighbour(a.survey, env, root)
                 delay = rng.uniform(a.min, a.max)
                 kind, what = one_try(a.survey, root / f"run{i}", env, delay,
-                                     (signal.SIGINT, signal.SIGTERM)[i % 2])
+                                     (signal.SIGINT, signal.SIGTERM)[i % 2], a.threads)
                 counts[kind] += 1
                 if kind in ("crash", "wrong"):
                     log.write(f"try {i}: {what}\n")
@@ -136,8 +162,9 @@ def main() -> None:
             b.kill()
             b.wait()
         shutil.rmtree(root, ignore_errors=True)
-    print(f"{a.tries} tries, {a.min}-{a.max} s, load {a.load}, cold {a.cold}, neighbour "
-          f"{a.neighbour}: {counts}")
+    print(f"{a.tries} tries, {a.min}-{a.max} s after {a.threads or 'calidar'}"
+          f"{' threads' if a.threads else ''}, load {a.load}, cold {a.cold}, neighbour "
+          f"{a.neighbour}, perturb {a.perturb}: {counts}")
 
 
 if __name__ == "__main__":
