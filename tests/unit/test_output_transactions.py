@@ -163,3 +163,29 @@ def test_the_command_reports_a_crash_with_its_stacks(as_command):
     assert p.stdout.strip() == str(as_command)
     assert ("Fatal Python error: Segmentation fault" in p.stderr) == as_command, p.stderr
     assert ("string_at" in p.stderr) == as_command, p.stderr
+
+
+def test_memory_release_and_commit_start_no_process(tmp_path, monkeypatch):
+    """``malloc_trim`` (once per quality task) and ``renameat2`` (the commit) come from the libc
+    this process runs on: no ``/sbin/ldconfig -p`` is started from the multi-threaded run, as
+    ``ctypes.util.find_library`` did at every call (strace: 6 in one boresight run on the
+    bad-input corpus's survey)."""
+    from calidar import outputs
+    from calidar.ingest import release_memory
+
+    started = []
+
+    class Spy(subprocess.Popen):
+        def __init__(self, args, *a, **k):
+            started.append(args)
+            super().__init__(args, *a, **k)
+
+    monkeypatch.setattr(subprocess, "Popen", Spy)
+    release_memory()
+    a, b = tmp_path / "a", tmp_path / "b"
+    a.mkdir()
+    b.mkdir()
+    (a / "new").touch()
+    exchanged = outputs._renameat2(a, b)
+    assert started == []
+    assert not exchanged or ((b / "new").exists() and not (a / "new").exists())
