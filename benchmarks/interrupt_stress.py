@@ -17,7 +17,8 @@ machine; ``--perturb`` sets MALLOC_PERTURB_ (freed memory overwritten: a use aft
 sooner); ``--threads 4 --min 0 --max 1.5`` counts the moments from the reader threads' start;
 ``--cold`` gives every try a fresh numba cache and bytecode cache (``NUMBA_CACHE_DIR``,
 ``PYTHONPYCACHEPREFIX``), as a fresh clone; ``--neighbour`` runs uninterrupted boresight runs
-with the same caches beside the tries (pytest-xdist's other worker).
+with the same caches beside the tries (pytest-xdist's other worker; with ``--cold`` one fresh cache
+that both fill at once).
 """
 
 from __future__ import annotations
@@ -133,16 +134,18 @@ def main() -> None:
     rng = np.random.default_rng(a.seed)
     counts = {"interrupted": 0, "completed": 0, "crash": 0, "wrong": 0}
     root = Path(tempfile.mkdtemp(prefix="interrupt_stress_"))
-    near = None
+    near, ends = None, {}
     try:
         with open(a.log, "a") as log:
             for i in range(a.tries):
                 env = dict(base)
-                if a.cold:
-                    caches = root / f"cache{i}"
+                if a.cold:  # with a neighbour: one fresh cache for both, as a fresh clone's
+                    caches = root / ("cache" if a.neighbour else f"cache{i}")
                     env.update(NUMBA_CACHE_DIR=str(caches / "numba"),
                                PYTHONPYCACHEPREFIX=str(caches / "pyc"))
                 if a.neighbour and (near is None or near.poll() is not None):
+                    if near is not None:  # its exit code: 0, or a crash of the neighbour
+                        ends[near.returncode] = ends.get(near.returncode, 0) + 1
                     near = neighbour(a.survey, env, root)
                 delay = rng.uniform(a.min, a.max)
                 kind, what = one_try(a.survey, root / f"run{i}", env, delay,
@@ -164,7 +167,8 @@ def main() -> None:
         shutil.rmtree(root, ignore_errors=True)
     print(f"{a.tries} tries, {a.min}-{a.max} s after {a.threads or 'calidar'}"
           f"{' threads' if a.threads else ''}, load {a.load}, cold {a.cold}, neighbour "
-          f"{a.neighbour}, perturb {a.perturb}: {counts}")
+          f"{a.neighbour}, perturb {a.perturb}: {counts}"
+          + (f"; neighbour runs' exit codes {ends}" if a.neighbour else ""))
 
 
 if __name__ == "__main__":
