@@ -189,3 +189,15 @@ def test_memory_release_and_commit_start_no_process(tmp_path, monkeypatch):
     exchanged = outputs._renameat2(a, b)
     assert started == []
     assert not exchanged or ((b / "new").exists() and not (a / "new").exists())
+
+
+def test_a_signal_while_the_cli_imports_ends_without_finalisation(tmp_path):
+    """A Ctrl-C while the CLI's modules load ends the run as every interrupted run ends: one line,
+    130, and no interpreter finalisation (which aborted an interrupted run on CI once): an atexit
+    function registered before does not run."""
+    code = ("import atexit, os, signal, sys; sys.argv = ['calidar', 'info', 'x.laz']; "
+            "import calidar; atexit.register(lambda: print('finalised', flush=True)); "
+            "os.kill(os.getpid(), signal.SIGINT); import calidar.cli; calidar.cli.main()")
+    p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120,
+                       cwd=tmp_path)
+    assert (p.returncode, p.stderr.strip(), p.stdout) == (130, "interrupted", "")

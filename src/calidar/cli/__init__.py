@@ -229,9 +229,10 @@ def main() -> None:
     from calidar.cli import signals
 
     signals.install()
-    # Ctrl-C while Python was importing: end now, nothing begun
+    # Ctrl-C while Python was importing: end now, nothing begun (as every interrupted run ends:
+    # without the interpreter's finalisation, see _exit)
     if interrupts.pending() is not None:
-        sys.exit(_interrupted(interrupts.pending()))
+        _exit(_interrupted(interrupts.pending()))
     code = run(sys.argv[1:])
     signals.finish()
     _exit(code)
