@@ -1,14 +1,15 @@
 """Interrupt ``calidar boresight`` at chosen points rather than moments (issue 27's rare SIGSEGV;
 ``benchmarks/interrupt_stress.py`` sends signals at moments from outside).
 
-``calls``: each try runs the command in a subprocess that sends itself SIGINT or SIGTERM
-(alternately) at its N-th Python call after the CLI's handler is installed (``sys.settrace``
-counting calls in the main thread), N uniform in [--lo, --hi]: points spread over the imports
-(a warm run makes ≈ 1.73 M calls; its imports end near 300 000, its reader threads start near
-420 000). ``inprocess``: --tries runs of ``calidar.cli.run`` in this one process, each interrupted
-by a SIGALRM handed to the CLI's own handler at a moment uniform in [--lo, --hi] s (no process
-start between tries; the reader threads of one run may still be ending while the next starts).
-Counted as ``interrupt_stress.py`` does; a crash ends the loop with its stacks (faulthandler).
+``calls``: each try runs ``python -m calidar boresight`` in a subprocess that sends itself SIGINT
+or SIGTERM (alternately) at its N-th Python call after the CLI has installed its handler
+(``sys.settrace`` counting calls in the main thread), N uniform in [--lo, --hi]: points spread
+over the imports (a warm run makes ≈ 1.73 M calls; its imports end near 300 000, its reader
+threads start near 420 000). Counted as ``interrupt_stress.py`` does. ``inprocess``: --tries runs
+of the library's boresight calibration and output in this one process, each cut at a moment
+uniform in [--lo, --hi] s by a handler acting as the CLI's (no process start between tries; the
+reader threads of one run may still be ending while the next starts); a crash ends the loop
+with its stacks (faulthandler).
 
     cd /work/wt/segv && nice -n 10 env PYTHONPATH=$PWD/src /work/main/.venv/bin/python \\
         benchmarks/interrupt_points.py calls --survey /work/mc/segv/survey --lo 1 --hi 450000
@@ -30,25 +31,26 @@ from pathlib import Path
 
 import numpy as np
 
-#: the command as ``calidar`` (its script's name), with the counter set on the CLI's handler
+#: ``python -m calidar`` started as the ``calidar`` command, the counter set when the CLI installs
+#: its handler (``signal.signal`` given the function ``_handler``)
 BOOT = """
-import os, signal, sys
+import os, runpy, signal, sys
 N, SIG = int(os.environ["INJECT_AT"]), int(os.environ["INJECT_SIG"])
 sys.argv = ["calidar"] + sys.argv[1:]
-import calidar.cli as cli
-from calidar.cli import signals
 count = [0]
 def tracer(frame, event, arg):
     count[0] += event == "call"
     if count[0] >= N:
         sys.settrace(None)
         os.kill(os.getpid(), SIG)
-install = signals.install
-def counted():
-    install()
-    sys.settrace(tracer)
-signals.install = counted
-cli.main()
+setsig = signal.signal
+def watched(signum, handler):
+    old = setsig(signum, handler)
+    if signum == signal.SIGTERM and getattr(handler, "__name__", "") == "_handler":
+        sys.settrace(tracer)
+    return old
+signal.signal = watched
+runpy.run_module("calidar", run_name="__main__", alter_sys=True)
 """
 
 
@@ -82,25 +84,46 @@ def calls(a, rng) -> dict:
 
 
 def inprocess(a, rng) -> dict:
+    """The library's run (``calibrate_strips`` with ``StripConfig()``, then ``write``) again and
+    again, each cut by a handler acting as the CLI's: the first signal raises ``Interrupted``
+    unless the result is committed or a short step holds signals back (then acted upon at its
+    end)."""
+    import calidar
     from calidar import interrupts
-    from calidar.cli import run, signals
 
-    signal.signal(signal.SIGALRM, lambda s, frame: signals._handler(signal.SIGINT, frame))
-    interrupts.set_delivery(signals._act)
-    codes: dict[int, int] = {}
+    def handler(signum, frame):
+        interrupts.record(signal.SIGINT)
+        if not (interrupts.committed() or interrupts.is_deferred()):
+            raise interrupts.Interrupted(signal.SIGINT)
+
+    def deliver():
+        if interrupts.pending() is not None:
+            raise interrupts.Interrupted(interrupts.pending())
+
+    signal.signal(signal.SIGALRM, handler)
+    interrupts.set_delivery(deliver)
+    s = a.survey
+    strips = sorted((s / "strips").glob("*.laz"))
+    counts = {"interrupted": 0, "completed": 0}
     work = Path(tempfile.mkdtemp(prefix="interrupt_points_"))
     try:
         for i in range(a.tries):
+            interrupts.reset()
             signal.setitimer(signal.ITIMER_REAL, rng.uniform(a.lo, a.hi))
-            code = run(boresight(a.survey, work / f"out{i}"))
-            signal.setitimer(signal.ITIMER_REAL, 0)
-            codes[code] = codes.get(code, 0) + 1
+            try:
+                run = calidar.calibrate_strips(strips, s / "sbet.out", s / "sensor.toml",
+                                               calidar.StripConfig())
+                run.write(work / f"out{i}")
+                counts["completed"] += 1
+            except KeyboardInterrupt:
+                counts["interrupted"] += 1
+            finally:
+                signal.setitimer(signal.ITIMER_REAL, 0)
             if (i + 1) % 10 == 0:
-                print(f"{i + 1} runs: exit codes {codes}", flush=True)
+                print(f"{i + 1} runs: {counts}", flush=True)
     finally:
         shutil.rmtree(work, ignore_errors=True)
-    return {"interrupted": codes.get(130, 0), "completed": codes.get(0, 0),
-            "other": sum(v for k, v in codes.items() if k not in (0, 130))}
+    return counts
 
 
 def main() -> None:

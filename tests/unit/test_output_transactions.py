@@ -201,3 +201,37 @@ def test_a_signal_while_the_cli_imports_ends_without_finalisation(tmp_path):
     p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120,
                        cwd=tmp_path)
     assert (p.returncode, p.stderr.strip(), p.stdout) == (130, "interrupted", "")
+
+
+@pytest.mark.parametrize("when", ["install", "after run"])
+def test_a_signal_outside_the_run_ends_without_a_traceback(tmp_path, when):
+    """A signal as the CLI's handlers are being installed (the handler raises from the next
+    bytecode of ``signals.install``: before ``run``'s own ``try``) ends the run "interrupted",
+    130; one that falls after ``run`` returned, before the handlers are removed, keeps the run's
+    exit code. Never a traceback."""
+    hook = {
+        "install": ("setsig = signal.signal\n"
+                    "def watched(signum, handler):\n"
+                    "    old = setsig(signum, handler)\n"
+                    "    if getattr(handler, '__name__', '') == '_handler':\n"
+                    "        os.kill(os.getpid(), signal.SIGINT)\n"
+                    "    return old\n"
+                    "signal.signal = watched\n"),
+        "after run": ("from calidar.cli import signals\n"
+                      "finish, sent = signals.finish, []\n"
+                      "def late():\n"
+                      "    if not sent:\n"
+                      "        sent.append(1)\n"
+                      "        os.kill(os.getpid(), signal.SIGINT)\n"
+                      "    finish()\n"
+                      "signals.finish = late\n"),
+    }[when]
+    code = ("import os, signal, sys\nsys.argv = ['calidar', 'info', 'missing.laz']\n"
+            f"import calidar\n{hook}import calidar.cli\ncalidar.cli.main()\n")
+    p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120,
+                       cwd=tmp_path)
+    assert "Traceback" not in p.stderr, p.stderr
+    if when == "install":
+        assert (p.returncode, p.stderr.strip()) == (130, "interrupted")
+    else:  # the run's own error and code
+        assert p.returncode == 1 and "missing.laz" in p.stderr and "interrupted" not in p.stderr
