@@ -14,7 +14,12 @@ skipped, and the plain RMS.
 
     NUMBA_NUM_THREADS=1 OMP_NUM_THREADS=1 PYTHONPATH=src python benchmarks/strips_vgicp_row_z.py \\
         --cache DIR --seeds 1112-1117 [--method vgicp] [--set max_scatter_ratio=2] \\
-        [--json out.jsonl]
+        [--json out.jsonl] [--dump DIR]
+
+``--dump DIR``: each survey's rows as DIR/<folder>.npz (residual r and σ at the solution, the pair,
+parallel or not, and each side's raw and posterior scatter variance, a's count and b's leverage,
+captured from :func:`calidar.strips.vgicp_planes.plane_rows`) for fitting a rows' σ model offline
+(issue 26, ninth session).
 """
 
 from __future__ import annotations
@@ -35,10 +40,38 @@ from calidar.adjust.unit_weight import skipped_sigma0  # noqa: E402
 from calidar.pipelines.boresight import calibrate_inputs, load_inputs  # noqa: E402
 from calidar.pipelines.strip_config import StripConfig  # noqa: E402
 from calidar.strips.config import CalibrationConfig, matchers_named  # noqa: E402
+from calidar.strips import processes, row_variance, vgicp, vgicp_planes  # noqa: E402
 from calidar.strips.row_variance import consistency  # noqa: E402
+
+_PLANE_ROWS = vgicp_planes.plane_rows
 
 _CAPTURED: list = []
 _solution = solver.Estimate.solution
+_ROWS: dict[bytes, dict] = {}  # per plane_rows call, keyed by its σ's bytes
+_POSTERIOR: list = []
+
+
+def _posterior(variance_m2, dof, sampled=True):
+    out = row_variance.posterior(variance_m2, dof, sampled)
+    _POSTERIOR.append((np.asarray(variance_m2, float), np.broadcast_to(dof, np.shape(variance_m2)),
+                       out[0]))
+    return out
+
+
+def _plane_rows(*args):
+    _POSTERIOR.clear()
+    out = _PLANE_ROWS(*args)
+    sigma = np.asarray(out[5], float)
+    if len(_POSTERIOR) == 2 and sigma.ndim == 1:
+        (va, dof_a, pa), (vb, _, pb) = _POSTERIOR
+        s = args[-1]
+        count = dof_a + 1
+        rough = row_variance.rough_rows_variance(pa, np.maximum(dof_a, 1), pb, 9.0,
+                                                 s.roughness_factor, s.roughness_quantile)[0]
+        h = (sigma**2 - s.noise_floor_m**2 - pa / count - rough) / np.maximum(pb, 1e-300)
+        _ROWS[sigma.tobytes()] = {"var_a_raw": va, "count": count, "var_b_raw": vb,
+                                  "var_a_post": pa, "var_b_post": pb, "leverage": h}
+    return out
 
 
 def _capture(self, clusters=None):
@@ -66,7 +99,22 @@ def _groups(z: np.ndarray, masks: dict[str, np.ndarray]) -> dict[str, list[float
     return out
 
 
-def survey(folder: Path, method: str, settings: dict) -> dict:
+def _dump(path: Path, problem, est, parallel: np.ndarray) -> None:
+    """The final adjustment's rows with what their σ were made of (see the docstring)."""
+    keys = ("var_a_raw", "count", "var_b_raw", "var_a_post", "var_b_post", "leverage")
+    parts = {k: [] for k in keys}
+    pair = []
+    for i, c in enumerate(problem.corrs):
+        got = _ROWS.get(np.asarray(c.sigma_m, float).tobytes())
+        for k in keys:
+            parts[k].append(got[k] if got else np.full(c.n_obs, np.nan))
+        pair.append(np.full(c.n_obs, i))
+    n = sum(c.n_obs for c in problem.corrs)
+    np.savez_compressed(path, r=est.r[:n], sig=est.fit.sig[:n], parallel=parallel,
+                        pair=np.concatenate(pair), **{k: np.concatenate(v) for k, v in parts.items()})
+
+
+def survey(folder: Path, method: str, settings: dict, dump: Path | None = None) -> dict:
     matcher = matchers_named(method)[0]
     if settings:
         matcher = replace(matcher, settings=replace(matcher.settings, **settings))
@@ -97,6 +145,9 @@ def survey(folder: Path, method: str, settings: dict) -> dict:
                  for i, m in ((c.strip_a, c.A), (c.strip_b, c.B))]
         angle.append(np.degrees(np.maximum(*sides)))
     parallel, angle = np.concatenate(kind), np.concatenate(angle)
+    if dump is not None:
+        dump.mkdir(parents=True, exist_ok=True)
+        _dump(dump / f"{folder.name}.npz", problem, est, parallel)
     count, radius, offset = (np.concatenate(v) for v in (count, radius, offset))
     q = np.quantile(fit.sig, [0.25, 0.5, 0.75, 0.9])
     masks = {"parallel": parallel, "crossing": ~parallel}
@@ -131,12 +182,16 @@ def main() -> None:
     ap.add_argument("--json", type=Path, default=None)
     ap.add_argument("--set", nargs="*", default=[], metavar="KEY=VALUE",
                     help="matcher settings (numbers), e.g. max_scatter_ratio=2")
+    ap.add_argument("--dump", type=Path, default=None, help="write each survey's rows here")
     args = ap.parse_args()
     solver.Estimate.solution = _capture
+    vgicp_planes.posterior = _posterior
+    vgicp.plane_rows = _plane_rows
+    processes.MIN_POINTS = 1 << 62  # every pair in this process, where plane_rows is wrapped
     for seed in seeds_of(args.seeds):
         folder = next(p for p in sorted(args.cache.iterdir()) if f"_seed{seed}_" in p.name)
         row = survey(folder, args.method,
-                     {k: float(v) for k, v in (kv.split("=", 1) for kv in args.set)})
+                     {k: float(v) for k, v in (kv.split("=", 1) for kv in args.set)}, args.dump)
         if args.json:
             with args.json.open("a") as f:
                 f.write(json.dumps(row) + "\n")

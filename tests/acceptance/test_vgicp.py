@@ -299,6 +299,12 @@ def test_both_methods_run_and_are_compared_in_the_report(cli, tmp_path):
     for name in ANGLES:  # the same data and model: the two estimates agree within their σ
         a, b = docs["planes"]["parameters"][name], docs["vgicp"]["parameters"][name]
         assert abs(a["value"] - b["value"]) < 3 * np.hypot(a["sigma"], b["sigma"]), name
+    # each method's global test reads σ0 as its matcher declares (and the solution records)
+    assert docs["planes"]["strips"]["sigma0_reading"] == "t_model"
+    assert docs["vgicp"]["strips"]["sigma0_reading"] == "skipped_rms"
+    tests = {m: next(f for f in d["verdict"]["findings"] if f["check"] == "global test") for m, d in docs.items()}
+    assert "right in the mean, not row by row" in tests["vgicp"]["detail"]
+    assert "right in the mean, not row by row" not in tests["planes"]["detail"]
     html = (out / "report.html").read_text()
     assert "planes and vgicp compared" in html and "|difference| / combined σ" in html
 

@@ -213,7 +213,7 @@ def _result(run: Run, solution: Solution, problem: StripProblem, pairs: list[dic
     iterations = [{kk: v for kk, v in o.items() if kk != "values"} for o in outer]
     solution.extra["strips"] = {
         "method": run.matcher.name, "robust": run.settings.robust, "pairs": pairs,
-        "outer_iterations": iterations,
+        "sigma0_reading": run.matcher.sigma0_reading, "outer_iterations": iterations,
         "row_dof": dof_summary(np.concatenate([rows_dof(c) for c in problem.corrs]))}
     return CalibrationResult(solution, sensor, run.nominal, list(strips), run.overlaps, run.matcher,
                              pairs, first_residuals, solution.residuals, outer, fix, run.model,

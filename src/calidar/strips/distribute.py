@@ -177,8 +177,9 @@ def _workers_in_own_session() -> Iterator[None]:
 
 def map_pairs(func: Callable[..., Any], tasks: Sequence[tuple], scheduler: str | None = None,
               workers: int | None = None, *, client: Any = None, log: "TaskLog | None" = None,
-              kind: str = "match pair") -> list[Any]:
-    """``[func(*task) for task in tasks]``, in-process (default) or on Dask.
+              kind: str = "match pair", threads: int = 1) -> list[Any]:
+    """``[func(*task) for task in tasks]``, in-process (default; ``threads`` tasks at once: for a
+    ``func`` that releases the GIL) or on Dask.
 
     scheduler / workers: as :func:`cluster_client` (a cluster for this call only);
     client: an open Client to reuse across calls (e.g. every round of an iterated
@@ -189,7 +190,8 @@ def map_pairs(func: Callable[..., Any], tasks: Sequence[tuple], scheduler: str |
     if client is not None:
         return list(run_tasks(func, tasks, client=client, log=log, kind=kind))
     with cluster_client(scheduler, workers) as own:
-        return list(run_tasks(func, tasks, client=own, log=log, kind=kind))
+        return list(run_tasks(func, tasks, client=own, log=log, kind=kind,
+                              threads=threads if own is None else 1))
 
 
 def run_tasks(func: Callable[..., Any], tasks: Sequence[tuple], *, shared: tuple = (),

@@ -4,9 +4,9 @@ against 1.
 σ0, the engine's made consistent for the rows' residuals, is judged against the χ² test's 95 % range
 for the solution's redundancy and, when the rows' σ are estimated from their points, against
 :data:`ROW_SIGMA_TOLERANCE` (issue 26). Rows whose σ are right in the mean but not row by row (a
-scale mixture wider than their t model: :data:`SKIPPED_RMS_METHODS`) are read by the RMS of their
-standardised residuals with gross rows skipped, which needs no model of their shape. Split from
-:mod:`calidar.strips.verdict`, which gives the finding its place among the others.
+scale mixture wider than their t model; their matcher declares :data:`SKIPPED_RMS`) are read by the
+RMS of their standardised residuals with gross rows skipped, which needs no model of their shape.
+Split from :mod:`calidar.strips.verdict`, which gives the finding its place among the others.
 """
 
 from __future__ import annotations
@@ -25,13 +25,16 @@ SIGMA0_FAIL = 2.0
 #: 0.91–1.04 over both methods and presets (issue 26); beyond its χ² range but within this of 1, σ0
 #: passes, and the finding says so
 ROW_SIGMA_TOLERANCE = 0.07
-#: matchers whose rows' σ are right in the mean but scatter row by row beyond their t model (VGICP's
+#: how a matcher's robust rows with σ estimated from their points are read (its class declares one,
+#: :attr:`calidar.strips.matchers.Matcher.sigma0_reading`, and the solution records it):
+#: T_MODEL — the engine's σ0 ÷ the Student-t factor of the rows' degrees of freedom;
+#: SKIPPED_RMS — rows right in the mean but scattering row by row beyond their t model (VGICP's
 #: standardised residuals at the truth: |z| quantiles 50 / 90 / 99.9 % 0.60 / 1.52 / 5.60 against
-#: the t mixture's 0.66 / 1.64 / 3.4–3.6, RMS 0.99): the Cauchy-weighted σ0 made consistent for that
-#: t mixture reads them 7–10 % low, so their global test takes the RMS of the residuals over their σ
-#: with the rows beyond :data:`calidar.adjust.unit_weight.GROSS_Z` σ0 skipped, consistent for any
-#: such mixture (docs/validation.md, issue 26, eighth session)
-SKIPPED_RMS_METHODS = frozenset({"vgicp"})
+#: the t mixture's 0.66 / 1.64 / 3.4–3.6, RMS 0.99), which the Cauchy-weighted σ0 made consistent
+#: for that t mixture reads 7–10 % low: the RMS of the residuals over their σ with the rows beyond
+#: :data:`calidar.adjust.unit_weight.GROSS_Z` σ0 skipped, consistent for any such mixture
+#: (docs/validation.md, issue 26, eighth session)
+T_MODEL, SKIPPED_RMS = "t_model", "skipped_rms"
 
 
 def robust_consistency(kind: str | None) -> float:
@@ -53,11 +56,12 @@ def robust_consistency(kind: str | None) -> float:
 
 def _takes_skipped(sol) -> bool:
     """Whether the global test reads the skipped RMS (``extra["unit_weight"]``): robust rows of a
-    matcher in :data:`SKIPPED_RMS_METHODS` whose σ were estimated from their points (``row_dof``
-    recorded; one σ given for every row keeps the engine's σ0 ÷ the normal factor)."""
+    matcher that declares :data:`SKIPPED_RMS` (``extra["strips"]["sigma0_reading"]``) whose σ were
+    estimated from their points (``row_dof`` recorded; one σ given for every row keeps the engine's
+    σ0 ÷ the normal factor)."""
     extra = sol.extra if isinstance(sol.extra, dict) else {}
     strips = extra.get("strips", {})
-    return (strips.get("method") in SKIPPED_RMS_METHODS and strips.get("robust") is not None
+    return (strips.get("sigma0_reading") == SKIPPED_RMS and strips.get("robust") is not None
             and bool(strips.get("row_dof")) and "unit_weight" in extra)
 
 
@@ -69,9 +73,8 @@ def global_test_sigma0(sol) -> float:
     patches the normal factor read the σ0 of rows exactly right at the truth 2–3 % low). The RMS of
     the standardised residuals with gross rows skipped (``extra["unit_weight"]``,
     :func:`calidar.adjust.unit_weight.skipped_sigma0`) is shown beside it, not taken
-    (docs/validation.md, issue 26, fifth session) — except for the rows of
-    :data:`SKIPPED_RMS_METHODS`, whose shape no t model holds: for them it is σ0 (eighth
-    session)."""
+    (docs/validation.md, issue 26, fifth session) — except for the rows of a matcher declaring
+    :data:`SKIPPED_RMS`, whose shape no t model holds: for them it is σ0 (eighth session)."""
     strips = sol.extra.get("strips", {}) if isinstance(sol.extra, dict) else {}
     kind, dofs = strips.get("robust"), strips.get("row_dof")
     if _takes_skipped(sol):

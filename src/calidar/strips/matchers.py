@@ -15,6 +15,7 @@ from typing import ClassVar, Protocol
 import numpy as np
 
 from calidar.strips.correspond import Correspondences
+from calidar.strips.global_test import SKIPPED_RMS, T_MODEL
 from calidar.strips.planes import PlaneSettings, match_pair_planes
 from calidar.strips.vgicp import VgicpSettings, match_pair_vgicp
 
@@ -25,6 +26,9 @@ class Matcher(Protocol):
     name: ClassVar[str]  #: how ``--method`` and the outputs name it (solution_<name>.json)
     label: ClassVar[str]  #: its observations in words ("tie planes")
     threshold_m: float  #: the outer loop stops when the mean distance changes by less (m)
+    #: how the global test reads the σ0 of its robust rows whose σ are estimated from their points
+    #: (:data:`calidar.strips.global_test.T_MODEL` or ``SKIPPED_RMS``; recorded in the solution)
+    sigma0_reading: ClassVar[str]
 
     def match(self, strip_a: int, points_a: np.ndarray, strip_b: int,
               points_b: np.ndarray) -> Correspondences:
@@ -39,6 +43,8 @@ class TiePlanes:
 
     name: ClassVar[str] = "planes"
     label: ClassVar[str] = "tie planes"
+    #: a plane's σ from its points: Student-t rows of the plane fit's degrees of freedom
+    sigma0_reading: ClassVar[str] = T_MODEL
     settings: PlaneSettings = field(default_factory=PlaneSettings)
     threshold_m: float = 2e-4  #: the matching is deterministic: 0.2 mm
 
@@ -53,6 +59,8 @@ class Vgicp:
 
     name: ClassVar[str] = "vgicp"
     label: ClassVar[str] = "VGICP correspondences"
+    #: rows right in the mean, not row by row (issue 26, eighth session): the skipped RMS
+    sigma0_reading: ClassVar[str] = SKIPPED_RMS
     settings: VgicpSettings = field(default_factory=VgicpSettings)
     #: re-matching alone moves the mean distance by ~0.1 mm, so the tie planes' 0.2 mm would rarely
     #: stop it

@@ -31,7 +31,7 @@ from calidar.strips.control_survey import SurveyErrors
 from calidar.strips.config import StripSettings
 from calidar.strips.convergence import NUISANCE, extrapolated, moving
 from calidar.strips.correspond import Correspondences
-from calidar.strips.distribute import map_pairs
+from calidar.strips.distribute import IN_PROCESS_THREADS, map_pairs
 from calidar.strips.matchers import Matcher
 from calidar.strips.overlap import Overlap, find_overlaps, strip_name
 from calidar.strips.parameters import sensor_of
@@ -54,6 +54,13 @@ def match_or_error(matcher: Matcher, strip_a_id, points_a, strip_b_id, points_b)
         return matcher.match(strip_a_id, points_a, strip_b_id, points_b)
     except CalidarError as e:
         return e
+
+
+def pair_threads(matcher: Matcher) -> int:
+    """Pairs matched at once in this process's threads: :data:`IN_PROCESS_THREADS` for a matcher
+    whose work releases the GIL (the tie planes: numba ``nogil`` kernels), 1 for one that holds it
+    (VGICP: worker processes instead, :mod:`calidar.strips.processes`)."""
+    return 1 if getattr(matcher, "holds_gil", False) else IN_PROCESS_THREADS
 
 
 def _distances(c: Correspondences, r: np.ndarray) -> np.ndarray:
@@ -151,7 +158,8 @@ class Run:
         if pool is not None and client is None and worth_processes(tasks):
             found = map_in_processes(pool, match_or_error, tasks)
         else:
-            found = map_pairs(match_or_error, tasks, client=client, log=log)
+            found = map_pairs(match_or_error, tasks, client=client, log=log,
+                              threads=pair_threads(self.matcher))
         times["match_s"] = time.perf_counter() - clock
         corrs, pairs, skipped = self._usable(found)
         if k == 0 and skipped:

@@ -100,6 +100,67 @@ def satterthwaite(parts: list[np.ndarray], dofs: list[np.ndarray]) -> np.ndarray
         return np.where(spread > 0, total**2 / np.maximum(spread, 1e-300), np.inf)
 
 
+def roughness_excess(var_a_m2: np.ndarray, var_b_m2: np.ndarray, quantile: float) -> np.ndarray:
+    """Each row's roughness beyond the pair's quiet rows (m²): ρ² = max(0, s̄² − s_q²), s̄² the
+    mean of the two sides' scatter variances along the normal (m²) and s_q² its ``quantile`` over
+    the pair's rows — the part of a row's scatter that is the surface's own unevenness rather than
+    the range noise every row shares (issue 26, ninth session: see :func:`rough_rows_variance`)."""
+    mean = 0.5 * (np.asarray(var_a_m2, float) + np.asarray(var_b_m2, float))
+    if mean.size == 0:
+        return mean
+    return np.maximum(mean - float(np.quantile(mean, quantile)), 0.0)
+
+
+def rough_rows_variance(var_a_m2: np.ndarray, dof_a: np.ndarray, var_b_m2: np.ndarray,
+                        dof_b: np.ndarray | float, kappa: float, quantile: float
+                        ) -> tuple[np.ndarray, np.ndarray]:
+    """The model error of rough rows, κ·ρ² (m², :func:`roughness_excess`), and its degrees of
+    freedom, for rows whose two sides' scatter variances (m²) have ``dof_a`` and ``dof_b``.
+
+    A row's white-noise variance s_a²/n_a + s_b²·h falls with its points' count; a surface's own
+    unevenness at the ball's scale does not: a's ball mean and b's fitted plane average it over
+    different points, and their difference keeps a share κ of it whatever the count. It enters
+    the row's σ² as a variance component with cofactor ρ² (Koch 1999, *Parameter Estimation and
+    Hypothesis Testing in Linear Models*, §3.6; Förstner 1979), κ estimated once, offline, from
+    simulated surveys (``benchmarks/strips_vgicp_row_model.py``) — not refitted from each
+    calibration's residuals, which would pull σ0 toward 1 whatever the calibration. Its degrees of
+    freedom are taken as those of s̄² (Satterthwaite over the two sides; inf where ρ² = 0): the
+    delta method's 2κ²s̄⁴/ν for the variance of κ·(s̄² − s_q²) holds far above the threshold only,
+    and left rows just above it with σ² of one or two degrees of freedom."""
+    rho2 = roughness_excess(var_a_m2, var_b_m2, quantile)
+    mean = 0.5 * (np.asarray(var_a_m2, float) + np.asarray(var_b_m2, float))
+    nu_mean = satterthwaite([0.5 * np.asarray(var_a_m2, float),
+                             0.5 * np.broadcast_to(np.asarray(var_b_m2, float), mean.shape)],
+                            [np.asarray(dof_a, float),
+                             np.broadcast_to(np.asarray(dof_b, float), mean.shape)])
+    return kappa * rho2, np.where(rho2 > 0, nu_mean, np.inf)
+
+
+def variance_components(residual_m: np.ndarray, base_m2: np.ndarray, cofactors: np.ndarray,
+                        max_z: float = 7.0, iterations: int = 50) -> np.ndarray:
+    """θ ≥ 0 (one per row of ``cofactors`` (K, R)) with E[r²] = base + Σ θ_k V_k for residuals
+    ``residual_m`` (R,) whose known variance part is ``base_m2`` (m²): the iterated estimate of
+    Förstner 1979 / Koch 1999 §3.6.2 for diagonal cofactors and redundancy numbers ≈ 1 (many rows,
+    few parameters), S θ = q with S_kl = Σ V_k V_l / σ⁴ and q_k = Σ (r² − base) V_k / σ⁴, σ² the
+    last iteration's; rows beyond ``max_z`` σ left out (gross errors), a negative θ set to 0.
+    Offline only (a rows' σ model's factor from simulated surveys): fitted to one calibration's own
+    residuals it would take σ0 to 1 whatever the calibration."""
+    r2, base, V = np.asarray(residual_m, float) ** 2, np.asarray(base_m2, float), np.atleast_2d(
+        np.asarray(cofactors, float))
+    theta = np.zeros(V.shape[0])
+    for _ in range(iterations):
+        var = base + theta @ V
+        keep = r2 <= max_z**2 * var
+        w = 1.0 / var[keep] ** 2
+        Vk = V[:, keep]
+        new = np.maximum(np.linalg.lstsq((Vk * w) @ Vk.T, (Vk * w) @ (r2[keep] - base[keep]),
+                                         rcond=None)[0], 0.0)
+        if np.allclose(new, theta, rtol=1e-7, atol=1e-15):
+            return new
+        theta = new
+    return theta
+
+
 #: representative degrees of freedom kept of a solution's rows (the means of this many quantile
 #: bins)
 DOF_BINS = 20

@@ -82,7 +82,7 @@ class VgicpSettings:
     #: point_to_plane: max distance of a's mean from b's plane after registration
     max_plane_distance_m: float = 0.3
     #: point_to_plane: a's ball points scatter along b's normal at most this many times b's plane
-    #: scatter (its σ, moderated over the pair, or the noise floor): a ball reaching over a ridge,
+    #: scatter (its σ, moderated over the pair, or ``min_scatter_m``): a ball reaching over a ridge,
     #: an eave or a wall's foot is not b's plane
     max_scatter_ratio: float = 3.0
     #: overlaps narrower than this (m, across their long axis) are matched as they lie, not
@@ -95,7 +95,17 @@ class VgicpSettings:
     max_centroid_offset: float = 0.35
     #: a-priori σ of one residual; None: from b's plane scatter (point_to_plane) or 5 cm
     sigma_m: float | None = None
-    noise_floor_m: float = 0.002  #: added to the scatter σ for model errors (roughness)
+    #: added to the rows' σ in quadrature, every row alike (UAV rows fit 0 with the roughness term)
+    noise_floor_m: float = 0.002
+    #: point_to_plane: κ of the rough rows' model error κ·ρ² in σ², ρ² a row's scatter beyond the
+    #: pair's ``roughness_quantile`` (:func:`calidar.strips.row_variance.rough_rows_variance`).
+    #: UAV rows fit 0.9 with ``noise_floor_m`` 0 (variance components, 6 simulated surveys), which
+    #: helps opposite lines but not cross lines' pitch, urban scenes or airborne rows (these fit
+    #: 0): so 0 by default (docs/validation.md, issue 26, ninth session)
+    roughness_factor: float = 0.0
+    roughness_quantile: float = 0.75
+    #: point_to_plane: b's scatter in ``max_scatter_ratio``'s test at least this (m)
+    min_scatter_m: float = 0.002
     num_threads: int = 1  #: small_gicp threads (1 is bit-reproducible; see docs)
 
     def __post_init__(self):
@@ -103,6 +113,10 @@ class VgicpSettings:
             raise ValueError(f"kind must be one of {KINDS}, got {self.kind!r}")
         if not self.voxel_m or any(v <= 0 for v in self.voxel_m):
             raise ValueError(f"voxel_m must be positive sizes, got {self.voxel_m}")
+        if self.roughness_factor < 0.0:
+            raise ValueError(f"roughness_factor must be ≥ 0, got {self.roughness_factor}")
+        if not 0.0 <= self.roughness_quantile <= 1.0:
+            raise ValueError(f"roughness_quantile must be 0 … 1, got {self.roughness_quantile}")
         if not 0.0 <= self.min_inlier_fraction <= 1.0:
             raise ValueError(f"min_inlier_fraction must be 0 … 1, got {self.min_inlier_fraction}")
 

@@ -6,11 +6,12 @@ their centroid, give b's plane; a's points in a ball as large about that centroi
 A row is kept when b's points span a plane (thin: ``max_surface_variation``; not a line:
 ``min_spread``), a's mean lies near it (``max_plane_distance_m``), neither side's points stop
 inside the ball (``max_centroid_offset``) and a's points lie on b's plane as closely as b's own
-do (``max_scatter_ratio``). Its σ² = s_a²/n_a + s_b²·h + ``noise_floor_m``², with s_a, s_b each
-side's own scatter along b's normal, each the posterior mean under a prior fitted to the pair's
-rows (:mod:`calidar.strips.row_variance`; Smyth 2004 §6.2), n_a a's count and h the leverage of
-b's fitted plane at a's mean. Why a's own scatter, measured: docs/validation.md, "VGICP's rows:
-each test and the measurement behind it".
+do (``max_scatter_ratio``). Its σ² = s_a²/n_a + s_b²·h + κ·ρ² + ``noise_floor_m``², with s_a,
+s_b each side's own scatter along b's normal, each the posterior mean under a prior fitted to the
+pair's rows (:mod:`calidar.strips.row_variance`; Smyth 2004 §6.2), n_a a's count, h the leverage
+of b's fitted plane at a's mean and κ·ρ² the rough rows' model error (``roughness_factor``;
+:func:`calidar.strips.row_variance.rough_rows_variance`). Why a's own scatter, measured:
+docs/validation.md, "VGICP's rows: each test and the measurement behind it".
 """
 
 from __future__ import annotations
@@ -23,7 +24,7 @@ import small_gicp
 
 from calidar.strips.correspond import moderated_variance
 from calidar.strips.pca import eigh3
-from calidar.strips.row_variance import posterior, satterthwaite
+from calidar.strips.row_variance import posterior, rough_rows_variance, satterthwaite
 from calidar.strips.vgicp_kernels import (ball_rows, cell_keys, near_cells, neighbourhood_moments,
                                           xy_bounds)
 from calidar.strips.vgicp_knn import GridKnn
@@ -202,14 +203,25 @@ def plane_rows(planes: LocalPlanes, b_near: np.ndarray, tree_b, ov_a: np.ndarray
     var_a = _along_normal_variance(A, ov_a[near_a], mean_a, planes.normal)
     var_b = np.zeros(keep.size)
     var_b[keep] = moderated_variance(planes.scatter[keep] ** 2, k - 3)
-    keep &= var_a <= settings.max_scatter_ratio**2 * np.maximum(var_b, settings.noise_floor_m**2)
+    keep &= var_a <= settings.max_scatter_ratio**2 * np.maximum(var_b, settings.min_scatter_m**2)
     sigma, dof = settings.sigma_m, np.inf
     if sigma is None:  # a's mean with a's scatter, b's plane where a's mean lies with b's
-        # each side's own, a prior fitted over the pair
-        var_a, nu_a = posterior(var_a[keep], count[keep] - 1)
-        var_b, nu_b = posterior(planes.scatter[keep] ** 2, k - 3)
-        parts = [var_a / count[keep], var_b * planes.leverage(mean_a)[keep],
-                 np.full(nu_a.size, settings.noise_floor_m**2)]
-        sigma = np.sqrt(np.sum(parts, axis=0))
-        dof = satterthwaite(parts, [nu_a, nu_b, np.inf])
+        sigma, dof = row_sigma(var_a[keep], count[keep], planes.scatter[keep] ** 2, k - 3,
+                               planes.leverage(mean_a)[keep], settings)
     return planes, A, near_a, keep, planes.normal[keep], sigma, dof
+
+
+def row_sigma(var_a: np.ndarray, count_a: np.ndarray, var_b: np.ndarray, dof_b: float,
+              leverage: np.ndarray, settings) -> tuple[np.ndarray, np.ndarray]:
+    """σ (m) of a pair's rows and the degrees of freedom of σ², from each side's raw scatter
+    variance along b's normal (m²; a's about its mean from ``count_a`` points, b's about its plane
+    with ``dof_b``), each side's posterior under a prior fitted over the pair's rows, and b's
+    plane's ``leverage`` at a's mean: σ² = s_a²/n_a + s_b²·h + κ·ρ² + ``noise_floor_m``² (see
+    the module docstring)."""
+    var_a, nu_a = posterior(var_a, count_a - 1)
+    var_b, nu_b = posterior(var_b, dof_b)
+    rough, nu_rough = rough_rows_variance(var_a, nu_a, var_b, nu_b, settings.roughness_factor,
+                                          settings.roughness_quantile)
+    parts = [var_a / count_a, var_b * leverage, rough,
+             np.full(nu_a.size, settings.noise_floor_m**2)]
+    return np.sqrt(np.sum(parts, axis=0)), satterthwaite(parts, [nu_a, nu_b, nu_rough, np.inf])

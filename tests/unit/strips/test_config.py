@@ -153,6 +153,7 @@ def test_the_file_gives_the_same_configuration_back(config, tmp_path):
     ("[trajectory_model]\ncorrelation_s = [20.0, 0.0]\n", "trajectory_model", "--trajectory-correlation"),
     ("[trajectory_model]\nsigma = [0.03, 20.0]\n", "trajectory_model.sigma", "rad"),
     ("[vgicp]\nkind = \"plane_to_plane\"\n", "vgicp", "kind"),
+    ("[vgicp]\nroughness_factor = -0.5\n", "vgicp", "roughness_factor"),
     ("[inputs]\ntime_system = \"fortnight\"\n", "inputs", "time-system"),
     ("[ingest]\nstrip_points = \"all\"\n", "ingest.strip_points", "expected int"),
     ("[solver]\nrobust = \"tukey\"\n", "solver.robust", "expected cauchy, huber or none"),

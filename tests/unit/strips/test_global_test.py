@@ -6,7 +6,8 @@ import pytest
 
 from calidar.adjust import solve
 from calidar.adjust.parameters import Parameter, ParameterSet
-from calidar.strips.global_test import SKIPPED_RMS_METHODS, global_test_sigma0, sigma0_finding
+from calidar.strips.config import MATCHERS
+from calidar.strips.global_test import SKIPPED_RMS, T_MODEL, global_test_sigma0, sigma0_finding
 from calidar.strips.row_variance import dof_summary
 
 
@@ -27,7 +28,8 @@ def _mixture(n=200_000, seed=11, gross=0.0):
 def _solved(y, nu, method, robust="cauchy"):
     sol = solve(lambda v: y - v["mean"], ParameterSet([Parameter("mean", 0.0, "m")]), sigma=0.01,
                 robust=robust)
-    sol.extra["strips"] = {"method": method, "robust": robust, "row_dof": dof_summary(nu)}
+    sol.extra["strips"] = {"method": method, "robust": robust, "row_dof": dof_summary(nu),
+                           "sigma0_reading": MATCHERS[method].sigma0_reading}
     return sol
 
 
@@ -37,7 +39,8 @@ def test_vgicp_rows_right_in_the_mean_read_sigma0_1_and_pass():
     ±7 %; VGICP's global test takes the skipped RMS and reads 1 ± 1.5 %, passing."""
     y, nu = _mixture()
     assert np.sqrt(np.mean((y / 0.01) ** 2)) == pytest.approx(1.0, abs=0.01)
-    assert "vgicp" in SKIPPED_RMS_METHODS and "planes" not in SKIPPED_RMS_METHODS
+    assert MATCHERS["vgicp"].sigma0_reading == SKIPPED_RMS  # each matcher declares its reading
+    assert MATCHERS["planes"].sigma0_reading == T_MODEL
     t_model = global_test_sigma0(_solved(y, nu, "planes"))
     assert t_model < 0.935  # the t model's factor does not hold for this shape
     sol = _solved(y, nu, "vgicp")
