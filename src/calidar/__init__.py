@@ -22,7 +22,8 @@ def _record_signals_when_the_cli_starts() -> None:
     """The ``calidar`` command (or ``python -m calidar``) starting: record SIGINT / SIGTERM from
     this first line of calidar on (:mod:`calidar.interrupts`), so that a Ctrl-C while the CLI's
     modules load ends the run cleanly, not in a KeyboardInterrupt traceback
-    (``calidar.cli.signals`` takes over). A library import changes no signal handler."""
+    (``calidar.cli.signals`` takes over), and report a crash's stacks. A library import changes
+    no signal handler."""
     import os
     import signal
     import sys
@@ -37,6 +38,21 @@ def _record_signals_when_the_cli_starts() -> None:
 
         for s in (signal.SIGINT, signal.SIGTERM):
             signal.signal(s, lambda signum, frame: interrupts.record(signum))
+        _report_crashes()
+
+
+def _report_crashes() -> None:
+    """A crash of the command (SIGSEGV, SIGBUS, SIGFPE, SIGILL, SIGABRT in native code) prints
+    Python's stack of every thread on stderr (:mod:`faulthandler`) instead of ending in silence:
+    what a bug report needs. Only the command: a library import changes no signal handler."""
+    import faulthandler
+    import sys
+
+    if sys.stderr is not None and not faulthandler.is_enabled():
+        try:
+            faulthandler.enable()
+        except (RuntimeError, ValueError, OSError):  # no usable stderr file descriptor
+            pass
 
 
 _record_signals_when_the_cli_starts()

@@ -223,13 +223,11 @@ def _renameat2(a: Path, b: Path) -> bool:
     """``renameat2(a, b, RENAME_EXCHANGE)``; False where unsupported (not Linux, old kernel, a file
     system without it), an OSError for a real failure."""
     import ctypes
-    import ctypes.util
 
     if not sys.platform.startswith("linux"):
         return False
-    try:
-        libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6", use_errno=True)
-        fn = libc.renameat2
+    try:  # the libc this process runs on (no ldconfig process, see ingest.release_memory)
+        fn = ctypes.CDLL(None, use_errno=True).renameat2
     except (OSError, AttributeError):
         return False
     at_fdcwd, rename_exchange = -100, 2

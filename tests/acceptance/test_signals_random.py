@@ -33,7 +33,8 @@ def _argv(corpus, out):
             "--trajectory", str(s / "sbet.out"), "--sensor", str(s / "sensor.toml"), "--out", str(out)]
 
 
-ENV = {**os.environ, "NUMBA_NUM_THREADS": "1", "OMP_NUM_THREADS": "1"}
+# a crash (exit -11 once on CI) prints its stacks into the assertion's message
+ENV = {**os.environ, "NUMBA_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "PYTHONFAULTHANDLER": "1"}
 
 
 def _wait_for_calidar(proc) -> float:

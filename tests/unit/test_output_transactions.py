@@ -148,3 +148,90 @@ def test_signal_while_the_temporary_folder_is_created_leaves_nothing(tmp_path, m
     finally:
         signal.signal(signal.SIGINT, old)
     assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("as_command", [True, False])
+def test_the_command_reports_a_crash_with_its_stacks(as_command):
+    """The ``calidar`` command (its script's name, as ``calidar`` runs it) prints Python's stacks on
+    a crash (faulthandler) rather than dying in silence; a library import changes nothing."""
+    name = "sys.argv[0] = 'calidar'; " if as_command else ""
+    code = (f"import sys; {name}import calidar, faulthandler, ctypes; "
+            "print(faulthandler.is_enabled(), flush=True); ctypes.string_at(0)")
+    p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60,
+                       env={k: v for k, v in os.environ.items() if k != "PYTHONFAULTHANDLER"})
+    assert p.returncode == -signal.SIGSEGV
+    assert p.stdout.strip() == str(as_command)
+    assert ("Fatal Python error: Segmentation fault" in p.stderr) == as_command, p.stderr
+    assert ("string_at" in p.stderr) == as_command, p.stderr
+
+
+def test_memory_release_and_commit_start_no_process(tmp_path, monkeypatch):
+    """``malloc_trim`` (once per quality task) and ``renameat2`` (the commit) come from the libc
+    this process runs on: no ``/sbin/ldconfig -p`` is started from the multi-threaded run, as
+    ``ctypes.util.find_library`` did at every call (strace: 6 in one boresight run on the
+    bad-input corpus's survey)."""
+    from calidar import outputs
+    from calidar.ingest import release_memory
+
+    started = []
+
+    class Spy(subprocess.Popen):
+        def __init__(self, args, *a, **k):
+            started.append(args)
+            super().__init__(args, *a, **k)
+
+    monkeypatch.setattr(subprocess, "Popen", Spy)
+    release_memory()
+    a, b = tmp_path / "a", tmp_path / "b"
+    a.mkdir()
+    b.mkdir()
+    (a / "new").touch()
+    exchanged = outputs._renameat2(a, b)
+    assert started == []
+    assert not exchanged or ((b / "new").exists() and not (a / "new").exists())
+
+
+def test_a_signal_while_the_cli_imports_ends_without_finalisation(tmp_path):
+    """A Ctrl-C while the CLI's modules load ends the run as every interrupted run ends: one line,
+    130, and no interpreter finalisation (which aborted an interrupted run on CI once): an atexit
+    function registered before does not run."""
+    code = ("import atexit, os, signal, sys; sys.argv = ['calidar', 'info', 'x.laz']; "
+            "import calidar; atexit.register(lambda: print('finalised', flush=True)); "
+            "os.kill(os.getpid(), signal.SIGINT); import calidar.cli; calidar.cli.main()")
+    p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120,
+                       cwd=tmp_path)
+    assert (p.returncode, p.stderr.strip(), p.stdout) == (130, "interrupted", "")
+
+
+@pytest.mark.parametrize("when", ["install", "after run"])
+def test_a_signal_outside_the_run_ends_without_a_traceback(tmp_path, when):
+    """A signal as the CLI's handlers are being installed (the handler raises from the next
+    bytecode of ``signals.install``: before ``run``'s own ``try``) ends the run "interrupted",
+    130; one that falls after ``run`` returned, before the handlers are removed, keeps the run's
+    exit code. Never a traceback."""
+    hook = {
+        "install": ("setsig = signal.signal\n"
+                    "def watched(signum, handler):\n"
+                    "    old = setsig(signum, handler)\n"
+                    "    if getattr(handler, '__name__', '') == '_handler':\n"
+                    "        os.kill(os.getpid(), signal.SIGINT)\n"
+                    "    return old\n"
+                    "signal.signal = watched\n"),
+        "after run": ("from calidar.cli import signals\n"
+                      "finish, sent = signals.finish, []\n"
+                      "def late():\n"
+                      "    if not sent:\n"
+                      "        sent.append(1)\n"
+                      "        os.kill(os.getpid(), signal.SIGINT)\n"
+                      "    finish()\n"
+                      "signals.finish = late\n"),
+    }[when]
+    code = ("import os, signal, sys\nsys.argv = ['calidar', 'info', 'missing.laz']\n"
+            f"import calidar\n{hook}import calidar.cli\ncalidar.cli.main()\n")
+    p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120,
+                       cwd=tmp_path)
+    assert "Traceback" not in p.stderr, p.stderr
+    if when == "install":
+        assert (p.returncode, p.stderr.strip()) == (130, "interrupted")
+    else:  # the run's own error and code
+        assert p.returncode == 1 and "missing.laz" in p.stderr and "interrupted" not in p.stderr

@@ -228,13 +228,20 @@ def main() -> None:
     were only recorded while the CLI was being imported, see ``calidar.__main__``)."""
     from calidar.cli import signals
 
-    signals.install()
-    # Ctrl-C while Python was importing: end now, nothing begun
-    if interrupts.pending() is not None:
-        sys.exit(_interrupted(interrupts.pending()))
-    code = run(sys.argv[1:])
-    signals.finish()
-    _exit(code)
+    code = None
+    try:
+        signals.install()
+        # Ctrl-C while Python was importing: end now, nothing begun
+        if interrupts.pending() is not None:
+            raise interrupts.Interrupted(interrupts.pending())
+        code = run(sys.argv[1:])
+        signals.finish()
+    except KeyboardInterrupt as e:
+        # also a signal outside run's own handling: between the handlers' install and run's
+        # ``try``, or after run returned (its code stands: the run had ended)
+        signals.finish()
+        code = _interrupted(getattr(e, "signum", signal.SIGINT)) if code is None else code
+    _exit(code)  # as every interrupted run ends: without the interpreter's finalisation
 
 
 def _exit(code: int) -> None:

@@ -81,11 +81,11 @@ def install() -> None:
     import logging
 
     interrupts.set_delivery(_act)
-    for s in SIGNALS:
-        signal.signal(s, _handler)
     sys.unraisablehook = _unraisable
     if not os.environ.get("CALIDAR_DEBUG"):
         logging.getLogger().addHandler(logging.NullHandler())
+    for s in SIGNALS:  # last: from here a signal raises (``calidar.cli.main`` catches it)
+        signal.signal(s, _handler)
 
 
 def finish() -> None:
