@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from calidar.cells import group_cells, index_rows, take_rows
+from calidar.cells import cell_keys_of, grid_indices, group_cells, index_rows, take_rows
 from calidar.strips.moments_kernel import dense_moments, moments
 
 #: the 6 distinct products of a symmetric 3 × 3 scatter, in this order
@@ -38,7 +38,7 @@ def key_indices(keys: np.ndarray) -> np.ndarray:
 def index_keys(ij: np.ndarray) -> np.ndarray:
     """Keys of integer grid indices (K, 2): the inverse of :func:`key_indices`."""
     ij = np.asarray(ij, np.int64)
-    return (ij[:, 0] << 32) + (ij[:, 1] & 0xFFFFFFFF)
+    return cell_keys_of(ij[:, 0], ij[:, 1])
 
 
 @dataclass(frozen=True)
@@ -72,7 +72,7 @@ class CellMoments:
     def sorted_points(cls, p: np.ndarray, cell_m: float) -> "CellMoments":
         """:meth:`of_points` in numpy (group_cells, sorts); any cells."""
         p = np.ascontiguousarray(p, float)
-        ij = np.floor(p[:, :2] / cell_m).astype(np.int64)
+        ij = grid_indices(p, cell_m)
         inv, first = group_cells(ij)
         keys = index_keys(ij[first])
         order = np.argsort(keys)
