@@ -17,8 +17,9 @@ from numba import njit
 
 def grid_indices(xy: np.ndarray, cell_m: float, origin=None) -> np.ndarray:
     """Cell indices (N, 2) int64 floor((xy − origin) / cell_m) of points (N, ≥ 2) m on cells of
-    ``cell_m`` m (origin (2,) m, none: 0, not subtracted); NaN and ±inf as numpy casts them."""
-    xy = np.asarray(xy, float)[:, :2]
+    ``cell_m`` m (origin (2,) m, none: 0, not subtracted) in xy's own precision (the caller casts);
+    NaN and ±inf as numpy casts them."""
+    xy = np.asarray(xy)[:, :2]
     return np.floor((xy if origin is None else xy - origin) / cell_m).astype(np.int64)
 
 

@@ -34,7 +34,7 @@ def cell_keys(xy: np.ndarray, cell_m: float, origin: np.ndarray | None = None) -
         keys = point_cell_keys(np.asarray(xy, float), float(cell_m))
         if keys is not None:
             return keys
-    ij = grid_indices(xy, cell_m, origin)
+    ij = grid_indices(np.asarray(xy, float), cell_m, origin)
     return cell_keys_of(ij[:, 0], ij[:, 1])
 
 
@@ -48,7 +48,7 @@ def footprint_area_m2(xy: np.ndarray, cell_m: float = 5.0) -> float:
     """Horizontal area (m²) of the ``cell_m`` cells holding at least one of the points (N, ≥2) m."""
     if len(xy) == 0:
         return 0.0
-    ij = grid_indices(xy, cell_m)
+    ij = grid_indices(np.asarray(xy, float), cell_m)
     ij -= ij.min(axis=0)
     flat = ij[:, 0] * (int(ij[:, 1].max()) + 1) + ij[:, 1]  # one index per cell of the box
     return float(np.count_nonzero(np.bincount(flat)) * cell_m**2)

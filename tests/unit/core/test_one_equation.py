@@ -87,6 +87,12 @@ def test_numpy_cells_and_keys_are_the_old_expressions():
     assert np.array_equal(index_keys(ij), old)
 
 
+def test_numpy_cells_keep_the_callers_precision():  # planimetric's centres as given
+    c32 = (np.random.default_rng(4).uniform(-1e4, 1e4, (5000, 2))).astype(np.float32)
+    assert np.array_equal(grid_indices(c32, 0.3), np.floor(c32 / 0.3).astype(np.int64))
+    assert np.array_equal(cell_keys(c32, 0.3), _old_numpy(c32, 0.3))
+
+
 def test_numpy_cells_of_non_finite_points_as_numpy_casts_them():
     xy = np.array([[np.nan, 1.0], [np.inf, -np.inf], [2.0, np.nan]])
     with warnings.catch_warnings():
