@@ -29,6 +29,15 @@ def cell_keys_of(i, j) -> np.ndarray:
     return (np.asarray(i).astype(np.int64) << 32) + (np.asarray(j).astype(np.int64) & 0xFFFFFFFF)
 
 
+def key_indices(keys: np.ndarray) -> np.ndarray:
+    """Grid indices (K, 2) (i east, j north) of int64 cell keys: the inverse of
+    :func:`cell_keys_of`."""
+    i = keys >> 32
+    j = keys & 0xFFFFFFFF
+    j = np.where(j >= 2**31, j - 2**32, j)
+    return np.stack([i, j], axis=1)
+
+
 @njit(cache=True, nogil=True, inline="always")
 def cell_index(x, cell):  # pragma: no cover - numba
     """:func:`grid_indices` of one coordinate (x − origin, if any, by the caller): floor(x / cell)
@@ -40,6 +49,13 @@ def cell_index(x, cell):  # pragma: no cover - numba
 def cell_key(i, j):  # pragma: no cover - numba
     """:func:`cell_keys_of` of one cell (int64 i, j)."""
     return (i << 32) + (j & 0xFFFFFFFF)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def key_cell(key):  # pragma: no cover - numba
+    """:func:`key_indices` of one int64 key: (i, j)."""
+    j = key & 0xFFFFFFFF
+    return key >> 32, j - 4294967296 if j >= 2147483648 else j
 
 
 def group_cells(ij: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

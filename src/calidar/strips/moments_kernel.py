@@ -15,7 +15,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from calidar.cells import cell_box, cell_index, cell_key, dense_fits, first_appearance, key_order
+from calidar.cells import (cell_box, cell_index, cell_key, dense_fits, first_appearance, key_cell,
+                           key_order)
 
 
 def dense_moments(points: np.ndarray, cell_m: float):
@@ -101,7 +102,7 @@ def _dense_counts(keys):  # pragma: no cover - numba
         return e, e, True
     lo0, hi0, lo1, hi1 = 0, 0, 0, 0
     for k in range(n):  # the box from the keys (no (N, 2) cells: twice as fast as cells.cell_box)
-        i, j = _unpacked(keys[k])
+        i, j = key_cell(keys[k])
         if k == 0:
             lo0, hi0, lo1, hi1 = i, i, j, j
         else:
@@ -112,7 +113,7 @@ def _dense_counts(keys):  # pragma: no cover - numba
     width = hi1 - lo1 + 1
     table = np.zeros((hi0 - lo0 + 1) * width, np.int64)
     for k in range(n):
-        i, j = _unpacked(keys[k])
+        i, j = key_cell(keys[k])
         table[(i - lo0) * width + j - lo1] += 1
     order = key_order(table > 0, box)
     cells, counts = np.empty(order.size, np.int64), np.empty(order.size, np.int64)
@@ -120,13 +121,6 @@ def _dense_counts(keys):  # pragma: no cover - numba
         i, j = lo0 + order[r] // width, lo1 + order[r] % width
         cells[r], counts[r] = cell_key(i, j), table[order[r]]
     return cells, counts, True
-
-
-@njit(cache=True, nogil=True, inline="always")
-def _unpacked(key):  # pragma: no cover - numba
-    """(i, j) of a cell key (:func:`calidar.strips.overlap.cell_keys`)."""
-    j = key & 0xFFFFFFFF
-    return key >> 32, j - 4294967296 if j >= 2147483648 else j
 
 
 def dense_row_ids(ij: np.ndarray):

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from numba import njit
 
-from calidar.cells import cell_index, cell_key, cell_keys_of, grid_indices
+from calidar.cells import cell_index, cell_key, cell_keys_of, grid_indices, key_cell, key_indices
 from calidar.ingest.chunk_pass import second_and_cell, selected_points
 from calidar.ingest.held import scaled_integers, stored_integers
 from calidar.strips.cell_moments import index_keys
@@ -179,3 +179,39 @@ def _old_stored_integers(xyz, scales, offsets):
     stored = np.empty(xyz.shape, np.int32)
     xyz = np.ascontiguousarray(xyz)
     return stored if _old_stored_kernel(xyz, scales, offsets, stored) else None
+
+
+@njit
+def _new_unpacked(keys):
+    out = np.empty((keys.size, 2), np.int64)
+    for k in range(keys.size):
+        out[k, 0], out[k, 1] = key_cell(keys[k])
+    return out
+
+
+def test_keys_unpack_as_the_old_expressions():
+    rng = np.random.default_rng(5)
+    ij = rng.integers(-2**31, 2**31, (20000, 2))
+    ij[:6] = [[0, 0], [-1, -1], [-2**31, 2**31 - 1], [2**31 - 1, -2**31], [5, -7], [-7, 5]]
+    keys = cell_keys_of(ij[:, 0], ij[:, 1])
+    j = keys & 0xFFFFFFFF
+    old = np.stack([keys >> 32, np.where(j >= 2**31, j - 2**32, j)], axis=1)  # cell_moments
+    assert np.array_equal(old, ij)
+    assert np.array_equal(key_indices(keys), old)
+    assert np.array_equal(_new_unpacked(keys), old)  # moments_kernel._unpacked
+    thin_j = ((keys & 0xFFFFFFFF) ^ 0x80000000) - 0x80000000  # strips/thin.py spread_rank
+    assert np.array_equal(thin_j, old[:, 1])
+
+
+@pytest.mark.parametrize("block", [1, 3])
+def test_spread_rank_as_before(block):
+    from calidar.strips import thin
+
+    ij = np.random.default_rng(6).integers(-70000, 70000, (20000, 2))
+    cells = cell_keys_of(ij[:, 0], ij[:, 1])
+    i = (cells >> 32) // block  # spread_rank before the merge
+    j = (((cells & 0xFFFFFFFF) ^ 0x80000000) - 0x80000000) // block
+    i, j = i & 0xFFFF, j & 0xFFFF
+    rev = thin._reverse16()
+    code = (thin._spread16(rev[i]) << np.uint64(1)) | thin._spread16(rev[j])
+    assert np.array_equal(thin.spread_rank(cells, block), code.astype(np.float64) / 2.0**32)
