@@ -1,12 +1,61 @@
-"""Points grouped by the grid cell holding them, in O(N): a dense table over the cells' bounding
-box when it is small against the points (≤ 4 N + 65 536 cells, as for a chunk of a strip), else a
-sort. Used for the per-cell moments of the overlap quality and the per-tile transforms of
-:mod:`calidar.crs`. Also rows of point and cell arrays taken by position (:func:`take_rows`)."""
+"""Grid cells of points and points grouped by the grid cell holding them.
+
+The one implementation of a point's cell and of a cell's key: cell (i, j) =
+(floor((x − x0) / cell), floor((y − y0) / cell)) (origin (x0, y0); none: no subtraction),
+key (i << 32) + (j & 0xFFFFFFFF) — :func:`grid_indices` and :func:`cell_keys_of` in numpy,
+:func:`cell_index` and :func:`cell_key` inlined in numba kernels, the same IEEE operations.
+Grouping in O(N): a dense table over the cells' bounding box when it is small against the points
+(≤ 4 N + 65 536 cells, as for a chunk of a strip), else a sort. Used for the per-cell moments of
+the overlap quality and the per-tile transforms of :mod:`calidar.crs`. Also rows of point and cell
+arrays taken by position (:func:`take_rows`)."""
 
 from __future__ import annotations
 
 import numpy as np
 from numba import njit
+
+
+def grid_indices(xy: np.ndarray, cell_m: float, origin=None) -> np.ndarray:
+    """Cell indices (N, 2) int64 floor((xy − origin) / cell_m) of points (N, ≥ 2) m on cells of
+    ``cell_m`` m (origin (2,) m, none: 0, not subtracted) in xy's own precision (the caller casts);
+    NaN and ±inf as numpy casts them."""
+    xy = np.asarray(xy)[:, :2]
+    return np.floor((xy if origin is None else xy - origin) / cell_m).astype(np.int64)
+
+
+def cell_keys_of(i, j) -> np.ndarray:
+    """One int64 key per cell of integer indices i, j: i in the high 32 bits, j (two's
+    complement) in the low 32 — ascending keys order cells by i, then j ≥ 0, then j < 0."""
+    return (np.asarray(i).astype(np.int64) << 32) + (np.asarray(j).astype(np.int64) & 0xFFFFFFFF)
+
+
+def key_indices(keys: np.ndarray) -> np.ndarray:
+    """Grid indices (K, 2) (i east, j north) of int64 cell keys: the inverse of
+    :func:`cell_keys_of`."""
+    i = keys >> 32
+    j = keys & 0xFFFFFFFF
+    j = np.where(j >= 2**31, j - 2**32, j)
+    return np.stack([i, j], axis=1)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def cell_index(x, cell):  # pragma: no cover - numba
+    """:func:`grid_indices` of one coordinate (x − origin, if any, by the caller): floor(x / cell)
+    as int64."""
+    return np.int64(np.floor(x / cell))
+
+
+@njit(cache=True, nogil=True, inline="always")
+def cell_key(i, j):  # pragma: no cover - numba
+    """:func:`cell_keys_of` of one cell (int64 i, j)."""
+    return (i << 32) + (j & 0xFFFFFFFF)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def key_cell(key):  # pragma: no cover - numba
+    """:func:`key_indices` of one int64 key: (i, j)."""
+    j = key & 0xFFFFFFFF
+    return key >> 32, j - 4294967296 if j >= 2147483648 else j
 
 
 def group_cells(ij: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -76,8 +125,8 @@ def first_appearance(ij: np.ndarray, box):  # pragma: no cover - numba
 @njit(cache=True, nogil=True)
 def key_order(occupied: np.ndarray, box):  # pragma: no cover - numba
     """The occupied slots of a table over ``box`` in the order of their cells' keys
-    ((i << 32) + (j & 0xFFFFFFFF), :func:`calidar.strips.overlap.cell_keys`): a walk over the
-    table, i ascending, then j ≥ 0 ascending, then j < 0 ascending — no sort."""
+    (:func:`cell_key`): a walk over the table, i ascending, then j ≥ 0 ascending, then j < 0
+    ascending — no sort."""
     lo0, hi0, lo1, hi1 = box
     width = hi1 - lo1 + 1
     out, r = np.empty(np.count_nonzero(occupied), np.int64), 0

@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 from numba import njit
 
+from calidar.cells import cell_keys_of
 from calidar.ingest.chunk_pass import chunk_pass, held_rows, second_and_cell, selected_points
 from calidar.strips.overlap import merge_counts
 from calidar.strips.selection import FIELDS as SELECTION_FIELDS
@@ -163,7 +164,7 @@ def _kept_counts(psid, sec, ij, keep) -> tuple[tuple, np.ndarray]:
     if not dense:
         rows = np.flatnonzero(keep)
         tok = (psid[rows] << 32) | sec[rows]
-        keys = (ij[rows, 0] << 32) + (ij[rows, 1] & 0xFFFFFFFF)
+        keys = cell_keys_of(ij[rows, 0], ij[rows, 1])
         return _token_counts(tok, keys), rows[_first_rows(tok)]
     at = np.flatnonzero(counts)
     p, s, i, j = (c + low for c, low in zip(np.unravel_index(at, tuple(span)), lo))

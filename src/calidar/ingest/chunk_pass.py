@@ -19,6 +19,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from calidar.cells import cell_index
+from calidar.ingest.held import las_coordinate
 from calidar.strips.selection import EXCLUDED_CLASSES
 
 _INT = ("i", "u")  #: integer kinds the kernels take
@@ -66,7 +68,7 @@ def second_and_cell(t, x, y, grid):  # pragma: no cover - numba
     :func:`calidar.ingest.cell_counts._seconds_cells` and :func:`_chunk_kernel`."""
     s = np.floor(t) if np.isfinite(t) else 4294967295.0
     sec = min(max(np.int64(s), 0), 4294967295) if s < 9.2e18 else np.int64(4294967295)
-    return sec, np.int64(np.floor(x / grid)), np.int64(np.floor(y / grid))
+    return sec, cell_index(x, grid), cell_index(y, grid)
 
 
 @njit(cache=True, nogil=True)
@@ -129,10 +131,10 @@ def _selected_kernel(bits, b, x, y, z, psid, t, scales, offsets):  # pragma: no 
     xyz, op, ot = np.empty((n, 3)), np.empty(n, psid.dtype), np.empty(n, t.dtype)
     r = 0
     for k in range(bits.size):
-        if (bits[k] & b) != 0:  # laspy's scaling: the integer as float64, times, plus
-            xyz[r, 0] = np.float64(x[k]) * scales[0] + offsets[0]
-            xyz[r, 1] = np.float64(y[k]) * scales[1] + offsets[1]
-            xyz[r, 2] = np.float64(z[k]) * scales[2] + offsets[2]
+        if (bits[k] & b) != 0:  # laspy's scaling
+            xyz[r, 0] = las_coordinate(x[k], scales[0], offsets[0])
+            xyz[r, 1] = las_coordinate(y[k], scales[1], offsets[1])
+            xyz[r, 2] = las_coordinate(z[k], scales[2], offsets[2])
             op[r], ot[r] = psid[k], t[k]
             r += 1
     return xyz, op, ot

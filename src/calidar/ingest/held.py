@@ -160,13 +160,21 @@ def scaled_integers(x: np.ndarray, y: np.ndarray, z: np.ndarray, scales, offsets
     return _scaled_kernel(x, y, z, scales, offsets)
 
 
+@njit(cache=True, nogil=True, inline="always")
+def las_coordinate(stored, scale, offset):  # pragma: no cover - numba
+    """The coordinate of one stored LAS integer as laspy scales it: the integer as float64, times
+    ``scale``, plus ``offset`` (no fused multiply-add) — the one implementation for every kernel
+    (:func:`_scaled_kernel`, :func:`_stored_kernel`, :mod:`calidar.ingest.chunk_pass`)."""
+    return np.float64(stored) * scale + offset
+
+
 @njit(cache=True, nogil=True)
 def _scaled_kernel(x, y, z, scales, offsets):  # pragma: no cover - numba
     out = np.empty((x.size, 3))
     for i in range(x.size):
-        out[i, 0] = np.float64(x[i]) * scales[0] + offsets[0]
-        out[i, 1] = np.float64(y[i]) * scales[1] + offsets[1]
-        out[i, 2] = np.float64(z[i]) * scales[2] + offsets[2]
+        out[i, 0] = las_coordinate(x[i], scales[0], offsets[0])
+        out[i, 1] = las_coordinate(y[i], scales[1], offsets[1])
+        out[i, 2] = las_coordinate(z[i], scales[2], offsets[2])
     return out
 
 
@@ -178,7 +186,7 @@ def _stored_kernel(xyz, scales, offsets, stored):  # pragma: no cover - numba
             if not abs(r) < 2147483648.0:  # (NaN too)
                 return False
             s = np.int32(r)
-            if np.float64(s) * scales[a] + offsets[a] != xyz[i, a]:
+            if las_coordinate(s, scales[a], offsets[a]) != xyz[i, a]:
                 return False
             stored[i, a] = s
     return True

@@ -20,25 +20,18 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from calidar.cells import group_cells, index_rows, take_rows
+from calidar.cells import (cell_keys_of, grid_indices, group_cells, index_rows, key_indices,
+                           take_rows)
 from calidar.strips.moments_kernel import dense_moments, moments
 
 #: the 6 distinct products of a symmetric 3 × 3 scatter, in this order
 PRODUCTS = ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))
 
 
-def key_indices(keys: np.ndarray) -> np.ndarray:
-    """Grid indices (K, 2) (i east, j north) of :func:`calidar.strips.overlap.cell_keys` keys."""
-    i = keys >> 32
-    j = keys & 0xFFFFFFFF
-    j = np.where(j >= 2**31, j - 2**32, j)
-    return np.stack([i, j], axis=1)
-
-
 def index_keys(ij: np.ndarray) -> np.ndarray:
     """Keys of integer grid indices (K, 2): the inverse of :func:`key_indices`."""
     ij = np.asarray(ij, np.int64)
-    return (ij[:, 0] << 32) + (ij[:, 1] & 0xFFFFFFFF)
+    return cell_keys_of(ij[:, 0], ij[:, 1])
 
 
 @dataclass(frozen=True)
@@ -72,7 +65,7 @@ class CellMoments:
     def sorted_points(cls, p: np.ndarray, cell_m: float) -> "CellMoments":
         """:meth:`of_points` in numpy (group_cells, sorts); any cells."""
         p = np.ascontiguousarray(p, float)
-        ij = np.floor(p[:, :2] / cell_m).astype(np.int64)
+        ij = grid_indices(p, cell_m)
         inv, first = group_cells(ij)
         keys = index_keys(ij[first])
         order = np.argsort(keys)

@@ -35,6 +35,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from calidar.adjust import Parameter
+from calidar.cells import grid_indices
 from calidar.errors import InputError
 from calidar.io.control_cloud import is_cloud_file, read_reference_cloud
 from calidar.strips.control_planes import INSET_M, ControlPlanes
@@ -153,7 +154,9 @@ def planar_cells(p: np.ndarray, cell_m: float, inset_m: float = INSET_M):
     ``FILL`` of the cell both ways."""
     if len(p) == 0:
         return None
-    ij = np.floor(p[:, :2] / cell_m).astype(np.int64)
+    ij = grid_indices(p, cell_m)
+    # not cells.cell_keys_of: this key sorts the cells by j, then i, and the rows built from them
+    # follow that order; another key would reorder them (and the sums over them)
     keys = ((ij[:, 1] + (1 << 30)) << 31) + (ij[:, 0] + (1 << 30))
     key, inv = np.unique(keys, return_inverse=True)
     lo = np.full((key.size, 2), np.inf)

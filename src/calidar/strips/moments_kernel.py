@@ -15,7 +15,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from calidar.cells import cell_box, dense_fits, first_appearance, key_order
+from calidar.cells import (cell_box, cell_index, cell_key, dense_fits, first_appearance, key_cell,
+                           key_order)
 
 
 def dense_moments(points: np.ndarray, cell_m: float):
@@ -34,8 +35,8 @@ def _dense_moments(p, cell_m):  # pragma: no cover - numba
         return e, e, np.zeros((0, 3)), np.zeros((0, 6)), True
     ij = np.empty((n, 2), np.int64)
     for k in range(n):
-        ij[k, 0] = np.int64(np.floor(p[k, 0] / cell_m))
-        ij[k, 1] = np.int64(np.floor(p[k, 1] / cell_m))
+        ij[k, 0] = cell_index(p[k, 0], cell_m)
+        ij[k, 1] = cell_index(p[k, 1], cell_m)
     box = cell_box(ij)
     if not dense_fits(n, box):
         return e, e, np.zeros((0, 3)), np.zeros((0, 6)), False
@@ -46,7 +47,7 @@ def _dense_moments(p, cell_m):  # pragma: no cover - numba
     centres = np.empty((order.size, 2))
     for r in range(order.size):
         i, j = box[0] + order[r] // width, box[2] + order[r] % width
-        keys[r], rank[slot[order[r]]] = (i << 32) + (j & 0xFFFFFFFF), r
+        keys[r], rank[slot[order[r]]] = cell_key(i, j), r
         centres[r, 0], centres[r, 1] = (i + 0.5) * cell_m, (j + 0.5) * cell_m
     for k in range(n):  # each point's group in key order
         inv[k] = rank[inv[k]]
@@ -101,7 +102,7 @@ def _dense_counts(keys):  # pragma: no cover - numba
         return e, e, True
     lo0, hi0, lo1, hi1 = 0, 0, 0, 0
     for k in range(n):  # the box from the keys (no (N, 2) cells: twice as fast as cells.cell_box)
-        i, j = _unpacked(keys[k])
+        i, j = key_cell(keys[k])
         if k == 0:
             lo0, hi0, lo1, hi1 = i, i, j, j
         else:
@@ -112,21 +113,14 @@ def _dense_counts(keys):  # pragma: no cover - numba
     width = hi1 - lo1 + 1
     table = np.zeros((hi0 - lo0 + 1) * width, np.int64)
     for k in range(n):
-        i, j = _unpacked(keys[k])
+        i, j = key_cell(keys[k])
         table[(i - lo0) * width + j - lo1] += 1
     order = key_order(table > 0, box)
     cells, counts = np.empty(order.size, np.int64), np.empty(order.size, np.int64)
     for r in range(order.size):
         i, j = lo0 + order[r] // width, lo1 + order[r] % width
-        cells[r], counts[r] = (i << 32) + (j & 0xFFFFFFFF), table[order[r]]
+        cells[r], counts[r] = cell_key(i, j), table[order[r]]
     return cells, counts, True
-
-
-@njit(cache=True, nogil=True, inline="always")
-def _unpacked(key):  # pragma: no cover - numba
-    """(i, j) of a cell key (:func:`calidar.strips.overlap.cell_keys`)."""
-    j = key & 0xFFFFFFFF
-    return key >> 32, j - 4294967296 if j >= 2147483648 else j
 
 
 def dense_row_ids(ij: np.ndarray):
@@ -175,9 +169,7 @@ def point_cell_keys(points: np.ndarray, cell_m: float) -> np.ndarray | None:
 @njit(cache=True, nogil=True)
 def _point_cell_keys(p, cell_m, out):  # pragma: no cover - numba
     for k in range(p.shape[0]):
-        x, y = p[k, 0] / cell_m, p[k, 1] / cell_m
-        if not (np.isfinite(x) and np.isfinite(y)):
+        if not (np.isfinite(p[k, 0] / cell_m) and np.isfinite(p[k, 1] / cell_m)):
             return False
-        i, j = np.int64(np.floor(x)), np.int64(np.floor(y))
-        out[k] = (i << 32) + (j & 0xFFFFFFFF)
+        out[k] = cell_key(cell_index(p[k, 0], cell_m), cell_index(p[k, 1], cell_m))
     return True

@@ -11,6 +11,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from calidar.cells import cell_keys_of, grid_indices
+
 
 @dataclass(frozen=True)
 class Overlap:
@@ -32,9 +34,8 @@ def cell_keys(xy: np.ndarray, cell_m: float, origin: np.ndarray | None = None) -
         keys = point_cell_keys(np.asarray(xy, float), float(cell_m))
         if keys is not None:
             return keys
-    o = np.zeros(2) if origin is None else origin
-    ij = np.floor((np.asarray(xy, float)[:, :2] - o) / cell_m).astype(np.int64)
-    return (ij[:, 0] << 32) + (ij[:, 1] & 0xFFFFFFFF)
+    ij = grid_indices(np.asarray(xy, float), cell_m, origin)
+    return cell_keys_of(ij[:, 0], ij[:, 1])
 
 
 def _members(keys: np.ndarray, cells: np.ndarray) -> np.ndarray:
@@ -47,7 +48,7 @@ def footprint_area_m2(xy: np.ndarray, cell_m: float = 5.0) -> float:
     """Horizontal area (m²) of the ``cell_m`` cells holding at least one of the points (N, ≥2) m."""
     if len(xy) == 0:
         return 0.0
-    ij = np.floor(np.asarray(xy, float)[:, :2] / cell_m).astype(np.int64)
+    ij = grid_indices(np.asarray(xy, float), cell_m)
     ij -= ij.min(axis=0)
     flat = ij[:, 0] * (int(ij[:, 1].max()) + 1) + ij[:, 1]  # one index per cell of the box
     return float(np.count_nonzero(np.bincount(flat)) * cell_m**2)

@@ -35,6 +35,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from calidar.cells import cell_keys_of, grid_indices
 from calidar.strips.planimetric_sigma import (cluster_cov, formal_fit, groups_along, jackknife_cov,
                                               random_effects_mean)
 
@@ -109,7 +110,7 @@ def block_ids(centre: np.ndarray, block_m: float) -> tuple[np.ndarray, int]:
     as np.unique(axis=0) orders them; a dense table in numba when the blocks fit one)."""
     from calidar.strips.moments_kernel import dense_row_ids
 
-    ij = np.floor(centre / block_m).astype(np.int64)
+    ij = grid_indices(centre, block_m)
     dense = dense_row_ids(ij)
     if dense is not None:
         return dense
@@ -156,23 +157,18 @@ def conditioning(grad: np.ndarray, noise: np.ndarray, blocks: np.ndarray, n_bloc
     return float(np.linalg.eigvalsh(s)[0]), s
 
 
-def _cell_key(i: np.ndarray, j: np.ndarray) -> np.ndarray:
-    """One int64 key per cell of grid indices (i, j): i in the high 32 bits, j in the low."""
-    return (i.astype(np.int64) << 32) + (j.astype(np.int64) & 0xFFFFFFFF)
-
-
 def inside_facets(ij: np.ndarray, grad: np.ndarray, tolerance: float) -> np.ndarray:
     """Cells (K,) whose 4 neighbours (grid indices ij (K, 2)) are all there with gradients within
     ``tolerance``: inside a planar facet. A cell a fold crosses (a ridge, a hip, a slope's foot)
     fits a plane whose slope weights the cell's middle more than the height at its centre does (the
     least-squares slope is a parabola-weighted mean of the surface's slope, the shift's effect on
     the centre height an even mean): such cells bias dx, dy towards zero and are left out."""
-    key = _cell_key(ij[:, 0], ij[:, 1])
+    key = cell_keys_of(ij[:, 0], ij[:, 1])
     order = np.argsort(key)
     sk = key[order]
     ok = np.ones(len(key), bool)
     for di, dj in ((1, 0), (-1, 0), (0, 1), (0, -1)):
-        nk = _cell_key(ij[:, 0] + di, ij[:, 1] + dj)
+        nk = cell_keys_of(ij[:, 0] + di, ij[:, 1] + dj)
         at = np.clip(np.searchsorted(sk, nk), 0, len(sk) - 1)
         found = sk[at] == nk
         other = grad[order[at]]
@@ -191,7 +187,7 @@ def planimetric_offsets(centre: np.ndarray, dz: np.ndarray, grad: np.ndarray, ce
     s = settings or PlanimetricSettings()
     noise = np.zeros((len(dz), 2, 2)) if noise is None else noise
     keep = np.hypot(grad[:, 0], grad[:, 1]) <= np.tan(np.radians(s.max_slope_deg))
-    keep &= inside_facets(np.floor(centre / cell_m).astype(np.int64), grad, s.max_neighbour_dslope)
+    keep &= inside_facets(grid_indices(centre, cell_m), grad, s.max_neighbour_dslope)
     keep &= np.isfinite(dz) & np.all(np.isfinite(grad), axis=1)
     c, d, g, e = centre[keep], dz[keep], grad[keep], noise[keep]
     if d.size < s.min_cells:

@@ -19,6 +19,8 @@ from functools import lru_cache
 
 import numpy as np
 
+from calidar.cells import key_indices
+
 
 @lru_cache(maxsize=1)
 def _reverse16() -> np.ndarray:
@@ -43,9 +45,8 @@ def spread_rank(cells: np.ndarray, block: int = 1) -> np.ndarray:
     Morton code of the low 16 bits of the column and row of their block of ``block`` × ``block``
     cells, so that the blocks ranked lowest are spread evenly (a block's cells share its rank;
     unique within 65 536 blocks in each direction)."""
-    cells = np.asarray(cells, np.int64)
-    i = (cells >> 32) // block
-    j = (((cells & 0xFFFFFFFF) ^ 0x80000000) - 0x80000000) // block  # the row, signed again
+    ij = key_indices(np.asarray(cells, np.int64)) // block
+    i, j = ij[:, 0], ij[:, 1]
     i, j = i & 0xFFFF, j & 0xFFFF
     rev = _reverse16()
     code = (_spread16(rev[i]) << np.uint64(1)) | _spread16(rev[j])

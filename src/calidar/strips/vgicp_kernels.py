@@ -14,6 +14,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from calidar.cells import cell_index
+
 
 @njit(cache=True, nogil=True)
 def xy_bounds(points):  # pragma: no cover - numba
@@ -32,12 +34,14 @@ def xy_bounds(points):  # pragma: no cover - numba
 
 @njit(cache=True, nogil=True, inline="always")
 def _cell(x, y, lo0, lo1, cell):  # pragma: no cover - numba
-    return np.int64(np.floor((x - lo0) / cell)), np.int64(np.floor((y - lo1) / cell))
+    """:func:`calidar.cells.cell_index` from the grid's corner (lo0, lo1)."""
+    return cell_index(x - lo0, cell), cell_index(y - lo1, cell)
 
 
 @njit(cache=True, nogil=True)
 def cell_keys(points, lo, cell, ncol):  # pragma: no cover - numba
-    """Grid keys i·ncol + j of the points' (N, ≥ 2) xy cells (``Grid.keys(Grid.ij(xy))``)."""
+    """Grid keys i·ncol + j of the points' (N, ≥ 2) xy cells (``Grid.keys(Grid.ij(xy))``): not
+    :func:`calidar.cells.cell_key`, for the cells index a byte table of ``Grid.MAX_TABLE``."""
     keys = np.empty(points.shape[0], np.int64)
     for p in range(points.shape[0]):
         i, j = _cell(points[p, 0], points[p, 1], lo[0], lo[1], cell)

@@ -38,6 +38,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from calidar import frames, georef
+from calidar.cells import grid_indices
 from calidar.sensor import Sensor
 from calidar.trajectory import Trajectory
 from calidar.trajectory_accuracy import TrajectoryAccuracy
@@ -87,7 +88,7 @@ def enu_rotation(points_ecef: np.ndarray) -> np.ndarray:
 def surface_normals(points_enu: np.ndarray, cell_m: float, min_points: int = 6) -> np.ndarray:
     """Unit normals (N, 3) of the local surface at each point: the plane of its cell's points
     (least-squares, smallest eigenvector of the cell's scatter), up where a cell has too few."""
-    key = np.floor(points_enu[:, :2] / cell_m).astype(np.int64)
+    key = grid_indices(points_enu, cell_m)
     _, cell, count = np.unique(key, axis=0, return_inverse=True, return_counts=True)
     cell = cell.ravel()
     centred = points_enu - points_enu.mean(axis=0)
