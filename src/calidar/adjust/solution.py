@@ -62,6 +62,34 @@ def cholesky_inverse(N: np.ndarray) -> np.ndarray | None:
     return inv + np.tril(inv, -1).T
 
 
+def unit_diagonal(N: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(N scaled to a unit diagonal, D⁻¹ N D⁻¹, and d = √diag N): the scaling under which a normal
+    matrix's condition number says how well its parameters are determined, whatever their units."""
+    d = np.sqrt(np.clip(np.diag(N), 1e-300, None))
+    return N / np.outer(d, d), d
+
+
+def factor_rcond(c: np.ndarray, A: np.ndarray) -> tuple[float, int]:
+    """LAPACK's estimate (dpocon, O(n²)) of the reciprocal 1-norm condition number of the symmetric
+    positive definite A from its lower Cholesky factor c, and LAPACK's info."""
+    rcond, info = sl.lapack.dpocon(c, float(np.max(np.sum(np.abs(A), axis=0))), uplo="L")
+    return float(rcond), int(info)
+
+
+def determined(N: np.ndarray) -> bool:
+    """Whether N, scaled to a unit diagonal, is positive definite with a reciprocal condition of at
+    least :data:`RANK_TOLERANCE` — what :meth:`Solution.from_normal_matrix` inverts whole. A
+    Cholesky factorisation of N alone is no test: on exactly dependent columns it fails or succeeds
+    on a rounding-sized pivot depending on the CPU and the OpenBLAS build."""
+    Ns, _ = unit_diagonal(N)
+    try:
+        c, _ = sl.cho_factor(Ns, lower=True)
+    except (np.linalg.LinAlgError, ValueError):
+        return False
+    rcond, info = factor_rcond(c, Ns)
+    return info == 0 and rcond >= RANK_TOLERANCE
+
+
 def _inverse(Ns: np.ndarray) -> tuple[np.ndarray, float, np.ndarray | None, np.ndarray | None]:
     """(Ns⁻¹, condition number, None, None) for a well-conditioned Ns (Cholesky; the condition
     number is LAPACK's 1-norm estimate from the factor, O(n²), where eigenvalues cost O(n³) ×
@@ -70,7 +98,7 @@ def _inverse(Ns: np.ndarray) -> tuple[np.ndarray, float, np.ndarray | None, np.n
     eigenvalue ratio, the eigenvalues and eigenvectors, whose null directions the warnings name."""
     try:
         c, _ = sl.cho_factor(Ns, lower=True)
-        rcond, info = sl.lapack.dpocon(c, float(np.max(np.sum(np.abs(Ns), axis=0))), uplo="L")
+        rcond, info = factor_rcond(c, Ns)
     except (np.linalg.LinAlgError, ValueError):
         rcond, info = 0.0, 1
     if info == 0 and rcond >= RANK_TOLERANCE:
@@ -136,8 +164,7 @@ class Solution:
         (default σ0²), with warnings for directions the data cannot determine."""
         names = params.free_names
         prior = [p.prior_sigma is not None for p in params.free]  # constrained by their priors
-        d = np.sqrt(np.clip(np.diag(N), 1e-300, None))
-        Ns = N / np.outer(d, d)
+        Ns, d = unit_diagonal(N)
         cov_s, cond, evals, evecs = _inverse(Ns)
         bad = np.zeros(0, bool) if evecs is None else evals < RANK_TOLERANCE * evals[-1]
         warnings = _observability_warnings(names, prior, jacobian, evecs, bad)

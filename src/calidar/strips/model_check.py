@@ -43,6 +43,7 @@ import numpy as np
 import scipy.linalg as sl
 
 from calidar.adjust import Parameter
+from calidar.adjust.solution import determined
 
 #: structural parameters the check frees, one at a time, when the scanner model has them and they
 #: are not estimated. Not candidates: the lever arm's height and a common height bias (datum defects
@@ -110,6 +111,8 @@ class FreedFit:
         self.J, self.g, self.factor = J, g, factor
         self.w, self.r = np.asarray(w, float), np.asarray(r, float)
         self.groups = [Groups(grouping) for grouping in groupings]
+        if not determined(N):  # a direction the strips do not determine: nothing to test
+            raise np.linalg.LinAlgError("singular normal matrix")
         self.cho = sl.cho_factor(N, lower=True)
         # the restricted model's own remaining step (≈ 0 at its optimum)
         self.rest = -sl.cho_solve(self.cho, g)

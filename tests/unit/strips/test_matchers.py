@@ -18,6 +18,7 @@ from calidar.strips import config as strip_config
 from calidar.strips.calibrate import calibrate
 from calidar.strips.config import CalibrationConfig
 from calidar.strips.planes import PlaneSettings, match_pair_planes
+from calidar.strips.global_test import T_MODEL
 from strips_scene import survey
 
 SRC = Path(__file__).resolve().parents[3] / "src" / "calidar"
@@ -32,6 +33,7 @@ class EveryOtherPlane:
 
     name: ClassVar[str] = "every_other"
     label: ClassVar[str] = "every other tie plane"
+    sigma0_reading: ClassVar[str] = T_MODEL  # how the global test reads its rows' σ0
     settings: PlaneSettings = field(default_factory=PlaneSettings)
     threshold_m: float = 5e-4
 
