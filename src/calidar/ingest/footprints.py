@@ -24,7 +24,7 @@ from calidar.ingest.source import (
 from calidar.ingest.stages import LineCounts
 from calidar.ingest.times import FileTimes, points_ecef
 from calidar.io.las import iter_las_chunks, las_header
-from calidar.strips.lines import add_spans, split_lines
+from calidar.strips.lines import add_spans, split_lines, widen_span
 from calidar.strips.overlap import cell_counts, cell_keys
 from calidar.strips.quality import overlap_cell
 from calidar.strips.selection import FIELDS as SELECTION_FIELDS
@@ -69,8 +69,7 @@ class Footprints:
         """Both files' groups (a group may span files)."""
         self.checks.update(other.checks)
         for k, (t0, t1) in other.spans.items():
-            s0, s1 = self.spans.get(k, (np.inf, -np.inf))
-            self.spans[k] = (min(s0, t0), max(s1, t1))
+            widen_span(self.spans, k, t0, t1)
         for g, cells in other.cells.items():
             self.files.setdefault(g, other.files[g])
             self.points[g] = self.points.get(g, 0) + other.points[g]

@@ -20,7 +20,8 @@ from calidar.ingest.prefetch import prefetched
 from calidar.io.las import (LasPoints, PointOptions, concat_points, iter_las_fields, las_header,
                             las_time_system, read_las)
 from calidar.io.las_crs import las_crs
-from calidar.strips.lines import GAP_S, LineIndex, add_spans, distinct, split_lines
+from calidar.strips.lines import (GAP_S, LineIndex, add_spans, distinct, split_lines,
+                                  widen_span)
 
 
 def read_flight_lines(paths: Sequence[str | Path], crs=None, gap_s: float = GAP_S,
@@ -102,8 +103,7 @@ def index_flight_lines(paths: Sequence[str | Path], options: PointOptions = Poin
             present[got[1]] = True
             seconds.append(got[2] if got[2] is not None else _second_spans(t))
             for i, (t0, t1) in got[3].items():  # as add_spans
-                was = spans.get((i, path.name), (np.inf, -np.inf))
-                spans[(i, path.name)] = (min(was[0], t0), max(was[1], t1))
+                widen_span(spans, (i, path.name), t0, t1)
         classes[path] = np.flatnonzero(present)
     if seconds:  # each second's first and last time, of every chunk
         lo, hi = _second_spans(np.concatenate([s[0] for s in seconds] + [s[1] for s in seconds]))

@@ -123,13 +123,17 @@ def add_spans(spans: dict, point_source_id, t: np.ndarray, name: str) -> None:
     ids = distinct(psid[ok])
     if ids.size == 1:  # one line in the chunk (the usual case): no masks
         ti = t[ok]
-        t0, t1 = spans.get((int(ids[0]), name), (np.inf, -np.inf))
-        spans[(int(ids[0]), name)] = (min(t0, float(ti.min())), max(t1, float(ti.max())))
+        widen_span(spans, (int(ids[0]), name), float(ti.min()), float(ti.max()))
         return
     for i in ids:
         ti = t[ok & (psid == i)]
-        t0, t1 = spans.get((int(i), name), (np.inf, -np.inf))
-        spans[(int(i), name)] = (min(t0, float(ti.min())), max(t1, float(ti.max())))
+        widen_span(spans, (int(i), name), float(ti.min()), float(ti.max()))
+
+
+def widen_span(spans: dict, key, first: float, last: float) -> None:
+    """``spans[key]`` (first, last GPS time) widened to take in ``first`` … ``last``."""
+    t0, t1 = spans.get(key, (np.inf, -np.inf))
+    spans[key] = (min(t0, first), max(t1, last))
 
 
 def distinct(values: np.ndarray) -> np.ndarray:

@@ -127,12 +127,14 @@ def rough_rows_variance(var_a_m2: np.ndarray, dof_a: np.ndarray, var_b_m2: np.nd
     freedom are taken as those of s̄² (Satterthwaite over the two sides; inf where ρ² = 0): the
     delta method's 2κ²s̄⁴/ν for the variance of κ·(s̄² − s_q²) holds far above the threshold only,
     and left rows just above it with σ² of one or two degrees of freedom."""
+    shape = np.broadcast_shapes(np.shape(var_a_m2), np.shape(var_b_m2))
+    if kappa == 0.0:  # no model error (the default): nothing to estimate
+        return np.zeros(shape), np.full(shape, np.inf)
     rho2 = roughness_excess(var_a_m2, var_b_m2, quantile)
-    mean = 0.5 * (np.asarray(var_a_m2, float) + np.asarray(var_b_m2, float))
-    nu_mean = satterthwaite([0.5 * np.asarray(var_a_m2, float),
-                             0.5 * np.broadcast_to(np.asarray(var_b_m2, float), mean.shape)],
-                            [np.asarray(dof_a, float),
-                             np.broadcast_to(np.asarray(dof_b, float), mean.shape)])
+    nu_mean = satterthwaite([0.5 * np.broadcast_to(np.asarray(var_a_m2, float), shape),
+                             0.5 * np.broadcast_to(np.asarray(var_b_m2, float), shape)],
+                            [np.broadcast_to(np.asarray(dof_a, float), shape),
+                             np.broadcast_to(np.asarray(dof_b, float), shape)])
     return kappa * rho2, np.where(rho2 > 0, nu_mean, np.inf)
 
 
