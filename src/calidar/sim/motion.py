@@ -12,6 +12,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.fft import next_fast_len
 from scipy.ndimage import gaussian_filter1d
 
 from calidar import frames
@@ -21,6 +22,9 @@ from calidar.trajectory_accuracy import TrajectoryAccuracy
 
 G = 9.80665  #: m/s²
 SBET_RATE_HZ = 200.0
+#: white noise drawn this many kernel stds beyond each end of a smooth_noise record (the
+#: Gaussian is 4e-6 of its peak there: nothing wraps around)
+WRAP_MARGIN_TAU = 5.0
 SIGMA_VARIATION_S = 60.0  #: time scale of the simulated trajectory σ's variation, s
 ACCURACY_RATE_HZ = 1.0  #: epochs of the written smrmsg.out, as POSPac writes them
 #: bank limit in turns; U-turns tighter than the platform could fly keep this bank (no scanning
@@ -50,17 +54,21 @@ def smooth_noise(rng: np.random.Generator, n: int, dt_s: float, tau_s: float, si
     """Gaussian-filtered white noise (n, dims): kernel std ``tau_s`` (s), output std ``sigma``:
     that of this draw about its mean, or (``stationary``) the process's, of which this draw is one
     sample (its RMS then varies from draw to draw as a real error's does, and its mean over the
-    record is part of it: a trajectory error whose σ a smrmsg states)."""
-    w = rng.standard_normal((n, dims))
+    record is part of it: a trajectory error whose σ a smrmsg states).
+
+    A linear, not circular, convolution: the white noise runs ``WRAP_MARGIN_TAU`` kernel stds
+    beyond both ends and is filtered in the frequency domain over that longer record, so the
+    record's last samples do not share the first ones' errors (a real GNSS/INS does not wrap)."""
+    pad = int(np.ceil(WRAP_MARGIN_TAU * tau_s / dt_s))
+    size = next_fast_len(n + 2 * pad, real=True)
+    w = rng.standard_normal((size, dims))  # drawn for σ = 0 too: the later draws do not shift
     if sigma == 0:
         return np.zeros((n, dims))
-    # circular convolution with a Gaussian of std tau_s, in the frequency domain (stationary,
-    # O(n log n))
-    f = np.fft.rfftfreq(n, dt_s)
-    kernel = np.exp(-2.0 * (np.pi * f * tau_s) ** 2)
-    s = np.fft.irfft(np.fft.rfft(w, axis=0) * kernel[:, None], n, axis=0)
+    f = np.fft.rfftfreq(size, dt_s)
+    kernel = np.exp(-2.0 * (np.pi * f * tau_s) ** 2)  # a Gaussian of std tau_s (s), in frequency
+    s = np.fft.irfft(np.fft.rfft(w, axis=0) * kernel[:, None], size, axis=0)[pad:pad + n]
     if stationary:  # the filter's power gain on unit white noise (Parseval over the full spectrum)
-        power = np.exp(-4.0 * (np.pi * np.fft.fftfreq(n, dt_s) * tau_s) ** 2)
+        power = np.exp(-4.0 * (np.pi * np.fft.fftfreq(size, dt_s) * tau_s) ** 2)
         return s * (sigma / np.sqrt(np.mean(power)))
     return s * (sigma / s.std(axis=0))
 
