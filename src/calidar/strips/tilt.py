@@ -62,11 +62,22 @@ def calibrated_normals(normal: np.ndarray, axes: np.ndarray, spread_m2: np.ndarr
     """Unit normals (R, 3) pointing up whose tilt from the vertical is the expected true tilt
     (:func:`expected_tilt`) of the fitted ``normal`` (R, 3), from each patch's in-plane axes
     (``axes`` (R, 3, 2)), its points' variances along them (``spread_m2`` (R, 2), m²), its
-    scatter about the plane (``rms_m``, m) and its points (``count``)."""
+    scatter about the plane (``rms_m``, m) and its points (``count``).
+
+    The tilt is taken along east and north (in-plane axes f_1 ⟂ north, f_2 = n × f_1), each with
+    its own prior (issue 26, tenth session): a slope along one axis says nothing of the tilt
+    along the other, whose fitted value there is noise that a prior on the tilt's magnitude kept
+    whole (a sloped patch's cross tilt then coupled the rows to moves along it)."""
     normal = np.asarray(normal, float)
-    tau = axes[:, 2, :]  # z · e_j: the tilt along each in-plane axis (rad, small angles)
-    var = np.clip(rms_m, 1e-6, None)[:, None] ** 2 / (count[:, None] * spread_m2)
-    shrunk = expected_tilt(tau, var)
-    # z = (z·n) n + Σ_j τ_j e_j, so n ≈ z − Σ_j τ_j e_j: the tilt τ_j replaced by its expectation
-    out = normal + np.einsum("rij,rj->ri", axes, tau - shrunk)
+    f1 = np.cross(np.array([0.0, 1.0, 0.0]), normal)  # in-plane, ⟂ north: ≈ east
+    f1 /= np.linalg.norm(f1, axis=1)[:, None]
+    frame = np.stack([f1, np.cross(normal, f1)], axis=2)  # (R, 3, 2): ≈ east, ≈ north
+    tau = frame[:, 2, :]  # z · f_j: the tilt along each axis (rad, small angles)
+    var_e = np.clip(rms_m, 1e-6, None)[:, None] ** 2 / (count[:, None] * spread_m2)
+    rot = np.einsum("rij,rik->rjk", frame, axes)  # f_j · e_k
+    var = np.einsum("rjk,rk->rj", rot**2, var_e)  # the tilts' noise variances along f_j
+    shrunk = np.column_stack([expected_tilt(tau[:, j:j + 1], var[:, j:j + 1])[:, 0]
+                              for j in range(2)])
+    # z = (z·n) n + Σ_j τ_j f_j, so n ≈ z − Σ_j τ_j f_j: the tilt τ_j replaced by its expectation
+    out = normal + np.einsum("rij,rj->ri", frame, tau - shrunk)
     return out / np.linalg.norm(out, axis=1)[:, None]
