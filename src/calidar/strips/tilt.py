@@ -21,9 +21,14 @@ m points, λ_j their variance along e_j). The true tilts of one pair's patches g
 those patches — a mixture of zero-mean normals on a fixed grid of variances, zero included (flat
 ground), its weights by EM (the adaptive shrinkage of Stephens 2017, *Biostatistics* 18:275) — and
 each row's normal takes the posterior mean of its tilt: flat patches' rows no longer couple to
-horizontal moves, sloped ones keep their normals. Only b's fit is used, which the row's residual
-does not hold (its noise is a's and b's centroid's): the regressor stays independent of the
-residual's noise and the outer loop's fixed point unbiased.
+horizontal moves, sloped ones keep their normals. The tilt is taken along east and north, each
+component with its own prior (tenth session): a prior on the tilt's magnitude left a sloped
+patch's tilt across its slope — the fit's noise there, as on flat ground — whole, and those rows
+held the loop alike along the lines (the 10⁹ run's kept cells: 8 outer iterations → 3).
+E[t_j | τ_j] is a regression calibration whatever the slopes' directions (only each component's
+distribution is modelled); it shrinks most where the slopes run east or north. Only b's fit is
+used, which the row's residual does not hold (its noise is a's and b's centroid's): the regressor
+stays independent of the residual's noise and the outer loop's fixed point unbiased.
 """
 
 from __future__ import annotations
@@ -70,6 +75,9 @@ def calibrated_normals(normal: np.ndarray, axes: np.ndarray, spread_m2: np.ndarr
     whole (a sloped patch's cross tilt then coupled the rows to moves along it)."""
     normal = np.asarray(normal, float)
     f1 = np.cross(np.array([0.0, 1.0, 0.0]), normal)  # in-plane, ⟂ north: ≈ east
+    size = np.linalg.norm(f1, axis=1)
+    wall = size < 0.1  # a wall facing north or south: east lies in its plane (its tilts are kept)
+    f1[wall] = np.array([1.0, 0.0, 0.0]) - normal[wall, 0:1] * normal[wall]
     f1 /= np.linalg.norm(f1, axis=1)[:, None]
     frame = np.stack([f1, np.cross(normal, f1)], axis=2)  # (R, 3, 2): ≈ east, ≈ north
     tau = frame[:, 2, :]  # z · f_j: the tilt along each axis (rad, small angles)
