@@ -38,6 +38,8 @@ import numpy as np
 #: the prior's variances of a true tilt (rad²): flat, then 3·10⁻⁴ rad to 1 rad (walls are steeper:
 #: their tilts are far beyond the fits' noise and kept whatever the prior)
 PRIOR_VARIANCES = np.r_[0.0, np.logspace(-7.0, 0.0, 15)]
+#: normals' vertical component below this (slopes over 60°, walls): the fitted normal kept
+STEEP_NZ = 0.5
 EM_ITERATIONS = 60
 
 
@@ -72,12 +74,22 @@ def calibrated_normals(normal: np.ndarray, axes: np.ndarray, spread_m2: np.ndarr
     The tilt is taken along east and north (in-plane axes f_1 ⟂ north, f_2 = n × f_1), each with
     its own prior (issue 26, tenth session): a slope along one axis says nothing of the tilt
     along the other, whose fitted value there is noise that a prior on the tilt's magnitude kept
-    whole (a sloped patch's cross tilt then coupled the rows to moves along it)."""
+    whole (a sloped patch's cross tilt then coupled the rows to moves along it). Patches steeper
+    than :data:`STEEP_NZ` (walls) keep their fitted normals: their tilts are far beyond a fit's
+    noise, and along east and north they are no tilts."""
     normal = np.asarray(normal, float)
+    out = normal.copy()
+    gentle = normal[:, 2] >= STEEP_NZ
+    if gentle.any():
+        out[gentle] = _along_east_north(normal[gentle], axes[gentle], spread_m2[gentle],
+                                        rms_m[gentle], count[gentle])
+    return out
+
+
+def _along_east_north(normal: np.ndarray, axes: np.ndarray, spread_m2: np.ndarray,
+                      rms_m: np.ndarray, count: np.ndarray) -> np.ndarray:
+    """:func:`calibrated_normals` of patches no steeper than :data:`STEEP_NZ`."""
     f1 = np.cross(np.array([0.0, 1.0, 0.0]), normal)  # in-plane, ⟂ north: ≈ east
-    size = np.linalg.norm(f1, axis=1)
-    wall = size < 0.1  # a wall facing north or south: east lies in its plane (its tilts are kept)
-    f1[wall] = np.array([1.0, 0.0, 0.0]) - normal[wall, 0:1] * normal[wall]
     f1 /= np.linalg.norm(f1, axis=1)[:, None]
     frame = np.stack([f1, np.cross(normal, f1)], axis=2)  # (R, 3, 2): ≈ east, ≈ north
     tau = frame[:, 2, :]  # z · f_j: the tilt along each axis (rad, small angles)
