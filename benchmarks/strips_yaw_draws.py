@@ -18,18 +18,18 @@ the default calibration is run once; at its solution
   ``measured_trajectory``: no points simulated, the same numbers as the survey's SBET);
 - its expected spread for the simulator's process: in closed form (Gaussian-filtered white noise,
   kernel std 10 s position, 2 s attitude: ρ = exp(−Δt²/4k²); ``_circular``: as the generator
-  was before main e8bc8b3, a circular convolution, the record's two ends neighbours), and over
-  ``--draws`` other draws of the generator itself;
+  was before main e8bc8b3, a circular convolution whose record's two ends were neighbours — the
+  generator is linear since, so the plain closed form is its expectation), and over ``--draws``
+  other draws of the generator itself;
 - ``rows``: the rest of the actual error (actual − traj), against the rows' share
   √(N⁻¹N_dN⁻¹);
 - the survey's draw as z: traj / its spread. Its RMS over seeds is 1 for ordinary draws.
 
-The summary also gives the expected RMS z for the circular convolution's closed form (the
-simulator before main e8bc8b3: on short flights the record's two ends shared their errors, which
-moved the expectation, UAV opposite lines, 200 s: yaw 0.96 → 0.90; issue 26, ninth session) and
-for the ``--draws`` generator draws. Since e8bc8b3 the generator filters linearly: the plain
-closed form is its expectation (the replay still equals the survey's SBET bit for bit: UAV cross
-seed 1200, tenth session). ``--scene`` defaults to the preset's scene, as strips_montecarlo's does.
+The summary also gives the expected RMS z for the simulator (the closed form, the old circular
+generator's closed form, and the ``--draws`` generator draws): on short flights the circular
+generator's two record ends shared their errors, which moved the expectation (UAV opposite lines,
+200 s: yaw 0.96 → 0.90; issue 26, ninth session); since e8bc8b3 the draws follow the plain
+closed form. ``--scene`` defaults to the preset's scene, as strips_montecarlo's does.
 
 Also per survey the replayed draw's summaries a yaw could follow (flight-mean heading error, the
 lines' mean heading errors' spread, the along-track position errors' spread over the lines) and
@@ -336,7 +336,7 @@ def summary(rows: list[dict]) -> str:
                 f"{m:6s}   expected RMS z √(spread² + share²)/σ "
                 f"{f(rms(np.sqrt(ts**2 + rs**2) / s))};"
                 f" given these draws √(part² + share²)/σ {f(rms(np.sqrt(t**2 + rs**2) / s))}",
-                f"{m:6s}   before e8bc8b3 (wrap): spread {f(rms(tc))} mdeg, expected"
+                f"{m:6s}   the simulator's wrap: spread (closed form) {f(rms(tc))} mdeg, expected"
                 f" RMS z {f(rms(np.sqrt(tc**2 + rs**2) / s))}, draw z RMS {f(rms(t / tc))}; "
                 f"the generator's --draws: spread {f(rms(tg))} mdeg, expected RMS z "
                 f"{f(rms(np.sqrt(tg**2 + rs**2) / s))}"]
