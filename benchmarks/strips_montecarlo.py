@@ -184,6 +184,8 @@ def main() -> None:
     ap.add_argument("--json", type=Path, default=None, help="append every row to this JSON-lines file")
     ap.add_argument("--cache", type=Path, default=None, help="keep the simulated surveys here and reuse them")
     ap.add_argument("--simulate-only", action="store_true", help="only simulate the surveys into --cache")
+    ap.add_argument("--covariance", default=None, choices=("irls", "sandwich"),
+                    help="the engine's covariance model ([solver] covariance; default: the configuration's)")
     args = ap.parse_args()
     methods, seeds = args.methods.split(","), seeds_of(args.seeds)
     scale = tuple(float(v) for v in args.sigma_scale.split(","))
@@ -194,10 +196,11 @@ def main() -> None:
         for found in pool.map(survey, seeds, [methods] * n, [args.vegetation] * n, [scale] * n,
                               [args.sigma_variation] * n, [args.no_source] * n, [density] * n,
                               [args.only_hidden] * n, [args.preset] * n, [args.directions] * n, [args.scene] * n,
-                              [args.cache] * n, [args.simulate_only] * n):
+                              [args.cache] * n, [args.simulate_only] * n, [args.covariance] * n):
             for r in found:
                 r.update(vegetation=args.vegetation, sigma_scale=scale, sigma_variation=args.sigma_variation,
-                         density=density, preset=args.preset, directions=args.directions, scene=args.scene)
+                         density=density, preset=args.preset, directions=args.directions, scene=args.scene,
+                         covariance_model=args.covariance or "default")
                 rows.append(r)
                 z = np.array(r["error_deg"]) / np.array(r["sigma_deg"])
                 print(f"{r['source']:7s} {r['method']:6s} seed {r['seed']:4d}  error "
