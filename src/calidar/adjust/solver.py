@@ -146,25 +146,45 @@ class Estimate:
             return _levenberg_marquardt(self, step_in_sigma)
 
     def solution(self, clusters: np.ndarray | list[np.ndarray] | None = None) -> Solution:
-        """The :class:`Solution` here: covariance = variance factor · N⁻¹, raised by the
-        cluster-robust sandwich of each grouping in ``clusters`` (see :func:`solve`)."""
+        """The :class:`Solution` here: covariance = variance factor · N⁻¹ (or, with
+        ``options.covariance`` "sandwich", the M-estimator sandwich, the IRLS σ of the parameters
+        no prior holds recorded beside it), raised by the cluster-robust sandwich of each grouping
+        in ``clusters`` (see :func:`solve`)."""
         fit, x, r, w = self.fit, self.x, self.r, self.w
         with _one_blas_thread():
             sol, J, N = _solution(fit, x, r, w, self.history, self.converged)
-            bread = None
+            factor = fit.variance_factor(r, w, x)
+            finite = factor > 0 and np.all(np.isfinite(sol.covariance))
+            irls = (sol.covariance, None)  # the IRLS model's covariance and bread N⁻¹ (lazy)
             if self.options.covariance == "sandwich":
                 bread = _sandwich(fit, J, r, x, sol)
+                models = [irls, (sol.covariance, bread)] if bread is not None else [irls]
+            else:
+                models = [irls]
         groupings = clusters if isinstance(clusters, list) else [clusters]
         groupings = [] if clusters is None else groupings
-        if groupings:
-            if bread is None:  # the IRLS model's: N⁻¹
-                factor = fit.variance_factor(r, w, x)
-                finite = factor > 0 and np.all(np.isfinite(sol.covariance))
-                bread = sol.covariance / factor if finite else np.linalg.pinv(N)
-            scores = sp.diags(w * r) @ J  # per observation ∂cost/∂θ (dense or sparse like J)
+        scores = sp.diags(w * r) @ J if groupings else None  # per row ∂cost/∂θ, as J
+        raised = []
+        for cov, bread in models:
+            model_cov = cov
+            if bread is None:
+                bread = cov / factor if finite else np.linalg.pinv(N)
             for grouping in groupings:
-                sol.covariance = cluster_robust(sol.covariance, bread, scores, np.asarray(grouping))
+                cov = cluster_robust(cov, bread, scores, np.asarray(grouping))
+            raised.append((model_cov, cov))
+        sol.covariance = raised[-1][1]
+        if len(raised) == 2:  # what the IRLS model would have said, and the model parts
+            record = sol.extra["covariance"]
+            for key, cov in (("irls_model_sigma", raised[0][0]), ("irls_sigma", raised[0][1]),
+                             ("model_sigma", raised[1][0])):
+                record[key] = _unheld_sigma(fit, cov)
         return sol
+
+
+def _unheld_sigma(fit: "_Fit", cov: np.ndarray) -> dict[str, float]:
+    """σ (SI) of the free parameters no prior holds (the calibration's, not the nuisance)."""
+    sig = np.sqrt(np.clip(np.diag(cov), 0, None))
+    return {p.name: float(sig[i]) for i, p in enumerate(fit.free) if p.prior_sigma is None}
 
 
 def _one_blas_thread():

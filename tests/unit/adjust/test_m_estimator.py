@@ -103,3 +103,20 @@ def test_a_misfit_still_widens_the_sigma_and_rows_below_their_sigma_do_not_narro
         sig[scale] = sol.sigma["b"]
     assert sig[3.0] / sig[1.0] == pytest.approx(3.0, rel=0.1)
     assert sig[0.5] >= 0.95 * sig[1.0]
+
+
+def test_with_clusters_the_irls_sigma_is_recorded_beside_and_the_cluster_max_stays_on_top():
+    """Rows correlated in 20 groups: the sandwich's σ are the cluster-robust max over its model part; the IRLS σ it
+    records are those the IRLS covariance gives (the same clusters, bread N⁻¹)."""
+    rng = np.random.default_rng(9)
+    x = np.linspace(-1.0, 1.0, 400)
+    groups = np.repeat(np.arange(20), 20)
+    y = 1.0 + 2.0 * x + 0.01 * (_heavy(rng, x.size) + 2.0 * rng.standard_normal(20)[groups])
+    opts = SolverOptions(robust="cauchy")
+    irls = solve(_line(y, x, 0.01, absolute=True), opts, clusters=groups)
+    sand = solve(_line(y, x, 0.01, absolute=True), replace(opts, covariance="sandwich"), clusters=groups)
+    record = sand.extra["covariance"]
+    for name in ("a", "b"):
+        assert record["irls_sigma"][name] == pytest.approx(irls.sigma[name], rel=1e-12)
+        assert sand.sigma[name] >= record["model_sigma"][name] * (1 - 1e-12)
+    assert sand.sigma["a"] > 2 * record["model_sigma"]["a"]  # the groups' common errors dominate the mean
