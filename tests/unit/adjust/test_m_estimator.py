@@ -92,17 +92,23 @@ def test_heavy_tailed_rows_the_sandwich_matches_the_spread_where_the_irls_covari
 
 
 def test_a_misfit_still_widens_the_sigma_and_rows_below_their_sigma_do_not_narrow_them():
-    """Absolute σ: rows 3× their σ (a wrong model) widen the sandwich's σ ≈ 3× as the IRLS's; rows at 0.5 of their
-    σ leave them at least as wide as rows with their σ would (the variance factor's floor at the global test's
-    σ0)."""
-    x = np.linspace(-1.0, 1.0, 400)
+    """Absolute σ, 2 000 normal rows at 0.5, 1, 1.5 and 3 times their σ: the sandwich's σ are those of rows at
+    their σ for 0.5 (the variance factor's floor at the global test's σ0) and grow as the rows for 1.5 and 3 (a
+    wrong model is not hidden); the IRLS's grow only 1.34× for 1.5 (its weighted σ0 reads the rows low)."""
+    x = np.linspace(-1.0, 1.0, 2000)
     sig = {}
-    for scale in (0.5, 1.0, 3.0):
+    for scale in (0.5, 1.0, 1.5, 3.0):
         y = 1.0 + 2.0 * x + 0.01 * scale * np.random.default_rng(7).standard_normal(x.size)
-        sol = solve(_line(y, x, 0.01, absolute=True), SolverOptions(robust="cauchy", covariance="sandwich"))
-        sig[scale] = sol.sigma["b"]
-    assert sig[3.0] / sig[1.0] == pytest.approx(3.0, rel=0.1)
-    assert sig[0.5] >= 0.95 * sig[1.0]
+        est = estimate(_line(y, x, 0.01, absolute=True), SolverOptions(robust="cauchy", covariance="sandwich"))
+        sig[scale] = {m: replace(est, options=replace(est.options, covariance=m)).solution().sigma["b"]
+                      for m in ("irls", "sandwich")}
+    sand = {k: v["sandwich"] / sig[1.0]["sandwich"] for k, v in sig.items()}
+    assert sand[0.5] == pytest.approx(1.0, abs=0.02)
+    assert sand[1.5] == pytest.approx(1.5, rel=0.03) and sand[3.0] == pytest.approx(3.0, rel=0.05)
+    assert sig[1.5]["irls"] / sig[1.0]["irls"] < 1.4
+    ls = 0.01 / np.sqrt(np.sum((x - x.mean()) ** 2))  # least squares' σ_b for rows at their σ
+    assert sig[1.0]["sandwich"] == pytest.approx(ls * np.sqrt(1.051), rel=0.02)  # the Cauchy's efficiency, 95 %
+    assert sig[1.0]["irls"] > 1.03 * sig[1.0]["sandwich"]
 
 
 def test_with_clusters_the_irls_sigma_is_recorded_beside_and_the_cluster_max_stays_on_top():
