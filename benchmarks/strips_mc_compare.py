@@ -1,15 +1,15 @@
 """Before/after of one change on the same cached surveys: per cell and method, RMS z per angle, the
 mean σ ratio after/before per angle, σ0 (the global test's) before and after, and the sandwich's record.
 
-    PYTHONPATH=src python benchmarks/strips_mc_compare.py BEFORE.jsonl AFTER.jsonl
-    PYTHONPATH=src python benchmarks/strips_mc_compare.py AFTER.jsonl
+    PYTHONPATH=src python benchmarks/strips_mc_compare.py AFTER.jsonl [AFTER2.jsonl …] \
+        [--before BEFORE.jsonl …]
 
-BEFORE and AFTER are ``strips_montecarlo.py --json`` rows of the same seeds (e.g. ``--covariance
+AFTER and BEFORE are ``strips_montecarlo.py --json`` rows of the same seeds (e.g. ``--covariance
 sandwich`` after, issue 26). The estimates must be the same (a covariance change moves no value):
-the largest |Δ error| is printed to show it. With AFTER alone (``--covariance sandwich`` rows that
-record the IRLS σ beside their own, ``covariance.irls_sigma``) the IRLS σ are "before"; a last
-column then gives the model part's σ ÷ the final σ (the cluster-robust max: 1 where the model part
-is what is reported), IRLS → sandwich.
+the largest |Δ error| is printed to show it. An AFTER row without a BEFORE row of its seed (a
+``--covariance sandwich`` row records the IRLS σ beside its own, ``covariance.irls_sigma``) takes
+those IRLS σ as "before"; the last column then gives the model part's σ ÷ the final σ (the
+cluster-robust max: 1 where the model part is what is reported), IRLS → sandwich.
 """
 
 from __future__ import annotations
@@ -21,9 +21,9 @@ from pathlib import Path
 import numpy as np
 
 
-def _rows(path: Path) -> dict:
+def _rows(paths: list[Path]) -> dict:
     out = {}
-    for line in path.read_text().splitlines():
+    for line in (ln for path in paths for ln in path.read_text().splitlines()):
         r = json.loads(line)
         out[(r["preset"], r["directions"], r["method"], r["seed"])] = r
     return out
@@ -44,14 +44,17 @@ def _recorded(rows: dict) -> dict:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("rows", type=Path, nargs="+", help="BEFORE.jsonl AFTER.jsonl, or AFTER.jsonl")
+    ap.add_argument("after", type=Path, nargs="+")
+    ap.add_argument("--before", type=Path, nargs="*", default=[])
     args = ap.parse_args()
-    after = _rows(args.rows[-1])
-    before = _rows(args.rows[0]) if len(args.rows) == 2 else _recorded(after)
+    after = _rows(args.after)
+    before = {**_recorded({k: r for k, r in after.items() if "irls_sigma" in (r.get("covariance") or {})}),
+              **_rows(args.before)}
     keys = sorted(set(before) & set(after))
     print("| cell | method | n | RMS z r / p / y before → after | σ after ÷ before r / p / y "
-          "| σ0 test before → after | sandwich f, q^½ (mean) | max abs Δ error | model σ ÷ σ |")
-    print("|---|---|---|---|---|---|---|---|---|")
+          "| max abs z before → after | σ0 test before → after | sandwich f, q^½ (mean) | max abs Δ error "
+          "| model σ ÷ σ |")
+    print("|---|---|---|---|---|---|---|---|---|---|")
     for cell in sorted({k[:3] for k in keys}):
         sel = [k for k in keys if k[:3] == cell]
         b = [before[k] for k in sel]
@@ -69,13 +72,14 @@ def main() -> None:
         print(f"| {cell[0]} {cell[1]} ({sel[0][3]}–{sel[-1][3]}) | {cell[2]} | {n} | "
               + " / ".join(f"{v:.2f}" for v in rms_b) + " → " + " / ".join(f"{v:.2f}" for v in rms_a)
               + f" (±{1 / np.sqrt(2 * n):.2f}) | " + " / ".join(f"{v:.3f}" for v in ratio)
+              + f" | {np.abs(err_b / sig_b).max():.2f} → {np.abs(err_a / sig_a).max():.2f}"
               + f" | {s0b:.3f} → {s0a:.3f} | {f:.3f}, {q:.3f} | {np.abs(err_a - err_b).max():.1e}° | "
               + _shares(b, a) + " |")
 
 
 def _shares(before: list[dict], after: list[dict]) -> str:
-    """Mean model σ ÷ σ per angle, before → after (when the rows recorded them)."""
-    if "model_share" not in after[0]:
+    """Mean model σ ÷ σ per angle, before → after (when every row recorded them)."""
+    if not all("model_share" in r for r in before + after):
         return ""
     return " → ".join(" / ".join(f"{v:.2f}" for v in np.mean([r["model_share"] for r in rows], axis=0))
                       for rows in (before, after))
