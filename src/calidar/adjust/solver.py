@@ -293,12 +293,8 @@ class _Fit:
         """σ0² without priors (σ relative); max(σ0², 1) with them or with absolute observation σ
         (σ absolute: σ0 < 1 there says the priors or the rows' σ were generous, not that the
         parameters are better known than they allow)."""
-        return self.floored(2.0 * self.cost(r, w, x) / self.dof(w))
-
-    def floored(self, level: float) -> float:
-        """A variance factor from the data's ``level``: itself where σ are relative (no priors,
-        no absolute σ), else max(level, 1) (see :meth:`variance_factor`)."""
-        return level if self.n_prior == 0 and not self.absolute_sigma else max(level, 1.0)
+        s0 = 2.0 * self.cost(r, w, x) / self.dof(w)
+        return s0 if self.n_prior == 0 and not self.absolute_sigma else max(s0, 1.0)
 
 
 def _levenberg_marquardt(at: Estimate, step_in_sigma: float) -> Estimate:
