@@ -17,17 +17,19 @@ the default calibration is run once; at its solution
   simulator's navigation stream (``calidar.sim.survey.simulate_survey``'s streams up to
   ``measured_trajectory``: no points simulated, the same numbers as the survey's SBET);
 - its expected spread for the simulator's process: in closed form (Gaussian-filtered white noise,
-  kernel std 10 s position, 2 s attitude: ρ = exp(−Δt²/4k²); ``_circular``: with the
-  generator's circular convolution, the record's two ends neighbours), and over ``--draws``
+  kernel std 10 s position, 2 s attitude: ρ = exp(−Δt²/4k²); ``_circular``: as the generator
+  was before main e8bc8b3, a circular convolution whose record's two ends were neighbours — the
+  generator is linear since, so the plain closed form is its expectation), and over ``--draws``
   other draws of the generator itself;
 - ``rows``: the rest of the actual error (actual − traj), against the rows' share
   √(N⁻¹N_dN⁻¹);
 - the survey's draw as z: traj / its spread. Its RMS over seeds is 1 for ordinary draws.
 
-The summary also gives the expected RMS z for the simulator as it is (its circular convolution's
-closed form, and the ``--draws`` generator draws): on short flights the record's two ends share
-their errors, which moves the expectation (UAV opposite lines, 200 s: yaw 0.96 → 0.90; issue 26,
-ninth session). ``--scene`` defaults to the preset's scene, as strips_montecarlo's does.
+The summary also gives the expected RMS z for the simulator (the closed form, the old circular
+generator's closed form, and the ``--draws`` generator draws): on short flights the circular
+generator's two record ends shared their errors, which moved the expectation (UAV opposite lines,
+200 s: yaw 0.96 → 0.90; issue 26, ninth session); since e8bc8b3 the draws follow the plain
+closed form. ``--scene`` defaults to the preset's scene, as strips_montecarlo's does.
 
 Also per survey the replayed draw's summaries a yaw could follow (flight-mean heading error, the
 lines' mean heading errors' spread, the along-track position errors' spread over the lines) and

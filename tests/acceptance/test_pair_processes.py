@@ -52,7 +52,7 @@ def test_one_process_is_no_pool_and_only_large_rounds_go_to_the_workers():
         assert p is None
     tasks = [(Vgicp(), 1, np.zeros((400_000, 3)), 2, np.zeros((200_000, 3)))] * 2  # 1.2 M points
     assert worth_processes(tasks) and not worth_processes(tasks[:1])
-    assert Vgicp.holds_gil and not getattr(TiePlanes, "holds_gil", False)
+    assert Vgicp.holds_gil and not TiePlanes.holds_gil
 
 
 def test_vgicp_correspondences_identical_in_worker_processes(pool):

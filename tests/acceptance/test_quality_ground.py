@@ -72,7 +72,10 @@ def test_forest_survey_ground_median_matches_plain_per_cell(cli, tmp_path):
                        pair["cell_m"], pair["n_points_a"]))
         print(report[-1])
         assert pair["median_dz_m"] == pytest.approx(plain, abs=0.005), report[-1]
-        assert 0.6 * n <= pair["n_cells"] <= n and n > 50  # quality also asks the points to fill the cell
+        assert 0.6 * n <= pair["n_cells"] <= n  # quality also asks the points to fill the cell
+    # most pairs are real overlaps; a sliver (pair 2–4 of this survey: 40 plain cells, 27 kept)
+    # is compared too, but cannot be the test's evidence alone
+    assert sum(r[6] > 50 for r in report) >= 3, report
     print("pair, median dz all points, ground, plain ground, cells, plain cells:", report)
 
 

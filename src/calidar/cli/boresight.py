@@ -15,6 +15,7 @@ from calidar.cli.options import (
     TRAJECTORY_HEADING,
 )
 from calidar.ingest.settings import BUDGET_POINTS
+from calidar.strips.selection import excluded_words
 from calidar.strips.trajectory_errors import PREFIX as TRAJECTORY_PREFIX
 
 #: the trajectory model's defaults as the options show them (those of
@@ -82,7 +83,7 @@ STRIP_POINTS = typer.Option(
     "this, not with the files); 0: every overlapping point.")
 ALL_CLASSES = typer.Option(
     False, "--all-classes/--no-all-classes", help="Keep every LAS class in the calibration's "
-    "points. Default: a classified file's vegetation (3–5), noise (7, 18) and water (9) points are "
+    f"points. Default: a classified file's {excluded_words()} points are "
     "left out before the --strip-points budget is spent (as `calidar quality` leaves them out); "
     "unclassified files lose none.")
 CONFIG = typer.Option(

@@ -8,6 +8,7 @@ from dataclasses import dataclass, field
 
 from calidar.io.las import PointOptions
 from calidar.strips.lines import GAP_S
+from calidar.strips.selection import excluded_words
 
 #: points kept per strip by default: enough for the tie planes and VGICP on the test surveys
 #: (results within σ of every overlapping point), small enough for bounded memory
@@ -58,5 +59,5 @@ class IngestSettings:
         """Which LAS classes the calibration's points are of, for the report."""
         if self.all_classes:
             return "every LAS class (--all-classes)"
-        return ("every LAS class but vegetation (3–5), noise (7, 18) and water (9) "
+        return (f"every LAS class but {excluded_words()} "
                 "(of classified files; --all-classes keeps them)")

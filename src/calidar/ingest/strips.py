@@ -36,6 +36,7 @@ from calidar.ingest.stages import LineCounts
 from calidar.ingest.times import points_ecef
 from calidar.io.las import las_file_crs, las_header, las_time_system
 from calidar.strips.overlap import common_cells, merge_counts, strip_name, unpaired_notes
+from calidar.strips.selection import excluded_words
 from calidar.strips.strip import LocalFrame, Strip
 from calidar.strips.thin import thin_cells
 
@@ -200,7 +201,7 @@ class StripIngest:
                                    f"overlap (no {s.min_cells} common {s.cell_m:g} m cells); strip "
                                    "calibration needs overlapping flight lines"
                                    + ("" if s.all_classes else
-                                      " (of classified files, vegetation, noise and water are "
+                                      f" (of classified files, {excluded_words(False)} are "
                                       "left out: --all-classes counts them)"))
         line_of = dict(zip(groups.tolist(), line.tolist()))
         counts = {i: sum(acc.points[int(g)] for g in groups[line == i]) for i in footprint}

@@ -25,6 +25,7 @@ from __future__ import annotations
 import base64
 import html
 import io
+import re
 from dataclasses import dataclass, field
 from datetime import datetime, timezone
 from pathlib import Path
@@ -34,6 +35,16 @@ import numpy as np
 from calidar import __version__
 from calidar.outputs import shown_path, write_text_atomic
 from calidar.provenance import RunRecord
+
+#: a command-line option in prose (--all-classes, --method planes): kept on one line, since
+#: browsers may break a line after a hyphen
+_OPTION = re.compile(r"(?<![\w-])--[a-z][a-z0-9]*(?:-[a-z0-9]+)*")
+
+
+def prose(text: str) -> str:
+    """``text`` escaped for HTML, its command-line options unbroken (``<span class="opt">``)."""
+    return _OPTION.sub(lambda m: f'<span class="opt">{m.group(0)}</span>', html.escape(text))
+
 
 _CSS = (
     "\n"
@@ -47,7 +58,7 @@ _CSS = (
     "border-left:4px solid #e90;padding:.5em 1em;margin:.5em 0}\n"
     ".ok{color:#070} .bad{color:#b00} figure{margin:1em 0} figcaption{font-size:.9em;"
     "color:#555} img{max-width:100%}\n"
-    "nav ul{columns:2} .meta{color:#666;font-size:.9em}\n"
+    "nav ul{columns:2} .meta{color:#666;font-size:.9em} .opt{white-space:nowrap}\n"
     "pre{background:#f4f6fa;border:1px solid #dde;padding:.5em .8em;overflow-x:auto;"
     "white-space:pre-wrap;word-break:break-all}\n"
     "caption{caption-side:top;text-align:left;color:#555;font-size:.9em;padding:.2em 0}"
@@ -98,7 +109,7 @@ class Section:
     blocks: list[str] = field(default_factory=list)
 
     def text(self, paragraph: str) -> None:
-        self.blocks.append(f"<p>{html.escape(paragraph)}</p>")
+        self.blocks.append(f"<p>{prose(paragraph)}</p>")
 
     def heading(self, text: str) -> None:
         """A sub-heading inside the section."""
@@ -115,7 +126,7 @@ class Section:
         self.blocks.append(f'<ol class="refs">{listed}</ol>')
 
     def warning(self, message: str) -> None:
-        self.blocks.append(f'<div class="warn">⚠ {html.escape(message)}</div>')
+        self.blocks.append(f'<div class="warn">⚠ {prose(message)}</div>')
 
     def table(self, header: list[str], rows: list[list], caption: str | None = None,
               formats: list | None = None) -> None:
@@ -239,8 +250,8 @@ def verdict_html(verdict, title: str | None = None) -> str:
 def _finding_html(f) -> str:
     """One finding of a verdict: its status tag, check, detail and the action when there is one."""
     tag = f'<span class="tag t-{f.status}">{f.status.upper()}</span>'
-    action = f'<br><span class="action">→ {html.escape(f.action)}</span>' if f.action else ""
-    return f"<li>{tag}<b>{html.escape(f.check)}</b>: {html.escape(f.detail)}{action}</li>"
+    action = f'<br><span class="action">→ {prose(f.action)}</span>' if f.action else ""
+    return f"<li>{tag}<b>{html.escape(f.check)}</b>: {prose(f.detail)}{action}</li>"
 
 
 def record_html(record) -> str:

@@ -142,7 +142,7 @@ def calibrate_with_client(strips: Sequence[Strip], nominal: Sensor,
     params = build_parameters(nominal, config.estimate, run.spans, trajectory,
                               run.headings() if trajectory is not None else None)
     params = with_survey_parameters(params, control)
-    in_processes = client is None and getattr(matcher, "holds_gil", False)
+    in_processes = client is None and matcher.holds_gil
     processes = pair_processes(PROCESSES if in_processes else 1)
     with processes as pool:
         outer, est, problem, corrs, pairs, first_residuals, first_control = outer_loop(

@@ -3,14 +3,14 @@
 A matcher is an object that owns its settings, its matching, the outer loop's stop (how much
 the mean correspondence distance may still change, m) and the words the report and the verdict
 use for its observations. The calibrator (:mod:`calidar.strips.calibrate`) only calls
-:meth:`Matcher.match`; a new kind of correspondence is a new class of this shape, named in
-:data:`calidar.strips.config.MATCHERS`.
+:meth:`Matcher.match`; a new kind of correspondence is a new subclass of :class:`Matcher` (a
+frozen dataclass), named in :data:`calidar.strips.config.MATCHERS`.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import ClassVar, Protocol
+from typing import ClassVar
 
 import numpy as np
 
@@ -20,8 +20,10 @@ from calidar.strips.planes import PlaneSettings, match_pair_planes
 from calidar.strips.vgicp import VgicpSettings, match_pair_vgicp
 
 
-class Matcher(Protocol):
-    """What the calibrator asks of a matcher (frozen, picklable: it travels to Dask workers)."""
+class Matcher:
+    """What the calibrator asks of a matcher (frozen, picklable: it travels to Dask workers). A
+    subclass declares ``name``, ``label`` and ``sigma0_reading`` (no defaults: each kind says how
+    its σ0 is read) and its ``threshold_m`` and :meth:`match`; ``holds_gil`` defaults to False."""
 
     name: ClassVar[str]  #: how ``--method`` and the outputs name it (solution_<name>.json)
     label: ClassVar[str]  #: its observations in words ("tie planes")
@@ -29,15 +31,24 @@ class Matcher(Protocol):
     #: how the global test reads the σ0 of its robust rows whose σ are estimated from their points
     #: (:data:`calidar.strips.global_test.T_MODEL` or ``SKIPPED_RMS``; recorded in the solution)
     sigma0_reading: ClassVar[str]
+    #: its matching holds the GIL, so in-process runs match pairs in worker processes
+    #: (:mod:`calidar.strips.processes`) rather than threads (:mod:`calidar.strips.outer_loop`)
+    holds_gil: ClassVar[bool] = False
+
+    def __init_subclass__(cls, **kwargs):
+        super().__init_subclass__(**kwargs)
+        missing = [a for a in ("name", "label", "sigma0_reading") if not hasattr(cls, a)]
+        if missing:
+            raise TypeError(f"matcher {cls.__name__} does not declare {', '.join(missing)}")
 
     def match(self, strip_a: int, points_a: np.ndarray, strip_b: int,
               points_b: np.ndarray) -> Correspondences:
         """The correspondences of two strips' overlapping points ((N, 3) local m each)."""
-        ...
+        raise NotImplementedError
 
 
 @dataclass(frozen=True)
-class TiePlanes:
+class TiePlanes(Matcher):
     """Tie planes (:func:`calidar.strips.planes.match_pair_planes`): one point-to-plane row per
     small planar patch seen by both strips."""
 
@@ -54,7 +65,7 @@ class TiePlanes:
 
 
 @dataclass(frozen=True)
-class Vgicp:
+class Vgicp(Matcher):
     """VGICP registration and nearest neighbours (:func:`calidar.strips.vgicp.match_pair_vgicp`)."""
 
     name: ClassVar[str] = "vgicp"
@@ -65,9 +76,7 @@ class Vgicp:
     #: re-matching alone moves the mean distance by ~0.1 mm, so the tie planes' 0.2 mm would rarely
     #: stop it
     threshold_m: float = 1e-3
-    #: small_gicp holds the GIL: in-process runs match the pairs in worker processes
-    #: (:mod:`calidar.strips.processes`)
-    holds_gil: ClassVar[bool] = True
+    holds_gil: ClassVar[bool] = True  #: small_gicp holds the GIL
 
     def match(self, strip_a: int, points_a: np.ndarray, strip_b: int,
               points_b: np.ndarray) -> Correspondences:

@@ -60,7 +60,7 @@ def pair_threads(matcher: Matcher) -> int:
     """Pairs matched at once in this process's threads: :data:`IN_PROCESS_THREADS` for a matcher
     whose work releases the GIL (the tie planes: numba ``nogil`` kernels), 1 for one that holds it
     (VGICP: worker processes instead, :mod:`calidar.strips.processes`)."""
-    return 1 if getattr(matcher, "holds_gil", False) else IN_PROCESS_THREADS
+    return 1 if matcher.holds_gil else IN_PROCESS_THREADS
 
 
 def _distances(c: Correspondences, r: np.ndarray) -> np.ndarray:

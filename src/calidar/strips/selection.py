@@ -19,8 +19,23 @@ import numpy as np
 from calidar.errors import InputError
 
 GROUND = 2  #: LAS class of ground points
-#: LAS classes never used by the last-returns rule: vegetation (3–5), noise (7, 18), water (9).
-EXCLUDED_CLASSES = (3, 4, 5, 7, 9, 18)
+#: LAS classes never used by the last-returns rule nor the calibration's points, by what they hold
+#: (ASPRS LAS 1.4 R15 table 17: low/medium/high vegetation, low point (noise), high noise, water)
+EXCLUDED_GROUPS = (("vegetation", (3, 4, 5)), ("noise", (7, 18)), ("water", (9,)))
+EXCLUDED_CLASSES = tuple(sorted(c for _, classes in EXCLUDED_GROUPS for c in classes))
+
+
+def _classes_text(classes: tuple[int, ...]) -> str:
+    """(3, 4, 5) → '3–5' (a run of consecutive classes), (7, 18) → '7, 18'."""
+    run = len(classes) > 2 and classes == tuple(range(classes[0], classes[-1] + 1))
+    return f"{classes[0]}–{classes[-1]}" if run else ", ".join(map(str, classes))
+
+
+def excluded_words(numbers: bool = True) -> str:
+    """The excluded classes in words, from :data:`EXCLUDED_GROUPS`: 'vegetation (3–5), noise
+    (7, 18) and water (9)' (``numbers`` False: 'vegetation, noise and water')."""
+    words = [f"{name} ({_classes_text(c)})" if numbers else name for name, c in EXCLUDED_GROUPS]
+    return ", ".join(words[:-1]) + " and " + words[-1]
 #: the attributes of a point chunk a selection reads
 FIELDS = ("classification", "return_number", "number_of_returns")
 
@@ -54,7 +69,7 @@ class PointSelection:
     def describe(self) -> str:
         if self.classes is None:
             return ("last and single returns (return_number = number_of_returns), no "
-                    "vegetation/noise/water classes")
+                    f"{'/'.join(name for name, _ in EXCLUDED_GROUPS)} classes")
         plural = "es" if len(self.classes) > 1 else ""
         return f"{self.rule}: class{plural} {', '.join(map(str, self.classes))}"
 

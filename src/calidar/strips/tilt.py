@@ -21,9 +21,14 @@ m points, λ_j their variance along e_j). The true tilts of one pair's patches g
 those patches — a mixture of zero-mean normals on a fixed grid of variances, zero included (flat
 ground), its weights by EM (the adaptive shrinkage of Stephens 2017, *Biostatistics* 18:275) — and
 each row's normal takes the posterior mean of its tilt: flat patches' rows no longer couple to
-horizontal moves, sloped ones keep their normals. Only b's fit is used, which the row's residual
-does not hold (its noise is a's and b's centroid's): the regressor stays independent of the
-residual's noise and the outer loop's fixed point unbiased.
+horizontal moves, sloped ones keep their normals. The tilt is taken along east and north, each
+component with its own prior (tenth session): a prior on the tilt's magnitude left a sloped
+patch's tilt across its slope — the fit's noise there, as on flat ground — whole, and those rows
+held the loop alike along the lines (the 10⁹ run's kept cells: 8 outer iterations → 3).
+E[t_j | τ_j] is a regression calibration whatever the slopes' directions (only each component's
+distribution is modelled); it shrinks most where the slopes run east or north. Only b's fit is
+used, which the row's residual does not hold (its noise is a's and b's centroid's): the regressor
+stays independent of the residual's noise and the outer loop's fixed point unbiased.
 """
 
 from __future__ import annotations
@@ -33,6 +38,8 @@ import numpy as np
 #: the prior's variances of a true tilt (rad²): flat, then 3·10⁻⁴ rad to 1 rad (walls are steeper:
 #: their tilts are far beyond the fits' noise and kept whatever the prior)
 PRIOR_VARIANCES = np.r_[0.0, np.logspace(-7.0, 0.0, 15)]
+#: normals' vertical component below this (slopes over 60°, walls): the fitted normal kept
+STEEP_NZ = 0.5
 EM_ITERATIONS = 60
 
 
@@ -62,11 +69,35 @@ def calibrated_normals(normal: np.ndarray, axes: np.ndarray, spread_m2: np.ndarr
     """Unit normals (R, 3) pointing up whose tilt from the vertical is the expected true tilt
     (:func:`expected_tilt`) of the fitted ``normal`` (R, 3), from each patch's in-plane axes
     (``axes`` (R, 3, 2)), its points' variances along them (``spread_m2`` (R, 2), m²), its
-    scatter about the plane (``rms_m``, m) and its points (``count``)."""
+    scatter about the plane (``rms_m``, m) and its points (``count``).
+
+    The tilt is taken along east and north (in-plane axes f_1 ⟂ north, f_2 = n × f_1), each with
+    its own prior (issue 26, tenth session): a slope along one axis says nothing of the tilt
+    along the other, whose fitted value there is noise that a prior on the tilt's magnitude kept
+    whole (a sloped patch's cross tilt then coupled the rows to moves along it). Patches steeper
+    than :data:`STEEP_NZ` (walls) keep their fitted normals: their tilts are far beyond a fit's
+    noise, and along east and north they are no tilts."""
     normal = np.asarray(normal, float)
-    tau = axes[:, 2, :]  # z · e_j: the tilt along each in-plane axis (rad, small angles)
-    var = np.clip(rms_m, 1e-6, None)[:, None] ** 2 / (count[:, None] * spread_m2)
-    shrunk = expected_tilt(tau, var)
-    # z = (z·n) n + Σ_j τ_j e_j, so n ≈ z − Σ_j τ_j e_j: the tilt τ_j replaced by its expectation
-    out = normal + np.einsum("rij,rj->ri", axes, tau - shrunk)
+    out = normal.copy()
+    gentle = normal[:, 2] >= STEEP_NZ
+    if gentle.any():
+        out[gentle] = _along_east_north(normal[gentle], axes[gentle], spread_m2[gentle],
+                                        rms_m[gentle], count[gentle])
+    return out
+
+
+def _along_east_north(normal: np.ndarray, axes: np.ndarray, spread_m2: np.ndarray,
+                      rms_m: np.ndarray, count: np.ndarray) -> np.ndarray:
+    """:func:`calibrated_normals` of patches no steeper than :data:`STEEP_NZ`."""
+    f1 = np.cross(np.array([0.0, 1.0, 0.0]), normal)  # in-plane, ⟂ north: ≈ east
+    f1 /= np.linalg.norm(f1, axis=1)[:, None]
+    frame = np.stack([f1, np.cross(normal, f1)], axis=2)  # (R, 3, 2): ≈ east, ≈ north
+    tau = frame[:, 2, :]  # z · f_j: the tilt along each axis (rad, small angles)
+    var_e = np.clip(rms_m, 1e-6, None)[:, None] ** 2 / (count[:, None] * spread_m2)
+    rot = np.einsum("rij,rik->rjk", frame, axes)  # f_j · e_k
+    var = np.einsum("rjk,rk->rj", rot**2, var_e)  # the tilts' noise variances along f_j
+    shrunk = np.column_stack([expected_tilt(tau[:, j:j + 1], var[:, j:j + 1])[:, 0]
+                              for j in range(2)])
+    # z = (z·n) n + Σ_j τ_j f_j, so n ≈ z − Σ_j τ_j f_j: the tilt τ_j replaced by its expectation
+    out = normal + np.einsum("rij,rj->ri", frame, tau - shrunk)
     return out / np.linalg.norm(out, axis=1)[:, None]

@@ -19,6 +19,7 @@ from calidar.strips.calibrate import calibrate
 from calidar.strips.config import CalibrationConfig
 from calidar.strips.planes import PlaneSettings, match_pair_planes
 from calidar.strips.global_test import T_MODEL
+from calidar.strips.matchers import Matcher
 from strips_scene import survey
 
 SRC = Path(__file__).resolve().parents[3] / "src" / "calidar"
@@ -28,7 +29,7 @@ CALLS: list[tuple[int, int]] = []
 
 
 @dataclass(frozen=True)
-class EveryOtherPlane:
+class EveryOtherPlane(Matcher):
     """The test double: tie planes, every other one kept (its own settings, threshold and label)."""
 
     name: ClassVar[str] = "every_other"
@@ -99,3 +100,13 @@ def test_no_module_branches_on_a_matchers_name():
     found = {p.relative_to(SRC).as_posix(): f for p in sorted(SRC.rglob("*.py"))
              if p.relative_to(SRC).as_posix() not in own and (f := _names_compared(p))}
     assert found == {}, f"branches on a matcher's name (give the matcher the behaviour instead): {found}"
+
+
+def test_a_matcher_must_say_how_its_sigma0_is_read():
+    """A new kind without ``sigma0_reading`` is refused where it is written, not at the global
+    test; ``holds_gil`` has its default (threads, not processes)."""
+    with pytest.raises(TypeError, match="does not declare sigma0_reading"):
+        class Silent(Matcher):
+            name: ClassVar[str] = "silent"
+            label: ClassVar[str] = "silent rows"
+    assert EveryOtherPlane.holds_gil is False

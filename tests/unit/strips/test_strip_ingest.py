@@ -257,9 +257,14 @@ def test_geographic_strips_get_the_projected_quality_in_one_read(denser, tmp_pat
         assert len(tasks) == len(paths)  # one read: every stage's own plan is the ingest's
     for utm, geo in zip(got["utm"], got["geo"]):
         assert [(q.a, q.b) for q in utm] == [(q.a, q.b) for q in geo] and len(utm) >= 2
+        # the two grids differ (UTM's and the local frame's, turned by the meridian convergence), so
+        # a sliver's count of cells each holding enough points of both strips does not carry from one
+        # to the other (pair 1–3 of seed 11: 44 cells of 545 / 685 points in UTM, 23 of 487 / 644 in
+        # the local frame); overlaps of ≥ 100 cells agree in cells and dz
         for q, r in zip(utm, geo):
-            assert abs(q.n_cells - r.n_cells) <= 0.05 * q.n_cells + 2
-            assert q.n_cells < 100 or r.median_dz_m == pytest.approx(q.median_dz_m, abs=0.002)
+            if q.n_cells >= 100:
+                assert abs(q.n_cells - r.n_cells) <= 0.05 * q.n_cells + 2
+                assert r.median_dz_m == pytest.approx(q.median_dz_m, abs=0.002)
         assert sum(q.n_cells >= 100 for q in utm) >= 2
 
 
