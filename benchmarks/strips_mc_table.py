@@ -6,8 +6,9 @@ One markdown row per cell (preset, scene, directions, trees) and method: surveys
 of z = error/σ per angle (± its sampling spread 1/√(2n)), mean z, largest |z| per angle, the
 count of |z| > 3.5, σ0 as the global test reads it (``sigma0_test``) inside its χ² 95 % range
 and within ±7 % of 1, and the outer iterations' mean (largest). ``--pool`` adds one row per
-method over all the rows read. Only the ``smrmsg`` source's rows (the accuracy file beside the
-SBET).
+scene (airborne, uav, urban) of two cells or more and method, over that scene's rows (tenth
+session; was over all rows read). Only the ``smrmsg`` source's rows (the accuracy file beside
+the SBET).
 """
 
 from __future__ import annotations
@@ -21,9 +22,14 @@ import numpy as np
 
 def cell_of(r: dict) -> str:
     """A row's cell: e.g. 'uav urban cross, 0 %'."""
-    scene = "urban" if r.get("scene") == "urban" else r.get("preset", "airborne")
+    scene = scene_of(r)
     pattern = r.get("directions", "cross")
     return f"{scene} {pattern}, {100 * r.get('vegetation', 0.0):.0f} %"
+
+
+def scene_of(r: dict) -> str:
+    """A row's scene: 'airborne', 'uav' or 'urban'."""
+    return "urban" if r.get("scene") == "urban" else r.get("preset", "airborne")
 
 
 def seeds_text(seeds: list[int]) -> str:
@@ -71,8 +77,12 @@ def main() -> None:
             sel = [r for r in rows if (cell_of(r), r["method"]) == (cell, method)]
             print(line(cell, method, sel))
     if args.pool:
-        for method in sorted({r["method"] for r in rows}):
-            print(line("**pooled**", method, [r for r in rows if r["method"] == method]))
+        for scene in sorted({scene_of(r) for r in rows}):
+            if len({cell_of(r) for r in rows if scene_of(r) == scene}) < 2:
+                continue  # its one cell's rows above
+            for method in sorted({r["method"] for r in rows if scene_of(r) == scene}):
+                print(line(f"**{scene}, pooled**", method,
+                           [r for r in rows if (scene_of(r), r["method"]) == (scene, method)]))
 
 
 if __name__ == "__main__":
