@@ -161,10 +161,11 @@ class StripSettings:
     #: trajectory errors correlate over this time: σ from a cluster-robust covariance
     cluster_s: float | None = 10.0
     #: how the engine iterates each adjustment (robust loss "cauchy", "huber" or None, its k and MAD
-    #: scale, max_iter, tol) and its covariance: the M-estimator sandwich (issue 26: the tie planes'
-    #: UAV cross-line and VGICP's airborne roll into 0.85–1.2, docs/validation.md); each outer
-    #: iteration sets its own step_in_sigma (:func:`calidar.strips.calibrate.calibrate`)
-    adjustment: SolverOptions = SolverOptions(robust="cauchy", covariance="sandwich")
+    #: scale, max_iter, tol) and its covariance: the IRLS model's, on which the issue-26 Monte-Carlo
+    #: ran ("sandwich": the M-estimator's, an option — docs/validation.md, "The robust fit's
+    #: covariance"); each outer iteration sets its own step_in_sigma
+    #: (:func:`calidar.strips.calibrate.calibrate`)
+    adjustment: SolverOptions = SolverOptions(robust="cauchy")
 
     def __post_init__(self):
         for name in ("overlap_cell_m", "min_overlap_cells", "min_correspondences", "max_outer"):

@@ -222,8 +222,8 @@ def test_rows_sigma_are_absolute_with_the_trajectory_model_off(strips, monkeypat
     """The rows' σ come from their points' own scatter (absolute): with the trajectory model off, a
     σ0 below 1 must not shrink the angles' σ (issue 26: on the UAV surveys σ0 ≈ 0.7 came from the
     sloped rows' generous σ while roll's flat-ground rows' σ held, and the shrunk σ left roll's RMS
-    error/σ at 1.46; docs/validation.md). The IRLS covariance is N⁻¹ of the final weights, here exactly;
-    the M-estimator sandwich (the strips' default) takes its variance factor as the ψ's level q raised
+    error/σ at 1.46; docs/validation.md). The IRLS covariance (the default) is N⁻¹ of the final weights,
+    here exactly; the M-estimator sandwich (an option) takes its variance factor as the ψ's level q raised
     by 1/σ0² of the skipped σ0 where that is below 1, and records the IRLS σ beside its own."""
     from calidar.adjust import SolverOptions, solver
 
@@ -239,7 +239,9 @@ def test_rows_sigma_are_absolute_with_the_trajectory_model_off(strips, monkeypat
     angles = ("boresight_roll", "boresight_pitch", "boresight_yaw")
     idx = [names.index(n) for n in angles]
     np.testing.assert_allclose(np.diag(sol.covariance)[idx], np.diag(np.linalg.inv(N))[idx], rtol=1e-6)
-    sand = calibrate(strips, Sensor(), CalibrationConfig(trajectory=None, solver=StripSettings(cluster_s=None))).solution
+    assert StripSettings().adjustment.covariance == "irls"  # the default the Monte-Carlo ran on
+    sandwich = StripSettings(cluster_s=None, adjustment=SolverOptions(robust="cauchy", covariance="sandwich"))
+    sand = calibrate(strips, Sensor(), CalibrationConfig(trajectory=None, solver=sandwich)).solution
     record, skipped = sand.extra["covariance"], sand.extra["unit_weight"]["sigma0"]
     assert record["model"] == "sandwich"
     q = record["psi_sigma0"] ** 2
