@@ -60,7 +60,13 @@ def test_shift_and_tilt_of_one_strip_recovered(tmp_path):
     print(got)
     assert sum(1 in g[:2] for g in got["roofs"]) >= 2 and len(got["roofs"]) >= 6
     z = np.array([g[2:] for g in got["ground"] + got["roofs"]])
-    assert np.abs(z).max() < 3.0 and np.mean(np.abs(z) < 2.0) >= 0.85, got
+    # 48 z here (dx, dy of 12 pairs, ground and roofs: the same pairs twice, so not independent).
+    # Seeds 3–8 since e8bc8b3 (benchmarks/quality_planimetric_seeds.py --seeds 3-8): RMS z 1.11,
+    # 0.88, 0.66, 0.98, 0.75, 0.86 (all 260: 0.90), share |z| < 2 0.92–1.00 (all 0.98), max |z|
+    # 3.04 (this seed), 2.24, 1.51, 1.90, 1.70, 2.70; seeds 9–14: 208 z, RMS z 0.90, share 0.97,
+    # max 2.44; |z| > 3 in 1 of 468. The σ are honest (slightly high): for 48 normal z,
+    # P(max > 3.0) ≈ 12 %, P(max > 3.5) ≈ 2 %, so the bound is 3.5
+    assert np.abs(z).max() < 3.5 and np.mean(np.abs(z) < 2.0) >= 0.85, got
 
 
 def usgs_meets(doc) -> bool:

@@ -20,6 +20,7 @@ from typing import Generic, TypeVar
 
 import numpy as np
 
+from calidar.adjust.m_estimator import COVARIANCE_MODELS
 from calidar.adjust.parameters import ParameterSet
 
 K = TypeVar("K")
@@ -39,7 +40,10 @@ class SolverOptions:
     (None: 2.385 Cauchy, 1.345 Huber, 95 % efficiency); robust_scale: re-estimate the residuals'
     scale by MAD for those weights (False when σ is trusted); max_iter: Levenberg–Marquardt steps
     at most; tol: relative change of the cost (and absolute step) below which it stops;
-    step_in_sigma: stop when every step is below this fraction of its parameter's σ. Whether the
+    step_in_sigma: stop when every step is below this fraction of its parameter's σ; covariance:
+    "irls" (variance factor · N⁻¹, N the IRLS-weighted normal matrix) or "sandwich" (the robust
+    fit's M-estimator sandwich, :mod:`calidar.adjust.m_estimator`; for least squares the same
+    σ0²·N⁻¹). Whether the
     observations' σ are absolute is the problem's (:attr:`ResidualProblem.absolute_sigma`), not an
     option.
     """
@@ -50,8 +54,12 @@ class SolverOptions:
     max_iter: int = 30
     tol: float = 1e-10
     step_in_sigma: float = STEP_IN_SIGMA
+    covariance: str = "irls"
 
     def __post_init__(self):
+        if self.covariance not in COVARIANCE_MODELS:
+            raise ValueError(f"covariance must be one of {COVARIANCE_MODELS}, "
+                             f"got {self.covariance!r}")
         if self.robust is not None and self.robust not in ROBUST_K:
             raise ValueError(f"robust must be one of {sorted(ROBUST_K)} or None, "
                              f"got {self.robust!r}")

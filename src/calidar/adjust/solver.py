@@ -20,6 +20,9 @@ from dataclasses import dataclass, replace
 import numpy as np
 import scipy.sparse as sp
 
+from calidar.adjust.m_estimator import (
+    normal_psi_square, psi, sandwich_covariance, small_sample_factor, variance_factor,
+)
 from calidar.adjust.normals import (
     cluster_robust, damped, inverse_diagonal, normal_matrix, solve_damped,
 )
@@ -143,21 +146,45 @@ class Estimate:
             return _levenberg_marquardt(self, step_in_sigma)
 
     def solution(self, clusters: np.ndarray | list[np.ndarray] | None = None) -> Solution:
-        """The :class:`Solution` here: covariance = variance factor · N⁻¹, raised by the
-        cluster-robust sandwich of each grouping in ``clusters`` (see :func:`solve`)."""
+        """The :class:`Solution` here: covariance = variance factor · N⁻¹ (or, with
+        ``options.covariance`` "sandwich", the M-estimator sandwich, the IRLS σ of the parameters
+        no prior holds recorded beside it), raised by the cluster-robust sandwich of each grouping
+        in ``clusters`` (see :func:`solve`)."""
         fit, x, r, w = self.fit, self.x, self.r, self.w
         with _one_blas_thread():
             sol, J, N = _solution(fit, x, r, w, self.history, self.converged)
+            factor = fit.variance_factor(r, w, x)
+            finite = factor > 0 and np.all(np.isfinite(sol.covariance))
+            irls = (sol.covariance, None)  # the IRLS model's covariance and bread N⁻¹ (lazy)
+            if self.options.covariance == "sandwich":
+                bread = _sandwich(fit, J, r, x, sol)
+                models = [irls, (sol.covariance, bread)] if bread is not None else [irls]
+            else:
+                models = [irls]
         groupings = clusters if isinstance(clusters, list) else [clusters]
         groupings = [] if clusters is None else groupings
-        if groupings:
-            factor = fit.variance_factor(r, w, x)
-            scores = sp.diags(w * r) @ J  # per observation ∂cost/∂θ (dense or sparse like J)
-            finite = factor > 0 and np.all(np.isfinite(sol.covariance))
-            Ninv = sol.covariance / factor if finite else np.linalg.pinv(N)
+        scores = sp.diags(w * r) @ J if groupings else None  # per row ∂cost/∂θ, as J
+        raised = []
+        for cov, bread in models:
+            model_cov = cov
+            if bread is None:
+                bread = cov / factor if finite else np.linalg.pinv(N)
             for grouping in groupings:
-                sol.covariance = cluster_robust(sol.covariance, Ninv, scores, np.asarray(grouping))
+                cov = cluster_robust(cov, bread, scores, np.asarray(grouping))
+            raised.append((model_cov, cov))
+        sol.covariance = raised[-1][1]
+        if len(raised) == 2:  # what the IRLS model would have said, and the model parts
+            record = sol.extra["covariance"]
+            for key, cov in (("irls_model_sigma", raised[0][0]), ("irls_sigma", raised[0][1]),
+                             ("model_sigma", raised[1][0])):
+                record[key] = _unheld_sigma(fit, cov)
         return sol
+
+
+def _unheld_sigma(fit: "_Fit", cov: np.ndarray) -> dict[str, float]:
+    """σ (SI) of the free parameters no prior holds (the calibration's, not the nuisance)."""
+    sig = np.sqrt(np.clip(np.diag(cov), 0, None))
+    return {p.name: float(sig[i]) for i, p in enumerate(fit.free) if p.prior_sigma is None}
 
 
 def _one_blas_thread():
@@ -206,14 +233,18 @@ class _Fit:
     def jacobian(self, x: np.ndarray):
         return self.problem.jacobian(values_of(self.params, x))
 
+    def scale(self, z: np.ndarray) -> float:
+        """The robust weights' scale s of the standardised residuals z = r/σ: 1.4826 · MAD when
+        re-estimated (robust_scale), else 1."""
+        if self.robust and self.robust_scale:
+            mad = 1.4826 * np.median(np.abs(z - np.median(z)))
+            return float(mad) if mad > 0 else 1.0
+        return 1.0
+
     def weights(self, r: np.ndarray) -> np.ndarray:
         """Relative robust weights (0..1) times 1/σ²."""
         z = r / self.sig
-        s = 1.0
-        if self.robust and self.robust_scale:
-            mad = 1.4826 * np.median(np.abs(z - np.median(z)))
-            s = mad if mad > 0 else 1.0
-        return robust_weights(z / s, self.robust, self.robust_k) / self.sig**2
+        return robust_weights(z / self.scale(z), self.robust, self.robust_k) / self.sig**2
 
     def cost(self, r: np.ndarray, w: np.ndarray, x: np.ndarray) -> float:
         with np.errstate(over="ignore"):  # a wild trial step costs inf and is rejected
@@ -327,3 +358,37 @@ def _solution(fit: _Fit, x: np.ndarray, r: np.ndarray, w: np.ndarray, history: l
         sol.extra["unit_weight"] = {"sigma0": s0, "rows_skipped": skipped, "gross_z": GROSS_Z,
                                     "redundancy": fit.redundancy(kept=kept)}
     return sol, J, N
+
+
+def _sandwich(fit: _Fit, J, r: np.ndarray, x: np.ndarray, sol: Solution) -> np.ndarray | None:
+    """Replace ``sol``'s covariance by the robust fit's M-estimator sandwich
+    A⁻¹(f·c_ψ·Σ J_iJ_iᵀ/σ_i² + max(f, 1)·P)A⁻¹ (:mod:`calidar.adjust.m_estimator`, which says
+    how f is read) and return A⁻¹, the bread of the cluster-robust σ on top; None (the IRLS
+    covariance kept, and said in ``extra["covariance"]``) where the solution has undetermined
+    directions or A is not positive definite."""
+    z = r / fit.sig
+    s = fit.scale(z)
+    k = ROBUST_K.get(fit.robust, 1.0) if fit.robust_k is None else fit.robust_k
+    ps, dps = psi(z / s, fit.robust, k)
+    c_psi = normal_psi_square(fit.robust, k, s)
+    k_factor = small_sample_factor(dps, len(fit.free), float(np.sum(fit.share)))
+    prior_sq = 2.0 * fit.cost(r, np.zeros_like(r), x)
+    level = (s * s * float(np.sum(ps * ps)) / (c_psi * k_factor) + prior_sq) / fit.redundancy()
+    rms_sq = sol.extra["unit_weight"]["sigma0"] ** 2 if fit.robust else level
+    factor = variance_factor(level, rms_sq, fit.n_prior == 0 and not fit.absolute_sigma)
+    parts = None
+    if np.all(np.isfinite(sol.covariance)):
+        A, _ = fit.normal_equations(J, dps / fit.sig**2)
+        B, _ = fit.normal_equations(J, factor * c_psi / fit.sig**2)
+        for idx, _, P in fit.priors:  # the priors' terms: max(f, 1)·P
+            B[np.ix_(idx, idx)] += (max(factor, 1.0) - 1.0) * P
+        parts = sandwich_covariance(A, B)
+    if parts is None:
+        sol.extra["covariance"] = {"model": "irls", "reason": "no sandwich: A not positive "
+                                   "definite or directions not determined"}
+        return None
+    sol.covariance, bread = parts
+    sol.extra["covariance"] = {"model": "sandwich", "variance_factor": factor,
+                               "psi_sigma0": level ** 0.5, "normal_psi_square": c_psi,
+                               "huber_k": k_factor, "scale": s}
+    return bread

@@ -91,11 +91,14 @@ def print_warning(message: str) -> None:
 
 @contextmanager
 def progress_bar(transient: bool = True):
-    """A rich progress bar on stderr (hidden when stderr is not a terminal)."""
+    """A rich progress bar on stderr (hidden when stderr is not a terminal: then not redrawn
+    either — rich's refresh thread would lay its table out ten times a second for no one, a CPU
+    cost that grows with the run's wall time)."""
     with Progress(
         TextColumn("[progress.description]{task.description}"), BarColumn(),
         TextColumn("{task.completed}/{task.total}"),
         TimeElapsedColumn(), TimeRemainingColumn(), console=err_console, transient=transient,
+        auto_refresh=err_console.is_terminal,
     ) as p:
         yield p
 

@@ -20,7 +20,8 @@ reads (degrees for the trajectory's attitude σ)::
     sigma = [0.03, 0.002]        # position m, attitude deg (absent: the trajectory's accuracy)
 
     [solver]                     # calidar.strips.config.StripSettings, with robust, robust_k,
-                                 # robust_scale, max_iter, tol of its calidar.adjust.SolverOptions
+                                 # robust_scale, max_iter, tol, covariance ("irls" or
+                                 # "sandwich") of its calidar.adjust.SolverOptions
     [planes]                     # the tie planes' settings and threshold_m
                                  # (calidar.strips.planes.PlaneSettings)
     [vgicp]                      # VGICP's (calidar.strips.vgicp.VgicpSettings)
@@ -68,7 +69,7 @@ INGEST_KEYS = {"strip_points": "budget_points", "block_cells": "block_cells", "g
                "chunk_points": "chunk_points", "all_classes": "all_classes"}
 #: [solver] keys of the engine's SolverOptions (StripSettings.adjustment); step_in_sigma is each
 #: outer iteration's
-ADJUSTMENT_KEYS = ("robust", "robust_k", "robust_scale", "max_iter", "tol")
+ADJUSTMENT_KEYS = ("robust", "robust_k", "robust_scale", "max_iter", "tol", "covariance")
 #: [inputs] keys → (PointOptions | TrajectoryOptions | StripConfig, field)
 INPUT_KEYS = {"crs": ("points", "crs"), "time_system": ("points", "time_system"),
               "geoid_undulation_m": ("points", "geoid_undulation_m"),

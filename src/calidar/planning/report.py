@@ -115,7 +115,7 @@ def _verdict_section(report: Report, doc: dict, terrain_image) -> None:
 
 def _sigma_section(report: Report, doc: dict, pred) -> None:
     """Per parameter: both σ, the ground effect, determined or not, why and what to fly."""
-    from calidar.report.plots import correlation_figure
+    from calidar.report.chart_picture import correlation_png
 
     s = report.section("Predicted σ")
     s.text(TWO_SIGMAS)
@@ -130,7 +130,7 @@ def _sigma_section(report: Report, doc: dict, pred) -> None:
     s.figure(_sigma_picture(doc), "Each σ against what counts as determined (red: not determined)")
     if len(pred.names) > 1:
         corr = np.where(np.isfinite(pred.correlation), pred.correlation, np.nan)
-        s.figure(correlation_figure(corr, pred.names), "Predicted correlations")
+        s.picture(correlation_png(corr, pred.names), "Predicted correlations")
 
 
 def _suggestion_section(report: Report, doc: dict) -> None:

@@ -192,7 +192,12 @@ class Section:
         buf = io.BytesIO()
         fig.savefig(buf, format="png", dpi=dpi, bbox_inches="tight")
         plt.close(fig)
-        data = base64.b64encode(buf.getvalue()).decode("ascii")
+        self.picture(buf.getvalue(), caption)
+
+    def picture(self, png: bytes, caption: str = "") -> None:
+        """Embed a PNG picture drawn without matplotlib (:mod:`calidar.report.map_picture`,
+        :mod:`calidar.report.chart_picture`)."""
+        data = base64.b64encode(png).decode("ascii")
         self.blocks.append(
             f'<figure><img alt="{html.escape(caption)}" src="data:image/png;base64,{data}">'
             f"<figcaption>{html.escape(caption)}</figcaption></figure>"

@@ -81,7 +81,7 @@ def _label(v: float, step: float) -> str:
 
 
 @lru_cache(maxsize=4)
-def _font(px: int):
+def text_font(px: int):
     """DejaVu Sans (matplotlib's own font, from its installed data, matplotlib not imported) at
     ``px``; Pillow's default font where it is missing."""
     from PIL import ImageFont
@@ -109,16 +109,16 @@ def map_png(grid: np.ndarray, origin: tuple[float, float], cell_m: float, title:
     w, h = max(1, round(nx * scale)), max(1, round(ny * scale))
     rows = np.minimum(((np.arange(h) + 0.5) * ny / h).astype(np.int64), ny - 1)
     cols = np.minimum(((np.arange(w) + 0.5) * nx / w).astype(np.int64), nx - 1)
-    font, big = _font(FONT_PX), _font(TITLE_PX)
+    font, big = text_font(FONT_PX), text_font(TITLE_PX)
     span = (nx * cell_m, ny * cell_m)
     xt = nice_ticks(origin[0], origin[0] + span[0], w, font.getlength)
     yt = nice_ticks(origin[1] - span[1], origin[1], h, lambda s: 1.4 * LINE_PX)
     bar_h = max(h, BAR_MIN_H)
     bt = nice_ticks(-lim, lim, bar_h, lambda s: 1.4 * LINE_PX)
-    left = 8 + LINE_PX + 6 + _widest(font, yt[1]) + 8
+    left = 8 + LINE_PX + 6 + widest(font, yt[1]) + 8
     top = 10 + TITLE_PX + 12
     bar_x = left + w + 22
-    label_x = bar_x + BAR_W + 6 + _widest(font, bt[1]) + 8
+    label_x = bar_x + BAR_W + 6 + widest(font, bt[1]) + 8
     size = (max(label_x + FONT_PX + 13, int(big.getlength(title)) + 20),
             top + max(h + 2 * LINE_PX + 10, bar_h) + 10)
     img = Image.new("RGB", size, BACKGROUND)
@@ -135,19 +135,19 @@ def map_png(grid: np.ndarray, origin: tuple[float, float], cell_m: float, title:
         draw.line((left - 5, py, left - 1, py), fill=INK)
         draw.text((left - 7, py), s, fill=INK, font=font, anchor="rm")
     draw.text((left + w / 2, top + h + LINE_PX + 10), "x [m]", fill=INK, font=font, anchor="mt")
-    _vertical(img, "y [m]", font, (8, top + h / 2))
-    _colour_bar(img, draw, (bar_x, top, bar_h), lim, bt, font)
-    _vertical(img, label, font, (label_x, top + bar_h / 2))
+    vertical_text(img, "y [m]", font, (8, top + h / 2))
+    colour_bar(img, draw, (bar_x, top, bar_h), lim, bt, font)
+    vertical_text(img, label, font, (label_x, top + bar_h / 2))
     buf = io.BytesIO()
     img.save(buf, format="PNG")
     return buf.getvalue()
 
 
-def _widest(font, labels) -> int:
+def widest(font, labels) -> int:
     return int(max((font.getlength(s) for s in labels), default=0))
 
 
-def _colour_bar(img, draw, at: tuple[int, int, int], lim: float, ticks, font) -> None:
+def colour_bar(img, draw, at: tuple[int, int, int], lim: float, ticks, font) -> None:
     """The colour bar at (x, top, height): +lim at the top, −lim at the bottom, ``ticks`` (values,
     labels) on its right."""
     from PIL import Image
@@ -162,7 +162,7 @@ def _colour_bar(img, draw, at: tuple[int, int, int], lim: float, ticks, font) ->
         draw.text((x + BAR_W + 6, py), s, fill=INK, font=font, anchor="lm")
 
 
-def _vertical(img, text: str, font, at: tuple[float, float]) -> None:
+def vertical_text(img, text: str, font, at: tuple[float, float]) -> None:
     """``text`` turned 90° (reading upwards), its left edge at x = at[0], centred on y = at[1]."""
     from PIL import Image, ImageDraw
 

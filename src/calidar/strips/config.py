@@ -161,7 +161,9 @@ class StripSettings:
     #: trajectory errors correlate over this time: σ from a cluster-robust covariance
     cluster_s: float | None = 10.0
     #: how the engine iterates each adjustment (robust loss "cauchy", "huber" or None, its k and MAD
-    #: scale, max_iter, tol); each outer iteration sets its own step_in_sigma
+    #: scale, max_iter, tol) and its covariance: the IRLS model's, on which the issue-26 Monte-Carlo
+    #: ran ("sandwich": the M-estimator's, an option — docs/validation.md, "The robust fit's
+    #: covariance"); each outer iteration sets its own step_in_sigma
     #: (:func:`calidar.strips.calibrate.calibrate`)
     adjustment: SolverOptions = SolverOptions(robust="cauchy")
 

@@ -12,7 +12,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from calidar.report import Report
-from calidar.report.plots import correlation_figure, dz_map, residual_histogram
+from calidar.report.chart_picture import correlation_png, histogram_png
+from calidar.report.map_picture import map_png
 from calidar.strips.calibrate import CalibrationResult
 from calidar.strips.config import control_kind
 from calidar.strips.quality import PairQuality
@@ -123,14 +124,14 @@ def add_report_section(report: Report, result: CalibrationResult,
     shown = [n for n in sol.parameters.free_names if not n.startswith(NUISANCE)]
     if len(shown) > 1:
         idx = [sol.parameters.free_names.index(n) for n in shown]
-        sec.figure(correlation_figure(sol.correlation[np.ix_(idx, idx)], shown),
-                   "Correlations of the estimated parameters (|ρ| near 1: the strips barely tell "
-                   "the two apart).")
+        sec.picture(correlation_png(sol.correlation[np.ix_(idx, idx)], shown),
+                    "Correlations of the estimated parameters (|ρ| near 1: the strips barely tell "
+                    "the two apart).")
     before_mm = 1e3 * np.asarray(result.residuals_before)
     after_mm = 1e3 * np.asarray(result.residuals_after)
-    sec.figure(residual_histogram(before_mm, after_mm, unit="mm"),
-               "Correspondence residuals at the nominal sensor (first matching) and after "
-               "calibration (last matching).")
+    sec.picture(histogram_png(before_mm, after_mm, unit="mm"),
+                "Correspondence residuals at the nominal sensor (first matching) and after "
+                "calibration (last matching).")
     if result.corrections:
         sec.heading("Trajectory corrections")
         correction_table(sec, result)
@@ -229,9 +230,10 @@ def _quality_part(sec, quality: list[QualityStage], map_pair: tuple[int, int] | 
         if q is not None and q.grid.size:
             title = (f"strips {q.a} − {q.b}, {st.label}: median dz "
                      f"{1e3 * (q.median_dz_m or 0):+.1f} mm, RMSDz {1e3 * (q.rmsdz_m or 0):.1f} mm")
-            sec.figure(dz_map(q.grid, q.origin, q.cell_m, title, f"dz = z({q.a}) − z({q.b}) [mm]"),
-                       f"Pair {q.a}–{q.b} ({st.label}; side by side with the most smooth cells), "
-                       "on its own colour scale.")
+            label = f"dz = z({q.a}) − z({q.b}) [mm]"
+            sec.picture(map_png(1e3 * q.grid, q.origin, q.cell_m, title, label),
+                        f"Pair {q.a}–{q.b} ({st.label}; side by side with the most smooth cells), "
+                        "on its own colour scale.")
 
 
 def add_comparison_section(report: Report, results: dict[str, CalibrationResult],

@@ -117,7 +117,8 @@ def _everything_changed() -> StripConfig:
          TiePlanes(PlaneSettings(cell_m=2.0, max_rms_m=0.05))),
         TrajectorySettings(block_s=2.0, correlation_s=(30.0, 5.0), sigma=(0.03, math.radians(0.002))),
         StripSettings(overlap_cell_m=4.0, max_outer=3, threshold_m=1e-3, cluster_s=None,
-                      adjustment=SolverOptions(robust=None, robust_scale=False, max_iter=20, tol=1e-9)), model_check=False)
+                      adjustment=SolverOptions(robust=None, robust_scale=False, max_iter=20, tol=1e-9,
+                                               covariance="sandwich")), model_check=False)
     return StripConfig(cal, IngestSettings(budget_points=None, block_cells=3, gap_s=5.0,
                                           points=PointOptions("EPSG:32632", "adjusted", 47.5)),
                        TrajectoryOptions("EPSG:32615", "rad", "grid", ("time", "-", "lat")), "EPSG:4326")
@@ -160,6 +161,7 @@ def test_the_file_gives_the_same_configuration_back(config, tmp_path):
     ("[solver]\nmax_iter = -1\n", "solver", "max_iter"),
     ("[solver]\nadjustment = 1\n", "solver.adjustment", "unknown key"),
     ("[solver]\nstep_in_sigma = 0.1\n", "solver.step_in_sigma", "unknown key"),
+    ("[solver]\ncovariance = \"hc0\"\n", "solver", "covariance must be one of"),
     ("model_check = \"yes\"\n", "model_check", "expected bool"),
 ])
 def test_a_wrong_key_is_named_with_its_file(text, key, what, tmp_path):

@@ -222,19 +222,32 @@ def test_rows_sigma_are_absolute_with_the_trajectory_model_off(strips, monkeypat
     """The rows' σ come from their points' own scatter (absolute): with the trajectory model off, a
     σ0 below 1 must not shrink the angles' σ (issue 26: on the UAV surveys σ0 ≈ 0.7 came from the
     sloped rows' generous σ while roll's flat-ground rows' σ held, and the shrunk σ left roll's RMS
-    error/σ at 1.46; docs/validation.md). The covariance is N⁻¹ of the final weights, here exactly."""
-    from calidar.adjust import solver
+    error/σ at 1.46; docs/validation.md). The IRLS covariance (the default) is N⁻¹ of the final weights,
+    here exactly; the M-estimator sandwich (an option) takes its variance factor as the ψ's level q raised
+    by 1/σ0² of the skipped σ0 where that is below 1, and records the IRLS σ beside its own."""
+    from calidar.adjust import SolverOptions, solver
 
     captured = []
     original = solver.Estimate.solution
     monkeypatch.setattr(solver.Estimate, "solution", lambda self, clusters=None: captured.append(self) or original(self, clusters))
-    sol = calibrate(strips, Sensor(), CalibrationConfig(trajectory=None, solver=StripSettings(cluster_s=None))).solution
+    irls = StripSettings(cluster_s=None, adjustment=SolverOptions(robust="cauchy", covariance="irls"))
+    sol = calibrate(strips, Sensor(), CalibrationConfig(trajectory=None, solver=irls)).solution
     est = captured[-1]
     assert 0.5 < sol.sigma0 < 0.99  # the synthetic rows' σ are a little generous (0.94): the case at stake
     N = est.fit.normal_equations(est.fit.jacobian(est.x), est.w)[0]
     names = [p.name for p in est.fit.free]
-    idx = [names.index(n) for n in ("boresight_roll", "boresight_pitch", "boresight_yaw")]
+    angles = ("boresight_roll", "boresight_pitch", "boresight_yaw")
+    idx = [names.index(n) for n in angles]
     np.testing.assert_allclose(np.diag(sol.covariance)[idx], np.diag(np.linalg.inv(N))[idx], rtol=1e-6)
+    assert StripSettings().adjustment.covariance == "irls"  # the default the Monte-Carlo ran on
+    sandwich = StripSettings(cluster_s=None, adjustment=SolverOptions(robust="cauchy", covariance="sandwich"))
+    sand = calibrate(strips, Sensor(), CalibrationConfig(trajectory=None, solver=sandwich)).solution
+    record, skipped = sand.extra["covariance"], sand.extra["unit_weight"]["sigma0"]
+    assert record["model"] == "sandwich"
+    q = record["psi_sigma0"] ** 2
+    assert record["variance_factor"] == pytest.approx(q * max(1.0, 1.0 / skipped**2), rel=1e-12)
+    for n in angles:
+        assert record["irls_sigma"][n] == pytest.approx(sol.sigma[n], rel=1e-6)
 
 
 def test_rows_sigma_match_the_residuals_at_the_truth():
