@@ -12,6 +12,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
+from calidar.accuracy.asprs import rmse_interval
 from calidar.crs import from_crs
 from calidar.io.las import read_las
 from calidar.sim.checkpoints import data_truth, simulate_checkpoints
@@ -46,9 +47,14 @@ def _check_stage(doc, truth, cps, stage):
     print(f"\n{stage}: RMS of the residuals' departure from the truth in units of the local spread/√2: "
           f"{np.sqrt(np.mean(z**2)):.2f}")
     assert np.sqrt(np.mean(z**2)) < MAX_Z_RMS, (stage, np.sqrt(np.mean(z**2)), measured - expected)
-    # the population RMSE the truth gives (TIN error over open ground ⊕ survey σ) lies in the stated interval
+    # the stated interval is the 95 % χ² interval of RMSE_V(data) from its n checkpoints, and the
+    # population RMSE the truth gives (TIN error over open ground ⊕ survey σ) lies in that interval at
+    # 99 %: one draw misses a 95 % interval once in twenty (seed 4 after calibration: 1.45 cm measured,
+    # truth 1.95 cm, 2.0 standard errors low, 0.8 % above the 95 % bound; the benchmark
+    # accuracy_sim.py counts the 95 % coverage over seeds)
     rho = np.hypot(truth_rmse, SIGMA_M)
-    lo, hi = acc["rmse_interval_m"]
+    assert acc["rmse_interval_m"] == pytest.approx(list(rmse_interval(acc["rmse_data_m"], acc["n_nva"])))
+    lo, hi = rmse_interval(acc["rmse_data_m"], acc["n_nva"], 0.99)
     assert lo <= rho <= hi, (stage, lo, rho, hi, acc["rmse_data_m"])
     assert acc["rmse_m"] == pytest.approx(np.hypot(acc["rmse_data_m"], SIGMA_M))  # Edition 2's survey term
     return acc
