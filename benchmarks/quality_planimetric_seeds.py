@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import shutil
 import subprocess
 import sys
 import tempfile
@@ -24,7 +23,8 @@ from pathlib import Path
 
 import numpy as np
 
-SHIFT, TILT = np.array([0.10, -0.06]), 4e-4  #: m; m/m (the test's)
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "acceptance"))
+from test_quality_planimetric import SHIFT, moved_survey  # noqa: E402  (the test's setup, one copy)
 
 
 def _quality(*args) -> dict:
@@ -37,24 +37,9 @@ def _quality(*args) -> dict:
 
 def one(seed: int, work: Path) -> np.ndarray:
     """The test's z's (dx, dy of every determined pair, ground then roofs) for ``seed``."""
-    import laspy
-
-    from calidar.sim.survey import simulate_survey, survey_config
-
-    cfg = survey_config("uav", seed=seed, directions="cross", gnss_noise_m=0.0, attitude_noise_rad=0.0)
-    sim = simulate_survey(cfg).write(work / f"sim{seed}")
-    moved = work / f"moved{seed}"
-    moved.mkdir()
-    for p in sorted((sim / "strips").glob("*.laz")):
-        if p.name != "line_001.laz":
-            shutil.copy(p, moved / p.name)
-            continue
-        las = laspy.read(p)
-        x = np.asarray(las.x)
-        las.x, las.y = x + SHIFT[0], np.asarray(las.y) + SHIFT[1]
-        las.z = np.asarray(las.z) + TILT * (x - x.mean())
-        las.write(moved / p.name)
-    paths = sorted(moved.glob("*.laz"))
+    folder = work / f"seed{seed}"
+    folder.mkdir()
+    paths = moved_survey(seed, folder)  # the test's own setup
     z = []
     for extra in ((), ("--classes", "2,6")):
         for p in _quality(*paths, *extra)["pairs"]:

@@ -25,24 +25,34 @@ def _quality(*args) -> dict:
     return json.loads(run.stdout)
 
 
-@pytest.mark.slow
-def test_shift_and_tilt_of_one_strip_recovered(tmp_path):
+SHIFT, TILT = np.array([0.10, -0.06]), 4e-4  #: m; height tilt along x: 2 cm per 50 m
+
+
+def moved_survey(seed: int, folder):
+    """The survey of ``seed`` (UAV, cross lines, trajectory errors off) written under ``folder``,
+    line 1 shifted by SHIFT and tilted in height by TILT along x (laspy, into a copy): the strips'
+    paths (also benchmarks/quality_planimetric_seeds.py's setup)."""
     import laspy
 
-    cfg = survey_config("uav", seed=3, directions="cross", gnss_noise_m=0.0, attitude_noise_rad=0.0)
-    sim = simulate_survey(cfg).write(tmp_path / "sim")
-    moved = tmp_path / "moved"
+    cfg = survey_config("uav", seed=seed, directions="cross", gnss_noise_m=0.0, attitude_noise_rad=0.0)
+    sim = simulate_survey(cfg).write(folder / "sim")
+    moved = folder / "moved"
     moved.mkdir()
-    shift, tilt = np.array([0.10, -0.06]), 4e-4  # m; height tilt along x: 2 cm per 50 m
     for p in sorted((sim / "strips").glob("*.laz")):
         if p.name != "line_001.laz":
             shutil.copy(p, moved / p.name)
             continue
         las = laspy.read(p)
         x = np.asarray(las.x)
-        las.x, las.y, las.z = x + shift[0], np.asarray(las.y) + shift[1], np.asarray(las.z) + tilt * (x - x.mean())
+        las.x, las.y, las.z = x + SHIFT[0], np.asarray(las.y) + SHIFT[1], np.asarray(las.z) + TILT * (x - x.mean())
         las.write(moved / p.name)
-    paths = sorted(moved.glob("*.laz"))
+    return sorted(moved.glob("*.laz"))
+
+
+@pytest.mark.slow
+def test_shift_and_tilt_of_one_strip_recovered(tmp_path):
+    shift, tilt = SHIFT, TILT
+    paths = moved_survey(3, tmp_path)
     got = {}
     for name, extra in (("ground", ()), ("roofs", ("--classes", "2,6"))):
         doc = _quality(*paths, *extra)
