@@ -9,6 +9,7 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+import signal
 import subprocess
 import sys
 import time
@@ -57,12 +58,19 @@ def test_second_run_into_the_same_folder_is_refused(corpus, tmp_path):
     second = [_boresight(corpus, out, sorted((s / "strips").glob("*.laz"))[:2]),
               [sys.executable, "-m", "calidar", "quality", *map(str, sorted((s / "strips").glob("*.laz"))),
                "--out", str(out)]]
-    for argv in second:  # a boresight of other strips and a quality run, while the first runs
-        code, _, err = _run(argv)
-        line = _error_line(err)
-        assert code == 1, err
-        assert f"{out}: in use by another calidar run (pid {first.pid}, started " in line, line
-        assert "calidar boresight" in line and "UTC" in line, line
+    # the first run held stopped while the others try: it would otherwise finish first on a fast
+    # machine (it did once the calibration needed fewer outer iterations: the others then met its
+    # finished folder instead of its lock)
+    first.send_signal(signal.SIGSTOP)
+    try:
+        for argv in second:  # a boresight of other strips and a quality run, while the first runs
+            code, _, err = _run(argv)
+            line = _error_line(err)
+            assert code == 1, err
+            assert f"{out}: in use by another calidar run (pid {first.pid}, started " in line, line
+            assert "calidar boresight" in line and "UTC" in line, line
+    finally:
+        first.send_signal(signal.SIGCONT)
     _, err = first.communicate(timeout=300)
     assert first.returncode == 0, err
     n = len(list((s / "strips").glob("*.laz")))
