@@ -28,21 +28,34 @@ from calidar.adjust.solution import cholesky_inverse, unit_diagonal
 
 #: the engine's covariance models (:attr:`calidar.adjust.residuals.SolverOptions.covariance`)
 COVARIANCE_MODELS = ("irls", "sandwich")
+#: the robust losses' tuning constants k (95 % efficiency at normal residuals)
+ROBUST_K = {"huber": 1.345, "cauchy": 2.385}
+
+
+def robust_weights(u: np.ndarray, kind: str | None, k: float | None = None) -> np.ndarray:
+    """IRLS weights w = ψ(u)/u for standardised residuals u (Huber or Cauchy; None → ones)."""
+    if kind is None:
+        return np.ones_like(u)
+    k = ROBUST_K[kind] if k is None else k
+    a = np.abs(u)
+    if kind == "huber":
+        return np.where(a <= k, 1.0, k / np.maximum(a, 1e-300))
+    if kind == "cauchy":
+        return 1.0 / (1.0 + (a / k) ** 2)
+    raise ValueError(f"robust must be 'huber', 'cauchy' or None, got {kind!r}")
 
 
 def psi(u: np.ndarray, kind: str | None, k: float) -> tuple[np.ndarray, np.ndarray]:
-    """(ψ(u), ψ'(u)) of the robust loss whose IRLS weight ψ(u)/u is
-    :func:`calidar.adjust.solver.robust_weights` (None: least squares, ψ = u, ψ' = 1)."""
+    """(ψ(u), ψ'(u)) of the robust loss: ψ = u·w(u) of :func:`robust_weights` (None: least
+    squares, ψ = u, ψ' = 1)."""
     u = np.asarray(u, float)
+    psi_u = u * robust_weights(u, kind, k)
     if kind is None:
-        return u.copy(), np.ones_like(u)
+        return psi_u, np.ones_like(u)
     if kind == "huber":
-        inside = np.abs(u) <= k
-        return np.where(inside, u, k * np.sign(u)), inside.astype(float)
-    if kind == "cauchy":
-        t = (u / k) ** 2
-        return u / (1.0 + t), (1.0 - t) / (1.0 + t) ** 2
-    raise ValueError(f"robust must be 'huber', 'cauchy' or None, got {kind!r}")
+        return psi_u, (np.abs(u) <= k).astype(float)
+    t = (u / k) ** 2  # Cauchy (robust_weights refused any other kind)
+    return psi_u, (1.0 - t) / (1.0 + t) ** 2
 
 
 def normal_psi_square(kind: str | None, k: float, s: float) -> float:

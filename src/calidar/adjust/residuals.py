@@ -20,14 +20,13 @@ from typing import Generic, TypeVar
 
 import numpy as np
 
-from calidar.adjust.m_estimator import COVARIANCE_MODELS
+from calidar.adjust.m_estimator import COVARIANCE_MODELS, ROBUST_K
 from calidar.adjust.parameters import ParameterSet
 
 K = TypeVar("K")
 #: Jointly Gaussian priors: groups of free parameters (names, correlation matrix R), each its own σ.
 PriorCorrelation = Sequence[tuple[Sequence[str], np.ndarray]]
 
-ROBUST_K = {"huber": 1.345, "cauchy": 2.385}
 #: stop when every step is below this fraction of its parameter's σ (changes no one can see)
 STEP_IN_SIGMA = 1e-3
 

@@ -21,13 +21,14 @@ import numpy as np
 import scipy.sparse as sp
 
 from calidar.adjust.m_estimator import (
-    normal_psi_square, psi, sandwich_covariance, small_sample_factor, variance_factor,
+    ROBUST_K, normal_psi_square, psi, robust_weights, sandwich_covariance, small_sample_factor,
+    variance_factor,
 )
 from calidar.adjust.normals import (
     cluster_robust, damped, inverse_diagonal, normal_matrix, solve_damped,
 )
 from calidar.adjust.parameters import ParameterSet
-from calidar.adjust.residuals import (ROBUST_K, STEP_IN_SIGMA, FunctionProblem, ResidualProblem,
+from calidar.adjust.residuals import (STEP_IN_SIGMA, FunctionProblem, ResidualProblem,
                                       SolverOptions, numerical_jacobian, prior_groups, values_of)
 from calidar.adjust.solution import Solution, residual_stats
 from calidar.adjust.unit_weight import GROSS_Z, skipped_sigma0
@@ -41,19 +42,6 @@ Progress = Callable[[int, float], None]
 #: are solver options
 _OPTION_KEYS = ("robust", "robust_k", "robust_scale", "max_iter", "tol", "step_in_sigma")
 _PROBLEM_KEYS = ("sigma", "jacobian_fn", "prior_correlation", "normal_fn", "absolute_sigma")
-
-
-def robust_weights(u: np.ndarray, kind: str | None, k: float | None = None) -> np.ndarray:
-    """IRLS weights for standardised residuals u (Huber or Cauchy; None → ones)."""
-    if kind is None:
-        return np.ones_like(u)
-    k = ROBUST_K[kind] if k is None else k
-    a = np.abs(u)
-    if kind == "huber":
-        return np.where(a <= k, 1.0, k / np.maximum(a, 1e-300))
-    if kind == "cauchy":
-        return 1.0 / (1.0 + (a / k) ** 2)
-    raise ValueError(f"robust must be 'huber', 'cauchy' or None, got {kind!r}")
 
 
 def solve(problem: ResidualProblem, options: SolverOptions | None = None, *,

@@ -11,14 +11,13 @@ Sans); the histograms' two colours are matplotlib's first two default cycle colo
 
 from __future__ import annotations
 
-import io
 import math
 
 import numpy as np
 
 from calidar.report.map_picture import (BACKGROUND, BAR_W, FONT_PX, INK, LINE_PX, TITLE_PX,
-                                        colour_bar, colours, nice_ticks, text_font,
-                                        vertical_text, widest)
+                                        colour_bar, colours, nice_ticks, png_bytes,
+                                        text_font, vertical_text, widest)
 
 CELL_PX = 58  #: a correlation cell's side, pixels
 LABEL_ANGLE = 35  #: the correlation's column labels turned by, degrees (reading upwards)
@@ -74,7 +73,7 @@ def correlation_png(corr: np.ndarray, names: list[str]) -> bytes:
                       font=font, anchor="mm")
     colour_bar(img, draw, (bar_x, top, bar_h), 1.0, bt, font)
     vertical_text(img, "correlation ρ", font, (label_x, top + bar_h / 2))
-    return _png(img)
+    return png_bytes(img)
 
 
 def _turned(img, text: str, font, end: tuple[float, float]) -> None:
@@ -127,7 +126,7 @@ def histogram_png(before: np.ndarray, after: np.ndarray, unit: str = "m",
     legend = [f"{what} (RMS {_rms(r):.4g} {unit})" for what, r in (("before", before),
                                                                     ("after", after))]
     _legend(draw, legend, font, (left + PLOT_W - 8, top + 8))
-    return _png(img)
+    return png_bytes(img)
 
 
 def _bars(counts: list[np.ndarray], top_count: float) -> np.ndarray:
@@ -158,9 +157,3 @@ def _legend(draw, labels: list[str], font, corner: tuple[float, float]) -> None:
 
 def _rms(r: np.ndarray) -> float:
     return float(np.sqrt(np.mean(r**2))) if r.size else float("nan")
-
-
-def _png(img) -> bytes:
-    buf = io.BytesIO()
-    img.save(buf, format="PNG")
-    return buf.getvalue()

@@ -138,6 +138,11 @@ def map_png(grid: np.ndarray, origin: tuple[float, float], cell_m: float, title:
     vertical_text(img, "y [m]", font, (8, top + h / 2))
     colour_bar(img, draw, (bar_x, top, bar_h), lim, bt, font)
     vertical_text(img, label, font, (label_x, top + bar_h / 2))
+    return png_bytes(img)
+
+
+def png_bytes(img) -> bytes:
+    """A Pillow image as PNG bytes."""
     buf = io.BytesIO()
     img.save(buf, format="PNG")
     return buf.getvalue()
