@@ -35,7 +35,9 @@ class ScanObservations:
     time: np.ndarray  #: GPS s (N,)
     range_m: np.ndarray  #: measured range, m (N,)
     angles: np.ndarray  #: scanner observations, rad (N, k)
-    vector_s: np.ndarray  #: true range × unit beam in the scanner frame, m (N, 3)
+    #: true range × unit beam in the scanner frame, m (N, 3); None when not kept (a
+    #: :class:`calidar.strips.strip.Strip`'s: ranges and angles are what it re-georeferences)
+    vector_s: np.ndarray | None
 
 
 @njit(cache=True, nogil=True)

@@ -80,7 +80,7 @@ def row_places(inner, i: int) -> np.ndarray:
         return side(inner.nominal) / np.maximum(side.rowsum, 1e-300)[:, None]
     from calidar.strips.strip import georeference_pose
 
-    pts = georeference_pose(inner.nominal, inner.pose[c.strip_a])
+    pts = georeference_pose(inner.nominal, inner.pose(c.strip_a))
     return (c.A @ pts) / np.maximum(np.asarray(c.A.sum(axis=1)).ravel(), 1e-300)[:, None]
 
 

@@ -10,7 +10,7 @@ metres at the survey centre, so that heights are "up" and numbers stay small.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import cached_property
 
 import numpy as np
@@ -128,7 +128,8 @@ class Strip:
             trajectory.check_covers(time, f"points of strip {strip_id} ({source})")
         except InputError as e:
             raise InputError(trajectory.source, "time", e.problem) from None
-        obs = georef.inverse(trajectory, nominal, time, points_ecef)
+        # the scanner-frame vectors not kept: 24 B a point the strip never reads again
+        obs = replace(georef.inverse(trajectory, nominal, time, points_ecef), vector_s=None)
         return cls(int(strip_id), frame.to_local(points_ecef), obs, trajectory, frame, source,
                    dict(extra), span)
 
@@ -145,6 +146,8 @@ class Strip:
         idx = np.arange(len(self)) if index is None else np.asarray(index, dtype=np.int64)
         pos_e, r_eb = georef.poses(self.trajectory, self.obs.time[idx])
         r_lb = _rotated(self.frame.r_le, r_eb)
+        if _every_point(idx, len(self)):  # the strip's own arrays, not copies of every row
+            return Pose(idx, self.frame.to_local(pos_e), r_lb, self.obs.range_m, self.obs.angles)
         return Pose(idx, self.frame.to_local(pos_e), r_lb, self.obs.range_m[idx],
                     self.obs.angles[idx])
 
@@ -164,6 +167,11 @@ class Strip:
         pos = self.frame.to_local(self.trajectory.interpolate(t)[0])
         d = pos[-1] - pos[0]
         return float(np.arctan2(d[0], d[1]))
+
+
+def _every_point(index: np.ndarray, n: int) -> bool:
+    """Whether ``index`` is 0, 1, …, n − 1 (every point of a strip of ``n``, in order)."""
+    return index.size == n and (n == 0 or bool(np.all(index == np.arange(n))))
 
 
 def georeference_pose(sensor: Sensor, pose: Pose) -> np.ndarray:
