@@ -226,7 +226,7 @@ def _renameat2(a: Path, b: Path) -> bool:
 
     if not sys.platform.startswith("linux"):
         return False
-    try:  # the libc this process runs on (no ldconfig process, see ingest.release_memory)
+    try:  # the libc this process runs on (no ldconfig process, see memory.release_memory)
         fn = ctypes.CDLL(None, use_errno=True).renameat2
     except (OSError, AttributeError):
         return False

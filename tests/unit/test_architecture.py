@@ -90,7 +90,8 @@ LAYERS: list[tuple[str, tuple[str, ...]]] = [
     ("io", ("calidar.io", "calidar.sensor_import")),
     ("core", ("calidar.georef", "calidar.crs", "calidar.cells", "calidar.sensor", "calidar.scanners", "calidar.trajectory",
               "calidar.frames", "calidar.trajectory_accuracy", "calidar.adjust", "calidar.report", "calidar.verdict", "calidar.provenance")),
-    ("base", ("calidar.errors", "calidar.validate", "calidar.outputs", "calidar.interrupts", "calidar.run_lock")),
+    ("base", ("calidar.errors", "calidar.validate", "calidar.outputs", "calidar.interrupts", "calidar.run_lock",
+              "calidar.memory")),
 ]
 
 

@@ -17,24 +17,11 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
+from calidar.memory import release_memory  # noqa: F401 - the streamed stages hand memory back
+
 #: progress(description, done, total): what a long step reports as it goes
 Progress = Callable[[str, int, int], None]
 
 
 def no_progress(description: str, done: int, total: int) -> None:
     """The default ``progress``: report nothing."""
-
-
-def release_memory() -> None:
-    """Hand the memory freed by a finished stage back to the system (glibc keeps freed pages of
-    its arenas: after the calibration, half a GiB of an 8.75 M-point run); elsewhere nothing.
-    ``malloc_trim`` is looked up in the libc this process runs on (``CDLL(None)``, 0.02 ms), not
-    through ``ctypes.util.find_library``, which starts ``/sbin/ldconfig -p`` at every call: a
-    process created from this one while its reader threads run, ≈ 10 ms each, once per task of
-    the overlap quality."""
-    import ctypes
-
-    try:
-        ctypes.CDLL(None).malloc_trim(0)
-    except (OSError, AttributeError):  # not glibc
-        pass

@@ -33,6 +33,7 @@ import numpy as np
 from calidar.adjust import ParameterSet, Solution
 from calidar.adjust.solver import Estimate
 from calidar.adjust.solution import residual_stats
+from calidar.memory import release_memory
 from calidar.scanners.rotating import canonical_eccentricity
 from calidar.sensor import Sensor
 from calidar.strips.control import (
@@ -156,6 +157,7 @@ def calibrate_with_client(strips: Sequence[Strip], nominal: Sensor,
     if run.level is not None:  # the estimated level's own uncertainty carried into the mounting's σ
         carry_uncertainty(run.level, est, solution, run.model.layout(run.spans))
     if config.model_check:
+        release_memory()  # the refine's arrays, before the model check builds its problems
         say("model check: freeing the parameters not estimated", s.max_outer, s.max_outer)
         solution.extra["model_check"] = run.model_check(est, problem, corrs, solution)
     outer[-1].update(mean_distance_m=mean_distance(problem, est.r),

@@ -24,6 +24,7 @@ import scipy.sparse as sp
 from calidar.adjust import ParameterSet, Solution
 from calidar.adjust.solver import Estimate, estimate
 from calidar.errors import CalibrationError, CalidarError, InputError
+from calidar.memory import release_memory
 from calidar.sensor import Sensor
 from calidar.strips.control import (CONTROL_ID, ControlPoints, control_pose, control_rows,
                                     near_control)
@@ -253,11 +254,13 @@ def outer_loop(run: Run, params: ParameterSet, client, say, log, pool, threshold
     jumped = -3  # the iteration count at the last jump: the rule reads three iterations after it
     for k in range(s.max_outer):
         corrs, pairs, times = run.match(params.values(), k, client, say, log, pool)
+        release_memory()  # the matching threads' working arrays, freed in their own arenas
         n_obs = sum(c.n_obs for c in corrs)
         say(f"iteration {k + 1}: solving {n_obs} observations", k, s.max_outer)
         clock = time.perf_counter()
         step_scale = None if est is None else est.step_scale
         est, problem = run.solve(corrs, params, OUTER_STEP_IN_SIGMA, step_scale)
+        release_memory()  # the solve's Jacobians and normal matrices
         times["solve_s"] = time.perf_counter() - clock
         if first_residuals is None:
             first_residuals = problem(params.values())
