@@ -125,6 +125,32 @@ def test_centroid_shortcut_equals_full_regeoreferencing(strips):
     assert np.max(np.abs(only(vals_b) - full(vals_b))) < 1e-9
 
 
+def test_full_regeoreferencing_holds_no_copy_of_the_poses(strips):
+    """Scanner parameters free (the model check's angle columns): the problem keeps the strips'
+    pose caches and the rows it references, not copies of those rows (128 B a row: 0.17 GiB at
+    8.75 M points), and re-georeferences them a strip at a time: the lidar equation's points."""
+    import tracemalloc
+
+    from calidar.strips.strip import georeference_pose
+
+    c = match_pair_planes(1, strips[0].points, 2, strips[1].points)
+    poses = {s.id: s.pose() for s in strips[:2]}
+    nominal = Sensor(lever_arm_x=0.2, range_offset=0.01)
+    tracemalloc.start()
+    full = StripProblem(nominal, poses, [c], ["scan_angle_scale"])
+    held = tracemalloc.get_traced_memory()[0]
+    tracemalloc.stop()
+    rows = sum(idx.size for idx in full.index.values())
+    assert full.centroids is None and rows > 1000
+    # nor do the strips keep their scanner-frame vectors (24 B a point nothing reads again)
+    assert all(s.obs.vector_s is None for s in strips)
+    assert held < 64 * rows, f"{held / rows:.0f} B a referenced row"
+    sensor = nominal.with_parameters(scan_angle_scale=2e-4, boresight_roll=1e-3)
+    for i, idx in full.index.items():  # the poses taken at a call: the rows of the whole strip's
+        whole = georeference_pose(sensor, poses[i])[idx]
+        assert np.array_equal(georeference_pose(sensor, full.pose(i)), whole)
+
+
 def test_moderated_scatter_makes_the_weighted_mean_honest():
     """Rows weighted by their own 12-point scatter (ν = 9) claim too small a σ for a weighted
     mean (the quiet-by-chance rows dominate: variance ratio ≈ ν/(ν − 4) = 1.8 in theory);
