@@ -253,12 +253,14 @@ def outer_loop(run: Run, params: ParameterSet, client, say, log, pool, threshold
     first_residuals = first_control = est = problem = pairs = None
     jumped = -3  # the iteration count at the last jump: the rule reads three iterations after it
     for k in range(s.max_outer):
+        step_scale = None if est is None else est.step_scale
+        # the last iteration's problem (its centroids) and rows freed before this one builds its own
+        est = problem = corrs = None
         corrs, pairs, times = run.match(params.values(), k, client, say, log, pool)
         release_memory()  # the matching threads' working arrays, freed in their own arenas
         n_obs = sum(c.n_obs for c in corrs)
         say(f"iteration {k + 1}: solving {n_obs} observations", k, s.max_outer)
         clock = time.perf_counter()
-        step_scale = None if est is None else est.step_scale
         est, problem = run.solve(corrs, params, OUTER_STEP_IN_SIGMA, step_scale)
         release_memory()  # the solve's Jacobians and normal matrices
         times["solve_s"] = time.perf_counter() - clock
