@@ -22,11 +22,14 @@ from calidar.crs import plus_jd
 from calidar.georef import lidar_point, pose, scanner_vector
 
 
-def moved_versions(traj, nominal, models, t: np.ndarray, lin) -> list[np.ndarray] | None:
+def moved_versions(traj, nominal, models, t: np.ndarray, lin,
+                   take: np.ndarray | None = None) -> list[np.ndarray] | None:
     """CRS coordinates (N, 3) of the chunk's points (``lin``: their TileLinear, times ``t`` in
     ``traj``'s system) re-georeferenced with each (sensor, trajectory) of ``models`` (None
     entries: skipped, None in the list returned), or None when the models are not all new
-    mountings on ``traj`` and at most one other trajectory."""
+    mountings on ``traj`` and at most one other trajectory; ``take``: of the points at these
+    positions only (M rows, each as it is among all: the tiles are all the points'), every
+    time still checked."""
     kept = [m for m in models if m is not None]
 
     def model(s):
@@ -39,7 +42,9 @@ def moved_versions(traj, nominal, models, t: np.ndarray, lin) -> list[np.ndarray
         return None
     other = others[0] if others else traj
     t = np.ascontiguousarray(t, float)
-    out = np.empty((len(kept), t.size, 3))
+    every = take is None
+    take = np.arange(t.size) if every else np.ascontiguousarray(take, np.int64)
+    out = np.empty((len(kept), take.size, 3))
     c = lambda a: np.ascontiguousarray(a, float)  # noqa: E731 - as calidar.georef._c
     which = np.array([0 if tr is traj else 1 for _, tr in kept], np.int64)
     r_bs = np.stack([c(s.r_bs) for s, _ in kept]) if kept else np.zeros((0, 3, 3))
@@ -50,29 +55,36 @@ def moved_versions(traj, nominal, models, t: np.ndarray, lin) -> list[np.ndarray
     near = (np.linalg.inv(lin.jac), c(lin.anchor_ecef), np.ascontiguousarray(lin.anchor, np.int64))
     n_out, n_out2 = _versions_kernel(*trajectories, t, *near, c(nominal.r_bs),
                                      c(nominal.lever_arm), r_bs, lever, which, c(lin.xyz), lin.jac,
-                                     np.ascontiguousarray(lin.rows, np.int64), out)
-    if n_out:
+                                     np.ascontiguousarray(lin.rows, np.int64), take, out)
+    if n_out or not (every or _within(traj, t)):
         traj.check_covers(t)
-    if n_out2 and np.any(which == 1):
+    if np.any(which == 1) and (n_out2 or not (every or _within(other, t))):
         other.check_covers(t)
     it = iter(out)
     return [None if m is None else next(it) for m in models]
 
 
+def _within(traj, t: np.ndarray) -> bool:
+    """Whether every time ``t`` lies within the trajectory's first and last (the kernel's test;
+    NaN does not)."""
+    return bool(np.all((t >= traj.time[0]) & (t <= traj.time[-1])))
+
+
 @njit(cache=True, nogil=True)
 def _versions_kernel(tt, pos, q, tt2, pos2, q2, t, inv, anchor_ecef, anchor, r_bs0, lever0, r_bs,
-                     lever, which, base, jac, rows, out):  # pragma: no cover - numba
-    """out[m] = base + J · (forward_m(inverse(p)) − p) per point (see the module), p the point's
-    ECEF from its tile's anchor (``inv`` = J⁻¹; :meth:`calidar.crs.TileLinear.near_ecef` operation
-    for operation); returns how many times lie outside each trajectory (NaN counts as
-    outside)."""
+                     lever, which, base, jac, rows, take, out):  # pragma: no cover - numba
+    """out[m, kk] = base + J · (forward_m(inverse(p)) − p) of point k = take[kk] (see the
+    module), p the point's ECEF from its tile's anchor (``inv`` = J⁻¹;
+    :meth:`calidar.crs.TileLinear.near_ecef` operation for operation); returns how many of their
+    times lie outside each trajectory (NaN counts as outside)."""
     n_out, i, i_prev, theta, s, sign = 0, 0, -1, 0.0, 0.0, 1.0
     n_out2, i2, i2_prev, theta2, s2, sign2 = 0, 0, -1, 0.0, 0.0, 1.0
     second = False
     for m in range(which.size):
         second = second or which[m] == 1
     qx = qy = qz = r00 = r01 = r02 = r10 = r11 = r12 = r20 = r21 = r22 = 0.0
-    for k in range(t.size):
+    for kk in range(take.size):
+        k = take[kk]
         tk = t[k]
         j = rows[k]  # p = anchor_ecef + J⁻¹ · (xyz − the anchor's xyz), as near_ecef
         a0 = anchor[j]
@@ -101,6 +113,6 @@ def _versions_kernel(tt, pos, q, tt2, pos2, q2, t, inv, anchor_ecef, anchor, r_b
             # the lidar equation, then the move (calidar.crs.tile_moved)
             x, y, z = lidar_point(sx, sy, sz, r_bs[m], lever[m], ox, oy, oz,
                                   e00, e01, e02, e10, e11, e12, e20, e21, e22)
-            out[m, k, 0], out[m, k, 1], out[m, k, 2] = plus_jd(
+            out[m, kk, 0], out[m, kk, 1], out[m, kk, 2] = plus_jd(
                 base[k, 0], base[k, 1], base[k, 2], jac, j, x - p0, y - p1, z - p2)
     return n_out, n_out2

@@ -87,8 +87,8 @@ class StripSource:
 
 
 def line_chunks(source: StripSource, nominal, models=(None,), fields=None, where=None,
-                files: Sequence[StripFile] | None = None,
-                span=(0, None)) -> Iterator[tuple[int, list]]:
+                files: Sequence[StripFile] | None = None, span=(0, None),
+                select=None) -> Iterator[tuple[int, list]]:
     """Per chunk of the files (or of ``files``, their points [``span``)) and flight line, (line
     id, [LasPoints per model]):
     for each of ``models`` the delivered points (None) or those re-georeferenced with a (sensor,
@@ -96,7 +96,9 @@ def line_chunks(source: StripSource, nominal, models=(None,), fields=None, where
     with each, as :func:`calidar.georef.regeoreference`), in the files' CRS (the moves through
     :class:`calidar.crs.TileLinear`, within 0.1 mm of the full transform), ``fields``
     (default: all) as read; ``where(chunk)``: a mask of the points wanted. Whole lines, chunk by
-    chunk (bounded memory)."""
+    chunk (bounded memory). ``select(chunk, line ids)``: a mask of the points given back, applied
+    after the tiles of the moves are laid over every point ``where`` keeps (so each point given
+    moves as it does among all), before the re-georeferencing (which skips the others)."""
     from calidar import georef
     from calidar.ingest.regeoref import moved_versions
     from calidar.io.las import OPTIONAL_FIELDS
@@ -109,17 +111,22 @@ def line_chunks(source: StripSource, nominal, models=(None,), fields=None, where
                 chunk, ids, t = chunk.select(keep), ids[keep], t[keep]
         # one TileLinear for every model
         lin = None if all(m is None for m in models) else points_tile_linear(chunk)
+        take = None if select is None else _positions(select(chunk, ids))
         # every model in one pass (poses interpolated once; calidar.ingest.regeoref), else model
         # by model
-        moved = None if lin is None else moved_versions(source.trajectory, nominal, models, t, lin)
+        moved = (None if lin is None
+                 else moved_versions(source.trajectory, nominal, models, t, lin, take))
         if moved is None and lin is not None:
             ecef = lin.near_ecef()  # ~1 mm: only the moves below count
             v_s = georef.scanner_vectors(source.trajectory, nominal, t, ecef)
 
             def move(m):
-                return lin.moved(georef.reforward(nominal, m[0], m[1], t, v_s) - ecef)
+                xyz = lin.moved(georef.reforward(nominal, m[0], m[1], t, v_s) - ecef)
+                return xyz if take is None else xyz[take]
 
             moved = [None if m is None else move(m) for m in models]
+        if take is not None:
+            chunk, ids = chunk.select(take), ids[take]
         versions = [chunk if m is None else replace(chunk, xyz=xyz)
                     for m, xyz in zip(models, moved or models)]
         if ids.size and ids[0] == ids[-1] and np.all(ids == ids[0]):  # one line: no copies
@@ -127,6 +134,11 @@ def line_chunks(source: StripSource, nominal, models=(None,), fields=None, where
             continue
         for i, rows in split_rows(ids):
             yield i, [v.select(rows) for v in versions]
+
+
+def _positions(mask: np.ndarray) -> np.ndarray | None:
+    """The positions a mask keeps; None when it keeps every one."""
+    return None if mask.all() else np.flatnonzero(mask)
 
 
 def planar_xy(chunk, frame: LocalFrame) -> np.ndarray:

@@ -103,6 +103,25 @@ class StagePass:
         return self
 
 
+def chosen_points(chosen: Mapping[int, PointSelection]) -> Callable:
+    """``select(chunk, line ids)`` of :func:`calidar.ingest.source.line_chunks`: the mask of the
+    points each line's ``chosen`` selection keeps (a line without one: none), all that
+    :func:`stage_pass` reads of a chunk: the others are not re-georeferenced."""
+    def select(chunk, ids: np.ndarray) -> np.ndarray:
+        one = ids.size and ids[0] == ids[-1] and np.all(ids == ids[0])
+        lines = [int(ids[0])] if one else np.unique(ids).tolist()
+        rules: dict = {}
+        for i in lines:
+            if chosen.get(i) is not None:
+                rules.setdefault(chosen[i], []).append(i)
+        mask = np.zeros(ids.size, bool)
+        for sel, mine in rules.items():
+            keep = sel.mask(chunk)
+            mask |= keep if len(mine) == len(lines) else keep & np.isin(ids, mine)
+        return mask
+    return select
+
+
 def stage_pass(chunks: Iterable[tuple[int, list]], metric, plans: list[OverlapPlan | None],
                chosen: Mapping[int, PointSelection], cell_m: float | None = None,
                count: bool = True) -> StagePass:
