@@ -105,3 +105,33 @@ def test_calidar_quality_equals_its_unfused_path(run, monkeypatch):
     assert all(np.array_equal(p.grid, q.grid, equal_nan=True) for p, q in zip(fused[2], unfused[2]))
     assert [p.to_dict() for p in fused[5]] == [p.to_dict() for p in unfused[5]]
     assert fused[3] == unfused[3]
+
+
+def test_only_the_selected_points_are_re_georeferenced(run, monkeypatch):
+    """The stages inside boresight re-georeference only the points each line's selection keeps
+    (ground of a classified line), each moved as it is among all the chunk's points (its tiles laid
+    over all of them): the kernel's rows at those positions equal the full kernel's bit for bit, a
+    time outside the trajectory among the others still stops the run, and the stages equal those
+    of every candidate re-georeferenced."""
+    import calidar.ingest.stages as stages
+    from calidar.errors import InputError
+
+    source, sensor, traj, models = run
+    _, chunk, ids, t = next(source.chunks(("classification", "return_number", "number_of_returns")))
+    chosen = source.quality.chosen(source.names)
+    keep = stages.chosen_points(chosen)(chunk, ids)
+    take = np.flatnonzero(keep)
+    assert 0 < take.size < 0.9 * len(t)  # the selection leaves points out
+    lin = points_tile_linear(chunk)
+    full, some = moved_versions(traj, sensor, models, t, lin), moved_versions(traj, sensor, models, t, lin, take)
+    assert all(np.array_equal(a[take], b) for a, b in zip(full[1:], some[1:]))
+    late = t.copy()
+    late[np.flatnonzero(~keep)[0]] = traj.time[-1] + 10.0  # a point left out, after the trajectory
+    with pytest.raises(InputError, match="outside the trajectory"):
+        moved_versions(traj, sensor, models, late, lin, take)
+    selected = measure_lines(source, sensor, models)
+    monkeypatch.setattr(stages, "chosen_points", lambda chosen: lambda chunk, ids: np.ones(ids.size, bool))
+    every = measure_lines(source, sensor, models)
+    for a, b in zip(selected, every):
+        assert [q.to_dict() for q in a] == [q.to_dict() for q in b]
+        assert all(np.array_equal(p.grid, q.grid, equal_nan=True) for p, q in zip(a, b))
