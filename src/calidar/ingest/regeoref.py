@@ -27,9 +27,9 @@ def moved_versions(traj, nominal, models, t: np.ndarray, lin,
     """CRS coordinates (N, 3) of the chunk's points (``lin``: their TileLinear, times ``t`` in
     ``traj``'s system) re-georeferenced with each (sensor, trajectory) of ``models`` (None
     entries: skipped, None in the list returned), or None when the models are not all new
-    mountings on ``traj`` and at most one other trajectory; ``take``: of the points at these
-    positions only (M rows, each as it is among all: the tiles are all the points'), every
-    time still checked."""
+    mountings on ``traj`` and at most one other trajectory; ``take``: only the points at these
+    positions re-georeferenced (each as it is among all: the tiles are all the points'), the
+    others' rows NaN; every time still checked."""
     kept = [m for m in models if m is not None]
 
     def model(s):
@@ -44,7 +44,7 @@ def moved_versions(traj, nominal, models, t: np.ndarray, lin,
     t = np.ascontiguousarray(t, float)
     every = take is None
     take = np.arange(t.size) if every else np.ascontiguousarray(take, np.int64)
-    out = np.empty((len(kept), take.size, 3))
+    out = np.empty((len(kept), t.size, 3)) if every else np.full((len(kept), t.size, 3), np.nan)
     c = lambda a: np.ascontiguousarray(a, float)  # noqa: E731 - as calidar.georef._c
     which = np.array([0 if tr is traj else 1 for _, tr in kept], np.int64)
     r_bs = np.stack([c(s.r_bs) for s, _ in kept]) if kept else np.zeros((0, 3, 3))
@@ -73,7 +73,7 @@ def _within(traj, t: np.ndarray) -> bool:
 @njit(cache=True, nogil=True)
 def _versions_kernel(tt, pos, q, tt2, pos2, q2, t, inv, anchor_ecef, anchor, r_bs0, lever0, r_bs,
                      lever, which, base, jac, rows, take, out):  # pragma: no cover - numba
-    """out[m, kk] = base + J · (forward_m(inverse(p)) − p) of point k = take[kk] (see the
+    """out[m, k] = base + J · (forward_m(inverse(p)) − p) of each point k of ``take`` (see the
     module), p the point's ECEF from its tile's anchor (``inv`` = J⁻¹;
     :meth:`calidar.crs.TileLinear.near_ecef` operation for operation); returns how many of their
     times lie outside each trajectory (NaN counts as outside)."""
@@ -113,6 +113,6 @@ def _versions_kernel(tt, pos, q, tt2, pos2, q2, t, inv, anchor_ecef, anchor, r_b
             # the lidar equation, then the move (calidar.crs.tile_moved)
             x, y, z = lidar_point(sx, sy, sz, r_bs[m], lever[m], ox, oy, oz,
                                   e00, e01, e02, e10, e11, e12, e20, e21, e22)
-            out[m, kk, 0], out[m, kk, 1], out[m, kk, 2] = plus_jd(
+            out[m, k, 0], out[m, k, 1], out[m, k, 2] = plus_jd(
                 base[k, 0], base[k, 1], base[k, 2], jac, j, x - p0, y - p1, z - p2)
     return n_out, n_out2

@@ -96,9 +96,10 @@ def line_chunks(source: StripSource, nominal, models=(None,), fields=None, where
     with each, as :func:`calidar.georef.regeoreference`), in the files' CRS (the moves through
     :class:`calidar.crs.TileLinear`, within 0.1 mm of the full transform), ``fields``
     (default: all) as read; ``where(chunk)``: a mask of the points wanted. Whole lines, chunk by
-    chunk (bounded memory). ``select(chunk, line ids)``: a mask of the points given back, applied
-    after the tiles of the moves are laid over every point ``where`` keeps (so each point given
-    moves as it does among all), before the re-georeferencing (which skips the others)."""
+    chunk (bounded memory). ``select(chunk, line ids)``: a mask of the points the caller reads
+    re-georeferenced (the tiles of the moves still laid over every point ``where`` keeps, so each
+    moves as among all); the others' re-georeferenced coordinates are NaN (the fused pass skips
+    them)."""
     from calidar import georef
     from calidar.ingest.regeoref import moved_versions
     from calidar.io.las import OPTIONAL_FIELDS
@@ -121,12 +122,9 @@ def line_chunks(source: StripSource, nominal, models=(None,), fields=None, where
             v_s = georef.scanner_vectors(source.trajectory, nominal, t, ecef)
 
             def move(m):
-                xyz = lin.moved(georef.reforward(nominal, m[0], m[1], t, v_s) - ecef)
-                return xyz if take is None else xyz[take]
+                return lin.moved(georef.reforward(nominal, m[0], m[1], t, v_s) - ecef)
 
             moved = [None if m is None else move(m) for m in models]
-        if take is not None:
-            chunk, ids = chunk.select(take), ids[take]
         versions = [chunk if m is None else replace(chunk, xyz=xyz)
                     for m, xyz in zip(models, moved or models)]
         if ids.size and ids[0] == ids[-1] and np.all(ids == ids[0]):  # one line: no copies

@@ -105,8 +105,8 @@ class StagePass:
 
 def chosen_points(chosen: Mapping[int, PointSelection]) -> Callable:
     """``select(chunk, line ids)`` of :func:`calidar.ingest.source.line_chunks`: the mask of the
-    points each line's ``chosen`` selection keeps (a line without one: none), all that
-    :func:`stage_pass` reads of a chunk: the others are not re-georeferenced."""
+    points each line's ``chosen`` selection keeps (a line without one: none), the rows
+    :func:`stage_pass` reads of a chunk's versions: the others are not re-georeferenced."""
     def select(chunk, ids: np.ndarray) -> np.ndarray:
         one = ids.size and ids[0] == ids[-1] and np.all(ids == ids[0])
         lines = [int(ids[0])] if one else np.unique(ids).tolist()
