@@ -342,9 +342,10 @@ def summary(rows: list[dict]) -> str:
                 f"{f(rms(np.sqrt(tg**2 + rs**2) / s))}"]
         if len(sel) > 2:  # the error follows its draw as N⁻¹P says: slope 1, parts uncorrelated
             slope = np.sum(a * t, 0) / np.sum(t**2, 0)
+            spread = np.sqrt(np.sum(rs**2 * t**2, 0)) / np.sum(t**2, 0)  # rows' share as noise
             corr = [np.corrcoef(a[:, i] - t[:, i], t[:, i])[0, 1] for i in range(3)]
-            out.append(f"{m:6s}   response: slope of actual on trajectory part {f(slope)}; "
-                       f"corr(rows part, trajectory part) {f(corr)}")
+            out.append(f"{m:6s}   response: slope of actual on trajectory part {f(slope)} "
+                       f"(± {f(spread)}); corr(rows part, trajectory part) {f(corr)}")
         if len(sel) > 2:
             out.append(f"{m:6s}   yaw: corr(actual, trajectory part) "
                        f"{np.corrcoef(a[:, 2], t[:, 2])[0, 1]:+.2f}")
