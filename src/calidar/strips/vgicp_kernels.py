@@ -161,3 +161,23 @@ def neighbourhood_moments(points, idx):  # pragma: no cover - numba
                     s += d[j, a] * d[j, b]
                 scatter[m, a, b] = s
     return centroid, scatter
+
+
+@njit(cache=True, nogil=True)
+def xy_scatter(points):  # pragma: no cover - numba
+    """(sxx, sxy, syy) of the points' (N ≥ 1, ≥ 2) xy about their mean, over N: the covariance
+    matrix :func:`calidar.strips.vgicp.overlap_width` takes, in two passes (sums in point order, not
+    numpy's: equal to its last bits only)."""
+    n = points.shape[0]
+    mx, my = 0.0, 0.0
+    for p in range(n):
+        mx += points[p, 0]
+        my += points[p, 1]
+    mx, my = mx / n, my / n
+    sxx, sxy, syy = 0.0, 0.0, 0.0
+    for p in range(n):
+        dx, dy = points[p, 0] - mx, points[p, 1] - my
+        sxx += dx * dx
+        sxy += dx * dy
+        syy += dy * dy
+    return sxx / n, sxy / n, syy / n

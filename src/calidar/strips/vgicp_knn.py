@@ -5,7 +5,9 @@ centroids, among the ~10⁵ points of each side's overlap. A small_gicp ``KdTree
 few queries spends most of its time building (docs/validation.md, issue 32, seventh session);
 here the points are bucketed once by xy cell (a counting sort, O(N)) and each query visits the
 rings of cells about its own until the nearest unseen cell lies farther than its k-th neighbour,
-so the search is exact, as small_gicp's (ε = 0). The squared distances are computed as
+so the search is exact, as small_gicp's (ε = 0); within a ring, a cell lying wholly beyond the
+k-th neighbour found so far is passed over (none of its points could enter), and the points are
+held in cell order (a cell's points in consecutive memory). The squared distances are computed as
 small_gicp 1.0's ``(p − q).squaredNorm()`` on 4-vectors sums them, (dx² + dz²) + dy², and the
 neighbours come in ascending distance (equal distances: first visited first, as a KdTree's
 leaf order does — a different order only between points exactly as far), so the rows are bit
@@ -36,7 +38,8 @@ class GridKnn:
         self.lo, self.cell = lo, cell
         self.shape = (np.floor(extent / cell).astype(np.int64) + 1)
         keys = cell_keys(self.points, lo, cell, self.shape[1])
-        self.order, self.start = _bucket(keys, int(self.shape[0] * self.shape[1]))
+        self.order, self.start, self.in_cells = _bucket(keys, int(self.shape[0] * self.shape[1]),
+                                                        self.points)
 
     def batch_knn_search(self, queries: np.ndarray, k: int, num_threads: int = 1):
         """(indices (M, k) int64, squared distances (M, k)) of each query's k nearest points,
@@ -44,14 +47,14 @@ class GridKnn:
         if not 1 <= k <= len(self.points):
             raise ValueError(f"k must be 1 … {len(self.points)} (the points), got {k}")
         queries = np.ascontiguousarray(queries, dtype=np.float64)
-        return _knn(self.points, self.order, self.start, self.lo, self.cell, self.shape,
+        return _knn(self.in_cells, self.order, self.start, self.lo, self.cell, self.shape,
                     queries, k)
 
 
 @njit(cache=True, nogil=True)
-def _bucket(keys, size):  # pragma: no cover - numba
-    """Counting sort of the points by cell key: (point order, each cell's start in it, size + 1
-    entries)."""
+def _bucket(keys, size, points):  # pragma: no cover - numba
+    """Counting sort of the points (N, 3) by cell key: (point order, each cell's start in it, size
+    + 1 entries, the points in that order)."""
     start = np.zeros(size + 1, np.int64)
     for key in keys:
         start[key + 1] += 1
@@ -62,15 +65,19 @@ def _bucket(keys, size):  # pragma: no cover - numba
     for p in range(keys.size):
         order[fill[keys[p]]] = p
         fill[keys[p]] += 1
-    return order, start
+    in_cells = np.empty((keys.size, 3))
+    for s in range(keys.size):
+        for c in range(3):
+            in_cells[s, c] = points[order[s], c]
+    return order, start, in_cells
 
 
-@njit(cache=True, nogil=True)
-def _visit(points, order, start, c, q, best_i, best_d, n, k):  # pragma: no cover - numba
-    """Offer cell c's points to the query's sorted k best (n of them so far); the new n."""
+@njit(cache=True, nogil=True, inline="always")
+def _visit(in_cells, order, start, c, q, best_i, best_d, n, k):  # pragma: no cover - numba
+    """Offer cell c's points (``in_cells``: the points in cell order) to the query's sorted k best
+    (n of them so far); the new n."""
     for s in range(start[c], start[c + 1]):
-        p = order[s]
-        dx, dy, dz = points[p, 0] - q[0], points[p, 1] - q[1], points[p, 2] - q[2]
+        dx, dy, dz = in_cells[s, 0] - q[0], in_cells[s, 1] - q[1], in_cells[s, 2] - q[2]
         d = (dx * dx + dz * dz) + dy * dy  # small_gicp's squaredNorm of (dx, dy, dz, 0)
         if n == k and d >= best_d[k - 1]:
             continue
@@ -78,13 +85,26 @@ def _visit(points, order, start, c, q, best_i, best_d, n, k):  # pragma: no cove
         while j > 0 and best_d[j - 1] > d:
             best_d[j], best_i[j] = best_d[j - 1], best_i[j - 1]
             j -= 1
-        best_d[j], best_i[j] = d, p
+        best_d[j], best_i[j] = d, order[s]
         n = min(n + 1, k)
     return n
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _beyond(best_d, n, k, fx, fy, i, j, cell):  # pragma: no cover - numba
+    """Whether cell (i, j) lies wholly beyond the query's k-th best (squared distance, m²; none
+    while fewer than k are found), the query at (fx, fy) in cells: its nearest xy point, less a
+    margin far above the rounding (as the rings' bound), is farther."""
+    if n < k:
+        return False
+    gx = i - fx if fx < i else (fx - (i + 1) if fx > i + 1 else 0.0)
+    gy = j - fy if fy < j else (fy - (j + 1) if fy > j + 1 else 0.0)
+    gap = np.sqrt(gx * gx + gy * gy) * cell - 1e-7 * cell
+    return gap > 0 and gap * gap > best_d[k - 1]
+
+
 @njit(cache=True, nogil=True)
-def _knn(points, order, start, lo, cell, shape, queries, k):  # pragma: no cover - numba
+def _knn(in_cells, order, start, lo, cell, shape, queries, k):  # pragma: no cover - numba
     m_rows = queries.shape[0]
     idx = np.empty((m_rows, k), np.int64)
     d2 = np.empty((m_rows, k), np.float64)
@@ -106,11 +126,10 @@ def _knn(points, order, start, lo, cell, shape, queries, k):  # pragma: no cover
                     break
             for i in range(max(ci - r, 0), min(ci + r, ni - 1) + 1):
                 if i == ci - r or i == ci + r:  # a whole row of the ring
-                    for j in range(max(cj - r, 0), min(cj + r, nj - 1) + 1):
-                        n = _visit(points, order, start, i * nj + j, q, idx[m], d2[m], n, k)
+                    j_lo, j_hi, step = max(cj - r, 0), min(cj + r, nj - 1), 1
                 else:  # its two ends
-                    if cj - r >= 0:
-                        n = _visit(points, order, start, i * nj + cj - r, q, idx[m], d2[m], n, k)
-                    if cj + r < nj:
-                        n = _visit(points, order, start, i * nj + cj + r, q, idx[m], d2[m], n, k)
+                    j_lo, j_hi, step = cj - r, cj + r, 2 * r
+                for j in range(j_lo, j_hi + 1, step):
+                    if 0 <= j < nj and not _beyond(d2[m], n, k, fx, fy, i, j, cell):
+                        n = _visit(in_cells, order, start, i * nj + j, q, idx[m], d2[m], n, k)
     return idx, d2

@@ -191,16 +191,17 @@ def plane_rows(planes: LocalPlanes, b_near: np.ndarray, tree_b, ov_a: np.ndarray
     # a's points in a ball as large about b's centroid (room for a denser a)
     radius = planes.distance[:, -1]
     near_a = near(ov_a, planes.centroid, float(radius[keep].max()))
+    a_near = np.take(ov_a, near_a, axis=0)  # gathered once
     k_max = int(np.ceil(2 * k * max(1.0, density_ratio)))
-    A, count = _ball_means(ov_a[near_a], planes.centroid, radius, k_max, settings.num_threads)
-    mean_a = A @ ov_a[near_a]
+    A, count = _ball_means(a_near, planes.centroid, radius, k_max, settings.num_threads)
+    mean_a = A @ a_near
     off_plane = np.abs(np.einsum("ij,ij->i", mean_a - planes.centroid, planes.normal))
     keep = keep & (planes.variation < settings.max_surface_variation)
     keep &= off_plane < settings.max_plane_distance_m
     keep &= planes.spread >= settings.min_spread
     keep &= _balanced(planes, centre, mean_a, settings.max_centroid_offset)
     # a's ball about b's plane: its own scatter along b's normal, at most max_scatter_ratio × b's
-    var_a = _along_normal_variance(A, ov_a[near_a], mean_a, planes.normal)
+    var_a = _along_normal_variance(A, a_near, mean_a, planes.normal)
     var_b = np.zeros(keep.size)
     var_b[keep] = moderated_variance(planes.scatter[keep] ** 2, k - 3)
     keep &= var_a <= settings.max_scatter_ratio**2 * np.maximum(var_b, settings.min_scatter_m**2)
