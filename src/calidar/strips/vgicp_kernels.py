@@ -1,8 +1,9 @@
-"""numba kernels of VGICP's pair matching: the xy-grid bookkeeping and the balls' averaging rows.
+"""numba kernels of VGICP's pair matching: the xy-grid bookkeeping and the neighbourhoods' moments.
 
 Each kernel computes exactly what the numpy expression it replaces computed (the same IEEE
 operations in the same order: ``floor((x − lo) / cell)`` for a cell index, minima and maxima,
-``1 / count`` for a ball's weights), in one pass over the points instead of one numpy pass (and
+sums in the neighbours' order; the balls' averaging rows: :meth:`calidar.strips.vgicp_knn.GridKnn.
+ball_rows`), in one pass over the points instead of one numpy pass (and
 one temporary array) per operation — so a pair's correspondences are bit for bit the same
 (docs/validation.md, "VGICP pairs … (issue 32, 27 Nov, seventh session)"). The lookup tables
 hold one byte per cell of the grid; :class:`calidar.strips.vgicp_planes.Grid` falls back to
@@ -106,34 +107,6 @@ def first_in_cells(keys, size):  # pragma: no cover - numba
             out[n] = p
             n += 1
     return out
-
-
-@njit(cache=True, nogil=True)
-def ball_rows(idx, d2, radius2):  # pragma: no cover - numba
-    """CSR (weights, columns, indptr) and counts of the averaging rows over each query's k nearest
-    ``idx`` (M, k) closer than √``radius2`` (M,) by their squared distances ``d2`` (M, k) — the
-    nearest always —, each weighing 1 / count, in the neighbours' order."""
-    m_rows, k = idx.shape
-    count = np.zeros(m_rows, np.int64)
-    indptr = np.zeros(m_rows + 1, np.int64)
-    for m in range(m_rows):
-        c = 1
-        for j in range(1, k):
-            if d2[m, j] <= radius2[m]:
-                c += 1
-        count[m] = c
-        indptr[m + 1] = indptr[m] + c
-    weights = np.empty(indptr[m_rows], np.float64)
-    columns = np.empty(indptr[m_rows], np.int64)
-    for m in range(m_rows):
-        w = 1.0 / count[m]
-        n = indptr[m]
-        for j in range(k):
-            if j == 0 or d2[m, j] <= radius2[m]:
-                weights[n] = w
-                columns[n] = idx[m, j]
-                n += 1
-    return weights, columns, indptr, count
 
 
 @njit(cache=True, nogil=True)

@@ -50,6 +50,19 @@ class GridKnn:
         return _knn(self.in_cells, self.order, self.start, self.lo, self.cell, self.shape,
                     queries, k)
 
+    def ball_rows(self, queries: np.ndarray, k_max: int, radius2: np.ndarray):
+        """Each query's averaging row over its points within √``radius2`` (M,) m — at most the
+        k_max nearest, and at least the nearest —, each weighing 1 / count, in ascending distance:
+        CSR (weights, columns, indptr) and the counts; what
+        :func:`~calidar.strips.vgicp_kernels.ball_rows` makes of a k_max search, found by a search
+        that takes no point beyond the ball (the ball's points lead the k_max nearest, in the same
+        order)."""
+        if not 1 <= k_max <= len(self.points):
+            raise ValueError(f"k_max must be 1 … {len(self.points)} (the points), got {k_max}")
+        queries = np.ascontiguousarray(queries, dtype=np.float64)
+        return _balls(self.in_cells, self.order, self.start, self.lo, self.cell, self.shape,
+                      queries, k_max, np.ascontiguousarray(radius2, dtype=np.float64))
+
 
 @njit(cache=True, nogil=True)
 def _bucket(keys, size, points):  # pragma: no cover - numba
@@ -73,13 +86,13 @@ def _bucket(keys, size, points):  # pragma: no cover - numba
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _visit(in_cells, order, start, c, q, best_i, best_d, n, k):  # pragma: no cover - numba
-    """Offer cell c's points (``in_cells``: the points in cell order) to the query's sorted k best
-    (n of them so far); the new n."""
+def _visit(in_cells, order, start, c, q, best_i, best_d, n, k, limit2):  # pragma: no cover - numba
+    """Offer cell c's points (``in_cells``: the points in cell order) no farther than √``limit2`` to
+    the query's sorted k best (n of them so far); the new n."""
     for s in range(start[c], start[c + 1]):
         dx, dy, dz = in_cells[s, 0] - q[0], in_cells[s, 1] - q[1], in_cells[s, 2] - q[2]
         d = (dx * dx + dz * dz) + dy * dy  # small_gicp's squaredNorm of (dx, dy, dz, 0)
-        if n == k and d >= best_d[k - 1]:
+        if (n == k and d >= best_d[k - 1]) or d > limit2:
             continue
         j = n if n < k else k - 1
         while j > 0 and best_d[j - 1] > d:
@@ -91,16 +104,47 @@ def _visit(in_cells, order, start, c, q, best_i, best_d, n, k):  # pragma: no co
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _beyond(best_d, n, k, fx, fy, i, j, cell):  # pragma: no cover - numba
-    """Whether cell (i, j) lies wholly beyond the query's k-th best (squared distance, m²; none
-    while fewer than k are found), the query at (fx, fy) in cells: its nearest xy point, less a
-    margin far above the rounding (as the rings' bound), is farther."""
-    if n < k:
-        return False
+def _beyond(best_d, n, k, limit2, fx, fy, i, j, cell):  # pragma: no cover - numba
+    """Whether cell (i, j) lies wholly beyond what the query may still take — its k-th best
+    (squared distance, m²) once k are found, else ``limit2`` (m²; inf: anything) —, the query at
+    (fx, fy) in cells: its nearest xy point, less a margin far above the rounding (as the rings'
+    bound), is farther."""
+    worst = best_d[k - 1] if n == k else limit2
     gx = i - fx if fx < i else (fx - (i + 1) if fx > i + 1 else 0.0)
     gy = j - fy if fy < j else (fy - (j + 1) if fy > j + 1 else 0.0)
     gap = np.sqrt(gx * gx + gy * gy) * cell - 1e-7 * cell
-    return gap > 0 and gap * gap > best_d[k - 1]
+    return gap > 0 and gap * gap > worst
+
+
+@njit(cache=True, nogil=True)
+def _search(in_cells, order, start, lo, cell, shape, q, k, limit2, best_i, best_d
+            ):  # pragma: no cover - numba
+    """The query q's k nearest points no farther than √``limit2`` (m; inf: the k nearest) into
+    ``best_i``, ``best_d`` (squared, m²), ascending; how many were found."""
+    ni, nj = shape[0], shape[1]
+    fx, fy = (q[0] - lo[0]) / cell, (q[1] - lo[1]) / cell
+    ci, cj = np.int64(np.floor(fx)), np.int64(np.floor(fy))
+    # distance (m) from the query to the edge of its own cell: ring r's cells lie ≥ (r − 1) cells
+    # + this away
+    edge = min(fx - ci, ci + 1 - fx, fy - cj, cj + 1 - fy) * cell
+    r_max = max(ci + 1, ni - ci, cj + 1, nj - cj)  # beyond it no cell of the grid
+    r_min = max(0, -ci, ci - (ni - 1), -cj, cj - (nj - 1))  # nearer rings: none either
+    n = 0
+    for r in range(r_min, r_max + 1):
+        if r > 0 and (n == k or limit2 < np.inf):  # (less a margin far above the rounding)
+            bound = (r - 1) * cell + edge - 1e-7 * cell
+            if bound > 0 and bound * bound > (best_d[k - 1] if n == k else limit2):
+                break
+        for i in range(max(ci - r, 0), min(ci + r, ni - 1) + 1):
+            if i == ci - r or i == ci + r:  # a whole row of the ring
+                j_lo, j_hi, step = max(cj - r, 0), min(cj + r, nj - 1), 1
+            else:  # its two ends
+                j_lo, j_hi, step = cj - r, cj + r, 2 * r
+            for j in range(j_lo, j_hi + 1, step):
+                if 0 <= j < nj and not _beyond(best_d, n, k, limit2, fx, fy, i, j, cell):
+                    n = _visit(in_cells, order, start, i * nj + j, q, best_i, best_d, n, k,
+                               limit2)
+    return n
 
 
 @njit(cache=True, nogil=True)
@@ -108,28 +152,34 @@ def _knn(in_cells, order, start, lo, cell, shape, queries, k):  # pragma: no cov
     m_rows = queries.shape[0]
     idx = np.empty((m_rows, k), np.int64)
     d2 = np.empty((m_rows, k), np.float64)
-    ni, nj = shape[0], shape[1]
     for m in range(m_rows):
-        q = queries[m]
-        fx, fy = (q[0] - lo[0]) / cell, (q[1] - lo[1]) / cell
-        ci, cj = np.int64(np.floor(fx)), np.int64(np.floor(fy))
-        # distance (m) from the query to the edge of its own cell: ring r's cells lie ≥ (r − 1)
-        # cells + this away
-        edge = min(fx - ci, ci + 1 - fx, fy - cj, cj + 1 - fy) * cell
-        r_max = max(ci + 1, ni - ci, cj + 1, nj - cj)  # beyond it no cell of the grid
-        r_min = max(0, -ci, ci - (ni - 1), -cj, cj - (nj - 1))  # nearer rings: none either
-        n = 0
-        for r in range(r_min, r_max + 1):
-            if r > 0 and n == k:  # (less a margin far above the rounding of fx, fy and d)
-                bound = (r - 1) * cell + edge - 1e-7 * cell
-                if bound > 0 and bound * bound > d2[m, k - 1]:
-                    break
-            for i in range(max(ci - r, 0), min(ci + r, ni - 1) + 1):
-                if i == ci - r or i == ci + r:  # a whole row of the ring
-                    j_lo, j_hi, step = max(cj - r, 0), min(cj + r, nj - 1), 1
-                else:  # its two ends
-                    j_lo, j_hi, step = cj - r, cj + r, 2 * r
-                for j in range(j_lo, j_hi + 1, step):
-                    if 0 <= j < nj and not _beyond(d2[m], n, k, fx, fy, i, j, cell):
-                        n = _visit(in_cells, order, start, i * nj + j, q, idx[m], d2[m], n, k)
+        _search(in_cells, order, start, lo, cell, shape, queries[m], k, np.inf, idx[m], d2[m])
     return idx, d2
+
+
+@njit(cache=True, nogil=True)
+def _balls(in_cells, order, start, lo, cell, shape, queries, k_max, radius2
+           ):  # pragma: no cover - numba
+    """CSR (weights, columns, indptr) and counts of each query's ball rows (see
+    :meth:`GridKnn.ball_rows`)."""
+    m_rows = queries.shape[0]
+    idx = np.empty((m_rows, k_max), np.int64)
+    d2 = np.empty(k_max, np.float64)
+    count = np.zeros(m_rows, np.int64)
+    indptr = np.zeros(m_rows + 1, np.int64)
+    for m in range(m_rows):
+        n = _search(in_cells, order, start, lo, cell, shape, queries[m], k_max, radius2[m],
+                    idx[m], d2)
+        if n == 0:  # none in the ball: the nearest
+            n = _search(in_cells, order, start, lo, cell, shape, queries[m], 1, np.inf, idx[m],
+                        d2)
+        count[m] = n
+        indptr[m + 1] = indptr[m] + n
+    weights = np.empty(indptr[m_rows], np.float64)
+    columns = np.empty(indptr[m_rows], np.int64)
+    for m in range(m_rows):
+        w = 1.0 / count[m]
+        for j in range(count[m]):
+            weights[indptr[m] + j] = w
+            columns[indptr[m] + j] = idx[m, j]
+    return weights, columns, indptr, count

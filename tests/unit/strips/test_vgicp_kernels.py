@@ -8,7 +8,7 @@ import pytest
 import scipy.sparse as sp
 
 from calidar.strips.vgicp import _spread, overlap_masks
-from calidar.strips.vgicp_kernels import ball_rows, neighbourhood_moments, xy_bounds
+from calidar.strips.vgicp_kernels import neighbourhood_moments, xy_bounds
 from calidar.strips.vgicp_planes import Grid, near
 
 
@@ -47,23 +47,6 @@ def test_near_and_spread_equal_numpy(monkeypatch):
     monkeypatch.setattr(Grid, "MAX_TABLE", 0)  # the sorting fallback: the numpy path
     assert np.array_equal(got_near, near(b, at, 2.7)) and 0 < got_near.size < len(b)
     assert np.array_equal(got_spread, _spread(a, 500, 300 * 120)) and got_spread.size == 500
-
-
-@pytest.mark.parametrize("k", [1, 5, 24])
-def test_ball_rows_equal_numpy(k):
-    rng = np.random.default_rng(k)
-    d2 = np.sort(rng.uniform(0, 4, (300, k)), axis=1)
-    idx = rng.integers(0, 10_000, (300, k)).astype(np.uint64)
-    radius = rng.uniform(0.2, 2.5, 300)
-    weights, columns, indptr, count = ball_rows(idx, d2, radius**2)
-    inside = d2 <= radius[:, None] ** 2
-    inside[:, 0] = True  # the nearest always
-    want = sp.csr_matrix(((inside / inside.sum(axis=1)[:, None])[inside],
-                          idx.astype(np.int64)[inside],
-                          np.concatenate([[0], np.cumsum(inside.sum(axis=1))])))
-    assert np.array_equal(count, inside.sum(axis=1))
-    assert np.array_equal(weights, want.data) and np.array_equal(columns, want.indices)
-    assert np.array_equal(indptr, want.indptr)
 
 
 @pytest.mark.parametrize("m_rows, k", [(1, 3), (700, 12), (2500, 30)])
