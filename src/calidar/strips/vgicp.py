@@ -335,7 +335,7 @@ def match_pair_vgicp(strip_a_id: int, points_a: np.ndarray, strip_b_id: int, poi
     if near_b.size < k:  # (small_gicp aborts on an empty tree)
         raise CalibrationError(f"too few VGICP correspondences: registration left {near_b.size} "
                                f"points of b near a's points (need {settings.min_pairs} pairs)")
-    b_near = b_on_a[near_b]
+    b_near = np.take(b_on_a, near_b, axis=0)
     tree_b = GridKnn(b_near)  # small_gicp's KdTree's neighbours, without its build's cost
     planes = local_planes(b_near, ov_a[cand], k, settings.num_threads, tree_b)
     keep = planes.distance[:, 0] < threshold
