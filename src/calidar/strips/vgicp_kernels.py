@@ -1,13 +1,13 @@
 """numba kernels of VGICP's pair matching: the xy-grid bookkeeping and the neighbourhoods' moments.
 
 Each kernel computes exactly what the numpy expression it replaces computed (the same IEEE
-operations in the same order: ``floor((x − lo) / cell)`` for a cell index, minima and maxima,
-sums in the neighbours' order; the balls' averaging rows: :meth:`calidar.strips.vgicp_knn.GridKnn.
-ball_rows`), in one pass over the points instead of one numpy pass (and
-one temporary array) per operation — so a pair's correspondences are bit for bit the same
-(docs/validation.md, "VGICP pairs … (issue 32, 27 Nov, seventh session)"). The lookup tables
-hold one byte per cell of the grid; :class:`calidar.strips.vgicp_planes.Grid` falls back to
-sorting beyond ``Grid.MAX_TABLE`` cells, and so do the callers of these kernels.
+operations in the same order: ``floor((x − lo) / cell)`` for a cell index, minima and maxima, sums
+in the neighbours' order; the balls' averaging rows are
+:meth:`calidar.strips.vgicp_knn.GridKnn.ball_rows`), in one pass over the points instead of one
+numpy pass (and one temporary array) per operation — so a pair's correspondences are bit for bit the
+same (docs/validation.md, "VGICP pairs … (issue 32, 27 Nov, seventh session)"). The lookup tables
+hold one byte per cell of the grid; :class:`calidar.strips.vgicp_planes.Grid` falls back to sorting
+beyond ``Grid.MAX_TABLE`` cells, and so do the callers of these kernels.
 """
 
 from __future__ import annotations

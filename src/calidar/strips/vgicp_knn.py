@@ -53,10 +53,9 @@ class GridKnn:
     def ball_rows(self, queries: np.ndarray, k_max: int, radius2: np.ndarray):
         """Each query's averaging row over its points within √``radius2`` (M,) m — at most the
         k_max nearest, and at least the nearest —, each weighing 1 / count, in ascending distance:
-        CSR (weights, columns, indptr) and the counts; what
-        :func:`~calidar.strips.vgicp_kernels.ball_rows` makes of a k_max search, found by a search
-        that takes no point beyond the ball (the ball's points lead the k_max nearest, in the same
-        order)."""
+        CSR (weights, columns, indptr) and the counts. The rows of a k_max search filtered by the
+        ball, found by a search that takes no point beyond it (the ball's points lead the k_max
+        nearest, in the same order; tests/unit/strips/test_vgicp_knn.py)."""
         if not 1 <= k_max <= len(self.points):
             raise ValueError(f"k_max must be 1 … {len(self.points)} (the points), got {k_max}")
         queries = np.ascontiguousarray(queries, dtype=np.float64)
