@@ -346,6 +346,7 @@ def calibrate_strips(strips, trajectory, sensor, config: StripConfig = StripConf
     from calidar.strips.distribute import workers_for
     from calidar.strips.verdict import agreement_finding, strip_verdict
 
+    strips = list(strips)  # (read twice: the headers' point counts, then the points)
     with workers_for(scheduler, workers) as work:  # one cluster (or thread pool) for every stage
         _start_pair_workers(strips, config, work)
         inputs = load_inputs(strips, trajectory, sensor, config, accuracy=accuracy, control=control,
