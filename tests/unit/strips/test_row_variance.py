@@ -73,3 +73,19 @@ def test_consistency_of_the_robust_sigma0_for_student_t_rows(nu):
     w = robust_weights(z / s, "cauchy")
     assert consistency("cauchy", [nu]) == pytest.approx(np.sum(w * z * z) / np.sum(w), rel=0.006)
     assert consistency("cauchy") == pytest.approx(0.794, abs=0.002)  # normal residuals
+
+
+def test_trigamma_is_scipys_polygamma_bit_for_bit():
+    """ψ' as ζ(2, x) (issue 32, eleventh session: the prior's bisection calls it 80 times a side of
+    a pair) gives scipy's ``polygamma(1, x)`` to the last bit, scalars and arrays, over the
+    bisection's whole range 1e-6 … 1e8 — the rows' σ must not move."""
+    from scipy.special import polygamma
+
+    from calidar.strips.row_variance import _trigamma_inverse, trigamma
+
+    x = np.geomspace(1e-6, 1e8, 20_001) * np.random.default_rng(4).uniform(0.5, 1.5, 20_001)
+    np.testing.assert_array_equal(trigamma(x), polygamma(1, x))
+    for v in x[::97]:
+        assert float(trigamma(v)) == float(polygamma(1, v))
+    for y in (1e-7, 0.01, 0.37, 2.0, 50.0, 1e6):  # the inverse still inverts
+        assert float(polygamma(1, _trigamma_inverse(y))) == pytest.approx(y, rel=1e-9)
