@@ -35,6 +35,7 @@ from numba import njit
 
 from calidar.strips.correspond import Correspondences
 from calidar.strips.overlap import cell_keys, footprint_area_m2
+from calidar.strips.moments_kernel import stable_key_order
 from calidar.strips.pca import eigh3
 from calidar.strips.row_variance import posterior, satterthwaite
 from calidar.strips.tilt import calibrated_normals
@@ -88,7 +89,7 @@ def patch_cell_size(points: np.ndarray, target_points: int) -> float:
 def fit_patches(points: np.ndarray, cell_m: float, settings: PlaneSettings) -> Patches:
     """Fit a plane in every grid cell of ``points`` (N, 3) local m; keep the planar ones."""
     keys = cell_keys(points, cell_m)
-    order = np.argsort(keys, kind="stable")
+    order = stable_key_order(keys)  # np.argsort(keys, kind="stable")'s, by a counting sort
     ks = keys[order]
     start = np.r_[0, np.flatnonzero(ks[1:] != ks[:-1]) + 1] if ks.size else np.zeros(0, np.int64)
     uk, count = ks[start], np.diff(np.r_[start, ks.size])
