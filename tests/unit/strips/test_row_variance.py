@@ -73,3 +73,22 @@ def test_consistency_of_the_robust_sigma0_for_student_t_rows(nu):
     w = robust_weights(z / s, "cauchy")
     assert consistency("cauchy", [nu]) == pytest.approx(np.sum(w * z * z) / np.sum(w), rel=0.006)
     assert consistency("cauchy") == pytest.approx(0.794, abs=0.002)  # normal residuals
+
+
+def test_prior_with_digamma_per_distinct_dof_is_the_same_numbers():
+    """The fitted prior evaluates digamma and trigamma once per distinct degrees of freedom (issue
+    32, eleventh session): d0 and s0² are bit for bit those of the functions over every row."""
+    from scipy.special import digamma, polygamma
+
+    rng = np.random.default_rng(32)
+    dof = rng.integers(1, 40, 5000)
+    s2 = 1e-4 * rng.chisquare(dof) / dof * rng.lognormal(0.0, 0.5, dof.size)
+    d = dof.astype(float)
+    e = np.log(s2) - (digamma(d / 2) - np.log(d / 2))
+    excess = float(np.var(e, ddof=1) - np.mean(polygamma(1, d / 2)))
+    assert excess > 0
+    from calidar.strips.row_variance import MIN_PRIOR_DOF, _trigamma_inverse
+
+    d0 = max(2.0 * _trigamma_inverse(excess), MIN_PRIOR_DOF)
+    want = (d0, float(np.exp(np.mean(e) + digamma(d0 / 2) - np.log(d0 / 2))))
+    assert fitted_prior(s2, dof) == want
