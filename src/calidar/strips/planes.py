@@ -119,19 +119,64 @@ def plane_point_weights(points: np.ndarray, A: sp.csr_matrix, target: np.ndarray
     height there in units of its points' σ² (1/m at the centroid, more off it)."""
     import scipy.sparse as sp
 
-    rows = np.repeat(np.arange(A.shape[0]), np.diff(A.indptr))
-    mean = A @ points
-    d = points[A.indices] - mean[rows]
-    cov = np.zeros((A.shape[0], 3, 3))
-    for i in range(3):
-        for j in range(i, 3):
-            cov[:, i, j] = cov[:, j, i] = np.bincount(rows, A.data * d[:, i] * d[:, j], A.shape[0])
+    points = np.ascontiguousarray(points, dtype=np.float64)
+    mean, cov = _row_moments(A.indptr, A.indices, A.data, points)
     lam, vec = eigh3(cov)
-    axes = vec[:, :, 1:]  # (R, 3, 2)
-    coef = np.einsum("ri,rij->rj", target - mean, axes) / np.clip(lam[:, 1:], 1e-12, None)
-    h = A.data * (1.0 + np.einsum("kj,kj->k", coef[rows], np.einsum("ki,kij->kj", d, axes[rows])))
+    h, leverage = _hat_weights(A.indptr, A.indices, A.data, points,
+                               np.ascontiguousarray(target, dtype=np.float64), mean, lam, vec)
     weights = sp.csr_matrix((h, A.indices.copy(), A.indptr.copy()), shape=A.shape)
-    return weights, np.bincount(rows, h * h, A.shape[0])
+    return weights, leverage
+
+
+# The two kernels of plane_point_weights, numpy's order of operations kept (the same bits as
+# ``A @ points``, the centred products summed per row by ``np.bincount`` and the einsums over
+# three or two terms; tests/unit/strips/test_strips_planes.py), without the per-entry gathers.
+
+@njit(cache=True, nogil=True)
+def _row_moments(indptr, indices, data, points):  # pragma: no cover - numba
+    """Each row's weighted mean (R, 3) and weighted scatter about it (R, 3, 3)."""
+    n = indptr.size - 1
+    mean, cov = np.zeros((n, 3)), np.zeros((n, 3, 3))
+    for r in range(n):
+        for k in range(indptr[r], indptr[r + 1]):
+            for a in range(3):
+                mean[r, a] += data[k] * points[indices[k], a]
+        for k in range(indptr[r], indptr[r + 1]):
+            p = indices[k]
+            d0, d1, d2 = (points[p, 0] - mean[r, 0], points[p, 1] - mean[r, 1],
+                          points[p, 2] - mean[r, 2])
+            w0, w1, w2 = data[k] * d0, data[k] * d1, data[k] * d2
+            cov[r, 0, 0] += w0 * d0
+            cov[r, 0, 1] += w0 * d1
+            cov[r, 0, 2] += w0 * d2
+            cov[r, 1, 1] += w1 * d1
+            cov[r, 1, 2] += w1 * d2
+            cov[r, 2, 2] += w2 * d2
+        cov[r, 1, 0], cov[r, 2, 0], cov[r, 2, 1] = cov[r, 0, 1], cov[r, 0, 2], cov[r, 1, 2]
+    return mean, cov
+
+
+@njit(cache=True, nogil=True)
+def _hat_weights(indptr, indices, data, points, target, mean, lam, vec):  # pragma: no cover
+    """Each entry's hat weight h and each row's Σ h² (see :func:`plane_point_weights`)."""
+    n = indptr.size - 1
+    h, leverage = np.empty(data.size), np.zeros(n)
+    for r in range(n):
+        t0, t1, t2 = target[r, 0] - mean[r, 0], target[r, 1] - mean[r, 1], target[r, 2] - mean[r, 2]
+        c = np.empty(2)
+        for j in range(2):
+            spread = lam[r, j + 1] if not lam[r, j + 1] < 1e-12 else 1e-12  # np.clip: NaN kept
+            c[j] = (0.0 + t0 * vec[r, 0, j + 1] + t1 * vec[r, 1, j + 1]
+                    + t2 * vec[r, 2, j + 1]) / spread
+        for k in range(indptr[r], indptr[r + 1]):
+            p = indices[k]
+            d0, d1, d2 = (points[p, 0] - mean[r, 0], points[p, 1] - mean[r, 1],
+                          points[p, 2] - mean[r, 2])
+            e0 = 0.0 + d0 * vec[r, 0, 1] + d1 * vec[r, 1, 1] + d2 * vec[r, 2, 1]
+            e1 = 0.0 + d0 * vec[r, 0, 2] + d1 * vec[r, 1, 2] + d2 * vec[r, 2, 2]
+            h[k] = data[k] * (1.0 + (c[0] * e0 + c[1] * e1))
+            leverage[r] += h[k] * h[k]
+    return h, leverage
 
 
 def planar_cells(cov: np.ndarray, cell_m: float,

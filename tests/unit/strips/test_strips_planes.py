@@ -269,3 +269,57 @@ def test_rows_sigma_match_the_residuals_at_the_truth():
     w = robust_weights(z / s, "cauchy")
     assert np.all(c.dof > 9)  # two sides of ≥ 6 points (inf where the pair's rows pool fully)
     assert np.sqrt(np.sum(w * z * z) / np.sum(w) / consistency("cauchy", dof_summary(c.dof))) == pytest.approx(1.0, abs=0.05)
+
+
+def _hat_weights_numpy(points, A, target):
+    """plane_point_weights as numpy wrote it before its kernels (issue 32, eleventh session)."""
+    import scipy.sparse as sp
+
+    from calidar.strips.pca import eigh3
+
+    rows = np.repeat(np.arange(A.shape[0]), np.diff(A.indptr))
+    mean = A @ points
+    d = points[A.indices] - mean[rows]
+    cov = np.zeros((A.shape[0], 3, 3))
+    for i in range(3):
+        for j in range(i, 3):
+            cov[:, i, j] = cov[:, j, i] = np.bincount(rows, A.data * d[:, i] * d[:, j], A.shape[0])
+    lam, vec = eigh3(cov)
+    axes = vec[:, :, 1:]
+    coef = np.einsum("ri,rij->rj", target - mean, axes) / np.clip(lam[:, 1:], 1e-12, None)
+    h = A.data * (1.0 + np.einsum("kj,kj->k", coef[rows], np.einsum("ki,kij->kj", d, axes[rows])))
+    weights = sp.csr_matrix((h, A.indices.copy(), A.indptr.copy()), shape=A.shape)
+    return weights, np.bincount(rows, h * h, A.shape[0])
+
+
+def test_plane_point_weights_kernels_have_numpys_bits():
+    """The hat weights and their Σ h² from the two kernels equal numpy's, bit for bit: the rows of
+    a real pair's tie planes (local coordinates of 10⁴ m, targets off the centroids) and random
+    rows (1 to 40 points, weights of both signs, a degenerate row of one point repeated)."""
+    import scipy.sparse as sp
+
+    from calidar.strips.planes import _averaging, patch_cell_size, plane_point_weights
+
+    truth = Sensor(boresight_roll=np.radians(0.03), boresight_pitch=np.radians(-0.04))
+    strips = survey(truth, Sensor(), [((-250, -80, 0), 90, 500, 400), ((250, 80, 0), 270, 500, 400)],
+                    n=40_000)
+    pts_a, pts_b = (np.ascontiguousarray(s.points + 1e4) for s in strips)
+    s = PlaneSettings()
+    cell = patch_cell_size(pts_a, s.target_points)
+    pa, pb = fit_patches(pts_a, cell, s), fit_patches(pts_b, cell, s)
+    _, ia, ib = np.intersect1d(pa.keys, pb.keys, assume_unique=True, return_indices=True)
+    A, _ = _averaging(pa, ia, s.max_points_per_patch, pts_a.shape[0])
+    B, _ = _averaging(pb, ib, s.max_points_per_patch, pts_b.shape[0])
+    rng = np.random.default_rng(32)
+    counts = rng.integers(1, 41, 300)
+    indptr = np.r_[0, np.cumsum(counts)]
+    indices = rng.integers(0, 500, indptr[-1])
+    indices[indptr[7]:indptr[8]] = indices[indptr[7]]
+    R = sp.csr_matrix((rng.normal(0.1, 0.3, indptr[-1]), indices, indptr), shape=(300, 500))
+    cloud = rng.normal(0.0, 5.0, (500, 3)) + 1e4
+    assert A.shape[0] > 100
+    for M, pts, target in [(A, pts_a, B @ pts_b), (R, cloud, cloud[:300] + rng.normal(0, 3, (300, 3)))]:
+        got, want = plane_point_weights(pts, M, target), _hat_weights_numpy(pts, M, target)
+        assert np.array_equal(got[0].data, want[0].data, equal_nan=True)
+        assert np.array_equal(got[0].indices, want[0].indices)
+        assert np.array_equal(got[1], want[1], equal_nan=True)
