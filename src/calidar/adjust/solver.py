@@ -156,8 +156,8 @@ class Estimate:
             finite = factor > 0 and np.all(np.isfinite(sol.covariance))
             irls = (sol.covariance, None)  # the IRLS model's covariance and bread N⁻¹ (lazy)
             if self.options.covariance == "sandwich":
-                bread = _sandwich(fit, J, r, x, sol)
-                models = [irls, (sol.covariance, bread)] if bread is not None else [irls]
+                sandwich, sol.extra["covariance"] = _sandwich(fit, J, r, x, sol)
+                models = [irls] if sandwich is None else [irls, sandwich]
             else:
                 models = [irls]
         groupings = clusters if isinstance(clusters, list) else [clusters]
@@ -361,12 +361,13 @@ def _solution(fit: _Fit, x: np.ndarray, r: np.ndarray, w: np.ndarray, history: l
     return sol
 
 
-def _sandwich(fit: _Fit, J, r: np.ndarray, x: np.ndarray, sol: Solution) -> np.ndarray | None:
-    """Replace ``sol``'s covariance by the robust fit's M-estimator sandwich
-    A⁻¹(f·c_ψ·Σ J_iJ_iᵀ/σ_i² + max(f, 1)·P)A⁻¹ (:mod:`calidar.adjust.m_estimator`, which says
-    how f is read) and return A⁻¹, the bread of the cluster-robust σ on top; None (the IRLS
-    covariance kept, and said in ``extra["covariance"]``) where the solution has undetermined
-    directions or A is not positive definite."""
+def _sandwich(fit: _Fit, J, r: np.ndarray, x: np.ndarray,
+              sol: Solution) -> tuple[tuple[np.ndarray, np.ndarray] | None, dict]:
+    """The robust fit's M-estimator sandwich A⁻¹(f·c_ψ·Σ J_iJ_iᵀ/σ_i² + max(f, 1)·P)A⁻¹
+    (:mod:`calidar.adjust.m_estimator`, which says how f is read) at the IRLS solution ``sol``:
+    ((covariance, A⁻¹ — the bread of the cluster-robust σ on top), the record for
+    ``extra["covariance"]``); (None, the record saying why) where the solution has undetermined
+    directions or A is not positive definite, and the IRLS covariance stays."""
     z = r / fit.sig
     s = fit.scale(z)
     k = ROBUST_K.get(fit.robust, 1.0) if fit.robust_k is None else fit.robust_k
@@ -385,11 +386,7 @@ def _sandwich(fit: _Fit, J, r: np.ndarray, x: np.ndarray, sol: Solution) -> np.n
             B[np.ix_(idx, idx)] += (max(factor, 1.0) - 1.0) * P
         parts = sandwich_covariance(A, B)
     if parts is None:
-        sol.extra["covariance"] = {"model": "irls", "reason": "no sandwich: A not positive "
-                                   "definite or directions not determined"}
-        return None
-    sol.covariance, bread = parts
-    sol.extra["covariance"] = {"model": "sandwich", "variance_factor": factor,
-                               "psi_sigma0": level ** 0.5, "normal_psi_square": c_psi,
-                               "huber_k": k_factor, "scale": s}
-    return bread
+        return None, {"model": "irls", "reason": "no sandwich: A not positive definite or "
+                      "directions not determined"}
+    return parts, {"model": "sandwich", "variance_factor": factor, "psi_sigma0": level ** 0.5,
+                   "normal_psi_square": c_psi, "huber_k": k_factor, "scale": s}
