@@ -76,8 +76,9 @@ def test_consistency_of_the_robust_sigma0_for_student_t_rows(nu):
 
 
 def test_prior_with_digamma_per_distinct_dof_is_the_same_numbers():
-    """The fitted prior evaluates digamma and trigamma once per distinct degrees of freedom (issue
-    32, eleventh session): d0 and s0² are bit for bit those of the functions over every row."""
+    """The fitted prior evaluates digamma and trigamma once per distinct degrees of freedom, the
+    trigamma as ζ(2, x) (issue 32, eleventh session): d0 and s0² are bit for bit those of scipy's
+    digamma and polygamma over every row and in the bisection."""
     from scipy.special import digamma, polygamma
 
     rng = np.random.default_rng(32)
@@ -87,8 +88,12 @@ def test_prior_with_digamma_per_distinct_dof_is_the_same_numbers():
     e = np.log(s2) - (digamma(d / 2) - np.log(d / 2))
     excess = float(np.var(e, ddof=1) - np.mean(polygamma(1, d / 2)))
     assert excess > 0
-    from calidar.strips.row_variance import MIN_PRIOR_DOF, _trigamma_inverse
+    from calidar.strips.row_variance import MIN_PRIOR_DOF
 
-    d0 = max(2.0 * _trigamma_inverse(excess), MIN_PRIOR_DOF)
+    lo, hi = 1e-6, 1e8  # the bisection for ψ'(x) = excess with scipy's polygamma, as before
+    for _ in range(80):
+        mid = np.sqrt(lo * hi)
+        lo, hi = (mid, hi) if polygamma(1, mid) > excess else (lo, mid)
+    d0 = max(2.0 * float(np.sqrt(lo * hi)), MIN_PRIOR_DOF)
     want = (d0, float(np.exp(np.mean(e) + digamma(d0 / 2) - np.log(d0 / 2))))
     assert fitted_prior(s2, dof) == want
