@@ -96,10 +96,10 @@ def fit_patches(points: np.ndarray, cell_m: float, settings: PlaneSettings) -> P
     ok = np.flatnonzero(count >= max(settings.min_points, 4))  # a plane and its scatter
     contiguous = np.ascontiguousarray(points, dtype=np.float64)
     mean, cov = _cell_moments(contiguous, order, start[ok], count[ok])
-    planar, normal, lam0 = planar_cells(cov, cell_m, settings)
+    planar, normal, lam0, (lam, vec) = _planarity(cov, cell_m, settings)
     sel = ok[planar]
     rms = np.sqrt(lam0 * count[sel] / (count[sel] - 3))  # 3 plane parameters fitted
-    lam, vec = eigh3(cov[planar]) if planar.any() else (np.zeros((0, 3)), np.zeros((0, 3, 3)))
+    lam, vec = lam[planar], vec[planar]  # (eigh3 works matrix by matrix: its values on the subset)
     spread = np.clip(lam[:, 1:], 1e-12, None)
     return Patches(uk[sel], mean[planar], normal, rms, vec[:, :, 1:], spread, start[sel],
                    count[sel], order)
@@ -184,14 +184,19 @@ def planar_cells(cov: np.ndarray, cell_m: float,
     """The planarity test of cells from their point covariances (K, 3, 3) m²: mask of the planar
     cells (√λ0 ≤ max_rms_m, √λ1 ≥ min_spread · cell_m), their unit normals pointing up and λ0
     (m²)."""
-    lam, vec = eigh3(cov)
-    lam = np.clip(lam, 0.0, None)
+    return _planarity(cov, cell_m, settings)[:3]
+
+
+def _planarity(cov: np.ndarray, cell_m: float, settings: PlaneSettings) -> tuple:
+    """:func:`planar_cells` and the eigen decomposition of every cell it came from (eigh3's)."""
+    raw = eigh3(cov)
+    lam = np.clip(raw[0], 0.0, None)
     thin = np.sqrt(lam[:, 0]) <= settings.max_rms_m
     filled = np.sqrt(lam[:, 1]) >= settings.min_spread * cell_m
     planar = thin & filled
-    normal = vec[planar][:, :, 0]
+    normal = raw[1][planar][:, :, 0]
     normal *= np.where(normal[:, 2] < 0, -1.0, 1.0)[:, None]
-    return planar, normal, lam[planar, 0]
+    return planar, normal, lam[planar, 0], raw
 
 
 @njit(cache=True, nogil=True)

@@ -323,3 +323,33 @@ def test_plane_point_weights_kernels_have_numpys_bits():
         assert np.array_equal(got[0].data, want[0].data, equal_nan=True)
         assert np.array_equal(got[0].indices, want[0].indices)
         assert np.array_equal(got[1], want[1], equal_nan=True)
+
+
+def test_patches_take_the_planarity_tests_eigenvectors_bit_for_bit():
+    """fit_patches takes the planar cells' eigenvalues and axes from the planarity test's one eigh3
+    over all cells (issue 32, eleventh session: it decomposed them twice); eigh3 works matrix by
+    matrix, so the subset's decomposition is the same bits as decomposing the subset."""
+    from calidar.strips.pca import eigh3
+
+    rng = np.random.default_rng(32)
+    g = rng.normal(0.0, 1.0, (5000, 3, 3)) * rng.lognormal(0.0, 2.0, (5000, 1, 1))
+    cov = g @ np.transpose(g, (0, 2, 1))
+    cov[::7, 2, :] = cov[::7, :, 2] = 0.0  # flat cells: a zero eigenvalue
+    cov[11] = np.eye(3) * 0.5
+    keep = rng.random(5000) < 0.4
+    whole, part = eigh3(cov), eigh3(cov[keep])
+    assert np.array_equal(whole[0][keep], part[0]) and np.array_equal(whole[1][keep], part[1])
+    s = PlaneSettings()
+    pts = rng.normal(0.0, [20.0, 20.0, 0.01], (20_000, 3))
+    p = fit_patches(pts, 2.0, s)
+    assert p.keys.size > 50
+    mean, c = _patch_covariances(pts, p)
+    lam, vec = eigh3(c)
+    assert np.array_equal(p.spread_m2, np.clip(lam[:, 1:], 1e-12, None))
+    assert np.array_equal(p.axes, vec[:, :, 1:])
+
+
+def _patch_covariances(points, p):
+    from calidar.strips.planes import _cell_moments
+
+    return _cell_moments(np.ascontiguousarray(points), p.order, p.start, p.count)
