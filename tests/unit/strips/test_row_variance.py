@@ -97,3 +97,19 @@ def test_prior_with_digamma_per_distinct_dof_is_the_same_numbers():
     d0 = max(2.0 * float(np.sqrt(lo * hi)), MIN_PRIOR_DOF)
     want = (d0, float(np.exp(np.mean(e) + digamma(d0 / 2) - np.log(d0 / 2))))
     assert fitted_prior(s2, dof) == want
+
+
+def test_trigamma_is_scipys_polygamma_bit_for_bit():
+    """ψ' as ζ(2, x) (issue 32, eleventh session: the prior's bisection calls it 80 times a side of
+    a pair) gives scipy's ``polygamma(1, x)`` to the last bit, scalars and arrays, over the
+    bisection's whole range 1e-6 … 1e8 — the rows' σ must not move."""
+    from scipy.special import polygamma
+
+    from calidar.strips.row_variance import _trigamma_inverse, trigamma
+
+    x = np.geomspace(1e-6, 1e8, 20_001) * np.random.default_rng(4).uniform(0.5, 1.5, 20_001)
+    np.testing.assert_array_equal(trigamma(x), polygamma(1, x))
+    for v in x[::97]:
+        assert float(trigamma(v)) == float(polygamma(1, v))
+    for y in (1e-7, 0.01, 0.37, 2.0, 50.0, 1e6):  # the inverse still inverts
+        assert float(polygamma(1, _trigamma_inverse(y))) == pytest.approx(y, rel=1e-9)
