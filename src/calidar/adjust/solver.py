@@ -16,6 +16,7 @@ from __future__ import annotations
 import contextlib
 from collections.abc import Callable
 from dataclasses import dataclass, replace
+from functools import cached_property
 
 import numpy as np
 import scipy.sparse as sp
@@ -128,6 +129,15 @@ class Estimate:
     def parameters(self) -> ParameterSet:
         return self.fit.params.updated(self.x)
 
+    @cached_property
+    def normals(self) -> tuple:
+        """(J, N) at x: the Jacobian and the normal matrix with the priors, computed once for
+        :meth:`solution` and whoever asks after it (the model check's freed fits); read only.
+        (Not a field: an Estimate made from this one by ``replace`` computes its own.)"""
+        with _one_blas_thread():
+            J = self.fit.jacobian(self.x)
+            return J, self.fit.normal_equations(J, self.w, x=self.x)[0]
+
     def refine(self, step_in_sigma: float = STEP_IN_SIGMA) -> "Estimate":
         """Iterate on from here until every step is below ``step_in_sigma`` of its σ."""
         with _one_blas_thread():
@@ -140,7 +150,8 @@ class Estimate:
         in ``clusters`` (see :func:`solve`)."""
         fit, x, r, w = self.fit, self.x, self.r, self.w
         with _one_blas_thread():
-            sol, J, N = _solution(fit, x, r, w, self.history, self.converged)
+            J, N = self.normals
+            sol = _solution(fit, x, r, w, self.history, self.converged, J, N)
             factor = fit.variance_factor(r, w, x)
             finite = factor > 0 and np.all(np.isfinite(sol.covariance))
             irls = (sol.covariance, None)  # the IRLS model's covariance and bread N⁻¹ (lazy)
@@ -248,12 +259,16 @@ class _Fit:
         centre)."""
         given = None if x is None else self.problem.normal_matrix(values_of(self.params, x))
         N = normal_matrix(J, w) if given is None else np.array(given, float)
-        g = None if r is None else J.T @ (w * r)
-        for idx, center, P in self.priors:
+        for idx, _, P in self.priors:
             N[np.ix_(idx, idx)] += P
-            if g is not None:
-                g[idx] += P @ (x[idx] - center)
-        return N, g
+        return N, None if r is None else self.gradient(J, w, r, x)
+
+    def gradient(self, J, w: np.ndarray, r: np.ndarray, x: np.ndarray) -> np.ndarray:
+        """g = JᵀWr + P(x − centre), the priors' part added per prior group."""
+        g = J.T @ (w * r)
+        for idx, center, P in self.priors:
+            g[idx] += P @ (x[idx] - center)
+        return g
 
     def redundancy(self, counted: np.ndarray | None = None,
                    kept: np.ndarray | None = None) -> float:
@@ -328,11 +343,9 @@ def _levenberg_marquardt(at: Estimate, step_in_sigma: float) -> Estimate:
 
 
 def _solution(fit: _Fit, x: np.ndarray, r: np.ndarray, w: np.ndarray, history: list[dict],
-              converged: bool):
+              converged: bool, J, N: np.ndarray) -> Solution:
     """The :class:`Solution` at x (covariance = variance factor · N⁻¹, see
-    :meth:`_Fit.variance_factor`), with the Jacobian and normal matrix there."""
-    J = fit.jacobian(x)
-    N, _ = fit.normal_equations(J, w, x=x)
+    :meth:`_Fit.variance_factor`) from the Jacobian J and normal matrix N there."""
     dof = fit.dof(w)
     sol = Solution.from_normal_matrix(
         fit.params.updated(x), N, 2.0 * fit.cost(r, w, x) / dof, dof,
@@ -345,7 +358,7 @@ def _solution(fit: _Fit, x: np.ndarray, r: np.ndarray, w: np.ndarray, history: l
         kept = np.abs(r / fit.sig) <= GROSS_Z * s0
         sol.extra["unit_weight"] = {"sigma0": s0, "rows_skipped": skipped, "gross_z": GROSS_Z,
                                     "redundancy": fit.redundancy(kept=kept)}
-    return sol, J, N
+    return sol
 
 
 def _sandwich(fit: _Fit, J, r: np.ndarray, x: np.ndarray,
