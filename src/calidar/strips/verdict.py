@@ -296,10 +296,14 @@ def accuracy_finding(level: dict) -> Finding:
     groups = level["groups"]
     weak = [f"{g.replace('_', ' ')} (redundancy {v['redundancy_at_stated_sigma']:.1f} < "
             f"{level['min_redundancy']:g})"
-            for g, v in groups.items() if not v["estimated"]]
+            for g, v in groups.items() if not v["estimated"] and not v.get("bounded")]
+    bounded = [f"{g.replace('_', ' ')} (redundancy {v['redundancy_at_stated_sigma']:.0f} at the "
+               f"default, information {v['information']:.1f} at its estimate)"
+               for g, v in groups.items() if v.get("bounded")]
     factors = ", ".join(
         f"{g.replace('_', ' ')} ×{v['sigma_factor']:.2g}"
         + (f" ± {100 * v['sigma_factor_relative_sigma']:.0f} %" if v["estimated"] else "")
+        + (" at most" if v.get("bounded") else "")
         for g, v in groups.items())
     if level["source"] == "data":
         detail = ("no accuracy file found; trajectory accuracy estimated from the overlaps: "
@@ -314,6 +318,9 @@ def accuracy_finding(level: dict) -> Finding:
         moving = [(g, f) for g, f in spans if max(f) > 1.01 * min(f)]
         moved = ", ".join(f"{g.replace('_', ' ')} ×{min(f):.2g}–×{max(f):.2g}" for g, f in moving)
         detail += "; over the flight (per segment, pooled in time): " + (moved or "constant")
+    if bounded:
+        detail += ("; the data bound but do not measure " + ", ".join(bounded)
+                   + ": held at the upper end they leave it (its σ conservative)")
     if weak:
         detail += ("; the data cannot tell " + ", ".join(weak)
                    + ": the survey-grade default kept there")
