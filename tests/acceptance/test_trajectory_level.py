@@ -62,7 +62,7 @@ def test_small_heading_errors_are_bounded_not_mismeasured():
     overlaps check its priors at the default (redundancy 62–73 on seeds 3–6) but hardly at the
     level they point to: its information tr(R²) there is 0.0, 0.0, 3.8, 7.8 (seeds 3–6; the
     factor's relative σ 1/√(2 tr R²) ≥ 25 %), its restricted likelihood's 95 % interval 0.01–0.13,
-    0.01–0.14, 0.02–0.24, 0.07–0.31 × the default — it cannot be measured within 1.6× (estimated,
+    0.01–0.13, 0.02–0.23, 0.08–0.31 × the default — it cannot be measured within 1.6× (estimated,
     it came out 0.42, 0.07, 1.02, 2.25 × the truth with a stated ±14–17 %). So it is bounded, not
     estimated, and held at the upper end the data leave it: 0.168, 0.206, 0.271, 0.361 × the
     default on seeds 3–6, 1.3–2.9 × the truth (benchmarks/strips_heading_level.py)."""
@@ -84,10 +84,9 @@ def test_an_exact_trajectory_shrinks_the_sigma_towards_the_model_off():
     every group's level comes out at the floor, where they no longer check it (information tr R²
     0.2, 9.4, 0.6, 0.0), so each is bounded, held at the upper end the data leave it, 4 %, 1 %,
     5 % and 11 % of the survey-grade default (before issue 26's eleventh session: reported as
-    estimated at the 1 % floor, heading 5 %) — and yaw's σ comes within 2× of the trajectory
-    model switched off (measured 0.00026° against 0.00014°; at the floor 0.00017° against
-    0.00011° on the wrapping simulator; with the survey-grade default as priors 0.00188°); every
-    angle within 3σ of its truth."""
+    estimated, at 1–1.4 %) — and yaw's σ comes within 2× of the trajectory model switched off
+    (measured 0.00026° against 0.00014°; stated before that session: 0.00017° against 0.00011°;
+    with the survey-grade default as priors 0.00188°); every angle within 3σ of its truth."""
     res, out = _calibrate(0.0, 0.0)
     level = out.solution.extra["trajectory_accuracy_estimate"]
     assert level["source"] == "data"
