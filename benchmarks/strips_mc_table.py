@@ -1,7 +1,7 @@
 """The issue-26 Monte-Carlo table from ``strips_montecarlo.py``'s rows (issue 26, ninth session).
 
     python benchmarks/strips_mc_table.py ROWS.jsonl [ROWS2.jsonl ...] [--pool]
-    python benchmarks/strips_mc_table.py NONE.jsonl --source default --against SMRMSG.jsonl
+    python benchmarks/strips_mc_table.py NONE.jsonl --source default --against SMRMSG.jsonl [...]
 
 One markdown row per cell (preset, scene, directions, trees) and method: surveys (seeds), RMS
 of z = error/σ per angle (± its sampling spread 1/√(2n)), mean z, largest |z| per angle, the
@@ -69,7 +69,7 @@ def main() -> None:
     ap.add_argument("rows", type=Path, nargs="+", help="strips_montecarlo.py --json files")
     ap.add_argument("--pool", action="store_true", help="also one row per method over all")
     ap.add_argument("--source", default="smrmsg", help="the rows' accuracy source (default: smrmsg)")
-    ap.add_argument("--against", type=Path, default=None,
+    ap.add_argument("--against", type=Path, nargs="+", default=None,
                     help="σ ratio against these smrmsg rows (same seeds, cell and method)")
     args = ap.parse_args()
     rows = _rows(args.rows, args.source)
@@ -88,7 +88,7 @@ def main() -> None:
                 print(line(f"**{scene}, pooled**", method,
                            [r for r in rows if (scene_of(r), r["method"]) == (scene, method)]))
     if args.against is not None:
-        ref = {(r["seed"], r["method"], cell_of(r)): r for r in _rows([args.against], "smrmsg")}
+        ref = {(r["seed"], r["method"], cell_of(r)): r for r in _rows(args.against, "smrmsg")}
         ratio = np.array([np.divide(r["sigma_deg"], ref[k]["sigma_deg"]) for r in rows
                           if (k := (r["seed"], r["method"], cell_of(r))) in ref])
         print(f"σ ÷ the smrmsg rows' σ on {len(ratio)} surveys, roll / pitch / yaw: median "
