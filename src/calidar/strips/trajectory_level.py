@@ -55,6 +55,9 @@ GROUPS = ("position_horizontal", "position_vertical", "attitude_horizontal", "he
 MIN_REDUNDANCY = 10.0
 #: the smallest factor on a stated σ (1 % of the survey-grade default: 0.5 mm, 0.00003°)
 FLOOR_FACTOR = 0.01
+#: a bounded group is held at the σ its update rejects at this one-sided level (0.025: the upper end
+#: of a 95 % interval; 0.16, one σ: airborne yaw σ 1.29 → 1.18× the smrmsg's, docs/validation.md)
+BOUND_LEVEL = 0.025
 SOURCE = "estimated from the overlaps (variance components of the trajectory priors)"
 
 
@@ -224,7 +227,7 @@ def _components(terms: tuple, blocks: list, present: list[str]) -> tuple[Compone
         if not loose:
             return comps, fixed, bounded
         for g in loose:
-            held[g] = upper_end(terms, blocks, comps.variance, g)
+            held[g] = upper_end(terms, blocks, comps.variance, g, level=BOUND_LEVEL)
             bounded[g] = (float(np.sqrt(held[g])), float(comps.information[g]),
                           float(comps.redundancy_start[g]))
         fixed += loose
