@@ -29,17 +29,20 @@ def _rows(paths: list[Path]) -> dict:
     return out
 
 
-def _recorded(rows: dict) -> dict:
-    """The rows with the IRLS σ they recorded as their σ (and the model parts' shares kept)."""
-    out = {}
+def _recorded(rows: dict) -> tuple[dict, dict]:
+    """Two views of rows run with the sandwich σ, the rows read unchanged: (the IRLS σ they
+    recorded as their σ, with the IRLS model part's share; the rows as run, with the sandwich
+    model part's share)."""
+    irls, sandwich = {}, {}
     for key, r in rows.items():
         rec = r["covariance"]
         names = list(rec["irls_sigma"])
         angles = [n for n in names if n.startswith("boresight")] or names[:3]
-        out[key] = {**r, "sigma_deg": [float(np.degrees(rec["irls_sigma"][n])) for n in angles],
-                    "model_share": [rec["irls_model_sigma"][n] / rec["irls_sigma"][n] for n in angles]}
-        r["model_share"] = [rec["model_sigma"][n] / np.radians(s) for n, s in zip(angles, r["sigma_deg"])]
-    return out
+        irls[key] = {**r, "sigma_deg": [float(np.degrees(rec["irls_sigma"][n])) for n in angles],
+                     "model_share": [rec["irls_model_sigma"][n] / rec["irls_sigma"][n] for n in angles]}
+        sandwich[key] = {**r, "model_share": [rec["model_sigma"][n] / np.radians(s)
+                                              for n, s in zip(angles, r["sigma_deg"])]}
+    return irls, sandwich
 
 
 def main() -> None:
@@ -48,8 +51,10 @@ def main() -> None:
     ap.add_argument("--before", type=Path, nargs="*", default=[])
     args = ap.parse_args()
     after = _rows(args.after)
-    before = {**_recorded({k: r for k, r in after.items() if "irls_sigma" in (r.get("covariance") or {})}),
-              **_rows(args.before)}
+    recorded, shared = _recorded({k: r for k, r in after.items()
+                                  if "irls_sigma" in (r.get("covariance") or {})})
+    after = {**after, **shared}
+    before = {**recorded, **_rows(args.before)}
     keys = sorted(set(before) & set(after))
     print("| cell | method | n | RMS z r / p / y before → after | σ after ÷ before r / p / y "
           "| max abs z before → after | σ0 test before → after | sandwich f, q^½ (mean) | max abs Δ error "

@@ -6,7 +6,7 @@ lines).
         --preset uav --scene urban --directions cross --seeds 900-929 --cache DIR \\
         [--methods planes,vgicp] [--draws 80] [--save FN_DIR] [--json out.jsonl]
     ... --seeds 900-929,753-759 --transfer FN_DIR/911_planes.npz ... [--rows mc.jsonl ...]
-    ... --summary --json out.jsonl
+    ... --summary --json out.jsonl      # several runs: cat their jsonl into one file first
 
 Near its solution the adjustment is linear: the angles' error is N⁻¹JᵀWε − N⁻¹P·e, ε
 the rows' noise and e the true trajectory errors at the knots
@@ -340,6 +340,12 @@ def summary(rows: list[dict]) -> str:
                 f" RMS z {f(rms(np.sqrt(tc**2 + rs**2) / s))}, draw z RMS {f(rms(t / tc))}; "
                 f"the generator's --draws: spread {f(rms(tg))} mdeg, expected RMS z "
                 f"{f(rms(np.sqrt(tg**2 + rs**2) / s))}"]
+        if len(sel) > 2:  # the error follows its draw as N⁻¹P says: slope 1, parts uncorrelated
+            slope = np.sum(a * t, 0) / np.sum(t**2, 0)
+            spread = np.sqrt(np.sum(rs**2 * t**2, 0)) / np.sum(t**2, 0)  # rows' share as noise
+            corr = [np.corrcoef(a[:, i] - t[:, i], t[:, i])[0, 1] for i in range(3)]
+            out.append(f"{m:6s}   response: slope of actual on trajectory part {f(slope)} "
+                       f"(± {f(spread)}); corr(rows part, trajectory part) {f(corr)}")
         if len(sel) > 2:
             out.append(f"{m:6s}   yaw: corr(actual, trajectory part) "
                        f"{np.corrcoef(a[:, 2], t[:, 2])[0, 1]:+.2f}")

@@ -15,15 +15,17 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from strips_scale import simulate  # noqa: E402  (the shared 8-strip survey at a size)
 
 
-def survey_pairs(cache: Path, million: float) -> list[tuple[int, np.ndarray, int, np.ndarray]]:
+def survey_pairs(cache: Path, million: float,
+                 sim: Path | None = None) -> list[tuple[int, np.ndarray, int, np.ndarray]]:
     """(a, points of a, b, points of b) (N, 3) metric for every overlapping pair, in the
-    calibrator's order."""
+    calibrator's order; ``sim``: a survey simulated already (strips/*.laz, sbet.out, sensor.toml),
+    such as ``benchmarks/large_flight.py``'s, instead of the shared one."""
     from calidar.io.trajectory import read_trajectory
     from calidar.pipelines.boresight import load_strips
     from calidar.sensor import Sensor
     from calidar.strips.overlap import find_overlaps
 
-    sim = simulate(cache, million)
+    sim = sim if sim is not None else simulate(cache, million)
     nominal = Sensor.read(sim / "sensor.toml")
     strips, _ = load_strips(sorted((sim / "strips").glob("*.laz")), read_trajectory(sim / "sbet.out"), nominal)
     by_id = {s.id: s for s in strips}

@@ -1,6 +1,7 @@
 """Benchmark: calidar's VGICP matching of each strip pair against small_gicp's own registration of the same crop.
 
     NUMBA_NUM_THREADS=1 OMP_NUM_THREADS=1 PYTHONPATH=src python benchmarks/vgicp_pairs.py [--size 8.75] [--repeat 3]
+        [--sim DATA/flight_8.75M]
 
 The 8-strip survey of ``benchmarks/strips_scale.py`` (cached under ``--cache``, not timed), its strips
 built as ``calidar boresight`` builds them (streamed ingest, 300 000 points per strip) and
@@ -42,11 +43,13 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--size", type=float, default=8.75, help="survey size, million points")
     ap.add_argument("--cache", type=Path, default=Path(tempfile.gettempdir()) / "calidar_bench_strips_scale")
+    ap.add_argument("--sim", type=Path, help="a survey simulated already (strips/*.laz, sbet.out, "
+                    "sensor.toml), e.g. large_flight.py's flight_8.75M, instead of --size/--cache")
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--register-only", action="store_true",
                     help="time calidar's registration alone")
     args = ap.parse_args()
-    pairs = survey_pairs(args.cache, args.size)
+    pairs = survey_pairs(args.cache, args.size, args.sim)
     settings = VgicpSettings()
     print(f"machine: {platform.machine()}, {os.cpu_count()} cores, python {platform.python_version()}; "
           f"NUMBA_NUM_THREADS={os.environ.get('NUMBA_NUM_THREADS')}; load average {os.getloadavg()[0]:.1f}; "

@@ -16,6 +16,7 @@ from __future__ import annotations
 import contextlib
 from collections.abc import Callable
 from dataclasses import dataclass, replace
+from functools import cached_property
 
 import numpy as np
 import scipy.sparse as sp
@@ -128,6 +129,15 @@ class Estimate:
     def parameters(self) -> ParameterSet:
         return self.fit.params.updated(self.x)
 
+    @cached_property
+    def normals(self) -> tuple:
+        """(J, N) at x: the Jacobian and the normal matrix with the priors, computed once for
+        :meth:`solution` and whoever asks after it (the model check's freed fits); read only.
+        (Not a field: an Estimate made from this one by ``replace`` computes its own.)"""
+        with _one_blas_thread():
+            J = self.fit.jacobian(self.x)
+            return J, self.fit.normal_equations(J, self.w, x=self.x)[0]
+
     def refine(self, step_in_sigma: float = STEP_IN_SIGMA) -> "Estimate":
         """Iterate on from here until every step is below ``step_in_sigma`` of its σ."""
         with _one_blas_thread():
@@ -140,13 +150,14 @@ class Estimate:
         in ``clusters`` (see :func:`solve`)."""
         fit, x, r, w = self.fit, self.x, self.r, self.w
         with _one_blas_thread():
-            sol, J, N = _solution(fit, x, r, w, self.history, self.converged)
+            J, N = self.normals
+            sol = _solution(fit, x, r, w, self.history, self.converged, J, N)
             factor = fit.variance_factor(r, w, x)
             finite = factor > 0 and np.all(np.isfinite(sol.covariance))
             irls = (sol.covariance, None)  # the IRLS model's covariance and bread N⁻¹ (lazy)
             if self.options.covariance == "sandwich":
-                bread = _sandwich(fit, J, r, x, sol)
-                models = [irls, (sol.covariance, bread)] if bread is not None else [irls]
+                sandwich, sol.extra["covariance"] = _sandwich(fit, J, r, x, sol)
+                models = [irls] if sandwich is None else [irls, sandwich]
             else:
                 models = [irls]
         groupings = clusters if isinstance(clusters, list) else [clusters]
@@ -248,12 +259,16 @@ class _Fit:
         centre)."""
         given = None if x is None else self.problem.normal_matrix(values_of(self.params, x))
         N = normal_matrix(J, w) if given is None else np.array(given, float)
-        g = None if r is None else J.T @ (w * r)
-        for idx, center, P in self.priors:
+        for idx, _, P in self.priors:
             N[np.ix_(idx, idx)] += P
-            if g is not None:
-                g[idx] += P @ (x[idx] - center)
-        return N, g
+        return N, None if r is None else self.gradient(J, w, r, x)
+
+    def gradient(self, J, w: np.ndarray, r: np.ndarray, x: np.ndarray) -> np.ndarray:
+        """g = JᵀWr + P(x − centre), the priors' part added per prior group."""
+        g = J.T @ (w * r)
+        for idx, center, P in self.priors:
+            g[idx] += P @ (x[idx] - center)
+        return g
 
     def redundancy(self, counted: np.ndarray | None = None,
                    kept: np.ndarray | None = None) -> float:
@@ -328,11 +343,9 @@ def _levenberg_marquardt(at: Estimate, step_in_sigma: float) -> Estimate:
 
 
 def _solution(fit: _Fit, x: np.ndarray, r: np.ndarray, w: np.ndarray, history: list[dict],
-              converged: bool):
+              converged: bool, J, N: np.ndarray) -> Solution:
     """The :class:`Solution` at x (covariance = variance factor · N⁻¹, see
-    :meth:`_Fit.variance_factor`), with the Jacobian and normal matrix there."""
-    J = fit.jacobian(x)
-    N, _ = fit.normal_equations(J, w, x=x)
+    :meth:`_Fit.variance_factor`) from the Jacobian J and normal matrix N there."""
     dof = fit.dof(w)
     sol = Solution.from_normal_matrix(
         fit.params.updated(x), N, 2.0 * fit.cost(r, w, x) / dof, dof,
@@ -345,15 +358,16 @@ def _solution(fit: _Fit, x: np.ndarray, r: np.ndarray, w: np.ndarray, history: l
         kept = np.abs(r / fit.sig) <= GROSS_Z * s0
         sol.extra["unit_weight"] = {"sigma0": s0, "rows_skipped": skipped, "gross_z": GROSS_Z,
                                     "redundancy": fit.redundancy(kept=kept)}
-    return sol, J, N
+    return sol
 
 
-def _sandwich(fit: _Fit, J, r: np.ndarray, x: np.ndarray, sol: Solution) -> np.ndarray | None:
-    """Replace ``sol``'s covariance by the robust fit's M-estimator sandwich
-    A⁻¹(f·c_ψ·Σ J_iJ_iᵀ/σ_i² + max(f, 1)·P)A⁻¹ (:mod:`calidar.adjust.m_estimator`, which says
-    how f is read) and return A⁻¹, the bread of the cluster-robust σ on top; None (the IRLS
-    covariance kept, and said in ``extra["covariance"]``) where the solution has undetermined
-    directions or A is not positive definite."""
+def _sandwich(fit: _Fit, J, r: np.ndarray, x: np.ndarray,
+              sol: Solution) -> tuple[tuple[np.ndarray, np.ndarray] | None, dict]:
+    """The robust fit's M-estimator sandwich A⁻¹(f·c_ψ·Σ J_iJ_iᵀ/σ_i² + max(f, 1)·P)A⁻¹
+    (:mod:`calidar.adjust.m_estimator`, which says how f is read) at the IRLS solution ``sol``:
+    ((covariance, A⁻¹ — the bread of the cluster-robust σ on top), the record for
+    ``extra["covariance"]``); (None, the record saying why) where the solution has undetermined
+    directions or A is not positive definite, and the IRLS covariance stays."""
     z = r / fit.sig
     s = fit.scale(z)
     k = ROBUST_K.get(fit.robust, 1.0) if fit.robust_k is None else fit.robust_k
@@ -372,11 +386,7 @@ def _sandwich(fit: _Fit, J, r: np.ndarray, x: np.ndarray, sol: Solution) -> np.n
             B[np.ix_(idx, idx)] += (max(factor, 1.0) - 1.0) * P
         parts = sandwich_covariance(A, B)
     if parts is None:
-        sol.extra["covariance"] = {"model": "irls", "reason": "no sandwich: A not positive "
-                                   "definite or directions not determined"}
-        return None
-    sol.covariance, bread = parts
-    sol.extra["covariance"] = {"model": "sandwich", "variance_factor": factor,
-                               "psi_sigma0": level ** 0.5, "normal_psi_square": c_psi,
-                               "huber_k": k_factor, "scale": s}
-    return bread
+        return None, {"model": "irls", "reason": "no sandwich: A not positive definite or "
+                      "directions not determined"}
+    return parts, {"model": "sandwich", "variance_factor": factor, "psi_sigma0": level ** 0.5,
+                   "normal_psi_square": c_psi, "huber_k": k_factor, "scale": s}

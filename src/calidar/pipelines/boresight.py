@@ -187,6 +187,23 @@ def load_inputs(strip_paths, trajectory_path, sensor_path, config: StripConfig =
     return inputs
 
 
+def _start_pair_workers(paths, config: StripConfig, work) -> None:
+    """A matcher that holds the GIL (VGICP) matches its pairs in worker processes: their forkserver
+    is started now, to import what they need while the strips are read
+    (:func:`calidar.strips.processes.start_server`, by the files' point counts)."""
+    from calidar.errors import CalidarError
+    from calidar.io.las import las_header
+    from calidar.strips.processes import start_server
+
+    if work.client is not None or not any(m.holds_gil for m in config.calibration.matchers):
+        return
+    try:
+        points = sum(int(las_header(p).point_count) for p in paths)
+    except (CalidarError, OSError):  # the ingest reports it, naming the file
+        return
+    start_server(points)
+
+
 def estimates_accuracy(accuracy) -> bool:
     """Whether the calibration estimates the trajectory's accuracy level from the overlaps: when
     no source stated it (``accuracy`` is the survey-grade default :func:`resolve_accuracy` fell
@@ -329,7 +346,9 @@ def calibrate_strips(strips, trajectory, sensor, config: StripConfig = StripConf
     from calidar.strips.distribute import workers_for
     from calidar.strips.verdict import agreement_finding, strip_verdict
 
+    strips = list(strips)  # (read twice: the headers' point counts, then the points)
     with workers_for(scheduler, workers) as work:  # one cluster (or thread pool) for every stage
+        _start_pair_workers(strips, config, work)
         inputs = load_inputs(strips, trajectory, sensor, config, accuracy=accuracy, control=control,
                              checkpoints=checkpoints, truth=truth, progress=progress, work=work)
         files = {"trajectory_accuracy": accuracy, "control": control,

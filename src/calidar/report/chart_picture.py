@@ -16,8 +16,8 @@ import math
 import numpy as np
 
 from calidar.report.map_picture import (BACKGROUND, BAR_W, FONT_PX, INK, LINE_PX, TITLE_PX,
-                                        colour_bar, colours, nice_ticks, png_bytes,
-                                        text_font, vertical_text, widest)
+                                        colour_bar, colours, nice_ticks, paste_ink, png_bytes,
+                                        text_font, turned_text, vertical_text, widest)
 
 CELL_PX = 58  #: a correlation cell's side, pixels
 LABEL_ANGLE = 35  #: the correlation's column labels turned by, degrees (reading upwards)
@@ -79,13 +79,8 @@ def correlation_png(corr: np.ndarray, names: list[str]) -> bytes:
 def _turned(img, text: str, font, end: tuple[float, float]) -> None:
     """``text`` turned by :data:`LABEL_ANGLE` (reading upwards), its end at ``end`` (x, y):
     a column label under its tick."""
-    from PIL import Image, ImageDraw
-
-    strip = Image.new("L", (int(font.getlength(text)) + 2, FONT_PX + 5), 0)
-    ImageDraw.Draw(strip).text((0, 0), text, fill=255, font=font)
-    strip = strip.rotate(LABEL_ANGLE, expand=True, resample=Image.BICUBIC)
-    at = (int(end[0] - strip.size[0]), int(end[1]))
-    img.paste(Image.new("RGB", strip.size, INK), at, strip)
+    mask = turned_text(text, font, LABEL_ANGLE)
+    paste_ink(img, mask, (end[0] - mask.size[0], end[1]))
 
 
 def histogram_png(before: np.ndarray, after: np.ndarray, unit: str = "m",

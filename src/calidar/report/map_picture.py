@@ -169,10 +169,22 @@ def colour_bar(img, draw, at: tuple[int, int, int], lim: float, ticks, font) -> 
 
 def vertical_text(img, text: str, font, at: tuple[float, float]) -> None:
     """``text`` turned 90° (reading upwards), its left edge at x = at[0], centred on y = at[1]."""
+    mask = turned_text(text, font, 90.0)
+    paste_ink(img, mask, (at[0], at[1] - mask.size[1] / 2))
+
+
+def turned_text(text: str, font, degrees: float):
+    """``text`` as a mask (a Pillow "L" image, ink 255) turned by ``degrees`` anticlockwise
+    (reading upwards), the mask grown to hold it."""
     from PIL import Image, ImageDraw
 
     strip = Image.new("L", (int(font.getlength(text)) + 2, FONT_PX + 5), 0)
     ImageDraw.Draw(strip).text((0, 0), text, fill=255, font=font)
-    strip = strip.rotate(90, expand=True)
-    at_px = (int(at[0]), int(at[1] - strip.size[1] / 2))
-    img.paste(Image.new("RGB", strip.size, INK), at_px, strip)
+    return strip.rotate(degrees, expand=True, resample=Image.BICUBIC)
+
+
+def paste_ink(img, mask, corner: tuple[float, float]) -> None:
+    """Ink (:data:`INK`) through ``mask`` onto ``img``, the mask's top left at ``corner`` (x, y)."""
+    from PIL import Image
+
+    img.paste(Image.new("RGB", mask.size, INK), (int(corner[0]), int(corner[1])), mask)

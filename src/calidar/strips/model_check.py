@@ -203,8 +203,8 @@ def _check(est, problem_for, nominal_parameters, scanner, groupings, shown,
     clock, cpu = time.perf_counter(), time.process_time()
     fit, x, r, w = est.fit, est.x, est.r, est.w
     free = fit.params.free_names
-    J = fit.jacobian(x)
-    N, g = fit.normal_equations(J, w, r, x)
+    J, N = est.normals  # the solution's (computed once)
+    g = fit.gradient(J, w, r, x)
     try:
         freed = FreedFit(J, w, r, N, g, fit.variance_factor(r, w, x), groupings)
     except (np.linalg.LinAlgError, ValueError):

@@ -123,6 +123,48 @@ def _dense_counts(keys):  # pragma: no cover - numba
     return cells, counts, True
 
 
+def stable_key_order(keys: np.ndarray) -> np.ndarray:
+    """``np.argsort(keys, kind="stable")`` of int64 cell keys (as
+    :func:`calidar.strips.overlap.cell_keys`): a counting sort over the dense table of their cells
+    (a stable order is unique: the same indices), or the argsort when the table is too large
+    (> 4 N + 65 536 cells). 5–10× fewer CPU seconds than the argsort (the tie planes' patches)."""
+    keys = np.ascontiguousarray(keys, np.int64)
+    order, dense = _dense_order(keys)
+    return order if dense else np.argsort(keys, kind="stable")
+
+
+@njit(cache=True, nogil=True)
+def _dense_order(keys):  # pragma: no cover - numba
+    n = keys.size
+    if n == 0:
+        return np.zeros(0, np.int64), True
+    lo0, hi0, lo1, hi1 = 0, 0, 0, 0
+    for k in range(n):
+        i, j = key_cell(keys[k])
+        if k == 0:
+            lo0, hi0, lo1, hi1 = i, i, j, j
+        else:
+            lo0, hi0, lo1, hi1 = min(lo0, i), max(hi0, i), min(lo1, j), max(hi1, j)
+    box = (lo0, hi0, lo1, hi1)
+    if not dense_fits(n, box):
+        return np.zeros(0, np.int64), False
+    width = hi1 - lo1 + 1
+    slot = np.empty(n, np.int64)
+    table = np.zeros((hi0 - lo0 + 1) * width, np.int64)
+    for k in range(n):
+        i, j = key_cell(keys[k])
+        slot[k] = (i - lo0) * width + j - lo1
+        table[slot[k]] += 1
+    at = 0  # each occupied slot's first position, slots in key order
+    for s in key_order(table > 0, box):
+        at, table[s] = at + table[s], at
+    order = np.empty(n, np.int64)
+    for k in range(n):  # points in their order within each slot: stable
+        order[table[slot[k]]] = k
+        table[slot[k]] += 1
+    return order, True
+
+
 def dense_row_ids(ij: np.ndarray):
     """(id of each row, number of distinct rows) of integer rows (K, 2), ids in the lexicographic
     order of the rows — ``np.unique(ij, axis=0, return_inverse=True)``'s — by a dense table over

@@ -232,9 +232,11 @@ class Run:
 
         free = est.parameters.free_names
         shown = [n for n in free if not n.startswith(NUISANCE)]
+        rows = getattr(problem, "inner", problem)  # (with control: inside SurveyErrors)
+
         def with_freed(names):  # the same rows with ``names`` free too
             return StripProblem(self.nominal, self.poses, corrs, [*free, *names], self._times(),
-                                self.model, self.spans)
+                                self.model, self.spans, same_rows=rows)
 
         return check(est, with_freed, self.nominal.parameters(),
                      list(self.nominal.scanner.parameters()), self.clusters(problem), shown,

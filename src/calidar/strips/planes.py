@@ -35,6 +35,7 @@ from numba import njit
 
 from calidar.strips.correspond import Correspondences
 from calidar.strips.overlap import cell_keys, footprint_area_m2
+from calidar.strips.moments_kernel import stable_key_order
 from calidar.strips.pca import eigh3
 from calidar.strips.row_variance import posterior, satterthwaite
 from calidar.strips.tilt import calibrated_normals
@@ -88,17 +89,17 @@ def patch_cell_size(points: np.ndarray, target_points: int) -> float:
 def fit_patches(points: np.ndarray, cell_m: float, settings: PlaneSettings) -> Patches:
     """Fit a plane in every grid cell of ``points`` (N, 3) local m; keep the planar ones."""
     keys = cell_keys(points, cell_m)
-    order = np.argsort(keys, kind="stable")
+    order = stable_key_order(keys)  # np.argsort(keys, kind="stable")'s, by a counting sort
     ks = keys[order]
     start = np.r_[0, np.flatnonzero(ks[1:] != ks[:-1]) + 1] if ks.size else np.zeros(0, np.int64)
     uk, count = ks[start], np.diff(np.r_[start, ks.size])
     ok = np.flatnonzero(count >= max(settings.min_points, 4))  # a plane and its scatter
     contiguous = np.ascontiguousarray(points, dtype=np.float64)
     mean, cov = _cell_moments(contiguous, order, start[ok], count[ok])
-    planar, normal, lam0 = planar_cells(cov, cell_m, settings)
+    planar, normal, lam0, (lam, vec) = _planarity(cov, cell_m, settings)
     sel = ok[planar]
     rms = np.sqrt(lam0 * count[sel] / (count[sel] - 3))  # 3 plane parameters fitted
-    lam, vec = eigh3(cov[planar]) if planar.any() else (np.zeros((0, 3)), np.zeros((0, 3, 3)))
+    lam, vec = lam[planar], vec[planar]  # (eigh3 works matrix by matrix: its values on the subset)
     spread = np.clip(lam[:, 1:], 1e-12, None)
     return Patches(uk[sel], mean[planar], normal, rms, vec[:, :, 1:], spread, start[sel],
                    count[sel], order)
@@ -118,19 +119,64 @@ def plane_point_weights(points: np.ndarray, A: sp.csr_matrix, target: np.ndarray
     height there in units of its points' σ² (1/m at the centroid, more off it)."""
     import scipy.sparse as sp
 
-    rows = np.repeat(np.arange(A.shape[0]), np.diff(A.indptr))
-    mean = A @ points
-    d = points[A.indices] - mean[rows]
-    cov = np.zeros((A.shape[0], 3, 3))
-    for i in range(3):
-        for j in range(i, 3):
-            cov[:, i, j] = cov[:, j, i] = np.bincount(rows, A.data * d[:, i] * d[:, j], A.shape[0])
+    points = np.ascontiguousarray(points, dtype=np.float64)
+    mean, cov = _row_moments(A.indptr, A.indices, A.data, points)
     lam, vec = eigh3(cov)
-    axes = vec[:, :, 1:]  # (R, 3, 2)
-    coef = np.einsum("ri,rij->rj", target - mean, axes) / np.clip(lam[:, 1:], 1e-12, None)
-    h = A.data * (1.0 + np.einsum("kj,kj->k", coef[rows], np.einsum("ki,kij->kj", d, axes[rows])))
+    h, leverage = _hat_weights(A.indptr, A.indices, A.data, points,
+                               np.ascontiguousarray(target, dtype=np.float64), mean, lam, vec)
     weights = sp.csr_matrix((h, A.indices.copy(), A.indptr.copy()), shape=A.shape)
-    return weights, np.bincount(rows, h * h, A.shape[0])
+    return weights, leverage
+
+
+# The two kernels of plane_point_weights, numpy's order of operations kept (the same bits as
+# ``A @ points``, the centred products summed per row by ``np.bincount`` and the einsums over
+# three or two terms; tests/unit/strips/test_strips_planes.py), without the per-entry gathers.
+
+@njit(cache=True, nogil=True)
+def _row_moments(indptr, indices, data, points):  # pragma: no cover - numba
+    """Each row's weighted mean (R, 3) and weighted scatter about it (R, 3, 3)."""
+    n = indptr.size - 1
+    mean, cov = np.zeros((n, 3)), np.zeros((n, 3, 3))
+    for r in range(n):
+        for k in range(indptr[r], indptr[r + 1]):
+            for a in range(3):
+                mean[r, a] += data[k] * points[indices[k], a]
+        for k in range(indptr[r], indptr[r + 1]):
+            p = indices[k]
+            d0, d1, d2 = (points[p, 0] - mean[r, 0], points[p, 1] - mean[r, 1],
+                          points[p, 2] - mean[r, 2])
+            w0, w1, w2 = data[k] * d0, data[k] * d1, data[k] * d2
+            cov[r, 0, 0] += w0 * d0
+            cov[r, 0, 1] += w0 * d1
+            cov[r, 0, 2] += w0 * d2
+            cov[r, 1, 1] += w1 * d1
+            cov[r, 1, 2] += w1 * d2
+            cov[r, 2, 2] += w2 * d2
+        cov[r, 1, 0], cov[r, 2, 0], cov[r, 2, 1] = cov[r, 0, 1], cov[r, 0, 2], cov[r, 1, 2]
+    return mean, cov
+
+
+@njit(cache=True, nogil=True)
+def _hat_weights(indptr, indices, data, points, target, mean, lam, vec):  # pragma: no cover
+    """Each entry's hat weight h and each row's Σ h² (see :func:`plane_point_weights`)."""
+    n = indptr.size - 1
+    h, leverage = np.empty(data.size), np.zeros(n)
+    for r in range(n):
+        t0, t1, t2 = target[r, 0] - mean[r, 0], target[r, 1] - mean[r, 1], target[r, 2] - mean[r, 2]
+        c = np.empty(2)
+        for j in range(2):
+            spread = lam[r, j + 1] if not lam[r, j + 1] < 1e-12 else 1e-12  # np.clip: NaN kept
+            c[j] = (0.0 + t0 * vec[r, 0, j + 1] + t1 * vec[r, 1, j + 1]
+                    + t2 * vec[r, 2, j + 1]) / spread
+        for k in range(indptr[r], indptr[r + 1]):
+            p = indices[k]
+            d0, d1, d2 = (points[p, 0] - mean[r, 0], points[p, 1] - mean[r, 1],
+                          points[p, 2] - mean[r, 2])
+            e0 = 0.0 + d0 * vec[r, 0, 1] + d1 * vec[r, 1, 1] + d2 * vec[r, 2, 1]
+            e1 = 0.0 + d0 * vec[r, 0, 2] + d1 * vec[r, 1, 2] + d2 * vec[r, 2, 2]
+            h[k] = data[k] * (1.0 + (c[0] * e0 + c[1] * e1))
+            leverage[r] += h[k] * h[k]
+    return h, leverage
 
 
 def planar_cells(cov: np.ndarray, cell_m: float,
@@ -138,14 +184,19 @@ def planar_cells(cov: np.ndarray, cell_m: float,
     """The planarity test of cells from their point covariances (K, 3, 3) m²: mask of the planar
     cells (√λ0 ≤ max_rms_m, √λ1 ≥ min_spread · cell_m), their unit normals pointing up and λ0
     (m²)."""
-    lam, vec = eigh3(cov)
-    lam = np.clip(lam, 0.0, None)
+    return _planarity(cov, cell_m, settings)[:3]
+
+
+def _planarity(cov: np.ndarray, cell_m: float, settings: PlaneSettings) -> tuple:
+    """:func:`planar_cells` and the eigen decomposition of every cell it came from (eigh3's)."""
+    raw = eigh3(cov)
+    lam = np.clip(raw[0], 0.0, None)
     thin = np.sqrt(lam[:, 0]) <= settings.max_rms_m
     filled = np.sqrt(lam[:, 1]) >= settings.min_spread * cell_m
     planar = thin & filled
-    normal = vec[planar][:, :, 0]
+    normal = raw[1][planar][:, :, 0]
     normal *= np.where(normal[:, 2] < 0, -1.0, 1.0)[:, None]
-    return planar, normal, lam[planar, 0]
+    return planar, normal, lam[planar, 0], raw
 
 
 @njit(cache=True, nogil=True)

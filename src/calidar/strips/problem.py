@@ -60,26 +60,26 @@ class StripProblem(ResidualProblem):
     def __init__(self, nominal: Sensor, poses: dict[int, Pose], corrs: list[Correspondences],
                  free: Sequence[str] | ParameterSet, times: dict[int, np.ndarray] | None = None,
                  trajectory: TrajectoryModel | None = None,
-                 spans: dict[int, tuple[float, float]] | None = None):
+                 spans: dict[int, tuple[float, float]] | None = None, *,
+                 same_rows: StripProblem | None = None):
         """poses: per strip, cached poses holding at least every point the correspondences
         reference; free: the free parameters' names, or the ParameterSet to solve (the engine's
         problem then); times: per strip, the GPS times (s) of all its points; trajectory, spans:
-        the model of trajectory corrections (None: no corrections) and the strips' time spans."""
+        the model of trajectory corrections (None: no corrections) and the strips' time spans;
+        ``same_rows``: a problem built from the same ``corrs``, ``times`` and trajectory model,
+        whose rows (counted once, their columns compacted, σ, times) are taken, not built again
+        (the model check's problems with more parameters free)."""
         self.nominal = nominal
         self.trajectory, self.spans = trajectory, spans or {}
-        corrs, shares = counted_once(list(corrs))  # a patch several pairs use, counted once
-        #: each residual's share of an observation in the redundancy (the engine's σ0)
-        self.row_share = np.concatenate(shares) if shares else np.zeros(0)
         if isinstance(free, ParameterSet):
             self.parameters, free = free, free.free_names
             self._blocks()
-        used: dict[int, list[np.ndarray]] = {}
-        for c in corrs:
-            used.setdefault(c.strip_a, []).append(c.A.indices)
-            used.setdefault(c.strip_b, []).append(c.B.indices)
-        self.index = {i: union(v) for i, v in used.items()}
-        self.time = {i: times[i][idx] for i, idx in self.index.items()} if trajectory else {}
-
+        corrs = list(corrs)
+        if same_rows is not None:
+            self._rows_of(same_rows)
+        else:
+            self._rows(corrs, times)
+        # (counting once changes the sets' σ, not their averaging matrices A and B)
         scanner_free = set(free) & set(nominal.scanner.parameters())
         range_free = bool(set(free) & {"range_offset", "range_scale"})
         lever_free = any(f.startswith("lever_arm") for f in free)
@@ -89,13 +89,35 @@ class StripProblem(ResidualProblem):
         #: poses of every referenced point, for re-georeferencing them all (scanner parameters free)
         self.pose: dict[int, Pose] = {} if self.centroids is not None else {
             i: poses[i].take(poses[i].rows_of(idx)) for i, idx in self.index.items()}
+        self._pattern = None  # the trajectory Jacobian's sparsity, built on its first call
+
+    def _rows(self, corrs: list[Correspondences], times: dict[int, np.ndarray] | None) -> None:
+        """The rows: each patch several pairs use counted once, the points referenced per strip,
+        the sets' columns compacted to them, σ, the rows' times."""
+        corrs, shares = counted_once(corrs)  # a patch several pairs use, counted once
+        #: each residual's share of an observation in the redundancy (the engine's σ0)
+        self.row_share = np.concatenate(shares) if shares else np.zeros(0)
+        used: dict[int, list[np.ndarray]] = {}
+        for c in corrs:
+            used.setdefault(c.strip_a, []).append(c.A.indices)
+            used.setdefault(c.strip_b, []).append(c.B.indices)
+        self.index = {i: union(v) for i, v in used.items()}
+        self.time = ({i: times[i][idx] for i, idx in self.index.items()} if self.trajectory
+                     else {})
         self.corrs = [replace(c, A=compact(c.A, self.index[c.strip_a]),
                               B=compact(c.B, self.index[c.strip_b])) for c in corrs]
         self.sigma = np.concatenate([_row_sigma(c) for c in self.corrs])
-        self._pattern = None  # the trajectory Jacobian's sparsity, built on its first call
         self._knots: dict[tuple[int, int], tuple] = {}  # (set, side) → the rows' knots and weights
         self.row_time = [(self._side_time(c.A, c.strip_a), self._side_time(c.B, c.strip_b))
                          for c in self.corrs]
+
+    def _rows_of(self, other: StripProblem) -> None:
+        """:meth:`_rows` taken from a problem on the same rows (the arrays shared, read only)."""
+        if (other.trajectory is None) != (self.trajectory is None):
+            raise ValueError("same_rows: a problem with the same trajectory model")
+        for name in ("row_share", "index", "time", "corrs", "sigma", "row_time"):
+            setattr(self, name, getattr(other, name))
+        self._knots = dict(other._knots)
 
     def _side_time(self, m: sp.csr_matrix, strip_id: int) -> np.ndarray | None:
         """The weighted mean GPS time (s) of each row of one side (None: no trajectory model)."""

@@ -36,14 +36,20 @@ MIN_ROWS = 8
 MIN_PRIOR_DOF = 2.5
 
 
+def trigamma(x):
+    """ψ'(x) = ζ(2, x), the Hurwitz zeta function: scipy's ``polygamma(1, x)`` computes it as
+    (−1)²·Γ(2)·ζ(2, x), the same bits (both factors exactly 1), at ≈ 1/7 of the call's cost."""
+    from scipy.special import zeta  # here, not at import: `calidar quality` needs no scipy
+
+    return zeta(2, x)
+
+
 def _trigamma_inverse(y: float) -> float:
     """x with ψ'(x) = y (y > 0), by bisection on log x (ψ' falls monotonically)."""
-    from scipy.special import polygamma  # here, not at import: `calidar quality` needs no scipy
-
     lo, hi = 1e-6, 1e8
     for _ in range(80):
         mid = np.sqrt(lo * hi)
-        lo, hi = (mid, hi) if polygamma(1, mid) > y else (lo, mid)
+        lo, hi = (mid, hi) if trigamma(mid) > y else (lo, mid)
     return float(np.sqrt(lo * hi))
 
 
@@ -54,18 +60,26 @@ def fitted_prior(variance_m2: np.ndarray, dof: np.ndarray,
     d0 = inf when the rows scatter no more than their sampling allows (one variance for all).
     ``sampled`` False: the variances are expected values (a plan's, mirroring the calibrator),
     their whole spread the prior's."""
-    from scipy.special import digamma, polygamma
+    from scipy.special import digamma
 
     ok = (dof > 0) & (variance_m2 > 0)
     s2, d = variance_m2[ok], dof[ok].astype(float)
     if s2.size < MIN_ROWS:
         return SCATTER_PRIOR_DOF, float(np.mean(variance_m2)) if variance_m2.size else 0.0
-    e = np.log(s2) - (digamma(d / 2) - np.log(d / 2) if sampled else 0.0)
-    excess = float(np.var(e, ddof=1) - (np.mean(polygamma(1, d / 2)) if sampled else 0.0))
+    e = np.log(s2) - (_per_value(digamma, d / 2) - np.log(d / 2) if sampled else 0.0)
+    excess = float(np.var(e, ddof=1) - (np.mean(_per_value(trigamma, d / 2)) if sampled else 0.0))
     if excess <= 0:
         return np.inf, float(np.exp(np.mean(e)))
     d0 = max(2.0 * _trigamma_inverse(excess), MIN_PRIOR_DOF)
     return d0, float(np.exp(np.mean(e) + digamma(d0 / 2) - np.log(d0 / 2)))
+
+
+def _per_value(f, x: np.ndarray) -> np.ndarray:
+    """``f(x)`` of an elementwise ``f``, evaluated once per distinct value of ``x`` (the rows'
+    degrees of freedom take a few integer values: scipy's polygamma over every row was 4 % of the
+    calibration stage's samples); the same numbers."""
+    values, inverse = np.unique(x, return_inverse=True)
+    return np.asarray(f(values), float)[inverse.reshape(x.shape)]
 
 
 def posterior(variance_m2: np.ndarray, dof: np.ndarray | float, sampled: bool = True

@@ -34,6 +34,7 @@ stays independent of the residual's noise and the outer loop's fixed point unbia
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 
 #: the prior's variances of a true tilt (rad²): flat, then 3·10⁻⁴ rad to 1 rad (walls are steeper:
 #: their tilts are far beyond the fits' noise and kept whatever the prior)
@@ -54,14 +55,46 @@ def expected_tilt(tau: np.ndarray, var: np.ndarray) -> np.ndarray:
     loglik = -0.5 * np.sum(np.log(total) + tau[:, None, :] ** 2 / total, axis=2)  # (R, K)
     loglik -= loglik.max(axis=1, keepdims=True)
     lik = np.exp(loglik)
-    weight = np.full(PRIOR_VARIANCES.size, 1.0 / PRIOR_VARIANCES.size)
-    for _ in range(EM_ITERATIONS):
-        post = lik * weight
-        post /= post.sum(axis=1, keepdims=True)
-        weight = post.mean(axis=0)
+    weight = mixture_weights(lik, EM_ITERATIONS)
     post = lik * weight
     post /= post.sum(axis=1, keepdims=True)
     return np.einsum("rk,rkj->rj", post, s2 / total) * tau
+
+
+@njit(cache=True, nogil=True)
+def mixture_weights(lik, iterations):  # pragma: no cover - numba
+    """The mixture's weights (K,) after ``iterations`` EM steps from uniform, given each row's
+    likelihood under each component ``lik`` (R, K): per step post = lik·weight normalised per row,
+    weight = post's mean over the rows. One pass over the rows per step, without temporaries, in
+    the order of operations of numpy's ``post /= post.sum(axis=1, keepdims=True); weight =
+    post.mean(axis=0)`` (the same bits, tests/unit/strips/test_tilt.py; ≈ 5× fewer CPU seconds):
+    each row's sum as numpy's pairwise sum of 8 ≤ K ≤ 128 numbers (eight running sums, a tree,
+    then the rest), the rows' posteriors summed in row order, the weight that sum over R."""
+    n_rows, n = lik.shape
+    assert 8 <= n <= 128
+    weight = np.full(n, 1.0 / n)
+    post, acc, part = np.empty(n), np.empty(n), np.empty(8)
+    for _ in range(iterations):
+        for r in range(n_rows):
+            for k in range(n):
+                post[k] = lik[r, k] * weight[k]
+            for j in range(8):
+                part[j] = post[j]
+            i = 8
+            while i < n - n % 8:
+                for j in range(8):
+                    part[j] += post[i + j]
+                i += 8
+            total = ((part[0] + part[1]) + (part[2] + part[3])) + ((part[4] + part[5])
+                                                                   + (part[6] + part[7]))
+            while i < n:
+                total += post[i]
+                i += 1
+            for k in range(n):
+                acc[k] = post[k] / total if r == 0 else acc[k] + post[k] / total
+        for k in range(n):
+            weight[k] = acc[k] / n_rows
+    return weight
 
 
 def calibrated_normals(normal: np.ndarray, axes: np.ndarray, spread_m2: np.ndarray,

@@ -27,9 +27,10 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.special import digamma, polygamma
+from scipy.special import digamma
 
 from calidar.adjust.variance_elements import estimate_elements
+from calidar.strips.row_variance import trigamma
 
 #: a strip's knots are cut into stretches of about this length (s)
 SEGMENT_S = 30.0
@@ -105,7 +106,7 @@ def pool_in_time(times: np.ndarray, raw: np.ndarray, effective: np.ndarray, fall
     # log of a χ²ₘ/m: mean ψ(m/2) − log(m/2), variance ψ′(m/2) (not −1/m and 2/m only: m is
     # small here)
     m = effective[own] / 2.0
-    y, d = np.log(raw[own]) - (digamma(m) - np.log(m)), polygamma(1, m)
+    y, d = np.log(raw[own]) - (digamma(m) - np.log(m)), trigamma(m)
     Rdd = R[np.ix_(own, own)]
     best = max(((_reml(y, tau**2 * Rdd + np.diag(d)), tau) for tau in TAU_GRID), key=lambda p: p[0])
     tau = best[1]

@@ -45,7 +45,8 @@ import small_gicp
 
 from calidar.errors import CalibrationError
 from calidar.strips.correspond import Correspondences
-from calidar.strips.vgicp_kernels import cell_keys, common_cells, first_in_cells, xy_bounds
+from calidar.strips.vgicp_kernels import (cell_keys, common_cells, first_in_cells, xy_bounds,
+                                          xy_scatter)
 from calidar.strips.vgicp_knn import GridKnn
 from calidar.strips.vgicp_planes import Grid, local_planes, near, plane_rows
 
@@ -267,6 +268,21 @@ def overlap_width(points: np.ndarray) -> float:
     return float(np.sqrt(12.0 * max(np.linalg.eigvalsh(xy.T @ xy / max(len(xy), 1))[0], 0.0)))
 
 
+def wide_enough(points: np.ndarray, width_m: float) -> bool:
+    """``overlap_width(points) >= width_m`` (m), from one numba pass over the points
+    (:func:`~calidar.strips.vgicp_kernels.xy_scatter`); within 1e-6 relative of ``width_m``, where
+    its last bits could decide, by :func:`overlap_width` itself."""
+    if len(points) == 0:
+        return overlap_width(points) >= width_m
+    sxx, sxy, syy = xy_scatter(points)
+    half = 0.5 * (sxx - syy)
+    low = 0.5 * (sxx + syy) - np.sqrt(half * half + sxy * sxy)  # the smaller eigenvalue, m²
+    width = np.sqrt(12.0 * max(low, 0.0))
+    if abs(width - width_m) <= 1e-6 * width_m:
+        return overlap_width(points) >= width_m
+    return bool(width >= width_m)
+
+
 def match_pair_vgicp(strip_a_id: int, points_a: np.ndarray, strip_b_id: int, points_b: np.ndarray,
                      settings: VgicpSettings | None = None,
                      timings: dict[str, float] | None = None) -> Correspondences:
@@ -293,13 +309,14 @@ def match_pair_vgicp(strip_a_id: int, points_a: np.ndarray, strip_b_id: int, poi
         raise CalibrationError(f"too little overlap for VGICP ({n_a} and {n_b} points in "
                                f"{area:.0f} m², need {settings.min_overlap_points} of each strip)")
     idx_a, idx_b = np.flatnonzero(in_a), np.flatnonzero(in_b)
-    ov_a = points_a[idx_a]  # gathered once
+    ov_a = np.take(points_a, idx_a, axis=0)  # gathered once (take: fancy indexing's rows, faster)
     origin = ov_a.mean(axis=0)
     ov_a -= origin
-    ov_b = points_b[idx_b] - origin
+    ov_b = np.take(points_b, idx_b, axis=0)
+    ov_b -= origin
 
     clock.lap("preprocess")
-    if overlap_width(ov_a) >= settings.min_registration_width_m:
+    if wide_enough(ov_a, settings.min_registration_width_m):
         reg = register(ov_a, ov_b, settings, area, clock)
     # a sliver: the strips as they lie (the outer loop has brought them close by the other pairs)
     else:
@@ -318,7 +335,7 @@ def match_pair_vgicp(strip_a_id: int, points_a: np.ndarray, strip_b_id: int, poi
     if near_b.size < k:  # (small_gicp aborts on an empty tree)
         raise CalibrationError(f"too few VGICP correspondences: registration left {near_b.size} "
                                f"points of b near a's points (need {settings.min_pairs} pairs)")
-    b_near = b_on_a[near_b]
+    b_near = np.take(b_on_a, near_b, axis=0)
     tree_b = GridKnn(b_near)  # small_gicp's KdTree's neighbours, without its build's cost
     planes = local_planes(b_near, ov_a[cand], k, settings.num_threads, tree_b)
     keep = planes.distance[:, 0] < threshold

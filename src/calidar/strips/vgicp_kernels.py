@@ -1,12 +1,13 @@
-"""numba kernels of VGICP's pair matching: the xy-grid bookkeeping and the balls' averaging rows.
+"""numba kernels of VGICP's pair matching: the xy-grid bookkeeping and the neighbourhoods' moments.
 
 Each kernel computes exactly what the numpy expression it replaces computed (the same IEEE
-operations in the same order: ``floor((x − lo) / cell)`` for a cell index, minima and maxima,
-``1 / count`` for a ball's weights), in one pass over the points instead of one numpy pass (and
-one temporary array) per operation — so a pair's correspondences are bit for bit the same
-(docs/validation.md, "VGICP pairs … (issue 32, 27 Nov, seventh session)"). The lookup tables
-hold one byte per cell of the grid; :class:`calidar.strips.vgicp_planes.Grid` falls back to
-sorting beyond ``Grid.MAX_TABLE`` cells, and so do the callers of these kernels.
+operations in the same order: ``floor((x − lo) / cell)`` for a cell index, minima and maxima, sums
+in the neighbours' order; the balls' averaging rows are
+:meth:`calidar.strips.vgicp_knn.GridKnn.ball_rows`), in one pass over the points instead of one
+numpy pass (and one temporary array) per operation — so a pair's correspondences are bit for bit the
+same (docs/validation.md, "VGICP pairs … (issue 32, 27 Nov, seventh session)"). The lookup tables
+hold one byte per cell of the grid; :class:`calidar.strips.vgicp_planes.Grid` falls back to sorting
+beyond ``Grid.MAX_TABLE`` cells, and so do the callers of these kernels.
 """
 
 from __future__ import annotations
@@ -109,34 +110,6 @@ def first_in_cells(keys, size):  # pragma: no cover - numba
 
 
 @njit(cache=True, nogil=True)
-def ball_rows(idx, d2, radius2):  # pragma: no cover - numba
-    """CSR (weights, columns, indptr) and counts of the averaging rows over each query's k nearest
-    ``idx`` (M, k) closer than √``radius2`` (M,) by their squared distances ``d2`` (M, k) — the
-    nearest always —, each weighing 1 / count, in the neighbours' order."""
-    m_rows, k = idx.shape
-    count = np.zeros(m_rows, np.int64)
-    indptr = np.zeros(m_rows + 1, np.int64)
-    for m in range(m_rows):
-        c = 1
-        for j in range(1, k):
-            if d2[m, j] <= radius2[m]:
-                c += 1
-        count[m] = c
-        indptr[m + 1] = indptr[m] + c
-    weights = np.empty(indptr[m_rows], np.float64)
-    columns = np.empty(indptr[m_rows], np.int64)
-    for m in range(m_rows):
-        w = 1.0 / count[m]
-        n = indptr[m]
-        for j in range(k):
-            if j == 0 or d2[m, j] <= radius2[m]:
-                weights[n] = w
-                columns[n] = idx[m, j]
-                n += 1
-    return weights, columns, indptr, count
-
-
-@njit(cache=True, nogil=True)
 def neighbourhood_moments(points, idx):  # pragma: no cover - numba
     """Centroid (M, 3) and scatter matrix Σ(p − centroid)(p − centroid)ᵀ (M, 3, 3) of each row's
     points ``idx`` (M, k), as ``nb.mean(axis=1)`` and ``np.einsum("mki,mkj->mij", nb − centroid,
@@ -161,3 +134,23 @@ def neighbourhood_moments(points, idx):  # pragma: no cover - numba
                     s += d[j, a] * d[j, b]
                 scatter[m, a, b] = s
     return centroid, scatter
+
+
+@njit(cache=True, nogil=True)
+def xy_scatter(points):  # pragma: no cover - numba
+    """(sxx, sxy, syy) of the points' (N ≥ 1, ≥ 2) xy about their mean, over N: the covariance
+    matrix :func:`calidar.strips.vgicp.overlap_width` takes, in two passes (sums in point order, not
+    numpy's: equal to its last bits only)."""
+    n = points.shape[0]
+    mx, my = 0.0, 0.0
+    for p in range(n):
+        mx += points[p, 0]
+        my += points[p, 1]
+    mx, my = mx / n, my / n
+    sxx, sxy, syy = 0.0, 0.0, 0.0
+    for p in range(n):
+        dx, dy = points[p, 0] - mx, points[p, 1] - my
+        sxx += dx * dx
+        sxy += dx * dy
+        syy += dy * dy
+    return sxx / n, sxy / n, syy / n

@@ -25,8 +25,7 @@ import small_gicp
 from calidar.strips.correspond import moderated_variance
 from calidar.strips.pca import eigh3
 from calidar.strips.row_variance import posterior, rough_rows_variance, satterthwaite
-from calidar.strips.vgicp_kernels import (ball_rows, cell_keys, near_cells, neighbourhood_moments,
-                                          xy_bounds)
+from calidar.strips.vgicp_kernels import cell_keys, near_cells, neighbourhood_moments, xy_bounds
 from calidar.strips.vgicp_knn import GridKnn
 
 
@@ -152,14 +151,13 @@ def _balanced(planes: LocalPlanes, centre: np.ndarray, mean_a: np.ndarray,
             & (in_plane(mean_a - planes.centroid) <= limit))
 
 
-def _ball_means(points: np.ndarray, at: np.ndarray, radius: np.ndarray, k_max: int, num_threads: int
+def _ball_means(points: np.ndarray, at: np.ndarray, radius: np.ndarray, k_max: int
                 ) -> tuple[sp.csr_matrix, np.ndarray]:
     """Averaging weights (M, len(points)) over the points (m) within ``radius`` (M,) m of each
     of ``at`` (M, 3) m — at most the k_max nearest, and at least the nearest — and their counts
     (M,)."""
     k_max = min(k_max, points.shape[0])
-    idx, d2 = GridKnn(points).batch_knn_search(at, k_max, num_threads=num_threads)
-    weights, columns, indptr, count = ball_rows(idx, d2, radius**2)
+    weights, columns, indptr, count = GridKnn(points).ball_rows(at, k_max, radius**2)
     return sp.csr_matrix((weights, columns, indptr), shape=(at.shape[0], points.shape[0])), count
 
 
@@ -170,7 +168,9 @@ def _along_normal_variance(A: sp.csr_matrix, points: np.ndarray, mean: np.ndarra
     (M, 3) m."""
     count = np.diff(A.indptr)
     row = np.repeat(np.arange(A.shape[0]), count)
-    d = np.einsum("ij,ij->i", points[A.indices] - mean[row], normal[row])
+    take = np.take  # (fancy indexing's rows, faster)
+    d = np.einsum("ij,ij->i", take(points, A.indices, axis=0) - take(mean, row, axis=0),
+                  take(normal, row, axis=0))
     return np.bincount(row, d**2, A.shape[0]) / np.maximum(count - 1, 1)
 
 
@@ -191,16 +191,17 @@ def plane_rows(planes: LocalPlanes, b_near: np.ndarray, tree_b, ov_a: np.ndarray
     # a's points in a ball as large about b's centroid (room for a denser a)
     radius = planes.distance[:, -1]
     near_a = near(ov_a, planes.centroid, float(radius[keep].max()))
+    a_near = np.take(ov_a, near_a, axis=0)  # gathered once
     k_max = int(np.ceil(2 * k * max(1.0, density_ratio)))
-    A, count = _ball_means(ov_a[near_a], planes.centroid, radius, k_max, settings.num_threads)
-    mean_a = A @ ov_a[near_a]
+    A, count = _ball_means(a_near, planes.centroid, radius, k_max)
+    mean_a = A @ a_near
     off_plane = np.abs(np.einsum("ij,ij->i", mean_a - planes.centroid, planes.normal))
     keep = keep & (planes.variation < settings.max_surface_variation)
     keep &= off_plane < settings.max_plane_distance_m
     keep &= planes.spread >= settings.min_spread
     keep &= _balanced(planes, centre, mean_a, settings.max_centroid_offset)
     # a's ball about b's plane: its own scatter along b's normal, at most max_scatter_ratio × b's
-    var_a = _along_normal_variance(A, ov_a[near_a], mean_a, planes.normal)
+    var_a = _along_normal_variance(A, a_near, mean_a, planes.normal)
     var_b = np.zeros(keep.size)
     var_b[keep] = moderated_variance(planes.scatter[keep] ** 2, k - 3)
     keep &= var_a <= settings.max_scatter_ratio**2 * np.maximum(var_b, settings.min_scatter_m**2)

@@ -1,4 +1,5 @@
 import json
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -185,6 +186,32 @@ def test_a_loose_estimate_refined_equals_the_full_solve():
         assert abs(loose.parameters[name].value - full.values[name]) < 0.1 * full.sigma[name]
         assert abs(sol.values[name] - full.values[name]) < 1e-3 * full.sigma[name]
         assert sol.sigma[name] == pytest.approx(full.sigma[name], rel=1e-3)
+
+
+def test_the_solution_and_the_model_check_share_one_jacobian_and_normal_matrix():
+    """An estimate's J and N at its values are computed once (``Estimate.normals``, issue 32
+    eleventh session): the solution's σ uses them, a later reader (the model check) gets the same
+    arrays without another Jacobian; a refined estimate, at other values, computes its own."""
+    from calidar.adjust.solver import estimate
+
+    x, y = _line(8)
+    calls = []
+
+    def jac(v):
+        calls.append(1)
+        return np.column_stack([np.ones_like(x), x])
+
+    fn = lambda v: v["a"] + v["b"] * x - y  # noqa: E731
+    est = estimate(fn, _params(), sigma=0.1, jacobian_fn=jac, step_in_sigma=0.1)
+    before = len(calls)
+    sol = est.solution()
+    J, N = est.normals
+    assert len(calls) == before + 1 and est.normals[1] is N
+    assert np.allclose(N, J.T @ (est.w[:, None] * J), rtol=1e-12, atol=0)
+    again = replace(est).solution()  # a copy computes its own J and N: the same σ
+    assert len(calls) == before + 2 and again.sigma == sol.sigma
+    refined = est.refine(1e-6)
+    assert refined.normals[1] is not N
 
 
 @pytest.mark.parametrize("dyadic", [False, True])

@@ -172,9 +172,9 @@ def test_a_singular_adjustment_is_not_checked_and_says_why():
     X, j, y, w, _ = _problem(5, 0.0)
     X = np.column_stack([X, X[:, 1]])  # two identical columns: N singular
     params = ParameterSet([Parameter(f"p{k}", 0.0, "1") for k in range(4)])
-    fit = SimpleNamespace(params=params, jacobian=lambda x: X, variance_factor=lambda r, w, x: 1.0,
-                          normal_equations=lambda J, w, r, x: (J.T @ (w[:, None] * J), J.T @ (w * r)))
-    est = SimpleNamespace(fit=fit, x=np.zeros(4), r=-y, w=w)
+    fit = SimpleNamespace(params=params, variance_factor=lambda r, w, x: 1.0,
+                          gradient=lambda J, w, r, x: J.T @ (w * r))
+    est = SimpleNamespace(fit=fit, x=np.zeros(4), r=-y, w=w, normals=(X, X.T @ (w[:, None] * X)))
     out = check(est, None, {"range_offset": 0.0}, [], [], [], {})
     assert out["candidates"] == {} and "singular" in out["not_run"]
     f = model_check_finding(out, _solution())

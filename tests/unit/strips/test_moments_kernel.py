@@ -4,8 +4,9 @@ replaces: the same keys, counts, means and scatters bit for bit."""
 import numpy as np
 import pytest
 
+from calidar.cells import cell_keys_of
 from calidar.strips.cell_moments import CellMoments
-from calidar.strips.moments_kernel import dense_moments
+from calidar.strips.moments_kernel import dense_moments, stable_key_order
 
 
 def _same(a: CellMoments, b: CellMoments) -> None:
@@ -125,3 +126,16 @@ def test_common_cells_intersection_is_numpys():
     occupied = {1: np.arange(0, 100), 2: np.arange(50, 300, 2), 3: np.arange(1000, 1010)}
     assert [(a, b, c.tolist()) for a, b, c in common_cells(occupied, 4)] == [
         (1, 2, list(range(50, 100, 2)))]
+
+
+def test_stable_key_order_is_the_stable_argsort():
+    """The counting sort of cell keys gives ``np.argsort(kind="stable")``'s indices: cells on
+    both sides of j = 0 and of i = 0 (j < 0 sort after j ≥ 0 in key order), many points a cell
+    (ties kept in input order), one point, none, and a sparse box (the argsort itself)."""
+    rng = np.random.default_rng(32)
+    for n, span in [(0, 5), (1, 5), (17, 3), (5000, 40), (200_000, 300), (3000, 10**6)]:
+        ij = rng.integers(-span, span + 1, (n, 2))
+        keys = cell_keys_of(ij[:, 0], ij[:, 1])
+        got = stable_key_order(keys)
+        assert got.dtype == np.int64
+        assert np.array_equal(got, np.argsort(keys, kind="stable")), (n, span)

@@ -83,3 +83,34 @@ def test_sensor_columns_are_exact(point_to_point):
     dense = plain.jacobian(sub.values(), sub.free)
     assert isinstance(dense, np.ndarray)
     assert np.max(np.abs(dense - numerical_jacobian(plain, sub, sub.x()))) < 1e-6 * np.max(np.abs(dense))
+
+
+def test_same_rows_problem_equals_one_built_anew():
+    """A problem with more parameters free built on another's rows (``same_rows``, the model
+    check's, issue 32 eleventh session) gives the residuals and Jacobian of one built from the
+    correspondences, to the bit: two pairs sharing strip 2's patches (counted once), the
+    trajectory model on, range and lever arm freed (the centroids' other form)."""
+    truth = Sensor(boresight_roll=np.radians(0.03), boresight_pitch=np.radians(-0.04))
+    strips = survey(truth, Sensor(), [((-250, -80, 0), 90, 500, 400), ((250, 80, 0), 270, 500, 400),
+                                      ((0, 0, 0), 0, 500, 400)], n=30_000)
+    corrs = [match_pair_planes(1, strips[0].points, 2, strips[1].points),
+             match_pair_planes(3, strips[2].points, 2, strips[1].points)]
+    nominal = Sensor(lever_arm_x=0.2, lever_arm_z=0.3, range_offset=0.01)
+    poses = {s.id: s.pose() for s in strips}
+    times = {s.id: s.time for s in strips}
+    spans = {s.id: (float(s.time.min()), float(s.time.max())) for s in strips}
+    model = TrajectoryModel(block_s=2.0, position_sigma_m=0.03, attitude_sigma_rad=np.radians(0.5), correlation_s=20.0,
+                            attitude_correlation_s=3.0)
+    params = build_parameters(nominal, Estimate.of("boresight"), spans, model)
+    fitted = StripProblem(nominal, poses, corrs, params, times, model, spans)
+    freed = [*params.free_names, "lever_arm_x", "range_scale"]
+    values = {**params.values(), "lever_arm_x": 0.21, "range_scale": 3e-5}
+    at = ParameterSet(p for p in build_parameters(nominal, Estimate.of("boresight", "lever_arm", "range_scale"), spans,
+                                                  model) if p.name in freed)
+    at = ParameterSet(replace(p, value=values[p.name]) for p in at)
+    anew = StripProblem(nominal, poses, corrs, freed, times, model, spans)
+    taken = StripProblem(nominal, poses, corrs, freed, times, model, spans, same_rows=fitted)
+    assert np.array_equal(taken.sigma, anew.sigma) and np.array_equal(taken.row_share, anew.row_share)
+    assert np.array_equal(taken(values), anew(values))
+    assert (taken.jacobian(values, at.free) != anew.jacobian(values, at.free)).nnz == 0
+    assert anew.jacobian(values, at.free).nnz > 0

@@ -73,3 +73,43 @@ def test_consistency_of_the_robust_sigma0_for_student_t_rows(nu):
     w = robust_weights(z / s, "cauchy")
     assert consistency("cauchy", [nu]) == pytest.approx(np.sum(w * z * z) / np.sum(w), rel=0.006)
     assert consistency("cauchy") == pytest.approx(0.794, abs=0.002)  # normal residuals
+
+
+def test_prior_with_digamma_per_distinct_dof_is_the_same_numbers():
+    """The fitted prior evaluates digamma and trigamma once per distinct degrees of freedom, the
+    trigamma as ζ(2, x) (issue 32, eleventh session): d0 and s0² are bit for bit those of scipy's
+    digamma and polygamma over every row and in the bisection."""
+    from scipy.special import digamma, polygamma
+
+    rng = np.random.default_rng(32)
+    dof = rng.integers(1, 40, 5000)
+    s2 = 1e-4 * rng.chisquare(dof) / dof * rng.lognormal(0.0, 0.5, dof.size)
+    d = dof.astype(float)
+    e = np.log(s2) - (digamma(d / 2) - np.log(d / 2))
+    excess = float(np.var(e, ddof=1) - np.mean(polygamma(1, d / 2)))
+    assert excess > 0
+    from calidar.strips.row_variance import MIN_PRIOR_DOF
+
+    lo, hi = 1e-6, 1e8  # the bisection for ψ'(x) = excess with scipy's polygamma, as before
+    for _ in range(80):
+        mid = np.sqrt(lo * hi)
+        lo, hi = (mid, hi) if polygamma(1, mid) > excess else (lo, mid)
+    d0 = max(2.0 * float(np.sqrt(lo * hi)), MIN_PRIOR_DOF)
+    want = (d0, float(np.exp(np.mean(e) + digamma(d0 / 2) - np.log(d0 / 2))))
+    assert fitted_prior(s2, dof) == want
+
+
+def test_trigamma_is_scipys_polygamma_bit_for_bit():
+    """ψ' as ζ(2, x) (issue 32, eleventh session: the prior's bisection calls it 80 times a side of
+    a pair) gives scipy's ``polygamma(1, x)`` to the last bit, scalars and arrays, over the
+    bisection's whole range 1e-6 … 1e8 — the rows' σ must not move."""
+    from scipy.special import polygamma
+
+    from calidar.strips.row_variance import _trigamma_inverse, trigamma
+
+    x = np.geomspace(1e-6, 1e8, 20_001) * np.random.default_rng(4).uniform(0.5, 1.5, 20_001)
+    np.testing.assert_array_equal(trigamma(x), polygamma(1, x))
+    for v in x[::97]:
+        assert float(trigamma(v)) == float(polygamma(1, v))
+    for y in (1e-7, 0.01, 0.37, 2.0, 50.0, 1e6):  # the inverse still inverts
+        assert float(polygamma(1, _trigamma_inverse(y))) == pytest.approx(y, rel=1e-9)

@@ -269,3 +269,87 @@ def test_rows_sigma_match_the_residuals_at_the_truth():
     w = robust_weights(z / s, "cauchy")
     assert np.all(c.dof > 9)  # two sides of ≥ 6 points (inf where the pair's rows pool fully)
     assert np.sqrt(np.sum(w * z * z) / np.sum(w) / consistency("cauchy", dof_summary(c.dof))) == pytest.approx(1.0, abs=0.05)
+
+
+def _hat_weights_numpy(points, A, target):
+    """plane_point_weights as numpy wrote it before its kernels (issue 32, eleventh session)."""
+    import scipy.sparse as sp
+
+    from calidar.strips.pca import eigh3
+
+    rows = np.repeat(np.arange(A.shape[0]), np.diff(A.indptr))
+    mean = A @ points
+    d = points[A.indices] - mean[rows]
+    cov = np.zeros((A.shape[0], 3, 3))
+    for i in range(3):
+        for j in range(i, 3):
+            cov[:, i, j] = cov[:, j, i] = np.bincount(rows, A.data * d[:, i] * d[:, j], A.shape[0])
+    lam, vec = eigh3(cov)
+    axes = vec[:, :, 1:]
+    coef = np.einsum("ri,rij->rj", target - mean, axes) / np.clip(lam[:, 1:], 1e-12, None)
+    h = A.data * (1.0 + np.einsum("kj,kj->k", coef[rows], np.einsum("ki,kij->kj", d, axes[rows])))
+    weights = sp.csr_matrix((h, A.indices.copy(), A.indptr.copy()), shape=A.shape)
+    return weights, np.bincount(rows, h * h, A.shape[0])
+
+
+def test_plane_point_weights_kernels_have_numpys_bits():
+    """The hat weights and their Σ h² from the two kernels equal numpy's, bit for bit: the rows of
+    a real pair's tie planes (local coordinates of 10⁴ m, targets off the centroids) and random
+    rows (1 to 40 points, weights of both signs, a degenerate row of one point repeated)."""
+    import scipy.sparse as sp
+
+    from calidar.strips.planes import _averaging, patch_cell_size, plane_point_weights
+
+    truth = Sensor(boresight_roll=np.radians(0.03), boresight_pitch=np.radians(-0.04))
+    strips = survey(truth, Sensor(), [((-250, -80, 0), 90, 500, 400), ((250, 80, 0), 270, 500, 400)],
+                    n=40_000)
+    pts_a, pts_b = (np.ascontiguousarray(s.points + 1e4) for s in strips)
+    s = PlaneSettings()
+    cell = patch_cell_size(pts_a, s.target_points)
+    pa, pb = fit_patches(pts_a, cell, s), fit_patches(pts_b, cell, s)
+    _, ia, ib = np.intersect1d(pa.keys, pb.keys, assume_unique=True, return_indices=True)
+    A, _ = _averaging(pa, ia, s.max_points_per_patch, pts_a.shape[0])
+    B, _ = _averaging(pb, ib, s.max_points_per_patch, pts_b.shape[0])
+    rng = np.random.default_rng(32)
+    counts = rng.integers(1, 41, 300)
+    indptr = np.r_[0, np.cumsum(counts)]
+    indices = rng.integers(0, 500, indptr[-1])
+    indices[indptr[7]:indptr[8]] = indices[indptr[7]]
+    R = sp.csr_matrix((rng.normal(0.1, 0.3, indptr[-1]), indices, indptr), shape=(300, 500))
+    cloud = rng.normal(0.0, 5.0, (500, 3)) + 1e4
+    assert A.shape[0] > 100
+    for M, pts, target in [(A, pts_a, B @ pts_b), (R, cloud, cloud[:300] + rng.normal(0, 3, (300, 3)))]:
+        got, want = plane_point_weights(pts, M, target), _hat_weights_numpy(pts, M, target)
+        assert np.array_equal(got[0].data, want[0].data, equal_nan=True)
+        assert np.array_equal(got[0].indices, want[0].indices)
+        assert np.array_equal(got[1], want[1], equal_nan=True)
+
+
+def test_patches_take_the_planarity_tests_eigenvectors_bit_for_bit():
+    """fit_patches takes the planar cells' eigenvalues and axes from the planarity test's one eigh3
+    over all cells (issue 32, eleventh session: it decomposed them twice); eigh3 works matrix by
+    matrix, so the subset's decomposition is the same bits as decomposing the subset."""
+    from calidar.strips.pca import eigh3
+
+    rng = np.random.default_rng(32)
+    g = rng.normal(0.0, 1.0, (5000, 3, 3)) * rng.lognormal(0.0, 2.0, (5000, 1, 1))
+    cov = g @ np.transpose(g, (0, 2, 1))
+    cov[::7, 2, :] = cov[::7, :, 2] = 0.0  # flat cells: a zero eigenvalue
+    cov[11] = np.eye(3) * 0.5
+    keep = rng.random(5000) < 0.4
+    whole, part = eigh3(cov), eigh3(cov[keep])
+    assert np.array_equal(whole[0][keep], part[0]) and np.array_equal(whole[1][keep], part[1])
+    s = PlaneSettings()
+    pts = rng.normal(0.0, [20.0, 20.0, 0.01], (20_000, 3))
+    p = fit_patches(pts, 2.0, s)
+    assert p.keys.size > 50
+    mean, c = _patch_covariances(pts, p)
+    lam, vec = eigh3(c)
+    assert np.array_equal(p.spread_m2, np.clip(lam[:, 1:], 1e-12, None))
+    assert np.array_equal(p.axes, vec[:, :, 1:])
+
+
+def _patch_covariances(points, p):
+    from calidar.strips.planes import _cell_moments
+
+    return _cell_moments(np.ascontiguousarray(points), p.order, p.start, p.count)

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from calidar.strips.tilt import calibrated_normals
+from calidar.strips.tilt import EM_ITERATIONS, calibrated_normals, mixture_weights
 
 NOISE_RAD = 0.03  #: the fitted tilt's noise per axis (σ 1 cm, 12 points, spread 0.1 m)
 
@@ -55,3 +55,28 @@ def test_walls_keep_their_normals():
                              np.r_[np.full(5, 0.01), flat[3]], np.r_[np.full(5, 12), flat[4]])
     assert np.all(np.isfinite(out))
     assert np.all(np.einsum("ij,ij->i", out[:5], normal) > np.cos(np.radians(0.5)))
+
+
+def _weights_numpy(lik: np.ndarray, iterations: int) -> np.ndarray:
+    """The EM steps of the mixture's weights as numpy writes them (the code before the kernel)."""
+    weight = np.full(lik.shape[1], 1.0 / lik.shape[1])
+    for _ in range(iterations):
+        post = lik * weight
+        post /= post.sum(axis=1, keepdims=True)
+        weight = post.mean(axis=0)
+    return weight
+
+
+def test_mixture_weights_kernel_has_numpy_bits():
+    """The numba kernel of the EM steps gives numpy's weights bit for bit (the calibration's
+    results stay identical: issue 32, eleventh session), for likelihoods as expected_tilt's
+    (each row's largest 1, the rest spread over decades), row counts 1 to 20 000, and the
+    component counts 8 ≤ K ≤ 128 its pairwise sum follows (16: PRIOR_VARIANCES)."""
+    rng = np.random.default_rng(11)
+    for rows, k in [(1, 16), (2, 16), (7, 16), (333, 16), (4099, 16), (20_000, 16), (500, 8),
+                    (500, 13), (500, 27), (500, 128)]:
+        lik = np.exp(-rng.exponential(5.0, (rows, k)) * rng.random((rows, 1)) * 3.0)
+        lik[np.arange(rows), rng.integers(0, k, rows)] = 1.0
+        want = _weights_numpy(lik, EM_ITERATIONS)
+        got = mixture_weights(lik, EM_ITERATIONS)
+        assert np.array_equal(got, want), (rows, k, np.max(np.abs(got - want)))

@@ -8,7 +8,7 @@ import pytest
 import scipy.sparse as sp
 
 from calidar.strips.vgicp import _spread, overlap_masks
-from calidar.strips.vgicp_kernels import ball_rows, neighbourhood_moments, xy_bounds
+from calidar.strips.vgicp_kernels import neighbourhood_moments, xy_bounds
 from calidar.strips.vgicp_planes import Grid, near
 
 
@@ -49,23 +49,6 @@ def test_near_and_spread_equal_numpy(monkeypatch):
     assert np.array_equal(got_spread, _spread(a, 500, 300 * 120)) and got_spread.size == 500
 
 
-@pytest.mark.parametrize("k", [1, 5, 24])
-def test_ball_rows_equal_numpy(k):
-    rng = np.random.default_rng(k)
-    d2 = np.sort(rng.uniform(0, 4, (300, k)), axis=1)
-    idx = rng.integers(0, 10_000, (300, k)).astype(np.uint64)
-    radius = rng.uniform(0.2, 2.5, 300)
-    weights, columns, indptr, count = ball_rows(idx, d2, radius**2)
-    inside = d2 <= radius[:, None] ** 2
-    inside[:, 0] = True  # the nearest always
-    want = sp.csr_matrix(((inside / inside.sum(axis=1)[:, None])[inside],
-                          idx.astype(np.int64)[inside],
-                          np.concatenate([[0], np.cumsum(inside.sum(axis=1))])))
-    assert np.array_equal(count, inside.sum(axis=1))
-    assert np.array_equal(weights, want.data) and np.array_equal(columns, want.indices)
-    assert np.array_equal(indptr, want.indptr)
-
-
 @pytest.mark.parametrize("m_rows, k", [(1, 3), (700, 12), (2500, 30)])
 def test_neighbourhood_moments_equal_numpy(m_rows, k):
     rng = np.random.default_rng(m_rows + k)
@@ -77,3 +60,27 @@ def test_neighbourhood_moments_equal_numpy(m_rows, k):
     nb = nb - want_centroid[:, None, :]
     assert np.array_equal(centroid, want_centroid)
     assert np.array_equal(scatter, np.einsum("mki,mkj->mij", nb, nb))
+
+
+def test_wide_enough_decides_as_overlap_width():
+    """The registration's width test from one numba pass (issue 32, eleventh session) decides as
+    ``overlap_width(points) >= limit`` for strips of 2 … 60 m across and a limit at, just above and
+    just below each strip's own width (there the numpy expression decides); the scatter within
+    1e-12 relative of numpy's."""
+    from calidar.strips.vgicp import overlap_width, wide_enough
+    from calidar.strips.vgicp_kernels import xy_scatter
+
+    rng = np.random.default_rng(7)
+    for across in (2.0, 19.9, 20.0, 20.1, 60.0):
+        xy = rng.uniform([0, 0], [800, across], (30_000, 2))
+        angle = rng.uniform(0, np.pi)
+        turn = np.array([[np.cos(angle), -np.sin(angle)], [np.sin(angle), np.cos(angle)]])
+        pts = np.column_stack([xy @ turn.T + [4.0e2, -7.0e2], rng.normal(0, 1, len(xy))])
+        centred = pts[:, :2] - pts[:, :2].mean(axis=0)
+        cov = centred.T @ centred / len(pts)
+        np.testing.assert_allclose(xy_scatter(pts), (cov[0, 0], cov[0, 1], cov[1, 1]),
+                                   rtol=1e-12, atol=1e-12 * cov.max())
+        width = overlap_width(pts)
+        for limit in (20.0, width, np.nextafter(width, 0), np.nextafter(width, np.inf),
+                      width * (1 + 2e-6), width * (1 - 2e-6)):
+            assert wide_enough(pts, limit) == (width >= limit), (across, limit)

@@ -61,3 +61,37 @@ def test_k_out_of_range():
         GridKnn(pts).batch_knn_search(pts[:3], 101)
     with pytest.raises(ValueError):
         GridKnn(pts).batch_knn_search(pts[:3], 0)
+
+
+def _ball_rows_numpy(idx, d2, radius2):
+    """The balls' averaging rows from a k_max search, as VGICP's rows took them before the bounded
+    search: the neighbours within the radius (and the nearest always), each 1 / count."""
+    inside = d2 <= radius2[:, None]
+    inside[:, 0] = True
+    count = inside.sum(axis=1)
+    weights = (inside / count[:, None])[inside]
+    return weights, idx[inside], np.concatenate([[0], np.cumsum(count)]), count
+
+
+@pytest.mark.parametrize("k_max", [1, 12, 25])
+def test_ball_rows_as_from_the_k_max_nearest(k_max):
+    """The bounded ball search (issue 32, eleventh session: it takes no point beyond the ball) gives
+    the rows of the k_max search it replaces, bit for bit: radii from none of the points (the
+    nearest alone) through a few to more than k_max (capped), queries inside, on walls and far
+    outside, duplicated points (ties)."""
+    pts = _surface(30_000, 40 + k_max)
+    pts[:300] = pts[300:600]  # exact duplicates: equal distances
+    rng = np.random.default_rng(k_max)
+    queries = np.vstack([pts[::41] + rng.normal(0, 0.2, (len(pts[::41]), 3)), pts[300:330],
+                         rng.uniform([-400, -200, -5], [400, 200, 5], (50, 3))])
+    grid = GridKnn(pts)
+    idx, d2 = grid.batch_knn_search(queries, k_max)
+    radius2 = np.concatenate([rng.uniform(0.0, 3.0, len(queries) - 40) ** 2, np.zeros(20),
+                              np.full(20, 2500.0)])
+    radius2[::3] = d2[::3, k_max // 2]  # a neighbour exactly on the ball: inside
+    got = grid.ball_rows(queries, k_max, radius2)
+    want = _ball_rows_numpy(idx, d2, radius2)
+    for g, w in zip(got, want):
+        assert np.array_equal(g, w)
+    count = got[3]
+    assert count.min() == 1 and count.max() == k_max and (k_max == 1 or np.mean(count > 1) > 0.3)
