@@ -184,7 +184,8 @@ def upper_end(terms: tuple, blocks: Sequence[PriorBlock], variance: Mapping[str,
     ``variance`` (``terms``: :func:`estimate_components`' first five arguments): at a trial σ²
     the estimator's own update (``marginal`` as there) over σ² is a χ²ᵣ/r, r the group's
     redundancy at σ², and σ² is rejected as too wide when it falls below that's ``level``
-    quantile (one-sided). The ratio falls as σ² grows: the end is found by bisection from
+    quantile (one-sided; r degrees of freedom, fewer than Satterthwaite's r²/tr R²: the wider
+    end). The ratio falls as σ² grows: the end is found by bisection from
     ``variance[group]`` (not rejected: the estimate, where the ratio is 1), to ``tol`` in log σ²,
     ``ceiling`` at most."""
     others = [g for g in {b.group for b in blocks} if g != group]

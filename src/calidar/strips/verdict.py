@@ -291,8 +291,9 @@ ACCURACY_ACTION = ("give the trajectory's accuracy file (POSPac smrmsg) with "
 
 def accuracy_finding(level: dict) -> Finding:
     """The trajectory accuracy estimated from the overlaps (a TrajectoryLevel's dict): a pass where
-    every group of priors was estimated, a warning naming those the data cannot tell (the
-    survey-grade default kept there) and the criterion."""
+    every group of priors was estimated or bounded (held at the upper end the data leave it,
+    named), a warning naming those the data cannot tell (the survey-grade default kept there) and
+    the criterion."""
     groups = level["groups"]
     weak = [f"{g.replace('_', ' ')} (redundancy {v['redundancy_at_stated_sigma']:.1f} < "
             f"{level['min_redundancy']:g})"
