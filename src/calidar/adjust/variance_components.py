@@ -24,7 +24,6 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.stats import chi2
 
 from calidar.adjust.normals import normal_matrix
 from calidar.adjust.solution import cholesky_inverse
@@ -188,6 +187,8 @@ def upper_end(terms: tuple, blocks: Sequence[PriorBlock], variance: Mapping[str,
     end). The ratio falls as σ² grows: the end is found by bisection from
     ``variance[group]`` (not rejected: the estimate, where the ratio is 1), to ``tol`` in log σ²,
     ``ceiling`` at most."""
+    from scipy.special import gammaincinv  # χ²ᵣ's quantile 2·P⁻¹(r/2, q), as scipy.stats.chi2.ppf
+
     others = [g for g in {b.group for b in blocks} if g != group]
 
     def accepted(v: float) -> bool:
@@ -195,7 +196,7 @@ def upper_end(terms: tuple, blocks: Sequence[PriorBlock], variance: Mapping[str,
                                 start=dict(variance) | {group: v}, max_iter=1, floor=0.0,
                                 marginal=marginal)
         r = c.redundancy[group]
-        return r <= 0 or c.variance[group] / v >= chi2.ppf(level, r) / r
+        return r <= 0 or c.variance[group] / v >= 2.0 * gammaincinv(r / 2.0, level) / r
 
     inside = max(float(variance[group]), 1e-12)
     outside = inside
