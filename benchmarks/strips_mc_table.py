@@ -1,6 +1,7 @@
 """The issue-26 Monte-Carlo table from ``strips_montecarlo.py``'s rows (issue 26, ninth session).
 
     python benchmarks/strips_mc_table.py ROWS.jsonl [ROWS2.jsonl ...] [--pool]
+    python benchmarks/strips_mc_table.py NONE.jsonl --source default --against SMRMSG.jsonl [...]
 
 One markdown row per cell (preset, scene, directions, trees) and method: surveys (seeds), RMS
 of z = error/σ per angle (± its sampling spread 1/√(2n)), mean z, largest |z| per angle, the
@@ -8,7 +9,9 @@ count of |z| > 3.5, σ0 as the global test reads it (``sigma0_test``) inside its
 and within ±7 % of 1, and the outer iterations' mean (largest). ``--pool`` adds one row per
 scene (airborne, uav, urban) of two cells or more and method, over that scene's rows (tenth
 session; was over all rows read). Only the ``smrmsg`` source's rows (the accuracy file beside
-the SBET).
+the SBET); ``--source default``: the rows calibrated without it (the "none" rows, the level
+estimated from the overlaps), and ``--against ROWS.jsonl`` then prints per angle the median
+(range) of their σ over those rows' σ on the same surveys (eleventh session).
 """
 
 from __future__ import annotations
@@ -65,10 +68,11 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("rows", type=Path, nargs="+", help="strips_montecarlo.py --json files")
     ap.add_argument("--pool", action="store_true", help="also one row per method over all")
+    ap.add_argument("--source", default="smrmsg", help="the rows' accuracy source (default: smrmsg)")
+    ap.add_argument("--against", type=Path, nargs="+", default=None,
+                    help="σ ratio against these smrmsg rows (same seeds, cell and method)")
     args = ap.parse_args()
-    rows = [json.loads(x) for p in args.rows for x in p.read_text().splitlines() if x.strip()]
-    rows = list({(r["seed"], r["method"], cell_of(r)): r for r in rows
-                 if r.get("source", "smrmsg") == "smrmsg"}.values())  # the last run of each
+    rows = _rows(args.rows, args.source)
     print("| cell | method | surveys (seeds) | RMS z roll / pitch / yaw | mean z | max abs z "
           "| abs z > 3.5 | σ0 mean (min–max) | σ0 in χ² range / ±7 % | outer iterations |")
     print("|---|---|---|---|---|---|---|---|---|---|")
@@ -83,6 +87,20 @@ def main() -> None:
             for method in sorted({r["method"] for r in rows if scene_of(r) == scene}):
                 print(line(f"**{scene}, pooled**", method,
                            [r for r in rows if (scene_of(r), r["method"]) == (scene, method)]))
+    if args.against is not None:
+        ref = {(r["seed"], r["method"], cell_of(r)): r for r in _rows(args.against, "smrmsg")}
+        ratio = np.array([np.divide(r["sigma_deg"], ref[k]["sigma_deg"]) for r in rows
+                          if (k := (r["seed"], r["method"], cell_of(r))) in ref])
+        print(f"σ ÷ the smrmsg rows' σ on {len(ratio)} surveys, roll / pitch / yaw: median "
+              + " / ".join(f"{v:.2f}" for v in np.median(ratio, 0)) + "; range "
+              + ", ".join(f"{a:.2f}–{b:.2f}" for a, b in zip(ratio.min(0), ratio.max(0))))
+
+
+def _rows(paths: list[Path], source: str) -> list[dict]:
+    """The rows of ``source`` in ``paths``, the last run of each survey, cell and method."""
+    rows = [json.loads(x) for p in paths for x in p.read_text().splitlines() if x.strip()]
+    return list({(r["seed"], r["method"], cell_of(r)): r for r in rows
+                 if r.get("source", "smrmsg") == source}.values())
 
 
 if __name__ == "__main__":

@@ -11,6 +11,7 @@ import pytest
 from calidar.sim.survey import simulate_survey, survey_config
 from calidar.strips.calibrate import calibrate
 from calidar.strips.trajectory_errors import TrajectoryModel
+from calidar.strips.trajectory_level import MIN_REDUNDANCY
 from calidar.trajectory_accuracy import SURVEY_GRADE
 
 ERRORS = {"boresight_roll": np.radians(0.03), "boresight_pitch": np.radians(-0.04), "boresight_yaw": np.radians(0.05)}
@@ -56,30 +57,41 @@ def test_small_trajectory_errors_are_recognised():
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(strict=True, reason="issue 26, tenth session: the heading group's level is "
-                   "estimated (redundancy 65–73 at the stated σ) yet erratic — on seeds 3–6 of this "
-                   "survey 0.42, 0.07, 1.02, 2.25 × the truth, two of them at the 1 % floor, where "
-                   "its stated relative σ is 0.14–0.17")
-def test_small_heading_errors_are_recognised():
-    """The heading group of the survey above: within a factor 1.6 of its 0.001° when estimated."""
+def test_small_heading_errors_are_bounded_not_mismeasured():
+    """The heading group of the survey above (true 0.001°: 0.125 × the survey-grade 0.008°). The
+    overlaps check its priors at the default (redundancy 62–73 on seeds 3–6) but hardly at the
+    level they point to: its information tr(R²) there is 0.0, 0.0, 3.8, 7.8 (seeds 3–6; the
+    factor's relative σ 1/√(2 tr R²) ≥ 25 %), its restricted likelihood's 95 % interval 0.01–0.13,
+    0.01–0.13, 0.02–0.23, 0.08–0.31 × the default — it cannot be measured within 1.6× (estimated,
+    it came out 0.51, 0.07, 0.88, 2.19 × the truth with a stated ±14–17 %). So it is bounded, not
+    estimated, and held at the upper end the data leave it: 0.168, 0.206, 0.271, 0.361 × the
+    default on seeds 3–6, 1.3–2.9 × the truth (benchmarks/strips_heading_level.py)."""
     res, out = _calibrate(0.015, 0.001)
     level = out.solution.extra["trajectory_accuracy_estimate"]
-    assert level["groups"]["heading"]["estimated"]
+    heading = level["groups"]["heading"]
+    assert heading.get("bounded") and not heading["estimated"], heading
+    assert heading["redundancy_at_stated_sigma"] >= MIN_REDUNDANCY > heading["information"]
     found = out.trajectory_model.accuracy.medians()["heading_rms_deg"]
-    assert 1 / 1.6 < found / 0.001 < 1.6, found
+    assert 0.001 <= found < 3 * 0.001, found  # a bound: never below the truth, still informative
+    truth = res.truth.parameters()
+    err = out.solution.values["boresight_yaw"] - truth["boresight_yaw"]
+    assert abs(err) < 3 * out.solution.sigma["boresight_yaw"], err / out.solution.sigma["boresight_yaw"]
 
 
 @pytest.mark.slow
 def test_an_exact_trajectory_shrinks_the_sigma_towards_the_model_off():
     """An exact trajectory (no GNSS/INS error at all) and no accuracy file: the overlaps say so —
-    every group estimated at a tenth of the survey-grade default or less (measured: 1 % (the
-    floor) for the shifts and roll/pitch, 5 % for heading) — and yaw's σ comes within 2× of the
-    trajectory model switched off (measured 0.00017° against 0.00011°; with the survey-grade
-    default as priors it is 0.00188°); every angle within 3σ of its truth."""
+    every group's level comes out at the floor, where they no longer check it (information tr R²
+    0.2, 9.4, 0.6, 0.0), so each is bounded, held at the upper end the data leave it, 4 %, 1 %,
+    5 % and 11 % of the survey-grade default (before issue 26's eleventh session: reported as
+    estimated, at 1–1.4 %) — and yaw's σ comes within 2× of the trajectory model switched off
+    (measured 0.00026° against 0.00014°; stated before that session: 0.00017° against 0.00011°;
+    with the survey-grade default as priors 0.00188°); every angle within 3σ of its truth."""
     res, out = _calibrate(0.0, 0.0)
     level = out.solution.extra["trajectory_accuracy_estimate"]
     assert level["source"] == "data"
-    assert all(v["estimated"] and v["sigma_factor"] <= 0.1 for v in level["groups"].values()), level["groups"]
+    groups = level["groups"].values()
+    assert all(v.get("bounded") and v["sigma_factor"] <= 0.15 for v in groups), level["groups"]
     _, off = _calibrate(0.0, 0.0, model=None)
     assert out.solution.sigma["boresight_yaw"] < 2.0 * off.solution.sigma["boresight_yaw"]
     truth = res.truth.parameters()

@@ -57,6 +57,11 @@ class Components:
     #: per group rₖ at the start (the stated σ, or ``start``): how many priors the data check at
     #: that level
     redundancy_start: dict[str, float] = field(default_factory=dict)
+    #: per group tr(Rₖ²) at the estimate, Rₖ = I − PₖQₖₖ/σ²ₖ its redundancy matrix (rₖ = tr Rₖ):
+    #: twice the restricted likelihood's information on log σ²ₖ, so the σ factor's relative σ is
+    #: 1/√(2 tr Rₖ²) (Koch 1999, §3.6.4; ≤ rₖ: many priors each checked a little count less than
+    #: their redundancy says)
+    information: dict[str, float] = field(default_factory=dict)
 
     def sigma_factor(self, group: str) -> float:
         """√σ²ₖ: the factor on the group's stated σ."""
@@ -130,13 +135,27 @@ def estimate_components(JtWJ: np.ndarray, JtWr: np.ndarray, rWr: float, n_obs: f
             new |= {g: max(spread[g] / max(size[g] - trace_marginal[g] / var[g], 1e-9), floor)
                     for g in groups if g not in frozen and red[g] > 1e-9}
         change = max(abs(np.log(new[g] / var[g])) for g in var)
-        var = new
+        var, used = new, var
         if change < tol:
             converged = True
             break
     sizes = {g: int(round(s)) if g != OBSERVATIONS else s for g, s in size.items()}
+    info = {g: size[g] - 2.0 * trace[g] / used[g] + _trace_squared(Q, blocks, g) / used[g] ** 2
+            for g in groups}
     return Components(var, red, sizes, x, it, converged, tuple(sorted(frozen - {OBSERVATIONS})),
-                      red_start)
+                      red_start, info)
+
+
+def _trace_squared(Q: np.ndarray, blocks: Sequence[PriorBlock], group: str) -> float:
+    """tr((PₖQₖₖ)²) of one group (Pₖ block-diagonal over its blocks)."""
+    mine = [b for b in blocks if b.group == group]
+    idx = np.concatenate([b.index for b in mine])
+    M = np.empty((idx.size, idx.size))
+    row = 0
+    for b in mine:
+        M[row:row + b.index.size] = b.precision @ Q[np.ix_(b.index, idx)]
+        row += b.index.size
+    return float(np.sum(M * M.T))
 
 
 def split_blocks(priors: Sequence[tuple[np.ndarray, np.ndarray, np.ndarray]],
@@ -156,6 +175,39 @@ def split_blocks(priors: Sequence[tuple[np.ndarray, np.ndarray, np.ndarray]],
             out.append(PriorBlock(idx[sel], center[sel], P[np.ix_(sel, sel)], g))
     return out
 
+
+def upper_end(terms: tuple, blocks: Sequence[PriorBlock], variance: Mapping[str, float],
+              group: str, *, marginal: bool = True, ceiling: float = 1e4, tol: float = 0.02,
+              level: float = 0.025) -> float:
+    """The largest variance factor of ``group`` the data do not reject, the others held at
+    ``variance`` (``terms``: :func:`estimate_components`' first five arguments): at a trial σ²
+    the estimator's own update (``marginal`` as there) over σ² is a χ²ᵣ/r, r the group's
+    redundancy at σ², and σ² is rejected as too wide when it falls below that's ``level``
+    quantile (one-sided; r degrees of freedom, fewer than Satterthwaite's r²/tr R²: the wider
+    end). The ratio falls as σ² grows: the end is found by bisection from
+    ``variance[group]`` (not rejected: the estimate, where the ratio is 1), to ``tol`` in log σ²,
+    ``ceiling`` at most."""
+    from scipy.special import gammaincinv  # χ²ᵣ's quantile 2·P⁻¹(r/2, q), as scipy.stats.chi2.ppf
+
+    others = [g for g in {b.group for b in blocks} if g != group]
+
+    def accepted(v: float) -> bool:
+        c = estimate_components(*terms, blocks, fixed=others, estimate_observations=False,
+                                start=dict(variance) | {group: v}, max_iter=1, floor=0.0,
+                                marginal=marginal)
+        r = c.redundancy[group]
+        return r <= 0 or c.variance[group] / v >= 2.0 * gammaincinv(r / 2.0, level) / r
+
+    inside = max(float(variance[group]), 1e-12)
+    outside = inside
+    while outside < ceiling and accepted(outside):
+        inside, outside = outside, min(outside * 4.0, ceiling)
+    if outside == inside:
+        return inside
+    while abs(np.log(outside / inside)) > tol:
+        mid = float(np.sqrt(inside * outside))
+        inside, outside = (mid, outside) if accepted(mid) else (inside, mid)
+    return inside
 
 
 def normal_terms(est) -> tuple[np.ndarray, np.ndarray, float, float, np.ndarray]:

@@ -15,7 +15,14 @@ redundancy rₖ there (how many of its nₖ priors the overlaps determine better
 must reach :data:`MIN_REDUNDANCY`; otherwise the stated σ stay ("the data cannot tell"). The
 estimate's own relative σ is ≈ 1/√(2m), m the effective number of independent priors behind it
 (:mod:`calidar.adjust.variance_elements`; less than rₖ: a Gauss–Markov process sampled every
-second is worth far fewer independent priors than it has knots). Each estimated group then
+second is worth far fewer independent priors than it has knots). A group checked at the stated σ
+but not at its estimate is *bounded*, not estimated: where its information there, tr(Rₖ²)
+(:class:`calidar.adjust.variance_components.Components`; its factor's relative σ 1/√(2 tr Rₖ²)),
+falls below :data:`MIN_REDUNDANCY`, it came out so small that the overlaps no longer check its
+narrowed priors, and its likelihood is flat from there down to "exact" (the airborne heading of
+1.5 cm / 0.001° errors, docs/validation.md, issue 26). The data tell only its upper end
+(:func:`calidar.adjust.variance_components.upper_end`, 97.5 % one-sided), and it is held there
+while the others are estimated again. Each estimated group then
 follows the flight in time (:mod:`calidar.strips.trajectory_level_time`). Each factor is held ≥
 :data:`FLOOR_FACTOR` (a trajectory that good is as good as exact for the calibration).
 
@@ -34,7 +41,7 @@ import numpy as np
 
 from calidar.adjust.variance_carry import carried_covariance
 from calidar.adjust.variance_components import (OBSERVATIONS, Components, estimate_components,
-                                                normal_terms, split_blocks)
+                                                normal_terms, split_blocks, upper_end)
 from calidar.adjust.variance_elements import estimate_elements
 from calidar.errors import CalibrationError
 from calidar.strips.trajectory_errors import Knot
@@ -48,6 +55,9 @@ GROUPS = ("position_horizontal", "position_vertical", "attitude_horizontal", "he
 MIN_REDUNDANCY = 10.0
 #: the smallest factor on a stated σ (1 % of the survey-grade default: 0.5 mm, 0.00003°)
 FLOOR_FACTOR = 0.01
+#: a bounded group is held at the σ its update rejects at this one-sided level (0.025: the upper end
+#: of a 95 % interval; 0.16, one σ: airborne yaw σ 1.29 → 1.18× the smrmsg's, docs/validation.md)
+BOUND_LEVEL = 0.025
 SOURCE = "estimated from the overlaps (variance components of the trajectory priors)"
 
 
@@ -79,8 +89,14 @@ class TrajectoryLevel:
     #: per non-trajectory parameter the factor on its σ from the level's own uncertainty
     #: (:func:`carry_uncertainty`)
     carried: dict[str, float] | None = None
+    #: per bounded group (checked at the stated σ, not at its estimate): its held factor (the
+    #: upper end the data leave it), its information tr(Rₖ²) at the estimate it was bounded from
+    #: and its redundancy at the stated σ
+    bounded: dict[str, tuple[float, float, float]] | None = None
 
     def factor(self, group: str) -> float:
+        if group in (self.bounded or {}):
+            return self.bounded[group][0]
         return self.components.sigma_factor(group) if self.estimated.get(group) else 1.0
 
     def relative_sigma(self, group: str) -> float:
@@ -95,6 +111,11 @@ class TrajectoryLevel:
     def any_estimated(self) -> bool:
         return any(self.estimated.values())
 
+    @property
+    def from_data(self) -> bool:
+        """Whether any group's level comes from the data (estimated or bounded)."""
+        return self.any_estimated or bool(self.bounded)
+
     def headline(self) -> str:
         """'position 2.9/4.4 cm (horizontal/vertical), attitude 0.0020/0.0079°
         (roll·pitch/heading)'."""
@@ -107,18 +128,21 @@ class TrajectoryLevel:
         """The groups the data cannot tell, with their redundancy: 'heading (r = 3.1 < 10)'."""
         return [f"{g.replace('_', ' ')} (redundancy {self.components.redundancy_start[g]:.1f} < "
                 f"{MIN_REDUNDANCY:g})"
-                for g, ok in self.estimated.items() if not ok]
+                for g, ok in self.estimated.items() if not ok and g not in (self.bounded or {})]
 
     def to_dict(self) -> dict:
         c = self.components
         m = self.accuracy.medians()
+        bounded = self.bounded or {}
         groups = {g: {"estimated": ok, "sigma_factor": self.factor(g),
                       "sigma_factor_relative_sigma": self.relative_sigma(g) if ok else None,
                       "redundancy": float(c.redundancy[g]),
-                      "redundancy_at_stated_sigma": float(c.redundancy_start[g]),
-                      "priors": int(c.size[g])}
+                      "information": float(bounded[g][1] if g in bounded else c.information[g]),
+                      "redundancy_at_stated_sigma": float(bounded[g][2] if g in bounded
+                                                          else c.redundancy_start[g]),
+                      "priors": int(c.size[g])} | ({"bounded": True} if g in bounded else {})
                   for g, ok in self.estimated.items()}
-        return {"source": "data" if self.any_estimated else "default", "method": SOURCE,
+        return {"source": "data" if self.from_data else "default", "method": SOURCE,
                 "headline": self.headline(),
                 "position_m": {"horizontal": m["north_rms_m"], "vertical": m["down_rms_m"]},
                 "attitude_deg": {"roll_pitch": m["roll_rms_deg"], "heading": m["heading_rms_deg"]},
@@ -146,47 +170,73 @@ def estimate_level(est, base: TrajectoryAccuracy, layout: Mapping[str, Knot],
                    knot_times: Mapping[int, np.ndarray] | None = None) -> TrajectoryLevel:
     """The trajectory's level from an adjustment ``est`` (a :class:`calidar.adjust.solver.Estimate`
     whose trajectory priors came from ``base``, its trajectory parameters' knots by name
-    ``layout``): groups with redundancy below :data:`MIN_REDUNDANCY` are held at their stated σ and
-    the others estimated again without them. With the strips' ``knot_times`` the estimated groups
-    then follow the flight in time (:mod:`calidar.strips.trajectory_level_time`)."""
+    ``layout``): groups with redundancy below :data:`MIN_REDUNDANCY` are held at their stated σ,
+    groups bounded (module docstring) at their upper end, and the others estimated again without
+    them. With the strips' ``knot_times`` the estimated groups then follow the flight in time
+    (:mod:`calidar.strips.trajectory_level_time`)."""
     terms = normal_terms(est)
     knots = [layout.get(p.name) for p in est.fit.free]
     groups = [group_of(k) for k in knots]
     blocks = split_blocks(est.fit.priors, groups)
     present = [g for g in GROUPS if any(b.group == g for b in blocks)]
-    fixed = ["other"]
-    while True:  # tol: 1 % in variance, ½ % in σ — well inside the factors' own ±1/√(2rₖ)
-        try:
-            comps = estimate_components(*terms, blocks, fixed=fixed, floor=FLOOR_FACTOR**2,
-                                        marginal=True, tol=0.01)
-        except CalibrationError:  # a normal matrix singular at some factors: nothing estimated
-            fixed = ["other", *present]
-            comps = estimate_components(*terms, blocks, fixed=fixed, max_iter=1)
-        # judged at the stated σ: a group the data check there is estimated, however small it comes
-        # out (its redundancy then falls with it: the priors, now narrow, are checked less)
-        weak = [g for g in present if g not in fixed and comps.redundancy_start[g] < MIN_REDUNDANCY]
-        if not weak:
-            break
-        fixed += weak
+    comps, fixed, bounded = _components(terms, blocks, present)
     estimated = {g: g not in fixed for g in present}
-    level = TrajectoryLevel(base, comps, estimated, base)
-    source = SOURCE if level.any_estimated else base.source
+    level = TrajectoryLevel(base, comps, estimated, base, bounded=bounded or None)
+    source = SOURCE if level.from_data else base.source
     level.accuracy = scaled(base, *(level.factor(g) for g in GROUPS), source=source)
     if knot_times is not None and level.any_estimated:
         start = {g: comps.variance[g] for g in present if estimated[g]}
+        held = scaled(base, *(bounded.get(g, (1.0,))[0] for g in GROUPS), source=source)
+        priors = _held_priors(est.fit.priors, groups, bounded)
         try:
-            elements = estimate_elements(terms[0], terms[1], terms[4], est.fit.priors, groups,
+            elements = estimate_elements(terms[0], terms[1], terms[4], priors, groups,
                                          start, observations=comps.variance[OBSERVATIONS],
                                          max_iter=1)
             level.effective = elements.effective
-            level.over_time = estimate_over_time(terms, est.fit.priors, knots, groups, knot_times,
+            level.over_time = estimate_over_time(terms, priors, knots, groups, knot_times,
                                                  start, comps.variance[OBSERVATIONS],
                                                  FLOOR_FACTOR**2)
         # a normal matrix singular at some segment's factors: the flight-wide level stays
         except CalibrationError:
             return level
-        level.accuracy = over_time_accuracy(base, level.over_time, knot_times)
+        level.accuracy = over_time_accuracy(held, level.over_time, knot_times)
     return level
+
+
+def _components(terms: tuple, blocks: list, present: list[str]) -> tuple[Components, list[str],
+                                                                        dict]:
+    """The groups' factors (:func:`estimate_level`): the components estimated, the groups held
+    (weak at their stated σ, bounded at their upper end) and per bounded group (factor,
+    information tr(Rₖ²) at its estimate, redundancy at the stated σ)."""
+    fixed, held, bounded = ["other"], {}, {}
+    while True:  # tol: 1 % in variance, ½ % in σ — well inside the factors' own ±1/√(2rₖ)
+        try:
+            comps = estimate_components(*terms, blocks, fixed=fixed, floor=FLOOR_FACTOR**2,
+                                        marginal=True, tol=0.01, start=held)
+        except CalibrationError:  # a normal matrix singular at some factors: nothing estimated
+            fixed, held, bounded = ["other", *present], {}, {}
+            return estimate_components(*terms, blocks, fixed=fixed, max_iter=1), fixed, bounded
+        # judged at the stated σ: a group the data do not check there is held at it
+        free = [g for g in present if g not in fixed]
+        weak = [g for g in free if comps.redundancy_start[g] < MIN_REDUNDANCY]
+        if weak:
+            fixed += weak
+            continue
+        # checked at the stated σ but not at its estimate: only its upper end is known
+        loose = [g for g in free if comps.information[g] < MIN_REDUNDANCY]
+        if not loose:
+            return comps, fixed, bounded
+        for g in loose:
+            held[g] = upper_end(terms, blocks, comps.variance, g, level=BOUND_LEVEL)
+            bounded[g] = (float(np.sqrt(held[g])), float(comps.information[g]),
+                          float(comps.redundancy_start[g]))
+        fixed += loose
+
+
+def _held_priors(priors, groups: list[str | None], bounded: Mapping[str, tuple]) -> list:
+    """The engine's prior groups with the bounded groups' priors at their held factor."""
+    f = np.array([bounded[g][0] if g in bounded else 1.0 for g in groups])
+    return [(idx, c, P / np.outer(f[idx], f[idx])) for idx, c, P in priors]
 
 
 def scaled(base: TrajectoryAccuracy, horizontal: float, vertical: float, tilt: float,

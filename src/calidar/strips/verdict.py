@@ -291,15 +291,20 @@ ACCURACY_ACTION = ("give the trajectory's accuracy file (POSPac smrmsg) with "
 
 def accuracy_finding(level: dict) -> Finding:
     """The trajectory accuracy estimated from the overlaps (a TrajectoryLevel's dict): a pass where
-    every group of priors was estimated, a warning naming those the data cannot tell (the
-    survey-grade default kept there) and the criterion."""
+    every group of priors was estimated or bounded (held at the upper end the data leave it,
+    named), a warning naming those the data cannot tell (the survey-grade default kept there) and
+    the criterion."""
     groups = level["groups"]
     weak = [f"{g.replace('_', ' ')} (redundancy {v['redundancy_at_stated_sigma']:.1f} < "
             f"{level['min_redundancy']:g})"
-            for g, v in groups.items() if not v["estimated"]]
+            for g, v in groups.items() if not v["estimated"] and not v.get("bounded")]
+    bounded = [f"{g.replace('_', ' ')} (redundancy {v['redundancy_at_stated_sigma']:.0f} at the "
+               f"default, information {v['information']:.1f} at its estimate)"
+               for g, v in groups.items() if v.get("bounded")]
     factors = ", ".join(
         f"{g.replace('_', ' ')} ×{v['sigma_factor']:.2g}"
         + (f" ± {100 * v['sigma_factor_relative_sigma']:.0f} %" if v["estimated"] else "")
+        + (" at most" if v.get("bounded") else "")
         for g, v in groups.items())
     if level["source"] == "data":
         detail = ("no accuracy file found; trajectory accuracy estimated from the overlaps: "
@@ -314,6 +319,9 @@ def accuracy_finding(level: dict) -> Finding:
         moving = [(g, f) for g, f in spans if max(f) > 1.01 * min(f)]
         moved = ", ".join(f"{g.replace('_', ' ')} ×{min(f):.2g}–×{max(f):.2g}" for g, f in moving)
         detail += "; over the flight (per segment, pooled in time): " + (moved or "constant")
+    if bounded:
+        detail += ("; the data bound but do not measure " + ", ".join(bounded)
+                   + ": held at the upper end they leave it (its σ conservative)")
     if weak:
         detail += ("; the data cannot tell " + ", ".join(weak)
                    + ": the survey-grade default kept there")

@@ -195,6 +195,26 @@ def test_an_accuracy_estimated_from_the_overlaps_is_stated(heading_estimated):
         assert "--trajectory-accuracy" in f.action
 
 
+def test_a_bounded_level_is_named_as_such():
+    """A group checked at the stated σ but not at its estimate (issue 26, eleventh session): held at
+    the upper end the data leave it — named with its redundancy and information, "at most", not as
+    a group the data cannot tell (no warning: the σ are conservative, not the default's)."""
+    sol = _solution({"boresight_roll": 1e-6})
+    level = _level(False)
+    level["groups"]["heading"] |= {"sigma_factor": 0.17, "redundancy_at_stated_sigma": 72.7,
+                                   "information": 0.0, "bounded": True}
+    sol.extra["trajectory_accuracy_estimate"] = level
+    result = SimpleNamespace(solution=sol, strips=[_Strip()], pairs=[{}], matcher=TiePlanes(), method="planes",
+                             residuals_after=np.zeros(3), row_sigma=np.ones(3), warnings=[],
+                             outer=[{"n_obs": 10, "mean_distance_m": 0.01}, {"n_obs": 10, "mean_distance_m": 0.01}])
+    stages = [QualityStage("as delivered", "", [_pq(1, 2, 0.05, 0.08)]), QualityStage("after", "", [_pq(1, 2, 0.0, 0.01)])]
+    v = strip_verdict(result, stages, ["no trajectory accuracy found (…): its level is estimated from the overlaps"])
+    f = next(f for f in v.findings if f.check == "trajectory accuracy")
+    assert f.status == "pass" and "heading ×0.17 at most" in f.detail
+    assert "bound but do not measure heading (redundancy 73 at the default, information 0.0" in f.detail
+    assert "cannot tell" not in f.detail and "default kept" not in f.detail
+
+
 def test_the_global_test_takes_sigma0_consistent_for_normal_residuals():
     """The engine's σ0 from Cauchy-weighted residuals is 0.89 when the σ are exactly right; the global
     test divides the factor out and finds 1 (20 000 normal residuals about a fitted mean)."""
