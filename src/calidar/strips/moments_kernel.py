@@ -95,19 +95,25 @@ def dense_cell_counts(keys: np.ndarray):
 
 
 @njit(cache=True, nogil=True)
+def _key_box(keys):  # pragma: no cover - numba
+    """(lo0, hi0, lo1, hi1): the box of the cells of ``keys`` (at least one), from the keys
+    themselves (no (N, 2) cells: twice as fast as :func:`calidar.cells.cell_box`)."""
+    i, j = key_cell(keys[0])
+    lo0, hi0, lo1, hi1 = i, i, j, j
+    for k in range(1, keys.size):
+        i, j = key_cell(keys[k])
+        lo0, hi0, lo1, hi1 = min(lo0, i), max(hi0, i), min(lo1, j), max(hi1, j)
+    return lo0, hi0, lo1, hi1
+
+
+@njit(cache=True, nogil=True)
 def _dense_counts(keys):  # pragma: no cover - numba
     n = keys.size
     e = np.zeros(0, np.int64)
     if n == 0:
         return e, e, True
-    lo0, hi0, lo1, hi1 = 0, 0, 0, 0
-    for k in range(n):  # the box from the keys (no (N, 2) cells: twice as fast as cells.cell_box)
-        i, j = key_cell(keys[k])
-        if k == 0:
-            lo0, hi0, lo1, hi1 = i, i, j, j
-        else:
-            lo0, hi0, lo1, hi1 = min(lo0, i), max(hi0, i), min(lo1, j), max(hi1, j)
-    box = (lo0, hi0, lo1, hi1)
+    box = _key_box(keys)
+    lo0, hi0, lo1, hi1 = box
     if not dense_fits(n, box):
         return e, e, False
     width = hi1 - lo1 + 1
@@ -138,14 +144,8 @@ def _dense_order(keys):  # pragma: no cover - numba
     n = keys.size
     if n == 0:
         return np.zeros(0, np.int64), True
-    lo0, hi0, lo1, hi1 = 0, 0, 0, 0
-    for k in range(n):
-        i, j = key_cell(keys[k])
-        if k == 0:
-            lo0, hi0, lo1, hi1 = i, i, j, j
-        else:
-            lo0, hi0, lo1, hi1 = min(lo0, i), max(hi0, i), min(lo1, j), max(hi1, j)
-    box = (lo0, hi0, lo1, hi1)
+    box = _key_box(keys)
+    lo0, hi0, lo1, hi1 = box
     if not dense_fits(n, box):
         return np.zeros(0, np.int64), False
     width = hi1 - lo1 + 1
