@@ -41,14 +41,9 @@ def pair_processes(processes: int = PROCESSES) -> Iterator[Any]:
     if processes < 2:
         yield None
         return
-    import multiprocessing as mp
     from concurrent.futures import ProcessPoolExecutor
 
-    method = "forkserver" if "forkserver" in mp.get_all_start_methods() else "spawn"
-    context = mp.get_context(method)
-    if method == "forkserver":
-        context.set_forkserver_preload(list(PRELOAD))
-    pool = ProcessPoolExecutor(processes, mp_context=context)
+    pool = ProcessPoolExecutor(processes, mp_context=_context())
     try:
         yield pool
     finally:
@@ -60,14 +55,23 @@ def start_server(points: int) -> None:
     fill a round for the workers (at least :data:`MIN_POINTS`): it imports :data:`PRELOAD` while
     this process reads the strips, and the pool forks its workers from it at once. Nothing where
     there is no forkserver (the pool then starts its workers itself, on its first task)."""
-    import multiprocessing as mp
-
-    if points < MIN_POINTS or "forkserver" not in mp.get_all_start_methods():
+    if points < MIN_POINTS or _context().get_start_method() != "forkserver":
         return
     from multiprocessing import forkserver
 
-    mp.get_context("forkserver").set_forkserver_preload(list(PRELOAD))
     forkserver.ensure_running()
+
+
+def _context():
+    """The workers' start context: ``forkserver`` preloading :data:`PRELOAD` (``spawn`` where
+    there is no forkserver)."""
+    import multiprocessing as mp
+
+    method = "forkserver" if "forkserver" in mp.get_all_start_methods() else "spawn"
+    context = mp.get_context(method)
+    if method == "forkserver":
+        context.set_forkserver_preload(list(PRELOAD))
+    return context
 
 
 def worth_processes(tasks: Sequence[tuple], min_points: int | None = None) -> bool:
