@@ -14,6 +14,13 @@ z_i = r0_i/σ_i its residual at the truth (the rows' noise and the scene's model
 influence-weighted mean of z² (rows beyond 7σ left out), Σ a_ik z_i² / Σ a_ik, is 1 when the σ of the
 rows that carry angle k are right on average; below 1 they are too wide. Split by the row's σ
 parts (the share of ``noise_floor_m``² in σ², and b's white noise) and its normal's |n_z|; ``--set`` overrides ``[vgicp]`` settings (σ model variants).
+
+``--full``: the twin calibrated as ``calidar boresight`` would (from the nominal sensor, every outer
+iteration): its error is the rows' whole effect on the default estimate, RMS 1 against the share
+when the rows' σ are right. ``--summary --against DRAWS.jsonl`` (``strips_yaw_draws.py --json``
+rows of the same seeds WITH trajectory errors) sets the twins' errors beside that split: its rows'
+part (actual − trajectory part) against the twin's error, and the actual error regressed on the
+trajectory part and the twin's error together.
 """
 
 from __future__ import annotations
@@ -150,6 +157,31 @@ def summary(rows: list[dict]) -> str:
     return "\n".join(out)
 
 
+def against(rows: list[dict], draws: list[dict]) -> str:
+    """The twins' errors (no trajectory errors) beside the draws split of the same seeds."""
+    tw = {r["seed"]: r for r in rows}
+    mc = {r["seed"]: r for r in draws if r["method"] == "vgicp"}
+    seeds = sorted(set(tw) & set(mc))
+    sh = np.array([mc[s]["rows_sigma_mdeg"] for s in seeds])
+    ex = np.array([tw[s]["move_deg"] for s in seeds]) * 1e3
+    act = np.array([mc[s]["actual_mdeg"] for s in seeds])
+    traj = np.array([mc[s]["traj_mdeg"] for s in seeds])
+    f = lambda x: "/".join(f"{v:.2f}" for v in x)  # noqa: E731
+    rms = lambda x: np.sqrt(np.mean((x / sh) ** 2, 0))  # noqa: E731
+    out = [f"  {len(seeds)} surveys: RMS ÷ rows' share: twin {f(rms(ex))}, the split's rows' part "
+           f"{f(rms(act - traj))} (±{1 / np.sqrt(2 * len(seeds)):.2f})"]
+    for k, name in enumerate(ANGLES):
+        X = np.column_stack([traj[:, k], ex[:, k]])
+        coef = np.linalg.lstsq(X, act[:, k], rcond=None)[0]
+        res = act[:, k] - X @ coef
+        se = np.sqrt(np.diag(np.linalg.inv(X.T @ X)) * np.sum(res**2) / max(len(seeds) - 2, 1))
+        out.append(f"  {name}: actual = {coef[0]:.2f} (±{se[0]:.2f}) · trajectory part + "
+                   f"{coef[1]:.2f} (±{se[1]:.2f}) · twin's error, the rest's RMS ÷ share "
+                   f"{np.sqrt(np.mean((res / sh[:, k]) ** 2)):.2f}; corr(trajectory part, twin) "
+                   f"{np.corrcoef(traj[:, k], ex[:, k])[0, 1]:+.2f}")
+    return "\n".join(out)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", default="1224-1229")
@@ -163,11 +195,15 @@ def main() -> None:
                     "(the classes then read the last adjustment's start, not the truth)")
     ap.add_argument("--json", type=Path, default=None)
     ap.add_argument("--summary", action="store_true")
+    ap.add_argument("--against", type=Path, default=None, help="strips_yaw_draws.py rows")
     args = ap.parse_args()
     if args.summary:
         rows = [json.loads(x) for x in args.json.read_text().splitlines() if x.strip()]
         print(summary(rows))
         print(moves(rows))
+        if args.against:
+            print(against(rows, [json.loads(x) for x in args.against.read_text().splitlines()
+                                 if x.strip()]))
         return
     vset = {k: float(v) for k, v in (s.split("=") for s in args.set)}
     solver.Estimate.solution = _capture
