@@ -1,9 +1,10 @@
 """Benchmark: the rows' share of VGICP's angles against the spread of its error over draws of the
 points' noise alone — same hits, same trajectory errors (issue 26, twelfth session).
 
-    NUMBA_NUM_THREADS=1 OMP_NUM_THREADS=1 PYTHONPATH=src python benchmarks/strips_vgicp_noise_draws.py \\
-        --preset uav --directions opposite --seeds 1224-1229 --draws 0-3 --cache DIR \\
-        [--exact] [--set noise_floor_m=0] [--json out.jsonl] [--summary]
+    NUMBA_NUM_THREADS=1 OMP_NUM_THREADS=1 PYTHONPATH=src python \\
+        benchmarks/strips_vgicp_noise_draws.py --preset uav --directions opposite \\
+        --seeds 1224-1229 --draws 0-3 --cache DIR [--exact] [--set noise_floor_m=0] \\
+        [--json out.jsonl] [--summary]
 
 Each seed's survey (``strips_montecarlo.py``'s cached folder; ``--exact``: its twin without
 trajectory errors, ``strips_roll.py``'s) is simulated again with other draws of its range and angle
@@ -35,7 +36,8 @@ from calidar.adjust import solver  # noqa: E402
 from calidar.pipelines.boresight import calibrate_inputs, load_inputs  # noqa: E402
 from calidar.pipelines.strip_config import StripConfig  # noqa: E402
 from calidar.sim.survey import survey_config  # noqa: E402
-from calidar.strips.config import CalibrationConfig, TrajectorySettings, matchers_named  # noqa: E402
+from calidar.strips.config import (CalibrationConfig, TrajectorySettings,  # noqa: E402
+                                   matchers_named)
 
 
 def folder(cache: Path, seed: int, directions: str, vegetation: float, draw: int,

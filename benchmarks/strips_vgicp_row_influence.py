@@ -2,18 +2,21 @@
 weighted by each row's share of an angle's variance (issue 26, twelfth session: VGICP's rows'
 share too wide on UAV opposite lines).
 
-    NUMBA_NUM_THREADS=1 OMP_NUM_THREADS=1 PYTHONPATH=src python benchmarks/strips_vgicp_row_influence.py \\
-        --preset uav --directions opposite --seeds 1224-1229 --cache DIR [--set noise_floor_m=0] \\
-        [--json out.jsonl] [--summary]
+    NUMBA_NUM_THREADS=1 OMP_NUM_THREADS=1 PYTHONPATH=src python \\
+        benchmarks/strips_vgicp_row_influence.py --preset uav --directions opposite \\
+        --seeds 1224-1229 --cache DIR [--set noise_floor_m=0] [--full] [--with-errors] \\
+        [--json out.jsonl] [--summary [--against DRAWS.jsonl]]
 
-Each survey's twin without trajectory errors (``strips_roll.py``'s ``…_exact`` folder in ``--cache``,
-simulated there when missing) is adjusted once from the TRUE sensor with the preset's trajectory
-priors, VGICP only. At the solution, row i's share of angle k's rows' variance is
-a_ik = (N⁻¹J_iᵀ)_k² w_i (Σ_i a_ik = the rows' share [N⁻¹JᵀWJN⁻¹]_kk, w_i the IRLS weight over σ_i²), and
-z_i = r0_i/σ_i its residual at the truth (the rows' noise and the scene's model errors only). The
-influence-weighted mean of z² (rows beyond 7σ left out), Σ a_ik z_i² / Σ a_ik, is 1 when the σ of the
-rows that carry angle k are right on average; below 1 they are too wide. Split by the row's σ
-parts (the share of ``noise_floor_m``² in σ², and b's white noise) and its normal's |n_z|; ``--set`` overrides ``[vgicp]`` settings (σ model variants).
+Each survey's twin without trajectory errors (``strips_roll.py``'s ``…_exact`` folder in
+``--cache``, simulated there when missing) is adjusted once from the TRUE sensor with the preset's
+trajectory priors, VGICP only. At the solution, row i's share of angle k's rows' variance is
+a_ik = (N⁻¹J_iᵀ)_k² w_i (Σ_i a_ik = the rows' share [N⁻¹JᵀWJN⁻¹]_kk, w_i the IRLS weight over
+σ_i²), and z_i = r0_i/σ_i its residual at the truth (the rows' noise and the scene's model errors
+only). The influence-weighted mean of z² (rows beyond 7σ left out), Σ a_ik z_i² / Σ a_ik, is 1
+when the σ of the rows that carry angle k are right on average; below 1 they are too wide. Split
+by the row's σ parts (the share of ``noise_floor_m``² in σ², and b's white noise) and its
+normal's |n_z|; ``--set`` overrides ``[vgicp]`` settings (σ model variants). ``--with-errors``:
+the survey itself (with its trajectory errors, the smrmsg's priors) instead of its twin.
 
 ``--full``: the twin calibrated as ``calidar boresight`` would (from the nominal sensor, every outer
 iteration): its error is the rows' whole effect on the default estimate, RMS 1 against the share
@@ -102,8 +105,8 @@ def classes(est, problem_parts) -> dict:
 
 
 def _stat(a, z, rob, sel) -> list:
-    """[share of the rows' variance in the class (per angle), Σ a z²/Σ a (per angle), the same with
-    the robust weights (Σ a·rob·z²/Σ a: the HC0 meat's reading), plain RMS z, rows]."""
+    """[share of the rows' variance in the class (per angle), Σ a z²/Σ a (per angle), the same
+    with the robust weights (Σ a·rob·z²/Σ a: the HC0 meat's reading), plain RMS z, rows]."""
     if not sel.any():
         return [[0.0] * 3, [np.nan] * 3, [np.nan] * 3, np.nan, 0]
     s = a[sel]
@@ -112,8 +115,9 @@ def _stat(a, z, rob, sel) -> list:
             float(np.sqrt(np.mean(z[sel] ** 2))), int(sel.sum())]
 
 
-def run(folder: Path, vgicp_set: dict, full: bool = False) -> tuple[dict, list]:
-    traj = TrajectorySettings(sigma=SIGMA["uav"])
+def run(folder: Path, vgicp_set: dict, full: bool = False, errors: bool = False
+        ) -> tuple[dict, list]:
+    traj = TrajectorySettings() if errors else TrajectorySettings(sigma=SIGMA["uav"])
     cal = CalibrationConfig(matchers=matchers_named("vgicp"), trajectory=traj,
                             model_check=False)
     if not full:
@@ -193,6 +197,8 @@ def main() -> None:
     ap.add_argument("--full", action="store_true",
                     help="the default run instead: from the nominal sensor, every outer iteration "
                     "(the classes then read the last adjustment's start, not the truth)")
+    ap.add_argument("--with-errors", action="store_true",
+                    help="the survey with its trajectory errors, not its twin")
     ap.add_argument("--json", type=Path, default=None)
     ap.add_argument("--summary", action="store_true")
     ap.add_argument("--against", type=Path, default=None, help="strips_yaw_draws.py rows")
@@ -211,9 +217,11 @@ def main() -> None:
     calibrate.PROCESSES = 1  # the pairs in this process: the σ parts recorded here
     rows = []
     for seed in seeds_of(args.seeds):
-        _, exact = folders(args.cache, seed, args.preset, args.directions, "scene", args.vegetation)
-        cls, move = run(exact, vset, args.full)
+        survey, exact = folders(args.cache, seed, args.preset, args.directions, "scene",
+                                args.vegetation)
+        cls, move = run(survey if args.with_errors else exact, vset, args.full, args.with_errors)
         row = {"seed": seed, "directions": args.directions, "set": args.set, "full": args.full,
+               "with_errors": args.with_errors,
                "move_deg": move,
                "classes": cls}
         rows.append(row)
@@ -226,13 +234,16 @@ def main() -> None:
 
 
 def moves(rows: list[dict]) -> str:
-    """RMS of the move (the rows' part: no trajectory errors) over the rows' share σ and over N⁻¹'s σ."""
+    """RMS of the move (the rows' part: no trajectory errors) over the rows' share σ and over
+    N⁻¹'s σ."""
     mv = np.array([r["move_deg"] for r in rows])
     sh = np.array([r["classes"]["share_deg"] for r in rows])
     md = np.array([r["classes"]["model_deg"] for r in rows])
-    return (f"  {len(rows)} surveys: RMS move/share " + "/".join(f"{x:.2f}" for x in np.sqrt(np.mean(
-        (mv / sh) ** 2, 0))) + f" (±{1 / np.sqrt(2 * len(rows)):.2f}); move/N⁻¹σ " + "/".join(
-        f"{x:.2f}" for x in np.sqrt(np.mean((mv / md) ** 2, 0))))
+    ratio = np.sqrt(np.mean((mv / sh) ** 2, 0))
+    spread = 1 / np.sqrt(2 * len(rows))
+    return (f"  {len(rows)} surveys: RMS move/share " + "/".join(f"{x:.2f}" for x in ratio)
+            + f" (±{spread:.2f}); move/N⁻¹σ "
+            + "/".join(f"{x:.2f}" for x in np.sqrt(np.mean((mv / md) ** 2, 0))))
 
 
 if __name__ == "__main__":
