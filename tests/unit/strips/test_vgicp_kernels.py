@@ -8,7 +8,7 @@ import pytest
 import scipy.sparse as sp
 
 from calidar.strips.vgicp import _spread, overlap_masks
-from calidar.strips.vgicp_kernels import neighbourhood_moments, xy_bounds
+from calidar.strips.vgicp_kernels import neighbourhood_centroids, neighbourhood_moments, xy_bounds
 from calidar.strips.vgicp_planes import Grid, near
 
 
@@ -59,6 +59,7 @@ def test_neighbourhood_moments_equal_numpy(m_rows, k):
     want_centroid = nb.mean(axis=1)
     nb = nb - want_centroid[:, None, :]
     assert np.array_equal(centroid, want_centroid)
+    assert np.array_equal(neighbourhood_centroids(points, idx), want_centroid)  # (alone)
     assert np.array_equal(scatter, np.einsum("mki,mkj->mij", nb, nb))
 
 

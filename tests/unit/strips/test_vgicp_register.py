@@ -1,6 +1,8 @@
 """VGICP registration (strips.vgicp.register): the finest stage first, coarse to fine only where
 it does not lock in; each cloud downsampled once (docs/validation.md, issue 32, eighth session)."""
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 import small_gicp
@@ -75,8 +77,9 @@ def ladder(a, b, settings, downsample=voxel_downsample):
     fine_a, fine_b = downsample(a, finest), downsample(b, finest)
     T = np.eye(4)
     for voxel, down in stages:
-        target, _ = small_gicp.preprocess_points(fine_a, down, settings.num_neighbors, 1)
-        source, _ = small_gicp.preprocess_points(fine_b, down, settings.num_neighbors, 1)
+        k = settings.registration_neighbors
+        target, _ = small_gicp.preprocess_points(fine_a, down, k, 1)
+        source, _ = small_gicp.preprocess_points(fine_b, down, k, 1)
         voxelmap = small_gicp.GaussianVoxelMap(voxel)
         voxelmap.insert(target)
         T = np.asarray(small_gicp.align(voxelmap, source, T, max_correspondence_distance=2 * voxel,
@@ -119,10 +122,11 @@ def test_one_downsampling_gives_small_gicps_preprocessed_clouds_bit_for_bit(scen
     one = VgicpSettings(voxel_m=(1.0,), max_registration_points=10**6)
     T = register(a, b, one, AREA_M2).T_ab
     assert np.array_equal(T, ladder(a, b, one))
-    reference, _ = small_gicp.preprocess_points(voxel_downsample(a, 0.5), 0.5, one.num_neighbors, 1)
-    ours = vgicp._preprocess(a, 0.5, one)
-    assert np.array_equal(ours.points(), reference.points())
-    assert np.array_equal(np.array(ours.covs()), np.array(reference.covs()))
+    for k in (one.registration_neighbors, 10):  # the rows' planes keep num_neighbors
+        reference, _ = small_gicp.preprocess_points(voxel_downsample(a, 0.5), 0.5, k, 1)
+        ours = vgicp._preprocess(a, 0.5, replace(one, registration_neighbors=k, num_neighbors=7))
+        assert np.array_equal(ours.points(), reference.points())
+        assert np.array_equal(np.array(ours.covs()), np.array(reference.covs()))
     # small_gicp's own downsampling sums each voxel in another order: the last bits only
     theirs = ladder(a, b, one, lambda p, m: small_gicp.voxelgrid_sampling(p, m, 1).points())
     assert np.abs(T - theirs).max() < 1e-12
