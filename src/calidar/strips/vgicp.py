@@ -45,8 +45,9 @@ import small_gicp
 
 from calidar.errors import CalibrationError
 from calidar.strips.correspond import Correspondences
-from calidar.strips.vgicp_kernels import (cell_keys, common_cells, first_in_cells,
-                                          neighbourhood_centroids, xy_bounds, xy_scatter)
+from calidar.strips.vgicp_kernels import (cell_keys, common_cells, first_in_cells, gather_centred,
+                                          neighbourhood_centroids, rows_mean, xy_bounds,
+                                          xy_scatter)
 from calidar.strips.vgicp_knn import GridKnn
 from calidar.strips.vgicp_planes import Grid, near, nearest, plane_rows
 from calidar.strips.voxel_downsample import voxel_downsample
@@ -297,12 +298,9 @@ def _overlap_crop(points_a: np.ndarray, points_b: np.ndarray, settings: VgicpSet
         raise CalibrationError(f"too little overlap for VGICP ({n_a} and {n_b} points in "
                                f"{area:.0f} m², need {settings.min_overlap_points} of each strip)")
     idx_a, idx_b = np.flatnonzero(in_a), np.flatnonzero(in_b)
-    ov_a = np.take(points_a, idx_a, axis=0)  # gathered once (take: fancy indexing's rows, faster)
-    origin = ov_a.mean(axis=0)
-    ov_a -= origin
-    ov_b = np.take(points_b, idx_b, axis=0)
-    ov_b -= origin
-    return idx_a, ov_a, idx_b, ov_b, area
+    origin = rows_mean(points_a, idx_a)  # numpy's mean of the rows, without gathering them first
+    return (idx_a, gather_centred(points_a, idx_a, origin), idx_b,
+            gather_centred(points_b, idx_b, origin), area)
 
 
 def match_pair_vgicp(strip_a_id: int, points_a: np.ndarray, strip_b_id: int, points_b: np.ndarray,

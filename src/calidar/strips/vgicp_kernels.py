@@ -164,3 +164,26 @@ def xy_scatter(points):  # pragma: no cover - numba
         sxy += dx * dy
         syy += dy * dy
     return sxx / n, sxy / n, syy / n
+
+
+@njit(cache=True, nogil=True)
+def rows_mean(points, idx):  # pragma: no cover - numba
+    """Mean (3,) of the rows ``idx`` (M ≥ 1,) of the points (N, 3), as ``np.take(points, idx,
+    axis=0).mean(axis=0)`` sums them: from 0, adding the rows in order (numpy's reduction over a
+    C-ordered array's outer axis is not pairwise), then / M."""
+    total = np.zeros(3)
+    for r in range(idx.size):
+        for c in range(3):
+            total[c] += points[idx[r], c]
+    return total / idx.size
+
+
+@njit(cache=True, nogil=True)
+def gather_centred(points, idx, origin):  # pragma: no cover - numba
+    """The rows ``idx`` of the points (N, 3) less ``origin`` (3,): ``np.take(points, idx, axis=0) -
+    origin`` in one pass."""
+    out = np.empty((idx.size, 3))
+    for r in range(idx.size):
+        for c in range(3):
+            out[r, c] = points[idx[r], c] - origin[c]
+    return out
