@@ -59,7 +59,8 @@ def run(f: Path, exact: bool, vgicp_set: dict) -> dict:
     traj = TrajectorySettings(sigma=SIGMA["uav"]) if exact else TrajectorySettings()
     cal = CalibrationConfig(matchers=matchers_named("vgicp"), trajectory=traj, model_check=False)
     if vgicp_set:
-        cal = replace(cal, vgicp=replace(cal.vgicp, **vgicp_set))
+        m = cal.matchers[0]
+        cal = replace(cal, matchers=(replace(m, settings=replace(m.settings, **vgicp_set)),))
     inputs = load_inputs(sorted((f / "strips").glob("*.laz")), f / "sbet.out", f / "sensor.toml",
                          StripConfig(cal), truth=f / "truth.json")
     _CAPTURED.clear()
@@ -116,7 +117,8 @@ def main() -> None:
         print(summary([json.loads(x) for x in args.json.read_text().splitlines() if x.strip()]))
         return
     solver.Estimate.solution = _capture
-    vset = {k: float(v) for k, v in (s.split("=") for s in args.set)}
+    vset = {k: int(v) if v.isdigit() else float(v)
+            for k, v in (s.split("=") for s in args.set)}
     rows = []
     for seed in seeds_of(args.seeds):
         for d in seeds_of(args.draws):

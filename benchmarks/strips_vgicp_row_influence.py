@@ -123,7 +123,8 @@ def run(folder: Path, vgicp_set: dict, full: bool = False, errors: bool = False
     if not full:
         cal = replace(cal, solver=StripSettings(max_outer=1))
     if vgicp_set:
-        cal = replace(cal, vgicp=replace(cal.vgicp, **vgicp_set))
+        m = cal.matchers[0]
+        cal = replace(cal, matchers=(replace(m, settings=replace(m.settings, **vgicp_set)),))
     config = StripConfig(cal, IngestSettings())
     inputs = load_inputs(sorted((folder / "strips").glob("*.laz")), folder / "sbet.out",
                          folder / "sensor.toml", config, truth=folder / "truth.json")
@@ -211,7 +212,8 @@ def main() -> None:
             print(against(rows, [json.loads(x) for x in args.against.read_text().splitlines()
                                  if x.strip()]))
         return
-    vset = {k: float(v) for k, v in (s.split("=") for s in args.set)}
+    vset = {k: int(v) if v.isdigit() else float(v)
+            for k, v in (s.split("=") for s in args.set)}
     solver.Estimate.solution = _capture
     vgicp_planes.row_sigma = _parts
     calibrate.PROCESSES = 1  # the pairs in this process: the σ parts recorded here
