@@ -1,7 +1,7 @@
 """Benchmark: are the rows' σ right at the truth, and what does the global test read there? (issue 26)
 
     NUMBA_NUM_THREADS=1 PYTHONPATH=src python benchmarks/strips_row_sigma.py --seeds 7,8 [--preset airborne] \\
-        [--directions cross] [--scene urban|flat] [--methods planes,vgicp] [--cache DIR] [--estimators] \\
+        [--directions cross] [--scene urban|flat|smooth] [--methods planes,vgicp] [--cache DIR] [--estimators] \\
         [--density 0.3 --range-noise 0.03]   # the airborne Monte-Carlo's survey (strips_montecarlo.py)
 
 Each seed: ``calidar simulate survey --preset P --seed S --boresight-error 0.05,-0.03,0.1`` WITHOUT trajectory
@@ -50,8 +50,10 @@ ERRORS_DEG = {"boresight_roll": 0.05, "boresight_pitch": -0.03, "boresight_yaw":
 MATCHERS = {"planes": TiePlanes, "vgicp": Vgicp}
 
 
-#: ``--scene flat``: the preset's scene without relief, rough band or buildings (a plane and trees)
-FLAT = {"relief_m": 0.0, "rough_sigma_m": 0.0, "building_density_per_km2": 0.0}
+#: ``--scene flat``: the preset's scene without relief, rough band or buildings (a plane and trees);
+#: ``--scene smooth``: without its rough band
+SCENES = {"urban": URBAN, "flat": {"relief_m": 0.0, "rough_sigma_m": 0.0, "building_density_per_km2": 0.0},
+          "smooth": {"rough_sigma_m": 0.0}}
 
 
 def survey_folder(preset: str, seed: int, directions: str, scene: str, cache: Path,
@@ -64,8 +66,8 @@ def survey_folder(preset: str, seed: int, directions: str, scene: str, cache: Pa
     if not (folder / "truth.json").exists():
         cfg = survey_config(preset, seed=seed, directions=directions, gnss_noise_m=0.0, attitude_noise_rad=0.0,
                             errors={k: np.radians(v) for k, v in ERRORS_DEG.items()}, **other)
-        if scene in ("urban", "flat"):
-            cfg = replace(cfg, scene=replace(cfg.scene, **(URBAN if scene == "urban" else FLAT)))
+        if scene in SCENES:
+            cfg = replace(cfg, scene=replace(cfg.scene, **SCENES[scene]))
         simulate_survey(cfg).write(folder, force=True)
     return folder
 
@@ -169,7 +171,7 @@ def main() -> None:
     ap.add_argument("--seeds", default="7")
     ap.add_argument("--preset", default="uav", choices=("uav", "airborne"))
     ap.add_argument("--directions", default="cross", choices=("cross", "opposite"))
-    ap.add_argument("--scene", default="preset", choices=("preset", "urban", "flat"))
+    ap.add_argument("--scene", default="preset", choices=("preset", *SCENES))
     ap.add_argument("--methods", default="planes,vgicp")
     ap.add_argument("--cache", type=Path, default=Path("/tmp/calidar_row_sigma"))
     ap.add_argument("--estimators", action="store_true", help="also what each σ0 estimator reads (issue 26)")
