@@ -32,7 +32,7 @@ from calidar.strips.control_survey import SurveyErrors
 from calidar.strips.config import StripSettings
 from calidar.strips.convergence import NUISANCE, extrapolated, moving
 from calidar.strips.correspond import Correspondences
-from calidar.strips.distribute import IN_PROCESS_THREADS, map_pairs
+from calidar.strips.distribute import IN_PROCESS_THREADS, map_pairs, thread_map
 from calidar.strips.matchers import Matcher
 from calidar.strips.overlap import Overlap, find_overlaps, strip_name
 from calidar.strips.parameters import sensor_of
@@ -126,7 +126,8 @@ class Run:
             need.setdefault(i, []).append(v)
         need = {i: union(v) for i, v in need.items()}
         spans = {i: st.time_span for i, st in by_id.items()}
-        poses = {i: by_id[i].pose(idx) for i, idx in need.items()}  # one trajectory interpolation
+        # one trajectory interpolation, each strip's in this process's threads
+        poses = dict(zip(need, thread_map(lambda i: by_id[i].pose(need[i]), list(need))))
         if control is not None:
             poses[CONTROL_ID] = control_pose(control, next(iter(poses.values())))
         return cls(by_id, nominal, matcher, s, overlaps, spans, model, need, poses, list(notes),
@@ -142,9 +143,12 @@ class Run:
         columns), their pairs, and the stage times (s)."""
         clock = time.perf_counter()
         sensor, fix = sensor_of(self.nominal, values), corrections(values, self.model, self.spans)
-        current = {
-            i: (idx, georeference(sensor, fix.get(i), self.poses[i], self.by_id[i].time[idx]))
-            for i, idx in self.need.items()}
+
+        def strip_points(i):  # each strip's in this process's threads
+            idx = self.need[i]
+            return idx, georeference(sensor, fix.get(i), self.poses[i], self.by_id[i].time[idx])
+
+        current = dict(zip(self.need, thread_map(strip_points, list(self.need))))
         times = {"georeference_s": time.perf_counter() - clock}
 
         def subset(i, index):  # the points ``index`` of strip i (the pose cache's rows, by table)
