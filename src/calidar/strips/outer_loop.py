@@ -57,6 +57,16 @@ def match_or_error(matcher: Matcher, strip_a_id, points_a, strip_b_id, points_b)
         return e
 
 
+def _match_in_thread(matcher: Matcher, ov: Overlap, points_a: np.ndarray, pose_a: Pose,
+                     points_b: np.ndarray, pose_b: Pose, n_a: int, n_b: int):
+    """One pair matched in a thread of this process (:meth:`Run.match`): its points taken from
+    each strip's re-georeferenced ones (``pose_*``: their cache, whose rows index them), and its
+    correspondences' columns widened to whole-strip indices; or the user-facing error."""
+    c = match_or_error(matcher, ov.a, points_a[pose_a.rows_of(ov.index_a)], ov.b,
+                       points_b[pose_b.rows_of(ov.index_b)])
+    return c if isinstance(c, CalidarError) else _to_strip_columns(c, ov, n_a, n_b)
+
+
 def pair_threads(matcher: Matcher) -> int:
     """Pairs matched at once in this process's threads: :data:`IN_PROCESS_THREADS` for a matcher
     whose work releases the GIL (the tie planes: numba ``nogil`` kernels), 1 for one that holds it
@@ -151,27 +161,42 @@ class Run:
         current = dict(zip(self.need, thread_map(strip_points, list(self.need))))
         times = {"georeference_s": time.perf_counter() - clock}
 
-        def subset(i, index):  # the points ``index`` of strip i (the pose cache's rows, by table)
-            return current[i][1][self.poses[i].rows_of(index)]
-
-        tasks = [(self.matcher, o.a, subset(o.a, o.index_a), o.b, subset(o.b, o.index_b))
-                 for o in self.overlaps]
-        say(f"iteration {k + 1}: matching {len(tasks)} pairs ({self.matcher.name})", k,
+        say(f"iteration {k + 1}: matching {len(self.overlaps)} pairs ({self.matcher.name})", k,
             self.settings.max_outer)
         clock = time.perf_counter()
-        # a GIL-holding matcher: both cores
-        if pool is not None and client is None and worth_processes(tasks):
-            found = map_in_processes(pool, match_or_error, tasks)
+        threads = pair_threads(self.matcher)
+        if client is None and threads > 1:  # each pair taken and widened in its thread
+            found = map_pairs(_match_in_thread, self._thread_tasks(current), threads=threads)
         else:
-            found = map_pairs(match_or_error, tasks, client=client, log=log,
-                              threads=pair_threads(self.matcher))
+            found = self._whole_tasks(current, client, log, pool, threads)
         times["match_s"] = time.perf_counter() - clock
-        corrs, pairs, skipped = self._usable(found)
+        corrs, pairs, skipped = self._usable(found, widened=client is None and threads > 1)
         if k == 0 and skipped:
             self.warnings.append("strip pairs skipped: " + "; ".join(skipped))
         if not corrs:
             raise CalibrationError("no usable strip pair: " + "; ".join(skipped))
         return corrs + self._control_rows(current), pairs, times
+
+    def _thread_tasks(self, current: dict) -> list[tuple]:
+        """Each pair's task for :func:`_match_in_thread`: its strips' re-georeferenced points and
+        the pose cache's rows of the overlap's points (taken in the thread)."""
+        for pose in self.poses.values():
+            pose.rows_of(np.zeros(0, np.int64))  # each row table built here, read in the threads
+        return [(self.matcher, o, current[o.a][1], self.poses[o.a], current[o.b][1],
+                 self.poses[o.b], len(self.by_id[o.a]), len(self.by_id[o.b]))
+                for o in self.overlaps]
+
+    def _whole_tasks(self, current: dict, client, log, pool, threads: int) -> list:
+        """Every pair matched from its points taken here (worker processes, Dask or one thread)."""
+        def subset(i, index):  # the points ``index`` of strip i (the pose cache's rows, by table)
+            return current[i][1][self.poses[i].rows_of(index)]
+
+        tasks = [(self.matcher, o.a, subset(o.a, o.index_a), o.b, subset(o.b, o.index_b))
+                 for o in self.overlaps]
+        # a GIL-holding matcher: both cores
+        if pool is not None and client is None and worth_processes(tasks):
+            return map_in_processes(pool, match_or_error, tasks)
+        return map_pairs(match_or_error, tasks, client=client, log=log, threads=threads)
 
     def _control_rows(self, current: dict) -> list[Correspondences]:
         """The control rows of every strip near control, from its re-georeferenced points."""
@@ -188,7 +213,10 @@ class Run:
             return times
         return {**times, CONTROL_ID: np.zeros(len(self.control.ids))}
 
-    def _usable(self, found) -> tuple[list[Correspondences], list[dict], list[str]]:
+    def _usable(self, found, widened: bool = False
+                ) -> tuple[list[Correspondences], list[dict], list[str]]:
+        """The sets with enough rows (whole-strip columns; ``widened``: they have them already),
+        their pairs, and why the others were skipped."""
         what = self.matcher.label
         corrs, pairs, skipped = [], [], []
         for o, c in zip(self.overlaps, found):
@@ -198,7 +226,8 @@ class Run:
                 skipped.append(f"{o.a}–{o.b}: only {c.n_obs} {what}, need "
                                f"{self.settings.min_correspondences}")
             else:
-                corrs.append(_to_strip_columns(c, o, len(self.by_id[o.a]), len(self.by_id[o.b])))
+                corrs.append(c if widened else
+                             _to_strip_columns(c, o, len(self.by_id[o.a]), len(self.by_id[o.b])))
                 pairs.append({"a": o.a, "b": o.b, "n_obs": c.n_obs})
         return corrs, pairs, skipped
 

@@ -23,7 +23,7 @@ from calidar.adjust.residuals import numerical_jacobian
 from calidar.sensor import Sensor
 from calidar.strips.centroids import Centroids, compact, correction_derivatives, union
 from calidar.strips.correspond import Correspondences
-from calidar.strips.distribute import thread_map
+from calidar.strips.distribute import IN_PROCESS_THREADS, thread_map
 from calidar.strips.parameters import sensor_of
 from calidar.strips.shared_patches import counted_once
 from calidar.strips.strip import Pose, Strip, georeference_pose
@@ -84,8 +84,11 @@ class StripProblem(ResidualProblem):
         scanner_free = set(free) & set(nominal.scanner.parameters())
         range_free = bool(set(free) & {"range_offset", "range_scale"})
         lever_free = any(f.startswith("lever_arm") for f in free)
-        self.centroids = None if scanner_free else _centroids(corrs, poses, nominal, range_free,
-                                                              lever_free)
+        #: the model check's problems (``same_rows``) built and evaluated in one thread: the run's
+        #: peak memory is set there, and each thread's arena holds its own working arrays
+        self.threads = 1 if same_rows is not None else IN_PROCESS_THREADS
+        self.centroids = None if scanner_free else _centroids(
+            corrs, poses, nominal, range_free, lever_free, self.threads)
         #: per strip its cached poses and the rows of every referenced point, for re-georeferencing
         #: them all (scanner parameters free): taken a strip at a time at each call, not held as
         #: copies (the model check's 1.4 M rows: 0.17 GiB at 8.75 M points)
@@ -191,7 +194,8 @@ class StripProblem(ResidualProblem):
                 return _shifted(georeference(sensor, fix.get(i), self.pose(i), self.time.get(i)),
                                 h, i)
 
-            pts = dict(zip(self.pose_rows, thread_map(strip_points, list(self.pose_rows))))
+            pts = dict(zip(self.pose_rows,
+                           thread_map(strip_points, list(self.pose_rows), self.threads)))
             return np.concatenate([c.residuals(pts[c.strip_a], pts[c.strip_b]) for c in self.corrs])
         out = []
         for k, (c, sides, times) in enumerate(zip(self.corrs, self.centroids, self.row_time)):
@@ -307,14 +311,18 @@ class StripProblem(ResidualProblem):
 
 
 def _centroids(corrs: list[Correspondences], poses: dict[int, Pose], nominal: Sensor,
-               range_free: bool, lever_free: bool) -> list[tuple[Centroids, Centroids]]:
-    """Each correspondence set's two :class:`Centroids` (a, b), built in this process's threads
-    (:func:`calidar.strips.distribute.thread_map`: each side's sums its own, in order)."""
+               range_free: bool, lever_free: bool,
+               threads: int) -> list[tuple[Centroids, Centroids]]:
+    """Each correspondence set's two :class:`Centroids` (a, b), built ``threads`` at once in this
+    process (:func:`calidar.strips.distribute.thread_map`: each side's sums its own, in order)."""
     sides = [(m, poses[sid]) for c in corrs for m, sid in ((c.A, c.strip_a), (c.B, c.strip_b))]
     for _, pose in sides:
         pose.rows_of(np.zeros(0, np.int64))  # each pose's row table built once, here
-    built = thread_map(lambda side: Centroids(side[0], side[1], nominal, range_free, lever_free),
-                       sides)
+
+    def build(side):
+        return Centroids(side[0], side[1], nominal, range_free, lever_free)
+
+    built = thread_map(build, sides, threads)
     return list(zip(built[0::2], built[1::2]))
 
 

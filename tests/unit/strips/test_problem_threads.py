@@ -10,7 +10,6 @@ import threading
 import numpy as np
 import pytest
 
-import calidar.strips.distribute as distribute
 import calidar.strips.problem as problem_module
 from calidar.sensor import Sensor
 from calidar.strips.centroids import Centroids
@@ -32,8 +31,7 @@ def scene():
 
 def _problem(scene, free, threads, monkeypatch):
     strips, corrs = scene
-    monkeypatch.setattr(problem_module, "thread_map",
-                        lambda f, items: distribute.thread_map(f, items, threads=threads))
+    monkeypatch.setattr(problem_module, "IN_PROCESS_THREADS", threads)
     nominal = Sensor(lever_arm_x=0.2, range_offset=0.01)
     poses = {s.id: s.pose() for s in strips}
     return StripProblem(nominal, poses, corrs, free)
@@ -66,6 +64,7 @@ def test_the_sides_are_built_two_at_a_time(scene, monkeypatch):
             super().__init__(*args)
 
     monkeypatch.setattr(problem_module, "Centroids", Together)
+    monkeypatch.setattr(problem_module, "IN_PROCESS_THREADS", 2)  # (whatever the machine's cores)
     strips, corrs = scene
     poses = {s.id: s.pose() for s in strips}
     StripProblem(Sensor(), poses, corrs, ["boresight_roll"])
@@ -80,5 +79,32 @@ def test_scanner_free_residuals_in_threads_equal_one_at_a_time(scene, monkeypatc
     serial = _problem(scene, free, 1, monkeypatch)
     threaded = _problem(scene, free, 2, monkeypatch)
     assert serial.centroids is None and threaded.centroids is None
+    assert (serial.threads, threaded.threads) == (1, 2)
     assert np.array_equal(serial(values), threaded(values))
     assert not np.array_equal(serial(values), serial({**values, "scan_angle_scale": 0.0}))
+    # the model check's problems (its rows taken from the fitted one): one thread, the same bits
+    checked = StripProblem(threaded.nominal, {s.id: s.pose() for s in scene[0]}, scene[1], free,
+                           same_rows=threaded)
+    assert checked.threads == 1 and np.array_equal(checked(values), threaded(values))
+
+
+def test_pairs_taken_and_widened_in_threads_equal_those_taken_here(scene, monkeypatch):
+    """The outer loop's matching with each pair's points taken and its columns widened in its
+    thread gives the correspondences of the points taken here and matched one at a time."""
+    import calidar.strips.outer_loop as outer_loop
+    from calidar.strips.config import StripSettings
+    from calidar.strips.matchers import TiePlanes
+
+    strips, _ = scene
+    run = outer_loop.Run.start(strips, Sensor(), TiePlanes(), StripSettings())
+    values = {"boresight_roll": 1e-4}
+    quiet = lambda *a: None  # noqa: E731
+    threaded, pairs, _ = run.match(values, 0, None, quiet)
+    monkeypatch.setattr(outer_loop, "pair_threads", lambda matcher: 1)
+    serial, pairs_serial, _ = run.match(values, 0, None, quiet)
+    assert pairs == pairs_serial and len(serial) == len(threaded) == 3
+    for c, d in zip(serial, threaded):
+        assert (c.strip_a, c.strip_b) == (d.strip_a, d.strip_b)
+        assert c.A.shape == d.A.shape == (c.n_obs, len(run.by_id[c.strip_a]))
+        assert (c.A != d.A).nnz == 0 and (c.B != d.B).nnz == 0
+        assert np.array_equal(c.normal, d.normal) and np.array_equal(c.sigma_m, d.sigma_m)
