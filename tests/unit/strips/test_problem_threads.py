@@ -99,7 +99,15 @@ def test_pairs_taken_and_widened_in_threads_equal_those_taken_here(scene, monkey
     run = outer_loop.Run.start(strips, Sensor(), TiePlanes(), StripSettings())
     values = {"boresight_roll": 1e-4}
     quiet = lambda *a: None  # noqa: E731
+    where, inner = [], outer_loop._match_in_thread
+
+    def spied(*args):
+        where.append(threading.get_ident())
+        return inner(*args)
+
+    monkeypatch.setattr(outer_loop, "_match_in_thread", spied)
     threaded, pairs, _ = run.match(values, 0, None, quiet)
+    assert len(where) == 3 and threading.get_ident() not in where  # taken in the threads
     monkeypatch.setattr(outer_loop, "pair_threads", lambda matcher: 1)
     serial, pairs_serial, _ = run.match(values, 0, None, quiet)
     assert pairs == pairs_serial and len(serial) == len(threaded) == 3
