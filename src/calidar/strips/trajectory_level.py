@@ -29,6 +29,10 @@ follows the flight in time (:mod:`calidar.strips.trajectory_level_time`). Each f
 The level is itself an estimate, known to ±1/√(2m): :func:`carry_uncertainty` carries that into
 the mounting's covariance (:mod:`calidar.adjust.variance_carry`: the plug-in covariance averaged
 over each factor's posterior, plus the spread of the estimate over it; Kackar & Harville 1984).
+A bounded group's factor is averaged likewise over what the data allow below its upper end (its
+confidence distribution from the same one-sided test, :func:`bounded_nodes`), about the estimate
+held at that end: held there alone the mounting's σ were as wide as the bound (airborne yaw
+1.29× the σ with the true accuracy file, 1.11× averaged; docs/validation.md, issue 26).
 """
 
 from __future__ import annotations
@@ -282,9 +286,12 @@ def scaled(base: TrajectoryAccuracy, horizontal: float, vertical: float, tilt: f
 def carry_uncertainty(level: TrajectoryLevel, est, solution, layout: Mapping[str, Knot]) -> None:
     """The level's own uncertainty carried into ``solution``'s covariance (a
     :class:`calidar.adjust.solution.Solution` of the adjustment ``est`` with the level's priors):
-    each estimated group's factor at its flight-wide effective number m of independent priors
+    each estimated group's factor at its flight-wide effective number m of independent priors,
+    each bounded group's over its nodes below the upper end it is held at (``level.nodes``)
     (:mod:`calidar.adjust.variance_carry`). Only the non-trajectory parameters' block changes (the
-    trajectory corrections keep their plug-in σ); their σ's widening goes to ``level.carried``."""
+    trajectory corrections keep their plug-in σ); the ratio of their σ to the plug-in goes to
+    ``level.carried`` (below 1 where a bounded group's range narrows them more than the estimated
+    groups' uncertainty widens them)."""
     effective = {g: m for g, m in (level.effective or {}).items() if level.estimated.get(g)}
     # a bounded group: over its confidence distribution below the upper end it is held at
     nodes = {g: np.square(np.array(f) / level.factor(g)) for g, f in (level.nodes or {}).items()}
