@@ -124,17 +124,24 @@ class LocalPlanes:
         return 1.0 / self.index.shape[1] + in_plane
 
 
+def nearest(points: np.ndarray, at: np.ndarray, k: int, num_threads: int,
+            tree=None) -> tuple[np.ndarray, np.ndarray]:
+    """The k nearest of ``points`` to each of ``at`` (both (·, 3) m): indices (M, k) int64 and
+    distances (M, k) m, ascending (``tree``: their small_gicp KdTree or
+    :class:`~calidar.strips.vgicp_knn.GridKnn`, a KdTree built here when None)."""
+    tree = small_gicp.KdTree(points, num_threads=num_threads) if tree is None else tree
+    idx, d2 = tree.batch_knn_search(at, k, num_threads=num_threads)
+    return idx.astype(np.int64), np.sqrt(d2)
+
+
 def local_planes(points: np.ndarray, at: np.ndarray, k: int, num_threads: int,
                  tree=None) -> LocalPlanes:
     """The surface of ``points`` around each of ``at`` (both (·, 3) m) from its k nearest points
-    (``tree``: their small_gicp KdTree or :class:`~calidar.strips.vgicp_knn.GridKnn`, a KdTree
-    built here when None)."""
-    tree = small_gicp.KdTree(points, num_threads=num_threads) if tree is None else tree
-    idx, d2 = tree.batch_knn_search(at, k, num_threads=num_threads)
-    idx = idx.astype(np.int64)
+    (:func:`nearest`)."""
+    idx, distance = nearest(points, at, k, num_threads, tree)
     centroid, scatter = neighbourhood_moments(points, idx)
     eigval, eigvec = eigh3(scatter)  # ascending
-    return LocalPlanes(idx, np.sqrt(d2), centroid, eigval, eigvec)
+    return LocalPlanes(idx, distance, centroid, eigval, eigvec)
 
 
 def _balanced(planes: LocalPlanes, centre: np.ndarray, mean_a: np.ndarray,
@@ -174,10 +181,10 @@ def _along_normal_variance(A: sp.csr_matrix, points: np.ndarray, mean: np.ndarra
     return np.bincount(row, d**2, A.shape[0]) / np.maximum(count - 1, 1)
 
 
-def plane_rows(planes: LocalPlanes, b_near: np.ndarray, tree_b, ov_a: np.ndarray, keep: np.ndarray,
+def plane_rows(centre: np.ndarray, b_near: np.ndarray, tree_b, ov_a: np.ndarray, keep: np.ndarray,
                density_ratio: float, settings) -> tuple:
-    """The point-to-plane rows from b's ``planes`` about the candidates (``keep``: b's nearest close
-    enough).
+    """The point-to-plane rows about the ``centre`` (M, 3) m of b's ``num_neighbors`` nearest points
+    to each candidate (``keep``: b's nearest close enough).
 
     b_near: b's points near the candidates, registered onto a (m), ``tree_b`` their search; ov_a:
     a's overlap points (m); density_ratio: a's points per b's; settings:
@@ -185,8 +192,7 @@ def plane_rows(planes: LocalPlanes, b_near: np.ndarray, tree_b, ov_a: np.ndarray
     matrix of a's balls over ``ov_a[near_a]``, near_a, the rows kept, their normals, σ (m;
     ``settings.sigma_m`` when set) and the degrees of freedom of σ² (inf when set).
     """
-    k = settings.num_neighbors
-    centre = planes.centroid  # b's k nearest again, about their centroid (see the module docstring)
+    k = settings.num_neighbors  # b's k nearest again, about their centroid (the module docstring)
     planes = local_planes(b_near, centre, k, settings.num_threads, tree_b)
     # a's points in a ball as large about b's centroid (room for a denser a)
     radius = planes.distance[:, -1]
