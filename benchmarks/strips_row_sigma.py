@@ -1,7 +1,8 @@
 """Benchmark: are the rows' σ right at the truth, and what does the global test read there? (issue 26)
 
     NUMBA_NUM_THREADS=1 PYTHONPATH=src python benchmarks/strips_row_sigma.py --seeds 7,8 [--preset airborne] \\
-        [--directions cross] [--scene urban] [--methods planes,vgicp] [--cache DIR] [--estimators]
+        [--directions cross] [--scene urban|flat|smooth] [--methods planes,vgicp] [--cache DIR] [--estimators] \\
+        [--density 0.3 --range-noise 0.03]   # the airborne Monte-Carlo's survey (strips_montecarlo.py)
 
 Each seed: ``calidar simulate survey --preset P --seed S --boresight-error 0.05,-0.03,0.1`` WITHOUT trajectory
 errors (``--cache DIR`` keeps it), read as ``calidar boresight`` reads it, every overlap re-georeferenced with
@@ -49,14 +50,24 @@ ERRORS_DEG = {"boresight_roll": 0.05, "boresight_pitch": -0.03, "boresight_yaw":
 MATCHERS = {"planes": TiePlanes, "vgicp": Vgicp}
 
 
-def survey_folder(preset: str, seed: int, directions: str, scene: str, cache: Path) -> Path:
-    """The survey simulated without trajectory errors (once, into ``cache``)."""
-    folder = cache / f"{preset}_{directions}_seed{seed}_{scene}_exact"
+#: ``--scene flat``: the preset's scene without relief, rough band or buildings (a plane and trees);
+#: ``--scene smooth``: without its rough band
+SCENES = {"urban": URBAN, "flat": {"relief_m": 0.0, "rough_sigma_m": 0.0, "building_density_per_km2": 0.0},
+          "smooth": {"rough_sigma_m": 0.0}}
+
+
+def survey_folder(preset: str, seed: int, directions: str, scene: str, cache: Path,
+                  density: float | None = None, range_noise_m: float | None = None) -> Path:
+    """The survey simulated without trajectory errors (once, into ``cache``); ``density``,
+    ``range_noise_m``: other than the preset's (None: the preset's)."""
+    other = {k: v for k, v in (("density", density), ("range_noise_m", range_noise_m)) if v is not None}
+    tag = "".join(f"_{k}{v:g}" for k, v in other.items())
+    folder = cache / f"{preset}_{directions}_seed{seed}_{scene}{tag}_exact"
     if not (folder / "truth.json").exists():
         cfg = survey_config(preset, seed=seed, directions=directions, gnss_noise_m=0.0, attitude_noise_rad=0.0,
-                            errors={k: np.radians(v) for k, v in ERRORS_DEG.items()})
-        if scene == "urban":
-            cfg = replace(cfg, scene=replace(cfg.scene, **URBAN))
+                            errors={k: np.radians(v) for k, v in ERRORS_DEG.items()}, **other)
+        if scene in SCENES:
+            cfg = replace(cfg, scene=replace(cfg.scene, **SCENES[scene]))
         simulate_survey(cfg).write(folder, force=True)
     return folder
 
@@ -160,14 +171,18 @@ def main() -> None:
     ap.add_argument("--seeds", default="7")
     ap.add_argument("--preset", default="uav", choices=("uav", "airborne"))
     ap.add_argument("--directions", default="cross", choices=("cross", "opposite"))
-    ap.add_argument("--scene", default="preset", choices=("preset", "urban"))
+    ap.add_argument("--scene", default="preset", choices=("preset", *SCENES))
     ap.add_argument("--methods", default="planes,vgicp")
     ap.add_argument("--cache", type=Path, default=Path("/tmp/calidar_row_sigma"))
     ap.add_argument("--estimators", action="store_true", help="also what each σ0 estimator reads (issue 26)")
+    ap.add_argument("--density", type=float, help="the simulator's density (default: the preset's)")
+    ap.add_argument("--range-noise", type=float, help="range noise, m (default: the preset's; the "
+                    "airborne Monte-Carlo's: --density 0.3 --range-noise 0.03)")
     args = ap.parse_args()
     pooled: dict[str, list] = {}
     for seed in seeds_of(args.seeds):
-        folder = survey_folder(args.preset, seed, args.directions, args.scene, args.cache)
+        folder = survey_folder(args.preset, seed, args.directions, args.scene, args.cache, args.density,
+                               args.range_noise)
         for method in args.methods.split(","):
             rows = rows_at_truth(folder, method)
             pooled.setdefault(method, []).append(rows)

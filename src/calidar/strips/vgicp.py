@@ -45,10 +45,12 @@ import small_gicp
 
 from calidar.errors import CalibrationError
 from calidar.strips.correspond import Correspondences
-from calidar.strips.vgicp_kernels import (cell_keys, common_cells, first_in_cells, xy_bounds,
+from calidar.strips.vgicp_kernels import (cell_keys, common_cells, first_in_cells, gather_centred,
+                                          neighbourhood_centroids, rows_mean, xy_bounds,
                                           xy_scatter)
 from calidar.strips.vgicp_knn import GridKnn
-from calidar.strips.vgicp_planes import Grid, local_planes, near, plane_rows
+from calidar.strips.vgicp_planes import Grid, near, nearest, plane_rows
+from calidar.strips.voxel_downsample import voxel_downsample
 
 KINDS = ("point_to_plane", "point_to_point")
 
@@ -61,7 +63,10 @@ class VgicpSettings:
     voxel_m: tuple[float, ...] = (8.0, 2.0, 1.0)  #: VGICP voxel sizes, coarse to fine
     downsampling_ratio: float = 0.5  #: registration downsampling = ratio × voxel size ...
     max_registration_points: int = 10_000  #: ... coarsened so the overlap holds about this many
-    num_neighbors: int = 12  #: neighbours of the registration covariances and of b's local planes
+    num_neighbors: int = 12  #: neighbours of b's local planes (the rows)
+    #: neighbours of the registration clouds' covariances (small_gicp's ``align`` takes 10: what
+    #: 10 here would change, docs/validation.md, issue 32, twelfth session)
+    registration_neighbors: int = 12
     max_iterations: int = 30  #: per registration stage
     #: a stage has converged when its last step turned less than this (rad) ...
     rotation_epsilon_rad: float = 1e-5
@@ -181,11 +186,14 @@ def registration_stages(settings: VgicpSettings, area_m2: float) -> list[tuple[f
     return stages
 
 
-def _with_covariances(cloud, settings: VgicpSettings):
-    """The downsampled cloud with its points' covariances (``num_neighbors``), as small_gicp's
-    ``preprocess_points`` sets them, without downsampling it again."""
+def _preprocess(points: np.ndarray, down: float, settings: VgicpSettings):
+    """The points (N, 3) m downsampled to ``down`` m voxels (small_gicp's voxels at ≈ 1/6 of its
+    CPU: :mod:`~calidar.strips.voxel_downsample`) as a small_gicp cloud with its points'
+    covariances (``registration_neighbors``), as small_gicp's ``preprocess_points`` sets them."""
+    cloud = small_gicp.PointCloud(voxel_downsample(points, down))
     tree = small_gicp.KdTree(cloud, settings.num_threads)
-    small_gicp.estimate_covariances(cloud, tree, settings.num_neighbors, settings.num_threads)
+    small_gicp.estimate_covariances(cloud, tree, settings.registration_neighbors,
+                                    settings.num_threads)
     return cloud
 
 
@@ -221,9 +229,7 @@ def register(points_a: np.ndarray, points_b: np.ndarray, settings: VgicpSettings
     clock = clock or _Clock(None)
     stages = registration_stages(settings, area_m2)
     voxel, down = stages[-1]
-    fine_a = small_gicp.voxelgrid_sampling(points_a, down, settings.num_threads)
-    fine_b = small_gicp.voxelgrid_sampling(points_b, down, settings.num_threads)
-    fine_a, fine_b = _with_covariances(fine_a, settings), _with_covariances(fine_b, settings)
+    fine_a, fine_b = _preprocess(points_a, down, settings), _preprocess(points_b, down, settings)
     voxelmap = small_gicp.GaussianVoxelMap(voxel)
     voxelmap.insert(fine_a)
     clock.lap("preprocess")
@@ -232,9 +238,8 @@ def register(points_a: np.ndarray, points_b: np.ndarray, settings: VgicpSettings
     if len(stages) > 1 and not locked_in(result, fine_b.size(), settings):
         T = np.eye(4)  # the start was beyond the finest stage's reach: coarse to fine from it
         for coarse_voxel, coarse_down in stages[:-1]:
-            k, threads = settings.num_neighbors, settings.num_threads
-            target, _ = small_gicp.preprocess_points(fine_a.points(), coarse_down, k, threads)
-            source, _ = small_gicp.preprocess_points(fine_b.points(), coarse_down, k, threads)
+            target = _preprocess(fine_a.points()[:, :3], coarse_down, settings)
+            source = _preprocess(fine_b.points()[:, :3], coarse_down, settings)
             coarse_map = small_gicp.GaussianVoxelMap(coarse_voxel)
             coarse_map.insert(target)
             clock.lap("preprocess")
@@ -283,6 +288,21 @@ def wide_enough(points: np.ndarray, width_m: float) -> bool:
     return bool(width >= width_m)
 
 
+def _overlap_crop(points_a: np.ndarray, points_b: np.ndarray, settings: VgicpSettings) -> tuple:
+    """The points (N, 3) m of a and of b in the overlap's cells (:func:`overlap_masks`): each
+    side's indices and points, centred on a's mean there, and the overlap's area (m²). Raises
+    CalibrationError where either side has fewer than ``min_overlap_points`` there."""
+    in_a, in_b, area = overlap_masks(points_a, points_b, settings.overlap_cell_m)
+    n_a, n_b = int(in_a.sum()), int(in_b.sum())
+    if min(n_a, n_b) < settings.min_overlap_points:
+        raise CalibrationError(f"too little overlap for VGICP ({n_a} and {n_b} points in "
+                               f"{area:.0f} m², need {settings.min_overlap_points} of each strip)")
+    idx_a, idx_b = np.flatnonzero(in_a), np.flatnonzero(in_b)
+    origin = rows_mean(points_a, idx_a)  # numpy's mean of the rows, without gathering them first
+    return (idx_a, gather_centred(points_a, idx_a, origin), idx_b,
+            gather_centred(points_b, idx_b, origin), area)
+
+
 def match_pair_vgicp(strip_a_id: int, points_a: np.ndarray, strip_b_id: int, points_b: np.ndarray,
                      settings: VgicpSettings | None = None,
                      timings: dict[str, float] | None = None) -> Correspondences:
@@ -303,18 +323,8 @@ def match_pair_vgicp(strip_a_id: int, points_a: np.ndarray, strip_b_id: int, poi
     clock = _Clock(timings)
     points_a = np.asarray(points_a, dtype=np.float64)
     points_b = np.asarray(points_b, dtype=np.float64)
-    in_a, in_b, area = overlap_masks(points_a, points_b, settings.overlap_cell_m)
-    n_a, n_b = int(in_a.sum()), int(in_b.sum())
-    if min(n_a, n_b) < settings.min_overlap_points:
-        raise CalibrationError(f"too little overlap for VGICP ({n_a} and {n_b} points in "
-                               f"{area:.0f} m², need {settings.min_overlap_points} of each strip)")
-    idx_a, idx_b = np.flatnonzero(in_a), np.flatnonzero(in_b)
-    ov_a = np.take(points_a, idx_a, axis=0)  # gathered once (take: fancy indexing's rows, faster)
-    origin = ov_a.mean(axis=0)
-    ov_a -= origin
-    ov_b = np.take(points_b, idx_b, axis=0)
-    ov_b -= origin
-
+    idx_a, ov_a, idx_b, ov_b, area = _overlap_crop(points_a, points_b, settings)
+    n_a, n_b = len(idx_a), len(idx_b)
     clock.lap("preprocess")
     if wide_enough(ov_a, settings.min_registration_width_m):
         reg = register(ov_a, ov_b, settings, area, clock)
@@ -337,13 +347,14 @@ def match_pair_vgicp(strip_a_id: int, points_a: np.ndarray, strip_b_id: int, poi
                                f"points of b near a's points (need {settings.min_pairs} pairs)")
     b_near = np.take(b_on_a, near_b, axis=0)
     tree_b = GridKnn(b_near)  # small_gicp's KdTree's neighbours, without its build's cost
-    planes = local_planes(b_near, ov_a[cand], k, settings.num_threads, tree_b)
-    keep = planes.distance[:, 0] < threshold
+    index, distance = nearest(b_near, ov_a[cand], k, settings.num_threads, tree_b)
+    keep = distance[:, 0] < threshold
     sigma, dof = (0.05 if settings.sigma_m is None else settings.sigma_m), np.inf
     normal = None
-    if settings.kind == "point_to_plane" and keep.any():
-        planes, A, near_a, keep, normal, sigma, dof = plane_rows(planes, b_near, tree_b, ov_a,
-                                                                 keep, n_a / n_b, settings)
+    if settings.kind == "point_to_plane" and keep.any():  # b's planes about their centroids
+        planes, A, near_a, keep, normal, sigma, dof = plane_rows(
+            neighbourhood_centroids(b_near, index), b_near, tree_b, ov_a, keep, n_a / n_b, settings)
+        index = planes.index
     n_pairs = int(keep.sum())
     if n_pairs < settings.min_pairs:
         where = " on planar surfaces" if settings.kind == "point_to_plane" else ""
@@ -357,7 +368,7 @@ def match_pair_vgicp(strip_a_id: int, points_a: np.ndarray, strip_b_id: int, poi
         A = A[keep]
         A = sp.csr_matrix((A.data, idx_a[near_a[A.indices]], A.indptr),
                           shape=(n_pairs, points_a.shape[0]))
-    columns_b = idx_b[near_b[planes.index[keep]]].ravel()  # each row's k nearest of b
+    columns_b = idx_b[near_b[index[keep]]].ravel()  # each row's k nearest of b
     B = sp.csr_matrix((np.full(n_pairs * k, 1.0 / k), columns_b, np.arange(n_pairs + 1) * k),
                       shape=(n_pairs, points_b.shape[0]))
     clock.lap("correspond")

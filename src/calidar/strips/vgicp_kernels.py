@@ -110,20 +110,30 @@ def first_in_cells(keys, size):  # pragma: no cover - numba
 
 
 @njit(cache=True, nogil=True)
-def neighbourhood_moments(points, idx):  # pragma: no cover - numba
-    """Centroid (M, 3) and scatter matrix Σ(p − centroid)(p − centroid)ᵀ (M, 3, 3) of each row's
-    points ``idx`` (M, k), as ``nb.mean(axis=1)`` and ``np.einsum("mki,mkj->mij", nb − centroid,
-    nb − centroid)`` sum them: over the k points in order."""
+def neighbourhood_centroids(points, idx):  # pragma: no cover - numba
+    """Centroid (M, 3) of each row's points ``idx`` (M, k), as ``nb.mean(axis=1)`` sums them: over
+    the k points in order."""
     m_rows, k = idx.shape
     centroid = np.empty((m_rows, 3))
-    scatter = np.empty((m_rows, 3, 3))
-    d = np.empty((k, 3))
     for m in range(m_rows):
         for c in range(3):
             s = points[idx[m, 0], c]
             for j in range(1, k):
                 s += points[idx[m, j], c]
             centroid[m, c] = s / k
+    return centroid
+
+
+@njit(cache=True, nogil=True)
+def neighbourhood_moments(points, idx):  # pragma: no cover - numba
+    """Centroid (M, 3) (:func:`neighbourhood_centroids`) and scatter matrix Σ(p − centroid)(p −
+    centroid)ᵀ (M, 3, 3) of each row's points ``idx`` (M, k), as ``np.einsum("mki,mkj->mij", nb −
+    centroid, nb − centroid)`` sums it: over the k points in order."""
+    m_rows, k = idx.shape
+    centroid = neighbourhood_centroids(points, idx)
+    scatter = np.empty((m_rows, 3, 3))
+    d = np.empty((k, 3))
+    for m in range(m_rows):
         for j in range(k):
             for c in range(3):
                 d[j, c] = points[idx[m, j], c] - centroid[m, c]
@@ -154,3 +164,26 @@ def xy_scatter(points):  # pragma: no cover - numba
         sxy += dx * dy
         syy += dy * dy
     return sxx / n, sxy / n, syy / n
+
+
+@njit(cache=True, nogil=True)
+def rows_mean(points, idx):  # pragma: no cover - numba
+    """Mean (3,) of the rows ``idx`` (M ≥ 1,) of the points (N, 3), as ``np.take(points, idx,
+    axis=0).mean(axis=0)`` sums them: from 0, adding the rows in order (numpy's reduction over a
+    C-ordered array's outer axis is not pairwise), then / M."""
+    total = np.zeros(3)
+    for r in range(idx.size):
+        for c in range(3):
+            total[c] += points[idx[r], c]
+    return total / idx.size
+
+
+@njit(cache=True, nogil=True)
+def gather_centred(points, idx, origin):  # pragma: no cover - numba
+    """The rows ``idx`` of the points (N, 3) less ``origin`` (3,): ``np.take(points, idx, axis=0) -
+    origin`` in one pass."""
+    out = np.empty((idx.size, 3))
+    for r in range(idx.size):
+        for c in range(3):
+            out[r, c] = points[idx[r], c] - origin[c]
+    return out

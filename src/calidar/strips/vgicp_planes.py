@@ -6,12 +6,14 @@ their centroid, give b's plane; a's points in a ball as large about that centroi
 A row is kept when b's points span a plane (thin: ``max_surface_variation``; not a line:
 ``min_spread``), a's mean lies near it (``max_plane_distance_m``), neither side's points stop
 inside the ball (``max_centroid_offset``) and a's points lie on b's plane as closely as b's own
-do (``max_scatter_ratio``). Its σ² = s_a²/n_a + s_b²·h + κ·ρ² + ``noise_floor_m``², with s_a,
-s_b each side's own scatter along b's normal, each the posterior mean under a prior fitted to the
-pair's rows (:mod:`calidar.strips.row_variance`; Smyth 2004 §6.2), n_a a's count, h the leverage
-of b's fitted plane at a's mean and κ·ρ² the rough rows' model error (``roughness_factor``;
-:func:`calidar.strips.row_variance.rough_rows_variance`). Why a's own scatter, measured:
-docs/validation.md, "VGICP's rows: each test and the measurement behind it".
+do (``max_scatter_ratio``). Its σ² = s_a²/n_a + s_b²·(h − t/n_a) + κ·ρ² + ``noise_floor_m``²,
+with s_a, s_b each side's own scatter along b's normal, each the posterior mean under a prior
+fitted to the pair's rows (:mod:`calidar.strips.row_variance`; Smyth 2004 §6.2), n_a a's count,
+h the leverage of b's fitted plane at a's mean, t the part of b's normal's error in a's scatter
+(a's spread in b's plane over b's; :func:`_tilt_cofactor`) and κ·ρ² the rough rows' model error
+(``roughness_factor``; :func:`calidar.strips.row_variance.rough_rows_variance`). Why a's own
+scatter, measured: docs/validation.md, "VGICP's rows: each test and the measurement behind it";
+why less b's tilt: "VGICP's σ0 on airborne surveys" (issue 26, twelfth session).
 """
 
 from __future__ import annotations
@@ -124,17 +126,24 @@ class LocalPlanes:
         return 1.0 / self.index.shape[1] + in_plane
 
 
+def nearest(points: np.ndarray, at: np.ndarray, k: int, num_threads: int,
+            tree=None) -> tuple[np.ndarray, np.ndarray]:
+    """The k nearest of ``points`` to each of ``at`` (both (·, 3) m): indices (M, k) int64 and
+    distances (M, k) m, ascending (``tree``: their small_gicp KdTree or
+    :class:`~calidar.strips.vgicp_knn.GridKnn`, a KdTree built here when None)."""
+    tree = small_gicp.KdTree(points, num_threads=num_threads) if tree is None else tree
+    idx, d2 = tree.batch_knn_search(at, k, num_threads=num_threads)
+    return idx.astype(np.int64), np.sqrt(d2)
+
+
 def local_planes(points: np.ndarray, at: np.ndarray, k: int, num_threads: int,
                  tree=None) -> LocalPlanes:
     """The surface of ``points`` around each of ``at`` (both (·, 3) m) from its k nearest points
-    (``tree``: their small_gicp KdTree or :class:`~calidar.strips.vgicp_knn.GridKnn`, a KdTree
-    built here when None)."""
-    tree = small_gicp.KdTree(points, num_threads=num_threads) if tree is None else tree
-    idx, d2 = tree.batch_knn_search(at, k, num_threads=num_threads)
-    idx = idx.astype(np.int64)
+    (:func:`nearest`)."""
+    idx, distance = nearest(points, at, k, num_threads, tree)
     centroid, scatter = neighbourhood_moments(points, idx)
     eigval, eigvec = eigh3(scatter)  # ascending
-    return LocalPlanes(idx, np.sqrt(d2), centroid, eigval, eigvec)
+    return LocalPlanes(idx, distance, centroid, eigval, eigvec)
 
 
 def _balanced(planes: LocalPlanes, centre: np.ndarray, mean_a: np.ndarray,
@@ -174,10 +183,29 @@ def _along_normal_variance(A: sp.csr_matrix, points: np.ndarray, mean: np.ndarra
     return np.bincount(row, d**2, A.shape[0]) / np.maximum(count - 1, 1)
 
 
-def plane_rows(planes: LocalPlanes, b_near: np.ndarray, tree_b, ov_a: np.ndarray, keep: np.ndarray,
+def _tilt_cofactor(A: sp.csr_matrix, points: np.ndarray, mean: np.ndarray, eigval: np.ndarray,
+                   eigvec: np.ndarray) -> np.ndarray:
+    """Per row of the averaging matrix A (M, len(points)), of b's plane with scatter ``eigval``
+    (M, 3) m² along ``eigvec`` (M, 3, 3; :class:`LocalPlanes`): t =
+    Σ_j Σ_i ((p_i − p̄)·e_j)² / ((n − 1)·λ_j) over b's two in-plane axes e_j (λ_j b's scatter
+    along them, m²), for the row's n points p_i (m) about their ``mean`` p̄ (M, 3) m; 0 for one
+    point. a's scatter along b's fitted normal about a's mean holds, besides a's own noise, b's
+    normal's error (variance s_b²/λ_j about e_j) times a's spread in the plane: E[s_a²] = τ_a² +
+    τ_b²·t. a's mean does not carry it (issue 26, twelfth session)."""
+    count = np.diff(A.indptr)
+    row = np.repeat(np.arange(A.shape[0]), count)
+    p = np.take(points, A.indices, axis=0) - np.take(mean, row, axis=0)
+    t = np.zeros(A.shape[0])
+    for j in (1, 2):
+        along = np.einsum("ij,ij->i", p, np.take(eigvec[:, :, j], row, axis=0))
+        t += np.bincount(row, along**2, A.shape[0]) / np.maximum(eigval[:, j], 1e-300)
+    return t / np.maximum(count - 1, 1)
+
+
+def plane_rows(centre: np.ndarray, b_near: np.ndarray, tree_b, ov_a: np.ndarray, keep: np.ndarray,
                density_ratio: float, settings) -> tuple:
-    """The point-to-plane rows from b's ``planes`` about the candidates (``keep``: b's nearest close
-    enough).
+    """The point-to-plane rows about the ``centre`` (M, 3) m of b's ``num_neighbors`` nearest points
+    to each candidate (``keep``: b's nearest close enough).
 
     b_near: b's points near the candidates, registered onto a (m), ``tree_b`` their search; ov_a:
     a's overlap points (m); density_ratio: a's points per b's; settings:
@@ -185,8 +213,7 @@ def plane_rows(planes: LocalPlanes, b_near: np.ndarray, tree_b, ov_a: np.ndarray
     matrix of a's balls over ``ov_a[near_a]``, near_a, the rows kept, their normals, σ (m;
     ``settings.sigma_m`` when set) and the degrees of freedom of σ² (inf when set).
     """
-    k = settings.num_neighbors
-    centre = planes.centroid  # b's k nearest again, about their centroid (see the module docstring)
+    k = settings.num_neighbors  # b's k nearest again, about their centroid (the module docstring)
     planes = local_planes(b_near, centre, k, settings.num_threads, tree_b)
     # a's points in a ball as large about b's centroid (room for a denser a)
     radius = planes.distance[:, -1]
@@ -207,22 +234,28 @@ def plane_rows(planes: LocalPlanes, b_near: np.ndarray, tree_b, ov_a: np.ndarray
     keep &= var_a <= settings.max_scatter_ratio**2 * np.maximum(var_b, settings.min_scatter_m**2)
     sigma, dof = settings.sigma_m, np.inf
     if sigma is None:  # a's mean with a's scatter, b's plane where a's mean lies with b's
+        tilt = _tilt_cofactor(A[keep], a_near, mean_a[keep], planes.eigval[keep],
+                              planes.eigvec[keep])
         sigma, dof = row_sigma(var_a[keep], count[keep], planes.scatter[keep] ** 2, k - 3,
-                               planes.leverage(mean_a)[keep], settings)
+                               planes.leverage(mean_a)[keep], settings, tilt)
     return planes, A, near_a, keep, planes.normal[keep], sigma, dof
 
 
 def row_sigma(var_a: np.ndarray, count_a: np.ndarray, var_b: np.ndarray, dof_b: float,
-              leverage: np.ndarray, settings) -> tuple[np.ndarray, np.ndarray]:
+              leverage: np.ndarray, settings,
+              tilt_a: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """σ (m) of a pair's rows and the degrees of freedom of σ², from each side's raw scatter
     variance along b's normal (m²; a's about its mean from ``count_a`` points, b's about its plane
-    with ``dof_b``), each side's posterior under a prior fitted over the pair's rows, and b's
-    plane's ``leverage`` at a's mean: σ² = s_a²/n_a + s_b²·h + κ·ρ² + ``noise_floor_m``² (see
-    the module docstring)."""
+    with ``dof_b``), each side's posterior under a prior fitted over the pair's rows, b's
+    plane's ``leverage`` h at a's mean and a's ``tilt_a`` cofactor t (:func:`_tilt_cofactor`;
+    None: 0): σ² = s_a²/n_a + s_b²·max(h − t/n_a, 0) + κ·ρ² + ``noise_floor_m``² — s_a² holds
+    b's normal's error, τ_b²·t, which a's mean does not (see the module docstring)."""
     var_a, nu_a = posterior(var_a, count_a - 1)
     var_b, nu_b = posterior(var_b, dof_b)
     rough, nu_rough = rough_rows_variance(var_a, nu_a, var_b, nu_b, settings.roughness_factor,
                                           settings.roughness_quantile)
+    if tilt_a is not None:
+        leverage = np.maximum(leverage - tilt_a / count_a, 0.0)
     parts = [var_a / count_a, var_b * leverage, rough,
              np.full(nu_a.size, settings.noise_floor_m**2)]
     return np.sqrt(np.sum(parts, axis=0)), satterthwaite(parts, [nu_a, nu_b, nu_rough, np.inf])

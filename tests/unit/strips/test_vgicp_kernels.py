@@ -8,7 +8,8 @@ import pytest
 import scipy.sparse as sp
 
 from calidar.strips.vgicp import _spread, overlap_masks
-from calidar.strips.vgicp_kernels import neighbourhood_moments, xy_bounds
+from calidar.strips.vgicp_kernels import (gather_centred, neighbourhood_centroids,
+                                          neighbourhood_moments, rows_mean, xy_bounds)
 from calidar.strips.vgicp_planes import Grid, near
 
 
@@ -59,6 +60,7 @@ def test_neighbourhood_moments_equal_numpy(m_rows, k):
     want_centroid = nb.mean(axis=1)
     nb = nb - want_centroid[:, None, :]
     assert np.array_equal(centroid, want_centroid)
+    assert np.array_equal(neighbourhood_centroids(points, idx), want_centroid)  # (alone)
     assert np.array_equal(scatter, np.einsum("mki,mkj->mij", nb, nb))
 
 
@@ -84,3 +86,20 @@ def test_wide_enough_decides_as_overlap_width():
         for limit in (20.0, width, np.nextafter(width, 0), np.nextafter(width, np.inf),
                       width * (1 + 2e-6), width * (1 - 2e-6)):
             assert wide_enough(pts, limit) == (width >= limit), (across, limit)
+
+
+@pytest.mark.parametrize("n", [1, 2, 9, 1_000, 100_003])
+def test_crop_kernels_equal_numpy(n):
+    """The overlap crop's mean and centred gather (issue 32, twelfth session) as ``np.take(points,
+    idx, axis=0)``, its ``mean(axis=0)`` and the subtraction: bit for bit, on values whose sums
+    round differently in another order (a pairwise or a zero-started sum fails)."""
+    rng = np.random.default_rng(n)
+    points = rng.normal(0, 1, (n + 50, 3)) * [3e5, 1e-3, 40.0] + [4.2e5 + 1 / 3, -5.5e6, 0.1]
+    points[::7] *= -1e3
+    points[0, 1] = -0.0
+    for idx in (np.arange(n), np.sort(rng.choice(n + 50, n, replace=False))):
+        gathered = np.take(points, idx, axis=0)
+        origin = rows_mean(points, idx)
+        assert np.array_equal(origin, gathered.mean(axis=0))
+        assert np.array_equal(np.signbit(origin), np.signbit(gathered.mean(axis=0)))
+        assert np.array_equal(gather_centred(points, idx, origin), gathered - origin)

@@ -1,6 +1,8 @@
 """VGICP registration (strips.vgicp.register): the finest stage first, coarse to fine only where
 it does not lock in; each cloud downsampled once (docs/validation.md, issue 32, eighth session)."""
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 import small_gicp
@@ -8,6 +10,7 @@ import small_gicp
 import calidar.strips.vgicp as vgicp
 from calidar.frames import rpy_to_matrix
 from calidar.strips.vgicp import VgicpSettings, register
+from calidar.strips.voxel_downsample import voxel_downsample
 
 HALF_M = 60.0
 AREA_M2 = (2 * HALF_M) ** 2
@@ -65,17 +68,18 @@ def stages_run(monkeypatch):
     return voxels
 
 
-def ladder(a, b, settings):
+def ladder(a, b, settings, downsample=voxel_downsample):
     """The registration as it was: every stage of settings.voxel_m, coarse to fine from the
-    identity, each from small_gicp's preprocess_points of the clouds downsampled at the finest."""
+    identity, each from small_gicp's preprocess_points of the clouds downsampled at the finest
+    (by ``downsample``(points, m))."""
     stages = vgicp.registration_stages(settings, AREA_M2)
     finest = min(d for _, d in stages)
-    fine_a = small_gicp.voxelgrid_sampling(a, finest, 1).points()
-    fine_b = small_gicp.voxelgrid_sampling(b, finest, 1).points()
+    fine_a, fine_b = downsample(a, finest), downsample(b, finest)
     T = np.eye(4)
     for voxel, down in stages:
-        target, _ = small_gicp.preprocess_points(fine_a, down, settings.num_neighbors, 1)
-        source, _ = small_gicp.preprocess_points(fine_b, down, settings.num_neighbors, 1)
+        k = settings.registration_neighbors
+        target, _ = small_gicp.preprocess_points(fine_a, down, k, 1)
+        source, _ = small_gicp.preprocess_points(fine_b, down, k, 1)
         voxelmap = small_gicp.GaussianVoxelMap(voxel)
         voxelmap.insert(target)
         T = np.asarray(small_gicp.align(voxelmap, source, T, max_correspondence_distance=2 * voxel,
@@ -116,12 +120,16 @@ def test_one_downsampling_gives_small_gicps_preprocessed_clouds_bit_for_bit(scen
     a, b = scene
     b, _ = moved(b, np.array([0.4, 0.2, 0.3]))
     one = VgicpSettings(voxel_m=(1.0,), max_registration_points=10**6)
-    assert np.array_equal(register(a, b, one, AREA_M2).T_ab, ladder(a, b, one))
-    fine = small_gicp.voxelgrid_sampling(a, 0.5, 1)
-    reference, _ = small_gicp.preprocess_points(fine.points(), 0.5, one.num_neighbors, 1)
-    ours = vgicp._with_covariances(fine, one)
-    assert np.array_equal(ours.points(), reference.points())
-    assert np.array_equal(np.array(ours.covs()), np.array(reference.covs()))
+    T = register(a, b, one, AREA_M2).T_ab
+    assert np.array_equal(T, ladder(a, b, one))
+    for k in (one.registration_neighbors, 10):  # the rows' planes keep num_neighbors
+        reference, _ = small_gicp.preprocess_points(voxel_downsample(a, 0.5), 0.5, k, 1)
+        ours = vgicp._preprocess(a, 0.5, replace(one, registration_neighbors=k, num_neighbors=7))
+        assert np.array_equal(ours.points(), reference.points())
+        assert np.array_equal(np.array(ours.covs()), np.array(reference.covs()))
+    # small_gicp's own downsampling sums each voxel in another order: the last bits only
+    theirs = ladder(a, b, one, lambda p, m: small_gicp.voxelgrid_sampling(p, m, 1).points())
+    assert np.abs(T - theirs).max() < 1e-12
 
 
 @pytest.mark.parametrize("fraction", [-0.1, 1.5])
