@@ -67,22 +67,28 @@ def carried_covariance(JtWJ: np.ndarray, JtWr: np.ndarray, x0: np.ndarray,
                        priors: Sequence[tuple[np.ndarray, np.ndarray, np.ndarray]],
                        labels: Sequence[str | None],
                        effective: Mapping[str, float], keep: np.ndarray,
-                       observations: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
+                       observations: float = 1.0,
+                       nodes: Mapping[str, Sequence[float]] | None = None
+                       ) -> tuple[np.ndarray, np.ndarray]:
     """(Q, ΔQ) of the free parameters ``keep`` (positions): the plug-in covariance of the
     linearised problem at the priors as they stand (their factors already applied) and what the
     factors' uncertainty adds to it (module docstring). ``labels[i]`` the component of free
     parameter i (None: not estimated), ``effective`` per component its effective number m of
-    independent priors."""
+    independent priors; ``nodes`` per other component its factor's distribution given otherwise,
+    as multipliers of its variance as it stands at equal-probability nodes (a bounded level:
+    :func:`calidar.adjust.variance_components.confidence_nodes`). Either way Q + ΔQ is the mean
+    over the nodes of Q(σ²) + d dᵀ, d the estimate at σ² less the one as it stands: the expected
+    squared error of the estimate as it stands."""
     labels = np.array([s or "" for s in labels], dtype=object)
     keep = np.asarray(keep, int)
     ones = np.ones(labels.size)
     x, Q = solve_scaled(JtWJ, JtWr, x0, priors, ones, keep, observations)
     delta = np.zeros_like(Q)
-    for name, m in effective.items():
+    given = {n: posterior_multipliers(m) for n, m in effective.items() if np.isfinite(m) and m > 0}
+    for name, mult in (given | {n: np.asarray(v, float) for n, v in (nodes or {}).items()}).items():
         on = labels == name
-        if not np.any(on) or not np.isfinite(m) or m <= 0:
+        if not np.any(on) or mult.size == 0:
             continue
-        mult = posterior_multipliers(m)
         for s2 in mult:
             scale = np.where(on, np.sqrt(s2), 1.0)
             xs, Qs = solve_scaled(JtWJ, JtWr, x0, priors, scale, keep, observations)

@@ -189,14 +189,11 @@ def upper_end(terms: tuple, blocks: Sequence[PriorBlock], variance: Mapping[str,
     ``ceiling`` at most."""
     from scipy.special import gammaincinv  # χ²ᵣ's quantile 2·P⁻¹(r/2, q), as scipy.stats.chi2.ppf
 
-    others = [g for g in {b.group for b in blocks} if g != group]
+    update = _update(terms, blocks, variance, group, marginal)
 
     def accepted(v: float) -> bool:
-        c = estimate_components(*terms, blocks, fixed=others, estimate_observations=False,
-                                start=dict(variance) | {group: v}, max_iter=1, floor=0.0,
-                                marginal=marginal)
-        r = c.redundancy[group]
-        return r <= 0 or c.variance[group] / v >= 2.0 * gammaincinv(r / 2.0, level) / r
+        ratio, r = update(v)
+        return r <= 0 or ratio >= 2.0 * gammaincinv(r / 2.0, level) / r
 
     inside = max(float(variance[group]), 1e-12)
     outside = inside
@@ -208,6 +205,56 @@ def upper_end(terms: tuple, blocks: Sequence[PriorBlock], variance: Mapping[str,
         mid = float(np.sqrt(inside * outside))
         inside, outside = (mid, outside) if accepted(mid) else (inside, mid)
     return inside
+
+
+def _update(terms: tuple, blocks: Sequence[PriorBlock], variance: Mapping[str, float],
+            group: str, marginal: bool):
+    """v ↦ (the estimator's update of ``group``'s factor over v, the group's redundancy at v), the
+    others held at ``variance``."""
+    others = [g for g in {b.group for b in blocks} if g != group]
+
+    def update(v: float) -> tuple[float, float]:
+        c = estimate_components(*terms, blocks, fixed=others, estimate_observations=False,
+                                start=dict(variance) | {group: v}, max_iter=1, floor=0.0,
+                                marginal=marginal)
+        return c.variance[group] / v, c.redundancy[group]
+
+    return update
+
+
+def confidence_nodes(terms: tuple, blocks: Sequence[PriorBlock], variance: Mapping[str, float],
+                     group: str, probabilities: Sequence[float], low: float, high: float, *,
+                     points: int = 10, marginal: bool = True) -> np.ndarray:
+    """``group``'s variance factor at the ``probabilities`` of its confidence distribution over
+    [``low``, ``high``], the others held at ``variance``: at p the largest σ² whose update
+    (:func:`upper_end`'s test) is not rejected at one-sided level 1 − p — p = 0.975 is
+    :func:`upper_end` itself. The test's p-value F(r·ratio; χ²ᵣ) is taken on ``points``
+    log-spaced σ² and interpolated in log σ² (below ``low``: ``low``). Where the data check the
+    group well this is the scaled inverse χ² σ̂²·r/χ²ᵣ that :mod:`calidar.adjust.variance_carry`
+    averages over; for a bounded group it is what the data say of its factor, flat or not, down
+    to ``low`` (a confidence distribution: Schweder & Hjort 2016, "Confidence, Likelihood,
+    Probability", ch. 3)."""
+    from scipy.special import gammainc  # χ²ᵣ's distribution function P(r/2, x/2)
+
+    update = _update(terms, blocks, variance, group, marginal)
+    grid = np.exp(np.linspace(np.log(low), np.log(high), points))
+    pvalue = np.empty(points)
+    for i, v in enumerate(grid):
+        ratio, r = update(float(v))
+        pvalue[i] = 1.0 if r <= 0 else float(gammainc(r / 2.0, r * ratio / 2.0))
+    nodes = []
+    for p in probabilities:
+        ok = np.flatnonzero(pvalue >= 1.0 - p)  # not rejected at level 1 − p
+        if ok.size == 0:
+            nodes.append(low)
+            continue
+        i = ok[-1]
+        if i + 1 == points:
+            nodes.append(high)
+            continue
+        t = (pvalue[i] - (1.0 - p)) / (pvalue[i] - pvalue[i + 1])  # p falls between i and i + 1
+        nodes.append(float(np.exp(np.log(grid[i]) + t * np.log(grid[i + 1] / grid[i]))))
+    return np.array(nodes)
 
 
 def normal_terms(est) -> tuple[np.ndarray, np.ndarray, float, float, np.ndarray]:

@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 
 from calidar.errors import CalibrationError
+from calidar.memory import release_memory
 
 #: arrays larger than this are sent to the workers once, ahead of the tasks
 SCATTER_BYTES = 1_000_000
@@ -222,6 +223,27 @@ def run_tasks(func: Callable[..., Any], tasks: Sequence[tuple], *, shared: tuple
             yield result
     finally:
         pool.close()
+
+
+def thread_map(func: Callable[[Any], Any], items: Sequence[Any],
+               threads: int = IN_PROCESS_THREADS) -> list[Any]:
+    """``[func(x) for x in items]``, ``threads`` calls at once in this process (for a ``func``
+    whose work releases the GIL: numba ``nogil`` kernels, numpy on large arrays), every item
+    submitted at once so that no thread waits behind a long call. Each result is its own call's,
+    kept in item order: the same list whatever the threads' timing (nothing summed across
+    items). An error or interruption cancels the calls not started and is raised here. The
+    memory the calls freed is given back after (each thread allocates in its own malloc arena,
+    which the main thread's arrays never reuse: untrimmed, the 8.75 M-point calibration's peak
+    rose by 0.03 GiB)."""
+    if threads <= 1 or len(items) <= 1:
+        return [func(x) for x in items]
+    pool = _DaemonPool(min(threads, len(items)))
+    try:
+        futures = [pool.submit(func, x) for x in items]
+        return [f.result() for f in futures]
+    finally:
+        pool.close()
+        release_memory()  # what the calls freed in the threads' own arenas
 
 
 class _DaemonPool:

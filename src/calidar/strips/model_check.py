@@ -44,6 +44,7 @@ import scipy.linalg as sl
 
 from calidar.adjust import Parameter
 from calidar.adjust.solution import determined
+from calidar.memory import release_memory
 
 #: structural parameters the check frees, one at a time, when the scanner model has them and they
 #: are not estimated. Not candidates: the lever arm's height and a common height bias (datum defects
@@ -164,6 +165,7 @@ def columns(problem_for, values: Mapping[str, float], names: Sequence[str],
         J = problem_for(analytic).jacobian(values,
                                            [Parameter(n, values[n], UNITS[n]) for n in analytic])
         out.update(zip(analytic, np.asarray(J, float).T))
+    release_memory()  # the analytic problem's working arrays, freed in the threads' own arenas
     angles = [n for n in names if n in scanner]
     problem = problem_for(angles) if angles else None
     for n in angles:

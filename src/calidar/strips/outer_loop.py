@@ -32,7 +32,7 @@ from calidar.strips.control_survey import SurveyErrors
 from calidar.strips.config import StripSettings
 from calidar.strips.convergence import NUISANCE, extrapolated, moving
 from calidar.strips.correspond import Correspondences
-from calidar.strips.distribute import IN_PROCESS_THREADS, map_pairs
+from calidar.strips.distribute import IN_PROCESS_THREADS, map_pairs, thread_map
 from calidar.strips.matchers import Matcher
 from calidar.strips.overlap import Overlap, find_overlaps, strip_name
 from calidar.strips.parameters import sensor_of
@@ -55,6 +55,16 @@ def match_or_error(matcher: Matcher, strip_a_id, points_a, strip_b_id, points_b)
         return matcher.match(strip_a_id, points_a, strip_b_id, points_b)
     except CalidarError as e:
         return e
+
+
+def _match_in_thread(matcher: Matcher, ov: Overlap, points_a: np.ndarray, pose_a: Pose,
+                     points_b: np.ndarray, pose_b: Pose, n_a: int, n_b: int):
+    """One pair matched in a thread of this process (:meth:`Run.match`): its points taken from
+    each strip's re-georeferenced ones (``pose_*``: their cache, whose rows index them), and its
+    correspondences' columns widened to whole-strip indices; or the user-facing error."""
+    c = match_or_error(matcher, ov.a, points_a[pose_a.rows_of(ov.index_a)], ov.b,
+                       points_b[pose_b.rows_of(ov.index_b)])
+    return c if isinstance(c, CalidarError) else _to_strip_columns(c, ov, n_a, n_b)
 
 
 def pair_threads(matcher: Matcher) -> int:
@@ -126,7 +136,8 @@ class Run:
             need.setdefault(i, []).append(v)
         need = {i: union(v) for i, v in need.items()}
         spans = {i: st.time_span for i, st in by_id.items()}
-        poses = {i: by_id[i].pose(idx) for i, idx in need.items()}  # one trajectory interpolation
+        # one trajectory interpolation, each strip's in this process's threads
+        poses = dict(zip(need, thread_map(lambda i: by_id[i].pose(need[i]), list(need))))
         if control is not None:
             poses[CONTROL_ID] = control_pose(control, next(iter(poses.values())))
         return cls(by_id, nominal, matcher, s, overlaps, spans, model, need, poses, list(notes),
@@ -142,32 +153,50 @@ class Run:
         columns), their pairs, and the stage times (s)."""
         clock = time.perf_counter()
         sensor, fix = sensor_of(self.nominal, values), corrections(values, self.model, self.spans)
-        current = {
-            i: (idx, georeference(sensor, fix.get(i), self.poses[i], self.by_id[i].time[idx]))
-            for i, idx in self.need.items()}
+
+        def strip_points(i):  # each strip's in this process's threads
+            idx = self.need[i]
+            return idx, georeference(sensor, fix.get(i), self.poses[i], self.by_id[i].time[idx])
+
+        current = dict(zip(self.need, thread_map(strip_points, list(self.need))))
         times = {"georeference_s": time.perf_counter() - clock}
 
-        def subset(i, index):  # the points ``index`` of strip i (the pose cache's rows, by table)
-            return current[i][1][self.poses[i].rows_of(index)]
-
-        tasks = [(self.matcher, o.a, subset(o.a, o.index_a), o.b, subset(o.b, o.index_b))
-                 for o in self.overlaps]
-        say(f"iteration {k + 1}: matching {len(tasks)} pairs ({self.matcher.name})", k,
+        say(f"iteration {k + 1}: matching {len(self.overlaps)} pairs ({self.matcher.name})", k,
             self.settings.max_outer)
         clock = time.perf_counter()
-        # a GIL-holding matcher: both cores
-        if pool is not None and client is None and worth_processes(tasks):
-            found = map_in_processes(pool, match_or_error, tasks)
+        threads = pair_threads(self.matcher)
+        if client is None and threads > 1:  # each pair taken and widened in its thread
+            found = map_pairs(_match_in_thread, self._thread_tasks(current), threads=threads)
         else:
-            found = map_pairs(match_or_error, tasks, client=client, log=log,
-                              threads=pair_threads(self.matcher))
+            found = self._whole_tasks(current, client, log, pool, threads)
         times["match_s"] = time.perf_counter() - clock
-        corrs, pairs, skipped = self._usable(found)
+        corrs, pairs, skipped = self._usable(found, widened=client is None and threads > 1)
         if k == 0 and skipped:
             self.warnings.append("strip pairs skipped: " + "; ".join(skipped))
         if not corrs:
             raise CalibrationError("no usable strip pair: " + "; ".join(skipped))
         return corrs + self._control_rows(current), pairs, times
+
+    def _thread_tasks(self, current: dict) -> list[tuple]:
+        """Each pair's task for :func:`_match_in_thread`: its strips' re-georeferenced points and
+        the pose cache's rows of the overlap's points (taken in the thread)."""
+        for pose in self.poses.values():
+            pose.rows_of(np.zeros(0, np.int64))  # each row table built here, read in the threads
+        return [(self.matcher, o, current[o.a][1], self.poses[o.a], current[o.b][1],
+                 self.poses[o.b], len(self.by_id[o.a]), len(self.by_id[o.b]))
+                for o in self.overlaps]
+
+    def _whole_tasks(self, current: dict, client, log, pool, threads: int) -> list:
+        """Every pair matched from its points taken here (worker processes, Dask or one thread)."""
+        def subset(i, index):  # the points ``index`` of strip i (the pose cache's rows, by table)
+            return current[i][1][self.poses[i].rows_of(index)]
+
+        tasks = [(self.matcher, o.a, subset(o.a, o.index_a), o.b, subset(o.b, o.index_b))
+                 for o in self.overlaps]
+        # a GIL-holding matcher: both cores
+        if pool is not None and client is None and worth_processes(tasks):
+            return map_in_processes(pool, match_or_error, tasks)
+        return map_pairs(match_or_error, tasks, client=client, log=log, threads=threads)
 
     def _control_rows(self, current: dict) -> list[Correspondences]:
         """The control rows of every strip near control, from its re-georeferenced points."""
@@ -184,7 +213,10 @@ class Run:
             return times
         return {**times, CONTROL_ID: np.zeros(len(self.control.ids))}
 
-    def _usable(self, found) -> tuple[list[Correspondences], list[dict], list[str]]:
+    def _usable(self, found, widened: bool = False
+                ) -> tuple[list[Correspondences], list[dict], list[str]]:
+        """The sets with enough rows (whole-strip columns; ``widened``: they have them already),
+        their pairs, and why the others were skipped."""
         what = self.matcher.label
         corrs, pairs, skipped = [], [], []
         for o, c in zip(self.overlaps, found):
@@ -194,7 +226,8 @@ class Run:
                 skipped.append(f"{o.a}–{o.b}: only {c.n_obs} {what}, need "
                                f"{self.settings.min_correspondences}")
             else:
-                corrs.append(_to_strip_columns(c, o, len(self.by_id[o.a]), len(self.by_id[o.b])))
+                corrs.append(c if widened else
+                             _to_strip_columns(c, o, len(self.by_id[o.a]), len(self.by_id[o.b])))
                 pairs.append({"a": o.a, "b": o.b, "n_obs": c.n_obs})
         return corrs, pairs, skipped
 

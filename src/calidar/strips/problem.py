@@ -23,6 +23,7 @@ from calidar.adjust.residuals import numerical_jacobian
 from calidar.sensor import Sensor
 from calidar.strips.centroids import Centroids, compact, correction_derivatives, union
 from calidar.strips.correspond import Correspondences
+from calidar.strips.distribute import IN_PROCESS_THREADS, thread_map
 from calidar.strips.parameters import sensor_of
 from calidar.strips.shared_patches import counted_once
 from calidar.strips.strip import Pose, Strip, georeference_pose
@@ -83,9 +84,11 @@ class StripProblem(ResidualProblem):
         scanner_free = set(free) & set(nominal.scanner.parameters())
         range_free = bool(set(free) & {"range_offset", "range_scale"})
         lever_free = any(f.startswith("lever_arm") for f in free)
-        self.centroids = None if scanner_free else [
-            tuple(Centroids(m, poses[sid], nominal, range_free, lever_free)
-                  for m, sid in ((c.A, c.strip_a), (c.B, c.strip_b))) for c in corrs]
+        #: the model check's problems (``same_rows``) built and evaluated in one thread: the run's
+        #: peak memory is set there, and each thread's arena holds its own working arrays
+        self.threads = 1 if same_rows is not None else IN_PROCESS_THREADS
+        self.centroids = None if scanner_free else _centroids(
+            corrs, poses, nominal, range_free, lever_free, self.threads)
         #: per strip its cached poses and the rows of every referenced point, for re-georeferencing
         #: them all (scanner parameters free): taken a strip at a time at each call, not held as
         #: copies (the model check's 1.4 M rows: 0.17 GiB at 8.75 M points)
@@ -185,9 +188,14 @@ class StripProblem(ResidualProblem):
     def __call__(self, values: Mapping[str, float]) -> np.ndarray:
         sensor, fix = self._read(values)
         if self.centroids is None:  # scanner parameters free: re-georeference every point used
-            pts = {i: georeference(sensor, fix.get(i), self.pose(i), self.time.get(i))
-                   for i in self.pose_rows}
-            pts = {i: _shifted(q, values.get(HEIGHT_BIAS, 0.0), i) for i, q in pts.items()}
+            h = values.get(HEIGHT_BIAS, 0.0)
+
+            def strip_points(i):  # (one strip's pose rows taken at a time, in each thread)
+                return _shifted(georeference(sensor, fix.get(i), self.pose(i), self.time.get(i)),
+                                h, i)
+
+            pts = dict(zip(self.pose_rows,
+                           thread_map(strip_points, list(self.pose_rows), self.threads)))
             return np.concatenate([c.residuals(pts[c.strip_a], pts[c.strip_b]) for c in self.corrs])
         out = []
         for k, (c, sides, times) in enumerate(zip(self.corrs, self.centroids, self.row_time)):
@@ -300,6 +308,22 @@ class StripProblem(ResidualProblem):
         mask = C >= 0
         indptr = np.concatenate([[0], np.cumsum(np.count_nonzero(mask, axis=1))])
         return mask, C[mask], indptr, knot_weights
+
+
+def _centroids(corrs: list[Correspondences], poses: dict[int, Pose], nominal: Sensor,
+               range_free: bool, lever_free: bool,
+               threads: int) -> list[tuple[Centroids, Centroids]]:
+    """Each correspondence set's two :class:`Centroids` (a, b), built ``threads`` at once in this
+    process (:func:`calidar.strips.distribute.thread_map`: each side's sums its own, in order)."""
+    sides = [(m, poses[sid]) for c in corrs for m, sid in ((c.A, c.strip_a), (c.B, c.strip_b))]
+    for _, pose in sides:
+        pose.rows_of(np.zeros(0, np.int64))  # each pose's row table built once, here
+
+    def build(side):
+        return Centroids(side[0], side[1], nominal, range_free, lever_free)
+
+    built = thread_map(build, sides, threads)
+    return list(zip(built[0::2], built[1::2]))
 
 
 def _row_sigma(c: Correspondences) -> np.ndarray:

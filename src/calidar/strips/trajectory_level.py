@@ -29,6 +29,10 @@ follows the flight in time (:mod:`calidar.strips.trajectory_level_time`). Each f
 The level is itself an estimate, known to ±1/√(2m): :func:`carry_uncertainty` carries that into
 the mounting's covariance (:mod:`calidar.adjust.variance_carry`: the plug-in covariance averaged
 over each factor's posterior, plus the spread of the estimate over it; Kackar & Harville 1984).
+A bounded group's factor is averaged likewise over what the data allow below its upper end (its
+confidence distribution from the same one-sided test, :func:`bounded_nodes`), about the estimate
+held at that end: held there alone the mounting's σ were as wide as the bound (airborne yaw
+1.29× the σ with the true accuracy file, 1.11× averaged; docs/validation.md, issue 26).
 """
 
 from __future__ import annotations
@@ -40,8 +44,10 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from calidar.adjust.variance_carry import carried_covariance
-from calidar.adjust.variance_components import (OBSERVATIONS, Components, estimate_components,
-                                                normal_terms, split_blocks, upper_end)
+from calidar.adjust.variance_carry import QUANTILES
+from calidar.adjust.variance_components import (OBSERVATIONS, Components, confidence_nodes,
+                                                estimate_components, normal_terms, split_blocks,
+                                                upper_end)
 from calidar.adjust.variance_elements import estimate_elements
 from calidar.errors import CalibrationError
 from calidar.strips.trajectory_errors import Knot
@@ -93,6 +99,10 @@ class TrajectoryLevel:
     #: upper end the data leave it), its information tr(Rₖ²) at the estimate it was bounded from
     #: and its redundancy at the stated σ
     bounded: dict[str, tuple[float, float, float]] | None = None
+    #: per bounded group its factor at the nodes of its confidence distribution below the held
+    #: upper end (:data:`calidar.adjust.variance_carry.QUANTILES`; :func:`bounded_nodes`): what
+    #: :func:`carry_uncertainty` averages the mounting's covariance over
+    nodes: dict[str, tuple[float, ...]] | None = None
 
     def factor(self, group: str) -> float:
         if group in (self.bounded or {}):
@@ -140,7 +150,7 @@ class TrajectoryLevel:
                       "information": float(bounded[g][1] if g in bounded else c.information[g]),
                       "redundancy_at_stated_sigma": float(bounded[g][2] if g in bounded
                                                           else c.redundancy_start[g]),
-                      "priors": int(c.size[g])} | ({"bounded": True} if g in bounded else {})
+                      "priors": int(c.size[g])} | self._bounded_dict(g)
                   for g, ok in self.estimated.items()}
         return {"source": "data" if self.from_data else "default", "method": SOURCE,
                 "headline": self.headline(),
@@ -150,6 +160,12 @@ class TrajectoryLevel:
                 "converged": c.converged,
                 "observations_sigma0": float(np.sqrt(c.variance[OBSERVATIONS])),
                 "groups": groups} | self._over_time_dict() | self._carried_dict()
+
+    def _bounded_dict(self, group: str) -> dict:
+        if group not in (self.bounded or {}):
+            return {}
+        nodes = (self.nodes or {}).get(group)
+        return {"bounded": True} | ({} if nodes is None else {"sigma_factor_nodes": list(nodes)})
 
     def _carried_dict(self) -> dict:
         if self.carried is None:
@@ -181,7 +197,8 @@ def estimate_level(est, base: TrajectoryAccuracy, layout: Mapping[str, Knot],
     present = [g for g in GROUPS if any(b.group == g for b in blocks)]
     comps, fixed, bounded = _components(terms, blocks, present)
     estimated = {g: g not in fixed for g in present}
-    level = TrajectoryLevel(base, comps, estimated, base, bounded=bounded or None)
+    level = TrajectoryLevel(base, comps, estimated, base, bounded=bounded or None,
+                            nodes=bounded_nodes(terms, blocks, comps, bounded) or None)
     source = SOURCE if level.from_data else base.source
     level.accuracy = scaled(base, *(level.factor(g) for g in GROUPS), source=source)
     if knot_times is not None and level.any_estimated:
@@ -233,6 +250,24 @@ def _components(terms: tuple, blocks: list, present: list[str]) -> tuple[Compone
         fixed += loose
 
 
+def bounded_nodes(terms: tuple, blocks: list, comps: Components,
+                  bounded: Mapping[str, tuple]) -> dict[str, tuple[float, ...]]:
+    """Per bounded group its σ factor at :data:`~calidar.adjust.variance_carry.QUANTILES` of its
+    confidence distribution between :data:`FLOOR_FACTOR` and its held upper end, the others at
+    their estimates (:func:`calidar.adjust.variance_components.confidence_nodes`: the update's
+    one-sided test, whose 97.5 % point is that upper end); empty where a normal matrix is
+    singular at some factor (the held factor's plug-in σ then stay)."""
+    out = {}
+    for g, (held, *_) in bounded.items():
+        try:
+            v = confidence_nodes(terms, blocks, comps.variance, g, QUANTILES, FLOOR_FACTOR**2,
+                                 held**2)
+        except CalibrationError:
+            continue
+        out[g] = tuple(float(f) for f in np.sqrt(v))
+    return out
+
+
 def _held_priors(priors, groups: list[str | None], bounded: Mapping[str, tuple]) -> list:
     """The engine's prior groups with the bounded groups' priors at their held factor."""
     f = np.array([bounded[g][0] if g in bounded else 1.0 for g in groups])
@@ -251,22 +286,27 @@ def scaled(base: TrajectoryAccuracy, horizontal: float, vertical: float, tilt: f
 def carry_uncertainty(level: TrajectoryLevel, est, solution, layout: Mapping[str, Knot]) -> None:
     """The level's own uncertainty carried into ``solution``'s covariance (a
     :class:`calidar.adjust.solution.Solution` of the adjustment ``est`` with the level's priors):
-    each estimated group's factor at its flight-wide effective number m of independent priors
+    each estimated group's factor at its flight-wide effective number m of independent priors,
+    each bounded group's over its nodes below the upper end it is held at (``level.nodes``)
     (:mod:`calidar.adjust.variance_carry`). Only the non-trajectory parameters' block changes (the
-    trajectory corrections keep their plug-in σ); their σ's widening goes to ``level.carried``."""
+    trajectory corrections keep their plug-in σ); the ratio of their σ to the plug-in goes to
+    ``level.carried`` (below 1 where a bounded group's range narrows them more than the estimated
+    groups' uncertainty widens them)."""
     effective = {g: m for g, m in (level.effective or {}).items() if level.estimated.get(g)}
+    # a bounded group: over its confidence distribution below the upper end it is held at
+    nodes = {g: np.square(np.array(f) / level.factor(g)) for g, f in (level.nodes or {}).items()}
     names = [p.name for p in est.fit.free]
     groups = [group_of(layout.get(n)) for n in names]
     where = {n: i for i, n in enumerate(solution.parameters.free_names)}
     cov = solution.covariance
     own = np.array([i for i, (n, g) in enumerate(zip(names, groups))
                     if g is None and np.isfinite(cov[where[n], where[n]])], int)
-    if not effective or own.size == 0:
+    if not (effective or nodes) or own.size == 0:
         return
     terms = normal_terms(est)
     try:
         Q, delta = carried_covariance(terms[0], terms[1], terms[4], est.fit.priors, groups,
-                                      effective, own)
+                                      effective, own, nodes=nodes)
     except CalibrationError:  # a normal matrix singular at some factor: the plug-in σ stay
         return
     pos = np.array([where[names[i]] for i in own])

@@ -292,14 +292,17 @@ ACCURACY_ACTION = ("give the trajectory's accuracy file (POSPac smrmsg) with "
 def accuracy_finding(level: dict) -> Finding:
     """The trajectory accuracy estimated from the overlaps (a TrajectoryLevel's dict): a pass where
     every group of priors was estimated or bounded (held at the upper end the data leave it,
-    named), a warning naming those the data cannot tell (the survey-grade default kept there) and
+    named with the range they allow when the mounting's σ were averaged over it), a warning
+    naming those the data cannot tell (the survey-grade default kept there) and
     the criterion."""
     groups = level["groups"]
     weak = [f"{g.replace('_', ' ')} (redundancy {v['redundancy_at_stated_sigma']:.1f} < "
             f"{level['min_redundancy']:g})"
             for g, v in groups.items() if not v["estimated"] and not v.get("bounded")]
     bounded = [f"{g.replace('_', ' ')} (redundancy {v['redundancy_at_stated_sigma']:.0f} at the "
-               f"default, information {v['information']:.1f} at its estimate)"
+               f"default, information {v['information']:.1f} at its estimate"
+               + (f"; ×{min(v['sigma_factor_nodes']):.2g}–×{max(v['sigma_factor_nodes']):.2g} "
+                  "at 10–90 % of what they allow" if v.get("sigma_factor_nodes") else "") + ")"
                for g, v in groups.items() if v.get("bounded")]
     factors = ", ".join(
         f"{g.replace('_', ' ')} ×{v['sigma_factor']:.2g}"
@@ -320,8 +323,10 @@ def accuracy_finding(level: dict) -> Finding:
         moved = ", ".join(f"{g.replace('_', ' ')} ×{min(f):.2g}–×{max(f):.2g}" for g, f in moving)
         detail += "; over the flight (per segment, pooled in time): " + (moved or "constant")
     if bounded:
+        carried = any(v.get("sigma_factor_nodes") for v in groups.values())
         detail += ("; the data bound but do not measure " + ", ".join(bounded)
-                   + ": held at the upper end they leave it (its σ conservative)")
+                   + ": held at the upper end they leave it (its σ conservative)"
+                   + ("; the mounting's σ averaged over the range they allow" if carried else ""))
     if weak:
         detail += ("; the data cannot tell " + ", ".join(weak)
                    + ": the survey-grade default kept there")

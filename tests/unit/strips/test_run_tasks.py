@@ -65,3 +65,41 @@ def test_an_abandoned_run_does_not_wait_for_the_tasks_in_flight():
     assert next(run) == 0.0
     run.close()
     assert time.perf_counter() - clock < 1.0
+
+
+def test_thread_map_keeps_item_order_and_runs_items_at_once():
+    from calidar.strips.distribute import thread_map
+
+    barrier = threading.Barrier(2, timeout=10)
+
+    def together(k):  # returns only when another call reached the barrier too
+        barrier.wait()
+        return _slow_square(1, k)
+
+    got = thread_map(together, list(range(6)), threads=2)
+    assert [v for v, _ in got] == [k * k for k in range(6)]
+    assert len({t for _, t in got}) == 2
+    assert thread_map(lambda k: k + 1, [1, 2, 3], threads=1) == [2, 3, 4]
+    assert thread_map(lambda k: k, [], threads=2) == []
+
+
+def test_thread_map_raises_a_call_error_and_drops_the_calls_not_started():
+    """An error (or an interruption raised in a call) reaches the caller as raised; the calls
+    queued behind it are cancelled, not run after the caller has gone."""
+    from calidar.strips.distribute import thread_map
+
+    ran = []
+
+    def work(k):
+        if k == 1:
+            raise KeyboardInterrupt
+        threading.Event().wait(0.05)
+        ran.append(k)
+        return k
+
+    with pytest.raises(KeyboardInterrupt):
+        thread_map(work, list(range(40)), threads=2)
+    threading.Event().wait(0.3)
+    assert len(ran) < 5
+    with pytest.raises(InputError, match="a bad time"):
+        thread_map(_fails, list(range(5)), threads=2)

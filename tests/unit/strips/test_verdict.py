@@ -215,6 +215,27 @@ def test_a_bounded_level_is_named_as_such():
     assert "cannot tell" not in f.detail and "default kept" not in f.detail
 
 
+def test_a_bounded_levels_carried_range_is_named():
+    """Since the twelfth session the mounting's σ are averaged over the range a bounded level's
+    data allow (calidar.strips.trajectory_level.bounded_nodes): the finding names that range
+    (its 10–90 % nodes) and says what the σ rest on; without the nodes, the words as before."""
+    sol = _solution({"boresight_roll": 1e-6})
+    level = _level(False)
+    level["groups"]["heading"] |= {"sigma_factor": 0.36, "redundancy_at_stated_sigma": 62.1,
+                                   "information": 7.8, "bounded": True,
+                                   "sigma_factor_nodes": [0.013, 0.19, 0.23, 0.28, 0.34]}
+    sol.extra["trajectory_accuracy_estimate"] = level
+    result = SimpleNamespace(solution=sol, strips=[_Strip()], pairs=[{}], matcher=TiePlanes(), method="planes",
+                             residuals_after=np.zeros(3), row_sigma=np.ones(3), warnings=[],
+                             outer=[{"n_obs": 10, "mean_distance_m": 0.01}, {"n_obs": 10, "mean_distance_m": 0.01}])
+    stages = [QualityStage("as delivered", "", [_pq(1, 2, 0.05, 0.08)]), QualityStage("after", "", [_pq(1, 2, 0.0, 0.01)])]
+    v = strip_verdict(result, stages, ["no trajectory accuracy found (…): its level is estimated from the overlaps"])
+    f = next(f for f in v.findings if f.check == "trajectory accuracy")
+    assert f.status == "pass" and "heading ×0.36 at most" in f.detail
+    assert "information 7.8 at its estimate; ×0.013–×0.34 at 10–90 % of what they allow)" in f.detail
+    assert "the mounting's σ averaged over the range they allow" in f.detail
+
+
 def test_the_global_test_takes_sigma0_consistent_for_normal_residuals():
     """The engine's σ0 from Cauchy-weighted residuals is 0.89 when the σ are exactly right; the global
     test divides the factor out and finds 1 (20 000 normal residuals about a fitted mean)."""
