@@ -195,21 +195,27 @@ def test_an_accuracy_estimated_from_the_overlaps_is_stated(heading_estimated):
         assert "--trajectory-accuracy" in f.action
 
 
-def test_a_bounded_level_is_named_as_such():
-    """A group checked at the stated σ but not at its estimate (issue 26, eleventh session): held at
-    the upper end the data leave it — named with its redundancy and information, "at most", not as
-    a group the data cannot tell (no warning: the σ are conservative, not the default's)."""
+def _bounded_heading_finding(heading: dict):
+    """The "trajectory accuracy" finding of a run whose level holds ``heading`` (its fields) as a
+    bounded group, no accuracy file found."""
     sol = _solution({"boresight_roll": 1e-6})
     level = _level(False)
-    level["groups"]["heading"] |= {"sigma_factor": 0.17, "redundancy_at_stated_sigma": 72.7,
-                                   "information": 0.0, "bounded": True}
+    level["groups"]["heading"] |= heading | {"bounded": True}
     sol.extra["trajectory_accuracy_estimate"] = level
     result = SimpleNamespace(solution=sol, strips=[_Strip()], pairs=[{}], matcher=TiePlanes(), method="planes",
                              residuals_after=np.zeros(3), row_sigma=np.ones(3), warnings=[],
                              outer=[{"n_obs": 10, "mean_distance_m": 0.01}, {"n_obs": 10, "mean_distance_m": 0.01}])
     stages = [QualityStage("as delivered", "", [_pq(1, 2, 0.05, 0.08)]), QualityStage("after", "", [_pq(1, 2, 0.0, 0.01)])]
     v = strip_verdict(result, stages, ["no trajectory accuracy found (…): its level is estimated from the overlaps"])
-    f = next(f for f in v.findings if f.check == "trajectory accuracy")
+    return next(f for f in v.findings if f.check == "trajectory accuracy")
+
+
+def test_a_bounded_level_is_named_as_such():
+    """A group checked at the stated σ but not at its estimate (issue 26, eleventh session): held at
+    the upper end the data leave it — named with its redundancy and information, "at most", not as
+    a group the data cannot tell (no warning: the σ are conservative, not the default's)."""
+    f = _bounded_heading_finding({"sigma_factor": 0.17, "redundancy_at_stated_sigma": 72.7,
+                                  "information": 0.0})
     assert f.status == "pass" and "heading ×0.17 at most" in f.detail
     assert "bound but do not measure heading (redundancy 73 at the default, information 0.0" in f.detail
     assert "cannot tell" not in f.detail and "default kept" not in f.detail
@@ -219,18 +225,9 @@ def test_a_bounded_levels_carried_range_is_named():
     """Since the twelfth session the mounting's σ are averaged over the range a bounded level's
     data allow (calidar.strips.trajectory_level.bounded_nodes): the finding names that range
     (its 10–90 % nodes) and says what the σ rest on; without the nodes, the words as before."""
-    sol = _solution({"boresight_roll": 1e-6})
-    level = _level(False)
-    level["groups"]["heading"] |= {"sigma_factor": 0.36, "redundancy_at_stated_sigma": 62.1,
-                                   "information": 7.8, "bounded": True,
-                                   "sigma_factor_nodes": [0.013, 0.19, 0.23, 0.28, 0.34]}
-    sol.extra["trajectory_accuracy_estimate"] = level
-    result = SimpleNamespace(solution=sol, strips=[_Strip()], pairs=[{}], matcher=TiePlanes(), method="planes",
-                             residuals_after=np.zeros(3), row_sigma=np.ones(3), warnings=[],
-                             outer=[{"n_obs": 10, "mean_distance_m": 0.01}, {"n_obs": 10, "mean_distance_m": 0.01}])
-    stages = [QualityStage("as delivered", "", [_pq(1, 2, 0.05, 0.08)]), QualityStage("after", "", [_pq(1, 2, 0.0, 0.01)])]
-    v = strip_verdict(result, stages, ["no trajectory accuracy found (…): its level is estimated from the overlaps"])
-    f = next(f for f in v.findings if f.check == "trajectory accuracy")
+    f = _bounded_heading_finding({"sigma_factor": 0.36, "redundancy_at_stated_sigma": 62.1,
+                                  "information": 7.8,
+                                  "sigma_factor_nodes": [0.013, 0.19, 0.23, 0.28, 0.34]})
     assert f.status == "pass" and "heading ×0.36 at most" in f.detail
     assert "information 7.8 at its estimate; ×0.013–×0.34 at 10–90 % of what they allow)" in f.detail
     assert "the mounting's σ averaged over the range they allow" in f.detail
