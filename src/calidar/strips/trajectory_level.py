@@ -43,8 +43,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from calidar.adjust.variance_carry import carried_covariance
-from calidar.adjust.variance_carry import QUANTILES
+from calidar.adjust.variance_carry import QUANTILES, carried_covariance
 from calidar.adjust.variance_components import (OBSERVATIONS, Components, confidence_nodes,
                                                 estimate_components, normal_terms, split_blocks,
                                                 upper_end)
