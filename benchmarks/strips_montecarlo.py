@@ -136,6 +136,19 @@ def sigma0_range(dof: float) -> list[float]:
     return [float(np.sqrt(chdtri(dof, 1.0 - q) / dof)) for q in (0.025, 0.975)]
 
 
+def record(row: dict, path: Path | None) -> None:
+    """Append ``row`` as one line to the JSON-lines file ``path`` (None: nowhere): how the
+    Monte-Carlo benchmarks keep their rows, one survey at a time."""
+    if path:
+        with path.open("a") as f:
+            f.write(json.dumps(row) + "\n")
+
+
+def recorded(path: Path) -> list[dict]:
+    """The rows :func:`record` appended to ``path`` (blank lines skipped)."""
+    return [json.loads(x) for x in path.read_text().splitlines() if x.strip()]
+
+
 def seeds_of(text: str) -> list[int]:
     """'3-42' or '3,5,9-12' → the seeds."""
     out = []

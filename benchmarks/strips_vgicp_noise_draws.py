@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from strips_montecarlo import ANGLES, ERRORS, _simulated, seeds_of  # noqa: E402
+from strips_montecarlo import ANGLES, ERRORS, _simulated, record, recorded, seeds_of  # noqa: E402
 from strips_prior_honesty import _CAPTURED, _capture  # noqa: E402
 from strips_roll import SIGMA, _simulate_with_noise_draw, folders  # noqa: E402
 from strips_yaw_draws import functional  # noqa: E402
@@ -114,7 +114,7 @@ def main() -> None:
     ap.add_argument("--summary", action="store_true")
     args = ap.parse_args()
     if args.summary:
-        print(summary([json.loads(x) for x in args.json.read_text().splitlines() if x.strip()]))
+        print(summary(recorded(args.json)))
         return
     solver.Estimate.solution = _capture
     vset = {k: int(v) if v.isdigit() else float(v)
@@ -126,9 +126,7 @@ def main() -> None:
             row = {"seed": seed, "draw": d, "exact": args.exact, "directions": args.directions,
                    "set": args.set, **run(f, args.exact, vset)}
             rows.append(row)
-            if args.json:
-                with args.json.open("a") as fh:
-                    fh.write(json.dumps(row) + "\n")
+            record(row, args.json)
             print(json.dumps(row), flush=True)
     print(summary(rows))
 

@@ -37,7 +37,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from strips_montecarlo import ANGLES, seeds_of  # noqa: E402
+from strips_montecarlo import ANGLES, record, recorded, seeds_of  # noqa: E402
 from strips_roll import SIGMA, folders  # noqa: E402
 
 from calidar.adjust import solver  # noqa: E402
@@ -205,12 +205,11 @@ def main() -> None:
     ap.add_argument("--against", type=Path, default=None, help="strips_yaw_draws.py rows")
     args = ap.parse_args()
     if args.summary:
-        rows = [json.loads(x) for x in args.json.read_text().splitlines() if x.strip()]
+        rows = recorded(args.json)
         print(summary(rows))
         print(moves(rows))
         if args.against:
-            print(against(rows, [json.loads(x) for x in args.against.read_text().splitlines()
-                                 if x.strip()]))
+            print(against(rows, recorded(args.against)))
         return
     vset = {k: int(v) if v.isdigit() else float(v)
             for k, v in (s.split("=") for s in args.set)}
@@ -227,9 +226,7 @@ def main() -> None:
                "move_deg": move,
                "classes": cls}
         rows.append(row)
-        if args.json:
-            with args.json.open("a") as f:
-                f.write(json.dumps(row) + "\n")
+        record(row, args.json)
         print(f"seed {seed}: " + json.dumps(cls["all"]), flush=True)
     print(summary(rows))
     print(moves(rows))
