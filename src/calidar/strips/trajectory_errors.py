@@ -21,10 +21,12 @@ small): first order (:data:`SHAPES` "gm1", the default) ρ(Δt) = exp(−|Δt|/T
 process without GM1's cusp at lag 0 (Gelb 1974, "Applied Optimal Estimation", ch. 3; Maybeck
 1979, "Stochastic Models, Estimation, and Control" vol. 1, ch. 4). T = ``correlation_s`` is the
 integral time ∫₀^∞ ρ for either shape: both hold the same power at zero frequency, S(0) = 2σ²T,
-what the mean of a long stretch sees. The shifts are one process over the whole flight,
-correlated across lines by their time apart (independent lines made the flight's mean height
-error, which only ground control observes, 10 % more certain than it is; issue 28). Each row of
-the Jacobian then touches two knots per strip: it is built sparse.
+what the mean of a long stretch sees (gm2, measured on the simulator, states pitch and yaw σ
+narrower than the errors: not the default; docs/validation.md, issue 26, thirteenth session). The
+shifts are one process over the whole flight, correlated across lines by their time apart
+(independent lines made the flight's mean height error, which only ground control observes, 10 %
+more certain than it is; issue 28). Each row of the Jacobian then touches two knots per strip: it
+is built sparse.
 
 Without a prior (``position_sigma_m`` None) the whole-strip shifts are free and the first
 strip is the datum: a strip-wise GNSS offset of unknown size.
