@@ -98,3 +98,19 @@ def test_the_shape_is_a_setting_of_the_configuration_file():
         from_document({"trajectory_model": {"shape": ["gm3", "gm2"]}}, "config.toml")
     with pytest.raises(InputError, match=r"trajectory_model\.shape: expected a list of 2"):
         from_document({"trajectory_model": {"shape": "gm2"}}, "config.toml")
+
+
+def test_the_engine_gets_the_chosen_shape():
+    """prior_correlation (what the adjustment inverts): the rotations' groups and the shifts' flight
+    group built with the model's shapes."""
+    spans = {1: (0.0, 6.0), 2: (10.0, 14.0)}
+    m = TrajectoryModel(1.0, 0.03, 3e-5, 20.0, 3.5, shape=("gm2", "gm2"))
+    groups = dict((names[0], R) for names, R in m.prior_correlation(spans))
+    k = np.arange(7.0)
+    assert np.allclose(groups["trajectory_tilt_up_1_0"], gauss_markov(k[:, None] - k, 3.5, "gm2"),
+                       rtol=1e-13, atol=0)
+    t = np.concatenate([k, 10.0 + np.arange(5.0)])
+    flight = gauss_markov(t[:, None] - t, 20.0, "gm2")
+    same = np.repeat([0, 1], [7, 5])
+    assert np.allclose(groups["trajectory_bias_east_1_0"],
+                       np.where(same[:, None] == same, flight, 0.95 * flight), rtol=1e-13, atol=0)
