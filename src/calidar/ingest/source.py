@@ -66,11 +66,23 @@ class StripSource:
         for f in self.files if files is None else files:
             held = self.held.chunks(f.path, span) if kept else None
             for chunk, t in held if held is not None else self._read(f, fields, span):
-                g = group_keys(chunk.point_source_id, t, self.settings.gap_s)
-                pos = np.minimum(np.searchsorted(self.groups, g), self.groups.size - 1)
-                if not np.array_equal(self.groups[pos], g):
-                    raise InputError(f.path, None, "the file changed while it was read")
-                yield f, chunk, self.group_line[pos], t
+                yield f, chunk, self.line_ids(f, chunk.point_source_id, t), t
+
+    def line_ids(self, f: StripFile, psid, t: np.ndarray) -> np.ndarray:
+        """The flight line of each point of a chunk of ``f`` (point_source_id, times in the
+        trajectory's system): its group's (:func:`group_keys`); an error when a group was not
+        seen in pass 1."""
+        from calidar.ingest.line_kernels import chunk_lines
+
+        ids, found = chunk_lines(psid, t, self.settings.gap_s, self.groups, self.group_line)
+        if ids is None and found:  # a time not finite: numpy's cast
+            g = group_keys(psid, t, self.settings.gap_s)
+            pos = np.minimum(np.searchsorted(self.groups, g), self.groups.size - 1)
+            found = np.array_equal(self.groups[pos], g)
+            ids = self.group_line[pos]
+        if not found:
+            raise InputError(f.path, None, "the file changed while it was read")
+        return ids
 
     def _read(self, f: StripFile, fields: Sequence[str],
               span: tuple[int, int | None]) -> Iterator[tuple]:
