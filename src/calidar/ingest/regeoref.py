@@ -44,7 +44,7 @@ def moved_versions(traj, nominal, models, t: np.ndarray, lin,
     t = np.ascontiguousarray(t, float)
     every = take is None
     take = np.arange(t.size) if every else np.ascontiguousarray(take, np.int64)
-    out = np.empty((len(kept), t.size, 3)) if every else np.full((len(kept), t.size, 3), np.nan)
+    out = np.empty((len(kept), t.size, 3))  # the rows not taken: NaN, by the kernel
     c = lambda a: np.ascontiguousarray(a, float)  # noqa: E731 - as calidar.georef._c
     which = np.array([0 if tr is traj else 1 for _, tr in kept], np.int64)
     r_bs = np.stack([c(s.r_bs) for s, _ in kept]) if kept else np.zeros((0, 3, 3))
@@ -53,6 +53,8 @@ def moved_versions(traj, nominal, models, t: np.ndarray, lin,
                     c(other.q_eb))
     # the points' ECEF as TileLinear.near_ecef gives them, computed in the kernel's loop
     near = (np.linalg.inv(lin.jac), c(lin.anchor_ecef), np.ascontiguousarray(lin.anchor, np.int64))
+    if not every:
+        _nan_rows(take, out)
     n_out, n_out2 = _versions_kernel(*trajectories, t, *near, c(nominal.r_bs),
                                      c(nominal.lever_arm), r_bs, lever, which, c(lin.xyz), lin.jac,
                                      np.ascontiguousarray(lin.rows, np.int64), take, out)
@@ -68,6 +70,22 @@ def _within(traj, t: np.ndarray) -> bool:
     """Whether every time ``t`` lies within the trajectory's first and last (the kernel's test;
     NaN does not)."""
     return bool(np.all((t >= traj.time[0]) & (t <= traj.time[-1])))
+
+
+@njit(cache=True, nogil=True)
+def _nan_rows(take, out):  # pragma: no cover - numba
+    """NaN in every row of ``out`` (M, N, 3) but those at ``take`` (the gaps between them when
+    they ascend, else every row: the kernel then writes those taken)."""
+    ascending = True
+    for kk in range(1, take.size):
+        ascending = ascending and take[kk] > take[kk - 1]
+    nxt = 0
+    for k in range(out.shape[1]):
+        if ascending and nxt < take.size and take[nxt] == k:
+            nxt += 1
+            continue
+        for m in range(out.shape[0]):
+            out[m, k, 0] = out[m, k, 1] = out[m, k, 2] = np.nan
 
 
 @njit(cache=True, nogil=True)
