@@ -16,6 +16,7 @@ from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
+from numba import njit
 
 from calidar.errors import InputError
 
@@ -51,9 +52,17 @@ def among(classification: np.ndarray, classes: tuple[int, ...]) -> np.ndarray:
     """``np.isin(classification, classes)``: for 8-bit classes (LAS) a lookup in a table of the
     256 (one pass, no comparison per class), the same mask."""
     c = np.asarray(classification)
-    if c.dtype == np.uint8:
-        return _table(tuple(classes))[c]
+    if c.dtype == np.uint8 and c.ndim == 1:
+        return _looked_up(c, _table(tuple(classes)))
     return np.isin(c, classes)
+
+
+@njit(cache=True, nogil=True)
+def _looked_up(c, table):  # pragma: no cover - numba
+    out = np.empty(c.size, np.bool_)
+    for k in range(c.size):
+        out[k] = table[c[k]]
+    return out
 
 
 @lru_cache(maxsize=64)
