@@ -41,12 +41,12 @@ def chunk_lines(psid, t: np.ndarray, gap_s: float, groups: np.ndarray,
 
 @njit(cache=True, nogil=True)
 def _lines_kernel(psid, has_psid, t, gap_s, groups, group_line, ids):  # pragma: no cover - numba
-    """0: ``ids`` filled; 1: a group not found; 2: a time not finite."""
+    """0: ``ids`` filled; 1: a group not found; 2: a time not finite (or its bin beyond int64)."""
     mask = (np.int64(1) << BIN_BITS) - 1
     last, line = np.int64(0), np.int64(-1)
     for k in range(t.size):
         b = t[k] / gap_s
-        if not np.isfinite(b):
+        if not abs(b) < 9.2e18:  # NaN, ±inf, beyond int64: numpy's cast
             return 2
         g = np.int64(np.floor(b)) & mask
         if has_psid:
@@ -114,7 +114,7 @@ def _kept_kernel(ids, xyz, factor, cell_m, lines, offsets, cells, by_class, clas
             if slot >= 0:
                 seen[slot] = True
         x, y = xyz[k, 0] * factor, xyz[k, 1] * factor
-        if not (np.isfinite(x / cell_m) and np.isfinite(y / cell_m)):
+        if not (abs(x / cell_m) < 9.2e18 and abs(y / cell_m) < 9.2e18):  # as numpy's cast
             return False
         if slot < 0:
             mask[k] = False

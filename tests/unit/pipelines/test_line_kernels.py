@@ -47,6 +47,8 @@ def test_a_group_not_seen_and_a_time_not_finite():
     t2 = t.copy()
     t2[100] = np.nan  # numpy's cast of NaN is the caller's
     assert chunk_lines(psid, t2, GAP_S, groups, line) == (None, True)
+    t2[100] = 1e30  # a bin beyond int64: numpy's cast
+    assert chunk_lines(psid, t2, GAP_S, groups, line) == (None, True)
     assert chunk_lines(psid.astype(float), t, GAP_S, groups, line) == (None, True)
 
 
@@ -115,3 +117,17 @@ def test_nan_rows_around_the_taken_ones():
     out = np.zeros((1, 4, 3))
     _nan_rows(np.array([2, 1]), out)  # not ascending: every row, the kernel writes the taken
     assert np.isnan(out).all()
+
+
+def test_tile_indices_as_the_numpy_floor():
+    from calidar.crs import _tile_indices
+
+    rng = np.random.default_rng(8)
+    xyz = np.c_[rng.uniform(-1e3, 1e6, 5000), rng.uniform(-50.0, 5e6, 5000), rng.normal(0, 9, 5000)]
+    xyz[:20, :2] = np.arange(-10, 10)[:, None] * 50.0  # on tile edges
+    for tile in (50.0, 50.0 / 1e5, 7.3):
+        np.testing.assert_array_equal(_tile_indices(xyz, tile),
+                                      np.floor(xyz[:, :2] / tile).astype(np.int64))
+    for bad in (np.nan, np.inf, 1e30):  # numpy's cast
+        xyz[3, 1] = bad
+        assert _tile_indices(xyz, 50.0) is None
