@@ -4,7 +4,7 @@
         --seeds 100-139 [--methods planes,vgicp] [--vegetation 0.3] [--no-source] [--density 0.3] \\
         [--preset uav] [--directions opposite] [--scene urban] [--only-hidden] \\
         [--sigma-scale 1,1,1.5,1,1,5 --sigma-variation 0.4] [--jobs 1] [--json out.jsonl] \\
-        [--cache DIR [--simulate-only]] [--covariance sandwich]
+        [--cache DIR [--simulate-only]] [--covariance sandwich] [--trajectory-shape gm2,gm2]
 
 Each seed is one survey written to a folder as the simulator delivers it (airborne preset,
 6 lines in alternate directions + 2 cross lines, density 0.3 (``--density``), boresight errors
@@ -26,7 +26,9 @@ One line per survey, source and method (errors, σ, z = error/σ), then per sour
 (the same bytes: a seed always gives the same survey); ``--simulate-only`` only fills DIR.
 
 ``--covariance irls|sandwich``: the engine's covariance model (``[solver] covariance``,
-:attr:`calidar.adjust.SolverOptions.covariance`; None: the default).
+:attr:`calidar.adjust.SolverOptions.covariance`; None: the default). ``--trajectory-shape P,A``:
+the trajectory prior's correlation shape, position and attitude (``[trajectory_model] shape``,
+:func:`calidar.strips.trajectory_errors.gauss_markov`; None: the default).
 
 RMS of z per angle (1 for honest σ; its sampling spread is ±1/√(2n)), the mean z, the largest
 |z|, the share of |z| > 2 (4.6 % for a normal z) and the count of |z| > 3.5.
@@ -76,7 +78,7 @@ URBAN = {"building_density_per_km2": 1200.0, "building_size_m": (10.0, 30.0), "b
 def survey(seed: int, methods: list[str], vegetation: float, scale: tuple, variation: float, no_source: bool,
            density: float = 0.3, only_hidden: bool = False, preset: str = "airborne", directions: str = "cross",
            scene: str = "preset", cache: Path | None = None, simulate_only: bool = False,
-           covariance: str | None = None) -> list[dict]:
+           covariance: str | None = None, shape: tuple | None = None) -> list[dict]:
     """One simulated survey calibrated with default options (and, with ``no_source``, without its
     smrmsg; ``only_hidden``: only without it)."""
     noise = {"range_noise_m": 0.03} if preset == "airborne" else {}  # uav: the preset's 1 cm
@@ -95,6 +97,8 @@ def survey(seed: int, methods: list[str], vegetation: float, scale: tuple, varia
             if covariance is not None:  # the engine's covariance model, as [solver] covariance sets it
                 cal = replace(cal, solver=replace(cal.solver, adjustment=replace(
                     cal.solver.adjustment, covariance=covariance)))
+            if shape is not None:  # the trajectory prior's shape, as [trajectory_model] shape sets it
+                cal = replace(cal, trajectory=replace(cal.trajectory, shape=shape))
             config = StripConfig(cal)
             t = time.perf_counter()
             inputs = load_inputs(sorted((f / "strips").glob("*.laz")), f / "sbet.out", f / "sensor.toml", config,
@@ -113,7 +117,8 @@ def survey(seed: int, methods: list[str], vegetation: float, scale: tuple, varia
                              "sigma0_skipped": sol.extra.get("unit_weight", {}).get("sigma0"),
                              "outer_iterations": len(result.outer), "calibration_cpu_s": cpu,
                              "level": sol.extra.get("trajectory_accuracy_estimate"),
-                             "covariance": sol.extra.get("covariance")})
+                             "covariance": sol.extra.get("covariance"),
+                             "trajectory_shape": list(cal.trajectory.shape)})
         if cache is None:
             shutil.rmtree(folder, ignore_errors=True)
     return rows
@@ -201,9 +206,12 @@ def main() -> None:
     ap.add_argument("--simulate-only", action="store_true", help="only simulate the surveys into --cache")
     ap.add_argument("--covariance", default=None, choices=("irls", "sandwich"),
                     help="the engine's covariance model ([solver] covariance; default: the configuration's)")
+    ap.add_argument("--trajectory-shape", default=None, help="POSITION,ATTITUDE: gm1 or gm2 each "
+                    "([trajectory_model] shape; default: the configuration's)")
     args = ap.parse_args()
     methods, seeds = args.methods.split(","), seeds_of(args.seeds)
     scale = tuple(float(v) for v in args.sigma_scale.split(","))
+    shape = None if args.trajectory_shape is None else tuple(args.trajectory_shape.split(","))
     density = args.density if args.density is not None else (0.3 if args.preset == "airborne" else 1.0)
     rows, start = [], time.perf_counter()
     with ProcessPoolExecutor(args.jobs) as pool:
@@ -211,7 +219,8 @@ def main() -> None:
         for found in pool.map(survey, seeds, [methods] * n, [args.vegetation] * n, [scale] * n,
                               [args.sigma_variation] * n, [args.no_source] * n, [density] * n,
                               [args.only_hidden] * n, [args.preset] * n, [args.directions] * n, [args.scene] * n,
-                              [args.cache] * n, [args.simulate_only] * n, [args.covariance] * n):
+                              [args.cache] * n, [args.simulate_only] * n, [args.covariance] * n,
+                              [shape] * n):
             for r in found:
                 r.update(vegetation=args.vegetation, sigma_scale=scale, sigma_variation=args.sigma_variation,
                          density=density, preset=args.preset, directions=args.directions, scene=args.scene,

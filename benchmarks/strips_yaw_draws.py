@@ -4,7 +4,8 @@ lines).
 
     NUMBA_NUM_THREADS=1 OMP_NUM_THREADS=1 PYTHONPATH=src python benchmarks/strips_yaw_draws.py \\
         --preset uav --scene urban --directions cross --seeds 900-929 --cache DIR \\
-        [--methods planes,vgicp] [--draws 80] [--save FN_DIR] [--json out.jsonl]
+        [--methods planes,vgicp] [--draws 80] [--save FN_DIR] [--json out.jsonl] \\
+        [--trajectory-shape gm2,gm2] [--trajectory-correlation 17.7,3.5]
     ... --seeds 900-929,753-759 --transfer FN_DIR/911_planes.npz ... [--rows mc.jsonl ...]
     ... --summary --json out.jsonl      # several runs: cat their jsonl into one file first
 
@@ -194,8 +195,14 @@ def survey(args, seed: int) -> list[dict]:
     folder = _simulated(cfg, args.cache / "tmp", args.cache, (1.0,) * 6, 0.0, cfg.density)
     offset = float(read_sbet(folder / "sbet.out").time[0] - true.time[0])
     methods = args.methods.split(",")
-    strip_config = StripConfig(CalibrationConfig(matchers=matchers_named(*methods),
-                                                 model_check=False))
+    cal = CalibrationConfig(matchers=matchers_named(*methods), model_check=False)
+    if args.trajectory_shape:  # the prior's shape, as [trajectory_model] shape sets it
+        cal = replace(cal, trajectory=replace(cal.trajectory,
+                                              shape=tuple(args.trajectory_shape.split(","))))
+    if args.trajectory_correlation:  # its correlation times, as [trajectory_model] correlation_s
+        times = tuple(float(v) for v in args.trajectory_correlation.split(","))
+        cal = replace(cal, trajectory=replace(cal.trajectory, correlation_s=times))
+    strip_config = StripConfig(cal)
     inputs = load_inputs(sorted((folder / "strips").glob("*.laz")), folder / "sbet.out",
                          folder / "sensor.toml", strip_config, truth=folder / "truth.json")
     _CAPTURED.clear()
@@ -368,6 +375,10 @@ def main() -> None:
     ap.add_argument("--directions", default="cross", choices=("cross", "opposite"))
     ap.add_argument("--vegetation", type=float, default=0.0)
     ap.add_argument("--draws", type=int, default=80)
+    ap.add_argument("--trajectory-shape", default=None,
+                    help="POSITION,ATTITUDE gm1|gm2: the prior's shape (default: the config's)")
+    ap.add_argument("--trajectory-correlation", default=None,
+                    help="POSITION,ATTITUDE s: the prior's correlation times (default: the config's)")
     ap.add_argument("--cache", type=Path, required=True)
     ap.add_argument("--json", type=Path, default=None,
                     help="append every row; --summary reads it back")

@@ -256,6 +256,7 @@ def _texts(bad: Path) -> None:
         "config_method.toml": 'method = ["icp"]\n',
         "config_sigma.toml": '[trajectory_model]\nsigma = [0.03]\n',
         "config_block.toml": '[trajectory_model]\nblock_s = -1.0\n',
+        "config_shape.toml": '[trajectory_model]\nshape = ["gm1", "gm3"]\n',
         "config_off.toml": '[trajectory_model]\non = false\nsigma = [0.03, 0.002]\n',
         "config_model_check.toml": 'model_check = "on"\n',
         "config_vgicp.toml": 'method = ["vgicp"]\n\n[vgicp]\nvoxel_m = [8.0, -2.0]\n',

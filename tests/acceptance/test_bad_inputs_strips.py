@@ -170,6 +170,8 @@ OPTIONS = [
     case(["--config", "{B}/config_block.toml"], "config_block.toml", "trajectory_model", "--trajectory-block",
          id="config-block-negative"),
     case(["--config", "{B}/config_off.toml"], "config_off.toml", "trajectory_model.sigma", id="config-model-off-sigma"),
+    case(["--config", "{B}/config_shape.toml"], "config_shape.toml", "trajectory_model", "gm1, gm2", "'gm3'",
+         id="config-shape"),
     case(["--config", "{B}/config_model_check.toml"], "config_model_check.toml", "model_check", "expected bool",
          id="config-model-check"),
     case(["--config", "{B}/config_vgicp.toml"], "config_vgicp.toml", "vgicp", "voxel_m", id="config-vgicp-voxel"),

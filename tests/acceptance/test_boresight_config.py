@@ -20,7 +20,8 @@ def test_a_run_repeated_from_its_config_toml_gives_the_same_solution(cli, corpus
     assert code in (0, 3), err
     written = tomllib.loads((tmp_path / "first" / "config.toml").read_text())
     assert written["estimate"] == ["boresight", "lever_arm_z"] and written["method"] == ["planes"]
-    assert written["trajectory_model"] == {"on": True, "block_s": 2.0, "correlation_s": [10.0, 2.0], "sigma": [0.03, 0.002]}
+    assert written["trajectory_model"] == {"on": True, "block_s": 2.0, "correlation_s": [10.0, 2.0], "shape": ["gm1", "gm1"],
+                                          "sigma": [0.03, 0.002]}
     code, _, err = cli("boresight", *common, "--config", tmp_path / "first" / "config.toml", "--out", tmp_path / "again")
     assert code in (0, 3), err
     first, again = _parameters(tmp_path / "first"), _parameters(tmp_path / "again")

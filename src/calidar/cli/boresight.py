@@ -68,7 +68,8 @@ TRAJECTORY_SIGMA = typer.Option(
     "(e.g. 0.03,0.002) for every epoch and axis.")
 TRAJECTORY_CORRELATION_OPTION = typer.Option(
     TRAJECTORY_CORRELATION, "--trajectory-correlation", help="Correlation times of the "
-    "trajectory's position and attitude errors (Gauss–Markov), 'POS_S,ATT_S' s.")
+    "trajectory's position and attitude errors (Gauss–Markov, integral time; first order unless "
+    "[trajectory_model] shape in --config says so), 'POS_S,ATT_S' s.")
 SCHEDULER = typer.Option(
     None, "--scheduler", help="Dask scheduler address: the files are read, the pairs matched and "
     "the overlap quality measured as tasks on its workers (which must see the files at the same "

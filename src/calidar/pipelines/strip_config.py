@@ -16,7 +16,8 @@ reads (degrees for the trajectory's attitude σ)::
     [trajectory_model]
     on = true
     block_s = 1.0
-    correlation_s = [20.0, 3.5]
+    correlation_s = [20.0, 3.5]  # s, the integral time of each Gauss–Markov process
+    shape = ["gm1", "gm1"]       # position, attitude: Gauss–Markov of first or second order
     sigma = [0.03, 0.002]        # position m, attitude deg (absent: the trajectory's accuracy)
 
     [solver]                     # calidar.strips.config.StripSettings, with robust, robust_k,
@@ -96,8 +97,10 @@ class StripConfig:
     >>> estimate = Estimate.of("boresight", "range_offset")
     >>> config = StripConfig(CalibrationConfig(estimate, matchers=(Vgicp(),),
     ...                                        trajectory=TrajectorySettings(block_s=2.0)))
-    >>> config.to_dict()["estimate"], config.to_dict()["trajectory_model"]
-    (['boresight', 'range_offset'], {'on': True, 'block_s': 2.0, 'correlation_s': [20.0, 3.5]})
+    >>> config.to_dict()["estimate"]
+    ['boresight', 'range_offset']
+    >>> config.to_dict()["trajectory_model"]
+    {'on': True, 'block_s': 2.0, 'correlation_s': [20.0, 3.5], 'shape': ['gm1', 'gm1']}
     """
 
     calibration: CalibrationConfig = field(default_factory=CalibrationConfig)
@@ -134,7 +137,8 @@ class StripConfig:
         traj = {"on": c.trajectory is not None}
         if c.trajectory is not None:
             t = c.trajectory
-            traj.update(block_s=t.block_s, correlation_s=list(t.correlation_s))
+            traj.update(block_s=t.block_s, correlation_s=list(t.correlation_s),
+                        shape=list(t.shape))
             if t.sigma is not None:
                 traj["sigma"] = [t.sigma[0], math.degrees(t.sigma[1])]
         doc["trajectory_model"] = traj
@@ -237,7 +241,8 @@ def _solver(table: dict, path) -> StripSettings:
 
 
 def _trajectory(table: dict, path) -> TrajectorySettings | None:
-    _known(table, {"on", "block_s", "correlation_s", "sigma"}, path, "trajectory_model.")
+    _known(table, {"on", "block_s", "correlation_s", "shape", "sigma"}, path,
+           "trajectory_model.")
     if not _typed(table.get("on", True), bool, path, "trajectory_model.on"):
         extra = sorted(set(table) - {"on"})
         if extra:

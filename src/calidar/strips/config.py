@@ -33,7 +33,7 @@ from calidar.strips.control_cloud import ControlCloud
 from calidar.strips.control_planes import ControlPlanes
 from calidar.strips.matchers import Matcher, TiePlanes, Vgicp
 from calidar.strips.parameters import ESTIMATE_GROUPS, SINGLE_PARAMETERS
-from calidar.strips.trajectory_errors import TrajectoryModel
+from calidar.strips.trajectory_errors import SHAPES, TrajectoryModel
 from calidar.trajectory_accuracy import MAX_ATTITUDE_SIGMA_RAD, MAX_POSITION_SIGMA_M
 
 #: the matchers by the name ``--method`` and the outputs use
@@ -113,13 +113,16 @@ def _positive(value: float, what: str, unit: str, hi: float) -> None:
 @dataclass(frozen=True)
 class TrajectorySettings:
     """The trajectory model (:class:`calidar.strips.trajectory_errors.TrajectoryModel`) as a user
-    sets it: knots every ``block_s`` s, Gauss–Markov correlation times (position, attitude) s, and
+    sets it: knots every ``block_s`` s, Gauss–Markov correlation times (position, attitude) s (the
+    integral time ∫₀^∞ ρ), their ``shape`` (position, attitude: "gm1" or "gm2", first- or
+    second-order Gauss–Markov, :func:`calidar.strips.trajectory_errors.gauss_markov`) and
     ``sigma`` (position m, attitude rad), one σ for every epoch and axis instead of the
     trajectory's stated accuracy (None: the accuracy of the trajectory's file, or estimated)."""
 
     block_s: float = 1.0
     correlation_s: tuple[float, float] = (20.0, 3.5)
     sigma: tuple[float, float] | None = None
+    shape: tuple[str, str] = ("gm1", "gm1")
 
     def __post_init__(self):
         _positive(self.block_s, "trajectory block (--trajectory-block)", "s",
@@ -131,6 +134,9 @@ class TrajectorySettings:
         for v in self.correlation_s:
             _positive(v, "trajectory correlation (--trajectory-correlation)", "s",
                       MAX_CORRELATION_S)
+        if len(self.shape) != 2 or any(v not in SHAPES for v in self.shape):
+            raise InputError(None, "trajectory shape", "expected 2 of "
+                             f"{', '.join(SHAPES)} (position, attitude), got {self.shape!r}")
         if self.sigma is not None:
             if len(self.sigma) != 2:
                 raise InputError(None, "trajectory sigma (--trajectory-sigma)",
@@ -145,7 +151,7 @@ class TrajectorySettings:
         ``estimate_level``: the priors' level estimated from the overlaps."""
         pos, att = (None, None) if accuracy is not None or self.sigma is None else self.sigma
         return TrajectoryModel(self.block_s, pos, att, *self.correlation_s, accuracy,
-                               estimate_level)
+                               estimate_level, tuple(self.shape))
 
 
 @dataclass(frozen=True)

@@ -19,6 +19,9 @@ from calidar.strips.config import control_kind
 from calidar.strips.quality import PairQuality
 from calidar.strips.verdict import NUISANCE
 
+#: the trajectory prior's shapes (:data:`calidar.strips.trajectory_errors.SHAPES`) in words
+ORDER = {"gm1": "first order", "gm2": "second order"}
+
 REFERENCES = [
     "Besl, P. J., McKay, N. D. (1992). A method for registration of 3-D shapes. IEEE Transactions "
     "on Pattern Analysis and Machine Intelligence 14(2), 239–256. (The outer loop: "
@@ -116,8 +119,9 @@ def add_report_section(report: Report, result: CalibrationResult,
         m = result.trajectory_model
         sec.text("Trajectory errors estimated as corrections per strip [2]: a shift and a "
                  f"rotation at knots every {m.block_s:g} s, linear in between, Gauss–Markov "
-                 f"correlated over {m.correlation_s:g} s (position) and "
-                 f"{m.attitude_correlation_s:g} s (attitude), with the trajectory's own accuracy "
+                 f"correlated over {m.correlation_s:g} s (position, {ORDER[m.shape[0]]}) and "
+                 f"{m.attitude_correlation_s:g} s (attitude, {ORDER[m.shape[1]]}), with the "
+                 "trajectory's own accuracy "
                  "as priors: "
                  + (accuracy.describe() if accuracy is not None else "see solution.json") + ".")
     sec.solution(sol, truth, residual_unit="mm", residual_factor=1e3)

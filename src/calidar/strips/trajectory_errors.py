@@ -13,14 +13,20 @@ block / √12 but from its chord by ≈ curvature × block² / 11, and the lefto
 row of a block alike (measured on the airborne Monte-Carlo: the data's share of the angles'
 error was 1.2–1.5× its σ with constant 1 s blocks, 0.9–1.2× with knots).
 
-Knots are correlated as a first-order Gauss–Markov process of correlation time
-``correlation_s`` (a GNSS error wanders for tens of seconds): the prior of a strip's knots
-along one axis has covariance σ²·φ^|k−l|, φ = exp(−block_s / correlation_s), handed to the
-engine as ``prior_correlation`` (independent knots would let a strip's mean error shrink as
-1/√knots and make the σ of the mounting too small). The shifts are one process over the whole
-flight, correlated across lines by their time apart (independent lines made the flight's mean
-height error, which only ground control observes, 10 % more certain than it is; issue 28). Each
-row of the Jacobian then touches two knots per strip: it is built sparse.
+Knots are correlated as a Gauss–Markov process of correlation time ``correlation_s`` (a GNSS
+error wanders for tens of seconds), handed to the engine as ``prior_correlation`` (independent
+knots would let a strip's mean error shrink as 1/√knots and make the σ of the mounting too
+small): first order (:data:`SHAPES` "gm1", the default) ρ(Δt) = exp(−|Δt|/T), or second order
+("gm2") ρ = (1 + |Δt|/τ)·exp(−|Δt|/τ), τ = T/2, the smooth error of an integrated or smoothed
+process without GM1's cusp at lag 0 (Gelb 1974, "Applied Optimal Estimation", ch. 3; Maybeck
+1979, "Stochastic Models, Estimation, and Control" vol. 1, ch. 4). T = ``correlation_s`` is the
+integral time ∫₀^∞ ρ for either shape: both hold the same power at zero frequency, S(0) = 2σ²T,
+what the mean of a long stretch sees (gm2, measured on the simulator, states pitch and yaw σ
+narrower than the errors: not the default; docs/validation.md, issue 26, thirteenth session). The
+shifts are one process over the whole flight, correlated across lines by their time apart
+(independent lines made the flight's mean height error, which only ground control observes, 10 %
+more certain than it is; issue 28). Each row of the Jacobian then touches two knots per strip: it
+is built sparse.
 
 Without a prior (``position_sigma_m`` None) the whole-strip shifts are free and the first
 strip is the datum: a strip-wise GNSS offset of unknown size.
@@ -49,6 +55,23 @@ AXES = ("east", "north", "up")
 OWN_STRIP_SHARE = 0.05
 #: every trajectory-correction parameter's name starts so (nuisance parameters)
 PREFIX = "trajectory_"
+#: the knots' correlation shapes: Gauss–Markov of first or second order (the module docstring)
+SHAPES = ("gm1", "gm2")
+
+
+def gauss_markov(dt: np.ndarray, integral_s: float | None, shape: str = "gm1") -> np.ndarray:
+    """Correlation ρ at lags ``dt`` (s) of a Gauss–Markov process of integral time ``integral_s``
+    (∫₀^∞ ρ, s; None: independent, ρ = [dt == 0]) and ``shape`` (:data:`SHAPES`)."""
+    u = np.abs(np.asarray(dt, float))
+    if integral_s is None:
+        return (u == 0.0).astype(float)
+    if shape == "gm1":
+        return np.exp(-u / integral_s)
+    if shape == "gm2":
+        v = 2.0 * u / integral_s  # τ = T / 2
+        return (1.0 + v) * np.exp(-v)
+    raise InputError(None, "trajectory shape",
+                     f"expected one of {', '.join(SHAPES)}, got {shape!r}")
 
 
 class Knot(NamedTuple):
@@ -101,6 +124,8 @@ class TrajectoryModel:
     #: the priors' level to be estimated from the overlaps (no accuracy file: :attr:`accuracy` is a
     #: default to start from; :mod:`calidar.strips.trajectory_level`)
     estimate_level: bool = False
+    #: the correlation's shape of the shifts and of the rotations (:data:`SHAPES`)
+    shape: tuple[str, str] = ("gm1", "gm1")
 
     def __post_init__(self):
         for name in ("block_s", "position_sigma_m", "attitude_sigma_rad", "correlation_s",
@@ -108,6 +133,8 @@ class TrajectoryModel:
             v = getattr(self, name)
             if v is not None and not (math.isfinite(v) and v > 0):
                 raise InputError(None, name, f"expected a number > 0, got {v}")
+        for v in self.shape:
+            gauss_markov(0.0, 1.0, v)  # an unknown shape: its error
         knots_or_attitude = self.block_s is not None or self.attitude_sigma_rad is not None
         if not self.has_priors and knots_or_attitude:
             raise InputError(None, "trajectory sigma", "knots and attitude corrections need the "
@@ -150,11 +177,12 @@ class TrajectoryModel:
 
     def correlation(self, n: int, kind: str = "bias") -> np.ndarray:
         """Prior correlation (n, n) of a strip's n knots along one axis, for shifts (``kind``
-        "bias") or rotations ("tilt"): φ^|k−l|."""
+        "bias") or rotations ("tilt"): :func:`gauss_markov` at lags (k − l)·block_s."""
         tau = self.correlation_s if kind == "bias" else self.attitude_correlation_s
-        phi = 0.0 if self.block_s is None or tau is None else math.exp(-self.block_s / tau)
-        k = np.arange(n)
-        return phi ** np.abs(k[:, None] - k[None, :]).astype(float)
+        if self.block_s is None:
+            return np.eye(n)
+        k = np.arange(n) * self.block_s
+        return gauss_markov(k[:, None] - k[None, :], tau, self.shape[kind != "bias"])
 
     def knot_times(self, spans: Mapping[int, tuple[float, float]]) -> dict[int, np.ndarray]:
         """Each strip's knot times (s): its start, then every ``block_s`` (one knot: its start)."""
@@ -163,8 +191,8 @@ class TrajectoryModel:
 
     def flight_correlation(self, spans: Mapping[int, tuple[float, float]]) -> np.ndarray:
         """Prior correlation of the shifts' knots of every strip (sorted by id, then knot) along one
-        axis: one Gauss–Markov process in time over the whole flight, exp(−|Δt| / correlation_s)
-        (a GNSS error does not restart with each line: consecutive lines share it, and their mean, a
+        axis: one Gauss–Markov process in time over the whole flight, :func:`gauss_markov` (a
+        GNSS error does not restart with each line: consecutive lines share it, and their mean, a
         vertical bias only ground control sees, is as uncertain as one process makes it), with
         :data:`OWN_STRIP_SHARE` of it each strip's own (knots of two strips at one time: not
         singular)."""
@@ -174,7 +202,7 @@ class TrajectoryModel:
         tau = self.correlation_s
         if self.block_s is None or tau is None:
             return np.eye(t.size)
-        R = np.exp(-np.abs(t[:, None] - t[None, :]) / tau)
+        R = gauss_markov(t[:, None] - t[None, :], tau, self.shape[0])
         return np.where(strip[:, None] == strip[None, :], R, (1.0 - OWN_STRIP_SHARE) * R)
 
     def prior_correlation(self, spans: Mapping[int, tuple[float, float]]
