@@ -33,6 +33,9 @@ from calidar.strips.parameters import sensor_of  # noqa: E402
 from calidar.strips.problem import georeference  # noqa: E402
 
 
+ELLS: list[float] = []
+
+
 def _row_ids(M) -> np.ndarray:
     return np.repeat(np.arange(M.shape[0]), np.diff(M.indptr))
 
@@ -84,6 +87,10 @@ def rows_at_truth(folder: Path) -> dict[str, np.ndarray]:
         c = run.matcher.match(o.a, pa, o.b, pb)
         f = row_features(c, pa, pb)
         f["pair"] = np.full(c.n_obs, pair)
+        if ELLS:
+            import geo
+            for e, v in geo.row_geometry(c, pa, pb, ELLS).items():
+                f[f"Q{e:g}"], f[f"ga{e:g}"], f[f"gb{e:g}"] = v.T
         for key, v in f.items():
             parts.setdefault(key, []).append(np.asarray(v, float))
     return {k: np.concatenate(v) for k, v in parts.items()}
@@ -117,7 +124,10 @@ def main() -> None:
     ap.add_argument("folders", nargs="*", type=Path)
     ap.add_argument("--dump", type=Path)
     ap.add_argument("--table", nargs="*", type=Path, default=[])
+    ap.add_argument("--ells", default="")
     args = ap.parse_args()
+    sys.path.insert(0, "/work/mc/vrough")
+    ELLS.extend(float(v) for v in args.ells.split(",") if v)
     for folder in args.folders:
         d = rows_at_truth(folder)
         out = args.dump.with_name(f"{args.dump.stem}_{folder.name}.npz")

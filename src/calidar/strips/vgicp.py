@@ -110,6 +110,11 @@ class VgicpSettings:
     #: 0): so 0 by default (docs/validation.md, issue 26, ninth session)
     roughness_factor: float = 0.0
     roughness_quantile: float = 0.75
+    #: point_to_plane: correlation length (m) of the surface's unevenness, R(d) = exp(−d²/2ℓ²),
+    #: with which a row's scatter beyond the pair's ``unevenness_quantile`` is recounted as a's
+    #: ball and b's plane sample it (:mod:`calidar.strips.row_sampling`); 0: taken as white
+    unevenness_length_m: float = 2.0
+    unevenness_quantile: float = 0.5
     #: point_to_plane: b's scatter in ``max_scatter_ratio``'s test at least this (m)
     min_scatter_m: float = 0.002
     num_threads: int = 1  #: small_gicp threads (1 is bit-reproducible; see docs)
@@ -123,6 +128,10 @@ class VgicpSettings:
             raise ValueError(f"roughness_factor must be ≥ 0, got {self.roughness_factor}")
         if not 0.0 <= self.roughness_quantile <= 1.0:
             raise ValueError(f"roughness_quantile must be 0 … 1, got {self.roughness_quantile}")
+        if self.unevenness_length_m < 0.0:
+            raise ValueError(f"unevenness_length_m must be ≥ 0, got {self.unevenness_length_m}")
+        if not 0.0 <= self.unevenness_quantile <= 1.0:
+            raise ValueError(f"unevenness_quantile must be 0 … 1, got {self.unevenness_quantile}")
         if not 0.0 <= self.min_inlier_fraction <= 1.0:
             raise ValueError(f"min_inlier_fraction must be 0 … 1, got {self.min_inlier_fraction}")
 

@@ -1,0 +1,90 @@
+"""VGICP rows on uneven ground: the unevenness counted as a's ball and b's plane sample it (issue 26,
+thirteenth session; :mod:`calidar.strips.row_sampling`).
+
+A surface with Gaussian-correlated unevenness (correlation length 2 m, the default
+``unevenness_length_m``) under white noise, sampled like the two scenes' rows: b's 12 points and a's
+ball over the same 3 m disc (airborne: both spread), and a's points along one scan line across b's
+0.45 m disc (UAV). Each pair holds quiet rows (noise only) and rough ones. The white formula
+s_a²/n_a + s_b²·h takes the unevenness in the scatter as white noise: it is wrong both ways."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+
+from calidar.strips.row_sampling import sampling_cofactors
+from calidar.strips.vgicp import VgicpSettings
+from calidar.strips.vgicp_planes import (_along_normal_variance, _tilt_cofactor, local_planes,
+                                         row_sigma)
+
+LENGTH_M = 2.0  #: the unevenness's correlation length
+
+
+def _field(rng, xy: np.ndarray, modes: int = 300) -> np.ndarray:
+    """One draw of a unit-variance field with correlation exp(−d²/2ℓ²) at ``xy`` (m): random
+    Fourier features."""
+    k = rng.normal(0.0, 1.0 / LENGTH_M, (modes, 2))
+    return np.sqrt(2.0 / modes) * np.cos(xy @ k.T + rng.uniform(0, 2 * np.pi, modes)).sum(axis=1)
+
+
+def _disc(rng, n: int, radius: float) -> np.ndarray:
+    r, t = radius * np.sqrt(rng.uniform(0, 1, n)), rng.uniform(0, 2 * np.pi, n)
+    return np.column_stack([r * np.cos(t), r * np.sin(t)])
+
+
+def _rows(kind: str, rough: bool, seed: int, n_rows: int = 600):
+    """(residual m, σ m) of ``n_rows`` rows, each on its own draw of the surface."""
+    rng = np.random.default_rng(seed)
+    radius, noise, amp = (3.0, 0.03, 0.3) if kind == "disc" else (0.45, 0.005, 0.4)
+    a_pts, b_pts, counts = [], [], []
+    for i in range(n_rows):
+        xb = _disc(rng, 12, radius)
+        if kind == "disc":
+            xa = _disc(rng, rng.integers(8, 16), radius)
+        else:  # one scan line across the disc, 6 cm apart
+            x = np.arange(-radius, radius, 0.06)
+            xa = np.column_stack([x, np.full(x.size, rng.uniform(-0.3, 0.3) * radius)])
+        u = amp * rough * _field(rng, np.vstack([xa, xb]))
+        z = u + rng.normal(0.0, noise, u.size)
+        offset = np.array([100.0 * i, 0.0, 0.0])
+        a_pts.append(np.column_stack([xa, z[: len(xa)]]) + offset)
+        b_pts.append(np.column_stack([xb, z[len(xa):]]) + offset)
+        counts.append(len(xa))
+    a, b = np.vstack(a_pts), np.vstack(b_pts)
+    centre = np.array([[100.0 * i, 0.0, 0.0] for i in range(n_rows)])
+    planes = local_planes(b, centre, 12, 1)
+    indptr = np.concatenate([[0], np.cumsum(counts)])
+    A = sp.csr_matrix((np.repeat(1.0 / np.array(counts), counts), np.arange(len(a)), indptr))
+    mean_a = A @ a
+    var_a = _along_normal_variance(A, a, mean_a, planes.normal)
+    tilt = _tilt_cofactor(A, a, mean_a, planes.eigval, planes.eigvec)
+    cof = sampling_cofactors(A, a, b[planes.index], planes.centroid, planes.eigval,
+                             planes.eigvec, LENGTH_M)
+    r = np.einsum("ij,ij->i", mean_a - planes.centroid, planes.normal)
+    return r, (A, var_a, np.array(counts, float), planes, mean_a, tilt, cof)
+
+
+def _pair_z(kind: str, length_m: float, seed: int) -> tuple[np.ndarray, np.ndarray]:
+    """z of a pair's quiet and rough rows (half each), σ from :func:`row_sigma`."""
+    quiet, parts_q = _rows(kind, False, seed)
+    rough, parts_r = _rows(kind, True, seed + 100)
+    cat = lambda i: np.concatenate([parts_q[i], parts_r[i]])  # noqa: E731
+    settings = replace(VgicpSettings(), noise_floor_m=0.0, unevenness_length_m=length_m)
+    var_b = np.concatenate([parts_q[3].scatter ** 2, parts_r[3].scatter ** 2])
+    lev = np.concatenate([p[3].leverage(p[4]) for p in (parts_q, parts_r)])
+    cof = tuple(np.concatenate([parts_q[6][j], parts_r[6][j]]) for j in range(3))
+    sigma, _ = row_sigma(cat(1), cat(2), var_b, 9, lev, settings, cat(5),
+                         cof if length_m > 0 else None)
+    z = np.concatenate([quiet, rough]) / sigma
+    return z[: quiet.size], z[quiet.size:]
+
+
+@pytest.mark.parametrize("kind", ["disc", "line"])
+def test_rough_rows_read_rms_z_one(kind):
+    zq, zr = _pair_z(kind, LENGTH_M, 1)
+    print(kind, np.sqrt(np.mean(zq**2)), np.sqrt(np.mean(zr**2)))
+    white = _pair_z(kind, 0.0, 1)
+    print(kind, "white", np.sqrt(np.mean(white[0]**2)), np.sqrt(np.mean(white[1]**2)))
