@@ -10,9 +10,10 @@ Each folder's overlaps are matched with VGICP's default rows at the TRUE sensor
 the surface's own unevenness as a's ball mean and b's plane sample it. Per row (walls |n_z| < 0.5 left out)
 the dump keeps the residual r, its σ and, recomputed from the row's points: a's count n_a, a's raw scatter
 variance along b's normal about a's mean (n_a − 1 dof), b's plane's (k − 3 dof), b's leverage h at a's mean,
-a's tilt cofactor t, the ball's radius and the roughness terms of
-:func:`calidar.strips.vgicp_planes.row_sigma`. ``--table`` prints RMS z by σ quartile and the ratio of
-mean r² to mean σ² binned by each quantity.
+a's tilt cofactor t, the ball's radius, a's spread against b's and along a line, and the sampling cofactors
+Q, g_a, g_b of :func:`calidar.strips.row_sampling.sampling_cofactors` (ℓ ``--length``). Each folder's table
+(and ``--table`` of saved dumps) prints the ratio of mean r² to mean σ² binned by quartile of each quantity
+(σ: the row's σ as the calibration computes it).
 """
 
 from __future__ import annotations
@@ -31,9 +32,10 @@ from calidar.strips.matchers import Vgicp  # noqa: E402
 from calidar.strips.outer_loop import Run  # noqa: E402
 from calidar.strips.parameters import sensor_of  # noqa: E402
 from calidar.strips.problem import georeference  # noqa: E402
+from calidar.strips.row_sampling import sampling_cofactors  # noqa: E402
+from calidar.strips.vgicp import VgicpSettings  # noqa: E402
 
-
-ELLS: list[float] = []
+LENGTH = [2.0]  #: ℓ of the recorded sampling cofactors (m; ``--length``)
 
 
 def _row_ids(M) -> np.ndarray:
@@ -68,7 +70,9 @@ def row_features(c, pa: np.ndarray, pb: np.ndarray) -> dict[str, np.ndarray]:
                         * np.einsum("ij,ij->i", da, vec[ra, :, j]), c.n_obs)
         Ca[:, i - 1, j - 1] = Ca[:, j - 1, i - 1] = v
     la = np.linalg.eigvalsh(Ca)
-    return {"nz": np.abs(n[:, 2]), "r": c.residuals(pa, pb), "sigma": np.broadcast_to(c.sigma_m, count.shape),
+    q, g_a, g_b = sampling_cofactors(c.A, pa, pb[c.B.indices].reshape(c.n_obs, k, 3), mean_b,
+                                     lam, vec, LENGTH[0])
+    return {"Q": q, "g_a": g_a, "g_b": g_b, "nz": np.abs(n[:, 2]), "r": c.residuals(pa, pb), "sigma": np.broadcast_to(c.sigma_m, count.shape),
             "dof": np.broadcast_to(c.dof, count.shape), "count": count, "var_a": var_a, "var_b": var_b,
             "h": h, "t": t, "radius": radius_b, "spread_ratio": spread_a / spread_b,
             "a_line": np.sqrt(np.clip(la[:, 0], 0, None) / np.maximum(la[:, 1], 1e-300)),
@@ -87,10 +91,6 @@ def rows_at_truth(folder: Path) -> dict[str, np.ndarray]:
         c = run.matcher.match(o.a, pa, o.b, pb)
         f = row_features(c, pa, pb)
         f["pair"] = np.full(c.n_obs, pair)
-        if ELLS:
-            import geo
-            for e, v in geo.row_geometry(c, pa, pb, ELLS).items():
-                f[f"Q{e:g}"], f[f"ga{e:g}"], f[f"gb{e:g}"] = v.T
         for key, v in f.items():
             parts.setdefault(key, []).append(np.asarray(v, float))
     return {k: np.concatenate(v) for k, v in parts.items()}
@@ -117,6 +117,9 @@ def table(d: dict[str, np.ndarray], label: str) -> None:
     for name in ("sigma", "count", "var_a", "var_b", "h", "radius", "spread_ratio", "a_line", "offset"):
         print(_bins(name, d[name], r2, s2))
     print(_bins("white", white, r2, s2))
+    dof_a, w2 = np.maximum(d["count"] - 1, 1), 1 / d["count"] + np.maximum(d["h"] - d["t"] / d["count"], 0)
+    g = (dof_a * d["g_a"] + 9 * d["g_b"]) / (dof_a + 9)
+    print(_bins("Q/g/Σw²", d["Q"] / np.maximum(g, 1e-12) / w2, r2, s2))
 
 
 def main() -> None:
@@ -124,10 +127,10 @@ def main() -> None:
     ap.add_argument("folders", nargs="*", type=Path)
     ap.add_argument("--dump", type=Path)
     ap.add_argument("--table", nargs="*", type=Path, default=[])
-    ap.add_argument("--ells", default="")
+    ap.add_argument("--length", type=float, default=VgicpSettings().unevenness_length_m,
+                    help="ℓ of the sampling cofactors recorded (m)")
     args = ap.parse_args()
-    sys.path.insert(0, "/work/mc/vrough")
-    ELLS.extend(float(v) for v in args.ells.split(",") if v)
+    LENGTH[0] = args.length
     for folder in args.folders:
         d = rows_at_truth(folder)
         out = args.dump.with_name(f"{args.dump.stem}_{folder.name}.npz")

@@ -87,14 +87,15 @@ def sampling_cofactors(A: sp.csr_matrix, a_points: np.ndarray, b_rows: np.ndarra
 
 
 def unevenness_variance(var_a: np.ndarray, dof_a: np.ndarray, var_b: np.ndarray, dof_b: float,
-                        white_part: np.ndarray, cofactors: tuple, quantile: float) -> tuple[np.ndarray, np.ndarray]:
+                        white_part: np.ndarray, cofactors: tuple,
+                        quantile: float) -> tuple[np.ndarray, np.ndarray]:
     """The unevenness's share of a row's σ² beyond the white formula (m², may be negative) and
     its degrees of freedom: ρ²·Q/ḡ − (ρ²/s̄²)·``white_part`` (module docstring; with s_a ≈ s_b,
     ρ²·(Q/ḡ − Σw²)). s̄² the two sides' scatter variances (m²) weighted by their degrees of
     freedom ``dof_a``, ``dof_b``, ρ² = max(0, s̄² − s_q²) with s_q² its ``quantile`` over the pair's
     rows (the noise level), ḡ the sides' g likewise weighted; ``white_part`` s_a²/n_a + s_b²·h',
-    the white formula's σ², of which the
-    rough fraction ρ²/s̄² is taken out (σ² never below the noise level's white formula)."""
+    the white formula's σ², of which the rough fraction ρ²/s̄² is taken out (σ² never below the
+    noise level's white formula)."""
     q, g_a, g_b = cofactors
     da, db = np.asarray(dof_a, float), float(dof_b)
     mean = (da * var_a + db * var_b) / (da + db)
