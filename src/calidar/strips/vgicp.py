@@ -101,8 +101,11 @@ class VgicpSettings:
     max_centroid_offset: float = 0.35
     #: a-priori σ of one residual; None: from b's plane scatter (point_to_plane) or 5 cm
     sigma_m: float | None = None
-    #: added to the rows' σ in quadrature, every row alike (UAV rows fit 0 with the roughness term)
-    noise_floor_m: float = 0.002
+    #: added to the rows' σ in quadrature, every row alike (UAV rows fit 0 with the roughness term;
+    #: with ``unevenness_length_m`` the UAV cross-line rows at the truth read RMS z 0.92–1.02 by σ
+    #: quartile with 2 mm, 0.98–1.06 with 1 mm, 1.00–1.08 with 0: docs/validation.md, issue 26,
+    #: thirteenth session)
+    noise_floor_m: float = 0.001
     #: point_to_plane: κ of the rough rows' model error κ·ρ² in σ², ρ² a row's scatter beyond the
     #: pair's ``roughness_quantile`` (:func:`calidar.strips.row_variance.rough_rows_variance`).
     #: UAV rows fit 0.9 with ``noise_floor_m`` 0 (variance components, 6 simulated surveys), which
