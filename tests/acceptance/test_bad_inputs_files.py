@@ -215,7 +215,8 @@ def test_heights_off_the_scan_angles(files, tmp_path):
     assert abs(delta - 30.0) < 1.5, out
     code, out, err = run("inverse", s / "strips" / "line_001.laz", "-t", s / "sbet.out", "--out", tmp_path / "w.csv")
     assert code == 0, err
-    assert "heights: ellipsoidal (assumed: EPSG:32632 has no vertical part); the file's scan angles agree" in out
+    assert ("heights: ellipsoidal (assumed: EPSG:32632 has no vertical part), confirmed by the file's "
+            "scan angles (the heights agree with them to ") in out
     assert "vertical-datum mismatch" not in out
 
 

@@ -207,9 +207,7 @@ def heights_notes(crs, geoid_undulation_m: float | None, check=None,
     offsets = [w for w in (c.vertical_warning(reference) for c in checks) if w]
     if warning and checks and all(e is not None for e in estimates) and not offsets:
         worst = max(estimates, key=lambda e: abs(e[0]))
-        if len(checks) == 1:
-            what = "file's scan angles agree"
-        else:
-            what = f"scan angles of all {len(checks)} files agree"
-        return [f"heights: {reference}; the {what} to {worst[0]:+.1f} ± {worst[1]:.1f} m"]
+        what = "the file's" if len(checks) == 1 else f"all {len(checks)} files'"
+        return [f"heights: {reference}, confirmed by {what} scan angles (the heights agree with "
+                f"them to {worst[0]:+.1f} ± {worst[1]:.1f} m)"]
     return [f"heights: {warning or reference}", *offsets]
