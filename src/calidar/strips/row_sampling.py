@@ -6,13 +6,15 @@ plane's prediction weights, Σ l_j = 1). The weights sum to 0 and annihilate a p
 0), so a constant or tilted surface cancels, and for heights z = u + e, e white noise of variance
 σ_e² and u the surface's unevenness with covariance σ_u²·R(d),
 
-    Var r = σ_e²·Σ w_i² + σ_u²·Q,   Q = wᵀ R w                     (Matheron 1973, the variance
-                                                                    of an authorised increment)
+    Var r = σ_e²·Σ w_i² + σ_u²·Q,   Q = wᵀ R w
+
+(the variance of an authorised linear combination: Matheron 1973, "The intrinsic random functions
+and their applications", Adv. Appl. Prob. 5),
 
 while each side's scatter about its plane holds the unevenness's non-planar part:
 E[s_b²] = σ_e² + σ_u²·g_b, g_b = tr((I − H_b) R_bb)/(k − 3) (H_b b's hat matrix), and a's about
-its mean along b's normal E[s_a²] = σ_e² + σ_u²·g_a, g_a = tr(C M R Mᵀ C)/(n_a − 1) (M: a's heights
-minus b's plane there, C: centring over a). The white-noise formula σ² = s_a²/n_a + s_b²·h takes
+its mean along b's normal E[s_a²] = σ_e²·(1 + t) + σ_u²·g_a, g_a = tr(C M R Mᵀ C)/(n_a − 1) (M: a's
+heights minus b's plane there, C: centring over a; t: b's tilt, :mod:`calidar.strips.vgicp_planes`). The white-noise formula σ² = s_a²/n_a + s_b²·h takes
 the unevenness as white (R = I: Q = Σ w², g = 1). When the unevenness is correlated over the
 points' spacing it is wrong both ways: two sides spread over the same disc average a smooth bump
 alike and cancel it (Q/g < Σ w²: airborne rows, 5 m neighbourhoods on 4 m facets), while a's
@@ -23,7 +25,8 @@ So a row's unevenness σ_u² = ρ²/ḡ is read from its scatter beyond the pair
 (ḡ the two sides' g weighted by their degrees of freedom), and enters the row's σ² as
 ρ²·(Q/ḡ − Σw²) on top of the white formula: the unevenness re-counted as the two sides' sampling
 of it makes it count. R(d) = exp(−d²/2ℓ²) over the in-plane distance, ℓ =
-``unevenness_length_m``.
+``unevenness_length_m``. a's ball is an equal-weight mean (:func:`calidar.strips.vgicp_planes.
+_ball_means`). Measured: docs/validation.md, "VGICP's rows on rough ground".
 """
 
 from __future__ import annotations
