@@ -13,8 +13,9 @@ and their applications", Adv. Appl. Prob. 5),
 
 while each side's scatter about its plane holds the unevenness's non-planar part:
 E[s_b²] = σ_e² + σ_u²·g_b, g_b = tr((I − H_b) R_bb)/(k − 3) (H_b b's hat matrix), and a's about
-its mean along b's normal E[s_a²] = σ_e²·(1 + t) + σ_u²·g_a, g_a = tr(C M R Mᵀ C)/(n_a − 1) (M: a's
-heights minus b's plane there, C: centring over a; t: b's tilt, :mod:`calidar.strips.vgicp_planes`). The white-noise formula σ² = s_a²/n_a + s_b²·h takes
+its mean along b's normal E[s_a²] = σ_e²·(1 + t) + σ_u²·g_a, g_a = tr(C M R Mᵀ C)/(n_a − 1)
+(M: a's heights minus b's plane there, C: centring over a; t: b's tilt,
+:mod:`calidar.strips.vgicp_planes`). The white-noise formula σ² = s_a²/n_a + s_b²·h takes
 the unevenness as white (R = I: Q = Σ w², g = 1). When the unevenness is correlated over the
 points' spacing it is wrong both ways: two sides spread over the same disc average a smooth bump
 alike and cancel it (Q/g < Σ w²: airborne rows, 5 m neighbourhoods on 4 m facets), while a's
