@@ -33,7 +33,6 @@ from calidar.strips.outer_loop import Run  # noqa: E402
 from calidar.strips.parameters import sensor_of  # noqa: E402
 from calidar.strips.problem import georeference  # noqa: E402
 from calidar.strips.row_sampling import sampling_cofactors  # noqa: E402
-from calidar.strips.vgicp import VgicpSettings  # noqa: E402
 
 LENGTH = [2.0]  #: ℓ of the recorded sampling cofactors (m; ``--length``)
 
@@ -127,7 +126,7 @@ def main() -> None:
     ap.add_argument("folders", nargs="*", type=Path)
     ap.add_argument("--dump", type=Path)
     ap.add_argument("--table", nargs="*", type=Path, default=[])
-    ap.add_argument("--length", type=float, default=VgicpSettings().unevenness_length_m,
+    ap.add_argument("--length", type=float, default=2.0,
                     help="ℓ of the sampling cofactors recorded (m)")
     args = ap.parse_args()
     LENGTH[0] = args.length

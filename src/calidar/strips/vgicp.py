@@ -115,8 +115,9 @@ class VgicpSettings:
     roughness_quantile: float = 0.75
     #: point_to_plane: correlation length (m) of the surface's unevenness, R(d) = exp(−d²/2ℓ²),
     #: with which a row's scatter beyond the pair's ``unevenness_quantile`` is recounted as a's
-    #: ball and b's plane sample it (:mod:`calidar.strips.row_sampling`); 0: taken as white
-    unevenness_length_m: float = 2.0
+    #: ball and b's plane sample it (:mod:`calidar.strips.row_sampling`); 0: taken as white;
+    #: None: estimated per pair from b's neighbourhoods (:mod:`calidar.strips.unevenness_length`)
+    unevenness_length_m: float | None = None
     unevenness_quantile: float = 0.5
     #: point_to_plane: b's scatter in ``max_scatter_ratio``'s test at least this (m)
     min_scatter_m: float = 0.002
@@ -131,7 +132,7 @@ class VgicpSettings:
             raise ValueError(f"roughness_factor must be ≥ 0, got {self.roughness_factor}")
         if not 0.0 <= self.roughness_quantile <= 1.0:
             raise ValueError(f"roughness_quantile must be 0 … 1, got {self.roughness_quantile}")
-        if self.unevenness_length_m < 0.0:
+        if self.unevenness_length_m is not None and self.unevenness_length_m < 0.0:
             raise ValueError(f"unevenness_length_m must be ≥ 0, got {self.unevenness_length_m}")
         if not 0.0 <= self.unevenness_quantile <= 1.0:
             raise ValueError(f"unevenness_quantile must be 0 … 1, got {self.unevenness_quantile}")
@@ -362,9 +363,9 @@ def match_pair_vgicp(strip_a_id: int, points_a: np.ndarray, strip_b_id: int, poi
     index, distance = nearest(b_near, ov_a[cand], k, settings.num_threads, tree_b)
     keep = distance[:, 0] < threshold
     sigma, dof = (0.05 if settings.sigma_m is None else settings.sigma_m), np.inf
-    normal = None
+    normal = fit = None
     if settings.kind == "point_to_plane" and keep.any():  # b's planes about their centroids
-        planes, A, near_a, keep, normal, sigma, dof = plane_rows(
+        planes, A, near_a, keep, normal, sigma, dof, fit = plane_rows(
             neighbourhood_centroids(b_near, index), b_near, tree_b, ov_a, keep, n_a / n_b, settings)
         index = planes.index
     n_pairs = int(keep.sum())
@@ -385,4 +386,4 @@ def match_pair_vgicp(strip_a_id: int, points_a: np.ndarray, strip_b_id: int, poi
                       shape=(n_pairs, points_b.shape[0]))
     clock.lap("correspond")
     return Correspondences(strip_a_id, strip_b_id, A, B, normal, sigma_m=sigma, method="vgicp",
-                           dof=dof)
+                           dof=dof, unevenness=None if fit is None else fit.to_dict())
