@@ -113,7 +113,9 @@ def survey(seed: int, methods: list[str], vegetation: float, scale: tuple, varia
                              "sigma0_skipped": sol.extra.get("unit_weight", {}).get("sigma0"),
                              "outer_iterations": len(result.outer), "calibration_cpu_s": cpu,
                              "level": sol.extra.get("trajectory_accuracy_estimate"),
-                             "covariance": sol.extra.get("covariance")})
+                             "covariance": sol.extra.get("covariance"),
+                             "unevenness": [p["unevenness"] for p in sol.extra.get("strips", {})
+                                            .get("pairs", []) if "unevenness" in p]})
         if cache is None:
             shutil.rmtree(folder, ignore_errors=True)
     return rows

@@ -1,0 +1,83 @@
+"""The unevenness length ℓ, σ_u and σ_e read from LAS/LAZ files' own points (issue 26, 13th session).
+
+No trajectory needed: per file and flight line (point source id), VGICP's neighbourhoods are
+formed on the delivered points as VGICP forms b's (the ``num_neighbors`` nearest about a spread
+of centres, found again about their centroid; kept when thin and not a line, VGICP's
+``max_surface_variation`` and ``min_spread``), and :func:`calidar.strips.unevenness_length.
+estimate_length` fits ℓ to their residuals about their planes. Coordinates are converted to
+metres by the CRS's horizontal unit (a file in US feet, e.g. pdal_autzen, is scaled).
+
+    NUMBA_NUM_THREADS=1 OMP_NUM_THREADS=1 PYTHONPATH=src python benchmarks/unevenness_length.py \
+        [--classes 2] [--rows 2000] [--centres 20000] FILE.laz …
+
+One line per file and flight line: points, median neighbourhood radius (m), ℓ (m) and its 95 %
+range, σ_u, σ_e (mm), rows used, CPU s of the fit.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from pathlib import Path
+
+import laspy
+import numpy as np
+
+from calidar.strips.unevenness_length import estimate_length
+from calidar.strips.vgicp import VgicpSettings
+from calidar.strips.vgicp_planes import local_planes
+
+
+def _metres(las) -> float:
+    """The CRS's horizontal unit in metres (1 without a CRS)."""
+    try:
+        crs = las.header.parse_crs()
+    except Exception:  # noqa: BLE001 (a benchmark: an unreadable CRS is taken as metres)
+        crs = None
+    if crs is None or not crs.axis_info:
+        return 1.0
+    return float(crs.axis_info[0].unit_conversion_factor or 1.0)
+
+
+def fit_line(points: np.ndarray, n_centres: int, max_rows: int, quantile: float) -> dict:
+    """ℓ fit on one flight line's ``points`` (N, 3) m."""
+    s = VgicpSettings()
+    points = points - points.mean(axis=0)
+    rng = np.random.default_rng(0)
+    centres = points[rng.choice(len(points), min(n_centres, len(points)), replace=False)]
+    first = local_planes(points, centres, s.num_neighbors, 1)
+    planes = local_planes(points, first.centroid, s.num_neighbors, 1)
+    keep = (planes.variation < s.max_surface_variation) & (planes.spread >= s.min_spread)
+    clock = time.process_time()
+    fit = estimate_length(points[planes.index[keep]], planes.centroid[keep],
+                          planes.eigvec[keep], quantile, max_rows)
+    return {"radius_m": float(np.median(planes.distance[keep, -1])), "rows_kept": int(keep.sum()),
+            "cpu_s": time.process_time() - clock} | fit.to_dict()
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("files", nargs="+", type=Path)
+    ap.add_argument("--classes", type=int, nargs="*", default=[], help="only these classes")
+    ap.add_argument("--rows", type=int, default=2000, help="rows in the fit (at most)")
+    ap.add_argument("--centres", type=int, default=20000, help="neighbourhoods formed")
+    ap.add_argument("--quantile", type=float, default=VgicpSettings().unevenness_quantile)
+    args = ap.parse_args()
+    print("file | line | points | radius m | ℓ m (95 %) | σ_u mm | σ_e mm | rows | CPU s")
+    for path in args.files:
+        las = laspy.read(path)
+        xyz = np.column_stack([las.x, las.y, las.z]) * _metres(las)
+        keep = np.isin(las.classification, args.classes) if args.classes else np.ones(len(xyz), bool)
+        for line in np.unique(las.point_source_id[keep]):
+            pts = xyz[keep & (las.point_source_id == line)]
+            if len(pts) < 100:
+                continue
+            f = fit_line(pts, args.centres, args.rows, args.quantile)
+            lo, hi = f["length_range_m"]
+            print(f"{path.name} | {line} | {len(pts)} | {f['radius_m']:.2f} | {f['length_m']:.2f} "
+                  f"({lo:.2f}–{hi:.2f}) | {1e3 * f['sigma_u_m']:.1f} | {1e3 * f['sigma_e_m']:.1f}"
+                  f" | {f['rows']} of {f['rows_kept']} | {f['cpu_s']:.2f}", flush=True)
+
+
+if __name__ == "__main__":
+    main()
