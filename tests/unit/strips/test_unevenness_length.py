@@ -65,3 +65,15 @@ def test_white_noise_reads_white():
 
 def test_grid_spans_the_brief():
     assert LENGTHS_M[0] == pytest.approx(0.25) and LENGTHS_M[-1] == pytest.approx(16.0)
+
+
+def test_report_names_the_estimate():
+    """The report's sentence: the pairs' median ℓ, their range and the rows used; none without."""
+    from calidar.strips.report import unevenness_text
+    fit = {"length_range_m": [1.0, 3.0], "sigma_u_m": 0.04, "sigma_e_m": 0.03}
+    pairs = [{"a": 1, "b": 2, "unevenness": fit | {"length_m": 2.0, "rows": 500}},
+             {"a": 1, "b": 3, "unevenness": fit | {"length_m": 2.83, "rows": 400}},
+             {"a": 2, "b": 3, "unevenness": fit | {"length_m": 1.41, "rows": 300}}]
+    text = unevenness_text(pairs)
+    assert "ℓ = 2 m" in text and "3 pairs, 1.4–2.8 m" in text and "1,200 rows" in text
+    assert unevenness_text([{"a": 1, "b": 2, "n_obs": 10}]) == ""
