@@ -20,9 +20,11 @@ within χ²₁(0.95)/2 = 1.92 of the maximum (Cressie 1993, "Statistics for Spat
 likelihood fits of a covariance model; a variogram fit, §2.4, would need the raw heights'
 pairs, which the planes' residuals are not). Rows: those of b's scatter above the pair's
 ``quantile`` (where :func:`calidar.strips.row_sampling.unevenness_variance` acts), at most
-``max_rows`` of them evenly taken. τ = 0 (no correlated part) or the fit at the grid's lower end
-(ℓ below the points' spacing: unevenness the points sample as white) give ℓ = 0, the white
-formula. Measured: docs/validation.md, "ℓ estimated from the data".
+``max_rows`` of them evenly taken (300: ≈ 25 ms a fit). τ = 0 (no correlated part) or the fit
+at the grid's lower end (ℓ below the points' spacing: unevenness the points sample as white)
+give ℓ = 0, the white formula. ℓ beyond the neighbourhoods' radius is read long (the points see
+the unevenness's curvature σ_u²/ℓ⁴ mostly; 5 m on 3 m discs reads 8–16 m), where the rows' Q/ḡ
+tends to a limit. Measured: docs/validation.md, "ℓ estimated from the data".
 """
 
 from __future__ import annotations
@@ -32,7 +34,7 @@ from dataclasses import dataclass
 import numpy as np
 
 LENGTHS_M = np.geomspace(0.25, 16.0, 13)  #: ℓ's grid, m (2^(1/2) apart)
-RATIOS = np.concatenate([[0.0], np.geomspace(1e-3, 1e5, 65)])  #: τ = σ_u²/σ_e²'s grid
+RATIOS = np.concatenate([[0.0], np.geomspace(1e-3, 1e5, 33)])  #: τ = σ_u²/σ_e²'s grid
 HALF_CHI2 = 1.92  #: χ²₁(0.95)/2, the profile likelihood's 95 % range
 
 
@@ -51,22 +53,17 @@ class UnevennessFit:
                 "sigma_u_m": self.sigma_u_m, "sigma_e_m": self.sigma_e_m, "rows": self.rows}
 
 
-def residual_basis(b_rows: np.ndarray, centroid: np.ndarray,
-                   eigvec: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """b's points' in-plane positions (M, k, 2) m, N (M, k, k − 3) and v = Nᵀz (M, k − 3)
-    m, N an orthonormal basis of the residuals' space, for b's ``b_rows`` (M, k, 3) m about
-    their plane through ``centroid`` (M, 3) m along ``eigvec`` (M, 3, 3; column 0 the normal)."""
-    local = np.einsum("mki,mij->mkj", b_rows - centroid[:, None, :], eigvec)
-    xy, z = local[:, :, 1:], local[:, :, 0]
+def residual_basis(xy: np.ndarray, z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """N (M, k, k − 3), an orthonormal basis of the residuals' space of the planes [1, x, y] at
+    b's in-plane positions ``xy`` (M, k, 2) m, and the heights ``z`` (M, k) m in it, v = Nᵀz."""
     X = np.concatenate([np.ones(z.shape + (1,)), xy], axis=2)
-    Q = np.linalg.qr(X, mode="complete")[0]
-    N = Q[:, :, 3:]
-    return xy, N, np.einsum("mki,mk->mi", N, z)
+    N = np.linalg.qr(X, mode="complete")[0][:, :, 3:]
+    return N, (np.swapaxes(N, 1, 2) @ z[:, :, None])[:, :, 0]
 
 
-def _profile(xy: np.ndarray, N: np.ndarray, v: np.ndarray, length_m: float) -> tuple:
-    """log L over ``RATIOS`` at ℓ = ``length_m`` (module docstring), and the rows' ŝ (M, T)."""
-    d2 = np.sum((xy[:, :, None, :] - xy[:, None, :, :]) ** 2, axis=-1)
+def _profile(d2: np.ndarray, N: np.ndarray, v: np.ndarray, length_m: float) -> tuple:
+    """log L over ``RATIOS`` at ℓ = ``length_m`` (module docstring) for the rows' squared
+    in-plane distances ``d2`` (M, k, k) m², and the rows' ŝ (M, T) m²."""
     S = np.swapaxes(N, 1, 2) @ np.exp(-d2 / (2.0 * length_m**2)) @ N
     lam, U = np.linalg.eigh(S)
     c = (np.swapaxes(U, 1, 2) @ v[:, :, None])[:, :, 0] ** 2
@@ -76,26 +73,41 @@ def _profile(xy: np.ndarray, N: np.ndarray, v: np.ndarray, length_m: float) -> t
     return loglik.sum(axis=0), s
 
 
-def estimate_length(b_rows: np.ndarray, centroid: np.ndarray, eigvec: np.ndarray,
-                    quantile: float = 0.5, max_rows: int = 500) -> UnevennessFit:
-    """ℓ (m) and σ_u, σ_e (m) of the surface under b's neighbourhoods ``b_rows`` (M, k, 3) m,
-    their planes through ``centroid`` (M, 3) m along ``eigvec`` (M, 3, 3; column 0 the normal):
-    the module docstring's profile likelihood over the rows of scatter above ``quantile``."""
-    xy, N, v = residual_basis(b_rows, centroid, eigvec)
-    scatter = np.sum(v**2, axis=1)
-    rows = np.flatnonzero(scatter > np.quantile(scatter, quantile)) if len(v) else scatter
+def _rough_rows(b_rows: np.ndarray, centroid: np.ndarray, eigvec: np.ndarray, quantile: float,
+                max_rows: int) -> tuple[np.ndarray, np.ndarray]:
+    """In-plane positions (R, k, 2) m and heights (R, k) m about their planes of the rows of b's
+    scatter above ``quantile``, at most ``max_rows`` of them evenly taken."""
+    local = np.einsum("mki,mij->mkj", b_rows - centroid[:, None, :], eigvec)
+    scatter = np.sum(local[:, :, 0] ** 2, axis=1)
+    rows = np.flatnonzero(scatter > np.quantile(scatter, quantile)) if len(scatter) else scatter
     if rows.size > max_rows:
         rows = rows[np.linspace(0, rows.size - 1, max_rows).round().astype(int)]
-    if rows.size < 10:
-        return UnevennessFit(0.0, (0.0, 0.0), 0.0, 0.0, int(rows.size))
-    fits = [_profile(xy[rows], N[rows], v[rows], ell) for ell in LENGTHS_M]
-    table = np.array([f[0] for f in fits])  # (L, T)
-    i, j = np.unravel_index(np.argmax(table), table.shape)
-    s = float(np.median(fits[i][1][:, j]))
-    profile = table.max(axis=1)
-    inside = LENGTHS_M[profile >= table[i, j] - HALF_CHI2]
-    tau = float(RATIOS[j])
+    rows = rows.astype(int)
+    return local[rows, :, 1:], local[rows, :, 0]
+
+
+def estimate_length(b_rows: np.ndarray, centroid: np.ndarray, eigvec: np.ndarray,
+                    quantile: float = 0.5, max_rows: int = 300) -> UnevennessFit:
+    """ℓ (m) and σ_u, σ_e (m) of the surface under b's neighbourhoods ``b_rows`` (M, k, 3) m,
+    their planes through ``centroid`` (M, 3) m along ``eigvec`` (M, 3, 3; column 0 the normal):
+    the module docstring's profile likelihood over the rows of scatter above ``quantile``, on
+    every other node of ``LENGTHS_M`` first, then the two nodes beside the best."""
+    xy, z = _rough_rows(b_rows, centroid, eigvec, quantile, max_rows)
+    if len(z) < 10:
+        return UnevennessFit(0.0, (0.0, 0.0), 0.0, 0.0, len(z))
+    N, v = residual_basis(xy, z)
+    d2 = np.sum((xy[:, :, None, :] - xy[:, None, :, :]) ** 2, axis=-1)
+    fits = {i: _profile(d2, N, v, LENGTHS_M[i]) for i in range(0, len(LENGTHS_M), 2)}
+    best = max(fits, key=lambda i: fits[i][0].max())
+    for i in (best - 1, best + 1):
+        if 0 <= i < len(LENGTHS_M):
+            fits[i] = _profile(d2, N, v, LENGTHS_M[i])
+    i = max(fits, key=lambda i: fits[i][0].max())
+    j = int(np.argmax(fits[i][0]))
+    top = fits[i][0][j]
+    inside = [LENGTHS_M[n] for n in fits if fits[n][0].max() >= top - HALF_CHI2]
+    tau, s = float(RATIOS[j]), float(np.median(fits[i][1][:, j]))
     white = tau == 0.0 or i == 0
-    return UnevennessFit(0.0 if white else float(LENGTHS_M[i]),
-                         (float(inside.min()), float(inside.max())),
-                         float(np.sqrt(tau * s)), float(np.sqrt(s)), int(rows.size))
+    span = (float(min(inside)), float(max(inside)))
+    return UnevennessFit(0.0 if white else float(LENGTHS_M[i]), span, float(np.sqrt(tau * s)),
+                         float(np.sqrt(s)), len(z))

@@ -4,9 +4,10 @@
 Surfaces with Gaussian-correlated unevenness of known ℓ (random Fourier features, as
 ``test_vgicp_row_sampling`` draws them) under white noise, half of the rows quiet, sampled as
 b's 12 points over an airborne-like 3 m disc and a UAV-like 0.45 m one: the fit finds ℓ on its
-grid's nearest node (nodes 2^(1/2) apart: within ×1.2 of the truth), σ_e within 10 % and σ_u
-within 10 % where ℓ ≤ the disc's radius (beyond it the points see only the unevenness's
-curvature, σ_u²/ℓ⁴, and σ_u trades against ℓ: 0.37 for 0.3 at ℓ 5 m on 3 m discs); on white
+grid's nearest node (nodes 2^(1/2) apart: within ×1.2 of the truth) and σ_u, σ_e within 10 %
+where ℓ ≤ the disc's radius. Beyond it the points see mostly the unevenness's curvature
+(σ_u²/ℓ⁴) and ℓ trades against σ_u: ℓ 5 m on 3 m discs reads 8–16 m over seeds 3–8 (only
+"longer than the neighbourhoods" is asserted; the rows' Q/ḡ tends to a limit there). On white
 noise alone it reads ℓ = 0 (the white formula)."""
 
 from __future__ import annotations
@@ -47,12 +48,14 @@ def _neighbourhoods(length_m: float, radius: float, noise: float, amp: float, se
 ])
 def test_length_recovered(length_m, radius, noise, amp):
     fit = estimate_length(*_neighbourhoods(length_m, radius, noise, amp, seed=3))
-    assert fit.length_m == pytest.approx(length_m, rel=0.2)
     assert fit.length_range_m[0] <= fit.length_m <= fit.length_range_m[1]
-    if length_m <= radius:
-        assert fit.sigma_u_m == pytest.approx(amp, rel=0.1)
     assert fit.sigma_e_m == pytest.approx(noise, rel=0.1)
-    assert fit.rows == 500
+    if length_m > radius:
+        assert fit.length_m > radius
+        return
+    assert fit.length_m == pytest.approx(length_m, rel=0.2)
+    assert fit.sigma_u_m == pytest.approx(amp, rel=0.1)
+    assert fit.rows == 300
 
 
 def test_white_noise_reads_white():
