@@ -12,11 +12,17 @@ metres by the CRS's horizontal unit (a file in US feet, e.g. pdal_autzen, is sca
 
 One line per file and flight line: points, median neighbourhood radius (m), ℓ (m) and its 95 %
 range, σ_u, σ_e (mm), rows used, CPU s of the fit.
+
+    python benchmarks/unevenness_length.py --mc RUN.jsonl …
+
+reads what VGICP's pairs estimated in ``strips_montecarlo.py --json`` rows instead: per file, the
+pairs' ℓ (quartiles, share read white), σ_u and σ_e (medians), rows per pair.
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import time
 from pathlib import Path
 
@@ -55,6 +61,20 @@ def fit_line(points: np.ndarray, n_centres: int, max_rows: int, quantile: float)
             "cpu_s": time.process_time() - clock} | fit.to_dict()
 
 
+def mc_summary(path: Path) -> str:
+    """The pairs' ℓ fits recorded in a Monte-Carlo's JSON lines (``unevenness`` of each row)."""
+    fits = [u for line in path.read_text().splitlines() if line.strip()
+            for u in json.loads(line).get("unevenness", [])]
+    if not fits:
+        return f"{path.name} | no ℓ recorded"
+    ell = np.array([f["length_m"] for f in fits])
+    q = np.quantile(ell, [0.25, 0.5, 0.75])
+    med = lambda key: 1e3 * np.median([f[key] for f in fits])  # noqa: E731
+    return (f"{path.name} | {len(fits)} pairs | ℓ {q[0]:.2f} / {q[1]:.2f} / {q[2]:.2f} m | white "
+            f"{np.mean(ell == 0):.0%} | σ_u {med('sigma_u_m'):.1f} mm | σ_e {med('sigma_e_m'):.1f}"
+            f" mm | rows {np.median([f['rows'] for f in fits]):.0f}")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("files", nargs="+", type=Path)
@@ -62,7 +82,13 @@ def main() -> None:
     ap.add_argument("--rows", type=int, default=2000, help="rows in the fit (at most)")
     ap.add_argument("--centres", type=int, default=20000, help="neighbourhoods formed")
     ap.add_argument("--quantile", type=float, default=VgicpSettings().unevenness_quantile)
+    ap.add_argument("--mc", action="store_true", help="the files are Monte-Carlo JSON lines")
     args = ap.parse_args()
+    if args.mc:
+        print("file | pairs | ℓ quartiles | read white | σ_u | σ_e | rows a pair")
+        for path in args.files:
+            print(mc_summary(path))
+        return
     print("file | line | points | radius m | ℓ m (95 %) | σ_u mm | σ_e mm | rows | CPU s")
     for path in args.files:
         las = laspy.read(path)
