@@ -20,9 +20,9 @@ within χ²₁(0.95)/2 = 1.92 of the maximum (Cressie 1993, "Statistics for Spat
 likelihood fits of a covariance model; a variogram fit, §2.4, would need the raw heights'
 pairs, which the planes' residuals are not). Rows: those of b's scatter above the pair's
 ``quantile`` (where :func:`calidar.strips.row_sampling.unevenness_variance` acts), at most
-``max_rows`` of them evenly taken (300: ≈ 25 ms a fit). τ = 0 (no correlated part) or the fit
-at the grid's lower end (ℓ below the points' spacing: unevenness the points sample as white)
-give ℓ = 0, the white formula. ℓ beyond the neighbourhoods' radius is read long (the points see
+``max_rows`` of them evenly taken (300: ≈ 25 ms a fit). τ = 0 (no correlated part) gives ℓ = 0,
+the white formula; ℓ below the points' spacing needs no such rule (R → I there: the sampling
+cofactors fall to the white formula's by themselves). ℓ beyond the neighbourhoods' radius is read long (the points see
 the unevenness's curvature σ_u²/ℓ⁴ mostly; 5 m on 3 m discs reads 8–16 m), where the rows' Q/ḡ
 tends to a limit. Measured: docs/validation.md, "ℓ estimated from the data".
 """
@@ -107,7 +107,6 @@ def estimate_length(b_rows: np.ndarray, centroid: np.ndarray, eigvec: np.ndarray
     top = fits[i][0][j]
     inside = [LENGTHS_M[n] for n in fits if fits[n][0].max() >= top - HALF_CHI2]
     tau, s = float(RATIOS[j]), float(np.median(fits[i][1][:, j]))
-    white = tau == 0.0 or i == 0
     span = (float(min(inside)), float(max(inside)))
-    return UnevennessFit(0.0 if white else float(LENGTHS_M[i]), span, float(np.sqrt(tau * s)),
+    return UnevennessFit(0.0 if tau == 0.0 else float(LENGTHS_M[i]), span, float(np.sqrt(tau * s)),
                          float(np.sqrt(s)), len(z))
