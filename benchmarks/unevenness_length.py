@@ -8,7 +8,7 @@ estimate_length` fits ℓ to their residuals about their planes. Coordinates are
 metres by the CRS's horizontal unit (a file in US feet, e.g. pdal_autzen, is scaled).
 
     NUMBA_NUM_THREADS=1 OMP_NUM_THREADS=1 PYTHONPATH=src python benchmarks/unevenness_length.py \
-        [--classes 2] [--rows 2000] [--centres 20000] FILE.laz …
+        FILE.laz … [--classes 2] [--rows 2000] [--centres 20000] [--neighbours 12]
 
 One line per file and flight line: points, median neighbourhood radius (m), ℓ (m) and its 95 %
 range, σ_u, σ_e (mm), rows used, CPU s of the fit.
@@ -45,14 +45,17 @@ def _metres(las) -> float:
     return float(crs.axis_info[0].unit_conversion_factor or 1.0)
 
 
-def fit_line(points: np.ndarray, n_centres: int, max_rows: int, quantile: float) -> dict:
-    """ℓ fit on one flight line's ``points`` (N, 3) m."""
+def fit_line(points: np.ndarray, n_centres: int, max_rows: int, quantile: float,
+             k: int = 0) -> dict:
+    """ℓ fit on one flight line's ``points`` (N, 3) m, neighbourhoods of ``k`` points (0:
+    VGICP's ``num_neighbors``)."""
     s = VgicpSettings()
+    k = k or s.num_neighbors
     points = points - points.mean(axis=0)
     rng = np.random.default_rng(0)
     centres = points[rng.choice(len(points), min(n_centres, len(points)), replace=False)]
-    first = local_planes(points, centres, s.num_neighbors, 1)
-    planes = local_planes(points, first.centroid, s.num_neighbors, 1)
+    first = local_planes(points, centres, k, 1)
+    planes = local_planes(points, first.centroid, k, 1)
     keep = (planes.variation < s.max_surface_variation) & (planes.spread >= s.min_spread)
     clock = time.process_time()
     fit = estimate_length(points[planes.index[keep]], planes.centroid[keep],
@@ -82,6 +85,8 @@ def main() -> None:
     ap.add_argument("--rows", type=int, default=2000, help="rows in the fit (at most)")
     ap.add_argument("--centres", type=int, default=20000, help="neighbourhoods formed")
     ap.add_argument("--quantile", type=float, default=VgicpSettings().unevenness_quantile)
+    ap.add_argument("--neighbours", type=int, default=0,
+                    help="points a neighbourhood (0: VGICP's num_neighbors)")
     ap.add_argument("--mc", action="store_true", help="the files are Monte-Carlo JSON lines")
     args = ap.parse_args()
     if args.mc:
@@ -98,7 +103,7 @@ def main() -> None:
             pts = xyz[keep & (las.point_source_id == line)]
             if len(pts) < 100:
                 continue
-            f = fit_line(pts, args.centres, args.rows, args.quantile)
+            f = fit_line(pts, args.centres, args.rows, args.quantile, args.neighbours)
             lo, hi = f["length_range_m"]
             print(f"{path.name} | {line} | {len(pts)} | {f['radius_m']:.2f} | {f['length_m']:.2f} "
                   f"({lo:.2f}–{hi:.2f}) | {1e3 * f['sigma_u_m']:.1f} | {1e3 * f['sigma_e_m']:.1f}"
