@@ -24,7 +24,8 @@ pairs, which the planes' residuals are not). Rows: those of b's scatter above th
 the white formula; ℓ below the points' spacing needs no such rule (R → I there: the sampling
 cofactors fall to the white formula's by themselves). ℓ beyond the neighbourhoods' radius is
 read long (the points see the unevenness's curvature σ_u²/ℓ⁴ mostly; 5 m on 3 m discs reads
-8–16 m), where the rows' Q/ḡ tends to a limit. Measured: docs/validation.md, "ℓ estimated from the data".
+8–16 m), where the rows' Q/ḡ tends to a limit. Measured: docs/validation.md, "ℓ estimated
+from the data".
 """
 
 from __future__ import annotations
