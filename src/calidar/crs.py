@@ -137,7 +137,8 @@ def tile_linear(xyz, crs, geoid_undulation_m: float | None = None, source=None,
     geographic = pyproj.CRS.from_user_input(crs).is_geographic
     tile = tile_m / 1e5 if geographic else tile_m  # ≈ 1e5 m a degree
     # anchor: each tile's first point
-    rows, anchor = group_cells(np.floor(xyz[:, :2] / tile).astype(np.int64))
+    ij = _tile_indices(xyz, float(tile))
+    rows, anchor = group_cells(np.floor(xyz[:, :2] / tile).astype(np.int64) if ij is None else ij)
     anchor_ecef = from_crs(xyz[anchor], crs, geoid_undulation_m, source)
     at = to_crs(anchor_ecef, crs, geoid_undulation_m, source)
     def moved(step):
@@ -145,6 +146,23 @@ def tile_linear(xyz, crs, geoid_undulation_m: float | None = None, source=None,
 
     jac = np.stack([moved(step) for step in np.eye(3)], axis=2)
     return TileLinear(xyz, rows, anchor, anchor_ecef, jac)
+
+
+def _tile_indices(xyz: np.ndarray, tile: float) -> np.ndarray | None:
+    """floor(xy / tile) (N, 2) int64 of points (N, 3) in one numba pass, as the numpy steps; None
+    when a coordinate is not finite (numpy's cast is the caller's)."""
+    ij = np.empty((xyz.shape[0], 2), np.int64)
+    return ij if _tile_kernel(xyz, tile, ij) else None
+
+
+@njit(cache=True, nogil=True)
+def _tile_kernel(xyz, tile, ij):  # pragma: no cover - numba
+    for k in range(xyz.shape[0]):
+        x, y = xyz[k, 0] / tile, xyz[k, 1] / tile
+        if not (abs(x) < 9.2e18 and abs(y) < 9.2e18):  # NaN, ±inf, beyond int64: numpy's
+            return False
+        ij[k, 0], ij[k, 1] = np.int64(np.floor(x)), np.int64(np.floor(y))
+    return True
 
 
 @njit(cache=True, nogil=True)

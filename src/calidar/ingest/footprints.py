@@ -53,10 +53,14 @@ class Footprints:
         the points of ``use`` only (None: all; :func:`calidar.ingest.source.calibration_mask`)."""
         if chunk.point_source_id is not None:
             add_spans(self.spans, chunk.point_source_id, t, name)
-        for g, rows in split_rows(groups):
+        one = groups.size and groups[0] == groups[-1] and np.all(groups == groups[0])
+        # one group (as usual): the chunk's own arrays, not gathered copies
+        parts = [(int(groups[0]), slice(None))] if one else split_rows(groups)
+        for g, rows in parts:
             self.files.setdefault(g, name)
-            self.points[g] = self.points.get(g, 0) + rows.size
-            counted = rows if use is None else rows[use[rows]]
+            self.points[g] = self.points.get(g, 0) + (groups.size if one else rows.size)
+            counted = (rows if use is None else use) if one else (
+                rows if use is None else rows[use[rows]])
             self.cells.setdefault(g, []).append(cell_counts(keys[counted]))
             self.t_min[g] = min(self.t_min.get(g, np.inf), float(t[rows].min()))
             self.t_max[g] = max(self.t_max.get(g, -np.inf), float(t[rows].max()))

@@ -22,14 +22,15 @@ from calidar.crs import plus_jd
 from calidar.georef import lidar_point, pose, scanner_vector
 
 
-def moved_versions(traj, nominal, models, t: np.ndarray, lin,
-                   take: np.ndarray | None = None) -> list[np.ndarray] | None:
+def moved_versions(traj, nominal, models, t: np.ndarray, lin, take: np.ndarray | None = None,
+                   compact: bool = False) -> list[np.ndarray] | None:
     """CRS coordinates (N, 3) of the chunk's points (``lin``: their TileLinear, times ``t`` in
     ``traj``'s system) re-georeferenced with each (sensor, trajectory) of ``models`` (None
     entries: skipped, None in the list returned), or None when the models are not all new
     mountings on ``traj`` and at most one other trajectory; ``take``: only the points at these
     positions re-georeferenced (each as it is among all: the tiles are all the points'), the
-    others' rows NaN; every time still checked."""
+    others' rows NaN (``compact``: only the taken points' rows, in the order of ``take``); every
+    time still checked."""
     kept = [m for m in models if m is not None]
 
     def model(s):
@@ -44,7 +45,8 @@ def moved_versions(traj, nominal, models, t: np.ndarray, lin,
     t = np.ascontiguousarray(t, float)
     every = take is None
     take = np.arange(t.size) if every else np.ascontiguousarray(take, np.int64)
-    out = np.empty((len(kept), t.size, 3)) if every else np.full((len(kept), t.size, 3), np.nan)
+    compact = compact and not every
+    out = np.empty((len(kept), take.size if compact else t.size, 3))
     c = lambda a: np.ascontiguousarray(a, float)  # noqa: E731 - as calidar.georef._c
     which = np.array([0 if tr is traj else 1 for _, tr in kept], np.int64)
     r_bs = np.stack([c(s.r_bs) for s, _ in kept]) if kept else np.zeros((0, 3, 3))
@@ -53,9 +55,11 @@ def moved_versions(traj, nominal, models, t: np.ndarray, lin,
                     c(other.q_eb))
     # the points' ECEF as TileLinear.near_ecef gives them, computed in the kernel's loop
     near = (np.linalg.inv(lin.jac), c(lin.anchor_ecef), np.ascontiguousarray(lin.anchor, np.int64))
+    if not (every or compact):  # the rows not taken: NaN
+        _nan_rows(take, out)
     n_out, n_out2 = _versions_kernel(*trajectories, t, *near, c(nominal.r_bs),
                                      c(nominal.lever_arm), r_bs, lever, which, c(lin.xyz), lin.jac,
-                                     np.ascontiguousarray(lin.rows, np.int64), take, out)
+                                     np.ascontiguousarray(lin.rows, np.int64), take, compact, out)
     if n_out or not (every or _within(traj, t)):
         traj.check_covers(t)
     if np.any(which == 1) and (n_out2 or not (every or _within(other, t))):
@@ -71,10 +75,26 @@ def _within(traj, t: np.ndarray) -> bool:
 
 
 @njit(cache=True, nogil=True)
+def _nan_rows(take, out):  # pragma: no cover - numba
+    """NaN in every row of ``out`` (M, N, 3) but those at ``take`` (the gaps between them when
+    they ascend, else every row: the kernel then writes those taken)."""
+    ascending = True
+    for kk in range(1, take.size):
+        ascending = ascending and take[kk] > take[kk - 1]
+    flat = out.reshape(out.shape[0], out.shape[1] * 3)
+    for m in range(out.shape[0]):
+        start = 0
+        for kk in range(take.size if ascending else 0):
+            flat[m, 3 * start:3 * take[kk]] = np.nan
+            start = take[kk] + 1
+        flat[m, 3 * start:] = np.nan
+
+
+@njit(cache=True, nogil=True)
 def _versions_kernel(tt, pos, q, tt2, pos2, q2, t, inv, anchor_ecef, anchor, r_bs0, lever0, r_bs,
-                     lever, which, base, jac, rows, take, out):  # pragma: no cover - numba
-    """out[m, k] = base + J · (forward_m(inverse(p)) − p) of each point k of ``take`` (see the
-    module), p the point's ECEF from its tile's anchor (``inv`` = J⁻¹;
+                     lever, which, base, jac, rows, take, compact, out):  # pragma: no cover - numba
+    """out[m, k] (``compact``: out[m, kk]) = base + J · (forward_m(inverse(p)) − p) of each point
+    k = take[kk] (see the module), p the point's ECEF from its tile's anchor (``inv`` = J⁻¹;
     :meth:`calidar.crs.TileLinear.near_ecef` operation for operation); returns how many of their
     times lie outside each trajectory (NaN counts as outside)."""
     n_out, i, i_prev, theta, s, sign = 0, 0, -1, 0.0, 0.0, 1.0
@@ -113,6 +133,7 @@ def _versions_kernel(tt, pos, q, tt2, pos2, q2, t, inv, anchor_ecef, anchor, r_b
             # the lidar equation, then the move (calidar.crs.tile_moved)
             x, y, z = lidar_point(sx, sy, sz, r_bs[m], lever[m], ox, oy, oz,
                                   e00, e01, e02, e10, e11, e12, e20, e21, e22)
-            out[m, k, 0], out[m, k, 1], out[m, k, 2] = plus_jd(
+            r = kk if compact else k
+            out[m, r, 0], out[m, r, 1], out[m, r, 2] = plus_jd(
                 base[k, 0], base[k, 1], base[k, 2], jac, j, x - p0, y - p1, z - p2)
     return n_out, n_out2

@@ -17,7 +17,7 @@ from calidar.errors import InputError
 from calidar.ingest.settings import BIN_BITS, IngestSettings
 from calidar.ingest.stages import LineCounts
 from calidar.ingest.times import FileTimes, points_ecef, points_tile_linear
-from calidar.io.las import PointOptions, iter_las_chunks
+from calidar.io.las import OPTIONAL_FIELDS, PointOptions, iter_las_chunks
 from calidar.strips.overlap import cell_keys
 from calidar.strips.selection import excluded
 from calidar.strips.strip import LocalFrame
@@ -66,11 +66,23 @@ class StripSource:
         for f in self.files if files is None else files:
             held = self.held.chunks(f.path, span) if kept else None
             for chunk, t in held if held is not None else self._read(f, fields, span):
-                g = group_keys(chunk.point_source_id, t, self.settings.gap_s)
-                pos = np.minimum(np.searchsorted(self.groups, g), self.groups.size - 1)
-                if not np.array_equal(self.groups[pos], g):
-                    raise InputError(f.path, None, "the file changed while it was read")
-                yield f, chunk, self.group_line[pos], t
+                yield f, chunk, self.line_ids(f, chunk.point_source_id, t), t
+
+    def line_ids(self, f: StripFile, psid, t: np.ndarray) -> np.ndarray:
+        """The flight line of each point of a chunk of ``f`` (point_source_id, times in the
+        trajectory's system): its group's (:func:`group_keys`); an error when a group was not
+        seen in pass 1."""
+        from calidar.ingest.line_kernels import chunk_lines
+
+        ids, found = chunk_lines(psid, t, self.settings.gap_s, self.groups, self.group_line)
+        if ids is None and found:  # a time not finite: numpy's cast
+            g = group_keys(psid, t, self.settings.gap_s)
+            pos = np.minimum(np.searchsorted(self.groups, g), self.groups.size - 1)
+            found = np.array_equal(self.groups[pos], g)
+            ids = self.group_line[pos]
+        if not found:
+            raise InputError(f.path, None, "the file changed while it was read")
+        return ids
 
     def _read(self, f: StripFile, fields: Sequence[str],
               span: tuple[int, int | None]) -> Iterator[tuple]:
@@ -97,41 +109,59 @@ def line_chunks(source: StripSource, nominal, models=(None,), fields=None, where
     :class:`calidar.crs.TileLinear`, within 0.1 mm of the full transform), ``fields``
     (default: all) as read; ``where(chunk)``: a mask of the points wanted. Whole lines, chunk by
     chunk (bounded memory). ``select(chunk, line ids)``: a mask of the points the caller reads
-    re-georeferenced (the tiles of the moves still laid over every point ``where`` keeps, so each
-    moves as among all); the others' re-georeferenced coordinates are NaN (the fused pass skips
-    them)."""
-    from calidar import georef
-    from calidar.ingest.regeoref import moved_versions
-    from calidar.io.las import OPTIONAL_FIELDS
-
+    (the tiles of the moves still laid over every point ``where`` keeps, so each moves as among
+    all): only those go on, in their order, every line of the chunk still given (perhaps with
+    none of its points)."""
     names = OPTIONAL_FIELDS if fields is None else fields
     for _, chunk, ids, t in source.chunks(names, files, span):
         if where is not None:
             keep = where(chunk)
             if not keep.all():  # (every point kept, as usual: the chunk itself, no copies)
                 chunk, ids, t = chunk.select(keep), ids[keep], t[keep]
-        # one TileLinear for every model
-        lin = None if all(m is None for m in models) else points_tile_linear(chunk)
         take = None if select is None else _positions(select(chunk, ids))
-        # every model in one pass (poses interpolated once; calidar.ingest.regeoref), else model
-        # by model
-        moved = (None if lin is None
-                 else moved_versions(source.trajectory, nominal, models, t, lin, take))
-        if moved is None and lin is not None:
-            ecef = lin.near_ecef()  # ~1 mm: only the moves below count
-            v_s = georef.scanner_vectors(source.trajectory, nominal, t, ecef)
-
-            def move(m):
-                return lin.moved(georef.reforward(nominal, m[0], m[1], t, v_s) - ecef)
-
-            moved = [None if m is None else move(m) for m in models]
+        moved = _moved(source, nominal, models, chunk, t, take)
+        every_line = ids  # the chunk's lines, before the selection
+        if take is not None:
+            chunk, ids = chunk.select(take), ids[take]
         versions = [chunk if m is None else replace(chunk, xyz=xyz)
                     for m, xyz in zip(models, moved or models)]
-        if ids.size and ids[0] == ids[-1] and np.all(ids == ids[0]):  # one line: no copies
-            yield int(ids[0]), versions
+        one = every_line.size and every_line[0] == every_line[-1]
+        if one and np.all(every_line == every_line[0]):  # one line: no copies
+            yield int(every_line[0]), versions
             continue
-        for i, rows in split_rows(ids):
+        for i, rows in (split_rows(ids) if take is None else _rows_of(every_line, ids)):
             yield i, [v.select(rows) for v in versions]
+
+
+def _moved(source: StripSource, nominal, models, chunk, t: np.ndarray,
+           take: np.ndarray | None) -> list | None:
+    """Per model (None: None) the CRS coordinates of the chunk's points (of those at ``take``
+    only, in its order) re-georeferenced: every model in one pass (poses interpolated once;
+    :mod:`calidar.ingest.regeoref`), else model by model; None when every model is None."""
+    from calidar import georef
+    from calidar.ingest.regeoref import moved_versions
+
+    if all(m is None for m in models):
+        return None
+    lin = points_tile_linear(chunk)  # one TileLinear for every model
+    moved = moved_versions(source.trajectory, nominal, models, t, lin, take, True)  # compact
+    if moved is not None:
+        return moved
+    ecef = lin.near_ecef()  # ~1 mm: only the moves below count
+    v_s = georef.scanner_vectors(source.trajectory, nominal, t, ecef)
+
+    def move(m):
+        xyz = lin.moved(georef.reforward(nominal, m[0], m[1], t, v_s) - ecef)
+        return xyz if take is None else xyz[take]
+
+    return [None if m is None else move(m) for m in models]
+
+
+def _rows_of(every_line: np.ndarray, ids: np.ndarray) -> Iterator[tuple[int, np.ndarray]]:
+    """(line, positions in ``ids`` of its points) of each line of ``every_line`` (sorted; a line
+    none of whose points is in ``ids``: no positions)."""
+    for i in np.unique(every_line).tolist():
+        yield i, np.flatnonzero(ids == i)
 
 
 def _positions(mask: np.ndarray) -> np.ndarray | None:

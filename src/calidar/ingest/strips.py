@@ -138,20 +138,53 @@ def _kept_points(source: StripSource, kept: dict, f: StripFile) -> dict[int, tup
     """The points of one file inside its lines' kept cells (of the classes the calibration uses:
     :func:`~calidar.ingest.source.calibration_mask`): line → (ECEF (n, 3) m, times s), as pass 1
     kept them or read again (a task)."""
-    ecef, times = {}, {}
+    from calidar.ingest.line_kernels import kept_table
+
+    ecef, times, table = {}, {}, kept_table(kept)
     for _, chunk, ids, t in source.chunks(("classification",), files=[f]):
-        keys = source.cell_keys(chunk)
-        use = calibration_mask(chunk, source.settings)
-        for i, rows in split_rows(ids):
-            cells = kept.get(i)
-            if cells is None or cells.size == 0:
-                continue
-            pos = np.minimum(np.searchsorted(cells, keys[rows]), cells.size - 1)
-            inside = cells[pos] == keys[rows]
-            sel = rows[inside if use is None else inside & use[rows]]
+        for i, sel in _kept_rows(source, kept, table, chunk, ids):
             ecef.setdefault(i, []).append(points_ecef(chunk.select(sel)))
             times.setdefault(i, []).append(t[sel])
     return {i: (np.concatenate(ecef[i]), np.concatenate(times[i])) for i in ecef}
+
+
+def _kept_rows(source: StripSource, kept: dict, table: tuple, chunk, ids: np.ndarray):
+    """(line, positions in the chunk of its points in its kept cells and of the classes used) of
+    each line of the chunk with kept cells, in line order: one numba loop
+    (:func:`calidar.ingest.line_kernels.kept_mask`) where the overlap grid is the CRS's own
+    metres (``table``: :func:`~calidar.ingest.line_kernels.kept_table` of ``kept``), else the
+    numpy steps (the same rows)."""
+    from calidar.ingest.line_kernels import kept_mask
+
+    axis = chunk.crs.axis_info[0] if chunk.crs is not None and chunk.crs.is_projected else None
+    factor = axis.unit_conversion_factor if axis is not None else None
+    classes = None if source.settings.all_classes else chunk.classification
+    got = None if not factor else kept_mask(ids, chunk.xyz, factor, source.settings.cell_m,
+                                            table, classes)
+    if got is None:
+        yield from _kept_rows_numpy(source, kept, chunk, ids)
+        return
+    mask, lines = got
+    sel = np.flatnonzero(mask)
+    if lines.size == 1:
+        yield int(lines[0]), sel
+        return
+    of = ids[sel]
+    for i in lines.tolist():
+        yield i, sel[of == i]
+
+
+def _kept_rows_numpy(source: StripSource, kept: dict, chunk, ids: np.ndarray):
+    """:func:`_kept_rows` by numpy steps (any CRS, any classes)."""
+    keys = source.cell_keys(chunk)
+    use = calibration_mask(chunk, source.settings)
+    for i, rows in split_rows(ids):
+        cells = kept.get(i)
+        if cells is None or cells.size == 0:
+            continue
+        pos = np.minimum(np.searchsorted(cells, keys[rows]), cells.size - 1)
+        inside = cells[pos] == keys[rows]
+        yield i, rows[inside if use is None else inside & use[rows]]
 
 
 class Ingested(NamedTuple):

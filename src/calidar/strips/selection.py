@@ -13,8 +13,10 @@ source (a file, or a flight line held in memory):
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
+from numba import njit
 
 from calidar.errors import InputError
 
@@ -43,7 +45,30 @@ FIELDS = ("classification", "return_number", "number_of_returns")
 def excluded(classification: np.ndarray) -> np.ndarray:
     """Mask of the points of :data:`EXCLUDED_CLASSES` (vegetation, noise, water): what neither
     the overlap-quality rule nor the strip calibration's points use (issue 26)."""
-    return np.isin(classification, EXCLUDED_CLASSES)
+    return among(classification, EXCLUDED_CLASSES)
+
+
+def among(classification: np.ndarray, classes: tuple[int, ...]) -> np.ndarray:
+    """``np.isin(classification, classes)``: for 8-bit classes (LAS) a lookup in a table of the
+    256 (one pass, no comparison per class), the same mask."""
+    c = np.asarray(classification)
+    if c.dtype == np.uint8 and c.ndim == 1:
+        return _looked_up(c, _table(tuple(classes)))
+    return np.isin(c, classes)
+
+
+@njit(cache=True, nogil=True)
+def _looked_up(c, table):  # pragma: no cover - numba
+    out = np.empty(c.size, np.bool_)
+    for k in range(c.size):
+        out[k] = table[c[k]]
+    return out
+
+
+@lru_cache(maxsize=64)
+def _table(classes: tuple[int, ...]) -> np.ndarray:
+    """Whether each of the 256 8-bit classes is among ``classes``."""
+    return np.isin(np.arange(256), classes)
 
 
 @dataclass(frozen=True)
@@ -59,7 +84,7 @@ class PointSelection:
         n = len(points.classification if points.classification is not None else points.xyz)
         keep = np.ones(n, bool)
         if self.classes is not None:
-            return np.isin(points.classification, self.classes)
+            return among(points.classification, self.classes)
         if points.classification is not None:
             keep &= ~excluded(points.classification)
         if points.return_number is not None and points.number_of_returns is not None:

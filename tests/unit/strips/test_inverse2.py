@@ -15,7 +15,7 @@ def _same(a):
     np.testing.assert_array_equal(got.view(np.int64), ref.view(np.int64))  # every bit
     if inverse2.agrees():  # the kernel itself, not numpy standing in for it
         out = np.empty_like(ref)
-        assert inverse2._inv2_kernel(np.ascontiguousarray(a), out)
+        assert inverse2._inv2_kernel(np.ascontiguousarray(a), out, inverse2._ROUNDING[0])
         np.testing.assert_array_equal(out.view(np.int64), ref.view(np.int64))
 
 
@@ -23,9 +23,9 @@ def test_the_kernel_does_the_inverses_where_the_check_agrees(monkeypatch):
     """Where the once-per-process check finds every bit equal, the kernel does the finite float64
     inverses and numpy is not called; a zero pivot still goes to numpy. (Whether the check agrees is
     the machine's: the kernel mirrors the OpenBLAS kernels of the x86-64 CPUs it was written on; on
-    an AMD EPYC with the same OpenBLAS core type, 'Haswell', 388 of the 2 000 probes differ in the
-    last bits of the first row, so numpy does every inverse there — docs/validation.md, ninth
-    session.)"""
+    an AMD EPYC with the same OpenBLAS core type, 'Haswell', the fused rounding differs in 388 of
+    the 2 000 probes and the rounding apart agrees — docs/validation.md, ninth and thirteenth
+    sessions.)"""
     monkeypatch.setattr(inverse2, "_AGREES", [True])
     a = np.random.default_rng(6).normal(size=(1000, 2, 2))
     calls = []
@@ -91,3 +91,26 @@ def test_gradient_noise_as_with_numpy_inverse():
     var_z = lam / normal[:, 2] ** 2 * count / np.maximum(count - 3, 1)
     ref = var_z[:, None, None] * np.linalg.inv(cov[:, :2, :2]) / count[:, None, None]
     np.testing.assert_array_equal(gradient_noise(cov, count, normal), ref)
+
+
+def test_the_two_roundings_differ_and_each_is_checked(monkeypatch):
+    """The kernel's two roundings of the back substitution (fused, apart) give different bits on
+    the probes (so the check tells them apart), and the check keeps the one that gives numpy's:
+    with numpy standing in as each in turn, the check agrees and keeps that one."""
+    rng = np.random.default_rng(20261127)
+    a = rng.normal(size=(2000, 2, 2)) * rng.lognormal(0.0, 4.0, (2000, 1, 1))
+    got = {}
+    for rounding in (inverse2.FUSED, inverse2.APART):
+        got[rounding] = np.empty_like(a)
+        assert inverse2._inv2_kernel(a, got[rounding], rounding)
+    assert not np.array_equal(got[True].view(np.int64), got[False].view(np.int64))
+    for rounding in (inverse2.FUSED, inverse2.APART):
+        def as_kernel(x, rounding=rounding):
+            out = np.empty_like(x)
+            inverse2._inv2_kernel(np.ascontiguousarray(x), out, rounding)
+            return out
+        monkeypatch.setattr(inverse2, "_AGREES", [])
+        monkeypatch.setattr(inverse2, "_ROUNDING", [not rounding])
+        monkeypatch.setattr(np.linalg, "inv", as_kernel)
+        assert inverse2.agrees() and inverse2._ROUNDING == [rounding]
+
