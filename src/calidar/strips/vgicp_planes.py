@@ -27,8 +27,8 @@ import small_gicp
 from calidar.strips.correspond import moderated_variance
 from calidar.strips.pca import eigh3
 from calidar.strips.row_sampling import sampling_cofactors, unevenness_variance
-from calidar.strips.unevenness_length import estimate_length
 from calidar.strips.row_variance import posterior, rough_rows_variance, satterthwaite
+from calidar.strips.unevenness_length import estimate_length
 from calidar.strips.vgicp_kernels import cell_keys, near_cells, neighbourhood_moments, xy_bounds
 from calidar.strips.vgicp_knn import GridKnn
 
