@@ -11,7 +11,8 @@ metres by the CRS's horizontal unit (a file in US feet, e.g. pdal_autzen, is sca
         FILE.laz … [--classes 2] [--rows 2000] [--centres 20000] [--neighbours 12]
 
 One line per file and flight line: points, median neighbourhood radius (m), ℓ (m) and its 95 %
-range, σ_u, σ_e (mm), rows used, CPU s of the fit.
+range, σ_u, σ_e (mm), rows used, CPU s of the fit, its maximum log L (``--kernel exponential``:
+the same rows under an exponential R, to compare).
 
     python benchmarks/unevenness_length.py --mc RUN.jsonl …
 
@@ -29,7 +30,7 @@ from pathlib import Path
 import laspy
 import numpy as np
 
-from calidar.strips.unevenness_length import estimate_length
+from calidar.strips.unevenness_length import KERNELS, estimate_length
 from calidar.strips.vgicp import VgicpSettings
 from calidar.strips.vgicp_planes import local_planes
 
@@ -46,7 +47,7 @@ def _metres(las) -> float:
 
 
 def fit_line(points: np.ndarray, n_centres: int, max_rows: int, quantile: float,
-             k: int = 0) -> dict:
+             k: int = 0, kernel: str = "gaussian") -> dict:
     """ℓ fit on one flight line's ``points`` (N, 3) m, neighbourhoods of ``k`` points (0:
     VGICP's ``num_neighbors``)."""
     s = VgicpSettings()
@@ -59,9 +60,9 @@ def fit_line(points: np.ndarray, n_centres: int, max_rows: int, quantile: float,
     keep = (planes.variation < s.max_surface_variation) & (planes.spread >= s.min_spread)
     clock = time.process_time()
     fit = estimate_length(points[planes.index[keep]], planes.centroid[keep],
-                          planes.eigvec[keep], quantile, max_rows)
+                          planes.eigvec[keep], quantile, max_rows, kernel)
     return {"radius_m": float(np.median(planes.distance[keep, -1])), "rows_kept": int(keep.sum()),
-            "cpu_s": time.process_time() - clock} | fit.to_dict()
+            "cpu_s": time.process_time() - clock, "loglik": fit.loglik} | fit.to_dict()
 
 
 def mc_summary(path: Path) -> str:
@@ -87,6 +88,8 @@ def main() -> None:
     ap.add_argument("--quantile", type=float, default=VgicpSettings().unevenness_quantile)
     ap.add_argument("--neighbours", type=int, default=0,
                     help="points a neighbourhood (0: VGICP's num_neighbors)")
+    ap.add_argument("--kernel", default="gaussian", choices=sorted(KERNELS),
+                    help="R(d) (exponential: to compare the maximum log L on the same rows)")
     ap.add_argument("--mc", action="store_true", help="the files are Monte-Carlo JSON lines")
     args = ap.parse_args()
     if args.mc:
@@ -94,7 +97,7 @@ def main() -> None:
         for path in args.files:
             print(mc_summary(path))
         return
-    print("file | line | points | radius m | ℓ m (95 %) | σ_u mm | σ_e mm | rows | CPU s")
+    print("file | line | points | radius m | ℓ m (95 %) | σ_u mm | σ_e mm | rows | CPU s | log L")
     for path in args.files:
         las = laspy.read(path)
         xyz = np.column_stack([las.x, las.y, las.z]) * _metres(las)
@@ -103,11 +106,13 @@ def main() -> None:
             pts = xyz[keep & (las.point_source_id == line)]
             if len(pts) < 100:
                 continue
-            f = fit_line(pts, args.centres, args.rows, args.quantile, args.neighbours)
+            f = fit_line(pts, args.centres, args.rows, args.quantile, args.neighbours,
+                         args.kernel)
             lo, hi = f["length_range_m"]
             print(f"{path.name} | {line} | {len(pts)} | {f['radius_m']:.2f} | {f['length_m']:.2f} "
                   f"({lo:.2f}–{hi:.2f}) | {1e3 * f['sigma_u_m']:.1f} | {1e3 * f['sigma_e_m']:.1f}"
-                  f" | {f['rows']} of {f['rows_kept']} | {f['cpu_s']:.2f}", flush=True)
+                  f" | {f['rows']} of {f['rows_kept']} | {f['cpu_s']:.2f} | {f['loglik']:.1f}",
+                  flush=True)
 
 
 if __name__ == "__main__":

@@ -37,6 +37,10 @@ import numpy as np
 LENGTHS_M = np.geomspace(0.25, 16.0, 13)  #: ℓ's grid, m (2^(1/2) apart)
 RATIOS = np.concatenate([[0.0], np.geomspace(1e-3, 1e5, 33)])  #: τ = σ_u²/σ_e²'s grid
 HALF_CHI2 = 1.92  #: χ²₁(0.95)/2, the profile likelihood's 95 % range
+#: R(d) of the fit: the Gaussian one :mod:`calidar.strips.row_sampling` uses; the exponential
+#: (e-folding length ℓ) only to compare the two models' likelihoods on the same rows
+KERNELS = {"gaussian": lambda d2, length: np.exp(-d2 / (2.0 * length**2)),
+           "exponential": lambda d2, length: np.exp(-np.sqrt(d2) / length)}
 
 
 @dataclass(frozen=True)
@@ -48,6 +52,7 @@ class UnevennessFit:
     sigma_u_m: float
     sigma_e_m: float
     rows: int
+    loglik: float = 0.0  #: the maximum of log L (the module docstring), to compare models
 
     def to_dict(self) -> dict:
         return {"length_m": self.length_m, "length_range_m": list(self.length_range_m),
@@ -62,10 +67,11 @@ def residual_basis(xy: np.ndarray, z: np.ndarray) -> tuple[np.ndarray, np.ndarra
     return N, (np.swapaxes(N, 1, 2) @ z[:, :, None])[:, :, 0]
 
 
-def _profile(d2: np.ndarray, N: np.ndarray, v: np.ndarray, length_m: float) -> tuple:
+def _profile(d2: np.ndarray, N: np.ndarray, v: np.ndarray, length_m: float,
+             kernel: str = "gaussian") -> tuple:
     """log L over ``RATIOS`` at ℓ = ``length_m`` (module docstring) for the rows' squared
-    in-plane distances ``d2`` (M, k, k) m², and the rows' ŝ (M, T) m²."""
-    S = np.swapaxes(N, 1, 2) @ np.exp(-d2 / (2.0 * length_m**2)) @ N
+    in-plane distances ``d2`` (M, k, k) m², and the rows' ŝ (M, T) m²; R from ``KERNELS``."""
+    S = np.swapaxes(N, 1, 2) @ KERNELS[kernel](d2, length_m) @ N
     lam, U = np.linalg.eigh(S)
     c = (np.swapaxes(U, 1, 2) @ v[:, :, None])[:, :, 0] ** 2
     scale = 1.0 + RATIOS[None, None, :] * np.maximum(lam, 0.0)[:, :, None]  # (M, n, T)
@@ -88,7 +94,8 @@ def _rough_rows(b_rows: np.ndarray, centroid: np.ndarray, eigvec: np.ndarray, qu
 
 
 def estimate_length(b_rows: np.ndarray, centroid: np.ndarray, eigvec: np.ndarray,
-                    quantile: float = 0.5, max_rows: int = 300) -> UnevennessFit:
+                    quantile: float = 0.5, max_rows: int = 300,
+                    kernel: str = "gaussian") -> UnevennessFit:
     """ℓ (m) and σ_u, σ_e (m) of the surface under b's neighbourhoods ``b_rows`` (M, k, 3) m,
     their planes through ``centroid`` (M, 3) m along ``eigvec`` (M, 3, 3; column 0 the normal):
     the module docstring's profile likelihood over the rows of scatter above ``quantile``, on
@@ -98,11 +105,11 @@ def estimate_length(b_rows: np.ndarray, centroid: np.ndarray, eigvec: np.ndarray
         return UnevennessFit(0.0, (0.0, 0.0), 0.0, 0.0, len(z))
     N, v = residual_basis(xy, z)
     d2 = np.sum((xy[:, :, None, :] - xy[:, None, :, :]) ** 2, axis=-1)
-    fits = {i: _profile(d2, N, v, LENGTHS_M[i]) for i in range(0, len(LENGTHS_M), 2)}
+    fits = {i: _profile(d2, N, v, LENGTHS_M[i], kernel) for i in range(0, len(LENGTHS_M), 2)}
     best = max(fits, key=lambda i: fits[i][0].max())
     for i in (best - 1, best + 1):
         if 0 <= i < len(LENGTHS_M):
-            fits[i] = _profile(d2, N, v, LENGTHS_M[i])
+            fits[i] = _profile(d2, N, v, LENGTHS_M[i], kernel)
     i = max(fits, key=lambda i: fits[i][0].max())
     j = int(np.argmax(fits[i][0]))
     top = fits[i][0][j]
@@ -110,4 +117,4 @@ def estimate_length(b_rows: np.ndarray, centroid: np.ndarray, eigvec: np.ndarray
     tau, s = float(RATIOS[j]), float(np.median(fits[i][1][:, j]))
     span = (float(min(inside)), float(max(inside)))
     return UnevennessFit(0.0 if tau == 0.0 else float(LENGTHS_M[i]), span, float(np.sqrt(tau * s)),
-                         float(np.sqrt(s)), len(z))
+                         float(np.sqrt(s)), len(z), float(top))
