@@ -66,6 +66,14 @@ def test_white_noise_reads_white():
     assert fit.sigma_u_m < 0.3 * fit.sigma_e_m
 
 
+def test_the_likelihood_tells_the_models_apart():
+    """On a Gaussian-correlated surface the Gaussian R's maximum log L beats the exponential's
+    on the same rows (the benchmark's model comparison on real strips rests on it)."""
+    rows = _neighbourhoods(2.0, 3.0, 0.03, 0.3, seed=5)
+    gauss, expo = (estimate_length(*rows, kernel=k) for k in ("gaussian", "exponential"))
+    assert gauss.loglik > expo.loglik + 10.0
+
+
 def test_grid_spans_the_brief():
     assert LENGTHS_M[0] == pytest.approx(0.25) and LENGTHS_M[-1] == pytest.approx(16.0)
 
