@@ -118,7 +118,9 @@ def survey(seed: int, methods: list[str], vegetation: float, scale: tuple, varia
                              "outer_iterations": len(result.outer), "calibration_cpu_s": cpu,
                              "level": sol.extra.get("trajectory_accuracy_estimate"),
                              "covariance": sol.extra.get("covariance"),
-                             "trajectory_shape": list(cal.trajectory.shape)})
+                             "trajectory_shape": list(cal.trajectory.shape),
+                             "unevenness": [p["unevenness"] for p in sol.extra.get("strips", {})
+                                            .get("pairs", []) if "unevenness" in p]})
         if cache is None:
             shutil.rmtree(folder, ignore_errors=True)
     return rows

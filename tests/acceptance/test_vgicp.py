@@ -109,6 +109,20 @@ def test_correspondences_bring_residuals_to_noise(strips, kind):
         assert np.median(np.linalg.norm(before.reshape(-1, 3), axis=1)) > 2 * np.median(d)
 
 
+def test_the_unevenness_length_is_estimated_unless_set(strips):
+    """ℓ read from b's neighbourhoods by default (issue 26, thirteenth session), recorded on the
+    correspondences; a number set in the settings is used as it is, nothing recorded."""
+    a, b = strips
+    c = match_pair_vgicp(1, a, 2, b, VgicpSettings(max_pairs=1500))
+    fit = c.unevenness
+    assert fit is not None and 10 <= fit["rows"] <= 300 and fit["sigma_e_m"] > 0
+    low, high = fit["length_range_m"]
+    assert fit["length_m"] == 0.0 or low <= fit["length_m"] <= high
+    fixed = match_pair_vgicp(1, a, 2, b, VgicpSettings(max_pairs=1500, unevenness_length_m=2.0))
+    assert fixed.unevenness is None and fixed.n_obs == c.n_obs
+    assert not np.allclose(fixed.sigma_m, c.sigma_m)
+
+
 def test_point_to_plane_rows_carry_no_curvature_error():
     """On a noiseless curved surface (curvature up to 0.05 /m) sampled twice at different
     densities, the residuals at the truth do not follow the curvature: both sides average the

@@ -43,6 +43,9 @@ class Correspondences:
     #: rows use is then counted once (:mod:`calidar.strips.shared_patches`, issue 26)
     side_variance: np.ndarray | None = None
     side_dof: np.ndarray | None = None
+    #: VGICP's unevenness ℓ, σ_u, σ_e read from the pair's points, when estimated
+    #: (:meth:`calidar.strips.unevenness_length.UnevennessFit.to_dict`)
+    unevenness: dict | None = None
 
     def __post_init__(self):
         if self.A.shape[0] != self.B.shape[0]:

@@ -228,7 +228,8 @@ class Run:
             else:
                 corrs.append(c if widened else
                              _to_strip_columns(c, o, len(self.by_id[o.a]), len(self.by_id[o.b])))
-                pairs.append({"a": o.a, "b": o.b, "n_obs": c.n_obs})
+                pairs.append({"a": o.a, "b": o.b, "n_obs": c.n_obs}
+                             | ({} if c.unevenness is None else {"unevenness": c.unevenness}))
         return corrs, pairs, skipped
 
     def solve(self, corrs: list[Correspondences], params: ParameterSet, step_in_sigma: float,

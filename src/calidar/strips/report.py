@@ -97,6 +97,23 @@ def correction_table(sec, result: CalibrationResult) -> None:
               formats=[None, "d", ".1f", ".1f", ".2f", ".2f"])
 
 
+def unevenness_text(pairs: list[dict]) -> str:
+    """VGICP's unevenness length ℓ as its pairs estimated it (``pairs``' "unevenness",
+    :mod:`calidar.strips.unevenness_length`), one sentence; "" when none was estimated."""
+    fits = [p["unevenness"] for p in pairs if p.get("unevenness")]
+    if not fits:
+        return ""
+    length = np.array([f["length_m"] for f in fits])
+    rows = sum(f["rows"] for f in fits)
+    sigma_u = np.median([f["sigma_u_m"] for f in fits]) * 1e3
+    sigma_e = np.median([f["sigma_e_m"] for f in fits]) * 1e3
+    return (f"VGICP's rows: unevenness length ℓ = {np.median(length):.2g} m (median over "
+            f"{len(fits)} pairs, {length.min():.2g}–{length.max():.2g} m; 0: white) estimated "
+            f"from {rows:,} rows of b's neighbourhoods, σ_u {sigma_u:.1f} mm over σ_e "
+            f"{sigma_e:.1f} mm (the rough rows' median); the rows' σ count the unevenness as "
+            "the two strips sample it.")
+
+
 def add_report_section(report: Report, result: CalibrationResult,
                        truth: dict[str, float] | None = None,
                        quality: list[QualityStage] | None = None, title: str | None = None,
@@ -115,6 +132,9 @@ def add_report_section(report: Report, result: CalibrationResult,
              f"{len(result.outer)} outer iterations (re-matching [1]), mean correspondence "
              "distance " + distances + " mm."
              + (f" The strips' points: {classes}." if classes else ""))
+    uneven = unevenness_text(result.pairs)
+    if uneven:
+        sec.text(uneven)
     if result.trajectory_model is not None and result.corrections:
         m = result.trajectory_model
         sec.text("Trajectory errors estimated as corrections per strip [2]: a shift and a "

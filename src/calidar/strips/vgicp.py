@@ -101,8 +101,11 @@ class VgicpSettings:
     max_centroid_offset: float = 0.35
     #: a-priori σ of one residual; None: from b's plane scatter (point_to_plane) or 5 cm
     sigma_m: float | None = None
-    #: added to the rows' σ in quadrature, every row alike (UAV rows fit 0 with the roughness term)
-    noise_floor_m: float = 0.002
+    #: added to the rows' σ in quadrature, every row alike (UAV rows fit 0 with the roughness term;
+    #: with ``unevenness_length_m`` the UAV cross-line rows at the truth read RMS z 0.92–1.02 by σ
+    #: quartile with 2 mm, 0.98–1.06 with 1 mm, 1.00–1.08 with 0: docs/validation.md, issue 26,
+    #: thirteenth session)
+    noise_floor_m: float = 0.001
     #: point_to_plane: κ of the rough rows' model error κ·ρ² in σ², ρ² a row's scatter beyond the
     #: pair's ``roughness_quantile`` (:func:`calidar.strips.row_variance.rough_rows_variance`).
     #: UAV rows fit 0.9 with ``noise_floor_m`` 0 (variance components, 6 simulated surveys), which
@@ -110,6 +113,12 @@ class VgicpSettings:
     #: 0): so 0 by default (docs/validation.md, issue 26, ninth session)
     roughness_factor: float = 0.0
     roughness_quantile: float = 0.75
+    #: point_to_plane: correlation length (m) of the surface's unevenness, R(d) = exp(−d²/2ℓ²),
+    #: with which a row's scatter beyond the pair's ``unevenness_quantile`` is recounted as a's
+    #: ball and b's plane sample it (:mod:`calidar.strips.row_sampling`); 0: taken as white;
+    #: None: estimated per pair from b's neighbourhoods (:mod:`calidar.strips.unevenness_length`)
+    unevenness_length_m: float | None = None
+    unevenness_quantile: float = 0.5
     #: point_to_plane: b's scatter in ``max_scatter_ratio``'s test at least this (m)
     min_scatter_m: float = 0.002
     num_threads: int = 1  #: small_gicp threads (1 is bit-reproducible; see docs)
@@ -123,6 +132,10 @@ class VgicpSettings:
             raise ValueError(f"roughness_factor must be ≥ 0, got {self.roughness_factor}")
         if not 0.0 <= self.roughness_quantile <= 1.0:
             raise ValueError(f"roughness_quantile must be 0 … 1, got {self.roughness_quantile}")
+        if self.unevenness_length_m is not None and self.unevenness_length_m < 0.0:
+            raise ValueError(f"unevenness_length_m must be ≥ 0, got {self.unevenness_length_m}")
+        if not 0.0 <= self.unevenness_quantile <= 1.0:
+            raise ValueError(f"unevenness_quantile must be 0 … 1, got {self.unevenness_quantile}")
         if not 0.0 <= self.min_inlier_fraction <= 1.0:
             raise ValueError(f"min_inlier_fraction must be 0 … 1, got {self.min_inlier_fraction}")
 
@@ -350,9 +363,9 @@ def match_pair_vgicp(strip_a_id: int, points_a: np.ndarray, strip_b_id: int, poi
     index, distance = nearest(b_near, ov_a[cand], k, settings.num_threads, tree_b)
     keep = distance[:, 0] < threshold
     sigma, dof = (0.05 if settings.sigma_m is None else settings.sigma_m), np.inf
-    normal = None
+    normal = fit = None
     if settings.kind == "point_to_plane" and keep.any():  # b's planes about their centroids
-        planes, A, near_a, keep, normal, sigma, dof = plane_rows(
+        planes, A, near_a, keep, normal, sigma, dof, fit = plane_rows(
             neighbourhood_centroids(b_near, index), b_near, tree_b, ov_a, keep, n_a / n_b, settings)
         index = planes.index
     n_pairs = int(keep.sum())
@@ -373,4 +386,4 @@ def match_pair_vgicp(strip_a_id: int, points_a: np.ndarray, strip_b_id: int, poi
                       shape=(n_pairs, points_b.shape[0]))
     clock.lap("correspond")
     return Correspondences(strip_a_id, strip_b_id, A, B, normal, sigma_m=sigma, method="vgicp",
-                           dof=dof)
+                           dof=dof, unevenness=None if fit is None else fit.to_dict())

@@ -26,7 +26,9 @@ import small_gicp
 
 from calidar.strips.correspond import moderated_variance
 from calidar.strips.pca import eigh3
+from calidar.strips.row_sampling import sampling_cofactors, unevenness_variance
 from calidar.strips.row_variance import posterior, rough_rows_variance, satterthwaite
+from calidar.strips.unevenness_length import estimate_length
 from calidar.strips.vgicp_kernels import cell_keys, near_cells, neighbourhood_moments, xy_bounds
 from calidar.strips.vgicp_knn import GridKnn
 
@@ -211,7 +213,9 @@ def plane_rows(centre: np.ndarray, b_near: np.ndarray, tree_b, ov_a: np.ndarray,
     a's overlap points (m); density_ratio: a's points per b's; settings:
     :class:`~calidar.strips.vgicp.VgicpSettings`. Returns b's planes found again, the averaging
     matrix of a's balls over ``ov_a[near_a]``, near_a, the rows kept, their normals, σ (m;
-    ``settings.sigma_m`` when set) and the degrees of freedom of σ² (inf when set).
+    ``settings.sigma_m`` when set), the degrees of freedom of σ² (inf when set) and the
+    unevenness's fit (:class:`~calidar.strips.unevenness_length.UnevennessFit`; None unless ℓ is
+    estimated: ``unevenness_length_m`` None).
     """
     k = settings.num_neighbors  # b's k nearest again, about their centroid (the module docstring)
     planes = local_planes(b_near, centre, k, settings.num_threads, tree_b)
@@ -232,24 +236,36 @@ def plane_rows(centre: np.ndarray, b_near: np.ndarray, tree_b, ov_a: np.ndarray,
     var_b = np.zeros(keep.size)
     var_b[keep] = moderated_variance(planes.scatter[keep] ** 2, k - 3)
     keep &= var_a <= settings.max_scatter_ratio**2 * np.maximum(var_b, settings.min_scatter_m**2)
-    sigma, dof = settings.sigma_m, np.inf
+    sigma, dof, fit = settings.sigma_m, np.inf, None
     if sigma is None:  # a's mean with a's scatter, b's plane where a's mean lies with b's
         tilt = _tilt_cofactor(A[keep], a_near, mean_a[keep], planes.eigval[keep],
                               planes.eigvec[keep])
+        uneven, b_rows, length = None, b_near[planes.index[keep]], settings.unevenness_length_m
+        if length is None:  # ℓ read from b's neighbourhoods
+            fit = estimate_length(b_rows, planes.centroid[keep], planes.eigvec[keep],
+                                  settings.unevenness_quantile)
+            length = fit.length_m
+        if length > 0:  # how a's ball and b's plane sample the unevenness
+            uneven = sampling_cofactors(A[keep], a_near, b_rows, planes.centroid[keep],
+                                        planes.eigval[keep], planes.eigvec[keep], length)
         sigma, dof = row_sigma(var_a[keep], count[keep], planes.scatter[keep] ** 2, k - 3,
-                               planes.leverage(mean_a)[keep], settings, tilt)
-    return planes, A, near_a, keep, planes.normal[keep], sigma, dof
+                               planes.leverage(mean_a)[keep], settings, tilt, uneven)
+    return planes, A, near_a, keep, planes.normal[keep], sigma, dof, fit
 
 
 def row_sigma(var_a: np.ndarray, count_a: np.ndarray, var_b: np.ndarray, dof_b: float,
               leverage: np.ndarray, settings,
-              tilt_a: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+              tilt_a: np.ndarray | None = None,
+              uneven: tuple | None = None) -> tuple[np.ndarray, np.ndarray]:
     """σ (m) of a pair's rows and the degrees of freedom of σ², from each side's raw scatter
     variance along b's normal (m²; a's about its mean from ``count_a`` points, b's about its plane
     with ``dof_b``), each side's posterior under a prior fitted over the pair's rows, b's
     plane's ``leverage`` h at a's mean and a's ``tilt_a`` cofactor t (:func:`_tilt_cofactor`;
     None: 0): σ² = s_a²/n_a + s_b²·max(h − t/n_a, 0) + κ·ρ² + ``noise_floor_m``² — s_a² holds
-    b's normal's error, τ_b²·t, which a's mean does not (see the module docstring)."""
+    b's normal's error, τ_b²·t, which a's mean does not (see the module docstring) — plus, with
+    ``uneven`` (Q, g_a, g_b of :func:`calidar.strips.row_sampling.sampling_cofactors`), the
+    unevenness's part recounted as the two sides sample it
+    (:func:`calidar.strips.row_sampling.unevenness_variance`)."""
     var_a, nu_a = posterior(var_a, count_a - 1)
     var_b, nu_b = posterior(var_b, dof_b)
     rough, nu_rough = rough_rows_variance(var_a, nu_a, var_b, nu_b, settings.roughness_factor,
@@ -258,4 +274,11 @@ def row_sigma(var_a: np.ndarray, count_a: np.ndarray, var_b: np.ndarray, dof_b: 
         leverage = np.maximum(leverage - tilt_a / count_a, 0.0)
     parts = [var_a / count_a, var_b * leverage, rough,
              np.full(nu_a.size, settings.noise_floor_m**2)]
-    return np.sqrt(np.sum(parts, axis=0)), satterthwaite(parts, [nu_a, nu_b, nu_rough, np.inf])
+    dofs = [nu_a, nu_b, nu_rough, np.inf]
+    if uneven is not None:
+        extra, nu_extra = unevenness_variance(var_a, count_a - 1.0, var_b, dof_b,
+                                              parts[0] + parts[1], uneven,
+                                              settings.unevenness_quantile)
+        parts.append(extra)
+        dofs.append(nu_extra)
+    return np.sqrt(np.sum(parts, axis=0)), satterthwaite(parts, dofs)
