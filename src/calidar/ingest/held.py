@@ -58,6 +58,16 @@ class HeldPoints:
                 yield {name: np.fromfile(f, dtype, n * int(np.prod(shape))).reshape((n, *shape))
                        for name, (dtype, shape) in fields.items()}
 
+    def release(self) -> None:
+        """Every file removed (in a thread: :func:`calidar.outputs.remove_soon`; the folder
+        stays): once the last pass has read them. Nothing can be read afterwards."""
+        from calidar.outputs import remove_soon
+
+        with self._lock:
+            files, self.files = self.files, {}
+        for path, _, _ in files.values():
+            remove_soon(path)
+
     @property
     def nbytes(self) -> int:
         """Bytes written."""
@@ -100,6 +110,15 @@ class HeldFiles:
 
     def close(self) -> None:
         self._remove()
+
+    def release(self) -> None:
+        """The folder removed in a thread (:func:`calidar.outputs.remove_soon`), beside what the
+        run does next, once the last pass has read it; nothing can be read afterwards."""
+        from calidar.outputs import remove_soon
+
+        if self._remove.detach() is not None:
+            self.complete.clear()
+            remove_soon(self.folder)
 
     def add(self, path: Path, chunk, t: np.ndarray, scales, offsets) -> bool:
         """A chunk (LasPoints with STRIP_FIELDS) of ``path`` and its times; False (nothing kept)

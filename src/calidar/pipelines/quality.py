@@ -94,6 +94,7 @@ def measure(paths, config: QualityConfig = QualityConfig()):
     (:mod:`calidar.ingest.held`)."""
     from calidar.io.las import las_file_crs, las_header
     from calidar.ingest.held import HeldPoints
+    from calidar.outputs import finish_removals
     from calidar.ingest.lines import index_flight_lines
     from calidar.strips.quality import SwathAccumulator, overlap_cell, overlap_plan
     from calidar.strips.distribute import IN_PROCESS_THREADS
@@ -134,9 +135,11 @@ def measure(paths, config: QualityConfig = QualityConfig()):
                     acc.add(int(i), xyz.take(np.flatnonzero(ids == i), axis=0), selections[p])
         for i in index.ids:  # lines without a selected point: named in the notes
             acc.add(i, np.zeros((0, 3)))
+        held.release()  # read: its files go beside the differences
         # the pairs in threads
         results, notes = checked_differences(acc, settings, names, IN_PROCESS_THREADS)
         precisions = line_precisions(acc, settings)
+        finish_removals()
     from calidar.ingest.plausibility import heights_notes
 
     notes = [*index.notes, *notes, *heights_notes(crs, options.geoid_undulation_m, relative=True)]
