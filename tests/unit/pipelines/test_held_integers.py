@@ -80,3 +80,20 @@ def test_scaled_integers_equal_the_axis_by_axis_numpy_scaling():
     floats = [np.array([1.0, 2.0])] * 3  # not integers: the numpy way, the same values
     np.testing.assert_array_equal(scaled_integers(*floats, scales, offsets),
                                   _scaled(np.stack(floats, axis=1), scales, offsets))
+
+
+def test_held_points_released_after_their_last_read(tmp_path):
+    """HeldPoints.release (calidar quality, once the held chunks are read): every file removed by
+    a thread (the folder stays: the spill of cell moments is beside them); nothing read after."""
+    from calidar import outputs
+    from calidar.ingest.held import HeldPoints
+
+    held = HeldPoints(tmp_path)
+    held.add("a", x=np.arange(5), t=np.ones(5))
+    held.add("b", x=np.arange(3), t=np.ones(3))
+    (tmp_path / "moments.bin").write_bytes(b"1")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["held_0.bin", "held_1.bin", "moments.bin"]
+    held.release()
+    outputs.finish_removals()
+    assert [p.name for p in tmp_path.iterdir()] == ["moments.bin"]
+    assert list(held.chunks("a")) == [] and held.nbytes == 0
