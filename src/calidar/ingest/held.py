@@ -12,6 +12,7 @@ much as reading those bytes back.
 from __future__ import annotations
 
 from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import replace
 from pathlib import Path
 
@@ -58,21 +59,30 @@ class HeldPoints:
                 yield {name: np.fromfile(f, dtype, n * int(np.prod(shape))).reshape((n, *shape))
                        for name, (dtype, shape) in fields.items()}
 
-    def release(self) -> None:
-        """Every file removed (in a thread: :func:`calidar.outputs.remove_soon`; the folder
-        stays): once the last pass has read them. Nothing can be read afterwards."""
-        from calidar.outputs import remove_soon
-
-        with self._lock:
-            files, self.files = self.files, {}
-        for path, _, _ in files.values():
-            remove_soon(path)
-
     @property
     def nbytes(self) -> int:
         """Bytes written."""
         return sum(sum(d.itemsize * int(np.prod(s)) for d, s in fields.values()) * sum(sizes)
                    for _, fields, sizes in self.files.values())
+
+
+@contextmanager
+def spill_folder(prefix: str) -> Iterator[Path]:
+    """A temporary folder for a command's held points and spills, registered as the run's
+    temporaries are (an interruption removes it, :func:`calidar.outputs.remove_temporaries`):
+    removed at once when the block fails, in a thread beside what the run does next when it
+    ends (:func:`calidar.outputs.remove_soon`: unlinking large files is the kernel's work)."""
+    import tempfile
+
+    from calidar import outputs
+
+    folder = outputs._temporary(lambda: Path(tempfile.mkdtemp(prefix=prefix)), "held points")
+    try:
+        yield folder
+    except BaseException:
+        _remove_folder(str(folder))
+        raise
+    outputs.remove_soon(folder)
 
 
 #: what the strip ingest keeps of a point: the stored coordinates, the time in the trajectory's

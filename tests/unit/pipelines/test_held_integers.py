@@ -82,18 +82,28 @@ def test_scaled_integers_equal_the_axis_by_axis_numpy_scaling():
                                   _scaled(np.stack(floats, axis=1), scales, offsets))
 
 
-def test_held_points_released_after_their_last_read(tmp_path):
-    """HeldPoints.release (calidar quality, once the held chunks are read): every file removed by
-    a thread (the folder stays: the spill of cell moments is beside them); nothing read after."""
-    from calidar import outputs
-    from calidar.ingest.held import HeldPoints
 
-    held = HeldPoints(tmp_path)
-    held.add("a", x=np.arange(5), t=np.ones(5))
-    held.add("b", x=np.arange(3), t=np.ones(3))
-    (tmp_path / "moments.bin").write_bytes(b"1")
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["held_0.bin", "held_1.bin", "moments.bin"]
-    held.release()
+def test_spill_folder_removed_beside_what_follows_or_at_once_on_failure(monkeypatch):
+    """calidar quality's folder of held points and spilled moments: a registered temporary while
+    the block runs (an interruption removes it); when the block ends, removed by a thread
+    (finish_removals waits for it); when it fails, removed before the error goes on."""
+    import threading
+
+    import pytest
+
+    from calidar import outputs
+    from calidar.ingest.held import HeldPoints, spill_folder
+
+    go, real = threading.Event(), outputs._remove
+    monkeypatch.setattr(outputs, "_remove", lambda tmp: go.wait(30) and real(tmp))
+    with spill_folder("calidar-test-") as folder:
+        HeldPoints(folder).add("a", x=np.arange(5))
+        assert str(folder) in outputs._TEMPORARIES
+    assert folder.exists() and [t.name for t in outputs._REMOVALS] == ["calidar-remove"]
+    go.set()
     outputs.finish_removals()
-    assert [p.name for p in tmp_path.iterdir()] == ["moments.bin"]
-    assert list(held.chunks("a")) == [] and held.nbytes == 0
+    assert not folder.exists() and str(folder) not in outputs._TEMPORARIES
+    with pytest.raises(KeyError), spill_folder("calidar-test-") as failed:
+        raise KeyError("x")
+    assert not failed.exists() and str(failed) not in outputs._TEMPORARIES
+    assert outputs._REMOVALS == []
