@@ -322,7 +322,7 @@ def remove_soon(tmp: str | os.PathLike) -> None:
         _TEMPORARIES.pop(str(tmp), None)
 
     thread = threading.Thread(target=remove, name="calidar-remove")
-    _REMOVALS.append(thread)
+    _REMOVALS[:] = [t for t in _REMOVALS if t.is_alive()] + [thread]
     thread.start()
 
 

@@ -97,6 +97,7 @@ def test_released_held_folder_goes_in_a_thread_registered_until_gone(monkeypatch
     from calidar import outputs
     from calidar.ingest.held import HeldFiles
 
+    outputs.finish_removals()  # an earlier test's (a library call leaves them to run)
     go, real = threading.Event(), outputs._remove
     monkeypatch.setattr(outputs, "_remove", lambda tmp: go.wait(30) and real(tmp))
     held = HeldFiles()

@@ -94,6 +94,7 @@ def test_spill_folder_removed_beside_what_follows_or_at_once_on_failure(monkeypa
     from calidar import outputs
     from calidar.ingest.held import HeldPoints, spill_folder
 
+    outputs.finish_removals()  # an earlier test's (a library call leaves them to run)
     go, real = threading.Event(), outputs._remove
     monkeypatch.setattr(outputs, "_remove", lambda tmp: go.wait(30) and real(tmp))
     with spill_folder("calidar-test-") as folder:
