@@ -386,4 +386,5 @@ def match_pair_vgicp(strip_a_id: int, points_a: np.ndarray, strip_b_id: int, poi
                       shape=(n_pairs, points_b.shape[0]))
     clock.lap("correspond")
     return Correspondences(strip_a_id, strip_b_id, A, B, normal, sigma_m=sigma, method="vgicp",
-                           dof=dof, unevenness=None if fit is None else fit.to_dict())
+                           dof=dof, unevenness=None if fit is None else fit.to_dict(),
+                           unevenness_surface=None if fit is None else fit.surface)
