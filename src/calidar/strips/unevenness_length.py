@@ -23,10 +23,10 @@ pairs, which the planes' residuals are not). Rows: those of b's scatter above th
 ``max_rows`` of them evenly taken (300: ≈ 25 ms a fit). A survey's ℓ pools its pairs: the sum
 of their log L over ℓ, each pair's τ profiled out (:func:`pooled_fit`). τ = 0 (no correlated
 part) gives ℓ = 0, the white formula; ℓ below the points' spacing needs no such rule (R → I
-there: the sampling cofactors fall to the white formula's by themselves). ℓ beyond the neighbourhoods' radius is
-read long (the points see the unevenness's curvature σ_u²/ℓ⁴ mostly; 5 m on 3 m discs reads
-8–16 m), where the rows' Q/ḡ tends to a limit. Measured: docs/validation.md, "ℓ estimated
-from the data" and "ℓ pooled over the survey".
+there: the sampling cofactors fall to the white formula's by themselves). ℓ beyond the
+neighbourhoods' radius is read long (the points see the unevenness's curvature σ_u²/ℓ⁴ mostly;
+5 m on 3 m discs reads 8–16 m), where the rows' Q/ḡ tends to a limit. Measured:
+docs/validation.md, "ℓ estimated from the data" and "ℓ pooled over the survey".
 """
 
 from __future__ import annotations
