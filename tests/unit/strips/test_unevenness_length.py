@@ -122,3 +122,39 @@ def test_one_pair_pooled_is_its_own_fit():
     rows = _neighbourhoods(2.0, 3.0, 0.03, 0.3, seed=6, n_rows=200)
     one, own = pooled_fit([pair_surface(*rows)]), estimate_length(*rows)
     assert one == own and own.surface is not None and one.length_m > 0
+
+
+def test_the_run_pools_the_first_pass_and_fixes_the_matcher():
+    """After the first matching pass the run pools the pairs' surfaces, fixes the pooled ℓ in the
+    VGICP matcher for the later passes (no fit then) and keeps each pair's own fit for the
+    record (solution.json's pairs) with the pooled one beside it."""
+    import scipy.sparse as sp
+
+    from calidar.strips.correspond import Correspondences
+    from calidar.strips.matchers import Vgicp
+    from calidar.strips.outer_loop import Run
+    from calidar.strips.overlap import Overlap
+
+    run = Run.__new__(Run)
+    run.matcher, run.unevenness, run.pair_fits = Vgicp(), None, {}
+    run.settings = type("S", (), {"min_correspondences": 1})()
+    corrs, surfaces = [], []
+    for b, seed in ((2, 20), (3, 21), (4, 22)):
+        fit = estimate_length(*_neighbourhoods(2.0, 3.0, 0.03, 0.03, seed=seed, n_rows=60))
+        one = sp.csr_matrix(np.ones((1, 1)))
+        corrs.append(Correspondences(1, b, one, one, np.array([[0.0, 0.0, 1.0]]),
+                                     unevenness=fit.to_dict(), unevenness_surface=fit.surface))
+        surfaces.append(fit.surface)
+    run._pool_unevenness(corrs)
+    pooled = pooled_fit(surfaces)
+    assert run.matcher.settings.unevenness_length_m == pooled.length_m > 0
+    assert run.unevenness == pooled.to_dict() | {"pairs": 3}
+    later = [Correspondences(1, b, c.A, c.B, c.normal) for b, c in zip((2, 3, 4), corrs)]
+    run.overlaps = [Overlap.__new__(Overlap) for _ in later]
+    for o, b in zip(run.overlaps, (2, 3, 4)):
+        object.__setattr__(o, "a", 1)
+        object.__setattr__(o, "b", b)
+    _, pairs, _ = run._usable(later, widened=True)
+    assert [p["unevenness"] for p in pairs] == [c.unevenness for c in corrs]
+    run._pool_unevenness(later)  # nothing to pool: kept
+    assert run.matcher.settings.unevenness_length_m == pooled.length_m
