@@ -40,15 +40,17 @@ from numba import njit
 
 @njit(cache=True, nogil=True)
 def _row_cofactors(indptr, indices, a_points, b_rows, centroid, eigval, eigvec,
-                   length_m):  # pragma: no cover - numba
-    """Q, g_a, g_b (M,) of :func:`sampling_cofactors`, row by row (no (M, P, Q) temporaries)."""
-    M, k = b_rows.shape[0], b_rows.shape[1]
-    q, g_a, g_b = np.empty(M), np.empty(M), np.empty(M)
+                   length_m, rows):  # pragma: no cover - numba
+    """Q, g_a, g_b of :func:`sampling_cofactors` at the ``rows``, row by row (no (M, P, Q)
+    temporaries)."""
+    k = b_rows.shape[1]
+    q, g_a, g_b = np.empty(rows.size), np.empty(rows.size), np.empty(rows.size)
     inv2l2 = 1.0 / (2.0 * length_m * length_m)
     ub = np.empty((k, 2))
     pw = np.empty(k)
     Rbb = np.empty((k, k))
-    for m in range(M):
+    for out in range(rows.size):
+        m = rows[out]
         n = indptr[m + 1] - indptr[m]
         na = float(n)
         lam0, lam1 = max(eigval[m, 1], 1e-300), max(eigval[m, 2], 1e-300)
@@ -105,30 +107,33 @@ def _row_cofactors(indptr, indices, a_points, b_rows, centroid, eigval, eigvec,
             scol += s[i] * col[i]
             for l in range(k):
                 sRs += s[i] * Rbb[i, l] * s[l]
-        q[m] = raa / (na * na) - 2.0 * rab_pw / na + pwRpw
-        g_b[m] = (k - hat_r) / (k - 3)
+        q[out] = raa / (na * na) - 2.0 * rab_pw / na + pwRpw
+        g_b[out] = (k - hat_r) / (k - 3)
         trace = na - 2.0 * rab_pred + pred_r_pred
-        g_a[m] = (trace - (raa - 2.0 * scol + sRs) / na) / max(na - 1.0, 1.0)
+        g_a[out] = (trace - (raa - 2.0 * scol + sRs) / na) / max(na - 1.0, 1.0)
     return q, g_a, g_b
 
 
 def sampling_cofactors(A: sp.csr_matrix, a_points: np.ndarray, b_rows: np.ndarray,
                        centroid: np.ndarray, eigval: np.ndarray, eigvec: np.ndarray,
-                       length_m: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Per row (M): Q = wᵀRw, g_a and g_b (module docstring; dimensionless) for a's points
+                       length_m: float, rows: np.ndarray | None = None
+                       ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per row (M; ``rows``: those row indices only): Q = wᵀRw, g_a and g_b (module docstring;
+    dimensionless) for a's points
     ``a_points`` (m) averaged by the rows of ``A`` (M, len(a_points)) and b's ``b_rows`` (M, k, 3)
     m, b's plane through ``centroid`` (M, 3) m with scatter ``eigval`` (M, 3) m² along ``eigvec``
     (M, 3, 3; column 0 the normal), R's length ``length_m`` (m): a numba kernel, row by row (a's
     ball an equal-weight mean of A's nonzeros)."""
     A = sp.csr_matrix(A)
     f = np.ascontiguousarray
+    rows = np.arange(A.shape[0]) if rows is None else rows
     return _row_cofactors(f(A.indptr, np.int64), f(A.indices, np.int64), f(a_points, float),
                           f(b_rows, float), f(centroid, float), f(eigval, float), f(eigvec, float),
-                          float(length_m))
+                          float(length_m), f(rows, np.int64))
 
 
 def unevenness_variance(var_a: np.ndarray, dof_a: np.ndarray, var_b: np.ndarray, dof_b: float,
-                        white_part: np.ndarray, cofactors: tuple,
+                        white_part: np.ndarray, cofactors,
                         quantile: float) -> tuple[np.ndarray, np.ndarray]:
     """The unevenness's share of a row's σ² beyond the white formula (m², may be negative) and
     its degrees of freedom: ρ²·Q/ḡ − (ρ²/s̄²)·``white_part`` (module docstring; with s_a ≈ s_b,
@@ -136,13 +141,18 @@ def unevenness_variance(var_a: np.ndarray, dof_a: np.ndarray, var_b: np.ndarray,
     freedom ``dof_a``, ``dof_b``, ρ² = max(0, s̄² − s_q²) with s_q² its ``quantile`` over the pair's
     rows (the noise level), ḡ the sides' g likewise weighted; ``white_part`` s_a²/n_a + s_b²·h',
     the white formula's σ², of which the rough fraction ρ²/s̄² is taken out (σ² never below the
-    noise level's white formula)."""
-    q, g_a, g_b = cofactors
-    da, db = np.asarray(dof_a, float), float(dof_b)
+    noise level's white formula). ``cofactors``: the rows' indices → their (Q, g_a, g_b)
+    (:func:`sampling_cofactors`), asked only of the rows with ρ² > 0 (the others' share is 0)."""
+    da, db = np.broadcast_to(np.asarray(dof_a, float), var_a.shape), float(dof_b)
     mean = (da * var_a + db * var_b) / (da + db)
     if mean.size == 0:
         return mean, mean.copy()
     rho2 = np.maximum(mean - float(np.quantile(mean, quantile)), 0.0)
-    g = np.maximum((da * g_a + db * g_b) / (da + db), 1e-12)
-    extra = rho2 * q / g - rho2 / np.maximum(mean, 1e-300) * white_part
+    rough = np.flatnonzero(rho2 > 0)
+    extra = np.zeros(mean.size)
+    if rough.size:
+        q, g_a, g_b = cofactors(rough)
+        g = np.maximum((da[rough] * g_a + db * g_b) / (da[rough] + db), 1e-12)
+        extra[rough] = (rho2[rough] * q / g
+                        - rho2[rough] / np.maximum(mean[rough], 1e-300) * white_part[rough])
     return extra, np.where(rho2 > 0, da + db, np.inf)

@@ -84,7 +84,7 @@ def _pair_z(kind: str, length_m: float, seed: int) -> tuple[np.ndarray, np.ndarr
     lev = np.concatenate([p[3].leverage(p[4]) for p in (parts_q, parts_r)])
     cof = tuple(np.concatenate([parts_q[6][j], parts_r[6][j]]) for j in range(3))
     sigma, _ = row_sigma(cat(1), cat(2), var_b, 9, lev, settings, cat(5),
-                         cof if length_m > 0 else None)
+                         (lambda rows: tuple(c[rows] for c in cof)) if length_m > 0 else None)
     z = np.concatenate([quiet, rough]) / sigma
     return z[: quiet.size], z[quiet.size:]
 
