@@ -116,7 +116,8 @@ class VgicpSettings:
     #: point_to_plane: correlation length (m) of the surface's unevenness, R(d) = exp(−d²/2ℓ²),
     #: with which a row's scatter beyond the pair's ``unevenness_quantile`` is recounted as a's
     #: ball and b's plane sample it (:mod:`calidar.strips.row_sampling`); 0: taken as white;
-    #: None: estimated per pair from b's neighbourhoods (:mod:`calidar.strips.unevenness_length`)
+    #: None: estimated from b's neighbourhoods (:mod:`calidar.strips.unevenness_length`): per
+    #: pair at the first matching pass, then pooled over the survey and fixed here by the run
     unevenness_length_m: float | None = None
     unevenness_quantile: float = 0.5
     #: point_to_plane: b's scatter in ``max_scatter_ratio``'s test at least this (m)
