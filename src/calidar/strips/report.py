@@ -106,12 +106,14 @@ def unevenness_text(pairs: list[dict], pooled: dict | None = None) -> str:
         return ""
     length = np.array([f["length_m"] for f in fits])
     low, high = pooled["length_range_m"]
-    return (f"VGICP's rows: unevenness length ℓ = {pooled['length_m']:.2g} m (95 % range "
-            f"{low:.2g}–{high:.2g} m; 0: white) pooled over {pooled['pairs']} pairs' "
-            f"{pooled['rows']:,} rows of b's neighbourhoods at the first matching pass and kept "
-            f"for the later ones (the pairs alone: {length.min():.2g}–{length.max():.2g} m), σ_u "
-            f"{pooled['sigma_u_m'] * 1e3:.1f} mm over σ_e {pooled['sigma_e_m'] * 1e3:.1f} mm "
-            "(the pairs' median); the rows' σ count the unevenness as the two strips sample it.")
+    return (f"VGICP's rows: the ground's unevenness correlated over ℓ = {pooled['length_m']:.2g} m "
+            f"(95 % range {low:.2g}–{high:.2g} m; 0: uncorrelated), read from the points about "
+            f"their local planes in {pooled['rows']:,} neighbourhoods of {pooled['pairs']} pairs "
+            f"at the first matching pass and kept for the later ones (each pair alone: "
+            f"{length.min():.2g}–{length.max():.2g} m), unevenness σ_u "
+            f"{pooled['sigma_u_m'] * 1e3:.1f} mm over the points' noise σ_e "
+            f"{pooled['sigma_e_m'] * 1e3:.1f} mm (the pairs' median); each row's σ counts the "
+            "unevenness as the two strips sample it.")
 
 
 def add_report_section(report: Report, result: CalibrationResult,

@@ -88,8 +88,9 @@ def test_report_names_the_estimate():
              {"a": 2, "b": 3, "unevenness": fit | {"length_m": 1.41, "rows": 300}}]
     pooled = fit | {"length_m": 2.0, "rows": 1200, "pairs": 3}
     text = unevenness_text(pairs, pooled)
-    assert "ℓ = 2 m (95 % range 1–3 m" in text and "pooled over 3 pairs' 1,200 rows" in text
-    assert "the pairs alone: 1.4–2.8 m" in text and "σ_u 40.0 mm over σ_e 30.0 mm" in text
+    assert "ℓ = 2 m (95 % range 1–3 m" in text and "1,200 neighbourhoods of 3 pairs" in text
+    assert "each pair alone: 1.4–2.8 m" in text
+    assert "σ_u 40.0 mm over the points' noise σ_e 30.0 mm" in text
     assert unevenness_text([{"a": 1, "b": 2, "n_obs": 10}], None) == ""
 
 
