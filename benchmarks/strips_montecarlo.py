@@ -120,7 +120,8 @@ def survey(seed: int, methods: list[str], vegetation: float, scale: tuple, varia
                              "covariance": sol.extra.get("covariance"),
                              "trajectory_shape": list(cal.trajectory.shape),
                              "unevenness": [p["unevenness"] for p in sol.extra.get("strips", {})
-                                            .get("pairs", []) if "unevenness" in p]})
+                                            .get("pairs", []) if "unevenness" in p],
+                             "unevenness_pooled": sol.extra.get("strips", {}).get("unevenness")})
         if cache is None:
             shutil.rmtree(folder, ignore_errors=True)
     return rows

@@ -217,6 +217,8 @@ def _result(run: Run, solution: Solution, problem: StripProblem, pairs: list[dic
         "method": run.matcher.name, "robust": run.settings.robust, "pairs": pairs,
         "sigma0_reading": run.matcher.sigma0_reading, "outer_iterations": iterations,
         "row_dof": dof_summary(np.concatenate([rows_dof(c) for c in problem.corrs]))}
+    if run.unevenness is not None:  # VGICP's ℓ pooled over the survey's pairs
+        solution.extra["strips"]["unevenness"] = run.unevenness
     return CalibrationResult(solution, sensor, run.nominal, list(strips), run.overlaps, run.matcher,
                              pairs, first_residuals, solution.residuals, outer, fix, run.model,
                              problem.sigma)

@@ -46,6 +46,9 @@ class Correspondences:
     #: VGICP's unevenness ℓ, σ_u, σ_e read from the pair's points, when estimated
     #: (:meth:`calidar.strips.unevenness_length.UnevennessFit.to_dict`)
     unevenness: dict | None = None
+    #: … and the log L surface it was read from, for the survey's pooled ℓ
+    #: (:class:`calidar.strips.unevenness_length.Surface`; :mod:`calidar.strips.outer_loop`)
+    unevenness_surface: object | None = None
 
     def __post_init__(self):
         if self.A.shape[0] != self.B.shape[0]:

@@ -9,7 +9,7 @@ frozen dataclass), named in :data:`calidar.strips.config.MATCHERS`.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import ClassVar
 
 import numpy as np
@@ -81,3 +81,7 @@ class Vgicp(Matcher):
     def match(self, strip_a: int, points_a: np.ndarray, strip_b: int,
               points_b: np.ndarray) -> Correspondences:
         return match_pair_vgicp(strip_a, points_a, strip_b, points_b, self.settings)
+
+    def with_unevenness_length(self, length_m: float) -> "Vgicp":
+        """The same matcher with the unevenness's ℓ (m) fixed (the survey's pooled fit)."""
+        return replace(self, settings=replace(self.settings, unevenness_length_m=length_m))

@@ -41,6 +41,7 @@ from calidar.strips.processes import map_in_processes, worth_processes
 from calidar.strips.strip import Pose, Strip
 from calidar.strips.trajectory_errors import TrajectoryModel, corrections
 from calidar.strips.trajectory_level import TrajectoryLevel
+from calidar.strips.unevenness_length import pooled_fit
 
 #: an outer iteration's adjustment stops when every step is below this fraction of its σ: the next
 #: matching moves the points anyway (the last one is then refined:
@@ -107,6 +108,10 @@ class Run:
     #: ground control in the adjustment (calidar.strips.control)
     control: ControlPoints | None = None
     near: dict[int, np.ndarray] = field(default_factory=dict)  #: per strip its points near control
+    #: VGICP's unevenness ℓ pooled over the pairs at the first matching pass and kept for the
+    #: later ones (:func:`calidar.strips.unevenness_length.pooled_fit`'s record; None: not pooled)
+    unevenness: dict | None = None
+    pair_fits: dict = field(default_factory=dict)  #: (a, b) → its own fit at that pass
 
     @classmethod
     def start(cls, strips: Sequence[Strip], nominal: Sensor, matcher: Matcher,
@@ -171,11 +176,24 @@ class Run:
             found = self._whole_tasks(current, client, log, pool, threads)
         times["match_s"] = time.perf_counter() - clock
         corrs, pairs, skipped = self._usable(found, widened=client is None and threads > 1)
+        self._pool_unevenness(corrs)
         if k == 0 and skipped:
             self.warnings.append("strip pairs skipped: " + "; ".join(skipped))
         if not corrs:
             raise CalibrationError("no usable strip pair: " + "; ".join(skipped))
         return corrs + self._control_rows(current), pairs, times
+
+    def _pool_unevenness(self, corrs: list[Correspondences]) -> None:
+        """When the pairs read ℓ (the matcher's ``unevenness_length_m`` None: the first matching
+        pass), the survey's ℓ from all their rows at once, fixed in the matcher for the later
+        passes (each pair's own fit kept for the record)."""
+        surfaces = [c.unevenness_surface for c in corrs if c.unevenness_surface is not None]
+        if not surfaces:
+            return
+        fit = pooled_fit(surfaces)
+        self.unevenness = fit.to_dict() | {"pairs": len(surfaces)}
+        self.pair_fits = {(c.strip_a, c.strip_b): c.unevenness for c in corrs if c.unevenness}
+        self.matcher = self.matcher.with_unevenness_length(fit.length_m)
 
     def _thread_tasks(self, current: dict) -> list[tuple]:
         """Each pair's task for :func:`_match_in_thread`: its strips' re-georeferenced points and
@@ -228,8 +246,9 @@ class Run:
             else:
                 corrs.append(c if widened else
                              _to_strip_columns(c, o, len(self.by_id[o.a]), len(self.by_id[o.b])))
+                fit = c.unevenness or self.pair_fits.get((o.a, o.b))
                 pairs.append({"a": o.a, "b": o.b, "n_obs": c.n_obs}
-                             | ({} if c.unevenness is None else {"unevenness": c.unevenness}))
+                             | ({} if fit is None else {"unevenness": fit}))
         return corrs, pairs, skipped
 
     def solve(self, corrs: list[Correspondences], params: ParameterSet, step_in_sigma: float,

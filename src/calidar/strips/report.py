@@ -97,21 +97,23 @@ def correction_table(sec, result: CalibrationResult) -> None:
               formats=[None, "d", ".1f", ".1f", ".2f", ".2f"])
 
 
-def unevenness_text(pairs: list[dict]) -> str:
-    """VGICP's unevenness length ℓ as its pairs estimated it (``pairs``' "unevenness",
-    :mod:`calidar.strips.unevenness_length`), one sentence; "" when none was estimated."""
+def unevenness_text(pairs: list[dict], pooled: dict | None = None) -> str:
+    """VGICP's unevenness length ℓ, ``pooled`` over the survey's pairs at the first matching pass
+    (:func:`calidar.strips.unevenness_length.pooled_fit`'s record), with the pairs' own readings
+    (``pairs``' "unevenness"), one sentence; "" when none was estimated."""
     fits = [p["unevenness"] for p in pairs if p.get("unevenness")]
-    if not fits:
+    if not fits or pooled is None:
         return ""
     length = np.array([f["length_m"] for f in fits])
-    rows = sum(f["rows"] for f in fits)
-    sigma_u = np.median([f["sigma_u_m"] for f in fits]) * 1e3
-    sigma_e = np.median([f["sigma_e_m"] for f in fits]) * 1e3
-    return (f"VGICP's rows: unevenness length ℓ = {np.median(length):.2g} m (median over "
-            f"{len(fits)} pairs, {length.min():.2g}–{length.max():.2g} m; 0: white) estimated "
-            f"from {rows:,} rows of b's neighbourhoods, σ_u {sigma_u:.1f} mm over σ_e "
-            f"{sigma_e:.1f} mm (the rough rows' median); the rows' σ count the unevenness as "
-            "the two strips sample it.")
+    low, high = pooled["length_range_m"]
+    return (f"VGICP's rows: the ground's unevenness correlated over ℓ = {pooled['length_m']:.2g} m "
+            f"(95 % range {low:.2g}–{high:.2g} m; 0: uncorrelated), read from the points about "
+            f"their local planes in {pooled['rows']:,} neighbourhoods of {pooled['pairs']} pairs "
+            f"at the first matching pass and kept for the later ones (each pair alone: "
+            f"{length.min():.2g}–{length.max():.2g} m), unevenness σ_u "
+            f"{pooled['sigma_u_m'] * 1e3:.1f} mm over the points' noise σ_e "
+            f"{pooled['sigma_e_m'] * 1e3:.1f} mm (the pairs' median); each row's σ counts the "
+            "unevenness as the two strips sample it.")
 
 
 def add_report_section(report: Report, result: CalibrationResult,
@@ -132,7 +134,7 @@ def add_report_section(report: Report, result: CalibrationResult,
              f"{len(result.outer)} outer iterations (re-matching [1]), mean correspondence "
              "distance " + distances + " mm."
              + (f" The strips' points: {classes}." if classes else ""))
-    uneven = unevenness_text(result.pairs)
+    uneven = unevenness_text(result.pairs, sol.extra.get("strips", {}).get("unevenness"))
     if uneven:
         sec.text(uneven)
     if result.trajectory_model is not None and result.corrections:

@@ -27,71 +27,113 @@ So a row's unevenness σ_u² = ρ²/ḡ is read from its scatter beyond the pair
 ρ²·(Q/ḡ − Σw²) on top of the white formula: the unevenness re-counted as the two sides' sampling
 of it makes it count. R(d) = exp(−d²/2ℓ²) over the in-plane distance, ℓ =
 ``unevenness_length_m``. a's ball is an equal-weight mean (:func:`calidar.strips.vgicp_planes.
-_ball_means`). Measured: docs/validation.md, "VGICP's rows on rough ground".
+_ball_means`). Measured: docs/validation.md, "VGICP's rows on rough ground"; the numba kernel:
+"ℓ pooled over the survey".
 """
 
 from __future__ import annotations
 
 import numpy as np
 import scipy.sparse as sp
+from numba import njit
 
 
-def _padded(A: sp.csr_matrix) -> tuple[np.ndarray, np.ndarray]:
-    """(M, P) column indices of each row of A (its nonzeros, left-aligned) and their mask."""
-    count = np.diff(A.indptr)
-    width = int(count.max()) if count.size else 0
-    slot = np.arange(width)
-    mask = slot[None, :] < count[:, None]
-    index = np.zeros(mask.shape, np.int64)
-    index[mask] = A.indices
-    return index, mask
-
-
-def _corr(u: np.ndarray, v: np.ndarray, length_m: float) -> np.ndarray:
-    """exp(−d²/2ℓ²) between (M, P, 2) and (M, Q, 2) in-plane positions (m): (M, P, Q)."""
-    d2 = np.sum((u[:, :, None, :] - v[:, None, :, :]) ** 2, axis=-1)
-    return np.exp(-d2 / (2.0 * length_m**2))
+@njit(cache=True, nogil=True)
+def _row_cofactors(indptr, indices, a_points, b_rows, centroid, eigval, eigvec,
+                   length_m, rows):  # pragma: no cover - numba
+    """Q, g_a, g_b of :func:`sampling_cofactors` at the ``rows``, row by row (no (M, P, Q)
+    temporaries)."""
+    k = b_rows.shape[1]
+    q, g_a, g_b = np.empty(rows.size), np.empty(rows.size), np.empty(rows.size)
+    inv2l2 = 1.0 / (2.0 * length_m * length_m)
+    ub = np.empty((k, 2))
+    pw = np.empty(k)
+    Rbb = np.empty((k, k))
+    for out in range(rows.size):
+        m = rows[out]
+        n = indptr[m + 1] - indptr[m]
+        na = float(n)
+        lam0, lam1 = max(eigval[m, 1], 1e-300), max(eigval[m, 2], 1e-300)
+        for i in range(k):  # b's points in b's plane (axes 1, 2 of eigvec)
+            d0, d1, d2 = (b_rows[m, i, 0] - centroid[m, 0], b_rows[m, i, 1] - centroid[m, 1],
+                          b_rows[m, i, 2] - centroid[m, 2])
+            ub[i, 0] = d0 * eigvec[m, 0, 1] + d1 * eigvec[m, 1, 1] + d2 * eigvec[m, 2, 1]
+            ub[i, 1] = d0 * eigvec[m, 0, 2] + d1 * eigvec[m, 1, 2] + d2 * eigvec[m, 2, 2]
+        ua = np.empty((n, 2))
+        mean0 = mean1 = 0.0
+        for p in range(n):
+            j = indices[indptr[m] + p]
+            d0, d1, d2 = (a_points[j, 0] - centroid[m, 0], a_points[j, 1] - centroid[m, 1],
+                          a_points[j, 2] - centroid[m, 2])
+            ua[p, 0] = d0 * eigvec[m, 0, 1] + d1 * eigvec[m, 1, 1] + d2 * eigvec[m, 2, 1]
+            ua[p, 1] = d0 * eigvec[m, 0, 2] + d1 * eigvec[m, 1, 2] + d2 * eigvec[m, 2, 2]
+            mean0 += ua[p, 0] / na
+            mean1 += ua[p, 1] / na
+        hat_r = 0.0  # Σ hat_b ∘ Rbb
+        for i in range(k):
+            pw[i] = 1.0 / k + mean0 / lam0 * ub[i, 0] + mean1 / lam1 * ub[i, 1]
+            for l in range(k):
+                e0, e1 = ub[i, 0] - ub[l, 0], ub[i, 1] - ub[l, 1]
+                Rbb[i, l] = np.exp(-(e0 * e0 + e1 * e1) * inv2l2)
+                hat = 1.0 / k + ub[i, 0] * ub[l, 0] / lam0 + ub[i, 1] * ub[l, 1] / lam1
+                hat_r += hat * Rbb[i, l]
+        pwRpw = 0.0
+        for i in range(k):
+            for l in range(k):
+                pwRpw += pw[i] * Rbb[i, l] * pw[l]
+        raa = 0.0  # Σ Raa
+        for p in range(n):
+            for r in range(n):
+                e0, e1 = ua[p, 0] - ua[r, 0], ua[p, 1] - ua[r, 1]
+                raa += np.exp(-(e0 * e0 + e1 * e1) * inv2l2)
+        pred = np.empty(k)
+        s = np.zeros(k)  # Pᵀ1
+        rab_pw = rab_pred = pred_r_pred = 0.0
+        col = np.zeros(k)  # Σ_p Rab[p, :]
+        for p in range(n):
+            for i in range(k):
+                pred[i] = 1.0 / k + ua[p, 0] / lam0 * ub[i, 0] + ua[p, 1] / lam1 * ub[i, 1]
+                s[i] += pred[i]
+                e0, e1 = ua[p, 0] - ub[i, 0], ua[p, 1] - ub[i, 1]
+                rab = np.exp(-(e0 * e0 + e1 * e1) * inv2l2)
+                col[i] += rab
+                rab_pw += rab * pw[i]
+                rab_pred += pred[i] * rab
+            for i in range(k):
+                for l in range(k):
+                    pred_r_pred += pred[i] * Rbb[i, l] * pred[l]
+        sRs = scol = 0.0
+        for i in range(k):
+            scol += s[i] * col[i]
+            for l in range(k):
+                sRs += s[i] * Rbb[i, l] * s[l]
+        q[out] = raa / (na * na) - 2.0 * rab_pw / na + pwRpw
+        g_b[out] = (k - hat_r) / (k - 3)
+        trace = na - 2.0 * rab_pred + pred_r_pred
+        g_a[out] = (trace - (raa - 2.0 * scol + sRs) / na) / max(na - 1.0, 1.0)
+    return q, g_a, g_b
 
 
 def sampling_cofactors(A: sp.csr_matrix, a_points: np.ndarray, b_rows: np.ndarray,
                        centroid: np.ndarray, eigval: np.ndarray, eigvec: np.ndarray,
-                       length_m: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Per row (M): Q = wᵀRw, g_a and g_b (module docstring; dimensionless) for a's points
+                       length_m: float, rows: np.ndarray | None = None
+                       ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per row (M; ``rows``: those row indices only): Q = wᵀRw, g_a and g_b (module docstring;
+    dimensionless) for a's points
     ``a_points`` (m) averaged by the rows of ``A`` (M, len(a_points)) and b's ``b_rows`` (M, k, 3)
     m, b's plane through ``centroid`` (M, 3) m with scatter ``eigval`` (M, 3) m² along ``eigvec``
-    (M, 3, 3; column 0 the normal), R's length ``length_m`` (m)."""
-    index, mask = _padded(A)
-    n_a = mask.sum(axis=1).astype(float)
-    k = b_rows.shape[1]
-    E, lam = eigvec[:, :, 1:], np.maximum(eigval[:, 1:], 1e-300)  # b's in-plane axes
-    ua = np.einsum("mpi,mij->mpj", a_points[index] - centroid[:, None, :], E)
-    ua[~mask] = 0.0
-    ub = np.einsum("mki,mij->mkj", b_rows - centroid[:, None, :], E)
-    wa = mask / n_a[:, None]  # a's mean's weights
-    mean_a = np.einsum("mp,mpj->mj", wa, ua)
-    pred_a = 1.0 / k + np.einsum("mpj,mkj->mpk", ua / lam[:, None, :], ub)  # b's plane at a's pts
-    pred_a[~mask] = 0.0
-    pw = 1.0 / k + np.einsum("mj,mkj->mk", mean_a / lam, ub)  # … at a's mean
-    hat_b = 1.0 / k + np.einsum("mkj,mlj->mkl", ub / lam[:, None, :], ub)
-    Raa, Rab, Rbb = _corr(ua, ua, length_m), _corr(ua, ub, length_m), _corr(ub, ub, length_m)
-    Raa *= mask[:, :, None] & mask[:, None, :]
-    Rab *= mask[:, :, None]
-    q = (np.einsum("mp,mpq,mq->m", wa, Raa, wa) - 2.0 * np.einsum("mp,mpk,mk->m", wa, Rab, pw)
-         + np.einsum("mk,mkl,ml->m", pw, Rbb, pw))
-    g_b = (k - np.einsum("mkl,mkl->m", hat_b, Rbb)) / (k - 3)
-    # a's heights less b's plane there, S = (I, −P) R (I, −P)ᵀ; centred over a: tr S − 1ᵀS1/n_a
-    PR = np.einsum("mpk,mkl->mpl", pred_a, Rbb)
-    trace = (n_a - 2.0 * np.einsum("mpk,mpk->m", pred_a, Rab)
-             + np.einsum("mpl,mpl->m", PR, pred_a))
-    s = pred_a.sum(axis=1)  # Pᵀ1
-    total = (Raa.sum(axis=(1, 2)) - 2.0 * np.einsum("mk,mk->m", s, Rab.sum(axis=1))
-             + np.einsum("mk,mkl,ml->m", s, Rbb, s))
-    g_a = (trace - total / n_a) / np.maximum(n_a - 1.0, 1.0)
-    return q, g_a, g_b
+    (M, 3, 3; column 0 the normal), R's length ``length_m`` (m): a numba kernel, row by row (a's
+    ball an equal-weight mean of A's nonzeros)."""
+    A = sp.csr_matrix(A)
+    f = np.ascontiguousarray
+    rows = np.arange(A.shape[0]) if rows is None else rows
+    return _row_cofactors(f(A.indptr, np.int64), f(A.indices, np.int64), f(a_points, float),
+                          f(b_rows, float), f(centroid, float), f(eigval, float), f(eigvec, float),
+                          float(length_m), f(rows, np.int64))
 
 
 def unevenness_variance(var_a: np.ndarray, dof_a: np.ndarray, var_b: np.ndarray, dof_b: float,
-                        white_part: np.ndarray, cofactors: tuple,
+                        white_part: np.ndarray, cofactors,
                         quantile: float) -> tuple[np.ndarray, np.ndarray]:
     """The unevenness's share of a row's σ² beyond the white formula (m², may be negative) and
     its degrees of freedom: ρ²·Q/ḡ − (ρ²/s̄²)·``white_part`` (module docstring; with s_a ≈ s_b,
@@ -99,13 +141,18 @@ def unevenness_variance(var_a: np.ndarray, dof_a: np.ndarray, var_b: np.ndarray,
     freedom ``dof_a``, ``dof_b``, ρ² = max(0, s̄² − s_q²) with s_q² its ``quantile`` over the pair's
     rows (the noise level), ḡ the sides' g likewise weighted; ``white_part`` s_a²/n_a + s_b²·h',
     the white formula's σ², of which the rough fraction ρ²/s̄² is taken out (σ² never below the
-    noise level's white formula)."""
-    q, g_a, g_b = cofactors
-    da, db = np.asarray(dof_a, float), float(dof_b)
+    noise level's white formula). ``cofactors``: the rows' indices → their (Q, g_a, g_b)
+    (:func:`sampling_cofactors`), asked only of the rows with ρ² > 0 (the others' share is 0)."""
+    da, db = np.broadcast_to(np.asarray(dof_a, float), var_a.shape), float(dof_b)
     mean = (da * var_a + db * var_b) / (da + db)
     if mean.size == 0:
         return mean, mean.copy()
     rho2 = np.maximum(mean - float(np.quantile(mean, quantile)), 0.0)
-    g = np.maximum((da * g_a + db * g_b) / (da + db), 1e-12)
-    extra = rho2 * q / g - rho2 / np.maximum(mean, 1e-300) * white_part
+    rough = np.flatnonzero(rho2 > 0)
+    extra = np.zeros(mean.size)
+    if rough.size:
+        q, g_a, g_b = cofactors(rough)
+        g = np.maximum((da[rough] * g_a + db * g_b) / (da[rough] + db), 1e-12)
+        extra[rough] = (rho2[rough] * q / g
+                        - rho2[rough] / np.maximum(mean[rough], 1e-300) * white_part[rough])
     return extra, np.where(rho2 > 0, da + db, np.inf)

@@ -20,17 +20,18 @@ within χ²₁(0.95)/2 = 1.92 of the maximum (Cressie 1993, "Statistics for Spat
 likelihood fits of a covariance model; a variogram fit, §2.4, would need the raw heights'
 pairs, which the planes' residuals are not). Rows: those of b's scatter above the pair's
 ``quantile`` (where :func:`calidar.strips.row_sampling.unevenness_variance` acts), at most
-``max_rows`` of them evenly taken (300: ≈ 25 ms a fit). τ = 0 (no correlated part) gives ℓ = 0,
-the white formula; ℓ below the points' spacing needs no such rule (R → I there: the sampling
-cofactors fall to the white formula's by themselves). ℓ beyond the neighbourhoods' radius is
-read long (the points see the unevenness's curvature σ_u²/ℓ⁴ mostly; 5 m on 3 m discs reads
-8–16 m), where the rows' Q/ḡ tends to a limit. Measured: docs/validation.md, "ℓ estimated
-from the data".
+``max_rows`` of them evenly taken (300: ≈ 25 ms a fit). A survey's ℓ pools its pairs: the sum
+of their log L over ℓ, each pair's τ profiled out (:func:`pooled_fit`). τ = 0 (no correlated
+part) gives ℓ = 0, the white formula; ℓ below the points' spacing needs no such rule (R → I
+there: the sampling cofactors fall to the white formula's by themselves). ℓ beyond the
+neighbourhoods' radius is read long (the points see the unevenness's curvature σ_u²/ℓ⁴ mostly;
+5 m on 3 m discs reads 8–16 m), where the rows' Q/ḡ tends to a limit. Measured:
+docs/validation.md, "ℓ estimated from the data" and "ℓ pooled over the survey".
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -53,6 +54,8 @@ class UnevennessFit:
     sigma_e_m: float
     rows: int
     loglik: float = 0.0  #: the maximum of log L (the module docstring), to compare models
+    #: the log L surface it was read from (:class:`Surface`; one pair's, for :func:`pooled_fit`)
+    surface: Surface | None = field(default=None, compare=False, repr=False)
 
     def to_dict(self) -> dict:
         return {"length_m": self.length_m, "length_range_m": list(self.length_range_m),
@@ -93,28 +96,61 @@ def _rough_rows(b_rows: np.ndarray, centroid: np.ndarray, eigvec: np.ndarray, qu
     return local[rows, :, 1:], local[rows, :, 0]
 
 
+@dataclass(frozen=True)
+class Surface:
+    """One pair's log L over ``LENGTHS_M`` (module docstring), each node's τ profiled out: the
+    maximum over ``RATIOS`` (L,), its τ's index (L,), the rows' median ŝ there (L,) m², log L at
+    τ = 0 (white: the same at every ℓ) and the rows used."""
+
+    profile: np.ndarray
+    ratio: np.ndarray
+    scale: np.ndarray
+    white: float
+    rows: int
+
+
+def pair_surface(b_rows: np.ndarray, centroid: np.ndarray, eigvec: np.ndarray,
+                 quantile: float = 0.5, max_rows: int = 300,
+                 kernel: str = "gaussian") -> Surface | None:
+    """log L over the whole grid of b's neighbourhoods ``b_rows`` (M, k, 3) m, their planes through
+    ``centroid`` (M, 3) m along ``eigvec`` (M, 3, 3; column 0 the normal), the rows of scatter
+    above ``quantile`` (module docstring); None with fewer than 10 such rows."""
+    xy, z = _rough_rows(b_rows, centroid, eigvec, quantile, max_rows)
+    if len(z) < 10:
+        return None
+    N, v = residual_basis(xy, z)
+    d2 = np.sum((xy[:, :, None, :] - xy[:, None, :, :]) ** 2, axis=-1)
+    fits = [_profile(d2, N, v, length, kernel) for length in LENGTHS_M]
+    best = np.array([int(np.argmax(loglik)) for loglik, _ in fits])
+    return Surface(np.array([loglik[j] for (loglik, _), j in zip(fits, best)]), best,
+                   np.array([float(np.median(s[:, j])) for (_, s), j in zip(fits, best)]),
+                   float(fits[0][0][0]), len(z))
+
+
+def pooled_fit(surfaces: list[Surface | None]) -> UnevennessFit:
+    """ℓ (m) of several pairs' rows at once: the maximum of the sum of their log L over ℓ (τ per
+    pair, profiled out); ℓ = 0 (white) when no pair's rows are better with a correlated part; the
+    95 % range where the sum lies within ``HALF_CHI2`` of it; σ_u, σ_e the pairs' medians at that
+    ℓ. One pair: its own fit."""
+    surfaces = [s for s in surfaces if s is not None]
+    if not surfaces:
+        return UnevennessFit(0.0, (0.0, 0.0), 0.0, 0.0, 0)
+    total = np.sum([s.profile for s in surfaces], axis=0)
+    i = int(np.argmax(total))
+    inside = LENGTHS_M[total >= total[i] - HALF_CHI2]
+    tau = np.array([RATIOS[s.ratio[i]] for s in surfaces])
+    scale = np.array([s.scale[i] for s in surfaces])
+    white = total[i] <= sum(s.white for s in surfaces)
+    return UnevennessFit(0.0 if white else float(LENGTHS_M[i]),
+                         (float(inside.min()), float(inside.max())),
+                         float(np.median(np.sqrt(tau * scale))), float(np.median(np.sqrt(scale))),
+                         sum(s.rows for s in surfaces), float(total[i]))
+
+
 def estimate_length(b_rows: np.ndarray, centroid: np.ndarray, eigvec: np.ndarray,
                     quantile: float = 0.5, max_rows: int = 300,
                     kernel: str = "gaussian") -> UnevennessFit:
-    """ℓ (m) and σ_u, σ_e (m) of the surface under b's neighbourhoods ``b_rows`` (M, k, 3) m,
-    their planes through ``centroid`` (M, 3) m along ``eigvec`` (M, 3, 3; column 0 the normal):
-    the module docstring's profile likelihood over the rows of scatter above ``quantile``, on
-    every other node of ``LENGTHS_M`` first, then the two nodes beside the best."""
-    xy, z = _rough_rows(b_rows, centroid, eigvec, quantile, max_rows)
-    if len(z) < 10:
-        return UnevennessFit(0.0, (0.0, 0.0), 0.0, 0.0, len(z))
-    N, v = residual_basis(xy, z)
-    d2 = np.sum((xy[:, :, None, :] - xy[:, None, :, :]) ** 2, axis=-1)
-    fits = {i: _profile(d2, N, v, LENGTHS_M[i], kernel) for i in range(0, len(LENGTHS_M), 2)}
-    best = max(fits, key=lambda i: fits[i][0].max())
-    for i in (best - 1, best + 1):
-        if 0 <= i < len(LENGTHS_M):
-            fits[i] = _profile(d2, N, v, LENGTHS_M[i], kernel)
-    i = max(fits, key=lambda i: fits[i][0].max())
-    j = int(np.argmax(fits[i][0]))
-    top = fits[i][0][j]
-    inside = [LENGTHS_M[n] for n in fits if fits[n][0].max() >= top - HALF_CHI2]
-    tau, s = float(RATIOS[j]), float(np.median(fits[i][1][:, j]))
-    span = (float(min(inside)), float(max(inside)))
-    return UnevennessFit(0.0 if tau == 0.0 else float(LENGTHS_M[i]), span, float(np.sqrt(tau * s)),
-                         float(np.sqrt(s)), len(z), float(top))
+    """ℓ (m) and σ_u, σ_e (m) of one set of b's neighbourhoods (:func:`pair_surface`'s
+    arguments): :func:`pooled_fit` of its one surface."""
+    surface = pair_surface(b_rows, centroid, eigvec, quantile, max_rows, kernel)
+    return replace(pooled_fit([surface]), surface=surface)

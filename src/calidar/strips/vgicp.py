@@ -116,7 +116,8 @@ class VgicpSettings:
     #: point_to_plane: correlation length (m) of the surface's unevenness, R(d) = exp(−d²/2ℓ²),
     #: with which a row's scatter beyond the pair's ``unevenness_quantile`` is recounted as a's
     #: ball and b's plane sample it (:mod:`calidar.strips.row_sampling`); 0: taken as white;
-    #: None: estimated per pair from b's neighbourhoods (:mod:`calidar.strips.unevenness_length`)
+    #: None: estimated from b's neighbourhoods (:mod:`calidar.strips.unevenness_length`): per
+    #: pair at the first matching pass, then pooled over the survey and fixed here by the run
     unevenness_length_m: float | None = None
     unevenness_quantile: float = 0.5
     #: point_to_plane: b's scatter in ``max_scatter_ratio``'s test at least this (m)
@@ -386,4 +387,5 @@ def match_pair_vgicp(strip_a_id: int, points_a: np.ndarray, strip_b_id: int, poi
                       shape=(n_pairs, points_b.shape[0]))
     clock.lap("correspond")
     return Correspondences(strip_a_id, strip_b_id, A, B, normal, sigma_m=sigma, method="vgicp",
-                           dof=dof, unevenness=None if fit is None else fit.to_dict())
+                           dof=dof, unevenness=None if fit is None else fit.to_dict(),
+                           unevenness_surface=None if fit is None else fit.surface)

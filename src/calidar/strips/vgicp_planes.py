@@ -19,6 +19,7 @@ why less b's tilt: "VGICP's σ0 on airborne surveys" (issue 26, twelfth session)
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import partial
 
 import numpy as np
 import scipy.sparse as sp
@@ -245,9 +246,9 @@ def plane_rows(centre: np.ndarray, b_near: np.ndarray, tree_b, ov_a: np.ndarray,
             fit = estimate_length(b_rows, planes.centroid[keep], planes.eigvec[keep],
                                   settings.unevenness_quantile)
             length = fit.length_m
-        if length > 0:  # how a's ball and b's plane sample the unevenness
-            uneven = sampling_cofactors(A[keep], a_near, b_rows, planes.centroid[keep],
-                                        planes.eigval[keep], planes.eigvec[keep], length)
+        if length > 0:  # how a's ball and b's plane sample the unevenness (its rough rows')
+            uneven = partial(sampling_cofactors, A[keep], a_near, b_rows, planes.centroid[keep],
+                             planes.eigval[keep], planes.eigvec[keep], length)
         sigma, dof = row_sigma(var_a[keep], count[keep], planes.scatter[keep] ** 2, k - 3,
                                planes.leverage(mean_a)[keep], settings, tilt, uneven)
     return planes, A, near_a, keep, planes.normal[keep], sigma, dof, fit
@@ -263,8 +264,8 @@ def row_sigma(var_a: np.ndarray, count_a: np.ndarray, var_b: np.ndarray, dof_b: 
     plane's ``leverage`` h at a's mean and a's ``tilt_a`` cofactor t (:func:`_tilt_cofactor`;
     None: 0): σ² = s_a²/n_a + s_b²·max(h − t/n_a, 0) + κ·ρ² + ``noise_floor_m``² — s_a² holds
     b's normal's error, τ_b²·t, which a's mean does not (see the module docstring) — plus, with
-    ``uneven`` (Q, g_a, g_b of :func:`calidar.strips.row_sampling.sampling_cofactors`), the
-    unevenness's part recounted as the two sides sample it
+    ``uneven`` (rows → their Q, g_a, g_b: :func:`calidar.strips.row_sampling.
+    sampling_cofactors`), the unevenness's part recounted as the two sides sample it
     (:func:`calidar.strips.row_sampling.unevenness_variance`)."""
     var_a, nu_a = posterior(var_a, count_a - 1)
     var_b, nu_b = posterior(var_b, dof_b)

@@ -35,8 +35,9 @@ def _disc(rng, n: int, radius: float) -> np.ndarray:
     return np.column_stack([r * np.cos(t), r * np.sin(t)])
 
 
-def _rows(kind: str, rough: bool, seed: int, n_rows: int = 600):
-    """(residual m, σ m) of ``n_rows`` rows, each on its own draw of the surface."""
+def _geometry(kind: str, rough: bool, seed: int, n_rows: int):
+    """a's points, b's, the balls' averaging A, b's planes and a's counts of ``n_rows`` rows,
+    each on its own draw of the surface (m)."""
     rng = np.random.default_rng(seed)
     radius, noise, amp = (3.0, 0.03, 0.3) if kind == "disc" else (0.45, 0.005, 0.4)
     a_pts, b_pts, counts = [], [], []
@@ -58,6 +59,12 @@ def _rows(kind: str, rough: bool, seed: int, n_rows: int = 600):
     planes = local_planes(b, centre, 12, 1)
     indptr = np.concatenate([[0], np.cumsum(counts)])
     A = sp.csr_matrix((np.repeat(1.0 / np.array(counts), counts), np.arange(len(a)), indptr))
+    return a, b, A, planes, counts
+
+
+def _rows(kind: str, rough: bool, seed: int, n_rows: int = 600):
+    """(residual m, σ m) of ``n_rows`` rows, each on its own draw of the surface."""
+    a, b, A, planes, counts = _geometry(kind, rough, seed, n_rows)
     mean_a = A @ a
     var_a = _along_normal_variance(A, a, mean_a, planes.normal)
     tilt = _tilt_cofactor(A, a, mean_a, planes.eigval, planes.eigvec)
@@ -77,7 +84,7 @@ def _pair_z(kind: str, length_m: float, seed: int) -> tuple[np.ndarray, np.ndarr
     lev = np.concatenate([p[3].leverage(p[4]) for p in (parts_q, parts_r)])
     cof = tuple(np.concatenate([parts_q[6][j], parts_r[6][j]]) for j in range(3))
     sigma, _ = row_sigma(cat(1), cat(2), var_b, 9, lev, settings, cat(5),
-                         cof if length_m > 0 else None)
+                         (lambda rows: tuple(c[rows] for c in cof)) if length_m > 0 else None)
     z = np.concatenate([quiet, rough]) / sigma
     return z[: quiet.size], z[quiet.size:]
 
@@ -142,3 +149,57 @@ def test_rough_rows_closer_to_rms_z_one(kind, term_max, white_min):
     _, rough_white = _pair_z(kind, 0.0, 1)
     assert np.sqrt(np.mean(rough**2)) < term_max
     assert np.sqrt(np.mean(rough_white**2)) > white_min
+
+
+def _reference_cofactors(A, a_points, b_rows, centroid, eigval, eigvec, length_m):
+    """The einsum path the numba kernel replaced (main 852f253's ``sampling_cofactors``): every
+    row at once over (M, P, Q) temporaries."""
+    count = np.diff(A.indptr)
+    mask = np.arange(int(count.max()))[None, :] < count[:, None]
+    index = np.zeros(mask.shape, np.int64)
+    index[mask] = A.indices
+    n_a = mask.sum(axis=1).astype(float)
+    k = b_rows.shape[1]
+    E, lam = eigvec[:, :, 1:], np.maximum(eigval[:, 1:], 1e-300)
+
+    def corr(u, v):
+        return np.exp(-np.sum((u[:, :, None, :] - v[:, None, :, :]) ** 2, axis=-1)
+                      / (2.0 * length_m**2))
+
+    ua = np.einsum("mpi,mij->mpj", a_points[index] - centroid[:, None, :], E)
+    ua[~mask] = 0.0
+    ub = np.einsum("mki,mij->mkj", b_rows - centroid[:, None, :], E)
+    wa = mask / n_a[:, None]
+    mean_a = np.einsum("mp,mpj->mj", wa, ua)
+    pred_a = 1.0 / k + np.einsum("mpj,mkj->mpk", ua / lam[:, None, :], ub)
+    pred_a[~mask] = 0.0
+    pw = 1.0 / k + np.einsum("mj,mkj->mk", mean_a / lam, ub)
+    hat_b = 1.0 / k + np.einsum("mkj,mlj->mkl", ub / lam[:, None, :], ub)
+    Raa, Rab, Rbb = corr(ua, ua), corr(ua, ub), corr(ub, ub)
+    Raa *= mask[:, :, None] & mask[:, None, :]
+    Rab *= mask[:, :, None]
+    q = (np.einsum("mp,mpq,mq->m", wa, Raa, wa) - 2.0 * np.einsum("mp,mpk,mk->m", wa, Rab, pw)
+         + np.einsum("mk,mkl,ml->m", pw, Rbb, pw))
+    g_b = (k - np.einsum("mkl,mkl->m", hat_b, Rbb)) / (k - 3)
+    PR = np.einsum("mpk,mkl->mpl", pred_a, Rbb)
+    trace = (n_a - 2.0 * np.einsum("mpk,mpk->m", pred_a, Rab)
+             + np.einsum("mpl,mpl->m", PR, pred_a))
+    s = pred_a.sum(axis=1)
+    total = (Raa.sum(axis=(1, 2)) - 2.0 * np.einsum("mk,mk->m", s, Rab.sum(axis=1))
+             + np.einsum("mk,mkl,ml->m", s, Rbb, s))
+    g_a = (trace - total / n_a) / np.maximum(n_a - 1.0, 1.0)
+    return q, g_a, g_b
+
+
+@pytest.mark.parametrize("kind", ["disc", "line"])
+@pytest.mark.parametrize("length_m", [0.3, 2.0, 8.0])
+def test_numba_cofactors_equal_the_einsum_path(kind, length_m):
+    """The numba kernel (row by row) gives the einsum path's Q, g_a, g_b to ≤ 1e-12 relative to
+    the terms they are differences of (each O(1): R ≤ 1, the weights' sums 1; a's line of points
+    leaves Q ≈ 1e-4 from terms ≈ 1, both paths' rounding ≈ 1e-15 absolute)."""
+    a, b, A, planes, _ = _geometry(kind, True, 5, 80)
+    args = (A, a, b[planes.index], planes.centroid, planes.eigval, planes.eigvec, length_m)
+    got, want = sampling_cofactors(*args), _reference_cofactors(*args)
+    for g, w in zip(got, want):
+        assert np.all(np.isfinite(g)) and np.abs(w).max() > 0
+        np.testing.assert_allclose(g, w, rtol=1e-12, atol=1e-12)
