@@ -307,6 +307,31 @@ def _remove(tmp: str) -> None:
             break
 
 
+_REMOVALS: list = []  #: threads removing temporaries no longer needed (:func:`remove_soon`)
+
+
+def remove_soon(tmp: str | os.PathLike) -> None:
+    """Remove a registered temporary (e.g. the held points of a first pass, once the last pass has
+    read them) in a thread, beside the work that follows: unlinking large files is the kernel's
+    work, done while the run writes its report. It stays registered until it is gone (an
+    interruption meanwhile removes it as every temporary); :func:`finish_removals` waits."""
+    import threading
+
+    def remove() -> None:
+        _remove(str(tmp))
+        _TEMPORARIES.pop(str(tmp), None)
+
+    thread = threading.Thread(target=remove, name="calidar-remove")
+    _REMOVALS[:] = [t for t in _REMOVALS if t.is_alive()] + [thread]
+    thread.start()
+
+
+def finish_removals() -> None:
+    """Wait for the removals :func:`remove_soon` started."""
+    while _REMOVALS:
+        _REMOVALS.pop().join()
+
+
 def remove_temporaries() -> None:
     """Remove every live temporary of this process and its output locks at once (a second Ctrl-C:
     the run ends now, without unwinding)."""

@@ -251,23 +251,31 @@ def _exit(code: int) -> None:
     and the process ends without it (the run's temporaries are already gone: every transaction
     cleaned up). An interrupted run always ends so: a worker thread that has just stopped may
     still be tearing down its thread state while the interpreter finalises, which aborted one
-    run in fifty on CI ("PyThreadState_Get: ... the GIL is released", exit −6)."""
+    run in fifty on CI ("PyThreadState_Get: ... the GIL is released", exit −6). Every run ends
+    without it: a run whose threads all ended first waits for the temporaries being removed and
+    runs the atexit functions (the finalisation would only free memory, 0.3–0.8 s at 64 M)."""
+    import atexit
     import threading
 
+    from calidar.outputs import finish_removals, remove_temporaries
+
     interrupted = code in (128 + signal.SIGINT, 128 + signal.SIGTERM)
+    if not interrupted:
+        finish_removals()  # the temporaries being removed beside the run's last work
     others = [t for t in threading.enumerate() if t is not threading.main_thread()]
     if interrupted or any(t.is_alive() for t in others):
-        import logging
-
-        from calidar.outputs import remove_temporaries
-
         remove_temporaries()  # what threads still held (e.g. ingest.held): atexit will not run
+    else:
+        # every thread ended: the atexit functions (temporaries, logging) run as at a normal
+        # exit, but not the interpreter's finalisation after them (freeing every object and
+        # module one by one: 0.3–0.8 s after a 64 M point run, nothing left to write)
+        atexit._run_exitfuncs()
+    import logging
 
-        logging.shutdown()
-        for stream in (sys.stdout, sys.stderr):
-            try:
-                stream.flush()
-            except (OSError, ValueError):
-                pass
-        os._exit(code)
-    sys.exit(code)
+    logging.shutdown()
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (OSError, ValueError):
+            pass
+    os._exit(code)

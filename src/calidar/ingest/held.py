@@ -12,6 +12,7 @@ much as reading those bytes back.
 from __future__ import annotations
 
 from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import replace
 from pathlib import Path
 
@@ -65,6 +66,25 @@ class HeldPoints:
                    for _, fields, sizes in self.files.values())
 
 
+@contextmanager
+def spill_folder(prefix: str) -> Iterator[Path]:
+    """A temporary folder for a command's held points and spills, registered as the run's
+    temporaries are (an interruption removes it, :func:`calidar.outputs.remove_temporaries`):
+    removed at once when the block fails, in a thread beside what the run does next when it
+    ends (:func:`calidar.outputs.remove_soon`: unlinking large files is the kernel's work)."""
+    import tempfile
+
+    from calidar import outputs
+
+    folder = outputs._temporary(lambda: Path(tempfile.mkdtemp(prefix=prefix)), "held points")
+    try:
+        yield folder
+    except BaseException:
+        _remove_folder(str(folder))
+        raise
+    outputs.remove_soon(folder)
+
+
 #: what the strip ingest keeps of a point: the stored coordinates, the time in the trajectory's
 #: system, point_source_id and the selection's fields (pass 2 and the overlap-quality stages need
 #: no more)
@@ -100,6 +120,15 @@ class HeldFiles:
 
     def close(self) -> None:
         self._remove()
+
+    def release(self) -> None:
+        """The folder removed in a thread (:func:`calidar.outputs.remove_soon`), beside what the
+        run does next, once the last pass has read it; nothing can be read afterwards."""
+        from calidar.outputs import remove_soon
+
+        if self._remove.detach() is not None:
+            self.complete.clear()
+            remove_soon(self.folder)
 
     def add(self, path: Path, chunk, t: np.ndarray, scales, offsets) -> bool:
         """A chunk (LasPoints with STRIP_FIELDS) of ``path`` and its times; False (nothing kept)

@@ -363,6 +363,10 @@ def calibrate_strips(strips, trajectory, sensor, config: StripConfig = StripConf
         corrected = {m: corrected_trajectory(inputs, r) for m, r in results.items()}
         quality = {m: quality_stages(inputs, r, corrected[m], progress, work)
                    for m, r in results.items()}
+        # the last pass read: the held points' files go beside the report (then the files)
+        held, inputs.source.held = inputs.source.held, None
+        if held is not None:
+            held.release()
     record.tasks = work.log.to_dict()
     agree = [agreement_finding(results)] if len(results) > 1 else []  # in both matchers' verdicts
     verdicts = {m: strip_verdict(r, quality[m], inputs.notes,

@@ -15,7 +15,6 @@ plan and accumulator (:mod:`calidar.ingest.stages`).
 
 from __future__ import annotations
 
-import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -93,7 +92,7 @@ def measure(paths, config: QualityConfig = QualityConfig()):
     is decompressed once: the first pass keeps what the second needs
     (:mod:`calidar.ingest.held`)."""
     from calidar.io.las import las_file_crs, las_header
-    from calidar.ingest.held import HeldPoints
+    from calidar.ingest.held import HeldPoints, spill_folder
     from calidar.ingest.lines import index_flight_lines
     from calidar.strips.quality import SwathAccumulator, overlap_cell, overlap_plan
     from calidar.strips.distribute import IN_PROCESS_THREADS
@@ -106,9 +105,9 @@ def measure(paths, config: QualityConfig = QualityConfig()):
     metric = Metric.at(crs, header.mins, header.maxs, options.geoid_undulation_m, paths[0])
     first = [PointSelection("classes", classes)] if classes else [PointSelection("ground", (2,)),
                                                                   PointSelection("last returns")]
-    # spill: held points, cell moments beyond HOLD_BYTES
-    with tempfile.TemporaryDirectory(prefix="calidar-moments-") as spill:
-        held = HeldPoints(Path(spill))
+    # spill: held points, cell moments beyond HOLD_BYTES (removed beside the outputs' writing)
+    with spill_folder("calidar-moments-") as spill:
+        held = HeldPoints(spill)
         counts = CellCounts({p: first for p in paths}, metric, overlap_cell(cell_m), held)
         raw = ("X", "Y", "Z") if metric.frame is None else ()
         fields = ("x", "y", "z", *raw, *SELECTION_FIELDS[1:])
@@ -122,7 +121,7 @@ def measure(paths, config: QualityConfig = QualityConfig()):
         selections = {p: choose_selection(p, index.classes[p], classes) for p in paths}
         names = counts.names(index)  #: line → a file holding it (for messages)
         plan = overlap_plan(counts.by_line(index, selections), counts.grid_m, settings, names)
-        acc = SwathAccumulator(cell_m, plan, Path(spill))
+        acc = SwathAccumulator(cell_m, plan, spill)
         for p in paths:
             for xyz, psid, t in held_chunks(counts.held, p, first.index(selections[p]), metric):
                 ids = index.of(psid, t)

@@ -86,3 +86,48 @@ def test_held_folder_is_a_registered_temporary():
     folder = again.folder
     del again
     assert not folder.exists() and str(folder) not in outputs._TEMPORARIES
+
+
+def test_released_held_folder_goes_in_a_thread_registered_until_gone(monkeypatch):
+    """HeldFiles.release (the last pass read it): removed by a thread beside what follows; until
+    it is gone it stays a registered temporary (an interruption meanwhile removes it as every
+    temporary); finish_removals waits for it; a second release does nothing."""
+    import threading
+
+    from calidar import outputs
+    from calidar.ingest.held import HeldFiles
+
+    outputs.finish_removals()  # an earlier test's (a library call leaves them to run)
+    go, real = threading.Event(), outputs._remove
+    monkeypatch.setattr(outputs, "_remove", lambda tmp: go.wait(30) and real(tmp))
+    held = HeldFiles()
+    (held.folder / "held_0.bin").write_bytes(b"0" * 10)
+    held.complete.add(Path("a.laz"))
+    held.release()
+    assert held.folder.exists() and str(held.folder) in outputs._TEMPORARIES
+    assert [t.name for t in outputs._REMOVALS] == ["calidar-remove"] and not held.complete
+    held.release()
+    assert len(outputs._REMOVALS) == 1
+    go.set()
+    outputs.finish_removals()
+    assert not held.folder.exists() and str(held.folder) not in outputs._TEMPORARIES
+    assert outputs._REMOVALS == []
+
+
+def test_calibrate_strips_releases_the_held_points_after_the_last_pass(survey, monkeypatch):
+    """calibrate_strips drops the held points once the quality stages have read them (released:
+    removed beside the report); the results' strips are then read from the files, as written
+    before."""
+    import calidar
+    from calidar import outputs
+    from calidar.ingest.held import HeldFiles
+
+    released, real = [], HeldFiles.release
+    monkeypatch.setattr(HeldFiles, "release", lambda self: released.append(self.folder) or real(self))
+    paths = sorted((survey / "strips").glob("*.laz"))
+    run = calidar.calibrate_strips(paths, survey / "sbet.out", survey / "sensor.toml")
+    outputs.finish_removals()
+    assert run.inputs.source.held is None and len(released) == 1 and not released[0].exists()
+    out = run.write(survey.parent / "cal_released", strips=True)
+    strips = [p for p in out if p.name.startswith("strip_") and p.stat().st_size > 0]
+    assert len(strips) >= 3 and {p.name for p in out} >= {"sensor.toml", "solution.json"}

@@ -80,3 +80,31 @@ def test_scaled_integers_equal_the_axis_by_axis_numpy_scaling():
     floats = [np.array([1.0, 2.0])] * 3  # not integers: the numpy way, the same values
     np.testing.assert_array_equal(scaled_integers(*floats, scales, offsets),
                                   _scaled(np.stack(floats, axis=1), scales, offsets))
+
+
+
+def test_spill_folder_removed_beside_what_follows_or_at_once_on_failure(monkeypatch):
+    """calidar quality's folder of held points and spilled moments: a registered temporary while
+    the block runs (an interruption removes it); when the block ends, removed by a thread
+    (finish_removals waits for it); when it fails, removed before the error goes on."""
+    import threading
+
+    import pytest
+
+    from calidar import outputs
+    from calidar.ingest.held import HeldPoints, spill_folder
+
+    outputs.finish_removals()  # an earlier test's (a library call leaves them to run)
+    go, real = threading.Event(), outputs._remove
+    monkeypatch.setattr(outputs, "_remove", lambda tmp: go.wait(30) and real(tmp))
+    with spill_folder("calidar-test-") as folder:
+        HeldPoints(folder).add("a", x=np.arange(5))
+        assert str(folder) in outputs._TEMPORARIES
+    assert folder.exists() and [t.name for t in outputs._REMOVALS] == ["calidar-remove"]
+    go.set()
+    outputs.finish_removals()
+    assert not folder.exists() and str(folder) not in outputs._TEMPORARIES
+    with pytest.raises(KeyError), spill_folder("calidar-test-") as failed:
+        raise KeyError("x")
+    assert not failed.exists() and str(failed) not in outputs._TEMPORARIES
+    assert outputs._REMOVALS == []
