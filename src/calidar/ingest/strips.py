@@ -176,8 +176,13 @@ def _kept_rows(source: StripSource, kept: dict, table: tuple, chunk, ids: np.nda
 
 def _kept_rows_numpy(source: StripSource, kept: dict, chunk, ids: np.ndarray):
     """:func:`_kept_rows` by numpy steps (any CRS, any classes)."""
-    keys = source.cell_keys(chunk)
-    use = calibration_mask(chunk, source.settings)
+    yield from rows_in_kept_cells(ids, source.cell_keys(chunk),
+                                  calibration_mask(chunk, source.settings), kept)
+
+
+def rows_in_kept_cells(ids: np.ndarray, keys: np.ndarray, use: np.ndarray | None, kept: dict):
+    """(line, rows) of a chunk's points whose line ``ids`` has its cell ``keys`` among the line's
+    ``kept`` cells (sorted keys) and whose ``use`` is true (None: every point)."""
     for i, rows in split_rows(ids):
         cells = kept.get(i)
         if cells is None or cells.size == 0:

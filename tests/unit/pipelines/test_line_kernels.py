@@ -9,7 +9,8 @@ import pytest
 
 from calidar.ingest.line_kernels import chunk_lines, kept_mask, kept_table
 from calidar.ingest.regeoref import _nan_rows
-from calidar.ingest.source import group_keys, split_rows
+from calidar.ingest.source import group_keys
+from calidar.ingest.strips import rows_in_kept_cells
 from calidar.strips.overlap import cell_keys
 from calidar.strips.selection import EXCLUDED_CLASSES, among, excluded
 
@@ -53,18 +54,11 @@ def test_a_group_not_seen_and_a_time_not_finite():
 
 
 def _numpy_rows(ids, xyz, factor, cell_m, kept, classes):
-    """_kept_rows_numpy's steps: planar_xy, cell_keys, calibration_mask, split_rows, searchsorted."""
+    """_kept_rows_numpy's steps: planar_xy, cell_keys, calibration_mask, then the rows in the kept
+    cells (split_rows, searchsorted)."""
     keys = cell_keys(xyz[:, :2] * factor, cell_m)
     use = None if classes is None else ~excluded(classes)
-    out = []
-    for i, rows in split_rows(ids):
-        cells = kept.get(i)
-        if cells is None or cells.size == 0:
-            continue
-        pos = np.minimum(np.searchsorted(cells, keys[rows]), cells.size - 1)
-        inside = cells[pos] == keys[rows]
-        out.append((i, rows[inside if use is None else inside & use[rows]]))
-    return out
+    return list(rows_in_kept_cells(ids, keys, use, kept))
 
 
 @pytest.mark.parametrize("factor", [1.0, 0.3048006096012192])
